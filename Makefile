@@ -1,0 +1,37 @@
+# drillgym: two set-up commands for a newcomer.
+#   make demo   simulate the built-in rig (torsional stick-slip at 1 V) and plot it
+#   make test   run the test suite
+# Both create the virtual environment .venv on first use (idempotent).
+
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+PIP    := $(PY) -m pip
+STAMP  := $(VENV)/.installed
+
+.PHONY: venv demo test bench clean
+
+venv: $(STAMP)
+
+# torch first: `pip install torch==2.13.0` takes the local CPU build; installing it
+# after stable-baselines3 would pull several GB of CUDA wheels instead.
+$(STAMP): pyproject.toml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PIP) install --upgrade pip wheel setuptools
+	$(PIP) install torch==2.13.0
+	$(PIP) install -e '.[dev]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	mkdir -p out
+	$(VENV)/bin/drillgym simulate --config torsional --u 1.0 --duration 30 --out out/demo.csv --plot out/demo.png
+	@echo "wrote out/demo.csv and out/demo.png"
+
+test: $(STAMP)
+	$(PY) -m pytest -q -n 2 tests
+
+bench: $(STAMP)
+	$(PY) benchmarks/bench_simulator.py
+
+clean:
+	rm -rf $(VENV) out .pytest_cache

@@ -1,0 +1,26 @@
+"""drillgym: a testbed for friction-induced vibrations in a drill-string rotor rig.
+
+The physics core (parameters, equations of motion, set-valued friction,
+integrators, equilibria) lives in this package and depends on nothing else in
+the repository.  Importing ``drillgym`` also registers the Gymnasium
+environments ``drillgym/Torsional-v0``, ``drillgym/Lateral-v0``,
+``drillgym/Coupled-v0`` (and ``drillgym/Hardware-v0``) when they are available.
+"""
+
+from .configurations import Configuration, N_STATE, STATE_NAMES, parse_configuration
+from .integrators import DEFAULT_DT, OUTPUT_NAMES
+from .params import ParameterError, RigParams
+from .simulator import BatchSimulator, BatchTrajectory, Trajectory, initial_state, simulate, simulate_batch
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Configuration", "N_STATE", "STATE_NAMES", "parse_configuration", "DEFAULT_DT", "OUTPUT_NAMES",
+    "ParameterError", "RigParams", "BatchSimulator", "BatchTrajectory", "Trajectory", "initial_state",
+    "simulate", "simulate_batch",
+]
+
+import importlib.util as _ilu
+
+if _ilu.find_spec("drillgym.envs") is not None:  # registers the Gymnasium ids
+    from . import envs as _envs  # noqa: F401

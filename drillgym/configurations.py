@@ -1,0 +1,79 @@
+"""The rig's experimental configurations (MODEL.md table) and the state layout.
+
+| name            | lateral motion | brake | lower friction law | upper disc |
+|-----------------|----------------|-------|--------------------|------------|
+| upper           | -              | -     | - (string off)     | driven     |
+| torsional       | held x = y = 0 | on    | Stribeck brake     | driven     |
+| lateral         | free           | off   | bearing            | driven     |
+| coupled         | free           | on    | Stribeck brake     | driven     |
+| free_vibration  | held           | off   | bearing            | clamped    |
+
+``free_vibration`` is the identification experiment of report 3.3: the upper
+disc is held, the lower disc is twisted by alpha0 and released.
+
+State vector (length ``N_STATE``), SI units, used by every kernel:
+
+| index | name     | meaning                                                      |
+|-------|----------|--------------------------------------------------------------|
+| 0     | theta_u  | upper disc angle (rad)                                       |
+| 1     | theta_l  | lower disc angle (rad); alpha = theta_l - theta_u            |
+| 2     | omega_u  | upper disc speed (rad/s)                                     |
+| 3     | omega_l  | lower disc speed (rad/s)                                     |
+| 4     | x        | lateral displacement of centre B, frame rotating with theta_u (m) |
+| 5     | y        | idem (m)                                                     |
+| 6     | vx       | dx/dt in the rotating frame (m/s)                            |
+| 7     | vy       | dy/dt (m/s)                                                  |
+| 8     | u_m      | motor voltage after the motor_lag filter (V; = u when off)   |
+
+Friction modes (length 2 integer vector: upper, lower): +1 / -1 slipping in
+that direction, 0 stuck (velocity exactly zero, friction torque inside the
+stick set).
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+
+__all__ = ["Configuration", "N_STATE", "STATE_NAMES", "parse_configuration"]
+
+
+class Configuration(IntEnum):
+    UPPER = 0
+    TORSIONAL = 1
+    LATERAL = 2
+    COUPLED = 3
+    FREE_VIBRATION = 4
+
+    @property
+    def label(self) -> str:
+        return self.name.lower()
+
+    @property
+    def has_lower(self) -> bool:
+        return self is not Configuration.UPPER
+
+    @property
+    def lateral_free(self) -> bool:
+        return self in (Configuration.LATERAL, Configuration.COUPLED)
+
+    @property
+    def brake(self) -> bool:
+        return self in (Configuration.TORSIONAL, Configuration.COUPLED)
+
+
+STATE_NAMES = ("theta_u", "theta_l", "omega_u", "omega_l", "x", "y", "vx", "vy", "u_m")
+N_STATE = len(STATE_NAMES)
+
+
+def parse_configuration(config: "str | Configuration | int") -> Configuration:
+    """'torsional' / Configuration.TORSIONAL / 1 -> Configuration; clear error otherwise."""
+    if isinstance(config, Configuration):
+        return config
+    if isinstance(config, str):
+        key = config.strip().upper().replace("-", "_")
+        if key in Configuration.__members__:
+            return Configuration[key]
+    elif isinstance(config, int) and config in set(c.value for c in Configuration):
+        return Configuration(config)
+    names = ", ".join(c.label for c in Configuration)
+    raise ValueError(f"unknown configuration {config!r}; expected one of: {names}")

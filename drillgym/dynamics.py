@@ -1,0 +1,297 @@
+"""Equations of motion of the rig (MODEL.md), compiled with numba.
+
+Generalised coordinates used by the kernels are q' = (theta_u, theta_l, x, y):
+the report's q = (x, y, alpha, theta_u) with alpha = theta_l - theta_u, so that
+the two friction torques act on single coordinates (a stuck disc is one
+coordinate with zero velocity).  The transformation q = T q' turns MODEL.md's
+Lagrange equations M q'' + h = Q into M' q''' + h' = Q' with M' = T^T M T:
+
+    M' = | Ju + m r^2   G    -m y   m x |      P = e mr, c = cos alpha, s = sin alpha
+         | G            Jl   -P s   P c |      G = P (x c + y s),  r^2 = x^2 + y^2
+         | -m y        -P s   m     0   |
+         | m x          P c   0     m   |
+
+    h'_u = -P (x s - y c) wl^2 + 2 m W (x vx + y vy) - k_theta alpha
+    h'_l =  2 P W (c vx + s vy) + P W^2 (x s - y c) + k_theta alpha
+    h'_x = -m x W^2 - 2 m W vy - P c wl^2
+    h'_y = -m y W^2 + 2 m W vx - P s wl^2
+
+plus the lateral spring/damper forces, written in the fixed frame
+(X = x cos theta_u - y sin theta_u, Y = x sin theta_u + y cos theta_u) so that
+anisotropy (kx != ky) and lateral dry friction are the same formula; for kx =
+ky = k, bx = by = b they are exactly MODEL.md's k and b terms (tested).
+Generalised forces: Q'_u = km u - Tfu(wu), Q'_l = -Tfl(wl).
+
+With x = y = 0 held (torsional, free_vibration) M' = diag(Ju, Jl): the report's
+reduced equations (3.19), (3.20).
+
+A stuck disc contributes an unknown friction torque lambda that keeps its
+acceleration zero; for the set S of stuck discs lambda solves
+(E_S^T M'^-1 E_S) lambda = E_S^T M'^-1 F, the Lagrange-multiplier form of the
+switch model.  ``state_derivative`` returns these torques so the integrator can
+release a disc when lambda leaves its stick set.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .configurations import Configuration
+from .friction import lower_slip_torque, upper_slip_torque
+from .params import IDX
+
+UPPER = int(Configuration.UPPER)
+TORSIONAL = int(Configuration.TORSIONAL)
+LATERAL = int(Configuration.LATERAL)
+COUPLED = int(Configuration.COUPLED)
+FREE_VIBRATION = int(Configuration.FREE_VIBRATION)
+
+_Ju, _km, _Jl, _kth = IDX.Ju, IDX.km, IDX.Jl, IDX.ktheta
+_mr, _mt, _k, _b, _e = IDX.mr, IDX.mt, IDX.k, IDX.b, IDX.e
+_dtheta, _tau_m, _dk, _db, _Fc_lat = IDX.dtheta, IDX.tau_m, IDX.dk, IDX.db, IDX.Fc_lat
+
+LATERAL_COULOMB_EPS = 1e-4  # m/s: regularisation speed of the lateral dry-friction direction
+
+# indices of the state vector (see configurations.py)
+S_TU, S_TL, S_WU, S_WL, S_X, S_Y, S_VX, S_VY, S_UM = 0, 1, 2, 3, 4, 5, 6, 7, 8
+
+
+@njit(cache=True)
+def brake_on(cfg: int) -> bool:
+    return cfg == TORSIONAL or cfg == COUPLED
+
+
+@njit(cache=True)
+def lateral_free(cfg: int) -> bool:
+    return cfg == LATERAL or cfg == COUPLED
+
+
+@njit(cache=True, fastmath=True)
+def lateral_generalised_forces(y: np.ndarray, p: np.ndarray) -> tuple:
+    """Spring, damper and dry-friction forces of the lateral constraints (fixed frame),
+    as generalised forces on (theta_u, x, y): returns (Q_u, Q_x, Q_y) in N m, N, N."""
+    th = y[S_TU]
+    W = y[S_WU]
+    x = y[S_X]
+    yy = y[S_Y]
+    ct = math.cos(th)
+    st = math.sin(th)
+    X = x * ct - yy * st
+    Y = x * st + yy * ct
+    Xd = ct * y[S_VX] - st * y[S_VY] - Y * W
+    Yd = st * y[S_VX] + ct * y[S_VY] + X * W
+    kx = p[_k] + p[_dk]
+    ky = p[_k] - p[_dk]
+    bx = p[_b] + p[_db]
+    by = p[_b] - p[_db]
+    FX = -kx * X - bx * Xd
+    FY = -ky * Y - by * Yd
+    if p[_Fc_lat] > 0.0:
+        vn = math.sqrt(Xd * Xd + Yd * Yd + LATERAL_COULOMB_EPS * LATERAL_COULOMB_EPS)
+        FX -= p[_Fc_lat] * Xd / vn
+        FY -= p[_Fc_lat] * Yd / vn
+    Qx = FX * ct + FY * st
+    Qy = -FX * st + FY * ct
+    Qu = -FX * Y + FY * X
+    return Qu, Qx, Qy
+
+
+@njit(cache=True)
+def _cholesky_solve4(A: np.ndarray, B: np.ndarray, n_rhs: int) -> None:
+    """Solve A X = B in place (B overwritten by X) for SPD 4x4 A; A overwritten by its factor."""
+    n = 4
+    for j in range(n):
+        s = A[j, j]
+        for k in range(j):
+            s -= A[j, k] * A[j, k]
+        d = math.sqrt(s)
+        A[j, j] = d
+        for i in range(j + 1, n):
+            s = A[i, j]
+            for k in range(j):
+                s -= A[i, k] * A[j, k]
+            A[i, j] = s / d
+    for r in range(n_rhs):
+        for i in range(n):
+            s = B[i, r]
+            for k in range(i):
+                s -= A[i, k] * B[k, r]
+            B[i, r] = s / A[i, i]
+        for i in range(n - 1, -1, -1):
+            s = B[i, r]
+            for k in range(i + 1, n):
+                s -= A[k, i] * B[k, r]
+            B[i, r] = s / A[i, i]
+
+
+@njit(cache=True)
+def mass_matrix(y: np.ndarray, p: np.ndarray, M: np.ndarray) -> None:
+    """Fill M (4x4) with M'(q) in the order (theta_u, theta_l, x, y)."""
+    m = p[_mr] + p[_mt]
+    P = p[_e] * p[_mr]
+    a = y[S_TL] - y[S_TU]
+    c = math.cos(a)
+    s = math.sin(a)
+    x = y[S_X]
+    yy = y[S_Y]
+    G = P * (x * c + yy * s)
+    M[0, 0] = p[_Ju] + m * (x * x + yy * yy)
+    M[0, 1] = G
+    M[0, 2] = -m * yy
+    M[0, 3] = m * x
+    M[1, 1] = p[_Jl]
+    M[1, 2] = -P * s
+    M[1, 3] = P * c
+    M[2, 2] = m
+    M[2, 3] = 0.0
+    M[3, 3] = m
+    for i in range(4):
+        for j in range(i):
+            M[i, j] = M[j, i]
+
+
+@njit(cache=True, fastmath=True)
+def state_derivative(t: float, y: np.ndarray, mode: np.ndarray, u: float, p: np.ndarray, cfg: int,
+                     smooth_eps: float, dy: np.ndarray, fric: np.ndarray,
+                     M: np.ndarray, B: np.ndarray) -> None:
+    """dy/dt of the state for constant input u (V) and friction modes ``mode``.
+
+    Writes the friction torques (Tfu, Tfl) in N m into ``fric`` (for a stuck
+    disc: the constraint torque lambda).  ``smooth_eps`` > 0 selects the explicit
+    smoothed friction option (sign -> tanh(w/eps), modes ignored).
+    ``M`` (4x4) and ``B`` (4x3) are work arrays.
+    """
+    for i in range(dy.shape[0]):
+        dy[i] = 0.0
+    wu = y[S_WU]
+    wl = y[S_WL]
+    brake = brake_on(cfg)
+    # motor (optionally lagged)
+    if p[_tau_m] > 0.0:
+        dy[S_UM] = (u - y[S_UM]) / p[_tau_m]
+        torque = p[_km] * y[S_UM]
+    else:
+        torque = p[_km] * u
+    dy[S_TU] = wu
+    dy[S_TL] = wl
+    mu = mode[0]
+    ml = mode[1]
+    if smooth_eps > 0.0:
+        su = math.tanh(wu / smooth_eps)
+        sl = math.tanh(wl / smooth_eps)
+        tfu = su * upper_slip_torque(wu, 1, p) if su >= 0 else -su * upper_slip_torque(wu, -1, p)
+        tfl = sl * lower_slip_torque(wl, 1, y[S_TL], t, p, brake) if sl >= 0 else \
+            -sl * lower_slip_torque(wl, -1, y[S_TL], t, p, brake)
+        mu = 2  # "slipping, torque given"
+        ml = 2
+    else:
+        tfu = upper_slip_torque(wu, mu, p) if mu != 0 else 0.0
+        tfl = lower_slip_torque(wl, ml, y[S_TL], t, p, brake) if ml != 0 else 0.0
+    if cfg == FREE_VIBRATION:
+        mu = 0  # upper disc clamped: always stuck, unbounded stick set
+        dy[S_TU] = 0.0
+
+    if cfg == UPPER:
+        if mu == 0:
+            fric[0] = torque
+            dy[S_WU] = 0.0
+        else:
+            fric[0] = tfu
+            dy[S_WU] = (torque - tfu) / p[_Ju]
+        fric[1] = 0.0
+        return
+
+    alpha = y[S_TL] - y[S_TU]
+    string = p[_kth] * alpha + p[_dtheta] * (wl - wu)  # torque of the string on the upper disc (N m)
+
+    if not lateral_free(cfg):
+        # reduced torsional form (3.19), (3.20): M' = diag(Ju, Jl)
+        Fu = torque + string
+        Fl = -string
+        if mu == 0:
+            fric[0] = Fu
+            dy[S_WU] = 0.0
+        else:
+            fric[0] = tfu
+            dy[S_WU] = (Fu - tfu) / p[_Ju]
+        if ml == 0:
+            fric[1] = Fl
+            dy[S_WL] = 0.0
+        else:
+            fric[1] = tfl
+            dy[S_WL] = (Fl - tfl) / p[_Jl]
+        return
+
+    # full four-coordinate equations
+    m = p[_mr] + p[_mt]
+    P = p[_e] * p[_mr]
+    c = math.cos(alpha)
+    s = math.sin(alpha)
+    x = y[S_X]
+    yy = y[S_Y]
+    vx = y[S_VX]
+    vy = y[S_VY]
+    W = wu
+    xs_yc = x * s - yy * c
+    Qu, Qx, Qy = lateral_generalised_forces(y, p)
+    F0 = torque - tfu + Qu + P * xs_yc * wl * wl - 2.0 * m * W * (x * vx + yy * vy) + string
+    F1 = -tfl - 2.0 * P * W * (c * vx + s * vy) - P * W * W * xs_yc - string
+    F2 = Qx + m * x * W * W + 2.0 * m * W * vy + P * c * wl * wl
+    F3 = Qy + m * yy * W * W - 2.0 * m * W * vx + P * s * wl * wl
+    mass_matrix(y, p, M)
+    B[0, 0] = F0
+    B[1, 0] = F1
+    B[2, 0] = F2
+    B[3, 0] = F3
+    n_rhs = 1
+    if mu == 0 or ml == 0:
+        for i in range(4):
+            B[i, 1] = 0.0
+            B[i, 2] = 0.0
+        B[0, 1] = 1.0
+        B[1, 2] = 1.0
+        n_rhs = 3
+    _cholesky_solve4(M, B, n_rhs)
+    # B[:,0] = M^-1 F, B[:,1] = M^-1 e_u, B[:,2] = M^-1 e_l
+    a0 = B[0, 0]
+    a1 = B[1, 0]
+    a2 = B[2, 0]
+    a3 = B[3, 0]
+    lu = 0.0
+    ll = 0.0
+    if mu == 0 and ml == 0:
+        k00 = B[0, 1]
+        k01 = B[0, 2]
+        k11 = B[1, 2]
+        det = k00 * k11 - k01 * k01
+        lu = (k11 * a0 - k01 * a1) / det
+        ll = (k00 * a1 - k01 * a0) / det
+    elif mu == 0:
+        lu = a0 / B[0, 1]
+    elif ml == 0:
+        ll = a1 / B[1, 2]
+    if mu == 0 or ml == 0:
+        # friction of a stuck disc enters as generalised force -lambda
+        a0 -= B[0, 1] * lu + B[0, 2] * ll
+        a1 -= B[1, 1] * lu + B[1, 2] * ll
+        a2 -= B[2, 1] * lu + B[2, 2] * ll
+        a3 -= B[3, 1] * lu + B[3, 2] * ll
+    if mu == 0:
+        a0 = 0.0
+        fric[0] = lu
+    else:
+        fric[0] = tfu
+    if ml == 0:
+        a1 = 0.0
+        fric[1] = ll
+    else:
+        fric[1] = tfl
+    dy[S_WU] = a0
+    dy[S_WL] = a1
+    dy[S_X] = vx
+    dy[S_Y] = vy
+    dy[S_VX] = a2
+    dy[S_VY] = a3

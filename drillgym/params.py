@@ -1,0 +1,227 @@
+"""The rig's parameter set: typed, immutable, with units and sources, validated.
+
+``RigParams`` holds every physical parameter of ../shared/MODEL.md plus the
+parameters of the model extensions of the effect library (all zero = off, which
+is the identified base model).  The simulator's compiled kernels take the
+parameters as a flat float64 vector; :meth:`RigParams.to_vector` and the
+module-level ``IDX`` mapping give that layout, so a kernel reads ``p[IDX.Ts]``.
+
+Files: JSON or YAML (by extension), a flat mapping ``name -> value``.  Unknown
+names, missing names, non-finite values and values outside physical bounds are
+refused with an error that names the parameter.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any, Mapping
+
+import numpy as np
+
+__all__ = ["RigParams", "ParameterError", "PARAM_INFO", "IDX", "N_PARAMS", "BASE_PARAMETERS"]
+
+
+class ParameterError(ValueError):
+    """A parameter value or parameter file cannot be used."""
+
+
+def _p(value: float, unit: str, source: str, lo: float = -math.inf, hi: float = math.inf,
+       doc: str = "") -> Any:
+    return field(default=value, metadata={"unit": unit, "source": source, "lo": lo, "hi": hi, "doc": doc})
+
+
+@dataclass(frozen=True)
+class RigParams:
+    """Physical parameters of the drill-string rig (SI units).
+
+    Defaults are the identified set of MODEL.md.  Extension parameters default
+    to 0 (effect off).  Instances are immutable: use :meth:`replace`.
+    """
+
+    # --- upper part: DC motor, upper disc, asymmetric Coulomb + viscous friction (3.4), (3.5)
+    Ju: float = _p(0.4765, "kg m^2", "report 3.2.2", 1e-6, 100, "upper disc + motor inertia")
+    km: float = _p(4.3228, "N m/V", "rebuilt table 3.1", 1e-6, 1e3, "motor constant (torque per volt)")
+    Tcu: float = _p(0.37975, "N m", "rebuilt table 3.1", 0.0, 100, "upper Coulomb friction level")
+    dTcu: float = _p(-0.00575, "N m", "rebuilt table 3.1", -100, 100, "upper Coulomb asymmetry")
+    bu: float = _p(2.4245, "N m s/rad", "rebuilt table 3.1", 0.0, 100, "upper viscous friction")
+    dbu: float = _p(-0.0084, "N m s/rad", "rebuilt table 3.1", -100, 100, "upper viscous asymmetry")
+    # --- lower part: disc, string
+    Jl: float = _p(0.0414, "kg m^2", "table 3.4", 1e-6, 100, "lower disc inertia about its centre B")
+    ktheta: float = _p(0.0775, "N m/rad", "table 3.4", 1e-6, 1e3, "torsional stiffness of the string")
+    # --- lower bearing friction (brake off) (3.10), (3.11)
+    Tcl: float = _p(0.0092, "N m", "table 3.4", 0.0, 100, "bearing Coulomb friction")
+    bl: float = _p(0.0171, "N m s/rad", "table 3.4", 0.0, 100, "bearing viscous friction")
+    # --- brake friction, Stribeck law (3.21), (3.22)
+    Ts: float = _p(0.2781, "N m", "rebuilt table 3.7", 0.0, 100, "brake static friction")
+    Tc: float = _p(0.0473, "N m", "rebuilt table 3.7", 0.0, 100, "brake Coulomb (slip) friction")
+    ws: float = _p(1.4302, "rad/s", "rebuilt table 3.7", 1e-6, 1e3, "Stribeck velocity")
+    delta: float = _p(2.0575, "-", "rebuilt table 3.7", 0.1, 20, "Stribeck exponent")
+    bb: float = _p(0.0105, "N m s/rad", "rebuilt table 3.7", 0.0, 100, "brake viscous friction")
+    # --- lateral part
+    mr: float = _p(9.9137, "kg", "table 3.6", 1e-6, 1e3, "mass of the lower disc (rotating)")
+    mt: float = _p(3.2302, "kg", "table 3.6", 0.0, 1e3, "translating mass (constraints, LVDT cores)")
+    k: float = _p(2974.25, "N/m", "table 3.6", 1e-6, 1e7, "lateral stiffness")
+    b: float = _p(25.0, "N s/m", "table 3.6", 0.0, 1e5, "lateral viscous damping")
+    e: float = _p(0.0048917, "m", "table 3.6", 0.0, 0.05, "mass unbalance eccentricity")
+    # --- effect library extensions (0 = off; see drillgym.effects)
+    pf_a1: float = _p(0.0, "-", "effect position_friction", -0.9, 0.9, "lower friction modulation, 1st harmonic of theta_l")
+    pf_phi1: float = _p(0.0, "rad", "effect position_friction", -10, 10, "phase of 1st harmonic")
+    pf_a2: float = _p(0.0, "-", "effect position_friction", -0.9, 0.9, "lower friction modulation, 2nd harmonic of theta_l")
+    pf_phi2: float = _p(0.0, "rad", "effect position_friction", -10, 10, "phase of 2nd harmonic")
+    asym_s: float = _p(0.0, "-", "effect brake_asymmetry", -0.9, 5, "relative change of static level for negative rotation")
+    asym_c: float = _p(0.0, "-", "effect brake_asymmetry", -0.9, 5, "relative change of slip level for negative rotation")
+    dtheta: float = _p(0.0, "N m s/rad", "effect string_damping", 0.0, 10, "torsional damping of the string")
+    tau_m: float = _p(0.0, "s", "effect motor_lag", 0.0, 5, "first-order amplifier/motor time constant")
+    delay: float = _p(0.0, "s", "effect input_delay", 0.0, 2, "pure input delay")
+    dk: float = _p(0.0, "N/m", "effect lateral_anisotropy", -1e6, 1e6, "kx = k + dk, ky = k - dk (fixed frame)")
+    db: float = _p(0.0, "N s/m", "effect lateral_anisotropy", -1e5, 1e5, "bx = b + db, by = b - db (fixed frame)")
+    lvdt_x0: float = _p(0.0, "m", "effect lvdt_offset", -0.05, 0.05, "LVDT x offset at rest")
+    lvdt_y0: float = _p(0.0, "m", "effect lvdt_offset", -0.05, 0.05, "LVDT y offset at rest")
+    lvdt_skew: float = _p(0.0, "rad", "effect lvdt_skew", -0.5, 0.5, "angle by which the y LVDT axis deviates from perpendicular")
+    Fc_lat: float = _p(0.0, "N", "effect lateral_coulomb", 0.0, 1e3, "dry friction in the lateral guides")
+    drift: float = _p(0.0, "1/s", "effect friction_drift", -0.1, 0.1, "relative drift rate of brake friction level")
+
+    # ------------------------------------------------------------------ API
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
+                raise ParameterError(f"parameter {f.name!r}: expected a number, got {v!r}")
+            v = float(v)
+            object.__setattr__(self, f.name, v)
+            if not math.isfinite(v):
+                raise ParameterError(f"parameter {f.name!r} is not finite ({v})")
+            lo, hi = f.metadata["lo"], f.metadata["hi"]
+            if not (lo <= v <= hi):
+                raise ParameterError(
+                    f"parameter {f.name!r} = {v} {f.metadata['unit']} is outside its physical range [{lo}, {hi}]"
+                )
+        if self.Ts < self.Tc:
+            raise ParameterError(f"parameter 'Ts' = {self.Ts} must be >= 'Tc' = {self.Tc} (static >= slip friction)")
+        if abs(self.dTcu) > self.Tcu:
+            raise ParameterError(f"parameter 'dTcu' = {self.dTcu}: |dTcu| must not exceed Tcu = {self.Tcu}")
+        if abs(self.dk) >= self.k:
+            raise ParameterError(f"parameter 'dk' = {self.dk}: |dk| must be below k = {self.k}")
+        if abs(self.db) > self.b:
+            raise ParameterError(f"parameter 'db' = {self.db}: |db| must not exceed b = {self.b}")
+
+    @classmethod
+    def default(cls) -> "RigParams":
+        """The identified parameter set of MODEL.md."""
+        return cls()
+
+    def replace(self, **changes: float) -> "RigParams":
+        """A copy with some parameters changed (validated)."""
+        unknown = set(changes) - set(PARAM_INFO)
+        if unknown:
+            raise ParameterError(f"unknown parameter(s): {', '.join(sorted(unknown))}")
+        return replace(self, **changes)
+
+    def scaled(self, **factors: float) -> "RigParams":
+        """A copy with parameters multiplied by factors, e.g. ``scaled(Ts=1.2, Tc=1.2)``."""
+        return self.replace(**{k: getattr(self, k) * f for k, f in factors.items()})
+
+    def to_dict(self) -> dict[str, float]:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, source: str = "mapping", partial: bool = False) -> "RigParams":
+        """Build from a mapping.  With ``partial=False`` every base parameter must be present;
+        extension parameters may be omitted (they default to 0, effect off)."""
+        if not isinstance(data, Mapping):
+            raise ParameterError(f"{source}: expected a mapping of parameter names to numbers")
+        if "params" in data and isinstance(data["params"], Mapping):
+            data = data["params"]
+        unknown = set(data) - set(PARAM_INFO)
+        if unknown:
+            raise ParameterError(f"{source}: unknown parameter(s): {', '.join(sorted(unknown))}")
+        if not partial:
+            missing = [n for n in BASE_PARAMETERS if n not in data]
+            if missing:
+                raise ParameterError(f"{source}: missing parameter(s): {', '.join(missing)}")
+        values = {}
+        for name, v in data.items():
+            if v is None or isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise ParameterError(f"{source}: parameter {name!r} must be a number, got {v!r}")
+            values[name] = float(v)
+        try:
+            return cls(**values)
+        except ParameterError as exc:
+            raise ParameterError(f"{source}: {exc}") from None
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> "RigParams":
+        """Load from JSON (``.json``) or YAML (``.yaml``/``.yml``)."""
+        path = Path(path)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except OSError as exc:
+            raise ParameterError(f"{path}: cannot read parameter file ({exc.strerror})") from None
+        try:
+            if path.suffix.lower() in (".yaml", ".yml"):
+                import yaml
+
+                data = yaml.safe_load(text)
+            else:
+                data = json.loads(text)
+        except Exception as exc:  # noqa: BLE001 - report any parse error with the file name
+            raise ParameterError(f"{path}: not valid {path.suffix.lstrip('.') or 'JSON'}: {exc}") from None
+        return cls.from_dict(data, source=str(path))
+
+    def to_file(self, path: str | Path) -> Path:
+        """Save as JSON or YAML (by extension); round-trips exactly."""
+        path = Path(path)
+        data = self.to_dict()
+        if path.suffix.lower() in (".yaml", ".yml"):
+            import yaml
+
+            path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+        else:
+            path.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+        return path
+
+    def to_vector(self) -> np.ndarray:
+        """Flat float64 vector in the kernel layout (see ``IDX``)."""
+        return np.array([getattr(self, n) for n in PARAM_NAMES], dtype=np.float64)
+
+    @classmethod
+    def from_vector(cls, vec: np.ndarray) -> "RigParams":
+        vec = np.asarray(vec, dtype=float)
+        if vec.shape != (N_PARAMS,):
+            raise ParameterError(f"parameter vector must have shape ({N_PARAMS},), got {vec.shape}")
+        return cls(**dict(zip(PARAM_NAMES, vec.tolist())))
+
+    # derived quantities
+    @property
+    def m(self) -> float:
+        """Total translating mass mr + mt (kg)."""
+        return self.mr + self.mt
+
+    @property
+    def lateral_eigenfrequency(self) -> float:
+        """sqrt(k / (mr + mt)) in rad/s (MODEL.md R6)."""
+        return math.sqrt(self.k / self.m)
+
+    @property
+    def stick_voltage(self) -> float:
+        """us = (Tcu + dTcu + Ts) / km: below it the stick set is globally stable (R4), in V."""
+        return (self.Tcu + self.dTcu + self.Ts) / self.km
+
+    def describe(self) -> str:
+        """A table of all parameters with units and sources."""
+        rows = [f"{'name':<10} {'value':>14} {'unit':<11} source"]
+        for n in PARAM_NAMES:
+            info = PARAM_INFO[n]
+            rows.append(f"{n:<10} {getattr(self, n):>14.6g} {info['unit']:<11} {info['source']}")
+        return "\n".join(rows)
+
+
+PARAM_NAMES: tuple[str, ...] = tuple(f.name for f in fields(RigParams))
+PARAM_INFO: dict[str, dict[str, Any]] = {f.name: dict(f.metadata) for f in fields(RigParams)}
+BASE_PARAMETERS: tuple[str, ...] = tuple(n for n in PARAM_NAMES if not PARAM_INFO[n]["source"].startswith("effect"))
+N_PARAMS = len(PARAM_NAMES)
+IDX = SimpleNamespace(**{n: i for i, n in enumerate(PARAM_NAMES)})
