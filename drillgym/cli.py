@@ -1,2 +1,49 @@
-def main():
-    pass
+"""The ``drillgym`` command line: one program, one subcommand per job.
+
+    drillgym simulate     simulate a configuration, write the run (DATA_FORMAT csv) and a figure
+    drillgym bifurcation  open-loop bifurcation diagrams
+    drillgym compare / diagnose / identify   model versus measurements
+    drillgym evaluate     controllers and agents on the evaluation harness
+    drillgym train        RL training
+    drillgym rig ...      hardware twin (run, emulate)
+
+Errors the user can fix (bad file, bad parameter, bad option) are printed as
+one line naming what is wrong, with exit code 2.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import sys
+
+import typer
+
+from .commands import MODULES
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  help="drillgym: drill-string rig simulator, environments, analysis and hardware twin.")
+
+
+def _register_all() -> None:
+    for name in MODULES:
+        if importlib.util.find_spec(name) is not None:
+            importlib.import_module(name).register(app)
+
+
+_register_all()
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Console entry point; user errors -> one line on stderr, exit code 2."""
+    from .errors import USER_ERRORS
+
+    try:
+        app(args=argv, standalone_mode=True)
+    except USER_ERRORS as exc:
+        print(f"drillgym: error: {exc}", file=sys.stderr)
+        sys.exit(2)
+
+
+if __name__ == "__main__":
+    main()

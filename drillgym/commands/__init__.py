@@ -1,0 +1,15 @@
+"""Subcommands of the ``drillgym`` CLI, one module per area.
+
+Each module defines ``register(app: typer.Typer) -> None`` that adds its
+commands; :mod:`drillgym.cli` registers every module listed in ``MODULES``
+that exists.
+"""
+
+MODULES = (
+    "drillgym.commands.simulate",
+    "drillgym.commands.bifurcation",
+    "drillgym.commands.identification",
+    "drillgym.commands.evaluate",
+    "drillgym.commands.train",
+    "drillgym.commands.rig",
+)
