@@ -25,6 +25,11 @@ app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_
                   help="drillgym: drill-string rig simulator, environments, analysis and hardware twin.")
 
 
+@app.callback()
+def _root() -> None:
+    """drillgym: drill-string rig simulator, environments, analysis and hardware twin."""
+
+
 def _register_all() -> None:
     for name in MODULES:
         if importlib.util.find_spec(name) is not None:

@@ -59,17 +59,17 @@ LATERAL_COULOMB_EPS = 1e-4  # m/s: regularisation speed of the lateral dry-frict
 S_TU, S_TL, S_WU, S_WL, S_X, S_Y, S_VX, S_VY, S_UM = 0, 1, 2, 3, 4, 5, 6, 7, 8
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def brake_on(cfg: int) -> bool:
     return cfg == TORSIONAL or cfg == COUPLED
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def lateral_free(cfg: int) -> bool:
     return cfg == LATERAL or cfg == COUPLED
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, _nrt=False)
 def lateral_generalised_forces(y: np.ndarray, p: np.ndarray) -> tuple:
     """Spring, damper and dry-friction forces of the lateral constraints (fixed frame),
     as generalised forces on (theta_u, x, y): returns (Q_u, Q_x, Q_y) in N m, N, N."""
@@ -99,7 +99,7 @@ def lateral_generalised_forces(y: np.ndarray, p: np.ndarray) -> tuple:
     return Qu, Qx, Qy
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _cholesky_solve4(A: np.ndarray, B: np.ndarray, n_rhs: int) -> None:
     """Solve A X = B in place (B overwritten by X) for SPD 4x4 A; A overwritten by its factor."""
     n = 4
@@ -127,7 +127,7 @@ def _cholesky_solve4(A: np.ndarray, B: np.ndarray, n_rhs: int) -> None:
             B[i, r] = s / A[i, i]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def mass_matrix(y: np.ndarray, p: np.ndarray, M: np.ndarray) -> None:
     """Fill M (4x4) with M'(q) in the order (theta_u, theta_l, x, y)."""
     m = p[_mr] + p[_mt]
@@ -153,7 +153,7 @@ def mass_matrix(y: np.ndarray, p: np.ndarray, M: np.ndarray) -> None:
             M[i, j] = M[j, i]
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, _nrt=False)
 def state_derivative(t: float, y: np.ndarray, mode: np.ndarray, u: float, p: np.ndarray, cfg: int,
                      smooth_eps: float, dy: np.ndarray, fric: np.ndarray,
                      M: np.ndarray, B: np.ndarray) -> None:

@@ -42,7 +42,7 @@ _pf_a1, _pf_phi1, _pf_a2, _pf_phi2 = IDX.pf_a1, IDX.pf_phi1, IDX.pf_a2, IDX.pf_p
 _asym_s, _asym_c, _drift = IDX.asym_s, IDX.asym_c, IDX.drift
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, _nrt=False)
 def upper_slip_torque(w: float, d: int, p: np.ndarray) -> float:
     """Upper friction torque (N m) while slipping in direction d (sign of the result is d)."""
     aw = abs(w)
@@ -51,13 +51,13 @@ def upper_slip_torque(w: float, d: int, p: np.ndarray) -> float:
     return -(p[_Tcu] - p[_dTcu] + (p[_bu] - p[_dbu]) * aw)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def upper_stick_bounds(p: np.ndarray) -> tuple:
     """Stick set of the upper disc (N m): (lo, hi)."""
     return -p[_Tcu] + p[_dTcu], p[_Tcu] + p[_dTcu]
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, _nrt=False)
 def lower_level_factor(theta_l: float, t: float, p: np.ndarray) -> float:
     """Multiplicative level of the lower friction law: position dependence and drift (1 when off)."""
     g = 1.0
@@ -68,7 +68,7 @@ def lower_level_factor(theta_l: float, t: float, p: np.ndarray) -> float:
     return g
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, fastmath=True, _nrt=False)
 def lower_slip_torque(w: float, d: int, theta_l: float, t: float, p: np.ndarray, brake: bool) -> float:
     """Lower friction torque (N m) while slipping in direction d (brake: Stribeck law, else bearing)."""
     aw = abs(w)
@@ -93,7 +93,7 @@ def lower_slip_torque(w: float, d: int, theta_l: float, t: float, p: np.ndarray,
     return d * g * mag
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def lower_stick_bounds(theta_l: float, t: float, p: np.ndarray, brake: bool) -> tuple:
     """Stick set of the lower disc (N m): (lo, hi)."""
     g = lower_level_factor(theta_l, t, p)

@@ -32,8 +32,11 @@ import numpy as np
 from numba import njit, prange
 
 from .configurations import N_STATE
-from .dynamics import FREE_VIBRATION, UPPER, S_TL, S_TU, S_WL, S_WU, S_X, S_Y, brake_on, state_derivative
+from .dynamics import FREE_VIBRATION, UPPER, lateral_free, S_TL, S_TU, S_WL, S_WU, S_X, S_Y, brake_on, state_derivative
 from .friction import lower_stick_bounds, upper_stick_bounds
+from .params import IDX
+
+_TAU_M = IDX.tau_m
 
 DEFAULT_DT = 1e-3  # s
 MAX_EVENTS_PER_STEP = 8
@@ -73,18 +76,53 @@ def tableau(method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 @njit(cache=True)
 def _alloc(n_stages: int):
-    K = np.zeros((n_stages, N_STATE))
+    K = np.zeros((n_stages + 1, N_STATE))  # stage derivatives + the derivative at the step's end
     ytmp = np.zeros(N_STATE)
     M = np.zeros((4, 4))
     B = np.zeros((4, 3))
     return K, ytmp, M, B
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True, _nrt=False)
+def active_states(cfg, p):
+    """Number of leading state entries that evolve: 4 (angles, speeds) unless the disc moves
+    laterally or the motor_lag state is on (then all N_STATE)."""
+    if lateral_free(cfg) or p[_TAU_M] > 0.0:
+        return N_STATE
+    return 4
+
+
+@njit(cache=True, fastmath=True, _nrt=False)
 def _rk_step(t, y0, k1, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, y_out, M, B, fric):
-    """One explicit RK step of size h from (t, y0) with derivative k1 at y0; result in y_out."""
+    """One explicit RK step of size h from (t, y0) with derivative k1 at y0; result in y_out.
+
+    Only the first ``active_states`` entries evolve; the others are copied.  The
+    4-stage tableau (classical RK4, sparse) takes an unrolled path, the others
+    (DP5) the general Butcher loop.
+    """
     s = b.shape[0]
-    n = y0.shape[0]
+    n = active_states(cfg, p)
+    for j in range(n, y0.shape[0]):
+        ytmp[j] = y0[j]
+        y_out[j] = y0[j]
+    if s == 4:
+        k2 = K[1]
+        k3 = K[2]
+        k4 = K[3]
+        hh = 0.5 * h
+        for j in range(n):
+            ytmp[j] = y0[j] + hh * k1[j]
+        state_derivative(t + hh, ytmp, mode, u, p, cfg, eps, k2, fric, M, B)
+        for j in range(n):
+            ytmp[j] = y0[j] + hh * k2[j]
+        state_derivative(t + hh, ytmp, mode, u, p, cfg, eps, k3, fric, M, B)
+        for j in range(n):
+            ytmp[j] = y0[j] + h * k3[j]
+        state_derivative(t + h, ytmp, mode, u, p, cfg, eps, k4, fric, M, B)
+        h6 = h / 6.0
+        for j in range(n):
+            y_out[j] = y0[j] + h6 * (k1[j] + 2.0 * (k2[j] + k3[j]) + k4[j])
+        return
     for j in range(n):
         K[0, j] = k1[j]
     for i in range(1, s):
@@ -101,7 +139,7 @@ def _rk_step(t, y0, k1, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, y_out, M, B, 
         y_out[j] = y0[j] + h * acc
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def event_values(t, y, mode, fric, p, cfg, g):
     """Event functions (positive while the current modes are consistent)."""
     if cfg == FREE_VIBRATION:
@@ -120,7 +158,7 @@ def event_values(t, y, mode, fric, p, cfg, g):
         g[1] = min(hi - fric[1], fric[1] - lo)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def resolve_modes(t, y, mode, u, p, cfg, dy, fric, M, B):
     """Make the modes consistent at (t, y): discs with w = 0 and mode 0 stay stuck if their
     holding torque lies in the stick set, else they start slipping in the direction of
@@ -148,7 +186,7 @@ def resolve_modes(t, y, mode, u, p, cfg, dy, fric, M, B):
             return
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def initial_modes(t, y, u, p, cfg, mode, dy, fric, M, B):
     """Modes from the initial state: sign of the speed, or stuck (then resolved) at zero speed."""
     mode[0] = 0 if y[S_WU] == 0.0 else (1 if y[S_WU] > 0 else -1)
@@ -161,7 +199,7 @@ def initial_modes(t, y, u, p, cfg, mode, dy, fric, M, B):
     resolve_modes(t, y, mode, u, p, cfg, dy, fric, M, B)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, ynew, M, B, g0, g1, ftmp):
     """Advance (t, y) by h with event-driven mode switching.
 
@@ -172,11 +210,16 @@ def hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, ynew,
     remaining = h
     n_events = 0
     n = y.shape[0]
+    kend = K[K.shape[0] - 1]
+    fend0 = 0.0
+    fend1 = 0.0
     while True:
         _rk_step(t, y, k1, mode, u, p, cfg, eps, remaining, A, b, c, K, ytmp, ynew, M, B, ftmp)
+        state_derivative(t + remaining, ynew, mode, u, p, cfg, eps, kend, ftmp, M, B)
+        fend0 = ftmp[0]
+        fend1 = ftmp[1]
         if eps > 0.0 or n_events >= MAX_EVENTS_PER_STEP:
             break
-        state_derivative(t + remaining, ynew, mode, u, p, cfg, eps, ytmp, ftmp, M, B)
         event_values(t + remaining, ynew, mode, ftmp, p, cfg, g1)
         if g1[0] >= 0.0 and g1[1] >= 0.0:
             break
@@ -249,11 +292,13 @@ def hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, ynew,
             return n_events
     for i in range(n):
         y[i] = ynew[i]
-    state_derivative(t + remaining, y, mode, u, p, cfg, eps, k1, fric, M, B)
+        k1[i] = kend[i]
+    fric[0] = fend0
+    fric[1] = fend1
     return n_events
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def record(out, row, t, u, y, fric, mode):
     """Write one output sample (columns OUTPUT_NAMES)."""
     out[row, 0] = t
