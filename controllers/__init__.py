@@ -1,1 +1,16 @@
-"""controllers package."""
+"""Controllers for the drill-string rig and the harness that compares them (and RL agents).
+
+* :mod:`.base` - the interface (:class:`Controller`: reset, one voltage per control period)
+* :mod:`.baseline` - bifurcation-based open-loop baseline, stick-slip region
+* :mod:`.pi` - PI speed control of the motor
+* :mod:`.softtorque` - soft-torque active damping
+* :mod:`.kalman` - Kalman filter on the motor angle with a friction-torque state
+* :mod:`.observer` - observer-based active damping (KF + LQR) and LQG
+* :mod:`.registry` - ``make(name, ...)``, the ``agent:PATH`` hook
+* :mod:`.evaluation` - scenarios, metrics, closed-loop runs, report
+"""
+
+from .base import MEASUREMENTS, U_MAX, Controller
+from .registry import CONTROLLERS, available, make, register_agent_loader
+
+__all__ = ["Controller", "MEASUREMENTS", "U_MAX", "CONTROLLERS", "available", "make", "register_agent_loader"]

@@ -335,7 +335,11 @@ def run_trajectory(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, ini
     g1 = np.zeros(2)
     t = t0
     u = U[0] if U.shape[0] > 0 else 0.0
-    if init_modes:
+    if eps > 0.0:  # smoothed friction: no stick state
+        mode[0] = 2
+        mode[1] = 2
+        state_derivative(t, y, mode, u, p, cfg, eps, k1, fric, M, B)
+    elif init_modes:
         initial_modes(t, y, u, p, cfg, mode, k1, fric, M, B)
     else:
         resolve_modes(t, y, mode, u, p, cfg, k1, fric, M, B)
@@ -346,12 +350,17 @@ def run_trajectory(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, ini
     for i in range(U.shape[0]):
         u = U[i]
         if u != u_prev:
-            resolve_modes(t, y, mode, u, p, cfg, k1, fric, M, B)
+            if eps > 0.0:
+                state_derivative(t, y, mode, u, p, cfg, eps, k1, fric, M, B)
+            else:
+                resolve_modes(t, y, mode, u, p, cfg, k1, fric, M, B)
             u_prev = u
         n_switch += hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, dt, A, b, c, K, ytmp, ynew, M, B, g0, g1, ftmp)
         t = t0 + (i + 1) * dt
         if (i + 1) % rec_every == 0:
-            record(out, row, t, u, y, fric, mode)
+            # a sample carries the voltage applied from its time on (zero-order hold), as a recording does
+            u_next = U[i + 1] if i + 1 < U.shape[0] else u
+            record(out, row, t, u_next, y, fric, mode)
             row += 1
     return n_switch
 
@@ -386,7 +395,12 @@ def advance_batch(Y, MODE, u, P, cfg, dt, n_sub, T, eps, A, b, c, FRIC):
         mode = MODE[k]
         fric = FRIC[k]
         t = T[k]
-        resolve_modes(t, y, mode, u[k], P[k], cfg, k1, fric, M, B)
+        if eps > 0.0:
+            mode[0] = 2
+            mode[1] = 2
+            state_derivative(t, y, mode, u[k], P[k], cfg, eps, k1, fric, M, B)
+        else:
+            resolve_modes(t, y, mode, u[k], P[k], cfg, k1, fric, M, B)
         for _ in range(n_sub):
             hybrid_step(t, y, k1, fric, mode, u[k], P[k], cfg, eps, dt, A, b, c, K, ytmp, ynew, M, B, g0, g1, ftmp)
             t += dt

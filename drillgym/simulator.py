@@ -15,6 +15,8 @@ the rig emulator use (state kept between calls).
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Callable, Sequence, Union
 
@@ -30,6 +32,7 @@ from .integrators import (
     run_batch_serial,
     tableau,
 )
+from .lanes import lanes_eligible, lanes_run
 from .params import N_PARAMS, IDX, RigParams
 
 __all__ = ["simulate", "simulate_batch", "Trajectory", "BatchTrajectory", "BatchSimulator", "initial_state",
@@ -38,6 +41,7 @@ __all__ = ["simulate", "simulate_batch", "Trajectory", "BatchTrajectory", "Batch
 InputLike = Union[float, Sequence[float], np.ndarray, tuple, Callable[[np.ndarray], np.ndarray]]
 ParamsLike = Union[RigParams, Sequence[RigParams], np.ndarray, None]
 DEFAULT_SMOOTH_EPS = 1e-3  # rad/s, for friction="smooth"
+LANES_MIN_BATCH = 8  # batches at least this large use the SIMD lane kernel where it applies
 
 
 def initial_state(alpha0: float = 0.0, theta_u0: float = 0.0, omega_u0: float = 0.0, omega_l0: float = 0.0,
@@ -81,7 +85,7 @@ def _input_matrix(u: InputLike, n_batch: int, n_steps: int, dt: float) -> np.nda
         U = np.asarray(u, dtype=np.float64)
         if U.ndim == 0:
             U = np.full(n_steps, float(U))
-        elif U.ndim == 1 and n_batch > 1 and U.shape[0] == n_batch and n_steps != n_batch:
+        elif U.ndim == 1 and U.shape[0] == n_batch and n_steps != n_batch:
             U = np.repeat(U[:, None], n_steps, axis=1)
     if U.ndim == 1:
         U = np.broadcast_to(U, (n_batch, U.shape[0]))
@@ -180,6 +184,24 @@ def _friction_eps(friction: str, smooth_eps: float) -> float:
     raise ValueError(f"friction must be 'exact' (set-valued, default) or 'smooth', got {friction!r}")
 
 
+def _run_lanes(Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, parallel):
+    """The SIMD lane kernel over the batch; with parallel, one chunk per core in threads (nogil)."""
+    n_chunks = min(os.cpu_count() or 1, max(1, Y.shape[0] // LANES_MIN_BATCH)) if parallel else 1
+    bounds = np.linspace(0, Y.shape[0], n_chunks + 1).astype(int)
+    FR = np.zeros((Y.shape[0], 2))
+
+    def run(i):
+        s = slice(bounds[i], bounds[i + 1])
+        lanes_run(Y[s], MODE[s], U[s], P[s], cfg, dt, np.zeros(bounds[i + 1] - bounds[i]), record_every, OUT[s],
+                  n_steps, True, FR[s])
+
+    if n_chunks == 1:
+        run(0)
+    else:
+        with ThreadPoolExecutor(n_chunks) as pool:
+            list(pool.map(run, range(n_chunks)))
+
+
 def simulate_batch(config: "str | Configuration", u: InputLike, duration: float, *, dt: float = DEFAULT_DT,
                    params: ParamsLike = None, x0: np.ndarray | None = None, alpha0: "float | Sequence[float]" = 0.0,
                    n_batch: int | None = None, method: str = "rk4", record_every: int = 1,
@@ -243,8 +265,11 @@ def simulate_batch(config: "str | Configuration", u: InputLike, duration: float,
     OUT = np.empty((B, n_rec, N_OUT))
     A, b, c = tableau(method)
     eps = _friction_eps(friction, smooth_eps)
-    runner = run_batch_parallel if parallel else run_batch_serial
-    runner(Y, MODE, U, P, int(cfg), float(dt), np.zeros(B), eps, A, b, c, int(record_every), OUT, True)
+    if B >= LANES_MIN_BATCH and lanes_eligible(int(cfg), method, eps, P):
+        _run_lanes(Y, MODE, U, P, int(cfg), float(dt), int(record_every), OUT, n_steps, parallel)
+    else:
+        runner = run_batch_parallel if parallel else run_batch_serial
+        runner(Y, MODE, U, P, int(cfg), float(dt), np.zeros(B), eps, A, b, c, int(record_every), OUT, True)
     plist = [RigParams.from_vector(P[k]) for k in range(B)] if B <= 64 or params is not None else [RigParams()] * B
     return BatchTrajectory(cfg, plist, float(dt), method, OUT)
 
@@ -260,6 +285,8 @@ def simulate(config: "str | Configuration", u: InputLike, duration: float, *, dt
         raise ValueError("simulate() takes one initial state of shape (N_STATE,)")
     if not callable(u) and not isinstance(u, tuple) and np.ndim(u) > 1:
         raise ValueError("simulate() takes a scalar or one input sequence; use simulate_batch for several")
+    if not callable(u) and not isinstance(u, tuple) and np.ndim(u) == 1:
+        u = np.asarray(u, dtype=np.float64)[None, :]  # one per-step sequence
     batch = simulate_batch(config, u, duration, dt=dt, params=params, x0=x0, alpha0=alpha0, n_batch=1,
                            method=method, record_every=record_every, friction=friction, smooth_eps=smooth_eps)
     return batch[0]
@@ -290,6 +317,7 @@ class BatchSimulator:
         self.MODE = np.zeros((self.n, 2), dtype=np.int64)
         self.T = np.zeros(self.n)
         self.FRIC = np.zeros((self.n, 2))
+        self._no_record = np.zeros((self.n, 0, N_OUT))
 
     def set_params(self, params: ParamsLike, index: "int | np.ndarray | slice | None" = None) -> None:
         """Replace the parameters of all (index None) or some trajectories."""
@@ -320,9 +348,21 @@ class BatchSimulator:
         uu = np.ascontiguousarray(np.broadcast_to(np.asarray(u, dtype=np.float64), (self.n,)))
         if not np.all(np.isfinite(uu)):
             raise ValueError("voltage is NaN or inf")
+        if self.n >= LANES_MIN_BATCH and lanes_eligible(int(self.config), self.method, self._eps, self.P):
+            lanes_run(self.Y, self.MODE, uu[:, None], self.P, int(self.config), self.dt, self.T, 1,
+                      self._no_record, int(n_steps), False, self.FRIC)
+            self.T += int(n_steps) * self.dt
+            return
         A, b, c = self._tab
         advance_batch(self.Y, self.MODE, uu, self.P, int(self.config), self.dt, int(n_steps), self.T,
                       self._eps, A, b, c, self.FRIC)
+
+    def kernel_args(self, u: np.ndarray, n_steps: int) -> tuple:
+        """Arguments of the compiled :func:`drillgym.integrators.advance_batch` for holding ``u``
+        over ``n_steps`` (for callers that fuse it into their own compiled loop, e.g. the envs)."""
+        A, b, c = self._tab
+        return (self.Y, self.MODE, u, self.P, int(self.config), self.dt, int(n_steps), self.T, self._eps, A, b, c,
+                self.FRIC)
 
     # convenient views -------------------------------------------------------
     @property

@@ -1,0 +1,142 @@
+"""The controller interface shared by the simulator harness, the Gymnasium envs and the rig.
+
+A controller maps what the rig measures to a motor voltage, once per control
+period (default 10 ms).  Measurements are passed as a mapping ``name -> value``
+(:data:`MEASUREMENTS`); every value is a scalar (one rig / one env) or an array
+of shape (n,) (n trajectories stepped together by the evaluation harness).
+A controller declares in :attr:`Controller.uses` which measurements it reads,
+so a caller (env adapter, ``drillgym rig run``) knows what it must provide.
+
+    >>> import controllers
+    >>> c = controllers.make("observer", config="torsional", omega_ref=3.0)
+    >>> c.reset({"t": 0.0, "theta_u": 0.0})
+    >>> u = c({"t": 0.0, "theta_u": 0.0})        # volts, float for scalar input
+
+Lifecycle: ``reset(measurement)`` at the start of an episode (it fixes the
+batch size n and reads ``omega_ref`` from the measurement when present), then
+``act(measurement)`` (or ``controller(measurement)``) every control period,
+which returns the voltage to hold until the next call, clipped to
+[-u_max, u_max].  The controller remembers the voltage it applied (``u_prev``),
+which observers use as their known input.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import ClassVar, Mapping
+
+import numpy as np
+
+from drillgym import Configuration, RigParams, parse_configuration
+
+__all__ = ["Controller", "MEASUREMENTS", "U_MAX", "DEFAULT_CONTROL_DT", "Measurement"]
+
+U_MAX = 5.0  # V, the amplifier's range
+DEFAULT_CONTROL_DT = 0.01  # s, control period
+
+MEASUREMENTS = {
+    "t": "time since reset (s)",
+    "theta_u": "upper-disc (motor-side) encoder angle (rad, quantized)",
+    "theta_l": "lower-disc encoder angle (rad, quantized)",
+    "x": "LVDT x of the lower disc centre, fixed frame (m)",
+    "y": "LVDT y of the lower disc centre, fixed frame (m)",
+    "omega_ref": "target speed of the lower disc (rad/s)",
+}
+"""Measurement names a controller may read (see :attr:`Controller.uses`)."""
+
+Measurement = Mapping[str, "float | np.ndarray"]
+
+
+class Controller(ABC):
+    """Base class of the controllers: reset, then one voltage per control period.
+
+    Args:
+        omega_ref: target lower-disc speed (rad/s), scalar or one per trajectory;
+            a measurement ``omega_ref`` given to :meth:`reset` overrides it.
+        config: rig configuration the controller is designed for ('torsional', 'coupled', ...).
+        params: the model the controller is designed on (default: the identified set).  The
+            plant may differ (parameter-mismatch scenarios); the controller never sees the truth.
+        dt: control period (s).
+        u_max: voltage limit (V), the amplifier's range.
+    """
+
+    name: ClassVar[str] = "controller"
+    uses: ClassVar[tuple[str, ...]] = ()
+
+    def __init__(self, omega_ref: "float | np.ndarray | None" = None, *, config: "str | Configuration" = "torsional",
+                 params: RigParams | None = None, dt: float = DEFAULT_CONTROL_DT, u_max: float = U_MAX) -> None:
+        if not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f"control period dt must be a positive number of seconds, got {dt!r}")
+        if not (np.isfinite(u_max) and u_max > 0):
+            raise ValueError(f"u_max must be a positive voltage, got {u_max!r}")
+        self.config = parse_configuration(config)
+        if not self.config.has_lower:
+            raise ValueError(f"controllers act on the lower disc; configuration {self.config.label!r} has none")
+        self.params = params or RigParams()
+        self.dt = float(dt)
+        self.u_max = float(u_max)
+        self._omega_ref_default = None if omega_ref is None else _check_ref(omega_ref)
+        self.omega_ref = np.zeros(1)
+        self.u_prev = np.zeros(1)
+        self.n = 0
+
+    # -- public API ----------------------------------------------------------
+    def reset(self, measurement: Measurement | None = None) -> None:
+        """Start an episode: batch size and target speed from ``measurement`` (or the constructor)."""
+        m = dict(measurement or {})
+        self._scalar = all(np.ndim(v) == 0 for v in m.values())
+        n = max([np.size(v) for v in m.values()] + [1])
+        if "omega_ref" in m:
+            ref = _check_ref(m["omega_ref"])
+        elif self._omega_ref_default is not None:
+            ref = self._omega_ref_default
+        else:
+            raise ValueError(f"controller {self.name!r} needs a target speed: pass omega_ref= or a measurement 'omega_ref'")
+        n = max(n, np.size(ref))
+        self.n = n
+        self.omega_ref = np.array(np.broadcast_to(ref, (n,)), dtype=float)
+        self.u_prev = np.zeros(n)
+        self._reset(self._arrays(m, check=False))
+
+    def act(self, measurement: Measurement) -> "float | np.ndarray":
+        """Voltage (V) to hold for the next control period, in [-u_max, u_max]."""
+        if self.n == 0:
+            raise RuntimeError(f"controller {self.name!r}: call reset() before act()")
+        u = np.clip(np.broadcast_to(self._act(self._arrays(measurement)), (self.n,)), -self.u_max, self.u_max)
+        if not np.all(np.isfinite(u)):
+            raise FloatingPointError(f"controller {self.name!r} produced a non-finite voltage")
+        self.u_prev = np.array(u, dtype=float)
+        return float(u[0]) if self._scalar else self.u_prev.copy()
+
+    __call__ = act
+
+    def describe(self) -> str:
+        """One line: what the controller is and which measurements it reads."""
+        doc = (type(self).__doc__ or "").strip().splitlines()[0]
+        return f"{self.name}: {doc} (reads: {', '.join(self.uses) or 'nothing'})"
+
+    # -- for subclasses --------------------------------------------------------
+    def _reset(self, m: dict[str, np.ndarray]) -> None:
+        """Reset internal state; ``m`` holds the measurements given to :meth:`reset` as (n,) arrays."""
+
+    @abstractmethod
+    def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
+        """Voltage (n,) from measurements as (n,) arrays (clipping is done by :meth:`act`)."""
+
+    def _arrays(self, measurement: Measurement, check: bool = True) -> dict[str, np.ndarray]:
+        out = {}
+        for k, v in measurement.items():
+            a = np.asarray(v, dtype=float)
+            out[k] = np.broadcast_to(a, (self.n,)) if a.ndim == 0 else a
+        if check:
+            missing = [k for k in self.uses if k not in out]
+            if missing:
+                raise ValueError(f"controller {self.name!r} needs measurement(s) {missing}; got {sorted(out)}")
+        return out
+
+
+def _check_ref(ref: "float | np.ndarray") -> np.ndarray:
+    r = np.atleast_1d(np.asarray(ref, dtype=float))
+    if not np.all(np.isfinite(r)) or np.any(r <= 0):
+        raise ValueError(f"omega_ref must be positive finite speeds (rad/s), got {ref!r}")
+    return r

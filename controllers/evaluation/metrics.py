@@ -1,0 +1,67 @@
+"""Metrics of a closed-loop run (steady state = the last ``window`` seconds).
+
+* SSI, stick-slip severity: (max omega_l - min omega_l) / (2 mean omega_l); infinite when the
+  lower disc does not turn on average (mean omega_l <= 1 % of the target).
+* stuck: fraction of the steady window the lower disc sticks.
+* tracking_rms: RMS of omega_l - omega_ref over the steady window (rad/s).
+* u_peak, u_rms: peak and RMS voltage over the whole run (V).
+* energy: mechanical work of the motor, integral of km u omega_u dt over the whole run (J).
+* stick_slip: SSI >= 0.1 (the harness's criterion).
+* omega_l_min, omega_l_max, u_mean: steady-state range of omega_l (rad/s) and mean voltage (V).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from drillgym import RigParams
+
+__all__ = ["SSI_THRESHOLD", "METRICS", "stick_slip_severity", "run_metrics", "lowest_free_speed"]
+
+SSI_THRESHOLD = 0.1
+METRICS = ("ssi", "stuck", "tracking_rms", "u_peak", "u_rms", "energy", "stick_slip", "omega_l_min", "omega_l_max",
+           "u_mean")
+
+
+def stick_slip_severity(omega_l: np.ndarray, omega_ref: "float | np.ndarray | None" = None) -> np.ndarray:
+    """SSI of each row of omega_l (n, m) (or of one signal (m,)); inf when the disc stands still."""
+    w = np.atleast_2d(np.asarray(omega_l, dtype=float))
+    mean = w.mean(axis=1)
+    floor = 1e-2 * (np.abs(np.broadcast_to(omega_ref, mean.shape)) if omega_ref is not None else 1.0)
+    ssi = np.where(mean > np.maximum(floor, 1e-9), (w.max(axis=1) - w.min(axis=1)) / (2 * np.where(mean > 0, mean, 1)),
+                   np.inf)
+    return ssi if np.ndim(omega_l) == 2 else ssi[0]
+
+
+def run_metrics(run, window: float, params: RigParams | None = None) -> dict[str, np.ndarray]:
+    """Metrics (each an (n,) array) of a :class:`controllers.evaluation.runner.ClosedLoopRun`."""
+    p = params or RigParams()
+    if not (0 < window <= run.t[-1] + run.dt):
+        raise ValueError(f"steady-state window must be in (0, {run.t[-1] + run.dt:.3g}] s, got {window!r}")
+    ss = run.t >= run.t[-1] + run.dt - window
+    wl = run.omega_l[:, ss]
+    ssi = stick_slip_severity(wl, run.omega_ref)
+    return {
+        "ssi": ssi,
+        "stuck": run.stuck_l[:, ss].mean(axis=1),
+        "tracking_rms": np.sqrt(np.mean((wl - run.omega_ref[:, None]) ** 2, axis=1)),
+        "u_peak": np.abs(run.u).max(axis=1),
+        "u_rms": np.sqrt(np.mean(run.u ** 2, axis=1)),
+        "energy": np.sum(p.km * run.u * run.omega_u, axis=1) * run.dt,
+        "stick_slip": ssi >= SSI_THRESHOLD,
+        "omega_l_min": wl.min(axis=1),
+        "omega_l_max": wl.max(axis=1),
+        "u_mean": run.u[:, ss].mean(axis=1),
+    }
+
+
+def lowest_free_speed(targets: np.ndarray, ssi: np.ndarray, threshold: float = SSI_THRESHOLD) -> float:
+    """Lowest target (rad/s) from which every higher target of the grid is held without stick-slip
+    (SSI < threshold); NaN when the highest one is not."""
+    t = np.asarray(targets, dtype=float)
+    order = np.argsort(t)[::-1]
+    ok = np.asarray(ssi, dtype=float)[order] < threshold
+    if not ok[0]:
+        return float("nan")
+    k = len(ok) if ok.all() else int(np.argmin(ok))
+    return float(t[order][k - 1])

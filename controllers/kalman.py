@@ -1,0 +1,248 @@
+"""Kalman filter that sees only the motor angle: torsional model + unknown lower-friction torque.
+
+Model (torsional equations of MODEL.md, absolute coordinates, slipping upper disc)::
+
+    d theta_u / dt = omega_u
+    Ju d omega_u / dt = km u - Tcu+ - du omega_u + k_theta alpha     (du = bu + dbu, Tcu+ = Tcu + dTcu)
+    d alpha / dt   = omega_l - omega_u
+    Jl d omega_l / dt = -k_theta alpha - d
+    d d / dt       = w_d                                            (random walk)
+
+``d`` (N m) is the lower friction torque, whatever it is: Stribeck slip
+torque, the torque that holds the disc while it sticks, lateral losses in the
+coupled configuration.  It is not modelled, it is estimated.  The linear part
+(``A``, ``B``) is taken from the core's linearisation
+(:func:`drillgym.equilibria.linearise`, 'angles' variant) with the brake's
+slope removed (the whole brake torque is the disturbance state), and
+discretised with zero-order hold (python-control ``c2d``).  The upper disc's
+Coulomb level enters as a known input; while the model says the upper disc
+rests, the known input is the torque that keeps it at rest (stick).
+
+Measurement: the quantized motor-side angle theta_u only; its noise variance
+is q^2/12 (q = 2 pi / counts per rev) plus any extra white noise.
+
+Two estimators share the model: :class:`KalmanObserver` (filterpy
+``KalmanFilter``, time-varying covariance, batched: the covariance does not
+depend on the data, so one filter carries the states of n trajectories as the
+columns of ``x``) and :func:`steady_state_gain` (python-control ``dlqe``) for
+the LQG design.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import control
+import numpy as np
+from filterpy.kalman import KalmanFilter
+
+from drillgym import Configuration, RigParams
+from drillgym.equilibria import linearise, lower_damping, slip_equilibrium
+from drillgym.friction import lower_friction
+from drillgym.measurement import DEFAULT_COUNTS_PER_REV
+
+__all__ = ["STATES", "DisturbanceModel", "disturbance_model", "KalmanObserver", "steady_state_gain"]
+
+STATES = ("theta_u", "omega_u", "alpha", "omega_l", "d")
+"""State order of the estimator: rad, rad/s, rad, rad/s, N m."""
+I_TU, I_WU, I_AL, I_WL, I_D = range(5)
+
+
+@dataclass(frozen=True)
+class DisturbanceModel:
+    """Discrete model of the estimator (period ``dt``): x+ = Ad x + Bd [u, Tfu_c], z = H x + v.
+
+    ``Bd`` has two columns: the voltage u (V) and the upper friction offset
+    (N m, the part of Tfu not in ``Ad``).  ``Qd`` (process) and ``R``
+    (measurement) are covariances; ``Ac``, ``Bc`` the continuous model.
+    """
+
+    params: RigParams
+    dt: float
+    Ac: np.ndarray
+    Bc: np.ndarray
+    Ad: np.ndarray
+    Bd: np.ndarray
+    H: np.ndarray
+    Qd: np.ndarray
+    R: np.ndarray
+    friction_known: bool = True
+
+    @property
+    def upper_coulomb(self) -> float:
+        """Upper friction offset for positive rotation, Tcu + dTcu (N m)."""
+        return self.params.Tcu + self.params.dTcu
+
+    @property
+    def upper_damping(self) -> float:
+        """Upper viscous friction for positive rotation, bu + dbu (N m s/rad)."""
+        return self.params.bu + self.params.dbu
+
+    def known_inputs(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Input matrix (3, n) of the model: voltage, upper friction offset, nominal lower friction."""
+        return np.vstack([u, self.known_friction(x, u), self.nominal_lower_friction(x)])
+
+    def nominal_lower_friction(self, x: np.ndarray, eps: float = 1e-3) -> np.ndarray:
+        """Lower friction of the nominal law at the estimates x (5, n) (N m, (n,)); 0 when not modelled.
+
+        Slipping (|omega_l| > eps): the Stribeck law of the core (:func:`drillgym.friction.lower_friction`);
+        resting: the torque that holds the disc against the string, limited to the stick set (+-Ts).
+        """
+        if not self.friction_known:
+            return np.zeros(x.shape[1])
+        wl = x[I_WL]
+        hold = np.clip(-self.params.ktheta * x[I_AL], -self.params.Ts, self.params.Ts)
+        slip = lower_friction(np.where(np.abs(wl) > eps, wl, eps), self.params)
+        return np.where(np.abs(wl) > eps, slip, hold)
+
+    def known_friction(self, x: np.ndarray, u: np.ndarray, eps: float = 1e-3) -> np.ndarray:
+        """Upper friction offset (N m, (n,)) for states x (5, n) and voltages u (n,).
+
+        Slipping (|omega_u| > eps): the Coulomb level with the sign of omega_u.  Resting: the
+        torque that keeps the disc at rest, limited to the stick set.
+        """
+        p = self.params
+        drive = p.km * u + p.ktheta * x[I_AL] - self.upper_damping * x[I_WU]
+        rest = np.clip(drive, -p.Tcu + p.dTcu, p.Tcu + p.dTcu)
+        slip = np.where(x[I_WU] > 0, p.Tcu + p.dTcu, -(p.Tcu - p.dTcu))
+        return np.where(np.abs(x[I_WU]) > eps, slip, rest)
+
+
+def disturbance_model(params: RigParams | None = None, dt: float = 0.01, *,
+                      counts_per_rev: int = DEFAULT_COUNTS_PER_REV, angle_noise: float = 0.0,
+                      sigma_d: float = 0.02, sigma_upper: float = 0.03, sigma_lower: float = 0.005,
+                      friction_known: bool = True) -> DisturbanceModel:
+    """Build the estimator's model.
+
+    Args:
+        params: model parameters (the identified set by default).
+        dt: sample period (s).
+        counts_per_rev: encoder resolution (0: no quantization).
+        angle_noise: extra white noise on theta_u (rad, std).
+        sigma_d: random-walk intensity of the friction torque (N m / sqrt(s)).
+        sigma_upper, sigma_lower: white torque noise on the discs (N m / sqrt(Hz)), model error.
+        friction_known: the nominal brake law (with stick) is a known input and ``d`` its unknown
+            deviation (default); False: ``d`` is the whole lower friction torque.
+    """
+    p = params or RigParams()
+    if not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be a positive period (s), got {dt!r}")
+    for name, v in (("sigma_d", sigma_d), ("sigma_upper", sigma_upper), ("sigma_lower", sigma_lower),
+                    ("angle_noise", angle_noise)):
+        if not (np.isfinite(v) and v >= 0):
+            raise ValueError(f"{name} must be a non-negative number, got {v!r}")
+    # exact Jacobian of the core at a slip equilibrium (angles variant: theta_u, theta_l, omega_u, omega_l)
+    eq = slip_equilibrium(Configuration.TORSIONAL, 3.0, p, with_eigenvalues=False)
+    lin = linearise(eq, "angles")
+    names = list(lin.state_labels)
+    iu, il, iwu, iwl = (names.index(s) for s in ("theta_u", "theta_l", "omega_u", "omega_l"))
+    A4, B4 = np.asarray(lin.A), np.asarray(lin.B)[:, 0]
+    brake_slope = lower_damping(eq.omega, p)
+    if abs(A4[iwl, iwl] + brake_slope / p.Jl) > 1e-4 * max(1.0, abs(brake_slope / p.Jl)):
+        raise RuntimeError("linearisation does not have the expected brake damping term")
+    # to (theta_u, omega_u, alpha, omega_l, d): alpha = theta_l - theta_u
+    T = np.zeros((4, 4))  # z4 = T @ (theta_u, theta_l, omega_u, omega_l)
+    T[I_TU, iu] = 1.0
+    T[I_WU, iwu] = 1.0
+    T[I_AL, il], T[I_AL, iu] = 1.0, -1.0
+    T[I_WL, iwl] = 1.0
+    Ti = np.linalg.inv(T)
+    A = np.zeros((5, 5))
+    A[:4, :4] = T @ A4 @ Ti
+    A[I_WL, I_WL] += brake_slope / p.Jl  # remove the brake's slope: the whole brake torque is the state d
+    A[I_WL, I_D] = -1.0 / p.Jl
+    Bu = np.zeros(5)
+    Bu[:4] = T @ B4
+    Bl = np.zeros(5)
+    Bl[I_WL] = -1.0 / p.Jl
+    B = np.column_stack([Bu, -Bu / p.km, Bl])  # [u (V), upper friction offset (N m), nominal lower friction (N m)]
+    C = np.zeros((1, 5))
+    C[0, I_TU] = 1.0
+    sysd = control.c2d(control.ss(A, B, C, np.zeros((1, 3))), dt, method="zoh")
+    G = np.zeros((5, 3))
+    G[I_WU, 0] = 1.0 / p.Ju
+    G[I_WL, 1] = 1.0 / p.Jl
+    G[I_D, 2] = 1.0
+    Qc = np.diag([sigma_upper ** 2, sigma_lower ** 2, sigma_d ** 2])
+    Qd = _discrete_noise(A, G @ Qc @ G.T, dt)
+    q = 2.0 * np.pi / counts_per_rev if counts_per_rev > 0 else 0.0
+    R = np.array([[q * q / 12.0 + angle_noise ** 2 + 1e-12]])
+    return DisturbanceModel(p, float(dt), A, B, np.asarray(sysd.A), np.asarray(sysd.B), C, Qd, R, friction_known)
+
+
+def _discrete_noise(A: np.ndarray, Qc: np.ndarray, dt: float) -> np.ndarray:
+    """Covariance of the discretised white process noise (Van Loan's method)."""
+    from scipy.linalg import expm
+
+    n = A.shape[0]
+    M = np.zeros((2 * n, 2 * n))
+    M[:n, :n] = -A
+    M[:n, n:] = Qc
+    M[n:, n:] = A.T
+    E = expm(M * dt)
+    Phi = E[n:, n:].T
+    Q = Phi @ E[:n, n:]
+    return 0.5 * (Q + Q.T)
+
+
+class KalmanObserver:
+    """Batched Kalman filter (filterpy) estimating (theta_u, omega_u, alpha, omega_l, d) from theta_u.
+
+    One ``filterpy.kalman.KalmanFilter`` holds the covariance (the same for
+    every trajectory: it does not depend on the data) and the n state
+    estimates as the columns of its ``x`` (5, n).  Per control period:
+    :meth:`update` with the measured angle, read :attr:`x`, then
+    :meth:`predict` with the voltage applied over the period.
+    """
+
+    def __init__(self, model: DisturbanceModel, *, p0_alpha: float = 5.0, p0_speed: float = 2.0,
+                 p0_d: float = 0.3) -> None:
+        self.model = model
+        self.kf = KalmanFilter(dim_x=5, dim_z=1, dim_u=3)
+        self.kf.F = model.Ad.copy()
+        self.kf.B = model.Bd.copy()
+        self.kf.H = model.H.copy()
+        self.kf.Q = model.Qd.copy()
+        self.kf.R = model.R.copy()
+        self._P0 = np.diag([model.R[0, 0], p0_speed ** 2, p0_alpha ** 2, p0_speed ** 2, p0_d ** 2])
+
+    def reset(self, theta_u: np.ndarray, alpha0: "float | np.ndarray" = 0.0) -> None:
+        """Start at rest at the measured angles theta_u (n,), winding guess alpha0 (rad)."""
+        th = np.atleast_1d(np.asarray(theta_u, dtype=float))
+        x = np.zeros((5, th.size))
+        x[I_TU] = th
+        x[I_AL] = alpha0
+        x[I_D] = 0.0 if self.model.friction_known else -self.model.params.ktheta * x[I_AL]
+        self.kf.x = x
+        self.kf.P = self._P0.copy()
+
+    @property
+    def x(self) -> np.ndarray:
+        """Current estimates (5, n), rows in :data:`STATES` order."""
+        return self.kf.x
+
+    def update(self, theta_u: np.ndarray) -> np.ndarray:
+        """Correct with the measured motor angle (n,) (rad); returns the estimates (5, n)."""
+        self.kf.update(np.atleast_2d(np.asarray(theta_u, dtype=float)), H=self.kf.H)
+        return self.kf.x
+
+    def predict(self, u: np.ndarray) -> None:
+        """Propagate over one period with the voltage u (n,) held (V)."""
+        u = np.atleast_1d(np.asarray(u, dtype=float))
+        self.kf.predict(u=self.model.known_inputs(self.kf.x, u))
+
+    def friction(self) -> np.ndarray:
+        """Estimated lower friction torque (N m, (n,)): nominal law at the estimate + disturbance state."""
+        return self.model.nominal_lower_friction(self.kf.x) + self.kf.x[I_D]
+
+
+def steady_state_gain(model: DisturbanceModel) -> tuple[np.ndarray, np.ndarray]:
+    """Stationary Kalman gains from python-control ``dlqe``: (filter gain K (5, 1), predictor gain L (5, 1)).
+
+    ``L`` is dlqe's gain (x+ = A x + B u + L (z - C x)); ``K = P C' (C P C' + R)^-1`` the
+    measurement-update gain of the same filter (P: dlqe's Riccati solution, the prior covariance).
+    """
+    L, P, _ = control.dlqe(model.Ad, np.eye(5), model.H, model.Qd, model.R)
+    P = np.asarray(P)
+    K = P @ model.H.T @ np.linalg.inv(model.H @ P @ model.H.T + model.R)
+    return K, np.asarray(L)

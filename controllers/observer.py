@@ -1,0 +1,154 @@
+"""Observer-based active damping: Kalman filter on the motor angle + LQR on the estimates, and an LQG design.
+
+Both controllers read only the motor-side encoder (``theta_u``).  The estimator
+(:mod:`controllers.kalman`) returns the motor speed, the string winding alpha,
+the lower speed omega_l and the lower friction torque d.  The control law is a
+state feedback about the operating point that the friction estimate defines::
+
+    alpha* = -d^ / k_theta                         (winding that carries the friction)
+    u*     = (Tcu+ + du omega_ref + d^) / km       (voltage of that equilibrium)
+    u      = u* - K [alpha^ - alpha*, omega_u^ - omega_ref, omega_l^ - omega_ref]
+
+The friction estimate is the feedforward (offset-free tracking without an
+integrator); the gain K comes from python-control ``dlqr`` on the discretised
+linearisation of the torsional model at omega_ref
+(:func:`drillgym.equilibria.linearise`), in which the brake's slope is set to
+the steepest negative slope of the Stribeck law (the damping the loop must
+supply whatever the speed the disc passes through).  The feedback makes the
+upper disc give way to and push against the string in phase with the lower
+speed error: an active, non-passive impedance that damps the torsional mode
+(sqrt(k_theta/Jl) = 1.37 rad/s) far beyond what a passive top impedance can.
+
+* :class:`ObserverController` (``observer``): time-varying Kalman filter (filterpy).
+* :class:`LQGController` (``lqg``): stationary Kalman gain from ``control.dlqe`` and the
+  same ``control.dlqr`` gain: a fixed linear controller (separation principle).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import control
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from drillgym import Configuration, RigParams
+from drillgym.equilibria import linearise, lower_damping, slip_equilibrium
+
+from .base import Controller
+from .kalman import I_AL, I_D, I_TU, I_WL, I_WU, KalmanObserver, disturbance_model, steady_state_gain
+
+__all__ = ["ObserverController", "LQGController", "lqr_gain", "steepest_brake_slope"]
+
+DEFAULT_LQR_WEIGHTS = (1.0, 10.0, 10.0)  # state weights on (alpha, omega_u, omega_l) errors
+DEFAULT_LQR_R = 100.0  # input weight (1/V^2)
+
+
+def steepest_brake_slope(params: RigParams) -> float:
+    """Most negative slope dTfl/domega of the brake law (N m s/rad) and nothing above 0."""
+    res = minimize_scalar(lambda w: float(lower_damping(w, params)), bounds=(1e-3, 10 * params.ws), method="bounded")
+    return min(float(res.fun), 0.0)
+
+
+@lru_cache(maxsize=256)
+def _lqr_gain_cached(omega_ref: float, params: RigParams, dt: float, q: tuple, r: float, slope: float) -> np.ndarray:
+    eq = slip_equilibrium(Configuration.TORSIONAL, omega_ref, params, with_eigenvalues=False)
+    lin = linearise(eq, "reduced")
+    names = list(lin.state_labels)
+    A = np.array(lin.A)
+    iwl = names.index("omega_l")
+    A[iwl, iwl] += (lower_damping(omega_ref, params) - slope) / params.Jl  # design slope instead of the local one
+    sysd = control.c2d(control.ss(A, lin.B, np.eye(3), np.zeros((3, 1))), dt, method="zoh")
+    order = [names.index(s) for s in ("alpha", "omega_u", "omega_l")]
+    Q = np.diag(np.asarray(q, dtype=float)[np.argsort(order)])  # weights in the linearisation's state order
+    K, _, _ = control.dlqr(sysd.A, sysd.B, Q, np.array([[r]]))
+    return np.asarray(K)[0, order]  # gains on (alpha, omega_u, omega_l)
+
+
+def lqr_gain(omega_ref: float, params: RigParams | None = None, dt: float = 0.01, *,
+             weights: tuple[float, float, float] = DEFAULT_LQR_WEIGHTS, r: float = DEFAULT_LQR_R,
+             slope: float | None = None) -> np.ndarray:
+    """LQR gain (V per rad, V s/rad, V s/rad) on the errors of (alpha, omega_u, omega_l) at omega_ref.
+
+    ``slope`` (N m s/rad): brake slope of the design model; default the steepest one
+    (:func:`steepest_brake_slope`).
+    """
+    p = params or RigParams()
+    s = steepest_brake_slope(p) if slope is None else float(slope)
+    return _lqr_gain_cached(float(omega_ref), p, float(dt), tuple(float(w) for w in weights), float(r), s)
+
+
+class ObserverController(Controller):
+    """Kalman filter on the motor angle (filterpy) + LQR on the estimated winding, speeds and friction."""
+
+    name = "observer"
+    uses = ("theta_u",)
+
+    def __init__(self, omega_ref=None, *, counts_per_rev: int = 8000, angle_noise: float = 0.0,
+                 sigma_d: float = 0.02, sigma_upper: float = 0.03, sigma_lower: float = 0.005,
+                 weights: tuple[float, float, float] = DEFAULT_LQR_WEIGHTS,
+                 r: float = DEFAULT_LQR_R, **kw) -> None:
+        super().__init__(omega_ref, **kw)
+        self.model = disturbance_model(self.params, self.dt, counts_per_rev=counts_per_rev,
+                                       angle_noise=angle_noise, sigma_d=sigma_d,
+                                       sigma_upper=sigma_upper, sigma_lower=sigma_lower)
+        self.weights = tuple(weights)
+        self.r = float(r)
+        self.slope = steepest_brake_slope(self.params)
+        self.K = np.zeros((1, 3))
+
+    # estimator hooks (the LQG controller swaps the filter)
+    def _estimator_reset(self, theta_u: np.ndarray) -> None:
+        self.observer = KalmanObserver(self.model)
+        self.observer.reset(theta_u)
+
+    def _estimate(self, theta_u: np.ndarray) -> np.ndarray:
+        return self.observer.update(theta_u)
+
+    def _propagate(self, u: np.ndarray) -> None:
+        self.observer.predict(u)
+
+    @property
+    def estimate(self) -> np.ndarray:
+        """Current estimates (5, n): theta_u, omega_u, alpha, omega_l (rad, rad/s) and friction d (N m)."""
+        return self.observer.x
+
+    def _reset(self, m: dict[str, np.ndarray]) -> None:
+        refs = np.unique(self.omega_ref)
+        gains = {w: lqr_gain(w, self.params, self.dt, weights=self.weights, r=self.r, slope=self.slope) for w in refs}
+        self.K = np.stack([gains[w] for w in self.omega_ref])  # (n, 3)
+        self._estimator_reset(np.broadcast_to(m.get("theta_u", 0.0), (self.n,)))
+
+    def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
+        p, mdl = self.params, self.model
+        x = self._estimate(m["theta_u"])
+        d_hat = mdl.nominal_lower_friction(x) + x[I_D]  # estimated lower friction torque (N m)
+        alpha_star = -d_hat / p.ktheta
+        u_star = (mdl.upper_coulomb + mdl.upper_damping * self.omega_ref + d_hat) / p.km
+        err = np.stack([x[I_AL] - alpha_star, x[I_WU] - self.omega_ref, x[I_WL] - self.omega_ref])
+        u = np.clip(u_star - np.einsum("nk,kn->n", self.K, err), -self.u_max, self.u_max)
+        self._propagate(u)
+        return u
+
+
+class LQGController(ObserverController):
+    """LQG: stationary Kalman gain (control.dlqe) + LQR gain (control.dlqr), estimates from the motor angle."""
+
+    name = "lqg"
+
+    def _estimator_reset(self, theta_u: np.ndarray) -> None:
+        self.Kf, _ = steady_state_gain(self.model)
+        x = np.zeros((5, self.n))
+        x[I_TU] = theta_u
+        self._x = x
+
+    def _estimate(self, theta_u: np.ndarray) -> np.ndarray:
+        self._x = self._x + self.Kf @ (np.atleast_2d(theta_u) - self.model.H @ self._x)
+        return self._x
+
+    def _propagate(self, u: np.ndarray) -> None:
+        self._x = self.model.Ad @ self._x + self.model.Bd @ self.model.known_inputs(self._x, u)
+
+    @property
+    def estimate(self) -> np.ndarray:
+        return self._x

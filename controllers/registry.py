@@ -1,0 +1,66 @@
+"""Controllers by name: ``controllers.make("observer", config="torsional", omega_ref=3.0)``.
+
+Names: ``baseline``, ``pi``, ``softtorque``, ``observer``, ``lqg``, and
+``agent:PATH`` for a trained policy.  Agents plug in through one documented
+callable, registered by the agents package (or anyone) with
+:func:`register_agent_loader`::
+
+    def load(path: str, *, config: str, omega_ref, params, dt: float, **kw) -> controllers.Controller: ...
+
+The returned object is a :class:`controllers.Controller` (it reads the
+measurements of :data:`controllers.base.MEASUREMENTS`, builds its own
+observation from them and returns volts), so the evaluation harness, the
+Gymnasium adapter and ``drillgym rig run`` treat it like any controller.  When
+no loader is registered, ``agents.load_controller`` is tried.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Callable
+
+from .base import Controller
+from .baseline import BaselineController
+from .observer import LQGController, ObserverController
+from .pi import PIController
+from .softtorque import SoftTorqueController
+
+__all__ = ["CONTROLLERS", "make", "available", "register_agent_loader", "AgentLoader"]
+
+CONTROLLERS: dict[str, type[Controller]] = {
+    c.name: c for c in (BaselineController, PIController, SoftTorqueController, ObserverController, LQGController)
+}
+
+AgentLoader = Callable[..., Controller]
+_agent_loader: AgentLoader | None = None
+
+
+def register_agent_loader(loader: AgentLoader) -> None:
+    """Install the callable that turns ``agent:PATH`` into a Controller (see the module doc)."""
+    global _agent_loader
+    if not callable(loader):
+        raise TypeError("agent loader must be callable")
+    _agent_loader = loader
+
+
+def available() -> list[str]:
+    """Controller names accepted by :func:`make` (plus ``agent:PATH``)."""
+    return sorted(CONTROLLERS)
+
+
+def make(name: str, config: str = "torsional", omega_ref=None, params=None, **kw) -> Controller:
+    """Build a controller by name (``agent:PATH`` for a trained policy); ValueError names unknown ones."""
+    if name.startswith("agent:"):
+        path = name[len("agent:"):]
+        if not path:
+            raise ValueError("agent controller needs a path: agent:PATH")
+        loader = _agent_loader
+        if loader is None:
+            try:
+                loader = importlib.import_module("agents").load_controller
+            except (ImportError, AttributeError) as exc:
+                raise ValueError(f"no agent loader available for {name!r} (agents.load_controller): {exc}") from exc
+        return loader(path, config=config, omega_ref=omega_ref, params=params, **kw)
+    if name not in CONTROLLERS:
+        raise ValueError(f"unknown controller {name!r}; choose from {', '.join(available())} or agent:PATH")
+    return CONTROLLERS[name](omega_ref, config=config, params=params, **kw)

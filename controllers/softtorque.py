@@ -1,0 +1,83 @@
+"""Torque-feedback active damping in the spirit of soft-torque systems, tuned to the string's torsional mode.
+
+The motor's speed loop (:class:`controllers.pi.MotorSpeedPI`) follows a speed
+command that yields to the string torque::
+
+    omega_cmd = omega_ref + HP[T_string] / Z
+
+``T_string = k_theta alpha`` is the torque the string exerts on the upper disc,
+estimated on the motor side from the upper disc's equation of motion
+(``Ju d omega_u/dt + Tfu(omega_u) - km u``, speed and acceleration from the
+quantized motor angle, low-passed).  The high-pass (corner a third of the
+torsional mode) removes the mean torque; ``Z`` is the string's characteristic
+impedance ``sqrt(k_theta Jl)`` (N m s/rad), which makes the top behave, near the
+mode ``sqrt(k_theta / Jl)``, like a damper matched to the string: the industry's
+soft-torque tuning.  A passive top impedance can add at most
+``k_theta / (2 omega_n) = sqrt(k_theta Jl) / 2`` of damping at the lower disc:
+enough where the brake's slope is mildly negative, not at its steepest.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from drillgym.equilibria import equilibrium_voltage
+from drillgym.measurement import EncoderVelocityEstimator
+
+from .base import Controller
+from .pi import MotorSpeedPI
+
+__all__ = ["SoftTorqueController"]
+
+
+class SoftTorqueController(Controller):
+    """Soft-torque active damping: motor speed loop yielding to the estimated string torque."""
+
+    name = "softtorque"
+    uses = ("theta_u",)
+
+    def __init__(self, omega_ref=None, *, impedance: float | None = None, hp_ratio: float = 1.0 / 3.0,
+                 kp: float = 1.0, ki: float = 3.0, velocity_tau: float = 0.02, torque_tau: float = 0.5,
+                 **kw) -> None:
+        super().__init__(omega_ref, **kw)
+        p = self.params
+        self.omega_n = math.sqrt(p.ktheta / p.Jl)  # torsional mode (rad/s)
+        self.impedance = math.sqrt(p.ktheta * p.Jl) if impedance is None else float(impedance)
+        if not (self.impedance > 0 and hp_ratio > 0):
+            raise ValueError(f"impedance and hp_ratio must be positive, got {impedance!r}, {hp_ratio!r}")
+        self.a_hp = math.exp(-hp_ratio * self.omega_n * self.dt)  # pole of the low-pass removed by the high-pass
+        self.a_tq = math.exp(-self.dt / torque_tau)
+        self.kp, self.ki, self.velocity_tau = float(kp), float(ki), float(velocity_tau)
+
+    def _reset(self, m: dict[str, np.ndarray]) -> None:
+        self.speed = EncoderVelocityEstimator(self.n, self.dt, self.velocity_tau)
+        self.speed.reset(np.broadcast_to(m.get("theta_u", 0.0), (self.n,)).copy())
+        self.loop = MotorSpeedPI(self.n, self.dt, self.kp, self.ki, self.u_max)
+        self.u_ff = np.broadcast_to(equilibrium_voltage(self.config, self.omega_ref, self.params), (self.n,)).copy()
+        self.w_prev = np.zeros(self.n)
+        self.u_f = np.zeros(self.n)
+        self.torque = np.zeros(self.n)  # low-passed string torque estimate (N m)
+        self.mean_torque = None  # slow average (the high-pass's complement)
+
+    def string_torque(self, w: np.ndarray) -> np.ndarray:
+        """String torque on the upper disc (N m) from the motor side, low-passed."""
+        p = self.params
+        acc = (w - self.w_prev) / self.dt
+        self.w_prev = w.copy()
+        tfu = np.where(w > 0, p.Tcu + p.dTcu + (p.bu + p.dbu) * w, np.where(w < 0, -(p.Tcu - p.dTcu) + (p.bu - p.dbu) * w, 0.0))
+        # the voltage through the same low-pass as the speed estimate, so the motor torque cancels exactly
+        self.u_f = self.speed.a * self.u_f + (1 - self.speed.a) * self.u_prev
+        raw = p.Ju * acc + tfu - p.km * self.u_f
+        self.torque = self.a_tq * self.torque + (1 - self.a_tq) * raw
+        return self.torque
+
+    def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
+        w = self.speed.update(m["theta_u"]).copy()
+        tq = self.string_torque(w)
+        if self.mean_torque is None:
+            self.mean_torque = tq.copy()
+        self.mean_torque = self.a_hp * self.mean_torque + (1 - self.a_hp) * tq
+        cmd = self.omega_ref + (tq - self.mean_torque) / self.impedance
+        return self.loop(cmd, w, self.u_ff)

@@ -1,0 +1,149 @@
+"""The whole open-loop bifurcation diagram of one configuration: equilibria, Hopf points, periodic
+branches (from each Hopf point, by shooting and continuation), folds, sweeps, measurements."""
+
+from __future__ import annotations
+
+import json
+from concurrent.futures import Executor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..configurations import Configuration
+from ..equilibria import slip_equilibrium, supported_configuration
+from ..params import ParameterError, RigParams
+from .continuation import Fold, PeriodicBranch, continue_branch, find_folds, start_at_hopf
+from .equilibrium_branch import EquilibriumBranch, HopfPoint, equilibrium_branch
+from .measured import REPORT_POINTS
+from .poincare import SectionMap
+from .shooting import ShootingFailure
+from .sweeps import SweepResult, sweep_constant, sweep_staircase
+
+GRAZING_STICK_TIME = 0.05  # s: a branch that stops with less stick than this ends at a discontinuous fold
+
+
+@dataclass
+class BifurcationDiagram:
+    """Everything of one diagram (voltages in V, speeds in rad/s, r in m, periods in s)."""
+
+    config: Configuration
+    equilibria: EquilibriumBranch
+    periodic: list[PeriodicBranch] = field(default_factory=list)
+    folds: list[Fold] = field(default_factory=list)
+    sweeps: list[SweepResult] = field(default_factory=list)
+    measured: list[dict] = field(default_factory=list)
+
+    @property
+    def hopf(self) -> list[HopfPoint]:
+        return self.equilibria.hopf
+
+    def to_dict(self) -> dict:
+        return {
+            "config": self.config.label,
+            "hopf": [h.u for h in self.hopf],
+            "fold": [f.u for f in self.folds],
+            "hopf_points": [h.to_dict() for h in self.hopf],
+            "fold_points": [f.to_dict() for f in self.folds],
+            "equilibria": self.equilibria.to_dict(every=max(1, len(self.equilibria.u) // 150)),
+            "cycles": [s.to_dict() for br in self.periodic for s in br.solutions],
+            "cycle_branches": [{"end": br.end_reason, "n": len(br.solutions)} for br in self.periodic],
+            "sweeps": [s.to_dict() for s in self.sweeps],
+            "measured": self.measured,
+            "report_measured_points": REPORT_POINTS.get(self.config.label, {}),
+        }
+
+    def save_json(self, path: str | Path) -> Path:
+        path = Path(path)
+        path.write_text(json.dumps(self.to_dict(), indent=1))
+        return path
+
+
+def _hopf_start(smap: SectionMap, h: HopfPoint, params: RigParams, amplitude: float):
+    eq = slip_equilibrium(smap.config, h.omega, params)
+    from ..equilibria import linearise
+
+    lam, V = np.linalg.eig(linearise(eq).A)
+    i = int(np.argmin(np.abs(lam - 1j * h.frequency)))
+    z_eq = np.array([eq.alpha, eq.omega, eq.omega, eq.x, eq.y, 0.0, 0.0][:smap.dim + 1])
+    z_eq = np.delete(z_eq, 2) / smap.scale  # drop omega_l (row 2 of the reduced states)
+    return start_at_hopf(smap, h.u, z_eq, V[:, i], 2, amplitude=amplitude)
+
+
+def periodic_branches(branch: EquilibriumBranch, params: RigParams | None = None, *, umin: float = 0.0,
+                      umax: float = 5.0, dt: float = 1e-3, ds: float = 0.02, ds_max: float = 0.2,
+                      amplitude: float = 0.01, max_points: int = 300,
+                      progress: Callable[[object], None] | None = None) -> tuple[list[PeriodicBranch], list[Fold]]:
+    """Periodic branches born at each Hopf point of ``branch`` inside [umin, umax], and their folds.
+
+    Each branch is followed by pseudo-arclength continuation until it leaves the
+    window, shrinks back to a Hopf point, or stops at a grazing corner: a
+    discontinuous fold, where a stick-slip cycle meets an unstable slip cycle.
+    """
+    params = params or RigParams()
+    if params.tau_m > 0:
+        raise ParameterError("tau_m: periodic continuation does not support the motor_lag effect; set tau_m = 0")
+    smap = SectionMap(branch.config, params.to_vector(), branch.section_speed, dt=dt)
+    out, folds = [], []
+    for h in branch.hopf:
+        if not umin <= h.u <= umax:
+            continue
+        try:
+            s1 = _hopf_start(smap, h, params, amplitude)
+            s2 = _hopf_start(smap, h, params, 2 * amplitude)
+        except ShootingFailure:
+            continue
+        br = continue_branch(smap, s1, np.sign(s2.u - s1.u) or 1.0, umin=umin, umax=umax, ds=ds, ds_max=ds_max,
+                             max_points=max_points, progress=progress)
+        out.append(br)
+        folds += br.folds
+        last = br.solutions[-1]
+        if br.end_reason.startswith("corrector") and (last.stick_time < GRAZING_STICK_TIME
+                                                      or last.omega_l_min < 1e-2):
+            folds.append(Fold(last.u, last.omega_l_max, True))
+    return out, _merge_folds(folds)
+
+
+def _merge_folds(folds: list[Fold], tol: float = 0.01) -> list[Fold]:
+    merged: list[Fold] = []
+    for f in sorted(folds, key=lambda f: f.u):
+        if merged and abs(f.u - merged[-1].u) < tol:
+            m = merged[-1]
+            merged[-1] = Fold(max(m.u, f.u) if m.discontinuous or f.discontinuous else 0.5 * (m.u + f.u),
+                              max(m.omega_l_max, f.omega_l_max), m.discontinuous or f.discontinuous)
+        else:
+            merged.append(f)
+    return merged
+
+
+def compute_diagram(config: str, params: RigParams | None = None, *, umin: float = 0.0, umax: float = 5.0,
+                    periodic: bool = True, sweep_step: float | None = 0.05, sweep_duration: float = 120.0,
+                    staircase: bool = True, sweep_umax: float | None = None, dt: float = 1e-3, sweep_dt: float | None = None, ds_max: float = 0.2,
+                    executor: Executor | None = None, measured: Sequence[dict] = (),
+                    progress: Callable[[str], None] | None = None) -> BifurcationDiagram:
+    """Equilibria, Hopf points, periodic branches and folds, and (``sweep_step``, V) brute-force sweeps
+    over [umin, sweep_umax or umax] from rest (``sweep_duration`` s each) and, with ``staircase``, the lab's
+    quasi-static sweeps up and down.  ``progress`` receives short status messages."""
+    params = params or RigParams()
+    cfg = supported_configuration(config, params)
+    if not (np.isfinite(umin) and np.isfinite(umax) and 0 <= umin < umax):
+        raise ValueError(f"need 0 <= umin < umax, got umin={umin}, umax={umax}")
+    say = progress or (lambda msg: None)
+    say("equilibria")
+    eqb = equilibrium_branch(cfg, params, umax=umax)
+    diag = BifurcationDiagram(cfg, eqb, measured=list(measured))
+    if periodic and eqb.hopf:
+        say("periodic solutions")
+        diag.periodic, diag.folds = periodic_branches(eqb, params, umin=umin, umax=umax, dt=dt, ds_max=ds_max,
+                                                      progress=lambda s: say(f"cycle u={s.u:.3f} V"))
+    if sweep_step:
+        say("sweeps")
+        u = np.round(np.arange(umin, (sweep_umax or umax) + 1e-9, sweep_step), 10)
+        sdt = sweep_dt or dt
+        diag.sweeps.append(sweep_constant(cfg.label, u, start="rest", duration=sweep_duration, dt=sdt, params=params,
+                                          executor=executor))
+        if staircase:
+            diag.sweeps += list(sweep_staircase(cfg.label, u, dwell=max(20.0, sweep_duration / 4), dt=sdt,
+                                                params=params, executor=executor))
+    return diag

@@ -1,0 +1,106 @@
+"""Equilibrium branches versus constant voltage, with stability and located Hopf points.
+
+The slip branch is parametrised by the speed omega (rad/s) on a geometric grid
+(u(omega) from :mod:`drillgym.equilibria`, so folds of the equilibrium branch
+and several equilibria per voltage come out naturally).  Stability is the sign
+of the largest real part of the linearisation's eigenvalues; a Hopf point is a
+sign change of it, located by Brent's method in omega and mapped to the
+voltage.  The stick set (omega = 0) occupies 0 <= u <= us.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import brentq
+
+from ..configurations import Configuration
+from ..equilibria import eigenvalues, equilibrium_voltage, slip_equilibrium, stick_set, supported_configuration
+from ..params import RigParams
+
+
+@dataclass(frozen=True)
+class HopfPoint:
+    """A Hopf point: voltage u (V), equilibrium speed omega (rad/s), crossing frequency (rad/s) and
+    direction ('loses' / 'gains' stability as u increases)."""
+
+    u: float
+    omega: float
+    frequency: float
+    direction: str
+
+    def to_dict(self) -> dict:
+        return {"u": self.u, "omega": self.omega, "frequency": self.frequency, "direction": self.direction}
+
+
+@dataclass
+class EquilibriumBranch:
+    """Slip equilibria along the grid of speeds (arrays, SI units) plus the stick interval [0, u_stick]."""
+
+    config: Configuration
+    omega: np.ndarray
+    u: np.ndarray
+    alpha: np.ndarray
+    r: np.ndarray
+    max_real: np.ndarray
+    u_stick: float
+    hopf: list[HopfPoint] = field(default_factory=list)
+
+    @property
+    def stable(self) -> np.ndarray:
+        return self.max_real < 0
+
+    def section_speed(self, u: float) -> float:
+        """Speed (rad/s) of the lowest slip equilibrium at voltage u, used as Poincare section
+        (held at the value just above the stick voltage for u below it)."""
+        inc = np.concatenate([[True], np.diff(self.u) > 0])
+        stop = int(np.argmin(inc)) if not inc.all() else len(inc)
+        uu, ww = self.u[:stop], self.omega[:stop]
+        return float(np.interp(max(u, uu[0] + 1e-4), uu, ww))
+
+    def to_dict(self, every: int = 1) -> list[dict]:
+        out = [{"kind": "stick", "u_min": 0.0, "u_max": self.u_stick, "omega": 0.0, "stable": True}]
+        for i in range(0, len(self.u), every):
+            out.append({"kind": "slip", "u": float(self.u[i]), "omega": float(self.omega[i]),
+                        "alpha": float(self.alpha[i]), "r": float(self.r[i]), "stable": bool(self.stable[i]),
+                        "max_real_eigenvalue": float(self.max_real[i])})
+        return out
+
+
+def _max_real(cfg: Configuration, w: float, params: RigParams) -> float:
+    return float(np.max(eigenvalues(slip_equilibrium(cfg, w, params, with_eigenvalues=False)).real))
+
+
+def equilibrium_branch(config: "str | Configuration", params: RigParams | None = None, umax: float = 5.0,
+                       n: int = 300, omega_min: float = 1e-4) -> EquilibriumBranch:
+    """The slip equilibrium branch for 0 < u <= umax (V) and its Hopf points."""
+    params = params or RigParams()
+    cfg = supported_configuration(config, params)
+    if not (np.isfinite(umax) and umax > 0):
+        raise ValueError(f"umax must be a positive voltage, got {umax!r}")
+    w_hi = 1.0
+    while equilibrium_voltage(cfg, w_hi, params) < umax:
+        w_hi *= 1.5
+        if w_hi > 1e4:
+            raise ValueError(f"no slip equilibrium reaches u = {umax} V below 1e4 rad/s")
+    w = np.geomspace(omega_min, w_hi, n)
+    eqs = [slip_equilibrium(cfg, v, params) for v in w]
+    u = np.array([e.u for e in eqs])
+    keep = u <= umax * 1.0001
+    keep[np.argmax(~keep) if not keep.all() else -1] = True  # one point beyond umax closes the curve
+    eqs = [e for e, k in zip(eqs, keep) if k]
+    w = w[keep]
+    mr = np.array([np.max(e.eigenvalues.real) for e in eqs])
+    hopf = []
+    for i in np.flatnonzero(np.sign(mr[:-1]) != np.sign(mr[1:])):
+        wc = brentq(lambda v: _max_real(cfg, v, params), w[i], w[i + 1], xtol=1e-12, rtol=1e-12)
+        e = slip_equilibrium(cfg, wc, params)
+        freq = float(np.max(np.abs(e.eigenvalues[np.argsort(-e.eigenvalues.real)[:2]].imag)))
+        hopf.append(HopfPoint(e.u, wc, freq, "loses" if mr[i] < 0 else "gains"))
+    ss = stick_set(cfg, 0.0, params)
+    u_stick = params.stick_voltage if cfg.brake else (params.Tcu + params.dTcu + params.Tcl) / params.km
+    if ss is None:
+        u_stick = 0.0
+    return EquilibriumBranch(cfg, w, np.array([e.u for e in eqs]), np.array([e.alpha for e in eqs]),
+                             np.array([e.r for e in eqs]), mr, float(u_stick), hopf)

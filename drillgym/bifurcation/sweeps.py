@@ -1,0 +1,133 @@
+"""Brute-force bifurcation sweeps, as the lab does them, run through a ``concurrent.futures.Executor``.
+
+* :func:`sweep_constant` - one run per voltage, from rest (``start="rest"``) or
+  from the slip equilibrium (``start="equilibrium"``, slightly perturbed), to
+  steady state; statistics over the last ``window`` seconds.
+* :func:`sweep_staircase` - the lab's quasi-static sweep: one run whose voltage
+  steps up (or down) through the list, ``dwell`` seconds per level, each level
+  starting from the state the previous one left; statistics over the end of
+  each level.
+
+Work is split into chunks, each simulated by :func:`drillgym.simulate_batch`
+in a worker.  ``executor`` is any ``concurrent.futures.Executor``: by default a
+``ProcessPoolExecutor`` over all cores; a Dask cluster's
+``distributed.Client(...).get_executor()`` or Ray's
+``ray.util.multiprocessing.Pool`` wrapped as an executor scale it out unchanged.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import Executor, ProcessPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..equilibria import slip_equilibria
+from ..params import RigParams
+from ..simulator import simulate_batch
+from .steady_state import STAT_NAMES, steady_state_stats
+
+RECORD_EVERY = 10  # samples kept every 10 steps (10 ms at dt = 1 ms): enough for extremes and periods
+
+
+@dataclass
+class SweepResult:
+    """Per voltage (V): steady-state min/max omega_l (rad/s), min/max r (m), period (s, NaN when not
+    oscillating), stuck fraction of the lower disc; ``kind`` is 'rest', 'equilibrium', 'up' or 'down'."""
+
+    kind: str
+    u: np.ndarray
+    stats: np.ndarray  # (n, len(STAT_NAMES))
+
+    def __getattr__(self, name: str) -> np.ndarray:
+        if name in STAT_NAMES and "stats" in self.__dict__:
+            return self.stats[:, STAT_NAMES.index(name)]
+        raise AttributeError(name)
+
+    def to_dict(self) -> dict:
+        d = {"kind": self.kind, "u": self.u.tolist()}
+        for i, n in enumerate(STAT_NAMES):
+            d[n] = [None if not np.isfinite(v) else float(v) for v in self.stats[:, i]]
+        return d
+
+
+def _run_constant(config: str, u: np.ndarray, x0: np.ndarray | None, duration: float, window: float, dt: float,
+                  params: dict) -> np.ndarray:
+    uin = u if len(u) > 1 else float(u[0])
+    batch = simulate_batch(config, uin, duration, dt=dt, params=RigParams.from_dict(params), x0=x0,
+                           n_batch=len(u), record_every=RECORD_EVERY)
+    n_win = int(round(window / (dt * RECORD_EVERY)))
+    return np.stack([steady_state_stats(batch[k], n_win) for k in range(len(u))])
+
+
+def _run_staircase(config: str, levels: np.ndarray, dwell: float, window: float, dt: float, params: dict) -> np.ndarray:
+    n_level = int(round(dwell / dt))
+    U = np.repeat(levels, n_level)
+    traj = simulate_batch(config, U, len(U) * dt, dt=dt, params=RigParams.from_dict(params), n_batch=1,
+                          record_every=RECORD_EVERY)[0]
+    n_win = int(round(window / (dt * RECORD_EVERY)))
+    n_rec = n_level // RECORD_EVERY
+    return np.stack([steady_state_stats(traj, n_win, end=(i + 1) * n_rec + 1) for i in range(len(levels))])
+
+
+def _executor(executor: Executor | None) -> tuple[Executor, bool]:
+    if executor is not None:
+        return executor, False
+    return ProcessPoolExecutor(max_workers=os.cpu_count() or 1), True
+
+
+def _check(voltages, duration: float, window: float) -> np.ndarray:
+    u = np.asarray(voltages, dtype=float).reshape(-1)
+    if u.size == 0 or not np.all(np.isfinite(u)):
+        raise ValueError("sweep voltages must be a non-empty list of finite numbers (V)")
+    if not 0 < window <= duration:
+        raise ValueError(f"window ({window} s) must be positive and not longer than the run ({duration} s)")
+    return u
+
+
+def sweep_constant(config: str, voltages, *, start: str = "rest", duration: float = 120.0, window: float = 20.0,
+                   dt: float = 1e-3, params: RigParams | None = None, executor: Executor | None = None,
+                   chunk: int | None = None) -> SweepResult:
+    """Simulate each voltage for ``duration`` s from ``start`` ('rest' or 'equilibrium'); stats over the
+    last ``window`` s."""
+    u = _check(voltages, duration, window)
+    params = params or RigParams()
+    if start == "rest":
+        x0 = None
+    elif start == "equilibrium":
+        x0 = np.zeros((len(u), 9))
+        for k, v in enumerate(u):
+            eqs = slip_equilibria(config, v, params) if v != 0 else []
+            if eqs:
+                x0[k] = eqs[0].state
+                x0[k, 3] *= 1.001  # a small disturbance, as on the rig
+    else:
+        raise ValueError(f"start must be 'rest' or 'equilibrium', got {start!r}")
+    ex, own = _executor(executor)
+    n_chunks = max(1, min(len(u), (os.cpu_count() or 1) * 2)) if chunk is None else max(1, -(-len(u) // chunk))
+    parts = np.array_split(np.arange(len(u)), n_chunks)
+    try:
+        futs = [ex.submit(_run_constant, str(config), u[idx], None if x0 is None else x0[idx], duration, window, dt,
+                          params.to_dict()) for idx in parts if len(idx)]
+        stats = np.concatenate([f.result() for f in futs])
+    finally:
+        if own:
+            ex.shutdown()
+    return SweepResult(start, u, stats)
+
+
+def sweep_staircase(config: str, voltages, *, dwell: float = 40.0, window: float = 15.0, dt: float = 1e-3,
+                    params: RigParams | None = None, executor: Executor | None = None) -> tuple[SweepResult, SweepResult]:
+    """The quasi-static lab sweep up through ``voltages`` and back down (two runs in parallel)."""
+    u = np.sort(_check(voltages, dwell, window))
+    params = params or RigParams()
+    ex, own = _executor(executor)
+    try:
+        up = ex.submit(_run_staircase, str(config), u, dwell, window, dt, params.to_dict())
+        down = ex.submit(_run_staircase, str(config), u[::-1].copy(), dwell, window, dt, params.to_dict())
+        res = SweepResult("up", u, up.result()), SweepResult("down", u[::-1].copy(), down.result())
+    finally:
+        if own:
+            ex.shutdown()
+    return res

@@ -1,0 +1,51 @@
+"""``drillgym bifurcation``: open-loop bifurcation diagrams (report chapter 4) with figures and JSON."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("bifurcation")
+    def bifurcation(
+        config: str = typer.Option("torsional", "--config", help="torsional, lateral or coupled"),
+        out: Path = typer.Option(..., "--out", help="output directory (figures, branches.json)"),
+        umin: float = typer.Option(0.0, "--umin", help="lowest voltage (V)"),
+        umax: Optional[float] = typer.Option(None, "--umax", help="highest voltage (V); default 5 (lateral: 50)"),
+        measured: Optional[List[Path]] = typer.Option(None, "--measured", help="constant-voltage measurement files"),
+        params: Optional[Path] = typer.Option(None, "--params", help="parameter file (JSON/YAML)"),
+        sweep_step: float = typer.Option(0.05, "--sweep-step", help="voltage step of the brute-force sweeps (V); 0: none"),
+        sweep_duration: float = typer.Option(120.0, "--sweep-duration", help="simulated seconds per sweep voltage"),
+        no_report: bool = typer.Option(False, "--no-report", help="leave out the report's measured points"),
+    ) -> None:
+        """Equilibria, Hopf points, periodic branches (shooting + continuation), folds, sweeps; figures + JSON."""
+        from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+        from ..bifurcation import compute_diagram, measured_diagram
+        from ..bifurcation.plots import save_figures
+        from ..configurations import parse_configuration
+        from ..params import RigParams
+
+        cfg = parse_configuration(config)
+        if cfg.label not in ("torsional", "lateral", "coupled"):
+            raise ValueError(f"--config must be torsional, lateral or coupled, got {config!r}")
+        hi = umax if umax is not None else (50.0 if cfg.label == "lateral" else 5.0)
+        p = RigParams.from_file(params) if params else RigParams()
+        meas = measured_diagram(measured, cfg.label) if measured else []
+        lateral = cfg.label == "lateral"
+        with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn()) as bar:
+            task = bar.add_task(f"{cfg.label}: start", total=None)
+            diag = compute_diagram(cfg.label, p, umin=umin, umax=hi, sweep_step=sweep_step or None,
+                                   sweep_duration=sweep_duration, staircase=not lateral,
+                                   sweep_umax=min(hi, 5.0) if lateral else None,  # the report's lab range
+                                   measured=meas, progress=lambda m: bar.update(task, description=f"{cfg.label}: {m}"))
+        out.mkdir(parents=True, exist_ok=True)
+        paths = save_figures(diag, out, report=not no_report)
+        diag.save_json(out / "branches.json")
+        typer.echo(f"Hopf points (V): {[round(h.u, 4) for h in diag.hopf]}")
+        typer.echo(f"folds (V): {[round(f.u, 4) for f in diag.folds]}")
+        for pth in paths + [out / "branches.json"]:
+            typer.echo(f"wrote {pth}")

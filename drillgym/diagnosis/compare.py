@@ -1,0 +1,263 @@
+"""Compare: where the model fails against a recording.
+
+The recording's input is simulated from the recording's initial state (a
+free run, or — for stick-slip, whose phase drifts over long horizons —
+segments re-started from the data, ``segment_s``).  Reported: R² and RMS per
+channel; and where the error lives:
+
+* over time: RMS per window, worst windows named;
+* against ωl: residual torque on the lower disc (:mod:`.sparse`) per speed bin;
+* against θl mod 2π: the same residual torque per angle bin (angle-dependent effects);
+* against r: lateral residual per amplitude bin;
+* spectrum of the residual, rotation harmonics and the lateral eigenfrequency marked.
+
+:func:`write_compare` saves figures and a short text report naming the worst regions.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.signal import welch
+
+from ..configurations import Configuration
+from ..identification.experiment import Experiment, prepare_experiment
+from ..identification.metrics import channel_metrics
+from ..identification.segmented import SegmentedModel
+from ..io import TimeSeries
+from ..params import RigParams
+from .sparse import residual_torques
+
+__all__ = ["Comparison", "compare", "write_compare"]
+
+
+@dataclass
+class Comparison:
+    """Outcome of :func:`compare` (all arrays on the comparison grid)."""
+
+    experiment: Experiment
+    params: RigParams
+    segment_s: float | None
+    predicted: dict[str, np.ndarray]
+    metrics: dict[str, dict[str, float]]
+    windows: list[dict]
+    by_speed: list[dict] = field(default_factory=list)
+    by_angle: list[dict] = field(default_factory=list)
+    by_r: list[dict] = field(default_factory=list)
+    spectrum: dict = field(default_factory=dict)
+    findings: list[str] = field(default_factory=list)
+
+    def text(self) -> str:
+        ex = self.experiment
+        how = "free run from the recording's initial state" if not self.segment_s else \
+            f"segments of {self.segment_s:g} s, each re-started from the recording (stick-slip phase drift)"
+        lines = [f"compare: {ex.name} ({ex.config.label}, {ex.duration:.1f} s, {how})"]
+        for c, m in self.metrics.items():
+            lines.append(f"  {c:<8} R² = {m['r2']:.4f}   RMS = {m['rms']:.4g} {'m' if c in ('x', 'y', 'r') else 'rad'}")
+        lines += ["where the model fails:"] + [f"  - {f}" for f in self.findings]
+        return "\n".join(lines)
+
+    def to_json(self) -> dict:
+        return {"metrics": self.metrics, "windows": self.windows, "by_speed": self.by_speed,
+                "by_angle": self.by_angle, "by_r": self.by_r, "findings": self.findings,
+                "segment_s": self.segment_s, "spectrum_peaks": self.spectrum.get("peaks", [])}
+
+
+def _main_channel(ex: Experiment) -> str:
+    return "theta_u" if ex.config is Configuration.UPPER else "theta_l"
+
+
+def compare(data: "TimeSeries | Experiment", params: RigParams | None = None, config=None, *,
+            segment_s: float | None = None, compare_rate_hz: float = 100.0, n_windows: int = 10) -> Comparison:
+    """Simulate the recording's input from its initial state and locate the error (see module docstring)."""
+    p = params or RigParams()
+    ex = data if isinstance(data, Experiment) else prepare_experiment(data, config, compare_rate_hz=compare_rate_hz)
+    chans = ["theta_u"] if ex.config is Configuration.UPPER else ["theta_u", "theta_l", "alpha"]
+    if ex.config.lateral_free:
+        chans += ["x", "y", "r"]
+    model = SegmentedModel([ex], segment_s)
+    pred = model.predict(p.to_vector()[None, :], tuple(chans))[0]
+    predicted = {c: pred.stitched(0, c) for c in chans}
+    meas = {c: ex.channel(c) for c in chans}
+    metrics = channel_metrics(meas, predicted)
+    res = {c: predicted[c] - meas[c] for c in chans}
+    findings: list[str] = []
+    # --- over time
+    main = _main_channel(ex)
+    edges = np.linspace(0, ex.n, n_windows + 1).astype(int)
+    windows = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        w = {"t0": float(ex.t[a] - ex.t[0]), "t1": float(ex.t[b - 1] - ex.t[0])}
+        for c in chans:
+            e = res[c][a:b]
+            w[c] = float(np.sqrt(np.nanmean(e ** 2)))
+        windows.append(w)
+    overall = metrics[main]["rms"]
+    worst = sorted(windows, key=lambda w: -w[main])[:2]
+    for w in worst:
+        if overall > 0 and w[main] > 1.5 * overall:
+            findings.append(f"{main} error is largest in {w['t0']:.1f}–{w['t1']:.1f} s "
+                            f"(RMS {w[main]:.3g}, {w[main] / overall:.1f}× the record's)")
+    if len(windows) >= 4 and overall > 0:
+        first, last = np.mean([w[main] for w in windows[:len(windows) // 3]]), \
+            np.mean([w[main] for w in windows[-(len(windows) // 3):]])
+        if last > 2 * first:
+            findings.append(f"the error grows along the run ({first:.3g} early, {last:.3g} late): "
+                            "a slow change (friction drift?) or accumulated phase")
+    comp = Comparison(ex, p, segment_s, predicted, metrics, windows, findings=findings)
+    if ex.config is not Configuration.UPPER:
+        _torque_bins(comp)
+    if ex.config.lateral_free:
+        _r_bins(comp, res)
+    _spectrum(comp, res[main] if not ex.config.lateral_free else res["r"])
+    if not comp.findings:
+        comp.findings.append("no region stands out: the error is spread evenly")
+    return comp
+
+
+def _torque_bins(comp: Comparison) -> None:
+    ex = comp.experiment
+    rt = residual_torques(ex, comp.params)
+    ok = rt.slip & np.isfinite(rt.tau_l)
+    if ok.sum() < 30:
+        return
+    wl = rt.states[ok, 3]
+    th = np.mod(rt.states[ok, 1], 2 * np.pi)
+    tau = rt.tau_l[ok]
+    total = float(np.sqrt(np.mean(tau ** 2)))
+    qs = np.unique(np.quantile(wl, np.linspace(0, 1, 9)))
+    for a, b in zip(qs[:-1], qs[1:]):
+        s = (wl >= a) & (wl <= b)
+        if s.sum() > 5:
+            comp.by_speed.append({"omega_lo": float(a), "omega_hi": float(b), "mean": float(tau[s].mean()),
+                                  "rms": float(np.sqrt(np.mean(tau[s] ** 2))), "n": int(s.sum())})
+    if comp.by_speed:
+        w = max(comp.by_speed, key=lambda d: d["rms"])
+        if w["rms"] > 1.3 * total:
+            comp.findings.append(f"residual torque on the lower disc is largest for ωl in "
+                                 f"[{w['omega_lo']:.2f}, {w['omega_hi']:.2f}] rad/s (RMS {w['rms']:.3g} N m, "
+                                 f"record {total:.3g} N m): the friction law there")
+    eb = np.linspace(0, 2 * np.pi, 13)
+    sg = np.sign(wl)
+    for a, b in zip(eb[:-1], eb[1:]):
+        s = (th >= a) & (th < b)
+        if s.sum() > 5:
+            comp.by_angle.append({"theta_lo": float(a), "theta_hi": float(b),
+                                  "mean": float(np.mean(tau[s] * sg[s])), "n": int(s.sum())})
+    if len(comp.by_angle) >= 6:
+        m = np.array([d["mean"] for d in comp.by_angle])
+        amp = 0.5 * (m.max() - m.min())
+        if amp > 0.3 * total:
+            k = int(np.argmax(np.abs(m - m.mean())))
+            comp.findings.append(f"residual friction torque depends on the lower disc's angle: ±{amp:.3g} N m "
+                                 f"over a revolution, extreme near θl = {np.degrees(comp.by_angle[k]['theta_lo']):.0f}–"
+                                 f"{np.degrees(comp.by_angle[k]['theta_hi']):.0f}° (angle-dependent friction?)")
+    neg, pos = tau[wl < 0] * -1, tau[wl > 0]
+    if neg.size > 20 and pos.size > 20 and abs(neg.mean() - pos.mean()) > 0.3 * total:
+        comp.findings.append(f"residual friction differs between directions: {pos.mean():.3g} N m (ωl > 0) vs "
+                             f"{neg.mean():.3g} N m (ωl < 0)")
+
+
+def _r_bins(comp: Comparison, res: dict) -> None:
+    ex = comp.experiment
+    r = ex.channel("r")
+    e = np.hypot(res["x"], res["y"])
+    ok = np.isfinite(e)
+    qs = np.unique(np.quantile(r[ok], np.linspace(0, 1, 6)))
+    for a, b in zip(qs[:-1], qs[1:]):
+        s = ok & (r >= a) & (r <= b)
+        if s.sum() > 5:
+            comp.by_r.append({"r_lo": float(a), "r_hi": float(b), "rms": float(np.sqrt(np.mean(e[s] ** 2))),
+                              "n": int(s.sum())})
+    if len(comp.by_r) >= 2:
+        w = max(comp.by_r, key=lambda d: d["rms"])
+        tot = float(np.sqrt(np.mean(e[ok] ** 2)))
+        if w["rms"] > 1.3 * tot:
+            comp.findings.append(f"lateral error is largest for r in [{w['r_lo'] * 1e3:.2f}, {w['r_hi'] * 1e3:.2f}] mm "
+                                 f"(RMS {w['rms'] * 1e3:.3g} mm vs {tot * 1e3:.3g} mm)")
+
+
+def _spectrum(comp: Comparison, e: np.ndarray) -> None:
+    ex = comp.experiment
+    e = np.nan_to_num(e - np.nanmean(e))
+    if len(e) < 64:
+        return
+    f, P = welch(e, fs=ex.fs, nperseg=min(len(e), int(ex.fs * 20)))
+    wl = ex.rates.get("omega_l", ex.rates["omega_u"])
+    f_rot = float(np.mean(np.abs(wl))) / (2 * np.pi)
+    f_lat = comp.params.lateral_eigenfrequency / (2 * np.pi)
+    marks = {"rotation": f_rot, "2× rotation": 2 * f_rot, "lateral eigenfrequency": f_lat}
+    peaks = []
+    band = (f > 0.02) & (f < min(10.0, ex.fs / 2))
+    if band.any():
+        for i in np.argsort(-P * band)[:3]:
+            near = [n for n, v in marks.items() if v > 0 and abs(f[i] - v) < 0.1 * v + f[1]]
+            peaks.append({"f_hz": float(f[i]), "near": near})
+        top = peaks[0]
+        if top["near"]:
+            comp.findings.append(f"residual spectrum peaks at {top['f_hz']:.2f} Hz, at the {', '.join(top['near'])}")
+    comp.spectrum = {"f": f, "P": P, "marks": marks, "peaks": peaks}
+
+
+def write_compare(comp: Comparison, out_dir: str | Path) -> list[Path]:
+    """Figures (time, binned residuals, spectrum), ``report.txt`` and ``compare.json`` in ``out_dir``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    ex = comp.experiment
+    t = ex.t - ex.t[0]
+    chans = list(comp.predicted)
+    fig, axes = plt.subplots(len(chans), 2, figsize=(12, 2.2 * len(chans)), squeeze=False, sharex=True)
+    for i, c in enumerate(chans):
+        axes[i, 0].plot(t, ex.channel(c), "k", lw=1, label="measured")
+        axes[i, 0].plot(t, comp.predicted[c], "r--", lw=1, label="model")
+        axes[i, 0].set_ylabel(c)
+        axes[i, 1].plot(t, comp.predicted[c] - ex.channel(c), "b", lw=0.8)
+        axes[i, 1].set_ylabel(f"residual {c}")
+    axes[0, 0].legend(loc="best")
+    axes[-1, 0].set_xlabel("t (s)")
+    axes[-1, 1].set_xlabel("t (s)")
+    fig.tight_layout()
+    paths = [out / "time.png"]
+    fig.savefig(paths[-1], dpi=90)
+    plt.close(fig)
+    fig, axes = plt.subplots(1, 3, figsize=(14, 3.5))
+    if comp.by_speed:
+        x = [(d["omega_lo"] + d["omega_hi"]) / 2 for d in comp.by_speed]
+        axes[0].bar(x, [d["rms"] for d in comp.by_speed], width=np.diff([d["omega_lo"] for d in comp.by_speed]
+                                                                         + [comp.by_speed[-1]["omega_hi"]]) * 0.9)
+    axes[0].set(xlabel="ωl (rad/s)", ylabel="residual torque RMS (N m)", title="vs speed")
+    if comp.by_angle:
+        axes[1].bar(np.degrees([d["theta_lo"] for d in comp.by_angle]), [d["mean"] for d in comp.by_angle],
+                    width=27, align="edge")
+    axes[1].set(xlabel="θl mod 2π (deg)", ylabel="mean residual friction (N m)", title="vs angle")
+    if comp.by_r:
+        axes[2].bar([1e3 * (d["r_lo"] + d["r_hi"]) / 2 for d in comp.by_r], [1e3 * d["rms"] for d in comp.by_r],
+                    width=[1e3 * (d["r_hi"] - d["r_lo"]) * 0.9 for d in comp.by_r])
+    axes[2].set(xlabel="r (mm)", ylabel="lateral residual RMS (mm)", title="vs lateral amplitude")
+    fig.tight_layout()
+    paths.append(out / "bins.png")
+    fig.savefig(paths[-1], dpi=90)
+    plt.close(fig)
+    if comp.spectrum:
+        fig, ax = plt.subplots(figsize=(8, 3.5))
+        ax.semilogy(comp.spectrum["f"], comp.spectrum["P"])
+        for name, v in comp.spectrum["marks"].items():
+            if v > 0:
+                ax.axvline(v, ls="--", color="gray")
+                ax.text(v, ax.get_ylim()[1], name, rotation=90, va="top", fontsize=8)
+        ax.set(xlim=(0, min(10, ex.fs / 2)), xlabel="f (Hz)", ylabel="PSD of residual", title="residual spectrum")
+        fig.tight_layout()
+        paths.append(out / "spectrum.png")
+        fig.savefig(paths[-1], dpi=90)
+        plt.close(fig)
+    (out / "report.txt").write_text(comp.text() + "\n", encoding="utf-8")
+    (out / "compare.json").write_text(json.dumps(comp.to_json(), indent=2) + "\n", encoding="utf-8")
+    return paths + [out / "report.txt", out / "compare.json"]

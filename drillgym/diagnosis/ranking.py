@@ -1,0 +1,210 @@
+"""Diagnosis: which effect of the library explains the model's residual best.
+
+For a recording and a base parameter set, every effect that can act in the
+recording's configuration is fitted alone (its few parameters; the base
+parameters held) by multiple shooting (segments of a few seconds simulated
+from the data's state at their start, robust to the phase drift of
+stick-slip).  Effects are ranked by a BIC-like score
+
+    score = N_eff ln(RSS_before / RSS_after) − k ln(N_eff)
+
+with k the effect's number of parameters and N_eff the number of effectively
+independent residual samples, N (1 − ρ)/(1 + ρ) from the lag-1
+autocorrelation ρ of the base residual (residual samples of a smooth model
+error are far from independent; counting them all would make every effect
+"significant").  An effect is *significant* when its score exceeds
+``SIGNIFICANCE`` and it removes at least ``MIN_REDUCTION`` of the residual RMS.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from ..configurations import Configuration
+from ..identification.experiment import Experiment, prepare_experiment
+from ..identification.fitting import FitResult, Objective, fit_parameters
+from ..identification.segmented import SegmentedModel
+from ..io import TimeSeries
+from ..params import RigParams
+from .effects import EFFECTS, Effect, effects_for
+
+__all__ = ["EffectScore", "Diagnosis", "diagnose", "default_weights", "default_segment", "SIGNIFICANCE"]
+
+SIGNIFICANCE = 15.0  # score (nats) above which an effect counts as found
+MIN_REDUCTION = 0.25  # fraction of the residual RMS an effect must remove to count
+
+
+def default_weights(config: Configuration) -> dict[str, float]:
+    """Channels compared per configuration (all weight 1; residuals are noise-normalised)."""
+    if config is Configuration.UPPER:
+        return {"theta_u": 1.0}
+    if config.lateral_free:
+        return {"theta_u": 1.0, "theta_l": 1.0, "x": 1.0, "y": 1.0}
+    return {"theta_u": 1.0, "theta_l": 1.0}
+
+
+def default_segment(config: Configuration) -> float:
+    """Multiple-shooting segment length (s): 4 s (a few stick-slip cycles) with the brake, 8 s without."""
+    return 4.0 if config.brake else 8.0
+
+
+@dataclass
+class EffectScore:
+    """One effect's evidence."""
+
+    effect: str
+    score: float
+    rmse_before: float
+    rmse_after: float
+    values: dict[str, float]
+    std: dict[str, float]
+    channel_rms_after: dict[str, float]
+    signature: str
+    significant: bool
+    note: str = ""
+
+    @property
+    def reduction(self) -> float:
+        """Fraction of the residual RMS removed."""
+        return 1.0 - self.rmse_after / self.rmse_before if self.rmse_before > 0 else 0.0
+
+    def to_json(self) -> dict:
+        return {"effect": self.effect, "score": round(self.score, 3), "rmse_before": self.rmse_before,
+                "rmse_after": self.rmse_after, "reduction": round(self.reduction, 4),
+                "significant": self.significant, "values": self.values, "std": self.std, "note": self.note}
+
+
+@dataclass
+class Diagnosis:
+    """Ranking (best first) and the context it was computed in."""
+
+    ranking: list[EffectScore]
+    config: Configuration
+    rmse_before: float
+    channel_rms_before: dict[str, float]
+    n_eff: float
+    segment_s: float | None
+    skipped: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def best(self) -> EffectScore | None:
+        return self.ranking[0] if self.ranking else None
+
+    def significant(self) -> list[EffectScore]:
+        return [s for s in self.ranking if s.significant]
+
+    def to_json(self) -> dict:
+        return {"ranking": [s.to_json() for s in self.ranking], "configuration": self.config.label,
+                "rmse_before": self.rmse_before, "channel_rms_before": self.channel_rms_before,
+                "n_eff": self.n_eff, "segment_s": self.segment_s, "skipped": self.skipped}
+
+    def text(self) -> str:
+        lines = [f"diagnosis ({self.config.label}; multiple shooting, segments of "
+                 f"{self.segment_s if self.segment_s else 'whole record'} s; base residual RMS "
+                 f"{self.rmse_before:.3g} noise units; " +
+                 ", ".join(f"{c} {v:.3g}" for c, v in self.channel_rms_before.items()) + ")"]
+        lines.append(f"{'rank':<5}{'effect':<20}{'score':>10}{'rms after':>11}{'cut':>7}  fitted values")
+        for i, s in enumerate(self.ranking, 1):
+            vals = ", ".join(f"{k}={v:.4g}±{s.std.get(k, float('nan')):.2g}" for k, v in s.values.items())
+            mark = "*" if s.significant else " "
+            lines.append(f"{i:<4}{mark}{s.effect:<20}{s.score:>10.1f}{s.rmse_after:>11.3g}{s.reduction:>7.0%}  {vals}")
+        sig = self.significant()
+        if sig:
+            b = sig[0]
+            lines.append(f"most likely missing: {b.effect} (removes {b.reduction:.0%} of the residual). "
+                         f"Signature to look for: {b.signature}")
+        else:
+            lines.append("no effect of the library explains a significant part of the residual")
+        for k, why in self.skipped.items():
+            lines.append(f"skipped {k}: {why}")
+        return "\n".join(lines)
+
+
+def _n_eff(r: np.ndarray) -> float:
+    """Effectively independent samples of a residual vector (lag-1 autocorrelation)."""
+    n = len(r)
+    if n < 3 or not np.any(r):
+        return float(n)
+    rho = float(np.clip(np.corrcoef(r[:-1], r[1:])[0, 1], 0.0, 0.999))
+    return max(n * (1 - rho) / (1 + rho), 10.0)
+
+
+def _excited(effect: Effect, exps: Sequence[Experiment]) -> str:
+    if "negative_rotation" in effect.needs:
+        neg = sum(np.sum(ex.rates["omega_l"] < -0.1) for ex in exps if "omega_l" in ex.rates)
+        tot = sum(ex.n for ex in exps)
+        if neg < 0.02 * tot:
+            return "the lower disc hardly turns backwards in these data (needs negative rotation)"
+    return ""
+
+
+def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: RigParams | None = None,
+             config: "str | Configuration | None" = None, *, effects: Sequence[str] | None = None,
+             segment_s: float | None = -1.0, compare_rate_hz: float = 50.0, max_nfev: int = 12,
+             lvdt_lowpass_hz: float | None = 5.0) -> Diagnosis:
+    """Rank the library's effects on one or more recordings (see the module docstring).
+
+    Args:
+        data: a recording (TimeSeries) or prepared experiments.
+        params: base parameters (default: MODEL.md).
+        config: configuration when the recording's metadata has none.
+        effects: restrict to these effect names (default: all that apply).
+        segment_s: multiple-shooting segment (s); -1: :func:`default_segment`; None: free run.
+        compare_rate_hz: comparison grid rate (Hz).
+        max_nfev: least-squares evaluations per effect.
+    """
+    base = params or RigParams()
+    if isinstance(data, TimeSeries):
+        exps = [prepare_experiment(data, config, compare_rate_hz=compare_rate_hz, lvdt_lowpass_hz=lvdt_lowpass_hz)]
+    elif isinstance(data, Experiment):
+        exps = [data]
+    else:
+        exps = list(data)
+    cfg = exps[0].config
+    if segment_s is not None and segment_s < 0:
+        segment_s = default_segment(cfg)
+    model = SegmentedModel(exps, segment_s)
+    obj = Objective(model, default_weights(cfg))
+    r0 = obj.residual_matrix(base.to_vector()[None, :])[0]
+    rss0 = float(r0 @ r0)
+    N = len(r0)
+    n_eff = _n_eff(r0)
+    rmse0 = math.sqrt(rss0 / N)
+    ch0 = obj.channel_rms(base.to_vector())
+    names = list(effects) if effects else [e.name for e in effects_for(cfg)]
+    scores: list[EffectScore] = []
+    skipped: dict[str, str] = {}
+    for name in names:
+        eff = EFFECTS.get(name)
+        if eff is None:
+            raise ValueError(f"unknown effect {name!r}; known effects: {', '.join(EFFECTS)}")
+        if not eff.applies_to(cfg):
+            skipped[name] = f"does not act in configuration '{cfg.label}'"
+            continue
+        why = _excited(eff, exps)
+        if why:
+            skipped[name] = why
+            continue
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                res: FitResult = fit_parameters(obj, base, eff.variables(base), apply=eff.apply, max_nfev=max_nfev)
+            except ValueError as exc:  # e.g. a fitted value leaves the physical range
+                skipped[name] = f"fit failed: {exc}"
+                continue
+        rss1 = max(res.rss_after, 1e-300)
+        k = len(res.names)
+        score = n_eff * math.log(rss0 / rss1) - k * math.log(n_eff) if rss0 > 0 else 0.0
+        rmse1 = math.sqrt(rss1 / N)
+        sig = score > SIGNIFICANCE and rmse1 < (1 - MIN_REDUCTION) * rmse0
+        readout = eff.readout(base, np.array([res.values[n] for n in res.names]))
+        std = dict(res.std)
+        scores.append(EffectScore(name, score, rmse0, rmse1, readout, std, obj.channel_rms(res.vector),
+                                  eff.signature, sig))
+    scores.sort(key=lambda s: -s.score)
+    return Diagnosis(scores, cfg, rmse0, ch0, n_eff, segment_s, skipped)

@@ -1,0 +1,158 @@
+"""The data-driven route: residual generalised torques and a sparse candidate term.
+
+For effects outside the library.  At every sample where the discs slip, the
+data give the state (angles, speeds and lateral positions from the recording;
+accelerations by a Savitzky–Golay second derivative) and the base model gives
+the accelerations it would predict in that state
+(:func:`drillgym.dynamics.state_derivative`, the simulator's own right-hand
+side).  The difference, multiplied by the mass matrix, is the generalised
+force the model is missing: ``Q_res = M(q) (q̈_data − q̈_model)``; its θl
+component is the residual torque on the lower disc (N m).
+
+That torque is regressed by sequentially thresholded least squares (pysindy's
+STLSQ) on a library of candidate functions of θl, α, the speeds and x, y
+(harmonics of θl, signs, powers, time); the few surviving terms are shown as a
+candidate expression.  The residual torque is also what :mod:`.compare` bins
+by speed and angle: it is local in time, so it does not suffer from the phase
+drift of stick-slip.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..configurations import N_STATE
+from ..dynamics import mass_matrix, state_derivative
+from ..identification.experiment import Experiment, estimate_rate
+from ..params import RigParams
+
+__all__ = ["ResidualTorque", "residual_torques", "SparseTerm", "sparse_residual_model", "candidate_library"]
+
+
+@dataclass
+class ResidualTorque:
+    """Residual generalised forces at the recording's samples (NaN where a disc is stuck).
+
+    ``tau_u``, ``tau_l``: on the upper / lower disc (N m); ``states`` (n, N_STATE) the data's
+    states; ``t`` times (s); ``slip`` samples where the lower (or, in 'upper', the upper) disc slips.
+    """
+
+    t: np.ndarray
+    tau_u: np.ndarray
+    tau_l: np.ndarray
+    states: np.ndarray
+    slip: np.ndarray
+
+
+def residual_torques(ex: Experiment, params: RigParams, min_speed: float = 0.05) -> ResidualTorque:
+    """Residual generalised torques of the base model on a recording (see the module docstring)."""
+    p = params.to_vector()
+    n = ex.n
+    Y = ex.initial_states(np.arange(n), np.repeat(p[None, :], n, axis=0))
+    u = ex.input_on_grid(1.0 / ex.fs, n, ex.t[0])
+    Y[:, 8] = u
+    acc = np.zeros((n, 4))
+    acc[:, 0] = estimate_rate(ex.meas["theta_u"], ex.fs, window_s=0.1, deriv=2)
+    if "theta_l" in ex.meas:
+        acc[:, 1] = estimate_rate(ex.meas["theta_l"], ex.fs, window_s=0.1, deriv=2)
+    if ex.config.lateral_free:
+        acc[:, 2] = estimate_rate(Y[:, 6], ex.fs, window_s=0.1)
+        acc[:, 3] = estimate_rate(Y[:, 7], ex.fs, window_s=0.1)
+    cfg = int(ex.config)
+    dy = np.zeros(N_STATE)
+    fric = np.zeros(2)
+    M = np.zeros((4, 4))
+    B = np.zeros((4, 3))
+    mode = np.zeros(2, dtype=np.int64)
+    tau = np.full((n, 4), np.nan)
+    wl_all = Y[:, 3] if "theta_l" in ex.meas else Y[:, 2]
+    slip = np.abs(wl_all) > min_speed
+    for i in np.flatnonzero(slip):
+        y = Y[i].copy()
+        mode[0] = 1 if y[2] > 0 else (-1 if y[2] < 0 else 0)
+        mode[1] = 1 if y[3] > 0 else (-1 if y[3] < 0 else 0)
+        if mode[0] == 0:  # stuck upper disc: its torque balance is unknown (set-valued)
+            mode[0] = 1
+        state_derivative(ex.t[i] - ex.t[0], y, mode, u[i], p, cfg, 0.0, dy, fric, M, B)
+        da = acc[i] - np.array([dy[2], dy[3], dy[6], dy[7]])
+        if ex.config.lateral_free:
+            mass_matrix(y, p, M)
+            tau[i] = M @ da
+        else:
+            tau[i, 0] = params.Ju * da[0]
+            tau[i, 1] = params.Jl * da[1]
+    return ResidualTorque(ex.t - ex.t[0], tau[:, 0], tau[:, 1], Y, slip)
+
+
+def candidate_library(rt: ResidualTorque) -> tuple[np.ndarray, list[str]]:
+    """Candidate functions (columns) at the samples and their names."""
+    S = rt.states
+    th, wl, wu = S[:, 1], S[:, 3], S[:, 2]
+    a = S[:, 1] - S[:, 0]
+    sg = np.sign(wl)
+    X, Yf = S[:, 4], S[:, 5]
+    r = np.hypot(X, Yf)
+    cols = {
+        "1": np.ones_like(th), "sign(ωl)": sg, "ωl": wl, "ωl|ωl|": wl * np.abs(wl),
+        "cos θl": np.cos(th), "sin θl": np.sin(th), "cos 2θl": np.cos(2 * th), "sin 2θl": np.sin(2 * th),
+        "sign(ωl) cos θl": sg * np.cos(th), "sign(ωl) sin θl": sg * np.sin(th),
+        "sign(ωl) cos 2θl": sg * np.cos(2 * th), "sign(ωl) sin 2θl": sg * np.sin(2 * th),
+        "α": a, "α̇": wl - wu, "sign(α̇)": np.sign(wl - wu), "t sign(ωl)": rt.t * sg, "[ωl<0]": (wl < 0) * sg,
+    }
+    if np.any(r > 0):
+        cols.update({"x": X, "y": Yf, "r": r, "r² sign(ωl)": r ** 2 * sg})
+    return np.column_stack(list(cols.values())), list(cols)
+
+
+@dataclass
+class SparseTerm:
+    """A candidate expression for the residual torque on the lower disc."""
+
+    terms: dict[str, float]
+    r2: float
+    n_samples: int
+
+    def expression(self) -> str:
+        if not self.terms:
+            return "τ_res ≈ 0 (no candidate term survives)"
+        parts = [f"{c:+.4g}·{n}" if n != "1" else f"{c:+.4g}" for n, c in self.terms.items()]
+        return "τ_res(θl, ω, α, x, y) ≈ " + " ".join(parts) + f"  [N m; explains {self.r2:.0%} of it]"
+
+
+def sparse_residual_model(rt: ResidualTorque, threshold: float = 0.05, max_terms: int = 4) -> SparseTerm:
+    """STLSQ (pysindy) of the lower residual torque on :func:`candidate_library`.
+
+    Columns are standardised; ``threshold`` is relative to the torque's standard deviation.
+    At most ``max_terms`` terms are kept (the largest contributions)."""
+    import pysindy as ps
+
+    ok = rt.slip & np.isfinite(rt.tau_l)
+    if ok.sum() < 20:
+        return SparseTerm({}, 0.0, int(ok.sum()))
+    Th, names = candidate_library(rt)
+    Th, y = Th[ok], rt.tau_l[ok]
+    sd = Th.std(axis=0)
+    sd[0] = 1.0
+    keep = sd > 1e-12
+    keep[0] = True
+    Th, sd = Th[:, keep], sd[keep]
+    names = [n for n, k in zip(names, keep) if k]
+    ys = y.std() or 1.0
+    Z = Th / sd
+    opt = ps.STLSQ(threshold=threshold, alpha=1e-6, max_iter=30)
+    opt.fit(Z, y / ys)
+    coef = np.ravel(opt.coef_)
+    if np.count_nonzero(coef) > max_terms:
+        order = np.argsort(-np.abs(coef))
+        sel = np.zeros_like(coef, dtype=bool)
+        sel[order[:max_terms]] = True
+        coef = np.zeros_like(coef)
+        sol, *_ = np.linalg.lstsq(Z[:, sel], y / ys, rcond=None)
+        coef[sel] = sol
+    pred = Z @ coef * ys
+    den = float(np.sum((y - y.mean()) ** 2)) or 1.0
+    r2 = 1.0 - float(np.sum((y - pred) ** 2)) / den
+    terms = {names[i]: float(coef[i] * ys / sd[i]) for i in np.flatnonzero(coef)}
+    return SparseTerm(terms, r2, int(ok.sum()))

@@ -1,0 +1,51 @@
+"""Gymnasium environments of the drill-string rig (registered on import).
+
+>>> import gymnasium, drillgym
+>>> env = gymnasium.make("drillgym/Torsional-v0", observation="sensors")
+>>> venv = drillgym.envs.make_vec("drillgym/Coupled-v0", num_envs=256)   # one batched core call per step
+
+Structure (physical system separate from the environment, as gym-electric-motor):
+``rig_system`` (N rigs on the batched core), ``observation`` (observation models),
+``reward``, ``task`` (targets, limits, stick-slip severity), ``engine`` (n episodes stepped
+together), ``base`` (the ``gymnasium.Env``), ``vector`` (the ``VectorEnv``), ``rendering``,
+``sb3`` (stable-baselines3 adapter), ``options`` (every constructor option).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium
+
+from .base import CoupledEnv, DrillEnv, LateralEnv, TorsionalEnv
+from .observation import FullObservation, MotorObservation, SensorObservation, make_observation_model
+from .options import EnvOptions, RewardWeights
+from .vector import DrillVectorEnv
+
+__all__ = ["DrillEnv", "TorsionalEnv", "LateralEnv", "CoupledEnv", "DrillVectorEnv", "EnvOptions", "RewardWeights",
+           "FullObservation", "SensorObservation", "MotorObservation", "make_observation_model", "make_vec",
+           "ENV_IDS"]
+
+#: registered id -> rig configuration
+ENV_IDS = {"drillgym/Torsional-v0": "torsional", "drillgym/Lateral-v0": "lateral", "drillgym/Coupled-v0": "coupled"}
+_CLASSES = {"torsional": "TorsionalEnv", "lateral": "LateralEnv", "coupled": "CoupledEnv"}
+
+
+def make_vec(env_id: str, num_envs: int, **options: Any) -> DrillVectorEnv:
+    """The vectorised env of a registered id: ``num_envs`` rigs in one batched core call per step."""
+    if env_id not in ENV_IDS:
+        raise ValueError(f"unknown drillgym environment {env_id!r}; expected one of {sorted(ENV_IDS)}")
+    return DrillVectorEnv(num_envs, ENV_IDS[env_id], **options)
+
+
+def _vector_entry(configuration: str):
+    def entry(num_envs: int, **options: Any) -> DrillVectorEnv:
+        return DrillVectorEnv(num_envs, configuration, **options)
+
+    return entry
+
+
+for _id, _cfg in ENV_IDS.items():
+    if _id not in gymnasium.registry:
+        gymnasium.register(id=_id, entry_point=f"drillgym.envs.base:{_CLASSES[_cfg]}",
+                           vector_entry_point=_vector_entry(_cfg), disable_env_checker=False)

@@ -1,0 +1,178 @@
+"""The Gymnasium environments of the drill-string rig.
+
+All three share :class:`DrillEnv`; they differ in the rig configuration (MODEL.md):
+
+| id                      | lateral motion | brake | obs dim (full / sensors / motor) |
+|-------------------------|----------------|-------|----------------------------------|
+| drillgym/Torsional-v0   | held           | on    | 5 / 7 / 2H+1                     |
+| drillgym/Lateral-v0     | free           | off   | 9 / 9 / 2H+1                     |
+| drillgym/Coupled-v0     | free           | on    | 9 / 9 / 2H+1                     |
+
+(H = ``motor_history``, default 16.)  Options: :class:`drillgym.envs.options.EnvOptions`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from .engine import C_REW, C_TERM, C_TRUNC, EpisodeBatch
+from .options import U_MAX, EnvOptions
+from .rendering import RigRenderer
+
+__all__ = ["DrillEnv", "TorsionalEnv", "LateralEnv", "CoupledEnv", "action_space"]
+
+_ROW0 = np.zeros(1, dtype=np.int64)
+
+
+def action_space(normalize: bool) -> spaces.Box:
+    """The motor voltage: Box [-5, 5] V, or [-1, 1] (x 5 V) when normalised."""
+    hi = 1.0 if normalize else U_MAX
+    return spaces.Box(-hi, hi, shape=(1,), dtype=np.float32)
+
+
+class DrillEnv(gym.Env):
+    """Hold the lower disc of the drill-string rig at ``omega_ref`` without stick-slip.
+
+    ## Action Space
+    | Num | Action        | Min  | Max | Unit |
+    |-----|---------------|------|-----|------|
+    | 0   | motor voltage | -5.0 | 5.0 | V    |
+
+    ``normalize_action=True``: [-1, 1], scaled by 5 V.  Out-of-range actions are clipped as the
+    amplifier does; a NaN/inf action raises ``ValueError``.  The voltage is held over the
+    control period ``control_dt`` (10 ms), integrated in sub-steps of ``dt`` (default 10 ms: one
+    event-driven RK4 step, accurate to < 2e-6 rad/s, see :data:`drillgym.envs.options.DEFAULT_ENV_DT`).
+
+    ## Observation Space (float32; 'full' mode of Torsional-v0; see
+    :mod:`drillgym.envs.observation` for the 'sensors' and 'motor' layouts)
+    | Num | Observation                         | Min   | Max  | Unit  |
+    |-----|-------------------------------------|-------|------|-------|
+    | 0   | omega_u, upper disc speed           | -60   | 60   | rad/s |
+    | 1   | omega_l, lower disc speed           | -60   | 60   | rad/s |
+    | 2   | alpha = theta_l - theta_u (winding) | -50   | 50   | rad   |
+    | 3   | u_prev, voltage of the last period  | -5    | 5    | V     |
+    | 4   | omega_ref, target speed             | 0     | 30   | rad/s |
+
+    Lateral-v0 / Coupled-v0 insert X, Y (mm, fixed frame) and dX/dt, dY/dt (mm/s) after alpha.
+
+    ## Rewards
+    ``-(|omega_l - omega_ref|/omega_ref + 0.5 stuck + 0.01 (u/5)^2 + 0.05 (du/5)^2)``
+    (weights: option ``reward``; see :mod:`drillgym.envs.reward`).
+
+    ## Starting State
+    Rest, initial winding alpha0 ~ U(``alpha0_range``) = U(-1, 1) rad; omega_ref ~ U(1, 8) rad/s
+    (or fixed with ``omega_ref``); with ``randomize = x`` every base parameter is drawn in +/- x.
+
+    ## Episode End
+    Terminated: |omega_u| or |omega_l| > ``max_speed`` (30 rad/s), or r > ``max_lateral`` (20 mm).
+    Truncated: after ``episode_duration`` (30 s = 3000 steps).
+
+    ## Info
+    ``omega_l`` (rad/s), ``stuck`` (lower disc stuck), ``friction_torque`` (lower friction, N m),
+    ``stick_slip_severity`` (running SSI over ``ssi_window`` = 5 s), ``omega_ref``, ``voltage`` (V),
+    ``time`` (s).
+    """
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 25}
+
+    def __init__(self, configuration: str = "torsional", render_mode: str | None = None, **options: Any) -> None:
+        self.options = EnvOptions.from_kwargs(configuration=configuration, **options)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.render_mode = render_mode
+        self.batch = EpisodeBatch(self.options, 1)
+        self.action_space = action_space(self.options.normalize_action)
+        self.observation_space = self.batch.obs_model.space
+        self._scale = 1.0 if not self.options.normalize_action else U_MAX
+        self._u = self.batch.system.u  # (1,) voltage buffer of the core
+        self._renderer = (RigRenderer(render_mode, self.options.render_history, self.options.control_dt,
+                                      self.options.lateral) if render_mode else None)
+
+    @property
+    def observation_names(self) -> tuple[str, ...]:
+        """Layout of the observation vector."""
+        return self.batch.obs_model.names
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        super().reset(seed=seed)
+        b = self.batch
+        b.rngs[0] = self.np_random
+        b.reset(_ROW0)
+        if self._renderer is not None:
+            self._renderer.clear()
+            self._record()
+            if self.render_mode == "human":
+                self.render()
+        return b.obs[0].copy(), self._info()
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
+        try:
+            if len(action) != 1:
+                raise ValueError(f"action must hold one voltage, got {len(action)} values: {action!r}")
+            v = float(action[0])
+        except TypeError:  # a scalar or 0-d array
+            v = float(action)
+        if not math.isfinite(v):
+            raise ValueError(f"action (motor voltage) must be finite, got {action!r}")
+        v *= self._scale
+        self._u[0] = U_MAX if v > U_MAX else (-U_MAX if v < -U_MAX else v)  # amplifier saturation
+        b = self.batch
+        b.step()
+        if self._renderer is not None:
+            self._record()
+            if self.render_mode == "human":
+                self.render()
+        v = b.S[0].tolist()
+        return b.obs[0].copy(), v[C_REW], v[C_TERM] > 0.5, v[C_TRUNC] > 0.5, b.info_row(0, v)
+
+    def _info(self) -> dict:
+        return self.batch.info_row(0)
+
+    def _record(self) -> None:
+        b = self.batch
+        self._renderer.record(float(b.time[0]), float(b.system.omega_u[0]), float(b.system.omega_l[0]))
+
+    def render(self) -> np.ndarray | None:
+        if self._renderer is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
+            return None
+        s = self.batch.system
+        X, Y = s.lateral_fixed
+        return self._renderer.draw(float(s.theta_u[0]), float(s.theta_l[0]), float(X[0]), float(Y[0]),
+                                   float(self.batch.omega_ref[0]), bool(s.stuck_l[0]))
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+
+
+class TorsionalEnv(DrillEnv):
+    """Torsional configuration: lateral motion held, brake on (stick-slip).  See :class:`DrillEnv`."""
+
+    def __init__(self, render_mode: str | None = None, **options: Any) -> None:
+        super().__init__("torsional", render_mode, **options)
+
+
+class LateralEnv(DrillEnv):
+    """Lateral configuration: lower disc free to whirl, brake off (bearing friction).
+
+    Observation ('full'): omega_u, omega_l, alpha, X, Y (mm), dX, dY (mm/s), u_prev, omega_ref.
+    Terminated also when r = sqrt(X^2 + Y^2) > ``max_lateral``.  See :class:`DrillEnv`."""
+
+    def __init__(self, render_mode: str | None = None, **options: Any) -> None:
+        super().__init__("lateral", render_mode, **options)
+
+
+class CoupledEnv(DrillEnv):
+    """Coupled configuration: lateral whirl and brake stick-slip together (the report's headline case).
+
+    Observation ('full'): omega_u, omega_l, alpha, X, Y (mm), dX, dY (mm/s), u_prev, omega_ref.
+    See :class:`DrillEnv`."""
+
+    def __init__(self, render_mode: str | None = None, **options: Any) -> None:
+        super().__init__("coupled", render_mode, **options)

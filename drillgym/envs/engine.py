@@ -1,0 +1,170 @@
+"""n episodes of the task stepped together: the machinery shared by the single env (n = 1)
+and the vector env, so both follow exactly the same code path.
+
+One control period is ONE compiled call (:func:`_period_kernel`): the core's ``advance_batch``
+(voltage held over the sub-steps, all rigs), then per rig the reward (:mod:`.reward`), the
+stick-slip severity and safety limits (:mod:`.task`) and, in 'full' mode, the observation
+(:mod:`.observation`).  Python-side observation models ('sensors', 'motor') run after it.
+Keeping this to one call is what makes a single env as fast as Pendulum-v1.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+from numba import njit
+
+from ..integrators import advance_batch
+from .observation import full_obs_row, make_observation_model
+from .options import EnvOptions
+from .reward import reward_value
+from .rig_system import ParameterRandomizer, RigSystem
+from .task import SpeedTrackingTask, StickSlipMonitor, ssi_push, unsafe_row
+
+__all__ = ["EpisodeBatch", "INFO_COLUMNS", "S_COLUMNS"]
+
+#: columns of ``EpisodeBatch.S`` (per-rig episode quantities); the first ones are the info entries
+INFO_COLUMNS = ("voltage", "omega_ref", "reward", "stick_slip_severity", "omega_l", "friction_torque", "stuck", "time")
+S_COLUMNS = INFO_COLUMNS + ("steps", "terminated", "truncated")
+C_U, C_REF, C_REW, C_SSI, C_WL, C_TFL, C_STUCK, C_TIME, C_STEPS, C_TERM, C_TRUNC = range(len(S_COLUMNS))
+# layout of the task vector ``tv`` (constants of the period kernel)
+T_W, T_SPEED, T_LAT, T_LATERAL, T_STEPS, T_BLOCK, T_DT, T_FULL, T_BOUNDS = 0, 4, 5, 6, 7, 8, 9, 10, 11
+
+
+@njit(cache=True)
+def _period_kernel(Y, MODE, u, P, cfg, dt, n_sub, T, eps, A, b, c, FRIC, S, W, C, tv, OBS):
+    """One control period of every rig: the core's advance_batch, then per rig reward, SSI,
+    limits, episode length and (full mode) the observation.  S: (n, len(S_COLUMNS)); W, C: the
+    StickSlipMonitor arrays; tv: task constants (T_* layout, observation bounds at the end)."""
+    advance_batch(Y, MODE, u, P, cfg, dt, n_sub, T, eps, A, b, c, FRIC)
+    rw = tv[T_W:T_W + 4]
+    lateral = tv[T_LATERAL] > 0.0
+    block_len = int(tv[T_BLOCK])
+    full_obs = tv[T_FULL] > 0.0
+    dim = OBS.shape[1]
+    low = tv[T_BOUNDS:T_BOUNDS + dim]
+    high = tv[T_BOUNDS + dim:T_BOUNDS + 2 * dim]
+    for k in range(Y.shape[0]):
+        y = Y[k]
+        Sk = S[k]
+        stuck = MODE[k, 1] == 0
+        Sk[C_REW] = reward_value(y[3], Sk[C_REF], stuck, u[k], Sk[C_U], rw)
+        Sk[C_U] = u[k]
+        Sk[C_SSI] = ssi_push(y[3], W[k, 0], W[k, 1], W[k, 2], C[k], block_len)
+        Sk[C_WL] = y[3]
+        Sk[C_TFL] = FRIC[k, 1]
+        Sk[C_STUCK] = 1.0 if stuck else 0.0
+        Sk[C_STEPS] += 1.0
+        Sk[C_TIME] = Sk[C_STEPS] * tv[T_DT]
+        Sk[C_TERM] = 1.0 if unsafe_row(y, tv[T_SPEED], tv[T_LAT], lateral) else 0.0
+        Sk[C_TRUNC] = 1.0 if Sk[C_STEPS] >= tv[T_STEPS] else 0.0
+        if full_obs:
+            full_obs_row(y, u[k], Sk[C_REF], lateral, low, high, OBS[k])
+
+
+class EpisodeBatch:
+    """State and results of n concurrent episodes.
+
+    Inputs: ``system.u`` (n,) voltages (V, finite, clipped) written by the env before :meth:`step`;
+    ``rngs`` one ``numpy.random.Generator`` per rig (episode draws and sensor noise).
+    Outputs after :meth:`reset` / :meth:`step`: ``obs`` (n, dim) float32 and ``S`` (n, 11), the
+    quantities of ``S_COLUMNS``: voltage applied over the last period (V), omega_ref (rad/s),
+    reward, stick-slip severity, omega_l (rad/s), lower friction torque (N m), stuck (0/1),
+    time (s), steps, terminated (0/1), truncated (0/1).
+    """
+
+    def __init__(self, options: EnvOptions, n: int) -> None:
+        o = options
+        self.options = o
+        self.n = int(n)
+        self.system = RigSystem(o.configuration, self.n, params=o.rig_params, dt=o.dt, n_substeps=o.n_substeps,
+                                method=o.method, friction=o.friction)
+        self.randomizer = ParameterRandomizer(o.rig_params, o.randomize, o.randomize_names)
+        self.task = SpeedTrackingTask(o)
+        self.obs_model = make_observation_model(self.n, o)
+        self.monitor = StickSlipMonitor(self.n, o.ssi_window, o.control_dt)
+        self.rngs: list = [None] * self.n
+        self.S = np.zeros((self.n, len(S_COLUMNS)))
+        self.obs = np.zeros((self.n, self.obs_model.dim), dtype=np.float32)
+        self.all = np.arange(self.n)
+        w, om = o.reward, self.obs_model
+        tv = np.concatenate([[w.track, w.stick, w.effort, w.rate, o.max_speed, o.max_lateral, float(o.lateral),
+                              self.task.max_steps, self.monitor.block_len, o.control_dt, float(om.compiled)],
+                             om.low, om.high])
+        self._kernel_args = (*self.system.kernel_args, self.S, self.monitor.W, self.monitor.C, tv, self.obs)
+
+    # ------------------------------------------------------------------------
+    def reset(self, index: np.ndarray | None = None) -> None:
+        """Start new episodes for rigs ``index`` (default all), drawing from their generators:
+        omega_ref, alpha0, then (domain randomisation) the parameters, then sensor noise."""
+        index = self.all if index is None else np.asarray(index, dtype=np.int64)
+        alpha0 = np.empty(index.size)
+        params = np.empty((index.size, self.system.params_matrix.shape[1])) if self.randomizer.active else None
+        for j, i in enumerate(index):
+            rng = self.rngs[i]
+            if rng is None:
+                raise RuntimeError(f"rig {i} has no random generator; seed the environment with reset()")
+            self.S[i, C_REF], alpha0[j] = self.task.sample(rng)
+            if params is not None:
+                params[j] = self.randomizer.sample(rng)
+        s = self.system
+        s.reset(index, alpha0, params)
+        S = self.S
+        for col in (C_U, C_REW, C_SSI, C_TIME, C_STEPS, C_TERM, C_TRUNC):
+            S[index, col] = 0.0
+        S[index, C_WL] = s.omega_l[index]
+        S[index, C_TFL] = s.friction_l[index]
+        S[index, C_STUCK] = s.stuck_l[index]
+        self.monitor.reset(index)
+        self.obs_model.reset(index, s.Y, self.rngs)
+        self.obs[index] = self.obs_model.initial(index, s.Y, S[:, C_REF])
+
+    def step(self, skip: np.ndarray | None = None) -> None:
+        """One control period for every rig at the voltages ``system.u``.  Rigs flagged in
+        ``skip`` (about to be reset by the caller) draw no random numbers."""
+        _period_kernel(*self._kernel_args)
+        if not self.obs_model.compiled:
+            S = self.S
+            self.obs_model.observe(self.system.Y, S[:, C_U], S[:, C_REF], self.obs, self.rngs, skip)
+
+    # ------------------------------------------------------------------------
+    @property
+    def reward(self) -> np.ndarray:
+        return self.S[:, C_REW]
+
+    @property
+    def omega_ref(self) -> np.ndarray:
+        return self.S[:, C_REF]
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.S[:, C_TIME]
+
+    @property
+    def terminated(self) -> np.ndarray:
+        return self.S[:, C_TERM] > 0.5
+
+    @property
+    def truncated(self) -> np.ndarray:
+        return self.S[:, C_TRUNC] > 0.5
+
+    def info_arrays(self) -> dict[str, np.ndarray]:
+        """Info entries of all rigs (copies): omega_l (rad/s), stuck (bool), friction_torque (N m, lower
+        disc), stick_slip_severity, omega_ref (rad/s), voltage (V, applied over the last period), time (s)."""
+        S = self.S
+        return {"omega_l": S[:, C_WL].copy(), "stuck": S[:, C_STUCK] > 0.5, "friction_torque": S[:, C_TFL].copy(),
+                "stick_slip_severity": S[:, C_SSI].copy(), "omega_ref": S[:, C_REF].copy(),
+                "voltage": S[:, C_U].copy(), "time": S[:, C_TIME].copy()}
+
+    def info_row(self, k: int, v: list | None = None) -> dict:
+        """Info of rig k as Python scalars (the single env's ``info``); ``v`` = ``S[k].tolist()`` if known."""
+        if v is None:
+            v = self.S[k].tolist()
+        return {"omega_l": v[C_WL], "stuck": v[C_STUCK] > 0.5, "friction_torque": v[C_TFL],
+                "stick_slip_severity": v[C_SSI], "omega_ref": v[C_REF], "voltage": v[C_U], "time": v[C_TIME]}
+
+    def set_rngs(self, rngs: Sequence[np.random.Generator]) -> None:
+        if len(rngs) != self.n:
+            raise ValueError(f"need {self.n} random generators, got {len(rngs)}")
+        self.rngs = list(rngs)

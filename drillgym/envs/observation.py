@@ -1,0 +1,326 @@
+"""Observation models: (state or sensor readings, voltage, target) -> observation vector.
+
+Three modes, each a class with a documented layout (``names``), a Box
+(``space``) and batched ``observe`` (rows = rigs).  Lateral entries exist only
+in the 'lateral' and 'coupled' configurations.  Units: rad, rad/s, mm, mm/s, V.
+
+``full`` (:class:`FullObservation`, the true state)::
+
+    omega_u, omega_l, alpha, [X, Y, dX/dt, dY/dt,] u_prev, omega_ref
+
+``sensors`` (:class:`SensorObservation`, what the rig measures)::
+
+    theta_u_wrapped, theta_l_wrapped, alpha_meas, omega_u_est, omega_l_est, [X_meas, Y_meas,] u_prev, omega_ref
+
+    theta_*_wrapped: quantized encoder angle wrapped to [-pi, pi); alpha_meas = theta_l_q - theta_u_q;
+    omega_*_est: backward difference of the quantized angles over the control period, first-order
+    low-pass (``velocity_filter_tau``); X_meas, Y_meas: LVDT readings (offset, skew, noise).
+
+``motor`` (:class:`MotorObservation`, only the motor-side encoder: the field case)::
+
+    omega_u_inc[0..H-1], u_hist[0..H-1], omega_ref
+
+    omega_u_inc[i]: quantized theta_u increment over the control period i periods ago / control_dt
+    (raw, unfiltered; i = 0 newest); u_hist[i]: voltage applied over that period.
+
+``u_prev`` is the (clipped) voltage applied over the last control period, ``omega_ref``
+the episode's target speed of the lower disc.  Values are clipped into the Box.  The reset
+observation has zero speed estimates and noise-free LVDT readings of the rest position.
+
+The sensor side is reusable by the hardware environment: :class:`SensorObservation` and
+:class:`MotorObservation` build the vector from readings (``from_readings``); the
+simulated readings come from :class:`SimulatedSensors` (encoders and LVDTs of
+:mod:`drillgym.measurement`).
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+from gymnasium import spaces
+from numba import njit
+
+from ..measurement import EncoderVelocityEstimator, lvdt_measure, quantize_angle
+from ..params import RigParams
+from .options import U_MAX, EnvOptions
+
+__all__ = ["ObservationModel", "FullObservation", "SensorObservation", "MotorObservation", "SimulatedSensors",
+           "make_observation_model", "fixed_frame_lateral", "full_obs_row"]
+
+MM = 1e3  # m -> mm
+ALPHA_BOUND = 50.0  # rad
+
+
+def fixed_frame_lateral(Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(X, Y) of the lower disc centre in the fixed (LVDT) frame (m) from states (n, 9)."""
+    c, s = np.cos(Y[:, 0]), np.sin(Y[:, 0])
+    return Y[:, 4] * c - Y[:, 5] * s, Y[:, 4] * s + Y[:, 5] * c
+
+
+@njit(cache=True)
+def full_obs_row(y, u_prev, omega_ref, lateral, low, high, out):
+    """The 'full' observation of one state ``y`` into ``out`` (compiled; used inside the engine's kernel)."""
+    out[0] = y[2]
+    out[1] = y[3]
+    out[2] = y[1] - y[0]
+    j = 3
+    if lateral:
+        c = np.cos(y[0])
+        s = np.sin(y[0])
+        w = y[2]
+        vx = y[6] - w * y[5]  # velocity of B, rotating-frame components
+        vy = y[7] + w * y[4]
+        out[3] = MM * (y[4] * c - y[5] * s)
+        out[4] = MM * (y[4] * s + y[5] * c)
+        out[5] = MM * (vx * c - vy * s)
+        out[6] = MM * (vx * s + vy * c)
+        j = 7
+    out[j] = u_prev
+    out[j + 1] = omega_ref
+    for i in range(out.shape[0]):
+        out[i] = min(max(out[i], low[i]), high[i])
+
+
+@njit(cache=True)
+def _observe_full(Y, u_prev, omega_ref, lateral, low, high, out):
+    for k in range(Y.shape[0]):
+        full_obs_row(Y[k], u_prev[k], omega_ref[k], lateral, low, high, out[k])
+
+
+class ObservationModel:
+    """Base class: layout ``names``, bounds, ``space``; batched ``reset`` and ``observe``."""
+
+    mode: str = ""
+    #: True when the engine's compiled kernel writes this observation itself (``full_obs_row``)
+    compiled: bool = False
+
+    def __init__(self, n: int, options: EnvOptions) -> None:
+        self.n = n
+        self.options = options
+        self.lateral = options.lateral
+        names, low, high = self._layout(options)
+        self.names: tuple[str, ...] = tuple(names)
+        self.low = np.asarray(low, dtype=np.float32)
+        self.high = np.asarray(high, dtype=np.float32)
+        self.space = spaces.Box(self.low, self.high, dtype=np.float32)
+
+    @property
+    def dim(self) -> int:
+        return len(self.names)
+
+    def _layout(self, o: EnvOptions) -> tuple[list[str], list[float], list[float]]:  # pragma: no cover
+        raise NotImplementedError
+
+    @staticmethod
+    def _tail(o: EnvOptions) -> tuple[list[str], list[float], list[float]]:
+        return ["u_prev", "omega_ref"], [-U_MAX, 0.0], [U_MAX, o.max_speed]
+
+    def reset(self, index: np.ndarray, Y: np.ndarray, rngs: Sequence[np.random.Generator]) -> None:
+        """Start the rigs ``index`` (states ``Y[index]`` at rest) with fresh estimator states."""
+
+    def initial(self, index: np.ndarray, Y: np.ndarray, omega_ref: np.ndarray) -> np.ndarray:
+        """Observations (len(index), dim) of rigs ``index`` just after reset (at rest, u_prev = 0)."""
+        raise NotImplementedError
+
+    def observe(self, Y: np.ndarray, u_prev: np.ndarray, omega_ref: np.ndarray, out: np.ndarray,
+                rngs: Sequence[np.random.Generator], skip: np.ndarray | None = None) -> None:
+        """Write the observations of all rigs into ``out`` (n, dim) float32 after one control period.
+
+        ``Y`` true states (n, 9), ``u_prev`` voltage applied over the period (V), ``omega_ref``
+        targets (rad/s); ``rngs`` one generator per rig (sensor noise); rigs flagged in ``skip``
+        are about to be reset and draw no random numbers."""
+        raise NotImplementedError
+
+
+class FullObservation(ObservationModel):
+    """The true state (see the module docstring for the layout)."""
+
+    mode = "full"
+    compiled = True
+
+    def _layout(self, o: EnvOptions):
+        w = 2.0 * o.max_speed
+        names, low, high = ["omega_u", "omega_l", "alpha"], [-w, -w, -ALPHA_BOUND], [w, w, ALPHA_BOUND]
+        if o.lateral:
+            d = 2.0 * o.max_lateral * MM
+            v = 2.0 * d * o.max_speed
+            names += ["X", "Y", "dX", "dY"]
+            low += [-d, -d, -v, -v]
+            high += [d, d, v, v]
+        tn, tl, th = self._tail(o)
+        return names + tn, low + tl, high + th
+
+    def initial(self, index, Y, omega_ref) -> np.ndarray:
+        out = np.empty((len(index), self.dim), dtype=np.float32)
+        _observe_full(Y[index], np.zeros(len(index)), omega_ref[index], self.lateral, self.low, self.high, out)
+        return out
+
+    def observe(self, Y, u_prev, omega_ref, out, rngs, skip=None) -> None:
+        _observe_full(Y, u_prev, omega_ref, self.lateral, self.low, self.high, out)
+
+
+class SimulatedSensors:
+    """The rig's sensors on simulated states: quantized encoders on both discs, LVDTs with
+    offset/skew (``RigParams.lvdt_*``) and white noise ``lvdt_noise_std`` (m).
+
+    Noise is drawn per rig from that rig's generator in blocks of ``block`` periods, so a rig's
+    readings depend only on its own seed (a vector env reproduces single envs exactly)."""
+
+    def __init__(self, n: int, counts_per_rev: int, lvdt_noise_std: float, params: RigParams, lateral: bool,
+                 block: int = 128) -> None:
+        self.n, self.cpr, self.noise_std, self.params, self.lateral = n, counts_per_rev, lvdt_noise_std, params, lateral
+        self.block = block
+        self._noisy = lateral and lvdt_noise_std > 0
+        self._noise = np.zeros((n, block, 2)) if self._noisy else None
+        self._pos = np.zeros(n, dtype=np.int64)
+        self._rows = np.arange(n)
+
+    def reset(self, index: np.ndarray, rngs: Sequence[np.random.Generator]) -> None:
+        if self._noisy:
+            for i in index:
+                self._refill(i, rngs[i])
+
+    def _refill(self, i: int, rng: np.random.Generator) -> None:
+        rng.standard_normal(out=self._noise[i])
+        self._pos[i] = 0
+
+    def encoders(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Quantized (theta_u, theta_l) in rad."""
+        return quantize_angle(Y[:, 0], self.cpr), quantize_angle(Y[:, 1], self.cpr)
+
+    def lvdts(self, Y: np.ndarray, rngs: Sequence[np.random.Generator],
+              skip: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """LVDT readings (X_meas, Y_meas) in m."""
+        X, Yf = fixed_frame_lateral(Y)
+        xm, ym = lvdt_measure(X, Yf, self.params, 0.0)
+        if self._noisy:
+            e = self._noise[self._rows, self._pos]
+            xm += self.noise_std * e[:, 0]
+            ym += self.noise_std * e[:, 1]
+            self._pos += 1
+            full = self._pos >= self.block
+            if full.any():
+                for i in np.flatnonzero(full if skip is None else full & ~skip):
+                    self._refill(i, rngs[i])
+                self._pos[full] %= self.block
+        return xm, ym
+
+
+class SensorObservation(ObservationModel):
+    """Encoder angles, estimated speeds, LVDT readings (see the module docstring for the layout)."""
+
+    mode = "sensors"
+
+    def __init__(self, n: int, options: EnvOptions, sensors: SimulatedSensors | None = None) -> None:
+        super().__init__(n, options)
+        o = options
+        self.sensors = sensors or SimulatedSensors(n, o.counts_per_rev, o.lvdt_noise_std, o.rig_params, o.lateral)
+        self.est_u = EncoderVelocityEstimator(n, o.control_dt, o.velocity_filter_tau)
+        self.est_l = EncoderVelocityEstimator(n, o.control_dt, o.velocity_filter_tau)
+
+    def _layout(self, o: EnvOptions):
+        w = 2.0 * o.max_speed
+        names = ["theta_u_wrapped", "theta_l_wrapped", "alpha_meas", "omega_u_est", "omega_l_est"]
+        low, high = [-np.pi, -np.pi, -ALPHA_BOUND, -w, -w], [np.pi, np.pi, ALPHA_BOUND, w, w]
+        if o.lateral:
+            d = 2.0 * o.max_lateral * MM
+            names += ["X_meas", "Y_meas"]
+            low += [-d, -d]
+            high += [d, d]
+        tn, tl, th = self._tail(o)
+        return names + tn, low + tl, high + th
+
+    def reset(self, index, Y, rngs) -> None:
+        tu, tl = self.sensors.encoders(Y[index])
+        self.est_u.reset(tu, index)
+        self.est_l.reset(tl, index)
+        self.sensors.reset(index, rngs)
+
+    def observe(self, Y, u_prev, omega_ref, out, rngs, skip=None) -> None:
+        tu, tl = self.sensors.encoders(Y)
+        xm, ym = self.sensors.lvdts(Y, rngs, skip) if self.lateral else (None, None)
+        self.from_readings(tu, tl, xm, ym, u_prev, omega_ref, out)
+
+    def initial(self, index, Y, omega_ref) -> np.ndarray:
+        Yi = Y[index]
+        tu, tl = self.sensors.encoders(Yi)
+        xm, ym = lvdt_measure(*fixed_frame_lateral(Yi), self.sensors.params) if self.lateral else (None, None)
+        out = np.empty((len(index), self.dim), dtype=np.float32)
+        zero = np.zeros(len(index))
+        self._assemble(tu, tl, zero, zero, xm, ym, zero, omega_ref[index], out)
+        return out
+
+    def from_readings(self, theta_u: np.ndarray, theta_l: np.ndarray, X: np.ndarray | None, Y: np.ndarray | None,
+                      u_prev: np.ndarray, omega_ref: np.ndarray, out: np.ndarray) -> None:
+        """Observation from one period's readings: encoder angles (rad), LVDTs (m), voltage (V), target.
+        Updates the speed estimators (call once per control period)."""
+        self._assemble(theta_u, theta_l, self.est_u.update(theta_u), self.est_l.update(theta_l), X, Y,
+                       u_prev, omega_ref, out)
+
+    def _assemble(self, theta_u, theta_l, omega_u, omega_l, X, Y, u_prev, omega_ref, out) -> None:
+        out[:, 0] = np.mod(theta_u + np.pi, 2 * np.pi) - np.pi
+        out[:, 1] = np.mod(theta_l + np.pi, 2 * np.pi) - np.pi
+        out[:, 2] = theta_l - theta_u
+        out[:, 3] = omega_u
+        out[:, 4] = omega_l
+        j = 5
+        if self.lateral:
+            out[:, 5] = MM * X
+            out[:, 6] = MM * Y
+            j = 7
+        out[:, j] = u_prev
+        out[:, j + 1] = omega_ref
+        np.clip(out, self.low, self.high, out=out)
+
+
+class MotorObservation(ObservationModel):
+    """Motor-side encoder increments and voltage history (see the module docstring for the layout)."""
+
+    mode = "motor"
+
+    def __init__(self, n: int, options: EnvOptions, sensors: SimulatedSensors | None = None) -> None:
+        super().__init__(n, options)
+        o = options
+        self.H = o.motor_history
+        self.sensors = sensors or SimulatedSensors(n, o.counts_per_rev, 0.0, o.rig_params, False)
+        self.est = EncoderVelocityEstimator(n, o.control_dt, 0.0)  # raw increments / control_dt
+        self.hist = np.zeros((n, 2 * self.H))
+
+    def _layout(self, o: EnvOptions):
+        H, w = o.motor_history, 2.0 * o.max_speed
+        names = [f"omega_u_inc_{i}" for i in range(H)] + [f"u_hist_{i}" for i in range(H)] + ["omega_ref"]
+        return names, [-w] * H + [-U_MAX] * H + [0.0], [w] * H + [U_MAX] * H + [o.max_speed]
+
+    def reset(self, index, Y, rngs) -> None:
+        tu, _ = self.sensors.encoders(Y[index])
+        self.est.reset(tu, index)
+        self.hist[index] = 0.0
+
+    def initial(self, index, Y, omega_ref) -> np.ndarray:
+        out = np.zeros((len(index), self.dim), dtype=np.float32)
+        out[:, 2 * self.H] = omega_ref[index]
+        return out
+
+    def observe(self, Y, u_prev, omega_ref, out, rngs, skip=None) -> None:
+        self.from_readings(quantize_angle(Y[:, 0], self.sensors.cpr), u_prev, omega_ref, out)
+
+    def from_readings(self, theta_u: np.ndarray, u_prev: np.ndarray, omega_ref: np.ndarray,
+                      out: np.ndarray) -> None:
+        """Observation from the motor encoder angle (rad), the applied voltage (V) and the target."""
+        H, h = self.H, self.hist
+        h[:, 1:H] = h[:, 0:H - 1]
+        h[:, H + 1:] = h[:, H:2 * H - 1]
+        h[:, 0] = self.est.update(theta_u)
+        h[:, H] = u_prev
+        out[:, :2 * H] = h
+        out[:, 2 * H] = omega_ref
+        np.clip(out, self.low, self.high, out=out)
+
+
+_MODELS = {"full": FullObservation, "sensors": SensorObservation, "motor": MotorObservation}
+
+
+def make_observation_model(n: int, options: EnvOptions) -> ObservationModel:
+    """The observation model of ``options.observation`` for n rigs."""
+    return _MODELS[options.observation](n, options)

@@ -1,0 +1,143 @@
+"""The physical system behind the environments: N rigs in one batched compiled core.
+
+``RigSystem`` wraps :class:`drillgym.BatchSimulator` (the same event-driven
+kernels as :func:`drillgym.simulate`) and adds what an environment needs and the
+core does not: a lean per-control-period step (preallocated arrays, the compiled
+``advance_batch`` called directly, no per-step validation: the env validates the
+action once) and per-episode domain randomisation of the parameters.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from ..integrators import advance_batch
+from ..params import IDX, RigParams
+from ..simulator import BatchSimulator
+
+__all__ = ["RigSystem", "ParameterRandomizer"]
+
+
+class ParameterRandomizer:
+    """Draws parameter vectors uniformly in ``value * (1 +/- fraction)`` for the named parameters."""
+
+    def __init__(self, base: RigParams, fraction: float, names: Sequence[str]) -> None:
+        self.base = base.to_vector()
+        self.fraction = float(fraction)
+        self.index = np.array([getattr(IDX, n) for n in names], dtype=np.int64)
+
+    @property
+    def active(self) -> bool:
+        return self.fraction > 0 and self.index.size > 0
+
+    def sample(self, rng: np.random.Generator) -> np.ndarray:
+        """One parameter vector (kernel layout, see ``RigParams.to_vector``)."""
+        p = self.base.copy()
+        p[self.index] *= 1.0 + rng.uniform(-self.fraction, self.fraction, self.index.size)
+        return p
+
+
+class RigSystem:
+    """N copies of one rig configuration, stepped one control period at a time.
+
+    Args:
+        configuration: 'torsional', 'lateral' or 'coupled'.
+        n: number of rigs.
+        params: parameter set of every rig (default the identified set).
+        dt: integration step (s).
+        n_substeps: integration steps per control period (voltage held constant over them).
+        method, friction: as :class:`drillgym.BatchSimulator`.
+
+    State views (arrays of shape (n,), SI units): ``omega_u``, ``omega_l``, ``alpha``,
+    ``theta_u``, ``theta_l``; ``Y`` is the (n, 9) state matrix (layout of
+    :mod:`drillgym.configurations`), ``friction_l`` the lower friction torque (N m),
+    ``stuck_l`` the lower disc's stick flag.
+    """
+
+    def __init__(self, configuration: str, n: int, *, params: RigParams | None = None, dt: float = 1e-2,
+                 n_substeps: int = 1, method: str = "rk4", friction: str = "exact") -> None:
+        self.sim = BatchSimulator(configuration, n, params=params, dt=dt, method=method, friction=friction)
+        self.n = self.sim.n
+        self.n_substeps = int(n_substeps)
+        self.control_dt = self.sim.dt * self.n_substeps
+        # kernel arguments, bound once (BatchSimulator.advance re-validates on every call)
+        self._cfg = int(self.sim.config)
+        self._tab = self.sim._tab
+        self._eps = self.sim._eps
+        self.u = np.zeros(self.n)  # voltage applied over the current period (V)
+
+    # ------------------------------------------------------------------------ stepping
+    def step(self) -> None:
+        """Advance every rig by one control period holding the voltages ``self.u``
+        (finite, already clipped to the amplifier range by the caller)."""
+        advance_batch(*self.kernel_args)
+
+    @property
+    def kernel_args(self) -> tuple:
+        """Arguments of :func:`drillgym.integrators.advance_batch` for one control period
+        (persistent arrays, updated in place): Y, MODE, u, P, cfg, dt, n_substeps, T, eps, A, b, c, FRIC."""
+        s = self.sim
+        A, b, c = self._tab
+        return (s.Y, s.MODE, self.u, s.P, self._cfg, s.dt, self.n_substeps, s.T, self._eps, A, b, c, s.FRIC)
+
+    def reset(self, index: np.ndarray, alpha0: np.ndarray, params: np.ndarray | None = None) -> None:
+        """Rigs ``index`` at rest with winding ``alpha0`` (rad), t = 0, optionally new parameter rows."""
+        if params is not None:
+            self.sim.P[index] = params
+        self.sim.reset(index, alpha0=alpha0)
+        self.u[index] = 0.0
+        # friction torques (holding torques) of the rest state: a zero-length advance on a copy
+        s = self.sim
+        A, b, c = self._tab
+        Y, MODE, FRIC = s.Y[index].copy(), s.MODE[index].copy(), s.FRIC[index].copy()
+        advance_batch(Y, MODE, self.u[index], s.P[index], self._cfg, s.dt, 0, s.T[index].copy(), self._eps,
+                      A, b, c, FRIC)
+        s.FRIC[index] = FRIC
+
+    # ------------------------------------------------------------------------ views
+    @property
+    def Y(self) -> np.ndarray:
+        return self.sim.Y
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.sim.T
+
+    @property
+    def theta_u(self) -> np.ndarray:
+        return self.sim.Y[:, 0]
+
+    @property
+    def theta_l(self) -> np.ndarray:
+        return self.sim.Y[:, 1]
+
+    @property
+    def omega_u(self) -> np.ndarray:
+        return self.sim.Y[:, 2]
+
+    @property
+    def omega_l(self) -> np.ndarray:
+        return self.sim.Y[:, 3]
+
+    @property
+    def alpha(self) -> np.ndarray:
+        return self.sim.alpha
+
+    @property
+    def lateral_fixed(self) -> tuple[np.ndarray, np.ndarray]:
+        """(X, Y) of the lower disc centre in the fixed (LVDT) frame (m)."""
+        return self.sim.lateral_fixed
+
+    @property
+    def friction_l(self) -> np.ndarray:
+        return self.sim.FRIC[:, 1]
+
+    @property
+    def stuck_l(self) -> np.ndarray:
+        return self.sim.MODE[:, 1] == 0
+
+    @property
+    def params_matrix(self) -> np.ndarray:
+        return self.sim.P

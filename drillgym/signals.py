@@ -1,0 +1,150 @@
+"""Excitation signals for identification (report chapter 3, figure 3.1).
+
+* :func:`quasi_random` — the estimation signal: random levels held for random
+  times, low-passed so that its content lies below ``f_max`` (5 Hz, the rig's
+  relevant dynamics), scaled to stay inside the amplifier range (±5 V).
+* :func:`sum_of_sines` — the validation signal: a few sines of different
+  frequencies (below ``f_max``) around an offset, inside the same range.
+
+Both are seeded (same seed, same signal) and return ``(t, u)`` arrays in s
+and V, which :func:`drillgym.simulate` accepts directly as its input and
+:func:`write_input_file` writes as a DATA_FORMAT CSV with columns ``t, u``
+(for the simulator and for the rig).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+from scipy import signal as sps
+
+__all__ = ["quasi_random", "sum_of_sines", "write_input_file", "read_input_file", "U_MAX"]
+
+U_MAX = 5.0  # V: amplifier range of the rig
+
+
+def _fade_in(t: np.ndarray, u: np.ndarray, fade_s: float) -> np.ndarray:
+    """Raised-cosine fade from 0 V over the first ``fade_s`` seconds (the rig starts at rest, 0 V)."""
+    if fade_s <= 0:
+        return u
+    w = np.clip(t / fade_s, 0.0, 1.0)
+    return u * 0.5 * (1.0 - np.cos(np.pi * w))
+
+
+def _check(duration: float, rate_hz: float, amplitude: float, f_max: float) -> None:
+    if not (np.isfinite(duration) and duration > 0):
+        raise ValueError(f"signal duration must be a positive number of seconds, got {duration!r}")
+    if not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise ValueError(f"signal sample rate must be a positive number of Hz, got {rate_hz!r}")
+    if not (0 < amplitude <= 50):
+        raise ValueError(f"signal amplitude must be in (0, 50] V, got {amplitude!r}")
+    if not (0 < f_max < rate_hz / 2):
+        raise ValueError(f"f_max = {f_max!r} Hz must be positive and below the Nyquist rate {rate_hz / 2} Hz")
+
+
+def quasi_random(duration: float, *, rate_hz: float = 1000.0, seed: int | None = 0, amplitude: float = U_MAX,
+                 offset: float = 0.0, f_max: float = 5.0, hold: tuple[float, float] = (0.3, 3.0),
+                 fade_s: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """The report's quasi-random estimation signal.
+
+    Random levels, uniform in ``offset ± amplitude``, each held for a random
+    time uniform in ``hold`` (s), then low-passed (zero-phase Butterworth at
+    ``f_max`` Hz, so the content lies below ``f_max``) and scaled so that
+    ``u`` stays inside ``offset ± amplitude``; the first ``fade_s`` seconds fade in from 0 V
+    (the rig starts at rest).
+
+    Returns ``(t, u)``: time (s) from 0 at ``rate_hz`` and voltage (V).
+    """
+    _check(duration, rate_hz, amplitude, f_max)
+    if not (0 < hold[0] <= hold[1]):
+        raise ValueError(f"hold times must satisfy 0 < min <= max, got {hold!r}")
+    if abs(offset) >= amplitude and offset != 0:
+        raise ValueError(f"offset {offset} V must be smaller than the amplitude {amplitude} V")
+    rng = np.random.default_rng(seed)
+    n = int(round(duration * rate_hz)) + 1
+    t = np.arange(n) / rate_hz
+    u = np.empty(n)
+    i = 0
+    while i < n:
+        k = max(1, int(rng.uniform(*hold) * rate_hz))
+        u[i:i + k] = rng.uniform(-1.0, 1.0)
+        i += k
+    sos = sps.butter(4, f_max, fs=rate_hz, output="sos")
+    u = sps.sosfiltfilt(sos, u)
+    span = amplitude - abs(offset)
+    u = offset + span * u / max(np.max(np.abs(u)), 1e-12)
+    return t, _fade_in(t, u, fade_s)
+
+
+def sum_of_sines(duration: float, *, rate_hz: float = 1000.0, seed: int | None = 0, amplitude: float = U_MAX,
+                 offset: float = 0.0, frequencies: tuple[float, ...] = (0.05, 0.11, 0.23, 0.47, 0.9, 1.7),
+                 f_max: float = 5.0, fade_s: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """Sum-of-sines validation signal: equal-amplitude sines at ``frequencies`` (Hz, all below
+    ``f_max``) with seeded random phases, scaled into ``offset ± amplitude`` (V), faded in from
+    0 V over ``fade_s`` seconds.
+
+    Returns ``(t, u)``.
+    """
+    _check(duration, rate_hz, amplitude, f_max)
+    f = np.asarray(frequencies, dtype=float)
+    if f.size == 0 or np.any(f <= 0) or np.any(f >= f_max):
+        raise ValueError(f"frequencies must be positive and below f_max = {f_max} Hz, got {tuple(frequencies)}")
+    rng = np.random.default_rng(seed)
+    phases = rng.uniform(0.0, 2 * np.pi, f.size)
+    t = np.arange(int(round(duration * rate_hz)) + 1) / rate_hz
+    u = np.sin(2 * np.pi * f[None, :] * t[:, None] + phases[None, :]).sum(axis=1)
+    span = amplitude - abs(offset)
+    u = offset + span * u / max(np.max(np.abs(u)), 1e-12)
+    return t, _fade_in(t, u, fade_s)
+
+
+def write_input_file(path: str | Path, t: np.ndarray, u: np.ndarray, description: str = "") -> Path:
+    """Write an input signal as a DATA_FORMAT CSV (columns ``t, u``; metadata line first)."""
+    t = np.asarray(t, dtype=float)
+    u = np.asarray(u, dtype=float)
+    if t.shape != u.shape or t.ndim != 1:
+        raise ValueError(f"t and u must be 1-D arrays of one length, got shapes {t.shape} and {u.shape}")
+    if np.any(np.diff(t) <= 0):
+        raise ValueError("signal time must be strictly increasing")
+    path = Path(path)
+    meta = {"source": "signal", "description": description,
+            "sample_rate_hz": float(1.0 / np.median(np.diff(t))) if t.size > 1 else None}
+    with path.open("w", encoding="utf-8") as fh:
+        fh.write(f"# meta: {json.dumps(meta)}\n")
+        fh.write("t,u\n")
+        for a, b in zip(t, u):
+            fh.write(f"{float(a)!r},{float(b)!r}\n")
+    return path
+
+
+def read_input_file(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """Read the ``t, u`` columns of a DATA_FORMAT CSV (an input file or a full recording)."""
+    from .errors import DataFormatError
+
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: file not found")
+    lines = [ln for ln in path.read_text(encoding="utf-8").splitlines() if ln.strip() and not ln.startswith("#")]
+    if not lines:
+        raise DataFormatError(f"{path}: no header line (empty file?)")
+    header = [h.strip() for h in lines[0].split(",")]
+    for col in ("t", "u"):
+        if col not in header:
+            raise DataFormatError(f"{path}: missing column {col!r}")
+    it, iu = header.index("t"), header.index("u")
+    t, u = [], []
+    for k, ln in enumerate(lines[1:], start=2):
+        f = ln.split(",")
+        try:
+            t.append(float(f[it]))
+            u.append(float(f[iu]))
+        except (ValueError, IndexError):
+            raise DataFormatError(f"{path}: data row {k - 1}: cannot read t, u from {ln!r}") from None
+    t_arr, u_arr = np.array(t), np.array(u)
+    if t_arr.size < 2 or np.any(np.diff(t_arr) <= 0):
+        raise DataFormatError(f"{path}: column 't': needs >= 2 strictly increasing times")
+    if not np.all(np.isfinite(u_arr)):
+        raise DataFormatError(f"{path}: column 'u': NaN or infinite value")
+    return t_arr, u_arr

@@ -1,0 +1,157 @@
+"""The host's protocol client: identify the firmware, exchange voltage for samples, stop.
+
+Every failure is detected and named: a corrupted frame (CRC), a missing frame (sequence
+gap), no reply in time (lost/late frame, firmware dead), a lost port, a foreign protocol
+version.  The client never retries a SET_VOLTAGE: on the rig a repeated command would
+move the plant twice.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+from . import protocol as P
+from .link import (DEFAULT_BAUDRATE, FirmwareStopError, LinkCorruptError, LinkError, LinkSequenceError,
+                   LinkTimeoutError, SerialLink)
+
+__all__ = ["RigClient", "Reply"]
+
+
+@dataclass(frozen=True)
+class Reply:
+    """A SAMPLE with host-side timing: ``sent``/``received`` (time.monotonic, s), and the stop the
+    firmware reported since the previous reply (StopReason or None)."""
+
+    sample: P.Sample
+    sent: float
+    received: float
+    stop: P.StopReason | None = None
+
+    @property
+    def round_trip(self) -> float:
+        return self.received - self.sent
+
+
+class RigClient:
+    """Protocol client on a :class:`hw.link.SerialLink`.
+
+    Args:
+        url: serial port or pyserial URL.
+        reply_timeout: longest wait for a reply (s); keep it below the firmware watchdog.
+        baudrate: line speed (bit/s).
+    """
+
+    def __init__(self, url: str, reply_timeout: float = 0.05, baudrate: int = DEFAULT_BAUDRATE) -> None:
+        if not (0 < reply_timeout <= 1.0):
+            raise ValueError(f"reply_timeout must be in (0, 1] s, got {reply_timeout!r}")
+        self.link = SerialLink(url, baudrate)
+        self.reply_timeout = float(reply_timeout)
+        self.config: P.Config | None = None
+        self.strict = False  # during an episode: any rejected byte or missing frame is an error
+        self._rejected = 0
+        self._gaps = 0
+        self._pending_stop: P.StopReason | None = None
+
+    @property
+    def url(self) -> str:
+        return self.link.url
+
+    def close(self) -> None:
+        self.link.close()
+
+    # ------------------------------------------------------------------ receiving
+    def _check_link(self) -> None:
+        st = self.link.parser.stats
+        bad = st.rejected + st.garbage_bytes
+        gaps = self.link.seq_gaps
+        new_bad, new_gaps = bad - self._rejected, gaps - self._gaps
+        self._rejected, self._gaps = bad, gaps
+        if not self.strict:
+            return
+        if new_bad:
+            raise LinkCorruptError(f"{self.url}: corrupted data from the firmware rejected "
+                                   f"(CRC mismatches so far: {st.crc_errors}, malformed: {st.malformed}, "
+                                   f"bytes outside frames: {st.garbage_bytes}); stopping")
+        if new_gaps:
+            raise LinkSequenceError(f"{self.url}: {new_gaps} frame(s) from the firmware missing "
+                                    f"(sequence number gap); stopping")
+
+    def _wait_for(self, want, what: str, sent: float, timeout: float | None = None) -> tuple[P.Message, float]:
+        deadline = sent + (self.reply_timeout if timeout is None else timeout)
+        while True:
+            frames = self.link.receive(deadline)
+            self._check_link()
+            for frame, t in frames:
+                msg = P.decode(frame)
+                if isinstance(msg, P.EmergencyStop):
+                    self._pending_stop = P.StopReason(msg.reason)
+                    continue
+                if want(msg):
+                    return msg, t
+            if time.monotonic() >= deadline:
+                st = self.link.parser.stats
+                version = (f"; firmware speaks protocol version(s) {sorted(st.foreign_versions)}, host speaks "
+                           f"{P.PROTOCOL_VERSION}" if st.foreign_versions else "")
+                raise LinkTimeoutError(f"{self.url}: no {what} within {1e3 * (deadline - sent):.0f} ms "
+                                       f"(frame lost or late, or firmware not responding){version}")
+
+    # ------------------------------------------------------------------ commands
+    def identify(self, period_s: float = 0.0, attempts: int = 3) -> P.Config:
+        """Handshake: flush stale input, IDENTIFY (setting the control period if > 0), read CONFIG."""
+        last: LinkError | None = None
+        for _ in range(attempts):
+            self.link.flush_input()
+            self._check_link()
+            sent = time.monotonic()
+            self.link.send(P.Identify(int(round(period_s * 1e6))))
+            try:
+                cfg, _ = self._wait_for(lambda m: isinstance(m, P.Config), "CONFIG reply to IDENTIFY", sent,
+                                        max(self.reply_timeout, 0.2))
+            except LinkTimeoutError as exc:
+                last = exc
+                continue
+            if cfg.protocol_version != P.PROTOCOL_VERSION:
+                raise LinkError(f"{self.url}: firmware protocol version {cfg.protocol_version}, host speaks "
+                                f"{P.PROTOCOL_VERSION}")
+            self.config = cfg
+            return cfg
+        raise last  # type: ignore[misc]
+
+    def clear_stop(self) -> None:
+        """Clear a latched stop (answered by ACK)."""
+        self._pending_stop = None
+        sent = time.monotonic()
+        seq = self.link.send(P.ClearStop())
+        self._wait_for(lambda m: isinstance(m, P.Ack) and m.acked_seq == seq, "ACK of CLEAR_STOP", sent)
+
+    def exchange(self, volts: float) -> Reply:
+        """SET_VOLTAGE, then the SAMPLE answering it (the state at the end of that control period)."""
+        sent = time.monotonic()
+        seq = self.link.send(P.SetVoltage(float(volts)))
+        sample, t = self._wait_for(lambda m: isinstance(m, P.Sample) and m.ack_seq == seq,
+                                   f"SAMPLE reply to SET_VOLTAGE seq {seq}", sent)
+        stop, self._pending_stop = self._pending_stop, None
+        return Reply(sample, sent, t, stop)
+
+    def heartbeat(self, token: int) -> float:
+        """Round trip (s) of a HEARTBEAT."""
+        sent = time.monotonic()
+        self.link.send(P.Heartbeat(token & 0xFFFFFFFF))
+        _, t = self._wait_for(lambda m: isinstance(m, P.Heartbeat) and m.token == token, "HEARTBEAT echo", sent)
+        return t - sent
+
+    def emergency_stop(self, wait: bool = False) -> None:
+        """Ask the firmware to stop the motor (0 V, latched); ``wait`` for its ACK."""
+        sent = time.monotonic()
+        seq = self.link.send(P.EmergencyStop(int(P.StopReason.HOST)))
+        if wait:
+            self._wait_for(lambda m: isinstance(m, P.Ack) and m.acked_seq == seq, "ACK of EMERGENCY_STOP", sent)
+
+
+def raise_for_stop(reply: Reply) -> None:
+    """Raise :class:`FirmwareStopError` if the firmware reports a latched stop."""
+    if reply.sample.status & P.Status.STOPPED:
+        reason = reply.stop.name if reply.stop is not None else (
+            "WATCHDOG" if reply.sample.status & P.Status.WATCHDOG else "latched")
+        raise FirmwareStopError(f"the firmware stopped the motor ({reason})")

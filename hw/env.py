@@ -1,0 +1,390 @@
+"""``drillgym/Hardware-v0``: the speed-tracking task on the physical rig (or its emulator).
+
+Same action and observation spaces, reward, task and info keys as the simulated envs
+(:mod:`drillgym.envs`; their observation models, reward, task and stick-slip monitor are
+reused, fed with measurements instead of simulated states).  Differences forced by
+hardware:
+
+* real-time pacing at the control period (:class:`hw.pacing.Pacer`);
+* measurements: encoder counts -> rad, LVDT offset taken at rest, 5 Hz causal low-pass
+  (:mod:`hw.processing`); speeds are encoder estimates (also in the 'full' observation,
+  and in the reward and the termination test); ``friction_torque`` is not measurable (NaN);
+* ``reset`` brings the rig to rest at 0 V (until the encoders stop moving) instead of
+  setting a state; the initial winding is whatever the rig has;
+* a safety layer no caller can bypass (:mod:`hw.safety`): every voltage is clamped to
+  +/- 5 V and slew-limited before it leaves, over-speed / over-displacement stop the motor,
+  the firmware repeats all of it and has a watchdog; every episode end, fault and ``close()``
+  leaves the motor at 0 V;
+* every episode is recorded (:mod:`hw.recording`), flushed at least every 0.5 s.
+
+A link fault (corrupted or missing frame, no reply, lost port) raises a
+:class:`hw.link.LinkError` (a :class:`drillgym.errors.SafetyError`) after asking the firmware
+to stop and closing the recording; call ``reset()`` to start again.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import weakref
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from drillgym.envs.base import action_space
+from drillgym.envs.observation import make_observation_model
+from drillgym.envs.options import U_MAX, EnvOptions
+from drillgym.envs.reward import TrackingReward
+from drillgym.envs.task import SpeedTrackingTask, StickSlipMonitor
+from drillgym.errors import SafetyError
+from drillgym.measurement import EncoderVelocityEstimator, counts_to_angle
+
+from . import protocol as P
+from .client import Reply, RigClient
+from .link import DEFAULT_BAUDRATE, LinkError
+from .pacing import Pacer
+from .processing import CounterUnwrap, LvdtProcessor
+from .recording import EpisodeRecorder, episode_path
+from .safety import SafetyLimits, VoltageLimiter, check_limits
+
+__all__ = ["HardwareEnv", "HARDWARE_FIXED_OPTIONS"]
+
+#: EnvOptions that describe the simulated plant; on hardware they are properties of the rig.
+HARDWARE_FIXED_OPTIONS = ("params", "randomize", "randomize_names", "dt", "method", "friction", "alpha0_range",
+                          "lvdt_noise_std", "counts_per_rev", "render_history")
+_ROW0 = np.zeros(1, dtype=np.int64)
+
+
+def _stop_motor(client: RigClient) -> None:
+    """Best effort: ask the firmware to stop (the watchdog does it anyway), close the port."""
+    try:
+        if client.link.is_open:
+            client.emergency_stop()
+    except Exception:  # noqa: BLE001 - the link may be gone; the firmware watchdog stops the motor
+        pass
+    client.close()
+
+
+class HardwareEnv(gym.Env):
+    """The rig behind a serial port (see the module docstring).
+
+    Args:
+        port: serial device or pyserial URL of the rig's microcontroller (or ``drillgym rig emulate``).
+        configuration: 'torsional', 'lateral' or 'coupled' (how the rig is set up).
+        record: recording file (.csv; later episodes get ``_<k>`` suffixes) or directory.
+        limits: host safety limits (clamp, slew rate, over-speed, over-displacement).
+        rest_time: the rig is at rest when no encoder count changed for this long (s).
+        rest_timeout: give up bringing the rig to rest after this long (s).
+        reply_timeout: longest wait for the firmware's reply (s), below its watchdog.
+        lvdt_cutoff_hz: causal LVDT low-pass cut-off (Hz).
+        flush_interval_s: recording flush interval (s, <= 1).
+        baudrate: serial line speed.
+        **options: the simulated envs' options (:class:`drillgym.envs.EnvOptions`): observation,
+            control_dt, normalize_action, omega_ref, omega_ref_range, episode_duration, max_speed,
+            max_lateral, reward, ssi_window, velocity_filter_tau, motor_history.
+    """
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, port: str, configuration: str = "torsional", *, record: str | Path = "recordings",
+                 limits: SafetyLimits | None = None, rest_time: float = 0.2, rest_timeout: float = 30.0,
+                 reply_timeout: float = 0.05, lvdt_cutoff_hz: float = 5.0, flush_interval_s: float = 0.5,
+                 baudrate: int = DEFAULT_BAUDRATE, **options: Any) -> None:
+        fixed = sorted(set(options) & set(HARDWARE_FIXED_OPTIONS))
+        if fixed:
+            raise ValueError(f"option(s) {fixed} do not apply to the hardware environment (properties of the rig "
+                             f"or its firmware)")
+        if not (rest_time > 0 and rest_timeout > rest_time):
+            raise ValueError(f"need 0 < rest_time < rest_timeout, got {rest_time!r}, {rest_timeout!r}")
+        self.limits = limits or SafetyLimits()
+        self.record = Path(record)
+        self.rest_time, self.rest_timeout = float(rest_time), float(rest_timeout)
+        self.lvdt_cutoff_hz = float(lvdt_cutoff_hz)
+        self.flush_interval_s = float(flush_interval_s)
+        self.port = str(port)
+        self._reply_timeout, self._baudrate = reply_timeout, baudrate
+        control_dt = float(options.get("control_dt", EnvOptions.control_dt))
+        self._client = RigClient(self.port, reply_timeout, baudrate)
+        self._finalizer = weakref.finalize(self, _stop_motor, self._client)
+        try:
+            cfg = self._client.identify(control_dt)
+            if abs(cfg.period_s - control_dt) > 1e-9:
+                raise ValueError(f"the firmware on {self.port} runs a {cfg.period_s} s control period and refused "
+                                 f"{control_dt} s")
+            self.options = EnvOptions.from_kwargs(configuration=configuration, counts_per_rev=cfg.counts_per_rev,
+                                                  lvdt_noise_std=0.0, **options)
+        except BaseException:
+            self._finalizer()
+            raise
+        self.firmware = cfg
+        o = self.options
+        self.action_space = action_space(o.normalize_action)
+        self._scale = U_MAX if o.normalize_action else 1.0
+        self.obs_model = make_observation_model(1, o)
+        self.observation_space = self.obs_model.space
+        self.task = SpeedTrackingTask(o)
+        self.reward_fn = TrackingReward(o.reward)
+        self.monitor = StickSlipMonitor(1, o.ssi_window, o.control_dt)
+        self.limiter = VoltageLimiter(self.limits)
+        self.pacer = Pacer(o.control_dt)
+        self._speed = EncoderVelocityEstimator(2, o.control_dt, o.velocity_filter_tau)
+        self._lvdt = LvdtProcessor(cfg.lvdt_m_per_lsb, 1.0 / o.control_dt, self.lvdt_cutoff_hz)
+        self._cu, self._cl = CounterUnwrap(), CounterUnwrap()
+        # measurements in the shape of the simulated envs' arrays (rows = rigs = 1)
+        self._Y = np.zeros((1, 9))
+        self._MODE = np.zeros((1, 2), dtype=np.int64)
+        self._obs = np.zeros((1, self.obs_model.dim), dtype=np.float32)
+        self._reward = np.zeros(1)
+        self._unsafe = np.zeros(1, dtype=bool)
+        self._omega_ref = np.ones(1)
+        self._u_prev = np.zeros(1)
+        self._xy_prev = np.zeros(2)
+        self._counts_l_prev = 0
+        self._steps = 0
+        self._episode = -1
+        self._t0_us = 0
+        self._t0_host = 0.0
+        self._running = False
+        self._fault: BaseException | None = None
+        self.recorder: EpisodeRecorder | None = None
+        self.last_reply: Reply | None = None
+        self._warm_up()
+
+    def _warm_up(self) -> None:
+        """Load the compiled kernels of reward, task and observation now: a first call inside
+        an episode would take longer than the firmware's watchdog."""
+        self.reward_fn(self._Y, self._MODE, self._u_prev, self._u_prev, self._omega_ref, self._reward)
+        self.task.unsafe(self._Y, self._unsafe)
+        self.monitor.update(self._Y[:, 3])
+        self.obs_model.initial(_ROW0, self._Y, self._omega_ref)
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def observation_names(self) -> tuple[str, ...]:
+        return self.obs_model.names
+
+    @property
+    def client(self) -> RigClient:
+        """The protocol client of the link (heartbeats, firmware CONFIG)."""
+        return self._client
+
+    @property
+    def recording(self) -> Path | None:
+        """The current (or last) episode's recording file."""
+        return self.recorder.path if self.recorder is not None else None
+
+    # ------------------------------------------------------------------ link with fault handling
+    def _exchange(self, volts: float) -> Reply:
+        try:
+            reply = self._client.exchange(volts)
+        except LinkError as exc:
+            self._on_fault(exc)
+            raise type(exc)(f"{exc}; motor stop requested (firmware watchdog: {self.firmware.watchdog_ms} ms), "
+                            f"recording kept up to the fault: {self.recording}") from exc
+        self.last_reply = reply
+        return reply
+
+    def _on_fault(self, exc: BaseException) -> None:
+        self._fault = exc
+        self._running = False
+        try:
+            self._client.emergency_stop()
+        except Exception:  # noqa: BLE001 - link gone: the firmware watchdog stops the motor
+            pass
+        if self.recorder is not None:
+            self.recorder.close()
+
+    def end_episode(self) -> None:
+        """End the episode now: motor to 0 V (latched stop until the next reset), recording closed."""
+        if self._running:
+            self._running = False
+            try:
+                self._client.emergency_stop()
+            except LinkError as exc:
+                self._on_fault(exc)
+        if self.recorder is not None:
+            self.recorder.close()
+
+    # ------------------------------------------------------------------ measurements
+    def _read(self, reply: Reply) -> dict[str, float]:
+        """Processed readings of a SAMPLE (SI units)."""
+        s = reply.sample
+        cpr = self.firmware.counts_per_rev
+        cu, cl = self._cu.update(s.counts_u), self._cl.update(s.counts_l)
+        tu, tl = (float(a) for a in counts_to_angle(np.array([cu, cl]), cpr))
+        xy, xy_lp = self._lvdt.update(s.lvdt_x, s.lvdt_y)
+        return {"t": (s.timestamp_us - self._t0_us) * 1e-6, "u": s.volts, "theta_u": tu, "theta_l": tl,
+                "x": xy[0], "y": xy[1], "x_lp": xy_lp[0], "y_lp": xy_lp[1], "counts_u": cu, "counts_l": cl,
+                "lvdt_x_raw": s.lvdt_x, "lvdt_y_raw": s.lvdt_y, "status": int(s.status),
+                "t_host": reply.received - self._t0_host}
+
+    def _measured_state(self, m: dict[str, float], omega: np.ndarray, dxy: np.ndarray, angle_shift: float = 0.0) -> None:
+        """Fill the state-shaped array the envs' reward/task/'full' observation read, from measurements."""
+        Y = self._Y[0]
+        Y[0], Y[1] = m["theta_u"] + angle_shift, m["theta_l"] + angle_shift
+        Y[2], Y[3] = omega
+        c, s = math.cos(Y[0]), math.sin(Y[0])
+        X, Yf = m["x_lp"], m["y_lp"]
+        Y[4], Y[5] = X * c + Yf * s, -X * s + Yf * c   # rotating frame
+        vbx, vby = dxy[0] * c + dxy[1] * s, -dxy[0] * s + dxy[1] * c
+        Y[6], Y[7] = vbx + Y[2] * Y[5], vby - Y[2] * Y[4]
+        Y[8] = 0.0
+
+    def _record(self, m: dict[str, float], u_cmd: float, omega: np.ndarray) -> None:
+        if self.recorder is not None and not self.recorder.closed:
+            self.recorder.write({**m, "u_cmd": u_cmd, "omega_u_est": omega[0], "omega_l_est": omega[1]})
+
+    # ------------------------------------------------------------------ gym API
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        super().reset(seed=seed)
+        self.end_episode()
+        self._fault = None
+        c = self._client
+        if not c.link.is_open:  # after a lost link: reconnect
+            self._client = c = RigClient(self.port, self._reply_timeout, self._baudrate)
+            self._finalizer.detach()
+            self._finalizer = weakref.finalize(self, _stop_motor, c)
+        c.strict = False
+        try:
+            c.identify(self.options.control_dt)
+            c.clear_stop()
+            c.strict = True
+            rest = self._bring_to_rest()
+            c.clear_stop()  # idle at 0 V until the first step: the episode starts with the first action
+        except LinkError as exc:
+            self._on_fault(exc)
+            raise
+        o = self.options
+        self._episode += 1
+        self._omega_ref[0], _ = self.task.sample(self.np_random)  # alpha0: the rig's own winding
+        last = rest[-1]
+        self._t0_us, self._t0_host = last.sample.timestamp_us, last.received
+        self._lvdt.calibrate_rest(np.array([r.sample.lvdt_x for r in rest]), np.array([r.sample.lvdt_y for r in rest]))
+        self._cu.reset()
+        self._cl.reset()
+        m = self._read(last)
+        self._counts_l_prev = m["counts_l"]
+        self._speed.reset(np.array([m["theta_u"], m["theta_l"]]))
+        self._xy_prev[:] = (m["x_lp"], m["y_lp"])
+        # states at rest, angles at the middle of their count: quantizing observation models give the counts back
+        self._measured_state(m, np.zeros(2), np.zeros(2), angle_shift=math.pi / self.firmware.counts_per_rev)
+        self.obs_model.reset(_ROW0, self._Y, [self.np_random])
+        self._obs[:] = self.obs_model.initial(_ROW0, self._Y, self._omega_ref)
+        self._measured_state(m, np.zeros(2), np.zeros(2))
+        self.monitor.reset(_ROW0)
+        self.limiter.reset(0.0)
+        self._u_prev[0] = 0.0
+        self._steps = 0
+        meta = {"configuration": o.configuration, "source": "emulator" if self.firmware.name.startswith("drillgym-emu")
+                else "rig", "sample_rate_hz": 1.0 / o.control_dt, "description": f"hardware episode {self._episode}",
+                "port": self.port, "firmware_id": self.firmware.name, "protocol_version": P.PROTOCOL_VERSION,
+                "counts_per_rev": self.firmware.counts_per_rev, "lvdt_m_per_lsb": self.firmware.lvdt_m_per_lsb,
+                "lvdt_offset_m": self._lvdt.offset.tolist(), "lvdt_cutoff_hz": self.lvdt_cutoff_hz,
+                "omega_ref": float(self._omega_ref[0]), "seed": seed, "observation": o.observation}
+        self.recorder = EpisodeRecorder(episode_path(self.record, self._episode), o.lateral, meta,
+                                        self.flush_interval_s)
+        self._record(m, 0.0, np.zeros(2))
+        self._running = True
+        self.pacer.next = None  # the first step starts the clock
+        return self._obs[0].copy(), self._info(m, np.zeros(2))
+
+    def _bring_to_rest(self) -> list[Reply]:
+        """Hold 0 V at the control period until no encoder count changed for ``rest_time``."""
+        n_rest = max(2, int(round(self.rest_time / self.options.control_dt)) + 1)
+        pacer = Pacer(self.options.control_dt)
+        self.limiter.reset(0.0)
+        window: list[Reply] = []
+        t_end = time.monotonic() + self.rest_timeout
+        while True:
+            pacer.wait()
+            reply = self._exchange(0.0)
+            s = reply.sample
+            if window and (s.counts_u, s.counts_l) != (window[-1].sample.counts_u, window[-1].sample.counts_l):
+                window.clear()
+            window.append(reply)
+            if len(window) >= n_rest and not s.status & P.Status.STOPPED:
+                return window[-n_rest:]
+            if time.monotonic() > t_end:
+                self._on_fault(SafetyError("rig not at rest"))
+                raise SafetyError(f"the rig did not come to rest at 0 V within {self.rest_timeout} s "
+                                  f"(encoders still moving, or the firmware keeps the motor stopped)")
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
+        if not self._running:
+            why = f" after a fault ({self._fault})" if self._fault is not None else ""
+            raise SafetyError(f"the hardware episode is not running{why}; call reset()")
+        try:
+            if len(action) != 1:
+                raise ValueError(f"action must hold one voltage, got {len(action)} values: {action!r}")
+            v = float(action[0])
+        except TypeError:
+            v = float(action)
+        if not math.isfinite(v):
+            raise ValueError(f"action (motor voltage) must be finite, got {action!r}")
+        v = min(max(v * self._scale, -U_MAX), U_MAX)
+        u_cmd, _ = self.limiter.limit(v, self.options.control_dt)  # host safety layer
+        tick_error = self.pacer.wait()
+        reply = self._exchange(u_cmd)
+        if self._steps == 0:  # the episode's clock starts with the first action
+            self._t0_us = reply.sample.timestamp_us - self.firmware.period_us
+            self._t0_host = reply.sent
+        m = self._read(reply)
+        o = self.options
+        omega = self._speed.update(np.array([m["theta_u"], m["theta_l"]]))
+        xy = np.array([m["x_lp"], m["y_lp"]])
+        dxy, self._xy_prev[:] = (xy - self._xy_prev) / o.control_dt, xy
+        self._measured_state(m, omega, dxy)
+        self._MODE[0, 1] = 0 if m["counts_l"] == self._counts_l_prev else int(np.sign(omega[1]) or 1)
+        self._counts_l_prev = m["counts_l"]
+        u = np.array([m["u"]])
+        self.reward_fn(self._Y, self._MODE, u, self._u_prev, self._omega_ref, self._reward)
+        self._u_prev[0] = m["u"]
+        self._observe(m)
+        self.monitor.update(self._Y[:, 3])
+        self.task.unsafe(self._Y, self._unsafe)
+        self._steps += 1
+        self._record(m, u_cmd, omega)
+        stop = None
+        if reply.sample.status & P.Status.STOPPED:
+            stop = reply.stop.name if reply.stop is not None else (
+                "WATCHDOG" if reply.sample.status & P.Status.WATCHDOG else "FIRMWARE")
+        else:
+            reason = check_limits(self.limits, omega[0], omega[1], m["x"], m["y"]) if o.lateral else \
+                check_limits(self.limits, omega[0], omega[1])
+            stop = reason.name if reason is not None else None
+        terminated = bool(self._unsafe[0]) or stop is not None
+        truncated = self._steps >= self.task.max_steps
+        info = self._info(m, omega, tick_error, reply)
+        if stop is not None:
+            info["safety_stop"] = stop
+        if terminated or truncated:
+            self.end_episode()
+        return self._obs[0].copy(), float(self._reward[0]), terminated, truncated, info
+
+    def _observe(self, m: dict[str, float]) -> None:
+        mode = self.obs_model.mode
+        tu, tl = np.array([m["theta_u"]]), np.array([m["theta_l"]])
+        if mode == "sensors":
+            self.obs_model.from_readings(tu, tl, np.array([m["x_lp"]]), np.array([m["y_lp"]]), self._u_prev,
+                                         self._omega_ref, self._obs)
+        elif mode == "motor":
+            self.obs_model.from_readings(tu, self._u_prev, self._omega_ref, self._obs)
+        else:  # 'full' from the measured state (speeds estimated from the encoders)
+            self.obs_model.observe(self._Y, self._u_prev, self._omega_ref, self._obs, [self.np_random])
+
+    def _info(self, m: dict[str, float], omega: np.ndarray, tick_error: float = 0.0,
+              reply: Reply | None = None) -> dict:
+        return {"omega_l": float(omega[1]), "stuck": bool(self._MODE[0, 1] == 0), "friction_torque": math.nan,
+                "stick_slip_severity": float(self.monitor.ssi[0]), "omega_ref": float(self._omega_ref[0]),
+                "voltage": float(m["u"]), "time": float(m["t"]), "measurement": m,
+                "round_trip_s": reply.round_trip if reply is not None else 0.0, "tick_error_s": float(tick_error),
+                "overruns": self.pacer.overruns, "recording": str(self.recording)}
+
+    def close(self) -> None:
+        """Motor to 0 V, recording closed, port closed (always; safe to call twice)."""
+        try:
+            self.end_episode()
+        finally:
+            self._finalizer()

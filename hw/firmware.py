@@ -1,0 +1,279 @@
+"""The rig's microcontroller, emulated: protocol handling, safety, watchdog, and the plant.
+
+The plant is the core simulator (:class:`drillgym.BatchSimulator`, one rig) with the
+hidden effects of the parameter set (RigParams extension parameters), measured the way
+the rig measures it (:mod:`drillgym.measurement`: quantized encoders, LVDTs with
+offset/skew/noise).
+
+Stepping is deterministic: every SET_VOLTAGE advances the plant by exactly one control
+period at the (safety-limited) voltage and is answered by the SAMPLE at the end of that
+period.  When the link is idle (before the first command, or after a stop) the plant runs
+on in real time at 0 V (:meth:`Firmware.poll`).  The watchdog stops the motor when no
+SET_VOLTAGE has arrived for ``watchdog_s``.
+
+The firmware knows nothing about threads or serial ports: :meth:`Firmware.handle` takes a
+frame and the wall-clock time and returns the frames to send back (see :mod:`hw.emulator`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drillgym import BatchSimulator, RigParams
+from drillgym.measurement import EncoderVelocityEstimator, angle_to_counts, counts_to_angle, lvdt_measure
+
+from . import protocol as P
+from .safety import SafetyLimits, VoltageLimiter, check_limits
+
+__all__ = ["FirmwareConfig", "Firmware", "VoltageEvent"]
+
+_I32 = 1 << 32
+
+
+def _wrap_i32(v: int) -> int:
+    """Two's-complement 32-bit wrap of a counter (as the microcontroller's registers do)."""
+    return ((int(v) + (1 << 31)) % _I32) - (1 << 31)
+
+
+@dataclass(frozen=True)
+class FirmwareConfig:
+    """Settings of the (emulated) firmware.
+
+    ``counts_per_rev`` encoder resolution, ``lvdt_m_per_lsb`` LVDT scale (m per raw count),
+    ``control_period_s`` default control period (s; the host may change it with IDENTIFY),
+    ``watchdog_s`` motor to 0 V after this long without SET_VOLTAGE (s), ``limits`` the firmware's
+    own safety limits, ``firmware_id`` (<= 16 ASCII characters).
+    """
+
+    counts_per_rev: int = 8000
+    lvdt_m_per_lsb: float = 1e-7
+    control_period_s: float = 0.01
+    watchdog_s: float = 0.1
+    limits: SafetyLimits = field(default_factory=SafetyLimits)
+    firmware_id: str = "drillgym-emu"
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.counts_per_rev, int) and self.counts_per_rev > 0):
+            raise ValueError(f"counts_per_rev must be a positive integer, got {self.counts_per_rev!r}")
+        for name in ("lvdt_m_per_lsb", "control_period_s", "watchdog_s"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be > 0, got {v!r}")
+        if len(self.firmware_id.encode("ascii")) > 16:
+            raise ValueError(f"firmware_id must be at most 16 ASCII characters, got {self.firmware_id!r}")
+
+
+@dataclass(frozen=True)
+class VoltageEvent:
+    """The motor voltage changed: wall-clock time (s, time.monotonic), voltage (V), why."""
+
+    time: float
+    volts: float
+    cause: str
+
+
+class Firmware:
+    """The emulated microcontroller on the rig.
+
+    Args:
+        configuration: rig configuration ('torsional', 'lateral', 'coupled', ...).
+        params: plant parameters, hidden effects included (default the identified set).
+        config: firmware settings.
+        dt: integration step of the plant (s); must divide every control period.
+        method: integration method of the plant ('rk4', 'dp5').
+        alpha0: initial winding of the string (rad), rig at rest.
+        lvdt_noise_std: LVDT noise (m, standard deviation).
+        seed: seed of the LVDT noise.
+    """
+
+    def __init__(self, configuration: str = "torsional", params: RigParams | None = None,
+                 config: FirmwareConfig | None = None, *, dt: float = 1e-3, method: str = "rk4",
+                 alpha0: float = 0.0, lvdt_noise_std: float = 0.0, seed: int | None = 0) -> None:
+        self.params = params or RigParams()
+        self.config = config or FirmwareConfig()
+        self.sim = BatchSimulator(configuration, 1, params=self.params, dt=dt, method=method)
+        self.sim.reset(alpha0=alpha0)
+        self.sim.advance(np.zeros(1), 0)  # load the compiled kernel now, not at the first command
+        self.lvdt_noise_std = float(lvdt_noise_std)
+        self._rng = np.random.default_rng(seed)
+        self.limiter = VoltageLimiter(self.config.limits)
+        self.n_sub = self._substeps(self.config.control_period_s)
+        self._speed = EncoderVelocityEstimator(2, self.period_s, tau=0.0)
+        self._speed.reset(self._angles())
+        delay_steps = int(round(self.params.delay / dt))
+        self._delay_line: deque[float] | None = deque([0.0] * delay_steps) if delay_steps else None
+        self.volts = 0.0
+        self.stop_reason: P.StopReason | None = None
+        self.armed = False            # a SET_VOLTAGE arrived since the last (re)start: watchdog running
+        self.last_command: float | None = None
+        self._idle_anchor: float | None = None
+        self._tx_seq = 0
+        self._rx_seq: int | None = None
+        self.seq_gaps = 0
+        self._gap_flag = False
+        self.events: list[VoltageEvent] = []
+        self.commands = 0
+
+    # ------------------------------------------------------------------ configuration
+    @property
+    def period_s(self) -> float:
+        return self.n_sub * self.sim.dt
+
+    def _substeps(self, period_s: float) -> int:
+        n = int(round(period_s / self.sim.dt))
+        if n < 1 or abs(n * self.sim.dt - period_s) > 1e-9:
+            raise ValueError(f"control period {period_s} s is not a multiple of the plant step {self.sim.dt} s")
+        return n
+
+    def config_message(self) -> P.Config:
+        c, lim = self.config, self.config.limits
+        return P.Config(P.PROTOCOL_VERSION, c.counts_per_rev, c.lvdt_m_per_lsb, int(round(self.period_s * 1e6)),
+                        int(round(c.watchdog_s * 1e3)), lim.v_max, lim.slew_v_per_s, lim.max_speed,
+                        lim.max_displacement, c.firmware_id.encode("ascii"))
+
+    # ------------------------------------------------------------------ measurement
+    def _angles(self) -> np.ndarray:
+        """Encoder angles (rad) as the firmware sees them (quantized)."""
+        cpr = self.config.counts_per_rev
+        return counts_to_angle(angle_to_counts(self.sim.Y[0, :2], cpr), cpr)
+
+    def _lvdt(self) -> tuple[float, float]:
+        X, Y = self.sim.lateral_fixed
+        xm, ym = lvdt_measure(X, Y, self.params, self.lvdt_noise_std, self._rng)
+        return float(xm[0]), float(ym[0])
+
+    # ------------------------------------------------------------------ plant
+    def _set_volts(self, u: float, now: float, cause: str) -> None:
+        if u != self.volts or not self.events:
+            self.events.append(VoltageEvent(now, u, cause))
+        self.volts = u
+
+    def _advance_period(self, u: float) -> None:
+        if self._delay_line is None:
+            self.sim.advance(np.array([u]), self.n_sub)
+            return
+        for _ in range(self.n_sub):  # input delay (hidden effect): per-step FIFO of voltages
+            self._delay_line.append(u)
+            self.sim.advance(np.array([self._delay_line.popleft()]), 1)
+
+    def _after_period(self, now: float) -> list[bytes]:
+        """Safety checks at the end of a period; the frames to send if a stop trips."""
+        omega = self._speed.update(self._angles())
+        x, y = self._lvdt()
+        reason = check_limits(self.config.limits, float(omega[0]), float(omega[1]), x, y)
+        if reason is not None and self.stop_reason is None:
+            return self._stop(reason, now)
+        return []
+
+    def _stop(self, reason: P.StopReason, now: float) -> list[bytes]:
+        self.stop_reason = P.StopReason(reason)
+        self.armed = False
+        self.limiter.reset(0.0)
+        self._set_volts(0.0, now, reason.name.lower())
+        self._idle_anchor = now
+        return [self._frame(P.EmergencyStop(int(reason)))]
+
+    def _frame(self, msg: P.Message) -> bytes:
+        seq = self._tx_seq
+        self._tx_seq = (self._tx_seq + 1) & 0xFFFF
+        return P.encode(msg, seq)
+
+    def sample(self, ack_seq: int, limited: bool = False) -> P.Sample:
+        """The SAMPLE of the plant's current state."""
+        cpr = self.config.counts_per_rev
+        cu, cl = (int(c) for c in angle_to_counts(self.sim.Y[0, :2], cpr))
+        x, y = self._lvdt()
+        s = self.config.lvdt_m_per_lsb
+        status = P.Status.OK
+        if self.stop_reason is not None:
+            status |= P.Status.STOPPED
+            if self.stop_reason == P.StopReason.WATCHDOG:
+                status |= P.Status.WATCHDOG
+        if limited:
+            status |= P.Status.LIMITED
+        if self._gap_flag:
+            status |= P.Status.SEQ_GAP
+            self._gap_flag = False
+        return P.Sample(ack_seq & 0xFFFF, int(round(float(self.sim.T[0]) * 1e6)), _wrap_i32(cu), _wrap_i32(cl),
+                        _wrap_i32(round(x / s)), _wrap_i32(round(y / s)), self.volts, int(status))
+
+    # ------------------------------------------------------------------ protocol
+    def handle(self, frame: P.Frame, now: float) -> list[bytes]:
+        """Execute one received frame at wall-clock time ``now`` (s); the frames to send back."""
+        if self._rx_seq is not None and frame.seq != self._rx_seq:
+            self.seq_gaps += 1
+            self._gap_flag = True
+        self._rx_seq = (frame.seq + 1) & 0xFFFF
+        try:
+            msg = P.decode(frame)
+        except P.ProtocolError:
+            return []
+        if isinstance(msg, P.SetVoltage):
+            return self._on_set_voltage(msg, frame.seq, now)
+        if isinstance(msg, P.Heartbeat):
+            return [self._frame(msg)]
+        if isinstance(msg, P.Identify):
+            if msg.period_us:
+                try:
+                    n = self._substeps(msg.period_us * 1e-6)
+                except ValueError:
+                    n = self.n_sub  # refused: the CONFIG reply tells the host the period in force
+                if n != self.n_sub:
+                    self.n_sub = n
+                    self._speed = EncoderVelocityEstimator(2, self.period_s, tau=0.0)
+                    self._speed.reset(self._angles())
+            return [self._frame(self.config_message())]
+        if isinstance(msg, P.EmergencyStop):
+            out = self._stop(P.StopReason.HOST, now) if self.stop_reason is None else []
+            return out + [self._frame(P.Ack(frame.type, frame.seq))]
+        if isinstance(msg, P.ClearStop):  # clear a latched stop; idle: 0 V, watchdog disarmed
+            self.stop_reason = None
+            self.armed = False
+            self._idle_anchor = now
+            self.limiter.reset(0.0)
+            self._set_volts(0.0, now, "idle")
+            self._speed.reset(self._angles())
+            return [self._frame(P.Ack(frame.type, frame.seq))]
+        return []  # a firmware->host type sent to the firmware: ignored
+
+    def _on_set_voltage(self, msg: P.SetVoltage, seq: int, now: float) -> list[bytes]:
+        self.commands += 1
+        out: list[bytes] = []
+        limited = False
+        if self.stop_reason is None:
+            u, limited = self.limiter.limit(msg.volts, self.period_s)
+            self.armed = True
+            self.last_command = now
+            self._set_volts(u, now, "command")
+        self._advance_period(self.volts)
+        out += self._after_period(now)
+        out.insert(0, self._frame(self.sample(seq, limited)))
+        if self.stop_reason is not None:
+            self._idle_anchor = now
+        return out
+
+    def poll(self, now: float) -> list[bytes]:
+        """Time passes (wall clock ``now``, s): the watchdog, and the plant running on while idle."""
+        out: list[bytes] = []
+        if self.armed and self.last_command is not None and now - self.last_command >= self.config.watchdog_s:
+            out += self._stop(P.StopReason.WATCHDOG, now)
+        if self.armed:
+            return out
+        if self._idle_anchor is None:
+            self._idle_anchor = now
+        k = int((now - self._idle_anchor) / self.period_s)
+        for _ in range(k):
+            self._advance_period(self.volts)
+            out += self._after_period(now)
+        self._idle_anchor += k * self.period_s
+        return out
+
+    def watchdog_deadline(self) -> float | None:
+        """Wall-clock time (s) at which the watchdog trips if no command comes, or None."""
+        if self.armed and self.last_command is not None:
+            return self.last_command + self.config.watchdog_s
+        return None

@@ -1,0 +1,131 @@
+"""Host end of the serial link: frames over pyserial, with the link errors the host raises.
+
+:class:`SerialLink` opens any pyserial port or URL (``/dev/ttyUSB0``, a pseudo-terminal,
+``socket://host:port``, ``loop://``, ``rfc2217://host:port``) with
+:func:`serial.serial_for_url`, writes encoded messages with per-direction sequence
+numbers and reads the valid frames (:class:`hw.protocol.FrameParser`).  Any I/O failure
+becomes a :class:`LinkLostError`.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+import serial
+
+from drillgym.errors import SafetyError
+
+from . import protocol as P
+
+__all__ = ["LinkError", "LinkLostError", "LinkTimeoutError", "LinkCorruptError", "LinkSequenceError",
+           "FirmwareStopError", "SerialLink", "DEFAULT_BAUDRATE"]
+
+DEFAULT_BAUDRATE = 921600
+
+
+class LinkError(SafetyError):
+    """The serial link to the rig failed; the motor has been (or is being) brought to 0 V."""
+
+
+class LinkLostError(LinkError):
+    """The serial port disappeared or cannot be read/written (unplugged, peer gone)."""
+
+
+class LinkTimeoutError(LinkError):
+    """No reply in time (frame lost or late, firmware not responding)."""
+
+
+class LinkCorruptError(LinkError):
+    """A corrupted frame (CRC mismatch, garbage bytes) arrived from the firmware."""
+
+
+class LinkSequenceError(LinkError):
+    """A frame from the firmware is missing (gap in sequence numbers) or out of order."""
+
+
+class FirmwareStopError(SafetyError):
+    """The firmware stopped the motor (over-speed, over-displacement, watchdog) or refused a command."""
+
+
+class SerialLink:
+    """Framed, sequenced messages over a pyserial port.
+
+    Args:
+        url: device path or pyserial URL.
+        baudrate: line speed (bit/s); ignored by pseudo-terminals and sockets.
+    """
+
+    def __init__(self, url: str, baudrate: int = DEFAULT_BAUDRATE) -> None:
+        self.url = str(url)
+        if "://" not in self.url and not os.path.exists(self.url):
+            raise FileNotFoundError(f"serial port {self.url!r} does not exist (is the rig or `drillgym rig emulate` "
+                                    f"running?)")
+        try:
+            self.ser = serial.serial_for_url(self.url, baudrate=baudrate, timeout=0.002, write_timeout=0.05)
+        except (serial.SerialException, OSError) as exc:
+            raise ValueError(f"cannot open serial port {self.url!r}: {exc}") from None
+        self.parser = P.FrameParser()
+        self._tx_seq = 0
+        self._rx_seq: int | None = None
+        self.seq_gaps = 0
+
+    # ------------------------------------------------------------------ state
+    @property
+    def is_open(self) -> bool:
+        return self.ser is not None and self.ser.is_open
+
+    def close(self) -> None:
+        if self.ser is not None:
+            try:
+                self.ser.close()
+            except (serial.SerialException, OSError):
+                pass
+            self.ser = None
+
+    def flush_input(self) -> None:
+        """Drop whatever is waiting (stale replies) and restart sequence tracking."""
+        try:
+            self.ser.reset_input_buffer()
+        except (serial.SerialException, OSError) as exc:
+            raise LinkLostError(f"serial port {self.url!r} disconnected ({exc})") from None
+        self.parser.reset()
+        self._rx_seq = None
+
+    # ------------------------------------------------------------------ I/O
+    def send(self, msg: P.Message) -> int:
+        """Write one message; returns its sequence number."""
+        if not self.is_open:
+            raise LinkLostError(f"serial port {self.url!r} is closed")
+        seq = self._tx_seq
+        self._tx_seq = (seq + 1) & 0xFFFF
+        try:
+            self.ser.write(P.encode(msg, seq))
+            self.ser.flush()
+        except serial.SerialTimeoutException:
+            raise LinkLostError(f"serial port {self.url!r} not accepting data: write timed out (disconnected, or peer not reading)") from None
+        except (serial.SerialException, OSError) as exc:
+            raise LinkLostError(f"serial port {self.url!r} disconnected (write failed: {exc})") from None
+        return seq
+
+    def receive(self, deadline: float) -> list[tuple[P.Frame, float]]:
+        """Valid frames (with their arrival time, time.monotonic) read until at least one arrived
+        or ``deadline`` (time.monotonic) passed.  Tracks the firmware's sequence numbers."""
+        if not self.is_open:
+            raise LinkLostError(f"serial port {self.url!r} is closed")
+        out: list[tuple[P.Frame, float]] = []
+        while True:
+            try:
+                data = self.ser.read(1)
+                if data:
+                    data += self.ser.read(self.ser.in_waiting)
+            except (serial.SerialException, OSError) as exc:
+                raise LinkLostError(f"serial port {self.url!r} disconnected (read failed: {exc})") from None
+            now = time.monotonic()
+            for f in self.parser.feed(data) if data else ():
+                if self._rx_seq is not None and f.seq != self._rx_seq:
+                    self.seq_gaps += 1
+                self._rx_seq = (f.seq + 1) & 0xFFFF
+                out.append((f, now))
+            if out or now >= deadline:
+                return out

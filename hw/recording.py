@@ -1,0 +1,66 @@
+"""Recording of hardware episodes in the interchange format (../shared/DATA_FORMAT.md).
+
+Each episode is one CSV streamed by :class:`drillgym.io.StreamingCsvWriter` (flushed and
+fsync'ed in blocks of at most ``flush_interval_s`` of samples, so a killed process loses at
+most that much).  Columns:
+
+processed (SI units, DATA_FORMAT names): ``t`` (s, firmware time since the episode start),
+``u`` (V, voltage the firmware applied), ``theta_u``, ``theta_l`` (rad, encoders),
+``x``, ``y`` (m, LVDTs in the fixed frame, offset at rest removed; lateral configurations),
+``x_lp``, ``y_lp`` (m, causal 5 Hz low-pass of x, y, what the policy saw),
+``omega_u_est``, ``omega_l_est`` (rad/s, encoder speed estimates);
+raw: ``counts_u``, ``counts_l`` (encoder counts), ``lvdt_x_raw``, ``lvdt_y_raw`` (LVDT LSB),
+``u_cmd`` (V, the host's command after its safety layer), ``status`` (SAMPLE status bits),
+``t_host`` (s, host clock since the episode start).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Mapping
+
+from drillgym.io import StreamingCsvWriter
+
+__all__ = ["EpisodeRecorder", "episode_path", "columns"]
+
+_RAW = ("counts_u", "counts_l", "lvdt_x_raw", "lvdt_y_raw", "u_cmd", "status", "t_host")
+
+
+def columns(lateral: bool) -> tuple[str, ...]:
+    """Column names of a recording."""
+    lat = ("x", "y", "x_lp", "y_lp") if lateral else ()
+    return ("t", "u", "theta_u", "theta_l") + lat + ("omega_u_est", "omega_l_est") + _RAW
+
+
+def episode_path(record: str | Path, episode: int) -> Path:
+    """Where episode ``episode`` (0-based) is recorded: ``record`` itself (a .csv file) for the first
+    episode and ``<stem>_<k>.csv`` next to it for the others, or ``<dir>/<timestamp>_ep<k>.csv`` when
+    ``record`` is a directory."""
+    p = Path(record)
+    if p.suffix.lower() == ".csv":
+        return p if episode == 0 else p.with_name(f"{p.stem}_{episode:03d}.csv")
+    return p / f"{time.strftime('%Y%m%dT%H%M%S')}_ep{episode:04d}.csv"
+
+
+class EpisodeRecorder:
+    """One episode's recording (see the module docstring for the columns)."""
+
+    def __init__(self, path: str | Path, lateral: bool, meta: Mapping, flush_interval_s: float = 0.5) -> None:
+        if not 0 < flush_interval_s <= 1.0:
+            raise ValueError(f"flush_interval_s must be in (0, 1] s, got {flush_interval_s!r}")
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.rows = 0
+        self._writer = StreamingCsvWriter(self.path, columns(lateral), meta, flush_interval_s)
+        self.closed = False
+
+    def write(self, row: Mapping[str, float]) -> None:
+        self._writer.write(row)
+        self.rows += 1
+
+    def close(self) -> None:
+        """Flush the rest to disk and close (idempotent)."""
+        if not self.closed:
+            self.closed = True
+            self._writer.close()

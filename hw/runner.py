@@ -1,0 +1,153 @@
+"""Run controllers and policies on the hardware environment (``drillgym rig run``).
+
+* Controllers follow the interface of :mod:`controllers.base`: ``reset(measurement)`` then
+  ``controller(measurement) -> volts`` once per control period, ``measurement`` a mapping
+  with ``t, theta_u, theta_l, x, y, omega_ref`` (SI units).  ``const:V`` is built in
+  (:class:`ConstantController`); other names come from the ``controllers`` package
+  (imported only when asked for).
+* Policies map the observation vector to the action.  A ``.npz`` file with ``W`` (1, dim)
+  and ``b`` (1,) is a built-in :class:`LinearPolicy`; anything else is loaded by the
+  ``agents`` package (imported only when asked for).
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+__all__ = ["ConstantController", "LinearPolicy", "make_controller", "load_policy", "measurement_of",
+           "run_episode", "EpisodeResult"]
+
+
+class ConstantController:
+    """A constant voltage (V), whatever the measurements: ``const:2.0``."""
+
+    name = "const"
+
+    def __init__(self, volts: float) -> None:
+        self.volts = float(volts)
+
+    def reset(self, measurement: Mapping[str, float] | None = None) -> None:
+        pass
+
+    def __call__(self, measurement: Mapping[str, float]) -> float:
+        return self.volts
+
+
+@dataclass(frozen=True)
+class LinearPolicy:
+    """action = W @ obs + b (deterministic; the env clips it to the action space)."""
+
+    W: np.ndarray
+    b: np.ndarray
+
+    @classmethod
+    def load(cls, path: str | Path) -> "LinearPolicy":
+        with np.load(path) as z:
+            if "W" not in z or "b" not in z:
+                raise ValueError(f"{path}: a linear policy file needs arrays 'W' (1, obs_dim) and 'b' (1,)")
+            W, b = np.atleast_2d(z["W"]).astype(float), np.atleast_1d(z["b"]).astype(float)
+        if W.shape[0] != b.shape[0]:
+            raise ValueError(f"{path}: W has {W.shape[0]} rows but b has {b.shape[0]} entries")
+        return cls(W, b)
+
+    def save(self, path: str | Path) -> None:
+        np.savez(path, W=self.W, b=self.b)
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        obs = np.asarray(obs, dtype=float)
+        if obs.shape != (self.W.shape[1],):
+            raise ValueError(f"linear policy expects an observation of {self.W.shape[1]} values, got {obs.shape}")
+        return (self.W @ obs + self.b).astype(np.float32)
+
+
+def _optional(module: str, what: str):
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        raise ValueError(f"{what} needs the '{module}' package, which cannot be imported ({exc}); "
+                         f"use the built-in ones instead") from None
+
+
+def make_controller(spec: str, configuration: str, omega_ref: float | None, control_dt: float):
+    """A controller from ``const:V`` or a name known to ``controllers.make``."""
+    if spec.startswith("const:"):
+        try:
+            return ConstantController(float(spec.split(":", 1)[1]))
+        except ValueError:
+            raise ValueError(f"controller {spec!r}: expected const:<volts>, e.g. const:2.0") from None
+    mod = _optional("controllers", f"controller {spec!r}")
+    make = getattr(mod, "make", None)
+    if make is None:
+        raise ValueError(f"controller {spec!r}: the controllers package has no make(); only const:<volts> is available")
+    kwargs: dict[str, Any] = {"config": configuration, "dt": control_dt}
+    if omega_ref is not None:
+        kwargs["omega_ref"] = omega_ref
+    return make(spec, **kwargs)
+
+
+def load_policy(path: str | Path) -> Callable[[np.ndarray], np.ndarray]:
+    """A policy (observation -> action) from a file: ``.npz`` linear, else via ``agents.load_policy``."""
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(f"policy file {p} does not exist")
+    if p.suffix == ".npz":
+        return LinearPolicy.load(p)
+    mod = _optional("agents", f"policy {p}")
+    loader = getattr(mod, "load_policy", None)
+    if loader is None:
+        raise ValueError(f"policy {p}: the agents package has no load_policy(); use a .npz linear policy")
+    return loader(p)
+
+
+def measurement_of(info: Mapping[str, Any]) -> dict[str, float]:
+    """The controller measurement (controllers.base.MEASUREMENTS) from a HardwareEnv info dict."""
+    m = info["measurement"]
+    return {"t": m["t"], "theta_u": m["theta_u"], "theta_l": m["theta_l"], "x": m["x_lp"], "y": m["y_lp"],
+            "omega_ref": info["omega_ref"]}
+
+
+@dataclass
+class EpisodeResult:
+    """Outcome of one episode: steps, return, how it ended, the recording file, timing (s)."""
+
+    steps: int
+    total_reward: float
+    terminated: bool
+    truncated: bool
+    recording: str
+    safety_stop: str | None
+    tick_errors: np.ndarray
+    round_trips: np.ndarray
+
+
+def run_episode(env, *, controller=None, policy=None, seed: int | None = None, max_steps: int | None = None,
+                on_step: Callable[[int, dict], None] | None = None) -> EpisodeResult:
+    """One episode of a controller (measurements -> volts) or a policy (observation -> action)."""
+    if (controller is None) == (policy is None):
+        raise ValueError("give exactly one of controller or policy")
+    obs, info = env.reset(seed=seed)
+    if controller is not None:
+        controller.reset(measurement_of(info))
+    steps, total, term, trunc, stop = 0, 0.0, False, False, None
+    ticks, rtts = [], []
+    try:
+        while not (term or trunc) and (max_steps is None or steps < max_steps):
+            action = (np.array([controller(measurement_of(info))], dtype=np.float32) if controller is not None
+                      else policy(obs))
+            obs, r, term, trunc, info = env.step(action)
+            steps += 1
+            total += r
+            ticks.append(info["tick_error_s"])
+            rtts.append(info["round_trip_s"])
+            stop = info.get("safety_stop", stop)
+            if on_step is not None:
+                on_step(steps, info)
+    finally:
+        if not (term or trunc):
+            env.unwrapped.end_episode()
+    return EpisodeResult(steps, total, term, trunc, info["recording"], stop, np.array(ticks), np.array(rtts))

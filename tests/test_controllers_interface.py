@@ -1,0 +1,75 @@
+"""The controller interface, the registry and the agent hook."""
+
+import numpy as np
+import pytest
+
+import controllers
+from controllers.base import Controller
+from controllers.baseline import BaselineController, stick_slip_region
+from drillgym.equilibria import slip_equilibria
+
+
+def test_registry_names_and_errors():
+    assert controllers.available() == ["baseline", "lqg", "observer", "pi", "softtorque"]
+    with pytest.raises(ValueError, match="unknown controller 'pid'"):
+        controllers.make("pid", omega_ref=1.0)
+    with pytest.raises(ValueError, match="omega_ref"):
+        controllers.make("pi", omega_ref=-1.0)
+    with pytest.raises(ValueError, match="lower disc"):
+        controllers.make("pi", config="upper", omega_ref=1.0)
+
+
+def test_scalar_and_batched_use():
+    c = controllers.make("pi", omega_ref=2.0)
+    with pytest.raises(RuntimeError, match="reset"):
+        c.act({"theta_u": 0.0})
+    c.reset({"t": 0.0, "theta_u": 0.0})
+    u = c({"t": 0.0, "theta_u": 0.0})
+    assert isinstance(u, float) and 0 < u <= 5.0
+    with pytest.raises(ValueError, match="theta_u"):
+        c.act({"t": 0.01})
+    c.reset({"theta_u": np.zeros(3), "omega_ref": np.array([0.2, 0.5, 0.8])})
+    u = c.act({"theta_u": np.zeros(3)})
+    assert u.shape == (3,) and np.all(np.diff(u) > 0)  # faster targets, more voltage
+
+
+def test_baseline_voltage_holds_the_target_equilibrium():
+    c = BaselineController(omega_ref=7.0)
+    c.reset()
+    u = c.act({})
+    speeds = [e.omega for e in slip_equilibria("torsional", u) if e.stable]
+    assert max(speeds) == pytest.approx(7.0, rel=1e-6)
+
+
+def test_stick_slip_region_from_the_bifurcation_analysis():
+    reg = stick_slip_region("torsional")
+    assert reg.omega_lo == pytest.approx(0.0608, abs=2e-3)  # first Hopf point (R2/R3)
+    assert 6.2 < reg.omega_hi < 7.0 and 3.75 <= reg.u_fold <= 3.95  # second fold (R7)
+    c = BaselineController(omega_ref=3.0)
+    c.reset()
+    assert "stick-slip region" in c.regime()
+    assert "reached from rest" in c.regime(7.5)
+
+
+def test_agent_hook():
+    class Const(Controller):
+        name = "const"
+
+        def _act(self, m):
+            return np.full(self.n, 1.5)
+
+    seen = {}
+
+    def loader(path, **kw):
+        seen.update(kw, path=path)
+        return Const(kw["omega_ref"], config=kw["config"])
+
+    controllers.register_agent_loader(loader)
+    try:
+        c = controllers.make("agent:/tmp/model.zip", config="coupled", omega_ref=2.0)
+        c.reset()
+        assert c.act({}) == 1.5 and seen["path"] == "/tmp/model.zip" and seen["config"] == "coupled"
+    finally:
+        controllers.registry._agent_loader = None
+    with pytest.raises(ValueError, match="agent:PATH"):
+        controllers.make("agent:")

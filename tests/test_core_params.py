@@ -1,0 +1,79 @@
+"""Parameter set: defaults from MODEL.md, validation naming the parameter, file round trips."""
+
+import json
+import math
+
+import pytest
+
+from drillgym.params import BASE_PARAMETERS, N_PARAMS, ParameterError, RigParams
+
+
+def test_defaults_are_model_md_values():
+    p = RigParams()
+    assert (p.Ju, p.km, p.Jl, p.ktheta, p.Ts, p.Tc, p.ws, p.delta) == (0.4765, 4.3228, 0.0414, 0.0775, 0.2781,
+                                                                       0.0473, 1.4302, 2.0575)
+    assert p.m == pytest.approx(9.9137 + 3.2302)
+
+
+def test_r4_stick_voltage_and_r6_lateral_eigenfrequency():
+    p = RigParams()
+    assert p.stick_voltage == pytest.approx(0.1509, abs=5e-5)  # R4
+    assert p.lateral_eigenfrequency == pytest.approx(15.04, abs=0.005)  # R6
+    assert p.e * p.mr / p.m * 1e3 == pytest.approx(3.69, abs=0.005)  # R6 limit radius
+
+
+@pytest.mark.parametrize("name,value,fragment", [
+    ("Ju", -0.1, "'Ju'"),
+    ("Jl", float("nan"), "'Jl'"),
+    ("ktheta", float("inf"), "'ktheta'"),
+    ("e", 0.5, "'e'"),
+])
+def test_bad_values_name_the_parameter(name, value, fragment):
+    with pytest.raises(ParameterError, match=fragment):
+        RigParams().replace(**{name: value})
+
+
+def test_static_below_slip_friction_is_refused():
+    with pytest.raises(ParameterError, match="'Ts'"):
+        RigParams().replace(Ts=0.01)
+
+
+def test_unknown_parameter_is_refused():
+    with pytest.raises(ParameterError, match="unknown parameter"):
+        RigParams().replace(Jx=1.0)
+
+
+@pytest.mark.parametrize("suffix", [".json", ".yaml"])
+def test_file_round_trip_is_exact(tmp_path, suffix):
+    p = RigParams().replace(Ts=0.3012345678901234, pf_a1=0.1)
+    path = p.to_file(tmp_path / f"p{suffix}")
+    assert RigParams.from_file(path) == p
+
+
+def test_missing_field_in_file_names_it(tmp_path):
+    d = RigParams().to_dict()
+    del d["kθ" if "kθ" in d else "ktheta"]
+    path = tmp_path / "p.json"
+    path.write_text(json.dumps(d))
+    with pytest.raises(ParameterError, match="missing parameter.*ktheta"):
+        RigParams.from_file(path)
+
+
+def test_non_number_and_corrupt_file(tmp_path):
+    d = RigParams().to_dict()
+    d["Ju"] = "heavy"
+    (tmp_path / "a.json").write_text(json.dumps(d))
+    with pytest.raises(ParameterError, match="'Ju' must be a number"):
+        RigParams.from_file(tmp_path / "a.json")
+    (tmp_path / "b.json").write_text("{not json")
+    with pytest.raises(ParameterError, match="b.json: not valid"):
+        RigParams.from_file(tmp_path / "b.json")
+
+
+def test_vector_layout_round_trip():
+    p = RigParams().replace(dk=100.0)
+    v = p.to_vector()
+    assert v.shape == (N_PARAMS,)
+    assert RigParams.from_vector(v) == p
+    assert set(BASE_PARAMETERS) >= {"Ju", "km", "Ts", "e"} and "pf_a1" not in BASE_PARAMETERS
+    assert all(math.isfinite(x) for x in v)

@@ -1,0 +1,163 @@
+"""Link and process faults: each detected with a clear error, the motor at 0 V within 100 ms
+(the emulator's voltage log says when), the recording intact up to the fault."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import hw
+from drillgym.io import read_timeseries
+from hw import protocol as P
+from hw.emulator import FaultPlan, RigEmulator
+from hw.env import HardwareEnv
+from hw.firmware import Firmware
+from hw.link import LinkCorruptError, LinkLostError, LinkTimeoutError
+
+FAULT_AT = 40  # SET_VOLTAGE index of the fault (the rest phase sends 21 zero commands first)
+ZERO_WITHIN = 0.100  # s
+VENV_BIN = Path(sys.executable).parent
+
+
+@pytest.fixture(autouse=True)
+def _fast_thread_switching():
+    """Host and emulator share one interpreter here (a real rig runs on its own microcontroller):
+    switch threads every 0.5 ms instead of 5 ms so the emulated watchdog is not held up by the host."""
+    old = sys.getswitchinterval()
+    sys.setswitchinterval(5e-4)
+    yield
+    sys.setswitchinterval(old)
+
+
+def _run_until_fault(env, on_step=None, max_steps=200):
+    env.reset(seed=0)
+    steps = 0
+    with pytest.raises(hw.link.LinkError) as err:
+        while steps < max_steps:
+            env.step(np.array([3.0], dtype=np.float32))
+            steps += 1
+            if on_step is not None:
+                on_step(steps)
+    return err.value, steps
+
+
+def _check_recording(path, steps):
+    rec = read_timeseries(path)
+    assert len(rec) == steps + 1  # every sample before the fault, nothing after
+    np.testing.assert_allclose(rec.t, np.arange(steps + 1) * 0.01, atol=1e-9)
+    assert np.all(rec.u[1:] == 3.0)
+
+
+@pytest.mark.parametrize("fault, error, message", [
+    (FaultPlan(corrupt_sample=FAULT_AT), LinkCorruptError, "CRC mismatches so far: 1"),
+    (FaultPlan(drop_sample=FAULT_AT), LinkTimeoutError, "no SAMPLE reply to SET_VOLTAGE"),
+    (FaultPlan(drop_command=FAULT_AT), LinkTimeoutError, "no SAMPLE reply to SET_VOLTAGE"),
+    (FaultPlan(delay_command=FAULT_AT, delay_s=0.3), LinkTimeoutError, "frame lost or late"),
+], ids=["corrupted-bytes", "dropped-sample", "dropped-command", "late-frame"])
+def test_link_fault_detected_motor_stopped_recording_intact(tmp_path, fault, error, message):
+    with RigEmulator("torsional", dt=5e-3, faults=fault) as emu:
+        env = HardwareEnv(emu.port, record=tmp_path / "rec.csv", episode_duration=5.0)
+        exc, steps = _run_until_fault(env)
+        assert isinstance(exc, error) and message in str(exc) and "recording kept up to the fault" in str(exc)
+        (kind, t_fault), = emu.fault_times.items()
+        time.sleep(0.15)
+        delay = emu.zero_delay(t_fault)
+        assert delay is not None and delay <= ZERO_WITHIN, f"motor at 0 V {delay} s after {kind}"
+        with pytest.raises(hw.env.SafetyError, match="after a fault"):
+            env.step(np.array([1.0]))
+        if kind == "delay_command":  # the late command was executed; the watchdog had stopped the motor first
+            assert emu.firmware.events[-1].cause in ("watchdog", "host")
+        env.close()
+    _check_recording(tmp_path / "rec.csv", steps)
+    assert steps == FAULT_AT - 22
+
+
+@pytest.mark.parametrize("fault", ["kill", "unplug"])
+def test_emulator_killed_or_port_unplugged(tmp_path, fault):
+    with RigEmulator("torsional", dt=5e-3) as emu:
+        env = HardwareEnv(emu.port, record=tmp_path / "rec.csv", episode_duration=5.0)
+        t_fault = []
+
+        def inject(step):
+            if step == 30:
+                time.sleep(0.005)  # the fault strikes mid-period
+                t_fault.append(getattr(emu, fault)())
+
+        exc, steps = _run_until_fault(env, inject)
+        expected = LinkTimeoutError if fault == "kill" else LinkLostError
+        assert isinstance(exc, expected), exc
+        assert ("firmware not responding" if fault == "kill" else "disconnected") in str(exc)
+        time.sleep(0.15)
+        delay = emu.zero_delay(t_fault[0])
+        assert delay is not None and delay <= ZERO_WITHIN  # the firmware's watchdog
+        assert emu.firmware.stop_reason == P.StopReason.WATCHDOG
+        env.close()
+    _check_recording(tmp_path / "rec.csv", 30)
+
+
+def test_emulator_process_killed(tmp_path):
+    """`drillgym rig emulate` SIGKILLed mid-episode: the host sees the port vanish."""
+    link = tmp_path / "rig"
+    proc = subprocess.Popen([str(VENV_BIN / "drillgym"), "rig", "emulate", "--port", str(link), "--dt", "0.005"],
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        line = proc.stdout.readline()
+        assert "rig emulator (torsional) on /dev/pts/" in line and link.is_symlink()
+        env = HardwareEnv(str(link), record=tmp_path / "rec.csv", episode_duration=5.0)
+        exc, steps = _run_until_fault(env, lambda k: k == 25 and os.kill(proc.pid, signal.SIGKILL))
+        assert isinstance(exc, LinkLostError) and "disconnected" in str(exc)
+        env.close()
+    finally:
+        proc.kill()
+        proc.wait()
+    _check_recording(tmp_path / "rec.csv", steps)
+    assert steps in (25, 26)
+
+
+def test_host_killed_watchdog_stops_motor_recording_loses_at_most_1s(tmp_path):
+    """`drillgym rig run` SIGKILLed: the firmware watchdog stops the motor, the recording keeps all
+    but the last flush interval (<= 0.5 s)."""
+    with RigEmulator("torsional", dt=5e-3) as emu:
+        proc = subprocess.Popen([str(VENV_BIN / "drillgym"), "rig", "run", "--port", emu.port, "--controller",
+                                 "const:2.5", "--duration", "20", "--record", str(tmp_path / "run.csv")],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            t_end = time.monotonic() + 60
+            while emu.firmware.commands < 21 + 180 and time.monotonic() < t_end:
+                time.sleep(0.01)
+            proc.send_signal(signal.SIGKILL)
+            t_kill = time.monotonic()
+            proc.wait()
+        finally:
+            proc.kill()
+        n_cmd = emu.firmware.commands
+        time.sleep(0.2)
+        assert emu.firmware.stop_reason == P.StopReason.WATCHDOG
+        assert emu.zero_delay(t_kill) <= ZERO_WITHIN
+    rec = read_timeseries(tmp_path / "run.csv")
+    episode_steps = n_cmd - 21
+    assert episode_steps >= 180 and episode_steps - 100 <= len(rec) - 1 <= episode_steps
+
+
+def test_firmware_watchdog_and_limits_without_threads():
+    fw = Firmware("torsional", dt=5e-3)
+    (reply,) = fw.handle(P.Frame(P.MsgType.SET_VOLTAGE, 0, P.SetVoltage(12.0).pack()), now=0.0)
+    sample = P.decode(P.FrameParser().feed(reply)[0])
+    assert sample.volts == 5.0 and sample.status & P.Status.LIMITED  # clamped to the amplifier range
+    assert fw.poll(0.099) == [] and fw.volts == 5.0
+    (stop,) = fw.poll(0.100)
+    assert P.decode(P.FrameParser().feed(stop)[0]) == P.EmergencyStop(P.StopReason.WATCHDOG) and fw.volts == 0.0
+    frames = fw.handle(P.Frame(P.MsgType.SET_VOLTAGE, 1, P.SetVoltage(2.0).pack()), now=0.2)
+    s = P.decode(P.FrameParser().feed(frames[0])[0])
+    assert s.volts == 0.0 and s.status & P.Status.STOPPED and s.status & P.Status.WATCHDOG  # latched
+    fw.handle(P.Frame(P.MsgType.CLEAR_STOP, 2, b""), now=0.3)
+    frames = fw.handle(P.Frame(P.MsgType.SET_VOLTAGE, 4, P.SetVoltage(2.0).pack()), now=0.31)
+    s = P.decode(P.FrameParser().feed(frames[0])[0])
+    assert s.volts == 2.0 and s.status == P.Status.SEQ_GAP and fw.seq_gaps == 1  # seq 3 missing
