@@ -1,1 +1,35 @@
-"""agents package."""
+"""RL agents for the drill-string rig: training (stable-baselines3), export, and the Controller adapter.
+
+* :mod:`.hyperparams` - rl-zoo3 style YAML hyperparameters (``agents/hyperparams/<algo>.yml``)
+* :mod:`.residual` - the policy structure: a correction on the feedforward voltage u_ff(omega_ref)
+* :mod:`.envs` - batched training envs (DrillVectorEnv through the SB3 adapter)
+* :mod:`.train` - ``train(env_id, algo, out, ...)``: seeds, TensorBoard, progress bar, checkpoints, resume
+* :mod:`.export` - numpy export of the deterministic policy (no torch on the rig)
+* :mod:`.controller` - :class:`AgentController`: measurements -> env observation -> policy -> volts
+* :mod:`.loader` - ``load_controller(path, ...)``: the ``agent:PATH`` hook of :func:`controllers.make`
+
+``import agents`` is light (numpy only); torch and SB3 load when training or reading a ``.zip``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["load_controller", "load_policy", "KEPT_POLICY"]
+
+#: the policy kept in the repository (``agent:`` + this path works in ``drillgym evaluate``)
+KEPT_POLICY = Path(__file__).resolve().parent / "policies" / "torsional_motor_sac" / "policy.npz"
+
+
+def load_controller(path: str, **kw):
+    """``agent:PATH`` hook of :func:`controllers.make` (see :func:`agents.loader.load_controller`)."""
+    from .loader import load_controller as _load
+
+    return _load(path, **kw)
+
+
+def load_policy(path: str):
+    """Exported policy of PATH (see :func:`agents.loader.load_policy`)."""
+    from .loader import load_policy as _load
+
+    return _load(path)

@@ -26,9 +26,10 @@ With x = y = 0 held (torsional, free_vibration) M' = diag(Ju, Jl): the report's
 reduced equations (3.19), (3.20).
 
 A stuck disc contributes an unknown friction torque lambda that keeps its
-acceleration zero; for the set S of stuck discs lambda solves
-(E_S^T M'^-1 E_S) lambda = E_S^T M'^-1 F, the Lagrange-multiplier form of the
-switch model.  ``state_derivative`` returns these torques so the integrator can
+acceleration zero (the Lagrange-multiplier form of the switch model).  The
+lateral accelerations are eliminated first (Schur complement of the m I block),
+which leaves a 2x2 system in the two disc accelerations where the constraints
+and multipliers are explicit.  ``state_derivative`` returns these torques so the integrator can
 release a disc when lambda leaves its stick set.
 """
 
@@ -236,62 +237,56 @@ def state_derivative(t: float, y: np.ndarray, mode: np.ndarray, u: float, p: np.
     vy = y[S_VY]
     W = wu
     xs_yc = x * s - yy * c
-    Qu, Qx, Qy = lateral_generalised_forces(y, p)
+    if p[_dk] == 0.0 and p[_db] == 0.0 and p[_Fc_lat] == 0.0:
+        # isotropic constraints: MODEL.md's k and b terms directly (no fixed-frame rotation needed)
+        kk = p[_k]
+        bb = p[_b]
+        Qx = -kk * x - bb * (vx - yy * W)
+        Qy = -kk * yy - bb * (vy + x * W)
+        Qu = bb * (yy * vx - x * vy - W * (x * x + yy * yy))
+    else:
+        Qu, Qx, Qy = lateral_generalised_forces(y, p)
     F0 = torque - tfu + Qu + P * xs_yc * wl * wl - 2.0 * m * W * (x * vx + yy * vy) + string
     F1 = -tfl - 2.0 * P * W * (c * vx + s * vy) - P * W * W * xs_yc - string
     F2 = Qx + m * x * W * W + 2.0 * m * W * vy + P * c * wl * wl
     F3 = Qy + m * yy * W * W - 2.0 * m * W * vx + P * s * wl * wl
-    mass_matrix(y, p, M)
-    B[0, 0] = F0
-    B[1, 0] = F1
-    B[2, 0] = F2
-    B[3, 0] = F3
-    n_rhs = 1
-    if mu == 0 or ml == 0:
-        for i in range(4):
-            B[i, 1] = 0.0
-            B[i, 2] = 0.0
-        B[0, 1] = 1.0
-        B[1, 2] = 1.0
-        n_rhs = 3
-    _cholesky_solve4(M, B, n_rhs)
-    # B[:,0] = M^-1 F, B[:,1] = M^-1 e_u, B[:,2] = M^-1 e_l
-    a0 = B[0, 0]
-    a1 = B[1, 0]
-    a2 = B[2, 0]
-    a3 = B[3, 0]
-    lu = 0.0
-    ll = 0.0
+    # M' = [[A, C], [C^T, m I]] with A the 2x2 angle block and C couples angles to (x, y):
+    # eliminate (x'', y'') (Schur complement S = A - C C^T / m), solve the 2x2 angle system with
+    # the stuck discs' constraints (Lagrange multipliers = friction torques), back-substitute.
+    c00 = -m * yy
+    c01 = m * x
+    c10 = -P * s
+    c11 = P * c
+    inv_m = 1.0 / m
+    s00 = p[_Ju] + m * (x * x + yy * yy) - (c00 * c00 + c01 * c01) * inv_m
+    s01 = P * (x * c + yy * s) - (c00 * c10 + c01 * c11) * inv_m
+    s11 = p[_Jl] - (c10 * c10 + c11 * c11) * inv_m
+    g0 = F0 - (c00 * F2 + c01 * F3) * inv_m
+    g1 = F1 - (c10 * F2 + c11 * F3) * inv_m
     if mu == 0 and ml == 0:
-        k00 = B[0, 1]
-        k01 = B[0, 2]
-        k11 = B[1, 2]
-        det = k00 * k11 - k01 * k01
-        lu = (k11 * a0 - k01 * a1) / det
-        ll = (k00 * a1 - k01 * a0) / det
-    elif mu == 0:
-        lu = a0 / B[0, 1]
-    elif ml == 0:
-        ll = a1 / B[1, 2]
-    if mu == 0 or ml == 0:
-        # friction of a stuck disc enters as generalised force -lambda
-        a0 -= B[0, 1] * lu + B[0, 2] * ll
-        a1 -= B[1, 1] * lu + B[1, 2] * ll
-        a2 -= B[2, 1] * lu + B[2, 2] * ll
-        a3 -= B[3, 1] * lu + B[3, 2] * ll
-    if mu == 0:
         a0 = 0.0
-        fric[0] = lu
-    else:
-        fric[0] = tfu
-    if ml == 0:
         a1 = 0.0
-        fric[1] = ll
+        fric[0] = g0
+        fric[1] = g1
+    elif mu == 0:
+        a0 = 0.0
+        a1 = g1 / s11
+        fric[0] = g0 - s01 * a1
+        fric[1] = tfl
+    elif ml == 0:
+        a1 = 0.0
+        a0 = g0 / s00
+        fric[1] = g1 - s01 * a0
+        fric[0] = tfu
     else:
+        det = s00 * s11 - s01 * s01
+        a0 = (s11 * g0 - s01 * g1) / det
+        a1 = (s00 * g1 - s01 * g0) / det
+        fric[0] = tfu
         fric[1] = tfl
     dy[S_WU] = a0
     dy[S_WL] = a1
     dy[S_X] = vx
     dy[S_Y] = vy
-    dy[S_VX] = a2
-    dy[S_VY] = a3
+    dy[S_VX] = (F2 - c00 * a0 - c10 * a1) * inv_m
+    dy[S_VY] = (F3 - c01 * a0 - c11 * a1) * inv_m

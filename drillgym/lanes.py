@@ -1,11 +1,13 @@
-"""Lane-parallel (SIMD) RK4 kernel for batches of the diagonal-mass configurations.
+"""Lane-parallel (SIMD) RK4 kernel: a batch of trajectories as one vectorised loop.
 
-For ``upper``, ``torsional`` and ``free_vibration`` the mass matrix is
-diagonal (the report's reduced equations (3.19), (3.20)), so one RK4 step of B
-trajectories is the same arithmetic on B lanes.  This module lays the batch
-out as structure-of-arrays and writes the step branch-free, so that LLVM
-vectorises it (AVX2/AVX-512): friction modes become selects, and ``exp``/``log``
-are the vectorisable versions below (libm calls would block vectorisation).
+One RK4 step of B trajectories is the same arithmetic on B lanes.  This module
+lays the batch out as structure-of-arrays and writes the right-hand side
+branch-free, so that LLVM vectorises it (AVX2/AVX-512): friction modes become
+selects, and ``exp``/``log``/``sin``/``cos`` are the vectorisable versions below
+(libm calls would block vectorisation).  The diagonal-mass configurations
+(upper, torsional, free_vibration) use the report's reduced equations; lateral
+and coupled the four-coordinate equations with the lateral accelerations
+eliminated (as :mod:`drillgym.dynamics`).
 
 Exactness is kept by construction: every lane takes the vectorised step, then
 its event functions are checked (same definitions as :mod:`drillgym.integrators`);
@@ -15,10 +17,9 @@ scalar event-locating ``hybrid_step``.  Events are rare (a few per stick-slip
 period of thousands of steps), so the batch runs at SIMD speed.
 
 Used automatically by :func:`drillgym.simulate_batch` and
-:class:`drillgym.BatchSimulator` for RK4 with exact friction when no
-position/time-dependent effect (position_friction, friction_drift) or
-motor_lag is on; otherwise they use the scalar kernel.  Results agree with the
-scalar kernel to rounding (tested).
+:class:`drillgym.BatchSimulator` for batches of 8 or more with RK4 and exact
+friction, unless an effect with scalar-only formulas is on (see
+``lanes_eligible``).  Results agree with the scalar kernel to rounding (tested).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from numba import njit, types
 from numba.extending import intrinsic
 
 from .configurations import N_STATE
-from .dynamics import FREE_VIBRATION, TORSIONAL, UPPER, S_TL, S_TU, S_WL, S_WU, brake_on
+from .dynamics import FREE_VIBRATION, UPPER, S_TL, S_TU, S_VX, S_VY, S_WL, S_WU, S_X, S_Y, brake_on, lateral_free
 from .integrators import RK4_A, RK4_B, RK4_C, _alloc, hybrid_step, initial_modes, record, resolve_modes
 from .params import IDX
 
@@ -91,6 +92,41 @@ def vexp(x: float) -> float:
     return p * _f64_from_bits((n + 1023) << 52)
 
 
+_PIO2_1 = 1.57079632673412561417e00  # pi/2 in three parts (Cody-Waite), exact products with k < 2**20
+_PIO2_2 = 6.07710050650619224932e-11
+_PIO2_3 = 2.02226624879595063154e-21
+_TWO_OVER_PI = 6.36619772367581382433e-01
+
+
+@njit(inline="always", fastmath=True, error_model="numpy")
+def vsincos(x: float) -> tuple:
+    """(sin x, cos x) for |x| < 1e5, absolute error < 1e-15; branch-free (vectorises)."""
+    kf = np.floor(x * _TWO_OVER_PI + 0.5)
+    r = ((x - kf * _PIO2_1) - kf * _PIO2_2) - kf * _PIO2_3  # |r| <= pi/4
+    r2 = r * r
+    sp = -1.0 / 1307674368000.0
+    sp = sp * r2 + 1.0 / 6227020800.0
+    sp = sp * r2 - 1.0 / 39916800.0
+    sp = sp * r2 + 1.0 / 362880.0
+    sp = sp * r2 - 1.0 / 5040.0
+    sp = sp * r2 + 1.0 / 120.0
+    sp = sp * r2 - 1.0 / 6.0
+    sin_r = r + r * r2 * sp
+    cp = 1.0 / 20922789888000.0
+    cp = cp * r2 - 1.0 / 87178291200.0
+    cp = cp * r2 + 1.0 / 479001600.0
+    cp = cp * r2 - 1.0 / 3628800.0
+    cp = cp * r2 + 1.0 / 40320.0
+    cp = cp * r2 - 1.0 / 720.0
+    cp = cp * r2 + 1.0 / 24.0
+    cp = cp * r2 - 0.5
+    cos_r = 1.0 + r2 * cp
+    q = (_bits_from_f64(kf + _ROUND_MAGIC) - _ROUND_MAGIC_BITS) & 3
+    sn = sin_r if q == 0 else (cos_r if q == 1 else (-sin_r if q == 2 else -cos_r))
+    cs = cos_r if q == 0 else (-sin_r if q == 1 else (-cos_r if q == 2 else sin_r))
+    return sn, cs
+
+
 @njit(inline="always", fastmath=True, error_model="numpy")
 def vlog(x: float) -> float:
     """Natural log for normal positive x, relative error < 3e-15; branch-free (vectorises)."""
@@ -121,102 +157,166 @@ def vlog(x: float) -> float:
 _Ju, _km, _Tcu, _dTcu, _bu, _dbu = IDX.Ju, IDX.km, IDX.Tcu, IDX.dTcu, IDX.bu, IDX.dbu
 _Jl, _kth, _Tcl, _bl = IDX.Jl, IDX.ktheta, IDX.Tcl, IDX.bl
 _Ts, _Tc, _ws, _delta, _bb = IDX.Ts, IDX.Tc, IDX.ws, IDX.delta, IDX.bb
+_mr, _mt, _k, _b, _e = IDX.mr, IDX.mt, IDX.k, IDX.b, IDX.e
 _asym_s, _asym_c, _dtheta = IDX.asym_s, IDX.asym_c, IDX.dtheta
 
+# lane state rows -> state vector indices: diagonal mass (theta_u, theta_l, omega_u, omega_l);
+# full (theta_u, theta_l, x, y, omega_u, omega_l, vx, vy): positions first, then their velocities
+ROWS_DIAG = np.array([S_TU, S_TL, S_WU, S_WL])
+ROWS_FULL = np.array([S_TU, S_TL, S_X, S_Y, S_WU, S_WL, S_VX, S_VY])
+
+
+@njit(inline="always", fastmath=True, error_model="numpy")
+def _friction_laws(wu, wl, mu, ml, Tcu, dTcu, bu, dbu, Tcl, bl, Ts, Tc, ws, delta, bb, asym_s, asym_c, brake):
+    """Slip friction torques (N m) in the directions of the modes (0 for a stuck disc)."""
+    awu = abs(wu)
+    t_pos = Tcu + dTcu + (bu + dbu) * awu
+    t_neg = -(Tcu - dTcu + (bu - dbu) * awu)
+    tfu = t_pos if mu > 0.0 else (t_neg if mu < 0.0 else 0.0)
+    awl = abs(wl)
+    neg = 1.0 if ml < 0.0 else 0.0
+    ts = Ts * (1.0 + asym_s * neg)
+    tc = Tc * (1.0 + asym_c * neg)
+    z = max(awl / ws, 1e-300)
+    stribeck = tc + (ts - tc) * vexp(-vexp(delta * vlog(z))) + bb * awl
+    bearing = Tcl + bl * awl
+    tfl = ml * (stribeck if brake else bearing)
+    return tfu, tfl
+
 
 @njit(cache=True, fastmath=True, error_model="numpy")
-def _lanes_derivative(thu, thl, wu, wl, mu, ml, u, PT, string_on, brake, dwu, dwl, tfu_out, tfl_out):
-    """Accelerations and friction torques of every lane (diagonal mass: (3.19), (3.20)).
-
-    One straight-line loop body (modes as selects, vexp/vlog) so that LLVM vectorises it.
-    A stuck disc (mode 0) gets zero acceleration and its holding torque as friction.
-    """
-    Ju = PT[_Ju]
-    km = PT[_km]
-    Tcu = PT[_Tcu]
-    dTcu = PT[_dTcu]
-    bu = PT[_bu]
-    dbu = PT[_dbu]
-    Jl = PT[_Jl]
-    kth = PT[_kth]
-    dth = PT[_dtheta]
-    Tcl = PT[_Tcl]
-    bl = PT[_bl]
-    Ts = PT[_Ts]
-    Tc = PT[_Tc]
-    ws = PT[_ws]
-    delta = PT[_delta]
-    bb = PT[_bb]
-    asym_s = PT[_asym_s]
-    asym_c = PT[_asym_c]
+def _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR):
+    """Diagonal mass ((3.19), (3.20)): K[0:2] = speeds, K[2:4] = accelerations, FR = friction
+    torques (a stuck disc: zero acceleration, friction = its holding torque).
+    Rows are taken as 1-D views first and the loop writes only four arrays: that is what lets
+    LLVM vectorise it (more written arrays exceed its runtime alias-check budget)."""
+    thu, thl, wu_, wl_ = Y[0], Y[1], Y[2], Y[3]
+    K0, K1, K2, K3, FR0, FR1 = K[0], K[1], K[2], K[3], FR[0], FR[1]
+    Ju, km, Jl, kth, dth = PT[_Ju], PT[_km], PT[_Jl], PT[_kth], PT[_dtheta]
+    Tcu, dTcu, bu, dbu, Tcl, bl = PT[_Tcu], PT[_dTcu], PT[_bu], PT[_dbu], PT[_Tcl], PT[_bl]
+    Ts, Tc, ws, delta, bb, asym_s, asym_c = PT[_Ts], PT[_Tc], PT[_ws], PT[_delta], PT[_bb], PT[_asym_s], PT[_asym_c]
+    K0[:] = wu_
+    K1[:] = wl_
     for k in range(thu.shape[0]):
-        string = string_on * (kth[k] * (thl[k] - thu[k]) + dth[k] * (wl[k] - wu[k]))
-        Fu = km[k] * u[k] + string
+        wu = wu_[k]
+        wl = wl_[k]
+        mu = MU[k]
+        ml = ML[k]
+        string = string_on * (kth[k] * (thl[k] - thu[k]) + dth[k] * (wl - wu))
+        Fu = km[k] * U[k] + string
         Fl = -string
-        awu = abs(wu[k])
-        m_u = mu[k]
-        t_pos = Tcu[k] + dTcu[k] + (bu[k] + dbu[k]) * awu
-        t_neg = -(Tcu[k] - dTcu[k] + (bu[k] - dbu[k]) * awu)
-        tfu = t_pos if m_u > 0.0 else (t_neg if m_u < 0.0 else Fu)
-        awl = abs(wl[k])
-        m_l = ml[k]
-        neg = 1.0 if m_l < 0.0 else 0.0
-        ts = Ts[k] * (1.0 + asym_s[k] * neg)
-        tc = Tc[k] * (1.0 + asym_c[k] * neg)
-        z = max(awl / ws[k], 1e-300)
-        stribeck = tc + (ts - tc) * vexp(-vexp(delta[k] * vlog(z))) + bb[k] * awl
-        bearing = Tcl[k] + bl[k] * awl
-        mag = stribeck if brake else bearing
-        tfl = m_l * mag if m_l != 0.0 else Fl
-        dwu[k] = (Fu - tfu) / Ju[k] if m_u != 0.0 else 0.0
-        dwl[k] = (Fl - tfl) / Jl[k] if m_l != 0.0 else 0.0
-        tfu_out[k] = tfu
-        tfl_out[k] = tfl
+        tfu, tfl = _friction_laws(wu, wl, mu, ml, Tcu[k], dTcu[k], bu[k], dbu[k], Tcl[k], bl[k], Ts[k], Tc[k],
+                                  ws[k], delta[k], bb[k], asym_s[k], asym_c[k], brake)
+        K2[k] = (Fu - tfu) / Ju[k] if mu != 0.0 else 0.0
+        K3[k] = (Fl - tfl) / Jl[k] if ml != 0.0 else 0.0
+        FR0[k] = tfu if mu != 0.0 else Fu
+        FR1[k] = tfl if ml != 0.0 else Fl
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
-def _axpy4(X0, h, Kx, out):
-    """out[j] = X0[j] + h * Kx[j] for the four state rows (theta_u, theta_l, omega_u, omega_l)."""
-    for j in range(4):
+def _derivative_full(Y, MU, ML, U, PT, brake, K, FR):
+    """All four coordinates, isotropic lateral constraints (dynamics.state_derivative's formulas,
+    Schur complement of the m I block, stuck discs as selects)."""
+    thu_, thl_, x_, y_, wu_, wl_, vx_, vy_ = Y[0], Y[1], Y[2], Y[3], Y[4], Y[5], Y[6], Y[7]
+    K[0:4, :] = Y[4:8, :]
+    Ju, km, Jl, kth, dth = PT[_Ju], PT[_km], PT[_Jl], PT[_kth], PT[_dtheta]
+    Tcu, dTcu, bu, dbu, Tcl, bl = PT[_Tcu], PT[_dTcu], PT[_bu], PT[_dbu], PT[_Tcl], PT[_bl]
+    Ts, Tc, ws, delta, bb_, asym_s, asym_c = PT[_Ts], PT[_Tc], PT[_ws], PT[_delta], PT[_bb], PT[_asym_s], PT[_asym_c]
+    mr, mt, k_, b_, e_ = PT[_mr], PT[_mt], PT[_k], PT[_b], PT[_e]
+    for k in range(thu_.shape[0]):
+        x = x_[k]
+        yy = y_[k]
+        W = wu_[k]
+        wl = wl_[k]
+        vx = vx_[k]
+        vy = vy_[k]
+        mu = MU[k]
+        ml = ML[k]
+        alpha = thl_[k] - thu_[k]
+        s, c = vsincos(alpha)
+        string = kth[k] * alpha + dth[k] * (wl - W)
+        tfu, tfl = _friction_laws(W, wl, mu, ml, Tcu[k], dTcu[k], bu[k], dbu[k], Tcl[k], bl[k], Ts[k], Tc[k],
+                                  ws[k], delta[k], bb_[k], asym_s[k], asym_c[k], brake)
+        m = mr[k] + mt[k]
+        P = e_[k] * mr[k]
+        kk = k_[k]
+        bb = b_[k]
+        r2 = x * x + yy * yy
+        xs_yc = x * s - yy * c
+        Qx = -kk * x - bb * (vx - yy * W)
+        Qy = -kk * yy - bb * (vy + x * W)
+        Qu = bb * (yy * vx - x * vy - W * r2)
+        F0 = km[k] * U[k] - tfu + Qu + P * xs_yc * wl * wl - 2.0 * m * W * (x * vx + yy * vy) + string
+        F1 = -tfl - 2.0 * P * W * (c * vx + s * vy) - P * W * W * xs_yc - string
+        F2 = Qx + m * x * W * W + 2.0 * m * W * vy + P * c * wl * wl
+        F3 = Qy + m * yy * W * W - 2.0 * m * W * vx + P * s * wl * wl
+        c00 = -m * yy
+        c01 = m * x
+        c10 = -P * s
+        c11 = P * c
+        inv_m = 1.0 / m
+        s00 = Ju[k] + m * r2 - (c00 * c00 + c01 * c01) * inv_m
+        s01 = P * (x * c + yy * s) - (c00 * c10 + c01 * c11) * inv_m
+        s11 = Jl[k] - (c10 * c10 + c11 * c11) * inv_m
+        g0 = F0 - (c00 * F2 + c01 * F3) * inv_m
+        g1 = F1 - (c10 * F2 + c11 * F3) * inv_m
+        det = s00 * s11 - s01 * s01
+        slip_u = mu != 0.0
+        slip_l = ml != 0.0
+        a0 = ((s11 * g0 - s01 * g1) / det if slip_l else g0 / s00) if slip_u else 0.0
+        a1 = ((s00 * g1 - s01 * g0) / det if slip_u else g1 / s11) if slip_l else 0.0
+        K[4, k] = a0
+        K[5, k] = a1
+        K[6, k] = (F2 - c00 * a0 - c10 * a1) * inv_m
+        K[7, k] = (F3 - c01 * a0 - c11 * a1) * inv_m
+        FR[0, k] = tfu if slip_u else g0 - s01 * a1
+        FR[1, k] = tfl if slip_l else g1 - s01 * a0
+
+
+@njit(inline="always")
+def _derivative(Y, MU, ML, U, PT, full, string_on, brake, K, FR):
+    if full:
+        _derivative_full(Y, MU, ML, U, PT, brake, K, FR)
+    else:
+        _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR)
+
+
+@njit(cache=True, fastmath=True, error_model="numpy")
+def _axpy(X0, h, KX, out):
+    """out = X0 + h KX, row by row."""
+    for j in range(X0.shape[0]):
         x0 = X0[j]
-        kx = Kx[j]
+        kx = KX[j]
         o = out[j]
         for k in range(x0.shape[0]):
             o[k] = x0[k] + h * kx[k]
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
-def _lanes_rk4(S, K1, FR, MU, ML, U, PT, h, string_on, brake, S0, OK, free_vibration, W):
+def _lanes_rk4(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibration, S0, OK, W):
     """One classical RK4 step of every lane.
 
-    S (4, B) = (theta_u, theta_l, omega_u, omega_l), updated in place; K1 (4, B) the
-    derivative at the step start, replaced by the one at the end (reused by the next
-    step); FR (2, B) friction torques at the end; S0 receives the start state; OK[k] = 1
-    when lane k's event functions (as ``integrators.event_values``) stayed positive.
-    W (16, B) is work space.
+    S (n, B) lane states (rows ROWS_DIAG or ROWS_FULL), updated in place; K1 (n, B) the
+    derivative at the step start, replaced by the one at the end (reused by the next step);
+    FR (2, B) friction torques at the end; S0 receives the start state; OK[k] = 1 when lane k's
+    event functions (as ``integrators.event_values``) stayed positive.  W (4n, B) work space.
     """
+    n = S.shape[0]
     B = S.shape[1]
-    hh = 0.5 * h
-    for j in range(4):
-        S0[j, :] = S[j, :]
-    Y = W[0:4]
-    K2 = W[4:8]
-    K3 = W[8:12]
-    K4 = W[12:16]
-    _axpy4(S0, hh, K1, Y)
-    K2[0, :] = Y[2, :]
-    K2[1, :] = Y[3, :]
-    _lanes_derivative(Y[0], Y[1], Y[2], Y[3], MU, ML, U, PT, string_on, brake, K2[2], K2[3], FR[0], FR[1])
-    _axpy4(S0, hh, K2, Y)
-    K3[0, :] = Y[2, :]
-    K3[1, :] = Y[3, :]
-    _lanes_derivative(Y[0], Y[1], Y[2], Y[3], MU, ML, U, PT, string_on, brake, K3[2], K3[3], FR[0], FR[1])
-    _axpy4(S0, h, K3, Y)
-    K4[0, :] = Y[2, :]
-    K4[1, :] = Y[3, :]
-    _lanes_derivative(Y[0], Y[1], Y[2], Y[3], MU, ML, U, PT, string_on, brake, K4[2], K4[3], FR[0], FR[1])
+    hv = n // 2  # first velocity row
+    S0[:, :] = S
+    Y = W[0:n]
+    K2 = W[n:2 * n]
+    K3 = W[2 * n:3 * n]
+    K4 = W[3 * n:4 * n]
+    _axpy(S0, 0.5 * h, K1, Y)
+    _derivative(Y, MU, ML, U, PT, full, string_on, brake, K2, FR)
+    _axpy(S0, 0.5 * h, K2, Y)
+    _derivative(Y, MU, ML, U, PT, full, string_on, brake, K3, FR)
+    _axpy(S0, h, K3, Y)
+    _derivative(Y, MU, ML, U, PT, full, string_on, brake, K4, FR)
     h6 = h / 6.0
-    for j in range(4):
+    for j in range(n):
         s = S[j]
         s0 = S0[j]
         a = K1[j]
@@ -225,36 +325,29 @@ def _lanes_rk4(S, K1, FR, MU, ML, U, PT, h, string_on, brake, S0, OK, free_vibra
         d = K4[j]
         for k in range(B):
             s[k] = s0[k] + h6 * (a[k] + 2.0 * (b[k] + c[k]) + d[k])
-    K1[0, :] = S[2, :]
-    K1[1, :] = S[3, :]
-    _lanes_derivative(S[0], S[1], S[2], S[3], MU, ML, U, PT, string_on, brake, K1[2], K1[3], FR[0], FR[1])
-    Tcu = PT[_Tcu]
-    dTcu = PT[_dTcu]
-    Ts = PT[_Ts]
-    Tcl = PT[_Tcl]
-    asym_s = PT[_asym_s]
+    _derivative(S, MU, ML, U, PT, full, string_on, brake, K1, FR)
+    wu_row = S[hv]
+    wl_row = S[hv + 1]
     for k in range(B):
         fu = FR[0, k]
         fl = FR[1, k]
         mu = MU[k]
         ml = ML[k]
-        gu = mu * S[2, k] if mu != 0.0 else min(Tcu[k] + dTcu[k] - fu, fu + Tcu[k] - dTcu[k])
+        gu = mu * wu_row[k] if mu != 0.0 else min(PT[_Tcu, k] + PT[_dTcu, k] - fu, fu + PT[_Tcu, k] - PT[_dTcu, k])
         gu = 1.0 if free_vibration else gu
-        hi_l = Ts[k] if brake else Tcl[k]
-        lo_l = -Ts[k] * (1.0 + asym_s[k]) if brake else -Tcl[k]
-        gl = ml * S[3, k] if ml != 0.0 else min(hi_l - fl, fl - lo_l)
+        hi_l = PT[_Ts, k] if brake else PT[_Tcl, k]
+        lo_l = -PT[_Ts, k] * (1.0 + PT[_asym_s, k]) if brake else -PT[_Tcl, k]
+        gl = ml * wl_row[k] if ml != 0.0 else min(hi_l - fl, fl - lo_l)
         gl = gl if string_on > 0.0 else 1.0
         OK[k] = 1 if (gu >= 0.0 and gl >= 0.0) else 0
 
 
 @njit(cache=True)
-def _sync_lane_to_state(S, K1, FR, MU, ML, k, y, k1, fric, mode):
-    y[S_TU] = S[0, k]
-    y[S_TL] = S[1, k]
-    y[S_WU] = S[2, k]
-    y[S_WL] = S[3, k]
-    for j in range(4):
-        k1[j] = K1[j, k]
+def _lane_to_state(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode):
+    """Copy lane k into the scalar kernel's state/derivative/friction/mode (y's other entries kept)."""
+    for j in range(rows.shape[0]):
+        y[rows[j]] = S[j, k]
+        k1[rows[j]] = K1[j, k]
     fric[0] = FR[0, k]
     fric[1] = FR[1, k]
     mode[0] = np.int64(MU[k])
@@ -262,13 +355,10 @@ def _sync_lane_to_state(S, K1, FR, MU, ML, k, y, k1, fric, mode):
 
 
 @njit(cache=True)
-def _sync_state_to_lane(S, K1, FR, MU, ML, k, y, k1, fric, mode):
-    S[0, k] = y[S_TU]
-    S[1, k] = y[S_TL]
-    S[2, k] = y[S_WU]
-    S[3, k] = y[S_WL]
-    for j in range(4):
-        K1[j, k] = k1[j]
+def _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode):
+    for j in range(rows.shape[0]):
+        S[j, k] = y[rows[j]]
+        K1[j, k] = k1[rows[j]]
     FR[0, k] = fric[0]
     FR[1, k] = fric[1]
     MU[k] = float(mode[0])
@@ -276,12 +366,12 @@ def _sync_state_to_lane(S, K1, FR, MU, ML, k, y, k1, fric, mode):
 
 
 def lanes_eligible(cfg: int, method: str, eps: float, P: np.ndarray) -> bool:
-    """True when the lane kernel computes exactly what the scalar kernel would: RK4, exact
-    friction, a diagonal-mass configuration, and no motor_lag / position_friction /
-    friction_drift (their extra state or angle/time dependence is scalar-only)."""
-    if method.lower() != "rk4" or eps > 0.0 or cfg not in (UPPER, TORSIONAL, FREE_VIBRATION):
+    """True when the lane kernel computes what the scalar kernel computes: RK4, exact friction,
+    and no motor_lag / position_friction / friction_drift (extra state, angle or time
+    dependence) nor anisotropic / dry-friction lateral constraints (scalar-only formulas)."""
+    if method.lower() != "rk4" or eps > 0.0:
         return False
-    off = P[:, [IDX.tau_m, IDX.pf_a1, IDX.pf_a2, IDX.drift]]
+    off = P[:, [IDX.tau_m, IDX.pf_a1, IDX.pf_a2, IDX.drift, IDX.dk, IDX.db, IDX.Fc_lat]]
     return bool(np.all(off == 0.0))
 
 
@@ -289,17 +379,20 @@ def lanes_eligible(cfg: int, method: str, eps: float, P: np.ndarray) -> bool:
 def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, FRIC_OUT):
     """Batch run on lanes: same contract as integrators.run_batch_serial (RK4, exact friction),
     plus n_steps (U may hold one column when constant) and FRIC_OUT (B, 2) final friction.
-    OUT may have zero rows (no recording)."""
+    OUT may have zero samples (no recording)."""
     B = Y.shape[0]
+    full = lateral_free(cfg)
+    rows = ROWS_FULL if full else ROWS_DIAG
+    n = rows.shape[0]
     PT = np.ascontiguousarray(P.T)
-    S = np.empty((4, B))
-    S0 = np.empty((4, B))
-    K1 = np.zeros((4, B))
+    S = np.empty((n, B))
+    S0 = np.empty((n, B))
+    K1 = np.zeros((n, B))
     FR = np.zeros((2, B))
     MU = np.zeros(B)
     ML = np.zeros(B)
     OK = np.zeros(B, dtype=np.int64)
-    W = np.zeros((16, B))
+    W = np.zeros((4 * n, B))
     Ucur = np.empty(B)
     Uprev = np.empty(B)
     A, b, c = RK4_A, RK4_B, RK4_C
@@ -327,7 +420,7 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
             initial_modes(T0[k], y, u0, P[k], cfg, mode, k1, fric, M, Bw)
         else:
             resolve_modes(T0[k], y, mode, u0, P[k], cfg, k1, fric, M, Bw)
-        _sync_state_to_lane(S, K1, FR, MU, ML, k, y, k1, fric, mode)
+        _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
         for j in range(N_STATE):
             Y[k, j] = y[j]
         if record_on:
@@ -337,51 +430,35 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
         col = i if n_u > 1 else 0
         for k in range(B):
             Ucur[k] = U[k, col]
-        # a changed input can release a stuck disc: resolve those lanes first (scalar, rare)
-        for k in range(B):
-            if Ucur[k] != Uprev[k]:
-                for j in range(N_STATE):
-                    y[j] = Y[k, j]
-                _sync_lane_to_state(S, K1, FR, MU, ML, k, y, k1, fric, mode)
+            if Ucur[k] != Uprev[k]:  # a new input can release a stuck disc: resolve (scalar, rare)
+                y[:] = Y[k]
+                _lane_to_state(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
                 resolve_modes(T0[k] + i * dt, y, mode, Ucur[k], P[k], cfg, k1, fric, M, Bw)
-                _sync_state_to_lane(S, K1, FR, MU, ML, k, y, k1, fric, mode)
+                _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
                 Uprev[k] = Ucur[k]
-        _lanes_rk4(S, K1, FR, MU, ML, Ucur, PT, dt, string_on, brake, S0, OK, fv, W)
+        _lanes_rk4(S, K1, FR, MU, ML, Ucur, PT, dt, full, string_on, brake, fv, S0, OK, W)
         for k in range(B):
             if OK[k] == 0:  # an event inside this step: redo it exactly on the scalar path
-                for j in range(N_STATE):
-                    y[j] = Y[k, j]
-                y[S_TU] = S0[0, k]
-                y[S_TL] = S0[1, k]
-                y[S_WU] = S0[2, k]
-                y[S_WL] = S0[3, k]
+                y[:] = Y[k]
+                for j in range(n):
+                    y[rows[j]] = S0[j, k]
                 mode[0] = np.int64(MU[k])
                 mode[1] = np.int64(ML[k])
                 t = T0[k] + i * dt
                 resolve_modes(t, y, mode, Ucur[k], P[k], cfg, k1, fric, M, Bw)
                 hybrid_step(t, y, k1, fric, mode, Ucur[k], P[k], cfg, 0.0, dt, A, b, c, K, ytmp, ynew, M, Bw,
                             g0, g1, ftmp)
-                _sync_state_to_lane(S, K1, FR, MU, ML, k, y, k1, fric, mode)
+                _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
         if record_on and (i + 1) % rec_every == 0:
             row = (i + 1) // rec_every
             ncol = i + 1 if i + 1 < n_u else n_u - 1
             for k in range(B):
-                for j in range(N_STATE):
-                    y[j] = Y[k, j]
-                y[S_TU] = S[0, k]
-                y[S_TL] = S[1, k]
-                y[S_WU] = S[2, k]
-                y[S_WL] = S[3, k]
-                fric[0] = FR[0, k]
-                fric[1] = FR[1, k]
-                mode[0] = np.int64(MU[k])
-                mode[1] = np.int64(ML[k])
-                record(OUT[k], row, T0[k] + (i + 1) * dt, U[k, ncol] if n_u > 1 else Ucur[k], y, fric, mode)
+                y[:] = Y[k]
+                _lane_to_state(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
+                record(OUT[k], row, T0[k] + (i + 1) * dt, U[k, ncol], y, fric, mode)
     for k in range(B):
-        Y[k, S_TU] = S[0, k]
-        Y[k, S_TL] = S[1, k]
-        Y[k, S_WU] = S[2, k]
-        Y[k, S_WL] = S[3, k]
+        for j in range(n):
+            Y[k, rows[j]] = S[j, k]
         MODE[k, 0] = np.int64(MU[k])
         MODE[k, 1] = np.int64(ML[k])
         FRIC_OUT[k, 0] = FR[0, k]

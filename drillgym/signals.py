@@ -110,7 +110,7 @@ def write_input_file(path: str | Path, t: np.ndarray, u: np.ndarray, description
         raise ValueError("signal time must be strictly increasing")
     path = Path(path)
     meta = {"source": "signal", "description": description,
-            "sample_rate_hz": float(1.0 / np.median(np.diff(t))) if t.size > 1 else None}
+            "sample_rate_hz": round(float(1.0 / np.median(np.diff(t))), 6) if t.size > 1 else None}
     with path.open("w", encoding="utf-8") as fh:
         fh.write(f"# meta: {json.dumps(meta)}\n")
         fh.write("t,u\n")

@@ -12,8 +12,7 @@ import time
 from dataclasses import dataclass
 
 from . import protocol as P
-from .link import (DEFAULT_BAUDRATE, FirmwareStopError, LinkCorruptError, LinkError, LinkSequenceError,
-                   LinkTimeoutError, SerialLink)
+from .link import DEFAULT_BAUDRATE, LinkCorruptError, LinkError, LinkSequenceError, LinkTimeoutError, SerialLink
 
 __all__ = ["RigClient", "Reply"]
 
@@ -148,10 +147,3 @@ class RigClient:
         if wait:
             self._wait_for(lambda m: isinstance(m, P.Ack) and m.acked_seq == seq, "ACK of EMERGENCY_STOP", sent)
 
-
-def raise_for_stop(reply: Reply) -> None:
-    """Raise :class:`FirmwareStopError` if the firmware reports a latched stop."""
-    if reply.sample.status & P.Status.STOPPED:
-        reason = reply.stop.name if reply.stop is not None else (
-            "WATCHDOG" if reply.sample.status & P.Status.WATCHDOG else "latched")
-        raise FirmwareStopError(f"the firmware stopped the motor ({reason})")

@@ -168,7 +168,8 @@ class RigEmulator:
 
     def unplug(self) -> float:
         """The serial cable is pulled: the pseudo-terminal's master side is closed (the host's reads
-        and writes fail); the firmware keeps running.  Returns the fault time (time.monotonic)."""
+        and writes fail); the firmware sees the detach (as a USB-CDC device does) and stops the motor
+        (StopReason.LINK_LOST), then keeps running.  Returns the fault time (time.monotonic)."""
         t = time.monotonic()
         self.fault_times["unplug"] = t
         self._io_dead.set()
@@ -176,6 +177,7 @@ class RigEmulator:
             if self._master is not None:
                 os.close(self._master)
                 self._master = None
+            self.firmware.link_lost(t)
         return t
 
     def zero_delay(self, since: float) -> float | None:

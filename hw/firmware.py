@@ -272,6 +272,11 @@ class Firmware:
         self._idle_anchor += k * self.period_s
         return out
 
+    def link_lost(self, now: float) -> None:
+        """The serial link went down (a USB-CDC device sees the detach): stop the motor now."""
+        if self.stop_reason is None:
+            self._stop(P.StopReason.LINK_LOST, now)
+
     def watchdog_deadline(self) -> float | None:
         """Wall-clock time (s) at which the watchdog trips if no command comes, or None."""
         if self.armed and self.last_command is not None:

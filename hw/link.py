@@ -19,7 +19,7 @@ from drillgym.errors import SafetyError
 from . import protocol as P
 
 __all__ = ["LinkError", "LinkLostError", "LinkTimeoutError", "LinkCorruptError", "LinkSequenceError",
-           "FirmwareStopError", "SerialLink", "DEFAULT_BAUDRATE"]
+           "SerialLink", "DEFAULT_BAUDRATE"]
 
 DEFAULT_BAUDRATE = 921600
 
@@ -42,10 +42,6 @@ class LinkCorruptError(LinkError):
 
 class LinkSequenceError(LinkError):
     """A frame from the firmware is missing (gap in sequence numbers) or out of order."""
-
-
-class FirmwareStopError(SafetyError):
-    """The firmware stopped the motor (over-speed, over-displacement, watchdog) or refused a command."""
 
 
 class SerialLink:

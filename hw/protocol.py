@@ -61,6 +61,7 @@ class StopReason(IntEnum):
     OVERSPEED = 2          # |omega| above the limit
     OVER_DISPLACEMENT = 3  # LVDT displacement above the limit
     WATCHDOG = 4           # no SET_VOLTAGE for the watchdog time
+    LINK_LOST = 5          # the serial link went down (USB detach, cable pulled)
 
 
 class Status(IntFlag):

@@ -13,10 +13,15 @@ from drillgym.measurement import counts_to_angle
 from drillgym.params import RigParams
 from hw import protocol as P
 from hw.emulator import RigEmulator
+from hw.firmware import FirmwareConfig
 from hw.runner import LinearPolicy, load_policy, measurement_of, run_episode
 from hw.safety import SafetyLimits
 
 hw.register()
+# These tests check behaviour, not timing (tests/test_hw_faults.py does): a relaxed watchdog and reply
+# timeout keep them deterministic on a loaded machine.
+RELAXED = FirmwareConfig(watchdog_s=1.0)
+REPLY = 0.5
 CPR = 8000
 COUNT = counts_to_angle(1, CPR)  # encoder resolution (rad)
 
@@ -50,8 +55,8 @@ def _sim_measurement(env, obs, t):
 def test_controller_episode_matches_simulation(tmp_path):
     opts = dict(observation="sensors", episode_duration=1.5)
     sim, obs_s, _, alpha0 = _sim_env(11, **opts)
-    with RigEmulator("torsional", dt=sim.unwrapped.options.dt, alpha0=alpha0) as emu:
-        env = gym.make(hw.ENV_ID, port=emu.port, record=tmp_path / "ctrl.csv", **opts)
+    with RigEmulator("torsional", firmware=RELAXED, dt=sim.unwrapped.options.dt, alpha0=alpha0) as emu:
+        env = gym.make(hw.ENV_ID, port=emu.port, record=tmp_path / "ctrl.csv", reply_timeout=REPLY, **opts)
         ctrl_h, ctrl_s = SpeedP(), SpeedP()
         res = run_episode(env, controller=ctrl_h, seed=11)
         env.close()
@@ -83,8 +88,8 @@ def test_policy_episode_matches_simulation(tmp_path):
     W[0, 0], W[0, 4], W[0, -1] = -0.3, 0.2, 0.5  # u = 1.5 - 0.3 w_inc0 + 0.2 u_prev + ...
     LinearPolicy(W, np.array([1.5])).save(tmp_path / "policy.npz")
     policy = load_policy(tmp_path / "policy.npz")
-    with RigEmulator("torsional", dt=sim.unwrapped.options.dt, alpha0=alpha0) as emu:
-        env = gym.make(hw.ENV_ID, port=emu.port, record=tmp_path / "pol.csv", **opts)
+    with RigEmulator("torsional", firmware=RELAXED, dt=sim.unwrapped.options.dt, alpha0=alpha0) as emu:
+        env = gym.make(hw.ENV_ID, port=emu.port, record=tmp_path / "pol.csv", reply_timeout=REPLY, **opts)
         assert env.observation_space == sim.observation_space and env.action_space == sim.action_space
         obs_h, _ = env.reset(seed=5)
         np.testing.assert_array_equal(obs_h, obs_s)
@@ -100,9 +105,9 @@ def test_policy_episode_matches_simulation(tmp_path):
 
 def test_reset_brings_spinning_rig_to_rest_and_lvdt_offset_removed(tmp_path):
     params = RigParams().replace(lvdt_x0=1e-3, lvdt_y0=-5e-4)  # hidden effect: LVDT offsets at rest
-    with RigEmulator("coupled", params=params, dt=5e-3) as emu:
+    with RigEmulator("coupled", params=params, firmware=RELAXED, dt=5e-3) as emu:
         env = gym.make(hw.ENV_ID, port=emu.port, configuration="coupled", record=tmp_path / "run.csv",
-                       episode_duration=0.5, omega_ref=4.0)
+                       episode_duration=0.5, omega_ref=4.0, reply_timeout=REPLY)
         run_episode(env, controller=measurement_const(4.0), seed=1)
         assert abs(emu.firmware.sim.omega_u[0]) > 1.0  # still turning after the episode (0 V, coasting)
         obs, info = env.reset(seed=2)
@@ -126,8 +131,9 @@ def measurement_const(v):
 
 def test_host_safety_layer_clamps_slews_and_stops(tmp_path):
     limits = SafetyLimits(v_max=4.0, slew_v_per_s=100.0, max_speed=2.0)
-    with RigEmulator("torsional", dt=5e-3) as emu:
-        env = gym.make(hw.ENV_ID, port=emu.port, record=tmp_path / "s.csv", limits=limits, episode_duration=5.0)
+    with RigEmulator("torsional", firmware=RELAXED, dt=5e-3) as emu:
+        env = gym.make(hw.ENV_ID, port=emu.port, record=tmp_path / "s.csv", limits=limits, episode_duration=5.0,
+                       reply_timeout=REPLY)
         env.reset(seed=0)
         with pytest.raises(ValueError, match="finite"):
             env.step(np.array([np.nan]))
@@ -151,6 +157,8 @@ def test_measurement_helper_and_bad_options(tmp_path):
             hw.env.HardwareEnv(emu.port, params=RigParams())
         with pytest.raises(ValueError, match="refused"):
             hw.env.HardwareEnv(emu.port, control_dt=0.0123)
+        with pytest.raises(FileNotFoundError, match="does not exist"):
+            hw.env.HardwareEnv(str(tmp_path / "no-such-port"))
         env = hw.env.HardwareEnv(emu.port, record=tmp_path)
         _, info = env.reset(seed=0)
         m = measurement_of(info)

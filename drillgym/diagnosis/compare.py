@@ -1,6 +1,7 @@
 """Compare: where the model fails against a recording.
 
-The recording's input is simulated from the recording's initial state (a
+The recording's input is simulated from the recording's initial state (speeds
+estimated by differentiation, then refined for the model; a
 free run, or — for stick-slip, whose phase drifts over long horizons —
 segments re-started from the data, ``segment_s``).  Reported: R² and RMS per
 channel; and where the error lives:
@@ -25,6 +26,7 @@ from scipy.signal import welch
 
 from ..configurations import Configuration
 from ..identification.experiment import Experiment, prepare_experiment
+from ..identification.fitting import default_scales
 from ..identification.metrics import channel_metrics
 from ..identification.segmented import SegmentedModel
 from ..io import TimeSeries
@@ -71,7 +73,8 @@ def _main_channel(ex: Experiment) -> str:
 
 
 def compare(data: "TimeSeries | Experiment", params: RigParams | None = None, config=None, *,
-            segment_s: float | None = None, compare_rate_hz: float = 100.0, n_windows: int = 10) -> Comparison:
+            segment_s: float | None = None, compare_rate_hz: float = 100.0, n_windows: int = 10,
+            refine_speeds: bool = True) -> Comparison:
     """Simulate the recording's input from its initial state and locate the error (see module docstring)."""
     p = params or RigParams()
     ex = data if isinstance(data, Experiment) else prepare_experiment(data, config, compare_rate_hz=compare_rate_hz)
@@ -79,6 +82,9 @@ def compare(data: "TimeSeries | Experiment", params: RigParams | None = None, co
     if ex.config.lateral_free:
         chans += ["x", "y", "r"]
     model = SegmentedModel([ex], segment_s)
+    if refine_speeds:  # speeds at (segment) starts: derivative estimates corrected for this model
+        w = {c: 1.0 for c in chans if c in ("theta_u", "theta_l", "x", "y")}
+        model.refine_initial_speeds(p.to_vector(), w, default_scales([ex]))
     pred = model.predict(p.to_vector()[None, :], tuple(chans))[0]
     predicted = {c: pred.stitched(0, c) for c in chans}
     meas = {c: ex.channel(c) for c in chans}

@@ -12,8 +12,13 @@ with k the effect's number of parameters and N_eff the number of effectively
 independent residual samples, N (1 − ρ)/(1 + ρ) from the lag-1
 autocorrelation ρ of the base residual (residual samples of a smooth model
 error are far from independent; counting them all would make every effect
-"significant").  An effect is *significant* when its score exceeds
-``SIGNIFICANCE`` and it removes at least ``MIN_REDUCTION`` of the residual RMS.
+"significant").  The speeds at the segment starts (estimated from the data
+by differentiation) are first refined for the base model, so that their
+noise is not taken for a missing effect.  An effect is *significant* when its score exceeds
+``SIGNIFICANCE``, it removes at least ``MIN_REDUCTION`` of the residual RMS,
+and the variance it explains exceeds the measurement noise (``MIN_EXPLAINED``;
+residuals are in noise units, see :func:`default_scales`): a model that
+already fits to the noise level has nothing missing to find.
 """
 
 from __future__ import annotations
@@ -37,6 +42,7 @@ __all__ = ["EffectScore", "Diagnosis", "diagnose", "default_weights", "default_s
 
 SIGNIFICANCE = 15.0  # score (nats) above which an effect counts as found
 MIN_REDUCTION = 0.25  # fraction of the residual RMS an effect must remove to count
+MIN_EXPLAINED = 1.0  # residual variance (noise units²) an effect must explain: above the noise floor
 
 
 def default_weights(config: Configuration) -> dict[str, float]:
@@ -146,7 +152,7 @@ def _excited(effect: Effect, exps: Sequence[Experiment]) -> str:
 def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: RigParams | None = None,
              config: "str | Configuration | None" = None, *, effects: Sequence[str] | None = None,
              segment_s: float | None = -1.0, compare_rate_hz: float = 50.0, max_nfev: int = 12,
-             lvdt_lowpass_hz: float | None = 5.0) -> Diagnosis:
+             lvdt_lowpass_hz: float | None = 5.0, refine_speeds: bool = True) -> Diagnosis:
     """Rank the library's effects on one or more recordings (see the module docstring).
 
     Args:
@@ -157,6 +163,9 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         segment_s: multiple-shooting segment (s); -1: :func:`default_segment`; None: free run.
         compare_rate_hz: comparison grid rate (Hz).
         max_nfev: least-squares evaluations per effect.
+        refine_speeds: first correct the data's speed estimates at the segment starts for the base
+            model (:meth:`SegmentedModel.refine_initial_speeds`), so that derivative noise is not
+            mistaken for a missing effect.
     """
     base = params or RigParams()
     if isinstance(data, TimeSeries):
@@ -170,6 +179,8 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         segment_s = default_segment(cfg)
     model = SegmentedModel(exps, segment_s)
     obj = Objective(model, default_weights(cfg))
+    if refine_speeds:
+        model.refine_initial_speeds(base.to_vector(), obj.weights, obj.scales)
     r0 = obj.residual_matrix(base.to_vector()[None, :])[0]
     rss0 = float(r0 @ r0)
     N = len(r0)
@@ -201,7 +212,8 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         k = len(res.names)
         score = n_eff * math.log(rss0 / rss1) - k * math.log(n_eff) if rss0 > 0 else 0.0
         rmse1 = math.sqrt(rss1 / N)
-        sig = score > SIGNIFICANCE and rmse1 < (1 - MIN_REDUCTION) * rmse0
+        sig = (score > SIGNIFICANCE and rmse1 < (1 - MIN_REDUCTION) * rmse0
+               and rmse0 ** 2 - rmse1 ** 2 > MIN_EXPLAINED)
         readout = eff.readout(base, np.array([res.values[n] for n in res.names]))
         std = dict(res.std)
         scores.append(EffectScore(name, score, rmse0, rmse1, readout, std, obj.channel_rms(res.vector),

@@ -85,7 +85,9 @@ def refit(data: "TimeSeries | Experiment", params: RigParams | None = None, conf
         variables = [FitVariable.relative(base, n, 0.5, 2.0) if getattr(base, n) != 0 else
                      FitVariable(n, 0.0, -0.5, 0.5, 0.01) for n in names]
         apply = None
-    obj = Objective(SegmentedModel([ex], segment_s), default_weights(ex.config))
+    model = SegmentedModel([ex], segment_s)
+    obj = Objective(model, default_weights(ex.config))
+    model.refine_initial_speeds(base.to_vector(), obj.weights, obj.scales)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = fit_parameters(obj, base, variables, apply=apply, max_nfev=max_nfev)

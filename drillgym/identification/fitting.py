@@ -9,7 +9,7 @@ Results: fitted values, standard errors from the Jacobian
 (cov = s² (JᵀJ)⁻¹, s² = RSS / (N − n); residual samples are correlated, so
 these are lower bounds), and warnings when a parameter is not identifiable
 from the data given (relative standard error > 10 %, near-singular JᵀJ:
-collinearity index 1/σmin of the column-normalised Jacobian > 100, or the
+collinearity index 1/σmin of the column-normalised Jacobian > 1000, or the
 estimate at a bound).
 """
 
@@ -161,7 +161,7 @@ def _set_by_name(names: Sequence[str]) -> ApplyFn:
 
 def fit_parameters(objective: Objective, base: RigParams, variables: Sequence[FitVariable], *,
                    apply: ApplyFn | None = None, max_nfev: int = 30, fd_step: float = 1e-3,
-                   rel_std_limit: float = 0.1, collinearity_limit: float = 100.0, ftol: float = 1e-6, xtol: float = 1e-6) -> FitResult:
+                   rel_std_limit: float = 0.1, collinearity_limit: float = 1000.0, ftol: float = 1e-6, xtol: float = 1e-6) -> FitResult:
     """Fit ``variables`` (everything else held at ``base``) by trf least squares.
 
     ``apply(base_vector, z) -> parameter vector`` maps the variables to the kernel
@@ -226,7 +226,7 @@ def fit_parameters(objective: Objective, base: RigParams, variables: Sequence[Fi
         gamma = 1.0 / max(sv[-1], 1e-300)  # collinearity index (unit-norm columns)
         if gamma > collinearity_limit:
             v = np.abs(vt[-1])
-            involved = [names[i] for i in np.flatnonzero(v > 0.3 * v.max())]
+            involved = [names[i] for i in np.flatnonzero(v > 0.1 * v.max())]
             msgs.append(f"near-singular JᵀJ (collinearity index {gamma:.0f} > {collinearity_limit:.0f}): "
                         f"{', '.join(involved)} are not separately identifiable from these data")
     for i, nm in enumerate(names):

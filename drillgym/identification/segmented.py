@@ -98,6 +98,48 @@ class SegmentedModel:
                 starts = starts[:-1]
             self._plans.append({"rec": rec, "dt": dt, "L": L, "starts": starts, "n_steps": L * rec})
         self.n_rows_per_params = sum(len(p["starts"]) for p in self._plans)
+        # corrections (rad/s) to the data's speed estimates at each segment start: (n_seg, 2) per experiment
+        self.speed_offsets = [np.zeros((len(p["starts"]), 2)) for p in self._plans]
+
+    def refine_initial_speeds(self, vec: np.ndarray, weights: dict[str, float], scales: dict[str, float],
+                              iterations: int = 2, h: float = 0.005) -> None:
+        """Correct the speeds estimated from the data at the segment starts (nuisance states) by
+        Gauss–Newton on the base model's residual, so that noisy derivative estimates of the
+        recording do not pass for model error.  Segments are independent, so one batched run
+        with all segments' ω_u (resp. ω_l) perturbed gives every segment's sensitivity.
+        A disc stuck at a segment's start (speed exactly 0) is left stuck."""
+        for _ in range(iterations):
+            P = np.repeat(np.asarray(vec, dtype=float)[None, :], 3, axis=0)
+            preds = self.predict(P, tuple(weights), dspeed=np.array([[0, 0], [h, 0], [0, h]], dtype=float))
+            for k, ex in enumerate(self.experiments):
+                starts, L = self.segments(k)
+                r = [[], [], []]
+                for c, w in weights.items():
+                    if c not in preds[0].outputs[k]:
+                        continue
+                    m = self.measured_segments(k, c)[:, 1:]
+                    for b in range(3):
+                        e = (preds[b].outputs[k][c][:, 1:] - m) * (w / scales[c])
+                        r[b].append(np.nan_to_num(e))
+                if not r[0]:
+                    continue
+                e0, e1, e2 = (np.concatenate(x, axis=1) for x in r)
+                J = np.stack([(e1 - e0) / h, (e2 - e0) / h], axis=2)  # (n_seg, M, 2)
+                w0 = np.stack([ex.rates.get("omega_u", np.zeros(ex.n))[starts],
+                               ex.rates.get("omega_l", np.zeros(ex.n))[starts]], axis=1) + self.speed_offsets[k]
+                free = (w0 != 0.0)
+                if ex.config is Configuration.FREE_VIBRATION:
+                    free[:, 0] = False
+                if ex.config is Configuration.UPPER:
+                    free[:, 1] = False
+                for j in range(len(starts)):
+                    cols = np.flatnonzero(free[j])
+                    if cols.size == 0:
+                        continue
+                    A = J[j][:, cols]
+                    step, *_ = np.linalg.lstsq(A, -e0[j], rcond=None)
+                    step = np.clip(step, -0.5, 0.5)
+                    self.speed_offsets[k][j, cols] += step
 
     # ------------------------------------------------------------------ helpers
     def segments(self, k: int) -> tuple[np.ndarray, int]:
@@ -152,8 +194,12 @@ class SegmentedModel:
         return U, UM
 
     # ------------------------------------------------------------------ prediction
-    def predict(self, P: np.ndarray, channels: tuple[str, ...] = CHANNELS) -> list[Prediction]:
-        """Model outputs for each parameter row of P (B, N_PARAMS) -> list of B Predictions."""
+    def predict(self, P: np.ndarray, channels: tuple[str, ...] = CHANNELS,
+                dspeed: np.ndarray | None = None) -> list[Prediction]:
+        """Model outputs for each parameter row of P (B, N_PARAMS) -> list of B Predictions.
+
+        ``dspeed`` (B, 2): extra (ω_u, ω_l) added to every segment's initial speeds of that row
+        (used to compute sensitivities in :meth:`refine_initial_speeds`)."""
         P = np.atleast_2d(np.asarray(P, dtype=float))
         if P.shape[1] != N_PARAMS:
             raise ValueError(f"parameter matrix must have {N_PARAMS} columns")
@@ -176,6 +222,9 @@ class SegmentedModel:
                     rows[:, j] *= f
                 rows[:, IDX.drift] = drift / f
             X0 = self._x0(ex, starts, P)
+            X0[:, 2:4] += np.tile(self.speed_offsets[k], (B, 1))
+            if dspeed is not None:
+                X0[:, 2:4] += np.repeat(np.asarray(dspeed, dtype=float), ns, axis=0)
             X0[:, 8] = UM.reshape(-1)
             D = self._simulate(ex.config, U.reshape(B * ns, -1), L / ex.fs, dt, rows, X0, rec, ns)[:, :L + 1]
             out = {}

@@ -1,0 +1,97 @@
+"""A trained agent as a :class:`controllers.Controller`: the harness's (or the rig's) measurements ->
+the env's observation -> the exported policy -> the residual voltage.
+
+The observation is built by the environment's own observation model
+(:mod:`drillgym.envs.observation`, ``from_readings``), configured with the options
+the agent was trained with, so the agent sees on the rig exactly what it saw in
+training.  The encoder angles arrive already quantized by the rig (or the
+harness), so the model is built with ``counts_per_rev = 0`` (no second quantization).
+
+Timing matches the env: ``reset(m)`` gives the reset observation (zero speed
+history, the target); the first ``act`` answers it; every later ``act`` first adds
+the period's readings (encoder angles, the voltage applied over the period).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from controllers.base import Controller
+from drillgym.envs.observation import make_observation_model
+from drillgym.envs.options import U_MAX, EnvOptions
+
+from .export import ExportedPolicy
+from .residual import ResidualVoltage
+
+__all__ = ["AgentController", "OBSERVATION_KEYS"]
+
+#: env options that shape the observation (the rest is physics/task, irrelevant on the rig)
+OBSERVATION_KEYS = ("observation", "motor_history", "velocity_filter_tau", "max_speed", "max_lateral", "control_dt")
+
+
+class AgentController(Controller):
+    """Trained policy (exported, numpy) with the env's observation model and the residual voltage structure."""
+
+    name = "agent"
+
+    def __init__(self, policy: ExportedPolicy, omega_ref=None, **kw) -> None:
+        cfg = policy.config
+        hp = cfg["hyperparams"]
+        env_kwargs = hp.get("env_kwargs", {})
+        self.mode = env_kwargs.get("observation", "full")
+        if self.mode == "full":
+            raise ValueError("agent trained on the 'full' observation (true state) cannot run on measurements; "
+                             "train with --obs motor or --obs sensors")
+        control_dt = float(env_kwargs.get("control_dt", 0.01))
+        kw.setdefault("dt", control_dt)
+        if abs(kw["dt"] - control_dt) > 1e-12:
+            raise ValueError(f"agent was trained at control period {control_dt} s, not {kw['dt']} s")
+        super().__init__(omega_ref, **kw)
+        self.policy = policy
+        self.uses = ("theta_u",) if self.mode == "motor" else (
+            ("theta_u", "theta_l", "x", "y") if self.config.lateral_free else ("theta_u", "theta_l"))
+        self.obs_options = EnvOptions.from_kwargs(
+            configuration=self.config.label, counts_per_rev=0, lvdt_noise_std=0.0,
+            **{k: (tuple(v) if isinstance(v, list) else v) for k, v in env_kwargs.items() if k in OBSERVATION_KEYS})
+        self.frame_stack = int(hp.get("frame_stack", 1))
+        scale = hp.get("residual")
+        self.residual = None if scale is None else ResidualVoltage(self.config.label, scale, self.params)
+
+    def _reset(self, m: dict[str, np.ndarray]) -> None:
+        n = self.n
+        self.model = make_observation_model(n, self.obs_options)
+        if self.model.dim * self.frame_stack != self.policy.obs_dim:
+            raise ValueError(f"agent expects {self.policy.obs_dim} observation entries; the "
+                             f"{self.mode!r} model of {self.config.label} gives {self.model.dim} x {self.frame_stack}")
+        Y = np.zeros((n, 9))
+        Y[:, 0] = m.get("theta_u", 0.0)
+        Y[:, 1] = m.get("theta_l", 0.0)
+        index = np.arange(n)
+        self.model.reset(index, Y, [None] * n)
+        self.obs = self.model.initial(index, Y, self.omega_ref)
+        self.stack = np.zeros((n, self.policy.obs_dim), dtype=np.float32)
+        self._push()
+        self._first = True
+
+    def _push(self) -> None:
+        d = self.model.dim
+        self.stack[:, :-d] = self.stack[:, d:]
+        self.stack[:, -d:] = self.obs
+
+    def _observe(self, m: dict[str, np.ndarray]) -> None:
+        if self.mode == "motor":
+            self.model.from_readings(m["theta_u"], self.u_prev, self.omega_ref, self.obs)
+        else:
+            lat = self.config.lateral_free
+            self.model.from_readings(m["theta_u"], m["theta_l"], m["x"] if lat else None, m["y"] if lat else None,
+                                     self.u_prev, self.omega_ref, self.obs)
+        self._push()
+
+    def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
+        if not self._first:
+            self._observe(m)
+        self._first = False
+        a = self.policy.act(self.stack)[:, 0]
+        if self.residual is not None:
+            return self.residual.voltage(a, self.stack[:, -1])
+        return a * U_MAX  # trained with normalize_action=True

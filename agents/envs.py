@@ -1,0 +1,73 @@
+"""Training environments: the batched :class:`drillgym.envs.DrillVectorEnv` as an SB3 VecEnv,
+with the residual action structure, optional frame stacking and episode statistics."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, VecFrameStack, VecMonitor
+
+from drillgym.envs import ENV_IDS
+from drillgym.envs.options import U_MAX
+from drillgym.envs.sb3 import make_sb3_vec
+
+from .residual import ResidualVoltage
+
+__all__ = ["make_training_env", "ResidualActionVecEnv"]
+
+
+class ResidualActionVecEnv(VecEnvWrapper):
+    """SB3 VecEnv wrapper: action in [-1, 1] -> ``u_ff(omega_ref) + scale * a`` volts for a drillgym
+    VecEnv whose action is the voltage (``normalize_action=False``)."""
+
+    def __init__(self, venv: VecEnv, residual: ResidualVoltage) -> None:
+        hi = float(venv.action_space.high[0])
+        if abs(hi - U_MAX) > 1e-6:
+            raise ValueError("ResidualActionVecEnv needs the env's action in volts (normalize_action=False)")
+        super().__init__(venv, action_space=spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32))
+        self.residual = residual
+        self._ref = np.zeros(venv.num_envs)
+
+    def _remember(self, obs: np.ndarray) -> np.ndarray:
+        self._ref = obs[:, -1].astype(float)
+        return obs
+
+    def reset(self) -> np.ndarray:
+        return self._remember(self.venv.reset())
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self.venv.step_async(self.residual.voltage(actions, self._ref).reshape(-1, 1))
+
+    def step_wait(self):
+        obs, rew, done, infos = self.venv.step_wait()
+        return self._remember(obs), rew, done, infos
+
+
+def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: dict[str, Any] | None = None,
+                      residual: float | None = None, frame_stack: int = 1, monitor: bool = True) -> VecEnv:
+    """An SB3 VecEnv of ``n_envs`` rigs in one batched core call per step.
+
+    ``residual`` (V): the action in [-1, 1] is a correction ``residual * a`` on the feedforward voltage
+    (:mod:`agents.residual`); None: the action is the voltage normalised to [-1, 1].
+    ``frame_stack``: number of stacked observations (1 = none).  ``seed``: rig i gets seed + i.
+    """
+    if env_id not in ENV_IDS:
+        raise ValueError(f"unknown drillgym environment {env_id!r}; expected one of {sorted(ENV_IDS)}")
+    if not (isinstance(n_envs, int) and n_envs >= 1):
+        raise ValueError(f"n_envs must be an integer >= 1, got {n_envs!r}")
+    kw = dict(env_kwargs or {})
+    if residual is not None:
+        kw["normalize_action"] = False
+        venv: VecEnv = make_sb3_vec(env_id, n_envs, **kw)
+        venv = ResidualActionVecEnv(venv, ResidualVoltage(ENV_IDS[env_id], residual, venv.venv.options.params))
+    else:
+        kw["normalize_action"] = True
+        venv = make_sb3_vec(env_id, n_envs, **kw)
+    if monitor:
+        venv = VecMonitor(venv)
+    if frame_stack > 1:
+        venv = VecFrameStack(venv, frame_stack)
+    venv.seed(seed)
+    return venv

@@ -1,0 +1,158 @@
+"""Export of a trained SB3 policy to plain numpy weights (``.npz``) and the rig-side policy.
+
+The deterministic policy of PPO, SAC and TD3 with an MLP is a chain of affine layers
+and element-wise activations; :func:`export_policy` writes the weights
+(``W0, b0, W1, b1, ...`` float32), the activations and everything the rig needs to
+rebuild the observation and the voltage (``meta``: env id, algorithm, env options,
+residual scale, frame stacking) into one ``.npz``.  :class:`ExportedPolicy` evaluates
+it with numpy only (no torch, no SB3): a 33-64-64-1 MLP takes a few microseconds.
+
+Output transform: SAC squashes the Gaussian mean with tanh; PPO clips the mean to the
+action space; TD3's actor ends with tanh already (then clipping is the identity).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["export_policy", "ExportedPolicy", "policy_layers", "ACTIVATIONS", "FORMAT_VERSION"]
+
+FORMAT_VERSION = 1
+ACTIVATIONS = {
+    "relu": lambda x: np.maximum(x, 0.0, out=x),
+    "tanh": lambda x: np.tanh(x, out=x),
+    "elu": lambda x: np.where(x > 0, x, np.expm1(np.minimum(x, 0.0))),
+    "identity": lambda x: x,
+}
+
+
+def _activation(name: str):
+    """numpy function of an activation name ('relu', 'tanh', 'elu', 'identity', 'hardtanh:MIN:MAX')."""
+    if name.startswith("hardtanh:"):
+        lo, hi = (float(v) for v in name.split(":")[1:])
+        return lambda x: np.clip(x, lo, hi, out=x)
+    if name not in ACTIVATIONS:
+        raise ValueError(f"unknown activation {name!r} in exported policy")
+    return ACTIVATIONS[name]
+
+
+def _walk(module, layers: list, acts: list) -> None:
+    import torch.nn as nn
+
+    simple = {nn.ReLU: "relu", nn.Tanh: "tanh", nn.ELU: "elu"}
+    if isinstance(module, nn.Sequential):
+        for m in module:
+            _walk(m, layers, acts)
+    elif isinstance(module, nn.Linear):
+        layers.append((module.weight.detach().cpu().numpy().astype(np.float32),
+                       module.bias.detach().cpu().numpy().astype(np.float32)))
+        acts.append("identity")
+    elif type(module) in simple or isinstance(module, nn.Hardtanh):
+        if not acts or acts[-1] != "identity":
+            raise ValueError(f"activation {module} does not follow a linear layer; cannot export")
+        acts[-1] = (f"hardtanh:{module.min_val}:{module.max_val}" if isinstance(module, nn.Hardtanh)
+                    else simple[type(module)])
+    elif isinstance(module, (nn.Flatten, nn.Identity)):
+        pass
+    else:
+        raise ValueError(f"cannot export layer {type(module).__name__} to numpy (MLP policies only)")
+
+
+def policy_layers(model) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[str], str]:
+    """(layers [(W, b)], activation after each layer, output transform 'tanh'|'clip') of the
+    deterministic actor of an SB3 PPO/SAC/TD3 model with an MLP policy."""
+    from stable_baselines3 import PPO, SAC, TD3
+
+    layers: list = []
+    acts: list = []
+    if isinstance(model, SAC):
+        _walk(model.policy.actor.latent_pi, layers, acts)
+        _walk(model.policy.actor.mu, layers, acts)
+        output = "tanh"
+    elif isinstance(model, TD3):
+        _walk(model.policy.actor.mu, layers, acts)
+        output = "clip"
+    elif isinstance(model, PPO):
+        _walk(model.policy.mlp_extractor.policy_net, layers, acts)
+        _walk(model.policy.action_net, layers, acts)
+        output = "clip"
+    else:
+        raise ValueError(f"cannot export a {type(model).__name__} policy to numpy (PPO, SAC, TD3 only)")
+    return layers, acts, output
+
+
+def export_policy(model, path: str | Path, config: dict[str, Any]) -> Path:
+    """Write the deterministic policy of ``model`` and the run ``config`` (see :mod:`agents.train`)
+    to ``path`` (.npz)."""
+    layers, acts, output = policy_layers(model)
+    low, high = model.action_space.low.astype(np.float32), model.action_space.high.astype(np.float32)
+    meta = {"format": FORMAT_VERSION, "activations": acts, "output": output,
+            "obs_dim": int(model.observation_space.shape[0]), "config": config}
+    arrays = {f"W{i}": W for i, (W, _) in enumerate(layers)} | {f"b{i}": b for i, (_, b) in enumerate(layers)}
+    path = Path(path)
+    np.savez(path, meta=np.array(json.dumps(meta, default=_jsonable)), action_low=low, action_high=high, **arrays)
+    return path
+
+
+def _jsonable(o):
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, (tuple, set)):
+        return list(o)
+    raise TypeError(f"cannot store {type(o).__name__} in the policy metadata")
+
+
+class ExportedPolicy:
+    """A policy exported by :func:`export_policy`, evaluated with numpy (float32).
+
+    ``act(obs)``: observations (n, obs_dim) or (obs_dim,) -> actions (n, act_dim) / (act_dim,)
+    in the action space of the training env ([-1, 1]).  ``meta``: the run's metadata."""
+
+    def __init__(self, layers: list[tuple[np.ndarray, np.ndarray]], activations: list[str], output: str,
+                 action_low: np.ndarray, action_high: np.ndarray, meta: dict[str, Any]) -> None:
+        if len(activations) != len(layers) or output not in ("tanh", "clip"):
+            raise ValueError(f"bad exported policy: activations {activations}, output {output!r}")
+        self.layers = [(np.ascontiguousarray(W.T), b) for W, b in layers]  # x @ W.T + b
+        self.activations = [_activation(a) for a in activations]
+        self.output = output
+        self.low, self.high = action_low, action_high
+        self.meta = meta
+        self.obs_dim = int(meta["obs_dim"])
+
+    @classmethod
+    def load(cls, path: str | Path) -> "ExportedPolicy":
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"exported policy {path} not found")
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                meta = json.loads(str(z["meta"]))
+                n = len(meta["activations"])
+                layers = [(z[f"W{i}"], z[f"b{i}"]) for i in range(n)]
+                low, high = z["action_low"], z["action_high"]
+        except (KeyError, ValueError, OSError) as exc:
+            raise ValueError(f"{path} is not an exported drillgym policy: {exc}") from exc
+        return cls(layers, meta["activations"], meta["output"], low, high, meta)
+
+    @property
+    def config(self) -> dict[str, Any]:
+        """The training run's configuration (env id, algo, seed, hyperparameters)."""
+        return self.meta["config"]
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        x = np.asarray(obs, dtype=np.float32)
+        single = x.ndim == 1
+        x = np.atleast_2d(x)
+        if x.shape[1] != self.obs_dim:
+            raise ValueError(f"observation must have {self.obs_dim} entries, got {x.shape[1]}")
+        for (Wt, b), f in zip(self.layers, self.activations):
+            x = f(x @ Wt + b)
+        x = np.tanh(x) if self.output == "tanh" else x
+        x = np.clip(x, self.low, self.high)
+        return x[0] if single else x
+
+    __call__ = act

@@ -1,0 +1,50 @@
+"""``agent:PATH`` -> :class:`agents.controller.AgentController` (the hook of :func:`controllers.make`).
+
+PATH may be an exported policy (``policy.npz``), a run's ``model.zip`` (its ``policy.npz`` beside it is
+used; without one, the SB3 model is loaded with the run's ``config.yml`` and exported in memory) or a
+run directory.  Only the ``.zip`` fallback needs torch and stable-baselines3.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+
+from .controller import AgentController
+from .export import ExportedPolicy
+
+__all__ = ["load_policy", "load_controller"]
+
+
+def load_policy(path: str | Path) -> ExportedPolicy:
+    """The exported policy of PATH (``.npz``, a run's ``model.zip`` or a run directory)."""
+    p = Path(path)
+    if p.is_dir():
+        p = p / "policy.npz" if (p / "policy.npz").is_file() else p / "model.zip"
+    if not p.exists():
+        raise FileNotFoundError(f"agent file {p} not found")
+    if p.suffix == ".npz":
+        return ExportedPolicy.load(p)
+    if p.suffix != ".zip":
+        raise ValueError(f"agent file {p} must be an exported policy (.npz) or an SB3 model (.zip)")
+    beside = p.with_name("policy.npz")
+    if beside.is_file():
+        return ExportedPolicy.load(beside)
+    cfg_file = p.with_name("config.yml")
+    if not cfg_file.is_file():
+        raise FileNotFoundError(f"agent {p}: no config.yml beside it (needed to rebuild the observation)")
+    config = yaml.safe_load(cfg_file.read_text())
+    import tempfile
+
+    from .export import export_policy
+    from .train import algo_class
+
+    model = algo_class(config["algo"]).load(p, device="cpu")
+    with tempfile.TemporaryDirectory() as d:
+        return ExportedPolicy.load(export_policy(model, Path(d) / "policy.npz", config))
+
+
+def load_controller(path: str, *, config: str = "torsional", omega_ref=None, params=None, **kw) -> AgentController:
+    """The agent at PATH as a Controller for rig configuration ``config`` (see :mod:`controllers.registry`)."""
+    return AgentController(load_policy(path), omega_ref, config=config, params=params, **kw)

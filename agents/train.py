@@ -1,0 +1,173 @@
+"""Training of SB3 agents on the drillgym environments (PPO, SAC, TD3, RecurrentPPO).
+
+    >>> from agents.train import train
+    >>> result = train("drillgym/Torsional-v0", "sac", "runs/sac", timesteps=200_000, seed=1)
+
+Writes into ``out``: ``model.zip`` (the SB3 model), ``config.yml`` (everything needed to
+rebuild the env and the policy structure: env id, algorithm, seed, hyperparameters,
+env options, residual scale), ``policy.npz`` (the exported policy, :mod:`agents.export`;
+MLP policies only), ``checkpoints/latest.zip`` (+ replay buffer for off-policy algorithms),
+refreshed every ``checkpoint_every`` steps and used by ``resume=True``, and TensorBoard logs
+in ``tb/``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.noise import NormalActionNoise
+from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+
+from .envs import make_training_env
+from .hyperparams import DRILLGYM_KEYS, load_hyperparams
+
+__all__ = ["ALGOS", "algo_class", "train", "TrainResult", "LatestCheckpoint", "CONFIG_FILE", "MODEL_FILE"]
+
+ALGOS = ("ppo", "sac", "td3", "recurrentppo")
+CONFIG_FILE = "config.yml"
+MODEL_FILE = "model.zip"
+
+
+def algo_class(algo: str) -> type[BaseAlgorithm]:
+    """The SB3 (or sb3-contrib) class of an algorithm name."""
+    a = algo.lower()
+    if a == "recurrentppo":
+        from sb3_contrib import RecurrentPPO
+
+        return RecurrentPPO
+    import stable_baselines3 as sb3
+
+    classes = {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3}
+    if a not in classes:
+        raise ValueError(f"unknown algorithm {algo!r}; choose from {', '.join(ALGOS)}")
+    return classes[a]
+
+
+class LatestCheckpoint(BaseCallback):
+    """Saves the model (and the replay buffer of off-policy algorithms) to ``dir/latest.zip`` every
+    ``every`` environment steps, overwriting the previous checkpoint (what ``resume`` needs)."""
+
+    def __init__(self, directory: Path, every: int) -> None:
+        super().__init__()
+        self.dir, self.every, self._last = Path(directory), int(every), 0
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps - self._last >= self.every:
+            self.save()
+        return True
+
+    def save(self) -> None:
+        self._last = self.num_timesteps
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.model.save(self.dir / "latest.zip")
+        if isinstance(self.model, OffPolicyAlgorithm):
+            self.model.save_replay_buffer(self.dir / "latest_replay_buffer.pkl")
+
+
+@dataclass
+class TrainResult:
+    """Outcome of :func:`train`: the model, its files and the wall time (s)."""
+
+    model: BaseAlgorithm
+    out: Path
+    model_path: Path
+    policy_path: Path | None
+    wall_time: float
+    timesteps: int
+
+
+def _settings(env_id: str, algo: str, obs: str | None, timesteps: int | None, n_envs: int | None,
+              hyperparams: str | Path | None, overrides: dict[str, Any] | None) -> dict[str, Any]:
+    hp = load_hyperparams(algo, env_id, hyperparams)
+    hp.update(overrides or {})
+    env_kwargs = dict(hp["env_kwargs"])
+    if obs is not None:
+        env_kwargs["observation"] = obs
+    if timesteps is not None:
+        hp["n_timesteps"] = timesteps
+    if n_envs is not None:
+        hp["n_envs"] = n_envs
+    hp["env_kwargs"] = env_kwargs
+    if not (int(hp.get("n_timesteps", 0)) >= 1):
+        raise ValueError(f"number of timesteps must be >= 1, got {hp.get('n_timesteps')!r}")
+    hp["n_timesteps"] = int(hp["n_timesteps"])
+    hp["n_envs"] = int(hp.get("n_envs", 1))
+    return hp
+
+
+def _algo_kwargs(hp: dict[str, Any], n_actions: int) -> dict[str, Any]:
+    kw = {k: v for k, v in hp.items() if k not in DRILLGYM_KEYS}
+    noise_type, noise_std = kw.pop("noise_type", None), kw.pop("noise_std", 0.1)
+    if noise_type == "normal":
+        kw["action_noise"] = NormalActionNoise(np.zeros(n_actions), noise_std * np.ones(n_actions))
+    elif noise_type is not None:
+        raise ValueError(f"noise_type must be 'normal' or absent, got {noise_type!r}")
+    return kw
+
+
+def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, timesteps: int | None = None,
+          seed: int = 0, n_envs: int | None = None, hyperparams: str | Path | None = None,
+          overrides: dict[str, Any] | None = None, resume: bool = False, progress: bool = True,
+          tensorboard: bool = True, checkpoint_every: int = 50_000, export: bool = True, verbose: int = 0,
+          torch_threads: int | None = 1, command: str | None = None) -> TrainResult:
+    """Train ``algo`` on ``env_id`` and write the run into ``out`` (see the module docstring).
+
+    Args:
+        obs: observation mode ('full', 'sensors', 'motor'); default the hyperparameter file's.
+        timesteps: environment steps (all rigs together); default the file's ``n_timesteps``.
+        seed: seed of the networks, the exploration and the env (rig i: seed + i).
+        hyperparams: YAML file (rl-zoo3 layout) instead of ``agents/hyperparams/<algo>.yml``.
+        overrides: entries replacing those of the file (e.g. ``{"learning_rate": 1e-3}``).
+        resume: continue from ``out/checkpoints/latest.zip`` up to ``timesteps`` in total.
+        torch_threads: torch CPU threads (the rig PC and CI machines are small; None = torch's default).
+        command: the command line that started the run, recorded in ``config.yml``.
+    """
+    import torch
+
+    if torch_threads is not None:
+        torch.set_num_threads(int(torch_threads))
+    algo = algo.lower()
+    cls = algo_class(algo)
+    hp = _settings(env_id, algo, obs, timesteps, n_envs, hyperparams, overrides)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    venv = make_training_env(env_id, hp["n_envs"], seed=seed, env_kwargs=hp["env_kwargs"],
+                             residual=hp.get("residual"), frame_stack=int(hp.get("frame_stack", 1)))
+    config = {"env_id": env_id, "algo": algo, "seed": int(seed), "hyperparams": hp, "command": command}
+    (out / CONFIG_FILE).write_text(yaml.safe_dump(config, sort_keys=False))
+    ckpt = out / "checkpoints" / "latest.zip"
+    tb = str(out / "tb") if tensorboard else None
+    if resume:
+        if not ckpt.is_file():
+            raise FileNotFoundError(f"cannot resume: no checkpoint {ckpt}")
+        model = cls.load(ckpt, env=venv, tensorboard_log=tb)
+        rb = ckpt.with_name("latest_replay_buffer.pkl")
+        if isinstance(model, OffPolicyAlgorithm) and rb.is_file():
+            model.load_replay_buffer(rb)
+    else:
+        model = cls(hp["policy"], venv, seed=seed, tensorboard_log=tb, verbose=verbose,
+                    **_algo_kwargs(hp, venv.action_space.shape[0]))
+    remaining = hp["n_timesteps"] - (model.num_timesteps if resume else 0)
+    cb = LatestCheckpoint(out / "checkpoints", checkpoint_every)
+    t0 = time.perf_counter()
+    if remaining > 0:
+        model.learn(remaining, callback=cb, progress_bar=progress, reset_num_timesteps=not resume,
+                    tb_log_name=algo)
+    wall = time.perf_counter() - t0
+    cb.save()
+    model_path = out / MODEL_FILE
+    model.save(model_path)
+    policy_path = None
+    if export and algo != "recurrentppo":
+        from .export import export_policy
+
+        policy_path = export_policy(model, out / "policy.npz", config)
+    venv.close()
+    return TrainResult(model, out, model_path, policy_path, wall, int(model.num_timesteps))

@@ -1,0 +1,45 @@
+"""``drillgym train``: train an RL agent (stable-baselines3) on a drillgym environment.
+
+The training stack lives in the top-level ``agents`` package, imported lazily here
+(the core does not depend on it).
+"""
+
+from __future__ import annotations
+
+import shlex
+import sys
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("train")
+    def train_cmd(
+        env: str = typer.Option("drillgym/Torsional-v0", "--env", help="environment id"),
+        algo: str = typer.Option("sac", "--algo", help="ppo, sac, td3 or recurrentppo"),
+        out: Path = typer.Option(..., "--out", help="run directory (model.zip, policy.npz, config.yml, tb/, checkpoints/)"),
+        obs: Optional[str] = typer.Option(None, "--obs", help="observation mode: full, sensors, motor (default: the hyperparameter file's)"),
+        timesteps: Optional[int] = typer.Option(None, "--timesteps", help="environment steps (default: the file's n_timesteps)"),
+        seed: int = typer.Option(0, "--seed", help="seed of networks, exploration and envs"),
+        n_envs: Optional[int] = typer.Option(None, "--n-envs", help="rigs in the batched vector env"),
+        hyperparams: Optional[Path] = typer.Option(None, "--hyperparams", help="YAML file (rl-zoo3 layout) instead of agents/hyperparams/<algo>.yml"),
+        resume: bool = typer.Option(False, "--resume", help="continue from OUT/checkpoints/latest.zip"),
+        checkpoint_every: int = typer.Option(50_000, "--checkpoint-every", help="environment steps between checkpoints"),
+        progress: bool = typer.Option(True, "--progress/--no-progress", help="progress bar"),
+        tensorboard: bool = typer.Option(True, "--tensorboard/--no-tensorboard", help="TensorBoard logs in OUT/tb"),
+    ) -> None:
+        """Train an agent; writes OUT/model.zip, OUT/policy.npz (for agent:PATH in `drillgym evaluate`), OUT/config.yml."""
+        from agents.train import train
+
+        if n_envs is not None and n_envs < 1:
+            raise ValueError(f"--n-envs must be >= 1, got {n_envs}")
+        if checkpoint_every < 1:
+            raise ValueError(f"--checkpoint-every must be >= 1, got {checkpoint_every}")
+        command = "drillgym " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+        res = train(env, algo, out, obs=obs, timesteps=timesteps, seed=seed, n_envs=n_envs, hyperparams=hyperparams,
+                    resume=resume, progress=progress, tensorboard=tensorboard, checkpoint_every=checkpoint_every,
+                    command=command)
+        typer.echo(f"trained {res.timesteps} steps in {res.wall_time:.1f} s; wrote {res.model_path}"
+                   + (f", {res.policy_path}" if res.policy_path else ""))

@@ -1,0 +1,92 @@
+"""Compare (where the model fails), the sparse data-driven term, and the CLI commands."""
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from drillgym import RigParams
+from drillgym.cli import app
+from drillgym.diagnosis.compare import compare, write_compare
+from drillgym.diagnosis.sparse import residual_torques, sparse_residual_model
+from drillgym.errors import DataFormatError
+from drillgym.identification import prepare_experiment
+from drillgym.identification.synthetic import synthetic_measurement
+from drillgym.io import write_timeseries
+
+
+@pytest.fixture(scope="module")
+def pf_data():
+    return synthetic_measurement("torsional", RigParams().replace(pf_a1=0.3, pf_phi1=1.0), duration=20.0,
+                                 rate_hz=250.0, offset=1.0, seed=1)
+
+
+def test_compare_names_angle_dependence(pf_data, tmp_path):
+    comp = compare(pf_data, segment_s=4.0)
+    assert set(comp.metrics) == {"theta_u", "theta_l", "alpha"}
+    assert comp.metrics["theta_l"]["rms"] > 0.01
+    assert any("angle" in f for f in comp.findings), comp.findings
+    m = np.array([d["mean"] for d in comp.by_angle])
+    assert m.max() - m.min() > 0.02  # N m: friction varies over a revolution
+    paths = write_compare(comp, tmp_path)
+    assert all(p.exists() for p in paths)
+    assert json.loads((tmp_path / "compare.json").read_text())["findings"] == comp.findings
+
+
+def test_compare_exact_model_free_run():
+    ts = synthetic_measurement("upper", duration=10.0, rate_hz=250.0, offset=0.5, seed=2)
+    comp = compare(ts)
+    assert comp.metrics["theta_u"]["r2"] > 0.99999
+    assert comp.segment_s is None
+
+
+def test_sparse_term_for_position_friction_and_string_damping(pf_data):
+    term = sparse_residual_model(residual_torques(prepare_experiment(pf_data), RigParams()))
+    assert {"sign(ωl) cos θl", "sign(ωl) sin θl"} & set(term.terms), term.expression()
+    ts = synthetic_measurement("torsional", RigParams().replace(dtheta=0.01), duration=20.0, rate_hz=250.0,
+                               offset=1.0, seed=1)
+    term = sparse_residual_model(residual_torques(prepare_experiment(ts), RigParams()))
+    assert term.terms.get("α̇", 0.0) == pytest.approx(-0.01, rel=0.3), term.expression()
+    assert "α̇" in term.expression()
+
+
+def test_prepare_experiment_rates_and_errors(tmp_path):
+    ts = synthetic_measurement("torsional", duration=5.0, rate_hz=500.0, offset=2.0, seed=3)
+    ex = prepare_experiment(ts, compare_rate_hz=100.0)
+    assert ex.fs == 100.0 and ex.n == 501
+    w = ex.rates["omega_l"]
+    assert np.abs(w).max() > 1.0 and np.mean(w == 0.0) > 0.05  # slips, and stuck samples are exactly 0
+    ts.meta.pop("configuration")
+    with pytest.raises(ValueError, match="no configuration"):
+        prepare_experiment(ts)
+    del ts.columns["theta_l"]
+    with pytest.raises(DataFormatError, match="theta_l"):
+        prepare_experiment(ts, "torsional")
+
+
+def test_cli_diagnose_identify_signal(tmp_path):
+    ts = synthetic_measurement("torsional", RigParams().replace(dtheta=0.01), duration=12.0, rate_hz=250.0,
+                               offset=1.0, seed=1)
+    data = write_timeseries(tmp_path / "run.csv", ts)
+    runner = CliRunner()
+    r = runner.invoke(app, ["diagnose", str(data), "--json"])
+    assert r.exit_code == 0, r.output
+    js = json.loads(r.output)
+    assert js["ranking"][0]["effect"] == "string_damping"
+    out = tmp_path / "p.json"
+    r = runner.invoke(app, ["identify", str(data), "--config", "torsional", "--add-effect", "string_damping",
+                            "--json", "--out", str(out), "--report", str(tmp_path / "rep")])
+    assert r.exit_code == 0, r.output
+    js = json.loads(r.output)
+    assert js["r2_after"]["alpha"] > js["r2_before"]["alpha"]
+    assert RigParams.from_file(out).dtheta == pytest.approx(0.01, rel=0.05)
+    assert "The error falling" in (tmp_path / "rep" / "report.md").read_text()
+    r = runner.invoke(app, ["compare", str(data), "--segment", "4", "--out", str(tmp_path / "cmp")])
+    assert r.exit_code == 0 and (tmp_path / "cmp" / "report.txt").exists()
+    r = runner.invoke(app, ["signal", str(tmp_path / "s.csv"), "--kind", "sum_of_sines", "--duration", "5"])
+    assert r.exit_code == 0 and (tmp_path / "s.csv").read_text().count("\n") == 5003  # meta, header, 5001 rows
+    r = runner.invoke(app, ["diagnose", str(tmp_path / "missing.csv")])
+    assert isinstance(r.exception, DataFormatError)
+    r = runner.invoke(app, ["identify", str(data), "--add-effect", "bogus", "--out", str(out)])
+    assert isinstance(r.exception, ValueError) and "bogus" in str(r.exception)
