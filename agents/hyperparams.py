@@ -25,7 +25,7 @@ from typing import Any
 
 import yaml
 
-__all__ = ["HYPERPARAMS_DIR", "load_hyperparams", "DRILLGYM_KEYS"]
+__all__ = ["HYPERPARAMS_DIR", "load_hyperparams", "parse_overrides", "apply_overrides", "DRILLGYM_KEYS"]
 
 HYPERPARAMS_DIR = Path(__file__).resolve().parent / "hyperparams"
 #: keys of an entry that are not keywords of the SB3 algorithm
@@ -61,3 +61,40 @@ def load_hyperparams(algo: str, env_id: str, path: "str | Path | None" = None) -
     hp.setdefault("env_kwargs", {})
     hp.setdefault("policy", "MlpPolicy")
     return hp
+
+
+def parse_overrides(items: list[str]) -> dict[str, Any]:
+    """``["learning_rate=1e-3", "env_kwargs.motor_history=48"]`` -> a nested dict (values parsed as YAML)."""
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise ValueError(f"hyperparameter override must be KEY=VALUE, got {item!r}")
+        try:
+            v = yaml.safe_load(value)
+        except yaml.YAMLError as exc:
+            raise ValueError(f"hyperparameter override {item!r}: value is not valid YAML ({exc})") from exc
+        if isinstance(v, str):  # YAML 1.1 reads '1e-3' as a string
+            try:
+                v = float(v)
+            except ValueError:
+                pass
+        *parents, leaf = key.split(".")
+        d = out
+        for p in parents:
+            d = d.setdefault(p, {})
+            if not isinstance(d, dict):
+                raise ValueError(f"hyperparameter override {item!r} conflicts with another one")
+        d[leaf] = v
+    return out
+
+
+def apply_overrides(hp: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
+    """``hp`` with ``overrides`` merged in (nested dicts such as env_kwargs are merged key by key)."""
+    out = dict(hp)
+    for k, v in overrides.items():
+        out[k] = apply_overrides(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    if "policy_kwargs" in overrides:
+        out["policy_kwargs"] = _parse_policy_kwargs(out["policy_kwargs"])
+    return out

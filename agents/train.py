@@ -26,7 +26,7 @@ from stable_baselines3.common.noise import NormalActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
 from .envs import make_training_env
-from .hyperparams import DRILLGYM_KEYS, load_hyperparams
+from .hyperparams import DRILLGYM_KEYS, apply_overrides, load_hyperparams
 
 __all__ = ["ALGOS", "algo_class", "train", "TrainResult", "LatestCheckpoint", "CONFIG_FILE", "MODEL_FILE"]
 
@@ -85,8 +85,7 @@ class TrainResult:
 
 def _settings(env_id: str, algo: str, obs: str | None, timesteps: int | None, n_envs: int | None,
               hyperparams: str | Path | None, overrides: dict[str, Any] | None) -> dict[str, Any]:
-    hp = load_hyperparams(algo, env_id, hyperparams)
-    hp.update(overrides or {})
+    hp = apply_overrides(load_hyperparams(algo, env_id, hyperparams), overrides or {})
     env_kwargs = dict(hp["env_kwargs"])
     if obs is not None:
         env_kwargs["observation"] = obs

@@ -21,11 +21,14 @@ rests, the known input is the torque that keeps it at rest (stick).
 Measurement: the quantized motor-side angle theta_u only; its noise variance
 is q^2/12 (q = 2 pi / counts per rev) plus any extra white noise.
 
-Two estimators share the model: :class:`KalmanObserver` (filterpy
+Three estimators share the model: :class:`KalmanObserver` (filterpy
 ``KalmanFilter``, time-varying covariance, batched: the covariance does not
 depend on the data, so one filter carries the states of n trajectories as the
-columns of ``x``) and :func:`steady_state_gain` (python-control ``dlqe``) for
-the LQG design.
+columns of ``x``), :class:`ExtendedKalmanObserver` (one filterpy filter per
+trajectory whose covariance is propagated with the brake's local slope at the
+estimate: the filter knows where the lower disc is locally unstable and trusts
+the measurement more there) and :func:`steady_state_gain` (python-control
+``dlqe``) for the LQG design.
 """
 
 from __future__ import annotations
@@ -41,7 +44,8 @@ from drillgym.equilibria import linearise, lower_damping, slip_equilibrium
 from drillgym.friction import lower_friction
 from drillgym.measurement import DEFAULT_COUNTS_PER_REV
 
-__all__ = ["STATES", "DisturbanceModel", "disturbance_model", "KalmanObserver", "steady_state_gain"]
+__all__ = ["STATES", "DisturbanceModel", "disturbance_model", "KalmanObserver", "ExtendedKalmanObserver",
+           "steady_state_gain"]
 
 STATES = ("theta_u", "omega_u", "alpha", "omega_l", "d")
 """State order of the estimator: rad, rad/s, rad, rad/s, N m."""
@@ -234,6 +238,74 @@ class KalmanObserver:
     def friction(self) -> np.ndarray:
         """Estimated lower friction torque (N m, (n,)): nominal law at the estimate + disturbance state."""
         return self.model.nominal_lower_friction(self.kf.x) + self.kf.x[I_D]
+
+
+class ExtendedKalmanObserver:
+    """Extended Kalman filter (filterpy, one ``KalmanFilter`` per trajectory) on the same model.
+
+    The mean is propagated like :class:`KalmanObserver`'s (nonlinear known inputs: upper Coulomb
+    friction, nominal brake law with stick); the covariance with the Jacobian, i.e. ``Ad`` plus
+    the brake's slope dTfl/domega at the estimated lower speed (first order in ``dt``).  Default
+    initial uncertainty: a rig at rest, winding known to 0.1 rad.
+    """
+
+    def __init__(self, model: DisturbanceModel, *, p0_alpha: float = 0.1, p0_speed: float = 0.05,
+                 p0_d: float = 0.01, slope_step: float = 1e-3) -> None:
+        if model.friction_known is False:
+            raise ValueError("the extended filter needs the nominal brake law (friction_known=True)")
+        self.model = model
+        self.h = float(slope_step)
+        self._P0 = np.diag([model.R[0, 0], p0_speed ** 2, p0_alpha ** 2, p0_speed ** 2, p0_d ** 2])
+        self.filters: list[KalmanFilter] = []
+
+    def reset(self, theta_u: np.ndarray, alpha0: "float | np.ndarray" = 0.0) -> None:
+        """Start at rest at the measured angles theta_u (n,), winding guess alpha0 (rad)."""
+        th = np.atleast_1d(np.asarray(theta_u, dtype=float))
+        a0 = np.broadcast_to(np.asarray(alpha0, dtype=float), th.shape)
+        self.filters = []
+        for k in range(th.size):
+            kf = KalmanFilter(dim_x=5, dim_z=1, dim_u=3)
+            kf.F, kf.B, kf.H = self.model.Ad.copy(), self.model.Bd.copy(), self.model.H.copy()
+            kf.Q, kf.R, kf.P = self.model.Qd.copy(), self.model.R.copy(), self._P0.copy()
+            kf.x = np.zeros((5, 1))
+            kf.x[I_TU, 0], kf.x[I_AL, 0] = th[k], a0[k]
+            self.filters.append(kf)
+
+    @property
+    def x(self) -> np.ndarray:
+        """Current estimates (5, n), rows in :data:`STATES` order."""
+        return np.hstack([kf.x for kf in self.filters])
+
+    def update(self, theta_u: np.ndarray) -> np.ndarray:
+        """Correct with the measured motor angle (n,) (rad); returns the estimates (5, n)."""
+        for kf, z in zip(self.filters, np.atleast_1d(np.asarray(theta_u, dtype=float))):
+            kf.update(np.array([[z]]))
+        return self.x
+
+    def jacobians(self, x: np.ndarray) -> np.ndarray:
+        """Discrete Jacobians (n, 5, 5): ``Ad`` with the brake slope at the estimated omega_l."""
+        m, p, h = self.model, self.model.params, self.h
+        wl = x[I_WL]
+        w = np.maximum(np.abs(wl), 2 * h)
+        slope = (lower_friction(w + h, p) - lower_friction(w - h, p)) / (2 * h)
+        slope = np.where(np.abs(wl) > 1e-3, slope, 0.0)  # a disc at rest has no slope
+        F = np.broadcast_to(m.Ad, (x.shape[1], 5, 5)).copy()
+        F[:, I_WL, I_WL] -= m.dt * slope / p.Jl
+        F[:, I_AL, I_WL] -= 0.5 * m.dt ** 2 * slope / p.Jl
+        return F
+
+    def predict(self, u: np.ndarray) -> None:
+        """Propagate over one period with the voltage u (n,) held (V)."""
+        x = self.x
+        uk = self.model.known_inputs(x, np.broadcast_to(np.asarray(u, dtype=float), (x.shape[1],)))
+        for k, (kf, F) in enumerate(zip(self.filters, self.jacobians(x))):
+            kf.predict(u=uk[:, k:k + 1], F=F)
+            kf.x = self.model.Ad @ x[:, k:k + 1] + self.model.Bd @ uk[:, k:k + 1]
+
+    def friction(self) -> np.ndarray:
+        """Estimated lower friction torque (N m, (n,)): nominal law at the estimate + disturbance state."""
+        x = self.x
+        return self.model.nominal_lower_friction(x) + x[I_D]
 
 
 def steady_state_gain(model: DisturbanceModel) -> tuple[np.ndarray, np.ndarray]:

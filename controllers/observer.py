@@ -1,27 +1,23 @@
-"""Observer-based active damping: Kalman filter on the motor angle + LQR on the estimates, and an LQG design.
+"""Observer-based active damping: Kalman filter on the motor angle + feedback on the estimates, and an LQG design.
 
-Both controllers read only the motor-side encoder (``theta_u``).  The estimator
-(:mod:`controllers.kalman`) returns the motor speed, the string winding alpha,
-the lower speed omega_l and the lower friction torque d.  The control law is a
-state feedback about the operating point that the friction estimate defines::
+Both controllers read only the motor-side encoder (``theta_u``).  The estimators
+(:mod:`controllers.kalman`) return the motor speed, the string winding alpha,
+the lower speed omega_l and the lower friction torque offset d.
 
-    alpha* = -d^ / k_theta                         (winding that carries the friction)
-    u*     = (Tcu+ + du omega_ref + d^) / km       (voltage of that equilibrium)
-    u      = u* - K [alpha^ - alpha*, omega_u^ - omega_ref, omega_l^ - omega_ref]
+* :class:`ObserverController` (``observer``): extended Kalman filter (filterpy, the brake's
+  local slope in the covariance propagation) + the feedback-linearising law of
+  :mod:`controllers.flatness` (LQR on the lower speed's error chain, smooth reference from
+  rest).  The law cancels the brake's negative slope with the friction law and the estimates.
+* :class:`LQGController` (``lqg``): the linear design.  Stationary Kalman gain from
+  ``control.dlqe``; state feedback about the operating point the friction estimate defines::
 
-The friction estimate is the feedforward (offset-free tracking without an
-integrator); the gain K comes from python-control ``dlqr`` on the discretised
-linearisation of the torsional model at omega_ref
-(:func:`drillgym.equilibria.linearise`), in which the brake's slope is set to
-the steepest negative slope of the Stribeck law (the damping the loop must
-supply whatever the speed the disc passes through).  The feedback makes the
-upper disc give way to and push against the string in phase with the lower
-speed error: an active, non-passive impedance that damps the torsional mode
-(sqrt(k_theta/Jl) = 1.37 rad/s) far beyond what a passive top impedance can.
+      alpha* = -d^ / k_theta                         (winding that carries the friction)
+      u*     = (Tcu+ + du omega_ref + d^) / km       (voltage of that equilibrium)
+      u      = u* - K [alpha^ - alpha*, omega_u^ - omega_ref, omega_l^ - omega_ref]
 
-* :class:`ObserverController` (``observer``): time-varying Kalman filter (filterpy).
-* :class:`LQGController` (``lqg``): stationary Kalman gain from ``control.dlqe`` and the
-  same ``control.dlqr`` gain: a fixed linear controller (separation principle).
+  K from python-control ``dlqr`` on the discretised linearisation at omega_ref
+  (:func:`drillgym.equilibria.linearise`) with the brake's slope set to the steepest negative
+  slope of the Stribeck law.
 """
 
 from __future__ import annotations
@@ -36,7 +32,8 @@ from drillgym import Configuration, RigParams
 from drillgym.equilibria import linearise, lower_damping, slip_equilibrium
 
 from .base import Controller
-from .kalman import I_AL, I_D, I_TU, I_WL, I_WU, KalmanObserver, disturbance_model, steady_state_gain
+from .flatness import FlatnessLaw
+from .kalman import I_AL, I_D, I_TU, I_WL, I_WU, ExtendedKalmanObserver, disturbance_model, steady_state_gain
 
 __all__ = ["ObserverController", "LQGController", "lqr_gain", "steepest_brake_slope"]
 
@@ -79,9 +76,44 @@ def lqr_gain(omega_ref: float, params: RigParams | None = None, dt: float = 0.01
 
 
 class ObserverController(Controller):
-    """Kalman filter on the motor angle (filterpy) + LQR on the estimated winding, speeds and friction."""
+    """Extended Kalman filter on the motor angle (filterpy) + feedback-linearising LQR law on the estimates."""
 
     name = "observer"
+    uses = ("theta_u",)
+
+    def __init__(self, omega_ref=None, *, counts_per_rev: int = 8000, angle_noise: float = 0.0,
+                 sigma_d: float = 0.005, sigma_upper: float = 0.01, sigma_lower: float = 0.005,
+                 noise_floor: float = 5e-4, bandwidth: float = 2.5, tau_ref: float = 1.0, **kw) -> None:
+        super().__init__(omega_ref, **kw)
+        # noise_floor (rad): angle noise the filter assumes on top of quantization; it slows the
+        # filter just enough that the law's (third-derivative) gains do not amplify the encoder steps
+        self.model = disturbance_model(self.params, self.dt, counts_per_rev=counts_per_rev,
+                                       angle_noise=float(np.hypot(angle_noise, noise_floor)), sigma_d=sigma_d,
+                                       sigma_upper=sigma_upper, sigma_lower=sigma_lower)
+        self.bandwidth, self.tau_ref = float(bandwidth), float(tau_ref)
+
+    def _reset(self, m: dict[str, np.ndarray]) -> None:
+        self.observer = ExtendedKalmanObserver(self.model)
+        self.observer.reset(np.broadcast_to(m.get("theta_u", 0.0), (self.n,)))
+        self.law = FlatnessLaw(self.params, self.dt, bandwidth=self.bandwidth, tau_ref=self.tau_ref)
+        self.law.reset(self.omega_ref)
+
+    @property
+    def estimate(self) -> np.ndarray:
+        """Current estimates (5, n): theta_u, omega_u, alpha, omega_l (rad, rad/s) and friction d (N m)."""
+        return self.observer.x
+
+    def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
+        x = self.observer.update(m["theta_u"])
+        u = np.clip(self.law(x[I_WU], x[I_AL], x[I_WL], x[I_D]), -self.u_max, self.u_max)
+        self.observer.predict(u)
+        return u
+
+
+class LQGController(Controller):
+    """LQG: stationary Kalman gain (control.dlqe) + LQR gain (control.dlqr), estimates from the motor angle."""
+
+    name = "lqg"
     uses = ("theta_u",)
 
     def __init__(self, omega_ref=None, *, counts_per_rev: int = 8000, angle_noise: float = 0.0,
@@ -97,58 +129,26 @@ class ObserverController(Controller):
         self.slope = steepest_brake_slope(self.params)
         self.K = np.zeros((1, 3))
 
-    # estimator hooks (the LQG controller swaps the filter)
-    def _estimator_reset(self, theta_u: np.ndarray) -> None:
-        self.observer = KalmanObserver(self.model)
-        self.observer.reset(theta_u)
-
-    def _estimate(self, theta_u: np.ndarray) -> np.ndarray:
-        return self.observer.update(theta_u)
-
-    def _propagate(self, u: np.ndarray) -> None:
-        self.observer.predict(u)
-
-    @property
-    def estimate(self) -> np.ndarray:
-        """Current estimates (5, n): theta_u, omega_u, alpha, omega_l (rad, rad/s) and friction d (N m)."""
-        return self.observer.x
-
     def _reset(self, m: dict[str, np.ndarray]) -> None:
         refs = np.unique(self.omega_ref)
         gains = {w: lqr_gain(w, self.params, self.dt, weights=self.weights, r=self.r, slope=self.slope) for w in refs}
         self.K = np.stack([gains[w] for w in self.omega_ref])  # (n, 3)
-        self._estimator_reset(np.broadcast_to(m.get("theta_u", 0.0), (self.n,)))
+        self.Kf, _ = steady_state_gain(self.model)
+        self._x = np.zeros((5, self.n))
+        self._x[I_TU] = np.broadcast_to(m.get("theta_u", 0.0), (self.n,))
+
+    @property
+    def estimate(self) -> np.ndarray:
+        """Current estimates (5, n): theta_u, omega_u, alpha, omega_l (rad, rad/s) and friction d (N m)."""
+        return self._x
 
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
         p, mdl = self.params, self.model
-        x = self._estimate(m["theta_u"])
+        x = self._x = self._x + self.Kf @ (np.atleast_2d(m["theta_u"]) - mdl.H @ self._x)
         d_hat = mdl.nominal_lower_friction(x) + x[I_D]  # estimated lower friction torque (N m)
         alpha_star = -d_hat / p.ktheta
         u_star = (mdl.upper_coulomb + mdl.upper_damping * self.omega_ref + d_hat) / p.km
         err = np.stack([x[I_AL] - alpha_star, x[I_WU] - self.omega_ref, x[I_WL] - self.omega_ref])
         u = np.clip(u_star - np.einsum("nk,kn->n", self.K, err), -self.u_max, self.u_max)
-        self._propagate(u)
+        self._x = mdl.Ad @ x + mdl.Bd @ mdl.known_inputs(x, u)
         return u
-
-
-class LQGController(ObserverController):
-    """LQG: stationary Kalman gain (control.dlqe) + LQR gain (control.dlqr), estimates from the motor angle."""
-
-    name = "lqg"
-
-    def _estimator_reset(self, theta_u: np.ndarray) -> None:
-        self.Kf, _ = steady_state_gain(self.model)
-        x = np.zeros((5, self.n))
-        x[I_TU] = theta_u
-        self._x = x
-
-    def _estimate(self, theta_u: np.ndarray) -> np.ndarray:
-        self._x = self._x + self.Kf @ (np.atleast_2d(theta_u) - self.model.H @ self._x)
-        return self._x
-
-    def _propagate(self, u: np.ndarray) -> None:
-        self._x = self.model.Ad @ self._x + self.model.Bd @ self.model.known_inputs(self._x, u)
-
-    @property
-    def estimate(self) -> np.ndarray:
-        return self._x

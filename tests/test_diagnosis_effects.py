@@ -52,8 +52,11 @@ def test_no_hidden_effect_nothing_significant():
 
 
 def test_json_shape_and_skips():
-    d = diagnose(_measure("torsional", 2.0), effects=["string_damping", "lvdt_offset"])
+    d = diagnose(_measure("torsional", 2.0), RigParams().scaled(Ts=1.05), effects=["string_damping", "lvdt_offset"],
+                 refit_base=True)
     js = d.to_json()
+    assert set(js["base_refit"]) == {"Ts", "Tc", "ws", "delta", "bb"}
+    assert js["base_refit"]["Ts"] == pytest.approx(RigParams().Ts, rel=0.01)  # light refit undoes the error
     assert [r["effect"] for r in js["ranking"]] == ["string_damping"]
     assert set(js["ranking"][0]) >= {"effect", "score", "rmse_before", "rmse_after"}
     assert "configuration" in js["skipped"]["lvdt_offset"]

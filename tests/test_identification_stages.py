@@ -8,7 +8,6 @@ estimation (quasi-random) and validation (sum of sines) signals.
 
 import warnings
 
-import numpy as np
 import pytest
 
 from drillgym import RigParams

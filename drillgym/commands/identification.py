@@ -9,6 +9,24 @@ from typing import List, Optional
 import typer
 
 
+def _json(obj) -> str:
+    """JSON text with non-finite numbers (e.g. R² of a constant channel) as null."""
+    import math
+
+    def clean(o):
+        if isinstance(o, dict):
+            return {k: clean(v) for k, v in o.items()}
+        if isinstance(o, (list, tuple)):
+            return [clean(v) for v in o]
+        if isinstance(o, float) and not math.isfinite(o):
+            return None
+        if hasattr(o, "item") and not isinstance(o, (str, bytes)):
+            return clean(o.item())
+        return o
+
+    return json.dumps(clean(obj), indent=2)
+
+
 def _params(path: Optional[Path]):
     from ..params import RigParams
 
@@ -96,6 +114,7 @@ def register(app: typer.Typer) -> None:
         segment: str = typer.Option("auto", "--segment", help="multiple-shooting segment (s), 'auto' or 'none'"),
         rate: float = typer.Option(50.0, help="comparison grid rate (Hz)"),
         sparse: bool = typer.Option(True, "--sparse/--no-sparse", help="also propose a data-driven term"),
+        refit_base: bool = typer.Option(False, "--refit-base", help="lightly refit the base parameters first"),
     ) -> None:
         """Rank the effect library by how much of the model's residual each effect explains."""
         from ..diagnosis.ranking import diagnose
@@ -103,7 +122,7 @@ def register(app: typer.Typer) -> None:
 
         base = _params(params)
         ex = _experiment(data, config, rate)
-        d = diagnose(ex, base, segment_s=_segment(segment))
+        d = diagnose(ex, base, segment_s=_segment(segment), refit_base=refit_base)
         term = None
         if sparse and ex.config is not ex.config.UPPER:
             term = sparse_residual_model(residual_torques(ex, base))
@@ -111,7 +130,7 @@ def register(app: typer.Typer) -> None:
             out = d.to_json()
             if term is not None:
                 out["candidate_term"] = {"expression": term.expression(), "terms": term.terms, "r2": term.r2}
-            typer.echo(json.dumps(out, indent=2))
+            typer.echo(_json(out))
         else:
             typer.echo(d.text())
             if term is not None:
@@ -151,9 +170,8 @@ def register(app: typer.Typer) -> None:
             d = diagnose(ex, base, segment_s=seg)
             write_report(report, ex, base, d, res, seg)
         if as_json:
-            typer.echo(json.dumps({"r2_before": res.r2_before, "r2_after": res.r2_after,
-                                   "params": res.params.to_dict(), "fitted": res.values,
-                                   "warnings": res.warnings}, indent=2))
+            typer.echo(_json({"r2_before": res.r2_before, "r2_after": res.r2_after,
+                              "params": res.params.to_dict(), "fitted": res.values, "warnings": res.warnings}))
         else:
             typer.echo(f"effects added: {', '.join(res.effects) or 'none (base parameters refitted)'}")
             for k, v in res.values.items():
@@ -199,7 +217,7 @@ def register(app: typer.Typer) -> None:
         res = identify_staged(data, _params(params), validation=val)
         res.params.to_file(out)
         if as_json:
-            typer.echo(json.dumps(res.to_json(), indent=2))
+            typer.echo(_json(res.to_json()))
         else:
             for s in res.stages:
                 typer.echo(f"stage {s.name}: " + ", ".join(f"{k}={v:.5g}±{s.fit.std[k]:.2g}"

@@ -25,12 +25,15 @@ def register(app: typer.Typer) -> None:
         seed: int = typer.Option(0, "--seed", help="seed of networks, exploration and envs"),
         n_envs: Optional[int] = typer.Option(None, "--n-envs", help="rigs in the batched vector env"),
         hyperparams: Optional[Path] = typer.Option(None, "--hyperparams", help="YAML file (rl-zoo3 layout) instead of agents/hyperparams/<algo>.yml"),
+        set_: Optional[list[str]] = typer.Option(None, "--set", help="override a hyperparameter, KEY=VALUE (YAML value; "
+                                                 "env options as env_kwargs.NAME=VALUE), repeatable"),
         resume: bool = typer.Option(False, "--resume", help="continue from OUT/checkpoints/latest.zip"),
         checkpoint_every: int = typer.Option(50_000, "--checkpoint-every", help="environment steps between checkpoints"),
         progress: bool = typer.Option(True, "--progress/--no-progress", help="progress bar"),
         tensorboard: bool = typer.Option(True, "--tensorboard/--no-tensorboard", help="TensorBoard logs in OUT/tb"),
     ) -> None:
         """Train an agent; writes OUT/model.zip, OUT/policy.npz (for agent:PATH in `drillgym evaluate`), OUT/config.yml."""
+        from agents.hyperparams import parse_overrides
         from agents.train import train
 
         if n_envs is not None and n_envs < 1:
@@ -39,7 +42,7 @@ def register(app: typer.Typer) -> None:
             raise ValueError(f"--checkpoint-every must be >= 1, got {checkpoint_every}")
         command = "drillgym " + " ".join(shlex.quote(a) for a in sys.argv[1:])
         res = train(env, algo, out, obs=obs, timesteps=timesteps, seed=seed, n_envs=n_envs, hyperparams=hyperparams,
-                    resume=resume, progress=progress, tensorboard=tensorboard, checkpoint_every=checkpoint_every,
+                    overrides=parse_overrides(set_ or []), resume=resume, progress=progress, tensorboard=tensorboard, checkpoint_every=checkpoint_every,
                     command=command)
         typer.echo(f"trained {res.timesteps} steps in {res.wall_time:.1f} s; wrote {res.model_path}"
                    + (f", {res.policy_path}" if res.policy_path else ""))

@@ -25,14 +25,15 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Sequence
 
 import numpy as np
 
 from ..configurations import Configuration
 from ..identification.experiment import Experiment, prepare_experiment
-from ..identification.fitting import FitResult, Objective, fit_parameters
+from ..identification.fitting import FitResult, FitVariable, Objective, fit_parameters
+from ..identification.staged import STAGES
 from ..identification.segmented import SegmentedModel
 from ..io import TimeSeries
 from ..params import RigParams
@@ -43,6 +44,10 @@ __all__ = ["EffectScore", "Diagnosis", "diagnose", "default_weights", "default_s
 SIGNIFICANCE = 15.0  # score (nats) above which an effect counts as found
 MIN_REDUCTION = 0.25  # fraction of the residual RMS an effect must remove to count
 MIN_EXPLAINED = 1.0  # residual variance (noise units²) an effect must explain: above the noise floor
+
+
+BASE_STAGE = {Configuration.UPPER: "upper", Configuration.TORSIONAL: "brake", Configuration.COUPLED: "brake",
+              Configuration.LATERAL: "lateral", Configuration.FREE_VIBRATION: "free_vibration"}
 
 
 def default_weights(config: Configuration) -> dict[str, float]:
@@ -96,6 +101,7 @@ class Diagnosis:
     n_eff: float
     segment_s: float | None
     skipped: dict[str, str] = field(default_factory=dict)
+    base_refit: dict[str, float] = field(default_factory=dict)
 
     @property
     def best(self) -> EffectScore | None:
@@ -107,13 +113,17 @@ class Diagnosis:
     def to_json(self) -> dict:
         return {"ranking": [s.to_json() for s in self.ranking], "configuration": self.config.label,
                 "rmse_before": self.rmse_before, "channel_rms_before": self.channel_rms_before,
-                "n_eff": self.n_eff, "segment_s": self.segment_s, "skipped": self.skipped}
+                "n_eff": self.n_eff, "segment_s": self.segment_s, "skipped": self.skipped,
+                "base_refit": self.base_refit}
 
     def text(self) -> str:
         lines = [f"diagnosis ({self.config.label}; multiple shooting, segments of "
                  f"{self.segment_s if self.segment_s else 'whole record'} s; base residual RMS "
                  f"{self.rmse_before:.3g} noise units; " +
                  ", ".join(f"{c} {v:.3g}" for c, v in self.channel_rms_before.items()) + ")"]
+        if self.base_refit:
+            lines.append("base parameters lightly refitted first: " +
+                         ", ".join(f"{k}={v:.5g}" for k, v in self.base_refit.items()))
         lines.append(f"{'rank':<5}{'effect':<20}{'score':>10}{'rms after':>11}{'cut':>7}  fitted values")
         for i, s in enumerate(self.ranking, 1):
             vals = ", ".join(f"{k}={v:.4g}±{s.std.get(k, float('nan')):.2g}" for k, v in s.values.items())
@@ -149,10 +159,20 @@ def _excited(effect: Effect, exps: Sequence[Experiment]) -> str:
     return ""
 
 
+def _fit_effect(obj: Objective, base: RigParams, eff: Effect, variables, max_nfev: int) -> FitResult:
+    """Fit one effect's variables (base held); the result carries its per-channel RMS."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = fit_parameters(obj, base, variables, apply=eff.apply, max_nfev=max_nfev)
+    res.channel_rms = obj.channel_rms(res.vector)
+    return res
+
+
 def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: RigParams | None = None,
              config: "str | Configuration | None" = None, *, effects: Sequence[str] | None = None,
              segment_s: float | None = -1.0, compare_rate_hz: float = 50.0, max_nfev: int = 12,
-             lvdt_lowpass_hz: float | None = 5.0, refine_speeds: bool = True) -> Diagnosis:
+             lvdt_lowpass_hz: float | None = 5.0, refine_speeds: bool = True,
+             n_second_pass: int = 3, refit_base: bool = False) -> Diagnosis:
     """Rank the library's effects on one or more recordings (see the module docstring).
 
     Args:
@@ -165,7 +185,11 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         max_nfev: least-squares evaluations per effect.
         refine_speeds: first correct the data's speed estimates at the segment starts for the base
             model (:meth:`SegmentedModel.refine_initial_speeds`), so that derivative noise is not
-            mistaken for a missing effect.
+            mistaken for a missing effect; the ``n_second_pass`` best effects are then refitted
+            with the speeds refined for the extended model (each model gets its own nuisance states).
+        refit_base: first lightly refit the configuration's base parameters (within -30 %/+40 %:
+            upper stage for 'upper', brake law for 'torsional'/'coupled', lateral stage for
+            'lateral'), so that a slightly wrong base set is not taken for a missing effect.
     """
     base = params or RigParams()
     if isinstance(data, TimeSeries):
@@ -179,6 +203,18 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         segment_s = default_segment(cfg)
     model = SegmentedModel(exps, segment_s)
     obj = Objective(model, default_weights(cfg))
+    refitted: dict[str, float] = {}
+    if refit_base:
+        if refine_speeds:
+            model.refine_initial_speeds(base.to_vector(), obj.weights, obj.scales)
+        names_b = STAGES[BASE_STAGE[cfg]].parameters
+        var_b = [FitVariable.relative(base, n, 0.7, 1.4) if getattr(base, n) != 0 else
+                 FitVariable(n, 0.0, -0.5, 0.5, 0.01) for n in names_b]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            rb = fit_parameters(obj, base, var_b, max_nfev=max_nfev)
+        base, refitted = rb.params, dict(rb.values)
+        model.speed_offsets = [np.zeros_like(o) for o in model.speed_offsets]
     if refine_speeds:
         model.refine_initial_speeds(base.to_vector(), obj.weights, obj.scales)
     r0 = obj.residual_matrix(base.to_vector()[None, :])[0]
@@ -190,6 +226,8 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
     names = list(effects) if effects else [e.name for e in effects_for(cfg)]
     scores: list[EffectScore] = []
     skipped: dict[str, str] = {}
+    base_offsets = [o.copy() for o in model.speed_offsets]
+    fits: dict[str, FitResult] = {}
     for name in names:
         eff = EFFECTS.get(name)
         if eff is None:
@@ -201,13 +239,25 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         if why:
             skipped[name] = why
             continue
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
+        try:
+            fits[name] = _fit_effect(obj, base, eff, eff.variables(base), max_nfev)
+        except ValueError as exc:  # e.g. a fitted value leaves the physical range
+            skipped[name] = f"fit failed: {exc}"
+    if refine_speeds:  # second pass for the leaders: speeds at segment starts refined for the extended model
+        for name in sorted(fits, key=lambda n: fits[n].rss_after)[:n_second_pass]:
+            eff, res = EFFECTS[name], fits[name]
+            model.speed_offsets = [o.copy() for o in base_offsets]
+            model.refine_initial_speeds(res.vector, obj.weights, obj.scales)
+            warm = [replace(v, x0=res.values[v.name]) for v in eff.variables(base)]
             try:
-                res: FitResult = fit_parameters(obj, base, eff.variables(base), apply=eff.apply, max_nfev=max_nfev)
-            except ValueError as exc:  # e.g. a fitted value leaves the physical range
-                skipped[name] = f"fit failed: {exc}"
+                res2 = _fit_effect(obj, base, eff, warm, max(4, max_nfev // 2))
+            except ValueError:
                 continue
+            if res2.rss_after < res.rss_after:
+                fits[name] = res2
+        model.speed_offsets = base_offsets
+    for name, res in fits.items():
+        eff = EFFECTS[name]
         rss1 = max(res.rss_after, 1e-300)
         k = len(res.names)
         score = n_eff * math.log(rss0 / rss1) - k * math.log(n_eff) if rss0 > 0 else 0.0
@@ -215,8 +265,7 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         sig = (score > SIGNIFICANCE and rmse1 < (1 - MIN_REDUCTION) * rmse0
                and rmse0 ** 2 - rmse1 ** 2 > MIN_EXPLAINED)
         readout = eff.readout(base, np.array([res.values[n] for n in res.names]))
-        std = dict(res.std)
-        scores.append(EffectScore(name, score, rmse0, rmse1, readout, std, obj.channel_rms(res.vector),
+        scores.append(EffectScore(name, score, rmse0, rmse1, readout, dict(res.std), res.channel_rms or {},
                                   eff.signature, sig))
     scores.sort(key=lambda s: -s.score)
-    return Diagnosis(scores, cfg, rmse0, ch0, n_eff, segment_s, skipped)
+    return Diagnosis(scores, cfg, rmse0, ch0, n_eff, segment_s, skipped, refitted)

@@ -16,7 +16,6 @@ from typing import Sequence
 
 import numpy as np
 
-from ..configurations import Configuration
 from ..identification.experiment import Experiment, prepare_experiment
 from ..identification.fitting import FitVariable, Objective, fit_parameters
 from ..identification.segmented import SegmentedModel
@@ -25,12 +24,10 @@ from ..io import TimeSeries
 from ..params import RigParams
 from .compare import compare
 from .effects import get_effect
-from .ranking import default_segment, default_weights
+from .ranking import BASE_STAGE, default_segment, default_weights
 
 __all__ = ["RefitResult", "refit", "BASE_STAGE"]
 
-BASE_STAGE = {Configuration.UPPER: "upper", Configuration.TORSIONAL: "brake", Configuration.COUPLED: "brake",
-              Configuration.LATERAL: "lateral", Configuration.FREE_VIBRATION: "free_vibration"}
 
 
 @dataclass

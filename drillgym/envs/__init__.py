@@ -49,3 +49,8 @@ for _id, _cfg in ENV_IDS.items():
     if _id not in gymnasium.registry:
         gymnasium.register(id=_id, entry_point=f"drillgym.envs.base:{_CLASSES[_cfg]}",
                            vector_entry_point=_vector_entry(_cfg), disable_env_checker=False)
+
+# The hardware twin (package ``hw``) shares these spaces; its id is registered here too, by entry-point
+# string only, so that ``import drillgym`` offers it without the physics core importing ``hw``.
+if "drillgym/Hardware-v0" not in gymnasium.registry:
+    gymnasium.register(id="drillgym/Hardware-v0", entry_point="hw.env:HardwareEnv", disable_env_checker=True)

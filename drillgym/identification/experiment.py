@@ -21,7 +21,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import savgol_filter
+from scipy.signal import savgol_coeffs, savgol_filter
 
 from ..configurations import N_STATE, Configuration, parse_configuration
 from ..io import TimeSeries
@@ -31,6 +31,7 @@ __all__ = ["Experiment", "prepare_experiment", "estimate_rate"]
 
 DEFAULT_COMPARE_RATE_HZ = 100.0
 STICK_THRESHOLD = 0.01  # rad/s
+SPEED_WINDOW_S = 0.06  # s: Savitzky–Golay window of the speed estimates
 
 
 def estimate_rate(theta: np.ndarray, fs: float, window_s: float = 0.04, deriv: int = 1) -> np.ndarray:
@@ -54,7 +55,8 @@ class Experiment:
     ``fs`` its rate (Hz); ``meas`` measured channels on the grid (``theta_u``,
     ``theta_l``, ``x``, ``y`` fixed frame, as available); ``rates`` their time
     derivatives (``omega_u``, ``omega_l``, ``Xd``, ``Yd``); ``u_time``, ``u_value``
-    the recorded input; ``lvdt_lowpass_hz`` the offline LVDT filter the data went
+    the recorded input; ``speed_noise`` the standard deviation (rad/s) of each speed estimate
+    from encoder quantization; ``lvdt_lowpass_hz`` the offline LVDT filter the data went
     through (applied to the model's lateral outputs as well; None: none).
     """
 
@@ -68,6 +70,7 @@ class Experiment:
     lvdt_lowpass_hz: float | None = 5.0
     name: str = "experiment"
     meta: dict = field(default_factory=dict)
+    speed_noise: dict = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -145,10 +148,12 @@ def prepare_experiment(ts: TimeSeries, config: "str | Configuration | None" = No
     uni = ts.resample(fs_w)
     rates: dict[str, np.ndarray] = {}
     cols = uni.columns
+    speed_noise: dict[str, float] = {}
     for ang, om in (("theta_u", "omega_u"), ("theta_l", "omega_l")):
         if ang not in cols:
             continue
-        w = cols[om] if om in cols else estimate_rate(cols[ang], fs_w, window_s=0.06)
+        w = cols[om] if om in cols else estimate_rate(cols[ang], fs_w, window_s=SPEED_WINDOW_S)
+        speed_noise[om] = 0.005 if om in cols else _derivative_noise(cols[ang], fs_w)
         w = np.where(np.abs(w) < stick_threshold, 0.0, w)
         rates[om] = w
     if "x" in cols and "y" in cols:
@@ -168,4 +173,15 @@ def prepare_experiment(ts: TimeSeries, config: "str | Configuration | None" = No
         meas.pop("x", None)
         meas.pop("y", None)
     return Experiment(cfg, t_c, fs_c, meas, rates, ts.t.copy(), ts.u.copy(), lvdt_lowpass_hz,
-                      name or str(ts.source), dict(ts.meta))
+                      name or str(ts.source), dict(ts.meta), speed_noise)
+
+
+def _derivative_noise(theta: np.ndarray, fs: float) -> float:
+    """Standard deviation (rad/s) of the Savitzky–Golay speed estimate caused by encoder
+    quantization (one count / √12, the count taken as the smallest nonzero step of the data)."""
+    d = np.abs(np.diff(theta))
+    d = d[d > 1e-12]
+    q = float(d.min()) if d.size else 1e-4
+    win = max(5, int(round(SPEED_WINDOW_S * fs)) | 1)
+    c = savgol_coeffs(win, min(3, win - 1), deriv=1, delta=1.0 / fs)
+    return q / np.sqrt(12.0) * float(np.linalg.norm(c))

@@ -135,6 +135,7 @@ class FitResult:
     nfev: int
     warnings: list[str] = field(default_factory=list)
     residual: np.ndarray | None = None
+    channel_rms: dict[str, float] | None = None
 
     @property
     def rmse_before(self) -> float:

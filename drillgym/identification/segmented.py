@@ -107,7 +107,9 @@ class SegmentedModel:
         Gauss–Newton on the base model's residual, so that noisy derivative estimates of the
         recording do not pass for model error.  Segments are independent, so one batched run
         with all segments' ω_u (resp. ω_l) perturbed gives every segment's sensitivity.
-        A disc stuck at a segment's start (speed exactly 0) is left stuck."""
+        A disc stuck at a segment's start (speed exactly 0) is left stuck, and a correction never
+        exceeds three standard deviations of the estimate's quantization noise
+        (``Experiment.speed_noise``): it removes derivative noise, not model error."""
         for _ in range(iterations):
             P = np.repeat(np.asarray(vec, dtype=float)[None, :], 3, axis=0)
             preds = self.predict(P, tuple(weights), dspeed=np.array([[0, 0], [h, 0], [0, h]], dtype=float))
@@ -128,6 +130,7 @@ class SegmentedModel:
                 w0 = np.stack([ex.rates.get("omega_u", np.zeros(ex.n))[starts],
                                ex.rates.get("omega_l", np.zeros(ex.n))[starts]], axis=1) + self.speed_offsets[k]
                 free = (w0 != 0.0)
+                limit = 3.0 * np.array([ex.speed_noise.get("omega_u", 0.0), ex.speed_noise.get("omega_l", 0.0)])
                 if ex.config is Configuration.FREE_VIBRATION:
                     free[:, 0] = False
                 if ex.config is Configuration.UPPER:
@@ -138,8 +141,8 @@ class SegmentedModel:
                         continue
                     A = J[j][:, cols]
                     step, *_ = np.linalg.lstsq(A, -e0[j], rcond=None)
-                    step = np.clip(step, -0.5, 0.5)
-                    self.speed_offsets[k][j, cols] += step
+                    self.speed_offsets[k][j, cols] = np.clip(self.speed_offsets[k][j, cols] + step,
+                                                             -limit[cols], limit[cols])
 
     # ------------------------------------------------------------------ helpers
     def segments(self, k: int) -> tuple[np.ndarray, int]:
@@ -185,7 +188,8 @@ class SegmentedModel:
                     a = math.exp(-dt / tau)
                     b_, a_ = [0.0, 1.0 - a], [1.0, -a]  # exact zero-order-hold discretisation
                     um = lfilter(b_, a_, ud, zi=lfilter_zi(b_, a_) * ud[0])[0]
-                    drive = np.append(0.5 * (um[:-1] + um[1:]), um[-1])  # mean over each step
+                    # exact mean of u_m over each step (ZOH input): -> the input itself as tau -> 0
+                    drive = ud + (um - ud) * (tau / dt) * (1.0 - a)
                 else:
                     um = drive = ud
                 seg = np.stack([drive[s * rec:s * rec + n_steps] for s in starts])

@@ -16,15 +16,16 @@
    (different initial windings α0), θl and α (weight 13).
 
 Each stage is a :func:`fit_parameters` call (trf, bounds, DP5, batched
-Jacobian).  Brake and bearing stages use multiple shooting (segments re-started
-from the data); R² (report eq. 3.2) is computed on free runs from the data's
+Jacobian).  Bearing, lateral and brake stages use multiple shooting (segments
+re-started from the data; after a first fit the data's speeds at the segment
+starts are refined for the fitted model and the fit repeated); R² (report eq. 3.2) is computed on free runs from the data's
 initial state, on estimation and validation data.
 """
 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Sequence
 
 import numpy as np
@@ -187,8 +188,13 @@ def identify_stage(stage: str, estimation, params: RigParams, validation=None, *
         elif n == "Tc":
             v = FitVariable(n, start.Tc, 0.2 * start.Tc, min(3 * start.Tc, start.Ts), start.Tc)
         variables.append(v)
-    obj = Objective(SegmentedModel(est, st.segment_s), st.weights)
+    model = SegmentedModel(est, st.segment_s)
+    obj = Objective(model, st.weights)
     res = fit_parameters(obj, start, variables, max_nfev=max_nfev)
+    if st.segment_s:  # multiple shooting: refine the data's speeds at segment starts, then refit
+        model.refine_initial_speeds(res.vector, obj.weights, obj.scales)
+        warm = [replace(v, x0=float(np.clip(res.values[v.name], v.lo, v.hi))) for v in variables]
+        res = fit_parameters(obj, res.params, warm, max_nfev=max(5, max_nfev // 2))
     final = res.params.replace(e=params.e) if fixed else res.params
     r2e = r2_free_run(est, final, st.r2_channels, fixed)
     r2v = r2_free_run(val, final, st.r2_channels, fixed)

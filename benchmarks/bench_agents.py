@@ -1,0 +1,83 @@
+"""The kept agent: inference time and its row of the controller table (harness, from rest).
+
+    .venv/bin/python benchmarks/bench_agents.py [--policy agents/policies/torsional_motor_sac/policy.npz]
+                                                [--workers 2] [--skip-table]
+
+Prints (1) the time of one control step: the numpy policy alone and the whole
+``AgentController.act`` (measurement -> observation -> policy -> volts), batch of one,
+beside SB3's ``predict`` on the same model (best of 5 x 2000 calls); (2) the harness table
+(torsional and coupled, targets 0.5-8 rad/s, 60 s from rest, last 20 s) with the baseline
+and the soft-torque controller beside the agent; (3) SSI per target with the brake friction
+20 % below and above the training value (torsional).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+import agents
+from controllers.evaluation import DEFAULT_TARGETS, evaluate
+from controllers.evaluation.report import markdown_table
+
+
+def best_time(fn, calls: int = 2000, repeats: int = 5) -> float:
+    """Best mean time per call (s)."""
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(calls):
+            fn()
+        best = min(best, (time.perf_counter() - t0) / calls)
+    return best
+
+
+def inference(policy_path: Path) -> None:
+    policy = agents.load_policy(policy_path)
+    obs = np.zeros(policy.obs_dim, dtype=np.float32)
+    obs[-1] = 3.0
+    ctrl = agents.load_controller(str(policy_path), config="torsional", omega_ref=3.0)
+    ctrl.reset({"t": 0.0, "theta_u": 0.0})
+    th = iter(np.cumsum(np.full(10_000_000, 0.03)))
+    print(f"numpy policy act():              {1e6 * best_time(lambda: policy.act(obs)):8.1f} us per step")
+    print(f"AgentController.act() (all):     {1e6 * best_time(lambda: ctrl.act({'t': 0.0, 'theta_u': next(th)})):8.1f} us per step")
+    model_zip = policy_path.with_name("model.zip")
+    if model_zip.is_file():
+        from agents.train import algo_class
+
+        model = algo_class(policy.config["algo"]).load(model_zip, device="cpu")
+        print(f"SB3 predict (torch, reference):  {1e6 * best_time(lambda: model.predict(obs, deterministic=True), 500):8.1f} us per step")
+
+
+def table(policy_path: Path, workers: int) -> None:
+    name = f"agent:{policy_path}"
+    t0 = time.perf_counter()
+    rows = evaluate(["baseline", "softtorque", name], ["torsional", "coupled"], ["rest"], DEFAULT_TARGETS,
+                    workers=workers, progress=False)
+    print(markdown_table(rows, "rest").replace(name, "agent (torsional_motor_sac)"))
+    rob = evaluate([name], ["torsional"], ["rest", "friction-20", "friction+20"], DEFAULT_TARGETS, workers=workers,
+                   progress=False)
+    print("torsional, SSI per target (rad/s) of the agent:")
+    print("scenario     " + " ".join(f"{w:5.1f}" for w in DEFAULT_TARGETS))
+    for sc in ("rest", "friction-20", "friction+20"):
+        ssi = [r["ssi"] for r in rob if r["scenario"] == sc]
+        print(f"{sc:12s} " + " ".join(f"{s:5.2f}" if np.isfinite(s) else "  inf" for s in ssi))
+    print(f"({time.perf_counter() - t0:.0f} s wall)")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--policy", type=Path, default=agents.KEPT_POLICY)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--skip-table", action="store_true")
+    a = ap.parse_args()
+    inference(a.policy)
+    if not a.skip_table:
+        table(a.policy, a.workers)
+
+
+if __name__ == "__main__":
+    main()

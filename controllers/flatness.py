@@ -1,0 +1,100 @@
+"""Feedback-linearising tracking law for the lower-disc speed of the torsional model (flatness-based).
+
+The torsional model is a chain from the voltage to the lower speed
+(MODEL.md, absolute coordinates, alpha = theta_l - theta_u)::
+
+    Jl d omega_l/dt = -k_theta alpha - Tfl(omega_l)              -> a = d omega_l/dt
+    d alpha/dt      = omega_l - omega_u                           -> j = d^2 omega_l/dt^2
+    Ju d omega_u/dt = km u - Tfu(omega_u) + k_theta alpha         -> d^3 omega_l/dt^3, linear in u
+
+so omega_l has relative degree 3 and, with the friction law known (plus an estimated offset d),
+the voltage that gives ``d^3 omega_l/dt^3 = v`` is exact (no zero dynamics): the negative slope of
+the brake law, the cause of stick-slip, is cancelled instead of out-damped.  ``v`` is an LQR
+state feedback (python-control ``lqr`` on the triple integrator) on the errors (omega_l - r,
+a - r', j - r'') to a smooth reference r(t): the target passed through three first-order lags of
+time constant ``tau_ref`` (a gentle start from rest: the disc breaks away and is caught at a
+small speed instead of being hit with the full target's voltage).  While the lower disc is
+(estimated) at rest with a string torque inside the stick set, a = j = 0 and the law only winds
+the string (the rest of the chain is not moving).
+"""
+
+from __future__ import annotations
+
+import control
+import numpy as np
+
+from drillgym import RigParams
+from drillgym.friction import lower_friction, upper_friction
+
+__all__ = ["FlatnessLaw", "chain_gain"]
+
+
+def chain_gain(bandwidth: float, r: float = 1.0) -> np.ndarray:
+    """LQR gain (3,) of the triple integrator e''' = v for the errors (e, e', e''), weights chosen so that
+    the closed loop has its poles near ``bandwidth`` (rad/s): Q = diag(b^6, b^4, b^2), R = r."""
+    if not (np.isfinite(bandwidth) and bandwidth > 0):
+        raise ValueError(f"bandwidth must be a positive rate (rad/s), got {bandwidth!r}")
+    A = np.diag([1.0, 1.0], 1)
+    B = np.array([[0.0], [0.0], [1.0]])
+    b = float(bandwidth)
+    K, _, _ = control.lqr(A, B, np.diag([b ** 6, b ** 4, b ** 2]), np.array([[r]]))
+    return np.asarray(K)[0]
+
+
+class FlatnessLaw:
+    """Batched feedback-linearising law: estimates (omega_u, alpha, omega_l, d) -> voltage (V).
+
+    Args:
+        params: the design model.
+        dt: control period (s).
+        bandwidth: closed-loop bandwidth of the speed error (rad/s), see :func:`chain_gain`.
+        tau_ref: time constant of each of the reference's three lags (s).
+        w_rest: lower speed (rad/s) below which the disc counts as at rest when the string torque is
+            inside the stick set.
+        step: finite-difference step (rad/s) of the friction law's first and second derivatives.
+    """
+
+    def __init__(self, params: RigParams, dt: float, *, bandwidth: float = 2.5, tau_ref: float = 1.0,
+                 w_rest: float = 0.1, step: float = 2e-3) -> None:
+        if not (np.isfinite(tau_ref) and tau_ref > 0):
+            raise ValueError(f"tau_ref must be a positive time (s), got {tau_ref!r}")
+        self.p, self.dt, self.tau = params, float(dt), float(tau_ref)
+        self.w_rest, self.h = float(w_rest), float(step)
+        self.K = chain_gain(bandwidth)
+        self.y = np.zeros((3, 1))
+        self.target = np.zeros(1)
+
+    def reset(self, target: np.ndarray) -> None:
+        """Start from rest towards the targets (rad/s), (n,)."""
+        self.target = np.asarray(target, dtype=float)
+        self.y = np.zeros((3, self.target.size))
+
+    def reference(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(r, r', r'', r''') now (rad/s and derivatives), then advance the three lags one period."""
+        t, (y1, y2, r), w = self.tau, self.y, self.target
+        d1, d2, d3 = (w - y1) / t, (y1 - y2) / t, (y2 - r) / t
+        dd2, dd3 = (d1 - d2) / t, (d2 - d3) / t
+        ddd3 = (dd2 - dd3) / t
+        self.y = self.y + self.dt * np.stack([d1, d2, d3])
+        return r.copy(), d3, dd3, ddd3
+
+    def friction(self, w: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Brake torque (N m) with offset d, its slope and curvature at speed w (forward rotation)."""
+        h = self.h
+        w = np.maximum(w, self.w_rest + h)
+        t0, tp, tm = lower_friction(w, self.p), lower_friction(w + h, self.p), lower_friction(w - h, self.p)
+        return t0 + d, (tp - tm) / (2 * h), (tp - 2 * t0 + tm) / h ** 2
+
+    def __call__(self, omega_u: np.ndarray, alpha: np.ndarray, omega_l: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """Voltage (V, (n,), not clipped) for the estimated state."""
+        p, kt = self.p, self.p.ktheta
+        r, r1, r2, r3 = self.reference()
+        T, T1, T2 = self.friction(omega_l, d)
+        rest = (omega_l <= self.w_rest) & (-kt * alpha < T)
+        T1, T2 = np.where(rest, 0.0, T1), np.where(rest, 0.0, T2)
+        a = np.where(rest, 0.0, (-kt * alpha - T) / p.Jl)
+        j = np.where(rest, 0.0, (-kt * (omega_l - omega_u) - T1 * a) / p.Jl)
+        v = r3 - self.K @ np.stack([omega_l - r, a - r1, j - r2])
+        wu_dot = (p.Jl * v + kt * a + T2 * a * a + T1 * j) / kt  # the upper acceleration that gives v
+        tfu = upper_friction(np.where(omega_u == 0, 1e-9, omega_u), p)
+        return (p.Ju * wu_dot + tfu - kt * alpha) / p.km

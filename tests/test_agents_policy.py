@@ -1,0 +1,79 @@
+"""The agent as a Controller: same observation as the env, the kept policy in the harness, load errors."""
+
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import agents
+import controllers
+import drillgym  # noqa: F401  (registers the envs)
+from agents.controller import AgentController
+from controllers.evaluation import SCENARIOS, run_job
+from drillgym.measurement import quantize_angle
+
+KEPT = str(agents.KEPT_POLICY)
+
+
+def test_controller_builds_the_env_observation_and_voltage():
+    """Fed the encoder readings of an env, the adapter sees exactly the env's observation and returns
+    the residual voltage u_ff(omega_ref) + scale * policy(obs)."""
+    ctrl = controllers.make(f"agent:{KEPT}", config="torsional", omega_ref=3.0)
+    assert isinstance(ctrl, AgentController) and ctrl.uses == ("theta_u",)
+    opts = ctrl.policy.config["hyperparams"]["env_kwargs"]
+    env = gym.make("drillgym/Torsional-v0", observation="motor", motor_history=opts["motor_history"],
+                   omega_ref=3.0).unwrapped
+    obs, _ = env.reset(seed=5)
+    system = env.batch.system
+
+    def reading():
+        return {"t": 0.0, "theta_u": float(quantize_angle(system.theta_u[0]))}
+
+    ctrl.reset(reading())
+    scale = ctrl.policy.config["hyperparams"]["residual"]
+    u_ff = ctrl.residual.feedforward(np.array([3.0]))[0]
+    for k in range(400):
+        u = ctrl.act(reading())
+        np.testing.assert_allclose(ctrl.stack[0], obs, atol=1e-5, err_msg=f"step {k}")
+        expected = np.clip(u_ff + scale * ctrl.policy.act(obs)[0], -5, 5)
+        assert u == pytest.approx(expected, abs=1e-5)
+        obs, *_ = env.step(np.array([u]))
+    assert system.omega_l[0] > 0.5  # the rig turns
+
+
+def test_kept_policy_beats_the_baseline_at_3_rad_s():
+    base, agent = (run_job(c, "torsional", SCENARIOS["rest"], [3.0], duration=60.0, window=20.0)[0]
+                   for c in ("baseline", f"agent:{KEPT}"))
+    assert base["ssi"] > 1.0  # the open-loop rig sticks and slips
+    assert agent["ssi"] < 0.1 < base["ssi"]
+
+
+def test_kept_policy_is_small_and_recorded():
+    folder = agents.KEPT_POLICY.parent
+    assert sum(f.stat().st_size for f in folder.iterdir()) < 500_000
+    cfg = agents.load_policy(KEPT).config
+    assert cfg["command"].startswith("drillgym train") and f"--seed {cfg['seed']}" in cfg["command"]
+    assert cfg["command"] in (folder / "README.md").read_text()
+
+
+def test_load_errors_name_the_problem(tmp_path):
+    with pytest.raises(FileNotFoundError, match="missing.npz"):
+        controllers.make(f"agent:{tmp_path / 'missing.npz'}")
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, x=np.zeros(3))
+    with pytest.raises(ValueError, match="not an exported drillgym policy"):
+        agents.load_policy(bad)
+    with pytest.raises(ValueError, match=r"\(.npz\) or an SB3 model"):
+        (tmp_path / "p.txt").write_text("x")
+        agents.load_policy(tmp_path / "p.txt")
+    # an agent trained on the true state cannot run on measurements
+    with np.load(KEPT) as z:
+        arrays = dict(z)
+    meta = json.loads(str(arrays["meta"]))
+    meta["config"]["hyperparams"]["env_kwargs"]["observation"] = "full"
+    arrays["meta"] = np.array(json.dumps(meta))
+    full = tmp_path / "full.npz"
+    np.savez(full, **arrays)
+    with pytest.raises(ValueError, match="'full' observation"):
+        agents.load_controller(str(full), config="torsional", omega_ref=3.0)

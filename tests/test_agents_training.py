@@ -1,0 +1,77 @@
+"""Agents: training end to end (save, load, resume), export equivalence, hyperparameter files, errors."""
+
+import numpy as np
+import pytest
+import yaml
+from stable_baselines3 import PPO, SAC, TD3
+
+from agents.export import ExportedPolicy
+from agents.hyperparams import load_hyperparams, parse_overrides
+from agents.train import train
+
+FAST = {"n_envs": 4, "env_kwargs": {"episode_duration": 1.0}}
+OFF_POLICY = {**FAST, "learning_starts": 64, "buffer_size": 2000, "batch_size": 32}
+
+
+def _random_obs(policy: ExportedPolicy, n: int = 200) -> np.ndarray:
+    rng = np.random.default_rng(0)
+    obs = rng.normal(0.0, 2.0, (n, policy.obs_dim)).astype(np.float32)
+    obs[:, -1] = rng.uniform(2.0, 8.0, n)  # omega_ref
+    return obs
+
+
+def test_sac_trains_saves_loads_and_resumes(tmp_path):
+    res = train("drillgym/Torsional-v0", "sac", tmp_path, obs="motor", timesteps=300, seed=3, overrides=OFF_POLICY,
+                progress=False, checkpoint_every=100)
+    assert res.timesteps == 300
+    for f in ("model.zip", "policy.npz", "config.yml", "checkpoints/latest.zip", "checkpoints/latest_replay_buffer.pkl"):
+        assert (tmp_path / f).is_file(), f
+    assert any((tmp_path / "tb").rglob("events.out.tfevents*"))  # TensorBoard log
+    cfg = yaml.safe_load((tmp_path / "config.yml").read_text())
+    assert cfg["seed"] == 3 and cfg["hyperparams"]["env_kwargs"]["observation"] == "motor"
+    assert cfg["hyperparams"]["env_kwargs"]["randomize"] > 0  # domain randomisation on
+    model = SAC.load(tmp_path / "model.zip")
+    assert model.num_timesteps == 300 and model.observation_space.shape == (33,)
+    # resume continues the step count from the checkpoint up to the new total
+    res2 = train("drillgym/Torsional-v0", "sac", tmp_path, obs="motor", timesteps=400, seed=3, overrides=OFF_POLICY,
+                 progress=False, resume=True)
+    assert res2.timesteps == 400
+    assert SAC.load(tmp_path / "model.zip").num_timesteps == 400
+
+
+@pytest.mark.parametrize("algo,cls,extra", [
+    ("sac", SAC, OFF_POLICY),
+    ("td3", TD3, OFF_POLICY),
+    ("ppo", PPO, {**FAST, "n_steps": 32, "batch_size": 64}),
+])
+def test_exported_policy_matches_sb3(tmp_path, algo, cls, extra):
+    train("drillgym/Torsional-v0", algo, tmp_path, obs="motor", timesteps=256, seed=0, overrides=extra,
+          progress=False, tensorboard=False)
+    model = cls.load(tmp_path / "model.zip", device="cpu")
+    policy = ExportedPolicy.load(tmp_path / "policy.npz")
+    obs = _random_obs(policy)
+    expected, _ = model.predict(obs, deterministic=True)
+    np.testing.assert_allclose(policy.act(obs), expected, atol=1e-5)
+    np.testing.assert_allclose(policy.act(obs[0]), expected[0], atol=1e-5)  # single observation
+
+
+def test_hyperparameter_files_are_rl_zoo_style():
+    for algo in ("ppo", "sac", "td3", "recurrentppo"):
+        hp = load_hyperparams(algo, "drillgym/Torsional-v0")
+        assert hp["n_envs"] >= 1 and hp["n_timesteps"] > 0 and "policy" in hp
+        assert hp["env_kwargs"]["observation"] == "motor"
+    assert parse_overrides(["learning_rate=1e-3", "env_kwargs.motor_history=48"]) == {
+        "learning_rate": 1e-3, "env_kwargs": {"motor_history": 48}}
+
+
+def test_training_errors_name_the_problem(tmp_path):
+    with pytest.raises(ValueError, match="unknown algorithm 'a2c'"):
+        train("drillgym/Torsional-v0", "a2c", tmp_path)
+    with pytest.raises(ValueError, match="no entry for 'drillgym/Lateral-v0'"):
+        train("drillgym/Lateral-v0", "sac", tmp_path)
+    with pytest.raises(FileNotFoundError, match="nothere.yml"):
+        train("drillgym/Torsional-v0", "sac", tmp_path, hyperparams=tmp_path / "nothere.yml")
+    with pytest.raises(FileNotFoundError, match="no checkpoint"):
+        train("drillgym/Torsional-v0", "sac", tmp_path / "fresh", resume=True, timesteps=10, progress=False)
+    with pytest.raises(ValueError, match="KEY=VALUE"):
+        parse_overrides(["learning_rate"])
