@@ -55,7 +55,8 @@ class AgentController(Controller):
             **{k: (tuple(v) if isinstance(v, list) else v) for k, v in env_kwargs.items() if k in OBSERVATION_KEYS})
         self.frame_stack = int(hp.get("frame_stack", 1))
         scale = hp.get("residual")
-        self.residual = None if scale is None else ResidualVoltage(self.config.label, scale, self.params)
+        self.residual = None if scale is None else ResidualVoltage(self.config.label, scale, self.params,
+                                                                   hp.get("startup"))
 
     def _reset(self, m: dict[str, np.ndarray]) -> None:
         n = self.n
@@ -72,6 +73,8 @@ class AgentController(Controller):
         self.stack = np.zeros((n, self.policy.obs_dim), dtype=np.float32)
         self._push()
         self._first = True
+        self._t = np.zeros(n)  # time since reset (s), counted in control periods as in training
+
 
     def _push(self) -> None:
         d = self.model.dim
@@ -90,8 +93,9 @@ class AgentController(Controller):
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
         if not self._first:
             self._observe(m)
+            self._t = self._t + self.dt
         self._first = False
         a = self.policy.act(self.stack)[:, 0]
         if self.residual is not None:
-            return self.residual.voltage(a, self.stack[:, -1])
+            return self.residual.voltage(a, self.stack[:, -1], self._t)
         return a * U_MAX  # trained with normalize_action=True

@@ -19,8 +19,9 @@ __all__ = ["make_training_env", "ResidualActionVecEnv"]
 
 
 class ResidualActionVecEnv(VecEnvWrapper):
-    """SB3 VecEnv wrapper: action in [-1, 1] -> ``u_ff(omega_ref) + scale * a`` volts for a drillgym
-    VecEnv whose action is the voltage (``normalize_action=False``)."""
+    """SB3 VecEnv wrapper: action in [-1, 1] -> ``u_ff(omega_ref, t) + scale * a`` volts
+    (:class:`agents.residual.ResidualVoltage`) for a drillgym VecEnv whose action is the voltage
+    (``normalize_action=False``); ``t`` counts control periods since each rig's episode began."""
 
     def __init__(self, venv: VecEnv, residual: ResidualVoltage) -> None:
         hi = float(venv.action_space.high[0])
@@ -28,29 +29,36 @@ class ResidualActionVecEnv(VecEnvWrapper):
             raise ValueError("ResidualActionVecEnv needs the env's action in volts (normalize_action=False)")
         super().__init__(venv, action_space=spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32))
         self.residual = residual
+        self.control_dt = float(venv.get_attr("options")[0].control_dt)
         self._ref = np.zeros(venv.num_envs)
+        self._t = np.zeros(venv.num_envs)  # time since each rig's episode began (s)
 
     def _remember(self, obs: np.ndarray) -> np.ndarray:
         self._ref = obs[:, -1].astype(float)
         return obs
 
     def reset(self) -> np.ndarray:
+        self._t[:] = 0.0
         return self._remember(self.venv.reset())
 
     def step_async(self, actions: np.ndarray) -> None:
-        self.venv.step_async(self.residual.voltage(actions, self._ref).reshape(-1, 1))
+        self.venv.step_async(self.residual.voltage(actions, self._ref, self._t).reshape(-1, 1))
 
     def step_wait(self):
         obs, rew, done, infos = self.venv.step_wait()
+        self._t += self.control_dt
+        self._t[done] = 0.0
         return self._remember(obs), rew, done, infos
 
 
 def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: dict[str, Any] | None = None,
-                      residual: float | None = None, frame_stack: int = 1, monitor: bool = True) -> VecEnv:
+                      residual: float | None = None, startup: tuple | None = None, frame_stack: int = 1,
+                      monitor: bool = True) -> VecEnv:
     """An SB3 VecEnv of ``n_envs`` rigs in one batched core call per step.
 
     ``residual`` (V): the action in [-1, 1] is a correction ``residual * a`` on the feedforward voltage
     (:mod:`agents.residual`); None: the action is the voltage normalised to [-1, 1].
+    ``startup``: (kick V, hold s, ramp s) start-up schedule of the feedforward (with ``residual``).
     ``frame_stack``: number of stacked observations (1 = none).  ``seed``: rig i gets seed + i.
     """
     if env_id not in ENV_IDS:
@@ -61,7 +69,8 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
     if residual is not None:
         kw["normalize_action"] = False
         venv: VecEnv = make_sb3_vec(env_id, n_envs, **kw)
-        venv = ResidualActionVecEnv(venv, ResidualVoltage(ENV_IDS[env_id], residual, venv.venv.options.params))
+        venv = ResidualActionVecEnv(venv, ResidualVoltage(ENV_IDS[env_id], residual, venv.venv.options.params,
+                                                                startup))
     else:
         kw["normalize_action"] = True
         venv = make_sb3_vec(env_id, n_envs, **kw)

@@ -4,8 +4,10 @@
 * :mod:`.baseline` - bifurcation-based open-loop baseline, stick-slip region
 * :mod:`.pi` - PI speed control of the motor
 * :mod:`.softtorque` - soft-torque active damping
-* :mod:`.kalman` - Kalman filter on the motor angle with a friction-torque state
-* :mod:`.observer` - observer-based active damping (KF + LQR) and LQG
+* :mod:`.kalman` - Kalman filters (linear, extended) on the motor angle with a friction-torque state
+* :mod:`.flatness` - feedback-linearising tracking law for the lower speed (LQR on its error chain)
+* :mod:`.observer` - observer-based active damping (EKF + feedback linearisation) and LQG
+* :mod:`.gym_adapter` - ``ControllerPolicy``: a controller drives the Gymnasium envs
 * :mod:`.registry` - ``make(name, ...)``, the ``agent:PATH`` hook
 * :mod:`.evaluation` - scenarios, metrics, closed-loop runs, report
 """

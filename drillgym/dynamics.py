@@ -43,6 +43,7 @@ from numba import njit
 from .configurations import Configuration
 from .friction import lower_slip_torque, upper_slip_torque
 from .params import IDX
+from .vmath import vsincos
 
 UPPER = int(Configuration.UPPER)
 TORSIONAL = int(Configuration.TORSIONAL)
@@ -101,34 +102,6 @@ def lateral_generalised_forces(y: np.ndarray, p: np.ndarray) -> tuple:
 
 
 @njit(cache=True, _nrt=False)
-def _cholesky_solve4(A: np.ndarray, B: np.ndarray, n_rhs: int) -> None:
-    """Solve A X = B in place (B overwritten by X) for SPD 4x4 A; A overwritten by its factor."""
-    n = 4
-    for j in range(n):
-        s = A[j, j]
-        for k in range(j):
-            s -= A[j, k] * A[j, k]
-        d = math.sqrt(s)
-        A[j, j] = d
-        for i in range(j + 1, n):
-            s = A[i, j]
-            for k in range(j):
-                s -= A[i, k] * A[j, k]
-            A[i, j] = s / d
-    for r in range(n_rhs):
-        for i in range(n):
-            s = B[i, r]
-            for k in range(i):
-                s -= A[i, k] * B[k, r]
-            B[i, r] = s / A[i, i]
-        for i in range(n - 1, -1, -1):
-            s = B[i, r]
-            for k in range(i + 1, n):
-                s -= A[k, i] * B[k, r]
-            B[i, r] = s / A[i, i]
-
-
-@njit(cache=True, _nrt=False)
 def mass_matrix(y: np.ndarray, p: np.ndarray, M: np.ndarray) -> None:
     """Fill M (4x4) with M'(q) in the order (theta_u, theta_l, x, y)."""
     m = p[_mr] + p[_mt]
@@ -152,6 +125,64 @@ def mass_matrix(y: np.ndarray, p: np.ndarray, M: np.ndarray) -> None:
     for i in range(4):
         for j in range(i):
             M[i, j] = M[j, i]
+
+
+@njit(inline="always", fastmath=True, error_model="numpy")
+def reduced_accelerations(drive: float, string: float, tfu: float, tfl: float, Ju: float, Jl: float,
+                          slip_u: bool, slip_l: bool) -> tuple:
+    """The reduced equations (3.19), (3.20): Ju wu' = drive + string - Tfu, Jl wl' = -string - Tfl.
+
+    drive = km u (N m), string = ktheta alpha + dtheta alpha' (N m, on the upper disc), tfu/tfl the
+    slip torques.  A stuck disc has zero acceleration and its holding torque as friction.
+    Returns (wu', wl', Tfu, Tfl).
+    """
+    Fu = drive + string
+    Fl = -string
+    a_u = (Fu - tfu) / Ju if slip_u else 0.0
+    a_l = (Fl - tfl) / Jl if slip_l else 0.0
+    return a_u, a_l, (tfu if slip_u else Fu), (tfl if slip_l else Fl)
+
+
+@njit(inline="always", fastmath=True, error_model="numpy")
+def isotropic_lateral_forces(x: float, yy: float, vx: float, vy: float, W: float, k: float, b: float) -> tuple:
+    """MODEL.md's spring and damper terms as generalised forces (Q_u, Q_x, Q_y) for kx = ky, bx = by."""
+    return (b * (yy * vx - x * vy - W * (x * x + yy * yy)), -k * x - b * (vx - yy * W), -k * yy - b * (vy + x * W))
+
+
+@njit(inline="always", fastmath=True, error_model="numpy")
+def full_accelerations(x: float, yy: float, vx: float, vy: float, W: float, wl: float, s: float, c: float,
+                       m: float, P: float, Ju: float, Jl: float, drive: float, string: float, tfu: float,
+                       tfl: float, Qu: float, Qx: float, Qy: float, slip_u: bool, slip_l: bool) -> tuple:
+    """Accelerations of the four coordinates (MODEL.md), with stuck discs as constraints.
+
+    s, c = sin, cos of alpha; m = mr + mt, P = e mr; drive = km u; string on the upper disc;
+    tfu/tfl slip torques (ignored for a stuck disc); Q* lateral generalised forces.
+    The lateral accelerations are eliminated (Schur complement of the m I block), leaving a
+    2x2 system in (wu', wl') where a stuck disc's constraint and multiplier are explicit.
+    Returns (wu', wl', vx', vy', Tfu, Tfl).
+    """
+    xs_yc = x * s - yy * c
+    r2 = x * x + yy * yy
+    F0 = drive - (tfu if slip_u else 0.0) + Qu + P * xs_yc * wl * wl - 2.0 * m * W * (x * vx + yy * vy) + string
+    F1 = -(tfl if slip_l else 0.0) - 2.0 * P * W * (c * vx + s * vy) - P * W * W * xs_yc - string
+    F2 = Qx + m * x * W * W + 2.0 * m * W * vy + P * c * wl * wl
+    F3 = Qy + m * yy * W * W - 2.0 * m * W * vx + P * s * wl * wl
+    c00 = -m * yy
+    c01 = m * x
+    c10 = -P * s
+    c11 = P * c
+    inv_m = 1.0 / m
+    s00 = Ju + m * r2 - (c00 * c00 + c01 * c01) * inv_m
+    s01 = P * (x * c + yy * s) - (c00 * c10 + c01 * c11) * inv_m
+    s11 = Jl - (c10 * c10 + c11 * c11) * inv_m
+    g0 = F0 - (c00 * F2 + c01 * F3) * inv_m
+    g1 = F1 - (c10 * F2 + c11 * F3) * inv_m
+    det = s00 * s11 - s01 * s01
+    a0 = ((s11 * g0 - s01 * g1) / det if slip_l else g0 / s00) if slip_u else 0.0
+    a1 = ((s00 * g1 - s01 * g0) / det if slip_u else g1 / s11) if slip_l else 0.0
+    fu = tfu if slip_u else g0 - s01 * a1
+    fl = tfl if slip_l else g1 - s01 * a0
+    return a0, a1, (F2 - c00 * a0 - c10 * a1) * inv_m, (F3 - c01 * a0 - c11 * a1) * inv_m, fu, fl
 
 
 @njit(cache=True, fastmath=True, _nrt=False)
@@ -209,84 +240,31 @@ def state_derivative(t: float, y: np.ndarray, mode: np.ndarray, u: float, p: np.
     string = p[_kth] * alpha + p[_dtheta] * (wl - wu)  # torque of the string on the upper disc (N m)
 
     if not lateral_free(cfg):
-        # reduced torsional form (3.19), (3.20): M' = diag(Ju, Jl)
-        Fu = torque + string
-        Fl = -string
-        if mu == 0:
-            fric[0] = Fu
-            dy[S_WU] = 0.0
-        else:
-            fric[0] = tfu
-            dy[S_WU] = (Fu - tfu) / p[_Ju]
-        if ml == 0:
-            fric[1] = Fl
-            dy[S_WL] = 0.0
-        else:
-            fric[1] = tfl
-            dy[S_WL] = (Fl - tfl) / p[_Jl]
+        a_u, a_l, fu, fl = reduced_accelerations(torque, string, tfu, tfl, p[_Ju], p[_Jl], mu != 0, ml != 0)
+        dy[S_WU] = a_u
+        dy[S_WL] = a_l
+        fric[0] = fu
+        fric[1] = fl
         return
 
     # full four-coordinate equations
-    m = p[_mr] + p[_mt]
-    P = p[_e] * p[_mr]
-    c = math.cos(alpha)
-    s = math.sin(alpha)
     x = y[S_X]
     yy = y[S_Y]
     vx = y[S_VX]
     vy = y[S_VY]
-    W = wu
-    xs_yc = x * s - yy * c
     if p[_dk] == 0.0 and p[_db] == 0.0 and p[_Fc_lat] == 0.0:
-        # isotropic constraints: MODEL.md's k and b terms directly (no fixed-frame rotation needed)
-        kk = p[_k]
-        bb = p[_b]
-        Qx = -kk * x - bb * (vx - yy * W)
-        Qy = -kk * yy - bb * (vy + x * W)
-        Qu = bb * (yy * vx - x * vy - W * (x * x + yy * yy))
+        Qu, Qx, Qy = isotropic_lateral_forces(x, yy, vx, vy, wu, p[_k], p[_b])
     else:
         Qu, Qx, Qy = lateral_generalised_forces(y, p)
-    F0 = torque - tfu + Qu + P * xs_yc * wl * wl - 2.0 * m * W * (x * vx + yy * vy) + string
-    F1 = -tfl - 2.0 * P * W * (c * vx + s * vy) - P * W * W * xs_yc - string
-    F2 = Qx + m * x * W * W + 2.0 * m * W * vy + P * c * wl * wl
-    F3 = Qy + m * yy * W * W - 2.0 * m * W * vx + P * s * wl * wl
-    # M' = [[A, C], [C^T, m I]] with A the 2x2 angle block and C couples angles to (x, y):
-    # eliminate (x'', y'') (Schur complement S = A - C C^T / m), solve the 2x2 angle system with
-    # the stuck discs' constraints (Lagrange multipliers = friction torques), back-substitute.
-    c00 = -m * yy
-    c01 = m * x
-    c10 = -P * s
-    c11 = P * c
-    inv_m = 1.0 / m
-    s00 = p[_Ju] + m * (x * x + yy * yy) - (c00 * c00 + c01 * c01) * inv_m
-    s01 = P * (x * c + yy * s) - (c00 * c10 + c01 * c11) * inv_m
-    s11 = p[_Jl] - (c10 * c10 + c11 * c11) * inv_m
-    g0 = F0 - (c00 * F2 + c01 * F3) * inv_m
-    g1 = F1 - (c10 * F2 + c11 * F3) * inv_m
-    if mu == 0 and ml == 0:
-        a0 = 0.0
-        a1 = 0.0
-        fric[0] = g0
-        fric[1] = g1
-    elif mu == 0:
-        a0 = 0.0
-        a1 = g1 / s11
-        fric[0] = g0 - s01 * a1
-        fric[1] = tfl
-    elif ml == 0:
-        a1 = 0.0
-        a0 = g0 / s00
-        fric[1] = g1 - s01 * a0
-        fric[0] = tfu
-    else:
-        det = s00 * s11 - s01 * s01
-        a0 = (s11 * g0 - s01 * g1) / det
-        a1 = (s00 * g1 - s01 * g0) / det
-        fric[0] = tfu
-        fric[1] = tfl
-    dy[S_WU] = a0
-    dy[S_WL] = a1
+    s, c = vsincos(alpha)
+    a_u, a_l, a_x, a_y, fu, fl = full_accelerations(x, yy, vx, vy, wu, wl, s, c, p[_mr] + p[_mt], p[_e] * p[_mr],
+                                                    p[_Ju], p[_Jl], torque, string, tfu, tfl, Qu, Qx, Qy,
+                                                    mu != 0, ml != 0)
+    dy[S_WU] = a_u
+    dy[S_WL] = a_l
     dy[S_X] = vx
     dy[S_Y] = vy
-    dy[S_VX] = (F2 - c00 * a0 - c10 * a1) * inv_m
-    dy[S_VY] = (F3 - c01 * a0 - c11 * a1) * inv_m
+    dy[S_VX] = a_x
+    dy[S_VY] = a_y
+    fric[0] = fu
+    fric[1] = fl

@@ -34,6 +34,7 @@ import numpy as np
 from numba import njit
 
 from .params import IDX, RigParams
+from .vmath import vexp, vlog
 
 _Tcu, _dTcu, _bu, _dbu = IDX.Tcu, IDX.dTcu, IDX.bu, IDX.dbu
 _Tcl, _bl = IDX.Tcl, IDX.bl
@@ -42,13 +43,38 @@ _pf_a1, _pf_phi1, _pf_a2, _pf_phi2 = IDX.pf_a1, IDX.pf_phi1, IDX.pf_a2, IDX.pf_p
 _asym_s, _asym_c, _drift = IDX.asym_s, IDX.asym_c, IDX.drift
 
 
-@njit(cache=True, fastmath=True, _nrt=False)
+# --- the laws on scalars (shared by the scalar kernel and the SIMD lane kernel) -------------
+@njit(inline="always", fastmath=True, error_model="numpy")
+def upper_law(aw: float, d: float, Tcu: float, dTcu: float, bu: float, dbu: float) -> float:
+    """Upper slip torque (N m) at speed magnitude aw (rad/s) in direction d (+1/-1; 0 gives 0)."""
+    t_pos = Tcu + dTcu + (bu + dbu) * aw
+    t_neg = -(Tcu - dTcu + (bu - dbu) * aw)
+    return t_pos if d > 0 else (t_neg if d < 0 else 0.0)
+
+
+@njit(inline="always", fastmath=True, error_model="numpy")
+def brake_law(aw: float, d: float, Ts: float, Tc: float, ws: float, delta: float, bb: float,
+              asym_s: float, asym_c: float) -> float:
+    """Stribeck brake torque (N m) at speed magnitude aw in direction d (+1/-1; 0 gives 0);
+    for d < 0 the levels are scaled by (1 + asym_s), (1 + asym_c) (brake_asymmetry)."""
+    neg = 1.0 if d < 0 else 0.0
+    ts = Ts * (1.0 + asym_s * neg)
+    tc = Tc * (1.0 + asym_c * neg)
+    z = max(aw / ws, 1e-300)
+    return d * (tc + (ts - tc) * vexp(-vexp(delta * vlog(z))) + bb * aw)
+
+
+@njit(inline="always", fastmath=True, error_model="numpy")
+def bearing_law(aw: float, d: float, Tcl: float, bl: float) -> float:
+    """Bearing torque (N m, brake off) at speed magnitude aw in direction d (+1/-1; 0 gives 0)."""
+    return d * (Tcl + bl * aw)
+
+
+# --- the laws on the kernel's parameter vector ----------------------------------------------
+@njit(cache=True, _nrt=False)
 def upper_slip_torque(w: float, d: int, p: np.ndarray) -> float:
     """Upper friction torque (N m) while slipping in direction d (sign of the result is d)."""
-    aw = abs(w)
-    if d > 0:
-        return p[_Tcu] + p[_dTcu] + (p[_bu] + p[_dbu]) * aw
-    return -(p[_Tcu] - p[_dTcu] + (p[_bu] - p[_dbu]) * aw)
+    return upper_law(abs(w), float(d), p[_Tcu], p[_dTcu], p[_bu], p[_dbu])
 
 
 @njit(cache=True, _nrt=False)
@@ -68,29 +94,15 @@ def lower_level_factor(theta_l: float, t: float, p: np.ndarray) -> float:
     return g
 
 
-@njit(cache=True, fastmath=True, _nrt=False)
+@njit(cache=True, _nrt=False)
 def lower_slip_torque(w: float, d: int, theta_l: float, t: float, p: np.ndarray, brake: bool) -> float:
     """Lower friction torque (N m) while slipping in direction d (brake: Stribeck law, else bearing)."""
     aw = abs(w)
-    g = lower_level_factor(theta_l, t, p)
     if brake:
-        ts = p[_Ts]
-        tc = p[_Tc]
-        if d < 0:
-            ts *= 1.0 + p[_asym_s]
-            tc *= 1.0 + p[_asym_c]
-        z = aw / p[_ws]
-        strib = 0.0
-        if z > 0.0:
-            zd = math.exp(p[_delta] * math.log(z))
-            if zd < 50.0:
-                strib = (ts - tc) * math.exp(-zd)
-        else:
-            strib = ts - tc
-        mag = tc + strib + p[_bb] * aw
+        law = brake_law(aw, float(d), p[_Ts], p[_Tc], p[_ws], p[_delta], p[_bb], p[_asym_s], p[_asym_c])
     else:
-        mag = p[_Tcl] + p[_bl] * aw
-    return d * g * mag
+        law = bearing_law(aw, float(d), p[_Tcl], p[_bl])
+    return lower_level_factor(theta_l, t, p) * law
 
 
 @njit(cache=True, _nrt=False)

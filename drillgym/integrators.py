@@ -75,12 +75,14 @@ def tableau(method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 @njit(cache=True)
-def _alloc(n_stages: int):
-    K = np.zeros((n_stages + 1, N_STATE))  # stage derivatives + the derivative at the step's end
-    ytmp = np.zeros(N_STATE)
+def alloc_work(n_stages: int):
+    """Work arrays of ``hybrid_step`` for a tableau of n_stages:
+    (K stage derivatives + end derivative, ytmp, M, B, k1, ynew, fric, ftmp, g0, g1)."""
+    K = np.zeros((n_stages + 1, N_STATE))
     M = np.zeros((4, 4))
     B = np.zeros((4, 3))
-    return K, ytmp, M, B
+    return (K, np.zeros(N_STATE), M, B, np.zeros(N_STATE), np.zeros(N_STATE), np.zeros(2), np.zeros(2),
+            np.zeros(2), np.zeros(2))
 
 
 @njit(cache=True, _nrt=False)
@@ -326,13 +328,7 @@ def run_trajectory(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, ini
     ``y``/``mode`` are updated in place to the final state.  ``out`` receives
     ``len(U) // rec_every + 1`` samples.  Returns the number of mode switches.
     """
-    K, ytmp, M, B = _alloc(b.shape[0])
-    k1 = np.zeros(N_STATE)
-    ynew = np.zeros(N_STATE)
-    fric = np.zeros(2)
-    ftmp = np.zeros(2)
-    g0 = np.zeros(2)
-    g1 = np.zeros(2)
+    K, ytmp, M, B, k1, ynew, fric, ftmp, g0, g1 = alloc_work(b.shape[0])
     t = t0
     u = U[0] if U.shape[0] > 0 else 0.0
     if eps > 0.0:  # smoothed friction: no stick state
@@ -384,12 +380,7 @@ def advance_batch(Y, MODE, u, P, cfg, dt, n_sub, T, eps, A, b, c, FRIC):
     """Advance every trajectory of a batch by n_sub steps of dt at constant input u[k]
     (the environments' control period).  Updates Y, MODE, T in place; FRIC (B, 2)
     receives the friction torques at the end."""
-    K, ytmp, M, B = _alloc(b.shape[0])
-    k1 = np.zeros(N_STATE)
-    ynew = np.zeros(N_STATE)
-    ftmp = np.zeros(2)
-    g0 = np.zeros(2)
-    g1 = np.zeros(2)
+    K, ytmp, M, B, k1, ynew, _, ftmp, g0, g1 = alloc_work(b.shape[0])
     for k in range(Y.shape[0]):
         y = Y[k]
         mode = MODE[k]

@@ -25,133 +25,15 @@ friction, unless an effect with scalar-only formulas is on (see
 from __future__ import annotations
 
 import numpy as np
-from llvmlite import ir
-from numba import njit, types
-from numba.extending import intrinsic
+from numba import njit
 
 from .configurations import N_STATE
 from .dynamics import FREE_VIBRATION, UPPER, S_TL, S_TU, S_VX, S_VY, S_WL, S_WU, S_X, S_Y, brake_on, lateral_free
-from .integrators import RK4_A, RK4_B, RK4_C, _alloc, hybrid_step, initial_modes, record, resolve_modes
+from .integrators import RK4_A, RK4_B, RK4_C, alloc_work, hybrid_step, initial_modes, record, resolve_modes
+from .friction import bearing_law, brake_law, upper_law
+from .dynamics import full_accelerations, isotropic_lateral_forces, reduced_accelerations
 from .params import IDX
-
-_LN2_HI = 6.93147180369123816490e-01
-_LN2_LO = 1.90821492927058770002e-10
-_LOG2E = 1.44269504088896338700e00
-
-
-@intrinsic
-def _f64_from_bits(typingctx, bits):
-    sig = types.float64(types.int64)
-
-    def codegen(context, builder, signature, args):
-        return builder.bitcast(args[0], ir.DoubleType())
-
-    return sig, codegen
-
-
-@intrinsic
-def _bits_from_f64(typingctx, x):
-    sig = types.int64(types.float64)
-
-    def codegen(context, builder, signature, args):
-        return builder.bitcast(args[0], ir.IntType(64))
-
-    return sig, codegen
-
-
-_ROUND_MAGIC = 6755399441055744.0  # 1.5 * 2**52: x + magic rounds x to an integer held in the low bits
-_ROUND_MAGIC_BITS = 0x4338000000000000
-_EXP_MAGIC_BITS = 0x4330000000000000  # 2**52 as bits: OR-ing a small integer in gives 2**52 + integer
-
-
-@njit(inline="always", fastmath=True, error_model="numpy")
-def vexp(x: float) -> float:
-    """exp(x) for -700 <= x <= 700 (clamped outside), relative error < 2e-15.
-
-    Branch-free and free of float<->int64 conversions (which AVX2 lacks), so a loop of it vectorises.
-    """
-    x = min(max(x, -700.0), 700.0)
-    nf = np.floor(x * _LOG2E + 0.5)
-    r = (x - nf * _LN2_HI) - nf * _LN2_LO
-    # Taylor series to r^13 on |r| <= ln2/2 (truncation < 1e-17)
-    p = 1.0 / 6227020800.0
-    p = p * r + 1.0 / 479001600.0
-    p = p * r + 1.0 / 39916800.0
-    p = p * r + 1.0 / 3628800.0
-    p = p * r + 1.0 / 362880.0
-    p = p * r + 1.0 / 40320.0
-    p = p * r + 1.0 / 5040.0
-    p = p * r + 1.0 / 720.0
-    p = p * r + 1.0 / 120.0
-    p = p * r + 1.0 / 24.0
-    p = p * r + 1.0 / 6.0
-    p = p * r + 0.5
-    p = p * r + 1.0
-    p = p * r + 1.0
-    n = _bits_from_f64(nf + _ROUND_MAGIC) - _ROUND_MAGIC_BITS  # the integer nf, without cvttpd2qq
-    return p * _f64_from_bits((n + 1023) << 52)
-
-
-_PIO2_1 = 1.57079632673412561417e00  # pi/2 in three parts (Cody-Waite), exact products with k < 2**20
-_PIO2_2 = 6.07710050650619224932e-11
-_PIO2_3 = 2.02226624879595063154e-21
-_TWO_OVER_PI = 6.36619772367581382433e-01
-
-
-@njit(inline="always", fastmath=True, error_model="numpy")
-def vsincos(x: float) -> tuple:
-    """(sin x, cos x) for |x| < 1e5, absolute error < 1e-15; branch-free (vectorises)."""
-    kf = np.floor(x * _TWO_OVER_PI + 0.5)
-    r = ((x - kf * _PIO2_1) - kf * _PIO2_2) - kf * _PIO2_3  # |r| <= pi/4
-    r2 = r * r
-    sp = -1.0 / 1307674368000.0
-    sp = sp * r2 + 1.0 / 6227020800.0
-    sp = sp * r2 - 1.0 / 39916800.0
-    sp = sp * r2 + 1.0 / 362880.0
-    sp = sp * r2 - 1.0 / 5040.0
-    sp = sp * r2 + 1.0 / 120.0
-    sp = sp * r2 - 1.0 / 6.0
-    sin_r = r + r * r2 * sp
-    cp = 1.0 / 20922789888000.0
-    cp = cp * r2 - 1.0 / 87178291200.0
-    cp = cp * r2 + 1.0 / 479001600.0
-    cp = cp * r2 - 1.0 / 3628800.0
-    cp = cp * r2 + 1.0 / 40320.0
-    cp = cp * r2 - 1.0 / 720.0
-    cp = cp * r2 + 1.0 / 24.0
-    cp = cp * r2 - 0.5
-    cos_r = 1.0 + r2 * cp
-    q = (_bits_from_f64(kf + _ROUND_MAGIC) - _ROUND_MAGIC_BITS) & 3
-    sn = sin_r if q == 0 else (cos_r if q == 1 else (-sin_r if q == 2 else -cos_r))
-    cs = cos_r if q == 0 else (-sin_r if q == 1 else (-cos_r if q == 2 else sin_r))
-    return sn, cs
-
-
-@njit(inline="always", fastmath=True, error_model="numpy")
-def vlog(x: float) -> float:
-    """Natural log for normal positive x, relative error < 3e-15; branch-free (vectorises)."""
-    bits = _bits_from_f64(x)
-    m = _f64_from_bits((bits & 0x000FFFFFFFFFFFFF) | 0x3FF0000000000000)  # mantissa in [1, 2)
-    ef = _f64_from_bits(_EXP_MAGIC_BITS | ((bits >> 52) & 0x7FF)) - (4503599627370496.0 + 1023.0)
-    big = m > 1.4142135623730951
-    m = m * 0.5 if big else m
-    ef = ef + 1.0 if big else ef
-    s = (m - 1.0) / (m + 1.0)  # |s| <= 0.1716
-    s2 = s * s
-    q = 1.0 / 23.0
-    q = q * s2 + 1.0 / 21.0
-    q = q * s2 + 1.0 / 19.0
-    q = q * s2 + 1.0 / 17.0
-    q = q * s2 + 1.0 / 15.0
-    q = q * s2 + 1.0 / 13.0
-    q = q * s2 + 1.0 / 11.0
-    q = q * s2 + 1.0 / 9.0
-    q = q * s2 + 1.0 / 7.0
-    q = q * s2 + 1.0 / 5.0
-    q = q * s2 + 1.0 / 3.0
-    q = q * s2 + 1.0
-    return 2.0 * s * q + ef * _LN2_HI + ef * _LN2_LO
-
+from .vmath import vsincos
 
 # parameter rows of the structure-of-arrays parameter matrix PT (n_params, B)
 _Ju, _km, _Tcu, _dTcu, _bu, _dbu = IDX.Ju, IDX.km, IDX.Tcu, IDX.dTcu, IDX.bu, IDX.dbu
@@ -168,20 +50,10 @@ ROWS_FULL = np.array([S_TU, S_TL, S_X, S_Y, S_WU, S_WL, S_VX, S_VY])
 
 @njit(inline="always", fastmath=True, error_model="numpy")
 def _friction_laws(wu, wl, mu, ml, Tcu, dTcu, bu, dbu, Tcl, bl, Ts, Tc, ws, delta, bb, asym_s, asym_c, brake):
-    """Slip friction torques (N m) in the directions of the modes (0 for a stuck disc)."""
-    awu = abs(wu)
-    t_pos = Tcu + dTcu + (bu + dbu) * awu
-    t_neg = -(Tcu - dTcu + (bu - dbu) * awu)
-    tfu = t_pos if mu > 0.0 else (t_neg if mu < 0.0 else 0.0)
+    """Slip friction torques (N m) in the directions of the modes (0 for a stuck disc): friction.py's laws."""
     awl = abs(wl)
-    neg = 1.0 if ml < 0.0 else 0.0
-    ts = Ts * (1.0 + asym_s * neg)
-    tc = Tc * (1.0 + asym_c * neg)
-    z = max(awl / ws, 1e-300)
-    stribeck = tc + (ts - tc) * vexp(-vexp(delta * vlog(z))) + bb * awl
-    bearing = Tcl + bl * awl
-    tfl = ml * (stribeck if brake else bearing)
-    return tfu, tfl
+    tfl = brake_law(awl, ml, Ts, Tc, ws, delta, bb, asym_s, asym_c) if brake else bearing_law(awl, ml, Tcl, bl)
+    return upper_law(abs(wu), mu, Tcu, dTcu, bu, dbu), tfl
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
@@ -203,14 +75,13 @@ def _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR):
         mu = MU[k]
         ml = ML[k]
         string = string_on * (kth[k] * (thl[k] - thu[k]) + dth[k] * (wl - wu))
-        Fu = km[k] * U[k] + string
-        Fl = -string
         tfu, tfl = _friction_laws(wu, wl, mu, ml, Tcu[k], dTcu[k], bu[k], dbu[k], Tcl[k], bl[k], Ts[k], Tc[k],
                                   ws[k], delta[k], bb[k], asym_s[k], asym_c[k], brake)
-        K2[k] = (Fu - tfu) / Ju[k] if mu != 0.0 else 0.0
-        K3[k] = (Fl - tfl) / Jl[k] if ml != 0.0 else 0.0
-        FR0[k] = tfu if mu != 0.0 else Fu
-        FR1[k] = tfl if ml != 0.0 else Fl
+        a_u, a_l, fu, fl = reduced_accelerations(km[k] * U[k], string, tfu, tfl, Ju[k], Jl[k], mu != 0.0, ml != 0.0)
+        K2[k] = a_u
+        K3[k] = a_l
+        FR0[k] = fu
+        FR1[k] = fl
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
@@ -237,40 +108,16 @@ def _derivative_full(Y, MU, ML, U, PT, brake, K, FR):
         string = kth[k] * alpha + dth[k] * (wl - W)
         tfu, tfl = _friction_laws(W, wl, mu, ml, Tcu[k], dTcu[k], bu[k], dbu[k], Tcl[k], bl[k], Ts[k], Tc[k],
                                   ws[k], delta[k], bb_[k], asym_s[k], asym_c[k], brake)
-        m = mr[k] + mt[k]
-        P = e_[k] * mr[k]
-        kk = k_[k]
-        bb = b_[k]
-        r2 = x * x + yy * yy
-        xs_yc = x * s - yy * c
-        Qx = -kk * x - bb * (vx - yy * W)
-        Qy = -kk * yy - bb * (vy + x * W)
-        Qu = bb * (yy * vx - x * vy - W * r2)
-        F0 = km[k] * U[k] - tfu + Qu + P * xs_yc * wl * wl - 2.0 * m * W * (x * vx + yy * vy) + string
-        F1 = -tfl - 2.0 * P * W * (c * vx + s * vy) - P * W * W * xs_yc - string
-        F2 = Qx + m * x * W * W + 2.0 * m * W * vy + P * c * wl * wl
-        F3 = Qy + m * yy * W * W - 2.0 * m * W * vx + P * s * wl * wl
-        c00 = -m * yy
-        c01 = m * x
-        c10 = -P * s
-        c11 = P * c
-        inv_m = 1.0 / m
-        s00 = Ju[k] + m * r2 - (c00 * c00 + c01 * c01) * inv_m
-        s01 = P * (x * c + yy * s) - (c00 * c10 + c01 * c11) * inv_m
-        s11 = Jl[k] - (c10 * c10 + c11 * c11) * inv_m
-        g0 = F0 - (c00 * F2 + c01 * F3) * inv_m
-        g1 = F1 - (c10 * F2 + c11 * F3) * inv_m
-        det = s00 * s11 - s01 * s01
-        slip_u = mu != 0.0
-        slip_l = ml != 0.0
-        a0 = ((s11 * g0 - s01 * g1) / det if slip_l else g0 / s00) if slip_u else 0.0
-        a1 = ((s00 * g1 - s01 * g0) / det if slip_u else g1 / s11) if slip_l else 0.0
-        K[4, k] = a0
-        K[5, k] = a1
-        K[6, k] = (F2 - c00 * a0 - c10 * a1) * inv_m
-        K[7, k] = (F3 - c01 * a0 - c11 * a1) * inv_m
-        FR[0, k] = tfu if slip_u else g0 - s01 * a1
-        FR[1, k] = tfl if slip_l else g1 - s01 * a0
+        Qu, Qx, Qy = isotropic_lateral_forces(x, yy, vx, vy, W, k_[k], b_[k])
+        a_u, a_l, a_x, a_y, fu, fl = full_accelerations(x, yy, vx, vy, W, wl, s, c, mr[k] + mt[k], e_[k] * mr[k],
+                                                        Ju[k], Jl[k], km[k] * U[k], string, tfu, tfl, Qu, Qx, Qy,
+                                                        mu != 0.0, ml != 0.0)
+        K[4, k] = a_u
+        K[5, k] = a_l
+        K[6, k] = a_x
+        K[7, k] = a_y
+        FR[0, k] = fu
+        FR[1, k] = fl
 
 
 @njit(inline="always")
@@ -396,14 +243,8 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
     Ucur = np.empty(B)
     Uprev = np.empty(B)
     A, b, c = RK4_A, RK4_B, RK4_C
-    K, ytmp, M, Bw = _alloc(4)
+    K, ytmp, M, Bw, k1, ynew, fric, ftmp, g0, g1 = alloc_work(4)
     y = np.zeros(N_STATE)
-    k1 = np.zeros(N_STATE)
-    ynew = np.zeros(N_STATE)
-    fric = np.zeros(2)
-    ftmp = np.zeros(2)
-    g0 = np.zeros(2)
-    g1 = np.zeros(2)
     mode = np.zeros(2, dtype=np.int64)
     string_on = 0.0 if cfg == UPPER else 1.0
     brake = brake_on(cfg)

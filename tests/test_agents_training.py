@@ -1,10 +1,13 @@
 """Agents: training end to end (save, load, resume), export equivalence, hyperparameter files, errors."""
 
+import sys
+
 import numpy as np
 import pytest
 import yaml
 from stable_baselines3 import PPO, SAC, TD3
 
+import controllers
 from agents.export import ExportedPolicy
 from agents.hyperparams import load_hyperparams, parse_overrides
 from agents.train import train
@@ -75,3 +78,30 @@ def test_training_errors_name_the_problem(tmp_path):
         train("drillgym/Torsional-v0", "sac", tmp_path / "fresh", resume=True, timesteps=10, progress=False)
     with pytest.raises(ValueError, match="KEY=VALUE"):
         parse_overrides(["learning_rate"])
+
+
+def run_cli(capsys, *args) -> tuple[int, str]:
+    """``drillgym ARGS`` in this process (torch is imported once): exit code, stdout + stderr."""
+    from drillgym.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(list(args))
+    out = capsys.readouterr()
+    return exc.value.code or 0, out.out + out.err
+
+
+def test_cli_train_writes_an_agent_for_evaluate(tmp_path, capsys, monkeypatch):
+    out = tmp_path / "run"
+    monkeypatch.setattr(sys, "argv", ["drillgym", "train", "--seed", "4"])  # what config.yml records
+    code, text = run_cli(capsys, "train", "--env", "drillgym/Torsional-v0", "--algo", "sac", "--obs", "motor", "--timesteps", "64",
+                  "--n-envs", "2", "--seed", "4", "--set", "learning_starts=16", "--set", "buffer_size=500",
+                  "--no-progress", "--no-tensorboard", "--out", str(out))
+    assert code == 0, text
+    assert "trained 64 steps" in text
+    cfg = yaml.safe_load((out / "config.yml").read_text())
+    assert cfg["command"].startswith("drillgym train") and "--seed 4" in cfg["command"]
+    ctrl = controllers.make(f"agent:{out / 'model.zip'}", config="coupled", omega_ref=4.0)
+    ctrl.reset({"t": 0.0, "theta_u": 0.0})
+    assert -5.0 <= ctrl.act({"t": 0.01, "theta_u": 0.01}) <= 5.0
+    code, text = run_cli(capsys, "train", "--algo", "a2c", "--out", str(tmp_path / "x"))
+    assert code == 2 and "unknown algorithm 'a2c'" in text

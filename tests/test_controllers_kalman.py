@@ -58,3 +58,24 @@ def test_bad_model_options_are_refused():
         disturbance_model(sigma_d=-1.0)
     with pytest.raises(ValueError, match="dt"):
         disturbance_model(dt=0.0)
+
+
+def test_extended_filter_tracks_stick_slip_better_than_the_linear_one():
+    from controllers.kalman import ExtendedKalmanObserver
+
+    tr = simulate("torsional", u=1.5, duration=30.0)  # developed stick-slip
+    k = int(round(DT / 1e-3))
+    th, wl = quantize_angle(tr.theta_u[::k]), tr.omega_l[::k]
+    errs = {}
+    for name, obs in (("kf", KalmanObserver(disturbance_model(dt=DT))),
+                      ("ekf", ExtendedKalmanObserver(disturbance_model(dt=DT, sigma_upper=0.01, sigma_d=0.005)))):
+        obs.reset(th[:1])
+        est = np.empty(len(th))
+        for i in range(len(th)):
+            est[i] = obs.update(th[i:i + 1])[I_WL, 0]
+            obs.predict(np.array([1.5]))
+        ss = slice(len(th) // 3, None)
+        errs[name] = np.sqrt(np.mean((est[ss] - wl[ss]) ** 2))
+    assert errs["ekf"] < 0.1 * wl.max() and errs["ekf"] < errs["kf"]
+    with pytest.raises(ValueError, match="friction_known"):
+        ExtendedKalmanObserver(disturbance_model(friction_known=False))

@@ -18,6 +18,18 @@ def test_observer_removes_stick_slip_from_rest_at_3_rad_s_where_baseline_cannot(
     assert out["observer"]["u_peak"][0] <= 5.0
 
 
+def test_observer_holds_2_rad_s_from_rest_where_baseline_cannot():
+    """The feedback-linearising observer controller: lowest stick-slip-free target reached (torsional)."""
+    tg = np.array([2.0, 2.5])
+    out = {}
+    for name in ("baseline", "observer"):
+        run = run_closed_loop(controllers.make(name, config="torsional", omega_ref=tg), "torsional", tg, 45.0)
+        out[name] = run_metrics(run, 15.0)
+    assert np.all(out["baseline"]["ssi"] > 0.5)
+    assert np.all(out["observer"]["ssi"] < 0.1) and np.all(out["observer"]["stuck"] == 0.0)
+    assert np.all(np.abs(out["observer"]["omega_l_max"] - tg) < 0.2)
+
+
 def test_observer_reads_only_the_motor_angle():
     for name in ("observer", "lqg", "pi", "softtorque"):
         assert controllers.CONTROLLERS[name].uses == ("theta_u",)

@@ -25,7 +25,7 @@ from numba import njit, prange
 
 from ..configurations import N_STATE, Configuration
 from ..dynamics import S_TL, S_TU, S_VX, S_VY, S_WL, S_WU, S_X, S_Y
-from ..integrators import _alloc, hybrid_step, initial_modes, tableau
+from ..integrators import alloc_work, hybrid_step, initial_modes, tableau
 
 # columns of the per-flow summary returned by flow_to_section
 F_OK, F_T, F_WL_MIN, F_WL_MAX, F_R_MIN, F_R_MAX, F_STICK = 0, 1, 2, 3, 4, 5, 6
@@ -41,13 +41,7 @@ def flow_to_section(y, u, ws, p, cfg, dt, t_max, A, b, c):
     vector (ok, return time, min/max omega_l, min/max r, stuck time of the lower disc).
     """
     out = np.zeros(N_SUMMARY)
-    K, ytmp, M, B = _alloc(b.shape[0])
-    k1 = np.zeros(N_STATE)
-    ynew = np.zeros(N_STATE)
-    fric = np.zeros(2)
-    ftmp = np.zeros(2)
-    g0 = np.zeros(2)
-    g1 = np.zeros(2)
+    K, ytmp, M, B, k1, ynew, fric, ftmp, g0, g1 = alloc_work(b.shape[0])
     mode = np.zeros(2, dtype=np.int64)
     ys = np.zeros(N_STATE)
     ks = np.zeros(N_STATE)

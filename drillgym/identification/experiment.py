@@ -81,10 +81,18 @@ class Experiment:
         return float(self.t[-1] - self.t[0])
 
     def input_on_grid(self, dt: float, n_steps: int, t_start: float) -> np.ndarray:
-        """The recorded input, zero-order hold, at ``t_start + k dt`` for k < n_steps (V)."""
-        tq = t_start + np.arange(n_steps) * dt
-        idx = np.clip(np.searchsorted(self.u_time, tq + 1e-9 * dt, side="right") - 1, 0, len(self.u_time) - 1)
-        return self.u_value[idx]
+        """The recorded input (zero-order hold on its own samples) averaged over each simulator step
+        [t_start + k dt, t_start + (k + 1) dt), k < n_steps (V): exactly the recorded samples when the
+        grids coincide, and the same impulse per step when the data are sampled faster than dt."""
+        tk, uk = self.u_time, self.u_value
+        F = np.concatenate([[0.0], np.cumsum(uk[:-1] * np.diff(tk))])  # integral of the ZOH input at tk
+
+        def integral(tq: np.ndarray) -> np.ndarray:
+            out = np.interp(tq, tk, F)
+            return np.where(tq > tk[-1], F[-1] + (tq - tk[-1]) * uk[-1], np.where(tq < tk[0], (tq - tk[0]) * uk[0], out))
+
+        tq = t_start + np.arange(n_steps + 1) * dt
+        return np.diff(integral(tq)) / dt
 
     def channel(self, name: str) -> np.ndarray:
         """A measured channel, also the derived ``alpha`` = θl − θu and ``r`` = √(x² + y²)."""
