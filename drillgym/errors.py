@@ -13,4 +13,5 @@ class SafetyError(RuntimeError):
     """A safety limit of the rig was hit (over-speed, over-displacement, watchdog, lost link)."""
 
 
-USER_ERRORS = (ParameterError, DataFormatError, FileNotFoundError, ValueError)
+#: printed by the CLI as one line (exit code 2): bad input, and safety stops / lost links of the rig
+USER_ERRORS = (ParameterError, DataFormatError, FileNotFoundError, ValueError, SafetyError)

@@ -105,3 +105,22 @@ def test_cli_train_writes_an_agent_for_evaluate(tmp_path, capsys, monkeypatch):
     assert -5.0 <= ctrl.act({"t": 0.01, "theta_u": 0.01}) <= 5.0
     code, text = run_cli(capsys, "train", "--algo", "a2c", "--out", str(tmp_path / "x"))
     assert code == 2 and "unknown algorithm 'a2c'" in text
+
+
+def test_residual_voltage_structure():
+    from agents.residual import ResidualVoltage
+    from drillgym.equilibria import equilibrium_voltage
+
+    ref = np.array([2.0, 3.0, 6.0])
+    u_eq = equilibrium_voltage("torsional", ref)
+    plain = ResidualVoltage("torsional", 1.5)
+    np.testing.assert_allclose(plain.voltage(np.zeros(3), ref), u_eq)  # a = 0: the baseline
+    np.testing.assert_allclose(plain.voltage([1.0, -1.0, 9.0], ref), np.clip(u_eq + [1.5, -1.5, 1.5], -5, 5))
+    sched = ResidualVoltage("torsional", 1.5, startup=(5.0, 3.0, 15.0))
+    np.testing.assert_allclose(sched.feedforward(ref, 1.0), 5.0)  # kick above the fold
+    np.testing.assert_allclose(sched.feedforward(ref, 10.5), 5.0 + (u_eq - 5.0) * 0.5)  # half-way down the ramp
+    np.testing.assert_allclose(sched.feedforward(ref, np.array([18.0, 30.0, 99.0])), u_eq)
+    with pytest.raises(ValueError, match="startup"):
+        ResidualVoltage("torsional", 1.5, startup=(9.0, 3.0, 15.0))
+    with pytest.raises(ValueError, match="scale"):
+        ResidualVoltage("torsional", -1.0)

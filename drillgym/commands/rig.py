@@ -86,6 +86,8 @@ def run_cmd(
     omega_ref: Optional[float] = typer.Option(None, help="target lower-disc speed (rad/s); default drawn per seed"),
     control_ms: float = typer.Option(10.0, help="control period (ms)"),
     seed: int = typer.Option(0, help="episode seed"),
+    reply_timeout_ms: float = typer.Option(50.0, help="longest wait for the firmware's reply (ms), below its "
+                                                       "100 ms watchdog; raise it for an emulator on a busy machine"),
 ) -> None:
     """Run one episode of a controller or a policy on the rig, recorded to --record."""
     import gymnasium as gym
@@ -102,7 +104,8 @@ def run_cmd(
     opts = {"observation": observation, "episode_duration": duration, "control_dt": control_ms * 1e-3}
     if omega_ref is not None:
         opts["omega_ref"] = omega_ref
-    env = gym.make(hw.ENV_ID, port=port, configuration=config, record=record, **opts)
+    env = gym.make(hw.ENV_ID, port=port, configuration=config, record=record, reply_timeout=reply_timeout_ms * 1e-3,
+                   **opts)
     try:
         ctrl = make_controller(controller, config, omega_ref, control_ms * 1e-3) if controller else None
         pol = load_policy(policy) if policy is not None else None

@@ -153,14 +153,19 @@ def _torque_bins(comp: Comparison) -> None:
         if s.sum() > 5:
             comp.by_angle.append({"theta_lo": float(a), "theta_hi": float(b),
                                   "mean": float(np.mean(tau[s] * sg[s])), "n": int(s.sum())})
-    if len(comp.by_angle) >= 6:
+    revolutions = float(np.ptp(rt.states[ok, 1])) / (2 * np.pi)
+    if len(comp.by_angle) >= 6 and revolutions >= 3:
         m = np.array([d["mean"] for d in comp.by_angle])
+        n = np.array([d["n"] for d in comp.by_angle])
         amp = 0.5 * (m.max() - m.min())
-        if amp > 0.3 * total:
+        x = tau * sg
+        eta2 = float(np.sum(n * (m - x.mean()) ** 2) / max(np.sum((x - x.mean()) ** 2), 1e-300))
+        if amp > 0.3 * total and eta2 > 0.2:  # the angle explains a real share of the residual
             k = int(np.argmax(np.abs(m - m.mean())))
             comp.findings.append(f"residual friction torque depends on the lower disc's angle: ±{amp:.3g} N m "
                                  f"over a revolution, extreme near θl = {np.degrees(comp.by_angle[k]['theta_lo']):.0f}–"
-                                 f"{np.degrees(comp.by_angle[k]['theta_hi']):.0f}° (angle-dependent friction?)")
+                                 f"{np.degrees(comp.by_angle[k]['theta_hi']):.0f}°, explaining {eta2:.0%} of its "
+                                 f"variance (angle-dependent friction?)")
     neg, pos = tau[wl < 0] * -1, tau[wl > 0]
     if neg.size > 20 and pos.size > 20 and abs(neg.mean() - pos.mean()) > 0.3 * total:
         comp.findings.append(f"residual friction differs between directions: {pos.mean():.3g} N m (ωl > 0) vs "

@@ -28,6 +28,8 @@ from ..dynamics import mass_matrix, state_derivative
 from ..identification.experiment import Experiment, estimate_rate
 from ..params import RigParams
 
+MIN_SPARSE_R2 = 0.1  # a candidate expression must explain at least this share of the residual torque
+
 __all__ = ["ResidualTorque", "residual_torques", "SparseTerm", "sparse_residual_model", "candidate_library"]
 
 
@@ -47,7 +49,9 @@ class ResidualTorque:
 
 
 def residual_torques(ex: Experiment, params: RigParams, min_speed: float = 0.05) -> ResidualTorque:
-    """Residual generalised torques of the base model on a recording (see the module docstring)."""
+    """Residual generalised torques of the base model on a recording (see the module docstring).
+
+    Samples within 0.1 s (the second-derivative window) of a stick phase are left out."""
     p = params.to_vector()
     n = ex.n
     Y = ex.initial_states(np.arange(n), np.repeat(p[None, :], n, axis=0))
@@ -68,7 +72,11 @@ def residual_torques(ex: Experiment, params: RigParams, min_speed: float = 0.05)
     mode = np.zeros(2, dtype=np.int64)
     tau = np.full((n, 4), np.nan)
     wl_all = Y[:, 3] if "theta_l" in ex.meas else Y[:, 2]
-    slip = np.abs(wl_all) > min_speed
+    # slipping, and not within the derivative window of a stick phase (accelerations there are smeared)
+    stuck = (np.abs(wl_all) <= min_speed).astype(float)
+    half = max(1, int(round(0.1 * ex.fs)))
+    near_stick = np.convolve(stuck, np.ones(2 * half + 1), mode="same") > 0
+    slip = ~near_stick
     for i in np.flatnonzero(slip):
         y = Y[i].copy()
         mode[0] = 1 if y[2] > 0 else (-1 if y[2] < 0 else 0)
@@ -117,6 +125,9 @@ class SparseTerm:
     def expression(self) -> str:
         if not self.terms:
             return "τ_res ≈ 0 (no candidate term survives)"
+        if self.r2 < MIN_SPARSE_R2:
+            return (f"no candidate term explains the residual torque (best sparse fit explains {self.r2:.0%}): "
+                    "it looks like noise")
         parts = [f"{c:+.4g}·{n}" if n != "1" else f"{c:+.4g}" for n, c in self.terms.items()]
         return "τ_res(θl, ω, α, x, y) ≈ " + " ".join(parts) + f"  [N m; explains {self.r2:.0%} of it]"
 
