@@ -62,11 +62,9 @@ class RigSystem:
         self.n = self.sim.n
         self.n_substeps = int(n_substeps)
         self.control_dt = self.sim.dt * self.n_substeps
-        # kernel arguments, bound once (BatchSimulator.advance re-validates on every call)
-        self._cfg = int(self.sim.config)
-        self._tab = self.sim._tab
-        self._eps = self.sim._eps
         self.u = np.zeros(self.n)  # voltage applied over the current period (V)
+        # kernel arguments, bound once (BatchSimulator.advance re-validates on every call)
+        self._args = self.sim.kernel_args(self.u, self.n_substeps)
 
     # ------------------------------------------------------------------------ stepping
     def step(self) -> None:
@@ -78,9 +76,7 @@ class RigSystem:
     def kernel_args(self) -> tuple:
         """Arguments of :func:`drillgym.integrators.advance_batch` for one control period
         (persistent arrays, updated in place): Y, MODE, u, P, cfg, dt, n_substeps, T, eps, A, b, c, FRIC."""
-        s = self.sim
-        A, b, c = self._tab
-        return (s.Y, s.MODE, self.u, s.P, self._cfg, s.dt, self.n_substeps, s.T, self._eps, A, b, c, s.FRIC)
+        return self._args
 
     def reset(self, index: np.ndarray, alpha0: np.ndarray, params: np.ndarray | None = None) -> None:
         """Rigs ``index`` at rest with winding ``alpha0`` (rad), t = 0, optionally new parameter rows."""
@@ -90,10 +86,9 @@ class RigSystem:
         self.u[index] = 0.0
         # friction torques (holding torques) of the rest state: a zero-length advance on a copy
         s = self.sim
-        A, b, c = self._tab
+        _, _, _, _, cfg, dt, _, _, eps, A, b, c, _ = self._args
         Y, MODE, FRIC = s.Y[index].copy(), s.MODE[index].copy(), s.FRIC[index].copy()
-        advance_batch(Y, MODE, self.u[index], s.P[index], self._cfg, s.dt, 0, s.T[index].copy(), self._eps,
-                      A, b, c, FRIC)
+        advance_batch(Y, MODE, self.u[index], s.P[index], cfg, dt, 0, s.T[index].copy(), eps, A, b, c, FRIC)
         s.FRIC[index] = FRIC
 
     # ------------------------------------------------------------------------ views
