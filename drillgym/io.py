@@ -30,7 +30,7 @@ import numpy as np
 from .configurations import Configuration, parse_configuration
 from .errors import DataFormatError
 
-__all__ = ["TimeSeries", "read_timeseries", "read_csv", "read_mat", "write_timeseries", "write_trajectory_csv",
+__all__ = ["TimeSeries", "read_timeseries", "read_input_signal", "read_csv", "read_mat", "write_timeseries", "write_trajectory_csv",
            "StreamingCsvWriter", "required_columns", "DataFormatError", "U_LIMIT_FILE", "XY_LIMIT_FILE"]
 
 U_LIMIT_FILE = 50.0  # V: larger |u| in a file is refused
@@ -135,11 +135,11 @@ class TimeSeries:
 
 
 def _validate(cols: Mapping[str, np.ndarray], config: Configuration | None, source: str,
-              line_of_row: Sequence[int] | None) -> None:
+              line_of_row: Sequence[int] | None, required: Sequence[str] | None = None) -> None:
     def where(i: int) -> str:
         return f"line {line_of_row[i]}" if line_of_row is not None else f"sample {i}"
 
-    missing = [c for c in required_columns(config) if c not in cols]
+    missing = [c for c in (required if required is not None else required_columns(config)) if c not in cols]
     if missing:
         cfg = f" for configuration '{config.label}'" if config is not None else ""
         raise DataFormatError(f"{source}: missing column(s) {', '.join(missing)}{cfg}")
@@ -168,8 +168,10 @@ def _validate(cols: Mapping[str, np.ndarray], config: Configuration | None, sour
                                       f"is outside the physical range |{name}| <= {lim} {unit}")
 
 
-def read_csv(path: str | Path, config: "str | Configuration | None" = None) -> TimeSeries:
-    """Read and validate a DATA_FORMAT CSV.  ``config`` is used when the metadata has none."""
+def read_csv(path: str | Path, config: "str | Configuration | None" = None,
+             required: Sequence[str] | None = None) -> TimeSeries:
+    """Read and validate a DATA_FORMAT CSV.  ``config`` is used when the metadata has none;
+    ``required`` overrides the configuration's required columns (e.g. ("t", "u") for an input signal)."""
     path = Path(path)
     src = str(path)
     try:
@@ -216,7 +218,7 @@ def read_csv(path: str | Path, config: "str | Configuration | None" = None) -> T
         raise DataFormatError(f"{src}: no header line (empty file?)")
     data = np.array(rows, dtype=np.float64).reshape(-1, len(header))
     cols = {h: data[:, i].copy() for i, h in enumerate(header)}
-    return _finish(cols, meta, src, config, lines)
+    return _finish(cols, meta, src, config, lines, required)
 
 
 def _is_float(s: str) -> bool:
@@ -227,7 +229,7 @@ def _is_float(s: str) -> bool:
         return False
 
 
-def _finish(cols: dict, meta: dict, src: str, config, lines) -> TimeSeries:
+def _finish(cols: dict, meta: dict, src: str, config, lines, required=None) -> TimeSeries:
     if config is not None:
         cfg = parse_configuration(config)
         if "configuration" in meta and parse_configuration(meta["configuration"]) is not cfg:
@@ -238,7 +240,7 @@ def _finish(cols: dict, meta: dict, src: str, config, lines) -> TimeSeries:
         cfg_obj = parse_configuration(meta["configuration"]) if meta.get("configuration") else None
     except ValueError as exc:
         raise DataFormatError(f"{src}: metadata 'configuration': {exc}") from None
-    _validate(cols, cfg_obj, src, lines)
+    _validate(cols, cfg_obj, src, lines, required)
     return TimeSeries(cols, meta, src)
 
 
@@ -312,6 +314,18 @@ def read_timeseries(path: str | Path, config: "str | Configuration | None" = Non
     if path.suffix.lower() == ".mat":
         return read_mat(path, config, mapping)
     return read_csv(path, config)
+
+
+def read_input_signal(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """(t, u) of an input-signal file: any DATA_FORMAT CSV or .mat with at least ``t`` and ``u``."""
+    path = Path(path)
+    if not path.exists():
+        raise DataFormatError(f"{path}: file not found")
+    if path.suffix.lower() == ".mat":
+        ts = read_mat(path)
+    else:
+        ts = read_csv(path, required=("t", "u"))
+    return ts.columns["t"], ts.columns["u"]
 
 
 def _fmt(v: float) -> str:

@@ -121,30 +121,6 @@ def write_input_file(path: str | Path, t: np.ndarray, u: np.ndarray, description
 
 def read_input_file(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     """Read the ``t, u`` columns of a DATA_FORMAT CSV (an input file or a full recording)."""
-    from .errors import DataFormatError
+    from .io import read_input_signal
 
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: file not found")
-    lines = [ln for ln in path.read_text(encoding="utf-8").splitlines() if ln.strip() and not ln.startswith("#")]
-    if not lines:
-        raise DataFormatError(f"{path}: no header line (empty file?)")
-    header = [h.strip() for h in lines[0].split(",")]
-    for col in ("t", "u"):
-        if col not in header:
-            raise DataFormatError(f"{path}: missing column {col!r}")
-    it, iu = header.index("t"), header.index("u")
-    t, u = [], []
-    for k, ln in enumerate(lines[1:], start=2):
-        f = ln.split(",")
-        try:
-            t.append(float(f[it]))
-            u.append(float(f[iu]))
-        except (ValueError, IndexError):
-            raise DataFormatError(f"{path}: data row {k - 1}: cannot read t, u from {ln!r}") from None
-    t_arr, u_arr = np.array(t), np.array(u)
-    if t_arr.size < 2 or np.any(np.diff(t_arr) <= 0):
-        raise DataFormatError(f"{path}: column 't': needs >= 2 strictly increasing times")
-    if not np.all(np.isfinite(u_arr)):
-        raise DataFormatError(f"{path}: column 'u': NaN or infinite value")
-    return t_arr, u_arr
+    return read_input_signal(path)

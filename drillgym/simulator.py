@@ -249,7 +249,8 @@ def simulate_batch(config: "str | Configuration", u: InputLike, duration: float,
             sizes.append(ua.shape[0])
     B = max(max(sizes), 1)
     P = _params_matrix(params, B)
-    U = _apply_input_delay(_input_matrix(u, B, n_steps, dt), P, dt)
+    U_cmd = _input_matrix(u, B, n_steps, dt)
+    U = _apply_input_delay(U_cmd, P, dt)
     if x0 is None:
         Y = np.stack([initial_state(alpha0=a) for a in np.broadcast_to(np.asarray(alpha0, dtype=float), (B,))])
     else:
@@ -270,6 +271,8 @@ def simulate_batch(config: "str | Configuration", u: InputLike, duration: float,
     else:
         runner = run_batch_parallel if parallel else run_batch_serial
         runner(Y, MODE, U, P, int(cfg), float(dt), np.zeros(B), eps, A, b, c, int(record_every), OUT, True)
+    if U is not U_cmd:  # input_delay: the motor saw the delayed voltage, the record keeps the commanded one
+        OUT[:, :, 1] = U_cmd[:, np.minimum(np.arange(n_rec) * record_every, n_steps - 1)]
     plist = [RigParams.from_vector(P[k]) for k in range(B)] if B <= 64 or params is not None else [RigParams()] * B
     return BatchTrajectory(cfg, plist, float(dt), method, OUT)
 

@@ -86,6 +86,7 @@ def test_motor_lag_and_input_delay_effects_act():
     delay = simulate("upper", lambda t: np.where(t >= 0.2, 2.0, 0.0), 1.0, params=RigParams().replace(delay=0.1))
     assert lag.omega_u[100] < base.omega_u[100]
     assert np.all(delay.omega_u[:300] == 0.0) and delay.omega_u[350] > 0
+    assert delay.u[200] == 2.0 and delay.u[199] == 0.0  # the record keeps the commanded voltage
     assert initial_state(alpha0=0.5)[1] == 0.5
 
 

@@ -11,11 +11,10 @@ from ..configurations import Configuration
 
 
 def _load_input(path: Path):
-    """(t, u) of an input signal file (DATA_FORMAT csv with t, u, or a plain two-column t,u csv)."""
-    from ..io import read_timeseries
+    """(t, u) of an input signal file (DATA_FORMAT csv or .mat with at least t, u)."""
+    from ..io import read_input_signal
 
-    ts = read_timeseries(path)
-    return ts.t, ts.u
+    return read_input_signal(path)
 
 
 def plot_run(traj, path: Path) -> Path:
