@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 from gymnasium import spaces
-from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, VecFrameStack, VecMonitor
+from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, VecFrameStack, VecMonitor, VecNormalize
 
 from drillgym.envs import ENV_IDS
 from drillgym.envs.options import U_MAX
@@ -53,12 +53,14 @@ class ResidualActionVecEnv(VecEnvWrapper):
 
 def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: dict[str, Any] | None = None,
                       residual: float | None = None, startup: tuple | None = None, frame_stack: int = 1,
-                      monitor: bool = True) -> VecEnv:
+                      normalize_reward: bool = False, gamma: float = 0.99, monitor: bool = True) -> VecEnv:
     """An SB3 VecEnv of ``n_envs`` rigs in one batched core call per step.
 
     ``residual`` (V): the action in [-1, 1] is a correction ``residual * a`` on the feedforward voltage
     (:mod:`agents.residual`); None: the action is the voltage normalised to [-1, 1].
     ``startup``: (kick V, hold s, ramp s) start-up schedule of the feedforward (with ``residual``).
+    ``normalize_reward``: scale rewards by a running std of the ``gamma``-discounted return (SB3
+    ``VecNormalize``, observations untouched, so the policy needs nothing extra at run time).
     ``frame_stack``: number of stacked observations (1 = none).  ``seed``: rig i gets seed + i.
     """
     if env_id not in ENV_IDS:
@@ -78,5 +80,7 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
         venv = VecMonitor(venv)
     if frame_stack > 1:
         venv = VecFrameStack(venv, frame_stack)
+    if normalize_reward:
+        venv = VecNormalize(venv, norm_obs=False, norm_reward=True, gamma=gamma)
     venv.seed(seed)
     return venv

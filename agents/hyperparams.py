@@ -12,6 +12,7 @@
       env_kwargs: {observation: motor, randomize: 0.2, ...}   # drillgym EnvOptions
       residual: 2.0              # drillgym: action = correction (V) on the feedforward voltage; null = plain voltage
       startup: [5.0, 3.0, 15.0]  # drillgym: feedforward start-up schedule (kick V, hold s, ramp s), see agents/residual.py
+      normalize_reward: false    # drillgym: VecNormalize on rewards only (no run-time state)
       frame_stack: 1             # drillgym: VecFrameStack depth (the 'motor' mode already holds a history)
 
 As in rl-zoo3, ``policy_kwargs`` may also be a string (``"dict(net_arch=[64, 64])"``);
@@ -30,7 +31,8 @@ __all__ = ["HYPERPARAMS_DIR", "load_hyperparams", "parse_overrides", "apply_over
 
 HYPERPARAMS_DIR = Path(__file__).resolve().parent / "hyperparams"
 #: keys of an entry that are not keywords of the SB3 algorithm
-DRILLGYM_KEYS = ("n_envs", "n_timesteps", "policy", "env_kwargs", "residual", "startup", "frame_stack")
+DRILLGYM_KEYS = ("n_envs", "n_timesteps", "policy", "env_kwargs", "residual", "startup", "frame_stack",
+                 "normalize_reward")
 
 
 def _parse_policy_kwargs(v: Any) -> dict:

@@ -138,7 +138,9 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     venv = make_training_env(env_id, hp["n_envs"], seed=seed, env_kwargs=hp["env_kwargs"],
-                             residual=hp.get("residual"), startup=hp.get("startup"), frame_stack=int(hp.get("frame_stack", 1)))
+                             residual=hp.get("residual"), startup=hp.get("startup"), frame_stack=int(hp.get("frame_stack", 1)),
+                             normalize_reward=bool(hp.get("normalize_reward", False)),
+                             gamma=float(hp.get("gamma", 0.99)))
     config = {"env_id": env_id, "algo": algo, "seed": int(seed), "hyperparams": hp, "command": command}
     (out / CONFIG_FILE).write_text(yaml.safe_dump(config, sort_keys=False))
     ckpt = out / "checkpoints" / "latest.zip"

@@ -66,7 +66,7 @@ def test_prepare_experiment_rates_and_errors(tmp_path):
 
 
 def test_cli_diagnose_identify_signal(tmp_path):
-    ts = synthetic_measurement("torsional", RigParams().replace(dtheta=0.01), duration=12.0, rate_hz=250.0,
+    ts = synthetic_measurement("torsional", RigParams().replace(dtheta=0.01), duration=8.0, rate_hz=250.0,
                                offset=1.0, seed=1)
     data = write_timeseries(tmp_path / "run.csv", ts)
     runner = CliRunner()
