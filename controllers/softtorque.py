@@ -23,17 +23,14 @@ import math
 
 import numpy as np
 
-from drillgym.equilibria import equilibrium_voltage
-from drillgym.measurement import EncoderVelocityEstimator
-
-from .base import Controller
-from .pi import MotorSpeedPI
+from .pi import PIController
 
 __all__ = ["SoftTorqueController"]
 
 
-class SoftTorqueController(Controller):
-    """Soft-torque active damping: motor speed loop yielding to the estimated string torque."""
+class SoftTorqueController(PIController):
+    """Soft-torque active damping: the PI motor speed loop, its command yielding to the estimated
+    string torque."""
 
     name = "softtorque"
     uses = ("theta_u",)
@@ -41,7 +38,7 @@ class SoftTorqueController(Controller):
     def __init__(self, omega_ref=None, *, impedance: float | None = None, hp_ratio: float = 1.0 / 3.0,
                  kp: float = 1.0, ki: float = 3.0, velocity_tau: float = 0.02, torque_tau: float = 0.5,
                  **kw) -> None:
-        super().__init__(omega_ref, **kw)
+        super().__init__(omega_ref, kp=kp, ki=ki, velocity_tau=velocity_tau, **kw)
         p = self.params
         self.omega_n = math.sqrt(p.ktheta / p.Jl)  # torsional mode (rad/s)
         self.impedance = math.sqrt(p.ktheta * p.Jl) if impedance is None else float(impedance)
@@ -49,13 +46,9 @@ class SoftTorqueController(Controller):
             raise ValueError(f"impedance and hp_ratio must be positive, got {impedance!r}, {hp_ratio!r}")
         self.a_hp = math.exp(-hp_ratio * self.omega_n * self.dt)  # pole of the low-pass removed by the high-pass
         self.a_tq = math.exp(-self.dt / torque_tau)
-        self.kp, self.ki, self.velocity_tau = float(kp), float(ki), float(velocity_tau)
 
     def _reset(self, m: dict[str, np.ndarray]) -> None:
-        self.speed = EncoderVelocityEstimator(self.n, self.dt, self.velocity_tau)
-        self.speed.reset(np.broadcast_to(m.get("theta_u", 0.0), (self.n,)).copy())
-        self.loop = MotorSpeedPI(self.n, self.dt, self.kp, self.ki, self.u_max)
-        self.u_ff = np.broadcast_to(equilibrium_voltage(self.config, self.omega_ref, self.params), (self.n,)).copy()
+        super()._reset(m)  # speed estimator, PI loop, equilibrium feedforward
         self.w_prev = np.zeros(self.n)
         self.u_f = np.zeros(self.n)
         self.torque = np.zeros(self.n)  # low-passed string torque estimate (N m)
