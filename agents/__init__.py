@@ -18,7 +18,7 @@ from pathlib import Path
 __all__ = ["load_controller", "load_policy", "KEPT_POLICY"]
 
 #: the policy kept in the repository (``agent:`` + this path works in ``drillgym evaluate``)
-KEPT_POLICY = Path(__file__).resolve().parent / "policies" / "torsional_motor_sac" / "policy.npz"
+KEPT_POLICY = Path(__file__).resolve().parent / "policies" / "torsional_motor_ppo" / "policy.npz"
 
 
 def load_controller(path: str, **kw):

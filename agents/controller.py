@@ -75,7 +75,6 @@ class AgentController(Controller):
         self._first = True
         self._t = np.zeros(n)  # time since reset (s), counted in control periods as in training
 
-
     def _push(self) -> None:
         d = self.model.dim
         self.stack[:, :-d] = self.stack[:, d:]

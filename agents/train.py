@@ -6,7 +6,8 @@
 Writes into ``out``: ``model.zip`` (the SB3 model), ``config.yml`` (everything needed to
 rebuild the env and the policy structure: env id, algorithm, seed, hyperparameters,
 env options, residual scale), ``policy.npz`` (the exported policy, :mod:`agents.export`;
-MLP policies only), ``checkpoints/latest.zip`` (+ replay buffer for off-policy algorithms),
+MLP policies only), ``checkpoints/latest.zip`` (+ replay buffer for off-policy algorithms, reward
+normalisation statistics),
 refreshed every ``checkpoint_every`` steps and used by ``resume=True``, and TensorBoard logs
 in ``tb/``.
 """
@@ -24,6 +25,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.noise import NormalActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+from stable_baselines3.common.vec_env import VecNormalize
 
 from .envs import make_training_env
 from .hyperparams import DRILLGYM_KEYS, apply_overrides, load_hyperparams
@@ -51,8 +53,9 @@ def algo_class(algo: str) -> type[BaseAlgorithm]:
 
 
 class LatestCheckpoint(BaseCallback):
-    """Saves the model (and the replay buffer of off-policy algorithms) to ``dir/latest.zip`` every
-    ``every`` environment steps, overwriting the previous checkpoint (what ``resume`` needs)."""
+    """Saves the model to ``dir/latest.zip`` (with the replay buffer of off-policy algorithms and the
+    reward normalisation) every ``every`` environment steps, overwriting the previous checkpoint
+    (what ``resume`` needs)."""
 
     def __init__(self, directory: Path, every: int) -> None:
         super().__init__()
@@ -69,6 +72,9 @@ class LatestCheckpoint(BaseCallback):
         self.model.save(self.dir / "latest.zip")
         if isinstance(self.model, OffPolicyAlgorithm):
             self.model.save_replay_buffer(self.dir / "latest_replay_buffer.pkl")
+        vec_normalize = self.model.get_vec_normalize_env()
+        if vec_normalize is not None:  # running reward statistics
+            vec_normalize.save(self.dir / "latest_vecnormalize.pkl")
 
 
 @dataclass
@@ -138,9 +144,9 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     venv = make_training_env(env_id, hp["n_envs"], seed=seed, env_kwargs=hp["env_kwargs"],
-                             residual=hp.get("residual"), startup=hp.get("startup"), frame_stack=int(hp.get("frame_stack", 1)),
-                             normalize_reward=bool(hp.get("normalize_reward", False)),
-                             gamma=float(hp.get("gamma", 0.99)))
+                             residual=hp.get("residual"), startup=hp.get("startup"),
+                             frame_stack=int(hp.get("frame_stack", 1)),
+                             normalize_reward=bool(hp.get("normalize_reward", False)), gamma=float(hp.get("gamma", 0.99)))
     config = {"env_id": env_id, "algo": algo, "seed": int(seed), "hyperparams": hp, "command": command}
     (out / CONFIG_FILE).write_text(yaml.safe_dump(config, sort_keys=False))
     ckpt = out / "checkpoints" / "latest.zip"
@@ -148,6 +154,9 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
     if resume:
         if not ckpt.is_file():
             raise FileNotFoundError(f"cannot resume: no checkpoint {ckpt}")
+        stats = ckpt.with_name("latest_vecnormalize.pkl")
+        if isinstance(venv, VecNormalize) and stats.is_file():
+            venv = VecNormalize.load(str(stats), venv.venv)
         model = cls.load(ckpt, env=venv, tensorboard_log=tb)
         rb = ckpt.with_name("latest_replay_buffer.pkl")
         if isinstance(model, OffPolicyAlgorithm) and rb.is_file():

@@ -1,19 +1,22 @@
 """The kept agent: inference time and its row of the controller table (harness, from rest).
 
-    .venv/bin/python benchmarks/bench_agents.py [--policy agents/policies/torsional_motor_sac/policy.npz]
+    .venv/bin/python benchmarks/bench_agents.py [--policy agents/policies/torsional_motor_ppo/policy.npz]
                                                 [--workers 2] [--skip-table]
 
 Prints (1) the time of one control step: the numpy policy alone and the whole
 ``AgentController.act`` (measurement -> observation -> policy -> volts), batch of one,
 beside SB3's ``predict`` on the same model (best of 5 x 2000 calls); (2) the harness table
-(torsional and coupled, targets 0.5-8 rad/s, 60 s from rest, last 20 s) with the baseline
-and the soft-torque controller beside the agent; (3) SSI per target with the brake friction
-20 % below and above the training value (torsional).
+(torsional and coupled, targets 0.5-8 rad/s, 60 s from rest, last 20 s) with the baseline,
+the soft-torque controller and the agent's policy structure alone (start-up schedule, residual 0)
+beside the agent; (3) SSI and tracking RMS per target with the brake friction 20 % below and above
+the training value (torsional), agent and structure alone.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import tempfile
 import time
 from pathlib import Path
 
@@ -52,19 +55,40 @@ def inference(policy_path: Path) -> None:
         print(f"SB3 predict (torch, reference):  {1e6 * best_time(lambda: model.predict(obs, deterministic=True), 500):8.1f} us per step")
 
 
+def zero_residual(policy_path: Path, directory: Path) -> Path:
+    """The same policy file with the last layer zeroed: the residual structure alone (a = 0)."""
+    with np.load(policy_path) as z:
+        arrays = dict(z)
+    n = len(json.loads(str(arrays["meta"]))["activations"])
+    arrays[f"W{n - 1}"][:] = 0.0
+    arrays[f"b{n - 1}"][:] = 0.0
+    out = directory / "structure_only.npz"
+    np.savez(out, **arrays)
+    return out
+
+
 def table(policy_path: Path, workers: int) -> None:
-    name = f"agent:{policy_path}"
     t0 = time.perf_counter()
-    rows = evaluate(["baseline", "softtorque", name], ["torsional", "coupled"], ["rest"], DEFAULT_TARGETS,
-                    workers=workers, progress=False)
-    print(markdown_table(rows, "rest").replace(name, "agent (torsional_motor_sac)"))
-    rob = evaluate([name], ["torsional"], ["rest", "friction-20", "friction+20"], DEFAULT_TARGETS, workers=workers,
-                   progress=False)
-    print("torsional, SSI per target (rad/s) of the agent:")
-    print("scenario     " + " ".join(f"{w:5.1f}" for w in DEFAULT_TARGETS))
-    for sc in ("rest", "friction-20", "friction+20"):
-        ssi = [r["ssi"] for r in rob if r["scenario"] == sc]
-        print(f"{sc:12s} " + " ".join(f"{s:5.2f}" if np.isfinite(s) else "  inf" for s in ssi))
+    with tempfile.TemporaryDirectory() as d:
+        names = {f"agent:{policy_path}": "agent (torsional_motor_ppo)",
+                 f"agent:{zero_residual(policy_path, Path(d))}": "structure alone (residual 0)"}
+        rows = evaluate(["baseline", "softtorque", *names], ["torsional", "coupled"], ["rest"], DEFAULT_TARGETS,
+                        workers=workers, progress=False)
+        text = markdown_table(rows, "rest")
+        for k, v in names.items():
+            text = text.replace(k, v)
+        print(text)
+        rob = evaluate(list(names), ["torsional"], ["rest", "friction-20", "friction+20"], DEFAULT_TARGETS,
+                       workers=workers, progress=False)
+    print("torsional, per target (rad/s): SSI / tracking RMS (rad/s) over the last 20 s")
+    print("                                          " + " ".join(f"{w:5.1f}" for w in DEFAULT_TARGETS))
+    for key, label in names.items():
+        for sc in ("rest", "friction-20", "friction+20"):
+            sel = [r for r in rob if r["scenario"] == sc and r["controller"] == key]
+            ssi = " ".join(f"{r['ssi']:5.2f}" if np.isfinite(r["ssi"]) else "  inf" for r in sel)
+            rms = " ".join(f"{r['tracking_rms']:5.2f}" for r in sel)
+            print(f"{label[:28]:28s} {sc:11s} SSI {ssi}")
+            print(f"{'':28s} {sc:11s} RMS {rms}")
     print(f"({time.perf_counter() - t0:.0f} s wall)")
 
 

@@ -55,10 +55,16 @@ class FlatnessLaw:
     """
 
     def __init__(self, params: RigParams, dt: float, *, bandwidth: float = 2.5, tau_ref: float = 1.0,
-                 w_rest: float = 0.1, step: float = 2e-3) -> None:
+                 w_rest: float = 0.1, step: float = 2e-3, approach: float = 0.0, hold: float = 8.0,
+                 ramp: float = 12.0) -> None:
         if not (np.isfinite(tau_ref) and tau_ref > 0):
             raise ValueError(f"tau_ref must be a positive time (s), got {tau_ref!r}")
+        for name, v in (("approach", approach), ("hold", hold), ("ramp", ramp)):
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be a non-negative number, got {v!r}")
         self.p, self.dt, self.tau = params, float(dt), float(tau_ref)
+        self.approach, self.hold, self.ramp = float(approach), float(hold), float(ramp)
+        self.t = 0.0
         self.w_rest, self.h = float(w_rest), float(step)
         self.K = chain_gain(bandwidth)
         self.y = np.zeros((3, 1))
@@ -68,10 +74,22 @@ class FlatnessLaw:
         """Start from rest towards the targets (rad/s), (n,)."""
         self.target = np.asarray(target, dtype=float)
         self.y = np.zeros((3, self.target.size))
+        self.t = 0.0
+
+    def setpoint(self, t: float) -> np.ndarray:
+        """Input (rad/s, (n,)) of the reference lags at time t (s): the target, or for targets below
+        ``approach`` first ``approach`` until ``hold``, then a linear ramp down to the target over ``ramp``."""
+        w = self.target
+        if self.approach <= 0:
+            return w
+        s = np.clip((t - self.hold) / self.ramp, 0.0, 1.0) if self.ramp > 0 else float(t >= self.hold)
+        high = np.maximum(w, self.approach)
+        return high + s * (w - high)
 
     def reference(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(r, r', r'', r''') now (rad/s and derivatives), then advance the three lags one period."""
-        t, (y1, y2, r), w = self.tau, self.y, self.target
+        t, (y1, y2, r), w = self.tau, self.y, self.setpoint(self.t)
+        self.t += self.dt
         d1, d2, d3 = (w - y1) / t, (y1 - y2) / t, (y2 - r) / t
         dd2, dd3 = (d1 - d2) / t, (d2 - d3) / t
         ddd3 = (dd2 - dd3) / t

@@ -83,7 +83,8 @@ class ObserverController(Controller):
 
     def __init__(self, omega_ref=None, *, counts_per_rev: int = 8000, angle_noise: float = 0.0,
                  sigma_d: float = 0.005, sigma_upper: float = 0.01, sigma_lower: float = 0.005,
-                 noise_floor: float = 5e-4, bandwidth: float = 2.5, tau_ref: float = 1.0, **kw) -> None:
+                 noise_floor: float = 5e-4, bandwidth: float = 2.5, tau_ref: float = 1.0,
+                 approach: float = 0.0, hold: float = 8.0, ramp: float = 12.0, **kw) -> None:
         super().__init__(omega_ref, **kw)
         # noise_floor (rad): angle noise the filter assumes on top of quantization; it slows the
         # filter just enough that the law's (third-derivative) gains do not amplify the encoder steps
@@ -91,11 +92,12 @@ class ObserverController(Controller):
                                        angle_noise=float(np.hypot(angle_noise, noise_floor)), sigma_d=sigma_d,
                                        sigma_upper=sigma_upper, sigma_lower=sigma_lower)
         self.bandwidth, self.tau_ref = float(bandwidth), float(tau_ref)
+        self.shaping = {"approach": float(approach), "hold": float(hold), "ramp": float(ramp)}
 
     def _reset(self, m: dict[str, np.ndarray]) -> None:
         self.observer = ExtendedKalmanObserver(self.model)
         self.observer.reset(np.broadcast_to(m.get("theta_u", 0.0), (self.n,)))
-        self.law = FlatnessLaw(self.params, self.dt, bandwidth=self.bandwidth, tau_ref=self.tau_ref)
+        self.law = FlatnessLaw(self.params, self.dt, bandwidth=self.bandwidth, tau_ref=self.tau_ref, **self.shaping)
         self.law.reset(self.omega_ref)
 
     @property

@@ -18,7 +18,7 @@ KEPT = str(agents.KEPT_POLICY)
 
 def test_controller_builds_the_env_observation_and_voltage():
     """Fed the encoder readings of an env, the adapter sees exactly the env's observation and returns
-    the residual voltage u_ff(omega_ref) + scale * policy(obs)."""
+    the residual voltage u_ff(omega_ref, t) + scale * policy(obs) (start-up schedule included)."""
     ctrl = controllers.make(f"agent:{KEPT}", config="torsional", omega_ref=3.0)
     assert isinstance(ctrl, AgentController) and ctrl.uses == ("theta_u",)
     opts = ctrl.policy.config["hyperparams"]["env_kwargs"]
@@ -32,10 +32,10 @@ def test_controller_builds_the_env_observation_and_voltage():
 
     ctrl.reset(reading())
     scale = ctrl.policy.config["hyperparams"]["residual"]
-    u_ff = ctrl.residual.feedforward(np.array([3.0]))[0]
     for k in range(400):
         u = ctrl.act(reading())
         np.testing.assert_allclose(ctrl.stack[0], obs, atol=1e-5, err_msg=f"step {k}")
+        u_ff = ctrl.residual.feedforward(np.array([3.0]), k * env.options.control_dt)[0]
         expected = np.clip(u_ff + scale * ctrl.policy.act(obs)[0], -5, 5)
         assert u == pytest.approx(expected, abs=1e-5)
         obs, *_ = env.step(np.array([u]))

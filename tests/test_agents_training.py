@@ -124,3 +124,13 @@ def test_residual_voltage_structure():
         ResidualVoltage("torsional", 1.5, startup=(9.0, 3.0, 15.0))
     with pytest.raises(ValueError, match="scale"):
         ResidualVoltage("torsional", -1.0)
+
+
+def test_ppo_resume_keeps_reward_normalisation(tmp_path):
+    extra = {**FAST, "n_steps": 32, "batch_size": 64, "normalize_reward": True}
+    train("drillgym/Torsional-v0", "ppo", tmp_path, timesteps=128, overrides=extra, progress=False, tensorboard=False)
+    assert (tmp_path / "checkpoints" / "latest_vecnormalize.pkl").is_file()
+    res = train("drillgym/Torsional-v0", "ppo", tmp_path, timesteps=256, overrides=extra, progress=False,
+                tensorboard=False, resume=True)
+    assert res.timesteps == 256
+    assert res.model.get_vec_normalize_env().ret_rms.count > 200  # 128 + 128 samples: statistics carried over
