@@ -7,6 +7,10 @@ the agent was trained with, so the agent sees on the rig exactly what it saw in
 training.  The encoder angles arrive already quantized by the rig (or the
 harness), so the model is built with ``counts_per_rev = 0`` (no second quantization).
 
+Agents on the observer base (``base: observer`` in their hyperparameters) build their
+observation with :class:`agents.observer_residual.ObserverResidual` from the motor angle instead,
+in the order of :class:`agents.envs.ObserverResidualVecEnv`.
+
 Timing matches the env: ``reset(m)`` gives the reset observation (zero speed
 history, the target); the first ``act`` answers it; every later ``act`` first adds
 the period's readings (encoder angles, the voltage applied over the period).
@@ -21,6 +25,7 @@ from drillgym.envs.observation import make_observation_model
 from drillgym.envs.options import U_MAX, EnvOptions
 
 from .export import ExportedPolicy
+from .observer_residual import ObserverResidual
 from .residual import ResidualVoltage
 
 __all__ = ["AgentController", "OBSERVATION_KEYS"]
@@ -55,11 +60,23 @@ class AgentController(Controller):
             **{k: (tuple(v) if isinstance(v, list) else v) for k, v in env_kwargs.items() if k in OBSERVATION_KEYS})
         self.frame_stack = int(hp.get("frame_stack", 1))
         scale = hp.get("residual")
+        self.base = None
+        if hp.get("base") == "observer":  # observation = the observer's features, not the env's model
+            if self.mode != "motor" or self.frame_stack != 1:
+                raise ValueError("observer-based agents are trained on the 'motor' mode without frame stacking")
+            self.base = ObserverResidual(self.config.label, scale, self.params, self.dt, hp.get("observer"))
+            if self.base.dim != policy.obs_dim:
+                raise ValueError(f"agent expects {policy.obs_dim} inputs; the observer base gives {self.base.dim}")
+            return
         self.residual = None if scale is None else ResidualVoltage(self.config.label, scale, self.params,
                                                                    hp.get("startup"))
 
     def _reset(self, m: dict[str, np.ndarray]) -> None:
         n = self.n
+        if self.base is not None:
+            self.base.start(n)
+            self.base.reset(np.arange(n), np.broadcast_to(m.get("theta_u", 0.0), (n,)), self.omega_ref)
+            return
         self.model = make_observation_model(n, self.obs_options)
         if self.model.dim * self.frame_stack != self.policy.obs_dim:
             raise ValueError(f"agent expects {self.policy.obs_dim} observation entries; the "
@@ -90,6 +107,12 @@ class AgentController(Controller):
         self._push()
 
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
+        if self.base is not None:  # same order as agents.envs.ObserverResidualVecEnv
+            self.base.correct(m["theta_u"])
+            self.base.base()
+            u = np.clip(self.base.voltage(self.policy.act(self.base.features())[:, 0]), -self.u_max, self.u_max)
+            self.base.predict(u)
+            return u
         if not self._first:
             self._observe(m)
             self._t = self._t + self.dt

@@ -13,9 +13,10 @@ from drillgym.envs import ENV_IDS
 from drillgym.envs.options import U_MAX
 from drillgym.envs.sb3 import make_sb3_vec
 
+from .observer_residual import ObserverResidual
 from .residual import ResidualVoltage
 
-__all__ = ["make_training_env", "ResidualActionVecEnv"]
+__all__ = ["make_training_env", "ResidualActionVecEnv", "ObserverResidualVecEnv"]
 
 
 class ResidualActionVecEnv(VecEnvWrapper):
@@ -51,14 +52,74 @@ class ResidualActionVecEnv(VecEnvWrapper):
         return self._remember(obs), rew, done, infos
 
 
+class ObserverResidualVecEnv(VecEnvWrapper):
+    """SB3 VecEnv wrapper: the :class:`agents.observer_residual.ObserverResidual` structure on a drillgym
+    VecEnv in ``motor`` mode with the action in volts.
+
+    The motor angle is rebuilt from the observation's latest encoder increment (``omega_u_inc_0`` times
+    the control period, 0 at each episode's start); the wrapper's observation is the structure's
+    features (:data:`agents.observer_residual.FEATURES`), its action the residual in [-1, 1].
+    """
+
+    def __init__(self, venv: VecEnv, base: ObserverResidual) -> None:
+        if abs(float(venv.action_space.high[0]) - U_MAX) > 1e-6:
+            raise ValueError("ObserverResidualVecEnv needs the env's action in volts (normalize_action=False)")
+        names = venv.get_attr("observation_names")[0]
+        if names[0] != "omega_u_inc_0":
+            raise ValueError("ObserverResidualVecEnv needs the 'motor' observation mode")
+        obs_space = spaces.Box(-10.0, 10.0, shape=(base.dim,), dtype=np.float32)
+        super().__init__(venv, observation_space=obs_space,
+                         action_space=spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32))
+        self.base = base
+        self.control_dt = float(venv.get_attr("options")[0].control_dt)
+        self._theta = np.zeros(venv.num_envs)
+
+    def reset(self) -> np.ndarray:
+        obs = self.venv.reset()
+        n = self.num_envs
+        self._theta[:] = 0.0
+        self.base.start(n)
+        self.base.reset(np.arange(n), self._theta, obs[:, -1])
+        self.base.correct(self._theta)
+        self.base.base()
+        return self.base.features()
+
+    def step_async(self, actions: np.ndarray) -> None:
+        u = self.base.voltage(actions)
+        self.base.predict(u)
+        self.venv.step_async(u.reshape(-1, 1))
+
+    def step_wait(self):
+        obs, rew, done, infos = self.venv.step_wait()
+        inc = obs[:, 0].astype(float)
+        ended = np.flatnonzero(done)
+        for i in ended:  # the ending episode's last increment is in its terminal observation
+            inc[i] = infos[i]["terminal_observation"][0]
+        self._theta += inc * self.control_dt
+        self.base.correct(self._theta)
+        if ended.size:
+            feats = self.base.features()
+            for i in ended:
+                infos[i]["terminal_observation"] = feats[i]
+            self._theta[ended] = 0.0
+            self.base.reset(ended, self._theta[ended], obs[ended, -1])
+            self.base.correct(self._theta[ended], ended)
+        self.base.base()
+        return self.base.features(), rew, done, infos
+
+
 def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: dict[str, Any] | None = None,
-                      residual: float | None = None, startup: tuple | None = None, frame_stack: int = 1,
+                      residual: float | None = None, startup: tuple | None = None, base: str | None = None,
+                      observer: dict[str, Any] | None = None, frame_stack: int = 1,
                       normalize_reward: bool = False, gamma: float = 0.99, monitor: bool = True) -> VecEnv:
     """An SB3 VecEnv of ``n_envs`` rigs in one batched core call per step.
 
     ``residual`` (V): the action in [-1, 1] is a correction ``residual * a`` on the feedforward voltage
     (:mod:`agents.residual`); None: the action is the voltage normalised to [-1, 1].
     ``startup``: (kick V, hold s, ramp s) start-up schedule of the feedforward (with ``residual``).
+    ``base='observer'``: the residual corrects the ``observer`` controller instead
+    (:mod:`agents.observer_residual`; needs ``residual`` and the 'motor' observation); ``observer``:
+    keywords of that controller.
     ``normalize_reward``: scale rewards by a running std of the ``gamma``-discounted return (SB3
     ``VecNormalize``, observations untouched, so the policy needs nothing extra at run time).
     ``frame_stack``: number of stacked observations (1 = none).  ``seed``: rig i gets seed + i.
@@ -68,7 +129,17 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
     if not (isinstance(n_envs, int) and n_envs >= 1):
         raise ValueError(f"n_envs must be an integer >= 1, got {n_envs!r}")
     kw = dict(env_kwargs or {})
-    if residual is not None:
+    if base not in (None, "observer"):
+        raise ValueError(f"base must be 'observer' or absent, got {base!r}")
+    if base == "observer":
+        if residual is None:
+            raise ValueError("base 'observer' needs a residual scale (V)")
+        kw["normalize_action"] = False
+        venv = make_sb3_vec(env_id, n_envs, **kw)
+        o = venv.venv.options
+        venv = ObserverResidualVecEnv(venv, ObserverResidual(ENV_IDS[env_id], residual, o.params, o.control_dt,
+                                                             observer))
+    elif residual is not None:
         kw["normalize_action"] = False
         venv: VecEnv = make_sb3_vec(env_id, n_envs, **kw)
         venv = ResidualActionVecEnv(venv, ResidualVoltage(ENV_IDS[env_id], residual, venv.venv.options.params,

@@ -12,6 +12,8 @@
       env_kwargs: {observation: motor, randomize: 0.2, ...}   # drillgym EnvOptions
       residual: 2.0              # drillgym: action = correction (V) on the feedforward voltage; null = plain voltage
       startup: [5.0, 3.0, 15.0]  # drillgym: feedforward start-up schedule (kick V, hold s, ramp s), see agents/residual.py
+      base: observer             # drillgym: the residual corrects the observer controller (agents/observer_residual.py)
+      observer: {}               # drillgym: keywords of that controller (controllers.observer.ObserverController)
       normalize_reward: false    # drillgym: VecNormalize on rewards only (no run-time state)
       frame_stack: 1             # drillgym: VecFrameStack depth (the 'motor' mode already holds a history)
 
@@ -31,8 +33,8 @@ __all__ = ["HYPERPARAMS_DIR", "load_hyperparams", "parse_overrides", "apply_over
 
 HYPERPARAMS_DIR = Path(__file__).resolve().parent / "hyperparams"
 #: keys of an entry that are not keywords of the SB3 algorithm
-DRILLGYM_KEYS = ("n_envs", "n_timesteps", "policy", "env_kwargs", "residual", "startup", "frame_stack",
-                 "normalize_reward")
+DRILLGYM_KEYS = ("n_envs", "n_timesteps", "policy", "env_kwargs", "residual", "startup", "base", "observer",
+                 "frame_stack", "normalize_reward")
 
 
 def _parse_policy_kwargs(v: Any) -> dict:

@@ -145,6 +145,7 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
     out.mkdir(parents=True, exist_ok=True)
     venv = make_training_env(env_id, hp["n_envs"], seed=seed, env_kwargs=hp["env_kwargs"],
                              residual=hp.get("residual"), startup=hp.get("startup"),
+                             base=hp.get("base"), observer=hp.get("observer"),
                              frame_stack=int(hp.get("frame_stack", 1)),
                              normalize_reward=bool(hp.get("normalize_reward", False)), gamma=float(hp.get("gamma", 0.99)))
     config = {"env_id": env_id, "algo": algo, "seed": int(seed), "hyperparams": hp, "command": command}

@@ -43,7 +43,6 @@ from numba import njit
 from .configurations import Configuration
 from .friction import lower_slip_torque, upper_slip_torque
 from .params import IDX
-from .vmath import vsincos
 
 UPPER = int(Configuration.UPPER)
 TORSIONAL = int(Configuration.TORSIONAL)
@@ -256,7 +255,8 @@ def state_derivative(t: float, y: np.ndarray, mode: np.ndarray, u: float, p: np.
         Qu, Qx, Qy = isotropic_lateral_forces(x, yy, vx, vy, wu, p[_k], p[_b])
     else:
         Qu, Qx, Qy = lateral_generalised_forces(y, p)
-    s, c = vsincos(alpha)
+    s = math.sin(alpha)
+    c = math.cos(alpha)
     a_u, a_l, a_x, a_y, fu, fl = full_accelerations(x, yy, vx, vy, wu, wl, s, c, p[_mr] + p[_mt], p[_e] * p[_mr],
                                                     p[_Ju], p[_Jl], torque, string, tfu, tfl, Qu, Qx, Qy,
                                                     mu != 0, ml != 0)

@@ -52,16 +52,26 @@ def upper_law(aw: float, d: float, Tcu: float, dTcu: float, bu: float, dbu: floa
     return t_pos if d > 0 else (t_neg if d < 0 else 0.0)
 
 
-@njit(inline="always", fastmath=True, error_model="numpy")
-def brake_law(aw: float, d: float, Ts: float, Tc: float, ws: float, delta: float, bb: float,
-              asym_s: float, asym_c: float) -> float:
-    """Stribeck brake torque (N m) at speed magnitude aw in direction d (+1/-1; 0 gives 0);
-    for d < 0 the levels are scaled by (1 + asym_s), (1 + asym_c) (brake_asymmetry)."""
-    neg = 1.0 if d < 0 else 0.0
-    ts = Ts * (1.0 + asym_s * neg)
-    tc = Tc * (1.0 + asym_c * neg)
-    z = max(aw / ws, 1e-300)
-    return d * (tc + (ts - tc) * vexp(-vexp(delta * vlog(z))) + bb * aw)
+def _make_brake_law(exp, log):
+    """The Stribeck law with a given exp/log: libm for the scalar kernel (fastest on one value),
+    the vectorisable :mod:`drillgym.vmath` versions for the SIMD lane kernel.  One formula."""
+
+    @njit(inline="always", fastmath=True, error_model="numpy")
+    def brake_law(aw: float, d: float, Ts: float, Tc: float, ws: float, delta: float, bb: float,
+                  asym_s: float, asym_c: float) -> float:
+        """Stribeck brake torque (N m) at speed magnitude aw in direction d (+1/-1; 0 gives 0);
+        for d < 0 the levels are scaled by (1 + asym_s), (1 + asym_c) (brake_asymmetry)."""
+        neg = 1.0 if d < 0 else 0.0
+        ts = Ts * (1.0 + asym_s * neg)
+        tc = Tc * (1.0 + asym_c * neg)
+        z = max(aw / ws, 1e-300)
+        return d * (tc + (ts - tc) * exp(-exp(delta * log(z))) + bb * aw)
+
+    return brake_law
+
+
+brake_law = _make_brake_law(math.exp, math.log)
+brake_law_simd = _make_brake_law(vexp, vlog)
 
 
 @njit(inline="always", fastmath=True, error_model="numpy")

@@ -30,7 +30,7 @@ from numba import njit
 from .configurations import N_STATE
 from .dynamics import FREE_VIBRATION, UPPER, S_TL, S_TU, S_VX, S_VY, S_WL, S_WU, S_X, S_Y, brake_on, lateral_free
 from .integrators import RK4_A, RK4_B, RK4_C, alloc_work, hybrid_step, initial_modes, record, resolve_modes
-from .friction import bearing_law, brake_law, upper_law
+from .friction import bearing_law, brake_law_simd, upper_law
 from .dynamics import full_accelerations, isotropic_lateral_forces, reduced_accelerations
 from .params import IDX
 from .vmath import vsincos
@@ -52,7 +52,7 @@ ROWS_FULL = np.array([S_TU, S_TL, S_X, S_Y, S_WU, S_WL, S_VX, S_VY])
 def _friction_laws(wu, wl, mu, ml, Tcu, dTcu, bu, dbu, Tcl, bl, Ts, Tc, ws, delta, bb, asym_s, asym_c, brake):
     """Slip friction torques (N m) in the directions of the modes (0 for a stuck disc): friction.py's laws."""
     awl = abs(wl)
-    tfl = brake_law(awl, ml, Ts, Tc, ws, delta, bb, asym_s, asym_c) if brake else bearing_law(awl, ml, Tcl, bl)
+    tfl = brake_law_simd(awl, ml, Ts, Tc, ws, delta, bb, asym_s, asym_c) if brake else bearing_law(awl, ml, Tcl, bl)
     return upper_law(abs(wu), mu, Tcu, dTcu, bu, dbu), tfl
 
 

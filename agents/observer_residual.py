@@ -1,0 +1,126 @@
+"""Residual policy on the classical observer controller: the agent corrects the ``observer`` voltage.
+
+Structure (residual policy learning on a model-based controller)::
+
+    x^      = EKF(theta_u, past voltages)               estimates (omega_u, alpha, omega_l, d), motor angle only
+    u_base  = FlatnessLaw(x^, omega_ref)                the ``observer`` controller's voltage (V)
+    obs     = features(x^, omega_ref)                   what the policy sees (:data:`FEATURES`)
+    u       = clip(u_base + scale * a, -5 V, 5 V)       a = policy(obs) in [-1, 1]
+    EKF.predict(u)                                      the filter propagates with the voltage applied
+
+The estimator and the law are those of :class:`controllers.observer.ObserverController` (same model,
+same noise settings, same law, built by that class's constructor), so ``a = 0`` *is* the observer
+controller and training starts at its performance.  Everything the policy sees is a function of the
+motor angle and the applied voltages: the agent observes only the motor encoder.
+
+:class:`ObserverResidual` is batched over n rigs (the extended Kalman filter's covariances as an
+(n, 5, 5) array, the same equations as filterpy's ``KalmanFilter`` per rig in
+:class:`controllers.kalman.ExtendedKalmanObserver`), with per-rig resets, so one object serves the
+training VecEnv (:class:`agents.envs.ObserverResidualVecEnv`), the exported policy's
+:class:`agents.controller.AgentController` and the rig.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from controllers.flatness import FlatnessLaw
+from controllers.kalman import I_AL, I_D, I_TU, I_WL, I_WU, ExtendedKalmanObserver
+from controllers.observer import ObserverController
+from drillgym import RigParams
+from drillgym.envs.options import U_MAX
+
+__all__ = ["ObserverResidual", "FEATURES"]
+
+FEATURES = ("omega_l_err", "omega_u_err", "string_torque", "friction", "u_base", "omega_ref")
+"""Policy inputs: omega^_l - omega_ref, omega^_u - omega_ref (rad/s), k_theta alpha^ / Ts and
+estimated lower friction / Ts (dimensionless), base voltage / 5 V, omega_ref / 8 rad/s."""
+
+
+class ObserverResidual:
+    """Batched ``observer`` controller as the base of a residual policy (see the module docstring).
+
+    Args:
+        config: rig configuration the observer is designed for.
+        scale: voltage of a full action (V), > 0.
+        params: the design model (default: the identified set).
+        dt: control period (s).
+        observer: keywords of :class:`controllers.observer.ObserverController` (noise settings, law
+            bandwidth, ...); ``approach`` must stay 0 (the law's start-up shaping has one clock for all rigs).
+    """
+
+    def __init__(self, config: str, scale: float, params: RigParams | None = None, dt: float = 0.01,
+                 observer: dict[str, Any] | None = None) -> None:
+        if not (np.isfinite(scale) and scale > 0):
+            raise ValueError(f"residual scale must be a positive voltage, got {scale!r}")
+        ctrl = ObserverController(1.0, config=config, params=params, dt=dt, **(observer or {}))
+        if ctrl.shaping["approach"] > 0:
+            raise ValueError("the residual observer base needs approach = 0 (per-rig resets)")
+        self.scale, self.params, self.dt, self.model = float(scale), ctrl.params, ctrl.dt, ctrl.model
+        self._law_kw = dict(bandwidth=ctrl.bandwidth, tau_ref=ctrl.tau_ref, **ctrl.shaping)
+        self._ekf = ExtendedKalmanObserver(self.model)  # its Jacobians and initial covariance
+        self.n = 0
+
+    @property
+    def dim(self) -> int:
+        """Number of policy inputs."""
+        return len(FEATURES)
+
+    def start(self, n: int) -> None:
+        """Allocate n rigs (call :meth:`reset` for them before :meth:`update`)."""
+        self.n = int(n)
+        self.x = np.zeros((5, self.n))
+        self.P = np.broadcast_to(self._ekf._P0, (self.n, 5, 5)).copy()
+        self.law = FlatnessLaw(self.params, self.dt, **self._law_kw)
+        self.law.reset(np.ones(self.n))
+        self.u_base = np.zeros(self.n)
+
+    def reset(self, index: np.ndarray, theta_u: np.ndarray, omega_ref: np.ndarray) -> None:
+        """Rigs ``index`` start at rest at motor angles theta_u (rad) towards targets omega_ref (rad/s)."""
+        idx = np.asarray(index)
+        self.x[:, idx] = 0.0
+        self.x[I_TU, idx] = theta_u
+        self.P[idx] = self._ekf._P0
+        self.law.target = np.array(self.law.target, dtype=float)
+        self.law.target[idx] = omega_ref
+        self.law.y[:, idx] = 0.0
+
+    def correct(self, theta_u: np.ndarray, index: np.ndarray | slice = slice(None)) -> None:
+        """Kalman measurement update of rigs ``index`` with their motor angles (rad)."""
+        P, x = self.P[index], self.x[:, index]
+        S = P[:, I_TU, I_TU] + self.model.R[0, 0]
+        K = P[:, :, I_TU] / S[:, None]  # (m, 5)
+        x = x + K.T * (np.asarray(theta_u) - x[I_TU])
+        IKH = np.broadcast_to(np.eye(5), P.shape).copy()
+        IKH[:, :, I_TU] -= K
+        P = IKH @ P @ IKH.transpose(0, 2, 1) + self.model.R[0, 0] * K[:, :, None] * K[:, None, :]
+        self.x[:, index], self.P[index] = x, P
+
+    def features(self) -> np.ndarray:
+        """Policy inputs (n, :attr:`dim`) from the current estimates, float32 (see :data:`FEATURES`)."""
+        x, ref, Ts = self.x, self.law.target, self.params.Ts
+        d = self.model.nominal_lower_friction(x) + x[I_D]
+        f = np.stack([x[I_WL] - ref, x[I_WU] - ref, self.params.ktheta * x[I_AL] / Ts, d / Ts,
+                      self.u_base / U_MAX, ref / 8.0], axis=1)
+        return np.clip(f, -10.0, 10.0).astype(np.float32)
+
+    def base(self) -> np.ndarray:
+        """The observer law's voltage (V, (n,)) at the current estimates; advances the law's reference."""
+        x = self.x
+        self.u_base = np.clip(self.law(x[I_WU], x[I_AL], x[I_WL], x[I_D]), -U_MAX, U_MAX)
+        return self.u_base
+
+    def voltage(self, action: np.ndarray) -> np.ndarray:
+        """Applied voltages (V, (n,)) for policy actions (n,) or (n, 1) in [-1, 1]."""
+        a = np.clip(np.asarray(action, dtype=float).reshape(-1), -1.0, 1.0)
+        return np.clip(self.u_base + self.scale * a, -U_MAX, U_MAX)
+
+    def predict(self, u: np.ndarray) -> None:
+        """Propagate the estimates over one period with the applied voltages u (V, (n,))."""
+        m = self.model
+        F = self._ekf.jacobians(self.x)
+        uk = m.known_inputs(self.x, np.asarray(u, dtype=float))
+        self.P = F @ self.P @ F.transpose(0, 2, 1) + m.Qd
+        self.x = m.Ad @ self.x + m.Bd @ uk
