@@ -22,7 +22,7 @@ def register(app: typer.Typer) -> None:
         no_report: bool = typer.Option(False, "--no-report", help="leave out the report's measured points"),
     ) -> None:
         """Equilibria, Hopf points, periodic branches (shooting + continuation), folds, sweeps; figures + JSON."""
-        from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+        from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
         from ..bifurcation import compute_diagram, measured_diagram
         from ..bifurcation.plots import save_figures
@@ -36,12 +36,20 @@ def register(app: typer.Typer) -> None:
         p = RigParams.from_file(params) if params else RigParams()
         meas = measured_diagram(measured, cfg.label) if measured else []
         lateral = cfg.label == "lateral"
-        with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn()) as bar:
-            task = bar.add_task(f"{cfg.label}: start", total=None)
+        stages = ("equilibria", "periodic solutions", "sweeps")  # compute_diagram's stage messages, in order
+        with Progress(SpinnerColumn(), TextColumn("{task.description:<36}"), BarColumn(),
+                      TextColumn("stage {task.completed:.0f}/{task.total:.0f}"), TimeElapsedColumn()) as bar:
+            task = bar.add_task(f"{cfg.label}: start", total=len(stages))
+
+            def on_progress(message: str) -> None:
+                done = stages.index(message) if message in stages else None
+                bar.update(task, description=f"{cfg.label}: {message}", completed=done)
+
             diag = compute_diagram(cfg.label, p, umin=umin, umax=hi, sweep_step=sweep_step or None,
                                    sweep_duration=sweep_duration, staircase=not lateral,
                                    sweep_umax=min(hi, 5.0) if lateral else None,  # the report's lab range
-                                   measured=meas, progress=lambda m: bar.update(task, description=f"{cfg.label}: {m}"))
+                                   measured=meas, progress=on_progress)
+            bar.update(task, completed=len(stages), description=f"{cfg.label}: done")
         out.mkdir(parents=True, exist_ok=True)
         paths = save_figures(diag, out, report=not no_report)
         diag.save_json(out / "branches.json")
