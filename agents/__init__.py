@@ -2,6 +2,8 @@
 
 * :mod:`.hyperparams` - rl-zoo3 style YAML hyperparameters (``agents/hyperparams/<algo>.yml``)
 * :mod:`.residual` - the policy structure: a correction on the feedforward voltage u_ff(omega_ref)
+* :mod:`.observer_residual` - the policy structure of the kept agent: a correction on the ``observer``
+  controller's voltage, the policy seeing that controller's estimates (motor angle only)
 * :mod:`.envs` - batched training envs (DrillVectorEnv through the SB3 adapter)
 * :mod:`.train` - ``train(env_id, algo, out, ...)``: seeds, TensorBoard, progress bar, checkpoints, resume
 * :mod:`.export` - numpy export of the deterministic policy (no torch on the rig)
@@ -18,7 +20,7 @@ from pathlib import Path
 __all__ = ["load_controller", "load_policy", "KEPT_POLICY"]
 
 #: the policy kept in the repository (``agent:`` + this path works in ``drillgym evaluate``)
-KEPT_POLICY = Path(__file__).resolve().parent / "policies" / "torsional_motor_ppo" / "policy.npz"
+KEPT_POLICY = Path(__file__).resolve().parent / "policies" / "torsional_motor_residual_observer" / "policy.npz"
 
 
 def load_controller(path: str, **kw):

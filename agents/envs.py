@@ -12,6 +12,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, VecFrameStac
 from drillgym.envs import ENV_IDS
 from drillgym.envs.options import U_MAX
 from drillgym.envs.sb3 import make_sb3_vec
+from drillgym.measurement import counts_to_angle
 
 from .observer_residual import ObserverResidual
 from .residual import ResidualVoltage
@@ -57,7 +58,7 @@ class ObserverResidualVecEnv(VecEnvWrapper):
     VecEnv in ``motor`` mode with the action in volts.
 
     The motor angle is rebuilt from the observation's latest encoder increment (``omega_u_inc_0`` times
-    the control period, 0 at each episode's start); the wrapper's observation is the structure's
+    the control period, 0 at each episode's start, rounded to the encoder's grid); the wrapper's observation is the structure's
     features (:data:`agents.observer_residual.FEATURES`), its action the residual in [-1, 1].
     """
 
@@ -71,7 +72,8 @@ class ObserverResidualVecEnv(VecEnvWrapper):
         super().__init__(venv, observation_space=obs_space,
                          action_space=spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32))
         self.base = base
-        self.control_dt = float(venv.get_attr("options")[0].control_dt)
+        opts = venv.get_attr("options")[0]
+        self.control_dt, self.counts_per_rev = float(opts.control_dt), int(opts.counts_per_rev)
         self._theta = np.zeros(venv.num_envs)
 
     def reset(self) -> np.ndarray:
@@ -96,6 +98,9 @@ class ObserverResidualVecEnv(VecEnvWrapper):
         for i in ended:  # the ending episode's last increment is in its terminal observation
             inc[i] = infos[i]["terminal_observation"][0]
         self._theta += inc * self.control_dt
+        if self.counts_per_rev > 0:  # back onto the encoder's grid (the increments are float32)
+            q = counts_to_angle(1, self.counts_per_rev)
+            self._theta = counts_to_angle(np.round(self._theta / q), self.counts_per_rev)
         self.base.correct(self._theta)
         if ended.size:
             feats = self.base.features()

@@ -15,7 +15,9 @@ motor angle and the applied voltages: the agent observes only the motor encoder.
 
 :class:`ObserverResidual` is batched over n rigs (the extended Kalman filter's covariances as an
 (n, 5, 5) array, the same equations as filterpy's ``KalmanFilter`` per rig in
-:class:`controllers.kalman.ExtendedKalmanObserver`), with per-rig resets, so one object serves the
+:class:`controllers.kalman.ExtendedKalmanObserver`; the law of
+:class:`controllers.flatness.FlatnessLaw` once per group of rigs started together), with per-rig
+resets, so one object serves the
 training VecEnv (:class:`agents.envs.ObserverResidualVecEnv`), the exported policy's
 :class:`agents.controller.AgentController` and the rig.
 """
@@ -26,7 +28,6 @@ from typing import Any
 
 import numpy as np
 
-from controllers.flatness import FlatnessLaw
 from controllers.kalman import I_AL, I_D, I_TU, I_WL, I_WU, ExtendedKalmanObserver
 from controllers.observer import ObserverController
 from drillgym import RigParams
@@ -34,13 +35,20 @@ from drillgym.envs.options import U_MAX
 
 __all__ = ["ObserverResidual", "FEATURES"]
 
-FEATURES = ("omega_l_err", "omega_u_err", "string_torque", "friction", "u_base", "omega_ref")
+FEATURES = ("omega_l_err", "omega_u_err", "string_torque", "friction", "u_base", "phase", "omega_ref")
 """Policy inputs: omega^_l - omega_ref, omega^_u - omega_ref (rad/s), k_theta alpha^ / Ts and
-estimated lower friction / Ts (dimensionless), base voltage / 5 V, omega_ref / 8 rad/s."""
+estimated lower friction / Ts (dimensionless), base voltage / 5 V, time since the start / 30 s (at
+most 1; the law's start-up phase), omega_ref / 8 rad/s."""
+
+PHASE_TIME = 30.0  # s, time scale of the phase input
 
 
 class ObserverResidual:
     """Batched ``observer`` controller as the base of a residual policy (see the module docstring).
+
+    Rigs reset together share one :class:`controllers.flatness.FlatnessLaw` (its start-up shaping has
+    one clock); each law is built by the observer controller's own ``reset``, so the base follows that
+    controller's options whatever they are.
 
     Args:
         config: rig configuration the observer is designed for.
@@ -48,19 +56,17 @@ class ObserverResidual:
         params: the design model (default: the identified set).
         dt: control period (s).
         observer: keywords of :class:`controllers.observer.ObserverController` (noise settings, law
-            bandwidth, ...); ``approach`` must stay 0 (the law's start-up shaping has one clock for all rigs).
+            bandwidth, start-up shaping, ...).
     """
 
     def __init__(self, config: str, scale: float, params: RigParams | None = None, dt: float = 0.01,
                  observer: dict[str, Any] | None = None) -> None:
         if not (np.isfinite(scale) and scale > 0):
             raise ValueError(f"residual scale must be a positive voltage, got {scale!r}")
-        ctrl = ObserverController(1.0, config=config, params=params, dt=dt, **(observer or {}))
-        if ctrl.shaping["approach"] > 0:
-            raise ValueError("the residual observer base needs approach = 0 (per-rig resets)")
-        self.scale, self.params, self.dt, self.model = float(scale), ctrl.params, ctrl.dt, ctrl.model
-        self._law_kw = dict(bandwidth=ctrl.bandwidth, tau_ref=ctrl.tau_ref, **ctrl.shaping)
-        self._ekf = ExtendedKalmanObserver(self.model)  # its Jacobians and initial covariance
+        self._ctrl = ObserverController(1.0, config=config, params=params, dt=dt, **(observer or {}))
+        self.scale, self.params, self.dt, self.model = float(scale), self._ctrl.params, self._ctrl.dt, self._ctrl.model
+        self._ekf = ExtendedKalmanObserver(self.model)  # its Jacobians and initial covariance (the controller's)
+        self._P0 = self._ekf._P0
         self.n = 0
 
     @property
@@ -69,24 +75,29 @@ class ObserverResidual:
         return len(FEATURES)
 
     def start(self, n: int) -> None:
-        """Allocate n rigs (call :meth:`reset` for them before :meth:`update`)."""
+        """Allocate n rigs (call :meth:`reset` for them before :meth:`correct`)."""
         self.n = int(n)
         self.x = np.zeros((5, self.n))
-        self.P = np.broadcast_to(self._ekf._P0, (self.n, 5, 5)).copy()
-        self.law = FlatnessLaw(self.params, self.dt, **self._law_kw)
-        self.law.reset(np.ones(self.n))
+        self.P = np.broadcast_to(self._P0, (self.n, 5, 5)).copy()
+        self.target = np.ones(self.n)
+        self.t = np.zeros(self.n)  # time since each rig's start (s)
         self.u_base = np.zeros(self.n)
+        self._groups: list[tuple[np.ndarray, np.ndarray, Any]] = []  # (rigs, live mask, law)
 
     def reset(self, index: np.ndarray, theta_u: np.ndarray, omega_ref: np.ndarray) -> None:
         """Rigs ``index`` start at rest at motor angles theta_u (rad) towards targets omega_ref (rad/s)."""
-        idx = np.asarray(index)
+        idx = np.atleast_1d(np.asarray(index))
+        th = np.broadcast_to(np.asarray(theta_u, dtype=float), idx.shape)
+        ref = np.broadcast_to(np.asarray(omega_ref, dtype=float), idx.shape)
         self.x[:, idx] = 0.0
-        self.x[I_TU, idx] = theta_u
-        self.P[idx] = self._ekf._P0
-        self.law.target = np.array(self.law.target, dtype=float)
-        self.law.target[idx] = omega_ref
-        self.law.y[:, idx] = 0.0
-
+        self.x[I_TU, idx] = th
+        self.P[idx] = self._P0
+        self.target[idx], self.t[idx] = ref, 0.0
+        for rigs, live, _ in self._groups:
+            live &= ~np.isin(rigs, idx)
+        self._groups = [g for g in self._groups if g[1].any()]
+        self._ctrl.reset({"theta_u": th, "omega_ref": ref})
+        self._groups.append((idx.copy(), np.ones(idx.size, dtype=bool), self._ctrl.law))
     def correct(self, theta_u: np.ndarray, index: np.ndarray | slice = slice(None)) -> None:
         """Kalman measurement update of rigs ``index`` with their motor angles (rad)."""
         P, x = self.P[index], self.x[:, index]
@@ -100,16 +111,20 @@ class ObserverResidual:
 
     def features(self) -> np.ndarray:
         """Policy inputs (n, :attr:`dim`) from the current estimates, float32 (see :data:`FEATURES`)."""
-        x, ref, Ts = self.x, self.law.target, self.params.Ts
+        x, ref, Ts = self.x, self.target, self.params.Ts
         d = self.model.nominal_lower_friction(x) + x[I_D]
         f = np.stack([x[I_WL] - ref, x[I_WU] - ref, self.params.ktheta * x[I_AL] / Ts, d / Ts,
-                      self.u_base / U_MAX, ref / 8.0], axis=1)
+                      self.u_base / U_MAX, np.minimum(self.t / PHASE_TIME, 1.0), ref / 8.0], axis=1)
         return np.clip(f, -10.0, 10.0).astype(np.float32)
 
     def base(self) -> np.ndarray:
-        """The observer law's voltage (V, (n,)) at the current estimates; advances the law's reference."""
-        x = self.x
-        self.u_base = np.clip(self.law(x[I_WU], x[I_AL], x[I_WL], x[I_D]), -U_MAX, U_MAX)
+        """The observer law's voltage (V, (n,)) at the current estimates; advances the laws' references
+        and the rigs' clocks by one period."""
+        for rigs, live, law in self._groups:
+            x = self.x[:, rigs]
+            u = law(x[I_WU], x[I_AL], x[I_WL], x[I_D])
+            self.u_base[rigs[live]] = np.clip(u[live], -U_MAX, U_MAX)
+        self.t += self.dt
         return self.u_base
 
     def voltage(self, action: np.ndarray) -> np.ndarray:

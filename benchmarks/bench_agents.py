@@ -1,13 +1,14 @@
 """The kept agent: inference time and its row of the controller table (harness, from rest).
 
-    .venv/bin/python benchmarks/bench_agents.py [--policy agents/policies/torsional_motor_ppo/policy.npz]
+    .venv/bin/python benchmarks/bench_agents.py [--policy agents/policies/torsional_motor_residual_observer/policy.npz]
                                                 [--workers 2] [--skip-table]
 
 Prints (1) the time of one control step: the numpy policy alone and the whole
 ``AgentController.act`` (measurement -> observation -> policy -> volts), batch of one,
 beside SB3's ``predict`` on the same model (best of 5 x 2000 calls); (2) the harness table
 (torsional and coupled, targets 0.5-8 rad/s, 60 s from rest, last 20 s) with the baseline,
-the soft-torque controller and the agent's policy structure alone (start-up schedule, residual 0)
+the soft-torque controller and the agent's policy structure alone (residual 0: the start-up schedule of
+the ``residual`` agents, the ``observer`` controller itself for agents on the observer base)
 beside the agent; (3) SSI and tracking RMS per target with the brake friction 20 % below and above
 the training value (torsional), agent and structure alone.
 """
@@ -70,7 +71,7 @@ def zero_residual(policy_path: Path, directory: Path) -> Path:
 def table(policy_path: Path, workers: int) -> None:
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as d:
-        names = {f"agent:{policy_path}": "agent (torsional_motor_ppo)",
+        names = {f"agent:{policy_path}": f"agent ({policy_path.parent.name})",
                  f"agent:{zero_residual(policy_path, Path(d))}": "structure alone (residual 0)"}
         rows = evaluate(["baseline", "softtorque", *names], ["torsional", "coupled"], ["rest"], DEFAULT_TARGETS,
                         workers=workers, progress=False)

