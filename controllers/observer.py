@@ -7,7 +7,8 @@ the lower speed omega_l and the lower friction torque offset d.
 * :class:`ObserverController` (``observer``): extended Kalman filter (filterpy, the brake's
   local slope in the covariance propagation) + the feedback-linearising law of
   :mod:`controllers.flatness` (LQR on the lower speed's error chain, smooth reference from
-  rest; targets below 2 rad/s approached from 2.5 rad/s with a slower chain and integral action).  The law cancels the brake's negative slope with the friction law and the estimates.
+  rest; targets below 2 rad/s approached from 2.5 rad/s with a slower chain and integral action).
+  The law cancels the brake's negative slope with the friction law and the estimates.
 * :class:`LQGController` (``lqg``): the linear design.  Stationary Kalman gain from
   ``control.dlqe``; state feedback about the operating point the friction estimate defines::
 
@@ -84,7 +85,7 @@ class ObserverController(Controller):
     def __init__(self, omega_ref=None, *, counts_per_rev: int = 8000, angle_noise: float = 0.0,
                  sigma_d: float = 0.005, sigma_upper: float = 0.01, sigma_lower: float = 0.005,
                  noise_floor: float = 5e-4, bandwidth: float = 2.5, tau_ref: float = 1.0,
-                 low_speed: float = 2.0, approach: float = 2.5, hold: float = 8.0, ramp: float = 15.0,
+                 low_speed: float = 2.0, approach: float = 2.5, hold: float = 12.0, ramp: float = 15.0,
                  low_bandwidth: float = 1.0, integral: float = 0.1, **kw) -> None:
         super().__init__(omega_ref, **kw)
         # noise_floor (rad): angle noise the filter assumes on top of quantization; it slows the
@@ -93,7 +94,7 @@ class ObserverController(Controller):
                                        angle_noise=float(np.hypot(angle_noise, noise_floor)), sigma_d=sigma_d,
                                        sigma_upper=sigma_upper, sigma_lower=sigma_lower)
         # targets below low_speed (rad/s): reached from `approach` by a ramp down, slower error chain with
-        # integral action (see controllers.flatness); the ramp ends at hold + ramp = 23 s, 17 s before the
+        # integral action (see controllers.flatness); the ramp ends at hold + ramp = 27 s, 13 s before the
         # steady window (last 20 s) of the 60 s evaluation runs
         self.law_options = {"bandwidth": float(bandwidth), "tau_ref": float(tau_ref), "low_speed": float(low_speed),
                             "approach": float(approach), "hold": float(hold), "ramp": float(ramp),
