@@ -34,7 +34,8 @@ def main() -> None:
     text = ("# Controllers compared (from rest, SSI < 0.1 = no stick-slip)\n\n"
             "Produced by `benchmarks/evaluate_table.py` (harness `controllers.evaluation`, "
             f"{a.duration:g} s runs, last 20 s steady state, targets 0.5-8 rad/s in 0.5 rad/s steps). "
-            "'lowest free target': lowest target from which every higher one is held without stick-slip; "
+            "'lowest free target': lowest target from which every higher one is held: no stick-slip and the mean "
+            "lower-disc speed within 10 % of the target; "
             "'stuck': the lower disc does not turn. Scenario 'rest' below; the other scenarios "
             "(start on a stick-slip cycle, brake friction -20 %/+20 %, 2048-count encoders with 1 mrad noise) "
             "follow.\n\n" + table + others)

@@ -21,6 +21,8 @@ def test_lowest_free_speed_is_contiguous_from_the_top():
     t = np.array([0.5, 1.0, 1.5, 2.0, 2.5])
     assert lowest_free_speed(t, np.array([0.0, 1.0, 0.05, 0.01, 0.0])) == 1.5
     assert np.isnan(lowest_free_speed(t, np.array([0, 0, 0, 0, 0.5])))
+    # smooth but 30 % too fast at 1.5 rad/s is not holding that target
+    assert lowest_free_speed(t, np.array([0.0, 1.0, 0.05, 0.01, 0.0]), offset=np.array([0, 0, 0.3, 0, 0])) == 2.0
 
 
 def test_harness_rows_and_report(tmp_path):

@@ -7,6 +7,9 @@
 * u_peak, u_rms: peak and RMS voltage over the whole run (V).
 * energy: mechanical work of the motor, integral of km u omega_u dt over the whole run (J).
 * stick_slip: SSI >= 0.1 (the harness's criterion).
+* offset: (mean omega_l - omega_ref) / omega_ref over the steady window; a target counts as *held*
+  only when SSI < 0.1 and |offset| <= TRACKING_TOLERANCE (a smooth rotation at another speed is
+  not holding the target).
 * omega_l_min, omega_l_max, u_mean: steady-state range of omega_l (rad/s) and mean voltage (V).
 """
 
@@ -16,11 +19,12 @@ import numpy as np
 
 from drillgym import RigParams
 
-__all__ = ["SSI_THRESHOLD", "METRICS", "stick_slip_severity", "run_metrics", "lowest_free_speed"]
+__all__ = ["SSI_THRESHOLD", "TRACKING_TOLERANCE", "METRICS", "stick_slip_severity", "run_metrics", "lowest_free_speed"]
 
 SSI_THRESHOLD = 0.1
+TRACKING_TOLERANCE = 0.1  # relative offset of the mean lower-disc speed from the target
 METRICS = ("ssi", "stuck", "tracking_rms", "u_peak", "u_rms", "energy", "stick_slip", "omega_l_min", "omega_l_max",
-           "u_mean")
+           "u_mean", "offset")
 
 
 def stick_slip_severity(omega_l: np.ndarray, omega_ref: "float | np.ndarray | None" = None) -> np.ndarray:
@@ -52,15 +56,21 @@ def run_metrics(run, window: float, params: RigParams | None = None) -> dict[str
         "omega_l_min": wl.min(axis=1),
         "omega_l_max": wl.max(axis=1),
         "u_mean": run.u[:, ss].mean(axis=1),
+        "offset": (wl.mean(axis=1) - run.omega_ref) / run.omega_ref,
     }
 
 
-def lowest_free_speed(targets: np.ndarray, ssi: np.ndarray, threshold: float = SSI_THRESHOLD) -> float:
-    """Lowest target (rad/s) from which every higher target of the grid is held without stick-slip
-    (SSI < threshold); NaN when the highest one is not."""
+def lowest_free_speed(targets: np.ndarray, ssi: np.ndarray, threshold: float = SSI_THRESHOLD,
+                      offset: np.ndarray | None = None, tolerance: float = TRACKING_TOLERANCE) -> float:
+    """Lowest target (rad/s) from which every higher target of the grid is held: no stick-slip
+    (SSI < threshold) and, when ``offset`` is given, mean speed within ``tolerance`` of the target.
+    NaN when the highest one is not held."""
     t = np.asarray(targets, dtype=float)
     order = np.argsort(t)[::-1]
-    ok = np.asarray(ssi, dtype=float)[order] < threshold
+    held = np.asarray(ssi, dtype=float) < threshold
+    if offset is not None:
+        held &= np.abs(np.asarray(offset, dtype=float)) <= tolerance
+    ok = held[order]
     if not ok[0]:
         return float("nan")
     k = len(ok) if ok.all() else int(np.argmin(ok))

@@ -29,7 +29,8 @@ def write_csv(rows: Sequence[dict], path: "str | Path") -> Path:
 def _select(rows, controller, config, scenario):
     sel = sorted((r for r in rows if r["controller"] == controller and r["config"] == config
                   and r["scenario"] == scenario), key=lambda r: r["omega_ref"])
-    return np.array([r["omega_ref"] for r in sel]), np.array([r["ssi"] for r in sel])
+    return (np.array([r["omega_ref"] for r in sel]), np.array([r["ssi"] for r in sel]),
+            np.array([r.get("offset", 0.0) for r in sel]))
 
 
 def summary(rows: Sequence[dict], scenario: str = "rest", speeds: Sequence[float] = (2.0, 4.0)) -> list[dict]:
@@ -38,10 +39,10 @@ def summary(rows: Sequence[dict], scenario: str = "rest", speeds: Sequence[float
     for c in dict.fromkeys(r["controller"] for r in rows):
         entry = {"controller": c}
         for cfg in dict.fromkeys(r["config"] for r in rows):
-            t, s = _select(rows, c, cfg, scenario)
+            t, s, off = _select(rows, c, cfg, scenario)
             if t.size == 0:
                 continue
-            entry[f"lowest_free_{cfg}"] = lowest_free_speed(t, s)
+            entry[f"lowest_free_{cfg}"] = lowest_free_speed(t, s, offset=off)
             for v in speeds:
                 k = np.flatnonzero(np.isclose(t, v))
                 entry[f"ssi_{v:g}_{cfg}"] = float(s[k[0]]) if k.size else float("nan")
@@ -86,7 +87,7 @@ def plot_ssi(rows: Sequence[dict], path: "str | Path", scenario: str = "rest", p
     for i, cfg in enumerate(cfgs):
         ax = axes[i, 0]
         for c in dict.fromkeys(r["controller"] for r in rows):
-            t, s = _select(rows, c, cfg, scenario)
+            t, s, _ = _select(rows, c, cfg, scenario)
             if t.size:
                 ax.semilogy(t, np.clip(np.where(np.isfinite(s), s, 10.0), 1e-4, 10.0), "o-", label=c)
         ax.axhline(SSI_THRESHOLD, color="k", lw=0.8, ls="--")
@@ -120,7 +121,8 @@ def write_report(rows: Sequence[dict], out_dir: "str | Path", params=None) -> di
     out.mkdir(parents=True, exist_ok=True)
     files = {"csv": write_csv(rows, out / "results.csv")}
     parts = ["# Controller evaluation\n", f"Stick-slip: SSI >= {SSI_THRESHOLD} in steady state. 'lowest free target': "
-             "lowest target of the grid from which every higher target is held without stick-slip.\n"]
+             "lowest target of the grid from which every higher target is held: no stick-slip and the mean "
+             "lower-disc speed within 10 % of the target.\n"]
     for sc in dict.fromkeys(r["scenario"] for r in rows):
         parts.append(f"\n## scenario: {sc}\n\n" + markdown_table(rows, sc))
     md = out / "summary.md"
