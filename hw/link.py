@@ -14,6 +14,13 @@ import time
 
 import serial
 
+try:  # pyserial's POSIX flush() calls termios directly, whose error is not an OSError
+    import termios
+
+    PORT_ERRORS: tuple = (serial.SerialException, OSError, termios.error)
+except ImportError:  # pragma: no cover - Windows
+    PORT_ERRORS = (serial.SerialException, OSError)
+
 from drillgym.errors import SafetyError
 
 from . import protocol as P
@@ -59,7 +66,7 @@ class SerialLink:
                                     f"running?)")
         try:
             self.ser = serial.serial_for_url(self.url, baudrate=baudrate, timeout=0.002, write_timeout=0.05)
-        except (serial.SerialException, OSError) as exc:
+        except PORT_ERRORS as exc:
             raise ValueError(f"cannot open serial port {self.url!r}: {exc}") from None
         self.parser = P.FrameParser()
         self._tx_seq = 0
@@ -75,7 +82,7 @@ class SerialLink:
         if self.ser is not None:
             try:
                 self.ser.close()
-            except (serial.SerialException, OSError):
+            except PORT_ERRORS:
                 pass
             self.ser = None
 
@@ -83,7 +90,7 @@ class SerialLink:
         """Drop whatever is waiting (stale replies) and restart sequence tracking."""
         try:
             self.ser.reset_input_buffer()
-        except (serial.SerialException, OSError) as exc:
+        except PORT_ERRORS as exc:
             raise LinkLostError(f"serial port {self.url!r} disconnected ({exc})") from None
         self.parser.reset()
         self._rx_seq = None
@@ -100,7 +107,7 @@ class SerialLink:
             self.ser.flush()
         except serial.SerialTimeoutException:
             raise LinkLostError(f"serial port {self.url!r} not accepting data: write timed out (disconnected, or peer not reading)") from None
-        except (serial.SerialException, OSError) as exc:
+        except PORT_ERRORS as exc:
             raise LinkLostError(f"serial port {self.url!r} disconnected (write failed: {exc})") from None
         return seq
 
@@ -115,7 +122,7 @@ class SerialLink:
                 data = self.ser.read(1)
                 if data:
                     data += self.ser.read(self.ser.in_waiting)
-            except (serial.SerialException, OSError) as exc:
+            except PORT_ERRORS as exc:
                 raise LinkLostError(f"serial port {self.url!r} disconnected (read failed: {exc})") from None
             now = time.monotonic()
             for f in self.parser.feed(data) if data else ():
