@@ -7,6 +7,10 @@ environments ``drillgym/Torsional-v0``, ``drillgym/Lateral-v0``,
 ``drillgym/Coupled-v0`` (and ``drillgym/Hardware-v0``) when they are available.
 """
 
+from ._kernel_cache import invalidate_stale_kernels
+
+invalidate_stale_kernels()  # before any compiled kernel is loaded from numba's cache
+
 from .configurations import Configuration, N_STATE, STATE_NAMES, parse_configuration
 from .integrators import DEFAULT_DT, OUTPUT_NAMES
 from .params import ParameterError, RigParams
