@@ -34,6 +34,18 @@ REFINE_ITERATIONS = 30
 
 
 @njit(cache=True)
+def _copy_step_state(y, k1, fric, mode, y_to, k1_to, fric_to, mode_to):
+    """Copy what hybrid_step carries between steps (state, derivative, friction, modes)."""
+    for i in range(N_STATE):
+        y_to[i] = y[i]
+        k1_to[i] = k1[i]
+    fric_to[0] = fric[0]
+    fric_to[1] = fric[1]
+    mode_to[0] = mode[0]
+    mode_to[1] = mode[1]
+
+
+@njit(cache=True)
 def flow_to_section(y, u, ws, p, cfg, dt, t_max, A, b, c):
     """Integrate from state ``y`` (on or off the section) to the next upward crossing of omega_l = ws.
 
@@ -58,13 +70,7 @@ def flow_to_section(y, u, ws, p, cfg, dt, t_max, A, b, c):
     stick = 0.0
     n_max = int(t_max / dt) + 1
     for _ in range(n_max):
-        for i in range(N_STATE):
-            ys[i] = y[i]
-            ks[i] = k1[i]
-        fs[0] = fric[0]
-        fs[1] = fric[1]
-        ms[0] = mode[0]
-        ms[1] = mode[1]
+        _copy_step_state(y, k1, fric, mode, ys, ks, fs, ms)  # snapshot: the crossing is re-stepped from here
         gprev = y[S_WL] - ws
         hybrid_step(t, y, k1, fric, mode, u, p, cfg, 0.0, dt, A, b, c, K, ytmp, ynew, M, B, g0, g1, ftmp)
         gnew = y[S_WL] - ws
@@ -79,13 +85,7 @@ def flow_to_section(y, u, ws, p, cfg, dt, t_max, A, b, c):
             tau = 1.0
             for _it in range(REFINE_ITERATIONS):
                 tau = (ta * gb - tb * ga) / (gb - ga)
-                for i in range(N_STATE):
-                    y[i] = ys[i]
-                    k1[i] = ks[i]
-                fric[0] = fs[0]
-                fric[1] = fs[1]
-                mode[0] = ms[0]
-                mode[1] = ms[1]
+                _copy_step_state(ys, ks, fs, ms, y, k1, fric, mode)
                 hybrid_step(t, y, k1, fric, mode, u, p, cfg, 0.0, tau * dt, A, b, c, K, ytmp, ynew, M, B, g0, g1, ftmp)
                 gt = y[S_WL] - ws
                 if abs(gt) < 1e-13 or (tb - ta) < 1e-15:
