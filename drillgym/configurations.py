@@ -23,7 +23,7 @@ State vector (length ``N_STATE``), SI units, used by every kernel:
 | 5     | y        | idem (m)                                                     |
 | 6     | vx       | dx/dt in the rotating frame (m/s)                            |
 | 7     | vy       | dy/dt (m/s)                                                  |
-| 8     | u_m      | motor voltage after the motor_lag filter (V; = u when off)   |
+| 8     | u_m      | motor voltage after the motor_lag filter (V; unused, kept at its initial value, when off) |
 
 Friction modes (length 2 integer vector: upper, lower): +1 / -1 slipping in
 that direction, 0 stuck (velocity exactly zero, friction torque inside the

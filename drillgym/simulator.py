@@ -259,8 +259,6 @@ def simulate_batch(config: "str | Configuration", u: InputLike, duration: float,
             raise ValueError("initial state contains NaN or inf")
     if cfg.lateral_free is False:
         Y[:, 4:8] = 0.0
-    if P[:, IDX.tau_m].any():
-        Y[:, 8] = np.where(P[:, IDX.tau_m] > 0, Y[:, 8], U[:, 0])
     MODE = np.zeros((B, 2), dtype=np.int64)
     n_rec = n_steps // record_every + 1
     OUT = np.empty((B, n_rec, N_OUT))
