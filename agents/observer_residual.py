@@ -13,8 +13,7 @@ same noise settings, same law, built by that class's constructor), so ``a = 0`` 
 controller and training starts at its performance.  Everything the policy sees is a function of the
 motor angle and the applied voltages: the agent observes only the motor encoder.
 
-:class:`ObserverResidual` is batched over n rigs (the extended Kalman filter's covariances as an
-(n, 5, 5) array, the same equations as filterpy's ``KalmanFilter`` per rig in
+:class:`ObserverResidual` is batched over n rigs (the controller's batched
 :class:`controllers.kalman.ExtendedKalmanObserver`; the law of
 :class:`controllers.flatness.FlatnessLaw` once per group of rigs started together), with per-rig
 resets, so one object serves the
@@ -65,8 +64,7 @@ class ObserverResidual:
             raise ValueError(f"residual scale must be a positive voltage, got {scale!r}")
         self._ctrl = ObserverController(1.0, config=config, params=params, dt=dt, **(observer or {}))
         self.scale, self.params, self.dt, self.model = float(scale), self._ctrl.params, self._ctrl.dt, self._ctrl.model
-        self._ekf = ExtendedKalmanObserver(self.model)  # its Jacobians and initial covariance (the controller's)
-        self._P0 = self._ekf._P0
+        self.ekf = ExtendedKalmanObserver(self.model)  # the controller's filter, batched over the rigs
         self.n = 0
 
     @property
@@ -77,8 +75,7 @@ class ObserverResidual:
     def start(self, n: int) -> None:
         """Allocate n rigs (call :meth:`reset` for them before :meth:`correct`)."""
         self.n = int(n)
-        self.x = np.zeros((5, self.n))
-        self.P = np.broadcast_to(self._P0, (self.n, 5, 5)).copy()
+        self.ekf.allocate(self.n)
         self.target = np.ones(self.n)
         self.t = np.zeros(self.n)  # time since each rig's start (s)
         self.u_base = np.zeros(self.n)
@@ -89,25 +86,22 @@ class ObserverResidual:
         idx = np.atleast_1d(np.asarray(index))
         th = np.broadcast_to(np.asarray(theta_u, dtype=float), idx.shape)
         ref = np.broadcast_to(np.asarray(omega_ref, dtype=float), idx.shape)
-        self.x[:, idx] = 0.0
-        self.x[I_TU, idx] = th
-        self.P[idx] = self._P0
+        self.ekf.reset(th, 0.0, idx)
         self.target[idx], self.t[idx] = ref, 0.0
         for rigs, live, _ in self._groups:
             live &= ~np.isin(rigs, idx)
         self._groups = [g for g in self._groups if g[1].any()]
         self._ctrl.reset({"theta_u": th, "omega_ref": ref})
         self._groups.append((idx.copy(), np.ones(idx.size, dtype=bool), self._ctrl.law))
+
     def correct(self, theta_u: np.ndarray, index: np.ndarray | slice = slice(None)) -> None:
         """Kalman measurement update of rigs ``index`` with their motor angles (rad)."""
-        P, x = self.P[index], self.x[:, index]
-        S = P[:, I_TU, I_TU] + self.model.R[0, 0]
-        K = P[:, :, I_TU] / S[:, None]  # (m, 5)
-        x = x + K.T * (np.asarray(theta_u) - x[I_TU])
-        IKH = np.broadcast_to(np.eye(5), P.shape).copy()
-        IKH[:, :, I_TU] -= K
-        P = IKH @ P @ IKH.transpose(0, 2, 1) + self.model.R[0, 0] * K[:, :, None] * K[:, None, :]
-        self.x[:, index], self.P[index] = x, P
+        self.ekf.update(theta_u, index)
+
+    @property
+    def x(self) -> np.ndarray:
+        """Estimates (5, n) of the rigs (:data:`controllers.kalman.STATES`)."""
+        return self.ekf.x
 
     def features(self) -> np.ndarray:
         """Policy inputs (n, :attr:`dim`) from the current estimates, float32 (see :data:`FEATURES`)."""
@@ -134,8 +128,4 @@ class ObserverResidual:
 
     def predict(self, u: np.ndarray) -> None:
         """Propagate the estimates over one period with the applied voltages u (V, (n,))."""
-        m = self.model
-        F = self._ekf.jacobians(self.x)
-        uk = m.known_inputs(self.x, np.asarray(u, dtype=float))
-        self.P = F @ self.P @ F.transpose(0, 2, 1) + m.Qd
-        self.x = m.Ad @ self.x + m.Bd @ uk
+        self.ekf.predict(u)

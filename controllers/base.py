@@ -1,7 +1,8 @@
 """The controller interface shared by the simulator harness, the Gymnasium envs and the rig.
 
 A controller maps what the rig measures to a motor voltage, once per control
-period (default 10 ms).  Measurements are passed as a mapping ``name -> value``
+period (10 ms by default, the environments' period; a controller class may
+declare another in :attr:`Controller.default_dt`).  Measurements are passed as a mapping ``name -> value``
 (:data:`MEASUREMENTS`); every value is a scalar (one rig / one env) or an array
 of shape (n,) (n trajectories stepped together by the evaluation harness).
 A controller declares in :attr:`Controller.uses` which measurements it reads,
@@ -56,15 +57,19 @@ class Controller(ABC):
         config: rig configuration the controller is designed for ('torsional', 'coupled', ...).
         params: the model the controller is designed on (default: the identified set).  The
             plant may differ (parameter-mismatch scenarios); the controller never sees the truth.
-        dt: control period (s).
+        dt: control period (s); default :attr:`default_dt` of the class (10 ms; the observer samples
+            the encoder at 500 Hz).
         u_max: voltage limit (V), the amplifier's range.
     """
 
     name: ClassVar[str] = "controller"
     uses: ClassVar[tuple[str, ...]] = ()
+    default_dt: ClassVar[float] = DEFAULT_CONTROL_DT
+    """Control period (s) when none is given: the period the controller is designed and evaluated at."""
 
     def __init__(self, omega_ref: "float | np.ndarray | None" = None, *, config: "str | Configuration" = "torsional",
-                 params: RigParams | None = None, dt: float = DEFAULT_CONTROL_DT, u_max: float = U_MAX) -> None:
+                 params: RigParams | None = None, dt: float | None = None, u_max: float = U_MAX) -> None:
+        dt = type(self).default_dt if dt is None else dt
         if not (np.isfinite(dt) and dt > 0):
             raise ValueError(f"control period dt must be a positive number of seconds, got {dt!r}")
         if not (np.isfinite(u_max) and u_max > 0):

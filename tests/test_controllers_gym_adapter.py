@@ -13,7 +13,7 @@ from controllers.gym_adapter import ControllerPolicy, run_episode
 def test_observer_episode_in_the_torsional_env(mode):
     env = gym.make("drillgym/Torsional-v0", observation=mode, omega_ref=2.0, alpha0_range=(0.0, 0.0),
                    episode_duration=40.0)
-    res = {name: run_episode(controllers.make(name, omega_ref=2.0), env, seed=0) for name in ("baseline", "observer")}
+    res = {name: run_episode(controllers.make(name, omega_ref=2.0, dt=0.01), env, seed=0) for name in ("baseline", "observer")}
     assert len(res["observer"]["t"]) == 4000 and res["observer"]["t"][-1] == pytest.approx(40.0)
     ss = slice(-1500, None)
     base, obs = res["baseline"]["omega_l"][ss], res["observer"]["omega_l"][ss]

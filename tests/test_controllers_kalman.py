@@ -79,3 +79,53 @@ def test_extended_filter_tracks_stick_slip_better_than_the_linear_one():
     assert errs["ekf"] < 0.1 * wl.max() and errs["ekf"] < errs["kf"]
     with pytest.raises(ValueError, match="friction_known"):
         ExtendedKalmanObserver(disturbance_model(friction_known=False))
+
+
+def test_batched_extended_filter_equals_filterpy_per_trajectory():
+    """The batched EKF is filterpy's KalmanFilter (predict with the slope Jacobian, Joseph update) per row."""
+    from filterpy.kalman import KalmanFilter
+
+    from controllers.kalman import ExtendedKalmanObserver
+
+    model = disturbance_model(dt=0.002, sigma_upper=1e-3, sigma_lower=1e-3, sigma_d=1e-3)
+    us = np.array([1.0, 2.0, 3.5])
+    tr = [simulate("torsional", u=u, duration=4.0) for u in us]
+    th = np.stack([quantize_angle(t.theta_u[::2]) for t in tr])  # (3, m) at 2 ms
+    ekf = ExtendedKalmanObserver(model)
+    ekf.reset(th[:, 0])
+    ref = []
+    for k in range(3):
+        kf = KalmanFilter(dim_x=5, dim_z=1, dim_u=3)
+        kf.F, kf.B, kf.H, kf.Q, kf.R = model.Ad.copy(), model.Bd.copy(), model.H.copy(), model.Qd.copy(), model.R.copy()
+        kf.P, kf.x = ekf.P0.copy(), np.zeros((5, 1))
+        kf.x[0, 0] = th[k, 0]
+        ref.append(kf)
+    for i in range(th.shape[1]):
+        x = ekf.update(th[:, i])
+        for k, kf in enumerate(ref):
+            kf.update(np.array([[th[k, i]]]))
+            np.testing.assert_allclose(x[:, k], kf.x[:, 0], rtol=1e-9, atol=1e-12)
+            np.testing.assert_allclose(ekf.P[k], kf.P, rtol=1e-9, atol=1e-15)
+        xs = x.copy()
+        F = ekf.jacobians(xs)
+        uk = model.known_inputs(xs, us)
+        for k, kf in enumerate(ref):
+            kf.predict(u=uk[:, k:k + 1], F=F[k])
+            kf.x = model.Ad @ xs[:, k:k + 1] + model.Bd @ uk[:, k:k + 1]  # nonlinear mean, linearised covariance
+        ekf.predict(us)
+    assert x[I_WL, 2] > 1.0  # the 3.5 V run is slipping: the comparison covered the slope term
+
+
+def test_extended_filter_resets_single_rows():
+    from controllers.kalman import ExtendedKalmanObserver
+
+    ekf = ExtendedKalmanObserver(disturbance_model())
+    ekf.reset(np.array([0.0, 1.0, 2.0]))
+    for _ in range(50):
+        ekf.update(np.array([0.0, 1.0, 2.0]))
+        ekf.predict(np.array([2.0, 2.0, 2.0]))
+    before = ekf.x.copy()
+    ekf.reset(5.0, 0.3, index=np.array([1]))
+    assert ekf.x[0, 1] == 5.0 and ekf.x[I_AL, 1] == 0.3 and ekf.x[I_WU, 1] == 0.0
+    np.testing.assert_array_equal(ekf.x[:, [0, 2]], before[:, [0, 2]])
+    np.testing.assert_array_equal(ekf.P[1], ekf.P0)

@@ -37,20 +37,6 @@ def test_observer_reads_only_the_motor_angle():
     assert controllers.CONTROLLERS["baseline"].uses == ()
 
 
-def test_observer_holds_1_5_rad_s_at_the_target_from_rest_where_baseline_cannot():
-    """Low target (approach from above, slow chain with integral action): no stick-slip AND on target."""
-    out = {}
-    for name in ("baseline", "observer"):
-        run = run_closed_loop(controllers.make(name, config="torsional", omega_ref=1.5), "torsional",
-                              np.array([1.5]), 60.0)
-        out[name] = run_metrics(run, 20.0)
-    assert out["baseline"]["ssi"][0] > 0.5
-    obs = out["observer"]
-    assert obs["ssi"][0] < 0.1 and obs["stuck"][0] == 0.0
-    assert obs["omega_l_min"][0] > 1.35 and obs["omega_l_max"][0] < 1.7  # held at the target, not above it
-    assert obs["tracking_rms"][0] < 0.08
-
-
 def test_low_targets_are_approached_from_above():
     from controllers.flatness import FlatnessLaw
     from drillgym import RigParams
@@ -68,3 +54,23 @@ def test_low_targets_are_approached_from_above():
         FlatnessLaw(RigParams(), 0.01, ramp=-1.0)
     with pytest.raises(ValueError, match="integral"):
         FlatnessLaw(RigParams(), 0.01, integral=-1.0)
+
+
+@pytest.mark.parametrize("config", ["torsional", "coupled"])
+def test_observer_holds_1_rad_s_and_below_from_rest_with_the_motor_angle_only(config):
+    """The issue's target: <= 1 rad/s without stick-slip, 8000-count motor encoder sampled at 500 Hz."""
+    tg = np.array([0.5, 1.0])
+    c = controllers.make("observer", config=config, omega_ref=tg)
+    assert c.dt == 0.002 and c.uses == ("theta_u",)
+    obs = run_metrics(run_closed_loop(c, config, tg, 60.0, counts_per_rev=8000), 20.0)
+    assert np.all(obs["ssi"] < 0.1) and np.all(obs["stuck"] == 0.0)
+    assert np.all(np.abs(obs["offset"]) < 0.1)  # on the target, not a smooth rotation elsewhere
+    base = run_metrics(run_closed_loop(controllers.make("baseline", config=config, omega_ref=tg), config, tg, 60.0), 20.0)
+    assert np.all(base["ssi"] > 0.5)
+
+
+def test_observer_at_the_environments_10_ms_period_does_not_hold_1_rad_s():
+    """Why the observer samples at 500 Hz: at 10 ms the estimate is too coarse at 1 rad/s."""
+    c = controllers.make("observer", config="torsional", omega_ref=1.0, dt=0.01)
+    obs = run_metrics(run_closed_loop(c, "torsional", np.array([1.0]), 60.0), 20.0)
+    assert obs["ssi"][0] > 0.1

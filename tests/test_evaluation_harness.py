@@ -37,7 +37,7 @@ def test_harness_rows_and_report(tmp_path):
         assert len(list(csv.DictReader(f))) == len(rows)
     assert files["figure"].stat().st_size > 10_000
     table = markdown_table(rows)
-    assert "| baseline | 7.50 |" in table
+    assert "| baseline | 10 | 7.50 |" in table
 
 
 def test_bad_input_is_refused(capsys):

@@ -57,7 +57,7 @@ def run_job(controller: str, config: str, scenario: Scenario, targets: Sequence[
     rows = []
     for i, w in enumerate(tg):
         row = {"controller": controller, "config": parse_configuration(config).label, "scenario": scenario.name,
-               "omega_ref": float(w)}
+               "omega_ref": float(w), "control_dt": float(ctrl.dt)}
         row.update({k: (bool(v[i]) if v.dtype == bool else float(v[i])) for k, v in met.items()})
         rows.append(row)
     return rows

@@ -38,6 +38,9 @@ def summary(rows: Sequence[dict], scenario: str = "rest", speeds: Sequence[float
     out = []
     for c in dict.fromkeys(r["controller"] for r in rows):
         entry = {"controller": c}
+        periods = {r["control_dt"] for r in rows if r["controller"] == c and "control_dt" in r}
+        if periods:
+            entry["control_dt"] = min(periods)
         for cfg in dict.fromkeys(r["config"] for r in rows):
             t, s, off = _select(rows, c, cfg, scenario)
             if t.size == 0:
@@ -62,11 +65,12 @@ def markdown_table(rows: Sequence[dict], scenario: str = "rest", speeds: Sequenc
     """Markdown comparison table (the README's): lowest stick-slip-free target and SSI at ``speeds``."""
     summ = summary(rows, scenario, speeds)
     cfgs = list(dict.fromkeys(r["config"] for r in rows))
-    head = ["controller"] + [f"lowest free target, {c} (rad/s)" for c in cfgs]
+    head = ["controller", "period (ms)"] + [f"lowest free target, {c} (rad/s)" for c in cfgs]
     head += [f"SSI at {v:g} rad/s, {c}" for c in cfgs for v in speeds]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for e in summ:
-        cells = [e["controller"]] + [_fmt(e.get(f"lowest_free_{c}", float("nan"))) for c in cfgs]
+        period = f"{1e3 * e['control_dt']:g}" if "control_dt" in e else "?"
+        cells = [e["controller"], period] + [_fmt(e.get(f"lowest_free_{c}", float("nan"))) for c in cfgs]
         cells += [_fmt(e.get(f"ssi_{v:g}_{c}", float("nan"))) for c in cfgs for v in speeds]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
