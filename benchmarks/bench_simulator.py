@@ -6,6 +6,10 @@ Targets (issue "Model core"): batch >= 20,000x torsional, >= 2,000x coupled on
 one core; one trajectory >= 2,000x torsional.
 
     .venv/bin/python benchmarks/bench_simulator.py [--duration 60]
+
+Each figure is the best of 5 runs (timeit's convention: on a shared virtual machine the
+spread between runs of the same batch reaches +-25 %).  On AVX-512 hosts drillgym lets LLVM
+use 512-bit vectors (``drillgym/_simd.py``); ``DRILLGYM_SIMD=256`` measures AVX2 width.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ TARGETS = {("torsional", "single"): 2000, ("torsional", "batch"): 20000, ("coupl
 SINGLE_VOLTAGES = (0.5, 1.5, 2.5, 3.5, 4.5)  # V: stick-slip, steady slip and the coexistence region
 
 
-def realtime_factor(config: str, n: int, duration: float, parallel: bool, repeats: int = 3) -> float:
+def realtime_factor(config: str, n: int, duration: float, parallel: bool, repeats: int = 5) -> float:
     """Best of `repeats`: trajectories x duration / wall time.  Inputs span stick-slip and steady
     slip: a batch of n over 0.5-4.5 V, or (n = 1) one run after the other at SINGLE_VOLTAGES."""
     simulate_batch(config, np.array([1.0]), 1.0, record_every=1000, parallel=parallel)  # compile / load cache

@@ -8,7 +8,9 @@ environments ``drillgym/Torsional-v0``, ``drillgym/Lateral-v0``,
 """
 
 from ._kernel_cache import invalidate_stale_kernels
+from ._simd import prefer_full_vector_width
 
+prefer_full_vector_width()  # 512-bit vectors on AVX-512 hosts (opt out: DRILLGYM_SIMD=256)
 invalidate_stale_kernels()  # before any compiled kernel is loaded from numba's cache
 
 from .configurations import Configuration, N_STATE, STATE_NAMES, parse_configuration

@@ -15,3 +15,18 @@ def test_stale_kernels_are_dropped_when_a_source_changes(tmp_path):
     (pkg / "dynamics.py").write_text("A = 2\n")
     assert sources_digest(pkg) != before
     assert invalidate_stale_kernels(pkg) and not cached.exists()  # edited dependency: cache dropped
+
+
+def test_full_vector_width_only_on_avx512_hosts(monkeypatch):
+    from drillgym import _simd
+
+    assert _simd.full_width_features("+avx2,+fma,-avx512f") is None
+    f = _simd.full_width_features("+avx2,+avx512f,+prefer-256-bit")
+    assert f.split(",")[-1] == "-prefer-256-bit" and "+prefer-256-bit" not in f.split(",")
+    monkeypatch.setenv("DRILLGYM_SIMD", "256")  # the opt-out is honoured
+    assert _simd.prefer_full_vector_width() is False
+    monkeypatch.delenv("DRILLGYM_SIMD")
+    monkeypatch.setenv("NUMBA_CPU_FEATURES", "+avx2")  # a user's own setting is never overridden
+    assert _simd.prefer_full_vector_width() is False
+    import os
+    assert os.environ["NUMBA_CPU_FEATURES"] == "+avx2"
