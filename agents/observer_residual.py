@@ -106,7 +106,7 @@ class ObserverResidual:
     def features(self) -> np.ndarray:
         """Policy inputs (n, :attr:`dim`) from the current estimates, float32 (see :data:`FEATURES`)."""
         x, ref, Ts = self.x, self.target, self.params.Ts
-        d = self.model.nominal_lower_friction(x) + x[I_D]
+        d = self.model.lower_friction(x)
         f = np.stack([x[I_WL] - ref, x[I_WU] - ref, self.params.ktheta * x[I_AL] / Ts, d / Ts,
                       self.u_base / U_MAX, np.minimum(self.t / PHASE_TIME, 1.0), ref / 8.0], axis=1)
         return np.clip(f, -10.0, 10.0).astype(np.float32)

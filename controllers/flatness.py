@@ -76,17 +76,24 @@ class FlatnessLaw:
             linear ramp down to the low target.
         low_bandwidth: bandwidth (rad/s) of the error chain for low targets.
         integral: weight of the speed error's integral for low targets (0: none), see :func:`chain_gain`.
+        disturbance: how the estimate ``d`` corrects the brake law: 'offset' (N m added) or 'scale'
+            (the law, its slope and curvature times 1 + d), as the estimator's
+            :class:`controllers.kalman.DisturbanceModel`.
     """
 
     def __init__(self, params: RigParams, dt: float, *, bandwidth: float = 2.5, tau_ref: float = 1.0,
                  w_rest: float = 0.1, step: float = 2e-3, low_speed: float = 0.0, approach: float = 2.5,
-                 hold: float = 8.0, ramp: float = 15.0, low_bandwidth: float = 1.0, integral: float = 0.0) -> None:
+                 hold: float = 8.0, ramp: float = 15.0, low_bandwidth: float = 1.0, integral: float = 0.0,
+                 disturbance: str = "offset") -> None:
         if not (np.isfinite(tau_ref) and tau_ref > 0):
             raise ValueError(f"tau_ref must be a positive time (s), got {tau_ref!r}")
         for name, v in (("low_speed", low_speed), ("approach", approach), ("hold", hold), ("ramp", ramp),
                         ("integral", integral)):
             if not (np.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be a non-negative number, got {v!r}")
+        if disturbance not in ("offset", "scale"):
+            raise ValueError(f"disturbance must be 'offset' or 'scale', got {disturbance!r}")
+        self.scale = disturbance == "scale"
         if low_speed > approach:
             raise ValueError(f"approach ({approach} rad/s) must not be below low_speed ({low_speed} rad/s)")
         self.p, self.dt, self.tau = params, float(dt), float(tau_ref)
@@ -128,11 +135,14 @@ class FlatnessLaw:
         return r.copy(), d3, dd3, ddd3
 
     def friction(self, w: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Brake torque (N m) with offset d, its slope and curvature at speed w (forward rotation)."""
+        """Brake torque (N m) corrected by d, its slope and curvature at speed w (forward rotation)."""
         h = self.h
         w = np.maximum(w, self.w_rest + h)
         t0, tp, tm = lower_friction(w, self.p), lower_friction(w + h, self.p), lower_friction(w - h, self.p)
-        return t0 + d, (tp - tm) / (2 * h), (tp - 2 * t0 + tm) / h ** 2
+        T, T1, T2 = t0, (tp - tm) / (2 * h), (tp - 2 * t0 + tm) / h ** 2
+        if self.scale:
+            return (1.0 + d) * T, (1.0 + d) * T1, (1.0 + d) * T2
+        return T + d, T1, T2
 
     def __call__(self, omega_u: np.ndarray, alpha: np.ndarray, omega_l: np.ndarray, d: np.ndarray) -> np.ndarray:
         """Voltage (V, (n,), not clipped) for the estimated state."""

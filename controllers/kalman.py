@@ -1,22 +1,24 @@
-"""Kalman filter that sees only the motor angle: torsional model + unknown lower-friction torque.
+"""Kalman filter that sees only the motor angle: torsional model + unknown lower-friction deviation.
 
 Model (torsional equations of MODEL.md, absolute coordinates, slipping upper disc)::
 
     d theta_u / dt = omega_u
     Ju d omega_u / dt = km u - Tcu+ - du omega_u + k_theta alpha     (du = bu + dbu, Tcu+ = Tcu + dTcu)
     d alpha / dt   = omega_l - omega_u
-    Jl d omega_l / dt = -k_theta alpha - d
+    Jl d omega_l / dt = -k_theta alpha - Tfl
     d d / dt       = w_d                                            (random walk)
 
-``d`` (N m) is the lower friction torque, whatever it is: Stribeck slip
-torque, the torque that holds the disc while it sticks, lateral losses in the
-coupled configuration.  It is not modelled, it is estimated.  The linear part
-(``A``, ``B``) is taken from the core's linearisation
-(:func:`drillgym.equilibria.linearise`, 'angles' variant) with the brake's
-slope removed (the whole brake torque is the disturbance state), and
-discretised with zero-order hold (python-control ``c2d``).  The upper disc's
-Coulomb level enters as a known input; while the model says the upper disc
-rests, the known input is the torque that keeps it at rest (stick).
+with the brake torque ``Tfl`` = T(omega_l) + d (``disturbance='offset'``, d in N m) or
+(1 + d) T(omega_l) (``'scale'``, d dimensionless: a brake whose level is off, as with the oil's
+temperature) while the disc slips, T the identified Stribeck law (a known input), and the torque
+that holds the disc while it sticks (within the stick set).  ``d`` collects what the law misses
+(level errors, lateral losses in the coupled configuration); it is estimated, not modelled.  With
+``friction_known=False`` the law is not used and ``d`` is the whole brake torque.  The linear
+part (``A``, ``B``) is taken from the core's linearisation (:func:`drillgym.equilibria.linearise`,
+'angles' variant) with the brake's slope removed (the brake torque is an input), and discretised
+with zero-order hold (python-control ``c2d``).  The upper disc's Coulomb level enters as a known
+input; while the model says the upper disc rests, the known input is the torque that keeps it at
+rest (stick).
 
 Measurement: the quantized motor-side angle theta_u only; its noise variance
 is q^2/12 (q = 2 pi / counts per rev) plus any extra white noise.
@@ -71,6 +73,9 @@ class DisturbanceModel:
     Qd: np.ndarray
     R: np.ndarray
     friction_known: bool = True
+    disturbance: str = "offset"
+    """What the state ``d`` is: 'offset' (N m added to the nominal brake law) or 'scale'
+    (relative level: the brake law times 1 + d while the disc slips)."""
 
     @property
     def upper_coulomb(self) -> float:
@@ -87,17 +92,26 @@ class DisturbanceModel:
         return np.vstack([u, self.known_friction(x, u), self.nominal_lower_friction(x)])
 
     def nominal_lower_friction(self, x: np.ndarray, eps: float = 1e-3) -> np.ndarray:
-        """Lower friction of the nominal law at the estimates x (5, n) (N m, (n,)); 0 when not modelled.
+        """Lower friction input of the model at the estimates x (5, n) (N m, (n,)); 0 when not modelled.
 
-        Slipping (|omega_l| > eps): the Stribeck law of the core (:func:`drillgym.friction.lower_friction`);
-        resting: the torque that holds the disc against the string, limited to the stick set (+-Ts).
+        Slipping (|omega_l| > eps): the Stribeck law of the core (:func:`drillgym.friction.lower_friction`),
+        times 1 + d for the 'scale' disturbance; resting: the torque that holds the disc against the
+        string, limited to the stick set (+-Ts, scaled likewise).
         """
         if not self.friction_known:
             return np.zeros(x.shape[1])
         wl = x[I_WL]
-        hold = np.clip(-self.params.ktheta * x[I_AL], -self.params.Ts, self.params.Ts)
-        slip = lower_friction(np.where(np.abs(wl) > eps, wl, eps), self.params)
+        level = 1.0 + x[I_D] if self.disturbance == "scale" else 1.0
+        ts = self.params.Ts * level
+        hold = np.clip(-self.params.ktheta * x[I_AL], -ts, ts)
+        slip = level * lower_friction(np.where(np.abs(wl) > eps, wl, eps), self.params)
         return np.where(np.abs(wl) > eps, slip, hold)
+
+    def lower_friction(self, x: np.ndarray) -> np.ndarray:
+        """Estimated lower friction torque (N m, (n,)) at the estimates x (5, n): the model's input
+        plus the offset state (the 'scale' state is already in the input)."""
+        f = self.nominal_lower_friction(x)
+        return f if self.disturbance == "scale" else f + x[I_D]
 
     def known_friction(self, x: np.ndarray, u: np.ndarray, eps: float = 1e-3) -> np.ndarray:
         """Upper friction offset (N m, (n,)) for states x (5, n) and voltages u (n,).
@@ -115,7 +129,7 @@ class DisturbanceModel:
 def disturbance_model(params: RigParams | None = None, dt: float = 0.01, *,
                       counts_per_rev: int = DEFAULT_COUNTS_PER_REV, angle_noise: float = 0.0,
                       sigma_d: float = 0.02, sigma_upper: float = 0.03, sigma_lower: float = 0.005,
-                      friction_known: bool = True) -> DisturbanceModel:
+                      friction_known: bool = True, disturbance: str = "offset") -> DisturbanceModel:
     """Build the estimator's model.
 
     Args:
@@ -123,14 +137,22 @@ def disturbance_model(params: RigParams | None = None, dt: float = 0.01, *,
         dt: sample period (s).
         counts_per_rev: encoder resolution (0: no quantization).
         angle_noise: extra white noise on theta_u (rad, std).
-        sigma_d: random-walk intensity of the friction torque (N m / sqrt(s)).
+        sigma_d: random-walk intensity of the disturbance state (N m / sqrt(s) for 'offset',
+            1 / sqrt(s) for 'scale').
         sigma_upper, sigma_lower: white torque noise on the discs (N m / sqrt(Hz)), model error.
         friction_known: the nominal brake law (with stick) is a known input and ``d`` its unknown
             deviation (default); False: ``d`` is the whole lower friction torque.
+        disturbance: 'offset' (``d`` in N m added to the brake law) or 'scale' (``d`` the relative
+            error of the brake law's level: Ts, Tc, bb all off by the same factor, as with the oil's
+            temperature); 'scale' needs ``friction_known``.
     """
     p = params or RigParams()
     if not (np.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be a positive period (s), got {dt!r}")
+    if disturbance not in ("offset", "scale"):
+        raise ValueError(f"disturbance must be 'offset' or 'scale', got {disturbance!r}")
+    if disturbance == "scale" and not friction_known:
+        raise ValueError("a 'scale' disturbance needs the nominal brake law (friction_known=True)")
     for name, v in (("sigma_d", sigma_d), ("sigma_upper", sigma_upper), ("sigma_lower", sigma_lower),
                     ("angle_noise", angle_noise)):
         if not (np.isfinite(v) and v >= 0):
@@ -154,7 +176,7 @@ def disturbance_model(params: RigParams | None = None, dt: float = 0.01, *,
     A = np.zeros((5, 5))
     A[:4, :4] = T @ A4 @ Ti
     A[I_WL, I_WL] += brake_slope / p.Jl  # remove the brake's slope: the whole brake torque is the state d
-    A[I_WL, I_D] = -1.0 / p.Jl
+    A[I_WL, I_D] = -1.0 / p.Jl if disturbance == "offset" else 0.0  # a scale acts through the friction input
     Bu = np.zeros(5)
     Bu[:4] = T @ B4
     Bl = np.zeros(5)
@@ -171,7 +193,8 @@ def disturbance_model(params: RigParams | None = None, dt: float = 0.01, *,
     Qd = _discrete_noise(A, G @ Qc @ G.T, dt)
     q = 2.0 * np.pi / counts_per_rev if counts_per_rev > 0 else 0.0
     R = np.array([[q * q / 12.0 + angle_noise ** 2 + 1e-12]])
-    return DisturbanceModel(p, float(dt), A, B, np.asarray(sysd.A), np.asarray(sysd.B), C, Qd, R, friction_known)
+    return DisturbanceModel(p, float(dt), A, B, np.asarray(sysd.A), np.asarray(sysd.B), C, Qd, R, friction_known,
+                            disturbance)
 
 
 def _discrete_noise(A: np.ndarray, Qc: np.ndarray, dt: float) -> np.ndarray:
@@ -237,7 +260,7 @@ class KalmanObserver:
 
     def friction(self) -> np.ndarray:
         """Estimated lower friction torque (N m, (n,)): nominal law at the estimate + disturbance state."""
-        return self.model.nominal_lower_friction(self.kf.x) + self.kf.x[I_D]
+        return self.model.lower_friction(self.kf.x)
 
 
 class ExtendedKalmanObserver:
@@ -302,8 +325,14 @@ class ExtendedKalmanObserver:
         wl = x[I_WL]
         w = np.maximum(np.abs(wl), 2 * h)
         slope = (lower_friction(w + h, p) - lower_friction(w - h, p)) / (2 * h)
-        slope = np.where(np.abs(wl) > 1e-3, slope, 0.0)  # a disc at rest has no slope
+        slipping = np.abs(wl) > 1e-3
+        slope = np.where(slipping, slope, 0.0)  # a disc at rest has no slope
         F = np.broadcast_to(m.Ad, (x.shape[1], 5, 5)).copy()
+        if m.disturbance == "scale":  # Tfl = (1 + d) T(omega_l): slope scaled, d acts through T
+            slope = slope * (1.0 + x[I_D])
+            level = np.where(slipping, lower_friction(w, p), 0.0)
+            F[:, I_WL, I_D] -= m.dt * level / p.Jl
+            F[:, I_AL, I_D] -= 0.5 * m.dt ** 2 * level / p.Jl
         F[:, I_WL, I_WL] -= m.dt * slope / p.Jl
         F[:, I_AL, I_WL] -= 0.5 * m.dt ** 2 * slope / p.Jl
         return F
@@ -317,7 +346,7 @@ class ExtendedKalmanObserver:
 
     def friction(self) -> np.ndarray:
         """Estimated lower friction torque (N m, (n,)): nominal law at the estimate + disturbance state."""
-        return self.model.nominal_lower_friction(self.x) + self.x[I_D]
+        return self.model.lower_friction(self.x)
 
 
 def steady_state_gain(model: DisturbanceModel) -> tuple[np.ndarray, np.ndarray]:

@@ -2,7 +2,7 @@
 
 Both controllers read only the motor-side encoder (``theta_u``).  The estimators
 (:mod:`controllers.kalman`) return the motor speed, the string winding alpha,
-the lower speed omega_l and the lower friction torque offset d.
+the lower speed omega_l and the brake law's estimated deviation d (relative level or torque).
 
 * :class:`ObserverController` (``observer``, 500 Hz): extended Kalman filter (filterpy's
   equations, batched; the brake's local slope in the covariance propagation) + the feedback-linearising law of
@@ -87,11 +87,16 @@ class ObserverController(Controller):
     constant.  The linear LQG bound at 1 rad/s (8000 counts/rev) is a lower-speed standard
     deviation of 0.033 rad/s at 10 ms and 0.016 rad/s at 2 ms (SSI ~ 0.1 versus ~ 0.05).  The
     filter assumes small model error (``sigma_*``): in the nominal plant the model is right, and
-    a filter that trusts it averages the quantization out.
+    a filter that trusts it averages the quantization out.  Its disturbance state is the brake
+    law's relative level (``disturbance='scale'``), so a brake 20 % off its identified level is
+    estimated and cancelled with its slope.
 
     Args (besides :class:`Controller`'s):
         counts_per_rev, angle_noise: the encoder the filter expects (counts/rev, rad std).
-        sigma_d: random-walk intensity of the brake-torque deviation (N m/sqrt(s)).
+        disturbance: what the filter's fifth state is: 'scale' (default: the brake law's level is off
+            by a factor 1 + d, as with the oil's temperature; the law then also corrects the slope it
+            cancels) or 'offset' (a torque added to the law).
+        sigma_d: random-walk intensity of that state (1/sqrt(s) for 'scale', N m/sqrt(s) for 'offset').
         sigma_upper, sigma_lower: white torque noise on the discs (N m/sqrt(Hz)), model error.
         noise_floor: angle noise (rad) the filter assumes on top of quantization and ``angle_noise``.
         bandwidth, tau_ref, low_speed, approach, hold, ramp, low_bandwidth, integral: the law's
@@ -103,20 +108,21 @@ class ObserverController(Controller):
     default_dt = 0.002
 
     def __init__(self, omega_ref=None, *, counts_per_rev: int = 8000, angle_noise: float = 0.0,
-                 sigma_d: float = 1e-3, sigma_upper: float = 1e-3, sigma_lower: float = 1e-3,
+                 sigma_d: float = 0.01, sigma_upper: float = 1e-3, sigma_lower: float = 1e-3,
                  noise_floor: float = 0.0, bandwidth: float = 2.5, tau_ref: float = 1.0,
                  low_speed: float = 2.0, approach: float = 2.5, hold: float = 12.0, ramp: float = 15.0,
-                 low_bandwidth: float = 1.0, integral: float = 0.1, **kw) -> None:
+                 low_bandwidth: float = 1.0, integral: float = 0.1, disturbance: str = "scale", **kw) -> None:
         super().__init__(omega_ref, **kw)
         self.model = disturbance_model(self.params, self.dt, counts_per_rev=counts_per_rev,
                                        angle_noise=float(np.hypot(angle_noise, noise_floor)), sigma_d=sigma_d,
-                                       sigma_upper=sigma_upper, sigma_lower=sigma_lower)
+                                       sigma_upper=sigma_upper, sigma_lower=sigma_lower, disturbance=disturbance)
         # targets below low_speed (rad/s): reached from `approach` by a ramp down, slower error chain with
         # integral action (see controllers.flatness); the ramp ends at hold + ramp = 27 s, 13 s before the
         # steady window (last 20 s) of the 60 s evaluation runs
         self.law_options = {"bandwidth": float(bandwidth), "tau_ref": float(tau_ref), "low_speed": float(low_speed),
                             "approach": float(approach), "hold": float(hold), "ramp": float(ramp),
-                            "low_bandwidth": float(low_bandwidth), "integral": float(integral)}
+                            "low_bandwidth": float(low_bandwidth), "integral": float(integral),
+                            "disturbance": disturbance}
         FlatnessLaw(self.params, self.dt, **self.law_options)  # check the options now
 
     def _reset(self, m: dict[str, np.ndarray]) -> None:
@@ -172,7 +178,7 @@ class LQGController(Controller):
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
         p, mdl = self.params, self.model
         x = self._x = self._x + self.Kf @ (np.atleast_2d(m["theta_u"]) - mdl.H @ self._x)
-        d_hat = mdl.nominal_lower_friction(x) + x[I_D]  # estimated lower friction torque (N m)
+        d_hat = mdl.lower_friction(x)  # estimated lower friction torque (N m)
         alpha_star = -d_hat / p.ktheta
         u_star = (mdl.upper_coulomb + mdl.upper_damping * self.omega_ref + d_hat) / p.km
         err = np.stack([x[I_AL] - alpha_star, x[I_WU] - self.omega_ref, x[I_WL] - self.omega_ref])

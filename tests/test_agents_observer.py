@@ -92,7 +92,8 @@ def test_a_rig_reset_alone_restarts_its_observer_and_law():
     observer controller: rig 1 restarted at step 50 matches a fresh single-rig structure (to 1e-4 V: batch
     sizes round differently, and a flip of the law's at-rest test on that round-off moves the voltage by ~3e-5 V)."""
     angles = 0.004 * np.arange(150) ** 1.3  # a motor speeding up (rad)
-    both, alone0, alone1 = (ObserverResidual("torsional", 0.5) for _ in range(3))
+    observer = load_hyperparams("ppo", "drillgym/Torsional-v0", HP)["observer"]  # the kept agent's options
+    both, alone0, alone1 = (ObserverResidual("torsional", 0.5, observer=observer) for _ in range(3))
     both.start(2)
     both.reset(np.arange(2), np.zeros(2), np.array([2.0, 3.0]))
     alone0.start(1)

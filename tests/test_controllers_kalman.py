@@ -129,3 +129,24 @@ def test_extended_filter_resets_single_rows():
     assert ekf.x[0, 1] == 5.0 and ekf.x[I_AL, 1] == 0.3 and ekf.x[I_WU, 1] == 0.0
     np.testing.assert_array_equal(ekf.x[:, [0, 2]], before[:, [0, 2]])
     np.testing.assert_array_equal(ekf.P[1], ekf.P0)
+
+
+@pytest.mark.parametrize("factor", [0.8, 1.2])
+def test_scale_disturbance_estimates_the_brake_level(factor):
+    """A brake 20 % off its identified level (Ts, Tc, bb scaled, as with the oil's temperature): the
+    'scale' state converges to the factor - 1 from the motor angle alone, omega_l stays right."""
+    from controllers.kalman import ExtendedKalmanObserver
+
+    p = RigParams()
+    tr = simulate("torsional", u=4.0, duration=20.0, params=p.scaled(Ts=factor, Tc=factor, bb=factor))
+    th = quantize_angle(tr.theta_u[::2])
+    ekf = ExtendedKalmanObserver(disturbance_model(p, 0.002, sigma_d=0.01, sigma_upper=1e-3, sigma_lower=1e-3,
+                                                   disturbance="scale"))
+    ekf.reset(th[:1])
+    for i in range(len(th)):
+        x = ekf.update(th[i:i + 1])
+        ekf.predict(np.array([4.0]))
+    assert x[I_D, 0] == pytest.approx(factor - 1.0, abs=0.02)
+    assert x[I_WL, 0] == pytest.approx(tr.omega_l[-1], abs=0.02)
+    with pytest.raises(ValueError, match="disturbance"):
+        disturbance_model(disturbance="ratio")
