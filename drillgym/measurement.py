@@ -24,7 +24,8 @@ from scipy import signal
 from .params import RigParams
 
 __all__ = ["DEFAULT_COUNTS_PER_REV", "DEFAULT_LVDT_NOISE", "quantize_angle", "angle_to_counts", "counts_to_angle",
-           "lvdt_measure", "lowpass_zero_phase", "EncoderVelocityEstimator", "MeasurementModel", "measure_trajectory"]
+           "lvdt_measure", "lowpass_zero_phase", "EncoderVelocityEstimator", "MeasurementModel", "measure_trajectory",
+           "encoder_reading", "lvdt_reading", "filtered_speed"]
 
 DEFAULT_COUNTS_PER_REV = 8000
 DEFAULT_LVDT_NOISE = 3e-6  # m (standard deviation)
@@ -41,11 +42,38 @@ def counts_to_angle(counts: np.ndarray | int, counts_per_rev: int = DEFAULT_COUN
     return np.asarray(counts, dtype=float) * (TWO_PI / counts_per_rev)
 
 
+# --- elementwise formulas ------------------------------------------------------------------
+# Each takes numpy arrays or floats and calls nothing but numpy ufuncs, so numba compiles the
+# very same function into the environments' observation kernel (drillgym.envs.observation_kernels):
+# one formula per quantity for the numpy and the compiled path.
+
+def encoder_reading(theta, counts_per_rev):
+    """The angle (rad) an encoder with ``counts_per_rev`` (> 0: quantized; <= 0: exact) reports for
+    ``theta`` (rad): the whole counts below theta (floor, as an incremental encoder counts), in rad.
+
+    Equal to ``counts_to_angle(angle_to_counts(theta))``; ``+ 0.0`` turns -0.0 into 0.0 as the
+    integer counts do."""
+    if counts_per_rev <= 0:
+        return theta
+    return np.floor(theta * (counts_per_rev / TWO_PI)) * (TWO_PI / counts_per_rev) + 0.0
+
+
+def lvdt_reading(X, Y, x0, y0, cos_skew, sin_skew):
+    """Noise-free LVDT readings (m) of the fixed-frame displacement (X, Y) (m): offsets ``x0``, ``y0``
+    (m) and the y axis rotated by ``skew`` from perpendicular (its cosine and sine)."""
+    return X + x0, Y * cos_skew + X * sin_skew + y0
+
+
+def filtered_speed(omega, theta, theta_prev, a, dt):
+    """One period of the encoder speed estimate (rad/s): the backward difference of the angles
+    ``theta_prev`` -> ``theta`` (rad) over ``dt`` (s), low-passed with the first-order filter
+    coefficient ``a`` = exp(-dt / tau) (0: raw difference) from the previous estimate ``omega``."""
+    return a * omega + (1.0 - a) * ((theta - theta_prev) / dt)
+
+
 def quantize_angle(theta: np.ndarray | float, counts_per_rev: int = DEFAULT_COUNTS_PER_REV) -> np.ndarray:
     """The angle an encoder with ``counts_per_rev`` reports (rad)."""
-    if counts_per_rev <= 0:
-        return np.asarray(theta, dtype=float)
-    return counts_to_angle(angle_to_counts(theta, counts_per_rev), counts_per_rev)
+    return encoder_reading(np.asarray(theta, dtype=float), counts_per_rev)
 
 
 def lvdt_measure(X: np.ndarray, Y: np.ndarray, params: RigParams | None = None, noise_std: float = 0.0,
@@ -54,8 +82,7 @@ def lvdt_measure(X: np.ndarray, Y: np.ndarray, params: RigParams | None = None, 
     p = params or RigParams()
     X = np.asarray(X, dtype=float)
     Y = np.asarray(Y, dtype=float)
-    xm = X + p.lvdt_x0
-    ym = Y * np.cos(p.lvdt_skew) + X * np.sin(p.lvdt_skew) + p.lvdt_y0
+    xm, ym = lvdt_reading(X, Y, p.lvdt_x0, p.lvdt_y0, np.cos(p.lvdt_skew), np.sin(p.lvdt_skew))
     if noise_std > 0:
         rng = rng or np.random.default_rng()
         xm = xm + rng.normal(0.0, noise_std, xm.shape)
@@ -90,9 +117,9 @@ class EncoderVelocityEstimator:
         self.omega[sel] = 0.0
 
     def update(self, theta: np.ndarray) -> np.ndarray:
-        raw = (theta - self.prev) / self.dt
+        """Speed estimates (rad/s) after the angles ``theta`` (rad) of one more period (the state array)."""
+        self.omega[:] = filtered_speed(self.omega, theta, self.prev, self.a, self.dt)
         self.prev[:] = theta
-        self.omega[:] = self.a * self.omega + (1.0 - self.a) * raw
         return self.omega
 
 

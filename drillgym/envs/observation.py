@@ -30,7 +30,8 @@ observation has zero speed estimates and noise-free LVDT readings of the rest po
 The sensor side is reusable by the hardware environment: :class:`SensorObservation` and
 :class:`MotorObservation` build the vector from readings (``from_readings``); the
 simulated readings come from :class:`SimulatedSensors` (encoders and LVDTs of
-:mod:`drillgym.measurement`).
+:mod:`drillgym.measurement`).  Per control period, both modes are one compiled call
+(:mod:`.observation_kernels`: readings, speed estimators, assembly and clipping of all rigs).
 """
 
 from __future__ import annotations
@@ -43,19 +44,19 @@ from numba import njit
 
 from ..measurement import EncoderVelocityEstimator, lvdt_measure, quantize_angle
 from ..params import RigParams
+from . import observation_kernels as ok
+from .observation_kernels import MM, rotate, rotate_compiled
 from .options import U_MAX, EnvOptions
 
 __all__ = ["ObservationModel", "FullObservation", "SensorObservation", "MotorObservation", "SimulatedSensors",
            "make_observation_model", "fixed_frame_lateral", "full_obs_row"]
 
-MM = 1e3  # m -> mm
 ALPHA_BOUND = 50.0  # rad
 
 
 def fixed_frame_lateral(Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(X, Y) of the lower disc centre in the fixed (LVDT) frame (m) from states (n, 9)."""
-    c, s = np.cos(Y[:, 0]), np.sin(Y[:, 0])
-    return Y[:, 4] * c - Y[:, 5] * s, Y[:, 4] * s + Y[:, 5] * c
+    return rotate(Y[:, 4], Y[:, 5], np.cos(Y[:, 0]), np.sin(Y[:, 0]))
 
 
 @njit(cache=True)
@@ -71,10 +72,12 @@ def full_obs_row(y, u_prev, omega_ref, lateral, low, high, out):
         w = y[2]
         vx = y[6] - w * y[5]  # velocity of B, rotating-frame components
         vy = y[7] + w * y[4]
-        out[3] = MM * (y[4] * c - y[5] * s)
-        out[4] = MM * (y[4] * s + y[5] * c)
-        out[5] = MM * (vx * c - vy * s)
-        out[6] = MM * (vx * s + vy * c)
+        X, Yf = rotate_compiled(y[4], y[5], c, s)
+        dX, dY = rotate_compiled(vx, vy, c, s)
+        out[3] = MM * X
+        out[4] = MM * Yf
+        out[5] = MM * dX
+        out[6] = MM * dY
         j = 7
     out[j] = u_prev
     out[j + 1] = omega_ref
@@ -111,6 +114,13 @@ class ObservationModel:
 
     def _layout(self, o: EnvOptions) -> tuple[list[str], list[float], list[float]]:  # pragma: no cover
         raise NotImplementedError
+
+    def _check_out(self, out: np.ndarray) -> int:
+        """Number of rigs; ``out`` must be the (n, dim) float32 observation array."""
+        if out.shape != (self.n, self.dim) or out.dtype != np.float32:
+            raise ValueError(f"out must be a float32 array of shape ({self.n}, {self.dim}), "
+                             f"got {out.dtype} {out.shape}")
+        return self.n
 
     @staticmethod
     def _tail(o: EnvOptions) -> tuple[list[str], list[float], list[float]]:
@@ -165,25 +175,42 @@ class SimulatedSensors:
     offset/skew (``RigParams.lvdt_*``) and white noise ``lvdt_noise_std`` (m).
 
     Noise is drawn per rig from that rig's generator in blocks of ``block`` periods, so a rig's
-    readings depend only on its own seed (a vector env reproduces single envs exactly)."""
+    readings depend only on its own seed (a vector env reproduces single envs exactly).
+    ``noise`` (n, block, 2) standard normal draws (an empty array without noise), ``pos`` (n,)
+    the next unused period of each rig's block: the compiled observation kernels read and
+    advance them, :meth:`refill_spent` draws the next blocks."""
 
     def __init__(self, n: int, counts_per_rev: int, lvdt_noise_std: float, params: RigParams, lateral: bool,
                  block: int = 128) -> None:
         self.n, self.cpr, self.noise_std, self.params, self.lateral = n, counts_per_rev, lvdt_noise_std, params, lateral
         self.block = block
-        self._noisy = lateral and lvdt_noise_std > 0
-        self._noise = np.zeros((n, block, 2)) if self._noisy else None
-        self._pos = np.zeros(n, dtype=np.int64)
-        self._rows = np.arange(n)
+        self.noisy = lateral and lvdt_noise_std > 0
+        self.noise = np.zeros((n, block, 2)) if self.noisy else np.zeros((0, 1, 2))
+        self.pos = np.zeros(n, dtype=np.int64)
 
     def reset(self, index: np.ndarray, rngs: Sequence[np.random.Generator]) -> None:
-        if self._noisy:
+        if self.noisy:
             for i in index:
                 self._refill(i, rngs[i])
 
     def _refill(self, i: int, rng: np.random.Generator) -> None:
-        rng.standard_normal(out=self._noise[i])
-        self._pos[i] = 0
+        rng.standard_normal(out=self.noise[i])
+        self.pos[i] = 0
+
+    def refill_spent(self, rngs: Sequence[np.random.Generator], skip: np.ndarray | None = None) -> None:
+        """Draw a new noise block for every rig whose block is used up, except rigs flagged in
+        ``skip`` (about to be reset, which draws their block): those restart their old block."""
+        full = self.pos >= self.block
+        for i in np.flatnonzero(full if skip is None else full & ~skip):
+            self._refill(i, rngs[i])
+        self.pos[full] = 0
+
+    def constants(self, lateral: bool, a: float, dt: float, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+        """The constants of the compiled 'sensors' kernels (encoders, LVDTs, noise, filter ``a``, period
+        ``dt`` (s), bounds); ``lateral``: the observation has LVDT entries."""
+        p = self.params or RigParams()
+        return ok.sensor_constants(lateral, self.cpr, a, dt, self.noise_std if self.noisy else 0.0, p.lvdt_x0,
+                                   p.lvdt_y0, p.lvdt_skew, low, high)
 
     def encoders(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Quantized (theta_u, theta_l) in rad."""
@@ -191,24 +218,23 @@ class SimulatedSensors:
 
     def lvdts(self, Y: np.ndarray, rngs: Sequence[np.random.Generator],
               skip: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """LVDT readings (X_meas, Y_meas) in m."""
+        """LVDT readings (X_meas, Y_meas) in m (advances the noise blocks as the kernels do)."""
         X, Yf = fixed_frame_lateral(Y)
         xm, ym = lvdt_measure(X, Yf, self.params, 0.0)
-        if self._noisy:
-            e = self._noise[self._rows, self._pos]
+        if self.noisy:
+            e = self.noise[np.arange(len(self.pos)), self.pos]
             xm += self.noise_std * e[:, 0]
             ym += self.noise_std * e[:, 1]
-            self._pos += 1
-            full = self._pos >= self.block
-            if full.any():
-                for i in np.flatnonzero(full if skip is None else full & ~skip):
-                    self._refill(i, rngs[i])
-                self._pos[full] %= self.block
+            self.pos += 1
+            self.refill_spent(rngs, skip)
         return xm, ym
 
 
 class SensorObservation(ObservationModel):
-    """Encoder angles, estimated speeds, LVDT readings (see the module docstring for the layout)."""
+    """Encoder angles, estimated speeds, LVDT readings (see the module docstring for the layout).
+
+    ``est_u``, ``est_l``: the speed estimators of the two encoders; their ``prev`` / ``omega``
+    arrays are rows of the state ``E`` (4, n) that the compiled kernels update."""
 
     mode = "sensors"
 
@@ -218,6 +244,9 @@ class SensorObservation(ObservationModel):
         self.sensors = sensors or SimulatedSensors(n, o.counts_per_rev, o.lvdt_noise_std, o.rig_params, o.lateral)
         self.est_u = EncoderVelocityEstimator(n, o.control_dt, o.velocity_filter_tau)
         self.est_l = EncoderVelocityEstimator(n, o.control_dt, o.velocity_filter_tau)
+        self.E = np.zeros((4, n))
+        self.est_u.prev, self.est_u.omega, self.est_l.prev, self.est_l.omega = self.E
+        self.cv = self.sensors.constants(self.lateral, self.est_u.a, self.est_u.dt, self.low, self.high)
 
     def _layout(self, o: EnvOptions):
         w = 2.0 * o.max_speed
@@ -238,44 +267,39 @@ class SensorObservation(ObservationModel):
         self.sensors.reset(index, rngs)
 
     def observe(self, Y, u_prev, omega_ref, out, rngs, skip=None) -> None:
-        tu, tl = self.sensors.encoders(Y)
-        xm, ym = self.sensors.lvdts(Y, rngs, skip) if self.lateral else (None, None)
-        self.from_readings(tu, tl, xm, ym, u_prev, omega_ref, out)
+        s = self.sensors
+        if ok.sensors_observe(Y, u_prev, omega_ref, self.E, s.noise, s.pos, self.cv, out):
+            s.refill_spent(rngs, skip)
 
     def initial(self, index, Y, omega_ref) -> np.ndarray:
         Yi = Y[index]
         tu, tl = self.sensors.encoders(Yi)
-        xm, ym = lvdt_measure(*fixed_frame_lateral(Yi), self.sensors.params) if self.lateral else (None, None)
+        xm, ym = lvdt_measure(*fixed_frame_lateral(Yi), self.sensors.params) if self.lateral else (tu, tl)
         out = np.empty((len(index), self.dim), dtype=np.float32)
         zero = np.zeros(len(index))
-        self._assemble(tu, tl, zero, zero, xm, ym, zero, omega_ref[index], out)
+        ok.sensors_rows(tu, tl, xm, ym, zero, omega_ref[index], self.E, self.cv, False, out)
         return out
 
     def from_readings(self, theta_u: np.ndarray, theta_l: np.ndarray, X: np.ndarray | None, Y: np.ndarray | None,
                       u_prev: np.ndarray, omega_ref: np.ndarray, out: np.ndarray) -> None:
-        """Observation from one period's readings: encoder angles (rad), LVDTs (m), voltage (V), target.
+        """Observation from one period's readings: encoder angles (rad), LVDTs (m; None or ignored
+        without lateral entries), voltage (V), target (rad/s); arrays of one value per rig.
         Updates the speed estimators (call once per control period)."""
-        self._assemble(theta_u, theta_l, self.est_u.update(theta_u), self.est_l.update(theta_l), X, Y,
-                       u_prev, omega_ref, out)
-
-    def _assemble(self, theta_u, theta_l, omega_u, omega_l, X, Y, u_prev, omega_ref, out) -> None:
-        out[:, 0] = np.mod(theta_u + np.pi, 2 * np.pi) - np.pi
-        out[:, 1] = np.mod(theta_l + np.pi, 2 * np.pi) - np.pi
-        out[:, 2] = theta_l - theta_u
-        out[:, 3] = omega_u
-        out[:, 4] = omega_l
-        j = 5
+        n = self._check_out(out)
+        theta_u, theta_l = _rows(theta_u, n, "theta_u"), _rows(theta_l, n, "theta_l")
         if self.lateral:
-            out[:, 5] = MM * X
-            out[:, 6] = MM * Y
-            j = 7
-        out[:, j] = u_prev
-        out[:, j + 1] = omega_ref
-        np.clip(out, self.low, self.high, out=out)
+            X, Y = _rows(X, n, "X"), _rows(Y, n, "Y")
+        else:
+            X, Y = theta_u, theta_l
+        ok.sensors_rows(theta_u, theta_l, X, Y, _rows(u_prev, n, "u_prev"), _rows(omega_ref, n, "omega_ref"),
+                        self.E, self.cv, True, out)
 
 
 class MotorObservation(ObservationModel):
-    """Motor-side encoder increments and voltage history (see the module docstring for the layout)."""
+    """Motor-side encoder increments and voltage history (see the module docstring for the layout).
+
+    ``est``: the raw increment estimator (its ``prev`` / ``omega`` are rows of ``E`` (2, n));
+    ``hist`` (n, 2H): increments (rad/s) then voltages (V), newest first."""
 
     mode = "motor"
 
@@ -285,7 +309,10 @@ class MotorObservation(ObservationModel):
         self.H = o.motor_history
         self.sensors = sensors or SimulatedSensors(n, o.counts_per_rev, 0.0, o.rig_params, False)
         self.est = EncoderVelocityEstimator(n, o.control_dt, 0.0)  # raw increments / control_dt
+        self.E = np.zeros((2, n))
+        self.est.prev, self.est.omega = self.E
         self.hist = np.zeros((n, 2 * self.H))
+        self.cv = ok.motor_constants(self.sensors.cpr, self.est.a, self.est.dt, self.low, self.high)
 
     def _layout(self, o: EnvOptions):
         H, w = o.motor_history, 2.0 * o.max_speed
@@ -298,24 +325,33 @@ class MotorObservation(ObservationModel):
         self.hist[index] = 0.0
 
     def initial(self, index, Y, omega_ref) -> np.ndarray:
-        out = np.zeros((len(index), self.dim), dtype=np.float32)
-        out[:, 2 * self.H] = omega_ref[index]
+        out = np.empty((len(index), self.dim), dtype=np.float32)
+        ref = omega_ref[index]
+        ok.motor_rows(ref, ref, ref, self.E, self.hist, self.cv, False, out)  # empty history: angles unused
         return out
 
     def observe(self, Y, u_prev, omega_ref, out, rngs, skip=None) -> None:
-        self.from_readings(quantize_angle(Y[:, 0], self.sensors.cpr), u_prev, omega_ref, out)
+        ok.motor_observe(Y, u_prev, omega_ref, self.E, self.hist, self.cv, out)
 
     def from_readings(self, theta_u: np.ndarray, u_prev: np.ndarray, omega_ref: np.ndarray,
                       out: np.ndarray) -> None:
-        """Observation from the motor encoder angle (rad), the applied voltage (V) and the target."""
-        H, h = self.H, self.hist
-        h[:, 1:H] = h[:, 0:H - 1]
-        h[:, H + 1:] = h[:, H:2 * H - 1]
-        h[:, 0] = self.est.update(theta_u)
-        h[:, H] = u_prev
-        out[:, :2 * H] = h
-        out[:, 2 * H] = omega_ref
-        np.clip(out, self.low, self.high, out=out)
+        """Observation from the motor encoder angle (rad), the applied voltage (V) and the target
+        (rad/s), one value per rig."""
+        n = self._check_out(out)
+        ok.motor_rows(_rows(theta_u, n, "theta_u"), _rows(u_prev, n, "u_prev"), _rows(omega_ref, n, "omega_ref"),
+                      self.E, self.hist, self.cv, True, out)
+
+
+def _rows(x, n: int, name: str) -> np.ndarray:
+    """``x`` as n float64 values, one per rig (a scalar or a single value is broadcast)."""
+    a = np.asarray(x, dtype=np.float64)
+    if a.shape == (n,):
+        return a
+    if a.size == n:
+        return np.ascontiguousarray(a.reshape(n))
+    if a.size == 1:
+        return np.full(n, a.reshape(()))
+    raise ValueError(f"{name} must hold one value per rig ({n}), got shape {a.shape}")
 
 
 _MODELS = {"full": FullObservation, "sensors": SensorObservation, "motor": MotorObservation}
