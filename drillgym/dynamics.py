@@ -186,14 +186,12 @@ def full_accelerations(x: float, yy: float, vx: float, vy: float, W: float, wl: 
 
 @njit(cache=True, fastmath=True, _nrt=False)
 def state_derivative(t: float, y: np.ndarray, mode: np.ndarray, u: float, p: np.ndarray, cfg: int,
-                     smooth_eps: float, dy: np.ndarray, fric: np.ndarray,
-                     M: np.ndarray, B: np.ndarray) -> None:
+                     smooth_eps: float, dy: np.ndarray, fric: np.ndarray) -> None:
     """dy/dt of the state for constant input u (V) and friction modes ``mode``.
 
     Writes the friction torques (Tfu, Tfl) in N m into ``fric`` (for a stuck
     disc: the constraint torque lambda).  ``smooth_eps`` > 0 selects the explicit
     smoothed friction option (sign -> tanh(w/eps), modes ignored).
-    ``M`` (4x4) and ``B`` (4x3) are work arrays.
     """
     for i in range(dy.shape[0]):
         dy[i] = 0.0

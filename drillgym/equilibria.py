@@ -221,11 +221,9 @@ class _Work:
     def __init__(self) -> None:
         self.dy = np.zeros(N_STATE)
         self.fric = np.zeros(2)
-        self.M = np.zeros((4, 4))
-        self.B = np.zeros((4, 3))
 
     def f(self, y: np.ndarray, mode: np.ndarray, u: float, p: np.ndarray, cfg: Configuration) -> np.ndarray:
-        state_derivative(0.0, y, mode, float(u), p, int(cfg), 0.0, self.dy, self.fric, self.M, self.B)
+        state_derivative(0.0, y, mode, float(u), p, int(cfg), 0.0, self.dy, self.fric)
         return self.dy.copy()
 
 

@@ -77,12 +77,10 @@ def tableau(method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 @njit(cache=True)
 def alloc_work(n_stages: int):
     """Work arrays of ``hybrid_step`` for a tableau of n_stages:
-    (K stage derivatives + end derivative, ytmp, M, B, k1, ynew, fric, ftmp, g0, g1)."""
+    (K stage derivatives + end derivative, ytmp, k1, ynew, fric, ftmp, g0, g1)."""
     K = np.zeros((n_stages + 1, N_STATE))
-    M = np.zeros((4, 4))
-    B = np.zeros((4, 3))
-    return (K, np.zeros(N_STATE), M, B, np.zeros(N_STATE), np.zeros(N_STATE), np.zeros(2), np.zeros(2),
-            np.zeros(2), np.zeros(2))
+    return (K, np.zeros(N_STATE), np.zeros(N_STATE), np.zeros(N_STATE), np.zeros(2), np.zeros(2), np.zeros(2),
+            np.zeros(2))
 
 
 @njit(cache=True, _nrt=False)
@@ -95,7 +93,7 @@ def active_states(cfg, p):
 
 
 @njit(cache=True, fastmath=True, _nrt=False)
-def _rk_step(t, y0, k1, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, y_out, M, B, fric):
+def _rk_step(t, y0, k1, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, y_out, fric):
     """One explicit RK step of size h from (t, y0) with derivative k1 at y0; result in y_out.
 
     Only the first ``active_states`` entries evolve; the others are copied.  The
@@ -114,13 +112,13 @@ def _rk_step(t, y0, k1, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, y_out, M, B, 
         hh = 0.5 * h
         for j in range(n):
             ytmp[j] = y0[j] + hh * k1[j]
-        state_derivative(t + hh, ytmp, mode, u, p, cfg, eps, k2, fric, M, B)
+        state_derivative(t + hh, ytmp, mode, u, p, cfg, eps, k2, fric)
         for j in range(n):
             ytmp[j] = y0[j] + hh * k2[j]
-        state_derivative(t + hh, ytmp, mode, u, p, cfg, eps, k3, fric, M, B)
+        state_derivative(t + hh, ytmp, mode, u, p, cfg, eps, k3, fric)
         for j in range(n):
             ytmp[j] = y0[j] + h * k3[j]
-        state_derivative(t + h, ytmp, mode, u, p, cfg, eps, k4, fric, M, B)
+        state_derivative(t + h, ytmp, mode, u, p, cfg, eps, k4, fric)
         h6 = h / 6.0
         for j in range(n):
             y_out[j] = y0[j] + h6 * (k1[j] + 2.0 * (k2[j] + k3[j]) + k4[j])
@@ -133,7 +131,7 @@ def _rk_step(t, y0, k1, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, y_out, M, B, 
             for l in range(i):
                 acc += A[i, l] * K[l, j]
             ytmp[j] = y0[j] + h * acc
-        state_derivative(t + c[i] * h, ytmp, mode, u, p, cfg, eps, K[i], fric, M, B)
+        state_derivative(t + c[i] * h, ytmp, mode, u, p, cfg, eps, K[i], fric)
     for j in range(n):
         acc = 0.0
         for i in range(s):
@@ -161,12 +159,12 @@ def event_values(t, y, mode, fric, p, cfg, g):
 
 
 @njit(cache=True, _nrt=False)
-def resolve_modes(t, y, mode, u, p, cfg, dy, fric, M, B):
+def resolve_modes(t, y, mode, u, p, cfg, dy, fric):
     """Make the modes consistent at (t, y): discs with w = 0 and mode 0 stay stuck if their
     holding torque lies in the stick set, else they start slipping in the direction of
     the excess.  Leaves dy, fric evaluated with the final modes."""
     for _ in range(4):
-        state_derivative(t, y, mode, u, p, cfg, 0.0, dy, fric, M, B)
+        state_derivative(t, y, mode, u, p, cfg, 0.0, dy, fric)
         changed = False
         if mode[0] == 0 and cfg != FREE_VIBRATION:
             lo, hi = upper_stick_bounds(p)
@@ -189,7 +187,7 @@ def resolve_modes(t, y, mode, u, p, cfg, dy, fric, M, B):
 
 
 @njit(cache=True, _nrt=False)
-def initial_modes(t, y, u, p, cfg, mode, dy, fric, M, B):
+def initial_modes(t, y, u, p, cfg, mode, dy, fric):
     """Modes from the initial state: sign of the speed, or stuck (then resolved) at zero speed."""
     mode[0] = 0 if y[S_WU] == 0.0 else (1 if y[S_WU] > 0 else -1)
     mode[1] = 0 if y[S_WL] == 0.0 else (1 if y[S_WL] > 0 else -1)
@@ -198,11 +196,11 @@ def initial_modes(t, y, u, p, cfg, mode, dy, fric, M, B):
     if cfg == FREE_VIBRATION:
         mode[0] = 0
         y[S_WU] = 0.0
-    resolve_modes(t, y, mode, u, p, cfg, dy, fric, M, B)
+    resolve_modes(t, y, mode, u, p, cfg, dy, fric)
 
 
 @njit(cache=True, _nrt=False)
-def hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, ynew, M, B, g0, g1, ftmp):
+def hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, ynew, g0, g1, ftmp):
     """Advance (t, y) by h with event-driven mode switching.
 
     On entry k1/fric hold the derivative and friction torques at (t, y) with the
@@ -216,8 +214,8 @@ def hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, ynew,
     fend0 = 0.0
     fend1 = 0.0
     while True:
-        _rk_step(t, y, k1, mode, u, p, cfg, eps, remaining, A, b, c, K, ytmp, ynew, M, B, ftmp)
-        state_derivative(t + remaining, ynew, mode, u, p, cfg, eps, kend, ftmp, M, B)
+        _rk_step(t, y, k1, mode, u, p, cfg, eps, remaining, A, b, c, K, ytmp, ynew, ftmp)
+        state_derivative(t + remaining, ynew, mode, u, p, cfg, eps, kend, ftmp)
         fend0 = ftmp[0]
         fend1 = ftmp[1]
         if eps > 0.0 or n_events >= MAX_EVENTS_PER_STEP:
@@ -244,8 +242,8 @@ def hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, ynew,
         side = 0
         if ga > 0.0:
             for _ in range(ILLINOIS_ITERATIONS):
-                _rk_step(t, y, k1, mode, u, p, cfg, eps, tau * remaining, A, b, c, K, ytmp, ynew, M, B, ftmp)
-                state_derivative(t + tau * remaining, ynew, mode, u, p, cfg, eps, ytmp, ftmp, M, B)
+                _rk_step(t, y, k1, mode, u, p, cfg, eps, tau * remaining, A, b, c, K, ytmp, ynew, ftmp)
+                state_derivative(t + tau * remaining, ynew, mode, u, p, cfg, eps, ytmp, ftmp)
                 event_values(t + tau * remaining, ynew, mode, ftmp, p, cfg, g1)
                 gt = g1[j]
                 if gt == 0.0:
@@ -269,7 +267,7 @@ def hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, ynew,
             tau = 0.0
         # advance to the event
         if tau > 0.0:
-            _rk_step(t, y, k1, mode, u, p, cfg, eps, tau * remaining, A, b, c, K, ytmp, ynew, M, B, ftmp)
+            _rk_step(t, y, k1, mode, u, p, cfg, eps, tau * remaining, A, b, c, K, ytmp, ynew, ftmp)
             for i in range(n):
                 y[i] = ynew[i]
         t += tau * remaining
@@ -282,13 +280,13 @@ def hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, ynew,
                 y[S_WL] = 0.0
             mode[j] = 0
         else:
-            state_derivative(t, y, mode, u, p, cfg, 0.0, k1, fric, M, B)
+            state_derivative(t, y, mode, u, p, cfg, 0.0, k1, fric)
             if j == 0:
                 lo, hi = upper_stick_bounds(p)
             else:
                 lo, hi = lower_stick_bounds(y[S_TL], t, p, brake_on(cfg))
             mode[j] = 1 if (fric[j] - lo) >= (hi - fric[j]) else -1
-        resolve_modes(t, y, mode, u, p, cfg, k1, fric, M, B)
+        resolve_modes(t, y, mode, u, p, cfg, k1, fric)
         n_events += 1
         if remaining <= 1e-15:
             return n_events
@@ -328,17 +326,17 @@ def run_trajectory(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, ini
     ``y``/``mode`` are updated in place to the final state.  ``out`` receives
     ``len(U) // rec_every + 1`` samples.  Returns the number of mode switches.
     """
-    K, ytmp, M, B, k1, ynew, fric, ftmp, g0, g1 = alloc_work(b.shape[0])
+    K, ytmp, k1, ynew, fric, ftmp, g0, g1 = alloc_work(b.shape[0])
     t = t0
     u = U[0] if U.shape[0] > 0 else 0.0
     if eps > 0.0:  # smoothed friction: no stick state
         mode[0] = 2
         mode[1] = 2
-        state_derivative(t, y, mode, u, p, cfg, eps, k1, fric, M, B)
+        state_derivative(t, y, mode, u, p, cfg, eps, k1, fric)
     elif init_modes:
-        initial_modes(t, y, u, p, cfg, mode, k1, fric, M, B)
+        initial_modes(t, y, u, p, cfg, mode, k1, fric)
     else:
-        resolve_modes(t, y, mode, u, p, cfg, k1, fric, M, B)
+        resolve_modes(t, y, mode, u, p, cfg, k1, fric)
     record(out, 0, t, u, y, fric, mode)
     n_switch = 0
     row = 1
@@ -347,11 +345,11 @@ def run_trajectory(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, ini
         u = U[i]
         if u != u_prev:
             if eps > 0.0:
-                state_derivative(t, y, mode, u, p, cfg, eps, k1, fric, M, B)
+                state_derivative(t, y, mode, u, p, cfg, eps, k1, fric)
             else:
-                resolve_modes(t, y, mode, u, p, cfg, k1, fric, M, B)
+                resolve_modes(t, y, mode, u, p, cfg, k1, fric)
             u_prev = u
-        n_switch += hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, dt, A, b, c, K, ytmp, ynew, M, B, g0, g1, ftmp)
+        n_switch += hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, dt, A, b, c, K, ytmp, ynew, g0, g1, ftmp)
         t = t0 + (i + 1) * dt
         if (i + 1) % rec_every == 0:
             # a sample carries the voltage applied from its time on (zero-order hold), as a recording does
@@ -380,7 +378,7 @@ def advance_batch(Y, MODE, u, P, cfg, dt, n_sub, T, eps, A, b, c, FRIC):
     """Advance every trajectory of a batch by n_sub steps of dt at constant input u[k]
     (the environments' control period).  Updates Y, MODE, T in place; FRIC (B, 2)
     receives the friction torques at the end."""
-    K, ytmp, M, B, k1, ynew, _, ftmp, g0, g1 = alloc_work(b.shape[0])
+    K, ytmp, k1, ynew, _, ftmp, g0, g1 = alloc_work(b.shape[0])
     for k in range(Y.shape[0]):
         y = Y[k]
         mode = MODE[k]
@@ -389,10 +387,10 @@ def advance_batch(Y, MODE, u, P, cfg, dt, n_sub, T, eps, A, b, c, FRIC):
         if eps > 0.0:
             mode[0] = 2
             mode[1] = 2
-            state_derivative(t, y, mode, u[k], P[k], cfg, eps, k1, fric, M, B)
+            state_derivative(t, y, mode, u[k], P[k], cfg, eps, k1, fric)
         else:
-            resolve_modes(t, y, mode, u[k], P[k], cfg, k1, fric, M, B)
+            resolve_modes(t, y, mode, u[k], P[k], cfg, k1, fric)
         for _ in range(n_sub):
-            hybrid_step(t, y, k1, fric, mode, u[k], P[k], cfg, eps, dt, A, b, c, K, ytmp, ynew, M, B, g0, g1, ftmp)
+            hybrid_step(t, y, k1, fric, mode, u[k], P[k], cfg, eps, dt, A, b, c, K, ytmp, ynew, g0, g1, ftmp)
             t += dt
         T[k] = t

@@ -257,7 +257,7 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
     Ucur = np.empty(B)
     Uprev = np.empty(B)
     A, b, c = RK4_A, RK4_B, RK4_C
-    K, ytmp, M, Bw, k1, ynew, fric, ftmp, g0, g1 = alloc_work(4)
+    K, ytmp, k1, ynew, fric, ftmp, g0, g1 = alloc_work(4)
     y = np.zeros(N_STATE)
     mode = np.zeros(2, dtype=np.int64)
     string_on = 0.0 if cfg == UPPER else 1.0
@@ -272,9 +272,9 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
             mode[j] = MODE[k, j]
         u0 = U[k, 0]
         if init_modes:
-            initial_modes(T0[k], y, u0, P[k], cfg, mode, k1, fric, M, Bw)
+            initial_modes(T0[k], y, u0, P[k], cfg, mode, k1, fric)
         else:
-            resolve_modes(T0[k], y, mode, u0, P[k], cfg, k1, fric, M, Bw)
+            resolve_modes(T0[k], y, mode, u0, P[k], cfg, k1, fric)
         _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
         for j in range(N_STATE):
             Y[k, j] = y[j]
@@ -288,7 +288,7 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
             if Ucur[k] != Uprev[k]:  # a new input can release a stuck disc: resolve (scalar, rare)
                 y[:] = Y[k]
                 _lane_to_state(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
-                resolve_modes(T0[k] + i * dt, y, mode, Ucur[k], P[k], cfg, k1, fric, M, Bw)
+                resolve_modes(T0[k] + i * dt, y, mode, Ucur[k], P[k], cfg, k1, fric)
                 _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
                 Uprev[k] = Ucur[k]
         _lanes_rk4(S, K1, FR, MU, ML, Ucur, PT, dt, full, string_on, brake, fv, S0, OK, W)
@@ -300,8 +300,8 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
                 mode[0] = np.int64(MU[k])
                 mode[1] = np.int64(ML[k])
                 t = T0[k] + i * dt
-                resolve_modes(t, y, mode, Ucur[k], P[k], cfg, k1, fric, M, Bw)
-                hybrid_step(t, y, k1, fric, mode, Ucur[k], P[k], cfg, 0.0, dt, A, b, c, K, ytmp, ynew, M, Bw,
+                resolve_modes(t, y, mode, Ucur[k], P[k], cfg, k1, fric)
+                hybrid_step(t, y, k1, fric, mode, Ucur[k], P[k], cfg, 0.0, dt, A, b, c, K, ytmp, ynew,
                             g0, g1, ftmp)
                 _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
         if record_on and (i + 1) % rec_every == 0:

@@ -46,8 +46,7 @@ def test_coupled_kernel_matches_model_md(seed):
                       vx0=rng.uniform(-0.05, 0.05), vy0=rng.uniform(-0.05, 0.05))
     mode = np.array([1, 1], dtype=np.int64)
     dy, fric = np.zeros(9), np.zeros(2)
-    state_derivative(0.0, y, mode, 2.3, p.to_vector(), int(Configuration.COUPLED), 0.0, dy, fric,
-                     np.zeros((4, 4)), np.zeros((4, 3)))
+    state_derivative(0.0, y, mode, 2.3, p.to_vector(), int(Configuration.COUPLED), 0.0, dy, fric)
     ref = model_md_accelerations(y, 2.3, p, fric[0], fric[1])
     np.testing.assert_allclose([dy[6], dy[7], dy[2], dy[3]], ref, rtol=1e-9, atol=1e-9)
 
@@ -58,8 +57,7 @@ def test_torsional_reduces_to_report_equations():
     y = initial_state(alpha0=-0.7, omega_u0=2.0, omega_l0=3.0)
     mode = np.array([1, 1], dtype=np.int64)
     dy, fric = np.zeros(9), np.zeros(2)
-    state_derivative(0.0, y, mode, 1.5, p.to_vector(), int(Configuration.TORSIONAL), 0.0, dy, fric,
-                     np.zeros((4, 4)), np.zeros((4, 3)))
+    state_derivative(0.0, y, mode, 1.5, p.to_vector(), int(Configuration.TORSIONAL), 0.0, dy, fric)
     assert p.Ju * dy[2] + fric[0] - p.ktheta * (-0.7) == pytest.approx(p.km * 1.5, rel=1e-12)
     assert p.Jl * dy[3] + fric[1] + p.ktheta * (-0.7) == pytest.approx(0.0, abs=1e-12)
 

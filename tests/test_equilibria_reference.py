@@ -66,8 +66,8 @@ def test_stability_changes_at_hopf_points():
 @pytest.mark.parametrize("config", ["torsional", "coupled", "lateral"])
 def test_equilibrium_is_a_rest_point_of_the_simulator(config):
     eq = slip_equilibria(config, 2.5)[0]
-    dy, fric, M, B = np.zeros(9), np.zeros(2), np.zeros((4, 4)), np.zeros((4, 3))
-    state_derivative(0.0, eq.state, eq.modes, 2.5, RigParams().to_vector(), int(eq.config), 0.0, dy, fric, M, B)
+    dy, fric = np.zeros(9), np.zeros(2)
+    state_derivative(0.0, eq.state, eq.modes, 2.5, RigParams().to_vector(), int(eq.config), 0.0, dy, fric)
     assert np.allclose(dy[[2, 3, 6, 7]], 0.0, atol=1e-10)
     assert np.isclose(dy[0], eq.omega) and np.isclose(dy[1], eq.omega)
 

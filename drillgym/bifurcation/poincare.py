@@ -53,14 +53,14 @@ def flow_to_section(y, u, ws, p, cfg, dt, t_max, A, b, c):
     vector (ok, return time, min/max omega_l, min/max r, stuck time of the lower disc).
     """
     out = np.zeros(N_SUMMARY)
-    K, ytmp, M, B, k1, ynew, fric, ftmp, g0, g1 = alloc_work(b.shape[0])
+    K, ytmp, k1, ynew, fric, ftmp, g0, g1 = alloc_work(b.shape[0])
     mode = np.zeros(2, dtype=np.int64)
     ys = np.zeros(N_STATE)
     ks = np.zeros(N_STATE)
     fs = np.zeros(2)
     ms = np.zeros(2, dtype=np.int64)
     t = 0.0
-    initial_modes(t, y, u, p, cfg, mode, k1, fric, M, B)
+    initial_modes(t, y, u, p, cfg, mode, k1, fric)
     armed = False
     wl_min = y[S_WL]
     wl_max = y[S_WL]
@@ -72,7 +72,7 @@ def flow_to_section(y, u, ws, p, cfg, dt, t_max, A, b, c):
     for _ in range(n_max):
         _copy_step_state(y, k1, fric, mode, ys, ks, fs, ms)  # snapshot: the crossing is re-stepped from here
         gprev = y[S_WL] - ws
-        hybrid_step(t, y, k1, fric, mode, u, p, cfg, 0.0, dt, A, b, c, K, ytmp, ynew, M, B, g0, g1, ftmp)
+        hybrid_step(t, y, k1, fric, mode, u, p, cfg, 0.0, dt, A, b, c, K, ytmp, ynew, g0, g1, ftmp)
         gnew = y[S_WL] - ws
         if mode[1] == 0:
             stick += dt
@@ -86,7 +86,7 @@ def flow_to_section(y, u, ws, p, cfg, dt, t_max, A, b, c):
             for _it in range(REFINE_ITERATIONS):
                 tau = (ta * gb - tb * ga) / (gb - ga)
                 _copy_step_state(ys, ks, fs, ms, y, k1, fric, mode)
-                hybrid_step(t, y, k1, fric, mode, u, p, cfg, 0.0, tau * dt, A, b, c, K, ytmp, ynew, M, B, g0, g1, ftmp)
+                hybrid_step(t, y, k1, fric, mode, u, p, cfg, 0.0, tau * dt, A, b, c, K, ytmp, ynew, g0, g1, ftmp)
                 gt = y[S_WL] - ws
                 if abs(gt) < 1e-13 or (tb - ta) < 1e-15:
                     break

@@ -68,7 +68,6 @@ def residual_torques(ex: Experiment, params: RigParams, min_speed: float = 0.05)
     dy = np.zeros(N_STATE)
     fric = np.zeros(2)
     M = np.zeros((4, 4))
-    B = np.zeros((4, 3))
     mode = np.zeros(2, dtype=np.int64)
     tau = np.full((n, 4), np.nan)
     wl_all = Y[:, 3] if "theta_l" in ex.meas else Y[:, 2]
@@ -83,7 +82,7 @@ def residual_torques(ex: Experiment, params: RigParams, min_speed: float = 0.05)
         mode[1] = 1 if y[3] > 0 else (-1 if y[3] < 0 else 0)
         if mode[0] == 0:  # stuck upper disc: its torque balance is unknown (set-valued)
             mode[0] = 1
-        state_derivative(ex.t[i] - ex.t[0], y, mode, u[i], p, cfg, 0.0, dy, fric, M, B)
+        state_derivative(ex.t[i] - ex.t[0], y, mode, u[i], p, cfg, 0.0, dy, fric)
         da = acc[i] - np.array([dy[2], dy[3], dy[6], dy[7]])
         if ex.config.lateral_free:
             mass_matrix(y, p, M)
