@@ -113,3 +113,17 @@ def test_cli_writes_branches_and_figures(tmp_path):
     assert {"hopf", "fold", "equilibria", "cycles"} <= set(d)
     assert np.isclose(d["hopf"][1], 1.6851, atol=1e-3) and d["cycles"]
     assert (tmp_path / "bifurcation_torsional_omega_l.png").stat().st_size > 10000
+
+
+def test_lateral_whirl_branch_starts_at_the_hopf_point_near_8_78V():
+    """The whirl branch born at ~8.78 V (lateral configuration) is found and starts stable (supercritical)."""
+    b = equilibrium_branch("lateral", umax=50.0, n=300)
+    brs, folds = periodic_branches(b, umin=8.7, umax=8.79, max_points=15)
+    (br,) = brs                                   # the Hopf point at ~10.59 V is outside the window
+    assert folds == []                            # the first fold of this branch is at ~8.831 V
+    u = br.array("u")
+    assert abs(u[0] - b.hopf[0].u) < 1e-3 and np.all(np.diff(u) > 0)
+    first = br.solutions[1]
+    assert first.stable and 0.9 < abs(first.multipliers[0]) < 1.0
+    assert not any(s.stick_slip for s in br.solutions)
+    assert first.r_min > 0.02                     # whirl around the eccentric equilibrium (r_eq ~ 28.6 mm)

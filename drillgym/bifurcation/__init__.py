@@ -4,6 +4,7 @@
 * :mod:`.poincare`, :mod:`.shooting`, :mod:`.continuation` - periodic solutions of the
   non-smooth system: event-aware shooting on a Poincare section, Floquet multipliers,
   pseudo-arclength continuation, (discontinuous) folds
+* :mod:`.verification` - independent checks of periodic solutions by direct simulation
 * :mod:`.sweeps` - brute-force sweeps through a ``concurrent.futures.Executor``
 * :mod:`.measured` - diagrams from measurement files; the report's measured points
 * :mod:`.diagram` - everything for one configuration (``compute_diagram``), JSON output

@@ -11,6 +11,17 @@ Folds are the turning points of u along the branch (sign change of du/ds),
 located by the extreme u of a parabola through the three points around the
 turn.  A branch ends at a Hopf point when the orbit's amplitude shrinks below
 ``amplitude_min``, at the ends of the voltage window, or after ``max_points``.
+
+Section control: the section omega_l = omega_s(u) + offset must be crossed
+transversally once per period.  A whirl orbit of the lateral configuration
+has several local extrema of omega_l per period; when one of them comes close
+to the section level the return map becomes discontinuous (an extra crossing
+appears) and the corrector fails.  After each accepted point
+:func:`section_margin` measures the distance of the level from every local
+extremum of omega_l along the orbit (one simulated period); below
+``SECTION_MARGIN`` of the orbit's omega_l range the section is moved to the
+middle of the widest gap between extremum values that is crossed upwards once
+per period, and the point is re-shot on the new section.
 """
 
 from __future__ import annotations
@@ -20,7 +31,7 @@ from typing import Callable
 
 import numpy as np
 
-from .poincare import SectionMap
+from .poincare import F_OK, SectionMap
 from .shooting import PeriodicSolution, ShootingFailure, make_solution, residual_and_jacobian, shoot
 
 
@@ -49,6 +60,65 @@ class PeriodicBranch:
         return np.array([getattr(s, name) for s in self.solutions])
 
 
+SECTION_MARGIN = 0.1  # fraction of the orbit's omega_l range kept between the section and any extremum
+
+
+def _upward_crossings(w: np.ndarray, level: float) -> int:
+    """Upward crossings of ``level`` by the periodic sample sequence w (one period, wrapped)."""
+    g = np.append(w, w[0]) - level
+    return int(np.sum((g[:-1] < 0) & (g[1:] >= 0)))
+
+
+def section_margin(smap: SectionMap, sol: PeriodicSolution) -> tuple[float, float | None]:
+    """(margin, better offset): the distance (as a fraction of the omega_l range) between the section
+    level and the nearest local extremum of omega_l along the orbit of ``sol`` (one period simulated
+    from its section point), and, if that is below SECTION_MARGIN, the offset (rad/s) of a section
+    level in the middle of the widest gap between extremum values that the orbit crosses upwards
+    exactly once per period (None when no such level is better)."""
+    from ..params import RigParams
+    from ..simulator import simulate
+
+    if not np.isfinite(sol.period) or sol.period <= 0:
+        return 1.0, None
+    sm = smap.with_offset(sol.section_offset)
+    tr = simulate(sm.config, sol.u, sol.period, dt=sm.dt, params=RigParams.from_vector(sm.p),
+                  x0=sm.to_state(sol.z, sol.u), method=sm.method)
+    w = tr.omega_l
+    span = float(w.max() - w.min())
+    if span <= 0 or len(w) < 5:
+        return 1.0, None
+    d = np.diff(w)
+    d = d[d != 0]
+    wd = w[1:][np.diff(w) != 0]
+    ext = wd[:-1][np.sign(d[:-1]) != np.sign(d[1:])] if len(d) > 1 else np.empty(0)
+    values = np.unique(np.concatenate([ext, [w.min(), w.max()]]))
+    level = sm.level(sol.u)
+    margin = float(np.min(np.abs(values - level))) / span
+    if margin >= SECTION_MARGIN:
+        return margin, None
+    best, best_gap = None, margin * span
+    for lo, hi in zip(values[:-1], values[1:]):
+        mid = 0.5 * (lo + hi)
+        if 0.5 * (hi - lo) > best_gap and _upward_crossings(w, mid) == 1:
+            best, best_gap = mid, 0.5 * (hi - lo)
+    return margin, (None if best is None else float(best - sm.omega_s(sol.u)))
+
+
+def _resection(smap: SectionMap, sol: PeriodicSolution) -> tuple[SectionMap, PeriodicSolution] | None:
+    """Move the section if the orbit comes close to touching it; the point re-shot on the new one."""
+    margin, offset = section_margin(smap, sol)
+    if offset is None:
+        return None
+    new = smap.with_offset(offset)
+    Z, S = new.flow_states(smap.with_offset(sol.section_offset).to_state(sol.z, sol.u)[None, :], np.array([sol.u]))
+    if S[0, F_OK] == 0:
+        return None
+    try:
+        return new, shoot(new, Z[0], sol.u)
+    except (ShootingFailure, np.linalg.LinAlgError):
+        return None
+
+
 def _tangent(J: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
     t = np.linalg.svd(J)[2][-1]
     if previous is not None and np.dot(t, previous) < 0:
@@ -59,12 +129,16 @@ def _tangent(J: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
 def continue_branch(smap: SectionMap, start: PeriodicSolution, direction: float, *, umin: float, umax: float,
                     ds: float = 0.05, ds_min: float = 1e-4, ds_max: float = 0.3, max_points: int = 400,
                     amplitude_min: float = 2e-3, tol: float = 1e-8, max_newton: int = 8,
+                    resection: bool = True,
                     progress: Callable[[PeriodicSolution], None] | None = None) -> PeriodicBranch:
     """Follow the periodic branch through ``start`` with u initially moving in ``direction`` (+1/-1).
 
-    ``ds`` is the arclength step in the scaled (z, u) space.
+    ``ds`` is the arclength step in the scaled (z, u) space.  With ``resection`` the section is moved
+    away from extrema of omega_l along the orbit (module docstring); each solution records its
+    section's offset (:attr:`PeriodicSolution.section_offset`).
     """
     n = smap.dim
+    smap = smap.with_offset(start.section_offset)
     X = np.append(start.z, start.u)
     H, J, s = residual_and_jacobian(smap, start.z, start.u)
     t = _tangent(J, None)
@@ -94,10 +168,18 @@ def continue_branch(smap: SectionMap, start: PeriodicSolution, direction: float,
                 branch.end_reason = "corrector failed (step below ds_min)"
                 break
             continue
-        sol = make_solution(Xp[n], Xp[:n], J, s)
+        sol = make_solution(Xp[n], Xp[:n], J, s, smap.offset)
         t_new = _tangent(J, t)
         X, t = Xp, t_new
         branch.solutions.append(sol)
+        moved = _resection(smap, sol) if resection else None
+        if moved is not None:
+            smap, sol = moved  # the same orbit, on the new section
+            branch.solutions[-1] = sol
+            X = np.append(sol.z, sol.u)
+            _, J2, _ = residual_and_jacobian(smap, sol.z, sol.u)
+            t2 = _tangent(J2, None)
+            t = t2 if t2[n] * t[n] >= 0 else -t2  # keep the direction of travel in u
         if progress is not None:
             progress(sol)
         ds = min(ds * 1.5, ds_max)
@@ -177,5 +259,5 @@ def start_at_hopf(smap: SectionMap, u_hopf: float, z_eq: np.ndarray, eigvec: np.
         u += step[-1]
         if np.linalg.norm(step) < tol and np.linalg.norm(H) < 1e3 * tol:
             H, J, s = residual_and_jacobian(smap, z, u)
-            return make_solution(u, z, J, s)
+            return make_solution(u, z, J, s, smap.offset)
     raise ShootingFailure(f"no periodic solution near the Hopf point u = {u_hopf:.5g} V")

@@ -4,6 +4,7 @@ branches (from each Hopf point, by shooting and continuation), folds, sweeps, me
 from __future__ import annotations
 
 import json
+import warnings
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -92,14 +93,22 @@ def periodic_branches(branch: EquilibriumBranch, params: RigParams | None = None
         try:
             s1 = _hopf_start(smap, h, params, amplitude)
             s2 = _hopf_start(smap, h, params, 2 * amplitude)
-        except ShootingFailure:
+        except ShootingFailure as exc:
+            warnings.warn(f"no periodic branch from the Hopf point u = {h.u:.4f} V ({exc})", RuntimeWarning,
+                          stacklevel=2)
             continue
+        # a branch that comes back to a Hopf point ends there: once its omega_l range is below half that
+        # of the start orbit (a fixed 2e-3 rad/s missed the lateral Hopf point at 8.78 V, where the
+        # corrector then slid along the vanishing orbit)
+        amp_stop = max(2e-3, 0.5 * (s1.omega_l_max - s1.omega_l_min))
         br = continue_branch(smap, s1, np.sign(s2.u - s1.u) or 1.0, umin=umin, umax=umax, ds=ds, ds_max=ds_max,
-                             max_points=max_points, progress=progress)
+                             max_points=max_points, amplitude_min=amp_stop, progress=progress)
         out.append(br)
         folds += br.folds
         last = br.solutions[-1]
-        if br.end_reason.startswith("corrector") and (last.stick_time < GRAZING_STICK_TIME
+        # grazing corner: the stick phase shrinks to nothing, or a slip orbit touches omega_l = 0
+        # (a corrector failure of an orbit that never sticks and stays away from 0 is no fold)
+        if br.end_reason.startswith("corrector") and (0 < last.stick_time < GRAZING_STICK_TIME
                                                       or last.omega_l_min < 1e-2):
             folds.append(Fold(last.u, last.omega_l_max, True))
     return out, _merge_folds(folds)
@@ -121,29 +130,40 @@ def compute_diagram(config: str, params: RigParams | None = None, *, umin: float
                     periodic: bool = True, sweep_step: float | None = 0.05, sweep_duration: float = 120.0,
                     staircase: bool = True, sweep_umax: float | None = None, dt: float = 1e-3, sweep_dt: float | None = None, ds_max: float = 0.2,
                     executor: Executor | None = None, measured: Sequence[dict] = (),
-                    progress: Callable[[str], None] | None = None) -> BifurcationDiagram:
+                    progress: Callable[[str], None] | None = None,
+                    step: Callable[[str, int], None] | None = None) -> BifurcationDiagram:
     """Equilibria, Hopf points, periodic branches and folds, and (``sweep_step``, V) brute-force sweeps
     over [umin, sweep_umax or umax] from rest (``sweep_duration`` s each) and, with ``staircase``, the lab's
-    quasi-static sweeps up and down.  ``progress`` receives short status messages."""
+    quasi-static sweeps up and down.  ``progress`` receives short status messages; ``step`` counts work
+    for progress bars: ``("cycle", 1)`` per continuation point, ``("sweep_total", n)`` once before the
+    sweeps (n simulated voltages in all), ``("sweep", k)`` as k of them complete."""
     params = params or RigParams()
     cfg = supported_configuration(config, params)
     if not (np.isfinite(umin) and np.isfinite(umax) and 0 <= umin < umax):
         raise ValueError(f"need 0 <= umin < umax, got umin={umin}, umax={umax}")
     say = progress or (lambda msg: None)
+    count = step or (lambda kind, k: None)
+
+    def on_cycle(s) -> None:
+        say(f"cycle u={s.u:.3f} V")
+        count("cycle", 1)
+
     say("equilibria")
     eqb = equilibrium_branch(cfg, params, umax=umax)
     diag = BifurcationDiagram(cfg, eqb, measured=list(measured))
     if periodic and eqb.hopf:
         say("periodic solutions")
         diag.periodic, diag.folds = periodic_branches(eqb, params, umin=umin, umax=umax, dt=dt, ds_max=ds_max,
-                                                      progress=lambda s: say(f"cycle u={s.u:.3f} V"))
+                                                      progress=on_cycle)
     if sweep_step:
         say("sweeps")
         u = np.round(np.arange(umin, (sweep_umax or umax) + 1e-9, sweep_step), 10)
         sdt = sweep_dt or dt
+        count("sweep_total", len(u) * (3 if staircase else 1))
+        done = lambda k: count("sweep", k)  # noqa: E731
         diag.sweeps.append(sweep_constant(cfg.label, u, start="rest", duration=sweep_duration, dt=sdt, params=params,
-                                          executor=executor))
+                                          executor=executor, progress=done))
         if staircase:
             diag.sweeps += list(sweep_staircase(cfg.label, u, dwell=max(20.0, sweep_duration / 4), dt=sdt,
-                                                params=params, executor=executor))
+                                                params=params, executor=executor, progress=done))
     return diag

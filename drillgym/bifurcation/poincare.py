@@ -1,6 +1,8 @@
 """Poincare return map of the non-smooth rig, on the core's exact event-driven integrator.
 
-Section: ``omega_l = omega_s`` crossed upwards (d omega_l / dt > 0).  The
+Section: ``omega_l = omega_s(u) + offset`` crossed upwards (d omega_l / dt > 0); omega_s is the
+slip equilibrium's speed, ``offset`` (default 0) lets the continuation move the section away from a
+local extremum of omega_l along the orbit (see :mod:`.continuation`).  The
 flow between two crossings is the core's fixed-step hybrid RK step
 (:func:`drillgym.integrators.hybrid_step`, exact stick with located
 stick/slip events), so stick phases inside an orbit are handled exactly; the
@@ -140,8 +142,10 @@ class SectionMap:
     """
 
     def __init__(self, config: Configuration, params_vector: np.ndarray, omega_s, dt: float = 1e-3,
-                 t_max: float = 120.0, method: str = "rk4") -> None:
+                 t_max: float = 120.0, method: str = "rk4", offset: float = 0.0) -> None:
         self.config = config
+        self.offset = float(offset)  # rad/s: the section is omega_l = omega_s(u) + offset
+        self.method = method
         self.p = np.ascontiguousarray(params_vector, dtype=np.float64)
         self.omega_s = omega_s
         self.dt = float(dt)
@@ -155,6 +159,15 @@ class SectionMap:
             self.scale = np.array([1.0, 1.0])
         self._idx = {"omega_u": S_WU, "x": S_X, "y": S_Y, "vx": S_VX, "vy": S_VY}
 
+    def level(self, u: float) -> float:
+        """Section speed (rad/s) at voltage u: omega_s(u) + offset."""
+        return float(self.omega_s(u)) + self.offset
+
+    def with_offset(self, offset: float) -> "SectionMap":
+        """The same map on the shifted section omega_l = omega_s(u) + offset (rad/s)."""
+        return SectionMap(self.config, self.p, self.omega_s, dt=self.dt, t_max=self.t_max, method=self.method,
+                          offset=offset)
+
     @property
     def dim(self) -> int:
         return len(self.coords)
@@ -166,7 +179,7 @@ class SectionMap:
         y[S_TL] = v[0]
         for name, val in zip(self.coords[1:], v[1:]):
             y[self._idx[name]] = val
-        y[S_WL] = self.omega_s(u)
+        y[S_WL] = self.level(u)
         y[8] = u
         return y
 
@@ -186,7 +199,7 @@ class SectionMap:
         """Flow full states Y (B, N_STATE) at voltages U to the section: (reduced images, summaries)."""
         Y = np.array(Y, dtype=np.float64)
         U = np.ascontiguousarray(U, dtype=np.float64)
-        WS = np.array([self.omega_s(u) for u in U])
+        WS = np.array([self.level(u) for u in U])
         P = np.ascontiguousarray(np.repeat(self.p[None, :], len(U), axis=0))
         OUT = np.zeros((len(U), N_SUMMARY))
         A, b, c = self.tab
@@ -201,6 +214,6 @@ class SectionMap:
         traj = simulate(self.config, u, transient, dt=self.dt, x0=y0)
         Z, S = self.flow_states(traj.final_state[None, :], np.array([u]))
         if S[0, F_OK] == 0:
-            raise RuntimeError(f"no return to the section omega_l = {self.omega_s(u):.4g} rad/s at u = {u} V "
+            raise RuntimeError(f"no return to the section omega_l = {self.level(u):.4g} rad/s at u = {u} V "
                                f"within {self.t_max} s (no oscillation to follow)")
         return Z[0]

@@ -6,7 +6,8 @@ by central finite differences of the flow map (all 2 (n + 1) flows in one
 parallel batch).  Between stick/slip events the return map is smooth and the
 flow is integrated with located events, so the differences include the
 saltation of the stick/slip transitions implicitly; the test suite checks the
-multipliers against a 10x smaller perturbation and a halved time step.
+multipliers against a 10x smaller perturbation and a halved time step, and
+:mod:`.verification` against direct simulation (docs/bifurcation_verification.md).
 
 Floquet multipliers: the n eigenvalues of dP/dz (the monodromy matrix
 restricted to the section) plus the trivial multiplier 1 along the flow.  A
@@ -40,6 +41,7 @@ class PeriodicSolution:
     r_max: float
     stick_time: float
     multipliers: np.ndarray
+    section_offset: float = 0.0  # rad/s: z lies on omega_l = omega_s(u) + section_offset
 
     @property
     def stable(self) -> bool:
@@ -55,6 +57,7 @@ class PeriodicSolution:
         return {"u": self.u, "period": self.period, "omega_l_min": self.omega_l_min,
                 "omega_l_max": self.omega_l_max, "r_min": self.r_min, "r_max": self.r_max,
                 "stick_time": self.stick_time, "stick_slip": self.stick_slip, "stable": self.stable,
+                "section_offset": self.section_offset,
                 "max_abs_multiplier": float(np.max(np.abs(self.multipliers))),
                 "multipliers": [[float(m.real), float(m.imag)] for m in self.multipliers]}
 
@@ -86,14 +89,16 @@ def residual_and_jacobian(smap: SectionMap, z: np.ndarray, u: float, h: float = 
     return H[0], J, summ[0]
 
 
-def make_solution(u: float, z: np.ndarray, J: np.ndarray, summary: np.ndarray) -> PeriodicSolution:
-    """Package a converged fixed point with its Floquet multipliers eig(dP/dz) = eig(J_z + I)."""
+def make_solution(u: float, z: np.ndarray, J: np.ndarray, summary: np.ndarray, offset: float = 0.0
+                  ) -> PeriodicSolution:
+    """Package a converged fixed point with its Floquet multipliers eig(dP/dz) = eig(J_z + I);
+    ``offset`` (rad/s) is the section's (:attr:`SectionMap.offset`)."""
     n = J.shape[0]
     mult = np.linalg.eigvals(J[:, :n] + np.eye(n))
     mult = mult[np.argsort(-np.abs(mult))]
     return PeriodicSolution(float(u), np.asarray(z, dtype=float).copy(), float(summary[F_T]),
                             float(summary[F_WL_MIN]), float(summary[F_WL_MAX]), float(summary[F_R_MIN]),
-                            float(summary[F_R_MAX]), float(summary[F_STICK]), mult)
+                            float(summary[F_R_MAX]), float(summary[F_STICK]), mult, float(offset))
 
 
 def shoot(smap: SectionMap, z0: np.ndarray, u: float, tol: float = 1e-9, max_iter: int = 20) -> PeriodicSolution:
@@ -106,5 +111,5 @@ def shoot(smap: SectionMap, z0: np.ndarray, u: float, tol: float = 1e-9, max_ite
         z += dz
         if np.linalg.norm(dz) < tol and np.linalg.norm(H) < 1e3 * tol:
             H, J, s = residual_and_jacobian(smap, z, u)
-            return make_solution(u, z, J, s)
+            return make_solution(u, z, J, s, smap.offset)
     raise ShootingFailure(f"shooting did not converge at u = {u:.5g} V (|H| = {np.linalg.norm(H):.3g})")

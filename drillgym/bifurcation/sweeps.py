@@ -18,8 +18,9 @@ in a worker.  ``executor`` is any ``concurrent.futures.Executor``: by default a
 from __future__ import annotations
 
 import os
-from concurrent.futures import Executor, ProcessPoolExecutor
+from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -88,9 +89,9 @@ def _check(voltages, duration: float, window: float) -> np.ndarray:
 
 def sweep_constant(config: str, voltages, *, start: str = "rest", duration: float = 120.0, window: float = 20.0,
                    dt: float = 1e-3, params: RigParams | None = None, executor: Executor | None = None,
-                   chunk: int | None = None) -> SweepResult:
+                   chunk: int | None = None, progress: Callable[[int], None] | None = None) -> SweepResult:
     """Simulate each voltage for ``duration`` s from ``start`` ('rest' or 'equilibrium'); stats over the
-    last ``window`` s."""
+    last ``window`` s.  ``progress`` receives the number of voltages of each chunk as it completes."""
     u = _check(voltages, duration, window)
     params = params or RigParams()
     if start == "rest":
@@ -110,6 +111,11 @@ def sweep_constant(config: str, voltages, *, start: str = "rest", duration: floa
     try:
         futs = [ex.submit(_run_constant, str(config), u[idx], None if x0 is None else x0[idx], duration, window, dt,
                           params.to_dict()) for idx in parts if len(idx)]
+        sizes = {f: len(idx) for f, idx in zip(futs, [i for i in parts if len(i)])}
+        for f in as_completed(futs):
+            f.result()  # raise a worker's error here
+            if progress is not None:
+                progress(sizes[f])
         stats = np.concatenate([f.result() for f in futs])
     finally:
         if own:
@@ -118,14 +124,20 @@ def sweep_constant(config: str, voltages, *, start: str = "rest", duration: floa
 
 
 def sweep_staircase(config: str, voltages, *, dwell: float = 40.0, window: float = 15.0, dt: float = 1e-3,
-                    params: RigParams | None = None, executor: Executor | None = None) -> tuple[SweepResult, SweepResult]:
-    """The quasi-static lab sweep up through ``voltages`` and back down (two runs in parallel)."""
+                    params: RigParams | None = None, executor: Executor | None = None,
+                    progress: Callable[[int], None] | None = None) -> tuple[SweepResult, SweepResult]:
+    """The quasi-static lab sweep up through ``voltages`` and back down (two runs in parallel);
+    ``progress`` receives the number of levels of each run as it completes."""
     u = np.sort(_check(voltages, dwell, window))
     params = params or RigParams()
     ex, own = _executor(executor)
     try:
         up = ex.submit(_run_staircase, str(config), u, dwell, window, dt, params.to_dict())
         down = ex.submit(_run_staircase, str(config), u[::-1].copy(), dwell, window, dt, params.to_dict())
+        for f in as_completed([up, down]):
+            f.result()
+            if progress is not None:
+                progress(len(u))
         res = SweepResult("up", u, up.result()), SweepResult("down", u[::-1].copy(), down.result())
     finally:
         if own:

@@ -36,20 +36,39 @@ def register(app: typer.Typer) -> None:
         p = RigParams.from_file(params) if params else RigParams()
         meas = measured_diagram(measured, cfg.label) if measured else []
         lateral = cfg.label == "lateral"
-        stages = ("equilibria", "periodic solutions", "sweeps")  # compute_diagram's stage messages, in order
-        with Progress(SpinnerColumn(), TextColumn("{task.description:<36}"), BarColumn(),
-                      TextColumn("stage {task.completed:.0f}/{task.total:.0f}"), TimeElapsedColumn()) as bar:
-            task = bar.add_task(f"{cfg.label}: start", total=len(stages))
+        # one bar per kind of work: continuation points (open-ended: a branch stops at a fold, a Hopf
+        # point or the window) and sweep voltages (total known once the sweeps start)
+        with Progress(SpinnerColumn(), TextColumn("{task.description:<30}"), BarColumn(),
+                      TextColumn("{task.completed:>5.0f}/{task.fields[of]}"), TimeElapsedColumn()) as bar:
+            stage = bar.add_task(f"{cfg.label}: start", total=None, of="-")
+            cycles = bar.add_task("cycles (continuation points)", total=None, of="?", visible=False)
+            sweeps = bar.add_task("sweeps (voltages)", total=None, of="?", visible=False)
+
+            def completed(task_id) -> float:
+                return next(t.completed for t in bar.tasks if t.id == task_id)
 
             def on_progress(message: str) -> None:
-                done = stages.index(message) if message in stages else None
-                bar.update(task, description=f"{cfg.label}: {message}", completed=done)
+                if message.startswith("cycle"):
+                    bar.update(cycles, description=f"cycles: {message[6:]}")
+                else:
+                    bar.update(stage, description=f"{cfg.label}: {message}")
+
+            def on_step(kind: str, k: int) -> None:
+                if kind == "cycle":
+                    bar.update(cycles, advance=k, visible=True)
+                elif kind == "sweep_total":
+                    bar.update(sweeps, total=k, of=str(k), visible=True)
+                    bar.update(cycles, total=completed(cycles), of=f"{completed(cycles):.0f}")
+                elif kind == "sweep":
+                    bar.update(sweeps, advance=k)
 
             diag = compute_diagram(cfg.label, p, umin=umin, umax=hi, sweep_step=sweep_step or None,
                                    sweep_duration=sweep_duration, staircase=not lateral,
                                    sweep_umax=min(hi, 5.0) if lateral else None,  # the report's lab range
-                                   measured=meas, progress=on_progress)
-            bar.update(task, completed=len(stages), description=f"{cfg.label}: done")
+                                   measured=meas, progress=on_progress, step=on_step)
+            n_cycles = completed(cycles)
+            bar.update(cycles, total=n_cycles, of=f"{n_cycles:.0f}")
+            bar.update(stage, total=1, completed=1, description=f"{cfg.label}: done")
         out.mkdir(parents=True, exist_ok=True)
         paths = save_figures(diag, out, report=not no_report)
         diag.save_json(out / "branches.json")
