@@ -17,8 +17,16 @@ by differentiation) are first refined for the base model, so that their
 noise is not taken for a missing effect.  An effect is *significant* when its score exceeds
 ``SIGNIFICANCE``, it removes at least ``MIN_REDUCTION`` of the residual RMS,
 and the variance it explains exceeds the measurement noise (``MIN_EXPLAINED``;
-residuals are in noise units, see :func:`default_scales`): a model that
+residuals are in noise units, see :func:`.segments.robust_noise`): a model that
 already fits to the noise level has nothing missing to find.
+
+Conditioning (:mod:`.segments`): the noise units and the speed-noise limits
+of the refinement come from the encoder count read robustly (interpolation
+round-off is not a count), and segments start where the data's state is well
+known (far from stick/slip transitions and speed reversals), so that one
+badly started segment of an exact model cannot pass for a missing effect.
+Significant effects whose scores tie (``TIE_NATS``) are flagged as
+indistinguishable (e.g. a small motor lag and a small input delay).
 """
 
 from __future__ import annotations
@@ -38,12 +46,14 @@ from ..identification.segmented import SegmentedModel
 from ..io import TimeSeries
 from ..params import RigParams
 from .effects import EFFECTS, Effect, effects_for
+from .segments import place_segment_starts, robust_noise
 
 __all__ = ["EffectScore", "Diagnosis", "diagnose", "default_weights", "default_segment", "SIGNIFICANCE"]
 
 SIGNIFICANCE = 15.0  # score (nats) above which an effect counts as found
 MIN_REDUCTION = 0.25  # fraction of the residual RMS an effect must remove to count
 MIN_EXPLAINED = 1.0  # residual variance (noise units²) an effect must explain: above the noise floor
+TIE_NATS = 2.0  # significant effects whose scores differ by less (or by < 2 %) are reported as indistinguishable
 
 
 BASE_STAGE = {Configuration.UPPER: "upper", Configuration.TORSIONAL: "brake", Configuration.COUPLED: "brake",
@@ -134,6 +144,8 @@ class Diagnosis:
             b = sig[0]
             lines.append(f"most likely missing: {b.effect} (removes {b.reduction:.0%} of the residual). "
                          f"Signature to look for: {b.signature}")
+            if b.note:
+                lines.append(f"note: {b.effect} is {b.note}")
         else:
             lines.append("no effect of the library explains a significant part of the residual")
         for k, why in self.skipped.items():
@@ -201,8 +213,11 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
     cfg = exps[0].config
     if segment_s is not None and segment_s < 0:
         segment_s = default_segment(cfg)
+    conditioned = [robust_noise(ex) for ex in exps]
+    exps = [c[0] for c in conditioned]
+    scales = {c: min(s[c] for _, s in conditioned) for c in conditioned[0][1]}
     model = SegmentedModel(exps, segment_s)
-    obj = Objective(model, default_weights(cfg))
+    obj = Objective(model, default_weights(cfg), scales)
     refitted: dict[str, float] = {}
     if refit_base:
         if refine_speeds:
@@ -215,6 +230,9 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
             rb = fit_parameters(obj, base, var_b, max_nfev=max_nfev)
         base, refitted = rb.params, dict(rb.values)
         model.speed_offsets = [np.zeros_like(o) for o in model.speed_offsets]
+    if segment_s is not None:  # the effects are compared on well-started segments (.segments); the light
+        place_segment_starts(model)  # base refit above keeps the regular grid (its breakaways start segments)
+        obj = Objective(model, default_weights(cfg), scales)
     if refine_speeds:
         model.refine_initial_speeds(base.to_vector(), obj.weights, obj.scales)
     r0 = obj.residual_matrix(base.to_vector()[None, :])[0]
@@ -268,4 +286,8 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         scores.append(EffectScore(name, score, rmse0, rmse1, readout, dict(res.std), res.channel_rms or {},
                                   eff.signature, sig))
     scores.sort(key=lambda s: -s.score)
+    for a, b in zip(scores, scores[1:]):  # near-ties: the data cannot tell these effects apart
+        if a.significant and b.significant and a.score - b.score < max(TIE_NATS, 0.02 * abs(a.score)):
+            a.note = (f"indistinguishable from {b.effect} on these data (scores {a.score:.1f} vs {b.score:.1f}); "
+                      "an input with sharper steps or a higher sample rate would separate them")
     return Diagnosis(scores, cfg, rmse0, ch0, n_eff, segment_s, skipped, refitted)
