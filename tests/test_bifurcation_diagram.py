@@ -127,3 +127,11 @@ def test_lateral_whirl_branch_starts_at_the_hopf_point_near_8_78V():
     assert first.stable and 0.9 < abs(first.multipliers[0]) < 1.0
     assert not any(s.stick_slip for s in br.solutions)
     assert first.r_min > 0.02                     # whirl around the eccentric equilibrium (r_eq ~ 28.6 mm)
+
+
+def test_cli_refuses_a_non_positive_continuation_step(tmp_path, capsys):
+    from drillgym.cli import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["bifurcation", "--config", "torsional", "--out", str(tmp_path), "--ds-max", "0"])
+    assert e.value.code == 2 and "--ds-max must be a positive step" in capsys.readouterr().err

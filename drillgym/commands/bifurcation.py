@@ -20,6 +20,8 @@ def register(app: typer.Typer) -> None:
         sweep_step: float = typer.Option(0.05, "--sweep-step", help="voltage step of the brute-force sweeps (V); 0: none"),
         sweep_duration: float = typer.Option(120.0, "--sweep-duration", help="simulated seconds per sweep voltage"),
         no_report: bool = typer.Option(False, "--no-report", help="leave out the report's measured points"),
+        ds_max: float = typer.Option(0.2, "--ds-max", help="largest continuation step (arclength); 1.0 follows "
+                                                           "the whole lateral whirl branch (slower)"),
     ) -> None:
         """Equilibria, Hopf points, periodic branches (shooting + continuation), folds, sweeps; figures + JSON."""
         from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
@@ -29,6 +31,8 @@ def register(app: typer.Typer) -> None:
         from ..configurations import parse_configuration
         from ..params import RigParams
 
+        if not (ds_max > 0):
+            raise ValueError(f"--ds-max must be a positive step, got {ds_max}")
         cfg = parse_configuration(config)
         if cfg.label not in ("torsional", "lateral", "coupled"):
             raise ValueError(f"--config must be torsional, lateral or coupled, got {config!r}")
@@ -65,7 +69,7 @@ def register(app: typer.Typer) -> None:
             diag = compute_diagram(cfg.label, p, umin=umin, umax=hi, sweep_step=sweep_step or None,
                                    sweep_duration=sweep_duration, staircase=not lateral,
                                    sweep_umax=min(hi, 5.0) if lateral else None,  # the report's lab range
-                                   measured=meas, progress=on_progress, step=on_step)
+                                   measured=meas, ds_max=ds_max, progress=on_progress, step=on_step)
             n_cycles = completed(cycles)
             bar.update(cycles, total=n_cycles, of=f"{n_cycles:.0f}")
             bar.update(stage, total=1, completed=1, description=f"{cfg.label}: done")
