@@ -1,7 +1,9 @@
 """Controllers by name: ``controllers.make("observer", config="torsional", omega_ref=3.0)``.
 
 Names: ``baseline``, ``pi``, ``softtorque``, ``observer``, ``lqg``, and
-``agent:PATH`` for a trained policy.  Agents plug in through one documented
+``agent:PATH`` for a trained policy.  ``NAME@MS`` runs a controller at another
+control period (ms), e.g. ``observer@10`` for the observer at the environments'
+10 ms instead of its 2 ms (the harness compares controllers at equal rates that way).  Agents plug in through one documented
 callable, registered by the agents package (or anyone) with
 :func:`register_agent_loader`::
 
@@ -25,7 +27,7 @@ from .observer import LQGController, ObserverController
 from .pi import PIController
 from .softtorque import SoftTorqueController
 
-__all__ = ["CONTROLLERS", "make", "available", "register_agent_loader", "AgentLoader"]
+__all__ = ["CONTROLLERS", "make", "available", "split_period", "register_agent_loader", "AgentLoader"]
 
 CONTROLLERS: dict[str, type[Controller]] = {
     c.name: c for c in (BaselineController, PIController, SoftTorqueController, ObserverController, LQGController)
@@ -48,8 +50,26 @@ def available() -> list[str]:
     return sorted(CONTROLLERS)
 
 
+def split_period(name: str) -> tuple[str, float | None]:
+    """``'observer@10'`` -> ``('observer', 0.01)`` (control period in s); no ``@``: ``(name, None)``."""
+    if name.startswith("agent:") or "@" not in name:
+        return name, None
+    base, _, ms = name.rpartition("@")
+    try:
+        dt = float(ms) * 1e-3
+    except ValueError:
+        raise ValueError(f"controller {name!r}: the period after '@' must be in ms, e.g. observer@10") from None
+    if not (dt > 0 and dt < float("inf")):
+        raise ValueError(f"controller {name!r}: the period after '@' must be a positive number of ms")
+    return base, dt
+
+
 def make(name: str, config: str = "torsional", omega_ref=None, params=None, **kw) -> Controller:
-    """Build a controller by name (``agent:PATH`` for a trained policy); ValueError names unknown ones."""
+    """Build a controller by name (``agent:PATH`` for a trained policy, ``NAME@MS`` for another control
+    period); ValueError names unknown ones."""
+    name, dt = split_period(name)
+    if dt is not None:
+        kw["dt"] = dt
     if name.startswith("agent:"):
         path = name[len("agent:"):]
         if not path:

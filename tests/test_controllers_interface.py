@@ -17,6 +17,12 @@ def test_registry_names_and_errors():
         controllers.make("pi", omega_ref=-1.0)
     with pytest.raises(ValueError, match="lower disc"):
         controllers.make("pi", config="upper", omega_ref=1.0)
+    assert controllers.make("observer@10", omega_ref=1.0).dt == 0.01  # NAME@MS: another control period
+    assert controllers.make("pi@2", omega_ref=1.0).dt == 0.002 and controllers.make("pi", omega_ref=1.0).dt == 0.01
+    with pytest.raises(ValueError, match="in ms"):
+        controllers.make("observer@fast", omega_ref=1.0)
+    with pytest.raises(ValueError, match="positive"):
+        controllers.make("observer@0", omega_ref=1.0)
 
 
 def test_scalar_and_batched_use():

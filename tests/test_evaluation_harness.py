@@ -43,6 +43,8 @@ def test_harness_rows_and_report(tmp_path):
 def test_bad_input_is_refused(capsys):
     with pytest.raises(ValueError, match="unknown scenario"):
         evaluate(["baseline"], ["torsional"], ["windy"], targets=[1.0], progress=False)
+    with pytest.raises(ValueError, match="unknown controller 'pid@10'"):
+        evaluate(["pid@10"], ["torsional"], ["rest"], targets=[1.0], progress=False)
     with pytest.raises(ValueError, match="window"):
         evaluate(["baseline"], ["torsional"], ["rest"], targets=[1.0], duration=10, window=20, progress=False)
     with pytest.raises(SystemExit) as e:

@@ -47,8 +47,10 @@ def run_job(controller: str, config: str, scenario: Scenario, targets: Sequence[
         x0 = cycle_states(config, tg, plant, u_fold)
     elif scenario.start != "rest":
         raise ValueError(f"scenario start must be 'rest' or 'cycle', got {scenario.start!r}")
+    from ..registry import split_period
+
     kw = {}
-    if controller in ("observer", "lqg"):
+    if split_period(controller)[0] in ("observer", "lqg"):
         kw = {"counts_per_rev": scenario.counts_per_rev, "angle_noise": scenario.angle_noise}
     ctrl = make(controller, config=config, omega_ref=tg, params=base, **kw)
     run = run_closed_loop(ctrl, config, tg, duration, params=plant, x0=x0, counts_per_rev=scenario.counts_per_rev,
@@ -82,9 +84,12 @@ def evaluate(controllers: Sequence[str], configs: Sequence[str] = ("torsional", 
         raise ValueError(f"window ({window} s) must be positive and shorter than duration ({duration} s)")
     from .. import available
 
+    from ..registry import split_period
+
     for c in controllers:
-        if not c.startswith("agent:") and c not in available():
-            raise ValueError(f"unknown controller {c!r}; choose from {', '.join(available())} or agent:PATH")
+        if not c.startswith("agent:") and split_period(c)[0] not in available():
+            raise ValueError(f"unknown controller {c!r}; choose from {', '.join(available())} (NAME@MS for another "
+                             "control period) or agent:PATH")
     pdict = params.to_dict() if params is not None else None
     u_folds = {}
     if any(s.start == "cycle" for s in scen):

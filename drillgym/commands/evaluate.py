@@ -16,7 +16,8 @@ def register(app: typer.Typer) -> None:
     def evaluate_cmd(
         config: str = typer.Option("torsional,coupled", "--config", help="configuration(s), comma-separated"),
         controllers: str = typer.Option("baseline,pi,softtorque,observer", "--controllers",
-                                        help="comma-separated: baseline, pi, softtorque, observer, lqg, agent:PATH"),
+                                        help="comma-separated: baseline, pi, softtorque, observer, lqg, agent:PATH; "
+                                             "NAME@MS sets the control period, e.g. observer@10"),
         out: Path = typer.Option(..., "--out", help="output directory (results.csv, summary.md, figure)"),
         scenarios: str = typer.Option("rest", "--scenarios",
                                       help="comma-separated: rest, cycle, friction-20, friction+20, noisy"),
