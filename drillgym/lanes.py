@@ -61,20 +61,27 @@ def _friction_laws(wu, wl, mu, ml, Tcu, dTcu, bu, dbu, Tcl, bl, Ts, Tc, ws, delt
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
+def _copy_rows(src, dst):
+    """dst = src, row by row (a slice assignment would need numba's reference counting)."""
+    for j in range(src.shape[0]):
+        s = src[j]
+        d = dst[j]
+        for k in range(s.shape[0]):
+            d[k] = s[k]
+
+
+@njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
 def _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR):
     """Diagonal mass ((3.19), (3.20)): K[0:2] = speeds, K[2:4] = accelerations, FR = friction
     torques (a stuck disc: zero acceleration, friction = its holding torque).
     Rows are taken as 1-D views first and each loop writes at most four arrays: that is what lets
     LLVM vectorise it (more written arrays exceed its runtime alias-check budget)."""
     thu, thl, wu_, wl_ = Y[0], Y[1], Y[2], Y[3]
-    K0, K1, K2, K3, FR0, FR1 = K[0], K[1], K[2], K[3], FR[0], FR[1]
+    K2, K3, FR0, FR1 = K[2], K[3], FR[0], FR[1]
     Ju, km, Jl, kth, dth = PT[_Ju], PT[_km], PT[_Jl], PT[_kth], PT[_dtheta]
     Tcu, dTcu, bu, dbu, Tcl, bl = PT[_Tcu], PT[_dTcu], PT[_bu], PT[_dbu], PT[_Tcl], PT[_bl]
     Ts, Tc, ws, delta, bb, asym_s, asym_c = PT[_Ts], PT[_Tc], PT[_ws], PT[_delta], PT[_bb], PT[_asym_s], PT[_asym_c]
-    for k in range(thu.shape[0]):
-        K0[k] = wu_[k]
-    for k in range(thu.shape[0]):
-        K1[k] = wl_[k]
+    _copy_rows(Y[2:4], K[0:2])  # angle rates = speeds
     for k in range(thu.shape[0]):
         wu = wu_[k]
         wl = wl_[k]
@@ -95,11 +102,7 @@ def _derivative_full(Y, MU, ML, U, PT, brake, K, FR):
     """All four coordinates, isotropic lateral constraints (dynamics.state_derivative's formulas,
     Schur complement of the m I block, stuck discs as selects)."""
     thu_, thl_, x_, y_, wu_, wl_, vx_, vy_ = Y[0], Y[1], Y[2], Y[3], Y[4], Y[5], Y[6], Y[7]
-    for j in range(4):
-        kj = K[j]
-        yj = Y[4 + j]
-        for k in range(yj.shape[0]):
-            kj[k] = yj[k]
+    _copy_rows(Y[4:8], K[0:4])  # position rates = velocities
     Ju, km, Jl, kth, dth = PT[_Ju], PT[_km], PT[_Jl], PT[_kth], PT[_dtheta]
     Tcu, dTcu, bu, dbu, Tcl, bl = PT[_Tcu], PT[_dTcu], PT[_bu], PT[_dbu], PT[_Tcl], PT[_bl]
     Ts, Tc, ws, delta, bb_, asym_s, asym_c = PT[_Ts], PT[_Tc], PT[_ws], PT[_delta], PT[_bb], PT[_asym_s], PT[_asym_c]
@@ -161,11 +164,7 @@ def _lanes_rk4(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibrati
     n = S.shape[0]
     B = S.shape[1]
     hv = n // 2  # first velocity row
-    for j in range(n):
-        s0 = S0[j]
-        s = S[j]
-        for k in range(B):
-            s0[k] = s[k]
+    _copy_rows(S, S0)
     Y = W[0:n]
     K2 = W[n:2 * n]
     K3 = W[2 * n:3 * n]
