@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from controllers.kalman import I_AL, I_D, I_TU, I_WL, I_WU, ExtendedKalmanObserver
+from controllers.kalman import I_AL, I_D, I_WL, I_WU, ExtendedKalmanObserver
 from controllers.observer import ObserverController
 from drillgym import RigParams
 from drillgym.envs.options import U_MAX
@@ -46,7 +46,7 @@ class ObserverResidual:
     """Batched ``observer`` controller as the base of a residual policy (see the module docstring).
 
     Rigs reset together share one :class:`controllers.flatness.FlatnessLaw` (its start-up shaping has
-    one clock); each law is built by the observer controller's own ``reset``, so the base follows that
+    one clock); each law is built by the observer controller's ``new_law``, so the base follows that
     controller's options whatever they are.
 
     Args:
@@ -91,8 +91,7 @@ class ObserverResidual:
         for rigs, live, _ in self._groups:
             live &= ~np.isin(rigs, idx)
         self._groups = [g for g in self._groups if g[1].any()]
-        self._ctrl.reset({"theta_u": th, "omega_ref": ref})
-        self._groups.append((idx.copy(), np.ones(idx.size, dtype=bool), self._ctrl.law))
+        self._groups.append((idx.copy(), np.ones(idx.size, dtype=bool), self._ctrl.new_law(ref)))
 
     def correct(self, theta_u: np.ndarray, index: np.ndarray | slice = slice(None)) -> None:
         """Kalman measurement update of rigs ``index`` with their motor angles (rad)."""

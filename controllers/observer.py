@@ -128,8 +128,13 @@ class ObserverController(Controller):
     def _reset(self, m: dict[str, np.ndarray]) -> None:
         self.observer = ExtendedKalmanObserver(self.model)
         self.observer.reset(np.broadcast_to(m.get("theta_u", 0.0), (self.n,)))
-        self.law = FlatnessLaw(self.params, self.dt, **self.law_options)
-        self.law.reset(self.omega_ref)
+        self.law = self.new_law(self.omega_ref)
+
+    def new_law(self, target: np.ndarray) -> FlatnessLaw:
+        """A fresh law with this controller's options, started from rest towards ``target`` (rad/s, (n,))."""
+        law = FlatnessLaw(self.params, self.dt, **self.law_options)
+        law.reset(target)
+        return law
 
     @property
     def estimate(self) -> np.ndarray:
