@@ -12,7 +12,6 @@ progress bar.  Results are rows (dicts) with the metrics of :mod:`.metrics`.
 from __future__ import annotations
 
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
-from dataclasses import asdict
 from typing import Sequence
 
 import numpy as np

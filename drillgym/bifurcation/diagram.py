@@ -15,7 +15,7 @@ import numpy as np
 from ..configurations import Configuration
 from ..equilibria import slip_equilibrium, supported_configuration
 from ..params import ParameterError, RigParams
-from .continuation import Fold, PeriodicBranch, continue_branch, find_folds, start_at_hopf
+from .continuation import Fold, PeriodicBranch, continue_branch, start_at_hopf
 from .equilibrium_branch import EquilibriumBranch, HopfPoint, equilibrium_branch
 from .measured import REPORT_POINTS
 from .poincare import SectionMap
