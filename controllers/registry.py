@@ -69,6 +69,8 @@ def make(name: str, config: str = "torsional", omega_ref=None, params=None, **kw
     period); ValueError names unknown ones."""
     name, dt = split_period(name)
     if dt is not None:
+        if kw.get("dt") is not None and abs(kw["dt"] - dt) > 1e-12:
+            raise ValueError(f"controller {name!r}: period {dt * 1e3:g} ms from the name but dt={kw['dt']} s given")
         kw["dt"] = dt
     if name.startswith("agent:"):
         path = name[len("agent:"):]

@@ -23,6 +23,8 @@ def test_registry_names_and_errors():
         controllers.make("observer@fast", omega_ref=1.0)
     with pytest.raises(ValueError, match="positive"):
         controllers.make("observer@0", omega_ref=1.0)
+    with pytest.raises(ValueError, match="10 ms from the name but dt=0.002"):
+        controllers.make("observer@10", omega_ref=1.0, dt=0.002)
 
 
 def test_scalar_and_batched_use():
