@@ -11,7 +11,7 @@
 ``free_vibration`` is the identification experiment of report 3.3: the upper
 disc is held, the lower disc is twisted by alpha0 and released.
 
-State vector (length ``N_STATE``), SI units, used by every kernel:
+State vector (length ``N_STATE`` for the base model), SI units, used by every kernel:
 
 | index | name     | meaning                                                      |
 |-------|----------|--------------------------------------------------------------|
@@ -23,7 +23,7 @@ State vector (length ``N_STATE``), SI units, used by every kernel:
 | 5     | y        | idem (m)                                                     |
 | 6     | vx       | dx/dt in the rotating frame (m/s)                            |
 | 7     | vy       | dy/dt (m/s)                                                  |
-| 8     | u_m      | motor voltage after the motor_lag filter (V; unused, kept at its initial value, when off) |
+| 8 ...   | (effects) | continuous states of the composition's effects, e.g. ``u_m`` of motor_lag |
 
 Friction modes (length 2 integer vector: upper, lower): +1 / -1 slipping in
 that direction, 0 stuck (velocity exactly zero, friction torque inside the
@@ -61,7 +61,8 @@ class Configuration(IntEnum):
         return self in (Configuration.TORSIONAL, Configuration.COUPLED)
 
 
-STATE_NAMES = ("theta_u", "theta_l", "omega_u", "omega_l", "x", "y", "vx", "vy", "u_m")
+#: the mechanical state of the base model; a composition of effects appends its effects' states
+STATE_NAMES = ("theta_u", "theta_l", "omega_u", "omega_l", "x", "y", "vx", "vy")
 N_STATE = len(STATE_NAMES)
 
 

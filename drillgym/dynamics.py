@@ -16,11 +16,9 @@ Lagrange equations M q'' + h = Q into M' q''' + h' = Q' with M' = T^T M T:
     h'_x = -m x W^2 - 2 m W vy - P c wl^2
     h'_y = -m y W^2 + 2 m W vx - P s wl^2
 
-plus the lateral spring/damper forces, written in the fixed frame
-(X = x cos theta_u - y sin theta_u, Y = x sin theta_u + y cos theta_u) so that
-anisotropy (kx != ky) and lateral dry friction are the same formula; for kx =
-ky = k, bx = by = b they are exactly MODEL.md's k and b terms (tested).
-Generalised forces: Q'_u = km u - Tfu(wu), Q'_l = -Tfl(wl).
+plus MODEL.md's lateral spring/damper forces (``isotropic_lateral_forces``).
+Generalised forces: Q'_u = km u - Tfu(wu), Q'_l = -Tfl(wl), plus whatever the
+composition's effects add (:mod:`drillgym.effects`).
 
 With x = y = 0 held (torsional, free_vibration) M' = diag(Ju, Jl): the report's
 reduced equations (3.19), (3.20).
@@ -29,8 +27,9 @@ A stuck disc contributes an unknown friction torque lambda that keeps its
 acceleration zero (the Lagrange-multiplier form of the switch model).  The
 lateral accelerations are eliminated first (Schur complement of the m I block),
 which leaves a 2x2 system in the two disc accelerations where the constraints
-and multipliers are explicit.  ``state_derivative`` returns these torques so the integrator can
-release a disc when lambda leaves its stick set.
+and multipliers are explicit.  The right-hand side that assembles these pieces,
+``state_derivative``, is a kernel template compiled per composition of effects
+(:mod:`drillgym.kernels.model`).
 """
 
 from __future__ import annotations
@@ -41,7 +40,6 @@ import numpy as np
 from numba import njit
 
 from .configurations import Configuration
-from .friction import lower_slip_torque, upper_slip_torque
 from .params import IDX
 
 UPPER = int(Configuration.UPPER)
@@ -52,12 +50,9 @@ FREE_VIBRATION = int(Configuration.FREE_VIBRATION)
 
 _Ju, _km, _Jl, _kth = IDX.Ju, IDX.km, IDX.Jl, IDX.ktheta
 _mr, _mt, _k, _b, _e = IDX.mr, IDX.mt, IDX.k, IDX.b, IDX.e
-_dtheta, _tau_m, _dk, _db, _Fc_lat = IDX.dtheta, IDX.tau_m, IDX.dk, IDX.db, IDX.Fc_lat
 
-LATERAL_COULOMB_EPS = 1e-4  # m/s: regularisation speed of the lateral dry-friction direction
-
-# indices of the state vector (see configurations.py)
-S_TU, S_TL, S_WU, S_WL, S_X, S_Y, S_VX, S_VY, S_UM = 0, 1, 2, 3, 4, 5, 6, 7, 8
+# indices of the mechanical state vector (see configurations.py); effect states follow from index 8
+S_TU, S_TL, S_WU, S_WL, S_X, S_Y, S_VX, S_VY = 0, 1, 2, 3, 4, 5, 6, 7
 
 
 @njit(cache=True, _nrt=False)
@@ -68,36 +63,6 @@ def brake_on(cfg: int) -> bool:
 @njit(cache=True, _nrt=False)
 def lateral_free(cfg: int) -> bool:
     return cfg == LATERAL or cfg == COUPLED
-
-
-@njit(cache=True, fastmath=True, _nrt=False)
-def lateral_generalised_forces(y: np.ndarray, p: np.ndarray) -> tuple:
-    """Spring, damper and dry-friction forces of the lateral constraints (fixed frame),
-    as generalised forces on (theta_u, x, y): returns (Q_u, Q_x, Q_y) in N m, N, N."""
-    th = y[S_TU]
-    W = y[S_WU]
-    x = y[S_X]
-    yy = y[S_Y]
-    ct = math.cos(th)
-    st = math.sin(th)
-    X = x * ct - yy * st
-    Y = x * st + yy * ct
-    Xd = ct * y[S_VX] - st * y[S_VY] - Y * W
-    Yd = st * y[S_VX] + ct * y[S_VY] + X * W
-    kx = p[_k] + p[_dk]
-    ky = p[_k] - p[_dk]
-    bx = p[_b] + p[_db]
-    by = p[_b] - p[_db]
-    FX = -kx * X - bx * Xd
-    FY = -ky * Y - by * Yd
-    if p[_Fc_lat] > 0.0:
-        vn = math.sqrt(Xd * Xd + Yd * Yd + LATERAL_COULOMB_EPS * LATERAL_COULOMB_EPS)
-        FX -= p[_Fc_lat] * Xd / vn
-        FY -= p[_Fc_lat] * Yd / vn
-    Qx = FX * ct + FY * st
-    Qy = -FX * st + FY * ct
-    Qu = -FX * Y + FY * X
-    return Qu, Qx, Qy
 
 
 @njit(cache=True, _nrt=False)
@@ -127,16 +92,17 @@ def mass_matrix(y: np.ndarray, p: np.ndarray, M: np.ndarray) -> None:
 
 
 @njit(inline="always", fastmath=True, error_model="numpy")
-def reduced_accelerations(drive: float, string: float, tfu: float, tfl: float, Ju: float, Jl: float,
-                          slip_u: bool, slip_l: bool) -> tuple:
-    """The reduced equations (3.19), (3.20): Ju wu' = drive + string - Tfu, Jl wl' = -string - Tfl.
+def reduced_accelerations(drive: float, string: float, extra_l: float, tfu: float, tfl: float, Ju: float,
+                          Jl: float, slip_u: bool, slip_l: bool) -> tuple:
+    """The reduced equations (3.19), (3.20): Ju wu' = drive + string - Tfu, Jl wl' = -string + extra_l - Tfl.
 
-    drive = km u (N m), string = ktheta alpha + dtheta alpha' (N m, on the upper disc), tfu/tfl the
+    drive = km u (+ any extra torque on the upper disc) (N m), string = ktheta alpha (+ extra string
+    torques) (N m, on the upper disc), extra_l an extra torque on the lower disc (N m), tfu/tfl the
     slip torques.  A stuck disc has zero acceleration and its holding torque as friction.
     Returns (wu', wl', Tfu, Tfl).
     """
     Fu = drive + string
-    Fl = -string
+    Fl = extra_l - string
     a_u = (Fu - tfu) / Ju if slip_u else 0.0
     a_l = (Fl - tfl) / Jl if slip_l else 0.0
     return a_u, a_l, (tfu if slip_u else Fu), (tfl if slip_l else Fl)
@@ -150,11 +116,12 @@ def isotropic_lateral_forces(x: float, yy: float, vx: float, vy: float, W: float
 
 @njit(inline="always", fastmath=True, error_model="numpy")
 def full_accelerations(x: float, yy: float, vx: float, vy: float, W: float, wl: float, s: float, c: float,
-                       m: float, P: float, Ju: float, Jl: float, drive: float, string: float, tfu: float,
-                       tfl: float, Qu: float, Qx: float, Qy: float, slip_u: bool, slip_l: bool) -> tuple:
+                       m: float, P: float, Ju: float, Jl: float, drive: float, string: float, extra_l: float,
+                       tfu: float, tfl: float, Qu: float, Qx: float, Qy: float, slip_u: bool, slip_l: bool) -> tuple:
     """Accelerations of the four coordinates (MODEL.md), with stuck discs as constraints.
 
-    s, c = sin, cos of alpha; m = mr + mt, P = e mr; drive = km u; string on the upper disc;
+    s, c = sin, cos of alpha; m = mr + mt, P = e mr; drive = km u (+ extra upper torque); string on the
+    upper disc; extra_l an extra torque on the lower disc;
     tfu/tfl slip torques (ignored for a stuck disc); Q* lateral generalised forces.
     The lateral accelerations are eliminated (Schur complement of the m I block), leaving a
     2x2 system in (wu', wl') where a stuck disc's constraint and multiplier are explicit.
@@ -163,7 +130,7 @@ def full_accelerations(x: float, yy: float, vx: float, vy: float, W: float, wl: 
     xs_yc = x * s - yy * c
     r2 = x * x + yy * yy
     F0 = drive - (tfu if slip_u else 0.0) + Qu + P * xs_yc * wl * wl - 2.0 * m * W * (x * vx + yy * vy) + string
-    F1 = -(tfl if slip_l else 0.0) - 2.0 * P * W * (c * vx + s * vy) - P * W * W * xs_yc - string
+    F1 = extra_l - (tfl if slip_l else 0.0) - 2.0 * P * W * (c * vx + s * vy) - P * W * W * xs_yc - string
     F2 = Qx + m * x * W * W + 2.0 * m * W * vy + P * c * wl * wl
     F3 = Qy + m * yy * W * W - 2.0 * m * W * vx + P * s * wl * wl
     c00 = -m * yy
@@ -182,87 +149,3 @@ def full_accelerations(x: float, yy: float, vx: float, vy: float, W: float, wl: 
     fu = tfu if slip_u else g0 - s01 * a1
     fl = tfl if slip_l else g1 - s01 * a0
     return a0, a1, (F2 - c00 * a0 - c10 * a1) * inv_m, (F3 - c01 * a0 - c11 * a1) * inv_m, fu, fl
-
-
-@njit(cache=True, fastmath=True, _nrt=False)
-def state_derivative(t: float, y: np.ndarray, mode: np.ndarray, u: float, p: np.ndarray, cfg: int,
-                     smooth_eps: float, dy: np.ndarray, fric: np.ndarray) -> None:
-    """dy/dt of the state for constant input u (V) and friction modes ``mode``.
-
-    Writes the friction torques (Tfu, Tfl) in N m into ``fric`` (for a stuck
-    disc: the constraint torque lambda).  ``smooth_eps`` > 0 selects the explicit
-    smoothed friction option (sign -> tanh(w/eps), modes ignored).
-    """
-    for i in range(dy.shape[0]):
-        dy[i] = 0.0
-    wu = y[S_WU]
-    wl = y[S_WL]
-    brake = brake_on(cfg)
-    # motor (optionally lagged)
-    if p[_tau_m] > 0.0:
-        dy[S_UM] = (u - y[S_UM]) / p[_tau_m]
-        torque = p[_km] * y[S_UM]
-    else:
-        torque = p[_km] * u
-    dy[S_TU] = wu
-    dy[S_TL] = wl
-    mu = mode[0]
-    ml = mode[1]
-    if smooth_eps > 0.0:
-        su = math.tanh(wu / smooth_eps)
-        sl = math.tanh(wl / smooth_eps)
-        tfu = su * upper_slip_torque(wu, 1, p) if su >= 0 else -su * upper_slip_torque(wu, -1, p)
-        tfl = sl * lower_slip_torque(wl, 1, y[S_TL], t, p, brake) if sl >= 0 else \
-            -sl * lower_slip_torque(wl, -1, y[S_TL], t, p, brake)
-        mu = 2  # "slipping, torque given"
-        ml = 2
-    else:
-        tfu = upper_slip_torque(wu, mu, p) if mu != 0 else 0.0
-        tfl = lower_slip_torque(wl, ml, y[S_TL], t, p, brake) if ml != 0 else 0.0
-    if cfg == FREE_VIBRATION:
-        mu = 0  # upper disc clamped: always stuck, unbounded stick set
-        dy[S_TU] = 0.0
-
-    if cfg == UPPER:
-        if mu == 0:
-            fric[0] = torque
-            dy[S_WU] = 0.0
-        else:
-            fric[0] = tfu
-            dy[S_WU] = (torque - tfu) / p[_Ju]
-        fric[1] = 0.0
-        return
-
-    alpha = y[S_TL] - y[S_TU]
-    string = p[_kth] * alpha + p[_dtheta] * (wl - wu)  # torque of the string on the upper disc (N m)
-
-    if not lateral_free(cfg):
-        a_u, a_l, fu, fl = reduced_accelerations(torque, string, tfu, tfl, p[_Ju], p[_Jl], mu != 0, ml != 0)
-        dy[S_WU] = a_u
-        dy[S_WL] = a_l
-        fric[0] = fu
-        fric[1] = fl
-        return
-
-    # full four-coordinate equations
-    x = y[S_X]
-    yy = y[S_Y]
-    vx = y[S_VX]
-    vy = y[S_VY]
-    if p[_dk] == 0.0 and p[_db] == 0.0 and p[_Fc_lat] == 0.0:
-        Qu, Qx, Qy = isotropic_lateral_forces(x, yy, vx, vy, wu, p[_k], p[_b])
-    else:
-        Qu, Qx, Qy = lateral_generalised_forces(y, p)
-    s = math.sin(alpha)
-    c = math.cos(alpha)
-    a_u, a_l, a_x, a_y, fu, fl = full_accelerations(x, yy, vx, vy, wu, wl, s, c, p[_mr] + p[_mt], p[_e] * p[_mr],
-                                                    p[_Ju], p[_Jl], torque, string, tfu, tfl, Qu, Qx, Qy,
-                                                    mu != 0, ml != 0)
-    dy[S_WU] = a_u
-    dy[S_WL] = a_l
-    dy[S_X] = vx
-    dy[S_Y] = vy
-    dy[S_VX] = a_x
-    dy[S_VY] = a_y
-    fric[0] = fu
-    fric[1] = fl

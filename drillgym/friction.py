@@ -18,9 +18,8 @@ Laws (torques in N m, speeds in rad/s):
 * lower disc, brake on, Stribeck (3.21), (3.22):
   ``Tfl(w) = (Tc + (Ts - Tc) exp(-|w/ws|^delta) + bb |w|) sign w``, stick set ``[-Ts, Ts]``
 
-Lower-disc extensions of the effect library act on the whole lower law as a
-level factor ``g = (1 + pf_a1 cos(theta_l - pf_phi1) + pf_a2 cos(2 theta_l - pf_phi2)) (1 + drift t)``
-and, for negative rotation of the brake, ``Ts (1 + asym_s)``, ``Tc (1 + asym_c)``.
+Effects (:mod:`drillgym.effects`) change these laws through the composition's kernels
+(level, shape, stick set); the laws here are the base model's.
 
 The ``*_smooth`` functions are the explicit smoothed option (``tanh(w / eps)``
 instead of ``sign``), never used unless asked for.
@@ -33,14 +32,8 @@ import math
 import numpy as np
 from numba import njit
 
-from .params import IDX, RigParams
+from .params import RigParams
 from .vmath import vexp, vlog
-
-_Tcu, _dTcu, _bu, _dbu = IDX.Tcu, IDX.dTcu, IDX.bu, IDX.dbu
-_Tcl, _bl = IDX.Tcl, IDX.bl
-_Ts, _Tc, _ws, _delta, _bb = IDX.Ts, IDX.Tc, IDX.ws, IDX.delta, IDX.bb
-_pf_a1, _pf_phi1, _pf_a2, _pf_phi2 = IDX.pf_a1, IDX.pf_phi1, IDX.pf_a2, IDX.pf_phi2
-_asym_s, _asym_c, _drift = IDX.asym_s, IDX.asym_c, IDX.drift
 
 
 # --- the laws on scalars (shared by the scalar kernel and the SIMD lane kernel) -------------
@@ -57,15 +50,10 @@ def _make_brake_law(exp, log):
     the vectorisable :mod:`drillgym.vmath` versions for the SIMD lane kernel.  One formula."""
 
     @njit(inline="always", fastmath=True, error_model="numpy")
-    def brake_law(aw: float, d: float, Ts: float, Tc: float, ws: float, delta: float, bb: float,
-                  asym_s: float, asym_c: float) -> float:
-        """Stribeck brake torque (N m) at speed magnitude aw in direction d (+1/-1; 0 gives 0);
-        for d < 0 the levels are scaled by (1 + asym_s), (1 + asym_c) (brake_asymmetry)."""
-        neg = 1.0 if d < 0 else 0.0
-        ts = Ts * (1.0 + asym_s * neg)
-        tc = Tc * (1.0 + asym_c * neg)
+    def brake_law(aw: float, d: float, Ts: float, Tc: float, ws: float, delta: float, bb: float) -> float:
+        """Stribeck brake torque (N m) at speed magnitude aw in direction d (+1/-1; 0 gives 0)."""
         z = max(aw / ws, 1e-300)
-        return d * (tc + (ts - tc) * exp(-exp(delta * log(z))) + bb * aw)
+        return d * (Tc + (Ts - Tc) * exp(-exp(delta * log(z))) + bb * aw)
 
     return brake_law
 
@@ -80,66 +68,25 @@ def bearing_law(aw: float, d: float, Tcl: float, bl: float) -> float:
     return d * (Tcl + bl * aw)
 
 
-# --- the laws on the kernel's parameter vector ----------------------------------------------
-@njit(cache=True, _nrt=False)
-def upper_slip_torque(w: float, d: int, p: np.ndarray) -> float:
-    """Upper friction torque (N m) while slipping in direction d (sign of the result is d)."""
-    return upper_law(abs(w), float(d), p[_Tcu], p[_dTcu], p[_bu], p[_dbu])
-
-
-@njit(cache=True, _nrt=False)
-def upper_stick_bounds(p: np.ndarray) -> tuple:
-    """Stick set of the upper disc (N m): (lo, hi)."""
-    return -p[_Tcu] + p[_dTcu], p[_Tcu] + p[_dTcu]
-
-
-@njit(cache=True, fastmath=True, _nrt=False)
-def lower_level_factor(theta_l: float, t: float, p: np.ndarray) -> float:
-    """Multiplicative level of the lower friction law: position dependence and drift (1 when off)."""
-    g = 1.0
-    if p[_pf_a1] != 0.0 or p[_pf_a2] != 0.0:
-        g += p[_pf_a1] * math.cos(theta_l - p[_pf_phi1]) + p[_pf_a2] * math.cos(2.0 * theta_l - p[_pf_phi2])
-    if p[_drift] != 0.0:
-        g *= 1.0 + p[_drift] * t
-    return g
-
-
-@njit(cache=True, _nrt=False)
-def lower_slip_torque(w: float, d: int, theta_l: float, t: float, p: np.ndarray, brake: bool) -> float:
-    """Lower friction torque (N m) while slipping in direction d (brake: Stribeck law, else bearing)."""
-    aw = abs(w)
-    if brake:
-        law = brake_law(aw, float(d), p[_Ts], p[_Tc], p[_ws], p[_delta], p[_bb], p[_asym_s], p[_asym_c])
-    else:
-        law = bearing_law(aw, float(d), p[_Tcl], p[_bl])
-    return lower_level_factor(theta_l, t, p) * law
-
-
-@njit(cache=True, _nrt=False)
-def lower_stick_bounds(theta_l: float, t: float, p: np.ndarray, brake: bool) -> tuple:
-    """Stick set of the lower disc (N m): (lo, hi)."""
-    g = lower_level_factor(theta_l, t, p)
-    if brake:
-        return -g * p[_Ts] * (1.0 + p[_asym_s]), g * p[_Ts]
-    return -g * p[_Tcl], g * p[_Tcl]
-
-
 # ----------------------------------------------------------------- numpy helpers
 def upper_friction(w: np.ndarray, params: RigParams | None = None) -> np.ndarray:
-    """Upper slip friction torque Tfu(w) for w != 0 (0 returned at w = 0), vectorised."""
-    p = (params or RigParams()).to_vector()
+    """Upper slip friction torque Tfu(w) (N m) of the base law for w != 0 (0 at w = 0), vectorised."""
+    p = params or RigParams()
     w = np.asarray(w, dtype=float)
-    return np.vectorize(lambda v: upper_slip_torque(v, int(np.sign(v)), p) if v != 0 else 0.0)(w)
+    law = np.vectorize(lambda v: upper_law(abs(v), float(np.sign(v)), p.Tcu, p.dTcu, p.bu, p.dbu))
+    return law(w) if w.size else np.zeros_like(w)
 
 
-def lower_friction(w: np.ndarray, params: RigParams | None = None, brake: bool = True,
-                   theta_l: float = 0.0, t: float = 0.0) -> np.ndarray:
-    """Lower slip friction torque Tfl(w) for w != 0 (0 returned at w = 0), vectorised."""
-    p = (params or RigParams()).to_vector()
+def lower_friction(w: np.ndarray, params: RigParams | None = None, brake: bool = True) -> np.ndarray:
+    """Lower slip friction torque Tfl(w) (N m) of the base law (brake: Stribeck, else bearing)
+    for w != 0 (0 at w = 0), vectorised."""
+    p = params or RigParams()
     w = np.asarray(w, dtype=float)
-    return np.vectorize(
-        lambda v: lower_slip_torque(v, int(np.sign(v)), theta_l, t, p, brake) if v != 0 else 0.0
-    )(w)
+    if brake:
+        law = np.vectorize(lambda v: brake_law(abs(v), float(np.sign(v)), p.Ts, p.Tc, p.ws, p.delta, p.bb))
+    else:
+        law = np.vectorize(lambda v: bearing_law(abs(v), float(np.sign(v)), p.Tcl, p.bl))
+    return law(w) if w.size else np.zeros_like(w)
 
 
 def lower_friction_slope(w: np.ndarray, params: RigParams | None = None, brake: bool = True,

@@ -2,9 +2,10 @@
 
 * Encoders on both discs: ``counts_per_rev`` (default 8000: 2000 lines, 4x
   decoding).  The angle is known to one count: ``quantize_angle``.
-* LVDTs on the lateral constraints, fixed frame, noise of a few micrometres;
-  the effect library's ``lvdt_offset`` (x0, y0 at rest) and ``lvdt_skew`` (y axis
-  rotated by ``skew`` from perpendicular) act here, not in the dynamics.
+* LVDTs on the lateral constraints, fixed frame, noise of a few micrometres.
+* Measurement effects of a composition (e.g. the library's ``lvdt_offset``,
+  ``lvdt_skew``; :mod:`drillgym.effects`) act on the channels before quantisation
+  and noise, never in the dynamics (``measure_trajectory``).
 * Offline, the report low-passed the LVDT signals at 5 Hz, zero phase
   (``lowpass_zero_phase``); online (environments, hardware) a causal filter.
 * Speeds are not measured: ``EncoderVelocityEstimator`` differentiates the
@@ -76,13 +77,11 @@ def quantize_angle(theta: np.ndarray | float, counts_per_rev: int = DEFAULT_COUN
     return encoder_reading(np.asarray(theta, dtype=float), counts_per_rev)
 
 
-def lvdt_measure(X: np.ndarray, Y: np.ndarray, params: RigParams | None = None, noise_std: float = 0.0,
+def lvdt_measure(X: np.ndarray, Y: np.ndarray, noise_std: float = 0.0,
                  rng: np.random.Generator | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """LVDT readings (m) of the fixed-frame displacement (X, Y): offsets, skewed y axis, white noise."""
-    p = params or RigParams()
-    X = np.asarray(X, dtype=float)
-    Y = np.asarray(Y, dtype=float)
-    xm, ym = lvdt_reading(X, Y, p.lvdt_x0, p.lvdt_y0, np.cos(p.lvdt_skew), np.sin(p.lvdt_skew))
+    """LVDT readings (m) of the fixed-frame displacement (X, Y) (m) with white noise of ``noise_std`` (m)."""
+    xm = np.array(X, dtype=float)
+    ym = np.array(Y, dtype=float)
     if noise_std > 0:
         rng = rng or np.random.default_rng()
         xm = xm + rng.normal(0.0, noise_std, xm.shape)
@@ -133,24 +132,25 @@ class MeasurementModel:
     sample_rate_hz: float | None = None  # None: keep the simulation's rate
 
 
-def measure_trajectory(traj, params: RigParams | None = None, model: MeasurementModel = MeasurementModel(),
-                       seed: int | None = 0, description: str = ""):
+def measure_trajectory(traj, model: MeasurementModel = MeasurementModel(), seed: int | None = 0,
+                       description: str = ""):
     """A synthetic measurement (TimeSeries in the interchange format) of a simulated Trajectory:
-    quantized encoder angles, LVDT readings with offset/skew/noise, offline 5 Hz zero-phase low-pass."""
+    the run's Measurement effects (offsets, skew, ...), quantized encoder angles, LVDT readings
+    with noise, offline 5 Hz zero-phase low-pass."""
     from .io import TimeSeries
 
-    p = params or traj.params
     rng = np.random.default_rng(seed)
+    tu, tl, X, Y = traj.composition.measure(traj.theta_u, traj.theta_l, traj.x, traj.y, traj.parameter_vector)
     t = np.asarray(traj.t)
     fs = 1.0 / float(np.median(np.diff(t)))
     step = 1
     if model.sample_rate_hz:
         step = max(1, int(round(fs / model.sample_rate_hz)))
-    cols = {"t": t, "u": np.asarray(traj.u), "theta_u": quantize_angle(traj.theta_u, model.counts_per_rev)}
+    cols = {"t": t, "u": np.asarray(traj.u), "theta_u": quantize_angle(tu, model.counts_per_rev)}
     if traj.config.has_lower:
-        cols["theta_l"] = quantize_angle(traj.theta_l, model.counts_per_rev)
+        cols["theta_l"] = quantize_angle(tl, model.counts_per_rev)
     if traj.config.lateral_free:
-        xm, ym = lvdt_measure(traj.x, traj.y, p, model.lvdt_noise_std, rng)
+        xm, ym = lvdt_measure(X, Y, model.lvdt_noise_std, rng)
         if model.lvdt_lowpass_hz:
             xm = lowpass_zero_phase(xm, fs, model.lvdt_lowpass_hz)
             ym = lowpass_zero_phase(ym, fs, model.lvdt_lowpass_hz)

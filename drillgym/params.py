@@ -1,10 +1,10 @@
 """The rig's parameter set: typed, immutable, with units and sources, validated.
 
-``RigParams`` holds every physical parameter of ../shared/MODEL.md plus the
-parameters of the model extensions of the effect library (all zero = off, which
-is the identified base model).  The simulator's compiled kernels take the
-parameters as a flat float64 vector; :meth:`RigParams.to_vector` and the
-module-level ``IDX`` mapping give that layout, so a kernel reads ``p[IDX.Ts]``.
+``RigParams`` holds every physical parameter of the base model of
+../shared/MODEL.md.  Effects (:mod:`drillgym.effects`) carry their own
+parameters.  The simulator's compiled kernels take the parameters as a flat
+float64 vector: the base parameters in the layout of :meth:`RigParams.to_vector`
+and ``IDX`` (a kernel reads ``p[IDX.Ts]``), then the effects' parameters.
 
 Files: JSON or YAML (by extension), a flat mapping ``name -> value``.  Unknown
 names, missing names, non-finite values and values outside physical bounds are
@@ -38,8 +38,7 @@ def _p(value: float, unit: str, source: str, lo: float = -math.inf, hi: float = 
 class RigParams:
     """Physical parameters of the drill-string rig (SI units).
 
-    Defaults are the identified set of MODEL.md.  Extension parameters default
-    to 0 (effect off).  Instances are immutable: use :meth:`replace`.
+    Defaults are the identified set of MODEL.md.  Instances are immutable: use :meth:`replace`.
     """
 
     # --- upper part: DC motor, upper disc, asymmetric Coulomb + viscous friction (3.4), (3.5)
@@ -67,24 +66,6 @@ class RigParams:
     k: float = _p(2974.25, "N/m", "table 3.6", 1e-6, 1e7, "lateral stiffness")
     b: float = _p(25.0, "N s/m", "table 3.6", 0.0, 1e5, "lateral viscous damping")
     e: float = _p(0.0048917, "m", "table 3.6", 0.0, 0.05, "mass unbalance eccentricity")
-    # --- effect library extensions (0 = off; see drillgym.effects)
-    pf_a1: float = _p(0.0, "-", "effect position_friction", -0.9, 0.9, "lower friction modulation, 1st harmonic of theta_l")
-    pf_phi1: float = _p(0.0, "rad", "effect position_friction", -10, 10, "phase of 1st harmonic")
-    pf_a2: float = _p(0.0, "-", "effect position_friction", -0.9, 0.9, "lower friction modulation, 2nd harmonic of theta_l")
-    pf_phi2: float = _p(0.0, "rad", "effect position_friction", -10, 10, "phase of 2nd harmonic")
-    asym_s: float = _p(0.0, "-", "effect brake_asymmetry", -0.9, 5, "relative change of static level for negative rotation")
-    asym_c: float = _p(0.0, "-", "effect brake_asymmetry", -0.9, 5, "relative change of slip level for negative rotation")
-    dtheta: float = _p(0.0, "N m s/rad", "effect string_damping", 0.0, 10, "torsional damping of the string")
-    tau_m: float = _p(0.0, "s", "effect motor_lag", 0.0, 5, "first-order amplifier/motor time constant")
-    delay: float = _p(0.0, "s", "effect input_delay", 0.0, 2, "pure input delay")
-    dk: float = _p(0.0, "N/m", "effect lateral_anisotropy", -1e6, 1e6, "kx = k + dk, ky = k - dk (fixed frame)")
-    db: float = _p(0.0, "N s/m", "effect lateral_anisotropy", -1e5, 1e5, "bx = b + db, by = b - db (fixed frame)")
-    lvdt_x0: float = _p(0.0, "m", "effect lvdt_offset", -0.05, 0.05, "LVDT x offset at rest")
-    lvdt_y0: float = _p(0.0, "m", "effect lvdt_offset", -0.05, 0.05, "LVDT y offset at rest")
-    lvdt_skew: float = _p(0.0, "rad", "effect lvdt_skew", -0.5, 0.5, "angle by which the y LVDT axis deviates from perpendicular")
-    Fc_lat: float = _p(0.0, "N", "effect lateral_coulomb", 0.0, 1e3, "dry friction in the lateral guides")
-    drift: float = _p(0.0, "1/s", "effect friction_drift", -0.1, 0.1, "relative drift rate of brake friction level")
-
     # ------------------------------------------------------------------ API
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -104,10 +85,6 @@ class RigParams:
             raise ParameterError(f"parameter 'Ts' = {self.Ts} must be >= 'Tc' = {self.Tc} (static >= slip friction)")
         if abs(self.dTcu) > self.Tcu:
             raise ParameterError(f"parameter 'dTcu' = {self.dTcu}: |dTcu| must not exceed Tcu = {self.Tcu}")
-        if abs(self.dk) >= self.k:
-            raise ParameterError(f"parameter 'dk' = {self.dk}: |dk| must be below k = {self.k}")
-        if abs(self.db) > self.b:
-            raise ParameterError(f"parameter 'db' = {self.db}: |db| must not exceed b = {self.b}")
 
     @classmethod
     def default(cls) -> "RigParams":
@@ -130,8 +107,8 @@ class RigParams:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, source: str = "mapping", partial: bool = False) -> "RigParams":
-        """Build from a mapping.  With ``partial=False`` every base parameter must be present;
-        extension parameters may be omitted (they default to 0, effect off)."""
+        """Build from a mapping.  With ``partial=False`` every parameter must be present; with
+        ``partial=True`` the names given override the defaults."""
         if not isinstance(data, Mapping):
             raise ParameterError(f"{source}: expected a mapping of parameter names to numbers")
         if "params" in data and isinstance(data["params"], Mapping):

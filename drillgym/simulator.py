@@ -1,4 +1,4 @@
-"""The simulator's Python interface: one call, one or many trajectories.
+"""The simulator's Python interface: one call, one or many trajectories, any composition of effects.
 
 >>> from drillgym import simulate
 >>> traj = simulate("torsional", u=1.0, duration=30.0)          # stick-slip at 1 V
@@ -8,7 +8,12 @@
 >>> batch = simulate_batch("coupled", u=[3.4, 3.7], duration=120.0)  # two voltages at once
 >>> batch[1].omega_l[-1]
 
-Everything runs through the compiled kernels of :mod:`drillgym.integrators`;
+>>> traj = simulate("torsional", u=1.0, duration=30.0, effects=["motor_lag", "input_delay"],
+...                 effect_params={"tau_m": 0.03, "delay": 0.02})
+>>> traj.u_m                                                      # the lag's state is recorded
+
+Everything runs through the compiled kernels of the composition of effects
+(:mod:`drillgym.effects`; the base model is the empty composition);
 ``BatchSimulator`` is the stepping interface the environments, controllers and
 the rig emulator use (state kept between calls).
 """
@@ -17,23 +22,15 @@ from __future__ import annotations
 
 import os
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
-from typing import Callable, Sequence, Union
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping, Sequence, Union
 
 import numpy as np
 
 from .configurations import N_STATE, STATE_NAMES, Configuration, parse_configuration
-from .integrators import (
-    DEFAULT_DT,
-    N_OUT,
-    OUTPUT_NAMES,
-    advance_batch,
-    run_batch_parallel,
-    run_batch_serial,
-    tableau,
-)
-from .lanes import lanes_eligible, lanes_run
-from .params import N_PARAMS, IDX, RigParams
+from .effects.composition import Composition, compose
+from .integrators import DEFAULT_DT, OUTPUT_NAMES, tableau
+from .params import N_PARAMS, RigParams
 
 __all__ = ["simulate", "simulate_batch", "Trajectory", "BatchTrajectory", "BatchSimulator", "initial_state",
            "InputLike", "ParamsLike"]
@@ -41,39 +38,19 @@ __all__ = ["simulate", "simulate_batch", "Trajectory", "BatchTrajectory", "Batch
 InputLike = Union[float, Sequence[float], np.ndarray, tuple, Callable[[np.ndarray], np.ndarray]]
 ParamsLike = Union[RigParams, Sequence[RigParams], np.ndarray, None]
 DEFAULT_SMOOTH_EPS = 1e-3  # rad/s, for friction="smooth"
-LANES_MIN_BATCH = 8  # batches at least this large use the SIMD lane kernel where it applies
+LANES_MIN_BATCH = 8  # batches at least this large use the SIMD lane kernel (RK4, exact friction)
 
 
 def initial_state(alpha0: float = 0.0, theta_u0: float = 0.0, omega_u0: float = 0.0, omega_l0: float = 0.0,
-                  x0: float = 0.0, y0: float = 0.0, vx0: float = 0.0, vy0: float = 0.0, u_m0: float = 0.0) -> np.ndarray:
-    """A state vector (see :mod:`drillgym.configurations`); alpha0 = initial winding theta_l - theta_u (rad)."""
-    return np.array([theta_u0, theta_u0 + alpha0, omega_u0, omega_l0, x0, y0, vx0, vy0, u_m0], dtype=np.float64)
-
-
-def _params_matrix(params: ParamsLike, n: int) -> np.ndarray:
-    if params is None:
-        params = RigParams()
-    if isinstance(params, RigParams):
-        return np.tile(params.to_vector(), (n, 1))
-    if isinstance(params, np.ndarray) and params.dtype != object:
-        P = np.atleast_2d(np.asarray(params, dtype=np.float64))
-        if P.shape[1] != N_PARAMS:
-            raise ValueError(f"parameter matrix must have {N_PARAMS} columns, got {P.shape[1]}")
-        if P.shape[0] == 1:
-            P = np.repeat(P, n, axis=0)
-        if not np.all(np.isfinite(P)):
-            raise ValueError("parameter matrix contains NaN or inf")
-        return np.ascontiguousarray(P)
-    plist = list(params)
-    if len(plist) == 1:
-        plist = plist * n
-    if not all(isinstance(q, RigParams) for q in plist):
-        raise TypeError("params must be RigParams, a sequence of RigParams or a (B, n_params) array")
-    return np.stack([q.to_vector() for q in plist])
+                  x0: float = 0.0, y0: float = 0.0, vx0: float = 0.0, vy0: float = 0.0) -> np.ndarray:
+    """A mechanical state vector (see :mod:`drillgym.configurations`); alpha0 = initial winding
+    theta_l - theta_u (rad).  Effect states, when a composition has any, start at 0."""
+    return np.array([theta_u0, theta_u0 + alpha0, omega_u0, omega_l0, x0, y0, vx0, vy0], dtype=np.float64)
 
 
 def _input_matrix(u: InputLike, n_batch: int, n_steps: int, dt: float) -> np.ndarray:
-    """Per-step inputs (B, n_steps), zero-order hold: step i uses u(t_i)."""
+    """Per-step commands (B, n_steps), zero-order hold: step i uses u(t_i); a constant command
+    (scalar or one per trajectory) stays one column (B, 1), never expanded over the steps."""
     t = np.arange(n_steps) * dt
     if callable(u):
         U = np.asarray(u(t), dtype=np.float64)
@@ -84,14 +61,16 @@ def _input_matrix(u: InputLike, n_batch: int, n_steps: int, dt: float) -> np.nda
     else:
         U = np.asarray(u, dtype=np.float64)
         if U.ndim == 0:
-            U = np.full(n_steps, float(U))
+            U = np.full((n_batch, 1), float(U))
         elif U.ndim == 1 and U.shape[0] == n_batch and n_steps != n_batch:
-            U = np.repeat(U[:, None], n_steps, axis=1)
+            U = U[:, None].copy()
     if U.ndim == 1:
         U = np.broadcast_to(U, (n_batch, U.shape[0]))
-    if U.shape[-1] < n_steps:
+    if U.shape[-1] != 1 and U.shape[-1] < n_steps:
         raise ValueError(f"input signal has {U.shape[-1]} samples, the run needs {n_steps} (one per step)")
-    U = np.ascontiguousarray(U[..., :n_steps], dtype=np.float64)
+    if U.shape[-1] != 1:
+        U = U[..., :n_steps]
+    U = np.ascontiguousarray(U, dtype=np.float64)
     if U.shape[0] != n_batch:
         raise ValueError(f"input has {U.shape[0]} rows for a batch of {n_batch}")
     if not np.all(np.isfinite(U)):
@@ -100,27 +79,21 @@ def _input_matrix(u: InputLike, n_batch: int, n_steps: int, dt: float) -> np.nda
     return U
 
 
-def _apply_input_delay(U: np.ndarray, P: np.ndarray, dt: float) -> np.ndarray:
-    """input_delay effect: u(t - delay), holding the first value before the start."""
-    delays = P[:, IDX.delay]
-    if not np.any(delays > 0):
-        return U
-    U = U.copy()
-    n = U.shape[1]
-    t = np.arange(n) * dt
-    for k in np.flatnonzero(delays > 0):
-        U[k] = np.interp(t - delays[k], t, U[k])
-    return U
+def _delay_lines(comp: Composition, P: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Empty delay lines (B, L) and heads (B,) = -1 for the composition's Delay effects."""
+    L = comp.delay_line_length(P, dt)
+    return np.zeros((P.shape[0], L)), np.full(P.shape[0], -1, dtype=np.int64)
 
 
 @dataclass
 class Trajectory:
-    """One simulated run: samples (rows) of the columns ``OUTPUT_NAMES``.
+    """One simulated run: samples (rows) of the columns ``output_names``.
 
-    Attributes named like the columns give 1-D arrays: ``t`` (s), ``u`` (V),
+    Attributes named like the columns give 1-D arrays: ``t`` (s), ``u`` (V, the command),
     ``theta_u``, ``theta_l``, ``alpha`` (rad), ``omega_u``, ``omega_l`` (rad/s),
     ``x``, ``y`` (fixed frame, m), ``r`` (m), ``x_rot``, ``y_rot`` (rotating frame),
-    ``Tfu``, ``Tfl`` (N m), ``stick_u``, ``stick_l`` (1 = stuck), ``u_m`` (V).
+    ``Tfu``, ``Tfl`` (N m), ``stick_u``, ``stick_l`` (1 = stuck), then the effects' states
+    (e.g. ``u_m``, V, with motor_lag).  ``effect_values`` holds the effects' parameters.
     """
 
     config: Configuration
@@ -128,19 +101,33 @@ class Trajectory:
     dt: float
     method: str
     data: np.ndarray
+    composition: Composition = field(default_factory=lambda: Composition(()))
+    effect_values: dict = field(default_factory=dict)
 
     def __getattr__(self, name: str) -> np.ndarray:
-        if name in _COLUMN and "data" in self.__dict__:
-            return self.data[:, _COLUMN[name]]
+        if "data" in self.__dict__ and "composition" in self.__dict__:
+            idx = _column_index(self.composition)
+            if name in idx:
+                return self.data[:, idx[name]]
         raise AttributeError(name)
 
     @property
+    def output_names(self) -> tuple[str, ...]:
+        return self.composition.output_names
+
+    @property
     def final_state(self) -> np.ndarray:
-        """State vector at the last sample (to continue a run)."""
-        return self.data[-1, 2:2 + N_STATE].copy()
+        """State vector at the last sample (mechanical states, then the effects' states), to continue a run."""
+        row = self.data[-1]
+        return np.concatenate([row[2:2 + N_STATE], row[len(OUTPUT_NAMES):]]).copy()
+
+    @property
+    def parameter_vector(self) -> np.ndarray:
+        """The kernels' parameter vector of this run (base, then the effects' parameters)."""
+        return self.composition.vector(self.params, self.effect_values)
 
     def columns(self) -> dict[str, np.ndarray]:
-        return {n: self.data[:, i] for i, n in enumerate(OUTPUT_NAMES)}
+        return {n: self.data[:, i] for i, n in enumerate(self.output_names)}
 
     def to_csv(self, path, description: str = "") -> None:
         """Write in the interchange format of ../shared/DATA_FORMAT.md."""
@@ -149,28 +136,34 @@ class Trajectory:
         write_trajectory_csv(self, path, description=description)
 
 
-_COLUMN = {n: i for i, n in enumerate(OUTPUT_NAMES)}
+def _column_index(comp: Composition) -> dict[str, int]:
+    return {n: i for i, n in enumerate(comp.output_names)}
 
 
 @dataclass
 class BatchTrajectory:
-    """Many runs of one configuration: ``data`` has shape (B, n_samples, N_OUT)."""
+    """Many runs of one configuration: ``data`` has shape (B, n_samples, n_outputs)."""
 
     config: Configuration
     params: list[RigParams]
     dt: float
     method: str
     data: np.ndarray
+    composition: Composition = field(default_factory=lambda: Composition(()))
+    effect_values: list = field(default_factory=list)
 
     def __len__(self) -> int:
         return self.data.shape[0]
 
     def __getitem__(self, k: int) -> Trajectory:
-        return Trajectory(self.config, self.params[k], self.dt, self.method, self.data[k])
+        vals = self.effect_values[k] if self.effect_values else {}
+        return Trajectory(self.config, self.params[k], self.dt, self.method, self.data[k], self.composition, vals)
 
     def __getattr__(self, name: str) -> np.ndarray:
-        if name in _COLUMN and "data" in self.__dict__:
-            return self.data[:, :, _COLUMN[name]]
+        if "data" in self.__dict__ and "composition" in self.__dict__:
+            idx = _column_index(self.composition)
+            if name in idx:
+                return self.data[:, :, idx[name]]
         raise AttributeError(name)
 
 
@@ -184,7 +177,7 @@ def _friction_eps(friction: str, smooth_eps: float) -> float:
     raise ValueError(f"friction must be 'exact' (set-valued, default) or 'smooth', got {friction!r}")
 
 
-def _run_lanes(Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, parallel):
+def _run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, parallel, HIST, HEAD):
     """The SIMD lane kernel over the batch; with parallel, one chunk per core in threads (nogil)."""
     n_chunks = min(os.cpu_count() or 1, max(1, Y.shape[0] // LANES_MIN_BATCH)) if parallel else 1
     bounds = np.linspace(0, Y.shape[0], n_chunks + 1).astype(int)
@@ -193,7 +186,7 @@ def _run_lanes(Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, parallel):
     def run(i):
         s = slice(bounds[i], bounds[i + 1])
         lanes_run(Y[s], MODE[s], U[s], P[s], cfg, dt, np.zeros(bounds[i + 1] - bounds[i]), record_every, OUT[s],
-                  n_steps, True, FR[s])
+                  n_steps, True, FR[s], HIST[s], HEAD[s])
 
     if n_chunks == 1:
         run(0)
@@ -202,29 +195,54 @@ def _run_lanes(Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, parallel):
             list(pool.map(run, range(n_chunks)))
 
 
+def _initial_states(comp: Composition, B: int, x0: Any, alpha0: Any) -> np.ndarray:
+    n = comp.n_state
+    if x0 is None:
+        Y = np.zeros((B, n))
+        Y[:, 1] = np.broadcast_to(np.asarray(alpha0, dtype=float), (B,))
+        return Y
+    X = np.asarray(x0, dtype=np.float64)
+    if X.shape[-1] == N_STATE and n > N_STATE:  # mechanical states only: effect states start at 0
+        X = np.concatenate([X, np.zeros(X.shape[:-1] + (n - N_STATE,))], axis=-1)
+    if X.shape[-1] != n:
+        raise ValueError(f"initial state must have {n} entries ({', '.join(comp.full_state_names)}), "
+                         f"got {X.shape[-1]}")
+    Y = np.array(np.broadcast_to(X, (B, n)))
+    if not np.all(np.isfinite(Y)):
+        raise ValueError("initial state contains NaN or inf")
+    return Y
+
+
 def simulate_batch(config: "str | Configuration", u: InputLike, duration: float, *, dt: float = DEFAULT_DT,
                    params: ParamsLike = None, x0: np.ndarray | None = None, alpha0: "float | Sequence[float]" = 0.0,
                    n_batch: int | None = None, method: str = "rk4", record_every: int = 1,
                    friction: str = "exact", smooth_eps: float = DEFAULT_SMOOTH_EPS,
-                   parallel: bool = False) -> BatchTrajectory:
+                   parallel: bool = False, effects: Any = None,
+                   effect_params: Mapping[str, float] | None = None) -> BatchTrajectory:
     """Simulate B trajectories in one compiled call.
 
     Args:
         config: 'upper', 'torsional', 'lateral', 'coupled' or 'free_vibration'.
-        u: motor voltage (V): a scalar, one value per trajectory (B,), per-step values (n,) or (B, n),
-            a (t, u) pair of arrays (zero-order hold), or a function of time.  Any voltage is
-            accepted (the +/-5 V amplifier limit belongs to the environments and the rig).
+        u: motor voltage command (V): a scalar, one value per trajectory (B,), per-step values (n,)
+            or (B, n), a (t, u) pair of arrays (zero-order hold), or a function of time.  Any
+            voltage is accepted (the +/-5 V amplifier limit belongs to the environments and the rig).
         duration: simulated time (s).
         dt: fixed step (s).  Default 1 ms.
-        params: RigParams, a list of them (one per trajectory) or a (B, n_params) matrix.
-        x0: initial states (N_STATE,) or (B, N_STATE); default rest with winding ``alpha0``.
+        params: RigParams, a list of them (one per trajectory) or a (B, n_params) matrix (base
+            parameters, or base then effect parameters in the composition's layout).
+        x0: initial states (n_state,) or (B, n_state) (mechanical states, optionally followed by the
+            effects' states); default rest with winding ``alpha0``.
         alpha0: initial winding theta_l - theta_u (rad), scalar or per trajectory.
         method: 'rk4' or 'dp5'.
         record_every: keep every k-th step.
         friction: 'exact' (set-valued, event-driven; default) or 'smooth' (tanh(w/smooth_eps)).
         parallel: spread the batch over all cores (numba threads).
+        effects: effects added to the base model: names, 'path/to/file.py:NAME', Effect classes or
+            instances (``MotorLag(tau_m=0.02)``), or a Composition (see :mod:`drillgym.effects`).
+        effect_params: values of the effects' parameters by name (defaults: each Parameter's).
     """
     cfg = parse_configuration(config)
+    comp, values = compose(effects, effect_params)
     if not (np.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
     if not (np.isfinite(dt) and 0 < dt <= 0.1):
@@ -248,48 +266,54 @@ def simulate_batch(config: "str | Configuration", u: InputLike, duration: float,
         elif ua.ndim == 1 and ua.shape[0] != n_steps:
             sizes.append(ua.shape[0])
     B = max(max(sizes), 1)
-    P = _params_matrix(params, B)
-    U_cmd = _input_matrix(u, B, n_steps, dt)
-    U = _apply_input_delay(U_cmd, P, dt)
-    if x0 is None:
-        Y = np.stack([initial_state(alpha0=a) for a in np.broadcast_to(np.asarray(alpha0, dtype=float), (B,))])
-    else:
-        Y = np.array(np.broadcast_to(np.asarray(x0, dtype=np.float64), (B, N_STATE)))
-        if not np.all(np.isfinite(Y)):
-            raise ValueError("initial state contains NaN or inf")
+    P = comp.matrix(params, B, values)
+    U = _input_matrix(u, B, n_steps, dt)
+    Y = _initial_states(comp, B, x0, alpha0)
     if cfg.lateral_free is False:
         Y[:, 4:8] = 0.0
     MODE = np.zeros((B, 2), dtype=np.int64)
     n_rec = n_steps // record_every + 1
-    OUT = np.empty((B, n_rec, N_OUT))
+    OUT = np.empty((B, n_rec, len(comp.output_names)))
     A, b, c = tableau(method)
     eps = _friction_eps(friction, smooth_eps)
-    if B >= LANES_MIN_BATCH and lanes_eligible(int(cfg), method, eps, P):
-        _run_lanes(Y, MODE, U, P, int(cfg), float(dt), int(record_every), OUT, n_steps, parallel)
+    HIST, HEAD = _delay_lines(comp, P, dt)
+    k = comp.kernels
+    if B >= LANES_MIN_BATCH and method.lower() == "rk4" and eps == 0.0:
+        _run_lanes(k.lanes.lanes_run, Y, MODE, U, P, int(cfg), float(dt), int(record_every), OUT, n_steps, parallel,
+                   HIST, HEAD)
     else:
-        runner = run_batch_parallel if parallel else run_batch_serial
-        runner(Y, MODE, U, P, int(cfg), float(dt), np.zeros(B), eps, A, b, c, int(record_every), OUT, True)
-    if U is not U_cmd:  # input_delay: the motor saw the delayed voltage, the record keeps the commanded one
-        OUT[:, :, 1] = U_cmd[:, np.minimum(np.arange(n_rec) * record_every, n_steps - 1)]
-    plist = [RigParams.from_vector(P[k]) for k in range(B)] if B <= 64 or params is not None else [RigParams()] * B
-    return BatchTrajectory(cfg, plist, float(dt), method, OUT)
+        runner = k.stepping.run_batch_parallel if parallel else k.stepping.run_batch_serial
+        runner(Y, MODE, U, P, int(cfg), float(dt), np.zeros(B), eps, A, b, c, int(record_every), OUT, True, n_steps,
+               HIST, HEAD)
+    if not np.all(np.isfinite(OUT[:, -1, 2:10])):
+        bad = int(np.argwhere(~np.all(np.isfinite(OUT[:, -1, 2:10]), axis=1))[0, 0])
+        raise FloatingPointError(f"trajectory {bad} diverged (NaN/inf state) with the model {comp.label!r}: "
+                                 f"check the effects' formulas and parameter values")
+    keep = B <= 64 or params is not None
+    plist = [RigParams.from_vector(P[i, :N_PARAMS]) for i in range(B)] if keep else [RigParams()] * B
+    vlist = [comp.split(P[i])[1] for i in range(B)] if keep else [dict(values)] * B
+    return BatchTrajectory(cfg, plist, float(dt), method, OUT, comp, vlist)
 
 
 def simulate(config: "str | Configuration", u: InputLike, duration: float, *, dt: float = DEFAULT_DT,
              params: RigParams | None = None, x0: np.ndarray | None = None, alpha0: float = 0.0,
              method: str = "rk4", record_every: int = 1, friction: str = "exact",
-             smooth_eps: float = DEFAULT_SMOOTH_EPS) -> Trajectory:
+             smooth_eps: float = DEFAULT_SMOOTH_EPS, effects: Any = None,
+             effect_params: Mapping[str, float] | None = None) -> Trajectory:
     """Simulate one trajectory (see :func:`simulate_batch` for the arguments)."""
     if params is not None and not isinstance(params, RigParams):
-        raise TypeError("simulate() takes one RigParams; use simulate_batch for several")
+        if not (isinstance(params, np.ndarray) and params.ndim == 1):
+            raise TypeError("simulate() takes one RigParams (or one parameter vector); use simulate_batch for several")
+        params = params[None, :]
     if x0 is not None and np.ndim(x0) != 1:
-        raise ValueError("simulate() takes one initial state of shape (N_STATE,)")
+        raise ValueError("simulate() takes one initial state")
     if not callable(u) and not isinstance(u, tuple) and np.ndim(u) > 1:
         raise ValueError("simulate() takes a scalar or one input sequence; use simulate_batch for several")
     if not callable(u) and not isinstance(u, tuple) and np.ndim(u) == 1:
         u = np.asarray(u, dtype=np.float64)[None, :]  # one per-step sequence
     batch = simulate_batch(config, u, duration, dt=dt, params=params, x0=x0, alpha0=alpha0, n_batch=1,
-                           method=method, record_every=record_every, friction=friction, smooth_eps=smooth_eps)
+                           method=method, record_every=record_every, friction=friction, smooth_eps=smooth_eps,
+                           effects=effects, effect_params=effect_params)
     return batch[0]
 
 
@@ -300,70 +324,89 @@ class BatchSimulator:
     >>> sim.reset(alpha0=np.zeros(256))
     >>> sim.advance(np.full(256, 2.0), n_steps=10)   # one 10 ms control period at dt = 1 ms
     >>> sim.omega_l, sim.stuck_l, sim.friction[:, 1]
+
+    ``effects``/``effect_params`` as :func:`simulate_batch`: the same compiled composition, so a
+    batch stepped here matches a single run of the same model (delays and lags included).
     """
 
     def __init__(self, config: "str | Configuration", n: int = 1, *, params: ParamsLike = None,
                  dt: float = DEFAULT_DT, method: str = "rk4", friction: str = "exact",
-                 smooth_eps: float = DEFAULT_SMOOTH_EPS) -> None:
+                 smooth_eps: float = DEFAULT_SMOOTH_EPS, effects: Any = None,
+                 effect_params: Mapping[str, float] | None = None) -> None:
         self.config = parse_configuration(config)
         if int(n) < 1:
             raise ValueError("n must be >= 1")
+        self.composition, self.effect_values = compose(effects, effect_params)
+        self.kernels = self.composition.kernels
         self.n = int(n)
         self.dt = float(dt)
         self.method = method
         self._tab = tableau(method)
         self._eps = _friction_eps(friction, smooth_eps)
-        self.P = _params_matrix(params, self.n)
-        self.Y = np.zeros((self.n, N_STATE))
+        self.P = self.composition.matrix(params, self.n, self.effect_values)
+        self.Y = np.zeros((self.n, self.composition.n_state))
         self.MODE = np.zeros((self.n, 2), dtype=np.int64)
         self.T = np.zeros(self.n)
         self.FRIC = np.zeros((self.n, 2))
-        self._no_record = np.zeros((self.n, 0, N_OUT))
+        self.HIST, self.HEAD = _delay_lines(self.composition, self.P, self.dt)
+        self._no_record = np.zeros((self.n, 0, len(self.composition.output_names)))
+        self._lanes = self.n >= LANES_MIN_BATCH and method.lower() == "rk4" and self._eps == 0.0
 
     def set_params(self, params: ParamsLike, index: "int | np.ndarray | slice | None" = None) -> None:
         """Replace the parameters of all (index None) or some trajectories."""
         sel = slice(None) if index is None else index
         m = len(np.arange(self.n)[sel])
-        self.P[sel] = _params_matrix(params, m)
+        self.P[sel] = self.composition.matrix(params, m, self.effect_values)
+        self._resize_delay_lines()
+
+    def _resize_delay_lines(self) -> None:
+        L = self.composition.delay_line_length(self.P, self.dt)
+        if L > self.HIST.shape[1]:  # longer delays: a longer line (contents kept, oldest first)
+            H = np.zeros((self.n, L))
+            for k in range(self.n):
+                h = self.HEAD[k]
+                if h >= 0:
+                    old = np.roll(self.HIST[k], -(h + 1))  # oldest ... newest
+                    H[k, L - old.size:] = old
+                    H[k, :L - old.size] = old[0]
+                    self.HEAD[k] = L - 1
+            self.HIST = H
 
     def reset(self, index: "int | np.ndarray | slice | None" = None, *, alpha0: "float | np.ndarray" = 0.0,
               x0: np.ndarray | None = None) -> None:
-        """Put (some) trajectories at rest with winding alpha0 (or at states x0), t = 0."""
+        """Put (some) trajectories at rest with winding alpha0 (or at states x0), t = 0, delay lines
+        empty (before the first command the motor saw it held)."""
         sel = np.arange(self.n)[slice(None) if index is None else index]
         sel = np.atleast_1d(sel)
-        if x0 is None:
-            Y = np.zeros((len(sel), N_STATE))
-            a = np.broadcast_to(np.asarray(alpha0, dtype=float), (len(sel),))
-            Y[:, 1] = a
-        else:
-            Y = np.array(np.broadcast_to(np.asarray(x0, dtype=float), (len(sel), N_STATE)))
+        Y = _initial_states(self.composition, len(sel), x0, alpha0)
         if not self.config.lateral_free:
             Y[:, 4:8] = 0.0
         self.Y[sel] = Y
         self.T[sel] = 0.0
+        self.HEAD[sel] = -1
         self.MODE[sel, 0] = np.sign(Y[:, 2]).astype(np.int64)
         self.MODE[sel, 1] = np.sign(Y[:, 3]).astype(np.int64)
 
     def advance(self, u: "float | np.ndarray", n_steps: int = 1) -> None:
-        """Hold voltage u (V, scalar or (n,)) for n_steps integration steps."""
+        """Hold the command u (V, scalar or (n,)) for n_steps integration steps."""
         uu = np.ascontiguousarray(np.broadcast_to(np.asarray(u, dtype=np.float64), (self.n,)))
         if not np.all(np.isfinite(uu)):
             raise ValueError("voltage is NaN or inf")
-        if self.n >= LANES_MIN_BATCH and lanes_eligible(int(self.config), self.method, self._eps, self.P):
-            lanes_run(self.Y, self.MODE, uu[:, None], self.P, int(self.config), self.dt, self.T, 1,
-                      self._no_record, int(n_steps), False, self.FRIC)
+        if self._lanes and n_steps > 0:
+            self.kernels.lanes.lanes_run(self.Y, self.MODE, uu[:, None], self.P, int(self.config), self.dt, self.T, 1,
+                                         self._no_record, int(n_steps), False, self.FRIC, self.HIST, self.HEAD)
             self.T += int(n_steps) * self.dt
             return
         A, b, c = self._tab
-        advance_batch(self.Y, self.MODE, uu, self.P, int(self.config), self.dt, int(n_steps), self.T,
-                      self._eps, A, b, c, self.FRIC)
+        self.kernels.stepping.advance_batch(self.Y, self.MODE, uu, self.P, int(self.config), self.dt, int(n_steps),
+                                            self.T, self._eps, A, b, c, self.FRIC, self.HIST, self.HEAD)
 
     def kernel_args(self, u: np.ndarray, n_steps: int) -> tuple:
-        """Arguments of the compiled :func:`drillgym.integrators.advance_batch` for holding ``u``
+        """Arguments of the composition's compiled ``stepping.advance_batch`` for holding ``u``
         over ``n_steps`` (for callers that fuse it into their own compiled loop, e.g. the envs)."""
         A, b, c = self._tab
         return (self.Y, self.MODE, u, self.P, int(self.config), self.dt, int(n_steps), self.T, self._eps, A, b, c,
-                self.FRIC)
+                self.FRIC, self.HIST, self.HEAD)
 
     # convenient views -------------------------------------------------------
     @property
@@ -371,8 +414,10 @@ class BatchSimulator:
         return self.Y
 
     def __getattr__(self, name: str) -> np.ndarray:
-        if name in _STATE_INDEX and "Y" in self.__dict__:
-            return self.Y[:, _STATE_INDEX[name]]
+        if "Y" in self.__dict__ and "composition" in self.__dict__:
+            names = self.composition.full_state_names
+            if name in names:
+                return self.Y[:, names.index(name)]
         raise AttributeError(name)
 
     @property
@@ -397,6 +442,3 @@ class BatchSimulator:
     @property
     def stuck_l(self) -> np.ndarray:
         return self.MODE[:, 1] == 0
-
-
-_STATE_INDEX = {n: i for i, n in enumerate(STATE_NAMES)}

@@ -1,7 +1,8 @@
 """n episodes of the task stepped together: the machinery shared by the single env (n = 1)
 and the vector env, so both follow exactly the same code path.
 
-One control period is ONE compiled call (:func:`_period_kernel`): the core's ``advance_batch``
+One control period is ONE compiled call (:mod:`.period_kernel`, specialised for the rig's
+composition of effects): the core's ``advance_batch``
 (voltage held over the sub-steps, all rigs), then per rig the reward (:mod:`.reward`), the
 stick-slip severity and safety limits (:mod:`.task`) and, in 'full' mode, the observation
 (:mod:`.observation`).  The 'sensors' and 'motor' observations are a second compiled call
@@ -14,54 +15,15 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
-from numba import njit
-
-from ..integrators import advance_batch
-from .observation import full_obs_row, make_observation_model
+from .observation import make_observation_model
 from .options import EnvOptions
-from .reward import reward_value
 from .rig_system import ParameterRandomizer, RigSystem
-from .task import SpeedTrackingTask, StickSlipMonitor, ssi_push, unsafe_row
+from .columns import C_REF, C_REW, C_SSI, C_STEPS, C_STUCK, C_TERM, C_TFL, C_TIME, C_TRUNC, C_U, C_WL
+from .columns import INFO_COLUMNS, S_COLUMNS
+from .task import SpeedTrackingTask, StickSlipMonitor
 
 __all__ = ["EpisodeBatch", "INFO_COLUMNS", "S_COLUMNS"]
 
-#: columns of ``EpisodeBatch.S`` (per-rig episode quantities); the first ones are the info entries
-INFO_COLUMNS = ("voltage", "omega_ref", "reward", "stick_slip_severity", "omega_l", "friction_torque", "stuck", "time")
-S_COLUMNS = INFO_COLUMNS + ("steps", "terminated", "truncated")
-C_U, C_REF, C_REW, C_SSI, C_WL, C_TFL, C_STUCK, C_TIME, C_STEPS, C_TERM, C_TRUNC = range(len(S_COLUMNS))
-# layout of the task vector ``tv`` (constants of the period kernel)
-T_W, T_SPEED, T_LAT, T_LATERAL, T_STEPS, T_BLOCK, T_DT, T_FULL, T_BOUNDS = 0, 4, 5, 6, 7, 8, 9, 10, 11
-
-
-@njit(cache=True)
-def _period_kernel(Y, MODE, u, P, cfg, dt, n_sub, T, eps, A, b, c, FRIC, S, W, C, tv, OBS):
-    """One control period of every rig: the core's advance_batch, then per rig reward, SSI,
-    limits, episode length and (full mode) the observation.  S: (n, len(S_COLUMNS)); W, C: the
-    StickSlipMonitor arrays; tv: task constants (T_* layout, observation bounds at the end)."""
-    advance_batch(Y, MODE, u, P, cfg, dt, n_sub, T, eps, A, b, c, FRIC)
-    rw = tv[T_W:T_W + 4]
-    lateral = tv[T_LATERAL] > 0.0
-    block_len = int(tv[T_BLOCK])
-    full_obs = tv[T_FULL] > 0.0
-    dim = OBS.shape[1]
-    low = tv[T_BOUNDS:T_BOUNDS + dim]
-    high = tv[T_BOUNDS + dim:T_BOUNDS + 2 * dim]
-    for k in range(Y.shape[0]):
-        y = Y[k]
-        Sk = S[k]
-        stuck = MODE[k, 1] == 0
-        Sk[C_REW] = reward_value(y[3], Sk[C_REF], stuck, u[k], Sk[C_U], rw)
-        Sk[C_U] = u[k]
-        Sk[C_SSI] = ssi_push(y[3], W[k, 0], W[k, 1], W[k, 2], C[k], block_len)
-        Sk[C_WL] = y[3]
-        Sk[C_TFL] = FRIC[k, 1]
-        Sk[C_STUCK] = 1.0 if stuck else 0.0
-        Sk[C_STEPS] += 1.0
-        Sk[C_TIME] = Sk[C_STEPS] * tv[T_DT]
-        Sk[C_TERM] = 1.0 if unsafe_row(y, tv[T_SPEED], tv[T_LAT], lateral) else 0.0
-        Sk[C_TRUNC] = 1.0 if Sk[C_STEPS] >= tv[T_STEPS] else 0.0
-        if full_obs:
-            full_obs_row(y, u[k], Sk[C_REF], lateral, low, high, OBS[k])
 
 
 class EpisodeBatch:
@@ -80,8 +42,10 @@ class EpisodeBatch:
         self.options = o
         self.n = int(n)
         self.system = RigSystem(o.configuration, self.n, params=o.rig_params, dt=o.dt, n_substeps=o.n_substeps,
-                                method=o.method, friction=o.friction)
-        self.randomizer = ParameterRandomizer(o.rig_params, o.randomize, o.randomize_names)
+                                method=o.method, friction=o.friction, effects=o.effects, effect_params=o.effect_params)
+        self.randomizer = ParameterRandomizer(self.system.params_matrix[0], o.randomize, o.randomize_names,
+                                              self.system.composition)
+        self._period_kernel = self.system.composition.kernels.client("drillgym.envs.period_kernel").period_kernel
         self.task = SpeedTrackingTask(o)
         self.obs_model = make_observation_model(self.n, o)
         self.monitor = StickSlipMonitor(self.n, o.ssi_window, o.control_dt)
@@ -124,7 +88,7 @@ class EpisodeBatch:
     def step(self, skip: np.ndarray | None = None) -> None:
         """One control period for every rig at the voltages ``system.u``.  Rigs flagged in
         ``skip`` (about to be reset by the caller) draw no random numbers."""
-        _period_kernel(*self._kernel_args)
+        self._period_kernel(*self._kernel_args)
         if not self.obs_model.compiled:
             S = self.S
             self.obs_model.observe(self.system.Y, S[:, C_U], S[:, C_REF], self.obs, self.rngs, skip)

@@ -208,9 +208,8 @@ class SimulatedSensors:
     def constants(self, lateral: bool, a: float, dt: float, low: np.ndarray, high: np.ndarray) -> np.ndarray:
         """The constants of the compiled 'sensors' kernels (encoders, LVDTs, noise, filter ``a``, period
         ``dt`` (s), bounds); ``lateral``: the observation has LVDT entries."""
-        p = self.params or RigParams()
-        return ok.sensor_constants(lateral, self.cpr, a, dt, self.noise_std if self.noisy else 0.0, p.lvdt_x0,
-                                   p.lvdt_y0, p.lvdt_skew, low, high)
+        return ok.sensor_constants(lateral, self.cpr, a, dt, self.noise_std if self.noisy else 0.0, 0.0, 0.0, 0.0,
+                                   low, high)
 
     def encoders(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Quantized (theta_u, theta_l) in rad."""
@@ -220,7 +219,7 @@ class SimulatedSensors:
               skip: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """LVDT readings (X_meas, Y_meas) in m (advances the noise blocks as the kernels do)."""
         X, Yf = fixed_frame_lateral(Y)
-        xm, ym = lvdt_measure(X, Yf, self.params, 0.0)
+        xm, ym = lvdt_measure(X, Yf)
         if self.noisy:
             e = self.noise[np.arange(len(self.pos)), self.pos]
             xm += self.noise_std * e[:, 0]
@@ -274,7 +273,7 @@ class SensorObservation(ObservationModel):
     def initial(self, index, Y, omega_ref) -> np.ndarray:
         Yi = Y[index]
         tu, tl = self.sensors.encoders(Yi)
-        xm, ym = lvdt_measure(*fixed_frame_lateral(Yi), self.sensors.params) if self.lateral else (tu, tl)
+        xm, ym = lvdt_measure(*fixed_frame_lateral(Yi)) if self.lateral else (tu, tl)
         out = np.empty((len(index), self.dim), dtype=np.float32)
         zero = np.zeros(len(index))
         ok.sensors_rows(tu, tl, xm, ym, zero, omega_ref[index], self.E, self.cv, False, out)

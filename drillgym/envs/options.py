@@ -65,7 +65,9 @@ class EnvOptions:
     the identified set), ``randomize`` (domain randomisation: each parameter of ``randomize_names``
     is drawn per episode uniformly in +/- randomize x its value), ``dt`` (integration step, default
     ``min(10 ms, control_dt)``; must divide ``control_dt``), ``method`` ('rk4'/'dp5'),
-    ``friction`` ('exact' set-valued or 'smooth').
+    ``friction`` ('exact' set-valued or 'smooth'), ``effects`` (effects added to the base model:
+    names, 'path/to/file.py:NAME', Effect classes or instances, see :mod:`drillgym.effects`) and
+    ``effect_params`` (their parameter values by name); the rigs then run that compiled model.
 
     Control: ``control_dt`` (s, voltage held over it), ``normalize_action`` (action in [-1, 1]
     instead of [-5, 5] V).
@@ -89,6 +91,8 @@ class EnvOptions:
     params: Optional[RigParams] = None
     randomize: float = 0.0
     randomize_names: tuple = BASE_PARAMETERS
+    effects: Any = None
+    effect_params: Any = None
     control_dt: float = 0.01
     dt: Optional[float] = None
     method: str = "rk4"
@@ -131,7 +135,12 @@ class EnvOptions:
             raise ValueError(f"option 'friction' must be 'exact' or 'smooth', got {self.friction!r}")
         if not (isinstance(self.randomize, (int, float)) and 0.0 <= self.randomize < 1.0):
             raise ValueError(f"option 'randomize' must be a fraction in [0, 1), got {self.randomize!r}")
-        unknown = [n for n in self.randomize_names if n not in RigParams.__dataclass_fields__]
+        from ..effects.composition import compose
+
+        comp, values = compose(self.effects, self.effect_params)
+        object.__setattr__(self, "effects", comp)
+        object.__setattr__(self, "effect_params", dict(values))
+        unknown = [n for n in self.randomize_names if n not in comp.param_names]
         if unknown:
             raise ValueError(f"option 'randomize_names' has unknown parameters: {unknown}")
         object.__setattr__(self, "randomize_names", tuple(self.randomize_names))

@@ -13,27 +13,28 @@ from typing import Sequence
 
 import numpy as np
 
-from ..integrators import advance_batch
-from ..params import IDX, RigParams
+from ..effects.composition import Composition
+from ..params import RigParams
 from ..simulator import BatchSimulator
 
 __all__ = ["RigSystem", "ParameterRandomizer"]
 
 
 class ParameterRandomizer:
-    """Draws parameter vectors uniformly in ``value * (1 +/- fraction)`` for the named parameters."""
+    """Draws parameter vectors uniformly in ``value * (1 +/- fraction)`` for the named parameters
+    (base or effect parameters of the composition)."""
 
-    def __init__(self, base: RigParams, fraction: float, names: Sequence[str]) -> None:
-        self.base = base.to_vector()
+    def __init__(self, base: np.ndarray, fraction: float, names: Sequence[str], composition: Composition) -> None:
+        self.base = np.array(base, dtype=np.float64)
         self.fraction = float(fraction)
-        self.index = np.array([getattr(IDX, n) for n in names], dtype=np.int64)
+        self.index = np.array([composition.param_index(n) for n in names], dtype=np.int64)
 
     @property
     def active(self) -> bool:
         return self.fraction > 0 and self.index.size > 0
 
     def sample(self, rng: np.random.Generator) -> np.ndarray:
-        """One parameter vector (kernel layout, see ``RigParams.to_vector``)."""
+        """One parameter vector (the composition's kernel layout)."""
         p = self.base.copy()
         p[self.index] *= 1.0 + rng.uniform(-self.fraction, self.fraction, self.index.size)
         return p
@@ -48,7 +49,7 @@ class RigSystem:
         params: parameter set of every rig (default the identified set).
         dt: integration step (s).
         n_substeps: integration steps per control period (voltage held constant over them).
-        method, friction: as :class:`drillgym.BatchSimulator`.
+        method, friction, effects, effect_params: as :class:`drillgym.BatchSimulator`.
 
     State views (arrays of shape (n,), SI units): ``omega_u``, ``omega_l``, ``alpha``,
     ``theta_u``, ``theta_l``; ``Y`` is the (n, 9) state matrix (layout of
@@ -57,8 +58,12 @@ class RigSystem:
     """
 
     def __init__(self, configuration: str, n: int, *, params: RigParams | None = None, dt: float = 1e-2,
-                 n_substeps: int = 1, method: str = "rk4", friction: str = "exact") -> None:
-        self.sim = BatchSimulator(configuration, n, params=params, dt=dt, method=method, friction=friction)
+                 n_substeps: int = 1, method: str = "rk4", friction: str = "exact", effects=None,
+                 effect_params=None) -> None:
+        self.sim = BatchSimulator(configuration, n, params=params, dt=dt, method=method, friction=friction,
+                                  effects=effects, effect_params=effect_params)
+        self.composition = self.sim.composition
+        self._advance = self.sim.kernels.stepping.advance_batch
         self.n = self.sim.n
         self.n_substeps = int(n_substeps)
         self.control_dt = self.sim.dt * self.n_substeps
@@ -70,12 +75,13 @@ class RigSystem:
     def step(self) -> None:
         """Advance every rig by one control period holding the voltages ``self.u``
         (finite, already clipped to the amplifier range by the caller)."""
-        advance_batch(*self.kernel_args)
+        self._advance(*self.kernel_args)
 
     @property
     def kernel_args(self) -> tuple:
-        """Arguments of :func:`drillgym.integrators.advance_batch` for one control period
-        (persistent arrays, updated in place): Y, MODE, u, P, cfg, dt, n_substeps, T, eps, A, b, c, FRIC."""
+        """Arguments of the composition's compiled ``advance_batch`` for one control period
+        (persistent arrays, updated in place): Y, MODE, u, P, cfg, dt, n_substeps, T, eps, A, b, c, FRIC,
+        HIST, HEAD."""
         return self._args
 
     def reset(self, index: np.ndarray, alpha0: np.ndarray, params: np.ndarray | None = None) -> None:
@@ -86,9 +92,10 @@ class RigSystem:
         self.u[index] = 0.0
         # friction torques (holding torques) of the rest state: a zero-length advance on a copy
         s = self.sim
-        _, _, _, _, cfg, dt, _, _, eps, A, b, c, _ = self._args
+        _, _, _, _, cfg, dt, _, _, eps, A, b, c, _, _, _ = self._args
         Y, MODE, FRIC = s.Y[index].copy(), s.MODE[index].copy(), s.FRIC[index].copy()
-        advance_batch(Y, MODE, self.u[index], s.P[index], cfg, dt, 0, s.T[index].copy(), eps, A, b, c, FRIC)
+        self._advance(Y, MODE, self.u[index], s.P[index], cfg, dt, 0, s.T[index].copy(), eps, A, b, c, FRIC,
+                      s.HIST[index].copy(), s.HEAD[index].copy())
         s.FRIC[index] = FRIC
 
     # ------------------------------------------------------------------------ views

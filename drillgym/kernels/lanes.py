@@ -1,4 +1,4 @@
-"""Lane-parallel (SIMD) RK4 kernel: a batch of trajectories as one vectorised loop.
+"""Kernel template: lane-parallel (SIMD) RK4, a batch of trajectories as one vectorised loop.
 
 One RK4 step of B trajectories is the same arithmetic on B lanes.  This module
 lays the batch out as structure-of-arrays and writes the right-hand side
@@ -20,10 +20,11 @@ The per-step kernels are compiled without numba's reference counting (``_nrt=Fal
 only take row views of arrays allocated by :func:`lanes_run`, and the increments/decrements of
 some thirty views per call cost about a fifth of a torsional step.
 
-Used automatically by :func:`drillgym.simulate_batch` and
-:class:`drillgym.BatchSimulator` for batches of 8 or more with RK4 and exact
-friction, unless an effect with scalar-only formulas is on (see
-``lanes_eligible``).  Results agree with the scalar kernel to rounding (tested).
+The composition's effects enter through the lane variants of the hooks
+(:mod:`drillgym.kernels.hooks`); their states are extra lane rows after the mechanical ones.
+Used automatically by :func:`drillgym.simulate_batch` and :class:`drillgym.BatchSimulator`
+for batches of 8 or more with RK4 and exact friction.  Results agree with the scalar kernel
+to rounding (tested).
 """
 
 from __future__ import annotations
@@ -31,33 +32,49 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .configurations import N_STATE
-from .dynamics import FREE_VIBRATION, UPPER, S_TL, S_TU, S_VX, S_VY, S_WL, S_WU, S_X, S_Y, brake_on, lateral_free
-from .integrators import RK4_A, RK4_B, RK4_C, alloc_work, hybrid_step, initial_modes, record, resolve_modes
-from .friction import bearing_law, brake_law_simd, upper_law
-from .dynamics import full_accelerations, isotropic_lateral_forces, reduced_accelerations
-from .params import IDX
-from .vmath import vsincos
+from drillgym.dynamics import (
+    FREE_VIBRATION, UPPER, S_TL, S_TU, S_VX, S_VY, S_WL, S_WU, S_X, S_Y, brake_on, full_accelerations,
+    isotropic_lateral_forces, lateral_free, reduced_accelerations,
+)
+from drillgym.friction import bearing_law, brake_law_simd, upper_law
+from drillgym.integrators import RK4_A, RK4_B, RK4_C
+from drillgym.kernels.hooks import (
+    N_STATE, hk_bounds_l_lane, hk_bounds_u_lane, hk_rhs_lane, hk_slip_l_lane, hk_slip_u_lane,
+)
+from drillgym.kernels.model import initial_modes, record, resolve_modes
+from drillgym.kernels.stepping import alloc_work, delay_line_step, hybrid_step
+from drillgym.params import IDX
+from drillgym.vmath import vsincos
 
 # parameter rows of the structure-of-arrays parameter matrix PT (n_params, B)
 _Ju, _km, _Tcu, _dTcu, _bu, _dbu = IDX.Ju, IDX.km, IDX.Tcu, IDX.dTcu, IDX.bu, IDX.dbu
 _Jl, _kth, _Tcl, _bl = IDX.Jl, IDX.ktheta, IDX.Tcl, IDX.bl
 _Ts, _Tc, _ws, _delta, _bb = IDX.Ts, IDX.Tc, IDX.ws, IDX.delta, IDX.bb
 _mr, _mt, _k, _b, _e = IDX.mr, IDX.mt, IDX.k, IDX.b, IDX.e
-_asym_s, _asym_c, _dtheta = IDX.asym_s, IDX.asym_c, IDX.dtheta
 
 # lane state rows -> state vector indices: diagonal mass (theta_u, theta_l, omega_u, omega_l);
-# full (theta_u, theta_l, x, y, omega_u, omega_l, vx, vy): positions first, then their velocities
-ROWS_DIAG = np.array([S_TU, S_TL, S_WU, S_WL])
-ROWS_FULL = np.array([S_TU, S_TL, S_X, S_Y, S_WU, S_WL, S_VX, S_VY])
+# full (theta_u, theta_l, x, y, omega_u, omega_l, vx, vy): positions first, then their velocities;
+# then the effects' states (state indices 8 ...)
+_EFFECT_ROWS = list(range(8, N_STATE))
+ROWS_DIAG = np.array([S_TU, S_TL, S_WU, S_WL] + _EFFECT_ROWS, dtype=np.int64)
+ROWS_FULL = np.array([S_TU, S_TL, S_X, S_Y, S_WU, S_WL, S_VX, S_VY] + _EFFECT_ROWS, dtype=np.int64)
 
 
 @njit(inline="always", fastmath=True, error_model="numpy")
-def _friction_laws(wu, wl, mu, ml, Tcu, dTcu, bu, dbu, Tcl, bl, Ts, Tc, ws, delta, bb, asym_s, asym_c, brake):
-    """Slip friction torques (N m) in the directions of the modes (0 for a stuck disc): friction.py's laws."""
+def _friction_laws(k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, mu, ml, brake):
+    """Slip friction torques (N m) in the directions of the modes (0 for a stuck disc): friction.py's
+    laws, then the composition's friction effects."""
+    awu = abs(wu)
     awl = abs(wl)
-    tfl = brake_law_simd(awl, ml, Ts, Tc, ws, delta, bb, asym_s, asym_c) if brake else bearing_law(awl, ml, Tcl, bl)
-    return upper_law(abs(wu), mu, Tcu, dTcu, bu, dbu), tfl
+    if brake:
+        tfl = brake_law_simd(awl, ml, PT[_Ts, k], PT[_Tc, k], PT[_ws, k], PT[_delta, k], PT[_bb, k])
+    else:
+        tfl = bearing_law(awl, ml, PT[_Tcl, k], PT[_bl, k])
+    tfu = upper_law(awu, mu, PT[_Tcu, k], PT[_dTcu, k], PT[_bu, k], PT[_dbu, k])
+    bf = 1.0 if brake else 0.0
+    tfu = hk_slip_u_lane(tfu, mu, awu, k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, bf) if mu != 0.0 else 0.0
+    tfl = hk_slip_l_lane(tfl, ml, awl, k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, bf) if ml != 0.0 else 0.0
+    return tfu, tfl
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
@@ -71,26 +88,28 @@ def _copy_rows(src, dst):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
-def _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR):
+def _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR, TT, tc, cfg):
     """Diagonal mass ((3.19), (3.20)): K[0:2] = speeds, K[2:4] = accelerations, FR = friction
-    torques (a stuck disc: zero acceleration, friction = its holding torque).
-    Rows are taken as 1-D views first and each loop writes at most four arrays: that is what lets
+    torques (a stuck disc: zero acceleration, friction = its holding torque); the effects' state
+    derivatives in K[4:].  TT (B,) step start times, tc the stage's offset (s).
+    Rows are taken as 1-D views first and each loop writes few arrays: that is what lets
     LLVM vectorise it (more written arrays exceed its runtime alias-check budget)."""
-    thu, thl, wu_, wl_ = Y[0], Y[1], Y[2], Y[3]
+    thu_, thl_, wu_, wl_ = Y[0], Y[1], Y[2], Y[3]
     K2, K3, FR0, FR1 = K[2], K[3], FR[0], FR[1]
-    Ju, km, Jl, kth, dth = PT[_Ju], PT[_km], PT[_Jl], PT[_kth], PT[_dtheta]
-    Tcu, dTcu, bu, dbu, Tcl, bl = PT[_Tcu], PT[_dTcu], PT[_bu], PT[_dbu], PT[_Tcl], PT[_bl]
-    Ts, Tc, ws, delta, bb, asym_s, asym_c = PT[_Ts], PT[_Tc], PT[_ws], PT[_delta], PT[_bb], PT[_asym_s], PT[_asym_c]
     _copy_rows(Y[2:4], K[0:2])  # angle rates = speeds
-    for k in range(thu.shape[0]):
+    for k in range(thu_.shape[0]):
+        thu = thu_[k]
+        thl = thl_[k]
         wu = wu_[k]
         wl = wl_[k]
         mu = MU[k]
         ml = ML[k]
-        string = string_on * (kth[k] * (thl[k] - thu[k]) + dth[k] * (wl - wu))
-        tfu, tfl = _friction_laws(wu, wl, mu, ml, Tcu[k], dTcu[k], bu[k], dbu[k], Tcl[k], bl[k], Ts[k], Tc[k],
-                                  ws[k], delta[k], bb[k], asym_s[k], asym_c[k], brake)
-        a_u, a_l, fu, fl = reduced_accelerations(km[k] * U[k], string, tfu, tfl, Ju[k], Jl[k], mu != 0.0, ml != 0.0)
+        t = TT[k] + tc
+        volt, Qe_u, Qe_l, Qe_s, _, _ = hk_rhs_lane(k, t, U[k], thu, thl, wu, wl, 0.0, 0.0, 0.0, 0.0, Y, 4, PT, cfg, K)
+        string = string_on * (PT[_kth, k] * (thl - thu) + Qe_s)
+        tfu, tfl = _friction_laws(k, t, thu, thl, wu, wl, 0.0, 0.0, 0.0, 0.0, Y, 4, PT, mu, ml, brake)
+        a_u, a_l, fu, fl = reduced_accelerations(PT[_km, k] * volt + Qe_u, string, string_on * Qe_l, tfu, tfl,
+                                                 PT[_Ju, k], PT[_Jl, k], mu != 0.0, ml != 0.0)
         K2[k] = a_u
         K3[k] = a_l
         FR0[k] = fu
@@ -98,16 +117,14 @@ def _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
-def _derivative_full(Y, MU, ML, U, PT, brake, K, FR):
-    """All four coordinates, isotropic lateral constraints (dynamics.state_derivative's formulas,
-    Schur complement of the m I block, stuck discs as selects)."""
+def _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg):
+    """All four coordinates, MODEL.md's lateral constraints plus the effects' forces
+    (dynamics' formulas, Schur complement of the m I block, stuck discs as selects)."""
     thu_, thl_, x_, y_, wu_, wl_, vx_, vy_ = Y[0], Y[1], Y[2], Y[3], Y[4], Y[5], Y[6], Y[7]
     _copy_rows(Y[4:8], K[0:4])  # position rates = velocities
-    Ju, km, Jl, kth, dth = PT[_Ju], PT[_km], PT[_Jl], PT[_kth], PT[_dtheta]
-    Tcu, dTcu, bu, dbu, Tcl, bl = PT[_Tcu], PT[_dTcu], PT[_bu], PT[_dbu], PT[_Tcl], PT[_bl]
-    Ts, Tc, ws, delta, bb_, asym_s, asym_c = PT[_Ts], PT[_Tc], PT[_ws], PT[_delta], PT[_bb], PT[_asym_s], PT[_asym_c]
-    mr, mt, k_, b_, e_ = PT[_mr], PT[_mt], PT[_k], PT[_b], PT[_e]
     for k in range(thu_.shape[0]):
+        thu = thu_[k]
+        thl = thl_[k]
         x = x_[k]
         yy = y_[k]
         W = wu_[k]
@@ -116,15 +133,18 @@ def _derivative_full(Y, MU, ML, U, PT, brake, K, FR):
         vy = vy_[k]
         mu = MU[k]
         ml = ML[k]
-        alpha = thl_[k] - thu_[k]
+        t = TT[k] + tc
+        alpha = thl - thu
         s, c = vsincos(alpha)
-        string = kth[k] * alpha + dth[k] * (wl - W)
-        tfu, tfl = _friction_laws(W, wl, mu, ml, Tcu[k], dTcu[k], bu[k], dbu[k], Tcl[k], bl[k], Ts[k], Tc[k],
-                                  ws[k], delta[k], bb_[k], asym_s[k], asym_c[k], brake)
-        Qu, Qx, Qy = isotropic_lateral_forces(x, yy, vx, vy, W, k_[k], b_[k])
-        a_u, a_l, a_x, a_y, fu, fl = full_accelerations(x, yy, vx, vy, W, wl, s, c, mr[k] + mt[k], e_[k] * mr[k],
-                                                        Ju[k], Jl[k], km[k] * U[k], string, tfu, tfl, Qu, Qx, Qy,
-                                                        mu != 0.0, ml != 0.0)
+        volt, Qe_u, Qe_l, Qe_s, Qe_x, Qe_y = hk_rhs_lane(k, t, U[k], thu, thl, W, wl, x, yy, vx, vy, Y, 8, PT, cfg,
+                                                         K)
+        string = PT[_kth, k] * alpha + Qe_s
+        tfu, tfl = _friction_laws(k, t, thu, thl, W, wl, x, yy, vx, vy, Y, 8, PT, mu, ml, brake)
+        Qu, Qx, Qy = isotropic_lateral_forces(x, yy, vx, vy, W, PT[_k, k], PT[_b, k])
+        a_u, a_l, a_x, a_y, fu, fl = full_accelerations(x, yy, vx, vy, W, wl, s, c, PT[_mr, k] + PT[_mt, k],
+                                                        PT[_e, k] * PT[_mr, k], PT[_Ju, k], PT[_Jl, k],
+                                                        PT[_km, k] * volt + Qe_u, string, Qe_l, tfu, tfl, Qu,
+                                                        Qx + Qe_x, Qy + Qe_y, mu != 0.0, ml != 0.0)
         K[4, k] = a_u
         K[5, k] = a_l
         K[6, k] = a_x
@@ -134,11 +154,11 @@ def _derivative_full(Y, MU, ML, U, PT, brake, K, FR):
 
 
 @njit(inline="always")
-def _derivative(Y, MU, ML, U, PT, full, string_on, brake, K, FR):
+def _derivative(Y, MU, ML, U, PT, full, string_on, brake, K, FR, TT, tc, cfg):
     if full:
-        _derivative_full(Y, MU, ML, U, PT, brake, K, FR)
+        _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg)
     else:
-        _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR)
+        _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR, TT, tc, cfg)
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
@@ -153,28 +173,30 @@ def _axpy(X0, h, KX, out):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
-def _lanes_rk4(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibration, S0, OK, W):
+def _lanes_rk4(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibration, S0, OK, W, TT, cfg):
     """One classical RK4 step of every lane.
 
     S (n, B) lane states (rows ROWS_DIAG or ROWS_FULL), updated in place; K1 (n, B) the
     derivative at the step start, replaced by the one at the end (reused by the next step);
     FR (2, B) friction torques at the end; S0 receives the start state; OK[k] = 1 when lane k's
-    event functions (as ``integrators.event_values``) stayed positive.  W (4n, B) work space.
+    event functions (as ``model.event_values``) stayed positive.  W (4n, B) work space; TT (B,)
+    the step's start times.
     """
     n = S.shape[0]
     B = S.shape[1]
-    hv = n // 2  # first velocity row
+    nm = 8 if full else 4  # mechanical rows
+    hv = nm // 2  # first velocity row
     _copy_rows(S, S0)
     Y = W[0:n]
     K2 = W[n:2 * n]
     K3 = W[2 * n:3 * n]
     K4 = W[3 * n:4 * n]
     _axpy(S0, 0.5 * h, K1, Y)
-    _derivative(Y, MU, ML, U, PT, full, string_on, brake, K2, FR)
+    _derivative(Y, MU, ML, U, PT, full, string_on, brake, K2, FR, TT, 0.5 * h, cfg)
     _axpy(S0, 0.5 * h, K2, Y)
-    _derivative(Y, MU, ML, U, PT, full, string_on, brake, K3, FR)
+    _derivative(Y, MU, ML, U, PT, full, string_on, brake, K3, FR, TT, 0.5 * h, cfg)
     _axpy(S0, h, K3, Y)
-    _derivative(Y, MU, ML, U, PT, full, string_on, brake, K4, FR)
+    _derivative(Y, MU, ML, U, PT, full, string_on, brake, K4, FR, TT, h, cfg)
     h6 = h / 6.0
     for j in range(n):
         s = S[j]
@@ -185,19 +207,42 @@ def _lanes_rk4(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibrati
         d = K4[j]
         for k in range(B):
             s[k] = s0[k] + h6 * (a[k] + 2.0 * (b[k] + c[k]) + d[k])
-    _derivative(S, MU, ML, U, PT, full, string_on, brake, K1, FR)
-    wu_row = S[hv]
-    wl_row = S[hv + 1]
-    for k in range(B):
+    _derivative(S, MU, ML, U, PT, full, string_on, brake, K1, FR, TT, h, cfg)
+    _event_check(S, FR, MU, ML, PT, full, string_on, brake, free_vibration, OK, TT, h, nm, hv)
+
+
+@njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
+def _event_check(S, FR, MU, ML, PT, full, string_on, brake, free_vibration, OK, TT, h, nm, hv):
+    """OK[k] = 1 when lane k's event functions at the step end stayed positive (slipping discs kept
+    their direction, stuck discs' holding torques stayed in their stick sets)."""
+    bf = 1.0 if brake else 0.0
+    for k in range(S.shape[1]):
+        t = TT[k] + h
+        thu = S[0, k]
+        thl = S[1, k]
+        wu = S[hv, k]
+        wl = S[hv + 1, k]
+        x = S[2, k] if full else 0.0
+        yy = S[3, k] if full else 0.0
+        vx = S[6, k] if full else 0.0
+        vy = S[7, k] if full else 0.0
         fu = FR[0, k]
         fl = FR[1, k]
         mu = MU[k]
         ml = ML[k]
-        gu = mu * wu_row[k] if mu != 0.0 else min(PT[_Tcu, k] + PT[_dTcu, k] - fu, fu + PT[_Tcu, k] - PT[_dTcu, k])
+        if mu != 0.0:
+            gu = mu * wu
+        else:
+            lo, hi = hk_bounds_u_lane(-PT[_Tcu, k] + PT[_dTcu, k], PT[_Tcu, k] + PT[_dTcu, k], k, t, thu, thl, wu, wl,
+                                      x, yy, vx, vy, S, nm, PT, 0.0)
+            gu = min(hi - fu, fu - lo)
         gu = 1.0 if free_vibration else gu
-        hi_l = PT[_Ts, k] if brake else PT[_Tcl, k]
-        lo_l = -PT[_Ts, k] * (1.0 + PT[_asym_s, k]) if brake else -PT[_Tcl, k]
-        gl = ml * wl_row[k] if ml != 0.0 else min(hi_l - fl, fl - lo_l)
+        if ml != 0.0:
+            gl = ml * wl
+        else:
+            lim = PT[_Ts, k] if brake else PT[_Tcl, k]
+            lo, hi = hk_bounds_l_lane(-lim, lim, k, t, thu, thl, wu, wl, x, yy, vx, vy, S, nm, PT, bf)
+            gl = min(hi - fl, fl - lo)
         gl = gl if string_on > 0.0 else 1.0
         OK[k] = 1 if (gu >= 0.0 and gl >= 0.0) else 0
 
@@ -225,21 +270,11 @@ def _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode):
     ML[k] = float(mode[1])
 
 
-def lanes_eligible(cfg: int, method: str, eps: float, P: np.ndarray) -> bool:
-    """True when the lane kernel computes what the scalar kernel computes: RK4, exact friction,
-    and no motor_lag / position_friction / friction_drift (extra state, angle or time
-    dependence) nor anisotropic / dry-friction lateral constraints (scalar-only formulas)."""
-    if method.lower() != "rk4" or eps > 0.0:
-        return False
-    off = P[:, [IDX.tau_m, IDX.pf_a1, IDX.pf_a2, IDX.drift, IDX.dk, IDX.db, IDX.Fc_lat]]
-    return bool(np.all(off == 0.0))
-
-
 @njit(cache=True, nogil=True)
-def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, FRIC_OUT):
-    """Batch run on lanes: same contract as integrators.run_batch_serial (RK4, exact friction),
-    plus n_steps (U may hold one column when constant) and FRIC_OUT (B, 2) final friction.
-    OUT may have zero samples (no recording)."""
+def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, FRIC_OUT, HIST, HEAD):
+    """Batch run on lanes: same contract as stepping.run_batch_serial (RK4, exact friction),
+    plus FRIC_OUT (B, 2) final friction.  U may hold one column (constant command); OUT may have
+    zero samples (no recording)."""
     B = Y.shape[0]
     full = lateral_free(cfg)
     rows = ROWS_FULL if full else ROWS_DIAG
@@ -255,6 +290,7 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
     W = np.zeros((4 * n, B))
     Ucur = np.empty(B)
     Uprev = np.empty(B)
+    TT = np.empty(B)
     A, b, c = RK4_A, RK4_B, RK4_C
     K, ytmp, k1, ynew, fric, ftmp, g0, g1 = alloc_work(4)
     y = np.zeros(N_STATE)
@@ -269,7 +305,7 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
             y[j] = Y[k, j]
         for j in range(2):
             mode[j] = MODE[k, j]
-        u0 = U[k, 0]
+        u0 = delay_line_step(HIST[k], HEAD[k:k + 1], U[k, 0], P[k], dt)
         if init_modes:
             initial_modes(T0[k], y, u0, P[k], cfg, mode, k1, fric)
         else:
@@ -278,19 +314,22 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
         for j in range(N_STATE):
             Y[k, j] = y[j]
         if record_on:
-            record(OUT[k], 0, T0[k], u0, y, fric, mode)
+            record(OUT[k], 0, T0[k], U[k, 0], y, fric, mode)
         Uprev[k] = u0
+        Ucur[k] = u0
     for i in range(n_steps):
         col = i if n_u > 1 else 0
         for k in range(B):
-            Ucur[k] = U[k, col]
+            TT[k] = T0[k] + i * dt
+            if i > 0:
+                Ucur[k] = delay_line_step(HIST[k], HEAD[k:k + 1], U[k, col], P[k], dt)
             if Ucur[k] != Uprev[k]:  # a new input can release a stuck disc: resolve (scalar, rare)
                 y[:] = Y[k]
                 _lane_to_state(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
-                resolve_modes(T0[k] + i * dt, y, mode, Ucur[k], P[k], cfg, k1, fric)
+                resolve_modes(TT[k], y, mode, Ucur[k], P[k], cfg, k1, fric)
                 _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
                 Uprev[k] = Ucur[k]
-        _lanes_rk4(S, K1, FR, MU, ML, Ucur, PT, dt, full, string_on, brake, fv, S0, OK, W)
+        _lanes_rk4(S, K1, FR, MU, ML, Ucur, PT, dt, full, string_on, brake, fv, S0, OK, W, TT, cfg)
         for k in range(B):
             if OK[k] == 0:  # an event inside this step: redo it exactly on the scalar path
                 y[:] = Y[k]
@@ -298,14 +337,14 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
                     y[rows[j]] = S0[j, k]
                 mode[0] = np.int64(MU[k])
                 mode[1] = np.int64(ML[k])
-                t = T0[k] + i * dt
+                t = TT[k]
                 resolve_modes(t, y, mode, Ucur[k], P[k], cfg, k1, fric)
                 hybrid_step(t, y, k1, fric, mode, Ucur[k], P[k], cfg, 0.0, dt, A, b, c, K, ytmp, ynew,
                             g0, g1, ftmp)
                 _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
         if record_on and (i + 1) % rec_every == 0:
             row = (i + 1) // rec_every
-            ncol = i + 1 if i + 1 < n_u else n_u - 1
+            ncol = min(i + 1, n_steps - 1) if n_u > 1 else 0
             for k in range(B):
                 y[:] = Y[k]
                 _lane_to_state(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)

@@ -1,0 +1,438 @@
+"""Code generation: one compiled model per composition of effects, cached on disk by content.
+
+For a composition (an ordered tuple of effect classes) this module writes the hooks of
+:mod:`drillgym.kernels.hooks` as Python source in which every effect function is called with
+the arguments its names ask for, then a specialised copy of each kernel template
+(:mod:`drillgym.kernels.model`, ``stepping``, ``lanes``, and client templates such as the
+environments' period kernel) that imports the generated hooks.  numba compiles them on first
+use and caches the machine code next to the generated files (``cache=True``).
+
+The files live in ``$DRILLGYM_KERNEL_CACHE`` (default ``~/.cache/drillgym/kernels``) in a
+package named after a SHA-256 of everything the code depends on: the generated hooks, every
+drillgym source file, the effects' own source files, numba's and Python's versions.  A changed
+effect file or drillgym source gives a new package, so a cached composition is never stale.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import os
+import shutil
+import sys
+import tempfile
+from functools import lru_cache
+from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING
+
+import numba
+
+from .._kernel_cache import sources_digest
+from ..params import IDX, PARAM_NAMES
+from .base import Effect, Force, Friction, Input, Delay, Measurement
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .composition import Composition
+
+__all__ = ["cache_root", "hooks_source", "build_kernels", "CORE_TEMPLATES"]
+
+CORE_TEMPLATES = ("model", "stepping", "lanes")
+_TEMPLATE_PACKAGE = "drillgym.kernels"
+_BRAKE_CFGS = (1, 3)  # torsional, coupled
+_CFG_CODES = {"upper": 0, "torsional": 1, "lateral": 2, "coupled": 3, "free_vibration": 4}
+_JIT = 'njit(inline="always", fastmath=True, error_model="numpy")'
+
+
+def cache_root() -> Path:
+    """Directory of the generated kernel packages (``$DRILLGYM_KERNEL_CACHE`` or ~/.cache/drillgym/kernels)."""
+    env = os.environ.get("DRILLGYM_KERNEL_CACHE")
+    if env:
+        return Path(env).expanduser()
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "drillgym" / "kernels"
+
+
+# ---------------------------------------------------------------------------------------------
+# argument resolution: an effect function's argument names -> expressions in a kernel
+class _Context:
+    """Expressions for the quantities of the vocabulary in one kernel variant."""
+
+    def __init__(self, lane: bool, comp: "Composition", effect_index: int, disc: str | None = None):
+        self.lane = lane
+        self.comp = comp
+        self.i = effect_index
+        self.disc = disc
+        self.needs_fixed = False
+
+    def param(self, index: int) -> str:
+        return f"PT[{index}, k]" if self.lane else f"p[{index}]"
+
+    def state(self, j: int) -> str:
+        return f"Y[nm + {j}, k]" if self.lane else f"y[{8 + j}]"
+
+    def mech(self, name: str) -> str:
+        lane = {"theta_u": "thu", "theta_l": "thl", "omega_u": "wu", "omega_l": "wl", "x": "x", "y": "yy",
+                "vx": "vx", "vy": "vy"}
+        scalar = {"theta_u": "y[0]", "theta_l": "y[1]", "omega_u": "y[2]", "omega_l": "y[3]", "x": "y[4]",
+                  "y": "y[5]", "vx": "y[6]", "vy": "y[7]"}
+        return (lane if self.lane else scalar)[name]
+
+    def resolve(self, arg: str, chain_u: str = "u") -> str:
+        eff = self.comp.effects[self.i]
+        own = {p.name: self.comp.param_index(p.name) for p in eff.parameters}
+        states = {s.name: self.comp.state_index(s.name) for s in eff.states}
+        if arg in own:
+            return self.param(own[arg])
+        if arg in states:
+            return self.state(states[arg])
+        if arg in IDX.__dict__:
+            return self.param(getattr(IDX, arg))
+        if arg == "t":
+            return "t"
+        if arg == "u":
+            return chain_u
+        if arg in ("theta_u", "theta_l", "omega_u", "omega_l", "x", "y", "vx", "vy"):
+            return self.mech(arg)
+        if arg == "alpha":
+            return f"({self.mech('theta_l')} - {self.mech('theta_u')})"
+        if arg == "alpha_dot":
+            return f"({self.mech('omega_l')} - {self.mech('omega_u')})"
+        if arg in ("X", "Y", "VX", "VY"):
+            self.needs_fixed = True
+            return f"_{arg}"
+        if arg == "brake":
+            return "brake"
+        if self.disc is not None:
+            if arg == "T":
+                return "T"
+            if arg == "direction":
+                return "d"
+            if arg == "speed":
+                return "aw"
+            if arg == "omega":
+                return self.mech("omega_u" if self.disc == "upper" else "omega_l")
+            if arg == "theta":
+                return self.mech("theta_u" if self.disc == "upper" else "theta_l")
+            if arg in ("lo", "hi"):
+                return arg
+        raise KeyError(arg)  # validation (composition.validate_effect) reports it with the file name
+
+
+def _call(comp: "Composition", ctx: _Context, fn: str, chain_u: str = "u") -> str:
+    eff = comp.effects[ctx.i]
+    args = ", ".join(ctx.resolve(a, chain_u) for a in eff.argument_names(fn))
+    return f"_e{ctx.i}_{fn}({args})"
+
+
+def _fixed_frame_prologue(lane: bool) -> list[str]:
+    if lane:
+        return ["_st, _ct = vsincos(thu)",
+                "_X = x * _ct - yy * _st", "_Y = x * _st + yy * _ct",
+                "_VX = _ct * vx - _st * vy - _Y * wu", "_VY = _st * vx + _ct * vy + _X * wu"]
+    return ["_ct = math.cos(y[0])", "_st = math.sin(y[0])",
+            "_X = y[4] * _ct - y[5] * _st", "_Y = y[4] * _st + y[5] * _ct",
+            "_VX = _ct * y[6] - _st * y[7] - _Y * y[2]", "_VY = _st * y[6] + _ct * y[7] + _X * y[2]"]
+
+
+def _cfg_guard(eff: type[Effect]) -> str | None:
+    cfgs = [_CFG_CODES[c] for c in eff.configurations]
+    if len(cfgs) == len(_CFG_CODES):
+        return None
+    return " or ".join(f"cfg == {c}" for c in cfgs) if cfgs else "False"
+
+
+def _rhs(comp: "Composition", lane: bool) -> str:
+    """hk_rhs / hk_rhs_lane: input chain, forces, state derivatives."""
+    body: list[str] = []
+    fixed_needed = False
+    dst = (lambda j: f"K[nm + {j}, k]") if lane else (lambda j: f"dy[{8 + j}]")
+
+    def emit(lines: list[str], guard: str | None, zero_states: list[int]) -> None:
+        if guard is None:
+            body.extend(lines)
+            return
+        body.append(f"if {guard}:")
+        body.extend("    " + ln for ln in lines)
+        if lane and zero_states:
+            body.append("else:")
+            body.extend(f"    {dst(j)} = 0.0" for j in zero_states)
+
+    def state_lines(i: int, ctx: _Context, chain_u: str) -> tuple[list[str], list[int]]:
+        eff = comp.effects[i]
+        if not eff.states:
+            return [], []
+        idx = [comp.state_index(s.name) for s in eff.states]
+        call = _call(comp, ctx, "derivative", chain_u)
+        if len(idx) == 1:
+            return [f"{dst(idx[0])} = {call}"], idx
+        lines = [f"_d{i} = {call}"] + [f"{dst(j)} = _d{i}[{n}]" for n, j in enumerate(idx)]
+        return lines, idx
+
+    # 1. the input chain, in order (a Delay acts on the command before this hook)
+    for i, eff in enumerate(comp.effects):
+        if not issubclass(eff, Input):
+            continue
+        ctx = _Context(lane, comp, i)
+        lines, idx = state_lines(i, ctx, "u")
+        lines.append(f"u = {_call(comp, ctx, 'voltage', 'u')}")
+        fixed_needed |= ctx.needs_fixed
+        emit(lines, _cfg_guard(eff), idx)
+    # 2. forces and the other effects' states ('u' = the voltage at the motor)
+    for i, eff in enumerate(comp.effects):
+        if issubclass(eff, Input):
+            continue
+        ctx = _Context(lane, comp, i)
+        lines, idx = state_lines(i, ctx, "u")
+        if issubclass(eff, Force):
+            if eff.acts_on == "lateral":
+                lines += [f"_f{i} = {_call(comp, ctx, 'force')}", f"_QX += _f{i}[0]", f"_QY += _f{i}[1]"]
+            else:
+                target = {"upper": "_Qu", "lower": "_Ql", "string": "_Qs"}[eff.acts_on]
+                lines.append(f"{target} += {_call(comp, ctx, 'torque')}")
+        fixed_needed |= ctx.needs_fixed
+        if lines:
+            emit(lines, _cfg_guard(eff), idx)
+    has_lateral = any(issubclass(e, Force) and e.acts_on == "lateral" for e in comp.effects)
+    tail = []
+    if has_lateral:
+        fixed_needed = True
+        tail = ["if cfg == 2 or cfg == 3:",
+                "    _Qu += -_QX * _Y + _QY * _X",
+                "    _Qx = _QX * _ct + _QY * _st",
+                "    _Qy = -_QX * _st + _QY * _ct",
+                "else:",
+                "    _Qx = 0.0",
+                "    _Qy = 0.0"]
+    else:
+        tail = ["_Qx = 0.0", "_Qy = 0.0"]
+    pro = ["brake = 1.0 if (cfg == 1 or cfg == 3) else 0.0",
+           "_Qu = 0.0", "_Ql = 0.0", "_Qs = 0.0", "_QX = 0.0", "_QY = 0.0"]
+    if fixed_needed:
+        pro = _fixed_frame_prologue(lane) + pro
+    sig = ("hk_rhs_lane(k, t, u, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, cfg, K)" if lane
+           else "hk_rhs(t, u, y, p, cfg, dy)")
+    lines = [f"@{_JIT}", f"def {sig}:"]
+    lines += ["    " + ln for ln in pro + body + tail]
+    lines.append("    return u, _Qu, _Ql, _Qs, _Qx, _Qy")
+    return "\n".join(lines) + "\n"
+
+
+def _friction(comp: "Composition", lane: bool, disc: str, what: str) -> str:
+    """hk_slip_* / hk_bounds_* (scalar or lane) for one disc."""
+    sfx = "u" if disc == "upper" else "l"
+    mech = "k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, brake" if lane else "t, y, p, brake"
+    body: list[str] = []
+    levels: list[str] = []
+    fixed_needed = False
+    for i, eff in enumerate(comp.effects):
+        if not (issubclass(eff, Friction) and eff.disc == disc):
+            continue
+        ctx = _Context(lane, comp, i, disc)
+        fns = eff.defined_functions()
+        if what == "slip" and "slip" in fns:
+            body.append(f"T = {_call(comp, ctx, 'slip')}")
+        if what == "bounds" and "stick" in fns:
+            body.append(f"lo, hi = {_call(comp, ctx, 'stick')}")
+        if "level" in fns:
+            levels.append(_call(comp, ctx, "level"))
+        fixed_needed |= ctx.needs_fixed
+    if levels:
+        body.append("_g = " + " * ".join(levels))
+    pro = _fixed_frame_prologue(lane) if fixed_needed else []
+    if what == "slip":
+        sig = f"hk_slip_{sfx}{'_lane' if lane else ''}(T, d, aw, {mech})"
+        ret = "_g * T" if levels else "T"
+    else:
+        sig = f"hk_bounds_{sfx}{'_lane' if lane else ''}(lo, hi, {mech})"
+        ret = "_g * lo, _g * hi" if levels else "lo, hi"
+    lines = [f"@{_JIT}", f"def {sig}:"] + ["    " + ln for ln in pro + body] + [f"    return {ret}"]
+    return "\n".join(lines) + "\n"
+
+
+def _delay(comp: "Composition") -> str:
+    terms = []
+    for i, eff in enumerate(comp.effects):
+        if issubclass(eff, Delay):
+            terms.append(_call(comp, _Context(False, comp, i), "delay"))
+    return f"@{_JIT}\ndef hk_delay(p):\n    return {' + '.join(terms) if terms else '0.0'}\n"
+
+
+def _measure(comp: "Composition") -> str:
+    lines = [f"@{_JIT}", "def hk_measure(theta_u, theta_l, X, Y, p):"]
+    for i, eff in enumerate(comp.effects):
+        if not issubclass(eff, Measurement):
+            continue
+        args = []
+        own = {p.name: comp.param_index(p.name) for p in eff.parameters}
+        for a in eff.argument_names("measure"):
+            if a in own:
+                args.append(f"p[{own[a]}]")
+            elif a in IDX.__dict__:
+                args.append(f"p[{getattr(IDX, a)}]")
+            else:
+                args.append(a)  # a channel
+        call = f"_e{i}_measure({', '.join(args)})"
+        ch = ", ".join(eff.channels)
+        lines.append(f"    {ch}{',' if len(eff.channels) == 1 else ''} = {call}" if len(eff.channels) > 1
+                     else f"    {ch} = {call}")
+    lines.append("    return theta_u, theta_l, X, Y")
+    lines += ["", "", "@njit(cache=True)", "def measure_arrays(TU, TL, X, Y, p):",
+              "    n = TU.shape[0]", "    out = np.empty((4, n))", "    for i in range(n):",
+              "        a, b, c, d = hk_measure(TU[i], TL[i], X[i], Y[i], p)",
+              "        out[0, i] = a", "        out[1, i] = b", "        out[2, i] = c", "        out[3, i] = d",
+              "    return out"]
+    return "\n".join(lines) + "\n"
+
+
+def _effect_imports(comp: "Composition") -> list[str]:
+    lines = []
+    for i, eff in enumerate(comp.effects):
+        origin = getattr(eff, "__drillgym_file__", None)
+        if origin:
+            lines.append(f"_E{i} = _load_class({str(origin)!r}, {eff.__qualname__!r})")
+        else:
+            lines.append(f"from {eff.__module__} import {eff.__qualname__} as _E{i}")
+        for fn in eff.defined_functions():
+            lines.append(f"_e{i}_{fn} = {_JIT}(_function(_E{i}, {fn!r}))")
+    return lines
+
+
+def hooks_source(comp: "Composition") -> str:
+    """The generated hooks module of a composition (Python source)."""
+    parts = [
+        f'"""Generated by drillgym.effects.codegen for the composition {comp.label!r}.  Do not edit."""',
+        "",
+        "import math",
+        "",
+        "import numpy as np",
+        "from numba import njit",
+        "",
+        "from drillgym.effects.registry import effect_function as _function, load_class_from_file as _load_class",
+        "from drillgym.vmath import vsincos",
+        "",
+        *_effect_imports(comp),
+        "",
+        f"N_EFFECT_STATES = {comp.n_states}",
+        f"N_STATE = {8 + comp.n_states}",
+        f"N_OUT = {len(comp.output_names)}",
+        f"HAS_DELAY = {any(issubclass(e, Delay) for e in comp.effects)}",
+        f"HAS_LATERAL_FORCE = {any(issubclass(e, Force) and e.acts_on == 'lateral' for e in comp.effects)}",
+        f"N_PARAMS = {comp.n_params}",
+        "",
+        "",
+        _rhs(comp, False), "",
+        _rhs(comp, True), "",
+    ]
+    for disc in ("upper", "lower"):
+        for what in ("slip", "bounds"):
+            parts += [_friction(comp, False, disc, what), "", _friction(comp, True, disc, what), ""]
+    parts += [_delay(comp), "", _measure(comp)]
+    return "\n".join(parts)
+
+
+# ---------------------------------------------------------------------------------------------
+# specialised packages on disk
+@lru_cache(maxsize=1)
+def _environment_digest() -> str:
+    h = hashlib.sha256()
+    h.update(sources_digest().encode())
+    h.update(numba.__version__.encode())
+    h.update(sys.version.encode())
+    return h.hexdigest()
+
+
+def _template_source(module: str) -> str:
+    spec = importlib.util.find_spec(module)
+    if spec is None or spec.origin is None:
+        raise ImportError(f"kernel template {module} not found")
+    return Path(spec.origin).read_text(encoding="utf-8")
+
+
+def _specialise(source: str, package: str) -> str:
+    """A template's source importing the composition's package instead of drillgym.kernels."""
+    return source.replace(f"from {_TEMPLATE_PACKAGE}.", f"from {package}.")
+
+
+def package_name(comp: "Composition", hooks: str) -> str:
+    h = hashlib.sha256()
+    h.update(_environment_digest().encode())
+    h.update(hooks.encode())
+    for eff in comp.effects:
+        origin = getattr(eff, "__drillgym_file__", None)
+        if origin:
+            h.update(Path(origin).read_bytes())
+    return "_dgk_" + h.hexdigest()[:24]
+
+
+def _ensure_on_path(root: Path) -> None:
+    s = str(root)
+    if s not in sys.path:
+        sys.path.insert(0, s)
+
+
+def _write_package(root: Path, package: str, hooks: str, label: str) -> Path:
+    final = root / package
+    if final.exists():
+        return final
+    root.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{package}-", dir=root))
+    try:
+        (tmp / "__init__.py").write_text(f'"""drillgym kernels for the composition {label!r} (generated)."""\n')
+        (tmp / "hooks.py").write_text(hooks)
+        for name in CORE_TEMPLATES:
+            (tmp / f"{name}.py").write_text(_specialise(_template_source(f"{_TEMPLATE_PACKAGE}.{name}"), package))
+        try:
+            os.rename(tmp, final)
+        except OSError:  # another process wrote it first
+            shutil.rmtree(tmp, ignore_errors=True)
+    finally:
+        if tmp.exists() and final.exists() and tmp != final:
+            shutil.rmtree(tmp, ignore_errors=True)
+    return final
+
+
+def build_kernels(comp: "Composition") -> "CompiledModel":
+    """The specialised kernel modules of a composition (written once, then loaded from the cache)."""
+    hooks = hooks_source(comp)
+    package = package_name(comp, hooks)
+    root = cache_root()
+    _write_package(root, package, hooks, comp.label)
+    _ensure_on_path(root)
+    importlib.invalidate_caches()
+    return CompiledModel(package, root)
+
+
+class CompiledModel:
+    """The kernels of one composition: attributes ``model``, ``stepping``, ``lanes``, ``hooks``
+    (modules) and :meth:`client` for specialised client templates."""
+
+    def __init__(self, package: str, root: Path) -> None:
+        self.package = package
+        self.root = root
+        self.hooks = importlib.import_module(f"{package}.hooks")
+        self.model = importlib.import_module(f"{package}.model")
+        self.stepping = importlib.import_module(f"{package}.stepping")
+        self.lanes = importlib.import_module(f"{package}.lanes")
+        self._clients: dict[str, ModuleType] = {}
+
+    @property
+    def path(self) -> Path:
+        return self.root / self.package
+
+    def client(self, module: str) -> ModuleType:
+        """A specialised copy of a client template (a drillgym module whose compiled code calls the
+        kernels, e.g. ``drillgym.bifurcation.flows``): its ``drillgym.kernels.*`` imports point
+        to this composition."""
+        if module not in self._clients:
+            name = "client_" + module.replace(".", "_")
+            target = self.path / f"{name}.py"
+            if not target.exists():
+                text = _specialise(_template_source(module), self.package)
+                fd, tmp = tempfile.mkstemp(prefix=f".{name}-", suffix=".py", dir=self.path)
+                with os.fdopen(fd, "w", encoding="utf-8") as f:
+                    f.write(text)
+                os.replace(tmp, target)
+                importlib.invalidate_caches()
+            self._clients[module] = importlib.import_module(f"{self.package}.{name}")
+        return self._clients[module]

@@ -1,0 +1,269 @@
+"""A composition: the base model plus an ordered set of effects, with its parameter and state layout.
+
+>>> from drillgym.effects import compose
+>>> comp, values = compose(["motor_lag", "examples/effects/string_cubic.py:string_cubic"])
+>>> comp.param_names[-2:], comp.state_names          # ('tau_m', 'c3'), ('u_m',)
+>>> p = comp.vector(RigParams(), {"tau_m": 0.02, "c3": 1.5})   # the kernels' parameter vector
+>>> comp.kernels.stepping.run_batch_serial                      # compiled for this composition
+
+The kernels' parameter vector is the base parameters (``RigParams.to_vector`` layout) followed
+by the effects' parameters in order; the state vector is the 8 mechanical states followed by
+the effects' states; recorded outputs are the base columns followed by the effects' states.
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+import threading
+from typing import Any, Iterable, Mapping, Sequence
+
+import numpy as np
+
+from ..configurations import STATE_NAMES
+from ..integrators import OUTPUT_NAMES
+from ..params import N_PARAMS, PARAM_INFO, PARAM_NAMES, ParameterError, RigParams
+from .base import Delay, Effect, EffectError, Measurement, Parameter
+from .registry import resolve_effect
+from .validation import validate_effect
+
+__all__ = ["Composition", "compose", "EffectsLike", "BASE"]
+
+EffectsLike = "Sequence[str | type[Effect] | Effect] | Composition | None"
+
+_LOCK = threading.RLock()
+_CACHE: dict[tuple, "Composition"] = {}
+
+
+class Composition:
+    """The base model and an ordered tuple of effect classes (validated); one per distinct tuple."""
+
+    def __new__(cls, effects: Sequence[type[Effect]] = ()) -> "Composition":
+        key = tuple(effects)
+        with _LOCK:
+            if key in _CACHE:
+                return _CACHE[key]
+            self = super().__new__(cls)
+            self._init(key)
+            _CACHE[key] = self
+            return self
+
+    def _init(self, effects: tuple[type[Effect], ...]) -> None:
+        for e in effects:
+            validate_effect(e)
+        names = [e.name for e in effects]
+        dup = {n for n in names if names.count(n) > 1}
+        if dup:
+            raise EffectError(f"effect {sorted(dup)[0]!r} is given twice")
+        pnames = [p.name for e in effects for p in e.parameters]
+        clash = {n for n in pnames if pnames.count(n) > 1}
+        if clash:
+            raise EffectError(f"two effects share the parameter name {sorted(clash)[0]!r}: rename one")
+        snames = [s.name for e in effects for s in e.states]
+        if len(set(snames)) != len(snames):
+            raise EffectError("two effects share a state name: rename one")
+        self.effects = effects
+        self.names = tuple(names)
+        self.effect_param_names = tuple(pnames)
+        self.param_names = PARAM_NAMES + self.effect_param_names
+        self.n_params = len(self.param_names)
+        self._pindex = {n: i for i, n in enumerate(self.param_names)}
+        self.state_names = tuple(snames)
+        self.n_states = len(snames)
+        self._sindex = {n: j for j, n in enumerate(snames)}
+        self.full_state_names = STATE_NAMES + self.state_names
+        self.n_state = len(self.full_state_names)
+        self.output_names = OUTPUT_NAMES + self.state_names
+        self._params: dict[str, Parameter] = {p.name: p for e in effects for p in e.parameters}
+        self._owner = {p.name: e for e in effects for p in e.parameters}
+        self._kernels = None
+
+    # ------------------------------------------------------------------ description
+    @property
+    def label(self) -> str:
+        return "+".join(self.names) if self.names else "base"
+
+    def __repr__(self) -> str:
+        return f"Composition({self.label})"
+
+    def __reduce__(self):  # pickles by its effects (classes pickle by reference)
+        return (Composition, (self.effects,))
+
+    def __len__(self) -> int:
+        return len(self.effects)
+
+    def has_kind(self, kind: type[Effect]) -> bool:
+        return any(issubclass(e, kind) for e in self.effects)
+
+    @property
+    def has_delay(self) -> bool:
+        return self.has_kind(Delay)
+
+    @property
+    def has_measurement(self) -> bool:
+        return self.has_kind(Measurement)
+
+    def param_index(self, name: str) -> int:
+        try:
+            return self._pindex[name]
+        except KeyError:
+            raise ParameterError(f"unknown parameter {name!r} for the model {self.label!r}; it has: "
+                                 f"{', '.join(self.param_names)}") from None
+
+    def state_index(self, name: str) -> int:
+        """Index of an effect state among the effects' states (its state-vector index is 8 + this)."""
+        return self._sindex[name]
+
+    def parameter(self, name: str) -> Parameter:
+        """The Parameter (unit, bounds, guess, scale, doc) of an effect parameter."""
+        if name in self._params:
+            return self._params[name]
+        if name in PARAM_INFO:
+            i = PARAM_INFO[name]
+            v = getattr(RigParams(), name)
+            return Parameter(name, i["unit"], i["lo"], i["hi"], v, max(abs(v), 1e-9), i["doc"])
+        raise ParameterError(f"unknown parameter {name!r} for the model {self.label!r}")
+
+    def owner(self, name: str) -> type[Effect] | None:
+        """The effect that owns parameter ``name`` (None for a base parameter)."""
+        return self._owner.get(name)
+
+    def default_values(self) -> dict[str, float]:
+        return {n: p.value for n, p in self._params.items()}
+
+    # ------------------------------------------------------------------ parameter vectors
+    def check_values(self, values: Mapping[str, float]) -> dict[str, float]:
+        """Effect parameter values completed with defaults and checked against their bounds."""
+        unknown = set(values) - set(self._params)
+        if unknown:
+            n = sorted(unknown)[0]
+            hint = f"; the model {self.label!r} has {', '.join(self._params) or 'no effect parameters'}"
+            raise ParameterError(f"unknown effect parameter {n!r}{hint}")
+        out = self.default_values()
+        for n, v in values.items():
+            try:
+                v = float(v)
+            except (TypeError, ValueError):
+                raise ParameterError(f"effect parameter {n!r} must be a number, got {v!r}") from None
+            prm = self._params[n]
+            if not (math.isfinite(v) and prm.lo <= v <= prm.hi):
+                raise ParameterError(f"effect parameter {n!r} = {v} {prm.unit} is outside [{prm.lo}, {prm.hi}] "
+                                     f"(effect {self._owner[n].name})")
+            out[n] = v
+        return out
+
+    def vector(self, params: RigParams | None = None, values: Mapping[str, float] | None = None) -> np.ndarray:
+        """The kernels' parameter vector: base parameters, then the effects' (defaults where not given)."""
+        base = (params or RigParams()).to_vector()
+        vals = self.check_values(values or {})
+        return np.concatenate([base, np.array([vals[n] for n in self.effect_param_names], dtype=np.float64)])
+
+    def split(self, vec: np.ndarray) -> tuple[RigParams, dict[str, float]]:
+        """(RigParams, effect values) of a parameter vector."""
+        vec = np.asarray(vec, dtype=float)
+        if vec.shape != (self.n_params,):
+            raise ParameterError(f"parameter vector of {self.label!r} has {self.n_params} entries, got {vec.shape}")
+        return (RigParams.from_vector(vec[:N_PARAMS]),
+                {n: float(v) for n, v in zip(self.effect_param_names, vec[N_PARAMS:])})
+
+    def named(self, vec: np.ndarray) -> dict[str, float]:
+        """All parameters of a vector by name."""
+        return {n: float(v) for n, v in zip(self.param_names, np.asarray(vec, dtype=float))}
+
+    def matrix(self, params: Any, n: int, values: Mapping[str, float] | None = None) -> np.ndarray:
+        """(n, n_params) parameter matrix from RigParams, a list of them, or a matrix."""
+        if params is None or isinstance(params, RigParams):
+            return np.tile(self.vector(params, values), (n, 1))
+        if isinstance(params, np.ndarray) and params.dtype != object:
+            P = np.atleast_2d(np.asarray(params, dtype=np.float64))
+            if P.shape[1] == N_PARAMS and self.n_params > N_PARAMS:
+                extra = self.vector(None, values)[N_PARAMS:]
+                P = np.hstack([P, np.tile(extra, (P.shape[0], 1))])
+            if P.shape[1] != self.n_params:
+                raise ValueError(f"parameter matrix must have {self.n_params} columns ({self.label}), got {P.shape[1]}")
+            if P.shape[0] == 1:
+                P = np.repeat(P, n, axis=0)
+            if not np.all(np.isfinite(P)):
+                raise ValueError("parameter matrix contains NaN or inf")
+            return np.ascontiguousarray(P)
+        plist = list(params)
+        if len(plist) == 1:
+            plist = plist * n
+        if not all(isinstance(q, RigParams) for q in plist):
+            raise TypeError("params must be RigParams, a sequence of RigParams or a (B, n_params) array")
+        return np.stack([self.vector(q, values) for q in plist])
+
+    # ------------------------------------------------------------------ compiled model
+    @property
+    def kernels(self):
+        """The compiled kernels of this composition (generated and cached on first use)."""
+        if self._kernels is None:
+            with _LOCK:
+                if self._kernels is None:
+                    from .codegen import build_kernels
+
+                    self._kernels = build_kernels(self)
+        return self._kernels
+
+    def delay_line_length(self, P: np.ndarray, dt: float) -> int:
+        """Length of the per-trajectory delay line for parameter rows P and step dt (1 without delay)."""
+        if not self.has_delay:
+            return 1
+        hk = self.kernels.hooks.hk_delay
+        d = max((hk(row) for row in np.atleast_2d(P)), default=0.0)
+        return int(math.ceil(max(d, 0.0) / dt)) + 3
+
+    def measure(self, theta_u: np.ndarray, theta_l: np.ndarray, X: np.ndarray, Y: np.ndarray,
+                vec: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The channels as the sensors read them (the Measurement effects applied), arrays in, arrays out."""
+        arrs = [np.ascontiguousarray(np.asarray(a, dtype=np.float64).ravel()) for a in (theta_u, theta_l, X, Y)]
+        shape = np.shape(theta_u)
+        if not self.has_measurement:
+            return tuple(np.asarray(a, dtype=float).copy() for a in (theta_u, theta_l, X, Y))
+        out = self.kernels.hooks.measure_arrays(*arrs, np.asarray(vec, dtype=np.float64))
+        return tuple(out[i].reshape(shape) for i in range(4))
+
+    def describe(self) -> str:
+        if not self.effects:
+            return "base model (no effects)"
+        return "\n".join(e.describe() for e in self.effects)
+
+
+BASE = None  # set below (the empty composition)
+
+
+def _as_list(effects: Any) -> list:
+    if effects is None:
+        return []
+    if isinstance(effects, (str, Effect)) or inspect.isclass(effects):
+        return [effects]
+    return list(effects)
+
+
+def compose(effects: Any = None, values: Mapping[str, float] | None = None) -> tuple[Composition, dict[str, float]]:
+    """(Composition, effect parameter values) from effects given by name, file spec, class or instance.
+
+    Values come from instances (``MotorLag(tau_m=0.02)``), then ``values`` (by parameter name),
+    then each parameter's default.
+    """
+    if isinstance(effects, Composition):
+        return effects, effects.check_values(values or {})
+    classes: list[type[Effect]] = []
+    vals: dict[str, float] = {}
+    for spec in _as_list(effects):
+        obj = resolve_effect(spec)
+        if isinstance(obj, Effect):
+            classes.append(type(obj))
+            vals.update(obj.values)
+        else:
+            classes.append(obj)
+    comp = Composition(tuple(classes))
+    vals.update(values or {})
+    return comp, comp.check_values(vals)
+
+
+def effect_names(effects: Iterable[type[Effect]]) -> list[str]:
+    return [e.name for e in effects]
+
+
+BASE = Composition(())

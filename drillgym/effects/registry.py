@@ -1,0 +1,129 @@
+"""Finding effects: by name (the library, installed packages), by file (``path/to/file.py:NAME``).
+
+Installed packages provide effects through the entry-point group ``drillgym.effects``
+(``name = "package.module:ClassName"``).  A user file is imported by path; ``NAME`` is the
+effect's ``name`` or its class name.  Every failure is an :class:`EffectError` that names the
+file, the effect and what is wrong.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import inspect
+import sys
+from importlib import metadata
+from pathlib import Path
+from typing import Any, Callable
+
+from .base import Effect, EffectError
+from .library import LIBRARY
+
+__all__ = ["resolve_effect", "available_effects", "load_class_from_file", "effect_function", "ENTRY_POINT_GROUP"]
+
+ENTRY_POINT_GROUP = "drillgym.effects"
+_FILE_MODULES: dict[str, Any] = {}
+
+
+def effect_function(cls: type[Effect], name: str) -> Callable[..., Any]:
+    """The plain function ``name`` of an effect class (a method written without self, or a staticmethod)."""
+    f = inspect.getattr_static(cls, name)
+    if isinstance(f, (staticmethod, classmethod)):
+        f = f.__func__
+    return f
+
+
+def _import_file(path: Path) -> Any:
+    key = str(path)
+    if key in _FILE_MODULES:
+        return _FILE_MODULES[key]
+    if not path.is_file():
+        raise EffectError(f"{path}: effect file not found")
+    digest = hashlib.sha256(key.encode()).hexdigest()[:12]
+    modname = f"drillgym_user_effects.{path.stem}_{digest}"
+    spec = importlib.util.spec_from_file_location(modname, path)
+    if spec is None or spec.loader is None:
+        raise EffectError(f"{path}: cannot be imported as a Python file")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[modname] = module
+    try:
+        spec.loader.exec_module(module)
+    except Exception as exc:  # noqa: BLE001 - any import failure is reported in one line
+        sys.modules.pop(modname, None)
+        where = ""
+        tb = exc.__traceback__
+        while tb is not None:
+            if tb.tb_frame.f_code.co_filename == str(path):
+                where = f" (line {tb.tb_lineno})"
+            tb = tb.tb_next
+        raise EffectError(f"{path}: effect file does not import{where}: {type(exc).__name__}: {exc}") from None
+    _FILE_MODULES[key] = module
+    return module
+
+
+def _effects_in(module: Any) -> list[type[Effect]]:
+    return [v for v in vars(module).values()
+            if inspect.isclass(v) and issubclass(v, Effect) and v.__module__ == module.__name__ and v.kind]
+
+
+def load_class_from_file(path: str | Path, name: str) -> type[Effect]:
+    """The effect class ``name`` (effect name or class name) defined in the Python file ``path``."""
+    path = Path(path).expanduser().resolve()
+    module = _import_file(path)
+    found = [c for c in _effects_in(module) if name in (c.name, c.__name__, c.__qualname__)]
+    if not found:
+        obj = getattr(module, name, None)
+        if isinstance(obj, Effect):
+            found = [type(obj)]
+    if not found:
+        names = ", ".join(c.name or c.__name__ for c in _effects_in(module)) or "none"
+        raise EffectError(f"{path}: no effect named {name!r} in the file (it defines: {names})")
+    cls = found[0]
+    cls.__drillgym_file__ = str(path)
+    return cls
+
+
+def _entry_points() -> dict[str, metadata.EntryPoint]:
+    try:
+        eps = metadata.entry_points(group=ENTRY_POINT_GROUP)
+    except TypeError:  # pragma: no cover - Python < 3.10
+        eps = metadata.entry_points().get(ENTRY_POINT_GROUP, [])
+    return {ep.name: ep for ep in eps}
+
+
+def available_effects() -> dict[str, type[Effect]]:
+    """Every effect known by name: the library, then installed packages' entry points."""
+    out: dict[str, type[Effect]] = dict(LIBRARY)
+    for name, ep in _entry_points().items():
+        if name in out:
+            continue
+        try:
+            obj = ep.load()
+        except Exception as exc:  # noqa: BLE001
+            raise EffectError(f"entry point {ENTRY_POINT_GROUP}:{name} ({ep.value}) does not load: "
+                              f"{type(exc).__name__}: {exc}") from None
+        cls = type(obj) if isinstance(obj, Effect) else obj
+        if not (inspect.isclass(cls) and issubclass(cls, Effect)):
+            raise EffectError(f"entry point {ENTRY_POINT_GROUP}:{name} ({ep.value}) is not a drillgym Effect class")
+        out[name] = cls
+    return out
+
+
+def resolve_effect(spec: "str | type[Effect] | Effect") -> "type[Effect] | Effect":
+    """An effect class (or instance, passed through) from a spec: an Effect class or instance, a
+    name (library or entry point), or ``path/to/file.py:NAME``."""
+    if isinstance(spec, Effect) or (inspect.isclass(spec) and issubclass(spec, Effect)):
+        return spec
+    if not isinstance(spec, str) or not spec.strip():
+        raise EffectError(f"effect {spec!r}: expected a name, 'path/to/file.py:NAME' or an Effect class")
+    spec = spec.strip()
+    if ".py:" in spec or spec.endswith(".py"):
+        path, _, name = spec.rpartition(":") if ".py:" in spec else (spec, "", "")
+        if not name:
+            raise EffectError(f"{spec}: say which effect of the file to use: {spec}:NAME")
+        return load_class_from_file(path, name)
+    known = LIBRARY if spec in LIBRARY else available_effects()
+    if spec not in known:
+        raise EffectError(f"unknown effect {spec!r}; known effects: {', '.join(sorted(known))} "
+                          f"(or give a file: path/to/file.py:NAME)")
+    return known[spec]

@@ -1,0 +1,197 @@
+"""Checks an effect class before it is compiled: every problem is one line naming the file,
+the effect and what is wrong (an unknown argument or coordinate, a parameter without bounds,
+a function that fails or returns NaN at a typical state of the rig)."""
+
+from __future__ import annotations
+
+import inspect
+import math
+from typing import Any
+
+from ..params import PARAM_NAMES, RigParams
+from .base import (
+    CONFIGURATIONS, FRICTION_VOCABULARY, MEASUREMENT_CHANNELS, VOCABULARY, Delay, Effect, EffectError, Force,
+    Friction, Input, Measurement, Parameter, State, is_identifier,
+)
+
+__all__ = ["validate_effect"]
+
+_FORCE_TARGETS = ("upper", "lower", "string", "lateral")
+_DISCS = ("upper", "lower")
+
+# typical states of the rig at which every function is probed (finite results required)
+_PROBES = (
+    dict(t=0.0, u=0.0, theta_u=0.0, theta_l=0.0, omega_u=0.0, omega_l=0.0, x=0.0, y=0.0, vx=0.0, vy=0.0),
+    dict(t=12.5, u=2.5, theta_u=31.0, theta_l=31.7, omega_u=5.0, omega_l=7.5, x=1e-3, y=-5e-4, vx=2e-3, vy=1e-3),
+    dict(t=3.0, u=-1.0, theta_u=-4.0, theta_l=-4.9, omega_u=-2.0, omega_l=-0.5, x=-2e-3, y=1e-3, vx=-1e-3, vy=0.0),
+)
+
+
+def _where(cls: type[Effect]) -> str:
+    return f"{cls.source_file()}: effect {getattr(cls, 'name', '') or cls.__name__!r}"
+
+
+def _check_parameter(cls: type[Effect], prm: Any) -> None:
+    w = _where(cls)
+    if not isinstance(prm, Parameter):
+        raise EffectError(f"{w}: parameters must be drillgym.effects.Parameter(name, unit, lo, hi, guess, scale, doc), "
+                          f"got {prm!r}")
+    if not is_identifier(prm.name):
+        raise EffectError(f"{w}: parameter name {prm.name!r} is not a Python identifier")
+    if prm.name in PARAM_NAMES or prm.name in VOCABULARY or prm.name in FRICTION_VOCABULARY \
+            or prm.name in MEASUREMENT_CHANNELS:
+        raise EffectError(f"{w}: parameter name {prm.name!r} is already taken (a base parameter or an argument name)")
+    for attr in ("lo", "hi", "guess", "scale"):
+        v = getattr(prm, attr)
+        if v is None or isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise EffectError(f"{w}: parameter {prm.name!r} needs a finite {attr} (bounds, guess and scale are "
+                              f"required for fitting), got {v!r}")
+    if not prm.lo < prm.hi:
+        raise EffectError(f"{w}: parameter {prm.name!r} has bounds lo = {prm.lo} >= hi = {prm.hi}")
+    if not prm.lo <= prm.guess <= prm.hi or not prm.lo <= prm.value <= prm.hi:
+        raise EffectError(f"{w}: parameter {prm.name!r}: guess/default outside its bounds [{prm.lo}, {prm.hi}]")
+    if prm.scale <= 0:
+        raise EffectError(f"{w}: parameter {prm.name!r} needs a positive scale, got {prm.scale}")
+
+
+def _allowed_arguments(cls: type[Effect], fn: str) -> set[str]:
+    own = {p.name for p in cls.parameters} | {s.name for s in cls.states}
+    base = set(PARAM_NAMES)
+    if issubclass(cls, Measurement) and fn == "measure":
+        return own | base | set(MEASUREMENT_CHANNELS)
+    if issubclass(cls, Delay) and fn == "delay":
+        return own | base
+    allowed = own | base | set(VOCABULARY)
+    if issubclass(cls, Friction):
+        allowed |= set(FRICTION_VOCABULARY) - {"u"}
+        allowed.discard("u")
+        if fn == "slip":
+            allowed -= {"lo", "hi"}
+        elif fn == "stick":
+            allowed -= {"T", "direction", "speed"}
+        elif fn == "level":
+            allowed -= {"T", "lo", "hi", "direction", "speed"}
+    return allowed
+
+
+def _probe_values(cls: type[Effect], probe: dict[str, float], fn: str, disc: str | None) -> dict[str, float]:
+    base = RigParams().to_dict()
+    vals: dict[str, float] = dict(base)
+    vals.update({p.name: p.value for p in cls.parameters})
+    vals.update({s.name: 0.1 for s in cls.states})
+    vals.update(probe)
+    vals["alpha"] = probe["theta_l"] - probe["theta_u"]
+    vals["alpha_dot"] = probe["omega_l"] - probe["omega_u"]
+    c, s = math.cos(probe["theta_u"]), math.sin(probe["theta_u"])
+    vals["X"] = probe["x"] * c - probe["y"] * s
+    vals["Y"] = probe["x"] * s + probe["y"] * c
+    vals["VX"] = c * probe["vx"] - s * probe["vy"] - vals["Y"] * probe["omega_u"]
+    vals["VY"] = s * probe["vx"] + c * probe["vy"] + vals["X"] * probe["omega_u"]
+    vals["brake"] = 1.0
+    if disc is not None:
+        w = probe["omega_u"] if disc == "upper" else probe["omega_l"]
+        vals.update(omega=w, speed=abs(w), direction=1.0 if w >= 0 else -1.0,
+                    theta=probe["theta_u"] if disc == "upper" else probe["theta_l"],
+                    T=0.3 if w >= 0 else -0.3, lo=-0.3, hi=0.3)
+    vals["theta_u"], vals["theta_l"] = probe["theta_u"], probe["theta_l"]
+    return vals
+
+
+def _expected_outputs(cls: type[Effect], fn: str) -> int:
+    if fn == "derivative":
+        return len(cls.states)
+    if fn == "force" or fn == "stick":
+        return 2
+    if fn == "measure":
+        return len(cls.channels)
+    return 1
+
+
+def validate_effect(cls: Any) -> None:
+    """Raise EffectError (file, effect, problem) when ``cls`` cannot be compiled into the kernels."""
+    if not (inspect.isclass(cls) and issubclass(cls, Effect)) or not cls.kind:
+        raise EffectError(f"{cls!r} is not an effect: subclass drillgym.effects.Force, Friction, Input, Delay or "
+                          f"Measurement")
+    w = _where(cls)
+    if not is_identifier(cls.name):
+        raise EffectError(f"{w}: the effect needs a name that is a Python identifier (class attribute name = ...)")
+    bad_cfg = [c for c in cls.configurations if c not in CONFIGURATIONS]
+    if bad_cfg:
+        raise EffectError(f"{w}: unknown configuration(s) {', '.join(map(repr, bad_cfg))}; "
+                          f"expected some of {', '.join(CONFIGURATIONS)}")
+    for prm in cls.parameters:
+        _check_parameter(cls, prm)
+    names = [p.name for p in cls.parameters]
+    if len(set(names)) != len(names):
+        raise EffectError(f"{w}: two parameters share a name")
+    for st in cls.states:
+        if not isinstance(st, State) or not is_identifier(st.name):
+            raise EffectError(f"{w}: states must be drillgym.effects.State(name, unit, doc) with identifier names")
+        if st.name in PARAM_NAMES or st.name in VOCABULARY or st.name in names:
+            raise EffectError(f"{w}: state name {st.name!r} is already taken")
+    fns = cls.defined_functions()
+    disc = None
+    if issubclass(cls, Force):
+        if cls.acts_on not in _FORCE_TARGETS:
+            raise EffectError(f"{w}: acts_on = {cls.acts_on!r} is not a coordinate; expected one of "
+                              f"{', '.join(_FORCE_TARGETS)}")
+        need = "force" if cls.acts_on == "lateral" else "torque"
+        if need not in fns:
+            raise EffectError(f"{w}: a Force acting on {cls.acts_on!r} defines {need}(...)")
+        fns = {k: v for k, v in fns.items() if k in (need, "derivative")}
+    elif issubclass(cls, Friction):
+        if cls.disc not in _DISCS:
+            raise EffectError(f"{w}: disc = {cls.disc!r} is not a disc; expected 'upper' or 'lower'")
+        if not {"slip", "stick", "level"} & set(fns):
+            raise EffectError(f"{w}: a Friction effect defines slip(T, ...), stick(lo, hi, ...) or level(...)")
+        disc = cls.disc
+    elif issubclass(cls, (Input, Delay)):
+        need = cls.functions[0]
+        if need not in fns:
+            raise EffectError(f"{w}: an {cls.kind.capitalize()} effect defines {need}(...)")
+    elif issubclass(cls, Measurement):
+        bad = [c for c in cls.channels if c not in MEASUREMENT_CHANNELS]
+        if bad or not cls.channels:
+            raise EffectError(f"{w}: channels {cls.channels!r}: expected some of {', '.join(MEASUREMENT_CHANNELS)}")
+        if "measure" not in fns:
+            raise EffectError(f"{w}: a Measurement effect defines measure(...)")
+        if cls.states:
+            raise EffectError(f"{w}: a Measurement effect cannot have states")
+    if cls.states and "derivative" not in fns:
+        raise EffectError(f"{w}: it has states, so it defines derivative(...) returning their time derivatives")
+    for fn, f in fns.items():
+        params = inspect.signature(f).parameters
+        if params and next(iter(params)) == "self":
+            raise EffectError(f"{w}: {fn}(self, ...): write effect functions without self (they are compiled "
+                              f"as plain functions of the quantities they name)")
+        if any(p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD) for p in params.values()):
+            raise EffectError(f"{w}: {fn}(...) must name its arguments (no *args/**kwargs)")
+        allowed = _allowed_arguments(cls, fn)
+        unknown = [a for a in params if a not in allowed]
+        if unknown:
+            raise EffectError(f"{w}: {fn}() asks for unknown quantity/coordinate {unknown[0]!r}; it may use "
+                              f"its parameters, states, base parameters and: "
+                              f"{', '.join(sorted(allowed - set(PARAM_NAMES)))}")
+        _probe(cls, fn, f, list(params), disc)
+
+
+def _probe(cls: type[Effect], fn: str, f: Any, args: list[str], disc: str | None) -> None:
+    w = _where(cls)
+    n_out = _expected_outputs(cls, fn)
+    for probe in _PROBES:
+        vals = _probe_values(cls, probe, fn, disc)
+        try:
+            out = f(*[vals[a] for a in args])
+        except Exception as exc:  # noqa: BLE001
+            raise EffectError(f"{w}: {fn}() fails at a typical state ({type(exc).__name__}: {exc})") from None
+        outs = out if isinstance(out, tuple) else (out,)
+        if len(outs) != n_out:
+            raise EffectError(f"{w}: {fn}() returns {len(outs)} value(s), expected {n_out}")
+        for v in outs:
+            try:
+                fv = float(v)
+            except (TypeError, ValueError):
+                raise EffectError(f"{w}: {fn}() returns {v!r}, not a number") from None
+            if not math.isfinite(fv):
+                shown = ", ".join(f"{a}={vals[a]:g}" for a in args)
+                raise EffectError(f"{w}: {fn}() returns {fv} (not finite) at {shown}")
