@@ -1,0 +1,47 @@
+"""The options every command that runs the model shares to add effects:
+``--add-effect NAME`` / ``--add-effect path/to/file.py:NAME`` (repeatable) and
+``--effect-param NAME=VALUE`` (repeatable, values of the added effects' parameters)."""
+
+from __future__ import annotations
+
+from typing import List, Optional
+
+import typer
+
+from ..effects.composition import Composition, compose
+
+ADD_EFFECT_HELP = ("effect added to the base model: a name (see `drillgym effects`) or path/to/file.py:NAME; "
+                   "repeat for several")
+EFFECT_PARAM_HELP = "value of an added effect's parameter, NAME=VALUE (SI units); repeat for several"
+
+
+def add_effect_option() -> List[str]:
+    return typer.Option(None, "--add-effect", help=ADD_EFFECT_HELP)
+
+
+def effect_param_option() -> List[str]:
+    return typer.Option(None, "--effect-param", help=EFFECT_PARAM_HELP)
+
+
+def parse_effect_params(items: Optional[List[str]]) -> dict[str, float]:
+    """``["tau_m=0.02", "c3=1.5"]`` -> {"tau_m": 0.02, "c3": 1.5}; a one-line error names a bad item."""
+    out: dict[str, float] = {}
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            raise ValueError(f"--effect-param {item!r}: expected NAME=VALUE, e.g. tau_m=0.02")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise ValueError(f"--effect-param {item!r}: {value!r} is not a number") from None
+    return out
+
+
+def effects_from_cli(add_effect: Optional[List[str]], effect_param: Optional[List[str]]
+                     ) -> tuple[Composition, dict[str, float]]:
+    """The composition and its effect values from the command-line options (errors name the file,
+    the effect and what is wrong)."""
+    values = parse_effect_params(effect_param)
+    if values and not add_effect:
+        raise ValueError(f"--effect-param {next(iter(values))}: no effect added (use --add-effect NAME)")
+    return compose(list(add_effect or []), values)
