@@ -16,9 +16,11 @@ Two kinds of equilibria (report 4.1.1, 4.2, 4.3.1; MODEL.md):
   ``D = (k - m omega^2)^2 + b^2 omega^2``, ``r = e mr omega^2 / sqrt(D)``, and
   ``km u = Tfu + Tfl + b r^2 omega``.  Parametrising the branch by omega and
   computing u(omega) gives the whole branch (several equilibria per voltage
-  are found by root bracketing in omega).  The closed form is refined by Newton
-  on the core's own :func:`drillgym.dynamics.state_derivative` residual, so the
-  equilibria are those of the simulator, extension effects included.
+  are found by root bracketing in omega).  With effects (``effects=``, a
+  composition of :mod:`drillgym.effects`) the closed form of the base model is
+  refined by Newton on the composition's compiled ``state_derivative`` residual,
+  so the equilibria are those of the simulator, effects included; effects that
+  make the rig depend on its angle or on time (no constant equilibria) are refused.
 
 Linearisation (:func:`linearise`) is by central finite differences of the
 core's compiled ``state_derivative`` in the slip modes of the equilibrium
@@ -35,8 +37,9 @@ angles      theta_u, theta_l instead of alpha (for           theta_u, theta_l (e
             observers: the encoders measure the angles)      + r for lateral/coupled
 ==========  ==============================================  =========================
 
-Input: ``u`` (V); with the motor_lag effect on (``tau_m > 0``) the state
-``u_m`` is appended.  Units: rad, rad/s, m, m/s.  The linear model describes
+Input: ``u`` (V); the states of the composition's effects (e.g. ``u_m`` of
+motor_lag) are appended.  A transport delay (Delay effect) is not part of the
+finite-dimensional linearisation.  Units: rad, rad/s, m, m/s.  The linear model describes
 deviations from the equilibrium (for the angle variant: from the uniformly
 rotating equilibrium motion).
 
@@ -55,36 +58,80 @@ import control
 import numpy as np
 from scipy.optimize import brentq, fsolve
 
-from .configurations import N_STATE, Configuration, parse_configuration
-from .dynamics import state_derivative
-from .friction import lower_slip_torque, lower_stick_bounds, upper_slip_torque, upper_stick_bounds
+from .configurations import Configuration, parse_configuration
+from .effects.base import Force, Measurement
+from .effects.composition import Composition, compose
 from .params import ParameterError, RigParams
 
 __all__ = [
-    "Equilibrium", "StickSet", "RouthHurwitz", "equilibrium_voltage", "slip_equilibrium", "slip_equilibria",
+    "RigModel", "as_model", "Equilibrium", "StickSet", "RouthHurwitz", "equilibrium_voltage", "slip_equilibrium", "slip_equilibria",
     "stick_set", "linearise", "eigenvalues", "routh_hurwitz_torsional", "lower_damping", "supported_configuration",
     "state_names",
 ]
 
 FD_STEP = 1e-6  # relative central-difference step of the linearisation
-_NO_EQUILIBRIUM_EFFECTS = ("pf_a1", "pf_a2", "drift", "dk", "db")
 
 
-def supported_configuration(config: "str | Configuration", params: RigParams | None = None) -> Configuration:
-    """Parse ``config`` and check that constant equilibria exist (else ValueError/ParameterError)."""
+class RigModel:
+    """A rig model: base parameters, a composition of effects and the effects' values (picklable).
+
+    Every function of this module and of :mod:`drillgym.bifurcation` takes one where it takes
+    ``params``: ``RigModel(RigParams(), ["motor_lag"], {"tau_m": 0.02})``.
+    """
+
+    def __init__(self, params: RigParams | None = None, effects=None, effect_params=None) -> None:
+        self.params = params or RigParams()
+        self.comp, self.values = compose(effects, effect_params)
+        self.p = self.comp.vector(self.params, self.values)
+        self.model = self.comp.kernels.model
+        self.n_state = self.comp.n_state
+        self.dy = np.zeros(self.n_state)
+        self.fric = np.zeros(2)
+        #: the composition changes the equations (not only what the sensors read)
+        self.dynamic_effects = any(not issubclass(e, Measurement) for e in self.comp.effects)
+        self.has_forces = any(issubclass(e, Force) for e in self.comp.effects)
+
+    def __reduce__(self):
+        return (RigModel, (self.params, self.comp, self.values))
+
+    @property
+    def composition(self) -> Composition:
+        return self.comp
+
+    def f(self, y: np.ndarray, mode: np.ndarray, u: float, cfg: Configuration, t: float = 0.0) -> np.ndarray:
+        """The compiled right-hand side at (t, y) in the friction modes ``mode``."""
+        self.model.state_derivative(t, y, mode, float(u), self.p, int(cfg), 0.0, self.dy, self.fric)
+        return self.dy.copy()
+
+    def zero_state(self) -> np.ndarray:
+        return np.zeros(self.n_state)
+
+
+_Rig = RigModel
+
+
+def as_model(params: "RigParams | RigModel | None" = None, effects=None, effect_params=None) -> RigModel:
+    """A RigModel from RigParams (+ effects) or a RigModel itself."""
+    if isinstance(params, RigModel):
+        return params
+    return RigModel(params, effects, effect_params)
+
+
+_rig_of = as_model
+
+
+def supported_configuration(config: "str | Configuration", params: "RigParams | _Rig | None" = None,
+                            effects=None, effect_params=None) -> Configuration:
+    """Parse ``config`` and check that equilibria are defined for it (else ValueError)."""
     cfg = parse_configuration(config)
     if cfg is Configuration.FREE_VIBRATION:
         raise ValueError("equilibria are defined for upper, torsional, lateral and coupled, not free_vibration")
-    p = params or RigParams()
-    for name in _NO_EQUILIBRIUM_EFFECTS:
-        if getattr(p, name) != 0.0:
-            raise ParameterError(f"parameter {name}={getattr(p, name)!r}: with this effect on the rig has no "
-                                 "constant equilibria (position/time dependent or anisotropic); set it to 0")
     return cfg
 
 
 # --------------------------------------------------------------------- states
-def state_names(config: "str | Configuration", variant: str = "reduced", params: RigParams | None = None) -> list[str]:
+def state_names(config: "str | Configuration", variant: str = "reduced", params: "RigParams | _Rig | None" = None,
+                effects=None, effect_params=None) -> list[str]:
     """Names of the linearisation's states for ``config`` and ``variant`` ('reduced' or 'angles')."""
     cfg = parse_configuration(config)
     if variant not in ("reduced", "angles"):
@@ -95,27 +142,32 @@ def state_names(config: "str | Configuration", variant: str = "reduced", params:
         names = ["alpha", "omega_u", "omega_l"] if variant == "reduced" else ["theta_u", "theta_l", "omega_u", "omega_l"]
         if cfg.lateral_free:
             names += ["x", "y", "vx", "vy"]
-    if params is not None and params.tau_m > 0:
-        names.append("u_m")
+    rig = _rig_of(params, effects, effect_params) if (effects is not None or isinstance(params, _Rig)) else None
+    if rig is not None:
+        names += list(rig.comp.state_names)
     return names
 
 
-_FULL_INDEX = {"theta_u": 0, "theta_l": 1, "omega_u": 2, "omega_l": 3, "x": 4, "y": 5, "vx": 6, "vy": 7, "u_m": 8}
+_MECH_INDEX = {"theta_u": 0, "theta_l": 1, "omega_u": 2, "omega_l": 3, "x": 4, "y": 5, "vx": 6, "vy": 7}
 
 
-def _to_full(z: np.ndarray, names: Sequence[str], base: np.ndarray) -> np.ndarray:
+def _index(name: str, comp: Composition) -> int:
+    return _MECH_INDEX[name] if name in _MECH_INDEX else 8 + comp.state_index(name)
+
+
+def _to_full(z: np.ndarray, names: Sequence[str], base: np.ndarray, comp: Composition) -> np.ndarray:
     y = base.copy()
     for v, n in zip(z, names):
         if n == "alpha":
             y[0] = 0.0
             y[1] = v
         else:
-            y[_FULL_INDEX[n]] = v
+            y[_index(n, comp)] = v
     return y
 
 
-def _from_full_derivative(dy: np.ndarray, names: Sequence[str]) -> np.ndarray:
-    return np.array([dy[1] - dy[0] if n == "alpha" else dy[_FULL_INDEX[n]] for n in names])
+def _from_full_derivative(dy: np.ndarray, names: Sequence[str], comp: Composition) -> np.ndarray:
+    return np.array([dy[1] - dy[0] if n == "alpha" else dy[_index(n, comp)] for n in names])
 
 
 # ------------------------------------------------------------------ equilibria
@@ -125,7 +177,8 @@ class Equilibrium:
 
     ``alpha`` is the winding theta_l - theta_u (rad); ``x``, ``y`` the whirl
     position of the lower disc centre in the co-rotating frame (m; 0 when the
-    disc is held).  ``eigenvalues`` (1/s) are those of the reduced linearisation.
+    disc is held); ``effect_states`` the equilibrium values of the effects' states.
+    ``eigenvalues`` (1/s) are those of the reduced linearisation.
     """
 
     config: Configuration
@@ -136,6 +189,8 @@ class Equilibrium:
     y: float = 0.0
     params: RigParams = field(default_factory=RigParams, repr=False, compare=False)
     eigenvalues: np.ndarray = field(default=None, repr=False, compare=False)
+    effect_states: tuple = field(default=(), repr=False, compare=False)
+    rig: "_Rig | None" = field(default=None, repr=False, compare=False)
 
     @property
     def r(self) -> float:
@@ -149,14 +204,18 @@ class Equilibrium:
         return np.array([d, d if self.config is not Configuration.UPPER else 0], dtype=np.int64)
 
     @property
+    def model(self) -> "_Rig":
+        return self.rig if self.rig is not None else _Rig(self.params)
+
+    @property
     def state(self) -> np.ndarray:
-        """Full simulator state (theta_u = 0, theta_l = alpha), see :mod:`drillgym.configurations`."""
-        y = np.zeros(N_STATE)
+        """Full simulator state (theta_u = 0, theta_l = alpha; then the effects' states)."""
+        y = np.zeros(8 + len(self.effect_states))
         y[1] = self.alpha if self.config is not Configuration.UPPER else 0.0
         y[2] = self.omega
         y[3] = self.omega if self.config is not Configuration.UPPER else 0.0
         y[4], y[5] = self.x, self.y
-        y[8] = self.u
+        y[8:] = self.effect_states
         return y
 
     @property
@@ -183,21 +242,18 @@ class StickSet:
                 "stable": True}
 
 
-def _pvec(params: RigParams | None) -> tuple[RigParams, np.ndarray]:
-    p = params or RigParams()
-    return p, p.to_vector()
-
-
-def _slip_torques(omega: float, p: np.ndarray, cfg: Configuration) -> tuple[float, float]:
+def _slip_torques(omega: float, rig: _Rig, cfg: Configuration) -> tuple[float, float]:
     d = 1 if omega > 0 else -1
-    tfu = upper_slip_torque(omega, d, p)
-    tfl = 0.0 if cfg is Configuration.UPPER else lower_slip_torque(omega, d, 0.0, 0.0, p, cfg.brake)
+    y = rig.zero_state()
+    tfu = rig.model.upper_slip_torque(omega, d, 0.0, y, rig.p)
+    tfl = 0.0 if cfg is Configuration.UPPER else rig.model.lower_slip_torque(omega, d, 0.0, y, rig.p, cfg.brake)
     return tfu, tfl
 
 
-def _closed_form(cfg: Configuration, omega: float, params: RigParams, p: np.ndarray) -> tuple[float, float, float, float]:
-    """(u, alpha, x, y) of the slip equilibrium at speed omega, closed form (isotropic lateral constraints)."""
-    tfu, tfl = _slip_torques(omega, p, cfg)
+def _closed_form(cfg: Configuration, omega: float, rig: _Rig) -> tuple[float, float, float, float]:
+    """(u, alpha, x, y) of the base model's slip equilibrium at speed omega (isotropic lateral constraints)."""
+    params = rig.params
+    tfu, tfl = _slip_torques(omega, rig, cfg)
     if cfg is Configuration.UPPER:
         return tfu / params.km, 0.0, 0.0, 0.0
     if not cfg.lateral_free:
@@ -215,141 +271,199 @@ def _closed_form(cfg: Configuration, omega: float, params: RigParams, p: np.ndar
     return u, alpha, x, y
 
 
-class _Work:
-    """Work arrays for calling the compiled state_derivative from Python."""
+def _refine(cfg: Configuration, omega: float, guess: tuple, rig: _Rig) -> tuple[float, float, float, float, tuple]:
+    """Newton (fsolve) on the composition's residual: unknowns u, alpha (x, y when the disc moves
+    laterally) and the effects' states; residual: the accelerations and the effects' state rates."""
+    lateral = cfg.lateral_free
+    ns = rig.comp.n_states
+    mode = np.array([1 if omega > 0 else -1] * 2, dtype=np.int64)
+    if cfg is Configuration.UPPER:
+        mode[1] = 0
+    scale = np.array([1.0, 1.0] + ([1e-3, 1e-3] if lateral else []) + [1.0] * ns)
 
-    def __init__(self) -> None:
-        self.dy = np.zeros(N_STATE)
-        self.fric = np.zeros(2)
+    def state(v: np.ndarray, shift: float = 0.0) -> tuple[float, np.ndarray]:
+        z = v * scale
+        u, alpha = z[0], z[1]
+        st = rig.zero_state()
+        st[0] = shift
+        st[1] = shift + (alpha if cfg is not Configuration.UPPER else 0.0)
+        st[2] = omega
+        st[3] = omega if cfg is not Configuration.UPPER else 0.0
+        if lateral:
+            st[4], st[5] = z[2], z[3]
+        st[8:] = z[2 + 2 * lateral:]
+        return u, st
 
-    def f(self, y: np.ndarray, mode: np.ndarray, u: float, p: np.ndarray, cfg: Configuration) -> np.ndarray:
-        state_derivative(0.0, y, mode, float(u), p, int(cfg), 0.0, self.dy, self.fric)
-        return self.dy.copy()
+    def residual(v: np.ndarray, shift: float = 0.0, t: float = 0.0) -> np.ndarray:
+        u, st = state(v, shift)
+        dy = rig.f(st, mode, u, cfg, t)
+        out = [dy[2], dy[3] if cfg is not Configuration.UPPER else st[1]]
+        if lateral:
+            out += [dy[6], dy[7]]
+        out += list(dy[8:])
+        return np.array(out)
+
+    u0, a0, x0, y0 = guess
+    z0 = [u0, a0] + ([x0, y0] if lateral else []) + [u0] * ns  # effect states start at the voltage (lags)
+    sol, _, ier, msg = fsolve(residual, np.asarray(z0) / scale, full_output=True, xtol=1e-13)
+    res = residual(sol)
+    if np.max(np.abs(res)) > 1e-8:
+        raise RuntimeError(f"slip equilibrium at omega={omega} rad/s of the model {rig.comp.label!r} did not "
+                           f"converge: {msg}")
+    moved = np.max(np.abs(residual(sol, shift=1.2345, t=7.5)))
+    if moved > 1e-6:
+        raise ParameterError(f"the model {rig.comp.label!r} has no constant equilibria: its effects depend on the "
+                             f"disc angles or on time (residual {moved:.2g} after a rotation); remove those effects")
+    u, st = state(sol)
+    return float(u), float(st[1] - st[0]), float(st[4]), float(st[5]), tuple(float(v) for v in st[8:])
 
 
-def slip_equilibrium(config: "str | Configuration", omega: float, params: RigParams | None = None,
-                     *, with_eigenvalues: bool = True) -> Equilibrium:
+def slip_equilibrium(config: "str | Configuration", omega: float, params: "RigParams | _Rig | None" = None,
+                     *, with_eigenvalues: bool = True, effects=None, effect_params=None) -> Equilibrium:
     """The slip equilibrium whose discs turn at ``omega`` (rad/s, != 0), and the voltage that holds it.
 
-    Closed form; with lateral dry friction (``Fc_lat > 0``) refined by Newton
-    on the simulator's residual.
+    Closed form for the base model; with effects refined by Newton on the simulator's residual.
     """
-    params, p = _pvec(params)
-    cfg = supported_configuration(config, params)
+    rig = _rig_of(params, effects, effect_params)
+    cfg = supported_configuration(config)
     if not (np.isfinite(omega) and omega != 0.0):
         raise ValueError(f"omega must be a finite non-zero speed for a slip equilibrium, got {omega!r}")
-    u, alpha, x, y = _closed_form(cfg, float(omega), params, p)
-    if cfg.lateral_free and params.Fc_lat > 0:
-        u, alpha, x, y = _refine_whirl(cfg, float(omega), (u, alpha, x, y), p)
-    eq = Equilibrium(cfg, float(u), float(omega), float(alpha), float(x), float(y), params)
+    u, alpha, x, y = _closed_form(cfg, float(omega), rig)
+    states: tuple = ()
+    if rig.dynamic_effects:
+        u, alpha, x, y, states = _refine(cfg, float(omega), (u, alpha, x, y), rig)
+    elif rig.comp.n_states:
+        states = (float(u),) * rig.comp.n_states
+    eq = Equilibrium(cfg, float(u), float(omega), float(alpha), float(x), float(y), rig.params, None, states, rig)
     if with_eigenvalues:
-        eq = Equilibrium(cfg, eq.u, eq.omega, eq.alpha, eq.x, eq.y, params, eigenvalues(eq))
+        eq = Equilibrium(cfg, eq.u, eq.omega, eq.alpha, eq.x, eq.y, rig.params, eigenvalues(eq), states, rig)
     return eq
 
 
-def _refine_whirl(cfg: Configuration, omega: float, guess: tuple, p: np.ndarray) -> tuple:
-    work = _Work()
-    d = 1 if omega > 0 else -1
-    mode = np.array([d, d], dtype=np.int64)
-    scale = np.array([1.0, 1.0, 1e-3, 1e-3])
-
-    def residual(v: np.ndarray) -> np.ndarray:
-        u, alpha, x, y = v * scale
-        st = np.array([0.0, alpha, omega, omega, x, y, 0.0, 0.0, u])
-        dy = work.f(st, mode, u, p, cfg)
-        return np.array([dy[2], dy[3], dy[6], dy[7]])
-
-    sol, info, ier, _ = fsolve(residual, np.asarray(guess) / scale, full_output=True, xtol=1e-13)
-    if ier != 1 and np.max(np.abs(residual(sol))) > 1e-9:
-        raise RuntimeError(f"steady whirl at omega={omega} rad/s did not converge: {_}")
-    return tuple(sol * scale)
-
-
 def equilibrium_voltage(config: "str | Configuration", omega: "float | np.ndarray",
-                        params: RigParams | None = None) -> np.ndarray:
+                        params: "RigParams | _Rig | None" = None, effects=None, effect_params=None) -> np.ndarray:
     """u(omega) (V): the constant voltage that holds the slip equilibrium at speed omega (rad/s)."""
-    params, p = _pvec(params)
-    cfg = supported_configuration(config, params)
+    rig = _rig_of(params, effects, effect_params)
+    cfg = supported_configuration(config)
     w = np.atleast_1d(np.asarray(omega, dtype=float))
-    if cfg.lateral_free and params.Fc_lat > 0:
-        out = np.array([slip_equilibrium(cfg, float(v), params, with_eigenvalues=False).u for v in w])
+    if rig.dynamic_effects:
+        out = np.array([slip_equilibrium(cfg, float(v), rig, with_eigenvalues=False).u for v in w])
     else:
-        out = np.array([_closed_form(cfg, float(v), params, p)[0] for v in w])
+        out = np.array([_closed_form(cfg, float(v), rig)[0] for v in w])
     return out if np.ndim(omega) else out[0]
 
 
-def slip_equilibria(config: "str | Configuration", u: float, params: RigParams | None = None,
-                    omega_max: float = 200.0, n_grid: int = 400) -> list[Equilibrium]:
+def slip_equilibria(config: "str | Configuration", u: float, params: "RigParams | _Rig | None" = None,
+                    omega_max: float = 200.0, n_grid: int = 400, effects=None, effect_params=None
+                    ) -> list[Equilibrium]:
     """All slip equilibria at voltage ``u`` (V) with 0 < |omega| <= omega_max, sorted by speed.
 
     Roots of u(omega) = u are bracketed on a geometric grid of omega (in the
     direction of u) and located with Brent's method.
     """
-    params, _ = _pvec(params)
-    cfg = supported_configuration(config, params)
+    rig = _rig_of(params, effects, effect_params)
+    cfg = supported_configuration(config)
     if not np.isfinite(u):
         raise ValueError(f"voltage must be finite, got {u!r}")
     if u == 0.0:
         return []
     d = 1.0 if u > 0 else -1.0
     grid = d * np.geomspace(1e-7, omega_max, n_grid)
-    g = equilibrium_voltage(cfg, grid, params) - u
+    g = equilibrium_voltage(cfg, grid, rig) - u
     out = []
     for i in np.flatnonzero(np.sign(g[:-1]) * np.sign(g[1:]) <= 0):
         if g[i] == 0.0 and i > 0 and g[i - 1] == 0.0:
             continue
-        w = brentq(lambda v: equilibrium_voltage(cfg, v, params) - u, grid[i], grid[i + 1], xtol=1e-13, rtol=1e-14)
-        out.append(slip_equilibrium(cfg, w, params))
+        w = brentq(lambda v: equilibrium_voltage(cfg, v, rig) - u, grid[i], grid[i + 1], xtol=1e-13, rtol=1e-14)
+        out.append(slip_equilibrium(cfg, w, rig))
     return sorted(out, key=lambda e: abs(e.omega))
 
 
-def stick_set(config: "str | Configuration", u: float, params: RigParams | None = None) -> StickSet | None:
+def stick_set(config: "str | Configuration", u: float, params: "RigParams | _Rig | None" = None,
+              effects=None, effect_params=None) -> StickSet | None:
     """The stick equilibrium set at voltage u (V), or None when the discs cannot rest (|u| too large).
 
-    Both discs at rest: Tfu = km u + k_theta alpha must lie in the upper stick
-    set and Tfl = -k_theta alpha in the lower one (brake or bearing).
+    Both discs at rest: the holding torques (upper: km u + string torque, lower: -string torque)
+    must lie in the stick sets.  Closed form for a linear string; with Force effects the set of
+    windings is found on the composition's own holding torques (bisection of its ends).
     """
-    params, p = _pvec(params)
-    cfg = supported_configuration(config, params)
-    lo_u, hi_u = upper_stick_bounds(p)
+    rig = _rig_of(params, effects, effect_params)
+    cfg = supported_configuration(config)
+    params = rig.params
+    y0 = rig.zero_state()
+    lo_u, hi_u = rig.model.upper_stick_bounds(0.0, y0, rig.p)
     if cfg is Configuration.UPPER:
         return StickSet(float(u), 0.0, 0.0) if lo_u <= params.km * u <= hi_u else None
-    lo_l, hi_l = lower_stick_bounds(0.0, 0.0, p, cfg.brake)
+    lo_l, hi_l = rig.model.lower_stick_bounds(0.0, y0, rig.p, cfg.brake)
     kt = params.ktheta
     a_lo = max(-hi_l / kt, (lo_u - params.km * u) / kt)
     a_hi = min(-lo_l / kt, (hi_u - params.km * u) / kt)
-    return StickSet(float(u), float(a_lo), float(a_hi)) if a_lo <= a_hi else None
+    if not rig.dynamic_effects:
+        return StickSet(float(u), float(a_lo), float(a_hi)) if a_lo <= a_hi else None
+    return _stick_set_numeric(cfg, float(u), rig, (a_lo + a_hi) / 2)
+
+
+def _stick_set_numeric(cfg: Configuration, u: float, rig: _Rig, centre: float) -> StickSet | None:
+    mode = np.zeros(2, dtype=np.int64)
+    n = rig.comp.n_states
+
+    def margin(alpha: float) -> float:
+        st = rig.zero_state()
+        st[1] = alpha
+        st[8:] = u  # the effects' states at rest (a lag has settled at the voltage)
+        rig.f(st, mode, u, cfg)
+        fu, fl = rig.fric
+        lo_u, hi_u = rig.model.upper_stick_bounds(0.0, st, rig.p)
+        lo_l, hi_l = rig.model.lower_stick_bounds(0.0, st, rig.p, cfg.brake)
+        return min(hi_u - fu, fu - lo_u, hi_l - fl, fl - lo_l)
+
+    del n
+    grid = centre + np.linspace(-40.0, 40.0, 8001)
+    m = np.array([margin(a) for a in grid])
+    ok = m >= 0
+    if not ok.any():
+        return None
+    k = int(np.argmax(m))
+    i0, i1 = k, k
+    while i0 > 0 and ok[i0 - 1]:
+        i0 -= 1
+    while i1 < len(grid) - 1 and ok[i1 + 1]:
+        i1 += 1
+    lo = brentq(margin, grid[i0 - 1], grid[i0], xtol=1e-12) if i0 > 0 else grid[0]
+    hi = brentq(margin, grid[i1], grid[i1 + 1], xtol=1e-12) if i1 < len(grid) - 1 else grid[-1]
+    return StickSet(u, float(lo), float(hi))
 
 
 # -------------------------------------------------------------- linearisation
 def linearise(eq: Equilibrium, variant: str = "reduced", rel_step: float = FD_STEP) -> control.StateSpace:
     """Linearisation about a slip equilibrium as a ``control.StateSpace`` (see the module doc for states).
 
-    Central finite differences of the core's ``state_derivative`` in the
+    Central finite differences of the composition's ``state_derivative`` in the
     equilibrium's slip modes, step ``rel_step`` relative to each state's scale.
     """
     cfg = eq.config
-    params, p = _pvec(eq.params)
-    names = state_names(cfg, variant, params)
+    rig = eq.model
+    comp = rig.comp
+    names = state_names(cfg, variant, rig)
     base = eq.state
-    z0 = np.array([eq.alpha if n == "alpha" else base[_FULL_INDEX[n]] for n in names])
+    z0 = np.array([eq.alpha if n == "alpha" else base[_index(n, comp)] for n in names])
     scale = np.array([1e-3 if n in ("x", "y", "vx", "vy") else 1.0 for n in names])
-    work = _Work()
     mode = eq.modes
     n = len(names)
     A = np.zeros((n, n))
+
+    def f(y: np.ndarray, u: float) -> np.ndarray:
+        return _from_full_derivative(rig.f(y, mode, u, cfg), names, comp)
+
     for j in range(n):
         h = rel_step * scale[j]
         zp, zm = z0.copy(), z0.copy()
         zp[j] += h
         zm[j] -= h
-        fp = _from_full_derivative(work.f(_to_full(zp, names, base), mode, eq.u, p, cfg), names)
-        fm = _from_full_derivative(work.f(_to_full(zm, names, base), mode, eq.u, p, cfg), names)
-        A[:, j] = (fp - fm) / (2 * h)
+        A[:, j] = (f(_to_full(zp, names, base, comp), eq.u) - f(_to_full(zm, names, base, comp), eq.u)) / (2 * h)
     hu = rel_step
-    yb = _to_full(z0, names, base)
-    Bm = ((_from_full_derivative(work.f(yb, mode, eq.u + hu, p, cfg), names)
-           - _from_full_derivative(work.f(yb, mode, eq.u - hu, p, cfg), names)) / (2 * hu))[:, None]
+    yb = _to_full(z0, names, base, comp)
+    Bm = ((f(yb, eq.u + hu) - f(yb, eq.u - hu)) / (2 * hu))[:, None]
     if variant == "reduced":
         outs = list(names)
         C = np.eye(n)
@@ -373,18 +487,21 @@ def eigenvalues(eq: Equilibrium) -> np.ndarray:
     return lam[np.argsort(-lam.real)]
 
 
-# ------------------------------------------------------------- Routh-Hurwitz
-def lower_damping(omega: "float | np.ndarray", params: RigParams | None = None, brake: bool = True) -> np.ndarray:
+def lower_damping(omega: "float | np.ndarray", params: "RigParams | _Rig | None" = None, brake: bool = True,
+                  effects=None, effect_params=None) -> np.ndarray:
     """Linearised lower friction damping dl = dTfl/domega (N m s/rad) at omega != 0 (central differences)."""
-    _, p = _pvec(params)
+    rig = _rig_of(params, effects, effect_params)
+    y = rig.zero_state()
+    slip = rig.model.lower_slip_torque
     w = np.atleast_1d(np.asarray(omega, dtype=float))
     h = 1e-6 * np.maximum(np.abs(w), 1e-3)
     d = np.sign(w).astype(int)
-    out = np.array([(lower_slip_torque(v + hv, dv, 0.0, 0.0, p, brake) - lower_slip_torque(v - hv, dv, 0.0, 0.0, p, brake))
-                    / (2 * hv) for v, hv, dv in zip(w, h, d)])
+    out = np.array([(slip(v + hv, dv, 0.0, y, rig.p, brake) - slip(v - hv, dv, 0.0, y, rig.p, brake)) / (2 * hv)
+                    for v, hv, dv in zip(w, h, d)])
     return out if np.ndim(omega) else out[0]
 
 
+# ------------------------------------------------------------- Routh-Hurwitz
 @dataclass(frozen=True)
 class RouthHurwitz:
     """Routh-Hurwitz analysis of the torsional slip equilibria (omega > 0).

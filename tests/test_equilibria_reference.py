@@ -6,7 +6,7 @@ import pytest
 from scipy.optimize import minimize_scalar
 
 from drillgym import RigParams
-from drillgym.dynamics import state_derivative
+from drillgym.effects import BASE
 from drillgym.equilibria import (linearise, lower_damping, routh_hurwitz_torsional, slip_equilibria,
                                  slip_equilibrium, stick_set)
 from drillgym.errors import ParameterError
@@ -66,8 +66,9 @@ def test_stability_changes_at_hopf_points():
 @pytest.mark.parametrize("config", ["torsional", "coupled", "lateral"])
 def test_equilibrium_is_a_rest_point_of_the_simulator(config):
     eq = slip_equilibria(config, 2.5)[0]
-    dy, fric = np.zeros(9), np.zeros(2)
-    state_derivative(0.0, eq.state, eq.modes, 2.5, RigParams().to_vector(), int(eq.config), 0.0, dy, fric)
+    dy, fric = np.zeros(8), np.zeros(2)
+    BASE.kernels.model.state_derivative(0.0, eq.state, eq.modes, 2.5, RigParams().to_vector(), int(eq.config), 0.0,
+                                        dy, fric)
     assert np.allclose(dy[[2, 3, 6, 7]], 0.0, atol=1e-10)
     assert np.isclose(dy[0], eq.omega) and np.isclose(dy[1], eq.omega)
 
@@ -103,3 +104,25 @@ def test_bad_input_is_refused():
         slip_equilibria("free_vibration", 1.0)
     with pytest.raises(ParameterError, match="pf_a1"):
         slip_equilibria("torsional", 1.0, RigParams().replace(pf_a1=0.1))
+
+
+@pytest.mark.parametrize("config", ["torsional", "coupled"])
+def test_equilibria_with_effects_are_rest_points_of_that_model(config):
+    """A lag, string damping and a cubic string (user file) move the equilibrium; it is a rest point
+    of the composition's own right-hand side, the lag's state sits at the voltage."""
+    effects = ["motor_lag", "string_damping", "examples/effects/string_cubic.py:string_cubic"]
+    vals = {"tau_m": 0.04, "dtheta": 0.02, "c3": 0.01}
+    eq = slip_equilibria(config, 2.5, effects=effects, effect_params=vals)[0]
+    base = slip_equilibria(config, 2.5)[0]
+    rig = eq.model
+    assert abs(eq.alpha - base.alpha) > 1e-3  # the cubic string winds less
+    dy = rig.f(eq.state, eq.modes, 2.5, eq.config)
+    assert np.allclose(dy[[2, 3, 6, 7, 8]], 0.0, atol=1e-9)
+    assert eq.effect_states == pytest.approx((2.5,))
+    sys = linearise(eq)
+    assert "u_m" in sys.state_labels
+
+
+def test_effects_without_constant_equilibria_are_refused():
+    with pytest.raises(ParameterError, match="no constant equilibria"):
+        slip_equilibria("torsional", 2.0, effects=["position_friction"], effect_params={"pf_c1": 0.2})

@@ -13,8 +13,8 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..configurations import Configuration
-from ..equilibria import slip_equilibrium, supported_configuration
-from ..params import ParameterError, RigParams
+from ..equilibria import RigModel, as_model, slip_equilibrium, supported_configuration
+from ..params import RigParams
 from .continuation import Fold, PeriodicBranch, continue_branch, start_at_hopf
 from .equilibrium_branch import EquilibriumBranch, HopfPoint, equilibrium_branch
 from .measured import REPORT_POINTS
@@ -61,18 +61,20 @@ class BifurcationDiagram:
         return path
 
 
-def _hopf_start(smap: SectionMap, h: HopfPoint, params: RigParams, amplitude: float):
+def _hopf_start(smap: SectionMap, h: HopfPoint, params: RigModel, amplitude: float):
     eq = slip_equilibrium(smap.config, h.omega, params)
     from ..equilibria import linearise
 
     lam, V = np.linalg.eig(linearise(eq).A)
     i = int(np.argmin(np.abs(lam - 1j * h.frequency)))
-    z_eq = np.array([eq.alpha, eq.omega, eq.omega, eq.x, eq.y, 0.0, 0.0][:smap.dim + 1])
-    z_eq = np.delete(z_eq, 2) / smap.scale  # drop omega_l (row 2 of the reduced states)
+    st = eq.state
+    values = {"alpha": eq.alpha, "omega_u": eq.omega, "x": eq.x, "y": eq.y, "vx": 0.0, "vy": 0.0}
+    values.update({n: st[8 + j] for j, n in enumerate(eq.model.comp.state_names)})
+    z_eq = np.array([values[c] for c in smap.coords]) / smap.scale  # the reduced states without omega_l
     return start_at_hopf(smap, h.u, z_eq, V[:, i], 2, amplitude=amplitude)
 
 
-def periodic_branches(branch: EquilibriumBranch, params: RigParams | None = None, *, umin: float = 0.0,
+def periodic_branches(branch: EquilibriumBranch, params: "RigParams | RigModel | None" = None, *, umin: float = 0.0,
                       umax: float = 5.0, dt: float = 1e-3, ds: float = 0.02, ds_max: float = 0.2,
                       amplitude: float = 0.01, max_points: int = 300,
                       progress: Callable[[object], None] | None = None) -> tuple[list[PeriodicBranch], list[Fold]]:
@@ -82,10 +84,8 @@ def periodic_branches(branch: EquilibriumBranch, params: RigParams | None = None
     window, shrinks back to a Hopf point, or stops at a grazing corner: a
     discontinuous fold, where a stick-slip cycle meets an unstable slip cycle.
     """
-    params = params or RigParams()
-    if params.tau_m > 0:
-        raise ParameterError("tau_m: periodic continuation does not support the motor_lag effect; set tau_m = 0")
-    smap = SectionMap(branch.config, params.to_vector(), branch.section_speed, dt=dt)
+    params = as_model(params if params is not None else branch.params)
+    smap = SectionMap(branch.config, params.p, branch.section_speed, dt=dt, composition=params.comp)
     out, folds = [], []
     for h in branch.hopf:
         if not umin <= h.u <= umax:
@@ -126,7 +126,7 @@ def _merge_folds(folds: list[Fold], tol: float = 0.01) -> list[Fold]:
     return merged
 
 
-def compute_diagram(config: str, params: RigParams | None = None, *, umin: float = 0.0, umax: float = 5.0,
+def compute_diagram(config: str, params: "RigParams | RigModel | None" = None, *, umin: float = 0.0, umax: float = 5.0,
                     periodic: bool = True, sweep_step: float | None = 0.05, sweep_duration: float = 120.0,
                     staircase: bool = True, sweep_umax: float | None = None, dt: float = 1e-3, sweep_dt: float | None = None, ds_max: float = 0.2,
                     executor: Executor | None = None, measured: Sequence[dict] = (),
@@ -137,8 +137,8 @@ def compute_diagram(config: str, params: RigParams | None = None, *, umin: float
     quasi-static sweeps up and down.  ``progress`` receives short status messages; ``step`` counts work
     for progress bars: ``("cycle", 1)`` per continuation point, ``("sweep_total", n)`` once before the
     sweeps (n simulated voltages in all), ``("sweep", k)`` as k of them complete."""
-    params = params or RigParams()
-    cfg = supported_configuration(config, params)
+    params = as_model(params)
+    cfg = supported_configuration(config)
     if not (np.isfinite(umin) and np.isfinite(umax) and 0 <= umin < umax):
         raise ValueError(f"need 0 <= umin < umax, got umin={umin}, umax={umax}")
     say = progress or (lambda msg: None)

@@ -17,6 +17,7 @@ from scipy.optimize import brentq
 
 from ..configurations import Configuration
 from ..equilibria import eigenvalues, equilibrium_voltage, slip_equilibrium, stick_set, supported_configuration
+from ..equilibria import RigModel, as_model
 from ..params import RigParams
 
 
@@ -46,7 +47,7 @@ class EquilibriumBranch:
     max_real: np.ndarray
     u_stick: float
     hopf: list[HopfPoint] = field(default_factory=list)
-    params: RigParams | None = None
+    params: "RigModel | RigParams | None" = None
     _section_cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -94,11 +95,12 @@ def _max_real(cfg: Configuration, w: float, params: RigParams) -> float:
     return float(np.max(eigenvalues(slip_equilibrium(cfg, w, params, with_eigenvalues=False)).real))
 
 
-def equilibrium_branch(config: "str | Configuration", params: RigParams | None = None, umax: float = 5.0,
-                       n: int = 300, omega_min: float = 1e-4) -> EquilibriumBranch:
-    """The slip equilibrium branch for 0 < u <= umax (V) and its Hopf points."""
-    params = params or RigParams()
-    cfg = supported_configuration(config, params)
+def equilibrium_branch(config: "str | Configuration", params: "RigParams | RigModel | None" = None,
+                       umax: float = 5.0, n: int = 300, omega_min: float = 1e-4) -> EquilibriumBranch:
+    """The slip equilibrium branch for 0 < u <= umax (V) and its Hopf points (``params``: RigParams or a
+    RigModel with effects)."""
+    params = as_model(params)
+    cfg = supported_configuration(config)
     if not (np.isfinite(umax) and umax > 0):
         raise ValueError(f"umax must be a positive voltage, got {umax!r}")
     w_hi = 1.0
@@ -121,7 +123,8 @@ def equilibrium_branch(config: "str | Configuration", params: RigParams | None =
         freq = float(np.max(np.abs(e.eigenvalues[np.argsort(-e.eigenvalues.real)[:2]].imag)))
         hopf.append(HopfPoint(e.u, wc, freq, "loses" if mr[i] < 0 else "gains"))
     ss = stick_set(cfg, 0.0, params)
-    u_stick = params.stick_voltage if cfg.brake else (params.Tcu + params.dTcu + params.Tcl) / params.km
+    base = params.params
+    u_stick = base.stick_voltage if cfg.brake else (base.Tcu + base.dTcu + base.Tcl) / base.km
     if ss is None:
         u_stick = 0.0
     return EquilibriumBranch(cfg, w, np.array([e.u for e in eqs]), np.array([e.alpha for e in eqs]),

@@ -25,6 +25,7 @@ from typing import Callable
 import numpy as np
 
 from ..equilibria import slip_equilibria
+from ..equilibria import RigModel, as_model
 from ..params import RigParams
 from ..simulator import simulate_batch
 from .steady_state import STAT_NAMES, steady_state_stats
@@ -54,18 +55,21 @@ class SweepResult:
 
 
 def _run_constant(config: str, u: np.ndarray, x0: np.ndarray | None, duration: float, window: float, dt: float,
-                  params: dict) -> np.ndarray:
+                  params: RigModel) -> np.ndarray:
     uin = u if len(u) > 1 else float(u[0])
-    batch = simulate_batch(config, uin, duration, dt=dt, params=RigParams.from_dict(params), x0=x0,
+    batch = simulate_batch(config, uin, duration, dt=dt, params=params.params, effects=params.comp,
+                           effect_params=params.values, x0=x0,
                            n_batch=len(u), record_every=RECORD_EVERY)
     n_win = int(round(window / (dt * RECORD_EVERY)))
     return np.stack([steady_state_stats(batch[k], n_win) for k in range(len(u))])
 
 
-def _run_staircase(config: str, levels: np.ndarray, dwell: float, window: float, dt: float, params: dict) -> np.ndarray:
+def _run_staircase(config: str, levels: np.ndarray, dwell: float, window: float, dt: float,
+                   params: RigModel) -> np.ndarray:
     n_level = int(round(dwell / dt))
     U = np.repeat(levels, n_level)
-    traj = simulate_batch(config, U, len(U) * dt, dt=dt, params=RigParams.from_dict(params), n_batch=1,
+    traj = simulate_batch(config, U, len(U) * dt, dt=dt, params=params.params, effects=params.comp,
+                          effect_params=params.values, n_batch=1,
                           record_every=RECORD_EVERY)[0]
     n_win = int(round(window / (dt * RECORD_EVERY)))
     n_rec = n_level // RECORD_EVERY
@@ -93,11 +97,11 @@ def sweep_constant(config: str, voltages, *, start: str = "rest", duration: floa
     """Simulate each voltage for ``duration`` s from ``start`` ('rest' or 'equilibrium'); stats over the
     last ``window`` s.  ``progress`` receives the number of voltages of each chunk as it completes."""
     u = _check(voltages, duration, window)
-    params = params or RigParams()
+    params = as_model(params)
     if start == "rest":
         x0 = None
     elif start == "equilibrium":
-        x0 = np.zeros((len(u), 9))
+        x0 = np.zeros((len(u), params.comp.n_state))
         for k, v in enumerate(u):
             eqs = slip_equilibria(config, v, params) if v != 0 else []
             if eqs:
@@ -110,7 +114,7 @@ def sweep_constant(config: str, voltages, *, start: str = "rest", duration: floa
     parts = np.array_split(np.arange(len(u)), n_chunks)
     try:
         futs = [ex.submit(_run_constant, str(config), u[idx], None if x0 is None else x0[idx], duration, window, dt,
-                          params.to_dict()) for idx in parts if len(idx)]
+                          params) for idx in parts if len(idx)]
         sizes = {f: len(idx) for f, idx in zip(futs, [i for i in parts if len(i)])}
         for f in as_completed(futs):
             f.result()  # raise a worker's error here
@@ -129,11 +133,11 @@ def sweep_staircase(config: str, voltages, *, dwell: float = 40.0, window: float
     """The quasi-static lab sweep up through ``voltages`` and back down (two runs in parallel);
     ``progress`` receives the number of levels of each run as it completes."""
     u = np.sort(_check(voltages, dwell, window))
-    params = params or RigParams()
+    params = as_model(params)
     ex, own = _executor(executor)
     try:
-        up = ex.submit(_run_staircase, str(config), u, dwell, window, dt, params.to_dict())
-        down = ex.submit(_run_staircase, str(config), u[::-1].copy(), dwell, window, dt, params.to_dict())
+        up = ex.submit(_run_staircase, str(config), u, dwell, window, dt, params)
+        down = ex.submit(_run_staircase, str(config), u[::-1].copy(), dwell, window, dt, params)
         for f in as_completed([up, down]):
             f.result()
             if progress is not None:

@@ -7,6 +7,7 @@ that exists.
 
 MODULES = (
     "drillgym.commands.simulate",
+    "drillgym.commands.effects",
     "drillgym.commands.bifurcation",
     "drillgym.commands.identification",
     "drillgym.commands.evaluate",

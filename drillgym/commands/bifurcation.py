@@ -7,6 +7,8 @@ from typing import List, Optional
 
 import typer
 
+from .effect_options import add_effect_option, effect_param_option, effects_from_cli
+
 
 def register(app: typer.Typer) -> None:
     @app.command("bifurcation")
@@ -22,6 +24,8 @@ def register(app: typer.Typer) -> None:
         no_report: bool = typer.Option(False, "--no-report", help="leave out the report's measured points"),
         ds_max: float = typer.Option(0.2, "--ds-max", help="largest continuation step (arclength); 1.0 follows "
                                                            "the whole lateral whirl branch (slower)"),
+        add_effect: List[str] = add_effect_option(),
+        effect_param: List[str] = effect_param_option(),
     ) -> None:
         """Equilibria, Hopf points, periodic branches (shooting + continuation), folds, sweeps; figures + JSON."""
         from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
@@ -37,7 +41,10 @@ def register(app: typer.Typer) -> None:
         if cfg.label not in ("torsional", "lateral", "coupled"):
             raise ValueError(f"--config must be torsional, lateral or coupled, got {config!r}")
         hi = umax if umax is not None else (50.0 if cfg.label == "lateral" else 5.0)
-        p = RigParams.from_file(params) if params else RigParams()
+        from ..equilibria import RigModel
+
+        comp, values = effects_from_cli(add_effect, effect_param)
+        p = RigModel(RigParams.from_file(params) if params else RigParams(), comp, values)
         meas = measured_diagram(measured, cfg.label) if measured else []
         lateral = cfg.label == "lateral"
         # one bar per kind of work: continuation points (open-ended: a branch stops at a fold, a Hopf

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
+from typing import List, Optional
 
 import typer
 
 from ..configurations import Configuration
+from .effect_options import add_effect_option, effect_param_option, effects_from_cli
 
 
 def _load_input(path: Path):
@@ -63,6 +64,8 @@ def register(app: typer.Typer) -> None:
         record_every: int = typer.Option(1, help="keep every k-th step in the output"),
         out: Path = typer.Option(..., help="output csv (DATA_FORMAT)"),
         plot: Optional[Path] = typer.Option(None, help="also write a figure (png)"),
+        add_effect: List[str] = add_effect_option(),
+        effect_param: List[str] = effect_param_option(),
     ) -> None:
         """Simulate from rest and write the run as DATA_FORMAT csv (and a figure)."""
         from ..params import RigParams
@@ -70,12 +73,15 @@ def register(app: typer.Typer) -> None:
 
         if (u is None) == (input_file is None):
             raise ValueError("give exactly one of --u VOLTS or --input FILE")
+        comp, values = effects_from_cli(add_effect, effect_param)
         rig = RigParams.from_file(params) if params else RigParams()
         signal = float(u) if u is not None else _load_input(input_file)
         traj = simulate(config, signal, duration, dt=dt, params=rig, alpha0=alpha0, method=method,
-                        record_every=record_every)
+                        record_every=record_every, effects=comp, effect_params=values)
+        added = "".join(f" --add-effect {s}" for s in comp.specs()) + "".join(
+            f" --effect-param {k}={v:g}" for k, v in values.items())
         traj.to_csv(out, description=f"drillgym simulate --config {config} "
-                                      + (f"--u {u}" if u is not None else f"--input {input_file}"))
+                                      + (f"--u {u}" if u is not None else f"--input {input_file}") + added)
         stuck = traj.stick_l.mean() if traj.config is not Configuration.UPPER else traj.stick_u.mean()
         typer.echo(f"wrote {out} ({len(traj.t)} samples); final omega_l = {traj.omega_l[-1]:.4f} rad/s, "
                    f"lower disc stuck {100 * stuck:.1f} % of the time")

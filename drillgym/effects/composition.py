@@ -86,8 +86,22 @@ class Composition:
     def __repr__(self) -> str:
         return f"Composition({self.label})"
 
-    def __reduce__(self):  # pickles by its effects (classes pickle by reference)
-        return (Composition, (self.effects,))
+    def specs(self) -> list[str]:
+        """The effects as specs ``compose`` accepts in any process: a library or entry-point name,
+        ``path/to/file.py:Class`` for a user file, ``module:Class`` for an importable class."""
+        out = []
+        for e in self.effects:
+            origin = getattr(e, "__drillgym_file__", None)
+            if origin:
+                out.append(f"{origin}:{e.__qualname__}")
+            elif e.__module__ == "drillgym.effects.library":
+                out.append(e.name)
+            else:
+                out.append(f"{e.__module__}:{e.__qualname__}")
+        return out
+
+    def __reduce__(self):  # pickles by specs, so a user file's effect reaches worker processes
+        return (_composition_from_specs, (self.specs(),))
 
     def __len__(self) -> int:
         return len(self.effects)
@@ -260,6 +274,22 @@ def compose(effects: Any = None, values: Mapping[str, float] | None = None) -> t
     comp = Composition(tuple(classes))
     vals.update(values or {})
     return comp, comp.check_values(vals)
+
+
+def _composition_from_specs(specs: list[str]) -> Composition:
+    import importlib
+
+    classes = []
+    for s in specs:
+        mod, sep, name = s.rpartition(":")
+        if sep and not mod.endswith(".py"):
+            obj = importlib.import_module(mod)
+            for part in name.split("."):
+                obj = getattr(obj, part)
+            classes.append(obj)
+        else:
+            classes.append(resolve_effect(s))
+    return Composition(tuple(classes))
 
 
 def effect_names(effects: Iterable[type[Effect]]) -> list[str]:
