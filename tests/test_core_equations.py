@@ -7,12 +7,14 @@ import pytest
 
 from drillgym import RigParams, initial_state, simulate
 from drillgym.configurations import Configuration
-from drillgym.dynamics import state_derivative
+from drillgym.effects import BASE
+
+state_derivative = BASE.kernels.model.state_derivative
 
 
 def model_md_accelerations(state, u, p: RigParams, Tfu, Tfl):
     """Accelerations (x'', y'', theta_u'', theta_l'') from MODEL.md's four equations, as printed there."""
-    thu, thl, W, wl, x, y, xd, yd, _ = state
+    thu, thl, W, wl, x, y, xd, yd = state
     a = thl - thu
     ad = wl - W
     c, s = math.cos(a), math.sin(a)
@@ -45,7 +47,7 @@ def test_coupled_kernel_matches_model_md(seed):
                       omega_l0=rng.uniform(0.5, 12), x0=rng.uniform(-4e-3, 4e-3), y0=rng.uniform(-4e-3, 4e-3),
                       vx0=rng.uniform(-0.05, 0.05), vy0=rng.uniform(-0.05, 0.05))
     mode = np.array([1, 1], dtype=np.int64)
-    dy, fric = np.zeros(9), np.zeros(2)
+    dy, fric = np.zeros(8), np.zeros(2)
     state_derivative(0.0, y, mode, 2.3, p.to_vector(), int(Configuration.COUPLED), 0.0, dy, fric)
     ref = model_md_accelerations(y, 2.3, p, fric[0], fric[1])
     np.testing.assert_allclose([dy[6], dy[7], dy[2], dy[3]], ref, rtol=1e-9, atol=1e-9)
@@ -56,7 +58,7 @@ def test_torsional_reduces_to_report_equations():
     p = RigParams()
     y = initial_state(alpha0=-0.7, omega_u0=2.0, omega_l0=3.0)
     mode = np.array([1, 1], dtype=np.int64)
-    dy, fric = np.zeros(9), np.zeros(2)
+    dy, fric = np.zeros(8), np.zeros(2)
     state_derivative(0.0, y, mode, 1.5, p.to_vector(), int(Configuration.TORSIONAL), 0.0, dy, fric)
     assert p.Ju * dy[2] + fric[0] - p.ktheta * (-0.7) == pytest.approx(p.km * 1.5, rel=1e-12)
     assert p.Jl * dy[3] + fric[1] + p.ktheta * (-0.7) == pytest.approx(0.0, abs=1e-12)

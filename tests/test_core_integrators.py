@@ -82,8 +82,9 @@ def test_free_vibration_keeps_upper_disc_clamped():
 
 def test_motor_lag_and_input_delay_effects_act():
     base = simulate("upper", 2.0, 1.0)
-    lag = simulate("upper", 2.0, 1.0, params=RigParams().replace(tau_m=0.1))
-    delay = simulate("upper", lambda t: np.where(t >= 0.2, 2.0, 0.0), 1.0, params=RigParams().replace(delay=0.1))
+    lag = simulate("upper", 2.0, 1.0, effects=["motor_lag"], effect_params={"tau_m": 0.1})
+    delay = simulate("upper", lambda t: np.where(t >= 0.2, 2.0, 0.0), 1.0, effects=["input_delay"],
+                     effect_params={"delay": 0.1})
     assert lag.omega_u[100] < base.omega_u[100]
     assert np.all(delay.omega_u[:300] == 0.0) and delay.omega_u[350] > 0
     assert delay.u[200] == 2.0 and delay.u[199] == 0.0  # the record keeps the commanded voltage

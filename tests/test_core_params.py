@@ -45,7 +45,7 @@ def test_unknown_parameter_is_refused():
 
 @pytest.mark.parametrize("suffix", [".json", ".yaml"])
 def test_file_round_trip_is_exact(tmp_path, suffix):
-    p = RigParams().replace(Ts=0.3012345678901234, pf_a1=0.1)
+    p = RigParams().replace(Ts=0.3012345678901234, b=31.25)
     path = p.to_file(tmp_path / f"p{suffix}")
     assert RigParams.from_file(path) == p
 
@@ -71,9 +71,15 @@ def test_non_number_and_corrupt_file(tmp_path):
 
 
 def test_vector_layout_round_trip():
-    p = RigParams().replace(dk=100.0)
+    p = RigParams().replace(k=3100.0)
     v = p.to_vector()
     assert v.shape == (N_PARAMS,)
     assert RigParams.from_vector(v) == p
-    assert set(BASE_PARAMETERS) >= {"Ju", "km", "Ts", "e"} and "pf_a1" not in BASE_PARAMETERS
+    assert set(BASE_PARAMETERS) >= {"Ju", "km", "Ts", "e"}
     assert all(math.isfinite(x) for x in v)
+
+
+def test_effect_parameters_are_not_rig_parameters():
+    """Effects own their parameters (drillgym.effects): RigParams holds the base model only."""
+    with pytest.raises(ParameterError, match="unknown parameter"):
+        RigParams().replace(tau_m=0.1)
