@@ -20,17 +20,19 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, Mapping
 
 import numpy as np
 from scipy.signal import welch
 
 from ..configurations import Configuration
+from ..effects import BASE, Composition, compose
 from ..identification.experiment import Experiment, prepare_experiment
-from ..identification.fitting import default_scales
+from ..identification.fitting import base_vector, default_scales
 from ..identification.metrics import channel_metrics
 from ..identification.segmented import SegmentedModel
 from ..io import TimeSeries
-from ..params import RigParams
+from ..params import N_PARAMS, RigParams
 from .sparse import residual_torques
 
 __all__ = ["Comparison", "compare", "write_compare"]
@@ -51,19 +53,29 @@ class Comparison:
     by_r: list[dict] = field(default_factory=list)
     spectrum: dict = field(default_factory=dict)
     findings: list[str] = field(default_factory=list)
+    composition: Composition = BASE
+    vector: np.ndarray | None = None
+
+    @property
+    def effect_values(self) -> dict[str, float]:
+        return self.composition.split(self.vector)[1] if self.vector is not None else {}
 
     def text(self) -> str:
         ex = self.experiment
         how = "free run from the recording's initial state" if not self.segment_s else \
             f"segments of {self.segment_s:g} s, each re-started from the recording (stick-slip phase drift)"
         lines = [f"compare: {ex.name} ({ex.config.label}, {ex.duration:.1f} s, {how})"]
+        if self.composition.effects:
+            lines.append("  model: base + " + ", ".join(self.composition.names) + " (" +
+                         ", ".join(f"{k} = {v:.4g}" for k, v in self.effect_values.items()) + ")")
         for c, m in self.metrics.items():
             lines.append(f"  {c:<8} R² = {m['r2']:.4f}   RMS = {m['rms']:.4g} {'m' if c in ('x', 'y', 'r') else 'rad'}")
         lines += ["where the model fails:"] + [f"  - {f}" for f in self.findings]
         return "\n".join(lines)
 
     def to_json(self) -> dict:
-        return {"metrics": self.metrics, "windows": self.windows, "by_speed": self.by_speed,
+        return {"model": self.composition.label, "effect_values": self.effect_values,
+                "metrics": self.metrics, "windows": self.windows, "by_speed": self.by_speed,
                 "by_angle": self.by_angle, "by_r": self.by_r, "findings": self.findings,
                 "segment_s": self.segment_s, "spectrum_peaks": self.spectrum.get("peaks", [])}
 
@@ -72,20 +84,26 @@ def _main_channel(ex: Experiment) -> str:
     return "theta_u" if ex.config is Configuration.UPPER else "theta_l"
 
 
-def compare(data: "TimeSeries | Experiment", params: RigParams | None = None, config=None, *,
+def compare(data: "TimeSeries | Experiment", params: "RigParams | np.ndarray | None" = None, config=None, *,
             segment_s: float | None = None, compare_rate_hz: float = 100.0, n_windows: int = 10,
-            refine_speeds: bool = True) -> Comparison:
-    """Simulate the recording's input from its initial state and locate the error (see module docstring)."""
-    p = params or RigParams()
+            refine_speeds: bool = True, effects: Any = None,
+            effect_params: Mapping[str, float] | None = None) -> Comparison:
+    """Simulate the recording's input from its initial state and locate the error (see module docstring).
+
+    The model: ``params`` (RigParams, default MODEL.md; or a vector in the composition's layout)
+    with ``effects`` (names, file specs, classes or a Composition) and their ``effect_params``."""
+    comp, values = compose(effects, effect_params)
+    vec = base_vector(comp, params, values)
+    p = RigParams.from_vector(vec[:N_PARAMS])
     ex = data if isinstance(data, Experiment) else prepare_experiment(data, config, compare_rate_hz=compare_rate_hz)
     chans = ["theta_u"] if ex.config is Configuration.UPPER else ["theta_u", "theta_l", "alpha"]
     if ex.config.lateral_free:
         chans += ["x", "y", "r"]
-    model = SegmentedModel([ex], segment_s)
+    model = SegmentedModel([ex], segment_s, composition=comp)
     if refine_speeds:  # speeds at (segment) starts: derivative estimates corrected for this model
         w = {c: 1.0 for c in chans if c in ("theta_u", "theta_l", "x", "y")}
-        model.refine_initial_speeds(p.to_vector(), w, default_scales([ex]))
-    pred = model.predict(p.to_vector()[None, :], tuple(chans))[0]
+        model.refine_initial_speeds(vec, w, default_scales([ex]))
+    pred = model.predict(vec[None, :], tuple(chans))[0]
     predicted = {c: pred.stitched(0, c) for c in chans}
     meas = {c: ex.channel(c) for c in chans}
     metrics = channel_metrics(meas, predicted)
@@ -113,7 +131,8 @@ def compare(data: "TimeSeries | Experiment", params: RigParams | None = None, co
         if last > 2 * first:
             findings.append(f"the error grows along the run ({first:.3g} early, {last:.3g} late): "
                             "a slow change (friction drift?) or accumulated phase")
-    comp = Comparison(ex, p, segment_s, predicted, metrics, windows, findings=findings)
+    comp = Comparison(ex, p, segment_s, predicted, metrics, windows, findings=findings, composition=model.composition,
+                      vector=vec)
     if ex.config is not Configuration.UPPER:
         _torque_bins(comp)
     if ex.config.lateral_free:
@@ -126,7 +145,7 @@ def compare(data: "TimeSeries | Experiment", params: RigParams | None = None, co
 
 def _torque_bins(comp: Comparison) -> None:
     ex = comp.experiment
-    rt = residual_torques(ex, comp.params)
+    rt = residual_torques(ex, comp.vector, effects=comp.composition)
     ok = rt.slip & np.isfinite(rt.tau_l)
     if ok.sum() < 30:
         return

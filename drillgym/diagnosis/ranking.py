@@ -1,8 +1,9 @@
 """Diagnosis: which effect of the library explains the model's residual best.
 
-For a recording and a base parameter set, every effect that can act in the
-recording's configuration is fitted alone (its few parameters; the base
-parameters held) by multiple shooting (segments of a few seconds simulated
+For a recording and a model (base parameters, plus any effects already found or
+added: a composition), every candidate effect that can act in the recording's
+configuration (default: the library's) is tried as the composition model +
+candidate and fitted alone (its few parameters; everything else held) by multiple shooting (segments of a few seconds simulated
 from the data's state at their start, robust to the phase drift of
 stick-slip).  Effects are ranked by a BIC-like score
 
@@ -34,18 +35,19 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field, replace
-from typing import Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from ..configurations import Configuration
+from ..effects import Composition, Effect, compose
 from ..identification.experiment import Experiment, prepare_experiment
-from ..identification.fitting import FitResult, FitVariable, Objective, fit_parameters
+from ..identification.fitting import FitResult, FitVariable, Objective, base_vector, fit_parameters
 from ..identification.staged import STAGES
 from ..identification.segmented import SegmentedModel
 from ..io import TimeSeries
-from ..params import RigParams
-from .effects import EFFECTS, Effect, effects_for
+from ..params import N_PARAMS, RigParams
+from .effects import applies_to, effects_for, fit_variables, get_effect, with_candidate
 from .segments import place_segment_starts, robust_noise
 
 __all__ = ["EffectScore", "Diagnosis", "diagnose", "default_weights", "default_segment", "SIGNIFICANCE"]
@@ -112,6 +114,7 @@ class Diagnosis:
     segment_s: float | None
     skipped: dict[str, str] = field(default_factory=dict)
     base_refit: dict[str, float] = field(default_factory=dict)
+    model: str = "base"
 
     @property
     def best(self) -> EffectScore | None:
@@ -124,10 +127,10 @@ class Diagnosis:
         return {"ranking": [s.to_json() for s in self.ranking], "configuration": self.config.label,
                 "rmse_before": self.rmse_before, "channel_rms_before": self.channel_rms_before,
                 "n_eff": self.n_eff, "segment_s": self.segment_s, "skipped": self.skipped,
-                "base_refit": self.base_refit}
+                "base_refit": self.base_refit, "model": self.model}
 
     def text(self) -> str:
-        lines = [f"diagnosis ({self.config.label}; multiple shooting, segments of "
+        lines = [f"diagnosis of the model {self.model!r} ({self.config.label}; multiple shooting, segments of "
                  f"{self.segment_s if self.segment_s else 'whole record'} s; base residual RMS "
                  f"{self.rmse_before:.3g} noise units; " +
                  ", ".join(f"{c} {v:.3g}" for c, v in self.channel_rms_before.items()) + ")"]
@@ -162,36 +165,53 @@ def _n_eff(r: np.ndarray) -> float:
     return max(n * (1 - rho) / (1 + rho), 10.0)
 
 
-def _excited(effect: Effect, exps: Sequence[Experiment]) -> str:
+def _excited(effect: type[Effect], exps: Sequence[Experiment]) -> str:
+    """Why the recordings cannot show an effect (its ``needs``), or ''."""
     if "negative_rotation" in effect.needs:
         neg = sum(np.sum(ex.rates["omega_l"] < -0.1) for ex in exps if "omega_l" in ex.rates)
         tot = sum(ex.n for ex in exps)
         if neg < 0.02 * tot:
             return "the lower disc hardly turns backwards in these data (needs negative rotation)"
+    if "theta_l" in effect.needs and not any("theta_l" in ex.meas for ex in exps):
+        return "the recording has no lower disc angle (needs theta_l)"
     return ""
 
 
-def _fit_effect(obj: Objective, base: RigParams, eff: Effect, variables, max_nfev: int) -> FitResult:
-    """Fit one effect's variables (base held); the result carries its per-channel RMS."""
+def _fit_effect(obj: Objective, start: np.ndarray, variables: Sequence[FitVariable], max_nfev: int) -> FitResult:
+    """Fit one effect's variables (the rest of the vector held); the result carries its per-channel RMS."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = fit_parameters(obj, base, variables, apply=eff.apply, max_nfev=max_nfev)
+        res = fit_parameters(obj, start, variables, max_nfev=max_nfev)
     res.channel_rms = obj.channel_rms(res.vector)
     return res
 
 
+def transfer(vec: np.ndarray, src: Composition, dst: Composition) -> np.ndarray:
+    """A parameter vector of ``dst`` taking every parameter ``src`` has from ``vec`` (the others at
+    their defaults)."""
+    out = dst.vector(RigParams.from_vector(np.asarray(vec)[:N_PARAMS]))
+    for i, n in enumerate(src.param_names[N_PARAMS:], start=N_PARAMS):
+        if n in dst.param_names:
+            out[dst.param_index(n)] = vec[i]
+    return out
+
+
 def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: RigParams | None = None,
-             config: "str | Configuration | None" = None, *, effects: Sequence[str] | None = None,
+             config: "str | Configuration | None" = None, *, effects: Sequence[Any] | None = None,
+             base_effects: Any = None, effect_params: Mapping[str, float] | None = None,
              segment_s: float | None = -1.0, compare_rate_hz: float = 50.0, max_nfev: int = 12,
              lvdt_lowpass_hz: float | None = 5.0, refine_speeds: bool = True,
              n_second_pass: int = 3, refit_base: bool = False) -> Diagnosis:
-    """Rank the library's effects on one or more recordings (see the module docstring).
+    """Rank candidate effects on one or more recordings (see the module docstring).
 
     Args:
         data: a recording (TimeSeries) or prepared experiments.
         params: base parameters (default: MODEL.md).
         config: configuration when the recording's metadata has none.
-        effects: restrict to these effect names (default: all that apply).
+        effects: the candidates: names or ``path/to/file.py:NAME`` specs or Effect classes
+            (default: the library's effects that act in the configuration).
+        base_effects, effect_params: effects already in the model and their values (as
+            :func:`drillgym.effects.compose`); each candidate is tried as base_effects + candidate.
         segment_s: multiple-shooting segment (s); -1: :func:`default_segment`; None: free run.
         compare_rate_hz: comparison grid rate (Hz).
         max_nfev: least-squares evaluations per effect.
@@ -204,6 +224,7 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
             'lateral'), so that a slightly wrong base set is not taken for a missing effect.
     """
     base = params or RigParams()
+    comp0, values0 = compose(base_effects, effect_params)
     if isinstance(data, TimeSeries):
         exps = [prepare_experiment(data, config, compare_rate_hz=compare_rate_hz, lvdt_lowpass_hz=lvdt_lowpass_hz)]
     elif isinstance(data, Experiment):
@@ -211,46 +232,48 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
     else:
         exps = list(data)
     cfg = exps[0].config
+    candidates = [get_effect(e) for e in effects] if effects else effects_for(cfg)
     if segment_s is not None and segment_s < 0:
         segment_s = default_segment(cfg)
     conditioned = [robust_noise(ex) for ex in exps]
     exps = [c[0] for c in conditioned]
     scales = {c: min(s[c] for _, s in conditioned) for c in conditioned[0][1]}
-    model = SegmentedModel(exps, segment_s)
+    model = SegmentedModel(exps, segment_s, composition=comp0)
     obj = Objective(model, default_weights(cfg), scales)
+    vec0 = base_vector(comp0, base, values0)
     refitted: dict[str, float] = {}
     if refit_base:
         if refine_speeds:
-            model.refine_initial_speeds(base.to_vector(), obj.weights, obj.scales)
+            model.refine_initial_speeds(vec0, obj.weights, obj.scales)
         names_b = STAGES[BASE_STAGE[cfg]].parameters
         var_b = [FitVariable.relative(base, n, 0.7, 1.4) if getattr(base, n) != 0 else
                  FitVariable(n, 0.0, -0.5, 0.5, 0.01) for n in names_b]
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            rb = fit_parameters(obj, base, var_b, max_nfev=max_nfev)
-        base, refitted = rb.params, dict(rb.values)
+            rb = fit_parameters(obj, vec0, var_b, max_nfev=max_nfev)
+        vec0, refitted = rb.vector, dict(rb.values)
         model.speed_offsets = [np.zeros_like(o) for o in model.speed_offsets]
     if segment_s is not None:  # the effects are compared on well-started segments (.segments); the light
         place_segment_starts(model)  # base refit above keeps the regular grid (its breakaways start segments)
         obj = Objective(model, default_weights(cfg), scales)
     if refine_speeds:
-        model.refine_initial_speeds(base.to_vector(), obj.weights, obj.scales)
-    r0 = obj.residual_matrix(base.to_vector()[None, :])[0]
+        model.refine_initial_speeds(vec0, obj.weights, obj.scales)
+    r0 = obj.residual_matrix(vec0[None, :])[0]
     rss0 = float(r0 @ r0)
     N = len(r0)
     n_eff = _n_eff(r0)
     rmse0 = math.sqrt(rss0 / N)
-    ch0 = obj.channel_rms(base.to_vector())
-    names = list(effects) if effects else [e.name for e in effects_for(cfg)]
+    ch0 = obj.channel_rms(vec0)
     scores: list[EffectScore] = []
     skipped: dict[str, str] = {}
-    base_offsets = [o.copy() for o in model.speed_offsets]
+    tried: dict[str, tuple[type[Effect], Objective, np.ndarray]] = {}
     fits: dict[str, FitResult] = {}
-    for name in names:
-        eff = EFFECTS.get(name)
-        if eff is None:
-            raise ValueError(f"unknown effect {name!r}; known effects: {', '.join(EFFECTS)}")
-        if not eff.applies_to(cfg):
+    for eff in candidates:
+        name = eff.name
+        if name in comp0.names:
+            skipped[name] = "already in the model"
+            continue
+        if not applies_to(eff, cfg):
             skipped[name] = f"does not act in configuration '{cfg.label}'"
             continue
         why = _excited(eff, exps)
@@ -258,36 +281,37 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
             skipped[name] = why
             continue
         try:
-            fits[name] = _fit_effect(obj, base, eff, eff.variables(base), max_nfev)
-        except ValueError as exc:  # e.g. a fitted value leaves the physical range
+            comp = with_candidate(comp0, eff)
+            obj_c = Objective(model.with_composition(comp), obj.weights, scales)
+            start = transfer(vec0, comp0, comp)
+            tried[name] = (eff, obj_c, start)
+            fits[name] = _fit_effect(obj_c, start, fit_variables(comp, eff), max_nfev)
+        except ValueError as exc:  # e.g. a fitted value leaves the physical range, or a bad effect
             skipped[name] = f"fit failed: {exc}"
     if refine_speeds:  # second pass for the leaders: speeds at segment starts refined for the extended model
         for name in sorted(fits, key=lambda n: fits[n].rss_after)[:n_second_pass]:
-            eff, res = EFFECTS[name], fits[name]
-            model.speed_offsets = [o.copy() for o in base_offsets]
-            model.refine_initial_speeds(res.vector, obj.weights, obj.scales)
-            warm = [replace(v, x0=res.values[v.name]) for v in eff.variables(base)]
+            (eff, obj_c, start), res = tried[name], fits[name]
+            obj_c.model.refine_initial_speeds(res.vector, obj_c.weights, obj_c.scales)
+            warm = fit_variables(obj_c.model.composition, eff, values=res.values)
             try:
-                res2 = _fit_effect(obj, base, eff, warm, max(4, max_nfev // 2))
+                res2 = _fit_effect(obj_c, start, warm, max(4, max_nfev // 2))
             except ValueError:
                 continue
             if res2.rss_after < res.rss_after:
                 fits[name] = res2
-        model.speed_offsets = base_offsets
     for name, res in fits.items():
-        eff = EFFECTS[name]
+        eff = tried[name][0]
         rss1 = max(res.rss_after, 1e-300)
         k = len(res.names)
         score = n_eff * math.log(rss0 / rss1) - k * math.log(n_eff) if rss0 > 0 else 0.0
         rmse1 = math.sqrt(rss1 / N)
         sig = (score > SIGNIFICANCE and rmse1 < (1 - MIN_REDUCTION) * rmse0
                and rmse0 ** 2 - rmse1 ** 2 > MIN_EXPLAINED)
-        readout = eff.readout(base, np.array([res.values[n] for n in res.names]))
-        scores.append(EffectScore(name, score, rmse0, rmse1, readout, dict(res.std), res.channel_rms or {},
-                                  eff.signature, sig))
+        scores.append(EffectScore(name, score, rmse0, rmse1, dict(res.values), dict(res.std), res.channel_rms or {},
+                                  " ".join(eff.signature.split()), sig))
     scores.sort(key=lambda s: -s.score)
     for a, b in zip(scores, scores[1:]):  # near-ties: the data cannot tell these effects apart
         if a.significant and b.significant and a.score - b.score < max(TIE_NATS, 0.02 * abs(a.score)):
             a.note = (f"indistinguishable from {b.effect} on these data (scores {a.score:.1f} vs {b.score:.1f}); "
                       "an input with sharper steps or a higher sample rate would separate them")
-    return Diagnosis(scores, cfg, rmse0, ch0, n_eff, segment_s, skipped, refitted)
+    return Diagnosis(scores, cfg, rmse0, ch0, n_eff, segment_s, skipped, refitted, comp0.label)

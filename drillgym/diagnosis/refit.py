@@ -1,38 +1,57 @@
-"""Refit a recording with effects of the library added (``drillgym identify --add-effect``).
+"""Refit a recording with effects added (``drillgym identify --add-effect``).
 
-The added effects' parameters are fitted jointly (each effect's own variables
-and bounds, :mod:`.effects`); with no effect named, the configuration's base
-parameters are refitted instead (upper: the upper stage; torsional, coupled:
-the brake law; lateral: the lateral stage; free_vibration: Jl, bl, Tcl).
-R² per channel before and after comes from the same comparison
-(multiple shooting for brake configurations, see :mod:`.ranking`).
+The model before is the base parameters with the effects it already has (``base_effects``,
+e.g. from a parameter file written by an earlier ``identify``); the model after adds the
+named effects (the library's, an installed package's or a user's file) and fits their
+parameters jointly (each parameter's own bounds, guess and scale: its effect's
+:class:`~drillgym.effects.Parameter`), optionally with the configuration's base parameters
+(``refit_base``) or any other parameters named in ``fit``.  With no effect added and nothing
+named, the configuration's base parameters are refitted (upper: the upper stage;
+torsional, coupled: the brake law; lateral: the lateral stage; free_vibration: Jl, bl, Tcl).
+R² per channel before and after come from the same comparison (multiple shooting for brake
+configurations, see :mod:`.ranking`).
 """
 
 from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import Any, Mapping, Sequence
 
-import numpy as np
-
+from ..effects import Composition, compose
 from ..identification.experiment import Experiment, prepare_experiment
-from ..identification.fitting import FitVariable, Objective, fit_parameters
+from ..identification.fitting import FitVariable, Objective, base_vector, fit_parameters
 from ..identification.segmented import SegmentedModel
 from ..identification.staged import STAGES
 from ..io import TimeSeries
 from ..params import RigParams
 from .compare import compare
-from .effects import get_effect
+from .effects import applies_to, get_effect
 from .ranking import BASE_STAGE, default_segment, default_weights
 
-__all__ = ["RefitResult", "refit", "BASE_STAGE"]
+__all__ = ["RefitResult", "refit", "BASE_STAGE", "effect_records"]
 
+
+def effect_records(comp: Composition, values: Mapping[str, float], specs: Mapping[str, str] | None = None
+                   ) -> list[dict]:
+    """The effects of a composition as reusable records: ``{"name", "spec", "file", "values"}``
+    (``spec`` is what ``--add-effect`` accepts: the name, or ``file.py:NAME`` for a file's effect)."""
+    out = []
+    for e in comp.effects:
+        f = getattr(e, "__drillgym_file__", None)
+        spec = (specs or {}).get(e.name) or (f"{f}:{e.name}" if f else e.name)
+        out.append({"name": e.name, "spec": spec, "file": f,
+                    "values": {p.name: float(values[p.name]) for p in e.parameters}})
+    return out
 
 
 @dataclass
 class RefitResult:
-    """Parameters after the refit and the error before/after."""
+    """The fitted model and the error before/after.
+
+    ``params`` the base parameters after the fit; ``composition`` and ``effect_values`` the
+    model's effects and all their parameters; ``values``/``std`` the fitted parameters and their
+    standard errors, by parameter name; ``effects`` the names of the effects added."""
 
     params: RigParams
     r2_before: dict[str, float]
@@ -43,60 +62,69 @@ class RefitResult:
     std: dict[str, float]
     effects: list[str]
     warnings: list[str] = field(default_factory=list)
+    composition: Composition | None = None
+    effect_values: dict[str, float] = field(default_factory=dict)
+    model_before: str = "base"
+
+    def effect_records(self) -> list[dict]:
+        return effect_records(self.composition, self.effect_values) if self.composition is not None else []
 
     def to_json(self) -> dict:
         return {"r2_before": self.r2_before, "r2_after": self.r2_after, "rms_before": self.rms_before,
-                "rms_after": self.rms_after, "effects": self.effects, "fitted": self.values, "std": self.std,
+                "rms_after": self.rms_after, "effects_added": self.effects, "model_before": self.model_before,
+                "effects": self.effect_records(), "fitted": self.values, "std": self.std,
                 "warnings": self.warnings, "params": self.params.to_dict()}
 
 
 def refit(data: "TimeSeries | Experiment", params: RigParams | None = None, config=None, *,
-          effects: Sequence[str] = (), segment_s: float | None = -1.0, compare_rate_hz: float = 50.0,
-          max_nfev: int = 30) -> RefitResult:
-    """Fit the named effects (or, with none, the configuration's base parameters) to one recording."""
+          effects: Sequence[Any] = (), effect_params: Mapping[str, float] | None = None,
+          base_effects: Any = None, base_values: Mapping[str, float] | None = None,
+          fit: Sequence[str] = (), refit_base: bool = False, segment_s: float | None = -1.0,
+          compare_rate_hz: float = 50.0, max_nfev: int = 30) -> RefitResult:
+    """Add ``effects`` to the model (``params`` + ``base_effects`` at ``base_values``) and fit them.
+
+    Args:
+        data: the recording (TimeSeries) or a prepared experiment.
+        effects: effects to add and fit: names, ``path/to/file.py:NAME`` or Effect classes.
+        effect_params: starting values of the added effects' parameters (default: their guesses).
+        base_effects, base_values: effects already in the model and their (held) values.
+        fit: further parameters of the model to fit (base or effect names).
+        refit_base: also fit the configuration's base parameters (the stage of :data:`BASE_STAGE`).
+        segment_s: multiple-shooting segment (s); -1: the configuration's default; None: free run.
+    """
     base = params or RigParams()
     ex = data if isinstance(data, Experiment) else prepare_experiment(data, config, compare_rate_hz=compare_rate_hz)
     if segment_s is not None and segment_s < 0:
         segment_s = default_segment(ex.config)
-    effs = [get_effect(n) for n in effects]
-    for e in effs:
-        if not e.applies_to(ex.config):
+    comp0, values0 = compose(base_effects, base_values)
+    added = [get_effect(e) for e in effects]
+    for e in added:
+        if not applies_to(e, ex.config):
             raise ValueError(f"effect {e.name!r} does not act in configuration '{ex.config.label}' "
-                             f"(it applies to: {', '.join(c.label for c in e.configurations)})")
-    if effs:
-        variables: list[FitVariable] = []
-        sizes = []
-        for e in effs:
-            v = e.variables(base)
-            variables += v
-            sizes.append(len(v))
-
-        def apply(vec: np.ndarray, z: np.ndarray) -> np.ndarray:
-            i = 0
-            for e, n in zip(effs, sizes):
-                vec = e.apply(vec, z[i:i + n])
-                i += n
-            return vec
-    else:
-        names = STAGES[BASE_STAGE[ex.config]].parameters
-        variables = [FitVariable.relative(base, n, 0.5, 2.0) if getattr(base, n) != 0 else
-                     FitVariable(n, 0.0, -0.5, 0.5, 0.01) for n in names]
-        apply = None
-    model = SegmentedModel([ex], segment_s)
+                             f"(it applies to: {', '.join(e.configurations)})")
+    new = [e for e in added if e.name not in comp0.names]
+    comp = Composition(tuple(comp0.effects) + tuple(new))
+    start_values = {**values0, **{k: v for k, v in (effect_params or {}).items()}}
+    vec_start = base_vector(comp, base, comp.check_values(start_values))
+    names: list[str] = [p.name for e in added for p in e.parameters]
+    if refit_base or (not added and not fit):
+        names += [n for n in STAGES[BASE_STAGE[ex.config]].parameters if n not in names]
+    names += [n for n in fit if n not in names]
+    for n in names:
+        comp.param_index(n)  # a one-line error for an unknown name
+    variables = [FitVariable.named(comp, n, vec_start) for n in names]
+    model = SegmentedModel([ex], segment_s, composition=comp)
     obj = Objective(model, default_weights(ex.config))
-    model.refine_initial_speeds(base.to_vector(), obj.weights, obj.scales)
+    vec_before = base_vector(comp0, base, values0)
+    model.refine_initial_speeds(vec_start, obj.weights, obj.scales)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = fit_parameters(obj, base, variables, apply=apply, max_nfev=max_nfev)
-    before = compare(ex, base, segment_s=segment_s)
-    after = compare(ex, res.params, segment_s=segment_s)
-    values = {}
-    for e in effs:
-        values.update({k: getattr(res.params, k) for k in e.parameters})
-    if not effs:
-        values = dict(res.values)
+        res = fit_parameters(obj, vec_start, variables, max_nfev=max_nfev)
+    before = compare(ex, vec_before, segment_s=segment_s, effects=comp0)
+    after = compare(ex, res.vector, segment_s=segment_s, effects=comp)
     return RefitResult(res.params, {c: m["r2"] for c, m in before.metrics.items()},
                        {c: m["r2"] for c, m in after.metrics.items()},
                        {c: m["rms"] for c, m in before.metrics.items()},
-                       {c: m["rms"] for c, m in after.metrics.items()}, values, res.std,
-                       [e.name for e in effs], res.warnings)
+                       {c: m["rms"] for c, m in after.metrics.items()}, dict(res.values), dict(res.std),
+                       [e.name for e in added], res.warnings, comp, res.effect_values, comp0.label)
+

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any, Mapping
 
 from ..identification.experiment import Experiment
 from ..params import RigParams
@@ -23,13 +24,16 @@ def _metrics_table(before: dict[str, float], after: dict[str, float], rms_b: dic
 
 
 def write_report(out_dir: str | Path, ex: Experiment, base: RigParams, diagnosis: Diagnosis | None,
-                 result: RefitResult, segment_s: float | None) -> Path:
-    """Write ``report.md`` with figures of the base and refitted model in ``out_dir``."""
+                 result: RefitResult, segment_s: float | None, base_effects: Any = None,
+                 base_values: Mapping[str, float] | None = None) -> Path:
+    """Write ``report.md`` with figures of the model before (``base`` with ``base_effects`` at
+    ``base_values``) and after the refit (``result``) in ``out_dir``."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    cb = compare(ex, base, segment_s=segment_s)
+    cb = compare(ex, base, segment_s=segment_s, effects=base_effects, effect_params=base_values)
     write_compare(cb, out / "1_base")
-    ca = compare(ex, result.params, segment_s=segment_s)
+    ca = compare(ex, result.params, segment_s=segment_s, effects=result.composition,
+                 effect_params=result.effect_values)
     write_compare(ca, out / "3_refit")
     lines = [f"# Model improvement report: {ex.name}", "",
              f"Configuration `{ex.config.label}`, {ex.duration:.1f} s at {ex.fs:g} Hz (comparison grid); "

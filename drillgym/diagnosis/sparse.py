@@ -3,9 +3,10 @@
 For effects outside the library.  At every sample where the discs slip, the
 data give the state (angles, speeds and lateral positions from the recording;
 accelerations by a Savitzky–Golay second derivative) and the base model gives
-the accelerations it would predict in that state
-(:func:`drillgym.dynamics.state_derivative`, the simulator's own right-hand
-side).  The difference, multiplied by the mass matrix, is the generalised
+the accelerations it would predict in that state (the right-hand side the
+simulator compiled for the model's composition,
+``composition.kernels.model.state_derivative``: the base model plus any effects
+already in it).  The difference, multiplied by the mass matrix, is the generalised
 force the model is missing: ``Q_res = M(q) (q̈_data − q̈_model)``; its θl
 component is the residual torque on the lower disc (N m).
 
@@ -23,10 +24,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from typing import Any
+
 from ..configurations import N_STATE
-from ..dynamics import mass_matrix, state_derivative
+from ..dynamics import mass_matrix
 from ..identification.experiment import Experiment, estimate_rate
-from ..params import RigParams
+from ..identification.fitting import base_vector
+from ..identification.segmented import as_composition
+from ..params import N_PARAMS, RigParams
 
 MIN_SPARSE_R2 = 0.1  # a candidate expression must explain at least this share of the residual torque
 
@@ -48,15 +53,24 @@ class ResidualTorque:
     slip: np.ndarray
 
 
-def residual_torques(ex: Experiment, params: RigParams, min_speed: float = 0.05) -> ResidualTorque:
-    """Residual generalised torques of the base model on a recording (see the module docstring).
+def residual_torques(ex: Experiment, params: "RigParams | np.ndarray | None" = None, min_speed: float = 0.05, *,
+                     effects: Any = None, effect_params: dict[str, float] | None = None) -> ResidualTorque:
+    """Residual generalised torques of a model on a recording (see the module docstring).
 
+    The model: ``params`` (RigParams or a vector in the composition's layout) with ``effects``
+    (a Composition or effect specs; default the base model) and their ``effect_params``.
+    Effect states are taken at rest (a motor lag's ``u_m`` equal to the input).
     Samples within 0.1 s (the second-derivative window) of a stick phase are left out."""
-    p = params.to_vector()
+    comp = as_composition(effects)
+    p = base_vector(comp, params, effect_params)
+    state_derivative = comp.kernels.model.state_derivative
+    inertia = RigParams.from_vector(p[:N_PARAMS])
     n = ex.n
-    Y = ex.initial_states(np.arange(n), np.repeat(p[None, :], n, axis=0))
+    Y = np.zeros((n, comp.n_state))
+    Y[:, :N_STATE] = ex.initial_states(np.arange(n), np.repeat(p[None, :], n, axis=0), comp)
     u = ex.input_on_grid(1.0 / ex.fs, n, ex.t[0])
-    Y[:, 8] = u
+    if "u_m" in comp.state_names:
+        Y[:, N_STATE + comp.state_index("u_m")] = u
     acc = np.zeros((n, 4))
     acc[:, 0] = estimate_rate(ex.meas["theta_u"], ex.fs, window_s=0.1, deriv=2)
     if "theta_l" in ex.meas:
@@ -65,7 +79,7 @@ def residual_torques(ex: Experiment, params: RigParams, min_speed: float = 0.05)
         acc[:, 2] = estimate_rate(Y[:, 6], ex.fs, window_s=0.1)
         acc[:, 3] = estimate_rate(Y[:, 7], ex.fs, window_s=0.1)
     cfg = int(ex.config)
-    dy = np.zeros(N_STATE)
+    dy = np.zeros(comp.n_state)
     fric = np.zeros(2)
     M = np.zeros((4, 4))
     mode = np.zeros(2, dtype=np.int64)
@@ -88,8 +102,8 @@ def residual_torques(ex: Experiment, params: RigParams, min_speed: float = 0.05)
             mass_matrix(y, p, M)
             tau[i] = M @ da
         else:
-            tau[i, 0] = params.Ju * da[0]
-            tau[i, 1] = params.Jl * da[1]
+            tau[i, 0] = inertia.Ju * da[0]
+            tau[i, 1] = inertia.Jl * da[1]
     return ResidualTorque(ex.t - ex.t[0], tau[:, 0], tau[:, 1], Y, slip)
 
 
@@ -106,7 +120,7 @@ def candidate_library(rt: ResidualTorque) -> tuple[np.ndarray, list[str]]:
         "cos θl": np.cos(th), "sin θl": np.sin(th), "cos 2θl": np.cos(2 * th), "sin 2θl": np.sin(2 * th),
         "sign(ωl) cos θl": sg * np.cos(th), "sign(ωl) sin θl": sg * np.sin(th),
         "sign(ωl) cos 2θl": sg * np.cos(2 * th), "sign(ωl) sin 2θl": sg * np.sin(2 * th),
-        "α": a, "α̇": wl - wu, "sign(α̇)": np.sign(wl - wu), "t sign(ωl)": rt.t * sg, "[ωl<0]": (wl < 0) * sg,
+        "α": a, "α³": a ** 3, "α̇": wl - wu, "sign(α̇)": np.sign(wl - wu), "t sign(ωl)": rt.t * sg, "[ωl<0]": (wl < 0) * sg,
     }
     if np.any(r > 0):
         cols.update({"x": X, "y": Yf, "r": r, "r² sign(ωl)": r ** 2 * sg})

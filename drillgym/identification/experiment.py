@@ -11,7 +11,7 @@ A recording (:class:`drillgym.io.TimeSeries`, any rate, any length) becomes an
   (scipy) of the recorded angles and LVDT signals; speeds below
   ``stick_threshold`` are set to exactly zero (a stuck disc);
 * :meth:`Experiment.initial_states` gives simulator states at any grid index,
-  inverting the LVDT measurement model (offsets, skew) of a parameter set, so
+  inverting the measurement effects (offsets, skew, ...) of a composition, so
   that a simulation can be (re)started from the data (multiple shooting).
 """
 
@@ -25,7 +25,8 @@ from scipy.signal import savgol_coeffs, savgol_filter
 
 from ..configurations import N_STATE, Configuration, parse_configuration
 from ..io import TimeSeries
-from ..params import IDX
+from ..effects import BASE, Composition
+from .sensors import invert_measurement
 
 __all__ = ["Experiment", "prepare_experiment", "estimate_rate"]
 
@@ -104,28 +105,39 @@ class Experiment:
             raise ValueError(f"{self.name}: the recording has no channel {name!r}")
         return self.meas[name]
 
-    def initial_states(self, idx: np.ndarray, P: np.ndarray) -> np.ndarray:
-        """Simulator states (len(idx), N_STATE) at grid indices ``idx`` for parameter rows ``P``
-        (same length).  Lateral states invert the LVDT model (offsets, skew) of each row."""
+    def initial_states(self, idx: np.ndarray, P: np.ndarray, composition: "Composition | None" = None
+                       ) -> np.ndarray:
+        """Mechanical states (len(idx), N_STATE) at grid indices ``idx`` for parameter rows ``P``
+        (same length, in the layout of ``composition``, default the base model).  The readings go
+        backwards through the composition's measurement effects (LVDT offsets, skew, any user
+        Measurement effect) of each row (:func:`.sensors.invert_measurement`)."""
+        comp = composition if composition is not None else BASE
         idx = np.asarray(idx, dtype=int)
-        Y = np.zeros((len(idx), N_STATE))
-        th_u = self.meas["theta_u"][idx]
-        Y[:, 0] = th_u
-        Y[:, 2] = self.rates["omega_u"][idx]
-        if "theta_l" in self.meas:
-            Y[:, 1] = self.meas["theta_l"][idx]
-            Y[:, 3] = self.rates["omega_l"][idx]
-        else:
-            Y[:, 1] = th_u
+        P = np.atleast_2d(np.asarray(P, dtype=float))
+        n = len(idx)
+        zeros = np.zeros(n)
+        lateral = self.config.lateral_free and "x" in self.meas
+        R = np.column_stack([self.meas["theta_u"][idx], self.meas.get("theta_l", self.meas["theta_u"])[idx],
+                             self.meas["x"][idx] if lateral else zeros, self.meas["y"][idx] if lateral else zeros])
+        D = np.column_stack([self.rates["omega_u"][idx],
+                             self.rates["omega_l"][idx] if "theta_l" in self.meas else zeros,
+                             self.rates["Xd"][idx] if lateral else zeros, self.rates["Yd"][idx] if lateral else zeros])
+        if comp.has_measurement:
+            S, V = np.empty_like(R), np.empty_like(D)
+            rows, inv = np.unique(P, axis=0, return_inverse=True)
+            for j, row in enumerate(rows):
+                sel = np.flatnonzero(inv.ravel() == j)
+                S[sel], V[sel] = invert_measurement(comp, R[sel], D[sel], row)
+            R, D = S, V
+        Y = np.zeros((n, N_STATE))
+        Y[:, 0], Y[:, 1], Y[:, 2], Y[:, 3] = R[:, 0], R[:, 1], D[:, 0], D[:, 1]
+        if "theta_l" not in self.meas:
+            Y[:, 1], Y[:, 3] = R[:, 0], 0.0
         if self.config is Configuration.FREE_VIBRATION:
             Y[:, 2] = 0.0
-        if self.config.lateral_free and "x" in self.meas:
-            skew = P[:, IDX.lvdt_skew]
-            X = self.meas["x"][idx] - P[:, IDX.lvdt_x0]
-            Yf = (self.meas["y"][idx] - P[:, IDX.lvdt_y0] - X * np.sin(skew)) / np.cos(skew)
-            Xd = self.rates["Xd"][idx]
-            Yd = (self.rates["Yd"][idx] - Xd * np.sin(skew)) / np.cos(skew)
-            W = Y[:, 2]
+        if lateral:
+            X, Yf, Xd, Yd = R[:, 2], R[:, 3], D[:, 2], D[:, 3]
+            th_u, W = Y[:, 0], Y[:, 2]
             c, s = np.cos(th_u), np.sin(th_u)
             Y[:, 4] = X * c + Yf * s
             Y[:, 5] = -X * s + Yf * c

@@ -23,11 +23,13 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..params import IDX, PARAM_INFO, RigParams
+from ..effects import Composition
+from ..params import N_PARAMS, PARAM_INFO, RigParams
 from .experiment import Experiment
 from .segmented import SegmentedModel
 
-__all__ = ["FitVariable", "Objective", "FitResult", "fit_parameters", "default_scales", "IdentifiabilityWarning"]
+__all__ = ["FitVariable", "Objective", "FitResult", "fit_parameters", "default_scales", "IdentifiabilityWarning",
+           "base_vector"]
 
 
 class IdentifiabilityWarning(UserWarning):
@@ -36,14 +38,39 @@ class IdentifiabilityWarning(UserWarning):
 
 @dataclass(frozen=True)
 class FitVariable:
-    """One fitted variable: a RigParams name (or a variable an ``apply`` function maps),
-    initial value, bounds and typical magnitude (for scaling and the finite-difference step)."""
+    """One fitted variable: the name of a parameter of the model's composition (a RigParams name or
+    an effect's parameter; or a variable an ``apply`` function maps), initial value, bounds and
+    typical magnitude (for scaling and the finite-difference step), in the parameter's SI unit."""
 
     name: str
     x0: float
     lo: float
     hi: float
     scale: float
+
+    @classmethod
+    def of_effect(cls, composition: Composition, name: str, x0: float | None = None) -> "FitVariable":
+        """An effect parameter of ``composition`` with the effect's own bounds, guess and scale
+        (``x0`` overrides the guess, clipped into the bounds)."""
+        prm = composition.parameter(name)
+        if composition.owner(name) is None:
+            raise ValueError(f"{name!r} is a base parameter, not an effect's: use FitVariable.relative")
+        v = prm.guess if x0 is None else min(max(float(x0), prm.lo), prm.hi)
+        return cls(name, float(v), float(prm.lo), float(prm.hi), float(prm.scale))
+
+    @classmethod
+    def named(cls, composition: Composition, name: str, vector: np.ndarray | None = None) -> "FitVariable":
+        """Any parameter of ``composition``: an effect's (its Parameter's bounds and scale, starting
+        from ``vector``'s value when given, else the guess), or a base one (:meth:`relative`
+        around ``vector``'s value, within ×0.5–×2)."""
+        i = composition.param_index(name)
+        if composition.owner(name) is not None:
+            return cls.of_effect(composition, name, None if vector is None else float(vector[i]))
+        base = RigParams() if vector is None else RigParams.from_vector(np.asarray(vector)[:N_PARAMS])
+        if getattr(base, name) == 0:
+            info = PARAM_INFO[name]
+            return cls(name, 0.0, max(info["lo"], -0.5), min(info["hi"], 0.5), 0.01)
+        return cls.relative(base, name, 0.5, 2.0)
 
     @classmethod
     def relative(cls, params: RigParams, name: str, lo: float = 0.3, hi: float = 3.0) -> "FitVariable":
@@ -136,6 +163,14 @@ class FitResult:
     warnings: list[str] = field(default_factory=list)
     residual: np.ndarray | None = None
     channel_rms: dict[str, float] | None = None
+    composition: Composition | None = None
+
+    @property
+    def effect_values(self) -> dict[str, float]:
+        """The effects' parameters of the fitted vector by name (empty for the base model)."""
+        if self.composition is None:
+            return {}
+        return self.composition.split(self.vector)[1]
 
     @property
     def rmse_before(self) -> float:
@@ -149,8 +184,23 @@ class FitResult:
 ApplyFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
-def _set_by_name(names: Sequence[str]) -> ApplyFn:
-    idx = [getattr(IDX, n) for n in names]
+def base_vector(composition: Composition, base: "RigParams | np.ndarray | None",
+                values: dict[str, float] | None = None) -> np.ndarray:
+    """The composition's parameter vector from RigParams (+ effect ``values``) or a vector
+    (a base-only vector gets the effects' defaults, or ``values``)."""
+    if base is None or isinstance(base, RigParams):
+        return composition.vector(base, values)
+    vec = np.asarray(base, dtype=float).ravel()
+    if vec.shape[0] == N_PARAMS and composition.n_params != N_PARAMS:
+        return composition.vector(RigParams.from_vector(vec), values)
+    if vec.shape[0] != composition.n_params:
+        raise ValueError(f"parameter vector has {vec.shape[0]} entries, the model {composition.label!r} needs "
+                         f"{composition.n_params}")
+    return vec.copy()
+
+
+def _set_by_name(composition: Composition, names: Sequence[str]) -> ApplyFn:
+    idx = [composition.param_index(n) for n in names]
 
     def apply(base: np.ndarray, z: np.ndarray) -> np.ndarray:
         v = base.copy()
@@ -160,19 +210,24 @@ def _set_by_name(names: Sequence[str]) -> ApplyFn:
     return apply
 
 
-def fit_parameters(objective: Objective, base: RigParams, variables: Sequence[FitVariable], *,
+def fit_parameters(objective: Objective, base: "RigParams | np.ndarray", variables: Sequence[FitVariable], *,
                    apply: ApplyFn | None = None, max_nfev: int = 30, fd_step: float = 1e-3,
-                   rel_std_limit: float = 0.1, collinearity_limit: float = 1000.0, ftol: float = 1e-6, xtol: float = 1e-6) -> FitResult:
+                   rel_std_limit: float = 0.1, collinearity_limit: float = 1000.0, ftol: float = 1e-6,
+                   xtol: float = 1e-6, effect_values: dict[str, float] | None = None) -> FitResult:
     """Fit ``variables`` (everything else held at ``base``) by trf least squares.
 
-    ``apply(base_vector, z) -> parameter vector`` maps the variables to the kernel
-    layout (default: variables are RigParams names).  Returns a :class:`FitResult`
-    whose ``params`` validates the fitted set (a ParameterError names a bad value).
+    The model is the objective's composition (``objective.model.composition``); ``base`` is
+    RigParams (the effects' parameters from ``effect_values``, else their defaults) or a
+    parameter vector in the composition's layout.  Variables name parameters of the
+    composition (base or effect).  ``apply(base_vector, z) -> parameter vector`` may map
+    other variables to that layout.  Returns a :class:`FitResult` whose ``params`` validates
+    the fitted base set (a ParameterError names a bad value).
     """
+    comp = objective.model.composition
     variables = list(variables)
     names = [v.name for v in variables]
-    apply = apply or _set_by_name(names)
-    base_vec = base.to_vector()
+    apply = apply or _set_by_name(comp, names)
+    base_vec = base_vector(comp, base, effect_values)
     x0 = np.array([v.x0 for v in variables])
     scale = np.array([v.scale for v in variables])
     lo = np.array([v.lo for v in variables])
@@ -240,4 +295,5 @@ def fit_parameters(objective: Objective, base: RigParams, variables: Sequence[Fi
         warnings.warn(mm, IdentifiabilityWarning, stacklevel=2)
     vec = apply(base_vec, values)
     return FitResult(names, dict(zip(names, values.tolist())), dict(zip(names, std.tolist())),
-                     RigParams.from_vector(vec), vec, float(r0 @ r0), float(r1 @ r1), m, int(sol.nfev), msgs, r1)
+                     RigParams.from_vector(vec[:N_PARAMS]), vec, float(r0 @ r0), float(r1 @ r1), m, int(sol.nfev),
+                     msgs, r1, composition=comp)

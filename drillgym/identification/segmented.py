@@ -8,50 +8,61 @@ later slip), so a single long run compares phases, not physics; short
 segments keep the comparison local while still spanning several stick-slip
 cycles.  ``segment_s=None`` gives one free run over the whole record.
 
-All segments of all experiments for all parameter rows go into ONE
-:func:`drillgym.simulate_batch` call (``parallel=True``), which is what makes a
-finite-difference Jacobian cheap.
+The model is a :class:`drillgym.effects.Composition` (the base model and any effects, the
+library's or a user's); parameter rows are in its layout (``composition.param_names``: base
+parameters, then the effects').  All segments of all experiments for all parameter rows go
+into ONE call of the composition's compiled batch kernel (numba threads), which is what
+makes a finite-difference Jacobian cheap.
 
-Effects that the compiled kernels apply relative to the run's start are made
-exact per segment here:
+Each segment is exactly the continuation of a run from the record's start:
 
-* ``input_delay``: the delayed input u(t − delay) is built from the whole
-  record (linear interpolation on the simulator grid, as the core does) and
-  the kernel's own delay is switched off;
-* ``motor_lag``: the lag is linear in the input, so the (delayed) input is
-  filtered here (exact first-order discretisation, from the record's start)
-  and the kernel's own lag is switched off: exact at segment starts and
-  stable for any time constant, however small against the step;
-* ``friction_drift``: the level (1 + drift t) at the segment start t0 is moved
-  into the friction parameters (Tcl, bl, Ts, Tc, bb × (1 + drift t0)) and the
-  drift rate rescaled (drift / (1 + drift t0)), which is the same law.
+* its clock starts at the segment's time in the record (the kernel's ``T0``), so effects of
+  time (``friction_drift``, a user effect of ``t``) see the record's time;
+* a Delay effect's line is pre-filled with the record's input before the segment start,
+  so the motor sees u(t − delay) from the first step;
+* the library's ``motor_lag`` (when it is the first Input effect) is applied here, not in the
+  kernel: the lag is linear in the input, so the input is filtered exactly (first-order
+  zero-order-hold discretisation, from the record's start) and the simulated model is the
+  composition without it: exact at segment starts and stable for any time constant,
+  however small against the step;
+* other effect states start from a free run of the whole record with the same parameters.
 
-The model's lateral outputs go through the measurement chain of the data:
-LVDT offset and skew of the parameter row (:func:`drillgym.measurement.lvdt_measure`)
-and the offline zero-phase low-pass (:func:`drillgym.measurement.lowpass_zero_phase`).
+The model's outputs go through the measurement chain of the data: the composition's
+Measurement effects of the parameter row (:meth:`Composition.measure`) and, for the LVDT
+channels, the offline zero-phase low-pass (:func:`drillgym.measurement.lowpass_zero_phase`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.signal import lfilter, lfilter_zi
 
-from ..configurations import Configuration
-from ..integrators import OUTPUT_NAMES
+from ..configurations import N_STATE, Configuration
+from ..effects import BASE, Composition, compose
+from ..effects.library import MotorLag
+from ..integrators import OUTPUT_NAMES, tableau
 from ..measurement import lowpass_zero_phase
-from ..params import IDX, N_PARAMS
-from ..simulator import simulate_batch
+from ..params import N_PARAMS
 from .experiment import Experiment
 
-__all__ = ["SegmentedModel", "Prediction", "CHANNELS"]
+__all__ = ["SegmentedModel", "Prediction", "CHANNELS", "as_composition"]
 
 CHANNELS = ("theta_u", "theta_l", "alpha", "x", "y", "r")
 MAX_DT = 2e-3  # s: simulator step bound (DP5: > 200 steps per lateral period)
 _COL = {n: i for i, n in enumerate(OUTPUT_NAMES)}
-_LOWER_LEVEL = (IDX.Tcl, IDX.bl, IDX.Ts, IDX.Tc, IDX.bb)
+
+
+def as_composition(effects: Any) -> Composition:
+    """A Composition from a Composition, effect names/specs/classes, or None (the base model)."""
+    if effects is None:
+        return BASE
+    if isinstance(effects, Composition):
+        return effects
+    return compose(effects)[0]
 
 
 @dataclass
@@ -70,21 +81,24 @@ class Prediction:
 
 
 class SegmentedModel:
-    """Predicts experiments for parameter matrices (B, N_PARAMS) by multiple shooting.
+    """Predicts experiments for parameter matrices (B, composition.n_params) by multiple shooting.
 
     Args:
         experiments: the recordings (one configuration each; several allowed).
         segment_s: segment length (s); None or <= 0: one free run per experiment.
         method: 'dp5' (default, smooth in the parameters) or 'rk4'.
         max_dt: bound on the simulator step (s).
+        composition: the model (a Composition or effects as for :func:`drillgym.effects.compose`;
+            default the base model).
     """
 
     def __init__(self, experiments: list[Experiment], segment_s: float | None = 4.0, method: str = "dp5",
-                 max_dt: float = MAX_DT) -> None:
+                 max_dt: float = MAX_DT, composition: Any = None) -> None:
         if not experiments:
             raise ValueError("no experiments to compare with")
         self.experiments = list(experiments)
         self.method = method
+        self._set_composition(composition)
         self._plans = []
         for ex in self.experiments:
             rec = max(1, int(math.ceil(1.0 / (ex.fs * max_dt) - 1e-9)))
@@ -144,6 +158,27 @@ class SegmentedModel:
                     self.speed_offsets[k][j, cols] = np.clip(self.speed_offsets[k][j, cols] + step,
                                                              -limit[cols], limit[cols])
 
+    def _set_composition(self, composition: Any) -> None:
+        """The model and the composition actually simulated (the library's motor lag, when it is the
+        first Input effect, is applied to the input here instead; see the module docstring)."""
+        self.composition = comp = as_composition(composition)
+        inputs = [e for e in comp.effects if e.kind == "input"]
+        self._lag = inputs[0] if inputs and inputs[0] is MotorLag else None
+        sim = tuple(e for e in comp.effects if e is not self._lag)
+        self._sim = comp if self._lag is None else Composition(sim)
+        self._sim_cols = np.array([comp.param_index(n) for n in self._sim.param_names], dtype=int)
+        self._tau_col = comp.param_index("tau_m") if self._lag is not None else None
+
+    def with_composition(self, composition: Any) -> "SegmentedModel":
+        """The same experiments, segments and speed corrections with another model (a composition
+        that extends this one: the diagnosis tries each candidate effect so)."""
+        other = object.__new__(SegmentedModel)
+        other.__dict__.update(self.__dict__)
+        other._plans = [dict(p) for p in self._plans]
+        other.speed_offsets = [o.copy() for o in self.speed_offsets]
+        SegmentedModel._set_composition(other, composition)
+        return other
+
     # ------------------------------------------------------------------ helpers
     def segments(self, k: int) -> tuple[np.ndarray, int]:
         """Start indices and length (samples) of experiment k's segments."""
@@ -170,76 +205,82 @@ class SegmentedModel:
             out[j, :e - s] = y[s:e]
         return out
 
-    def _delayed_inputs(self, ex: Experiment, plan: dict, delays: np.ndarray, taus: np.ndarray
-                        ) -> tuple[np.ndarray, np.ndarray]:
-        """Per parameter row: the input on every segment (n_rows, n_seg, n_steps) and u_m at each start."""
+    def matrix(self, P: Any) -> np.ndarray:
+        """Parameter rows (B, composition.n_params) from a matrix, a vector or RigParams (effects at
+        their defaults when the rows hold only the base parameters)."""
+        if not isinstance(P, np.ndarray):
+            return self.composition.matrix(P, 1)
+        P = np.atleast_2d(np.asarray(P, dtype=float))
+        if P.shape[1] == N_PARAMS and self.composition.n_params != N_PARAMS:
+            return self.composition.matrix(P, P.shape[0])
+        if P.shape[1] != self.composition.n_params:
+            raise ValueError(f"parameter matrix must have {self.composition.n_params} columns "
+                             f"({', '.join(self.composition.param_names)}), got {P.shape[1]}")
+        return P
+
+    def _inputs(self, ex: Experiment, plan: dict, taus: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """The motor drive on the simulator grid from the record's start, per parameter row
+        (n_rows, n_total), and u_m there (the library's motor lag applied here; else the input)."""
         dt, starts, rec, n_steps = plan["dt"], plan["starts"], plan["rec"], plan["n_steps"]
         n_total = (starts[-1] * rec) + n_steps + 1
         base = ex.input_on_grid(dt, n_total, ex.t[0])
-        tg = np.arange(n_total) * dt
-        U = np.empty((len(delays), len(starts), n_steps))
-        UM = np.empty((len(delays), len(starts)))
-        cache: dict[tuple[float, float], tuple[np.ndarray, np.ndarray]] = {}
-        for i, (d, tau) in enumerate(zip(delays, taus)):
-            key = (float(d), float(tau))
+        if taus is None:
+            return base[None, :], base[None, :]
+        D = np.empty((len(taus), n_total))
+        UM = np.empty((len(taus), n_total))
+        cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        for i, tau in enumerate(taus):
+            key = float(tau)
             if key not in cache:
-                ud = base if d <= 0 else np.interp(tg - d, tg, base)
-                if tau > 0:
-                    a = math.exp(-dt / tau)
-                    b_, a_ = [0.0, 1.0 - a], [1.0, -a]  # exact zero-order-hold discretisation
-                    um = lfilter(b_, a_, ud, zi=lfilter_zi(b_, a_) * ud[0])[0]
-                    # exact mean of u_m over each step (ZOH input): -> the input itself as tau -> 0
-                    drive = ud + (um - ud) * (tau / dt) * (1.0 - a)
-                else:
-                    um = drive = ud
-                seg = np.stack([drive[s * rec:s * rec + n_steps] for s in starts])
-                cache[key] = (seg, um[starts * rec])
-            U[i], UM[i] = cache[key]
-        return U, UM
+                a = math.exp(-dt / tau)
+                b_, a_ = [0.0, 1.0 - a], [1.0, -a]  # exact zero-order-hold discretisation
+                um = lfilter(b_, a_, base, zi=lfilter_zi(b_, a_) * base[0])[0]
+                # exact mean of u_m over each step (ZOH input): -> the input itself as tau -> 0
+                drive = base + (um - base) * (tau / dt) * (1.0 - a)
+                cache[key] = (drive, um)
+            D[i], UM[i] = cache[key]
+        return D, UM
 
     # ------------------------------------------------------------------ prediction
     def predict(self, P: np.ndarray, channels: tuple[str, ...] = CHANNELS,
                 dspeed: np.ndarray | None = None) -> list[Prediction]:
-        """Model outputs for each parameter row of P (B, N_PARAMS) -> list of B Predictions.
+        """Model outputs for each parameter row of P (B, composition.n_params) -> list of B Predictions.
 
         ``dspeed`` (B, 2): extra (ω_u, ω_l) added to every segment's initial speeds of that row
         (used to compute sensitivities in :meth:`refine_initial_speeds`)."""
-        P = np.atleast_2d(np.asarray(P, dtype=float))
-        if P.shape[1] != N_PARAMS:
-            raise ValueError(f"parameter matrix must have {N_PARAMS} columns")
+        P = self.matrix(P)
         B = P.shape[0]
+        S = np.ascontiguousarray(P[:, self._sim_cols])  # rows of the simulated composition
+        sim = self._sim
         per_exp = []
         for k, (ex, plan) in enumerate(zip(self.experiments, self._plans)):
-            starts, L, rec, dt = plan["starts"], plan["L"], plan["rec"], plan["dt"]
+            starts, L, rec, dt, n_steps = plan["starts"], plan["L"], plan["rec"], plan["dt"], plan["n_steps"]
             ns = len(starts)
-            U, UM = self._delayed_inputs(ex, plan, P[:, IDX.delay], P[:, IDX.tau_m])
-            rows = np.repeat(P, ns, axis=0)
-            t0 = np.tile(starts / ex.fs, B)
-            rows[:, IDX.delay] = 0.0
-            rows[:, IDX.tau_m] = 0.0
-            drift = rows[:, IDX.drift]
-            f = 1.0 + drift * t0
-            if np.any(drift != 0):
-                if np.any(f <= 0):
-                    raise ValueError("friction_drift makes the lower friction level negative within the record")
-                for j in _LOWER_LEVEL:
-                    rows[:, j] *= f
-                rows[:, IDX.drift] = drift / f
-            X0 = self._x0(ex, starts, P)
+            taus = P[:, self._tau_col] if self._tau_col is not None else None
+            drive, um = self._inputs(ex, plan, taus)
+            pick = np.arange(B) if drive.shape[0] == B else np.zeros(B, dtype=int)
+            rows = np.repeat(S, ns, axis=0)
+            U = np.stack([drive[pick[b], s * rec:s * rec + n_steps] for b in range(B) for s in starts])
+            X0 = np.zeros((B * ns, sim.n_state))
+            X0[:, :N_STATE] = self._x0(ex, starts, P)
             X0[:, 2:4] += np.tile(self.speed_offsets[k], (B, 1))
             if dspeed is not None:
                 X0[:, 2:4] += np.repeat(np.asarray(dspeed, dtype=float), ns, axis=0)
-            X0[:, 8] = UM.reshape(-1)
-            D = self._simulate(ex.config, U.reshape(B * ns, -1), L / ex.fs, dt, rows, X0, rec, ns)[:, :L + 1]
+            if sim.n_states:
+                X0[:, N_STATE:] = self._effect_states(ex, plan, S, drive[pick], starts)
+            T0 = np.tile(starts / ex.fs, B)
+            HIST, HEAD = self._delay_lines(rows, drive[pick], starts, rec, dt, ns)
+            D = self._simulate(ex.config, U, dt, rows, X0, T0, HIST, HEAD, rec, n_steps, ns)[:, :L + 1]
             out = {}
-            col = _COL
-            out["theta_u"] = D[..., col["theta_u"]]
-            out["theta_l"] = D[..., col["theta_l"]]
+            tu, tl = D[..., _COL["theta_u"]], D[..., _COL["theta_l"]]
+            Xs, Ys = D[..., _COL["x"]], D[..., _COL["y"]]
+            if sim.has_measurement:
+                tu, tl, Xs, Ys = (np.array(a) for a in (tu, tl, Xs, Ys))
+                for i in range(rows.shape[0]):
+                    tu[i], tl[i], Xs[i], Ys[i] = sim.measure(tu[i], tl[i], Xs[i], Ys[i], rows[i])
+            out["theta_u"], out["theta_l"] = tu, tl
             if ex.config.lateral_free:
-                Xs, Ys = D[..., col["x"]], D[..., col["y"]]
-                skew = rows[:, IDX.lvdt_skew][:, None]
-                xm = Xs + rows[:, IDX.lvdt_x0][:, None]
-                ym = Ys * np.cos(skew) + Xs * np.sin(skew) + rows[:, IDX.lvdt_y0][:, None]
+                xm, ym = Xs, Ys
                 if ex.lvdt_lowpass_hz:
                     xm = lowpass_zero_phase(xm, ex.fs, ex.lvdt_lowpass_hz)
                     ym = lowpass_zero_phase(ym, ex.fs, ex.lvdt_lowpass_hz)
@@ -260,22 +301,74 @@ class SegmentedModel:
         return [Prediction([per_exp[k] and {c: v[b] for c, v in per_exp[k].items()} for k in range(len(per_exp))],
                            self) for b in range(B)]
 
-    def _simulate(self, config, U, duration, dt, rows, X0, rec, ns) -> np.ndarray:
-        """One batched call; if a parameter row makes the kernel fail (e.g. a non-physical value
-        tried by the optimiser), rerun per parameter row and give failing rows NaN outputs."""
+    def _delay_lines(self, rows: np.ndarray, drive: np.ndarray, starts: np.ndarray, rec: int, dt: float,
+                     ns: int) -> tuple[np.ndarray, np.ndarray]:
+        """Delay lines (B*ns, L) pre-filled with the drive before each segment start (newest last),
+        heads at the newest entry; without a Delay effect, empty lines (head -1)."""
+        n = rows.shape[0]
+        if not self._sim.has_delay:
+            return np.zeros((n, 1)), np.full(n, -1, dtype=np.int64)
+        Ld = self._sim.delay_line_length(rows, dt)
+        H = np.empty((n, Ld))
+        back = np.arange(-Ld, 0)
+        for i in range(n):
+            s = starts[i % ns] * rec
+            H[i] = drive[i // ns, np.clip(s + back, 0, None)]
+        return H, np.full(n, Ld - 1, dtype=np.int64)
+
+    def _effect_states(self, ex: Experiment, plan: dict, S: np.ndarray, drive: np.ndarray,
+                       starts: np.ndarray) -> np.ndarray:
+        """Effect states at each segment start (B*ns, n_states) from one free run of the record per row."""
+        rec, dt = plan["rec"], plan["dt"]
+        n_steps = int(starts[-1] * rec)
+        B, ns, sim = S.shape[0], len(starts), self._sim
+        if n_steps == 0:
+            return np.zeros((B * ns, sim.n_states))
+        X0 = np.zeros((B, sim.n_state))
+        X0[:, :N_STATE] = ex.initial_states(np.zeros(B, dtype=int), self._full_rows(S), self.composition)
+        HIST, HEAD = self._delay_lines(S, drive, np.zeros(1, dtype=int), rec, dt, 1)
+        D = self._simulate(ex.config, np.ascontiguousarray(drive[:, :n_steps]), dt, S, X0, np.zeros(B), HIST, HEAD,
+                           rec, n_steps, 1)
+        return D[:, starts, len(OUTPUT_NAMES):].reshape(B * ns, sim.n_states)
+
+    def _full_rows(self, S: np.ndarray) -> np.ndarray:
+        """Rows of the whole composition from rows of the simulated one (the lag's column at its default)."""
+        if self._sim is self.composition:
+            return S
+        P = self.composition.matrix(None, S.shape[0])
+        P[:, self._sim_cols] = S
+        return P
+
+    def _simulate(self, config: Configuration, U: np.ndarray, dt: float, rows: np.ndarray, X0: np.ndarray,
+                  T0: np.ndarray, HIST: np.ndarray, HEAD: np.ndarray, rec: int, n_steps: int, ns: int) -> np.ndarray:
+        """One batched kernel call (B*ns, n_rec, n_outputs).  Rows that fail or diverge (a non-physical
+        value tried by the optimiser) get NaN outputs; an exception reruns per parameter row."""
+        sim = self._sim
+        n_rec = n_steps // rec + 1
         try:
-            return simulate_batch(config, U, duration, dt=dt, params=rows, x0=X0, method=self.method,
-                                  record_every=rec, parallel=True).data
+            Y = np.ascontiguousarray(X0, dtype=np.float64)
+            if not config.lateral_free:
+                Y[:, 4:8] = 0.0
+            MODE = np.zeros((Y.shape[0], 2), dtype=np.int64)
+            OUT = np.full((Y.shape[0], n_rec, len(sim.output_names)), np.nan)
+            A, b, c = tableau(self.method)
+            sim.kernels.stepping.run_batch_parallel(Y, MODE, np.ascontiguousarray(U, dtype=np.float64),
+                                                    np.ascontiguousarray(rows), int(config), float(dt),
+                                                    np.ascontiguousarray(T0, dtype=np.float64), 0.0, A, b, c, int(rec),
+                                                    OUT, True, int(n_steps), HIST, HEAD)
         except (SystemError, ZeroDivisionError, FloatingPointError, ValueError):
-            if rows.shape[0] == ns:
-                n_rec = int(round(duration / dt)) // rec + 1
-                return np.full((ns, n_rec, len(OUTPUT_NAMES)), np.nan)
-            parts = [self._simulate(config, U[i:i + ns], duration, dt, rows[i:i + ns], X0[i:i + ns], rec, ns)
+            if rows.shape[0] <= ns:
+                return np.full((rows.shape[0], n_rec, len(sim.output_names)), np.nan)
+            parts = [self._simulate(config, U[i:i + ns], dt, rows[i:i + ns], X0[i:i + ns], T0[i:i + ns],
+                                    HIST[i:i + ns], HEAD[i:i + ns], rec, n_steps, ns)
                      for i in range(0, rows.shape[0], ns)]
             return np.concatenate(parts)
+        bad = ~np.all(np.isfinite(OUT[:, -1, 2:10]), axis=1)
+        OUT[bad] = np.nan
+        return OUT
 
     def _x0(self, ex: Experiment, starts: np.ndarray, P: np.ndarray) -> np.ndarray:
         B, ns = P.shape[0], len(starts)
         idx = np.tile(starts, B)
         rows = np.repeat(P, ns, axis=0)
-        return ex.initial_states(idx, rows)
+        return ex.initial_states(idx, rows, self.composition)

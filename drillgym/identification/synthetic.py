@@ -1,9 +1,10 @@
 """Synthetic "measurements": a simulated run passed through the rig's measurement chain.
 
-Used by the tests, the benchmark and demos: the model (optionally with a
-hidden effect switched on) is driven by an excitation signal, and the run is
-measured like the rig does it (:func:`drillgym.measurement.measure_trajectory`:
-encoder quantization, LVDT noise, offsets/skew, 5 Hz zero-phase low-pass).
+Used by the tests, the benchmark and demos: the model (optionally with hidden
+effects, ``effects=[...]``, the library's or a user's) is driven by an excitation
+signal, and the run is measured like the rig does it
+(:func:`drillgym.measurement.measure_trajectory`: the effects' measurement
+transformations, encoder quantization, LVDT noise, 5 Hz zero-phase low-pass).
 The ``u`` column holds the *commanded* voltage at each sample time (what a
 rig recording holds), not the simulator's delayed or lagged internal input.
 """
@@ -11,10 +12,11 @@ rig recording holds), not the simulator's delayed or lagged internal input.
 from __future__ import annotations
 
 from dataclasses import replace as _dc_replace
-from typing import Callable
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from ..effects import compose
 from ..io import TimeSeries
 from ..measurement import MeasurementModel, measure_trajectory
 from ..params import RigParams
@@ -34,7 +36,8 @@ def synthetic_measurement(config: str, params: RigParams | None = None, *, durat
                           model: MeasurementModel = MeasurementModel(), u: float | None = None,
                           input: tuple[np.ndarray, np.ndarray] | None = None,
                           level_profile: Callable[[float], float] | None = None,
-                          level_chunk_s: float = 1.0) -> TimeSeries:
+                          level_chunk_s: float = 1.0, effects: Any = None,
+                          effect_params: Mapping[str, float] | None = None) -> TimeSeries:
     """Simulate ``config`` with ``params`` (default MODEL.md) and measure it.
 
     ``config`` may also be ``"torsional_bearing"``: lateral motion held, brake off (simulated
@@ -51,7 +54,9 @@ def synthetic_measurement(config: str, params: RigParams | None = None, *, durat
             a friction drift of any form in time (e.g. saturating warm-up): simulated in chunks of
             ``level_chunk_s`` seconds, each continuing from the previous one's final state with g
             interpolated linearly across the chunk (the kernel's own drift term).  Not combinable
-            with ``delay``/``tau_m`` (those act relative to a run's start).
+            with effects that carry a state or a delay (those act relative to a run's start).
+        effects, effect_params: hidden effects of the simulated rig and their parameter values
+            (as :func:`drillgym.simulate`), e.g. ``effects=["string_damping"], effect_params={"dtheta": 0.01}``.
     """
     p = params or RigParams()
     rec = max(1, int(round(1.0 / (rate_hz * dt))))
@@ -83,13 +88,14 @@ def synthetic_measurement(config: str, params: RigParams | None = None, *, durat
         raise ValueError(f"unknown signal {signal!r}; expected 'quasi_random', 'sum_of_sines' or 'steps'")
     bearing = config == BEARING
     sim_p = p.replace(e=0.0) if bearing else p
+    comp, values = compose(effects, effect_params)
     if level_profile is None:
         traj = simulate("lateral" if bearing else config, (t, uu), duration, dt=dt, params=sim_p, alpha0=alpha0,
-                        method="dp5", record_every=rec)
+                        method="dp5", record_every=rec, effects=comp, effect_params=values)
     else:
         traj = _simulate_level_profile("lateral" if bearing else config, t, uu, duration, dt, sim_p, alpha0, rec,
-                                       level_profile, level_chunk_s)
-    ts = measure_trajectory(traj, sim_p, model, seed=seed)
+                                       level_profile, level_chunk_s, comp, values)
+    ts = measure_trajectory(traj, model, seed=seed)
     if bearing:  # lateral motion held, brake off: no LVDT channels
         ts.columns.pop("x", None)
         ts.columns.pop("y", None)
@@ -100,10 +106,13 @@ def synthetic_measurement(config: str, params: RigParams | None = None, *, durat
 
 
 def _simulate_level_profile(config: str, t: np.ndarray, uu: np.ndarray, duration: float, dt: float, p: RigParams,
-                            alpha0: float, rec: int, g: Callable[[float], float], chunk_s: float):
-    """A run whose lower friction level follows g(t): chunks continued from the previous final state."""
-    if p.delay != 0 or p.tau_m != 0:
-        raise ValueError("level_profile cannot be combined with delay or tau_m (they act from a run's start)")
+                            alpha0: float, rec: int, g: Callable[[float], float], chunk_s: float, comp, values):
+    """A run whose lower friction level follows g(t): chunks continued from the previous final state
+    (the library's friction_drift, added to the composition, interpolates g across each chunk)."""
+    if comp.has_delay or comp.n_states or "friction_drift" in comp.names:
+        raise ValueError("level_profile cannot be combined with friction_drift or effects with a delay or a state "
+                         "(they act from a run's start)")
+    chunk_comp, _ = compose(list(comp.effects) + ["friction_drift"])
     if abs(float(g(0.0)) - 1.0) > 1e-9:
         raise ValueError("level_profile must satisfy g(0) = 1")
     fs = 1.0 / (rec * dt)
@@ -116,13 +125,14 @@ def _simulate_level_profile(config: str, t: np.ndarray, uu: np.ndarray, duration
         g0, g1 = float(g(t0)), float(g(t1))
         if g0 <= 0 or g1 <= 0:
             raise ValueError(f"level_profile must stay positive (g({t0:g}) = {g0:g}, g({t1:g}) = {g1:g})")
-        pc = p.replace(**{n: getattr(p, n) * g0 for n in _LOWER_LEVEL}, drift=(g1 / g0 - 1.0) / (t1 - t0))
+        pc = p.replace(**{n: getattr(p, n) * g0 for n in _LOWER_LEVEL})
+        drift = (g1 / g0 - 1.0) / (t1 - t0)
         sel = (t >= t0 - 1e-12) & (t <= t1 + 1.0 / fs + 1e-12)
         tr = simulate(config, (t[sel] - t0, uu[sel]), t1 - t0, dt=dt, params=pc, alpha0=alpha0, x0=x0,
-                      method="dp5", record_every=rec)
+                      method="dp5", record_every=rec, effects=chunk_comp, effect_params={**values, "drift": drift})
         data = tr.data.copy()
         data[:, 0] += t0
         blocks.append(data if not blocks else data[1:])
         x0 = tr.final_state
         k0 = k1
-    return _dc_replace(tr, params=p, data=np.concatenate(blocks))
+    return _dc_replace(tr, params=p, data=np.concatenate(blocks), composition=comp, effect_values=dict(values))
