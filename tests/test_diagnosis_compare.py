@@ -12,14 +12,16 @@ from drillgym.diagnosis.compare import compare, write_compare
 from drillgym.diagnosis.sparse import residual_torques, sparse_residual_model
 from drillgym.errors import DataFormatError
 from drillgym.identification import prepare_experiment
+from drillgym.identification.model_file import read_model
 from drillgym.identification.synthetic import synthetic_measurement
 from drillgym.io import write_timeseries
 
 
 @pytest.fixture(scope="module")
 def pf_data():
-    return synthetic_measurement("torsional", RigParams().replace(pf_a1=0.3, pf_phi1=1.0), duration=20.0,
-                                 rate_hz=250.0, offset=1.0, seed=1)
+    return synthetic_measurement("torsional", duration=20.0, rate_hz=250.0, offset=1.0, seed=1,
+                                 effects=["position_friction"],
+                                 effect_params={"pf_c1": 0.3 * np.cos(1.0), "pf_s1": 0.3 * np.sin(1.0)})
 
 
 def test_compare_names_angle_dependence(pf_data, tmp_path):
@@ -44,8 +46,8 @@ def test_compare_exact_model_free_run():
 def test_sparse_term_for_position_friction_and_string_damping(pf_data):
     term = sparse_residual_model(residual_torques(prepare_experiment(pf_data), RigParams()))
     assert {"sign(ωl) cos θl", "sign(ωl) sin θl"} & set(term.terms), term.expression()
-    ts = synthetic_measurement("torsional", RigParams().replace(dtheta=0.01), duration=20.0, rate_hz=250.0,
-                               offset=1.0, seed=1)
+    ts = synthetic_measurement("torsional", duration=20.0, rate_hz=250.0, offset=1.0, seed=1,
+                               effects=["string_damping"], effect_params={"dtheta": 0.01})
     term = sparse_residual_model(residual_torques(prepare_experiment(ts), RigParams()))
     assert term.terms.get("α̇", 0.0) == pytest.approx(-0.01, rel=0.3), term.expression()
     assert "α̇" in term.expression()
@@ -66,8 +68,8 @@ def test_prepare_experiment_rates_and_errors(tmp_path):
 
 
 def test_cli_diagnose_identify_signal(tmp_path):
-    ts = synthetic_measurement("torsional", RigParams().replace(dtheta=0.01), duration=8.0, rate_hz=250.0,
-                               offset=1.0, seed=1)
+    ts = synthetic_measurement("torsional", duration=8.0, rate_hz=250.0, offset=1.0, seed=1,
+                               effects=["string_damping"], effect_params={"dtheta": 0.01})
     data = write_timeseries(tmp_path / "run.csv", ts)
     runner = CliRunner()
     r = runner.invoke(app, ["diagnose", str(data), "--json"])
@@ -80,7 +82,9 @@ def test_cli_diagnose_identify_signal(tmp_path):
     assert r.exit_code == 0, r.output
     js = json.loads(r.output)
     assert js["r2_after"]["alpha"] > js["r2_before"]["alpha"]
-    assert RigParams.from_file(out).dtheta == pytest.approx(0.01, rel=0.05)
+    model = read_model(out)
+    assert model.specs == ["string_damping"] and model.values["dtheta"] == pytest.approx(0.01, rel=0.05)
+    assert js["fitted"]["dtheta"] == model.values["dtheta"] and js["effects"][0]["name"] == "string_damping"
     assert "The error falling" in (tmp_path / "rep" / "report.md").read_text()
     r = runner.invoke(app, ["compare", str(data), "--segment", "4", "--out", str(tmp_path / "cmp")])
     assert r.exit_code == 0 and (tmp_path / "cmp" / "report.txt").exists()

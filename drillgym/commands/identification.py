@@ -8,6 +8,8 @@ from typing import List, Optional
 
 import typer
 
+from .effect_options import add_effect_option, effect_param_option
+
 
 def _json(obj) -> str:
     """JSON text with non-finite numbers (e.g. R² of a constant channel) as null."""
@@ -27,14 +29,34 @@ def _json(obj) -> str:
     return json.dumps(clean(obj), indent=2)
 
 
-def _params(path: Optional[Path]):
+def _model_file(path: Optional[Path]):
+    """The model in ``--params`` (RigParams only, or params and effects); default MODEL.md, no effects."""
+    from ..identification.model_file import ModelFile, read_model
     from ..params import RigParams
 
     if path is None:
-        return RigParams()
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: parameter file not found")
-    return RigParams.from_file(path)
+        return ModelFile(RigParams())
+    return read_model(path)
+
+
+def _model(path: Optional[Path], add_effect: Optional[List[str]], effect_param: Optional[List[str]]):
+    """(RigParams, composition, effect values, {effect name: spec}) of ``--params`` (its effects) plus
+    ``--add-effect``/``--effect-param``; one-line errors name the file, the effect and what is wrong."""
+    from ..effects import compose
+    from .effect_options import parse_effect_params
+
+    mf = _model_file(path)
+    values = dict(mf.values)
+    extra = parse_effect_params(effect_param)
+    if extra and not (add_effect or mf.specs):
+        raise ValueError(f"--effect-param {next(iter(extra))}: no effect in the model (use --add-effect NAME)")
+    values.update(extra)
+    specs = list(mf.specs) + list(add_effect or [])
+    comp, vals = compose(specs, values)
+    names = {}
+    for spec, e in zip(specs, comp.effects):
+        names.setdefault(e.name, spec)
+    return mf.params, comp, vals, names
 
 
 def _segment(value: str) -> "float | None":
@@ -91,16 +113,19 @@ def register(app: typer.Typer) -> None:
                                     help="'none': free run from the initial state; seconds: re-start from data "
                                          "every so many seconds (stick-slip); 'auto': 4 s with the brake"),
         rate: float = typer.Option(100.0, help="comparison grid rate (Hz)"),
+        add_effect: List[str] = add_effect_option(),
+        effect_param: List[str] = effect_param_option(),
     ) -> None:
         """Simulate a recording's input from its initial state; R², RMS and where the error lives."""
         from ..diagnosis.compare import compare, write_compare
         from ..diagnosis.ranking import default_segment
 
+        base, model, values, _ = _model(params, add_effect, effect_param)
         ex = _experiment(data, config, rate)
         seg = _segment(segment)
         if seg is not None and seg < 0:
             seg = default_segment(ex.config) if ex.config.brake else None
-        comp = compare(ex, _params(params), segment_s=seg)
+        comp = compare(ex, base, segment_s=seg, effects=model, effect_params=values)
         paths = write_compare(comp, out)
         typer.echo(comp.text())
         typer.echo(f"figures and report in {out}/: " + ", ".join(p.name for p in paths))
@@ -115,17 +140,29 @@ def register(app: typer.Typer) -> None:
         rate: float = typer.Option(50.0, help="comparison grid rate (Hz)"),
         sparse: bool = typer.Option(True, "--sparse/--no-sparse", help="also propose a data-driven term"),
         refit_base: bool = typer.Option(False, "--refit-base", help="lightly refit the base parameters first"),
+        add_effect: List[str] = add_effect_option(),
+        effect_param: List[str] = effect_param_option(),
+        candidate: List[str] = typer.Option(None, "--candidate",
+                                            help="also try this effect (name or path/to/file.py:NAME; repeatable); "
+                                                 "default candidates: the library's"),
     ) -> None:
-        """Rank the effect library by how much of the model's residual each effect explains."""
+        """Rank candidate effects (the library's, and --candidate) by how much of the model's residual each
+        explains; the model is --params with its effects plus --add-effect."""
+        from ..diagnosis.effects import effects_for, get_effect
         from ..diagnosis.ranking import diagnose
         from ..diagnosis.sparse import residual_torques, sparse_residual_model
 
-        base = _params(params)
+        base, model, values, _ = _model(params, add_effect, effect_param)
+        extra = [get_effect(c) for c in candidate or []]
         ex = _experiment(data, config, rate)
-        d = diagnose(ex, base, segment_s=_segment(segment), refit_base=refit_base)
+        cands = None
+        if extra:
+            cands = effects_for(ex.config) + [e for e in extra if e.name not in {c.name for c in effects_for(ex.config)}]
+        d = diagnose(ex, base, effects=cands, base_effects=model, effect_params=values, segment_s=_segment(segment),
+                     refit_base=refit_base)
         term = None
         if sparse and ex.config is not ex.config.UPPER:
-            term = sparse_residual_model(residual_torques(ex, base))
+            term = sparse_residual_model(residual_torques(ex, base, effects=model, effect_params=values))
         if as_json:
             out = d.to_json()
             if term is not None:
@@ -140,42 +177,65 @@ def register(app: typer.Typer) -> None:
     @app.command("identify")
     def identify_cmd(
         data: Path = typer.Argument(..., help="recording (DATA_FORMAT csv or .mat)"),
-        out: Path = typer.Option(..., "--out", help="parameter file to write (.json or .yaml)"),
+        out: Path = typer.Option(..., "--out", help="model file to write (.json or .yaml): params and effects"),
         config: Optional[str] = typer.Option(None, "--config", help="configuration if the file has none"),
-        add_effect: List[str] = typer.Option([], "--add-effect", help="effect of the library to add (repeatable)"),
-        params: Optional[Path] = typer.Option(None, "--params", help="base parameter file (default MODEL.md set)"),
-        as_json: bool = typer.Option(False, "--json", help="print r2_before, r2_after, params as JSON"),
+        add_effect: List[str] = add_effect_option(),
+        effect_param: List[str] = typer.Option(None, "--effect-param",
+                                               help="starting value of an added effect's parameter (or the value "
+                                                    "of one already in --params), NAME=VALUE; repeatable"),
+        params: Optional[Path] = typer.Option(None, "--params",
+                                              help="model file: base parameters, and effects with their values "
+                                                   "(default MODEL.md set, no effects)"),
+        fit: List[str] = typer.Option(None, "--fit", help="also fit this parameter of the model (repeatable)"),
+        refit_base: bool = typer.Option(False, "--refit-base",
+                                        help="also fit the configuration's base parameters with the effects"),
+        as_json: bool = typer.Option(False, "--json", help="print r2_before, r2_after, fitted, std, effects as JSON"),
         report: Optional[Path] = typer.Option(None, "--report", help="directory for a markdown report with figures"),
         segment: str = typer.Option("auto", "--segment", help="multiple-shooting segment (s), 'auto' or 'none'"),
         rate: float = typer.Option(50.0, help="comparison grid rate (Hz)"),
+        max_nfev: int = typer.Option(30, "--max-nfev", help="least-squares evaluations"),
     ) -> None:
-        """Refit a recording with effects added (or the configuration's base parameters); write the result."""
+        """Add effects to the model (library names or your own files) and fit their parameters to a recording;
+        with none, refit the configuration's base parameters.  Writes the model (params and effects)."""
         from ..diagnosis.effects import get_effect
         from ..diagnosis.ranking import default_segment, diagnose
-        from ..diagnosis.refit import refit
+        from ..diagnosis.refit import effect_records, refit
         from ..diagnosis.report import write_report
+        from ..identification.model_file import write_model
+        from .effect_options import parse_effect_params
 
         if out.suffix.lower() not in (".json", ".yaml", ".yml"):
             raise ValueError(f"--out {out}: parameter file must end in .json, .yaml or .yml")
-        for n in add_effect:
-            get_effect(n)
-        base = _params(params)
+        added = list(add_effect or [])
+        specs = {get_effect(n).name: n for n in added}
+        mf = _model_file(params)
+        base_comp, base_values = mf.composition()
+        starts = parse_effect_params(effect_param)
+        held = {k: v for k, v in starts.items() if k in base_values}
         ex = _experiment(data, config, rate)
         seg = _segment(segment)
         if seg is not None and seg < 0:
             seg = default_segment(ex.config)
-        res = refit(ex, base, effects=add_effect, segment_s=seg)
-        res.params.to_file(out)
+        res = refit(ex, mf.params, effects=added, effect_params=starts, base_effects=base_comp,
+                    base_values={**base_values, **held}, fit=list(fit or []), refit_base=refit_base, segment_s=seg,
+                    max_nfev=max_nfev)
+        for spec, e in zip(mf.specs, base_comp.effects):
+            specs.setdefault(e.name, spec)
+        records = effect_records(res.composition, res.effect_values, specs)
+        write_model(out, res.params, records)
         if report is not None:
-            d = diagnose(ex, base, segment_s=seg)
-            write_report(report, ex, base, d, res, seg)
+            d = diagnose(ex, mf.params, base_effects=base_comp, effect_params=base_values, segment_s=seg)
+            write_report(report, ex, mf.params, d, res, seg, base_comp, base_values)
         if as_json:
-            typer.echo(_json({"r2_before": res.r2_before, "r2_after": res.r2_after,
-                              "params": res.params.to_dict(), "fitted": res.values, "warnings": res.warnings}))
+            typer.echo(_json({"r2_before": res.r2_before, "r2_after": res.r2_after, "rms_before": res.rms_before,
+                              "rms_after": res.rms_after, "fitted": res.values, "std": res.std,
+                              "effects": records, "effects_added": res.effects, "model_before": res.model_before,
+                              "params": res.params.to_dict(), "warnings": res.warnings, "out": str(out)}))
         else:
             typer.echo(f"effects added: {', '.join(res.effects) or 'none (base parameters refitted)'}")
             for k, v in res.values.items():
-                typer.echo(f"  {k} = {v:.6g} ± {res.std.get(k, float('nan')):.2g}")
+                sd = res.std.get(k)
+                typer.echo(f"  {k} = {v:.6g}" + (f" ± {sd:.2g}" if sd is not None and sd == sd else ""))
             for c in res.r2_before:
                 typer.echo(f"  {c:<8} R² {res.r2_before[c]:.4f} -> {res.r2_after[c]:.4f}   "
                            f"RMS {res.rms_before[c]:.4g} -> {res.rms_after[c]:.4g}")
@@ -214,7 +274,11 @@ def register(app: typer.Typer) -> None:
             if k not in STAGES:
                 raise ValueError(f"--validate: unknown stage {k!r}; expected one of {', '.join(STAGES)}")
             val.setdefault(k, []).append(read_timeseries(Path(f), cfg[k]))
-        res = identify_staged(data, _params(params), validation=val)
+        mf = _model_file(params)
+        if mf.specs:
+            raise ValueError(f"--params {params}: the staged identification fits the base model; the file has effects "
+                             f"({', '.join(mf.specs)}): use identify --add-effect for those")
+        res = identify_staged(data, mf.params, validation=val)
         res.params.to_file(out)
         if as_json:
             typer.echo(_json(res.to_json()))

@@ -1,0 +1,105 @@
+"""Model files: the base parameters and the effects with their values, reusable by every command.
+
+Written by ``drillgym identify --out p.json`` and read by ``--params`` of the identification
+commands (``identify``, ``compare``, ``diagnose``)::
+
+    {"params": {"Ju": 0.4765, ...},                      # RigParams (every base parameter)
+     "effects": [{"name": "string_cubic",
+                  "spec": "examples/effects/string_cubic.py:string_cubic",
+                  "file": "/abs/path/examples/effects/string_cubic.py",
+                  "values": {"c3": 0.0151}}]}
+
+A file of RigParams only (the older format, or ``{"params": {...}}`` alone) is a model without
+effects.  YAML (``.yaml``/``.yml``) holds the same structure.  An effect's ``spec`` is what
+``--add-effect`` accepts; when it names a file that does not exist relative to the working
+directory, the file is looked for next to the model file, then at ``file``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+from ..effects import Composition, EffectError, compose
+from ..params import ParameterError, RigParams
+
+__all__ = ["ModelFile", "read_model", "write_model"]
+
+
+@dataclass
+class ModelFile:
+    """A model read from a file: base parameters, effect specs (in order) and all effect values."""
+
+    params: RigParams
+    specs: list[str] = field(default_factory=list)
+    values: dict[str, float] = field(default_factory=dict)
+
+    def composition(self) -> tuple[Composition, dict[str, float]]:
+        return compose(self.specs, self.values)
+
+
+def _load(path: Path) -> Any:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ParameterError(f"{path}: cannot read parameter file ({exc.strerror})") from None
+    try:
+        if path.suffix.lower() in (".yaml", ".yml"):
+            import yaml
+
+            return yaml.safe_load(text)
+        return json.loads(text)
+    except Exception as exc:  # noqa: BLE001 - any parse error, one line with the file name
+        raise ParameterError(f"{path}: not valid {path.suffix.lstrip('.') or 'JSON'}: {exc}") from None
+
+
+def _resolve_spec(spec: str, file: str | None, where: Path) -> str:
+    if ".py:" not in spec:
+        return spec
+    fpath, _, name = spec.rpartition(":")
+    for cand in (Path(fpath), where.parent / fpath, Path(file) if file else None):
+        if cand is not None and cand.is_file():
+            return f"{cand}:{name}"
+    return spec  # compose reports the missing file in one line
+
+
+def read_model(path: str | Path) -> ModelFile:
+    """The model in a parameter file (see the module docstring); errors name the file."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: parameter file not found")
+    data = _load(path)
+    params = RigParams.from_dict(data, source=str(path))
+    specs: list[str] = []
+    values: dict[str, float] = {}
+    effects = data.get("effects", []) if isinstance(data, Mapping) else []
+    if not isinstance(effects, list):
+        raise ParameterError(f"{path}: 'effects' must be a list of {{spec, values}} records")
+    for k, rec in enumerate(effects):
+        if not isinstance(rec, Mapping) or not isinstance(rec.get("spec", rec.get("name")), str):
+            raise ParameterError(f"{path}: effect record {k} needs a 'spec' (name or file.py:NAME)")
+        specs.append(_resolve_spec(rec.get("spec") or rec["name"], rec.get("file"), path))
+        vals = rec.get("values", {})
+        if not isinstance(vals, Mapping):
+            raise ParameterError(f"{path}: effect record {k}: 'values' must map parameter names to numbers")
+        values.update(vals)
+    try:
+        compose(specs, values)
+    except (EffectError, ParameterError) as exc:
+        raise ParameterError(f"{path}: {exc}") from None
+    return ModelFile(params, specs, {k: float(v) for k, v in values.items()})
+
+
+def write_model(path: str | Path, params: RigParams, records: Sequence[Mapping[str, Any]] = ()) -> Path:
+    """Write base parameters and effect records (``{"name", "spec", "file", "values"}``) as JSON or YAML."""
+    path = Path(path)
+    data = {"params": params.to_dict(), "effects": [dict(r) for r in records]}
+    if path.suffix.lower() in (".yaml", ".yml"):
+        import yaml
+
+        path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    else:
+        path.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+    return path
