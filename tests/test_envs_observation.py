@@ -64,7 +64,7 @@ def test_sensor_observation_from_the_true_state(env_id: str) -> None:
     noise = rng.standard_normal((len(volts), 2))
     qu, ql = quantize_angle(Y[:, 0], o.counts_per_rev), quantize_angle(Y[:, 1], o.counts_per_rev)
     c, s = np.cos(Y[:, 0]), np.sin(Y[:, 0])
-    xm, ym = lvdt_measure(Y[:, 4] * c - Y[:, 5] * s, Y[:, 4] * s + Y[:, 5] * c, o.rig_params)
+    xm, ym = lvdt_measure(Y[:, 4] * c - Y[:, 5] * s, Y[:, 4] * s + Y[:, 5] * c)  # no measurement effect
     xm[1:] += o.lvdt_noise_std * noise[:, 0]  # the reset observation is noise-free
     ym[1:] += o.lvdt_noise_std * noise[:, 1]
     a = np.exp(-o.control_dt / o.velocity_filter_tau)
@@ -164,7 +164,7 @@ def test_readings_path_equals_simulated_path() -> None:
     assert np.abs(out_sim[:, 3]).max() > 1.0 and np.ptp(mout_sim[0, msim.H:2 * msim.H]) > 1.0  # speeds, voltages
     np.testing.assert_array_equal(sim.est_u.omega, hw.est_u.omega)  # the estimators' state is shared
     X, Yf = fixed_frame_lateral(states[-1])
-    assert 0 < np.abs(out_sim[:, 5] - 1e3 * (X + o.rig_params.lvdt_x0)).max() < 0.05  # mm: noise of a few um
+    assert 0 < np.abs(out_sim[:, 5] - 1e3 * X).max() < 0.05  # mm: noise of a few um
 
 
 def test_from_readings_takes_scalars_and_names_bad_shapes() -> None:

@@ -6,7 +6,8 @@ composition of effects): the core's ``advance_batch``
 (voltage held over the sub-steps, all rigs), then per rig the reward (:mod:`.reward`), the
 stick-slip severity and safety limits (:mod:`.task`) and, in 'full' mode, the observation
 (:mod:`.observation`).  The 'sensors' and 'motor' observations are a second compiled call
-(:mod:`.observation_kernels`).  Keeping the Python work per period this small is what makes a
+(:mod:`.sensor_kernel`, specialised for the composition: its Measurement effects, then the
+encoders and LVDTs).  Keeping the Python work per period this small is what makes a
 single env faster than Pendulum-v1 in every mode.
 """
 
@@ -47,7 +48,7 @@ class EpisodeBatch:
                                               self.system.composition)
         self._period_kernel = self.system.composition.kernels.client("drillgym.envs.period_kernel").period_kernel
         self.task = SpeedTrackingTask(o)
-        self.obs_model = make_observation_model(self.n, o)
+        self.obs_model = make_observation_model(self.n, o, self.system.params_matrix)  # live: randomised rows
         self.monitor = StickSlipMonitor(self.n, o.ssi_window, o.control_dt)
         self.rngs: list = [None] * self.n
         self.S = np.zeros((self.n, len(S_COLUMNS)))

@@ -14,7 +14,8 @@ in the 'lateral' and 'coupled' configurations.  Units: rad, rad/s, mm, mm/s, V.
 
     theta_*_wrapped: quantized encoder angle wrapped to [-pi, pi); alpha_meas = theta_l_q - theta_u_q;
     omega_*_est: backward difference of the quantized angles over the control period, first-order
-    low-pass (``velocity_filter_tau``); X_meas, Y_meas: LVDT readings (offset, skew, noise).
+    low-pass (``velocity_filter_tau``); X_meas, Y_meas: LVDT readings (noise).  The channels pass
+    through the composition's Measurement effects first (offset, skew, ... any user effect).
 
 ``motor`` (:class:`MotorObservation`, only the motor-side encoder: the field case)::
 
@@ -29,9 +30,10 @@ observation has zero speed estimates and noise-free LVDT readings of the rest po
 
 The sensor side is reusable by the hardware environment: :class:`SensorObservation` and
 :class:`MotorObservation` build the vector from readings (``from_readings``); the
-simulated readings come from :class:`SimulatedSensors` (encoders and LVDTs of
-:mod:`drillgym.measurement`).  Per control period, both modes are one compiled call
-(:mod:`.observation_kernels`: readings, speed estimators, assembly and clipping of all rigs).
+simulated readings come from :class:`SimulatedSensors` (the composition's Measurement effects,
+then the encoders and LVDTs of :mod:`drillgym.measurement`).  Per control period, both modes are
+one compiled call (:mod:`.sensor_kernel`, specialised per composition, with
+:mod:`.observation_kernels`: readings, speed estimators, assembly and clipping of all rigs).
 """
 
 from __future__ import annotations
@@ -42,8 +44,8 @@ import numpy as np
 from gymnasium import spaces
 from numba import njit
 
+from ..effects.composition import BASE, Composition
 from ..measurement import EncoderVelocityEstimator, lvdt_measure, quantize_angle
-from ..params import RigParams
 from . import observation_kernels as ok
 from .observation_kernels import MM, rotate, rotate_compiled
 from .options import U_MAX, EnvOptions
@@ -171,8 +173,14 @@ class FullObservation(ObservationModel):
 
 
 class SimulatedSensors:
-    """The rig's sensors on simulated states: quantized encoders on both discs, LVDTs with
-    offset/skew (``RigParams.lvdt_*``) and white noise ``lvdt_noise_std`` (m).
+    """The rig's sensors on simulated states: the composition's Measurement effects (offsets, skew,
+    gains, ... of :mod:`drillgym.effects`), quantized encoders on both discs, LVDTs with white noise
+    ``lvdt_noise_std`` (m).
+
+    ``composition`` is the rigs' model and ``P`` its (n, n_params) parameter matrix, read live (the
+    environments pass the simulator's own matrix, so a domain-randomised measurement parameter
+    acts in the episode that drew it).  The compiled readings are the client template
+    :mod:`.sensor_kernel` of the composition, loaded on first use.
 
     Noise is drawn per rig from that rig's generator in blocks of ``block`` periods, so a rig's
     readings depend only on its own seed (a vector env reproduces single envs exactly).
@@ -180,13 +188,26 @@ class SimulatedSensors:
     the next unused period of each rig's block: the compiled observation kernels read and
     advance them, :meth:`refill_spent` draws the next blocks."""
 
-    def __init__(self, n: int, counts_per_rev: int, lvdt_noise_std: float, params: RigParams, lateral: bool,
-                 block: int = 128) -> None:
-        self.n, self.cpr, self.noise_std, self.params, self.lateral = n, counts_per_rev, lvdt_noise_std, params, lateral
+    def __init__(self, n: int, counts_per_rev: int, lvdt_noise_std: float, lateral: bool,
+                 composition: Composition = BASE, P: np.ndarray | None = None, block: int = 128) -> None:
+        self.n, self.cpr, self.noise_std, self.lateral = n, counts_per_rev, lvdt_noise_std, lateral
+        self.composition = composition
+        self.P = composition.matrix(None, n) if P is None else P
+        if self.P.shape != (n, composition.n_params):
+            raise ValueError(f"parameter matrix must have shape ({n}, {composition.n_params}) for the model "
+                             f"{composition.label!r}, got {self.P.shape}")
         self.block = block
         self.noisy = lateral and lvdt_noise_std > 0
         self.noise = np.zeros((n, block, 2)) if self.noisy else np.zeros((0, 1, 2))
         self.pos = np.zeros(n, dtype=np.int64)
+        self._kernel = None
+
+    @property
+    def kernel(self):
+        """The composition's compiled sensor module (:mod:`.sensor_kernel`)."""
+        if self._kernel is None:
+            self._kernel = self.composition.kernels.client("drillgym.envs.sensor_kernel")
+        return self._kernel
 
     def reset(self, index: np.ndarray, rngs: Sequence[np.random.Generator]) -> None:
         if self.noisy:
@@ -206,20 +227,27 @@ class SimulatedSensors:
         self.pos[full] = 0
 
     def constants(self, lateral: bool, a: float, dt: float, low: np.ndarray, high: np.ndarray) -> np.ndarray:
-        """The constants of the compiled 'sensors' kernels (encoders, LVDTs, noise, filter ``a``, period
+        """The constants of the compiled 'sensors' kernels (encoders, LVDT noise, filter ``a``, period
         ``dt`` (s), bounds); ``lateral``: the observation has LVDT entries."""
-        return ok.sensor_constants(lateral, self.cpr, a, dt, self.noise_std if self.noisy else 0.0, 0.0, 0.0, 0.0,
-                                   low, high)
+        return ok.sensor_constants(lateral, self.cpr, a, dt, self.noise_std if self.noisy else 0.0, low, high)
 
-    def encoders(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Quantized (theta_u, theta_l) in rad."""
-        return quantize_angle(Y[:, 0], self.cpr), quantize_angle(Y[:, 1], self.cpr)
+    def channels(self, Y: np.ndarray, index: np.ndarray | None = None) -> np.ndarray:
+        """(4, m) channels theta_u, theta_l (rad), X, Y (m) of the states ``Y`` (m, n_state) of rigs
+        ``index`` (default all) as read before quantization and noise (Measurement effects applied)."""
+        P = self.P if index is None else self.P[index]
+        return self.kernel.measured_channels_batch(np.ascontiguousarray(Y, dtype=np.float64),
+                                                   np.ascontiguousarray(P))
+
+    def encoders(self, Y: np.ndarray, index: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Quantized (theta_u, theta_l) in rad of the states ``Y`` of rigs ``index`` (default all)."""
+        c = self.channels(Y, index)
+        return quantize_angle(c[0], self.cpr), quantize_angle(c[1], self.cpr)
 
     def lvdts(self, Y: np.ndarray, rngs: Sequence[np.random.Generator],
               skip: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """LVDT readings (X_meas, Y_meas) in m (advances the noise blocks as the kernels do)."""
-        X, Yf = fixed_frame_lateral(Y)
-        xm, ym = lvdt_measure(X, Yf)
+        """LVDT readings (X_meas, Y_meas) in m of all rigs (advances the noise blocks as the kernels do)."""
+        c = self.channels(Y)
+        xm, ym = lvdt_measure(c[2], c[3])
         if self.noisy:
             e = self.noise[np.arange(len(self.pos)), self.pos]
             xm += self.noise_std * e[:, 0]
@@ -237,10 +265,13 @@ class SensorObservation(ObservationModel):
 
     mode = "sensors"
 
-    def __init__(self, n: int, options: EnvOptions, sensors: SimulatedSensors | None = None) -> None:
+    def __init__(self, n: int, options: EnvOptions, sensors: SimulatedSensors | None = None,
+                 params: np.ndarray | None = None) -> None:
         super().__init__(n, options)
         o = options
-        self.sensors = sensors or SimulatedSensors(n, o.counts_per_rev, o.lvdt_noise_std, o.rig_params, o.lateral)
+        self.sensors = sensors or SimulatedSensors(n, o.counts_per_rev, o.lvdt_noise_std, o.lateral, o.effects,
+                                                   _params(n, o, params))
+        self._observe_fn = None
         self.est_u = EncoderVelocityEstimator(n, o.control_dt, o.velocity_filter_tau)
         self.est_l = EncoderVelocityEstimator(n, o.control_dt, o.velocity_filter_tau)
         self.E = np.zeros((4, n))
@@ -260,20 +291,25 @@ class SensorObservation(ObservationModel):
         return names + tn, low + tl, high + th
 
     def reset(self, index, Y, rngs) -> None:
-        tu, tl = self.sensors.encoders(Y[index])
+        tu, tl = self.sensors.encoders(Y[index], index)
         self.est_u.reset(tu, index)
         self.est_l.reset(tl, index)
         self.sensors.reset(index, rngs)
 
     def observe(self, Y, u_prev, omega_ref, out, rngs, skip=None) -> None:
         s = self.sensors
-        if ok.sensors_observe(Y, u_prev, omega_ref, self.E, s.noise, s.pos, self.cv, out):
+        fn = self._observe_fn or self._bind()
+        if fn(Y, s.P, u_prev, omega_ref, self.E, s.noise, s.pos, self.cv, out):
             s.refill_spent(rngs, skip)
 
+    def _bind(self):
+        self._observe_fn = self.sensors.kernel.sensors_observe
+        return self._observe_fn
+
     def initial(self, index, Y, omega_ref) -> np.ndarray:
-        Yi = Y[index]
-        tu, tl = self.sensors.encoders(Yi)
-        xm, ym = lvdt_measure(*fixed_frame_lateral(Yi)) if self.lateral else (tu, tl)
+        c = self.sensors.channels(Y[index], index)
+        tu, tl = quantize_angle(c[0], self.sensors.cpr), quantize_angle(c[1], self.sensors.cpr)
+        xm, ym = lvdt_measure(c[2], c[3]) if self.lateral else (tu, tl)  # noise-free at rest
         out = np.empty((len(index), self.dim), dtype=np.float32)
         zero = np.zeros(len(index))
         ok.sensors_rows(tu, tl, xm, ym, zero, omega_ref[index], self.E, self.cv, False, out)
@@ -302,11 +338,13 @@ class MotorObservation(ObservationModel):
 
     mode = "motor"
 
-    def __init__(self, n: int, options: EnvOptions, sensors: SimulatedSensors | None = None) -> None:
+    def __init__(self, n: int, options: EnvOptions, sensors: SimulatedSensors | None = None,
+                 params: np.ndarray | None = None) -> None:
         super().__init__(n, options)
         o = options
         self.H = o.motor_history
-        self.sensors = sensors or SimulatedSensors(n, o.counts_per_rev, 0.0, o.rig_params, False)
+        self.sensors = sensors or SimulatedSensors(n, o.counts_per_rev, 0.0, False, o.effects, _params(n, o, params))
+        self._observe_fn = None
         self.est = EncoderVelocityEstimator(n, o.control_dt, 0.0)  # raw increments / control_dt
         self.E = np.zeros((2, n))
         self.est.prev, self.est.omega = self.E
@@ -319,7 +357,7 @@ class MotorObservation(ObservationModel):
         return names, [-w] * H + [-U_MAX] * H + [0.0], [w] * H + [U_MAX] * H + [o.max_speed]
 
     def reset(self, index, Y, rngs) -> None:
-        tu, _ = self.sensors.encoders(Y[index])
+        tu, _ = self.sensors.encoders(Y[index], index)
         self.est.reset(tu, index)
         self.hist[index] = 0.0
 
@@ -330,7 +368,10 @@ class MotorObservation(ObservationModel):
         return out
 
     def observe(self, Y, u_prev, omega_ref, out, rngs, skip=None) -> None:
-        ok.motor_observe(Y, u_prev, omega_ref, self.E, self.hist, self.cv, out)
+        fn = self._observe_fn
+        if fn is None:
+            fn = self._observe_fn = self.sensors.kernel.motor_observe
+        fn(Y, self.sensors.P, u_prev, omega_ref, self.E, self.hist, self.cv, out)
 
     def from_readings(self, theta_u: np.ndarray, u_prev: np.ndarray, omega_ref: np.ndarray,
                       out: np.ndarray) -> None:
@@ -356,6 +397,17 @@ def _rows(x, n: int, name: str) -> np.ndarray:
 _MODELS = {"full": FullObservation, "sensors": SensorObservation, "motor": MotorObservation}
 
 
-def make_observation_model(n: int, options: EnvOptions) -> ObservationModel:
-    """The observation model of ``options.observation`` for n rigs."""
-    return _MODELS[options.observation](n, options)
+def _params(n: int, o: EnvOptions, params: np.ndarray | None) -> np.ndarray:
+    """The rigs' (n, n_params) parameter matrix: ``params`` (live, e.g. the simulator's) or the options'."""
+    if params is not None:
+        return params
+    return o.effects.matrix(o.rig_params, n, o.effect_params)
+
+
+def make_observation_model(n: int, options: EnvOptions, params: np.ndarray | None = None) -> ObservationModel:
+    """The observation model of ``options.observation`` for n rigs; ``params`` the rigs' (n, n_params)
+    parameter matrix in the layout of ``options.effects`` (read live by the simulated sensors;
+    default the options' parameters and effect values)."""
+    if options.observation == "full":
+        return FullObservation(n, options)
+    return _MODELS[options.observation](n, options, params=params)

@@ -4,8 +4,11 @@ For every rig (row) one call quantizes the encoders, updates the speed estimator
 LVDTs (noise from the rig's pre-drawn block), assembles the observation vector and clips it into
 the Box, without Python-level work per quantity; :mod:`.observation` calls these kernels from its
 classes.  The formulas are the elementwise functions of :mod:`drillgym.measurement`
-(``encoder_reading``, ``filtered_speed``, ``lvdt_reading``) and :func:`rotate` / :func:`wrap_angle`
-below, compiled here by numba and used as they are by the numpy paths: one formula per quantity.
+(``encoder_reading``, ``filtered_speed``) and :func:`rotate` / :func:`wrap_angle` below, compiled
+here by numba and used as they are by the numpy paths: one formula per quantity.  The simulated
+readings (true state -> Measurement effects of the composition -> encoders, LVDT noise) are the
+client template :mod:`.sensor_kernel`, specialised per composition of effects; this module
+assembles observations from readings (the hardware twin and the agents use it directly).
 
 Argument conventions (all kernels are batched over the rows of ``out``):
 
@@ -22,16 +25,16 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..measurement import encoder_reading, filtered_speed, lvdt_reading
+from ..measurement import encoder_reading, filtered_speed
 
-__all__ = ["MM", "rotate", "wrap_angle", "rotate_compiled", "sensor_constants", "motor_constants",
-           "sensors_rows", "sensors_observe", "motor_rows", "motor_observe"]
+__all__ = ["MM", "rotate", "wrap_angle", "rotate_compiled", "encoder_compiled", "sensor_constants",
+           "motor_constants", "sensor_row", "sensors_rows", "motor_row", "motor_rows"]
 
 MM = 1e3  # m -> mm
 
 # layout of the sensors constants: lateral (0/1), counts per rev, filter coefficient a, control period (s),
-# LVDT noise std (m, 0: none), LVDT offsets x0, y0 (m), cos and sin of the LVDT skew, then the bounds
-SC_LATERAL, SC_CPR, SC_A, SC_DT, SC_NOISE, SC_X0, SC_Y0, SC_COS, SC_SIN, SC_BOUNDS = range(10)
+# LVDT noise std (m, 0: none), then the bounds (offsets, skew ... are Measurement effects of the composition)
+SC_LATERAL, SC_CPR, SC_A, SC_DT, SC_NOISE, SC_BOUNDS = range(6)
 # layout of the motor constants: counts per rev, filter coefficient a, control period (s), then the bounds
 MC_CPR, MC_A, MC_DT, MC_BOUNDS = range(4)
 
@@ -49,15 +52,14 @@ def wrap_angle(theta):
 
 rotate_compiled = njit(cache=True)(rotate)
 _wrap = njit(cache=True)(wrap_angle)
-_encoder = njit(cache=True)(encoder_reading)
+encoder_compiled = njit(cache=True)(encoder_reading)
 _speed = njit(cache=True)(filtered_speed)
-_lvdt = njit(cache=True)(lvdt_reading)
 
 
-def sensor_constants(lateral: bool, counts_per_rev: int, a: float, dt: float, noise_std: float, x0: float,
-                     y0: float, skew: float, low: np.ndarray, high: np.ndarray) -> np.ndarray:
-    """The ``cv`` vector of the sensors kernels (SC_* layout; skew in rad, lengths in m, dt in s)."""
-    head = [float(lateral), counts_per_rev, a, dt, noise_std, x0, y0, np.cos(skew), np.sin(skew)]
+def sensor_constants(lateral: bool, counts_per_rev: int, a: float, dt: float, noise_std: float,
+                     low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """The ``cv`` vector of the sensors kernels (SC_* layout; noise in m, dt in s)."""
+    head = [float(lateral), counts_per_rev, a, dt, noise_std]
     return np.concatenate([np.asarray(head, dtype=float), low, high]).astype(float)
 
 
@@ -89,7 +91,7 @@ def _estimate(E, r, k, theta, a, dt):
 
 
 @njit(cache=True)
-def _sensor_row(k, theta_u, theta_l, xm, ym, u_prev, omega_ref, E, cv, update, out):
+def sensor_row(k, theta_u, theta_l, xm, ym, u_prev, omega_ref, E, cv, update, out):
     """Row k of the 'sensors' observation from one period's readings (rad, m, V, rad/s).
     ``update``: advance the speed estimators; otherwise (reset observation) speeds are 0."""
     if update:
@@ -116,46 +118,16 @@ def _sensor_row(k, theta_u, theta_l, xm, ym, u_prev, omega_ref, E, cv, update, o
 @njit(cache=True)
 def sensors_rows(theta_u, theta_l, X, Y, u_prev, omega_ref, E, cv, update, out):
     """'sensors' observations of all rows from readings: encoder angles (rad), LVDT readings X, Y (m;
-    any array when not lateral), voltages (V), targets (rad/s).  ``update`` as in ``_sensor_row``."""
+    any array when not lateral), voltages (V), targets (rad/s).  ``update`` as in ``sensor_row``."""
     lateral = cv[SC_LATERAL] > 0.0
     for k in range(out.shape[0]):
         xm = X[k] if lateral else 0.0
         ym = Y[k] if lateral else 0.0
-        _sensor_row(k, theta_u[k], theta_l[k], xm, ym, u_prev[k], omega_ref[k], E, cv, update, out)
+        sensor_row(k, theta_u[k], theta_l[k], xm, ym, u_prev[k], omega_ref[k], E, cv, update, out)
 
 
 @njit(cache=True)
-def sensors_observe(Y, u_prev, omega_ref, E, noise, pos, cv, out):
-    """'sensors' observations of simulated states ``Y`` (n, 9) after one period: quantized encoders,
-    speed estimators, LVDTs of the fixed-frame position with noise ``noise[k, pos[k]]`` (standard
-    normal, scaled by cv[SC_NOISE]; ``pos`` advanced).  Returns the number of rows whose noise block
-    is used up (``pos[k] == noise.shape[1]``): the caller refills them (or resets pos) before the
-    next call."""
-    lateral = cv[SC_LATERAL] > 0.0
-    cpr = cv[SC_CPR]
-    std = cv[SC_NOISE]
-    spent = 0
-    for k in range(Y.shape[0]):
-        theta_u = _encoder(Y[k, 0], cpr)
-        theta_l = _encoder(Y[k, 1], cpr)
-        xm = 0.0
-        ym = 0.0
-        if lateral:
-            X, Yf = rotate_compiled(Y[k, 4], Y[k, 5], np.cos(Y[k, 0]), np.sin(Y[k, 0]))
-            xm, ym = _lvdt(X, Yf, cv[SC_X0], cv[SC_Y0], cv[SC_COS], cv[SC_SIN])
-            if std > 0.0:
-                p = pos[k]
-                xm += std * noise[k, p, 0]
-                ym += std * noise[k, p, 1]
-                pos[k] = p + 1
-                if p + 1 >= noise.shape[1]:
-                    spent += 1
-        _sensor_row(k, theta_u, theta_l, xm, ym, u_prev[k], omega_ref[k], E, cv, True, out)
-    return spent
-
-
-@njit(cache=True)
-def _motor_row(k, theta_u, u_prev, omega_ref, E, hist, cv, update, out):
+def motor_row(k, theta_u, u_prev, omega_ref, E, hist, cv, update, out):
     """Row k of the 'motor' observation: shift the history ``hist`` (n, 2H: increments, voltages;
     newest first) by one period and add the increment of ``theta_u`` (rad) / dt and ``u_prev`` (V).
     Without ``update`` (reset observation): an empty history, ``hist`` untouched."""
@@ -179,12 +151,4 @@ def _motor_row(k, theta_u, u_prev, omega_ref, E, hist, cv, update, out):
 def motor_rows(theta_u, u_prev, omega_ref, E, hist, cv, update, out):
     """'motor' observations of all rows from the motor encoder angles (rad), voltages (V), targets (rad/s)."""
     for k in range(out.shape[0]):
-        _motor_row(k, theta_u[k], u_prev[k], omega_ref[k], E, hist, cv, update, out)
-
-
-@njit(cache=True)
-def motor_observe(Y, u_prev, omega_ref, E, hist, cv, out):
-    """'motor' observations of simulated states ``Y`` (n, 9): the motor encoder quantizes Y[:, 0]."""
-    cpr = cv[MC_CPR]
-    for k in range(Y.shape[0]):
-        _motor_row(k, _encoder(Y[k, 0], cpr), u_prev[k], omega_ref[k], E, hist, cv, True, out)
+        motor_row(k, theta_u[k], u_prev[k], omega_ref[k], E, hist, cv, update, out)
