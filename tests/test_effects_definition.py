@@ -1,0 +1,190 @@
+"""Writing an effect: what is accepted, what is refused (one line naming the file, the effect and the
+problem), where effects come from (library, files, entry points), and the on-disk kernel cache."""
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drillgym import simulate
+from drillgym.effects import EffectError, LIBRARY, available_effects, compose
+from drillgym.effects.codegen import hooks_source
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def write_effect(tmp_path: Path, body: str, name: str = "my_effect.py") -> Path:
+    path = tmp_path / name
+    path.write_text("from drillgym.effects import Force, Friction, Input, Delay, Measurement, Parameter, State\n"
+                    "import math\n\n" + textwrap.dedent(body))
+    return path
+
+
+GOOD = """
+class UpperBump(Friction):
+    '''A Stribeck bump at the upper disc.'''
+    name = "upper_bump"
+    disc = "upper"
+    parameters = (Parameter("bump", "N m", 0.0, 1.0, 0.05, 0.01, "height of the bump"),)
+
+    def slip(T, direction, speed, bump):
+        return T + direction * bump * math.exp(-speed)
+
+    def stick(lo, hi, bump):
+        return lo - bump, hi + bump
+"""
+
+
+def test_library_has_the_ten_effects_and_lists_them():
+    assert len(LIBRARY) == 10
+    assert set(LIBRARY) <= set(available_effects())
+    for cls in LIBRARY.values():
+        assert cls.explanation and cls.signature and cls.parameters
+        for p in cls.parameters:
+            assert p.lo < p.hi and p.lo <= p.guess <= p.hi and p.scale > 0 and p.unit
+
+
+def test_a_user_friction_effect_on_the_upper_disc_is_compiled_and_acts(tmp_path):
+    path = write_effect(tmp_path, GOOD)
+    base = simulate("upper", 0.2, 2.0)
+    assert base.omega_u[-1] > 0.0  # km u = 0.86 N m exceeds the upper stick level 0.374 N m: it turns
+    bump = simulate("upper", 0.2, 2.0, effects=[f"{path}:upper_bump"], effect_params={"bump": 0.6})
+    assert np.all(bump.omega_u == 0.0)  # the wider stick set holds the disc
+
+
+def test_unknown_effect_name_lists_the_known_ones():
+    with pytest.raises(EffectError, match="unknown effect 'motor_lagg'.*motor_lag"):
+        compose(["motor_lagg"])
+
+
+@pytest.mark.parametrize("body, message", [
+    ("class Broken(Force):\n    name = 'broken'\n    acts_on = 'string'\n    def torque(alpha:\n        return 0\n",
+     "does not import"),
+    ("raise RuntimeError('no licence')\n", "does not import.*RuntimeError: no licence"),
+    ("class Middle(Force):\n    name = 'middle'\n    acts_on = 'middle_disc'\n"
+     "    def torque(alpha):\n        return alpha\n", "acts_on = 'middle_disc' is not a coordinate"),
+    ("class Odd(Force):\n    name = 'odd'\n    acts_on = 'lower'\n"
+     "    def torque(omega_x):\n        return omega_x\n", "unknown quantity/coordinate 'omega_x'"),
+    ("class Loose(Force):\n    name = 'loose'\n    acts_on = 'lower'\n"
+     "    parameters = (Parameter('c', '-', None, 1.0, 0.0, 0.1),)\n"
+     "    def torque(alpha, c):\n        return c * alpha\n", "needs a finite lo"),
+    ("class Nan(Force):\n    name = 'nan_effect'\n    acts_on = 'lower'\n"
+     "    def torque(omega_l):\n        return math.log(omega_l)\n", "fails at a typical state|not finite"),
+    ("class Nan2(Force):\n    name = 'nan2'\n    acts_on = 'lower'\n"
+     "    def torque(omega_l):\n        return math.sqrt(abs(omega_l)) * float('nan')\n", "not finite"),
+    ("class Selfish(Force):\n    name = 'selfish'\n    acts_on = 'lower'\n"
+     "    def torque(self, alpha):\n        return alpha\n", "without self"),
+    ("class Clash(Force):\n    name = 'clash'\n    acts_on = 'lower'\n"
+     "    parameters = (Parameter('Ts', 'N m', 0.0, 1.0, 0.1, 0.1),)\n"
+     "    def torque(Ts):\n        return Ts\n", "already taken"),
+    ("class NoState(Input):\n    name = 'nostate'\n    states = (State('z', 'V'),)\n"
+     "    def voltage(u, z):\n        return z\n", "defines derivative"),
+])
+def test_bad_effect_files_get_one_line_errors_naming_file_and_problem(tmp_path, body, message):
+    path = tmp_path / "bad_effect.py"
+    path.write_text("from drillgym.effects import Force, Input, Parameter, State\nimport math\n\n" + body)
+    name = body.split("name = '")[1].split("'")[0] if "name = '" in body else "x"
+    with pytest.raises(EffectError, match=message) as err:
+        compose([f"{path}:{name}"])
+    text = str(err.value)
+    assert "\n" not in text and "bad_effect.py" in text
+
+
+def test_missing_effect_in_a_file_and_missing_file(tmp_path):
+    path = write_effect(tmp_path, GOOD)
+    with pytest.raises(EffectError, match="no effect named 'other'.*upper_bump"):
+        compose([f"{path}:other"])
+    with pytest.raises(EffectError, match="not found"):
+        compose([f"{tmp_path}/nowhere.py:x"])
+    with pytest.raises(EffectError, match="say which effect"):
+        compose([str(path)])
+
+
+def test_effect_values_are_checked_against_their_bounds():
+    with pytest.raises(ValueError, match="'tau_m' = 9.0 s is outside"):
+        compose(["motor_lag"], {"tau_m": 9.0})
+    with pytest.raises(ValueError, match="unknown effect parameter 'tau'"):
+        compose(["motor_lag"], {"tau": 0.1})
+    with pytest.raises(EffectError, match="given twice"):
+        compose(["motor_lag", "motor_lag"])
+
+
+def test_cli_refuses_a_bad_effect_in_one_line(tmp_path):
+    path = tmp_path / "bad.py"
+    path.write_text("this is not python\n")
+    r = subprocess.run([sys.executable, "-m", "drillgym.cli", "simulate", "--u", "1", "--duration", "1",
+                        "--out", str(tmp_path / "o.csv"), "--add-effect", f"{path}:x"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2
+    lines = [ln for ln in r.stderr.strip().splitlines() if ln]
+    assert len(lines) == 1 and "bad.py" in lines[0] and "does not import" in lines[0]
+    r = subprocess.run([sys.executable, "-m", "drillgym.cli", "simulate", "--u", "1", "--duration", "1",
+                        "--out", str(tmp_path / "o.csv"), "--effect-param", "tau_m=0.1"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2 and "no effect added" in r.stderr
+
+
+def test_effects_command_lists_and_validates(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "drillgym.cli", "effects"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0
+    for name in LIBRARY:
+        assert name in r.stdout
+    r = subprocess.run([sys.executable, "-m", "drillgym.cli", "effects", "--show",
+                        f"{ROOT}/examples/effects/string_cubic.py:string_cubic"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and "c3" in r.stdout and "1/rad^2" in r.stdout
+
+
+def test_entry_point_effects_are_found_by_name(tmp_path, monkeypatch):
+    """An installed package provides effects through the entry-point group drillgym.effects."""
+    pkg = tmp_path / "site"
+    pkg.mkdir()
+    (pkg / "rig_extras.py").write_text(
+        "from drillgym.effects import Force, Parameter\n\n"
+        "class Wind(Force):\n    name = 'wind'\n    acts_on = 'upper'\n"
+        "    parameters = (Parameter('gust', 'N m', 0.0, 1.0, 0.1, 0.01),)\n"
+        "    def torque(gust):\n        return -gust\n")
+    dist = pkg / "rig_extras-0.1.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: rig-extras\nVersion: 0.1\n")
+    (dist / "entry_points.txt").write_text("[drillgym.effects]\nwind = rig_extras:Wind\n")
+    monkeypatch.syspath_prepend(str(pkg))
+    assert "wind" in available_effects()
+    comp, vals = compose(["wind"])
+    assert comp.param_names[-1] == "gust" and vals == {"gust": 0.1}
+
+
+def test_generated_code_reads_like_the_composition():
+    comp, _ = compose(["motor_lag", "string_damping"])
+    src = hooks_source(comp)
+    assert "_e0_derivative(u, y[8]" in src and "u = _e0_voltage(y[8])" in src
+    assert "_Qs += _e1_torque((y[3] - y[2])" in src
+
+
+@pytest.mark.slow
+def test_kernel_cache_is_keyed_by_content_never_stale(tmp_path):
+    """The same effect file edited between two runs: the second run sees the new physics (a new cached
+    package), and a third identical run reuses the second's cache."""
+    path = tmp_path / "push.py"
+    script = ("import sys; from drillgym import simulate; from drillgym.effects import compose\n"
+              f"c, _ = compose(['{path}:push']); tr = simulate('upper', 0.0, 1.0, effects=c)\n"
+              "print(tr.omega_u[-1], c.kernels.package)")
+    env = dict(os.environ, DRILLGYM_KERNEL_CACHE=str(tmp_path / "cache"))
+
+    def run(gain: float) -> tuple[float, str]:
+        path.write_text("from drillgym.effects import Force\n\nclass Push(Force):\n    name = 'push'\n"
+                        f"    acts_on = 'upper'\n\n    def torque(t):\n        return {gain}\n")
+        out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=600)
+        assert out.returncode == 0, out.stderr
+        w, pkg = out.stdout.split()
+        return float(w), pkg
+
+    w1, p1 = run(1.0)
+    w2, p2 = run(2.0)
+    w3, p3 = run(2.0)
+    assert p1 != p2 and p2 == p3
+    assert w2 > w1 > 0.0 and w3 == w2
