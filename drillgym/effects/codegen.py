@@ -21,6 +21,7 @@ import os
 import shutil
 import sys
 import tempfile
+import time
 from functools import lru_cache
 from pathlib import Path
 from types import ModuleType
@@ -371,13 +372,35 @@ def _ensure_on_path(root: Path) -> None:
         sys.path.insert(0, s)
 
 
+STALE_AFTER_S = 3600.0  # packages built from other drillgym sources are removed after an hour unused
+
+
+def prune_stale(root: Path) -> int:
+    """Remove generated packages built from other drillgym sources (never loaded again: the package
+    name hashes the sources) once they have not been touched for an hour; returns how many."""
+    digest = _environment_digest()
+    removed = 0
+    now = time.time()
+    for d in root.glob("_dgk_*"):
+        try:
+            meta = (d / "ENVIRONMENT").read_text().strip()
+            if meta != digest and now - d.stat().st_mtime > STALE_AFTER_S:
+                shutil.rmtree(d, ignore_errors=True)
+                removed += 1
+        except OSError:
+            continue
+    return removed
+
+
 def _write_package(root: Path, package: str, hooks: str, label: str) -> Path:
     final = root / package
     if final.exists():
         return final
     root.mkdir(parents=True, exist_ok=True)
+    prune_stale(root)
     tmp = Path(tempfile.mkdtemp(prefix=f".{package}-", dir=root))
     try:
+        (tmp / "ENVIRONMENT").write_text(_environment_digest() + "\n")
         (tmp / "__init__.py").write_text(f'"""drillgym kernels for the composition {label!r} (generated)."""\n')
         (tmp / "hooks.py").write_text(hooks)
         for name in CORE_TEMPLATES:
