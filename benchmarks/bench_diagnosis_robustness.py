@@ -3,7 +3,8 @@
 A fixed-seed matrix of synthetic recordings
 (:func:`drillgym.identification.synthetic.synthetic_measurement`: simulation +
 the rig's measurement chain) with ONE hidden effect (or none) is diagnosed
-without telling it the effect.  Varied per recording: the effect and its
+without telling it the effect (the hidden effect is added to the simulated model with
+``effects=[name]``; each candidate is tried as a composition, base + candidate).  Varied per recording: the effect and its
 magnitude (weak / medium / strong, values below), the effect's *form* (variant
 A: the library's form; variant B: a slightly different one the library's
 parameters allow: other phases, a second harmonic, the other sign, unequal
@@ -25,7 +26,8 @@ Magnitudes (weak / medium / strong; physical units):
 ================== ===================================== ==========================================
 effect             variant A (library form)              variant B (other form)
 ================== ===================================== ==========================================
-position_friction  pf_a1 0.05/0.12/0.25, random phase    + 2nd harmonic pf_a2 = a1/2, random phases
+position_friction  amplitude 0.05/0.12/0.25, random phase + 2nd harmonic of half the amplitude, random
+                   (pf_c1 = a cos phi, pf_s1 = a sin phi)   phase (pf_c2, pf_s2)
 brake_asymmetry    asym_s = asym_c = 0.1/0.25/0.5        asym_s = m, asym_c = -m/2
 string_damping     dtheta 0.002/0.005/0.015 N m s/rad    same (other signals/conditions)
 motor_lag          tau_m 0.01/0.03/0.08 s                tau_m x1.3
@@ -75,13 +77,14 @@ N_NONE = 14
 
 
 def effect_params(name: str, mag: int, variant: str, rng: np.random.Generator) -> dict[str, float]:
-    """Extension parameters of the hidden effect (see the module docstring)."""
+    """Parameters of the hidden effect (see the module docstring)."""
     B = variant == "B"
     if name == "position_friction":
-        a1 = (0.05, 0.12, 0.25)[mag]
-        out = {"pf_a1": a1, "pf_phi1": float(rng.uniform(-np.pi, np.pi))}
+        a1, phi1 = (0.05, 0.12, 0.25)[mag], float(rng.uniform(-np.pi, np.pi))
+        out = {"pf_c1": a1 * np.cos(phi1), "pf_s1": a1 * np.sin(phi1)}
         if B:
-            out.update(pf_a2=a1 / 2, pf_phi2=float(rng.uniform(-np.pi, np.pi)))
+            phi2 = float(rng.uniform(-np.pi, np.pi))
+            out.update(pf_c2=a1 / 2 * np.cos(phi2), pf_s2=a1 / 2 * np.sin(phi2))
         return out
     if name == "brake_asymmetry":
         m = (0.1, 0.25, 0.5)[mag]
@@ -137,7 +140,6 @@ def build_matrix(seed: int = SEED) -> list[dict]:
 
 def run_case(c: dict) -> dict:
     """Generate one recording, diagnose it, return the outcome."""
-    from drillgym import RigParams
     from drillgym.diagnosis import diagnose
     from drillgym.identification.synthetic import synthetic_measurement
 
@@ -148,11 +150,12 @@ def run_case(c: dict) -> dict:
         if "sat_A" in par:
             A, T = par.pop("sat_A"), par.pop("sat_T")
             kw["level_profile"] = lambda t: 1.0 + A * (1.0 - np.exp(-t / T))
-        p = RigParams().replace(**par)
+        if par:  # the hidden effect, added to the simulated model
+            kw.update(effects=[c["effect"]], effect_params=par)
         if c["signal"] == "constant":
-            ts = synthetic_measurement(c["config"], p, u=c["u"], **kw)
+            ts = synthetic_measurement(c["config"], u=c["u"], **kw)
         else:
-            ts = synthetic_measurement(c["config"], p, signal=c["signal"], offset=c["offset"], **kw)
+            ts = synthetic_measurement(c["config"], signal=c["signal"], offset=c["offset"], **kw)
         t0 = time.perf_counter()
         d = diagnose(ts)
         out["time_s"] = time.perf_counter() - t0

@@ -52,8 +52,7 @@ def main() -> None:
         print(f"  {s.name:<15} nfev {s.fit.nfev:>3}  R² est [{r2e}]  val [{r2v}]  {errs}")
         for w in s.fit.warnings:
             print(f"    warning: {w}")
-    hidden = true.replace(dk=300.0, db=5.0)
-    data = m("coupled", 7, offset=3.5, params=hidden)
+    data = m("coupled", 7, offset=3.5, effects=["lateral_anisotropy"], effect_params={"dk": 300.0, "db": 5.0})
     t0 = time.perf_counter()
     d = diagnose(data)
     t_d = time.perf_counter() - t0
