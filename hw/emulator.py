@@ -25,6 +25,7 @@ import time
 import tty
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, Mapping
 
 from drillgym import RigParams
 
@@ -65,8 +66,8 @@ class RigEmulator:
     """Emulated rig on a pseudo-terminal (see the module docstring).
 
     Args:
-        configuration, params, dt, method, alpha0, lvdt_noise_std, seed: the plant
-            (:class:`hw.firmware.Firmware`); hidden effects are RigParams extension parameters.
+        configuration, params, effects, effect_params, dt, method, alpha0, lvdt_noise_std, seed: the
+            plant (:class:`hw.firmware.Firmware`): base parameters and hidden effects with their values.
         firmware: firmware settings (encoder resolution, LVDT scale, period, watchdog, limits).
         latency_s: serial latency of every reply (s); ``jitter_s``: extra uniform [0, jitter_s] (s).
         faults: link faults to inject.
@@ -74,13 +75,14 @@ class RigEmulator:
     """
 
     def __init__(self, configuration: str = "torsional", params: RigParams | None = None,
-                 firmware: FirmwareConfig | None = None, *, dt: float = 1e-3, method: str = "rk4",
+                 firmware: FirmwareConfig | None = None, *, effects: Any = None,
+                 effect_params: Mapping[str, float] | None = None, dt: float = 1e-3, method: str = "rk4",
                  alpha0: float = 0.0, lvdt_noise_std: float = 0.0, seed: int | None = 0, latency_s: float = 0.0,
                  jitter_s: float = 0.0, faults: FaultPlan | None = None, link_path: str | Path | None = None) -> None:
         if latency_s < 0 or jitter_s < 0:
             raise ValueError(f"latency_s and jitter_s must be >= 0 s, got {latency_s!r}, {jitter_s!r}")
-        self.firmware = Firmware(configuration, params, firmware, dt=dt, method=method, alpha0=alpha0,
-                                 lvdt_noise_std=lvdt_noise_std, seed=seed)
+        self.firmware = Firmware(configuration, params, firmware, effects=effects, effect_params=effect_params, dt=dt,
+                                 method=method, alpha0=alpha0, lvdt_noise_std=lvdt_noise_std, seed=seed)
         self.latency_s = float(latency_s)
         self.jitter_s = float(jitter_s)
         self.faults = faults or FaultPlan()

@@ -52,8 +52,8 @@ from .safety import SafetyLimits, VoltageLimiter, check_limits
 __all__ = ["HardwareEnv", "HARDWARE_FIXED_OPTIONS"]
 
 #: EnvOptions that describe the simulated plant; on hardware they are properties of the rig.
-HARDWARE_FIXED_OPTIONS = ("params", "randomize", "randomize_names", "dt", "method", "friction", "alpha0_range",
-                          "lvdt_noise_std", "counts_per_rev", "render_history")
+HARDWARE_FIXED_OPTIONS = ("params", "randomize", "randomize_names", "effects", "effect_params", "dt", "method",
+                          "friction", "alpha0_range", "lvdt_noise_std", "counts_per_rev", "render_history")
 _ROW0 = np.zeros(1, dtype=np.int64)
 
 

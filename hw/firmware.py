@@ -1,9 +1,11 @@
 """The rig's microcontroller, emulated: protocol handling, safety, watchdog, and the plant.
 
-The plant is the core simulator (:class:`drillgym.BatchSimulator`, one rig) with the
-hidden effects of the parameter set (RigParams extension parameters), measured the way
-the rig measures it (:mod:`drillgym.measurement`: quantized encoders, LVDTs with
-offset/skew/noise).
+The plant is the core simulator (:class:`drillgym.BatchSimulator`, one rig) running the
+composition of hidden effects (:mod:`drillgym.effects`: names, ``file.py:NAME``, classes or
+instances, with their values), so the emulator, the environments and the single-run simulator
+integrate the same compiled model (an input delay is the kernels' per-trajectory delay line).
+It is measured the way the rig measures it: the composition's Measurement effects (LVDT
+offset/skew, any user effect), then quantized encoders and LVDT noise (:mod:`drillgym.measurement`).
 
 Stepping is deterministic: every SET_VOLTAGE advances the plant by exactly one control
 period at the (safety-limited) voltage and is answered by the SAMPLE at the end of that
@@ -18,8 +20,8 @@ frame and the wall-clock time and returns the frames to send back (see :mod:`hw.
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass, field
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -81,8 +83,10 @@ class Firmware:
 
     Args:
         configuration: rig configuration ('torsional', 'lateral', 'coupled', ...).
-        params: plant parameters, hidden effects included (default the identified set).
+        params: base parameters of the plant (default the identified set).
         config: firmware settings.
+        effects: hidden effects of the plant (as :func:`drillgym.simulate`'s ``effects``).
+        effect_params: their parameter values by name (defaults: each Parameter's).
         dt: integration step of the plant (s); must divide every control period.
         method: integration method of the plant ('rk4', 'dp5').
         alpha0: initial winding of the string (rad), rig at rest.
@@ -91,11 +95,14 @@ class Firmware:
     """
 
     def __init__(self, configuration: str = "torsional", params: RigParams | None = None,
-                 config: FirmwareConfig | None = None, *, dt: float = 1e-3, method: str = "rk4",
+                 config: FirmwareConfig | None = None, *, effects: Any = None,
+                 effect_params: Mapping[str, float] | None = None, dt: float = 1e-3, method: str = "rk4",
                  alpha0: float = 0.0, lvdt_noise_std: float = 0.0, seed: int | None = 0) -> None:
         self.params = params or RigParams()
         self.config = config or FirmwareConfig()
-        self.sim = BatchSimulator(configuration, 1, params=self.params, dt=dt, method=method)
+        self.sim = BatchSimulator(configuration, 1, params=self.params, dt=dt, method=method, effects=effects,
+                                  effect_params=effect_params)
+        self.composition = self.sim.composition
         self.sim.reset(alpha0=alpha0)
         self.sim.advance(np.zeros(1), 0)  # load the compiled kernel now, not at the first command
         self.lvdt_noise_std = float(lvdt_noise_std)
@@ -104,8 +111,6 @@ class Firmware:
         self.n_sub = self._substeps(self.config.control_period_s)
         self._speed = EncoderVelocityEstimator(2, self.period_s, tau=0.0)
         self._speed.reset(self._angles())
-        delay_steps = int(round(self.params.delay / dt))
-        self._delay_line: deque[float] | None = deque([0.0] * delay_steps) if delay_steps else None
         self.volts = 0.0
         self.stop_reason: P.StopReason | None = None
         self.armed = False            # a SET_VOLTAGE arrived since the last (re)start: watchdog running
@@ -135,15 +140,31 @@ class Firmware:
                         int(round(c.watchdog_s * 1e3)), lim.v_max, lim.slew_v_per_s, lim.max_speed,
                         lim.max_displacement, c.firmware_id.encode("ascii"))
 
+    @property
+    def effect_values(self) -> dict[str, float]:
+        """The hidden effects' parameter values by name."""
+        return self.composition.split(self.sim.P[0])[1]
+
     # ------------------------------------------------------------------ measurement
+    def _channels(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """theta_u, theta_l (rad), X, Y (m, fixed frame) of the plant as the sensors read them (the
+        composition's Measurement effects applied), before quantization and noise; arrays (1,)."""
+        X, Y = self.sim.lateral_fixed
+        return self.composition.measure(self.sim.Y[:, 0], self.sim.Y[:, 1], X, Y, self.sim.P[0])
+
+    def _counts(self) -> np.ndarray:
+        """Encoder counts (int64, 2) of the measured angles."""
+        tu, tl, _, _ = self._channels()
+        return angle_to_counts(np.concatenate([tu, tl]), self.config.counts_per_rev)
+
     def _angles(self) -> np.ndarray:
         """Encoder angles (rad) as the firmware sees them (quantized)."""
-        cpr = self.config.counts_per_rev
-        return counts_to_angle(angle_to_counts(self.sim.Y[0, :2], cpr), cpr)
+        return counts_to_angle(self._counts(), self.config.counts_per_rev)
 
     def _lvdt(self) -> tuple[float, float]:
-        X, Y = self.sim.lateral_fixed
-        xm, ym = lvdt_measure(X, Y, self.params, self.lvdt_noise_std, self._rng)
+        """LVDT readings (m): measured X, Y plus white noise of ``lvdt_noise_std``."""
+        _, _, X, Y = self._channels()
+        xm, ym = lvdt_measure(X, Y, self.lvdt_noise_std, self._rng)
         return float(xm[0]), float(ym[0])
 
     # ------------------------------------------------------------------ plant
@@ -153,12 +174,9 @@ class Firmware:
         self.volts = u
 
     def _advance_period(self, u: float) -> None:
-        if self._delay_line is None:
-            self.sim.advance(np.array([u]), self.n_sub)
-            return
-        for _ in range(self.n_sub):  # input delay (hidden effect): per-step FIFO of voltages
-            self._delay_line.append(u)
-            self.sim.advance(np.array([self._delay_line.popleft()]), 1)
+        """One control period of the plant at u (V, already safety-limited); a hidden input delay
+        acts inside the kernels (their delay line), as in every other simulation path."""
+        self.sim.advance(np.array([u]), self.n_sub)
 
     def _after_period(self, now: float) -> list[bytes]:
         """Safety checks at the end of a period; the frames to send if a stop trips."""
@@ -184,8 +202,7 @@ class Firmware:
 
     def sample(self, ack_seq: int, limited: bool = False) -> P.Sample:
         """The SAMPLE of the plant's current state."""
-        cpr = self.config.counts_per_rev
-        cu, cl = (int(c) for c in angle_to_counts(self.sim.Y[0, :2], cpr))
+        cu, cl = (int(c) for c in self._counts())
         x, y = self._lvdt()
         s = self.config.lvdt_m_per_lsb
         status = P.Status.OK

@@ -104,8 +104,8 @@ def test_policy_episode_matches_simulation(tmp_path):
 
 
 def test_reset_brings_spinning_rig_to_rest_and_lvdt_offset_removed(tmp_path):
-    params = RigParams().replace(lvdt_x0=1e-3, lvdt_y0=-5e-4)  # hidden effect: LVDT offsets at rest
-    with RigEmulator("coupled", params=params, firmware=RELAXED, dt=5e-3) as emu:
+    hidden = dict(effects=["lvdt_offset"], effect_params={"lvdt_x0": 1e-3, "lvdt_y0": -5e-4})  # LVDT offsets at rest
+    with RigEmulator("coupled", firmware=RELAXED, dt=5e-3, **hidden) as emu:
         env = gym.make(hw.ENV_ID, port=emu.port, configuration="coupled", record=tmp_path / "run.csv",
                        episode_duration=0.5, omega_ref=4.0, reply_timeout=REPLY)
         run_episode(env, controller=measurement_const(4.0), seed=1)
@@ -155,6 +155,8 @@ def test_measurement_helper_and_bad_options(tmp_path):
     with RigEmulator("torsional", dt=5e-3) as emu:
         with pytest.raises(ValueError, match="do not apply to the hardware"):
             hw.env.HardwareEnv(emu.port, params=RigParams())
+        with pytest.raises(ValueError, match="effects"):  # hidden effects belong to the rig, not the host
+            hw.env.HardwareEnv(emu.port, effects=["input_delay"])
         with pytest.raises(ValueError, match="refused"):
             hw.env.HardwareEnv(emu.port, control_dt=0.0123)
         with pytest.raises(FileNotFoundError, match="does not exist"):

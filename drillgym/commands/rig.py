@@ -1,7 +1,8 @@
 """``drillgym rig``: the hardware twin.
 
-    drillgym rig emulate [--port PATH] [--effect pf_a1=0.2] [--params FILE] ...
-        emulate the rig's microcontroller on a pseudo-terminal (prints the device path)
+    drillgym rig emulate [--port PATH] [--params FILE] [--add-effect NAME|file.py:NAME] [--effect-param N=V] ...
+        emulate the rig's microcontroller on a pseudo-terminal (prints the device path); the
+        plant runs the hidden effects (and those of a model file given to --params)
     drillgym rig run --port PATH (--controller NAME | --policy FILE) --duration S --record FILE
         run a controller or a policy on the rig through drillgym/Hardware-v0, recording it
 """
@@ -14,26 +15,37 @@ from typing import List, Optional
 
 import typer
 
+from .effect_options import add_effect_option, effect_param_option, parse_effect_params
+
 rig_app = typer.Typer(no_args_is_help=True, help="hardware twin: run on the rig, or emulate it on a pseudo-terminal")
 
 
-def parse_effects(effects: List[str], params_file: Optional[Path]):
-    """RigParams from a params file (JSON/YAML) and ``name=value`` overrides (hidden effects)."""
+def plant_from_cli(params_file: Optional[Path], add_effect: Optional[List[str]], effect_param: Optional[List[str]]):
+    """(RigParams, Composition, effect values) of the emulated plant: the base parameters and effects
+    of ``--params`` (RigParams or a model file written by ``identify``), then the ``--add-effect``
+    effects, with ``--effect-param`` values; one-line errors name the file, the effect and what is wrong."""
+    from ..effects import compose
+    from ..identification.model_file import ModelFile, read_model
     from ..params import RigParams
 
-    params = RigParams.from_file(params_file) if params_file is not None else RigParams()
-    kw = {}
-    for e in effects:
-        name, sep, value = e.partition("=")
-        if not sep:
-            raise ValueError(f"--effect {e!r}: expected name=value, e.g. pf_a1=0.2")
-        if name.strip() not in RigParams.__dataclass_fields__:
-            raise ValueError(f"--effect {e!r}: unknown parameter {name.strip()!r}")
-        try:
-            kw[name.strip()] = float(value)
-        except ValueError:
-            raise ValueError(f"--effect {e!r}: {value!r} is not a number") from None
-    return params.replace(**kw) if kw else params
+    mf = read_model(params_file) if params_file is not None else ModelFile(RigParams())
+    extra = parse_effect_params(effect_param)
+    specs = list(mf.specs) + list(add_effect or [])
+    if extra and not specs:
+        raise ValueError(f"--effect-param {next(iter(extra))}: no effect added (use --add-effect NAME)")
+    comp, values = compose(specs, {**mf.values, **extra})
+    return mf.params, comp, values
+
+
+def describe_plant(comp, values: dict) -> str:
+    """One line: the hidden effects with their values, or 'no hidden effects'."""
+    if not comp.effects:
+        return "no hidden effects"
+    parts = []
+    for e in comp.effects:
+        vals = ", ".join(f"{p.name}={values[p.name]:g}" for p in e.parameters)
+        parts.append(f"{e.name}({vals})" if vals else e.name)
+    return "hidden effects: " + ", ".join(parts)
 
 
 def _interrupt(*_) -> None:
@@ -44,8 +56,10 @@ def _interrupt(*_) -> None:
 def emulate_cmd(
     port: Optional[Path] = typer.Option(None, help="also create a symlink to the pseudo-terminal here"),
     config: str = typer.Option("torsional", help="rig configuration: torsional, lateral or coupled"),
-    params: Optional[Path] = typer.Option(None, help="parameter file (JSON/YAML) of the emulated rig"),
-    effect: List[str] = typer.Option([], help="hidden effect / parameter override name=value (repeatable)"),
+    params: Optional[Path] = typer.Option(None, help="parameter file (JSON/YAML) of the emulated rig: RigParams or "
+                                                     "a model file with effects (identify --out)"),
+    add_effect: Optional[List[str]] = add_effect_option(),
+    effect_param: Optional[List[str]] = effect_param_option(),
     counts_per_rev: int = typer.Option(8000, help="encoder counts per revolution"),
     lvdt_noise: float = typer.Option(3e-6, help="LVDT noise standard deviation (m)"),
     latency_ms: float = typer.Option(0.0, help="serial latency of every reply (ms)"),
@@ -56,17 +70,21 @@ def emulate_cmd(
     alpha0: float = typer.Option(0.0, help="initial winding of the string (rad)"),
     seed: int = typer.Option(0, help="seed of the LVDT noise and latency jitter"),
 ) -> None:
-    """Emulate the rig's microcontroller on a pseudo-terminal until Ctrl-C."""
+    """Emulate the rig's microcontroller on a pseudo-terminal until Ctrl-C.  The plant runs the hidden
+    effects (--add-effect, and those of a model file in --params); the host does not know them."""
     from hw.emulator import RigEmulator
     from hw.firmware import FirmwareConfig
 
+    base, comp, values = plant_from_cli(params, add_effect, effect_param)
     fw = FirmwareConfig(counts_per_rev=counts_per_rev, control_period_s=period_ms * 1e-3,
                         watchdog_s=watchdog_ms * 1e-3)
-    emu = RigEmulator(config, parse_effects(effect, params), fw, dt=dt, alpha0=alpha0, lvdt_noise_std=lvdt_noise,
-                      seed=seed, latency_s=latency_ms * 1e-3, jitter_s=jitter_ms * 1e-3, link_path=port)
+    emu = RigEmulator(config, base, fw, effects=comp, effect_params=values, dt=dt, alpha0=alpha0,
+                      lvdt_noise_std=lvdt_noise, seed=seed, latency_s=latency_ms * 1e-3, jitter_s=jitter_ms * 1e-3,
+                      link_path=port)
     emu.start()
     signal.signal(signal.SIGTERM, _interrupt)
-    typer.echo(f"rig emulator ({config}) on {emu.port}" + (f" (link {port})" if port else ""), err=False)
+    typer.echo(f"rig emulator ({config}) on {emu.port}" + (f" (link {port})" if port else "")
+               + f"; {describe_plant(comp, values)}", err=False)
     typer.echo("Ctrl-C to stop", err=True)
     try:
         emu.serve_forever()
