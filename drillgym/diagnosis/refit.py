@@ -9,14 +9,18 @@ parameters jointly (each parameter's own bounds, guess and scale: its effect's
 named, the configuration's base parameters are refitted (upper: the upper stage;
 torsional, coupled: the brake law; lateral: the lateral stage; free_vibration: Jl, bl, Tcl).
 R² per channel before and after come from the same comparison (multiple shooting for brake
-configurations, see :mod:`.ranking`).
+configurations, see :mod:`.ranking`).  The data's speeds at the segment starts are refined
+for the starting model, the fit run, then refined again for the fitted model and the fit
+repeated from its result (a poor starting guess must not bias the nuisance speeds).
 """
 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Mapping, Sequence
+
+import numpy as np
 
 from ..effects import Composition, compose
 from ..identification.experiment import Experiment, prepare_experiment
@@ -116,10 +120,15 @@ def refit(data: "TimeSeries | Experiment", params: RigParams | None = None, conf
     model = SegmentedModel([ex], segment_s, composition=comp)
     obj = Objective(model, default_weights(ex.config))
     vec_before = base_vector(comp0, base, values0)
-    model.refine_initial_speeds(vec_start, obj.weights, obj.scales)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = fit_parameters(obj, vec_start, variables, max_nfev=max_nfev)
+        res = None
+        for _ in range(2):  # the data's speeds at segment starts refined for the model, then for the fitted one
+            vec = vec_start if res is None else res.vector
+            model.speed_offsets = [np.zeros_like(o) for o in model.speed_offsets]
+            model.refine_initial_speeds(vec, obj.weights, obj.scales)
+            warm = variables if res is None else [replace(v, x0=res.values[v.name]) for v in variables]
+            res = fit_parameters(obj, vec_start, warm, max_nfev=max_nfev if res is None else max(4, max_nfev // 2))
     before = compare(ex, vec_before, segment_s=segment_s, effects=comp0)
     after = compare(ex, res.vector, segment_s=segment_s, effects=comp)
     return RefitResult(res.params, {c: m["r2"] for c, m in before.metrics.items()},
