@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 
 import drillgym
 from drillgym.cli import app
-from drillgym.commands.rig import plant_from_cli
+from drillgym.commands.plant import plant_from_cli
 from hw import protocol as P
 from hw.firmware import Firmware
 

@@ -119,14 +119,21 @@ def plot_ssi(rows: Sequence[dict], path: "str | Path", scenario: str = "rest", p
     return path
 
 
-def write_report(rows: Sequence[dict], out_dir: "str | Path", params=None) -> dict[str, Path]:
-    """results.csv, summary.md (table per scenario) and ssi_vs_target.png in ``out_dir``."""
+def write_report(rows: Sequence[dict], out_dir: "str | Path", params=None, plant: str | None = None) -> dict[str, Path]:
+    """results.csv, summary.md (table per scenario) and ssi_vs_target.png in ``out_dir``; ``plant``: one
+    line on the plant's hidden effects (default from the rows' ``plant`` labels)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = {"csv": write_csv(rows, out / "results.csv")}
     parts = ["# Controller evaluation\n", f"Stick-slip: SSI >= {SSI_THRESHOLD} in steady state. 'lowest free target': "
              "lowest target of the grid from which every higher target is held: no stick-slip and the mean "
              "lower-disc speed within 10 % of the target.\n"]
+    labels = sorted({r.get("plant", "base") for r in rows})
+    if plant is None and labels != ["base"]:
+        plant = "hidden effects: " + ", ".join(labels)
+    if plant:
+        parts.append(f"\nPlant: {plant} (the controllers are built from the nominal parameters and do not know "
+                     "them).\n")
     for sc in dict.fromkeys(r["scenario"] for r in rows):
         parts.append(f"\n## scenario: {sc}\n\n" + markdown_table(rows, sc))
     md = out / "summary.md"

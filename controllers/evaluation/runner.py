@@ -2,7 +2,9 @@
 
 One call steps n trajectories together (one compiled ``advance`` per control
 period for the whole batch, one vectorised controller call), which is what
-makes the harness fast.  The measurement chain is the rig's: encoder angles
+makes the harness fast.  The plant may run hidden effects (a composition of
+:mod:`drillgym.effects`; the controller does not know them).  The measurement
+chain is the rig's: the composition's Measurement effects, then encoder angles
 quantized to ``counts_per_rev`` (:func:`drillgym.measurement.quantize_angle`),
 optional white angle noise, LVDT x, y in the fixed frame.
 """
@@ -10,12 +12,12 @@ optional white angle noise, LVDT x, y in the fixed frame.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, Mapping
 
 import numpy as np
 
 from drillgym import BatchSimulator, Configuration, parse_configuration
 from drillgym.measurement import DEFAULT_COUNTS_PER_REV, quantize_angle
-from drillgym.params import N_PARAMS
 
 from ..base import Controller
 
@@ -47,7 +49,8 @@ class ClosedLoopRun:
 def run_closed_loop(controller: Controller, config: "str | Configuration", omega_ref: np.ndarray, duration: float, *,
                     params=None, x0: np.ndarray | None = None, alpha0: "float | np.ndarray" = 0.0,
                     counts_per_rev: int = DEFAULT_COUNTS_PER_REV, angle_noise: float = 0.0, seed: int = 0,
-                    sim_dt: float = SIM_DT) -> ClosedLoopRun:
+                    sim_dt: float = SIM_DT, effects: Any = None,
+                    effect_params: Mapping[str, float] | None = None) -> ClosedLoopRun:
     """Run ``controller`` on n simulated rigs for ``duration`` seconds.
 
     Args:
@@ -55,11 +58,14 @@ def run_closed_loop(controller: Controller, config: "str | Configuration", omega
         config: plant configuration ('torsional', 'coupled', ...).
         omega_ref: target speeds (rad/s), (n,).
         duration: simulated time (s).
-        params: plant parameters: RigParams, a list (one per run) or an (n, n_params) matrix.
-        x0: initial states (n, 9) (default: rest with winding ``alpha0``).
+        params: plant base parameters: RigParams, a list (one per run) or an (n, n_params) matrix
+            (base parameters, or base then effect parameters in the composition's layout).
+        x0: initial states (n, 8) or (n, n_state) (default: rest with winding ``alpha0``).
         counts_per_rev: encoder resolution of the measurement (0: exact angles).
         angle_noise: white noise added to the measured angles (rad, std).
         seed: seed of the measurement noise.
+        effects, effect_params: hidden effects of the plant and their values (as
+            :func:`drillgym.simulate`); the controller is built without them.
     """
     cfg = parse_configuration(config)
     ref = np.atleast_1d(np.asarray(omega_ref, dtype=float))
@@ -70,10 +76,7 @@ def run_closed_loop(controller: Controller, config: "str | Configuration", omega
     if sub < 1 or abs(sub * sim_dt - controller.dt) > 1e-9:
         raise ValueError(f"control period {controller.dt} s must be a multiple of the integrator step {sim_dt} s")
     m = int(round(duration / controller.dt))
-    P = params
-    if isinstance(params, np.ndarray) and params.ndim == 2 and params.shape[1] != N_PARAMS:
-        raise ValueError(f"parameter matrix must have {N_PARAMS} columns")
-    sim = BatchSimulator(cfg, n, params=P, dt=sim_dt)
+    sim = BatchSimulator(cfg, n, params=params, dt=sim_dt, effects=effects, effect_params=effect_params)
     sim.reset(alpha0=alpha0, x0=x0)
     rng = np.random.default_rng(seed)
     out = {k: np.empty((n, m)) for k in ("u", "omega_u", "omega_l", "alpha", "stuck_l", "friction_l", "r")}
@@ -101,6 +104,11 @@ def _measure(sim: BatchSimulator, t: float, ref: np.ndarray, cpr: int, noise: fl
         q = quantize_angle(theta, cpr)
         return q + rng.normal(0.0, noise, q.shape) if noise > 0 else q
 
-    X, Y = sim.lateral_fixed
-    return {"t": np.full(sim.n, t), "theta_u": enc(sim.theta_u), "theta_l": enc(sim.theta_l), "x": X.copy(),
-            "y": Y.copy(), "omega_ref": ref}
+    if sim.composition.has_measurement:  # the plant's Measurement effects (per rig: its parameter row)
+        tu, tl, X, Y = sim.composition.kernels.client("drillgym.envs.sensor_kernel").measured_channels_batch(sim.Y,
+                                                                                                            sim.P)
+    else:
+        tu, tl = sim.theta_u, sim.theta_l
+        X, Y = sim.lateral_fixed
+    return {"t": np.full(sim.n, t), "theta_u": enc(tu), "theta_l": enc(tl), "x": X.copy(), "y": Y.copy(),
+            "omega_ref": ref}

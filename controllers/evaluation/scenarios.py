@@ -9,6 +9,7 @@ or the sensors (encoder resolution, angle noise).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -62,9 +63,12 @@ def plant_params(s: Scenario, params: RigParams | None = None) -> RigParams:
     return p if f == 1.0 else p.scaled(Ts=f, Tc=f, bb=f)
 
 
-def cycle_states(config: str, targets: np.ndarray, params: RigParams, u_fold: float) -> np.ndarray:
-    """States (n, 9) on a developed open-loop stick-slip cycle for each target: the cycle at the target's
-    equilibrium voltage, held below the second fold ``u_fold`` (V) so that the cycle exists."""
+def cycle_states(config: str, targets: np.ndarray, params: RigParams, u_fold: float, *, effects: Any = None,
+                 effect_params: Mapping[str, float] | None = None) -> np.ndarray:
+    """States (n, n_state) on a developed open-loop stick-slip cycle of the plant (base ``params`` and
+    its ``effects``) for each target: the cycle at the target's equilibrium voltage of the base model,
+    held below the second fold ``u_fold`` (V) so that the cycle exists."""
     u = np.clip(equilibrium_voltage(config, np.asarray(targets, dtype=float), params), 0.5, u_fold - 0.2)
-    batch = simulate_batch(config, u, CYCLE_SETTLE, params=params, record_every=100)
+    batch = simulate_batch(config, u, CYCLE_SETTLE, params=params, record_every=100, effects=effects,
+                           effect_params=effect_params)
     return np.stack([batch[k].final_state for k in range(len(u))])

@@ -1,14 +1,18 @@
 """``drillgym evaluate``: controllers (and agents) on the evaluation harness.
 
 The controllers live in the top-level ``controllers`` package, imported lazily
-here (the core does not depend on it).
+here (the core does not depend on it).  ``--add-effect``/``--effect-param`` give the plant
+hidden effects; the controllers are built from the nominal base parameters and never know them.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import List, Optional
 
 import typer
+
+from .effect_options import add_effect_option, effect_param_option
 
 
 def register(app: typer.Typer) -> None:
@@ -25,12 +29,17 @@ def register(app: typer.Typer) -> None:
         duration: float = typer.Option(60.0, "--duration", help="simulated time per run (s)"),
         window: float = typer.Option(20.0, "--window", help="steady-state window at the end (s)"),
         workers: int = typer.Option(2, "--workers", help="parallel processes"),
-        params: Path = typer.Option(None, "--params", help="parameter file (JSON/YAML) of the model"),
+        params: Path = typer.Option(None, "--params", help="parameter file (JSON/YAML) of the nominal model: "
+                                                           "RigParams, or a model file whose effects the plant runs"),
+        add_effect: Optional[List[str]] = add_effect_option(),
+        effect_param: Optional[List[str]] = effect_param_option(),
     ) -> None:
-        """Evaluate controllers on the scenarios; write a CSV, a markdown table and the SSI figure."""
+        """Evaluate controllers on the scenarios; write a CSV, a markdown table and the SSI figure.
+        The plant runs the hidden effects (--add-effect, and a model file's); the controllers do not."""
         from controllers.evaluation import DEFAULT_TARGETS, evaluate, parse_scenarios
         from controllers.evaluation.report import write_report
-        from drillgym import RigParams
+
+        from .plant import describe_plant, plant_from_cli
 
         cfgs = [c.strip() for c in config.split(",") if c.strip()]
         names = [c.strip() for c in controllers.split(",") if c.strip()]
@@ -40,9 +49,10 @@ def register(app: typer.Typer) -> None:
             tg = [float(v) for v in targets.split(",")] if targets.strip() else list(DEFAULT_TARGETS)
         except ValueError as exc:
             raise ValueError(f"--targets must be numbers separated by commas, got {targets!r}") from exc
-        p = RigParams.from_file(params) if params else None
+        base, comp, values = plant_from_cli(params, add_effect, effect_param)
+        p = base if params else None
         rows = evaluate(names, cfgs, parse_scenarios(scenarios), tg, duration=duration, window=window, params=p,
-                        workers=workers)
-        files = write_report(rows, out, p)
+                        workers=workers, effects=comp, effect_params=values)
+        files = write_report(rows, out, p, plant=describe_plant(comp, values))
         typer.echo((Path(files["markdown"])).read_text())
         typer.echo("wrote " + ", ".join(str(f) for f in files.values()))

@@ -15,37 +15,10 @@ from typing import List, Optional
 
 import typer
 
-from .effect_options import add_effect_option, effect_param_option, parse_effect_params
+from .effect_options import add_effect_option, effect_param_option
+from .plant import describe_plant, plant_from_cli
 
 rig_app = typer.Typer(no_args_is_help=True, help="hardware twin: run on the rig, or emulate it on a pseudo-terminal")
-
-
-def plant_from_cli(params_file: Optional[Path], add_effect: Optional[List[str]], effect_param: Optional[List[str]]):
-    """(RigParams, Composition, effect values) of the emulated plant: the base parameters and effects
-    of ``--params`` (RigParams or a model file written by ``identify``), then the ``--add-effect``
-    effects, with ``--effect-param`` values; one-line errors name the file, the effect and what is wrong."""
-    from ..effects import compose
-    from ..identification.model_file import ModelFile, read_model
-    from ..params import RigParams
-
-    mf = read_model(params_file) if params_file is not None else ModelFile(RigParams())
-    extra = parse_effect_params(effect_param)
-    specs = list(mf.specs) + list(add_effect or [])
-    if extra and not specs:
-        raise ValueError(f"--effect-param {next(iter(extra))}: no effect added (use --add-effect NAME)")
-    comp, values = compose(specs, {**mf.values, **extra})
-    return mf.params, comp, values
-
-
-def describe_plant(comp, values: dict) -> str:
-    """One line: the hidden effects with their values, or 'no hidden effects'."""
-    if not comp.effects:
-        return "no hidden effects"
-    parts = []
-    for e in comp.effects:
-        vals = ", ".join(f"{p.name}={values[p.name]:g}" for p in e.parameters)
-        parts.append(f"{e.name}({vals})" if vals else e.name)
-    return "hidden effects: " + ", ".join(parts)
 
 
 def _interrupt(*_) -> None:

@@ -1,0 +1,41 @@
+"""The simulated plant of a command that runs a rig it does not tell the host about (``rig emulate``,
+``evaluate``): base parameters from ``--params`` (RigParams, or a model file written by
+``identify`` with its effects) plus hidden effects from ``--add-effect``/``--effect-param``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Mapping, Optional
+
+from ..effects import Composition, compose
+from ..params import RigParams
+from .effect_options import parse_effect_params
+
+__all__ = ["plant_from_cli", "describe_plant"]
+
+
+def plant_from_cli(params_file: Optional[Path], add_effect: Optional[List[str]], effect_param: Optional[List[str]]
+                   ) -> tuple[RigParams, Composition, dict[str, float]]:
+    """(base RigParams, Composition, effect values): the base parameters and effects of ``params_file``
+    (default MODEL.md's set, no effect), then the ``add_effect`` specs, with the ``effect_param``
+    NAME=VALUE items; one-line errors name the file, the effect and what is wrong."""
+    from ..identification.model_file import ModelFile, read_model
+
+    mf = read_model(params_file) if params_file is not None else ModelFile(RigParams())
+    extra = parse_effect_params(effect_param)
+    specs = list(mf.specs) + list(add_effect or [])
+    if extra and not specs:
+        raise ValueError(f"--effect-param {next(iter(extra))}: no effect added (use --add-effect NAME)")
+    comp, values = compose(specs, {**mf.values, **extra})
+    return mf.params, comp, values
+
+
+def describe_plant(comp: Composition, values: Mapping[str, float]) -> str:
+    """One line: ``hidden effects: input_delay(delay=0.03), ...`` or ``no hidden effects``."""
+    if not comp.effects:
+        return "no hidden effects"
+    parts = []
+    for e in comp.effects:
+        vals = ", ".join(f"{p.name}={values[p.name]:g}" for p in e.parameters)
+        parts.append(f"{e.name}({vals})" if vals else e.name)
+    return "hidden effects: " + ", ".join(parts)
