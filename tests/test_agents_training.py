@@ -134,3 +134,16 @@ def test_ppo_resume_keeps_reward_normalisation(tmp_path):
                 tensorboard=False, resume=True)
     assert res.timesteps == 256
     assert res.model.get_vec_normalize_env().ret_rms.count > 200  # 128 + 128 samples: statistics carried over
+
+
+def test_cli_train_on_a_rig_with_effects(tmp_path, capsys):
+    out = tmp_path / "eff"
+    code, text = run_cli(capsys, "train", "--env", "drillgym/Torsional-v0", "--algo", "sac", "--obs", "motor",
+                         "--timesteps", "32", "--n-envs", "2", "--set", "learning_starts=16", "--set", "buffer_size=200",
+                         "--no-progress", "--no-tensorboard", "--out", str(out), "--add-effect", "input_delay",
+                         "--effect-param", "delay=0.04")
+    assert code == 0, text
+    env_kwargs = yaml.safe_load((out / "config.yml").read_text())["hyperparams"]["env_kwargs"]
+    assert env_kwargs["effects"] == ["input_delay"] and env_kwargs["effect_params"] == {"delay": 0.04}
+    code, text = run_cli(capsys, "train", "--out", str(tmp_path / "y"), "--effect-param", "delay=0.04")
+    assert code == 2 and "--add-effect" in text

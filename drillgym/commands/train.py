@@ -1,7 +1,8 @@
 """``drillgym train``: train an RL agent (stable-baselines3) on a drillgym environment.
 
 The training stack lives in the top-level ``agents`` package, imported lazily here
-(the core does not depend on it).
+(the core does not depend on it).  ``--add-effect``/``--effect-param`` train on rigs with those
+effects (the env options ``effects``/``effect_params``, saved in config.yml by spec).
 """
 
 from __future__ import annotations
@@ -9,9 +10,11 @@ from __future__ import annotations
 import shlex
 import sys
 from pathlib import Path
-from typing import Optional
+from typing import List, Optional
 
 import typer
+
+from .effect_options import add_effect_option, effect_param_option, effects_from_cli
 
 
 def register(app: typer.Typer) -> None:
@@ -31,6 +34,8 @@ def register(app: typer.Typer) -> None:
         checkpoint_every: int = typer.Option(50_000, "--checkpoint-every", help="environment steps between checkpoints"),
         progress: bool = typer.Option(True, "--progress/--no-progress", help="progress bar"),
         tensorboard: bool = typer.Option(True, "--tensorboard/--no-tensorboard", help="TensorBoard logs in OUT/tb"),
+        add_effect: Optional[List[str]] = add_effect_option(),
+        effect_param: Optional[List[str]] = effect_param_option(),
     ) -> None:
         """Train an agent; writes OUT/model.zip, OUT/policy.npz (for agent:PATH in `drillgym evaluate`), OUT/config.yml."""
         from agents.hyperparams import parse_overrides
@@ -41,8 +46,13 @@ def register(app: typer.Typer) -> None:
         if checkpoint_every < 1:
             raise ValueError(f"--checkpoint-every must be >= 1, got {checkpoint_every}")
         command = "drillgym " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+        overrides = parse_overrides(set_ or [])
+        if add_effect or effect_param:
+            comp, values = effects_from_cli(add_effect, effect_param)  # one-line errors before training starts
+            env_kw = overrides.setdefault("env_kwargs", {})
+            env_kw.update(effects=comp.specs(), effect_params=dict(values))
         res = train(env, algo, out, obs=obs, timesteps=timesteps, seed=seed, n_envs=n_envs, hyperparams=hyperparams,
-                    overrides=parse_overrides(set_ or []), resume=resume, progress=progress, tensorboard=tensorboard, checkpoint_every=checkpoint_every,
+                    overrides=overrides, resume=resume, progress=progress, tensorboard=tensorboard, checkpoint_every=checkpoint_every,
                     command=command)
         typer.echo(f"trained {res.timesteps} steps in {res.wall_time:.1f} s; wrote {res.model_path}"
                    + (f", {res.policy_path}" if res.policy_path else ""))
