@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from controllers.base import Controller
+from drillgym.configurations import N_STATE
 from drillgym.envs.observation import make_observation_model
 from drillgym.envs.options import U_MAX, EnvOptions
 
@@ -81,7 +82,7 @@ class AgentController(Controller):
         if self.model.dim * self.frame_stack != self.policy.obs_dim:
             raise ValueError(f"agent expects {self.policy.obs_dim} observation entries; the "
                              f"{self.mode!r} model of {self.config.label} gives {self.model.dim} x {self.frame_stack}")
-        Y = np.zeros((n, 9))
+        Y = np.zeros((n, N_STATE))
         Y[:, 0] = m.get("theta_u", 0.0)
         Y[:, 1] = m.get("theta_l", 0.0)
         index = np.arange(n)

@@ -5,7 +5,8 @@
 Single envs are made with ``gymnasium.make`` (same wrappers as Pendulum-v1: order
 enforcing + passive checker), stepped with a fixed action and reset when an episode ends.
 Vector envs: :func:`drillgym.envs.make_vec` (one batched core call per step), env-steps/s =
-N x vector steps/s.  Each figure is the best of ``--repeats`` timed runs (the machine is shared).
+N x vector steps/s.  The last rows run compositions of effects (input delay + motor lag; LVDT
+offset + skew in the sensors observation).  Each figure is the best of ``--repeats`` timed runs (the machine is shared).
 """
 
 from __future__ import annotations
@@ -82,6 +83,16 @@ def main() -> None:
             for n in sizes:
                 rate = best(lambda: vector_rate(make_vec(env_id, n, observation=mode), s), r)
                 print(f"{env_id + f' [{mode}], vector N={n}':46s} {rate:12,.0f} {rate / pend:15.2f}")
+    # a composition of two effects (issue 12: within 25 % of the base model); its kernels compile once, cached
+    two = dict(effects=["input_delay", "motor_lag"], effect_params={"delay": 0.03, "tau_m": 0.02})
+    for mode in ("full", "sensors"):
+        rate = best(lambda: single_rate(gym.make("drillgym/Torsional-v0", observation=mode, **two), s), r)
+        print(f"{f'drillgym/Torsional-v0 [{mode}] +delay+lag, 1 env':46s} {rate:12,.0f} {rate / pend:15.2f}")
+    rate = best(lambda: vector_rate(make_vec("drillgym/Torsional-v0", 256, **two), s), r)
+    print(f"{'drillgym/Torsional-v0 [full] +delay+lag, N=256':46s} {rate:12,.0f} {rate / pend:15.2f}")
+    meas = dict(effects=["lvdt_offset", "lvdt_skew"], effect_params={"lvdt_x0": 1e-3, "lvdt_skew": 0.05})
+    rate = best(lambda: single_rate(gym.make("drillgym/Coupled-v0", observation="sensors", **meas), s), r)
+    print(f"{'drillgym/Coupled-v0 [sensors] +lvdt offset+skew':46s} {rate:12,.0f} {rate / pend:15.2f}")
     pend2 = best(lambda: single_rate(gym.make("Pendulum-v1"), s), r)
     print(f"{'Pendulum-v1 again (load check)':46s} {pend2:12,.0f} {pend2 / pend:15.2f}")
     print(f"\ntorsional single env / Pendulum-v1 = {tors / pend:.2f} (target >= 1.0); runs alternated: "

@@ -33,6 +33,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from drillgym.configurations import N_STATE
 from drillgym.envs.base import action_space
 from drillgym.envs.observation import make_observation_model
 from drillgym.envs.options import U_MAX, EnvOptions
@@ -133,7 +134,7 @@ class HardwareEnv(gym.Env):
         self._lvdt = LvdtProcessor(cfg.lvdt_m_per_lsb, 1.0 / o.control_dt, self.lvdt_cutoff_hz)
         self._cu, self._cl = CounterUnwrap(), CounterUnwrap()
         # measurements in the shape of the simulated envs' arrays (rows = rigs = 1)
-        self._Y = np.zeros((1, 9))
+        self._Y = np.zeros((1, N_STATE))  # the state as measured (mechanical states)
         self._MODE = np.zeros((1, 2), dtype=np.int64)
         self._obs = np.zeros((1, self.obs_model.dim), dtype=np.float32)
         self._reward = np.zeros(1)

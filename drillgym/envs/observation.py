@@ -57,7 +57,7 @@ ALPHA_BOUND = 50.0  # rad
 
 
 def fixed_frame_lateral(Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(X, Y) of the lower disc centre in the fixed (LVDT) frame (m) from states (n, 9)."""
+    """(X, Y) of the lower disc centre in the fixed (LVDT) frame (m) from states (n, n_state)."""
     return rotate(Y[:, 4], Y[:, 5], np.cos(Y[:, 0]), np.sin(Y[:, 0]))
 
 
@@ -139,7 +139,7 @@ class ObservationModel:
                 rngs: Sequence[np.random.Generator], skip: np.ndarray | None = None) -> None:
         """Write the observations of all rigs into ``out`` (n, dim) float32 after one control period.
 
-        ``Y`` true states (n, 9), ``u_prev`` voltage applied over the period (V), ``omega_ref``
+        ``Y`` true states (n, n_state), ``u_prev`` voltage applied over the period (V), ``omega_ref``
         targets (rad/s); ``rngs`` one generator per rig (sensor noise); rigs flagged in ``skip``
         are about to be reset and draw no random numbers."""
         raise NotImplementedError

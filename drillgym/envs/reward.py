@@ -47,6 +47,6 @@ class TrackingReward:
 
     def __call__(self, Y: np.ndarray, MODE: np.ndarray, u: np.ndarray, u_prev: np.ndarray,
                  omega_ref: np.ndarray, out: np.ndarray) -> None:
-        """Write the rewards of all rigs into ``out`` (n,): states ``Y`` (n, 9), friction modes
+        """Write the rewards of all rigs into ``out`` (n,): states ``Y`` (n, n_state), friction modes
         ``MODE`` (n, 2), voltages ``u``, ``u_prev`` (V), targets ``omega_ref`` (rad/s)."""
         _reward_kernel(Y, MODE, u, u_prev, omega_ref, self.w, out)

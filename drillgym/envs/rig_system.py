@@ -52,8 +52,8 @@ class RigSystem:
         method, friction, effects, effect_params: as :class:`drillgym.BatchSimulator`.
 
     State views (arrays of shape (n,), SI units): ``omega_u``, ``omega_l``, ``alpha``,
-    ``theta_u``, ``theta_l``; ``Y`` is the (n, 9) state matrix (layout of
-    :mod:`drillgym.configurations`), ``friction_l`` the lower friction torque (N m),
+    ``theta_u``, ``theta_l``; ``Y`` is the (n, n_state) state matrix (the 8 mechanical states of
+    :mod:`drillgym.configurations`, then the effects' states), ``friction_l`` the lower friction torque (N m),
     ``stuck_l`` the lower disc's stick flag.
     """
 

@@ -55,7 +55,7 @@ class SpeedTrackingTask:
         return w, a
 
     def unsafe(self, Y: np.ndarray, out: np.ndarray) -> None:
-        """Write the termination flags (safety limits) of states ``Y`` (n, 9) into ``out`` (n,) bool."""
+        """Write the termination flags (safety limits) of states ``Y`` (n, n_state) into ``out`` (n,) bool."""
         _limits_kernel(Y, self.max_speed, self.max_lateral, self.lateral, out)
 
 
