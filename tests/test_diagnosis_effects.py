@@ -147,3 +147,22 @@ def test_lvdt_skew_with_wound_string_and_steps_ranks_first():
     assert d.best.effect == "lvdt_skew" and d.best.significant, d.text()
     assert d.best.values["lvdt_skew"] == pytest.approx(0.05, rel=0.3)
     assert [s.effect for s in d.significant()] == ["lvdt_skew"], d.text()
+
+
+# --- candidates as compositions: a user's effect, effects already in the model ----------------------------------
+
+def test_user_candidate_ranks_first_and_model_effects_are_held():
+    """A cubic string (user file) is missing from the base model: tried as base + candidate it ranks first;
+    once in the model (base_effects) it is not a candidate again and nothing else is significant."""
+    from pathlib import Path
+
+    cubic = str(Path(__file__).resolve().parents[1] / "examples/effects/string_cubic.py") + ":string_cubic"
+    ts = synthetic_measurement("torsional", duration=16.0, rate_hz=250.0, offset=1.0, seed=2, effects=[cubic],
+                               effect_params={"c3": 0.015})
+    d = diagnose(ts, effects=["string_damping", cubic])
+    assert d.best.effect == "string_cubic" and d.best.significant, d.text()
+    assert d.best.values["c3"] == pytest.approx(0.015, rel=0.05)
+    d2 = diagnose(ts, effects=["string_damping", cubic], base_effects=[cubic], effect_params={"c3": 0.015})
+    assert d2.model == "string_cubic" and d2.skipped["string_cubic"] == "already in the model"
+    assert d2.significant() == [], d2.text()
+    assert d2.rmse_before < 0.05 * d.rmse_before
