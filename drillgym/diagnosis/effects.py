@@ -10,7 +10,7 @@ variables (its own parameters, from its :class:`~drillgym.effects.Parameter` s).
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -62,7 +62,3 @@ def fit_variables(composition: Composition, effect: type[Effect], start: np.ndar
             x0 = float(start[composition.param_index(p.name)])
         out.append(FitVariable.of_effect(composition, p.name, x0))
     return out
-
-
-def names(effects: Sequence[type[Effect]]) -> list[str]:
-    return [e.name for e in effects]
