@@ -94,24 +94,35 @@ def test_env_options_reject_unknown_effects_and_parameters() -> None:
 
 
 def test_randomisation_may_name_effect_parameters() -> None:
-    venv = make_vec("drillgym/Torsional-v0", 4, effects=["input_delay"], effect_params={"delay": 0.05},
+    n = 4
+    venv = make_vec("drillgym/Torsional-v0", n, effects=["input_delay"], effect_params={"delay": 0.05},
                     randomize=0.5, randomize_names=("delay", "Ts"))
     venv.reset(seed=3)
     comp = venv.batch.system.composition
-    P = venv.batch.system.params_matrix
+    P = venv.batch.system.params_matrix.copy()
     d = P[:, comp.param_index("delay")]
     assert np.all((d >= 0.025) & (d <= 0.075)) and np.ptp(d) > 1e-3  # drawn per rig within +/- 50 %
+    assert d.max() > 0.05  # a delay longer than the nominal one: the delay lines had to grow
     assert np.ptp(P[:, comp.param_index("Ts")]) > 0
-    # each rig runs its own delay: rig 0 against the simulator with its drawn parameter row
-    u = _voltages(4, 80).astype(np.float32)
-    alpha0 = float(venv.batch.system.alpha[0])
-    row = P[0].copy()
-    W = np.array([venv.step(np.full(4, v, dtype=np.float32))[4]["omega_l"][0] for v in u])
-    traj = drillgym.simulate("torsional", u=u.astype(np.float64), duration=len(u) * venv.options.dt,
-                             dt=venv.options.dt, alpha0=alpha0, params=row, effects=comp)
-    assert np.abs(W - traj.omega_l[1:]).max() <= TOL
+    # every rig runs its own drawn parameters: each against the simulator with its parameter row
+    u = _voltages(4, 120).astype(np.float32)
+    alpha0 = venv.batch.system.alpha.copy()
+    W = np.array([venv.step(np.full(n, v, dtype=np.float32))[4]["omega_l"] for v in u])
+    for i in range(n):
+        traj = drillgym.simulate("torsional", u=u.astype(np.float64), duration=len(u) * venv.options.dt,
+                                 dt=venv.options.dt, alpha0=float(alpha0[i]), params=P[i], effects=comp)
+        assert np.abs(W[:, i] - traj.omega_l[1:]).max() <= TOL, f"rig {i} (delay {d[i]:.4f} s)"
     with pytest.raises(ValueError, match="tau_m"):
         make_vec("drillgym/Torsional-v0", 2, effects=["input_delay"], randomize=0.1, randomize_names=("tau_m",))
+
+
+def test_randomised_effect_parameters_stay_within_their_bounds() -> None:
+    venv = make_vec("drillgym/Torsional-v0", 16, effects=["input_delay"], effect_params={"delay": 0.4},
+                    randomize=0.9, randomize_names=("delay",))
+    venv.reset(seed=0)
+    comp = venv.batch.system.composition
+    d = venv.batch.system.params_matrix[:, comp.param_index("delay")]
+    assert d.max() == 0.5 and d.min() >= 0.04  # clipped at the parameter's 0.5 s bound
 
 
 # --------------------------------------------------------------------- measurement effects

@@ -55,10 +55,15 @@ class EpisodeBatch:
         self.obs = np.zeros((self.n, self.obs_model.dim), dtype=np.float32)
         self.all = np.arange(self.n)
         w, om = o.reward, self.obs_model
-        tv = np.concatenate([[w.track, w.stick, w.effort, w.rate, o.max_speed, o.max_lateral, float(o.lateral),
-                              self.task.max_steps, self.monitor.block_len, o.control_dt, float(om.compiled)],
-                             om.low, om.high])
-        self._kernel_args = (*self.system.kernel_args, self.S, self.monitor.W, self.monitor.C, tv, self.obs)
+        self._tv = np.concatenate([[w.track, w.stick, w.effort, w.rate, o.max_speed, o.max_lateral, float(o.lateral),
+                                    self.task.max_steps, self.monitor.block_len, o.control_dt, float(om.compiled)],
+                                   om.low, om.high])
+        self._bind()
+
+    def _bind(self) -> None:
+        """The period kernel's arguments (the system's persistent arrays, then the episode arrays)."""
+        self._system_args = self.system.kernel_args
+        self._kernel_args = (*self._system_args, self.S, self.monitor.W, self.monitor.C, self._tv, self.obs)
 
     # ------------------------------------------------------------------------
     def reset(self, index: np.ndarray | None = None) -> None:
@@ -76,6 +81,8 @@ class EpisodeBatch:
                 params[j] = self.randomizer.sample(rng)
         s = self.system
         s.reset(index, alpha0, params)
+        if s.kernel_args is not self._system_args:  # delay lines lengthened for a drawn delay
+            self._bind()
         S = self.S
         for col in (C_U, C_REW, C_SSI, C_TIME, C_STEPS, C_TERM, C_TRUNC):
             S[index, col] = 0.0

@@ -22,12 +22,15 @@ __all__ = ["RigSystem", "ParameterRandomizer"]
 
 class ParameterRandomizer:
     """Draws parameter vectors uniformly in ``value * (1 +/- fraction)`` for the named parameters
-    (base or effect parameters of the composition)."""
+    (base or effect parameters of the composition), clipped to each parameter's physical bounds."""
 
     def __init__(self, base: np.ndarray, fraction: float, names: Sequence[str], composition: Composition) -> None:
         self.base = np.array(base, dtype=np.float64)
         self.fraction = float(fraction)
         self.index = np.array([composition.param_index(n) for n in names], dtype=np.int64)
+        prm = [composition.parameter(n) for n in names]
+        self.lo = np.array([p.lo for p in prm], dtype=np.float64)
+        self.hi = np.array([p.hi for p in prm], dtype=np.float64)
 
     @property
     def active(self) -> bool:
@@ -36,7 +39,8 @@ class ParameterRandomizer:
     def sample(self, rng: np.random.Generator) -> np.ndarray:
         """One parameter vector (the composition's kernel layout)."""
         p = self.base.copy()
-        p[self.index] *= 1.0 + rng.uniform(-self.fraction, self.fraction, self.index.size)
+        v = p[self.index] * (1.0 + rng.uniform(-self.fraction, self.fraction, self.index.size))
+        p[self.index] = np.minimum(np.maximum(v, self.lo), self.hi)
         return p
 
 
@@ -85,9 +89,15 @@ class RigSystem:
         return self._args
 
     def reset(self, index: np.ndarray, alpha0: np.ndarray, params: np.ndarray | None = None) -> None:
-        """Rigs ``index`` at rest with winding ``alpha0`` (rad), t = 0, optionally new parameter rows."""
+        """Rigs ``index`` at rest with winding ``alpha0`` (rad), t = 0, optionally new parameter rows
+        (a longer drawn delay lengthens the delay lines: :attr:`kernel_args` is then rebound)."""
         if params is not None:
             self.sim.P[index] = params
+            if self.composition.has_delay:
+                hist = self.sim.HIST
+                self.sim.set_params(params, index)  # resizes the delay lines when a row needs it
+                if self.sim.HIST is not hist:
+                    self._args = self.sim.kernel_args(self.u, self.n_substeps)
         self.sim.reset(index, alpha0=alpha0)
         self.u[index] = 0.0
         # friction torques (holding torques) of the rest state: a zero-length advance on a copy
