@@ -123,7 +123,7 @@ class _Context:
 def _call(comp: "Composition", ctx: _Context, fn: str, chain_u: str = "u") -> str:
     eff = comp.effects[ctx.i]
     args = ", ".join(ctx.resolve(a, chain_u) for a in eff.argument_names(fn))
-    return f"_e{ctx.i}_{fn}({args})"
+    return f"_e{ctx.i}_{fn}{'_v' if ctx.lane else ''}({args})"
 
 
 def _fixed_frame_prologue(lane: bool) -> list[str]:
@@ -143,11 +143,15 @@ def _cfg_guard(eff: type[Effect]) -> str | None:
     return " or ".join(f"cfg == {c}" for c in cfgs) if cfgs else "False"
 
 
-def _rhs(comp: "Composition", lane: bool) -> str:
-    """hk_rhs / hk_rhs_lane: input chain, forces, state derivatives."""
+def _rhs(comp: "Composition", lane: bool, part: str = "all") -> str:
+    """hk_rhs (scalar: input chain, forces, state derivatives), hk_rhs_lane (part "rhs": input chain
+    and forces, no writes) and hk_states_lane (part "states": the effects' state derivatives into K;
+    a loop of its own, so the accelerations' loop writes few arrays and stays vectorised)."""
     body: list[str] = []
     fixed_needed = False
     dst = (lambda j: f"K[nm + {j}, k]") if lane else (lambda j: f"dy[{8 + j}]")
+    want_states = part in ("all", "states")
+    want_forces = part in ("all", "rhs")
 
     def emit(lines: list[str], guard: str | None, zero_states: list[int]) -> None:
         if guard is None:
@@ -155,13 +159,13 @@ def _rhs(comp: "Composition", lane: bool) -> str:
             return
         body.append(f"if {guard}:")
         body.extend("    " + ln for ln in lines)
-        if lane and zero_states:
+        if lane and zero_states and want_states:
             body.append("else:")
             body.extend(f"    {dst(j)} = 0.0" for j in zero_states)
 
     def state_lines(i: int, ctx: _Context, chain_u: str) -> tuple[list[str], list[int]]:
         eff = comp.effects[i]
-        if not eff.states:
+        if not eff.states or not want_states:
             return [], []
         idx = [comp.state_index(s.name) for s in eff.states]
         call = _call(comp, ctx, "derivative", chain_u)
@@ -185,7 +189,7 @@ def _rhs(comp: "Composition", lane: bool) -> str:
             continue
         ctx = _Context(lane, comp, i)
         lines, idx = state_lines(i, ctx, "u")
-        if issubclass(eff, Force):
+        if issubclass(eff, Force) and want_forces:
             if eff.acts_on == "lateral":
                 lines += [f"_f{i} = {_call(comp, ctx, 'force')}", f"_QX += _f{i}[0]", f"_QY += _f{i}[1]"]
             else:
@@ -194,8 +198,7 @@ def _rhs(comp: "Composition", lane: bool) -> str:
         fixed_needed |= ctx.needs_fixed
         if lines:
             emit(lines, _cfg_guard(eff), idx)
-    has_lateral = any(issubclass(e, Force) and e.acts_on == "lateral" for e in comp.effects)
-    tail = []
+    has_lateral = want_forces and any(issubclass(e, Force) and e.acts_on == "lateral" for e in comp.effects)
     if has_lateral:
         fixed_needed = True
         tail = ["if cfg == 2 or cfg == 3:",
@@ -211,11 +214,19 @@ def _rhs(comp: "Composition", lane: bool) -> str:
            "_Qu = 0.0", "_Ql = 0.0", "_Qs = 0.0", "_QX = 0.0", "_QY = 0.0"]
     if fixed_needed:
         pro = _fixed_frame_prologue(lane) + pro
-    sig = ("hk_rhs_lane(k, t, u, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, cfg, K)" if lane
-           else "hk_rhs(t, u, y, p, cfg, dy)")
+    if part == "states":
+        sig = "hk_states_lane(k, t, u, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, cfg, K)"
+        ret = "    return 0"
+        tail = []
+    elif lane:
+        sig = "hk_rhs_lane(k, t, u, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, cfg)"
+        ret = "    return u, _Qu, _Ql, _Qs, _Qx, _Qy"
+    else:
+        sig = "hk_rhs(t, u, y, p, cfg, dy)"
+        ret = "    return u, _Qu, _Ql, _Qs, _Qx, _Qy"
     lines = [f"@{_JIT}", f"def {sig}:"]
     lines += ["    " + ln for ln in pro + body + tail]
-    lines.append("    return u, _Qu, _Ql, _Qs, _Qx, _Qy")
+    lines.append(ret)
     return "\n".join(lines) + "\n"
 
 
@@ -296,6 +307,7 @@ def _effect_imports(comp: "Composition") -> list[str]:
             lines.append(f"from {eff.__module__} import {eff.__qualname__} as _E{i}")
         for fn in eff.defined_functions():
             lines.append(f"_e{i}_{fn} = {_JIT}(_function(_E{i}, {fn!r}))")
+            lines.append(f"_e{i}_{fn}_v = {_JIT}(_simd(_function(_E{i}, {fn!r})))  # lane variant")
     return lines
 
 
@@ -310,6 +322,7 @@ def hooks_source(comp: "Composition") -> str:
         "from numba import njit",
         "",
         "from drillgym.effects.registry import effect_function as _function, load_class_from_file as _load_class",
+        "from drillgym.effects.simd import simd_variant as _simd",
         "from drillgym.vmath import vsincos",
         "",
         *_effect_imports(comp),
@@ -323,7 +336,8 @@ def hooks_source(comp: "Composition") -> str:
         "",
         "",
         _rhs(comp, False), "",
-        _rhs(comp, True), "",
+        _rhs(comp, True, "rhs"), "",
+        _rhs(comp, True, "states"), "",
     ]
     for disc in ("upper", "lower"):
         for what in ("slip", "bounds"):

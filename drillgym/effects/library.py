@@ -39,8 +39,9 @@ class PositionFriction(Friction):
         "happens at preferred angles")
 
     def level(theta_l, pf_c1, pf_s1, pf_c2, pf_s2):
-        return (1.0 + pf_c1 * math.cos(theta_l) + pf_s1 * math.sin(theta_l)
-                + pf_c2 * math.cos(2.0 * theta_l) + pf_s2 * math.sin(2.0 * theta_l))
+        c, s = math.cos(theta_l), math.sin(theta_l)
+        c2, s2 = c * c - s * s, 2.0 * s * c  # cos 2θl, sin 2θl
+        return 1.0 + pf_c1 * c + pf_s1 * s + pf_c2 * c2 + pf_s2 * s2
 
 
 class BrakeAsymmetry(Friction):
@@ -63,7 +64,7 @@ class BrakeAsymmetry(Friction):
     def slip(T, direction, speed, brake, Ts, Tc, ws, delta, asym_s, asym_c):
         if direction > 0.0 or brake == 0.0:
             return T
-        stribeck = math.exp(-(speed / ws) ** delta)
+        stribeck = math.exp(-math.exp(delta * math.log(max(speed / ws, 1e-300))))  # exp(-(speed/ws)^delta)
         return T - (asym_c * Tc + (asym_s * Ts - asym_c * Tc) * stribeck)
 
     def stick(lo, hi, brake, asym_s):

@@ -24,8 +24,9 @@ Scalar kernel (state vector y, parameter vector p)
 
 Lane kernel (lane k; mechanical scalars, lane state rows Y (nm mechanical rows first),
 parameter rows PT (n_params, B))
-    hk_rhs_lane(k, t, u, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, cfg, K) -> as hk_rhs,
-        state derivatives into K[nm + j, k]
+    hk_rhs_lane(k, t, u, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, cfg) -> as hk_rhs (no writes)
+    hk_states_lane(k, t, u, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, cfg, K): the effects' state
+        derivatives into K[nm + j, k] (called in a loop of its own)
     hk_slip_u_lane(T, d, aw, k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, brake) / ..._l_lane
     hk_bounds_u_lane(lo, hi, k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, brake) / ..._l_lane
 

@@ -39,7 +39,7 @@ from drillgym.dynamics import (
 from drillgym.friction import bearing_law, brake_law_simd, upper_law
 from drillgym.integrators import RK4_A, RK4_B, RK4_C
 from drillgym.kernels.hooks import (
-    N_STATE, hk_bounds_l_lane, hk_bounds_u_lane, hk_rhs_lane, hk_slip_l_lane, hk_slip_u_lane,
+    N_STATE, hk_bounds_l_lane, hk_bounds_u_lane, hk_rhs_lane, hk_slip_l_lane, hk_slip_u_lane, hk_states_lane,
 )
 from drillgym.kernels.model import initial_modes, record, resolve_modes
 from drillgym.kernels.stepping import alloc_work, delay_line_step, hybrid_step
@@ -61,16 +61,14 @@ ROWS_FULL = np.array([S_TU, S_TL, S_X, S_Y, S_WU, S_WL, S_VX, S_VY] + _EFFECT_RO
 
 
 @njit(inline="always", fastmath=True, error_model="numpy")
-def _friction_laws(k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, mu, ml, brake):
+def _friction_laws(k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, mu, ml, brake, Tcu, dTcu, bu, dbu, Tcl, bl,
+                   Ts, Tc, ws, delta, bb):
     """Slip friction torques (N m) in the directions of the modes (0 for a stuck disc): friction.py's
-    laws, then the composition's friction effects."""
+    laws (base parameters of lane k given as scalars), then the composition's friction effects."""
     awu = abs(wu)
     awl = abs(wl)
-    if brake:
-        tfl = brake_law_simd(awl, ml, PT[_Ts, k], PT[_Tc, k], PT[_ws, k], PT[_delta, k], PT[_bb, k])
-    else:
-        tfl = bearing_law(awl, ml, PT[_Tcl, k], PT[_bl, k])
-    tfu = upper_law(awu, mu, PT[_Tcu, k], PT[_dTcu, k], PT[_bu, k], PT[_dbu, k])
+    tfl = brake_law_simd(awl, ml, Ts, Tc, ws, delta, bb) if brake else bearing_law(awl, ml, Tcl, bl)
+    tfu = upper_law(awu, mu, Tcu, dTcu, bu, dbu)
     bf = 1.0 if brake else 0.0
     tfu = hk_slip_u_lane(tfu, mu, awu, k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, bf) if mu != 0.0 else 0.0
     tfl = hk_slip_l_lane(tfl, ml, awl, k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, bf) if ml != 0.0 else 0.0
@@ -92,10 +90,13 @@ def _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR, TT, tc, cfg):
     """Diagonal mass ((3.19), (3.20)): K[0:2] = speeds, K[2:4] = accelerations, FR = friction
     torques (a stuck disc: zero acceleration, friction = its holding torque); the effects' state
     derivatives in K[4:].  TT (B,) step start times, tc the stage's offset (s).
-    Rows are taken as 1-D views first and each loop writes few arrays: that is what lets
+    Rows are taken as 1-D views first and each loop writes at most four arrays: that is what lets
     LLVM vectorise it (more written arrays exceed its runtime alias-check budget)."""
     thu_, thl_, wu_, wl_ = Y[0], Y[1], Y[2], Y[3]
     K2, K3, FR0, FR1 = K[2], K[3], FR[0], FR[1]
+    Ju, km, Jl, kth = PT[_Ju], PT[_km], PT[_Jl], PT[_kth]
+    Tcu, dTcu, bu, dbu, Tcl, bl = PT[_Tcu], PT[_dTcu], PT[_bu], PT[_dbu], PT[_Tcl], PT[_bl]
+    Ts, Tc, ws, delta, bb = PT[_Ts], PT[_Tc], PT[_ws], PT[_delta], PT[_bb]
     _copy_rows(Y[2:4], K[0:2])  # angle rates = speeds
     for k in range(thu_.shape[0]):
         thu = thu_[k]
@@ -105,15 +106,20 @@ def _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR, TT, tc, cfg):
         mu = MU[k]
         ml = ML[k]
         t = TT[k] + tc
-        volt, Qe_u, Qe_l, Qe_s, _, _ = hk_rhs_lane(k, t, U[k], thu, thl, wu, wl, 0.0, 0.0, 0.0, 0.0, Y, 4, PT, cfg, K)
-        string = string_on * (PT[_kth, k] * (thl - thu) + Qe_s)
-        tfu, tfl = _friction_laws(k, t, thu, thl, wu, wl, 0.0, 0.0, 0.0, 0.0, Y, 4, PT, mu, ml, brake)
-        a_u, a_l, fu, fl = reduced_accelerations(PT[_km, k] * volt + Qe_u, string, string_on * Qe_l, tfu, tfl,
-                                                 PT[_Ju, k], PT[_Jl, k], mu != 0.0, ml != 0.0)
+        volt, Qe_u, Qe_l, Qe_s, _, _ = hk_rhs_lane(k, t, U[k], thu, thl, wu, wl, 0.0, 0.0, 0.0, 0.0, Y, 4, PT, cfg)
+        string = string_on * (kth[k] * (thl - thu) + Qe_s)
+        tfu, tfl = _friction_laws(k, t, thu, thl, wu, wl, 0.0, 0.0, 0.0, 0.0, Y, 4, PT, mu, ml, brake, Tcu[k],
+                                  dTcu[k], bu[k], dbu[k], Tcl[k], bl[k], Ts[k], Tc[k], ws[k], delta[k], bb[k])
+        a_u, a_l, fu, fl = reduced_accelerations(km[k] * volt + Qe_u, string, string_on * Qe_l, tfu, tfl,
+                                                 Ju[k], Jl[k], mu != 0.0, ml != 0.0)
         K2[k] = a_u
         K3[k] = a_l
         FR0[k] = fu
         FR1[k] = fl
+    if N_STATE > 8:
+        for k in range(thu_.shape[0]):
+            hk_states_lane(k, TT[k] + tc, U[k], thu_[k], thl_[k], wu_[k], wl_[k], 0.0, 0.0, 0.0, 0.0, Y, 4, PT, cfg,
+                           K)
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
@@ -136,10 +142,11 @@ def _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg):
         t = TT[k] + tc
         alpha = thl - thu
         s, c = vsincos(alpha)
-        volt, Qe_u, Qe_l, Qe_s, Qe_x, Qe_y = hk_rhs_lane(k, t, U[k], thu, thl, W, wl, x, yy, vx, vy, Y, 8, PT, cfg,
-                                                         K)
+        volt, Qe_u, Qe_l, Qe_s, Qe_x, Qe_y = hk_rhs_lane(k, t, U[k], thu, thl, W, wl, x, yy, vx, vy, Y, 8, PT, cfg)
         string = PT[_kth, k] * alpha + Qe_s
-        tfu, tfl = _friction_laws(k, t, thu, thl, W, wl, x, yy, vx, vy, Y, 8, PT, mu, ml, brake)
+        tfu, tfl = _friction_laws(k, t, thu, thl, W, wl, x, yy, vx, vy, Y, 8, PT, mu, ml, brake, PT[_Tcu, k],
+                                  PT[_dTcu, k], PT[_bu, k], PT[_dbu, k], PT[_Tcl, k], PT[_bl, k], PT[_Ts, k],
+                                  PT[_Tc, k], PT[_ws, k], PT[_delta, k], PT[_bb, k])
         Qu, Qx, Qy = isotropic_lateral_forces(x, yy, vx, vy, W, PT[_k, k], PT[_b, k])
         a_u, a_l, a_x, a_y, fu, fl = full_accelerations(x, yy, vx, vy, W, wl, s, c, PT[_mr, k] + PT[_mt, k],
                                                         PT[_e, k] * PT[_mr, k], PT[_Ju, k], PT[_Jl, k],
@@ -151,6 +158,10 @@ def _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg):
         K[7, k] = a_y
         FR[0, k] = fu
         FR[1, k] = fl
+    if N_STATE > 8:
+        for k in range(thu_.shape[0]):
+            hk_states_lane(k, TT[k] + tc, U[k], thu_[k], thl_[k], wu_[k], wl_[k], x_[k], y_[k], vx_[k], vy_[k], Y, 8,
+                           PT, cfg, K)
 
 
 @njit(inline="always")
