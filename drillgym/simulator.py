@@ -79,10 +79,25 @@ def _input_matrix(u: InputLike, n_batch: int, n_steps: int, dt: float) -> np.nda
     return U
 
 
-def _delay_lines(comp: Composition, P: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Empty delay lines (B, L) and heads (B,) = -1 for the composition's Delay effects."""
+def _delay_lines(comp: Composition, P: np.ndarray, dt: float,
+                 u_before: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Delay lines (B, L) and heads (B,) for the composition's Delay effects: empty (head -1: the first
+    command is taken as held before the start) or filled with the commands of the steps before the
+    start, ``u_before`` (B, m) oldest first (older steps than m: the oldest value held)."""
     L = comp.delay_line_length(P, dt)
-    return np.zeros((P.shape[0], L)), np.full(P.shape[0], -1, dtype=np.int64)
+    B = P.shape[0]
+    H, head = np.zeros((B, L)), np.full(B, -1, dtype=np.int64)
+    if u_before is not None and comp.has_delay:
+        ub = np.asarray(u_before, dtype=np.float64)
+        ub = np.broadcast_to(ub if ub.ndim == 2 else ub[None, :], (B, ub.shape[-1]))
+        if ub.shape[1] > 0:
+            if not np.all(np.isfinite(ub)):
+                raise ValueError("u_before contains NaN or inf")
+            m = min(ub.shape[1], L)
+            H[:, L - m:] = ub[:, ub.shape[1] - m:]
+            H[:, :L - m] = ub[:, ub.shape[1] - m:ub.shape[1] - m + 1]
+            head[:] = L - 1
+    return H, head
 
 
 @dataclass
@@ -177,7 +192,7 @@ def _friction_eps(friction: str, smooth_eps: float) -> float:
     raise ValueError(f"friction must be 'exact' (set-valued, default) or 'smooth', got {friction!r}")
 
 
-def _run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, parallel, HIST, HEAD):
+def _run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, parallel, HIST, HEAD, T0):
     """The SIMD lane kernel over the batch; with parallel, one chunk per core in threads (nogil)."""
     n_chunks = min(os.cpu_count() or 1, max(1, Y.shape[0] // LANES_MIN_BATCH)) if parallel else 1
     bounds = np.linspace(0, Y.shape[0], n_chunks + 1).astype(int)
@@ -185,8 +200,8 @@ def _run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, pa
 
     def run(i):
         s = slice(bounds[i], bounds[i + 1])
-        lanes_run(Y[s], MODE[s], U[s], P[s], cfg, dt, np.zeros(bounds[i + 1] - bounds[i]), record_every, OUT[s],
-                  n_steps, True, FR[s], HIST[s], HEAD[s])
+        lanes_run(Y[s], MODE[s], U[s], P[s], cfg, dt, T0[s].copy(), record_every, OUT[s], n_steps, True, FR[s],
+                  HIST[s], HEAD[s])
 
     if n_chunks == 1:
         run(0)
@@ -218,7 +233,8 @@ def simulate_batch(config: "str | Configuration", u: InputLike, duration: float,
                    n_batch: int | None = None, method: str = "rk4", record_every: int = 1,
                    friction: str = "exact", smooth_eps: float = DEFAULT_SMOOTH_EPS,
                    parallel: bool = False, effects: Any = None,
-                   effect_params: Mapping[str, float] | None = None) -> BatchTrajectory:
+                   effect_params: Mapping[str, float] | None = None, t0: "float | Sequence[float]" = 0.0,
+                   u_before: np.ndarray | None = None) -> BatchTrajectory:
     """Simulate B trajectories in one compiled call.
 
     Args:
@@ -240,6 +256,10 @@ def simulate_batch(config: "str | Configuration", u: InputLike, duration: float,
         effects: effects added to the base model: names, 'path/to/file.py:NAME', Effect classes or
             instances (``MotorLag(tau_m=0.02)``), or a Composition (see :mod:`drillgym.effects`).
         effect_params: values of the effects' parameters by name (defaults: each Parameter's).
+        t0: start time(s) (s), scalar or per trajectory: time-dependent effects see t0 + elapsed time
+            (e.g. a segment of a recording restarted in the middle); outputs' t starts there.
+        u_before: commands (V) of the steps before the start, (m,) or (B, m), oldest first: they fill
+            the delay lines of Delay effects (default: the first command held before the start).
     """
     cfg = parse_configuration(config)
     comp, values = compose(effects, effect_params)
@@ -276,14 +296,17 @@ def simulate_batch(config: "str | Configuration", u: InputLike, duration: float,
     OUT = np.empty((B, n_rec, len(comp.output_names)))
     A, b, c = tableau(method)
     eps = _friction_eps(friction, smooth_eps)
-    HIST, HEAD = _delay_lines(comp, P, dt)
+    HIST, HEAD = _delay_lines(comp, P, dt, u_before)
+    T0 = np.ascontiguousarray(np.broadcast_to(np.asarray(t0, dtype=np.float64), (B,)))
+    if not np.all(np.isfinite(T0)):
+        raise ValueError(f"t0 must be finite, got {t0!r}")
     k = comp.kernels
     if B >= LANES_MIN_BATCH and method.lower() == "rk4" and eps == 0.0:
         _run_lanes(k.lanes.lanes_run, Y, MODE, U, P, int(cfg), float(dt), int(record_every), OUT, n_steps, parallel,
-                   HIST, HEAD)
+                   HIST, HEAD, T0)
     else:
         runner = k.stepping.run_batch_parallel if parallel else k.stepping.run_batch_serial
-        runner(Y, MODE, U, P, int(cfg), float(dt), np.zeros(B), eps, A, b, c, int(record_every), OUT, True, n_steps,
+        runner(Y, MODE, U, P, int(cfg), float(dt), T0, eps, A, b, c, int(record_every), OUT, True, n_steps,
                HIST, HEAD)
     if not np.all(np.isfinite(OUT[:, -1, 2:10])):
         bad = int(np.argwhere(~np.all(np.isfinite(OUT[:, -1, 2:10]), axis=1))[0, 0])

@@ -122,3 +122,17 @@ def test_backlash_is_a_dead_zone_of_the_string():
     outside = simulate("free_vibration", 0.0, 6.0, alpha0=0.5, effects=[spec], effect_params={"gap": 0.05})
     linear = simulate("free_vibration", 0.0, 6.0, alpha0=0.45)
     assert np.max(np.abs(outside.omega_l[:1000] - linear.omega_l[:1000])) < 1e-9  # shifted by the gap exactly
+
+
+def test_a_run_restarted_in_the_middle_continues_the_whole_run():
+    """t0 and u_before (the commands before the start, for the delay line) let a segment of a run be
+    simulated on its own: drift sees the real time, the delay the earlier commands."""
+    comp, vals = compose(["input_delay", "friction_drift", "motor_lag"], {"delay": 0.05, "drift": 0.01, "tau_m": 0.02})
+    n = 6000
+    U = command(n)
+    whole = simulate("torsional", U, n * DT, effects=comp, effect_params=vals, alpha0=0.3)
+    i = 3000
+    seg = simulate_batch("torsional", U[None, i:], (n - i) * DT, effects=comp, effect_params=vals,
+                         x0=whole.data[i, list(range(2, 10)) + [18]], t0=i * DT, u_before=U[:i])
+    np.testing.assert_allclose(seg.data[0, -1, 2:10], whole.data[-1, 2:10], atol=1e-9)
+    np.testing.assert_allclose(seg.t[0], whole.t[i:], atol=1e-9)
