@@ -231,7 +231,6 @@ class HardwareEnv(gym.Env):
         Y[4], Y[5] = X * c + Yf * s, -X * s + Yf * c   # rotating frame
         vbx, vby = dxy[0] * c + dxy[1] * s, -dxy[0] * s + dxy[1] * c
         Y[6], Y[7] = vbx + Y[2] * Y[5], vby - Y[2] * Y[4]
-        Y[8] = 0.0
 
     def _record(self, m: dict[str, float], u_cmd: float, omega: np.ndarray) -> None:
         if self.recorder is not None and not self.recorder.closed:
