@@ -4,7 +4,7 @@
 (Cody-Waite range reduction, Taylor/atanh series) without float<->int64
 conversions, so that LLVM can vectorise a loop that calls them (calls to libm
 would block vectorisation).  Accuracy: exp and log to a few 1e-16 relative,
-sin/cos to 1e-15 absolute for |x| < 1e3.  The scalar and the SIMD kernels both
+sin/cos to about 4e-17 |x| absolute.  The scalar and the SIMD kernels both
 use them, so that both compute the same numbers.
 """
 
@@ -83,7 +83,9 @@ _TWO_OVER_PI = 6.36619772367581382433e-01
 
 @njit(inline="always", fastmath=True, error_model="numpy")
 def vsincos(x: float) -> tuple:
-    """(sin x, cos x) for |x| < 1e5, absolute error < 1e-15; branch-free (vectorises)."""
+    """(sin x, cos x) for |x| < 1e5, absolute error about 4e-17 |x| (4e-15 at |x| = 100, 4e-14 at 1e3,
+    measured against numpy); branch-free: the quadrant's swap and signs are float selects, so a loop of
+    it vectorises."""
     kf = np.floor(x * _TWO_OVER_PI + 0.5)
     r = ((x - kf * _PIO2_1) - kf * _PIO2_2) - kf * _PIO2_3  # |r| <= pi/4
     r2 = r * r
@@ -104,9 +106,17 @@ def vsincos(x: float) -> tuple:
     cp = cp * r2 + 1.0 / 24.0
     cp = cp * r2 - 0.5
     cos_r = 1.0 + r2 * cp
-    q = (_bits_from_f64(kf + _ROUND_MAGIC) - _ROUND_MAGIC_BITS) & 3
-    sn = sin_r if q == 0 else (cos_r if q == 1 else (-sin_r if q == 2 else -cos_r))
-    cs = cos_r if q == 0 else (-sin_r if q == 1 else (-cos_r if q == 2 else sin_r))
+    # quadrant q = kf mod 4 in floating point (no integer selects: nested ones block vectorisation);
+    # odd quadrants swap sin and cos, the signs follow from q
+    qf = kf - 4.0 * np.floor(kf * 0.25)
+    half = np.floor(qf * 0.5)
+    odd = qf - 2.0 * half > 0.5
+    s_sign = 1.0 - 2.0 * half
+    c_sign = 1.0 - 2.0 * np.floor((qf + 1.0 - 4.0 * np.floor((qf + 1.0) * 0.25)) * 0.5)
+    a = cos_r if odd else sin_r
+    b = sin_r if odd else cos_r
+    sn = s_sign * a
+    cs = c_sign * b
     return sn, cs
 
 

@@ -128,6 +128,11 @@ def _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg):
     (dynamics' formulas, Schur complement of the m I block, stuck discs as selects)."""
     thu_, thl_, x_, y_, wu_, wl_, vx_, vy_ = Y[0], Y[1], Y[2], Y[3], Y[4], Y[5], Y[6], Y[7]
     _copy_rows(Y[4:8], K[0:4])  # position rates = velocities
+    Ju, km, Jl, kth = PT[_Ju], PT[_km], PT[_Jl], PT[_kth]
+    Tcu, dTcu, bu, dbu, Tcl, bl = PT[_Tcu], PT[_dTcu], PT[_bu], PT[_dbu], PT[_Tcl], PT[_bl]
+    Ts, Tc, ws, delta, bb = PT[_Ts], PT[_Tc], PT[_ws], PT[_delta], PT[_bb]
+    mr, mt, k_, b_, e_ = PT[_mr], PT[_mt], PT[_k], PT[_b], PT[_e]
+    K4, K5, K6, K7, FR0, FR1 = K[4], K[5], K[6], K[7], FR[0], FR[1]
     for k in range(thu_.shape[0]):
         thu = thu_[k]
         thl = thl_[k]
@@ -143,21 +148,19 @@ def _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg):
         alpha = thl - thu
         s, c = vsincos(alpha)
         volt, Qe_u, Qe_l, Qe_s, Qe_x, Qe_y = hk_rhs_lane(k, t, U[k], thu, thl, W, wl, x, yy, vx, vy, Y, 8, PT, cfg)
-        string = PT[_kth, k] * alpha + Qe_s
-        tfu, tfl = _friction_laws(k, t, thu, thl, W, wl, x, yy, vx, vy, Y, 8, PT, mu, ml, brake, PT[_Tcu, k],
-                                  PT[_dTcu, k], PT[_bu, k], PT[_dbu, k], PT[_Tcl, k], PT[_bl, k], PT[_Ts, k],
-                                  PT[_Tc, k], PT[_ws, k], PT[_delta, k], PT[_bb, k])
-        Qu, Qx, Qy = isotropic_lateral_forces(x, yy, vx, vy, W, PT[_k, k], PT[_b, k])
-        a_u, a_l, a_x, a_y, fu, fl = full_accelerations(x, yy, vx, vy, W, wl, s, c, PT[_mr, k] + PT[_mt, k],
-                                                        PT[_e, k] * PT[_mr, k], PT[_Ju, k], PT[_Jl, k],
-                                                        PT[_km, k] * volt + Qe_u, string, Qe_l, tfu, tfl, Qu,
-                                                        Qx + Qe_x, Qy + Qe_y, mu != 0.0, ml != 0.0)
-        K[4, k] = a_u
-        K[5, k] = a_l
-        K[6, k] = a_x
-        K[7, k] = a_y
-        FR[0, k] = fu
-        FR[1, k] = fl
+        string = kth[k] * alpha + Qe_s
+        tfu, tfl = _friction_laws(k, t, thu, thl, W, wl, x, yy, vx, vy, Y, 8, PT, mu, ml, brake, Tcu[k], dTcu[k],
+                                  bu[k], dbu[k], Tcl[k], bl[k], Ts[k], Tc[k], ws[k], delta[k], bb[k])
+        Qu, Qx, Qy = isotropic_lateral_forces(x, yy, vx, vy, W, k_[k], b_[k])
+        a_u, a_l, a_x, a_y, fu, fl = full_accelerations(x, yy, vx, vy, W, wl, s, c, mr[k] + mt[k], e_[k] * mr[k],
+                                                        Ju[k], Jl[k], km[k] * volt + Qe_u, string, Qe_l, tfu, tfl,
+                                                        Qu, Qx + Qe_x, Qy + Qe_y, mu != 0.0, ml != 0.0)
+        K4[k] = a_u
+        K5[k] = a_l
+        K6[k] = a_x
+        K7[k] = a_y
+        FR0[k] = fu
+        FR1[k] = fl
     if N_STATE > 8:
         for k in range(thu_.shape[0]):
             hk_states_lane(k, TT[k] + tc, U[k], thu_[k], thl_[k], wu_[k], wl_[k], x_[k], y_[k], vx_[k], vy_[k], Y, 8,
@@ -227,33 +230,31 @@ def _event_check(S, FR, MU, ML, PT, full, string_on, brake, free_vibration, OK, 
     """OK[k] = 1 when lane k's event functions at the step end stayed positive (slipping discs kept
     their direction, stuck discs' holding torques stayed in their stick sets)."""
     bf = 1.0 if brake else 0.0
+    thu_, thl_, wu_, wl_ = S[0], S[1], S[hv], S[hv + 1]
+    Tcu, dTcu, Ts, Tcl = PT[_Tcu], PT[_dTcu], PT[_Ts], PT[_Tcl]
+    FR0, FR1 = FR[0], FR[1]
     for k in range(S.shape[1]):
         t = TT[k] + h
-        thu = S[0, k]
-        thl = S[1, k]
-        wu = S[hv, k]
-        wl = S[hv + 1, k]
+        thu = thu_[k]
+        thl = thl_[k]
+        wu = wu_[k]
+        wl = wl_[k]
         x = S[2, k] if full else 0.0
         yy = S[3, k] if full else 0.0
         vx = S[6, k] if full else 0.0
         vy = S[7, k] if full else 0.0
-        fu = FR[0, k]
-        fl = FR[1, k]
+        fu = FR0[k]
+        fl = FR1[k]
         mu = MU[k]
         ml = ML[k]
-        if mu != 0.0:
-            gu = mu * wu
-        else:
-            lo, hi = hk_bounds_u_lane(-PT[_Tcu, k] + PT[_dTcu, k], PT[_Tcu, k] + PT[_dTcu, k], k, t, thu, thl, wu, wl,
-                                      x, yy, vx, vy, S, nm, PT, 0.0)
-            gu = min(hi - fu, fu - lo)
+        # both branches computed, then selected: branch-free, so the loop vectorises
+        lo_u, hi_u = hk_bounds_u_lane(-Tcu[k] + dTcu[k], Tcu[k] + dTcu[k], k, t, thu, thl, wu, wl, x, yy, vx, vy, S,
+                                      nm, PT, 0.0)
+        gu = mu * wu if mu != 0.0 else min(hi_u - fu, fu - lo_u)
         gu = 1.0 if free_vibration else gu
-        if ml != 0.0:
-            gl = ml * wl
-        else:
-            lim = PT[_Ts, k] if brake else PT[_Tcl, k]
-            lo, hi = hk_bounds_l_lane(-lim, lim, k, t, thu, thl, wu, wl, x, yy, vx, vy, S, nm, PT, bf)
-            gl = min(hi - fl, fl - lo)
+        lim = Ts[k] if brake else Tcl[k]
+        lo_l, hi_l = hk_bounds_l_lane(-lim, lim, k, t, thu, thl, wu, wl, x, yy, vx, vy, S, nm, PT, bf)
+        gl = ml * wl if ml != 0.0 else min(hi_l - fl, fl - lo_l)
         gl = gl if string_on > 0.0 else 1.0
         OK[k] = 1 if (gu >= 0.0 and gl >= 0.0) else 0
 
