@@ -136,3 +136,19 @@ def test_a_run_restarted_in_the_middle_continues_the_whole_run():
                          x0=whole.data[i, list(range(2, 10)) + [18]], t0=i * DT, u_before=U[:i])
     np.testing.assert_allclose(seg.data[0, -1, 2:10], whole.data[-1, 2:10], atol=1e-9)
     np.testing.assert_allclose(seg.t[0], whole.t[i:], atol=1e-9)
+
+
+def test_recording_only_some_columns_gives_the_same_values():
+    volts = np.linspace(0.5, 4.0, LANES_MIN_BATCH)
+    full = simulate_batch("coupled", volts, 3.0, record_every=7)
+    some = simulate_batch("coupled", volts, 3.0, record_every=7, record=("omega_l", "r", "t"))
+    assert some.data.shape == full.data.shape[:2] + (3,)
+    np.testing.assert_array_equal(some.omega_l, full.omega_l)
+    np.testing.assert_array_equal(some.r, full.r)
+    np.testing.assert_array_equal(some.t, full.t)
+    one = simulate("torsional", 1.0, 2.0, record=["Tfl"], effects=["motor_lag"])
+    np.testing.assert_array_equal(one.Tfl, simulate("torsional", 1.0, 2.0, effects=["motor_lag"]).Tfl)
+    with pytest.raises(AttributeError, match="not recorded"):
+        one.omega_l
+    with pytest.raises(ValueError, match="unknown column 'speed'"):
+        simulate("torsional", 1.0, 1.0, record=("speed",))

@@ -283,7 +283,7 @@ def _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode):
 
 
 @njit(cache=True, nogil=True)
-def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, FRIC_OUT, HIST, HEAD):
+def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, FRIC_OUT, HIST, HEAD, COLS=None):
     """Batch run on lanes: same contract as stepping.run_batch_serial (RK4, exact friction),
     plus FRIC_OUT (B, 2) final friction.  U may hold one column (constant command); OUT may have
     zero samples (no recording)."""
@@ -326,7 +326,7 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
         for j in range(N_STATE):
             Y[k, j] = y[j]
         if record_on:
-            record(OUT[k], 0, T0[k], U[k, 0], y, fric, mode)
+            record(OUT[k], 0, T0[k], U[k, 0], y, fric, mode, COLS)
         Uprev[k] = u0
         Ucur[k] = u0
     for i in range(n_steps):
@@ -360,7 +360,7 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
             for k in range(B):
                 y[:] = Y[k]
                 _lane_to_state(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
-                record(OUT[k], row, T0[k] + (i + 1) * dt, U[k, ncol], y, fric, mode)
+                record(OUT[k], row, T0[k] + (i + 1) * dt, U[k, ncol], y, fric, mode, COLS)
     for k in range(B):
         for j in range(n):
             Y[k, rows[j]] = S[j, k]

@@ -204,24 +204,50 @@ def initial_modes(t, y, u, p, cfg, mode, dy, fric):
 
 
 @njit(cache=True, _nrt=False)
-def record(out, row, t, u, y, fric, mode):
-    """Write one output sample (the composition's OUTPUT_NAMES: the 18 base columns, then the
-    effects' states)."""
-    out[row, 0] = t
-    out[row, 1] = u
-    for i in range(8):
-        out[row, 2 + i] = y[i]
-    ct = np.cos(y[S_TU])
-    st = np.sin(y[S_TU])
-    X = y[S_X] * ct - y[S_Y] * st
-    Y = y[S_X] * st + y[S_Y] * ct
-    out[row, 10] = y[S_TL] - y[S_TU]
-    out[row, 11] = X
-    out[row, 12] = Y
-    out[row, 13] = np.sqrt(X * X + Y * Y)
-    out[row, 14] = fric[0]
-    out[row, 15] = fric[1]
-    out[row, 16] = 1.0 if mode[0] == 0 else 0.0
-    out[row, 17] = 1.0 if mode[1] == 0 else 0.0
-    for i in range(8, N_STATE):
-        out[row, 10 + i] = y[i]
+def record(out, row, t, u, y, fric, mode, cols=None):
+    """Write one output sample: all of the composition's OUTPUT_NAMES (the 18 base columns, then the
+    effects' states), or only the columns ``cols`` (indices into them, in that order); the lateral
+    trigonometry only when x, y or r is recorded."""
+    need_xy = cols is None
+    if cols is not None:
+        for j in range(cols.shape[0]):
+            if 11 <= cols[j] <= 13:
+                need_xy = True
+    X = 0.0
+    Y = 0.0
+    if need_xy:
+        ct = np.cos(y[S_TU])
+        st = np.sin(y[S_TU])
+        X = y[S_X] * ct - y[S_Y] * st
+        Y = y[S_X] * st + y[S_Y] * ct
+    if cols is None:
+        for c in range(10 + N_STATE):
+            out[row, c] = _output_value(c, t, u, y, fric, mode, X, Y)
+    else:
+        for j in range(cols.shape[0]):
+            out[row, j] = _output_value(cols[j], t, u, y, fric, mode, X, Y)
+
+
+@njit(inline="always", fastmath=True, error_model="numpy")
+def _output_value(c, t, u, y, fric, mode, X, Y):
+    """Output column c (see OUTPUT_NAMES) of a sample; X, Y the fixed-frame lateral position (m),
+    computed by the caller when x, y or r is recorded."""
+    if c == 0:
+        return t
+    if c == 1:
+        return u
+    if c < 10:
+        return y[c - 2]
+    if c == 10:
+        return y[S_TL] - y[S_TU]
+    if 11 <= c <= 13:
+        return X if c == 11 else (Y if c == 12 else np.sqrt(X * X + Y * Y))
+    if c == 14:
+        return fric[0]
+    if c == 15:
+        return fric[1]
+    if c == 16:
+        return 1.0 if mode[0] == 0 else 0.0
+    if c == 17:
+        return 1.0 if mode[1] == 0 else 0.0
+    return y[c - 10]  # the effects' states (column 18 + j <- state 8 + j)

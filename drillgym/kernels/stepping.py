@@ -238,12 +238,14 @@ def hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, ynew,
 
 
 @njit(cache=True)
-def run_trajectory(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, init_modes, n_steps, hist, head):
+def run_trajectory(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, init_modes, n_steps, hist, head,
+                   cols=None):
     """Integrate one trajectory over n_steps steps (command U[i] held over step i; U may hold one
     value for a constant command).
 
     ``y``/``mode`` are updated in place to the final state, ``hist``/``head`` are the delay
-    line.  ``out`` receives ``n_steps // rec_every + 1`` samples (none when it has no rows).
+    line.  ``out`` receives ``n_steps // rec_every + 1`` samples (none when it has no rows) of all
+    output columns or of the columns ``cols`` (see ``model.record``).
     Returns the number of mode switches.
     """
     K, ytmp, k1, ynew, fric, ftmp, g0, g1 = alloc_work(b.shape[0])
@@ -261,7 +263,7 @@ def run_trajectory(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, ini
     else:
         resolve_modes(t, y, mode, u, p, cfg, k1, fric)
     if record_on:
-        record(out, 0, t, u_cmd, y, fric, mode)
+        record(out, 0, t, u_cmd, y, fric, mode, cols)
     n_switch = 0
     row = 1
     u_prev = u
@@ -279,26 +281,28 @@ def run_trajectory(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, ini
         if record_on and (i + 1) % rec_every == 0:
             # a sample carries the command applied from its time on (zero-order hold), as a recording does
             u_next = U[min(i + 1, n_steps - 1)] if n_u > 1 else U[0]
-            record(out, row, t, u_next, y, fric, mode)
+            record(out, row, t, u_next, y, fric, mode, cols)
             row += 1
     return n_switch
 
 
 @njit(cache=True)
-def run_batch_serial(Y, MODE, U, P, cfg, dt, T0, eps, A, b, c, rec_every, OUT, init_modes, n_steps, HIST, HEAD):
+def run_batch_serial(Y, MODE, U, P, cfg, dt, T0, eps, A, b, c, rec_every, OUT, init_modes, n_steps, HIST, HEAD,
+                     COLS=None):
     """run_trajectory over a batch: Y (B, N_STATE), MODE (B, 2), U (B, n) or (B, 1), P (B, n_par),
     OUT (B, n_rec, N_OUT), HIST (B, L) delay lines, HEAD (B,) their newest entries."""
     for k in range(Y.shape[0]):
         run_trajectory(Y[k], MODE[k], U[k], P[k], cfg, dt, T0[k], eps, A, b, c, rec_every, OUT[k], init_modes,
-                       n_steps, HIST[k], HEAD[k:k + 1])
+                       n_steps, HIST[k], HEAD[k:k + 1], COLS)
 
 
 @njit(cache=True, parallel=True)
-def run_batch_parallel(Y, MODE, U, P, cfg, dt, T0, eps, A, b, c, rec_every, OUT, init_modes, n_steps, HIST, HEAD):
+def run_batch_parallel(Y, MODE, U, P, cfg, dt, T0, eps, A, b, c, rec_every, OUT, init_modes, n_steps, HIST, HEAD,
+                     COLS=None):
     """As run_batch_serial, trajectories spread over numba's threads."""
     for k in prange(Y.shape[0]):
         run_trajectory(Y[k], MODE[k], U[k], P[k], cfg, dt, T0[k], eps, A, b, c, rec_every, OUT[k], init_modes,
-                       n_steps, HIST[k], HEAD[k:k + 1])
+                       n_steps, HIST[k], HEAD[k:k + 1], COLS)
 
 
 @njit(cache=True)
