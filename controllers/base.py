@@ -120,6 +120,11 @@ class Controller(ABC):
         doc = (type(self).__doc__ or "").strip().splitlines()[0]
         return f"{self.name}: {doc} (reads: {', '.join(self.uses) or 'nothing'})"
 
+    def approach_time(self, omega_ref: "float | np.ndarray") -> np.ndarray:
+        """Time (s) from reset until the approach to each target (rad/s) is over and the controller
+        holds it (0: at once); an evaluation whose steady window starts earlier judges a transient."""
+        return np.zeros(np.shape(np.asarray(omega_ref, dtype=float)))
+
     # -- for subclasses --------------------------------------------------------
     def _reset(self, m: dict[str, np.ndarray]) -> None:
         """Reset internal state; ``m`` holds the measurements given to :meth:`reset` as (n,) arrays."""

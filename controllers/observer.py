@@ -130,6 +130,13 @@ class ObserverController(Controller):
         self.observer.reset(np.broadcast_to(m.get("theta_u", 0.0), (self.n,)))
         self.law = self.new_law(self.omega_ref)
 
+    def approach_time(self, omega_ref: "float | np.ndarray") -> np.ndarray:
+        """Time (s) the law's reference needs: six lag time constants, after the hold and the ramp down
+        for targets below ``low_speed`` (27 + 6 s with the defaults)."""
+        o = self.law_options
+        w = np.asarray(omega_ref, dtype=float)
+        return np.where(w < o["low_speed"], o["hold"] + o["ramp"], 0.0) + 6.0 * o["tau_ref"]
+
     def new_law(self, target: np.ndarray) -> FlatnessLaw:
         """A fresh law with this controller's options, started from rest towards ``target`` (rad/s, (n,))."""
         law = FlatnessLaw(self.params, self.dt, **self.law_options)

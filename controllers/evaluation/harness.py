@@ -15,6 +15,7 @@ progress bar.  Results are rows (dicts) with the metrics of :mod:`.metrics`.
 
 from __future__ import annotations
 
+import warnings
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from typing import Any, Mapping, Sequence
 
@@ -25,10 +26,11 @@ from drillgym import RigParams, parse_configuration
 from drillgym.effects import compose
 
 from .metrics import run_metrics
+from .population import UncertaintySet, load_uncertainty, sample_plants
 from .runner import run_closed_loop
 from .scenarios import DEFAULT_TARGETS, SCENARIOS, Scenario, cycle_states, plant_params
 
-__all__ = ["evaluate", "run_job", "DEFAULT_DURATION", "DEFAULT_WINDOW"]
+__all__ = ["evaluate", "run_job", "short_run_warnings", "DEFAULT_DURATION", "DEFAULT_WINDOW"]
 
 DEFAULT_DURATION = 60.0  # s per run
 DEFAULT_WINDOW = 20.0  # s of steady state at the end
@@ -37,14 +39,20 @@ DEFAULT_WINDOW = 20.0  # s of steady state at the end
 def run_job(controller: str, config: str, scenario: Scenario, targets: Sequence[float], *,
             duration: float = DEFAULT_DURATION, window: float = DEFAULT_WINDOW, params: dict | None = None,
             u_fold: float | None = None, seed: int = 0, effects: Any = None,
-            effect_params: Mapping[str, float] | None = None) -> list[dict]:
+            effect_params: Mapping[str, float] | None = None, plants: Sequence[int] = (), n_plants: int = 0,
+            uncertainty: Any = None) -> list[dict]:
     """Run one controller in one configuration and scenario for every target; one row per target.
 
     ``params``: nominal base parameters (dict; the controller's model and the plant's base);
-    ``effects``/``effect_params``: hidden effects of the plant only (specs, classes or a Composition)."""
+    ``effects``/``effect_params``: hidden effects of the plant only (specs, classes or a Composition).
+    A population scenario runs the plants ``plants`` (indices) of the population of ``n_plants`` drawn
+    with ``seed`` from ``uncertainty`` (:mod:`.population`): one row per (plant, target)."""
     from .. import make
 
     base = RigParams.from_dict(params) if params else RigParams()
+    if scenario.population:
+        return _run_population_job(controller, config, scenario, targets, base, duration=duration, window=window,
+                                   seed=seed, plants=plants, n_plants=n_plants, uncertainty=uncertainty)
     comp, values = compose(effects, effect_params)
     plant = plant_params(scenario, base)
     tg = np.asarray(targets, dtype=float)
@@ -74,18 +82,70 @@ def run_job(controller: str, config: str, scenario: Scenario, targets: Sequence[
     return rows
 
 
+def _run_population_job(controller: str, config: str, scenario: Scenario, targets: Sequence[float], base: RigParams,
+                        *, duration: float, window: float, seed: int, plants: Sequence[int], n_plants: int,
+                        uncertainty: Any) -> list[dict]:
+    """The plants ``plants`` x ``targets`` as one batch; the controller built from ``base`` with its
+    default encoder assumptions (the plants' encoders and noise are not told)."""
+    from .. import make
+
+    pop = sample_plants(n_plants, seed, uncertainty, base).subset(list(plants))
+    tg = np.asarray(targets, dtype=float)
+    m = tg.size
+    idx = np.repeat(np.arange(pop.n), m)  # plant of each trajectory
+    ref = np.tile(tg, pop.n)
+    ctrl = make(controller, config=config, omega_ref=ref, params=base)
+    run = run_closed_loop(ctrl, config, ref, duration, params=pop.matrix[idx], counts_per_rev=pop.counts_per_rev[idx],
+                          angle_noise=pop.angle_noise[idx], seed=int(seed) * 100_003 + int(plants[0]),
+                          effects=pop.composition)  # measurement noise: its own stream per chunk of plants
+    met = run_metrics(run, window, base)
+    rows = []
+    for i in range(ref.size):
+        k = int(idx[i])
+        row = {"controller": controller, "config": parse_configuration(config).label, "scenario": scenario.name,
+               "plant": int(plants[k]), **pop.columns[k], "omega_ref": float(ref[i]), "control_dt": float(ctrl.dt)}
+        row.update({key: (bool(v[i]) if v.dtype == bool else float(v[i])) for key, v in met.items()})
+        rows.append(row)
+    return rows
+
+
+def short_run_warnings(controllers: Sequence[str], config: str, targets: Sequence[float], duration: float,
+                       window: float, params: RigParams | None = None) -> list[str]:
+    """One line per controller whose approach to a target (its :meth:`Controller.approach_time`) ends
+    after the steady window starts (``duration - window`` s): that run judges a transient."""
+    from .. import make
+
+    out = []
+    tg = np.asarray(targets, dtype=float)
+    for c in controllers:
+        if c.startswith("agent:"):
+            continue
+        need = np.asarray(make(c, config=config, omega_ref=tg, params=params).approach_time(tg))
+        late = need > duration - window
+        if np.any(late):
+            out.append(f"{c}: the approach to {', '.join(f'{w:g}' for w in tg[late])} rad/s takes up to "
+                       f"{need.max():.0f} s, but the steady window starts at {duration - window:g} s: "
+                       f"use --duration >= {np.ceil(need.max() + window):.0f}")
+    return out
+
+
 def evaluate(controllers: Sequence[str], configs: Sequence[str] = ("torsional", "coupled"),
              scenarios: Sequence["str | Scenario"] = ("rest",), targets: Sequence[float] = DEFAULT_TARGETS, *,
              duration: float = DEFAULT_DURATION, window: float = DEFAULT_WINDOW, params: RigParams | None = None,
              executor: Executor | None = None, workers: int = 2, progress: bool = True, effects: Any = None,
-             effect_params: Mapping[str, float] | None = None) -> list[dict]:
+             effect_params: Mapping[str, float] | None = None, plants: int = 20, seed: int = 0,
+             uncertainty: Any = None, plants_per_job: int = 10) -> list[dict]:
     """Evaluate every controller in every configuration and scenario on the target grid (rad/s).
 
     ``params``: the nominal base parameters (controllers and plant); ``effects``/``effect_params``:
     hidden effects of the plant (names, 'path/to/file.py:NAME', classes or instances, and their
     values by name), unknown to the controllers.  Rows carry the plant's label (``plant``).
+    Population scenarios (``plants``) draw ``plants`` plants with ``seed`` from ``uncertainty`` (a YAML
+    path or :class:`.population.UncertaintySet`; default ``plants.yaml``) around ``params``, in jobs of
+    ``plants_per_job`` plants; they refuse hidden ``effects`` (the population brings its own).
     Runs the jobs in ``executor`` (default: a process pool of ``workers``; ``workers=1``: in this
-    process).  Returns the rows of all jobs, sorted by controller, configuration, scenario, target.
+    process).  Returns the rows of all jobs, sorted by controller, configuration, scenario, plant, target.
+    Warns (``warnings.warn``) when a controller's approach ends inside the steady window.
     """
     scen = [SCENARIOS[s] if isinstance(s, str) and s in SCENARIOS else s for s in scenarios]
     for s in scen:
@@ -104,24 +164,39 @@ def evaluate(controllers: Sequence[str], configs: Sequence[str] = ("torsional", 
             raise ValueError(f"unknown controller {c!r}; choose from {', '.join(available())} (NAME@MS for another "
                              "control period) or agent:PATH")
     comp, values = compose(effects, effect_params)  # errors name the effect before any job starts
+    pop_kw: dict = {}
+    if any(s.population for s in scen):
+        if comp.effects:
+            raise ValueError("the plants scenario draws its own effects; do not combine it with --add-effect")
+        if int(plants) != plants or plants < 1:
+            raise ValueError(f"the number of plants must be a positive integer, got {plants!r}")
+        us = uncertainty if isinstance(uncertainty, UncertaintySet) else load_uncertainty(uncertainty)
+        sample_plants(1, seed, us, params)  # errors of the set before any job starts
+        pop_kw = {"n_plants": int(plants), "uncertainty": us}
+    for cfg in configs:
+        for line in short_run_warnings(controllers, cfg, targets, duration, window, params):
+            warnings.warn(line, stacklevel=2)
     pdict = params.to_dict() if params is not None else None
     u_folds = {}
     if any(s.start == "cycle" for s in scen):
         from ..baseline import stick_slip_region
         u_folds = {c: stick_slip_region(c, params or RigParams()).u_fold for c in configs}
-    jobs = [(c, cfg, s) for c in controllers for cfg in configs for s in scen]
+    chunks = [list(range(a, min(a + plants_per_job, int(plants)))) for a in range(0, int(plants), plants_per_job)]
+    jobs = [(c, cfg, s, ch) for c in controllers for cfg in configs for s in scen
+            for ch in (chunks if s.population else [[]])]
     kw = dict(targets=list(map(float, targets)), duration=duration, window=window, params=pdict,
-              effects=comp.specs(), effect_params=values)  # specs: a user file's effect reaches worker processes
+              effects=comp.specs(), effect_params=values, seed=seed)  # specs: a user file's effect reaches workers
     rows: list[dict] = []
     bar = tqdm(total=len(jobs), desc="evaluate", unit="job", disable=not progress)
     if executor is None and workers <= 1:
-        for c, cfg, s in jobs:
-            rows += run_job(c, cfg, s, u_fold=u_folds.get(cfg), **kw)
+        for c, cfg, s, ch in jobs:
+            rows += run_job(c, cfg, s, u_fold=u_folds.get(cfg), plants=ch, **(pop_kw if s.population else {}), **kw)
             bar.update()
     else:
         ex = executor or ProcessPoolExecutor(max_workers=workers)
         try:
-            futs = [ex.submit(run_job, c, cfg, s, u_fold=u_folds.get(cfg), **kw) for c, cfg, s in jobs]
+            futs = [ex.submit(run_job, c, cfg, s, u_fold=u_folds.get(cfg), plants=ch,
+                              **(pop_kw if s.population else {}), **kw) for c, cfg, s, ch in jobs]
             for f in as_completed(futs):
                 rows += f.result()
                 bar.update()
@@ -130,5 +205,6 @@ def evaluate(controllers: Sequence[str], configs: Sequence[str] = ("torsional", 
                 ex.shutdown()
     bar.close()
     order = {c: i for i, c in enumerate(controllers)}
-    rows.sort(key=lambda r: (order[r["controller"]], r["config"], r["scenario"], r["omega_ref"]))
+    rows.sort(key=lambda r: (order[r["controller"]], r["config"], r["scenario"],
+                             r["plant"] if isinstance(r.get("plant"), int) else -1, r["omega_ref"]))
     return rows

@@ -11,6 +11,8 @@
   only when SSI < 0.1 and |offset| <= TRACKING_TOLERANCE (a smooth rotation at another speed is
   not holding the target).
 * omega_l_min, omega_l_max, u_mean: steady-state range of omega_l (rad/s) and mean voltage (V).
+* speed_peak: largest |omega_u| or |omega_l| over the whole run (rad/s); runaway: speed_peak above the
+  rig's over-speed stop :data:`SAFETY_SPEED` (a controller must never get there on a slightly-off rig).
 """
 
 from __future__ import annotations
@@ -19,12 +21,13 @@ import numpy as np
 
 from drillgym import RigParams
 
-__all__ = ["SSI_THRESHOLD", "TRACKING_TOLERANCE", "METRICS", "stick_slip_severity", "run_metrics", "lowest_free_speed"]
+__all__ = ["SSI_THRESHOLD", "TRACKING_TOLERANCE", "SAFETY_SPEED", "METRICS", "stick_slip_severity", "run_metrics", "lowest_free_speed"]
 
 SSI_THRESHOLD = 0.1
 TRACKING_TOLERANCE = 0.1  # relative offset of the mean lower-disc speed from the target
+SAFETY_SPEED = 40.0  # rad/s, the rig's over-speed stop (hw.safety.SafetyLimits.max_speed)
 METRICS = ("ssi", "stuck", "tracking_rms", "u_peak", "u_rms", "energy", "stick_slip", "omega_l_min", "omega_l_max",
-           "u_mean", "offset")
+           "u_mean", "offset", "speed_peak", "runaway")
 
 
 def stick_slip_severity(omega_l: np.ndarray, omega_ref: "float | np.ndarray | None" = None) -> np.ndarray:
@@ -45,6 +48,7 @@ def run_metrics(run, window: float, params: RigParams | None = None) -> dict[str
     ss = run.t >= run.t[-1] + run.dt - window
     wl = run.omega_l[:, ss]
     ssi = stick_slip_severity(wl, run.omega_ref)
+    peak = np.maximum(np.abs(run.omega_u).max(axis=1), np.abs(run.omega_l).max(axis=1))
     return {
         "ssi": ssi,
         "stuck": run.stuck_l[:, ss].mean(axis=1),
@@ -57,6 +61,8 @@ def run_metrics(run, window: float, params: RigParams | None = None) -> dict[str
         "omega_l_max": wl.max(axis=1),
         "u_mean": run.u[:, ss].mean(axis=1),
         "offset": (wl.mean(axis=1) - run.omega_ref) / run.omega_ref,
+        "speed_peak": peak,
+        "runaway": peak > SAFETY_SPEED,
     }
 
 

@@ -1,4 +1,5 @@
-"""Outputs of an evaluation: CSV of every run, markdown summary table, SSI-versus-target figure."""
+"""Outputs of an evaluation: CSV of every run, markdown summary table, SSI-versus-target figure (and,
+for a plant population, :mod:`.population_report`'s table and figure)."""
 
 from __future__ import annotations
 
@@ -15,12 +16,13 @@ __all__ = ["write_csv", "summary", "markdown_table", "plot_ssi", "write_report"]
 
 
 def write_csv(rows: Sequence[dict], path: "str | Path") -> Path:
-    """All rows (one per controller, configuration, scenario, target) as CSV."""
+    """All rows (one per controller, configuration, scenario, [plant,] target) as CSV; the columns are
+    the union of the rows' keys in first-seen order (a population's rows add one column per parameter)."""
     path = Path(path)
     if not rows:
         raise ValueError("no evaluation rows to write")
     with path.open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w = csv.DictWriter(f, fieldnames=list(dict.fromkeys(k for r in rows for k in r)))
         w.writeheader()
         w.writerows(rows)
     return path
@@ -128,17 +130,28 @@ def write_report(rows: Sequence[dict], out_dir: "str | Path", params=None, plant
     parts = ["# Controller evaluation\n", f"Stick-slip: SSI >= {SSI_THRESHOLD} in steady state. 'lowest free target': "
              "lowest target of the grid from which every higher target is held: no stick-slip and the mean "
              "lower-disc speed within 10 % of the target.\n"]
-    labels = sorted({r.get("plant", "base") for r in rows})
-    if plant is None and labels != ["base"]:
+    population = [r for r in rows if r["scenario"] == "plants"]
+    rows = [r for r in rows if r["scenario"] != "plants"]
+    labels = sorted({str(r.get("plant", "base")) for r in rows})
+    if plant is None and rows and labels != ["base"]:
         plant = "hidden effects: " + ", ".join(labels)
     if plant:
         parts.append(f"\nPlant: {plant} (the controllers are built from the nominal parameters and do not know "
                      "them).\n")
     for sc in dict.fromkeys(r["scenario"] for r in rows):
         parts.append(f"\n## scenario: {sc}\n\n" + markdown_table(rows, sc))
+    if population:
+        from .population_report import plot_population, population_table
+
+        n = len({int(r["plant"]) for r in population})
+        parts.append(f"\n## scenario: plants ({n} plants drawn from the uncertainty set, from rest)\n\n"
+                     "Each plant's lowest held target; median and 90th percentile over the plants (the higher "
+                     "plant's value); 'none': not even the highest target held.\n\n" + population_table(population))
+        files["population_figure"] = plot_population(population, out / "plants_lowest_held.png")
     md = out / "summary.md"
     md.write_text("".join(parts))
     files["markdown"] = md
-    scen = "rest" if any(r["scenario"] == "rest" for r in rows) else rows[0]["scenario"]
-    files["figure"] = plot_ssi(rows, out / "ssi_vs_target.png", scen, params)
+    if rows:
+        scen = "rest" if any(r["scenario"] == "rest" for r in rows) else rows[0]["scenario"]
+        files["figure"] = plot_ssi(rows, out / "ssi_vs_target.png", scen, params)
     return files

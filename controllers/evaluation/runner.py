@@ -17,13 +17,14 @@ from typing import Any, Mapping
 import numpy as np
 
 from drillgym import BatchSimulator, Configuration, parse_configuration
-from drillgym.measurement import DEFAULT_COUNTS_PER_REV, quantize_angle
+from drillgym.measurement import DEFAULT_COUNTS_PER_REV
 
 from ..base import Controller
 
 __all__ = ["ClosedLoopRun", "run_closed_loop"]
 
 SIM_DT = 1e-3  # s, integrator step (the core's default)
+TWO_PI = 2.0 * np.pi
 
 
 @dataclass
@@ -48,7 +49,8 @@ class ClosedLoopRun:
 
 def run_closed_loop(controller: Controller, config: "str | Configuration", omega_ref: np.ndarray, duration: float, *,
                     params=None, x0: np.ndarray | None = None, alpha0: "float | np.ndarray" = 0.0,
-                    counts_per_rev: int = DEFAULT_COUNTS_PER_REV, angle_noise: float = 0.0, seed: int = 0,
+                    counts_per_rev: "int | np.ndarray" = DEFAULT_COUNTS_PER_REV,
+                    angle_noise: "float | np.ndarray" = 0.0, seed: int = 0,
                     sim_dt: float = SIM_DT, effects: Any = None,
                     effect_params: Mapping[str, float] | None = None) -> ClosedLoopRun:
     """Run ``controller`` on n simulated rigs for ``duration`` seconds.
@@ -61,8 +63,8 @@ def run_closed_loop(controller: Controller, config: "str | Configuration", omega
         params: plant base parameters: RigParams, a list (one per run) or an (n, n_params) matrix
             (base parameters, or base then effect parameters in the composition's layout).
         x0: initial states (n, 8) or (n, n_state) (default: rest with winding ``alpha0``).
-        counts_per_rev: encoder resolution of the measurement (0: exact angles).
-        angle_noise: white noise added to the measured angles (rad, std).
+        counts_per_rev: encoder resolution of the measurement (0: exact angles), or one per run (n,).
+        angle_noise: white noise added to the measured angles (rad, std), or one per run (n,).
         seed: seed of the measurement noise.
         effects, effect_params: hidden effects of the plant and their values (as
             :func:`drillgym.simulate`); the controller is built without them.
@@ -79,10 +81,14 @@ def run_closed_loop(controller: Controller, config: "str | Configuration", omega
     sim = BatchSimulator(cfg, n, params=params, dt=sim_dt, effects=effects, effect_params=effect_params)
     sim.reset(alpha0=alpha0, x0=x0)
     rng = np.random.default_rng(seed)
+    cpr = np.broadcast_to(np.asarray(counts_per_rev, dtype=float), (n,)).copy()
+    noise = np.broadcast_to(np.asarray(angle_noise, dtype=float), (n,)).copy()
+    if np.any(noise < 0) or not np.all(np.isfinite(noise)):
+        raise ValueError("angle_noise must be non-negative (rad)")
     out = {k: np.empty((n, m)) for k in ("u", "omega_u", "omega_l", "alpha", "stuck_l", "friction_l", "r")}
     t = np.arange(m) * controller.dt
     for k in range(m):
-        meas = _measure(sim, t[k], ref, counts_per_rev, angle_noise, rng)
+        meas = _measure(sim, t[k], ref, cpr, noise, rng)
         if k == 0:
             controller.reset(meas)
         u = np.broadcast_to(np.asarray(controller.act(meas), dtype=float), (n,))
@@ -97,12 +103,13 @@ def run_closed_loop(controller: Controller, config: "str | Configuration", omega
     return ClosedLoopRun(cfg, t, ref, **out)
 
 
-def _measure(sim: BatchSimulator, t: float, ref: np.ndarray, cpr: int, noise: float,
+def _measure(sim: BatchSimulator, t: float, ref: np.ndarray, cpr: np.ndarray, noise: np.ndarray,
              rng: np.random.Generator) -> dict[str, np.ndarray]:
-    """What the rig's sensors report (batched)."""
+    """What the rig's sensors report (batched; cpr counts/rev and noise rad std per run)."""
     def enc(theta: np.ndarray) -> np.ndarray:
-        q = quantize_angle(theta, cpr)
-        return q + rng.normal(0.0, noise, q.shape) if noise > 0 else q
+        c = np.where(cpr > 0, cpr, 1.0)
+        q = np.where(cpr > 0, np.floor(theta * (c / TWO_PI)) * (TWO_PI / c) + 0.0, theta)  # quantize_angle, per run
+        return q + rng.normal(0.0, 1.0, q.shape) * noise if np.any(noise > 0) else q
 
     if sim.composition.has_measurement:  # the plant's Measurement effects (per rig: its parameter row)
         tu, tl, X, Y = sim.composition.kernels.client("drillgym.envs.sensor_kernel").measured_channels_batch(sim.Y,

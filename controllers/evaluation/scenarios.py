@@ -2,8 +2,9 @@
 
 Every scenario is run for each target speed of the grid (default 0.5-8 rad/s
 in 0.5 rad/s steps) in each configuration.  The controllers are always built
-on the identified parameters; a scenario may change the plant (friction +-20 %)
-or the sensors (encoder resolution, angle noise).
+on the identified parameters; a scenario may change the plant (friction +-20 %),
+the sensors (encoder resolution, angle noise), or run a population of plants drawn
+from an uncertainty set (``plants``, :mod:`.population`).
 """
 
 from __future__ import annotations
@@ -26,13 +27,15 @@ CYCLE_SETTLE = 40.0  # s of open loop to develop the stick-slip cycle
 @dataclass(frozen=True)
 class Scenario:
     """start: 'rest' or 'cycle' (a developed open-loop stick-slip cycle); friction_scale multiplies the
-    brake's Ts, Tc, bb; counts_per_rev / angle_noise (rad) describe the encoders."""
+    brake's Ts, Tc, bb; counts_per_rev / angle_noise (rad) describe the encoders; population: the plant
+    is a population drawn from an uncertainty set (:mod:`.population`), encoders included."""
 
     name: str
     start: str = "rest"
     friction_scale: float = 1.0
     counts_per_rev: int = DEFAULT_COUNTS_PER_REV
     angle_noise: float = 0.0
+    population: bool = False
 
 
 SCENARIOS = {s.name: s for s in (
@@ -41,6 +44,7 @@ SCENARIOS = {s.name: s for s in (
     Scenario("friction-20", friction_scale=0.8),
     Scenario("friction+20", friction_scale=1.2),
     Scenario("noisy", counts_per_rev=2048, angle_noise=1e-3),
+    Scenario("plants", population=True),
 )}
 
 

@@ -7,6 +7,7 @@ hidden effects; the controllers are built from the nominal base parameters and n
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import List, Optional
 
@@ -24,7 +25,13 @@ def register(app: typer.Typer) -> None:
                                              "NAME@MS sets the control period, e.g. observer@10"),
         out: Path = typer.Option(..., "--out", help="output directory (results.csv, summary.md, figure)"),
         scenarios: str = typer.Option("rest", "--scenarios",
-                                      help="comma-separated: rest, cycle, friction-20, friction+20, noisy"),
+                                      help="comma-separated: rest, cycle, friction-20, friction+20, noisy, plants "
+                                           "(a population of plants drawn from --uncertainty)"),
+        plants: int = typer.Option(20, "--plants", help="number of plants of the 'plants' scenario"),
+        seed: int = typer.Option(0, "--seed", help="seed of the plant population (and of the measurement noise)"),
+        uncertainty: Path = typer.Option(None, "--uncertainty",
+                                         help="uncertainty set (YAML) of the 'plants' scenario; default "
+                                              "controllers/evaluation/plants.yaml"),
         targets: str = typer.Option("", "--targets", help="target speeds (rad/s), comma-separated; default 0.5:8:0.5"),
         duration: float = typer.Option(60.0, "--duration", help="simulated time per run (s)"),
         window: float = typer.Option(20.0, "--window", help="steady-state window at the end (s)"),
@@ -51,8 +58,13 @@ def register(app: typer.Typer) -> None:
             raise ValueError(f"--targets must be numbers separated by commas, got {targets!r}") from exc
         base, comp, values = plant_from_cli(params, add_effect, effect_param)
         p = base if params else None
-        rows = evaluate(names, cfgs, parse_scenarios(scenarios), tg, duration=duration, window=window, params=p,
-                        workers=workers, effects=comp, effect_params=values)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            rows = evaluate(names, cfgs, parse_scenarios(scenarios), tg, duration=duration, window=window, params=p,
+                            workers=workers, effects=comp, effect_params=values, plants=plants, seed=seed,
+                            uncertainty=uncertainty)
+        for w in caught:
+            typer.echo(f"warning: {w.message}", err=True)
         files = write_report(rows, out, p, plant=describe_plant(comp, values))
         typer.echo((Path(files["markdown"])).read_text())
         typer.echo("wrote " + ", ".join(str(f) for f in files.values()))

@@ -1,0 +1,102 @@
+"""Summary and figure of a plant population (``--scenarios plants``).
+
+Per controller and configuration: each plant's lowest held target (:func:`.metrics.lowest_free_speed`
+over that plant's targets; inf when not even the highest target is held), then over the plants the
+median and the 90th percentile (``numpy.quantile(method='higher')``: a value some plant reached,
+rounded towards the worse plant), the number of plants holding no target, and the number of plants on
+which some run passed the over-speed stop (``runaway``).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from .metrics import lowest_free_speed
+
+__all__ = ["plant_lowest", "population_summary", "population_table", "plot_population"]
+
+
+def plant_lowest(rows: Sequence[dict], controller: str, config: str, scenario: str = "plants") -> dict[int, float]:
+    """Plant index -> lowest held target (rad/s; inf: none held) of one controller and configuration."""
+    out: dict[int, float] = {}
+    sel = [r for r in rows if r["controller"] == controller and r["config"] == config and r["scenario"] == scenario]
+    for k in sorted({int(r["plant"]) for r in sel}):
+        pr = sorted((r for r in sel if int(r["plant"]) == k), key=lambda r: float(r["omega_ref"]))
+        low = lowest_free_speed(np.array([float(r["omega_ref"]) for r in pr]), np.array([float(r["ssi"]) for r in pr]),
+                                offset=np.array([float(r["offset"]) for r in pr]))
+        out[k] = math.inf if math.isnan(low) else low
+    return out
+
+
+def _truthy(v) -> bool:
+    return v is True or str(v).lower() in ("true", "1")
+
+
+def population_summary(rows: Sequence[dict], scenario: str = "plants") -> list[dict]:
+    """One entry per (controller, configuration): plants, median, p90, worst lowest held target (rad/s),
+    plants holding nothing, plants with a runaway run."""
+    out = []
+    sel = [r for r in rows if r["scenario"] == scenario]
+    for c in dict.fromkeys(r["controller"] for r in sel):
+        for cfg in dict.fromkeys(r["config"] for r in sel):
+            low = plant_lowest(sel, c, cfg, scenario)
+            if not low:
+                continue
+            v = np.array(list(low.values()))
+            run = {int(r["plant"]) for r in sel if r["controller"] == c and r["config"] == cfg and _truthy(r["runaway"])}
+            periods = {float(r["control_dt"]) for r in sel if r["controller"] == c}
+            out.append({"controller": c, "config": cfg, "plants": int(v.size),
+                        "control_dt": min(periods),
+                        "median": float(np.quantile(v, 0.5, method="higher")),
+                        "p90": float(np.quantile(v, 0.9, method="higher")), "worst": float(v.max()),
+                        "none_held": int(np.isinf(v).sum()), "runaway": len(run)})
+    return out
+
+
+def _fmt(v: float) -> str:
+    return "none" if math.isinf(v) else f"{v:.2f}"
+
+
+def population_table(rows: Sequence[dict], scenario: str = "plants") -> str:
+    """Markdown table of :func:`population_summary`."""
+    head = ["controller", "period (ms)", "config", "plants", "median lowest held (rad/s)", "90th pct (rad/s)",
+            "worst (rad/s)", "plants holding none", "plants with a run past 40 rad/s"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for e in population_summary(rows, scenario):
+        lines.append("| " + " | ".join([e["controller"], f"{1e3 * e['control_dt']:g}", e["config"], str(e["plants"]),
+                                        _fmt(e["median"]), _fmt(e["p90"]), _fmt(e["worst"]), str(e["none_held"]),
+                                        str(e["runaway"])]) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def plot_population(rows: Sequence[dict], path: "str | Path", scenario: str = "plants") -> Path:
+    """Fraction of plants on which each controller holds every target from x up (one panel per configuration)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    sel = [r for r in rows if r["scenario"] == scenario]
+    cfgs = list(dict.fromkeys(r["config"] for r in sel))
+    targets = sorted({float(r["omega_ref"]) for r in sel})
+    fig, axes = plt.subplots(1, len(cfgs), figsize=(6.5 * len(cfgs), 4.2), squeeze=False)
+    for ax, cfg in zip(axes[0], cfgs):
+        for c in dict.fromkeys(r["controller"] for r in sel):
+            low = np.array(list(plant_lowest(sel, c, cfg, scenario).values()))
+            if low.size:
+                x = np.array(targets)
+                ax.step(x, [(low <= w).mean() for w in x], where="post", label=c)
+        ax.axhline(0.5, color="k", lw=0.6, ls=":")
+        ax.axhline(0.9, color="k", lw=0.6, ls="--")
+        ax.set(xlabel="target speed (rad/s)", ylabel="fraction of plants holding every target from here up",
+               title=f"{cfg}, {len({int(r['plant']) for r in sel})} plants, from rest", ylim=(-0.02, 1.02))
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
