@@ -12,4 +12,5 @@ MODULES = (
     "drillgym.commands.evaluate",
     "drillgym.commands.train",
     "drillgym.commands.rig",
+    "drillgym.commands.params",
 )
