@@ -8,6 +8,9 @@ from typing import List, Optional
 
 import typer
 
+from .mapping import MAP_HELP, parse_mapping
+from .outputs import CREATES_DIRS, output_file
+
 
 def _json(obj) -> str:
     """JSON text with non-finite numbers (e.g. R² of a constant channel) as null."""
@@ -53,17 +56,18 @@ def _segment(value: str) -> "float | None":
     return s
 
 
-def _experiment(data: Path, config: Optional[str], rate: float):
+def _experiment(data: Path, config: Optional[str], rate: float, mapping: Optional[List[str]] = None):
     from ..identification.experiment import prepare_experiment
     from ..io import read_timeseries
 
-    return prepare_experiment(read_timeseries(data, config), config, compare_rate_hz=rate)
+    return prepare_experiment(read_timeseries(data, config, parse_mapping(mapping or [])), config,
+                              compare_rate_hz=rate)
 
 
 def register(app: typer.Typer) -> None:
     @app.command("signal")
     def signal_cmd(
-        out: Path = typer.Argument(..., help="output CSV (columns t, u)"),
+        out: Path = typer.Argument(..., help=f"output CSV (columns t, u); {CREATES_DIRS}"),
         kind: str = typer.Option("quasi_random", "--kind", help="quasi_random (estimation) or sum_of_sines (validation)"),
         duration: float = typer.Option(60.0, help="duration (s)"),
         rate: float = typer.Option(1000.0, help="sample rate (Hz)"),
@@ -78,25 +82,27 @@ def register(app: typer.Typer) -> None:
         if kind not in gens:
             raise ValueError(f"--kind must be one of {', '.join(gens)}, got {kind!r}")
         t, u = gens[kind](duration, rate_hz=rate, seed=seed, amplitude=amplitude, offset=offset)
-        write_input_file(out, t, u, description=f"{kind}, seed {seed}")
+        write_input_file(output_file(out), t, u, description=f"{kind}, seed {seed}")
         typer.echo(f"wrote {out}: {kind}, {duration:g} s at {rate:g} Hz, u in [{u.min():.2f}, {u.max():.2f}] V")
 
     @app.command("compare")
     def compare_cmd(
         data: Path = typer.Argument(..., help="recording (DATA_FORMAT csv or .mat)"),
-        params: Optional[Path] = typer.Option(None, "--params", help="parameter file (default MODEL.md set)"),
+        params: Optional[Path] = typer.Option(None, "--params", help="parameter file, may be partial "
+                                                                     "(default MODEL.md set)"),
         config: Optional[str] = typer.Option(None, "--config", help="configuration if the file has none"),
-        out: Path = typer.Option(Path("compare_out"), "--out", help="output directory"),
+        out: Path = typer.Option(Path("compare_out"), "--out", help=f"output directory; {CREATES_DIRS}"),
         segment: str = typer.Option("none", "--segment",
                                     help="'none': free run from the initial state; seconds: re-start from data "
                                          "every so many seconds (stick-slip); 'auto': 4 s with the brake"),
         rate: float = typer.Option(100.0, help="comparison grid rate (Hz)"),
+        map_: List[str] = typer.Option([], "--map", help=MAP_HELP),
     ) -> None:
         """Simulate a recording's input from its initial state; R², RMS and where the error lives."""
         from ..diagnosis.compare import compare, write_compare
         from ..diagnosis.ranking import default_segment
 
-        ex = _experiment(data, config, rate)
+        ex = _experiment(data, config, rate, map_)
         seg = _segment(segment)
         if seg is not None and seg < 0:
             seg = default_segment(ex.config) if ex.config.brake else None
@@ -115,13 +121,14 @@ def register(app: typer.Typer) -> None:
         rate: float = typer.Option(50.0, help="comparison grid rate (Hz)"),
         sparse: bool = typer.Option(True, "--sparse/--no-sparse", help="also propose a data-driven term"),
         refit_base: bool = typer.Option(False, "--refit-base", help="lightly refit the base parameters first"),
+        map_: List[str] = typer.Option([], "--map", help=MAP_HELP),
     ) -> None:
         """Rank the effect library by how much of the model's residual each effect explains."""
         from ..diagnosis.ranking import diagnose
         from ..diagnosis.sparse import residual_torques, sparse_residual_model
 
         base = _params(params)
-        ex = _experiment(data, config, rate)
+        ex = _experiment(data, config, rate, map_)
         d = diagnose(ex, base, segment_s=_segment(segment), refit_base=refit_base)
         term = None
         if sparse and ex.config is not ex.config.UPPER:
@@ -140,14 +147,16 @@ def register(app: typer.Typer) -> None:
     @app.command("identify")
     def identify_cmd(
         data: Path = typer.Argument(..., help="recording (DATA_FORMAT csv or .mat)"),
-        out: Path = typer.Option(..., "--out", help="parameter file to write (.json or .yaml)"),
+        out: Path = typer.Option(..., "--out", help=f"parameter file to write (.json or .yaml); {CREATES_DIRS}"),
         config: Optional[str] = typer.Option(None, "--config", help="configuration if the file has none"),
         add_effect: List[str] = typer.Option([], "--add-effect", help="effect of the library to add (repeatable)"),
         params: Optional[Path] = typer.Option(None, "--params", help="base parameter file (default MODEL.md set)"),
         as_json: bool = typer.Option(False, "--json", help="print r2_before, r2_after, params as JSON"),
-        report: Optional[Path] = typer.Option(None, "--report", help="directory for a markdown report with figures"),
+        report: Optional[Path] = typer.Option(None, "--report", help="directory for a markdown report with figures; "
+                                                                     + CREATES_DIRS),
         segment: str = typer.Option("auto", "--segment", help="multiple-shooting segment (s), 'auto' or 'none'"),
         rate: float = typer.Option(50.0, help="comparison grid rate (Hz)"),
+        map_: List[str] = typer.Option([], "--map", help=MAP_HELP),
     ) -> None:
         """Refit a recording with effects added (or the configuration's base parameters); write the result."""
         from ..diagnosis.effects import get_effect
@@ -160,12 +169,12 @@ def register(app: typer.Typer) -> None:
         for n in add_effect:
             get_effect(n)
         base = _params(params)
-        ex = _experiment(data, config, rate)
+        ex = _experiment(data, config, rate, map_)
         seg = _segment(segment)
         if seg is not None and seg < 0:
             seg = default_segment(ex.config)
         res = refit(ex, base, effects=add_effect, segment_s=seg)
-        res.params.to_file(out)
+        res.params.to_file(output_file(out))
         if report is not None:
             d = diagnose(ex, base, segment_s=seg)
             write_report(report, ex, base, d, res, seg)
@@ -185,7 +194,7 @@ def register(app: typer.Typer) -> None:
 
     @app.command("identify-staged")
     def identify_staged_cmd(
-        out: Path = typer.Option(..., "--out", help="parameter file to write (.json or .yaml)"),
+        out: Path = typer.Option(..., "--out", help=f"parameter file to write (.json or .yaml); {CREATES_DIRS}"),
         upper: List[Path] = typer.Option([], "--upper", help="recording of the upper part alone"),
         free_vibration: List[Path] = typer.Option([], "--free-vibration", help="free-vibration release test"),
         lower: List[Path] = typer.Option([], "--lower", help="torsional recording with the brake off"),
@@ -215,7 +224,7 @@ def register(app: typer.Typer) -> None:
                 raise ValueError(f"--validate: unknown stage {k!r}; expected one of {', '.join(STAGES)}")
             val.setdefault(k, []).append(read_timeseries(Path(f), cfg[k]))
         res = identify_staged(data, _params(params), validation=val)
-        res.params.to_file(out)
+        res.params.to_file(output_file(out))
         if as_json:
             typer.echo(_json(res.to_json()))
         else:
