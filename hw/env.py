@@ -33,6 +33,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from drillgym.envs.action import action_voltage
 from drillgym.envs.base import action_space
 from drillgym.envs.observation import make_observation_model
 from drillgym.envs.options import U_MAX, EnvOptions
@@ -315,15 +316,7 @@ class HardwareEnv(gym.Env):
         if not self._running:
             why = f" after a fault ({self._fault})" if self._fault is not None else ""
             raise SafetyError(f"the hardware episode is not running{why}; call reset()")
-        try:
-            if len(action) != 1:
-                raise ValueError(f"action must hold one voltage, got {len(action)} values: {action!r}")
-            v = float(action[0])
-        except TypeError:
-            v = float(action)
-        if not math.isfinite(v):
-            raise ValueError(f"action (motor voltage) must be finite, got {action!r}")
-        v = min(max(v * self._scale, -U_MAX), U_MAX)
+        v = min(max(action_voltage(action, float(self.action_space.high[0])) * self._scale, -U_MAX), U_MAX)
         u_cmd, _ = self.limiter.limit(v, self.options.control_dt)  # host safety layer
         tick_error = self.pacer.wait()
         reply = self._exchange(u_cmd)
