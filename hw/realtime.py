@@ -1,0 +1,58 @@
+"""Keep a control loop on time on a loaded machine: scheduling priority and garbage collection.
+
+The firmware's watchdog (100 ms) stops the motor when the host falls silent; on a busy machine a
+host at normal priority, or a full garbage collection of a large heap (torch loaded for a policy),
+can stay silent that long although nothing is wrong.  :func:`prioritize` raises the process's
+scheduling priority as far as it is allowed (real-time ``SCHED_FIFO`` on request, else a lower nice
+value) and says what it got; :func:`quiet_gc` freezes the objects that exist (they are never
+collected again) and suspends the collector during an episode (the loop's garbage is freed by
+reference counting).  Neither touches the firmware's safety: the watchdog still stops the motor
+100 ms after the last command, whatever the host does.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import gc
+import os
+
+__all__ = ["prioritize", "quiet_gc"]
+
+NICE = -10          # the nice value asked for (needs CAP_SYS_NICE or root)
+RT_PRIORITY = 10    # SCHED_FIFO priority with realtime=True (1..99; low: above every normal process only)
+
+
+def prioritize(realtime: bool = False) -> str:
+    """Raise this process's scheduling priority as far as allowed; a short description of the result.
+
+    ``realtime``: ask for SCHED_FIFO (the loop sleeps between periods, so it cannot starve the machine
+    unless it hangs in a busy loop; the firmware's watchdog covers that too).  Otherwise, or when that is
+    refused, ask for nice -10.  Without permission the priority stays as it was (said so)."""
+    if realtime and hasattr(os, "sched_setscheduler"):
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(RT_PRIORITY))
+            return f"real-time (SCHED_FIFO {RT_PRIORITY})"
+        except (PermissionError, OSError):
+            pass
+    try:
+        current = os.getpriority(os.PRIO_PROCESS, 0)
+        if current > NICE:
+            os.setpriority(os.PRIO_PROCESS, 0, NICE)
+        return f"nice {os.getpriority(os.PRIO_PROCESS, 0)}" + (" (real-time refused: no permission)" if realtime else "")
+    except (PermissionError, OSError, AttributeError):
+        return "normal (no permission to raise it: see the README's hardware section)"
+
+
+@contextlib.contextmanager
+def quiet_gc():
+    """Within the block: no garbage collection pauses (existing objects frozen, collector off)."""
+    was_enabled = gc.isenabled()
+    gc.collect()
+    gc.freeze()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was_enabled:
+            gc.enable()
+        gc.unfreeze()
