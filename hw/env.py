@@ -350,7 +350,11 @@ class HardwareEnv(gym.Env):
         self._record(m, u_cmd, omega)
         stop = None
         if reply.sample.status & P.Status.STOPPED:
-            stop = reply.stop.name if reply.stop is not None else (
+            try:
+                why = reply.stop if reply.stop is not None else self._client.stop_reason()
+            except LinkError:  # the link failed while the motor is stopped anyway: the status bits tell enough
+                why = None
+            stop = why.name if why is not None else (
                 "WATCHDOG" if reply.sample.status & P.Status.WATCHDOG else "FIRMWARE")
         else:
             reason = check_limits(self.limits, omega[0], omega[1], m["x"], m["y"]) if o.lateral else \

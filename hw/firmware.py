@@ -161,20 +161,21 @@ class Firmware:
             self._delay_line.append(u)
             self.sim.advance(np.array([self._delay_line.popleft()]), 1)
 
-    def _after_period(self, now: float) -> list[bytes]:
-        """Safety checks at the end of a period; the frames to send if a stop trips."""
+    def _after_period(self, now: float, emit: bool = True) -> list[bytes]:
+        """Safety checks at the end of a period (once per period: they update the speed estimate); the
+        frames to send if a stop trips (none with ``emit=False``: the caller sends them in sequence)."""
         omega = self._speed.update(self._angles())
         x, y = self._lvdt()
         reason = check_limits(self.config.limits, float(omega[0]), float(omega[1]), x, y)
         if reason is not None and self.stop_reason is None:
-            return self._stop(reason, now)
+            return self._stop(reason, now, emit)
         return []
 
     def _log(self, message: str) -> None:
         if self.on_log is not None:
             self.on_log(message)
 
-    def _stop(self, reason: P.StopReason, now: float) -> list[bytes]:
+    def _stop(self, reason: P.StopReason, now: float, emit: bool = True) -> list[bytes]:
         self._log(f"motor stopped (0 V, latched): {P.StopReason(reason).name}"
                   + (f" (no command for {1e3 * (now - self.last_command):.0f} ms)"
                      if reason == P.StopReason.WATCHDOG and self.last_command is not None else ""))
@@ -183,7 +184,7 @@ class Firmware:
         self.limiter.reset(0.0)
         self._set_volts(0.0, now, reason.name.lower())
         self._idle_anchor = now
-        return [self._frame(P.EmergencyStop(int(reason)))]
+        return [self._frame(P.EmergencyStop(int(reason)))] if emit else []
 
     def _frame(self, msg: P.Message) -> bytes:
         seq = self._tx_seq
@@ -264,8 +265,11 @@ class Firmware:
             self.last_command = now
             self._set_volts(u, now, "command")
         self._advance_period(self.volts)
-        out += self._after_period(now)
-        out.insert(0, self._frame(self.sample(seq, limited)))
+        was_stopped = self.stop_reason is not None
+        self._after_period(now, emit=False)
+        out.append(self._frame(self.sample(seq, limited)))  # the SAMPLE, then the stop it tripped, in sequence
+        if self.stop_reason is not None and not was_stopped:
+            out.append(self._frame(P.EmergencyStop(int(self.stop_reason))))
         if self.stop_reason is not None:
             self._idle_anchor = now
         return out
