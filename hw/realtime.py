@@ -4,7 +4,8 @@ The firmware's watchdog (100 ms) stops the motor when the host falls silent; on 
 host at normal priority, or a full garbage collection of a large heap (torch loaded for a policy),
 can stay silent that long although nothing is wrong.  :func:`prioritize` raises the process's
 scheduling priority as far as it is allowed (real-time ``SCHED_FIFO`` on request, else a lower nice
-value) and says what it got; :func:`quiet_gc` freezes the objects that exist (they are never
+value), locks its memory (no page of the loop is reclaimed and read back mid-episode) and says what
+it got; :func:`quiet_gc` freezes the objects that exist (they are never
 collected again) and suspends the collector during an episode (the loop's garbage is freed by
 reference counting).  Neither touches the firmware's safety: the watchdog still stops the motor
 100 ms after the last command, whatever the host does.
@@ -13,13 +14,26 @@ reference counting).  Neither touches the firmware's safety: the watchdog still 
 from __future__ import annotations
 
 import contextlib
+import ctypes
+import ctypes.util
 import gc
 import os
 
-__all__ = ["prioritize", "quiet_gc"]
+__all__ = ["prioritize", "quiet_gc", "lock_memory"]
 
 NICE = -10          # the nice value asked for (needs CAP_SYS_NICE or root)
 RT_PRIORITY = 10    # SCHED_FIFO priority with realtime=True (1..99; low: above every normal process only)
+_MCL_CURRENT, _MCL_FUTURE, _MCL_ONFAULT = 1, 2, 4
+
+
+def lock_memory() -> bool:
+    """Keep this process's pages in memory (mlockall, pages locked as they are touched): a page the kernel
+    reclaimed while the loop idled costs a disk read when touched again, far longer than a control period."""
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        return libc.mlockall(_MCL_CURRENT | _MCL_FUTURE | _MCL_ONFAULT) == 0
+    except (OSError, AttributeError):
+        return False
 
 
 def prioritize(realtime: bool = False) -> str:
@@ -28,6 +42,11 @@ def prioritize(realtime: bool = False) -> str:
     ``realtime``: ask for SCHED_FIFO (the loop sleeps between periods, so it cannot starve the machine
     unless it hangs in a busy loop; the firmware's watchdog covers that too).  Otherwise, or when that is
     refused, ask for nice -10.  Without permission the priority stays as it was (said so)."""
+    locked = ", memory locked" if lock_memory() else ""
+    return _priority(realtime) + locked
+
+
+def _priority(realtime: bool) -> str:
     if realtime and hasattr(os, "sched_setscheduler"):
         try:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(RT_PRIORITY))

@@ -212,3 +212,27 @@ def test_default_watchdog_run_completes_on_a_loaded_machine(tmp_path):
             h.kill()
         emu.send_signal(signal.SIGTERM)
         emu.communicate(timeout=30)
+
+
+def test_slow_disk_does_not_hold_up_the_control_loop(tmp_path, monkeypatch):
+    """A 0.3 s fsync (a busy disk) during an episode at the default 100 ms watchdog: the episode completes,
+    the recording is complete (the disk work runs beside the loop)."""
+    from hw.env import HardwareEnv
+
+    real_fsync = os.fsync
+
+    def slow_fsync(fd):
+        time.sleep(0.3)
+        real_fsync(fd)
+
+    with RigEmulator("torsional", dt=5e-3) as e:
+        env = HardwareEnv(e.port, record=tmp_path / "r.csv", episode_duration=1.2, reply_timeout=None)
+        env.reset(seed=0)
+        monkeypatch.setattr(os, "fsync", slow_fsync)
+        trunc = False
+        while not trunc:
+            _, _, term, trunc, info = env.step(np.array([2.0], dtype=np.float32))
+            assert not term, info.get("safety_stop")
+        env.close()
+        assert e.firmware.stop_reason == P.StopReason.HOST  # the end of the episode, not the watchdog
+    assert len(read_timeseries(tmp_path / "r.csv")) == 121
