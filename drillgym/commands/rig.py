@@ -64,6 +64,8 @@ def emulate_cmd(
     dt: float = typer.Option(1e-3, help="integration step of the emulated plant (s)"),
     alpha0: float = typer.Option(0.0, help="initial winding of the string (rad)"),
     seed: int = typer.Option(0, help="seed of the LVDT noise and latency jitter"),
+    realtime: bool = typer.Option(True, "--realtime/--no-realtime", help="real-time scheduling (SCHED_FIFO) if "
+                                                                         "permitted, else nice -10 as far as allowed"),
 ) -> None:
     """Emulate the rig's microcontroller on a pseudo-terminal until Ctrl-C."""
     from hw.emulator import RigEmulator
@@ -78,9 +80,12 @@ def emulate_cmd(
     def log(message: str) -> None:
         typer.echo(f"[{time.strftime('%H:%M:%S')}] {message}", err=True)
 
-    priority = prioritize()  # before the threads start: they inherit it (the emulator stands in for a microcontroller)
+    import sys
+
+    sys.setswitchinterval(5e-4)  # serial and timer threads share the interpreter: hand it over every 0.5 ms
     emu = RigEmulator(config, parse_effects(effect, params), fw, dt=dt, alpha0=alpha0, lvdt_noise_std=lvdt_noise,
                       seed=seed, latency_s=latency_ms * 1e-3, jitter_s=jitter_ms * 1e-3, link_path=port, log=log)
+    priority = prioritize(realtime)  # before the threads start: they inherit it (the emulator stands in for a microcontroller)
     emu.start()
     log(f"emulator ready: watchdog {watchdog_ms:g} ms, scheduling priority {priority}")
     signal.signal(signal.SIGTERM, _interrupt)
@@ -112,8 +117,9 @@ def run_cmd(
     reconnect: int = typer.Option(0, help="after a lost link or a silent firmware, reopen the port and start a new "
                                           "episode (next recording file), at most this often"),
     reconnect_wait: float = typer.Option(2.0, help="seconds to wait before reconnecting"),
-    realtime: bool = typer.Option(False, "--realtime", help="ask for real-time scheduling (SCHED_FIFO; needs "
-                                                            "permission), else nice -10 as far as allowed"),
+    realtime: bool = typer.Option(True, "--realtime/--no-realtime", help="real-time scheduling (SCHED_FIFO) for "
+                                                                         "the episode if permitted, else nice -10 as "
+                                                                         "far as allowed"),
 ) -> None:
     """Run one episode of a controller or a policy on the rig, recorded to --record.
 
@@ -160,12 +166,12 @@ def run_cmd(
         output_file(record)
     else:
         output_dir(record)
-    typer.echo(f"scheduling priority: {prioritize(realtime)}")
     signal.signal(signal.SIGTERM, _interrupt)
     notice = ClampNotice(say)
     env = None
     try:
-        env = make_env()
+        env = make_env()  # handshake and compiled kernels loaded at normal priority, then the episode's
+        typer.echo(f"scheduling priority: {prioritize(realtime)}")
         watchdog_ms = env.unwrapped.firmware.watchdog_ms
         with quiet_gc():
             res, faults = run_with_reconnect(
