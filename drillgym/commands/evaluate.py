@@ -22,7 +22,7 @@ def register(app: typer.Typer) -> None:
         controllers: str = typer.Option("baseline,pi,softtorque,observer", "--controllers",
                                         help="comma-separated: baseline, pi, softtorque, observer, lqg, agent:PATH; "
                                              "NAME@MS sets the control period, e.g. observer@10"),
-        out: Path = typer.Option(..., "--out", help="output directory (results.csv, summary.md, figure)"),
+        out: Path = typer.Option(..., "--out", help="output directory (results.csv, summary.md, figure); missing directories are created"),
         scenarios: str = typer.Option("rest", "--scenarios",
                                       help="comma-separated: rest, cycle, friction-20, friction+20, noisy"),
         targets: str = typer.Option("", "--targets", help="target speeds (rad/s), comma-separated; default 0.5:8:0.5"),
