@@ -9,7 +9,13 @@ One format for measurements, recordings and simulations:
   ``coupled``.
 * MATLAB ``.mat`` as Simulink writes it (arrays, "structure with time", or
   a timeseries-like struct), columns mapped by name (aliases accepted) or an
-  explicit ``mapping={"column": "matlab_name"}``.
+  explicit ``mapping={"column": "matlab_name"}``.  A variable with several
+  columns (a muxed ``signals.values`` of shape (N, k), several signals of a
+  "structure with time", a matrix) offers them as ``name:1`` … ``name:k``
+  (1-based, as in MATLAB), e.g. ``mapping={"theta_u": "ScopeData:2"}``; a
+  signal's ``label`` is a name too.  The CLI's ``--map theta_u=ScopeData:2``.
+* ``mapping`` works for CSV too: ``{"theta_u": "enc1"}`` reads column ``enc1``
+  as ``theta_u``.
 
 A file that cannot be used raises :class:`DataFormatError` naming the file,
 the line or column and what is wrong.  Nothing is dropped or guessed.
@@ -168,12 +174,38 @@ def _validate(cols: Mapping[str, np.ndarray], config: Configuration | None, sour
                                       f"is outside the physical range |{name}| <= {lim} {unit}")
 
 
+def _check_mapping(mapping: Mapping[str, str] | None, src: str) -> dict[str, str]:
+    """The mapping column -> file name, its columns checked against the known ones."""
+    mapping = dict(mapping or {})
+    bad = sorted(set(mapping) - set(KNOWN_COLUMNS))
+    if bad:
+        raise DataFormatError(f"{src}: mapping names unknown column(s) {', '.join(bad)}; "
+                              f"expected some of {', '.join(KNOWN_COLUMNS)}")
+    return mapping
+
+
+def _rename(header: list[str], mapping: Mapping[str, str], src: str) -> list[str]:
+    """CSV header with the mapped file columns renamed to drillgym's names."""
+    out = list(header)
+    for col, name in mapping.items():
+        if name not in header:
+            raise DataFormatError(f"{src}: mapping names column '{name}' for '{col}', but the file has only: "
+                                  f"{', '.join(header)}")
+        if col in header and col != name and col not in mapping.values():
+            raise DataFormatError(f"{src}: mapping reads '{name}' as '{col}', but the file has a column '{col}' "
+                                  f"too; map that one as well or leave '{col}' out of the mapping")
+        out[header.index(name)] = col
+    return out
+
+
 def read_csv(path: str | Path, config: "str | Configuration | None" = None,
-             required: Sequence[str] | None = None) -> TimeSeries:
+             required: Sequence[str] | None = None, mapping: Mapping[str, str] | None = None) -> TimeSeries:
     """Read and validate a DATA_FORMAT CSV.  ``config`` is used when the metadata has none;
-    ``required`` overrides the configuration's required columns (e.g. ("t", "u") for an input signal)."""
+    ``required`` overrides the configuration's required columns (e.g. ("t", "u") for an input signal);
+    ``mapping`` reads file columns under drillgym's names (``{"theta_u": "enc1"}``)."""
     path = Path(path)
     src = str(path)
+    mapping = _check_mapping(mapping, src)
     try:
         fh = path.open("r", encoding="utf-8", newline="")
     except OSError as exc:
@@ -216,6 +248,8 @@ def read_csv(path: str | Path, config: "str | Configuration | None" = None,
             raise DataFormatError(f"{src}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     if header is None:
         raise DataFormatError(f"{src}: no header line (empty file?)")
+    if mapping:
+        header = _rename(header, mapping, src)
     data = np.array(rows, dtype=np.float64).reshape(-1, len(header))
     cols = {h: data[:, i].copy() for i, h in enumerate(header)}
     return _finish(cols, meta, src, config, lines, required)
@@ -261,24 +295,21 @@ def read_mat(path: str | Path, config: "str | Configuration | None" = None,
     flat: dict[str, np.ndarray] = {}
     time_from_struct = None
     for name, v in variables.items():
+        key = name.lower()
         if hasattr(v, "_fieldnames"):  # struct (Simulink "structure with time" or timeseries-like)
             fns = v._fieldnames
             if "time" in fns and np.size(v.time) > 1:
                 time_from_struct = np.asarray(v.time, dtype=float).ravel()
             if "signals" in fns:
-                vals = np.asarray(v.signals.values, dtype=float)
-                flat[name.lower()] = vals
+                _add_signals(flat, key, v.signals, src)
             elif "Data" in fns:
-                flat[name.lower()] = np.asarray(v.Data, dtype=float)
+                _add_array(flat, key, v.Data)
                 if "Time" in fns:
                     time_from_struct = np.asarray(v.Time, dtype=float).ravel()
         else:
-            try:
-                flat[name.lower()] = np.asarray(v, dtype=float)
-            except (TypeError, ValueError):
-                continue
+            _add_array(flat, key, v)
     cols: dict[str, np.ndarray] = {}
-    mapping = {k: v.lower() for k, v in (mapping or {}).items()}
+    mapping = {k: v.lower() for k, v in _check_mapping(mapping, src).items()}
     for col in KNOWN_COLUMNS:
         names = (mapping[col],) if col in mapping else MAT_ALIASES[col]
         for n in names:
@@ -288,8 +319,9 @@ def read_mat(path: str | Path, config: "str | Configuration | None" = None,
                     if 1 in arr.shape:
                         arr = arr.ravel()
                     else:
-                        raise DataFormatError(f"{src}: variable '{n}' for column '{col}' has shape {arr.shape}, "
-                                              f"expected a vector (use mapping= to choose another variable)")
+                        raise DataFormatError(f"{src}: variable '{n}' for column '{col}' has {min(arr.shape)} "
+                                              f"columns; choose one: --map {col}={n}:K (mapping={{'{col}': "
+                                              f"'{n}:K'}}), K = 1..{min(arr.shape)}")
                 cols[col] = np.asarray(arr, dtype=float).ravel()
                 break
         else:
@@ -302,7 +334,54 @@ def read_mat(path: str | Path, config: "str | Configuration | None" = None,
     if lengths and len(set(lengths.values())) > 1:
         raise DataFormatError(f"{src}: variables have different lengths: {lengths}")
     meta = {"source": "rig"}
-    return _finish(cols, meta, src, config, None)
+    try:
+        return _finish(cols, meta, src, config, None)
+    except DataFormatError as exc:
+        if "missing column" not in str(exc):
+            raise
+        unused = [n for n in sorted(flat) if not any(flat[n] is c for c in cols.values())]
+        raise DataFormatError(f"{exc}; the file has {', '.join(unused) or 'no other variable'}: name the columns "
+                              f"with --map COLUMN=NAME (mapping= in Python)") from None
+
+
+def _add_array(flat: dict, key: str, value) -> None:
+    """A numeric variable under its name; a matrix's columns also as ``key:1`` … ``key:k``."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        return
+    flat[key] = arr
+    if arr.ndim == 2 and min(arr.shape) > 1:
+        by_col = arr if arr.shape[0] >= arr.shape[1] else arr.T  # samples along the longer axis
+        for k in range(by_col.shape[1]):
+            flat[f"{key}:{k + 1}"] = by_col[:, k]
+
+
+def _add_signals(flat: dict, key: str, signals, src: str) -> None:
+    """A "structure with time"'s ``signals``: one struct or an array of them, each ``values`` (N,) or (N, k).
+    Their columns in order are ``key:1`` … (all signals together); a one-column signal's ``label`` names it."""
+    items = list(np.atleast_1d(signals)) if isinstance(signals, np.ndarray) else [signals]
+    columns: list[np.ndarray] = []
+    for s in items:
+        if not hasattr(s, "values"):
+            raise DataFormatError(f"{src}: '{key}.signals' has no 'values' field (not a Simulink structure with time)")
+        try:
+            vals = np.asarray(s.values, dtype=float)
+        except (TypeError, ValueError):
+            raise DataFormatError(f"{src}: '{key}.signals.values' is not numeric") from None
+        block = vals.reshape(-1, 1) if vals.ndim <= 1 else vals
+        columns += [block[:, k] for k in range(block.shape[1])]
+        label = getattr(s, "label", "")
+        label = "" if not isinstance(label, str) else label.strip().lower()  # MATLAB '' loads as an empty array
+        if label and block.shape[1] == 1:
+            flat.setdefault(label, block[:, 0])
+    if len(items) == 1 and len(columns) > 1:
+        flat[key] = np.column_stack(columns)
+    elif len(columns) == 1:
+        flat[key] = columns[0]
+    if len(columns) > 1:
+        for k, c in enumerate(columns):
+            flat[f"{key}:{k + 1}"] = c
 
 
 def read_timeseries(path: str | Path, config: "str | Configuration | None" = None,
@@ -313,7 +392,7 @@ def read_timeseries(path: str | Path, config: "str | Configuration | None" = Non
         raise DataFormatError(f"{path}: file not found")
     if path.suffix.lower() == ".mat":
         return read_mat(path, config, mapping)
-    return read_csv(path, config)
+    return read_csv(path, config, mapping=mapping)
 
 
 def read_input_signal(path: str | Path) -> tuple[np.ndarray, np.ndarray]:

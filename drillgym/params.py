@@ -6,9 +6,11 @@ parameters.  The simulator's compiled kernels take the parameters as a flat
 float64 vector: the base parameters in the layout of :meth:`RigParams.to_vector`
 and ``IDX`` (a kernel reads ``p[IDX.Ts]``), then the effects' parameters.
 
-Files: JSON or YAML (by extension), a flat mapping ``name -> value``.  Unknown
-names, missing names, non-finite values and values outside physical bounds are
-refused with an error that names the parameter.
+Files: JSON or YAML (by extension), a flat mapping ``name -> value``.  A file
+may be partial: the names it gives override the defaults (the identified set),
+the others keep their default (``drillgym params --out FILE`` writes a full file
+to start from).  Unknown names, non-finite values and values outside physical
+bounds are refused with an error that names the parameter.
 """
 
 from __future__ import annotations
@@ -131,8 +133,12 @@ class RigParams:
             raise ParameterError(f"{source}: {exc}") from None
 
     @classmethod
-    def from_file(cls, path: str | Path) -> "RigParams":
-        """Load from JSON (``.json``) or YAML (``.yaml``/``.yml``)."""
+    def from_file(cls, path: str | Path, *, partial: bool = True) -> "RigParams":
+        """Load from JSON (``.json``) or YAML (``.yaml``/``.yml``).
+
+        With ``partial=True`` (default) the file may name only some parameters: those override
+        the defaults (the identified set of MODEL.md), the rest keep their default.  Unknown names
+        are refused either way; ``partial=False`` also refuses a file missing a base parameter."""
         path = Path(path)
         try:
             text = path.read_text(encoding="utf-8")
@@ -147,7 +153,7 @@ class RigParams:
                 data = json.loads(text)
         except Exception as exc:  # noqa: BLE001 - report any parse error with the file name
             raise ParameterError(f"{path}: not valid {path.suffix.lstrip('.') or 'JSON'}: {exc}") from None
-        return cls.from_dict(data, source=str(path))
+        return cls.from_dict(data, source=str(path), partial=partial)
 
     def to_file(self, path: str | Path) -> Path:
         """Save as JSON or YAML (by extension); round-trips exactly."""

@@ -81,13 +81,15 @@ class RigClient:
         while True:
             frames = self.link.receive(deadline)
             self._check_link()
-            for frame, t in frames:
+            found = None
+            for frame, t in frames:  # the whole batch: a stop sent right behind the wanted reply is kept
                 msg = P.decode(frame)
                 if isinstance(msg, P.EmergencyStop):
                     self._pending_stop = P.StopReason(msg.reason)
-                    continue
-                if want(msg):
-                    return msg, t
+                elif found is None and want(msg):
+                    found = msg, t
+            if found is not None:
+                return found
             if time.monotonic() >= deadline:
                 st = self.link.parser.stats
                 version = (f"; firmware speaks protocol version(s) {sorted(st.foreign_versions)}, host speaks "
@@ -132,6 +134,18 @@ class RigClient:
                                    f"SAMPLE reply to SET_VOLTAGE seq {seq}", sent)
         stop, self._pending_stop = self._pending_stop, None
         return Reply(sample, sent, t, stop)
+
+    def stop_reason(self, wait_s: float = 0.05) -> P.StopReason | None:
+        """The reason of a stop the firmware reported (EMERGENCY_STOP), waiting up to ``wait_s`` for it:
+        a stop tripped at the end of a period is sent right after that period's SAMPLE."""
+        deadline = time.monotonic() + wait_s
+        while self._pending_stop is None and time.monotonic() < deadline:
+            try:
+                self._wait_for(lambda m: False, "EMERGENCY_STOP", time.monotonic(), 0.005)
+            except LinkTimeoutError:
+                pass
+        stop, self._pending_stop = self._pending_stop, None
+        return stop
 
     def heartbeat(self, token: int) -> float:
         """Round trip (s) of a HEARTBEAT."""

@@ -72,17 +72,21 @@ class RigEmulator:
         latency_s: serial latency of every reply (s); ``jitter_s``: extra uniform [0, jitter_s] (s).
         faults: link faults to inject.
         link_path: also create a symlink to the pseudo-terminal there (removed on stop).
+        log: callable(str) told of connections (IDENTIFY), stops (with their reason), cleared stops and a
+            lost link, e.g. ``drillgym rig emulate`` prints them with a time stamp.
     """
 
     def __init__(self, configuration: str = "torsional", params: RigParams | None = None,
                  firmware: FirmwareConfig | None = None, *, effects: Any = None,
                  effect_params: Mapping[str, float] | None = None, dt: float = 1e-3, method: str = "rk4",
                  alpha0: float = 0.0, lvdt_noise_std: float = 0.0, seed: int | None = 0, latency_s: float = 0.0,
-                 jitter_s: float = 0.0, faults: FaultPlan | None = None, link_path: str | Path | None = None) -> None:
+                 jitter_s: float = 0.0, faults: FaultPlan | None = None, link_path: str | Path | None = None,
+                 log=None) -> None:
         if latency_s < 0 or jitter_s < 0:
             raise ValueError(f"latency_s and jitter_s must be >= 0 s, got {latency_s!r}, {jitter_s!r}")
         self.firmware = Firmware(configuration, params, firmware, effects=effects, effect_params=effect_params, dt=dt,
                                  method=method, alpha0=alpha0, lvdt_noise_std=lvdt_noise_std, seed=seed)
+        self.firmware.on_log = log
         self.latency_s = float(latency_s)
         self.jitter_s = float(jitter_s)
         self.faults = faults or FaultPlan()
@@ -103,6 +107,7 @@ class RigEmulator:
         self.fault_times: dict[str, float] = {}
         self._threads: list[threading.Thread] = []
         self.errors: list[BaseException] = []
+        self._rx_busy = False  # the serial thread holds bytes it has read but not executed yet
 
     # ------------------------------------------------------------------ lifecycle
     def start(self) -> str:
@@ -250,6 +255,7 @@ class RigEmulator:
                 return
             try:
                 ready, _, _ = select.select([master], [], [], timeout)
+                self._rx_busy = bool(ready)
                 data = os.read(master, 4096) if ready else b""
             except (OSError, ValueError):
                 return  # unplugged
@@ -258,6 +264,7 @@ class RigEmulator:
             now = time.monotonic()
             for frame in parser.feed(data) if data else ():
                 self._receive(frame, now)
+            self._rx_busy = False
             while self._rx_held and self._rx_held[0].due <= now:
                 self._execute(heapq.heappop(self._rx_held).data, now)
             with self._lock:
@@ -293,12 +300,24 @@ class RigEmulator:
                 return
             heapq.heappop(self._tx)
 
+    def _rx_pending(self) -> bool:
+        """Bytes from the host have arrived (in the pty or read by the serial thread) but are not executed yet:
+        on a loaded machine the serial thread may be late, a microcontroller's receive interrupt is not."""
+        if self._io_dead.is_set() or self._master is None:
+            return False
+        if self._rx_busy:
+            return True
+        try:
+            return bool(select.select([self._master], [], [], 0)[0])
+        except (OSError, ValueError):
+            return False
+
     def _timer_loop(self) -> None:
         fw = self.firmware
         while not self._stop.is_set():
             now = time.monotonic()
             with self._lock:
-                out = fw.poll(now)
+                out = fw.poll(now, rx_pending=self._rx_pending())
                 if out and not self._io_dead.is_set():
                     self._queue_tx(out, now)
                 deadline = fw.watchdog_deadline()

@@ -15,7 +15,9 @@ hardware:
   +/- 5 V and slew-limited before it leaves, over-speed / over-displacement stop the motor,
   the firmware repeats all of it and has a watchdog; every episode end, fault and ``close()``
   leaves the motor at 0 V;
-* every episode is recorded (:mod:`hw.recording`), flushed at least every 0.5 s.
+* every episode is recorded (:mod:`hw.recording`), flushed at least every 0.5 s;
+* an action beyond the amplifier range is clamped to +/- 5 V (as in the simulated envs) and the
+  step's info says so: ``info["clamped_from"]`` = the voltage asked for.
 
 A link fault (corrupted or missing frame, no reply, lost port) raises a
 :class:`hw.link.LinkError` (a :class:`drillgym.errors.SafetyError`) after asking the firmware
@@ -34,6 +36,7 @@ import gymnasium as gym
 import numpy as np
 
 from drillgym.configurations import N_STATE
+from drillgym.envs.action import action_voltage
 from drillgym.envs.base import action_space
 from drillgym.envs.observation import make_observation_model
 from drillgym.envs.options import U_MAX, EnvOptions
@@ -44,7 +47,7 @@ from drillgym.measurement import EncoderVelocityEstimator, counts_to_angle
 
 from . import protocol as P
 from .client import Reply, RigClient
-from .link import DEFAULT_BAUDRATE, LinkError
+from .link import DEFAULT_BAUDRATE, LinkError, LinkLostError
 from .pacing import Pacer
 from .processing import CounterUnwrap, LvdtProcessor
 from .recording import EpisodeRecorder, episode_path
@@ -78,7 +81,9 @@ class HardwareEnv(gym.Env):
         limits: host safety limits (clamp, slew rate, over-speed, over-displacement).
         rest_time: the rig is at rest when no encoder count changed for this long (s).
         rest_timeout: give up bringing the rig to rest after this long (s).
-        reply_timeout: longest wait for the firmware's reply (s), below its watchdog.
+        reply_timeout: longest wait for the firmware's reply (s); None: the firmware's watchdog period from its
+            CONFIG (a reply later than that is useless: the firmware has stopped the motor by then), which keeps
+            a loaded host from giving up on replies the firmware still honours.
         lvdt_cutoff_hz: causal LVDT low-pass cut-off (Hz).
         flush_interval_s: recording flush interval (s, <= 1).
         baudrate: serial line speed.
@@ -107,10 +112,12 @@ class HardwareEnv(gym.Env):
         self.port = str(port)
         self._reply_timeout, self._baudrate = reply_timeout, baudrate
         control_dt = float(options.get("control_dt", EnvOptions.control_dt))
-        self._client = RigClient(self.port, reply_timeout, baudrate)
+        self._client = RigClient(self.port, 0.05 if reply_timeout is None else reply_timeout, baudrate)
         self._finalizer = weakref.finalize(self, _stop_motor, self._client)
         try:
             cfg = self._client.identify(control_dt)
+            if reply_timeout is None:  # wait as long as the firmware keeps the motor going without a command
+                self._reply_timeout = self._client.reply_timeout = min(cfg.watchdog_ms * 1e-3, 1.0)
             if abs(cfg.period_s - control_dt) > 1e-9:
                 raise ValueError(f"the firmware on {self.port} runs a {cfg.period_s} s control period and refused "
                                  f"{control_dt} s")
@@ -194,6 +201,8 @@ class HardwareEnv(gym.Env):
             self._client.emergency_stop()
         except Exception:  # noqa: BLE001 - link gone: the firmware watchdog stops the motor
             pass
+        if isinstance(exc, LinkLostError):
+            self._client.close()  # the port is gone: the next reset() opens it anew (reconnect)
         if self.recorder is not None:
             self.recorder.close()
 
@@ -315,15 +324,8 @@ class HardwareEnv(gym.Env):
         if not self._running:
             why = f" after a fault ({self._fault})" if self._fault is not None else ""
             raise SafetyError(f"the hardware episode is not running{why}; call reset()")
-        try:
-            if len(action) != 1:
-                raise ValueError(f"action must hold one voltage, got {len(action)} values: {action!r}")
-            v = float(action[0])
-        except TypeError:
-            v = float(action)
-        if not math.isfinite(v):
-            raise ValueError(f"action (motor voltage) must be finite, got {action!r}")
-        v = min(max(v * self._scale, -U_MAX), U_MAX)
+        requested = action_voltage(action, float(self.action_space.high[0])) * self._scale
+        v = min(max(requested, -U_MAX), U_MAX)
         u_cmd, _ = self.limiter.limit(v, self.options.control_dt)  # host safety layer
         tick_error = self.pacer.wait()
         reply = self._exchange(u_cmd)
@@ -348,7 +350,11 @@ class HardwareEnv(gym.Env):
         self._record(m, u_cmd, omega)
         stop = None
         if reply.sample.status & P.Status.STOPPED:
-            stop = reply.stop.name if reply.stop is not None else (
+            try:
+                why = reply.stop if reply.stop is not None else self._client.stop_reason()
+            except LinkError:  # the link failed while the motor is stopped anyway: the status bits tell enough
+                why = None
+            stop = why.name if why is not None else (
                 "WATCHDOG" if reply.sample.status & P.Status.WATCHDOG else "FIRMWARE")
         else:
             reason = check_limits(self.limits, omega[0], omega[1], m["x"], m["y"]) if o.lateral else \
@@ -357,6 +363,8 @@ class HardwareEnv(gym.Env):
         terminated = bool(self._unsafe[0]) or stop is not None
         truncated = self._steps >= self.task.max_steps
         info = self._info(m, omega, tick_error, reply)
+        if v != requested:
+            info["clamped_from"] = requested  # V asked for beyond the amplifier range (applied: +-U_MAX)
         if stop is not None:
             info["safety_stop"] = stop
         if terminated or truncated:

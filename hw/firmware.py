@@ -122,6 +122,7 @@ class Firmware:
         self._gap_flag = False
         self.events: list[VoltageEvent] = []
         self.commands = 0
+        self.on_log = None  # callable(str): connections, stops and clears, for an operator's log
 
     # ------------------------------------------------------------------ configuration
     @property
@@ -178,22 +179,30 @@ class Firmware:
         acts inside the kernels (their delay line), as in every other simulation path."""
         self.sim.advance(np.array([u]), self.n_sub)
 
-    def _after_period(self, now: float) -> list[bytes]:
-        """Safety checks at the end of a period; the frames to send if a stop trips."""
+    def _after_period(self, now: float, emit: bool = True) -> list[bytes]:
+        """Safety checks at the end of a period (once per period: they update the speed estimate); the
+        frames to send if a stop trips (none with ``emit=False``: the caller sends them in sequence)."""
         omega = self._speed.update(self._angles())
         x, y = self._lvdt()
         reason = check_limits(self.config.limits, float(omega[0]), float(omega[1]), x, y)
         if reason is not None and self.stop_reason is None:
-            return self._stop(reason, now)
+            return self._stop(reason, now, emit)
         return []
 
-    def _stop(self, reason: P.StopReason, now: float) -> list[bytes]:
+    def _log(self, message: str) -> None:
+        if self.on_log is not None:
+            self.on_log(message)
+
+    def _stop(self, reason: P.StopReason, now: float, emit: bool = True) -> list[bytes]:
+        self._log(f"motor stopped (0 V, latched): {P.StopReason(reason).name}"
+                  + (f" (no command for {1e3 * (now - self.last_command):.0f} ms)"
+                     if reason == P.StopReason.WATCHDOG and self.last_command is not None else ""))
         self.stop_reason = P.StopReason(reason)
         self.armed = False
         self.limiter.reset(0.0)
         self._set_volts(0.0, now, reason.name.lower())
         self._idle_anchor = now
-        return [self._frame(P.EmergencyStop(int(reason)))]
+        return [self._frame(P.EmergencyStop(int(reason)))] if emit else []
 
     def _frame(self, msg: P.Message) -> bytes:
         seq = self._tx_seq
@@ -234,6 +243,8 @@ class Firmware:
         if isinstance(msg, P.Heartbeat):
             return [self._frame(msg)]
         if isinstance(msg, P.Identify):
+            self._log("host connected: IDENTIFY" + (f" (control period {msg.period_us / 1e3:g} ms)"
+                                                     if msg.period_us else ""))
             if msg.period_us:
                 try:
                     n = self._substeps(msg.period_us * 1e-6)
@@ -245,9 +256,13 @@ class Firmware:
                     self._speed.reset(self._angles())
             return [self._frame(self.config_message())]
         if isinstance(msg, P.EmergencyStop):
+            if self.stop_reason is not None:
+                self._log(f"emergency stop from the host (already stopped: {self.stop_reason.name})")
             out = self._stop(P.StopReason.HOST, now) if self.stop_reason is None else []
             return out + [self._frame(P.Ack(frame.type, frame.seq))]
         if isinstance(msg, P.ClearStop):  # clear a latched stop; idle: 0 V, watchdog disarmed
+            if self.stop_reason is not None:
+                self._log(f"stop cleared by the host ({self.stop_reason.name}); idle at 0 V")
             self.stop_reason = None
             self.armed = False
             self._idle_anchor = now
@@ -267,16 +282,26 @@ class Firmware:
             self.last_command = now
             self._set_volts(u, now, "command")
         self._advance_period(self.volts)
-        out += self._after_period(now)
-        out.insert(0, self._frame(self.sample(seq, limited)))
+        was_stopped = self.stop_reason is not None
+        self._after_period(now, emit=False)
+        out.append(self._frame(self.sample(seq, limited)))  # the SAMPLE, then the stop it tripped, in sequence
+        if self.stop_reason is not None and not was_stopped:
+            out.append(self._frame(P.EmergencyStop(int(self.stop_reason))))
         if self.stop_reason is not None:
             self._idle_anchor = now
         return out
 
-    def poll(self, now: float) -> list[bytes]:
-        """Time passes (wall clock ``now``, s): the watchdog, and the plant running on while idle."""
+    def poll(self, now: float, rx_pending: bool = False) -> list[bytes]:
+        """Time passes (wall clock ``now``, s): the watchdog, and the plant running on while idle.
+
+        ``rx_pending``: bytes have arrived at the UART that the main loop has not parsed yet.  The
+        watchdog counts the time since the last command *received*; a command waiting in the receive
+        buffer has been (a microcontroller's receive interrupt would have taken it), so the stop waits
+        until the main loop has parsed it, at most one more watchdog period."""
         out: list[bytes] = []
-        if self.armed and self.last_command is not None and now - self.last_command >= self.config.watchdog_s:
+        late = None if self.last_command is None else now - self.last_command
+        if self.armed and late is not None and late >= self.config.watchdog_s and not (
+                rx_pending and late < 2 * self.config.watchdog_s):
             out += self._stop(P.StopReason.WATCHDOG, now)
         if self.armed:
             return out
@@ -291,6 +316,7 @@ class Firmware:
 
     def link_lost(self, now: float) -> None:
         """The serial link went down (a USB-CDC device sees the detach): stop the motor now."""
+        self._log("link lost (port closed)")
         if self.stop_reason is None:
             self._stop(P.StopReason.LINK_LOST, now)
 

@@ -2,7 +2,7 @@
 
 Each episode is one CSV streamed by :class:`drillgym.io.StreamingCsvWriter` (flushed and
 fsync'ed in blocks of at most ``flush_interval_s`` of samples, so a killed process loses at
-most that much).  Columns:
+most that much), on a writer thread so that a slow disk never holds up the control loop.  Columns:
 
 processed (SI units, DATA_FORMAT names): ``t`` (s, firmware time since the episode start),
 ``u`` (V, voltage the firmware applied), ``theta_u``, ``theta_l`` (rad, encoders),
@@ -16,6 +16,8 @@ raw: ``counts_u``, ``counts_l`` (encoder counts), ``lvdt_x_raw``, ``lvdt_y_raw``
 
 from __future__ import annotations
 
+import queue
+import threading
 import time
 from pathlib import Path
 from typing import Mapping
@@ -44,7 +46,12 @@ def episode_path(record: str | Path, episode: int) -> Path:
 
 
 class EpisodeRecorder:
-    """One episode's recording (see the module docstring for the columns)."""
+    """One episode's recording (see the module docstring for the columns).
+
+    The disk work (formatting, writing, ``fsync`` every ``flush_interval_s`` of samples) happens on a
+    writer thread: on a busy machine one ``fsync`` can take longer than the firmware's watchdog, and the
+    control loop must not wait for it.  ``write`` only queues the row; ``close`` waits for the thread to
+    write and sync the rest."""
 
     def __init__(self, path: str | Path, lateral: bool, meta: Mapping, flush_interval_s: float = 0.5) -> None:
         if not 0 < flush_interval_s <= 1.0:
@@ -53,14 +60,37 @@ class EpisodeRecorder:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.rows = 0
         self._writer = StreamingCsvWriter(self.path, columns(lateral), meta, flush_interval_s)
+        self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._drain, name="recording", daemon=True)
+        self._thread.start()
         self.closed = False
 
+    def _drain(self) -> None:
+        while True:
+            row = self._queue.get()
+            if row is None:
+                break
+            try:
+                self._writer.write(row)
+            except BaseException as exc:  # noqa: BLE001 - reported by write()/close() on the loop's thread
+                self._error = exc
+        try:
+            self._writer.close()
+        except BaseException as exc:  # noqa: BLE001
+            self._error = exc
+
     def write(self, row: Mapping[str, float]) -> None:
-        self._writer.write(row)
+        if self._error is not None:
+            raise self._error
+        self._queue.put(dict(row))
         self.rows += 1
 
     def close(self) -> None:
         """Flush the rest to disk and close (idempotent)."""
         if not self.closed:
             self.closed = True
-            self._writer.close()
+            self._queue.put(None)
+            self._thread.join()
+            if self._error is not None:
+                raise self._error

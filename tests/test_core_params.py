@@ -56,6 +56,16 @@ def test_missing_field_in_file_names_it(tmp_path):
     path = tmp_path / "p.json"
     path.write_text(json.dumps(d))
     with pytest.raises(ParameterError, match="missing parameter.*ktheta"):
+        RigParams.from_file(path, partial=False)
+
+
+@pytest.mark.parametrize("suffix", [".json", ".yaml"])
+def test_partial_file_overrides_the_defaults(tmp_path, suffix):
+    path = tmp_path / f"p{suffix}"
+    path.write_text('{"Ts": 0.3, "b": 31.0}' if suffix == ".json" else "Ts: 0.3\nb: 31.0\n")
+    assert RigParams.from_file(path) == RigParams().replace(Ts=0.3, b=31.0)
+    path.write_text('{"Ts": 0.3, "Tss": 1}' if suffix == ".json" else "Ts: 0.3\nTss: 1\n")
+    with pytest.raises(ParameterError, match="unknown parameter.*Tss"):
         RigParams.from_file(path)
 
 

@@ -13,4 +13,5 @@ MODULES = (
     "drillgym.commands.evaluate",
     "drillgym.commands.train",
     "drillgym.commands.rig",
+    "drillgym.commands.params",
 )

@@ -14,7 +14,7 @@ def register(app: typer.Typer) -> None:
     @app.command("bifurcation")
     def bifurcation(
         config: str = typer.Option("torsional", "--config", help="torsional, lateral or coupled"),
-        out: Path = typer.Option(..., "--out", help="output directory (figures, branches.json)"),
+        out: Path = typer.Option(..., "--out", help="output directory (figures, branches.json); missing directories are created"),
         umin: float = typer.Option(0.0, "--umin", help="lowest voltage (V)"),
         umax: Optional[float] = typer.Option(None, "--umax", help="highest voltage (V); default 5 (lateral: 50)"),
         measured: Optional[List[Path]] = typer.Option(None, "--measured", help="constant-voltage measurement files"),

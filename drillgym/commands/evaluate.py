@@ -23,7 +23,7 @@ def register(app: typer.Typer) -> None:
         controllers: str = typer.Option("baseline,pi,softtorque,observer", "--controllers",
                                         help="comma-separated: baseline, pi, softtorque, observer, lqg, agent:PATH; "
                                              "NAME@MS sets the control period, e.g. observer@10"),
-        out: Path = typer.Option(..., "--out", help="output directory (results.csv, summary.md, figure)"),
+        out: Path = typer.Option(..., "--out", help="output directory (results.csv, summary.md, figure); missing directories are created"),
         scenarios: str = typer.Option("rest", "--scenarios",
                                       help="comma-separated: rest, cycle, friction-20, friction+20, noisy, plants "
                                            "(a population of plants drawn from --uncertainty)"),

@@ -9,6 +9,8 @@ from typing import List, Optional
 import typer
 
 from .effect_options import add_effect_option, effect_param_option
+from .mapping import MAP_HELP, parse_mapping
+from .outputs import CREATES_DIRS, output_file
 
 
 def _json(obj) -> str:
@@ -75,17 +77,18 @@ def _segment(value: str) -> "float | None":
     return s
 
 
-def _experiment(data: Path, config: Optional[str], rate: float):
+def _experiment(data: Path, config: Optional[str], rate: float, mapping: Optional[List[str]] = None):
     from ..identification.experiment import prepare_experiment
     from ..io import read_timeseries
 
-    return prepare_experiment(read_timeseries(data, config), config, compare_rate_hz=rate)
+    return prepare_experiment(read_timeseries(data, config, parse_mapping(mapping or [])), config,
+                              compare_rate_hz=rate)
 
 
 def register(app: typer.Typer) -> None:
     @app.command("signal")
     def signal_cmd(
-        out: Path = typer.Argument(..., help="output CSV (columns t, u)"),
+        out: Path = typer.Argument(..., help=f"output CSV (columns t, u); {CREATES_DIRS}"),
         kind: str = typer.Option("quasi_random", "--kind", help="quasi_random (estimation) or sum_of_sines (validation)"),
         duration: float = typer.Option(60.0, help="duration (s)"),
         rate: float = typer.Option(1000.0, help="sample rate (Hz)"),
@@ -100,28 +103,30 @@ def register(app: typer.Typer) -> None:
         if kind not in gens:
             raise ValueError(f"--kind must be one of {', '.join(gens)}, got {kind!r}")
         t, u = gens[kind](duration, rate_hz=rate, seed=seed, amplitude=amplitude, offset=offset)
-        write_input_file(out, t, u, description=f"{kind}, seed {seed}")
+        write_input_file(output_file(out), t, u, description=f"{kind}, seed {seed}")
         typer.echo(f"wrote {out}: {kind}, {duration:g} s at {rate:g} Hz, u in [{u.min():.2f}, {u.max():.2f}] V")
 
     @app.command("compare")
     def compare_cmd(
         data: Path = typer.Argument(..., help="recording (DATA_FORMAT csv or .mat)"),
-        params: Optional[Path] = typer.Option(None, "--params", help="parameter file (default MODEL.md set)"),
+        params: Optional[Path] = typer.Option(None, "--params", help="parameter file, may be partial "
+                                                                     "(default MODEL.md set)"),
         config: Optional[str] = typer.Option(None, "--config", help="configuration if the file has none"),
-        out: Path = typer.Option(Path("compare_out"), "--out", help="output directory"),
+        out: Path = typer.Option(Path("compare_out"), "--out", help=f"output directory; {CREATES_DIRS}"),
         segment: str = typer.Option("none", "--segment",
                                     help="'none': free run from the initial state; seconds: re-start from data "
                                          "every so many seconds (stick-slip); 'auto': 4 s with the brake"),
         rate: float = typer.Option(100.0, help="comparison grid rate (Hz)"),
         add_effect: List[str] = add_effect_option(),
         effect_param: List[str] = effect_param_option(),
+        map_: List[str] = typer.Option([], "--map", help=MAP_HELP),
     ) -> None:
         """Simulate a recording's input from its initial state; R², RMS and where the error lives."""
         from ..diagnosis.compare import compare, write_compare
         from ..diagnosis.ranking import default_segment
 
         base, model, values, _ = _model(params, add_effect, effect_param)
-        ex = _experiment(data, config, rate)
+        ex = _experiment(data, config, rate, map_)
         seg = _segment(segment)
         if seg is not None and seg < 0:
             seg = default_segment(ex.config) if ex.config.brake else None
@@ -145,6 +150,7 @@ def register(app: typer.Typer) -> None:
         candidate: List[str] = typer.Option(None, "--candidate",
                                             help="also try this effect (name or path/to/file.py:NAME; repeatable); "
                                                  "default candidates: the library's"),
+        map_: List[str] = typer.Option([], "--map", help=MAP_HELP),
     ) -> None:
         """Rank candidate effects (the library's, and --candidate) by how much of the model's residual each
         explains; the model is --params with its effects plus --add-effect."""
@@ -154,7 +160,7 @@ def register(app: typer.Typer) -> None:
 
         base, model, values, _ = _model(params, add_effect, effect_param)
         extra = [get_effect(c) for c in candidate or []]
-        ex = _experiment(data, config, rate)
+        ex = _experiment(data, config, rate, map_)
         cands = None
         if extra:
             cands = effects_for(ex.config) + [e for e in extra if e.name not in {c.name for c in effects_for(ex.config)}]
@@ -177,7 +183,7 @@ def register(app: typer.Typer) -> None:
     @app.command("identify")
     def identify_cmd(
         data: Path = typer.Argument(..., help="recording (DATA_FORMAT csv or .mat)"),
-        out: Path = typer.Option(..., "--out", help="model file to write (.json or .yaml): params and effects"),
+        out: Path = typer.Option(..., "--out", help=f"model file to write (.json or .yaml): params and effects; {CREATES_DIRS}"),
         config: Optional[str] = typer.Option(None, "--config", help="configuration if the file has none"),
         add_effect: List[str] = add_effect_option(),
         effect_param: List[str] = typer.Option(None, "--effect-param",
@@ -190,10 +196,11 @@ def register(app: typer.Typer) -> None:
         refit_base: bool = typer.Option(False, "--refit-base",
                                         help="also fit the configuration's base parameters with the effects"),
         as_json: bool = typer.Option(False, "--json", help="print r2_before, r2_after, fitted, std, effects as JSON"),
-        report: Optional[Path] = typer.Option(None, "--report", help="directory for a markdown report with figures"),
+        report: Optional[Path] = typer.Option(None, "--report", help="directory for a markdown report with figures; " + CREATES_DIRS),
         segment: str = typer.Option("auto", "--segment", help="multiple-shooting segment (s), 'auto' or 'none'"),
         rate: float = typer.Option(50.0, help="comparison grid rate (Hz)"),
         max_nfev: int = typer.Option(30, "--max-nfev", help="least-squares evaluations"),
+        map_: List[str] = typer.Option([], "--map", help=MAP_HELP),
     ) -> None:
         """Add effects to the model (library names or your own files) and fit their parameters to a recording;
         with none, refit the configuration's base parameters.  Writes the model (params and effects)."""
@@ -212,7 +219,7 @@ def register(app: typer.Typer) -> None:
         base_comp, base_values = mf.composition()
         starts = parse_effect_params(effect_param)
         held = {k: v for k, v in starts.items() if k in base_values}
-        ex = _experiment(data, config, rate)
+        ex = _experiment(data, config, rate, map_)
         seg = _segment(segment)
         if seg is not None and seg < 0:
             seg = default_segment(ex.config)
@@ -222,7 +229,7 @@ def register(app: typer.Typer) -> None:
         for spec, e in zip(mf.specs, base_comp.effects):
             specs.setdefault(e.name, spec)
         records = effect_records(res.composition, res.effect_values, specs)
-        write_model(out, res.params, records)
+        write_model(output_file(out), res.params, records)
         if report is not None:
             d = diagnose(ex, mf.params, base_effects=base_comp, effect_params=base_values, segment_s=seg)
             write_report(report, ex, mf.params, d, res, seg, base_comp, base_values)
@@ -245,7 +252,7 @@ def register(app: typer.Typer) -> None:
 
     @app.command("identify-staged")
     def identify_staged_cmd(
-        out: Path = typer.Option(..., "--out", help="parameter file to write (.json or .yaml)"),
+        out: Path = typer.Option(..., "--out", help=f"parameter file to write (.json or .yaml); {CREATES_DIRS}"),
         upper: List[Path] = typer.Option([], "--upper", help="recording of the upper part alone"),
         free_vibration: List[Path] = typer.Option([], "--free-vibration", help="free-vibration release test"),
         lower: List[Path] = typer.Option([], "--lower", help="torsional recording with the brake off"),
@@ -279,7 +286,7 @@ def register(app: typer.Typer) -> None:
             raise ValueError(f"--params {params}: the staged identification fits the base model; the file has effects "
                              f"({', '.join(mf.specs)}): use identify --add-effect for those")
         res = identify_staged(data, mf.params, validation=val)
-        res.params.to_file(out)
+        res.params.to_file(output_file(out))
         if as_json:
             typer.echo(_json(res.to_json()))
         else:

@@ -3,8 +3,14 @@
     drillgym rig emulate [--port PATH] [--params FILE] [--add-effect NAME|file.py:NAME] [--effect-param N=V] ...
         emulate the rig's microcontroller on a pseudo-terminal (prints the device path); the
         plant runs the hidden effects (and those of a model file given to --params)
-    drillgym rig run --port PATH (--controller NAME | --policy FILE) --duration S --record FILE
+    drillgym rig run --port PATH (--controller NAME | --policy FILE) --duration S --record FILE [--dry-run]
         run a controller or a policy on the rig through drillgym/Hardware-v0, recording it
+    drillgym rig estop --port PATH
+        emergency stop: motor to 0 V, latched until the next run's handshake
+
+``rig run`` exits 0 when the episode ran its course, 3 on a safety stop (one line with the
+reason; motor at 0 V, recording kept), 130 when interrupted (Ctrl-C, SIGTERM), 2 on a bad
+option (nothing moved); see :mod:`drillgym.commands.rig_ops`.
 """
 
 from __future__ import annotations
@@ -17,6 +23,8 @@ import typer
 
 from .effect_options import add_effect_option, effect_param_option
 from .plant import describe_plant, plant_from_cli
+from .outputs import CREATES_DIRS
+from .rig_ops import INTERRUPT_EXIT, STOP_EXIT, ClampNotice, stop_reason
 
 rig_app = typer.Typer(no_args_is_help=True, help="hardware twin: run on the rig, or emulate it on a pseudo-terminal")
 
@@ -42,6 +50,8 @@ def emulate_cmd(
     dt: float = typer.Option(1e-3, help="integration step of the emulated plant (s)"),
     alpha0: float = typer.Option(0.0, help="initial winding of the string (rad)"),
     seed: int = typer.Option(0, help="seed of the LVDT noise and latency jitter"),
+    realtime: bool = typer.Option(True, "--realtime/--no-realtime", help="real-time scheduling (SCHED_FIFO) if "
+                                                                         "permitted, else nice -10 as far as allowed"),
 ) -> None:
     """Emulate the rig's microcontroller on a pseudo-terminal until Ctrl-C.  The plant runs the hidden
     effects (--add-effect, and those of a model file in --params); the host does not know them."""
@@ -51,10 +61,21 @@ def emulate_cmd(
     base, comp, values = plant_from_cli(params, add_effect, effect_param)
     fw = FirmwareConfig(counts_per_rev=counts_per_rev, control_period_s=period_ms * 1e-3,
                         watchdog_s=watchdog_ms * 1e-3)
+    import time
+
+    from hw.realtime import prioritize
+
+    def log(message: str) -> None:
+        typer.echo(f"[{time.strftime('%H:%M:%S')}] {message}", err=True)
+
+    import sys
+
+    sys.setswitchinterval(5e-4)  # serial and timer threads share the interpreter: hand it over every 0.5 ms
     emu = RigEmulator(config, base, fw, effects=comp, effect_params=values, dt=dt, alpha0=alpha0,
-                      lvdt_noise_std=lvdt_noise, seed=seed, latency_s=latency_ms * 1e-3, jitter_s=jitter_ms * 1e-3,
-                      link_path=port)
+                      lvdt_noise_std=lvdt_noise, seed=seed, latency_s=latency_ms * 1e-3, jitter_s=jitter_ms * 1e-3, link_path=port, log=log)
+    priority = prioritize(realtime)  # before the threads start: they inherit it (the emulator stands in for a microcontroller)
     emu.start()
+    log(f"emulator ready: watchdog {watchdog_ms:g} ms, scheduling priority {priority}")
     signal.signal(signal.SIGTERM, _interrupt)
     typer.echo(f"rig emulator ({config}) on {emu.port}" + (f" (link {port})" if port else "")
                + f"; {describe_plant(comp, values)}", err=False)
@@ -63,6 +84,7 @@ def emulate_cmd(
         emu.serve_forever()
     except KeyboardInterrupt:
         emu.stop()
+    log("emulator stopped")
 
 
 @rig_app.command("run")
@@ -71,38 +93,95 @@ def run_cmd(
     controller: Optional[str] = typer.Option(None, help="controller: const:<volts> or a name from controllers/"),
     policy: Optional[Path] = typer.Option(None, help="policy file (.npz linear W, b; others via agents/)"),
     duration: float = typer.Option(10.0, help="episode length (s)"),
-    record: Path = typer.Option(Path("rig_run.csv"), help="recording file (DATA_FORMAT csv)"),
+    record: Path = typer.Option(Path("rig_run.csv"), help=f"recording file (DATA_FORMAT csv); {CREATES_DIRS}"),
     config: str = typer.Option("torsional", help="how the rig is set up: torsional, lateral or coupled"),
     observation: str = typer.Option("sensors", help="policy observation: full, sensors or motor"),
     omega_ref: Optional[float] = typer.Option(None, help="target lower-disc speed (rad/s); default drawn per seed"),
     control_ms: float = typer.Option(10.0, help="control period (ms)"),
     seed: int = typer.Option(0, help="episode seed"),
-    reply_timeout_ms: float = typer.Option(50.0, help="longest wait for the firmware's reply (ms), below its "
-                                                       "100 ms watchdog; raise it for an emulator on a busy machine"),
+    reply_timeout_ms: Optional[float] = typer.Option(None, help="longest wait for the firmware's reply (ms); default "
+                                                                "the firmware's watchdog (its CONFIG)"),
+    dry_run: bool = typer.Option(False, "--dry-run", help="check port, firmware, control period, controller or "
+                                                          "policy, limits and recording path; send no voltage"),
+    reconnect: int = typer.Option(0, help="after a lost link or a silent firmware, reopen the port and start a new "
+                                          "episode (next recording file), at most this often"),
+    reconnect_wait: float = typer.Option(2.0, help="seconds to wait before reconnecting"),
+    realtime: bool = typer.Option(True, "--realtime/--no-realtime", help="real-time scheduling (SCHED_FIFO) for "
+                                                                         "the episode if permitted, else nice -10 as "
+                                                                         "far as allowed"),
 ) -> None:
-    """Run one episode of a controller or a policy on the rig, recorded to --record."""
+    """Run one episode of a controller or a policy on the rig, recorded to --record.
+
+    Exit code 0: the episode ran its course; 3: safety stop (watchdog, over-speed, e-stop, link
+    fault), motor at 0 V, recording kept; 130: interrupted (Ctrl-C); 2: bad option, nothing moved.
+    """
     import gymnasium as gym
     import numpy as np
 
     import hw
+    from drillgym.errors import SafetyError
+    from hw.realtime import prioritize, quiet_gc
     from hw.runner import load_policy, make_controller, run_episode
+
+    from .outputs import output_dir, output_file
+    from .rig_ops import check_writable, dry_run as do_dry_run, run_with_reconnect
 
     if (controller is None) == (policy is None):
         raise ValueError("give exactly one of --controller or --policy")
     if not duration > 0:
         raise ValueError(f"--duration must be > 0 s, got {duration}")
+    if reconnect < 0 or not reconnect_wait >= 0:
+        raise ValueError(f"--reconnect and --reconnect-wait must be >= 0, got {reconnect}, {reconnect_wait}")
     hw.register()
     opts = {"observation": observation, "episode_duration": duration, "control_dt": control_ms * 1e-3}
     if omega_ref is not None:
         opts["omega_ref"] = omega_ref
-    env = gym.make(hw.ENV_ID, port=port, configuration=config, record=record, reply_timeout=reply_timeout_ms * 1e-3,
-                   **opts)
+    # controller and policy first: a bad one is refused before the port is touched
+    ctrl = make_controller(controller, config, omega_ref, control_ms * 1e-3) if controller else None
+    pol = load_policy(policy) if policy is not None else None
+    timeout = None if reply_timeout_ms is None else reply_timeout_ms * 1e-3
+
+    def make_env():
+        return gym.make(hw.ENV_ID, port=port, configuration=config, record=record, reply_timeout=timeout, **opts)
+
+    def say(msg: str) -> None:
+        typer.echo(msg, err=True)
+
+    if dry_run:
+        do_dry_run(make_env, ctrl, pol, record, typer.echo)
+        return
+    check_writable(record)
+    if record.suffix.lower() == ".csv":
+        output_file(record)
+    else:
+        output_dir(record)
+    signal.signal(signal.SIGTERM, _interrupt)
+    notice = ClampNotice(say)
+    env = None
     try:
-        ctrl = make_controller(controller, config, omega_ref, control_ms * 1e-3) if controller else None
-        pol = load_policy(policy) if policy is not None else None
-        res = run_episode(env, controller=ctrl, policy=pol, seed=seed)
+        env = make_env()  # handshake and compiled kernels loaded at normal priority, then the episode's
+        typer.echo(f"scheduling priority: {prioritize(realtime)}")
+        watchdog_ms = env.unwrapped.firmware.watchdog_ms
+        with quiet_gc():
+            res, faults = run_with_reconnect(
+                env, lambda: run_episode(env, controller=ctrl, policy=pol, seed=seed, on_step=notice),
+                reconnect, reconnect_wait, say)
+    except KeyboardInterrupt:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the stop short
+        rec = None
+        if env is not None:
+            env.close()  # ends the episode: EMERGENCY_STOP, recording flushed and closed
+            rec = env.unwrapped.recording
+        say(f"drillgym: interrupted: motor stopped (0 V), recording kept: {rec if rec is not None else 'none yet'}")
+        raise typer.Exit(INTERRUPT_EXIT)
+    except SafetyError as exc:
+        if env is not None:
+            env.close()
+        say(f"drillgym: safety stop: {exc}")
+        raise typer.Exit(STOP_EXIT)
     finally:
-        env.close()
+        if env is not None:
+            env.close()
     ms = 1e3
     typer.echo(f"{res.steps} steps, return {res.total_reward:.2f}, "
                f"{'terminated' if res.terminated else 'truncated' if res.truncated else 'stopped'}"
@@ -110,7 +189,41 @@ def run_cmd(
     if res.steps:
         typer.echo(f"round trip median {ms * np.median(res.round_trips):.2f} ms, max {ms * res.round_trips.max():.2f} ms; "
                    f"tick error p99 {ms * np.percentile(res.tick_errors, 99):.2f} ms")
+    if notice.count:
+        typer.echo(f"{notice.count} of {res.steps} commands were clamped to the amplifier range")
+    if faults:
+        typer.echo(f"{len(faults)} link fault(s), reconnected; earlier episodes' recordings next to this one")
     typer.echo(f"recording: {res.recording}")
+    why = stop_reason(res.safety_stop, watchdog_ms, res.terminated)
+    if why is not None:
+        say(f"drillgym: safety stop after {res.steps} steps: {why}; motor at 0 V, recording kept: {res.recording}")
+        raise typer.Exit(STOP_EXIT)
+
+
+@rig_app.command("estop")
+def estop_cmd(
+    port: str = typer.Option(..., help="serial device or pyserial URL of the rig"),
+    attempts: int = typer.Option(3, help="send EMERGENCY_STOP up to this often until acknowledged"),
+    timeout_ms: float = typer.Option(200.0, help="wait this long for each acknowledgement (ms)"),
+) -> None:
+    """Emergency stop: motor to 0 V now, latched (the next `rig run` handshake clears it).
+
+    Works while another program runs the rig (that run then stops with a safety stop).
+    Exit code 0 when the firmware acknowledged, 3 when it did not (check the rig).
+    """
+    from drillgym.errors import SafetyError
+
+    from .rig_ops import emergency_stop
+
+    if attempts < 1 or not timeout_ms > 0:
+        raise ValueError(f"--attempts must be >= 1 and --timeout-ms > 0, got {attempts}, {timeout_ms}")
+    try:
+        k = emergency_stop(port, attempts, timeout_ms * 1e-3)
+    except SafetyError as exc:
+        typer.echo(f"drillgym: {exc}", err=True)
+        raise typer.Exit(STOP_EXIT)
+    typer.echo(f"emergency stop acknowledged by the firmware on {port}" + (f" (attempt {k})" if k > 1 else "")
+               + ": motor at 0 V, latched until the next `drillgym rig run`")
 
 
 def register(app: typer.Typer) -> None:

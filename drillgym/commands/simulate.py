@@ -9,6 +9,9 @@ import typer
 
 from ..configurations import Configuration
 from .effect_options import add_effect_option, effect_param_option, effects_from_cli
+from ..io import U_LIMIT_FILE
+from .budget import check_run_fits
+from .outputs import CREATES_DIRS, output_file
 
 
 def _load_input(path: Path):
@@ -50,41 +53,95 @@ def plot_run(traj, path: Path) -> Path:
     return path
 
 
+def check_input_span(t, path: Path, duration: float | None) -> float:
+    """The run's duration (s) for an input file sampled at ``t`` (s): ``duration`` if the file covers
+    [0, duration), else a one-line error; None -> the file's own length (its last sample held one interval)."""
+    import numpy as np
+
+    if t[0] > 1e-9:
+        raise ValueError(f"--input {path}: starts at t = {t[0]:g} s; the run starts at 0 s (shift the file's times)")
+    span = float(t[-1] + (t[-1] - t[-2] if len(t) > 1 else 0.0))
+    if duration is None:
+        return span
+    if np.isfinite(duration) and duration > span * (1 + 1e-9) + 1e-9:
+        raise ValueError(f"--input {path} covers {span:g} s, shorter than --duration {duration:g} s: shorten "
+                         f"--duration (or leave it out to run the file's length) or extend the file")
+    return duration
+
+
+def _summary(traj) -> str:
+    """The one-line result: final speed and stuck time of the disc(s) the configuration has."""
+    if traj.config is Configuration.UPPER:
+        return (f"final omega_u = {traj.omega_u[-1]:.4f} rad/s, upper disc stuck "
+                f"{100 * traj.stick_u.mean():.1f} % of the time")
+    return (f"final omega_l = {traj.omega_l[-1]:.4f} rad/s, lower disc stuck "
+            f"{100 * traj.stick_l.mean():.1f} % of the time")
+
+
 def register(app: typer.Typer) -> None:
     @app.command("simulate")
     def simulate_cmd(
         config: str = typer.Option("torsional", help="upper, torsional, lateral, coupled or free_vibration"),
-        u: Optional[float] = typer.Option(None, help="constant motor voltage (V); any value, no amplifier limit"),
-        input_file: Optional[Path] = typer.Option(None, "--input", help="input signal file (csv with t, u) instead of --u"),
-        duration: float = typer.Option(30.0, help="simulated time (s)"),
+        u: Optional[float] = typer.Option(None, help=f"constant motor voltage (V), |u| <= {U_LIMIT_FILE:g} V (what the "
+                                                     "time-series format accepts; the rig's amplifier gives +-5 V); "
+                                                     "not for free_vibration"),
+        input_file: Optional[Path] = typer.Option(None, "--input", help="input signal file (csv or .mat with t, u, "
+                                                                         "from t = 0) instead of --u"),
+        duration: Optional[float] = typer.Option(None, help="simulated time (s); default 30, with --input the file's "
+                                                            "length (a longer one is refused)"),
         dt: float = typer.Option(1e-3, help="integration step (s)"),
         method: str = typer.Option("rk4", help="rk4 or dp5"),
-        params: Optional[Path] = typer.Option(None, help="parameter file (JSON/YAML); default: identified set"),
-        alpha0: float = typer.Option(0.0, help="initial winding theta_l - theta_u (rad)"),
+        params: Optional[Path] = typer.Option(None, help="parameter file (JSON/YAML, may be partial: the names it "
+                                                         "gives override the identified set)"),
+        alpha0: Optional[float] = typer.Option(None, help="initial winding theta_l - theta_u (rad); default 0; "
+                                                          "free_vibration needs it: the angle the lower disc is "
+                                                          "twisted by and released from"),
         record_every: int = typer.Option(1, help="keep every k-th step in the output"),
-        out: Path = typer.Option(..., help="output csv (DATA_FORMAT)"),
-        plot: Optional[Path] = typer.Option(None, help="also write a figure (png)"),
+        out: Path = typer.Option(..., help=f"output csv (DATA_FORMAT); {CREATES_DIRS}"),
+        plot: Optional[Path] = typer.Option(None, help=f"also write a figure (png); {CREATES_DIRS}"),
         add_effect: List[str] = add_effect_option(),
         effect_param: List[str] = effect_param_option(),
     ) -> None:
-        """Simulate from rest and write the run as DATA_FORMAT csv (and a figure)."""
+        """Simulate from rest and write the run as DATA_FORMAT csv (and a figure).
+
+        free_vibration (report 3.3) holds the upper disc and releases the lower disc from a
+        winding: give --alpha0, no voltage (e.g. --config free_vibration --alpha0 1.0 --duration 20).
+        """
+        from ..configurations import parse_configuration
         from ..params import RigParams
         from ..simulator import simulate
 
-        if (u is None) == (input_file is None):
+        cfg = parse_configuration(config)
+        if cfg is Configuration.FREE_VIBRATION:
+            if u is not None or input_file is not None:
+                raise ValueError("free_vibration holds the upper disc (the motor voltage has no effect): leave out "
+                                 "--u/--input and give --alpha0 RAD, the release angle")
+            if alpha0 is None:
+                raise ValueError("free_vibration releases the lower disc from a winding: give --alpha0 RAD "
+                                 "(e.g. --alpha0 1.0)")
+        elif (u is None) == (input_file is None):
             raise ValueError("give exactly one of --u VOLTS or --input FILE")
+        if u is not None and not abs(u) <= U_LIMIT_FILE:
+            raise ValueError(f"--u {u:g} V is beyond the +-{U_LIMIT_FILE:g} V a recording may hold (the rig's "
+                             f"amplifier gives +-5 V); choose |u| <= {U_LIMIT_FILE:g} V")
         comp, values = effects_from_cli(add_effect, effect_param)
         rig = RigParams.from_file(params) if params else RigParams()
-        signal = float(u) if u is not None else _load_input(input_file)
-        traj = simulate(config, signal, duration, dt=dt, params=rig, alpha0=alpha0, method=method,
+        if input_file is not None:
+            signal = _load_input(input_file)  # its values are checked by the reader (|u| <= 50 V)
+            duration = check_input_span(signal[0], input_file, duration)
+        else:
+            signal = float(u) if u is not None else 0.0
+            duration = 30.0 if duration is None else duration
+        out = output_file(out)
+        check_run_fits(duration, dt, record_every, out)
+        traj = simulate(cfg, signal, duration, dt=dt, params=rig, alpha0=alpha0 or 0.0, method=method,
                         record_every=record_every, effects=comp, effect_params=values)
-        added = "".join(f" --add-effect {s}" for s in comp.specs()) + "".join(
+        how = (f"--u {u}" if u is not None else f"--input {input_file}" if input_file is not None
+               else f"--alpha0 {alpha0}")
+        how += "".join(f" --add-effect {s}" for s in comp.specs()) + "".join(
             f" --effect-param {k}={v:g}" for k, v in values.items())
-        traj.to_csv(out, description=f"drillgym simulate --config {config} "
-                                      + (f"--u {u}" if u is not None else f"--input {input_file}") + added)
-        stuck = traj.stick_l.mean() if traj.config is not Configuration.UPPER else traj.stick_u.mean()
-        typer.echo(f"wrote {out} ({len(traj.t)} samples); final omega_l = {traj.omega_l[-1]:.4f} rad/s, "
-                   f"lower disc stuck {100 * stuck:.1f} % of the time")
+        traj.to_csv(out, description=f"drillgym simulate --config {cfg.label} {how}")
+        typer.echo(f"wrote {out} ({len(traj.t)} samples); {_summary(traj)}")
         if plot:
-            plot_run(traj, plot)
+            plot_run(traj, output_file(plot))
             typer.echo(f"wrote {plot}")

@@ -22,7 +22,7 @@ def register(app: typer.Typer) -> None:
     def train_cmd(
         env: str = typer.Option("drillgym/Torsional-v0", "--env", help="environment id"),
         algo: str = typer.Option("sac", "--algo", help="ppo, sac, td3 or recurrentppo"),
-        out: Path = typer.Option(..., "--out", help="run directory (model.zip, policy.npz, config.yml, tb/, checkpoints/)"),
+        out: Path = typer.Option(..., "--out", help="run directory (model.zip, policy.npz, config.yml, tb/, checkpoints/); missing directories are created"),
         obs: Optional[str] = typer.Option(None, "--obs", help="observation mode: full, sensors, motor (default: the hyperparameter file's)"),
         timesteps: Optional[int] = typer.Option(None, "--timesteps", help="environment steps (default: the file's n_timesteps)"),
         seed: int = typer.Option(0, "--seed", help="seed of networks, exploration and envs"),

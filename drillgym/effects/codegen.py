@@ -440,6 +440,14 @@ def build_kernels(comp: "Composition") -> "CompiledModel":
     return CompiledModel(package, root)
 
 
+def _load_compiled_model(package: str, root: str, clients: tuple = ()) -> "CompiledModel":
+    _ensure_on_path(Path(root))
+    model = CompiledModel(package, Path(root))
+    for c in clients:
+        model.client(c)
+    return model
+
+
 class CompiledModel:
     """The kernels of one composition: attributes ``model``, ``stepping``, ``lanes``, ``hooks``
     (modules) and :meth:`client` for specialised client templates."""
@@ -456,6 +464,9 @@ class CompiledModel:
     @property
     def path(self) -> Path:
         return self.root / self.package
+
+    def __reduce__(self):  # modules do not pickle: rebuild from the package (written on disk)
+        return (_load_compiled_model, (self.package, str(self.root), tuple(self._clients)))
 
     def client(self, module: str) -> ModuleType:
         """A specialised copy of a client template (a drillgym module whose compiled code calls the

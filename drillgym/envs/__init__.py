@@ -13,6 +13,7 @@ together), ``base`` (the ``gymnasium.Env``), ``vector`` (the ``VectorEnv``), ``r
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import gymnasium
@@ -38,17 +39,21 @@ def make_vec(env_id: str, num_envs: int, **options: Any) -> DrillVectorEnv:
     return DrillVectorEnv(num_envs, ENV_IDS[env_id], **options)
 
 
-def _vector_entry(configuration: str):
-    def entry(num_envs: int, **options: Any) -> DrillVectorEnv:
-        return DrillVectorEnv(num_envs, configuration, **options)
+@dataclass(frozen=True)
+class VectorEntry:
+    """The vector entry point of one configuration: ``VectorEntry("torsional")(num_envs, **options)``.
+    A module-level class, not a closure, so that an env's ``spec`` (and the env) can be pickled."""
 
-    return entry
+    configuration: str
+
+    def __call__(self, num_envs: int, **options: Any) -> DrillVectorEnv:
+        return DrillVectorEnv(num_envs, self.configuration, **options)
 
 
 for _id, _cfg in ENV_IDS.items():
     if _id not in gymnasium.registry:
         gymnasium.register(id=_id, entry_point=f"drillgym.envs.base:{_CLASSES[_cfg]}",
-                           vector_entry_point=_vector_entry(_cfg), disable_env_checker=False)
+                           vector_entry_point=VectorEntry(_cfg), disable_env_checker=False)
 
 # The hardware twin (package ``hw``) shares these spaces; its id is registered here too, by entry-point
 # string only, so that ``import drillgym`` offers it without the physics core importing ``hw``.

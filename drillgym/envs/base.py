@@ -13,13 +13,13 @@ All three share :class:`DrillEnv`; they differ in the rig configuration (MODEL.m
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from .action import action_voltage
 from .engine import C_REW, C_TERM, C_TRUNC, EpisodeBatch
 from .options import U_MAX, EnvOptions
 from .rendering import RigRenderer
@@ -89,6 +89,7 @@ class DrillEnv(gym.Env):
         self.action_space = action_space(self.options.normalize_action)
         self.observation_space = self.batch.obs_model.space
         self._scale = 1.0 if not self.options.normalize_action else U_MAX
+        self._high = float(self.action_space.high[0])
         self._u = self.batch.system.u  # (1,) voltage buffer of the core
         self._renderer = (RigRenderer(render_mode, self.options.render_history, self.options.control_dt,
                                       self.options.lateral) if render_mode else None)
@@ -111,15 +112,7 @@ class DrillEnv(gym.Env):
         return b.obs[0].copy(), self._info()
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
-        try:
-            if len(action) != 1:
-                raise ValueError(f"action must hold one voltage, got {len(action)} values: {action!r}")
-            v = float(action[0])
-        except TypeError:  # a scalar or 0-d array
-            v = float(action)
-        if not math.isfinite(v):
-            raise ValueError(f"action (motor voltage) must be finite, got {action!r}")
-        v *= self._scale
+        v = action_voltage(action, self._high) * self._scale
         self._u[0] = U_MAX if v > U_MAX else (-U_MAX if v < -U_MAX else v)  # amplifier saturation
         b = self.batch
         b.step()

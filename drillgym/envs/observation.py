@@ -200,14 +200,12 @@ class SimulatedSensors:
         self.noisy = lateral and lvdt_noise_std > 0
         self.noise = np.zeros((n, block, 2)) if self.noisy else np.zeros((0, 1, 2))
         self.pos = np.zeros(n, dtype=np.int64)
-        self._kernel = None
 
     @property
     def kernel(self):
-        """The composition's compiled sensor module (:mod:`.sensor_kernel`)."""
-        if self._kernel is None:
-            self._kernel = self.composition.kernels.client("drillgym.envs.sensor_kernel")
-        return self._kernel
+        """The composition's compiled sensor module (:mod:`.sensor_kernel`; the composition caches it, and
+        the sensors keep no module of their own, so they pickle)."""
+        return self.composition.kernels.client("drillgym.envs.sensor_kernel")
 
     def reset(self, index: np.ndarray, rngs: Sequence[np.random.Generator]) -> None:
         if self.noisy:

@@ -2,11 +2,14 @@
 
 Matplotlib is imported only when a renderer is created (never on the step path).
 'rgb_array' draws on an Agg canvas and returns an (H, W, 3) uint8 array; 'human'
-shows the same figure in a window (interactive backend) and refreshes it per step.
+shows the same figure in a window (interactive backend) and refreshes it per step.  Without a
+display matplotlib falls back to a backend that cannot open a window: 'human' then warns once
+(per renderer) that nothing is shown instead of doing nothing silently.
 """
 
 from __future__ import annotations
 
+import warnings
 from collections import deque
 
 import numpy as np
@@ -14,6 +17,13 @@ import numpy as np
 __all__ = ["RigRenderer"]
 
 LATERAL_ZOOM = 10.0  # lateral displacement drawn 10x (a few mm on a 0.1 m disc)
+#: matplotlib backends that draw to files or buffers only (no window)
+NON_INTERACTIVE_BACKENDS = ("agg", "cairo", "pdf", "pgf", "ps", "svg", "template")
+
+
+def can_show_windows(backend: str) -> bool:
+    """Whether a matplotlib backend opens windows (False for 'agg', the fallback without a display)."""
+    return backend.lower() not in NON_INTERACTIVE_BACKENDS
 
 
 class RigRenderer:
@@ -44,6 +54,11 @@ class RigRenderer:
             if self.mode == "human":
                 import matplotlib.pyplot as plt
 
+                backend = plt.get_backend()
+                if not can_show_windows(backend):
+                    warnings.warn(f"render_mode='human' but matplotlib's backend {backend!r} cannot open a window "
+                                  f"(no display?): nothing is shown; use render_mode='rgb_array' (frames as arrays, "
+                                  f"e.g. for gymnasium.wrappers.RecordVideo) or a display", UserWarning, stacklevel=2)
                 plt.ion()
                 self._fig = plt.figure(figsize=self._size, dpi=self._dpi)
             else:

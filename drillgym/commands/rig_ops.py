@@ -1,0 +1,157 @@
+"""What ``drillgym rig`` does around an episode: dry run, e-stop, reconnect, and telling the operator.
+
+* :func:`dry_run` checks everything a run needs (port and firmware handshake, control period,
+  controller or policy, limits, recording path) without sending a voltage.
+* :func:`emergency_stop` sends EMERGENCY_STOP and waits for the firmware's ACK.
+* :func:`run_with_reconnect` runs the episode; after a lost link or a firmware that stopped
+  answering it reopens the port and starts a new episode (a new recording), as often as allowed.
+* :func:`stop_reason` and :class:`ClampNotice` are the one-line messages of a stop and of a
+  voltage clamped to the amplifier range (said once).
+
+Exit codes of ``rig run``: 0 episode completed; 2 bad option or file (nothing moved);
+3 safety stop (watchdog, over-speed, e-stop, link fault: the motor is at 0 V, the recording kept);
+130 interrupted (Ctrl-C or SIGTERM: motor at 0 V, recording kept).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+__all__ = ["STOP_EXIT", "INTERRUPT_EXIT", "stop_reason", "ClampNotice", "dry_run", "emergency_stop",
+           "run_with_reconnect", "check_writable"]
+
+STOP_EXIT = 3
+INTERRUPT_EXIT = 130
+
+_WHY = {
+    "WATCHDOG": "the firmware's watchdog stopped the motor: no command for {watchdog_ms} ms (host stalled or "
+                "too slow; see the README's hardware section)",
+    "OVERSPEED": "over-speed: a disc turned faster than the limit",
+    "OVER_DISPLACEMENT": "over-displacement: the lower disc moved laterally beyond the limit",
+    "HOST": "emergency stop requested by a host (e.g. `drillgym rig estop`)",
+    "LINK_LOST": "the firmware saw the link go down",
+    "FIRMWARE": "the firmware reports the motor stopped",
+}
+
+
+def stop_reason(stop: str | None, watchdog_ms: float, terminated: bool) -> str | None:
+    """The one-line reason an episode ended early, or None when it ran its course."""
+    if stop is not None:
+        return f"{stop}: " + _WHY.get(stop, "stop").format(watchdog_ms=f"{watchdog_ms:g}")
+    if terminated:
+        return "the task's safety limit (speed or lateral displacement beyond the episode's limits)"
+    return None
+
+
+class ClampNotice:
+    """``on_step`` callback of :func:`hw.runner.run_episode`: tells the operator, once, that a command
+    was beyond the amplifier range and has been clamped, and counts how often."""
+
+    def __init__(self, echo: Callable[[str], None], v_max: float = 5.0) -> None:
+        self.echo, self.v_max, self.count = echo, v_max, 0
+
+    def __call__(self, step: int, info: dict) -> None:
+        if "clamped_from" in info:
+            self.count += 1
+            if self.count == 1:
+                self.echo(f"note: {info['clamped_from']:g} V asked for at step {step}; the amplifier gives "
+                          f"+-{self.v_max:g} V, so commands beyond it are clamped to +-{self.v_max:g} V "
+                          f"(said once; counted at the end)")
+
+
+def check_writable(record: Path) -> None:
+    """Refuse a recording path that could not be written (nothing is created)."""
+    p = Path(record).resolve()
+    if p.suffix.lower() == ".csv":
+        p = p.parent  # a recording file (overwritten if it exists): its directory must be writable
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    if not p.is_dir():
+        raise ValueError(f"--record {record}: {p} is a file, not a directory")
+    if not os.access(p, os.W_OK | os.X_OK):
+        raise ValueError(f"--record {record}: no permission to write in {p}")
+
+
+def dry_run(make_env: Callable[[], object], ctrl, policy, record: Path, echo: Callable[[str], None]) -> None:
+    """Open the port, identify the firmware and check the policy against the observation space; no voltage
+    is sent (the port is closed with EMERGENCY_STOP, as always: the next run's handshake clears it)."""
+    from drillgym.envs.action import action_voltage
+
+    check_writable(record)
+    env = make_env()
+    try:
+        u = env.unwrapped
+        fw, lim = u.firmware, u.limits
+        echo(f"dry run: {u.port}: firmware {fw.name!r}, protocol {fw.protocol_version}, control period "
+             f"{fw.period_s * 1e3:g} ms accepted, watchdog {fw.watchdog_ms} ms")
+        echo(f"dry run: limits host / firmware: +-{lim.v_max:g} / +-{fw.v_max:g} V, slew {lim.slew_v_per_s:g} / "
+             f"{fw.slew_v_per_s:g} V/s, over-speed {lim.max_speed:g} / {fw.max_speed:g} rad/s, over-displacement "
+             f"{lim.max_displacement * 1e3:g} / {fw.max_displacement * 1e3:g} mm")
+        if policy is not None:
+            a = policy(np.zeros(env.observation_space.shape, dtype=np.float32))
+            try:
+                action_voltage(a, float(env.action_space.high[0]))
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"the policy's action for a zero observation is unusable: {exc}") from None
+            echo(f"dry run: policy answers a zero observation of shape {env.observation_space.shape} with {a!r}")
+        else:
+            echo(f"dry run: controller {getattr(ctrl, 'name', type(ctrl).__name__)} ready")
+            volts = getattr(ctrl, "volts", None)
+            if volts is not None and abs(volts) > lim.v_max:
+                echo(f"note: {volts:g} V will be clamped to +-{lim.v_max:g} V (the amplifier range)")
+        echo(f"dry run: recording would go to {record}; nothing was sent that moves the motor")
+    finally:
+        env.close()
+
+
+def emergency_stop(port: str, attempts: int = 3, timeout_s: float = 0.2) -> int:
+    """Send EMERGENCY_STOP (HOST) until the firmware acknowledges it; returns the attempt that was acknowledged.
+    Raises SafetyError when no ACK came (another program may be reading the port, or the firmware is dead)."""
+    from drillgym.errors import SafetyError
+    from hw.client import RigClient
+    from hw.link import LinkTimeoutError
+
+    client = RigClient(port, reply_timeout=timeout_s)
+    try:
+        for k in range(1, attempts + 1):
+            try:
+                client.emergency_stop(wait=True)
+                return k
+            except LinkTimeoutError:
+                continue
+    finally:
+        client.close()
+    raise SafetyError(f"{port}: EMERGENCY_STOP sent {attempts} times, no acknowledgement within "
+                      f"{timeout_s * 1e3:.0f} ms each (another program reading the port may have taken it, or the "
+                      f"firmware is not responding): check the rig")
+
+
+def _wait_for_port(port: str, seconds: float) -> None:
+    """Sleep ``seconds``, and on until the device path exists again (at most 10 s more)."""
+    time.sleep(seconds)
+    t_end = time.monotonic() + 10.0
+    while "://" not in port and not os.path.exists(port) and time.monotonic() < t_end:
+        time.sleep(0.1)
+
+
+def run_with_reconnect(env, run: Callable[[], object], reconnect: int, wait_s: float,
+                       echo: Callable[[str], None]):
+    """``run()`` (one episode); after a lost link or a firmware that stopped answering, reopen the port
+    and run a new episode, at most ``reconnect`` times.  Returns (result, faults)."""
+    from hw.link import LinkLostError, LinkTimeoutError
+
+    faults: list[str] = []
+    while True:
+        try:
+            return run(), faults
+        except (LinkLostError, LinkTimeoutError) as exc:
+            if len(faults) >= reconnect:
+                raise
+            faults.append(str(exc))
+            echo(f"drillgym: link fault ({exc}); reconnecting in {wait_s:g} s ({len(faults)} of {reconnect})")
+            _wait_for_port(env.unwrapped.port, wait_s)
