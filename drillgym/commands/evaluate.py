@@ -8,6 +8,7 @@ hidden effects; the controllers are built from the nominal base parameters and n
 from __future__ import annotations
 
 import warnings
+from contextlib import nullcontext
 from pathlib import Path
 from typing import List, Optional
 
@@ -36,6 +37,8 @@ def register(app: typer.Typer) -> None:
         duration: float = typer.Option(60.0, "--duration", help="simulated time per run (s)"),
         window: float = typer.Option(20.0, "--window", help="steady-state window at the end (s)"),
         workers: int = typer.Option(2, "--workers", help="parallel processes"),
+        ray: Optional[str] = typer.Option(None, "--ray", help="run the jobs on Ray: 'auto' (a running cluster), "
+                                                           "'local' (start one here with --workers CPUs) or HOST:PORT"),
         params: Path = typer.Option(None, "--params", help="parameter file (JSON/YAML) of the nominal model: "
                                                            "RigParams, or a model file whose effects the plant runs"),
         add_effect: Optional[List[str]] = add_effect_option(),
@@ -58,11 +61,13 @@ def register(app: typer.Typer) -> None:
             raise ValueError(f"--targets must be numbers separated by commas, got {targets!r}") from exc
         base, comp, values = plant_from_cli(params, add_effect, effect_param)
         p = base if params else None
-        with warnings.catch_warnings(record=True) as caught:
+        from ..parallel import open_executor
+
+        with warnings.catch_warnings(record=True) as caught, (open_executor(ray, workers) if ray else nullcontext()) as ex:
             warnings.simplefilter("always")
             rows = evaluate(names, cfgs, parse_scenarios(scenarios), tg, duration=duration, window=window, params=p,
                             workers=workers, effects=comp, effect_params=values, plants=plants, seed=seed,
-                            uncertainty=uncertainty)
+                            uncertainty=uncertainty, executor=ex)
         for w in caught:
             typer.echo(f"warning: {w.message}", err=True)
         files = write_report(rows, out, p, plant=describe_plant(comp, values))
