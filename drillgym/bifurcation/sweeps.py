@@ -8,17 +8,18 @@
   starting from the state the previous one left; statistics over the end of
   each level.
 
-Work is split into chunks, each simulated by :func:`drillgym.simulate_batch`
-in a worker.  ``executor`` is any ``concurrent.futures.Executor``: by default a
-``ProcessPoolExecutor`` over all cores; a Dask cluster's
-``distributed.Client(...).get_executor()`` or Ray's
-``ray.util.multiprocessing.Pool`` wrapped as an executor scale it out unchanged.
+Work is split into chunks (two per worker), each simulated by one
+:func:`drillgym.simulate_batch` call in a worker.  ``executor`` is any
+``concurrent.futures.Executor``: by default a :class:`drillgym.parallel.LocalExecutor`
+over all cores; :class:`drillgym.parallel.RayExecutor` runs the chunks as Ray tasks on a
+cluster (``drillgym bifurcation --ray auto``) with the same results.  A failed chunk is
+raised as :class:`drillgym.parallel.TaskFailed` naming its voltages.
 """
 
 from __future__ import annotations
 
 import os
-from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from concurrent.futures import Executor
 from dataclasses import dataclass
 from typing import Callable
 
@@ -26,6 +27,7 @@ import numpy as np
 
 from ..equilibria import slip_equilibria
 from ..equilibria import RigModel, as_model
+from ..parallel import LocalExecutor, map_ordered, parallelism
 from ..params import RigParams
 from ..simulator import simulate_batch
 from .steady_state import STAT_NAMES, steady_state_stats
@@ -79,7 +81,7 @@ def _run_staircase(config: str, levels: np.ndarray, dwell: float, window: float,
 def _executor(executor: Executor | None) -> tuple[Executor, bool]:
     if executor is not None:
         return executor, False
-    return ProcessPoolExecutor(max_workers=os.cpu_count() or 1), True
+    return LocalExecutor(os.cpu_count() or 1), True
 
 
 def _check(voltages, duration: float, window: float) -> np.ndarray:
@@ -110,17 +112,11 @@ def sweep_constant(config: str, voltages, *, start: str = "rest", duration: floa
     else:
         raise ValueError(f"start must be 'rest' or 'equilibrium', got {start!r}")
     ex, own = _executor(executor)
-    n_chunks = max(1, min(len(u), (os.cpu_count() or 1) * 2)) if chunk is None else max(1, -(-len(u) // chunk))
-    parts = np.array_split(np.arange(len(u)), n_chunks)
+    n_chunks = max(1, min(len(u), parallelism(ex) * 2)) if chunk is None else max(1, -(-len(u) // chunk))
+    parts = [idx for idx in np.array_split(np.arange(len(u)), n_chunks) if len(idx)]
     try:
-        futs = [ex.submit(_run_constant, str(config), u[idx], None if x0 is None else x0[idx], duration, window, dt,
-                          params) for idx in parts if len(idx)]
-        sizes = {f: len(idx) for f, idx in zip(futs, [i for i in parts if len(i)])}
-        for f in as_completed(futs):
-            f.result()  # raise a worker's error here
-            if progress is not None:
-                progress(sizes[f])
-        stats = np.concatenate([f.result() for f in futs])
+        tasks = [(str(config), u[idx], None if x0 is None else x0[idx], duration, window, dt, params) for idx in parts]
+        stats = np.concatenate(map_ordered(ex, _run_constant, tasks, progress=progress, sizes=[len(i) for i in parts]))
     finally:
         if own:
             ex.shutdown()
@@ -136,13 +132,9 @@ def sweep_staircase(config: str, voltages, *, dwell: float = 40.0, window: float
     params = as_model(params)
     ex, own = _executor(executor)
     try:
-        up = ex.submit(_run_staircase, str(config), u, dwell, window, dt, params)
-        down = ex.submit(_run_staircase, str(config), u[::-1].copy(), dwell, window, dt, params)
-        for f in as_completed([up, down]):
-            f.result()
-            if progress is not None:
-                progress(len(u))
-        res = SweepResult("up", u, up.result()), SweepResult("down", u[::-1].copy(), down.result())
+        tasks = [(str(config), u, dwell, window, dt, params), (str(config), u[::-1].copy(), dwell, window, dt, params)]
+        up, down = map_ordered(ex, _run_staircase, tasks, progress=progress, sizes=[len(u), len(u)])
+        res = SweepResult("up", u, up), SweepResult("down", u[::-1].copy(), down)
     finally:
         if own:
             ex.shutdown()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import List, Optional
 
@@ -24,6 +25,8 @@ def register(app: typer.Typer) -> None:
         no_report: bool = typer.Option(False, "--no-report", help="leave out the report's measured points"),
         ds_max: float = typer.Option(0.2, "--ds-max", help="largest continuation step (arclength); 1.0 follows "
                                                            "the whole lateral whirl branch (slower)"),
+        ray: Optional[str] = typer.Option(None, "--ray", help="run the sweeps on Ray: 'auto' (a running cluster), "
+                                                           "'local' (start one here) or HOST:PORT"),
         add_effect: List[str] = add_effect_option(),
         effect_param: List[str] = effect_param_option(),
     ) -> None:
@@ -49,7 +52,12 @@ def register(app: typer.Typer) -> None:
         lateral = cfg.label == "lateral"
         # one bar per kind of work: continuation points (open-ended: a branch stops at a fold, a Hopf
         # point or the window) and sweep voltages (total known once the sweeps start)
-        with Progress(SpinnerColumn(), TextColumn("{task.description:<30}"), BarColumn(),
+        from contextlib import nullcontext
+
+        from ..parallel import open_executor
+
+        executor = open_executor(ray, os.cpu_count() or 1) if ray else nullcontext()  # errors before any work
+        with executor as ex, Progress(SpinnerColumn(), TextColumn("{task.description:<30}"), BarColumn(),
                       TextColumn("{task.completed:>5.0f}/{task.fields[of]}"), TimeElapsedColumn()) as bar:
             stage = bar.add_task(f"{cfg.label}: start", total=None, of="-")
             cycles = bar.add_task("cycles (continuation points)", total=None, of="?", visible=False)
@@ -76,7 +84,7 @@ def register(app: typer.Typer) -> None:
             diag = compute_diagram(cfg.label, p, umin=umin, umax=hi, sweep_step=sweep_step or None,
                                    sweep_duration=sweep_duration, staircase=not lateral,
                                    sweep_umax=min(hi, 5.0) if lateral else None,  # the report's lab range
-                                   measured=meas, ds_max=ds_max, progress=on_progress, step=on_step)
+                                   measured=meas, ds_max=ds_max, progress=on_progress, step=on_step, executor=ex)
             n_cycles = completed(cycles)
             bar.update(cycles, total=n_cycles, of=f"{n_cycles:.0f}")
             bar.update(stage, total=1, completed=1, description=f"{cfg.label}: done")
