@@ -28,7 +28,7 @@ demo: $(STAMP)
 	@echo "wrote out/demo.csv and out/demo.png"
 
 test: $(STAMP)
-	$(PY) -m pytest -q -n 2 tests
+	$(PY) -m pytest -q -n 2 --dist loadgroup tests
 
 bench: $(STAMP)
 	$(PY) benchmarks/bench_simulator.py
