@@ -116,7 +116,8 @@ class ObserverResidualVecEnv(VecEnvWrapper):
 def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: dict[str, Any] | None = None,
                       residual: float | None = None, startup: tuple | None = None, base: str | None = None,
                       observer: dict[str, Any] | None = None, frame_stack: int = 1,
-                      normalize_reward: bool = False, gamma: float = 0.99, monitor: bool = True) -> VecEnv:
+                      normalize_reward: bool = False, normalize_obs: bool = False, gamma: float = 0.99,
+                      monitor: bool = True, privileged: bool = False) -> VecEnv:
     """An SB3 VecEnv of ``n_envs`` rigs in one batched core call per step.
 
     ``residual`` (V): the action in [-1, 1] is a correction ``residual * a`` on the feedforward voltage
@@ -126,7 +127,9 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
     (:mod:`agents.observer_residual`; needs ``residual`` and the 'motor' observation); ``observer``:
     keywords of that controller.
     ``normalize_reward``: scale rewards by a running std of the ``gamma``-discounted return (SB3
-    ``VecNormalize``, observations untouched, so the policy needs nothing extra at run time).
+    ``VecNormalize``).  ``normalize_obs``: standardise observations by running statistics (SB3
+    ``VecNormalize``); the exported policy carries the frozen statistics (:mod:`agents.export`).
+    ``privileged``: append the critic's privileged entries (:class:`agents.privileged.PrivilegedObsVecEnv`).
     ``frame_stack``: number of stacked observations (1 = none).  ``seed``: rig i gets seed + i.
     """
     if env_id not in ENV_IDS:
@@ -152,11 +155,17 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
     else:
         kw["normalize_action"] = True
         venv = make_sb3_vec(env_id, n_envs, **kw)
+    if privileged:
+        if frame_stack > 1 or base is not None:
+            raise ValueError("the privileged critic works without frame stacking and without a base controller")
+        from .privileged import PrivilegedObsVecEnv
+
+        venv = PrivilegedObsVecEnv(venv)
     if monitor:
         venv = VecMonitor(venv)
     if frame_stack > 1:
         venv = VecFrameStack(venv, frame_stack)
-    if normalize_reward:
-        venv = VecNormalize(venv, norm_obs=False, norm_reward=True, gamma=gamma)
+    if normalize_reward or normalize_obs:
+        venv = VecNormalize(venv, norm_obs=normalize_obs, norm_reward=normalize_reward, gamma=gamma)
     venv.seed(seed)
     return venv

@@ -8,7 +8,7 @@ residual scale, frame stacking) into one ``.npz``.  :class:`ExportedPolicy` eval
 it with numpy only (no torch, no SB3): a 33-64-64-1 MLP takes a few microseconds.
 
 Output transform: SAC squashes the Gaussian mean with tanh; PPO clips the mean to the
-action space; TD3's actor ends with tanh already (then clipping is the identity).
+action space (or squashes it with tanh under gSDE's ``squash_output``); TD3's actor ends with tanh already (then clipping is the identity).
 """
 
 from __future__ import annotations
@@ -79,20 +79,43 @@ def policy_layers(model) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[str]
     elif isinstance(model, PPO):
         _walk(model.policy.mlp_extractor.policy_net, layers, acts)
         _walk(model.policy.action_net, layers, acts)
-        output = "clip"
+        output = "tanh" if getattr(model.policy, "squash_output", False) else "clip"  # gSDE with squash_output
     else:
         raise ValueError(f"cannot export a {type(model).__name__} policy to numpy (PPO, SAC, TD3 only)")
+    k = actor_dim(model)
+    if k < layers[0][0].shape[1]:  # privileged critic: the actor's zero-masked inputs are dropped
+        layers[0] = (np.ascontiguousarray(layers[0][0][:, :k]), layers[0][1])
     return layers, acts, output
+
+
+def actor_dim(model) -> int:
+    """Observation entries the deployed actor reads (fewer than the env's with a privileged critic,
+    :mod:`agents.privileged`)."""
+    return int(getattr(model.policy, "actor_dim", model.observation_space.shape[0]))
+
+
+def obs_normalization(model) -> dict[str, np.ndarray] | None:
+    """Frozen observation statistics of the model's ``VecNormalize`` (None without obs normalisation):
+    ``obs_mean``, ``obs_scale`` (1 / sqrt(var + eps)) and ``obs_clip`` (normalised values clipped to
+    +/- it), float32."""
+    venv = model.get_vec_normalize_env()
+    if venv is None or not venv.norm_obs:
+        return None
+    rms, k = venv.obs_rms, actor_dim(model)
+    return {"obs_mean": rms.mean[:k].astype(np.float32),
+            "obs_scale": (1.0 / np.sqrt(rms.var[:k] + venv.epsilon)).astype(np.float32),
+            "obs_clip": np.float32(venv.clip_obs)}
 
 
 def export_policy(model, path: str | Path, config: dict[str, Any]) -> Path:
     """Write the deterministic policy of ``model`` and the run ``config`` (see :mod:`agents.train`)
-    to ``path`` (.npz)."""
+    to ``path`` (.npz), with the frozen observation normalisation when the model trained with one."""
     layers, acts, output = policy_layers(model)
     low, high = model.action_space.low.astype(np.float32), model.action_space.high.astype(np.float32)
     meta = {"format": FORMAT_VERSION, "activations": acts, "output": output,
-            "obs_dim": int(model.observation_space.shape[0]), "config": config}
+            "obs_dim": actor_dim(model), "config": config}
     arrays = {f"W{i}": W for i, (W, _) in enumerate(layers)} | {f"b{i}": b for i, (_, b) in enumerate(layers)}
+    arrays |= obs_normalization(model) or {}
     path = Path(path)
     np.savez(path, meta=np.array(json.dumps(meta, default=_jsonable)), action_low=low, action_high=high, **arrays)
     return path
@@ -110,10 +133,12 @@ class ExportedPolicy:
     """A policy exported by :func:`export_policy`, evaluated with numpy (float32).
 
     ``act(obs)``: observations (n, obs_dim) or (obs_dim,) -> actions (n, act_dim) / (act_dim,)
-    in the action space of the training env ([-1, 1]).  ``meta``: the run's metadata."""
+    in the action space of the training env ([-1, 1]).  ``meta``: the run's metadata.  Observations are
+    first standardised with the training's frozen statistics when it normalised them (``obs_norm``)."""
 
     def __init__(self, layers: list[tuple[np.ndarray, np.ndarray]], activations: list[str], output: str,
-                 action_low: np.ndarray, action_high: np.ndarray, meta: dict[str, Any]) -> None:
+                 action_low: np.ndarray, action_high: np.ndarray, meta: dict[str, Any],
+                 obs_norm: tuple[np.ndarray, np.ndarray, float] | None = None) -> None:
         if len(activations) != len(layers) or output not in ("tanh", "clip"):
             raise ValueError(f"bad exported policy: activations {activations}, output {output!r}")
         self.layers = [(np.ascontiguousarray(W.T), b) for W, b in layers]  # x @ W.T + b
@@ -122,6 +147,7 @@ class ExportedPolicy:
         self.low, self.high = action_low, action_high
         self.meta = meta
         self.obs_dim = int(meta["obs_dim"])
+        self.obs_norm = obs_norm  # (mean, 1/std, clip) of the training's VecNormalize, or None
 
     @classmethod
     def load(cls, path: str | Path) -> "ExportedPolicy":
@@ -134,9 +160,10 @@ class ExportedPolicy:
                 n = len(meta["activations"])
                 layers = [(z[f"W{i}"], z[f"b{i}"]) for i in range(n)]
                 low, high = z["action_low"], z["action_high"]
+                norm = ((z["obs_mean"], z["obs_scale"], float(z["obs_clip"])) if "obs_mean" in z.files else None)
         except (KeyError, ValueError, OSError) as exc:
             raise ValueError(f"{path} is not an exported drillgym policy: {exc}") from exc
-        return cls(layers, meta["activations"], meta["output"], low, high, meta)
+        return cls(layers, meta["activations"], meta["output"], low, high, meta, norm)
 
     @property
     def config(self) -> dict[str, Any]:
@@ -149,6 +176,9 @@ class ExportedPolicy:
         x = np.atleast_2d(x)
         if x.shape[1] != self.obs_dim:
             raise ValueError(f"observation must have {self.obs_dim} entries, got {x.shape[1]}")
+        if self.obs_norm is not None:
+            mean, scale, clip = self.obs_norm
+            x = np.clip((x - mean) * scale, -clip, clip)
         for (Wt, b), f in zip(self.layers, self.activations):
             x = f(x @ Wt + b)
         x = np.tanh(x) if self.output == "tanh" else x

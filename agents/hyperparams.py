@@ -1,21 +1,34 @@
 """Hyperparameters in the rl-zoo3 layout: one YAML file per algorithm, one entry per env id.
 
-``agents/hyperparams/<algo>.yml``::
+``agents/hyperparams/<algo>.yml``: the env id's entry holds only what rl-zoo3 reads (its own keys and
+the SB3 algorithm's keywords), so ``python -m rl_zoo3.train --algo ppo --env drillgym/Torsional-v0
+--gym-packages drillgym -conf agents/hyperparams/ppo.yml`` trains it unchanged::
 
     drillgym/Torsional-v0:
-      n_envs: 32                 # rigs of the batched DrillVectorEnv
-      n_timesteps: !!float 1e6   # default training length
+      n_envs: 32                 # rl-zoo3: rigs (drillgym: of the batched DrillVectorEnv)
+      n_timesteps: !!float 1e6   # rl-zoo3: default training length
       policy: MlpPolicy
+      normalize: "{'norm_obs': True, 'norm_reward': True}"   # rl-zoo3: VecNormalize keywords (or true/false)
+      frame_stack: 1             # rl-zoo3: VecFrameStack depth (the 'motor' mode already holds a history)
+      noise_type: normal         # rl-zoo3: action noise of TD3/SAC (with noise_std)
       learning_rate: !!float 3e-4
       ...                        # any keyword of the SB3 algorithm
       policy_kwargs: {net_arch: [64, 64]}
-      env_kwargs: {observation: motor, randomize: 0.2, ...}   # drillgym EnvOptions
-      residual: 2.0              # drillgym: action = correction (V) on the feedforward voltage; null = plain voltage
-      startup: [5.0, 3.0, 15.0]  # drillgym: feedforward start-up schedule (kick V, hold s, ramp s), see agents/residual.py
-      base: observer             # drillgym: the residual corrects the observer controller (agents/observer_residual.py)
-      observer: {}               # drillgym: keywords of that controller (controllers.observer.ObserverController)
-      normalize_reward: false    # drillgym: VecNormalize on rewards only (no run-time state)
-      frame_stack: 1             # drillgym: VecFrameStack depth (the 'motor' mode already holds a history)
+      env_kwargs: {observation: motor, randomize: 0.2, ...}   # drillgym EnvOptions (gymnasium.make keywords)
+
+drillgym's own policy structures (read by drillgym only, in a separate top-level section ``drillgym``
+keyed by env id; rl-zoo3 ignores other top-level keys)::
+
+    drillgym:
+      drillgym/Torsional-v0:
+        residual: 2.0              # action = correction (V) on the feedforward voltage; absent = plain voltage
+        startup: [5.0, 3.0, 15.0]  # feedforward start-up schedule (kick V, hold s, ramp s), see agents/residual.py
+        base: observer             # the residual corrects the observer controller (agents/observer_residual.py)
+        observer: {}               # keywords of that controller (controllers.observer.ObserverController)
+        privileged_critic: true    # PPO's critic also sees omega_l, stuck, SSI (agents/privileged.py; training only)
+
+The merged entry (:func:`load_hyperparams`) holds both; ``normalize`` becomes ``normalize_obs`` /
+``normalize_reward`` (the obs statistics are exported with the policy, :mod:`agents.export`).
 
 As in rl-zoo3, ``policy_kwargs`` may also be a string (``"dict(net_arch=[64, 64])"``);
 it is parsed with :func:`ast.literal_eval`-like rules (no code is executed).
@@ -29,12 +42,33 @@ from typing import Any
 
 import yaml
 
-__all__ = ["HYPERPARAMS_DIR", "load_hyperparams", "parse_overrides", "apply_overrides", "DRILLGYM_KEYS"]
+__all__ = ["HYPERPARAMS_DIR", "load_hyperparams", "parse_overrides", "apply_overrides", "DRILLGYM_KEYS",
+           "ZOO_KEYS", "STRUCTURE_SECTION", "STRUCTURE_KEYS", "algorithm_kwargs"]
 
 HYPERPARAMS_DIR = Path(__file__).resolve().parent / "hyperparams"
-#: keys of an entry that are not keywords of the SB3 algorithm
-DRILLGYM_KEYS = ("n_envs", "n_timesteps", "policy", "env_kwargs", "residual", "startup", "base", "observer",
-                 "frame_stack", "normalize_reward")
+#: keys of an rl-zoo3 entry that are not keywords of the SB3 algorithm (rl-zoo3 pops them itself)
+ZOO_KEYS = ("n_envs", "n_timesteps", "policy", "env_kwargs", "normalize", "frame_stack", "env_wrapper", "callback",
+            "noise_type", "noise_std", "vec_env_wrapper", "eval_env_kwargs", "normalize_kwargs")
+#: top-level section of a hyperparameter file with drillgym's policy structures (per env id)
+STRUCTURE_SECTION = "drillgym"
+#: drillgym's own keys (the structure section, and the merged entry's normalisation flags)
+STRUCTURE_KEYS = ("residual", "startup", "base", "observer", "normalize_reward", "normalize_obs", "privileged_critic")
+#: every key of a merged entry that is not a keyword of the SB3 algorithm
+DRILLGYM_KEYS = ZOO_KEYS + STRUCTURE_KEYS
+
+
+def algorithm_kwargs(entry: dict[str, Any]) -> dict[str, Any]:
+    """The SB3 algorithm keywords of a (raw or merged) entry: everything but :data:`DRILLGYM_KEYS`."""
+    return {k: v for k, v in entry.items() if k not in DRILLGYM_KEYS}
+
+
+def _normalize_flags(v: Any) -> tuple[bool, bool]:
+    """(norm_obs, norm_reward) of rl-zoo3's ``normalize`` value: bool, dict or a dict's string."""
+    if isinstance(v, str):
+        v = _parse_policy_kwargs(v)
+    if isinstance(v, dict):
+        return bool(v.get("norm_obs", True)), bool(v.get("norm_reward", True))
+    return bool(v), bool(v)
 
 
 def _parse_policy_kwargs(v: Any) -> dict:
@@ -58,9 +92,17 @@ def load_hyperparams(algo: str, env_id: str, path: "str | Path | None" = None) -
         data = yaml.safe_load(f.read_text()) or {}
     except yaml.YAMLError as exc:
         raise ValueError(f"hyperparameter file {f} is not valid YAML: {exc}") from exc
-    if env_id not in data:
-        raise ValueError(f"hyperparameter file {f} has no entry for {env_id!r}; entries: {sorted(data)}")
+    if env_id not in data or env_id == STRUCTURE_SECTION:
+        raise ValueError(f"hyperparameter file {f} has no entry for {env_id!r}; "
+                         f"entries: {sorted(k for k in data if k != STRUCTURE_SECTION)}")
     hp = dict(data[env_id] or {})
+    bad = [k for k in STRUCTURE_KEYS if k in hp]
+    if bad:
+        raise ValueError(f"hyperparameter file {f}: {bad} are drillgym keys, not keywords of the algorithm; "
+                         f"put them under the top-level section '{STRUCTURE_SECTION}: {{{env_id}: ...}}'")
+    hp.update((data.get(STRUCTURE_SECTION) or {}).get(env_id) or {})
+    if "normalize" in hp:
+        hp["normalize_obs"], hp["normalize_reward"] = _normalize_flags(hp.pop("normalize"))
     if "policy_kwargs" in hp:
         hp["policy_kwargs"] = _parse_policy_kwargs(hp["policy_kwargs"])
     hp.setdefault("env_kwargs", {})

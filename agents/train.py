@@ -15,6 +15,7 @@ in ``tb/``.
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,15 +23,16 @@ from typing import Any
 import numpy as np
 import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList, EvalCallback
 from stable_baselines3.common.noise import NormalActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
 from .envs import make_training_env
-from .hyperparams import DRILLGYM_KEYS, apply_overrides, load_hyperparams
+from .hyperparams import algorithm_kwargs, apply_overrides, load_hyperparams
 
-__all__ = ["ALGOS", "algo_class", "train", "TrainResult", "LatestCheckpoint", "CONFIG_FILE", "MODEL_FILE"]
+__all__ = ["ALGOS", "algo_class", "train", "planned_timesteps", "TrainResult", "LatestCheckpoint", "BestPolicyCallback", "CONFIG_FILE",
+           "MODEL_FILE"]
 
 ALGOS = ("ppo", "sac", "td3", "recurrentppo")
 CONFIG_FILE = "config.yml"
@@ -107,9 +109,68 @@ def _settings(env_id: str, algo: str, obs: str | None, timesteps: int | None, n_
     return hp
 
 
+def planned_timesteps(env_id: str, algo: str, timesteps: int | None = None, hyperparams: str | Path | None = None,
+                      overrides: dict[str, Any] | None = None) -> int:
+    """Environment steps a run of these settings will train (``timesteps`` or the file's ``n_timesteps``)."""
+    return _settings(env_id, algo.lower(), None, timesteps, None, hyperparams, overrides)["n_timesteps"]
+
+
+def _env(env_id: str, hp: dict[str, Any], n: int, seed: int, evaluation: bool = False):
+    """The training VecEnv of the (merged) hyperparameters ``hp``; ``evaluation``: its frozen twin (no
+    statistics updates, raw rewards) for :class:`BestPolicyCallback`."""
+    venv = make_training_env(env_id, n, seed=seed, env_kwargs=hp["env_kwargs"],
+                             residual=hp.get("residual"), startup=hp.get("startup"),
+                             base=hp.get("base"), observer=hp.get("observer"),
+                             frame_stack=int(hp.get("frame_stack", 1)),
+                             normalize_reward=bool(hp.get("normalize_reward", False)),
+                             normalize_obs=bool(hp.get("normalize_obs", False)), gamma=float(hp.get("gamma", 0.99)),
+                             privileged=bool(hp.get("privileged_critic", False)))
+    if evaluation and isinstance(venv, VecNormalize):
+        venv.training, venv.norm_reward = False, False
+    return venv
+
+
+def _warn_short_run(cls: type, hp: dict[str, Any]) -> None:
+    """Warn when the run ends before the algorithm starts learning (off-policy ``learning_starts``)."""
+    import inspect
+
+    starts = hp.get("learning_starts", inspect.signature(cls.__init__).parameters.get("learning_starts"))
+    if isinstance(starts, inspect.Parameter):
+        starts = starts.default
+    if isinstance(starts, (int, float)) and hp["n_timesteps"] <= starts:
+        warnings.warn(f"--timesteps {hp['n_timesteps']} is not above the algorithm's learning_starts ({int(starts)}): "
+                      f"the agent collects random steps only and never learns", UserWarning, stacklevel=3)
+
+
+#: the evaluation rigs' seeds start here above the training seed (disjoint from the training rigs')
+EVAL_SEED_OFFSET = 100_000
+
+
+class BestPolicyCallback(EvalCallback):
+    """SB3's ``EvalCallback`` (deterministic episodes, ``evaluations.npz``, ``best_model.zip``) in the run
+    directory, exporting the best model's ``policy.npz`` beside it (``out/best/``); ``eval_every`` in
+    environment steps of all rigs together."""
+
+    def __init__(self, eval_env, out: Path, config: dict[str, Any], *, eval_every: int, n_envs: int,
+                 n_episodes: int, export: bool = True) -> None:
+        super().__init__(eval_env, n_eval_episodes=n_episodes, eval_freq=max(1, int(eval_every) // max(1, n_envs)),
+                         best_model_save_path=str(Path(out) / "best"), log_path=str(out), deterministic=True,
+                         warn=False)
+        self.config, self.export = config, export
+
+    def _on_step(self) -> bool:
+        best = self.best_mean_reward
+        go_on = super()._on_step()
+        if self.export and self.best_mean_reward > best:
+            from .export import export_policy
+
+            export_policy(self.model, Path(self.best_model_save_path) / "policy.npz", self.config)
+        return go_on
+
+
 def _algo_kwargs(hp: dict[str, Any], n_actions: int) -> dict[str, Any]:
-    kw = {k: v for k, v in hp.items() if k not in DRILLGYM_KEYS}
-    noise_type, noise_std = kw.pop("noise_type", None), kw.pop("noise_std", 0.1)
+    kw = algorithm_kwargs(hp)
+    noise_type, noise_std = hp.get("noise_type"), hp.get("noise_std", 0.1)
     if noise_type == "normal":
         kw["action_noise"] = NormalActionNoise(np.zeros(n_actions), noise_std * np.ones(n_actions))
     elif noise_type is not None:
@@ -121,7 +182,8 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
           seed: int = 0, n_envs: int | None = None, hyperparams: str | Path | None = None,
           overrides: dict[str, Any] | None = None, resume: bool = False, progress: bool = True,
           tensorboard: bool = True, checkpoint_every: int = 50_000, export: bool = True, verbose: int = 0,
-          torch_threads: int | None = 1, command: str | None = None) -> TrainResult:
+          torch_threads: int | None = 1, command: str | None = None, eval_every: int = 0,
+          eval_envs: int = 8) -> TrainResult:
     """Train ``algo`` on ``env_id`` and write the run into ``out`` (see the module docstring).
 
     Args:
@@ -133,6 +195,9 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
         resume: continue from ``out/checkpoints/latest.zip`` up to ``timesteps`` in total.
         torch_threads: torch CPU threads (the rig PC and CI machines are small; None = torch's default).
         command: the command line that started the run, recorded in ``config.yml``.
+        eval_every: environment steps between evaluations (0 = none): ``eval_envs`` episodes of the
+            deterministic policy on rigs seeded apart from the training's; the best mean reward's model
+            is kept in ``out/best/`` (``best_model.zip``, ``policy.npz``), the curve in ``out/evaluations.npz``.
     """
     import torch
 
@@ -143,11 +208,8 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
     hp = _settings(env_id, algo, obs, timesteps, n_envs, hyperparams, overrides)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    venv = make_training_env(env_id, hp["n_envs"], seed=seed, env_kwargs=hp["env_kwargs"],
-                             residual=hp.get("residual"), startup=hp.get("startup"),
-                             base=hp.get("base"), observer=hp.get("observer"),
-                             frame_stack=int(hp.get("frame_stack", 1)),
-                             normalize_reward=bool(hp.get("normalize_reward", False)), gamma=float(hp.get("gamma", 0.99)))
+    _warn_short_run(cls, hp)
+    venv = _env(env_id, hp, hp["n_envs"], seed)
     config = {"env_id": env_id, "algo": algo, "seed": int(seed), "hyperparams": hp, "command": command}
     (out / CONFIG_FILE).write_text(yaml.safe_dump(config, sort_keys=False))
     ckpt = out / "checkpoints" / "latest.zip"
@@ -163,16 +225,32 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
         if isinstance(model, OffPolicyAlgorithm) and rb.is_file():
             model.load_replay_buffer(rb)
     else:
-        model = cls(hp["policy"], venv, seed=seed, tensorboard_log=tb, verbose=verbose,
-                    **_algo_kwargs(hp, venv.action_space.shape[0]))
+        policy, kw = hp["policy"], _algo_kwargs(hp, venv.action_space.shape[0])
+        if hp.get("privileged_critic"):
+            if algo != "ppo" or policy != "MlpPolicy":
+                raise ValueError("privileged_critic needs PPO with the MlpPolicy")
+            from .privileged import PRIVILEGED, PrivilegedCriticPolicy
+
+            policy = PrivilegedCriticPolicy
+            kw["policy_kwargs"] = {**kw.get("policy_kwargs", {}),
+                                   "actor_dim": venv.observation_space.shape[0] - len(PRIVILEGED)}
+        model = cls(policy, venv, seed=seed, tensorboard_log=tb, verbose=verbose, **kw)
     remaining = hp["n_timesteps"] - (model.num_timesteps if resume else 0)
     cb = LatestCheckpoint(out / "checkpoints", checkpoint_every)
+    callbacks: list[BaseCallback] = [cb]
+    eval_env = None
+    if eval_every:
+        eval_env = _env(env_id, hp, eval_envs, seed + EVAL_SEED_OFFSET, evaluation=True)
+        callbacks.append(BestPolicyCallback(eval_env, out, config, eval_every=eval_every, n_envs=hp["n_envs"],
+                                            n_episodes=eval_envs, export=export and algo != "recurrentppo"))
     t0 = time.perf_counter()
     if remaining > 0:
-        model.learn(remaining, callback=cb, progress_bar=progress, reset_num_timesteps=not resume,
-                    tb_log_name=algo)
+        model.learn(remaining, callback=CallbackList(callbacks), progress_bar=progress,
+                    reset_num_timesteps=not resume, tb_log_name=algo)
     wall = time.perf_counter() - t0
     cb.save()
+    if eval_env is not None:
+        eval_env.close()
     model_path = out / MODEL_FILE
     model.save(model_path)
     policy_path = None

@@ -26,8 +26,10 @@ def test_env_checkers_pass(env_id: str, mode: str) -> None:
 
 
 def test_spaces_and_layouts() -> None:
-    env = gym.make("drillgym/Torsional-v0")
-    assert env.action_space.shape == (1,) and env.action_space.low[0] == -5 and env.action_space.high[0] == 5
+    env = gym.make("drillgym/Torsional-v0")  # RL convention: normalised actions by default
+    assert env.action_space.shape == (1,) and env.action_space.low[0] == -1 and env.action_space.high[0] == 1
+    volts = gym.make("drillgym/Torsional-v0", normalize_action=False)
+    assert volts.action_space.low[0] == -5 and volts.action_space.high[0] == 5
     assert env.unwrapped.observation_names == ("omega_u", "omega_l", "alpha", "u_prev", "omega_ref")
     coupled = gym.make("drillgym/Coupled-v0", observation="sensors").unwrapped
     assert coupled.observation_names[5:7] == ("X_meas", "Y_meas") and coupled.observation_space.shape == (9,)
@@ -35,6 +37,17 @@ def test_spaces_and_layouts() -> None:
     assert motor.observation_space.shape == (11,)
     norm = gym.make("drillgym/Torsional-v0", normalize_action=True)
     assert norm.action_space.low[0] == -1 and norm.action_space.high[0] == 1
+
+
+def test_spec_gives_the_episode_length_and_episodes_truncate_there() -> None:
+    env = gym.make("drillgym/Torsional-v0", episode_duration=0.5, control_dt=0.01)
+    assert env.spec.max_episode_steps == 50 and env.spec.kwargs["normalize_action"] is True
+    assert gym.make("drillgym/Torsional-v0").spec.max_episode_steps == 3000
+    env.reset(seed=0)
+    ends = [env.step(np.array([0.5]))[3] for _ in range(50)]
+    assert not any(ends[:-1]) and ends[-1]
+    vec = gym.make_vec("drillgym/Torsional-v0", num_envs=2, vectorization_mode="vector_entry_point")
+    assert vec.single_action_space.high[0] == 1
 
 
 def test_reset_observation_starts_at_rest_with_winding_and_target() -> None:
@@ -61,7 +74,7 @@ def test_wrong_action_size_raises() -> None:
 
 
 def test_actions_are_clipped_like_the_amplifier() -> None:
-    env = gym.make("drillgym/Torsional-v0").unwrapped
+    env = gym.make("drillgym/Torsional-v0", normalize_action=False).unwrapped
     env.reset(seed=0)
     assert env.step(np.array([12.0]))[4]["voltage"] == 5.0
     assert env.step(np.array([-7.0]))[4]["voltage"] == -5.0

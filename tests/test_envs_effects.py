@@ -40,7 +40,7 @@ def _voltages(seed: int, n: int = STEPS) -> np.ndarray:
 
 def _env_run(effects, values, u: np.ndarray, seed: int = 0) -> tuple[np.ndarray, float, float]:
     """omega_l after each period, the initial winding alpha0 (rad) and the env's dt (s)."""
-    env = gym.make("drillgym/Torsional-v0", effects=effects, effect_params=values)
+    env = gym.make("drillgym/Torsional-v0", normalize_action=False, effects=effects, effect_params=values)
     env.reset(seed=seed)
     system = env.unwrapped.batch.system
     alpha0 = float(system.alpha[0])
@@ -72,7 +72,7 @@ def test_single_env_matches_the_simulator_and_differs_from_the_base(name: str) -
 def test_vector_env_rows_match_the_simulator(name: str) -> None:
     effects, values = CASES[name]
     n = 3
-    venv = make_vec("drillgym/Torsional-v0", n, effects=effects, effect_params=values)
+    venv = make_vec("drillgym/Torsional-v0", n, normalize_action=False, effects=effects, effect_params=values)
     venv.reset(seed=7)
     system = venv.batch.system
     alpha0 = system.alpha.copy()
@@ -88,14 +88,14 @@ def test_env_options_reject_unknown_effects_and_parameters() -> None:
     with pytest.raises(Exception, match="no_such_effect"):
         gym.make("drillgym/Torsional-v0", effects=["no_such_effect"])
     with pytest.raises(ValueError, match="tau_m"):
-        gym.make("drillgym/Torsional-v0", effects=["input_delay"], effect_params={"tau_m": 0.02})
+        gym.make("drillgym/Torsional-v0", normalize_action=False, effects=["input_delay"], effect_params={"tau_m": 0.02})
     with pytest.raises(ValueError, match="delay"):
-        gym.make("drillgym/Torsional-v0", effects=["input_delay"], effect_params={"delay": 2.0})  # above 0.5 s
+        gym.make("drillgym/Torsional-v0", normalize_action=False, effects=["input_delay"], effect_params={"delay": 2.0})  # above 0.5 s
 
 
 def test_randomisation_may_name_effect_parameters() -> None:
     n = 4
-    venv = make_vec("drillgym/Torsional-v0", n, effects=["input_delay"], effect_params={"delay": 0.05},
+    venv = make_vec("drillgym/Torsional-v0", n, normalize_action=False, effects=["input_delay"], effect_params={"delay": 0.05},
                     randomize=0.5, randomize_names=("delay", "Ts"))
     venv.reset(seed=3)
     comp = venv.batch.system.composition
@@ -113,11 +113,11 @@ def test_randomisation_may_name_effect_parameters() -> None:
                                  dt=venv.options.dt, alpha0=float(alpha0[i]), params=P[i], effects=comp)
         assert np.abs(W[:, i] - traj.omega_l[1:]).max() <= TOL, f"rig {i} (delay {d[i]:.4f} s)"
     with pytest.raises(ValueError, match="tau_m"):
-        make_vec("drillgym/Torsional-v0", 2, effects=["input_delay"], randomize=0.1, randomize_names=("tau_m",))
+        make_vec("drillgym/Torsional-v0", 2, normalize_action=False, effects=["input_delay"], randomize=0.1, randomize_names=("tau_m",))
 
 
 def test_randomised_effect_parameters_stay_within_their_bounds() -> None:
-    venv = make_vec("drillgym/Torsional-v0", 16, effects=["input_delay"], effect_params={"delay": 0.4},
+    venv = make_vec("drillgym/Torsional-v0", 16, normalize_action=False, effects=["input_delay"], effect_params={"delay": 0.4},
                     randomize=0.9, randomize_names=("delay",))
     venv.reset(seed=0)
     comp = venv.batch.system.composition
@@ -140,7 +140,7 @@ class EncoderGain(Measurement):
 
 
 def _sensors_episode(env_id: str, mode: str, steps: int = 120, **kw):
-    env = gym.make(env_id, observation=mode, **kw)
+    env = gym.make(env_id, normalize_action=False, observation=mode, **kw)
     obs, _ = env.reset(seed=2)
     system = env.unwrapped.batch.system
     Y, O = [system.Y[0].copy()], [obs]

@@ -39,7 +39,7 @@ def _in_box(values: list[float], space: gym.spaces.Box) -> np.ndarray:
 
 def _episode(env_id: str, mode: str, seed: int, steps: int, **kw):
     """Observations and true states of one seeded episode (stops early when it ends)."""
-    env = gym.make(env_id, observation=mode, **kw)
+    env = gym.make(env_id, normalize_action=False, observation=mode, **kw)
     obs, _ = env.reset(seed=seed)
     system = env.unwrapped.batch.system
     states, observations, volts = [system.Y[0].copy()], [obs], []
@@ -103,7 +103,7 @@ def test_vector_env_rows_equal_single_envs_exactly(env_id: str, mode: str) -> No
     # 127-step episodes: under next-step autoreset a rig's 128th noise period falls on the step
     # before its reset, where it must draw nothing (the single env never takes that step)
     n, steps, kw = 3, 300, dict(observation=mode, episode_duration=1.27)
-    venv = make_vec(env_id, n, **kw)
+    venv = make_vec(env_id, n, normalize_action=False, **kw)
     vobs, _ = venv.reset(seed=20)
     actions = np.stack([_actions(i, steps) for i in range(n)], axis=1)
     rows = [vobs]
@@ -111,7 +111,7 @@ def test_vector_env_rows_equal_single_envs_exactly(env_id: str, mode: str) -> No
         rows.append(venv.step(a)[0])
     rows = np.array(rows)
     for i in range(n):
-        env = gym.make(env_id, **kw)
+        env = gym.make(env_id, normalize_action=False, **kw)
         expect, done = [env.reset(seed=20 + i)[0]], False
         for a in actions[:, i]:
             if done:

@@ -12,7 +12,7 @@ from drillgym.envs.task import StickSlipMonitor
 
 
 def _run_constant(env_id: str, u: float, steps: int, **options) -> tuple[list[dict], list[np.ndarray]]:
-    env = gym.make(env_id, **options).unwrapped
+    env = gym.make(env_id, normalize_action=False, **options).unwrapped
     obs, info = env.reset(seed=0)
     infos, observations = [info], [obs]
     for _ in range(steps):
@@ -78,7 +78,7 @@ def test_env_reports_the_monitor_severity() -> None:
 
 
 def test_over_speed_terminates() -> None:
-    env = gym.make("drillgym/Torsional-v0", max_speed=3.0, omega_ref=2.0).unwrapped
+    env = gym.make("drillgym/Torsional-v0", normalize_action=False, max_speed=3.0, omega_ref=2.0).unwrapped
     env.reset(seed=0)
     for k in range(1000):
         _, _, terminated, truncated, info = env.step(np.array([5.0]))
@@ -89,7 +89,7 @@ def test_over_speed_terminates() -> None:
 
 
 def test_lateral_displacement_terminates_coupled() -> None:
-    env = gym.make("drillgym/Coupled-v0", max_lateral=1e-3).unwrapped
+    env = gym.make("drillgym/Coupled-v0", normalize_action=False, max_lateral=1e-3).unwrapped
     env.reset(seed=0)
     for _ in range(2000):
         obs, _, terminated, _, _ = env.step(np.array([5.0]))
@@ -100,14 +100,14 @@ def test_lateral_displacement_terminates_coupled() -> None:
 
 
 def test_truncation_at_episode_duration() -> None:
-    env = gym.make("drillgym/Torsional-v0", episode_duration=0.5).unwrapped
+    env = gym.make("drillgym/Torsional-v0", normalize_action=False, episode_duration=0.5).unwrapped
     env.reset(seed=0)
     flags = [env.step(np.array([0.0]))[3] for _ in range(50)]
     assert flags[-1] and not any(flags[:-1])
 
 
 def test_reward_penalises_tracking_error_stick_and_effort() -> None:
-    env = gym.make("drillgym/Torsional-v0", omega_ref=4.0, alpha0_range=(0.0, 0.0)).unwrapped
+    env = gym.make("drillgym/Torsional-v0", normalize_action=False, omega_ref=4.0, alpha0_range=(0.0, 0.0)).unwrapped
     env.reset(seed=0)
     _, r, _, _, info = env.step(np.array([0.1]))  # below the breakaway voltage: stays stuck
     assert info["stuck"]
@@ -116,7 +116,7 @@ def test_reward_penalises_tracking_error_stick_and_effort() -> None:
 
 
 def test_domain_randomisation_draws_parameters_per_episode() -> None:
-    env = gym.make("drillgym/Torsional-v0", randomize=0.1, randomize_names=("Ts", "ktheta")).unwrapped
+    env = gym.make("drillgym/Torsional-v0", normalize_action=False, randomize=0.1, randomize_names=("Ts", "ktheta")).unwrapped
     base = RigParams().to_vector()
     env.reset(seed=1)
     p1 = env.batch.system.params_matrix[0].copy()
@@ -131,7 +131,7 @@ def test_domain_randomisation_draws_parameters_per_episode() -> None:
 
 
 def test_sensor_observation_is_quantized_and_noisy() -> None:
-    env = gym.make("drillgym/Coupled-v0", observation="sensors", counts_per_rev=100, lvdt_noise_std=5e-6).unwrapped
+    env = gym.make("drillgym/Coupled-v0", normalize_action=False, observation="sensors", counts_per_rev=100, lvdt_noise_std=5e-6).unwrapped
     env.reset(seed=0)
     for _ in range(200):
         obs, *_ = env.step(np.array([3.0]))

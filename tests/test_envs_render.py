@@ -13,7 +13,7 @@ from drillgym.envs import TorsionalEnv, make_vec
 
 @pytest.mark.parametrize("env_id", ["drillgym/Torsional-v0", "drillgym/Coupled-v0"])
 def test_rgb_array_render(env_id: str) -> None:
-    env = gym.make(env_id, render_mode="rgb_array")
+    env = gym.make(env_id, normalize_action=False, render_mode="rgb_array")
     env.reset(seed=0)
     for _ in range(50):
         env.step(np.array([2.0], dtype=np.float32))
@@ -28,7 +28,7 @@ def test_rgb_array_render(env_id: str) -> None:
 
 def test_human_render_returns_none(monkeypatch) -> None:
     matplotlib.use("Agg")  # headless: the 'window' is an Agg figure
-    env = gym.make("drillgym/Torsional-v0", render_mode="human")
+    env = gym.make("drillgym/Torsional-v0", normalize_action=False, render_mode="human")
     env.reset(seed=0)
     assert env.render() is None
     env.step(np.array([1.0], dtype=np.float32))
@@ -36,7 +36,7 @@ def test_human_render_returns_none(monkeypatch) -> None:
 
 
 def test_vector_env_renders_first_rig_and_rejects_bad_mode() -> None:
-    venv = make_vec("drillgym/Torsional-v0", 2, render_mode="rgb_array")
+    venv = make_vec("drillgym/Torsional-v0", 2, normalize_action=False, render_mode="rgb_array")
     venv.reset(seed=0)
     venv.step(np.ones(2))
     assert venv.render().ndim == 3

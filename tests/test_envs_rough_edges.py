@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 @pytest.mark.parametrize("env_id", ["drillgym/Torsional-v0", "drillgym/Coupled-v0"])
 def test_env_pickles_and_continues_identically(env_id):
-    env = gym.make(env_id, observation="motor")
+    env = gym.make(env_id, normalize_action=False, observation="motor")
     env.reset(seed=3)
     for _ in range(5):
         env.step(np.array([2.0], dtype=np.float32))
@@ -40,7 +40,7 @@ def test_env_pickles_and_continues_identically(env_id):
     (np.array([np.nan]), ValueError, "must be finite"),
 ])
 def test_malformed_actions_say_what_is_expected(action, error, words):
-    env = gym.make("drillgym/Torsional-v0").unwrapped
+    env = gym.make("drillgym/Torsional-v0", normalize_action=False).unwrapped
     env.reset(seed=0)
     with pytest.raises(error) as exc:
         env.step(action)
@@ -51,7 +51,7 @@ def test_malformed_actions_say_what_is_expected(action, error, words):
 
 
 def test_accepted_action_forms():
-    env = gym.make("drillgym/Torsional-v0").unwrapped
+    env = gym.make("drillgym/Torsional-v0", normalize_action=False).unwrapped
     env.reset(seed=0)
     for a in (np.array([2.0], dtype=np.float32), [2.0], 2.0, 2, np.float64(2.0), np.array(2.0), (2.0,)):
         assert env.step(a)[4]["voltage"] == 2.0
@@ -59,7 +59,7 @@ def test_accepted_action_forms():
 
 def test_human_render_without_display_warns_once():
     assert "agg" in __import__("matplotlib").get_backend().lower()  # tests run headless (conftest: MPLBACKEND=Agg)
-    env = gym.make("drillgym/Torsional-v0", render_mode="human")
+    env = gym.make("drillgym/Torsional-v0", normalize_action=False, render_mode="human")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         env.reset(seed=0)

@@ -18,8 +18,8 @@ N = 4
                                           ("drillgym/Lateral-v0", "motor")])
 def test_vector_env_matches_single_envs_with_next_step_autoreset(env_id: str, mode: str) -> None:
     opts = dict(observation=mode, episode_duration=0.5, randomize=0.05)
-    venv = make_vec(env_id, N, **opts)
-    envs = [gym.make(env_id, **opts) for _ in range(N)]
+    venv = make_vec(env_id, N, normalize_action=False, **opts)
+    envs = [gym.make(env_id, normalize_action=False, **opts) for _ in range(N)]
     vobs, vinfo = venv.reset(seed=10)
     for i, env in enumerate(envs):
         obs, info = env.reset(seed=10 + i)
@@ -60,7 +60,7 @@ def test_same_step_autoreset_reports_final_observation() -> None:
 
 
 def test_vector_env_errors_and_spaces() -> None:
-    venv = make_vec("drillgym/Coupled-v0", 5)
+    venv = make_vec("drillgym/Coupled-v0", 5, normalize_action=False)
     assert venv.observation_space.shape == (5, 9) and venv.action_space.shape == (5, 1)
     venv.reset(seed=0)
     bad = np.full(5, 1.0)
@@ -90,7 +90,7 @@ def test_sb3_adapter_steps_and_resets() -> None:
     assert dones.all() and rew.dtype == np.float32
     assert all(info["TimeLimit.truncated"] and info["terminal_observation"].shape == (5,) for info in infos)
     with pytest.raises(ValueError, match="SAME_STEP"):
-        SB3VecEnvAdapter(make_vec("drillgym/Torsional-v0", 2))
+        SB3VecEnvAdapter(make_vec("drillgym/Torsional-v0", 2, normalize_action=False))
 
 
 def test_ppo_learns_a_few_hundred_steps_on_the_vector_env() -> None:

@@ -91,7 +91,9 @@ def emulate_cmd(
 def run_cmd(
     port: str = typer.Option(..., help="serial device or pyserial URL of the rig (or of `drillgym rig emulate`)"),
     controller: Optional[str] = typer.Option(None, help="controller: const:<volts> or a name from controllers/"),
-    policy: Optional[Path] = typer.Option(None, help="policy file (.npz linear W, b; others via agents/)"),
+    policy: Optional[Path] = typer.Option(None, help="policy: what `drillgym train` writes (policy.npz, model.zip or the "
+                                               "run directory; it builds its own observation from the encoders) or "
+                                               "a linear .npz (W, b) on --observation"),
     duration: float = typer.Option(10.0, help="episode length (s)"),
     record: Path = typer.Option(Path("rig_run.csv"), help=f"recording file (DATA_FORMAT csv); {CREATES_DIRS}"),
     config: str = typer.Option("torsional", help="how the rig is set up: torsional, lateral or coupled"),
@@ -124,7 +126,7 @@ def run_cmd(
     from hw.runner import load_policy, make_controller, run_episode
 
     from .outputs import output_dir, output_file
-    from .rig_ops import check_writable, dry_run as do_dry_run, run_with_reconnect
+    from .rig_ops import check_writable, dry_run as do_dry_run, run_with_reconnect, trained_agent
 
     if (controller is None) == (policy is None):
         raise ValueError("give exactly one of --controller or --policy")
@@ -137,6 +139,8 @@ def run_cmd(
     if omega_ref is not None:
         opts["omega_ref"] = omega_ref
     # controller and policy first: a bad one is refused before the port is touched
+    if policy is not None and trained_agent(policy):  # a trained agent runs as the controller agent:PATH
+        controller, policy = f"agent:{policy}", None
     ctrl = make_controller(controller, config, omega_ref, control_ms * 1e-3) if controller else None
     pol = load_policy(policy) if policy is not None else None
     timeout = None if reply_timeout_ms is None else reply_timeout_ms * 1e-3

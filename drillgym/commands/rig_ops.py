@@ -155,3 +155,17 @@ def run_with_reconnect(env, run: Callable[[], object], reconnect: int, wait_s: f
             faults.append(str(exc))
             echo(f"drillgym: link fault ({exc}); reconnecting in {wait_s:g} s ({len(faults)} of {reconnect})")
             _wait_for_port(env.unwrapped.port, wait_s)
+
+
+def trained_agent(path: Path) -> bool:
+    """True when PATH is what ``drillgym train`` writes (a run directory, its ``model.zip``, or an exported
+    ``policy.npz`` with its metadata), as opposed to a bare linear ``.npz`` (arrays W, b)."""
+    p = Path(path)
+    if p.is_dir() or p.suffix == ".zip":
+        return True
+    if p.suffix == ".npz" and p.is_file():
+        import numpy as np
+
+        with np.load(p, allow_pickle=False) as z:
+            return "meta" in z.files
+    return False

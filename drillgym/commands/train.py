@@ -25,7 +25,14 @@ def register(app: typer.Typer) -> None:
         out: Path = typer.Option(..., "--out", help="run directory (model.zip, policy.npz, config.yml, tb/, checkpoints/); missing directories are created"),
         obs: Optional[str] = typer.Option(None, "--obs", help="observation mode: full, sensors, motor (default: the hyperparameter file's)"),
         timesteps: Optional[int] = typer.Option(None, "--timesteps", help="environment steps (default: the file's n_timesteps)"),
-        seed: int = typer.Option(0, "--seed", help="seed of networks, exploration and envs"),
+        seed: int = typer.Option(0, "--seed", help="seed of networks, exploration and envs (with --seeds: the first)"),
+        seeds: int = typer.Option(1, "--seeds", help="train this many seeds (SEED, SEED+1, ...) into OUT/seed_<s>/, in "
+                                  "parallel where cores allow; writes OUT/results.csv, OUT/results.md (per-seed lowest "
+                                  "held target, returns; IQM with bootstrap 95 % interval) and OUT/learning_curves.png"),
+        workers: Optional[int] = typer.Option(None, "--workers", help="seeds trained at once (default: min(seeds, CPU cores))"),
+        eval_every: Optional[int] = typer.Option(None, "--eval-every", help="environment steps between evaluations of the "
+                                                 "deterministic policy; the best is kept in OUT/best/ (0 = none; "
+                                                 "default: a twentieth of the run)"),
         n_envs: Optional[int] = typer.Option(None, "--n-envs", help="rigs in the batched vector env"),
         hyperparams: Optional[Path] = typer.Option(None, "--hyperparams", help="YAML file (rl-zoo3 layout) instead of agents/hyperparams/<algo>.yml"),
         set_: Optional[list[str]] = typer.Option(None, "--set", help="override a hyperparameter, KEY=VALUE (YAML value; "
@@ -45,14 +52,37 @@ def register(app: typer.Typer) -> None:
             raise ValueError(f"--n-envs must be >= 1, got {n_envs}")
         if checkpoint_every < 1:
             raise ValueError(f"--checkpoint-every must be >= 1, got {checkpoint_every}")
+        if seeds < 1:
+            raise ValueError(f"--seeds must be >= 1, got {seeds}")
+        if eval_every is not None and eval_every < 0:
+            raise ValueError(f"--eval-every must be >= 0, got {eval_every}")
         command = "drillgym " + " ".join(shlex.quote(a) for a in sys.argv[1:])
         overrides = parse_overrides(set_ or [])
         if add_effect or effect_param:
             comp, values = effects_from_cli(add_effect, effect_param)  # one-line errors before training starts
             env_kw = overrides.setdefault("env_kwargs", {})
             env_kw.update(effects=comp.specs(), effect_params=dict(values))
-        res = train(env, algo, out, obs=obs, timesteps=timesteps, seed=seed, n_envs=n_envs, hyperparams=hyperparams,
-                    overrides=overrides, resume=resume, progress=progress, tensorboard=tensorboard, checkpoint_every=checkpoint_every,
-                    command=command)
+        if eval_every is None:  # a twentieth of the run
+            from agents.train import planned_timesteps
+
+            eval_every = max(1, planned_timesteps(env, algo, timesteps, hyperparams, overrides) // 20)
+        kw = dict(obs=obs, timesteps=timesteps, n_envs=n_envs, hyperparams=hyperparams, overrides=overrides,
+                  resume=resume, tensorboard=tensorboard, checkpoint_every=checkpoint_every, command=command,
+                  eval_every=eval_every)
+        if seeds > 1:
+            import time
+
+            from agents.seeds import train_seeds
+
+            t0 = time.perf_counter()
+            summary = train_seeds(env, algo, out, list(range(seed, seed + seeds)), workers=workers, **kw)
+            held = summary.aggregates.get("lowest_held")
+            typer.echo(f"trained {seeds} seeds in {time.perf_counter() - t0:.1f} s; wrote {out / 'results.md'}, "
+                       f"{out / 'learning_curves.png'}"
+                       + (f"; lowest held target IQM {held['iqm']:.2f} rad/s "
+                          f"[{held['ci_low']:.2f}, {held['ci_high']:.2f}]" if held else ""))
+            return
+        res = train(env, algo, out, seed=seed, progress=progress, **kw)
         typer.echo(f"trained {res.timesteps} steps in {res.wall_time:.1f} s; wrote {res.model_path}"
-                   + (f", {res.policy_path}" if res.policy_path else ""))
+                   + (f", {res.policy_path}" if res.policy_path else "")
+                   + (f"; best evaluated model in {out / 'best'}" if eval_every else ""))

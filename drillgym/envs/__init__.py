@@ -3,6 +3,10 @@
 >>> import gymnasium, drillgym
 >>> env = gymnasium.make("drillgym/Torsional-v0", observation="sensors")
 >>> venv = drillgym.envs.make_vec("drillgym/Coupled-v0", num_envs=256)   # one batched core call per step
+>>> sb3_venv = drillgym.envs.make_sb3_vec("drillgym/Torsional-v0", num_envs=64)  # the same as an SB3 VecEnv
+
+The registered ids (and ``make_vec``) take actions in [-1, 1] (x 5 V); ``normalize_action=False`` gives volts.
+``env.spec.max_episode_steps`` is the episode length ``episode_duration / control_dt``.
 
 Structure (physical system separate from the environment, as gym-electric-motor):
 ``rig_system`` (N rigs on the batched core), ``observation`` (observation models),
@@ -25,18 +29,24 @@ from .vector import DrillVectorEnv
 
 __all__ = ["DrillEnv", "TorsionalEnv", "LateralEnv", "CoupledEnv", "DrillVectorEnv", "EnvOptions", "RewardWeights",
            "FullObservation", "SensorObservation", "MotorObservation", "make_observation_model", "make_vec",
-           "ENV_IDS"]
+           "make_sb3_vec", "ENV_IDS", "REGISTERED_DEFAULTS"]
 
 #: registered id -> rig configuration
 ENV_IDS = {"drillgym/Torsional-v0": "torsional", "drillgym/Lateral-v0": "lateral", "drillgym/Coupled-v0": "coupled"}
 _CLASSES = {"torsional": "TorsionalEnv", "lateral": "LateralEnv", "coupled": "CoupledEnv"}
 
 
+#: options the registered ids set unless given (RL conventions: actions in [-1, 1], x 5 V)
+REGISTERED_DEFAULTS = {"normalize_action": True}
+
+
 def make_vec(env_id: str, num_envs: int, **options: Any) -> DrillVectorEnv:
-    """The vectorised env of a registered id: ``num_envs`` rigs in one batched core call per step."""
+    """The vectorised env of a registered id: ``num_envs`` rigs in one batched core call per step.
+    As ``gymnasium.make`` of the id, actions are normalised to [-1, 1] unless ``normalize_action=False``
+    (volts).  For stable-baselines3 use :func:`drillgym.envs.sb3.make_sb3_vec` (same options)."""
     if env_id not in ENV_IDS:
         raise ValueError(f"unknown drillgym environment {env_id!r}; expected one of {sorted(ENV_IDS)}")
-    return DrillVectorEnv(num_envs, ENV_IDS[env_id], **options)
+    return DrillVectorEnv(num_envs, ENV_IDS[env_id], **{**REGISTERED_DEFAULTS, **options})
 
 
 @dataclass(frozen=True)
@@ -50,10 +60,21 @@ class VectorEntry:
         return DrillVectorEnv(num_envs, self.configuration, **options)
 
 
+def make_sb3_vec(env_id: str, num_envs: int, **options: Any):
+    """``num_envs`` rigs of a registered id as a stable-baselines3 ``VecEnv`` (one batched core call per
+    step; see :mod:`drillgym.envs.sb3`): ``PPO("MlpPolicy", make_sb3_vec("drillgym/Torsional-v0", 64))``."""
+    from .sb3 import make_sb3_vec as _make
+
+    return _make(env_id, num_envs, **options)
+
+
 for _id, _cfg in ENV_IDS.items():
     if _id not in gymnasium.registry:
+        # no TimeLimit wrapper: the env truncates itself after ``episode_duration`` and reports that
+        # length as ``env.spec.max_episode_steps`` (DrillEnv.spec)
         gymnasium.register(id=_id, entry_point=f"drillgym.envs.base:{_CLASSES[_cfg]}",
-                           vector_entry_point=VectorEntry(_cfg), disable_env_checker=False)
+                           vector_entry_point=VectorEntry(_cfg), disable_env_checker=False,
+                           kwargs=dict(REGISTERED_DEFAULTS))
 
 # The hardware twin (package ``hw``) shares these spaces; its id is registered here too, by entry-point
 # string only, so that ``import drillgym`` offers it without the physics core importing ``hw``.

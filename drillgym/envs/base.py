@@ -13,11 +13,13 @@ All three share :class:`DrillEnv`; they differ in the rig configuration (MODEL.m
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.envs.registration import EnvSpec
 
 from .action import action_voltage
 from .engine import C_REW, C_TERM, C_TRUNC, EpisodeBatch
@@ -39,12 +41,13 @@ class DrillEnv(gym.Env):
     """Hold the lower disc of the drill-string rig at ``omega_ref`` without stick-slip.
 
     ## Action Space
-    | Num | Action        | Min  | Max | Unit |
-    |-----|---------------|------|-----|------|
-    | 0   | motor voltage | -5.0 | 5.0 | V    |
+    | Num | Action                      | Min  | Max | Unit       |
+    |-----|-----------------------------|------|-----|------------|
+    | 0   | motor voltage / 5 V         | -1.0 | 1.0 | (x 5 V)    |
 
-    ``normalize_action=True``: [-1, 1], scaled by 5 V.  Out-of-range actions are clipped as the
-    amplifier does; a NaN/inf action raises ``ValueError``.  The voltage is held over the
+    ``gymnasium.make`` of the registered ids normalises the action (``normalize_action=True``, their
+    default); ``normalize_action=False`` (the class's own default): the voltage in [-5, 5] V.
+    Out-of-range actions are clipped as the amplifier does; a NaN/inf action raises ``ValueError``.  The voltage is held over the
     control period ``control_dt`` (10 ms), integrated in sub-steps of ``dt`` (default 10 ms: one
     event-driven RK4 step, accurate to < 2e-6 rad/s, see :data:`drillgym.envs.options.DEFAULT_ENV_DT`).
 
@@ -70,7 +73,7 @@ class DrillEnv(gym.Env):
 
     ## Episode End
     Terminated: |omega_u| or |omega_l| > ``max_speed`` (30 rad/s), or r > ``max_lateral`` (20 mm).
-    Truncated: after ``episode_duration`` (30 s = 3000 steps).
+    Truncated: after ``episode_duration`` (30 s = 3000 steps; ``env.spec.max_episode_steps``).
 
     ## Info
     ``omega_l`` (rad/s), ``stuck`` (lower disc stuck), ``friction_torque`` (lower friction, N m),
@@ -79,6 +82,19 @@ class DrillEnv(gym.Env):
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 25}
+    _spec: EnvSpec | None = None
+
+    @property
+    def spec(self) -> EnvSpec | None:
+        """The registration spec (set by ``gymnasium.make``) with ``max_episode_steps`` = this env's
+        episode length in steps (``episode_duration / control_dt``; the env truncates there itself)."""
+        return self._spec
+
+    @spec.setter
+    def spec(self, value: EnvSpec | None) -> None:
+        if value is not None and value.max_episode_steps != self.options.episode_steps:
+            value = dataclasses.replace(value, max_episode_steps=self.options.episode_steps)
+        self._spec = value
 
     def __init__(self, configuration: str = "torsional", render_mode: str | None = None, **options: Any) -> None:
         self.options = EnvOptions.from_kwargs(configuration=configuration, **options)

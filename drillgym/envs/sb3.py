@@ -3,7 +3,7 @@ no per-env Python objects: one batched core call per step).
 
 >>> from stable_baselines3 import PPO
 >>> from drillgym.envs.sb3 import make_sb3_vec
->>> venv = make_sb3_vec("drillgym/Torsional-v0", num_envs=64, normalize_action=True)
+>>> venv = make_sb3_vec("drillgym/Torsional-v0", num_envs=64)   # actions in [-1, 1] (x 5 V)
 >>> PPO("MlpPolicy", venv).learn(100_000)
 
 SB3 resets finished envs within the same step and expects the last observation in
@@ -93,9 +93,11 @@ class SB3VecEnvAdapter(VecEnv):
 
 
 def make_sb3_vec(env_id: str, num_envs: int, **options: Any) -> SB3VecEnvAdapter:
-    """An SB3 VecEnv of ``num_envs`` rigs of a registered drillgym id (options as the env's)."""
-    from . import ENV_IDS
+    """An SB3 VecEnv of ``num_envs`` rigs of a registered drillgym id (options as the env's; actions in
+    [-1, 1] unless ``normalize_action=False``, as ``gymnasium.make`` of the id)."""
+    from . import ENV_IDS, REGISTERED_DEFAULTS
 
+    options = {**REGISTERED_DEFAULTS, **options}
     if env_id not in ENV_IDS:
         raise ValueError(f"unknown drillgym environment {env_id!r}; expected one of {sorted(ENV_IDS)}")
     return SB3VecEnvAdapter(DrillVectorEnv(num_envs, ENV_IDS[env_id], autoreset_mode=AutoresetMode.SAME_STEP,
