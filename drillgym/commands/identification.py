@@ -140,45 +140,60 @@ def register(app: typer.Typer) -> None:
         data: Path = typer.Argument(..., help="recording (DATA_FORMAT csv or .mat)"),
         params: Optional[Path] = typer.Option(None, "--params", help="base parameter file (default MODEL.md set)"),
         config: Optional[str] = typer.Option(None, "--config", help="configuration if the file has none"),
-        as_json: bool = typer.Option(False, "--json", help="print the ranking as JSON"),
+        as_json: bool = typer.Option(False, "--json", help="print one JSON object: selected, ranking, "
+                                                          "base_parameters, candidate, ..."),
         segment: str = typer.Option("auto", "--segment", help="multiple-shooting segment (s), 'auto' or 'none'"),
         rate: float = typer.Option(50.0, help="comparison grid rate (Hz)"),
-        sparse: bool = typer.Option(True, "--sparse/--no-sparse", help="also propose a data-driven term"),
-        refit_base: bool = typer.Option(False, "--refit-base", help="lightly refit the base parameters first"),
+        sparse: bool = typer.Option(True, "--sparse/--no-sparse",
+                                    help="also look for an effect outside the library in the residual torques"),
+        candidate_out: Optional[Path] = typer.Option(None, "--candidate-out",
+                                                     help="write the candidate effect found in the residual torques "
+                                                          "to this .py file (default: RECORDING_candidate.py next "
+                                                          "to the recording, when one is found)"),
+        fixed_base: bool = typer.Option(False, "--fixed-base",
+                                        help="hold the base parameters (default: re-identify those the recording "
+                                             "excites and report which moved)"),
+        refit_base: bool = typer.Option(False, "--refit-base", hidden=True, help="(always on; see --fixed-base)"),
         add_effect: List[str] = add_effect_option(),
         effect_param: List[str] = effect_param_option(),
         candidate: List[str] = typer.Option(None, "--candidate",
                                             help="also try this effect (name or path/to/file.py:NAME; repeatable); "
                                                  "default candidates: the library's"),
-        map_: List[str] = typer.Option([], "--map", help=MAP_HELP),
     ) -> None:
-        """Rank candidate effects (the library's, and --candidate) by how much of the model's residual each
-        explains; the model is --params with its effects plus --add-effect."""
+        """Which SET of effects the recording shows (forward selection with refit, the base parameters
+        re-identified alongside), which base parameters moved, and a candidate effect file for what the
+        library does not explain; the model is --params with its effects plus --add-effect."""
+        from ..diagnosis.discovery import discover
         from ..diagnosis.effects import effects_for, get_effect
         from ..diagnosis.ranking import diagnose
-        from ..diagnosis.sparse import residual_torques, sparse_residual_model
+        from ..identification.experiment import prepare_experiment
+        from ..io import read_timeseries
 
+        if candidate_out is not None and candidate_out.suffix != ".py":
+            raise ValueError(f"--candidate-out {candidate_out}: the effect file must end in .py")
         base, model, values, _ = _model(params, add_effect, effect_param)
         extra = [get_effect(c) for c in candidate or []]
-        ex = _experiment(data, config, rate, map_)
+        ts = read_timeseries(data, config)
+        ex = prepare_experiment(ts, config, compare_rate_hz=rate)
         cands = None
         if extra:
             cands = effects_for(ex.config) + [e for e in extra if e.name not in {c.name for c in effects_for(ex.config)}]
         d = diagnose(ex, base, effects=cands, base_effects=model, effect_params=values, segment_s=_segment(segment),
-                     refit_base=refit_base)
-        term = None
+                     fixed_base=fixed_base)
         if sparse and ex.config is not ex.config.UPPER:
-            term = sparse_residual_model(residual_torques(ex, base, effects=model, effect_params=values))
+            fine = prepare_experiment(ts, config, compare_rate_hz=min(250.0, ts.sample_rate_hz))
+            out_file = candidate_out or data.with_name(data.stem + "_candidate.py")
+            d.candidate, d.advice = discover(fine, d, out_file)
         if as_json:
-            out = d.to_json()
-            if term is not None:
-                out["candidate_term"] = {"expression": term.expression(), "terms": term.terms, "r2": term.r2}
-            typer.echo(_json(out))
+            typer.echo(_json(d.to_json()))
         else:
             typer.echo(d.text())
-            if term is not None:
-                typer.echo("data-driven candidate for the residual torque on the lower disc:")
-                typer.echo("  " + term.expression())
+            if d.candidate is not None:
+                c = d.candidate
+                typer.echo(f"candidate outside the library ({c.explained:.0%} of the residual torque): "
+                           f"{c.expression()}")
+                typer.echo(f"  written to {c.effect_file.rsplit(':', 1)[0]}; fit it: drillgym identify {data} "
+                           f"--add-effect {c.effect_file} --out p.json")
 
     @app.command("identify")
     def identify_cmd(

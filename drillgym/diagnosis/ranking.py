@@ -50,7 +50,7 @@ from ..params import N_PARAMS, RigParams
 from .effects import applies_to, effects_for, fit_variables, get_effect, with_candidate
 from .segments import place_segment_starts, robust_noise
 
-__all__ = ["EffectScore", "Diagnosis", "diagnose", "default_weights", "default_segment", "SIGNIFICANCE"]
+__all__ = ["EffectScore", "Diagnosis", "diagnose", "rank_effects", "default_weights", "default_segment", "SIGNIFICANCE"]
 
 SIGNIFICANCE = 15.0  # score (nats) above which an effect counts as found
 MIN_REDUCTION = 0.25  # fraction of the residual RMS an effect must remove to count
@@ -104,7 +104,9 @@ class EffectScore:
 
 @dataclass
 class Diagnosis:
-    """Ranking (best first) and the context it was computed in."""
+    """The diagnosis of a recording: the set of effects selected, the ranking (selected effects
+    first, in the order accepted, then the rest by their last score), the base parameters that
+    moved, and the context it was computed in."""
 
     ranking: list[EffectScore]
     config: Configuration
@@ -115,6 +117,18 @@ class Diagnosis:
     skipped: dict[str, str] = field(default_factory=dict)
     base_refit: dict[str, float] = field(default_factory=dict)
     model: str = "base"
+    selected: list[str] = field(default_factory=list)
+    base_parameters: dict[str, dict[str, float]] = field(default_factory=dict)
+    base_off: bool = False
+    base_score: float = 0.0
+    warnings: list[str] = field(default_factory=list)
+    rmse_after: float | None = None
+    candidate: Any = None
+    composition: Composition | None = None
+    vector: np.ndarray | None = None
+    params: RigParams | None = None
+    advice: list[str] = field(default_factory=list)
+    nominal_vector: np.ndarray | None = None
 
     @property
     def best(self) -> EffectScore | None:
@@ -123,36 +137,60 @@ class Diagnosis:
     def significant(self) -> list[EffectScore]:
         return [s for s in self.ranking if s.significant]
 
+    def effect_values(self) -> dict[str, float]:
+        """The selected effects' fitted parameters by name."""
+        return {k: v for s in self.ranking if s.effect in self.selected for k, v in s.values.items()}
+
     def to_json(self) -> dict:
-        return {"ranking": [s.to_json() for s in self.ranking], "configuration": self.config.label,
-                "rmse_before": self.rmse_before, "channel_rms_before": self.channel_rms_before,
-                "n_eff": self.n_eff, "segment_s": self.segment_s, "skipped": self.skipped,
-                "base_refit": self.base_refit, "model": self.model}
+        cand = self.candidate.to_json() if self.candidate is not None else None
+        return {"selected": list(self.selected),
+                "ranking": [{**s.to_json(), "fitted": s.values} for s in self.ranking],
+                "base_parameters": self.base_parameters, "base_model_off": self.base_off,
+                "base_score": round(self.base_score, 3), "candidate": cand, "warnings": self.warnings,
+                "advice": self.advice, "configuration": self.config.label,
+                "rmse_before": self.rmse_before, "rmse_after": self.rmse_after,
+                "channel_rms_before": self.channel_rms_before, "n_eff": self.n_eff, "segment_s": self.segment_s,
+                "skipped": self.skipped, "base_refit": self.base_refit, "model": self.model}
 
     def text(self) -> str:
+        after = f"; after {self.rmse_after:.3g}" if self.rmse_after is not None else ""
         lines = [f"diagnosis of the model {self.model!r} ({self.config.label}; multiple shooting, segments of "
-                 f"{self.segment_s if self.segment_s else 'whole record'} s; base residual RMS "
-                 f"{self.rmse_before:.3g} noise units; " +
+                 f"{self.segment_s if self.segment_s else 'whole record'} s; residual RMS "
+                 f"{self.rmse_before:.3g} noise units{after}; " +
                  ", ".join(f"{c} {v:.3g}" for c, v in self.channel_rms_before.items()) + ")"]
-        if self.base_refit:
-            lines.append("base parameters lightly refitted first: " +
-                         ", ".join(f"{k}={v:.5g}" for k, v in self.base_refit.items()))
+        if self.base_off:
+            if self.base_parameters:
+                lines.append("the base model is off; re-identified base parameters that moved: " + ", ".join(
+                    f"{k} {v['nominal']:.5g} -> {v['fitted']:.5g} ({v['change_pct']:+.1f} %"
+                    + (f" ± {100 * v['std'] / abs(v['nominal']):.1f} %" if v.get('std') == v.get('std') else "")
+                    + ")" for k, v in self.base_parameters.items()))
+            else:
+                lines.append("the base model is off, but no single base parameter moved beyond its uncertainty")
+        elif self.base_parameters == {} and self.base_score:
+            lines.append("base parameters: no significant change (the nominal base model stands)")
         lines.append(f"{'rank':<5}{'effect':<20}{'score':>10}{'rms after':>11}{'cut':>7}  fitted values")
         for i, s in enumerate(self.ranking, 1):
-            vals = ", ".join(f"{k}={v:.4g}±{s.std.get(k, float('nan')):.2g}" for k, v in s.values.items())
+            vals = ", ".join(f"{k}={v:.4g}" + (f"±{s.std[k]:.2g}" if s.std.get(k) == s.std.get(k) and k in s.std
+                                               else "") for k, v in s.values.items())
             mark = "*" if s.significant else " "
             lines.append(f"{i:<4}{mark}{s.effect:<20}{s.score:>10.1f}{s.rmse_after:>11.3g}{s.reduction:>7.0%}  {vals}")
-        sig = self.significant()
-        if sig:
-            b = sig[0]
-            lines.append(f"most likely missing: {b.effect} (removes {b.reduction:.0%} of the residual). "
-                         f"Signature to look for: {b.signature}")
-            if b.note:
-                lines.append(f"note: {b.effect} is {b.note}")
+        if self.selected:
+            lines.append("effects found: " + ", ".join(self.selected))
+            for s in self.ranking:
+                if s.effect in self.selected:
+                    lines.append(f"  {s.effect}: {s.signature}")
+                    if s.note:
+                        lines.append(f"  note: {s.effect} is {s.note}")
         else:
             lines.append("no effect of the library explains a significant part of the residual")
+        for w in self.warnings:
+            lines.append(f"warning: {w}")
         for k, why in self.skipped.items():
             lines.append(f"skipped {k}: {why}")
+        if self.advice:
+            lines.append("nothing outside the library explains the rest of the residual; experiments that would "
+                         "show more:")
+            lines += [f"  - {a_}" for a_ in self.advice]
         return "\n".join(lines)
 
 
@@ -196,13 +234,14 @@ def transfer(vec: np.ndarray, src: Composition, dst: Composition) -> np.ndarray:
     return out
 
 
-def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: RigParams | None = None,
-             config: "str | Configuration | None" = None, *, effects: Sequence[Any] | None = None,
-             base_effects: Any = None, effect_params: Mapping[str, float] | None = None,
-             segment_s: float | None = -1.0, compare_rate_hz: float = 50.0, max_nfev: int = 12,
-             lvdt_lowpass_hz: float | None = 5.0, refine_speeds: bool = True,
-             n_second_pass: int = 3, refit_base: bool = False) -> Diagnosis:
-    """Rank candidate effects on one or more recordings (see the module docstring).
+def rank_effects(data: "TimeSeries | Experiment | Sequence[Experiment]", params: RigParams | None = None,
+                 config: "str | Configuration | None" = None, *, effects: Sequence[Any] | None = None,
+                 base_effects: Any = None, effect_params: Mapping[str, float] | None = None,
+                 segment_s: float | None = -1.0, compare_rate_hz: float = 50.0, max_nfev: int = 12,
+                 lvdt_lowpass_hz: float | None = 5.0, refine_speeds: bool = True,
+                 n_second_pass: int = 3, refit_base: bool = False) -> Diagnosis:
+    """Rank candidate effects one at a time against the model (the first round of the selection;
+    :func:`diagnose` selects the set of effects).  See the module docstring.
 
     Args:
         data: a recording (TimeSeries) or prepared experiments.
@@ -315,3 +354,118 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
             a.note = (f"indistinguishable from {b.effect} on these data (scores {a.score:.1f} vs {b.score:.1f}); "
                       "an input with sharper steps or a higher sample rate would separate them")
     return Diagnosis(scores, cfg, rmse0, ch0, n_eff, segment_s, skipped, refitted, comp0.label)
+
+
+def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: RigParams | None = None,
+             config: "str | Configuration | None" = None, *, effects: Sequence[Any] | None = None,
+             base_effects: Any = None, effect_params: Mapping[str, float] | None = None,
+             segment_s: float | None = -1.0, compare_rate_hz: float = 50.0, lvdt_lowpass_hz: float | None = 5.0,
+             refine_speeds: bool = True, fixed_base: bool = False, n_joint: int = 2,
+             max_effects: int = 4, refit_base: bool | None = None) -> Diagnosis:
+    """Which set of effects the recording shows, with the base parameters re-identified
+    (:mod:`.selection`: forward selection with refit, backward check, base model decision, lag
+    versus delay).
+
+    Args:
+        data: a recording (TimeSeries) or prepared experiments.
+        params: nominal base parameters (default: MODEL.md).
+        config: configuration when the recording's metadata has none.
+        effects: the candidates: names or ``path/to/file.py:NAME`` specs or Effect classes
+            (default: the library's effects that act in the configuration).  A candidate must
+            vanish at its neutral values (:func:`.selection.neutral_values`).
+        base_effects, effect_params: effects already in the model and their values (held).
+        segment_s: multiple-shooting segment (s); -1: :func:`default_segment`; None: free run.
+        compare_rate_hz: comparison grid rate (Hz).
+        fixed_base: hold the base parameters at ``params`` (no re-identification).
+        n_joint: candidates refitted jointly with the base parameters per round.
+        max_effects: at most this many effects are selected.
+        refit_base: ignored (kept for old callers: the base parameters are always considered).
+    """
+    from .selection import base_free_parameters, forward_select, neutral_values, search_composition
+
+    base = params or RigParams()
+    comp0, values0 = compose(base_effects, effect_params)
+    if isinstance(data, TimeSeries):
+        exps = [prepare_experiment(data, config, compare_rate_hz=compare_rate_hz, lvdt_lowpass_hz=lvdt_lowpass_hz)]
+    elif isinstance(data, Experiment):
+        exps = [data]
+    else:
+        exps = list(data)
+    cfg = exps[0].config
+    candidates = [get_effect(e) for e in effects] if effects else effects_for(cfg)
+    if segment_s is not None and segment_s < 0:
+        segment_s = default_segment(cfg)
+    conditioned = [robust_noise(ex) for ex in exps]
+    exps = [c[0] for c in conditioned]
+    scales = {c: min(s[c] for _, s in conditioned) for c in conditioned[0][1]}
+    skipped: dict[str, str] = {}
+    usable = []
+    for eff in candidates:
+        if eff.name in comp0.names:
+            skipped[eff.name] = "already in the model"
+        elif not applies_to(eff, cfg):
+            skipped[eff.name] = f"does not act in configuration '{cfg.label}'"
+        elif _excited(eff, exps):
+            skipped[eff.name] = _excited(eff, exps)
+        elif eff.name not in {u.name for u in usable}:
+            usable.append(eff)
+    comp = search_composition(comp0, usable)
+    vec0 = base_vector(comp, base, {**values0, **neutral_values(usable)})
+    model = SegmentedModel(exps, segment_s, composition=comp)
+    if segment_s is not None:
+        place_segment_starts(model)
+    obj = Objective(model, default_weights(cfg), scales)
+    brake_on = all(float(ex.meta.get("brake_normal_force_n", 1.0) or 0.0) != 0.0 for ex in exps)
+    base_names = () if fixed_base else base_free_parameters(cfg, brake_on)
+    ch0 = obj.channel_rms(vec0)
+    out = forward_select(obj, comp, vec0, usable, base_names, n_joint=n_joint, max_effects=max_effects,
+                         refine=refine_speeds)
+    skipped.update(out["excluded"])
+    N = out["n"]
+    rmse0 = math.sqrt(out["rss_nominal"] / N)
+    vec = out["vector"]
+    fit = out["fit"]
+    by_name = {e.name: e for e in usable}
+    ranking: list[EffectScore] = []
+    for st in out["steps"]:
+        if st.effect not in out["selected"]:
+            continue
+        vals = {p.name: float(vec[comp.param_index(p.name)]) for p in by_name[st.effect].parameters}
+        std = {k: (fit.std.get(k, st.std.get(k, float("nan"))) if fit is not None else st.std.get(k, float("nan")))
+               for k in vals}
+        ranking.append(EffectScore(st.effect, st.score, math.sqrt(st.rss_before / N), math.sqrt(st.rss_after / N),
+                                   vals, std, {}, " ".join(by_name[st.effect].signature.split()), True,
+                                   out["ties"].get(st.effect, "")))
+    for name in out["selected"]:  # a lag/delay swap: the selected one took the other's place
+        if name not in {r.effect for r in ranking}:
+            vals = {p.name: float(vec[comp.param_index(p.name)]) for p in by_name[name].parameters}
+            std = {k: fit.std.get(k, float("nan")) if fit is not None else float("nan") for k in vals}
+            st = next(s for s in out["steps"] if s.effect in _LAG_DELAY_SWAP)
+            ranking.append(EffectScore(name, st.score, math.sqrt(st.rss_before / N), math.sqrt(st.rss_after / N),
+                                       vals, std, {}, " ".join(by_name[name].signature.split()), True,
+                                       out["ties"].get(name, "")))
+    rest = sorted((s for n, s in out["last_round"].items() if n not in out["selected"]), key=lambda s: -s.score)
+    for st in rest:
+        note = out["dropped"].get(st.effect, "")
+        ranking.append(EffectScore(st.effect, st.score, math.sqrt(st.rss_before / N), math.sqrt(st.rss_after / N),
+                                   st.values, st.std, {}, " ".join(by_name[st.effect].signature.split()), False, note))
+    for name, why in out["dropped"].items():
+        if name not in {r.effect for r in ranking}:
+            skipped[name] = why
+    refitted = {n: float(vec[comp.param_index(n)]) for n in base_names} if out["base_off"] else {}
+    d = Diagnosis(ranking, cfg, rmse0, ch0, n_eff(obj.residual_matrix(vec0[None, :])[0]), segment_s, skipped,
+                  refitted, comp0.label, selected=list(out["selected"]), base_parameters=out["moved"],
+                  base_off=out["base_off"], base_score=out["base_score"], warnings=list(out["base_warnings"]),
+                  rmse_after=math.sqrt(out["rss_final"] / N), composition=comp, vector=vec,
+                  params=RigParams.from_vector(vec[:N_PARAMS]))
+    d.nominal_vector = vec.copy()
+    d.nominal_vector[:N_PARAMS] = vec0[:N_PARAMS]
+    return d
+
+
+_LAG_DELAY_SWAP = ("motor_lag", "input_delay")
+
+
+def n_eff(r: np.ndarray) -> float:
+    """Effectively independent samples of a residual vector (lag-1 autocorrelation)."""
+    return _n_eff(r)

@@ -1,0 +1,308 @@
+"""Discovery beyond the library: a candidate effect from the residual torques, written as an effect file.
+
+After the selection (:mod:`.selection`), what the model still misses is read from the residual
+generalised torques on BOTH discs (:func:`.sparse.residual_torques`: the data's accelerations
+against the model's in the data's state, times the inertia or mass matrix; lateral forces enter
+through the mass matrix in the coupled configuration).  The residual is regressed, in
+acceleration units (each disc's torque divided by its inertia, so that both discs weigh alike),
+on a library of terms shaped by physics, grouped by where they would act:
+
+* ``lower_friction`` / ``upper_friction``: a change of a disc's slip torque, odd in its speed ω:
+  sign(ω), ω, ω|ω|, ω³, sign(ω) exp(−|ω|/v) and sign(ω) exp(−(ω/v)²) for speeds v of the
+  Stribeck range, sign(ω) cos/sin of the disc angle (once and twice per revolution), sign(ω) t;
+* ``string``: a torque added to kθ α: α|α|, α³, α⁵, saturation sat(α, g) (free play / dead zone:
+  kθ (dz(α) − α) = −kθ sat(α, g)), α̇, sign(α̇);
+* ``lower_force`` / ``upper_force``: constant, cos/sin of the disc angle, time; on the upper disc
+  also u|u| and u³ (a motor that is not linear in the voltage).
+
+Each group's terms enter by greedy forward selection (at most ``MAX_TERMS``, each one must
+explain ``MIN_GAIN`` more of the residual's variance); the group that explains most wins.  The
+candidate is written as a Python effect file of the open-effect mechanism (:func:`write_effect_file`:
+a ``Friction`` with ``slip`` and ``stick`` for friction groups, a ``Force`` otherwise), with the
+regressed coefficients as guesses and bounds of ±4 times their size, so that
+``drillgym identify --add-effect FILE.py:NAME`` fits it.  When nothing explains the residual,
+:func:`advice` says which experiment would show more.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..identification.experiment import Experiment
+from .sparse import ResidualTorque
+
+__all__ = ["Candidate", "find_candidate", "write_effect_file", "advice", "discover", "MIN_EXPLAINED_SHARE"]
+
+MAX_TERMS = 3
+MIN_GAIN = 0.03  # share of the residual variance a further term must explain
+MIN_EXPLAINED_SHARE = 0.3  # a candidate must explain at least this share of the residual torque
+
+
+@dataclass
+class _Term:
+    label: str  # as shown (unicode)
+    code: str  # Python expression of the effect function's arguments
+    values: Callable[[dict], np.ndarray]
+    at_rest: float = 0.0  # value at zero speed approached from above (friction terms: stick set change)
+
+
+def _speed_terms(w: str, sym: str) -> list[_Term]:
+    out = [_Term(f"sign({sym})", "direction", lambda d: np.sign(d[w]), 1.0),
+           _Term(f"{sym}", "omega", lambda d: d[w]),
+           _Term(f"{sym}|{sym}|", "omega * speed", lambda d: d[w] * np.abs(d[w])),
+           _Term(f"{sym}³", "omega * omega * omega", lambda d: d[w] ** 3)]
+    for v in (0.3, 1.0, 3.0):
+        out.append(_Term(f"sign({sym}) exp(−|{sym}|/{v:g})", f"direction * math.exp(-speed / {v!r})",
+                         lambda d, v=v: np.sign(d[w]) * np.exp(-np.abs(d[w]) / v), 1.0))
+    for v in (0.5, 1.5):
+        out.append(_Term(f"sign({sym}) exp(−({sym}/{v:g})²)", f"direction * math.exp(-(speed / {v!r}) ** 2)",
+                         lambda d, v=v: np.sign(d[w]) * np.exp(-(d[w] / v) ** 2), 1.0))
+    return out
+
+
+def _groups(lateral: bool) -> dict[str, list[_Term]]:
+    lower = _speed_terms("wl", "ωl") + [
+        _Term("sign(ωl) cos θl", "direction * math.cos(theta_l)", lambda d: np.sign(d["wl"]) * np.cos(d["thl"])),
+        _Term("sign(ωl) sin θl", "direction * math.sin(theta_l)", lambda d: np.sign(d["wl"]) * np.sin(d["thl"])),
+        _Term("sign(ωl) cos 2θl", "direction * math.cos(2.0 * theta_l)",
+              lambda d: np.sign(d["wl"]) * np.cos(2 * d["thl"])),
+        _Term("sign(ωl) sin 2θl", "direction * math.sin(2.0 * theta_l)",
+              lambda d: np.sign(d["wl"]) * np.sin(2 * d["thl"])),
+        _Term("sign(ωl) t", "direction * t", lambda d: np.sign(d["wl"]) * d["t"])]
+    upper = _speed_terms("wu", "ωu")
+    string = [_Term("α|α|", "alpha * abs(alpha)", lambda d: d["a"] * np.abs(d["a"])),
+              _Term("α³", "alpha ** 3", lambda d: d["a"] ** 3),
+              _Term("α⁵", "alpha ** 5", lambda d: d["a"] ** 5),
+              _Term("α̇", "alpha_dot", lambda d: d["ad"]),
+              _Term("sign(α̇)", "math.tanh(alpha_dot / 0.01)", lambda d: np.tanh(d["ad"] / 0.01))]
+    for g in (0.02, 0.05, 0.1, 0.2, 0.5):
+        string.append(_Term(f"sat(α, {g:g})", f"min(max(alpha, {-g!r}), {g!r})",
+                            lambda d, g=g: np.clip(d["a"], -g, g)))
+    lower_force = [_Term("1", "1.0", lambda d: np.ones_like(d["t"])),
+                   _Term("cos θl", "math.cos(theta_l)", lambda d: np.cos(d["thl"])),
+                   _Term("sin θl", "math.sin(theta_l)", lambda d: np.sin(d["thl"])),
+                   _Term("t", "t", lambda d: d["t"])]
+    upper_force = [_Term("1", "1.0", lambda d: np.ones_like(d["t"])),
+                   _Term("u|u|", "u * abs(u)", lambda d: d["u"] * np.abs(d["u"])),
+                   _Term("u³", "u ** 3", lambda d: d["u"] ** 3),
+                   _Term("cos θu", "math.cos(theta_u)", lambda d: np.cos(d["thu"])),
+                   _Term("sin θu", "math.sin(theta_u)", lambda d: np.sin(d["thu"]))]
+    return {"lower_friction": lower, "upper_friction": upper, "string": string, "lower_force": lower_force,
+            "upper_force": upper_force}
+
+
+#: (effect on the upper disc's torque, on the lower disc's) of a unit of the term, per group
+_SENSE = {"lower_friction": (0.0, -1.0), "upper_friction": (-1.0, 0.0), "string": (1.0, -1.0),
+          "lower_force": (0.0, 1.0), "upper_force": (1.0, 0.0)}
+
+
+@dataclass
+class Candidate:
+    """A candidate effect found in the residual torques."""
+
+    group: str
+    terms: dict[str, float]  # label -> coefficient (N m per unit of the term)
+    codes: dict[str, str]  # label -> Python expression
+    at_rest: dict[str, float]
+    explained: float
+    n_samples: int
+    name: str = ""
+    effect_file: str | None = None
+    rest: dict[str, float] = field(default_factory=dict)  # other groups' best shares
+
+    @property
+    def dof(self) -> int:
+        return len(self.terms)
+
+    def expression(self) -> str:
+        where = {"lower_friction": "lower-disc slip friction +=", "upper_friction": "upper-disc slip friction +=",
+                 "string": "string torque (added to kθ α) +=", "lower_force": "torque on the lower disc +=",
+                 "upper_force": "torque on the upper disc +="}[self.group]
+        parts = " ".join(f"{c:+.4g}·{n}" if n != "1" else f"{c:+.4g}" for n, c in self.terms.items())
+        return f"{where} {parts}  [N m]"
+
+    def to_json(self) -> dict:
+        return {"name": self.name, "expression": self.expression(), "dof": self.dof,
+                "explained": round(self.explained, 4), "effect_file": self.effect_file, "group": self.group,
+                "terms": self.terms}
+
+
+def _data(rt: ResidualTorque, u: np.ndarray) -> dict[str, np.ndarray]:
+    S = rt.states
+    return {"thu": S[:, 0], "thl": S[:, 1], "wu": S[:, 2], "wl": S[:, 3], "a": S[:, 1] - S[:, 0],
+            "ad": S[:, 3] - S[:, 2], "t": rt.t, "u": u}
+
+
+def find_candidate(rt: ResidualTorque, u: np.ndarray, Ju: float, Jl: float, lateral: bool = False
+                   ) -> Candidate | None:
+    """The best candidate group and terms for the residual torques ``rt`` (``u``: the input at its
+    samples, V; ``Ju``, ``Jl``: inertias, kg m²); None if too few samples slip."""
+    ok = rt.slip & np.isfinite(rt.tau_l) & np.isfinite(rt.tau_u)
+    if ok.sum() < 50:
+        return None
+    d = {k: v[ok] for k, v in _data(rt, u).items()}
+    y = np.concatenate([rt.tau_u[ok] / Ju, rt.tau_l[ok] / Jl])
+    y = y - 0.0
+    tss = float(np.sum((y - y.mean()) ** 2)) or 1.0
+    best: Candidate | None = None
+    shares: dict[str, float] = {}
+    for group, terms in _groups(lateral).items():
+        su, sl = _SENSE[group]
+        cols = []
+        for tm in terms:
+            g = np.asarray(tm.values(d), dtype=float)
+            cols.append(np.concatenate([su * g / Ju, sl * g / Jl]))
+        A = np.column_stack(cols + [np.concatenate([np.ones(ok.sum()), np.zeros(ok.sum())]),
+                                    np.concatenate([np.zeros(ok.sum()), np.ones(ok.sum())])])
+        chosen: list[int] = []
+        share = 0.0
+        coef = np.zeros(0)
+        for _ in range(MAX_TERMS):
+            trial = None
+            for j in range(len(terms)):
+                if j in chosen or not np.any(A[:, j]):
+                    continue
+                idx = chosen + [j]
+                X = np.column_stack([A[:, idx], A[:, -2:]])  # per-disc offsets absorb acceleration bias
+                c, *_ = np.linalg.lstsq(X, y, rcond=None)
+                s = 1.0 - float(np.sum((y - X @ c) ** 2)) / tss
+                if trial is None or s > trial[1]:
+                    trial = (j, s, c)
+            if trial is None or trial[1] - share < MIN_GAIN:
+                break
+            chosen.append(trial[0])
+            share, coef = trial[1], trial[2]
+        shares[group] = share
+        if chosen and (best is None or share > best.explained):
+            best = Candidate(group, {terms[j].label: float(coef[i]) for i, j in enumerate(chosen)},
+                             {terms[j].label: terms[j].code for j in chosen},
+                             {terms[j].label: terms[j].at_rest for j in chosen}, share, int(ok.sum()))
+    if best is not None:
+        best.rest = shares
+    return best
+
+
+_ARGS_FRICTION = ("T", "direction", "speed", "omega")
+
+
+def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None) -> Path:
+    """Write the candidate as an effect file; sets ``cand.name`` and ``cand.effect_file``
+    (``path:name``, what ``--add-effect`` takes)."""
+    path = Path(path)
+    name = name or f"candidate_{cand.group}"
+    cls = "".join(p.capitalize() for p in name.split("_"))
+    params, body = [], []
+    for i, (label, c) in enumerate(cand.terms.items(), 1):
+        size = max(abs(c), 1e-9)
+        params.append(f'        Parameter("{name}_c{i}", "N m", {-4 * size!r}, {4 * size!r}, {c!r}, {size / 2!r},\n'
+                      f'                  doc="coefficient of {label}"),')
+        body.append(f"{name}_c{i} * ({cand.codes[label]})")
+    pnames = [f"{name}_c{i}" for i in range(1, len(cand.terms) + 1)]
+    expr = " + ".join(body)
+    used = [v for v in ("theta_l", "theta_u", "alpha", "alpha_dot", "t", "u") if _uses(cand, v)]
+    lines = ['"""Candidate effect written by `drillgym diagnose --candidate-out` from the residual torques.',
+             "", f"    {cand.expression()}", f"    (explains {cand.explained:.0%} of the residual torque; "
+             f"{cand.n_samples} samples)", "",
+             f"Fit it: drillgym identify RECORDING --add-effect {path.name}:{name} --out p.json", '"""', "",
+             "import math", "", "from drillgym.effects import Force, Friction, Parameter", "", ""]
+    friction = cand.group.endswith("friction")
+    kind = "Friction" if friction else "Force"
+    lines.append(f"class {cls}({kind}):")
+    lines.append(f'    name = "{name}"')
+    if friction:
+        lines.append(f'    disc = "{cand.group.split("_")[0]}"')
+    else:
+        lines.append(f'    acts_on = "{cand.group.split("_")[0]}"')
+    lines.append("    parameters = (")
+    lines += params
+    lines.append("    )")
+    lines.append(f'    explanation = "Found in the residual torques by drillgym diagnose: {cand.expression()}."')
+    lines.append('    signature = "the residual torque this term was regressed on"')
+    lines.append("")
+    if friction:
+        speed_args = ", ".join(a for a in _ARGS_FRICTION if a == "T" or _uses(cand, a))
+        extra = "".join(f", {v}" for v in used)
+        lines.append(f"    def slip({speed_args}{extra}, {', '.join(pnames)}):")
+        lines.append(f"        return T + ({expr})")
+        rest = [f"{p} * {cand.at_rest[lb]!r}" for p, lb in zip(pnames, cand.terms) if cand.at_rest[lb]]
+        rest_args = [p for p, lb in zip(pnames, cand.terms) if cand.at_rest[lb]]
+        if rest:
+            lines.append("")
+            lines.append(f"    def stick(lo, hi, {', '.join(rest_args)}):")
+            lines.append(f"        d = {' + '.join(rest)}")
+            lines.append("        return min(lo - d, 0.0), max(hi + d, 0.0)")
+    else:
+        args = ", ".join(used)
+        lines.append(f"    def torque({args + ', ' if args else ''}{', '.join(pnames)}):")
+        lines.append(f"        return {expr}")
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    cand.name, cand.effect_file = name, f"{path}:{name}"
+    return path
+
+
+def _uses(cand: Candidate, var: str) -> bool:
+    import re
+
+    return any(re.search(rf"\b{var}\b", cand.codes[lb]) for lb in cand.terms)
+
+
+def advice(ex: Experiment, rt: ResidualTorque | None) -> list[str]:
+    """Which experiments would show more, from what the recording does not cover."""
+    out = []
+    wl = ex.rates.get("omega_l", np.zeros(ex.n))
+    if np.mean(wl < -0.1) < 0.05:
+        out.append("the lower disc hardly turns backwards: an input around 0 V (offset 0, amplitude >= 3 V) shows "
+                   "direction-dependent friction")
+    if np.percentile(np.abs(wl), 95) < 3.0:
+        out.append("the lower disc stays below 3 rad/s: slow ramps up to 4-5 V cover the Stribeck range and viscous "
+                   "terms")
+    if "theta_l" in ex.meas and abs(ex.meas["theta_l"][-1] - ex.meas["theta_l"][0]) < 4 * math.pi:
+        out.append("the lower disc turns less than two revolutions: a longer run (several revolutions) shows "
+                   "angle-dependent effects")
+    if ex.duration < 40.0:
+        out.append("a longer recording (60 s or more) separates slow drifts from noise")
+    if not out:
+        out.append("the residual is not explained by any term of the candidate library: repeat the run to see "
+                   "whether it is reproducible (a disturbance, not a model error), or record at a higher rate")
+    return out
+
+
+MIN_RESIDUAL_UNITS = 4.0  # noise units: a model closer than this to the data leaves nothing to discover
+
+
+def discover(ex: Experiment, diagnosis, candidate_out: str | Path | None = None, name: str | None = None
+             ) -> tuple[Candidate | None, list[str]]:
+    """The candidate effect for what the diagnosed model (selected effects, base parameters as
+    decided) still misses, written to ``candidate_out`` when given; and advice when none is found."""
+    from .sparse import residual_torques
+
+    if diagnosis.vector is None or ex.config.label == "upper":
+        return None, []
+    residual = diagnosis.rmse_after if diagnosis.rmse_after is not None else diagnosis.rmse_before
+    if residual < MIN_RESIDUAL_UNITS:
+        return None, []
+    u = ex.input_on_grid(1.0 / ex.fs, ex.n, ex.t[0])
+    p = diagnosis.params
+    vectors = [diagnosis.vector]
+    if diagnosis.base_parameters and diagnosis.nominal_vector is not None:
+        # the base refit may have absorbed part of an effect outside the library: look at the nominal base too
+        vectors.append(diagnosis.nominal_vector)
+    cand, rt = None, None
+    for vec in vectors:
+        rt_v = residual_torques(ex, vec, effects=diagnosis.composition)
+        c = find_candidate(rt_v, u, p.Ju, p.Jl, ex.config.lateral_free)
+        if c is not None and (cand is None or c.explained > cand.explained):
+            cand, rt = c, rt_v
+        rt = rt if rt is not None else rt_v
+    if cand is None or cand.explained < MIN_EXPLAINED_SHARE or residual < MIN_RESIDUAL_UNITS:
+        if residual < MIN_RESIDUAL_UNITS:
+            return None, []
+        return None, advice(ex, rt)
+    if candidate_out is not None:
+        write_effect_file(cand, candidate_out, name)
+    return cand, []

@@ -1,0 +1,346 @@
+"""Model selection: which SET of effects a recording shows, with the base parameters re-identified.
+
+Ranking candidates one at a time against the nominal base model fails on real recordings: a
+second effect's residual inflates the residual's autocorrelation (nothing passes), and a base
+model a few percent off leaves a residual that some effect partly mimics.  Here:
+
+1. **Search model.**  One composition holds the model's own effects and every candidate, each
+   candidate at its *neutral* values (:func:`neutral_values`: the effect vanishes), so a
+   candidate is switched on by freeing its parameters: no new composition is compiled per
+   combination, and any set of effects is one parameter vector.
+2. **Base parameters.**  The base parameters the configuration excites (:data:`BASE_FREE`:
+   upper part km, Tcu, bu; string ktheta; lower part Jl; brake law Ts, Tc, ws, delta, bb or the
+   bearing's Tcl, bl; lateral k, b, e; Ju is held: it fixes the scale of the torques) are fitted
+   first (within -30 %/+40 % of their nominal values) and stay free in every later fit, so
+   mismatch is absorbed by the base parameters, never by an effect.
+3. **Forward selection with refit.**  Every candidate not yet in the model is screened (its own
+   parameters fitted, the rest held); the ``n_joint`` best are refitted jointly with the base
+   parameters and the effects already accepted; the best joint fit is accepted when its score
+
+       score = N_eff ln(RSS_model / RSS_model+effect) − k ln N_eff
+
+   exceeds ``SIGNIFICANCE`` (nats), it removes at least ``MIN_REDUCTION`` of the residual RMS and
+   explains more than the noise (``MIN_EXPLAINED`` noise units²).  ``N_eff = N (1 − ρ)/(1 + ρ)``
+   with ρ the lag-1 autocorrelation of the residual of the *larger* model (the one with the
+   effect): the residual that remains when the effect is in, not the one the effect removes,
+   measures how correlated the unexplained part is.  Then the rest are re-ranked on the new
+   residual; the loop stops when the best candidate is not significant.
+4. **Backward check.**  With two or more effects accepted, each is removed in turn (the rest and
+   the base parameters refitted); an effect whose removal is not significant is dropped.
+5. **Is the base model off?**  The final effects are refitted with the base parameters held at
+   their nominal values; if freeing the base parameters is significant (same score rule, k = the
+   number of base parameters), the base parameters that moved (by at least ``MOVED_PCT`` and three
+   standard errors) are reported, with the fit's identifiability warnings.  Otherwise the base
+   model stands and the effects keep their values fitted on it.
+6. **Lag or delay.**  When a motor lag or an input delay is selected, the other is fitted in its
+   place; scores within ``TIE_NATS`` are reported as a tie with the experiment that separates them.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+
+from ..configurations import Configuration
+from ..effects import Composition, Effect
+from ..identification.fitting import FitResult, FitVariable, Objective, fit_parameters
+from ..params import N_PARAMS, PARAM_INFO, RigParams
+
+__all__ = ["BASE_FREE", "neutral_values", "search_composition", "SelectionStep", "forward_select",
+           "base_free_parameters", "SIGNIFICANCE", "MIN_REDUCTION", "MIN_EXPLAINED", "TIE_NATS", "MOVED_PCT"]
+
+SIGNIFICANCE = 15.0  # nats
+MIN_REDUCTION = 0.2  # fraction of the residual RMS an accepted effect must remove
+MIN_EXPLAINED = 1.0  # noise units²
+TIE_NATS = 3.0
+MOVED_PCT = 1.0  # % change below which a base parameter is not reported as moved
+BASE_BOUNDS = (0.7, 1.4)  # base parameters fitted within these factors of their nominal values
+
+_UPPER = ("km", "Tcu", "bu")
+_BRAKE = ("Ts", "Tc", "ws", "delta", "bb")
+_LATERAL = ("k", "b", "e")
+#: base parameters re-identified per configuration (Ju held: it sets the torque scale)
+BASE_FREE: dict[Configuration, tuple[str, ...]] = {
+    Configuration.UPPER: _UPPER + ("dTcu", "dbu"),
+    Configuration.TORSIONAL: _UPPER + ("ktheta", "Jl") + _BRAKE,
+    Configuration.COUPLED: _UPPER + ("ktheta", "Jl") + _BRAKE + _LATERAL,
+    Configuration.LATERAL: _UPPER + ("ktheta", "Jl", "Tcl", "bl") + _LATERAL,
+    Configuration.FREE_VIBRATION: ("Jl", "ktheta", "Tcl", "bl"),
+}
+#: values at which the library's effects vanish (any other parameter: 0 clipped into its bounds)
+_NEUTRAL = {"tau_m": 1e-4}
+_LAG_DELAY = ("motor_lag", "input_delay")
+
+
+def neutral_values(effects: Sequence[type[Effect]]) -> dict[str, float]:
+    """Parameter values at which each effect is switched off: the library's known neutral values,
+    else 0 clipped into the parameter's bounds (a user candidate must vanish there)."""
+    out = {}
+    for e in effects:
+        for p in e.parameters:
+            out[p.name] = float(_NEUTRAL.get(p.name, min(max(0.0, p.lo), p.hi)))
+    return out
+
+
+def search_composition(model: Composition, candidates: Sequence[type[Effect]]) -> Composition:
+    """The model's effects then the candidates (a motor lag first among the inputs, so that the
+    segmented model applies it exactly to the input)."""
+    cands = [c for c in candidates if c.name not in model.names]
+    cands.sort(key=lambda c: 0 if c.name == "motor_lag" else 1)
+    return Composition(tuple(model.effects) + tuple(cands))
+
+
+def base_free_parameters(config: Configuration, brake_on: bool = True) -> tuple[str, ...]:
+    """The base parameters re-identified for a configuration."""
+    names = BASE_FREE[config]
+    if config in (Configuration.TORSIONAL, Configuration.COUPLED) and not brake_on:
+        names = tuple(n for n in names if n not in _BRAKE) + ("Tcl", "bl")
+    return names
+
+
+def n_eff(r: np.ndarray) -> float:
+    """Effectively independent samples of a residual vector (lag-1 autocorrelation)."""
+    n = len(r)
+    if n < 3 or not np.any(r):
+        return float(n)
+    rho = float(np.clip(np.corrcoef(r[:-1], r[1:])[0, 1], 0.0, 0.999))
+    return max(n * (1 - rho) / (1 + rho), 10.0)
+
+
+def score(rss_small: float, fit_big: FitResult, k: int) -> tuple[float, float]:
+    """(score in nats, N_eff) of a larger model's fit against a smaller model's RSS."""
+    ne = n_eff(fit_big.residual)
+    rss1 = max(fit_big.rss_after, 1e-300)
+    return ne * math.log(max(rss_small, 1e-300) / rss1) - k * math.log(ne), ne
+
+
+@dataclass
+class SelectionStep:
+    """One accepted (or last rejected) step of the forward selection."""
+
+    effect: str
+    score: float
+    rss_before: float
+    rss_after: float
+    values: dict[str, float]
+    std: dict[str, float]
+    significant: bool
+    n_eff: float
+    note: str = ""
+
+
+@dataclass
+class _State:
+    obj: Objective
+    comp: Composition
+    vec: np.ndarray
+    nominal: np.ndarray
+    base_names: tuple[str, ...]
+    effects: dict[str, type[Effect]]  # candidate name -> class
+    selected: list[str] = field(default_factory=list)
+    fit: FitResult | None = None
+
+
+def _variables(st: _State, vec: np.ndarray, names: Sequence[str], fresh: Sequence[str] = ()) -> list[FitVariable]:
+    """Fit variables: base parameters within BASE_BOUNDS of nominal (starting at ``vec``); effect
+    parameters within their bounds, starting at ``vec`` (or at their guess for ``fresh`` effects)."""
+    out = []
+    for n in names:
+        i = st.comp.param_index(n)
+        owner = st.comp.owner(n)
+        if owner is None:
+            nom = float(st.nominal[i])
+            if nom == 0.0:
+                info = PARAM_INFO[n]
+                lo, hi, sc = max(info["lo"], -0.5), min(info["hi"], 0.5), 0.01
+            else:
+                lo, hi = sorted((nom * BASE_BOUNDS[0], nom * BASE_BOUNDS[1]))
+                lo, hi, sc = max(lo, PARAM_INFO[n]["lo"]), min(hi, PARAM_INFO[n]["hi"]), abs(nom)
+            x0 = min(max(float(vec[i]), lo), hi)
+            out.append(FitVariable(n, x0, lo, hi, sc))
+        else:
+            x0 = None if owner.name in fresh else float(vec[i])
+            out.append(FitVariable.of_effect(st.comp, n, x0))
+    return out
+
+
+def _fit(st: _State, vec: np.ndarray, names: Sequence[str], max_nfev: int, fresh: Sequence[str] = ()) -> FitResult:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fit_parameters(st.obj, vec, _variables(st, vec, names, fresh), max_nfev=max_nfev)
+
+
+def _effect_params(st: _State, names: Sequence[str]) -> list[str]:
+    return [p.name for n in names for p in st.effects[n].parameters]
+
+
+def _neutralise(st: _State, vec: np.ndarray, name: str) -> np.ndarray:
+    v = vec.copy()
+    for p, val in neutral_values([st.effects[name]]).items():
+        v[st.comp.param_index(p)] = val
+    return v
+
+
+def _significant(sc: float, rss0: float, rss1: float, n: int) -> bool:
+    rm0, rm1 = math.sqrt(rss0 / n), math.sqrt(rss1 / n)
+    return sc > SIGNIFICANCE and rm1 < (1 - MIN_REDUCTION) * rm0 and rm0 ** 2 - rm1 ** 2 > MIN_EXPLAINED
+
+
+def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidates: Sequence[type[Effect]],
+                   base_names: Sequence[str], *, excluded: dict[str, str] | None = None, n_joint: int = 2,
+                   max_nfev_screen: int = 8, max_nfev_joint: int = 8, max_nfev_base: int = 15,
+                   max_effects: int = 4, refine: bool = True) -> dict[str, Any]:
+    """Run steps 2–6 of the module docstring on the search model ``comp`` (vector ``vec0``: nominal
+    base parameters, candidates neutral).  Returns a dict with the selection's pieces (see
+    :func:`drillgym.diagnosis.ranking.diagnose`, which formats them)."""
+    excluded = dict(excluded or {})
+    st = _State(obj, comp, vec0.copy(), vec0.copy(), tuple(base_names),
+                {c.name: c for c in candidates if c.name not in excluded})
+    N = obj.residual_matrix(vec0[None, :]).shape[1]
+
+    def refine_for(vec: np.ndarray) -> float:
+        if refine:
+            obj.model.speed_offsets = [np.zeros_like(o) for o in obj.model.speed_offsets]
+            obj.model.refine_initial_speeds(vec, obj.weights, obj.scales)
+        r = obj.residual_matrix(vec[None, :])[0]
+        return float(r @ r)
+
+    rss_nominal = refine_for(vec0)
+    rss_cur = rss_nominal
+    fb = None
+    if st.base_names:  # step 2: base parameters first
+        fb = _fit(st, vec0, st.base_names, max_nfev_base)
+        st.vec = fb.vector
+        rss_cur = refine_for(st.vec)
+        fb2 = _fit(st, st.vec, st.base_names, max(4, max_nfev_base // 2))
+        if fb2.rss_after < rss_cur:
+            st.vec, rss_cur = fb2.vector, fb2.rss_after
+        st.fit = fb2
+    steps: list[SelectionStep] = []
+    last_round: dict[str, SelectionStep] = {}
+    while len(st.selected) < max_effects:
+        free_now = list(st.base_names) + _effect_params(st, st.selected)
+        screen: dict[str, FitResult] = {}
+        for name, eff in st.effects.items():
+            if name in st.selected:
+                continue
+            try:
+                screen[name] = _fit(st, st.vec, _effect_params(st, [name]), max_nfev_screen, fresh=[name])
+            except ValueError as exc:
+                excluded[name] = f"fit failed: {exc}"
+        if not screen:
+            break
+        order = sorted(screen, key=lambda n: screen[n].rss_after)
+        round_: dict[str, SelectionStep] = {}
+        joint: dict[str, FitResult] = {}
+        for name in order:
+            res = screen[name]
+            k = len(res.names)
+            if name in order[:n_joint]:
+                try:
+                    jr = _fit(st, res.vector, free_now + _effect_params(st, [name]), max_nfev_joint)
+                    if jr.rss_after < res.rss_after:
+                        res = jr
+                    joint[name] = res
+                except ValueError:
+                    pass
+            if res.rss_after > rss_cur:  # the effect at its neutral values: nothing explained
+                res.rss_after = rss_cur
+            sc, ne = score(rss_cur, res, k)
+            eff_vals = {p: res.values.get(p, float(res.vector[st.comp.param_index(p)]))
+                        for p in _effect_params(st, [name])}
+            eff_std = {p: res.std.get(p, float("nan")) for p in eff_vals}
+            round_[name] = SelectionStep(name, sc, rss_cur, res.rss_after, eff_vals, eff_std,
+                                         _significant(sc, rss_cur, res.rss_after, N), ne)
+        best = max(joint or round_, key=lambda n: round_[n].score)
+        last_round = round_
+        if not round_[best].significant:
+            break
+        st.selected.append(best)
+        steps.append(round_[best])
+        st.vec = joint[best].vector if best in joint else screen[best].vector
+        rss_cur = refine_for(st.vec)
+        # a second pass with speeds refined for the extended model
+        rf = _fit(st, st.vec, list(st.base_names) + _effect_params(st, st.selected), max(4, max_nfev_joint // 2))
+        if rf.rss_after < rss_cur:
+            st.vec, rss_cur = rf.vector, rf.rss_after
+        st.fit = rf
+    # step 4: backward check
+    dropped: dict[str, str] = {}
+    if len(st.selected) >= 2:
+        for name in list(st.selected):
+            others = [s for s in st.selected if s != name]
+            without = _fit(st, _neutralise(st, st.vec, name), list(st.base_names) + _effect_params(st, others),
+                           max_nfev_joint)
+            full_fit = st.fit if st.fit is not None else without
+            k = len(_effect_params(st, [name]))
+            sc, _ = score(without.rss_after, full_fit, k)
+            if not _significant(sc, without.rss_after, rss_cur, N):
+                dropped[name] = f"removed by the backward check (score {sc:.1f} once the others are in)"
+                st.selected.remove(name)
+                st.vec, rss_cur = without.vector, without.rss_after
+                st.fit = without
+    # step 6: lag or delay
+    ties: dict[str, str] = {}
+    for a, b in (_LAG_DELAY, _LAG_DELAY[::-1]):
+        if a in st.selected and b in st.effects and b not in st.selected:
+            others = [s for s in st.selected if s != a]
+            swapped = _fit(st, _neutralise(st, st.vec, a), list(st.base_names) + _effect_params(st, others + [b]),
+                           max_nfev_joint, fresh=[b])
+            gap, _ = score(swapped.rss_after, st.fit, 0) if st.fit is not None else (float("inf"), 0)
+            if gap < 0:  # the other one fits better: take it
+                st.selected[st.selected.index(a)] = b
+                st.vec, rss_cur, st.fit = swapped.vector, swapped.rss_after, swapped
+                a, b = b, a
+            if abs(gap) < TIE_NATS:
+                ties[a] = (f"indistinguishable from {b} on these data (score difference {abs(gap):.1f} nats): "
+                           f"a voltage step recorded at 1 kHz or faster separates them (a delay shifts the whole "
+                           f"response, a lag rounds its start)")
+            break
+    # step 5: is the base model off?
+    if not st.base_names:
+        return {"selected": list(st.selected), "steps": steps, "last_round": last_round, "dropped": dropped,
+                "ties": ties, "base_off": False, "base_score": 0.0, "moved": {}, "base_warnings": [],
+                "vector": st.vec, "rss_nominal": rss_nominal, "rss_final": rss_cur, "n": N, "fit": st.fit,
+                "excluded": excluded, "base_fit": None}
+    eff_names = _effect_params(st, st.selected)
+    nominal_base = st.vec.copy()
+    for n in st.base_names:
+        i = st.comp.param_index(n)
+        nominal_base[i] = st.nominal[i]
+    if eff_names:
+        held = _fit(st, nominal_base, eff_names, max_nfev_joint)
+    else:
+        r = obj.residual_matrix(nominal_base[None, :])[0]
+        held = None
+        rss_held = float(r @ r)
+    rss_held = held.rss_after if held is not None else rss_held
+    full = st.fit if st.fit is not None else fb
+    base_score, _ = score(rss_held, full, len(st.base_names))
+    base_off = _significant(base_score, rss_held, full.rss_after, N) or (
+        base_score > SIGNIFICANCE and full.rss_after < 0.5 * rss_held)
+    moved: dict[str, dict[str, float]] = {}
+    warn: list[str] = []
+    if base_off:
+        for n in st.base_names:
+            i = st.comp.param_index(n)
+            nom, val = float(st.nominal[i]), float(st.vec[i])
+            sd = full.std.get(n, float("nan"))
+            pct = 100.0 * (val - nom) / nom if nom else float("nan")
+            if nom and abs(pct) >= MOVED_PCT and not (abs(val - nom) < 3 * sd):
+                moved[n] = {"nominal": nom, "fitted": val, "change_pct": pct, "std": sd}
+        warn = [w for w in full.warnings if any(n in w for n in st.base_names)]
+        vec_final, rss_final = st.vec, full.rss_after
+        fit_final = full
+    else:
+        vec_final = held.vector if held is not None else nominal_base
+        rss_final = rss_held
+        fit_final = held
+    return {"selected": list(st.selected), "steps": steps, "last_round": last_round, "dropped": dropped,
+            "ties": ties, "base_off": base_off, "base_score": base_score, "moved": moved, "base_warnings": warn,
+            "vector": vec_final, "rss_nominal": rss_nominal, "rss_final": rss_final, "n": N,
+            "fit": fit_final, "excluded": excluded, "base_fit": full}
