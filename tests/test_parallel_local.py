@@ -66,3 +66,14 @@ def test_helpers():
     assert describe_inputs((list(range(10)),), {"u": "x" * 100}) == "list[10](0, 1, 2, 3, ...), u='" + "x" * 56 + "..."
     with pytest.raises(ValueError, match="workers must be >= 1"):
         LocalExecutor(0)
+
+
+def square_trial(config: dict) -> dict:
+    """A Tune trial's work: returns its config's square and a seeded draw."""
+    return {"square": config["x"] ** 2, "draw": draw(config["x"], 3)}
+
+
+def refuse_one(config: dict) -> int:
+    if config["x"] == 1:
+        raise ValueError("x = 1 is refused")
+    return config["x"]

@@ -14,7 +14,7 @@ from drillgym.cli import main
 from drillgym.parallel import RayExecutor, TaskFailed, connect_ray, map_ordered
 
 import test_parallel_local
-from test_parallel_local import die_once, draw, fail_on
+from test_parallel_local import die_once, draw, fail_on, refuse_one, square_trial
 
 pytestmark = pytest.mark.xdist_group("ray")
 
@@ -112,3 +112,14 @@ def test_ray_auto_without_a_cluster_is_one_line(monkeypatch, tmp_path, capsys):
     assert err.endswith("--ray auto: no Ray cluster is running on this machine (start one with `ray start --head`, "
                         "or use --ray local)")
     assert not (tmp_path / "o").exists()
+
+
+def test_tune_trials_ordered_equal_and_failures_named(ray_executor, tmp_path):
+    from drillgym.tune import run_trials
+
+    configs = [{"x": x} for x in (3, 0, 2)]
+    got = run_trials(square_trial, configs, ray=None, storage=tmp_path, progress=False)
+    assert got == [square_trial(c) for c in configs]
+    with pytest.raises(TaskFailed, match=r"^task refuse_one\(\{'x': 1\}\) failed after 2 attempts: "
+                                         r"ValueError: x = 1 is refused$"):
+        run_trials(refuse_one, [{"x": 0}, {"x": 1}], ray=None, storage=tmp_path, progress=False, retries=1)
