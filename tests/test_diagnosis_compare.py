@@ -43,6 +43,19 @@ def test_compare_exact_model_free_run():
     assert comp.segment_s is None
 
 
+def test_compare_claims_failures_only_above_noise(pf_data, tmp_path):
+    exact = synthetic_measurement("torsional", duration=12.0, rate_hz=250.0, offset=1.0, seed=2)
+    comp = compare(exact, segment_s=4.0)
+    assert len(comp.findings) == 1 and "within the measurement noise" in comp.findings[0], comp.findings
+    paths = write_compare(comp, tmp_path / "exact")
+    assert not (tmp_path / "exact" / "bins.png").exists()  # no empty panels
+    comp = compare(pf_data, segment_s=4.0)  # a real failure: binned against speed, angle and twist
+    assert comp.by_alpha and comp.by_speed and comp.by_angle
+    assert all(comp.metrics[c]["rms"] > 3 * comp.noise[c] for c in ("theta_l", "alpha"))
+    paths = write_compare(comp, tmp_path / "pf")
+    assert (tmp_path / "pf" / "bins.png") in paths
+
+
 def test_sparse_term_for_position_friction_and_string_damping(pf_data):
     term = sparse_residual_model(residual_torques(prepare_experiment(pf_data), RigParams()))
     assert {"sign(ωl) cos θl", "sign(ωl) sin θl"} & set(term.terms), term.expression()

@@ -53,13 +53,14 @@ def test_no_hidden_effect_nothing_significant():
 
 
 def test_json_shape_and_skips():
-    d = diagnose(_measure("torsional", 2.0), RigParams().scaled(Ts=1.05), effects=["string_damping", "lvdt_offset"],
-                 refit_base=True)
+    d = diagnose(_measure("torsional", 2.0), RigParams().scaled(Ts=1.05), effects=["string_damping", "lvdt_offset"])
     js = d.to_json()
-    assert set(js["base_refit"]) == {"Ts", "Tc", "ws", "delta", "bb"}
-    assert js["base_refit"]["Ts"] == pytest.approx(RigParams().Ts, rel=0.01)  # light refit undoes the error
+    assert js["selected"] == [] and js["base_model_off"]
+    assert set(js["base_parameters"]) >= {"Ts"}  # the base refit names the parameter that is off
+    assert js["base_parameters"]["Ts"]["fitted"] == pytest.approx(RigParams().Ts, rel=0.01)
+    assert js["base_parameters"]["Ts"]["change_pct"] == pytest.approx(100 * (1 / 1.05 - 1), abs=1.0)
     assert [r["effect"] for r in js["ranking"]] == ["string_damping"]
-    assert set(js["ranking"][0]) >= {"effect", "score", "rmse_before", "rmse_after"}
+    assert set(js["ranking"][0]) >= {"effect", "score", "significant", "fitted", "rmse_before", "rmse_after"}
     assert "configuration" in js["skipped"]["lvdt_offset"]
     with pytest.raises(ValueError, match="unknown effect"):
         diagnose(_measure("torsional", 2.0), effects=["bogus"])

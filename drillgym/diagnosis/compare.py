@@ -51,6 +51,8 @@ class Comparison:
     by_speed: list[dict] = field(default_factory=list)
     by_angle: list[dict] = field(default_factory=list)
     by_r: list[dict] = field(default_factory=list)
+    by_alpha: list[dict] = field(default_factory=list)
+    noise: dict[str, float] = field(default_factory=dict)
     spectrum: dict = field(default_factory=dict)
     findings: list[str] = field(default_factory=list)
     composition: Composition = BASE
@@ -76,8 +78,21 @@ class Comparison:
     def to_json(self) -> dict:
         return {"model": self.composition.label, "effect_values": self.effect_values,
                 "metrics": self.metrics, "windows": self.windows, "by_speed": self.by_speed,
-                "by_angle": self.by_angle, "by_r": self.by_r, "findings": self.findings,
+                "by_angle": self.by_angle, "by_alpha": self.by_alpha, "by_r": self.by_r, "findings": self.findings,
+                "noise": self.noise,
                 "segment_s": self.segment_s, "spectrum_peaks": self.spectrum.get("peaks", [])}
+
+
+NOISE_FACTOR = 3.0  # a channel fails only where its RMS error exceeds this many times its noise level
+
+
+def _noise_levels(ex: Experiment, chans: list[str]) -> dict[str, float]:
+    """Measurement noise per channel (rad or m): one encoder count / √12 (the count read from the
+    data, :func:`.segments.encoder_quantum`), 10 µm for the LVDT channels."""
+    from .segments import robust_noise
+
+    _, scales = robust_noise(ex)
+    return {c: float(scales.get(c, 1e-5)) for c in chans}
 
 
 def _main_channel(ex: Experiment) -> str:
@@ -133,6 +148,14 @@ def compare(data: "TimeSeries | Experiment", params: "RigParams | np.ndarray | N
                             "a slow change (friction drift?) or accumulated phase")
     comp = Comparison(ex, p, segment_s, predicted, metrics, windows, findings=findings, composition=model.composition,
                       vector=vec)
+    comp.noise = _noise_levels(ex, chans)
+    above = {c for c in chans if metrics[c]["rms"] > NOISE_FACTOR * comp.noise[c]}
+    if not above:  # the model fits to the noise: there is no failure to locate
+        comp.findings[:] = [f"the model matches the recording within the measurement noise ({main} RMS "
+                            f"{metrics[main]['rms']:.3g} vs noise {comp.noise[main]:.3g}): no failure to report"]
+        return comp
+    if main not in above:
+        comp.findings[:] = [f for f in comp.findings if not f.startswith(main)]
     if ex.config is not Configuration.UPPER:
         _torque_bins(comp)
     if ex.config.lateral_free:
@@ -172,6 +195,20 @@ def _torque_bins(comp: Comparison) -> None:
         if s.sum() > 5:
             comp.by_angle.append({"theta_lo": float(a), "theta_hi": float(b),
                                   "mean": float(np.mean(tau[s] * sg[s])), "n": int(s.sum())})
+    a_ = rt.states[ok, 1] - rt.states[ok, 0]
+    qa = np.unique(np.quantile(a_, np.linspace(0, 1, 9)))
+    for a, b in zip(qa[:-1], qa[1:]):
+        s = (a_ >= a) & (a_ <= b)
+        if s.sum() > 5:
+            comp.by_alpha.append({"alpha_lo": float(a), "alpha_hi": float(b), "mean": float(tau[s].mean()),
+                                  "n": int(s.sum())})
+    if len(comp.by_alpha) >= 4:
+        m = np.array([d["mean"] for d in comp.by_alpha])
+        n = np.array([d["n"] for d in comp.by_alpha])
+        eta2 = float(np.sum(n * (m - tau.mean()) ** 2) / max(np.sum((tau - tau.mean()) ** 2), 1e-300))
+        if eta2 > 0.3 and 0.5 * (m.max() - m.min()) > 0.3 * total:
+            comp.findings.append(f"residual torque on the lower disc varies with the twist α (explains {eta2:.0%} "
+                                 f"of it, from {m.min():.3g} to {m.max():.3g} N m): the string's torque law")
     revolutions = float(np.ptp(rt.states[ok, 1])) / (2 * np.pi)
     if len(comp.by_angle) >= 6 and revolutions >= 3:
         m = np.array([d["mean"] for d in comp.by_angle])
@@ -244,38 +281,60 @@ def write_compare(comp: Comparison, out_dir: str | Path) -> list[Path]:
     ex = comp.experiment
     t = ex.t - ex.t[0]
     chans = list(comp.predicted)
+    unit = {c: ("mm" if c in ("x", "y", "r") else "rad") for c in chans}
+    k = {c: (1e3 if c in ("x", "y", "r") else 1.0) for c in chans}
     fig, axes = plt.subplots(len(chans), 2, figsize=(12, 2.2 * len(chans)), squeeze=False, sharex=True)
     for i, c in enumerate(chans):
-        axes[i, 0].plot(t, ex.channel(c), "k", lw=1, label="measured")
-        axes[i, 0].plot(t, comp.predicted[c], "r--", lw=1, label="model")
-        axes[i, 0].set_ylabel(c)
-        axes[i, 1].plot(t, comp.predicted[c] - ex.channel(c), "b", lw=0.8)
-        axes[i, 1].set_ylabel(f"residual {c}")
+        axes[i, 0].plot(t, k[c] * ex.channel(c), "k", lw=1, label="measured")
+        axes[i, 0].plot(t, k[c] * comp.predicted[c], "r--", lw=1, label="model")
+        axes[i, 0].set_ylabel(f"{c} ({unit[c]})")
+        axes[i, 1].plot(t, k[c] * (comp.predicted[c] - ex.channel(c)), "b", lw=0.8)
+        if comp.noise.get(c):
+            for sgn in (-1, 1):
+                axes[i, 1].axhline(sgn * NOISE_FACTOR * k[c] * comp.noise[c], color="gray", ls=":", lw=0.8)
+        axes[i, 1].set_ylabel(f"model − data {c} ({unit[c]})")
     axes[0, 0].legend(loc="best")
+    axes[0, 1].set_title(f"residual (dotted: ±{NOISE_FACTOR:g}× noise level)", fontsize=9)
     axes[-1, 0].set_xlabel("t (s)")
     axes[-1, 1].set_xlabel("t (s)")
     fig.tight_layout()
     paths = [out / "time.png"]
     fig.savefig(paths[-1], dpi=90)
     plt.close(fig)
-    fig, axes = plt.subplots(1, 3, figsize=(14, 3.5))
+    panels = []
     if comp.by_speed:
-        x = [(d["omega_lo"] + d["omega_hi"]) / 2 for d in comp.by_speed]
-        axes[0].bar(x, [d["rms"] for d in comp.by_speed], width=np.diff([d["omega_lo"] for d in comp.by_speed]
-                                                                         + [comp.by_speed[-1]["omega_hi"]]) * 0.9)
-    axes[0].set(xlabel="ωl (rad/s)", ylabel="residual torque RMS (N m)", title="vs speed")
+        panels.append("speed")
     if comp.by_angle:
-        axes[1].bar(np.degrees([d["theta_lo"] for d in comp.by_angle]), [d["mean"] for d in comp.by_angle],
-                    width=27, align="edge")
-    axes[1].set(xlabel="θl mod 2π (deg)", ylabel="mean residual friction (N m)", title="vs angle")
+        panels.append("angle")
+    if comp.by_alpha:
+        panels.append("alpha")
     if comp.by_r:
-        axes[2].bar([1e3 * (d["r_lo"] + d["r_hi"]) / 2 for d in comp.by_r], [1e3 * d["rms"] for d in comp.by_r],
-                    width=[1e3 * (d["r_hi"] - d["r_lo"]) * 0.9 for d in comp.by_r])
-    axes[2].set(xlabel="r (mm)", ylabel="lateral residual RMS (mm)", title="vs lateral amplitude")
-    fig.tight_layout()
-    paths.append(out / "bins.png")
-    fig.savefig(paths[-1], dpi=90)
-    plt.close(fig)
+        panels.append("r")
+    if panels:  # only panels with data
+        fig, axes = plt.subplots(1, len(panels), figsize=(4.7 * len(panels), 3.5), squeeze=False)
+        for ax, kind in zip(axes[0], panels):
+            if kind == "speed":
+                x = [(d["omega_lo"] + d["omega_hi"]) / 2 for d in comp.by_speed]
+                ax.bar(x, [d["rms"] for d in comp.by_speed],
+                       width=[0.9 * (d["omega_hi"] - d["omega_lo"]) for d in comp.by_speed])
+                ax.set(xlabel="ωl (rad/s)", ylabel="residual torque RMS (N m)", title="vs lower disc speed")
+            elif kind == "angle":
+                ax.bar(np.degrees([d["theta_lo"] for d in comp.by_angle]), [d["mean"] for d in comp.by_angle],
+                       width=27, align="edge")
+                ax.set(xlabel="θl mod 2π (deg)", ylabel="mean residual friction (N m)", title="vs lower disc angle")
+            elif kind == "alpha":
+                ax.bar([(d["alpha_lo"] + d["alpha_hi"]) / 2 for d in comp.by_alpha],
+                       [d["mean"] for d in comp.by_alpha],
+                       width=[0.9 * (d["alpha_hi"] - d["alpha_lo"]) for d in comp.by_alpha])
+                ax.set(xlabel="twist α (rad)", ylabel="mean residual torque (N m)", title="vs string twist")
+            else:
+                ax.bar([1e3 * (d["r_lo"] + d["r_hi"]) / 2 for d in comp.by_r], [1e3 * d["rms"] for d in comp.by_r],
+                       width=[1e3 * (d["r_hi"] - d["r_lo"]) * 0.9 for d in comp.by_r])
+                ax.set(xlabel="r (mm)", ylabel="lateral residual RMS (mm)", title="vs lateral amplitude")
+        fig.tight_layout()
+        paths.append(out / "bins.png")
+        fig.savefig(paths[-1], dpi=90)
+        plt.close(fig)
     if comp.spectrum:
         fig, ax = plt.subplots(figsize=(8, 3.5))
         ax.semilogy(comp.spectrum["f"], comp.spectrum["P"])
@@ -283,7 +342,9 @@ def write_compare(comp: Comparison, out_dir: str | Path) -> list[Path]:
             if v > 0:
                 ax.axvline(v, ls="--", color="gray")
                 ax.text(v, ax.get_ylim()[1], name, rotation=90, va="top", fontsize=8)
-        ax.set(xlim=(0, min(10, ex.fs / 2)), xlabel="f (Hz)", ylabel="PSD of residual", title="residual spectrum")
+        u_ = "m" if ex.config.lateral_free else "rad"
+        ax.set(xlim=(0, min(10, ex.fs / 2)), xlabel="f (Hz)", ylabel=f"PSD of residual ({u_}²/Hz)",
+               title="residual spectrum")
         fig.tight_layout()
         paths.append(out / "spectrum.png")
         fig.savefig(paths[-1], dpi=90)

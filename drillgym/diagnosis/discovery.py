@@ -138,17 +138,49 @@ def _data(rt: ResidualTorque, u: np.ndarray) -> dict[str, np.ndarray]:
             "ad": S[:, 3] - S[:, 2], "t": rt.t, "u": u}
 
 
-def find_candidate(rt: ResidualTorque, u: np.ndarray, Ju: float, Jl: float, lateral: bool = False
-                   ) -> Candidate | None:
+def _nuisance(d: dict, n: int, Ju: float, Jl: float, ws: float, delta: float) -> np.ndarray:
+    """Columns a change of the base parameters would add to the residual (stacked [upper; lower],
+    acceleration units): per-disc offsets, Coulomb sign(ω), viscous ω, the Stribeck shape (Ts), the
+    motor constant (u), the inertias (the model's accelerations) and the string stiffness (α)."""
+    z = np.zeros(n)
+    up = lambda g: np.concatenate([g / Ju, z])  # noqa: E731
+    lo = lambda g: np.concatenate([z, g / Jl])  # noqa: E731
+    one = np.ones(n)
+    strib = np.sign(d["wl"]) * np.exp(-np.abs(d["wl"] / ws) ** delta)
+    cols = [up(one), lo(one), up(np.sign(d["wu"])), up(d["wu"]), up(d["u"]), up(d["accu"]),
+            lo(np.sign(d["wl"])), lo(d["wl"]), lo(strib), lo(d["accl"]),
+            np.concatenate([d["a"] / Ju, -d["a"] / Jl])]
+    return np.column_stack(cols)
+
+
+def find_candidate(rt: ResidualTorque, u: np.ndarray, Ju: float, Jl: float, lateral: bool = False,
+                   ws: float = 1.4302, delta: float = 2.0575) -> Candidate | None:
     """The best candidate group and terms for the residual torques ``rt`` (``u``: the input at its
-    samples, V; ``Ju``, ``Jl``: inertias, kg m²); None if too few samples slip."""
+    samples, V; ``Ju``, ``Jl``: inertias, kg m²; ``ws``, ``delta``: the Stribeck law's speed and
+    exponent); None if too few samples slip.  Terms are regressed jointly with the columns a change
+    of the base parameters would give (:func:`_nuisance`), so a candidate explains only what the
+    base parameters cannot; ``explained`` is its share of the residual left by those."""
+    from ..identification.experiment import estimate_rate
+
+    fs = 1.0 / float(np.median(np.diff(rt.t)))
+    full = _data(rt, u)
+    # the model's accelerations (an inertia change scales them): the data's minus the residual
+    full["accu"] = estimate_rate(rt.states[:, 0], fs, window_s=0.1, deriv=2) - rt.tau_u / Ju
+    full["accl"] = estimate_rate(rt.states[:, 1], fs, window_s=0.1, deriv=2) - rt.tau_l / Jl
     ok = rt.slip & np.isfinite(rt.tau_l) & np.isfinite(rt.tau_u)
     if ok.sum() < 50:
         return None
-    d = {k: v[ok] for k, v in _data(rt, u).items()}
+    d = {k: v[ok] for k, v in full.items()}
+    n = int(ok.sum())
     y = np.concatenate([rt.tau_u[ok] / Ju, rt.tau_l[ok] / Jl])
-    y = y - 0.0
-    tss = float(np.sum((y - y.mean()) ** 2)) or 1.0
+    Nm = _nuisance(d, n, Ju, Jl, ws, delta)
+    Q, _ = np.linalg.qr(Nm)
+
+    def project(v: np.ndarray) -> np.ndarray:
+        return v - Q @ (Q.T @ v)
+
+    yr = project(y)
+    tss = float(yr @ yr) or 1.0
     best: Candidate | None = None
     shares: dict[str, float] = {}
     for group, terms in _groups(lateral).items():
@@ -156,23 +188,20 @@ def find_candidate(rt: ResidualTorque, u: np.ndarray, Ju: float, Jl: float, late
         cols = []
         for tm in terms:
             g = np.asarray(tm.values(d), dtype=float)
-            cols.append(np.concatenate([su * g / Ju, sl * g / Jl]))
-        A = np.column_stack(cols + [np.concatenate([np.ones(ok.sum()), np.zeros(ok.sum())]),
-                                    np.concatenate([np.zeros(ok.sum()), np.ones(ok.sum())])])
+            cols.append(project(np.concatenate([su * g / Ju, sl * g / Jl])))
         chosen: list[int] = []
         share = 0.0
         coef = np.zeros(0)
         for _ in range(MAX_TERMS):
             trial = None
             for j in range(len(terms)):
-                if j in chosen or not np.any(A[:, j]):
+                if j in chosen or not np.any(np.abs(cols[j]) > 1e-12 * (np.abs(cols[j]).max() + 1e-300)):
                     continue
-                idx = chosen + [j]
-                X = np.column_stack([A[:, idx], A[:, -2:]])  # per-disc offsets absorb acceleration bias
-                c, *_ = np.linalg.lstsq(X, y, rcond=None)
-                s = 1.0 - float(np.sum((y - X @ c) ** 2)) / tss
-                if trial is None or s > trial[1]:
-                    trial = (j, s, c)
+                X = np.column_stack([cols[i] for i in chosen + [j]])
+                c, *_ = np.linalg.lstsq(X, yr, rcond=None)
+                sh = 1.0 - float(np.sum((yr - X @ c) ** 2)) / tss
+                if trial is None or sh > trial[1]:
+                    trial = (j, sh, c)
             if trial is None or trial[1] - share < MIN_GAIN:
                 break
             chosen.append(trial[0])
@@ -181,7 +210,7 @@ def find_candidate(rt: ResidualTorque, u: np.ndarray, Ju: float, Jl: float, late
         if chosen and (best is None or share > best.explained):
             best = Candidate(group, {terms[j].label: float(coef[i]) for i, j in enumerate(chosen)},
                              {terms[j].label: terms[j].code for j in chosen},
-                             {terms[j].label: terms[j].at_rest for j in chosen}, share, int(ok.sum()))
+                             {terms[j].label: terms[j].at_rest for j in chosen}, share, n)
     if best is not None:
         best.rest = shares
     return best
@@ -258,6 +287,9 @@ def advice(ex: Experiment, rt: ResidualTorque | None) -> list[str]:
     if np.mean(wl < -0.1) < 0.05:
         out.append("the lower disc hardly turns backwards: an input around 0 V (offset 0, amplitude >= 3 V) shows "
                    "direction-dependent friction")
+    if rt is not None and np.mean(np.sign(rt.states[:, 1] - rt.states[:, 0]) < 0) < 0.05:
+        out.append("the string's twist α hardly changes sign: an input around 0 V (offset 0) that winds the string "
+                   "both ways shows free play or a non-linear string near zero twist")
     if np.percentile(np.abs(wl), 95) < 3.0:
         out.append("the lower disc stays below 3 rad/s: slow ramps up to 4-5 V cover the Stribeck range and viscous "
                    "terms")
@@ -295,7 +327,7 @@ def discover(ex: Experiment, diagnosis, candidate_out: str | Path | None = None,
     cand, rt = None, None
     for vec in vectors:
         rt_v = residual_torques(ex, vec, effects=diagnosis.composition)
-        c = find_candidate(rt_v, u, p.Ju, p.Jl, ex.config.lateral_free)
+        c = find_candidate(rt_v, u, p.Ju, p.Jl, ex.config.lateral_free, p.ws, p.delta)
         if c is not None and (cand is None or c.explained > cand.explained):
             cand, rt = c, rt_v
         rt = rt if rt is not None else rt_v

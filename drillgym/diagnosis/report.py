@@ -40,7 +40,9 @@ def write_report(out_dir: str | Path, ex: Experiment, base: RigParams, diagnosis
              + ("free run from the recording's initial state." if not segment_s else
                 f"multiple shooting: segments of {segment_s:g} s re-started from the recording."), "",
              "## 1. Base model", "", "```", cb.text(), "```", "",
-             "![time](1_base/time.png)", "", "![bins](1_base/bins.png)", ""]
+             "![time](1_base/time.png)", ""]
+    if (out / "1_base" / "bins.png").exists():
+        lines += ["![bins](1_base/bins.png)", ""]
     if (out / "1_base" / "spectrum.png").exists():
         lines += ["![spectrum](1_base/spectrum.png)", ""]
     lines += ["## 2. Diagnosis", ""]

@@ -169,9 +169,15 @@ def _variables(st: _State, vec: np.ndarray, names: Sequence[str], fresh: Sequenc
 
 
 def _fit(st: _State, vec: np.ndarray, names: Sequence[str], max_nfev: int, fresh: Sequence[str] = ()) -> FitResult:
+    """Fit ``names`` from ``vec``; standard errors are inflated by √(N / N_eff) (the least-squares
+    errors assume independent residual samples; these are correlated)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return fit_parameters(st.obj, vec, _variables(st, vec, names, fresh), max_nfev=max_nfev)
+        res = fit_parameters(st.obj, vec, _variables(st, vec, names, fresh), max_nfev=max_nfev)
+    if res.residual is not None and len(res.residual):
+        f = math.sqrt(len(res.residual) / n_eff(res.residual))
+        res.std = {k: v * f for k, v in res.std.items()}
+    return res
 
 
 def _effect_params(st: _State, names: Sequence[str]) -> list[str]:
@@ -225,13 +231,25 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
     while len(st.selected) < max_effects:
         free_now = list(st.base_names) + _effect_params(st, st.selected)
         screen: dict[str, FitResult] = {}
+        # the base refit may have absorbed part of an effect (a motor lag looks like a slower upper disc):
+        # every candidate is also screened from the nominal base parameters with the accepted effects
+        starts = [st.vec]
+        if st.base_names:
+            nom = st.vec.copy()
+            for n in st.base_names:
+                nom[st.comp.param_index(n)] = st.nominal[st.comp.param_index(n)]
+            starts.append(nom)
         for name, eff in st.effects.items():
             if name in st.selected:
                 continue
-            try:
-                screen[name] = _fit(st, st.vec, _effect_params(st, [name]), max_nfev_screen, fresh=[name])
-            except ValueError as exc:
-                excluded[name] = f"fit failed: {exc}"
+            for v in starts:
+                try:
+                    r_ = _fit(st, v, _effect_params(st, [name]), max_nfev_screen, fresh=[name])
+                except ValueError as exc:
+                    excluded[name] = f"fit failed: {exc}"
+                    continue
+                if name not in screen or r_.rss_after < screen[name].rss_after:
+                    screen[name] = r_
         if not screen:
             break
         order = sorted(screen, key=lambda n: screen[n].rss_after)

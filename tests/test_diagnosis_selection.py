@@ -1,0 +1,107 @@
+"""Diagnosis as model selection (issue 13): several effects at once, a base model a few percent
+off, effects outside the library written as effect files.
+
+Recordings: drillgym's simulator through the rig's measurement chain (``synthetic_measurement``)
+and, for the effect outside the library, an independent scipy model (smoothed friction, Radau;
+``tests/test_identification_effects.py``).  The diagnosis is never told what is hidden.
+"""
+
+import json
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from drillgym import RigParams
+from drillgym.cli import app
+from drillgym.diagnosis import diagnose
+from drillgym.diagnosis.discovery import Candidate, write_effect_file
+from drillgym.diagnosis.selection import neutral_values, search_composition
+from drillgym.effects import BASE, LIBRARY, compose
+from drillgym.identification.synthetic import synthetic_measurement
+from drillgym.io import write_timeseries
+
+from test_identification_effects import scipy_cubic_string
+
+MISMATCH = {"Ts": 1.06, "km": 0.97, "Jl": 1.04}
+
+
+def _rec(params=None, effects=None, **values):
+    return synthetic_measurement("torsional", params, duration=20.0, rate_hz=250.0, offset=1.0, seed=5,
+                                 effects=effects, effect_params=values or None)
+
+
+def test_two_effects_found_as_a_set():
+    d = diagnose(_rec(effects=["position_friction", "motor_lag"], pf_c1=0.12, pf_s1=-0.08, tau_m=0.03))
+    assert set(d.selected) == {"position_friction", "motor_lag"}, d.text()
+    vals = d.effect_values()
+    assert vals["tau_m"] == pytest.approx(0.03, rel=0.2)
+    assert vals["pf_c1"] == pytest.approx(0.12, rel=0.2) and vals["pf_s1"] == pytest.approx(-0.08, rel=0.2)
+    assert d.rmse_after < 0.1 * d.rmse_before
+    assert [s.effect for s in d.ranking[:2]] == d.selected and all(s.significant for s in d.ranking[:2])
+    assert not any(s.significant for s in d.ranking[2:])
+
+
+def test_plain_mismatch_is_not_an_effect_and_moved_parameters_are_named():
+    d = diagnose(_rec(RigParams().scaled(**MISMATCH)))
+    assert d.selected == [], d.text()
+    assert d.base_off
+    moved = d.base_parameters
+    assert moved and set(moved) & set(MISMATCH), moved
+    for name, m in moved.items():  # each entry names nominal, fitted and the change
+        assert m["change_pct"] == pytest.approx(100 * (m["fitted"] / m["nominal"] - 1))
+    for name in set(moved) & set(MISMATCH):  # the parameters that were off moved the right way
+        assert (moved[name]["change_pct"] > 0) == (MISMATCH[name] > 1), moved
+    assert "base model is off" in d.text()
+
+
+def test_effect_found_under_mismatch_with_its_value():
+    d = diagnose(_rec(RigParams().scaled(**MISMATCH), effects=["motor_lag"], tau_m=0.03))
+    assert d.selected in (["motor_lag"], ["input_delay"]), d.text()
+    if d.selected == ["input_delay"]:  # only as a stated tie
+        assert "indistinguishable" in d.ranking[0].note
+    else:
+        assert d.effect_values()["tau_m"] == pytest.approx(0.03, rel=0.25)
+    assert d.base_parameters, d.text()
+
+
+def test_search_composition_is_the_model_when_candidates_are_neutral():
+    cands = [LIBRARY[n] for n in ("position_friction", "motor_lag", "string_damping")]
+    comp = search_composition(BASE, cands)
+    assert comp.effects[0].name == "motor_lag"  # first input: applied exactly to the recorded input
+    vals = neutral_values(cands)
+    assert vals["tau_m"] == LIBRARY["motor_lag"].parameters[0].lo and vals["pf_c1"] == 0.0 and vals["dtheta"] == 0.0
+    comp.vector(RigParams(), vals)  # neutral values are valid values
+
+
+def test_candidate_file_is_a_valid_effect(tmp_path):
+    cand = Candidate("lower_friction", {"ωl|ωl|": 0.004, "sign(ωl) exp(−|ωl|/1)": -0.01},
+                     {"ωl|ωl|": "omega * speed", "sign(ωl) exp(−|ωl|/1)": "direction * math.exp(-speed / 1.0)"},
+                     {"ωl|ωl|": 0.0, "sign(ωl) exp(−|ωl|/1)": 1.0}, 0.8, 1000)
+    path = write_effect_file(cand, tmp_path / "cand.py")
+    comp, values = compose([cand.effect_file])
+    assert comp.names == ("candidate_lower_friction",)
+    assert values == {"candidate_lower_friction_c1": 0.004, "candidate_lower_friction_c2": -0.01}
+    assert "def stick" in path.read_text()
+    assert cand.to_json()["dof"] == 2 and "ωl|ωl|" in cand.expression()
+
+
+def test_cli_outside_the_library_candidate_file_halves_the_error(tmp_path):
+    ts = scipy_cubic_string(0.015, duration=20.0, rate_hz=250.0)
+    data = write_timeseries(tmp_path / "rec.csv", ts)
+    out = tmp_path / "cand.py"
+    r = CliRunner().invoke(app, ["diagnose", str(data), "--json", "--candidate-out", str(out)])
+    assert r.exit_code == 0, r.output
+    js = json.loads(r.output)
+    assert js["selected"] == [], js["ranking"]
+    assert {"effect", "score", "significant", "fitted"} <= set(js["ranking"][0])
+    assert isinstance(js["base_parameters"], dict)
+    cand = js["candidate"]
+    assert cand is not None and "α³" in cand["expression"] and cand["dof"] >= 1 and cand["explained"] > 0.5
+    assert Path(cand["effect_file"].rsplit(":", 1)[0]) == out and out.exists()
+    r2 = CliRunner().invoke(app, ["identify", str(data), "--add-effect", cand["effect_file"], "--json",
+                                  "--out", str(tmp_path / "p.json")])
+    assert r2.exit_code == 0, r2.output
+    fit = json.loads(r2.output)
+    for c in ("theta_l", "alpha"):  # the user watches the error fall: at least halved
+        assert 1 - fit["r2_after"][c] <= 0.5 * (1 - fit["r2_before"][c]), fit
