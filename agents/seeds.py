@@ -88,10 +88,11 @@ def _train_one(kwargs: dict[str, Any]) -> dict[str, Any]:
 
 
 def train_seeds(env_id: str, algo: str, out: str | Path, seeds: Sequence[int], *, workers: int | None = None,
-                evaluate_held: bool = True, **train_kwargs: Any) -> SeedSummary:
+                evaluate_held: bool = True, ray: str | None = None, **train_kwargs: Any) -> SeedSummary:
     """Train ``algo`` on ``env_id`` once per seed into ``out/seed_<s>/`` and write the results (module
     docstring).  ``train_kwargs``: keywords of :func:`agents.train.train` (``eval_every`` defaults to a
-    twentieth of the run so that every seed has a learning curve)."""
+    twentieth of the run so that every seed has a learning curve).  ``ray``: run the seeds as Ray Tune
+    trials there ('local', 'auto' or an address; :func:`drillgym.tune.run_trials`)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     seeds = [int(s) for s in seeds]
@@ -100,7 +101,12 @@ def train_seeds(env_id: str, algo: str, out: str | Path, seeds: Sequence[int], *
     workers = min(len(seeds), os.cpu_count() or 1) if workers is None else int(workers)
     jobs = [dict(train_kwargs, env_id=env_id, algo=algo, out=out / f"seed_{s}", seed=s, evaluate_held=evaluate_held,
                  progress=False) for s in seeds]
-    if workers <= 1:
+    if ray is not None:
+        from drillgym.tune import run_trials
+
+        rows = run_trials(_train_one, jobs, ray=ray, workers=workers if ray == "local" else None,
+                          name=f"{algo}_seeds", storage=out.resolve() / "tune")
+    elif workers <= 1:
         rows = [_train_one(j) for j in jobs]
     else:
         with ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as ex:

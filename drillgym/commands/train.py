@@ -30,6 +30,8 @@ def register(app: typer.Typer) -> None:
                                   "parallel where cores allow; writes OUT/results.csv, OUT/results.md (per-seed lowest "
                                   "held target, returns; IQM with bootstrap 95 % interval) and OUT/learning_curves.png"),
         workers: Optional[int] = typer.Option(None, "--workers", help="seeds trained at once (default: min(seeds, CPU cores))"),
+        ray: Optional[str] = typer.Option(None, "--ray", help="with --seeds: train them as Ray Tune trials on 'auto' (a "
+                                                           "running cluster), 'local' (start one here) or HOST:PORT"),
         eval_every: Optional[int] = typer.Option(None, "--eval-every", help="environment steps between evaluations of the "
                                                  "deterministic policy; the best is kept in OUT/best/ (0 = none; "
                                                  "default: a twentieth of the run)"),
@@ -69,13 +71,14 @@ def register(app: typer.Typer) -> None:
         kw = dict(obs=obs, timesteps=timesteps, n_envs=n_envs, hyperparams=hyperparams, overrides=overrides,
                   resume=resume, tensorboard=tensorboard, checkpoint_every=checkpoint_every, command=command,
                   eval_every=eval_every)
-        if seeds > 1:
+        if seeds > 1 or ray:  # several seeds, or seeds on Ray: one summary over them
             import time
 
             from agents.seeds import train_seeds
 
             t0 = time.perf_counter()
-            summary = train_seeds(env, algo, out, list(range(seed, seed + seeds)), workers=workers, **kw)
+            summary = train_seeds(env, algo, out, list(range(seed, seed + seeds)), workers=workers, ray=ray,
+                                  **kw)
             held = summary.aggregates.get("lowest_held")
             typer.echo(f"trained {seeds} seeds in {time.perf_counter() - t0:.1f} s; wrote {out / 'results.md'}, "
                        f"{out / 'learning_curves.png'}"
