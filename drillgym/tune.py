@@ -29,13 +29,26 @@ _RESULT = "drillgym_result"
 
 
 def _trainable(fn: Callable[[Any], Any], configs: Sequence[Any]) -> Callable[[dict], None]:
+    cwd = os.getcwd()
+
     def trial(tune_config: dict) -> None:
         from ray import tune
 
-        result = fn(configs[tune_config["index"]])
-        tune.report({_RESULT: result, "done_index": tune_config["index"]})
+        if os.path.isdir(cwd):  # Tune starts a trial in its own log directory: relative paths mean the driver's
+            os.chdir(cwd)
+
+        index = tune_config["trial"]["index"]
+        result = fn(configs[index])
+        tune.report({_RESULT: result, "done_index": index})
 
     return trial
+
+
+def _label(config: Any, index: int) -> str:
+    """What Tune's progress table shows for a trial: its seed when the config has one."""
+    if isinstance(config, dict) and "seed" in config:
+        return f"seed={config['seed']}"
+    return f"config {index}"
 
 
 def run_trials(fn: Callable[[Any], Any], configs: Sequence[Any], *, ray: str | None = "local",
@@ -56,7 +69,8 @@ def run_trials(fn: Callable[[Any], Any], configs: Sequence[Any], *, ray: str | N
         storage_path = str(Path(storage).resolve()) if storage is not None else None
         tuner = tune.Tuner(
             tune.with_resources(_trainable(fn, configs), {"cpu": cpus_per_trial}),
-            param_space={"index": tune.grid_search(list(range(len(configs))))},
+            param_space={"trial": tune.grid_search([{"index": i, "label": _label(c, i)}
+                                                     for i, c in enumerate(configs)])},
             tune_config=TuneConfig(reuse_actors=False),
             run_config=RunConfig(name=name, storage_path=storage_path, verbose=1 if progress else 0,
                                  failure_config=FailureConfig(max_failures=int(retries))),
@@ -66,10 +80,10 @@ def run_trials(fn: Callable[[Any], Any], configs: Sequence[Any], *, ray: str | N
         done = [False] * len(configs)
         for res in grid:
             if res.error is None and res.metrics and _RESULT in res.metrics:
-                i = int(res.config["index"])
+                i = int(res.config["trial"]["index"])
                 out[i], done[i] = res.metrics[_RESULT], True
         for res in grid:
-            i = int(res.config["index"])
+            i = int(res.config["trial"]["index"])
             if not done[i]:
                 err = res.error if res.error is not None else "it reported no result"
                 cause = getattr(err, "cause", None) or err
