@@ -77,3 +77,28 @@ def refuse_one(config: dict) -> int:
     if config["x"] == 1:
         raise ValueError("x = 1 is refused")
     return config["x"]
+
+
+def test_train_seeds_go_to_ray_tune_trials(tmp_path, monkeypatch):
+    """`drillgym train --seeds 2 --ray local` hands one job per seed to drillgym.tune.run_trials (stubbed
+    here: the trials themselves are tested in test_parallel_ray.py) and writes the seeds' summary."""
+    import csv
+
+    import drillgym.tune
+    from drillgym.cli import main
+
+    calls = []
+
+    def fake_run_trials(fn, jobs, *, ray, **kw):
+        calls.append((fn.__name__, [j["seed"] for j in jobs], [j["out"] for j in jobs], ray))
+        return [{"seed": j["seed"], "timesteps": 64, "wall_time": 1.0, "train_time": 1.0, "lowest_held": 8.5}
+                for j in jobs]
+
+    monkeypatch.setattr(drillgym.tune, "run_trials", fake_run_trials)
+    with pytest.raises(SystemExit) as ok:
+        main(["train", "--algo", "ppo", "--timesteps", "64", "--seeds", "2", "--seed", "3", "--ray", "local",
+              "--eval-every", "0", "--out", str(tmp_path)])
+    assert ok.value.code == 0
+    assert calls == [("_train_one", [3, 4], [tmp_path / "seed_3", tmp_path / "seed_4"], "local")]
+    with open(tmp_path / "results.csv") as f:
+        assert [r["seed"] for r in csv.DictReader(f)] == ["3", "4"]
