@@ -125,7 +125,9 @@ def _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR, TT, tc, cfg):
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
 def _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg):
     """All four coordinates, MODEL.md's lateral constraints plus the effects' forces
-    (dynamics' formulas, Schur complement of the m I block, stuck discs as selects)."""
+    (dynamics' formulas, Schur complement of the m I block, stuck discs as selects).
+    Two loops over the lanes, each writing three arrays (the accelerations are computed twice): one
+    loop writing all six exceeds LLVM's alias-check budget and runs scalar."""
     thu_, thl_, x_, y_, wu_, wl_, vx_, vy_ = Y[0], Y[1], Y[2], Y[3], Y[4], Y[5], Y[6], Y[7]
     _copy_rows(Y[4:8], K[0:4])  # position rates = velocities
     Ju, km, Jl, kth = PT[_Ju], PT[_km], PT[_Jl], PT[_kth]
@@ -133,7 +135,7 @@ def _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg):
     Ts, Tc, ws, delta, bb = PT[_Ts], PT[_Tc], PT[_ws], PT[_delta], PT[_bb]
     mr, mt, k_, b_, e_ = PT[_mr], PT[_mt], PT[_k], PT[_b], PT[_e]
     K4, K5, K6, K7, FR0, FR1 = K[4], K[5], K[6], K[7], FR[0], FR[1]
-    for k in range(thu_.shape[0]):
+    for k in range(thu_.shape[0]):  # loop 1 of 2: the same equations, three arrays written
         thu = thu_[k]
         thl = thl_[k]
         x = x_[k]
@@ -157,9 +159,31 @@ def _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg):
                                                         Qu, Qx + Qe_x, Qy + Qe_y, mu != 0.0, ml != 0.0)
         K4[k] = a_u
         K5[k] = a_l
+        FR0[k] = fu
+    for k in range(thu_.shape[0]):  # loop 2 of 2
+        thu = thu_[k]
+        thl = thl_[k]
+        x = x_[k]
+        yy = y_[k]
+        W = wu_[k]
+        wl = wl_[k]
+        vx = vx_[k]
+        vy = vy_[k]
+        mu = MU[k]
+        ml = ML[k]
+        t = TT[k] + tc
+        alpha = thl - thu
+        s, c = vsincos(alpha)
+        volt, Qe_u, Qe_l, Qe_s, Qe_x, Qe_y = hk_rhs_lane(k, t, U[k], thu, thl, W, wl, x, yy, vx, vy, Y, 8, PT, cfg)
+        string = kth[k] * alpha + Qe_s
+        tfu, tfl = _friction_laws(k, t, thu, thl, W, wl, x, yy, vx, vy, Y, 8, PT, mu, ml, brake, Tcu[k], dTcu[k],
+                                  bu[k], dbu[k], Tcl[k], bl[k], Ts[k], Tc[k], ws[k], delta[k], bb[k])
+        Qu, Qx, Qy = isotropic_lateral_forces(x, yy, vx, vy, W, k_[k], b_[k])
+        a_u, a_l, a_x, a_y, fu, fl = full_accelerations(x, yy, vx, vy, W, wl, s, c, mr[k] + mt[k], e_[k] * mr[k],
+                                                        Ju[k], Jl[k], km[k] * volt + Qe_u, string, Qe_l, tfu, tfl,
+                                                        Qu, Qx + Qe_x, Qy + Qe_y, mu != 0.0, ml != 0.0)
         K6[k] = a_x
         K7[k] = a_y
-        FR0[k] = fu
         FR1[k] = fl
     if N_STATE > 8:
         for k in range(thu_.shape[0]):
