@@ -237,6 +237,9 @@ class RayExecutor(Executor):
                  cpus_per_task: float = 1.0):
         self.address = address
         self._owns = connect_ray(address, num_cpus=workers) if address is not None else False
+        if address is None and not _ray().is_initialized():  # else Ray would start an instance of its own
+            raise RayUnavailable("RayExecutor(None) needs a connected Ray: give an address ('local', 'auto', "
+                                 "HOST:PORT) or call connect_ray first")
         self.retries = int(retries)
         self.cpus_per_task = float(cpus_per_task)
         self._refs: dict = {}

@@ -102,3 +102,15 @@ def test_train_seeds_go_to_ray_tune_trials(tmp_path, monkeypatch):
     assert calls == [("_train_one", [3, 4], [tmp_path / "seed_3", tmp_path / "seed_4"], "local")]
     with open(tmp_path / "results.csv") as f:
         assert [r["seed"] for r in csv.DictReader(f)] == ["3", "4"]
+
+
+def test_ray_executor_without_a_connection_is_refused():
+    import ray
+
+    from drillgym.parallel import RayExecutor, RayUnavailable
+
+    if ray.is_initialized():
+        pytest.skip("this process is connected to Ray")
+    with pytest.raises(RayUnavailable, match=r"^RayExecutor\(None\) needs a connected Ray"):
+        RayExecutor(None)
+    assert not ray.is_initialized()
