@@ -119,8 +119,10 @@ def main() -> None:
     print("\nhow the work splits over N machines (2 cores each, one Ray worker per core): a task is one job of "
           "plants_per_job plants x every target as one batched core call; tasks = controllers x ceil(plants / "
           "plants_per_job); wall ~ ceil(tasks / workers) x the slowest job")
+    per_plant = warm(lp) * a.workers / (a.plants * len(ctrls))  # CPU s per (plant, controller), mean
+    print(f"measured: {per_plant:.2f} CPU s per plant and controller (mean over the controllers, warm local pool)")
     print(f"{'plants':>7} {'machines':>8} {'workers':>7} {'plants/job':>10} {'tasks':>6} {'waves':>5} "
-          f"{'Ray cost / compute':>18}")
+          f"{'est. wall':>9} {'Ray cost / compute':>18}")
     for plants in (a.plants, 1000):
         for n in (1, 2, 4, 8, 16):
             w = 2 * n
@@ -129,7 +131,8 @@ def main() -> None:
             tasks = len(ctrls) * math.ceil(plants / ppj)
             waves = math.ceil(tasks / w)
             frac = per_task / (t_job * ppj / a.plants_per_job)
-            print(f"{plants:>7} {n:>8} {w:>7} {ppj:>10} {tasks:>6} {waves:>5} {100 * frac:>17.2f}%")
+            wall = waves * ppj * per_plant + waves * per_task
+            print(f"{plants:>7} {n:>8} {w:>7} {ppj:>10} {tasks:>6} {waves:>5} {wall:>8.1f}s {100 * frac:>17.2f}%")
 
 
 if __name__ == "__main__":
