@@ -79,12 +79,16 @@ class FlatnessLaw:
         disturbance: how the estimate ``d`` corrects the brake law: 'offset' (N m added) or 'scale'
             (the law, its slope and curvature times 1 + d), as the estimator's
             :class:`controllers.kalman.DisturbanceModel`.
+        integral_high: weight of the integral for the other targets (0: none).
+
+    The integral state is the law's own (the integral of the estimated speed error) unless the
+    caller passes one (``z``, rad: e.g. the measured motor angle minus the reference's integral).
     """
 
     def __init__(self, params: RigParams, dt: float, *, bandwidth: float = 2.5, tau_ref: float = 1.0,
                  w_rest: float = 0.1, step: float = 2e-3, low_speed: float = 0.0, approach: float = 2.5,
                  hold: float = 8.0, ramp: float = 15.0, low_bandwidth: float = 1.0, integral: float = 0.0,
-                 disturbance: str = "offset") -> None:
+                 disturbance: str = "offset", integral_high: float = 0.0) -> None:
         if not (np.isfinite(tau_ref) and tau_ref > 0):
             raise ValueError(f"tau_ref must be a positive time (s), got {tau_ref!r}")
         for name, v in (("low_speed", low_speed), ("approach", approach), ("hold", hold), ("ramp", ramp),
@@ -99,7 +103,8 @@ class FlatnessLaw:
         self.p, self.dt, self.tau = params, float(dt), float(tau_ref)
         self.w_rest, self.h = float(w_rest), float(step)
         self.low_speed, self.approach, self.hold, self.ramp = float(low_speed), float(approach), float(hold), float(ramp)
-        self.K_high = np.concatenate([[0.0], chain_gain(bandwidth)])
+        self.K_high = chain_gain(bandwidth, integral=integral_high) if integral_high > 0 else \
+            np.concatenate([[0.0], chain_gain(bandwidth)])
         self.K_low = chain_gain(low_bandwidth, integral=integral) if integral > 0 else \
             np.concatenate([[0.0], chain_gain(low_bandwidth)])
         self.K = np.broadcast_to(self.K_high, (1, 4))
@@ -144,8 +149,10 @@ class FlatnessLaw:
             return (1.0 + d) * T, (1.0 + d) * T1, (1.0 + d) * T2
         return T + d, T1, T2
 
-    def __call__(self, omega_u: np.ndarray, alpha: np.ndarray, omega_l: np.ndarray, d: np.ndarray) -> np.ndarray:
-        """Voltage (V, (n,), not clipped) for the estimated state."""
+    def __call__(self, omega_u: np.ndarray, alpha: np.ndarray, omega_l: np.ndarray, d: np.ndarray,
+                 z: "np.ndarray | None" = None) -> np.ndarray:
+        """Voltage (V, (n,), not clipped) for the estimated state; ``z`` (rad, (n,)): the integral of the
+        speed error to use instead of the law's own."""
         p, kt = self.p, self.p.ktheta
         r, r1, r2, r3 = self.reference()
         T, T1, T2 = self.friction(omega_l, d)
@@ -153,7 +160,9 @@ class FlatnessLaw:
         T1, T2 = np.where(rest, 0.0, T1), np.where(rest, 0.0, T2)
         a = np.where(rest, 0.0, (-kt * alpha - T) / p.Jl)
         j = np.where(rest, 0.0, (-kt * (omega_l - omega_u) - T1 * a) / p.Jl)
-        if self.t > self.hold + self.ramp:  # integral of the speed error once the reference has settled
+        if z is not None:
+            self.z = np.asarray(z, dtype=float)
+        elif self.t > self.hold + self.ramp:  # integral of the speed error once the reference has settled
             self.z = self.z + self.dt * (omega_l - r)
         v = r3 - np.einsum("nk,kn->n", self.K, np.stack([self.z, omega_l - r, a - r1, j - r2]))
         wu_dot = (p.Jl * v + kt * a + T2 * a * a + T1 * j) / kt  # the upper acceleration that gives v

@@ -46,12 +46,14 @@ from drillgym.equilibria import linearise, lower_damping, slip_equilibrium
 from drillgym.friction import lower_friction
 from drillgym.measurement import DEFAULT_COUNTS_PER_REV
 
-__all__ = ["STATES", "DisturbanceModel", "disturbance_model", "KalmanObserver", "ExtendedKalmanObserver",
+__all__ = ["STATES", "I_DU", "DisturbanceModel", "disturbance_model", "KalmanObserver", "ExtendedKalmanObserver",
            "steady_state_gain"]
 
 STATES = ("theta_u", "omega_u", "alpha", "omega_l", "d")
-"""State order of the estimator: rad, rad/s, rad, rad/s, N m."""
+"""State order of the estimator: rad, rad/s, rad, rad/s, N m (or relative level); a model built with
+``sigma_du > 0`` has a sixth state ``du`` (N m): a torque on the upper disc the model misses."""
 I_TU, I_WU, I_AL, I_WL, I_D = range(5)
+I_DU = 5
 
 
 @dataclass(frozen=True)
@@ -121,6 +123,8 @@ class DisturbanceModel:
         """
         p = self.params
         drive = p.km * u + p.ktheta * x[I_AL] - self.upper_damping * x[I_WU]
+        if x.shape[0] > I_DU:
+            drive = drive + x[I_DU]
         rest = np.clip(drive, -p.Tcu + p.dTcu, p.Tcu + p.dTcu)
         slip = np.where(x[I_WU] > 0, p.Tcu + p.dTcu, -(p.Tcu - p.dTcu))
         return np.where(np.abs(x[I_WU]) > eps, slip, rest)
@@ -129,7 +133,8 @@ class DisturbanceModel:
 def disturbance_model(params: RigParams | None = None, dt: float = 0.01, *,
                       counts_per_rev: int = DEFAULT_COUNTS_PER_REV, angle_noise: float = 0.0,
                       sigma_d: float = 0.02, sigma_upper: float = 0.03, sigma_lower: float = 0.005,
-                      friction_known: bool = True, disturbance: str = "offset") -> DisturbanceModel:
+                      friction_known: bool = True, disturbance: str = "offset",
+                      sigma_du: float = 0.0) -> DisturbanceModel:
     """Build the estimator's model.
 
     Args:
@@ -145,6 +150,8 @@ def disturbance_model(params: RigParams | None = None, dt: float = 0.01, *,
         disturbance: 'offset' (``d`` in N m added to the brake law) or 'scale' (``d`` the relative
             error of the brake law's level: Ts, Tc, bb all off by the same factor, as with the oil's
             temperature); 'scale' needs ``friction_known``.
+        sigma_du: > 0 adds a sixth state ``du`` (N m), a torque on the upper disc that the model misses
+            (motor constant, upper friction, lag errors), as a random walk of this intensity (N m/sqrt(s)).
     """
     p = params or RigParams()
     if not (np.isfinite(dt) and dt > 0):
@@ -154,7 +161,7 @@ def disturbance_model(params: RigParams | None = None, dt: float = 0.01, *,
     if disturbance == "scale" and not friction_known:
         raise ValueError("a 'scale' disturbance needs the nominal brake law (friction_known=True)")
     for name, v in (("sigma_d", sigma_d), ("sigma_upper", sigma_upper), ("sigma_lower", sigma_lower),
-                    ("angle_noise", angle_noise)):
+                    ("angle_noise", angle_noise), ("sigma_du", sigma_du)):
         if not (np.isfinite(v) and v >= 0):
             raise ValueError(f"{name} must be a non-negative number, got {v!r}")
     # exact Jacobian of the core at a slip equilibrium (angles variant: theta_u, theta_l, omega_u, omega_l)
@@ -182,14 +189,21 @@ def disturbance_model(params: RigParams | None = None, dt: float = 0.01, *,
     Bl = np.zeros(5)
     Bl[I_WL] = -1.0 / p.Jl
     B = np.column_stack([Bu, -Bu / p.km, Bl])  # [u (V), upper friction offset (N m), nominal lower friction (N m)]
-    C = np.zeros((1, 5))
+    nx = 6 if sigma_du > 0 else 5
+    if nx == 6:  # du: a torque on the upper disc (N m), random walk
+        A = np.pad(A, ((0, 1), (0, 1)))
+        A[I_WU, I_DU] = 1.0 / p.Ju
+        B = np.pad(B, ((0, 1), (0, 0)))
+    C = np.zeros((1, nx))
     C[0, I_TU] = 1.0
     sysd = control.c2d(control.ss(A, B, C, np.zeros((1, 3))), dt, method="zoh")
-    G = np.zeros((5, 3))
+    G = np.zeros((nx, nx - 2))
     G[I_WU, 0] = 1.0 / p.Ju
     G[I_WL, 1] = 1.0 / p.Jl
     G[I_D, 2] = 1.0
-    Qc = np.diag([sigma_upper ** 2, sigma_lower ** 2, sigma_d ** 2])
+    if nx == 6:
+        G[I_DU, 3] = 1.0
+    Qc = np.diag([sigma_upper ** 2, sigma_lower ** 2, sigma_d ** 2, sigma_du ** 2][:nx - 2])
     Qd = _discrete_noise(A, G @ Qc @ G.T, dt)
     q = 2.0 * np.pi / counts_per_rev if counts_per_rev > 0 else 0.0
     R = np.array([[q * q / 12.0 + angle_noise ** 2 + 1e-12]])
@@ -277,21 +291,22 @@ class ExtendedKalmanObserver:
     """
 
     def __init__(self, model: DisturbanceModel, *, p0_alpha: float = 0.1, p0_speed: float = 0.05,
-                 p0_d: float = 0.01, slope_step: float = 1e-3) -> None:
+                 p0_d: float = 0.01, slope_step: float = 1e-3, p0_du: float = 0.1) -> None:
         if model.friction_known is False:
             raise ValueError("the extended filter needs the nominal brake law (friction_known=True)")
         self.model = model
         self.h = float(slope_step)
-        self.P0 = np.diag([model.R[0, 0], p0_speed ** 2, p0_alpha ** 2, p0_speed ** 2, p0_d ** 2])
-        self.x = np.zeros((5, 0))
-        """Current estimates (5, n), rows in :data:`STATES` order."""
-        self.P = np.zeros((0, 5, 5))
-        """Current covariances (n, 5, 5)."""
+        self.dim = int(model.Ad.shape[0])  # 5, or 6 with the upper-disc torque du
+        self.P0 = np.diag([model.R[0, 0], p0_speed ** 2, p0_alpha ** 2, p0_speed ** 2, p0_d ** 2, p0_du ** 2][:self.dim])
+        self.x = np.zeros((self.dim, 0))
+        """Current estimates (dim, n), rows in :data:`STATES` order (then du)."""
+        self.P = np.zeros((0, self.dim, self.dim))
+        """Current covariances (n, dim, dim)."""
 
     def allocate(self, n: int) -> None:
         """Room for n trajectories (at rest at angle 0; :meth:`reset` them before use)."""
-        self.x = np.zeros((5, int(n)))
-        self.P = np.broadcast_to(self.P0, (int(n), 5, 5)).copy()
+        self.x = np.zeros((self.dim, int(n)))
+        self.P = np.broadcast_to(self.P0, (int(n), self.dim, self.dim)).copy()
 
     def reset(self, theta_u: np.ndarray, alpha0: "float | np.ndarray" = 0.0,
               index: "np.ndarray | None" = None) -> None:
@@ -314,7 +329,7 @@ class ExtendedKalmanObserver:
         P, x, r = self.P[index], self.x[:, index], self.model.R[0, 0]
         K = P[:, :, I_TU] / (P[:, I_TU, I_TU] + r)[:, None]  # (m, 5): P H' S^-1 with H = e_theta_u
         self.x[:, index] = x + K.T * (np.asarray(theta_u, dtype=float) - x[I_TU])
-        IKH = np.broadcast_to(np.eye(5), P.shape).copy()
+        IKH = np.broadcast_to(np.eye(self.dim), P.shape).copy()
         IKH[:, :, I_TU] -= K
         self.P[index] = IKH @ P @ IKH.transpose(0, 2, 1) + r * K[:, :, None] * K[:, None, :]
         return self.x
@@ -327,7 +342,7 @@ class ExtendedKalmanObserver:
         slope = (lower_friction(w + h, p) - lower_friction(w - h, p)) / (2 * h)
         slipping = np.abs(wl) > 1e-3
         slope = np.where(slipping, slope, 0.0)  # a disc at rest has no slope
-        F = np.broadcast_to(m.Ad, (x.shape[1], 5, 5)).copy()
+        F = np.broadcast_to(m.Ad, (x.shape[1], self.dim, self.dim)).copy()
         if m.disturbance == "scale":  # Tfl = (1 + d) T(omega_l): slope scaled, d acts through T
             slope = slope * (1.0 + x[I_D])
             level = np.where(slipping, lower_friction(w, p), 0.0)
@@ -355,7 +370,7 @@ def steady_state_gain(model: DisturbanceModel) -> tuple[np.ndarray, np.ndarray]:
     ``L`` is dlqe's gain (x+ = A x + B u + L (z - C x)); ``K = P C' (C P C' + R)^-1`` the
     measurement-update gain of the same filter (P: dlqe's Riccati solution, the prior covariance).
     """
-    L, P, _ = control.dlqe(model.Ad, np.eye(5), model.H, model.Qd, model.R)
+    L, P, _ = control.dlqe(model.Ad, np.eye(model.Ad.shape[0]), model.H, model.Qd, model.R)
     P = np.asarray(P)
     K = P @ model.H.T @ np.linalg.inv(model.H @ P @ model.H.T + model.R)
     return K, np.asarray(L)

@@ -34,7 +34,7 @@ from drillgym.equilibria import linearise, lower_damping, slip_equilibrium
 
 from .base import Controller
 from .flatness import FlatnessLaw
-from .kalman import I_AL, I_D, I_TU, I_WL, I_WU, ExtendedKalmanObserver, disturbance_model, steady_state_gain
+from .kalman import I_AL, I_D, I_DU, I_TU, I_WL, I_WU, ExtendedKalmanObserver, disturbance_model, steady_state_gain
 
 __all__ = ["ObserverController", "LQGController", "lqr_gain", "steepest_brake_slope"]
 
@@ -111,11 +111,14 @@ class ObserverController(Controller):
                  sigma_d: float = 0.01, sigma_upper: float = 1e-3, sigma_lower: float = 1e-3,
                  noise_floor: float = 0.0, bandwidth: float = 2.5, tau_ref: float = 1.0,
                  low_speed: float = 2.0, approach: float = 2.5, hold: float = 12.0, ramp: float = 15.0,
-                 low_bandwidth: float = 1.0, integral: float = 0.1, disturbance: str = "scale", **kw) -> None:
+                 low_bandwidth: float = 1.0, integral: float = 0.1, disturbance: str = "scale",
+                 sigma_du: float = 0.0, p0_du: float = 0.1, **kw) -> None:
         super().__init__(omega_ref, **kw)
         self.model = disturbance_model(self.params, self.dt, counts_per_rev=counts_per_rev,
                                        angle_noise=float(np.hypot(angle_noise, noise_floor)), sigma_d=sigma_d,
-                                       sigma_upper=sigma_upper, sigma_lower=sigma_lower, disturbance=disturbance)
+                                       sigma_upper=sigma_upper, sigma_lower=sigma_lower, disturbance=disturbance,
+                                       sigma_du=sigma_du)
+        self.p0_du = float(p0_du)
         # targets below low_speed (rad/s): reached from `approach` by a ramp down, slower error chain with
         # integral action (see controllers.flatness); the ramp ends at hold + ramp = 27 s, 13 s before the
         # steady window (last 20 s) of the 60 s evaluation runs
@@ -126,7 +129,7 @@ class ObserverController(Controller):
         FlatnessLaw(self.params, self.dt, **self.law_options)  # check the options now
 
     def _reset(self, m: dict[str, np.ndarray]) -> None:
-        self.observer = ExtendedKalmanObserver(self.model)
+        self.observer = ExtendedKalmanObserver(self.model, p0_du=self.p0_du)
         self.observer.reset(np.broadcast_to(m.get("theta_u", 0.0), (self.n,)))
         self.law = self.new_law(self.omega_ref)
 
@@ -150,7 +153,10 @@ class ObserverController(Controller):
 
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
         x = self.observer.update(m["theta_u"])
-        u = np.clip(self.law(x[I_WU], x[I_AL], x[I_WL], x[I_D]), -self.u_max, self.u_max)
+        u = self.law(x[I_WU], x[I_AL], x[I_WL], x[I_D])
+        if x.shape[0] > I_DU:  # the estimated upper-disc torque the model misses, cancelled by the motor
+            u = u - x[I_DU] / self.params.km
+        u = np.clip(u, -self.u_max, self.u_max)
         self.observer.predict(u)
         return u
 

@@ -1,6 +1,7 @@
 """Controllers by name: ``controllers.make("observer", config="torsional", omega_ref=3.0)``.
 
-Names: ``baseline``, ``pi``, ``softtorque``, ``observer``, ``lqg``, and
+Names: ``baseline``, ``pi``, ``softtorque``, ``observer`` (designed for a rig equal to its model),
+``observer-robust`` (the same structure built to hold on a rig that differs from its model), ``lqg``, and
 ``agent:PATH`` for a trained policy.  ``NAME@MS`` runs a controller at another
 control period (ms), e.g. ``observer@10`` for the observer at the environments'
 10 ms instead of its 2 ms (the harness compares controllers at equal rates that way).  Agents plug in through one documented
@@ -25,12 +26,14 @@ from .base import Controller
 from .baseline import BaselineController
 from .observer import LQGController, ObserverController
 from .pi import PIController
+from .robust_observer import RobustObserverController
 from .softtorque import SoftTorqueController
 
 __all__ = ["CONTROLLERS", "make", "available", "split_period", "register_agent_loader", "AgentLoader"]
 
 CONTROLLERS: dict[str, type[Controller]] = {
-    c.name: c for c in (BaselineController, PIController, SoftTorqueController, ObserverController, LQGController)
+    c.name: c for c in (BaselineController, PIController, SoftTorqueController, RobustObserverController,
+                        ObserverController, LQGController)
 }
 
 AgentLoader = Callable[..., Controller]

@@ -130,3 +130,71 @@ def test_evaluate_cli_with_hidden_effects(tmp_path, capsys):
         main(["evaluate", "--config", "torsional", "--controllers", "pi", "--out", str(out), "--effect-param",
               "delay=0.1"])
     assert e.value.code == 2 and "--add-effect" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------- plant population (issue 18)
+from controllers.evaluation.population import load_uncertainty, sample_plants  # noqa: E402
+from controllers.evaluation.harness import short_run_warnings  # noqa: E402
+
+
+def test_uncertainty_set_default_file_and_one_line_errors(tmp_path):
+    us = load_uncertainty()
+    assert us.relative["km"] == 0.05 and us.effects["delay"] == (0.0, 0.02)
+    assert us.effect_names() == ["motor_lag", "input_delay", "position_friction"]
+    for text, match in (("windy: {a: 1}", "unknown section 'windy'"), ("relative: {kmm: 0.1}", "not a base parameter"),
+                        ("relative: {km: 2}", r"in \[0, 1\)"), ("effects: {tau_x: [0, 1]}", "unknown effect parameter"),
+                        ("effects: {delay: [0.1, 0.0]}", "lo <= hi"), ("relative: [", "not valid YAML")):
+        f = tmp_path / "u.yaml"
+        f.write_text(text)
+        with pytest.raises(ValueError, match=match):
+            load_uncertainty(f)
+
+
+def test_sampled_plants_are_reproducible_nested_and_inside_the_set():
+    pop = sample_plants(6, seed=3)
+    again = sample_plants(3, seed=3)
+    assert np.array_equal(pop.matrix[:3], again.matrix) and pop.columns[:3] == again.columns  # plant k ignores n
+    assert not np.array_equal(sample_plants(3, seed=4).matrix, again.matrix)
+    nominal = controllers.make("pi", omega_ref=1.0).params
+    us = pop.uncertainty
+    for col, row in zip(pop.columns, pop.matrix):
+        named = pop.composition.named(row)
+        for k, r in us.relative.items():
+            assert abs(col[k] / getattr(nominal, k) - 1) <= r + 1e-12 and named[k] == col[k]
+        assert us.effects["tau_m"][0] <= named["tau_m"] <= us.effects["tau_m"][1]
+        assert 0 <= named["delay"] <= 0.02 and np.hypot(named["pf_c1"], named["pf_s1"]) <= 0.2 + 1e-12
+        assert 2048 <= col["counts_per_rev"] <= 8000 and 0 <= col["angle_noise"] <= 5e-4
+    with pytest.raises(ValueError, match="positive integer"):
+        sample_plants(0)
+
+
+def test_plants_scenario_rows_columns_summary_and_figure(tmp_path, capsys):
+    """CLI: one row per (controller, plant, target) with the plant's values; median/p90 table; figure."""
+    with pytest.raises(SystemExit) as ok:
+        main(["evaluate", "--config", "torsional", "--controllers", "baseline", "--scenarios", "plants", "--plants",
+              "3", "--seed", "5", "--targets", "2.0,7.5", "--duration", "12", "--window", "4", "--workers", "1",
+              "--out", str(tmp_path)])
+    assert ok.value.code == 0
+    with open(tmp_path / "results.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 3 * 2 and {r["plant"] for r in rows} == {"0", "1", "2"}
+    pop = sample_plants(3, seed=5)
+    for r in rows:
+        for k in ("km", "Jl", "tau_m", "delay", "pf_c1", "pf_s1", "counts_per_rev"):
+            assert float(r[k]) == pytest.approx(pop.columns[int(r["plant"])][k])
+    assert all(r["stick_slip"] == "True" for r in rows if r["omega_ref"] == "2.0")  # open loop sticks at 2 rad/s
+    out = capsys.readouterr().out
+    assert "median lowest held" in out and "| baseline | 10 | torsional | 3 |" in out
+    assert (tmp_path / "plants_lowest_held.png").stat().st_size > 10_000
+    with pytest.raises(ValueError, match="do not combine"):
+        evaluate(["baseline"], ["torsional"], ["plants"], targets=[1.0], plants=2, effects=["input_delay"],
+                 progress=False)
+
+
+def test_short_run_warning_names_the_controller_and_the_duration_needed():
+    lines = short_run_warnings(["observer", "pi"], "torsional", [1.0, 3.0], duration=30.0, window=10.0)
+    assert len(lines) == 1 and lines[0].startswith("observer:") and "1 rad/s" in lines[0] and "--duration" in lines[0]
+    assert short_run_warnings(["observer"], "torsional", [1.0, 3.0], duration=60.0, window=20.0) == []
+    with pytest.warns(UserWarning, match="steady window starts at 5 s"):
+        evaluate(["observer"], ["torsional"], ["rest"], targets=[1.0], duration=6.0, window=1.0, workers=1,
+                 progress=False)

@@ -67,7 +67,7 @@ def run_job(controller: str, config: str, scenario: Scenario, targets: Sequence[
     from ..registry import split_period
 
     kw = {}
-    if split_period(controller)[0] in ("observer", "lqg"):
+    if split_period(controller)[0] in ("observer", "observer-robust", "lqg"):
         kw = {"counts_per_rev": scenario.counts_per_rev, "angle_noise": scenario.angle_noise}
     ctrl = make(controller, config=config, omega_ref=tg, params=base, **kw)  # nominal: no hidden effect
     run = run_closed_loop(ctrl, config, tg, duration, params=plant, x0=x0, counts_per_rev=scenario.counts_per_rev,
