@@ -243,7 +243,7 @@ class StickSet:
 
 
 def _slip_torques(omega: float, rig: _Rig, cfg: Configuration) -> tuple[float, float]:
-    d = 1 if omega > 0 else -1
+    d = 1.0 if omega > 0 else -1.0
     y = rig.zero_state()
     tfu = rig.model.upper_slip_torque(omega, d, 0.0, y, rig.p)
     tfl = 0.0 if cfg is Configuration.UPPER else rig.model.lower_slip_torque(omega, d, 0.0, y, rig.p, cfg.brake)
@@ -495,7 +495,7 @@ def lower_damping(omega: "float | np.ndarray", params: "RigParams | _Rig | None"
     slip = rig.model.lower_slip_torque
     w = np.atleast_1d(np.asarray(omega, dtype=float))
     h = 1e-6 * np.maximum(np.abs(w), 1e-3)
-    d = np.sign(w).astype(int)
+    d = np.sign(w)  # float directions (+1.0/-1.0): the kernels take them as floats
     out = np.array([(slip(v + hv, dv, 0.0, y, rig.p, brake) - slip(v - hv, dv, 0.0, y, rig.p, brake)) / (2 * hv)
                     for v, hv, dv in zip(w, h, d)])
     return out if np.ndim(omega) else out[0]

@@ -232,8 +232,9 @@ def _run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, pa
 
     def run(i):
         s = slice(bounds[i], bounds[i + 1])
-        lanes_run(Y[s], MODE[s], U[s], P[s], cfg, dt, T0[s].copy(), record_every, OUT[s], n_steps, True, FR[s],
-                  HIST[s], HEAD[s], COLS)
+        args = (Y[s], MODE[s], U[s], P[s], cfg, dt, T0[s].copy(), record_every, OUT[s], n_steps, True, FR[s], HIST[s],
+                HEAD[s])
+        lanes_run(*args) if COLS is None else lanes_run(*args, COLS)  # omitted, not None: one compiled version
 
     if n_chunks == 1:
         run(0)
@@ -342,8 +343,8 @@ def simulate_batch(config: "str | Configuration", u: InputLike, duration: float,
                    HIST, HEAD, T0, COLS)
     else:
         runner = k.stepping.run_batch_parallel if parallel else k.stepping.run_batch_serial
-        runner(Y, MODE, U, P, int(cfg), float(dt), T0, eps, A, b, c, int(record_every), OUT, True, n_steps,
-               HIST, HEAD, COLS)
+        args = (Y, MODE, U, P, int(cfg), float(dt), T0, eps, A, b, c, int(record_every), OUT, True, n_steps, HIST, HEAD)
+        runner(*args) if COLS is None else runner(*args, COLS)
     if not np.all(np.isfinite(Y)):
         bad = int(np.argwhere(~np.all(np.isfinite(Y), axis=1))[0, 0])
         raise FloatingPointError(f"trajectory {bad} diverged (NaN/inf state) with the model {comp.label!r}: "

@@ -327,8 +327,8 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
     Ucur = np.empty(B)
     Uprev = np.empty(B)
     TT = np.empty(B)
-    A, b, c = RK4_A, RK4_B, RK4_C
-    K, ytmp, k1, ynew, fric, ftmp, g0, g1 = alloc_work(4)
+    A, b, c = RK4_A.copy(), RK4_B.copy(), RK4_C.copy()  # mutable like the callers': one compiled hybrid_step
+    K, ytmp, k1, ynew, fric, ftmp, g0, g1 = alloc_work(b.shape[0])
     y = np.zeros(N_STATE)
     mode = np.zeros(2, dtype=np.int64)
     string_on = 0.0 if cfg == UPPER else 1.0
@@ -336,6 +336,7 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
     fv = cfg == FREE_VIBRATION
     n_u = U.shape[1]
     record_on = OUT.shape[1] > 0
+    row0 = np.int64(0)  # not a literal: one compiled record
     for k in range(B):
         for j in range(N_STATE):
             y[j] = Y[k, j]
@@ -350,7 +351,7 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
         for j in range(N_STATE):
             Y[k, j] = y[j]
         if record_on:
-            record(OUT[k], 0, T0[k], U[k, 0], y, fric, mode, COLS)
+            record(OUT[k], row0, T0[k], U[k, 0], y, fric, mode, COLS)
         Uprev[k] = u0
         Ucur[k] = u0
     for i in range(n_steps):

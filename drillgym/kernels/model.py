@@ -38,14 +38,14 @@ _Ts, _Tc, _ws, _delta, _bb = IDX.Ts, IDX.Tc, IDX.ws, IDX.delta, IDX.bb
 
 @njit(cache=True, fastmath=True, _nrt=False)
 def upper_slip_torque(w, d, t, y, p):
-    """Upper friction torque (N m) while slipping in direction d (+1/-1)."""
+    """Upper friction torque (N m) while slipping in direction d (+1.0/-1.0, a float: one compiled version)."""
     T = upper_law(abs(w), float(d), p[_Tcu], p[_dTcu], p[_bu], p[_dbu])
     return hk_slip_u(T, float(d), abs(w), t, y, p, 0.0)
 
 
 @njit(cache=True, fastmath=True, _nrt=False)
 def lower_slip_torque(w, d, t, y, p, brake):
-    """Lower friction torque (N m) while slipping in direction d (brake: Stribeck law, else bearing)."""
+    """Lower friction torque (N m) while slipping in direction d (+1.0/-1.0; brake: Stribeck law, else bearing)."""
     aw = abs(w)
     if brake:
         T = brake_law(aw, float(d), p[_Ts], p[_Tc], p[_ws], p[_delta], p[_bb])
@@ -89,14 +89,14 @@ def state_derivative(t, y, mode, u, p, cfg, smooth_eps, dy, fric):
     if smooth_eps > 0.0:
         su = math.tanh(wu / smooth_eps)
         sl = math.tanh(wl / smooth_eps)
-        tfu = su * upper_slip_torque(wu, 1, t, y, p) if su >= 0 else -su * upper_slip_torque(wu, -1, t, y, p)
-        tfl = sl * lower_slip_torque(wl, 1, t, y, p, brake) if sl >= 0 else \
-            -sl * lower_slip_torque(wl, -1, t, y, p, brake)
+        tfu = su * upper_slip_torque(wu, 1.0, t, y, p) if su >= 0 else -su * upper_slip_torque(wu, -1.0, t, y, p)
+        tfl = sl * lower_slip_torque(wl, 1.0, t, y, p, brake) if sl >= 0 else \
+            -sl * lower_slip_torque(wl, -1.0, t, y, p, brake)
         mu = 2  # "slipping, torque given"
         ml = 2
     else:
-        tfu = upper_slip_torque(wu, mu, t, y, p) if mu != 0 else 0.0
-        tfl = lower_slip_torque(wl, ml, t, y, p, brake) if ml != 0 else 0.0
+        tfu = upper_slip_torque(wu, float(mu), t, y, p) if mu != 0 else 0.0
+        tfl = lower_slip_torque(wl, float(ml), t, y, p, brake) if ml != 0 else 0.0
     if cfg == FREE_VIBRATION:
         mu = 0  # upper disc clamped: always stuck, unbounded stick set
         dy[S_TU] = 0.0

@@ -262,8 +262,9 @@ def run_trajectory(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, ini
         initial_modes(t, y, u, p, cfg, mode, k1, fric)
     else:
         resolve_modes(t, y, mode, u, p, cfg, k1, fric)
+    row = np.int64(0)  # not a literal: one compiled record
     if record_on:
-        record(out, 0, t, u_cmd, y, fric, mode, cols)
+        record(out, row, t, u_cmd, y, fric, mode, cols)
     n_switch = 0
     row = 1
     u_prev = u
