@@ -4,6 +4,10 @@
 * :mod:`.residual` - the policy structure: a correction on the feedforward voltage u_ff(omega_ref)
 * :mod:`.observer_residual` - the policy structure of the kept agent: a correction on the ``observer``
   controller's voltage, the policy seeing that controller's estimates (motor angle only)
+* :mod:`.privileged` - privileged critic for PPO (the critic also sees the lower disc; training only)
+* :mod:`.distill` - teacher (full state) -> student (motor side) distillation by DAgger (training only)
+* :mod:`.evaluation` - the lowest held target from rest of a trained policy (the controllers' harness)
+* :mod:`.seeds` - several seeds: table with IQM and bootstrap interval, learning curves
 * :mod:`.envs` - batched training envs (DrillVectorEnv through the SB3 adapter)
 * :mod:`.train` - ``train(env_id, algo, out, ...)``: seeds, TensorBoard, progress bar, checkpoints, resume
 * :mod:`.export` - numpy export of the deterministic policy (no torch on the rig)
@@ -17,8 +21,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ["load_controller", "load_policy", "KEPT_POLICY"]
+__all__ = ["load_controller", "load_policy", "KEPT_POLICY", "LEARNED_POLICY"]
 
+#: the learned policy (motor side only, no hand-made structure): agents/policies/torsional_motor_learned
+LEARNED_POLICY = Path(__file__).resolve().parent / "policies" / "torsional_motor_learned" / "policy.npz"
 #: the policy kept in the repository (``agent:`` + this path works in ``drillgym evaluate``)
 KEPT_POLICY = Path(__file__).resolve().parent / "policies" / "torsional_motor_residual_observer" / "policy.npz"
 

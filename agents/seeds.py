@@ -91,14 +91,20 @@ def train_seeds(env_id: str, algo: str, out: str | Path, seeds: Sequence[int], *
                 evaluate_held: bool = True, ray: str | None = None, **train_kwargs: Any) -> SeedSummary:
     """Train ``algo`` on ``env_id`` once per seed into ``out/seed_<s>/`` and write the results (module
     docstring).  ``train_kwargs``: keywords of :func:`agents.train.train` (``eval_every`` defaults to a
-    twentieth of the run so that every seed has a learning curve).  ``ray``: run the seeds as Ray Tune
-    trials there ('local', 'auto' or an address; :func:`drillgym.tune.run_trials`)."""
+    twentieth of the run, at least 10,000 steps, so that every seed has a learning curve).  ``ray``: run the
+    seeds as Ray Tune trials there ('local', 'auto' or an address; :func:`drillgym.tune.run_trials`)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     seeds = [int(s) for s in seeds]
     if not seeds:
         raise ValueError("need at least one seed")
     workers = min(len(seeds), os.cpu_count() or 1) if workers is None else int(workers)
+    if train_kwargs.get("eval_every") is None:
+        from .train import planned_timesteps
+
+        n = planned_timesteps(env_id, algo, train_kwargs.get("timesteps"), train_kwargs.get("hyperparams"),
+                              train_kwargs.get("overrides"))
+        train_kwargs["eval_every"] = max(10_000, n // 20)
     jobs = [dict(train_kwargs, env_id=env_id, algo=algo, out=out / f"seed_{s}", seed=s, evaluate_held=evaluate_held,
                  progress=False) for s in seeds]
     if ray is not None:

@@ -92,7 +92,8 @@ class TrainResult:
 
 
 def _settings(env_id: str, algo: str, obs: str | None, timesteps: int | None, n_envs: int | None,
-              hyperparams: str | Path | None, overrides: dict[str, Any] | None) -> dict[str, Any]:
+              hyperparams: str | Path | None, overrides: dict[str, Any] | None,
+              allow_zero: bool = False) -> dict[str, Any]:
     hp = apply_overrides(load_hyperparams(algo, env_id, hyperparams), overrides or {})
     env_kwargs = dict(hp["env_kwargs"])
     if obs is not None:
@@ -102,7 +103,7 @@ def _settings(env_id: str, algo: str, obs: str | None, timesteps: int | None, n_
     if n_envs is not None:
         hp["n_envs"] = n_envs
     hp["env_kwargs"] = env_kwargs
-    if not (int(hp.get("n_timesteps", 0)) >= 1):
+    if not (int(hp.get("n_timesteps", 0)) >= (0 if allow_zero else 1)):
         raise ValueError(f"number of timesteps must be >= 1, got {hp.get('n_timesteps')!r}")
     hp["n_timesteps"] = int(hp["n_timesteps"])
     hp["n_envs"] = int(hp.get("n_envs", 1))
@@ -183,7 +184,8 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
           overrides: dict[str, Any] | None = None, resume: bool = False, progress: bool = True,
           tensorboard: bool = True, checkpoint_every: int = 50_000, export: bool = True, verbose: int = 0,
           torch_threads: int | None = 1, command: str | None = None, eval_every: int = 0,
-          eval_envs: int = 8) -> TrainResult:
+          eval_envs: int = 8, teacher: str | Path | None = None,
+          distill_kwargs: dict[str, Any] | None = None) -> TrainResult:
     """Train ``algo`` on ``env_id`` and write the run into ``out`` (see the module docstring).
 
     Args:
@@ -198,6 +200,9 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
         eval_every: environment steps between evaluations (0 = none): ``eval_envs`` episodes of the
             deterministic policy on rigs seeded apart from the training's; the best mean reward's model
             is kept in ``out/best/`` (``best_model.zip``, ``policy.npz``), the curve in ``out/evaluations.npz``.
+        teacher: an exported policy of the 'full' observation: before the RL steps, its actions are
+            distilled into this model's actor by DAgger (:mod:`agents.distill`, ``distill_kwargs``);
+            ``timesteps`` may then be 0 (distillation only).
     """
     import torch
 
@@ -205,12 +210,14 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
         torch.set_num_threads(int(torch_threads))
     algo = algo.lower()
     cls = algo_class(algo)
-    hp = _settings(env_id, algo, obs, timesteps, n_envs, hyperparams, overrides)
+    hp = _settings(env_id, algo, obs, timesteps, n_envs, hyperparams, overrides, allow_zero=teacher is not None)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     _warn_short_run(cls, hp)
     venv = _env(env_id, hp, hp["n_envs"], seed)
     config = {"env_id": env_id, "algo": algo, "seed": int(seed), "hyperparams": hp, "command": command}
+    if teacher is not None:
+        config["teacher"] = {"policy": str(teacher), **(distill_kwargs or {})}
     (out / CONFIG_FILE).write_text(yaml.safe_dump(config, sort_keys=False))
     ckpt = out / "checkpoints" / "latest.zip"
     tb = str(out / "tb") if tensorboard else None
@@ -235,6 +242,16 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
             kw["policy_kwargs"] = {**kw.get("policy_kwargs", {}),
                                    "actor_dim": venv.observation_space.shape[0] - len(PRIVILEGED)}
         model = cls(policy, venv, seed=seed, tensorboard_log=tb, verbose=verbose, **kw)
+    t_distill = time.perf_counter()
+    if teacher is not None and not resume:
+        if algo != "ppo" or hp.get("normalize_obs") or int(hp.get("frame_stack", 1)) != 1:
+            raise ValueError("a teacher is distilled into PPO without observation normalisation or frame stacking")
+        from .distill import distill
+
+        distill(model, env_id, hp["env_kwargs"], teacher, n_envs=hp["n_envs"], seed=seed,
+                privileged=bool(hp.get("privileged_critic")), log=print,
+                **(distill_kwargs or {}))
+    t_distill = time.perf_counter() - t_distill
     remaining = hp["n_timesteps"] - (model.num_timesteps if resume else 0)
     cb = LatestCheckpoint(out / "checkpoints", checkpoint_every)
     callbacks: list[BaseCallback] = [cb]
@@ -247,7 +264,9 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
     if remaining > 0:
         model.learn(remaining, callback=CallbackList(callbacks), progress_bar=progress,
                     reset_num_timesteps=not resume, tb_log_name=algo)
-    wall = time.perf_counter() - t0
+    wall = time.perf_counter() - t0 + t_distill
+    if getattr(cb, "model", None) is None:  # no RL steps (distillation only): learn() never bound the callback
+        cb.init_callback(model)
     cb.save()
     if eval_env is not None:
         eval_env.close()

@@ -52,7 +52,8 @@ def test_structure_section_is_merged_and_a_misplaced_key_named(tmp_path) -> None
     hp = load_hyperparams("ppo", "drillgym/Torsional-v0", HYPERPARAMS_DIR / "ppo_residual.yml")
     assert hp["residual"] == 1.5 and hp["normalize_reward"] and not hp["normalize_obs"]
     plain = load_hyperparams("ppo", "drillgym/Torsional-v0")
-    assert "residual" not in plain and plain["normalize_obs"] and plain["policy_kwargs"]["log_std_init"] == -0.5
+    assert "residual" not in plain and plain["privileged_critic"] and plain["policy_kwargs"]["log_std_init"] == -0.5
+    assert plain["normalize_reward"] and not plain["normalize_obs"]
     bad = tmp_path / "bad.yml"
     bad.write_text("drillgym/Torsional-v0: {policy: MlpPolicy, residual: 1.0}\n")
     with pytest.raises(ValueError, match="put them under the top-level section 'drillgym"):
@@ -75,13 +76,14 @@ def test_timesteps_below_learning_starts_warn(tmp_path) -> None:
 
 def test_evaluation_keeps_the_best_model_and_normalisation_is_exported(tmp_path) -> None:
     res = train("drillgym/Torsional-v0", "ppo", tmp_path, timesteps=256, seed=0, progress=False, tensorboard=False,
-                overrides={**FAST, "n_steps": 16, "batch_size": 32}, eval_every=64, eval_envs=2)
+                overrides={**FAST, "n_steps": 16, "batch_size": 32, "normalize_obs": True, "privileged_critic": False},
+                eval_every=64, eval_envs=2)
     with np.load(tmp_path / "evaluations.npz") as z:
         assert len(z["timesteps"]) >= 3 and z["results"].shape[1] == 2
     for f in ("best/best_model.zip", "best/policy.npz"):
         assert (tmp_path / f).is_file(), f
     policy = ExportedPolicy.load(res.policy_path)
-    assert policy.obs_norm is not None  # ppo.yml standardises observations: the statistics travel with the policy
+    assert policy.obs_norm is not None  # standardised observations: the statistics travel with the policy
     stats = VecNormalize.load(str(tmp_path / "checkpoints" / "latest_vecnormalize.pkl"), make_sb3_vec(
         "drillgym/Torsional-v0", 1, observation="motor"))
     rng = np.random.default_rng(0)

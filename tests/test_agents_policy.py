@@ -25,7 +25,7 @@ def test_controller_builds_the_env_observation_and_voltage():
     assert isinstance(ctrl, AgentController) and ctrl.uses == ("theta_u",)
     opts = ctrl.policy.config["hyperparams"]["env_kwargs"]
     env = gym.make("drillgym/Torsional-v0", observation="motor", motor_history=opts["motor_history"],
-                   omega_ref=3.0).unwrapped
+                   omega_ref=3.0, normalize_action=False).unwrapped
     obs, _ = env.reset(seed=5)
     system = env.batch.system
 

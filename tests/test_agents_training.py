@@ -45,7 +45,7 @@ def test_sac_trains_saves_loads_and_resumes(tmp_path):
 @pytest.mark.parametrize("algo,cls,extra", [
     ("sac", SAC, OFF_POLICY),
     ("td3", TD3, OFF_POLICY),
-    ("ppo", PPO, {**FAST, "n_steps": 32, "batch_size": 64}),
+    ("ppo", PPO, {**FAST, "n_steps": 32, "batch_size": 64, "privileged_critic": False}),
 ])
 def test_exported_policy_matches_sb3(tmp_path, algo, cls, extra):
     train("drillgym/Torsional-v0", algo, tmp_path, obs="motor", timesteps=256, seed=0, overrides=extra,

@@ -126,7 +126,7 @@ def run_cmd(
     from hw.runner import load_policy, make_controller, run_episode
 
     from .outputs import output_dir, output_file
-    from .rig_ops import check_writable, dry_run as do_dry_run, run_with_reconnect, trained_agent
+    from .rig_ops import check_writable, dry_run as do_dry_run, run_with_reconnect, trained_agent, warm_up
 
     if (controller is None) == (policy is None):
         raise ValueError("give exactly one of --controller or --policy")
@@ -142,6 +142,8 @@ def run_cmd(
     if policy is not None and trained_agent(policy):  # a trained agent runs as the controller agent:PATH
         controller, policy = f"agent:{policy}", None
     ctrl = make_controller(controller, config, omega_ref, control_ms * 1e-3) if controller else None
+    if controller is not None and controller.startswith("agent:"):
+        warm_up(ctrl, omega_ref, control_ms * 1e-3)
     pol = load_policy(policy) if policy is not None else None
     timeout = None if reply_timeout_ms is None else reply_timeout_ms * 1e-3
 

@@ -169,3 +169,13 @@ def trained_agent(path: Path) -> bool:
         with np.load(p, allow_pickle=False) as z:
             return "meta" in z.files
     return False
+
+
+def warm_up(ctrl, omega_ref: float | None, dt: float) -> None:
+    """Reset the controller and let it act a few times on a rig at rest, before the port is opened: its compiled
+    parts (e.g. a trained agent's observation model) load now, not inside the firmware's watchdog."""
+    m = {"t": 0.0, "theta_u": 0.0, "theta_l": 0.0, "x": 0.0, "y": 0.0,
+         "omega_ref": 4.0 if omega_ref is None else float(omega_ref)}
+    ctrl.reset(m)
+    for k in (1, 2, 3):  # the first act answers the reset; the later ones read the encoder too
+        ctrl.act({**m, "t": k * dt})

@@ -17,6 +17,23 @@ import typer
 from .effect_options import add_effect_option, effect_param_option, effects_from_cli
 
 
+def process_seconds() -> float:
+    """Wall-clock seconds since this process started (interpreter start-up and imports included: what the
+    user waits), from /proc; falls back to the time since this module was imported."""
+    import os
+    import time
+
+    try:
+        ticks = int(open("/proc/self/stat").read().rsplit(")", 1)[1].split()[19])
+        uptime = float(open("/proc/uptime").read().split()[0])
+        return uptime - ticks / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return time.perf_counter() - _IMPORTED
+
+
+_IMPORTED = __import__("time").perf_counter()
+
+
 def register(app: typer.Typer) -> None:
     @app.command("train")
     def train_cmd(
@@ -34,7 +51,7 @@ def register(app: typer.Typer) -> None:
                                                            "running cluster), 'local' (start one here) or HOST:PORT"),
         eval_every: Optional[int] = typer.Option(None, "--eval-every", help="environment steps between evaluations of the "
                                                  "deterministic policy; the best is kept in OUT/best/ (0 = none; "
-                                                 "default: a twentieth of the run)"),
+                                                 "default: a twentieth of the run, at least 10000)"),
         n_envs: Optional[int] = typer.Option(None, "--n-envs", help="rigs in the batched vector env"),
         hyperparams: Optional[Path] = typer.Option(None, "--hyperparams", help="YAML file (rl-zoo3 layout) instead of agents/hyperparams/<algo>.yml"),
         set_: Optional[list[str]] = typer.Option(None, "--set", help="override a hyperparameter, KEY=VALUE (YAML value; "
@@ -43,6 +60,9 @@ def register(app: typer.Typer) -> None:
         checkpoint_every: int = typer.Option(50_000, "--checkpoint-every", help="environment steps between checkpoints"),
         progress: bool = typer.Option(True, "--progress/--no-progress", help="progress bar"),
         tensorboard: bool = typer.Option(True, "--tensorboard/--no-tensorboard", help="TensorBoard logs in OUT/tb"),
+        teacher: Optional[Path] = typer.Option(None, "--teacher", help="policy.npz of a run on the 'full' observation: "
+                                               "distilled (DAgger) into this run's network before the RL steps "
+                                               "(--timesteps 0: distillation only)"),
         add_effect: Optional[List[str]] = add_effect_option(),
         effect_param: Optional[List[str]] = effect_param_option(),
     ) -> None:
@@ -64,28 +84,26 @@ def register(app: typer.Typer) -> None:
             comp, values = effects_from_cli(add_effect, effect_param)  # one-line errors before training starts
             env_kw = overrides.setdefault("env_kwargs", {})
             env_kw.update(effects=comp.specs(), effect_params=dict(values))
-        if eval_every is None:  # a twentieth of the run
+        if eval_every is None:  # a twentieth of the run, at least 10,000 steps apart
             from agents.train import planned_timesteps
 
-            eval_every = max(1, planned_timesteps(env, algo, timesteps, hyperparams, overrides) // 20)
+            eval_every = max(10_000, planned_timesteps(env, algo, timesteps, hyperparams, overrides) // 20)
         kw = dict(obs=obs, timesteps=timesteps, n_envs=n_envs, hyperparams=hyperparams, overrides=overrides,
                   resume=resume, tensorboard=tensorboard, checkpoint_every=checkpoint_every, command=command,
-                  eval_every=eval_every)
+                  eval_every=eval_every, teacher=teacher)
         if seeds > 1 or ray:  # several seeds, or seeds on Ray: one summary over them
-            import time
-
             from agents.seeds import train_seeds
 
-            t0 = time.perf_counter()
             summary = train_seeds(env, algo, out, list(range(seed, seed + seeds)), workers=workers, ray=ray,
                                   **kw)
             held = summary.aggregates.get("lowest_held")
-            typer.echo(f"trained {seeds} seeds in {time.perf_counter() - t0:.1f} s; wrote {out / 'results.md'}, "
+            typer.echo(f"trained {seeds} seeds in {process_seconds():.1f} s wall clock since the command started; wrote {out / 'results.md'}, "
                        f"{out / 'learning_curves.png'}"
                        + (f"; lowest held target IQM {held['iqm']:.2f} rad/s "
                           f"[{held['ci_low']:.2f}, {held['ci_high']:.2f}]" if held else ""))
             return
         res = train(env, algo, out, seed=seed, progress=progress, **kw)
-        typer.echo(f"trained {res.timesteps} steps in {res.wall_time:.1f} s; wrote {res.model_path}"
+        typer.echo(f"trained {res.timesteps} steps in {process_seconds():.1f} s wall clock since the command started "
+                   f"({res.wall_time:.1f} s of them learning); wrote {res.model_path}"
                    + (f", {res.policy_path}" if res.policy_path else "")
                    + (f"; best evaluated model in {out / 'best'}" if eval_every else ""))
