@@ -170,8 +170,12 @@ class LQGController(Controller):
     def __init__(self, omega_ref=None, *, counts_per_rev: int = 8000, angle_noise: float = 0.0,
                  sigma_d: float = 0.02, sigma_upper: float = 0.03, sigma_lower: float = 0.005,
                  weights: tuple[float, float, float] = DEFAULT_LQR_WEIGHTS,
-                 r: float = DEFAULT_LQR_R, **kw) -> None:
+                 r: float = DEFAULT_LQR_R, outer_gain: float = 0.0, outer_start: float = 5.0, **kw) -> None:
         super().__init__(omega_ref, **kw)
+        if not (np.isfinite(outer_gain) and outer_gain >= 0 and np.isfinite(outer_start) and outer_start >= 0):
+            raise ValueError(f"outer_gain (1/s) and outer_start (s) must be non-negative, got {outer_gain!r}, "
+                             f"{outer_start!r}")
+        self.outer_gain, self.outer_start = float(outer_gain), float(outer_start)
         self.model = disturbance_model(self.params, self.dt, counts_per_rev=counts_per_rev,
                                        angle_noise=angle_noise, sigma_d=sigma_d,
                                        sigma_upper=sigma_upper, sigma_lower=sigma_lower)
@@ -187,6 +191,8 @@ class LQGController(Controller):
         self.Kf, _ = steady_state_gain(self.model)
         self._x = np.zeros((5, self.n))
         self._x[I_TU] = np.broadcast_to(m.get("theta_u", 0.0), (self.n,))
+        self._t = 0.0
+        self._theta0 = self._x[I_TU].copy()
 
     @property
     def estimate(self) -> np.ndarray:
@@ -198,8 +204,15 @@ class LQGController(Controller):
         x = self._x = self._x + self.Kf @ (np.atleast_2d(m["theta_u"]) - mdl.H @ self._x)
         d_hat = mdl.lower_friction(x)  # estimated lower friction torque (N m)
         alpha_star = -d_hat / p.ktheta
-        u_star = (mdl.upper_coulomb + mdl.upper_damping * self.omega_ref + d_hat) / p.km
-        err = np.stack([x[I_AL] - alpha_star, x[I_WU] - self.omega_ref, x[I_WL] - self.omega_ref])
+        ref = self.omega_ref
+        self._t += self.dt
+        if self.outer_gain > 0:  # integral action on the measured motor angle: the mean speed on target
+            if self._t <= self.outer_start:
+                self._theta0 = np.asarray(m["theta_u"], dtype=float).copy()
+            z = m["theta_u"] - self._theta0 - self.omega_ref * max(self._t - self.outer_start, 0.0)  # rad
+            ref = np.clip(self.omega_ref - self.outer_gain * z, 0.5 * self.omega_ref, 1.5 * self.omega_ref)
+        u_star = (mdl.upper_coulomb + mdl.upper_damping * ref + d_hat) / p.km
+        err = np.stack([x[I_AL] - alpha_star, x[I_WU] - ref, x[I_WL] - ref])
         u = np.clip(u_star - np.einsum("nk,kn->n", self.K, err), -self.u_max, self.u_max)
         self._x = mdl.Ad @ x + mdl.Bd @ mdl.known_inputs(x, u)
         return u

@@ -15,6 +15,14 @@ mode ``sqrt(k_theta / Jl)``, like a damper matched to the string: the industry's
 soft-torque tuning.  A passive top impedance can add at most
 ``k_theta / (2 omega_n) = sqrt(k_theta Jl) / 2`` of damping at the lower disc:
 enough where the brake's slope is mildly negative, not at its steepest.
+
+Robust tuning (issue 18): the torque estimate's error from a wrong motor model is
+``(km_true - km_model) u - (bu_true - bu_model) omega_u``, and through ``1 / Z`` (about 18 rad/s per
+N m) it feeds back on the speed command: a rig with less viscous friction or a stronger motor than
+the model turns it into a positive feedback that destabilises the speed loop (on the plant
+population, every plant with bu more than 5 % below the model stick-slipped even at 8 rad/s).  The
+estimate therefore uses a biased model, ``km x km_margin`` and ``bu / bu_margin``, at the edge of the
+uncertainty set (km +-5 %, bu +-10 %), so that every rig in the set sees a negative (damping) feedback.
 """
 
 from __future__ import annotations
@@ -37,7 +45,7 @@ class SoftTorqueController(PIController):
 
     def __init__(self, omega_ref=None, *, impedance: float | None = None, hp_ratio: float = 1.0 / 3.0,
                  kp: float = 1.0, ki: float = 3.0, velocity_tau: float = 0.02, torque_tau: float = 0.5,
-                 **kw) -> None:
+                 km_margin: float = 1.0, bu_margin: float = 1.0, **kw) -> None:
         super().__init__(omega_ref, kp=kp, ki=ki, velocity_tau=velocity_tau, **kw)
         p = self.params
         self.omega_n = math.sqrt(p.ktheta / p.Jl)  # torsional mode (rad/s)
@@ -46,6 +54,10 @@ class SoftTorqueController(PIController):
             raise ValueError(f"impedance and hp_ratio must be positive, got {impedance!r}, {hp_ratio!r}")
         self.a_hp = math.exp(-hp_ratio * self.omega_n * self.dt)  # pole of the low-pass removed by the high-pass
         self.a_tq = math.exp(-self.dt / torque_tau)
+        if not (km_margin > 0 and bu_margin > 0):
+            raise ValueError(f"km_margin and bu_margin must be positive factors, got {km_margin!r}, {bu_margin!r}")
+        self.km_model = p.km * float(km_margin)  # N m/V, the torque estimate's motor constant
+        self.bu_scale = 1.0 / float(bu_margin)  # factor on the model's viscous friction in the estimate
 
     def _reset(self, m: dict[str, np.ndarray]) -> None:
         super()._reset(m)  # speed estimator, PI loop, equilibrium feedforward
@@ -59,10 +71,12 @@ class SoftTorqueController(PIController):
         p = self.params
         acc = (w - self.w_prev) / self.dt
         self.w_prev = w.copy()
-        tfu = np.where(w > 0, p.Tcu + p.dTcu + (p.bu + p.dbu) * w, np.where(w < 0, -(p.Tcu - p.dTcu) + (p.bu - p.dbu) * w, 0.0))
+        b = self.bu_scale
+        tfu = np.where(w > 0, p.Tcu + p.dTcu + b * (p.bu + p.dbu) * w,
+                       np.where(w < 0, -(p.Tcu - p.dTcu) + b * (p.bu - p.dbu) * w, 0.0))
         # the voltage through the same low-pass as the speed estimate, so the motor torque cancels exactly
         self.u_f = self.speed.a * self.u_f + (1 - self.speed.a) * self.u_prev
-        raw = p.Ju * acc + tfu - p.km * self.u_f
+        raw = p.Ju * acc + tfu - self.km_model * self.u_f
         self.torque = self.a_tq * self.torque + (1 - self.a_tq) * raw
         return self.torque
 

@@ -43,3 +43,12 @@ def test_no_run_past_the_over_speed_stop_on_off_model_plants():
                           angle_noise=pop.angle_noise[idx], effects=pop.composition)
     met = run_metrics(run, 5.0)
     assert not met["runaway"].any() and np.all(met["u_peak"] <= 5.0)
+
+
+def test_softtorque_and_lqg_robust_options_are_checked():
+    st = controllers.make("softtorque", omega_ref=2.0, km_margin=1.05, bu_margin=1.1)
+    assert st.km_model == pytest.approx(1.05 * st.params.km) and st.bu_scale == pytest.approx(1 / 1.1)
+    with pytest.raises(ValueError, match="km_margin"):
+        controllers.make("softtorque", omega_ref=2.0, km_margin=0.0)
+    with pytest.raises(ValueError, match="outer_gain"):
+        controllers.make("lqg", omega_ref=2.0, outer_gain=-0.1)
