@@ -113,6 +113,7 @@ def _settings(env_id: str, algo: str, obs: str | None, timesteps: int | None, n_
 def planned_timesteps(env_id: str, algo: str, timesteps: int | None = None, hyperparams: str | Path | None = None,
                       overrides: dict[str, Any] | None = None) -> int:
     """Environment steps a run of these settings will train (``timesteps`` or the file's ``n_timesteps``)."""
+    algo_class(algo)  # an unknown algorithm is named before its hyperparameter file is looked for
     return _settings(env_id, algo.lower(), None, timesteps, None, hyperparams, overrides)["n_timesteps"]
 
 
