@@ -40,7 +40,7 @@ class SpeedP:
 
 
 def _sim_env(seed, **opts):
-    env = gym.make("drillgym/Torsional-v0", lvdt_noise_std=0.0, **opts)
+    env = gym.make("drillgym/Torsional-v0", lvdt_noise_std=0.0, normalize_action=False, **opts)  # volts, as the rig
     obs, info = env.reset(seed=seed)
     return env, obs, info, float(env.unwrapped.batch.system.alpha[0])
 
