@@ -120,7 +120,7 @@ def short_run_warnings(controllers: Sequence[str], config: str, targets: Sequenc
     for c in controllers:
         if c.startswith("agent:"):
             continue
-        need = np.asarray(make(c, config=config, omega_ref=tg, params=params).approach_time(tg))
+        need = np.asarray(make(c, config=config, omega_ref=tg, params=params or RigParams()).approach_time(tg))
         late = need > duration - window
         if np.any(late):
             out.append(f"{c}: the approach to {', '.join(f'{w:g}' for w in tg[late])} rad/s takes up to "
