@@ -38,10 +38,10 @@ def input_signal(kind: str, duration: float, rate_hz: float, seed: int, offset: 
     ramps between random levels, 3-8 s each) within offset ± amplitude, clipped to ±5 V."""
     rng = np.random.default_rng(seed)
     t = np.arange(int(round(duration * rate_hz)) + 1) / rate_hz
-    if kind == "quasi_random":
-        t, u = quasi_random(duration, rate_hz=rate_hz, seed=seed, amplitude=amplitude, offset=offset)
-    elif kind == "sum_of_sines":
-        t, u = sum_of_sines(duration, rate_hz=rate_hz, seed=seed, amplitude=amplitude, offset=offset)
+    if kind in ("quasi_random", "sum_of_sines"):  # the generator's shape in ±1 V, moved and scaled here
+        gen = quasi_random if kind == "quasi_random" else sum_of_sines
+        t, u = gen(duration, rate_hz=rate_hz, seed=seed, amplitude=1.0, offset=0.0)
+        u = offset + amplitude * u
     elif kind == "steps":
         u = np.empty_like(t)
         i = 0

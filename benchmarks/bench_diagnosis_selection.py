@@ -64,6 +64,9 @@ OUTSIDE = [
 ]
 
 
+DURATIONS = (20.0, 30.0, 45.0, 60.0)
+
+
 def _conditions(rng: np.random.Generator, config: str, effects: dict) -> dict:
     sig = SIGNALS[int(rng.integers(len(SIGNALS)))]
     if "brake_asymmetry" in effects or "string_freeplay" in effects:  # needs reversals (of ωl, of α)
@@ -73,7 +76,7 @@ def _conditions(rng: np.random.Generator, config: str, effects: dict) -> dict:
     else:
         off, amp = float(rng.uniform(0.8, 1.5)), 3.0
     return {"signal": sig, "offset": round(off, 2), "amplitude": amp,
-            "duration": float(rng.choice([20.0, 30.0, 45.0, 60.0])),
+            "duration": float(rng.choice(DURATIONS)),
             "rate_hz": float(rng.choice([200.0, 500.0, 1000.0])), "seed": int(rng.integers(1, 10_000))}
 
 
@@ -82,7 +85,11 @@ def _mismatch(rng: np.random.Generator, n: int) -> dict[str, float]:
     return {str(k): round(float(1.0 + rng.choice([-1, 1]) * rng.uniform(0.02, 0.08)), 3) for k in names}
 
 
-def build_matrix(seed: int = SEED) -> list[dict]:
+def build_matrix(seed: int = SEED, quick: bool = False) -> list[dict]:
+    """The recordings; ``quick``: 4 clean, 4 mismatch, each combination once (with base mismatch every
+    other one), the 5 outside kinds, durations 20-30 s (a loaded machine)."""
+    global DURATIONS
+    DURATIONS = (20.0, 30.0) if quick else (20.0, 30.0, 45.0, 60.0)
     rng = np.random.default_rng(seed)
     cases: list[dict] = []
 
@@ -91,13 +98,16 @@ def build_matrix(seed: int = SEED) -> list[dict]:
         c.update(_conditions(rng, config, effects))
         cases.append(c)
 
-    for i in range(6):
+    n_plain = 4 if quick else 6
+    for i in range(n_plain):
         add("clean", ("torsional", "coupled")[i % 2], {}, {})
-    for i in range(6):
+    for i in range(n_plain):
         add("mismatch", ("torsional", "coupled")[i % 2], {}, _mismatch(rng, 3))
     for i, (cfg, eff) in enumerate(COMBOS):
-        add("combo", cfg, eff, {})
-        add("combo", cfg, eff, _mismatch(rng, 3))
+        if not quick or i % 2 == 0:
+            add("combo", cfg, eff, {})
+        if not quick or i % 2 == 1:
+            add("combo", cfg, eff, _mismatch(rng, 3))
     for name, par in OUTSIDE:
         add("outside", "torsional", {name: par}, {})
     return cases
@@ -213,14 +223,16 @@ def main() -> None:
     ap.add_argument("--json", default=None)
     ap.add_argument("--kind", default=None)
     ap.add_argument("--ids", default=None)
+    ap.add_argument("--quick", action="store_true", help="the reduced matrix (21 recordings of 20-30 s)")
     a = ap.parse_args()
-    cases = build_matrix()
+    cases = build_matrix(quick=a.quick)
     if a.kind:
         cases = [c for c in cases if c["kind"] == a.kind]
     if a.ids:
         keep = {int(x) for x in a.ids.split(",")}
         cases = [c for c in cases if c["id"] in keep]
-    print(f"{len(cases)} recordings of the independent rig, {a.jobs} processes, seed {SEED}", flush=True)
+    print(f"{len(cases)} recordings of the independent rig{' (quick matrix)' if a.quick else ''}, {a.jobs} processes, "
+          f"seed {SEED}", flush=True)
     t0 = time.perf_counter()
     results = []
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:

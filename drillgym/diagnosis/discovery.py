@@ -208,6 +208,12 @@ def find_candidate(rt: ResidualTorque, u: np.ndarray, Ju: float, Jl: float, late
             share, coef = trial[1], trial[2]
         shares[group] = share
         if chosen and (best is None or share > best.explained):
+            # the file's coefficients: the terms alone (with per-disc offsets), as the effect will act on the
+            # model as it is; the joint regression above only decides which terms and how much they explain
+            raw = [np.concatenate([su * np.asarray(terms[j].values(d), float) / Ju,
+                                   sl * np.asarray(terms[j].values(d), float) / Jl]) for j in chosen]
+            X = np.column_stack(raw + [Nm[:, 0], Nm[:, 1]])
+            coef, *_ = np.linalg.lstsq(X, y, rcond=None)
             best = Candidate(group, {terms[j].label: float(coef[i]) for i, j in enumerate(chosen)},
                              {terms[j].label: terms[j].code for j in chosen},
                              {terms[j].label: terms[j].at_rest for j in chosen}, share, n)

@@ -420,6 +420,19 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
     ch0 = obj.channel_rms(vec0)
     out = forward_select(obj, comp, vec0, usable, base_names, n_joint=n_joint, max_effects=max_effects,
                          refine=refine_speeds)
+    if base_names:
+        # the base refit first can absorb an effect (a slower upper disc mimics a motor lag): the other
+        # order too — effects selected on the nominal base, then the base parameters freed with them (the
+        # backward check drops what the base explains) — and the better model by its information criterion
+        first = forward_select(obj, comp, vec0, usable, (), n_joint=n_joint, max_effects=max_effects,
+                               refine=refine_speeds)
+        if first["selected"] and set(first["selected"]) != set(out["selected"]):
+            alt = forward_select(obj, comp, vec0, usable, base_names, n_joint=n_joint, max_effects=max_effects,
+                                 refine=refine_speeds, initial=first["selected"], start=first["vector"])
+            out = _better(_better(out, alt, usable, base_names), first, usable, base_names)
+        if refine_speeds:  # speed corrections for the chosen model (the figures below compare it)
+            obj.model.speed_offsets = [np.zeros_like(o) for o in obj.model.speed_offsets]
+            obj.model.refine_initial_speeds(out["vector"], obj.weights, obj.scales)
     skipped.update(out["excluded"])
     N = out["n"]
     rmse0 = math.sqrt(out["rss_nominal"] / N)
@@ -464,6 +477,24 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
 
 
 _LAG_DELAY_SWAP = ("motor_lag", "input_delay")
+
+
+def _better(a: dict, b: dict, effects: Sequence[type[Effect]], base_names: Sequence[str]) -> dict:
+    """The selection whose final model has the lower information criterion N_eff ln RSS + k ln N_eff
+    (k: the effects' parameters, plus the base parameters when they were freed), with one N_eff for
+    both (the smaller: residual samples of the worse-fitting model are the more correlated)."""
+    by = {e.name: e for e in effects}
+
+    def k_and_ne(o: dict) -> tuple[int, float]:
+        k = sum(len(by[n].parameters) for n in o["selected"]) + (len(base_names) if o["base_off"] else 0)
+        fit = o["fit"]
+        ne = n_eff(fit.residual) if fit is not None and fit.residual is not None else float(o["n"])
+        return k, ne
+
+    (ka, na), (kb, nb) = k_and_ne(a), k_and_ne(b)
+    ne = min(na, nb)
+    diff = ne * math.log(max(a["rss_final"], 1e-300) / max(b["rss_final"], 1e-300)) + (ka - kb) * math.log(ne)
+    return a if diff <= 0 else b
 
 
 def n_eff(r: np.ndarray) -> float:

@@ -11,7 +11,7 @@ model a few percent off leaves a residual that some effect partly mimics.  Here:
 2. **Base parameters.**  The base parameters the configuration excites (:data:`BASE_FREE`:
    upper part km, Tcu, bu; string ktheta; lower part Jl; brake law Ts, Tc, ws, delta, bb or the
    bearing's Tcl, bl; lateral k, b, e; Ju is held: it fixes the scale of the torques) are fitted
-   first (within -30 %/+40 % of their nominal values) and stay free in every later fit, so
+   first (within ±12 % of their nominal values, :data:`BASE_BOUNDS`) and stay free in every later fit, so
    mismatch is absorbed by the base parameters, never by an effect.
 3. **Forward selection with refit.**  Every candidate not yet in the model is screened (its own
    parameters fitted, the rest held); the ``n_joint`` best are refitted jointly with the base
@@ -34,6 +34,13 @@ model a few percent off leaves a residual that some effect partly mimics.  Here:
    model stands and the effects keep their values fitted on it.
 6. **Lag or delay.**  When a motor lag or an input delay is selected, the other is fitted in its
    place; scores within ``TIE_NATS`` are reported as a tie with the experiment that separates them.
+7. **Both orders** (:func:`drillgym.diagnosis.ranking.diagnose`): the base refit first can absorb part
+   of an effect, so the selection is also run on the nominal base (effects first), then with the
+   base parameters freed alongside those effects (the backward check drops what the base explains);
+   of the final models the one with the lower N_eff ln RSS + k ln N_eff is kept (one N_eff for both).
+
+Screening fits also start from the nominal base parameters (with the effects accepted so far), and
+standard errors are inflated by √(N / N_eff) (least squares assumes independent residuals).
 """
 
 from __future__ import annotations
@@ -58,7 +65,11 @@ MIN_REDUCTION = 0.2  # fraction of the residual RMS an accepted effect must remo
 MIN_EXPLAINED = 1.0  # noise units²
 TIE_NATS = 3.0
 MOVED_PCT = 1.0  # % change below which a base parameter is not reported as moved
-BASE_BOUNDS = (0.7, 1.4)  # base parameters fitted within these factors of their nominal values
+#: base parameters re-identified within these factors of their nominal values: "a few percent off".  Wider
+#: bounds let the upper part absorb a motor lag or an input delay (km and bu scaled alike make the upper disc
+#: slower with the same steady state: -12 to -18 % mimicked 25-40 ms lags on the benchmark's recordings); a
+#: base model further off needs the staged identification (identify-staged) first.
+BASE_BOUNDS = (0.88, 1.12)
 
 _UPPER = ("km", "Tcu", "bu")
 _BRAKE = ("Ts", "Tc", "ws", "delta", "bb")
@@ -196,13 +207,34 @@ def _significant(sc: float, rss0: float, rss1: float, n: int) -> bool:
     return sc > SIGNIFICANCE and rm1 < (1 - MIN_REDUCTION) * rm0 and rm0 ** 2 - rm1 ** 2 > MIN_EXPLAINED
 
 
+_TORQUE_SCALE = ("km", "Tcu", "bu", "ktheta", "Jl", "Ts", "Tc", "bb", "Tcl", "bl")
+
+
+def _scale_warning(moved: dict[str, dict[str, float]]) -> list[str]:
+    """Torques and inertias all scaled alike is the same model as Ju scaled the other way (Ju is held):
+    an identifiability warning, since a slow motor (lag) looks alike."""
+    ch = [moved[n]["change_pct"] for n in _TORQUE_SCALE if n in moved]
+    if len(ch) < 4:
+        return []
+    med = float(np.median(ch))
+    alike = [c for c in ch if c * med > 0 and 0.6 < c / med < 1.6]
+    if len(alike) < 4:
+        return []
+    return [f"{len(alike)} torque and inertia parameters moved alike (about {med:+.0f} %): the data cannot tell this "
+            f"from the upper disc's inertia Ju off by {-med:+.0f} % (Ju is held), and a slow motor or amplifier "
+            f"(motor_lag) looks alike; check Ju, or fit with --add-effect motor_lag"]
+
+
 def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidates: Sequence[type[Effect]],
                    base_names: Sequence[str], *, excluded: dict[str, str] | None = None, n_joint: int = 2,
-                   max_nfev_screen: int = 8, max_nfev_joint: int = 8, max_nfev_base: int = 15,
-                   max_effects: int = 4, refine: bool = True) -> dict[str, Any]:
+                   max_nfev_screen: int = 8, max_nfev_joint: int = 15, max_nfev_base: int = 15,
+                   max_effects: int = 4, refine: bool = True, initial: Sequence[str] = (),
+                   start: np.ndarray | None = None) -> dict[str, Any]:
     """Run steps 2–6 of the module docstring on the search model ``comp`` (vector ``vec0``: nominal
-    base parameters, candidates neutral).  Returns a dict with the selection's pieces (see
-    :func:`drillgym.diagnosis.ranking.diagnose`, which formats them)."""
+    base parameters, candidates neutral).  ``initial``: effects accepted before the loop (fitted
+    jointly with the base parameters from ``start``, then subject to the backward check).  Returns a
+    dict with the selection's pieces (see :func:`drillgym.diagnosis.ranking.diagnose`, which formats
+    them)."""
     excluded = dict(excluded or {})
     st = _State(obj, comp, vec0.copy(), vec0.copy(), tuple(base_names),
                 {c.name: c for c in candidates if c.name not in excluded})
@@ -218,15 +250,19 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
     rss_nominal = refine_for(vec0)
     rss_cur = rss_nominal
     fb = None
-    if st.base_names:  # step 2: base parameters first
-        fb = _fit(st, vec0, st.base_names, max_nfev_base)
+    steps: list[SelectionStep] = []
+    st.selected = [n for n in initial if n in st.effects]
+    v_init = vec0 if start is None else start
+    for n in st.selected:
+        steps.append(SelectionStep(n, float("nan"), rss_nominal, rss_nominal, {}, {}, True, 0.0))
+    if st.base_names:  # step 2: base parameters first (with the initial effects)
+        fb = _fit(st, v_init, list(st.base_names) + _effect_params(st, st.selected), max_nfev_base)
         st.vec = fb.vector
         rss_cur = refine_for(st.vec)
-        fb2 = _fit(st, st.vec, st.base_names, max(4, max_nfev_base // 2))
+        fb2 = _fit(st, st.vec, list(st.base_names) + _effect_params(st, st.selected), max(4, max_nfev_base // 2))
         if fb2.rss_after < rss_cur:
             st.vec, rss_cur = fb2.vector, fb2.rss_after
         st.fit = fb2
-    steps: list[SelectionStep] = []
     last_round: dict[str, SelectionStep] = {}
     while len(st.selected) < max_effects:
         free_now = list(st.base_names) + _effect_params(st, st.selected)
@@ -283,13 +319,13 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
         st.vec = joint[best].vector if best in joint else screen[best].vector
         rss_cur = refine_for(st.vec)
         # a second pass with speeds refined for the extended model
-        rf = _fit(st, st.vec, list(st.base_names) + _effect_params(st, st.selected), max(4, max_nfev_joint // 2))
+        rf = _fit(st, st.vec, list(st.base_names) + _effect_params(st, st.selected), max_nfev_joint)
         if rf.rss_after < rss_cur:
             st.vec, rss_cur = rf.vector, rf.rss_after
         st.fit = rf
     # step 4: backward check
     dropped: dict[str, str] = {}
-    if len(st.selected) >= 2:
+    if len(st.selected) >= 2 or (st.selected and initial and st.base_names):
         for name in list(st.selected):
             others = [s for s in st.selected if s != name]
             without = _fit(st, _neutralise(st, st.vec, name), list(st.base_names) + _effect_params(st, others),
@@ -297,6 +333,9 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
             full_fit = st.fit if st.fit is not None else without
             k = len(_effect_params(st, [name]))
             sc, _ = score(without.rss_after, full_fit, k)
+            for stp in steps:  # effects accepted up front get their score here
+                if stp.effect == name and not stp.score == stp.score:
+                    stp.score, stp.rss_before, stp.rss_after = sc, without.rss_after, rss_cur
             if not _significant(sc, without.rss_after, rss_cur, N):
                 dropped[name] = f"removed by the backward check (score {sc:.1f} once the others are in)"
                 st.selected.remove(name)
@@ -352,6 +391,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
             if nom and abs(pct) >= MOVED_PCT and not (abs(val - nom) < 3 * sd):
                 moved[n] = {"nominal": nom, "fitted": val, "change_pct": pct, "std": sd}
         warn = [w for w in full.warnings if any(n in w for n in st.base_names)]
+        warn += _scale_warning(moved)
         vec_final, rss_final = st.vec, full.rss_after
         fit_final = full
     else:
