@@ -29,6 +29,9 @@ def test_overspeed_latches_the_pi_fallback_for_that_rig_only():
     assert u[0] < 0.0 and np.all(np.abs(u) <= 5.0)  # the PI loop pulls the runaway motor back to the target
     with pytest.raises(ValueError, match="outer_gain"):
         controllers.make("observer-robust", omega_ref=1.0, outer_gain=-1.0)
+    with pytest.raises(ValueError, match="bu_margin"):
+        controllers.make("observer-robust", omega_ref=1.0, bu_margin=0.0)
+    assert c.params.bu == pytest.approx(controllers.make("pi", omega_ref=1.0).params.bu / 1.1)  # least damped motor
 
 
 def test_no_run_past_the_over_speed_stop_on_off_model_plants():
