@@ -159,6 +159,7 @@ def register(app: typer.Typer) -> None:
         candidate: List[str] = typer.Option(None, "--candidate",
                                             help="also try this effect (name or path/to/file.py:NAME; repeatable); "
                                                  "default candidates: the library's"),
+        map_: List[str] = typer.Option([], "--map", help=MAP_HELP),
     ) -> None:
         """Which SET of effects the recording shows (forward selection with refit, the base parameters
         re-identified alongside), which base parameters moved, and a candidate effect file for what the
@@ -173,7 +174,7 @@ def register(app: typer.Typer) -> None:
             raise ValueError(f"--candidate-out {candidate_out}: the effect file must end in .py")
         base, model, values, _ = _model(params, add_effect, effect_param)
         extra = [get_effect(c) for c in candidate or []]
-        ts = read_timeseries(data, config)
+        ts = read_timeseries(data, config, parse_mapping(map_ or []))
         ex = prepare_experiment(ts, config, compare_rate_hz=rate)
         cands = None
         if extra:
