@@ -11,6 +11,7 @@ since they were written; they are recompiled on first use.
 
 from __future__ import annotations
 
+import ast
 import hashlib
 from pathlib import Path
 
@@ -24,6 +25,66 @@ def sources_digest(package_dir: Path = PACKAGE_DIR) -> str:
     for f in sorted(package_dir.rglob("*.py")):
         h.update(f.relative_to(package_dir).as_posix().encode())
         h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def _module_file(module: str, package_dir: Path) -> Path | None:
+    parts = module.split(".")
+    if parts[0] != package_dir.name:
+        return None
+    base = package_dir.joinpath(*parts[1:])
+    for candidate in (base.with_suffix(".py"), base / "__init__.py"):
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def _imported_modules(path: Path, package_dir: Path) -> set[str]:
+    """drillgym modules a source file imports (anywhere in the file, relative imports resolved)."""
+    rel = path.relative_to(package_dir.parent).with_suffix("")
+    here = list(rel.parts[:-1])  # the package a relative import starts from (also for __init__)
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            found.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = here[: len(here) - node.level + 1]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            found.add(mod)
+            found.update(f"{mod}.{a.name}" for a in node.names)  # ``from pkg import module``
+    top = package_dir.name
+    return {m for m in found if m == top or m.startswith(top + ".")}
+
+
+def modules_digest(modules: list[str], extra_sources: tuple[str, ...] = (), package_dir: Path = PACKAGE_DIR) -> str:
+    """SHA-256 over the drillgym sources the given modules import, transitively (their parent
+    packages' ``__init__`` included), plus ``extra_sources`` (source texts, e.g. generated code).
+
+    The generated kernels are compiled from exactly these files, so an edit anywhere else (the CLI,
+    diagnosis, controllers) leaves them valid."""
+    seen: dict[str, Path] = {}
+    todo = list(modules)
+    while todo:
+        mod = todo.pop()
+        if mod in seen:
+            continue
+        parts = mod.split(".")
+        for k in range(1, len(parts)):  # importing a.b.c runs a/__init__ and a/b/__init__
+            todo.append(".".join(parts[:k]))
+        f = _module_file(mod, package_dir)
+        if f is None:
+            continue
+        seen[mod] = f
+        todo.extend(_imported_modules(f, package_dir) - seen.keys())
+    h = hashlib.sha256()
+    for f in sorted(set(seen.values())):
+        h.update(f.relative_to(package_dir).as_posix().encode())
+        h.update(f.read_bytes())
+    for text in extra_sources:
+        h.update(text.encode())
     return h.hexdigest()
 
 

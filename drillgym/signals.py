@@ -44,15 +44,21 @@ def _check(duration: float, rate_hz: float, amplitude: float, f_max: float) -> N
         raise ValueError(f"f_max = {f_max!r} Hz must be positive and below the Nyquist rate {rate_hz / 2} Hz")
 
 
+def _check_offset(amplitude: float, offset: float) -> None:
+    if abs(offset) >= amplitude and offset != 0:
+        raise ValueError(f"offset {offset} V must be smaller in size than the amplitude {amplitude} V (the largest "
+                         f"|u|; the signal spans offset ± (amplitude - |offset|))")
+
+
 def quasi_random(duration: float, *, rate_hz: float = 1000.0, seed: int | None = 0, amplitude: float = U_MAX,
                  offset: float = 0.0, f_max: float = 5.0, hold: tuple[float, float] = (0.3, 3.0),
                  fade_s: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
     """The report's quasi-random estimation signal.
 
-    Random levels, uniform in ``offset ± amplitude``, each held for a random
-    time uniform in ``hold`` (s), then low-passed (zero-phase Butterworth at
-    ``f_max`` Hz, so the content lies below ``f_max``) and scaled so that
-    ``u`` stays inside ``offset ± amplitude``; the first ``fade_s`` seconds fade in from 0 V
+    Random levels, each held for a random time uniform in ``hold`` (s), then low-passed
+    (zero-phase Butterworth at ``f_max`` Hz, so the content lies below ``f_max``) and scaled
+    into ``offset ± (amplitude - |offset|)``: ``amplitude`` is the largest |u| (V), e.g. the
+    amplifier's range, and must exceed |offset|; the first ``fade_s`` seconds fade in from 0 V
     (the rig starts at rest).
 
     Returns ``(t, u)``: time (s) from 0 at ``rate_hz`` and voltage (V).
@@ -60,8 +66,7 @@ def quasi_random(duration: float, *, rate_hz: float = 1000.0, seed: int | None =
     _check(duration, rate_hz, amplitude, f_max)
     if not (0 < hold[0] <= hold[1]):
         raise ValueError(f"hold times must satisfy 0 < min <= max, got {hold!r}")
-    if abs(offset) >= amplitude and offset != 0:
-        raise ValueError(f"offset {offset} V must be smaller than the amplitude {amplitude} V")
+    _check_offset(amplitude, offset)
     rng = np.random.default_rng(seed)
     n = int(round(duration * rate_hz)) + 1
     t = np.arange(n) / rate_hz
@@ -82,12 +87,14 @@ def sum_of_sines(duration: float, *, rate_hz: float = 1000.0, seed: int | None =
                  offset: float = 0.0, frequencies: tuple[float, ...] = (0.05, 0.11, 0.23, 0.47, 0.9, 1.7),
                  f_max: float = 5.0, fade_s: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
     """Sum-of-sines validation signal: equal-amplitude sines at ``frequencies`` (Hz, all below
-    ``f_max``) with seeded random phases, scaled into ``offset ± amplitude`` (V), faded in from
-    0 V over ``fade_s`` seconds.
+    ``f_max``) with seeded random phases, scaled into ``offset ± (amplitude - |offset|)`` (V;
+    ``amplitude`` is the largest |u|, as in :func:`quasi_random`), faded in from 0 V over
+    ``fade_s`` seconds.
 
     Returns ``(t, u)``.
     """
     _check(duration, rate_hz, amplitude, f_max)
+    _check_offset(amplitude, offset)
     f = np.asarray(frequencies, dtype=float)
     if f.size == 0 or np.any(f <= 0) or np.any(f >= f_max):
         raise ValueError(f"frequencies must be positive and below f_max = {f_max} Hz, got {tuple(frequencies)}")

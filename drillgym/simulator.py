@@ -29,7 +29,7 @@ import numpy as np
 
 from .configurations import N_STATE, STATE_NAMES, Configuration, parse_configuration
 from .effects.composition import Composition, compose
-from .integrators import DEFAULT_DT, OUTPUT_NAMES, tableau
+from .integrators import ADAPTIVE, DEFAULT_ATOL, DEFAULT_DT, DEFAULT_RTOL, OUTPUT_NAMES, tableau
 from .params import N_PARAMS, RigParams
 
 __all__ = ["simulate", "simulate_batch", "Trajectory", "BatchTrajectory", "BatchSimulator", "initial_state",
@@ -48,16 +48,35 @@ def initial_state(alpha0: float = 0.0, theta_u0: float = 0.0, omega_u0: float = 
     return np.array([theta_u0, theta_u0 + alpha0, omega_u0, omega_l0, x0, y0, vx0, vy0], dtype=np.float64)
 
 
-def _input_matrix(u: InputLike, n_batch: int, n_steps: int, dt: float) -> np.ndarray:
-    """Per-step commands (B, n_steps), zero-order hold: step i uses u(t_i); a constant command
-    (scalar or one per trajectory) stays one column (B, 1), never expanded over the steps."""
-    t = np.arange(n_steps) * dt
+def _table_steps(ts: np.ndarray, n_steps: int, dt: float) -> np.ndarray:
+    """First grid step of each entry of a (t, u) table: step i uses the last entry with
+    ts[j] <= t_i (+1e-12 dt), t_i = i dt (the first entry before its time)."""
+    first = np.maximum(np.ceil(ts / dt - 1e-12), 0).astype(np.int64)
+    for j, tj in enumerate(ts):  # the grid's own rounding decides, as a comparison against t_i would
+        while first[j] > 0 and (first[j] - 1) * dt + 1e-12 * dt >= tj:
+            first[j] -= 1
+        while first[j] * dt + 1e-12 * dt < tj:
+            first[j] += 1
+    first[0] = 0
+    return first
+
+
+def _input_matrix(u: InputLike, n_batch: int, n_steps: int, dt: float) -> tuple[np.ndarray, np.ndarray | None]:
+    """(U, USTEP): per-step commands (B, n_steps), zero-order hold: step i uses u(t_i); a constant command
+    (scalar or one per trajectory) stays one column (B, 1), never expanded over the steps; a (t, u)
+    table stays its m entries (B, m) with USTEP (m,) the step from which each applies (evaluated in
+    the kernels)."""
+    steps = None
     if callable(u):
-        U = np.asarray(u(t), dtype=np.float64)
+        U = np.asarray(u(np.arange(n_steps) * dt), dtype=np.float64)
     elif isinstance(u, tuple) and len(u) == 2:
         ts, us = (np.asarray(a, dtype=np.float64) for a in u)
-        idx = np.clip(np.searchsorted(ts, t + 1e-12 * dt, side="right") - 1, 0, len(ts) - 1)
-        U = us[..., idx]
+        if ts.ndim != 1 or ts.size == 0 or us.shape[-1] != ts.size or us.ndim > 2:
+            raise ValueError(f"a (t, u) input needs t (m,) and u (m,) or (B, m); got {ts.shape} and {us.shape}")
+        if not (np.all(np.isfinite(ts)) and np.all(np.diff(ts) >= 0)):
+            raise ValueError("the times of a (t, u) input must be finite and non-decreasing")
+        steps = _table_steps(ts, n_steps, dt)
+        U = us
     else:
         U = np.asarray(u, dtype=np.float64)
         if U.ndim == 0:
@@ -66,17 +85,18 @@ def _input_matrix(u: InputLike, n_batch: int, n_steps: int, dt: float) -> np.nda
             U = U[:, None].copy()
     if U.ndim == 1:
         U = np.broadcast_to(U, (n_batch, U.shape[0]))
-    if U.shape[-1] != 1 and U.shape[-1] < n_steps:
+    if steps is None and U.shape[-1] != 1 and U.shape[-1] < n_steps:
         raise ValueError(f"input signal has {U.shape[-1]} samples, the run needs {n_steps} (one per step)")
-    if U.shape[-1] != 1:
+    if steps is None and U.shape[-1] != 1:
         U = U[..., :n_steps]
     U = np.ascontiguousarray(U, dtype=np.float64)
     if U.shape[0] != n_batch:
         raise ValueError(f"input has {U.shape[0]} rows for a batch of {n_batch}")
     if not np.all(np.isfinite(U)):
         bad = np.argwhere(~np.isfinite(U))[0]
-        raise ValueError(f"input voltage is NaN/inf (trajectory {bad[0]}, step {bad[1]})")
-    return U
+        raise ValueError(f"input voltage is NaN/inf (trajectory {bad[0]}, {'entry' if steps is not None else 'step'} "
+                         f"{bad[1]})")
+    return U, steps
 
 
 def _delay_lines(comp: Composition, P: np.ndarray, dt: float,
@@ -224,7 +244,16 @@ def _record_columns(comp: Composition, record: Sequence[str] | None) -> tuple[tu
     return names, np.array([idx[n] for n in names], dtype=np.int64)
 
 
-def _run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, parallel, HIST, HEAD, T0, COLS):
+def _optional(COLS: np.ndarray | None, USTEP: np.ndarray | None, n_out: int) -> tuple:
+    """The kernels' optional trailing arguments (COLS, USTEP): omitted, not None, when not used (one
+    compiled version per combination actually used; a table without chosen columns records all)."""
+    if USTEP is None:
+        return () if COLS is None else (COLS,)
+    return (np.arange(n_out, dtype=np.int64) if COLS is None else COLS, USTEP)
+
+
+def _run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, parallel, HIST, HEAD, T0, COLS,
+               USTEP=None):
     """The SIMD lane kernel over the batch; with parallel, one chunk per core in threads (nogil)."""
     n_chunks = min(os.cpu_count() or 1, max(1, Y.shape[0] // LANES_MIN_BATCH)) if parallel else 1
     bounds = np.linspace(0, Y.shape[0], n_chunks + 1).astype(int)
@@ -234,7 +263,7 @@ def _run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, pa
         s = slice(bounds[i], bounds[i + 1])
         args = (Y[s], MODE[s], U[s], P[s], cfg, dt, T0[s].copy(), record_every, OUT[s], n_steps, True, FR[s], HIST[s],
                 HEAD[s])
-        lanes_run(*args) if COLS is None else lanes_run(*args, COLS)  # omitted, not None: one compiled version
+        lanes_run(*args, *_optional(COLS, USTEP, OUT.shape[2]))
 
     if n_chunks == 1:
         run(0)
@@ -267,7 +296,8 @@ def simulate_batch(config: "str | Configuration", u: InputLike, duration: float,
                    friction: str = "exact", smooth_eps: float = DEFAULT_SMOOTH_EPS,
                    parallel: bool = False, effects: Any = None,
                    effect_params: Mapping[str, float] | None = None, t0: "float | Sequence[float]" = 0.0,
-                   u_before: np.ndarray | None = None, record: Sequence[str] | None = None) -> BatchTrajectory:
+                   u_before: np.ndarray | None = None, record: Sequence[str] | None = None,
+                   rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL) -> BatchTrajectory:
     """Simulate B trajectories in one compiled call.
 
     Args:
@@ -282,7 +312,9 @@ def simulate_batch(config: "str | Configuration", u: InputLike, duration: float,
         x0: initial states (n_state,) or (B, n_state) (mechanical states, optionally followed by the
             effects' states); default rest with winding ``alpha0``.
         alpha0: initial winding theta_l - theta_u (rad), scalar or per trajectory.
-        method: 'rk4' or 'dp5'.
+        method: 'rk4' or 'dp5' (fixed step dt), or 'dp45': adaptive Dormand-Prince 5(4) steps between the
+            located events (tolerances ``rtol``, ``atol`` per state), outputs interpolated on the grid of
+            dt; several times faster for one long trajectory (benchmarks/bench_single_vs_scipy.py).
         record_every: keep every k-th step.
         record: the columns to keep (names of ``output_names``, e.g. ``("t", "omega_l")``); default all.
             Recording costs what it records: 256 trajectories x 60 s at every step and all 18 columns take
@@ -323,7 +355,7 @@ def simulate_batch(config: "str | Configuration", u: InputLike, duration: float,
             sizes.append(ua.shape[0])
     B = max(max(sizes), 1)
     P = comp.matrix(params, B, values)
-    U = _input_matrix(u, B, n_steps, dt)
+    U, USTEP = _input_matrix(u, B, n_steps, dt)
     Y = _initial_states(comp, B, x0, alpha0)
     if cfg.lateral_free is False:
         Y[:, 4:8] = 0.0
@@ -338,13 +370,20 @@ def simulate_batch(config: "str | Configuration", u: InputLike, duration: float,
     if not np.all(np.isfinite(T0)):
         raise ValueError(f"t0 must be finite, got {t0!r}")
     k = comp.kernels
-    if B >= LANES_MIN_BATCH and method.lower() == "rk4" and eps == 0.0:
+    adaptive = method.lower() in ADAPTIVE
+    if adaptive and not (rtol > 0 and atol > 0):
+        raise ValueError(f"rtol and atol must be > 0, got {rtol!r}, {atol!r}")
+    if adaptive:
+        args = (Y, MODE, U, P, int(cfg), float(dt), T0, eps, A, b, c, int(record_every), OUT, True, n_steps, HIST, HEAD,
+                float(rtol), float(atol))
+        k.stepping.run_batch_adaptive(*args, *_optional(COLS, USTEP, OUT.shape[2]))
+    elif B >= LANES_MIN_BATCH and method.lower() == "rk4" and eps == 0.0:
         _run_lanes(k.lanes.lanes_run, Y, MODE, U, P, int(cfg), float(dt), int(record_every), OUT, n_steps, parallel,
-                   HIST, HEAD, T0, COLS)
+                   HIST, HEAD, T0, COLS, USTEP)
     else:
         runner = k.stepping.run_batch_parallel if parallel else k.stepping.run_batch_serial
         args = (Y, MODE, U, P, int(cfg), float(dt), T0, eps, A, b, c, int(record_every), OUT, True, n_steps, HIST, HEAD)
-        runner(*args) if COLS is None else runner(*args, COLS)
+        runner(*args, *_optional(COLS, USTEP, OUT.shape[2]))
     if not np.all(np.isfinite(Y)):
         bad = int(np.argwhere(~np.all(np.isfinite(Y), axis=1))[0, 0])
         raise FloatingPointError(f"trajectory {bad} diverged (NaN/inf state) with the model {comp.label!r}: "
@@ -359,7 +398,8 @@ def simulate(config: "str | Configuration", u: InputLike, duration: float, *, dt
              params: RigParams | None = None, x0: np.ndarray | None = None, alpha0: float = 0.0,
              method: str = "rk4", record_every: int = 1, friction: str = "exact",
              smooth_eps: float = DEFAULT_SMOOTH_EPS, effects: Any = None,
-             effect_params: Mapping[str, float] | None = None, record: Sequence[str] | None = None) -> Trajectory:
+             effect_params: Mapping[str, float] | None = None, record: Sequence[str] | None = None,
+             rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL) -> Trajectory:
     """Simulate one trajectory (see :func:`simulate_batch` for the arguments)."""
     if params is not None and not isinstance(params, RigParams):
         if not (isinstance(params, np.ndarray) and params.ndim == 1):
@@ -373,7 +413,7 @@ def simulate(config: "str | Configuration", u: InputLike, duration: float, *, dt
         u = np.asarray(u, dtype=np.float64)[None, :]  # one per-step sequence
     batch = simulate_batch(config, u, duration, dt=dt, params=params, x0=x0, alpha0=alpha0, n_batch=1,
                            method=method, record_every=record_every, friction=friction, smooth_eps=smooth_eps,
-                           effects=effects, effect_params=effect_params, record=record)
+                           effects=effects, effect_params=effect_params, record=record, rtol=rtol, atol=atol)
     return batch[0]
 
 
@@ -401,6 +441,8 @@ class BatchSimulator:
         self.n = int(n)
         self.dt = float(dt)
         self.method = method
+        if method.lower() in ADAPTIVE:
+            raise ValueError(f"BatchSimulator steps on a fixed grid: method 'rk4' or 'dp5', not {method!r}")
         self._tab = tableau(method)
         self._eps = _friction_eps(friction, smooth_eps)
         self.P = self.composition.matrix(params, self.n, self.effect_values)

@@ -51,6 +51,25 @@ def test_signal_input_is_zero_order_hold():
     assert tr.u[500] == 0.0 and tr.u[1500] == 2.0 and tr.u[2500] == 1.0
 
 
+@pytest.mark.slow
+def test_table_input_is_evaluated_in_the_kernel_as_its_per_step_expansion():
+    """A (t, u) table stays m entries (never expanded per step) and gives the runs of the per-step
+    sequence it stands for (entries before 0, between and on grid points, repeated times), on the
+    scalar kernel and on the lanes."""
+    from drillgym.simulator import _input_matrix
+
+    ts = np.array([-1.0, 0.0, 0.5, 0.5, 1.0005, 2.0, 2.9999999, 3.0000000001])
+    us = np.array([9.0, 1.0, 2.0, 3.0, 0.5, 4.0, 2.5, 1.5])
+    n, dt = 4000, 1e-3
+    U, first = _input_matrix((ts, us), 8, n, dt)
+    assert U.shape == (8, ts.size)
+    per_step = us[np.clip(np.searchsorted(ts, np.arange(n) * dt + 1e-12 * dt, side="right") - 1, 0, ts.size - 1)]
+    one = simulate("torsional", (ts, us), 4.0, record=("u", "omega_l"))
+    np.testing.assert_array_equal(one.data, simulate("torsional", per_step, 4.0, record=("u", "omega_l")).data)
+    lanes = simulate_batch("torsional", (ts, us), 4.0, n_batch=8, record=("u", "omega_l"))
+    np.testing.assert_array_equal(lanes.data[5], one.data)
+
+
 def test_bad_inputs_are_refused_with_a_clear_error():
     with pytest.raises(ValueError, match="NaN/inf"):
         simulate("torsional", np.full(1000, np.nan), 1.0)
@@ -91,6 +110,27 @@ def test_motor_lag_and_input_delay_effects_act():
     assert initial_state(alpha0=0.5)[1] == 0.5
 
 
+
+def test_motor_lag_far_below_the_step_is_stable_and_exact():
+    """The lag state is integrated exactly over each step (MotorLag.lag): tau_m = 1e-4 s at dt = 1 ms
+    (explicit RK4 diverges below about 0.36 dt) stays finite, its state follows the input exactly,
+    the run tends to the model without the lag, and a batch (lane kernel) gives the scalar run."""
+    u = lambda t: np.where(t > 0.4999, 3.0, 1.0)  # noqa: E731  (a step on the grid)
+    fx = dict(effects=["motor_lag"], effect_params={"tau_m": 1e-4})
+    lag = simulate("torsional", u, 1.5, **fx)
+    base = simulate("torsional", u, 1.5)
+    assert np.all(np.isfinite(lag.data))
+    # u_m(t) = u + (u_m0 - u) exp(-(t - 0.5)/tau): at the grid points after the step it is u to 1e-4
+    assert lag.u_m[499] == pytest.approx(1.0) and abs(lag.u_m[501] - 3.0) < 1e-4
+    assert np.max(np.abs(lag.omega_l - base.omega_l)) < 5e-3  # O(tau) away from the lag-free model
+    batch = simulate_batch("torsional", np.full(8, 2.0), 1.5, **fx)
+    np.testing.assert_allclose(batch[3].omega_u, simulate("torsional", 2.0, 1.5, **fx).omega_u, rtol=0, atol=1e-9)
+    # a slow lag keeps RK4's accuracy: dt = 1 ms against dt = 0.25 ms
+    slow = dict(effects=["motor_lag"], effect_params={"tau_m": 0.02})
+    coarse = simulate("torsional", u, 1.5, **slow)
+    fine = simulate("torsional", u, 1.5, dt=2.5e-4, record_every=4, **slow)
+    assert np.max(np.abs(coarse.omega_l - fine.omega_l)) < 1e-8
+
 def test_simd_lane_kernel_matches_scalar_kernel():
     """Batches of the diagonal-mass configurations run on the SIMD lane kernel; the scalar kernel
     (used for single runs) must give the same runs, events included."""
@@ -106,3 +146,30 @@ def test_simd_lane_kernel_matches_scalar_kernel():
             np.testing.assert_array_equal(batch.stick_l[k], single.stick_l)
         if config != "lateral":
             assert batch.stick_l.mean() > 0.05  # many stick/slip events were crossed
+
+
+@pytest.mark.slow
+def test_adaptive_dp45_matches_the_fixed_step_run_events_included():
+    """method='dp45' (adaptive steps between located events, outputs on the grid) gives the fine
+    fixed-step run: same stick pattern, speeds within 1e-6 rad/s, also across command changes."""
+    u = (np.array([0.0, 12.0, 20.0]), np.array([1.0, 3.0, 0.6]))  # stick-slip, steady slip, back
+    fine = simulate("torsional", u, 30.0, dt=2.5e-4, record_every=4)
+    ad = simulate("torsional", u, 30.0, method="dp45")
+    assert ad.t.shape == fine.t.shape and np.array_equal(ad.u, fine.u)
+    np.testing.assert_array_equal(ad.stick_l, fine.stick_l)
+    assert fine.stick_l.mean() > 0.1  # many stick phases were located
+    assert np.max(np.abs(ad.omega_l - fine.omega_l)) < 1e-6
+    assert np.max(np.abs(ad.Tfl - fine.Tfl)) < 1e-6
+    part = simulate("coupled", 2.0, 10.0, method="dp45", record=("omega_l", "r"), record_every=7)
+    ref = simulate("coupled", 2.0, 10.0, dt=2.5e-4, record_every=28)
+    assert np.max(np.abs(part.omega_l - ref.omega_l)) < 1e-6 and np.max(np.abs(part.r - ref.r)) < 1e-9
+    with pytest.raises(ValueError, match="fixed grid"):
+        BatchSimulator("torsional", 8, method="dp45")
+
+
+def test_fixed_step_paths_refuse_the_adaptive_method():
+    from drillgym.integrators import fixed_step_tableau
+
+    with pytest.raises(ValueError, match="dp45.*adaptive"):
+        fixed_step_tableau("dp45", "identification")
+    assert [len(fixed_step_tableau(m, "x")) for m in ("rk4", "dp5")] == [3, 3]

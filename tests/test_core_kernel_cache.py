@@ -30,3 +30,27 @@ def test_full_vector_width_only_on_avx512_hosts(monkeypatch):
     assert _simd.prefer_full_vector_width() is False
     import os
     assert os.environ["NUMBA_CPU_FEATURES"] == "+avx2"
+
+
+def test_generated_kernels_are_keyed_on_what_they_import_transitively(tmp_path):
+    from drillgym._kernel_cache import modules_digest
+
+    pkg = tmp_path / "drillgym"
+    (pkg / "kernels").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "kernels" / "__init__.py").write_text("")
+    (pkg / "kernels" / "model.py").write_text("from drillgym.dynamics import f\nfrom ..friction import g\n")
+    (pkg / "dynamics.py").write_text("from . import vmath\n")
+    (pkg / "friction.py").write_text("G = 1\n")
+    (pkg / "vmath.py").write_text("V = 1\n")
+    (pkg / "cli.py").write_text("C = 1\n")
+    digest = lambda: modules_digest(["drillgym.kernels.model"], package_dir=pkg)  # noqa: E731
+    before = digest()
+    (pkg / "cli.py").write_text("C = 2\n")  # not imported by the kernels: same key
+    assert digest() == before
+    for name in ("vmath.py", "friction.py"):  # imported (transitively, relative import): new key
+        (pkg / name).write_text("CHANGED = 1\n")
+        assert digest() != before
+        before = digest()
+    assert modules_digest(["drillgym.kernels.model"], ("hooks A",), pkg) != modules_digest(
+        ["drillgym.kernels.model"], ("hooks B",), pkg)

@@ -83,6 +83,10 @@ def test_unknown_effect_name_lists_the_known_ones():
      "    def torque(Ts):\n        return Ts\n", "already taken"),
     ("class NoState(Input):\n    name = 'nostate'\n    states = (State('z', 'V'),)\n"
      "    def voltage(u, z):\n        return z\n", "defines derivative"),
+    ("class BadLag(Input):\n    name = 'badlag'\n    states = (State('z', 'V'),)\n"
+     "    parameters = (Parameter('tau', 's', 0.0, 1.0, 0.1, 0.1),)\n    lag = {'z': 'tau'}\n"
+     "    def derivative(u, z, tau):\n        return (u - z) / tau\n"
+     "    def voltage(z):\n        return z\n", "lag time constant 'tau' needs a lower bound > 0"),
 ])
 def test_bad_effect_files_get_one_line_errors_naming_file_and_problem(tmp_path, body, message):
     path = tmp_path / "bad_effect.py"

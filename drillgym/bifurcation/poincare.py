@@ -27,7 +27,7 @@ import numpy as np
 from ..configurations import Configuration
 from ..dynamics import S_TL, S_TU, S_VX, S_VY, S_WL, S_WU, S_X, S_Y
 from ..effects.composition import Composition, compose
-from ..integrators import tableau
+from ..integrators import fixed_step_tableau
 from .summary import F_OK, F_R_MAX, F_R_MIN, F_STICK, F_T, F_WL_MAX, F_WL_MIN, N_SUMMARY  # noqa: F401
 
 class SectionMap:
@@ -51,7 +51,7 @@ class SectionMap:
         self.omega_s = omega_s
         self.dt = float(dt)
         self.t_max = float(t_max)
-        self.tab = tableau(method)
+        self.tab = fixed_step_tableau(method, "section map")
         if config.lateral_free:
             self.coords = ("alpha", "omega_u", "x", "y", "vx", "vy")
             self.scale = np.array([1.0, 1.0, 1e-3, 1e-3, 1e-2, 1e-2])

@@ -92,7 +92,7 @@ def register(app: typer.Typer) -> None:
         kind: str = typer.Option("quasi_random", "--kind", help="quasi_random (estimation) or sum_of_sines (validation)"),
         duration: float = typer.Option(60.0, help="duration (s)"),
         rate: float = typer.Option(1000.0, help="sample rate (Hz)"),
-        amplitude: float = typer.Option(5.0, help="half range around the offset (V)"),
+        amplitude: float = typer.Option(5.0, help="largest |u| (V); the signal spans offset ± (amplitude - |offset|)"),
         offset: float = typer.Option(0.0, help="mean voltage (V)"),
         seed: int = typer.Option(0, help="random seed"),
     ) -> None:

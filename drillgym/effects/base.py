@@ -33,7 +33,10 @@ Kinds (one base class each):
                 set; ``level(...)`` a factor on both.  Stick stays exact and set-valued: the
                 kernels keep the disc at zero speed while its holding torque is in [lo, hi].
 ``Input``       a transformation of the voltage on its way to the motor: ``voltage(u, ...)``
-                (dead zone, saturation, a lag with a state ...).
+                (dead zone, saturation, a lag with a state ...).  A first-order lag state
+                (tau ds/dt = u - s, u the voltage entering the effect) is declared in ``lag``
+                (state name -> time-constant parameter name): the kernels then integrate it
+                exactly over each step, stable for any tau > 0 however small against the step.
 ``Delay``       a transport delay of the command: ``delay(...)`` in s (at most the bound of
                 the parameter it uses).
 ``Measurement`` a transformation of measured channels (``channels`` among theta_u, theta_l,
@@ -238,10 +241,18 @@ class Friction(Effect):
 
 
 class Input(Effect):
-    """A transformation of the voltage on its way to the motor: ``voltage(u, ...)`` -> V."""
+    """A transformation of the voltage on its way to the motor: ``voltage(u, ...)`` -> V.
+
+    ``lag`` declares first-order lag states, ``{"u_m": "tau_m"}``: tau_m du_m/dt = u - u_m with u
+    the voltage entering the effect (``derivative`` must say the same; it is what the equilibria and
+    the validation use).  The kernels integrate a declared lag exactly over each step (the entering
+    voltage held at its value at the step start, exact for a command held over the step), so a time
+    constant far below the step stays stable; an undeclared stiff state would make the explicit
+    Runge-Kutta step diverge when its time constant is below about 0.36 dt."""
 
     kind = "input"
     functions = ("voltage",)
+    lag: ClassVar[dict[str, str]] = {}
 
 
 class Delay(Effect):

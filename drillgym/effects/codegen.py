@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 
 import numba
 
-from .._kernel_cache import sources_digest
+from .._kernel_cache import modules_digest
 from ..params import IDX, PARAM_NAMES
 from .base import Effect, Force, Friction, Input, Delay, Measurement
 
@@ -39,6 +39,9 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["cache_root", "hooks_source", "build_kernels", "CORE_TEMPLATES"]
 
 CORE_TEMPLATES = ("model", "stepping", "lanes")
+# Client templates (modules whose compiled code calls the kernels; see CompiledModel.client). The
+# generated packages are keyed on the sources these and the core templates import, transitively.
+CLIENT_TEMPLATES = ("drillgym.envs.period_kernel", "drillgym.envs.sensor_kernel", "drillgym.bifurcation.flows")
 _TEMPLATE_PACKAGE = "drillgym.kernels"
 _BRAKE_CFGS = (1, 3)  # torsional, coupled
 _CFG_CODES = {"upper": 0, "torsional": 1, "lateral": 2, "coupled": 3, "free_vibration": 4}
@@ -230,6 +233,49 @@ def _rhs(comp: "Composition", lane: bool, part: str = "all") -> str:
     return "\n".join(lines) + "\n"
 
 
+def _lag(comp: "Composition", lane: bool) -> str:
+    """hk_lag / hk_lag_lane: the declared first-order lag states (``Input.lag``) at h after the step
+    start, exactly: s(h) = v + (s0 - v) exp(-h / tau), v the voltage entering the effect at the
+    step start (the input chain evaluated at the start state y / Y, held over the step)."""
+    body: list[str] = []
+    fixed_needed = False
+    for i, eff in enumerate(comp.effects):
+        if not issubclass(eff, Input):
+            continue
+        ctx = _Context(lane, comp, i)
+        lines = []
+        frozen = []
+        for st, tau in (getattr(eff, "lag", None) or {}).items():
+            j = comp.state_index(st)
+            q = comp.param_index(tau)
+            if lane:
+                lines.append(f"Yo[nm + {j}, k] = u + (Y[nm + {j}, k] - u) * vexp(-h / PT[{q}, k])")
+                frozen.append(f"Yo[nm + {j}, k] = Y[nm + {j}, k]")
+            else:
+                lines.append(f"yo[{8 + j}] = u + (y[{8 + j}] - u) * math.exp(-h / p[{q}])")
+                frozen.append(f"yo[{8 + j}] = y[{8 + j}]")
+        lines.append(f"u = {_call(comp, ctx, 'voltage', 'u')}")
+        fixed_needed |= ctx.needs_fixed
+        guard = _cfg_guard(eff)
+        if guard is None:
+            body.extend(lines)
+        else:
+            body.append(f"if {guard}:")
+            body.extend("    " + ln for ln in lines)
+            if frozen:
+                body.append("else:")
+                body.extend("    " + ln for ln in frozen)
+    pro = ["brake = 1.0 if (cfg == 1 or cfg == 3) else 0.0"]
+    if fixed_needed:
+        pro = _fixed_frame_prologue(lane) + pro
+    if lane:
+        sig = "hk_lag_lane(k, t, u, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, cfg, h, Yo)"
+    else:
+        sig = "hk_lag(t, u, y, p, cfg, h, yo)"
+    lines = [f"@{_JIT}", f"def {sig}:"] + ["    " + ln for ln in pro + body] + ["    return 0"]
+    return "\n".join(lines) + "\n"
+
+
 def _friction(comp: "Composition", lane: bool, disc: str, what: str) -> str:
     """hk_slip_* / hk_bounds_* (scalar or lane) for one disc."""
     sfx = "u" if disc == "upper" else "l"
@@ -323,7 +369,7 @@ def hooks_source(comp: "Composition") -> str:
         "",
         "from drillgym.effects.registry import effect_function as _function, load_class_from_file as _load_class",
         "from drillgym.effects.simd import simd_variant as _simd",
-        "from drillgym.vmath import vsincos",
+        "from drillgym.vmath import vexp, vsincos",
         "",
         *_effect_imports(comp),
         "",
@@ -333,11 +379,14 @@ def hooks_source(comp: "Composition") -> str:
         f"HAS_DELAY = {any(issubclass(e, Delay) for e in comp.effects)}",
         f"HAS_LATERAL_FORCE = {any(issubclass(e, Force) and e.acts_on == 'lateral' for e in comp.effects)}",
         f"N_PARAMS = {comp.n_params}",
+        f"HAS_LAG = {any(issubclass(e, Input) and bool(getattr(e, 'lag', None)) for e in comp.effects)}",
         "",
         "",
         _rhs(comp, False), "",
         _rhs(comp, True, "rhs"), "",
         _rhs(comp, True, "states"), "",
+        _lag(comp, False), "",
+        _lag(comp, True), "",
     ]
     for disc in ("upper", "lower"):
         for what in ("slip", "bounds"):
@@ -351,7 +400,11 @@ def hooks_source(comp: "Composition") -> str:
 @lru_cache(maxsize=1)
 def _environment_digest() -> str:
     h = hashlib.sha256()
-    h.update(sources_digest().encode())
+    roots = [f"{_TEMPLATE_PACKAGE}.{name}" for name in (*CORE_TEMPLATES, "hooks")] + list(CLIENT_TEMPLATES)
+    # the generated hooks import these (see hooks_source), and the code generator writes the hooks
+    roots += ["drillgym.effects.registry", "drillgym.effects.simd", "drillgym.effects.library",
+              "drillgym.effects.codegen", "drillgym.vmath"]
+    h.update(modules_digest(roots).encode())
     h.update(numba.__version__.encode())
     h.update(sys.version.encode())
     return h.hexdigest()
@@ -375,6 +428,9 @@ def package_name(comp: "Composition", hooks: str) -> str:
     h.update(hooks.encode())
     for eff in comp.effects:
         origin = getattr(eff, "__drillgym_file__", None)
+        if not origin and not eff.__module__.startswith("drillgym."):  # e.g. an entry-point effect
+            module = sys.modules.get(eff.__module__)
+            origin = getattr(module, "__file__", None)
         if origin:
             h.update(Path(origin).read_bytes())
     return "_dgk_" + h.hexdigest()[:24]

@@ -91,6 +91,7 @@ class MotorLag(Input):
     name = "motor_lag"
     parameters = (Parameter("tau_m", "s", 1e-4, 5.0, 0.005, 0.02, "first-order amplifier/motor time constant"),)
     states = (State("u_m", "V", "voltage at the motor after the lag"),)
+    lag = {"u_m": "tau_m"}  # integrated exactly over each step: stable for any tau_m (also << dt)
     configurations = ("upper", "torsional", "lateral", "coupled")
     explanation = (
         "The amplifier and the motor's electrical time constant turn the commanded voltage into torque with a "

@@ -149,6 +149,16 @@ def validate_effect(cls: Any) -> None:
         need = cls.functions[0]
         if need not in fns:
             raise EffectError(f"{w}: an {cls.kind.capitalize()} effect defines {need}(...)")
+        lag = getattr(cls, "lag", None) or {}
+        if not isinstance(lag, dict):
+            raise EffectError(f"{w}: lag must be a dict state name -> time-constant parameter name")
+        states = {s.name for s in cls.states if isinstance(s, State)}
+        params = {p.name: p for p in cls.parameters if isinstance(p, Parameter)}
+        for st, tau in lag.items():
+            if st not in states or tau not in params:
+                raise EffectError(f"{w}: lag {{{st!r}: {tau!r}}}: expected one of its states -> one of its parameters")
+            if not params[tau].lo > 0.0:
+                raise EffectError(f"{w}: lag time constant {tau!r} needs a lower bound > 0, got {params[tau].lo}")
     elif issubclass(cls, Measurement):
         bad = [c for c in cls.channels if c not in MEASUREMENT_CHANNELS]
         if bad or not cls.channels:

@@ -44,7 +44,7 @@ from scipy.signal import lfilter, lfilter_zi
 from ..configurations import N_STATE, Configuration
 from ..effects import BASE, Composition, compose
 from ..effects.library import MotorLag
-from ..integrators import OUTPUT_NAMES, tableau
+from ..integrators import OUTPUT_NAMES, fixed_step_tableau
 from ..measurement import lowpass_zero_phase
 from ..params import N_PARAMS
 from .experiment import Experiment
@@ -351,7 +351,7 @@ class SegmentedModel:
                 Y[:, 4:8] = 0.0
             MODE = np.zeros((Y.shape[0], 2), dtype=np.int64)
             OUT = np.full((Y.shape[0], n_rec, len(sim.output_names)), np.nan)
-            A, b, c = tableau(self.method)
+            A, b, c = fixed_step_tableau(self.method, "identification")
             sim.kernels.stepping.run_batch_parallel(Y, MODE, np.ascontiguousarray(U, dtype=np.float64),
                                                     np.ascontiguousarray(rows), int(config), float(dt),
                                                     np.ascontiguousarray(T0, dtype=np.float64), 0.0, A, b, c, int(rec),

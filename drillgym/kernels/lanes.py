@@ -39,7 +39,7 @@ from drillgym.dynamics import (
 from drillgym.friction import bearing_law, brake_law_simd, upper_law
 from drillgym.integrators import RK4_A, RK4_B, RK4_C
 from drillgym.kernels.hooks import (
-    N_STATE, hk_bounds_l_lane, hk_bounds_u_lane, hk_rhs_lane, hk_slip_l_lane, hk_slip_u_lane, hk_states_lane,
+    HAS_LAG, N_STATE, hk_bounds_l_lane, hk_lag_lane, hk_bounds_u_lane, hk_rhs_lane, hk_slip_l_lane, hk_slip_u_lane, hk_states_lane,
 )
 from drillgym.kernels.model import initial_modes, record, resolve_modes
 from drillgym.kernels.stepping import alloc_work, delay_line_step, hybrid_step
@@ -200,6 +200,20 @@ def _derivative(Y, MU, ML, U, PT, full, string_on, brake, K, FR, TT, tc, cfg):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
+def _lag_exact(S0, Yo, U, PT, TT, h, full, cfg):
+    """The declared lag states (``Input.lag``) of every lane at h after the step start, exactly
+    (as the scalar kernel's ``hk_lag``): rows nm + j of Yo from the start states S0."""
+    nm = 8 if full else 4
+    for k in range(S0.shape[1]):
+        if full:
+            hk_lag_lane(k, TT[k], U[k], S0[0, k], S0[1, k], S0[4, k], S0[5, k], S0[2, k], S0[3, k], S0[6, k],
+                        S0[7, k], S0, nm, PT, cfg, h, Yo)
+        else:
+            hk_lag_lane(k, TT[k], U[k], S0[0, k], S0[1, k], S0[2, k], S0[3, k], 0.0, 0.0, 0.0, 0.0, S0, nm, PT, cfg,
+                        h, Yo)
+
+
+@njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
 def _axpy(X0, h, KX, out):
     """out = X0 + h KX, row by row."""
     for j in range(X0.shape[0]):
@@ -230,10 +244,16 @@ def _lanes_rk4(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibrati
     K3 = W[2 * n:3 * n]
     K4 = W[3 * n:4 * n]
     _axpy(S0, 0.5 * h, K1, Y)
+    if HAS_LAG:
+        _lag_exact(S0, Y, U, PT, TT, 0.5 * h, full, cfg)
     _derivative(Y, MU, ML, U, PT, full, string_on, brake, K2, FR, TT, 0.5 * h, cfg)
     _axpy(S0, 0.5 * h, K2, Y)
+    if HAS_LAG:
+        _lag_exact(S0, Y, U, PT, TT, 0.5 * h, full, cfg)
     _derivative(Y, MU, ML, U, PT, full, string_on, brake, K3, FR, TT, 0.5 * h, cfg)
     _axpy(S0, h, K3, Y)
+    if HAS_LAG:
+        _lag_exact(S0, Y, U, PT, TT, h, full, cfg)
     _derivative(Y, MU, ML, U, PT, full, string_on, brake, K4, FR, TT, h, cfg)
     h6 = h / 6.0
     for j in range(n):
@@ -245,6 +265,8 @@ def _lanes_rk4(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibrati
         d = K4[j]
         for k in range(B):
             s[k] = s0[k] + h6 * (a[k] + 2.0 * (b[k] + c[k]) + d[k])
+    if HAS_LAG:
+        _lag_exact(S0, S, U, PT, TT, h, full, cfg)
     _derivative(S, MU, ML, U, PT, full, string_on, brake, K1, FR, TT, h, cfg)
     _event_check(S, FR, MU, ML, PT, full, string_on, brake, free_vibration, OK, TT, h, nm, hv)
 
@@ -306,15 +328,100 @@ def _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode):
     ML[k] = float(mode[1])
 
 
+@njit(cache=True, _nrt=False)
+def _record_lanes(OUT, row, T0, tt, U, ucol, S, FR, MU, ML, inv, Y, COLS, XW, YW):
+    """One output sample of every lane straight from the lane rows (as ``model.record`` of the lane's
+    state, column by column over the lanes: no per-lane copies).  inv[i] = lane row of state i, or -1
+    (a state that does not evolve: read from Y); tt the sample's time since T0 (s)."""
+    B = S.shape[1]
+    nc = OUT.shape[2]
+    lateral = False
+    for jj in range(nc):
+        c = COLS[jj] if COLS is not None else jj
+        if 11 <= c <= 13:
+            lateral = True
+    if lateral:  # fixed-frame position (m) once for the three columns; no trigonometry at the centre
+        for k in range(B):
+            x = S[inv[4], k] if inv[4] >= 0 else Y[k, 4]
+            yy = S[inv[5], k] if inv[5] >= 0 else Y[k, 5]
+            if x == 0.0 and yy == 0.0:
+                XW[k] = 0.0
+                YW[k] = 0.0
+            else:
+                thu = S[inv[0], k]
+                ct = np.cos(thu)
+                st = np.sin(thu)
+                XW[k] = x * ct - yy * st
+                YW[k] = x * st + yy * ct
+    for jj in range(nc):
+        c = COLS[jj] if COLS is not None else jj
+        if c == 0:
+            for k in range(B):
+                OUT[k, row, jj] = T0[k] + tt
+        elif c == 1:
+            for k in range(B):
+                OUT[k, row, jj] = U[k, ucol]
+        elif c == 10:
+            a = S[inv[1]]
+            b = S[inv[0]]
+            for k in range(B):
+                OUT[k, row, jj] = a[k] - b[k]
+        elif c == 11:
+            for k in range(B):
+                OUT[k, row, jj] = XW[k]
+        elif c == 12:
+            for k in range(B):
+                OUT[k, row, jj] = YW[k]
+        elif c == 13:
+            for k in range(B):
+                OUT[k, row, jj] = np.sqrt(XW[k] * XW[k] + YW[k] * YW[k])
+        elif c == 14 or c == 15:
+            f = FR[c - 14]
+            for k in range(B):
+                OUT[k, row, jj] = f[k]
+        elif c == 16 or c == 17:
+            m = MU if c == 16 else ML
+            for k in range(B):
+                OUT[k, row, jj] = 1.0 if m[k] == 0.0 else 0.0
+        else:
+            si = c - 2 if c < 10 else c - 10
+            r = inv[si]
+            if r >= 0:
+                src = S[r]
+                for k in range(B):
+                    OUT[k, row, jj] = src[k]
+            else:
+                for k in range(B):
+                    OUT[k, row, jj] = Y[k, si]
+
+
+@njit(inline="always")
+def command_col(n_u, i, USTEP, j):
+    """(column of U holding the command of step i, table cursor): as stepping.command_at."""
+    if USTEP is None:
+        return (i if n_u > 1 else 0), j
+    m = USTEP.shape[0]
+    while j + 1 < m and USTEP[j + 1] <= i:
+        j += 1
+    return j, j
+
+
 @njit(cache=True, nogil=True)
-def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, FRIC_OUT, HIST, HEAD, COLS=None):
+def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, FRIC_OUT, HIST, HEAD, COLS=None,
+              USTEP=None):
     """Batch run on lanes: same contract as stepping.run_batch_serial (RK4, exact friction),
-    plus FRIC_OUT (B, 2) final friction.  U may hold one column (constant command); OUT may have
+    plus FRIC_OUT (B, 2) final friction.  U may hold one column (constant command) or, with USTEP
+    (m,), the columns of a piecewise-constant table (U[:, j] from step USTEP[j] on); OUT may have
     zero samples (no recording)."""
     B = Y.shape[0]
     full = lateral_free(cfg)
     rows = ROWS_FULL if full else ROWS_DIAG
     n = rows.shape[0]
+    XW = np.zeros(B)  # recording work space: fixed-frame lateral position
+    YW = np.zeros(B)
+    inv = np.full(N_STATE, -1, dtype=np.int64)  # state index -> lane row
+    for j in range(n):
+        inv[rows[j]] = j
     PT = np.ascontiguousarray(P.T)
     S = np.empty((n, B))
     S0 = np.empty((n, B))
@@ -342,7 +449,8 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
             y[j] = Y[k, j]
         for j in range(2):
             mode[j] = MODE[k, j]
-        u0 = delay_line_step(HIST[k], HEAD[k:k + 1], U[k, 0], P[k], dt)
+        c0 = command_col(n_u, 0, USTEP, 0)[0]
+        u0 = delay_line_step(HIST[k], HEAD[k:k + 1], U[k, c0], P[k], dt)
         if init_modes:
             initial_modes(T0[k], y, u0, P[k], cfg, mode, k1, fric)
         else:
@@ -351,11 +459,12 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
         for j in range(N_STATE):
             Y[k, j] = y[j]
         if record_on:
-            record(OUT[k], row0, T0[k], U[k, 0], y, fric, mode, COLS)
+            record(OUT[k], row0, T0[k], U[k, c0], y, fric, mode, COLS)
         Uprev[k] = u0
         Ucur[k] = u0
+    jc = 0
     for i in range(n_steps):
-        col = i if n_u > 1 else 0
+        col, jc = command_col(n_u, i, USTEP, jc)
         for k in range(B):
             TT[k] = T0[k] + i * dt
             if i > 0:
@@ -381,11 +490,8 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
                 _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
         if record_on and (i + 1) % rec_every == 0:
             row = (i + 1) // rec_every
-            ncol = min(i + 1, n_steps - 1) if n_u > 1 else 0
-            for k in range(B):
-                y[:] = Y[k]
-                _lane_to_state(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
-                record(OUT[k], row, T0[k] + (i + 1) * dt, U[k, ncol], y, fric, mode, COLS)
+            ncol = command_col(n_u, min(i + 1, n_steps - 1), USTEP, jc)[0]
+            _record_lanes(OUT, row, T0, (i + 1) * dt, U, ncol, S, FR, MU, ML, inv, Y, COLS, XW, YW)
     for k in range(B):
         for j in range(n):
             Y[k, rows[j]] = S[j, k]

@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit, prange
 
 from drillgym.dynamics import S_WL, S_WU, lateral_free
-from drillgym.kernels.hooks import HAS_DELAY, N_STATE, hk_delay
+from drillgym.kernels.hooks import HAS_DELAY, HAS_LAG, N_STATE, hk_delay, hk_lag
 from drillgym.kernels.model import (
     event_values, initial_modes, lower_stick_bounds, record, resolve_modes, state_derivative, upper_stick_bounds,
 )
@@ -35,6 +35,19 @@ def alloc_work(n_stages: int):
     K = np.zeros((n_stages + 1, N_STATE))
     return (K, np.zeros(N_STATE), np.zeros(N_STATE), np.zeros(N_STATE), np.zeros(2), np.zeros(2), np.zeros(2),
             np.zeros(2))
+
+
+@njit(inline="always")
+def command_at(U, i, USTEP, j):
+    """(command of grid step i (V), table cursor).  Without a table (USTEP None) U holds one value per
+    step or one value for all; with one, U[j] applies from step USTEP[j] on (a piecewise-constant
+    (t, u) table evaluated here, never expanded per step) and j is the cursor (i non-decreasing)."""
+    if USTEP is None:
+        return (U[i] if U.shape[0] > 1 else U[0]), j
+    m = USTEP.shape[0]
+    while j + 1 < m and USTEP[j + 1] <= i:
+        j += 1
+    return U[j], j
 
 
 @njit(cache=True, _nrt=False)
@@ -111,16 +124,24 @@ def _rk_step(t, y0, k1, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, y_out, fric):
         hh = 0.5 * h
         for j in range(n):
             ytmp[j] = y0[j] + hh * k1[j]
+        if HAS_LAG:
+            hk_lag(t, u, y0, p, cfg, hh, ytmp)
         state_derivative(t + hh, ytmp, mode, u, p, cfg, eps, k2, fric)
         for j in range(n):
             ytmp[j] = y0[j] + hh * k2[j]
+        if HAS_LAG:
+            hk_lag(t, u, y0, p, cfg, hh, ytmp)
         state_derivative(t + hh, ytmp, mode, u, p, cfg, eps, k3, fric)
         for j in range(n):
             ytmp[j] = y0[j] + h * k3[j]
+        if HAS_LAG:
+            hk_lag(t, u, y0, p, cfg, h, ytmp)
         state_derivative(t + h, ytmp, mode, u, p, cfg, eps, k4, fric)
         h6 = h / 6.0
         for j in range(n):
             y_out[j] = y0[j] + h6 * (k1[j] + 2.0 * (k2[j] + k3[j]) + k4[j])
+        if HAS_LAG:
+            hk_lag(t, u, y0, p, cfg, h, y_out)
         return
     for j in range(n):
         K[0, j] = k1[j]
@@ -130,12 +151,16 @@ def _rk_step(t, y0, k1, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, y_out, fric):
             for l in range(i):
                 acc += A[i, l] * K[l, j]
             ytmp[j] = y0[j] + h * acc
+        if HAS_LAG:
+            hk_lag(t, u, y0, p, cfg, c[i] * h, ytmp)
         state_derivative(t + c[i] * h, ytmp, mode, u, p, cfg, eps, K[i], fric)
     for j in range(n):
         acc = 0.0
         for i in range(s):
             acc += b[i] * K[i, j]
         y_out[j] = y0[j] + h * acc
+    if HAS_LAG:
+        hk_lag(t, u, y0, p, cfg, h, y_out)
 
 
 @njit(cache=True, _nrt=False)
@@ -239,20 +264,21 @@ def hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, ynew,
 
 @njit(cache=True)
 def run_trajectory(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, init_modes, n_steps, hist, head,
-                   cols=None):
+                   cols=None, USTEP=None):
     """Integrate one trajectory over n_steps steps (command U[i] held over step i; U may hold one
     value for a constant command).
 
     ``y``/``mode`` are updated in place to the final state, ``hist``/``head`` are the delay
     line.  ``out`` receives ``n_steps // rec_every + 1`` samples (none when it has no rows) of all
-    output columns or of the columns ``cols`` (see ``model.record``).
+    output columns or of the columns ``cols`` (see ``model.record``).  With ``USTEP`` (m,), U (m,) is a
+    piecewise-constant table: U[j] from step USTEP[j] on (see :func:`command_at`).
     Returns the number of mode switches.
     """
     K, ytmp, k1, ynew, fric, ftmp, g0, g1 = alloc_work(b.shape[0])
     n_u = U.shape[0]
     record_on = out.shape[0] > 0
     t = t0
-    u_cmd = U[0]
+    u_cmd, jc = command_at(U, 0, USTEP, 0)
     u = delay_line_step(hist, head, u_cmd, p, dt) if n_steps > 0 else delay_line_read(hist, head, u_cmd, p, dt)
     if eps > 0.0:  # smoothed friction: no stick state
         mode[0] = 2
@@ -270,7 +296,8 @@ def run_trajectory(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, ini
     u_prev = u
     for i in range(n_steps):
         if i > 0:
-            u = delay_line_step(hist, head, U[i] if n_u > 1 else U[0], p, dt)
+            u_cmd, jc = command_at(U, i, USTEP, jc)
+            u = delay_line_step(hist, head, u_cmd, p, dt)
         if u != u_prev:
             if eps > 0.0:
                 state_derivative(t, y, mode, u, p, cfg, eps, k1, fric)
@@ -281,7 +308,7 @@ def run_trajectory(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, ini
         t = t0 + (i + 1) * dt
         if record_on and (i + 1) % rec_every == 0:
             # a sample carries the command applied from its time on (zero-order hold), as a recording does
-            u_next = U[min(i + 1, n_steps - 1)] if n_u > 1 else U[0]
+            u_next = command_at(U, min(i + 1, n_steps - 1), USTEP, jc)[0]
             record(out, row, t, u_next, y, fric, mode, cols)
             row += 1
     return n_switch
@@ -289,21 +316,22 @@ def run_trajectory(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, ini
 
 @njit(cache=True)
 def run_batch_serial(Y, MODE, U, P, cfg, dt, T0, eps, A, b, c, rec_every, OUT, init_modes, n_steps, HIST, HEAD,
-                     COLS=None):
+                     COLS=None, USTEP=None):
     """run_trajectory over a batch: Y (B, N_STATE), MODE (B, 2), U (B, n) or (B, 1), P (B, n_par),
-    OUT (B, n_rec, N_OUT), HIST (B, L) delay lines, HEAD (B,) their newest entries."""
+    OUT (B, n_rec, N_OUT), HIST (B, L) delay lines, HEAD (B,) their newest entries; with USTEP (m,),
+    U (B, m) is a piecewise-constant table (see :func:`command_at`)."""
     for k in range(Y.shape[0]):
         run_trajectory(Y[k], MODE[k], U[k], P[k], cfg, dt, T0[k], eps, A, b, c, rec_every, OUT[k], init_modes,
-                       n_steps, HIST[k], HEAD[k:k + 1], COLS)
+                       n_steps, HIST[k], HEAD[k:k + 1], COLS, USTEP)
 
 
 @njit(cache=True, parallel=True)
 def run_batch_parallel(Y, MODE, U, P, cfg, dt, T0, eps, A, b, c, rec_every, OUT, init_modes, n_steps, HIST, HEAD,
-                     COLS=None):
+                       COLS=None, USTEP=None):
     """As run_batch_serial, trajectories spread over numba's threads."""
     for k in prange(Y.shape[0]):
         run_trajectory(Y[k], MODE[k], U[k], P[k], cfg, dt, T0[k], eps, A, b, c, rec_every, OUT[k], init_modes,
-                       n_steps, HIST[k], HEAD[k:k + 1], COLS)
+                       n_steps, HIST[k], HEAD[k:k + 1], COLS, USTEP)
 
 
 @njit(cache=True)
@@ -339,3 +367,173 @@ def advance_batch(Y, MODE, u, P, cfg, dt, n_sub, T, eps, A, b, c, FRIC, HIST, HE
             hybrid_step(t, y, k1, fric, mode, ue, p, cfg, eps, dt, A, b, c, K, ytmp, ynew, g0, g1, ftmp)
             t += dt
         T[k] = t
+
+
+# ---------------------------------------------------------------------------------------------
+# adaptive embedded Runge-Kutta (Dormand-Prince 5(4)) between located events, outputs on the grid
+
+#: b - b_hat of Dormand-Prince 5(4) (7 stages, the 7th the derivative at the step end: FSAL)
+DP54_E = np.array([71.0 / 57600.0, 0.0, -71.0 / 16695.0, 71.0 / 1920.0, -17253.0 / 339200.0, 22.0 / 525.0,
+                   -1.0 / 40.0])
+
+
+@njit(cache=True, _nrt=False)
+def _dp54_error(y0, y1, K, h, rtol, atol, n):
+    """Scaled error norm (max over the evolving states) of the step y0 -> y1 of size h whose stages
+    (and end derivative, row 6) are in K."""
+    err = 0.0
+    for j in range(n):
+        e = 0.0
+        for i in range(7):
+            e += DP54_E[i] * K[i, j]
+        sc = atol + rtol * max(abs(y0[j]), abs(y1[j]))
+        r = abs(h * e) / sc
+        if r > err:
+            err = r
+    return err
+
+
+@njit(cache=True)
+def run_trajectory_adaptive(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, init_modes, n_steps, hist,
+                            head, rtol, atol, cols=None, USTEP=None):
+    """As :func:`run_trajectory` (same contract, command U[i] held over grid step i, outputs on the grid
+    t0 + i dt), but integrated with adaptive Dormand-Prince 5(4) steps (A, b, c: DP5) between the
+    grid points where the command changes: steps grow as long as the embedded error estimate stays
+    below 1 (relative rtol, absolute atol per state).  A step in which a disc switches mode is redone
+    ending at the next grid point (at most dt, events located exactly as on the fixed grid).  Outputs
+    between step ends are cubic Hermite interpolants of the state (4th order) with the step's modes.
+    Returns the number of mode switches."""
+    K, ytmp, k1, ynew, fric, ftmp, g0, g1 = alloc_work(b.shape[0])
+    ns = y.shape[0]
+    n_act = active_states(cfg)
+    y0 = np.empty(ns)
+    k0 = np.empty(ns)
+    yi = np.empty(ns)
+    fr0 = np.zeros(2)
+    fri = np.zeros(2)
+    md0 = np.zeros(2, dtype=np.int64)
+    n_u = U.shape[0]
+    record_on = out.shape[0] > 0
+    need_fric = cols is None
+    if cols is not None:
+        for j in range(cols.shape[0]):
+            if cols[j] == 14 or cols[j] == 15:
+                need_fric = True
+    t = t0
+    u_cmd, jc = command_at(U, 0, USTEP, 0)
+    u = delay_line_step(hist, head, u_cmd, p, dt) if n_steps > 0 else delay_line_read(hist, head, u_cmd, p, dt)
+    if eps > 0.0:
+        mode[0] = 2
+        mode[1] = 2
+        state_derivative(t, y, mode, u, p, cfg, eps, k1, fric)
+    elif init_modes:
+        initial_modes(t, y, u, p, cfg, mode, k1, fric)
+    else:
+        resolve_modes(t, y, mode, u, p, cfg, k1, fric)
+    row = np.int64(0)
+    if record_on:
+        record(out, row, t, u_cmd, y, fric, mode, cols)
+    row = 1
+    n_switch = 0
+    jr = 0  # table cursor of the recorded commands (jc runs ahead, to the next change)
+    g_done = 0  # grid index of the current time when on the grid (t == t0 + g_done dt), else the last passed
+    h = dt
+    j_end = 0
+    u_pend = u
+    while g_done < n_steps:
+        # the next grid index at which the command the motor sees changes (or the end)
+        j_end = g_done + 1
+        while j_end < n_steps:
+            if USTEP is None and n_u == 1 and not HAS_DELAY:
+                j_end = n_steps
+                break
+            u_cmd, jc = command_at(U, j_end, USTEP, jc)
+            v = delay_line_step(hist, head, u_cmd, p, dt)
+            if v != u:
+                u_pend = v
+                break
+            j_end += 1
+        t_end = t0 + j_end * dt
+        while g_done < j_end:
+            t_next_grid = t0 + (g_done + 1) * dt
+            hs = min(h, t_end - t)
+            if t + hs > t_end - 1e-9 * dt:
+                hs = t_end - t
+            for i in range(ns):
+                y0[i] = y[i]
+                k0[i] = k1[i]
+            fr0[0] = fric[0]
+            fr0[1] = fric[1]
+            md0[0] = mode[0]
+            md0[1] = mode[1]
+            nev = hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, hs, A, b, c, K, ytmp, ynew, g0, g1, ftmp)
+            if nev > 0 and hs > t_next_grid - t + 1e-9 * dt:
+                # a switch inside a long step: redo it up to the next grid point (events exact there)
+                for i in range(ns):
+                    y[i] = y0[i]
+                    k1[i] = k0[i]
+                fric[0] = fr0[0]
+                fric[1] = fr0[1]
+                mode[0] = md0[0]
+                mode[1] = md0[1]
+                hs = t_next_grid - t
+                nev = hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, hs, A, b, c, K, ytmp, ynew, g0, g1, ftmp)
+            elif nev == 0:
+                err = _dp54_error(y0, y, K, hs, rtol, atol, n_act)
+                if err > 1.0:
+                    for i in range(ns):
+                        y[i] = y0[i]
+                        k1[i] = k0[i]
+                    fric[0] = fr0[0]
+                    fric[1] = fr0[1]
+                    h = hs * max(0.2, 0.9 * err ** -0.2)
+                    continue
+                h = hs * min(5.0, max(0.2, 0.9 * (err + 1e-30) ** -0.2))
+                h = max(h, 1e-3 * dt)
+            n_switch += nev
+            t1 = t + hs
+            # record the grid points passed: (t, t1]
+            g = g_done + 1
+            while g <= j_end and t0 + g * dt <= t1 + 1e-9 * dt:
+                tg = t0 + g * dt
+                if record_on and g % rec_every == 0:
+                    u_next, jr = command_at(U, min(g, n_steps - 1), USTEP, jr)
+                    if abs(tg - t1) <= 1e-9 * dt:
+                        record(out, row, tg, u_next, y, fric, mode, cols)
+                    else:  # cubic Hermite on the step (no event inside it)
+                        s = (tg - t) / hs
+                        h00 = (1.0 + 2.0 * s) * (1.0 - s) * (1.0 - s)
+                        h10 = s * (1.0 - s) * (1.0 - s)
+                        h01 = s * s * (3.0 - 2.0 * s)
+                        h11 = s * s * (s - 1.0)
+                        for i in range(n_act):
+                            yi[i] = h00 * y0[i] + h10 * hs * k0[i] + h01 * y[i] + h11 * hs * k1[i]
+                        for i in range(n_act, ns):
+                            yi[i] = y[i]
+                        fri[0] = fric[0]
+                        fri[1] = fric[1]
+                        if need_fric:
+                            state_derivative(tg, yi, mode, u, p, cfg, eps, ytmp, fri)
+                        record(out, row, tg, u_next, yi, fri, mode, cols)
+                    row += 1
+                g += 1
+            g_done = g - 1
+            t = t1
+            if g_done == j_end:
+                t = t_end
+        if j_end < n_steps:  # the command changes at grid j_end
+            u = u_pend
+            if eps > 0.0:
+                state_derivative(t, y, mode, u, p, cfg, eps, k1, fric)
+            else:
+                resolve_modes(t, y, mode, u, p, cfg, k1, fric)
+    return n_switch
+
+
+@njit(cache=True)
+def run_batch_adaptive(Y, MODE, U, P, cfg, dt, T0, eps, A, b, c, rec_every, OUT, init_modes, n_steps, HIST, HEAD,
+                       rtol, atol, COLS=None, USTEP=None):
+    """run_trajectory_adaptive over a batch (one after the other)."""
+    for k in range(Y.shape[0]):
+        run_trajectory_adaptive(Y[k], MODE[k], U[k], P[k], cfg, dt, T0[k], eps, A, b, c, rec_every, OUT[k],
+                                init_modes, n_steps, HIST[k], HEAD[k:k + 1], rtol, atol, COLS, USTEP)
