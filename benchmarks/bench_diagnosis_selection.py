@@ -133,6 +133,7 @@ def run_case(c: dict) -> dict:
             out["time_s"] = time.perf_counter() - t0
             out["selected"] = list(d.selected)
             out["ties"] = {s.effect: s.note for s in d.ranking if s.note and s.effect in d.selected}
+            out["paths"] = dict(d.paths)
             out["moved"] = {k: round(v["change_pct"], 1) for k, v in d.base_parameters.items()}
             out["rmse"] = (round(d.rmse_before, 1), round(d.rmse_after or 0.0, 1))
             out["candidate"] = d.candidate.expression() if d.candidate else None
@@ -178,6 +179,8 @@ def case_line(r: dict) -> str:
     line = f"{r['id']:>3} {verdict(r):<7}{r['kind']:<9}{cond}  t={r['time_s']:.0f}s  [{eff}] [{sc}] -> {r['selected']}"
     if r.get("moved"):
         line += " base " + ",".join(f"{k}{v:+.1f}%" for k, v in r["moved"].items())
+    if r.get("paths"):
+        line += " paths " + "; ".join(f"{k}={'+'.join(v) or '-'}" for k, v in r["paths"].items())
     if r.get("candidate"):
         line += f" | cand {r['candidate']} ({r['explained']:.0%})"
     if r.get("unexplained"):

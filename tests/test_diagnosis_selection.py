@@ -105,3 +105,37 @@ def test_cli_outside_the_library_candidate_file_halves_the_error(tmp_path):
     fit = json.loads(r2.output)
     for c in ("theta_l", "alpha"):  # the user watches the error fall: at least halved
         assert 1 - fit["r2_after"][c] <= 0.5 * (1 - fit["r2_before"][c]), fit
+
+
+def test_candidate_found_on_the_lower_disc_when_the_upper_disc_is_noise():
+    """Free play in the string (a torque −kθ sat(α, g)) seen on the lower disc, the upper disc's residual
+    torque dominated by derivative noise: the string group is found with the right sign and size."""
+    import numpy as np
+
+    from drillgym.configurations import N_STATE
+    from drillgym.diagnosis.discovery import find_candidate
+    from drillgym.diagnosis.sparse import ResidualTorque
+
+    rng = np.random.default_rng(3)
+    p = RigParams()
+    t = np.arange(0, 30.0, 1 / 250)
+    wu = 2.0 + 1.5 * np.sin(3.0 * t)
+    wl = 2.0 + 1.5 * np.sin(3.0 * t - 0.8)
+    S = np.zeros((t.size, N_STATE))
+    S[:, 0] = np.cumsum(wu) / 250
+    S[:, 1] = np.cumsum(wl) / 250
+    S[:, 1] -= np.mean(S[:, 1] - S[:, 0])  # the twist α swings about zero (±0.4 rad), through the free play
+    S[:, 2], S[:, 3] = wu, wl
+    alpha = S[:, 1] - S[:, 0]
+    deficit = -p.ktheta * np.clip(alpha, -0.1, 0.1)  # what the string lacks against kθ α
+    tau_l = -deficit
+    tau_u = deficit + 0.3 * rng.standard_normal(t.size)
+    rt = ResidualTorque(t, tau_u, tau_l, S, np.ones(t.size, bool))
+    cand = find_candidate(rt, np.zeros(t.size), p.Ju, p.Jl)
+    assert cand is not None and cand.group == "string", cand
+    assert cand.explained > 0.5, cand.explained
+    sats = [(k, v) for k, v in cand.terms.items() if k.startswith("sat")]
+    assert len(sats) == 1, cand.terms
+    (label, coef), = sats
+    g = float(label.split(",")[1].strip(" )"))
+    assert coef < 0 and abs(coef * min(g, 1.0)) == pytest.approx(p.ktheta * 0.1, rel=0.5), cand.terms

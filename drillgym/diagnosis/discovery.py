@@ -40,6 +40,8 @@ __all__ = ["Candidate", "find_candidate", "write_effect_file", "advice", "discov
 
 MAX_TERMS = 3
 MIN_GAIN = 0.03  # share of the residual variance a further term must explain
+MAX_CANCEL = 2.0  # a term may contribute at most this many times the residual's size
+SMOOTH_S = 0.3  # s: moving average of the residual torques and the terms before the regression
 MIN_EXPLAINED_SHARE = 0.3  # a candidate must explain at least this share of the residual torque
 
 
@@ -59,14 +61,40 @@ def _speed_terms(w: str, sym: str) -> list[_Term]:
     for v in (0.3, 1.0, 3.0):
         out.append(_Term(f"sign({sym}) exp(−|{sym}|/{v:g})", f"direction * math.exp(-speed / {v!r})",
                          lambda d, v=v: np.sign(d[w]) * np.exp(-np.abs(d[w]) / v), 1.0))
-    for v in (0.5, 1.5):
+    for v in (0.25, 0.5, 1.0, 1.5, 3.0):
         out.append(_Term(f"sign({sym}) exp(−({sym}/{v:g})²)", f"direction * math.exp(-(speed / {v!r}) ** 2)",
                          lambda d, v=v: np.sign(d[w]) * np.exp(-(d[w] / v) ** 2), 1.0))
     return out
 
 
-def _groups(lateral: bool) -> dict[str, list[_Term]]:
-    lower = _speed_terms("wl", "ωl") + [
+def _stribeck_terms(ws: float, delta: float) -> list[_Term]:
+    """Changes of the lower disc's Stribeck shape sign(ω) exp(−(|ω|/ws)^δ) (the model's ws, δ): its
+    derivatives with respect to δ and ws (a different exponent or Stribeck speed: first order), and
+    the shape with other exponents (a different law: e.g. a Lorentzian's long tail is close to δ = 1)."""
+    out = []
+    for dd in (0.5, 1.0, 3.0):
+        out.append(_Term(f"sign(ωl) exp(−(|ωl|/{ws:.3g})^{dd:g})", f"direction * math.exp(-(speed / {ws!r}) ** {dd!r})",
+                         lambda d, dd=dd: np.sign(d["wl"]) * np.exp(-(np.abs(d["wl"]) / ws) ** dd), 1.0))
+
+    def dshape_ddelta(w: np.ndarray) -> np.ndarray:
+        x = np.maximum(np.abs(w) / ws, 1e-12)
+        return -np.sign(w) * np.exp(-x ** delta) * x ** delta * np.log(x)
+
+    def dshape_dws(w: np.ndarray) -> np.ndarray:
+        x = np.abs(w) / ws
+        return np.sign(w) * np.exp(-x ** delta) * delta * x ** delta
+    xs = f"max(speed / {ws!r}, 1e-12)"
+    out.append(_Term(f"∂/∂δ of sign(ωl) exp(−(|ωl|/ws)^δ)",
+                     f"-direction * math.exp(-{xs} ** {delta!r}) * {xs} ** {delta!r} * math.log({xs})",
+                     lambda d: dshape_ddelta(d["wl"])))
+    out.append(_Term(f"ws·∂/∂ws of sign(ωl) exp(−(|ωl|/ws)^δ)",
+                     f"direction * math.exp(-(speed / {ws!r}) ** {delta!r}) * {delta!r} * (speed / {ws!r}) ** {delta!r}",
+                     lambda d: dshape_dws(d["wl"])))
+    return out
+
+
+def _groups(lateral: bool, ws: float = 1.4302, delta: float = 2.0575) -> dict[str, list[_Term]]:
+    lower = _speed_terms("wl", "ωl") + _stribeck_terms(ws, delta) + [
         _Term("sign(ωl) cos θl", "direction * math.cos(theta_l)", lambda d: np.sign(d["wl"]) * np.cos(d["thl"])),
         _Term("sign(ωl) sin θl", "direction * math.sin(theta_l)", lambda d: np.sign(d["wl"]) * np.sin(d["thl"])),
         _Term("sign(ωl) cos 2θl", "direction * math.cos(2.0 * theta_l)",
@@ -114,6 +142,9 @@ class Candidate:
     name: str = ""
     effect_file: str | None = None
     rest: dict[str, float] = field(default_factory=dict)  # other groups' best shares
+    #: label -> coefficient that would make the term alone as large as the residual torque (N m per unit):
+    #: the file's bounds cover it too (collinear terms can get small regression coefficients)
+    reach: dict[str, float] = field(default_factory=dict)
 
     @property
     def dof(self) -> int:
@@ -172,53 +203,109 @@ def find_candidate(rt: ResidualTorque, u: np.ndarray, Ju: float, Jl: float, late
         return None
     d = {k: v[ok] for k, v in full.items()}
     n = int(ok.sum())
+    # the upper disc's torque balance is unknown near its own speed reversals (the Coulomb torque jumps within
+    # the second-derivative window): those rows are left out; each disc's rows are scaled by the robust size
+    # of its residual (so that neither disc drowns the other) and outliers (> 8 robust SDs) are left out
+    half = max(1, int(round(0.1 * fs)))
+    slow_u = np.convolve((np.abs(full["wu"]) <= 0.05).astype(float), np.ones(2 * half + 1), mode="same") > 0
     y = np.concatenate([rt.tau_u[ok] / Ju, rt.tau_l[ok] / Jl])
-    Nm = _nuisance(d, n, Ju, Jl, ws, delta)
-    Q, _ = np.linalg.qr(Nm)
+    W = np.concatenate([(~slow_u[ok]).astype(float), np.ones(n)])
+    for blk in (slice(0, n), slice(n, 2 * n)):
+        v = y[blk][W[blk] > 0]
+        sc = 1.4826 * float(np.median(np.abs(v - np.median(v)))) if v.size > 20 else 0.0
+        if sc > 0:
+            W[blk] = W[blk] * (np.abs(y[blk] - np.median(v)) < 8 * sc) / sc
+        else:
+            W[blk] = 0.0
+    if not np.any(W > 0):
+        return None
+    # a moving average (``SMOOTH_S``) over each disc's rows, applied alike to the residual and to every column
+    # (a linear operation on both sides keeps the regression's relation): the second derivative's noise is
+    # high-frequency, the effects are smooth functions of the state
+    m = max(1, int(round(SMOOTH_S * fs)))
 
-    def project(v: np.ndarray) -> np.ndarray:
-        return v - Q @ (Q.T @ v)
+    def smooth(v: np.ndarray) -> np.ndarray:
+        if m <= 1:
+            return v
+        k = np.ones(m) / m
+        return np.concatenate([np.convolve(v[:n], k, mode="same"), np.convolve(v[n:], k, mode="same")])
 
-    yr = project(y)
-    tss = float(yr @ yr) or 1.0
+    y = smooth(W * y)
+    Nm = np.column_stack([smooth(c) for c in (W[:, None] * _nuisance(d, n, Ju, Jl, ws, delta)).T])
     best: Candidate | None = None
     shares: dict[str, float] = {}
-    for group, terms in _groups(lateral).items():
-        su, sl = _SENSE[group]
-        cols = []
-        for tm in terms:
-            g = np.asarray(tm.values(d), dtype=float)
-            cols.append(project(np.concatenate([su * g / Ju, sl * g / Jl])))
-        chosen: list[int] = []
-        share = 0.0
-        coef = np.zeros(0)
-        for _ in range(MAX_TERMS):
-            trial = None
-            for j in range(len(terms)):
-                if j in chosen or not np.any(np.abs(cols[j]) > 1e-12 * (np.abs(cols[j]).max() + 1e-300)):
-                    continue
-                X = np.column_stack([cols[i] for i in chosen + [j]])
-                c, *_ = np.linalg.lstsq(X, yr, rcond=None)
-                sh = 1.0 - float(np.sum((yr - X @ c) ** 2)) / tss
-                if trial is None or sh > trial[1]:
-                    trial = (j, sh, c)
-            if trial is None or trial[1] - share < MIN_GAIN:
-                break
-            chosen.append(trial[0])
-            share, coef = trial[1], trial[2]
-        shares[group] = share
-        if chosen and (best is None or share > best.explained):
-            # the file's coefficients: the terms alone (with per-disc offsets), as the effect will act on the
-            # model as it is; the joint regression above only decides which terms and how much they explain
-            raw = [np.concatenate([su * np.asarray(terms[j].values(d), float) / Ju,
-                                   sl * np.asarray(terms[j].values(d), float) / Jl]) for j in chosen]
-            X = np.column_stack(raw + [Nm[:, 0], Nm[:, 1]])
-            coef, *_ = np.linalg.lstsq(X, y, rcond=None)
-            best = Candidate(group, {terms[j].label: float(coef[i]) for i, j in enumerate(chosen)},
-                             {terms[j].label: terms[j].code for j in chosen},
-                             {terms[j].label: terms[j].at_rest for j in chosen}, share, n)
+    groups = _groups(lateral, ws, delta)
+    # each group is judged on the rows of the discs it acts on, and a both-disc group (the string) also on
+    # each disc alone: a disc whose residual is noise (e.g. the upper disc's under voltage steps, which the
+    # second derivative smears) must not hide a term the other disc shows clearly
+    rowsets = {"upper": np.r_[np.ones(n, bool), np.zeros(n, bool)], "lower": np.r_[np.zeros(n, bool), np.ones(n, bool)],
+               "both": np.ones(2 * n, bool)}
+    for where, rows in rowsets.items():
+        Wr = W * rows
+        if not np.any(Wr > 0):
+            continue
+        Q, _ = np.linalg.qr(Nm * rows[:, None])
+
+        def project(v: np.ndarray) -> np.ndarray:
+            return v - Q @ (Q.T @ v)
+
+        yr = project(y * rows)
+        tss = float(yr @ yr) or 1.0
+        for group, terms in groups.items():
+            su, sl = _SENSE[group]
+            acts = {"upper": su != 0, "lower": sl != 0, "both": su != 0 and sl != 0}[where]
+            if not acts:
+                continue
+            cols = []
+            for tm in terms:
+                g = np.asarray(tm.values(d), dtype=float)
+                cols.append(project(rows * smooth(W * np.concatenate([su * g / Ju, sl * g / Jl]))))
+            chosen: list[int] = []
+            share = 0.0
+            for _ in range(MAX_TERMS):
+                trial = None
+                for j in range(len(terms)):
+                    if j in chosen or not np.any(np.abs(cols[j]) > 1e-12 * (np.abs(cols[j]).max() + 1e-300)):
+                        continue
+                    X = np.column_stack([cols[i] for i in chosen + [j]])
+                    c, *_ = np.linalg.lstsq(X, yr, rcond=None)
+                    # terms that cancel each other (each contributing more than the residual itself, as
+                    # collinear terms do) fit the noise, not an effect: such a set is not a candidate
+                    if np.any(np.abs(c) * np.linalg.norm(X, axis=0) > MAX_CANCEL * math.sqrt(tss)):
+                        continue
+                    sh = 1.0 - float(np.sum((yr - X @ c) ** 2)) / tss
+                    if trial is None or sh > trial[1]:
+                        trial = (j, sh, c)
+                # a further term must explain MIN_GAIN of the residual, or a third of what the terms so far leave
+                if trial is None or trial[1] - share < min(MIN_GAIN, (1.0 - share) / 3.0):
+                    break
+                chosen.append(trial[0])
+                share = trial[1]
+            shares[group] = max(shares.get(group, 0.0), share)
+            if chosen and (best is None or share > best.explained):
+                # the file's coefficients: the terms alone (with per-disc offsets), as the effect will act on the
+                # model as it is; the joint regression above only decides which terms and how much they explain
+                raw = [rows * smooth(W * np.concatenate([su * np.asarray(terms[j].values(d), float) / Ju,
+                                                         sl * np.asarray(terms[j].values(d), float) / Jl]))
+                       for j in chosen]
+                X = np.column_stack(raw + [Nm[:, 0] * rows, Nm[:, 1] * rows])
+                coef, *_ = np.linalg.lstsq(X, y * rows, rcond=None)
+                k = len(chosen)
+                if np.any(np.abs(coef[:k]) * np.linalg.norm(X[:, :k], axis=0)
+                          > MAX_CANCEL * np.linalg.norm(y * rows)):
+                    continue  # the terms alone cancel each other: not a usable candidate
+                best = Candidate(group, {terms[j].label: float(coef[i]) for i, j in enumerate(chosen)},
+                                 {terms[j].label: terms[j].code for j in chosen},
+                                 {terms[j].label: terms[j].at_rest for j in chosen}, share, n)
     if best is not None:
         best.rest = shares
+        su, sl = _SENSE[best.group]
+        res_rms = float(np.sqrt(np.mean(np.concatenate(
+            ([(rt.tau_l[ok][W[n:] > 0]) ** 2] if sl else []) + ([(rt.tau_u[ok][W[:n] > 0]) ** 2] if su else [])))))
+        for j, tm in enumerate(groups[best.group]):
+            if tm.label in best.terms:
+                g = np.asarray(tm.values(d), dtype=float)
+                best.reach[tm.label] = res_rms / max(float(np.sqrt(np.mean(g ** 2))), 1e-12)
     return best
 
 
@@ -233,7 +320,7 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
     cls = "".join(p.capitalize() for p in name.split("_"))
     params, body = [], []
     for i, (label, c) in enumerate(cand.terms.items(), 1):
-        size = max(abs(c), 1e-9)
+        size = max(abs(c), cand.reach.get(label, 0.0), 1e-9)
         params.append(f'        Parameter("{name}_c{i}", "N m", {-4 * size!r}, {4 * size!r}, {c!r}, {size / 2!r},\n'
                       f'                  doc="coefficient of {label}"),')
         body.append(f"{name}_c{i} * ({cand.codes[label]})")
@@ -327,7 +414,7 @@ def discover(ex: Experiment, diagnosis, candidate_out: str | Path | None = None,
     u = ex.input_on_grid(1.0 / ex.fs, ex.n, ex.t[0])
     p = diagnosis.params
     vectors = [diagnosis.vector]
-    if diagnosis.base_parameters and diagnosis.nominal_vector is not None:
+    if (diagnosis.base_parameters or diagnosis.base_off) and diagnosis.nominal_vector is not None:
         # the base refit may have absorbed part of an effect outside the library: look at the nominal base too
         vectors.append(diagnosis.nominal_vector)
     cand, rt = None, None

@@ -129,6 +129,7 @@ class Diagnosis:
     params: RigParams | None = None
     advice: list[str] = field(default_factory=list)
     nominal_vector: np.ndarray | None = None
+    paths: dict[str, list[str]] = field(default_factory=dict)  # what each search order selected
 
     @property
     def best(self) -> EffectScore | None:
@@ -150,7 +151,8 @@ class Diagnosis:
                 "advice": self.advice, "configuration": self.config.label,
                 "rmse_before": self.rmse_before, "rmse_after": self.rmse_after,
                 "channel_rms_before": self.channel_rms_before, "n_eff": self.n_eff, "segment_s": self.segment_s,
-                "skipped": self.skipped, "base_refit": self.base_refit, "model": self.model}
+                "skipped": self.skipped, "base_refit": self.base_refit, "model": self.model,
+                "search_paths": self.paths}
 
     def text(self) -> str:
         after = f"; after {self.rmse_after:.3g}" if self.rmse_after is not None else ""
@@ -381,7 +383,8 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         max_effects: at most this many effects are selected.
         refit_base: ignored (kept for old callers: the base parameters are always considered).
     """
-    from .selection import base_free_parameters, forward_select, neutral_values, search_composition
+    from .selection import (BASE_BOUNDS, base_free_parameters, forward_select, neutral_values,
+                            search_composition)
 
     base = params or RigParams()
     comp0, values0 = compose(base_effects, effect_params)
@@ -420,6 +423,8 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
     ch0 = obj.channel_rms(vec0)
     out = forward_select(obj, comp, vec0, usable, base_names, n_joint=n_joint, max_effects=max_effects,
                          refine=refine_speeds)
+    paths = {"base_first": list(out["selected"]) + [f"bound:{n}" for n in out["at_bounds"]]}
+    alt = None
     if base_names:
         # the base refit first can absorb an effect (a slower upper disc mimics a motor lag): the other
         # order too — effects selected on the nominal base, then the base parameters freed with them (the
@@ -429,7 +434,10 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         if first["selected"] and set(first["selected"]) != set(out["selected"]):
             alt = forward_select(obj, comp, vec0, usable, base_names, n_joint=n_joint, max_effects=max_effects,
                                  refine=refine_speeds, initial=first["selected"], start=first["vector"])
-            out = _better(_better(out, alt, usable, base_names), first, usable, base_names)
+            out = _better(_better(out, alt, usable, base_names, bounds=True), first, usable, base_names)
+        paths["nominal_first"] = list(first["selected"])
+        if alt is not None:
+            paths["nominal_then_base"] = list(alt["selected"]) + [f"bound:{n}" for n in alt["at_bounds"]]
         if refine_speeds:  # speed corrections for the chosen model (the figures below compare it)
             obj.model.speed_offsets = [np.zeros_like(o) for o in obj.model.speed_offsets]
             obj.model.refine_initial_speeds(out["vector"], obj.weights, obj.scales)
@@ -468,9 +476,14 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
     refitted = {n: float(vec[comp.param_index(n)]) for n in base_names} if out["base_off"] else {}
     d = Diagnosis(ranking, cfg, rmse0, ch0, n_eff(obj.residual_matrix(vec0[None, :])[0]), segment_s, skipped,
                   refitted, comp0.label, selected=list(out["selected"]), base_parameters=out["moved"],
-                  base_off=out["base_off"], base_score=out["base_score"], warnings=list(out["base_warnings"]),
+                  base_off=out["base_off"], base_score=out["base_score"], warnings=list(out["base_warnings"]) + (
+                      [f"base parameters at the edge of their ±{100 * (BASE_BOUNDS[1] - 1):.0f} % range: "
+                       f"{', '.join(out['at_bounds'])}: an effect the library lacks is absorbed by them, or the base "
+                       f"model is further off than a few percent (run identify-staged first)"]
+                      if out.get("at_bounds") else []),
                   rmse_after=math.sqrt(out["rss_final"] / N), composition=comp, vector=vec,
                   params=RigParams.from_vector(vec[:N_PARAMS]))
+    d.paths = paths
     d.nominal_vector = vec.copy()
     d.nominal_vector[:N_PARAMS] = vec0[:N_PARAMS]
     return d
@@ -479,7 +492,8 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
 _LAG_DELAY_SWAP = ("motor_lag", "input_delay")
 
 
-def _better(a: dict, b: dict, effects: Sequence[type[Effect]], base_names: Sequence[str]) -> dict:
+def _better(a: dict, b: dict, effects: Sequence[type[Effect]], base_names: Sequence[str], bounds: bool = False
+            ) -> dict:
     """The selection whose final model has the lower information criterion N_eff ln RSS + k ln N_eff
     (k: the effects' parameters, plus the base parameters when they were freed), with one N_eff for
     both (the smaller: residual samples of the worse-fitting model are the more correlated)."""
@@ -491,6 +505,10 @@ def _better(a: dict, b: dict, effects: Sequence[type[Effect]], base_names: Seque
         ne = n_eff(fit.residual) if fit is not None and fit.residual is not None else float(o["n"])
         return k, ne
 
+    # (``bounds``: two models with the base parameters freed) an active bound means a wrong model (a missing
+    # effect absorbed by the base parameters at the edge of "a few percent"): a model with none is preferred
+    if bounds and bool(a.get("at_bounds")) != bool(b.get("at_bounds")):
+        return b if a.get("at_bounds") else a
     (ka, na), (kb, nb) = k_and_ne(a), k_and_ne(b)
     ne = min(na, nb)
     diff = ne * math.log(max(a["rss_final"], 1e-300) / max(b["rss_final"], 1e-300)) + (ka - kb) * math.log(ne)

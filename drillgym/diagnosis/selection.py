@@ -122,9 +122,10 @@ def n_eff(r: np.ndarray) -> float:
     return max(n * (1 - rho) / (1 + rho), 10.0)
 
 
-def score(rss_small: float, fit_big: FitResult, k: int) -> tuple[float, float]:
-    """(score in nats, N_eff) of a larger model's fit against a smaller model's RSS."""
-    ne = n_eff(fit_big.residual)
+def score(rss_small: float, fit_big: FitResult, k: int, n_eff_ref: float = 0.0) -> tuple[float, float]:
+    """(score in nats, N_eff) of a larger model's fit against a smaller model's RSS (N_eff: the larger
+    model's own residual, or ``n_eff_ref`` if larger)."""
+    ne = max(n_eff(fit_big.residual), n_eff_ref)
     rss1 = max(fit_big.rss_after, 1e-300)
     return ne * math.log(max(rss_small, 1e-300) / rss1) - k * math.log(ne), ne
 
@@ -179,6 +180,19 @@ def _variables(st: _State, vec: np.ndarray, names: Sequence[str], fresh: Sequenc
     return out
 
 
+def base_at_bounds(st: "_State", vec: np.ndarray, tol: float = 0.01) -> list[str]:
+    """Base parameters within ``tol`` of their relative range of a bound of :data:`BASE_BOUNDS`: an
+    active bound means the model is wrong (a missing effect absorbed by the base parameters, or a
+    base model further off than "a few percent")."""
+    out = []
+    for v in _variables(st, vec, st.base_names):
+        x = float(vec[st.comp.param_index(v.name)])
+        span = v.hi - v.lo
+        if span > 0 and (x - v.lo < tol * span or v.hi - x < tol * span):
+            out.append(v.name)
+    return out
+
+
 def _fit(st: _State, vec: np.ndarray, names: Sequence[str], max_nfev: int, fresh: Sequence[str] = ()) -> FitResult:
     """Fit ``names`` from ``vec``; standard errors are inflated by √(N / N_eff) (the least-squares
     errors assume independent residual samples; these are correlated)."""
@@ -229,7 +243,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
                    base_names: Sequence[str], *, excluded: dict[str, str] | None = None, n_joint: int = 2,
                    max_nfev_screen: int = 8, max_nfev_joint: int = 15, max_nfev_base: int = 15,
                    max_effects: int = 4, refine: bool = True, initial: Sequence[str] = (),
-                   start: np.ndarray | None = None) -> dict[str, Any]:
+                   start: np.ndarray | None = None, n_eff_ref: float = 0.0, n_group: int = 3) -> dict[str, Any]:
     """Run steps 2–6 of the module docstring on the search model ``comp`` (vector ``vec0``: nominal
     base parameters, candidates neutral).  ``initial``: effects accepted before the loop (fitted
     jointly with the base parameters from ``start``, then subject to the backward check).  Returns a
@@ -264,6 +278,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
             st.vec, rss_cur = fb2.vector, fb2.rss_after
         st.fit = fb2
     last_round: dict[str, SelectionStep] = {}
+    tried_group = False
     while len(st.selected) < max_effects:
         free_now = list(st.base_names) + _effect_params(st, st.selected)
         screen: dict[str, FitResult] = {}
@@ -304,7 +319,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
                     pass
             if res.rss_after > rss_cur:  # the effect at its neutral values: nothing explained
                 res.rss_after = rss_cur
-            sc, ne = score(rss_cur, res, k)
+            sc, ne = score(rss_cur, res, k, n_eff_ref)
             eff_vals = {p: res.values.get(p, float(res.vector[st.comp.param_index(p)]))
                         for p in _effect_params(st, [name])}
             eff_std = {p: res.std.get(p, float("nan")) for p in eff_vals}
@@ -313,7 +328,39 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
         best = max(joint or round_, key=lambda n: round_[n].score)
         last_round = round_
         if not round_[best].significant:
-            break
+            # masking: several effects at once leave a residual no single one explains enough of (each one's
+            # residual is dominated by the others').  The leading candidates are fitted together; if the group
+            # is significant it enters whole, and the backward check below removes those that do not count
+            group = [n for n in order if screen[n].rss_after < rss_cur][:n_group]
+            group = group[:max_effects - len(st.selected)]
+            if len(group) < 2 or tried_group:
+                break
+            gv = st.vec.copy()
+            for n in group:
+                for p in _effect_params(st, [n]):
+                    gv[st.comp.param_index(p)] = screen[n].vector[st.comp.param_index(p)]
+            try:
+                gr = _fit(st, gv, free_now + _effect_params(st, group), max_nfev_joint)
+            except ValueError:
+                break
+            kg = len(_effect_params(st, group))
+            sc, ne = score(rss_cur, gr, kg, n_eff_ref)
+            if not _significant(sc, rss_cur, gr.rss_after, N):
+                break
+            for n in group:
+                vals = {p: float(gr.vector[st.comp.param_index(p)]) for p in _effect_params(st, [n])}
+                steps.append(SelectionStep(n, sc, rss_cur, gr.rss_after, vals,
+                                           {p: gr.std.get(p, float("nan")) for p in vals}, True, ne,
+                                           note=f"entered with {', '.join(g for g in group if g != n)}"))
+            st.selected += group
+            tried_group = True
+            st.vec = gr.vector
+            rss_cur = refine_for(st.vec)
+            rf = _fit(st, st.vec, list(st.base_names) + _effect_params(st, st.selected), max_nfev_joint)
+            if rf.rss_after < rss_cur:
+                st.vec, rss_cur = rf.vector, rf.rss_after
+            st.fit = rf
+            continue
         st.selected.append(best)
         steps.append(round_[best])
         st.vec = joint[best].vector if best in joint else screen[best].vector
@@ -325,14 +372,14 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
         st.fit = rf
     # step 4: backward check
     dropped: dict[str, str] = {}
-    if len(st.selected) >= 2 or (st.selected and initial and st.base_names):
+    if len(st.selected) >= 2 or (st.selected and initial and st.base_names) or tried_group:
         for name in list(st.selected):
             others = [s for s in st.selected if s != name]
             without = _fit(st, _neutralise(st, st.vec, name), list(st.base_names) + _effect_params(st, others),
                            max_nfev_joint)
             full_fit = st.fit if st.fit is not None else without
             k = len(_effect_params(st, [name]))
-            sc, _ = score(without.rss_after, full_fit, k)
+            sc, _ = score(without.rss_after, full_fit, k, n_eff_ref)
             for stp in steps:  # effects accepted up front get their score here
                 if stp.effect == name and not stp.score == stp.score:
                     stp.score, stp.rss_before, stp.rss_after = sc, without.rss_after, rss_cur
@@ -348,7 +395,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
             others = [s for s in st.selected if s != a]
             swapped = _fit(st, _neutralise(st, st.vec, a), list(st.base_names) + _effect_params(st, others + [b]),
                            max_nfev_joint, fresh=[b])
-            gap, _ = score(swapped.rss_after, st.fit, 0) if st.fit is not None else (float("inf"), 0)
+            gap, _ = score(swapped.rss_after, st.fit, 0, n_eff_ref) if st.fit is not None else (float("inf"), 0)
             if gap < 0:  # the other one fits better: take it
                 st.selected[st.selected.index(a)] = b
                 st.vec, rss_cur, st.fit = swapped.vector, swapped.rss_after, swapped
@@ -361,7 +408,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
     # step 5: is the base model off?
     if not st.base_names:
         return {"selected": list(st.selected), "steps": steps, "last_round": last_round, "dropped": dropped,
-                "ties": ties, "base_off": False, "base_score": 0.0, "moved": {}, "base_warnings": [],
+                "ties": ties, "at_bounds": [], "base_off": False, "base_score": 0.0, "moved": {}, "base_warnings": [],
                 "vector": st.vec, "rss_nominal": rss_nominal, "rss_final": rss_cur, "n": N, "fit": st.fit,
                 "excluded": excluded, "base_fit": None}
     eff_names = _effect_params(st, st.selected)
@@ -377,7 +424,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
         rss_held = float(r @ r)
     rss_held = held.rss_after if held is not None else rss_held
     full = st.fit if st.fit is not None else fb
-    base_score, _ = score(rss_held, full, len(st.base_names))
+    base_score, _ = score(rss_held, full, len(st.base_names), n_eff_ref)
     base_off = _significant(base_score, rss_held, full.rss_after, N) or (
         base_score > SIGNIFICANCE and full.rss_after < 0.5 * rss_held)
     moved: dict[str, dict[str, float]] = {}
@@ -399,6 +446,6 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
         rss_final = rss_held
         fit_final = held
     return {"selected": list(st.selected), "steps": steps, "last_round": last_round, "dropped": dropped,
-            "ties": ties, "base_off": base_off, "base_score": base_score, "moved": moved, "base_warnings": warn,
+            "ties": ties, "at_bounds": base_at_bounds(st, st.vec) if base_off else [], "base_off": base_off, "base_score": base_score, "moved": moved, "base_warnings": warn,
             "vector": vec_final, "rss_nominal": rss_nominal, "rss_final": rss_final, "n": N,
             "fit": fit_final, "excluded": excluded, "base_fit": full}
