@@ -24,7 +24,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--plants", type=int, default=20)
     ap.add_argument("--config", default="torsional", help="comma-separated configurations")
-    ap.add_argument("--controllers", default="baseline,pi,softtorque,observer,observer-robust,lqg")
+    ap.add_argument("--controllers", default="baseline,pi,descent,softtorque,observer,observer-robust,lqg")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", required=True)
     ap.add_argument("--merge", nargs="*", default=None, help="instead of running: combine these results.csv files")

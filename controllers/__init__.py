@@ -3,10 +3,14 @@
 * :mod:`.base` - the interface (:class:`Controller`: reset, one voltage per control period)
 * :mod:`.baseline` - bifurcation-based open-loop baseline, stick-slip region
 * :mod:`.pi` - PI speed control of the motor
+* :mod:`.descent` - approach from above the fold and down the stable branch (needs no exact model)
 * :mod:`.softtorque` - soft-torque active damping
 * :mod:`.kalman` - Kalman filters (linear, extended) on the motor angle with a friction-torque state
 * :mod:`.flatness` - feedback-linearising tracking law for the lower speed (LQR on its error chain)
 * :mod:`.observer` - observer-based active damping (EKF + feedback linearisation) and LQG
+* :mod:`.robust_observer` - the observer with a disturbance state, smoothing, integral and fallback
+* :mod:`.limits` - what any motor-angle-only controller can achieve (RHP poles/zeros, sensitivity bound)
+* :mod:`.two_encoder` - gain-scheduled LQG on the motor and lower encoders (``lqg-2enc``)
 * :mod:`.gym_adapter` - ``ControllerPolicy``: a controller drives the Gymnasium envs
 * :mod:`.registry` - ``make(name, ...)``, the ``agent:PATH`` hook
 * :mod:`.evaluation` - scenarios, metrics, closed-loop runs, report

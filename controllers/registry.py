@@ -1,7 +1,8 @@
 """Controllers by name: ``controllers.make("observer", config="torsional", omega_ref=3.0)``.
 
-Names: ``baseline``, ``pi``, ``softtorque``, ``observer`` (designed for a rig equal to its model),
-``observer-robust`` (the same structure built to hold on a rig that differs from its model), ``lqg``, and
+Names: ``baseline``, ``pi``, ``descent`` (approach from above along the stable branch), ``softtorque``, ``observer`` (designed for a rig equal to its model),
+``observer-robust`` (the same structure built to hold on a rig that differs from its model), ``lqg``,
+``lqg-2enc`` (LQG on the motor and lower encoders), and
 ``agent:PATH`` for a trained policy.  ``NAME@MS`` runs a controller at another
 control period (ms), e.g. ``observer@10`` for the observer at the environments'
 10 ms instead of its 2 ms (the harness compares controllers at equal rates that way).  Agents plug in through one documented
@@ -27,13 +28,15 @@ from .baseline import BaselineController
 from .observer import LQGController, ObserverController
 from .pi import PIController
 from .robust_observer import RobustObserverController
+from .descent import DescentController
 from .softtorque import SoftTorqueController
+from .two_encoder import TwoEncoderLQG
 
 __all__ = ["CONTROLLERS", "make", "available", "split_period", "register_agent_loader", "AgentLoader"]
 
 CONTROLLERS: dict[str, type[Controller]] = {
-    c.name: c for c in (BaselineController, PIController, SoftTorqueController, RobustObserverController,
-                        ObserverController, LQGController)
+    c.name: c for c in (BaselineController, PIController, DescentController, SoftTorqueController, RobustObserverController,
+                        ObserverController, LQGController, TwoEncoderLQG)
 }
 
 AgentLoader = Callable[..., Controller]

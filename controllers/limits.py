@@ -1,0 +1,105 @@
+"""What any controller that sees only the motor angle can achieve: the near pole-zero cancellation.
+
+About the slip equilibrium at lower speed ``omega`` the torsional rig is linear (MODEL.md,
+deviations, alpha = theta_l - theta_u)::
+
+    Ju d omega_u/dt = km u - b_u omega_u + k_theta alpha          (b_u = bu + dbu)
+    d alpha/dt      = omega_l - omega_u
+    Jl d omega_l/dt = -k_theta alpha - s(omega) omega_l            (s: brake slope, bb included)
+
+Where the brake's slope s is negative (below omega_2 = 2.83 rad/s, report 4.1.1) the lower disc
+is unstable.  Seen from the motor voltage to the motor angle, the plant's right-half-plane (RHP)
+poles p are the lower disc's modes with the heavily damped motor attached, and its RHP zeros z
+are the same modes with the motor held still (a zero of theta_u/u is a mode of the system
+constrained to theta_u = 0).  Because the motor is so stiff (b_u = 2.42 N m s/rad against a
+string of 0.0775 N m/rad), p and z almost coincide.  For a plant with an RHP pole p and RHP
+zeros z_i, every linear time-invariant controller that stabilises it has (Skogestad and
+Postlethwaite, Multivariable Feedback Control, 2nd ed., Theorem 5.3)::
+
+    ||S||_inf, ||T||_inf  >=  prod_i |z_i + conj(p)| / |z_i - p|
+
+and a loop with ||T||_inf = M is destabilised by a multiplicative input error of 1/M (a motor
+constant 1/M off, a lag or delay with omega tau ~ 1/M at the crossover).  On the nominal rig the
+bound is about 870 at 1 rad/s (0.12 % of model error in km destabilises), 92 at 2 rad/s (1.1 %),
+23 at 2.5 rad/s (4.3 %) and 1 from omega_2 up (:func:`motor_angle_limit`,
+``benchmarks/bench_motor_angle_limit.py``).  An observer-based controller is such a controller
+about its operating point, so its low-speed performance needs the model to within that fraction;
+with km +-5 % and lags of tens of ms it can only hold where the brake is (nearly) stable.  A
+controller that also reads the lower encoder has no such zeros.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import control
+import numpy as np
+
+from drillgym import RigParams
+from drillgym.friction import lower_friction_slope
+
+__all__ = ["MotorAngleLimit", "brake_slope", "motor_angle_model", "motor_angle_limit", "tolerated_error"]
+
+
+def brake_slope(omega: float, params: RigParams) -> float:
+    """Slope dTfl/domega of the brake law at lower speed ``omega`` > 0 (N m s/rad), bb included."""
+    return float(lower_friction_slope(np.array([max(float(omega), 1e-6)]), params)[0])
+
+
+def motor_angle_model(params: RigParams, omega: float) -> control.StateSpace:
+    """The torsional rig about the slip equilibrium at ``omega`` (rad/s): input u (V), output the
+    motor angle theta_u (rad); states (theta_u, omega_u, alpha, omega_l)."""
+    p = params
+    s = brake_slope(omega, p)
+    bu = p.bu + p.dbu
+    A = np.array([[0.0, 1.0, 0.0, 0.0],
+                  [0.0, -bu / p.Ju, p.ktheta / p.Ju, 0.0],
+                  [0.0, -1.0, 0.0, 1.0],
+                  [0.0, 0.0, -p.ktheta / p.Jl, -s / p.Jl]])
+    B = np.array([[0.0], [p.km / p.Ju], [0.0], [0.0]])
+    C = np.array([[1.0, 0.0, 0.0, 0.0]])
+    return control.ss(A, B, C, np.zeros((1, 1)))
+
+
+@dataclass(frozen=True)
+class MotorAngleLimit:
+    """The motor-angle loop at one operating point: RHP poles and zeros (1/s) and the lower bound
+    on the peak sensitivity and complementary sensitivity of every stabilising LTI controller."""
+
+    omega: float
+    slope: float
+    rhp_poles: tuple[complex, ...]
+    rhp_zeros: tuple[complex, ...]
+    bound: float
+
+    @property
+    def tolerated(self) -> float:
+        """Largest relative input error (fraction) that the best loop can tolerate: 1/bound."""
+        return tolerated_error(self.bound)
+
+
+def tolerated_error(bound: float) -> float:
+    """1/bound: the relative multiplicative error (e.g. in km) that destabilises a loop whose
+    complementary sensitivity peaks at ``bound``."""
+    return 1.0 / bound if bound > 0 else float("inf")
+
+
+def motor_angle_limit(params: RigParams | None, omega: float) -> MotorAngleLimit:
+    """RHP poles and zeros of theta_u/u at the equilibrium ``omega`` (rad/s) and the bound
+    max_p prod_z |z + conj p| / |z - p| on ||S||_inf and ||T||_inf (1 when there is no RHP pole)."""
+    p = params or RigParams()
+    if not (np.isfinite(omega) and omega > 0):
+        raise ValueError(f"omega must be a positive speed (rad/s), got {omega!r}")
+    sys = motor_angle_model(p, float(omega))
+    poles = np.linalg.eigvals(np.asarray(sys.A))
+    zeros = np.asarray(control.zeros(sys) if hasattr(control, "zeros") else control.zero(sys))
+    tol = 1e-9
+    rp = tuple(complex(x) for x in poles if x.real > tol)
+    rz = tuple(complex(x) for x in zeros if x.real > tol)
+    bound = 1.0
+    for pole in rp:
+        b = 1.0
+        for z in rz:
+            b *= abs(z + np.conj(pole)) / max(abs(z - pole), 1e-300)
+        bound = max(bound, b)
+    return MotorAngleLimit(float(omega), brake_slope(omega, p), rp, rz, float(bound))
