@@ -157,6 +157,7 @@ class HardwareEnv(gym.Env):
         self._running = False
         self._fault: BaseException | None = None
         self.recorder: EpisodeRecorder | None = None
+        self._pending: dict[str, float] | None = None  # the last sample, written once the next reply tells its voltage
         self.last_reply: Reply | None = None
         self._warm_up()
 
@@ -203,8 +204,7 @@ class HardwareEnv(gym.Env):
             pass
         if isinstance(exc, LinkLostError):
             self._client.close()  # the port is gone: the next reset() opens it anew (reconnect)
-        if self.recorder is not None:
-            self.recorder.close()
+        self._close_recording()
 
     def end_episode(self) -> None:
         """End the episode now: motor to 0 V (latched stop until the next reset), recording closed."""
@@ -214,8 +214,7 @@ class HardwareEnv(gym.Env):
                 self._client.emergency_stop()
             except LinkError as exc:
                 self._on_fault(exc)
-        if self.recorder is not None:
-            self.recorder.close()
+        self._close_recording()
 
     # ------------------------------------------------------------------ measurements
     def _read(self, reply: Reply) -> dict[str, float]:
@@ -242,8 +241,24 @@ class HardwareEnv(gym.Env):
         Y[6], Y[7] = vbx + Y[2] * Y[5], vby - Y[2] * Y[4]
 
     def _record(self, m: dict[str, float], u_cmd: float, omega: np.ndarray) -> None:
-        if self.recorder is not None and not self.recorder.closed:
-            self.recorder.write({**m, "u_cmd": u_cmd, "omega_u_est": omega[0], "omega_l_est": omega[1]})
+        """Record a sample as DATA_FORMAT means it: a row's ``u`` is the voltage applied FROM its time
+        on (zero-order hold, as the simulator and the identification read it).  A SAMPLE reports the
+        state at the end of a period and the voltage applied during it, so each row waits for the
+        next reply, which tells the voltage applied after it (the last row: 0 V, the motor stopped)."""
+        if self.recorder is None or self.recorder.closed:
+            return
+        if self._pending is not None:
+            self.recorder.write({**self._pending, "u": m["u"], "u_cmd": u_cmd})
+        self._pending = {**m, "omega_u_est": omega[0], "omega_l_est": omega[1]}
+
+    def _close_recording(self) -> None:
+        """Write the last row (0 V from then on: the episode ended, the motor is stopped) and close."""
+        if self.recorder is None:
+            return
+        if self._pending is not None and not self.recorder.closed:
+            self.recorder.write({**self._pending, "u": 0.0, "u_cmd": 0.0})
+        self._pending = None
+        self.recorder.close()
 
     # ------------------------------------------------------------------ gym API
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
@@ -294,6 +309,7 @@ class HardwareEnv(gym.Env):
                 "omega_ref": float(self._omega_ref[0]), "seed": seed, "observation": o.observation}
         self.recorder = EpisodeRecorder(episode_path(self.record, self._episode), o.lateral, meta,
                                         self.flush_interval_s)
+        self._pending = None
         self._record(m, 0.0, np.zeros(2))
         self._running = True
         self.pacer.next = None  # the first step starts the clock

@@ -19,7 +19,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-__all__ = ["ConstantController", "LinearPolicy", "make_controller", "load_policy", "measurement_of",
+__all__ = ["ConstantController", "PlaybackController", "LinearPolicy", "make_controller", "load_policy", "measurement_of",
            "run_episode", "EpisodeResult"]
 
 
@@ -36,6 +36,38 @@ class ConstantController:
 
     def __call__(self, measurement: Mapping[str, float]) -> float:
         return self.volts
+
+
+class PlaybackController:
+    """Plays an input file (DATA_FORMAT ``t, u``; e.g. ``drillgym signal``) sample-and-hold against
+    the episode's time, 0 V after its end: ``play:est.csv`` records an excitation run for
+    ``drillgym identify``."""
+
+    name = "play"
+
+    def __init__(self, path: str | Path) -> None:
+        from drillgym.signals import read_input_file
+
+        path = Path(path)
+        if not path.is_file():
+            raise ValueError(f"controller play:{path}: no such input file")
+        try:
+            self.t, self.u = read_input_file(path)
+        except (OSError, ValueError, KeyError) as exc:
+            raise ValueError(f"controller play:{path}: not a readable input file ({exc})") from None
+        if self.t.size == 0 or not np.all(np.isfinite(self.u)):
+            raise ValueError(f"controller play:{path}: the input has no samples or non-finite voltages")
+        self.path = path
+
+    def reset(self, measurement: Mapping[str, float] | None = None) -> None:
+        pass
+
+    def __call__(self, measurement: Mapping[str, float]) -> float:
+        t = float(measurement.get("t", 0.0))
+        if t > self.t[-1]:
+            return 0.0
+        k = int(np.searchsorted(self.t, t + 1e-12, side="right")) - 1
+        return float(self.u[max(k, 0)])
 
 
 @dataclass(frozen=True)
@@ -73,8 +105,12 @@ def _optional(module: str, what: str):
                          f"use the built-in ones instead") from None
 
 
-def make_controller(spec: str, configuration: str, omega_ref: float | None, control_dt: float):
-    """A controller from ``const:V`` or a name known to ``controllers.make``."""
+def make_controller(spec: str, configuration: str, omega_ref: float | None, control_dt: float,
+                    params: Any = None):
+    """A controller from ``const:V``, ``play:FILE`` or a name known to ``controllers.make`` (built
+    on ``params``, a RigParams, when given: e.g. the identified model)."""
+    if spec.startswith("play:"):
+        return PlaybackController(spec.split(":", 1)[1])
     if spec.startswith("const:"):
         try:
             return ConstantController(float(spec.split(":", 1)[1]))
@@ -85,6 +121,8 @@ def make_controller(spec: str, configuration: str, omega_ref: float | None, cont
     if make is None:
         raise ValueError(f"controller {spec!r}: the controllers package has no make(); only const:<volts> is available")
     kwargs: dict[str, Any] = {"config": configuration, "dt": control_dt}
+    if params is not None:
+        kwargs["params"] = params
     if omega_ref is not None:
         kwargs["omega_ref"] = omega_ref
     return make(spec, **kwargs)

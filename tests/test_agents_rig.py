@@ -39,7 +39,7 @@ def test_kept_learned_policy_runs_on_the_emulated_rig(tmp_path, what: str = "pol
                               "--duration", "1.0", "--record", str(rec), "--no-realtime")
     assert code == 0, (out, err)
     ts = read_timeseries(rec)
-    u = ts.u[1:]
+    u = ts.u[:-1]  # a row's u applies from its time on; the last row: 0 V after the episode
     assert len(u) >= 90 and np.all(np.abs(u) <= 5.0)
     assert np.ptp(u) > 0.0 or abs(u[0]) > 0.0  # the network answers the encoder: it drives the motor
     assert ts.theta_u[-1] - ts.theta_u[0] > 0.05  # the upper disc turns forward toward the 4 rad/s target

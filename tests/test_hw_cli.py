@@ -66,7 +66,7 @@ def test_watchdog_stop_exits_3_with_one_line(tmp_path, emu):
     assert emu.firmware.stop_reason == P.StopReason.WATCHDOG and emu.firmware.volts == 0.0
     assert any("WATCHDOG (no command for" in m for m in emu.log), emu.log
     ts = read_timeseries(rec)
-    assert len(ts) >= 21 and np.all(ts.u[1:21] == 1.0)
+    assert len(ts) >= 21 and np.all(ts.u[0:20] == 1.0)  # a row's u applies from its time on
 
 
 def test_ctrl_c_exits_130_with_one_line(tmp_path, emu):
@@ -143,7 +143,8 @@ def test_clamp_is_told_once_and_kept(tmp_path, emu):
     assert code == 0, (out, err)
     assert err.count("note:") == 1 and "20 V asked for at step 1; the amplifier gives +-5 V" in err, err
     assert "50 of 50 commands were clamped to the amplifier range" in out
-    assert np.all(read_timeseries(rec).u[1:] == 5.0)
+    u = read_timeseries(rec).u  # a row's u applies from its time on; 0 V after the episode
+    assert np.all(u[:-1] == 5.0) and u[-1] == 0.0
 
 
 def test_reconnect_after_the_port_went_away(tmp_path):

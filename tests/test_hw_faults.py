@@ -52,7 +52,7 @@ def _check_recording(path, steps):
     rec = read_timeseries(path)
     assert len(rec) == steps + 1  # every sample before the fault, nothing after
     np.testing.assert_allclose(rec.t, np.arange(steps + 1) * 0.01, atol=1e-9)
-    assert np.all(rec.u[1:] == 3.0)
+    assert np.all(rec.u[:-1] == 3.0) and rec.u[-1] == 0.0  # a row's u applies from its time on
 
 
 @pytest.mark.parametrize("fault, error, message", [

@@ -90,7 +90,10 @@ def emulate_cmd(
 @rig_app.command("run")
 def run_cmd(
     port: str = typer.Option(..., help="serial device or pyserial URL of the rig (or of `drillgym rig emulate`)"),
-    controller: Optional[str] = typer.Option(None, help="controller: const:<volts> or a name from controllers/"),
+    controller: Optional[str] = typer.Option(None, help="controller: const:<volts>, play:<input file> (an excitation "
+                                                        "from `drillgym signal`) or a name from controllers/"),
+    params: Optional[Path] = typer.Option(None, help="model the controller is built on (JSON/YAML, may be partial: "
+                                                     "e.g. what `drillgym identify --out` wrote); default MODEL.md's"),
     policy: Optional[Path] = typer.Option(None, help="policy: what `drillgym train` writes (policy.npz, model.zip or the "
                                                "run directory; it builds its own observation from the encoders) or "
                                                "a linear .npz (W, b) on --observation"),
@@ -141,7 +144,19 @@ def run_cmd(
     # controller and policy first: a bad one is refused before the port is touched
     if policy is not None and trained_agent(policy):  # a trained agent runs as the controller agent:PATH
         controller, policy = f"agent:{policy}", None
-    ctrl = make_controller(controller, config, omega_ref, control_ms * 1e-3) if controller else None
+    model = None
+    if params is not None:
+        if controller is None or controller.startswith(("const:", "play:", "agent:")):
+            raise ValueError("--params builds a named controller on a model; it does not apply to const:, play:, "
+                             "agent: or --policy")
+        from drillgym.identification.model_file import read_model
+
+        mf = read_model(params)  # a parameter file or a model file with effects (identify --out)
+        if mf.specs:
+            typer.echo(f"note: {params} also names effects ({', '.join(map(str, mf.specs))}); the controller is "
+                       f"built on its base parameters only", err=True)
+        model = mf.params
+    ctrl = make_controller(controller, config, omega_ref, control_ms * 1e-3, model) if controller else None
     if controller is not None and controller.startswith("agent:"):
         warm_up(ctrl, omega_ref, control_ms * 1e-3)
     pol = load_policy(policy) if policy is not None else None
