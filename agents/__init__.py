@@ -6,6 +6,9 @@
   controller's voltage, the policy seeing that controller's estimates (motor angle only)
 * :mod:`.privileged` - privileged critic for PPO (the critic also sees the lower disc; training only)
 * :mod:`.distill` - teacher (full state) -> student (motor side) distillation by DAgger (training only)
+* :mod:`.teachers` - the hand-made full-state teacher (flatness law on the true state; training only)
+* :mod:`.integral` - the motor-angle tracking integral, an observation entry of the motor side
+* :mod:`.population` - domain randomisation over the plant population's uncertainty set (training only)
 * :mod:`.evaluation` - the lowest held target from rest of a trained policy (the controllers' harness)
 * :mod:`.seeds` - several seeds: table with IQM and bootstrap interval, learning curves
 * :mod:`.envs` - batched training envs (DrillVectorEnv through the SB3 adapter)

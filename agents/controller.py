@@ -26,6 +26,7 @@ from drillgym.envs.observation import make_observation_model
 from drillgym.envs.options import U_MAX, EnvOptions
 
 from .export import ExportedPolicy
+from .integral import advance
 from .observer_residual import ObserverResidual
 from .residual import ResidualVoltage
 
@@ -60,6 +61,9 @@ class AgentController(Controller):
             configuration=self.config.label, counts_per_rev=0, lvdt_noise_std=0.0,
             **{k: (tuple(v) if isinstance(v, list) else v) for k, v in env_kwargs.items() if k in OBSERVATION_KEYS})
         self.frame_stack = int(hp.get("frame_stack", 1))
+        self.integral = bool(hp.get("motor_integral", False))  # the motor-angle tracking integral (agents.integral)
+        if self.integral and self.mode != "motor":
+            raise ValueError("the motor-angle integral needs the 'motor' observation")
         scale = hp.get("residual")
         self.base = None
         if hp.get("base") == "observer":  # observation = the observer's features, not the env's model
@@ -79,16 +83,19 @@ class AgentController(Controller):
             self.base.reset(np.arange(n), np.broadcast_to(m.get("theta_u", 0.0), (n,)), self.omega_ref)
             return
         self.model = make_observation_model(n, self.obs_options)
-        if self.model.dim * self.frame_stack != self.policy.obs_dim:
+        dim = self.model.dim * self.frame_stack
+        if dim + int(self.integral) != self.policy.obs_dim:
             raise ValueError(f"agent expects {self.policy.obs_dim} observation entries; the "
-                             f"{self.mode!r} model of {self.config.label} gives {self.model.dim} x {self.frame_stack}")
+                             f"{self.mode!r} model of {self.config.label} gives {self.model.dim} x {self.frame_stack}"
+                             + (" + 1 (integral)" if self.integral else ""))
         Y = np.zeros((n, N_STATE))
         Y[:, 0] = m.get("theta_u", 0.0)
         Y[:, 1] = m.get("theta_l", 0.0)
         index = np.arange(n)
         self.model.reset(index, Y, [None] * n)
         self.obs = self.model.initial(index, Y, self.omega_ref)
-        self.stack = np.zeros((n, self.policy.obs_dim), dtype=np.float32)
+        self.stack = np.zeros((n, dim), dtype=np.float32)
+        self.z = np.zeros(n)
         self._push()
         self._first = True
         self._t = np.zeros(n)  # time since reset (s), counted in control periods as in training
@@ -117,8 +124,11 @@ class AgentController(Controller):
         if not self._first:
             self._observe(m)
             self._t = self._t + self.dt
+            if self.integral:
+                self.z = advance(self.z, self.obs, self.dt)
         self._first = False
-        a = self.policy.act(self.stack)[:, 0]
+        x = np.hstack([self.stack, self.z[:, None].astype(np.float32)]) if self.integral else self.stack
+        a = self.policy.act(x)[:, 0]
         if self.residual is not None:
             return self.residual.voltage(a, self.stack[:, -1], self._t)
         return a * U_MAX  # trained with normalize_action=True

@@ -1,13 +1,17 @@
-"""Teacher -> student distillation (DAgger): a policy trained on the simulated *full* state (the teacher,
-an exported ``policy.npz`` of the 'full' observation) taught to a network that sees only what the rig's
-motor side gives (the student: the model's own observation, e.g. 'motor').
+"""Teacher -> student distillation (DAgger): a privileged teacher that sees the simulated *full* state,
+taught to a network that sees only what the rig's motor side gives (the student: the model's own
+observation, e.g. 'motor').
+
+Teachers: an exported ``policy.npz`` trained on the 'full' observation (e.g. PPO, ``ppo_teacher.yml``),
+or ``'flatness'``: the hand-made full-state law of :class:`agents.teachers.FlatnessTeacher` (stateful:
+it is reset per rig when that rig's episode ends).
 
 Training only: the student is the SB3 model's actor, so it is exported and deployed as any other
 policy (no teacher, no controller inside).  DAgger (Ross et al. 2011): the student drives the rigs
 (the teacher for the first iteration's rollouts), every visited state is labelled with the teacher's
 action on the true state, the labels are aggregated, and the actor is regressed on them (mean squared
-error of its mean action, actions in [-1, 1]).  The teacher's observation is rebuilt from the simulator's
-state each period (:class:`drillgym.envs.observation.FullObservation`).
+error of its mean action, actions in [-1, 1]).  ``population``: each episode's rig is drawn from the
+plant population's uncertainty set (:mod:`agents.population`; lags and delays included).
 """
 
 from __future__ import annotations
@@ -21,38 +25,55 @@ import numpy as np
 __all__ = ["distill"]
 
 
+def _inner(venv):
+    while not hasattr(venv, "batch"):
+        venv = venv.venv
+    return venv
+
+
 def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path, *, n_envs: int = 64,
             iterations: int = 8, steps: int = 500, epochs: int = 4, batch_size: int = 4096, lr: float = 1e-3,
-            seed: int = 0, privileged: bool = False, log=None) -> dict[str, float]:
+            seed: int = 0, privileged: bool = False, population: "str | None" = None,
+            teacher_kwargs: dict[str, Any] | None = None, beta: float = 0.0, noise: float = 0.0,
+            motor_integral: bool = False, log=None) -> dict[str, float]:
     """Regress the actor of the SB3 ``model`` (PPO/MLP, its env's observation) on the ``teacher``'s actions.
 
     ``iterations`` DAgger rounds of ``steps`` periods on ``n_envs`` rigs of ``env_id`` with ``env_kwargs``
     (domain randomisation included); ``epochs`` passes of Adam (``lr``) over the aggregated data per round.
     ``privileged``: the model's observation carries the privileged critic's entries (ignored by the actor).
+    ``motor_integral``: the model's observation ends with the motor-angle tracking integral
+    (:mod:`agents.integral`); the 'flatness' teacher then uses that integral as its own.
+    ``teacher``: 'flatness' (``teacher_kwargs``: its options) or the path of an exported full-state policy.
+    ``population``: an uncertainty set ('default' or a YAML path) the rigs are drawn from.
+    ``beta``: in round i > 0 a fraction ``beta**i`` of the rigs is still driven by the teacher (DAgger's
+    mixing; 0: the student drives every rig after the first round).  ``noise``: standard deviation of
+    Gaussian noise on the executed actions (normalised; the labels stay the teacher's clean actions), so
+    the data cover the states a slightly wrong action leads to.
     Returns the last round's mean squared action error and the number of labelled states."""
     import torch as th
 
-    from drillgym.envs.observation import FullObservation
     from drillgym.envs.sb3 import make_sb3_vec
 
-    from .export import ExportedPolicy
+    kw = {**env_kwargs, "normalize_action": True}
+    if population is not None:
+        from .population import population_env_kwargs, use_population
 
-    teach = ExportedPolicy.load(teacher)
-    if teach.config["hyperparams"]["env_kwargs"].get("observation", "full") != "full":
-        raise ValueError(f"teacher {teacher} was not trained on the 'full' observation")
-    venv = make_sb3_vec(env_id, n_envs, **{**env_kwargs, "normalize_action": True})
+        kw = population_env_kwargs(kw, population)
+    venv = make_sb3_vec(env_id, n_envs, **kw)
+    if population is not None:
+        use_population(venv, population)
+    integral = None
+    if motor_integral:
+        from .envs import MotorIntegralVecEnv
+
+        venv = integral = MotorIntegralVecEnv(venv, float(venv.venv.options.control_dt))
     if privileged:
         from .privileged import PrivilegedObsVecEnv
 
         venv = PrivilegedObsVecEnv(venv)
     venv.seed(seed)
-    batch = (venv.venv if privileged else venv).venv.batch
-    full = FullObservation(n_envs, replace(batch.options, observation="full"))
-    tobs = np.zeros((n_envs, full.dim), dtype=np.float32)
-
-    def teacher_actions() -> np.ndarray:
-        full.observe(batch.system.Y, batch.S[:, 0], batch.omega_ref, tobs, batch.rngs)
-        return teach.act(tobs)[:, 0]
+    batch = _inner(venv).batch
+    teacher_actions, teacher_reset = _teacher(teacher, n_envs, batch, teacher_kwargs or {}, integral)
 
     policy = model.policy
     params = list(policy.mlp_extractor.policy_net.parameters()) + list(policy.action_net.parameters())
@@ -66,19 +87,27 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
     X: list[np.ndarray] = []
     Y: list[np.ndarray] = []
     obs = venv.reset()
+    teacher_reset(np.arange(n_envs))
     rng = np.random.default_rng(seed)
     mse = float("nan")
+    if not (0.0 <= beta <= 1.0 and noise >= 0.0):
+        raise ValueError(f"beta must be in [0, 1] and noise >= 0, got beta={beta!r}, noise={noise!r}")
     for it in range(iterations):
+        by_teacher = rng.random(n_envs) < (1.0 if it == 0 else beta ** it)
         for _ in range(steps):
             a_t = teacher_actions()
             X.append(obs.copy())
-            Y.append(a_t.copy())
-            if it == 0:
-                a = a_t
-            else:
+            Y.append(a_t.astype(np.float32))
+            a = a_t
+            if not by_teacher.all():
                 with th.no_grad():
-                    a = np.clip(mean_action(obs).numpy(), -1.0, 1.0)
-            obs, _, _, _ = venv.step(a.reshape(-1, 1))
+                    a = np.where(by_teacher, a_t, mean_action(obs).numpy())
+            if noise > 0:
+                a = a + noise * rng.standard_normal(n_envs)
+            a = np.clip(a, -1.0, 1.0)
+            obs, _, done, _ = venv.step(a.reshape(-1, 1))
+            if done.any():
+                teacher_reset(np.flatnonzero(done))
         data_x = th.as_tensor(np.concatenate(X), dtype=th.float32)
         data_y = th.as_tensor(np.concatenate(Y), dtype=th.float32)
         n = data_x.shape[0]
@@ -100,3 +129,32 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
             log(f"DAgger round {it + 1}/{iterations}: {n} labelled states, action MSE {mse:.4f}")
     venv.close()
     return {"mse": mse, "states": int(sum(len(x) for x in X))}
+
+
+def _teacher(teacher: str | Path, n: int, batch, options: dict[str, Any], integral=None):
+    """(actions(), reset(index)) of the teacher on the rigs of ``batch`` (actions in [-1, 1], (n,));
+    ``integral``: the :class:`agents.integral.MotorIntegralVecEnv` whose integral the flatness teacher uses."""
+    if str(teacher) == "flatness":
+        from .teachers import FlatnessTeacher
+
+        t = FlatnessTeacher(n, batch.options.rig_params, batch.options.control_dt, **options)
+        s = batch.system
+        return (lambda: t.act(s.omega_u, s.alpha, s.omega_l, None if integral is None else integral.z),
+                lambda index: t.reset(index, batch.omega_ref[index]))
+    from drillgym.envs.observation import FullObservation
+
+    from .export import ExportedPolicy
+
+    if options:
+        raise ValueError("teacher options apply to the 'flatness' teacher only")
+    teach = ExportedPolicy.load(teacher)
+    if teach.config["hyperparams"]["env_kwargs"].get("observation", "full") != "full":
+        raise ValueError(f"teacher {teacher} was not trained on the 'full' observation")
+    full = FullObservation(n, replace(batch.options, observation="full"))
+    tobs = np.zeros((n, full.dim), dtype=np.float32)
+
+    def actions() -> np.ndarray:
+        full.observe(batch.system.Y, batch.S[:, 0], batch.omega_ref, tobs, batch.rngs)
+        return teach.act(tobs)[:, 0]
+
+    return actions, lambda index: None

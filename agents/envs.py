@@ -14,10 +14,11 @@ from drillgym.envs.options import U_MAX
 from drillgym.envs.sb3 import make_sb3_vec
 from drillgym.measurement import counts_to_angle
 
+from .integral import Z_MAX, advance
 from .observer_residual import ObserverResidual
 from .residual import ResidualVoltage
 
-__all__ = ["make_training_env", "ResidualActionVecEnv", "ObserverResidualVecEnv"]
+__all__ = ["make_training_env", "ResidualActionVecEnv", "ObserverResidualVecEnv", "MotorIntegralVecEnv"]
 
 
 class ResidualActionVecEnv(VecEnvWrapper):
@@ -113,11 +114,44 @@ class ObserverResidualVecEnv(VecEnvWrapper):
         return self.base.features(), rew, done, infos
 
 
+class MotorIntegralVecEnv(VecEnvWrapper):
+    """Appends the motor-angle tracking integral ``z`` (rad) to a drillgym SB3 VecEnv's 'motor' observation
+    (0 at each episode's start; a finished rig's terminal observation carries its last value)."""
+
+    def __init__(self, venv: VecEnv, control_dt: float, z_max: float = Z_MAX) -> None:
+        names = venv.get_attr("observation_names")[0]
+        if names[0] != "omega_u_inc_0" or names[-1] != "omega_ref":
+            raise ValueError("the motor-angle integral needs the 'motor' observation mode")
+        box = venv.observation_space
+        space = spaces.Box(np.append(box.low, -z_max).astype(np.float32), np.append(box.high, z_max).astype(np.float32),
+                           dtype=np.float32)
+        super().__init__(venv, observation_space=space)
+        self.dt, self.z_max = float(control_dt), float(z_max)
+        self.z = np.zeros(venv.num_envs)
+
+    def reset(self) -> np.ndarray:
+        obs = self.venv.reset()
+        self.reset_infos = getattr(self.venv, "reset_infos", self.reset_infos)  # for wrappers above (privileged critic)
+        self.z[:] = 0.0
+        return np.hstack([obs, self.z[:, None]]).astype(np.float32)
+
+    def step_wait(self):
+        obs, rew, done, infos = self.venv.step_wait()
+        last = obs.copy()
+        for i in np.flatnonzero(done):  # the ending episode's last period is in its terminal observation
+            last[i] = infos[i]["terminal_observation"]
+        self.z = advance(self.z, last, self.dt, self.z_max)
+        for i in np.flatnonzero(done):
+            infos[i]["terminal_observation"] = np.append(infos[i]["terminal_observation"], self.z[i]).astype(np.float32)
+        self.z[done] = 0.0
+        return np.hstack([obs, self.z[:, None]]).astype(np.float32), rew, done, infos
+
+
 def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: dict[str, Any] | None = None,
                       residual: float | None = None, startup: tuple | None = None, base: str | None = None,
                       observer: dict[str, Any] | None = None, frame_stack: int = 1,
                       normalize_reward: bool = False, normalize_obs: bool = False, gamma: float = 0.99,
-                      monitor: bool = True, privileged: bool = False) -> VecEnv:
+                      monitor: bool = True, privileged: bool = False, motor_integral: bool = False) -> VecEnv:
     """An SB3 VecEnv of ``n_envs`` rigs in one batched core call per step.
 
     ``residual`` (V): the action in [-1, 1] is a correction ``residual * a`` on the feedforward voltage
@@ -130,6 +164,8 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
     ``VecNormalize``).  ``normalize_obs``: standardise observations by running statistics (SB3
     ``VecNormalize``); the exported policy carries the frozen statistics (:mod:`agents.export`).
     ``privileged``: append the critic's privileged entries (:class:`agents.privileged.PrivilegedObsVecEnv`).
+    ``motor_integral``: append the motor-angle tracking integral (:class:`MotorIntegralVecEnv`, :mod:`agents.integral`;
+    'motor' observation, no residual structure).
     ``frame_stack``: number of stacked observations (1 = none).  ``seed``: rig i gets seed + i.
     """
     if env_id not in ENV_IDS:
@@ -155,6 +191,10 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
     else:
         kw["normalize_action"] = True
         venv = make_sb3_vec(env_id, n_envs, **kw)
+    if motor_integral:
+        if residual is not None or base is not None:
+            raise ValueError("the motor-angle integral works without a residual structure")
+        venv = MotorIntegralVecEnv(venv, float(venv.get_attr("options")[0].control_dt))
     if privileged:
         if frame_stack > 1 or base is not None:
             raise ValueError("the privileged critic works without frame stacking and without a base controller")

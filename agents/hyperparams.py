@@ -26,6 +26,9 @@ keyed by env id; rl-zoo3 ignores other top-level keys)::
         base: observer             # the residual corrects the observer controller (agents/observer_residual.py)
         observer: {}               # keywords of that controller (controllers.observer.ObserverController)
         privileged_critic: true    # PPO's critic also sees omega_l, stuck, SSI (agents/privileged.py; training only)
+        motor_integral: true       # the motor-angle tracking integral appended to the observation (agents/integral.py)
+        distill: {teacher: flatness, iterations: 16, population: default}   # DAgger before the RL steps
+                                   # (agents/distill.py keywords; training only)
 
 The merged entry (:func:`load_hyperparams`) holds both; ``normalize`` becomes ``normalize_obs`` /
 ``normalize_reward`` (the obs statistics are exported with the policy, :mod:`agents.export`).
@@ -52,7 +55,8 @@ ZOO_KEYS = ("n_envs", "n_timesteps", "policy", "env_kwargs", "normalize", "frame
 #: top-level section of a hyperparameter file with drillgym's policy structures (per env id)
 STRUCTURE_SECTION = "drillgym"
 #: drillgym's own keys (the structure section, and the merged entry's normalisation flags)
-STRUCTURE_KEYS = ("residual", "startup", "base", "observer", "normalize_reward", "normalize_obs", "privileged_critic")
+STRUCTURE_KEYS = ("residual", "startup", "base", "observer", "normalize_reward", "normalize_obs", "privileged_critic",
+                  "distill", "motor_integral")
 #: every key of a merged entry that is not a keyword of the SB3 algorithm
 DRILLGYM_KEYS = ZOO_KEYS + STRUCTURE_KEYS
 

@@ -114,7 +114,7 @@ def planned_timesteps(env_id: str, algo: str, timesteps: int | None = None, hype
                       overrides: dict[str, Any] | None = None) -> int:
     """Environment steps a run of these settings will train (``timesteps`` or the file's ``n_timesteps``)."""
     algo_class(algo)  # an unknown algorithm is named before its hyperparameter file is looked for
-    return _settings(env_id, algo.lower(), None, timesteps, None, hyperparams, overrides)["n_timesteps"]
+    return _settings(env_id, algo.lower(), None, timesteps, None, hyperparams, overrides, allow_zero=True)["n_timesteps"]
 
 
 def _env(env_id: str, hp: dict[str, Any], n: int, seed: int, evaluation: bool = False):
@@ -126,7 +126,8 @@ def _env(env_id: str, hp: dict[str, Any], n: int, seed: int, evaluation: bool = 
                              frame_stack=int(hp.get("frame_stack", 1)),
                              normalize_reward=bool(hp.get("normalize_reward", False)),
                              normalize_obs=bool(hp.get("normalize_obs", False)), gamma=float(hp.get("gamma", 0.99)),
-                             privileged=bool(hp.get("privileged_critic", False)))
+                             privileged=bool(hp.get("privileged_critic", False)),
+                             motor_integral=bool(hp.get("motor_integral", False)))
     if evaluation and isinstance(venv, VecNormalize):
         venv.training, venv.norm_reward = False, False
     return venv
@@ -201,9 +202,10 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
         eval_every: environment steps between evaluations (0 = none): ``eval_envs`` episodes of the
             deterministic policy on rigs seeded apart from the training's; the best mean reward's model
             is kept in ``out/best/`` (``best_model.zip``, ``policy.npz``), the curve in ``out/evaluations.npz``.
-        teacher: an exported policy of the 'full' observation: before the RL steps, its actions are
-            distilled into this model's actor by DAgger (:mod:`agents.distill`, ``distill_kwargs``);
-            ``timesteps`` may then be 0 (distillation only).
+        teacher: an exported policy of the 'full' observation or 'flatness' (:mod:`agents.teachers`): before
+            the RL steps, its actions are distilled into this model's actor by DAgger (:mod:`agents.distill`,
+            ``distill_kwargs`` over the hyperparameters' ``distill`` entry, whose ``teacher`` is the
+            default); ``timesteps`` may then be 0 (distillation only).
     """
     import torch
 
@@ -211,14 +213,21 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
         torch.set_num_threads(int(torch_threads))
     algo = algo.lower()
     cls = algo_class(algo)
-    hp = _settings(env_id, algo, obs, timesteps, n_envs, hyperparams, overrides, allow_zero=teacher is not None)
+    hp = _settings(env_id, algo, obs, timesteps, n_envs, hyperparams, overrides, allow_zero=True)
+    distill_kwargs = {**(hp.get("distill") or {}), **(distill_kwargs or {})}
+    if teacher is None:
+        teacher = distill_kwargs.pop("teacher", None)
+    else:
+        distill_kwargs.pop("teacher", None)
+    if teacher is None and hp["n_timesteps"] < 1:
+        raise ValueError(f"number of timesteps must be >= 1 without a teacher, got {hp['n_timesteps']!r}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     _warn_short_run(cls, hp)
     venv = _env(env_id, hp, hp["n_envs"], seed)
     config = {"env_id": env_id, "algo": algo, "seed": int(seed), "hyperparams": hp, "command": command}
     if teacher is not None:
-        config["teacher"] = {"policy": str(teacher), **(distill_kwargs or {})}
+        config["teacher"] = {"policy": str(teacher), **distill_kwargs}
     (out / CONFIG_FILE).write_text(yaml.safe_dump(config, sort_keys=False))
     ckpt = out / "checkpoints" / "latest.zip"
     tb = str(out / "tb") if tensorboard else None
@@ -250,8 +259,8 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
         from .distill import distill
 
         distill(model, env_id, hp["env_kwargs"], teacher, n_envs=hp["n_envs"], seed=seed,
-                privileged=bool(hp.get("privileged_critic")), log=print,
-                **(distill_kwargs or {}))
+                privileged=bool(hp.get("privileged_critic")), motor_integral=bool(hp.get("motor_integral")),
+                log=print, **distill_kwargs)
     t_distill = time.perf_counter() - t_distill
     remaining = hp["n_timesteps"] - (model.num_timesteps if resume else 0)
     cb = LatestCheckpoint(out / "checkpoints", checkpoint_every)

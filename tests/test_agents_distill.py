@@ -43,3 +43,86 @@ def test_student_on_the_motor_side_learns_the_teachers_actions(tmp_path) -> None
             obs, *_ = env.step(a)
         spread.append(0.1 * ref - 0.5)
     assert np.median(errors) < 0.05 < np.ptp(spread) / 4  # follows the target dependence it was taught
+
+
+def test_flatness_teacher_holds_a_low_target_from_rest_on_the_true_state() -> None:
+    from agents.teachers import FlatnessTeacher
+    from drillgym.envs.sb3 import make_sb3_vec
+
+    venv = make_sb3_vec("drillgym/Torsional-v0", 2, observation="full", omega_ref=2.0, alpha0_range=(0.0, 0.0),
+                        episode_duration=40.0, normalize_action=True)
+    venv.seed(0)
+    venv.reset()
+    s = venv.venv.batch.system
+    teacher = FlatnessTeacher(2, dt=0.01)
+    teacher.reset(np.arange(2), np.full(2, 2.0))
+    w = []
+    for k in range(3000):
+        venv.step(teacher.act(s.omega_u, s.alpha, s.omega_l).reshape(-1, 1))
+        if k >= 2000:
+            w.append(s.omega_l.copy())
+    w = np.array(w)
+    # open loop, 2 rad/s sticks and slips from rest (the stick-slip region reaches 6.63 rad/s)
+    assert np.all((w.max(0) - w.min(0)) / (2 * w.mean(0)) < 0.1)
+    assert np.all(np.abs(w.mean(0) / 2.0 - 1.0) < 0.02)
+
+
+def test_population_randomizer_draws_the_uncertainty_set() -> None:
+    import pytest
+
+    from agents.population import PopulationRandomizer
+    from drillgym import RigParams
+    from drillgym.effects import compose
+
+    comp, _ = compose(["motor_lag", "input_delay", "position_friction"], {})
+    r = PopulationRandomizer(comp, RigParams())
+    rows = np.array([r.sample(np.random.default_rng(k)) for k in range(300)])
+    km = rows[:, comp.param_index("km")] / RigParams().km
+    tau = rows[:, comp.param_index("tau_m")]
+    amp = np.hypot(rows[:, comp.param_index("pf_c1")], rows[:, comp.param_index("pf_s1")])
+    assert 0.95 <= km.min() < 0.97 and 1.03 < km.max() <= 1.05  # plants.yaml: km +/- 5 %
+    assert 1e-3 <= tau.min() < 0.01 and 0.04 < tau.max() <= 0.05
+    assert amp.max() <= 0.2 + 1e-12 and rows[:, comp.param_index("Tcl")].std() == 0.0  # not in the set
+    with pytest.raises(ValueError, match="lacks the population's effects"):
+        PopulationRandomizer(compose(["motor_lag"], {})[0], RigParams())
+
+
+def test_motor_integral_is_the_same_in_training_and_on_the_rig(tmp_path) -> None:
+    from agents.controller import AgentController
+    from agents.envs import MotorIntegralVecEnv
+    from agents.integral import advance
+    from drillgym.envs.sb3 import make_sb3_vec
+
+    venv = MotorIntegralVecEnv(make_sb3_vec("drillgym/Torsional-v0", 2, observation="motor", motor_history=4,
+                                            omega_ref=3.0, episode_duration=0.2, normalize_action=True), 0.01)
+    venv.seed(0)
+    obs = venv.reset()
+    z = np.zeros(2)
+    for k in range(25):  # over an episode's end (20 periods)
+        obs, _, done, infos = venv.step(np.full((2, 1), 0.8))
+        last = np.array([i["terminal_observation"][:-1] if d else o[:-1] for o, d, i in zip(obs, done, infos)])
+        z = advance(z, last, 0.01)
+        if done.any():
+            assert np.allclose([i["terminal_observation"][-1] for i in infos], z)
+            z[:] = 0.0
+        assert np.allclose(obs[:, -1], z, atol=1e-6)
+    assert 0 < np.abs(z).max() < 2.0
+    res = train("drillgym/Torsional-v0", "ppo", tmp_path / "student", timesteps=0, seed=0, progress=False,
+                tensorboard=False, teacher="flatness",
+                overrides={"n_envs": 4, "motor_integral": True,
+                           "env_kwargs": {"episode_duration": 0.3, "motor_history": 4}},
+                distill_kwargs={"iterations": 2, "steps": 20, "epochs": 2, "beta": 0.5, "noise": 0.1})
+    student = ExportedPolicy.load(res.policy_path)
+    assert student.obs_dim == 4 + 4 + 1 + 1  # increments, voltages, target, integral
+    ctl = AgentController(student, omega_ref=3.0, dt=0.01)
+    ctl.reset({"theta_u": np.zeros(1)})
+    assert np.isfinite(ctl.act({"theta_u": np.zeros(1)})).all()
+    assert np.isfinite(ctl.act({"theta_u": np.full(1, 0.01)})).all()
+    assert abs(ctl.z[0] - 0.01 * (1.0 - 3.0)) < 1e-6  # one period at 1 rad/s towards 3 rad/s
+
+
+def test_zero_timesteps_need_a_teacher(tmp_path) -> None:
+    import pytest
+
+    with pytest.raises(ValueError, match="without a teacher"):
+        train("drillgym/Torsional-v0", "ppo", tmp_path, timesteps=0, progress=False, tensorboard=False)

@@ -1,0 +1,71 @@
+"""Domain randomisation over the plant population of the robust-control evaluation (training only).
+
+:class:`PopulationRandomizer` draws each new episode's rig from an uncertainty set
+(:mod:`controllers.evaluation.population`, default ``controllers/evaluation/plants.yaml``): relative
+ranges of the base parameters, uniform ranges of the effect parameters (motor lag ``tau_m``, input
+delay ``delay``) and the position-dependent brake friction's harmonic (amplitude and phase).  The
+encoder part of the set (counts, angle noise) is not drawn: the training env's encoder is one for all
+rigs.  :func:`use_population` installs it in a drillgym SB3 VecEnv built with
+:func:`population_env_kwargs` (the set's effects added to the env's model).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["PopulationRandomizer", "population_env_kwargs", "use_population"]
+
+
+def _uncertainty(population: "str | Path | None"):
+    from controllers.evaluation.population import load_uncertainty
+
+    return load_uncertainty(None if population in (None, "default", True) else population)
+
+
+def population_env_kwargs(env_kwargs: dict[str, Any], population: "str | Path | None") -> dict[str, Any]:
+    """``env_kwargs`` with the uncertainty set's effects (motor lag, delay, position friction) in the model."""
+    us = _uncertainty(population)
+    kw = dict(env_kwargs)
+    effects = list(kw.get("effects") or [])
+    kw["effects"] = effects + [e for e in us.effect_names() if e not in effects]
+    kw.pop("randomize", None)
+    kw.pop("randomize_names", None)
+    return kw
+
+
+class PopulationRandomizer:
+    """Per-episode parameter rows drawn from an uncertainty set (the env's ``ParameterRandomizer`` role).
+
+    ``composition``: the env's model (it must hold the set's effects); ``base``: the nominal RigParams."""
+
+    active = True
+
+    def __init__(self, composition, base, population: "str | Path | None" = None) -> None:
+        self.us = _uncertainty(population)
+        missing = [e for e in self.us.effect_names() if e not in set(composition.names)]
+        if missing:
+            raise ValueError(f"the env's model lacks the population's effects {missing}; "
+                             f"build it with population_env_kwargs")
+        self.composition, self.base = composition, base
+
+    def sample(self, rng: np.random.Generator) -> np.ndarray:
+        """One parameter vector (the composition's layout)."""
+        us = self.us
+        scaled = {k: getattr(self.base, k) * (1.0 + rng.uniform(-r, r)) for k, r in us.relative.items()}
+        values = {k: float(rng.uniform(lo, hi)) for k, (lo, hi) in us.effects.items()}
+        for (cn, sn), amax in us.harmonics.items():
+            a, phi = rng.uniform(0.0, amax), rng.uniform(0.0, 2 * np.pi)
+            values[cn], values[sn] = float(a * np.cos(phi)), float(a * np.sin(phi))
+        return self.composition.vector(self.base.replace(**scaled), values)
+
+
+def use_population(venv, population: "str | Path | None" = None) -> None:
+    """Draw every later episode's rig of the drillgym SB3 VecEnv ``venv`` (or a wrapper of it) from the set."""
+    inner = venv
+    while not hasattr(inner, "batch"):
+        inner = inner.venv
+    batch = inner.batch
+    batch.randomizer = PopulationRandomizer(batch.system.composition, batch.options.rig_params, population)
