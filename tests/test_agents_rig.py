@@ -8,12 +8,14 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from drillgym.io import read_timeseries
 from hw.emulator import RigEmulator
 
 ROOT = Path(__file__).resolve().parents[1]
 LEARNED = ROOT / "agents" / "policies" / "torsional_motor_learned"
+pytestmark = pytest.mark.xdist_group("rig-realtime")  # with tests/test_hw_cli.py: one real-time host at a time
 ENV = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
 
 

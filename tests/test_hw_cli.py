@@ -20,6 +20,10 @@ from hw.emulator import RigEmulator
 from hw.firmware import Firmware
 from hw.runner import LinearPolicy
 
+# The rig commands run at real-time priority (SCHED_FIFO): one worker runs all of them, so no two
+# real-time emulators and hosts compete for the two cores (the loaded-machine test brings its own load).
+pytestmark = pytest.mark.xdist_group("rig-realtime")
+
 REST_COMMANDS = 21  # zero-volt commands of the rest phase before the episode's first step
 ENV = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]),
                                                     os.environ.get("PYTHONPATH", "")])}
@@ -198,21 +202,32 @@ def test_watchdog_counts_commands_waiting_in_the_receive_buffer():
 @pytest.mark.slow
 def test_default_watchdog_run_completes_on_a_loaded_machine(tmp_path):
     """Two busy processes load both cores while `rig emulate` and `rig run` (300 steps at 10 ms) share them
-    with the default 100 ms watchdog and reply timeout: the run completes."""
+    with the default 100 ms watchdog and reply timeout: the run completes.  One retry: a sandbox that
+    accepts but does not honour real-time scheduling (seen once in CI) can starve a run; two failures in
+    a row fail the test with both messages."""
     hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
-    link = tmp_path / "rig"
-    emu = cli("rig", "emulate", "--port", str(link), "--dt", "0.005")
+    failures = []
     try:
-        assert "rig emulator" in emu.stdout.readline()
-        code, out, err = run("rig", "run", "--port", str(link), "--controller", "const:2.5", "--duration", "3",
-                             "--record", str(tmp_path / "r.csv"), timeout=300)
-        assert code == 0, (out, err)
-        assert "300 steps" in out and len(read_timeseries(tmp_path / "r.csv")) == 301
+        for attempt in range(2):
+            link = tmp_path / f"rig{attempt}"
+            record = tmp_path / f"r{attempt}.csv"
+            emu = cli("rig", "emulate", "--port", str(link), "--dt", "0.005")
+            try:
+                assert "rig emulator" in emu.stdout.readline()
+                code, out, err = run("rig", "run", "--port", str(link), "--controller", "const:2.5", "--duration",
+                                     "3", "--record", str(record), timeout=300)
+            finally:
+                emu.send_signal(signal.SIGTERM)
+                emu.communicate(timeout=30)
+            if code == 0:
+                assert "300 steps" in out and len(read_timeseries(record)) == 301
+                return
+            assert code == 3 and "safety stop" in err and record.exists(), (code, err)  # a clean stop, file kept
+            failures.append(f"attempt {attempt + 1}: exit {code}; stdout: {out.strip()}; stderr: {err.strip()}")
+        pytest.fail("\n".join(failures))
     finally:
         for h in hogs:
             h.kill()
-        emu.send_signal(signal.SIGTERM)
-        emu.communicate(timeout=30)
 
 
 def test_slow_disk_does_not_hold_up_the_control_loop(tmp_path, monkeypatch):
