@@ -58,7 +58,7 @@ TABLEAUS = {"rk4": (RK4_A, RK4_B, RK4_C), "dp5": (DP5_A, DP5_B, DP5_C), "dp45": 
 #: adaptive methods: their steps are chosen by an embedded error estimate (outputs stay on the grid)
 ADAPTIVE = ("dp45",)
 #: default tolerances of the adaptive method (relative, absolute per state)
-DEFAULT_RTOL, DEFAULT_ATOL = 1e-10, 1e-12
+DEFAULT_RTOL, DEFAULT_ATOL = 1e-11, 1e-12
 
 #: recorded columns of the base model; a composition appends its effects' states
 OUTPUT_NAMES = ("t", "u", "theta_u", "theta_l", "omega_u", "omega_l", "x_rot", "y_rot", "vx_rot", "vy_rot",

@@ -16,21 +16,9 @@ from drillgym.bifurcation.summary import F_OK, F_R_MAX, F_R_MIN, F_STICK, F_T, F
 from drillgym.dynamics import S_WL, S_X, S_Y
 from drillgym.kernels.hooks import N_STATE
 from drillgym.kernels.model import initial_modes
-from drillgym.kernels.stepping import alloc_work, hybrid_step
+from drillgym.kernels.stepping import alloc_work, copy_step_state, hybrid_step
 
 REFINE_ITERATIONS = 30
-
-
-@njit(cache=True)
-def _copy_step_state(y, k1, fric, mode, y_to, k1_to, fric_to, mode_to):
-    """Copy what hybrid_step carries between steps (state, derivative, friction, modes)."""
-    for i in range(N_STATE):
-        y_to[i] = y[i]
-        k1_to[i] = k1[i]
-    fric_to[0] = fric[0]
-    fric_to[1] = fric[1]
-    mode_to[0] = mode[0]
-    mode_to[1] = mode[1]
 
 
 @njit(cache=True)
@@ -58,7 +46,7 @@ def flow_to_section(y, u, ws, p, cfg, dt, t_max, A, b, c):
     stick = 0.0
     n_max = int(t_max / dt) + 1
     for _ in range(n_max):
-        _copy_step_state(y, k1, fric, mode, ys, ks, fs, ms)  # snapshot: the crossing is re-stepped from here
+        copy_step_state(y, k1, fric, mode, ys, ks, fs, ms)  # snapshot: the crossing is re-stepped from here
         gprev = y[S_WL] - ws
         hybrid_step(t, y, k1, fric, mode, u, p, cfg, 0.0, dt, A, b, c, K, ytmp, ynew, g0, g1, ftmp)
         gnew = y[S_WL] - ws
@@ -73,7 +61,7 @@ def flow_to_section(y, u, ws, p, cfg, dt, t_max, A, b, c):
             tau = 1.0
             for _it in range(REFINE_ITERATIONS):
                 tau = (ta * gb - tb * ga) / (gb - ga)
-                _copy_step_state(ys, ks, fs, ms, y, k1, fric, mode)
+                copy_step_state(ys, ks, fs, ms, y, k1, fric, mode)
                 hybrid_step(t, y, k1, fric, mode, u, p, cfg, 0.0, tau * dt, A, b, c, K, ytmp, ynew, g0, g1, ftmp)
                 gt = y[S_WL] - ws
                 if abs(gt) < 1e-13 or (tb - ta) < 1e-15:

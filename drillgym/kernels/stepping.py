@@ -14,6 +14,8 @@ step i the motor sees u(t_i - d), linear between the per-step commands (as
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit, prange
 
@@ -262,6 +264,37 @@ def hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, ynew,
     return n_events
 
 
+@njit(inline="always")
+def copy_step_state(y, k1, fric, mode, y_to, k1_to, fric_to, mode_to):
+    """Copy what :func:`hybrid_step` carries between steps (state, derivative, friction, modes)."""
+    for i in range(y.shape[0]):
+        y_to[i] = y[i]
+        k1_to[i] = k1[i]
+    fric_to[0] = fric[0]
+    fric_to[1] = fric[1]
+    mode_to[0] = mode[0]
+    mode_to[1] = mode[1]
+
+
+@njit(inline="always")
+def start_trajectory(y, mode, U, p, cfg, dt, t0, eps, out, init_modes, n_steps, hist, head, cols, USTEP, k1, fric):
+    """The first command (through the delay line), the initial modes and the first output sample of a
+    run: the start shared by the fixed-step and the adaptive integrators.  Returns (u, table cursor)."""
+    u_cmd, jc = command_at(U, 0, USTEP, 0)
+    u = delay_line_step(hist, head, u_cmd, p, dt) if n_steps > 0 else delay_line_read(hist, head, u_cmd, p, dt)
+    if eps > 0.0:  # smoothed friction: no stick state
+        mode[0] = 2
+        mode[1] = 2
+        state_derivative(t0, y, mode, u, p, cfg, eps, k1, fric)
+    elif init_modes:
+        initial_modes(t0, y, u, p, cfg, mode, k1, fric)
+    else:
+        resolve_modes(t0, y, mode, u, p, cfg, k1, fric)
+    if out.shape[0] > 0:
+        record(out, np.int64(0), t0, u_cmd, y, fric, mode, cols)
+    return u, jc
+
+
 @njit(cache=True)
 def run_trajectory(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, init_modes, n_steps, hist, head,
                    cols=None, USTEP=None):
@@ -275,24 +308,12 @@ def run_trajectory(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, ini
     Returns the number of mode switches.
     """
     K, ytmp, k1, ynew, fric, ftmp, g0, g1 = alloc_work(b.shape[0])
-    n_u = U.shape[0]
     record_on = out.shape[0] > 0
     t = t0
-    u_cmd, jc = command_at(U, 0, USTEP, 0)
-    u = delay_line_step(hist, head, u_cmd, p, dt) if n_steps > 0 else delay_line_read(hist, head, u_cmd, p, dt)
-    if eps > 0.0:  # smoothed friction: no stick state
-        mode[0] = 2
-        mode[1] = 2
-        state_derivative(t, y, mode, u, p, cfg, eps, k1, fric)
-    elif init_modes:
-        initial_modes(t, y, u, p, cfg, mode, k1, fric)
-    else:
-        resolve_modes(t, y, mode, u, p, cfg, k1, fric)
-    row = np.int64(0)  # not a literal: one compiled record
-    if record_on:
-        record(out, row, t, u_cmd, y, fric, mode, cols)
+    u, jc = start_trajectory(y, mode, U, p, cfg, dt, t0, eps, out, init_modes, n_steps, hist, head, cols, USTEP,
+                             k1, fric)
     n_switch = 0
-    row = 1
+    row = np.int64(1)  # not a literal: one compiled record
     u_prev = u
     for i in range(n_steps):
         if i > 0:
@@ -393,16 +414,33 @@ def _dp54_error(y0, y1, K, h, rtol, atol, n):
     return err
 
 
+@njit(cache=True, _nrt=False)
+def _crossing_estimate(t, y0, k0, mode, fric0, u, p, cfg, eps, h, A, b, c, K, ytmp, ynew, ftmp, g0, g1):
+    """Fraction of a step of length h from (t, y0) at which the first event function crosses zero, by
+    the linear estimate of :func:`hybrid_step` on the modes held (2.0 when none crosses)."""
+    _rk_step(t, y0, k0, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, ynew, ftmp)
+    state_derivative(t + h, ynew, mode, u, p, cfg, eps, ytmp, ftmp)
+    event_values(t + h, ynew, mode, ftmp, p, cfg, g1)
+    event_values(t, y0, mode, fric0, p, cfg, g0)
+    tau_best = 2.0
+    for q in range(2):
+        if g1[q] < 0.0:
+            tau = g0[q] / (g0[q] - g1[q]) if g0[q] > 0.0 else 0.0
+            tau_best = min(tau_best, tau)
+    return tau_best
+
+
 @njit(cache=True)
 def run_trajectory_adaptive(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, init_modes, n_steps, hist,
                             head, rtol, atol, cols=None, USTEP=None):
     """As :func:`run_trajectory` (same contract, command U[i] held over grid step i, outputs on the grid
     t0 + i dt), but integrated with adaptive Dormand-Prince 5(4) steps (A, b, c: DP5) between the
     grid points where the command changes: steps grow as long as the embedded error estimate stays
-    below 1 (relative rtol, absolute atol per state).  A step in which a disc switches mode is redone
-    ending at the next grid point (at most dt, events located exactly as on the fixed grid).  Outputs
-    between step ends are cubic Hermite interpolants of the state (4th order) with the step's modes.
-    Returns the number of mode switches."""
+    below 1 (relative rtol, absolute atol per state).  Events are located exactly as on the fixed
+    grid: a step in which a disc switches mode is redone, first up to the grid point before the
+    estimated crossing (an ordinary error-controlled step) and then, from there, up to the next grid
+    point (at most dt, the switch located inside it).  Outputs between step ends are cubic Hermite
+    interpolants of the state (4th order) with the step's modes.  Returns the number of mode switches."""
     K, ytmp, k1, ynew, fric, ftmp, g0, g1 = alloc_work(b.shape[0])
     ns = y.shape[0]
     n_act = active_states(cfg)
@@ -420,20 +458,9 @@ def run_trajectory_adaptive(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every,
             if cols[j] == 14 or cols[j] == 15:
                 need_fric = True
     t = t0
-    u_cmd, jc = command_at(U, 0, USTEP, 0)
-    u = delay_line_step(hist, head, u_cmd, p, dt) if n_steps > 0 else delay_line_read(hist, head, u_cmd, p, dt)
-    if eps > 0.0:
-        mode[0] = 2
-        mode[1] = 2
-        state_derivative(t, y, mode, u, p, cfg, eps, k1, fric)
-    elif init_modes:
-        initial_modes(t, y, u, p, cfg, mode, k1, fric)
-    else:
-        resolve_modes(t, y, mode, u, p, cfg, k1, fric)
-    row = np.int64(0)
-    if record_on:
-        record(out, row, t, u_cmd, y, fric, mode, cols)
-    row = 1
+    u, jc = start_trajectory(y, mode, U, p, cfg, dt, t0, eps, out, init_modes, n_steps, hist, head, cols, USTEP,
+                             k1, fric)
+    row = np.int64(1)
     n_switch = 0
     jr = 0  # table cursor of the recorded commands (jc runs ahead, to the next change)
     g_done = 0  # grid index of the current time when on the grid (t == t0 + g_done dt), else the last passed
@@ -459,33 +486,29 @@ def run_trajectory_adaptive(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every,
             hs = min(h, t_end - t)
             if t + hs > t_end - 1e-9 * dt:
                 hs = t_end - t
-            for i in range(ns):
-                y0[i] = y[i]
-                k0[i] = k1[i]
-            fr0[0] = fric[0]
-            fr0[1] = fric[1]
-            md0[0] = mode[0]
-            md0[1] = mode[1]
+            copy_step_state(y, k1, fric, mode, y0, k0, fr0, md0)
             nev = hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, hs, A, b, c, K, ytmp, ynew, g0, g1, ftmp)
             if nev > 0 and hs > t_next_grid - t + 1e-9 * dt:
-                # a switch inside a long step: redo it up to the next grid point (events exact there)
-                for i in range(ns):
-                    y[i] = y0[i]
-                    k1[i] = k0[i]
-                fric[0] = fr0[0]
-                fric[1] = fr0[1]
-                mode[0] = md0[0]
-                mode[1] = md0[1]
-                hs = t_next_grid - t
-                nev = hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, hs, A, b, c, K, ytmp, ynew, g0, g1, ftmp)
-            elif nev == 0:
+                # a switch inside a long step: step to the grid point before the estimated crossing ...
+                copy_step_state(y0, k0, fr0, md0, y, k1, fric, mode)
+                tau = _crossing_estimate(t, y0, k0, mode, fr0, u, p, cfg, eps, hs, A, b, c, K, ytmp, ynew, ftmp,
+                                         g0, g1)
+                g_before = np.int64(math.floor((t + min(tau, 1.0) * hs - t0) / dt + 1e-9)) - 1
+                nev = 1
+                if g_before > g_done + 1 and tau <= 1.0:
+                    hs = t0 + g_before * dt - t
+                    nev = hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, hs, A, b, c, K, ytmp, ynew, g0, g1,
+                                      ftmp)
+                    if nev > 0:  # the crossing came earlier than estimated
+                        copy_step_state(y0, k0, fr0, md0, y, k1, fric, mode)
+                if nev > 0:  # ... and from there over the grid interval holding it (events exact there)
+                    hs = t_next_grid - t
+                    nev = hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, hs, A, b, c, K, ytmp, ynew, g0, g1,
+                                      ftmp)
+            if nev == 0:
                 err = _dp54_error(y0, y, K, hs, rtol, atol, n_act)
                 if err > 1.0:
-                    for i in range(ns):
-                        y[i] = y0[i]
-                        k1[i] = k0[i]
-                    fric[0] = fr0[0]
-                    fric[1] = fr0[1]
+                    copy_step_state(y0, k0, fr0, md0, y, k1, fric, mode)
                     h = hs * max(0.2, 0.9 * err ** -0.2)
                     continue
                 h = hs * min(5.0, max(0.2, 0.9 * (err + 1e-30) ** -0.2))
