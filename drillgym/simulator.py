@@ -254,16 +254,17 @@ def _optional(COLS: np.ndarray | None, USTEP: np.ndarray | None, n_out: int) -> 
 
 def _run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, parallel, HIST, HEAD, T0, COLS,
                USTEP=None):
-    """The SIMD lane kernel over the batch; with parallel, one chunk per core in threads (nogil)."""
+    """The SIMD lane kernel over the batch; with parallel, one chunk per core in threads (nogil).
+    OUT is sample-major, (n_samples, n_columns, B)."""
     n_chunks = min(os.cpu_count() or 1, max(1, Y.shape[0] // LANES_MIN_BATCH)) if parallel else 1
     bounds = np.linspace(0, Y.shape[0], n_chunks + 1).astype(int)
     FR = np.zeros((Y.shape[0], 2))
 
     def run(i):
         s = slice(bounds[i], bounds[i + 1])
-        args = (Y[s], MODE[s], U[s], P[s], cfg, dt, T0[s].copy(), record_every, OUT[s], n_steps, True, FR[s], HIST[s],
-                HEAD[s])
-        lanes_run(*args, *_optional(COLS, USTEP, OUT.shape[2]))
+        args = (Y[s], MODE[s], U[s], P[s], cfg, dt, T0[s].copy(), record_every, OUT[:, :, s], n_steps, True, FR[s],
+                HIST[s], HEAD[s])
+        lanes_run(*args, *_optional(COLS, USTEP, OUT.shape[1]))
 
     if n_chunks == 1:
         run(0)
@@ -362,7 +363,6 @@ def simulate_batch(config: "str | Configuration", u: InputLike, duration: float,
     MODE = np.zeros((B, 2), dtype=np.int64)
     n_rec = n_steps // record_every + 1
     names, COLS = _record_columns(comp, record)
-    OUT = np.empty((B, n_rec, len(names)))
     A, b, c = tableau(method)
     eps = _friction_eps(friction, smooth_eps)
     HIST, HEAD = _delay_lines(comp, P, dt, u_before)
@@ -373,12 +373,17 @@ def simulate_batch(config: "str | Configuration", u: InputLike, duration: float,
     adaptive = method.lower() in ADAPTIVE
     if adaptive and not (rtol > 0 and atol > 0):
         raise ValueError(f"rtol and atol must be > 0, got {rtol!r}, {atol!r}")
+    lanes = not adaptive and B >= LANES_MIN_BATCH and method.lower() == "rk4" and eps == 0.0
+    # the lane kernel stores a sample's column over the lanes contiguously: sample-major storage,
+    # seen through data (B, n_samples, n_columns) as a transposed view; the scalar paths store lane by lane
+    OUT = np.empty((n_rec, len(names), B)).transpose(2, 0, 1) if lanes else np.empty((B, n_rec, len(names)))
     if adaptive:
         args = (Y, MODE, U, P, int(cfg), float(dt), T0, eps, A, b, c, int(record_every), OUT, True, n_steps, HIST, HEAD,
                 float(rtol), float(atol))
         k.stepping.run_batch_adaptive(*args, *_optional(COLS, USTEP, OUT.shape[2]))
-    elif B >= LANES_MIN_BATCH and method.lower() == "rk4" and eps == 0.0:
-        _run_lanes(k.lanes.lanes_run, Y, MODE, U, P, int(cfg), float(dt), int(record_every), OUT, n_steps, parallel,
+    elif lanes:
+        _run_lanes(k.lanes.lanes_run, Y, MODE, U, P, int(cfg), float(dt), int(record_every), OUT.transpose(1, 2, 0),
+                   n_steps, parallel,
                    HIST, HEAD, T0, COLS, USTEP)
     else:
         runner = k.stepping.run_batch_parallel if parallel else k.stepping.run_batch_serial
@@ -451,7 +456,7 @@ class BatchSimulator:
         self.T = np.zeros(self.n)
         self.FRIC = np.zeros((self.n, 2))
         self.HIST, self.HEAD = _delay_lines(self.composition, self.P, self.dt)
-        self._no_record = np.zeros((self.n, 0, len(self.composition.output_names)))
+        self._no_record = np.zeros((0, len(self.composition.output_names), self.n))  # sample-major, no samples
         self._lanes = self.n >= LANES_MIN_BATCH and method.lower() == "rk4" and self._eps == 0.0
 
     def set_params(self, params: ParamsLike, index: "int | np.ndarray | slice | None" = None) -> None:

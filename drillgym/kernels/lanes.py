@@ -331,10 +331,11 @@ def _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode):
 @njit(cache=True, _nrt=False)
 def _record_lanes(OUT, row, T0, tt, U, ucol, S, FR, MU, ML, inv, Y, COLS, XW, YW):
     """One output sample of every lane straight from the lane rows (as ``model.record`` of the lane's
-    state, column by column over the lanes: no per-lane copies).  inv[i] = lane row of state i, or -1
-    (a state that does not evolve: read from Y); tt the sample's time since T0 (s)."""
+    state, column by column over the lanes: no per-lane copies).  OUT is sample-major, (n_samples,
+    n_columns, B): a column of a sample is one contiguous store over the lanes.  inv[i] = lane row of
+    state i, or -1 (a state that does not evolve: read from Y); tt the sample's time since T0 (s)."""
     B = S.shape[1]
-    nc = OUT.shape[2]
+    nc = OUT.shape[1]
     lateral = False
     for jj in range(nc):
         c = COLS[jj] if COLS is not None else jj
@@ -357,42 +358,42 @@ def _record_lanes(OUT, row, T0, tt, U, ucol, S, FR, MU, ML, inv, Y, COLS, XW, YW
         c = COLS[jj] if COLS is not None else jj
         if c == 0:
             for k in range(B):
-                OUT[k, row, jj] = T0[k] + tt
+                OUT[row, jj, k] = T0[k] + tt
         elif c == 1:
             for k in range(B):
-                OUT[k, row, jj] = U[k, ucol]
+                OUT[row, jj, k] = U[k, ucol]
         elif c == 10:
             a = S[inv[1]]
             b = S[inv[0]]
             for k in range(B):
-                OUT[k, row, jj] = a[k] - b[k]
+                OUT[row, jj, k] = a[k] - b[k]
         elif c == 11:
             for k in range(B):
-                OUT[k, row, jj] = XW[k]
+                OUT[row, jj, k] = XW[k]
         elif c == 12:
             for k in range(B):
-                OUT[k, row, jj] = YW[k]
+                OUT[row, jj, k] = YW[k]
         elif c == 13:
             for k in range(B):
-                OUT[k, row, jj] = np.sqrt(XW[k] * XW[k] + YW[k] * YW[k])
+                OUT[row, jj, k] = np.sqrt(XW[k] * XW[k] + YW[k] * YW[k])
         elif c == 14 or c == 15:
             f = FR[c - 14]
             for k in range(B):
-                OUT[k, row, jj] = f[k]
+                OUT[row, jj, k] = f[k]
         elif c == 16 or c == 17:
             m = MU if c == 16 else ML
             for k in range(B):
-                OUT[k, row, jj] = 1.0 if m[k] == 0.0 else 0.0
+                OUT[row, jj, k] = 1.0 if m[k] == 0.0 else 0.0
         else:
             si = c - 2 if c < 10 else c - 10
             r = inv[si]
             if r >= 0:
                 src = S[r]
                 for k in range(B):
-                    OUT[k, row, jj] = src[k]
+                    OUT[row, jj, k] = src[k]
             else:
                 for k in range(B):
-                    OUT[k, row, jj] = Y[k, si]
+                    OUT[row, jj, k] = Y[k, si]
 
 
 @njit(inline="always")
@@ -411,8 +412,9 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
               USTEP=None):
     """Batch run on lanes: same contract as stepping.run_batch_serial (RK4, exact friction),
     plus FRIC_OUT (B, 2) final friction.  U may hold one column (constant command) or, with USTEP
-    (m,), the columns of a piecewise-constant table (U[:, j] from step USTEP[j] on); OUT may have
-    zero samples (no recording)."""
+    (m,), the columns of a piecewise-constant table (U[:, j] from step USTEP[j] on).  OUT is
+    sample-major, (n_samples, n_columns, B) (the caller's data[k] is OUT[:, :, k]); it may have zero
+    samples (no recording)."""
     B = Y.shape[0]
     full = lateral_free(cfg)
     rows = ROWS_FULL if full else ROWS_DIAG
@@ -442,7 +444,7 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
     brake = brake_on(cfg)
     fv = cfg == FREE_VIBRATION
     n_u = U.shape[1]
-    record_on = OUT.shape[1] > 0
+    record_on = OUT.shape[0] > 0
     row0 = np.int64(0)  # not a literal: one compiled record
     for k in range(B):
         for j in range(N_STATE):
@@ -459,7 +461,7 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
         for j in range(N_STATE):
             Y[k, j] = y[j]
         if record_on:
-            record(OUT[k], row0, T0[k], U[k, c0], y, fric, mode, COLS)
+            record(OUT[:, :, k], row0, T0[k], U[k, c0], y, fric, mode, COLS)
         Uprev[k] = u0
         Ucur[k] = u0
     jc = 0
