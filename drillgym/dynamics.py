@@ -115,18 +115,13 @@ def isotropic_lateral_forces(x: float, yy: float, vx: float, vy: float, W: float
 
 
 @njit(inline="always", fastmath=True, error_model="numpy")
-def full_accelerations(x: float, yy: float, vx: float, vy: float, W: float, wl: float, s: float, c: float,
-                       m: float, P: float, Ju: float, Jl: float, drive: float, string: float, extra_l: float,
-                       tfu: float, tfl: float, Qu: float, Qx: float, Qy: float, slip_u: bool, slip_l: bool) -> tuple:
-    """Accelerations of the four coordinates (MODEL.md), with stuck discs as constraints.
-
-    s, c = sin, cos of alpha; m = mr + mt, P = e mr; drive = km u (+ extra upper torque); string on the
-    upper disc; extra_l an extra torque on the lower disc;
-    tfu/tfl slip torques (ignored for a stuck disc); Q* lateral generalised forces.
-    The lateral accelerations are eliminated (Schur complement of the m I block), leaving a
-    2x2 system in (wu', wl') where a stuck disc's constraint and multiplier are explicit.
-    Returns (wu', wl', vx', vy', Tfu, Tfl).
-    """
+def coupled_system(x: float, yy: float, vx: float, vy: float, W: float, wl: float, s: float, c: float,
+                   m: float, P: float, Ju: float, Jl: float, drive: float, string: float, extra_l: float,
+                   tfu: float, tfl: float, Qu: float, Qx: float, Qy: float, slip_u: bool, slip_l: bool) -> tuple:
+    """MODEL.md's coupled equations with the lateral accelerations eliminated (Schur complement of the
+    m I block): the 2x2 system S (wu', wl') = g of the discs, and the lateral right-hand sides.
+    Arguments as :func:`full_accelerations`.  Returns (s00, s01, s11, g0, g1, F2, F3): S's entries
+    (kg m^2), g (N m), F2, F3 (N)."""
     xs_yc = x * s - yy * c
     r2 = x * x + yy * yy
     F0 = drive - (tfu if slip_u else 0.0) + Qu + P * xs_yc * wl * wl - 2.0 * m * W * (x * vx + yy * vy) + string
@@ -143,9 +138,37 @@ def full_accelerations(x: float, yy: float, vx: float, vy: float, W: float, wl: 
     s11 = Jl - (c10 * c10 + c11 * c11) * inv_m
     g0 = F0 - (c00 * F2 + c01 * F3) * inv_m
     g1 = F1 - (c10 * F2 + c11 * F3) * inv_m
+    return s00, s01, s11, g0, g1, F2, F3
+
+
+@njit(inline="always", fastmath=True, error_model="numpy")
+def lateral_accelerations(x: float, yy: float, s: float, c: float, m: float, P: float, F2: float, F3: float,
+                          a0: float, a1: float) -> tuple:
+    """(vx', vy') (m/s^2) from the lateral right-hand sides F2, F3 (N) and the disc accelerations
+    a0 = wu', a1 = wl' (rad/s^2): the lateral rows of MODEL.md's mass matrix."""
+    inv_m = 1.0 / m
+    return (F2 + m * yy * a0 + P * s * a1) * inv_m, (F3 - m * x * a0 - P * c * a1) * inv_m
+
+
+@njit(inline="always", fastmath=True, error_model="numpy")
+def full_accelerations(x: float, yy: float, vx: float, vy: float, W: float, wl: float, s: float, c: float,
+                       m: float, P: float, Ju: float, Jl: float, drive: float, string: float, extra_l: float,
+                       tfu: float, tfl: float, Qu: float, Qx: float, Qy: float, slip_u: bool, slip_l: bool) -> tuple:
+    """Accelerations of the four coordinates (MODEL.md), with stuck discs as constraints.
+
+    s, c = sin, cos of alpha; m = mr + mt, P = e mr; drive = km u (+ extra upper torque); string on the
+    upper disc; extra_l an extra torque on the lower disc;
+    tfu/tfl slip torques (ignored for a stuck disc); Q* lateral generalised forces.
+    The lateral accelerations are eliminated (Schur complement of the m I block, :func:`coupled_system`),
+    leaving a 2x2 system in (wu', wl') where a stuck disc's constraint and multiplier are explicit.
+    Returns (wu', wl', vx', vy', Tfu, Tfl).
+    """
+    s00, s01, s11, g0, g1, F2, F3 = coupled_system(x, yy, vx, vy, W, wl, s, c, m, P, Ju, Jl, drive, string, extra_l,
+                                                   tfu, tfl, Qu, Qx, Qy, slip_u, slip_l)
     det = s00 * s11 - s01 * s01
     a0 = ((s11 * g0 - s01 * g1) / det if slip_l else g0 / s00) if slip_u else 0.0
     a1 = ((s00 * g1 - s01 * g0) / det if slip_u else g1 / s11) if slip_l else 0.0
     fu = tfu if slip_u else g0 - s01 * a1
     fl = tfl if slip_l else g1 - s01 * a0
-    return a0, a1, (F2 - c00 * a0 - c10 * a1) * inv_m, (F3 - c01 * a0 - c11 * a1) * inv_m, fu, fl
+    ax, ay = lateral_accelerations(x, yy, s, c, m, P, F2, F3, a0, a1)
+    return a0, a1, ax, ay, fu, fl

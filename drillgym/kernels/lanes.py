@@ -33,8 +33,8 @@ import numpy as np
 from numba import njit
 
 from drillgym.dynamics import (
-    FREE_VIBRATION, UPPER, S_TL, S_TU, S_VX, S_VY, S_WL, S_WU, S_X, S_Y, brake_on, full_accelerations,
-    isotropic_lateral_forces, lateral_free, reduced_accelerations,
+    FREE_VIBRATION, UPPER, S_TL, S_TU, S_VX, S_VY, S_WL, S_WU, S_X, S_Y, brake_on, coupled_system,
+    full_accelerations, isotropic_lateral_forces, lateral_accelerations, lateral_free, reduced_accelerations,
 )
 from drillgym.friction import bearing_law, brake_law_simd, upper_law
 from drillgym.integrators import RK4_A, RK4_B, RK4_C
@@ -61,16 +61,24 @@ ROWS_FULL = np.array([S_TU, S_TL, S_X, S_Y, S_WU, S_WL, S_VX, S_VY] + _EFFECT_RO
 
 
 @njit(inline="always", fastmath=True, error_model="numpy")
+def _friction_upper(k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, mu, brake, Tcu, dTcu, bu, dbu):
+    """Upper slip friction torque (N m) in the direction of its mode (0 when stuck): friction.py's law
+    (base parameters of lane k given as scalars), then the composition's friction effects."""
+    awu = abs(wu)
+    tfu = upper_law(awu, mu, Tcu, dTcu, bu, dbu)
+    bf = 1.0 if brake else 0.0
+    return hk_slip_u_lane(tfu, mu, awu, k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, bf) if mu != 0.0 else 0.0
+
+
+@njit(inline="always", fastmath=True, error_model="numpy")
 def _friction_laws(k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, mu, ml, brake, Tcu, dTcu, bu, dbu, Tcl, bl,
                    Ts, Tc, ws, delta, bb):
     """Slip friction torques (N m) in the directions of the modes (0 for a stuck disc): friction.py's
     laws (base parameters of lane k given as scalars), then the composition's friction effects."""
-    awu = abs(wu)
     awl = abs(wl)
     tfl = brake_law_simd(awl, ml, Ts, Tc, ws, delta, bb) if brake else bearing_law(awl, ml, Tcl, bl)
-    tfu = upper_law(awu, mu, Tcu, dTcu, bu, dbu)
+    tfu = _friction_upper(k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, mu, brake, Tcu, dTcu, bu, dbu)
     bf = 1.0 if brake else 0.0
-    tfu = hk_slip_u_lane(tfu, mu, awu, k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, bf) if mu != 0.0 else 0.0
     tfl = hk_slip_l_lane(tfl, ml, awl, k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, bf) if ml != 0.0 else 0.0
     return tfu, tfl
 
@@ -126,8 +134,11 @@ def _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR, TT, tc, cfg):
 def _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg):
     """All four coordinates, MODEL.md's lateral constraints plus the effects' forces
     (dynamics' formulas, Schur complement of the m I block, stuck discs as selects).
-    Two loops over the lanes, each writing three arrays (the accelerations are computed twice): one
-    loop writing all six exceeds LLVM's alias-check budget and runs scalar."""
+    Two loops over the lanes, each writing three arrays (one loop writing all six exceeds LLVM's
+    runtime alias-check budget and runs scalar): the first solves the whole system and writes the disc
+    accelerations and the lower friction torque; the second takes the disc accelerations just
+    written and gives the lateral accelerations and the upper friction torque (no brake law, no
+    2x2 solve)."""
     thu_, thl_, x_, y_, wu_, wl_, vx_, vy_ = Y[0], Y[1], Y[2], Y[3], Y[4], Y[5], Y[6], Y[7]
     _copy_rows(Y[4:8], K[0:4])  # position rates = velocities
     Ju, km, Jl, kth = PT[_Ju], PT[_km], PT[_Jl], PT[_kth]
@@ -135,7 +146,7 @@ def _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg):
     Ts, Tc, ws, delta, bb = PT[_Ts], PT[_Tc], PT[_ws], PT[_delta], PT[_bb]
     mr, mt, k_, b_, e_ = PT[_mr], PT[_mt], PT[_k], PT[_b], PT[_e]
     K4, K5, K6, K7, FR0, FR1 = K[4], K[5], K[6], K[7], FR[0], FR[1]
-    for k in range(thu_.shape[0]):  # loop 1 of 2: the same equations, three arrays written
+    for k in range(thu_.shape[0]):  # loop 1 of 2: the whole system; disc accelerations, lower friction
         thu = thu_[k]
         thl = thl_[k]
         x = x_[k]
@@ -154,13 +165,13 @@ def _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg):
         tfu, tfl = _friction_laws(k, t, thu, thl, W, wl, x, yy, vx, vy, Y, 8, PT, mu, ml, brake, Tcu[k], dTcu[k],
                                   bu[k], dbu[k], Tcl[k], bl[k], Ts[k], Tc[k], ws[k], delta[k], bb[k])
         Qu, Qx, Qy = isotropic_lateral_forces(x, yy, vx, vy, W, k_[k], b_[k])
-        a_u, a_l, a_x, a_y, fu, fl = full_accelerations(x, yy, vx, vy, W, wl, s, c, mr[k] + mt[k], e_[k] * mr[k],
-                                                        Ju[k], Jl[k], km[k] * volt + Qe_u, string, Qe_l, tfu, tfl,
-                                                        Qu, Qx + Qe_x, Qy + Qe_y, mu != 0.0, ml != 0.0)
+        a_u, a_l, _, _, _, fl = full_accelerations(x, yy, vx, vy, W, wl, s, c, mr[k] + mt[k], e_[k] * mr[k],
+                                                   Ju[k], Jl[k], km[k] * volt + Qe_u, string, Qe_l, tfu, tfl,
+                                                   Qu, Qx + Qe_x, Qy + Qe_y, mu != 0.0, ml != 0.0)
         K4[k] = a_u
         K5[k] = a_l
-        FR0[k] = fu
-    for k in range(thu_.shape[0]):  # loop 2 of 2
+        FR1[k] = fl
+    for k in range(thu_.shape[0]):  # loop 2 of 2: lateral accelerations, upper friction (a stuck disc's holding torque)
         thu = thu_[k]
         thl = thl_[k]
         x = x_[k]
@@ -170,21 +181,26 @@ def _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg):
         vx = vx_[k]
         vy = vy_[k]
         mu = MU[k]
-        ml = ML[k]
         t = TT[k] + tc
         alpha = thl - thu
         s, c = vsincos(alpha)
         volt, Qe_u, Qe_l, Qe_s, Qe_x, Qe_y = hk_rhs_lane(k, t, U[k], thu, thl, W, wl, x, yy, vx, vy, Y, 8, PT, cfg)
         string = kth[k] * alpha + Qe_s
-        tfu, tfl = _friction_laws(k, t, thu, thl, W, wl, x, yy, vx, vy, Y, 8, PT, mu, ml, brake, Tcu[k], dTcu[k],
-                                  bu[k], dbu[k], Tcl[k], bl[k], Ts[k], Tc[k], ws[k], delta[k], bb[k])
+        tfu = _friction_upper(k, t, thu, thl, W, wl, x, yy, vx, vy, Y, 8, PT, mu, brake, Tcu[k], dTcu[k], bu[k],
+                              dbu[k])
         Qu, Qx, Qy = isotropic_lateral_forces(x, yy, vx, vy, W, k_[k], b_[k])
-        a_u, a_l, a_x, a_y, fu, fl = full_accelerations(x, yy, vx, vy, W, wl, s, c, mr[k] + mt[k], e_[k] * mr[k],
-                                                        Ju[k], Jl[k], km[k] * volt + Qe_u, string, Qe_l, tfu, tfl,
-                                                        Qu, Qx + Qe_x, Qy + Qe_y, mu != 0.0, ml != 0.0)
+        m = mr[k] + mt[k]
+        P = e_[k] * mr[k]
+        # g0 and s01 do not depend on the lower friction torque (0.0 here); g1 is not used
+        _, s01, _, g0, _, F2, F3 = coupled_system(x, yy, vx, vy, W, wl, s, c, m, P, Ju[k], Jl[k],
+                                                  km[k] * volt + Qe_u, string, Qe_l, tfu, 0.0, Qu, Qx + Qe_x,
+                                                  Qy + Qe_y, mu != 0.0, ML[k] != 0.0)
+        a_u = K4[k]
+        a_l = K5[k]
+        a_x, a_y = lateral_accelerations(x, yy, s, c, m, P, F2, F3, a_u, a_l)
         K6[k] = a_x
         K7[k] = a_y
-        FR1[k] = fl
+        FR0[k] = tfu if mu != 0.0 else g0 - s01 * a_l
     if N_STATE > 8:
         for k in range(thu_.shape[0]):
             hk_states_lane(k, TT[k] + tc, U[k], thu_[k], thl_[k], wu_[k], wl_[k], x_[k], y_[k], vx_[k], vy_[k], Y, 8,
