@@ -1,0 +1,72 @@
+"""How long one `drillgym diagnose` takes on 60 s of 1 kHz data (issue 13's goal: within 60 s on 2 cores).
+
+Three recordings of 60 s at 1 kHz, each diagnosed by the command line as a user runs it (a fresh
+process: import, kernels loaded from the on-disk cache, model selection with the base model
+decision, discovery of a candidate beyond the library), twice: the first call may compile the
+kernels of compositions no earlier call used, the second shows the steady cost.
+
+1. torsional, quasi-random input, no effect, base parameters off by a few percent;
+2. torsional, steps, position_friction + motor_lag, base parameters off;
+3. coupled, sum of sines, lateral_anisotropy + lvdt_offset.
+
+    .venv/bin/python benchmarks/bench_diagnose_time.py [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from drillgym import RigParams
+from drillgym.identification.synthetic import synthetic_measurement
+from drillgym.io import write_timeseries
+
+DUR, RATE = 60.0, 1000.0
+OFF = RigParams().scaled(km=0.97, Ts=1.06, Jl=1.04)  # a base model a few percent off
+
+CASES = {
+    "torsional, no effect, base off": dict(config="torsional", params=OFF, signal="quasi_random", offset=1.0, seed=3),
+    "torsional, position_friction + motor_lag, base off": dict(
+        config="torsional", params=OFF, signal="steps", offset=1.2, seed=4,
+        effects=["position_friction", "motor_lag"], effect_params={"pf_a1": 0.15, "tau_m": 0.04}),
+    "coupled, lateral_anisotropy + lvdt_offset": dict(
+        config="coupled", signal="sum_of_sines", offset=3.0, seed=5,
+        effects=["lateral_anisotropy", "lvdt_offset"], effect_params={"dk": 250.0, "db": 3.0, "lvdt_x0": 3e-4}),
+}
+
+
+def _diagnose(path: Path) -> tuple[float, dict]:
+    t0 = time.perf_counter()
+    p = subprocess.run([sys.executable, "-m", "drillgym.cli", "diagnose", str(path), "--json"], capture_output=True,
+                       text=True, check=True)
+    wall = time.perf_counter() - t0
+    return wall, json.loads(p.stdout[p.stdout.index("{"):])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", type=Path, default=None, help="keep the recordings here (default: a temporary dir)")
+    args = ap.parse_args()
+    out = args.out or Path(tempfile.mkdtemp(prefix="bench_diagnose_"))
+    out.mkdir(parents=True, exist_ok=True)
+    print(f"{DUR:g} s at {RATE:g} Hz per recording; `drillgym diagnose FILE --json` in a fresh process; "
+          f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}")
+    for i, (name, kw) in enumerate(CASES.items()):
+        kw = dict(kw)
+        ts = synthetic_measurement(kw.pop("config"), kw.pop("params", None), duration=DUR, rate_hz=RATE, **kw)
+        path = write_timeseries(out / f"rec{i}.csv", ts)
+        first, res = _diagnose(path)
+        second, _ = _diagnose(path)
+        moved = ", ".join(f"{k} {v['change_pct']:+.1f}%" for k, v in res.get("base_parameters", {}).items())
+        print(f"  {name:<52} first {first:6.1f} s, second {second:6.1f} s (goal <= 60 s); "
+              f"selected {res['selected']}; base moved: {moved or 'none'}")
+
+
+if __name__ == "__main__":
+    main()
