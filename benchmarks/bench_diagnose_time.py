@@ -34,7 +34,7 @@ CASES = {
     "torsional, no effect, base off": dict(config="torsional", params=OFF, signal="quasi_random", offset=1.0, seed=3),
     "torsional, position_friction + motor_lag, base off": dict(
         config="torsional", params=OFF, signal="steps", offset=1.2, seed=4,
-        effects=["position_friction", "motor_lag"], effect_params={"pf_a1": 0.15, "tau_m": 0.04}),
+        effects=["position_friction", "motor_lag"], effect_params={"pf_c1": 0.12, "pf_s1": 0.08, "tau_m": 0.04}),
     "coupled, lateral_anisotropy + lvdt_offset": dict(
         config="coupled", signal="sum_of_sines", offset=3.0, seed=5,
         effects=["lateral_anisotropy", "lvdt_offset"], effect_params={"dk": 250.0, "db": 3.0, "lvdt_x0": 3e-4}),

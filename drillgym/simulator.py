@@ -38,7 +38,7 @@ __all__ = ["simulate", "simulate_batch", "Trajectory", "BatchTrajectory", "Batch
 InputLike = Union[float, Sequence[float], np.ndarray, tuple, Callable[[np.ndarray], np.ndarray]]
 ParamsLike = Union[RigParams, Sequence[RigParams], np.ndarray, None]
 DEFAULT_SMOOTH_EPS = 1e-3  # rad/s, for friction="smooth"
-LANES_MIN_BATCH = 8  # batches at least this large use the SIMD lane kernel (RK4, exact friction)
+LANES_MIN_BATCH = 8  # batches at least this large use the SIMD lane kernel (fixed-step tableau, exact friction)
 
 
 def initial_state(alpha0: float = 0.0, theta_u0: float = 0.0, omega_u0: float = 0.0, omega_l0: float = 0.0,
@@ -252,10 +252,12 @@ def _optional(COLS: np.ndarray | None, USTEP: np.ndarray | None, n_out: int) -> 
     return (np.arange(n_out, dtype=np.int64) if COLS is None else COLS, USTEP)
 
 
-def _run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, parallel, HIST, HEAD, T0, COLS,
-               USTEP=None):
+def run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, parallel, HIST, HEAD, T0, COLS,
+              USTEP=None, tab=None):
     """The SIMD lane kernel over the batch; with parallel, one chunk per core in threads (nogil).
-    OUT is sample-major, (n_samples, n_columns, B)."""
+    OUT is sample-major, (n_samples, n_columns, B); ``tab`` the fixed-step tableau (A, b, c), RK4 if None.
+    Used by :func:`simulate_batch` and the segmented simulation of the identification."""
+    A_b_c = tab if tab is not None else tableau("rk4")
     n_chunks = min(os.cpu_count() or 1, max(1, Y.shape[0] // LANES_MIN_BATCH)) if parallel else 1
     bounds = np.linspace(0, Y.shape[0], n_chunks + 1).astype(int)
     FR = np.zeros((Y.shape[0], 2))
@@ -263,7 +265,7 @@ def _run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, pa
     def run(i):
         s = slice(bounds[i], bounds[i + 1])
         args = (Y[s], MODE[s], U[s], P[s], cfg, dt, T0[s].copy(), record_every, OUT[:, :, s], n_steps, True, FR[s],
-                HIST[s], HEAD[s])
+                HIST[s], HEAD[s], *A_b_c)
         lanes_run(*args, *_optional(COLS, USTEP, OUT.shape[1]))
 
     if n_chunks == 1:
@@ -373,7 +375,7 @@ def simulate_batch(config: "str | Configuration", u: InputLike, duration: float,
     adaptive = method.lower() in ADAPTIVE
     if adaptive and not (rtol > 0 and atol > 0):
         raise ValueError(f"rtol and atol must be > 0, got {rtol!r}, {atol!r}")
-    lanes = not adaptive and B >= LANES_MIN_BATCH and method.lower() == "rk4" and eps == 0.0
+    lanes = not adaptive and B >= LANES_MIN_BATCH and eps == 0.0
     # the lane kernel stores a sample's column over the lanes contiguously: sample-major storage,
     # seen through data (B, n_samples, n_columns) as a transposed view; the scalar paths store lane by lane
     OUT = np.empty((n_rec, len(names), B)).transpose(2, 0, 1) if lanes else np.empty((B, n_rec, len(names)))
@@ -382,9 +384,8 @@ def simulate_batch(config: "str | Configuration", u: InputLike, duration: float,
                 float(rtol), float(atol))
         k.stepping.run_batch_adaptive(*args, *_optional(COLS, USTEP, OUT.shape[2]))
     elif lanes:
-        _run_lanes(k.lanes.lanes_run, Y, MODE, U, P, int(cfg), float(dt), int(record_every), OUT.transpose(1, 2, 0),
-                   n_steps, parallel,
-                   HIST, HEAD, T0, COLS, USTEP)
+        run_lanes(k.lanes.lanes_run, Y, MODE, U, P, int(cfg), float(dt), int(record_every), OUT.transpose(1, 2, 0),
+                  n_steps, parallel, HIST, HEAD, T0, COLS, USTEP, (A, b, c))
     else:
         runner = k.stepping.run_batch_parallel if parallel else k.stepping.run_batch_serial
         args = (Y, MODE, U, P, int(cfg), float(dt), T0, eps, A, b, c, int(record_every), OUT, True, n_steps, HIST, HEAD)
@@ -457,7 +458,7 @@ class BatchSimulator:
         self.FRIC = np.zeros((self.n, 2))
         self.HIST, self.HEAD = _delay_lines(self.composition, self.P, self.dt)
         self._no_record = np.zeros((0, len(self.composition.output_names), self.n))  # sample-major, no samples
-        self._lanes = self.n >= LANES_MIN_BATCH and method.lower() == "rk4" and self._eps == 0.0
+        self._lanes = self.n >= LANES_MIN_BATCH and self._eps == 0.0
 
     def set_params(self, params: ParamsLike, index: "int | np.ndarray | slice | None" = None) -> None:
         """Replace the parameters of all (index None) or some trajectories."""
@@ -501,7 +502,8 @@ class BatchSimulator:
             raise ValueError("voltage is NaN or inf")
         if self._lanes and n_steps > 0:
             self.kernels.lanes.lanes_run(self.Y, self.MODE, uu[:, None], self.P, int(self.config), self.dt, self.T, 1,
-                                         self._no_record, int(n_steps), False, self.FRIC, self.HIST, self.HEAD)
+                                         self._no_record, int(n_steps), False, self.FRIC, self.HIST, self.HEAD,
+                                         *self._tab)
             self.T += int(n_steps) * self.dt
             return
         A, b, c = self._tab

@@ -51,6 +51,13 @@ class LinkSequenceError(LinkError):
     """A frame from the firmware is missing (gap in sequence numbers) or out of order."""
 
 
+#: A write that the port cannot take within this time means the peer stopped reading (s).  pyserial also
+#: raises it when the writing thread was merely descheduled that long after a complete write (its timer
+#: is checked after os.write), which a 50 ms limit met on a loaded machine; the reply timeout (default
+#: 100 ms) and the firmware's watchdog detect a silent rig long before a serial buffer fills.
+WRITE_TIMEOUT_S = 0.5
+
+
 class SerialLink:
     """Framed, sequenced messages over a pyserial port.
 
@@ -65,7 +72,7 @@ class SerialLink:
             raise FileNotFoundError(f"serial port {self.url!r} does not exist (is the rig or `drillgym rig emulate` "
                                     f"running?)")
         try:
-            self.ser = serial.serial_for_url(self.url, baudrate=baudrate, timeout=0.002, write_timeout=0.05)
+            self.ser = serial.serial_for_url(self.url, baudrate=baudrate, timeout=0.002, write_timeout=WRITE_TIMEOUT_S)
         except PORT_ERRORS as exc:
             raise ValueError(f"cannot open serial port {self.url!r}: {exc}") from None
         self.parser = P.FrameParser()

@@ -52,7 +52,7 @@ def _sim_measurement(env, obs, t):
             "x": 0.0, "y": 0.0, "omega_ref": float(env.unwrapped.batch.omega_ref[0])}
 
 
-def test_controller_episode_matches_simulation(tmp_path):
+def test_controller_episode_matches_simulation(tmp_path, eventually):
     opts = dict(observation="sensors", episode_duration=1.5)
     sim, obs_s, _, alpha0 = _sim_env(11, **opts)
     with RigEmulator("torsional", firmware=RELAXED, dt=sim.unwrapped.options.dt, alpha0=alpha0) as emu:
@@ -60,7 +60,7 @@ def test_controller_episode_matches_simulation(tmp_path):
         ctrl_h, ctrl_s = SpeedP(), SpeedP()
         res = run_episode(env, controller=ctrl_h, seed=11)
         env.close()
-        assert emu.firmware.volts == 0.0  # close() leaves the motor at 0 V
+        assert eventually(lambda: emu.firmware.volts == 0.0)  # close() leaves the motor at 0 V
     assert res.truncated and res.steps == 150 and res.safety_stop is None
     # the same episode in simulation
     ctrl_s.reset(_sim_measurement(sim, obs_s, 0.0))
@@ -132,7 +132,7 @@ def measurement_const(v):
     return ConstantController(v)
 
 
-def test_host_safety_layer_clamps_slews_and_stops(tmp_path):
+def test_host_safety_layer_clamps_slews_and_stops(tmp_path, eventually):
     limits = SafetyLimits(v_max=4.0, slew_v_per_s=100.0, max_speed=2.0)
     with RigEmulator("torsional", firmware=RELAXED, dt=5e-3) as emu:
         env = gym.make(hw.ENV_ID, port=emu.port, record=tmp_path / "s.csv", limits=limits, episode_duration=5.0,
@@ -145,7 +145,7 @@ def test_host_safety_layer_clamps_slews_and_stops(tmp_path):
             *_, term, trunc, info = env.step(np.array([50.0]))  # far out of range
             stop, k = info.get("safety_stop"), k + 1
         assert term and stop == "OVERSPEED"
-        assert emu.firmware.volts == 0.0 and emu.firmware.stop_reason == P.StopReason.HOST
+        assert eventually(lambda: emu.firmware.volts == 0.0 and emu.firmware.stop_reason == P.StopReason.HOST)
         with pytest.raises(hw.env.SafetyError, match="not running"):
             env.step(np.array([1.0]))
         env.close()

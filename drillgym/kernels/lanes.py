@@ -37,7 +37,6 @@ from drillgym.dynamics import (
     full_accelerations, isotropic_lateral_forces, lateral_accelerations, lateral_free, reduced_accelerations,
 )
 from drillgym.friction import bearing_law, brake_law_simd, upper_law
-from drillgym.integrators import RK4_A, RK4_B, RK4_C
 from drillgym.kernels.hooks import (
     HAS_LAG, N_STATE, hk_bounds_l_lane, hk_lag_lane, hk_bounds_u_lane, hk_rhs_lane, hk_slip_l_lane, hk_slip_u_lane, hk_states_lane,
 )
@@ -288,6 +287,49 @@ def _lanes_rk4(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibrati
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
+def _stage_sum(S0, K1, W, coef, m, h, out):
+    """out = S0 + h (coef[0] K1 + coef[1] K_2 + ... + coef[m-1] K_m), row by row over the lanes (the
+    stage derivatives K_2.. in W's blocks 1..; the sum in the scalar kernel's order)."""
+    n = S0.shape[0]
+    for j in range(n):
+        o = out[j]
+        for k in range(o.shape[0]):
+            o[k] = 0.0
+        for q in range(m):
+            a = coef[q]
+            kq = K1[j] if q == 0 else W[q * n + j]
+            for k in range(o.shape[0]):
+                o[k] += a * kq[k]
+        s0 = S0[j]
+        for k in range(o.shape[0]):
+            o[k] = s0[k] + h * o[k]
+
+
+@njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
+def _lanes_erk(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibration, S0, OK, W, TT, cfg, A, b, c):
+    """One step of an explicit Runge-Kutta tableau (A, b, c; e.g. DP5) of every lane: the contract of
+    :func:`_lanes_rk4`, the stages summed as the scalar kernel's general Butcher loop
+    (``stepping._rk_step``).  W (s n, B): the stage state, then the stage derivatives 2..s."""
+    n = S.shape[0]
+    B = S.shape[1]
+    s = b.shape[0]
+    nm = 8 if full else 4  # mechanical rows
+    hv = nm // 2  # first velocity row
+    _copy_rows(S, S0)
+    Y = W[0:n]
+    for i in range(1, s):
+        _stage_sum(S0, K1, W, A[i], i, h, Y)
+        if HAS_LAG:
+            _lag_exact(S0, Y, U, PT, TT, c[i] * h, full, cfg)
+        _derivative(Y, MU, ML, U, PT, full, string_on, brake, W[i * n:(i + 1) * n], FR, TT, c[i] * h, cfg)
+    _stage_sum(S0, K1, W, b, s, h, S)
+    if HAS_LAG:
+        _lag_exact(S0, S, U, PT, TT, h, full, cfg)
+    _derivative(S, MU, ML, U, PT, full, string_on, brake, K1, FR, TT, h, cfg)
+    _event_check(S, FR, MU, ML, PT, full, string_on, brake, free_vibration, OK, TT, h, nm, hv)
+
+
+@njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
 def _event_check(S, FR, MU, ML, PT, full, string_on, brake, free_vibration, OK, TT, h, nm, hv):
     """OK[k] = 1 when lane k's event functions at the step end stayed positive (slipping discs kept
     their direction, stuck discs' holding torques stayed in their stick sets)."""
@@ -424,9 +466,10 @@ def command_col(n_u, i, USTEP, j):
 
 
 @njit(cache=True, nogil=True)
-def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, FRIC_OUT, HIST, HEAD, COLS=None,
-              USTEP=None):
-    """Batch run on lanes: same contract as stepping.run_batch_serial (RK4, exact friction),
+def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, FRIC_OUT, HIST, HEAD, A, b, c,
+              COLS=None, USTEP=None):
+    """Batch run on lanes: same contract as stepping.run_batch_serial (a fixed-step tableau A, b, c:
+    RK4 unrolled, others such as DP5 by the general Butcher sums; exact friction),
     plus FRIC_OUT (B, 2) final friction.  U may hold one column (constant command) or, with USTEP
     (m,), the columns of a piecewise-constant table (U[:, j] from step USTEP[j] on).  OUT is
     sample-major, (n_samples, n_columns, B) (the caller's data[k] is OUT[:, :, k]); it may have zero
@@ -448,11 +491,10 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
     MU = np.zeros(B)
     ML = np.zeros(B)
     OK = np.zeros(B, dtype=np.int64)
-    W = np.zeros((4 * n, B))
+    W = np.zeros((max(4, b.shape[0]) * n, B))
     Ucur = np.empty(B)
     Uprev = np.empty(B)
     TT = np.empty(B)
-    A, b, c = RK4_A.copy(), RK4_B.copy(), RK4_C.copy()  # mutable like the callers': one compiled hybrid_step
     K, ytmp, k1, ynew, fric, ftmp, g0, g1 = alloc_work(b.shape[0])
     y = np.zeros(N_STATE)
     mode = np.zeros(2, dtype=np.int64)
@@ -493,7 +535,10 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
                 resolve_modes(TT[k], y, mode, Ucur[k], P[k], cfg, k1, fric)
                 _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
                 Uprev[k] = Ucur[k]
-        _lanes_rk4(S, K1, FR, MU, ML, Ucur, PT, dt, full, string_on, brake, fv, S0, OK, W, TT, cfg)
+        if b.shape[0] == 4:  # classical RK4 (the only 4-stage tableau), unrolled
+            _lanes_rk4(S, K1, FR, MU, ML, Ucur, PT, dt, full, string_on, brake, fv, S0, OK, W, TT, cfg)
+        else:
+            _lanes_erk(S, K1, FR, MU, ML, Ucur, PT, dt, full, string_on, brake, fv, S0, OK, W, TT, cfg, A, b, c)
         for k in range(B):
             if OK[k] == 0:  # an event inside this step: redo it exactly on the scalar path
                 y[:] = Y[k]
