@@ -311,10 +311,7 @@ def _lanes_erk(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibrati
     :func:`_lanes_rk4`, the stages summed as the scalar kernel's general Butcher loop
     (``stepping._rk_step``).  W (s n, B): the stage state, then the stage derivatives 2..s."""
     n = S.shape[0]
-    B = S.shape[1]
     s = b.shape[0]
-    nm = 8 if full else 4  # mechanical rows
-    hv = nm // 2  # first velocity row
     _copy_rows(S, S0)
     Y = W[0:n]
     for i in range(1, s):
@@ -326,7 +323,8 @@ def _lanes_erk(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibrati
     if HAS_LAG:
         _lag_exact(S0, S, U, PT, TT, h, full, cfg)
     _derivative(S, MU, ML, U, PT, full, string_on, brake, K1, FR, TT, h, cfg)
-    _event_check(S, FR, MU, ML, PT, full, string_on, brake, free_vibration, OK, TT, h, nm, hv)
+    nm = 8 if full else 4  # mechanical rows; the velocities from row nm // 2
+    _event_check(S, FR, MU, ML, PT, full, string_on, brake, free_vibration, OK, TT, h, nm, nm // 2)
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
