@@ -32,6 +32,9 @@ class Reply:
         return self.received - self.sent
 
 
+HANDSHAKE_TIMEOUT_S = 1.0  # s to wait for the CONFIG reply to one IDENTIFY
+
+
 class RigClient:
     """Protocol client on a :class:`hw.link.SerialLink`.
 
@@ -107,8 +110,10 @@ class RigClient:
             sent = time.monotonic()
             self.link.send(P.Identify(int(round(period_s * 1e6))))
             try:
+                # the motor is not driven during the handshake (the watchdog arms at the first command): a
+                # loaded host may take its time (0.2 s per attempt failed under a cold test run)
                 cfg, _ = self._wait_for(lambda m: isinstance(m, P.Config), "CONFIG reply to IDENTIFY", sent,
-                                        max(self.reply_timeout, 0.2))
+                                        max(self.reply_timeout, HANDSHAKE_TIMEOUT_S))
             except LinkTimeoutError as exc:
                 last = exc
                 continue
