@@ -253,11 +253,10 @@ def _optional(COLS: np.ndarray | None, USTEP: np.ndarray | None, n_out: int) -> 
 
 
 def run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, parallel, HIST, HEAD, T0, COLS,
-              USTEP=None, tab=None):
+              USTEP, tab):
     """The SIMD lane kernel over the batch; with parallel, one chunk per core in threads (nogil).
-    OUT is sample-major, (n_samples, n_columns, B); ``tab`` the fixed-step tableau (A, b, c), RK4 if None.
+    OUT is sample-major, (n_samples, n_columns, B); ``tab`` the fixed-step tableau (A, b, c).
     Used by :func:`simulate_batch` and the segmented simulation of the identification."""
-    A_b_c = tab if tab is not None else tableau("rk4")
     n_chunks = min(os.cpu_count() or 1, max(1, Y.shape[0] // LANES_MIN_BATCH)) if parallel else 1
     bounds = np.linspace(0, Y.shape[0], n_chunks + 1).astype(int)
     FR = np.zeros((Y.shape[0], 2))
@@ -265,7 +264,7 @@ def run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, par
     def run(i):
         s = slice(bounds[i], bounds[i + 1])
         args = (Y[s], MODE[s], U[s], P[s], cfg, dt, T0[s].copy(), record_every, OUT[:, :, s], n_steps, True, FR[s],
-                HIST[s], HEAD[s], *A_b_c)
+                HIST[s], HEAD[s], *tab)
         lanes_run(*args, *_optional(COLS, USTEP, OUT.shape[1]))
 
     if n_chunks == 1:
