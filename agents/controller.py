@@ -26,6 +26,7 @@ from drillgym.envs.observation import make_observation_model
 from drillgym.envs.options import U_MAX, EnvOptions
 
 from .export import ExportedPolicy
+from .command import CommandSchedule, SpeedCommand
 from .integral import advance
 from .observer_residual import ObserverResidual
 from .residual import ResidualVoltage
@@ -64,6 +65,9 @@ class AgentController(Controller):
         self.integral = bool(hp.get("motor_integral", False))  # the motor-angle tracking integral (agents.integral)
         if self.integral and self.mode != "motor":
             raise ValueError("the motor-angle integral needs the 'motor' observation")
+        self.schedule = CommandSchedule.from_config(hp.get("command_schedule"))  # the speed command (agents.command)
+        if self.schedule is not None and not self.integral:
+            raise ValueError("the command schedule needs the motor-angle integral (motor_integral: true)")
         scale = hp.get("residual")
         self.base = None
         if hp.get("base") == "observer":  # observation = the observer's features, not the env's model
@@ -94,6 +98,10 @@ class AgentController(Controller):
         index = np.arange(n)
         self.model.reset(index, Y, [None] * n)
         self.obs = self.model.initial(index, Y, self.omega_ref)
+        self.command = None
+        if self.schedule is not None:
+            self.command = SpeedCommand(self.schedule, n, self.dt)
+            self.obs[:, -1] = self.command.value
         self.stack = np.zeros((n, dim), dtype=np.float32)
         self.z = np.zeros(n)
         self._push()
@@ -108,6 +116,9 @@ class AgentController(Controller):
     def _observe(self, m: dict[str, np.ndarray]) -> None:
         if self.mode == "motor":
             self.model.from_readings(m["theta_u"], self.u_prev, self.omega_ref, self.obs)
+            if self.command is not None:  # as agents.envs.MotorIntegralVecEnv: the command at this time
+                self.command.advance(np.broadcast_to(self.omega_ref, (self.n,)))
+                self.obs[:, -1] = self.command.value
         else:
             lat = self.config.lateral_free
             self.model.from_readings(m["theta_u"], m["theta_l"], m["x"] if lat else None, m["y"] if lat else None,

@@ -35,7 +35,7 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
             iterations: int = 8, steps: int = 500, epochs: int = 4, batch_size: int = 4096, lr: float = 1e-3,
             seed: int = 0, privileged: bool = False, population: "str | None" = None,
             teacher_kwargs: dict[str, Any] | None = None, beta: float = 0.0, noise: float = 0.0,
-            motor_integral: bool = False, log=None) -> dict[str, float]:
+            motor_integral: bool = False, command: "dict[str, float] | None" = None, log=None) -> dict[str, float]:
     """Regress the actor of the SB3 ``model`` (PPO/MLP, its env's observation) on the ``teacher``'s actions.
 
     ``iterations`` DAgger rounds of ``steps`` periods on ``n_envs`` rigs of ``env_id`` with ``env_kwargs``
@@ -43,6 +43,8 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
     ``privileged``: the model's observation carries the privileged critic's entries (ignored by the actor).
     ``motor_integral``: the model's observation ends with the motor-angle tracking integral
     (:mod:`agents.integral`); the 'flatness' teacher then uses that integral as its own.
+    ``command``: settings of the command schedule (:mod:`agents.command`; needs ``motor_integral``): the
+    student sees the scheduled speed command as its target and the 'flatness' teacher tracks it.
     ``teacher``: 'flatness' (``teacher_kwargs``: its options) or the path of an exported full-state policy.
     ``population``: an uncertainty set ('default' or a YAML path) the rigs are drawn from.
     ``beta``: in round i > 0 a fraction ``beta**i`` of the rigs is still driven by the teacher (DAgger's
@@ -66,7 +68,12 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
     if motor_integral:
         from .envs import MotorIntegralVecEnv
 
-        venv = integral = MotorIntegralVecEnv(venv, float(venv.venv.options.control_dt))
+        from .command import CommandSchedule
+
+        venv = integral = MotorIntegralVecEnv(venv, float(venv.venv.options.control_dt),
+                                              command=CommandSchedule.from_config(command))
+    elif command is not None:
+        raise ValueError("the command schedule needs the motor-angle integral (motor_integral: true)")
     if privileged:
         from .privileged import PrivilegedObsVecEnv
 
@@ -139,8 +146,12 @@ def _teacher(teacher: str | Path, n: int, batch, options: dict[str, Any], integr
 
         t = FlatnessTeacher(n, batch.options.rig_params, batch.options.control_dt, **options)
         s = batch.system
-        return (lambda: t.act(s.omega_u, s.alpha, s.omega_l, None if integral is None else integral.z),
-                lambda index: t.reset(index, batch.omega_ref[index]))
+        if integral is None:
+            return (lambda: t.act(s.omega_u, s.alpha, s.omega_l),
+                    lambda index: t.reset(index, batch.omega_ref[index]))
+        # the student's integral and command (the scheduled target) are the teacher's
+        return (lambda: t.act(s.omega_u, s.alpha, s.omega_l, integral.z, target=integral.command_now),
+                lambda index: t.reset(index, integral.command_now[index]))
     from drillgym.envs.observation import FullObservation
 
     from .export import ExportedPolicy

@@ -14,6 +14,7 @@ from drillgym.envs.options import U_MAX
 from drillgym.envs.sb3 import make_sb3_vec
 from drillgym.measurement import counts_to_angle
 
+from .command import CommandSchedule, SpeedCommand
 from .integral import Z_MAX, advance
 from .observer_residual import ObserverResidual
 from .residual import ResidualVoltage
@@ -116,9 +117,14 @@ class ObserverResidualVecEnv(VecEnvWrapper):
 
 class MotorIntegralVecEnv(VecEnvWrapper):
     """Appends the motor-angle tracking integral ``z`` (rad) to a drillgym SB3 VecEnv's 'motor' observation
-    (0 at each episode's start; a finished rig's terminal observation carries its last value)."""
+    (0 at each episode's start; a finished rig's terminal observation carries its last value).
 
-    def __init__(self, venv: VecEnv, control_dt: float, z_max: float = Z_MAX) -> None:
+    ``command``: a :class:`agents.command.CommandSchedule`; the observation's target entry is then the
+    commanded speed at the observation's time (:class:`agents.command.SpeedCommand`), and ``z`` integrates
+    the motor speed against it.  :attr:`target` holds each rig's episode target (rad/s),
+    :attr:`command_now` the command the last observation carries (the target without a schedule)."""
+
+    def __init__(self, venv: VecEnv, control_dt: float, z_max: float = Z_MAX, command=None) -> None:
         names = venv.get_attr("observation_names")[0]
         if names[0] != "omega_u_inc_0" or names[-1] != "omega_ref":
             raise ValueError("the motor-angle integral needs the 'motor' observation mode")
@@ -127,31 +133,55 @@ class MotorIntegralVecEnv(VecEnvWrapper):
                            dtype=np.float32)
         super().__init__(venv, observation_space=space)
         self.dt, self.z_max = float(control_dt), float(z_max)
-        self.z = np.zeros(venv.num_envs)
+        n = venv.num_envs
+        self.command = None if command is None else SpeedCommand(command, n, self.dt)
+        self.z = np.zeros(n)
+        self.target, self.command_now = np.zeros(n), np.zeros(n)
+
+    def _put_command(self, obs: np.ndarray, index: "np.ndarray | slice" = slice(None)) -> None:
+        """Write the command into the target entry of ``obs`` (rows ``index``) and :attr:`command_now`."""
+        if self.command is not None:
+            obs[index, -1] = self.command.value[index]
+        self.command_now[index] = obs[index, -1]
 
     def reset(self) -> np.ndarray:
         obs = self.venv.reset()
         self.reset_infos = getattr(self.venv, "reset_infos", self.reset_infos)  # for wrappers above (privileged critic)
         self.z[:] = 0.0
+        self.target[:] = obs[:, -1]
+        if self.command is not None:
+            self.command.reset()
+        self._put_command(obs)
         return np.hstack([obs, self.z[:, None]]).astype(np.float32)
 
     def step_wait(self):
         obs, rew, done, infos = self.venv.step_wait()
+        if self.command is not None:
+            self.command.advance(self.target)
         last = obs.copy()
         for i in np.flatnonzero(done):  # the ending episode's last period is in its terminal observation
             last[i] = infos[i]["terminal_observation"]
+        self._put_command(last)
         self.z = advance(self.z, last, self.dt, self.z_max)
-        for i in np.flatnonzero(done):
-            infos[i]["terminal_observation"] = np.append(infos[i]["terminal_observation"], self.z[i]).astype(np.float32)
-        self.z[done] = 0.0
-        return np.hstack([obs, self.z[:, None]]).astype(np.float32), rew, done, infos
+        ended = np.flatnonzero(done)
+        for i in ended:
+            infos[i]["terminal_observation"] = np.append(last[i], self.z[i]).astype(np.float32)
+        if ended.size:
+            self.z[ended] = 0.0
+            self.target[ended] = obs[ended, -1]
+            last[ended] = obs[ended]
+            if self.command is not None:
+                self.command.reset(ended)
+            self._put_command(last, ended)
+        return np.hstack([last, self.z[:, None]]).astype(np.float32), rew, done, infos
 
 
 def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: dict[str, Any] | None = None,
                       residual: float | None = None, startup: tuple | None = None, base: str | None = None,
                       observer: dict[str, Any] | None = None, frame_stack: int = 1,
                       normalize_reward: bool = False, normalize_obs: bool = False, gamma: float = 0.99,
-                      monitor: bool = True, privileged: bool = False, motor_integral: bool = False) -> VecEnv:
+                      monitor: bool = True, privileged: bool = False, motor_integral: bool = False,
+                      command: "dict[str, float] | None" = None) -> VecEnv:
     """An SB3 VecEnv of ``n_envs`` rigs in one batched core call per step.
 
     ``residual`` (V): the action in [-1, 1] is a correction ``residual * a`` on the feedforward voltage
@@ -165,7 +195,8 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
     ``VecNormalize``); the exported policy carries the frozen statistics (:mod:`agents.export`).
     ``privileged``: append the critic's privileged entries (:class:`agents.privileged.PrivilegedObsVecEnv`).
     ``motor_integral``: append the motor-angle tracking integral (:class:`MotorIntegralVecEnv`, :mod:`agents.integral`;
-    'motor' observation, no residual structure).
+    'motor' observation, no residual structure).  ``command``: the command schedule's settings
+    (:class:`agents.command.CommandSchedule`; needs ``motor_integral``).
     ``frame_stack``: number of stacked observations (1 = none).  ``seed``: rig i gets seed + i.
     """
     if env_id not in ENV_IDS:
@@ -194,7 +225,10 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
     if motor_integral:
         if residual is not None or base is not None:
             raise ValueError("the motor-angle integral works without a residual structure")
-        venv = MotorIntegralVecEnv(venv, float(venv.get_attr("options")[0].control_dt))
+        venv = MotorIntegralVecEnv(venv, float(venv.get_attr("options")[0].control_dt),
+                                   command=CommandSchedule.from_config(command))
+    elif command is not None:
+        raise ValueError("the command schedule needs the motor-angle integral (motor_integral: true)")
     if privileged:
         if frame_stack > 1 or base is not None:
             raise ValueError("the privileged critic works without frame stacking and without a base controller")

@@ -64,10 +64,14 @@ class FlatnessTeacher:
         self.z[index] = 0.0
 
     def act(self, omega_u: np.ndarray, alpha: np.ndarray, omega_l: np.ndarray,
-            z: np.ndarray | None = None) -> np.ndarray:
+            z: np.ndarray | None = None, target: np.ndarray | None = None) -> np.ndarray:
         """Normalised voltages (n,) for the true speeds (rad/s) and winding alpha = theta_l - theta_u (rad);
         advances the reference and the integral by one period.  ``z`` (rad, (n,)): an integral to use
-        instead of the teacher's own (e.g. the student's observable motor-angle integral, :mod:`agents.integral`)."""
+        instead of the teacher's own (e.g. the student's observable motor-angle integral, :mod:`agents.integral`).
+        ``target`` (rad/s, (n,)): a new target of each rig (a speed command that changes in time,
+        :mod:`agents.command`), followed through the reference's lags."""
+        if target is not None:
+            self.law.target = np.asarray(target, dtype=float).copy()
         r = self.law.y[2].copy()  # the reference the law uses now
         zz = self.z if z is None else np.asarray(z, dtype=float)
         u = self.law(np.asarray(omega_u, dtype=float), np.asarray(alpha, dtype=float),

@@ -127,7 +127,7 @@ def _env(env_id: str, hp: dict[str, Any], n: int, seed: int, evaluation: bool = 
                              normalize_reward=bool(hp.get("normalize_reward", False)),
                              normalize_obs=bool(hp.get("normalize_obs", False)), gamma=float(hp.get("gamma", 0.99)),
                              privileged=bool(hp.get("privileged_critic", False)),
-                             motor_integral=bool(hp.get("motor_integral", False)))
+                             motor_integral=bool(hp.get("motor_integral", False)), command=hp.get("command_schedule"))
     if evaluation and isinstance(venv, VecNormalize):
         venv.training, venv.norm_reward = False, False
     return venv
@@ -260,7 +260,7 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
 
         distill(model, env_id, hp["env_kwargs"], teacher, n_envs=hp["n_envs"], seed=seed,
                 privileged=bool(hp.get("privileged_critic")), motor_integral=bool(hp.get("motor_integral")),
-                log=print, **distill_kwargs)
+                command=hp.get("command_schedule"), log=print, **distill_kwargs)
     t_distill = time.perf_counter() - t_distill
     remaining = hp["n_timesteps"] - (model.num_timesteps if resume else 0)
     cb = LatestCheckpoint(out / "checkpoints", checkpoint_every)

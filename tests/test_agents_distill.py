@@ -126,3 +126,53 @@ def test_zero_timesteps_need_a_teacher(tmp_path) -> None:
 
     with pytest.raises(ValueError, match="without a teacher"):
         train("drillgym/Torsional-v0", "ppo", tmp_path, timesteps=0, progress=False, tensorboard=False)
+
+
+def test_command_schedule_reaches_the_target_from_above_and_is_the_same_on_the_rig(tmp_path) -> None:
+    import pytest
+
+    from agents.command import CommandSchedule, SpeedCommand
+    from agents.controller import AgentController
+    from agents.envs import MotorIntegralVecEnv
+    from drillgym.envs.sb3 import make_sb3_vec
+
+    sched = CommandSchedule(approach=8.5, hold=8.0, ramp=20.0, lag=0.0)
+    assert np.allclose(sched([0.0, 8.0, 18.0, 28.0, 40.0], 2.5), [8.5, 8.5, 5.5, 2.5, 2.5])
+    assert np.allclose(sched([0.0, 18.0], 9.0), 9.0)  # a target above the approach is commanded at once
+    cmd = SpeedCommand(CommandSchedule(lag=1.0), 2, 0.01)
+    w = []
+    for _ in range(4000):
+        cmd.advance(np.array([2.5, 9.0]))
+        w.append(cmd.value)
+    w = np.array(w)
+    assert 8.0 < w[1000, 0] < 8.5 and abs(w[-1, 0] - 2.5) < 1e-3 and abs(w[-1, 1] - 9.0) < 1e-6
+    assert np.all(np.diff(w[:, 1]) >= 0) and w[0, 0] < 0.01  # from rest, smoothly
+    with pytest.raises(ValueError, match="unknown keys"):
+        CommandSchedule.from_config({"approach": 8.5, "slope": 1.0})
+
+    short = {"approach": 6.0, "hold": 0.05, "ramp": 0.1, "lag": 0.05}
+    res = train("drillgym/Torsional-v0", "ppo", tmp_path / "student", timesteps=0, seed=0, progress=False,
+                tensorboard=False, teacher="flatness",
+                overrides={"n_envs": 4, "motor_integral": True, "command_schedule": short,
+                           "env_kwargs": {"episode_duration": 0.3, "motor_history": 4}},
+                distill_kwargs={"iterations": 1, "steps": 20, "epochs": 1, "population": "default"})
+    student = ExportedPolicy.load(res.policy_path)
+    venv = MotorIntegralVecEnv(make_sb3_vec("drillgym/Torsional-v0", 1, observation="motor", motor_history=4,
+                                            omega_ref=3.0, episode_duration=0.3, normalize_action=True,
+                                            alpha0_range=(0.0, 0.0), counts_per_rev=0), 0.01,
+                               command=CommandSchedule(**short))
+    venv.seed(0)
+    obs = venv.reset()
+    inner = venv.venv
+    while not hasattr(inner, "batch"):
+        inner = inner.venv
+    s = inner.batch.system
+    ctl = AgentController(student, omega_ref=3.0, dt=0.01)
+    ctl.reset({"theta_u": s.Y[:, 0].copy()})
+    commands = []
+    for _ in range(25):  # the rig's controller builds the training env's observation, command and integral
+        u = ctl.act({"theta_u": s.Y[:, 0].copy()})
+        assert np.array_equal(np.hstack([ctl.stack, ctl.z[:, None].astype(np.float32)]), obs)
+        commands.append(float(obs[0, -2]))
+        obs, *_ = venv.step((u / 5.0).reshape(-1, 1))
+    assert commands[0] == 0.0 and max(commands) > 3.5  # the command rose above the 3 rad/s target

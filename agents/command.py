@@ -1,0 +1,120 @@
+"""The command schedule a policy is given: the target reached from above along the stable branch.
+
+From rest the rig falls into stick-slip for every voltage up to the second fold (MODEL.md R7, R9), but
+its slip equilibrium is stable from the second Hopf point up.  A policy that sees only the motor angle
+cannot damp the lower disc robustly below that point (:mod:`controllers.limits`); what it can do is
+reach a low target *from above*, where no stick-slip cycle exists on the way.  The schedule is the
+speed command (rad/s) the policy is asked to follow, not a voltage::
+
+    omega_cmd(t) = approach                                    t < hold
+                 = approach + (t - hold) / ramp * (target - approach)   hold <= t < hold + ramp
+                 = target                                      later
+    (targets at or above ``approach``: omega_cmd = target throughout)
+
+passed through three first-order lags of time constant ``lag`` (a gentle start from rest; the command
+is 0 at the start).  :class:`SpeedCommand` replaces the target entry of the 'motor' observation by it,
+and the motor-angle tracking integral (:mod:`agents.integral`) follows it.  It is a function of the
+clock and the target only (numpy, no model): :class:`agents.envs.MotorIntegralVecEnv` computes it in
+training and :class:`agents.controller.AgentController` on the rig, with the same class.  The voltage is
+the network's alone: nothing here computes or adds a voltage.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = ["CommandSchedule", "SpeedCommand"]
+
+
+@dataclass(frozen=True)
+class CommandSchedule:
+    """Speed command reaching the target from above.
+
+    Args:
+        approach: speed (rad/s) commanded first, above the fold of the bifurcation diagram
+            (nominal torsional rig: fold at 3.85 V, about 6.7 rad/s; 8.5 rad/s needs 4.87 V).
+        hold: time (s) at the approach speed.
+        ramp: duration (s) of the linear ramp from the approach speed down to the target.
+        lag: time constant (s) of each of the three lags the schedule passes through (0: none).
+    """
+
+    approach: float = 8.5
+    hold: float = 8.0
+    ramp: float = 20.0
+    lag: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("approach", "hold", "ramp", "lag"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and np.isfinite(v) and v >= 0):
+                raise ValueError(f"command schedule: {name} must be a finite number >= 0, got {v!r}")
+        if self.approach <= 0:
+            raise ValueError(f"command schedule: approach must be a positive speed (rad/s), got {self.approach!r}")
+
+    @classmethod
+    def from_config(cls, spec: "dict[str, Any] | None") -> "CommandSchedule | None":
+        """The schedule of a hyperparameter entry (``command_schedule: {approach, hold, ramp, lag}``); None: none."""
+        if spec is None:
+            return None
+        if not isinstance(spec, dict):
+            raise ValueError(f"command schedule: expected a mapping {{approach, hold, ramp}}, got {spec!r}")
+        unknown = sorted(set(spec) - {"approach", "hold", "ramp", "lag"})
+        if unknown:
+            raise ValueError(f"command schedule: unknown keys {unknown}; expected approach, hold, ramp, lag")
+        return cls(**{k: float(v) for k, v in spec.items()})
+
+    def as_config(self) -> dict[str, float]:
+        """The mapping :meth:`from_config` reads."""
+        return asdict(self)
+
+    def __call__(self, t: "float | np.ndarray", target: "float | np.ndarray") -> np.ndarray:
+        """Commanded speed (rad/s) at time ``t`` (s since the start) towards ``target`` (rad/s)."""
+        t = np.asarray(t, dtype=float)
+        target = np.asarray(target, dtype=float)
+        s = np.clip((t - self.hold) / self.ramp, 0.0, 1.0) if self.ramp > 0 else (t >= self.hold).astype(float)
+        return np.where(target < self.approach, self.approach + s * (target - self.approach), target)
+
+    @property
+    def duration(self) -> float:
+        """Time (s) after which the command equals the target."""
+        return self.hold + self.ramp
+
+
+class SpeedCommand:
+    """The commanded speed of ``n`` rigs over time: the schedule through its three lags.
+
+    ``value`` (rad/s, (n,)) is the command at the current time; :meth:`advance` moves every rig one
+    control period ``dt`` (s) on; :meth:`reset` starts rigs from rest (time 0, command 0)."""
+
+    def __init__(self, schedule: CommandSchedule, n: int, dt: float) -> None:
+        if not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f"the control period must be positive (s), got {dt!r}")
+        self.schedule, self.dt = schedule, float(dt)
+        self.t = np.zeros(n)
+        self.y = np.zeros((3, n))
+
+    @property
+    def value(self) -> np.ndarray:
+        """Commanded speed now (rad/s)."""
+        return self.y[2].copy()
+
+    def reset(self, index: "np.ndarray | slice" = slice(None)) -> None:
+        """Rigs ``index`` start from rest: time 0, command 0."""
+        self.t[index] = 0.0
+        self.y[:, index] = 0.0
+
+    def advance(self, target: np.ndarray) -> None:
+        """One control period on, towards each rig's ``target`` (rad/s, (n,))."""
+        w = self.schedule(self.t, target)
+        tau = self.schedule.lag
+        if tau <= 0:
+            self.y[:] = w
+        else:  # exact discretisation of each lag for a constant input over the period
+            a = 1.0 - np.exp(-self.dt / tau)
+            self.y[0] += a * (w - self.y[0])
+            self.y[1] += a * (self.y[0] - self.y[1])
+            self.y[2] += a * (self.y[1] - self.y[2])
+        self.t += self.dt
