@@ -89,3 +89,17 @@ def test_load_errors_name_the_problem(tmp_path):
     np.savez(full, **arrays)
     with pytest.raises(ValueError, match="'full' observation"):
         agents.load_controller(str(full), config="torsional", omega_ref=3.0)
+
+
+ROBUST = str(agents.KEPT_POLICY.parents[1] / "torsional_motor_learned_robust" / "policy.npz")
+
+
+@pytest.mark.parametrize("scenario", ["friction-20", "friction+20"])
+def test_robust_learned_policy_holds_3_5_rad_s_from_rest_with_friction_20_percent_off(scenario):
+    """The population-trained motor-side policy (speed command from above, agents/command.py): from rest,
+    where the open loop sticks and slips at 3.5 rad/s, it holds the target with the brake 20 % off."""
+    base, agent = (run_job(c, "torsional", SCENARIOS[scenario], [3.5], duration=60.0, window=20.0)[0]
+                   for c in ("baseline", f"agent:{ROBUST}"))
+    assert base["ssi"] > 1.0
+    assert agent["ssi"] < 0.1 and agent["tracking_rms"] < 0.1
+    assert 3.15 < agent["omega_l_min"] and agent["omega_l_max"] < 3.85  # within 10 % of the target throughout the window
