@@ -39,11 +39,17 @@ def population_env_kwargs(env_kwargs: dict[str, Any], population: "str | Path | 
 class PopulationRandomizer:
     """Per-episode parameter rows drawn from an uncertainty set (the env's ``ParameterRandomizer`` role).
 
-    ``composition``: the env's model (it must hold the set's effects); ``base``: the nominal RigParams."""
+    ``composition``: the env's model (it must hold the set's effects); ``base``: the nominal RigParams.
+    ``nominal_fraction``: probability (0-1) that an episode's rig is the nominal one instead (base
+    parameters nominal, every effect of the set at its lower bound, no position friction)."""
 
     active = True
 
-    def __init__(self, composition, base, population: "str | Path | None" = None) -> None:
+    def __init__(self, composition, base, population: "str | Path | None" = None,
+                 nominal_fraction: float = 0.0) -> None:
+        if not (0.0 <= nominal_fraction <= 1.0):
+            raise ValueError(f"nominal_fraction must be in [0, 1], got {nominal_fraction!r}")
+        self.nominal_fraction = float(nominal_fraction)
         self.us = _uncertainty(population)
         missing = [e for e in self.us.effect_names() if e not in set(composition.names)]
         if missing:
@@ -54,6 +60,10 @@ class PopulationRandomizer:
     def sample(self, rng: np.random.Generator) -> np.ndarray:
         """One parameter vector (the composition's layout)."""
         us = self.us
+        if self.nominal_fraction > 0 and rng.random() < self.nominal_fraction:
+            values = {k: float(lo) for k, (lo, hi) in us.effects.items()}
+            values.update({n: 0.0 for pair in us.harmonics for n in pair})
+            return self.composition.vector(self.base, values)
         scaled = {k: getattr(self.base, k) * (1.0 + rng.uniform(-r, r)) for k, r in us.relative.items()}
         values = {k: float(rng.uniform(lo, hi)) for k, (lo, hi) in us.effects.items()}
         for (cn, sn), amax in us.harmonics.items():
@@ -62,10 +72,12 @@ class PopulationRandomizer:
         return self.composition.vector(self.base.replace(**scaled), values)
 
 
-def use_population(venv, population: "str | Path | None" = None) -> None:
-    """Draw every later episode's rig of the drillgym SB3 VecEnv ``venv`` (or a wrapper of it) from the set."""
+def use_population(venv, population: "str | Path | None" = None, nominal_fraction: float = 0.0) -> None:
+    """Draw every later episode's rig of the drillgym SB3 VecEnv ``venv`` (or a wrapper of it) from the set
+    (the nominal rig with probability ``nominal_fraction``)."""
     inner = venv
     while not hasattr(inner, "batch"):
         inner = inner.venv
     batch = inner.batch
-    batch.randomizer = PopulationRandomizer(batch.system.composition, batch.options.rig_params, population)
+    batch.randomizer = PopulationRandomizer(batch.system.composition, batch.options.rig_params, population,
+                                            nominal_fraction)

@@ -85,6 +85,14 @@ def test_population_randomizer_draws_the_uncertainty_set() -> None:
     assert amp.max() <= 0.2 + 1e-12 and rows[:, comp.param_index("Tcl")].std() == 0.0  # not in the set
     with pytest.raises(ValueError, match="lacks the population's effects"):
         PopulationRandomizer(compose(["motor_lag"], {})[0], RigParams())
+    mixed = PopulationRandomizer(comp, RigParams(), nominal_fraction=0.5)
+    rows = np.array([mixed.sample(np.random.default_rng(k)) for k in range(200)])
+    nominal = rows[:, comp.param_index("km")] == RigParams().km
+    assert 0.35 < nominal.mean() < 0.65  # about half the rigs are the nominal one
+    assert np.all(rows[nominal, comp.param_index("pf_c1")] == 0.0) and np.all(rows[nominal, comp.param_index("delay")] == 0.0)
+    assert np.all(rows[nominal, comp.param_index("tau_m")] == 1e-3)  # the set's lower bound: "no lag"
+    with pytest.raises(ValueError, match="nominal_fraction"):
+        PopulationRandomizer(comp, RigParams(), nominal_fraction=1.5)
 
 
 def test_motor_integral_is_the_same_in_training_and_on_the_rig(tmp_path) -> None:
