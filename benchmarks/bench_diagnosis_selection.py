@@ -18,7 +18,7 @@ hides:
   halve the unexplained variance (1 − R² of θl and α).
 
     NUMBA_NUM_THREADS=1 .venv/bin/python benchmarks/bench_diagnosis_selection.py [--jobs 2] [--json out.json]
-        [--kind combo] [--ids 1,2]
+        [--kind combo] [--ids 1,2] [--seed N]
 """
 
 from __future__ import annotations
@@ -227,15 +227,17 @@ def main() -> None:
     ap.add_argument("--kind", default=None)
     ap.add_argument("--ids", default=None)
     ap.add_argument("--quick", action="store_true", help="the reduced matrix (21 recordings of 20-30 s)")
+    ap.add_argument("--seed", type=int, default=SEED,
+                    help=f"seed of the matrix (conditions, mismatch draws, noise); default {SEED}, another one: held out")
     a = ap.parse_args()
-    cases = build_matrix(quick=a.quick)
+    cases = build_matrix(seed=a.seed, quick=a.quick)
     if a.kind:
         cases = [c for c in cases if c["kind"] == a.kind]
     if a.ids:
         keep = {int(x) for x in a.ids.split(",")}
         cases = [c for c in cases if c["id"] in keep]
     print(f"{len(cases)} recordings of the independent rig{' (quick matrix)' if a.quick else ''}, {a.jobs} processes, "
-          f"seed {SEED}", flush=True)
+          f"seed {a.seed}", flush=True)
     t0 = time.perf_counter()
     results = []
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:

@@ -139,3 +139,49 @@ def test_candidate_found_on_the_lower_disc_when_the_upper_disc_is_noise():
     (label, coef), = sats
     g = float(label.split(",")[1].strip(" )"))
     assert coef < 0 and abs(coef * min(g, 1.0)) == pytest.approx(p.ktheta * 0.1, rel=0.5), cand.terms
+
+
+def test_measurement_effect_scored_per_channel_is_not_drowned_by_another_channel():
+    """An effect that removes a y-only residual (an LVDT skew) while a large, correlated residual stays in
+    the angle channel: pooled, the angle channel's variance swamps it; per channel it is clearly found."""
+    import numpy as np
+
+    from drillgym.diagnosis.selection import _significant, score
+    from drillgym.identification.fitting import FitResult
+
+    rng = np.random.default_rng(0)
+    n = 4000
+    t = np.arange(n) / 50.0
+    angle = 30.0 * np.sin(0.3 * t) + rng.standard_normal(n)  # a slowly varying model error, 30 noise units
+    y_small = rng.standard_normal(n)
+    y_with_skew = y_small + 2.0 * np.sin(2.0 * t)  # what the skew explains: 2 noise units in y only
+    r0 = np.concatenate([angle, y_with_skew])
+    r1 = np.concatenate([angle, y_small])
+    channels = np.repeat([0, 1], n)
+    big = FitResult(["lvdt_skew"], {}, {}, RigParams(), np.zeros(1), float(r0 @ r0), float(r1 @ r1), 2 * n, 1,
+                    residual=r1)
+    pooled, _ = score(float(r0 @ r0), big, 1)
+    per_channel, ne = score(r0, big, 1, channels=channels)
+    assert pooled < 15.0 < per_channel  # SIGNIFICANCE is 15 nats
+    assert not _significant(per_channel, float(r0 @ r0), float(r1 @ r1), 2 * n)  # pooled RMS cut < 20 %
+    assert _significant(per_channel, float(r0 @ r0), float(r1 @ r1), 2 * n, r0, r1, channels)
+    nothing = FitResult(["lvdt_skew"], {}, {}, RigParams(), np.zeros(1), float(r0 @ r0), float(r0 @ r0), 2 * n, 1,
+                        residual=r0.copy())
+    assert score(r0, nothing, 1, channels=channels)[0] < 0  # explaining nothing costs the penalty
+
+
+def test_objective_channel_ids_follow_the_residual_layout():
+    import numpy as np
+
+    from drillgym.identification.experiment import prepare_experiment
+    from drillgym.identification.fitting import Objective
+    from drillgym.identification.segmented import SegmentedModel
+
+    ts = synthetic_measurement("coupled", duration=6.0, seed=3, offset=2.5)
+    ex = prepare_experiment(ts, compare_rate_hz=50.0)
+    obj = Objective(SegmentedModel([ex], 2.0), {"theta_u": 1.0, "theta_l": 1.0, "x": 1.0, "y": 1.0})
+    r = obj.residual_matrix(RigParams().to_vector()[None, :])[0]
+    assert obj.channel_ids.shape == r.shape
+    assert sorted(set(obj.channel_ids.tolist())) == list(range(len(obj.channels))) and obj.channels == [
+        "theta_l", "theta_u", "x", "y"]
+    assert np.count_nonzero(np.diff(obj.channel_ids)) == 3  # one experiment: four channels, one block each

@@ -434,7 +434,12 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         if first["selected"] and set(first["selected"]) != set(out["selected"]):
             alt = forward_select(obj, comp, vec0, usable, base_names, n_joint=n_joint, max_effects=max_effects,
                                  refine=refine_speeds, initial=first["selected"], start=first["vector"])
-            out = _better(_better(out, alt, usable, base_names, bounds=True), first, usable, base_names)
+            out = _better(out, alt, usable, base_names, bounds=True)
+            # effects of the nominal order that the base parameters, freed within a few percent and at no
+            # bound, made insignificant are a base mismatch, not effects: the nominal order is not taken then
+            explained_by_base = set(first["selected"]) - set(alt["selected"])
+            if not (explained_by_base and alt["base_off"] and not alt["at_bounds"]):
+                out = _better(out, first, usable, base_names)
         paths["nominal_first"] = list(first["selected"])
         if alt is not None:
             paths["nominal_then_base"] = list(alt["selected"]) + [f"bound:{n}" for n in alt["at_bounds"]]
@@ -506,8 +511,10 @@ def _better(a: dict, b: dict, effects: Sequence[type[Effect]], base_names: Seque
         return k, ne
 
     # (``bounds``: two models with the base parameters freed) an active bound means a wrong model (a missing
-    # effect absorbed by the base parameters at the edge of "a few percent"): a model with none is preferred
-    if bounds and bool(a.get("at_bounds")) != bool(b.get("at_bounds")):
+    # effect absorbed by the base parameters at the edge of "a few percent"): a model with none is preferred.
+    # Only between two models whose base parameters did move: a model that kept the nominal base reports no
+    # bounds at all, and is compared by the criterion
+    if bounds and a.get("base_off") and b.get("base_off") and bool(a.get("at_bounds")) != bool(b.get("at_bounds")):
         return b if a.get("at_bounds") else a
     (ka, na), (kb, nb) = k_and_ne(a), k_and_ne(b)
     ne = min(na, nb)

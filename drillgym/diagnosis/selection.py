@@ -23,7 +23,11 @@ model a few percent off leaves a residual that some effect partly mimics.  Here:
    explains more than the noise (``MIN_EXPLAINED`` noise units²).  ``N_eff = N (1 − ρ)/(1 + ρ)``
    with ρ the lag-1 autocorrelation of the residual of the *larger* model (the one with the
    effect): the residual that remains when the effect is in, not the one the effect removes,
-   measures how correlated the unexplained part is.  Then the rest are re-ranked on the new
+   measures how correlated the unexplained part is.  A *measurement* effect (an LVDT's offset or
+   skew) changes only its own channels, so it is scored per channel (:func:`score`: the sum over
+   channels of N_eff,c ln(RSS_c ratio), each channel with its own noise level and correlation) and
+   may pass the reduction rule in one channel: pooled, a small torsional model error drowns a 2° skew
+   that only the y reading shows.  Then the rest are re-ranked on the new
    residual; the loop stops when the best candidate is not significant.
 4. **Backward check.**  With two or more effects accepted, each is removed in turn (the rest and
    the base parameters refitted); an effect whose removal is not significant is dropped.
@@ -37,7 +41,9 @@ model a few percent off leaves a residual that some effect partly mimics.  Here:
 7. **Both orders** (:func:`drillgym.diagnosis.ranking.diagnose`): the base refit first can absorb part
    of an effect, so the selection is also run on the nominal base (effects first), then with the
    base parameters freed alongside those effects (the backward check drops what the base explains);
-   of the final models the one with the lower N_eff ln RSS + k ln N_eff is kept (one N_eff for both).
+   of the final models the one with the lower N_eff ln RSS + k ln N_eff is kept (one N_eff for both),
+   except that effects the freed base parameters made insignificant (within their range, none at a
+   bound) are a base mismatch: the nominal order's model is then not taken.
 
 Screening fits also start from the nominal base parameters (with the effects accepted so far), and
 standard errors are inflated by √(N / N_eff) (least squares assumes independent residuals).
@@ -54,6 +60,7 @@ import numpy as np
 
 from ..configurations import Configuration
 from ..effects import Composition, Effect
+from ..effects.base import Measurement
 from ..identification.fitting import FitResult, FitVariable, Objective, fit_parameters
 from ..params import N_PARAMS, PARAM_INFO, RigParams
 
@@ -122,12 +129,32 @@ def n_eff(r: np.ndarray) -> float:
     return max(n * (1 - rho) / (1 + rho), 10.0)
 
 
-def score(rss_small: float, fit_big: FitResult, k: int, n_eff_ref: float = 0.0) -> tuple[float, float]:
+def score(rss_small: "float | np.ndarray", fit_big: FitResult, k: int, n_eff_ref: float = 0.0,
+          channels: "np.ndarray | None" = None) -> tuple[float, float]:
     """(score in nats, N_eff) of a larger model's fit against a smaller model's RSS (N_eff: the larger
-    model's own residual, or ``n_eff_ref`` if larger)."""
-    ne = max(n_eff(fit_big.residual), n_eff_ref)
-    rss1 = max(fit_big.rss_after, 1e-300)
-    return ne * math.log(max(rss_small, 1e-300) / rss1) - k * math.log(ne), ne
+    model's own residual, or ``n_eff_ref`` if larger).
+
+    With the smaller model's residual *vector* and ``channels`` (the channel of each residual entry,
+    :attr:`Objective.channel_ids`), each channel has its own noise variance and correlation: the
+    log-likelihood ratio is the sum over channels of N_eff,c ln(RSS_c small / RSS_c large), and N_eff the
+    sum of the channels'.  A pooled variance lets a large residual in one channel (a slightly wrong
+    torsional model) drown an effect that acts on another alone (an LVDT's skew changes only y)."""
+    r1 = fit_big.residual
+    if channels is None or np.ndim(rss_small) == 0 or r1 is None or len(r1) != len(channels):
+        rss0 = float(rss_small) if np.ndim(rss_small) == 0 else float(np.dot(rss_small, rss_small))
+        ne = max(n_eff(r1), n_eff_ref)
+        rss1 = max(fit_big.rss_after, 1e-300)
+        return ne * math.log(max(rss0, 1e-300) / rss1) - k * math.log(ne), ne
+    r0 = np.asarray(rss_small, dtype=float)
+    total, ne_sum = 0.0, 0.0
+    for c in np.unique(channels):
+        m = channels == c
+        a, b = r0[m], r1[m]
+        ne_c = n_eff(b)
+        total += ne_c * math.log(max(float(a @ a), 1e-300) / max(float(b @ b), 1e-300))
+        ne_sum += ne_c
+    ne = max(ne_sum, n_eff_ref)
+    return total - k * math.log(ne), ne
 
 
 @dataclass
@@ -216,9 +243,24 @@ def _neutralise(st: _State, vec: np.ndarray, name: str) -> np.ndarray:
     return v
 
 
-def _significant(sc: float, rss0: float, rss1: float, n: int) -> bool:
+def _significant(sc: float, rss0: float, rss1: float, n: int, r0: "np.ndarray | None" = None,
+                 r1: "np.ndarray | None" = None, channels: "np.ndarray | None" = None) -> bool:
+    """Score above :data:`SIGNIFICANCE`, and the residual RMS cut by :data:`MIN_REDUCTION` by more than the
+    noise floor :data:`MIN_EXPLAINED`: over all channels, or (residual vectors ``r0``, ``r1`` and their
+    ``channels`` given) in one channel."""
+    if not sc > SIGNIFICANCE:
+        return False
     rm0, rm1 = math.sqrt(rss0 / n), math.sqrt(rss1 / n)
-    return sc > SIGNIFICANCE and rm1 < (1 - MIN_REDUCTION) * rm0 and rm0 ** 2 - rm1 ** 2 > MIN_EXPLAINED
+    if rm1 < (1 - MIN_REDUCTION) * rm0 and rm0 ** 2 - rm1 ** 2 > MIN_EXPLAINED:
+        return True
+    if r0 is None or r1 is None or channels is None or len(r0) != len(channels) or len(r1) != len(channels):
+        return False
+    for c in np.unique(channels):
+        m = channels == c
+        q0, q1 = float(np.mean(r0[m] ** 2)), float(np.mean(r1[m] ** 2))
+        if math.sqrt(q1) < (1 - MIN_REDUCTION) * math.sqrt(q0) and q0 - q1 > MIN_EXPLAINED:
+            return True
+    return False
 
 
 _TORQUE_SCALE = ("km", "Tcu", "bu", "ktheta", "Jl", "Ts", "Tc", "bb", "Tcl", "bl")
@@ -259,8 +301,18 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
             obj.model.speed_offsets = [np.zeros_like(o) for o in obj.model.speed_offsets]
             obj.model.refine_initial_speeds(vec, obj.weights, obj.scales)
         r = obj.residual_matrix(vec[None, :])[0]
+        cur[0] = r
         return float(r @ r)
 
+    channel_ids = obj.channel_ids
+
+    def ch(name: str) -> "np.ndarray | None":
+        """Channels of the residual for scoring ``name`` per channel: a measurement effect changes only its
+        own channels, so its likelihood ratio is the per-channel one (see :func:`score`); dynamic effects
+        change every channel and are scored on the pooled residual."""
+        return channel_ids if issubclass(st.effects[name], Measurement) else None
+
+    cur: list[np.ndarray] = [np.zeros(0)]  # the current model's residual vector
     rss_nominal = refine_for(vec0)
     rss_cur = rss_nominal
     fb = None
@@ -275,7 +327,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
         rss_cur = refine_for(st.vec)
         fb2 = _fit(st, st.vec, list(st.base_names) + _effect_params(st, st.selected), max(4, max_nfev_base // 2))
         if fb2.rss_after < rss_cur:
-            st.vec, rss_cur = fb2.vector, fb2.rss_after
+            st.vec, rss_cur, cur[0] = fb2.vector, fb2.rss_after, fb2.residual
         st.fit = fb2
     last_round: dict[str, SelectionStep] = {}
     tried_group = False
@@ -318,13 +370,13 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
                 except ValueError:
                     pass
             if res.rss_after > rss_cur:  # the effect at its neutral values: nothing explained
-                res.rss_after = rss_cur
-            sc, ne = score(rss_cur, res, k, n_eff_ref)
+                res.rss_after, res.residual = rss_cur, cur[0].copy()
+            sc, ne = score(cur[0], res, k, n_eff_ref, ch(name))
             eff_vals = {p: res.values.get(p, float(res.vector[st.comp.param_index(p)]))
                         for p in _effect_params(st, [name])}
             eff_std = {p: res.std.get(p, float("nan")) for p in eff_vals}
             round_[name] = SelectionStep(name, sc, rss_cur, res.rss_after, eff_vals, eff_std,
-                                         _significant(sc, rss_cur, res.rss_after, N), ne)
+                                         _significant(sc, rss_cur, res.rss_after, N, cur[0], res.residual, ch(name)), ne)
         best = max(joint or round_, key=lambda n: round_[n].score)
         last_round = round_
         if not round_[best].significant:
@@ -344,7 +396,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
             except ValueError:
                 break
             kg = len(_effect_params(st, group))
-            sc, ne = score(rss_cur, gr, kg, n_eff_ref)
+            sc, ne = score(cur[0], gr, kg, n_eff_ref)
             if not _significant(sc, rss_cur, gr.rss_after, N):
                 break
             for n in group:
@@ -358,7 +410,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
             rss_cur = refine_for(st.vec)
             rf = _fit(st, st.vec, list(st.base_names) + _effect_params(st, st.selected), max_nfev_joint)
             if rf.rss_after < rss_cur:
-                st.vec, rss_cur = rf.vector, rf.rss_after
+                st.vec, rss_cur, cur[0] = rf.vector, rf.rss_after, rf.residual
             st.fit = rf
             continue
         st.selected.append(best)
@@ -368,7 +420,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
         # a second pass with speeds refined for the extended model
         rf = _fit(st, st.vec, list(st.base_names) + _effect_params(st, st.selected), max_nfev_joint)
         if rf.rss_after < rss_cur:
-            st.vec, rss_cur = rf.vector, rf.rss_after
+            st.vec, rss_cur, cur[0] = rf.vector, rf.rss_after, rf.residual
         st.fit = rf
     # step 4: backward check
     dropped: dict[str, str] = {}
@@ -379,14 +431,14 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
                            max_nfev_joint)
             full_fit = st.fit if st.fit is not None else without
             k = len(_effect_params(st, [name]))
-            sc, _ = score(without.rss_after, full_fit, k, n_eff_ref)
+            sc, _ = score(without.residual, full_fit, k, n_eff_ref, ch(name))
             for stp in steps:  # effects accepted up front get their score here
                 if stp.effect == name and not stp.score == stp.score:
                     stp.score, stp.rss_before, stp.rss_after = sc, without.rss_after, rss_cur
-            if not _significant(sc, without.rss_after, rss_cur, N):
+            if not _significant(sc, without.rss_after, rss_cur, N, without.residual, cur[0], ch(name)):
                 dropped[name] = f"removed by the backward check (score {sc:.1f} once the others are in)"
                 st.selected.remove(name)
-                st.vec, rss_cur = without.vector, without.rss_after
+                st.vec, rss_cur, cur[0] = without.vector, without.rss_after, without.residual
                 st.fit = without
     # step 6: lag or delay
     ties: dict[str, str] = {}

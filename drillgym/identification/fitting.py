@@ -121,6 +121,9 @@ class Objective:
         self.channels = sorted({c for m in self._meas for c in m})
         if not self.channels:
             raise ValueError(f"none of the channels {list(weights)} is in the data")
+        #: index into :attr:`channels` of every entry of a residual row (the layout of :meth:`residual_matrix`)
+        self.channel_ids = np.concatenate([np.full(int(np.count_nonzero(~np.isnan(m[:, 1:]))), self.channels.index(c))
+                                           for meas in self._meas for c, m in meas.items()])
 
     def residual_matrix(self, P: np.ndarray) -> np.ndarray:
         """(B, M) weighted, normalised residuals (model − data); a segment's first sample is skipped."""
