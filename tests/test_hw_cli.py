@@ -74,8 +74,10 @@ def test_watchdog_stop_exits_3_with_one_line(tmp_path, emu):
 
 
 def test_ctrl_c_exits_130_with_one_line(tmp_path, emu, eventually):
+    """Also when the process inherited an ignored SIGINT (a parent's SIG_IGN passes on to its children)."""
     rec = tmp_path / "run.csv"
-    p = cli("rig", "run", "--port", emu.port, "--controller", "const:1.0", "--duration", "20", "--record", str(rec))
+    p = cli("rig", "run", "--port", emu.port, "--controller", "const:1.0", "--duration", "60", "--record", str(rec),
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
     wait_commands(emu, REST_COMMANDS + 20, p)
     p.send_signal(signal.SIGINT)
     out, err = p.communicate(timeout=60)
@@ -252,3 +254,22 @@ def test_slow_disk_does_not_hold_up_the_control_loop(tmp_path, monkeypatch):
         env.close()
         assert e.firmware.stop_reason == P.StopReason.HOST  # the end of the episode, not the watchdog
     assert len(read_timeseries(tmp_path / "r.csv")) == 121
+
+
+def test_run_restores_the_callers_signal_handlers():
+    """``rig run`` called in-process (a notebook, CliRunner) must not leave Ctrl-C ignored afterwards."""
+    from drillgym.commands.rig import _interruptible
+
+    before = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        with pytest.raises(KeyboardInterrupt):
+            with _interruptible():
+                assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+                signal.signal(signal.SIGINT, signal.SIG_IGN)  # as the interrupt path does during the stop
+                raise KeyboardInterrupt
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN  # the caller's own setting, restored
+        assert signal.getsignal(signal.SIGTERM) == before[signal.SIGTERM]
+    finally:
+        for sig, h in before.items():
+            signal.signal(sig, h)

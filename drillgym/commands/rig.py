@@ -16,6 +16,7 @@ option (nothing moved); see :mod:`drillgym.commands.rig_ops`.
 from __future__ import annotations
 
 import signal
+from contextlib import contextmanager
 from pathlib import Path
 from typing import List, Optional
 
@@ -31,6 +32,22 @@ rig_app = typer.Typer(no_args_is_help=True, help="hardware twin: run on the rig,
 
 def _interrupt(*_) -> None:
     raise KeyboardInterrupt
+
+
+@contextmanager
+def _interruptible():
+    """Ctrl-C (SIGINT) and SIGTERM raise KeyboardInterrupt inside the block, whatever the process inherited
+    (a parent that ignores SIGINT passes SIG_IGN on to its children, and an ignored Ctrl-C would leave the
+    motor running until the episode's end); the previous handlers are restored afterwards, so a run called
+    in-process (tests, notebooks) does not leave Ctrl-C ignored in the caller."""
+    old = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        yield
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
 
 
 @rig_app.command("emulate")
@@ -124,12 +141,10 @@ def run_cmd(
     import numpy as np
 
     import hw
-    from drillgym.errors import SafetyError
-    from hw.realtime import prioritize, quiet_gc
-    from hw.runner import load_policy, make_controller, run_episode
+    from hw.runner import load_policy, make_controller
 
     from .outputs import output_dir, output_file
-    from .rig_ops import check_writable, dry_run as do_dry_run, run_with_reconnect, trained_agent, warm_up
+    from .rig_ops import check_writable, dry_run as do_dry_run, trained_agent, warm_up
 
     if (controller is None) == (policy is None):
         raise ValueError("give exactly one of --controller or --policy")
@@ -176,33 +191,10 @@ def run_cmd(
         output_file(record)
     else:
         output_dir(record)
-    signal.signal(signal.SIGTERM, _interrupt)
     notice = ClampNotice(say)
-    env = None
-    try:
-        env = make_env()  # handshake and compiled kernels loaded at normal priority, then the episode's
-        typer.echo(f"scheduling priority: {prioritize(realtime)}")
-        watchdog_ms = env.unwrapped.firmware.watchdog_ms
-        with quiet_gc():
-            res, faults = run_with_reconnect(
-                env, lambda: run_episode(env, controller=ctrl, policy=pol, seed=seed, on_step=notice),
-                reconnect, reconnect_wait, say)
-    except KeyboardInterrupt:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the stop short
-        rec = None
-        if env is not None:
-            env.close()  # ends the episode: EMERGENCY_STOP, recording flushed and closed
-            rec = env.unwrapped.recording
-        say(f"drillgym: interrupted: motor stopped (0 V), recording kept: {rec if rec is not None else 'none yet'}")
-        raise typer.Exit(INTERRUPT_EXIT)
-    except SafetyError as exc:
-        if env is not None:
-            env.close()
-        say(f"drillgym: safety stop: {exc}")
-        raise typer.Exit(STOP_EXIT)
-    finally:
-        if env is not None:
-            env.close()
+    with _interruptible():
+        res, faults, watchdog_ms = _run_episode(make_env, ctrl, pol, seed, notice, realtime, reconnect,
+                                                reconnect_wait, say)
     ms = 1e3
     typer.echo(f"{res.steps} steps, return {res.total_reward:.2f}, "
                f"{'terminated' if res.terminated else 'truncated' if res.truncated else 'stopped'}"
@@ -249,3 +241,40 @@ def estop_cmd(
 
 def register(app: typer.Typer) -> None:
     app.add_typer(rig_app, name="rig")
+
+
+def _run_episode(make_env, ctrl, pol, seed, notice, realtime, reconnect, reconnect_wait, say):
+    """One episode on the rig: (result, link faults, the firmware's watchdog (ms)); exits 130 (interrupt)
+    or 3 (safety stop) with one line, motor at 0 V."""
+    from drillgym.errors import SafetyError
+    from hw.realtime import prioritize, quiet_gc
+    from hw.runner import run_episode
+
+    from .rig_ops import run_with_reconnect
+
+    env = None
+    try:
+        env = make_env()  # handshake and compiled kernels loaded at normal priority, then the episode's
+        typer.echo(f"scheduling priority: {prioritize(realtime)}")
+        watchdog_ms = env.unwrapped.firmware.watchdog_ms
+        with quiet_gc():
+            res, faults = run_with_reconnect(
+                env, lambda: run_episode(env, controller=ctrl, policy=pol, seed=seed, on_step=notice),
+                reconnect, reconnect_wait, say)
+        return res, faults, watchdog_ms
+    except KeyboardInterrupt:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the stop short
+        rec = None
+        if env is not None:
+            env.close()  # ends the episode: EMERGENCY_STOP, recording flushed and closed
+            rec = env.unwrapped.recording
+        say(f"drillgym: interrupted: motor stopped (0 V), recording kept: {rec if rec is not None else 'none yet'}")
+        raise typer.Exit(INTERRUPT_EXIT)
+    except SafetyError as exc:
+        if env is not None:
+            env.close()
+        say(f"drillgym: safety stop: {exc}")
+        raise typer.Exit(STOP_EXIT)
+    finally:
+        if env is not None:
+            env.close()
