@@ -185,3 +185,22 @@ def test_objective_channel_ids_follow_the_residual_layout():
     assert sorted(set(obj.channel_ids.tolist())) == list(range(len(obj.channels))) and obj.channels == [
         "theta_l", "theta_u", "x", "y"]
     assert np.count_nonzero(np.diff(obj.channel_ids)) == 3  # one experiment: four channels, one block each
+
+
+def test_split_halves_and_the_agreement_of_a_position_effect():
+    import numpy as np
+
+    from drillgym.diagnosis.reproducibility import HalfAgreement, split_halves
+    from drillgym.identification.experiment import prepare_experiment
+
+    ex = prepare_experiment(synthetic_measurement("torsional", duration=6.0, seed=1), compare_rate_hz=50.0)
+    a, b = split_halves(ex)
+    assert a.t[0] == ex.t[0] and b.t[-1] == ex.t[-1] and a.t[-1] == b.t[0]  # they share the middle sample
+    assert a.n + b.n == ex.n + 1 and all(len(v) == a.n for v in (*a.meas.values(), *a.rates.values()))
+    assert np.array_equal(a.u_value, ex.u_value)  # the input is kept whole (read by absolute time)
+    same = HalfAgreement("position_friction", 7.9, 18.5, {"pf_c1": -0.102, "pf_s1": 0.110},
+                         {"pf_c1": -0.102, "pf_s1": 0.104})
+    turned = HalfAgreement("position_friction", 1.6, 18.5, {"pf_c1": -0.004, "pf_s1": 0.014},
+                           {"pf_c1": -0.012, "pf_s1": -0.028})
+    assert same.agree and not turned.agree
+    assert "both halves" in turned.note() and "more revolutions" in turned.note()

@@ -446,6 +446,7 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         if refine_speeds:  # speed corrections for the chosen model (the figures below compare it)
             obj.model.speed_offsets = [np.zeros_like(o) for o in obj.model.speed_offsets]
             obj.model.refine_initial_speeds(out["vector"], obj.weights, obj.scales)
+    _check_position_effects(out, exps, comp, obj, usable, base_names, segment_s, scales, vec0)
     skipped.update(out["excluded"])
     N = out["n"]
     rmse0 = math.sqrt(out["rss_nominal"] / N)
@@ -495,6 +496,33 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
 
 
 _LAG_DELAY_SWAP = ("motor_lag", "input_delay")
+
+
+def _check_position_effects(out: dict, exps, comp, obj, effects, base_names, segment_s, scales, nominal) -> None:
+    """Drop a selected position-dependent effect whose parameters differ between the two halves of the
+    recording (:mod:`.reproducibility`), and refit the rest of the final model without it (in place)."""
+    from .reproducibility import POSITION_NEEDS, halves_agree
+    from .selection import _effect_params, _fit, _neutralise, _State
+
+    by = {e.name: e for e in effects}
+    for name in list(out["selected"]):
+        eff = by.get(name)
+        if eff is None or POSITION_NEEDS not in eff.needs:
+            continue
+        free_base = tuple(base_names) if out["base_off"] else ()
+        try:
+            check = halves_agree(exps, comp, out["vector"], eff, free_base, segment_s, obj.weights, scales, nominal)
+        except ValueError:
+            continue
+        if check.agree:
+            continue
+        st = _State(obj, comp, out["vector"].copy(), nominal.copy(), free_base,
+                    {e: by[e] for e in out["selected"] if e in by})
+        rest = [e for e in out["selected"] if e != name]
+        refit = _fit(st, _neutralise(st, out["vector"], name), list(free_base) + _effect_params(st, rest), 15)
+        out["selected"] = rest
+        out["dropped"][name] = check.note()
+        out["vector"], out["fit"], out["rss_final"] = refit.vector, refit, refit.rss_after
 
 
 def _better(a: dict, b: dict, effects: Sequence[type[Effect]], base_names: Sequence[str], bounds: bool = False
