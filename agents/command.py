@@ -21,12 +21,12 @@ the network's alone: nothing here computes or adds a voltage.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-__all__ = ["CommandSchedule", "SpeedCommand"]
+__all__ = ["CommandSchedule", "SpeedCommand", "schedule_of"]
 
 
 @dataclass(frozen=True)
@@ -60,15 +60,11 @@ class CommandSchedule:
         if spec is None:
             return None
         if not isinstance(spec, dict):
-            raise ValueError(f"command schedule: expected a mapping {{approach, hold, ramp}}, got {spec!r}")
+            raise ValueError(f"command schedule: expected a mapping {{approach, hold, ramp, lag}}, got {spec!r}")
         unknown = sorted(set(spec) - {"approach", "hold", "ramp", "lag"})
         if unknown:
             raise ValueError(f"command schedule: unknown keys {unknown}; expected approach, hold, ramp, lag")
         return cls(**{k: float(v) for k, v in spec.items()})
-
-    def as_config(self) -> dict[str, float]:
-        """The mapping :meth:`from_config` reads."""
-        return asdict(self)
 
     def __call__(self, t: "float | np.ndarray", target: "float | np.ndarray") -> np.ndarray:
         """Commanded speed (rad/s) at time ``t`` (s since the start) towards ``target`` (rad/s)."""
@@ -77,10 +73,13 @@ class CommandSchedule:
         s = np.clip((t - self.hold) / self.ramp, 0.0, 1.0) if self.ramp > 0 else (t >= self.hold).astype(float)
         return np.where(target < self.approach, self.approach + s * (target - self.approach), target)
 
-    @property
-    def duration(self) -> float:
-        """Time (s) after which the command equals the target."""
-        return self.hold + self.ramp
+
+def schedule_of(spec: "dict[str, Any] | None", motor_integral: bool) -> "CommandSchedule | None":
+    """The schedule of a hyperparameter entry's ``command_schedule``, which needs the motor-angle integral
+    (the integral follows the command); None: no schedule."""
+    if spec is not None and not motor_integral:
+        raise ValueError("the command schedule needs the motor-angle integral (motor_integral: true)")
+    return CommandSchedule.from_config(spec)
 
 
 class SpeedCommand:

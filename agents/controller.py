@@ -26,7 +26,7 @@ from drillgym.envs.observation import make_observation_model
 from drillgym.envs.options import U_MAX, EnvOptions
 
 from .export import ExportedPolicy
-from .command import CommandSchedule, SpeedCommand
+from .command import SpeedCommand, schedule_of
 from .integral import advance
 from .observer_residual import ObserverResidual
 from .residual import ResidualVoltage
@@ -65,9 +65,7 @@ class AgentController(Controller):
         self.integral = bool(hp.get("motor_integral", False))  # the motor-angle tracking integral (agents.integral)
         if self.integral and self.mode != "motor":
             raise ValueError("the motor-angle integral needs the 'motor' observation")
-        self.schedule = CommandSchedule.from_config(hp.get("command_schedule"))  # the speed command (agents.command)
-        if self.schedule is not None and not self.integral:
-            raise ValueError("the command schedule needs the motor-angle integral (motor_integral: true)")
+        self.schedule = schedule_of(hp.get("command_schedule"), self.integral)  # the speed command (agents.command)
         scale = hp.get("residual")
         self.base = None
         if hp.get("base") == "observer":  # observation = the observer's features, not the env's model

@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from .command import schedule_of
+
 __all__ = ["distill"]
 
 
@@ -66,15 +68,11 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
     if population is not None:
         use_population(venv, population, nominal_fraction)
     integral = None
+    schedule = schedule_of(command, motor_integral)
     if motor_integral:
         from .envs import MotorIntegralVecEnv
 
-        from .command import CommandSchedule
-
-        venv = integral = MotorIntegralVecEnv(venv, float(venv.venv.options.control_dt),
-                                              command=CommandSchedule.from_config(command))
-    elif command is not None:
-        raise ValueError("the command schedule needs the motor-angle integral (motor_integral: true)")
+        venv = integral = MotorIntegralVecEnv(venv, float(venv.venv.options.control_dt), command=schedule)
     if privileged:
         from .privileged import PrivilegedObsVecEnv
 

@@ -14,7 +14,7 @@ from drillgym.envs.options import U_MAX
 from drillgym.envs.sb3 import make_sb3_vec
 from drillgym.measurement import counts_to_angle
 
-from .command import CommandSchedule, SpeedCommand
+from .command import SpeedCommand, schedule_of
 from .integral import Z_MAX, advance
 from .observer_residual import ObserverResidual
 from .residual import ResidualVoltage
@@ -222,13 +222,11 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
     else:
         kw["normalize_action"] = True
         venv = make_sb3_vec(env_id, n_envs, **kw)
+    schedule = schedule_of(command, motor_integral)
     if motor_integral:
         if residual is not None or base is not None:
             raise ValueError("the motor-angle integral works without a residual structure")
-        venv = MotorIntegralVecEnv(venv, float(venv.get_attr("options")[0].control_dt),
-                                   command=CommandSchedule.from_config(command))
-    elif command is not None:
-        raise ValueError("the command schedule needs the motor-angle integral (motor_integral: true)")
+        venv = MotorIntegralVecEnv(venv, float(venv.get_attr("options")[0].control_dt), command=schedule)
     if privileged:
         if frame_stack > 1 or base is not None:
             raise ValueError("the privileged critic works without frame stacking and without a base controller")

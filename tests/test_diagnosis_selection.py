@@ -198,9 +198,9 @@ def test_split_halves_and_the_agreement_of_a_position_effect():
     assert a.t[0] == ex.t[0] and b.t[-1] == ex.t[-1] and a.t[-1] == b.t[0]  # they share the middle sample
     assert a.n + b.n == ex.n + 1 and all(len(v) == a.n for v in (*a.meas.values(), *a.rates.values()))
     assert np.array_equal(a.u_value, ex.u_value)  # the input is kept whole (read by absolute time)
-    same = HalfAgreement("position_friction", 7.9, 18.5, {"pf_c1": -0.102, "pf_s1": 0.110},
+    same = HalfAgreement("position_friction", 7.9, {"pf_c1": -0.102, "pf_s1": 0.110},
                          {"pf_c1": -0.102, "pf_s1": 0.104})
-    turned = HalfAgreement("position_friction", 1.6, 18.5, {"pf_c1": -0.004, "pf_s1": 0.014},
+    turned = HalfAgreement("position_friction", 1.6, {"pf_c1": -0.004, "pf_s1": 0.014},
                            {"pf_c1": -0.012, "pf_s1": -0.028})
     assert same.agree and not turned.agree
     assert "both halves" in turned.note() and "more revolutions" in turned.note()

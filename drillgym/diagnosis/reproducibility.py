@@ -28,7 +28,6 @@ from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
-from scipy.stats import chi2 as chi2_dist
 
 from ..identification.experiment import Experiment
 from ..identification.fitting import Objective
@@ -41,8 +40,6 @@ __all__ = ["split_halves", "HalfAgreement", "halves_agree", "POSITION_NEEDS", "M
 POSITION_NEEDS = "theta_l"
 #: the halves' parameter vectors agree when their cosine similarity exceeds this (60°)
 MIN_COSINE = 0.5
-#: quantile of the chi-square distribution reported with the check
-QUANTILE = 0.999
 
 
 def split_halves(ex: Experiment) -> tuple[Experiment, Experiment]:
@@ -64,7 +61,6 @@ class HalfAgreement:
 
     effect: str
     chi2: float
-    limit: float
     first: dict[str, float]
     second: dict[str, float]
 
@@ -96,7 +92,7 @@ def halves_agree(exps: Sequence[Experiment], comp, vector: np.ndarray, effect, f
     from .selection import _fit, _State
 
     names = [p.name for p in effect.parameters]
-    halves = [[split_halves(ex)[i] for ex in exps] for i in (0, 1)]
+    halves = list(zip(*(split_halves(ex) for ex in exps)))  # (first halves, second halves)
     fits = []
     for part in halves:
         model = SegmentedModel(part, segment_s, composition=comp, method="rk4")
@@ -114,5 +110,4 @@ def halves_agree(exps: Sequence[Experiment], comp, vector: np.ndarray, effect, f
         if not (math.isfinite(var) and var > 0):
             continue
         c2 += (a.values[p] - b.values[p]) ** 2 / var
-    return HalfAgreement(effect.name, c2, float(chi2_dist.ppf(QUANTILE, len(names))),
-                         {p: a.values[p] for p in names}, {p: b.values[p] for p in names})
+    return HalfAgreement(effect.name, c2, {p: a.values[p] for p in names}, {p: b.values[p] for p in names})

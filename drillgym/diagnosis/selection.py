@@ -396,7 +396,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
             except ValueError:
                 break
             kg = len(_effect_params(st, group))
-            sc, ne = score(cur[0], gr, kg, n_eff_ref)
+            sc, ne = score(rss_cur, gr, kg, n_eff_ref)
             if not _significant(sc, rss_cur, gr.rss_after, N):
                 break
             for n in group:
