@@ -143,14 +143,21 @@ def _teacher(teacher: str | Path, n: int, batch, options: dict[str, Any], integr
     if str(teacher) == "flatness":
         from .teachers import FlatnessTeacher
 
+        from drillgym.params import N_PARAMS
+
         t = FlatnessTeacher(n, batch.options.rig_params, batch.options.control_dt, **options)
         s = batch.system
+
+        def reset(index: np.ndarray) -> None:
+            if t.per_plant:  # the rigs' new episodes' true base parameters (drawn at their reset)
+                t.set_plants(index, s.params_matrix[index, :N_PARAMS])
+            # the student's command (the scheduled target) is the teacher's
+            t.reset(index, (batch.omega_ref if integral is None else integral.command_now)[index])
+
         if integral is None:
-            return (lambda: t.act(s.omega_u, s.alpha, s.omega_l),
-                    lambda index: t.reset(index, batch.omega_ref[index]))
-        # the student's integral and command (the scheduled target) are the teacher's
-        return (lambda: t.act(s.omega_u, s.alpha, s.omega_l, integral.z, target=integral.command_now),
-                lambda index: t.reset(index, integral.command_now[index]))
+            return lambda: t.act(s.omega_u, s.alpha, s.omega_l), reset
+        # the student's integral is the teacher's
+        return lambda: t.act(s.omega_u, s.alpha, s.omega_l, integral.z, target=integral.command_now), reset
     from drillgym.envs.observation import FullObservation
 
     from .export import ExportedPolicy

@@ -181,7 +181,8 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
                       observer: dict[str, Any] | None = None, frame_stack: int = 1,
                       normalize_reward: bool = False, normalize_obs: bool = False, gamma: float = 0.99,
                       monitor: bool = True, privileged: bool = False, motor_integral: bool = False,
-                      command: "dict[str, float] | None" = None) -> VecEnv:
+                      command: "dict[str, float] | None" = None, population: "str | None" = None,
+                      nominal_fraction: float = 0.0) -> VecEnv:
     """An SB3 VecEnv of ``n_envs`` rigs in one batched core call per step.
 
     ``residual`` (V): the action in [-1, 1] is a correction ``residual * a`` on the feedforward voltage
@@ -197,6 +198,8 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
     ``motor_integral``: append the motor-angle tracking integral (:class:`MotorIntegralVecEnv`, :mod:`agents.integral`;
     'motor' observation, no residual structure).  ``command``: the command schedule's settings
     (:class:`agents.command.CommandSchedule`; needs ``motor_integral``).
+    ``population``: every episode's rig is drawn from this uncertainty set ('default' or a YAML path,
+    :mod:`agents.population`; the nominal rig with probability ``nominal_fraction``); plain actions only.
     ``frame_stack``: number of stacked observations (1 = none).  ``seed``: rig i gets seed + i.
     """
     if env_id not in ENV_IDS:
@@ -221,7 +224,17 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
                                                                 startup))
     else:
         kw["normalize_action"] = True
+        if population is not None:
+            from .population import population_env_kwargs
+
+            kw = population_env_kwargs(kw, population)
         venv = make_sb3_vec(env_id, n_envs, **kw)
+        if population is not None:
+            from .population import use_population
+
+            use_population(venv, population, nominal_fraction)
+    if population is not None and (residual is not None or base is not None):
+        raise ValueError("a plant population is drawn for plain actions only (no residual or base controller)")
     schedule = schedule_of(command, motor_integral)
     if motor_integral:
         if residual is not None or base is not None:

@@ -11,6 +11,11 @@ Measured on the simulated nominal rig from rest (60 s, last 20 s): SSI 0.00 and 
 0.1 % at 1.5 ... 6 rad/s; with Ts, Tc, ws, delta, Jl, ktheta, km, bu, Tcu each +/- 20 %: every rig from
 2.0 rad/s (tests/test_agents_distill.py checks a short version).
 
+``per_plant=True`` designs the law on each rig's *true* base parameters (the simulator's, read when the rig's
+episode starts: :meth:`FlatnessTeacher.set_plants`) instead of the nominal set: a privileged teacher for a
+population of plants, whose labels damp each plant as its own model-based law would (it still does not
+know the lags, delays or position friction the population adds).
+
 The teacher is stateful per rig (the reference's three lags, the integral); :meth:`reset` starts the
 rigs ``index`` of a batch (e.g. those whose episode just ended) towards their new targets.
 """
@@ -21,6 +26,8 @@ import numpy as np
 
 from drillgym import RigParams
 from drillgym.envs.options import U_MAX
+from drillgym.friction import brake_law, upper_law
+from drillgym.params import PARAM_NAMES
 
 __all__ = ["FlatnessTeacher", "TEACHERS"]
 
@@ -39,10 +46,11 @@ class FlatnessTeacher:
         tau_ref: time constant (s) of each of the reference's three lags (a gentle start from rest).
         integral: weight of the speed error's integral (:func:`controllers.flatness.chain_gain`).
         z_max: clip of the integral state (rad), an anti-windup.
+        per_plant: design the law on each rig's true base parameters (:meth:`set_plants`), not ``params``.
     """
 
     def __init__(self, n: int, params: RigParams | None = None, dt: float = 0.01, *, bandwidth: float = 2.5,
-                 tau_ref: float = 1.0, integral: float = 1.0, z_max: float = 2.0) -> None:
+                 tau_ref: float = 1.0, integral: float = 1.0, z_max: float = 2.0, per_plant: bool = False) -> None:
         from controllers.flatness import FlatnessLaw
 
         if not (isinstance(n, int) and n >= 1):
@@ -50,8 +58,12 @@ class FlatnessTeacher:
         if not (np.isfinite(z_max) and z_max > 0):
             raise ValueError(f"z_max must be a positive angle (rad), got {z_max!r}")
         self.n, self.dt, self.z_max = int(n), float(dt), float(z_max)
-        self.law = FlatnessLaw(params or RigParams(), self.dt, bandwidth=bandwidth, tau_ref=tau_ref,
-                               low_speed=0.0, integral_high=integral)
+        law = _per_plant_law(FlatnessLaw) if per_plant else FlatnessLaw
+        self.law = law(params or RigParams(), self.dt, bandwidth=bandwidth, tau_ref=tau_ref,
+                       low_speed=0.0, integral_high=integral)
+        self.per_plant = bool(per_plant)
+        if per_plant:
+            self.law.p = _PlantArrays(params or RigParams(), self.n)
         self.law.reset(np.zeros(self.n))
         self.z = np.zeros(self.n)
 
@@ -62,6 +74,13 @@ class FlatnessTeacher:
         self.law.target[index] = np.asarray(targets, dtype=float)
         self.law.y[:, index] = 0.0
         self.z[index] = 0.0
+
+    def set_plants(self, index: np.ndarray, base: np.ndarray) -> None:
+        """The rigs ``index`` now run the plants of base-parameter rows ``base`` ((k, N_PARAMS), the
+        :class:`~drillgym.RigParams` vector layout); a ``per_plant`` teacher designs its law on them."""
+        if not self.per_plant:
+            raise ValueError("set_plants needs a per_plant teacher")
+        self.law.p.set(np.asarray(index, dtype=np.int64), np.asarray(base, dtype=float))
 
     def act(self, omega_u: np.ndarray, alpha: np.ndarray, omega_l: np.ndarray,
             z: np.ndarray | None = None, target: np.ndarray | None = None) -> np.ndarray:
@@ -78,3 +97,38 @@ class FlatnessTeacher:
                      np.asarray(omega_l, dtype=float), np.zeros(self.n), z=zz)
         self.z = np.clip(self.z + self.dt * (omega_l - r), -self.z_max, self.z_max)
         return np.clip(u / U_MAX, -1.0, 1.0)
+
+
+class _PlantArrays:
+    """Base parameters of n rigs as attributes holding arrays (n,) (the RigParams names), so that the
+    flatness law's arithmetic (Jl, Ju, km, ktheta ...) is per rig."""
+
+    def __init__(self, params: RigParams, n: int) -> None:
+        for name in PARAM_NAMES:
+            setattr(self, name, np.full(n, float(getattr(params, name))))
+
+    def set(self, index: np.ndarray, rows: np.ndarray) -> None:
+        if rows.ndim != 2 or rows.shape[0] != index.size or rows.shape[1] < len(PARAM_NAMES):
+            raise ValueError(f"base parameter rows must have shape ({index.size}, >= {len(PARAM_NAMES)}), "
+                             f"got {rows.shape}")
+        for j, name in enumerate(PARAM_NAMES):
+            getattr(self, name)[index] = rows[:, j]
+
+
+_brake = np.vectorize(brake_law, otypes=[float])
+_upper = np.vectorize(upper_law, otypes=[float])
+
+
+def _per_plant_law(base: type) -> type:
+    """The flatness law class with the friction laws evaluated on each rig's own parameters."""
+
+    class PerPlantFlatnessLaw(base):
+        def lower_friction(self, w: np.ndarray) -> np.ndarray:
+            p = self.p
+            return _brake(np.abs(w), np.sign(w), p.Ts, p.Tc, p.ws, p.delta, p.bb)
+
+        def upper_friction(self, w: np.ndarray) -> np.ndarray:
+            p = self.p
+            return _upper(np.abs(w), np.sign(w), p.Tcu, p.dTcu, p.bu, p.dbu)
+
+    return PerPlantFlatnessLaw

@@ -127,7 +127,8 @@ def _env(env_id: str, hp: dict[str, Any], n: int, seed: int, evaluation: bool = 
                              normalize_reward=bool(hp.get("normalize_reward", False)),
                              normalize_obs=bool(hp.get("normalize_obs", False)), gamma=float(hp.get("gamma", 0.99)),
                              privileged=bool(hp.get("privileged_critic", False)),
-                             motor_integral=bool(hp.get("motor_integral", False)), command=hp.get("command_schedule"))
+                             motor_integral=bool(hp.get("motor_integral", False)), command=hp.get("command_schedule"),
+                             population=hp.get("population"), nominal_fraction=float(hp.get("nominal_fraction", 0.0)))
     if evaluation and isinstance(venv, VecNormalize):
         venv.training, venv.norm_reward = False, False
     return venv

@@ -139,11 +139,19 @@ class FlatnessLaw:
         self.y = self.y + self.dt * np.stack([d1, d2, d3])
         return r.copy(), d3, dd3, ddd3
 
+    def lower_friction(self, w: np.ndarray) -> np.ndarray:
+        """Brake torque Tfl(w) (N m) of the design model at speeds w != 0 (rad/s, (n,))."""
+        return lower_friction(w, self.p)
+
+    def upper_friction(self, w: np.ndarray) -> np.ndarray:
+        """Upper friction torque Tfu(w) (N m) of the design model at speeds w != 0 (rad/s, (n,))."""
+        return upper_friction(w, self.p)
+
     def friction(self, w: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Brake torque (N m) corrected by d, its slope and curvature at speed w (forward rotation)."""
         h = self.h
         w = np.maximum(w, self.w_rest + h)
-        t0, tp, tm = lower_friction(w, self.p), lower_friction(w + h, self.p), lower_friction(w - h, self.p)
+        t0, tp, tm = self.lower_friction(w), self.lower_friction(w + h), self.lower_friction(w - h)
         T, T1, T2 = t0, (tp - tm) / (2 * h), (tp - 2 * t0 + tm) / h ** 2
         if self.scale:
             return (1.0 + d) * T, (1.0 + d) * T1, (1.0 + d) * T2
@@ -166,5 +174,5 @@ class FlatnessLaw:
             self.z = self.z + self.dt * (omega_l - r)
         v = r3 - np.einsum("nk,kn->n", self.K, np.stack([self.z, omega_l - r, a - r1, j - r2]))
         wu_dot = (p.Jl * v + kt * a + T2 * a * a + T1 * j) / kt  # the upper acceleration that gives v
-        tfu = upper_friction(np.where(omega_u == 0, 1e-9, omega_u), p)
+        tfu = self.upper_friction(np.where(omega_u == 0, 1e-9, omega_u))
         return (p.Ju * wu_dot + tfu - kt * alpha) / p.km

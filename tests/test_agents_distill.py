@@ -184,3 +184,54 @@ def test_command_schedule_reaches_the_target_from_above_and_is_the_same_on_the_r
         commands.append(float(obs[0, -2]))
         obs, *_ = venv.step((u / 5.0).reshape(-1, 1))
     assert commands[0] == 0.0 and max(commands) > 3.5  # the command rose above the 3 rad/s target
+
+
+def test_per_plant_teacher_is_designed_on_each_rigs_true_parameters() -> None:
+    import pytest
+
+    from agents.teachers import FlatnessTeacher
+    from drillgym import RigParams
+
+    n = 4
+    nominal = FlatnessTeacher(n, dt=0.01, bandwidth=1.5, tau_ref=0.1)
+    plant = FlatnessTeacher(n, dt=0.01, bandwidth=1.5, tau_ref=0.1, per_plant=True)
+    rows = np.array([RigParams().scaled(Ts=f, km=1.0 / f).to_vector() for f in (1.0, 1.0, 1.2, 0.8)])
+    plant.set_plants(np.arange(n), rows)
+    for t in (nominal, plant):
+        t.reset(np.arange(n), np.full(n, 2.5))
+        t.law.y[:] = 2.5  # the reference's lags settled at the target
+    from drillgym.friction import lower_friction
+
+    rng = np.random.default_rng(0)
+    alpha_eq = -float(lower_friction(np.array([2.5]))[0]) / RigParams().ktheta  # the winding at 2.5 rad/s
+    for _ in range(20):  # states near that equilibrium (no voltage saturation)
+        wu, wl = rng.uniform(2.3, 2.7, n), rng.uniform(2.3, 2.7, n)
+        al = alpha_eq + rng.uniform(-0.05, 0.05, n)
+        un, up = nominal.act(wu, al, wl), plant.act(wu, al, wl)
+        assert np.allclose(un[:2], up[:2], atol=1e-12)  # rigs 0, 1 run the nominal plant
+        assert np.all(np.abs(un) < 1) and np.all(np.abs(up) < 1)
+        assert np.all(np.abs(un[2:] - up[2:]) > 1e-3)  # the others another brake and motor constant
+    with pytest.raises(ValueError, match="per_plant"):
+        nominal.set_plants(np.arange(n), rows)
+
+
+def test_rl_training_env_draws_its_rigs_from_the_population() -> None:
+    import pytest
+
+    from agents.envs import make_training_env
+    from drillgym import RigParams
+
+    venv = make_training_env("drillgym/Torsional-v0", 8, seed=1, env_kwargs={"observation": "motor"},
+                             population="default")
+    venv.reset()
+    inner = venv
+    while not hasattr(inner, "batch"):
+        inner = inner.venv
+    system = inner.batch.system
+    km = system.params_matrix[:, system.composition.param_index("km")] / RigParams().km
+    assert km.std() > 0 and np.all(np.abs(km - 1) <= 0.05 + 1e-12)  # plants.yaml: km +/- 5 %
+    assert {"motor_lag", "input_delay"} <= set(system.composition.names)
+    venv.close()
+    with pytest.raises(ValueError, match="plain actions"):
+        make_training_env("drillgym/Torsional-v0", 2, env_kwargs={"observation": "motor"}, residual=1.5,
+                          population="default")
