@@ -204,3 +204,32 @@ def test_split_halves_and_the_agreement_of_a_position_effect():
                            {"pf_c1": -0.012, "pf_s1": -0.028})
     assert same.agree and not turned.agree
     assert "both halves" in turned.note() and "more revolutions" in turned.note()
+
+
+@pytest.mark.parametrize("truth, wrong", [("input_delay", "motor_lag"), ("motor_lag", "input_delay")])
+def test_lag_or_delay_is_decided_at_the_recordings_own_rate(truth, wrong):
+    from drillgym.diagnosis.ranking import default_segment, default_weights
+    from drillgym.diagnosis.timing import decide_lag_delay, fine_experiments, fine_rate
+    from drillgym.identification.experiment import prepare_experiment
+    from drillgym.identification.fitting import base_vector
+
+    value = {"input_delay": {"delay": 0.04}, "motor_lag": {"tau_m": 0.04}}
+    ts = synthetic_measurement("torsional", duration=15.0, rate_hz=1000.0, signal="steps", offset=1.5, amplitude=2.0,
+                               seed=3, effects=[truth], effect_params=value[truth])
+    ex = prepare_experiment(ts, compare_rate_hz=50.0)
+    cands = {n: LIBRARY[n] for n in ("motor_lag", "input_delay")}
+    comp = search_composition(BASE, list(cands.values()))
+    # both models at the wrong value 40 ms of the other (the search finds each one's own), the wrong one selected
+    models = {e: base_vector(comp, RigParams(), {**neutral_values(list(cands.values())), **value[e]}) for e in cands}
+    dec = decide_lag_delay([ex], comp, models, wrong, default_weights(ex.config), default_segment(ex.config))
+    assert dec is not None and dec.chosen == truth and not dec.tie, dec
+    assert dec.values[truth] == pytest.approx(0.04, rel=0.25)
+    assert truth in dec.note() or "preferred" in dec.note()
+    # no finer data than the comparison grid: no decision
+    coarse = prepare_experiment(synthetic_measurement("torsional", duration=5.0, rate_hz=50.0, seed=3), compare_rate_hz=50.0)
+    assert fine_experiments([coarse]) is None
+    slow = synthetic_measurement("torsional", duration=5.0, rate_hz=200.0, seed=3)  # too slow to tell (module doc)
+    assert fine_rate(prepare_experiment(slow, compare_rate_hz=50.0)) is None and fine_rate(ex) == 1000.0
+    assert decide_lag_delay([coarse], comp, models, wrong, default_weights(ex.config), 4.0) is None
+    with pytest.raises(ValueError, match="incumbent"):
+        decide_lag_delay([ex], comp, models, "string_damping", default_weights(ex.config), 4.0)

@@ -447,6 +447,9 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
             obj.model.speed_offsets = [np.zeros_like(o) for o in obj.model.speed_offsets]
             obj.model.refine_initial_speeds(out["vector"], obj.weights, obj.scales)
     _check_position_effects(out, exps, comp, obj, usable, base_names, segment_s, scales, vec0)
+    fine = _check_lag_delay(out, exps, comp, obj, usable, base_names, segment_s, vec0)
+    if fine is not None:
+        paths["lag_delay_fine"] = [f"{fine.chosen}:{fine.gap:.1f}nats@{fine.rate_hz:.0f}Hz"]
     skipped.update(out["excluded"])
     N = out["n"]
     rmse0 = math.sqrt(out["rss_nominal"] / N)
@@ -523,6 +526,41 @@ def _check_position_effects(out: dict, exps, comp, obj, effects, base_names, seg
         out["selected"] = rest
         out["dropped"][name] = check.note()
         out["vector"], out["fit"], out["rss_final"] = refit.vector, refit, refit.rss_after
+
+
+def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s, nominal):
+    """Decide a selected motor lag or input delay again on the recordings' own rate (:mod:`.timing`): the
+    model with the other one is fitted on the comparison grid (with the base parameters if they moved), both
+    are compared on the fine grid, the winner is taken and a tie stated (in place).  Returns the
+    :class:`.timing.FineDecision` or None (no lag/delay selected, or no finer data)."""
+    from .selection import _effect_params, _fit, _neutralise, _State
+    from .timing import LAG_DELAY, decide_lag_delay, fine_rate
+
+    by = {e.name: e for e in effects}
+    held = [e for e in out["selected"] if e in LAG_DELAY]
+    if len(held) != 1 or not all(e in by for e in LAG_DELAY) or any(fine_rate(ex) is None for ex in exps):
+        return None
+    a = held[0]
+    b = LAG_DELAY[1 - LAG_DELAY.index(a)]
+    free_base = tuple(base_names) if out["base_off"] else ()
+    other = [b if e == a else e for e in out["selected"]]
+    st = _State(obj, comp, out["vector"].copy(), nominal.copy(), free_base, {e: by[e] for e in set(out["selected"]) | {b}})
+    start = _neutralise(st, out["vector"], a)
+    alt = _fit(st, start, list(free_base) + _effect_params(st, other), 15, fresh=[b])
+    dec = decide_lag_delay(exps, comp, {a: out["vector"], b: alt.vector}, a, obj.weights, segment_s)
+    if dec is None:
+        return None
+    for name in LAG_DELAY:
+        out["ties"].pop(name, None)
+    if dec.chosen != a:
+        out["selected"] = other
+        out["vector"], out["fit"], out["rss_final"] = alt.vector, alt, alt.rss_after
+        if obj.model.speed_offsets:  # speed corrections for the model taken (the figures compare it)
+            obj.model.speed_offsets = [np.zeros_like(o) for o in obj.model.speed_offsets]
+            obj.model.refine_initial_speeds(alt.vector, obj.weights, obj.scales)
+    if dec.tie:
+        out["ties"][dec.chosen] = dec.note()
+    return dec
 
 
 def _better(a: dict, b: dict, effects: Sequence[type[Effect]], base_names: Sequence[str], bounds: bool = False

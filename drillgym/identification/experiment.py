@@ -58,7 +58,8 @@ class Experiment:
     derivatives (``omega_u``, ``omega_l``, ``Xd``, ``Yd``); ``u_time``, ``u_value``
     the recorded input; ``speed_noise`` the standard deviation (rad/s) of each speed estimate
     from encoder quantization; ``lvdt_lowpass_hz`` the offline LVDT filter the data went
-    through (applied to the model's lateral outputs as well; None: none).
+    through (applied to the model's lateral outputs as well; None: none); ``recording`` the
+    TimeSeries it was prepared from (to compare on another grid, e.g. the recording's own rate).
     """
 
     config: Configuration
@@ -72,6 +73,7 @@ class Experiment:
     name: str = "experiment"
     meta: dict = field(default_factory=dict)
     speed_noise: dict = field(default_factory=dict)
+    recording: "TimeSeries | None" = field(default=None, repr=False, compare=False)
 
     @property
     def n(self) -> int:
@@ -193,7 +195,7 @@ def prepare_experiment(ts: TimeSeries, config: "str | Configuration | None" = No
         meas.pop("x", None)
         meas.pop("y", None)
     return Experiment(cfg, t_c, fs_c, meas, rates, ts.t.copy(), ts.u.copy(), lvdt_lowpass_hz,
-                      name or str(ts.source), dict(ts.meta), speed_noise)
+                      name or str(ts.source), dict(ts.meta), speed_noise, ts)
 
 
 def _derivative_noise(theta: np.ndarray, fs: float) -> float:

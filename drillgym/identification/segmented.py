@@ -232,8 +232,10 @@ class SegmentedModel:
         cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
         for i, tau in enumerate(taus):
             key = float(tau)
+            if key not in cache and key <= 0.0:  # no lag: the motor sees the input itself
+                cache[key] = (base, base)
             if key not in cache:
-                a = math.exp(-dt / tau)
+                a = math.exp(-dt / key)
                 b_, a_ = [0.0, 1.0 - a], [1.0, -a]  # exact zero-order-hold discretisation
                 um = lfilter(b_, a_, base, zi=lfilter_zi(b_, a_) * base[0])[0]
                 # exact mean of u_m over each step (ZOH input): -> the input itself as tau -> 0
