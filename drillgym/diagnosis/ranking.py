@@ -529,9 +529,9 @@ def _check_position_effects(out: dict, exps, comp, obj, effects, base_names, seg
 
 
 def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s, nominal):
-    """Decide a selected motor lag or input delay again on the recordings' own rate (:mod:`.timing`): the
-    model with the other one is fitted on the comparison grid (with the base parameters if they moved), both
-    are compared on the fine grid, the winner is taken and a tie stated (in place).  Returns the
+    """Decide a selected motor lag or input delay again on the recordings' own rate (:mod:`.timing`), both
+    with the selected model's base parameters; the other one taken is refitted on the comparison grid with
+    the rest of the model (the base parameters too if they moved), a tie is stated (in place).  Returns the
     :class:`.timing.FineDecision` or None (no lag/delay selected, or no finer data)."""
     from .selection import _effect_params, _fit, _neutralise, _State
     from .timing import LAG_DELAY, decide_lag_delay, fine_rate
@@ -543,21 +543,23 @@ def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s,
     a = held[0]
     b = LAG_DELAY[1 - LAG_DELAY.index(a)]
     free_base = tuple(base_names) if out["base_off"] else ()
-    other = [b if e == a else e for e in out["selected"]]
     st = _State(obj, comp, out["vector"].copy(), nominal.copy(), free_base, {e: by[e] for e in set(out["selected"]) | {b}})
-    start = _neutralise(st, out["vector"], a)
-    alt = _fit(st, start, list(free_base) + _effect_params(st, other), 15, fresh=[b])
-    dec = decide_lag_delay(exps, comp, {a: out["vector"], b: alt.vector}, a, obj.weights, segment_s)
+    dec = decide_lag_delay(exps, comp, {a: out["vector"], b: _neutralise(st, out["vector"], a)}, a, obj.weights,
+                           segment_s)
     if dec is None:
         return None
     for name in LAG_DELAY:
         out["ties"].pop(name, None)
     if dec.chosen != a:
+        other = [b if e == a else e for e in out["selected"]]
+        start = _neutralise(st, out["vector"], a)
+        start[comp.param_index(by[b].parameters[0].name)] = dec.values[b]
+        refit = _fit(st, start, list(free_base) + _effect_params(st, other), 15)
         out["selected"] = other
-        out["vector"], out["fit"], out["rss_final"] = alt.vector, alt, alt.rss_after
+        out["vector"], out["fit"], out["rss_final"] = refit.vector, refit, refit.rss_after
         if obj.model.speed_offsets:  # speed corrections for the model taken (the figures compare it)
             obj.model.speed_offsets = [np.zeros_like(o) for o in obj.model.speed_offsets]
-            obj.model.refine_initial_speeds(alt.vector, obj.weights, obj.scales)
+            obj.model.refine_initial_speeds(refit.vector, obj.weights, obj.scales)
     if dec.tie:
         out["ties"][dec.chosen] = dec.note()
     return dec

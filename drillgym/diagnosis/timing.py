@@ -7,10 +7,11 @@ shifts the whole response (nothing happens for d seconds, then everything does),
 response at once but rounds it.  So the swap decided on the comparison grid (:mod:`.selection`) is
 checked again on the recording's own samples (up to :data:`FINE_RATE_HZ`):
 
-* the model with the lag and the model with the delay, each with its own base parameters fitted on the
-  comparison grid (base parameters fitted with one of them favour it), have their time constant /
+* the selected model, and the same model with the other one in its place, have their time constant /
   delay searched again on the fine grid: derivative-free (the response is piecewise constant in a
-  delay), the segments' initial speeds refined at every point;
+  delay), the segments' initial speeds refined at every point (speeds refined for one model favour it
+  by orders of magnitude of the RSS), the rest of the model held.  Giving the other one its own base
+  parameters (refitted on the comparison grid) was tried: it turned a right delay at 1 kHz into a lag;
 * the two log-likelihoods are compared (N_eff ln of the RSS ratio, the smaller N_eff of the two fine
   residuals).  The winner by more than :data:`~.selection.TIE_NATS` is taken; within that, the two are
   stated as a tie.
@@ -135,10 +136,9 @@ def fine_experiments(exps: Sequence[Experiment]) -> "list[Experiment] | None":
 def decide_lag_delay(exps: Sequence[Experiment], comp, models: Mapping[str, np.ndarray], incumbent: str,
                      weights: dict, segment_s: "float | None") -> "FineDecision | None":
     """Lag or delay on the recordings' own rate.  ``models``: the model vector (composition ``comp``) with the
-    motor lag and the one with the input delay, each fitted with its own base parameters on the comparison
-    grid (base parameters fitted with one of them favour it); ``incumbent``: the one selected there.  Each
-    one's time constant / delay is searched again on the fine grid, the rest of its vector held.  None when
-    the recordings are not finer than the comparison grid."""
+    motor lag and the one with the input delay (the other one neutral in each); ``incumbent``: the one
+    selected on the comparison grid.  Each one's time constant / delay is searched again on the fine grid,
+    the rest of its vector held.  None when the recordings are not fine enough (:func:`fine_rate`)."""
     from .segments import place_segment_starts, robust_noise
 
     if set(models) != set(LAG_DELAY) or incumbent not in LAG_DELAY:
