@@ -233,3 +233,12 @@ def test_lag_or_delay_is_decided_at_the_recordings_own_rate(truth, wrong):
     assert decide_lag_delay([coarse], comp, models, wrong, default_weights(ex.config), 4.0) is None
     with pytest.raises(ValueError, match="incumbent"):
         decide_lag_delay([ex], comp, models, "string_damping", default_weights(ex.config), 4.0)
+
+
+def test_delay_under_mismatch_is_not_reported_as_a_lag_without_a_tie():
+    d = diagnose(_rec(RigParams().scaled(**MISMATCH), effects=["input_delay"], delay=0.04))
+    assert d.selected in (["input_delay"], ["motor_lag"]), d.text()
+    if d.selected == ["motor_lag"]:  # only as a stated tie
+        assert "indistinguishable" in d.ranking[0].note, d.text()
+    else:
+        assert d.effect_values()["delay"] == pytest.approx(0.04, rel=0.25)
