@@ -40,6 +40,7 @@ def test_two_effects_found_as_a_set():
     assert d.rmse_after < 0.1 * d.rmse_before
     assert [s.effect for s in d.ranking[:2]] == d.selected and all(s.significant for s in d.ranking[:2])
     assert not any(s.significant for s in d.ranking[2:])
+    assert d.to_json()["lag_delay"] is None  # 250 Hz: too slow for the check at the recording's rate
 
 
 def test_plain_mismatch_is_not_an_effect_and_moved_parameters_are_named():
@@ -224,6 +225,7 @@ def test_lag_or_delay_is_decided_at_the_recordings_own_rate(truth, wrong):
     dec = decide_lag_delay([ex], comp, models, wrong, default_weights(ex.config), default_segment(ex.config))
     assert dec is not None and dec.chosen == truth and not dec.tie, dec
     assert dec.values[truth] == pytest.approx(0.04, rel=0.25)
+    assert dec.to_json()["chosen"] == truth and dec.to_json()["score_gap_nats"] > 3 and not dec.to_json()["tie"]
     assert truth in dec.note() or "preferred" in dec.note()
     # no finer data than the comparison grid: no decision
     coarse = prepare_experiment(synthetic_measurement("torsional", duration=5.0, rate_hz=50.0, seed=3), compare_rate_hz=50.0)

@@ -130,6 +130,7 @@ class Diagnosis:
     advice: list[str] = field(default_factory=list)
     nominal_vector: np.ndarray | None = None
     paths: dict[str, list[str]] = field(default_factory=dict)  # what each search order selected
+    lag_delay: "dict | None" = None  # the lag/delay decision at the recording's rate (timing.FineDecision.to_json)
 
     @property
     def best(self) -> EffectScore | None:
@@ -152,7 +153,7 @@ class Diagnosis:
                 "rmse_before": self.rmse_before, "rmse_after": self.rmse_after,
                 "channel_rms_before": self.channel_rms_before, "n_eff": self.n_eff, "segment_s": self.segment_s,
                 "skipped": self.skipped, "base_refit": self.base_refit, "model": self.model,
-                "search_paths": self.paths}
+                "search_paths": self.paths, "lag_delay": self.lag_delay}
 
     def text(self) -> str:
         after = f"; after {self.rmse_after:.3g}" if self.rmse_after is not None else ""
@@ -185,6 +186,10 @@ class Diagnosis:
                         lines.append(f"  note: {s.effect} is {s.note}")
         else:
             lines.append("no effect of the library explains a significant part of the residual")
+        if self.lag_delay and not self.lag_delay["tie"]:
+            ld = self.lag_delay
+            lines.append(f"lag or delay, at the recording's rate ({ld['rate_hz']:.0f} Hz): {ld['chosen']} preferred to "
+                         f"{ld['other']} by {ld['score_gap_nats']:.1f} nats")
         for w in self.warnings:
             lines.append(f"warning: {w}")
         for k, why in self.skipped.items():
@@ -493,6 +498,7 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
                   rmse_after=math.sqrt(out["rss_final"] / N), composition=comp, vector=vec,
                   params=RigParams.from_vector(vec[:N_PARAMS]))
     d.paths = paths
+    d.lag_delay = fine.to_json() if fine is not None else None
     d.nominal_vector = vec.copy()
     d.nominal_vector[:N_PARAMS] = vec0[:N_PARAMS]
     return d

@@ -103,6 +103,10 @@ class FineDecision:
 
         return abs(self.gap) < TIE_NATS
 
+    def to_json(self) -> dict:
+        return {"chosen": self.chosen, "other": self.other, "score_gap_nats": round(self.gap, 2),
+                "rate_hz": round(self.rate_hz, 1), "fitted_s": self.values, "tie": self.tie}
+
     def note(self) -> str:
         v = ", ".join(f"{k} {1e3 * x:.0f} ms" for k, x in self.values.items())
         if self.tie:
