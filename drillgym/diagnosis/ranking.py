@@ -449,8 +449,7 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         if alt is not None:
             paths["nominal_then_base"] = list(alt["selected"]) + [f"bound:{n}" for n in alt["at_bounds"]]
         if refine_speeds:  # speed corrections for the chosen model (the figures below compare it)
-            obj.model.speed_offsets = [np.zeros_like(o) for o in obj.model.speed_offsets]
-            obj.model.refine_initial_speeds(out["vector"], obj.weights, obj.scales)
+            obj.model.refine_initial_speeds(out["vector"], obj.weights, obj.scales, fresh=True)
     _check_position_effects(out, exps, comp, obj, usable, base_names, segment_s, scales, vec0)
     fine = _check_lag_delay(out, exps, comp, obj, usable, base_names, segment_s, vec0)
     if fine is not None:
@@ -564,8 +563,7 @@ def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s,
         out["selected"] = other
         out["vector"], out["fit"], out["rss_final"] = refit.vector, refit, refit.rss_after
         if obj.model.speed_offsets:  # speed corrections for the model taken (the figures compare it)
-            obj.model.speed_offsets = [np.zeros_like(o) for o in obj.model.speed_offsets]
-            obj.model.refine_initial_speeds(refit.vector, obj.weights, obj.scales)
+            obj.model.refine_initial_speeds(refit.vector, obj.weights, obj.scales, fresh=True)
     if dec.tie:
         out["ties"][dec.chosen] = dec.note()
     return dec

@@ -125,8 +125,7 @@ def refit(data: "TimeSeries | Experiment", params: RigParams | None = None, conf
         res = None
         for _ in range(2):  # the data's speeds at segment starts refined for the model, then for the fitted one
             vec = vec_start if res is None else res.vector
-            model.speed_offsets = [np.zeros_like(o) for o in model.speed_offsets]
-            model.refine_initial_speeds(vec, obj.weights, obj.scales)
+            model.refine_initial_speeds(vec, obj.weights, obj.scales, fresh=True)
             warm = variables if res is None else [replace(v, x0=res.values[v.name]) for v in variables]
             res = fit_parameters(obj, vec_start, warm, max_nfev=max_nfev if res is None else max(4, max_nfev // 2))
     before = compare(ex, vec_before, segment_s=segment_s, effects=comp0)

@@ -302,8 +302,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
 
     def refine_for(vec: np.ndarray) -> float:
         if refine:
-            obj.model.speed_offsets = [np.zeros_like(o) for o in obj.model.speed_offsets]
-            obj.model.refine_initial_speeds(vec, obj.weights, obj.scales)
+            obj.model.refine_initial_speeds(vec, obj.weights, obj.scales, fresh=True)
         r = obj.residual_matrix(vec[None, :])[0]
         cur[0] = r
         return float(r @ r)

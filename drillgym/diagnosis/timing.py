@@ -68,8 +68,7 @@ def _best_value(obj, comp, vector: np.ndarray, name: str, hi: float) -> "tuple[f
     def residual(x: float) -> np.ndarray:
         v = vector.copy()
         v[i] = x
-        model.speed_offsets = [np.zeros_like(o) for o in model.speed_offsets]
-        model.refine_initial_speeds(v, obj.weights, obj.scales)
+        model.refine_initial_speeds(v, obj.weights, obj.scales, fresh=True)
         return obj.residual_matrix(v[None, :])[0]
 
     def rss(x: float) -> float:

@@ -117,14 +117,17 @@ class SegmentedModel:
         self.speed_offsets = [np.zeros((len(p["starts"]), 2)) for p in self._plans]
 
     def refine_initial_speeds(self, vec: np.ndarray, weights: dict[str, float], scales: dict[str, float],
-                              iterations: int = 2, h: float = 0.005) -> None:
+                              iterations: int = 2, h: float = 0.005, fresh: bool = False) -> None:
         """Correct the speeds estimated from the data at the segment starts (nuisance states) by
         Gauss–Newton on the base model's residual, so that noisy derivative estimates of the
         recording do not pass for model error.  Segments are independent, so one batched run
         with all segments' ω_u (resp. ω_l) perturbed gives every segment's sensitivity.
         A disc stuck at a segment's start (speed exactly 0) is left stuck, and a correction never
         exceeds three standard deviations of the estimate's quantization noise
-        (``Experiment.speed_noise``): it removes derivative noise, not model error."""
+        (``Experiment.speed_noise``): it removes derivative noise, not model error.  ``fresh``: start from
+        the data's estimates (earlier corrections, made for another parameter vector, dropped)."""
+        if fresh:
+            self.speed_offsets = [np.zeros_like(o) for o in self.speed_offsets]
         for _ in range(iterations):
             P = np.repeat(np.asarray(vec, dtype=float)[None, :], 3, axis=0)
             preds = self.predict(P, tuple(weights), dspeed=np.array([[0, 0], [h, 0], [0, h]], dtype=float))
