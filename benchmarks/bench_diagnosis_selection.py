@@ -134,6 +134,7 @@ def run_case(c: dict) -> dict:
             out["selected"] = list(d.selected)
             out["ties"] = {s.effect: s.note for s in d.ranking if s.note and s.effect in d.selected}
             out["paths"] = dict(d.paths)
+            out["lag_delay"] = d.lag_delay
             out["moved"] = {k: round(v["change_pct"], 1) for k, v in d.base_parameters.items()}
             out["rmse"] = (round(d.rmse_before, 1), round(d.rmse_after or 0.0, 1))
             out["candidate"] = d.candidate.expression() if d.candidate else None
@@ -181,6 +182,9 @@ def case_line(r: dict) -> str:
         line += " base " + ",".join(f"{k}{v:+.1f}%" for k, v in r["moved"].items())
     if r.get("paths"):
         line += " paths " + "; ".join(f"{k}={'+'.join(v) or '-'}" for k, v in r["paths"].items())
+    if r.get("lag_delay"):
+        ld = r["lag_delay"]
+        line += f"; lag_delay_fine={ld['chosen']}:{ld['score_gap_nats']:.1f}nats@{ld['rate_hz']:.0f}Hz"
     if r.get("candidate"):
         line += f" | cand {r['candidate']} ({r['explained']:.0%})"
     if r.get("unexplained"):

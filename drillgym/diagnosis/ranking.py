@@ -452,8 +452,6 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
             obj.model.refine_initial_speeds(out["vector"], obj.weights, obj.scales, fresh=True)
     _check_position_effects(out, exps, comp, obj, usable, base_names, segment_s, scales, vec0)
     fine = _check_lag_delay(out, exps, comp, obj, usable, base_names, segment_s, vec0)
-    if fine is not None:
-        paths["lag_delay_fine"] = [f"{fine.chosen}:{fine.gap:.1f}nats@{fine.rate_hz:.0f}Hz"]
     skipped.update(out["excluded"])
     N = out["n"]
     rmse0 = math.sqrt(out["rss_nominal"] / N)
@@ -539,25 +537,25 @@ def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s,
     the rest of the model (the base parameters too if they moved), a tie is stated (in place).  Returns the
     :class:`.timing.FineDecision` or None (no lag/delay selected, or no finer data)."""
     from .selection import _effect_params, _fit, _neutralise, _State
-    from .timing import LAG_DELAY, decide_lag_delay, fine_rate
+    from .timing import LAG_DELAY, decide_lag_delay
 
     by = {e.name: e for e in effects}
     held = [e for e in out["selected"] if e in LAG_DELAY]
-    if len(held) != 1 or not all(e in by for e in LAG_DELAY) or any(fine_rate(ex) is None for ex in exps):
+    if len(held) != 1 or not all(e in by for e in LAG_DELAY):
         return None
     a = held[0]
     b = LAG_DELAY[1 - LAG_DELAY.index(a)]
     free_base = tuple(base_names) if out["base_off"] else ()
     st = _State(obj, comp, out["vector"].copy(), nominal.copy(), free_base, {e: by[e] for e in set(out["selected"]) | {b}})
-    dec = decide_lag_delay(exps, comp, {a: out["vector"], b: _neutralise(st, out["vector"], a)}, a, obj.weights,
-                           segment_s)
+    without_a = _neutralise(st, out["vector"], a)
+    dec = decide_lag_delay(exps, comp, {a: out["vector"], b: without_a}, a, obj.weights, segment_s)
     if dec is None:
         return None
     for name in LAG_DELAY:
         out["ties"].pop(name, None)
     if dec.chosen != a:
         other = [b if e == a else e for e in out["selected"]]
-        start = _neutralise(st, out["vector"], a)
+        start = without_a.copy()
         start[comp.param_index(by[b].parameters[0].name)] = dec.values[b]
         refit = _fit(st, start, list(free_base) + _effect_params(st, other), 15)
         out["selected"] = other
@@ -565,7 +563,7 @@ def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s,
         if obj.model.speed_offsets:  # speed corrections for the model taken (the figures compare it)
             obj.model.refine_initial_speeds(refit.vector, obj.weights, obj.scales, fresh=True)
     if dec.tie:
-        out["ties"][dec.chosen] = dec.note()
+        out["ties"][dec.chosen] = dec.tie_note()
     return dec
 
 

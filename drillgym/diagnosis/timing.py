@@ -36,6 +36,7 @@ import numpy as np
 from ..identification.experiment import Experiment, prepare_experiment
 from ..identification.fitting import Objective
 from ..identification.segmented import SegmentedModel
+from .effects import get_effect
 from .selection import n_eff
 
 __all__ = ["FINE_RATE_HZ", "LAG_DELAY", "FineDecision", "decide_lag_delay"]
@@ -106,14 +107,12 @@ class FineDecision:
         return {"chosen": self.chosen, "other": self.other, "score_gap_nats": round(self.gap, 2),
                 "rate_hz": round(self.rate_hz, 1), "fitted_s": self.values, "tie": self.tie}
 
-    def note(self) -> str:
+    def tie_note(self) -> str:
+        """The ranking's note on the chosen effect when the two are a tie."""
         v = ", ".join(f"{k} {1e3 * x:.0f} ms" for k, x in self.values.items())
-        if self.tie:
-            return (f"indistinguishable from {self.other} at the recording's rate ({self.rate_hz:.0f} Hz; score "
-                    f"difference {abs(self.gap):.1f} nats; fitted {v}): a voltage step recorded at 1 kHz or faster "
-                    f"separates them (a delay shifts the whole response, a lag rounds its start)")
-        return (f"preferred to {self.other} at the recording's rate ({self.rate_hz:.0f} Hz; score difference "
-                f"{self.gap:.1f} nats; fitted {v})")
+        return (f"indistinguishable from {self.other} at the recording's rate ({self.rate_hz:.0f} Hz; score "
+                f"difference {abs(self.gap):.1f} nats; fitted {v}): a voltage step recorded at 1 kHz or faster "
+                f"separates them (a delay shifts the whole response, a lag rounds its start)")
 
 
 def fine_rate(ex: Experiment) -> "float | None":
@@ -157,7 +156,7 @@ def decide_lag_delay(exps: Sequence[Experiment], comp, models: Mapping[str, np.n
     obj = Objective(model, weights, scales)
     a = incumbent
     b = LAG_DELAY[1 - LAG_DELAY.index(a)]
-    par = {"motor_lag": "tau_m", "input_delay": "delay"}
+    par = {e: get_effect(e).parameters[0].name for e in LAG_DELAY}  # tau_m, delay
     hi = max(SEARCH_SPAN * max(float(models[e][comp.param_index(par[e])]) for e in LAG_DELAY), SEARCH_MIN_S)
     va, ra = _best_value(obj, comp, models[a], par[a], hi)
     vb, rb = _best_value(obj, comp, models[b], par[b], hi)
