@@ -302,7 +302,11 @@ class Firmware:
         late = None if self.last_command is None else now - self.last_command
         if self.armed and late is not None and late >= self.config.watchdog_s and not (
                 rx_pending and late < 2 * self.config.watchdog_s):
-            out += self._stop(P.StopReason.WATCHDOG, now)
+            # A microcontroller's watchdog is a hardware timer: it fires at its deadline, however late
+            # this poll comes (the emulator's timer thread can be starved on a loaded host).  A stop held
+            # back by a pending command happens when it is decided, now.
+            at = now if rx_pending else self.last_command + self.config.watchdog_s
+            out += self._stop(P.StopReason.WATCHDOG, at)
         if self.armed:
             return out
         if self._idle_anchor is None:

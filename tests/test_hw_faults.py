@@ -193,7 +193,8 @@ def test_firmware_watchdog_and_limits_without_threads():
     sample = P.decode(P.FrameParser().feed(reply)[0])
     assert sample.volts == 5.0 and sample.status & P.Status.LIMITED  # clamped to the amplifier range
     assert fw.poll(0.099) == [] and fw.volts == 5.0
-    (stop,) = fw.poll(0.100)
+    (stop,) = fw.poll(0.130)  # a late poll (starved emulator thread): the hardware timer fired at 0.100
+    assert fw.events[-1].time == pytest.approx(0.100) and fw.events[-1].volts == 0.0
     assert P.decode(P.FrameParser().feed(stop)[0]) == P.EmergencyStop(P.StopReason.WATCHDOG) and fw.volts == 0.0
     frames = fw.handle(P.Frame(P.MsgType.SET_VOLTAGE, 1, P.SetVoltage(2.0).pack()), now=0.2)
     s = P.decode(P.FrameParser().feed(frames[0])[0])
