@@ -37,11 +37,13 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
             iterations: int = 8, steps: int = 500, epochs: int = 4, batch_size: int = 4096, lr: float = 1e-3,
             seed: int = 0, privileged: bool = False, population: "str | None" = None, nominal_fraction: float = 0.0,
             teacher_kwargs: dict[str, Any] | None = None, beta: float = 0.0, noise: float = 0.0,
-            motor_integral: bool = False, command: "dict[str, float] | None" = None, log=None) -> dict[str, float]:
+            motor_integral: bool = False, command: "dict[str, float] | None" = None, lr_final: float | None = None,
+            log=None) -> dict[str, float]:
     """Regress the actor of the SB3 ``model`` (PPO/MLP, its env's observation) on the ``teacher``'s actions.
 
     ``iterations`` DAgger rounds of ``steps`` periods on ``n_envs`` rigs of ``env_id`` with ``env_kwargs``
-    (domain randomisation included); ``epochs`` passes of Adam (``lr``) over the aggregated data per round.
+    (domain randomisation included); ``epochs`` passes of Adam (``lr``) over the aggregated data per round; ``lr_final``: the learning rate
+    falls geometrically from ``lr`` in the first round to this in the last (None: constant).
     ``privileged``: the model's observation carries the privileged critic's entries (ignored by the actor).
     ``motor_integral``: the model's observation ends with the motor-angle tracking integral
     (:mod:`agents.integral`); the 'flatness' teacher then uses that integral as its own.
@@ -99,6 +101,9 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
     if not (0.0 <= beta <= 1.0 and noise >= 0.0):
         raise ValueError(f"beta must be in [0, 1] and noise >= 0, got beta={beta!r}, noise={noise!r}")
     for it in range(iterations):
+        if lr_final is not None and iterations > 1:
+            for g in opt.param_groups:
+                g["lr"] = lr * (lr_final / lr) ** (it / (iterations - 1))
         by_teacher = rng.random(n_envs) < (1.0 if it == 0 else beta ** it)
         for _ in range(steps):
             a_t = teacher_actions()

@@ -244,3 +244,71 @@ def test_delay_under_mismatch_is_not_reported_as_a_lag_without_a_tie():
         assert "indistinguishable" in d.ranking[0].note, d.text()
     else:
         assert d.effect_values()["delay"] == pytest.approx(0.04, rel=0.25)
+
+
+def test_each_sensor_is_weighted_by_its_own_misfit():
+    """Encoders at 8 noise units (a friction law's systematic error) and LVDTs within the noise: the
+    encoders' scales grow 8x, the LVDTs' stay; once balanced, a second call changes nothing; a recording
+    of one sensor is never rescaled."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from drillgym.diagnosis.selection import balance_sensors
+
+    rng = np.random.default_rng(1)
+    n = 2000
+    channels = ["theta_l", "theta_u", "x", "y"]
+    ids = np.repeat(np.arange(4), n)
+    noise = {"theta_l": 2e-4, "theta_u": 2e-4, "x": 1e-5, "y": 1e-5}
+    obj = SimpleNamespace(channels=channels, channel_ids=ids, scales=dict(noise))
+    r = np.concatenate([8.0 * rng.standard_normal(n), 8.0 * rng.standard_normal(n),
+                        0.5 * rng.standard_normal(n), 0.5 * rng.standard_normal(n)])
+    f = balance_sensors(obj, r, noise)
+    assert f["encoders"] == pytest.approx(8.0, rel=0.05) and f["LVDTs"] == 1.0
+    assert obj.scales["theta_l"] == pytest.approx(8.0 * noise["theta_l"], rel=0.05)
+    assert obj.scales["x"] == noise["x"] and obj.scales["y"] == noise["y"]
+    r_balanced = r * np.where(ids < 2, noise["theta_l"] / obj.scales["theta_l"], 1.0)
+    assert balance_sensors(obj, r_balanced, noise) == {}
+    one = SimpleNamespace(channels=["theta_l", "theta_u"], channel_ids=np.repeat([0, 1], n),
+                          scales={"theta_l": 2e-4, "theta_u": 2e-4})
+    assert balance_sensors(one, 8.0 * rng.standard_normal(2 * n), {"theta_l": 2e-4, "theta_u": 2e-4}) == {}
+    assert one.scales == {"theta_l": 2e-4, "theta_u": 2e-4}
+
+
+def test_noise_floor_is_in_noise_units_when_sensors_are_weighted():
+    """A y residual cut from 0.9 to 0.5 units (one unit = 3 noise units: the LVDTs' misfit) explains
+    5.0 noise units², above the floor of 1; read as noise units it would be 0.56, below it."""
+    import numpy as np
+
+    from drillgym.diagnosis.selection import _significant
+
+    rng = np.random.default_rng(2)
+    n = 3000
+    e = rng.standard_normal(n)
+    e /= np.sqrt(np.mean(e ** 2))
+    r0, r1 = np.concatenate([e, 0.9 * e]), np.concatenate([e, 0.5 * e])
+    channels = np.repeat([0, 1], n)
+    unit = np.concatenate([np.full(n, 5.0), np.full(n, 3.0)])
+    args = (100.0, float(r0 @ r0), float(r1 @ r1), 2 * n, r0, r1, channels)
+    assert not _significant(*args)
+    assert _significant(*args, unit)
+
+
+def test_lvdt_skew_and_lateral_friction_found_on_an_independent_rig():
+    """An independent rig (scipy, smoothed friction: benchmarks/bench_diagnosis_rig.py) leaves the encoders
+    several noise units off where the LVDTs fit: with one pooled weight the lateral parameters moved to fit
+    the angles and a spurious position friction entered; each sensor weighted by its own misfit, the set
+    is right and the skew's value close."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from bench_diagnosis_rig import rig_recording
+
+    ts = rig_recording("coupled", "ramps", 20.0, 200.0, 5, {"lvdt_skew": {"lvdt_skew": 0.035},
+                                                           "lateral_coulomb": {"Fc_lat": 1.5}}, {}, 2.6, 1.5)
+    d = diagnose(ts)
+    assert sorted(d.selected) == ["lateral_coulomb", "lvdt_skew"], d.text()
+    assert d.sensor_weights and d.sensor_weights["encoders"] > 1.5, d.text()
+    vals = d.effect_values()
+    assert vals["lvdt_skew"] == pytest.approx(0.035, rel=0.25) and vals["Fc_lat"] == pytest.approx(1.5, rel=0.1)

@@ -131,6 +131,8 @@ class Diagnosis:
     nominal_vector: np.ndarray | None = None
     paths: dict[str, list[str]] = field(default_factory=dict)  # what each search order selected
     lag_delay: "dict | None" = None  # the lag/delay decision at the recording's rate (timing.FineDecision.to_json)
+    #: sensor -> the model's misfit on it (noise units), by which its channels were rescaled (selection.balance_sensors)
+    sensor_weights: dict[str, float] = field(default_factory=dict)
 
     @property
     def best(self) -> EffectScore | None:
@@ -153,14 +155,16 @@ class Diagnosis:
                 "rmse_before": self.rmse_before, "rmse_after": self.rmse_after,
                 "channel_rms_before": self.channel_rms_before, "n_eff": self.n_eff, "segment_s": self.segment_s,
                 "skipped": self.skipped, "base_refit": self.base_refit, "model": self.model,
-                "search_paths": self.paths, "lag_delay": self.lag_delay}
+                "search_paths": self.paths, "lag_delay": self.lag_delay, "sensor_misfit": self.sensor_weights}
 
     def text(self) -> str:
         after = f"; after {self.rmse_after:.3g}" if self.rmse_after is not None else ""
         lines = [f"diagnosis of the model {self.model!r} ({self.config.label}; multiple shooting, segments of "
                  f"{self.segment_s if self.segment_s else 'whole record'} s; residual RMS "
-                 f"{self.rmse_before:.3g} noise units{after}; " +
+                 f"{self.rmse_before:.3g} {'misfit-weighted' if self.sensor_weights else 'noise'} units{after}; " +
                  ", ".join(f"{c} {v:.3g}" for c, v in self.channel_rms_before.items()) + ")"]
+        if self.sensor_weights:
+            lines.append("each sensor weighted by the model's misfit on it (one misfit-weighted unit): " + ", ".join(f"{k} {v:.3g} noise units" for k, v in self.sensor_weights.items()))
         if self.base_off:
             if self.base_parameters:
                 lines.append("the base model is off; re-identified base parameters that moved: " + ", ".join(
@@ -388,7 +392,7 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         max_effects: at most this many effects are selected.
         refit_base: ignored (kept for old callers: the base parameters are always considered).
     """
-    from .selection import (BASE_BOUNDS, base_free_parameters, forward_select, neutral_values,
+    from .selection import (BASE_BOUNDS, SENSORS, base_free_parameters, forward_select, neutral_values,
                             search_composition)
 
     base = params or RigParams()
@@ -426,8 +430,14 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
     brake_on = all(float(ex.meta.get("brake_normal_force_n", 1.0) or 0.0) != 0.0 for ex in exps)
     base_names = () if fixed_base else base_free_parameters(cfg, brake_on)
     ch0 = obj.channel_rms(vec0)
+    noise_scales = dict(obj.scales)
     out = forward_select(obj, comp, vec0, usable, base_names, n_joint=n_joint, max_effects=max_effects,
-                         refine=refine_speeds)
+                         refine=refine_speeds, balance=True)
+    # the channels as weighted from here on (balance_sensors may have rescaled them in obj, in place)
+    scales = dict(obj.scales)
+    sensor_factors = {name: obj.scales[chans[0]] / noise_scales[chans[0]]
+                      for name, chans in SENSORS.items() if chans[0] in obj.channels
+                      and obj.scales[chans[0]] != noise_scales[chans[0]]}
     paths = {"base_first": list(out["selected"]) + [f"bound:{n}" for n in out["at_bounds"]]}
     alt = None
     if base_names:
@@ -495,6 +505,7 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
                   rmse_after=math.sqrt(out["rss_final"] / N), composition=comp, vector=vec,
                   params=RigParams.from_vector(vec[:N_PARAMS]))
     d.paths = paths
+    d.sensor_weights = sensor_factors
     d.lag_delay = fine.to_json() if fine is not None else None
     d.nominal_vector = vec.copy()
     d.nominal_vector[:N_PARAMS] = vec0[:N_PARAMS]

@@ -13,6 +13,9 @@ model a few percent off leaves a residual that some effect partly mimics.  Here:
    bearing's Tcl, bl; lateral k, b, e; Ju is held: it fixes the scale of the torques) are fitted
    first (within ±12 % of their nominal values, :data:`BASE_BOUNDS`) and stay free in every later fit, so
    mismatch is absorbed by the base parameters, never by an effect.
+   With encoders and LVDTs both recorded, each sensor is then weighted by its own misfit
+   (:func:`balance_sensors`; again whenever an effect enters, and the later search orders keep
+   the final weights).
 3. **Forward selection with refit.**  Every candidate not yet in the model is screened (its own
    parameters fitted, the rest held); the ``n_joint`` best are refitted jointly with the base
    parameters and the effects already accepted; the best joint fit is accepted when its score
@@ -68,7 +71,7 @@ from ..effects.base import Measurement
 from ..identification.fitting import FitResult, FitVariable, Objective, fit_parameters
 from ..params import N_PARAMS, PARAM_INFO, RigParams
 
-__all__ = ["BASE_FREE", "neutral_values", "search_composition", "SelectionStep", "forward_select",
+__all__ = ["BASE_FREE", "SENSORS", "balance_sensors", "neutral_values", "search_composition", "SelectionStep", "forward_select",
            "base_free_parameters", "SIGNIFICANCE", "MIN_REDUCTION", "MIN_EXPLAINED", "TIE_NATS", "MOVED_PCT"]
 
 SIGNIFICANCE = 15.0  # nats
@@ -226,7 +229,13 @@ def base_at_bounds(st: "_State", vec: np.ndarray, tol: float = 0.01) -> list[str
 
 def _fit(st: _State, vec: np.ndarray, names: Sequence[str], max_nfev: int, fresh: Sequence[str] = ()) -> FitResult:
     """Fit ``names`` from ``vec``; standard errors are inflated by √(N / N_eff) (the least-squares
-    errors assume independent residual samples; these are correlated)."""
+    errors assume independent residual samples; these are correlated).  No names: the model at ``vec``
+    as it is (the backward check of the last effect of a model with no free base parameters)."""
+    if not names:
+        r = st.obj.residual_matrix(vec[None, :])[0]
+        rss = float(r @ r)
+        return FitResult([], {}, {}, RigParams.from_vector(vec[:N_PARAMS]), vec.copy(), rss, rss, len(r), 1,
+                         residual=r, composition=st.comp)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = fit_parameters(st.obj, vec, _variables(st, vec, names, fresh), max_nfev=max_nfev)
@@ -247,22 +256,73 @@ def _neutralise(st: _State, vec: np.ndarray, name: str) -> np.ndarray:
     return v
 
 
+#: channels read by one kind of sensor: they share one misfit level (:func:`balance_sensors`)
+SENSORS = {"encoders": ("theta_u", "theta_l", "alpha"), "LVDTs": ("x", "y", "r")}
+
+
+def balance_sensors(obj: Objective, residual: np.ndarray, noise_scales: dict[str, float],
+                    tol: float = 0.25) -> dict[str, float]:
+    """Weigh each sensor by its own misfit: the residual scale of every channel of a sensor
+    (:data:`SENSORS`) becomes its noise scale (``noise_scales``) times that sensor's RMS misfit in
+    noise units, at least 1 (``residual``: the current model's, in ``obj``'s layout and units);
+    ``obj.scales`` is changed in place when a sensor's scale changes by more than ``tol``.
+
+    The noise-normalised residual assumes the model errs by noise alone.  A real model errs
+    systematically, and unequally per sensor: the friction law's stick phases leave the encoders
+    at several noise units while the LVDTs fit to the noise.  Pooled, the encoders then own the
+    fit: the lateral parameters move to fit the angles, and what only the LVDTs show (a 2° skew)
+    drowns.  One unknown variance per sensor (maximum likelihood, one reweighting step) gives every
+    sensor the weight of its own fit.  Called again as effects enter (iteratively reweighted least
+    squares): a misfit that a missing effect causes falls once it is in.  Returns {sensor: new factor}
+    when the scales changed, else {} (one sensor, or no change beyond ``tol``)."""
+    present = {name: [c for c in chans if c in obj.channels] for name, chans in SENSORS.items()}
+    present = {k: v for k, v in present.items() if v}
+    if len(present) < 2:
+        return {}
+    factors: dict[str, float] = {}
+    for name, chans in present.items():
+        now = obj.scales[chans[0]] / noise_scales[chans[0]]
+        e = residual[np.isin(obj.channel_ids, [obj.channels.index(c) for c in chans])]
+        misfit = now * float(np.sqrt(np.mean(e ** 2))) if e.size else 1.0
+        factors[name] = max(1.0, misfit)
+    changed = any(abs(math.log(f * noise_scales[present[n][0]] / obj.scales[present[n][0]])) > math.log1p(tol)
+                  for n, f in factors.items())
+    if not changed:
+        return {}
+    for name, f in factors.items():
+        for c in SENSORS[name]:
+            if c in obj.scales:
+                obj.scales[c] = noise_scales[c] * f
+    return factors
+
+
 def _significant(sc: float, rss0: float, rss1: float, n: int, r0: "np.ndarray | None" = None,
-                 r1: "np.ndarray | None" = None, channels: "np.ndarray | None" = None) -> bool:
+                 r1: "np.ndarray | None" = None, channels: "np.ndarray | None" = None,
+                 unit: "np.ndarray | None" = None) -> bool:
     """Score above :data:`SIGNIFICANCE`, and the residual RMS cut by :data:`MIN_REDUCTION` by more than the
-    noise floor :data:`MIN_EXPLAINED`: over all channels, or (residual vectors ``r0``, ``r1`` and their
-    ``channels`` given) in one channel."""
+    noise floor :data:`MIN_EXPLAINED`: over all channels, or (``channels`` given) in one channel.
+    ``unit``: per residual entry, the noise units of one unit of the residual (sensors weighted by their
+    misfit, :func:`balance_sensors`): the noise floor is in noise units, the cut in the fit's units."""
     if not sc > SIGNIFICANCE:
         return False
+    have = r0 is not None and r1 is not None and len(r0) == len(r1)
+    u = unit if have and unit is not None and len(unit) == len(r0) else None
+
+    def explained(m: "np.ndarray | slice") -> float:
+        if u is None:
+            return float(np.mean(r0[m] ** 2) - np.mean(r1[m] ** 2))
+        return float(np.mean((r0[m] * u[m]) ** 2) - np.mean((r1[m] * u[m]) ** 2))
+
     rm0, rm1 = math.sqrt(rss0 / n), math.sqrt(rss1 / n)
-    if rm1 < (1 - MIN_REDUCTION) * rm0 and rm0 ** 2 - rm1 ** 2 > MIN_EXPLAINED:
+    pooled_explained = explained(slice(None)) if have else rm0 ** 2 - rm1 ** 2
+    if rm1 < (1 - MIN_REDUCTION) * rm0 and pooled_explained > MIN_EXPLAINED:
         return True
-    if r0 is None or r1 is None or channels is None or len(r0) != len(channels) or len(r1) != len(channels):
+    if not have or channels is None or len(r0) != len(channels):
         return False
     for c in np.unique(channels):
         m = channels == c
         q0, q1 = float(np.mean(r0[m] ** 2)), float(np.mean(r1[m] ** 2))
-        if math.sqrt(q1) < (1 - MIN_REDUCTION) * math.sqrt(q0) and q0 - q1 > MIN_EXPLAINED:
+        if math.sqrt(q1) < (1 - MIN_REDUCTION) * math.sqrt(q0) and explained(m) > MIN_EXPLAINED:
             return True
     return False
 
@@ -289,10 +349,13 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
                    base_names: Sequence[str], *, excluded: dict[str, str] | None = None, n_joint: int = 2,
                    max_nfev_screen: int = 8, max_nfev_joint: int = 15, max_nfev_base: int = 15,
                    max_effects: int = 4, refine: bool = True, initial: Sequence[str] = (),
-                   start: np.ndarray | None = None, n_eff_ref: float = 0.0, n_group: int = 3) -> dict[str, Any]:
+                   start: np.ndarray | None = None, n_eff_ref: float = 0.0, n_group: int = 3,
+                   balance: bool = False) -> dict[str, Any]:
     """Run steps 2–6 of the module docstring on the search model ``comp`` (vector ``vec0``: nominal
     base parameters, candidates neutral).  ``initial``: effects accepted before the loop (fitted
-    jointly with the base parameters from ``start``, then subject to the backward check).  Returns a
+    jointly with the base parameters from ``start``, then subject to the backward check).  ``balance``
+    (with base parameters): weigh ``obj``'s channels per sensor after the base fit and after every
+    acceptance (:func:`balance_sensors`; in place, so later selections on ``obj`` use the final units).  Returns a
     dict with the selection's pieces (see :func:`drillgym.diagnosis.ranking.diagnose`, which formats
     them)."""
     excluded = dict(excluded or {})
@@ -316,6 +379,28 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
         return channel_ids if issubclass(st.effects[name], Measurement) else None
 
     cur: list[np.ndarray] = [np.zeros(0)]  # the current model's residual vector
+    noise_scales = dict(obj.scales)
+
+    def units() -> np.ndarray:
+        """Per residual entry: noise units per unit of the (misfit-weighted) residual."""
+        f = np.array([obj.scales[c] / noise_scales[c] for c in obj.channels])
+        return f[obj.channel_ids]
+
+    def settle_weights() -> bool:
+        """Step 2b (``balance``): each sensor's channels weighted by the current model's misfit, and the
+        model refitted with them (twice at most); True if the weights changed."""
+        nonlocal rss_cur
+        changed = False
+        for _ in range(2):
+            if not (balance and st.base_names and balance_sensors(obj, cur[0], noise_scales)):
+                break
+            changed = True
+            rss_cur = refine_for(st.vec)
+            rf = _fit(st, st.vec, list(st.base_names) + _effect_params(st, st.selected), max(4, max_nfev_base // 2))
+            if rf.rss_after < rss_cur:
+                st.vec, rss_cur, cur[0] = rf.vector, rf.rss_after, rf.residual
+            st.fit = rf
+        return changed
     rss_nominal = refine_for(vec0)
     rss_cur = rss_nominal
     fb = None
@@ -334,97 +419,100 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
         st.fit = fb2
     last_round: dict[str, SelectionStep] = {}
     tried_group = False
-    while len(st.selected) < max_effects:
-        free_now = list(st.base_names) + _effect_params(st, st.selected)
-        screen: dict[str, FitResult] = {}
-        # the base refit may have absorbed part of an effect (a motor lag looks like a slower upper disc):
-        # every candidate is also screened from the nominal base parameters with the accepted effects
-        starts = [st.vec]
-        if st.base_names:
-            nom = st.vec.copy()
-            for n in st.base_names:
-                nom[st.comp.param_index(n)] = st.nominal[st.comp.param_index(n)]
-            starts.append(nom)
-        for name, eff in st.effects.items():
-            if name in st.selected:
-                continue
-            for v in starts:
-                try:
-                    r_ = _fit(st, v, _effect_params(st, [name]), max_nfev_screen, fresh=[name])
-                except ValueError as exc:
-                    excluded[name] = f"fit failed: {exc}"
+    for _weighting in range(3):  # the selection, then again while the sensors' weights settle (step 2b)
+        while len(st.selected) < max_effects:
+            free_now = list(st.base_names) + _effect_params(st, st.selected)
+            screen: dict[str, FitResult] = {}
+            # the base refit may have absorbed part of an effect (a motor lag looks like a slower upper disc):
+            # every candidate is also screened from the nominal base parameters with the accepted effects
+            starts = [st.vec]
+            if st.base_names and not _weighting:  # (once the weights changed, the model has its base refit)
+                nom = st.vec.copy()
+                for n in st.base_names:
+                    nom[st.comp.param_index(n)] = st.nominal[st.comp.param_index(n)]
+                starts.append(nom)
+            for name, eff in st.effects.items():
+                if name in st.selected:
                     continue
-                if name not in screen or r_.rss_after < screen[name].rss_after:
-                    screen[name] = r_
-        if not screen:
-            break
-        order = sorted(screen, key=lambda n: screen[n].rss_after)
-        round_: dict[str, SelectionStep] = {}
-        joint: dict[str, FitResult] = {}
-        for name in order:
-            res = screen[name]
-            k = len(res.names)
-            if name in order[:n_joint]:
+                for v in starts:
+                    try:
+                        r_ = _fit(st, v, _effect_params(st, [name]), max_nfev_screen, fresh=[name])
+                    except ValueError as exc:
+                        excluded[name] = f"fit failed: {exc}"
+                        continue
+                    if name not in screen or r_.rss_after < screen[name].rss_after:
+                        screen[name] = r_
+            if not screen:
+                break
+            order = sorted(screen, key=lambda n: screen[n].rss_after)
+            round_: dict[str, SelectionStep] = {}
+            joint: dict[str, FitResult] = {}
+            for name in order:
+                res = screen[name]
+                k = len(res.names)
+                if name in order[:n_joint]:
+                    try:
+                        jr = _fit(st, res.vector, free_now + _effect_params(st, [name]), max_nfev_joint)
+                        if jr.rss_after < res.rss_after:
+                            res = jr
+                        joint[name] = res
+                    except ValueError:
+                        pass
+                if res.rss_after > rss_cur:  # the effect at its neutral values: nothing explained
+                    res.rss_after, res.residual = rss_cur, cur[0].copy()
+                sc, ne = score(cur[0], res, k, n_eff_ref, ch(name))
+                eff_vals = {p: res.values.get(p, float(res.vector[st.comp.param_index(p)]))
+                            for p in _effect_params(st, [name])}
+                eff_std = {p: res.std.get(p, float("nan")) for p in eff_vals}
+                round_[name] = SelectionStep(name, sc, rss_cur, res.rss_after, eff_vals, eff_std,
+                                             _significant(sc, rss_cur, res.rss_after, N, cur[0], res.residual, ch(name), units()), ne)
+            best = max(joint or round_, key=lambda n: round_[n].score)
+            last_round = round_
+            if not round_[best].significant:
+                # masking: several effects at once leave a residual no single one explains enough of (each one's
+                # residual is dominated by the others').  The leading candidates are fitted together; if the group
+                # is significant it enters whole, and the backward check below removes those that do not count
+                group = [n for n in order if screen[n].rss_after < rss_cur][:n_group]
+                group = group[:max_effects - len(st.selected)]
+                if len(group) < 2 or tried_group:
+                    break
+                gv = st.vec.copy()
+                for n in group:
+                    for p in _effect_params(st, [n]):
+                        gv[st.comp.param_index(p)] = screen[n].vector[st.comp.param_index(p)]
                 try:
-                    jr = _fit(st, res.vector, free_now + _effect_params(st, [name]), max_nfev_joint)
-                    if jr.rss_after < res.rss_after:
-                        res = jr
-                    joint[name] = res
+                    gr = _fit(st, gv, free_now + _effect_params(st, group), max_nfev_joint)
                 except ValueError:
-                    pass
-            if res.rss_after > rss_cur:  # the effect at its neutral values: nothing explained
-                res.rss_after, res.residual = rss_cur, cur[0].copy()
-            sc, ne = score(cur[0], res, k, n_eff_ref, ch(name))
-            eff_vals = {p: res.values.get(p, float(res.vector[st.comp.param_index(p)]))
-                        for p in _effect_params(st, [name])}
-            eff_std = {p: res.std.get(p, float("nan")) for p in eff_vals}
-            round_[name] = SelectionStep(name, sc, rss_cur, res.rss_after, eff_vals, eff_std,
-                                         _significant(sc, rss_cur, res.rss_after, N, cur[0], res.residual, ch(name)), ne)
-        best = max(joint or round_, key=lambda n: round_[n].score)
-        last_round = round_
-        if not round_[best].significant:
-            # masking: several effects at once leave a residual no single one explains enough of (each one's
-            # residual is dominated by the others').  The leading candidates are fitted together; if the group
-            # is significant it enters whole, and the backward check below removes those that do not count
-            group = [n for n in order if screen[n].rss_after < rss_cur][:n_group]
-            group = group[:max_effects - len(st.selected)]
-            if len(group) < 2 or tried_group:
-                break
-            gv = st.vec.copy()
-            for n in group:
-                for p in _effect_params(st, [n]):
-                    gv[st.comp.param_index(p)] = screen[n].vector[st.comp.param_index(p)]
-            try:
-                gr = _fit(st, gv, free_now + _effect_params(st, group), max_nfev_joint)
-            except ValueError:
-                break
-            kg = len(_effect_params(st, group))
-            sc, ne = score(rss_cur, gr, kg, n_eff_ref)
-            if not _significant(sc, rss_cur, gr.rss_after, N):
-                break
-            for n in group:
-                vals = {p: float(gr.vector[st.comp.param_index(p)]) for p in _effect_params(st, [n])}
-                steps.append(SelectionStep(n, sc, rss_cur, gr.rss_after, vals,
-                                           {p: gr.std.get(p, float("nan")) for p in vals}, True, ne,
-                                           note=f"entered with {', '.join(g for g in group if g != n)}"))
-            st.selected += group
-            tried_group = True
-            st.vec = gr.vector
+                    break
+                kg = len(_effect_params(st, group))
+                sc, ne = score(rss_cur, gr, kg, n_eff_ref)
+                if not _significant(sc, rss_cur, gr.rss_after, N, cur[0], gr.residual, unit=units()):
+                    break
+                for n in group:
+                    vals = {p: float(gr.vector[st.comp.param_index(p)]) for p in _effect_params(st, [n])}
+                    steps.append(SelectionStep(n, sc, rss_cur, gr.rss_after, vals,
+                                               {p: gr.std.get(p, float("nan")) for p in vals}, True, ne,
+                                               note=f"entered with {', '.join(g for g in group if g != n)}"))
+                st.selected += group
+                tried_group = True
+                st.vec = gr.vector
+                rss_cur = refine_for(st.vec)
+                rf = _fit(st, st.vec, list(st.base_names) + _effect_params(st, st.selected), max_nfev_joint)
+                if rf.rss_after < rss_cur:
+                    st.vec, rss_cur, cur[0] = rf.vector, rf.rss_after, rf.residual
+                st.fit = rf
+                continue
+            st.selected.append(best)
+            steps.append(round_[best])
+            st.vec = joint[best].vector if best in joint else screen[best].vector
             rss_cur = refine_for(st.vec)
+            # a second pass with speeds refined for the extended model
             rf = _fit(st, st.vec, list(st.base_names) + _effect_params(st, st.selected), max_nfev_joint)
             if rf.rss_after < rss_cur:
                 st.vec, rss_cur, cur[0] = rf.vector, rf.rss_after, rf.residual
             st.fit = rf
-            continue
-        st.selected.append(best)
-        steps.append(round_[best])
-        st.vec = joint[best].vector if best in joint else screen[best].vector
-        rss_cur = refine_for(st.vec)
-        # a second pass with speeds refined for the extended model
-        rf = _fit(st, st.vec, list(st.base_names) + _effect_params(st, st.selected), max_nfev_joint)
-        if rf.rss_after < rss_cur:
-            st.vec, rss_cur, cur[0] = rf.vector, rf.rss_after, rf.residual
-        st.fit = rf
+        if not settle_weights():
+            break
     # step 4: backward check
     dropped: dict[str, str] = {}
     if len(st.selected) >= 2 or (st.selected and initial and st.base_names) or tried_group:
@@ -438,11 +526,14 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
             for stp in steps:  # effects accepted up front get their score here
                 if stp.effect == name and not stp.score == stp.score:
                     stp.score, stp.rss_before, stp.rss_after = sc, without.rss_after, rss_cur
-            if not _significant(sc, without.rss_after, rss_cur, N, without.residual, cur[0], ch(name)):
+            if not _significant(sc, without.rss_after, rss_cur, N, without.residual, cur[0], ch(name), units()):
                 dropped[name] = f"removed by the backward check (score {sc:.1f} once the others are in)"
                 st.selected.remove(name)
                 st.vec, rss_cur, cur[0] = without.vector, without.rss_after, without.residual
                 st.fit = without
+    if obj.scales != noise_scales:  # the nominal model's residual in the final units (the report's "before")
+        rss_nominal = refine_for(vec0)
+        rss_cur = refine_for(st.vec)
     # step 6: lag or delay
     ties: dict[str, str] = {}
     for a, b in (_LAG_DELAY, _LAG_DELAY[::-1]):
@@ -496,9 +587,10 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
         held = None
         rss_held = float(r @ r)
     rss_held = held.rss_after if held is not None else rss_held
+    r_held = held.residual if held is not None else r
     full = st.fit if st.fit is not None else fb
     base_score, _ = score(rss_held, full, len(st.base_names), n_eff_ref)
-    base_off = _significant(base_score, rss_held, full.rss_after, N) or (
+    base_off = _significant(base_score, rss_held, full.rss_after, N, r_held, full.residual, unit=units()) or (
         base_score > SIGNIFICANCE and full.rss_after < 0.5 * rss_held)
     moved: dict[str, dict[str, float]] = {}
     warn: list[str] = []
