@@ -312,3 +312,16 @@ def test_lvdt_skew_and_lateral_friction_found_on_an_independent_rig():
     assert d.sensor_weights and d.sensor_weights["encoders"] > 1.5, d.text()
     vals = d.effect_values()
     assert vals["lvdt_skew"] == pytest.approx(0.035, rel=0.25) and vals["Fc_lat"] == pytest.approx(1.5, rel=0.1)
+
+
+def test_lag_delay_decision_under_a_base_at_its_bound_is_a_tie():
+    """A 40-nat gap decided with base parameters at the edge of their range is not trusted: stated as a tie
+    that names the bound, in the note and in --json."""
+    from drillgym.diagnosis.timing import FineDecision
+
+    dec = FineDecision("motor_lag", "input_delay", 39.9, 500.0, {"motor_lag": 0.055, "input_delay": 0.055})
+    assert not dec.tie and dec.to_json()["doubt"] == ""
+    dec.doubt = "base parameters at a bound of their range (Tc)"
+    assert dec.tie and dec.to_json()["tie"]
+    note = dec.tie_note()
+    assert "39.9 nats, not trusted" in note and "(Tc)" in note and "input_delay" in note

@@ -545,7 +545,9 @@ def _check_position_effects(out: dict, exps, comp, obj, effects, base_names, seg
 def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s, nominal):
     """Decide a selected motor lag or input delay again on the recordings' own rate (:mod:`.timing`), both
     with the selected model's base parameters; the other one taken is refitted on the comparison grid with
-    the rest of the model (the base parameters too if they moved), a tie is stated (in place).  Returns the
+    the rest of the model (the base parameters too if they moved), a tie is stated (in place); also, whatever
+    the scores, when a base parameter is at a bound of its range (a model wrong elsewhere: seen deciding a
+    50 ms delay as a lag by 40 nats on an independent rig's ramps).  Returns the
     :class:`.timing.FineDecision` or None (no lag/delay selected, or no finer data)."""
     from .selection import _effect_params, _fit, _neutralise, _State
     from .timing import LAG_DELAY, decide_lag_delay
@@ -561,7 +563,14 @@ def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s,
     without_a = _neutralise(st, out["vector"], a)
     dec = decide_lag_delay(exps, comp, {a: out["vector"], b: without_a}, a, obj.weights, segment_s)
     if dec is None:
+        if out.get("at_bounds") and a not in out["ties"]:
+            out["ties"][a] = (f"not told apart from {b}: the base parameters are at a bound of their range "
+                              f"({', '.join(out['at_bounds'])}), the model is wrong elsewhere; a voltage step "
+                              f"recorded at 1 kHz or faster separates them (a delay shifts the whole response, a lag "
+                              f"rounds its start)")
         return None
+    if out.get("at_bounds"):  # a base parameter at the edge of its range: the model is wrong elsewhere
+        dec.doubt = f"base parameters at a bound of their range ({', '.join(out['at_bounds'])})"
     for name in LAG_DELAY:
         out["ties"].pop(name, None)
     if dec.chosen != a:

@@ -96,23 +96,27 @@ class FineDecision:
     gap: float
     rate_hz: float
     values: dict[str, float]
+    #: why a decisive gap is not trusted ("" if it is): a model wrong elsewhere decides nothing
+    doubt: str = ""
 
     @property
     def tie(self) -> bool:
         from .selection import TIE_NATS
 
-        return abs(self.gap) < TIE_NATS
+        return abs(self.gap) < TIE_NATS or bool(self.doubt)
 
     def to_json(self) -> dict:
         return {"chosen": self.chosen, "other": self.other, "score_gap_nats": round(self.gap, 2),
-                "rate_hz": round(self.rate_hz, 1), "fitted_s": self.values, "tie": self.tie}
+                "rate_hz": round(self.rate_hz, 1), "fitted_s": self.values, "tie": self.tie, "doubt": self.doubt}
 
     def tie_note(self) -> str:
         """The ranking's note on the chosen effect when the two are a tie."""
         v = ", ".join(f"{k} {1e3 * x:.0f} ms" for k, x in self.values.items())
-        return (f"indistinguishable from {self.other} at the recording's rate ({self.rate_hz:.0f} Hz; score "
-                f"difference {abs(self.gap):.1f} nats; fitted {v}): a voltage step recorded at 1 kHz or faster "
-                f"separates them (a delay shifts the whole response, a lag rounds its start)")
+        why = (f"score difference {abs(self.gap):.1f} nats, not trusted: {self.doubt}" if self.doubt else
+               f"score difference {abs(self.gap):.1f} nats")
+        return (f"indistinguishable from {self.other} at the recording's rate ({self.rate_hz:.0f} Hz; {why}; "
+                f"fitted {v}): a voltage step recorded at 1 kHz or faster separates them (a delay shifts the whole "
+                f"response, a lag rounds its start)")
 
 
 def fine_rate(ex: Experiment) -> "float | None":
