@@ -101,9 +101,8 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
     if not (0.0 <= beta <= 1.0 and noise >= 0.0):
         raise ValueError(f"beta must be in [0, 1] and noise >= 0, got beta={beta!r}, noise={noise!r}")
     for it in range(iterations):
-        if lr_final is not None and iterations > 1:
-            for g in opt.param_groups:
-                g["lr"] = lr * (lr_final / lr) ** (it / (iterations - 1))
+        for g in opt.param_groups:
+            g["lr"] = round_learning_rate(lr, lr_final, it, iterations)
         by_teacher = rng.random(n_envs) < (1.0 if it == 0 else beta ** it)
         for _ in range(steps):
             a_t = teacher_actions()
@@ -140,6 +139,16 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
             log(f"DAgger round {it + 1}/{iterations}: {n} labelled states, action MSE {mse:.4f}")
     venv.close()
     return {"mse": mse, "states": int(sum(len(x) for x in X))}
+
+
+def round_learning_rate(lr: float, lr_final: float | None, it: int, iterations: int) -> float:
+    """Adam's learning rate in DAgger round ``it`` (0-based) of ``iterations``: ``lr`` falling geometrically
+    to ``lr_final`` in the last round (constant ``lr`` if ``lr_final`` is None)."""
+    if lr_final is None or iterations <= 1:
+        return lr
+    if not (lr > 0 and lr_final > 0):
+        raise ValueError(f"learning rates must be positive, got lr={lr!r}, lr_final={lr_final!r}")
+    return lr * (lr_final / lr) ** (it / (iterations - 1))
 
 
 def _teacher(teacher: str | Path, n: int, batch, options: dict[str, Any], integral=None):

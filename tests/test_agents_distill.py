@@ -6,6 +6,7 @@ import json
 
 import gymnasium as gym
 import numpy as np
+import pytest
 import yaml
 
 import drillgym  # noqa: F401
@@ -235,3 +236,14 @@ def test_rl_training_env_draws_its_rigs_from_the_population() -> None:
     with pytest.raises(ValueError, match="plain actions"):
         make_training_env("drillgym/Torsional-v0", 2, env_kwargs={"observation": "motor"}, residual=1.5,
                           population="default")
+
+
+def test_distillation_learning_rate_falls_geometrically_to_its_final_value():
+    from agents.distill import round_learning_rate
+
+    rates = [round_learning_rate(1e-3, 1e-5, i, 5) for i in range(5)]
+    assert rates[0] == pytest.approx(1e-3) and rates[-1] == pytest.approx(1e-5)
+    assert rates[2] == pytest.approx(1e-4)  # halfway in log
+    assert round_learning_rate(1e-3, None, 3, 5) == 1e-3
+    with pytest.raises(ValueError, match="positive"):
+        round_learning_rate(1e-3, 0.0, 1, 5)
