@@ -325,3 +325,23 @@ def test_lag_delay_decision_under_a_base_at_its_bound_is_a_tie():
     assert dec.tie and dec.to_json()["tie"]
     note = dec.tie_note()
     assert "39.9 nats, not trusted" in note and "(Tc)" in note and "input_delay" in note
+
+
+def test_a_parameter_the_data_do_not_depend_on_has_no_finite_standard_error():
+    """A motor lag on a constant input changes nothing after the start: its standard error is infinite
+    (the pseudo-inverse alone gave 0, printed as 'tau_m=0.3211±0'), with the identifiability warning."""
+    import numpy as np
+
+    from drillgym.effects import compose
+    from drillgym.identification.experiment import prepare_experiment
+    from drillgym.identification.fitting import FitVariable, IdentifiabilityWarning, Objective, fit_parameters
+    from drillgym.identification.segmented import SegmentedModel
+
+    ts = synthetic_measurement("torsional", duration=6.0, rate_hz=200.0, signal="steps", amplitude=2.5, offset=2.5, seed=1)  # constant 2.5 V
+    comp, _ = compose(["motor_lag"], {"tau_m": 0.02})
+    ex = prepare_experiment(ts, compare_rate_hz=50.0)
+    obj = Objective(SegmentedModel([ex], 2.0, composition=comp), {"theta_u": 1.0, "theta_l": 1.0})
+    vec = comp.vector(RigParams(), {"tau_m": 0.02})
+    with pytest.warns(IdentifiabilityWarning, match="tau_m"):
+        res = fit_parameters(obj, vec, [FitVariable.of_effect(comp, "tau_m", 0.02)], max_nfev=3)
+    assert res.std["tau_m"] == np.inf

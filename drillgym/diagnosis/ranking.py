@@ -181,6 +181,10 @@ class Diagnosis:
                                                else "") for k, v in s.values.items())
             mark = "*" if s.significant else " "
             lines.append(f"{i:<4}{mark}{s.effect:<20}{s.score:>10.1f}{s.rmse_after:>11.3g}{s.reduction:>7.0%}  {vals}")
+        rest = [r for r in self.ranking if not r.significant]
+        if rest and self.rmse_after and abs(rest[0].rmse_before - self.rmse_after) > 0.05 * self.rmse_after:
+            lines.append(f"(rows without *: each fitted to the last model the selection tried, residual RMS "
+                         f"{rest[0].rmse_before:.3g}, not to the final one; 'cut' is relative to that model)")
         if self.selected:
             lines.append("effects found: " + ", ".join(self.selected))
             for s in self.ranking:

@@ -277,6 +277,7 @@ def fit_parameters(objective: Objective, base: "RigParams | np.ndarray", variabl
         cov = np.linalg.pinv(J.T @ J) * s2
     std = scale * np.sqrt(np.clip(np.diag(cov), 0, None))
     col = np.linalg.norm(J, axis=0)
+    std[col == 0] = np.inf  # the data do not depend on it: any value fits (pinv would say 0)
     if np.any(col == 0):
         for i in np.flatnonzero(col == 0):
             msgs.append(f"{names[i]}: the data do not depend on it (not excited): not identifiable")
