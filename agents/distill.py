@@ -42,8 +42,9 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
     """Regress the actor of the SB3 ``model`` (PPO/MLP, its env's observation) on the ``teacher``'s actions.
 
     ``iterations`` DAgger rounds of ``steps`` periods on ``n_envs`` rigs of ``env_id`` with ``env_kwargs``
-    (domain randomisation included); ``epochs`` passes of Adam (``lr``) over the aggregated data per round; ``lr_final``: the learning rate
-    falls geometrically from ``lr`` in the first round to this in the last (None: constant).
+    (domain randomisation included); ``epochs`` passes of Adam (``lr``) over the aggregated data per round;
+    ``lr_final``: the learning rate falls geometrically from ``lr`` in the first round to this in the last
+    (:func:`round_learning_rate`; None: constant).
     ``privileged``: the model's observation carries the privileged critic's entries (ignored by the actor).
     ``motor_integral``: the model's observation ends with the motor-angle tracking integral
     (:mod:`agents.integral`); the 'flatness' teacher then uses that integral as its own.

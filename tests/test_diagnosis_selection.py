@@ -309,7 +309,7 @@ def test_lvdt_skew_and_lateral_friction_found_on_an_independent_rig():
                                                            "lateral_coulomb": {"Fc_lat": 1.5}}, {}, 2.6, 1.5)
     d = diagnose(ts)
     assert sorted(d.selected) == ["lateral_coulomb", "lvdt_skew"], d.text()
-    assert d.sensor_weights and d.sensor_weights["encoders"] > 1.5, d.text()
+    assert d.sensor_misfit and d.sensor_misfit["encoders"] > 1.5, d.text()
     vals = d.effect_values()
     assert vals["lvdt_skew"] == pytest.approx(0.035, rel=0.25) and vals["Fc_lat"] == pytest.approx(1.5, rel=0.1)
 

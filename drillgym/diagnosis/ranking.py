@@ -132,7 +132,7 @@ class Diagnosis:
     paths: dict[str, list[str]] = field(default_factory=dict)  # what each search order selected
     lag_delay: "dict | None" = None  # the lag/delay decision at the recording's rate (timing.FineDecision.to_json)
     #: sensor -> the model's misfit on it (noise units), by which its channels were rescaled (selection.balance_sensors)
-    sensor_weights: dict[str, float] = field(default_factory=dict)
+    sensor_misfit: dict[str, float] = field(default_factory=dict)
 
     @property
     def best(self) -> EffectScore | None:
@@ -155,16 +155,17 @@ class Diagnosis:
                 "rmse_before": self.rmse_before, "rmse_after": self.rmse_after,
                 "channel_rms_before": self.channel_rms_before, "n_eff": self.n_eff, "segment_s": self.segment_s,
                 "skipped": self.skipped, "base_refit": self.base_refit, "model": self.model,
-                "search_paths": self.paths, "lag_delay": self.lag_delay, "sensor_misfit": self.sensor_weights}
+                "search_paths": self.paths, "lag_delay": self.lag_delay, "sensor_misfit": self.sensor_misfit}
 
     def text(self) -> str:
         after = f"; after {self.rmse_after:.3g}" if self.rmse_after is not None else ""
         lines = [f"diagnosis of the model {self.model!r} ({self.config.label}; multiple shooting, segments of "
                  f"{self.segment_s if self.segment_s else 'whole record'} s; residual RMS "
-                 f"{self.rmse_before:.3g} {'misfit-weighted' if self.sensor_weights else 'noise'} units{after}; " +
+                 f"{self.rmse_before:.3g} {'misfit-weighted' if self.sensor_misfit else 'noise'} units{after}; " +
                  ", ".join(f"{c} {v:.3g}" for c, v in self.channel_rms_before.items()) + ")"]
-        if self.sensor_weights:
-            lines.append("each sensor weighted by the model's misfit on it (one misfit-weighted unit): " + ", ".join(f"{k} {v:.3g} noise units" for k, v in self.sensor_weights.items()))
+        if self.sensor_misfit:
+            lines.append("each sensor weighted by the model's misfit on it (one misfit-weighted unit): "
+                         + ", ".join(f"{k} {v:.3g} noise units" for k, v in self.sensor_misfit.items()))
         if self.base_off:
             if self.base_parameters:
                 lines.append("the base model is off; re-identified base parameters that moved: " + ", ".join(
@@ -439,7 +440,7 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
                          refine=refine_speeds, balance=True)
     # the channels as weighted from here on (balance_sensors may have rescaled them in obj, in place)
     scales = dict(obj.scales)
-    sensor_factors = {name: obj.scales[chans[0]] / noise_scales[chans[0]]
+    sensor_misfit = {name: obj.scales[chans[0]] / noise_scales[chans[0]]
                       for name, chans in SENSORS.items() if chans[0] in obj.channels
                       and obj.scales[chans[0]] != noise_scales[chans[0]]}
     paths = {"base_first": list(out["selected"]) + [f"bound:{n}" for n in out["at_bounds"]]}
@@ -509,7 +510,7 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
                   rmse_after=math.sqrt(out["rss_final"] / N), composition=comp, vector=vec,
                   params=RigParams.from_vector(vec[:N_PARAMS]))
     d.paths = paths
-    d.sensor_weights = sensor_factors
+    d.sensor_misfit = sensor_misfit
     d.lag_delay = fine.to_json() if fine is not None else None
     d.nominal_vector = vec.copy()
     d.nominal_vector[:N_PARAMS] = vec0[:N_PARAMS]
@@ -553,7 +554,7 @@ def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s,
     the scores, when a base parameter is at a bound of its range (a model wrong elsewhere: seen deciding a
     50 ms delay as a lag by 40 nats on an independent rig's ramps).  Returns the
     :class:`.timing.FineDecision` or None (no lag/delay selected, or no finer data)."""
-    from .selection import _effect_params, _fit, _neutralise, _State
+    from .selection import SEPARATES_LAG_DELAY, _effect_params, _fit, _neutralise, _State
     from .timing import LAG_DELAY, decide_lag_delay
 
     by = {e.name: e for e in effects}
@@ -569,9 +570,7 @@ def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s,
     if dec is None:
         if out.get("at_bounds") and a not in out["ties"]:
             out["ties"][a] = (f"not told apart from {b}: the base parameters are at a bound of their range "
-                              f"({', '.join(out['at_bounds'])}), the model is wrong elsewhere; a voltage step "
-                              f"recorded at 1 kHz or faster separates them (a delay shifts the whole response, a lag "
-                              f"rounds its start)")
+                              f"({', '.join(out['at_bounds'])}), the model is wrong elsewhere; " + SEPARATES_LAG_DELAY)
         return None
     if out.get("at_bounds"):  # a base parameter at the edge of its range: the model is wrong elsewhere
         dec.doubt = f"base parameters at a bound of their range ({', '.join(out['at_bounds'])})"

@@ -13,9 +13,9 @@ model a few percent off leaves a residual that some effect partly mimics.  Here:
    bearing's Tcl, bl; lateral k, b, e; Ju is held: it fixes the scale of the torques) are fitted
    first (within ±12 % of their nominal values, :data:`BASE_BOUNDS`) and stay free in every later fit, so
    mismatch is absorbed by the base parameters, never by an effect.
-   With encoders and LVDTs both recorded, each sensor is then weighted by its own misfit
-   (:func:`balance_sensors`; again whenever an effect enters, and the later search orders keep
-   the final weights).
+   With encoders and LVDTs both recorded, once the forward selection (step 3) ends, each sensor is
+   weighted by the model's misfit on it (:func:`balance_sensors`), the model refitted and the selection
+   continued, until the weights settle; the later search orders keep the final weights.
 3. **Forward selection with refit.**  Every candidate not yet in the model is screened (its own
    parameters fitted, the rest held); the ``n_joint`` best are refitted jointly with the base
    parameters and the effects already accepted; the best joint fit is accepted when its score
@@ -71,13 +71,17 @@ from ..effects.base import Measurement
 from ..identification.fitting import FitResult, FitVariable, Objective, fit_parameters
 from ..params import N_PARAMS, PARAM_INFO, RigParams
 
-__all__ = ["BASE_FREE", "SENSORS", "balance_sensors", "neutral_values", "search_composition", "SelectionStep", "forward_select",
-           "base_free_parameters", "SIGNIFICANCE", "MIN_REDUCTION", "MIN_EXPLAINED", "TIE_NATS", "MOVED_PCT"]
+__all__ = ["BASE_FREE", "SENSORS", "balance_sensors", "neutral_values", "search_composition", "SelectionStep",
+           "forward_select", "base_free_parameters", "SIGNIFICANCE", "MIN_REDUCTION", "MIN_EXPLAINED", "TIE_NATS",
+           "SEPARATES_LAG_DELAY", "MOVED_PCT"]
 
 SIGNIFICANCE = 15.0  # nats
 MIN_REDUCTION = 0.2  # fraction of the residual RMS an accepted effect must remove
 MIN_EXPLAINED = 1.0  # noise units²
 TIE_NATS = 3.0
+#: what a stated lag/delay tie recommends
+SEPARATES_LAG_DELAY = ("a voltage step recorded at 1 kHz or faster separates them (a delay shifts the whole "
+                       "response, a lag rounds its start)")
 MOVED_PCT = 1.0  # % change below which a base parameter is not reported as moved
 #: base parameters re-identified within these factors of their nominal values: "a few percent off".  Wider
 #: bounds let the upper part absorb a motor lag or an input delay (km and bu scaled alike make the upper disc
@@ -271,9 +275,9 @@ def balance_sensors(obj: Objective, residual: np.ndarray, noise_scales: dict[str
     systematically, and unequally per sensor: the friction law's stick phases leave the encoders
     at several noise units while the LVDTs fit to the noise.  Pooled, the encoders then own the
     fit: the lateral parameters move to fit the angles, and what only the LVDTs show (a 2° skew)
-    drowns.  One unknown variance per sensor (maximum likelihood, one reweighting step) gives every
-    sensor the weight of its own fit.  Called again as effects enter (iteratively reweighted least
-    squares): a misfit that a missing effect causes falls once it is in.  Returns {sensor: new factor}
+    drowns.  One unknown variance per sensor (maximum likelihood) gives every sensor the weight of its
+    own fit; :func:`forward_select` calls this again after each refit (iteratively reweighted least
+    squares), so a misfit a missing effect caused falls once the effect is in.  Returns {sensor: new factor}
     when the scales changed, else {} (one sensor, or no change beyond ``tol``)."""
     present = {name: [c for c in chans if c in obj.channels] for name, chans in SENSORS.items()}
     present = {k: v for k, v in present.items() if v}
@@ -354,8 +358,9 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
     """Run steps 2–6 of the module docstring on the search model ``comp`` (vector ``vec0``: nominal
     base parameters, candidates neutral).  ``initial``: effects accepted before the loop (fitted
     jointly with the base parameters from ``start``, then subject to the backward check).  ``balance``
-    (with base parameters): weigh ``obj``'s channels per sensor after the base fit and after every
-    acceptance (:func:`balance_sensors`; in place, so later selections on ``obj`` use the final units).  Returns a
+    (with base parameters): when the forward selection ends, weigh ``obj``'s channels per sensor by the
+    model's misfit, refit and continue the selection, while the weights change (:func:`balance_sensors`;
+    in place, so later selections on ``obj`` use the final units).  Returns a
     dict with the selection's pieces (see :func:`drillgym.diagnosis.ranking.diagnose`, which formats
     them)."""
     excluded = dict(excluded or {})
@@ -464,8 +469,8 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
                 eff_vals = {p: res.values.get(p, float(res.vector[st.comp.param_index(p)]))
                             for p in _effect_params(st, [name])}
                 eff_std = {p: res.std.get(p, float("nan")) for p in eff_vals}
-                round_[name] = SelectionStep(name, sc, rss_cur, res.rss_after, eff_vals, eff_std,
-                                             _significant(sc, rss_cur, res.rss_after, N, cur[0], res.residual, ch(name), units()), ne)
+                sig = _significant(sc, rss_cur, res.rss_after, N, cur[0], res.residual, ch(name), units())
+                round_[name] = SelectionStep(name, sc, rss_cur, res.rss_after, eff_vals, eff_std, sig, ne)
             best = max(joint or round_, key=lambda n: round_[n].score)
             last_round = round_
             if not round_[best].significant:
@@ -566,8 +571,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
                 a, b = b, a
             if abs(gap) < TIE_NATS:
                 ties[a] = (f"indistinguishable from {b} on these data (score difference {abs(gap):.1f} nats): "
-                           f"a voltage step recorded at 1 kHz or faster separates them (a delay shifts the whole "
-                           f"response, a lag rounds its start)")
+                           + SEPARATES_LAG_DELAY)
             break
     # step 5: is the base model off?
     if not st.base_names:

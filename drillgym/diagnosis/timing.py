@@ -114,9 +114,10 @@ class FineDecision:
         v = ", ".join(f"{k} {1e3 * x:.0f} ms" for k, x in self.values.items())
         why = (f"score difference {abs(self.gap):.1f} nats, not trusted: {self.doubt}" if self.doubt else
                f"score difference {abs(self.gap):.1f} nats")
+        from .selection import SEPARATES_LAG_DELAY
+
         return (f"indistinguishable from {self.other} at the recording's rate ({self.rate_hz:.0f} Hz; {why}; "
-                f"fitted {v}): a voltage step recorded at 1 kHz or faster separates them (a delay shifts the whole "
-                f"response, a lag rounds its start)")
+                f"fitted {v}): " + SEPARATES_LAG_DELAY)
 
 
 def fine_rate(ex: Experiment) -> "float | None":
