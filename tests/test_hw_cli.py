@@ -169,7 +169,9 @@ def test_reconnect_after_the_port_went_away(tmp_path):
         assert p.returncode == 0, (out, err)
         assert second.firmware.commands >= REST_COMMANDS + 100
     assert "link fault" in err and "reconnecting in 0.5 s (1 of 1)" in err
-    assert len(read_timeseries(rec)) >= 21  # the first episode's recording, up to the fault
+    # the first episode's recording, up to the fault: the rest row and the replies of steps 1..19 at least
+    # (step 20's command reached the firmware, so step 19's reply reached the host; step 20's reply may not)
+    assert len(read_timeseries(rec)) >= 20
     assert len(read_timeseries(tmp_path / "run_001.csv")) == 101  # the new episode, complete
 
 
