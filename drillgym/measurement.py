@@ -17,6 +17,7 @@ the interchange format (the tests' "measurements with a hidden effect").
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -93,8 +94,14 @@ def lowpass_zero_phase(x: np.ndarray, fs_hz: float, cutoff_hz: float = 5.0, orde
     """Zero-phase Butterworth low-pass (the report's offline LVDT processing), along the last axis."""
     if cutoff_hz >= fs_hz / 2:
         return np.asarray(x, dtype=float)
-    sos = signal.butter(order, cutoff_hz, fs=fs_hz, output="sos")
-    return signal.sosfiltfilt(sos, np.asarray(x, dtype=float), axis=-1)
+    return signal.sosfiltfilt(_butter_sos(order, float(cutoff_hz), float(fs_hz)), np.asarray(x, dtype=float), axis=-1)
+
+
+@functools.lru_cache(maxsize=64)
+def _butter_sos(order: int, cutoff_hz: float, fs_hz: float) -> np.ndarray:
+    """Second-order sections of the Butterworth low-pass, designed once per setting (the fits filter
+    every prediction); scipy only reads them."""
+    return signal.butter(order, cutoff_hz, fs=fs_hz, output="sos")
 
 
 class EncoderVelocityEstimator:

@@ -398,7 +398,7 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         refit_base: ignored (kept for old callers: the base parameters are always considered).
     """
     from .selection import (BASE_BOUNDS, SENSORS, base_free_parameters, forward_select, neutral_values,
-                            search_composition)
+                            search_composition, selection_model)
 
     base = params or RigParams()
     comp0, values0 = compose(base_effects, effect_params)
@@ -428,9 +428,7 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
             usable.append(eff)
     comp = search_composition(comp0, usable)
     vec0 = base_vector(comp, base, {**values0, **neutral_values(usable)})
-    model = SegmentedModel(exps, segment_s, composition=comp, method="rk4")  # as simulate: RK4 at dt (1.3x faster than DP5)
-    if segment_s is not None:
-        place_segment_starts(model)
+    model = selection_model(exps, segment_s, comp)
     obj = Objective(model, default_weights(cfg), scales)
     brake_on = all(float(ex.meta.get("brake_normal_force_n", 1.0) or 0.0) != 0.0 for ex in exps)
     base_names = () if fixed_base else base_free_parameters(cfg, brake_on)

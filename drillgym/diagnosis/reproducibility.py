@@ -31,8 +31,6 @@ import numpy as np
 
 from ..identification.experiment import Experiment
 from ..identification.fitting import Objective
-from ..identification.segmented import SegmentedModel
-from .segments import place_segment_starts
 
 __all__ = ["split_halves", "HalfAgreement", "halves_agree", "POSITION_NEEDS", "MIN_COSINE"]
 
@@ -89,15 +87,13 @@ def halves_agree(exps: Sequence[Experiment], comp, vector: np.ndarray, effect, f
                  nominal: np.ndarray, max_nfev: int = 15) -> HalfAgreement:
     """Refit ``effect``'s parameters (and ``free_base``) of the model ``comp``/``vector`` on each half of
     ``exps`` and compare them (see the module docstring)."""
-    from .selection import _fit, _State
+    from .selection import _fit, _State, selection_model
 
     names = [p.name for p in effect.parameters]
     halves = list(zip(*(split_halves(ex) for ex in exps)))  # (first halves, second halves)
     fits = []
     for part in halves:
-        model = SegmentedModel(part, segment_s, composition=comp, method="rk4")
-        if segment_s is not None:
-            place_segment_starts(model)
+        model = selection_model(part, segment_s, comp)
         obj = Objective(model, weights, scales)
         model.refine_initial_speeds(vector, obj.weights, obj.scales)
         st = _State(obj, comp, vector.copy(), nominal.copy(), tuple(free_base), {effect.name: effect})

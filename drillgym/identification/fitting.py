@@ -265,9 +265,10 @@ def fit_parameters(objective: Objective, base: "RigParams | np.ndarray", variabl
                         ftol=ftol, xtol=xtol)
     z = sol.x
     r1 = fun(z)
+    J = np.asarray(sol.jac)  # trf's Jacobian is evaluated at its last accepted point, sol.x
     if float(r1 @ r1) > float(r0 @ r0):  # never return something worse than the start
         z, r1 = z0, r0
-    J = jac(z)
+        J = jac(z)
     values = x0 + scale * z
     n, m = len(z), len(r1)
     s2 = float(r1 @ r1) / max(m - n, 1)

@@ -57,6 +57,24 @@ MAX_DT = 2e-3  # s: simulator step bound (DP5: > 200 steps per lateral period)
 _COL = {n: i for i, n in enumerate(OUTPUT_NAMES)}
 
 
+def steps_per_sample(ex: Experiment, max_dt: float, input_aligned: bool = False) -> int:
+    """Simulator steps per comparison sample: the fewest with a step (1/fs/steps) <= ``max_dt`` (s).
+    ``input_aligned``: the fewest, up to four times that many, whose step is a whole multiple or a whole
+    fraction of the recorded input's sample period, so that the zero-order-hold input never jumps
+    inside a step (a jump inside a Runge-Kutta step costs its order: a 200 Hz input at 4 ms steps
+    left errors 2500x larger than at 5 ms)."""
+    rec = max(1, int(math.ceil(1.0 / (ex.fs * max_dt) - 1e-9)))
+    if not input_aligned or len(ex.u_time) < 2:
+        return rec
+    period = float(np.median(np.diff(ex.u_time)))
+    for k in range(rec, 4 * rec + 1):
+        ratio = (1.0 / (ex.fs * k)) / period
+        for r in (ratio, 1.0 / ratio):
+            if r >= 1.0 - 1e-6 and abs(r - round(r)) < 1e-6 * r:
+                return k
+    return rec
+
+
 def as_composition(effects: Any) -> Composition:
     """A Composition from a Composition, effect names/specs/classes, or None (the base model)."""
     if effects is None:
@@ -89,12 +107,14 @@ class SegmentedModel:
         segment_s: segment length (s); None or <= 0: one free run per experiment.
         method: 'dp5' (default, smooth in the parameters) or 'rk4'.
         max_dt: bound on the simulator step (s).
+        input_aligned: choose the step so that the recorded input changes only at step boundaries
+            when one of at most four times as many steps allows it (:func:`steps_per_sample`).
         composition: the model (a Composition or effects as for :func:`drillgym.effects.compose`;
             default the base model).
     """
 
     def __init__(self, experiments: list[Experiment], segment_s: float | None = 4.0, method: str = "dp5",
-                 max_dt: float = MAX_DT, composition: Any = None) -> None:
+                 max_dt: float = MAX_DT, composition: Any = None, input_aligned: bool = False) -> None:
         if not experiments:
             raise ValueError("no experiments to compare with")
         self.experiments = list(experiments)
@@ -102,7 +122,7 @@ class SegmentedModel:
         self._set_composition(composition)
         self._plans = []
         for ex in self.experiments:
-            rec = max(1, int(math.ceil(1.0 / (ex.fs * max_dt) - 1e-9)))
+            rec = steps_per_sample(ex, max_dt, input_aligned)
             dt = 1.0 / (ex.fs * rec)
             if segment_s is None or segment_s <= 0 or segment_s * ex.fs >= ex.n - 1:
                 L = ex.n - 1
@@ -227,7 +247,9 @@ class SegmentedModel:
         (n_rows, n_total), and u_m there (the library's motor lag applied here; else the input)."""
         dt, starts, rec, n_steps = plan["dt"], plan["starts"], plan["rec"], plan["n_steps"]
         n_total = (starts[-1] * rec) + n_steps + 1
-        base = ex.input_on_grid(dt, n_total, ex.t[0])
+        if "input" not in plan:  # the same for every prediction
+            plan["input"] = ex.input_on_grid(dt, n_total, ex.t[0])
+        base = plan["input"]
         if taus is None:
             return base[None, :], base[None, :]
         D = np.empty((len(taus), n_total))
@@ -282,8 +304,9 @@ class SegmentedModel:
             Xs, Ys = D[..., _COL["x"]], D[..., _COL["y"]]
             if sim.has_measurement:
                 tu, tl, Xs, Ys = (np.array(a) for a in (tu, tl, Xs, Ys))
-                for i in range(rows.shape[0]):
-                    tu[i], tl[i], Xs[i], Ys[i] = sim.measure(tu[i], tl[i], Xs[i], Ys[i], rows[i])
+                for b in range(B):  # a parameter row's segments at once (they share its measurement)
+                    i = slice(b * ns, (b + 1) * ns)
+                    tu[i], tl[i], Xs[i], Ys[i] = sim.measure(tu[i], tl[i], Xs[i], Ys[i], S[b])
             out["theta_u"], out["theta_l"] = tu, tl
             if ex.config.lateral_free:
                 xm, ym = Xs, Ys
