@@ -7,7 +7,10 @@ kernels of compositions no earlier call used, the second shows the steady cost.
 
 1. torsional, quasi-random input, no effect, base parameters off by a few percent;
 2. torsional, steps, position_friction + motor_lag, base parameters off;
-3. coupled, sum of sines, lateral_anisotropy + lvdt_offset.
+3. coupled, sum of sines, lateral_anisotropy + lvdt_offset;
+4. the independent rig of ``bench_diagnosis_rig`` (not drillgym's simulator), coupled, ramps, three
+   effects (position_friction + lvdt_offset + friction_drift), base parameters off by 4-5 %: the
+   slowest kind of the selection benchmark's matrix.
 
     .venv/bin/python benchmarks/bench_diagnose_time.py [--out DIR]
 """
@@ -39,6 +42,13 @@ CASES = {
         config="coupled", signal="sum_of_sines", offset=3.0, seed=5,
         effects=["lateral_anisotropy", "lvdt_offset"], effect_params={"dk": 250.0, "db": 3.0, "lvdt_x0": 3e-4}),
 }
+RIG_CASES = {
+    "independent rig, coupled, three effects, base off": dict(
+        config="coupled", signal="ramps", offset=2.66, amplitude=1.5, seed=2576,
+        effects={"position_friction": {"pf_c1": 0.15, "pf_s1": 0.0}, "lvdt_offset": {"lvdt_x0": -3e-4, "lvdt_y0": 3e-4},
+                 "friction_drift": {"drift": -0.004}},
+        scale={"Ts": 1.037, "bu": 0.955, "Jl": 1.053}),
+}
 
 
 def _diagnose(path: Path) -> tuple[float, dict]:
@@ -57,9 +67,16 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     print(f"{DUR:g} s at {RATE:g} Hz per recording; `drillgym diagnose FILE --json` in a fresh process; "
           f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}")
-    for i, (name, kw) in enumerate(CASES.items()):
-        kw = dict(kw)
-        ts = synthetic_measurement(kw.pop("config"), kw.pop("params", None), duration=DUR, rate_hz=RATE, **kw)
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from bench_diagnosis_rig import rig_recording
+
+    recordings = {name: synthetic_measurement(kw["config"], kw.get("params"), duration=DUR, rate_hz=RATE,
+                                              **{k: v for k, v in kw.items() if k not in ("config", "params")})
+                  for name, kw in CASES.items()}
+    recordings.update({name: rig_recording(kw["config"], kw["signal"], DUR, RATE, kw["seed"], kw["effects"],
+                                           kw["scale"], kw["offset"], kw["amplitude"])
+                       for name, kw in RIG_CASES.items()})
+    for i, (name, ts) in enumerate(recordings.items()):
         path = write_timeseries(out / f"rec{i}.csv", ts)
         first, res = _diagnose(path)
         second, _ = _diagnose(path)
