@@ -117,6 +117,16 @@ class Composition:
     def has_measurement(self) -> bool:
         return self.has_kind(Measurement)
 
+    @property
+    def measurement_columns(self) -> tuple[int, ...]:
+        """Indices of the parameters the Measurement effects read (their own and any base parameter
+        their ``measure`` names): rows equal there are measured alike."""
+        cols = set()
+        for eff in self.effects:
+            if issubclass(eff, Measurement):
+                cols |= {self._pindex[a] for a in eff.argument_names("measure") if a in self._pindex}
+        return tuple(sorted(cols))
+
     def param_index(self, name: str) -> int:
         try:
             return self._pindex[name]

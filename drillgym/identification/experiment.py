@@ -126,10 +126,13 @@ class Experiment:
                              self.rates["Xd"][idx] if lateral else zeros, self.rates["Yd"][idx] if lateral else zeros])
         if comp.has_measurement:
             S, V = np.empty_like(R), np.empty_like(D)
-            rows, inv = np.unique(P, axis=0, return_inverse=True)
-            for j, row in enumerate(rows):
+            # once per distinct setting of the measurement's parameters (the fits' other columns vary)
+            cols = list(comp.measurement_columns)
+            key = P[:, cols] if cols else np.zeros((len(P), 1))
+            _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+            for j, i0 in enumerate(first):
                 sel = np.flatnonzero(inv.ravel() == j)
-                S[sel], V[sel] = invert_measurement(comp, R[sel], D[sel], row)
+                S[sel], V[sel] = invert_measurement(comp, R[sel], D[sel], P[i0])
             R, D = S, V
         Y = np.zeros((n, N_STATE))
         Y[:, 0], Y[:, 1], Y[:, 2], Y[:, 3] = R[:, 0], R[:, 1], D[:, 0], D[:, 1]
