@@ -80,8 +80,8 @@ __all__ = ["BASE_FREE", "SENSORS", "balance_sensors", "neutral_values", "search_
 
 #: simulator step bound (s) of the selection's fits, RK4 (as simulate, 1.3x faster than DP5), the input's
 #: samples on step boundaries (:func:`~drillgym.identification.segmented.steps_per_sample`; 4 ms at
-#: 500 Hz and 1 kHz, 2.5 ms at 200 Hz): the benchmark's recordings at 1 kHz predicted within 0.04 noise
-#: units of RK4 at 0.25 ms, 2x faster than 2 ms steps.  5 ms was tried: within 0.054 noise units at the
+#: 500 Hz and 1 kHz, 2.5 ms at 200 Hz): the benchmark's 500 Hz and 1 kHz recordings predicted within
+#: 0.04 noise units of RK4 at 0.25 ms, 2x faster than 2 ms steps.  5 ms was tried: within 0.054 noise units at the
 #: nominal parameters, but a coupled recording's LVDT skew (lateral dry friction) scored 11 nats
 #: instead of 52 (4 ms) and 92 (2 ms)
 SELECTION_DT = 4e-3

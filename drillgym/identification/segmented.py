@@ -61,8 +61,8 @@ def steps_per_sample(ex: Experiment, max_dt: float, input_aligned: bool = False)
     """Simulator steps per comparison sample: the fewest with a step (1/fs/steps) <= ``max_dt`` (s).
     ``input_aligned``: the fewest, up to four times that many, whose step is a whole multiple or a whole
     fraction of the recorded input's sample period, so that the zero-order-hold input never jumps
-    inside a step (a jump inside a Runge-Kutta step costs its order: a 200 Hz input at 4 ms steps
-    left errors 2500x larger than at 5 ms)."""
+    inside a step (a jump inside a Runge-Kutta step costs its order: on a 200 Hz input, RK4 at 4 ms
+    steps predicts θl 3.5e-6 rad from a 0.25 ms reference, at aligned 2.5 ms steps 6e-11 rad; tested)."""
     rec = max(1, int(math.ceil(1.0 / (ex.fs * max_dt) - 1e-9)))
     if not input_aligned or len(ex.u_time) < 2:
         return rec
