@@ -247,9 +247,9 @@ class SegmentedModel:
         (n_rows, n_total), and u_m there (the library's motor lag applied here; else the input)."""
         dt, starts, rec, n_steps = plan["dt"], plan["starts"], plan["rec"], plan["n_steps"]
         n_total = (starts[-1] * rec) + n_steps + 1
-        if "input" not in plan:  # the same for every prediction
-            plan["input"] = ex.input_on_grid(dt, n_total, ex.t[0])
-        base = plan["input"]
+        base = plan.get("input")
+        if base is None or len(base) != n_total:  # once per segment layout (place_segment_starts may move it)
+            base = plan["input"] = ex.input_on_grid(dt, n_total, ex.t[0])
         if taus is None:
             return base[None, :], base[None, :]
         D = np.empty((len(taus), n_total))
