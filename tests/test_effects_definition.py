@@ -87,6 +87,13 @@ def test_unknown_effect_name_lists_the_known_ones():
      "    parameters = (Parameter('tau', 's', 0.0, 1.0, 0.1, 0.1),)\n    lag = {'z': 'tau'}\n"
      "    def derivative(u, z, tau):\n        return (u - z) / tau\n"
      "    def voltage(z):\n        return z\n", "lag time constant 'tau' needs a lower bound > 0"),
+    ("class Biased(Force):\n    name = 'biased'\n    acts_on = 'lower'\n"
+     "    parameters = (Parameter('c', '-', -1.0, 1.0, 0.0, 0.1, neutral=0.0),)\n"
+     "    def torque(omega_l, c):\n        return c * omega_l + 0.01\n",
+     "torque\\(\\) does not vanish at the declared neutral values \\(c=0\\)"),
+    ("class Outside(Force):\n    name = 'outside'\n    acts_on = 'lower'\n"
+     "    parameters = (Parameter('c', '-', 0.0, 1.0, 0.5, 0.1, neutral=-1.0),)\n"
+     "    def torque(omega_l, c):\n        return c * omega_l\n", "neutral = -1.0 is not a number within its bounds"),
 ])
 def test_bad_effect_files_get_one_line_errors_naming_file_and_problem(tmp_path, body, message):
     path = tmp_path / "bad_effect.py"
@@ -167,6 +174,21 @@ def test_generated_code_reads_like_the_composition():
     src = hooks_source(comp)
     assert "_e0_derivative(u, y[8]" in src and "u = _e0_voltage(y[8])" in src
     assert "_Qs += _e1_torque((y[3] - y[2])" in src
+
+
+def test_an_effect_declaring_where_it_vanishes_is_switched_outside_its_lane_loop():
+    """string_damping declares neutral=0: its lane loop runs only when the batch's switch row is on
+    (tested outside the loop), and the scalar kernel tests the run's own value; the user's backlash
+    declares nothing and always runs."""
+    comp, _ = compose(["string_damping", f"{ROOT}/examples/effects/string_backlash.py:string_backlash"])
+    src = hooks_source(comp)
+    row = comp.n_params  # the first switch row, after the parameters
+    dtheta = comp.param_index("dtheta")
+    guard = f"if (cfg == 1 or cfg == 2 or cfg == 3 or cfg == 4) and (PT[{row}, 0] != 0.0):"
+    assert guard + "\n        for k in range(n):" in src
+    assert f"and (p[{dtheta}] != 0.0):\n        _Qs += _e0_torque" in src
+    assert f"PT[{row + 1}," not in src  # one switch only
+    assert "# string_backlash\n    for k in range(n):" in src
 
 
 @pytest.mark.slow

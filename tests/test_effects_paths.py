@@ -155,3 +155,26 @@ def test_recording_only_some_columns_gives_the_same_values():
         one.omega_l
     with pytest.raises(ValueError, match="unknown column 'speed'"):
         simulate("torsional", 1.0, 1.0, record=("speed",))
+
+
+def test_effects_at_their_neutral_values_leave_a_batch_as_the_base_model():
+    """Nine library effects (all but motor_lag, which declares no neutral value) at their neutral
+    values: the batch skips them and runs as the base model; with one lane's position friction on,
+    the batch runs them all, that lane changes and the others still equal the base model."""
+    effects = [e for e in ALL_LIBRARY if e != "motor_lag"]
+    comp, _ = compose(effects)
+    neutral = {p.name: p.neutral for e in comp.effects for p in e.parameters}
+    assert None not in neutral.values()
+    B = LANES_MIN_BATCH
+    n = int(round(DURATION / DT))
+    U = np.tile(command(n), (B, 1))
+    base = simulate_batch("coupled", U, DURATION, dt=DT, alpha0=np.full(B, 0.3))
+    P = comp.matrix(None, B, neutral)
+    off = simulate_batch("coupled", U, DURATION, dt=DT, effects=comp, params=P, alpha0=np.full(B, 0.3))
+    P[-1, comp.param_index("pf_c1")] = 0.12
+    on = simulate_batch("coupled", U, DURATION, dt=DT, effects=comp, params=P, alpha0=np.full(B, 0.3))
+    cols = base.data[0].shape[1]
+    for k in range(B - 1):
+        np.testing.assert_allclose(off.data[k][:, :cols], base.data[k], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(on.data[k][:, :cols], base.data[k], rtol=0, atol=1e-9)
+    assert np.max(np.abs(on.data[-1][:, :cols] - base.data[-1])) > 0.05

@@ -116,12 +116,14 @@ _LAG_DELAY = ("motor_lag", "input_delay")
 
 
 def neutral_values(effects: Sequence[type[Effect]]) -> dict[str, float]:
-    """Parameter values at which each effect is switched off: the library's known neutral values,
-    else 0 clipped into the parameter's bounds (a user candidate must vanish there)."""
+    """Parameter values at which each effect is switched off: the declared ``Parameter.neutral``,
+    else the nearest value known here (a motor lag of 0.1 ms), else 0 clipped into the parameter's
+    bounds (a user candidate must vanish there)."""
     out = {}
     for e in effects:
         for p in e.parameters:
-            out[p.name] = float(_NEUTRAL.get(p.name, min(max(0.0, p.lo), p.hi)))
+            v = p.neutral if p.neutral is not None else _NEUTRAL.get(p.name, min(max(0.0, p.lo), p.hi))
+            out[p.name] = float(v)
     return out
 
 

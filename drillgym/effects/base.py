@@ -110,6 +110,11 @@ class Parameter:
         scale: typical magnitude (> 0): scales the fit and its finite-difference step.
         doc: one line of meaning.
         default: value when the effect is added without one (default: ``guess``).
+        neutral: value at which this parameter switches the effect off (optional).  When every
+            parameter of an effect declares one and all sit there, the effect must add nothing
+            (a torque of 0, a friction factor of 1, ...): the batch kernels then skip its functions,
+            and the diagnosis starts a candidate there (checked by
+            :func:`drillgym.effects.validation.check_neutral`).
     """
 
     name: str
@@ -120,6 +125,7 @@ class Parameter:
     scale: float
     doc: str = ""
     default: float | None = None
+    neutral: float | None = None
 
     @property
     def value(self) -> float:
@@ -191,6 +197,14 @@ class Effect:
             if callable(f):
                 out[fn] = f
         return out
+
+    @classmethod
+    def neutral_values(cls) -> dict[str, float] | None:
+        """The parameter values at which the effect vanishes, or None when a parameter (or a
+        state) leaves that undeclared: such an effect is never skipped."""
+        if cls.states or not cls.parameters or any(p.neutral is None for p in cls.parameters):
+            return None
+        return {p.name: float(p.neutral) for p in cls.parameters}
 
     @classmethod
     def argument_names(cls, function: str) -> tuple[str, ...]:

@@ -146,6 +146,52 @@ def _cfg_guard(eff: type[Effect]) -> str | None:
     return " or ".join(f"cfg == {c}" for c in cfgs) if cfgs else "False"
 
 
+def switch_rows(comp: "Composition") -> dict[int, int]:
+    """Effect index -> row of its switch in the lane parameter matrix (after the parameter rows), for
+    the effects that declare where they vanish (:meth:`Effect.neutral_values`)."""
+    out: dict[int, int] = {}
+    for i, eff in enumerate(comp.effects):
+        if eff.neutral_values() is not None:
+            out[i] = comp.n_params + len(out)
+    return out
+
+
+def _switch(comp: "Composition", lane: bool, i: int) -> str | None:
+    """The condition under which effect i runs (None: always); skipping is exact because the effect
+    adds nothing at its neutral values.  Scalar kernels test the run's own parameters; lane kernels
+    read the batch's switch (on when any lane's parameters leave the neutral values), so the branch
+    is the same in every lane and the loops stay vectorised."""
+    row = switch_rows(comp).get(i)
+    if row is None:
+        return None
+    if lane:
+        return f"PT[{row}, 0] != 0.0"
+    return " or ".join(f"p[{comp.param_index(n)}] != {v!r}" for n, v in comp.effects[i].neutral_values().items())
+
+
+def _both(*conds: str | None) -> str | None:
+    conds = tuple(c for c in conds if c)
+    if not conds:
+        return None
+    return conds[0] if len(conds) == 1 else " and ".join(f"({c})" for c in conds)
+
+
+def _lane_params(comp: "Composition") -> str:
+    """hk_lane_params(P): the lane parameter matrix PT (N_PARAMS + N_SWITCHES, B), the parameter rows
+    transposed, then one switch row per skippable effect (1.0 in every lane when any lane needs it)."""
+    rows = switch_rows(comp)
+    lines = [f"@{_JIT}", "def hk_lane_params(P):", "    B = P.shape[0]",
+             "    PT = np.empty((N_PARAMS + N_SWITCHES, B))",
+             "    for j in range(N_PARAMS):", "        for k in range(B):", "            PT[j, k] = P[k, j]"]
+    for i, row in rows.items():
+        eff = comp.effects[i]
+        test = " or ".join(f"P[k, {comp.param_index(n)}] != {v!r}" for n, v in eff.neutral_values().items())
+        lines += [f"    on = 0.0", "    for k in range(B):", f"        if {test}:", "            on = 1.0",
+                  f"    for k in range(B):", f"        PT[{row}, k] = on  # {eff.name}"]
+    lines.append("    return PT")
+    return "\n".join(lines) + "\n"
+
+
 def _rhs(comp: "Composition", lane: bool, part: str = "all") -> str:
     """hk_rhs (scalar: input chain, forces, state derivatives), hk_rhs_lane (part "rhs": input chain
     and forces, no writes) and hk_states_lane (part "states": the effects' state derivatives into K;
@@ -185,7 +231,7 @@ def _rhs(comp: "Composition", lane: bool, part: str = "all") -> str:
         lines, idx = state_lines(i, ctx, "u")
         lines.append(f"u = {_call(comp, ctx, 'voltage', 'u')}")
         fixed_needed |= ctx.needs_fixed
-        emit(lines, _cfg_guard(eff), idx)
+        emit(lines, _both(_cfg_guard(eff), _switch(comp, lane, i)), idx)
     # 2. forces and the other effects' states ('u' = the voltage at the motor)
     for i, eff in enumerate(comp.effects):
         if issubclass(eff, Input):
@@ -200,7 +246,7 @@ def _rhs(comp: "Composition", lane: bool, part: str = "all") -> str:
                 lines.append(f"{target} += {_call(comp, ctx, 'torque')}")
         fixed_needed |= ctx.needs_fixed
         if lines:
-            emit(lines, _cfg_guard(eff), idx)
+            emit(lines, _both(_cfg_guard(eff), _switch(comp, lane, i)), idx)
     has_lateral = want_forces and any(issubclass(e, Force) and e.acts_on == "lateral" for e in comp.effects)
     if has_lateral:
         fixed_needed = True
@@ -233,6 +279,78 @@ def _rhs(comp: "Composition", lane: bool, part: str = "all") -> str:
     return "\n".join(lines) + "\n"
 
 
+#: rows of the lane effects' work array E (hk_effects_lane)
+EFFECT_ROWS = ("volt", "Qu", "Ql", "Qs", "Qx", "Qy", "tfu", "tfl", "gu", "gl")
+
+
+def _lane_loop(lines: list[str], fixed: bool, disc: str | None = None) -> list[str]:
+    """``for k in range(n):`` over the lanes, with the lane's quantities the effect may name."""
+    pro = ["t = TT[k] + tc", "thu = thu_[k]", "thl = thl_[k]", "wu = wu_[k]", "wl = wl_[k]", "x = x_[k]",
+           "yy = y_[k]", "vx = vx_[k]", "vy = vy_[k]", "u = VOLT[k]"]
+    if fixed:
+        pro += _fixed_frame_prologue(True)
+    if disc is not None:
+        m, w, tf = ("MU", "wu", "TFU") if disc == "upper" else ("ML", "wl", "TFL")
+        pro += [f"d = {m}[k]", f"aw = abs({w})", f"T = {tf}[k]"]
+    return ["for k in range(n):"] + ["    " + ln for ln in pro + lines]
+
+
+def _effects_lane(comp: "Composition") -> str:
+    """hk_effects_lane: every effect on every lane, one loop per effect, its switch and configuration
+    guard *outside* the loop: an effect switched off costs nothing, and each loop is small enough for
+    LLVM to vectorise (one loop holding every effect of a large composition ran scalar, 3x slower).
+    In: the lane rows and, in E[6:8], the base friction laws' slip torques.  Out: E[0] the voltage at
+    the motor (V), E[1:4] Qu, Ql, Qs (N m), E[4:6] Qx, Qy (N, rotating frame), E[6:8] the slip torques
+    with the friction effects (0 for a stuck disc)."""
+    body = ["n = thu_.shape[0]", ", ".join(n.upper() for n in EFFECT_ROWS) + " = " +
+            ", ".join(f"E[{i}]" for i in range(len(EFFECT_ROWS))),
+            "for k in range(n):", "    VOLT[k] = U[k]"]
+    body += [f"    {r}[k] = 0.0" for r in ("QU", "QL", "QS", "QX", "QY")] + ["    GU[k] = 1.0", "    GL[k] = 1.0"]
+
+    def add(i: int, lines: list[str], ctx: _Context, disc: str | None = None, cfg: bool = True) -> None:
+        body.append(f"# {comp.effects[i].name}")
+        guard = _both(_cfg_guard(comp.effects[i]) if cfg else None, _switch(comp, True, i))
+        body.extend(_guarded(_lane_loop(lines, ctx.needs_fixed, disc), guard))
+
+    for i, eff in enumerate(comp.effects):  # 1. the input chain, in order
+        if issubclass(eff, Input):
+            ctx = _Context(True, comp, i)
+            add(i, [f"VOLT[k] = {_call(comp, ctx, 'voltage', 'u')}"], ctx)
+    lateral = False
+    for i, eff in enumerate(comp.effects):  # 2. forces ('u' = the voltage at the motor)
+        if not issubclass(eff, Force):
+            continue
+        ctx = _Context(True, comp, i)
+        if eff.acts_on == "lateral":
+            lateral = True
+            add(i, [f"_f = {_call(comp, ctx, 'force')}", "QX[k] += _f[0]", "QY[k] += _f[1]"], ctx)
+        else:
+            target = {"upper": "QU", "lower": "QL", "string": "QS"}[eff.acts_on]
+            add(i, [f"{target}[k] += {_call(comp, ctx, 'torque')}"], ctx)
+    if lateral:  # the fixed-frame forces' moment on the upper disc, and the forces in the rotating frame
+        turn = ["_qx = QX[k]", "_qy = QY[k]", "QU[k] += -_qx * _Y + _qy * _X", "QX[k] = _qx * _ct + _qy * _st",
+                "QY[k] = -_qx * _st + _qy * _ct"]
+        switches = [_switch(comp, True, i) for i, e in enumerate(comp.effects)
+                    if issubclass(e, Force) and e.acts_on == "lateral"]
+        any_on = None if None in switches else " or ".join(switches)
+        body.extend(_guarded(_lane_loop(turn, True), _both("cfg == 2 or cfg == 3", any_on)))
+    for disc, tf, g in (("upper", "TFU", "GU"), ("lower", "TFL", "GL")):  # 3. friction, in order
+        for i, eff in enumerate(comp.effects):
+            if not (issubclass(eff, Friction) and eff.disc == disc):
+                continue
+            ctx = _Context(True, comp, i, disc)
+            fns = eff.defined_functions()
+            lines = ([f"{tf}[k] = {_call(comp, ctx, 'slip')}"] if "slip" in fns else []) + \
+                    ([f"{g}[k] = {g}[k] * {_call(comp, ctx, 'level')}"] if "level" in fns else [])
+            if lines:
+                add(i, lines, ctx, disc, cfg=False)
+    body += ["for k in range(n):",  # levels last (as the scalar hooks); a stuck disc has no slip torque
+             "    TFU[k] = GU[k] * TFU[k] if MU[k] != 0.0 else 0.0",
+             "    TFL[k] = GL[k] * TFL[k] if ML[k] != 0.0 else 0.0"]
+    sig = "hk_effects_lane(thu_, thl_, wu_, wl_, x_, y_, vx_, vy_, Y, nm, MU, ML, U, PT, TT, tc, cfg, brake, E)"
+    return "\n".join([f"@{_JIT}", f"def {sig}:"] + ["    " + ln for ln in body] + ["    return 0"]) + "\n"
+
+
 def _lag(comp: "Composition", lane: bool) -> str:
     """hk_lag / hk_lag_lane: the declared first-order lag states (``Input.lag``) at h after the step
     start, exactly: s(h) = v + (s0 - v) exp(-h / tau), v the voltage entering the effect at the
@@ -256,7 +374,7 @@ def _lag(comp: "Composition", lane: bool) -> str:
                 frozen.append(f"yo[{8 + j}] = y[{8 + j}]")
         lines.append(f"u = {_call(comp, ctx, 'voltage', 'u')}")
         fixed_needed |= ctx.needs_fixed
-        guard = _cfg_guard(eff)
+        guard = _both(_cfg_guard(eff), _switch(comp, lane, i))
         if guard is None:
             body.extend(lines)
         else:
@@ -276,6 +394,12 @@ def _lag(comp: "Composition", lane: bool) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _guarded(lines: list[str], cond: str | None) -> list[str]:
+    if cond is None or not lines:
+        return lines
+    return [f"if {cond}:"] + ["    " + ln for ln in lines]
+
+
 def _friction(comp: "Composition", lane: bool, disc: str, what: str) -> str:
     """hk_slip_* / hk_bounds_* (scalar or lane) for one disc."""
     sfx = "u" if disc == "upper" else "l"
@@ -288,15 +412,22 @@ def _friction(comp: "Composition", lane: bool, disc: str, what: str) -> str:
             continue
         ctx = _Context(lane, comp, i, disc)
         fns = eff.defined_functions()
+        sw = _switch(comp, lane, i)
+        chosen = []
         if what == "slip" and "slip" in fns:
-            body.append(f"T = {_call(comp, ctx, 'slip')}")
+            chosen.append(f"T = {_call(comp, ctx, 'slip')}")
         if what == "bounds" and "stick" in fns:
-            body.append(f"lo, hi = {_call(comp, ctx, 'stick')}")
+            chosen.append(f"lo, hi = {_call(comp, ctx, 'stick')}")
+        body.extend(_guarded(chosen, sw))
         if "level" in fns:
-            levels.append(_call(comp, ctx, "level"))
+            levels.append((_call(comp, ctx, "level"), sw))
         fixed_needed |= ctx.needs_fixed
-    if levels:
-        body.append("_g = " + " * ".join(levels))
+    if levels and not any(sw for _, sw in levels):
+        body.append("_g = " + " * ".join(c for c, _ in levels))
+    elif levels:  # a skipped level is a factor of 1
+        body.append("_g = 1.0")
+        for c, sw in levels:
+            body.extend(_guarded([f"_g = _g * {c}"], sw))
     pro = _fixed_frame_prologue(lane) if fixed_needed else []
     if what == "slip":
         sig = f"hk_slip_{sfx}{'_lane' if lane else ''}(T, d, aw, {mech})"
@@ -379,18 +510,21 @@ def hooks_source(comp: "Composition") -> str:
         f"HAS_DELAY = {any(issubclass(e, Delay) for e in comp.effects)}",
         f"HAS_LATERAL_FORCE = {any(issubclass(e, Force) and e.acts_on == 'lateral' for e in comp.effects)}",
         f"N_PARAMS = {comp.n_params}",
+        f"N_SWITCHES = {len(switch_rows(comp))}",
         f"HAS_LAG = {any(issubclass(e, Input) and bool(getattr(e, 'lag', None)) for e in comp.effects)}",
         "",
         "",
+        _lane_params(comp), "",
         _rhs(comp, False), "",
-        _rhs(comp, True, "rhs"), "",
+        _effects_lane(comp), "",
         _rhs(comp, True, "states"), "",
         _lag(comp, False), "",
         _lag(comp, True), "",
     ]
     for disc in ("upper", "lower"):
         for what in ("slip", "bounds"):
-            parts += [_friction(comp, False, disc, what), "", _friction(comp, True, disc, what), ""]
+            parts += [_friction(comp, False, disc, what), ""]
+        parts += [_friction(comp, True, disc, "bounds"), ""]
     parts += [_delay(comp), "", _measure(comp)]
     return "\n".join(parts)
 

@@ -21,10 +21,10 @@ class PositionFriction(Friction):
     name = "position_friction"
     disc = "lower"
     parameters = (
-        Parameter("pf_c1", "-", -0.9, 0.9, 0.0, 0.05, "cos(theta_l) coefficient of the friction level"),
-        Parameter("pf_s1", "-", -0.9, 0.9, 0.0, 0.05, "sin(theta_l) coefficient"),
-        Parameter("pf_c2", "-", -0.9, 0.9, 0.0, 0.05, "cos(2 theta_l) coefficient"),
-        Parameter("pf_s2", "-", -0.9, 0.9, 0.0, 0.05, "sin(2 theta_l) coefficient"),
+        Parameter("pf_c1", "-", -0.9, 0.9, 0.0, 0.05, "cos(theta_l) coefficient of the friction level", neutral=0.0),
+        Parameter("pf_s1", "-", -0.9, 0.9, 0.0, 0.05, "sin(theta_l) coefficient", neutral=0.0),
+        Parameter("pf_c2", "-", -0.9, 0.9, 0.0, 0.05, "cos(2 theta_l) coefficient", neutral=0.0),
+        Parameter("pf_s2", "-", -0.9, 0.9, 0.0, 0.05, "sin(2 theta_l) coefficient", neutral=0.0),
     )
     configurations = ("torsional", "lateral", "coupled", "free_vibration")
     needs = ("theta_l",)
@@ -48,8 +48,10 @@ class BrakeAsymmetry(Friction):
     name = "brake_asymmetry"
     disc = "lower"
     parameters = (
-        Parameter("asym_s", "-", -0.9, 5.0, 0.0, 0.05, "relative change of the static level for negative rotation"),
-        Parameter("asym_c", "-", -0.9, 5.0, 0.0, 0.05, "relative change of the slip level for negative rotation"),
+        Parameter("asym_s", "-", -0.9, 5.0, 0.0, 0.05, "relative change of the static level for negative rotation",
+                  neutral=0.0),
+        Parameter("asym_c", "-", -0.9, 5.0, 0.0, 0.05, "relative change of the slip level for negative rotation",
+                  neutral=0.0),
     )
     configurations = ("torsional", "coupled")
     needs = ("negative_rotation",)
@@ -74,7 +76,8 @@ class BrakeAsymmetry(Friction):
 class StringDamping(Force):
     name = "string_damping"
     acts_on = "string"
-    parameters = (Parameter("dtheta", "N m s/rad", 0.0, 10.0, 0.002, 0.005, "torsional damping of the string"),)
+    parameters = (Parameter("dtheta", "N m s/rad", 0.0, 10.0, 0.002, 0.005, "torsional damping of the string",
+                            neutral=0.0),)
     configurations = ("torsional", "lateral", "coupled", "free_vibration")
     explanation = (
         "The steel string dissipates energy when it twists (material hysteresis, air drag on the string): a torque "
@@ -109,7 +112,7 @@ class MotorLag(Input):
 
 class InputDelay(Delay):
     name = "input_delay"
-    parameters = (Parameter("delay", "s", 0.0, 0.5, 0.005, 0.02, "pure transport delay of the command"),)
+    parameters = (Parameter("delay", "s", 0.0, 0.5, 0.005, 0.02, "pure transport delay of the command", neutral=0.0),)
     configurations = ("upper", "torsional", "lateral", "coupled")
     explanation = (
         "A pure transport delay between the commanded voltage and the motor (sampling, communication, amplifier "
@@ -126,8 +129,8 @@ class LateralAnisotropy(Force):
     name = "lateral_anisotropy"
     acts_on = "lateral"
     parameters = (
-        Parameter("dk", "N/m", -1500.0, 1500.0, 0.0, 60.0, "kx = k + dk, ky = k - dk (fixed frame)"),
-        Parameter("db", "N s/m", -20.0, 20.0, 0.0, 1.25, "bx = b + db, by = b - db (fixed frame)"),
+        Parameter("dk", "N/m", -1500.0, 1500.0, 0.0, 60.0, "kx = k + dk, ky = k - dk (fixed frame)", neutral=0.0),
+        Parameter("db", "N s/m", -20.0, 20.0, 0.0, 1.25, "bx = b + db, by = b - db (fixed frame)", neutral=0.0),
     )
     configurations = ("lateral", "coupled")
     explanation = (
@@ -145,7 +148,7 @@ class LateralAnisotropy(Force):
 class LateralCoulomb(Force):
     name = "lateral_coulomb"
     acts_on = "lateral"
-    parameters = (Parameter("Fc_lat", "N", 0.0, 50.0, 0.2, 0.5, "dry friction in the lateral guides"),)
+    parameters = (Parameter("Fc_lat", "N", 0.0, 50.0, 0.2, 0.5, "dry friction in the lateral guides", neutral=0.0),)
     configurations = ("lateral", "coupled")
     explanation = (
         "Dry friction in the lateral guides and the LVDT cores (the report suspected LVDT friction for its worse fit "
@@ -163,7 +166,8 @@ class LateralCoulomb(Force):
 class FrictionDrift(Friction):
     name = "friction_drift"
     disc = "lower"
-    parameters = (Parameter("drift", "1/s", -0.02, 0.02, 0.0, 5e-4, "relative drift rate of the friction level"),)
+    parameters = (Parameter("drift", "1/s", -0.02, 0.02, 0.0, 5e-4, "relative drift rate of the friction level",
+                            neutral=0.0),)
     configurations = ("torsional", "lateral", "coupled", "free_vibration")
     explanation = (
         "The brake's oil warms up during a run, its viscosity falls and the friction level drifts: lower friction "
@@ -180,8 +184,8 @@ class LvdtOffset(Measurement):
     name = "lvdt_offset"
     channels = ("X", "Y")
     parameters = (
-        Parameter("lvdt_x0", "m", -0.01, 0.01, 0.0, 1e-4, "LVDT x reading with the disc at rest"),
-        Parameter("lvdt_y0", "m", -0.01, 0.01, 0.0, 1e-4, "LVDT y reading with the disc at rest"),
+        Parameter("lvdt_x0", "m", -0.01, 0.01, 0.0, 1e-4, "LVDT x reading with the disc at rest", neutral=0.0),
+        Parameter("lvdt_y0", "m", -0.01, 0.01, 0.0, 1e-4, "LVDT y reading with the disc at rest", neutral=0.0),
     )
     configurations = ("lateral", "coupled")
     explanation = "The LVDTs read a nonzero position with the disc at rest (mounting, electronics offset)."
@@ -196,7 +200,7 @@ class LvdtSkew(Measurement):
     name = "lvdt_skew"
     channels = ("Y",)
     parameters = (Parameter("lvdt_skew", "rad", -0.3, 0.3, 0.0, 0.01,
-                            "angle by which the y LVDT axis deviates from perpendicular"),)
+                            "angle by which the y LVDT axis deviates from perpendicular", neutral=0.0),)
     configurations = ("lateral", "coupled")
     explanation = "The two LVDT axes are not perpendicular: the y reading contains a fraction sin(skew) of x."
     signature = ("y residual proportional to x; the measured orbit is a tilted ellipse; ripple in r at twice the whirl "

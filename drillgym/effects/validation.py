@@ -1,6 +1,7 @@
 """Checks an effect class before it is compiled: every problem is one line naming the file,
 the effect and what is wrong (an unknown argument or coordinate, a parameter without bounds,
-a function that fails or returns NaN at a typical state of the rig)."""
+a function that fails or returns NaN at a typical state of the rig, declared neutral values at
+which the effect does not vanish)."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ from .base import (
     Friction, Input, Measurement, Parameter, State, is_identifier,
 )
 
-__all__ = ["validate_effect"]
+__all__ = ["validate_effect", "check_neutral"]
 
 _FORCE_TARGETS = ("upper", "lower", "string", "lateral")
 _DISCS = ("upper", "lower")
@@ -41,6 +42,9 @@ def _check_parameter(cls: type[Effect], prm: Any) -> None:
     if prm.name in PARAM_NAMES or prm.name in VOCABULARY or prm.name in FRICTION_VOCABULARY \
             or prm.name in MEASUREMENT_CHANNELS:
         raise EffectError(f"{w}: parameter name {prm.name!r} is already taken (a base parameter or an argument name)")
+    if prm.neutral is not None and not (isinstance(prm.neutral, (int, float)) and prm.lo <= prm.neutral <= prm.hi):
+        raise EffectError(f"{w}: parameter {prm.name!r}: neutral = {prm.neutral!r} is not a number within its bounds "
+                          f"[{prm.lo}, {prm.hi}]")
     for attr in ("lo", "hi", "guess", "scale"):
         v = getattr(prm, attr)
         if v is None or isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
@@ -183,6 +187,7 @@ def validate_effect(cls: Any) -> None:
                               f"its parameters, states, base parameters and: "
                               f"{', '.join(sorted(allowed - set(PARAM_NAMES)))}")
         _probe(cls, fn, f, list(params), disc)
+    check_neutral(cls)
 
 
 def _probe(cls: type[Effect], fn: str, f: Any, args: list[str], disc: str | None) -> None:
@@ -205,3 +210,43 @@ def _probe(cls: type[Effect], fn: str, f: Any, args: list[str], disc: str | None
             if not math.isfinite(fv):
                 shown = ", ".join(f"{a}={vals[a]:g}" for a in args)
                 raise EffectError(f"{w}: {fn}() returns {fv} (not finite) at {shown}")
+
+
+def _unchanged(cls: type[Effect], fn: str, vals: dict[str, float]) -> tuple[float, ...]:
+    """What ``fn`` returns when the effect adds nothing."""
+    if fn == "torque" or fn == "delay":
+        return (0.0,)
+    if fn == "force":
+        return (0.0, 0.0)
+    if fn == "slip":
+        return (vals["T"],)
+    if fn == "stick":
+        return (vals["lo"], vals["hi"])
+    if fn == "level":
+        return (1.0,)
+    if fn == "voltage":
+        return (vals["u"],)
+    return tuple(vals[c] for c in cls.channels)  # measure
+
+
+def check_neutral(cls: type[Effect]) -> None:
+    """An effect whose parameters all declare ``neutral`` must add nothing there (the kernels skip it):
+    at the typical states, a torque or force of 0, a slip torque T, a stick set (lo, hi), a level of
+    1, the voltage u, a delay of 0, the channels unchanged (to 1e-12)."""
+    neutral = cls.neutral_values()
+    if neutral is None:
+        return
+    w = _where(cls)
+    disc = getattr(cls, "disc", None) if issubclass(cls, Friction) else None
+    for fn, f in cls.defined_functions().items():
+        args = list(inspect.signature(f).parameters)
+        for probe in _PROBES:
+            vals = {**_probe_values(cls, probe, fn, disc), **neutral}
+            out = f(*[vals[a] for a in args])
+            outs = out if isinstance(out, tuple) else (out,)
+            want = _unchanged(cls, fn, vals)
+            if any(abs(float(a) - b) > 1e-12 * max(1.0, abs(b)) for a, b in zip(outs, want)):
+                shown = ", ".join(f"{k}={v:g}" for k, v in neutral.items())
+                got, expected = (outs, want) if len(want) > 1 else (outs[0], want[0])
+                raise EffectError(f"{w}: {fn}() does not vanish at the declared neutral values ({shown}): returns "
+                                  f"{got!r}, expected {expected!r}; drop neutral= or fix the function")

@@ -13,6 +13,8 @@ Constants
     HAS_DELAY         True when a Delay effect is present
     HAS_LATERAL_FORCE True when a Force effect acts on the lower disc's centre
     HAS_LAG           True when an Input effect declares first-order lag states (integrated exactly)
+    N_PARAMS          number of parameters (base, then the effects')
+    N_SWITCHES        number of effects that declare where they vanish (Parameter.neutral)
 
 Scalar kernel (state vector y, parameter vector p)
     hk_rhs(t, u, y, p, cfg, dy) -> (volt, Qu, Ql, Qs, Qx, Qy)
@@ -25,12 +27,20 @@ Scalar kernel (state vector y, parameter vector p)
     hk_lag(t, u, y, p, cfg, h, yo): the declared lag states (Input.lag) at h after a step started at
         (t, y) with command u, exactly, into yo[8 + j] (HAS_LAG: the composition declares some)
 
-Lane kernel (lane k; mechanical scalars, lane state rows Y (nm mechanical rows first),
-parameter rows PT (n_params, B))
-    hk_rhs_lane(k, t, u, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, cfg) -> as hk_rhs (no writes)
+Lane kernel (lanes as structure of arrays: lane state rows Y (nm mechanical rows first), parameter
+rows PT (N_PARAMS + N_SWITCHES, B))
+    hk_lane_params(P) -> PT: P (B, N_PARAMS) transposed, then one switch row per effect that declares
+        where it vanishes (Parameter.neutral): 1.0 in every lane when any lane's parameters of that
+        effect leave their neutral values, else 0.0
+    hk_effects_lane(thu_, thl_, wu_, wl_, x_, y_, vx_, vy_, Y, nm, MU, ML, U, PT, TT, tc, cfg, brake, E):
+        every effect on every lane, one loop per effect with its switch tested outside the loop (an
+        effect switched off costs nothing; small loops stay vectorised).  In: the mechanical rows
+        (zeros for absent lateral coordinates), the modes MU, ML, the command U, step start times TT
+        and stage offset tc, and in E[6], E[7] the base laws' slip torques.  Out: E[0] the voltage at
+        the motor, E[1:4] Qu, Ql, Qs, E[4:6] Qx, Qy (rotating frame), E[6], E[7] the slip torques with
+        the friction effects (0 for a stuck disc); E[8], E[9] work (friction levels)
     hk_states_lane(k, t, u, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, cfg, K): the effects' state
         derivatives into K[nm + j, k] (called in a loop of its own)
-    hk_slip_u_lane(T, d, aw, k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, brake) / ..._l_lane
     hk_lag_lane(k, t, u, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, cfg, h, Yo): as hk_lag, lane k,
         from the start rows Y into Yo[nm + j, k]
     hk_bounds_u_lane(lo, hi, k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, brake) / ..._l_lane

@@ -38,7 +38,8 @@ from drillgym.dynamics import (
 )
 from drillgym.friction import bearing_law, brake_law_simd, upper_law
 from drillgym.kernels.hooks import (
-    HAS_LAG, N_STATE, hk_bounds_l_lane, hk_lag_lane, hk_bounds_u_lane, hk_rhs_lane, hk_slip_l_lane, hk_slip_u_lane, hk_states_lane,
+    HAS_LAG, N_STATE, hk_bounds_l_lane, hk_bounds_u_lane, hk_effects_lane, hk_lag_lane, hk_lane_params,
+    hk_states_lane,
 )
 from drillgym.kernels.model import initial_modes, record, resolve_modes
 from drillgym.kernels.stepping import alloc_work, delay_line_step, hybrid_step
@@ -59,27 +60,29 @@ ROWS_DIAG = np.array([S_TU, S_TL, S_WU, S_WL] + _EFFECT_ROWS, dtype=np.int64)
 ROWS_FULL = np.array([S_TU, S_TL, S_X, S_Y, S_WU, S_WL, S_VX, S_VY] + _EFFECT_ROWS, dtype=np.int64)
 
 
-@njit(inline="always", fastmath=True, error_model="numpy")
-def _friction_upper(k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, mu, brake, Tcu, dTcu, bu, dbu):
-    """Upper slip friction torque (N m) in the direction of its mode (0 when stuck): friction.py's law
-    (base parameters of lane k given as scalars), then the composition's friction effects."""
-    awu = abs(wu)
-    tfu = upper_law(awu, mu, Tcu, dTcu, bu, dbu)
-    bf = 1.0 if brake else 0.0
-    return hk_slip_u_lane(tfu, mu, awu, k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, bf) if mu != 0.0 else 0.0
+#: rows of the effects' work array E (as codegen.EFFECT_ROWS): voltage at the motor, extra torques, lateral
+#: forces, slip torques, friction levels
+N_E = 10
+_VOLT, _QU, _QL, _QS, _QX, _QY, _TFU, _TFL = 0, 1, 2, 3, 4, 5, 6, 7
 
 
-@njit(inline="always", fastmath=True, error_model="numpy")
-def _friction_laws(k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, mu, ml, brake, Tcu, dTcu, bu, dbu, Tcl, bl,
-                   Ts, Tc, ws, delta, bb):
-    """Slip friction torques (N m) in the directions of the modes (0 for a stuck disc): friction.py's
-    laws (base parameters of lane k given as scalars), then the composition's friction effects."""
-    awl = abs(wl)
-    tfl = brake_law_simd(awl, ml, Ts, Tc, ws, delta, bb) if brake else bearing_law(awl, ml, Tcl, bl)
-    tfu = _friction_upper(k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, mu, brake, Tcu, dTcu, bu, dbu)
-    bf = 1.0 if brake else 0.0
-    tfl = hk_slip_l_lane(tfl, ml, awl, k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, bf) if ml != 0.0 else 0.0
-    return tfu, tfl
+@njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
+def _effects(thu_, thl_, wu_, wl_, x_, y_, vx_, vy_, Y, nm, MU, ML, U, PT, TT, tc, cfg, brake, E):
+    """Into E (N_E, B): the slip torques of friction.py's laws (in the directions of the modes), then
+    the composition's effects on every lane (:func:`hooks.hk_effects_lane`: the voltage at the motor,
+    extra torques and lateral forces, the slip torques with the friction effects, 0 when stuck)."""
+    Tcu, dTcu, bu, dbu, Tcl, bl = PT[_Tcu], PT[_dTcu], PT[_bu], PT[_dbu], PT[_Tcl], PT[_bl]
+    Ts, Tc, ws, delta, bb = PT[_Ts], PT[_Tc], PT[_ws], PT[_delta], PT[_bb]
+    TFU, TFL = E[_TFU], E[_TFL]
+    for k in range(thu_.shape[0]):
+        mu = MU[k]
+        ml = ML[k]
+        TFU[k] = upper_law(abs(wu_[k]), mu, Tcu[k], dTcu[k], bu[k], dbu[k])
+        awl = abs(wl_[k])
+        TFL[k] = brake_law_simd(awl, ml, Ts[k], Tc[k], ws[k], delta[k], bb[k]) if brake else bearing_law(
+            awl, ml, Tcl[k], bl[k])
+    hk_effects_lane(thu_, thl_, wu_, wl_, x_, y_, vx_, vy_, Y, nm, MU, ML, U, PT, TT, tc, cfg,
+                    1.0 if brake else 0.0, E)
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
@@ -93,7 +96,7 @@ def _copy_rows(src, dst):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
-def _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR, TT, tc, cfg):
+def _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR, TT, tc, cfg, E):
     """Diagonal mass ((3.19), (3.20)): K[0:2] = speeds, K[2:4] = accelerations, FR = friction
     torques (a stuck disc: zero acceleration, friction = its holding torque); the effects' state
     derivatives in K[4:].  TT (B,) step start times, tc the stage's offset (s).
@@ -102,23 +105,16 @@ def _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR, TT, tc, cfg):
     thu_, thl_, wu_, wl_ = Y[0], Y[1], Y[2], Y[3]
     K2, K3, FR0, FR1 = K[2], K[3], FR[0], FR[1]
     Ju, km, Jl, kth = PT[_Ju], PT[_km], PT[_Jl], PT[_kth]
-    Tcu, dTcu, bu, dbu, Tcl, bl = PT[_Tcu], PT[_dTcu], PT[_bu], PT[_dbu], PT[_Tcl], PT[_bl]
-    Ts, Tc, ws, delta, bb = PT[_Ts], PT[_Tc], PT[_ws], PT[_delta], PT[_bb]
     _copy_rows(Y[2:4], K[0:2])  # angle rates = speeds
+    Z = E[N_E]  # zeros: no lateral coordinates
+    _effects(thu_, thl_, wu_, wl_, Z, Z, Z, Z, Y, 4, MU, ML, U, PT, TT, tc, cfg, brake, E)
+    VOLT, QU, QL, QS, TFU, TFL = E[_VOLT], E[_QU], E[_QL], E[_QS], E[_TFU], E[_TFL]
     for k in range(thu_.shape[0]):
-        thu = thu_[k]
-        thl = thl_[k]
-        wu = wu_[k]
-        wl = wl_[k]
         mu = MU[k]
         ml = ML[k]
-        t = TT[k] + tc
-        volt, Qe_u, Qe_l, Qe_s, _, _ = hk_rhs_lane(k, t, U[k], thu, thl, wu, wl, 0.0, 0.0, 0.0, 0.0, Y, 4, PT, cfg)
-        string = string_on * (kth[k] * (thl - thu) + Qe_s)
-        tfu, tfl = _friction_laws(k, t, thu, thl, wu, wl, 0.0, 0.0, 0.0, 0.0, Y, 4, PT, mu, ml, brake, Tcu[k],
-                                  dTcu[k], bu[k], dbu[k], Tcl[k], bl[k], Ts[k], Tc[k], ws[k], delta[k], bb[k])
-        a_u, a_l, fu, fl = reduced_accelerations(km[k] * volt + Qe_u, string, string_on * Qe_l, tfu, tfl,
-                                                 Ju[k], Jl[k], mu != 0.0, ml != 0.0)
+        string = string_on * (kth[k] * (thl_[k] - thu_[k]) + QS[k])
+        a_u, a_l, fu, fl = reduced_accelerations(km[k] * VOLT[k] + QU[k], string, string_on * QL[k], TFU[k],
+                                                 TFL[k], Ju[k], Jl[k], mu != 0.0, ml != 0.0)
         K2[k] = a_u
         K3[k] = a_l
         FR0[k] = fu
@@ -130,7 +126,7 @@ def _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR, TT, tc, cfg):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
-def _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg):
+def _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg, E):
     """All four coordinates, MODEL.md's lateral constraints plus the effects' forces
     (dynamics' formulas, Schur complement of the m I block, stuck discs as selects).
     Two loops over the lanes, each writing three arrays (one loop writing all six exceeds LLVM's
@@ -141,10 +137,10 @@ def _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg):
     thu_, thl_, x_, y_, wu_, wl_, vx_, vy_ = Y[0], Y[1], Y[2], Y[3], Y[4], Y[5], Y[6], Y[7]
     _copy_rows(Y[4:8], K[0:4])  # position rates = velocities
     Ju, km, Jl, kth = PT[_Ju], PT[_km], PT[_Jl], PT[_kth]
-    Tcu, dTcu, bu, dbu, Tcl, bl = PT[_Tcu], PT[_dTcu], PT[_bu], PT[_dbu], PT[_Tcl], PT[_bl]
-    Ts, Tc, ws, delta, bb = PT[_Ts], PT[_Tc], PT[_ws], PT[_delta], PT[_bb]
     mr, mt, k_, b_, e_ = PT[_mr], PT[_mt], PT[_k], PT[_b], PT[_e]
     K4, K5, K6, K7, FR0, FR1 = K[4], K[5], K[6], K[7], FR[0], FR[1]
+    _effects(thu_, thl_, wu_, wl_, x_, y_, vx_, vy_, Y, 8, MU, ML, U, PT, TT, tc, cfg, brake, E)
+    VOLT, QU, QL, QS, QX, QY, TFU, TFL = E[_VOLT], E[_QU], E[_QL], E[_QS], E[_QX], E[_QY], E[_TFU], E[_TFL]
     for k in range(thu_.shape[0]):  # loop 1 of 2: the whole system; disc accelerations, lower friction
         thu = thu_[k]
         thl = thl_[k]
@@ -156,17 +152,13 @@ def _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg):
         vy = vy_[k]
         mu = MU[k]
         ml = ML[k]
-        t = TT[k] + tc
         alpha = thl - thu
         s, c = vsincos(alpha)
-        volt, Qe_u, Qe_l, Qe_s, Qe_x, Qe_y = hk_rhs_lane(k, t, U[k], thu, thl, W, wl, x, yy, vx, vy, Y, 8, PT, cfg)
-        string = kth[k] * alpha + Qe_s
-        tfu, tfl = _friction_laws(k, t, thu, thl, W, wl, x, yy, vx, vy, Y, 8, PT, mu, ml, brake, Tcu[k], dTcu[k],
-                                  bu[k], dbu[k], Tcl[k], bl[k], Ts[k], Tc[k], ws[k], delta[k], bb[k])
+        string = kth[k] * alpha + QS[k]
         Qu, Qx, Qy = isotropic_lateral_forces(x, yy, vx, vy, W, k_[k], b_[k])
         a_u, a_l, _, _, _, fl = full_accelerations(x, yy, vx, vy, W, wl, s, c, mr[k] + mt[k], e_[k] * mr[k],
-                                                   Ju[k], Jl[k], km[k] * volt + Qe_u, string, Qe_l, tfu, tfl,
-                                                   Qu, Qx + Qe_x, Qy + Qe_y, mu != 0.0, ml != 0.0)
+                                                   Ju[k], Jl[k], km[k] * VOLT[k] + QU[k], string, QL[k], TFU[k],
+                                                   TFL[k], Qu, Qx + QX[k], Qy + QY[k], mu != 0.0, ml != 0.0)
         K4[k] = a_u
         K5[k] = a_l
         FR1[k] = fl
@@ -180,20 +172,17 @@ def _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg):
         vx = vx_[k]
         vy = vy_[k]
         mu = MU[k]
-        t = TT[k] + tc
         alpha = thl - thu
         s, c = vsincos(alpha)
-        volt, Qe_u, Qe_l, Qe_s, Qe_x, Qe_y = hk_rhs_lane(k, t, U[k], thu, thl, W, wl, x, yy, vx, vy, Y, 8, PT, cfg)
-        string = kth[k] * alpha + Qe_s
-        tfu = _friction_upper(k, t, thu, thl, W, wl, x, yy, vx, vy, Y, 8, PT, mu, brake, Tcu[k], dTcu[k], bu[k],
-                              dbu[k])
+        string = kth[k] * alpha + QS[k]
+        tfu = TFU[k]
         Qu, Qx, Qy = isotropic_lateral_forces(x, yy, vx, vy, W, k_[k], b_[k])
         m = mr[k] + mt[k]
         P = e_[k] * mr[k]
         # g0 and s01 do not depend on the lower friction torque (0.0 here); g1 is not used
         _, s01, _, g0, _, F2, F3 = coupled_system(x, yy, vx, vy, W, wl, s, c, m, P, Ju[k], Jl[k],
-                                                  km[k] * volt + Qe_u, string, Qe_l, tfu, 0.0, Qu, Qx + Qe_x,
-                                                  Qy + Qe_y, mu != 0.0, ML[k] != 0.0)
+                                                  km[k] * VOLT[k] + QU[k], string, QL[k], tfu, 0.0, Qu, Qx + QX[k],
+                                                  Qy + QY[k], mu != 0.0, ML[k] != 0.0)
         a_u = K4[k]
         a_l = K5[k]
         a_x, a_y = lateral_accelerations(x, yy, s, c, m, P, F2, F3, a_u, a_l)
@@ -207,11 +196,11 @@ def _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg):
 
 
 @njit(inline="always")
-def _derivative(Y, MU, ML, U, PT, full, string_on, brake, K, FR, TT, tc, cfg):
+def _derivative(Y, MU, ML, U, PT, full, string_on, brake, K, FR, TT, tc, cfg, E):
     if full:
-        _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg)
+        _derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg, E)
     else:
-        _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR, TT, tc, cfg)
+        _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR, TT, tc, cfg, E)
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
@@ -240,7 +229,7 @@ def _axpy(X0, h, KX, out):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
-def _lanes_rk4(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibration, S0, OK, W, TT, cfg):
+def _lanes_rk4(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibration, S0, OK, W, TT, cfg, E):
     """One classical RK4 step of every lane.
 
     S (n, B) lane states (rows ROWS_DIAG or ROWS_FULL), updated in place; K1 (n, B) the
@@ -261,15 +250,15 @@ def _lanes_rk4(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibrati
     _axpy(S0, 0.5 * h, K1, Y)
     if HAS_LAG:
         _lag_exact(S0, Y, U, PT, TT, 0.5 * h, full, cfg)
-    _derivative(Y, MU, ML, U, PT, full, string_on, brake, K2, FR, TT, 0.5 * h, cfg)
+    _derivative(Y, MU, ML, U, PT, full, string_on, brake, K2, FR, TT, 0.5 * h, cfg, E)
     _axpy(S0, 0.5 * h, K2, Y)
     if HAS_LAG:
         _lag_exact(S0, Y, U, PT, TT, 0.5 * h, full, cfg)
-    _derivative(Y, MU, ML, U, PT, full, string_on, brake, K3, FR, TT, 0.5 * h, cfg)
+    _derivative(Y, MU, ML, U, PT, full, string_on, brake, K3, FR, TT, 0.5 * h, cfg, E)
     _axpy(S0, h, K3, Y)
     if HAS_LAG:
         _lag_exact(S0, Y, U, PT, TT, h, full, cfg)
-    _derivative(Y, MU, ML, U, PT, full, string_on, brake, K4, FR, TT, h, cfg)
+    _derivative(Y, MU, ML, U, PT, full, string_on, brake, K4, FR, TT, h, cfg, E)
     h6 = h / 6.0
     for j in range(n):
         s = S[j]
@@ -282,7 +271,7 @@ def _lanes_rk4(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibrati
             s[k] = s0[k] + h6 * (a[k] + 2.0 * (b[k] + c[k]) + d[k])
     if HAS_LAG:
         _lag_exact(S0, S, U, PT, TT, h, full, cfg)
-    _derivative(S, MU, ML, U, PT, full, string_on, brake, K1, FR, TT, h, cfg)
+    _derivative(S, MU, ML, U, PT, full, string_on, brake, K1, FR, TT, h, cfg, E)
     _event_check(S, FR, MU, ML, PT, full, string_on, brake, free_vibration, OK, TT, h, nm, hv)
 
 
@@ -306,7 +295,8 @@ def _stage_sum(S0, K1, W, coef, m, h, out):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
-def _lanes_erk(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibration, S0, OK, W, TT, cfg, A, b, c):
+def _lanes_erk(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibration, S0, OK, W, TT, cfg, E, A, b,
+               c):
     """One step of an explicit Runge-Kutta tableau (A, b, c; e.g. DP5) of every lane: the contract of
     :func:`_lanes_rk4`, the stages summed as the scalar kernel's general Butcher loop
     (``stepping._rk_step``).  W (s n, B): the stage state, then the stage derivatives 2..s."""
@@ -318,11 +308,11 @@ def _lanes_erk(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibrati
         _stage_sum(S0, K1, W, A[i], i, h, Y)
         if HAS_LAG:
             _lag_exact(S0, Y, U, PT, TT, c[i] * h, full, cfg)
-        _derivative(Y, MU, ML, U, PT, full, string_on, brake, W[i * n:(i + 1) * n], FR, TT, c[i] * h, cfg)
+        _derivative(Y, MU, ML, U, PT, full, string_on, brake, W[i * n:(i + 1) * n], FR, TT, c[i] * h, cfg, E)
     _stage_sum(S0, K1, W, b, s, h, S)
     if HAS_LAG:
         _lag_exact(S0, S, U, PT, TT, h, full, cfg)
-    _derivative(S, MU, ML, U, PT, full, string_on, brake, K1, FR, TT, h, cfg)
+    _derivative(S, MU, ML, U, PT, full, string_on, brake, K1, FR, TT, h, cfg, E)
     nm = 8 if full else 4  # mechanical rows; the velocities from row nm // 2
     _event_check(S, FR, MU, ML, PT, full, string_on, brake, free_vibration, OK, TT, h, nm, nm // 2)
 
@@ -481,7 +471,7 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
     inv = np.full(N_STATE, -1, dtype=np.int64)  # state index -> lane row
     for j in range(n):
         inv[rows[j]] = j
-    PT = np.ascontiguousarray(P.T)
+    PT = hk_lane_params(P)  # parameter rows, then the effects' switches
     S = np.empty((n, B))
     S0 = np.empty((n, B))
     K1 = np.zeros((n, B))
@@ -490,6 +480,7 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
     ML = np.zeros(B)
     OK = np.zeros(B, dtype=np.int64)
     W = np.zeros((max(4, b.shape[0]) * n, B))
+    E = np.zeros((N_E + 1, B))  # the effects' work rows, then a row of zeros
     Ucur = np.empty(B)
     Uprev = np.empty(B)
     TT = np.empty(B)
@@ -523,20 +514,29 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
     jc = 0
     for i in range(n_steps):
         col, jc = command_col(n_u, i, USTEP, jc)
+        new_input = False
         for k in range(B):
             TT[k] = T0[k] + i * dt
             if i > 0:
                 Ucur[k] = delay_line_step(HIST[k], HEAD[k:k + 1], U[k, col], P[k], dt)
-            if Ucur[k] != Uprev[k]:  # a new input can release a stuck disc: resolve (scalar, rare)
-                y[:] = Y[k]
-                _lane_to_state(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
-                resolve_modes(TT[k], y, mode, Ucur[k], P[k], cfg, k1, fric)
-                _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
+            new_input |= Ucur[k] != Uprev[k]
+        if new_input:
+            # the step-start slopes at the new input, every lane at once (a lane whose input did not
+            # change gets its slopes again); then a stuck disc may be released: resolve it (scalar)
+            _derivative(S, MU, ML, Ucur, PT, full, string_on, brake, K1, FR, TT, 0.0, cfg, E)
+            for k in range(B):
+                if Ucur[k] == Uprev[k]:
+                    continue
                 Uprev[k] = Ucur[k]
+                if (MU[k] == 0.0 and not fv) or (ML[k] == 0.0 and cfg != UPPER):
+                    y[:] = Y[k]
+                    _lane_to_state(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
+                    resolve_modes(TT[k], y, mode, Ucur[k], P[k], cfg, k1, fric)
+                    _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
         if b.shape[0] == 4:  # classical RK4 (the only 4-stage tableau), unrolled
-            _lanes_rk4(S, K1, FR, MU, ML, Ucur, PT, dt, full, string_on, brake, fv, S0, OK, W, TT, cfg)
+            _lanes_rk4(S, K1, FR, MU, ML, Ucur, PT, dt, full, string_on, brake, fv, S0, OK, W, TT, cfg, E)
         else:
-            _lanes_erk(S, K1, FR, MU, ML, Ucur, PT, dt, full, string_on, brake, fv, S0, OK, W, TT, cfg, A, b, c)
+            _lanes_erk(S, K1, FR, MU, ML, Ucur, PT, dt, full, string_on, brake, fv, S0, OK, W, TT, cfg, E, A, b, c)
         for k in range(B):
             if OK[k] == 0:  # an event inside this step: redo it exactly on the scalar path
                 y[:] = Y[k]

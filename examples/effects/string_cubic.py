@@ -14,7 +14,7 @@ class StringCubic(Force):
     acts_on = "string"  # a torque in the string: +torque on the upper disc, -torque on the lower
     parameters = (
         Parameter("c3", unit="1/rad^2", lo=-0.05, hi=0.2, guess=0.0, scale=0.005,
-                  doc="relative cubic stiffness of the string"),
+                  doc="relative cubic stiffness of the string", neutral=0.0),
     )
     explanation = (
         "A long thin steel string under large twist does not stay linear: its torsional stiffness grows "
