@@ -54,6 +54,19 @@ def test_no_hidden_effect_nothing_significant():
     assert "no effect of the library" in d.text()
 
 
+def test_an_effect_the_data_cannot_show_stays_neutral_in_the_one_search_model():
+    """At a constant 3 V the lower disc never turns backwards: the brake asymmetry is not a candidate,
+    but it stays in the search model at its neutral values (the kernels skip it), so every torsional
+    recording runs one compiled model."""
+    from drillgym.diagnosis.effects import effects_for
+
+    d = diagnose(synthetic_measurement("torsional", duration=12.0, rate_hz=250.0, u=3.0, seed=1), fixed_base=True)
+    assert "backwards" in d.skipped["brake_asymmetry"]
+    assert "brake_asymmetry" not in {r.effect for r in d.ranking}
+    assert set(d.composition.names) == {e.name for e in effects_for(d.config)}
+    assert d.vector[d.composition.param_index("asym_s")] == 0.0
+
+
 def test_json_shape_and_skips():
     d = diagnose(_measure("torsional", 2.0), RigParams().scaled(Ts=1.05), effects=["string_damping", "lvdt_offset"])
     js = d.to_json()

@@ -345,3 +345,12 @@ def test_a_parameter_the_data_do_not_depend_on_has_no_finite_standard_error():
     with pytest.warns(IdentifiabilityWarning, match="tau_m"):
         res = fit_parameters(obj, vec, [FitVariable.of_effect(comp, "tau_m", 0.02)], max_nfev=3)
     assert res.std["tau_m"] == np.inf
+
+
+def test_prepare_refuses_an_unknown_configuration_in_one_line(capsys):
+    from drillgym.cli import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["prepare", "--config", "helical"])
+    err = capsys.readouterr().err.strip()
+    assert e.value.code == 2 and "helical" in err and "\n" not in err

@@ -14,4 +14,5 @@ MODULES = (
     "drillgym.commands.train",
     "drillgym.commands.rig",
     "drillgym.commands.params",
+    "drillgym.commands.prepare",
 )

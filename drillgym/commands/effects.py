@@ -12,7 +12,7 @@ import typer
 def _as_dict(cls) -> dict:
     return {"name": cls.name, "kind": cls.kind, "configurations": list(cls.configurations),
             "parameters": [{"name": p.name, "unit": p.unit, "lo": p.lo, "hi": p.hi, "guess": p.guess, "scale": p.scale,
-                            "doc": p.doc} for p in cls.parameters],
+                            "neutral": p.neutral, "doc": p.doc} for p in cls.parameters],
             "states": [{"name": s.name, "unit": s.unit, "doc": s.doc} for s in cls.states],
             "explanation": " ".join(cls.explanation.split()), "signature": " ".join(cls.signature.split()),
             "source": cls.source_file()}

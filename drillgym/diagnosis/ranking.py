@@ -416,18 +416,26 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
     exps = [c[0] for c in conditioned]
     scales = {c: min(s[c] for _, s in conditioned) for c in conditioned[0][1]}
     skipped: dict[str, str] = {}
-    usable = []
+    usable, held = [], []
     for eff in candidates:
         if eff.name in comp0.names:
             skipped[eff.name] = "already in the model"
         elif not applies_to(eff, cfg):
             skipped[eff.name] = f"does not act in configuration '{cfg.label}'"
+        elif eff.name in {u.name for u in usable + held}:
+            continue
         elif _excited(eff, exps):
             skipped[eff.name] = _excited(eff, exps)
-        elif eff.name not in {u.name for u in usable}:
+            if eff.neutral_values() is not None:
+                held.append(eff)
+        else:
             usable.append(eff)
-    comp = search_composition(comp0, usable)
-    vec0 = base_vector(comp, base, {**values0, **neutral_values(usable)})
+    # the candidates the data cannot show stay in the model at their neutral values (the kernels skip them):
+    # one compiled model per configuration and candidate list, whatever the recording excites, so the
+    # kernels compiled for one recording (or by `make venv`) serve the next
+    in_model = [e for e in candidates if e in usable or e in held]  # the candidates' order: one composition
+    comp = search_composition(comp0, list(dict.fromkeys(in_model)))
+    vec0 = base_vector(comp, base, {**values0, **neutral_values(in_model)})
     model = selection_model(exps, segment_s, comp)
     obj = Objective(model, default_weights(cfg), scales)
     brake_on = all(float(ex.meta.get("brake_normal_force_n", 1.0) or 0.0) != 0.0 for ex in exps)

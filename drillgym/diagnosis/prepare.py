@@ -1,0 +1,45 @@
+"""Compile once what ``drillgym diagnose`` runs, so that the first diagnosis of a recording is as fast
+as the next.
+
+A diagnosis fits one search model per configuration (the base model with every candidate effect of
+the configuration held at its neutral values, :func:`drillgym.diagnosis.ranking.diagnose`); numba
+compiles its kernels on first use (about a minute on 2 cores) and caches them on disk
+(:mod:`drillgym.effects.codegen`).  :func:`prepare_diagnosis` runs the whole command's path on a
+few seconds of simulated data per configuration, so the cache holds them; ``make venv`` calls it
+(``drillgym prepare``).
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+from typing import Sequence
+
+__all__ = ["prepare_diagnosis", "PREPARED_CONFIGS"]
+
+#: the configurations diagnosed most (their search models are compiled by ``make venv``)
+PREPARED_CONFIGS = ("torsional", "coupled")
+
+
+def prepare_diagnosis(configs: Sequence[str] = PREPARED_CONFIGS, duration: float = 6.0) -> dict[str, float]:
+    """Run ``diagnose`` and the discovery of a candidate (as ``drillgym diagnose`` does) on ``duration``
+    s of a simulated recording of each configuration with the library's default candidates; returns
+    the seconds each took (compilation included when the kernels were not cached yet)."""
+    from ..configurations import Configuration, parse_configuration
+    from ..identification.experiment import prepare_experiment
+    from ..identification.synthetic import synthetic_measurement
+    from .discovery import discover
+    from .ranking import diagnose
+
+    out: dict[str, float] = {}
+    for name in configs:
+        cfg = parse_configuration(name)
+        t0 = time.perf_counter()
+        ts = synthetic_measurement(cfg.label, duration=duration, rate_hz=250.0, seed=0)
+        d = diagnose(prepare_experiment(ts, compare_rate_hz=50.0))
+        if cfg is not Configuration.UPPER:
+            with tempfile.TemporaryDirectory() as tmp:
+                discover(prepare_experiment(ts, compare_rate_hz=250.0), d, Path(tmp) / "candidate.py")
+        out[cfg.label] = time.perf_counter() - t0
+    return out
