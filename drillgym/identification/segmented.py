@@ -53,6 +53,9 @@ from .experiment import Experiment
 __all__ = ["SegmentedModel", "Prediction", "CHANNELS", "as_composition"]
 
 CHANNELS = ("theta_u", "theta_l", "alpha", "x", "y", "r")
+#: LVDT samples within this many periods of the low-pass cut-off (0.2 s at 5 Hz) of a segment's ends are
+#: not compared (:meth:`SegmentedModel.measured_segments`)
+LVDT_EDGE_PERIODS = 1.0
 MAX_DT = 2e-3  # s: simulator step bound (DP5: > 200 steps per lateral period)
 _COL = {n: i for i, n in enumerate(OUTPUT_NAMES)}
 
@@ -219,7 +222,12 @@ class SegmentedModel:
         return out
 
     def measured_segments(self, k: int, channel: str) -> np.ndarray:
-        """The data cut like the predictions: (n_seg, L+1), NaN beyond the record."""
+        """The data cut like the predictions: (n_seg, L+1), NaN beyond the record.  LVDT channels that
+        went through the zero-phase low-pass are also NaN (not compared) within
+        :data:`LVDT_EDGE_PERIODS` periods of its cut-off from either end of a segment: the data were
+        filtered over the whole record, a segment's prediction can only be filtered within the segment,
+        and the two differ there by the filter's edge transient (on an independent rig's coupled
+        recordings the LVDT misfit fell from 9 noise units to the noise without those samples)."""
         ex = self.experiments[k]
         starts, L = self.segments(k)
         y = ex.channel(channel)
@@ -227,6 +235,13 @@ class SegmentedModel:
         for j, s in enumerate(starts):
             e = min(s + L + 1, ex.n)
             out[j, :e - s] = y[s:e]
+        if channel in ("x", "y", "r") and ex.lvdt_lowpass_hz and ex.config.lateral_free and len(starts) > 1:
+            edge = int(math.ceil(LVDT_EDGE_PERIODS * ex.fs / ex.lvdt_lowpass_hz))
+            if 4 * edge < L:
+                for j in range(len(starts)):
+                    valid = np.flatnonzero(~np.isnan(out[j]))
+                    out[j, valid[:edge + 1]] = np.nan  # the first sample is never compared
+                    out[j, valid[-edge:]] = np.nan
         return out
 
     def matrix(self, P: Any) -> np.ndarray:
