@@ -192,15 +192,14 @@ def _lane_params(comp: "Composition") -> str:
     return "\n".join(lines) + "\n"
 
 
-def _rhs(comp: "Composition", lane: bool, part: str = "all") -> str:
-    """hk_rhs (scalar: input chain, forces, state derivatives), hk_rhs_lane (part "rhs": input chain
-    and forces, no writes) and hk_states_lane (part "states": the effects' state derivatives into K;
-    a loop of its own, so the accelerations' loop writes few arrays and stays vectorised)."""
+def _rhs(comp: "Composition", lane: bool) -> str:
+    """hk_rhs (scalar: input chain, forces, state derivatives) or hk_states_lane (lane: the effects'
+    state derivatives into K, called in a loop of its own; the lane kernel's forces and input chain are
+    :func:`_effects_lane`'s)."""
     body: list[str] = []
     fixed_needed = False
     dst = (lambda j: f"K[nm + {j}, k]") if lane else (lambda j: f"dy[{8 + j}]")
-    want_states = part in ("all", "states")
-    want_forces = part in ("all", "rhs")
+    want_forces = not lane
 
     def emit(lines: list[str], guard: str | None, zero_states: list[int]) -> None:
         if guard is None:
@@ -208,13 +207,13 @@ def _rhs(comp: "Composition", lane: bool, part: str = "all") -> str:
             return
         body.append(f"if {guard}:")
         body.extend("    " + ln for ln in lines)
-        if lane and zero_states and want_states:
+        if lane and zero_states:
             body.append("else:")
             body.extend(f"    {dst(j)} = 0.0" for j in zero_states)
 
     def state_lines(i: int, ctx: _Context, chain_u: str) -> tuple[list[str], list[int]]:
         eff = comp.effects[i]
-        if not eff.states or not want_states:
+        if not eff.states:
             return [], []
         idx = [comp.state_index(s.name) for s in eff.states]
         call = _call(comp, ctx, "derivative", chain_u)
@@ -263,13 +262,10 @@ def _rhs(comp: "Composition", lane: bool, part: str = "all") -> str:
            "_Qu = 0.0", "_Ql = 0.0", "_Qs = 0.0", "_QX = 0.0", "_QY = 0.0"]
     if fixed_needed:
         pro = _fixed_frame_prologue(lane) + pro
-    if part == "states":
+    if lane:
         sig = "hk_states_lane(k, t, u, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, cfg, K)"
         ret = "    return 0"
         tail = []
-    elif lane:
-        sig = "hk_rhs_lane(k, t, u, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, cfg)"
-        ret = "    return u, _Qu, _Ql, _Qs, _Qx, _Qy"
     else:
         sig = "hk_rhs(t, u, y, p, cfg, dy)"
         ret = "    return u, _Qu, _Ql, _Qs, _Qx, _Qy"
@@ -517,7 +513,7 @@ def hooks_source(comp: "Composition") -> str:
         _lane_params(comp), "",
         _rhs(comp, False), "",
         _effects_lane(comp), "",
-        _rhs(comp, True, "states"), "",
+        _rhs(comp, True), "",
         _lag(comp, False), "",
         _lag(comp, True), "",
     ]
