@@ -508,6 +508,7 @@ def hooks_source(comp: "Composition") -> str:
         f"N_PARAMS = {comp.n_params}",
         f"N_SWITCHES = {len(switch_rows(comp))}",
         f"HAS_LAG = {any(issubclass(e, Input) and bool(getattr(e, 'lag', None)) for e in comp.effects)}",
+        f"HAS_LANE_EFFECTS = {any(issubclass(e, (Input, Force, Friction)) for e in comp.effects)}",
         "",
         "",
         _lane_params(comp), "",

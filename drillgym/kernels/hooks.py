@@ -15,6 +15,7 @@ Constants
     HAS_LAG           True when an Input effect declares first-order lag states (integrated exactly)
     N_PARAMS          number of parameters (base, then the effects')
     N_SWITCHES        number of effects that declare where they vanish (Parameter.neutral)
+    HAS_LANE_EFFECTS  True when an Input, Force or Friction effect is present (hk_effects_lane has work)
 
 Scalar kernel (state vector y, parameter vector p)
     hk_rhs(t, u, y, p, cfg, dy) -> (volt, Qu, Ql, Qs, Qx, Qy)

@@ -38,7 +38,7 @@ from drillgym.dynamics import (
 )
 from drillgym.friction import bearing_law, brake_law_simd, upper_law
 from drillgym.kernels.hooks import (
-    HAS_LAG, N_STATE, hk_bounds_l_lane, hk_bounds_u_lane, hk_effects_lane, hk_lag_lane, hk_lane_params,
+    HAS_LAG, HAS_LANE_EFFECTS, N_STATE, hk_bounds_l_lane, hk_bounds_u_lane, hk_effects_lane, hk_lag_lane, hk_lane_params,
     hk_states_lane,
 )
 from drillgym.kernels.model import initial_modes, record, resolve_modes
@@ -66,6 +66,15 @@ N_E = 10
 _VOLT, _QU, _QL, _QS, _QX, _QY, _TFU, _TFL = 0, 1, 2, 3, 4, 5, 6, 7
 
 
+@njit(inline="always", fastmath=True, error_model="numpy")
+def _base_laws(wu, wl, mu, ml, brake, Tcu, dTcu, bu, dbu, Tcl, bl, Ts, Tc, ws, delta, bb):
+    """Slip torques (N m) of friction.py's laws in the directions of the modes (the caller sets a stuck
+    disc's to 0)."""
+    awl = abs(wl)
+    tfl = brake_law_simd(awl, ml, Ts, Tc, ws, delta, bb) if brake else bearing_law(awl, ml, Tcl, bl)
+    return upper_law(abs(wu), mu, Tcu, dTcu, bu, dbu), tfl
+
+
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
 def _effects(thu_, thl_, wu_, wl_, x_, y_, vx_, vy_, Y, nm, MU, ML, U, PT, TT, tc, cfg, brake, E):
     """Into E (N_E, B): the slip torques of friction.py's laws (in the directions of the modes), then
@@ -75,12 +84,8 @@ def _effects(thu_, thl_, wu_, wl_, x_, y_, vx_, vy_, Y, nm, MU, ML, U, PT, TT, t
     Ts, Tc, ws, delta, bb = PT[_Ts], PT[_Tc], PT[_ws], PT[_delta], PT[_bb]
     TFU, TFL = E[_TFU], E[_TFL]
     for k in range(thu_.shape[0]):
-        mu = MU[k]
-        ml = ML[k]
-        TFU[k] = upper_law(abs(wu_[k]), mu, Tcu[k], dTcu[k], bu[k], dbu[k])
-        awl = abs(wl_[k])
-        TFL[k] = brake_law_simd(awl, ml, Ts[k], Tc[k], ws[k], delta[k], bb[k]) if brake else bearing_law(
-            awl, ml, Tcl[k], bl[k])
+        TFU[k], TFL[k] = _base_laws(wu_[k], wl_[k], MU[k], ML[k], brake, Tcu[k], dTcu[k], bu[k], dbu[k], Tcl[k],
+                                    bl[k], Ts[k], Tc[k], ws[k], delta[k], bb[k])
     hk_effects_lane(thu_, thl_, wu_, wl_, x_, y_, vx_, vy_, Y, nm, MU, ML, U, PT, TT, tc, cfg,
                     1.0 if brake else 0.0, E)
 
@@ -106,19 +111,37 @@ def _derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR, TT, tc, cfg, E):
     K2, K3, FR0, FR1 = K[2], K[3], FR[0], FR[1]
     Ju, km, Jl, kth = PT[_Ju], PT[_km], PT[_Jl], PT[_kth]
     _copy_rows(Y[2:4], K[0:2])  # angle rates = speeds
-    Z = E[N_E]  # zeros: no lateral coordinates
-    _effects(thu_, thl_, wu_, wl_, Z, Z, Z, Z, Y, 4, MU, ML, U, PT, TT, tc, cfg, brake, E)
-    VOLT, QU, QL, QS, TFU, TFL = E[_VOLT], E[_QU], E[_QL], E[_QS], E[_TFU], E[_TFL]
-    for k in range(thu_.shape[0]):
-        mu = MU[k]
-        ml = ML[k]
-        string = string_on * (kth[k] * (thl_[k] - thu_[k]) + QS[k])
-        a_u, a_l, fu, fl = reduced_accelerations(km[k] * VOLT[k] + QU[k], string, string_on * QL[k], TFU[k],
-                                                 TFL[k], Ju[k], Jl[k], mu != 0.0, ml != 0.0)
-        K2[k] = a_u
-        K3[k] = a_l
-        FR0[k] = fu
-        FR1[k] = fl
+    if HAS_LANE_EFFECTS:
+        Z = E[N_E]  # zeros: no lateral coordinates
+        _effects(thu_, thl_, wu_, wl_, Z, Z, Z, Z, Y, 4, MU, ML, U, PT, TT, tc, cfg, brake, E)
+        VOLT, QU, QL, QS, TFU, TFL = E[_VOLT], E[_QU], E[_QL], E[_QS], E[_TFU], E[_TFL]
+        for k in range(thu_.shape[0]):
+            mu = MU[k]
+            ml = ML[k]
+            string = string_on * (kth[k] * (thl_[k] - thu_[k]) + QS[k])
+            a_u, a_l, fu, fl = reduced_accelerations(km[k] * VOLT[k] + QU[k], string, string_on * QL[k], TFU[k],
+                                                     TFL[k], Ju[k], Jl[k], mu != 0.0, ml != 0.0)
+            K2[k] = a_u
+            K3[k] = a_l
+            FR0[k] = fu
+            FR1[k] = fl
+    else:  # the base model: the laws in the one loop (three passes over the lanes cost a fifth more)
+        Tcu, dTcu, bu, dbu, Tcl, bl = PT[_Tcu], PT[_dTcu], PT[_bu], PT[_dbu], PT[_Tcl], PT[_bl]
+        Ts, Tc, ws, delta, bb = PT[_Ts], PT[_Tc], PT[_ws], PT[_delta], PT[_bb]
+        for k in range(thu_.shape[0]):
+            mu = MU[k]
+            ml = ML[k]
+            tfu, tfl = _base_laws(wu_[k], wl_[k], mu, ml, brake, Tcu[k], dTcu[k], bu[k], dbu[k], Tcl[k], bl[k], Ts[k],
+                                  Tc[k], ws[k], delta[k], bb[k])
+            tfu = tfu if mu != 0.0 else 0.0
+            tfl = tfl if ml != 0.0 else 0.0
+            string = string_on * kth[k] * (thl_[k] - thu_[k])
+            a_u, a_l, fu, fl = reduced_accelerations(km[k] * U[k], string, 0.0, tfu, tfl, Ju[k], Jl[k], mu != 0.0,
+                                                     ml != 0.0)
+            K2[k] = a_u
+            K3[k] = a_l
+            FR0[k] = fu
+            FR1[k] = fl
     if N_STATE > 8:
         for k in range(thu_.shape[0]):
             hk_states_lane(k, TT[k] + tc, U[k], thu_[k], thl_[k], wu_[k], wl_[k], 0.0, 0.0, 0.0, 0.0, Y, 4, PT, cfg,
