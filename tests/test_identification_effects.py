@@ -199,3 +199,25 @@ def test_input_aligned_steps_keep_the_input_jumps_on_step_boundaries():
     fast = simulate("torsional", (t1, u1), 4.0, dt=1e-3, method="dp5")
     ex1 = prepare_experiment(measure_trajectory(fast, MeasurementModel(), seed=0), "torsional", compare_rate_hz=50.0)
     assert steps_per_sample(ex1, 4e-3, input_aligned=True) == steps_per_sample(ex1, 4e-3) == 5
+
+
+def test_lvdt_samples_near_segment_ends_are_not_compared():
+    """The recorded LVDT readings are the zero-phase low-pass of the whole record; a segment's prediction
+    is filtered within the segment, so the samples within one period of the cut-off (0.2 s at 5 Hz) of
+    its ends are not compared.  The encoders are compared everywhere, and a free run (one segment)
+    keeps every LVDT sample."""
+    from drillgym.identification.synthetic import synthetic_measurement
+
+    ex = prepare_experiment(synthetic_measurement("coupled", duration=8.0, rate_hz=250.0, seed=3), compare_rate_hz=50.0)
+    model = SegmentedModel([ex], 2.0)
+    edge = 10  # 0.2 s at 50 Hz
+    for c in ("x", "y"):
+        m = model.measured_segments(0, c)
+        full = ~np.isnan(model.measured_segments(0, "theta_l"))
+        for j in range(m.shape[0]):
+            valid = np.flatnonzero(full[j])
+            assert np.all(np.isnan(m[j, valid[:edge + 1]])) and np.all(np.isnan(m[j, valid[-edge:]]))
+            assert np.all(np.isfinite(m[j, valid[edge + 1:-edge]]))
+    assert not np.any(np.isnan(model.measured_segments(0, "theta_l")[full]))
+    free = SegmentedModel([ex], None)
+    assert np.all(np.isfinite(free.measured_segments(0, "x")[0, :ex.n]))

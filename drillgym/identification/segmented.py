@@ -237,7 +237,7 @@ class SegmentedModel:
             out[j, :e - s] = y[s:e]
         if channel in ("x", "y", "r") and ex.lvdt_lowpass_hz and ex.config.lateral_free and len(starts) > 1:
             edge = int(math.ceil(LVDT_EDGE_PERIODS * ex.fs / ex.lvdt_lowpass_hz))
-            if 4 * edge < L:
+            if 0 < edge and 4 * edge < L:
                 for j in range(len(starts)):
                     valid = np.flatnonzero(~np.isnan(out[j]))
                     out[j, valid[:edge + 1]] = np.nan  # the first sample is never compared
