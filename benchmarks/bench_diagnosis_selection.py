@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import statistics
 import sys
@@ -66,6 +67,42 @@ OUTSIDE = [
 
 DURATIONS = (20.0, 30.0, 45.0, 60.0)
 
+#: library effects a random combination draws from: configurations that can show each, and a draw of its
+#: parameters (magnitudes 0.6-1.4x the fixed combinations' values, random signs and phases where the physics
+#: allows both)
+_RANDOM_EFFECTS: dict[str, tuple[tuple[str, ...], object]] = {
+    "position_friction": (("torsional", "coupled"), lambda r: (lambda a, ph: {
+        "pf_c1": round(a * math.cos(ph), 4), "pf_s1": round(a * math.sin(ph), 4)})(
+        r.uniform(0.08, 0.18), r.uniform(0, 2 * math.pi))),
+    "motor_lag": (("torsional", "coupled"), lambda r: {"tau_m": round(r.uniform(0.02, 0.05), 4)}),
+    "input_delay": (("torsional", "coupled"), lambda r: {"delay": round(r.uniform(0.02, 0.05), 4)}),
+    "string_damping": (("torsional", "coupled"), lambda r: {"dtheta": round(r.uniform(0.004, 0.01), 4)}),
+    "friction_drift": (("torsional", "coupled"), lambda r: {"drift": round(r.choice([-1, 1]) * r.uniform(0.003, 0.006), 4)}),
+    "brake_asymmetry": (("torsional",), lambda r: {"asym_s": round(r.uniform(0.2, 0.4), 3),
+                                                   "asym_c": round(r.uniform(0.2, 0.4), 3)}),
+    "lateral_anisotropy": (("coupled",), lambda r: {"dk": round(r.choice([-1, 1]) * r.uniform(150, 350), 1),
+                                                    "db": round(r.choice([-1, 1]) * r.uniform(1.8, 4.2), 2)}),
+    "lvdt_offset": (("coupled",), lambda r: {"lvdt_x0": round(r.choice([-1, 1]) * r.uniform(2e-4, 5e-4), 6),
+                                             "lvdt_y0": round(r.choice([-1, 1]) * r.uniform(2e-4, 5e-4), 6)}),
+    "lvdt_skew": (("coupled",), lambda r: {"lvdt_skew": round(r.choice([-1, 1]) * r.uniform(0.025, 0.045), 4)}),
+    "lateral_coulomb": (("coupled",), lambda r: {"Fc_lat": round(r.uniform(1.0, 2.0), 3)}),
+}
+
+
+def random_combos(rng: np.random.Generator, n: int) -> list[tuple[str, dict]]:
+    """``n`` combinations of two or three library effects drawn at random (configuration, effects and
+    magnitudes), never a motor lag together with an input delay (the stated-tie case of its own)."""
+    out = []
+    while len(out) < n:
+        config = ("torsional", "coupled")[len(out) % 2]
+        pool = [e for e, (cfgs, _) in _RANDOM_EFFECTS.items() if config in cfgs]
+        names = list(rng.choice(pool, size=int(rng.integers(2, 4)), replace=False))
+        if "motor_lag" in names and "input_delay" in names:
+            continue
+        out.append((config, {str(e): {k: float(v) for k, v in _RANDOM_EFFECTS[str(e)][1](rng).items()}
+                             for e in names}))
+    return out
+
 
 def _conditions(rng: np.random.Generator, config: str, effects: dict) -> dict:
     sig = SIGNALS[int(rng.integers(len(SIGNALS)))]
@@ -85,9 +122,10 @@ def _mismatch(rng: np.random.Generator, n: int) -> dict[str, float]:
     return {str(k): round(float(1.0 + rng.choice([-1, 1]) * rng.uniform(0.02, 0.08)), 3) for k in names}
 
 
-def build_matrix(seed: int = SEED, quick: bool = False) -> list[dict]:
+def build_matrix(seed: int = SEED, quick: bool = False, random_n: int = 0) -> list[dict]:
     """The recordings; ``quick``: 4 clean, 4 mismatch, each combination once (with base mismatch every
-    other one), the 5 outside kinds, durations 20-30 s (a loaded machine)."""
+    other one), the 5 outside kinds, durations 20-30 s (a loaded machine).  ``random_n`` > 0: only
+    combinations, ``random_n`` of them drawn by :func:`random_combos` (every other one with base mismatch)."""
     global DURATIONS
     DURATIONS = (20.0, 30.0) if quick else (20.0, 30.0, 45.0, 60.0)
     rng = np.random.default_rng(seed)
@@ -98,6 +136,10 @@ def build_matrix(seed: int = SEED, quick: bool = False) -> list[dict]:
         c.update(_conditions(rng, config, effects))
         cases.append(c)
 
+    if random_n:
+        for i, (cfg, eff) in enumerate(random_combos(np.random.default_rng(seed + 1), random_n)):
+            add("combo", cfg, eff, _mismatch(rng, 3) if (i // 2) % 2 else {})  # both configurations either way
+        return cases
     n_plain = 4 if quick else 6
     for i in range(n_plain):
         add("clean", ("torsional", "coupled")[i % 2], {}, {})
@@ -233,14 +275,18 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="the reduced matrix (21 recordings of 20-30 s)")
     ap.add_argument("--seed", type=int, default=SEED,
                     help=f"seed of the matrix (conditions, mismatch draws, noise); default {SEED}, another one: held out")
+    ap.add_argument("--random-combos", type=int, default=0, metavar="N",
+                    help="instead of the fixed matrix: N combinations of 2-3 library effects drawn at random "
+                         "(effects, magnitudes, configuration; every other one with base parameters off 2-8 %%)")
     a = ap.parse_args()
-    cases = build_matrix(seed=a.seed, quick=a.quick)
+    cases = build_matrix(seed=a.seed, quick=a.quick, random_n=a.random_combos)
     if a.kind:
         cases = [c for c in cases if c["kind"] == a.kind]
     if a.ids:
         keep = {int(x) for x in a.ids.split(",")}
         cases = [c for c in cases if c["id"] in keep]
-    print(f"{len(cases)} recordings of the independent rig{' (quick matrix)' if a.quick else ''}, {a.jobs} processes, "
+    what = " (random combinations)" if a.random_combos else " (quick matrix)" if a.quick else ""
+    print(f"{len(cases)} recordings of the independent rig{what}, {a.jobs} processes, "
           f"seed {a.seed}", flush=True)
     t0 = time.perf_counter()
     results = []

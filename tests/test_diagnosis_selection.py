@@ -207,6 +207,34 @@ def test_split_halves_and_the_agreement_of_a_position_effect():
     assert "both halves" in turned.note() and "more revolutions" in turned.note()
 
 
+def test_second_half_keeps_the_recordings_clock_for_a_friction_drift():
+    """A friction drift counts from the run's start: the second half's model must not restart its clock
+    (it did: a real position friction beside a drift was dropped as 'not the same in both halves')."""
+    import numpy as np
+
+    from drillgym.diagnosis.reproducibility import split_halves
+    from drillgym.diagnosis.selection import selection_model
+    from drillgym.identification.experiment import prepare_experiment
+    from drillgym.identification.fitting import Objective, base_vector, default_scales
+
+    drift = {"drift": -0.008}
+    ex = prepare_experiment(_rec(effects=["friction_drift"], **drift), compare_rate_hz=50.0)
+    first, second = split_halves(ex)
+    assert first.clock_start == 0.0 and second.clock_start == pytest.approx(second.t[0] - ex.t[0])
+    comp, values = compose(["friction_drift"], drift)
+    vec = base_vector(comp, RigParams(), values)
+
+    def misfit(part):
+        model = selection_model([part], 4.0, comp)
+        obj = Objective(model, {"theta_u": 1.0, "theta_l": 1.0}, default_scales([part]))
+        model.refine_initial_speeds(vec, obj.weights, obj.scales)
+        r = obj.residual_matrix(vec[None, :])[0]
+        return float(np.sqrt(np.mean(r * r)))
+
+    m1, m2 = misfit(first), misfit(second)
+    assert m2 < 3.0 * max(m1, 1.0), (m1, m2)  # the true model fits both halves (clock restarted: 720 vs 1.4 noise units)
+
+
 @pytest.mark.parametrize("truth, wrong", [("input_delay", "motor_lag"), ("motor_lag", "input_delay")])
 def test_lag_or_delay_is_decided_at_the_recordings_own_rate(truth, wrong):
     from drillgym.diagnosis.ranking import default_segment, default_weights
@@ -354,3 +382,18 @@ def test_prepare_refuses_an_unknown_configuration_in_one_line(capsys):
         main(["prepare", "--config", "helical"])
     err = capsys.readouterr().err.strip()
     assert e.value.code == 2 and "helical" in err and "\n" not in err
+
+
+def test_shortest_lag_or_delay_told_apart_without_the_fine_check():
+    """Below the fine check's rate a lag and a delay shorter than a comparison period plus a recording
+    sample are stated as a tie (independent 200 Hz recordings: 17-20 ms ones taken for each other)."""
+    from drillgym.diagnosis.ranking import resolvable_lag_delay
+    from drillgym.identification.experiment import prepare_experiment
+
+    slow = prepare_experiment(synthetic_measurement("torsional", duration=4.0, rate_hz=200.0, seed=1),
+                              compare_rate_hz=50.0)
+    fast = prepare_experiment(synthetic_measurement("torsional", duration=4.0, rate_hz=1000.0, seed=1),
+                              compare_rate_hz=50.0)
+    assert resolvable_lag_delay([slow]) == pytest.approx(0.025, rel=1e-3)
+    assert resolvable_lag_delay([fast]) == pytest.approx(0.021, rel=1e-3)
+    assert resolvable_lag_delay([slow, fast]) == pytest.approx(0.025, rel=1e-3)  # the slowest decides

@@ -42,13 +42,16 @@ MIN_COSINE = 0.5
 
 def split_halves(ex: Experiment) -> tuple[Experiment, Experiment]:
     """The first and the second half (in time) of an experiment; the recorded input is kept whole (the
-    model reads it by absolute time)."""
+    model reads it by absolute time), and so is the clock: the second half's model starts at the time
+    since the recording's start (a friction drift is 1 + drift t over the whole run, not restarted)."""
     n = ex.n
     h = n // 2
+    origin = float(ex.t[0]) if ex.t_origin is None else ex.t_origin
 
     def part(sl: slice, tag: str) -> Experiment:
         return replace(ex, t=ex.t[sl], meas={k: v[sl] for k, v in ex.meas.items()},
-                       rates={k: v[sl] for k, v in ex.rates.items()}, name=f"{ex.name} ({tag} half)")
+                       rates={k: v[sl] for k, v in ex.rates.items()}, name=f"{ex.name} ({tag} half)",
+                       t_origin=origin)
 
     return part(slice(0, h + 1), "first"), part(slice(h, n), "second")
 

@@ -494,6 +494,12 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
                 sig = _significant(sc, rss_cur, res.rss_after, N, cur[0], res.residual, ch(name), units())
                 round_[name] = SelectionStep(name, sc, rss_cur, res.rss_after, eff_vals, eff_std, sig, ne)
             best = max(joint or round_, key=lambda n: round_[n].score)
+            if not round_[best].significant:
+                # the joint refits go to the best by pooled RSS; a measurement effect, judged on its own
+                # channel, can be significant without being among them (an LVDT skew changes y only)
+                passing = [n for n in round_ if round_[n].significant]
+                if passing:
+                    best = max(passing, key=lambda n: round_[n].score)
             last_round = round_
             if not round_[best].significant:
                 # masking: several effects at once leave a residual no single one explains enough of (each one's

@@ -59,7 +59,10 @@ class Experiment:
     the recorded input; ``speed_noise`` the standard deviation (rad/s) of each speed estimate
     from encoder quantization; ``lvdt_lowpass_hz`` the offline LVDT filter the data went
     through (applied to the model's lateral outputs as well; None: none); ``recording`` the
-    TimeSeries it was prepared from (to compare on another grid, e.g. the recording's own rate).
+    TimeSeries it was prepared from (to compare on another grid, e.g. the recording's own rate);
+    ``t_origin`` the file time (s) at which the model's clock reads 0 (the run's start, which
+    time-dependent effects such as a friction drift count from); None: this experiment's first sample.
+    A part of a recording keeps the whole recording's origin (:attr:`clock_start`).
     """
 
     config: Configuration
@@ -74,10 +77,17 @@ class Experiment:
     meta: dict = field(default_factory=dict)
     speed_noise: dict = field(default_factory=dict)
     recording: "TimeSeries | None" = field(default=None, repr=False, compare=False)
+    t_origin: float | None = None
 
     @property
     def n(self) -> int:
         return len(self.t)
+
+    @property
+    def clock_start(self) -> float:
+        """The model's clock (s) at this experiment's first sample: 0 for a whole recording, the time since
+        the recording's start for a part of it."""
+        return 0.0 if self.t_origin is None else float(self.t[0] - self.t_origin)
 
     @property
     def duration(self) -> float:

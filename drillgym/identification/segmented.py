@@ -311,7 +311,7 @@ class SegmentedModel:
                 X0[:, 2:4] += np.repeat(np.asarray(dspeed, dtype=float), ns, axis=0)
             if sim.n_states:
                 X0[:, N_STATE:] = self._effect_states(ex, plan, S, drive[pick], starts)
-            T0 = np.tile(starts / ex.fs, B)
+            T0 = np.tile(ex.clock_start + starts / ex.fs, B)  # the run's clock (time-dependent effects)
             HIST, HEAD = self._delay_lines(rows, drive[pick], starts, rec, dt, ns)
             D = self._simulate(ex.config, U, dt, rows, X0, T0, HIST, HEAD, rec, n_steps, ns)[:, :L + 1]
             out = {}
