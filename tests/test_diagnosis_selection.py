@@ -221,8 +221,11 @@ def test_second_half_keeps_the_recordings_clock_for_a_friction_drift():
     ex = prepare_experiment(_rec(effects=["friction_drift"], **drift), compare_rate_hz=50.0)
     first, second = split_halves(ex)
     assert first.clock_start == 0.0 and second.clock_start == pytest.approx(second.t[0] - ex.t[0])
-    comp, values = compose(["friction_drift"], drift)
-    vec = base_vector(comp, RigParams(), values)
+    from drillgym.diagnosis.effects import effects_for
+
+    cands = effects_for(ex.config)  # the torsional search model (compiled once by `drillgym prepare`)
+    comp = search_composition(compose(None)[0], cands)
+    vec = base_vector(comp, RigParams(), {**neutral_values(cands), **drift})
 
     def misfit(part):
         model = selection_model([part], 4.0, comp)
@@ -397,3 +400,19 @@ def test_shortest_lag_or_delay_told_apart_without_the_fine_check():
     assert resolvable_lag_delay([slow]) == pytest.approx(0.025, rel=1e-3)
     assert resolvable_lag_delay([fast]) == pytest.approx(0.021, rel=1e-3)
     assert resolvable_lag_delay([slow, fast]) == pytest.approx(0.025, rel=1e-3)  # the slowest decides
+
+
+def test_km_and_bu_moved_alike_are_named_as_a_possible_motor_lag():
+    from drillgym.diagnosis.selection import _slow_motor_warning
+
+    def moved(km, bu):
+        return {"km": {"nominal": 4.3228, "fitted": 4.3228 * (1 + km / 100), "change_pct": km},
+                "bu": {"nominal": 2.4245, "fitted": 2.4245 * (1 + bu / 100), "change_pct": bu}}
+
+    ju = RigParams().Ju
+    (w,) = _slow_motor_warning(moved(-10.0, -9.9), ["brake_asymmetry"], ju)  # the independent rig's 33 ms lag
+    assert "motor_lag" in w and "22 ms" in w
+    assert _slow_motor_warning(moved(-10.0, -9.9), ["motor_lag"], ju) == []  # a lag is already in the model
+    assert _slow_motor_warning(moved(-6.0, 5.0), [], ju) == []  # opposite directions: another steady state
+    assert _slow_motor_warning(moved(-1.5, -2.0), [], ju) == []  # a few percent: plain mismatch
+    assert _slow_motor_warning(moved(6.0, 5.0), [], ju) == []  # faster, not slower

@@ -371,6 +371,25 @@ def _scale_warning(moved: dict[str, dict[str, float]]) -> list[str]:
             f"(motor_lag) looks alike; check Ju, or fit with --add-effect motor_lag"]
 
 
+def _slow_motor_warning(moved: dict[str, dict[str, float]], selected: Sequence[str], ju: float) -> list[str]:
+    """km and bu moved alike (same sign, within a factor 1.6, each by at least 3 %) and no lag or delay
+    selected: the upper disc keeps its steady state (km u = bu ω) but its time constant Ju/bu changes, which
+    is what a motor lag of about that change looks like on smooth inputs (an independent rig's 33 ms lag on
+    ramps came out as km and bu both -10 %, 22 ms on Ju/bu).  A warning that names the effect to try."""
+    if any(e in selected for e in _LAG_DELAY) or "km" not in moved or "bu" not in moved:
+        return []
+    a, b = moved["km"]["change_pct"], moved["bu"]["change_pct"]
+    if a * b <= 0 or min(abs(a), abs(b)) < 3.0 or not 1 / 1.6 < a / b < 1.6:
+        return []
+    bu0, bu1 = moved["bu"]["nominal"], moved["bu"]["fitted"]
+    dtau = ju / bu1 - ju / bu0
+    if dtau <= 0:
+        return []
+    return [f"km and bu moved alike ({a:+.1f} %, {b:+.1f} %): the upper disc's steady state is unchanged and it is "
+            f"slower by {1e3 * dtau:.0f} ms (Ju/bu), as a motor lag of that size would make it; on smooth inputs (ramps) "
+            f"the two look alike: a voltage step recorded at >= 500 Hz decides, or fit with --add-effect motor_lag"]
+
+
 def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidates: Sequence[type[Effect]],
                    base_names: Sequence[str], *, excluded: dict[str, str] | None = None, n_joint: int = 2,
                    max_nfev_screen: int = 8, max_nfev_joint: int = 15, max_nfev_base: int = 15,
@@ -636,6 +655,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
                 moved[n] = {"nominal": nom, "fitted": val, "change_pct": pct, "std": sd}
         warn = [w for w in full.warnings if any(n in w for n in st.base_names)]
         warn += _scale_warning(moved)
+        warn += _slow_motor_warning(moved, st.selected, float(st.nominal[st.comp.param_index("Ju")]))
         vec_final, rss_final = st.vec, full.rss_after
         fit_final = full
     else:
