@@ -416,3 +416,30 @@ def test_km_and_bu_moved_alike_are_named_as_a_possible_motor_lag():
     assert _slow_motor_warning(moved(-6.0, 5.0), [], ju) == []  # opposite directions: another steady state
     assert _slow_motor_warning(moved(-1.5, -2.0), [], ju) == []  # a few percent: plain mismatch
     assert _slow_motor_warning(moved(6.0, 5.0), [], ju) == []  # faster, not slower
+
+
+def test_a_ramp_input_is_smooth_and_steps_are_not():
+    """Below the fine check's rate a lag/delay decision on a smooth input (ramps: a lag and a delay shift
+    the response alike) is stated as a tie; the measure separates the benchmark's input kinds."""
+    import numpy as np
+
+    from drillgym.diagnosis.ranking import SMOOTH_INPUT_SHARE, input_share_above
+    from drillgym.identification.experiment import prepare_experiment
+    from drillgym.signals import quasi_random, sum_of_sines
+
+    rng = np.random.default_rng(3)
+    t = np.arange(4001) / 200.0
+    knots = np.cumsum(np.r_[0.0, rng.uniform(3.0, 8.0, 8)])
+    inputs = {"ramps": np.interp(t, knots, 1.0 + 3.0 * rng.uniform(-1, 1, knots.size)),
+              "steps": 1.0 + 3.0 * rng.uniform(-1, 1, 10)[np.minimum((t // 2.0).astype(int), 9)],
+              "quasi_random": 1.0 + 3.0 * quasi_random(20.0, rate_hz=200.0, seed=3, amplitude=1.0, offset=0.0)[1],
+              "sum_of_sines": 1.0 + 3.0 * sum_of_sines(20.0, rate_hz=200.0, seed=3, amplitude=1.0, offset=0.0)[1]}
+    p = RigParams()
+    corner = p.bu / (2 * np.pi * p.Ju)
+    shares = {}
+    for kind, u in inputs.items():
+        u = np.clip(u[:t.size], -5.0, 5.0)
+        ts = synthetic_measurement("torsional", duration=20.0, rate_hz=200.0, input=(t, u), seed=3)
+        shares[kind] = input_share_above(prepare_experiment(ts, compare_rate_hz=50.0), corner)
+    assert shares["ramps"] < SMOOTH_INPUT_SHARE, shares
+    assert min(shares["steps"], shares["quasi_random"], shares["sum_of_sines"]) > 3 * SMOOTH_INPUT_SHARE, shares

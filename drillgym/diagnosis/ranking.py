@@ -553,6 +553,27 @@ def _check_position_effects(out: dict, exps, comp, obj, effects, base_names, seg
         out["vector"], out["fit"], out["rss_final"] = refit.vector, refit, refit.rss_after
 
 
+#: an input with less than this share of its variance above the upper disc's corner frequency bu / (2π Ju)
+#: is smooth: ramps of the benchmark's recordings have 0.000, steps 0.045-0.061, quasi-random inputs
+#: 0.056-0.093, sums of sines 0.18-0.22 (30 s, 1 V ± 3 V, five seeds each)
+SMOOTH_INPUT_SHARE = 0.01
+
+
+def input_share_above(ex: Experiment, f_hz: float) -> float:
+    """Share of the recorded input's variance at frequencies above ``f_hz`` (Welch periodogram of the input
+    on its own samples, resampled uniformly at their mean rate; 1.0 when too short to tell)."""
+    from scipy.signal import welch
+
+    t, u = np.asarray(ex.u_time, dtype=float), np.asarray(ex.u_value, dtype=float)
+    if len(t) < 16 or t[-1] <= t[0]:
+        return 1.0
+    fs = (len(t) - 1) / float(t[-1] - t[0])
+    uu = np.interp(t[0] + np.arange(len(t)) / fs, t, u)
+    f, p = welch(uu - uu.mean(), fs=fs, nperseg=min(len(uu), int(8 * fs)))
+    total = float(p.sum())
+    return float(p[f > f_hz].sum() / total) if total > 0 else 0.0
+
+
 def resolvable_lag_delay(exps: Sequence[Experiment]) -> float:
     """Shortest motor lag or input delay (s) whose kind the comparison grid can tell when the recording is
     too slow for the fine check (:mod:`.timing`): one period of the comparison grid plus one of the
@@ -593,10 +614,16 @@ def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s,
                               f"({', '.join(out['at_bounds'])}), the model is wrong elsewhere; " + SEPARATES_LAG_DELAY)
         value = float(out["vector"][comp.param_index(by[a].parameters[0].name)])
         shortest = resolvable_lag_delay(exps)
+        corner = float(nominal[comp.param_index("bu")] / (2.0 * math.pi * nominal[comp.param_index("Ju")]))
+        fast = min(input_share_above(ex, corner) for ex in exps)
         if a not in out["ties"] and value < shortest:
             out["ties"][a] = (f"not told apart from {b} at this rate: {1e3 * value:.0f} ms is below what the "
                               f"comparison grid and the recording's own samples resolve ({1e3 * shortest:.0f} ms: one "
                               f"period of each); " + SEPARATES_LAG_DELAY)
+        elif a not in out["ties"] and fast < SMOOTH_INPUT_SHARE:
+            out["ties"][a] = (f"not told apart from {b} on this input: {100 * fast:.2f} % of its variance lies above the "
+                              f"upper disc's corner frequency ({corner:.2f} Hz), and on so smooth an input (ramps) a lag "
+                              f"and a delay shift the response alike; " + SEPARATES_LAG_DELAY)
         return None
     if out.get("at_bounds"):  # a base parameter at the edge of its range: the model is wrong elsewhere
         dec.doubt = f"base parameters at a bound of their range ({', '.join(out['at_bounds'])})"
