@@ -390,7 +390,7 @@ def test_prepare_refuses_an_unknown_configuration_in_one_line(capsys):
 def test_shortest_lag_or_delay_told_apart_without_the_fine_check():
     """Below the fine check's rate a lag and a delay shorter than a comparison period plus a recording
     sample are stated as a tie (independent 200 Hz recordings: 17-20 ms ones taken for each other)."""
-    from drillgym.diagnosis.ranking import resolvable_lag_delay
+    from drillgym.diagnosis.timing import resolvable_lag_delay
     from drillgym.identification.experiment import prepare_experiment
 
     slow = prepare_experiment(synthetic_measurement("torsional", duration=4.0, rate_hz=200.0, seed=1),
@@ -423,7 +423,7 @@ def test_a_ramp_input_is_smooth_and_steps_are_not():
     the response alike) is stated as a tie; the measure separates the benchmark's input kinds."""
     import numpy as np
 
-    from drillgym.diagnosis.ranking import SMOOTH_INPUT_SHARE, input_share_above
+    from drillgym.diagnosis.timing import SMOOTH_INPUT_SHARE, input_share_above
     from drillgym.identification.experiment import prepare_experiment
     from drillgym.signals import quasi_random, sum_of_sines
 

@@ -553,41 +553,6 @@ def _check_position_effects(out: dict, exps, comp, obj, effects, base_names, seg
         out["vector"], out["fit"], out["rss_final"] = refit.vector, refit, refit.rss_after
 
 
-#: an input with less than this share of its variance above the upper disc's corner frequency bu / (2π Ju)
-#: is smooth: ramps of the benchmark's recordings have 0.000, steps 0.045-0.061, quasi-random inputs
-#: 0.056-0.093, sums of sines 0.18-0.22 (30 s, 1 V ± 3 V, five seeds each)
-SMOOTH_INPUT_SHARE = 0.01
-
-
-def input_share_above(ex: Experiment, f_hz: float) -> float:
-    """Share of the recorded input's variance at frequencies above ``f_hz`` (Welch periodogram of the input
-    on its own samples, resampled uniformly at their mean rate; 1.0 when too short to tell)."""
-    from scipy.signal import welch
-
-    t, u = np.asarray(ex.u_time, dtype=float), np.asarray(ex.u_value, dtype=float)
-    if len(t) < 16 or t[-1] <= t[0]:
-        return 1.0
-    fs = (len(t) - 1) / float(t[-1] - t[0])
-    uu = np.interp(t[0] + np.arange(len(t)) / fs, t, u)
-    f, p = welch(uu - uu.mean(), fs=fs, nperseg=min(len(uu), int(8 * fs)))
-    total = float(p.sum())
-    return float(p[f > f_hz].sum() / total) if total > 0 else 0.0
-
-
-def resolvable_lag_delay(exps: Sequence[Experiment]) -> float:
-    """Shortest motor lag or input delay (s) whose kind the comparison grid can tell when the recording is
-    too slow for the fine check (:mod:`.timing`): one period of the comparison grid plus one of the
-    recording (which does not say whether its voltage was held or ramped between samples).  Shorter, a
-    lag and a delay of the same size differ by less than a comparison sample: seen on independent
-    recordings at 200 Hz, 17-20 ms delays and lags taken for each other with no tie."""
-    out = 0.0
-    for ex in exps:
-        ts = ex.recording
-        rate = (len(ts.t) - 1) / float(ts.t[-1] - ts.t[0]) if ts is not None and len(ts.t) > 2 else ex.fs
-        out = max(out, 1.0 / ex.fs + 1.0 / rate)
-    return out
-
-
 def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s, nominal):
     """Decide a selected motor lag or input delay again on the recordings' own rate (:mod:`.timing`), both
     with the selected model's base parameters; the other one taken is refitted on the comparison grid with
@@ -596,7 +561,7 @@ def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s,
     50 ms delay as a lag by 40 nats on an independent rig's ramps).  Returns the
     :class:`.timing.FineDecision` or None (no lag/delay selected, or no finer data)."""
     from .selection import SEPARATES_LAG_DELAY, _effect_params, _fit, _neutralise, _State
-    from .timing import LAG_DELAY, decide_lag_delay
+    from .timing import LAG_DELAY, SMOOTH_INPUT_SHARE, decide_lag_delay, input_share_above, resolvable_lag_delay
 
     by = {e.name: e for e in effects}
     held = [e for e in out["selected"] if e in LAG_DELAY]

@@ -22,7 +22,10 @@ changed linearly between samples (half a sample of shift): on the independent re
 ``benchmarks/bench_diagnosis_selection.py`` the check at 200 Hz chose the delay for three true motor lags
 (by 9-15 nats, also with the other one allowed a sub-sample value), while at 500 Hz and 1 kHz it was right
 or a tie on every lag/delay recording of both matrices.  Below that rate the comparison grid's decision
-stands.
+stands, except that it is stated as a tie when the lag or delay is shorter than one comparison period
+plus one recording period (:func:`resolvable_lag_delay`), or when the input is smooth
+(:func:`input_share_above` below :data:`SMOOTH_INPUT_SHARE` above the upper disc's corner frequency): on
+a ramp a lag and a delay shift the response alike.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 import numpy as np
+from scipy.signal import welch
 
 from ..identification.experiment import Experiment, prepare_experiment
 from ..identification.fitting import Objective
@@ -39,7 +43,8 @@ from ..identification.segmented import SegmentedModel
 from .effects import get_effect
 from .selection import n_eff
 
-__all__ = ["FINE_RATE_HZ", "FINE_TIE_NATS", "LAG_DELAY", "FineDecision", "decide_lag_delay"]
+__all__ = ["FINE_RATE_HZ", "FINE_TIE_NATS", "LAG_DELAY", "SMOOTH_INPUT_SHARE", "FineDecision", "decide_lag_delay",
+           "input_share_above", "resolvable_lag_delay"]
 
 #: highest comparison rate (Hz) of the fine check: 1 kHz resolves a 10 ms lag's rounding
 FINE_RATE_HZ = 1000.0
@@ -92,6 +97,39 @@ def _best_value(obj, comp, vector: np.ndarray, name: str, hi: float) -> "tuple[f
                           options={"xatol": 2e-4, "maxiter": SEARCH_ITERATIONS})
     x = float(res.x) if res.fun <= values[k] else float(grid[k])
     return x, residual(x)
+
+
+#: an input with less than this share of its variance above the upper disc's corner frequency bu / (2π Ju)
+#: is smooth: ramps of the benchmark's recordings have 0.000, steps 0.045-0.061, quasi-random inputs
+#: 0.056-0.093, sums of sines 0.18-0.22 (30 s, 1 V ± 3 V, five seeds each)
+SMOOTH_INPUT_SHARE = 0.01
+
+
+def input_share_above(ex: Experiment, f_hz: float) -> float:
+    """Share of the recorded input's variance at frequencies above ``f_hz`` (Welch periodogram of the input
+    on its own samples, resampled uniformly at their mean rate; 1.0 when too short to tell)."""
+    t, u = np.asarray(ex.u_time, dtype=float), np.asarray(ex.u_value, dtype=float)
+    if len(t) < 16 or t[-1] <= t[0]:
+        return 1.0
+    fs = (len(t) - 1) / float(t[-1] - t[0])
+    uu = np.interp(t[0] + np.arange(len(t)) / fs, t, u)
+    f, p = welch(uu - uu.mean(), fs=fs, nperseg=min(len(uu), int(8 * fs)))
+    total = float(p.sum())
+    return float(p[f > f_hz].sum() / total) if total > 0 else 0.0
+
+
+def resolvable_lag_delay(exps: Sequence[Experiment]) -> float:
+    """Shortest motor lag or input delay (s) whose kind the comparison grid can tell when the recording is
+    too slow for the fine check (:mod:`.timing`): one period of the comparison grid plus one of the
+    recording (which does not say whether its voltage was held or ramped between samples).  Shorter, a
+    lag and a delay of the same size differ by less than a comparison sample: seen on independent
+    recordings at 200 Hz, 17-20 ms delays and lags taken for each other with no tie."""
+    out = 0.0
+    for ex in exps:
+        ts = ex.recording
+        rate = (len(ts.t) - 1) / float(ts.t[-1] - ts.t[0]) if ts is not None and len(ts.t) > 2 else ex.fs
+        out = max(out, 1.0 / ex.fs + 1.0 / rate)
+    return out
 
 
 @dataclass
