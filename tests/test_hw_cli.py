@@ -143,9 +143,21 @@ def test_dry_run_sends_no_voltage(tmp_path, emu):
 
 
 def test_clamp_is_told_once_and_kept(tmp_path, emu):
-    rec = tmp_path / "missing" / "dir" / "r.csv"  # --record creates missing directories (the rule of every command)
-    code, out, err = run("rig", "run", "--port", emu.port, "--controller", "const:20", "--duration", "0.5",
-                         "--record", str(rec))
+    for attempt in range(3):  # a fresh rig when the emulator's thread was starved past the reply timeout
+        rec = tmp_path / f"missing{attempt}" / "dir" / "r.csv"  # --record creates missing directories
+        rig = emu if attempt == 0 else RigEmulator("torsional", dt=5e-3)
+        if rig is not emu:
+            rig.start()
+        try:
+            code, out, err = run("rig", "run", "--port", rig.port, "--controller", "const:20", "--duration", "0.5",
+                                 "--record", str(rec))
+        finally:
+            if rig is not emu:
+                rig.stop()
+        # a link fault (no reply within the watchdog period; seen once in a full `make test` with the other
+        # worker busy) is the test process being starved, not the clamp: the safety stop itself is tested above
+        if not (code == 3 and "motor stop requested" in err):
+            break
     assert code == 0, (out, err)
     assert err.count("note:") == 1 and "20 V asked for at step 1; the amplifier gives +-5 V" in err, err
     assert "50 of 50 commands were clamped to the amplifier range" in out
