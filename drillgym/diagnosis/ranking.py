@@ -471,7 +471,20 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
             paths["nominal_then_base"] = list(alt["selected"]) + [f"bound:{n}" for n in alt["at_bounds"]]
         if refine_speeds:  # speed corrections for the chosen model (the figures below compare it)
             obj.model.refine_initial_speeds(out["vector"], obj.weights, obj.scales, fresh=True)
-    _check_position_effects(out, exps, comp, obj, usable, base_names, segment_s, scales, vec0)
+    gone = _check_position_effects(out, exps, comp, obj, usable, base_names, segment_s, scales, vec0)
+    if gone:
+        # the dropped effect had taken residual that another candidate explains (a friction drift beside a
+        # position friction fitted to it): the selection goes on from the remaining set without it
+        again = forward_select(obj, comp, vec0, usable, base_names, n_joint=n_joint, max_effects=max_effects,
+                               refine=refine_speeds, initial=out["selected"], start=out["vector"],
+                               excluded={n: out["dropped"][n] for n in gone})
+        paths["after_halves_check"] = list(again["selected"]) + [f"bound:{n}" for n in again["at_bounds"]]
+        if set(again["selected"]) != set(out["selected"]) and _better(out, again, usable, base_names) is again:
+            again["dropped"] = {**out["dropped"], **again["dropped"]}
+            again["excluded"] = {**out["excluded"], **again["excluded"]}
+            out = again
+            if refine_speeds:
+                obj.model.refine_initial_speeds(out["vector"], obj.weights, obj.scales, fresh=True)
     fine = _check_lag_delay(out, exps, comp, obj, usable, base_names, segment_s, vec0)
     skipped.update(out["excluded"])
     N = out["n"]
@@ -526,13 +539,16 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
 _LAG_DELAY_SWAP = ("motor_lag", "input_delay")
 
 
-def _check_position_effects(out: dict, exps, comp, obj, effects, base_names, segment_s, scales, nominal) -> None:
+def _check_position_effects(out: dict, exps, comp, obj, effects, base_names, segment_s, scales, nominal
+                            ) -> list[str]:
     """Drop a selected position-dependent effect whose parameters differ between the two halves of the
-    recording (:mod:`.reproducibility`), and refit the rest of the final model without it (in place)."""
+    recording (:mod:`.reproducibility`), and refit the rest of the final model without it (in place).
+    Returns the names dropped."""
     from .reproducibility import POSITION_NEEDS, halves_agree
     from .selection import _effect_params, _fit, _neutralise, _State
 
     by = {e.name: e for e in effects}
+    gone: list[str] = []
     for name in list(out["selected"]):
         eff = by.get(name)
         if eff is None or POSITION_NEEDS not in eff.needs:
@@ -551,6 +567,8 @@ def _check_position_effects(out: dict, exps, comp, obj, effects, base_names, seg
         out["selected"] = rest
         out["dropped"][name] = check.note()
         out["vector"], out["fit"], out["rss_final"] = refit.vector, refit, refit.rss_after
+        gone.append(name)
+    return gone
 
 
 def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s, nominal):
