@@ -346,16 +346,17 @@ def test_lvdt_skew_and_lateral_friction_found_on_an_independent_rig():
 
 
 def test_lag_delay_decision_under_a_base_at_its_bound_is_a_tie():
-    """A 40-nat gap decided with base parameters at the edge of their range is not trusted: stated as a tie
+    """A 60-nat gap decided with base parameters at the edge of their range is not trusted: stated as a tie
     that names the bound, in the note and in --json."""
-    from drillgym.diagnosis.timing import FineDecision
+    from drillgym.diagnosis.timing import FINE_TIE_NATS, FineDecision
 
-    dec = FineDecision("motor_lag", "input_delay", 39.9, 500.0, {"motor_lag": 0.055, "input_delay": 0.055})
+    assert FineDecision("motor_lag", "input_delay", FINE_TIE_NATS - 0.1, 500.0, {"motor_lag": 0.05}).tie
+    dec = FineDecision("motor_lag", "input_delay", 59.9, 500.0, {"motor_lag": 0.055, "input_delay": 0.055})
     assert not dec.tie and dec.to_json()["doubt"] == ""
     dec.doubt = "base parameters at a bound of their range (Tc)"
     assert dec.tie and dec.to_json()["tie"]
     note = dec.tie_note()
-    assert "39.9 nats, not trusted" in note and "(Tc)" in note and "input_delay" in note
+    assert "59.9 nats, not trusted" in note and "(Tc)" in note and "input_delay" in note
 
 
 def test_a_parameter_the_data_do_not_depend_on_has_no_finite_standard_error():
