@@ -257,6 +257,9 @@ def test_lag_or_delay_is_decided_at_the_recordings_own_rate(truth, wrong):
     assert dec is not None and dec.chosen == truth and not dec.tie, dec
     assert dec.values[truth] == pytest.approx(0.04, rel=0.25)
     assert dec.to_json()["chosen"] == truth and dec.to_json()["score_gap_nats"] > 3 and not dec.to_json()["tie"]
+    j = dec.to_json()  # the relative difference beside the nats: gap = n_eff ln(RSS ratio)
+    assert j["n_eff"] > 10 and j["log_rss_ratio"] > 0
+    assert j["log_rss_ratio"] == pytest.approx(dec.gap / dec.n_eff, rel=1e-3, abs=1e-6)
     assert dec.other in dec.tie_note() and "1000 Hz" in dec.tie_note()  # what the ranking states on a tie
     # no finer data than the comparison grid: no decision
     coarse = prepare_experiment(synthetic_measurement("torsional", duration=5.0, rate_hz=50.0, seed=3), compare_rate_hz=50.0)

@@ -135,7 +135,10 @@ def resolvable_lag_delay(exps: Sequence[Experiment]) -> float:
 @dataclass
 class FineDecision:
     """Outcome of the check: ``chosen`` effect, the score ``gap`` (nats; positive favours ``chosen``
-    over ``other``), the fine grid's rate (Hz), and each effect's fitted value there (s)."""
+    over ``other``), the fine grid's rate (Hz), each effect's fitted value there (s), and the effectively
+    independent residual samples ``n_eff`` the gap was scaled by (gap = n_eff ln(RSS_other / RSS_chosen)).
+    The gap grows with the recording's length while a rig's own model error does not shrink, so
+    :attr:`log_rss_ratio` (the relative difference of the two fits) is reported beside it."""
 
     chosen: str
     other: str
@@ -144,6 +147,13 @@ class FineDecision:
     values: dict[str, float]
     #: why a decisive gap is not trusted ("" if it is): a model wrong elsewhere decides nothing
     doubt: str = ""
+    #: effectively independent samples of the residuals compared (nan: not known)
+    n_eff: float = float("nan")
+
+    @property
+    def log_rss_ratio(self) -> float:
+        """ln(RSS_other / RSS_chosen): the two fits' relative difference, whatever the recording's length."""
+        return self.gap / self.n_eff if self.n_eff > 0 else float("nan")
 
     @property
     def tie(self) -> bool:
@@ -151,7 +161,9 @@ class FineDecision:
 
     def to_json(self) -> dict:
         return {"chosen": self.chosen, "other": self.other, "score_gap_nats": round(self.gap, 2),
-                "rate_hz": round(self.rate_hz, 1), "fitted_s": self.values, "tie": self.tie, "doubt": self.doubt}
+                "rate_hz": round(self.rate_hz, 1), "fitted_s": self.values, "tie": self.tie, "doubt": self.doubt,
+                "n_eff": round(self.n_eff, 1) if self.n_eff > 0 else None,
+                "log_rss_ratio": round(self.log_rss_ratio, 6) if self.n_eff > 0 else None}
 
     def tie_note(self) -> str:
         """The ranking's note on the chosen effect when the two are a tie."""
@@ -213,5 +225,5 @@ def decide_lag_delay(exps: Sequence[Experiment], comp, models: Mapping[str, np.n
     gap = ne * math.log(max(float(rb @ rb), 1e-300) / max(float(ra @ ra), 1e-300))
     values = {a: va, b: vb}
     if gap < 0:
-        return FineDecision(b, a, -gap, float(fine[0].fs), values)
-    return FineDecision(a, b, gap, float(fine[0].fs), values)
+        return FineDecision(b, a, -gap, float(fine[0].fs), values, n_eff=ne)
+    return FineDecision(a, b, gap, float(fine[0].fs), values, n_eff=ne)
