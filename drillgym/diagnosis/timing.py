@@ -149,6 +149,9 @@ class FineDecision:
     doubt: str = ""
     #: effectively independent samples of the residuals compared (nan: not known)
     n_eff: float = float("nan")
+    #: the same check with the base parameters at their nominal values when they were refitted
+    #: ({chosen, score_gap_nats, log_rss_ratio}; None: not run)
+    nominal_base: "dict | None" = None
 
     @property
     def log_rss_ratio(self) -> float:
@@ -163,7 +166,8 @@ class FineDecision:
         return {"chosen": self.chosen, "other": self.other, "score_gap_nats": round(self.gap, 2),
                 "rate_hz": round(self.rate_hz, 1), "fitted_s": self.values, "tie": self.tie, "doubt": self.doubt,
                 "n_eff": round(self.n_eff, 1) if self.n_eff > 0 else None,
-                "log_rss_ratio": round(self.log_rss_ratio, 6) if self.n_eff > 0 else None}
+                "log_rss_ratio": round(self.log_rss_ratio, 6) if self.n_eff > 0 else None,
+                "nominal_base": self.nominal_base}
 
     def tie_note(self) -> str:
         """The ranking's note on the chosen effect when the two are a tie."""
