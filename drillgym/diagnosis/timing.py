@@ -10,8 +10,11 @@ checked again on the recording's own samples (up to :data:`FINE_RATE_HZ`):
 * the selected model, and the same model with the other one in its place, have their time constant /
   delay searched again on the fine grid: derivative-free (the response is piecewise constant in a
   delay), the segments' initial speeds refined at every point (speeds refined for one model favour it
-  by orders of magnitude of the RSS), the rest of the model held.  Giving the other one its own base
-  parameters (refitted on the comparison grid) was tried: it turned a right delay at 1 kHz into a lag;
+  by orders of magnitude of the RSS), the rest of the model held.  When the selection refitted the base
+  parameters (with the incumbent in the model), the decision is checked twice and stated as a tie if
+  either reverses it: the other one given its own base parameters, refitted with it on the comparison grid
+  (:func:`drillgym.diagnosis.ranking._own_base`: as the decision itself it is no better a judge, see there),
+  and both with the nominal base parameters;
 * the two log-likelihoods are compared (N_eff ln of the RSS ratio, the smaller N_eff of the two fine
   residuals).  The winner by more than :data:`FINE_TIE_NATS` is taken; within that, the two are
   stated as a tie.
@@ -152,6 +155,9 @@ class FineDecision:
     #: the same check with the base parameters at their nominal values when they were refitted
     #: ({chosen, score_gap_nats, log_rss_ratio}; None: not run)
     nominal_base: "dict | None" = None
+    #: the same check with the other one given its own base parameters, refitted with it on the comparison
+    #: grid, when the base parameters were refitted ({chosen, score_gap_nats, log_rss_ratio}; None: not run)
+    own_base: "dict | None" = None
 
     @property
     def log_rss_ratio(self) -> float:
@@ -167,7 +173,7 @@ class FineDecision:
                 "rate_hz": round(self.rate_hz, 1), "fitted_s": self.values, "tie": self.tie, "doubt": self.doubt,
                 "n_eff": round(self.n_eff, 1) if self.n_eff > 0 else None,
                 "log_rss_ratio": round(self.log_rss_ratio, 6) if self.n_eff > 0 else None,
-                "nominal_base": self.nominal_base}
+                "own_base": self.own_base, "nominal_base": self.nominal_base}
 
     def tie_note(self) -> str:
         """The ranking's note on the chosen effect when the two are a tie."""
