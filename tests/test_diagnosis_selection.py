@@ -26,6 +26,16 @@ from test_identification_effects import scipy_cubic_string
 MISMATCH = {"Ts": 1.06, "km": 0.97, "Jl": 1.04}
 
 
+def _independent_rig():
+    """``rig_recording`` of benchmarks/bench_diagnosis_rig.py: recordings made by a simulator other than drillgym's."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from bench_diagnosis_rig import rig_recording
+
+    return rig_recording
+
+
 def _rec(params=None, effects=None, **values):
     return synthetic_measurement("torsional", params, duration=20.0, rate_hz=250.0, offset=1.0, seed=5,
                                  effects=effects, effect_params=values or None)
@@ -334,10 +344,7 @@ def test_lvdt_skew_and_lateral_friction_found_on_an_independent_rig():
     several noise units off where the LVDTs fit: with one pooled weight the lateral parameters moved to fit
     the angles and a spurious position friction entered; each sensor weighted by its own misfit, the set
     is right and the skew's value close."""
-    import sys
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from bench_diagnosis_rig import rig_recording
+    rig_recording = _independent_rig()
 
     ts = rig_recording("coupled", "ramps", 20.0, 200.0, 5, {"lvdt_skew": {"lvdt_skew": 0.035},
                                                            "lateral_coulomb": {"Fc_lat": 1.5}}, {}, 2.6, 1.5)
@@ -454,10 +461,7 @@ def test_selection_goes_on_when_the_halves_check_drops_a_position_friction():
     30 s of sums of sines at 1 kHz: the search took a position friction (4 harmonics) in the drift's place,
     the split-half check dropped it as not repeating with the angle, and the drift was never screened again
     (brake asymmetry alone reported).  The selection now goes on from the remaining set without it."""
-    import sys
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from bench_diagnosis_rig import rig_recording
+    rig_recording = _independent_rig()
 
     ts = rig_recording("torsional", "sum_of_sines", 30.0, 1000.0, 6589,
                        {"brake_asymmetry": {"asym_s": 0.367, "asym_c": 0.214}, "friction_drift": {"drift": -0.0041}},
@@ -475,10 +479,7 @@ def test_lag_delay_decision_made_on_the_incumbents_base_is_checked():
     parameter about 2.4 % down with the input delay in the model, and with those base parameters for both
     the fine check chose the delay by 338 nats.  The lag with its own base parameters wins (about 500
     nats), so the decision depends on whose base is used: a tie, never a confident delay."""
-    import sys
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from bench_diagnosis_rig import rig_recording
+    rig_recording = _independent_rig()
 
     ts = rig_recording("torsional", "quasi_random", 60.0, 1000.0, 271, {"motor_lag": {"tau_m": 0.0254}}, {},
                        2.42, 1.5)

@@ -580,8 +580,7 @@ def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s,
     reverse the decision (:func:`_check_against_nominal_base`).  Returns the
     :class:`.timing.FineDecision` or None (no lag/delay selected, or no finer data)."""
     from .selection import SEPARATES_LAG_DELAY, _effect_params, _fit, _neutralise, _State
-    from .timing import (FINE_TIE_NATS, LAG_DELAY, SMOOTH_INPUT_SHARE, decide_lag_delay, input_share_above,
-                         resolvable_lag_delay)
+    from .timing import LAG_DELAY, SMOOTH_INPUT_SHARE, decide_lag_delay, input_share_above, resolvable_lag_delay
 
     by = {e.name: e for e in effects}
     held = [e for e in out["selected"] if e in LAG_DELAY]
@@ -618,9 +617,8 @@ def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s,
         # other one has its own (:func:`_own_base`), and with the nominal ones
         own = _own_base(st, out, a, b, without_a, free_base)
         again = decide_lag_delay(exps, comp, {a: out["vector"], b: own}, a, obj.weights, segment_s)
-        dec.own_base = {"chosen": again.chosen, "score_gap_nats": round(again.gap, 2),
-                        "log_rss_ratio": round(again.log_rss_ratio, 6) if again.n_eff > 0 else None}
-        if again.chosen != dec.chosen and again.gap >= FINE_TIE_NATS:
+        dec.own_base = again.brief()
+        if dec.reversed_by(again):
             dec.doubt = (f"with {b}'s own base parameters (refitted with it) the check decides {again.chosen} by "
                          f"{again.gap:.0f} nats")
         else:
@@ -683,7 +681,7 @@ def _check_against_nominal_base(dec, exps, comp, obj, st, incumbent: str, free_b
     decides little, 0-16 nats on the lag/delay recordings of the benchmark's random seeds 101-606, and
     agrees wherever it is decisive.)"""
     from .selection import _neutralise
-    from .timing import FINE_TIE_NATS, decide_lag_delay
+    from .timing import decide_lag_delay
 
     vn = st.vec.copy()  # the incumbent's model, as selected
     for n in free_base:
@@ -694,9 +692,8 @@ def _check_against_nominal_base(dec, exps, comp, obj, st, incumbent: str, free_b
                              obj.weights, segment_s)
     if check is None:
         return
-    dec.nominal_base = {"chosen": check.chosen, "score_gap_nats": round(check.gap, 2),
-                        "log_rss_ratio": round(check.log_rss_ratio, 6) if check.n_eff > 0 else None}
-    if check.chosen != dec.chosen and check.gap >= FINE_TIE_NATS:
+    dec.nominal_base = check.brief()
+    if dec.reversed_by(check):
         dec.doubt = (f"with the base parameters at their nominal values the check decides {check.chosen} by "
                      f"{check.gap:.0f} nats: the base refit absorbs the difference")
 

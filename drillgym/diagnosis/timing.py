@@ -164,6 +164,15 @@ class FineDecision:
         """ln(RSS_other / RSS_chosen): the two fits' relative difference, whatever the recording's length."""
         return self.gap / self.n_eff if self.n_eff > 0 else float("nan")
 
+    def brief(self) -> dict:
+        """{chosen, score_gap_nats, log_rss_ratio}: this decision as a check of another one reports it."""
+        return {"chosen": self.chosen, "score_gap_nats": round(self.gap, 2),
+                "log_rss_ratio": round(self.log_rss_ratio, 6) if self.n_eff > 0 else None}
+
+    def reversed_by(self, check: "FineDecision") -> bool:
+        """Whether ``check`` (the same question asked of other models) decides the other way decisively."""
+        return check.chosen != self.chosen and check.gap >= FINE_TIE_NATS
+
     @property
     def tie(self) -> bool:
         return abs(self.gap) < FINE_TIE_NATS or bool(self.doubt)
