@@ -524,3 +524,40 @@ def test_lag_delay_decision_reversed_by_the_nominal_base_is_a_tie(monkeypatch):
         assert seen["km"] == nominal[comp.param_index("km")] and seen["other_delay"] == 0.0
         assert dec.nominal_base["chosen"] == "motor_lag" and dec.nominal_base["score_gap_nats"] == gap
         assert dec.tie is tie and (("nominal values" in dec.doubt) is tie), dec
+
+
+def test_base_prior_prefers_the_effect_to_a_base_moved_far_when_both_fit_alike():
+    """Two base-off selections fitting alike (RSS 4851 and 4888, about 70 effective samples): drift and
+    string damping with every torque parameter about 9 % down together (the larger-Ju direction that
+    absorbs a motor lag), or the same plus the lag with the base within 3 %.  The information criterion
+    alone takes the first (one parameter fewer); with the base parameters' prior (5 % around MODEL.md) the
+    lag.  A base moved that far is also beyond the prior's 95 % quantile, a few percent is within it."""
+    from drillgym.diagnosis.effects import get_effect
+    from drillgym.diagnosis.ranking import _base_prior, _better, _plausible_prior
+    from drillgym.diagnosis.selection import BASE_FREE
+    from drillgym.configurations import Configuration
+    from drillgym.identification.fitting import base_vector
+
+    cands = [get_effect(n) for n in ("friction_drift", "string_damping", "motor_lag")]
+    comp = search_composition(compose(None, None)[0], cands)
+    nominal = base_vector(comp, RigParams(), neutral_values(cands))
+    base_names = BASE_FREE[Configuration.TORSIONAL]
+    far, near = nominal.copy(), nominal.copy()
+    for n in base_names:
+        far[comp.param_index(n)] *= 0.91
+    near[comp.param_index("bb")] *= 1.03
+    near[comp.param_index("tau_m")] = 0.029
+
+    def sel(names, rss, vec):
+        return {"selected": names, "base_off": True, "at_bounds": [], "rss_final": rss, "fit": None, "n": 70,
+                "vector": vec}
+
+    absorbed = sel(["friction_drift", "string_damping"], 4851.0, far)
+    lag = sel(["friction_drift", "string_damping", "motor_lag"], 4888.0, near)
+    assert _better(absorbed, lag, cands, base_names) is absorbed
+    assert _better(absorbed, lag, cands, base_names, comp=comp, nominal=nominal) is lag
+    assert _base_prior(absorbed, base_names, comp, nominal) > _plausible_prior(base_names)
+    assert _base_prior(lag, base_names, comp, nominal) < 1.0
+    # a real fit far better still wins against the prior
+    assert _better(sel(["friction_drift", "string_damping"], 3000.0, far), lag, cands, base_names, comp=comp,
+                   nominal=nominal)["rss_final"] == 3000.0
