@@ -478,6 +478,15 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         paths["nominal_first"] = list(first["selected"])
         if alt is not None:
             paths["nominal_then_base"] = list(alt["selected"]) + [f"bound:{n}" for n in alt["at_bounds"]]
+        if out["base_off"] and (out["at_bounds"] or _base_prior(out, base_names, comp, vec0) > _plausible_prior(base_names)):
+            # the base kept moved beyond a few percent (at a bound, or beyond the prior's 95 % quantile): it may
+            # have absorbed an effect that no order found (every torque parameter -9 to -12 % together in
+            # place of a motor lag).  The search again, every base refit a maximum a posteriori one under the
+            # prior, and the better model by the criterion with the prior
+            mapped = forward_select(obj, comp, vec0, usable, base_names, n_joint=n_joint, max_effects=max_effects,
+                                    refine=refine_speeds, prior_sigma=BASE_PRIOR_SIGMA)
+            paths["base_prior"] = list(mapped["selected"]) + [f"bound:{n}" for n in mapped["at_bounds"]]
+            out = _better(out, mapped, usable, base_names, comp=comp, nominal=vec0)
         if refine_speeds:  # speed corrections for the chosen model (the figures below compare it)
             obj.model.refine_initial_speeds(out["vector"], obj.weights, obj.scales, fresh=True)
     gone = _check_position_effects(out, exps, comp, obj, usable, base_names, segment_s, scales, vec0)

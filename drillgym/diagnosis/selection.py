@@ -205,6 +205,9 @@ class _State:
     effects: dict[str, type[Effect]]  # candidate name -> class
     selected: list[str] = field(default_factory=list)
     fit: FitResult | None = None
+    #: relative standard deviation of the base parameters' Gaussian prior around ``nominal`` in every fit
+    #: (maximum a posteriori, :func:`_fit`); 0: none
+    prior_sigma: float = 0.0
 
 
 def _variables(st: _State, vec: np.ndarray, names: Sequence[str], fresh: Sequence[str] = ()) -> list[FitVariable]:
@@ -262,13 +265,34 @@ def _fit(st: _State, vec: np.ndarray, names: Sequence[str], max_nfev: int, fresh
         rss = float(r @ r)
         return FitResult([], {}, {}, RigParams.from_vector(vec[:N_PARAMS]), vec.copy(), rss, rss, len(r), 1,
                          residual=r, composition=st.comp)
+    prior, weight = _base_prior_rows(st, vec, names)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = fit_parameters(st.obj, vec, _variables(st, vec, names, fresh), max_nfev=max_nfev)
+        res = fit_parameters(st.obj, vec, _variables(st, vec, names, fresh), max_nfev=max_nfev, prior=prior,
+                             prior_weight=weight)
     if res.residual is not None and len(res.residual):
         f = math.sqrt(len(res.residual) / n_eff(res.residual))
         res.std = {k: v * f for k, v in res.std.items()}
     return res
+
+
+def _base_prior_rows(st: _State, vec: np.ndarray, names: Sequence[str]) -> tuple[dict[str, tuple[float, float]] | None, float]:
+    """The base parameters' prior for a fit of ``names`` from ``vec`` ({name: (nominal, nominal ·
+    st.prior_sigma)}) and its weight: the residual's variance per effectively independent sample at ``vec``
+    (RSS / N_eff, so that the prior's Σ (Δp / (p σ))² adds to N_eff ln RSS as the selection criterion
+    counts it).  (None, 1) without a prior or without base parameters among ``names``."""
+    if st.prior_sigma <= 0.0:
+        return None, 1.0
+    prior = {}
+    for n in names:
+        if st.comp.owner(n) is None:
+            nom = float(st.nominal[st.comp.param_index(n)])
+            if nom:
+                prior[n] = (nom, abs(nom) * st.prior_sigma)
+    if not prior:
+        return None, 1.0
+    r = st.obj.residual_matrix(vec[None, :])[0]
+    return prior, float(r @ r) / n_eff(r)
 
 
 def _effect_params(st: _State, names: Sequence[str]) -> list[str]:
@@ -395,9 +419,11 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
                    max_nfev_screen: int = 8, max_nfev_joint: int = 15, max_nfev_base: int = 15,
                    max_effects: int = 4, refine: bool = True, initial: Sequence[str] = (),
                    start: np.ndarray | None = None, n_eff_ref: float = 0.0, n_group: int = 3,
-                   balance: bool = False) -> dict[str, Any]:
+                   balance: bool = False, prior_sigma: float = 0.0) -> dict[str, Any]:
     """Run steps 2–6 of the module docstring on the search model ``comp`` (vector ``vec0``: nominal
-    base parameters, candidates neutral).  ``initial``: effects accepted before the loop (fitted
+    base parameters, candidates neutral).  ``prior_sigma`` > 0: every fit with base parameters is a
+    maximum a posteriori one, with their Gaussian prior of that relative width around ``vec0``
+    (:func:`_base_prior_rows`).  ``initial``: effects accepted before the loop (fitted
     jointly with the base parameters from ``start``, then subject to the backward check).  ``balance``
     (with base parameters): when the forward selection ends, weigh ``obj``'s channels per sensor by the
     model's misfit, refit and continue the selection, while the weights change (:func:`balance_sensors`;
@@ -406,7 +432,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
     them)."""
     excluded = dict(excluded or {})
     st = _State(obj, comp, vec0.copy(), vec0.copy(), tuple(base_names),
-                {c.name: c for c in candidates if c.name not in excluded})
+                {c.name: c for c in candidates if c.name not in excluded}, prior_sigma=prior_sigma)
     N = obj.residual_matrix(vec0[None, :]).shape[1]
 
     def refine_for(vec: np.ndarray) -> float:

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -216,8 +216,15 @@ def _set_by_name(composition: Composition, names: Sequence[str]) -> ApplyFn:
 def fit_parameters(objective: Objective, base: "RigParams | np.ndarray", variables: Sequence[FitVariable], *,
                    apply: ApplyFn | None = None, max_nfev: int = 30, fd_step: float = 1e-3,
                    rel_std_limit: float = 0.1, collinearity_limit: float = 1000.0, ftol: float = 1e-6,
-                   xtol: float = 1e-6, effect_values: dict[str, float] | None = None) -> FitResult:
+                   xtol: float = 1e-6, effect_values: dict[str, float] | None = None,
+                   prior: "Mapping[str, tuple[float, float]] | None" = None, prior_weight: float = 1.0) -> FitResult:
     """Fit ``variables`` (everything else held at ``base``) by trf least squares.
+
+    ``prior``: {variable: (mean, standard deviation)} of a Gaussian prior (maximum a posteriori: the rows
+    √prior_weight · (value − mean) / std are appended to the residual; ``prior_weight`` is the data
+    residual's variance per independent sample, so that one unit of Σ ((value − mean) / std)² weighs as
+    much as one of the data's log-likelihood).  The returned residual, RSS and standard errors' scale are
+    the data's alone; the Jacobian behind the standard errors includes the prior.
 
     The model is the objective's composition (``objective.model.composition``); ``base`` is
     RigParams (the effects' parameters from ``effect_values``, else their defaults) or a
@@ -259,16 +266,36 @@ def fit_parameters(objective: Objective, base: "RigParams | np.ndarray", variabl
         R = objective.residual_matrix(rows(Z))
         return ((R - f0[None, :]) / h[:, None]).T
 
+    # the prior's rows: linear in z
+    pidx = [i for i, nm in enumerate(names) if prior and nm in prior]
+    pmean = np.array([prior[names[i]][0] for i in pidx]) if pidx else np.zeros(0)
+    pstd = np.array([prior[names[i]][1] for i in pidx]) if pidx else np.ones(0)
+    pw = math.sqrt(max(prior_weight, 0.0))
+    Jp = np.zeros((len(pidx), len(variables)))
+    for k, i in enumerate(pidx):
+        Jp[k, i] = pw * scale[i] / pstd[k]
+
+    def prior_rows(z: np.ndarray) -> np.ndarray:
+        return pw * (x0[pidx] + scale[pidx] * z[pidx] - pmean) / pstd
+
+    def fun_map(z: np.ndarray) -> np.ndarray:
+        return np.concatenate([fun(z), prior_rows(z)]) if pidx else fun(z)
+
+    def jac_map(z: np.ndarray) -> np.ndarray:
+        return np.vstack([jac(z), Jp]) if pidx else jac(z)
+
     z0 = np.zeros(len(variables))
+    q0 = fun_map(z0)
     r0 = fun(z0)
-    sol = least_squares(fun, z0, jac=jac, bounds=(zlo, zhi), method="trf", x_scale=1.0, max_nfev=max_nfev,
+    sol = least_squares(fun_map, z0, jac=jac_map, bounds=(zlo, zhi), method="trf", x_scale=1.0, max_nfev=max_nfev,
                         ftol=ftol, xtol=xtol)
     z = sol.x
+    q1 = fun_map(z)
     r1 = fun(z)
     J = np.asarray(sol.jac)  # trf's Jacobian is evaluated at its last accepted point, sol.x
-    if float(r1 @ r1) > float(r0 @ r0):  # never return something worse than the start
+    if float(q1 @ q1) > float(q0 @ q0):  # never return something worse than the start
         z, r1 = z0, r0
-        J = jac(z)
+        J = jac_map(z)
     values = x0 + scale * z
     n, m = len(z), len(r1)
     s2 = float(r1 @ r1) / max(m - n, 1)
