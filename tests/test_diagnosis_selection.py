@@ -478,7 +478,10 @@ def test_lag_delay_decision_made_on_the_incumbents_base_is_checked():
     quasi-random input at 1 kHz around 2.4 V: the base refit on the comparison grid moved every torque
     parameter about 2.4 % down with the input delay in the model, and with those base parameters for both
     the fine check chose the delay by 338 nats.  The lag with its own base parameters wins (about 500
-    nats), so the decision depends on whose base is used: a tie, never a confident delay."""
+    nats), so the decision depends on whose base is used: a tie, never a confident delay.  (Since the base
+    parameters' prior entered the criterion between search orders, the model kept here is the lag at the
+    nominal base, decided for the lag by about 85 nats; the own-base check runs only when the base was
+    refitted.)"""
     rig_recording = _independent_rig()
 
     ts = rig_recording("torsional", "quasi_random", 60.0, 1000.0, 271, {"motor_lag": {"tau_m": 0.0254}}, {},
@@ -487,7 +490,8 @@ def test_lag_delay_decision_made_on_the_incumbents_base_is_checked():
     ld = d.lag_delay
     assert ld is not None and set(d.selected) & {"motor_lag", "input_delay"}, d.text()
     assert ld["chosen"] == "motor_lag" or ld["tie"], ld
-    assert ld["own_base"] is not None and ld["own_base"]["chosen"] == "motor_lag", ld
+    if d.base_off:
+        assert ld["own_base"] is not None and ld["own_base"]["chosen"] == "motor_lag", ld
     if ld["chosen"] == "input_delay":
         assert "own base parameters" in ld["doubt"], ld
 
