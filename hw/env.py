@@ -190,8 +190,11 @@ class HardwareEnv(gym.Env):
             reply = self._client.exchange(volts)
         except LinkError as exc:
             self._on_fault(exc)
+            kept = (f"recording kept up to the fault: {self.recording}" if self.recording is not None else
+                    "nothing recorded yet (the fault came before the episode's first sample, while the rig was "
+                    "brought to rest at 0 V)")
             raise type(exc)(f"{exc}; motor stop requested (firmware watchdog: {self.firmware.watchdog_ms} ms), "
-                            f"recording kept up to the fault: {self.recording}") from exc
+                            f"{kept}") from exc
         self.last_reply = reply
         return reply
 

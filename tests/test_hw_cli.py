@@ -238,7 +238,8 @@ def test_default_watchdog_run_completes_on_a_loaded_machine(tmp_path):
             if code == 0:
                 assert "300 steps" in out and len(read_timeseries(record)) == 301
                 return
-            assert code == 3 and "safety stop" in err and record.exists(), (code, err)  # a clean stop, file kept
+            # a clean stop, the file kept (or none yet: a fault while the rig was brought to rest, before the episode)
+            assert code == 3 and "safety stop" in err and (record.exists() or "nothing recorded yet" in err), (code, err)
             failures.append(f"attempt {attempt + 1}: exit {code}; stdout: {out.strip()}; stderr: {err.strip()}")
         pytest.fail("\n".join(failures))
     finally:
