@@ -471,14 +471,13 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
             # -4.5 % (prior 10.2, RSS 7911), while the base-first model kept so far had every torque
             # parameter -9 % together (the larger-Ju direction, prior 25.9, RSS 3998)
             explained_by_base = set(first["selected"]) - set(alt["selected"])
-            plausible = max(_base_prior(alt, base_names, comp, vec0),
-                            _base_prior(out, base_names, comp, vec0)) <= _plausible_prior(base_names)
+            plausible = not (_beyond_prior(alt, base_names, comp, vec0) or _beyond_prior(out, base_names, comp, vec0))
             if not (explained_by_base and alt["base_off"] and not alt["at_bounds"] and plausible):
                 out = _better(out, first, usable, base_names, comp=comp, nominal=vec0)
         paths["nominal_first"] = list(first["selected"])
         if alt is not None:
             paths["nominal_then_base"] = list(alt["selected"]) + [f"bound:{n}" for n in alt["at_bounds"]]
-        if out["base_off"] and (out["at_bounds"] or _base_prior(out, base_names, comp, vec0) > _plausible_prior(base_names)):
+        if out["base_off"] and (out["at_bounds"] or _beyond_prior(out, base_names, comp, vec0)):
             # the base kept moved beyond a few percent (at a bound, or beyond the prior's 95 % quantile): it may
             # have absorbed an effect that no order found (every torque parameter -9 to -12 % together in
             # place of a motor lag).  The search again, every base refit a maximum a posteriori one under the
@@ -721,15 +720,19 @@ def _base_prior(o: dict, base_names: Sequence[str], comp: Composition | None, no
     Σ ((fitted − nominal) / (nominal · :data:`BASE_PRIOR_SIGMA`))² over the freed base parameters (0 when the
     base was kept).  The term a Laplace approximation of the evidence adds to N_eff ln RSS + k ln N_eff for
     parameters with a Gaussian prior around MODEL.md's values ("a few percent off")."""
+    from .selection import base_prior
+
     if comp is None or nominal is None or not o.get("base_off"):
         return 0.0
     v = o["vector"]
-    total = 0.0
-    for n in base_names:
-        i = comp.param_index(n)
-        if nominal[i]:
-            total += ((float(v[i]) - float(nominal[i])) / (float(nominal[i]) * BASE_PRIOR_SIGMA)) ** 2
-    return total
+    return sum(((float(v[comp.param_index(n)]) - mean) / std) ** 2
+               for n, (mean, std) in base_prior(comp, nominal, base_names, BASE_PRIOR_SIGMA).items())
+
+
+def _beyond_prior(o: dict, base_names: Sequence[str], comp: Composition, nominal: np.ndarray) -> bool:
+    """Whether a selection's base moved further than "a few percent": :func:`_base_prior` above
+    :func:`_plausible_prior`."""
+    return _base_prior(o, base_names, comp, nominal) > _plausible_prior(base_names)
 
 
 def _plausible_prior(base_names: Sequence[str]) -> float:

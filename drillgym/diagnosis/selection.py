@@ -276,19 +276,27 @@ def _fit(st: _State, vec: np.ndarray, names: Sequence[str], max_nfev: int, fresh
     return res
 
 
-def _base_prior_rows(st: _State, vec: np.ndarray, names: Sequence[str]) -> tuple[dict[str, tuple[float, float]] | None, float]:
-    """The base parameters' prior for a fit of ``names`` from ``vec`` ({name: (nominal, nominal ·
-    st.prior_sigma)}) and its weight: the residual's variance per effectively independent sample at ``vec``
-    (RSS / N_eff, so that the prior's Σ (Δp / (p σ))² adds to N_eff ln RSS as the selection criterion
-    counts it).  (None, 1) without a prior or without base parameters among ``names``."""
-    if st.prior_sigma <= 0.0:
-        return None, 1.0
+def base_prior(comp: Composition, nominal: np.ndarray, names: Sequence[str], sigma: float
+               ) -> dict[str, tuple[float, float]]:
+    """The Gaussian prior of the base parameters among ``names``: {name: (nominal value, |nominal| ·
+    ``sigma``)} (relative width ``sigma``; parameters whose nominal value is 0 have none)."""
     prior = {}
     for n in names:
-        if st.comp.owner(n) is None:
-            nom = float(st.nominal[st.comp.param_index(n)])
+        if comp.owner(n) is None:
+            nom = float(nominal[comp.param_index(n)])
             if nom:
-                prior[n] = (nom, abs(nom) * st.prior_sigma)
+                prior[n] = (nom, abs(nom) * sigma)
+    return prior
+
+
+def _base_prior_rows(st: _State, vec: np.ndarray, names: Sequence[str]) -> tuple[dict[str, tuple[float, float]] | None, float]:
+    """The base parameters' prior for a fit of ``names`` from ``vec`` (:func:`base_prior` with
+    ``st.prior_sigma``) and its weight: the residual's variance per effectively independent sample at
+    ``vec`` (RSS / N_eff, so that the prior's Σ (Δp / (p σ))² adds to N_eff ln RSS as the selection
+    criterion counts it).  (None, 1) without a prior or without base parameters among ``names``."""
+    if st.prior_sigma <= 0.0:
+        return None, 1.0
+    prior = base_prior(st.comp, st.nominal, names, st.prior_sigma)
     if not prior:
         return None, 1.0
     r = st.obj.residual_matrix(vec[None, :])[0]

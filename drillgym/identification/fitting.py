@@ -268,8 +268,8 @@ def fit_parameters(objective: Objective, base: "RigParams | np.ndarray", variabl
 
     # the prior's rows: linear in z
     pidx = [i for i, nm in enumerate(names) if prior and nm in prior]
-    pmean = np.array([prior[names[i]][0] for i in pidx]) if pidx else np.zeros(0)
-    pstd = np.array([prior[names[i]][1] for i in pidx]) if pidx else np.ones(0)
+    pmean = np.array([prior[names[i]][0] for i in pidx], dtype=float)
+    pstd = np.array([prior[names[i]][1] for i in pidx], dtype=float)
     pw = math.sqrt(max(prior_weight, 0.0))
     Jp = np.zeros((len(pidx), len(variables)))
     for k, i in enumerate(pidx):
