@@ -36,7 +36,8 @@ def _inner(venv):
 def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path, *, n_envs: int = 64,
             iterations: int = 8, steps: int = 500, epochs: int = 4, batch_size: int = 4096, lr: float = 1e-3,
             seed: int = 0, privileged: bool = False, population: "str | None" = None, nominal_fraction: float = 0.0,
-            teacher_kwargs: dict[str, Any] | None = None, beta: float = 0.0, noise: float = 0.0,
+            nominal_below: float = 0.0, teacher_kwargs: dict[str, Any] | None = None, beta: float = 0.0,
+            noise: float = 0.0,
             motor_integral: bool = False, command: "dict[str, float] | None" = None, lr_final: float | None = None,
             log=None) -> dict[str, float]:
     """Regress the actor of the SB3 ``model`` (PPO/MLP, its env's observation) on the ``teacher``'s actions.
@@ -52,7 +53,8 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
     student sees the scheduled speed command as its target and the 'flatness' teacher tracks it.
     ``teacher``: 'flatness' (``teacher_kwargs``: its options) or the path of an exported full-state policy.
     ``population``: an uncertainty set ('default' or a YAML path) the rigs are drawn from; a fraction
-    ``nominal_fraction`` of the episodes runs the nominal rig instead.
+    ``nominal_fraction`` of the episodes runs the nominal rig instead, and every episode whose target is
+    below ``nominal_below`` (rad/s).
     ``beta``: in round i > 0 a fraction ``beta**i`` of the rigs is still driven by the teacher (DAgger's
     mixing; 0: the student drives every rig after the first round).  ``noise``: standard deviation of
     Gaussian noise on the executed actions (normalised; the labels stay the teacher's clean actions), so
@@ -69,7 +71,7 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
         kw = population_env_kwargs(kw, population)
     venv = make_sb3_vec(env_id, n_envs, **kw)
     if population is not None:
-        use_population(venv, population, nominal_fraction)
+        use_population(venv, population, nominal_fraction, nominal_below)
     integral = None
     schedule = schedule_of(command, motor_integral)
     if motor_integral:

@@ -182,7 +182,7 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
                       normalize_reward: bool = False, normalize_obs: bool = False, gamma: float = 0.99,
                       monitor: bool = True, privileged: bool = False, motor_integral: bool = False,
                       command: "dict[str, float] | None" = None, population: "str | None" = None,
-                      nominal_fraction: float = 0.0) -> VecEnv:
+                      nominal_fraction: float = 0.0, nominal_below: float = 0.0) -> VecEnv:
     """An SB3 VecEnv of ``n_envs`` rigs in one batched core call per step.
 
     ``residual`` (V): the action in [-1, 1] is a correction ``residual * a`` on the feedforward voltage
@@ -199,7 +199,8 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
     'motor' observation, no residual structure).  ``command``: the command schedule's settings
     (:class:`agents.command.CommandSchedule`; needs ``motor_integral``).
     ``population``: every episode's rig is drawn from this uncertainty set ('default' or a YAML path,
-    :mod:`agents.population`; the nominal rig with probability ``nominal_fraction``); plain actions only.
+    :mod:`agents.population`; the nominal rig with probability ``nominal_fraction`` and for targets below
+    ``nominal_below`` rad/s); plain actions only.
     ``frame_stack``: number of stacked observations (1 = none).  ``seed``: rig i gets seed + i.
     """
     if env_id not in ENV_IDS:
@@ -232,7 +233,7 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
         if population is not None:
             from .population import use_population
 
-            use_population(venv, population, nominal_fraction)
+            use_population(venv, population, nominal_fraction, nominal_below)
     if population is not None and (residual is not None or base is not None):
         raise ValueError("a plant population is drawn for plain actions only (no residual or base controller)")
     schedule = schedule_of(command, motor_integral)

@@ -56,7 +56,8 @@ ZOO_KEYS = ("n_envs", "n_timesteps", "policy", "env_kwargs", "normalize", "frame
 STRUCTURE_SECTION = "drillgym"
 #: drillgym's own keys (the structure section, and the merged entry's normalisation flags)
 STRUCTURE_KEYS = ("residual", "startup", "base", "observer", "normalize_reward", "normalize_obs", "privileged_critic",
-                  "distill", "motor_integral", "command_schedule", "population", "nominal_fraction")
+                  "distill", "motor_integral", "command_schedule", "population", "nominal_fraction",
+                  "nominal_below")
 #: every key of a merged entry that is not a keyword of the SB3 algorithm
 DRILLGYM_KEYS = ZOO_KEYS + STRUCTURE_KEYS
 

@@ -41,15 +41,21 @@ class PopulationRandomizer:
 
     ``composition``: the env's model (it must hold the set's effects); ``base``: the nominal RigParams.
     ``nominal_fraction``: probability (0-1) that an episode's rig is the nominal one instead (base
-    parameters nominal, every effect of the set at its lower bound, no position friction)."""
+    parameters nominal, every effect of the set at its lower bound, no position friction); ``nominal_below``
+    (rad/s): episodes whose target is below it always run the nominal rig (the plants are drawn only for
+    targets where the rig's slip equilibrium can be held without damping the brake's negative slope,
+    e.g. from the second Hopf point, 2.83 rad/s nominal, up: there the teacher's labels hold on every
+    plant, and below it no motor-side law damps every plant, :mod:`controllers.limits`)."""
 
     active = True
 
     def __init__(self, composition, base, population: "str | Path | None" = None,
-                 nominal_fraction: float = 0.0) -> None:
+                 nominal_fraction: float = 0.0, nominal_below: float = 0.0) -> None:
         if not (0.0 <= nominal_fraction <= 1.0):
             raise ValueError(f"nominal_fraction must be in [0, 1], got {nominal_fraction!r}")
-        self.nominal_fraction = float(nominal_fraction)
+        if not (np.isfinite(nominal_below) and nominal_below >= 0.0):
+            raise ValueError(f"nominal_below must be a speed >= 0 (rad/s), got {nominal_below!r}")
+        self.nominal_fraction, self.nominal_below = float(nominal_fraction), float(nominal_below)
         self.us = _uncertainty(population)
         missing = [e for e in self.us.effect_names() if e not in set(composition.names)]
         if missing:
@@ -57,10 +63,11 @@ class PopulationRandomizer:
                              f"build it with population_env_kwargs")
         self.composition, self.base = composition, base
 
-    def sample(self, rng: np.random.Generator) -> np.ndarray:
-        """One parameter vector (the composition's layout)."""
+    def sample(self, rng: np.random.Generator, omega_ref: "float | None" = None) -> np.ndarray:
+        """One parameter vector (the composition's layout) for an episode of target ``omega_ref`` (rad/s)."""
         us = self.us
-        if self.nominal_fraction > 0 and rng.random() < self.nominal_fraction:
+        low = omega_ref is not None and omega_ref < self.nominal_below
+        if low or (self.nominal_fraction > 0 and rng.random() < self.nominal_fraction):
             values = {k: float(lo) for k, (lo, hi) in us.effects.items()}
             values.update({n: 0.0 for pair in us.harmonics for n in pair})
             return self.composition.vector(self.base, values)
@@ -72,12 +79,13 @@ class PopulationRandomizer:
         return self.composition.vector(self.base.replace(**scaled), values)
 
 
-def use_population(venv, population: "str | Path | None" = None, nominal_fraction: float = 0.0) -> None:
+def use_population(venv, population: "str | Path | None" = None, nominal_fraction: float = 0.0,
+                   nominal_below: float = 0.0) -> None:
     """Draw every later episode's rig of the drillgym SB3 VecEnv ``venv`` (or a wrapper of it) from the set
-    (the nominal rig with probability ``nominal_fraction``)."""
+    (the nominal rig with probability ``nominal_fraction``, and for targets below ``nominal_below`` rad/s)."""
     inner = venv
     while not hasattr(inner, "batch"):
         inner = inner.venv
     batch = inner.batch
     batch.randomizer = PopulationRandomizer(batch.system.composition, batch.options.rig_params, population,
-                                            nominal_fraction)
+                                            nominal_fraction, nominal_below)

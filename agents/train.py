@@ -128,7 +128,8 @@ def _env(env_id: str, hp: dict[str, Any], n: int, seed: int, evaluation: bool = 
                              normalize_obs=bool(hp.get("normalize_obs", False)), gamma=float(hp.get("gamma", 0.99)),
                              privileged=bool(hp.get("privileged_critic", False)),
                              motor_integral=bool(hp.get("motor_integral", False)), command=hp.get("command_schedule"),
-                             population=hp.get("population"), nominal_fraction=float(hp.get("nominal_fraction", 0.0)))
+                             population=hp.get("population"), nominal_fraction=float(hp.get("nominal_fraction", 0.0)),
+                             nominal_below=float(hp.get("nominal_below", 0.0)))
     if evaluation and isinstance(venv, VecNormalize):
         venv.training, venv.norm_reward = False, False
     return venv
@@ -148,6 +149,8 @@ def _warn_short_run(cls: type, hp: dict[str, Any]) -> None:
 
 #: the evaluation rigs' seeds start here above the training seed (disjoint from the training rigs')
 EVAL_SEED_OFFSET = 100_000
+#: seed offset of the rigs of a second DAgger stage (``distill.then``)
+THEN_SEED_OFFSET = 200_000
 
 
 class BestPolicyCallback(EvalCallback):
@@ -206,7 +209,9 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
         teacher: an exported policy of the 'full' observation or 'flatness' (:mod:`agents.teachers`): before
             the RL steps, its actions are distilled into this model's actor by DAgger (:mod:`agents.distill`,
             ``distill_kwargs`` over the hyperparameters' ``distill`` entry, whose ``teacher`` is the
-            default); ``timesteps`` may then be 0 (distillation only).
+            default); ``timesteps`` may then be 0 (distillation only).  The entry's ``then`` (a mapping
+            of DAgger options) runs a second stage from the first's student with those options changed
+            (fresh rigs and fresh aggregated data, e.g. another training population).
     """
     import torch
 
@@ -259,9 +264,18 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
             raise ValueError("a teacher is distilled into PPO without observation normalisation or frame stacking")
         from .distill import distill
 
-        distill(model, env_id, hp["env_kwargs"], teacher, n_envs=hp["n_envs"], seed=seed,
-                privileged=bool(hp.get("privileged_critic")), motor_integral=bool(hp.get("motor_integral")),
-                command=hp.get("command_schedule"), log=print, **distill_kwargs)
+        first = {k: v for k, v in distill_kwargs.items() if k != "then"}
+        common = dict(privileged=bool(hp.get("privileged_critic")), motor_integral=bool(hp.get("motor_integral")),
+                      command=hp.get("command_schedule"), log=print)
+        distill(model, env_id, hp["env_kwargs"], teacher, n_envs=hp["n_envs"], seed=seed, **common, **first)
+        then = distill_kwargs.get("then")
+        if then:  # a second DAgger stage from the first's student, with these options changed
+            if not isinstance(then, dict) or "teacher" in then or "then" in then:
+                raise ValueError(f"distill.then must be a mapping of DAgger options (no teacher, no third stage), "
+                                 f"got {then!r}")
+            print(f"second DAgger stage: {then}")
+            distill(model, env_id, hp["env_kwargs"], teacher, n_envs=hp["n_envs"], seed=seed + THEN_SEED_OFFSET,
+                    **common, **{**first, **then})
     t_distill = time.perf_counter() - t_distill
     remaining = hp["n_timesteps"] - (model.num_timesteps if resume else 0)
     cb = LatestCheckpoint(out / "checkpoints", checkpoint_every)

@@ -46,6 +46,30 @@ def test_student_on_the_motor_side_learns_the_teachers_actions(tmp_path) -> None
     assert np.median(errors) < 0.05 < np.ptp(spread) / 4  # follows the target dependence it was taught
 
 
+def test_second_dagger_stage_continues_from_the_first_with_its_own_options(tmp_path) -> None:
+    import pytest
+
+    _teacher(tmp_path / "teacher.npz")
+    common = dict(timesteps=0, seed=0, progress=False, tensorboard=False, teacher=tmp_path / "teacher.npz",
+                  overrides={"n_envs": 8, "env_kwargs": {"episode_duration": 1.0}})
+    # the first stage does nothing (0 rounds): whatever the student knows comes from the second
+    res = train("drillgym/Torsional-v0", "ppo", tmp_path / "staged", **common,
+                distill_kwargs={"iterations": 0, "steps": 60, "epochs": 60, "lr": 3e-3, "then": {"iterations": 2}})
+    student = ExportedPolicy.load(res.policy_path)
+    errors = []
+    for ref in (2.5, 7.0):  # the teacher's actions 0.1 * ref - 0.5: -0.25 and +0.2 (an untrained actor: about 0)
+        env = gym.make("drillgym/Torsional-v0", observation="motor", omega_ref=ref, episode_duration=1.0)
+        obs, _ = env.reset(seed=1)
+        for _ in range(60):
+            a = student.act(obs)
+            errors.append(abs(float(a[0]) - (0.1 * ref - 0.5)))
+            obs, *_ = env.step(a)
+    assert np.median(errors) < 0.05
+    with pytest.raises(ValueError, match="distill.then"):
+        train("drillgym/Torsional-v0", "ppo", tmp_path / "bad", **common,
+              distill_kwargs={"iterations": 0, "then": {"teacher": "flatness"}})
+
+
 def test_flatness_teacher_holds_a_low_target_from_rest_on_the_true_state() -> None:
     from agents.teachers import FlatnessTeacher
     from drillgym.envs.sb3 import make_sb3_vec
@@ -94,6 +118,38 @@ def test_population_randomizer_draws_the_uncertainty_set() -> None:
     assert np.all(rows[nominal, comp.param_index("tau_m")] == 1e-3)  # the set's lower bound: "no lag"
     with pytest.raises(ValueError, match="nominal_fraction"):
         PopulationRandomizer(comp, RigParams(), nominal_fraction=1.5)
+
+
+def test_population_below_a_target_speed_is_the_nominal_rig_and_the_env_passes_the_target() -> None:
+    import pytest
+
+    from agents.population import PopulationRandomizer, population_env_kwargs, use_population
+    from drillgym import RigParams
+    from drillgym.effects import compose
+    from drillgym.envs.sb3 import make_sb3_vec
+
+    comp, _ = compose(["motor_lag", "input_delay", "position_friction"], {})
+    r = PopulationRandomizer(comp, RigParams(), nominal_below=5.5)
+    km = comp.param_index("km")
+    low = np.array([r.sample(np.random.default_rng(k), 2.0)[km] for k in range(50)])
+    high = np.array([r.sample(np.random.default_rng(k), 6.0)[km] for k in range(50)])
+    assert np.all(low == RigParams().km) and high.std() > 0.01 * RigParams().km
+    with pytest.raises(ValueError, match="nominal_below"):
+        PopulationRandomizer(comp, RigParams(), nominal_below=-1.0)
+    # the env draws each episode's target first and hands it to the randomizer
+    kw = population_env_kwargs({"observation": "motor", "omega_ref_range": [1.5, 8.0], "normalize_action": True},
+                               "default")
+    venv = make_sb3_vec("drillgym/Torsional-v0", 64, **kw)
+    use_population(venv, "default", nominal_below=5.5)
+    venv.seed(3)
+    venv.reset()
+    inner = venv
+    while not hasattr(inner, "batch"):
+        inner = inner.venv
+    target, rows = inner.batch.omega_ref, inner.batch.system.params_matrix
+    assert np.all(rows[target < 5.5, km] == RigParams().km)
+    assert np.mean(rows[target >= 5.5, km] != RigParams().km) > 0.9
+    venv.close()
 
 
 def test_motor_integral_is_the_same_in_training_and_on_the_rig(tmp_path) -> None:

@@ -78,7 +78,7 @@ class EpisodeBatch:
                 raise RuntimeError(f"rig {i} has no random generator; seed the environment with reset()")
             self.S[i, C_REF], alpha0[j] = self.task.sample(rng)
             if params is not None:
-                params[j] = self.randomizer.sample(rng)
+                params[j] = self.randomizer.sample(rng, float(self.S[i, C_REF]))
         s = self.system
         s.reset(index, alpha0, params)
         if s.kernel_args is not self._system_args:  # delay lines lengthened for a drawn delay

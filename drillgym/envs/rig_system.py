@@ -36,8 +36,9 @@ class ParameterRandomizer:
     def active(self) -> bool:
         return self.fraction > 0 and self.index.size > 0
 
-    def sample(self, rng: np.random.Generator) -> np.ndarray:
-        """One parameter vector (the composition's kernel layout)."""
+    def sample(self, rng: np.random.Generator, omega_ref: "float | None" = None) -> np.ndarray:
+        """One parameter vector (the composition's kernel layout); ``omega_ref`` (rad/s, the episode's
+        target, drawn first) is not used here: a randomizer may draw its rig depending on it."""
         p = self.base.copy()
         v = p[self.index] * (1.0 + rng.uniform(-self.fraction, self.fraction, self.index.size))
         p[self.index] = np.minimum(np.maximum(v, self.lo), self.hi)
