@@ -23,22 +23,17 @@ from typing import Any
 import numpy as np
 
 from .command import schedule_of
+from .envs import episode_batch
 
 __all__ = ["distill"]
-
-
-def _inner(venv):
-    while not hasattr(venv, "batch"):
-        venv = venv.venv
-    return venv
 
 
 def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path, *, n_envs: int = 64,
             iterations: int = 8, steps: int = 500, epochs: int = 4, batch_size: int = 4096, lr: float = 1e-3,
             seed: int = 0, privileged: bool = False, population: "str | None" = None, nominal_fraction: float = 0.0,
             nominal_below: float = 0.0, teacher_kwargs: dict[str, Any] | None = None, beta: float = 0.0,
-            noise: float = 0.0,
-            motor_integral: bool = False, command: "dict[str, float] | None" = None, lr_final: float | None = None,
+            noise: float = 0.0, motor_integral: bool = False,
+            command: "dict[str, float] | None" = None, lr_final: float | None = None,
             log=None) -> dict[str, float]:
     """Regress the actor of the SB3 ``model`` (PPO/MLP, its env's observation) on the ``teacher``'s actions.
 
@@ -83,7 +78,7 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
 
         venv = PrivilegedObsVecEnv(venv)
     venv.seed(seed)
-    batch = _inner(venv).batch
+    batch = episode_batch(venv)
     teacher_actions, teacher_reset = _teacher(teacher, n_envs, batch, teacher_kwargs or {}, integral)
 
     policy = model.policy

@@ -19,7 +19,15 @@ from .integral import Z_MAX, advance
 from .observer_residual import ObserverResidual
 from .residual import ResidualVoltage
 
-__all__ = ["make_training_env", "ResidualActionVecEnv", "ObserverResidualVecEnv", "MotorIntegralVecEnv"]
+__all__ = ["make_training_env", "episode_batch", "ResidualActionVecEnv", "ObserverResidualVecEnv", "MotorIntegralVecEnv"]
+
+
+def episode_batch(venv):
+    """The drillgym episode batch (rigs, targets, parameters) under an SB3 VecEnv built on
+    :func:`drillgym.envs.sb3.make_sb3_vec` and any wrappers of it."""
+    while not hasattr(venv, "batch"):
+        venv = venv.venv
+    return venv.batch
 
 
 class ResidualActionVecEnv(VecEnvWrapper):

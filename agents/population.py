@@ -83,9 +83,8 @@ def use_population(venv, population: "str | Path | None" = None, nominal_fractio
                    nominal_below: float = 0.0) -> None:
     """Draw every later episode's rig of the drillgym SB3 VecEnv ``venv`` (or a wrapper of it) from the set
     (the nominal rig with probability ``nominal_fraction``, and for targets below ``nominal_below`` rad/s)."""
-    inner = venv
-    while not hasattr(inner, "batch"):
-        inner = inner.venv
-    batch = inner.batch
+    from .envs import episode_batch
+
+    batch = episode_batch(venv)
     batch.randomizer = PopulationRandomizer(batch.system.composition, batch.options.rig_params, population,
                                             nominal_fraction, nominal_below)

@@ -265,14 +265,15 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
         from .distill import distill
 
         first = {k: v for k, v in distill_kwargs.items() if k != "then"}
+        then = distill_kwargs.get("then")
+        if then is not None and (not isinstance(then, dict) or "teacher" in then or "then" in then):
+            # refused before the first stage's minutes of training, not after them
+            raise ValueError(f"distill.then must be a mapping of DAgger options (no teacher, no third stage), "
+                             f"got {then!r}")
         common = dict(privileged=bool(hp.get("privileged_critic")), motor_integral=bool(hp.get("motor_integral")),
                       command=hp.get("command_schedule"), log=print)
         distill(model, env_id, hp["env_kwargs"], teacher, n_envs=hp["n_envs"], seed=seed, **common, **first)
-        then = distill_kwargs.get("then")
         if then:  # a second DAgger stage from the first's student, with these options changed
-            if not isinstance(then, dict) or "teacher" in then or "then" in then:
-                raise ValueError(f"distill.then must be a mapping of DAgger options (no teacher, no third stage), "
-                                 f"got {then!r}")
             print(f"second DAgger stage: {then}")
             distill(model, env_id, hp["env_kwargs"], teacher, n_envs=hp["n_envs"], seed=seed + THEN_SEED_OFFSET,
                     **common, **{**first, **then})

@@ -10,6 +10,7 @@ import pytest
 import yaml
 
 import drillgym  # noqa: F401
+from agents.envs import episode_batch
 from agents.export import ExportedPolicy
 from agents.train import train
 
@@ -53,8 +54,6 @@ def _median_error(student, refs) -> float:
 
 
 def test_second_dagger_stage_continues_from_the_first_with_its_own_options(tmp_path) -> None:
-    import pytest
-
     _teacher(tmp_path / "teacher.npz")
     common = dict(timesteps=0, seed=0, progress=False, tensorboard=False, teacher=tmp_path / "teacher.npz",
                   overrides={"n_envs": 8, "env_kwargs": {"episode_duration": 1.0}})
@@ -120,8 +119,6 @@ def test_population_randomizer_draws_the_uncertainty_set() -> None:
 
 
 def test_population_below_a_target_speed_is_the_nominal_rig_and_the_env_passes_the_target() -> None:
-    import pytest
-
     from agents.population import PopulationRandomizer, population_env_kwargs, use_population
     from drillgym import RigParams
     from drillgym.effects import compose
@@ -142,10 +139,8 @@ def test_population_below_a_target_speed_is_the_nominal_rig_and_the_env_passes_t
     use_population(venv, "default", nominal_below=5.5)
     venv.seed(3)
     venv.reset()
-    inner = venv
-    while not hasattr(inner, "batch"):
-        inner = inner.venv
-    target, rows = inner.batch.omega_ref, inner.batch.system.params_matrix
+    batch = episode_batch(venv)
+    target, rows = batch.omega_ref, batch.system.params_matrix
     assert np.all(rows[target < 5.5, km] == RigParams().km)
     assert np.mean(rows[target >= 5.5, km] != RigParams().km) > 0.9
     venv.close()
@@ -227,10 +222,7 @@ def test_command_schedule_reaches_the_target_from_above_and_is_the_same_on_the_r
                                command=CommandSchedule(**short))
     venv.seed(0)
     obs = venv.reset()
-    inner = venv.venv
-    while not hasattr(inner, "batch"):
-        inner = inner.venv
-    s = inner.batch.system
+    s = episode_batch(venv).system
     ctl = AgentController(student, omega_ref=3.0, dt=0.01)
     ctl.reset({"theta_u": s.Y[:, 0].copy()})
     commands = []
@@ -280,10 +272,7 @@ def test_rl_training_env_draws_its_rigs_from_the_population() -> None:
     venv = make_training_env("drillgym/Torsional-v0", 8, seed=1, env_kwargs={"observation": "motor"},
                              population="default")
     venv.reset()
-    inner = venv
-    while not hasattr(inner, "batch"):
-        inner = inner.venv
-    system = inner.batch.system
+    system = episode_batch(venv).system
     km = system.params_matrix[:, system.composition.param_index("km")] / RigParams().km
     assert km.std() > 0 and np.all(np.abs(km - 1) <= 0.05 + 1e-12)  # plants.yaml: km +/- 5 %
     assert {"motor_lag", "input_delay"} <= set(system.composition.names)
