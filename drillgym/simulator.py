@@ -275,13 +275,19 @@ def run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, par
 
 
 def _initial_states(comp: Composition, B: int, x0: Any, alpha0: Any) -> np.ndarray:
+    """(B, n_state) initial states: at rest with winding alpha0, or x0 (all states, or the 8 mechanical
+    ones).  Effect states not given start at 0, except lag states: NaN, which the kernels replace at
+    the first step by the first command held before the start (as the delay lines; identification
+    starts its lag filter the same way)."""
     n = comp.n_state
     if x0 is None:
         Y = np.zeros((B, n))
         Y[:, 1] = np.broadcast_to(np.asarray(alpha0, dtype=float), (B,))
+        Y[:, list(comp.lag_state_columns)] = np.nan
         return Y
     X = np.asarray(x0, dtype=np.float64)
-    if X.shape[-1] == N_STATE and n > N_STATE:  # mechanical states only: effect states start at 0
+    given = X.shape[-1]
+    if given == N_STATE and n > N_STATE:  # mechanical states only: effect states start at 0
         X = np.concatenate([X, np.zeros(X.shape[:-1] + (n - N_STATE,))], axis=-1)
     if X.shape[-1] != n:
         raise ValueError(f"initial state must have {n} entries ({', '.join(comp.full_state_names)}), "
@@ -289,6 +295,8 @@ def _initial_states(comp: Composition, B: int, x0: Any, alpha0: Any) -> np.ndarr
     Y = np.array(np.broadcast_to(X, (B, n)))
     if not np.all(np.isfinite(Y)):
         raise ValueError("initial state contains NaN or inf")
+    if given == N_STATE:
+        Y[:, list(comp.lag_state_columns)] = np.nan
     return Y
 
 
@@ -451,7 +459,7 @@ class BatchSimulator:
         self._tab = tableau(method)
         self._eps = _friction_eps(friction, smooth_eps)
         self.P = self.composition.matrix(params, self.n, self.effect_values)
-        self.Y = np.zeros((self.n, self.composition.n_state))
+        self.Y = _initial_states(self.composition, self.n, None, 0.0)
         self.MODE = np.zeros((self.n, 2), dtype=np.int64)
         self.T = np.zeros(self.n)
         self.FRIC = np.zeros((self.n, 2))

@@ -100,11 +100,14 @@ def test_free_vibration_keeps_upper_disc_clamped():
 
 
 def test_motor_lag_and_input_delay_effects_act():
-    base = simulate("upper", 2.0, 1.0)
-    lag = simulate("upper", 2.0, 1.0, effects=["motor_lag"], effect_params={"tau_m": 0.1})
-    delay = simulate("upper", lambda t: np.where(t >= 0.2, 2.0, 0.0), 1.0, effects=["input_delay"],
-                     effect_params={"delay": 0.1})
-    assert lag.omega_u[100] < base.omega_u[100]
+    step = lambda t: np.where(t >= 0.2, 2.0, 0.0)  # noqa: E731
+    base = simulate("upper", step, 1.0)
+    lag = simulate("upper", step, 1.0, effects=["motor_lag"], effect_params={"tau_m": 0.1})
+    delay = simulate("upper", step, 1.0, effects=["input_delay"], effect_params={"delay": 0.1})
+    assert lag.omega_u[300] < base.omega_u[300]
+    # before the start the first command was held (as for the delay line): a constant command has no lag
+    held = simulate("upper", 2.0, 1.0, effects=["motor_lag"], effect_params={"tau_m": 0.1})
+    assert held.u_m[0] == 2.0 and np.array_equal(held.omega_u, simulate("upper", 2.0, 1.0).omega_u)
     assert np.all(delay.omega_u[:300] == 0.0) and delay.omega_u[350] > 0
     assert delay.u[200] == 2.0 and delay.u[199] == 0.0  # the record keeps the commanded voltage
     assert initial_state(alpha0=0.5)[1] == 0.5

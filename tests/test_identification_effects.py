@@ -245,3 +245,28 @@ def test_gaussian_prior_pulls_a_fit_toward_its_mean_and_leaves_the_data_rss():
     assert heavy.rss_after > free.rss_after and len(heavy.residual) == len(free.residual)
     r = heavy.residual
     assert heavy.rss_after == pytest.approx(float(r @ r))
+
+
+def test_a_motor_lag_starts_from_the_first_command_held_in_simulation_and_identification():
+    """The history before a record's start is its first command held (the delay lines' convention):
+    simulate() and identification's exact lag filter start the lag state there alike, so a run that
+    begins at 3 V is predicted from its first sample on (with the state at 0 V the upper disc would lag
+    by about 0.1 rad after 1 s)."""
+    from drillgym import simulate
+    from drillgym.measurement import MeasurementModel, measure_trajectory
+
+    t = np.arange(0.0, 4.0, 0.01)
+    u = np.where(t < 2.0, 3.0, 1.5)
+    values = {"tau_m": 0.2}
+    traj = simulate("torsional", (t, u), 4.0, dt=1e-3, method="dp5", record_every=10, effects=["motor_lag"],
+                    effect_params=values)
+    assert traj.u_m[0] == 3.0
+    ts = measure_trajectory(traj, MeasurementModel(counts_per_rev=2 ** 40), seed=0)
+    ex = prepare_experiment(ts, "torsional", compare_rate_hz=100.0)
+    ex.rates["omega_u"], ex.rates["omega_l"] = traj.omega_u.copy(), traj.omega_l.copy()
+    model = SegmentedModel([ex], 4.0, composition=["motor_lag"], max_dt=1e-3)
+    pred = model.predict(traj.parameter_vector[None, :], ("theta_u",))[0].stitched(0, "theta_u")
+    assert np.nanmax(np.abs(pred - traj.theta_u)) < 1e-4
+    at_zero = simulate("torsional", (t, u), 4.0, dt=1e-3, method="dp5", record_every=10, effects=["motor_lag"],
+                       effect_params=values, x0=np.r_[np.zeros(8), 0.0])
+    assert np.abs(at_zero.theta_u[100] - traj.theta_u[100]) > 0.05  # the test can tell the two starts apart

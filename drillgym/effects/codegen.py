@@ -390,6 +390,29 @@ def _lag(comp: "Composition", lane: bool) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _lag_start(comp: "Composition") -> str:
+    """hk_lag_start(t, u, y, p, cfg): the lag states not given at the start (NaN) set to the steady
+    state of the first command held before the start, the same history the delay lines assume: each
+    lag state equals the voltage entering it (the input chain evaluated up to that effect)."""
+    body: list[str] = []
+    fixed_needed = False
+    for i, eff in enumerate(comp.effects):
+        if not issubclass(eff, Input):
+            continue
+        ctx = _Context(False, comp, i)
+        for st in (getattr(eff, "lag", None) or {}):
+            j = comp.state_index(st)
+            body += [f"if y[{8 + j}] != y[{8 + j}]:", f"    y[{8 + j}] = u"]
+        call = [f"u = {_call(comp, ctx, 'voltage', 'u')}"]
+        fixed_needed |= ctx.needs_fixed
+        body += _guarded(call, _both(_cfg_guard(eff), _switch(comp, False, i)))
+    pro = ["brake = 1.0 if (cfg == 1 or cfg == 3) else 0.0"]
+    if fixed_needed:
+        pro = _fixed_frame_prologue(False) + pro
+    lines = [f"@{_JIT}", "def hk_lag_start(t, u, y, p, cfg):"] + ["    " + ln for ln in pro + body] + ["    return 0"]
+    return "\n".join(lines) + "\n"
+
+
 def _guarded(lines: list[str], cond: str | None) -> list[str]:
     if cond is None or not lines:
         return lines
@@ -517,6 +540,7 @@ def hooks_source(comp: "Composition") -> str:
         _rhs(comp, True), "",
         _lag(comp, False), "",
         _lag(comp, True), "",
+        _lag_start(comp), "",
     ]
     for disc in ("upper", "lower"):
         for what in ("slip", "bounds"):

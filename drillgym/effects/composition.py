@@ -134,6 +134,13 @@ class Composition:
             raise ParameterError(f"unknown parameter {name!r} for the model {self.label!r}; it has: "
                                  f"{', '.join(self.param_names)}") from None
 
+    @property
+    def lag_state_columns(self) -> tuple[int, ...]:
+        """State-vector indices (8 + j) of the first-order lag states the Input effects declare
+        (``Input.lag``): left NaN in an initial state, the kernels start them at the first command
+        held before the start, the history the delay lines assume."""
+        return tuple(8 + self._sindex[st] for e in self.effects for st in (getattr(e, "lag", None) or {}))
+
     def state_index(self, name: str) -> int:
         """Index of an effect state among the effects' states (its state-vector index is 8 + this)."""
         return self._sindex[name]

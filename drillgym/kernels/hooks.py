@@ -27,6 +27,8 @@ Scalar kernel (state vector y, parameter vector p)
     hk_delay(p) -> transport delay of the command (s)
     hk_lag(t, u, y, p, cfg, h, yo): the declared lag states (Input.lag) at h after a step started at
         (t, y) with command u, exactly, into yo[8 + j] (HAS_LAG: the composition declares some)
+    hk_lag_start(t, u, y, p, cfg): the lag states left NaN (not given at the start) set to the steady
+        state of the first command u held before the start (the history the delay lines assume)
 
 Lane kernel (lanes as structure of arrays: lane state rows Y (nm mechanical rows first), parameter
 rows PT (N_PARAMS + N_SWITCHES, B))

@@ -38,8 +38,8 @@ from drillgym.dynamics import (
 )
 from drillgym.friction import bearing_law, brake_law_simd, upper_law
 from drillgym.kernels.hooks import (
-    HAS_LAG, HAS_LANE_EFFECTS, N_STATE, hk_bounds_l_lane, hk_bounds_u_lane, hk_effects_lane, hk_lag_lane, hk_lane_params,
-    hk_states_lane,
+    HAS_LAG, HAS_LANE_EFFECTS, N_STATE, hk_bounds_l_lane, hk_bounds_u_lane, hk_effects_lane, hk_lag_lane, hk_lag_start,
+    hk_lane_params, hk_states_lane,
 )
 from drillgym.kernels.model import initial_modes, record, resolve_modes
 from drillgym.kernels.stepping import alloc_work, delay_line_step, hybrid_step
@@ -523,6 +523,8 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
             mode[j] = MODE[k, j]
         c0 = command_col(n_u, 0, USTEP, 0)[0]
         u0 = delay_line_step(HIST[k], HEAD[k:k + 1], U[k, c0], P[k], dt)
+        if HAS_LAG:  # lag states not given: the first command held before the start, as the delay line
+            hk_lag_start(T0[k], u0, y, P[k], cfg)
         if init_modes:
             initial_modes(T0[k], y, u0, P[k], cfg, mode, k1, fric)
         else:

@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit, prange
 
 from drillgym.dynamics import S_WL, S_WU, lateral_free
-from drillgym.kernels.hooks import HAS_DELAY, HAS_LAG, N_STATE, hk_delay, hk_lag
+from drillgym.kernels.hooks import HAS_DELAY, HAS_LAG, N_STATE, hk_delay, hk_lag, hk_lag_start
 from drillgym.kernels.model import (
     event_values, initial_modes, lower_stick_bounds, record, resolve_modes, state_derivative, upper_stick_bounds,
 )
@@ -282,6 +282,8 @@ def start_trajectory(y, mode, U, p, cfg, dt, t0, eps, out, init_modes, n_steps, 
     run: the start shared by the fixed-step and the adaptive integrators.  Returns (u, table cursor)."""
     u_cmd, jc = command_at(U, 0, USTEP, 0)
     u = delay_line_step(hist, head, u_cmd, p, dt) if n_steps > 0 else delay_line_read(hist, head, u_cmd, p, dt)
+    if HAS_LAG:  # lag states not given: the first command held before the start, as the delay line
+        hk_lag_start(t0, u, y, p, cfg)
     if eps > 0.0:  # smoothed friction: no stick state
         mode[0] = 2
         mode[1] = 2
@@ -370,6 +372,8 @@ def advance_batch(Y, MODE, u, P, cfg, dt, n_sub, T, eps, A, b, c, FRIC, HIST, HE
         head = HEAD[k:k + 1]
         t = T[k]
         ue = delay_line_step(hist, head, u[k], p, dt) if n_sub > 0 else delay_line_read(hist, head, u[k], p, dt)
+        if HAS_LAG and n_sub > 0:  # the first step after a reset: lag states at the first command held
+            hk_lag_start(t, ue, y, p, cfg)  # before the start (as the delay line, which a 0-step read leaves)
         if eps > 0.0:
             mode[0] = 2
             mode[1] = 2
