@@ -347,16 +347,20 @@ def _effects_lane(comp: "Composition") -> str:
     return "\n".join([f"@{_JIT}", f"def {sig}:"] + ["    " + ln for ln in body] + ["    return 0"]) + "\n"
 
 
+def _input_chain(comp: "Composition", lane: bool):
+    """(index, effect, context) of the Input effects, in the order the command passes through them."""
+    for i, eff in enumerate(comp.effects):
+        if issubclass(eff, Input):
+            yield i, eff, _Context(lane, comp, i)
+
+
 def _lag(comp: "Composition", lane: bool) -> str:
     """hk_lag / hk_lag_lane: the declared first-order lag states (``Input.lag``) at h after the step
     start, exactly: s(h) = v + (s0 - v) exp(-h / tau), v the voltage entering the effect at the
     step start (the input chain evaluated at the start state y / Y, held over the step)."""
     body: list[str] = []
     fixed_needed = False
-    for i, eff in enumerate(comp.effects):
-        if not issubclass(eff, Input):
-            continue
-        ctx = _Context(lane, comp, i)
+    for i, eff, ctx in _input_chain(comp, lane):
         lines = []
         frozen = []
         for st, tau in (getattr(eff, "lag", None) or {}).items():
@@ -396,10 +400,7 @@ def _lag_start(comp: "Composition") -> str:
     lag state equals the voltage entering it (the input chain evaluated up to that effect)."""
     body: list[str] = []
     fixed_needed = False
-    for i, eff in enumerate(comp.effects):
-        if not issubclass(eff, Input):
-            continue
-        ctx = _Context(False, comp, i)
+    for i, eff, ctx in _input_chain(comp, False):
         for st in (getattr(eff, "lag", None) or {}):
             j = comp.state_index(st)
             body += [f"if y[{8 + j}] != y[{8 + j}]:", f"    y[{8 + j}] = u"]
