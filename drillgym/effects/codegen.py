@@ -139,6 +139,13 @@ def _fixed_frame_prologue(lane: bool) -> list[str]:
             "_VX = _ct * y[6] - _st * y[7] - _Y * y[2]", "_VY = _st * y[6] + _ct * y[7] + _X * y[2]"]
 
 
+def _prologue(lane: bool, fixed_needed: bool, *more: str) -> list[str]:
+    """The first lines of a hook: the fixed-frame quantities when an effect reads them, the brake flag,
+    then ``more``."""
+    return (_fixed_frame_prologue(lane) if fixed_needed else []) + ["brake = 1.0 if (cfg == 1 or cfg == 3) else 0.0",
+                                                                   *more]
+
+
 def _cfg_guard(eff: type[Effect]) -> str | None:
     cfgs = [_CFG_CODES[c] for c in eff.configurations]
     if len(cfgs) == len(_CFG_CODES):
@@ -258,10 +265,7 @@ def _rhs(comp: "Composition", lane: bool) -> str:
                 "    _Qy = 0.0"]
     else:
         tail = ["_Qx = 0.0", "_Qy = 0.0"]
-    pro = ["brake = 1.0 if (cfg == 1 or cfg == 3) else 0.0",
-           "_Qu = 0.0", "_Ql = 0.0", "_Qs = 0.0", "_QX = 0.0", "_QY = 0.0"]
-    if fixed_needed:
-        pro = _fixed_frame_prologue(lane) + pro
+    pro = _prologue(lane, fixed_needed, "_Qu = 0.0", "_Ql = 0.0", "_Qs = 0.0", "_QX = 0.0", "_QY = 0.0")
     if lane:
         sig = "hk_states_lane(k, t, u, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, cfg, K)"
         ret = "    return 0"
@@ -383,9 +387,7 @@ def _lag(comp: "Composition", lane: bool) -> str:
             if frozen:
                 body.append("else:")
                 body.extend("    " + ln for ln in frozen)
-    pro = ["brake = 1.0 if (cfg == 1 or cfg == 3) else 0.0"]
-    if fixed_needed:
-        pro = _fixed_frame_prologue(lane) + pro
+    pro = _prologue(lane, fixed_needed)
     if lane:
         sig = "hk_lag_lane(k, t, u, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, cfg, h, Yo)"
     else:
@@ -407,9 +409,7 @@ def _lag_start(comp: "Composition") -> str:
         call = [f"u = {_call(comp, ctx, 'voltage', 'u')}"]
         fixed_needed |= ctx.needs_fixed
         body += _guarded(call, _both(_cfg_guard(eff), _switch(comp, False, i)))
-    pro = ["brake = 1.0 if (cfg == 1 or cfg == 3) else 0.0"]
-    if fixed_needed:
-        pro = _fixed_frame_prologue(False) + pro
+    pro = _prologue(False, fixed_needed)
     lines = [f"@{_JIT}", "def hk_lag_start(t, u, y, p, cfg):"] + ["    " + ln for ln in pro + body] + ["    return 0"]
     return "\n".join(lines) + "\n"
 
