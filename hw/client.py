@@ -159,10 +159,25 @@ class RigClient:
         _, t = self._wait_for(lambda m: isinstance(m, P.Heartbeat) and m.token == token, "HEARTBEAT echo", sent)
         return t - sent
 
-    def emergency_stop(self, wait: bool = False) -> None:
-        """Ask the firmware to stop the motor (0 V, latched); ``wait`` for its ACK."""
-        sent = time.monotonic()
-        seq = self.link.send(P.EmergencyStop(int(P.StopReason.HOST)))
-        if wait:
-            self._wait_for(lambda m: isinstance(m, P.Ack) and m.acked_seq == seq, "ACK of EMERGENCY_STOP", sent)
+    def emergency_stop(self, wait: bool = False, attempts: int = 1) -> int:
+        """Ask the firmware to stop the motor (0 V, latched).
+
+        With ``wait``, send it up to ``attempts`` times until the firmware acknowledges it (each attempt
+        waits ``reply_timeout``) and return the attempt acknowledged; raises LinkTimeoutError when none
+        was.  Without ``wait``: send it once, return 0 (fire and forget; the watchdog is the fallback).
+        """
+        if not wait:
+            self.link.send(P.EmergencyStop(int(P.StopReason.HOST)))
+            return 0
+        last: LinkTimeoutError | None = None
+        for k in range(1, max(1, attempts) + 1):
+            sent = time.monotonic()
+            seq = self.link.send(P.EmergencyStop(int(P.StopReason.HOST)))
+            try:
+                self._wait_for(lambda m, seq=seq: isinstance(m, P.Ack) and m.acked_seq == seq,
+                               "ACK of EMERGENCY_STOP", sent)
+                return k
+            except LinkTimeoutError as exc:
+                last = exc
+        raise last  # type: ignore[misc]
 

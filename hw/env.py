@@ -47,7 +47,7 @@ from drillgym.measurement import EncoderVelocityEstimator, counts_to_angle
 
 from . import protocol as P
 from .client import Reply, RigClient
-from .link import DEFAULT_BAUDRATE, LinkError, LinkLostError
+from .link import DEFAULT_BAUDRATE, LinkError, LinkLostError, LinkTimeoutError
 from .pacing import Pacer
 from .processing import CounterUnwrap, LvdtProcessor
 from .recording import EpisodeRecorder, episode_path
@@ -59,6 +59,9 @@ __all__ = ["HardwareEnv", "HARDWARE_FIXED_OPTIONS"]
 HARDWARE_FIXED_OPTIONS = ("params", "randomize", "randomize_names", "effects", "effect_params", "dt", "method",
                           "friction", "alpha0_range", "lvdt_noise_std", "counts_per_rev", "render_history")
 _ROW0 = np.zeros(1, dtype=np.int64)
+#: EMERGENCY_STOP sent this often at an episode's end until the firmware acknowledges it (each waits one reply
+#: timeout); unacknowledged, the firmware watchdog stops the motor.
+STOP_ATTEMPTS = 3
 
 
 def _stop_motor(client: RigClient) -> None:
@@ -156,6 +159,9 @@ class HardwareEnv(gym.Env):
         self._t0_host = 0.0
         self._running = False
         self._fault: BaseException | None = None
+        #: the last episode's end: True when the firmware acknowledged the EMERGENCY_STOP, False when it did not
+        #: (the watchdog stops the motor), None before any episode ended
+        self.stop_acknowledged: bool | None = None
         self.recorder: EpisodeRecorder | None = None
         self._pending: dict[str, float] | None = None  # the last sample, written once the next reply tells its voltage
         self.last_reply: Reply | None = None
@@ -214,8 +220,12 @@ class HardwareEnv(gym.Env):
         if self._running:
             self._running = False
             try:
-                self._client.emergency_stop()
+                self._client.emergency_stop(wait=True, attempts=STOP_ATTEMPTS)
+                self.stop_acknowledged = True
+            except LinkTimeoutError:
+                self.stop_acknowledged = False  # the firmware watchdog stops the motor
             except LinkError as exc:
+                self.stop_acknowledged = False
                 self._on_fault(exc)
         self._close_recording()
 

@@ -171,3 +171,21 @@ def test_measurement_helper_and_bad_options(tmp_path):
         env.close()
         env.close()  # twice is fine
     assert len(list(tmp_path.glob("*_ep0000.csv"))) == 1
+
+
+def test_an_episode_ends_with_a_stop_the_firmware_acknowledged_or_says_it_was_not(tmp_path):
+    """end_episode waits for the ACK of its EMERGENCY_STOP (retrying): when it returns acknowledged the
+    firmware is at 0 V; a dead firmware is reported (the watchdog is then the motor's only stop)."""
+    with RigEmulator("torsional", dt=5e-3, firmware=RELAXED) as emu:
+        env = hw.env.HardwareEnv(emu.port, record=tmp_path, reply_timeout=0.05)
+        env.reset(seed=0)
+        env.step(np.array([0.5], dtype=np.float32))
+        env.end_episode()
+        assert env.stop_acknowledged is True
+        assert emu.firmware.stop_reason == P.StopReason.HOST and emu.firmware.volts == 0.0  # no waiting needed
+        env.reset(seed=1)
+        env.step(np.array([0.5], dtype=np.float32))
+        emu.kill()
+        env.end_episode()
+        assert env.stop_acknowledged is False
+        env.close()

@@ -264,11 +264,13 @@ def _run_episode(make_env, ctrl, pol, seed, notice, realtime, reconnect, reconne
         return res, faults, watchdog_ms
     except KeyboardInterrupt:
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the stop short
-        rec = None
+        rec, acked = None, True
         if env is not None:
-            env.close()  # ends the episode: EMERGENCY_STOP, recording flushed and closed
-            rec = env.unwrapped.recording
-        say(f"drillgym: interrupted: motor stopped (0 V), recording kept: {rec if rec is not None else 'none yet'}")
+            env.close()  # ends the episode: EMERGENCY_STOP until acknowledged, recording flushed and closed
+            rec, acked = env.unwrapped.recording, env.unwrapped.stop_acknowledged is not False
+        motor = ("motor stopped (0 V)" if acked else "EMERGENCY_STOP not acknowledged by the firmware (its "
+                 f"watchdog stops the motor within {env.unwrapped.firmware.watchdog_ms} ms): check the rig")
+        say(f"drillgym: interrupted: {motor}, recording kept: {rec if rec is not None else 'none yet'}")
         raise typer.Exit(INTERRUPT_EXIT)
     except SafetyError as exc:
         if env is not None:

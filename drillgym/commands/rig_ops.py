@@ -118,12 +118,9 @@ def emergency_stop(port: str, attempts: int = 3, timeout_s: float = 0.2) -> int:
 
     client = RigClient(port, reply_timeout=timeout_s)
     try:
-        for k in range(1, attempts + 1):
-            try:
-                client.emergency_stop(wait=True)
-                return k
-            except LinkTimeoutError:
-                continue
+        return client.emergency_stop(wait=True, attempts=attempts)
+    except LinkTimeoutError:
+        pass
     finally:
         client.close()
     raise SafetyError(f"{port}: EMERGENCY_STOP sent {attempts} times, no acknowledgement within "
