@@ -16,6 +16,7 @@ effects outside the library), not imported from drillgym.
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -25,8 +26,15 @@ from drillgym.io import TimeSeries
 from drillgym.measurement import lowpass_zero_phase, quantize_angle
 from drillgym.signals import quasi_random, sum_of_sines
 
-EPS = 2e-3  # rad/s: friction sign smoothing
+EPS = 2e-3  # rad/s: friction sign smoothing (DRILLGYM_BENCH_RIG_EPS overrides it, see rig_eps)
 LAT_EPS = 1e-4  # m/s: lateral dry-friction direction smoothing
+
+
+
+def rig_eps() -> float:
+    """The friction smoothing in use (rad/s): DRILLGYM_BENCH_RIG_EPS if set, else EPS."""
+    return float(os.environ.get("DRILLGYM_BENCH_RIG_EPS", EPS))
+
 
 #: effects outside drillgym's library (for the "discovery" rows)
 OUTSIDE = ("brake_quadratic", "stribeck_shape", "upper_stribeck", "string_cubic", "string_freeplay")
@@ -65,6 +73,7 @@ class _Rig:
     def __init__(self, config: str, p: RigParams, effects: dict[str, dict[str, float]], t: np.ndarray,
                  u: np.ndarray) -> None:
         self.config, self.p, self.fx, self.t, self.u = config, p, effects, t, u
+        self.eps = rig_eps()
 
     def drive(self, tt: float, um: float | None) -> float:
         fx = self.fx
@@ -74,7 +83,7 @@ class _Rig:
         return um if um is not None else v
 
     def upper_friction(self, w: float) -> float:
-        p, s = self.p, math.tanh(w / EPS)
+        p, s = self.p, math.tanh(w / self.eps)
         T = (p.Tcu * s + p.dTcu * abs(s)) + p.bu * w + p.dbu * abs(w)
         if "upper_stribeck" in self.fx:  # a static bump at low speed (outside the library)
             f = self.fx["upper_stribeck"]
@@ -82,7 +91,7 @@ class _Rig:
         return T
 
     def lower_friction(self, tt: float, w: float, th: float) -> float:
-        p, fx, s = self.p, self.fx, math.tanh(w / EPS)
+        p, fx, s = self.p, self.fx, math.tanh(w / self.eps)
         Ts, Tc = p.Ts, p.Tc
         if "brake_asymmetry" in fx and w < 0:
             Ts, Tc = Ts * (1 + fx["brake_asymmetry"]["asym_s"]), Tc * (1 + fx["brake_asymmetry"]["asym_c"])

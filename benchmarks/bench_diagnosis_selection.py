@@ -278,7 +278,14 @@ def main() -> None:
     ap.add_argument("--random-combos", type=int, default=0, metavar="N",
                     help="instead of the fixed matrix: N combinations of 2-3 library effects drawn at random "
                          "(effects, magnitudes, configuration; every other one with base parameters off 2-8 %%)")
+    ap.add_argument("--rig-smoothing", type=float, default=None, metavar="EPS",
+                    help="the independent rig's friction smoothing tanh(w/EPS) (rad/s; default "
+                         "bench_diagnosis_rig.EPS): how much its discs creep while stuck")
     a = ap.parse_args()
+    if a.rig_smoothing is not None:
+        if not a.rig_smoothing > 0:
+            raise SystemExit(f"--rig-smoothing must be > 0 rad/s, got {a.rig_smoothing}")
+        os.environ["DRILLGYM_BENCH_RIG_EPS"] = repr(a.rig_smoothing)  # the worker processes read it
     cases = build_matrix(seed=a.seed, quick=a.quick, random_n=a.random_combos)
     if a.kind:
         cases = [c for c in cases if c["kind"] == a.kind]
@@ -286,8 +293,9 @@ def main() -> None:
         keep = {int(x) for x in a.ids.split(",")}
         cases = [c for c in cases if c["id"] in keep]
     what = " (random combinations)" if a.random_combos else " (quick matrix)" if a.quick else ""
+    import bench_diagnosis_rig
     print(f"{len(cases)} recordings of the independent rig{what}, {a.jobs} processes, "
-          f"seed {a.seed}", flush=True)
+          f"seed {a.seed}, rig friction smoothing {bench_diagnosis_rig.rig_eps() * 1e3:g} mrad/s", flush=True)
     t0 = time.perf_counter()
     results = []
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:

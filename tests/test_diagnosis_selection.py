@@ -53,6 +53,22 @@ def test_two_effects_found_as_a_set():
     assert d.to_json()["lag_delay"] is None  # 250 Hz: too slow for the check at the recording's rate
 
 
+def test_a_model_that_replaces_a_doubted_effect_by_base_parameters_at_bounds_does_not_replace_it():
+    """After the split-half check drops a position friction, the search's replacement is taken unless it puts
+    another effect in its place with more base parameters at a bound of their range than the model it
+    replaces (it then compensates for the dropped effect, and the model with it is kept, the doubt stated)."""
+    from drillgym.diagnosis.ranking import compensates_dropped
+
+    kept = {"selected": ["position_friction", "brake_asymmetry"], "at_bounds": ["Tc"]}
+    at_bounds = {"selected": ["brake_asymmetry", "friction_drift"], "at_bounds": ["Tcu", "Ts", "Tc", "ws"]}
+    clean = {"selected": ["brake_asymmetry", "friction_drift"], "at_bounds": []}
+    assert compensates_dropped(kept, at_bounds) and not compensates_dropped(kept, clean)
+    assert not compensates_dropped(kept, {**at_bounds, "at_bounds": ["Ts"]})  # as many as before: taken
+    # only left out, nothing in its place: the check's decision stands whatever the bounds
+    assert not compensates_dropped({**kept, "selected": kept["selected"] + ["friction_drift"]}, at_bounds)
+    assert compensates_dropped({"selected": [], "at_bounds": None}, {"selected": ["motor_lag"], "at_bounds": ["Ts"]})
+
+
 def test_plain_mismatch_is_not_an_effect_and_moved_parameters_are_named():
     d = diagnose(_rec(RigParams().scaled(**MISMATCH)))
     assert d.selected == [], d.text()
@@ -565,3 +581,4 @@ def test_base_prior_prefers_the_effect_to_a_base_moved_far_when_both_fit_alike()
     # a real fit far better still wins against the prior
     assert _better(sel(["friction_drift", "string_damping"], 3000.0, far), lag, cands, base_names, comp=comp,
                    nominal=nominal)["rss_final"] == 3000.0
+
