@@ -30,7 +30,6 @@ EPS = 2e-3  # rad/s: friction sign smoothing (DRILLGYM_BENCH_RIG_EPS overrides i
 LAT_EPS = 1e-4  # m/s: lateral dry-friction direction smoothing
 
 
-
 def rig_eps() -> float:
     """The friction smoothing in use (rad/s): DRILLGYM_BENCH_RIG_EPS if set, else EPS."""
     return float(os.environ.get("DRILLGYM_BENCH_RIG_EPS", EPS))

@@ -120,12 +120,11 @@ def emergency_stop(port: str, attempts: int = 3, timeout_s: float = 0.2) -> int:
     try:
         return client.emergency_stop(wait=True, attempts=attempts)
     except LinkTimeoutError:
-        pass
+        raise SafetyError(f"{port}: EMERGENCY_STOP sent {attempts} times, no acknowledgement within "
+                          f"{timeout_s * 1e3:.0f} ms each (another program reading the port may have taken it, or "
+                          f"the firmware is not responding): check the rig") from None
     finally:
         client.close()
-    raise SafetyError(f"{port}: EMERGENCY_STOP sent {attempts} times, no acknowledgement within "
-                      f"{timeout_s * 1e3:.0f} ms each (another program reading the port may have taken it, or the "
-                      f"firmware is not responding): check the rig")
 
 
 def _wait_for_port(port: str, seconds: float) -> None:

@@ -501,17 +501,15 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
             again["dropped"] = {**out["dropped"], **again["dropped"]}
             again["excluded"] = {**out["excluded"], **again["excluded"]}
             out = again
-            if refine_speeds:
-                obj.model.refine_initial_speeds(out["vector"], obj.weights, obj.scales, fresh=True)
         if compensates_dropped(before_check, out):  # the model is kept and the check's doubt stated
             for n in gone:
                 before_check["ties"][n] = (f"{out['dropped'][n]}; kept because the model without it puts more base "
                                            f"parameters at a bound ({', '.join(out['at_bounds'])}): check with a "
                                            f"longer recording")
-            paths["after_halves_check"] = paths.get("after_halves_check", []) + ["reverted"]
+            paths["after_halves_check"].append("reverted")
             out = before_check
-            if refine_speeds:
-                obj.model.refine_initial_speeds(out["vector"], obj.weights, obj.scales, fresh=True)
+        if refine_speeds and (out is again or out is before_check):  # speed corrections for the model kept
+            obj.model.refine_initial_speeds(out["vector"], obj.weights, obj.scales, fresh=True)
     fine = _check_lag_delay(out, exps, comp, obj, usable, base_names, segment_s, vec0)
     skipped.update(out["excluded"])
     N = out["n"]
