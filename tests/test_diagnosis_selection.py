@@ -472,11 +472,13 @@ def test_a_ramp_input_is_smooth_and_steps_are_not():
     assert min(shares["steps"], shares["quasi_random"], shares["sum_of_sines"]) > 3 * SMOOTH_INPUT_SHARE, shares
 
 
-def test_selection_goes_on_when_the_halves_check_drops_a_position_friction():
+def test_a_drift_beside_a_brake_asymmetry_is_not_taken_for_a_position_friction():
     """An independent rig (benchmarks/bench_diagnosis_rig.py) with a brake asymmetry and a friction drift,
     30 s of sums of sines at 1 kHz: the search took a position friction (4 harmonics) in the drift's place,
     the split-half check dropped it as not repeating with the angle, and the drift was never screened again
-    (brake asymmetry alone reported).  The selection now goes on from the remaining set without it."""
+    (brake asymmetry alone reported).  The selection then went on from the remaining set without it; since
+    the screens start from the best of a spread of values (:mod:`drillgym.diagnosis.starts`) the drift is
+    found directly.  Either way: the true set, the drift's value, no position friction."""
     rig_recording = _independent_rig()
 
     ts = rig_recording("torsional", "sum_of_sines", 30.0, 1000.0, 6589,
@@ -484,9 +486,10 @@ def test_selection_goes_on_when_the_halves_check_drops_a_position_friction():
                        {}, 0.0, 3.0)
     d = diagnose(ts)
     assert sorted(d.selected) == ["brake_asymmetry", "friction_drift"], d.text()
-    assert "position_friction" in d.skipped and "both halves" in d.skipped["position_friction"]
-    assert set(d.paths["after_halves_check"]) == set(d.selected)
     assert d.effect_values()["drift"] == pytest.approx(-0.0041, rel=0.2)
+    if "position_friction" in d.skipped:
+        assert "both halves" in d.skipped["position_friction"]
+        assert set(d.paths["after_halves_check"]) == set(d.selected)
 
 
 def test_lag_delay_decision_made_on_the_incumbents_base_is_checked():

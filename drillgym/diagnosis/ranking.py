@@ -47,6 +47,7 @@ from ..identification.staged import STAGES
 from ..identification.segmented import SegmentedModel
 from ..io import TimeSeries
 from ..params import N_PARAMS, RigParams
+from .effective import effective_samples
 from .effects import applies_to, effects_for, fit_variables, get_effect, with_candidate
 from .segments import place_segment_starts, robust_noise
 
@@ -211,15 +212,6 @@ class Diagnosis:
         return "\n".join(lines)
 
 
-def _n_eff(r: np.ndarray) -> float:
-    """Effectively independent samples of a residual vector (lag-1 autocorrelation)."""
-    n = len(r)
-    if n < 3 or not np.any(r):
-        return float(n)
-    rho = float(np.clip(np.corrcoef(r[:-1], r[1:])[0, 1], 0.0, 0.999))
-    return max(n * (1 - rho) / (1 + rho), 10.0)
-
-
 def _excited(effect: type[Effect], exps: Sequence[Experiment]) -> str:
     """Why the recordings cannot show an effect (its ``needs``), or ''."""
     if "negative_rotation" in effect.needs:
@@ -317,7 +309,7 @@ def rank_effects(data: "TimeSeries | Experiment | Sequence[Experiment]", params:
     r0 = obj.residual_matrix(vec0[None, :])[0]
     rss0 = float(r0 @ r0)
     N = len(r0)
-    n_eff = _n_eff(r0)
+    n_eff = effective_samples(r0, obj.block_ids)
     rmse0 = math.sqrt(rss0 / N)
     ch0 = obj.channel_rms(vec0)
     scores: list[EffectScore] = []
@@ -544,7 +536,7 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         if name not in {r.effect for r in ranking}:
             skipped[name] = why
     refitted = {n: float(vec[comp.param_index(n)]) for n in base_names} if out["base_off"] else {}
-    d = Diagnosis(ranking, cfg, rmse0, ch0, n_eff(obj.residual_matrix(vec0[None, :])[0]), segment_s, skipped,
+    d = Diagnosis(ranking, cfg, rmse0, ch0, n_eff(obj.residual_matrix(vec0[None, :])[0], obj.block_ids), segment_s, skipped,
                   refitted, comp0.label, selected=list(out["selected"]), base_parameters=out["moved"],
                   base_off=out["base_off"], base_score=out["base_score"], warnings=list(out["base_warnings"]) + (
                       [f"base parameters at the edge of their ±{100 * (BASE_BOUNDS[1] - 1):.0f} % range: "
@@ -779,7 +771,7 @@ def _better(a: dict, b: dict, effects: Sequence[type[Effect]], base_names: Seque
     def k_and_ne(o: dict) -> tuple[int, float]:
         k = sum(len(by[n].parameters) for n in o["selected"]) + (len(base_names) if o["base_off"] else 0)
         fit = o["fit"]
-        ne = n_eff(fit.residual) if fit is not None and fit.residual is not None else float(o["n"])
+        ne = n_eff(fit.residual, o.get("blocks")) if fit is not None and fit.residual is not None else float(o["n"])
         return k, ne
 
     # (``bounds``: two models with the base parameters freed) an active bound means a wrong model (a missing
@@ -795,6 +787,6 @@ def _better(a: dict, b: dict, effects: Sequence[type[Effect]], base_names: Seque
     return a if diff <= 0 else b
 
 
-def n_eff(r: np.ndarray) -> float:
-    """Effectively independent samples of a residual vector (lag-1 autocorrelation)."""
-    return _n_eff(r)
+def n_eff(r: np.ndarray, blocks: "np.ndarray | None" = None) -> float:
+    """Effectively independent samples of a residual vector (:func:`.effective.effective_samples`)."""
+    return effective_samples(r, blocks)

@@ -61,7 +61,7 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any, Iterator, Sequence
 
 import numpy as np
 
@@ -72,7 +72,9 @@ from ..identification.experiment import Experiment
 from ..identification.fitting import FitResult, FitVariable, Objective, fit_parameters
 from ..identification.segmented import SegmentedModel
 from ..params import N_PARAMS, PARAM_INFO, RigParams
+from .effective import effective_samples
 from .segments import place_segment_starts
+from .starts import search_points
 
 __all__ = ["BASE_FREE", "SENSORS", "balance_sensors", "neutral_values", "search_composition", "SelectionStep",
            "forward_select", "base_free_parameters", "SIGNIFICANCE", "MIN_REDUCTION", "MIN_EXPLAINED", "TIE_NATS",
@@ -143,17 +145,14 @@ def base_free_parameters(config: Configuration, brake_on: bool = True) -> tuple[
     return names
 
 
-def n_eff(r: np.ndarray) -> float:
-    """Effectively independent samples of a residual vector (lag-1 autocorrelation)."""
-    n = len(r)
-    if n < 3 or not np.any(r):
-        return float(n)
-    rho = float(np.clip(np.corrcoef(r[:-1], r[1:])[0, 1], 0.0, 0.999))
-    return max(n * (1 - rho) / (1 + rho), 10.0)
+def n_eff(r: np.ndarray, blocks: "np.ndarray | None" = None) -> float:
+    """Effectively independent samples of a residual vector, each independent block (segment and channel,
+    :attr:`Objective.block_ids`) counting at least once (:func:`.effective.effective_samples`)."""
+    return effective_samples(r, blocks)
 
 
 def score(rss_small: "float | np.ndarray", fit_big: FitResult, k: int, n_eff_ref: float = 0.0,
-          channels: "np.ndarray | None" = None) -> tuple[float, float]:
+          channels: "np.ndarray | None" = None, blocks: "np.ndarray | None" = None) -> tuple[float, float]:
     """(score in nats, N_eff) of a larger model's fit against a smaller model's RSS (N_eff: the larger
     model's own residual, or ``n_eff_ref`` if larger).
 
@@ -161,11 +160,12 @@ def score(rss_small: "float | np.ndarray", fit_big: FitResult, k: int, n_eff_ref
     :attr:`Objective.channel_ids`), each channel has its own noise variance and correlation: the
     log-likelihood ratio is the sum over channels of N_eff,c ln(RSS_c small / RSS_c large), and N_eff the
     sum of the channels'.  A pooled variance lets a large residual in one channel (a slightly wrong
-    torsional model) drown an effect that acts on another alone (an LVDT's skew changes only y)."""
+    torsional model) drown an effect that acts on another alone (an LVDT's skew changes only y).
+    ``blocks``: the independent block of each residual entry (:func:`n_eff`)."""
     r1 = fit_big.residual
     if channels is None or np.ndim(rss_small) == 0 or r1 is None or len(r1) != len(channels):
         rss0 = float(rss_small) if np.ndim(rss_small) == 0 else float(np.dot(rss_small, rss_small))
-        ne = max(n_eff(r1), n_eff_ref)
+        ne = max(n_eff(r1, blocks), n_eff_ref)
         rss1 = max(fit_big.rss_after, 1e-300)
         return ne * math.log(max(rss0, 1e-300) / rss1) - k * math.log(ne), ne
     r0 = np.asarray(rss_small, dtype=float)
@@ -173,7 +173,7 @@ def score(rss_small: "float | np.ndarray", fit_big: FitResult, k: int, n_eff_ref
     for c in np.unique(channels):
         m = channels == c
         a, b = r0[m], r1[m]
-        ne_c = n_eff(b)
+        ne_c = n_eff(b, None if blocks is None or len(blocks) != len(r1) else blocks[m])
         total += ne_c * math.log(max(float(a @ a), 1e-300) / max(float(b @ b), 1e-300))
         ne_sum += ne_c
     ne = max(ne_sum, n_eff_ref)
@@ -233,6 +233,50 @@ def _variables(st: _State, vec: np.ndarray, names: Sequence[str], fresh: Sequenc
     return out
 
 
+def _best_start(st: _State, vec: np.ndarray, name: str) -> np.ndarray:
+    """``vec`` with effect ``name``'s parameters at the best of its :func:`.starts.search_points` (the
+    lowest residual sum of squares, all evaluated in one batch): where its fit starts."""
+    idx = [st.comp.param_index(p.name) for p in st.effects[name].parameters]
+    rows = search_points(st.effects[name])
+    P = np.repeat(vec[None, :], len(rows), axis=0)
+    P[:, idx] = rows
+    R = st.obj.residual_matrix(P)
+    return P[int(np.argmin(np.einsum("ij,ij->i", R, R)))].copy()
+
+
+def _masked_groups(st: _State, screen: dict[str, FitResult], order: Sequence[str], rss_cur: float, n_group: int,
+                   max_effects: int, max_nfev: int) -> "Iterator[tuple[list[str], np.ndarray]]":
+    """Groups of candidates to fit together when none is significant alone, each with its start vector:
+    the ``n_group`` best by their screens (those that explained anything), then the best screened
+    candidate with the partner whose screen beside it (its parameters fitted from their
+    :func:`_best_start`, the leader's held at its screened values) leaves the smallest RSS."""
+    room = max_effects - len(st.selected)
+    group = [n for n in order if screen[n].rss_after < rss_cur][:min(n_group, room)]
+
+    def start(members: Sequence[str], src: dict[str, np.ndarray]) -> np.ndarray:
+        gv = st.vec.copy()
+        for n in members:
+            for p in _effect_params(st, [n]):
+                gv[st.comp.param_index(p)] = src[n][st.comp.param_index(p)]
+        return gv
+    if len(group) >= 2:
+        yield group, start(group, {n: screen[n].vector for n in group})
+    lead = order[0]
+    base = start([lead], {lead: screen[lead].vector})
+    best: tuple[float, str, np.ndarray] | None = None
+    for other in st.effects:
+        if other in st.selected or other == lead:
+            continue
+        try:
+            r = _fit(st, _best_start(st, base, other), _effect_params(st, [other]), max_nfev)
+        except ValueError:
+            continue
+        if best is None or r.rss_after < best[0]:
+            best = (r.rss_after, other, r.vector)
+    if best is not None and set(group) != {lead, best[1]}:
+        yield [lead, best[1]], best[2]
+
+
 def base_at_bounds(st: "_State", vec: np.ndarray, tol: float = 0.01) -> list[str]:
     """Base parameters within ``tol`` of their relative range of a bound of :data:`BASE_BOUNDS`: an
     active bound means the model is wrong (a missing effect absorbed by the base parameters, or a
@@ -271,7 +315,7 @@ def _fit(st: _State, vec: np.ndarray, names: Sequence[str], max_nfev: int, fresh
         res = fit_parameters(st.obj, vec, _variables(st, vec, names, fresh), max_nfev=max_nfev, prior=prior,
                              prior_weight=weight)
     if res.residual is not None and len(res.residual):
-        f = math.sqrt(len(res.residual) / n_eff(res.residual))
+        f = math.sqrt(len(res.residual) / n_eff(res.residual, st.obj.block_ids))
         res.std = {k: v * f for k, v in res.std.items()}
     return res
 
@@ -300,7 +344,7 @@ def _base_prior_rows(st: _State, vec: np.ndarray, names: Sequence[str]) -> tuple
     if not prior:
         return None, 1.0
     r = st.obj.residual_matrix(vec[None, :])[0]
-    return prior, float(r @ r) / n_eff(r)
+    return prior, float(r @ r) / n_eff(r, st.obj.block_ids)
 
 
 def _effect_params(st: _State, names: Sequence[str]) -> list[str]:
@@ -451,6 +495,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
         return float(r @ r)
 
     channel_ids = obj.channel_ids
+    blk = obj.block_ids  # each segment of each channel counts at least once in N_eff
 
     def ch(name: str) -> "np.ndarray | None":
         """Channels of the residual for scoring ``name`` per channel: a measurement effect changes only its
@@ -516,7 +561,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
                     continue
                 for v in starts:
                     try:
-                        r_ = _fit(st, v, _effect_params(st, [name]), max_nfev_screen, fresh=[name])
+                        r_ = _fit(st, _best_start(st, v, name), _effect_params(st, [name]), max_nfev_screen)
                     except ValueError as exc:
                         excluded[name] = f"fit failed: {exc}"
                         continue
@@ -540,7 +585,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
                         pass
                 if res.rss_after > rss_cur:  # the effect at its neutral values: nothing explained
                     res.rss_after, res.residual = rss_cur, cur[0].copy()
-                sc, ne = score(cur[0], res, k, n_eff_ref, ch(name))
+                sc, ne = score(cur[0], res, k, n_eff_ref, ch(name), blk)
                 eff_vals = {p: res.values.get(p, float(res.vector[st.comp.param_index(p)]))
                             for p in _effect_params(st, [name])}
                 eff_std = {p: res.std.get(p, float("nan")) for p in eff_vals}
@@ -557,23 +602,26 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
             if not round_[best].significant:
                 # masking: several effects at once leave a residual no single one explains enough of (each one's
                 # residual is dominated by the others').  The leading candidates are fitted together; if the group
-                # is significant it enters whole, and the backward check below removes those that do not count
-                group = [n for n in order if screen[n].rss_after < rss_cur][:n_group]
-                group = group[:max_effects - len(st.selected)]
-                if len(group) < 2 or tried_group:
+                # is significant it enters whole, and the backward check below removes those that do not count.
+                # Else the leading candidate with the one partner that fits best beside it: an effect can make
+                # the fit worse alone and explain nearly all with another (a 37 ms input delay without the
+                # string damping that came with it)
+                if tried_group or max_effects - len(st.selected) < 2:
                     break
-                gv = st.vec.copy()
-                for n in group:
-                    for p in _effect_params(st, [n]):
-                        gv[st.comp.param_index(p)] = screen[n].vector[st.comp.param_index(p)]
-                try:
-                    gr = _fit(st, gv, free_now + _effect_params(st, group), max_nfev_joint)
-                except ValueError:
+                found = None
+                for group, gv in _masked_groups(st, screen, order, rss_cur, n_group, max_effects, max_nfev_screen):
+                    try:
+                        gr = _fit(st, gv, free_now + _effect_params(st, group), max_nfev_joint)
+                    except ValueError:
+                        continue
+                    kg = len(_effect_params(st, group))
+                    sc, ne = score(rss_cur, gr, kg, n_eff_ref, blocks=blk)
+                    if _significant(sc, rss_cur, gr.rss_after, N, cur[0], gr.residual, unit=units()):
+                        found = group
+                        break
+                if found is None:
                     break
-                kg = len(_effect_params(st, group))
-                sc, ne = score(rss_cur, gr, kg, n_eff_ref)
-                if not _significant(sc, rss_cur, gr.rss_after, N, cur[0], gr.residual, unit=units()):
-                    break
+                group = found
                 for n in group:
                     vals = {p: float(gr.vector[st.comp.param_index(p)]) for p in _effect_params(st, [n])}
                     steps.append(SelectionStep(n, sc, rss_cur, gr.rss_after, vals,
@@ -608,7 +656,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
                            max_nfev_joint)
             full_fit = st.fit if st.fit is not None else without
             k = len(_effect_params(st, [name]))
-            sc, _ = score(without.residual, full_fit, k, n_eff_ref, ch(name))
+            sc, _ = score(without.residual, full_fit, k, n_eff_ref, ch(name), blk)
             for stp in steps:  # effects accepted up front get their score here
                 if stp.effect == name and not stp.score == stp.score:
                     stp.score, stp.rss_before, stp.rss_after = sc, without.rss_after, rss_cur
@@ -640,10 +688,10 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
                 if again.rss_after < rss_a:
                     st.vec, st.fit, rss_a, cur[0] = again.vector, again, again.rss_after, again.residual
                 rss_cur = rss_a
-                ne = max(n_eff(cur[0]), n_eff_ref)
+                ne = max(n_eff(cur[0], blk), n_eff_ref)
                 gap = ne * math.log(max(rss_b, 1e-300) / max(rss_a, 1e-300))
             else:
-                gap, _ = score(swapped.rss_after, st.fit, 0, n_eff_ref) if st.fit is not None else (float("inf"), 0)
+                gap, _ = score(swapped.rss_after, st.fit, 0, n_eff_ref, blocks=blk) if st.fit is not None else (float("inf"), 0)
                 rss_b = swapped.rss_after
             if gap < 0:  # the other one fits better: take it
                 st.selected[st.selected.index(a)] = b
@@ -659,7 +707,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
         return {"selected": list(st.selected), "steps": steps, "last_round": last_round, "dropped": dropped,
                 "ties": ties, "at_bounds": [], "base_off": False, "base_score": 0.0, "moved": {}, "base_warnings": [],
                 "vector": st.vec, "rss_nominal": rss_nominal, "rss_final": rss_cur, "n": N, "fit": st.fit,
-                "excluded": excluded, "base_fit": None}
+                "excluded": excluded, "base_fit": None, "blocks": blk}
     eff_names = _effect_params(st, st.selected)
     nominal_base = st.vec.copy()
     for n in st.base_names:
@@ -674,7 +722,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
     rss_held = held.rss_after if held is not None else rss_held
     r_held = held.residual if held is not None else r
     full = st.fit if st.fit is not None else fb
-    base_score, _ = score(rss_held, full, len(st.base_names), n_eff_ref)
+    base_score, _ = score(rss_held, full, len(st.base_names), n_eff_ref, blocks=blk)
     base_off = _significant(base_score, rss_held, full.rss_after, N, r_held, full.residual, unit=units()) or (
         base_score > SIGNIFICANCE and full.rss_after < 0.5 * rss_held)
     moved: dict[str, dict[str, float]] = {}
@@ -699,4 +747,4 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
     return {"selected": list(st.selected), "steps": steps, "last_round": last_round, "dropped": dropped,
             "ties": ties, "at_bounds": base_at_bounds(st, st.vec) if base_off else [], "base_off": base_off, "base_score": base_score, "moved": moved, "base_warnings": warn,
             "vector": vec_final, "rss_nominal": rss_nominal, "rss_final": rss_final, "n": N,
-            "fit": fit_final, "excluded": excluded, "base_fit": full}
+            "fit": fit_final, "excluded": excluded, "base_fit": full, "blocks": blk}

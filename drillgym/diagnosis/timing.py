@@ -240,7 +240,7 @@ def decide_lag_delay(exps: Sequence[Experiment], comp, models: Mapping[str, np.n
     hi = max(SEARCH_SPAN * max(float(models[e][comp.param_index(par[e])]) for e in LAG_DELAY), SEARCH_MIN_S)
     va, ra = _best_value(obj, comp, models[a], par[a], hi)
     vb, rb = _best_value(obj, comp, models[b], par[b], hi)
-    ne = min(n_eff(ra), n_eff(rb))
+    ne = min(n_eff(ra, obj.block_ids), n_eff(rb, obj.block_ids))
     gap = ne * math.log(max(float(rb @ rb), 1e-300) / max(float(ra @ ra), 1e-300))
     values = {a: va, b: vb}
     if gap < 0:

@@ -124,6 +124,11 @@ class Objective:
         #: index into :attr:`channels` of every entry of a residual row (the layout of :meth:`residual_matrix`)
         self.channel_ids = np.concatenate([np.full(int(np.count_nonzero(~np.isnan(m[:, 1:]))), self.channels.index(c))
                                            for meas in self._meas for c, m in meas.items()])
+        #: index of the independent block (experiment, channel, multiple-shooting segment) of every entry of a
+        #: residual row: a segment re-started from the data does not carry its misfit over to the next one
+        rows = [np.count_nonzero(~np.isnan(m[:, 1:]), axis=1) for meas in self._meas for m in meas.values()]
+        counts = np.concatenate(rows) if rows else np.zeros(0, dtype=int)
+        self.block_ids = np.repeat(np.arange(len(counts)), counts)
 
     def residual_matrix(self, P: np.ndarray) -> np.ndarray:
         """(B, M) weighted, normalised residuals (model − data); a segment's first sample is skipped."""
