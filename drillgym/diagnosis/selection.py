@@ -23,15 +23,21 @@ model a few percent off leaves a residual that some effect partly mimics.  Here:
        score = N_eff ln(RSS_model / RSS_model+effect) − k ln N_eff
 
    exceeds ``SIGNIFICANCE`` (nats), it removes at least ``MIN_REDUCTION`` of the residual RMS and
-   explains more than the noise (``MIN_EXPLAINED`` noise units²).  ``N_eff = N (1 − ρ)/(1 + ρ)``
+   explains more than the noise (``MIN_EXPLAINED`` noise units²).  ``N_eff = Σ_b max(1, n_b (1 − ρ)/(1 + ρ))``
+   over the independent blocks b (each multiple-shooting segment of each channel, :mod:`.effective`)
    with ρ the lag-1 autocorrelation of the residual of the *larger* model (the one with the
    effect): the residual that remains when the effect is in, not the one the effect removes,
-   measures how correlated the unexplained part is.  A *measurement* effect (an LVDT's offset or
+   measures how correlated the unexplained part is.  A candidate's screen starts from the best of a
+   spread of values around its guess (:mod:`.starts`: the misfit of a rig that sticks hard is rugged
+   in timing parameters).  A *measurement* effect (an LVDT's offset or
    skew) changes only its own channels, so it is scored per channel (:func:`score`: the sum over
    channels of N_eff,c ln(RSS_c ratio), each channel with its own noise level and correlation) and
    may pass the reduction rule in one channel: pooled, a small torsional model error drowns a 2° skew
    that only the y reading shows.  Then the rest are re-ranked on the new
-   residual; the loop stops when the best candidate is not significant.
+   residual.  When the best candidate is not significant, the leading ones are fitted together, then
+   the leader with the partner that fits best beside it (:func:`_masked_groups`: an effect can make the
+   fit worse alone and explain nearly everything with another); the loop stops when no group is
+   significant either.
 4. **Backward check.**  With two or more effects accepted, each is removed in turn (the rest and
    the base parameters refitted); an effect whose removal is not significant is dropped.
 5. **Is the base model off?**  The final effects are refitted with the base parameters held at
