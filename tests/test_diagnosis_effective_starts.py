@@ -31,15 +31,6 @@ def test_each_block_of_a_smooth_residual_counts_at_least_once():
     assert effective_samples(r, blocks) == pytest.approx(n_blocks, abs=1.0)
 
 
-def test_the_correlation_is_measured_within_blocks_not_across_their_joins():
-    """White noise per block with a jump between blocks: the jumps must not lower the count."""
-    rng = np.random.default_rng(2)
-    r = np.concatenate([10.0 * k + rng.standard_normal(500) for k in range(8)])
-    blocks = np.repeat(np.arange(8), 500)
-    assert effective_samples(r) < 200  # one block: the steps look like a strong correlation
-    assert effective_samples(r, blocks) == pytest.approx(4000, rel=0.15)
-
-
 def test_search_points_start_at_the_guess_stay_in_bounds_and_spread_over_scales():
     delay = get_effect("input_delay")
     pts = search_points(delay)
