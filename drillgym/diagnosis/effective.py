@@ -12,9 +12,9 @@ one, so each segment of each channel is a short experiment of its own and counts
 
     N_eff = Σ_blocks max(1, n_b (1 − ρ) / (1 + ρ)),
 
-ρ estimated from pairs of neighbouring samples of the same block (about the pooled mean: conservative).  Without it, a smooth misfit (ρ 0.995 on
-an independent rig that creeps little) set N_eff to 10 for a whole minute of data, and a group of effects
-that cut the residual sum of squares seven-fold scored 4 nats.
+ρ estimated from pairs of neighbouring samples of the same block (about the pooled mean: conservative).
+Without it, a smooth misfit (ρ 0.995 on an independent rig that creeps little) set N_eff to 10 for a whole
+minute of data, and a group of effects that cut the residual sum of squares seven-fold scored 4 nats.
 """
 from __future__ import annotations
 

@@ -536,7 +536,8 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         if name not in {r.effect for r in ranking}:
             skipped[name] = why
     refitted = {n: float(vec[comp.param_index(n)]) for n in base_names} if out["base_off"] else {}
-    d = Diagnosis(ranking, cfg, rmse0, ch0, n_eff(obj.residual_matrix(vec0[None, :])[0], obj.block_ids), segment_s, skipped,
+    ne0 = effective_samples(obj.residual_matrix(vec0[None, :])[0], obj.block_ids)
+    d = Diagnosis(ranking, cfg, rmse0, ch0, ne0, segment_s, skipped,
                   refitted, comp0.label, selected=list(out["selected"]), base_parameters=out["moved"],
                   base_off=out["base_off"], base_score=out["base_score"], warnings=list(out["base_warnings"]) + (
                       [f"base parameters at the edge of their ±{100 * (BASE_BOUNDS[1] - 1):.0f} % range: "
@@ -771,7 +772,7 @@ def _better(a: dict, b: dict, effects: Sequence[type[Effect]], base_names: Seque
     def k_and_ne(o: dict) -> tuple[int, float]:
         k = sum(len(by[n].parameters) for n in o["selected"]) + (len(base_names) if o["base_off"] else 0)
         fit = o["fit"]
-        ne = n_eff(fit.residual, o.get("blocks")) if fit is not None and fit.residual is not None else float(o["n"])
+        ne = effective_samples(fit.residual, o.get("blocks")) if fit is not None and fit.residual is not None else float(o["n"])
         return k, ne
 
     # (``bounds``: two models with the base parameters freed) an active bound means a wrong model (a missing
@@ -785,8 +786,3 @@ def _better(a: dict, b: dict, effects: Sequence[type[Effect]], base_names: Seque
     diff = ne * math.log(max(a["rss_final"], 1e-300) / max(b["rss_final"], 1e-300)) + (ka - kb) * math.log(ne)
     diff += _base_prior(a, base_names, comp, nominal) - _base_prior(b, base_names, comp, nominal)
     return a if diff <= 0 else b
-
-
-def n_eff(r: np.ndarray, blocks: "np.ndarray | None" = None) -> float:
-    """Effectively independent samples of a residual vector (:func:`.effective.effective_samples`)."""
-    return effective_samples(r, blocks)

@@ -151,12 +151,6 @@ def base_free_parameters(config: Configuration, brake_on: bool = True) -> tuple[
     return names
 
 
-def n_eff(r: np.ndarray, blocks: "np.ndarray | None" = None) -> float:
-    """Effectively independent samples of a residual vector, each independent block (segment and channel,
-    :attr:`Objective.block_ids`) counting at least once (:func:`.effective.effective_samples`)."""
-    return effective_samples(r, blocks)
-
-
 def score(rss_small: "float | np.ndarray", fit_big: FitResult, k: int, n_eff_ref: float = 0.0,
           channels: "np.ndarray | None" = None, blocks: "np.ndarray | None" = None) -> tuple[float, float]:
     """(score in nats, N_eff) of a larger model's fit against a smaller model's RSS (N_eff: the larger
@@ -167,11 +161,11 @@ def score(rss_small: "float | np.ndarray", fit_big: FitResult, k: int, n_eff_ref
     log-likelihood ratio is the sum over channels of N_eff,c ln(RSS_c small / RSS_c large), and N_eff the
     sum of the channels'.  A pooled variance lets a large residual in one channel (a slightly wrong
     torsional model) drown an effect that acts on another alone (an LVDT's skew changes only y).
-    ``blocks``: the independent block of each residual entry (:func:`n_eff`)."""
+    ``blocks``: the independent block of each residual entry (:func:`.effective.effective_samples`)."""
     r1 = fit_big.residual
     if channels is None or np.ndim(rss_small) == 0 or r1 is None or len(r1) != len(channels):
         rss0 = float(rss_small) if np.ndim(rss_small) == 0 else float(np.dot(rss_small, rss_small))
-        ne = max(n_eff(r1, blocks), n_eff_ref)
+        ne = max(effective_samples(r1, blocks), n_eff_ref)
         rss1 = max(fit_big.rss_after, 1e-300)
         return ne * math.log(max(rss0, 1e-300) / rss1) - k * math.log(ne), ne
     r0 = np.asarray(rss_small, dtype=float)
@@ -179,7 +173,7 @@ def score(rss_small: "float | np.ndarray", fit_big: FitResult, k: int, n_eff_ref
     for c in np.unique(channels):
         m = channels == c
         a, b = r0[m], r1[m]
-        ne_c = n_eff(b, None if blocks is None or len(blocks) != len(r1) else blocks[m])
+        ne_c = effective_samples(b, None if blocks is None or len(blocks) != len(r1) else blocks[m])
         total += ne_c * math.log(max(float(a @ a), 1e-300) / max(float(b @ b), 1e-300))
         ne_sum += ne_c
     ne = max(ne_sum, n_eff_ref)
@@ -321,7 +315,7 @@ def _fit(st: _State, vec: np.ndarray, names: Sequence[str], max_nfev: int, fresh
         res = fit_parameters(st.obj, vec, _variables(st, vec, names, fresh), max_nfev=max_nfev, prior=prior,
                              prior_weight=weight)
     if res.residual is not None and len(res.residual):
-        f = math.sqrt(len(res.residual) / n_eff(res.residual, st.obj.block_ids))
+        f = math.sqrt(len(res.residual) / effective_samples(res.residual, st.obj.block_ids))
         res.std = {k: v * f for k, v in res.std.items()}
     return res
 
@@ -350,7 +344,7 @@ def _base_prior_rows(st: _State, vec: np.ndarray, names: Sequence[str]) -> tuple
     if not prior:
         return None, 1.0
     r = st.obj.residual_matrix(vec[None, :])[0]
-    return prior, float(r @ r) / n_eff(r, st.obj.block_ids)
+    return prior, float(r @ r) / effective_samples(r, st.obj.block_ids)
 
 
 def _effect_params(st: _State, names: Sequence[str]) -> list[str]:
@@ -694,7 +688,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
                 if again.rss_after < rss_a:
                     st.vec, st.fit, rss_a, cur[0] = again.vector, again, again.rss_after, again.residual
                 rss_cur = rss_a
-                ne = max(n_eff(cur[0], blk), n_eff_ref)
+                ne = max(effective_samples(cur[0], blk), n_eff_ref)
                 gap = ne * math.log(max(rss_b, 1e-300) / max(rss_a, 1e-300))
             else:
                 gap, _ = score(swapped.rss_after, st.fit, 0, n_eff_ref, blocks=blk) if st.fit is not None else (float("inf"), 0)

@@ -44,7 +44,7 @@ from ..identification.experiment import Experiment, prepare_experiment
 from ..identification.fitting import Objective
 from ..identification.segmented import SegmentedModel
 from .effects import get_effect
-from .selection import n_eff
+from .effective import effective_samples
 
 __all__ = ["FINE_RATE_HZ", "FINE_TIE_NATS", "LAG_DELAY", "SMOOTH_INPUT_SHARE", "FineDecision", "decide_lag_delay",
            "input_share_above", "resolvable_lag_delay"]
@@ -240,7 +240,7 @@ def decide_lag_delay(exps: Sequence[Experiment], comp, models: Mapping[str, np.n
     hi = max(SEARCH_SPAN * max(float(models[e][comp.param_index(par[e])]) for e in LAG_DELAY), SEARCH_MIN_S)
     va, ra = _best_value(obj, comp, models[a], par[a], hi)
     vb, rb = _best_value(obj, comp, models[b], par[b], hi)
-    ne = min(n_eff(ra, obj.block_ids), n_eff(rb, obj.block_ids))
+    ne = min(effective_samples(ra, obj.block_ids), effective_samples(rb, obj.block_ids))
     gap = ne * math.log(max(float(rb @ rb), 1e-300) / max(float(ra @ ra), 1e-300))
     values = {a: va, b: vb}
     if gap < 0:
