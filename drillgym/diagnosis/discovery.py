@@ -34,6 +34,7 @@ from typing import Callable
 import numpy as np
 
 from ..identification.experiment import Experiment
+from ..params import N_PARAMS, RigParams
 from .sparse import ResidualTorque
 
 __all__ = ["Candidate", "find_candidate", "write_effect_file", "advice", "discover", "MIN_EXPLAINED_SHARE"]
@@ -412,7 +413,6 @@ def discover(ex: Experiment, diagnosis, candidate_out: str | Path | None = None,
     if residual < MIN_RESIDUAL_UNITS:
         return None, []
     u = ex.input_on_grid(1.0 / ex.fs, ex.n, ex.t[0])
-    p = diagnosis.params
     vectors = [diagnosis.vector]
     if (diagnosis.base_parameters or diagnosis.base_off) and diagnosis.nominal_vector is not None:
         # the base refit may have absorbed part of an effect outside the library: look at the nominal base too
@@ -420,6 +420,7 @@ def discover(ex: Experiment, diagnosis, candidate_out: str | Path | None = None,
     cand, rt = None, None
     for vec in vectors:
         rt_v = residual_torques(ex, vec, effects=diagnosis.composition)
+        p = RigParams.from_vector(vec[:N_PARAMS])  # the inertias and brake law of the model that left it
         c = find_candidate(rt_v, u, p.Ju, p.Jl, ex.config.lateral_free, p.ws, p.delta)
         if c is not None and (cand is None or c.explained > cand.explained):
             cand, rt = c, rt_v

@@ -88,7 +88,7 @@ from .starts import search_points
 
 __all__ = ["BASE_FREE", "SENSORS", "balance_sensors", "neutral_values", "search_composition", "SelectionStep",
            "forward_select", "base_free_parameters", "SIGNIFICANCE", "MIN_REDUCTION", "MIN_EXPLAINED", "TIE_NATS",
-           "SEPARATES_LAG_DELAY", "MOVED_PCT", "SELECTION_DT", "selection_model"]
+           "SEPARATES_LAG_DELAY", "MOVED_PCT", "SELECTION_DT", "selection_model", "converged_fit"]
 
 #: simulator step bound (s) of the selection's fits, RK4 (as simulate, 1.3x faster than DP5), the input's
 #: samples on step boundaries (:func:`~drillgym.identification.segmented.steps_per_sample`; 4 ms at
@@ -344,6 +344,32 @@ def base_prior(comp: Composition, nominal: np.ndarray, names: Sequence[str], sig
     return prior
 
 
+def converged_fit(st: _State, vec: np.ndarray, names: Sequence[str], max_nfev: int, refine: bool = True) -> FitResult:
+    """Fit ``names`` from ``vec``, the segments' initial speeds refined (``refine``) for each round's start, until
+    a round removes less than :data:`CONVERGE_RTOL` of the RSS (:data:`CONVERGE_ROUNDS` rounds at most).  The
+    model is left with the speeds of the best fit."""
+    obj = st.obj
+    model = obj.model
+
+    def speeds_for(v: np.ndarray) -> None:
+        if refine:
+            model.refine_initial_speeds(v, obj.weights, obj.scales, fresh=True)
+
+    speeds_for(vec)
+    best = _fit(st, vec, names, max_nfev)
+    speeds = [o.copy() for o in model.speed_offsets]
+    for _ in range(CONVERGE_ROUNDS - 1):
+        speeds_for(best.vector)
+        nxt = _fit(st, best.vector, names, max_nfev)
+        gained = nxt.rss_after < best.rss_after * (1.0 - CONVERGE_RTOL)
+        if nxt.rss_after < best.rss_after:
+            best, speeds = nxt, [o.copy() for o in model.speed_offsets]
+        if not gained:
+            break
+    model.speed_offsets = speeds
+    return best
+
+
 def _base_prior_rows(st: _State, vec: np.ndarray, names: Sequence[str]) -> tuple[dict[str, tuple[float, float]] | None, float]:
     """The base parameters' prior for a fit of ``names`` from ``vec`` (:func:`base_prior` with
     ``st.prior_sigma``) and its weight: the residual's variance per effectively independent sample at
@@ -517,22 +543,8 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
     cur: list[np.ndarray] = [np.zeros(0)]  # the current model's residual vector
 
     def converged(vec: np.ndarray, names: Sequence[str], max_nfev: int) -> FitResult:
-        """Fit ``names`` from ``vec``, the segments' initial speeds refined for each round's start, until a
-        round removes less than :data:`CONVERGE_RTOL` of the RSS (:data:`CONVERGE_ROUNDS` rounds at most).
-        The model is left with the speeds of the best fit, and ``cur`` with its residual."""
-        model = obj.model
-        refine_for(vec)
-        best = _fit(st, vec, names, max_nfev)
-        speeds = [o.copy() for o in model.speed_offsets]
-        for _ in range(CONVERGE_ROUNDS - 1):
-            refine_for(best.vector)
-            nxt = _fit(st, best.vector, names, max_nfev)
-            gained = nxt.rss_after < best.rss_after * (1.0 - CONVERGE_RTOL)
-            if nxt.rss_after < best.rss_after:
-                best, speeds = nxt, [o.copy() for o in model.speed_offsets]
-            if not gained:
-                break
-        model.speed_offsets = speeds
+        """:func:`converged_fit`, ``cur`` left with its residual."""
+        best = converged_fit(st, vec, names, max_nfev, refine)
         cur[0] = best.residual
         return best
     noise_scales = dict(obj.scales)

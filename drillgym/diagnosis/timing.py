@@ -26,9 +26,10 @@ changed linearly between samples (half a sample of shift): on the independent re
 (by 9-15 nats, also with the other one allowed a sub-sample value), while at 500 Hz and 1 kHz it was right
 or a tie on every lag/delay recording of both matrices.  Below that rate the comparison grid's decision
 stands, except that it is stated as a tie when the lag or delay is shorter than one comparison period
-plus one recording period (:func:`resolvable_lag_delay`), or when the input is smooth
-(:func:`input_share_above` below :data:`SMOOTH_INPUT_SHARE` above the upper disc's corner frequency): on
-a ramp a lag and a delay shift the response alike.
+plus one recording period (:func:`resolvable_lag_delay`).  At any rate, the decision is a tie when the input
+is smooth (:func:`input_share_above` below :data:`SMOOTH_INPUT_SHARE` above the upper disc's corner
+frequency): on a ramp a lag and a delay shift the response alike, and a decisive fine-grid gap there is the
+model's error elsewhere (:func:`drillgym.diagnosis.ranking._check_lag_delay`).
 """
 
 from __future__ import annotations
