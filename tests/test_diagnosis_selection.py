@@ -114,7 +114,7 @@ def test_candidate_file_is_a_valid_effect(tmp_path):
 
 
 def test_cli_outside_the_library_candidate_file_halves_the_error(tmp_path):
-    ts = scipy_cubic_string(0.015, duration=20.0, rate_hz=250.0)
+    ts = scipy_cubic_string(0.015, duration=14.0, rate_hz=250.0)
     data = write_timeseries(tmp_path / "rec.csv", ts)
     out = tmp_path / "cand.py"
     r = CliRunner().invoke(app, ["diagnose", str(data), "--json", "--candidate-out", str(out)])
