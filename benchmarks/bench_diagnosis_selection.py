@@ -158,6 +158,8 @@ def build_matrix(seed: int = SEED, quick: bool = False, random_n: int = 0) -> li
 
 def run_case(c: dict) -> dict:
     from bench_diagnosis_rig import rig_recording
+    from scipy.signal import savgol_filter
+
     from drillgym.diagnosis import diagnose
     from drillgym.diagnosis.discovery import discover
     from drillgym.diagnosis.refit import refit
@@ -178,8 +180,6 @@ def run_case(c: dict) -> dict:
             out["skipped"] = dict(d.skipped)
             # the recording's own share of backward rotation (θl differentiated here by a 50 ms
             # Savitzky-Golay filter, not the diagnosis' estimate): a brake asymmetry acts only there
-            from scipy.signal import savgol_filter
-
             th, dt = np.asarray(ts.columns["theta_l"]), 1.0 / c["rate_hz"]
             wl = savgol_filter(th, 2 * int(0.025 / dt) + 1, 2, deriv=1, delta=dt)
             out["backward_share"] = float(np.mean(wl < -BACKWARD_RAD_S))

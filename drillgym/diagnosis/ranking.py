@@ -624,14 +624,15 @@ def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s,
     without_a = _neutralise(st, out["vector"], a)
     model_b = without_a
     dec = decide_lag_delay(exps, comp, {a: out["vector"], b: without_a}, a, obj.weights, segment_s)
+    # the input's share above the upper disc's corner frequency: below SMOOTH_INPUT_SHARE nothing tells them apart
+    corner = float(nominal[comp.param_index("bu")] / (2.0 * math.pi * nominal[comp.param_index("Ju")]))
+    fast = min(input_share_above(ex, corner) for ex in exps)
     if dec is None:
         if out.get("at_bounds") and a not in out["ties"]:
             out["ties"][a] = (f"not told apart from {b}: the base parameters are at a bound of their range "
                               f"({', '.join(out['at_bounds'])}), the model is wrong elsewhere; " + SEPARATES_LAG_DELAY)
         value = float(out["vector"][comp.param_index(by[a].parameters[0].name)])
         shortest = resolvable_lag_delay(exps)
-        corner = float(nominal[comp.param_index("bu")] / (2.0 * math.pi * nominal[comp.param_index("Ju")]))
-        fast = min(input_share_above(ex, corner) for ex in exps)
         if a not in out["ties"] and value < shortest:
             out["ties"][a] = (f"not told apart from {b} at this rate: {1e3 * value:.0f} ms is below what the "
                               f"comparison grid and the recording's own samples resolve ({1e3 * shortest:.0f} ms: one "
@@ -641,8 +642,6 @@ def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s,
                               f"upper disc's corner frequency ({corner:.2f} Hz), and on so smooth an input (ramps) a lag "
                               f"and a delay shift the response alike; " + SEPARATES_LAG_DELAY)
         return None
-    corner = float(nominal[comp.param_index("bu")] / (2.0 * math.pi * nominal[comp.param_index("Ju")]))
-    fast = min(input_share_above(ex, corner) for ex in exps)
     if out.get("at_bounds"):  # a base parameter at the edge of its range: the model is wrong elsewhere
         dec.doubt = f"base parameters at a bound of their range ({', '.join(out['at_bounds'])})"
     elif fast < SMOOTH_INPUT_SHARE:
