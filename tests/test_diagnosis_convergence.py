@@ -43,3 +43,21 @@ def test_converged_fit_reaches_lower_rss_than_one_round_and_leaves_its_speeds():
     r = obj.residual_matrix(full.vector[None, :])[0]
     np.testing.assert_allclose(r @ r, full.rss_after, rtol=1e-9)
     assert CONVERGE_ROUNDS >= 2
+
+
+def test_speeds_kept_restores_the_corrections_a_trial_fit_changed():
+    """A trial fit inside ``speeds_kept`` refines the segment-start speeds; on leaving, the model's speeds (and
+    with them its residual) are those of before, and a snapshot taken inside is an independent copy."""
+    st, vec0, names = _state()
+    model = st.obj.model
+    before = model.speeds_snapshot()
+    r_before = st.obj.residual_matrix(vec0[None, :])[0]
+    with model.speeds_kept():
+        model.refine_initial_speeds(vec0, st.obj.weights, st.obj.scales, fresh=True)
+        inside = model.speeds_snapshot()
+        assert any(np.any(a != b) for a, b in zip(inside, before))  # the trial did change them
+        model.speed_offsets[0][:] += 1.0  # a snapshot is a copy, not a view
+        assert not np.shares_memory(inside[0], model.speed_offsets[0])
+    for a, b in zip(model.speed_offsets, before):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(st.obj.residual_matrix(vec0[None, :])[0], r_before)

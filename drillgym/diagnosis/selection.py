@@ -357,13 +357,13 @@ def converged_fit(st: _State, vec: np.ndarray, names: Sequence[str], max_nfev: i
 
     speeds_for(vec)
     best = _fit(st, vec, names, max_nfev)
-    speeds = [o.copy() for o in model.speed_offsets]
+    speeds = model.speeds_snapshot()
     for _ in range(CONVERGE_ROUNDS - 1):
         speeds_for(best.vector)
         nxt = _fit(st, best.vector, names, max_nfev)
         gained = nxt.rss_after < best.rss_after * (1.0 - CONVERGE_RTOL)
         if nxt.rss_after < best.rss_after:
-            best, speeds = nxt, [o.copy() for o in model.speed_offsets]
+            best, speeds = nxt, model.speeds_snapshot()
         if not gained:
             break
     model.speed_offsets = speeds
@@ -681,11 +681,12 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
         for name in list(st.selected):
             others = [s for s in st.selected if s != name]
             # the model without it fitted to convergence as well: nested models compared each at its optimum
-            speeds_full, res_full = [o.copy() for o in obj.model.speed_offsets], cur[0]
-            without = converged(_neutralise(st, st.vec, name), list(st.base_names) + _effect_params(st, others),
-                                max_nfev_joint)
-            speeds_without = obj.model.speed_offsets
-            obj.model.speed_offsets, cur[0] = speeds_full, res_full
+            res_full = cur[0]
+            with obj.model.speeds_kept():
+                without = converged(_neutralise(st, st.vec, name), list(st.base_names) + _effect_params(st, others),
+                                    max_nfev_joint)
+                speeds_without = obj.model.speeds_snapshot()
+            cur[0] = res_full
             full_fit = st.fit if st.fit is not None else without
             k = len(_effect_params(st, [name]))
             sc, _ = score(without.residual, full_fit, k, n_eff_ref, ch(name), blk)

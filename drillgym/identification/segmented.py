@@ -35,6 +35,8 @@ channels, the offline zero-phase low-pass (:func:`drillgym.measurement.lowpass_z
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
@@ -139,6 +141,20 @@ class SegmentedModel:
         # corrections (rad/s) to the data's speed estimates at each segment start: (n_seg, 2) per experiment
         self.speed_offsets = [np.zeros((len(p["starts"]), 2)) for p in self._plans]
 
+    def speeds_snapshot(self) -> list[np.ndarray]:
+        """A copy of the speed corrections at the segment starts (rad/s, (n_seg, 2) per experiment)."""
+        return [o.copy() for o in self.speed_offsets]
+
+    @contextmanager
+    def speeds_kept(self) -> Iterator[None]:
+        """Within the block the speed corrections may change (a trial fit refines them); on leaving it
+        they are those of its start again."""
+        saved = self.speeds_snapshot()
+        try:
+            yield
+        finally:
+            self.speed_offsets = saved
+
     def refine_initial_speeds(self, vec: np.ndarray, weights: dict[str, float], scales: dict[str, float],
                               iterations: int = 2, h: float = 0.005, fresh: bool = False) -> None:
         """Correct the speeds estimated from the data at the segment starts (nuisance states) by
@@ -202,7 +218,7 @@ class SegmentedModel:
         other = object.__new__(SegmentedModel)
         other.__dict__.update(self.__dict__)
         other._plans = [dict(p) for p in self._plans]
-        other.speed_offsets = [o.copy() for o in self.speed_offsets]
+        other.speed_offsets = self.speeds_snapshot()
         SegmentedModel._set_composition(other, composition)
         return other
 
