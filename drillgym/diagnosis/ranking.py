@@ -481,7 +481,8 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         if refine_speeds:  # speed corrections for the chosen model (the figures below compare it)
             obj.model.refine_initial_speeds(out["vector"], obj.weights, obj.scales, fresh=True)
     before_check = {**out, "vector": out["vector"].copy(), "dropped": dict(out["dropped"]), "ties": dict(out["ties"])}
-    gone = _check_position_effects(out, exps, comp, obj, usable, base_names, segment_s, scales, vec0)
+    checks = _check_position_effects(out, exps, comp, obj, usable, base_names, segment_s, scales, vec0)
+    gone = list(checks)
     if gone:
         # the dropped effect had taken residual that another candidate explains (a friction drift beside a
         # position friction fitted to it): the selection goes on from the remaining set without it
@@ -493,7 +494,12 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
             again["dropped"] = {**out["dropped"], **again["dropped"]}
             again["excluded"] = {**out["excluded"], **again["excluded"]}
             out = again
-        if compensates_dropped(before_check, out):  # the model is kept and the check's doubt stated
+        # the model is kept and the check's doubt stated, when an effect that both halves showed was dropped for
+        # disagreeing (a model wrong elsewhere can make the halves disagree); an effect that one half does not show
+        # at all has no confirmation to lose, and the criterion's choice stands (random seed 1313 #14: a position
+        # friction fitted to one excursion of the disc, in place of the true drift with bb at its bound)
+        disagreed = [n for n in gone if checks[n].shown_in_both]
+        if disagreed and compensates_dropped(before_check, out):
             for n in gone:
                 before_check["ties"][n] = (f"{out['dropped'][n]}; kept because the model without it puts more base "
                                            f"parameters at a bound ({', '.join(out['at_bounds'])}): check with a "
@@ -570,15 +576,15 @@ def compensates_dropped(kept: dict, replacement: dict) -> bool:
 
 
 def _check_position_effects(out: dict, exps, comp, obj, effects, base_names, segment_s, scales, nominal
-                            ) -> list[str]:
-    """Drop a selected position-dependent effect whose parameters differ between the two halves of the
-    recording (:mod:`.reproducibility`), and refit the rest of the final model without it (in place).
-    Returns the names dropped."""
-    from .reproducibility import POSITION_NEEDS, halves_agree
+                            ) -> "dict[str, HalfAgreement]":
+    """Drop a selected position-dependent effect that is not the same in the two halves of the recording
+    (:mod:`.reproducibility`: one half does not show it, or their parameters differ), and refit the rest of
+    the final model without it (in place).  Returns the checks of the effects dropped, by name."""
+    from .reproducibility import POSITION_NEEDS, HalfAgreement, halves_agree
     from .selection import _effect_params, _fit, _neutralise, _State
 
     by = {e.name: e for e in effects}
-    gone: list[str] = []
+    gone: dict[str, HalfAgreement] = {}
     for name in list(out["selected"]):
         eff = by.get(name)
         if eff is None or POSITION_NEEDS not in eff.needs:
@@ -597,7 +603,7 @@ def _check_position_effects(out: dict, exps, comp, obj, effects, base_names, seg
         out["selected"] = rest
         out["dropped"][name] = check.note()
         out["vector"], out["fit"], out["rss_final"] = refit.vector, refit, refit.rss_after
-        gone.append(name)
+        gone[name] = check
     return gone
 
 
@@ -705,9 +711,9 @@ def _own_base(st, out: dict, a: str, b: str, without_a: np.ndarray, free_base) -
         out["vector"][comp.param_index(st.effects[a].parameters[0].name)])
     rest = [b if e == a else e for e in out["selected"]]
     model = st.obj.model
-    speeds = [o.copy() for o in model.speed_offsets]
-    fitted = converged_fit(st, start, list(free_base) + _effect_params(st, rest), 15, refine=bool(speeds))
-    model.speed_offsets = speeds
+    with model.speeds_kept():
+        fitted = converged_fit(st, start, list(free_base) + _effect_params(st, rest), 15,
+                               refine=bool(model.speed_offsets))
     return fitted.vector
 
 
