@@ -12,6 +12,7 @@ import pytest
 
 from drillgym.io import read_timeseries
 from hw.emulator import RigEmulator
+from hw.firmware import FirmwareConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 LEARNED = ROOT / "agents" / "policies" / "torsional_motor_learned"
@@ -36,7 +37,8 @@ def test_what_train_writes_is_taken_as_a_trained_agent(tmp_path) -> None:
 
 def test_kept_learned_policy_runs_on_the_emulated_rig(tmp_path, what: str = "policy.npz") -> None:
     rec = tmp_path / "run.csv"
-    with RigEmulator("torsional", dt=5e-3) as emu:
+    # behaviour, not timing: a relaxed watchdog (the host's reply timeout follows it, up to 1 s) for a loaded machine
+    with RigEmulator("torsional", dt=5e-3, firmware=FirmwareConfig(watchdog_s=2.0)) as emu:
         code, out, err = _run("rig", "run", "--port", emu.port, "--policy", str(LEARNED / what), "--omega-ref", "4.0",
                               "--duration", "1.0", "--record", str(rec), "--no-realtime")
     assert code == 0, (out, err)
