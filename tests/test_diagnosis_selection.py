@@ -442,6 +442,42 @@ def test_shortest_lag_or_delay_told_apart_without_the_fine_check():
     assert resolvable_lag_delay([slow, fast]) == pytest.approx(0.025, rel=1e-3)  # the slowest decides
 
 
+def test_the_common_torque_scale_is_divided_out_and_a_lag_tried_on_the_rescaled_base_only_when_it_is_off():
+    """The common scale of the torque and inertia parameters (Ju the other way) is removed with their ratios kept;
+    the lag is tried again only on a base moved beyond a few percent with that scale off by > 2 %."""
+    import numpy as np
+
+    from drillgym.diagnosis.ranking import _lag_from_rescaled_base
+    from drillgym.diagnosis.selection import base_free_parameters, torque_scale_removed
+    from drillgym.configurations import parse_configuration
+
+    cands = [LIBRARY[n] for n in ("motor_lag", "string_damping")]
+    comp = search_composition(BASE, cands)
+    nominal = comp.vector(RigParams(), neutral_values(cands))
+    names = base_free_parameters(parse_configuration("torsional"))
+    scaled = nominal.copy()
+    torque = [n for n in ("km", "Tcu", "bu", "ktheta", "Jl", "Ts", "Tc", "bb") if n in names]
+    for n, f in zip(torque, (0.98, 0.92, 0.92, 0.945, 0.945, 0.88, 0.945, 0.88)):  # 1515 #14's valley
+        scaled[comp.param_index(n)] *= f
+    scaled[comp.param_index("ws")] *= 1.05  # a speed, not a torque: kept
+    back, g = torque_scale_removed(scaled, nominal, comp, names)
+    assert g == pytest.approx(np.exp(np.mean(np.log([0.98, 0.92, 0.92, 0.945, 0.945, 0.88, 0.945, 0.88]))))
+    ratio = {n: back[comp.param_index(n)] / nominal[comp.param_index(n)] for n in torque}
+    assert np.exp(np.mean(np.log(list(ratio.values())))) == pytest.approx(1.0)
+    assert ratio["km"] / ratio["Ts"] == pytest.approx(0.98 / 0.88)  # the ratios to each other kept
+    assert back[comp.param_index("ws")] == scaled[comp.param_index("ws")]
+    assert torque_scale_removed(scaled, nominal, comp, ())[1] == 1.0  # base held: nothing to divide out
+
+    kept = {"selected": ["string_damping"], "vector": scaled, "base_off": True, "at_bounds": ["Ts", "bb"]}
+    call = (None, comp, nominal, cands, names, 2, 4, False)  # returns before any fit in these cases
+    assert _lag_from_rescaled_base({**kept, "selected": ["motor_lag"]}, *call) is None  # a lag is in already
+    assert _lag_from_rescaled_base({**kept, "base_off": False}, *call) is None
+    assert _lag_from_rescaled_base(kept, call[0], comp, nominal, cands[1:], *call[4:]) is None  # no lag candidate
+    even = nominal.copy()
+    even[comp.param_index("Ts")] *= 0.88  # one parameter at its bound, the common scale 1.6 % off
+    assert _lag_from_rescaled_base({**kept, "vector": even}, *call) is None
+
+
 def test_km_and_bu_moved_alike_are_named_as_a_possible_motor_lag():
     from drillgym.diagnosis.selection import _slow_motor_warning
 

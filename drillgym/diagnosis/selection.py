@@ -88,7 +88,8 @@ from .starts import search_points
 
 __all__ = ["BASE_FREE", "SENSORS", "balance_sensors", "neutral_values", "search_composition", "SelectionStep",
            "forward_select", "base_free_parameters", "SIGNIFICANCE", "MIN_REDUCTION", "MIN_EXPLAINED", "TIE_NATS",
-           "SEPARATES_LAG_DELAY", "MOVED_PCT", "SELECTION_DT", "selection_model", "converged_fit"]
+           "SEPARATES_LAG_DELAY", "MOVED_PCT", "SELECTION_DT", "selection_model", "converged_fit",
+           "best_effect_start", "torque_scale_removed"]
 
 #: simulator step bound (s) of the selection's fits, RK4 (as simulate, 1.3x faster than DP5), the input's
 #: samples on step boundaries (:func:`~drillgym.identification.segmented.steps_per_sample`; 4 ms at
@@ -244,15 +245,38 @@ def _variables(st: _State, vec: np.ndarray, names: Sequence[str], fresh: Sequenc
     return out
 
 
-def _best_start(st: _State, vec: np.ndarray, name: str) -> np.ndarray:
-    """``vec`` with effect ``name``'s parameters at the best of its :func:`.starts.search_points` (the
+def best_effect_start(obj: Objective, comp: Composition, vec: np.ndarray, effect: type[Effect]) -> np.ndarray:
+    """``vec`` with ``effect``'s parameters at the best of its :func:`.starts.search_points` (the
     lowest residual sum of squares, all evaluated in one batch): where its fit starts."""
-    idx = [st.comp.param_index(p.name) for p in st.effects[name].parameters]
-    rows = search_points(st.effects[name])
+    idx = [comp.param_index(p.name) for p in effect.parameters]
+    rows = search_points(effect)
     P = np.repeat(vec[None, :], len(rows), axis=0)
     P[:, idx] = rows
-    R = st.obj.residual_matrix(P)
+    R = obj.residual_matrix(P)
     return P[int(np.argmin(np.einsum("ij,ij->i", R, R)))].copy()
+
+
+def _best_start(st: _State, vec: np.ndarray, name: str) -> np.ndarray:
+    return best_effect_start(st.obj, st.comp, vec, st.effects[name])
+
+
+#: the torque and inertia parameters: all scaled alike, the model is the one with Ju (held) scaled the other way
+_TORQUE_SCALE = ("km", "Tcu", "bu", "ktheta", "Jl", "Ts", "Tc", "bb", "Tcl", "bl")
+
+
+def torque_scale_removed(vec: np.ndarray, nominal: np.ndarray, comp: Composition, base_names: Sequence[str]
+                         ) -> tuple[np.ndarray, float]:
+    """``vec`` with the common scale of its free torque and inertia parameters divided out (their geometric
+    mean ratio to ``nominal`` set to 1, their ratios to each other kept), and that scale.  The scale is the
+    upper disc's inertia Ju (held) the other way: a larger Ju makes the upper disc slower, as a motor lag
+    does, so a base fitted without the lag can settle there and screen the lag from a valley that hides it."""
+    idx = [comp.param_index(n) for n in _TORQUE_SCALE if n in base_names]
+    out = vec.copy()
+    if not idx:
+        return out, 1.0
+    g = float(np.exp(np.mean(np.log(vec[idx] / nominal[idx]))))
+    out[idx] = vec[idx] / g
+    return out, g
 
 
 def _masked_groups(st: _State, screen: dict[str, FitResult], order: Sequence[str], rss_cur: float, n_group: int,
@@ -464,9 +488,6 @@ def _significant(sc: float, rss0: float, rss1: float, n: int, r0: "np.ndarray | 
         if math.sqrt(q1) < (1 - MIN_REDUCTION) * math.sqrt(q0) and explained(m) > MIN_EXPLAINED:
             return True
     return False
-
-
-_TORQUE_SCALE = ("km", "Tcu", "bu", "ktheta", "Jl", "Ts", "Tc", "bb", "Tcl", "bl")
 
 
 def _scale_warning(moved: dict[str, dict[str, float]]) -> list[str]:
