@@ -442,7 +442,7 @@ def test_shortest_lag_or_delay_told_apart_without_the_fine_check():
     assert resolvable_lag_delay([slow, fast]) == pytest.approx(0.025, rel=1e-3)  # the slowest decides
 
 
-def test_the_common_torque_scale_is_divided_out_and_a_lag_tried_on_the_rescaled_base_only_when_it_is_off():
+def test_the_common_torque_scale_is_divided_out_and_a_lag_tried_on_the_rescaled_base_only_when_it_is_off(monkeypatch):
     """The common scale of the torque and inertia parameters (Ju the other way) is removed with their ratios kept;
     the lag is tried again only when that scale is more than 5 % below 1 (a slower upper disc, as a lag makes it)."""
     import numpy as np
@@ -480,6 +480,15 @@ def test_the_common_torque_scale_is_divided_out_and_a_lag_tried_on_the_rescaled_
     for n in torque:
         faster[comp.param_index(n)] *= 1.08  # every torque 8 % high: Ju smaller, the upper disc faster, not a lag
     assert _lag_from_rescaled_base({**kept, "vector": faster}, *call) is None
+
+    # the valley itself (common scale 0.93): the selection runs again from the rescaled base, the lag accepted first
+    import drillgym.diagnosis.selection as selection
+
+    seen = {}
+    monkeypatch.setattr(selection, "best_effect_start", lambda obj, comp_, vec, effect: vec)
+    monkeypatch.setattr(selection, "forward_select", lambda *a, **k: seen.update(k) or {"selected": k["initial"]})
+    assert _lag_from_rescaled_base(kept, *call) == {"selected": ["string_damping", "motor_lag"]}
+    np.testing.assert_allclose(seen["start"], back)
 
 
 def test_km_and_bu_moved_alike_are_named_as_a_possible_motor_lag():
