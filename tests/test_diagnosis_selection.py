@@ -350,8 +350,8 @@ def test_each_sensor_is_weighted_by_its_own_misfit():
 
 
 def test_noise_floor_is_in_noise_units_when_sensors_are_weighted():
-    """A y residual cut from 0.9 to 0.5 units (one unit = 3 noise units: the LVDTs' misfit) explains
-    5.0 noise units², above the floor of 1; read as noise units it would be 0.56, below it."""
+    """A y residual cut from 1.35 to 1.05 units (one unit = 3 noise units: the LVDTs' misfit) explains
+    6.5 noise units², above the floor of 1; read as noise units it would be 0.72, below it."""
     import numpy as np
 
     from drillgym.diagnosis.selection import _significant
@@ -360,12 +360,37 @@ def test_noise_floor_is_in_noise_units_when_sensors_are_weighted():
     n = 3000
     e = rng.standard_normal(n)
     e /= np.sqrt(np.mean(e ** 2))
-    r0, r1 = np.concatenate([e, 0.9 * e]), np.concatenate([e, 0.5 * e])
+    r0, r1 = np.concatenate([e, 1.35 * e]), np.concatenate([e, 1.05 * e])
     channels = np.repeat([0, 1], n)
     unit = np.concatenate([np.full(n, 5.0), np.full(n, 3.0)])
     args = (100.0, float(r0 @ r0), float(r1 @ r1), 2 * n, r0, r1, channels)
     assert not _significant(*args)
     assert _significant(*args, unit)
+
+
+def test_noise_floor_follows_a_residual_already_below_one_noise_unit():
+    """The noise unit is a prior (an encoder count / sqrt 12, 10 um on an LVDT).  A model that leaves less
+    than one unit shows finer sensors: the floor is then what it leaves.  A coupled recording's motor lag
+    (0.86 -> 0.48 units, 92 nats) was refused by the fixed floor of one unit²; a cut that explains less
+    than what remains (0.9 -> 0.7) is still refused, and above one unit the floor stays one unit²."""
+    import numpy as np
+
+    from drillgym.diagnosis.selection import MIN_EXPLAINED, _significant, noise_floor
+
+    assert noise_floor(0.23) == pytest.approx(0.23) and noise_floor(4.0) == MIN_EXPLAINED
+    rng = np.random.default_rng(3)
+    n = 4000
+    e = rng.standard_normal(n)
+    e /= np.sqrt(np.mean(e ** 2))
+
+    def sig(a: float, b: float) -> bool:
+        r0, r1 = a * e, b * e
+        return _significant(92.0, float(r0 @ r0), float(r1 @ r1), n, r0, r1, np.zeros(n, int))
+
+    assert sig(0.86, 0.48)  # explains 0.51 units², leaves 0.23
+    assert not sig(0.9, 0.7)  # explains 0.32, leaves 0.49: within what remains
+    assert not sig(1.5, 1.15)  # 23 % cut, explains 0.93 < 1 unit² with more than one unit left
+    assert sig(1.5, 1.0)
 
 
 def test_lvdt_skew_and_lateral_friction_found_on_an_independent_rig():
