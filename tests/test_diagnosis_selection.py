@@ -516,6 +516,51 @@ def test_the_common_torque_scale_is_divided_out_and_a_lag_tried_on_the_rescaled_
     np.testing.assert_allclose(seen["start"], back)
 
 
+def test_union_of_the_search_orders_is_tried_only_when_no_order_selected_it(monkeypatch):
+    """Two orders each with a stand-in (1616 #15: damping + skew, and damping + lag + anisotropy): the union is
+    fitted from the kept model with each missing effect at the values of the order that found it, and the
+    backward check runs on all of it.  Orders that agree, or one whose set is the union, start nothing."""
+    import numpy as np
+
+    import drillgym.diagnosis.selection as selection
+    from drillgym.configurations import parse_configuration
+    from drillgym.diagnosis.ranking import _union_of_paths, union_start
+    from drillgym.diagnosis.selection import base_free_parameters
+
+    cands = [LIBRARY[n] for n in ("string_damping", "lvdt_skew", "motor_lag", "lateral_anisotropy")]
+    comp = search_composition(BASE, cands)
+    nominal = comp.vector(RigParams(), neutral_values(cands))
+    names = base_free_parameters(parse_configuration("coupled"))
+
+    def model(selected, **values):
+        v = nominal.copy()
+        for k, x in values.items():
+            v[comp.param_index(k)] = x
+        return {"selected": selected, "vector": v}
+
+    kept = model(["string_damping", "motor_lag", "lateral_anisotropy"], dtheta=0.007, tau_m=0.03, dk=90.0, b=1.1)
+    other = model(["string_damping", "lvdt_skew"], dtheta=0.005, lvdt_skew=0.04)
+    got = union_start(kept, [kept, other], comp, cands)
+    assert got is not None
+    order, start = got
+    assert order == ["string_damping", "motor_lag", "lateral_anisotropy", "lvdt_skew"]
+    assert start[comp.param_index("lvdt_skew")] == 0.04  # from the order that found it
+    assert start[comp.param_index("dtheta")] == 0.007 and start[comp.param_index("tau_m")] == 0.03  # the kept's
+    assert start[comp.param_index("dk")] == 90.0 and start[comp.param_index("b")] == 1.1
+
+    assert union_start(kept, [kept, model(["motor_lag"])], comp, cands) is None  # the union is the kept set
+    assert union_start(kept, [kept, kept], comp, cands) is None
+    assert union_start(model([]), [model([]), model([])], comp, cands) is None  # nothing selected anywhere
+    call = (None, comp, nominal, cands, names, 2, 4, False)
+    assert _union_of_paths(kept, [kept, other], None, comp, nominal, cands, (), 2, 4, False) is None  # base held
+
+    seen = {}
+    monkeypatch.setattr(selection, "forward_select", lambda *a, **k: seen.update(k) or {"selected": k["initial"]})
+    assert _union_of_paths(kept, [kept, other], *call)["selected"] == order
+    np.testing.assert_allclose(seen["start"], start)
+    assert seen["max_effects"] == 4
+
+
 def test_km_and_bu_moved_alike_are_named_as_a_possible_motor_lag():
     from drillgym.diagnosis.selection import _slow_motor_warning
 
