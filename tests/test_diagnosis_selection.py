@@ -549,6 +549,14 @@ def test_union_of_the_search_orders_is_tried_only_when_no_order_selected_it(monk
     assert start[comp.param_index("dk")] == 90.0 and start[comp.param_index("b")] == 1.1
 
     assert union_start(kept, [kept, model(["motor_lag"])], comp, cands) is None  # the union is the kept set
+    # a delay beside the kept lag is its near-alias, decided by the lag/delay checks: nothing new
+    delay = [LIBRARY["input_delay"]]
+    comp_d = search_composition(BASE, cands + delay)
+    lag_kept = {"selected": ["string_damping", "motor_lag"], "vector": comp_d.vector(RigParams(), neutral_values(cands + delay))}
+    with_delay = {**lag_kept, "selected": ["string_damping", "input_delay", "lvdt_skew"]}
+    assert union_start(lag_kept, [lag_kept, {**lag_kept, "selected": ["input_delay"]}], comp_d, cands + delay) is None
+    assert union_start(lag_kept, [lag_kept, with_delay], comp_d, cands + delay)[0] == [
+        "string_damping", "motor_lag", "lvdt_skew"]
     assert union_start(kept, [kept, kept], comp, cands) is None
     assert union_start(model([]), [model([]), model([])], comp, cands) is None  # nothing selected anywhere
     call = (None, comp, nominal, cands, names, 2, 4, False)

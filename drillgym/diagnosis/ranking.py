@@ -483,7 +483,10 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         if rescaled is not None:
             paths["lag_on_rescaled_base"] = list(rescaled["selected"]) + [f"bound:{n}" for n in rescaled["at_bounds"]]
             out = _better(out, rescaled, usable, base_names, bounds=True, comp=comp, nominal=vec0)
-        results = [r for r in (base_first, first, alt, mapped, rescaled) if r is not None]
+        # the effects-first order on the nominal base counts through its continuation with the base freed
+        # (alt): what that continuation dropped, the base explains (1313 #7: a position friction in the
+        # nominal order only, the union run for nothing, 311 s with two diagnoses sharing the cores)
+        results = [r for r in (base_first, alt, mapped, rescaled) if r is not None]
         union = _union_of_paths(out, results, obj, comp, vec0, usable, base_names, n_joint, max_effects,
                                 refine_speeds)
         if union is not None:
@@ -607,9 +610,15 @@ def union_start(kept: dict, results: Sequence[dict], comp: Composition, effects:
                 ) -> tuple[list[str], np.ndarray] | None:
     """The union of the effects the search orders selected, and a start for it: the kept model's vector with
     each effect it lacks at the values of the first order that selected it (all orders share the search
-    model's layout).  None when the union is the set of one of the orders (nothing new to try)."""
+    model's layout); of a motor lag and an input delay, only the one met first.  None when the union is the
+    set of one of the orders (nothing new to try)."""
     sets = [set(r["selected"]) for r in results]
-    order = list(dict.fromkeys(n for r in [kept, *results] for n in r["selected"]))
+    order: list[str] = []
+    for n in (n for r in [kept, *results] for n in r["selected"]):
+        # a motor lag and an input delay are near-aliases, told apart by their own checks
+        # (:func:`_check_lag_delay`): the union holds the one met first (the kept model's)
+        if n not in order and not (n in _LAG_DELAY_SWAP and any(m in _LAG_DELAY_SWAP for m in order)):
+            order.append(n)
     if not order or any(set(order) == s for s in sets):
         return None
     by = {e.name: e for e in effects}
@@ -630,7 +639,8 @@ def _union_of_paths(kept: dict, results: Sequence[dict], obj: Objective, comp: C
     """Backward elimination from the union of what the search orders selected, when no order selected that
     union (:func:`union_start`): the union fitted jointly with the base parameters from the kept model, then
     the selection's backward check drops each effect that the others and the base explain.  Forward orders
-    can each take a stand-in for one effect and miss another (random seed 1616 #15, an LVDT skew, string
+    can each take a stand-in for one effect and miss another (``results``: the orders with the base parameters
+    free; random seed 1616 #15, an LVDT skew, string
     damping and a motor lag with Jl +7 %: one order found damping + skew with the lag absorbed by the base,
     another damping + lag + a lateral anisotropy in the skew's place with b at its bound); from the union
     the stand-in is what the backward check removes.  The caller keeps the better model by the criterion."""
