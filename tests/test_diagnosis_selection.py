@@ -558,6 +558,8 @@ def test_union_of_the_search_orders_is_tried_only_when_no_order_selected_it(monk
     assert union_start(lag_kept, [lag_kept, with_delay], comp_d, cands + delay)[0] == [
         "string_damping", "motor_lag", "lvdt_skew"]
     assert union_start(kept, [kept, kept], comp, cands) is None
+    # the kept model (the effects-first order, not among the base-freed ones) holds the union: nothing new
+    assert union_start(kept, [model(["motor_lag"]), model(["string_damping"])], comp, cands) is None
     assert union_start(model([]), [model([]), model([])], comp, cands) is None  # nothing selected anywhere
     call = (None, comp, nominal, cands, names, 2, 4, False)
     assert _union_of_paths(kept, [kept, other], None, comp, nominal, cands, (), 2, 4, False) is None  # base held

@@ -611,8 +611,8 @@ def union_start(kept: dict, results: Sequence[dict], comp: Composition, effects:
     """The union of the effects the search orders selected, and a start for it: the kept model's vector with
     each effect it lacks at the values of the first order that selected it (all orders share the search
     model's layout); of a motor lag and an input delay, only the one met first.  None when the union is the
-    set of one of the orders (nothing new to try)."""
-    sets = [set(r["selected"]) for r in results]
+    set of the kept model or of one of the orders (nothing new to try)."""
+    sets = [set(r["selected"]) for r in [kept, *results]]
     order: list[str] = []
     for n in (n for r in [kept, *results] for n in r["selected"]):
         # a motor lag and an input delay are near-aliases, told apart by their own checks
