@@ -61,7 +61,10 @@ model a few percent off leaves a residual that some effect partly mimics.  Here:
    base parameters freed alongside those effects (the backward check drops what the base explains);
    of the final models the one with the lower N_eff ln RSS + k ln N_eff is kept (one N_eff for both),
    except that effects the freed base parameters made insignificant (within their range, none at a
-   bound) are a base mismatch: the nominal order's model is then not taken.
+   bound) are a base mismatch: the nominal order's model is then not taken.  When no order (with the
+   base parameters freed) selected the union of what they selected, the union is fitted and reduced by
+   the backward check, and the criterion chooses again (:func:`drillgym.diagnosis.ranking._union_of_paths`:
+   each order can take a stand-in for one effect and miss another).
 
 Screening fits also start from the nominal base parameters (with the effects accepted so far), and
 standard errors are inflated by √(N / N_eff) (least squares assumes independent residuals).
