@@ -82,6 +82,9 @@ def test_link_fault_detected_motor_stopped_recording_intact(tmp_path, fault, err
             except _HostStarved:
                 env.close()
                 continue
+            if not emu.fault_times:  # a link error before the planned fault: a late reply, the host starved
+                env.close()
+                continue
             assert isinstance(exc, error) and message in str(exc) and "recording kept up to the fault" in str(exc)
             (kind, t_fault), = emu.fault_times.items()
             time.sleep(0.15)
