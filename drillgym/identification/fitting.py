@@ -139,8 +139,8 @@ class Objective:
         parts = []
         for k, meas in enumerate(self._meas):
             for c, m in meas.items():
-                e = (outputs[k][c] - m)[:, 1:] * (self.weights[c] / self.scales[c])
-                e = e[~np.isnan(m[:, 1:])]
+                valid = ~np.isnan(m[:, 1:])
+                e = (outputs[k][c][:, 1:][valid] - m[:, 1:][valid]) * (self.weights[c] / self.scales[c])
                 parts.append(np.nan_to_num(e, nan=1e6, posinf=1e6, neginf=-1e6))
         return np.concatenate(parts)
 

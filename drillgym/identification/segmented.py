@@ -369,11 +369,10 @@ class SegmentedModel:
         if not self._sim.has_delay:
             return np.zeros((n, 1)), np.full(n, -1, dtype=np.int64)
         Ld = self._sim.delay_line_length(rows, dt)
-        H = np.empty((n, Ld))
         back = np.arange(-Ld, 0)
-        for i in range(n):
-            s = starts[i % ns] * rec
-            H[i] = drive[i // ns, np.clip(s + back, 0, None)]
+        idx = np.clip(np.asarray(starts)[:, None] * rec + back[None, :], 0, None)  # (ns, Ld) grid indices
+        lane = np.arange(n)
+        H = drive[(lane // ns)[:, None], idx[lane % ns]]  # lane i: its row's drive before its segment
         return H, np.full(n, Ld - 1, dtype=np.int64)
 
     def _effect_states(self, ex: Experiment, plan: dict, S: np.ndarray, drive: np.ndarray,
@@ -417,7 +416,7 @@ class SegmentedModel:
             # the SIMD lane kernel, chunks over the cores (as simulate_batch): the coupled diagnose of
             # benchmarks/bench_diagnose_time.py took 71 s instead of 100 s
             if Y.shape[0] >= LANES_MIN_BATCH:
-                OUT = np.full((n_rec, len(sim.output_names), Y.shape[0]), np.nan)
+                OUT = np.empty((n_rec, len(sim.output_names), Y.shape[0]))  # the kernel writes every entry
                 run_lanes(sim.kernels.lanes.lanes_run, Y, MODE, U, rows, int(config), float(dt), int(rec), OUT,
                           int(n_steps), True, HIST, HEAD, T0, None, None, (A, b, c))
                 OUT = OUT.transpose(2, 0, 1)
