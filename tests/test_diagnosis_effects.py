@@ -54,6 +54,19 @@ def test_no_hidden_effect_nothing_significant():
     assert "no effect of the library" in d.text()
 
 
+def test_one_at_a_time_ranking_keeps_the_noise_floor_without_false_alarms():
+    """`rank_effects` (each candidate alone against the model) counts the noise floor as the selection does
+    (one noise unit², or what the model with the effect leaves when that is less): on an exact-model
+    recording no candidate passes, with a hidden string damping that one does, and ranks first."""
+    from drillgym.diagnosis.ranking import rank_effects
+
+    clean = rank_effects(_measure("torsional", 1.0))
+    assert [s.effect for s in clean.ranking if s.significant] == [], clean.text()
+    hidden = rank_effects(_measure("torsional", 1.0, "string_damping", dtheta=0.01),
+                          effects=["string_damping", "friction_drift", "motor_lag"])
+    assert hidden.ranking[0].effect == "string_damping" and hidden.ranking[0].significant, hidden.text()
+
+
 def test_an_effect_the_data_cannot_show_stays_neutral_in_the_one_search_model():
     """At a constant 3 V the lower disc never turns backwards: the brake asymmetry is not a candidate,
     but it stays in the search model at its neutral values (the kernels skip it), so every torsional

@@ -392,6 +392,12 @@ def test_noise_floor_follows_a_residual_already_below_one_noise_unit():
     assert not sig(1.5, 1.15)  # 23 % cut, explains 0.93 < 1 unit² with more than one unit left
     assert sig(1.5, 1.0)
 
+    def pooled_only(a: float, b: float) -> bool:  # a fit that carries no residual vector: the same floor
+        return _significant(92.0, a * a * n, b * b * n, n)
+
+    assert pooled_only(0.86, 0.48) and pooled_only(1.5, 1.0)
+    assert not pooled_only(0.9, 0.7) and not pooled_only(1.5, 1.15)
+
 
 def test_lvdt_skew_and_lateral_friction_found_on_an_independent_rig():
     """An independent rig (scipy, smoothed friction: benchmarks/bench_diagnosis_rig.py) leaves the encoders

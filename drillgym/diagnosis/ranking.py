@@ -17,9 +17,10 @@ error are far from independent; counting them all would make every effect
 by differentiation) are first refined for the base model, so that their
 noise is not taken for a missing effect.  An effect is *significant* when its score exceeds
 ``SIGNIFICANCE``, it removes at least ``MIN_REDUCTION`` of the residual RMS,
-and the variance it explains exceeds the measurement noise (``MIN_EXPLAINED``;
-residuals are in noise units, see :func:`.segments.robust_noise`): a model that
-already fits to the noise level has nothing missing to find.
+and the variance it explains exceeds the measurement noise (one noise unit², or what the model with it
+leaves when that is less: :func:`.selection.noise_floor`, as the selection counts it; residuals are in
+noise units, see :func:`.segments.robust_noise`): a model that already fits to the noise level has nothing
+missing to find.
 
 Conditioning (:mod:`.segments`): the noise units and the speed-noise limits
 of the refinement come from the encoder count read robustly (interpolation
@@ -55,7 +56,6 @@ __all__ = ["EffectScore", "Diagnosis", "diagnose", "rank_effects", "default_weig
 
 SIGNIFICANCE = 15.0  # score (nats) above which an effect counts as found
 MIN_REDUCTION = 0.25  # fraction of the residual RMS an effect must remove to count
-MIN_EXPLAINED = 1.0  # residual variance (noise units²) an effect must explain: above the noise floor
 BASE_PRIOR_SIGMA = 0.05  # relative spread of the base parameters around MODEL.md's values (the prior of _better)
 TIE_NATS = 2.0  # significant effects whose scores differ by less (or by < 2 %) are reported as indistinguishable
 
@@ -271,6 +271,8 @@ def rank_effects(data: "TimeSeries | Experiment | Sequence[Experiment]", params:
             upper stage for 'upper', brake law for 'torsional'/'coupled', lateral stage for
             'lateral'), so that a slightly wrong base set is not taken for a missing effect.
     """
+    from .selection import noise_floor
+
     base = params or RigParams()
     comp0, values0 = compose(base_effects, effect_params)
     if isinstance(data, TimeSeries):
@@ -354,7 +356,7 @@ def rank_effects(data: "TimeSeries | Experiment | Sequence[Experiment]", params:
         score = n_eff * math.log(rss0 / rss1) - k * math.log(n_eff) if rss0 > 0 else 0.0
         rmse1 = math.sqrt(rss1 / N)
         sig = (score > SIGNIFICANCE and rmse1 < (1 - MIN_REDUCTION) * rmse0
-               and rmse0 ** 2 - rmse1 ** 2 > MIN_EXPLAINED)
+               and rmse0 ** 2 - rmse1 ** 2 > noise_floor(rmse1 ** 2))
         scores.append(EffectScore(name, score, rmse0, rmse1, dict(res.values), dict(res.std), res.channel_rms or {},
                                   " ".join(eff.signature.split()), sig))
     scores.sort(key=lambda s: -s.score)

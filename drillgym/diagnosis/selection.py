@@ -483,7 +483,7 @@ def _significant(sc: float, rss0: float, rss1: float, n: int, r0: "np.ndarray | 
         return power(r0, m) - left > noise_floor(left)
 
     rm0, rm1 = math.sqrt(rss0 / n), math.sqrt(rss1 / n)
-    pooled = above_noise(slice(None)) if have else rm0 ** 2 - rm1 ** 2 > MIN_EXPLAINED
+    pooled = above_noise(slice(None)) if have else rm0 ** 2 - rm1 ** 2 > noise_floor(rm1 ** 2)
     if rm1 < (1 - MIN_REDUCTION) * rm0 and pooled:
         return True
     if not have or channels is None or len(r0) != len(channels):
