@@ -773,3 +773,29 @@ def test_base_prior_prefers_the_effect_to_a_base_moved_far_when_both_fit_alike()
     assert _better(sel(["friction_drift", "string_damping"], 3000.0, far), lag, cands, base_names, comp=comp,
                    nominal=nominal)["rss_final"] == 3000.0
 
+
+
+def test_a_smooth_input_warns_that_a_lag_or_delay_hides_in_the_motor_side_parameters():
+    """On a ramp of slope s a delay d is the voltage offset -s d, which the upper friction takes (an independent
+    rig's 23 ms delay on 20 s of ramps at 200 Hz: nothing selected, Tcu -10.9 %): the diagnosis says so when the
+    input is smooth, no lag or delay was selected and a motor-side parameter moved; not otherwise."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from drillgym.diagnosis.ranking import _smooth_input_warning
+    from drillgym.effects import compose
+
+    comp = compose(None)[0]
+    nominal = comp.vector(None)
+    t = np.arange(0.0, 20.0, 0.005)
+    ramps = SimpleNamespace(u_time=t, u_value=1.3 + 1.5 * np.interp(t, [0, 5, 10, 15, 20], [0, 1, -0.5, 0.8, 0]))
+    steps = SimpleNamespace(u_time=t, u_value=1.3 + 1.5 * np.sign(np.sin(2 * np.pi * t / 3.0)))
+    tcu = {"Tcu": {"nominal": 0.38, "fitted": 0.338, "change_pct": -10.9}}
+
+    warned = _smooth_input_warning([ramps], comp, nominal, {"moved": tcu, "selected": ["friction_drift"]})
+    assert len(warned) == 1 and "Tcu -10.9 %" in warned[0] and "voltage steps" in warned[0]
+    assert _smooth_input_warning([steps], comp, nominal, {"moved": tcu, "selected": ["friction_drift"]}) == []
+    assert _smooth_input_warning([ramps], comp, nominal, {"moved": tcu, "selected": ["input_delay"]}) == []
+    assert _smooth_input_warning([ramps], comp, nominal, {"moved": {"Ts": {"change_pct": 5.0}},
+                                                          "selected": []}) == []

@@ -568,6 +568,7 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
                       if out.get("at_bounds") else []),
                   rmse_after=math.sqrt(out["rss_final"] / N), composition=comp, vector=vec,
                   params=RigParams.from_vector(vec[:N_PARAMS]))
+    d.warnings += _smooth_input_warning(exps, comp, vec0, out)
     d.paths = paths
     d.sensor_misfit = sensor_misfit
     d.lag_delay = fine.to_json() if fine is not None else None
@@ -577,6 +578,28 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
 
 
 _LAG_DELAY_SWAP = ("motor_lag", "input_delay")
+#: motor-side parameters a lag or delay on a smooth input is taken for (a constant voltage offset per ramp)
+_MOTOR_SIDE = ("Tcu", "km", "bu")
+
+
+def _smooth_input_warning(exps: Sequence[Experiment], comp: Composition, nominal: np.ndarray, out: dict) -> list[str]:
+    """A warning when the input is smooth (ramps), neither a motor lag nor an input delay was selected, and the
+    motor side's base parameters moved: on a ramp of slope s, a delay d (or a lag of time constant d) is the
+    voltage offset −s·d, which the upper friction Tcu (and km, bu) take as well.  Seen on an independent rig:
+    a 23 ms delay on 20 s of ramps at 200 Hz, selected nothing, Tcu −10.9 %."""
+    from .timing import LAG_DELAY, SMOOTH_INPUT_SHARE, input_share_above
+
+    moved = {n: v["change_pct"] for n, v in out["moved"].items() if n in _MOTOR_SIDE}
+    if not moved or any(e in out["selected"] for e in LAG_DELAY):
+        return []
+    corner = float(nominal[comp.param_index("bu")] / (2.0 * math.pi * nominal[comp.param_index("Ju")]))
+    fast = min(input_share_above(ex, corner) for ex in exps)
+    if fast >= SMOOTH_INPUT_SHARE:
+        return []
+    what = ", ".join(f"{n} {c:+.1f} %" for n, c in moved.items())
+    return [f"the input is smooth ({100 * fast:.2f} % of its variance above the upper disc's corner frequency, "
+            f"{corner:.2f} Hz): a motor lag or input delay acts on it as a constant voltage offset per ramp and cannot "
+            f"be told from the motor-side parameters that moved ({what}); a recording with voltage steps separates them"]
 #: how far below 1 the common scale of the torque and inertia parameters must be (one standard deviation of the
 #: base prior, :data:`BASE_PRIOR_SIGMA`) for a motor lag to be tried again on the base with that scale divided
 #: out (:func:`_lag_from_rescaled_base`)
