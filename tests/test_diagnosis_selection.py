@@ -774,7 +774,6 @@ def test_base_prior_prefers_the_effect_to_a_base_moved_far_when_both_fit_alike()
                    nominal=nominal)["rss_final"] == 3000.0
 
 
-
 def test_a_smooth_input_warns_that_a_lag_or_delay_hides_in_the_motor_side_parameters():
     """On a ramp of slope s a delay d is the voltage offset -s d, which the upper friction takes (an independent
     rig's 23 ms delay on 20 s of ramps at 200 Hz: nothing selected, Tcu -10.9 %): the diagnosis says so when the

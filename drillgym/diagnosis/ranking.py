@@ -587,19 +587,29 @@ def _smooth_input_warning(exps: Sequence[Experiment], comp: Composition, nominal
     motor side's base parameters moved: on a ramp of slope s, a delay d (or a lag of time constant d) is the
     voltage offset −s·d, which the upper friction Tcu (and km, bu) take as well.  Seen on an independent rig:
     a 23 ms delay on 20 s of ramps at 200 Hz, selected nothing, Tcu −10.9 %."""
-    from .timing import LAG_DELAY, SMOOTH_INPUT_SHARE, input_share_above
+    from .timing import LAG_DELAY, SMOOTH_INPUT_SHARE
 
     moved = {n: v["change_pct"] for n, v in out["moved"].items() if n in _MOTOR_SIDE}
     if not moved or any(e in out["selected"] for e in LAG_DELAY):
         return []
-    corner = float(nominal[comp.param_index("bu")] / (2.0 * math.pi * nominal[comp.param_index("Ju")]))
-    fast = min(input_share_above(ex, corner) for ex in exps)
+    corner, fast = _share_above_corner(exps, comp, nominal)
     if fast >= SMOOTH_INPUT_SHARE:
         return []
     what = ", ".join(f"{n} {c:+.1f} %" for n, c in moved.items())
     return [f"the input is smooth ({100 * fast:.2f} % of its variance above the upper disc's corner frequency, "
             f"{corner:.2f} Hz): a motor lag or input delay acts on it as a constant voltage offset per ramp and cannot "
             f"be told from the motor-side parameters that moved ({what}); a recording with voltage steps separates them"]
+
+
+def _share_above_corner(exps: Sequence[Experiment], comp: Composition, nominal: np.ndarray) -> tuple[float, float]:
+    """The upper disc's corner frequency bu / (2π Ju) (Hz) of the ``nominal`` vector, and the smallest share of
+    the recordings' input variance above it (:func:`.timing.input_share_above`): how smooth the input is."""
+    from .timing import input_share_above
+
+    corner = float(nominal[comp.param_index("bu")] / (2.0 * math.pi * nominal[comp.param_index("Ju")]))
+    return corner, min(input_share_above(ex, corner) for ex in exps)
+
+
 #: how far below 1 the common scale of the torque and inertia parameters must be (one standard deviation of the
 #: base prior, :data:`BASE_PRIOR_SIGMA`) for a motor lag to be tried again on the base with that scale divided
 #: out (:func:`_lag_from_rescaled_base`)
@@ -733,7 +743,7 @@ def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s,
     (:func:`_check_against_nominal_base`).  Returns the
     :class:`.timing.FineDecision` or None (no lag/delay selected, or no finer data)."""
     from .selection import SEPARATES_LAG_DELAY, _effect_params, _fit, _neutralise, _State
-    from .timing import LAG_DELAY, SMOOTH_INPUT_SHARE, decide_lag_delay, input_share_above, resolvable_lag_delay
+    from .timing import LAG_DELAY, SMOOTH_INPUT_SHARE, decide_lag_delay, resolvable_lag_delay
 
     by = {e.name: e for e in effects}
     held = [e for e in out["selected"] if e in LAG_DELAY]
@@ -747,8 +757,7 @@ def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s,
     model_b = without_a
     dec = decide_lag_delay(exps, comp, {a: out["vector"], b: without_a}, a, obj.weights, segment_s)
     # the input's share above the upper disc's corner frequency: below SMOOTH_INPUT_SHARE nothing tells them apart
-    corner = float(nominal[comp.param_index("bu")] / (2.0 * math.pi * nominal[comp.param_index("Ju")]))
-    fast = min(input_share_above(ex, corner) for ex in exps)
+    corner, fast = _share_above_corner(exps, comp, nominal)
     if dec is None:
         if out.get("at_bounds") and a not in out["ties"]:
             out["ties"][a] = (f"not told apart from {b}: the base parameters are at a bound of their range "
