@@ -39,6 +39,11 @@ InputLike = Union[float, Sequence[float], np.ndarray, tuple, Callable[[np.ndarra
 ParamsLike = Union[RigParams, Sequence[RigParams], np.ndarray, None]
 DEFAULT_SMOOTH_EPS = 1e-3  # rad/s, for friction="smooth"
 LANES_MIN_BATCH = 8  # batches at least this large use the SIMD lane kernel (fixed-step tableau, exact friction)
+#: lanes per iteration of the lane kernel's widest vectorised loop (LLVM unrolls some loops to four vectors
+#: of 8 doubles with AVX-512).  Lanes past a loop's last whole iteration run its remainder loop: 2.5 times
+#: slower per lane when scalar, and rounded differently (a lane's last bits then depended on the batch
+#: size and the number of cores; 16-lane blocks still did).  :func:`run_lanes` pads every chunk to whole blocks.
+LANE_BLOCK = 32
 
 
 def initial_state(alpha0: float = 0.0, theta_u0: float = 0.0, omega_u0: float = 0.0, omega_l0: float = 0.0,
@@ -252,26 +257,57 @@ def _optional(COLS: np.ndarray | None, USTEP: np.ndarray | None, n_out: int) -> 
     return (np.arange(n_out, dtype=np.int64) if COLS is None else COLS, USTEP)
 
 
+def lane_chunks(n_lanes: int, parallel: bool) -> list[tuple[int, int, int]]:
+    """(first lane, end lane, padded width) of each chunk of a lane-kernel call: whole blocks of
+    LANE_BLOCK lanes, as evenly as possible over the cores (one chunk unless parallel); the last chunk's
+    width is its lanes rounded up to whole blocks.  Every lane then runs the vectorised loop body, so a lane's
+    result does not depend on the batch size, its place in it or the number of cores."""
+    blocks = -(-n_lanes // LANE_BLOCK)
+    n_chunks = min(os.cpu_count() or 1, blocks) if parallel else 1
+    per = -(-blocks // n_chunks) * LANE_BLOCK
+    ends = [min(lo + per, n_lanes) for lo in range(0, n_lanes, per)]
+    return [(lo, hi, -(-(hi - lo) // LANE_BLOCK) * LANE_BLOCK) for lo, hi in zip(range(0, n_lanes, per), ends)]
+
+
+def _padded(a: np.ndarray, width: int, axis: int = 0) -> np.ndarray:
+    """a with its last lane (along axis) repeated up to width lanes; a itself when already that wide."""
+    n = a.shape[axis]
+    if n == width:
+        return a
+    pad = [(0, 0)] * a.ndim
+    pad[axis] = (0, width - n)
+    return np.ascontiguousarray(np.pad(a, pad, mode="edge"))
+
+
 def run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, parallel, HIST, HEAD, T0, COLS,
               USTEP, tab):
     """The SIMD lane kernel over the batch; with parallel, one chunk per core in threads (nogil).
     OUT is sample-major, (n_samples, n_columns, B); ``tab`` the fixed-step tableau (A, b, c).
+    Chunks are whole blocks of LANE_BLOCK lanes (:func:`lane_chunks`): a short chunk is padded with
+    copies of its last lane, run, and its real lanes copied back (Y, MODE, friction, delay lines, OUT).
     Used by :func:`simulate_batch` and the segmented simulation of the identification."""
-    n_chunks = min(os.cpu_count() or 1, max(1, Y.shape[0] // LANES_MIN_BATCH)) if parallel else 1
-    bounds = np.linspace(0, Y.shape[0], n_chunks + 1).astype(int)
+    chunks = lane_chunks(Y.shape[0], parallel)
     FR = np.zeros((Y.shape[0], 2))
 
-    def run(i):
-        s = slice(bounds[i], bounds[i + 1])
-        args = (Y[s], MODE[s], U[s], P[s], cfg, dt, T0[s].copy(), record_every, OUT[:, :, s], n_steps, True, FR[s],
-                HIST[s], HEAD[s], *tab)
-        lanes_run(*args, *_optional(COLS, USTEP, OUT.shape[1]))
+    def run(lo, hi, width):
+        s = slice(lo, hi)
+        if hi - lo == width:
+            lanes_run(Y[s], MODE[s], U[s], P[s], cfg, dt, T0[s].copy(), record_every, OUT[:, :, s], n_steps, True,
+                      FR[s], HIST[s], HEAD[s], *tab, *_optional(COLS, USTEP, OUT.shape[1]))
+            return
+        Yp, MODEp, FRp, HISTp, HEADp = (_padded(a[s], width) for a in (Y, MODE, FR, HIST, HEAD))
+        OUTp = np.empty(OUT.shape[:2] + (width,))
+        lanes_run(Yp, MODEp, _padded(U[s], width), _padded(P[s], width), cfg, dt, _padded(T0[s], width).copy(),
+                  record_every, OUTp, n_steps, True, FRp, HISTp, HEADp, *tab, *_optional(COLS, USTEP, OUT.shape[1]))
+        n = hi - lo
+        Y[s], MODE[s], FR[s], HIST[s], HEAD[s] = Yp[:n], MODEp[:n], FRp[:n], HISTp[:n], HEADp[:n]
+        OUT[:, :, s] = OUTp[:, :, :n]
 
-    if n_chunks == 1:
-        run(0)
+    if len(chunks) == 1:
+        run(*chunks[0])
     else:
-        with ThreadPoolExecutor(n_chunks) as pool:
-            list(pool.map(run, range(n_chunks)))
+        with ThreadPoolExecutor(len(chunks)) as pool:
+            list(pool.map(lambda c: run(*c), chunks))
 
 
 def _initial_states(comp: Composition, B: int, x0: Any, alpha0: Any) -> np.ndarray:
