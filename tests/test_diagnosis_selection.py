@@ -798,3 +798,29 @@ def test_a_smooth_input_warns_that_a_lag_or_delay_hides_in_the_motor_side_parame
     assert _smooth_input_warning([ramps], comp, nominal, {"moved": tcu, "selected": ["input_delay"]}) == []
     assert _smooth_input_warning([ramps], comp, nominal, {"moved": {"Ts": {"change_pct": 5.0}},
                                                           "selected": []}) == []
+
+
+def test_fits_run_in_parallel_come_back_in_order_with_their_errors():
+    """The selection runs a round's independent fits on two threads: results in the jobs' order, a fit's
+    ValueError returned in its place (the selection excludes that candidate), other errors raised."""
+    import threading
+    import time
+
+    from drillgym.diagnosis.selection import _in_parallel
+
+    threads = set()
+
+    def job(i):
+        def run():
+            threads.add(threading.get_ident())
+            time.sleep(0.05 * (3 - i))  # the first job finishes last
+            if i == 1:
+                raise ValueError("no fit")
+            return i * 10
+        return run
+
+    out = _in_parallel([job(i) for i in range(3)])
+    assert out[0] == 0 and out[2] == 20 and isinstance(out[1], ValueError) and str(out[1]) == "no fit"
+    assert len(threads) == 2
+    with pytest.raises(ZeroDivisionError):
+        _in_parallel([lambda: 1, lambda: 1 / 0])

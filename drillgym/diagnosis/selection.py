@@ -74,6 +74,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, Iterator, Sequence
 
@@ -337,6 +338,27 @@ def selection_model(exps: Sequence[Experiment], segment_s: float | None, comp: C
     if segment_s is not None:
         place_segment_starts(model)
     return model
+
+
+def _in_parallel(jobs: Sequence[Any]) -> list[Any]:
+    """Each job's result (or the ValueError it raised), in the jobs' order, run on two threads: the fits of
+    one selection round are independent (the model is only read), and the kernels release the GIL, so one
+    fit's simulation runs while another's Python runs.  The results are those of the jobs run one after
+    the other: a lane's result does not depend on the batch it runs in (:data:`drillgym.simulator.LANE_BLOCK`).
+    The warnings the fits silence are silenced around the pool too (``warnings.catch_warnings`` is not
+    thread-safe: the threads' own restore the filters in any order)."""
+    def run(job):
+        try:
+            return job()
+        except ValueError as exc:
+            return exc
+
+    if len(jobs) < 2:
+        return [run(j) for j in jobs]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with ThreadPoolExecutor(2) as pool:
+            return list(pool.map(run, jobs))
 
 
 def _fit(st: _State, vec: np.ndarray, names: Sequence[str], max_nfev: int, fresh: Sequence[str] = ()) -> FitResult:
@@ -628,33 +650,31 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
                 for n in st.base_names:
                     nom[st.comp.param_index(n)] = st.nominal[st.comp.param_index(n)]
                 starts.append(nom)
-            for name, eff in st.effects.items():
-                if name in st.selected:
+            tasks = [(name, v) for name in st.effects if name not in st.selected for v in starts]
+            fits = _in_parallel([lambda name=name, v=v: _fit(st, _best_start(st, v, name), _effect_params(st, [name]),
+                                                             max_nfev_screen) for name, v in tasks])
+            for (name, _), r_ in zip(tasks, fits):
+                if isinstance(r_, ValueError):
+                    excluded[name] = f"fit failed: {r_}"
                     continue
-                for v in starts:
-                    try:
-                        r_ = _fit(st, _best_start(st, v, name), _effect_params(st, [name]), max_nfev_screen)
-                    except ValueError as exc:
-                        excluded[name] = f"fit failed: {exc}"
-                        continue
-                    if name not in screen or r_.rss_after < screen[name].rss_after:
-                        screen[name] = r_
+                if name not in screen or r_.rss_after < screen[name].rss_after:
+                    screen[name] = r_
             if not screen:
                 break
             order = sorted(screen, key=lambda n: screen[n].rss_after)
             round_: dict[str, SelectionStep] = {}
             joint: dict[str, FitResult] = {}
+            joint_fits = dict(zip(order[:n_joint], _in_parallel(
+                [lambda name=name: _fit(st, screen[name].vector, free_now + _effect_params(st, [name]), max_nfev_joint)
+                 for name in order[:n_joint]])))
             for name in order:
                 res = screen[name]
                 k = len(res.names)
-                if name in order[:n_joint]:
-                    try:
-                        jr = _fit(st, res.vector, free_now + _effect_params(st, [name]), max_nfev_joint)
-                        if jr.rss_after < res.rss_after:
-                            res = jr
-                        joint[name] = res
-                    except ValueError:
-                        pass
+                jr = joint_fits.get(name)
+                if jr is not None and not isinstance(jr, ValueError):
+                    if jr.rss_after < res.rss_after:
+                        res = jr
+                    joint[name] = res
                 if res.rss_after > rss_cur:  # the effect at its neutral values: nothing explained
                     res.rss_after, res.residual = rss_cur, cur[0].copy()
                 sc, ne = score(cur[0], res, k, n_eff_ref, ch(name), blk)

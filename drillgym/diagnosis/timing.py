@@ -35,6 +35,7 @@ model's error elsewhere (:func:`drillgym.diagnosis.ranking._check_lag_delay`).
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Mapping, Sequence
 
@@ -239,8 +240,15 @@ def decide_lag_delay(exps: Sequence[Experiment], comp, models: Mapping[str, np.n
     b = LAG_DELAY[1 - LAG_DELAY.index(a)]
     par = {e: get_effect(e).parameters[0].name for e in LAG_DELAY}  # tau_m, delay
     hi = max(SEARCH_SPAN * max(float(models[e][comp.param_index(par[e])]) for e in LAG_DELAY), SEARCH_MIN_S)
-    va, ra = _best_value(obj, comp, models[a], par[a], hi)
-    vb, rb = _best_value(obj, comp, models[b], par[b], hi)
+    # the two searches are independent: each on its own copy of the segmented model (the segments' initial
+    # speeds are refined per point), in two threads; the kernels release the GIL, so one search's simulation
+    # runs while the other's Python runs.  A lane's result does not depend on the batch it runs in
+    # (:data:`drillgym.simulator.LANE_BLOCK`), so this gives the values of the two searches run one after the other
+    obj_b = Objective(model.with_composition(comp), weights, scales)
+    with ThreadPoolExecutor(2) as pool:
+        search_a = pool.submit(_best_value, obj, comp, models[a], par[a], hi)
+        search_b = pool.submit(_best_value, obj_b, comp, models[b], par[b], hi)
+        (va, ra), (vb, rb) = search_a.result(), search_b.result()
     ne = min(effective_samples(ra, obj.block_ids), effective_samples(rb, obj.block_ids))
     gap = ne * math.log(max(float(rb @ rb), 1e-300) / max(float(ra @ ra), 1e-300))
     values = {a: va, b: vb}
