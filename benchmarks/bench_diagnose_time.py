@@ -12,7 +12,13 @@ kernels of compositions no earlier call used, the second shows the steady cost.
    effects (position_friction + lvdt_offset + friction_drift), base parameters off by 4-5 %: the
    slowest kind of the selection benchmark's matrix.
 
-    .venv/bin/python benchmarks/bench_diagnose_time.py [--out DIR]
+``--combos``: instead, random combinations of the selection benchmark's matrix
+(``bench_diagnosis_selection.build_matrix(seed, random_n=16)``, case ``i``; recordings of the
+independent rig, 2-3 effects, base parameters off in some) made 60 s long at 1 kHz, each diagnosed once,
+with the verdict of that benchmark (right / a stated lag-delay tie / WRONG).  ``--combos default``: six
+cases, four coupled (1616 #3, 404 #5, 606 #7, 1818 #2, 1818 #9, 1919 #4), the set of stop 40's figures.
+
+    .venv/bin/python benchmarks/bench_diagnose_time.py [--out DIR] [--combos default|SEED:I,SEED:I,...]
 """
 
 from __future__ import annotations
@@ -59,9 +65,36 @@ def _diagnose(path: Path) -> tuple[float, dict]:
     return wall, json.loads(p.stdout[p.stdout.index("{"):])
 
 
+DEFAULT_COMBOS = "1616:3,404:5,606:7,1818:2,1818:9,1919:4"
+
+
+def _combos(spec: str, out: Path) -> None:
+    """Time one diagnose per random combination SEED:I made 60 s long at 1 kHz; print the verdict."""
+    from bench_diagnosis_rig import rig_recording
+    from bench_diagnosis_selection import build_matrix, verdict
+
+    total = 0.0
+    for item in (DEFAULT_COMBOS if spec == "default" else spec).split(","):
+        seed, i = (int(x) for x in item.split(":"))
+        c = dict(build_matrix(seed=seed, random_n=16)[i], duration=DUR, rate_hz=RATE)
+        ts = rig_recording(c["config"], c["signal"], DUR, RATE, c["seed"], c["effects"], c["scale"], c["offset"],
+                           c["amplitude"])
+        path = write_timeseries(out / f"combo_{seed}_{i}.csv", ts)
+        wall, res = _diagnose(path)
+        total += wall
+        # as the selection benchmark: a selected effect with a note (a stated tie) may be its lag/delay partner
+        ties = {s["effect"]: s["note"] for s in res.get("ranking", []) if s.get("note") and s["effect"] in res["selected"]}
+        v = verdict({**c, "error": None, "selected": res["selected"], "ties": ties})
+        print(f"  {seed:>5} #{i:<2} {c['config']:<9} {c['signal']:<12} {wall:6.1f} s (goal <= 60 s)  {v:<5} "
+              f"true {sorted(c['effects'])} -> {res['selected']}")
+    print(f"  total {total:.1f} s")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=None, help="keep the recordings here (default: a temporary dir)")
+    ap.add_argument("--combos", default=None, help="time random combinations SEED:I,... made 60 s long ('default': "
+                    "six); see the module docstring")
     args = ap.parse_args()
     out = args.out or Path(tempfile.mkdtemp(prefix="bench_diagnose_"))
     out.mkdir(parents=True, exist_ok=True)
@@ -70,6 +103,9 @@ def main() -> None:
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from bench_diagnosis_rig import rig_recording
 
+    if args.combos:
+        _combos(args.combos, out)
+        return
     recordings = {name: synthetic_measurement(kw["config"], kw.get("params"), duration=DUR, rate_hz=RATE,
                                               **{k: v for k, v in kw.items() if k not in ("config", "params")})
                   for name, kw in CASES.items()}
