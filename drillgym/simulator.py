@@ -544,14 +544,37 @@ class BatchSimulator:
         if not np.all(np.isfinite(uu)):
             raise ValueError("voltage is NaN or inf")
         if self._lanes and n_steps > 0:
-            self.kernels.lanes.lanes_run(self.Y, self.MODE, uu[:, None], self.P, int(self.config), self.dt, self.T, 1,
-                                         self._no_record, int(n_steps), False, self.FRIC, self.HIST, self.HEAD,
-                                         *self._tab)
+            self._advance_lanes(uu, int(n_steps))
             self.T += int(n_steps) * self.dt
             return
         A, b, c = self._tab
         self.kernels.stepping.advance_batch(self.Y, self.MODE, uu, self.P, int(self.config), self.dt, int(n_steps),
                                             self.T, self._eps, A, b, c, self.FRIC, self.HIST, self.HEAD)
+
+    def _advance_lanes(self, uu: np.ndarray, n_steps: int) -> None:
+        """The lane kernel on whole blocks of LANE_BLOCK lanes, as :func:`run_lanes`: the trajectories past the
+        last whole block run beside copies of the last one, so every lane takes the vectorised loop bodies and a
+        trajectory does not depend on how many are stepped with it."""
+        run = self.kernels.lanes.lanes_run
+        n = self.n
+        width = -(-n // LANE_BLOCK) * LANE_BLOCK
+        if width == n:
+            run(self.Y, self.MODE, uu[:, None], self.P, int(self.config), self.dt, self.T, 1, self._no_record, n_steps,
+                False, self.FRIC, self.HIST, self.HEAD, *self._tab)
+            return
+        arrays = (self.Y, self.MODE, uu[:, None], self.P, self.T, self.FRIC, self.HIST, self.HEAD)
+        pad = self.__dict__.get("_pad")
+        if pad is None or any(b.shape[1:] != a.shape[1:] for a, b in zip(arrays, pad)):
+            pad = self._pad = [np.empty((width,) + a.shape[1:], dtype=a.dtype) for a in arrays]
+            self._no_record_padded = np.zeros(self._no_record.shape[:2] + (width,))
+        for a, b in zip(arrays, pad):
+            b[:n] = a
+            b[n:] = a[n - 1]
+        Yp, MODEp, Up, Pp, Tp, FRICp, HISTp, HEADp = pad
+        run(Yp, MODEp, Up, Pp, int(self.config), self.dt, Tp, 1, self._no_record_padded, n_steps, False, FRICp, HISTp,
+            HEADp, *self._tab)
+        self.Y[:], self.MODE[:], self.FRIC[:], self.HIST[:], self.HEAD[:] = Yp[:n], MODEp[:n], FRICp[:n], HISTp[:n], \
+            HEADp[:n]
 
     def kernel_args(self, u: np.ndarray, n_steps: int) -> tuple:
         """Arguments of the composition's compiled ``stepping.advance_batch`` for holding ``u``

@@ -8,6 +8,7 @@ import pytest
 
 import drillgym.envs  # noqa: F401 - registers the simulated envs
 import hw
+import hw.env  # noqa: F401 - hw.env.HardwareEnv below (not imported by the package itself)
 from drillgym.io import read_timeseries
 from drillgym.measurement import counts_to_angle
 from drillgym.params import RigParams
@@ -178,7 +179,7 @@ def test_an_episode_ends_with_a_stop_the_firmware_acknowledged_or_says_it_was_no
     """end_episode waits for the ACK of its EMERGENCY_STOP (retrying): when it returns acknowledged the
     firmware is at 0 V; a dead firmware is reported (the watchdog is then the motor's only stop)."""
     with RigEmulator("torsional", dt=5e-3, firmware=RELAXED) as emu:
-        env = hw.env.HardwareEnv(emu.port, record=tmp_path, reply_timeout=0.05)
+        env = hw.env.HardwareEnv(emu.port, record=tmp_path, reply_timeout=0.5)  # generous: a starved CI host (a 50 ms timeout failed under load)
         env.reset(seed=0)
         env.step(np.array([0.5], dtype=np.float32))
         env.end_episode()
