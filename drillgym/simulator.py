@@ -257,26 +257,32 @@ def _optional(COLS: np.ndarray | None, USTEP: np.ndarray | None, n_out: int) -> 
     return (np.arange(n_out, dtype=np.int64) if COLS is None else COLS, USTEP)
 
 
+def block_width(n_lanes: int) -> int:
+    """n_lanes rounded up to whole blocks of LANE_BLOCK lanes."""
+    return -(-n_lanes // LANE_BLOCK) * LANE_BLOCK
+
+
 def lane_chunks(n_lanes: int, parallel: bool) -> list[tuple[int, int, int]]:
     """(first lane, end lane, padded width) of each chunk of a lane-kernel call: whole blocks of
     LANE_BLOCK lanes, as evenly as possible over the cores (one chunk unless parallel); the last chunk's
     width is its lanes rounded up to whole blocks.  Every lane then runs the vectorised loop body, so a lane's
     result does not depend on the batch size, its place in it or the number of cores."""
-    blocks = -(-n_lanes // LANE_BLOCK)
+    blocks = block_width(n_lanes) // LANE_BLOCK
     n_chunks = min(os.cpu_count() or 1, blocks) if parallel else 1
     per = -(-blocks // n_chunks) * LANE_BLOCK
-    ends = [min(lo + per, n_lanes) for lo in range(0, n_lanes, per)]
-    return [(lo, hi, -(-(hi - lo) // LANE_BLOCK) * LANE_BLOCK) for lo, hi in zip(range(0, n_lanes, per), ends)]
+    return [(lo, min(lo + per, n_lanes), block_width(min(lo + per, n_lanes) - lo)) for lo in range(0, n_lanes, per)]
 
 
-def _padded(a: np.ndarray, width: int, axis: int = 0) -> np.ndarray:
-    """a with its last lane (along axis) repeated up to width lanes; a itself when already that wide."""
-    n = a.shape[axis]
-    if n == width:
-        return a
-    pad = [(0, 0)] * a.ndim
-    pad[axis] = (0, width - n)
-    return np.ascontiguousarray(np.pad(a, pad, mode="edge"))
+def pad_lanes(arrays: Sequence[np.ndarray], width: int, out: "list[np.ndarray] | None" = None) -> list[np.ndarray]:
+    """Each array (lanes along axis 0) in a buffer of ``width`` lanes, its last lane repeated into the rest;
+    ``out``: buffers to reuse (all new when missing or one is of another shape)."""
+    if out is None or any(b.shape != (width,) + a.shape[1:] for a, b in zip(arrays, out)):
+        out = [np.empty((width,) + a.shape[1:], dtype=a.dtype) for a in arrays]
+    for a, b in zip(arrays, out):
+        n = a.shape[0]
+        b[:n] = a
+        b[n:] = a[n - 1]
+    return out
 
 
 def run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, parallel, HIST, HEAD, T0, COLS,
@@ -295,10 +301,10 @@ def run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, par
             lanes_run(Y[s], MODE[s], U[s], P[s], cfg, dt, T0[s].copy(), record_every, OUT[:, :, s], n_steps, True,
                       FR[s], HIST[s], HEAD[s], *tab, *_optional(COLS, USTEP, OUT.shape[1]))
             return
-        Yp, MODEp, FRp, HISTp, HEADp = (_padded(a[s], width) for a in (Y, MODE, FR, HIST, HEAD))
+        Yp, MODEp, Up, Pp, Tp, FRp, HISTp, HEADp = pad_lanes([a[s] for a in (Y, MODE, U, P, T0, FR, HIST, HEAD)], width)
         OUTp = np.empty(OUT.shape[:2] + (width,))
-        lanes_run(Yp, MODEp, _padded(U[s], width), _padded(P[s], width), cfg, dt, _padded(T0[s], width).copy(),
-                  record_every, OUTp, n_steps, True, FRp, HISTp, HEADp, *tab, *_optional(COLS, USTEP, OUT.shape[1]))
+        lanes_run(Yp, MODEp, Up, Pp, cfg, dt, Tp, record_every, OUTp, n_steps, True, FRp, HISTp, HEADp, *tab,
+                  *_optional(COLS, USTEP, OUT.shape[1]))
         n = hi - lo
         Y[s], MODE[s], FR[s], HIST[s], HEAD[s] = Yp[:n], MODEp[:n], FRp[:n], HISTp[:n], HEADp[:n]
         OUT[:, :, s] = OUTp[:, :, :n]
@@ -500,7 +506,9 @@ class BatchSimulator:
         self.T = np.zeros(self.n)
         self.FRIC = np.zeros((self.n, 2))
         self.HIST, self.HEAD = _delay_lines(self.composition, self.P, self.dt)
-        self._no_record = np.zeros((0, len(self.composition.output_names), self.n))  # sample-major, no samples
+        # sample-major, no samples; as many lanes as the lane kernel runs (whole blocks: :meth:`_advance_lanes`)
+        self._no_record = np.zeros((0, len(self.composition.output_names), block_width(self.n)))
+        self._pad: list[np.ndarray] | None = None  # the lane kernel's padded buffers, reused
         self._lanes = self.n >= LANES_MIN_BATCH and self._eps == 0.0
 
     def set_params(self, params: ParamsLike, index: "int | np.ndarray | slice | None" = None) -> None:
@@ -555,26 +563,16 @@ class BatchSimulator:
         """The lane kernel on whole blocks of LANE_BLOCK lanes, as :func:`run_lanes`: the trajectories past the
         last whole block run beside copies of the last one, so every lane takes the vectorised loop bodies and a
         trajectory does not depend on how many are stepped with it."""
-        run = self.kernels.lanes.lanes_run
-        n = self.n
-        width = -(-n // LANE_BLOCK) * LANE_BLOCK
-        if width == n:
-            run(self.Y, self.MODE, uu[:, None], self.P, int(self.config), self.dt, self.T, 1, self._no_record, n_steps,
-                False, self.FRIC, self.HIST, self.HEAD, *self._tab)
-            return
-        arrays = (self.Y, self.MODE, uu[:, None], self.P, self.T, self.FRIC, self.HIST, self.HEAD)
-        pad = self.__dict__.get("_pad")
-        if pad is None or any(b.shape[1:] != a.shape[1:] for a, b in zip(arrays, pad)):
-            pad = self._pad = [np.empty((width,) + a.shape[1:], dtype=a.dtype) for a in arrays]
-            self._no_record_padded = np.zeros(self._no_record.shape[:2] + (width,))
-        for a, b in zip(arrays, pad):
-            b[:n] = a
-            b[n:] = a[n - 1]
-        Yp, MODEp, Up, Pp, Tp, FRICp, HISTp, HEADp = pad
-        run(Yp, MODEp, Up, Pp, int(self.config), self.dt, Tp, 1, self._no_record_padded, n_steps, False, FRICp, HISTp,
-            HEADp, *self._tab)
-        self.Y[:], self.MODE[:], self.FRIC[:], self.HIST[:], self.HEAD[:] = Yp[:n], MODEp[:n], FRICp[:n], HISTp[:n], \
-            HEADp[:n]
+        n, width = self.n, self._no_record.shape[2]
+        arrays = [self.Y, self.MODE, uu[:, None], self.P, self.T, self.FRIC, self.HIST, self.HEAD]
+        if width != n:
+            self._pad = arrays = pad_lanes(arrays, width, self._pad)
+        Y, MODE, U, P, T, FRIC, HIST, HEAD = arrays
+        self.kernels.lanes.lanes_run(Y, MODE, U, P, int(self.config), self.dt, T, 1, self._no_record, n_steps, False,
+                                     FRIC, HIST, HEAD, *self._tab)
+        if width != n:
+            self.Y[:], self.MODE[:], self.FRIC[:], self.HIST[:], self.HEAD[:] = Y[:n], MODE[:n], FRIC[:n], HIST[:n], \
+                HEAD[:n]
 
     def kernel_args(self, u: np.ndarray, n_steps: int) -> tuple:
         """Arguments of the composition's compiled ``stepping.advance_batch`` for holding ``u``
