@@ -157,7 +157,7 @@ def test_host_safety_layer_clamps_slews_and_stops(tmp_path, eventually):
 
 
 def test_measurement_helper_and_bad_options(tmp_path):
-    with RigEmulator("torsional", dt=5e-3) as emu:
+    with RigEmulator("torsional", dt=5e-3, firmware=RELAXED) as emu:
         with pytest.raises(ValueError, match="do not apply to the hardware"):
             hw.env.HardwareEnv(emu.port, params=RigParams())
         with pytest.raises(ValueError, match="effects"):  # hidden effects belong to the rig, not the host
@@ -166,7 +166,7 @@ def test_measurement_helper_and_bad_options(tmp_path):
             hw.env.HardwareEnv(emu.port, control_dt=0.0123)
         with pytest.raises(FileNotFoundError, match="does not exist"):
             hw.env.HardwareEnv(str(tmp_path / "no-such-port"))
-        env = hw.env.HardwareEnv(emu.port, record=tmp_path)
+        env = hw.env.HardwareEnv(emu.port, record=tmp_path, reply_timeout=REPLY)  # a 50 ms timeout failed in CI
         _, info = env.reset(seed=0)
         m = measurement_of(info)
         assert set(m) == {"t", "theta_u", "theta_l", "x", "y", "omega_ref"} and m["t"] == 0.0
@@ -179,7 +179,7 @@ def test_an_episode_ends_with_a_stop_the_firmware_acknowledged_or_says_it_was_no
     """end_episode waits for the ACK of its EMERGENCY_STOP (retrying): when it returns acknowledged the
     firmware is at 0 V; a dead firmware is reported (the watchdog is then the motor's only stop)."""
     with RigEmulator("torsional", dt=5e-3, firmware=RELAXED) as emu:
-        env = hw.env.HardwareEnv(emu.port, record=tmp_path, reply_timeout=0.5)  # generous: a starved CI host (a 50 ms timeout failed under load)
+        env = hw.env.HardwareEnv(emu.port, record=tmp_path, reply_timeout=REPLY)
         env.reset(seed=0)
         env.step(np.array([0.5], dtype=np.float32))
         env.end_episode()
