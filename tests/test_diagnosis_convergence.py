@@ -12,7 +12,7 @@ from drillgym.diagnosis.selection import (CONVERGE_ROUNDS, _fit, _State, base_fr
                                           search_composition, selection_model)
 from drillgym.effects import compose
 from drillgym.identification.experiment import prepare_experiment
-from drillgym.identification.fitting import Objective, base_vector
+from drillgym.identification.fitting import Objective, _SpeedVariables, base_vector
 from drillgym.identification.synthetic import synthetic_measurement
 
 
@@ -43,6 +43,32 @@ def test_converged_fit_reaches_lower_rss_than_one_round_and_leaves_its_speeds():
     r = obj.residual_matrix(full.vector[None, :])[0]
     np.testing.assert_allclose(r @ r, full.rss_after, rtol=1e-9)
     assert CONVERGE_ROUNDS >= 2
+    # the speeds were fitted with the parameters, each within three standard deviations of its estimate's noise
+    ex = obj.model.experiments[0]
+    for k, j, c, limit in obj.model.speed_variables():
+        assert abs(obj.model.speed_offsets[k][j, c]) <= limit * (1 + 1e-12)
+        assert limit == 3.0 * ex.speed_noise[("omega_u", "omega_l")[c]]
+
+
+def test_each_speed_column_is_its_own_segments_sensitivity():
+    """The joint fit's Jacobian columns for the segment-start speeds come from two batched rows (every
+    segment's ω_u, then ω_l, raised): each column equals the finite difference of raising that one segment's
+    speed alone, and is zero outside its segment."""
+    st, vec0, _ = _state()
+    obj, h = st.obj, 0.005
+    model = obj.model
+    sv = _SpeedVariables(obj)
+    assert sv.count >= len(model.segments(0)[0])  # the upper disc turns at every start (the lower one may stick)
+    r0 = obj.residual_matrix(vec0[None, :])[0]
+    D = (obj.residual_matrix(np.repeat(vec0[None, :], 2, axis=0), dspeed=np.diag([h, h])) - r0) / h
+    J = sv.columns(D)
+    for i in (0, 1, sv.count // 2, sv.count - 1):
+        k, j, c = sv.exp[i], sv.seg[i], sv.comp[i]
+        with model.speeds_kept():
+            model.speed_offsets[k][j, c] += h
+            alone = (obj.residual_matrix(vec0[None, :])[0] - r0) / h * sv.scale[i]
+        np.testing.assert_allclose(J[:, i], alone, rtol=1e-9, atol=1e-9 * np.abs(alone).max())
+        assert np.abs(alone).max() > 0 and np.all(J[obj.segment_ids != obj.segment_offsets[k] + j, i] == 0.0)
 
 
 def test_speeds_kept_restores_the_corrections_a_trial_fit_changed():

@@ -17,7 +17,7 @@ repeated from its result (a poor starting guess must not bias the nuisance speed
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -122,12 +122,9 @@ def refit(data: "TimeSeries | Experiment", params: RigParams | None = None, conf
     vec_before = base_vector(comp0, base, values0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = None
-        for _ in range(2):  # the data's speeds at segment starts refined for the model, then for the fitted one
-            vec = vec_start if res is None else res.vector
-            model.refine_initial_speeds(vec, obj.weights, obj.scales, fresh=True)
-            warm = variables if res is None else [replace(v, x0=res.values[v.name]) for v in variables]
-            res = fit_parameters(obj, vec_start, warm, max_nfev=max_nfev if res is None else max(4, max_nfev // 2))
+        # the data's speeds at the segment starts refined for the start, then fitted with the parameters
+        model.refine_initial_speeds(vec_start, obj.weights, obj.scales, fresh=True)
+        res = fit_parameters(obj, vec_start, variables, max_nfev=max_nfev, fit_speeds=True)
     before = compare(ex, vec_before, segment_s=segment_s, effects=comp0)
     after = compare(ex, res.vector, segment_s=segment_s, effects=comp)
     return RefitResult(res.params, {c: m["r2"] for c, m in before.metrics.items()},

@@ -129,10 +129,17 @@ class Objective:
         rows = [np.count_nonzero(~np.isnan(m[:, 1:]), axis=1) for meas in self._meas for m in meas.values()]
         counts = np.concatenate(rows) if rows else np.zeros(0, dtype=int)
         self.block_ids = np.repeat(np.arange(len(counts)), counts)
+        #: index of the multiple-shooting segment (numbered over all experiments) of every entry of a residual row
+        first = np.cumsum([0] + [len(model.segments(k)[0]) for k in range(len(model.experiments))])
+        seg = [np.repeat(first[k] + np.arange(m.shape[0]), np.count_nonzero(~np.isnan(m[:, 1:]), axis=1))
+               for k, meas in enumerate(self._meas) for m in meas.values()]
+        self.segment_ids = np.concatenate(seg) if seg else np.zeros(0, dtype=int)
+        self.segment_offsets = first[:-1]
 
-    def residual_matrix(self, P: np.ndarray) -> np.ndarray:
-        """(B, M) weighted, normalised residuals (model − data); a segment's first sample is skipped."""
-        preds = self.model.predict(P, tuple(self.channels))
+    def residual_matrix(self, P: np.ndarray, dspeed: np.ndarray | None = None) -> np.ndarray:
+        """(B, M) weighted, normalised residuals (model − data); a segment's first sample is skipped.
+        ``dspeed`` (B, 2): (ω_u, ω_l) added to every segment's initial speeds of that row (rad/s)."""
+        preds = self.model.predict(P, tuple(self.channels), dspeed=dspeed)
         return np.stack([self._vector(p.outputs) for p in preds])
 
     def _vector(self, outputs: list[dict[str, np.ndarray]]) -> np.ndarray:
@@ -222,7 +229,8 @@ def fit_parameters(objective: Objective, base: "RigParams | np.ndarray", variabl
                    apply: ApplyFn | None = None, max_nfev: int = 30, fd_step: float = 1e-3,
                    rel_std_limit: float = 0.1, collinearity_limit: float = 1000.0, ftol: float = 1e-6,
                    xtol: float = 1e-6, effect_values: dict[str, float] | None = None,
-                   prior: "Mapping[str, tuple[float, float]] | None" = None, prior_weight: float = 1.0) -> FitResult:
+                   prior: "Mapping[str, tuple[float, float]] | None" = None, prior_weight: float = 1.0,
+                   fit_speeds: bool = False, speed_step: float = 0.005) -> FitResult:
     """Fit ``variables`` (everything else held at ``base``) by trf least squares.
 
     ``prior``: {variable: (mean, standard deviation)} of a Gaussian prior (maximum a posteriori: the rows
@@ -230,6 +238,15 @@ def fit_parameters(objective: Objective, base: "RigParams | np.ndarray", variabl
     residual's variance per independent sample, so that one unit of Σ ((value − mean) / std)² weighs as
     much as one of the data's log-likelihood).  The returned residual, RSS and standard errors' scale are
     the data's alone; the Jacobian behind the standard errors includes the prior.
+
+    ``fit_speeds``: the speeds at the segment starts (the data's derivative estimates, nuisance states of
+    the multiple shooting) are corrected in the same fit, each within its bound
+    (:meth:`SegmentedModel.speed_variables`), from the model's current corrections; the model keeps the
+    fitted ones.  Segments are independent, so two more rows in the Jacobian's batched run (every
+    segment's ω_u, then ω_l, raised by ``speed_step`` rad/s) give every segment's columns.  The standard
+    errors are then the parameters' marginal ones, the speeds' uncertainty accounted for.  (Alternating
+    between a fit of the parameters and :meth:`SegmentedModel.refine_initial_speeds` reaches the same
+    minimum in several fits.)
 
     The model is the objective's composition (``objective.model.composition``); ``base`` is
     RigParams (the effects' parameters from ``effect_values``, else their defaults) or a
@@ -252,31 +269,47 @@ def fit_parameters(objective: Objective, base: "RigParams | np.ndarray", variabl
         raise ValueError(f"fit variable {bad!r}: empty bounds")
     x0 = np.clip(x0, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
     zlo, zhi = (lo - x0) / scale, (hi - x0) / scale
+    n = len(variables)
+    speeds = _SpeedVariables(objective) if fit_speeds else None
+    ks = speeds.count if speeds is not None else 0
+    if ks:
+        zlo, zhi = np.concatenate([zlo, speeds.zlo]), np.concatenate([zhi, speeds.zhi])
     cache: dict[bytes, np.ndarray] = {}
 
     def rows(Z: np.ndarray) -> np.ndarray:
-        return np.stack([apply(base_vec, x0 + scale * z) for z in Z])
+        return np.stack([apply(base_vec, x0 + scale * z[:n]) for z in Z])
 
     def fun(z: np.ndarray) -> np.ndarray:
         key = z.tobytes()
         if key not in cache:
             cache.clear()
+            if ks:
+                speeds.set(z[n:])
             cache[key] = objective.residual_matrix(rows(z[None, :]))[0]
         return cache[key]
 
     def jac(z: np.ndarray) -> np.ndarray:
         f0 = fun(z)
-        h = np.where(z + fd_step <= zhi, fd_step, -fd_step)
-        Z = z[None, :] + np.diag(h)
-        R = objective.residual_matrix(rows(Z))
-        return ((R - f0[None, :]) / h[:, None]).T
+        h = np.where(z[:n] + fd_step <= zhi[:n], fd_step, -fd_step)
+        Z = np.repeat(z[None, :], n, axis=0)
+        Z[:, :n] += np.diag(h)
+        if not ks:
+            R = objective.residual_matrix(rows(Z))
+            return ((R - f0[None, :]) / h[:, None]).T
+        speeds.set(z[n:])
+        Z = np.vstack([Z, z[None, :], z[None, :]])
+        dspeed = np.zeros((n + 2, 2))
+        dspeed[n, 0] = dspeed[n + 1, 1] = speed_step
+        R = objective.residual_matrix(rows(Z), dspeed=dspeed)
+        Jp = ((R[:n] - f0[None, :]) / h[:, None]).T
+        return np.hstack([Jp, speeds.columns((R[n:] - f0[None, :]) / speed_step)])
 
     # the prior's rows: linear in z
     pidx = [i for i, nm in enumerate(names) if prior and nm in prior]
     pmean = np.array([prior[names[i]][0] for i in pidx], dtype=float)
     pstd = np.array([prior[names[i]][1] for i in pidx], dtype=float)
     pw = math.sqrt(max(prior_weight, 0.0))
-    Jp = np.zeros((len(pidx), len(variables)))
+    Jp = np.zeros((len(pidx), n + ks))
     for k, i in enumerate(pidx):
         Jp[k, i] = pw * scale[i] / pstd[k]
 
@@ -289,7 +322,7 @@ def fit_parameters(objective: Objective, base: "RigParams | np.ndarray", variabl
     def jac_map(z: np.ndarray) -> np.ndarray:
         return np.vstack([jac(z), Jp]) if pidx else jac(z)
 
-    z0 = np.zeros(len(variables))
+    z0 = np.zeros(n + ks)
     q0 = fun_map(z0)
     r0 = fun(z0)
     sol = least_squares(fun_map, z0, jac=jac_map, bounds=(zlo, zhi), method="trf", x_scale=1.0, max_nfev=max_nfev,
@@ -301,14 +334,17 @@ def fit_parameters(objective: Objective, base: "RigParams | np.ndarray", variabl
     if float(q1 @ q1) > float(q0 @ q0):  # never return something worse than the start
         z, r1 = z0, r0
         J = jac_map(z)
-    values = x0 + scale * z
-    n, m = len(z), len(r1)
-    s2 = float(r1 @ r1) / max(m - n, 1)
+    if ks:
+        speeds.set(z[n:])  # the model keeps the fitted speeds
+    values = x0 + scale * z[:n]
+    m = len(r1)
+    s2 = float(r1 @ r1) / max(m - n - ks, 1)
     msgs: list[str] = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         cov = np.linalg.pinv(J.T @ J) * s2
-    std = scale * np.sqrt(np.clip(np.diag(cov), 0, None))
+    std = scale * np.sqrt(np.clip(np.diag(cov)[:n], 0, None))
+    J = J[:, :n]
     col = np.linalg.norm(J, axis=0)
     std[col == 0] = np.inf  # the data do not depend on it: any value fits (pinv would say 0)
     if np.any(col == 0):
@@ -334,3 +370,40 @@ def fit_parameters(objective: Objective, base: "RigParams | np.ndarray", variabl
     return FitResult(names, dict(zip(names, values.tolist())), dict(zip(names, std.tolist())),
                      RigParams.from_vector(vec[:N_PARAMS]), vec, float(r0 @ r0), float(r1 @ r1), m, int(sol.nfev),
                      msgs, r1, composition=comp)
+
+
+class _SpeedVariables:
+    """The segment-start speed corrections of ``objective``'s model as fit variables (``fit_speeds`` of
+    :func:`fit_parameters`): z = (correction − start) / limit, within ±limit."""
+
+    def __init__(self, objective: Objective) -> None:
+        model = self.model = objective.model
+        found = model.speed_variables()
+        self.count = len(found)
+        self.exp = np.array([v[0] for v in found], dtype=int)
+        self.seg = np.array([v[1] for v in found], dtype=int)
+        self.comp = np.array([v[2] for v in found], dtype=int)
+        self.scale = np.array([v[3] for v in found], dtype=float)
+        start = np.array([model.speed_offsets[k][j, c] for k, j, c, _ in found], dtype=float)
+        self.start = np.clip(start, -self.scale * (1 - 1e-9), self.scale * (1 - 1e-9))
+        self.zlo, self.zhi = (-self.scale - self.start) / self.scale, (self.scale - self.start) / self.scale
+        # residual entries of each variable's segment
+        gid = objective.segment_offsets[self.exp] + self.seg if self.count else np.zeros(0, dtype=int)
+        order = np.argsort(objective.segment_ids, kind="stable")
+        bounds = np.searchsorted(objective.segment_ids[order], np.arange(objective.segment_ids.max(initial=-1) + 2))
+        self.entries = [order[bounds[g]:bounds[g + 1]] for g in gid]
+        self.n_entries = len(objective.segment_ids)
+
+    def set(self, z: np.ndarray) -> None:
+        values = self.start + self.scale * z
+        for i in range(self.count):
+            self.model.speed_offsets[self.exp[i]][self.seg[i], self.comp[i]] = values[i]
+
+    def columns(self, D: np.ndarray) -> np.ndarray:
+        """The variables' Jacobian columns from the two sensitivity rows ``D`` (2, M): every segment's ω_u,
+        then ω_l, raised together (per unit of speed)."""
+        J = np.zeros((D.shape[1], self.count))
+        for i in range(self.count):
+            idx = self.entries[i]
+            J[idx, i] = D[self.comp[i], idx] * self.scale[i]
+        return J

@@ -201,6 +201,26 @@ class SegmentedModel:
                     self.speed_offsets[k][j, cols] = np.clip(self.speed_offsets[k][j, cols] + step,
                                                              -limit[cols], limit[cols])
 
+    def speed_variables(self) -> list[tuple[int, int, int, float]]:
+        """The segment-start speeds a fit may correct, as (experiment, segment, component, limit): component 0
+        is ω_u, 1 is ω_l; ``limit`` (rad/s) bounds the correction (three standard deviations of the estimate's
+        quantization noise, as :meth:`refine_initial_speeds`).  Left out, as there: a disc the data show
+        stuck at the start (speed estimate exactly 0), the upper disc of a free-vibration test and the lower
+        disc of an upper-disc test."""
+        out = []
+        for k, ex in enumerate(self.experiments):
+            starts, _ = self.segments(k)
+            w0 = np.stack([ex.rates.get("omega_u", np.zeros(ex.n))[starts],
+                           ex.rates.get("omega_l", np.zeros(ex.n))[starts]], axis=1)
+            limit = 3.0 * np.array([ex.speed_noise.get("omega_u", 0.0), ex.speed_noise.get("omega_l", 0.0)])
+            free = (w0 != 0.0) & (limit > 0.0)[None, :]
+            if ex.config is Configuration.FREE_VIBRATION:
+                free[:, 0] = False
+            if ex.config is Configuration.UPPER:
+                free[:, 1] = False
+            out += [(k, j, c, float(limit[c])) for j in range(len(starts)) for c in (0, 1) if free[j, c]]
+        return out
+
     def _set_composition(self, composition: Any) -> None:
         """The model and the composition actually simulated (the library's motor lag, when it is the
         first Input effect, is applied to the input here instead; see the module docstring)."""
