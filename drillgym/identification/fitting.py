@@ -131,9 +131,9 @@ class Objective:
         self.block_ids = np.repeat(np.arange(len(counts)), counts)
         #: index of the multiple-shooting segment (numbered over all experiments) of every entry of a residual row
         first = np.cumsum([0] + [len(model.segments(k)[0]) for k in range(len(model.experiments))])
-        seg = [np.repeat(first[k] + np.arange(m.shape[0]), np.count_nonzero(~np.isnan(m[:, 1:]), axis=1))
-               for k, meas in enumerate(self._meas) for m in meas.values()]
-        self.segment_ids = np.concatenate(seg) if seg else np.zeros(0, dtype=int)
+        seg = np.concatenate([first[k] + np.arange(m.shape[0]) for k, meas in enumerate(self._meas)
+                              for m in meas.values()]) if rows else np.zeros(0, dtype=int)
+        self.segment_ids = np.repeat(seg, counts)
         self.segment_offsets = first[:-1]
 
     def residual_matrix(self, P: np.ndarray, dspeed: np.ndarray | None = None) -> np.ndarray:
@@ -392,7 +392,6 @@ class _SpeedVariables:
         order = np.argsort(objective.segment_ids, kind="stable")
         bounds = np.searchsorted(objective.segment_ids[order], np.arange(objective.segment_ids.max(initial=-1) + 2))
         self.entries = [order[bounds[g]:bounds[g + 1]] for g in gid]
-        self.n_entries = len(objective.segment_ids)
 
     def set(self, z: np.ndarray) -> None:
         values = self.start + self.scale * z

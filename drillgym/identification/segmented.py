@@ -184,14 +184,7 @@ class SegmentedModel:
                     continue
                 e0, e1, e2 = (np.concatenate(x, axis=1) for x in r)
                 J = np.stack([(e1 - e0) / h, (e2 - e0) / h], axis=2)  # (n_seg, M, 2)
-                w0 = np.stack([ex.rates.get("omega_u", np.zeros(ex.n))[starts],
-                               ex.rates.get("omega_l", np.zeros(ex.n))[starts]], axis=1) + self.speed_offsets[k]
-                free = (w0 != 0.0)
-                limit = 3.0 * np.array([ex.speed_noise.get("omega_u", 0.0), ex.speed_noise.get("omega_l", 0.0)])
-                if ex.config is Configuration.FREE_VIBRATION:
-                    free[:, 0] = False
-                if ex.config is Configuration.UPPER:
-                    free[:, 1] = False
+                free, limit = self._correctable_speeds(k)
                 for j in range(len(starts)):
                     cols = np.flatnonzero(free[j])
                     if cols.size == 0:
@@ -201,24 +194,33 @@ class SegmentedModel:
                     self.speed_offsets[k][j, cols] = np.clip(self.speed_offsets[k][j, cols] + step,
                                                              -limit[cols], limit[cols])
 
+    def _correctable_speeds(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """Experiment k's segment-start speeds that may be corrected, (n_seg, 2) booleans for (ω_u, ω_l), and
+        the bound of a correction per component (rad/s, (2,)): three standard deviations of the estimate's
+        quantization noise.  Left out: a disc the data show stuck at the start (speed estimate exactly 0), the
+        upper disc of a free-vibration test and the lower disc of an upper-disc test."""
+        ex = self.experiments[k]
+        starts, _ = self.segments(k)
+        w0 = np.stack([ex.rates.get("omega_u", np.zeros(ex.n))[starts],
+                       ex.rates.get("omega_l", np.zeros(ex.n))[starts]], axis=1)
+        limit = 3.0 * np.array([ex.speed_noise.get("omega_u", 0.0), ex.speed_noise.get("omega_l", 0.0)])
+        free = w0 != 0.0
+        if ex.config is Configuration.FREE_VIBRATION:
+            free[:, 0] = False
+        if ex.config is Configuration.UPPER:
+            free[:, 1] = False
+        return free, limit
+
     def speed_variables(self) -> list[tuple[int, int, int, float]]:
-        """The segment-start speeds a fit may correct, as (experiment, segment, component, limit): component 0
-        is ω_u, 1 is ω_l; ``limit`` (rad/s) bounds the correction (three standard deviations of the estimate's
-        quantization noise, as :meth:`refine_initial_speeds`).  Left out, as there: a disc the data show
-        stuck at the start (speed estimate exactly 0), the upper disc of a free-vibration test and the lower
-        disc of an upper-disc test."""
+        """The segment-start speeds a fit may correct (:meth:`_correctable_speeds`, as
+        :meth:`refine_initial_speeds` corrects them), as (experiment, segment, component, limit): component 0
+        is ω_u, 1 is ω_l; ``limit`` (rad/s) bounds the correction (a component whose bound is 0 cannot move and
+        is left out)."""
         out = []
-        for k, ex in enumerate(self.experiments):
-            starts, _ = self.segments(k)
-            w0 = np.stack([ex.rates.get("omega_u", np.zeros(ex.n))[starts],
-                           ex.rates.get("omega_l", np.zeros(ex.n))[starts]], axis=1)
-            limit = 3.0 * np.array([ex.speed_noise.get("omega_u", 0.0), ex.speed_noise.get("omega_l", 0.0)])
-            free = (w0 != 0.0) & (limit > 0.0)[None, :]
-            if ex.config is Configuration.FREE_VIBRATION:
-                free[:, 0] = False
-            if ex.config is Configuration.UPPER:
-                free[:, 1] = False
-            out += [(k, j, c, float(limit[c])) for j in range(len(starts)) for c in (0, 1) if free[j, c]]
+        for k in range(len(self.experiments)):
+            free, limit = self._correctable_speeds(k)
+            out += [(k, j, c, float(limit[c])) for j in range(free.shape[0]) for c in (0, 1)
+                    if free[j, c] and limit[c] > 0.0]
         return out
 
     def _set_composition(self, composition: Any) -> None:
