@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -34,7 +34,7 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
             nominal_below: float = 0.0, teacher_kwargs: dict[str, Any] | None = None, beta: float = 0.0,
             noise: float = 0.0, motor_integral: bool = False,
             command: "dict[str, float] | None" = None, lr_final: float | None = None,
-            log=None) -> dict[str, float]:
+            log=None, on_round: "Callable[[int, float], None] | None" = None) -> dict[str, float]:
     """Regress the actor of the SB3 ``model`` (PPO/MLP, its env's observation) on the ``teacher``'s actions.
 
     ``iterations`` DAgger rounds of ``steps`` periods on ``n_envs`` rigs of ``env_id`` with ``env_kwargs``
@@ -54,6 +54,8 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
     mixing; 0: the student drives every rig after the first round).  ``noise``: standard deviation of
     Gaussian noise on the executed actions (normalised; the labels stay the teacher's clean actions), so
     the data cover the states a slightly wrong action leads to.
+    ``on_round(i, mse)``: called after round i's regression (0-based) with its action error, e.g. to
+    snapshot or validate the student round by round.
     Returns the last round's mean squared action error and the number of labelled states."""
     import torch as th
 
@@ -135,6 +137,8 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
                                  - data_y[-steps * n_envs:]) ** 2))
         if log is not None:
             log(f"DAgger round {it + 1}/{iterations}: {n} labelled states, action MSE {mse:.4f}")
+        if on_round is not None:
+            on_round(it, mse)
     venv.close()
     return {"mse": mse, "states": int(sum(len(x) for x in X))}
 

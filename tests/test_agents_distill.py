@@ -291,3 +291,21 @@ def test_distillation_learning_rate_falls_geometrically_to_its_final_value():
     assert round_learning_rate(1e-3, None, 3, 5) == 1e-3
     with pytest.raises(ValueError, match="positive"):
         round_learning_rate(1e-3, 0.0, 1, 5)
+
+
+def test_each_dagger_round_is_reported_with_its_action_error(tmp_path) -> None:
+    """``on_round(i, mse)`` is called after every round's regression (to snapshot or validate the student)."""
+    from stable_baselines3 import PPO
+
+    from agents.distill import distill
+    from drillgym.envs.sb3 import make_sb3_vec
+
+    _teacher(tmp_path / "teacher.npz")
+    kw = {"observation": "motor", "episode_duration": 1.0}
+    model = PPO("MlpPolicy", make_sb3_vec("drillgym/Torsional-v0", 4, normalize_action=True, **kw), n_steps=8,
+                batch_size=8)
+    seen = []
+    out = distill(model, "drillgym/Torsional-v0", kw, tmp_path / "teacher.npz", n_envs=4, iterations=3, steps=10,
+                  epochs=1, on_round=lambda i, mse: seen.append((i, mse)))
+    assert [i for i, _ in seen] == [0, 1, 2]
+    assert seen[-1][1] == out["mse"] and all(np.isfinite(m) for _, m in seen)

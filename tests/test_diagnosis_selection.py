@@ -92,6 +92,40 @@ def test_effect_found_under_mismatch_with_its_value():
     assert d.base_parameters, d.text()
 
 
+def test_exact_base_stands_when_the_base_first_fit_stops_in_a_worse_optimum(monkeypatch):
+    """The README's emulator example: exact base, a hidden position friction, 2.5 V for 40 s at 100 Hz,
+    angles only.  Freeing the base first (without the friction) puts ktheta at +9 %, and the joint fit with
+    the friction stops there at a worse RSS than the friction alone reaches on the nominal base: the base
+    then moved +1.4 % together.  Step 5 continues the freed fit from the nested model's optimum."""
+    import drillgym.diagnosis.selection as selection
+
+    fits = []
+    real = selection.converged_fit
+
+    def recorded(st, vec, names, max_nfev, refine=True):
+        r = real(st, vec, names, max_nfev, refine)
+        fits.append((len(names), r.rss_after))
+        return r
+
+    monkeypatch.setattr(selection, "converged_fit", recorded)
+    truth = {"pf_c1": 0.135, "pf_s1": 0.21, "pf_c2": 0.0, "pf_s2": 0.0}
+    ts = synthetic_measurement("torsional", duration=40.0, rate_hz=100.0, u=2.5, effects=["position_friction"],
+                               effect_params=truth)
+    d = diagnose(ts)
+    assert d.selected == ["position_friction"], d.text()
+    assert not d.base_off and not d.base_parameters, d.text()
+    for name in ("pf_c1", "pf_s1"):
+        assert d.effect_values()[name] == pytest.approx(truth[name], rel=0.01)
+    # the case it guards: a base-freed fit worse than the nested fit after it, then continued below both
+    n_eff = 4
+    nested = [i for i, (k, _) in enumerate(fits) if k == n_eff]
+    assert nested, fits
+    i = nested[0]
+    k_joint = max(k for k, _ in fits)  # the base parameters with the friction's
+    assert any(k == k_joint and rss > fits[i][1] for k, rss in fits[:i]), fits
+    assert fits[i + 1][0] == k_joint and fits[i + 1][1] < fits[i][1], fits
+
+
 def test_search_composition_is_the_model_when_candidates_are_neutral():
     cands = [LIBRARY[n] for n in ("position_friction", "motor_lag", "string_damping")]
     comp = search_composition(BASE, cands)
