@@ -17,12 +17,18 @@
 
 Each stage is a :func:`fit_parameters` call (trf, bounds, DP5, batched
 Jacobian).  Bearing, lateral and brake stages use multiple shooting (segments
-re-started from the data; optionally, ``refine_speeds``, with the data's speeds at
-the segment starts first refined for the start values — off by default: with
-good initial guesses it helps on noisy low-rate data, with poor ones it biases
-weakly identifiable directions such as the common scale of Jl, kθ, Tcl, bl, which
-the data show only through the string's small reaction on the upper disc: an
-upper-stage error of 0.06 % in Tcu moves it by ~0.6 %); R² (report eq. 3.2) is computed on free runs from the data's
+re-started from the data).  The data's speeds at the segment starts (derivative
+estimates, the multiple shooting's nuisance states) are fitted with the parameters
+(``refine_speeds``, on by default: ``fit_parameters(..., fit_speeds=True)`` from a
+Gauss–Newton refinement for the start values), as ``diagnose`` and ``identify
+--add-effect`` fit them (``benchmarks/bench_staged_speeds.py``, both ways in one run).
+Held at the data's estimates, they left the lower stage's common scale of Jl, kθ,
+Tcl, bl 0.3-0.7 % off on 250 Hz and 100 Hz data; fitted, 0.02-0.04 %.  (Refined for
+the start values and then held, the former option, 2.5-5 %: weakly identifiable
+directions follow speeds fitted to wrong parameters.)  The brake stage's largest
+error fell in three of four cases (drillgym's data at 100 Hz: δ −2.1 % to +0.9 %)
+and rose in one (the independent rig at 500 Hz: δ +0.3 % to +2.1 %), at 4-7 times
+its time.  R² (report eq. 3.2) is computed on free runs from the data's
 initial state, on estimation and validation data.
 """
 
@@ -162,11 +168,13 @@ def r2_free_run(experiments: Sequence[Experiment], params: RigParams, channels: 
 
 def identify_stage(stage: str, estimation, params: RigParams, validation=None, *,
                    compare_rate_hz: float = 100.0, max_nfev: int = 40,
-                   parameters: Sequence[str] | None = None, refine_speeds: bool = False) -> StageResult:
+                   parameters: Sequence[str] | None = None, refine_speeds: bool = True) -> StageResult:
     """Run one stage of the procedure (``upper``, ``free_vibration``, ``lower``, ``lateral``, ``brake``).
 
     ``estimation``/``validation``: recordings (TimeSeries) or experiments of that stage;
     ``params``: the current parameter set (earlier stages' results, initial guesses for this one).
+    ``refine_speeds``: the segment-start speeds are fitted with the parameters (module docstring); False:
+    held at the data's estimates.
     """
     if stage not in STAGES:
         raise ValueError(f"unknown identification stage {stage!r}; expected one of: {', '.join(STAGES)}")
@@ -194,9 +202,10 @@ def identify_stage(stage: str, estimation, params: RigParams, validation=None, *
         variables.append(v)
     model = SegmentedModel(est, st.segment_s)
     obj = Objective(model, st.weights)
-    if refine_speeds and st.segment_s:  # refine the data's speeds at segment starts for the start values
-        model.refine_initial_speeds(start.to_vector(), obj.weights, obj.scales)
-    res = fit_parameters(obj, start, variables, max_nfev=max_nfev)
+    joint = bool(refine_speeds and st.segment_s)
+    if joint:  # the data's speeds at the segment starts refined for the start, then fitted with the parameters
+        model.refine_initial_speeds(start.to_vector(), obj.weights, obj.scales, fresh=True)
+    res = fit_parameters(obj, start, variables, max_nfev=max_nfev, fit_speeds=joint)
     final = res.params.replace(e=params.e) if fixed else res.params
     r2e = r2_free_run(est, final, st.r2_channels, fixed)
     r2v = r2_free_run(val, final, st.r2_channels, fixed)
