@@ -17,18 +17,20 @@
 
 Each stage is a :func:`fit_parameters` call (trf, bounds, DP5, batched
 Jacobian).  Bearing, lateral and brake stages use multiple shooting (segments
-re-started from the data).  The data's speeds at the segment starts (derivative
-estimates, the multiple shooting's nuisance states) are fitted with the parameters
-(``refine_speeds``, on by default: ``fit_parameters(..., fit_speeds=True)`` from a
+re-started from the data).  Optionally (``refine_speeds``, off by default) the data's
+speeds at the segment starts (derivative estimates, the multiple shooting's nuisance
+states) are fitted with the parameters (``fit_parameters(..., fit_speeds=True)`` from a
 Gauss–Newton refinement for the start values), as ``diagnose`` and ``identify
 --add-effect`` fit them (``benchmarks/bench_staged_speeds.py``, both ways in one run).
-Held at the data's estimates, they left the lower stage's common scale of Jl, kθ,
-Tcl, bl 0.3-0.7 % off on 250 Hz and 100 Hz data; fitted, 0.02-0.04 %.  (Refined for
-the start values and then held, the former option, 2.5-5 %: weakly identifiable
-directions follow speeds fitted to wrong parameters.)  The brake stage's largest
-error fell in three of four cases (drillgym's data at 100 Hz: δ −2.1 % to +0.9 %)
-and rose in one (the independent rig at 500 Hz: δ +0.3 % to +2.1 %), at 4-7 times
-its time.  R² (report eq. 3.2) is computed on free runs from the data's
+On 20 s recordings at 250 Hz and 100 Hz it took the lower stage's common scale of Jl,
+kθ, Tcl, bl from 0.3-0.7 % off (held) to 0.02-0.04 %, and lowered the brake stage's
+largest error in three of four cases (raised it in one), at 4-7 times its time.  It
+stays off by default because on long, fast recordings from guesses 15-30 % off it
+converges slowly: the brake stage on three 60 s recordings at 1 kHz (hundreds of speed
+variables) ended its 40 evaluations at 27 times the held fit's RSS (δ −6.3 % against
+−0.06 %; 43 s against 1.1 s) and was still worse after 100.  (Refined for the start
+values and then held, the option's former meaning, 2.5-5 % on the lower stage: weakly
+identifiable directions follow speeds fitted to wrong parameters.)  R² (report eq. 3.2) is computed on free runs from the data's
 initial state, on estimation and validation data.
 """
 
@@ -168,13 +170,13 @@ def r2_free_run(experiments: Sequence[Experiment], params: RigParams, channels: 
 
 def identify_stage(stage: str, estimation, params: RigParams, validation=None, *,
                    compare_rate_hz: float = 100.0, max_nfev: int = 40,
-                   parameters: Sequence[str] | None = None, refine_speeds: bool = True) -> StageResult:
+                   parameters: Sequence[str] | None = None, refine_speeds: bool = False) -> StageResult:
     """Run one stage of the procedure (``upper``, ``free_vibration``, ``lower``, ``lateral``, ``brake``).
 
     ``estimation``/``validation``: recordings (TimeSeries) or experiments of that stage;
     ``params``: the current parameter set (earlier stages' results, initial guesses for this one).
-    ``refine_speeds``: the segment-start speeds are fitted with the parameters (module docstring); False:
-    held at the data's estimates.
+    ``refine_speeds``: the segment-start speeds are fitted with the parameters (module docstring); False
+    (default): held at the data's estimates.
     """
     if stage not in STAGES:
         raise ValueError(f"unknown identification stage {stage!r}; expected one of: {', '.join(STAGES)}")
