@@ -17,20 +17,19 @@
 
 Each stage is a :func:`fit_parameters` call (trf, bounds, DP5, batched
 Jacobian).  Bearing, lateral and brake stages use multiple shooting (segments
-re-started from the data).  Optionally (``refine_speeds``, off by default) the data's
-speeds at the segment starts (derivative estimates, the multiple shooting's nuisance
-states) are fitted with the parameters (``fit_parameters(..., fit_speeds=True)`` from a
-Gauss–Newton refinement for the start values), as ``diagnose`` and ``identify
---add-effect`` fit them (``benchmarks/bench_staged_speeds.py``, both ways in one run).
-On 20 s recordings at 250 Hz and 100 Hz it took the lower stage's common scale of Jl,
-kθ, Tcl, bl from 0.3-0.7 % off (held) to 0.02-0.04 %, and lowered the brake stage's
-largest error in three of four cases (raised it in one), at 4-7 times its time.  It
-stays off by default because on long, fast recordings from guesses 15-30 % off it
-converges slowly: the brake stage on three 60 s recordings at 1 kHz (hundreds of speed
-variables) ended its 40 evaluations at 27 times the held fit's RSS (δ −6.3 % against
-−0.06 %; 43 s against 1.1 s) and was still worse after 100.  (Refined for the start
-values and then held, the option's former meaning, 2.5-5 % on the lower stage: weakly
-identifiable directions follow speeds fitted to wrong parameters.)  R² (report eq. 3.2) is computed on free runs from the data's
+re-started from the data).  The data's speeds at the segment starts (derivative
+estimates, the multiple shooting's nuisance states) are fitted with the parameters
+from the data's estimates (``refine_speeds``, on by default:
+``fit_parameters(..., fit_speeds=True)``, as ``diagnose`` and ``identify --add-effect``
+fit them; ``benchmarks/bench_staged_speeds.py`` measures both ways in one run).  On
+20 s recordings at 250 Hz and 100 Hz it took the lower stage's common scale of Jl, kθ,
+Tcl, bl from 0.3-0.7 % off (held) to 0.02-0.04 %, and lowered the brake stage's largest
+error in three of four cases (raised it in one: the independent rig at 500 Hz, δ +0.3
+to +2.1 %), at 4-6 times its time.  The speeds are *not* first refined for the start
+values (as ``diagnose`` does from its near-nominal start): from guesses 15-30 % off,
+that sent the brake stage on three 60 s recordings at 1 kHz to 27 times the held
+fit's RSS in 40 evaluations; from the data's estimates it converges there in 15, to
+the held fit's result.  R² (report eq. 3.2) is computed on free runs from the data's
 initial state, on estimation and validation data.
 """
 
@@ -170,13 +169,13 @@ def r2_free_run(experiments: Sequence[Experiment], params: RigParams, channels: 
 
 def identify_stage(stage: str, estimation, params: RigParams, validation=None, *,
                    compare_rate_hz: float = 100.0, max_nfev: int = 40,
-                   parameters: Sequence[str] | None = None, refine_speeds: bool = False) -> StageResult:
+                   parameters: Sequence[str] | None = None, refine_speeds: bool = True) -> StageResult:
     """Run one stage of the procedure (``upper``, ``free_vibration``, ``lower``, ``lateral``, ``brake``).
 
     ``estimation``/``validation``: recordings (TimeSeries) or experiments of that stage;
     ``params``: the current parameter set (earlier stages' results, initial guesses for this one).
-    ``refine_speeds``: the segment-start speeds are fitted with the parameters (module docstring); False
-    (default): held at the data's estimates.
+    ``refine_speeds``: the segment-start speeds are fitted with the parameters (module docstring); False:
+    held at the data's estimates.
     """
     if stage not in STAGES:
         raise ValueError(f"unknown identification stage {stage!r}; expected one of: {', '.join(STAGES)}")
@@ -204,10 +203,9 @@ def identify_stage(stage: str, estimation, params: RigParams, validation=None, *
         variables.append(v)
     model = SegmentedModel(est, st.segment_s)
     obj = Objective(model, st.weights)
-    joint = bool(refine_speeds and st.segment_s)
-    if joint:  # the data's speeds at the segment starts refined for the start, then fitted with the parameters
-        model.refine_initial_speeds(start.to_vector(), obj.weights, obj.scales, fresh=True)
-    res = fit_parameters(obj, start, variables, max_nfev=max_nfev, fit_speeds=joint)
+    # the segment-start speeds fitted with the parameters from the data's estimates (not refined for the
+    # start values first: speeds fitted to guesses 15-30 % off sent the brake stage's fit astray)
+    res = fit_parameters(obj, start, variables, max_nfev=max_nfev, fit_speeds=bool(refine_speeds and st.segment_s))
     final = res.params.replace(e=params.e) if fixed else res.params
     r2e = r2_free_run(est, final, st.r2_channels, fixed)
     r2v = r2_free_run(val, final, st.r2_channels, fixed)
