@@ -858,7 +858,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
         vec_final, rss_final = st.vec, full.rss_after
         fit_final = full
     else:
-        vec_final = held.vector if eff_names else nominal_base
+        vec_final = held.vector  # nominal_base itself when no effect is selected (a fit of no names)
         rss_final = rss_held
         fit_final = held if eff_names else None
         obj.model.speed_offsets = speeds_held
