@@ -26,8 +26,8 @@ from pathlib import Path
 
 __all__ = ["load_controller", "load_policy", "KEPT_POLICY", "LEARNED_POLICY"]
 
-#: the learned policy (motor side only, no hand-made structure): agents/policies/torsional_motor_learned
-LEARNED_POLICY = Path(__file__).resolve().parent / "policies" / "torsional_motor_learned" / "policy.npz"
+#: the learned policy (motor side only, no hand-made structure): agents/policies/torsional_motor_learned_nominal
+LEARNED_POLICY = Path(__file__).resolve().parent / "policies" / "torsional_motor_learned_nominal" / "policy.npz"
 #: the policy kept in the repository (``agent:`` + this path works in ``drillgym evaluate``)
 KEPT_POLICY = Path(__file__).resolve().parent / "policies" / "torsional_motor_residual_observer" / "policy.npz"
 

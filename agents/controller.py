@@ -30,8 +30,9 @@ from .command import SpeedCommand, schedule_of
 from .integral import advance
 from .observer_residual import ObserverResidual
 from .residual import ResidualVoltage
+from .switched import TargetSwitchedPolicy
 
-__all__ = ["AgentController", "OBSERVATION_KEYS"]
+__all__ = ["AgentController", "TargetSwitchedController", "OBSERVATION_KEYS"]
 
 #: env options that shape the observation (the rest is physics/task, irrelevant on the rig)
 OBSERVATION_KEYS = ("observation", "motor_history", "velocity_filter_tau", "max_speed", "max_lateral", "control_dt")
@@ -141,3 +142,57 @@ class AgentController(Controller):
         if self.residual is not None:
             return self.residual.voltage(a, self.stack[:, -1], self._t)
         return a * U_MAX  # trained with normalize_action=True
+
+
+class TargetSwitchedController(Controller):
+    """Learned networks chosen by the target (:mod:`agents.switched`): each rig runs, as its own
+    :class:`AgentController`, the network whose band holds its target; nothing else computes the voltage."""
+
+    name = "agent"
+
+    def __init__(self, policy: TargetSwitchedPolicy, omega_ref=None, **kw) -> None:
+        self.switched = policy
+        self.members = [AgentController(p, omega_ref, **kw) for p in policy.members]
+        dts = {m.dt for m in self.members}
+        if len(dts) != 1:
+            raise ValueError(f"the networks of a target-switched policy run at different control periods {sorted(dts)} s")
+        kw.setdefault("dt", self.members[0].dt)
+        super().__init__(omega_ref, **kw)
+        self.uses = tuple(dict.fromkeys(u for m in self.members for u in m.uses))
+        self.groups: list[tuple[int, np.ndarray]] = []
+
+    def describe(self) -> str:
+        bands = [f"< {self.switched.edges[0]:g}"] + [f">= {e:g}" if k == len(self.switched.edges) - 1 else
+                                                     f"{e:g}-{self.switched.edges[k + 1]:g}"
+                                                     for k, e in enumerate(self.switched.edges)]
+        return (f"agent: {len(self.members)} learned networks chosen by the target (rad/s: {', '.join(bands)}) "
+                f"(reads: {', '.join(self.uses)})")
+
+    def approach_time(self, omega_ref: "float | np.ndarray") -> np.ndarray:
+        """The approach time of the network serving each target."""
+        ref = np.asarray(omega_ref, dtype=float)
+        k = self.switched.member_of(ref)
+        out = np.zeros(np.shape(ref))
+        for i, m in enumerate(self.members):
+            sel = k == i
+            if np.any(sel):
+                out[sel] = np.asarray(m.approach_time(ref[sel]), dtype=float)
+        return out
+
+    @staticmethod
+    def _rows(m: dict[str, np.ndarray], rows: np.ndarray) -> dict[str, np.ndarray]:
+        return {key: np.asarray(v)[rows] for key, v in m.items()}
+
+    def _reset(self, m: dict[str, np.ndarray]) -> None:
+        k = self.switched.member_of(self.omega_ref)
+        self.groups = [(i, np.flatnonzero(k == i)) for i in range(len(self.members)) if np.any(k == i)]
+        for i, rows in self.groups:
+            sub = self._rows(m, rows)
+            sub["omega_ref"] = self.omega_ref[rows]
+            self.members[i].reset(sub)
+
+    def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
+        u = np.zeros(self.n)
+        for i, rows in self.groups:
+            u[rows] = self.members[i].act(self._rows(m, rows))
+        return u

@@ -7,7 +7,7 @@ the stick-slip severity is below 0.1 and the mean lower-disc speed within 10 % o
 lowest target of the grid from which every higher one is held (NaN when the highest is not held).
 
     >>> from agents.evaluation import lowest_held_target
-    >>> lowest_held_target("agents/policies/torsional_motor_learned/policy.npz")
+    >>> lowest_held_target("agents/policies/torsional_motor_learned_nominal/policy.npz")
 """
 
 from __future__ import annotations

@@ -157,13 +157,33 @@ class ExportedPolicy:
         try:
             with np.load(path, allow_pickle=False) as z:
                 meta = json.loads(str(z["meta"]))
-                n = len(meta["activations"])
-                layers = [(z[f"W{i}"], z[f"b{i}"]) for i in range(n)]
-                low, high = z["action_low"], z["action_high"]
-                norm = ((z["obs_mean"], z["obs_scale"], float(z["obs_clip"])) if "obs_mean" in z.files else None)
+                if "members" in meta:
+                    raise ValueError("it is a target-switched policy of several networks; load it with "
+                                     "agents.load_policy")
+                return cls.from_arrays(meta, z)
         except (KeyError, ValueError, OSError) as exc:
             raise ValueError(f"{path} is not an exported drillgym policy: {exc}") from exc
-        return cls(layers, meta["activations"], meta["output"], low, high, meta, norm)
+
+    @classmethod
+    def from_arrays(cls, meta: dict[str, Any], arrays: Any, prefix: str = "") -> "ExportedPolicy":
+        """The policy of ``meta`` whose weights are ``arrays[prefix + 'W0']``, ... (an open ``.npz`` or a dict)."""
+        files = set(arrays.files if hasattr(arrays, "files") else arrays)
+        n = len(meta["activations"])
+        layers = [(arrays[f"{prefix}W{i}"], arrays[f"{prefix}b{i}"]) for i in range(n)]
+        norm = ((arrays[f"{prefix}obs_mean"], arrays[f"{prefix}obs_scale"], float(arrays[f"{prefix}obs_clip"]))
+                if f"{prefix}obs_mean" in files else None)
+        return cls(layers, meta["activations"], meta["output"], arrays[f"{prefix}action_low"],
+                   arrays[f"{prefix}action_high"], meta, norm)
+
+    def to_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
+        """The arrays :meth:`from_arrays` reads back (weights as exported, action bounds, normalisation)."""
+        out = {f"{prefix}W{i}": np.ascontiguousarray(Wt.T) for i, (Wt, _) in enumerate(self.layers)}
+        out |= {f"{prefix}b{i}": b for i, (_, b) in enumerate(self.layers)}
+        out |= {f"{prefix}action_low": self.low, f"{prefix}action_high": self.high}
+        if self.obs_norm is not None:
+            mean, scale, clip = self.obs_norm
+            out |= {f"{prefix}obs_mean": mean, f"{prefix}obs_scale": scale, f"{prefix}obs_clip": np.float32(clip)}
+        return out
 
     @property
     def config(self) -> dict[str, Any]:

@@ -11,21 +11,23 @@ from pathlib import Path
 
 import yaml
 
-from .controller import AgentController
+from .controller import AgentController, TargetSwitchedController
 from .export import ExportedPolicy
+from .switched import TargetSwitchedPolicy, is_switched
 
 __all__ = ["load_policy", "load_controller"]
 
 
-def load_policy(path: str | Path) -> ExportedPolicy:
-    """The exported policy of PATH (``.npz``, a run's ``model.zip`` or a run directory)."""
+def load_policy(path: str | Path) -> "ExportedPolicy | TargetSwitchedPolicy":
+    """The exported policy of PATH (``.npz``: one network or a target-switched set of them; a run's
+    ``model.zip`` or a run directory)."""
     p = Path(path)
     if p.is_dir():
         p = p / "policy.npz" if (p / "policy.npz").is_file() else p / "model.zip"
     if not p.exists():
         raise FileNotFoundError(f"agent file {p} not found")
     if p.suffix == ".npz":
-        return ExportedPolicy.load(p)
+        return TargetSwitchedPolicy.load(p) if is_switched(p) else ExportedPolicy.load(p)
     if p.suffix != ".zip":
         raise ValueError(f"agent file {p} must be an exported policy (.npz) or an SB3 model (.zip)")
     beside = p.with_name("policy.npz")
@@ -45,6 +47,9 @@ def load_policy(path: str | Path) -> ExportedPolicy:
         return ExportedPolicy.load(export_policy(model, Path(d) / "policy.npz", config))
 
 
-def load_controller(path: str, *, config: str = "torsional", omega_ref=None, params=None, **kw) -> AgentController:
+def load_controller(path: str, *, config: str = "torsional", omega_ref=None, params=None,
+                    **kw) -> "AgentController | TargetSwitchedController":
     """The agent at PATH as a Controller for rig configuration ``config`` (see :mod:`controllers.registry`)."""
-    return AgentController(load_policy(path), omega_ref, config=config, params=params, **kw)
+    policy = load_policy(path)
+    cls = TargetSwitchedController if isinstance(policy, TargetSwitchedPolicy) else AgentController
+    return cls(policy, omega_ref, config=config, params=params, **kw)

@@ -15,7 +15,8 @@ from hw.emulator import RigEmulator
 from hw.firmware import FirmwareConfig
 
 ROOT = Path(__file__).resolve().parents[1]
-LEARNED = ROOT / "agents" / "policies" / "torsional_motor_learned"
+LEARNED = ROOT / "agents" / "policies" / "torsional_motor_learned_nominal"
+SWITCHED = ROOT / "agents" / "policies" / "torsional_motor_learned"  # the kept learned policy (two networks)
 pytestmark = pytest.mark.xdist_group("rig-realtime")  # with tests/test_hw_cli.py: one real-time host at a time
 ENV = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
 
@@ -30,16 +31,18 @@ def test_what_train_writes_is_taken_as_a_trained_agent(tmp_path) -> None:
     from drillgym.commands.rig_ops import trained_agent
     from hw.runner import LinearPolicy
 
-    assert all(trained_agent(p) for p in (LEARNED, LEARNED / "policy.npz", LEARNED / "model.zip"))
+    assert all(trained_agent(p) for p in (LEARNED, LEARNED / "policy.npz", LEARNED / "model.zip", SWITCHED,
+                                          SWITCHED / "policy.npz"))
     LinearPolicy(np.zeros((1, 7)), np.zeros(1)).save(tmp_path / "linear.npz")
     assert not trained_agent(tmp_path / "linear.npz")  # a bare W, b policy stays a linear policy
 
 
-def test_kept_learned_policy_runs_on_the_emulated_rig(tmp_path, what: str = "policy.npz") -> None:
+@pytest.mark.parametrize("policy", [LEARNED / "policy.npz", SWITCHED / "policy.npz"], ids=["network", "switched"])
+def test_kept_learned_policy_runs_on_the_emulated_rig(tmp_path, policy: Path) -> None:
     rec = tmp_path / "run.csv"
     # behaviour, not timing: a relaxed watchdog (the host's reply timeout follows it, up to 1 s) for a loaded machine
     with RigEmulator("torsional", dt=5e-3, firmware=FirmwareConfig(watchdog_s=2.0)) as emu:
-        code, out, err = _run("rig", "run", "--port", emu.port, "--policy", str(LEARNED / what), "--omega-ref", "4.0",
+        code, out, err = _run("rig", "run", "--port", emu.port, "--policy", str(policy), "--omega-ref", "4.0",
                               "--duration", "1.0", "--record", str(rec), "--no-realtime")
     assert code == 0, (out, err)
     ts = read_timeseries(rec)

@@ -107,3 +107,24 @@ def register(app: typer.Typer) -> None:
                    f"({res.wall_time:.1f} s of them learning); wrote {res.model_path}"
                    + (f", {res.policy_path}" if res.policy_path else "")
                    + (f"; best evaluated model in {out / 'best'}" if eval_every else ""))
+
+    @app.command("combine-policies")
+    def combine_cmd(
+        policies: List[Path] = typer.Argument(..., help="exported networks (policy.npz or run directories), the "
+                                                        "lowest target band first"),
+        edges: str = typer.Option(..., "--edges", help="target speeds (rad/s) where one network hands over to the "
+                                                       "next, comma-separated, increasing (one fewer than networks)"),
+        out: Path = typer.Option(..., "--out", help="the target-switched policy (.npz); missing directories are created"),
+        note: str = typer.Option("", "--note", help="free text stored with the policy (why these bands)"),
+    ) -> None:
+        """Combine learned networks into one policy that gives each target to the network of its band
+        (network k serves EDGE[k-1] <= target < EDGE[k]); runs wherever a policy.npz does."""
+        from agents.switched import combine
+
+        try:
+            cuts = [float(v) for v in edges.split(",") if v.strip()]
+        except ValueError:
+            raise ValueError(f"--edges must be speeds in rad/s separated by commas, got {edges!r}") from None
+        files = [p / "policy.npz" if p.is_dir() else p for p in policies]
+        path = combine(files, cuts, out, note=note)
+        typer.echo(f"wrote {path}: {len(files)} networks, handing over at {', '.join(f'{c:g}' for c in cuts)} rad/s")

@@ -1,0 +1,115 @@
+"""A policy of several learned networks, each serving a band of target speeds.
+
+One network trained for every target and every rig of the population has to trade the low targets on the
+nominal rig against the population (``docs/agents_eval/learned_robust_ablation.md``).  A *target-switched*
+policy keeps several exported networks and gives each rig to the network whose band holds its target::
+
+    member k serves  edges[k-1] <= omega_ref < edges[k]      (edges increasing, rad/s; len(members) - 1 of them)
+
+The choice depends on the target alone, fixed for an episode (the harness and the rig give it at reset), so
+every network runs exactly as it was trained: its own observation model, its own command schedule, its own
+motor-angle integral, and only its own rigs.  Nothing but the networks computes the voltage: the switch is
+a lookup on the command, not a controller.
+
+File format: one ``.npz`` whose ``meta`` holds ``{"format", "switch": {"by": "target", "edges"}, "members":
+[meta of each network]}`` and whose arrays are each network's, prefixed ``m0_``, ``m1_``, ...
+(:meth:`agents.export.ExportedPolicy.to_arrays`).  ``agent:PATH``, ``drillgym evaluate`` and
+``drillgym rig run --policy`` accept it as they accept a single network's ``policy.npz``.
+
+    >>> from agents.switched import combine
+    >>> combine(["low/policy.npz", "high/policy.npz"], [3.0], "switched/policy.npz")
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from .export import ExportedPolicy
+
+__all__ = ["TargetSwitchedPolicy", "combine", "is_switched", "SWITCH_FORMAT"]
+
+SWITCH_FORMAT = 1
+
+
+class TargetSwitchedPolicy:
+    """Exported networks ``members`` chosen by the target speed; ``edges`` (rad/s, increasing) separate
+    their bands: member k serves ``edges[k-1] <= omega_ref < edges[k]``."""
+
+    def __init__(self, members: Sequence[ExportedPolicy], edges: Sequence[float],
+                 note: str = "") -> None:
+        members = list(members)
+        edges = [float(e) for e in edges]
+        if len(members) < 2:
+            raise ValueError(f"a target-switched policy needs at least two networks, got {len(members)}")
+        if len(edges) != len(members) - 1:
+            raise ValueError(f"{len(members)} networks need {len(members) - 1} target edge(s) (rad/s), got {len(edges)}")
+        if not all(np.isfinite(edges)) or any(e <= 0 for e in edges) or any(b <= a for a, b in zip(edges, edges[1:])):
+            raise ValueError(f"target edges must be positive, finite and increasing (rad/s), got {edges}")
+        if any("members" in m.meta for m in members):
+            raise ValueError("a member of a target-switched policy must be a single network, not another switch")
+        self.members, self.edges, self.note = members, tuple(edges), note
+
+    @property
+    def meta(self) -> dict[str, Any]:
+        """The file's metadata: format, switch rule, the members' metadata, the note."""
+        return {"format": SWITCH_FORMAT, "switch": {"by": "target", "edges": list(self.edges)},
+                "members": [m.meta for m in self.members], "note": self.note}
+
+    def member_of(self, omega_ref: "float | np.ndarray") -> np.ndarray:
+        """Index of the network serving each target (rad/s)."""
+        return np.searchsorted(np.asarray(self.edges), np.asarray(omega_ref, dtype=float), side="right")
+
+    def save(self, path: "str | Path") -> Path:
+        """Write the policy to ``path`` (.npz)."""
+        path = Path(path)
+        arrays: dict[str, np.ndarray] = {}
+        for k, m in enumerate(self.members):
+            arrays |= m.to_arrays(prefix=f"m{k}_")
+        np.savez(path, meta=np.array(json.dumps(self.meta)), **arrays)
+        return path
+
+    @classmethod
+    def load(cls, path: "str | Path") -> "TargetSwitchedPolicy":
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"target-switched policy {path} not found")
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                meta = json.loads(str(z["meta"]))
+                switch = meta["switch"]
+                if switch.get("by") != "target":
+                    raise ValueError(f"unknown switch rule {switch.get('by')!r} (only 'target')")
+                members = [ExportedPolicy.from_arrays(m, z, prefix=f"m{k}_") for k, m in enumerate(meta["members"])]
+        except (KeyError, ValueError, OSError) as exc:
+            raise ValueError(f"{path} is not a target-switched drillgym policy: {exc}") from exc
+        return cls(members, switch["edges"], meta.get("note", ""))
+
+
+def is_switched(path: "str | Path") -> bool:
+    """True when the ``.npz`` at ``path`` is a target-switched policy (False for a single network or a missing
+    or unreadable file)."""
+    try:
+        with np.load(Path(path), allow_pickle=False) as z:
+            return "meta" in z.files and "members" in json.loads(str(z["meta"]))
+    except (OSError, ValueError):
+        return False
+
+
+def combine(paths: Sequence["str | Path"], edges: Sequence[float], out: "str | Path", note: str = "") -> Path:
+    """Write the target-switched policy of the exported networks ``paths`` (lowest band first) split at
+    ``edges`` (rad/s) to ``out``; the networks must share the control period and the action bounds."""
+    members = [ExportedPolicy.load(p) for p in paths]
+    dts = {float(m.config["hyperparams"].get("env_kwargs", {}).get("control_dt", 0.01)) for m in members}
+    if len(dts) != 1:
+        raise ValueError(f"the networks were trained at different control periods {sorted(dts)} s; they cannot "
+                         "share one rig loop")
+    if any(m.config.get("env_id") != members[0].config.get("env_id") for m in members):
+        raise ValueError("the networks were trained on different environments: "
+                         + ", ".join(str(m.config.get("env_id")) for m in members))
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    return TargetSwitchedPolicy(members, edges, note).save(out)
