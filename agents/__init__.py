@@ -15,6 +15,7 @@
 * :mod:`.train` - ``train(env_id, algo, out, ...)``: seeds, TensorBoard, progress bar, checkpoints, resume
 * :mod:`.export` - numpy export of the deterministic policy (no torch on the rig)
 * :mod:`.controller` - :class:`AgentController`: measurements -> env observation -> policy -> volts
+* :mod:`.switched` - target-switched policies: learned networks, each serving a band of target speeds
 * :mod:`.loader` - ``load_controller(path, ...)``: the ``agent:PATH`` hook of :func:`controllers.make`
 
 ``import agents`` is light (numpy only); torch and SB3 load when training or reading a ``.zip``.
@@ -26,8 +27,9 @@ from pathlib import Path
 
 __all__ = ["load_controller", "load_policy", "KEPT_POLICY", "LEARNED_POLICY"]
 
-#: the learned policy (motor side only, no hand-made structure): agents/policies/torsional_motor_learned_nominal
-LEARNED_POLICY = Path(__file__).resolve().parent / "policies" / "torsional_motor_learned_nominal" / "policy.npz"
+#: the kept learned policy (motor side only; two learned networks chosen by the target, agents/switched.py):
+#: agents/policies/torsional_motor_learned
+LEARNED_POLICY = Path(__file__).resolve().parent / "policies" / "torsional_motor_learned" / "policy.npz"
 #: the policy kept in the repository (``agent:`` + this path works in ``drillgym evaluate``)
 KEPT_POLICY = Path(__file__).resolve().parent / "policies" / "torsional_motor_residual_observer" / "policy.npz"
 
