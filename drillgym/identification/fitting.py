@@ -22,6 +22,7 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 from scipy.optimize import least_squares
+from threadpoolctl import threadpool_limits
 
 from ..effects import Composition
 from ..params import N_PARAMS, PARAM_INFO, RigParams
@@ -325,8 +326,13 @@ def fit_parameters(objective: Objective, base: "RigParams | np.ndarray", variabl
     z0 = np.zeros(n + ks)
     q0 = fun_map(z0)
     r0 = fun(z0)
-    sol = least_squares(fun_map, z0, jac=jac_map, bounds=(zlo, zhi), method="trf", x_scale=1.0, max_nfev=max_nfev,
-                        ftol=ftol, xtol=xtol)
+    # one BLAS thread: the simulations inside fun and jac already keep every core busy (numba lanes), and
+    # BLAS threads waiting for work between trf's small dense steps took cores from them (60 s of 1 kHz
+    # data: diagnose 80 s -> 57 s, CPU time 151 s -> 85 s); trf's SVDs of a 12000 x 47 Jacobian gain
+    # nothing from a second thread (17 against 19 ms alone)
+    with threadpool_limits(limits=1, user_api="blas"):
+        sol = least_squares(fun_map, z0, jac=jac_map, bounds=(zlo, zhi), method="trf", x_scale=1.0,
+                            max_nfev=max_nfev, ftol=ftol, xtol=xtol)
     z = sol.x
     q1 = fun_map(z)
     r1 = fun(z)
