@@ -14,12 +14,13 @@ action space (or squashes it with tanh under gSDE's ``squash_output``); TD3's ac
 from __future__ import annotations
 
 import json
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 
-__all__ = ["export_policy", "ExportedPolicy", "policy_layers", "ACTIVATIONS", "FORMAT_VERSION"]
+__all__ = ["export_policy", "ExportedPolicy", "policy_file", "policy_layers", "ACTIVATIONS", "FORMAT_VERSION"]
 
 FORMAT_VERSION = 1
 ACTIVATIONS = {
@@ -121,6 +122,21 @@ def export_policy(model, path: str | Path, config: dict[str, Any]) -> Path:
     return path
 
 
+@contextmanager
+def policy_file(path: str | Path, kind: str) -> Iterator[tuple[dict[str, Any], Any]]:
+    """``(meta, arrays)`` of the policy file at ``path`` (an open ``.npz``), for reading inside the block; a
+    missing file, or one that is not a ``kind`` (a missing array, bad metadata), is named in the error."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{kind} {path} not found")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            yield json.loads(str(z["meta"])), z
+    except (KeyError, ValueError, OSError) as exc:
+        article = "an" if kind[0] in "aeiou" else "a"
+        raise ValueError(f"{path} is not {article} {kind}: {exc}") from exc
+
+
 def _jsonable(o):
     if isinstance(o, (np.floating, np.integer)):
         return o.item()
@@ -151,18 +167,11 @@ class ExportedPolicy:
 
     @classmethod
     def load(cls, path: str | Path) -> "ExportedPolicy":
-        path = Path(path)
-        if not path.is_file():
-            raise FileNotFoundError(f"exported policy {path} not found")
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                meta = json.loads(str(z["meta"]))
-                if "members" in meta:
-                    raise ValueError("it is a target-switched policy of several networks; load it with "
-                                     "agents.load_policy")
-                return cls.from_arrays(meta, z)
-        except (KeyError, ValueError, OSError) as exc:
-            raise ValueError(f"{path} is not an exported drillgym policy: {exc}") from exc
+        with policy_file(path, "exported drillgym policy") as (meta, z):
+            if "members" in meta:
+                raise ValueError("it is a target-switched policy of several networks; load it with "
+                                 "agents.load_policy")
+            return cls.from_arrays(meta, z)
 
     @classmethod
     def from_arrays(cls, meta: dict[str, Any], arrays: Any, prefix: str = "") -> "ExportedPolicy":

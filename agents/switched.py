@@ -28,7 +28,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .export import ExportedPolicy
+from .export import ExportedPolicy, policy_file
 
 __all__ = ["TargetSwitchedPolicy", "combine", "is_switched", "SWITCH_FORMAT"]
 
@@ -74,18 +74,11 @@ class TargetSwitchedPolicy:
 
     @classmethod
     def load(cls, path: "str | Path") -> "TargetSwitchedPolicy":
-        path = Path(path)
-        if not path.is_file():
-            raise FileNotFoundError(f"target-switched policy {path} not found")
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                meta = json.loads(str(z["meta"]))
-                switch = meta["switch"]
-                if switch.get("by") != "target":
-                    raise ValueError(f"unknown switch rule {switch.get('by')!r} (only 'target')")
-                members = [ExportedPolicy.from_arrays(m, z, prefix=f"m{k}_") for k, m in enumerate(meta["members"])]
-        except (KeyError, ValueError, OSError) as exc:
-            raise ValueError(f"{path} is not a target-switched drillgym policy: {exc}") from exc
+        with policy_file(path, "target-switched drillgym policy") as (meta, z):
+            switch = meta["switch"]
+            if switch.get("by") != "target":
+                raise ValueError(f"unknown switch rule {switch.get('by')!r} (only 'target')")
+            members = [ExportedPolicy.from_arrays(m, z, prefix=f"m{k}_") for k, m in enumerate(meta["members"])]
         return cls(members, switch["edges"], meta.get("note", ""))
 
 
