@@ -407,7 +407,8 @@ def base_prior(comp: Composition, nominal: np.ndarray, names: Sequence[str], sig
 def converged_fit(st: _State, vec: np.ndarray, names: Sequence[str], max_nfev: int, refine: bool = True) -> FitResult:
     """Fit ``names`` from ``vec`` to convergence.  ``refine``: the segments' initial speeds are fitted with them
     (:func:`~drillgym.identification.fitting.fit_parameters` with ``fit_speeds``; started from a
-    Gauss–Newton refinement for ``vec``), and the model is left with the fitted speeds.  Without it, rounds
+    Gauss–Newton refinement for ``vec``; with no names, the model at ``vec`` with its speeds refined for it),
+    and the model is left with the fitted speeds.  Without it, rounds
     of the fit from the last one's result until a round removes less than :data:`CONVERGE_RTOL` of the RSS
     (:data:`CONVERGE_ROUNDS` at most).
 
@@ -418,9 +419,9 @@ def converged_fit(st: _State, vec: np.ndarray, names: Sequence[str], max_nfev: i
     rounds stopped on the 1 % rule), in about half the time for the base-free fits."""
     obj = st.obj
     model = obj.model
-    if refine and names:
+    if refine:  # no names: the model at ``vec`` with the speeds refined for it (not for the model fitted last)
         model.refine_initial_speeds(vec, obj.weights, obj.scales, fresh=True)
-        return _fit(st, vec, names, max_nfev, speeds=True)
+        return _fit(st, vec, names, max_nfev, speeds=bool(names))
     best = _fit(st, vec, names, max_nfev)
     for _ in range(CONVERGE_ROUNDS - 1):
         if not names:
@@ -825,11 +826,7 @@ def forward_select(obj: Objective, comp: Composition, vec0: np.ndarray, candidat
     held = _fit(st, nominal_base, eff_names, max_nfev_joint)
     if refine and held.rss_after < NESTED_RECHECK * full.rss_after:
         with obj.model.speeds_kept():
-            if eff_names:
-                held = converged_fit(st, nominal_base, eff_names, max_nfev_joint, refine)
-            else:
-                obj.model.refine_initial_speeds(nominal_base, obj.weights, obj.scales, fresh=True)
-                held = _fit(st, nominal_base, (), max_nfev_joint)
+            held = converged_fit(st, nominal_base, eff_names, max_nfev_joint, refine)
             speeds_held = obj.model.speeds_snapshot()
     if eff_names and held.rss_after < full.rss_after:
         # the base-freed fit stopped in a worse optimum than its own nested model reaches (the exact-base
