@@ -51,7 +51,7 @@ class AgentController(Controller):
         if self.mode == "full":
             raise ValueError("agent trained on the 'full' observation (true state) cannot run on measurements; "
                              "train with --obs motor or --obs sensors")
-        control_dt = float(env_kwargs.get("control_dt", 0.01))
+        control_dt = policy.control_dt
         kw.setdefault("dt", control_dt)
         if abs(kw["dt"] - control_dt) > 1e-12:
             raise ValueError(f"agent was trained at control period {control_dt} s, not {kw['dt']} s")
@@ -152,19 +152,16 @@ class TargetSwitchedController(Controller):
 
     def __init__(self, policy: TargetSwitchedPolicy, omega_ref=None, **kw) -> None:
         self.switched = policy
-        self.members = [AgentController(p, omega_ref, **kw) for p in policy.members]
-        dts = {m.dt for m in self.members}
-        if len(dts) != 1:
-            raise ValueError(f"the networks of a target-switched policy run at different control periods {sorted(dts)} s")
+        self.members = [AgentController(p, omega_ref, **kw) for p in policy.members]  # one control period (the policy's check)
         kw.setdefault("dt", self.members[0].dt)
         super().__init__(omega_ref, **kw)
         self.uses = tuple(dict.fromkeys(u for m in self.members for u in m.uses))
         self.groups: list[tuple[int, np.ndarray]] = []
 
     def describe(self) -> str:
-        bands = [f"< {self.switched.edges[0]:g}"] + [f">= {e:g}" if k == len(self.switched.edges) - 1 else
-                                                     f"{e:g}-{self.switched.edges[k + 1]:g}"
-                                                     for k, e in enumerate(self.switched.edges)]
+        edges = self.switched.edges
+        bands = [f"< {hi:g}" if lo is None else f">= {lo:g}" if hi is None else f"{lo:g}-{hi:g}"
+                 for lo, hi in zip((None, *edges), (*edges, None))]
         return (f"agent: {len(self.members)} learned networks chosen by the target (rad/s: {', '.join(bands)}) "
                 f"(reads: {', '.join(self.uses)})")
 

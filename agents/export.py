@@ -199,6 +199,11 @@ class ExportedPolicy:
         """The training run's configuration (env id, algo, seed, hyperparameters)."""
         return self.meta["config"]
 
+    @property
+    def control_dt(self) -> float:
+        """Control period (s) the policy was trained at (the env's ``control_dt``, 10 ms by default)."""
+        return float(self.config["hyperparams"].get("env_kwargs", {}).get("control_dt", 0.01))
+
     def act(self, obs: np.ndarray) -> np.ndarray:
         x = np.asarray(obs, dtype=np.float32)
         single = x.ndim == 1

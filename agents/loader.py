@@ -13,7 +13,7 @@ import yaml
 
 from .controller import AgentController, TargetSwitchedController
 from .export import ExportedPolicy
-from .switched import TargetSwitchedPolicy, is_switched
+from .switched import TargetSwitchedPolicy, read_policy
 
 __all__ = ["load_policy", "load_controller"]
 
@@ -27,7 +27,7 @@ def load_policy(path: str | Path) -> "ExportedPolicy | TargetSwitchedPolicy":
     if not p.exists():
         raise FileNotFoundError(f"agent file {p} not found")
     if p.suffix == ".npz":
-        return TargetSwitchedPolicy.load(p) if is_switched(p) else ExportedPolicy.load(p)
+        return read_policy(p)
     if p.suffix != ".zip":
         raise ValueError(f"agent file {p} must be an exported policy (.npz) or an SB3 model (.zip)")
     beside = p.with_name("policy.npz")

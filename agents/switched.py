@@ -30,7 +30,7 @@ import numpy as np
 
 from .export import ExportedPolicy, policy_file
 
-__all__ = ["TargetSwitchedPolicy", "combine", "is_switched", "SWITCH_FORMAT"]
+__all__ = ["TargetSwitchedPolicy", "combine", "read_policy", "SWITCH_FORMAT"]
 
 SWITCH_FORMAT = 1
 
@@ -51,6 +51,13 @@ class TargetSwitchedPolicy:
             raise ValueError(f"target edges must be positive, finite and increasing (rad/s), got {edges}")
         if any("members" in m.meta for m in members):
             raise ValueError("a member of a target-switched policy must be a single network, not another switch")
+        dts = sorted({m.control_dt for m in members})
+        if len(dts) != 1:
+            raise ValueError(f"the networks were trained at different control periods {dts} s; they cannot share "
+                             "one rig loop")
+        if len({m.config.get("env_id") for m in members}) != 1:
+            raise ValueError("the networks were trained on different environments: "
+                             + ", ".join(str(m.config.get("env_id")) for m in members))
         self.members, self.edges, self.note = members, tuple(edges), note
 
     @property
@@ -73,36 +80,30 @@ class TargetSwitchedPolicy:
         return path
 
     @classmethod
-    def load(cls, path: "str | Path") -> "TargetSwitchedPolicy":
-        with policy_file(path, "target-switched drillgym policy") as (meta, z):
-            switch = meta["switch"]
-            if switch.get("by") != "target":
-                raise ValueError(f"unknown switch rule {switch.get('by')!r} (only 'target')")
-            members = [ExportedPolicy.from_arrays(m, z, prefix=f"m{k}_") for k, m in enumerate(meta["members"])]
+    def from_arrays(cls, meta: dict[str, Any], arrays: Any) -> "TargetSwitchedPolicy":
+        """The policy of the file's ``meta`` and arrays (an open ``.npz``)."""
+        switch = meta["switch"]
+        if switch.get("by") != "target":
+            raise ValueError(f"unknown switch rule {switch.get('by')!r} (only 'target')")
+        members = [ExportedPolicy.from_arrays(m, arrays, prefix=f"m{k}_") for k, m in enumerate(meta["members"])]
         return cls(members, switch["edges"], meta.get("note", ""))
 
+    @classmethod
+    def load(cls, path: "str | Path") -> "TargetSwitchedPolicy":
+        with policy_file(path, "target-switched drillgym policy") as (meta, z):
+            return cls.from_arrays(meta, z)
 
-def is_switched(path: "str | Path") -> bool:
-    """True when the ``.npz`` at ``path`` is a target-switched policy (False for a single network or a missing
-    or unreadable file)."""
-    try:
-        with np.load(Path(path), allow_pickle=False) as z:
-            return "meta" in z.files and "members" in json.loads(str(z["meta"]))
-    except (OSError, ValueError):
-        return False
+
+def read_policy(path: "str | Path") -> "ExportedPolicy | TargetSwitchedPolicy":
+    """The policy in the ``.npz`` at ``path``, read once: one network, or a target-switched set of them."""
+    with policy_file(path, "exported drillgym policy") as (meta, z):
+        return TargetSwitchedPolicy.from_arrays(meta, z) if "members" in meta else ExportedPolicy.from_arrays(meta, z)
 
 
 def combine(paths: Sequence["str | Path"], edges: Sequence[float], out: "str | Path", note: str = "") -> Path:
     """Write the target-switched policy of the exported networks ``paths`` (lowest band first) split at
-    ``edges`` (rad/s) to ``out``; the networks must share the control period and the action bounds."""
+    ``edges`` (rad/s) to ``out``; the networks must share the environment and the control period."""
     members = [ExportedPolicy.load(p) for p in paths]
-    dts = {float(m.config["hyperparams"].get("env_kwargs", {}).get("control_dt", 0.01)) for m in members}
-    if len(dts) != 1:
-        raise ValueError(f"the networks were trained at different control periods {sorted(dts)} s; they cannot "
-                         "share one rig loop")
-    if any(m.config.get("env_id") != members[0].config.get("env_id") for m in members):
-        raise ValueError("the networks were trained on different environments: "
-                         + ", ".join(str(m.config.get("env_id")) for m in members))
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     return TargetSwitchedPolicy(members, edges, note).save(out)

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
 import agents
 from agents.controller import AgentController, TargetSwitchedController
 from agents.export import ExportedPolicy
-from agents.switched import TargetSwitchedPolicy, combine, is_switched
+from agents.switched import TargetSwitchedPolicy, combine, read_policy
 from controllers.evaluation import SCENARIOS, run_job
 from drillgym.measurement import quantize_angle
 
@@ -20,7 +22,9 @@ SWITCHED = POLICIES / "torsional_motor_learned" / "policy.npz"
 
 def test_a_combined_file_keeps_each_network_and_its_band(tmp_path) -> None:
     path = combine([NOMINAL, ROBUST], [3.0], tmp_path / "sw" / "policy.npz", note="why")
-    assert is_switched(path) and not is_switched(NOMINAL) and not is_switched(tmp_path / "missing.npz")
+    assert isinstance(read_policy(NOMINAL), ExportedPolicy)  # a single network stays one
+    with pytest.raises(FileNotFoundError, match="missing.npz"):
+        read_policy(tmp_path / "missing.npz")
     sw = agents.load_policy(str(path))
     assert isinstance(sw, TargetSwitchedPolicy) and sw.edges == (3.0,) and sw.note == "why"
     assert list(sw.member_of([1.0, 2.999, 3.0, 8.0])) == [0, 0, 1, 1]
@@ -38,6 +42,19 @@ def test_bad_bands_are_refused_with_the_reason(tmp_path, edges, match) -> None:
     with pytest.raises(ValueError, match=match):
         combine([NOMINAL, ROBUST], edges, tmp_path / "x.npz")
     assert not (tmp_path / "x.npz").exists()
+
+
+def test_networks_that_cannot_share_one_rig_loop_are_refused() -> None:
+    low, high = ExportedPolicy.load(NOMINAL), ExportedPolicy.load(ROBUST)
+    meta = json.loads(json.dumps(high.meta))
+    meta["config"]["hyperparams"].setdefault("env_kwargs", {})["control_dt"] = 0.02
+    slow = ExportedPolicy.from_arrays(meta, high.to_arrays())
+    with pytest.raises(ValueError, match="different control periods"):
+        TargetSwitchedPolicy([low, slow], [3.0])
+    meta = json.loads(json.dumps(high.meta))
+    meta["config"]["env_id"] = "drillgym/Coupled-v0"
+    with pytest.raises(ValueError, match="different environments"):
+        TargetSwitchedPolicy([low, ExportedPolicy.from_arrays(meta, high.to_arrays())], [3.0])
 
 
 def test_each_rig_runs_the_network_of_its_target_exactly_as_alone(tmp_path) -> None:
@@ -65,7 +82,7 @@ def test_each_rig_runs_the_network_of_its_target_exactly_as_alone(tmp_path) -> N
 def test_kept_switched_policy_holds_both_bands_on_the_simulated_rig() -> None:
     """The kept policy: 2.5 rad/s on the nominal rig from rest (the nominal-trained network's band) and
     3.5 rad/s with the brake 20 % weaker (the population-trained network's), where the open loop sticks."""
-    assert is_switched(SWITCHED)
+    assert isinstance(read_policy(SWITCHED), TargetSwitchedPolicy)
     low = run_job(f"agent:{SWITCHED}", "torsional", SCENARIOS["rest"], [2.5], duration=60.0, window=20.0)[0]
     high, base = (run_job(c, "torsional", SCENARIOS["friction-20"], [3.5], duration=60.0, window=20.0)[0]
                   for c in (f"agent:{SWITCHED}", "baseline"))

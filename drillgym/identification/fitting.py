@@ -328,7 +328,7 @@ def fit_parameters(objective: Objective, base: "RigParams | np.ndarray", variabl
     r0 = fun(z0)
     # one BLAS thread: the simulations inside fun and jac already keep every core busy (numba lanes), and
     # BLAS threads waiting for work between trf's small dense steps took cores from them (60 s of 1 kHz
-    # data: diagnose 80 s -> 57 s, CPU time 151 s -> 85 s); trf's SVDs of a 12000 x 47 Jacobian gain
+    # data: diagnose 80 s -> 58 s, CPU time 151 s -> 87 s); trf's SVDs of a 12000 x 47 Jacobian gain
     # nothing from a second thread (17 against 19 ms alone)
     with threadpool_limits(limits=1, user_api="blas"):
         sol = least_squares(fun_map, z0, jac=jac_map, bounds=(zlo, zhi), method="trf", x_scale=1.0,
