@@ -314,7 +314,7 @@ def test_second_half_keeps_the_recordings_clock_for_a_friction_drift():
 @pytest.mark.parametrize("truth, wrong", [("input_delay", "motor_lag"), ("motor_lag", "input_delay")])
 def test_lag_or_delay_is_decided_at_the_recordings_own_rate(truth, wrong):
     from drillgym.diagnosis.ranking import default_segment, default_weights
-    from drillgym.diagnosis.timing import decide_lag_delay, fine_experiments, fine_rate
+    from drillgym.diagnosis.timing import decide_lag_delay, decide_lag_delay_many, fine_experiments, fine_rate
     from drillgym.identification.experiment import prepare_experiment
     from drillgym.identification.fitting import base_vector
 
@@ -334,6 +334,12 @@ def test_lag_or_delay_is_decided_at_the_recordings_own_rate(truth, wrong):
     assert j["n_eff"] > 10 and j["log_rss_ratio"] > 0
     assert j["log_rss_ratio"] == pytest.approx(dec.gap / dec.n_eff, rel=1e-3, abs=1e-6)
     assert dec.other in dec.tie_note() and "1000 Hz" in dec.tie_note()  # what the ranking states on a tie
+    # questions asked together: a search asked twice runs once, and each decision is the one asked alone
+    known: dict = {}
+    both = decide_lag_delay_many([ex], comp, [(models, wrong), (models, truth)], default_weights(ex.config),
+                                 default_segment(ex.config), known=known)
+    assert len(known) == 2 and [d.chosen for d in both] == [truth, truth]
+    assert both[0].gap == dec.gap and both[0].values == dec.values
     # no finer data than the comparison grid: no decision
     coarse = prepare_experiment(synthetic_measurement("torsional", duration=5.0, rate_hz=50.0, seed=3), compare_rate_hz=50.0)
     assert fine_experiments([coarse]) is None
@@ -678,8 +684,8 @@ def test_a_decisive_lag_delay_check_on_a_smooth_input_is_a_tie_at_any_rate(monke
     knots = np.cumsum(np.r_[0.0, rng.uniform(3.0, 8.0, 8)])
     inputs = {"ramps": np.interp(t, knots, 1.5 + 2.0 * rng.uniform(-1, 1, knots.size)),
               "steps": 1.5 + 2.0 * rng.uniform(-1, 1, 10)[np.minimum((t // 2.0).astype(int), 9)]}
-    monkeypatch.setattr(timing, "decide_lag_delay", lambda *a, **k: timing.FineDecision(
-        "motor_lag", "input_delay", 150.0, 500.0, {"motor_lag": 0.04, "input_delay": 0.04}, n_eff=3000.0))
+    monkeypatch.setattr(timing, "decide_lag_delay_many", lambda *a, **k: [timing.FineDecision(
+        "motor_lag", "input_delay", 150.0, 500.0, {"motor_lag": 0.04, "input_delay": 0.04}, n_eff=3000.0)])
     for kind, u in inputs.items():
         ts = synthetic_measurement("torsional", duration=20.0, rate_hz=500.0, input=(t, u), seed=3)
         ex = prepare_experiment(ts, compare_rate_hz=50.0)
@@ -737,14 +743,14 @@ def test_lag_delay_decision_made_on_the_incumbents_base_is_checked():
         assert "indistinguishable" in next(s.note for s in d.ranking if s.effect == "input_delay"), d.text()
 
 
-def test_lag_delay_decision_reversed_by_the_nominal_base_is_a_tie(monkeypatch):
+def test_lag_delay_decision_reversed_by_the_nominal_base_is_a_tie():
     """The rule itself: the fine check run again with the base parameters at their nominal values; when it
     decides the other way by 50 nats or more the decision is a tie naming why, by less it stands."""
     from types import SimpleNamespace
 
     import drillgym.diagnosis.timing as timing
     from drillgym.diagnosis.effects import get_effect
-    from drillgym.diagnosis.ranking import _check_against_nominal_base
+    from drillgym.diagnosis.ranking import _apply_nominal_check, _nominal_base_models
     from drillgym.diagnosis.selection import neutral_values, search_composition
     from drillgym.effects import compose
     from drillgym.identification.fitting import base_vector
@@ -756,17 +762,14 @@ def test_lag_delay_decision_reversed_by_the_nominal_base_is_a_tie(monkeypatch):
     vec[comp.param_index("km")] *= 0.97
     vec[comp.param_index("delay")] = 0.025
     st = SimpleNamespace(vec=vec, comp=comp, effects={e.name: e for e in cands})
-    seen = {}
+    models = _nominal_base_models(st, "input_delay", ("km",), nominal)
+    assert models["input_delay"][comp.param_index("km")] == nominal[comp.param_index("km")]
+    assert models["input_delay"][comp.param_index("delay")] == 0.025
+    assert models["motor_lag"][comp.param_index("delay")] == 0.0
+    assert vec[comp.param_index("km")] != nominal[comp.param_index("km")]  # the selected model is left as it was
     for gap, tie in ((120.0, True), (20.0, False)):
-        def fake(exps, comp_, models, incumbent, weights, segment_s, gap=gap):
-            seen["km"] = models[incumbent][comp.param_index("km")]
-            seen["other_delay"] = models["motor_lag"][comp.param_index("delay")]
-            return timing.FineDecision("motor_lag", "input_delay", gap, 1000.0, {}, n_eff=1000.0)
-
-        monkeypatch.setattr(timing, "decide_lag_delay", fake)
         dec = timing.FineDecision("input_delay", "motor_lag", 300.0, 1000.0, {}, n_eff=1000.0)
-        _check_against_nominal_base(dec, [], comp, SimpleNamespace(weights={}), st, "input_delay", ("km",), nominal, 4.0)
-        assert seen["km"] == nominal[comp.param_index("km")] and seen["other_delay"] == 0.0
+        _apply_nominal_check(dec, timing.FineDecision("motor_lag", "input_delay", gap, 1000.0, {}, n_eff=1000.0))
         assert dec.nominal_base["chosen"] == "motor_lag" and dec.nominal_base["score_gap_nats"] == gap
         assert dec.tie is tie and (("nominal values" in dec.doubt) is tie), dec
 

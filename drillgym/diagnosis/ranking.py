@@ -740,10 +740,10 @@ def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s,
     the scores, when a base parameter is at a bound of its range (a model wrong elsewhere: seen deciding a
     50 ms delay as a lag by 40 nats on an independent rig's ramps), when the input is smooth (ramps: nothing
     in it tells them apart, at any rate), or when the nominal base parameters reverse the decision
-    (:func:`_check_against_nominal_base`).  Returns the
+    (:func:`_nominal_base_models`).  Returns the
     :class:`.timing.FineDecision` or None (no lag/delay selected, or no finer data)."""
     from .selection import SEPARATES_LAG_DELAY, _effect_params, _fit, _neutralise, _State
-    from .timing import LAG_DELAY, SMOOTH_INPUT_SHARE, decide_lag_delay, resolvable_lag_delay
+    from .timing import LAG_DELAY, SMOOTH_INPUT_SHARE, decide_lag_delay_many, resolvable_lag_delay
 
     by = {e.name: e for e in effects}
     held = [e for e in out["selected"] if e in LAG_DELAY]
@@ -755,7 +755,9 @@ def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s,
     st = _State(obj, comp, out["vector"].copy(), nominal.copy(), free_base, {e: by[e] for e in set(out["selected"]) | {b}})
     without_a = _neutralise(st, out["vector"], a)
     model_b = without_a
-    dec = decide_lag_delay(exps, comp, {a: out["vector"], b: without_a}, a, obj.weights, segment_s)
+    searches: dict = {}  # the fine searches made, reused by the checks below
+    dec = decide_lag_delay_many(exps, comp, [({a: out["vector"], b: without_a}, a)], obj.weights, segment_s,
+                                known=searches)[0]
     # the input's share above the upper disc's corner frequency: below SMOOTH_INPUT_SHARE nothing tells them apart
     corner, fast = _share_above_corner(exps, comp, nominal)
     if dec is None:
@@ -784,8 +786,12 @@ def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s,
     elif free_base and not dec.tie:
         # the base parameters were refitted with the incumbent in the model: the decision must hold when the
         # other one has its own (:func:`_own_base`), and with the nominal ones
+        # other, and with the nominal ones: both checks' searches run together (the second's is used only
+        # when the first does not reverse the decision)
         own = _own_base(st, out, a, b, without_a, free_base)
-        again = decide_lag_delay(exps, comp, {a: out["vector"], b: own}, a, obj.weights, segment_s)
+        again, check = decide_lag_delay_many(
+            exps, comp, [({a: out["vector"], b: own}, a), (_nominal_base_models(st, a, free_base, nominal), a)],
+            obj.weights, segment_s, known=searches)
         dec.own_base = again.brief()
         if dec.reversed_by(again):
             dec.doubt = (f"with {b}'s own base parameters (refitted with it) the check decides {again.chosen} by "
@@ -793,7 +799,7 @@ def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s,
         else:
             if dec.chosen == b:
                 model_b = own
-            _check_against_nominal_base(dec, exps, comp, obj, st, a, free_base, nominal, segment_s)
+            _apply_nominal_check(dec, check)
     for name in LAG_DELAY:
         out["ties"].pop(name, None)
     if dec.chosen != a:
@@ -842,10 +848,10 @@ def _own_base(st, out: dict, a: str, b: str, without_a: np.ndarray, free_base) -
     return fitted.vector
 
 
-def _check_against_nominal_base(dec, exps, comp, obj, st, incumbent: str, free_base, nominal: np.ndarray,
-                                segment_s) -> None:
-    """The fine decision again with the base parameters at their nominal values (in place: ``dec.doubt``
-    and ``dec.nominal_base``).  The base parameters were refitted on the comparison grid with the incumbent
+def _nominal_base_models(st, incumbent: str, free_base, nominal: np.ndarray) -> dict[str, np.ndarray]:
+    """The models of the fine decision asked again with the base parameters ``free_base`` at their ``nominal``
+    values: the incumbent's model as selected, and the same without it (the other one neutral); the answer is
+    recorded by :func:`_apply_nominal_check`.  The base parameters were refitted on the comparison grid with the incumbent
     in the model, and a lag or a delay shifts the slow response alike there: the refit can give the
     incumbent's shape to the base (the larger-Ju direction, every torque parameter a few percent down
     together), which then favours the incumbent on the fine grid.  Seen on an independent rig with a 25 ms
@@ -856,15 +862,19 @@ def _check_against_nominal_base(dec, exps, comp, obj, st, incumbent: str, free_b
     decides little, 0-16 nats on the lag/delay recordings of the benchmark's random seeds 101-606, and
     agrees wherever it is decisive.)"""
     from .selection import _neutralise
-    from .timing import decide_lag_delay
+    from .timing import LAG_DELAY
 
     vn = st.vec.copy()  # the incumbent's model, as selected
     for n in free_base:
-        i = comp.param_index(n)
+        i = st.comp.param_index(n)
         vn[i] = nominal[i]
-    other = dec.other if dec.chosen == incumbent else dec.chosen
-    check = decide_lag_delay(exps, comp, {incumbent: vn, other: _neutralise(st, vn, incumbent)}, incumbent,
-                             obj.weights, segment_s)
+    other = LAG_DELAY[1 - LAG_DELAY.index(incumbent)]
+    return {incumbent: vn, other: _neutralise(st, vn, incumbent)}
+
+
+def _apply_nominal_check(dec, check) -> None:
+    """Record on ``dec`` (in place: ``dec.nominal_base``, ``dec.doubt``) the decision ``check`` asked of
+    :func:`_nominal_base_models`: a tie when it reverses ``dec`` decisively."""
     if check is None:
         return
     dec.nominal_base = check.brief()

@@ -49,6 +49,7 @@ from .effects import get_effect
 from .effective import effective_samples
 
 __all__ = ["FINE_RATE_HZ", "FINE_TIE_NATS", "LAG_DELAY", "SMOOTH_INPUT_SHARE", "FineDecision", "decide_lag_delay",
+           "decide_lag_delay_many",
            "input_share_above", "resolvable_lag_delay"]
 
 #: highest comparison rate (Hz) of the fine check: 1 kHz resolves a 10 ms lag's rounding
@@ -83,12 +84,15 @@ def _best_value(obj, comp, vector: np.ndarray, name: str, hi: float) -> "tuple[f
 
     i = comp.param_index(name)
     model = obj.model
+    seen: dict[float, np.ndarray] = {}  # residual per value tried (the best one is not simulated again)
 
     def residual(x: float) -> np.ndarray:
-        v = vector.copy()
-        v[i] = x
-        model.refine_initial_speeds(v, obj.weights, obj.scales, fresh=True)
-        return obj.residual_matrix(v[None, :])[0]
+        if x not in seen:
+            v = vector.copy()
+            v[i] = x
+            model.refine_initial_speeds(v, obj.weights, obj.scales, fresh=True)
+            seen[x] = obj.residual_matrix(v[None, :])[0]
+        return seen[x]
 
     def rss(x: float) -> float:
         r = residual(x)
@@ -223,35 +227,65 @@ def decide_lag_delay(exps: Sequence[Experiment], comp, models: Mapping[str, np.n
     motor lag and the one with the input delay (the other one neutral in each); ``incumbent``: the one
     selected on the comparison grid.  Each one's time constant / delay is searched again on the fine grid,
     the rest of its vector held.  None when the recordings are not fine enough (:func:`fine_rate`)."""
+    return decide_lag_delay_many(exps, comp, [(models, incumbent)], weights, segment_s)[0]
+
+
+def decide_lag_delay_many(exps: Sequence[Experiment], comp, questions: Sequence[tuple[Mapping[str, np.ndarray], str]],
+                          weights: dict, segment_s: "float | None",
+                          known: "dict | None" = None) -> "list[FineDecision | None]":
+    """:func:`decide_lag_delay` for several (models, incumbent) questions on the same recordings, their
+    searches run together (threads over the cores: three searches on two cores take the time of two
+    rounds, not three).  A search asked twice (the same vector, parameter and range) runs once; ``known``
+    (a dict, updated in place) carries searches over from an earlier call.  The decisions are those of
+    :func:`decide_lag_delay` asked one by one."""
     from .segments import place_segment_starts, robust_noise
 
-    if set(models) != set(LAG_DELAY) or incumbent not in LAG_DELAY:
-        raise ValueError(f"decide_lag_delay needs the models of {LAG_DELAY} and one of them as incumbent")
+    for models, incumbent in questions:
+        if set(models) != set(LAG_DELAY) or incumbent not in LAG_DELAY:
+            raise ValueError(f"decide_lag_delay needs the models of {LAG_DELAY} and one of them as incumbent")
     fine = fine_experiments(exps)
     if fine is None:
-        return None
+        return [None] * len(questions)
     conditioned = [robust_noise(ex) for ex in fine]
     scales = {c: min(s[c] for _, s in conditioned) for c in conditioned[0][1]}
     model = SegmentedModel([c[0] for c in conditioned], segment_s, composition=comp, method="rk4")
     if segment_s is not None:
         place_segment_starts(model)
-    obj = Objective(model, weights, scales)
-    a = incumbent
-    b = LAG_DELAY[1 - LAG_DELAY.index(a)]
+    blocks = Objective(model, weights, scales).block_ids
     par = {e: get_effect(e).parameters[0].name for e in LAG_DELAY}  # tau_m, delay
-    hi = max(SEARCH_SPAN * max(float(models[e][comp.param_index(par[e])]) for e in LAG_DELAY), SEARCH_MIN_S)
-    # the two searches are independent: each on its own copy of the segmented model (the segments' initial
-    # speeds are refined per point), in two threads; the kernels release the GIL, so one search's simulation
-    # runs while the other's Python runs.  A lane's result does not depend on the batch it runs in
-    # (:data:`drillgym.simulator.LANE_BLOCK`), so this gives the values of the two searches run one after the other
-    obj_b = Objective(model.with_composition(comp), weights, scales)
-    with ThreadPoolExecutor(2) as pool:
-        search_a = pool.submit(_best_value, obj, comp, models[a], par[a], hi)
-        search_b = pool.submit(_best_value, obj_b, comp, models[b], par[b], hi)
-        (va, ra), (vb, rb) = search_a.result(), search_b.result()
-    ne = min(effective_samples(ra, obj.block_ids), effective_samples(rb, obj.block_ids))
-    gap = ne * math.log(max(float(rb @ rb), 1e-300) / max(float(ra @ ra), 1e-300))
-    values = {a: va, b: vb}
-    if gap < 0:
-        return FineDecision(b, a, -gap, float(fine[0].fs), values, n_eff=ne)
-    return FineDecision(a, b, gap, float(fine[0].fs), values, n_eff=ne)
+    known = {} if known is None else known
+    jobs: dict[tuple, tuple[np.ndarray, str, float]] = {}
+    keys = []
+    for models, incumbent in questions:
+        # the range from the incumbent's value only (the other one is neutral, or refitted from that value), so
+        # that questions asking the incumbent's model again share its search
+        hi = max(SEARCH_SPAN * float(models[incumbent][comp.param_index(par[incumbent])]), SEARCH_MIN_S)
+        pair = {}
+        for e in LAG_DELAY:
+            key = (e, np.asarray(models[e], dtype=float).tobytes(), hi, segment_s)
+            pair[e] = key
+            if key not in known:
+                jobs[key] = (np.asarray(models[e], dtype=float), par[e], hi)
+        keys.append(pair)
+    if jobs:
+        # each search on its own copy of the segmented model (the segments' initial speeds are refined per
+        # point), in threads; the kernels release the GIL, so one search's simulation runs while another's
+        # Python runs.  A lane's result does not depend on the batch it runs in
+        # (:data:`drillgym.simulator.LANE_BLOCK`), so this gives the values of the searches run one by one
+        with ThreadPoolExecutor(min(len(jobs), 3)) as pool:
+            futures = {key: pool.submit(_best_value, Objective(model.with_composition(comp), weights, scales), comp,
+                                        vec, name, hi) for key, (vec, name, hi) in jobs.items()}
+            for key, fut in futures.items():
+                known[key] = fut.result()
+    out: "list[FineDecision | None]" = []
+    for (models, a), pair in zip(questions, keys):
+        b = LAG_DELAY[1 - LAG_DELAY.index(a)]
+        (va, ra), (vb, rb) = known[pair[a]], known[pair[b]]
+        ne = min(effective_samples(ra, blocks), effective_samples(rb, blocks))
+        gap = ne * math.log(max(float(rb @ rb), 1e-300) / max(float(ra @ ra), 1e-300))
+        values = {a: va, b: vb}
+        if gap < 0:
+            out.append(FineDecision(b, a, -gap, float(fine[0].fs), values, n_eff=ne))
+        else:
+            out.append(FineDecision(a, b, gap, float(fine[0].fs), values, n_eff=ne))
+    return out
