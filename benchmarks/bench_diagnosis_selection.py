@@ -203,7 +203,11 @@ def run_case(c: dict) -> dict:
     return out
 
 
-_PAIR = {"motor_lag": "input_delay", "input_delay": "motor_lag"}
+#: pairs the diagnosis may state as a tie (one selected, a note naming the other): a lag and a delay, and a friction
+#: that drifts in time and one that depends on the angle (on a recording whose lower disc slides through less than
+#: a revolution)
+_PAIR = {"motor_lag": "input_delay", "input_delay": "motor_lag",
+         "friction_drift": "position_friction", "position_friction": "friction_drift"}
 #: lower-disc speed (rad/s) below which the recording turns backward, and the share of samples under which a
 #: brake asymmetry (acting on backward rotation only) is invisible in it
 BACKWARD_RAD_S, BACKWARD_SHARE = 0.1, 0.02
@@ -230,7 +234,8 @@ def verdict(r: dict) -> str:
             return "right"
         if unseen(r) and sel == true - unseen(r):
             return "unseen"
-        swapped = {_PAIR.get(e, e) if e in r.get("ties", {}) else e for e in sel}
+        ties = r.get("ties", {})
+        swapped = {_PAIR[e] if e in _PAIR and _PAIR[e] in ties.get(e, "") else e for e in sel}
         return "tie" if swapped == true else "WRONG"
     u = r.get("unexplained")
     if not u:
@@ -277,7 +282,7 @@ def summarise(results: list[dict]) -> str:
         right = sum(v[r["id"]] == "right" for r in co)
         tie = sum(v[r["id"]] == "tie" for r in co)
         lines.append(f"combinations, selected set right:          {right}/{len(co)} ({right / len(co):.0%}); "
-                     f"with a stated lag/delay tie: {right + tie}/{len(co)}")
+                     f"with a stated tie: {right + tie}/{len(co)}")
         hidden = sum(v[r["id"]] == "unseen" for r in co)
         if hidden:
             lines.append(f"  right but for a hidden effect the recording cannot show (stated as not excited): "

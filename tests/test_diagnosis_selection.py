@@ -861,3 +861,75 @@ def test_fits_run_in_parallel_come_back_in_order_with_their_errors():
     assert len(threads) == 2
     with pytest.raises(ZeroDivisionError):
         _in_parallel([lambda: 1, lambda: 1 / 0])
+
+
+def test_a_drift_on_less_than_a_revolution_of_sliding_is_a_tie_with_a_position_friction():
+    """Over part of a revolution the lower disc's angle moves with time, so a friction that drifts in time and
+    one that varies with the angle look alike (an independent rig's position friction reported as a drift,
+    the disc sliding through 0.75 rad): a drift selected there is a tie naming the position friction, and the
+    reverse; on a disc that slides through several revolutions, or keeps its angle, neither is."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from drillgym.diagnosis.ranking import _state_time_or_angle_tie, sliding_angle_range
+
+    t = np.linspace(0.0, 30.0, 3001)
+
+    def exp(theta):
+        return SimpleNamespace(meas={"theta_l": theta}, rates={"omega_l": np.gradient(theta, t)})
+
+    creeping = exp(np.clip(0.25 * (t - 10.0), 0.0, 0.75))  # stuck, 0.75 rad in 3 s, stuck again
+    turning = exp(1.5 * t)  # 45 rad
+    stuck = exp(np.full_like(t, 0.3))
+    assert sliding_angle_range([creeping]) == pytest.approx(0.75, abs=0.01)
+    assert sliding_angle_range([turning]) == pytest.approx(45.0, rel=1e-3)
+    assert sliding_angle_range([stuck]) == 0.0
+    effects = [LIBRARY[n] for n in ("position_friction", "friction_drift", "string_damping")]
+    for selected, tied, other in ((["friction_drift", "string_damping"], "friction_drift", "position_friction"),
+                                  (["position_friction"], "position_friction", "friction_drift")):
+        out = {"selected": list(selected), "ties": {}}
+        _state_time_or_angle_tie(out, [creeping], effects)
+        assert list(out["ties"]) == [tied] and other in out["ties"][tied] and "0.75 rad" in out["ties"][tied]
+        out = {"selected": list(selected), "ties": {}}
+        _state_time_or_angle_tie(out, [turning], effects)
+        assert out["ties"] == {}
+        out = {"selected": list(selected), "ties": {}}  # a disc that keeps its angle: the angle explains nothing
+        _state_time_or_angle_tie(out, [stuck], effects)
+        assert out["ties"] == {}
+    both = {"selected": ["friction_drift", "position_friction"], "ties": {}}  # both selected: nothing to swap
+    _state_time_or_angle_tie(both, [creeping], effects)
+    assert both["ties"] == {}
+
+
+def test_a_measurement_effect_is_screened_with_the_segments_start_speeds_on_its_own_copy_of_the_model():
+    """A measurement effect changes the readings the segments restart from (the lateral initial states), and
+    through them the torsional prediction; its screen fits the segments' start speeds with it, on a copy of
+    the model (the screens run side by side on the shared one, whose speeds stay as they were), and fits
+    at least as well as with the speeds held, the skew's value close to the rig's."""
+    import numpy as np
+
+    from drillgym.diagnosis.ranking import default_segment, default_weights
+    from drillgym.diagnosis.segments import robust_noise
+    from drillgym.diagnosis.selection import _best_start, _fit, _State, screen_fit, selection_model
+    from drillgym.identification.experiment import prepare_experiment
+    from drillgym.identification.fitting import Objective, base_vector
+
+    ts = _independent_rig()("coupled", "sum_of_sines", 12.0, 200.0, 5, {"lvdt_skew": {"lvdt_skew": -0.044},
+                                                                        "lateral_coulomb": {"Fc_lat": 1.06}}, {}, 2.31, 1.5)
+    ex, scales = robust_noise(prepare_experiment(ts, compare_rate_hz=50.0))
+    cands = [LIBRARY["lateral_coulomb"], LIBRARY["lvdt_skew"]]
+    comp = search_composition(BASE, cands)
+    vec = base_vector(comp, RigParams(), {**neutral_values(cands), "Fc_lat": 1.06})
+    obj = Objective(selection_model([ex], default_segment(ex.config), comp), default_weights(ex.config), scales)
+    obj.model.refine_initial_speeds(vec, obj.weights, obj.scales, fresh=True)
+    speeds = obj.model.speeds_snapshot()
+    st = _State(obj, comp, vec.copy(), vec.copy(), (), {c.name: c for c in cands})
+    screened = screen_fit(st, vec, "lvdt_skew", 8)
+    assert all(np.array_equal(a, b) for a, b in zip(obj.model.speeds_snapshot(), speeds))
+    held = _fit(st, _best_start(st, vec, "lvdt_skew"), ["lvdt_skew"], 8)
+    assert screened.rss_after <= held.rss_after * (1 + 1e-9), (screened.rss_after, held.rss_after)
+    assert screened.values["lvdt_skew"] == pytest.approx(-0.044, rel=0.15)
+    # a dynamic effect is screened with the speeds held, as before
+    coulomb = screen_fit(st, vec, "lateral_coulomb", 4)
+    assert "lvdt_skew" not in coulomb.names and all(np.array_equal(a, b) for a, b in zip(obj.model.speeds_snapshot(), speeds))

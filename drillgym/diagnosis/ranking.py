@@ -525,6 +525,7 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         if refine_speeds and (out is again or out is before_check):  # speed corrections for the model kept
             obj.model.refine_initial_speeds(out["vector"], obj.weights, obj.scales, fresh=True)
     fine = _check_lag_delay(out, exps, comp, obj, usable, base_names, segment_s, vec0)
+    _state_time_or_angle_tie(out, exps, usable)
     skipped.update(out["excluded"])
     N = out["n"]
     rmse0 = math.sqrt(out["rss_nominal"] / N)
@@ -731,6 +732,57 @@ def _check_position_effects(out: dict, exps, comp, obj, effects, base_names, seg
         out["vector"], out["fit"], out["rss_final"] = refit.vector, refit, refit.rss_after
         gone[name] = check
     return gone
+
+
+#: effects whose friction level changes with time along the recording (the library's), told apart from a
+#: position-dependent one only when the lower disc slides through a revolution (:func:`_state_time_or_angle_tie`)
+TIME_EFFECTS = ("friction_drift",)
+#: lower-disc speed (rad/s) above which a sample counts as sliding (:func:`sliding_angle_range`)
+SLIDING_RAD_S = 0.1
+#: a lower disc that slides through less than this (rad, a twelfth of a revolution) keeps its angle: a friction
+#: that depends on the angle is then a constant there, not an alternative to one that drifts in time
+MIN_ANGLE_SPAN = 2 * math.pi / 12
+
+
+def sliding_angle_range(exps: Sequence[Experiment]) -> float:
+    """The largest range of the lower disc's angle θl (rad) over the samples where it slides (|ωl| above
+    :data:`SLIDING_RAD_S`), over the experiments; 0 without a lower-disc angle."""
+    out = 0.0
+    for ex in exps:
+        if "theta_l" not in ex.meas or "omega_l" not in ex.rates:
+            continue
+        th = np.asarray(ex.meas["theta_l"], dtype=float)
+        moving = np.abs(np.asarray(ex.rates["omega_l"], dtype=float)) > SLIDING_RAD_S
+        if np.any(moving):
+            out = max(out, float(np.ptp(th[moving])))
+    return out
+
+
+def _state_time_or_angle_tie(out: dict, exps: Sequence[Experiment], effects: Sequence[type[Effect]]) -> None:
+    """A friction that changes with time (:data:`TIME_EFFECTS`) selected in place of a position-dependent one,
+    or the reverse, on a recording whose lower disc slides through less than one revolution (and more than
+    :data:`MIN_ANGLE_SPAN`): stated as a tie (in place, ``out["ties"]``).  Over part of a revolution θl moves with time (a few excursions), so a
+    friction level that varies with the angle and one that drifts in time shift the response alike; only a
+    recording in which each angle is visited again, at other times, separates them.  Seen on an independent
+    rig (random seed 2222 #0: 30 s of sums of sines about 0 V, the disc sliding through 0.75 rad): the true
+    position friction reported as a friction drift.  (Where the selection was right on the benchmark's
+    matrices, the disc slid through 28 rad or more.)"""
+    from .reproducibility import POSITION_NEEDS
+
+    names = {e.name for e in effects}
+    position = [e.name for e in effects if POSITION_NEEDS in e.needs]
+    span = sliding_angle_range(exps)
+    if not MIN_ANGLE_SPAN <= span < 2 * math.pi:
+        return
+    for held, others in (([n for n in out["selected"] if n in TIME_EFFECTS], position),
+                         ([n for n in out["selected"] if n in position], [n for n in TIME_EFFECTS if n in names])):
+        alternatives = [o for o in others if o not in out["selected"]]
+        for name in held:
+            if alternatives and name not in out["ties"]:
+                out["ties"][name] = (f"not told apart from {' or '.join(alternatives)}: the lower disc slid through "
+                                     f"{span:.2f} rad, less than one revolution, so a friction that changes with time "
+                                     f"and one that changes with the angle look alike; a recording in which the lower "
+                                     f"disc slides through several revolutions decides")
 
 
 def _check_lag_delay(out: dict, exps, comp, obj, effects, base_names, segment_s, nominal):
