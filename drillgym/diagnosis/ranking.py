@@ -522,6 +522,14 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
                                            f"longer recording")
             paths["after_halves_check"].append("reverted")
             out = before_check
+        elif _half_cannot_show(exps, [checks[n] for n in gone]) \
+                and _better(out, before_check, usable, base_names, bounds=True, comp=comp, nominal=vec0) is before_check:
+            for n in gone:
+                before_check["ties"][n] = (f"{out['dropped'][n]}; kept: that half of the recording cannot show it (its "
+                                           f"lower disc slid through less than a revolution), and the model with it "
+                                           f"is the better one; not told apart from a friction that changes with time")
+            paths["after_halves_check"].append("kept")
+            out = before_check
         if refine_speeds and (out is again or out is before_check):  # speed corrections for the model kept
             obj.model.refine_initial_speeds(out["vector"], obj.weights, obj.scales, fresh=True)
     fine = _check_lag_delay(out, exps, comp, obj, usable, base_names, segment_s, vec0)
@@ -688,6 +696,21 @@ def _union_of_paths(kept: dict, results: Sequence[dict], obj: Objective, comp: C
     names, start = u
     return forward_select(obj, comp, nominal, usable, base_names, n_joint=n_joint,
                           max_effects=max(max_effects, len(names)), refine=refine, initial=names, start=start)
+
+
+def _half_cannot_show(exps: Sequence[Experiment], checks: "Sequence[HalfAgreement]") -> bool:
+    """Whether effects the split-half check dropped were missing only from halves whose lower disc slid through
+    less than a revolution (:func:`sliding_angle_range`): such a half can show no position-dependent effect,
+    so it neither confirms nor refutes one.  False when an effect was dropped for halves that disagree, or
+    none was dropped (a half that turned and does not show the effect refutes it)."""
+    from .reproducibility import split_halves
+
+    if not checks or any(c.shown_in_both for c in checks):  # dropped for disagreeing halves: refuted
+        return False
+    unseen = [(c, h) for c in checks for h in ("first", "second") if not c.shown(h)]
+    first, second = zip(*(split_halves(ex) for ex in exps))
+    span = {"first": sliding_angle_range(list(first)), "second": sliding_angle_range(list(second))}
+    return all(span[h] < 2 * math.pi for _, h in unseen)
 
 
 def compensates_dropped(kept: dict, replacement: dict) -> bool:
