@@ -963,3 +963,27 @@ def test_a_half_whose_disc_slides_less_than_a_revolution_cannot_refute_a_positio
     assert not _half_cannot_show([turning_late], [check(1.0, 1.0)])  # the second half turned and did not show it
     assert not _half_cannot_show([turning_late], [check(0.01, 0.01, second=-0.1)])  # both show it, disagreeing
     assert not _half_cannot_show([turning_late], [])
+
+
+def test_an_upper_disc_friction_is_discovered_while_the_lower_disc_is_stuck():
+    """Each disc's torque balance holds while that disc slips, whatever the other one does: on an independent
+    rig whose lower disc hardly turns (20 s of ramps about 0.83 V, ±3 V), an upper-disc Stribeck bump outside the
+    library (0.15 N m, 0.5 rad/s) was missed, the residual torques having been taken only where the lower
+    disc slips; it is found on the upper disc's own rows, with its size and speed."""
+    import numpy as np
+
+    from drillgym.diagnosis.discovery import discover
+    from drillgym.identification.experiment import prepare_experiment
+    from drillgym.diagnosis.sparse import residual_torques
+
+    ts = _independent_rig()("torsional", "ramps", 20.0, 500.0, 1979, {"upper_stribeck": {"Tsu": 0.15, "wsu": 0.5}},
+                            {}, 0.83, 3.0)
+    d = diagnose(ts)
+    fine = prepare_experiment(ts, compare_rate_hz=250.0)
+    rt = residual_torques(fine, d.vector, effects=d.composition)
+    assert np.any(rt.upper_valid & ~rt.lower_valid)  # the upper disc's rows while the lower disc is stuck
+    assert np.all(np.isnan(rt.tau_l[~rt.slip])) and np.all(np.isfinite(rt.tau_u[rt.upper_valid]))
+    cand, _ = discover(fine, d)
+    assert cand is not None and cand.group == "upper_friction", cand
+    (label, coef), = [(k, v) for k, v in cand.terms.items() if "ωu/0.5" in k]
+    assert coef == pytest.approx(0.15, rel=0.25), cand.terms

@@ -3,7 +3,8 @@
 After the selection (:mod:`.selection`), what the model still misses is read from the residual
 generalised torques on BOTH discs (:func:`.sparse.residual_torques`: the data's accelerations
 against the model's in the data's state, times the inertia or mass matrix; lateral forces enter
-through the mass matrix in the coupled configuration).  The residual is regressed, in
+through the mass matrix in the coupled configuration), each disc's where that disc slips, whatever the
+other one does (an upper-disc friction shows while the lower disc is stuck).  The residual is regressed, in
 acceleration units (each disc's torque divided by its inertia, so that both discs weigh alike),
 on a library of terms shaped by physics, grouped by where they would act:
 
@@ -196,10 +197,15 @@ def find_candidate(rt: ResidualTorque, u: np.ndarray, Ju: float, Jl: float, late
 
     fs = 1.0 / float(np.median(np.diff(rt.t)))
     full = _data(rt, u)
+    # each disc's rows where its own torque balance is known (the upper disc's also while the lower one is
+    # stuck: an upper-disc effect on a recording whose lower disc hardly turns); unknown torques enter as 0
+    # with weight 0
+    ok_u, ok_l = rt.upper_valid, rt.lower_valid
+    tau_u, tau_l = np.where(ok_u, rt.tau_u, 0.0), np.where(ok_l, rt.tau_l, 0.0)
     # the model's accelerations (an inertia change scales them): the data's minus the residual
-    full["accu"] = estimate_rate(rt.states[:, 0], fs, window_s=0.1, deriv=2) - rt.tau_u / Ju
-    full["accl"] = estimate_rate(rt.states[:, 1], fs, window_s=0.1, deriv=2) - rt.tau_l / Jl
-    ok = rt.slip & np.isfinite(rt.tau_l) & np.isfinite(rt.tau_u)
+    full["accu"] = estimate_rate(rt.states[:, 0], fs, window_s=0.1, deriv=2) - tau_u / Ju
+    full["accl"] = estimate_rate(rt.states[:, 1], fs, window_s=0.1, deriv=2) - tau_l / Jl
+    ok = ok_u | ok_l
     if ok.sum() < 50:
         return None
     d = {k: v[ok] for k, v in full.items()}
@@ -209,8 +215,8 @@ def find_candidate(rt: ResidualTorque, u: np.ndarray, Ju: float, Jl: float, late
     # of its residual (so that neither disc drowns the other) and outliers (> 8 robust SDs) are left out
     half = max(1, int(round(0.1 * fs)))
     slow_u = np.convolve((np.abs(full["wu"]) <= 0.05).astype(float), np.ones(2 * half + 1), mode="same") > 0
-    y = np.concatenate([rt.tau_u[ok] / Ju, rt.tau_l[ok] / Jl])
-    W = np.concatenate([(~slow_u[ok]).astype(float), np.ones(n)])
+    y = np.concatenate([tau_u[ok] / Ju, tau_l[ok] / Jl])
+    W = np.concatenate([(ok_u[ok] & ~slow_u[ok]).astype(float), ok_l[ok].astype(float)])
     for blk in (slice(0, n), slice(n, 2 * n)):
         v = y[blk][W[blk] > 0]
         sc = 1.4826 * float(np.median(np.abs(v - np.median(v)))) if v.size > 20 else 0.0

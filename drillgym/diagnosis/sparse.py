@@ -43,7 +43,10 @@ class ResidualTorque:
     """Residual generalised forces at the recording's samples (NaN where a disc is stuck).
 
     ``tau_u``, ``tau_l``: on the upper / lower disc (N m); ``states`` (n, N_STATE) the data's
-    states; ``t`` times (s); ``slip`` samples where the lower (or, in 'upper', the upper) disc slips.
+    states; ``t`` times (s); ``slip`` samples where the lower (or, in 'upper', the upper) disc slips;
+    ``slip_upper`` samples where the upper disc slips (None: as ``slip``).  Each disc's torque balance holds
+    while that disc slips, whatever the other one does: the upper disc's is known while the lower disc is
+    stuck (its string torque kθ α is measured).
     """
 
     t: np.ndarray
@@ -51,6 +54,17 @@ class ResidualTorque:
     tau_l: np.ndarray
     states: np.ndarray
     slip: np.ndarray
+    slip_upper: "np.ndarray | None" = None
+
+    @property
+    def upper_valid(self) -> np.ndarray:
+        """Samples where the upper disc's residual torque is known."""
+        return (self.slip if self.slip_upper is None else self.slip_upper) & np.isfinite(self.tau_u)
+
+    @property
+    def lower_valid(self) -> np.ndarray:
+        """Samples where the lower disc's residual torque is known."""
+        return self.slip & np.isfinite(self.tau_l)
 
 
 def residual_torques(ex: Experiment, params: "RigParams | np.ndarray | None" = None, min_speed: float = 0.05, *,
@@ -84,13 +98,17 @@ def residual_torques(ex: Experiment, params: "RigParams | np.ndarray | None" = N
     M = np.zeros((4, 4))
     mode = np.zeros(2, dtype=np.int64)
     tau = np.full((n, 4), np.nan)
-    wl_all = Y[:, 3] if "theta_l" in ex.meas else Y[:, 2]
-    # slipping, and not within the derivative window of a stick phase (accelerations there are smeared)
-    stuck = (np.abs(wl_all) <= min_speed).astype(float)
     half = max(1, int(round(0.1 * ex.fs)))
-    near_stick = np.convolve(stuck, np.ones(2 * half + 1), mode="same") > 0
-    slip = ~near_stick
-    for i in np.flatnonzero(slip):
+
+    def slipping(w: np.ndarray) -> np.ndarray:
+        """Slipping, and not within the derivative window of a stick phase (accelerations there are smeared)."""
+        stuck = (np.abs(w) <= min_speed).astype(float)
+        return ~(np.convolve(stuck, np.ones(2 * half + 1), mode="same") > 0)
+
+    has_lower = "theta_l" in ex.meas
+    slip = slipping(Y[:, 3] if has_lower else Y[:, 2])
+    slip_upper = slipping(Y[:, 2]) if has_lower else slip
+    for i in np.flatnonzero(slip | slip_upper):
         y = Y[i].copy()
         mode[0] = 1 if y[2] > 0 else (-1 if y[2] < 0 else 0)
         mode[1] = 1 if y[3] > 0 else (-1 if y[3] < 0 else 0)
@@ -104,7 +122,9 @@ def residual_torques(ex: Experiment, params: "RigParams | np.ndarray | None" = N
         else:
             tau[i, 0] = inertia.Ju * da[0]
             tau[i, 1] = inertia.Jl * da[1]
-    return ResidualTorque(ex.t - ex.t[0], tau[:, 0], tau[:, 1], Y, slip)
+    tau[~slip, 1:] = np.nan  # the lower disc's balance (and the lateral forces, through it) only while it slips
+    tau[~slip_upper, 0] = np.nan
+    return ResidualTorque(ex.t - ex.t[0], tau[:, 0], tau[:, 1], Y, slip, slip_upper)
 
 
 def candidate_library(rt: ResidualTorque) -> tuple[np.ndarray, list[str]]:
