@@ -513,22 +513,25 @@ def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: Rig
         # the model is kept and the check's doubt stated, when an effect that both halves showed was dropped for
         # disagreeing (a model wrong elsewhere can make the halves disagree); an effect that one half does not show
         # at all has no confirmation to lose, and the criterion's choice stands (random seed 1313 #14: a position
-        # friction fitted to one excursion of the disc, in place of the true drift with bb at its bound)
+        # friction fitted to one excursion of the disc, in place of the true drift with bb at its bound) unless
+        # that half could show none (its lower disc slid through less than a revolution): then the criterion
+        # decides between the models with and without it (random seed 2020 #6: a true position friction, the
+        # first half's disc still for 10 s)
         disagreed = [n for n in gone if checks[n].shown_in_both]
+        kept = ""
         if disagreed and compensates_dropped(before_check, out):
-            for n in gone:
-                before_check["ties"][n] = (f"{out['dropped'][n]}; kept because the model without it puts more base "
-                                           f"parameters at a bound ({', '.join(out['at_bounds'])}): check with a "
-                                           f"longer recording")
+            kept = (f"kept because the model without it puts more base parameters at a bound "
+                    f"({', '.join(out['at_bounds'])}): check with a longer recording")
             paths["after_halves_check"].append("reverted")
-            out = before_check
         elif _half_cannot_show(exps, [checks[n] for n in gone]) \
                 and _better(out, before_check, usable, base_names, bounds=True, comp=comp, nominal=vec0) is before_check:
-            for n in gone:
-                before_check["ties"][n] = (f"{out['dropped'][n]}; kept: that half of the recording cannot show it (its "
-                                           f"lower disc slid through less than a revolution), and the model with it "
-                                           f"is the better one; not told apart from a friction that changes with time")
+            kept = ("kept: that half of the recording cannot show it (its lower disc slid through less than a "
+                    "revolution), and the model with it is the better one; not told apart from a friction that "
+                    "changes with time (friction_drift)")
             paths["after_halves_check"].append("kept")
+        if kept:
+            for n in gone:
+                before_check["ties"][n] = f"{out['dropped'][n]}; {kept}"
             out = before_check
         if refine_speeds and (out is again or out is before_check):  # speed corrections for the model kept
             obj.model.refine_initial_speeds(out["vector"], obj.weights, obj.scales, fresh=True)
