@@ -298,3 +298,22 @@ def test_the_least_squares_steps_run_on_one_blas_thread(monkeypatch):
         after = {m["num_threads"] for m in threadpoolctl.threadpool_info() if m["user_api"] == "blas"}
     assert seen == [{1}] and before == after == {2}
     assert res.values["ktheta"] == pytest.approx(1.05 * RigParams().ktheta, rel=0.01)
+
+
+def test_an_objective_with_its_own_speeds_gives_the_same_residual_and_keeps_its_corrections_apart():
+    """``Objective.with_own_speeds``: the copy predicts what the objective does, and a refinement of the
+    copy's segment-start speeds leaves the objective's as they were (fits run side by side on copies)."""
+    ts = synthetic_measurement("torsional", RigParams().scaled(ktheta=1.05), duration=6.0, rate_hz=100.0,
+                               offset=1.0, seed=1)
+    model = SegmentedModel([prepare_experiment(ts, compare_rate_hz=50.0)], 2.0)
+    obj = Objective(model, {"theta_u": 1.0, "theta_l": 1.0})
+    vec = model.composition.vector(RigParams())
+    own = obj.with_own_speeds()
+    assert own.model is not obj.model and np.array_equal(own.channel_ids, obj.channel_ids)
+    assert np.array_equal(own.residual_matrix(vec[None, :]), obj.residual_matrix(vec[None, :]))
+    before = obj.model.speeds_snapshot()
+    own.model.refine_initial_speeds(vec, own.weights, own.scales, fresh=True)
+    assert any(np.any(o != 0.0) for o in own.model.speed_offsets)  # the copy's speeds moved
+    assert all(np.array_equal(a, b) for a, b in zip(obj.model.speeds_snapshot(), before))
+    own.scales["theta_u"] *= 2.0
+    assert obj.scales["theta_u"] != own.scales["theta_u"]

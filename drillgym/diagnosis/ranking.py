@@ -787,9 +787,10 @@ def sliding_angle_range(exps: Sequence[Experiment]) -> float:
 def _state_time_or_angle_tie(out: dict, exps: Sequence[Experiment], effects: Sequence[type[Effect]]) -> None:
     """A friction that changes with time (:data:`TIME_EFFECTS`) selected in place of a position-dependent one,
     or the reverse, on a recording whose lower disc slides through less than one revolution (and more than
-    :data:`MIN_ANGLE_SPAN`): stated as a tie (in place, ``out["ties"]``).  Over part of a revolution θl moves with time (a few excursions), so a
-    friction level that varies with the angle and one that drifts in time shift the response alike; only a
-    recording in which each angle is visited again, at other times, separates them.  Seen on an independent
+    :data:`MIN_ANGLE_SPAN`): stated as a tie (in place, ``out["ties"]``).  Over part of a revolution θl moves
+    with time (a few excursions), so a friction level that varies with the angle and one that drifts in time
+    shift the response alike; only a recording in which each angle is visited again, at other times,
+    separates them.  Seen on an independent
     rig (random seed 2222 #0: 30 s of sums of sines about 0 V, the disc sliding through 0.75 rad): the true
     position friction reported as a friction drift.  (Where the selection was right on the benchmark's
     matrices, the disc slid through 28 rad or more.)"""
@@ -929,8 +930,8 @@ def _own_base(st, out: dict, a: str, b: str, without_a: np.ndarray, free_base) -
 def _nominal_base_models(st, incumbent: str, free_base, nominal: np.ndarray) -> dict[str, np.ndarray]:
     """The models of the fine decision asked again with the base parameters ``free_base`` at their ``nominal``
     values: the incumbent's model as selected, and the same without it (the other one neutral); the answer is
-    recorded by :func:`_apply_nominal_check`.  The base parameters were refitted on the comparison grid with the incumbent
-    in the model, and a lag or a delay shifts the slow response alike there: the refit can give the
+    recorded by :func:`_apply_nominal_check`.  The base parameters were refitted on the comparison grid with
+    the incumbent in the model, and a lag or a delay shifts the slow response alike there: the refit can give the
     incumbent's shape to the base (the larger-Ju direction, every torque parameter a few percent down
     together), which then favours the incumbent on the fine grid.  Seen on an independent rig with a 25 ms
     motor lag, exact base parameters and a smooth input (quasi-random, 5 Hz content): base refitted

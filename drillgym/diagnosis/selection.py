@@ -274,13 +274,6 @@ def _best_start(st: _State, vec: np.ndarray, name: str) -> np.ndarray:
     return best_effect_start(st.obj, st.comp, vec, st.effects[name])
 
 
-def _with_own_speeds(st: _State) -> _State:
-    """``st`` on a copy of its model that has its own speed corrections at the segment starts (from the
-    model's): a fit that moves them (``speeds=True``) can then run beside others on the shared model."""
-    obj = st.obj
-    return replace(st, obj=Objective(obj.model.with_composition(st.comp), obj.weights, obj.scales))
-
-
 def screen_fit(st: _State, vec: np.ndarray, name: str, max_nfev: int, refine: bool = True) -> FitResult:
     """The candidate ``name`` alone fitted from ``vec`` (its parameters from their best start), the rest held.
 
@@ -294,7 +287,7 @@ def screen_fit(st: _State, vec: np.ndarray, name: str, max_nfev: int, refine: bo
     start = _best_start(st, vec, name)
     names = _effect_params(st, [name])
     if refine and issubclass(st.effects[name], Measurement):
-        return _fit(_with_own_speeds(st), start, names, max_nfev, speeds=True)
+        return _fit(replace(st, obj=st.obj.with_own_speeds()), start, names, max_nfev, speeds=True)
     return _fit(st, start, names, max_nfev)
 
 

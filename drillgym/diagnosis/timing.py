@@ -251,7 +251,7 @@ def decide_lag_delay_many(exps: Sequence[Experiment], comp, questions: Sequence[
     model = SegmentedModel([c[0] for c in conditioned], segment_s, composition=comp, method="rk4")
     if segment_s is not None:
         place_segment_starts(model)
-    blocks = Objective(model, weights, scales).block_ids
+    obj = Objective(model, weights, scales)
     par = {e: get_effect(e).parameters[0].name for e in LAG_DELAY}  # tau_m, delay
     known = {} if known is None else known
     jobs: dict[tuple, tuple[np.ndarray, str, float]] = {}
@@ -273,15 +273,15 @@ def decide_lag_delay_many(exps: Sequence[Experiment], comp, questions: Sequence[
         # Python runs.  A lane's result does not depend on the batch it runs in
         # (:data:`drillgym.simulator.LANE_BLOCK`), so this gives the values of the searches run one by one
         with ThreadPoolExecutor(min(len(jobs), 3)) as pool:
-            futures = {key: pool.submit(_best_value, Objective(model.with_composition(comp), weights, scales), comp,
-                                        vec, name, hi) for key, (vec, name, hi) in jobs.items()}
+            futures = {key: pool.submit(_best_value, obj.with_own_speeds(), comp, vec, name, hi)
+                       for key, (vec, name, hi) in jobs.items()}
             for key, fut in futures.items():
                 known[key] = fut.result()
     out: "list[FineDecision | None]" = []
     for (models, a), pair in zip(questions, keys):
         b = LAG_DELAY[1 - LAG_DELAY.index(a)]
         (va, ra), (vb, rb) = known[pair[a]], known[pair[b]]
-        ne = min(effective_samples(ra, blocks), effective_samples(rb, blocks))
+        ne = min(effective_samples(ra, obj.block_ids), effective_samples(rb, obj.block_ids))
         gap = ne * math.log(max(float(rb @ rb), 1e-300) / max(float(ra @ ra), 1e-300))
         values = {a: va, b: vb}
         if gap < 0:

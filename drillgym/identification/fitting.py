@@ -15,6 +15,7 @@ estimate at a bound).
 
 from __future__ import annotations
 
+import copy
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -136,6 +137,15 @@ class Objective:
                               for m in meas.values()]) if rows else np.zeros(0, dtype=int)
         self.segment_ids = np.repeat(seg, counts)
         self.segment_offsets = first[:-1]
+
+    def with_own_speeds(self) -> "Objective":
+        """The same objective on a copy of its model whose speed corrections at the segment starts are its own
+        (started from the model's): a fit that moves them, or refines them per point, can run beside others on
+        this one.  The measured segments and residual layout are shared, not derived again."""
+        other = copy.copy(self)
+        other.model = self.model.with_composition(self.model.composition)
+        other.weights, other.scales = dict(self.weights), dict(self.scales)
+        return other
 
     def residual_matrix(self, P: np.ndarray, dspeed: np.ndarray | None = None) -> np.ndarray:
         """(B, M) weighted, normalised residuals (model − data); a segment's first sample is skipped.
