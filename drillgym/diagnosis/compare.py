@@ -169,7 +169,7 @@ def compare(data: "TimeSeries | Experiment", params: "RigParams | np.ndarray | N
 def _torque_bins(comp: Comparison) -> None:
     ex = comp.experiment
     rt = residual_torques(ex, comp.vector, effects=comp.composition)
-    ok = rt.slip & np.isfinite(rt.tau_l)
+    ok = rt.lower_valid
     if ok.sum() < 30:
         return
     wl = rt.states[ok, 3]

@@ -172,7 +172,7 @@ def sparse_residual_model(rt: ResidualTorque, threshold: float = 0.05, max_terms
     At most ``max_terms`` terms are kept (the largest contributions)."""
     import pysindy as ps
 
-    ok = rt.slip & np.isfinite(rt.tau_l)
+    ok = rt.lower_valid
     if ok.sum() < 20:
         return SparseTerm({}, 0.0, int(ok.sum()))
     Th, names = candidate_library(rt)
