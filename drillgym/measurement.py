@@ -21,6 +21,7 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy import signal
 
 from .params import RigParams
@@ -91,17 +92,73 @@ def lvdt_measure(X: np.ndarray, Y: np.ndarray, noise_std: float = 0.0,
 
 
 def lowpass_zero_phase(x: np.ndarray, fs_hz: float, cutoff_hz: float = 5.0, order: int = 4) -> np.ndarray:
-    """Zero-phase Butterworth low-pass (the report's offline LVDT processing), along the last axis."""
+    """Zero-phase Butterworth low-pass (the report's offline LVDT processing), along the last axis.
+
+    ``scipy.signal.sosfiltfilt`` with its defaults (odd extension of 3 (2 n_sections + 1) samples, each pass
+    started in the steady state of the first sample), sample for sample: for 2-D float arrays its arithmetic
+    in one compiled loop without the GIL (the segmented fits filter every prediction: a call on 272 segments
+    took 1.5 ms in scipy's wrappers); other shapes in scipy itself."""
+    xa = np.asarray(x, dtype=float)
     if cutoff_hz >= fs_hz / 2:
-        return np.asarray(x, dtype=float)
-    return signal.sosfiltfilt(_butter_sos(order, float(cutoff_hz), float(fs_hz)), np.asarray(x, dtype=float), axis=-1)
+        return xa
+    sos, zi = _butter_sos(order, float(cutoff_hz), float(fs_hz))
+    pad = 3 * (2 * sos.shape[0] + 1 - min(int(np.sum(sos[:, 2] == 0)), int(np.sum(sos[:, 5] == 0))))
+    if xa.ndim != 2 or xa.shape[1] <= pad:
+        return signal.sosfiltfilt(sos, xa, axis=-1)
+    return _sosfiltfilt_rows(sos, zi, np.ascontiguousarray(xa), pad)
 
 
 @functools.lru_cache(maxsize=64)
-def _butter_sos(order: int, cutoff_hz: float, fs_hz: float) -> np.ndarray:
-    """Second-order sections of the Butterworth low-pass, designed once per setting (the fits filter
-    every prediction); scipy only reads them."""
-    return signal.butter(order, cutoff_hz, fs=fs_hz, output="sos")
+def _butter_sos(order: int, cutoff_hz: float, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
+    """Second-order sections of the Butterworth low-pass and their steady-state initial conditions per unit
+    input (``sosfilt_zi``), designed once per setting (the fits filter every prediction); only read."""
+    sos = signal.butter(order, cutoff_hz, fs=fs_hz, output="sos")
+    return sos, signal.sosfilt_zi(sos)
+
+
+@njit(cache=True, nogil=True)
+def _sosfilt_pass(sos: np.ndarray, zi: np.ndarray, x: np.ndarray, y: np.ndarray, reverse: bool) -> None:
+    """One pass of the cascade over x into y (reversed order if ``reverse``), from the steady state of its
+    first sample: scipy's ``_sosfilt`` loop (transposed direct form II), operation for operation."""
+    n = x.shape[0]
+    ns = sos.shape[0]
+    z = np.empty((ns, 2))
+    x0 = x[n - 1] if reverse else x[0]
+    for s in range(ns):
+        z[s, 0] = zi[s, 0] * x0
+        z[s, 1] = zi[s, 1] * x0
+    for i in range(n):
+        j = n - 1 - i if reverse else i
+        x_cur = x[j]
+        for s in range(ns):
+            x_new = sos[s, 0] * x_cur + z[s, 0]
+            z[s, 0] = sos[s, 1] * x_cur - sos[s, 4] * x_new + z[s, 1]
+            z[s, 1] = sos[s, 2] * x_cur - sos[s, 5] * x_new
+            x_cur = x_new
+        y[i] = x_cur
+
+
+@njit(cache=True, nogil=True)
+def _sosfiltfilt_rows(sos: np.ndarray, zi: np.ndarray, X: np.ndarray, pad: int) -> np.ndarray:
+    """``sosfiltfilt`` of each row of X (odd extension by ``pad`` samples)."""
+    B, n = X.shape
+    out = np.empty((B, n))
+    m = n + 2 * pad
+    ext = np.empty(m)
+    fwd = np.empty(m)
+    back = np.empty(m)
+    for b in range(B):
+        row = X[b]
+        for i in range(pad):
+            ext[i] = 2 * row[0] - row[pad - i]
+            ext[pad + n + i] = 2 * row[n - 1] - row[n - 2 - i]
+        for i in range(n):
+            ext[pad + i] = row[i]
+        _sosfilt_pass(sos, zi, ext, fwd, False)
+        _sosfilt_pass(sos, zi, fwd, back, True)  # back[i] is the filtered sample m - 1 - i
+        for i in range(n):
+            out[b, i] = back[m - 1 - pad - i]
+    return out
 
 
 class EncoderVelocityEstimator:

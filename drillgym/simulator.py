@@ -21,6 +21,7 @@ the rig emulator use (state kept between calls).
 from __future__ import annotations
 
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence, Union
@@ -312,8 +313,23 @@ def run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, par
     if len(chunks) == 1:
         run(*chunks[0])
     else:
-        with ThreadPoolExecutor(len(chunks)) as pool:
-            list(pool.map(lambda c: run(*c), chunks))
+        list(_chunk_pool().map(lambda c: run(*c), chunks))
+
+
+_POOL: "tuple[int, ThreadPoolExecutor] | None" = None
+_POOL_LOCK = threading.Lock()
+
+
+def _chunk_pool() -> ThreadPoolExecutor:
+    """The process's threads for the lane kernel's chunks (one per core), started once: a pool started per call
+    cost about 1 ms of a 35 ms segmented prediction, with the GIL held.  Callers on several threads share it
+    (their chunks queue; the cores are the limit either way).  A forked child gets a pool of its own (the
+    parent's threads do not exist there)."""
+    global _POOL
+    with _POOL_LOCK:
+        if _POOL is None or _POOL[0] != os.getpid():
+            _POOL = (os.getpid(), ThreadPoolExecutor(os.cpu_count() or 1, thread_name_prefix="drillgym-lanes"))
+        return _POOL[1]
 
 
 def _initial_states(comp: Composition, B: int, x0: Any, alpha0: Any) -> np.ndarray:

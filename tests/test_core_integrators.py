@@ -232,3 +232,46 @@ def test_a_lane_does_not_depend_on_the_batch_around_it():
     env = {k: v for k, v in os.environ.items() if k not in ("DRILLGYM_SIMD", "NUMBA_CPU_FEATURES", "NUMBA_CPU_NAME")}
     p = subprocess.run([sys.executable, "-c", _INVARIANCE_CHECK], env=env, capture_output=True, text=True, timeout=600)
     assert p.returncode == 0 and "invariant" in p.stdout, p.stderr[-2000:]
+
+
+def test_the_lvdt_lowpass_is_scipys_sosfiltfilt_sample_for_sample():
+    """The offline zero-phase low-pass of the predictions (compiled, without the GIL) gives scipy's
+    ``sosfiltfilt`` bit for bit: short segments just past the padding, long ones, a row with a NaN."""
+    from scipy import signal
+
+    from drillgym.measurement import lowpass_zero_phase
+
+    rng = np.random.default_rng(3)
+    for shape, fs in (((272, 201), 50.0), ((3, 16), 50.0), ((2, 4000), 1000.0), ((40,), 50.0)):
+        x = np.cumsum(rng.standard_normal(shape), axis=-1) * 1e-4
+        if len(shape) == 2:
+            x[0, 7] = np.nan
+        ref = signal.sosfiltfilt(signal.butter(4, 5.0, fs=fs, output="sos"), x, axis=-1)
+        assert np.array_equal(lowpass_zero_phase(x, fs, 5.0), ref, equal_nan=True)
+    assert np.array_equal(lowpass_zero_phase(x, 8.0, 5.0), x)  # cut-off above Nyquist: unfiltered
+
+
+_FORKED_CHUNKS = """
+import multiprocessing as mp
+import numpy as np
+from drillgym import simulate_batch
+
+def run(n):
+    return float(simulate_batch("torsional", np.linspace(1.0, 3.0, n), 1.0, parallel=True).data[-1, -1, 2])
+
+first = run(80)  # the parent's chunk threads are started
+with mp.get_context("fork").Pool(1) as pool:
+    child = pool.apply_async(run, (80,)).get(timeout=120)
+assert child == first
+print("forked ok")
+"""
+
+
+def test_a_forked_process_runs_the_lane_chunks_on_threads_of_its_own():
+    """The lane kernel's chunk threads are started once per process; a child forked after the parent started
+    them (a process pool of the harness) does not have them and starts its own instead of waiting forever."""
+    import subprocess
+    import sys
+
+    p = subprocess.run([sys.executable, "-c", _FORKED_CHUNKS], capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0 and "forked ok" in p.stdout, p.stderr[-2000:]

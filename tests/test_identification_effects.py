@@ -317,3 +317,64 @@ def test_an_objective_with_its_own_speeds_gives_the_same_residual_and_keeps_its_
     assert all(np.array_equal(a, b) for a, b in zip(obj.model.speeds_snapshot(), before))
     own.scales["theta_u"] *= 2.0
     assert obj.scales["theta_u"] != own.scales["theta_u"]
+
+
+def test_overlapping_fits_on_threads_keep_blas_on_one_thread_and_give_the_setting_back():
+    """Two fits on two threads whose one-thread BLAS blocks interleave (A enters, B enters, A leaves, B leaves):
+    B still runs on one thread after A left, and the caller's setting is back only when both left.
+    ``threadpool_limits`` alone restores on A's exit what A found (B then ran on two threads, and a dot
+    product of more than 10 000 entries rounds differently with two)."""
+    import threading
+
+    import threadpoolctl
+
+    from drillgym.identification.blas import one_blas_thread
+
+    def blas_threads() -> set[int]:
+        return {m["num_threads"] for m in threadpoolctl.threadpool_info() if m["user_api"] == "blas"}
+
+    a_in, b_in, a_out = threading.Event(), threading.Event(), threading.Event()
+    seen: dict[str, set[int]] = {}
+
+    def fit_a():
+        with one_blas_thread():
+            a_in.set()
+            b_in.wait(10)
+        a_out.set()
+
+    def fit_b():
+        a_in.wait(10)
+        with one_blas_thread():
+            b_in.set()
+            a_out.wait(10)
+            seen["b_after_a_left"] = blas_threads()
+
+    before = blas_threads()
+    threads = [threading.Thread(target=fit_a), threading.Thread(target=fit_b)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(20)
+    assert seen["b_after_a_left"] == {1} and blas_threads() == before
+
+
+def test_the_residual_rows_are_each_rows_measured_samples_in_c_order():
+    """``Objective.residual_matrix`` takes every row's measured samples from the batch at once: the same
+    numbers as each prediction's segments taken one by one, rows contiguous (the fits' Jacobians are built
+    from them, and their layout reaches LAPACK)."""
+    ts = synthetic_measurement("torsional", RigParams().scaled(ktheta=1.05), duration=6.0, rate_hz=100.0,
+                               offset=1.0, seed=1)
+    model = SegmentedModel([prepare_experiment(ts, compare_rate_hz=50.0)], 2.0)
+    obj = Objective(model, {"theta_u": 1.0, "theta_l": 2.0})
+    P = np.stack([model.composition.vector(RigParams().scaled(ktheta=s)) for s in (0.95, 1.0, 1.05)])
+    R = obj.residual_matrix(P)
+    rows = []
+    for pred in model.predict(P, tuple(obj.channels)):
+        parts = []
+        for c in obj.weights:  # the layout: the weights' order
+            m = model.measured_segments(0, c)[:, 1:]
+            ok = ~np.isnan(m)
+            parts.append((pred.outputs[0][c][:, 1:][ok] - m[ok]) * (obj.weights[c] / obj.scales[c]))
+        rows.append(np.concatenate(parts))
+    assert R.flags.c_contiguous and np.array_equal(R, np.stack(rows))
+    assert not np.array_equal(R[0], R[2])  # the rows are the parameter rows' own

@@ -42,6 +42,7 @@ import numpy as np
 
 from ..configurations import Configuration
 from ..effects import Composition, Effect, compose
+from ..identification.blas import on_one_blas_thread
 from ..identification.experiment import Experiment, prepare_experiment
 from ..identification.fitting import FitResult, FitVariable, Objective, base_vector, fit_parameters
 from ..identification.staged import STAGES
@@ -367,6 +368,7 @@ def rank_effects(data: "TimeSeries | Experiment | Sequence[Experiment]", params:
     return Diagnosis(scores, cfg, rmse0, ch0, n_eff, segment_s, skipped, refitted, comp0.label)
 
 
+@on_one_blas_thread  # every step's threads (fits side by side, the lag/delay searches) see the same BLAS
 def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: RigParams | None = None,
              config: "str | Configuration | None" = None, *, effects: Sequence[Any] | None = None,
              base_effects: Any = None, effect_params: Mapping[str, float] | None = None,

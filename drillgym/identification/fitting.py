@@ -23,10 +23,10 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 from scipy.optimize import least_squares
-from threadpoolctl import threadpool_limits
 
 from ..effects import Composition
 from ..params import N_PARAMS, PARAM_INFO, RigParams
+from .blas import on_one_blas_thread
 from .experiment import Experiment
 from .segmented import SegmentedModel
 
@@ -137,6 +137,10 @@ class Objective:
                               for m in meas.values()]) if rows else np.zeros(0, dtype=int)
         self.segment_ids = np.repeat(seg, counts)
         self.segment_offsets = first[:-1]
+        #: per (experiment, channel) of a residual row: the flat indices of its measured samples in a segment
+        #: array's (n_seg, seg_len - 1) tail, and the measured values there
+        self._layout = [{c: (idx, m[:, 1:].ravel()[idx]) for c, m in meas.items()
+                         for idx in [np.flatnonzero(~np.isnan(m[:, 1:]).ravel())]} for meas in self._meas]
 
     def with_own_speeds(self) -> "Objective":
         """The same objective on a copy of its model whose speed corrections at the segment starts are its own
@@ -150,17 +154,16 @@ class Objective:
     def residual_matrix(self, P: np.ndarray, dspeed: np.ndarray | None = None) -> np.ndarray:
         """(B, M) weighted, normalised residuals (model − data); a segment's first sample is skipped.
         ``dspeed`` (B, 2): (ω_u, ω_l) added to every segment's initial speeds of that row (rad/s)."""
-        preds = self.model.predict(P, tuple(self.channels), dspeed=dspeed)
-        return np.stack([self._vector(p.outputs) for p in preds])
-
-    def _vector(self, outputs: list[dict[str, np.ndarray]]) -> np.ndarray:
+        per_exp = self.model.predict_arrays(P, tuple(self.channels), dspeed=dspeed)
         parts = []
-        for k, meas in enumerate(self._meas):
-            for c, m in meas.items():
-                valid = ~np.isnan(m[:, 1:])
-                e = (outputs[k][c][:, 1:][valid] - m[:, 1:][valid]) * (self.weights[c] / self.scales[c])
+        for outputs, layout in zip(per_exp, self._layout):
+            for c, (idx, measured) in layout.items():
+                pred = outputs[c][:, :, 1:]
+                e = (pred.reshape(pred.shape[0], -1)[:, idx] - measured) * (self.weights[c] / self.scales[c])
                 parts.append(np.nan_to_num(e, nan=1e6, posinf=1e6, neginf=-1e6))
-        return np.concatenate(parts)
+        # rows in C order, as a stack of per-row vectors: a fit's Jacobian is built from these rows, and the
+        # layout it reaches LAPACK in changes the SVD's rounding
+        return np.ascontiguousarray(np.concatenate(parts, axis=1))
 
     def channel_rms(self, P: np.ndarray) -> dict[str, float]:
         """Unweighted RMS (physical units) per channel for one parameter row."""
@@ -236,6 +239,7 @@ def _set_by_name(composition: Composition, names: Sequence[str]) -> ApplyFn:
     return apply
 
 
+@on_one_blas_thread  # the simulations hold the cores; and a result that does not depend on thread timing
 def fit_parameters(objective: Objective, base: "RigParams | np.ndarray", variables: Sequence[FitVariable], *,
                    apply: ApplyFn | None = None, max_nfev: int = 30, fd_step: float = 1e-3,
                    rel_std_limit: float = 0.1, collinearity_limit: float = 1000.0, ftol: float = 1e-6,
@@ -336,13 +340,8 @@ def fit_parameters(objective: Objective, base: "RigParams | np.ndarray", variabl
     z0 = np.zeros(n + ks)
     q0 = fun_map(z0)
     r0 = fun(z0)
-    # one BLAS thread: the simulations inside fun and jac already keep every core busy (numba lanes), and
-    # BLAS threads waiting for work between trf's small dense steps took cores from them (60 s of 1 kHz
-    # data: diagnose 80 s -> 58 s, CPU time 151 s -> 87 s); trf's SVDs of a 12000 x 47 Jacobian gain
-    # nothing from a second thread (17 against 19 ms alone)
-    with threadpool_limits(limits=1, user_api="blas"):
-        sol = least_squares(fun_map, z0, jac=jac_map, bounds=(zlo, zhi), method="trf", x_scale=1.0,
-                            max_nfev=max_nfev, ftol=ftol, xtol=xtol)
+    sol = least_squares(fun_map, z0, jac=jac_map, bounds=(zlo, zhi), method="trf", x_scale=1.0,
+                        max_nfev=max_nfev, ftol=ftol, xtol=xtol)
     z = sol.x
     q1 = fun_map(z)
     r1 = fun(z)

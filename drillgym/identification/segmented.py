@@ -329,6 +329,14 @@ class SegmentedModel:
 
         ``dspeed`` (B, 2): extra (ω_u, ω_l) added to every segment's initial speeds of that row
         (used to compute sensitivities in :meth:`refine_initial_speeds`)."""
+        per_exp = self.predict_arrays(P, channels, dspeed)
+        B = next((v.shape[0] for d in per_exp for v in d.values()), np.atleast_2d(P).shape[0])
+        return [Prediction([per_exp[k] and {c: v[b] for c, v in per_exp[k].items()} for k in range(len(per_exp))],
+                           self) for b in range(B)]
+
+    def predict_arrays(self, P: np.ndarray, channels: tuple[str, ...] = CHANNELS,
+                       dspeed: np.ndarray | None = None) -> list[dict[str, np.ndarray]]:
+        """:meth:`predict`'s outputs for all rows at once: per experiment, channel -> (B, n_seg, seg_len)."""
         P = self.matrix(P)
         B = P.shape[0]
         S = np.ascontiguousarray(P[:, self._sim_cols])  # rows of the simulated composition
@@ -380,8 +388,7 @@ class SegmentedModel:
             for c in keep:
                 out[c][:, mask] = np.nan
             per_exp.append({c: out[c] for c in keep})
-        return [Prediction([per_exp[k] and {c: v[b] for c, v in per_exp[k].items()} for k in range(len(per_exp))],
-                           self) for b in range(B)]
+        return per_exp
 
     def _delay_lines(self, rows: np.ndarray, drive: np.ndarray, starts: np.ndarray, rec: int, dt: float,
                      ns: int) -> tuple[np.ndarray, np.ndarray]:
