@@ -11,14 +11,16 @@ import typer
 def register(app: typer.Typer) -> None:
     @app.command("prepare")
     def prepare_cmd(
-        config: List[str] = typer.Option(["torsional", "coupled"], "--config",
-                                         help="configuration whose diagnosis models to compile (repeatable)"),
+        config: List[str] = typer.Option(None, "--config",
+                                         help="configuration whose diagnosis models to compile (repeatable; "
+                                              "default: torsional, coupled, lateral, upper)"),
     ) -> None:
         """Compile (or load from the cache) the search models of `drillgym diagnose` for these
-        configurations: about a minute each on 2 cores the first time, seconds once cached."""
+        configurations: up to a minute each on 2 cores the first time, seconds once cached."""
         from ..configurations import parse_configuration
-        from ..diagnosis.prepare import prepare_diagnosis
+        from ..diagnosis.prepare import PREPARED_CONFIGS, prepare_diagnosis
 
-        names = [parse_configuration(c).label for c in config]  # a wrong name fails before any work
+        # a wrong name fails before any work
+        names = [parse_configuration(c).label for c in (config or PREPARED_CONFIGS)]
         for name, seconds in prepare_diagnosis(names).items():
             typer.echo(f"{name}: diagnose's models compiled and cached ({seconds:.0f} s)")

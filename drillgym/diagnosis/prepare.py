@@ -18,8 +18,10 @@ from typing import Sequence
 
 __all__ = ["prepare_diagnosis", "PREPARED_CONFIGS"]
 
-#: the configurations diagnosed most (their search models are compiled by ``make venv``)
-PREPARED_CONFIGS = ("torsional", "coupled")
+#: the rig's configurations with the motor driving (their search models are compiled by ``make venv``: a
+#: lateral model compiled in the user's first diagnosis took 45-80 s of it on 2 cores, beyond the 60 s that a
+#: diagnosis of 60 s of 1 kHz data should take)
+PREPARED_CONFIGS = ("torsional", "coupled", "lateral", "upper")
 
 
 def prepare_diagnosis(configs: Sequence[str] = PREPARED_CONFIGS, duration: float = 6.0) -> dict[str, float]:
