@@ -935,11 +935,12 @@ def test_a_measurement_effect_is_screened_with_the_segments_start_speeds_on_its_
     assert "lvdt_skew" not in coulomb.names and all(np.array_equal(a, b) for a, b in zip(obj.model.speeds_snapshot(), speeds))
 
 
-def test_a_half_whose_disc_slides_less_than_a_revolution_cannot_refute_a_position_effect():
+def test_a_half_whose_disc_slides_less_than_two_revolutions_cannot_refute_a_position_effect():
     """The split-half check drops a position-dependent effect that a half does not show; a half whose lower disc
     slid through less than a revolution can show none (an independent rig's true position friction was dropped
-    so, random seed 2020 #6: the first half's disc slid through 1.07 rad).  Such a half is recognised; a
-    recording turning in both halves is not."""
+    so, random seed 2020 #6: the first half's disc slid through 1.07 rad), and one between one and two
+    revolutions shows it too weakly to refute it (seed 2828 #12: 7.5 rad, the sine term 0.116 ± 0.057 against
+    the other half's 0.110 ± 0.002).  Such a half is recognised; a recording turning in both halves is not."""
     import numpy as np
 
     from drillgym.diagnosis.ranking import _half_cannot_show
@@ -951,6 +952,9 @@ def test_a_half_whose_disc_slides_less_than_a_revolution_cannot_refute_a_positio
                                                             input=(t, np.where(t < 10.0, 0.0, 3.0)), seed=3))
     turning = prepare_experiment(synthetic_measurement("torsional", duration=20.0, rate_hz=200.0,
                                                        input=(t, np.full_like(t, 3.0)), seed=3))
+    # the disc starts at 7.5 s: its first half slides through 7.5 rad, between one and two revolutions
+    one_turn = prepare_experiment(synthetic_measurement("torsional", duration=20.0, rate_hz=200.0,
+                                                        input=(t, np.where(t < 7.5, 0.0, 3.0)), seed=3))
 
     def check(first_std: float, second_std: float, second: float = 0.1) -> HalfAgreement:
         return HalfAgreement("position_friction", 0.0, {"pf_c1": 0.1}, {"pf_c1": second}, {"pf_c1": first_std},
@@ -959,6 +963,7 @@ def test_a_half_whose_disc_slides_less_than_a_revolution_cannot_refute_a_positio
     unseen_first = check(1.0, 0.01)  # W = 0.01 in the first half: not shown there; shown in the second
     assert not unseen_first.shown("first") and unseen_first.shown("second")
     assert _half_cannot_show([turning_late], [unseen_first])  # the first half kept still: it cannot refute
+    assert _half_cannot_show([one_turn], [unseen_first])  # little more than a revolution: it cannot either
     assert not _half_cannot_show([turning], [unseen_first])  # it turned and did not show it: refuted
     assert not _half_cannot_show([turning_late], [check(1.0, 1.0)])  # the second half turned and did not show it
     assert not _half_cannot_show([turning_late], [check(0.01, 0.01, second=-0.1)])  # both show it, disagreeing
