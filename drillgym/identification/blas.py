@@ -6,7 +6,7 @@ depend on how threads happened to interleave: OpenBLAS splits a dot product of m
 (a residual of 60 s of data) over its threads, so its rounding depends on the thread count at that moment.
 ``threadpoolctl.threadpool_limits`` is process-wide and restores on exit whatever it found on entry, so
 two fits on two threads that enter and leave it interleaved leave BLAS at one or at several threads by
-chance (seen: the same diagnose gave three different results on the same recording).  Here the limit is
+chance (seen: the same diagnose gave two different results on the same recording).  Here the limit is
 counted: the first user sets it, the last one gives the caller's setting back.
 """
 
