@@ -332,6 +332,16 @@ def _chunk_pool() -> ThreadPoolExecutor:
         return _POOL[1]
 
 
+def _new_lock_in_child() -> None:
+    """A forked child's pool lock is a new one (the parent's may have been held by another thread at the fork)."""
+    global _POOL_LOCK
+    _POOL_LOCK = threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_new_lock_in_child)
+
+
 def _initial_states(comp: Composition, B: int, x0: Any, alpha0: Any) -> np.ndarray:
     """(B, n_state) initial states: at rest with winding alpha0, or x0 (all states, or the 8 mechanical
     ones).  Effect states not given start at 0, except lag states: NaN, which the kernels replace at
