@@ -96,24 +96,26 @@ def lowpass_zero_phase(x: np.ndarray, fs_hz: float, cutoff_hz: float = 5.0, orde
 
     ``scipy.signal.sosfiltfilt`` with its defaults (odd extension of 3 (2 n_sections + 1) samples, each pass
     started in the steady state of the first sample), sample for sample: for 2-D float arrays its arithmetic
-    in one compiled loop without the GIL (the segmented fits filter every prediction: a call on 272 segments
-    took 1.5 ms in scipy's wrappers); other shapes in scipy itself."""
+    in one compiled loop without the GIL (the segmented fits filter every prediction: on 272 segments of 201
+    samples 0.59 ms against scipy's 0.87 ms, and the other threads run meanwhile); other shapes in scipy
+    itself."""
     xa = np.asarray(x, dtype=float)
     if cutoff_hz >= fs_hz / 2:
         return xa
-    sos, zi = _butter_sos(order, float(cutoff_hz), float(fs_hz))
-    pad = 3 * (2 * sos.shape[0] + 1 - min(int(np.sum(sos[:, 2] == 0)), int(np.sum(sos[:, 5] == 0))))
+    sos, zi, pad = _butter_sos(order, float(cutoff_hz), float(fs_hz))
     if xa.ndim != 2 or xa.shape[1] <= pad:
         return signal.sosfiltfilt(sos, xa, axis=-1)
     return _sosfiltfilt_rows(sos, zi, np.ascontiguousarray(xa), pad)
 
 
 @functools.lru_cache(maxsize=64)
-def _butter_sos(order: int, cutoff_hz: float, fs_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    """Second-order sections of the Butterworth low-pass and their steady-state initial conditions per unit
-    input (``sosfilt_zi``), designed once per setting (the fits filter every prediction); only read."""
+def _butter_sos(order: int, cutoff_hz: float, fs_hz: float) -> tuple[np.ndarray, np.ndarray, int]:
+    """Second-order sections of the Butterworth low-pass, their steady-state initial conditions per unit
+    input (``sosfilt_zi``) and ``sosfiltfilt``'s default padding (samples), designed once per setting (the fits
+    filter every prediction); only read."""
     sos = signal.butter(order, cutoff_hz, fs=fs_hz, output="sos")
-    return sos, signal.sosfilt_zi(sos)
+    ntaps = 2 * sos.shape[0] + 1 - min(int(np.sum(sos[:, 2] == 0)), int(np.sum(sos[:, 5] == 0)))
+    return sos, signal.sosfilt_zi(sos), 3 * ntaps
 
 
 @njit(cache=True, nogil=True)

@@ -316,30 +316,30 @@ def run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, par
         list(_chunk_pool().map(lambda c: run(*c), chunks))
 
 
-_POOL: "tuple[int, ThreadPoolExecutor] | None" = None
+_POOL: "ThreadPoolExecutor | None" = None
 _POOL_LOCK = threading.Lock()
 
 
 def _chunk_pool() -> ThreadPoolExecutor:
     """The process's threads for the lane kernel's chunks (one per core), started once: a pool started per call
     cost about 1 ms of a 35 ms segmented prediction, with the GIL held.  Callers on several threads share it
-    (their chunks queue; the cores are the limit either way).  A forked child gets a pool of its own (the
-    parent's threads do not exist there)."""
+    (their chunks queue; the cores are the limit either way)."""
     global _POOL
     with _POOL_LOCK:
-        if _POOL is None or _POOL[0] != os.getpid():
-            _POOL = (os.getpid(), ThreadPoolExecutor(os.cpu_count() or 1, thread_name_prefix="drillgym-lanes"))
-        return _POOL[1]
+        if _POOL is None:
+            _POOL = ThreadPoolExecutor(os.cpu_count() or 1, thread_name_prefix="drillgym-lanes")
+        return _POOL
 
 
-def _new_lock_in_child() -> None:
-    """A forked child's pool lock is a new one (the parent's may have been held by another thread at the fork)."""
-    global _POOL_LOCK
-    _POOL_LOCK = threading.Lock()
+def _forget_pool_in_child() -> None:
+    """A forked child has none of the parent's threads (its pool would never run a chunk) and maybe a lock
+    another thread held at the fork: it starts both anew."""
+    global _POOL, _POOL_LOCK
+    _POOL, _POOL_LOCK = None, threading.Lock()
 
 
 if hasattr(os, "register_at_fork"):
-    os.register_at_fork(after_in_child=_new_lock_in_child)
+    os.register_at_fork(after_in_child=_forget_pool_in_child)
 
 
 def _initial_states(comp: Composition, B: int, x0: Any, alpha0: Any) -> np.ndarray:

@@ -330,7 +330,7 @@ class SegmentedModel:
         ``dspeed`` (B, 2): extra (ω_u, ω_l) added to every segment's initial speeds of that row
         (used to compute sensitivities in :meth:`refine_initial_speeds`)."""
         per_exp = self.predict_arrays(P, channels, dspeed)
-        B = next((v.shape[0] for d in per_exp for v in d.values()), np.atleast_2d(P).shape[0])
+        B = np.atleast_2d(P).shape[0]
         return [Prediction([per_exp[k] and {c: v[b] for c, v in per_exp[k].items()} for k in range(len(per_exp))],
                            self) for b in range(B)]
 
