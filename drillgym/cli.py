@@ -8,7 +8,8 @@
     drillgym rig ...      hardware twin (run, emulate)
 
 Errors the user can fix (bad file, bad parameter, bad option) are printed as
-one line naming what is wrong, with exit code 2.
+one line naming what is wrong, with exit code 2; anything else is a bug and
+prints its traceback.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import sys
+import traceback
 
 import typer
 
@@ -40,14 +42,24 @@ _register_all()
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Console entry point; user errors -> one line on stderr, exit code 2."""
-    from .errors import USER_ERRORS
+    """Console entry point.
+
+    A :class:`~drillgym.errors.DrillgymError` (bad input, a safety stop, a run that cannot give a
+    valid result) is printed as one line on stderr with exit code 2. Any other exception is a bug
+    in drillgym: its traceback is printed, followed by one line saying so, and the exit code is 1.
+    """
+    from .errors import DrillgymError
 
     try:
         app(args=argv, standalone_mode=True)
-    except USER_ERRORS as exc:
+    except DrillgymError as exc:
         print(f"drillgym: error: {exc}", file=sys.stderr)
         sys.exit(2)
+    except Exception:
+        traceback.print_exc()
+        print("drillgym: internal error: the traceback above is a bug in drillgym, not in your input; "
+              "please report it with the command you ran", file=sys.stderr)
+        sys.exit(1)
 
 
 if __name__ == "__main__":

@@ -24,12 +24,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .errors import ParameterError
+
 __all__ = ["RigParams", "ParameterError", "PARAM_INFO", "IDX", "N_PARAMS", "BASE_PARAMETERS"]
-
-
-class ParameterError(ValueError):
-    """A parameter value or parameter file cannot be used."""
-
 
 def _p(value: float, unit: str, source: str, lo: float = -math.inf, hi: float = math.inf,
        doc: str = "") -> Any:

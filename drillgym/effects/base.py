@@ -55,13 +55,10 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable, ClassVar
 
+from ..errors import EffectError
+
 __all__ = ["EffectError", "Parameter", "State", "Effect", "Force", "Friction", "Input", "Delay", "Measurement",
            "KINDS", "VOCABULARY", "CONFIGURATIONS"]
-
-
-class EffectError(ValueError):
-    """An effect cannot be used: the message names the file, the effect and what is wrong."""
-
 
 CONFIGURATIONS = ("upper", "torsional", "lateral", "coupled", "free_vibration")
 
