@@ -4,7 +4,7 @@
 minus the target's angle since the episode began (the newest encoder increment of the 'motor'
 observation, entry 0, and the target, the last entry), clipped against wind-up.  In steady rotation the
 mean motor speed is the mean lower-disc speed, so a policy that keeps ``z`` bounded tracks the target on
-average: the integral-like tracking observation of issue 17.  It is a measurement (encoder and clock),
+average: an integral-like tracking observation.  It is a measurement (encoder and clock),
 not a controller: :class:`agents.envs.MotorIntegralVecEnv` appends it in training,
 :class:`agents.controller.AgentController` on the rig, with the same :func:`advance` (numpy only: no SB3 or
 torch on the rig).

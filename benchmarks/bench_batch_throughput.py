@@ -1,4 +1,4 @@
-"""Batch throughput and memory on one core: the ratios of the issue "Simulator throughput and memory".
+"""Batch throughput and memory on one core: the recording-cost, coupled-cost and per-core ratios.
 
 Measured interleaved in one run (best of the repeats), so the ratios hold on a shared machine; the
 absolute real-time factor needs a quiet one (the load average is printed).

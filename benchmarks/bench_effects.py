@@ -97,11 +97,11 @@ def main() -> None:
         t_reuse = compile_time(["string_damping", CUBIC], cache)
 
     print(f"real-time factor, best of 5, one core; single runs {args.duration:g} s, batch {args.duration / 6:g} s")
-    print(f"{'run':<26} {'before':>10} {'base now':>10} {'ratio':>7} {'2 effects':>10} {'ratio':>7}")
+    print(f"{'run':<26} {'reference':>10} {'base':>10} {'ratio':>7} {'2 effects':>10} {'ratio':>7}")
     for k in before:
         print(f"{k:<26} {before[k]:>9,.0f}x {base[k]:>9,.0f}x {base[k] / before[k]:>7.3f} "
               f"{effects[k]:>9,.0f}x {effects[k] / base[k]:>7.3f}")
-    print("goals: base now / before >= 0.90; 2 effects (motor_lag + string_cubic.py) / base now >= 0.75")
+    print("goals: base / reference >= 0.90; 2 effects (motor_lag + string_cubic.py) / base >= 0.75")
     print(f"new composition (string_damping + string_cubic.py), fresh process: compile + first runs {t_compile:.1f} s "
           f"(goal <= 30 s); again from the cache: {t_reuse:.1f} s")
 

@@ -83,7 +83,7 @@ def main() -> None:
             for n in sizes:
                 rate = best(lambda: vector_rate(make_vec(env_id, n, observation=mode), s), r)
                 print(f"{env_id + f' [{mode}], vector N={n}':46s} {rate:12,.0f} {rate / pend:15.2f}")
-    # a composition of two effects (issue 12: within 25 % of the base model); its kernels compile once, cached
+    # a composition of two effects (goal: within 25 % of the base model); its kernels compile once, cached
     two = dict(effects=["input_delay", "motor_lag"], effect_params={"delay": 0.03, "tau_m": 0.02})
     for mode in ("full", "sensors"):
         rate = best(lambda: single_rate(gym.make("drillgym/Torsional-v0", observation=mode, **two), s), r)

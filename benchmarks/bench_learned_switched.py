@@ -3,9 +3,9 @@
 For each seed s, the two networks that ``drillgym train --seeds`` wrote (``LOW/seed_s``: trained on the
 nominal rig, ``ppo_distill.yml``; ``HIGH/seed_s``: trained on the plant population with the speed command
 from above, ``ppo_distill_command.yml``) are combined at ``--edge`` rad/s (``drillgym combine-policies``)
-and evaluated as issue 17 asks, in the same run as ``descent`` (the best classical controller on the motor
+and evaluated in the same run as ``descent`` (the best classical controller on the motor
 angle): the lowest held target from rest on the nominal rig, and each plant's lowest held target on the
-robust-control issue's population (``drillgym evaluate --scenarios plants``, 20 plants, population seeds 0
+robust-control plant population (``drillgym evaluate --scenarios plants``, 20 plants, population seeds 0
 and 1): median, 90th percentile, worst, plants holding none.  Over the seeds: median, interquartile mean
 and its bootstrap 95 % interval (``agents.seeds``); a seed holding nothing counts as 8.5 rad/s.
 

@@ -1,4 +1,4 @@
-"""The plant population of issue 18: every controller on ``--plants`` plants drawn from the default
+"""The plant population: every controller on ``--plants`` plants drawn from the default
 uncertainty set (controllers/evaluation/plants.yaml), from rest, 60 s runs, the default target grid.
 
     .venv/bin/python benchmarks/bench_plants.py --seed 0 --plants 20 --config torsional --out docs/controller_eval/plants_seed0

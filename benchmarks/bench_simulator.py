@@ -2,7 +2,7 @@
 
 Prints, for torsional and coupled, one trajectory and a batch of 256 (one core,
 and all cores), the real-time factor  (trajectories x simulated s) / wall s.
-Targets (issue "Model core"): batch >= 20,000x torsional, >= 2,000x coupled on
+Targets: batch >= 20,000x torsional, >= 2,000x coupled on
 one core; one trajectory >= 2,000x torsional.
 
     .venv/bin/python benchmarks/bench_simulator.py [--duration 60]

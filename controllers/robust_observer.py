@@ -2,7 +2,7 @@
 
 Same estimator and law as :class:`controllers.observer.ObserverController` (extended Kalman filter on
 the motor angle only + feedback-linearising law), changed where the exact-model design breaks on a
-real rig (issue 18: a 1 ms motor lag or km 5 % high already ruins it):
+real rig (a 1 ms motor lag or km 5 % high already ruins it):
 
 * **smooth command**: the law's voltage passes through a first-order low-pass (``smooth_tau``) before
   it is applied; the filter is told the applied voltage.  The exact design's voltage chatters from one

@@ -16,7 +16,7 @@ soft-torque tuning.  A passive top impedance can add at most
 ``k_theta / (2 omega_n) = sqrt(k_theta Jl) / 2`` of damping at the lower disc:
 enough where the brake's slope is mildly negative, not at its steepest.
 
-Robust tuning (issue 18): the torque estimate's error from a wrong motor model is
+Robust tuning: the torque estimate's error from a wrong motor model is
 ``(km_true - km_model) u - (bu_true - bu_model) omega_u``, and through ``1 / Z`` (about 18 rad/s per
 N m) it feeds back on the speed command: a rig with less viscous friction or a stronger motor than
 the model turns it into a positive feedback that destabilises the speed loop (on the plant

@@ -34,7 +34,7 @@ def test_low_targets_are_approached_from_above():
 
 @pytest.mark.parametrize("config", ["torsional", "coupled"])
 def test_observer_removes_stick_slip_from_rest_at_0_5_to_3_rad_s_where_baseline_cannot(config):
-    """The issue's target (<= 1 rad/s without stick-slip) and its 3 rad/s test: 8000-count motor
+    """The target (<= 1 rad/s without stick-slip) and a 3 rad/s case: 8000-count motor
     encoder sampled at 500 Hz, nothing else measured; the open-loop baseline stick-slips at all four."""
     tg = np.array([0.5, 1.0, 2.0, 3.0])
     c = controllers.make("observer", config=config, omega_ref=tg)

@@ -1,4 +1,4 @@
-"""Environments built with effects (issue 12): they run the composition's compiled model.
+"""Environments built with effects: they run the composition's compiled model.
 
 Each env with an effect behaves differently from the base env and matches the single-run
 simulator with the same effect (``drillgym.simulate(..., dt=env dt)``) driven by the same voltages

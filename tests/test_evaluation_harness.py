@@ -132,7 +132,7 @@ def test_evaluate_cli_with_hidden_effects(tmp_path, capsys):
     assert e.value.code == 2 and "--add-effect" in capsys.readouterr().err
 
 
-# --------------------------------------------------------------------- plant population (issue 18)
+# --------------------------------------------------------------------- plant population
 from controllers.evaluation.population import load_uncertainty, sample_plants  # noqa: E402
 from controllers.evaluation.harness import short_run_warnings  # noqa: E402
 
