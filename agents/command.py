@@ -33,12 +33,17 @@ __all__ = ["CommandSchedule", "SpeedCommand", "schedule_of"]
 class CommandSchedule:
     """Speed command reaching the target from above.
 
-    Args:
-        approach: speed (rad/s) commanded first, above the fold of the bifurcation diagram
-            (nominal torsional rig: fold at 3.85 V, about 6.7 rad/s; 8.5 rad/s needs 4.87 V).
-        hold: time (s) at the approach speed.
-        ramp: duration (s) of the linear ramp from the approach speed down to the target.
-        lag: time constant (s) of each of the three lags the schedule passes through (0: none).
+    Parameters
+    ----------
+    approach : float, optional
+        Speed (rad/s) commanded first, above the fold of the bifurcation diagram (nominal torsional rig: fold at
+        3.85 V, about 6.7 rad/s; 8.5 rad/s needs 4.87 V).
+    hold : float, optional
+        Time (s) at the approach speed.
+    ramp : float, optional
+        Duration (s) of the linear ramp from the approach speed down to the target.
+    lag : float, optional
+        Time constant (s) of each of the three lags the schedule passes through (0: none).
     """
 
     approach: float = 8.5

@@ -49,13 +49,19 @@ class ObserverResidual:
     one clock); each law is built by the observer controller's ``new_law``, so the base follows that
     controller's options whatever they are.
 
-    Args:
-        config: rig configuration the observer is designed for.
-        scale: voltage of a full action (V), > 0.
-        params: the design model (default: the identified set).
-        dt: control period (s).
-        observer: keywords of :class:`controllers.observer.ObserverController` (noise settings, law
-            bandwidth, start-up shaping, ...).
+    Parameters
+    ----------
+    config : str
+        Rig configuration the observer is designed for.
+    scale : float
+        Voltage of a full action (V), > 0.
+    params : RigParams, optional
+        The design model (default: the identified set).
+    dt : float, optional
+        Control period (s).
+    observer : dict, optional
+        Keywords of :class:`controllers.observer.ObserverController` (noise settings, law bandwidth, start-up
+        shaping, ...).
     """
 
     def __init__(self, config: str, scale: float, params: RigParams | None = None, dt: float = 0.01,

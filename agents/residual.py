@@ -42,11 +42,16 @@ __all__ = ["ResidualVoltage"]
 class ResidualVoltage:
     """Maps (policy action in [-1, 1], target speed, time since start) -> motor voltage (V).
 
-    Args:
-        config: rig configuration whose equilibria give the feedforward ('torsional', 'coupled', ...).
-        scale: voltage of a full action (V), > 0.
-        params: model of the feedforward (default: the identified set).
-        startup: (kick V, hold s, ramp s) start-up schedule, or None (constant u_eq).
+    Parameters
+    ----------
+    config : str
+        Rig configuration whose equilibria give the feedforward ('torsional', 'coupled', ...).
+    scale : float
+        Voltage of a full action (V), > 0.
+    params : RigParams, optional
+        Model of the feedforward (default: the identified set).
+    startup : sequence of float, optional
+        (kick V, hold s, ramp s) start-up schedule, or None (constant u_eq).
     """
 
     def __init__(self, config: str, scale: float, params: RigParams | None = None,

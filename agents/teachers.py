@@ -38,15 +38,24 @@ TEACHERS = ("flatness",)
 class FlatnessTeacher:
     """Batched full-state teacher: true state -> voltage normalised to [-1, 1].
 
-    Args:
-        n: number of rigs.
-        params: the law's design model (default the nominal set).
-        dt: control period (s).
-        bandwidth: closed-loop bandwidth of the lower-speed error chain (rad/s).
-        tau_ref: time constant (s) of each of the reference's three lags (a gentle start from rest).
-        integral: weight of the speed error's integral (:func:`controllers.flatness.chain_gain`).
-        z_max: clip of the integral state (rad), an anti-windup.
-        per_plant: design the law on each rig's true base parameters (:meth:`set_plants`), not ``params``.
+    Parameters
+    ----------
+    n : int
+        Number of rigs.
+    params : RigParams, optional
+        The law's design model (default the nominal set).
+    dt : float, optional
+        Control period (s).
+    bandwidth : float, optional
+        Closed-loop bandwidth of the lower-speed error chain (rad/s).
+    tau_ref : float, optional
+        Time constant (s) of each of the reference's three lags (a gentle start from rest).
+    integral : float, optional
+        Weight of the speed error's integral (:func:`controllers.flatness.chain_gain`).
+    z_max : float, optional
+        Clip of the integral state (rad), an anti-windup.
+    per_plant : bool, optional
+        Design the law on each rig's true base parameters (:meth:`set_plants`), not ``params``.
     """
 
     def __init__(self, n: int, params: RigParams | None = None, dt: float = 0.01, *, bandwidth: float = 2.5,

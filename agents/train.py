@@ -194,24 +194,62 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
           distill_kwargs: dict[str, Any] | None = None) -> TrainResult:
     """Train ``algo`` on ``env_id`` and write the run into ``out`` (see the module docstring).
 
-    Args:
-        obs: observation mode ('full', 'sensors', 'motor'); default the hyperparameter file's.
-        timesteps: environment steps (all rigs together); default the file's ``n_timesteps``.
-        seed: seed of the networks, the exploration and the env (rig i: seed + i).
-        hyperparams: YAML file (rl-zoo3 layout) instead of ``agents/hyperparams/<algo>.yml``.
-        overrides: entries replacing those of the file (e.g. ``{"learning_rate": 1e-3}``).
-        resume: continue from ``out/checkpoints/latest.zip`` up to ``timesteps`` in total.
-        torch_threads: torch CPU threads (the rig PC and CI machines are small; None = torch's default).
-        command: the command line that started the run, recorded in ``config.yml``.
-        eval_every: environment steps between evaluations (0 = none): ``eval_envs`` episodes of the
-            deterministic policy on rigs seeded apart from the training's; the best mean reward's model
-            is kept in ``out/best/`` (``best_model.zip``, ``policy.npz``), the curve in ``out/evaluations.npz``.
-        teacher: an exported policy of the 'full' observation or 'flatness' (:mod:`agents.teachers`): before
-            the RL steps, its actions are distilled into this model's actor by DAgger (:mod:`agents.distill`,
-            ``distill_kwargs`` over the hyperparameters' ``distill`` entry, whose ``teacher`` is the
-            default); ``timesteps`` may then be 0 (distillation only).  The entry's ``then`` (a mapping
-            of DAgger options) runs a second stage from the first's student with those options changed
-            (fresh rigs and fresh aggregated data, e.g. another training population).
+    Parameters
+    ----------
+    env_id : str
+        Gymnasium id of the environment, e.g. ``"drillgym/Torsional-v0"``.
+    algo : str
+        Algorithm: ``"ppo"``, ``"sac"``, ``"td3"`` or ``"recurrentppo"``.
+    out : str or path
+        Run directory (created if missing).
+    obs : str, optional
+        Observation mode ('full', 'sensors', 'motor'); default the hyperparameter file's.
+    timesteps : int, optional
+        Environment steps (all rigs together); default the file's ``n_timesteps``.
+    seed : int, optional
+        Seed of the networks, the exploration and the env (rig i: seed + i).
+    n_envs : int, optional
+        Number of rigs stepped together; default the file's ``n_envs``.
+    hyperparams : str or path, optional
+        YAML file (rl-zoo3 layout) instead of ``agents/hyperparams/<algo>.yml``.
+    overrides : dict, optional
+        Entries replacing those of the file (e.g. ``{"learning_rate": 1e-3}``).
+    resume : bool, optional
+        Continue from ``out/checkpoints/latest.zip`` up to ``timesteps`` in total.
+    progress : bool, optional
+        Show SB3's progress bar.
+    tensorboard : bool, optional
+        Write TensorBoard logs into ``out/tb``.
+    checkpoint_every : int, optional
+        Environment steps between checkpoints ``out/checkpoints/latest.zip``.
+    export : bool, optional
+        Write the exported policy ``policy.npz`` (MLP policies; not for RecurrentPPO).
+    verbose : int, optional
+        SB3 verbosity (0: silent).
+    torch_threads : int or None, optional
+        Torch CPU threads (the rig PC and CI machines are small; None = torch's default).
+    command : str, optional
+        The command line that started the run, recorded in ``config.yml``.
+    eval_every : int, optional
+        Environment steps between evaluations (0 = none): ``eval_envs`` episodes of the deterministic policy on
+        rigs seeded apart from the training's; the best mean reward's model is kept in ``out/best/``
+        (``best_model.zip``, ``policy.npz``), the curve in ``out/evaluations.npz``.
+    eval_envs : int, optional
+        Episodes per evaluation (one rig each).
+    teacher : str or path, optional
+        An exported policy of the 'full' observation or 'flatness' (:mod:`agents.teachers`): before the RL
+        steps, its actions are distilled into this model's actor by DAgger (:mod:`agents.distill`,
+        ``distill_kwargs`` over the hyperparameters' ``distill`` entry, whose ``teacher`` is the default);
+        ``timesteps`` may then be 0 (distillation only).  The entry's ``then`` (a mapping of DAgger options)
+        runs a second stage from the first's student with those options changed (fresh rigs and fresh aggregated
+        data, e.g. another training population).
+    distill_kwargs : dict, optional
+        DAgger options (:func:`agents.distill.distill`) over the hyperparameters' ``distill`` entry.
+
+    Returns
+    -------
+    TrainResult
+        The trained model, the paths of its files and the wall time (s).
     """
     import torch
 

@@ -51,15 +51,21 @@ Measurement = Mapping[str, "float | np.ndarray"]
 class Controller(ABC):
     """Base class of the controllers: reset, then one voltage per control period.
 
-    Args:
-        omega_ref: target lower-disc speed (rad/s), scalar or one per trajectory;
-            a measurement ``omega_ref`` given to :meth:`reset` overrides it.
-        config: rig configuration the controller is designed for ('torsional', 'coupled', ...).
-        params: the model the controller is designed on (default: the identified set).  The
-            plant may differ (parameter-mismatch scenarios); the controller never sees the truth.
-        dt: control period (s); default :attr:`default_dt` of the class (10 ms; the observer samples
-            the encoder at 500 Hz).
-        u_max: voltage limit (V), the amplifier's range.
+    Parameters
+    ----------
+    omega_ref : float or ndarray, optional
+        Target lower-disc speed (rad/s), scalar or one per trajectory; a measurement ``omega_ref`` given to
+        :meth:`reset` overrides it.
+    config : str or Configuration, optional
+        Rig configuration the controller is designed for ('torsional', 'coupled', ...).
+    params : RigParams, optional
+        The model the controller is designed on (default: the identified set).  The plant may differ
+        (parameter-mismatch scenarios); the controller never sees the truth.
+    dt : float, optional
+        Control period (s); default :attr:`default_dt` of the class (10 ms; the observer samples the encoder at
+        500 Hz).
+    u_max : float, optional
+        Voltage limit (V), the amplifier's range.
     """
 
     name: ClassVar[str] = "controller"

@@ -62,27 +62,40 @@ def chain_gain(bandwidth: float, r: float = 1.0, integral: float = 0.0) -> np.nd
 class FlatnessLaw:
     """Batched feedback-linearising law: estimates (omega_u, alpha, omega_l, d) -> voltage (V).
 
-    Args:
-        params: the design model.
-        dt: control period (s).
-        bandwidth: closed-loop bandwidth of the speed error (rad/s), see :func:`chain_gain`.
-        tau_ref: time constant of each of the reference's three lags (s).
-        w_rest: lower speed (rad/s) below which the disc counts as at rest when the string torque is
-            inside the stick set.
-        step: finite-difference step (rad/s) of the friction law's first and second derivatives.
-        low_speed: targets below this speed (rad/s) are approached from above (0: never).
-        approach: speed (rad/s) the reference goes to first for a low target.
-        hold, ramp: time (s) the reference input stays at ``approach``, then duration (s) of its
-            linear ramp down to the low target.
-        low_bandwidth: bandwidth (rad/s) of the error chain for low targets.
-        integral: weight of the speed error's integral for low targets (0: none), see :func:`chain_gain`.
-        disturbance: how the estimate ``d`` corrects the brake law: 'offset' (N m added) or 'scale'
-            (the law, its slope and curvature times 1 + d), as the estimator's
-            :class:`controllers.kalman.DisturbanceModel`.
-        integral_high: weight of the integral for the other targets (0: none).
-
     The integral state is the law's own (the integral of the estimated speed error) unless the
     caller passes one (``z``, rad: e.g. the measured motor angle minus the reference's integral).
+
+    Parameters
+    ----------
+    params : RigParams
+        The design model.
+    dt : float
+        Control period (s).
+    bandwidth : float, optional
+        Closed-loop bandwidth of the speed error (rad/s), see :func:`chain_gain`.
+    tau_ref : float, optional
+        Time constant of each of the reference's three lags (s).
+    w_rest : float, optional
+        Lower speed (rad/s) below which the disc counts as at rest when the string torque is inside the stick
+        set.
+    step : float, optional
+        Finite-difference step (rad/s) of the friction law's first and second derivatives.
+    low_speed : float, optional
+        Targets below this speed (rad/s) are approached from above (0: never).
+    approach : float, optional
+        Speed (rad/s) the reference goes to first for a low target.
+    hold, ramp : float, optional
+        Time (s) the reference input stays at ``approach``, then duration (s) of its linear ramp down to the low
+        target.
+    low_bandwidth : float, optional
+        Bandwidth (rad/s) of the error chain for low targets.
+    integral : float, optional
+        Weight of the speed error's integral for low targets (0: none), see :func:`chain_gain`.
+    disturbance : str, optional
+        How the estimate ``d`` corrects the brake law: 'offset' (N m added) or 'scale' (the law, its slope and
+        curvature times 1 + d), as the estimator's :class:`controllers.kalman.DisturbanceModel`.
+    integral_high : float, optional
+        Weight of the integral for the other targets (0: none).
     """
 
     def __init__(self, params: RigParams, dt: float, *, bandwidth: float = 2.5, tau_ref: float = 1.0,

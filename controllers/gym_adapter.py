@@ -31,9 +31,12 @@ MM = 1e-3  # mm -> m
 class ControllerPolicy:
     """Observation of a drillgym env -> measurement dict -> controller -> action (array of one voltage).
 
-    Args:
-        controller: any controller; its control period must equal the env's ``control_dt``.
-        env: the env (wrapped or not) whose observations it reads.
+    Parameters
+    ----------
+    controller : Controller
+        Any controller; its control period must equal the env's ``control_dt``.
+    env
+        The env (wrapped or not) whose observations it reads.
     """
 
     def __init__(self, controller: Controller, env) -> None:

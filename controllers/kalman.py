@@ -137,21 +137,30 @@ def disturbance_model(params: RigParams | None = None, dt: float = 0.01, *,
                       sigma_du: float = 0.0) -> DisturbanceModel:
     """Build the estimator's model.
 
-    Args:
-        params: model parameters (the identified set by default).
-        dt: sample period (s).
-        counts_per_rev: encoder resolution (0: no quantization).
-        angle_noise: extra white noise on theta_u (rad, std).
-        sigma_d: random-walk intensity of the disturbance state (N m / sqrt(s) for 'offset',
-            1 / sqrt(s) for 'scale').
-        sigma_upper, sigma_lower: white torque noise on the discs (N m / sqrt(Hz)), model error.
-        friction_known: the nominal brake law (with stick) is a known input and ``d`` its unknown
-            deviation (default); False: ``d`` is the whole lower friction torque.
-        disturbance: 'offset' (``d`` in N m added to the brake law) or 'scale' (``d`` the relative
-            error of the brake law's level: Ts, Tc, bb all off by the same factor, as with the oil's
-            temperature); 'scale' needs ``friction_known``.
-        sigma_du: > 0 adds a sixth state ``du`` (N m), a torque on the upper disc that the model misses
-            (motor constant, upper friction, lag errors), as a random walk of this intensity (N m/sqrt(s)).
+    Parameters
+    ----------
+    params : RigParams, optional
+        Model parameters (the identified set by default).
+    dt : float, optional
+        Sample period (s).
+    counts_per_rev : int, optional
+        Encoder resolution (0: no quantization).
+    angle_noise : float, optional
+        Extra white noise on theta_u (rad, std).
+    sigma_d : float, optional
+        Random-walk intensity of the disturbance state (N m / sqrt(s) for 'offset', 1 / sqrt(s) for 'scale').
+    sigma_upper, sigma_lower : float, optional
+        White torque noise on the discs (N m / sqrt(Hz)), model error.
+    friction_known : bool, optional
+        The nominal brake law (with stick) is a known input and ``d`` its unknown deviation (default); False:
+        ``d`` is the whole lower friction torque.
+    disturbance : str, optional
+        'offset' (``d`` in N m added to the brake law) or 'scale' (``d`` the relative error of the brake law's
+        level: Ts, Tc, bb all off by the same factor, as with the oil's temperature); 'scale' needs
+        ``friction_known``.
+    sigma_du : float, optional
+        > 0 adds a sixth state ``du`` (N m), a torque on the upper disc that the model misses (motor constant,
+        upper friction, lag errors), as a random walk of this intensity (N m/sqrt(s)).
     """
     p = params or RigParams()
     if not (np.isfinite(dt) and dt > 0):

@@ -38,10 +38,14 @@ HANDSHAKE_TIMEOUT_S = 1.0  # s to wait for the CONFIG reply to one IDENTIFY
 class RigClient:
     """Protocol client on a :class:`hw.link.SerialLink`.
 
-    Args:
-        url: serial port or pyserial URL.
-        reply_timeout: longest wait for a reply (s); keep it below the firmware watchdog.
-        baudrate: line speed (bit/s).
+    Parameters
+    ----------
+    url : str
+        Serial port or pyserial URL.
+    reply_timeout : float, optional
+        Longest wait for a reply (s); keep it below the firmware watchdog.
+    baudrate : int, optional
+        Line speed (bit/s).
     """
 
     def __init__(self, url: str, reply_timeout: float = 0.05, baudrate: int = DEFAULT_BAUDRATE) -> None:

@@ -65,15 +65,39 @@ class _Timed:
 class RigEmulator:
     """Emulated rig on a pseudo-terminal (see the module docstring).
 
-    Args:
-        configuration, params, effects, effect_params, dt, method, alpha0, lvdt_noise_std, seed: the
-            plant (:class:`hw.firmware.Firmware`): base parameters and hidden effects with their values.
-        firmware: firmware settings (encoder resolution, LVDT scale, period, watchdog, limits).
-        latency_s: serial latency of every reply (s); ``jitter_s``: extra uniform [0, jitter_s] (s).
-        faults: link faults to inject.
-        link_path: also create a symlink to the pseudo-terminal there (removed on stop).
-        log: callable(str) told of connections (IDENTIFY), stops (with their reason), cleared stops and a
-            lost link, e.g. ``drillgym rig emulate`` prints them with a time stamp.
+    Parameters
+    ----------
+    configuration : str, optional
+        Rig configuration of the plant ('torsional', 'lateral', 'coupled', ...).
+    params : RigParams, optional
+        Base parameters of the plant (default the identified set).
+    firmware : FirmwareConfig, optional
+        Firmware settings (encoder resolution, LVDT scale, period, watchdog, limits).
+    effects : object, optional
+        Hidden effects of the plant (as :func:`drillgym.simulate`'s ``effects``).
+    effect_params : mapping, optional
+        Their parameter values by name (defaults: each Parameter's).
+    dt : float, optional
+        Integration step of the plant (s).
+    method : str, optional
+        Integration method of the plant ('rk4', 'dp5').
+    alpha0 : float, optional
+        Initial winding of the string (rad), rig at rest.
+    lvdt_noise_std : float, optional
+        LVDT noise (m, standard deviation).
+    seed : int or None, optional
+        Seed of the LVDT noise.
+    latency_s : float, optional
+        Serial latency of every reply (s).
+    jitter_s : float, optional
+        Extra latency drawn uniformly from [0, jitter_s] (s).
+    faults : FaultPlan, optional
+        Link faults to inject.
+    link_path : str or path, optional
+        Also create a symlink to the pseudo-terminal there (removed on stop).
+    log : callable, optional
+        ``log(message: str)``, told of connections (IDENTIFY), stops (with their reason), cleared stops and a lost link,
+        e.g. ``drillgym rig emulate`` prints them with a time stamp.
     """
 
     def __init__(self, configuration: str = "torsional", params: RigParams | None = None,

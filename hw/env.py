@@ -77,22 +77,34 @@ def _stop_motor(client: RigClient) -> None:
 class HardwareEnv(gym.Env):
     """The rig behind a serial port (see the module docstring).
 
-    Args:
-        port: serial device or pyserial URL of the rig's microcontroller (or ``drillgym rig emulate``).
-        configuration: 'torsional', 'lateral' or 'coupled' (how the rig is set up).
-        record: recording file (.csv; later episodes get ``_<k>`` suffixes) or directory.
-        limits: host safety limits (clamp, slew rate, over-speed, over-displacement).
-        rest_time: the rig is at rest when no encoder count changed for this long (s).
-        rest_timeout: give up bringing the rig to rest after this long (s).
-        reply_timeout: longest wait for the firmware's reply (s); None: the firmware's watchdog period from its
-            CONFIG (a reply later than that is useless: the firmware has stopped the motor by then), which keeps
-            a loaded host from giving up on replies the firmware still honours.
-        lvdt_cutoff_hz: causal LVDT low-pass cut-off (Hz).
-        flush_interval_s: recording flush interval (s, <= 1).
-        baudrate: serial line speed.
-        **options: the simulated envs' options (:class:`drillgym.envs.EnvOptions`): observation,
-            control_dt, normalize_action, omega_ref, omega_ref_range, episode_duration, max_speed,
-            max_lateral, reward, ssi_window, velocity_filter_tau, motor_history.
+    Parameters
+    ----------
+    port : str
+        Serial device or pyserial URL of the rig's microcontroller (or ``drillgym rig emulate``).
+    configuration : str, optional
+        'torsional', 'lateral' or 'coupled' (how the rig is set up).
+    record : str or path, optional
+        Recording file (.csv; later episodes get ``_<k>`` suffixes) or directory.
+    limits : SafetyLimits, optional
+        Host safety limits (clamp, slew rate, over-speed, over-displacement).
+    rest_time : float, optional
+        The rig is at rest when no encoder count changed for this long (s).
+    rest_timeout : float, optional
+        Give up bringing the rig to rest after this long (s).
+    reply_timeout : float, optional
+        Longest wait for the firmware's reply (s); None: the firmware's watchdog period from its CONFIG (a reply
+        later than that is useless: the firmware has stopped the motor by then), which keeps a loaded host from
+        giving up on replies the firmware still honours.
+    lvdt_cutoff_hz : float, optional
+        Causal LVDT low-pass cut-off (Hz).
+    flush_interval_s : float, optional
+        Recording flush interval (s, <= 1).
+    baudrate : int, optional
+        Serial line speed.
+    **options
+        The simulated envs' options (:class:`drillgym.envs.EnvOptions`): observation, control_dt,
+        normalize_action, omega_ref, omega_ref_range, episode_duration, max_speed, max_lateral, reward,
+        ssi_window, velocity_filter_tau, motor_history.
     """
 
     metadata = {"render_modes": []}

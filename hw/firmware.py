@@ -81,17 +81,28 @@ class VoltageEvent:
 class Firmware:
     """The emulated microcontroller on the rig.
 
-    Args:
-        configuration: rig configuration ('torsional', 'lateral', 'coupled', ...).
-        params: base parameters of the plant (default the identified set).
-        config: firmware settings.
-        effects: hidden effects of the plant (as :func:`drillgym.simulate`'s ``effects``).
-        effect_params: their parameter values by name (defaults: each Parameter's).
-        dt: integration step of the plant (s); must divide every control period.
-        method: integration method of the plant ('rk4', 'dp5').
-        alpha0: initial winding of the string (rad), rig at rest.
-        lvdt_noise_std: LVDT noise (m, standard deviation).
-        seed: seed of the LVDT noise.
+    Parameters
+    ----------
+    configuration : str, optional
+        Rig configuration ('torsional', 'lateral', 'coupled', ...).
+    params : RigParams, optional
+        Base parameters of the plant (default the identified set).
+    config : FirmwareConfig, optional
+        Firmware settings.
+    effects : object, optional
+        Hidden effects of the plant (as :func:`drillgym.simulate`'s ``effects``).
+    effect_params : mapping, optional
+        Their parameter values by name (defaults: each Parameter's).
+    dt : float, optional
+        Integration step of the plant (s); must divide every control period.
+    method : str, optional
+        Integration method of the plant ('rk4', 'dp5').
+    alpha0 : float, optional
+        Initial winding of the string (rad), rig at rest.
+    lvdt_noise_std : float, optional
+        LVDT noise (m, standard deviation).
+    seed : int or None, optional
+        Seed of the LVDT noise.
     """
 
     def __init__(self, configuration: str = "torsional", params: RigParams | None = None,

@@ -61,9 +61,12 @@ WRITE_TIMEOUT_S = 0.5
 class SerialLink:
     """Framed, sequenced messages over a pyserial port.
 
-    Args:
-        url: device path or pyserial URL.
-        baudrate: line speed (bit/s); ignored by pseudo-terminals and sockets.
+    Parameters
+    ----------
+    url : str
+        Device path or pyserial URL.
+    baudrate : int, optional
+        Line speed (bit/s); ignored by pseudo-terminals and sockets.
     """
 
     def __init__(self, url: str, baudrate: int = DEFAULT_BAUDRATE) -> None:

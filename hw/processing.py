@@ -37,11 +37,16 @@ class CounterUnwrap:
 class LvdtProcessor:
     """Raw LVDT values (x, y) -> metres, offset removed, low-passed causally.
 
-    Args:
-        m_per_lsb: LVDT scale (m per raw count).
-        sample_rate_hz: rate of the samples (Hz).
-        cutoff_hz: low-pass cut-off (Hz); no filtering at or above the Nyquist frequency.
-        order: Butterworth order.
+    Parameters
+    ----------
+    m_per_lsb : float
+        LVDT scale (m per raw count).
+    sample_rate_hz : float
+        Rate of the samples (Hz).
+    cutoff_hz : float, optional
+        Low-pass cut-off (Hz); no filtering at or above the Nyquist frequency.
+    order : int, optional
+        Butterworth order.
     """
 
     def __init__(self, m_per_lsb: float, sample_rate_hz: float, cutoff_hz: float = 5.0, order: int = 2) -> None:

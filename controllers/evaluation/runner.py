@@ -55,19 +55,39 @@ def run_closed_loop(controller: Controller, config: "str | Configuration", omega
                     effect_params: Mapping[str, float] | None = None) -> ClosedLoopRun:
     """Run ``controller`` on n simulated rigs for ``duration`` seconds.
 
-    Args:
-        controller: any :class:`controllers.Controller` (vectorised over the batch).
-        config: plant configuration ('torsional', 'coupled', ...).
-        omega_ref: target speeds (rad/s), (n,).
-        duration: simulated time (s).
-        params: plant base parameters: RigParams, a list (one per run) or an (n, n_params) matrix
-            (base parameters, or base then effect parameters in the composition's layout).
-        x0: initial states (n, 8) or (n, n_state) (default: rest with winding ``alpha0``).
-        counts_per_rev: encoder resolution of the measurement (0: exact angles), or one per run (n,).
-        angle_noise: white noise added to the measured angles (rad, std), or one per run (n,).
-        seed: seed of the measurement noise.
-        effects, effect_params: hidden effects of the plant and their values (as
-            :func:`drillgym.simulate`); the controller is built without them.
+    Parameters
+    ----------
+    controller : Controller
+        Any :class:`controllers.Controller` (vectorised over the batch).
+    config : str or Configuration
+        Plant configuration ('torsional', 'coupled', ...).
+    omega_ref : ndarray
+        Target speeds (rad/s), (n,).
+    duration : float
+        Simulated time (s).
+    params : RigParams or list of RigParams or ndarray, optional
+        Plant base parameters: RigParams, a list (one per run) or an (n, n_params) matrix (base parameters, or
+        base then effect parameters in the composition's layout).
+    x0 : ndarray, optional
+        Initial states (n, 8) or (n, n_state) (default: rest with winding ``alpha0``).
+    alpha0 : float or ndarray, optional
+        Initial winding of the string (rad) of a run from rest, or one per run (n,). Default 0.
+    counts_per_rev : int or ndarray, optional
+        Encoder resolution of the measurement (0: exact angles), or one per run (n,).
+    angle_noise : float or ndarray, optional
+        White noise added to the measured angles (rad, std), or one per run (n,).
+    seed : int, optional
+        Seed of the measurement noise.
+    sim_dt : float, optional
+        Integrator step of the plant (s), a divisor of the controller's period. Default 1 ms.
+    effects, effect_params : object, optional
+        Hidden effects of the plant and their values (as :func:`drillgym.simulate`); the controller is built
+        without them.
+
+    Returns
+    -------
+    ClosedLoopRun
+        The signals of the n runs at the control period: arrays (n, m), times ``t`` (m,) in s.
     """
     cfg = parse_configuration(config)
     ref = np.atleast_1d(np.asarray(omega_ref, dtype=float))

@@ -99,19 +99,27 @@ MEASUREMENT_CHANNELS = ("theta_u", "theta_l", "X", "Y")
 class Parameter:
     """A parameter of an effect, with what fitting needs.
 
-    Args:
-        name: identifier used in the effect's functions and everywhere parameters are named.
-        unit: SI unit (text).
-        lo, hi: physical bounds (finite; the effect is refused outside them).
-        guess: initial guess for fitting (inside the bounds).
-        scale: typical magnitude (> 0): scales the fit and its finite-difference step.
-        doc: one line of meaning.
-        default: value when the effect is added without one (default: ``guess``).
-        neutral: value at which this parameter switches the effect off (optional).  When every
-            parameter of an effect declares one and all sit there, the effect must add nothing
-            (a torque of 0, a friction factor of 1, ...): the batch kernels then skip its functions,
-            and the diagnosis starts a candidate there (checked by
-            :func:`drillgym.effects.validation.check_neutral`).
+    Parameters
+    ----------
+    name : str
+        Identifier used in the effect's functions and everywhere parameters are named.
+    unit : str
+        SI unit (text).
+    lo, hi : float
+        Physical bounds (finite; the effect is refused outside them).
+    guess : float
+        Initial guess for fitting (inside the bounds).
+    scale : float
+        Typical magnitude (> 0): scales the fit and its finite-difference step.
+    doc : str, optional
+        One line of meaning.
+    default : float, optional
+        Value when the effect is added without one (default: ``guess``).
+    neutral : float, optional
+        Value at which this parameter switches the effect off (optional).  When every parameter of an effect
+        declares one and all sit there, the effect must add nothing (a torque of 0, a friction factor of 1,
+        ...): the batch kernels then skip its functions, and the diagnosis starts a candidate there (checked by
+        :func:`drillgym.effects.validation.check_neutral`).
     """
 
     name: str

@@ -48,18 +48,27 @@ class ParameterRandomizer:
 class RigSystem:
     """N copies of one rig configuration, stepped one control period at a time.
 
-    Args:
-        configuration: 'torsional', 'lateral' or 'coupled'.
-        n: number of rigs.
-        params: parameter set of every rig (default the identified set).
-        dt: integration step (s).
-        n_substeps: integration steps per control period (voltage held constant over them).
-        method, friction, effects, effect_params: as :class:`drillgym.BatchSimulator`.
-
     State views (arrays of shape (n,), SI units): ``omega_u``, ``omega_l``, ``alpha``,
     ``theta_u``, ``theta_l``; ``Y`` is the (n, n_state) state matrix (the 8 mechanical states of
     :mod:`drillgym.configurations`, then the effects' states), ``friction_l`` the lower friction torque (N m),
     ``stuck_l`` the lower disc's stick flag.
+
+    Parameters
+    ----------
+    configuration : str
+        'torsional', 'lateral' or 'coupled'.
+    n : int
+        Number of rigs.
+    params : RigParams, optional
+        Parameter set of every rig (default the identified set).
+    dt : float, optional
+        Integration step (s).
+    n_substeps : int, optional
+        Integration steps per control period (voltage held constant over them).
+    method, friction : str, optional
+        Integration method and friction treatment, as :class:`drillgym.BatchSimulator`.
+    effects, effect_params : optional
+        Effects of every rig and their parameter values, as :class:`drillgym.BatchSimulator`.
     """
 
     def __init__(self, configuration: str, n: int, *, params: RigParams | None = None, dt: float = 1e-2,
