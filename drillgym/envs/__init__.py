@@ -22,6 +22,7 @@ from typing import Any
 
 import gymnasium
 
+from ..errors import InputError
 from .base import CoupledEnv, DrillEnv, LateralEnv, TorsionalEnv
 from .observation import FullObservation, MotorObservation, SensorObservation, make_observation_model
 from .options import EnvOptions, RewardWeights
@@ -42,10 +43,33 @@ REGISTERED_DEFAULTS = {"normalize_action": True}
 
 def make_vec(env_id: str, num_envs: int, **options: Any) -> DrillVectorEnv:
     """The vectorised env of a registered id: ``num_envs`` rigs in one batched core call per step.
+
     As ``gymnasium.make`` of the id, actions are normalised to [-1, 1] unless ``normalize_action=False``
-    (volts).  For stable-baselines3 use :func:`drillgym.envs.sb3.make_sb3_vec` (same options)."""
+    (volts).  For stable-baselines3 use :func:`drillgym.envs.make_sb3_vec` (same options).
+
+    Parameters
+    ----------
+    env_id : str
+        Registered id: ``"drillgym/Torsional-v0"``, ``"drillgym/Lateral-v0"`` or ``"drillgym/Coupled-v0"``.
+    num_envs : int
+        Number of rigs (>= 1).
+    **options
+        Any field of :class:`drillgym.envs.EnvOptions`, and ``render_mode`` / ``autoreset_mode`` of
+        :class:`drillgym.envs.DrillVectorEnv`.
+
+    Returns
+    -------
+    DrillVectorEnv
+        The Gymnasium vector env of the ``num_envs`` rigs.
+
+    Examples
+    --------
+    >>> import drillgym
+    >>> venv = drillgym.envs.make_vec("drillgym/Coupled-v0", num_envs=256)
+    >>> obs, info = venv.reset(seed=0)
+    """
     if env_id not in ENV_IDS:
-        raise ValueError(f"unknown drillgym environment {env_id!r}; expected one of {sorted(ENV_IDS)}")
+        raise InputError(f"unknown drillgym environment {env_id!r}; expected one of {sorted(ENV_IDS)}")
     return DrillVectorEnv(num_envs, ENV_IDS[env_id], **{**REGISTERED_DEFAULTS, **options})
 
 
@@ -61,8 +85,30 @@ class VectorEntry:
 
 
 def make_sb3_vec(env_id: str, num_envs: int, **options: Any):
-    """``num_envs`` rigs of a registered id as a stable-baselines3 ``VecEnv`` (one batched core call per
-    step; see :mod:`drillgym.envs.sb3`): ``PPO("MlpPolicy", make_sb3_vec("drillgym/Torsional-v0", 64))``."""
+    """``num_envs`` rigs of a registered id as a stable-baselines3 ``VecEnv``.
+
+    One batched core call per step (see :mod:`drillgym.envs.sb3`); episodes reset in the same step,
+    as stable-baselines3 expects.
+
+    Parameters
+    ----------
+    env_id : str
+        Registered id, as :func:`make_vec`.
+    num_envs : int
+        Number of rigs (>= 1).
+    **options
+        Any field of :class:`drillgym.envs.EnvOptions`.
+
+    Returns
+    -------
+    stable_baselines3.common.vec_env.VecEnv
+        The rigs as an SB3 vector env.
+
+    Examples
+    --------
+    >>> from stable_baselines3 import PPO
+    >>> model = PPO("MlpPolicy", make_sb3_vec("drillgym/Torsional-v0", 64))
+    """
     from .sb3 import make_sb3_vec as _make
 
     return _make(env_id, num_envs, **options)

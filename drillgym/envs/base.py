@@ -1,14 +1,9 @@
 """The Gymnasium environments of the drill-string rig.
 
-All three share :class:`DrillEnv`; they differ in the rig configuration (MODEL.md):
-
-| id                      | lateral motion | brake | obs dim (full / sensors / motor) |
-|-------------------------|----------------|-------|----------------------------------|
-| drillgym/Torsional-v0   | held           | on    | 5 / 7 / 2H+1                     |
-| drillgym/Lateral-v0     | free           | off   | 9 / 9 / 2H+1                     |
-| drillgym/Coupled-v0     | free           | on    | 9 / 9 / 2H+1                     |
-
-(H = ``motor_history``, default 16.)  Options: :class:`drillgym.envs.options.EnvOptions`.
+All three share :class:`DrillEnv` (its docstring gives the spaces, reward and episode end); they
+differ in the rig configuration (MODEL.md): ``drillgym/Torsional-v0`` (lateral motion held, brake on),
+``drillgym/Lateral-v0`` (lateral motion free, brake off) and ``drillgym/Coupled-v0`` (lateral motion
+free, brake on).  Options: :class:`drillgym.envs.options.EnvOptions`.
 """
 
 from __future__ import annotations
@@ -21,6 +16,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.envs.registration import EnvSpec
 
+from ..errors import InputError
 from .action import action_voltage
 from .engine import C_REW, C_TERM, C_TRUNC, EpisodeBatch
 from .options import U_MAX, EnvOptions
@@ -40,45 +36,79 @@ def action_space(normalize: bool) -> spaces.Box:
 class DrillEnv(gym.Env):
     """Hold the lower disc of the drill-string rig at ``omega_ref`` without stick-slip.
 
-    ## Action Space
-    | Num | Action                      | Min  | Max | Unit       |
-    |-----|-----------------------------|------|-----|------------|
-    | 0   | motor voltage / 5 V         | -1.0 | 1.0 | (x 5 V)    |
+    One rig of the given configuration, driven by the motor voltage and stepped one control period
+    (``control_dt``, 10 ms) at a time.  The voltage is held over the period and integrated in sub-steps
+    of ``dt`` (default 10 ms: one event-driven RK4 step, accurate to < 2e-6 rad/s, see
+    :data:`drillgym.envs.options.DEFAULT_ENV_DT`).  :class:`TorsionalEnv`, :class:`LateralEnv` and
+    :class:`CoupledEnv` fix the configuration; :func:`drillgym.envs.make_vec` steps many rigs at once.
 
-    ``gymnasium.make`` of the registered ids normalises the action (``normalize_action=True``, their
-    default); ``normalize_action=False`` (the class's own default): the voltage in [-5, 5] V.
-    Out-of-range actions are clipped as the amplifier does; a NaN/inf action raises ``ValueError``.  The voltage is held over the
-    control period ``control_dt`` (10 ms), integrated in sub-steps of ``dt`` (default 10 ms: one
-    event-driven RK4 step, accurate to < 2e-6 rad/s, see :data:`drillgym.envs.options.DEFAULT_ENV_DT`).
+    Parameters
+    ----------
+    configuration : str, optional
+        Rig configuration: ``"torsional"`` (lateral motion held, brake on), ``"lateral"`` (lower disc
+        free to whirl, brake off) or ``"coupled"`` (both).  Default ``"torsional"``.
+    render_mode : str, optional
+        ``"human"`` (a window) or ``"rgb_array"`` (:meth:`render` returns an image); None: no rendering.
+    **options
+        Any field of :class:`drillgym.envs.options.EnvOptions` (observation mode, control period,
+        target speed, episode length, limits, reward weights, domain randomisation, effects, sensor
+        noise, ...).  Bad values raise :class:`drillgym.errors.InputError` naming the option.
 
-    ## Observation Space (float32; 'full' mode of Torsional-v0; see
-    :mod:`drillgym.envs.observation` for the 'sensors' and 'motor' layouts)
-    | Num | Observation                         | Min   | Max  | Unit  |
-    |-----|-------------------------------------|-------|------|-------|
-    | 0   | omega_u, upper disc speed           | -60   | 60   | rad/s |
-    | 1   | omega_l, lower disc speed           | -60   | 60   | rad/s |
-    | 2   | alpha = theta_l - theta_u (winding) | -50   | 50   | rad   |
-    | 3   | u_prev, voltage of the last period  | -5    | 5    | V     |
-    | 4   | omega_ref, target speed             | 0     | 30   | rad/s |
+    Notes
+    -----
+    **Action space.** ``Box(-1, 1, (1,), float32)``: the motor voltage / 5 V when ``normalize_action``
+    is true (the default of the registered ids), else ``Box(-5, 5, (1,), float32)`` in V (the class's
+    own default).  Out-of-range actions are clipped as the amplifier does; a NaN or infinite action
+    raises :class:`drillgym.errors.InputError`.
 
-    Lateral-v0 / Coupled-v0 insert X, Y (mm, fixed frame) and dX/dt, dY/dt (mm/s) after alpha.
+    **Observation space** (float32; values are clipped into the Box).  ``observation="full"``, the true
+    state:
 
-    ## Rewards
-    ``-(|omega_l - omega_ref|/omega_ref + 0.5 stuck + 0.01 (u/5)^2 + 0.05 (du/5)^2)``
-    (weights: option ``reward``; see :mod:`drillgym.envs.reward`).
+    | Index | Observation                            | Min | Max | Unit  |
+    |-------|----------------------------------------|-----|-----|-------|
+    | 0     | ``omega_u``, upper disc speed          | -60 | 60  | rad/s |
+    | 1     | ``omega_l``, lower disc speed          | -60 | 60  | rad/s |
+    | 2     | ``alpha = theta_l - theta_u``, winding | -50 | 50  | rad   |
+    | 3     | ``u_prev``, voltage of the last period | -5  | 5   | V     |
+    | 4     | ``omega_ref``, target speed            | 0   | 30  | rad/s |
 
-    ## Starting State
-    Rest, initial winding alpha0 ~ U(``alpha0_range``) = U(-1, 1) rad; omega_ref ~ U(1, 8) rad/s
-    (or fixed with ``omega_ref``); with ``randomize = x`` every base parameter is drawn in +/- x.
+    The speed bounds are 2 ``max_speed`` (default 30 rad/s), the target's ``max_speed``.  The lateral and coupled configurations insert
+    ``X``, ``Y`` (mm, fixed frame) and ``dX``, ``dY`` (mm/s) after ``alpha``.  Dimensions per mode:
 
-    ## Episode End
-    Terminated: |omega_u| or |omega_l| > ``max_speed`` (30 rad/s), or r > ``max_lateral`` (20 mm).
-    Truncated: after ``episode_duration`` (30 s = 3000 steps; ``env.spec.max_episode_steps``).
+    | Id                      | full | sensors | motor  |
+    |-------------------------|------|---------|--------|
+    | drillgym/Torsional-v0   | 5    | 7       | 2H + 1 |
+    | drillgym/Lateral-v0     | 9    | 9       | 2H + 1 |
+    | drillgym/Coupled-v0     | 9    | 9       | 2H + 1 |
 
-    ## Info
-    ``omega_l`` (rad/s), ``stuck`` (lower disc stuck), ``friction_torque`` (lower friction, N m),
-    ``stick_slip_severity`` (running SSI over ``ssi_window`` = 5 s), ``omega_ref``, ``voltage`` (V),
-    ``time`` (s).
+    ``"sensors"`` is what the rig measures (wrapped quantized encoder angles, measured winding, filtered
+    speed estimates, LVDT readings, ``u_prev``, ``omega_ref``); ``"motor"`` only the motor encoder: the
+    last H = ``motor_history`` (default 16) speed increments and voltages, then ``omega_ref``.  The
+    layouts are in :mod:`drillgym.envs.observation`; :attr:`observation_names` names the entries.
+
+    **Reward** per control period, with u the voltage over it (weights: option ``reward``,
+    :class:`drillgym.envs.options.RewardWeights`; see :mod:`drillgym.envs.reward`)::
+
+        r = -(|omega_l - omega_ref| / omega_ref + 0.5 stuck + 0.01 (u / 5 V)^2 + 0.05 ((u - u_prev) / 5 V)^2)
+
+    **Starting state.** Rest, with initial winding ``alpha0`` drawn from U(``alpha0_range``) = U(-1, 1) rad;
+    ``omega_ref`` drawn from U(``omega_ref_range``) = U(1, 8) rad/s, or fixed by ``omega_ref``; with
+    ``randomize = x`` every parameter of ``randomize_names`` is drawn per episode in +/- x of its value.
+
+    **Episode end.** Terminated when |omega_u| or |omega_l| exceeds ``max_speed`` (30 rad/s), or the lateral
+    displacement r exceeds ``max_lateral`` (20 mm).  Truncated after ``episode_duration`` (30 s = 3000
+    steps, ``env.spec.max_episode_steps``); the env truncates itself (no ``TimeLimit`` wrapper).
+
+    **Info.** ``omega_l`` (rad/s), ``stuck`` (lower disc stuck), ``friction_torque`` (lower friction,
+    N m), ``stick_slip_severity`` (running severity over ``ssi_window`` = 5 s), ``omega_ref`` (rad/s),
+    ``voltage`` (V), ``time`` (s).
+
+    Examples
+    --------
+    >>> import gymnasium, drillgym
+    >>> env = gymnasium.make("drillgym/Torsional-v0", observation="sensors", omega_ref=4.0)
+    >>> obs, info = env.reset(seed=0)
+    >>> obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 25}
@@ -99,7 +129,7 @@ class DrillEnv(gym.Env):
     def __init__(self, configuration: str = "torsional", render_mode: str | None = None, **options: Any) -> None:
         self.options = EnvOptions.from_kwargs(configuration=configuration, **options)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+            raise InputError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.render_mode = render_mode
         self.batch = EpisodeBatch(self.options, 1)
         self.action_space = action_space(self.options.normalize_action)
@@ -161,27 +191,53 @@ class DrillEnv(gym.Env):
 
 
 class TorsionalEnv(DrillEnv):
-    """Torsional configuration: lateral motion held, brake on (stick-slip).  See :class:`DrillEnv`."""
+    """Torsional configuration (``drillgym/Torsional-v0``): lateral motion held, brake on (stick-slip).
+
+    Spaces, reward and episode end as :class:`DrillEnv`; the 'full' observation has 5 entries.
+
+    Parameters
+    ----------
+    render_mode : str, optional
+        ``"human"``, ``"rgb_array"`` or None, as :class:`DrillEnv`.
+    **options
+        Any field of :class:`drillgym.envs.options.EnvOptions`.
+    """
 
     def __init__(self, render_mode: str | None = None, **options: Any) -> None:
         super().__init__("torsional", render_mode, **options)
 
 
 class LateralEnv(DrillEnv):
-    """Lateral configuration: lower disc free to whirl, brake off (bearing friction).
+    """Lateral configuration (``drillgym/Lateral-v0``): lower disc free to whirl, brake off (bearing friction).
 
     Observation ('full'): omega_u, omega_l, alpha, X, Y (mm), dX, dY (mm/s), u_prev, omega_ref.
-    Terminated also when r = sqrt(X^2 + Y^2) > ``max_lateral``.  See :class:`DrillEnv`."""
+    Terminated also when r = sqrt(X^2 + Y^2) > ``max_lateral``.  Otherwise as :class:`DrillEnv`.
+
+    Parameters
+    ----------
+    render_mode : str, optional
+        ``"human"``, ``"rgb_array"`` or None, as :class:`DrillEnv`.
+    **options
+        Any field of :class:`drillgym.envs.options.EnvOptions`.
+    """
 
     def __init__(self, render_mode: str | None = None, **options: Any) -> None:
         super().__init__("lateral", render_mode, **options)
 
 
 class CoupledEnv(DrillEnv):
-    """Coupled configuration: lateral whirl and brake stick-slip together (the report's headline case).
+    """Coupled configuration (``drillgym/Coupled-v0``): lateral whirl and brake stick-slip together.
 
     Observation ('full'): omega_u, omega_l, alpha, X, Y (mm), dX, dY (mm/s), u_prev, omega_ref.
-    See :class:`DrillEnv`."""
+    Terminated also when r = sqrt(X^2 + Y^2) > ``max_lateral``.  Otherwise as :class:`DrillEnv`.
+
+    Parameters
+    ----------
+    render_mode : str, optional
+        ``"human"``, ``"rgb_array"`` or None, as :class:`DrillEnv`.
+    **options
+        Any field of :class:`drillgym.envs.options.EnvOptions`.
+    """
 
     def __init__(self, render_mode: str | None = None, **options: Any) -> None:
         super().__init__("coupled", render_mode, **options)

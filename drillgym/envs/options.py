@@ -2,7 +2,7 @@
 
 Every option of ``gymnasium.make("drillgym/Torsional-v0", **options)`` and of
 :func:`drillgym.envs.make_vec` is a field of :class:`EnvOptions`; bad values
-raise ``ValueError`` naming the option.
+raise :class:`drillgym.errors.InputError` naming the option.
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any, Optional
 
 from ..configurations import Configuration, parse_configuration
+from ..errors import InputError
 from ..measurement import DEFAULT_COUNTS_PER_REV, DEFAULT_LVDT_NOISE
 from ..params import BASE_PARAMETERS, RigParams
 
@@ -32,7 +33,19 @@ _ENV_CONFIGURATIONS = (Configuration.TORSIONAL, Configuration.LATERAL, Configura
 
 @dataclass(frozen=True)
 class RewardWeights:
-    """Weights of the reward terms (see :mod:`drillgym.envs.reward`); all >= 0."""
+    """Weights of the reward terms (see :mod:`drillgym.envs.reward`); all >= 0.
+
+    Parameters
+    ----------
+    track : float, optional
+        Weight of the relative tracking error ``|omega_l - omega_ref| / omega_ref``.  Default 1.
+    stick : float, optional
+        Weight of the lower disc being stuck at the end of the control period.  Default 0.5.
+    effort : float, optional
+        Weight of ``(u / 5 V)^2``.  Default 0.01.
+    rate : float, optional
+        Weight of ``((u - u_prev) / 5 V)^2``.  Default 0.05.
+    """
 
     track: float = 1.0     # |omega_l - omega_ref| / omega_ref
     stick: float = 0.5     # lower disc stuck at the end of the control period
@@ -43,16 +56,16 @@ class RewardWeights:
         for f in fields(self):
             v = getattr(self, f.name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ValueError(f"reward weight {f.name!r} must be a finite number >= 0, got {v!r}")
+                raise InputError(f"reward weight {f.name!r} must be a finite number >= 0, got {v!r}")
 
 
 def _range(name: str, value: Any, lo: float = -math.inf, positive: bool = False) -> tuple[float, float]:
     try:
         a, b = (float(v) for v in value)
     except (TypeError, ValueError):
-        raise ValueError(f"option {name!r} must be a pair (low, high), got {value!r}") from None
+        raise InputError(f"option {name!r} must be a pair (low, high), got {value!r}") from None
     if not (math.isfinite(a) and math.isfinite(b) and a <= b and a >= lo and (not positive or a > 0)):
-        raise ValueError(f"option {name!r} must be a finite pair low <= high"
+        raise InputError(f"option {name!r} must be a finite pair low <= high"
                          f"{' with low > 0' if positive else ''}, got {value!r}")
     return a, b
 
@@ -61,29 +74,66 @@ def _range(name: str, value: Any, lo: float = -math.inf, positive: bool = False)
 class EnvOptions:
     """All options of the drill-string environments (SI units unless stated).
 
-    Physics: ``configuration`` ('torsional', 'lateral', 'coupled'), ``params`` (RigParams, default
-    the identified set), ``randomize`` (domain randomisation: each parameter of ``randomize_names``
-    is drawn per episode uniformly in +/- randomize x its value), ``dt`` (integration step, default
-    ``min(10 ms, control_dt)``; must divide ``control_dt``), ``method`` ('rk4'/'dp5'),
-    ``friction`` ('exact' set-valued or 'smooth'), ``effects`` (effects added to the base model:
-    names, 'path/to/file.py:NAME', Effect classes or instances, see :mod:`drillgym.effects`) and
-    ``effect_params`` (their parameter values by name); the rigs then run that compiled model.
+    Every keyword of ``gymnasium.make("drillgym/Torsional-v0", **options)``, of
+    :func:`drillgym.envs.make_vec` and of :class:`drillgym.envs.DrillVectorEnv` is a field here; a bad
+    value raises :class:`drillgym.errors.InputError` naming the option.
 
-    Control: ``control_dt`` (s, voltage held over it), ``normalize_action`` (action in [-1, 1]
-    instead of [-5, 5] V).
-
-    Task: ``omega_ref`` (fixed target speed, rad/s) or ``omega_ref_range`` (drawn per episode),
-    ``alpha0_range`` (initial winding, rad), ``episode_duration`` (s, truncation),
-    ``max_speed`` (rad/s, termination on |omega_u| or |omega_l| above it), ``max_lateral``
-    (m, termination on r above it), ``reward`` (RewardWeights or a dict of them),
-    ``ssi_window`` (s, window of the running stick-slip severity).
-
-    Observation: ``observation`` ('full', 'sensors', 'motor'), ``counts_per_rev`` (encoder
-    resolution, both discs), ``lvdt_noise_std`` (m), ``velocity_filter_tau`` (s, first-order
-    filter of the encoder speed estimate, 0 = raw differences), ``motor_history`` (number of
-    past periods in the 'motor' observation).
-
-    Rendering: ``render_history`` (s of strip chart).
+    Parameters
+    ----------
+    configuration : str, optional
+        Rig configuration: ``"torsional"``, ``"lateral"`` or ``"coupled"``.
+    observation : str, optional
+        Observation mode: ``"full"`` (true state), ``"sensors"`` (what the rig measures) or ``"motor"``
+        (the motor encoder only), see :mod:`drillgym.envs.observation`.
+    params : RigParams, optional
+        Parameter set of the rig; default the identified set.
+    randomize : float, optional
+        Domain randomisation, a fraction in [0, 1): each parameter of ``randomize_names`` is drawn per
+        episode uniformly in +/- ``randomize`` times its value.  Default 0 (off).
+    randomize_names : tuple of str, optional
+        Parameters drawn by ``randomize``; default every base parameter.  Effect parameters may be named.
+    effects : optional
+        Effects added to the base model: names, ``"path/to/file.py:NAME"``, Effect classes or instances
+        (see :mod:`drillgym.effects`); the rigs then run that compiled model.
+    effect_params : dict, optional
+        The effects' parameter values by name; default each parameter's own.
+    control_dt : float, optional
+        Control period (s), the voltage held over it.  Default 0.01.
+    dt : float, optional
+        Integration step (s); must divide ``control_dt``.  Default ``min(10 ms, control_dt)``.
+    method : str, optional
+        Integration method, ``"rk4"`` or ``"dp5"``.
+    friction : str, optional
+        Friction model, ``"exact"`` (set-valued) or ``"smooth"``.
+    normalize_action : bool, optional
+        Action in [-1, 1] (x 5 V) instead of [-5, 5] V.  False here; the registered ids set True.
+    omega_ref : float, optional
+        Fixed target speed of the lower disc (rad/s); None: drawn per episode from ``omega_ref_range``.
+    omega_ref_range : tuple of float, optional
+        Range (low, high) of the drawn target speed (rad/s).  Default (1, 8).
+    alpha0_range : tuple of float, optional
+        Range (low, high) of the initial winding (rad).  Default (-1, 1).
+    episode_duration : float, optional
+        Episode length (s) before truncation.  Default 30.
+    max_speed : float, optional
+        Termination when |omega_u| or |omega_l| exceeds it (rad/s).  Default 30.
+    max_lateral : float, optional
+        Termination when the lateral displacement r exceeds it (m).  Default 0.02.
+    reward : RewardWeights or dict, optional
+        Weights of the reward terms, see :class:`RewardWeights`.
+    ssi_window : float, optional
+        Window (s) of the running stick-slip severity reported in the info.  Default 5.
+    counts_per_rev : int, optional
+        Encoder resolution (counts per revolution, both discs; 0: exact angles).  Default 8000.
+    lvdt_noise_std : float, optional
+        LVDT noise (m, standard deviation).  Default 3e-6.
+    velocity_filter_tau : float, optional
+        Time constant (s) of the first-order filter of the encoder speed estimate (0: raw differences).
+        Default 0.02.
+    motor_history : int, optional
+        Number of past control periods H in the ``"motor"`` observation.  Default 16.
+    render_history : float, optional
+        Length (s) of the rendered strip chart.  Default 10.
     """
 
     configuration: str = "torsional"
@@ -115,26 +165,26 @@ class EnvOptions:
     def __post_init__(self) -> None:
         cfg = parse_configuration(self.configuration)
         if cfg not in _ENV_CONFIGURATIONS:
-            raise ValueError(f"option 'configuration' must be torsional, lateral or coupled, "
+            raise InputError(f"option 'configuration' must be torsional, lateral or coupled, "
                              f"got {self.configuration!r}")
         object.__setattr__(self, "configuration", cfg.label)
         if self.observation not in OBSERVATION_MODES:
-            raise ValueError(f"option 'observation' must be one of {OBSERVATION_MODES}, got {self.observation!r}")
+            raise InputError(f"option 'observation' must be one of {OBSERVATION_MODES}, got {self.observation!r}")
         if self.params is not None and not isinstance(self.params, RigParams):
-            raise ValueError(f"option 'params' must be a RigParams, got {type(self.params).__name__}")
+            raise InputError(f"option 'params' must be a RigParams, got {type(self.params).__name__}")
         self._positive("control_dt", self.control_dt, hi=1.0)
         if self.dt is None:
             object.__setattr__(self, "dt", min(DEFAULT_ENV_DT, float(self.control_dt)))
         self._positive("dt", self.dt, hi=0.1)
         n_sub = round(self.control_dt / self.dt)
         if n_sub < 1 or abs(n_sub * self.dt - self.control_dt) > 1e-9 * max(1.0, self.control_dt):
-            raise ValueError(f"option 'dt' ({self.dt}) must divide 'control_dt' ({self.control_dt}) exactly")
+            raise InputError(f"option 'dt' ({self.dt}) must divide 'control_dt' ({self.control_dt}) exactly")
         if self.method not in ("rk4", "dp5"):
-            raise ValueError(f"option 'method' must be 'rk4' or 'dp5', got {self.method!r}")
+            raise InputError(f"option 'method' must be 'rk4' or 'dp5', got {self.method!r}")
         if self.friction not in ("exact", "smooth"):
-            raise ValueError(f"option 'friction' must be 'exact' or 'smooth', got {self.friction!r}")
+            raise InputError(f"option 'friction' must be 'exact' or 'smooth', got {self.friction!r}")
         if not (isinstance(self.randomize, (int, float)) and 0.0 <= self.randomize < 1.0):
-            raise ValueError(f"option 'randomize' must be a fraction in [0, 1), got {self.randomize!r}")
+            raise InputError(f"option 'randomize' must be a fraction in [0, 1), got {self.randomize!r}")
         from ..effects.composition import compose
 
         comp, values = compose(self.effects, self.effect_params)
@@ -142,7 +192,7 @@ class EnvOptions:
         object.__setattr__(self, "effect_params", dict(values))
         unknown = [n for n in self.randomize_names if n not in comp.param_names]
         if unknown:
-            raise ValueError(f"option 'randomize_names' has unknown parameters: {unknown}")
+            raise InputError(f"option 'randomize_names' has unknown parameters: {unknown}")
         object.__setattr__(self, "randomize_names", tuple(self.randomize_names))
         rng = _range("omega_ref_range", self.omega_ref_range, lo=0.0, positive=True)
         object.__setattr__(self, "omega_ref_range", rng)
@@ -151,31 +201,31 @@ class EnvOptions:
         object.__setattr__(self, "alpha0_range", _range("alpha0_range", self.alpha0_range))
         self._positive("episode_duration", self.episode_duration)
         if self.episode_duration < self.control_dt:
-            raise ValueError("option 'episode_duration' must be at least one control period")
+            raise InputError("option 'episode_duration' must be at least one control period")
         self._positive("max_speed", self.max_speed)
         if self.omega_ref is None and rng[1] > self.max_speed:
-            raise ValueError("option 'omega_ref_range' must lie below 'max_speed'")
+            raise InputError("option 'omega_ref_range' must lie below 'max_speed'")
         self._positive("max_lateral", self.max_lateral)
         if isinstance(self.reward, dict):
             object.__setattr__(self, "reward", RewardWeights(**self.reward))
         elif not isinstance(self.reward, RewardWeights):
-            raise ValueError(f"option 'reward' must be RewardWeights or a dict, got {self.reward!r}")
+            raise InputError(f"option 'reward' must be RewardWeights or a dict, got {self.reward!r}")
         self._positive("ssi_window", self.ssi_window)
         if not (isinstance(self.counts_per_rev, int) and self.counts_per_rev >= 0):
-            raise ValueError(f"option 'counts_per_rev' must be an integer >= 0 (0 = exact), "
+            raise InputError(f"option 'counts_per_rev' must be an integer >= 0 (0 = exact), "
                              f"got {self.counts_per_rev!r}")
         if not (math.isfinite(self.lvdt_noise_std) and self.lvdt_noise_std >= 0):
-            raise ValueError(f"option 'lvdt_noise_std' must be >= 0 m, got {self.lvdt_noise_std!r}")
+            raise InputError(f"option 'lvdt_noise_std' must be >= 0 m, got {self.lvdt_noise_std!r}")
         if not (math.isfinite(self.velocity_filter_tau) and self.velocity_filter_tau >= 0):
-            raise ValueError(f"option 'velocity_filter_tau' must be >= 0 s, got {self.velocity_filter_tau!r}")
+            raise InputError(f"option 'velocity_filter_tau' must be >= 0 s, got {self.velocity_filter_tau!r}")
         if not (isinstance(self.motor_history, int) and self.motor_history >= 1):
-            raise ValueError(f"option 'motor_history' must be an integer >= 1, got {self.motor_history!r}")
+            raise InputError(f"option 'motor_history' must be an integer >= 1, got {self.motor_history!r}")
         self._positive("render_history", self.render_history)
 
     @staticmethod
     def _positive(name: str, value: Any, hi: float = math.inf) -> None:
         if not (isinstance(value, (int, float)) and math.isfinite(value) and 0 < value <= hi):
-            raise ValueError(f"option {name!r} must be a number in (0, {hi}], got {value!r}")
+            raise InputError(f"option {name!r} must be a number in (0, {hi}], got {value!r}")
 
     # derived quantities ---------------------------------------------------------------
     @property
@@ -205,5 +255,5 @@ class EnvOptions:
         names = {f.name for f in fields(cls)}
         unknown = sorted(set(kwargs) - names)
         if unknown:
-            raise ValueError(f"unknown environment option(s) {unknown}; valid: {sorted(names)}")
+            raise InputError(f"unknown environment option(s) {unknown}; valid: {sorted(names)}")
         return cls(**kwargs)

@@ -22,6 +22,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from ..errors import InputError
 from .base import action_space
 from .engine import EpisodeBatch
 from .options import U_MAX, EnvOptions
@@ -31,11 +32,29 @@ __all__ = ["DrillVectorEnv"]
 
 
 class DrillVectorEnv(VectorEnv):
-    """N drill-string environments (same options) stepped together.  Options as :class:`DrillEnv`.
+    """N drill-string environments (same options) stepped together in one batched core call.
 
-    Actions: (N,) or (N, 1) voltages.  Observations: (N, dim) float32.  Info keys (arrays of
-    length N): omega_l, stuck, friction_torque, stick_slip_severity, omega_ref, voltage, time.
-    ``render_mode='rgb_array'`` renders rig 0.
+    Spaces, reward and episode end per rig are those of :class:`drillgym.envs.DrillEnv`, batched:
+    actions (N,) or (N, 1) (voltage / 5 V, or V with ``normalize_action=False``), observations
+    (N, dim) float32, rewards, terminations and truncations (N,).  Info keys (arrays of length N,
+    each with a ``_key`` mask): ``omega_l`` (rad/s), ``stuck``, ``friction_torque`` (N m),
+    ``stick_slip_severity``, ``omega_ref`` (rad/s), ``voltage`` (V), ``time`` (s).
+    ``reset(seed=s)`` seeds rig i with s + i, so rig i reproduces a single env reset with seed s + i.
+
+    Parameters
+    ----------
+    num_envs : int
+        Number of rigs N (>= 1).
+    configuration : str, optional
+        ``"torsional"``, ``"lateral"`` or ``"coupled"``.  Default ``"torsional"``.
+    render_mode : str, optional
+        ``"rgb_array"`` renders rig 0; None: no rendering.
+    autoreset_mode : AutoresetMode or str, optional
+        ``NEXT_STEP`` (default: the step after an episode ends resets that rig, ignores its action and
+        returns its first observation with reward 0) or ``SAME_STEP`` (an ending rig is reset at once;
+        its last observation and info are in ``info["final_obs"]`` / ``info["final_info"]``).
+    **options
+        Any field of :class:`drillgym.envs.options.EnvOptions`, the same for every rig.
     """
 
     metadata = {"render_modes": ["rgb_array"], "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -43,10 +62,10 @@ class DrillVectorEnv(VectorEnv):
     def __init__(self, num_envs: int, configuration: str = "torsional", *, render_mode: str | None = None,
                  autoreset_mode: "AutoresetMode | str" = AutoresetMode.NEXT_STEP, **options: Any) -> None:
         if not (isinstance(num_envs, (int, np.integer)) and num_envs >= 1):
-            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+            raise InputError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         mode = AutoresetMode(autoreset_mode)
         if mode is AutoresetMode.DISABLED:
-            raise ValueError("autoreset_mode DISABLED is not supported; use NEXT_STEP or SAME_STEP")
+            raise InputError("autoreset_mode DISABLED is not supported; use NEXT_STEP or SAME_STEP")
         self.options = EnvOptions.from_kwargs(configuration=configuration, **options)
         self.num_envs = int(num_envs)
         self.batch = EpisodeBatch(self.options, self.num_envs)
@@ -57,7 +76,7 @@ class DrillVectorEnv(VectorEnv):
         self.metadata = dict(self.metadata, autoreset_mode=mode)
         self.autoreset_mode = mode
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be 'rgb_array' or None for the vector env, got {render_mode!r}")
+            raise InputError(f"render_mode must be 'rgb_array' or None for the vector env, got {render_mode!r}")
         self.render_mode = render_mode
         self._renderer = (RigRenderer(render_mode, self.options.render_history, self.options.control_dt,
                                       self.options.lateral) if render_mode else None)
@@ -78,7 +97,7 @@ class DrillVectorEnv(VectorEnv):
         else:
             seeds = list(seed)
             if len(seeds) != self.num_envs:
-                raise ValueError(f"reset(seed=...) needs {self.num_envs} seeds, got {len(seeds)}")
+                raise InputError(f"reset(seed=...) needs {self.num_envs} seeds, got {len(seeds)}")
         if seed is not None or self.batch.rngs[0] is None:
             self.batch.set_rngs([seeding.np_random(s)[0] for s in seeds])
         self.batch.reset()
@@ -91,12 +110,12 @@ class DrillVectorEnv(VectorEnv):
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
         a = np.asarray(actions, dtype=np.float64)
         if a.size != self.num_envs:
-            raise ValueError(f"actions must hold {self.num_envs} voltages (shape ({self.num_envs},) or "
+            raise InputError(f"actions must hold {self.num_envs} voltages (shape ({self.num_envs},) or "
                              f"({self.num_envs}, 1)), got shape {a.shape}")
         a = a.reshape(self.num_envs)
         if not np.isfinite(a).all():
             bad = int(np.flatnonzero(~np.isfinite(a))[0])
-            raise ValueError(f"action (motor voltage) of env {bad} must be finite, got {a[bad]!r}")
+            raise InputError(f"action (motor voltage) of env {bad} must be finite, got {a[bad]!r}")
         b = self.batch
         u = b.system.u
         np.multiply(a, self._scale, out=u)
