@@ -37,7 +37,65 @@ def _p(value: float, unit: str, source: str, lo: float = -math.inf, hi: float = 
 class RigParams:
     """Physical parameters of the drill-string rig (SI units).
 
-    Defaults are the identified set of MODEL.md.  Instances are immutable: use :meth:`replace`.
+    Defaults are the identified set of MODEL.md (the source of each value is in
+    ``PARAM_INFO[name]["source"]`` and :meth:`describe`).  Instances are immutable: use :meth:`replace`
+    or :meth:`scaled`.  Every value is checked against its physical range.
+
+    Parameters
+    ----------
+    Ju : float, optional
+        Upper disc + motor inertia (kg m^2).  Default 0.4765.
+    km : float, optional
+        Motor constant, torque per volt (N m/V).  Default 4.3228.
+    Tcu : float, optional
+        Upper Coulomb friction level (N m).  Default 0.37975.
+    dTcu : float, optional
+        Upper Coulomb asymmetry (N m).  Default -0.00575.
+    bu : float, optional
+        Upper viscous friction (N m s/rad).  Default 2.4245.
+    dbu : float, optional
+        Upper viscous asymmetry (N m s/rad).  Default -0.0084.
+    Jl : float, optional
+        Lower disc inertia about its centre B (kg m^2).  Default 0.0414.
+    ktheta : float, optional
+        Torsional stiffness of the string (N m/rad).  Default 0.0775.
+    Tcl : float, optional
+        Bearing Coulomb friction (N m).  Default 0.0092.
+    bl : float, optional
+        Bearing viscous friction (N m s/rad).  Default 0.0171.
+    Ts : float, optional
+        Brake static friction (N m).  Default 0.2781.
+    Tc : float, optional
+        Brake Coulomb (slip) friction (N m).  Default 0.0473.
+    ws : float, optional
+        Stribeck velocity (rad/s).  Default 1.4302.
+    delta : float, optional
+        Stribeck exponent.  Default 2.0575.
+    bb : float, optional
+        Brake viscous friction (N m s/rad).  Default 0.0105.
+    mr : float, optional
+        Mass of the lower disc, rotating (kg).  Default 9.9137.
+    mt : float, optional
+        Translating mass: constraints, LVDT cores (kg).  Default 3.2302.
+    k : float, optional
+        Lateral stiffness (N/m).  Default 2974.25.
+    b : float, optional
+        Lateral viscous damping (N s/m).  Default 25.
+    e : float, optional
+        Mass unbalance eccentricity (m).  Default 0.0048917.
+
+    Raises
+    ------
+    ParameterError
+        A value that is not a finite number, lies outside its physical range, ``Ts < Tc`` or
+        ``|dTcu| > Tcu``.
+
+    Examples
+    --------
+    >>> from drillgym import RigParams
+    >>> p = RigParams().replace(Ts=0.3)
+    >>> round(p.stick_voltage, 3)  # V
+    0.156
     """
 
     # --- upper part: DC motor, upper disc, asymmetric Coulomb + viscous friction (3.4), (3.5)
@@ -91,23 +149,71 @@ class RigParams:
         return cls()
 
     def replace(self, **changes: float) -> "RigParams":
-        """A copy with some parameters changed (validated)."""
+        """A copy with some parameters changed (validated).
+
+        Parameters
+        ----------
+        **changes : float
+            New values by parameter name, in the parameter's unit.
+
+        Returns
+        -------
+        RigParams
+            The changed copy.
+
+        Raises
+        ------
+        ParameterError
+            An unknown name or a value outside its physical range.
+        """
         unknown = set(changes) - set(PARAM_INFO)
         if unknown:
             raise ParameterError(f"unknown parameter(s): {', '.join(sorted(unknown))}")
         return replace(self, **changes)
 
     def scaled(self, **factors: float) -> "RigParams":
-        """A copy with parameters multiplied by factors, e.g. ``scaled(Ts=1.2, Tc=1.2)``."""
+        """A copy with parameters multiplied by factors, e.g. ``scaled(Ts=1.2, Tc=1.2)``.
+
+        Parameters
+        ----------
+        **factors : float
+            Dimensionless factor by parameter name.
+
+        Returns
+        -------
+        RigParams
+            The scaled copy (validated as :meth:`replace`).
+        """
         return self.replace(**{k: getattr(self, k) * f for k, f in factors.items()})
 
     def to_dict(self) -> dict[str, float]:
+        """Every parameter by name, in SI units."""
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, source: str = "mapping", partial: bool = False) -> "RigParams":
-        """Build from a mapping.  With ``partial=False`` every parameter must be present; with
-        ``partial=True`` the names given override the defaults."""
+        """Build from a mapping of parameter names to numbers.
+
+        Parameters
+        ----------
+        data : mapping
+            ``name -> value`` (SI units), or a mapping with such a mapping under ``"params"``.
+        source : str, optional
+            Where the mapping comes from, named in error messages.
+        partial : bool, optional
+            False (default): every base parameter must be present.  True: the names given override the
+            defaults (the identified set), the others keep their default.
+
+        Returns
+        -------
+        RigParams
+            The validated parameter set.
+
+        Raises
+        ------
+        ParameterError
+            An unknown or missing name, a value that is not a number or lies outside its physical range.
+        """
         if not isinstance(data, Mapping):
             raise ParameterError(f"{source}: expected a mapping of parameter names to numbers")
         if "params" in data and isinstance(data["params"], Mapping):
@@ -133,9 +239,25 @@ class RigParams:
     def from_file(cls, path: str | Path, *, partial: bool = True) -> "RigParams":
         """Load from JSON (``.json``) or YAML (``.yaml``/``.yml``).
 
-        With ``partial=True`` (default) the file may name only some parameters: those override
-        the defaults (the identified set of MODEL.md), the rest keep their default.  Unknown names
-        are refused either way; ``partial=False`` also refuses a file missing a base parameter."""
+        Parameters
+        ----------
+        path : str or path
+            A flat mapping ``name -> value`` (SI units) in JSON or YAML, by extension.
+        partial : bool, optional
+            True (default): the file may name only some parameters; those override the defaults (the
+            identified set of MODEL.md), the rest keep their default.  False: a file missing a base
+            parameter is refused.  Unknown names are refused either way.
+
+        Returns
+        -------
+        RigParams
+            The validated parameter set.
+
+        Raises
+        ------
+        ParameterError
+            The file cannot be read or parsed, or holds an unknown name or an invalid value.
+        """
         path = Path(path)
         try:
             text = path.read_text(encoding="utf-8")
@@ -153,7 +275,18 @@ class RigParams:
         return cls.from_dict(data, source=str(path), partial=partial)
 
     def to_file(self, path: str | Path) -> Path:
-        """Save as JSON or YAML (by extension); round-trips exactly."""
+        """Save as JSON or YAML (by extension); :meth:`from_file` reads it back exactly.
+
+        Parameters
+        ----------
+        path : str or path
+            Output file; ``.yaml``/``.yml`` writes YAML, anything else JSON.
+
+        Returns
+        -------
+        Path
+            The path written.
+        """
         path = Path(path)
         data = self.to_dict()
         if path.suffix.lower() in (".yaml", ".yml"):
@@ -170,6 +303,7 @@ class RigParams:
 
     @classmethod
     def from_vector(cls, vec: np.ndarray) -> "RigParams":
+        """Build from a flat vector in the kernel layout (the inverse of :meth:`to_vector`)."""
         vec = np.asarray(vec, dtype=float)
         if vec.shape != (N_PARAMS,):
             raise ParameterError(f"parameter vector must have shape ({N_PARAMS},), got {vec.shape}")
