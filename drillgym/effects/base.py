@@ -140,7 +140,17 @@ class Parameter:
 
 @dataclass(frozen=True)
 class State:
-    """A continuous state an effect owns (integrated with the rig's state)."""
+    """A continuous state an effect owns (integrated with the rig's state).
+
+    Parameters
+    ----------
+    name : str
+        Identifier, the argument name under which the effect's functions receive the state.
+    unit : str
+        SI unit (text).
+    doc : str, optional
+        One line of meaning.
+    """
 
     name: str
     unit: str
@@ -148,10 +158,43 @@ class State:
 
 
 class Effect:
-    """Base class of all effects (use one of the kinds: Force, Friction, Input, Delay, Measurement).
+    """Base class of all effects (subclass one of the kinds: Force, Friction, Input, Delay, Measurement).
 
-    An instance carries parameter values: ``MotorLag(tau_m=0.02)``; names not given take
-    their ``Parameter.value``.  Values outside the bounds are refused.
+    A subclass declares what the effect is in class attributes and gives its physics in plain
+    functions (see the module docstring and the kinds).  An instance carries parameter values:
+    ``MotorLag(tau_m=0.02)``.
+
+    Parameters
+    ----------
+    **values : float
+        Parameter values by name, in each parameter's unit; names not given take their
+        :attr:`Parameter.value`.
+
+    Attributes
+    ----------
+    name : str
+        Identifier of the effect (``effects=["name", ...]``, the command line, reports).
+    kind : str
+        ``"force"``, ``"friction"``, ``"input"``, ``"delay"`` or ``"measurement"`` (set by the kind).
+    parameters : tuple of Parameter
+        The parameters the effect owns.
+    states : tuple of State
+        Continuous states it owns; then ``derivative(...)`` returns their time derivatives.
+    explanation : str
+        The physics in words.
+    signature : str
+        The residual the effect leaves in a fit when it is missing (diagnosis hint).
+    configurations : tuple of str
+        Rig configurations the effect applies to.
+    needs : tuple of str
+        What a recording must contain for the effect to be identifiable (diagnosis hints).
+    values : dict of str to float
+        This instance's parameter values by name.
+
+    Raises
+    ------
+    EffectError
+        An unknown parameter name, a value that is not a number or lies outside its bounds.
     """
 
     kind: ClassVar[str] = ""
@@ -238,10 +281,18 @@ class Effect:
 
 
 class Force(Effect):
-    """An extra generalised force.  ``acts_on``: ``"upper"``, ``"lower"`` (torque on that disc, N m,
-    positive in the positive sense of rotation), ``"string"`` (torque added to ktheta*alpha: acts
-    +torque on the upper disc and -torque on the lower) via ``torque(...)``; ``"lateral"``: a force
-    ``force(...) -> (FX, FY)`` (N, fixed frame) on the lower disc's centre."""
+    """An extra generalised force on a disc, in the string or on the lower disc's centre.
+
+    Define ``torque(...)`` (N m) for ``acts_on`` ``"upper"``, ``"lower"`` or ``"string"``, or
+    ``force(...) -> (FX, FY)`` (N, fixed frame) for ``"lateral"``.
+
+    Attributes
+    ----------
+    acts_on : str
+        ``"upper"`` or ``"lower"``: a torque on that disc, positive in the positive sense of rotation;
+        ``"string"``: a torque added to ``ktheta * alpha`` (+torque on the upper disc, -torque on the
+        lower); ``"lateral"``: a force on the lower disc's centre.
+    """
 
     kind = "force"
     acts_on: ClassVar[str] = ""
@@ -249,10 +300,19 @@ class Force(Effect):
 
 
 class Friction(Effect):
-    """A change of a disc's friction law (``disc = "upper"`` or ``"lower"``), any of:
-    ``slip(T, ...)`` -> the slip torque (N m, signed like the speed) from the law's ``T``;
-    ``stick(lo, hi, ...)`` -> the stick set (lo, hi) (N m); ``level(...)`` -> a factor on both.
-    Slip and stick changes apply in the order the effects are given, level factors last."""
+    """A change of a disc's friction law.
+
+    Define any of ``slip(T, ...)`` (the new slip torque, N m, signed like the speed, from the law's
+    ``T``), ``stick(lo, hi, ...)`` (the new stick set (lo, hi), N m) and ``level(...)`` (a factor on
+    both).  Slip and stick changes apply in the order the effects are given, level factors last.
+    Stick stays exact and set-valued: the kernels keep the disc at zero speed while its holding
+    torque is in [lo, hi].
+
+    Attributes
+    ----------
+    disc : str
+        ``"upper"`` or ``"lower"`` (default).
+    """
 
     kind = "friction"
     disc: ClassVar[str] = "lower"
@@ -260,14 +320,20 @@ class Friction(Effect):
 
 
 class Input(Effect):
-    """A transformation of the voltage on its way to the motor: ``voltage(u, ...)`` -> V.
+    """A transformation of the voltage on its way to the motor: define ``voltage(u, ...)`` (V).
 
-    ``lag`` declares first-order lag states, ``{"u_m": "tau_m"}``: tau_m du_m/dt = u - u_m with u
-    the voltage entering the effect (``derivative`` must say the same; it is what the equilibria and
-    the validation use).  The kernels integrate a declared lag exactly over each step (the entering
-    voltage held at its value at the step start, exact for a command held over the step), so a time
-    constant far below the step stays stable; an undeclared stiff state would make the explicit
-    Runge-Kutta step diverge when its time constant is below about 0.36 dt."""
+    The kernels integrate a declared lag exactly over each step (the entering voltage held at its
+    value at the step start, exact for a command held over the step), so a time constant far below
+    the step stays stable; an undeclared stiff state would make the explicit Runge-Kutta step
+    diverge when its time constant is below about 0.36 dt.
+
+    Attributes
+    ----------
+    lag : dict of str to str
+        First-order lag states, state name -> time-constant parameter name, e.g. ``{"u_m": "tau_m"}``
+        for tau_m du_m/dt = u - u_m with u the voltage entering the effect (``derivative`` must say the
+        same; the equilibria and the validation use it).
+    """
 
     kind = "input"
     functions = ("voltage",)
@@ -275,16 +341,27 @@ class Input(Effect):
 
 
 class Delay(Effect):
-    """A transport delay of the commanded voltage: ``delay(...)`` -> s, from parameters only
-    (at most the upper bound of the parameters it uses, which sizes the delay line)."""
+    """A transport delay of the commanded voltage: define ``delay(...)`` (s).
+
+    The delay depends on parameters only and is at most the upper bound of the parameters it uses,
+    which sizes the delay line.
+    """
 
     kind = "delay"
     functions = ("delay",)
 
 
 class Measurement(Effect):
-    """A transformation of measured channels: ``channels`` (among theta_u, theta_l, X, Y) and
-    ``measure(...)`` -> their new values in that order (a tuple when several)."""
+    """A transformation of measured channels: define ``measure(...)``.
+
+    ``measure`` returns the new values of ``channels`` in that order (a tuple when several; rad for
+    the angles, m for X and Y).
+
+    Attributes
+    ----------
+    channels : tuple of str
+        The channels it changes, among ``"theta_u"``, ``"theta_l"``, ``"X"``, ``"Y"``.
+    """
 
     kind = "measurement"
     channels: ClassVar[tuple[str, ...]] = ()

@@ -36,7 +36,25 @@ _CACHE: dict[tuple, "Composition"] = {}
 
 
 class Composition:
-    """The base model and an ordered tuple of effect classes (validated); one per distinct tuple."""
+    """The base model and an ordered tuple of effect classes (validated); one per distinct tuple.
+
+    ``Composition(effects)`` takes the effect classes in the order their changes apply (default: none,
+    the base model) and returns the cached instance of that tuple.
+
+    Attributes
+    ----------
+    names : tuple of str
+        The effects' names.
+    param_names : tuple of str
+        Base parameters, then the effects' parameters: the layout of a parameter vector.
+    state_names : tuple of str
+        The effects' states; ``full_state_names`` prefixes the 8 mechanical states.
+
+    Raises
+    ------
+    EffectError
+        An invalid effect, an effect given twice, or two effects sharing a parameter or state name.
+    """
 
     def __new__(cls, effects: Sequence[type[Effect]] = ()) -> "Composition":
         key = tuple(effects)
@@ -277,6 +295,33 @@ def compose(effects: Any = None, values: Mapping[str, float] | None = None) -> t
     Values come from instances (``MotorLag(tau_m=0.02)``), then ``values`` (by parameter name),
     then each parameter's default.
     """
+
+    Parameters
+    ----------
+    effects : str, Effect, Effect subclass, sequence of them, or Composition, optional
+        Effects by library name (``"motor_lag"``), file spec (``"path/to/file.py:NAME"``), class or
+        instance.  None: the base model.
+    values : mapping of str to float, optional
+        Effect parameter values by name, in each parameter's unit.
+
+    Returns
+    -------
+    Composition
+        The (cached) composition of the effects.
+    dict of str to float
+        Every effect parameter's value by name.
+
+    Raises
+    ------
+    EffectError
+        An unknown or invalid effect.
+    ParameterError
+        An unknown effect parameter, or a value that is not a number or lies outside its bounds.
+
+    Examples
+    --------
+    >>> from drillgym.effects import compose
+    >>> comp, values = compose(["motor_lag"], {"tau_m": 0.02})
     if isinstance(effects, Composition):
         return effects, effects.check_values(values or {})
     classes: list[type[Effect]] = []

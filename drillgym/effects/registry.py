@@ -92,7 +92,13 @@ def _entry_points() -> dict[str, metadata.EntryPoint]:
 
 
 def available_effects() -> dict[str, type[Effect]]:
-    """Every effect known by name: the library, then installed packages' entry points."""
+    """Every effect known by name: the library, then installed packages' entry points.
+
+    Returns
+    -------
+    dict of str to Effect subclass
+        Effect classes by name; a library name wins over an entry point of the same name.
+    """
     out: dict[str, type[Effect]] = dict(LIBRARY)
     for name, ep in _entry_points().items():
         if name in out:
