@@ -294,7 +294,6 @@ def compose(effects: Any = None, values: Mapping[str, float] | None = None) -> t
 
     Values come from instances (``MotorLag(tau_m=0.02)``), then ``values`` (by parameter name),
     then each parameter's default.
-    """
 
     Parameters
     ----------
@@ -322,6 +321,7 @@ def compose(effects: Any = None, values: Mapping[str, float] | None = None) -> t
     --------
     >>> from drillgym.effects import compose
     >>> comp, values = compose(["motor_lag"], {"tau_m": 0.02})
+    """
     if isinstance(effects, Composition):
         return effects, effects.check_values(values or {})
     classes: list[type[Effect]] = []
