@@ -68,9 +68,20 @@ def required_columns(config: Configuration | None) -> tuple[str, ...]:
 
 @dataclass
 class TimeSeries:
-    """A validated time series: ``columns`` name -> 1-D float array (all the same length), ``meta`` dict.
+    """A validated time series: named columns of one length, SI units, with metadata.
 
-    Attribute access gives a column (``ts.theta_l``) or None when the file has none.
+    Attribute access gives a known column (``ts.theta_l``: ``t``, ``u``, ``theta_u``, ``theta_l``,
+    ``x``, ``y``, ``omega_u``, ``omega_l``) or None when the file has none.
+
+    Parameters
+    ----------
+    columns : dict of str to ndarray
+        Column name -> 1-D float array, all the same length: ``t`` (s), ``u`` (V), angles (rad),
+        ``x``, ``y`` (m, fixed frame), speeds (rad/s); unknown columns are kept.
+    meta : dict, optional
+        Metadata (``configuration``, ``sample_rate_hz``, ``source``, ``description``, ...).
+    source : str, optional
+        Where the series comes from (a file name), named in error messages.
     """
 
     columns: dict[str, np.ndarray]
@@ -90,6 +101,7 @@ class TimeSeries:
 
     @property
     def configuration(self) -> Configuration | None:
+        """The rig configuration named in the metadata, or None."""
         c = self.meta.get("configuration")
         return parse_configuration(c) if c else None
 
@@ -100,17 +112,31 @@ class TimeSeries:
 
     @property
     def duration(self) -> float:
+        """Time from the first to the last sample (s)."""
         t = self.columns["t"]
         return float(t[-1] - t[0])
 
     @property
     def r(self) -> np.ndarray | None:
+        """Lateral displacement sqrt(x^2 + y^2) (m), or None without ``x`` and ``y``."""
         if "x" in self.columns and "y" in self.columns:
             return np.hypot(self.columns["x"], self.columns["y"])
         return None
 
     def resample(self, rate_hz: float) -> "TimeSeries":
-        """Uniform grid at rate_hz from the first sample: u held (zero-order, as commanded), others linear."""
+        """The series on a uniform grid from the first sample.
+
+        Parameters
+        ----------
+        rate_hz : float
+            Sample rate of the grid (Hz).
+
+        Returns
+        -------
+        TimeSeries
+            ``u`` held between samples (zero-order, as commanded), the other columns interpolated
+            linearly; ``meta["sample_rate_hz"]`` set to ``rate_hz``.
+        """
         if not (rate_hz > 0 and math.isfinite(rate_hz)):
             raise ValueError(f"resample rate must be a positive number of Hz, got {rate_hz!r}")
         t = self.columns["t"]
@@ -129,7 +155,7 @@ class TimeSeries:
         return TimeSeries(out, meta, self.source)
 
     def window(self, t0: float, t1: float) -> "TimeSeries":
-        """Samples with t0 <= t <= t1 (times unchanged)."""
+        """The samples with t0 <= t <= t1 (s), times unchanged."""
         t = self.columns["t"]
         sel = (t >= t0) & (t <= t1)
         return TimeSeries({k: v[sel] for k, v in self.columns.items()}, dict(self.meta), self.source)
@@ -200,9 +226,29 @@ def _rename(header: list[str], mapping: Mapping[str, str], src: str) -> list[str
 
 def read_csv(path: str | Path, config: "str | Configuration | None" = None,
              required: Sequence[str] | None = None, mapping: Mapping[str, str] | None = None) -> TimeSeries:
-    """Read and validate a DATA_FORMAT CSV.  ``config`` is used when the metadata has none;
-    ``required`` overrides the configuration's required columns (e.g. ("t", "u") for an input signal);
-    ``mapping`` reads file columns under drillgym's names (``{"theta_u": "enc1"}``)."""
+    """Read and validate a DATA_FORMAT CSV.
+
+    Parameters
+    ----------
+    path : str or path
+        The CSV file.
+    config : str or Configuration, optional
+        Rig configuration, used when the file's metadata names none; it sets the required columns.
+    required : sequence of str, optional
+        Required columns instead of the configuration's, e.g. ``("t", "u")`` for an input signal.
+    mapping : mapping of str to str, optional
+        File columns read under drillgym's names, e.g. ``{"theta_u": "enc1"}``.
+
+    Returns
+    -------
+    TimeSeries
+        The validated columns and the file's metadata.
+
+    Raises
+    ------
+    DataFormatError
+        The file cannot be read or used; the message names the file, line or column and the problem.
+    """
     path = Path(path)
     src = str(path)
     mapping = _check_mapping(mapping, src)
@@ -386,7 +432,36 @@ def _add_signals(flat: dict, key: str, signals, src: str) -> None:
 
 def read_timeseries(path: str | Path, config: "str | Configuration | None" = None,
                     mapping: Mapping[str, str] | None = None) -> TimeSeries:
-    """Read a CSV or .mat time series (by extension) and validate it."""
+    """Read a CSV or .mat time series (by extension) and validate it.
+
+    Parameters
+    ----------
+    path : str or path
+        A DATA_FORMAT CSV or a MATLAB/Simulink ``.mat`` file.
+    config : str or Configuration, optional
+        Rig configuration (``"upper"``, ``"torsional"``, ``"lateral"``, ``"coupled"``), used when the
+        file's metadata names none; it sets the required columns (``t``, ``u``, ``theta_u``; ``theta_l``
+        but for ``upper``; ``x``, ``y`` for ``lateral`` and ``coupled``).
+    mapping : mapping of str to str, optional
+        Columns or ``.mat`` variables read under drillgym's names, e.g. ``{"theta_u": "enc1"}`` or
+        ``{"theta_u": "ScopeData:2"}`` (column 2 of a muxed variable, 1-based).
+
+    Returns
+    -------
+    TimeSeries
+        The validated series: columns in SI units (s, V, rad, m, rad/s) and the metadata.
+
+    Raises
+    ------
+    DataFormatError
+        A missing or unusable file; the message names the file, the line or column and what is wrong.
+
+    Examples
+    --------
+    >>> from drillgym.io import read_timeseries
+    >>> ts = read_timeseries("recording.csv", config="torsional")  # doctest: +SKIP
+    >>> ts.t, ts.theta_l  # doctest: +SKIP
+    """
     path = Path(path)
     if not path.exists():
         raise DataFormatError(f"{path}: file not found")
@@ -396,7 +471,25 @@ def read_timeseries(path: str | Path, config: "str | Configuration | None" = Non
 
 
 def read_input_signal(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """(t, u) of an input-signal file: any DATA_FORMAT CSV or .mat with at least ``t`` and ``u``."""
+    """Read the voltage table of an input-signal file.
+
+    Parameters
+    ----------
+    path : str or path
+        Any DATA_FORMAT CSV or ``.mat`` file with at least the columns ``t`` and ``u``.
+
+    Returns
+    -------
+    t : ndarray
+        Times (s).
+    u : ndarray
+        Motor voltage (V) at those times.
+
+    Raises
+    ------
+    DataFormatError
+        A missing or unusable file.
+    """
     path = Path(path)
     if not path.exists():
         raise DataFormatError(f"{path}: file not found")
@@ -412,7 +505,20 @@ def _fmt(v: float) -> str:
 
 
 def write_timeseries(path: str | Path, ts: TimeSeries) -> Path:
-    """Write a TimeSeries as DATA_FORMAT CSV (full float precision, round-trips exactly)."""
+    """Write a TimeSeries as DATA_FORMAT CSV (full float precision, round-trips exactly).
+
+    Parameters
+    ----------
+    path : str or path
+        Output file.
+    ts : TimeSeries
+        The series; its ``meta`` goes into the ``# meta:`` comment line.
+
+    Returns
+    -------
+    Path
+        The path written.
+    """
     path = Path(path)
     names = list(ts.columns)
     with path.open("w", encoding="utf-8", newline="") as fh:
@@ -445,7 +551,22 @@ def trajectory_to_timeseries(traj, description: str = "") -> TimeSeries:
 
 
 def write_trajectory_csv(traj, path: str | Path, description: str = "") -> Path:
-    """Write a simulated run in the interchange format (so it compares with a measured one)."""
+    """Write a simulated run in the interchange format (so it compares with a measured one).
+
+    Parameters
+    ----------
+    traj : Trajectory
+        A run of :func:`drillgym.simulate`.
+    path : str or path
+        Output CSV file.
+    description : str, optional
+        Free text stored in the metadata.
+
+    Returns
+    -------
+    Path
+        The path written.
+    """
     return write_timeseries(path, trajectory_to_timeseries(traj, description))
 
 
