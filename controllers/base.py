@@ -51,6 +51,10 @@ Measurement = Mapping[str, "float | np.ndarray"]
 class Controller(ABC):
     """Base class of the controllers: reset, then one voltage per control period.
 
+    A subclass sets :attr:`name` and :attr:`uses` and implements ``_act`` (and ``_reset`` when it has
+    state); :meth:`act` clips its voltage to [-u_max, u_max].  Measurements are a mapping
+    ``name -> value`` (:data:`MEASUREMENTS`), scalars for one rig or (n,) arrays for n rigs.
+
     Parameters
     ----------
     omega_ref : float or ndarray, optional
@@ -93,7 +97,19 @@ class Controller(ABC):
 
     # -- public API ----------------------------------------------------------
     def reset(self, measurement: Measurement | None = None) -> None:
-        """Start an episode: batch size and target speed from ``measurement`` (or the constructor)."""
+        """Start an episode: batch size and target speed from ``measurement`` (or the constructor).
+
+        Parameters
+        ----------
+        measurement : mapping of str to float or ndarray, optional
+            The first measurements (:data:`MEASUREMENTS`, SI units): their size sets the number of rigs
+            n; an ``omega_ref`` entry (rad/s) overrides the constructor's target.
+
+        Raises
+        ------
+        InputError
+            No target speed given, or a target that is not a positive finite speed.
+        """
         m = dict(measurement or {})
         self._scalar = all(np.ndim(v) == 0 for v in m.values())
         n = max([np.size(v) for v in m.values()] + [1])
@@ -110,7 +126,23 @@ class Controller(ABC):
         self._reset(self._arrays(m, check=False))
 
     def act(self, measurement: Measurement) -> "float | np.ndarray":
-        """Voltage (V) to hold for the next control period, in [-u_max, u_max]."""
+        """Voltage to hold for the next control period.
+
+        Parameters
+        ----------
+        measurement : mapping of str to float or ndarray
+            The measurements named in :attr:`uses` (:data:`MEASUREMENTS`, SI units), scalars or (n,) arrays.
+
+        Returns
+        -------
+        float or ndarray
+            Voltage (V) in [-u_max, u_max]: a float for scalar measurements, else (n,).
+
+        Raises
+        ------
+        InputError
+            A measurement the controller uses is missing.
+        """
         if self.n == 0:
             raise RuntimeError(f"controller {self.name!r}: call reset() before act()")
         u = np.clip(np.broadcast_to(self._act(self._arrays(measurement)), (self.n,)), -self.u_max, self.u_max)
@@ -127,8 +159,20 @@ class Controller(ABC):
         return f"{self.name}: {doc} (reads: {', '.join(self.uses) or 'nothing'})"
 
     def approach_time(self, omega_ref: "float | np.ndarray") -> np.ndarray:
-        """Time (s) from reset until the approach to each target (rad/s) is over and the controller
-        holds it (0: at once); an evaluation whose steady window starts earlier judges a transient."""
+        """Time from reset until the approach to each target is over and the controller holds it.
+
+        An evaluation whose steady window starts earlier judges a transient.
+
+        Parameters
+        ----------
+        omega_ref : float or ndarray
+            Target speed(s) (rad/s).
+
+        Returns
+        -------
+        ndarray
+            Approach time (s) per target, shaped as ``omega_ref`` (0: at once).
+        """
         return np.zeros(np.shape(np.asarray(omega_ref, dtype=float)))
 
     # -- for subclasses --------------------------------------------------------

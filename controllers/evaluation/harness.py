@@ -135,17 +135,62 @@ def evaluate(controllers: Sequence[str], configs: Sequence[str] = ("torsional", 
              executor: Executor | None = None, workers: int = 2, progress: bool = True, effects: Any = None,
              effect_params: Mapping[str, float] | None = None, plants: int = 20, seed: int = 0,
              uncertainty: Any = None, plants_per_job: int = 10) -> list[dict]:
-    """Evaluate every controller in every configuration and scenario on the target grid (rad/s).
+    """Evaluate every controller in every configuration and scenario on the target grid.
 
-    ``params``: the nominal base parameters (controllers and plant); ``effects``/``effect_params``:
-    hidden effects of the plant (names, 'path/to/file.py:NAME', classes or instances, and their
-    values by name), unknown to the controllers.  Rows carry the plant's label (``plant``).
-    Population scenarios (``plants``) draw ``plants`` plants with ``seed`` from ``uncertainty`` (a YAML
-    path or :class:`.population.UncertaintySet`; default ``plants.yaml``) around ``params``, in jobs of
-    ``plants_per_job`` plants; they refuse hidden ``effects`` (the population brings its own).
-    Runs the jobs in ``executor`` (default: a process pool of ``workers``; ``workers=1``: in this
-    process).  Returns the rows of all jobs, sorted by controller, configuration, scenario, plant, target.
-    Warns (``warnings.warn``) when a controller's approach ends inside the steady window.
+    Each run starts as its scenario says, lasts ``duration`` and is judged on its last ``window``
+    seconds (:mod:`controllers.evaluation.metrics`).  Warns (``warnings.warn``) when a controller's
+    approach ends inside the steady window.
+
+    Parameters
+    ----------
+    controllers : sequence of str
+        Controller names (:func:`controllers.available`), ``NAME@MS`` for another control period (ms),
+        or ``agent:PATH`` for an exported policy.
+    configs : sequence of str, optional
+        Rig configurations.  Default ``("torsional", "coupled")``.
+    scenarios : sequence of str or Scenario, optional
+        Scenarios by name (:data:`controllers.evaluation.scenarios.SCENARIOS`: ``rest``, ``cycle``,
+        ``friction-20``, ``friction+20``, ``noisy``, ``plants``) or :class:`Scenario` objects.
+    targets : sequence of float, optional
+        Target speeds of the lower disc (rad/s).  Default 0.5 to 8 in steps of 0.5.
+    duration : float, optional
+        Length of each run (s).  Default 60.
+    window : float, optional
+        Steady-state window at the end of each run (s), shorter than ``duration``.  Default 20.
+    params : RigParams, optional
+        Nominal base parameters of the controllers and the plant; default the identified set.
+    executor : concurrent.futures.Executor, optional
+        Runs the jobs; default a process pool of ``workers``.
+    workers : int, optional
+        Size of the default process pool; 1 runs the jobs in this process.
+    progress : bool, optional
+        Show a progress bar.
+    effects : optional
+        Hidden effects of the plant (names, ``"path/to/file.py:NAME"``, classes or instances), unknown to
+        the controllers.  Not with the ``plants`` scenario (the population brings its own).
+    effect_params : mapping of str to float, optional
+        The hidden effects' parameter values by name.
+    plants : int, optional
+        Number of plants a population scenario draws.  Default 20.
+    seed : int, optional
+        Seed of the plant population and of the measurement noise.
+    uncertainty : str or UncertaintySet, optional
+        Uncertainty set of the population (a YAML path or
+        :class:`controllers.evaluation.population.UncertaintySet`); default ``plants.yaml``.
+    plants_per_job : int, optional
+        Plants per job of a population scenario.
+
+    Returns
+    -------
+    list of dict
+        One row per controller, configuration, scenario, plant and target, sorted in that order: the
+        metrics of :func:`controllers.evaluation.metrics.run_metrics` and the plant's label (``plant``).
+
+    Raises
+    ------
+    InputError
+        An unknown controller or scenario, a bad window, hidden effects with the plants scenario, or a
+        bad number of plants.
     """
     scen = [SCENARIOS[s] if isinstance(s, str) and s in SCENARIOS else s for s in scenarios]
     for s in scen:

@@ -31,7 +31,20 @@ METRICS = ("ssi", "stuck", "tracking_rms", "u_peak", "u_rms", "energy", "stick_s
 
 
 def stick_slip_severity(omega_l: np.ndarray, omega_ref: "float | np.ndarray | None" = None) -> np.ndarray:
-    """SSI of each row of omega_l (n, m) (or of one signal (m,)); inf when the disc stands still."""
+    """Stick-slip severity (max omega_l - min omega_l) / (2 mean omega_l) of each run.
+
+    Parameters
+    ----------
+    omega_l : ndarray
+        Lower-disc speed (rad/s), one run per row (n, m) or one run (m,).
+    omega_ref : float or ndarray, optional
+        Target speed(s) (rad/s): a mean below 1 % of it counts as standing still.  Default: 1 % of 1 rad/s.
+
+    Returns
+    -------
+    ndarray or float
+        SSI (dimensionless) per row, or of the one run; inf when the disc stands still on average.
+    """
     w = np.atleast_2d(np.asarray(omega_l, dtype=float))
     mean = w.mean(axis=1)
     floor = 1e-2 * (np.abs(np.broadcast_to(omega_ref, mean.shape)) if omega_ref is not None else 1.0)
@@ -68,9 +81,29 @@ def run_metrics(run, window: float, params: RigParams | None = None) -> dict[str
 
 def lowest_free_speed(targets: np.ndarray, ssi: np.ndarray, threshold: float = SSI_THRESHOLD,
                       offset: np.ndarray | None = None, tolerance: float = TRACKING_TOLERANCE) -> float:
-    """Lowest target (rad/s) from which every higher target of the grid is held: no stick-slip
-    (SSI < threshold) and, when ``offset`` is given, mean speed within ``tolerance`` of the target.
-    NaN when the highest one is not held."""
+    """Lowest target from which every higher target of the grid is held.
+
+    A target is held when it shows no stick-slip (SSI < ``threshold``) and, when ``offset`` is given,
+    its mean speed is within ``tolerance`` of the target.
+
+    Parameters
+    ----------
+    targets : ndarray
+        Target speeds of the grid (rad/s), any order.
+    ssi : ndarray
+        Stick-slip severity at each target.
+    threshold : float, optional
+        SSI below which a run shows no stick-slip.  Default 0.1.
+    offset : ndarray, optional
+        Relative offset (mean omega_l - target) / target at each target.
+    tolerance : float, optional
+        Largest |offset| of a held target.  Default 0.1.
+
+    Returns
+    -------
+    float
+        The lowest held target (rad/s); NaN when the highest one is not held.
+    """
     t = np.asarray(targets, dtype=float)
     order = np.argsort(t)[::-1]
     held = np.asarray(ssi, dtype=float) < threshold

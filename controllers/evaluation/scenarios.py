@@ -26,9 +26,23 @@ CYCLE_SETTLE = 40.0  # s of open loop to develop the stick-slip cycle
 
 @dataclass(frozen=True)
 class Scenario:
-    """start: 'rest' or 'cycle' (a developed open-loop stick-slip cycle); friction_scale multiplies the
-    brake's Ts, Tc, bb; counts_per_rev / angle_noise (rad) describe the encoders; population: the plant
-    is a population drawn from an uncertainty set (:mod:`.population`), encoders included."""
+    """How a closed-loop run of the harness starts and what plant and encoders it has.
+
+    Parameters
+    ----------
+    name : str
+        Name of the scenario (reports, ``--scenarios``).
+    start : str, optional
+        ``"rest"`` (default) or ``"cycle"`` (a developed open-loop stick-slip cycle).
+    friction_scale : float, optional
+        Factor on the brake's Ts, Tc and bb of the plant (the controllers keep the nominal law).
+    counts_per_rev : int, optional
+        Encoder resolution (counts per revolution).  Default 8000.
+    angle_noise : float, optional
+        White noise on the measured angles (rad, standard deviation).
+    population : bool, optional
+        The plant is a population drawn from an uncertainty set (:mod:`.population`), encoders included.
+    """
 
     name: str
     start: str = "rest"
@@ -49,7 +63,7 @@ SCENARIOS = {s.name: s for s in (
 
 
 def parse_scenarios(names: str) -> list[Scenario]:
-    """Comma-separated scenario names -> scenarios (ValueError names an unknown one)."""
+    """Comma-separated scenario names -> scenarios (an InputError names an unknown one)."""
     out = []
     for n in [s.strip() for s in names.split(",") if s.strip()]:
         if n not in SCENARIOS:
