@@ -35,14 +35,60 @@ KEPT_POLICY = Path(__file__).resolve().parent / "policies" / "torsional_motor_re
 
 
 def load_controller(path: str, **kw):
-    """``agent:PATH`` hook of :func:`controllers.make` (see :func:`agents.loader.load_controller`)."""
+    """The agent at PATH as a :class:`controllers.Controller` (the ``agent:PATH`` hook of :func:`controllers.make`).
+
+    Parameters
+    ----------
+    path : str
+        An exported policy (``policy.npz``), a run's ``model.zip`` or a run directory.
+    **kw
+        ``config`` (rig configuration, default ``"torsional"``), ``omega_ref`` (target speed, rad/s),
+        ``params`` (the design model) and the other keywords of :class:`controllers.Controller`.
+
+    Returns
+    -------
+    AgentController or TargetSwitchedController
+        The policy as a controller (a target-switched set of networks gives the switched one).
+
+    Raises
+    ------
+    MissingFileError
+        PATH, or a ``model.zip``'s ``config.yml``, does not exist.
+    InputError
+        PATH is neither ``.npz`` nor ``.zip``.
+
+    Examples
+    --------
+    >>> import agents
+    >>> c = agents.load_controller(str(agents.KEPT_POLICY), omega_ref=3.0)  # doctest: +SKIP
+    """
     from .loader import load_controller as _load
 
     return _load(path, **kw)
 
 
 def load_policy(path: str):
-    """Exported policy of PATH (see :func:`agents.loader.load_policy`)."""
+    """The exported policy of PATH (numpy only unless PATH is an SB3 ``.zip`` without ``policy.npz``).
+
+    Parameters
+    ----------
+    path : str
+        An exported policy (``policy.npz``: one network or a target-switched set of them), a run's
+        ``model.zip`` (its ``policy.npz`` beside it is used; without one, the model is loaded with the
+        run's ``config.yml`` and exported in memory) or a run directory.
+
+    Returns
+    -------
+    ExportedPolicy or TargetSwitchedPolicy
+        The deterministic policy: observation -> action.
+
+    Raises
+    ------
+    MissingFileError
+        PATH, or a ``model.zip``'s ``config.yml``, does not exist.
+    InputError
+        PATH is neither ``.npz`` nor ``.zip``.
+    """
     from .loader import load_policy as _load
 
     return _load(path)

@@ -26,8 +26,33 @@ TARGETS = tuple(float(v) for v in np.arange(1.5, 8.01, 0.5))
 def evaluate_policy_targets(policy: str | Path, targets: Sequence[float] = TARGETS, *, config: str = "torsional",
                             duration: float = 60.0, window: float = 20.0, seed: int = 0,
                             effects: Any = None, effect_params: dict | None = None) -> list[dict]:
-    """One row of harness metrics per target (ssi, offset, tracking_rms, u_peak, ...) of the agent at
-    ``policy`` (policy.npz, model.zip or a run directory) started from rest; times in s."""
+    """Run the agent from rest at each target and measure it with the controllers' harness.
+
+    Parameters
+    ----------
+    policy : str or path
+        The agent: ``policy.npz``, a run's ``model.zip`` or a run directory.
+    targets : sequence of float, optional
+        Target speeds of the lower disc (rad/s).  Default 1.5 to 8 in steps of 0.5.
+    config : str, optional
+        Rig configuration.  Default ``"torsional"``.
+    duration : float, optional
+        Length of each run (s).  Default 60.
+    window : float, optional
+        Steady-state window at the end of each run (s).  Default 20.
+    seed : int, optional
+        Seed of the measurement noise.
+    effects : optional
+        Hidden effects of the plant (names, file specs, classes or instances).
+    effect_params : dict, optional
+        Their parameter values by name.
+
+    Returns
+    -------
+    list of dict
+        One row of harness metrics per target (``ssi``, ``offset``, ``tracking_rms`` in rad/s,
+        ``u_peak`` in V, ...; :func:`controllers.evaluation.metrics.run_metrics`).
+    """
     from controllers.evaluation.harness import run_job
     from controllers.evaluation.scenarios import SCENARIOS
 
@@ -36,8 +61,24 @@ def evaluate_policy_targets(policy: str | Path, targets: Sequence[float] = TARGE
 
 
 def lowest_held_target(policy: str | Path, targets: Sequence[float] = TARGETS, **kw: Any) -> float:
-    """Lowest held target from rest (rad/s; NaN: not even the highest target held); options as
-    :func:`evaluate_policy_targets`."""
+    """Lowest target the agent holds from rest.
+
+    Parameters
+    ----------
+    policy : str or path
+        The agent: ``policy.npz``, a run's ``model.zip`` or a run directory.
+    targets : sequence of float, optional
+        Target grid (rad/s).
+    **kw
+        Options of :func:`evaluate_policy_targets` (``config``, ``duration``, ``window``, ``seed``,
+        ``effects``, ``effect_params``).
+
+    Returns
+    -------
+    float
+        Lowest held target (rad/s), from which every higher target is held too; NaN when not even the
+        highest target is held.
+    """
     from controllers.evaluation.metrics import lowest_free_speed
 
     rows = evaluate_policy_targets(policy, targets, **kw)

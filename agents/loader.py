@@ -19,8 +19,19 @@ __all__ = ["load_policy", "load_controller"]
 
 
 def load_policy(path: str | Path) -> "ExportedPolicy | TargetSwitchedPolicy":
-    """The exported policy of PATH (``.npz``: one network or a target-switched set of them; a run's
-    ``model.zip`` or a run directory)."""
+    """The exported policy of PATH, as :func:`agents.load_policy`.
+
+    Parameters
+    ----------
+    path : str or path
+        An exported policy (``.npz``: one network or a target-switched set of them), a run's
+        ``model.zip`` or a run directory.
+
+    Returns
+    -------
+    ExportedPolicy or TargetSwitchedPolicy
+        The deterministic policy.
+    """
     p = Path(path)
     if p.is_dir():
         p = p / "policy.npz" if (p / "policy.npz").is_file() else p / "model.zip"
@@ -49,7 +60,26 @@ def load_policy(path: str | Path) -> "ExportedPolicy | TargetSwitchedPolicy":
 
 def load_controller(path: str, *, config: str = "torsional", omega_ref=None, params=None,
                     **kw) -> "AgentController | TargetSwitchedController":
-    """The agent at PATH as a Controller for rig configuration ``config`` (see :mod:`controllers.registry`)."""
+    """The agent at PATH as a Controller for rig configuration ``config``, as :func:`agents.load_controller`.
+
+    Parameters
+    ----------
+    path : str
+        An exported policy, a run's ``model.zip`` or a run directory.
+    config : str, optional
+        Rig configuration.  Default ``"torsional"``.
+    omega_ref : float or ndarray, optional
+        Target speed(s) (rad/s).
+    params : RigParams, optional
+        The design model; default the identified set.
+    **kw
+        Other keywords of :class:`controllers.Controller` (e.g. ``dt``).
+
+    Returns
+    -------
+    AgentController or TargetSwitchedController
+        The policy as a controller.
+    """
     policy = load_policy(path)
     cls = TargetSwitchedController if isinstance(policy, TargetSwitchedPolicy) else AgentController
     return cls(policy, omega_ref, config=config, params=params, **kw)
