@@ -106,7 +106,27 @@ class RigClient:
 
     # ------------------------------------------------------------------ commands
     def identify(self, period_s: float = 0.0, attempts: int = 3) -> P.Config:
-        """Handshake: flush stale input, IDENTIFY (setting the control period if > 0), read CONFIG."""
+        """Handshake: flush stale input, IDENTIFY, read CONFIG.
+
+        Parameters
+        ----------
+        period_s : float, optional
+            Control period to set in the firmware (s); 0 keeps the firmware's.
+        attempts : int, optional
+            IDENTIFY attempts before giving up.
+
+        Returns
+        -------
+        hw.protocol.Config
+            The firmware's configuration (protocol version, period, encoder and LVDT scales, limits).
+
+        Raises
+        ------
+        LinkTimeoutError
+            No CONFIG reply in any attempt.
+        LinkError
+            The firmware speaks another protocol version.
+        """
         last: LinkError | None = None
         for _ in range(attempts):
             self.link.flush_input()
@@ -136,7 +156,24 @@ class RigClient:
         self._wait_for(lambda m: isinstance(m, P.Ack) and m.acked_seq == seq, "ACK of CLEAR_STOP", sent)
 
     def exchange(self, volts: float) -> Reply:
-        """SET_VOLTAGE, then the SAMPLE answering it (the state at the end of that control period)."""
+        """Send a voltage and read the SAMPLE answering it.
+
+        Parameters
+        ----------
+        volts : float
+            Motor voltage (V) for the next control period (the firmware clamps and slew-limits it too).
+
+        Returns
+        -------
+        Reply
+            The SAMPLE (the rig's state at the end of that control period), the host's send and receive
+            times (s, ``time.monotonic``) and a stop the firmware reported with it.
+
+        Raises
+        ------
+        LinkTimeoutError
+            No SAMPLE within ``reply_timeout``.
+        """
         sent = time.monotonic()
         seq = self.link.send(P.SetVoltage(float(volts)))
         sample, t = self._wait_for(lambda m: isinstance(m, P.Sample) and m.ack_seq == seq,
@@ -145,8 +182,15 @@ class RigClient:
         return Reply(sample, sent, t, stop)
 
     def stop_reason(self, wait_s: float = 0.05) -> P.StopReason | None:
-        """The reason of a stop the firmware reported (EMERGENCY_STOP), waiting up to ``wait_s`` for it:
-        a stop tripped at the end of a period is sent right after that period's SAMPLE."""
+        """The reason of a stop the firmware reported (EMERGENCY_STOP), or None.
+
+        A stop tripped at the end of a period is sent right after that period's SAMPLE.
+
+        Parameters
+        ----------
+        wait_s : float, optional
+            Longest wait for the report (s).
+        """
         deadline = time.monotonic() + wait_s
         while self._pending_stop is None and time.monotonic() < deadline:
             try:
@@ -157,7 +201,7 @@ class RigClient:
         return stop
 
     def heartbeat(self, token: int) -> float:
-        """Round trip (s) of a HEARTBEAT."""
+        """Round trip (s) of a HEARTBEAT carrying ``token`` (an unsigned 32-bit value)."""
         sent = time.monotonic()
         self.link.send(P.Heartbeat(token & 0xFFFFFFFF))
         _, t = self._wait_for(lambda m: isinstance(m, P.Heartbeat) and m.token == token, "HEARTBEAT echo", sent)
@@ -166,9 +210,23 @@ class RigClient:
     def emergency_stop(self, wait: bool = False, attempts: int = 1) -> int:
         """Ask the firmware to stop the motor (0 V, latched).
 
-        With ``wait``, send it up to ``attempts`` times until the firmware acknowledges it (each attempt
-        waits ``reply_timeout``) and return the attempt acknowledged; raises LinkTimeoutError when none
-        was.  Without ``wait``: send it once, return 0 (fire and forget; the watchdog is the fallback).
+        Parameters
+        ----------
+        wait : bool, optional
+            False (default): send it once and return 0 (fire and forget; the watchdog is the fallback).
+            True: send it until the firmware acknowledges it.
+        attempts : int, optional
+            With ``wait``: the most times it is sent (each attempt waits ``reply_timeout``).
+
+        Returns
+        -------
+        int
+            The attempt the firmware acknowledged (1-based), or 0 without ``wait``.
+
+        Raises
+        ------
+        LinkTimeoutError
+            With ``wait``: no attempt was acknowledged.
         """
         if not wait:
             self.link.send(P.EmergencyStop(int(P.StopReason.HOST)))

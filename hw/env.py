@@ -75,7 +75,10 @@ def _stop_motor(client: RigClient) -> None:
 
 
 class HardwareEnv(gym.Env):
-    """The rig behind a serial port (see the module docstring).
+    """The speed-tracking task on the physical rig (or its emulator) behind a serial port.
+
+    Same task as :class:`drillgym.envs.DrillEnv`, paced in real time, on measurements, behind a safety
+    layer no caller can bypass (see the module docstring for every difference).
 
     Parameters
     ----------
@@ -104,7 +107,39 @@ class HardwareEnv(gym.Env):
     **options
         The simulated envs' options (:class:`drillgym.envs.EnvOptions`): observation, control_dt,
         normalize_action, omega_ref, omega_ref_range, episode_duration, max_speed, max_lateral, reward,
-        ssi_window, velocity_filter_tau, motor_history.
+        ssi_window, velocity_filter_tau, motor_history.  Options of the simulated plant (``params``,
+        ``effects``, ``dt``, ...) are refused: on hardware they are properties of the rig.
+
+    Raises
+    ------
+    InputError
+        An option of the simulated plant, or ``rest_time`` / ``rest_timeout`` out of order.
+
+    Notes
+    -----
+    **Action space.** As :class:`drillgym.envs.DrillEnv`: the motor voltage, in [-1, 1] (x 5 V) with
+    ``normalize_action=True``, else in V.  Every voltage is clamped to +/- 5 V and slew-limited
+    (:class:`hw.safety.SafetyLimits`) before it leaves the host; ``info["clamped_from"]`` holds a voltage
+    (V) asked for beyond the amplifier range.
+
+    **Observation space.** As :class:`drillgym.envs.DrillEnv` for the same ``observation`` and
+    configuration, built from measurements: encoder counts -> rad, LVDT offset taken at rest and
+    low-passed at ``lvdt_cutoff_hz``; speeds are encoder estimates, also in the ``"full"`` observation.
+
+    **Reward.** As :mod:`drillgym.envs.reward`, on the measured speeds and the applied voltage.
+
+    **Starting state.** :meth:`reset` holds 0 V until no encoder count changes for ``rest_time`` (s);
+    the initial winding is whatever the rig has.
+
+    **Episode end.** Terminated when a speed or the lateral displacement exceeds the task's limits
+    (``max_speed``, ``max_lateral``), or on a safety stop of the host or the firmware (over-speed,
+    over-displacement, watchdog; ``info["safety_stop"]`` names it).  Truncated after
+    ``episode_duration``.  Every episode end leaves the motor at 0 V and closes the episode's
+    recording.  A link fault raises :class:`hw.link.LinkError` (a
+    :class:`drillgym.errors.SafetyError`) after asking the firmware to stop.
+
+    **Info.** The simulated envs' keys (``friction_torque`` is NaN: not measurable), ``clamped_from``
+    and ``safety_stop`` when they apply.
     """
 
     metadata = {"render_modes": []}

@@ -213,14 +213,43 @@ assert max(PAYLOAD_SIZES.values()) <= MAX_PAYLOAD
 
 
 def encode(msg: Message, seq: int) -> bytes:
-    """The frame of ``msg`` with sequence number ``seq`` (taken modulo 2**16)."""
+    """The frame of a message: start marker, version, type, sequence, length, payload, CRC-16.
+
+    Parameters
+    ----------
+    msg : Message
+        The message (its ``TYPE`` and packed payload).
+    seq : int
+        Sequence number, taken modulo 2**16.
+
+    Returns
+    -------
+    bytes
+        The complete frame, little-endian (``PROTOCOL.md``).
+    """
     payload = msg.pack()
     body = _HEADER.pack(START, PROTOCOL_VERSION, int(msg.TYPE), seq & 0xFFFF, len(payload)) + payload
     return body + struct.pack("<H", crc16(body[2:]))
 
 
 def decode(frame: Frame) -> Message:
-    """The typed message of a valid frame."""
+    """The typed message of a valid frame.
+
+    Parameters
+    ----------
+    frame : Frame
+        A frame returned by :meth:`FrameParser.feed` (CRC already checked).
+
+    Returns
+    -------
+    Message
+        The message of the frame's type, its fields unpacked.
+
+    Raises
+    ------
+    ProtocolError
+        An unknown message type or a payload of the wrong size.
+    """
     cls = _MESSAGES.get(frame.type)
     if cls is None:
         raise ProtocolError(f"unknown message type 0x{frame.type:02x}")
@@ -249,6 +278,11 @@ class FrameParser:
     After garbage or a corrupted frame it resynchronises on the next start marker (a frame is
     rejected by skipping one byte and searching again, so a valid frame hidden behind a bad one
     is still found).
+
+    Attributes
+    ----------
+    stats : ParserStats
+        Counts of the frames returned and of what was thrown away.
     """
 
     def __init__(self) -> None:
@@ -256,6 +290,7 @@ class FrameParser:
         self.stats = ParserStats()
 
     def reset(self) -> None:
+        """Drop the bytes held (the statistics are kept)."""
         self._buf.clear()
 
     @property
@@ -264,6 +299,19 @@ class FrameParser:
         return len(self._buf)
 
     def feed(self, data: bytes) -> list[Frame]:
+        """Add received bytes and return the frames they complete.
+
+        Parameters
+        ----------
+        data : bytes
+            Bytes read from the link, any split.
+
+        Returns
+        -------
+        list of Frame
+            The complete frames with a valid CRC of this protocol version, in order; the bytes of an
+            incomplete frame are held for the next call.
+        """
         buf = self._buf
         buf += data
         out: list[Frame] = []
