@@ -14,20 +14,14 @@ from drillgym.envs.options import U_MAX
 from drillgym.envs.sb3 import make_sb3_vec
 from drillgym.measurement import counts_to_angle
 
+from .batch import episode_batch
 from .command import SpeedCommand, schedule_of
 from .integral import Z_MAX, advance
 from .observer_residual import ObserverResidual
+from .population import population_env_kwargs, use_population
 from .residual import ResidualVoltage
 
 __all__ = ["make_training_env", "episode_batch", "ResidualActionVecEnv", "ObserverResidualVecEnv", "MotorIntegralVecEnv"]
-
-
-def episode_batch(venv):
-    """The drillgym episode batch (rigs, targets, parameters) under an SB3 VecEnv built on
-    :func:`drillgym.envs.sb3.make_sb3_vec` and any wrappers of it."""
-    while not hasattr(venv, "batch"):
-        venv = venv.venv
-    return venv.batch
 
 
 class ResidualActionVecEnv(VecEnvWrapper):
@@ -234,13 +228,9 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
     else:
         kw["normalize_action"] = True
         if population is not None:
-            from .population import population_env_kwargs
-
             kw = population_env_kwargs(kw, population)
         venv = make_sb3_vec(env_id, n_envs, **kw)
         if population is not None:
-            from .population import use_population
-
             use_population(venv, population, nominal_fraction, nominal_below)
     if population is not None and (residual is not None or base is not None):
         raise ValueError("a plant population is drawn for plain actions only (no residual or base controller)")

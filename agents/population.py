@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from .batch import episode_batch
+
 __all__ = ["PopulationRandomizer", "population_env_kwargs", "use_population"]
 
 
@@ -83,8 +85,6 @@ def use_population(venv, population: "str | Path | None" = None, nominal_fractio
                    nominal_below: float = 0.0) -> None:
     """Draw every later episode's rig of the drillgym SB3 VecEnv ``venv`` (or a wrapper of it) from the set
     (the nominal rig with probability ``nominal_fraction``, and for targets below ``nominal_below`` rad/s)."""
-    from .envs import episode_batch
-
     batch = episode_batch(venv)
     batch.randomizer = PopulationRandomizer(batch.system.composition, batch.options.rig_params, population,
                                             nominal_fraction, nominal_below)

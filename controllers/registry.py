@@ -15,13 +15,17 @@ The returned object is a :class:`controllers.Controller` (it reads the
 measurements of :data:`controllers.base.MEASUREMENTS`, builds its own
 observation from them and returns volts), so the evaluation harness, the
 Gymnasium adapter and ``drillgym rig run`` treat it like any controller.  When
-no loader is registered, ``agents.load_controller`` is tried.
+no loader is registered, the first installed entry point of the group
+:data:`AGENT_LOADER_GROUP` (by name) is loaded: the ``agents`` package declares its
+``agents:load_controller`` there (``pyproject.toml``), so this package never imports it.
 """
 
 from __future__ import annotations
 
-import importlib
+from importlib import metadata
 from typing import Callable
+
+from drillgym.errors import InputError, InputTypeError
 
 from .base import Controller
 from .baseline import BaselineController
@@ -32,7 +36,8 @@ from .descent import DescentController
 from .softtorque import SoftTorqueController
 from .two_encoder import TwoEncoderLQG
 
-__all__ = ["CONTROLLERS", "make", "available", "split_period", "register_agent_loader", "AgentLoader"]
+__all__ = ["CONTROLLERS", "make", "available", "split_period", "register_agent_loader", "AgentLoader",
+           "AGENT_LOADER_GROUP"]
 
 CONTROLLERS: dict[str, type[Controller]] = {
     c.name: c for c in (BaselineController, PIController, DescentController, SoftTorqueController, RobustObserverController,
@@ -40,55 +45,133 @@ CONTROLLERS: dict[str, type[Controller]] = {
 }
 
 AgentLoader = Callable[..., Controller]
+#: entry-point group of the installed agent loaders (value: an :data:`AgentLoader`)
+AGENT_LOADER_GROUP = "controllers.agent_loaders"
 _agent_loader: AgentLoader | None = None
 
 
 def register_agent_loader(loader: AgentLoader) -> None:
-    """Install the callable that turns ``agent:PATH`` into a Controller (see the module doc)."""
+    """Install the callable that turns ``agent:PATH`` into a controller.
+
+    Parameters
+    ----------
+    loader : callable
+        ``loader(path, *, config, omega_ref, params, dt, **kw)`` returning a :class:`Controller`
+        (see the module documentation). It replaces any loader installed before and the
+        entry-point lookup.
+
+    Raises
+    ------
+    InputTypeError
+        ``loader`` is not callable.
+    """
     global _agent_loader
     if not callable(loader):
-        raise TypeError("agent loader must be callable")
+        raise InputTypeError(f"agent loader must be callable, got {type(loader).__name__}")
     _agent_loader = loader
 
 
+def _installed_agent_loader(name: str) -> AgentLoader:
+    """The loader of the first entry point of :data:`AGENT_LOADER_GROUP` (by name)."""
+    try:
+        eps = sorted(metadata.entry_points(group=AGENT_LOADER_GROUP), key=lambda ep: ep.name)
+    except TypeError:  # pragma: no cover - Python < 3.10 API
+        eps = sorted(metadata.entry_points().get(AGENT_LOADER_GROUP, []), key=lambda ep: ep.name)
+    if not eps:
+        raise InputError(f"no agent loader available for {name!r}: install the agents package (its entry point "
+                         f"{AGENT_LOADER_GROUP}) or call controllers.register_agent_loader")
+    try:
+        return eps[0].load()
+    except ImportError as exc:
+        raise InputError(f"no agent loader available for {name!r}: entry point {eps[0].value} does not load: "
+                         f"{exc}") from exc
+
+
 def available() -> list[str]:
-    """Controller names accepted by :func:`make` (plus ``agent:PATH``)."""
+    """Controller names accepted by :func:`make`.
+
+    Returns
+    -------
+    list of str
+        The registered names, sorted (``agent:PATH`` is accepted besides them).
+    """
     return sorted(CONTROLLERS)
 
 
 def split_period(name: str) -> tuple[str, float | None]:
-    """``'observer@10'`` -> ``('observer', 0.01)`` (control period in s); no ``@``: ``(name, None)``."""
+    """Split a controller name from its control period.
+
+    Parameters
+    ----------
+    name : str
+        A controller name, optionally ``NAME@MS`` with the control period in ms.
+
+    Returns
+    -------
+    tuple of (str, float or None)
+        The name and the control period (s); ``(name, None)`` without ``@`` and for ``agent:PATH``.
+
+    Raises
+    ------
+    InputError
+        The period after ``@`` is not a positive finite number of ms.
+
+    Examples
+    --------
+    >>> split_period("observer@10")
+    ('observer', 0.01)
+    """
     if name.startswith("agent:") or "@" not in name:
         return name, None
     base, _, ms = name.rpartition("@")
     try:
         dt = float(ms) * 1e-3
     except ValueError:
-        raise ValueError(f"controller {name!r}: the period after '@' must be in ms, e.g. observer@10") from None
+        raise InputError(f"controller {name!r}: the period after '@' must be in ms, e.g. observer@10") from None
     if not (dt > 0 and dt < float("inf")):
-        raise ValueError(f"controller {name!r}: the period after '@' must be a positive number of ms")
+        raise InputError(f"controller {name!r}: the period after '@' must be a positive number of ms")
     return base, dt
 
 
 def make(name: str, config: str = "torsional", omega_ref=None, params=None, **kw) -> Controller:
-    """Build a controller by name (``agent:PATH`` for a trained policy, ``NAME@MS`` for another control
-    period); ValueError names unknown ones."""
+    """Build a controller by name.
+
+    Parameters
+    ----------
+    name : str
+        A name of :func:`available`, ``NAME@MS`` for another control period (ms), or
+        ``agent:PATH`` for a trained policy (built by the agent loader, see the module documentation).
+    config : str, optional
+        Rig configuration the controller is built for. Default ``"torsional"``.
+    omega_ref : float, optional
+        Target lower-disc speed (rad/s); None lets the controller take it from the measurements.
+    params : RigParams, optional
+        The model the controller is designed on; default the nominal parameters.
+    **kw
+        Further keywords of the controller's constructor (e.g. ``dt``, the control period in s).
+
+    Returns
+    -------
+    Controller
+        The controller, not yet reset.
+
+    Raises
+    ------
+    InputError
+        The name is unknown, its period is malformed or contradicts ``dt``, ``agent:`` has no path,
+        or no agent loader is available.
+    """
     name, dt = split_period(name)
     if dt is not None:
         if kw.get("dt") is not None and abs(kw["dt"] - dt) > 1e-12:
-            raise ValueError(f"controller {name!r}: period {dt * 1e3:g} ms from the name but dt={kw['dt']} s given")
+            raise InputError(f"controller {name!r}: period {dt * 1e3:g} ms from the name but dt={kw['dt']} s given")
         kw["dt"] = dt
     if name.startswith("agent:"):
         path = name[len("agent:"):]
         if not path:
-            raise ValueError("agent controller needs a path: agent:PATH")
-        loader = _agent_loader
-        if loader is None:
-            try:
-                loader = importlib.import_module("agents").load_controller
-            except (ImportError, AttributeError) as exc:
-                raise ValueError(f"no agent loader available for {name!r} (agents.load_controller): {exc}") from exc
+            raise InputError("agent controller needs a path: agent:PATH")
+        loader = _agent_loader if _agent_loader is not None else _installed_agent_loader(name)
         return loader(path, config=config, omega_ref=omega_ref, params=params, **kw)
     if name not in CONTROLLERS:
-        raise ValueError(f"unknown controller {name!r}; choose from {', '.join(available())} or agent:PATH")
+        raise InputError(f"unknown controller {name!r}; choose from {', '.join(available())} or agent:PATH")
     return CONTROLLERS[name](omega_ref, config=config, params=params, **kw)

@@ -14,14 +14,12 @@ prints its traceback.
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
 import sys
 import traceback
 
 import typer
 
-from .commands import MODULES
+from .commands import register_commands
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="drillgym: drill-string rig simulator, environments, analysis and hardware twin.")
@@ -32,13 +30,7 @@ def _root() -> None:
     """drillgym: drill-string rig simulator, environments, analysis and hardware twin."""
 
 
-def _register_all() -> None:
-    for name in MODULES:
-        if importlib.util.find_spec(name) is not None:
-            importlib.import_module(name).register(app)
-
-
-_register_all()
+register_commands(app)  # the core's commands, then those of installed packages (entry points)
 
 
 def main(argv: list[str] | None = None) -> None:

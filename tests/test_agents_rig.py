@@ -28,7 +28,7 @@ def _run(*args: str, timeout: float = 240) -> tuple[int, str, str]:
 
 
 def test_what_train_writes_is_taken_as_a_trained_agent(tmp_path) -> None:
-    from drillgym.commands.rig_ops import trained_agent
+    from hw.commands.rig_ops import trained_agent
     from hw.runner import LinearPolicy
 
     assert all(trained_agent(p) for p in (LEARNED, LEARNED / "policy.npz", LEARNED / "model.zip", SWITCHED,

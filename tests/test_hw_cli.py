@@ -273,7 +273,7 @@ def test_slow_disk_does_not_hold_up_the_control_loop(tmp_path, monkeypatch):
 
 def test_run_restores_the_callers_signal_handlers():
     """``rig run`` called in-process (a notebook, CliRunner) must not leave Ctrl-C ignored afterwards."""
-    from drillgym.commands.rig import _interruptible
+    from hw.commands.rig import _interruptible
 
     before = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:

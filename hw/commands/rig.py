@@ -10,7 +10,7 @@
 
 ``rig run`` exits 0 when the episode ran its course, 3 on a safety stop (one line with the
 reason; motor at 0 V, recording kept), 130 when interrupted (Ctrl-C, SIGTERM), 2 on a bad
-option (nothing moved); see :mod:`drillgym.commands.rig_ops`.
+option (nothing moved); see :mod:`hw.commands.rig_ops`.
 """
 
 from __future__ import annotations
@@ -22,9 +22,11 @@ from typing import List, Optional
 
 import typer
 
-from .effect_options import add_effect_option, effect_param_option
-from .plant import describe_plant, plant_from_cli
-from .outputs import CREATES_DIRS
+from drillgym.commands.effect_options import add_effect_option, effect_param_option
+from drillgym.commands.outputs import CREATES_DIRS
+from drillgym.commands.plant import describe_plant, plant_from_cli
+from drillgym.errors import InputError, SafetyError
+
 from .rig_ops import INTERRUPT_EXIT, STOP_EXIT, ClampNotice, stop_reason
 
 rig_app = typer.Typer(no_args_is_help=True, help="hardware twin: run on the rig, or emulate it on a pseudo-terminal")
@@ -143,15 +145,16 @@ def run_cmd(
     import hw
     from hw.runner import load_policy, make_controller
 
-    from .outputs import output_dir, output_file
+    from drillgym.commands.outputs import output_dir, output_file
+
     from .rig_ops import check_writable, dry_run as do_dry_run, trained_agent, warm_up
 
     if (controller is None) == (policy is None):
-        raise ValueError("give exactly one of --controller or --policy")
+        raise InputError("give exactly one of --controller or --policy")
     if not duration > 0:
-        raise ValueError(f"--duration must be > 0 s, got {duration}")
+        raise InputError(f"--duration must be > 0 s, got {duration}")
     if reconnect < 0 or not reconnect_wait >= 0:
-        raise ValueError(f"--reconnect and --reconnect-wait must be >= 0, got {reconnect}, {reconnect_wait}")
+        raise InputError(f"--reconnect and --reconnect-wait must be >= 0, got {reconnect}, {reconnect_wait}")
     hw.register()
     opts = {"observation": observation, "episode_duration": duration, "control_dt": control_ms * 1e-3}
     if omega_ref is not None:
@@ -162,7 +165,7 @@ def run_cmd(
     model = None
     if params is not None:
         if controller is None or controller.startswith(("const:", "play:", "agent:")):
-            raise ValueError("--params builds a named controller on a model; it does not apply to const:, play:, "
+            raise InputError("--params builds a named controller on a model; it does not apply to const:, play:, "
                              "agent: or --policy")
         from drillgym.identification.model_file import read_model
 
@@ -224,12 +227,10 @@ def estop_cmd(
     Works while another program runs the rig (that run then stops with a safety stop).
     Exit code 0 when the firmware acknowledged, 3 when it did not (check the rig).
     """
-    from drillgym.errors import SafetyError
-
     from .rig_ops import emergency_stop
 
     if attempts < 1 or not timeout_ms > 0:
-        raise ValueError(f"--attempts must be >= 1 and --timeout-ms > 0, got {attempts}, {timeout_ms}")
+        raise InputError(f"--attempts must be >= 1 and --timeout-ms > 0, got {attempts}, {timeout_ms}")
     try:
         k = emergency_stop(port, attempts, timeout_ms * 1e-3)
     except SafetyError as exc:
@@ -239,14 +240,9 @@ def estop_cmd(
                + ": motor at 0 V, latched until the next `drillgym rig run`")
 
 
-def register(app: typer.Typer) -> None:
-    app.add_typer(rig_app, name="rig")
-
-
 def _run_episode(make_env, ctrl, pol, seed, notice, realtime, reconnect, reconnect_wait, say):
     """One episode on the rig: (result, link faults, the firmware's watchdog (ms)); exits 130 (interrupt)
     or 3 (safety stop) with one line, motor at 0 V."""
-    from drillgym.errors import SafetyError
     from hw.realtime import prioritize, quiet_gc
     from hw.runner import run_episode
 

@@ -1,8 +1,11 @@
-"""``drillgym evaluate``: controllers (and agents) on the evaluation harness.
+"""The controllers' command of the ``drillgym`` CLI: ``evaluate``.
 
-The controllers live in the top-level ``controllers`` package, imported lazily
-here (the core does not depend on it).  ``--add-effect``/``--effect-param`` give the plant
-hidden effects; the controllers are built from the nominal base parameters and never know them.
+``drillgym evaluate`` runs controllers (and trained agents, ``agent:PATH``) on the evaluation
+harness. ``--add-effect``/``--effect-param`` give the plant hidden effects; the controllers are
+built from the nominal base parameters and never know them.
+
+The CLI finds :func:`register` through the ``drillgym.commands`` entry-point group
+(``pyproject.toml``).
 """
 
 from __future__ import annotations
@@ -14,7 +17,8 @@ from typing import List, Optional
 
 import typer
 
-from .effect_options import add_effect_option, effect_param_option
+from drillgym.commands.effect_options import add_effect_option, effect_param_option
+from drillgym.errors import InputError
 
 
 def register(app: typer.Typer) -> None:
@@ -49,19 +53,19 @@ def register(app: typer.Typer) -> None:
         from controllers.evaluation import DEFAULT_TARGETS, evaluate, parse_scenarios
         from controllers.evaluation.report import write_report
 
-        from .plant import describe_plant, plant_from_cli
+        from drillgym.commands.plant import describe_plant, plant_from_cli
 
         cfgs = [c.strip() for c in config.split(",") if c.strip()]
         names = [c.strip() for c in controllers.split(",") if c.strip()]
         if not names:
-            raise ValueError("--controllers is empty")
+            raise InputError("--controllers is empty")
         try:
             tg = [float(v) for v in targets.split(",")] if targets.strip() else list(DEFAULT_TARGETS)
         except ValueError as exc:
-            raise ValueError(f"--targets must be numbers separated by commas, got {targets!r}") from exc
+            raise InputError(f"--targets must be numbers separated by commas, got {targets!r}") from exc
         base, comp, values = plant_from_cli(params, add_effect, effect_param)
         p = base if params else None
-        from ..parallel import open_executor
+        from drillgym.parallel import open_executor
 
         with warnings.catch_warnings(record=True) as caught, (open_executor(ray, workers) if ray else nullcontext()) as ex:
             warnings.simplefilter("always")

@@ -22,6 +22,8 @@ from typing import Callable
 
 import numpy as np
 
+from drillgym.errors import InputError
+
 __all__ = ["STOP_EXIT", "INTERRUPT_EXIT", "stop_reason", "ClampNotice", "dry_run", "emergency_stop",
            "run_with_reconnect", "check_writable"]
 
@@ -72,9 +74,9 @@ def check_writable(record: Path) -> None:
     while not p.exists() and p != p.parent:
         p = p.parent
     if not p.is_dir():
-        raise ValueError(f"--record {record}: {p} is a file, not a directory")
+        raise InputError(f"--record {record}: {p} is a file, not a directory")
     if not os.access(p, os.W_OK | os.X_OK):
-        raise ValueError(f"--record {record}: no permission to write in {p}")
+        raise InputError(f"--record {record}: no permission to write in {p}")
 
 
 def dry_run(make_env: Callable[[], object], ctrl, policy, record: Path, echo: Callable[[str], None]) -> None:
@@ -97,7 +99,7 @@ def dry_run(make_env: Callable[[], object], ctrl, policy, record: Path, echo: Ca
             try:
                 action_voltage(a, float(env.action_space.high[0]))
             except (TypeError, ValueError) as exc:
-                raise ValueError(f"the policy's action for a zero observation is unusable: {exc}") from None
+                raise InputError(f"the policy's action for a zero observation is unusable: {exc}") from None
             echo(f"dry run: policy answers a zero observation of shape {env.observation_space.shape} with {a!r}")
         else:
             echo(f"dry run: controller {getattr(ctrl, 'name', type(ctrl).__name__)} ready")

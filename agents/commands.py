@@ -1,8 +1,12 @@
-"""``drillgym train``: train an RL agent (stable-baselines3) on a drillgym environment.
+"""The agents' commands of the ``drillgym`` CLI: ``train`` and ``combine-policies``.
 
-The training stack lives in the top-level ``agents`` package, imported lazily here
-(the core does not depend on it).  ``--add-effect``/``--effect-param`` train on rigs with those
-effects (the env options ``effects``/``effect_params``, saved in config.yml by spec).
+``drillgym train`` trains an RL agent (stable-baselines3) on a drillgym environment;
+``--add-effect``/``--effect-param`` train on rigs with those effects (the env options
+``effects``/``effect_params``, saved in config.yml by spec). ``drillgym combine-policies`` joins
+trained networks into one target-switched policy.
+
+The CLI finds :func:`register` through the ``drillgym.commands`` entry-point group
+(``pyproject.toml``); the training stack (torch, stable-baselines3) loads only when a command runs.
 """
 
 from __future__ import annotations
@@ -14,7 +18,8 @@ from typing import List, Optional
 
 import typer
 
-from .effect_options import add_effect_option, effect_param_option, effects_from_cli
+from drillgym.commands.effect_options import add_effect_option, effect_param_option, effects_from_cli
+from drillgym.errors import InputError
 
 
 def process_seconds() -> float:
@@ -71,13 +76,13 @@ def register(app: typer.Typer) -> None:
         from agents.train import train
 
         if n_envs is not None and n_envs < 1:
-            raise ValueError(f"--n-envs must be >= 1, got {n_envs}")
+            raise InputError(f"--n-envs must be >= 1, got {n_envs}")
         if checkpoint_every < 1:
-            raise ValueError(f"--checkpoint-every must be >= 1, got {checkpoint_every}")
+            raise InputError(f"--checkpoint-every must be >= 1, got {checkpoint_every}")
         if seeds < 1:
-            raise ValueError(f"--seeds must be >= 1, got {seeds}")
+            raise InputError(f"--seeds must be >= 1, got {seeds}")
         if eval_every is not None and eval_every < 0:
-            raise ValueError(f"--eval-every must be >= 0, got {eval_every}")
+            raise InputError(f"--eval-every must be >= 0, got {eval_every}")
         command = "drillgym " + " ".join(shlex.quote(a) for a in sys.argv[1:])
         overrides = parse_overrides(set_ or [])
         if add_effect or effect_param:
@@ -124,7 +129,7 @@ def register(app: typer.Typer) -> None:
         try:
             cuts = [float(v) for v in edges.split(",") if v.strip()]
         except ValueError:
-            raise ValueError(f"--edges must be speeds in rad/s separated by commas, got {edges!r}") from None
+            raise InputError(f"--edges must be speeds in rad/s separated by commas, got {edges!r}") from None
         files = [p / "policy.npz" if p.is_dir() else p for p in policies]
         path = combine(files, cuts, out, note=note)
         typer.echo(f"wrote {path}: {len(files)} networks, handing over at {', '.join(f'{c:g}' for c in cuts)} rad/s")
