@@ -9,21 +9,21 @@ prints its traceback and says so.
 The kinds that describe bad input also derive from :class:`ValueError` (or
 :class:`TypeError`), so ``except ValueError`` in user code keeps working.
 
-=========================  ====================================================================
-error                      raised when
-=========================  ====================================================================
-:class:`InputError`        an option, argument or value cannot be used (names it, the value and
-                           what would be valid)
-:class:`InputTypeError`    the same, for a value of the wrong type
-:class:`ParameterError`    a rig parameter value or parameter file cannot be used
-:class:`DataFormatError`   a time-series file cannot be read (file, line or column, what is wrong)
-:class:`EffectError`       an effect cannot be used (file, effect, what is wrong)
-:class:`OutputPathError`   an output path cannot be written without losing something
-:class:`SimulationError`   a run diverged or produced non-finite states
-:class:`FitError`          an identification or diagnosis cannot produce its result
-:class:`UnavailableError`  an optional service (a Ray cluster, a serial port) cannot be reached
-:class:`SafetyError`       a safety limit of the rig was hit (over-speed, watchdog, lost link)
-=========================  ====================================================================
+The kinds, and when they are raised:
+
+* :class:`InputError`: an option, argument or value cannot be used (names it, the value and what would be
+  valid).
+* :class:`InputTypeError`: the same, for a value of the wrong type.
+* :class:`ParameterError`: a rig parameter value or parameter file cannot be used.
+* :class:`DataFormatError`: a time-series file cannot be read (file, line or column, what is wrong).
+* :class:`EffectError`: an effect cannot be used (file, effect, what is wrong).
+* :class:`OutputPathError`: an output path cannot be written without losing something.
+* :class:`MissingFileError`: a file the user named does not exist (also a :class:`FileNotFoundError`).
+* :class:`SimulationError`: a run diverged or produced non-finite states.
+* :class:`FitError`: an identification, a diagnosis or a numerical solve (an equilibrium, a periodic
+  orbit) cannot produce its result.
+* :class:`UnavailableError`: an optional service (a Ray cluster, a serial port) cannot be reached.
+* :class:`SafetyError`: a safety limit of the rig was hit (over-speed, watchdog, lost link).
 """
 
 from __future__ import annotations
@@ -36,6 +36,7 @@ __all__ = [
     "DataFormatError",
     "EffectError",
     "OutputPathError",
+    "MissingFileError",
     "SimulationError",
     "FitError",
     "UnavailableError",
@@ -76,7 +77,7 @@ class SimulationError(DrillgymError, RuntimeError):
 
 
 class FitError(DrillgymError, RuntimeError):
-    """An identification or diagnosis cannot produce a valid result (and says why)."""
+    """An identification, a diagnosis or a numerical solve cannot produce a valid result (and says why)."""
 
 
 class UnavailableError(DrillgymError, RuntimeError):
