@@ -320,9 +320,31 @@ def _refine(cfg: Configuration, omega: float, guess: tuple, rig: _Rig) -> tuple[
 
 def slip_equilibrium(config: "str | Configuration", omega: float, params: "RigParams | _Rig | None" = None,
                      *, with_eigenvalues: bool = True, effects=None, effect_params=None) -> Equilibrium:
-    """The slip equilibrium whose discs turn at ``omega`` (rad/s, != 0), and the voltage that holds it.
+    """The slip equilibrium whose discs turn at ``omega``, and the voltage that holds it.
 
     Closed form for the base model; with effects refined by Newton on the simulator's residual.
+
+    Parameters
+    ----------
+    config : str or Configuration
+        Rig configuration: ``"upper"``, ``"torsional"``, ``"lateral"`` or ``"coupled"``.
+    omega : float
+        Speed of both discs (rad/s), not 0.
+    params : RigParams, optional
+        Base parameters; default the identified set.
+    with_eigenvalues : bool, optional
+        Also compute the eigenvalues of the reduced linearisation (``Equilibrium.eigenvalues``, 1/s).
+    effects : optional
+        Effects of the model (names, file specs, classes or instances, :mod:`drillgym.effects`); effects
+        that make the rig depend on its angle or on time are refused.
+    effect_params : mapping of str to float, optional
+        The effects' parameter values by name.
+
+    Returns
+    -------
+    Equilibrium
+        Voltage ``u`` (V), speed ``omega`` (rad/s), winding ``alpha`` (rad), whirl position ``x``, ``y``
+        (m, co-rotating frame), the effects' states and the eigenvalues.
     """
     rig = _rig_of(params, effects, effect_params)
     cfg = supported_configuration(config)
@@ -342,7 +364,27 @@ def slip_equilibrium(config: "str | Configuration", omega: float, params: "RigPa
 
 def equilibrium_voltage(config: "str | Configuration", omega: "float | np.ndarray",
                         params: "RigParams | _Rig | None" = None, effects=None, effect_params=None) -> np.ndarray:
-    """u(omega) (V): the constant voltage that holds the slip equilibrium at speed omega (rad/s)."""
+    """The constant voltage that holds the slip equilibrium at speed ``omega``.
+
+    Parameters
+    ----------
+    config : str or Configuration
+        Rig configuration: ``"upper"``, ``"torsional"``, ``"lateral"`` or ``"coupled"``.
+    omega : float or ndarray
+        Speed(s) of both discs (rad/s), not 0.
+    params : RigParams, optional
+        Base parameters; default the identified set.
+    effects : optional
+        Effects of the model (names, file specs, classes or instances, :mod:`drillgym.effects`); effects
+        that make the rig depend on its angle or on time are refused.
+    effect_params : mapping of str to float, optional
+        The effects' parameter values by name.
+
+    Returns
+    -------
+    ndarray
+        u(omega) (V), shaped as ``omega``.
+    """
     rig = _rig_of(params, effects, effect_params)
     cfg = supported_configuration(config)
     w = np.atleast_1d(np.asarray(omega, dtype=float))
@@ -356,10 +398,33 @@ def equilibrium_voltage(config: "str | Configuration", omega: "float | np.ndarra
 def slip_equilibria(config: "str | Configuration", u: float, params: "RigParams | _Rig | None" = None,
                     omega_max: float = 200.0, n_grid: int = 400, effects=None, effect_params=None
                     ) -> list[Equilibrium]:
-    """All slip equilibria at voltage ``u`` (V) with 0 < |omega| <= omega_max, sorted by speed.
+    """All slip equilibria at voltage ``u`` with 0 < |omega| <= omega_max, sorted by speed.
 
     Roots of u(omega) = u are bracketed on a geometric grid of omega (in the
     direction of u) and located with Brent's method.
+
+    Parameters
+    ----------
+    config : str or Configuration
+        Rig configuration: ``"upper"``, ``"torsional"``, ``"lateral"`` or ``"coupled"``.
+    u : float
+        Constant motor voltage (V).
+    params : RigParams, optional
+        Base parameters; default the identified set.
+    omega_max : float, optional
+        Largest speed searched (rad/s).  Default 200.
+    n_grid : int, optional
+        Points of the bracketing grid.  Default 400.
+    effects : optional
+        Effects of the model (names, file specs, classes or instances, :mod:`drillgym.effects`); effects
+        that make the rig depend on its angle or on time are refused.
+    effect_params : mapping of str to float, optional
+        The effects' parameter values by name.
+
+    Returns
+    -------
+    list of Equilibrium
+        The slip equilibria, sorted by speed (empty when there is none).
     """
     rig = _rig_of(params, effects, effect_params)
     cfg = supported_configuration(config)
@@ -381,11 +446,30 @@ def slip_equilibria(config: "str | Configuration", u: float, params: "RigParams 
 
 def stick_set(config: "str | Configuration", u: float, params: "RigParams | _Rig | None" = None,
               effects=None, effect_params=None) -> StickSet | None:
-    """The stick equilibrium set at voltage u (V), or None when the discs cannot rest (|u| too large).
+    """The stick equilibrium set at voltage ``u``, or None when the discs cannot rest (|u| too large).
 
     Both discs at rest: the holding torques (upper: km u + string torque, lower: -string torque)
     must lie in the stick sets.  Closed form for a linear string; with Force effects the set of
     windings is found on the composition's own holding torques (bisection of its ends).
+
+    Parameters
+    ----------
+    config : str or Configuration
+        Rig configuration: ``"upper"``, ``"torsional"``, ``"lateral"`` or ``"coupled"``.
+    u : float
+        Constant motor voltage (V).
+    params : RigParams, optional
+        Base parameters; default the identified set.
+    effects : optional
+        Effects of the model (names, file specs, classes or instances, :mod:`drillgym.effects`); effects
+        that make the rig depend on its angle or on time are refused.
+    effect_params : mapping of str to float, optional
+        The effects' parameter values by name.
+
+    Returns
+    -------
+    StickSet or None
+        The windings [alpha_lo, alpha_hi] (rad) at which both discs rest, or None.
     """
     rig = _rig_of(params, effects, effect_params)
     cfg = supported_configuration(config)
@@ -436,10 +520,27 @@ def _stick_set_numeric(cfg: Configuration, u: float, rig: _Rig, centre: float) -
 
 # -------------------------------------------------------------- linearisation
 def linearise(eq: Equilibrium, variant: str = "reduced", rel_step: float = FD_STEP) -> control.StateSpace:
-    """Linearisation about a slip equilibrium as a ``control.StateSpace`` (see the module doc for states).
+    """Linearisation about a slip equilibrium as a ``control.StateSpace``.
 
     Central finite differences of the composition's ``state_derivative`` in the
     equilibrium's slip modes, step ``rel_step`` relative to each state's scale.
+
+    Parameters
+    ----------
+    eq : Equilibrium
+        A slip equilibrium (:func:`slip_equilibrium`, :func:`slip_equilibria`).
+    variant : str, optional
+        ``"reduced"`` (default): states (alpha, omega_u, omega_l), plus (x, y, vx, vy) in the rotating
+        frame for lateral/coupled (upper: omega_u only), outputs all states.  ``"angles"``: theta_u,
+        theta_l instead of alpha, outputs the encoder angles (and r for lateral/coupled).
+    rel_step : float, optional
+        Finite-difference step relative to each state's scale.
+
+    Returns
+    -------
+    control.StateSpace
+        Named states, input ``u`` (V) and outputs; the effects' states are appended.  Units: rad,
+        rad/s, m, m/s.  It describes deviations from the equilibrium.
     """
     cfg = eq.config
     rig = eq.model
@@ -489,7 +590,26 @@ def eigenvalues(eq: Equilibrium) -> np.ndarray:
 
 def lower_damping(omega: "float | np.ndarray", params: "RigParams | _Rig | None" = None, brake: bool = True,
                   effects=None, effect_params=None) -> np.ndarray:
-    """Linearised lower friction damping dl = dTfl/domega (N m s/rad) at omega != 0 (central differences)."""
+    """Linearised lower friction damping dl = dTfl/domega at omega != 0 (central differences).
+
+    Parameters
+    ----------
+    omega : float or ndarray
+        Lower-disc speed(s) (rad/s), not 0.
+    params : RigParams, optional
+        Base parameters; default the identified set.
+    brake : bool, optional
+        The brake's Stribeck law (True, default) or the bearing friction (False).
+    effects : optional
+        Effects of the model (:mod:`drillgym.effects`).
+    effect_params : mapping of str to float, optional
+        The effects' parameter values by name.
+
+    Returns
+    -------
+    ndarray
+        dl (N m s/rad), shaped as ``omega``; negative where the friction law falls with speed.
+    """
     rig = _rig_of(params, effects, effect_params)
     y = rig.zero_state()
     slip = rig.model.lower_slip_torque
@@ -528,7 +648,20 @@ class RouthHurwitz:
 
 
 def routh_hurwitz_torsional(params: RigParams | None = None, omega_max: float = 50.0) -> RouthHurwitz:
-    """Critical damping, critical speeds and Hopf voltages of the torsional configuration (R1-R3)."""
+    """Critical damping, critical speeds and Hopf voltages of the torsional configuration (R1-R3).
+
+    Parameters
+    ----------
+    params : RigParams, optional
+        Base parameters; default the identified set.
+    omega_max : float, optional
+        Largest speed searched for stability changes (rad/s).  Default 50.
+
+    Returns
+    -------
+    RouthHurwitz
+        ``dl_critical`` (N m s/rad), ``omega_critical`` (rad/s) and ``u_hopf`` (V).
+    """
     params = params or RigParams()
 
     def margin(dl: float) -> float:
