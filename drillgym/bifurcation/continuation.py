@@ -133,9 +133,41 @@ def continue_branch(smap: SectionMap, start: PeriodicSolution, direction: float,
                     progress: Callable[[PeriodicSolution], None] | None = None) -> PeriodicBranch:
     """Follow the periodic branch through ``start`` with u initially moving in ``direction`` (+1/-1).
 
-    ``ds`` is the arclength step in the scaled (z, u) space.  With ``resection`` the section is moved
-    away from extrema of omega_l along the orbit (module docstring); each solution records its
-    section's offset (:attr:`PeriodicSolution.section_offset`).
+    Pseudo-arclength continuation in the scaled (z, u) space.  The branch ends when its amplitude falls
+    below ``amplitude_min``, at the ends of the voltage window, at a fold, or after ``max_points``.
+
+    Parameters
+    ----------
+    smap : SectionMap
+        The Poincare map of the configuration.
+    start : PeriodicSolution
+        A periodic solution on the branch (:func:`start_at_hopf`, :func:`shoot`).
+    direction : float
+        Initial direction of the voltage, +1 or -1.
+    umin, umax : float
+        Voltage window (V).
+    ds : float, optional
+        First arclength step (scaled (z, u) space).
+    ds_min, ds_max : float, optional
+        Smallest and largest arclength step.
+    max_points : int, optional
+        Most points on the branch.
+    amplitude_min : float, optional
+        Smallest omega_l range of an orbit (rad/s); below it the branch has shrunk to its Hopf point.
+    tol : float, optional
+        Newton tolerance of the corrector (scaled).
+    max_newton : int, optional
+        Most Newton iterations per point.
+    resection : bool, optional
+        Move the section away from extrema of omega_l along the orbit (module docstring); each solution
+        records its section's offset (:attr:`PeriodicSolution.section_offset`).
+    progress : callable, optional
+        Called with each new periodic solution.
+
+    Returns
+    -------
+    PeriodicBranch
+        The periodic solutions along the branch and how it ended.
     """
     n = smap.dim
     smap = smap.with_offset(start.section_offset)
@@ -234,9 +266,34 @@ def start_at_hopf(smap: SectionMap, u_hopf: float, z_eq: np.ndarray, eigvec: np.
     """The small periodic solution born at a Hopf point, by shooting with the section point's first
     coordinate (alpha) held at ``z_eq[0] + amplitude`` and the voltage free.
 
-    ``eigvec`` is the critical eigenvector of the reduced linearisation (states: the section
-    coordinates with omega_l inserted at ``omega_l_row``); the guess is the linear orbit's point
-    where omega_l crosses its equilibrium value upwards.
+    The guess is the linear orbit's point where omega_l crosses its equilibrium value upwards.
+
+    Parameters
+    ----------
+    smap : SectionMap
+        The Poincare map of the configuration.
+    u_hopf : float
+        Voltage of the Hopf point (V).
+    z_eq : ndarray
+        The equilibrium's section coordinates (scaled).
+    eigvec : ndarray
+        Critical eigenvector of the reduced linearisation (states: the section coordinates with
+        omega_l inserted at ``omega_l_row``).
+    omega_l_row : int
+        Row of omega_l in ``eigvec``.
+    amplitude : float, optional
+        Offset of the first coordinate (alpha, rad) from the equilibrium.
+    tol : float, optional
+        Newton tolerance (scaled).
+    max_iter : int, optional
+        Most Newton iterations.
+    max_step : float, optional
+        Largest Newton step (scaled).
+
+    Returns
+    -------
+    PeriodicSolution
+        The small periodic orbit near the Hopf point.
     """
     n = smap.dim
     v = np.asarray(eigvec, dtype=complex)

@@ -83,6 +83,33 @@ def periodic_branches(branch: EquilibriumBranch, params: "RigParams | RigModel |
     Each branch is followed by pseudo-arclength continuation until it leaves the
     window, shrinks back to a Hopf point, or stops at a grazing corner: a
     discontinuous fold, where a stick-slip cycle meets an unstable slip cycle.
+
+    Parameters
+    ----------
+    branch : EquilibriumBranch
+        The equilibrium branch and its Hopf points (:func:`equilibrium_branch`).
+    params : RigParams or RigModel, optional
+        Base parameters, or a model with effects (:func:`drillgym.equilibria.as_model`); default the
+        identified set.
+    umin, umax : float, optional
+        Voltage window (V).  Default [0, 5].
+    dt : float, optional
+        Integration step of the shooting (s).  Default 1e-3.
+    ds, ds_max : float, optional
+        First and largest arclength step of the continuation (scaled).
+    amplitude : float, optional
+        Amplitude of the first orbit at a Hopf point (rad of winding).
+    max_points : int, optional
+        Most points per branch.
+    progress : callable, optional
+        Called with each new periodic solution.
+
+    Returns
+    -------
+    branches : list of PeriodicBranch
+        One branch per Hopf point inside the window.
+    folds : list of Fold
+        The folds found on them (voltage V, kind).
     """
     params = as_model(params if params is not None else branch.params)
     smap = SectionMap(branch.config, params.p, branch.section_speed, dt=dt, composition=params.comp)
@@ -132,11 +159,57 @@ def compute_diagram(config: str, params: "RigParams | RigModel | None" = None, *
                     executor: Executor | None = None, measured: Sequence[dict] = (),
                     progress: Callable[[str], None] | None = None,
                     step: Callable[[str, int], None] | None = None) -> BifurcationDiagram:
-    """Equilibria, Hopf points, periodic branches and folds, and (``sweep_step``, V) brute-force sweeps
-    over [umin, sweep_umax or umax] from rest (``sweep_duration`` s each) and, with ``staircase``, the lab's
-    quasi-static sweeps up and down.  ``progress`` receives short status messages; ``step`` counts work
-    for progress bars: ``("cycle", 1)`` per continuation point, ``("sweep_total", n)`` once before the
-    sweeps (n simulated voltages in all), ``("sweep", k)`` as k of them complete."""
+    """The open-loop bifurcation diagram of one configuration.
+
+    Equilibria and Hopf points, periodic branches and their folds, brute-force sweeps from rest and,
+    with ``staircase``, the lab's quasi-static sweeps up and down.
+
+    Parameters
+    ----------
+    config : str
+        Rig configuration: ``"torsional"``, ``"lateral"`` or ``"coupled"``.
+    params : RigParams or RigModel, optional
+        Base parameters, or a model with effects (:func:`drillgym.equilibria.as_model`); default the
+        identified set.
+    umin, umax : float, optional
+        Voltage window (V), 0 <= umin < umax.  Default [0, 5].
+    periodic : bool, optional
+        Compute the periodic branches born at the Hopf points.
+    sweep_step : float, optional
+        Voltage step of the sweeps (V); None or 0: no sweeps.  Default 0.05.
+    sweep_duration : float, optional
+        Length of each constant-voltage sweep run (s).  Default 120.
+    staircase : bool, optional
+        Also run the quasi-static sweeps up and down.
+    sweep_umax : float, optional
+        Highest voltage of the sweeps (V); default ``umax``.
+    dt : float, optional
+        Integration step of the shooting and the sweeps (s).  Default 1e-3.
+    sweep_dt : float, optional
+        Integration step of the sweeps (s); default ``dt``.
+    ds_max : float, optional
+        Largest arclength step of the continuation (scaled).
+    executor : concurrent.futures.Executor, optional
+        Runs the sweeps; default a process pool.
+    measured : sequence of dict, optional
+        Measured points to show with the diagram (:func:`measured_diagram`).
+    progress : callable, optional
+        ``progress(message: str)``: short status messages.
+    step : callable, optional
+        ``step(kind: str, k: int)``, counting work for progress bars: ``("cycle", 1)`` per continuation
+        point, ``("sweep_total", n)`` once before the sweeps (n simulated voltages in all),
+        ``("sweep", k)`` as k of them complete.
+
+    Returns
+    -------
+    BifurcationDiagram
+        Everything for the configuration (``to_json`` writes it).
+
+    Raises
+    ------
+    InputError
+        A voltage window that is not 0 <= umin < umax.
+    """
     params = as_model(params)
     cfg = supported_configuration(config)
     if not (np.isfinite(umin) and np.isfinite(umax) and 0 <= umin < umax):

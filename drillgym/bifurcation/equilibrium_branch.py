@@ -97,8 +97,27 @@ def _max_real(cfg: Configuration, w: float, params: RigParams) -> float:
 
 def equilibrium_branch(config: "str | Configuration", params: "RigParams | RigModel | None" = None,
                        umax: float = 5.0, n: int = 300, omega_min: float = 1e-4) -> EquilibriumBranch:
-    """The slip equilibrium branch for 0 < u <= umax (V) and its Hopf points (``params``: RigParams or a
-    RigModel with effects)."""
+    """The slip equilibrium branch for 0 < u <= umax and its Hopf points.
+
+    Parameters
+    ----------
+    config : str or Configuration
+        Rig configuration.
+    params : RigParams or RigModel, optional
+        Base parameters, or a model with effects (:func:`drillgym.equilibria.as_model`); default the
+        identified set.
+    umax : float, optional
+        Highest voltage (V).  Default 5.
+    n : int, optional
+        Number of speeds on the branch.  Default 300.
+    omega_min : float, optional
+        Lowest speed of the branch (rad/s).
+
+    Returns
+    -------
+    EquilibriumBranch
+        Voltage, speed and stability along the branch, and its Hopf points.
+    """
     params = as_model(params)
     cfg = supported_configuration(config)
     if not (np.isfinite(umax) and umax > 0):

@@ -24,9 +24,25 @@ CONSTANT_VOLTAGE_TOL = 0.02  # V
 
 
 def measured_point(path: str | Path, config: str | None = None, settle_fraction: float = SETTLE_FRACTION) -> dict:
-    """Steady-state statistics of one constant-voltage measurement (DATA_FORMAT.md file):
-    voltage (V) and the STAT_NAMES quantities.  omega_l is taken from the file or differentiated
-    from theta_l (Savitzky-Golay, 50 ms window)."""
+    """Steady-state statistics of one constant-voltage measurement.
+
+    omega_l is taken from the file or differentiated from theta_l (Savitzky-Golay, 50 ms window).
+
+    Parameters
+    ----------
+    path : str or path
+        A DATA_FORMAT.md file of a run at constant voltage.
+    config : str, optional
+        Rig configuration, when the file's metadata names none.
+    settle_fraction : float, optional
+        Leading fraction of the run treated as transient.  Default 0.5.
+
+    Returns
+    -------
+    dict
+        ``u`` (V) and the steady-state quantities ``omega_l_min``, ``omega_l_max`` (rad/s), ``r_min``,
+        ``r_max`` (m), ``period`` (s, NaN when not oscillating), ``stick_fraction``.
+    """
     ts = read_timeseries(path, config)
     n = len(ts)
     i0 = int(n * settle_fraction)
@@ -50,5 +66,18 @@ def measured_point(path: str | Path, config: str | None = None, settle_fraction:
 
 
 def measured_diagram(paths: Sequence[str | Path], config: str | None = None) -> list[dict]:
-    """measured_point for every file, sorted by voltage."""
+    """:func:`measured_point` of every file, sorted by voltage.
+
+    Parameters
+    ----------
+    paths : sequence of str or path
+        Constant-voltage measurement files.
+    config : str, optional
+        Rig configuration, when a file's metadata names none.
+
+    Returns
+    -------
+    list of dict
+        One point per file, sorted by voltage ``u`` (V).
+    """
     return sorted((measured_point(p, config) for p in paths), key=lambda d: d["u"])

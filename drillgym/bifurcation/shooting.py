@@ -62,7 +62,7 @@ class PeriodicSolution:
                 "multipliers": [[float(m.real), float(m.imag)] for m in self.multipliers]}
 
 
-class ShootingFailure(RuntimeError):
+class ShootingFailure(FitError):
     """The flow did not return to the section (no orbit near this point)."""
 
 
@@ -102,7 +102,31 @@ def make_solution(u: float, z: np.ndarray, J: np.ndarray, summary: np.ndarray, o
 
 
 def shoot(smap: SectionMap, z0: np.ndarray, u: float, tol: float = 1e-9, max_iter: int = 20) -> PeriodicSolution:
-    """Newton's method for the fixed point of the section map at fixed voltage u (V)."""
+    """Newton's method for the fixed point of the section map at a fixed voltage.
+
+    Parameters
+    ----------
+    smap : SectionMap
+        The Poincare map of the configuration.
+    z0 : ndarray
+        Initial guess of the section point (scaled coordinates of ``smap``).
+    u : float
+        Voltage (V).
+    tol : float, optional
+        Tolerance on the Newton step and the residual (scaled).
+    max_iter : int, optional
+        Most Newton iterations.
+
+    Returns
+    -------
+    PeriodicSolution
+        The periodic orbit: section point, period (s), Floquet multipliers, speed range.
+
+    Raises
+    ------
+    ShootingFailure
+        Newton did not converge or the orbit did not return to the section.
+    """
     z = np.asarray(z0, dtype=float).copy()
     n = smap.dim
     for _ in range(max_iter):

@@ -96,8 +96,36 @@ def _check(voltages, duration: float, window: float) -> np.ndarray:
 def sweep_constant(config: str, voltages, *, start: str = "rest", duration: float = 120.0, window: float = 20.0,
                    dt: float = 1e-3, params: RigParams | None = None, executor: Executor | None = None,
                    chunk: int | None = None, progress: Callable[[int], None] | None = None) -> SweepResult:
-    """Simulate each voltage for ``duration`` s from ``start`` ('rest' or 'equilibrium'); stats over the
-    last ``window`` s.  ``progress`` receives the number of voltages of each chunk as it completes."""
+    """Simulate each voltage from the same start and measure its steady state.
+
+    Parameters
+    ----------
+    config : str
+        Rig configuration.
+    voltages : array_like
+        Constant voltages (V).
+    start : str, optional
+        ``"rest"`` (default) or ``"equilibrium"`` (the first slip equilibrium, slightly disturbed).
+    duration : float, optional
+        Length of each run (s).  Default 120.
+    window : float, optional
+        Steady-state window at the end of each run (s).  Default 20.
+    dt : float, optional
+        Integration step (s).  Default 1e-3.
+    params : RigParams, optional
+        Base parameters; default the identified set.
+    executor : concurrent.futures.Executor, optional
+        Runs the chunks of voltages; default a process pool.
+    chunk : int, optional
+        Voltages per task; default twice as many tasks as workers.
+    progress : callable, optional
+        Receives the number of voltages of each chunk as it completes.
+
+    Returns
+    -------
+    SweepResult
+        Per voltage: steady-state omega_l range (rad/s), r range (m), period (s), stuck fraction.
+    """
     u = _check(voltages, duration, window)
     params = as_model(params)
     if start == "rest":
@@ -126,8 +154,32 @@ def sweep_constant(config: str, voltages, *, start: str = "rest", duration: floa
 def sweep_staircase(config: str, voltages, *, dwell: float = 40.0, window: float = 15.0, dt: float = 1e-3,
                     params: RigParams | None = None, executor: Executor | None = None,
                     progress: Callable[[int], None] | None = None) -> tuple[SweepResult, SweepResult]:
-    """The quasi-static lab sweep up through ``voltages`` and back down (two runs in parallel);
-    ``progress`` receives the number of levels of each run as it completes."""
+    """The quasi-static lab sweep up through ``voltages`` and back down (two runs in parallel).
+
+    Parameters
+    ----------
+    config : str
+        Rig configuration.
+    voltages : array_like
+        Voltage levels (V), in increasing order.
+    dwell : float, optional
+        Time at each level (s).  Default 40.
+    window : float, optional
+        Steady-state window at the end of each level (s).  Default 15.
+    dt : float, optional
+        Integration step (s).  Default 1e-3.
+    params : RigParams, optional
+        Base parameters; default the identified set.
+    executor : concurrent.futures.Executor, optional
+        Runs the two sweeps; default a process pool.
+    progress : callable, optional
+        Receives the number of levels of each run as it completes.
+
+    Returns
+    -------
+    up, down : SweepResult
+        The sweep up and the sweep down.
+    """
     u = np.sort(_check(voltages, dwell, window))
     params = as_model(params)
     ex, own = _executor(executor)
