@@ -26,6 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.errors import InputError
+
 __all__ = ["CommandSchedule", "SpeedCommand", "schedule_of"]
 
 
@@ -55,9 +57,9 @@ class CommandSchedule:
         for name in ("approach", "hold", "ramp", "lag"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v >= 0):
-                raise ValueError(f"command schedule: {name} must be a finite number >= 0, got {v!r}")
+                raise InputError(f"command schedule: {name} must be a finite number >= 0, got {v!r}")
         if self.approach <= 0:
-            raise ValueError(f"command schedule: approach must be a positive speed (rad/s), got {self.approach!r}")
+            raise InputError(f"command schedule: approach must be a positive speed (rad/s), got {self.approach!r}")
 
     @classmethod
     def from_config(cls, spec: "dict[str, Any] | None") -> "CommandSchedule | None":
@@ -65,10 +67,10 @@ class CommandSchedule:
         if spec is None:
             return None
         if not isinstance(spec, dict):
-            raise ValueError(f"command schedule: expected a mapping {{approach, hold, ramp, lag}}, got {spec!r}")
+            raise InputError(f"command schedule: expected a mapping {{approach, hold, ramp, lag}}, got {spec!r}")
         unknown = sorted(set(spec) - {"approach", "hold", "ramp", "lag"})
         if unknown:
-            raise ValueError(f"command schedule: unknown keys {unknown}; expected approach, hold, ramp, lag")
+            raise InputError(f"command schedule: unknown keys {unknown}; expected approach, hold, ramp, lag")
         return cls(**{k: float(v) for k, v in spec.items()})
 
     def __call__(self, t: "float | np.ndarray", target: "float | np.ndarray") -> np.ndarray:
@@ -83,7 +85,7 @@ def schedule_of(spec: "dict[str, Any] | None", motor_integral: bool) -> "Command
     """The schedule of a hyperparameter entry's ``command_schedule``, which needs the motor-angle integral
     (the integral follows the command); None: no schedule."""
     if spec is not None and not motor_integral:
-        raise ValueError("the command schedule needs the motor-angle integral (motor_integral: true)")
+        raise InputError("the command schedule needs the motor-angle integral (motor_integral: true)")
     return CommandSchedule.from_config(spec)
 
 
@@ -95,7 +97,7 @@ class SpeedCommand:
 
     def __init__(self, schedule: CommandSchedule, n: int, dt: float) -> None:
         if not (np.isfinite(dt) and dt > 0):
-            raise ValueError(f"the control period must be positive (s), got {dt!r}")
+            raise InputError(f"the control period must be positive (s), got {dt!r}")
         self.schedule, self.dt = schedule, float(dt)
         self.t = np.zeros(n)
         self.y = np.zeros((3, n))

@@ -24,6 +24,7 @@ from controllers.base import Controller
 from drillgym.configurations import N_STATE
 from drillgym.envs.observation import make_observation_model
 from drillgym.envs.options import U_MAX, EnvOptions
+from drillgym.errors import InputError
 
 from .export import ExportedPolicy
 from .command import SpeedCommand, schedule_of
@@ -49,12 +50,12 @@ class AgentController(Controller):
         env_kwargs = hp.get("env_kwargs", {})
         self.mode = env_kwargs.get("observation", "full")
         if self.mode == "full":
-            raise ValueError("agent trained on the 'full' observation (true state) cannot run on measurements; "
+            raise InputError("agent trained on the 'full' observation (true state) cannot run on measurements; "
                              "train with --obs motor or --obs sensors")
         control_dt = policy.control_dt
         kw.setdefault("dt", control_dt)
         if abs(kw["dt"] - control_dt) > 1e-12:
-            raise ValueError(f"agent was trained at control period {control_dt} s, not {kw['dt']} s")
+            raise InputError(f"agent was trained at control period {control_dt} s, not {kw['dt']} s")
         super().__init__(omega_ref, **kw)
         self.policy = policy
         self.uses = ("theta_u",) if self.mode == "motor" else (
@@ -65,16 +66,16 @@ class AgentController(Controller):
         self.frame_stack = int(hp.get("frame_stack", 1))
         self.integral = bool(hp.get("motor_integral", False))  # the motor-angle tracking integral (agents.integral)
         if self.integral and self.mode != "motor":
-            raise ValueError("the motor-angle integral needs the 'motor' observation")
+            raise InputError("the motor-angle integral needs the 'motor' observation")
         self.schedule = schedule_of(hp.get("command_schedule"), self.integral)  # the speed command (agents.command)
         scale = hp.get("residual")
         self.base = None
         if hp.get("base") == "observer":  # observation = the observer's features, not the env's model
             if self.mode != "motor" or self.frame_stack != 1:
-                raise ValueError("observer-based agents are trained on the 'motor' mode without frame stacking")
+                raise InputError("observer-based agents are trained on the 'motor' mode without frame stacking")
             self.base = ObserverResidual(self.config.label, scale, self.params, self.dt, hp.get("observer"))
             if self.base.dim != policy.obs_dim:
-                raise ValueError(f"agent expects {policy.obs_dim} inputs; the observer base gives {self.base.dim}")
+                raise InputError(f"agent expects {policy.obs_dim} inputs; the observer base gives {self.base.dim}")
             return
         self.residual = None if scale is None else ResidualVoltage(self.config.label, scale, self.params,
                                                                    hp.get("startup"))
@@ -88,7 +89,7 @@ class AgentController(Controller):
         self.model = make_observation_model(n, self.obs_options)
         dim = self.model.dim * self.frame_stack
         if dim + int(self.integral) != self.policy.obs_dim:
-            raise ValueError(f"agent expects {self.policy.obs_dim} observation entries; the "
+            raise InputError(f"agent expects {self.policy.obs_dim} observation entries; the "
                              f"{self.mode!r} model of {self.config.label} gives {self.model.dim} x {self.frame_stack}"
                              + (" + 1 (integral)" if self.integral else ""))
         Y = np.zeros((n, N_STATE))

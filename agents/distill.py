@@ -22,6 +22,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from drillgym.errors import InputError
+
 from .command import schedule_of
 from .envs import episode_batch
 
@@ -99,7 +101,7 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
     rng = np.random.default_rng(seed)
     mse = float("nan")
     if not (0.0 <= beta <= 1.0 and noise >= 0.0):
-        raise ValueError(f"beta must be in [0, 1] and noise >= 0, got beta={beta!r}, noise={noise!r}")
+        raise InputError(f"beta must be in [0, 1] and noise >= 0, got beta={beta!r}, noise={noise!r}")
     for it in range(iterations):
         for g in opt.param_groups:
             g["lr"] = round_learning_rate(lr, lr_final, it, iterations)
@@ -149,7 +151,7 @@ def round_learning_rate(lr: float, lr_final: float | None, it: int, iterations: 
     if lr_final is None or iterations <= 1:
         return lr
     if not (lr > 0 and lr_final > 0):
-        raise ValueError(f"learning rates must be positive, got lr={lr!r}, lr_final={lr_final!r}")
+        raise InputError(f"learning rates must be positive, got lr={lr!r}, lr_final={lr_final!r}")
     return lr * (lr_final / lr) ** (it / (iterations - 1))
 
 
@@ -179,10 +181,10 @@ def _teacher(teacher: str | Path, n: int, batch, options: dict[str, Any], integr
     from .export import ExportedPolicy
 
     if options:
-        raise ValueError("teacher options apply to the 'flatness' teacher only")
+        raise InputError("teacher options apply to the 'flatness' teacher only")
     teach = ExportedPolicy.load(teacher)
     if teach.config["hyperparams"]["env_kwargs"].get("observation", "full") != "full":
-        raise ValueError(f"teacher {teacher} was not trained on the 'full' observation")
+        raise InputError(f"teacher {teacher} was not trained on the 'full' observation")
     full = FullObservation(n, replace(batch.options, observation="full"))
     tobs = np.zeros((n, full.dim), dtype=np.float32)
 

@@ -20,6 +20,8 @@ from typing import Any, Iterator
 
 import numpy as np
 
+from drillgym.errors import InputError, InputTypeError, MissingFileError
+
 __all__ = ["export_policy", "ExportedPolicy", "policy_file", "policy_layers", "ACTIVATIONS", "FORMAT_VERSION"]
 
 FORMAT_VERSION = 1
@@ -37,7 +39,7 @@ def _activation(name: str):
         lo, hi = (float(v) for v in name.split(":")[1:])
         return lambda x: np.clip(x, lo, hi, out=x)
     if name not in ACTIVATIONS:
-        raise ValueError(f"unknown activation {name!r} in exported policy")
+        raise InputError(f"unknown activation {name!r} in exported policy")
     return ACTIVATIONS[name]
 
 
@@ -54,13 +56,13 @@ def _walk(module, layers: list, acts: list) -> None:
         acts.append("identity")
     elif type(module) in simple or isinstance(module, nn.Hardtanh):
         if not acts or acts[-1] != "identity":
-            raise ValueError(f"activation {module} does not follow a linear layer; cannot export")
+            raise InputError(f"activation {module} does not follow a linear layer; cannot export")
         acts[-1] = (f"hardtanh:{module.min_val}:{module.max_val}" if isinstance(module, nn.Hardtanh)
                     else simple[type(module)])
     elif isinstance(module, (nn.Flatten, nn.Identity)):
         pass
     else:
-        raise ValueError(f"cannot export layer {type(module).__name__} to numpy (MLP policies only)")
+        raise InputError(f"cannot export layer {type(module).__name__} to numpy (MLP policies only)")
 
 
 def policy_layers(model) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[str], str]:
@@ -82,7 +84,7 @@ def policy_layers(model) -> tuple[list[tuple[np.ndarray, np.ndarray]], list[str]
         _walk(model.policy.action_net, layers, acts)
         output = "tanh" if getattr(model.policy, "squash_output", False) else "clip"  # gSDE with squash_output
     else:
-        raise ValueError(f"cannot export a {type(model).__name__} policy to numpy (PPO, SAC, TD3 only)")
+        raise InputError(f"cannot export a {type(model).__name__} policy to numpy (PPO, SAC, TD3 only)")
     k = actor_dim(model)
     if k < layers[0][0].shape[1]:  # privileged critic: the actor's zero-masked inputs are dropped
         layers[0] = (np.ascontiguousarray(layers[0][0][:, :k]), layers[0][1])
@@ -128,13 +130,13 @@ def policy_file(path: str | Path, kind: str) -> Iterator[tuple[dict[str, Any], A
     missing file, or one that is not a ``kind`` (a missing array, bad metadata), is named in the error."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"{kind} {path} not found")
+        raise MissingFileError(f"{kind} {path} not found")
     try:
         with np.load(path, allow_pickle=False) as z:
             yield json.loads(str(z["meta"])), z
     except (KeyError, ValueError, OSError) as exc:
         article = "an" if kind[0] in "aeiou" else "a"
-        raise ValueError(f"{path} is not {article} {kind}: {exc}") from exc
+        raise InputError(f"{path} is not {article} {kind}: {exc}") from exc
 
 
 def _jsonable(o):
@@ -142,7 +144,7 @@ def _jsonable(o):
         return o.item()
     if isinstance(o, (tuple, set)):
         return list(o)
-    raise TypeError(f"cannot store {type(o).__name__} in the policy metadata")
+    raise InputTypeError(f"cannot store {type(o).__name__} in the policy metadata")
 
 
 class ExportedPolicy:
@@ -156,7 +158,7 @@ class ExportedPolicy:
                  action_low: np.ndarray, action_high: np.ndarray, meta: dict[str, Any],
                  obs_norm: tuple[np.ndarray, np.ndarray, float] | None = None) -> None:
         if len(activations) != len(layers) or output not in ("tanh", "clip"):
-            raise ValueError(f"bad exported policy: activations {activations}, output {output!r}")
+            raise InputError(f"bad exported policy: activations {activations}, output {output!r}")
         self.layers = [(np.ascontiguousarray(W.T), b) for W, b in layers]  # x @ W.T + b
         self.activations = [_activation(a) for a in activations]
         self.output = output
@@ -169,7 +171,7 @@ class ExportedPolicy:
     def load(cls, path: str | Path) -> "ExportedPolicy":
         with policy_file(path, "exported drillgym policy") as (meta, z):
             if "members" in meta:
-                raise ValueError("it is a target-switched policy of several networks; load it with "
+                raise InputError("it is a target-switched policy of several networks; load it with "
                                  "agents.load_policy")
             return cls.from_arrays(meta, z)
 
@@ -209,7 +211,7 @@ class ExportedPolicy:
         single = x.ndim == 1
         x = np.atleast_2d(x)
         if x.shape[1] != self.obs_dim:
-            raise ValueError(f"observation must have {self.obs_dim} entries, got {x.shape[1]}")
+            raise InputError(f"observation must have {self.obs_dim} entries, got {x.shape[1]}")
         if self.obs_norm is not None:
             mean, scale, clip = self.obs_norm
             x = np.clip((x - mean) * scale, -clip, clip)

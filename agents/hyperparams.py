@@ -45,6 +45,8 @@ from typing import Any
 
 import yaml
 
+from drillgym.errors import InputError, MissingFileError
+
 __all__ = ["HYPERPARAMS_DIR", "load_hyperparams", "parse_overrides", "apply_overrides", "DRILLGYM_KEYS",
            "ZOO_KEYS", "STRUCTURE_SECTION", "STRUCTURE_KEYS", "algorithm_kwargs"]
 
@@ -85,25 +87,25 @@ def _parse_policy_kwargs(v: Any) -> dict:
             call = ast.parse(s, mode="eval").body
             return {kw.arg: ast.literal_eval(kw.value) for kw in call.keywords}
         return dict(ast.literal_eval(s))
-    raise ValueError(f"policy_kwargs must be a mapping or a 'dict(...)' string, got {v!r}")
+    raise InputError(f"policy_kwargs must be a mapping or a 'dict(...)' string, got {v!r}")
 
 
 def load_hyperparams(algo: str, env_id: str, path: "str | Path | None" = None) -> dict[str, Any]:
     """The entry of ``env_id`` in the hyperparameter file of ``algo`` (default ``agents/hyperparams/<algo>.yml``)."""
     f = Path(path) if path is not None else HYPERPARAMS_DIR / f"{algo}.yml"
     if not f.is_file():
-        raise FileNotFoundError(f"hyperparameter file {f} not found")
+        raise MissingFileError(f"hyperparameter file {f} not found")
     try:
         data = yaml.safe_load(f.read_text()) or {}
     except yaml.YAMLError as exc:
-        raise ValueError(f"hyperparameter file {f} is not valid YAML: {exc}") from exc
+        raise InputError(f"hyperparameter file {f} is not valid YAML: {exc}") from exc
     if env_id not in data or env_id == STRUCTURE_SECTION:
-        raise ValueError(f"hyperparameter file {f} has no entry for {env_id!r}; "
+        raise InputError(f"hyperparameter file {f} has no entry for {env_id!r}; "
                          f"entries: {sorted(k for k in data if k != STRUCTURE_SECTION)}")
     hp = dict(data[env_id] or {})
     bad = [k for k in STRUCTURE_KEYS if k in hp]
     if bad:
-        raise ValueError(f"hyperparameter file {f}: {bad} are drillgym keys, not keywords of the algorithm; "
+        raise InputError(f"hyperparameter file {f}: {bad} are drillgym keys, not keywords of the algorithm; "
                          f"put them under the top-level section '{STRUCTURE_SECTION}: {{{env_id}: ...}}'")
     hp.update((data.get(STRUCTURE_SECTION) or {}).get(env_id) or {})
     if "normalize" in hp:
@@ -122,11 +124,11 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
         key, sep, value = item.partition("=")
         key = key.strip()
         if not sep or not key:
-            raise ValueError(f"hyperparameter override must be KEY=VALUE, got {item!r}")
+            raise InputError(f"hyperparameter override must be KEY=VALUE, got {item!r}")
         try:
             v = yaml.safe_load(value)
         except yaml.YAMLError as exc:
-            raise ValueError(f"hyperparameter override {item!r}: value is not valid YAML ({exc})") from exc
+            raise InputError(f"hyperparameter override {item!r}: value is not valid YAML ({exc})") from exc
         if isinstance(v, str):  # YAML 1.1 reads '1e-3' as a string
             try:
                 v = float(v)
@@ -137,7 +139,7 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
         for p in parents:
             d = d.setdefault(p, {})
             if not isinstance(d, dict):
-                raise ValueError(f"hyperparameter override {item!r} conflicts with another one")
+                raise InputError(f"hyperparameter override {item!r} conflicts with another one")
         d[leaf] = v
     return out
 

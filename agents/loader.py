@@ -11,6 +11,8 @@ from pathlib import Path
 
 import yaml
 
+from drillgym.errors import InputError, MissingFileError
+
 from .controller import AgentController, TargetSwitchedController
 from .export import ExportedPolicy
 from .switched import TargetSwitchedPolicy, read_policy
@@ -36,17 +38,17 @@ def load_policy(path: str | Path) -> "ExportedPolicy | TargetSwitchedPolicy":
     if p.is_dir():
         p = p / "policy.npz" if (p / "policy.npz").is_file() else p / "model.zip"
     if not p.exists():
-        raise FileNotFoundError(f"agent file {p} not found")
+        raise MissingFileError(f"agent file {p} not found")
     if p.suffix == ".npz":
         return read_policy(p)
     if p.suffix != ".zip":
-        raise ValueError(f"agent file {p} must be an exported policy (.npz) or an SB3 model (.zip)")
+        raise InputError(f"agent file {p} must be an exported policy (.npz) or an SB3 model (.zip)")
     beside = p.with_name("policy.npz")
     if beside.is_file():
         return ExportedPolicy.load(beside)
     cfg_file = p.with_name("config.yml")
     if not cfg_file.is_file():
-        raise FileNotFoundError(f"agent {p}: no config.yml beside it (needed to rebuild the observation)")
+        raise MissingFileError(f"agent {p}: no config.yml beside it (needed to rebuild the observation)")
     config = yaml.safe_load(cfg_file.read_text())
     import tempfile
 

@@ -31,6 +31,7 @@ from controllers.kalman import I_AL, I_D, I_WL, I_WU, ExtendedKalmanObserver
 from controllers.observer import ObserverController
 from drillgym import RigParams
 from drillgym.envs.options import U_MAX
+from drillgym.errors import InputError
 
 __all__ = ["ObserverResidual", "FEATURES"]
 
@@ -67,7 +68,7 @@ class ObserverResidual:
     def __init__(self, config: str, scale: float, params: RigParams | None = None, dt: float = 0.01,
                  observer: dict[str, Any] | None = None) -> None:
         if not (np.isfinite(scale) and scale > 0):
-            raise ValueError(f"residual scale must be a positive voltage, got {scale!r}")
+            raise InputError(f"residual scale must be a positive voltage, got {scale!r}")
         self._ctrl = ObserverController(1.0, config=config, params=params, dt=dt, **(observer or {}))
         self.scale, self.params, self.dt, self.model = float(scale), self._ctrl.params, self._ctrl.dt, self._ctrl.model
         self.ekf = ExtendedKalmanObserver(self.model)  # the controller's filter, batched over the rigs

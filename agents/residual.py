@@ -35,6 +35,7 @@ import numpy as np
 from drillgym import RigParams
 from drillgym.envs.options import U_MAX
 from drillgym.equilibria import equilibrium_voltage
+from drillgym.errors import InputError
 
 __all__ = ["ResidualVoltage"]
 
@@ -57,13 +58,13 @@ class ResidualVoltage:
     def __init__(self, config: str, scale: float, params: RigParams | None = None,
                  startup: Sequence[float] | None = None) -> None:
         if not (np.isfinite(scale) and scale > 0):
-            raise ValueError(f"residual scale must be a positive voltage, got {scale!r}")
+            raise InputError(f"residual scale must be a positive voltage, got {scale!r}")
         if startup is not None:
             if len(startup) != 3 or not all(np.isfinite(v) for v in startup):
-                raise ValueError(f"startup must be (kick V, hold s, ramp s), got {startup!r}")
+                raise InputError(f"startup must be (kick V, hold s, ramp s), got {startup!r}")
             kick, hold, ramp = (float(v) for v in startup)
             if not (abs(kick) <= U_MAX and hold >= 0 and ramp > 0):
-                raise ValueError(f"startup needs |kick| <= {U_MAX} V, hold >= 0 s, ramp > 0 s; got {startup!r}")
+                raise InputError(f"startup needs |kick| <= {U_MAX} V, hold >= 0 s, ramp > 0 s; got {startup!r}")
             startup = (kick, hold, ramp)
         self.config = config
         self.scale = float(scale)

@@ -30,6 +30,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from drillgym.errors import InputError
+
 __all__ = ["train_seeds", "iqm", "iqm_ci", "SeedSummary", "NOT_HELD", "write_results", "plot_learning_curves"]
 
 #: lowest held target (rad/s) counted for a policy that holds no target of the grid (above its 8 rad/s)
@@ -97,7 +99,7 @@ def train_seeds(env_id: str, algo: str, out: str | Path, seeds: Sequence[int], *
     out.mkdir(parents=True, exist_ok=True)
     seeds = [int(s) for s in seeds]
     if not seeds:
-        raise ValueError("need at least one seed")
+        raise InputError("need at least one seed")
     workers = min(len(seeds), os.cpu_count() or 1) if workers is None else int(workers)
     if train_kwargs.get("eval_every") is None:
         from .train import planned_timesteps

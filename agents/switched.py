@@ -28,6 +28,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from drillgym.errors import InputError
+
 from .export import ExportedPolicy, policy_file
 
 __all__ = ["TargetSwitchedPolicy", "combine", "read_policy", "SWITCH_FORMAT"]
@@ -44,19 +46,19 @@ class TargetSwitchedPolicy:
         members = list(members)
         edges = [float(e) for e in edges]
         if len(members) < 2:
-            raise ValueError(f"a target-switched policy needs at least two networks, got {len(members)}")
+            raise InputError(f"a target-switched policy needs at least two networks, got {len(members)}")
         if len(edges) != len(members) - 1:
-            raise ValueError(f"{len(members)} networks need {len(members) - 1} target edge(s) (rad/s), got {len(edges)}")
+            raise InputError(f"{len(members)} networks need {len(members) - 1} target edge(s) (rad/s), got {len(edges)}")
         if not all(np.isfinite(edges)) or any(e <= 0 for e in edges) or any(b <= a for a, b in zip(edges, edges[1:])):
-            raise ValueError(f"target edges must be positive, finite and increasing (rad/s), got {edges}")
+            raise InputError(f"target edges must be positive, finite and increasing (rad/s), got {edges}")
         if any("members" in m.meta for m in members):
-            raise ValueError("a member of a target-switched policy must be a single network, not another switch")
+            raise InputError("a member of a target-switched policy must be a single network, not another switch")
         dts = sorted({m.control_dt for m in members})
         if len(dts) != 1:
-            raise ValueError(f"the networks were trained at different control periods {dts} s; they cannot share "
+            raise InputError(f"the networks were trained at different control periods {dts} s; they cannot share "
                              "one rig loop")
         if len({m.config.get("env_id") for m in members}) != 1:
-            raise ValueError("the networks were trained on different environments: "
+            raise InputError("the networks were trained on different environments: "
                              + ", ".join(str(m.config.get("env_id")) for m in members))
         self.members, self.edges, self.note = members, tuple(edges), note
 
@@ -84,7 +86,7 @@ class TargetSwitchedPolicy:
         """The policy of the file's ``meta`` and arrays (an open ``.npz``)."""
         switch = meta["switch"]
         if switch.get("by") != "target":
-            raise ValueError(f"unknown switch rule {switch.get('by')!r} (only 'target')")
+            raise InputError(f"unknown switch rule {switch.get('by')!r} (only 'target')")
         members = [ExportedPolicy.from_arrays(m, arrays, prefix=f"m{k}_") for k, m in enumerate(meta["members"])]
         return cls(members, switch["edges"], meta.get("note", ""))
 

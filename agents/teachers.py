@@ -26,6 +26,7 @@ import numpy as np
 
 from drillgym import RigParams
 from drillgym.envs.options import U_MAX
+from drillgym.errors import InputError
 from drillgym.friction import brake_law, upper_law
 from drillgym.params import PARAM_NAMES
 
@@ -63,9 +64,9 @@ class FlatnessTeacher:
         from controllers.flatness import FlatnessLaw
 
         if not (isinstance(n, int) and n >= 1):
-            raise ValueError(f"the teacher needs n >= 1 rigs, got {n!r}")
+            raise InputError(f"the teacher needs n >= 1 rigs, got {n!r}")
         if not (np.isfinite(z_max) and z_max > 0):
-            raise ValueError(f"z_max must be a positive angle (rad), got {z_max!r}")
+            raise InputError(f"z_max must be a positive angle (rad), got {z_max!r}")
         self.n, self.dt, self.z_max = int(n), float(dt), float(z_max)
         law = _per_plant_law(FlatnessLaw) if per_plant else FlatnessLaw
         self.law = law(params or RigParams(), self.dt, bandwidth=bandwidth, tau_ref=tau_ref,

@@ -28,6 +28,8 @@ from stable_baselines3.common.noise import NormalActionNoise
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
+from drillgym.errors import InputError, MissingFileError
+
 from .envs import make_training_env
 from .hyperparams import algorithm_kwargs, apply_overrides, load_hyperparams
 
@@ -50,7 +52,7 @@ def algo_class(algo: str) -> type[BaseAlgorithm]:
 
     classes = {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3}
     if a not in classes:
-        raise ValueError(f"unknown algorithm {algo!r}; choose from {', '.join(ALGOS)}")
+        raise InputError(f"unknown algorithm {algo!r}; choose from {', '.join(ALGOS)}")
     return classes[a]
 
 
@@ -104,7 +106,7 @@ def _settings(env_id: str, algo: str, obs: str | None, timesteps: int | None, n_
         hp["n_envs"] = n_envs
     hp["env_kwargs"] = env_kwargs
     if not (int(hp.get("n_timesteps", 0)) >= (0 if allow_zero else 1)):
-        raise ValueError(f"number of timesteps must be >= 1, got {hp.get('n_timesteps')!r}")
+        raise InputError(f"number of timesteps must be >= 1, got {hp.get('n_timesteps')!r}")
     hp["n_timesteps"] = int(hp["n_timesteps"])
     hp["n_envs"] = int(hp.get("n_envs", 1))
     return hp
@@ -181,7 +183,7 @@ def _algo_kwargs(hp: dict[str, Any], n_actions: int) -> dict[str, Any]:
     if noise_type == "normal":
         kw["action_noise"] = NormalActionNoise(np.zeros(n_actions), noise_std * np.ones(n_actions))
     elif noise_type is not None:
-        raise ValueError(f"noise_type must be 'normal' or absent, got {noise_type!r}")
+        raise InputError(f"noise_type must be 'normal' or absent, got {noise_type!r}")
     return kw
 
 
@@ -264,7 +266,7 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
     else:
         distill_kwargs.pop("teacher", None)
     if teacher is None and hp["n_timesteps"] < 1:
-        raise ValueError(f"number of timesteps must be >= 1 without a teacher, got {hp['n_timesteps']!r}")
+        raise InputError(f"number of timesteps must be >= 1 without a teacher, got {hp['n_timesteps']!r}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     _warn_short_run(cls, hp)
@@ -277,7 +279,7 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
     tb = str(out / "tb") if tensorboard else None
     if resume:
         if not ckpt.is_file():
-            raise FileNotFoundError(f"cannot resume: no checkpoint {ckpt}")
+            raise MissingFileError(f"cannot resume: no checkpoint {ckpt}")
         stats = ckpt.with_name("latest_vecnormalize.pkl")
         if isinstance(venv, VecNormalize) and stats.is_file():
             venv = VecNormalize.load(str(stats), venv.venv)
@@ -289,7 +291,7 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
         policy, kw = hp["policy"], _algo_kwargs(hp, venv.action_space.shape[0])
         if hp.get("privileged_critic"):
             if algo != "ppo" or policy != "MlpPolicy":
-                raise ValueError("privileged_critic needs PPO with the MlpPolicy")
+                raise InputError("privileged_critic needs PPO with the MlpPolicy")
             from .privileged import PRIVILEGED, PrivilegedCriticPolicy
 
             policy = PrivilegedCriticPolicy
@@ -299,14 +301,14 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
     t_distill = time.perf_counter()
     if teacher is not None and not resume:
         if algo != "ppo" or hp.get("normalize_obs") or int(hp.get("frame_stack", 1)) != 1:
-            raise ValueError("a teacher is distilled into PPO without observation normalisation or frame stacking")
+            raise InputError("a teacher is distilled into PPO without observation normalisation or frame stacking")
         from .distill import distill
 
         first = {k: v for k, v in distill_kwargs.items() if k != "then"}
         then = distill_kwargs.get("then")
         if then is not None and (not isinstance(then, dict) or "teacher" in then or "then" in then):
             # refused before the first stage's minutes of training, not after them
-            raise ValueError(f"distill.then must be a mapping of DAgger options (no teacher, no third stage), "
+            raise InputError(f"distill.then must be a mapping of DAgger options (no teacher, no third stage), "
                              f"got {then!r}")
         common = dict(privileged=bool(hp.get("privileged_critic")), motor_integral=bool(hp.get("motor_integral")),
                       command=hp.get("command_schedule"), log=print)

@@ -29,6 +29,7 @@ from typing import ClassVar, Mapping
 import numpy as np
 
 from drillgym import Configuration, RigParams, parse_configuration
+from drillgym.errors import InputError
 
 __all__ = ["Controller", "MEASUREMENTS", "U_MAX", "DEFAULT_CONTROL_DT", "Measurement"]
 
@@ -81,12 +82,12 @@ class Controller(ABC):
                  params: RigParams | None = None, dt: float | None = None, u_max: float = U_MAX) -> None:
         dt = type(self).default_dt if dt is None else dt
         if not (np.isfinite(dt) and dt > 0):
-            raise ValueError(f"control period dt must be a positive number of seconds, got {dt!r}")
+            raise InputError(f"control period dt must be a positive number of seconds, got {dt!r}")
         if not (np.isfinite(u_max) and u_max > 0):
-            raise ValueError(f"u_max must be a positive voltage, got {u_max!r}")
+            raise InputError(f"u_max must be a positive voltage, got {u_max!r}")
         self.config = parse_configuration(config)
         if not self.config.has_lower:
-            raise ValueError(f"controllers act on the lower disc; configuration {self.config.label!r} has none")
+            raise InputError(f"controllers act on the lower disc; configuration {self.config.label!r} has none")
         self.params = params or RigParams()
         self.dt = float(dt)
         self.u_max = float(u_max)
@@ -118,7 +119,7 @@ class Controller(ABC):
         elif self._omega_ref_default is not None:
             ref = self._omega_ref_default
         else:
-            raise ValueError(f"controller {self.name!r} needs a target speed: pass omega_ref= or a measurement 'omega_ref'")
+            raise InputError(f"controller {self.name!r} needs a target speed: pass omega_ref= or a measurement 'omega_ref'")
         n = max(n, np.size(ref))
         self.n = n
         self.omega_ref = np.array(np.broadcast_to(ref, (n,)), dtype=float)
@@ -191,12 +192,12 @@ class Controller(ABC):
         if check:
             missing = [k for k in self.uses if k not in out]
             if missing:
-                raise ValueError(f"controller {self.name!r} needs measurement(s) {missing}; got {sorted(out)}")
+                raise InputError(f"controller {self.name!r} needs measurement(s) {missing}; got {sorted(out)}")
         return out
 
 
 def _check_ref(ref: "float | np.ndarray") -> np.ndarray:
     r = np.atleast_1d(np.asarray(ref, dtype=float))
     if not np.all(np.isfinite(r)) or np.any(r <= 0):
-        raise ValueError(f"omega_ref must be positive finite speeds (rad/s), got {ref!r}")
+        raise InputError(f"omega_ref must be positive finite speeds (rad/s), got {ref!r}")
     return r

@@ -19,6 +19,7 @@ import numpy as np
 
 from drillgym import Configuration, RigParams, parse_configuration
 from drillgym.equilibria import equilibrium_voltage, slip_equilibria
+from drillgym.errors import InputError
 
 from .base import Controller
 
@@ -58,7 +59,7 @@ def stick_slip_region(config: "str | Configuration", params: RigParams | None = 
     cfg = parse_configuration(config)
     branch = equilibrium_branch(cfg, params, umax=FOLD_SEARCH[1])
     if not branch.hopf:
-        raise ValueError(f"no Hopf point on the {config} slip branch: no stick-slip region")
+        raise InputError(f"no Hopf point on the {config} slip branch: no stick-slip region")
     h = branch.hopf[0]
 
     def last_stick_slip(volts: np.ndarray) -> float:

@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from drillgym.equilibria import equilibrium_voltage
+from drillgym.errors import InputError
 
 from .base import Controller
 
@@ -55,16 +56,16 @@ class DescentController(Controller):
         super().__init__(omega_ref, **kw)
         for name, v in (("hold", hold), ("ramp", ramp), ("ki", ki)):
             if not (np.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be a non-negative number, got {v!r}")
+                raise InputError(f"{name} must be a non-negative number, got {v!r}")
         if not (0 < approach_fraction <= 1):
-            raise ValueError(f"approach_fraction must be in (0, 1], got {approach_fraction!r}")
+            raise InputError(f"approach_fraction must be in (0, 1], got {approach_fraction!r}")
         if approach is not None and not (np.isfinite(approach) and approach > 0):
-            raise ValueError(f"approach must be a positive speed (rad/s), got {approach!r}")
+            raise InputError(f"approach must be a positive speed (rad/s), got {approach!r}")
         self.hold, self.ramp, self.ki = float(hold), float(ramp), float(ki)
         self.u_approach = (approach_fraction * self.u_max if approach is None
                            else float(equilibrium_voltage(self.config, float(approach), self.params)))
         if self.u_approach > self.u_max:
-            raise ValueError(f"approach speed {approach} rad/s needs {self.u_approach:.2f} V, beyond the "
+            raise InputError(f"approach speed {approach} rad/s needs {self.u_approach:.2f} V, beyond the "
                              f"amplifier's {self.u_max:g} V")
 
     def approach_time(self, omega_ref: "float | np.ndarray") -> np.ndarray:

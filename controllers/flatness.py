@@ -34,6 +34,7 @@ import control
 import numpy as np
 
 from drillgym import RigParams
+from drillgym.errors import InputError
 from drillgym.friction import lower_friction, upper_friction
 
 __all__ = ["FlatnessLaw", "chain_gain"]
@@ -46,9 +47,9 @@ def chain_gain(bandwidth: float, r: float = 1.0, integral: float = 0.0) -> np.nd
     ``integral`` > 0 adds the integral of e as a fourth state (weight integral * b^8): gain (4,) on
     (int e, e, e', e''); otherwise (3,)."""
     if not (np.isfinite(bandwidth) and bandwidth > 0):
-        raise ValueError(f"bandwidth must be a positive rate (rad/s), got {bandwidth!r}")
+        raise InputError(f"bandwidth must be a positive rate (rad/s), got {bandwidth!r}")
     if not (np.isfinite(integral) and integral >= 0):
-        raise ValueError(f"integral weight must be a non-negative number, got {integral!r}")
+        raise InputError(f"integral weight must be a non-negative number, got {integral!r}")
     b = float(bandwidth)
     q = [integral * b ** 8] if integral > 0 else []
     n = len(q) + 3
@@ -103,16 +104,16 @@ class FlatnessLaw:
                  hold: float = 8.0, ramp: float = 15.0, low_bandwidth: float = 1.0, integral: float = 0.0,
                  disturbance: str = "offset", integral_high: float = 0.0) -> None:
         if not (np.isfinite(tau_ref) and tau_ref > 0):
-            raise ValueError(f"tau_ref must be a positive time (s), got {tau_ref!r}")
+            raise InputError(f"tau_ref must be a positive time (s), got {tau_ref!r}")
         for name, v in (("low_speed", low_speed), ("approach", approach), ("hold", hold), ("ramp", ramp),
                         ("integral", integral)):
             if not (np.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be a non-negative number, got {v!r}")
+                raise InputError(f"{name} must be a non-negative number, got {v!r}")
         if disturbance not in ("offset", "scale"):
-            raise ValueError(f"disturbance must be 'offset' or 'scale', got {disturbance!r}")
+            raise InputError(f"disturbance must be 'offset' or 'scale', got {disturbance!r}")
         self.scale = disturbance == "scale"
         if low_speed > approach:
-            raise ValueError(f"approach ({approach} rad/s) must not be below low_speed ({low_speed} rad/s)")
+            raise InputError(f"approach ({approach} rad/s) must not be below low_speed ({low_speed} rad/s)")
         self.p, self.dt, self.tau = params, float(dt), float(tau_ref)
         self.w_rest, self.h = float(w_rest), float(step)
         self.low_speed, self.approach, self.hold, self.ramp = float(low_speed), float(approach), float(hold), float(ramp)

@@ -43,6 +43,7 @@ from filterpy.kalman import KalmanFilter
 
 from drillgym import Configuration, RigParams
 from drillgym.equilibria import linearise, lower_damping, slip_equilibrium
+from drillgym.errors import InputError
 from drillgym.friction import lower_friction
 from drillgym.measurement import DEFAULT_COUNTS_PER_REV
 
@@ -164,15 +165,15 @@ def disturbance_model(params: RigParams | None = None, dt: float = 0.01, *,
     """
     p = params or RigParams()
     if not (np.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt must be a positive period (s), got {dt!r}")
+        raise InputError(f"dt must be a positive period (s), got {dt!r}")
     if disturbance not in ("offset", "scale"):
-        raise ValueError(f"disturbance must be 'offset' or 'scale', got {disturbance!r}")
+        raise InputError(f"disturbance must be 'offset' or 'scale', got {disturbance!r}")
     if disturbance == "scale" and not friction_known:
-        raise ValueError("a 'scale' disturbance needs the nominal brake law (friction_known=True)")
+        raise InputError("a 'scale' disturbance needs the nominal brake law (friction_known=True)")
     for name, v in (("sigma_d", sigma_d), ("sigma_upper", sigma_upper), ("sigma_lower", sigma_lower),
                     ("angle_noise", angle_noise), ("sigma_du", sigma_du)):
         if not (np.isfinite(v) and v >= 0):
-            raise ValueError(f"{name} must be a non-negative number, got {v!r}")
+            raise InputError(f"{name} must be a non-negative number, got {v!r}")
     # exact Jacobian of the core at a slip equilibrium (angles variant: theta_u, theta_l, omega_u, omega_l)
     eq = slip_equilibrium(Configuration.TORSIONAL, 3.0, p, with_eigenvalues=False)
     lin = linearise(eq, "angles")
@@ -302,7 +303,7 @@ class ExtendedKalmanObserver:
     def __init__(self, model: DisturbanceModel, *, p0_alpha: float = 0.1, p0_speed: float = 0.05,
                  p0_d: float = 0.01, slope_step: float = 1e-3, p0_du: float = 0.1) -> None:
         if model.friction_known is False:
-            raise ValueError("the extended filter needs the nominal brake law (friction_known=True)")
+            raise InputError("the extended filter needs the nominal brake law (friction_known=True)")
         self.model = model
         self.h = float(slope_step)
         self.dim = int(model.Ad.shape[0])  # 5, or 6 with the upper-disc torque du

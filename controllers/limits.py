@@ -36,6 +36,7 @@ import control
 import numpy as np
 
 from drillgym import RigParams
+from drillgym.errors import InputError
 from drillgym.friction import lower_friction_slope
 
 __all__ = ["MotorAngleLimit", "brake_slope", "motor_angle_model", "motor_angle_limit", "tolerated_error"]
@@ -89,7 +90,7 @@ def motor_angle_limit(params: RigParams | None, omega: float) -> MotorAngleLimit
     max_p prod_z |z + conj p| / |z - p| on ||S||_inf and ||T||_inf (1 when there is no RHP pole)."""
     p = params or RigParams()
     if not (np.isfinite(omega) and omega > 0):
-        raise ValueError(f"omega must be a positive speed (rad/s), got {omega!r}")
+        raise InputError(f"omega must be a positive speed (rad/s), got {omega!r}")
     sys = motor_angle_model(p, float(omega))
     poles = np.linalg.eigvals(np.asarray(sys.A))
     zeros = np.asarray(control.zeros(sys) if hasattr(control, "zeros") else control.zero(sys))

@@ -31,6 +31,7 @@ from scipy.optimize import minimize_scalar
 
 from drillgym import Configuration, RigParams
 from drillgym.equilibria import linearise, lower_damping, slip_equilibrium
+from drillgym.errors import InputError
 
 from .base import Controller
 from .flatness import FlatnessLaw
@@ -173,7 +174,7 @@ class LQGController(Controller):
                  r: float = DEFAULT_LQR_R, outer_gain: float = 0.0, outer_start: float = 5.0, **kw) -> None:
         super().__init__(omega_ref, **kw)
         if not (np.isfinite(outer_gain) and outer_gain >= 0 and np.isfinite(outer_start) and outer_start >= 0):
-            raise ValueError(f"outer_gain (1/s) and outer_start (s) must be non-negative, got {outer_gain!r}, "
+            raise InputError(f"outer_gain (1/s) and outer_start (s) must be non-negative, got {outer_gain!r}, "
                              f"{outer_start!r}")
         self.outer_gain, self.outer_start = float(outer_gain), float(outer_start)
         self.model = disturbance_model(self.params, self.dt, counts_per_rev=counts_per_rev,

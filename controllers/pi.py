@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from drillgym.equilibria import equilibrium_voltage
+from drillgym.errors import InputError
 from drillgym.measurement import EncoderVelocityEstimator
 
 from .base import Controller
@@ -27,7 +28,7 @@ class MotorSpeedPI:
 
     def __init__(self, n: int, dt: float, kp: float, ki: float, u_max: float) -> None:
         if kp < 0 or ki < 0:
-            raise ValueError(f"PI gains must be non-negative, got kp={kp!r}, ki={ki!r}")
+            raise InputError(f"PI gains must be non-negative, got kp={kp!r}, ki={ki!r}")
         self.dt, self.kp, self.ki, self.u_max = dt, kp, ki, u_max
         self.integral = np.zeros(n)
 

@@ -39,6 +39,7 @@ from __future__ import annotations
 import numpy as np
 
 from drillgym.equilibria import equilibrium_voltage
+from drillgym.errors import InputError
 from drillgym.measurement import EncoderVelocityEstimator
 
 from .kalman import I_AL, I_D, I_DU, I_WL, I_WU
@@ -59,7 +60,7 @@ class RobustObserverController(ObserverController):
                  sigma_d: float = 0.02, sigma_du: float = 0.002, p0_du: float = 0.3, outer_gain: float = 0.05,
                  overspeed: float = 20.0, bu_margin: float = 1.1, **kw) -> None:
         if not (np.isfinite(bu_margin) and bu_margin > 0):
-            raise ValueError(f"bu_margin must be a positive factor, got {bu_margin!r}")
+            raise InputError(f"bu_margin must be a positive factor, got {bu_margin!r}")
         if bu_margin != 1.0:  # design on the least damped motor of the set: a real one only adds damping
             from drillgym import RigParams
 
@@ -69,12 +70,12 @@ class RobustObserverController(ObserverController):
         kw.pop("angle_noise", None)
         for name, v in (("smooth_tau", smooth_tau), ("overspeed", overspeed)):
             if not (np.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be a non-negative number, got {v!r}")
+                raise InputError(f"{name} must be a non-negative number, got {v!r}")
         super().__init__(omega_ref, counts_per_rev=int(assumed_counts), noise_floor=noise_floor,
                          sigma_upper=sigma_upper, sigma_lower=sigma_lower, sigma_d=sigma_d, sigma_du=sigma_du,
                          p0_du=p0_du, **kw)
         if not (np.isfinite(outer_gain) and outer_gain >= 0):
-            raise ValueError(f"outer_gain must be a non-negative rate (1/s), got {outer_gain!r}")
+            raise InputError(f"outer_gain must be a non-negative rate (1/s), got {outer_gain!r}")
         self.outer_gain = float(outer_gain)
         self.smooth = float(np.exp(-self.dt / smooth_tau)) if smooth_tau > 0 else 0.0
         self.overspeed = float(overspeed)

@@ -31,6 +31,8 @@ import math
 
 import numpy as np
 
+from drillgym.errors import InputError
+
 from .pi import PIController
 
 __all__ = ["SoftTorqueController"]
@@ -51,11 +53,11 @@ class SoftTorqueController(PIController):
         self.omega_n = math.sqrt(p.ktheta / p.Jl)  # torsional mode (rad/s)
         self.impedance = math.sqrt(p.ktheta * p.Jl) if impedance is None else float(impedance)
         if not (self.impedance > 0 and hp_ratio > 0):
-            raise ValueError(f"impedance and hp_ratio must be positive, got {impedance!r}, {hp_ratio!r}")
+            raise InputError(f"impedance and hp_ratio must be positive, got {impedance!r}, {hp_ratio!r}")
         self.a_hp = math.exp(-hp_ratio * self.omega_n * self.dt)  # pole of the low-pass removed by the high-pass
         self.a_tq = math.exp(-self.dt / torque_tau)
         if not (km_margin > 0 and bu_margin > 0):
-            raise ValueError(f"km_margin and bu_margin must be positive factors, got {km_margin!r}, {bu_margin!r}")
+            raise InputError(f"km_margin and bu_margin must be positive factors, got {km_margin!r}, {bu_margin!r}")
         self.km_model = p.km * float(km_margin)  # N m/V, the torque estimate's motor constant
         self.bu_scale = 1.0 / float(bu_margin)  # factor on the model's viscous friction in the estimate
 

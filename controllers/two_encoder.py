@@ -34,6 +34,7 @@ from scipy.linalg import expm
 
 from drillgym import RigParams
 from drillgym.equilibria import equilibrium_voltage
+from drillgym.errors import InputError
 from drillgym.friction import lower_friction
 
 from .base import Controller
@@ -113,12 +114,12 @@ class TwoEncoderLQG(Controller):
         super().__init__(omega_ref, **kw)
         for name, v in (("approach", approach), ("hold", hold), ("ramp", ramp)):
             if not (np.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be a non-negative number, got {v!r}")
+                raise InputError(f"{name} must be a non-negative number, got {v!r}")
         if not (np.isfinite(tau_ref) and tau_ref > 0):
-            raise ValueError(f"tau_ref must be a positive time (s), got {tau_ref!r}")
+            raise InputError(f"tau_ref must be a positive time (s), got {tau_ref!r}")
         self.design = design or TwoEncoderDesign()
         if not all(np.isfinite(v) and v > 0 for v in astuple(self.design)[:3]):
-            raise ValueError(f"design: tau, slope_margin and the noise levels must be positive, got {self.design}")
+            raise InputError(f"design: tau, slope_margin and the noise levels must be positive, got {self.design}")
         self.approach, self.hold, self.ramp, self.tau_ref = float(approach), float(hold), float(ramp), float(tau_ref)
         self.feedforward = float(feedforward)
 

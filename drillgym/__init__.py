@@ -14,8 +14,11 @@ prefer_full_vector_width()  # 512-bit vectors on AVX-512 hosts (opt out: DRILLGY
 invalidate_stale_kernels()  # before any compiled kernel is loaded from numba's cache
 
 from .configurations import Configuration, N_STATE, STATE_NAMES, parse_configuration
+from .errors import (DataFormatError, DrillgymError, EffectError, FitError, InputError, InputTypeError,
+                     MissingFileError, OutputPathError, ParameterError, SafetyError, SimulationError,
+                     UnavailableError)
 from .integrators import DEFAULT_DT, OUTPUT_NAMES
-from .params import ParameterError, RigParams
+from .params import RigParams
 from .simulator import BatchSimulator, BatchTrajectory, Trajectory, initial_state, simulate, simulate_batch
 
 __version__ = "0.1.0"
@@ -24,6 +27,8 @@ __all__ = [
     "Configuration", "N_STATE", "STATE_NAMES", "parse_configuration", "DEFAULT_DT", "OUTPUT_NAMES",
     "ParameterError", "RigParams", "BatchSimulator", "BatchTrajectory", "Trajectory", "initial_state",
     "simulate", "simulate_batch",
+    "DrillgymError", "InputError", "InputTypeError", "DataFormatError", "EffectError", "OutputPathError",
+    "MissingFileError", "SimulationError", "FitError", "UnavailableError", "SafetyError",
 ]
 
 import importlib.util as _ilu

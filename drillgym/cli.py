@@ -33,25 +33,69 @@ def _root() -> None:
 register_commands(app)  # the core's commands, then those of installed packages (entry points)
 
 
-def main(argv: list[str] | None = None) -> None:
-    """Console entry point.
+#: exit code of an error the user can act on (a :class:`~drillgym.errors.DrillgymError`)
+USER_ERROR_EXIT = 2
+#: exit code of a bug (any other exception): its traceback is printed
+INTERNAL_ERROR_EXIT = 1
 
-    A :class:`~drillgym.errors.DrillgymError` (bad input, a safety stop, a run that cannot give a
-    valid result) is printed as one line on stderr with exit code 2. Any other exception is a bug
-    in drillgym: its traceback is printed, followed by one line saying so, and the exit code is 1.
+
+def is_user_error(exc: BaseException) -> bool:
+    """Whether ``exc`` is an error the user can act on, printed as one line.
+
+    Parameters
+    ----------
+    exc : BaseException
+        The exception that ended a command.
+
+    Returns
+    -------
+    bool
+        True for a :class:`~drillgym.errors.DrillgymError`, and for a
+        :class:`~drillgym.parallel.TaskFailed` whose task raised one (a worker refused its
+        input or its run diverged); False for anything else, which is a bug.
     """
     from .errors import DrillgymError
 
+    if isinstance(exc, DrillgymError):
+        return True
+    from .parallel import TaskFailed
+
+    return isinstance(exc, TaskFailed) and isinstance(exc.error, DrillgymError)
+
+
+def one_line(exc: BaseException) -> str:
+    """The message of ``exc`` on one line (line breaks of a wrapped message become spaces)."""
+    return " ".join(part.strip() for part in str(exc).splitlines() if part.strip()) or type(exc).__name__
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Run the ``drillgym`` command line (the console entry point).
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments after the program name. Default: ``sys.argv[1:]``.
+
+    Raises
+    ------
+    SystemExit
+        Always, with the command's exit code: 0 on success, 2 (:data:`USER_ERROR_EXIT`) for a
+        :class:`~drillgym.errors.DrillgymError` (bad input, a run or fit that cannot give a valid
+        result, an unreachable service), printed as one line ``drillgym: error: ...`` on stderr,
+        and 1 (:data:`INTERNAL_ERROR_EXIT`) for any other exception: a bug in drillgym, whose
+        traceback is printed, followed by one line saying so. Usage errors found by the option
+        parser exit 2 with its usage message; ``rig run`` has its own codes for a safety stop.
+    """
     try:
         app(args=argv, standalone_mode=True)
-    except DrillgymError as exc:
-        print(f"drillgym: error: {exc}", file=sys.stderr)
-        sys.exit(2)
-    except Exception:
+    except Exception as exc:
+        if is_user_error(exc):
+            print(f"drillgym: error: {one_line(exc)}", file=sys.stderr)
+            sys.exit(USER_ERROR_EXIT)
         traceback.print_exc()
         print("drillgym: internal error: the traceback above is a bug in drillgym, not in your input; "
               "please report it with the command you ran", file=sys.stderr)
-        sys.exit(1)
+        sys.exit(INTERNAL_ERROR_EXIT)
 
 
 if __name__ == "__main__":

@@ -34,6 +34,8 @@ from __future__ import annotations
 
 from enum import IntEnum
 
+from .errors import InputError
+
 __all__ = ["Configuration", "N_STATE", "STATE_NAMES", "parse_configuration"]
 
 
@@ -77,4 +79,4 @@ def parse_configuration(config: "str | Configuration | int") -> Configuration:
     elif isinstance(config, int) and config in set(c.value for c in Configuration):
         return Configuration(config)
     names = ", ".join(c.label for c in Configuration)
-    raise ValueError(f"unknown configuration {config!r}; expected one of: {names}")
+    raise InputError(f"unknown configuration {config!r}; expected one of: {names}")

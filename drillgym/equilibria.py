@@ -61,6 +61,7 @@ from scipy.optimize import brentq, fsolve
 from .configurations import Configuration, parse_configuration
 from .effects.base import Force, Measurement
 from .effects.composition import Composition, compose
+from .errors import FitError, InputError
 from .params import ParameterError, RigParams
 
 __all__ = [
@@ -125,7 +126,7 @@ def supported_configuration(config: "str | Configuration", params: "RigParams | 
     """Parse ``config`` and check that equilibria are defined for it (else ValueError)."""
     cfg = parse_configuration(config)
     if cfg is Configuration.FREE_VIBRATION:
-        raise ValueError("equilibria are defined for upper, torsional, lateral and coupled, not free_vibration")
+        raise InputError("equilibria are defined for upper, torsional, lateral and coupled, not free_vibration")
     return cfg
 
 
@@ -135,7 +136,7 @@ def state_names(config: "str | Configuration", variant: str = "reduced", params:
     """Names of the linearisation's states for ``config`` and ``variant`` ('reduced' or 'angles')."""
     cfg = parse_configuration(config)
     if variant not in ("reduced", "angles"):
-        raise ValueError(f"variant must be 'reduced' or 'angles', got {variant!r}")
+        raise InputError(f"variant must be 'reduced' or 'angles', got {variant!r}")
     if cfg is Configuration.UPPER:
         names = ["omega_u"] if variant == "reduced" else ["theta_u", "omega_u"]
     else:
@@ -308,7 +309,7 @@ def _refine(cfg: Configuration, omega: float, guess: tuple, rig: _Rig) -> tuple[
     sol, _, ier, msg = fsolve(residual, np.asarray(z0) / scale, full_output=True, xtol=1e-13)
     res = residual(sol)
     if np.max(np.abs(res)) > 1e-8:
-        raise RuntimeError(f"slip equilibrium at omega={omega} rad/s of the model {rig.comp.label!r} did not "
+        raise FitError(f"slip equilibrium at omega={omega} rad/s of the model {rig.comp.label!r} did not "
                            f"converge: {msg}")
     moved = np.max(np.abs(residual(sol, shift=1.2345, t=7.5)))
     if moved > 1e-6:
@@ -349,7 +350,7 @@ def slip_equilibrium(config: "str | Configuration", omega: float, params: "RigPa
     rig = _rig_of(params, effects, effect_params)
     cfg = supported_configuration(config)
     if not (np.isfinite(omega) and omega != 0.0):
-        raise ValueError(f"omega must be a finite non-zero speed for a slip equilibrium, got {omega!r}")
+        raise InputError(f"omega must be a finite non-zero speed for a slip equilibrium, got {omega!r}")
     u, alpha, x, y = _closed_form(cfg, float(omega), rig)
     states: tuple = ()
     if rig.dynamic_effects:
@@ -429,7 +430,7 @@ def slip_equilibria(config: "str | Configuration", u: float, params: "RigParams 
     rig = _rig_of(params, effects, effect_params)
     cfg = supported_configuration(config)
     if not np.isfinite(u):
-        raise ValueError(f"voltage must be finite, got {u!r}")
+        raise InputError(f"voltage must be finite, got {u!r}")
     if u == 0.0:
         return []
     d = 1.0 if u > 0 else -1.0

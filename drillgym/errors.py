@@ -72,6 +72,10 @@ class OutputPathError(InputError):
     """An output path cannot be written without replacing or losing something the user did not ask to."""
 
 
+class MissingFileError(InputError, FileNotFoundError):
+    """A file the user named (an input, a policy, a parameter file, a serial port) does not exist."""
+
+
 class SimulationError(DrillgymError, RuntimeError):
     """A run diverged or produced non-finite states: names the time and the state."""
 

@@ -36,6 +36,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import InputError
+
 DEFAULT_DT = 1e-3  # s
 
 # Butcher tableaus ---------------------------------------------------------------
@@ -70,7 +72,7 @@ def fixed_step_tableau(method: str, where: str) -> tuple[np.ndarray, np.ndarray,
     """:func:`tableau` for a path that steps at a fixed dt (``where`` names it in the error): 'dp45' is
     adaptive and only single runs take it, so it is refused instead of run as fixed-step DP5."""
     if isinstance(method, str) and method.lower() == "dp45":
-        raise ValueError(f"{where}: method 'dp45' is adaptive (single runs only); use 'rk4' or 'dp5'")
+        raise InputError(f"{where}: method 'dp45' is adaptive (single runs only); use 'rk4' or 'dp5'")
     return tableau(method)
 
 
@@ -79,4 +81,4 @@ def tableau(method: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     try:
         return TABLEAUS[method.lower()]
     except (KeyError, AttributeError):
-        raise ValueError(f"unknown integration method {method!r}; expected 'rk4', 'dp5' or 'dp45'") from None
+        raise InputError(f"unknown integration method {method!r}; expected 'rk4', 'dp5' or 'dp45'") from None

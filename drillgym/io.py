@@ -34,7 +34,7 @@ from typing import IO, Iterable, Mapping, Sequence
 import numpy as np
 
 from .configurations import Configuration, parse_configuration
-from .errors import DataFormatError
+from .errors import DataFormatError, InputError
 
 __all__ = ["TimeSeries", "read_timeseries", "read_input_signal", "read_csv", "read_mat", "write_timeseries", "write_trajectory_csv",
            "StreamingCsvWriter", "required_columns", "DataFormatError", "U_LIMIT_FILE", "XY_LIMIT_FILE"]
@@ -138,7 +138,7 @@ class TimeSeries:
             linearly; ``meta["sample_rate_hz"]`` set to ``rate_hz``.
         """
         if not (rate_hz > 0 and math.isfinite(rate_hz)):
-            raise ValueError(f"resample rate must be a positive number of Hz, got {rate_hz!r}")
+            raise InputError(f"resample rate must be a positive number of Hz, got {rate_hz!r}")
         t = self.columns["t"]
         n = int(math.floor((t[-1] - t[0]) * rate_hz + 1e-9)) + 1
         tn = t[0] + np.arange(n) / rate_hz

@@ -38,6 +38,8 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
+from .errors import InputError, UnavailableError
+
 __all__ = ["TaskFailed", "RayUnavailable", "LocalExecutor", "RayExecutor", "open_executor", "connect_ray",
            "map_ordered", "parallelism", "describe_inputs", "RAY_HELP"]
 
@@ -66,7 +68,7 @@ def _rebuild_failed(message: str) -> RuntimeError:
     return RuntimeError(message)
 
 
-class RayUnavailable(ValueError):
+class RayUnavailable(UnavailableError):
     """Ray is not installed or the cluster named by ``--ray`` cannot be reached."""
 
 
@@ -116,7 +118,7 @@ class LocalExecutor(Executor):
 
     def __init__(self, workers: int | None = None, *, retries: int = 2):
         if workers is not None and workers < 1:
-            raise ValueError(f"workers must be >= 1, got {workers}")
+            raise InputError(f"workers must be >= 1, got {workers}")
         self.workers = int(workers or os.cpu_count() or 1)
         self.retries = int(retries)
         self._lock = threading.Lock()

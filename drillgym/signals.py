@@ -20,6 +20,8 @@ from pathlib import Path
 import numpy as np
 from scipy import signal as sps
 
+from .errors import InputError
+
 __all__ = ["quasi_random", "sum_of_sines", "write_input_file", "read_input_file", "U_MAX"]
 
 U_MAX = 5.0  # V: amplifier range of the rig
@@ -35,18 +37,18 @@ def _fade_in(t: np.ndarray, u: np.ndarray, fade_s: float) -> np.ndarray:
 
 def _check(duration: float, rate_hz: float, amplitude: float, f_max: float) -> None:
     if not (np.isfinite(duration) and duration > 0):
-        raise ValueError(f"signal duration must be a positive number of seconds, got {duration!r}")
+        raise InputError(f"signal duration must be a positive number of seconds, got {duration!r}")
     if not (np.isfinite(rate_hz) and rate_hz > 0):
-        raise ValueError(f"signal sample rate must be a positive number of Hz, got {rate_hz!r}")
+        raise InputError(f"signal sample rate must be a positive number of Hz, got {rate_hz!r}")
     if not (0 < amplitude <= 50):
-        raise ValueError(f"signal amplitude must be in (0, 50] V, got {amplitude!r}")
+        raise InputError(f"signal amplitude must be in (0, 50] V, got {amplitude!r}")
     if not (0 < f_max < rate_hz / 2):
-        raise ValueError(f"f_max = {f_max!r} Hz must be positive and below the Nyquist rate {rate_hz / 2} Hz")
+        raise InputError(f"f_max = {f_max!r} Hz must be positive and below the Nyquist rate {rate_hz / 2} Hz")
 
 
 def _check_offset(amplitude: float, offset: float) -> None:
     if abs(offset) >= amplitude and offset != 0:
-        raise ValueError(f"offset {offset} V must be smaller in size than the amplitude {amplitude} V (the largest "
+        raise InputError(f"offset {offset} V must be smaller in size than the amplitude {amplitude} V (the largest "
                          f"|u|; the signal spans offset ± (amplitude - |offset|))")
 
 
@@ -65,7 +67,7 @@ def quasi_random(duration: float, *, rate_hz: float = 1000.0, seed: int | None =
     """
     _check(duration, rate_hz, amplitude, f_max)
     if not (0 < hold[0] <= hold[1]):
-        raise ValueError(f"hold times must satisfy 0 < min <= max, got {hold!r}")
+        raise InputError(f"hold times must satisfy 0 < min <= max, got {hold!r}")
     _check_offset(amplitude, offset)
     rng = np.random.default_rng(seed)
     n = int(round(duration * rate_hz)) + 1
@@ -97,7 +99,7 @@ def sum_of_sines(duration: float, *, rate_hz: float = 1000.0, seed: int | None =
     _check_offset(amplitude, offset)
     f = np.asarray(frequencies, dtype=float)
     if f.size == 0 or np.any(f <= 0) or np.any(f >= f_max):
-        raise ValueError(f"frequencies must be positive and below f_max = {f_max} Hz, got {tuple(frequencies)}")
+        raise InputError(f"frequencies must be positive and below f_max = {f_max} Hz, got {tuple(frequencies)}")
     rng = np.random.default_rng(seed)
     phases = rng.uniform(0.0, 2 * np.pi, f.size)
     t = np.arange(int(round(duration * rate_hz)) + 1) / rate_hz
@@ -112,9 +114,9 @@ def write_input_file(path: str | Path, t: np.ndarray, u: np.ndarray, description
     t = np.asarray(t, dtype=float)
     u = np.asarray(u, dtype=float)
     if t.shape != u.shape or t.ndim != 1:
-        raise ValueError(f"t and u must be 1-D arrays of one length, got shapes {t.shape} and {u.shape}")
+        raise InputError(f"t and u must be 1-D arrays of one length, got shapes {t.shape} and {u.shape}")
     if np.any(np.diff(t) <= 0):
-        raise ValueError("signal time must be strictly increasing")
+        raise InputError("signal time must be strictly increasing")
     path = Path(path)
     meta = {"source": "signal", "description": description,
             "sample_rate_hz": round(float(1.0 / np.median(np.diff(t))), 6) if t.size > 1 else None}

@@ -21,6 +21,7 @@ import os
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
+from .errors import InputError
 from .parallel import TaskFailed, connect_ray
 
 __all__ = ["run_trials"]
@@ -63,7 +64,7 @@ def run_trials(fn: Callable[[Any], Any], configs: Sequence[Any], *, ray: str | N
 
     configs = list(configs)
     if not configs:
-        raise ValueError("run_trials needs at least one config")
+        raise InputError("run_trials needs at least one config")
     started = connect_ray(ray, num_cpus=workers) if ray is not None else False
     try:
         storage_path = str(Path(storage).resolve()) if storage is not None else None

@@ -11,6 +11,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
+from drillgym.errors import InputError
+
 from . import protocol as P
 from .link import DEFAULT_BAUDRATE, LinkCorruptError, LinkError, LinkSequenceError, LinkTimeoutError, SerialLink
 
@@ -50,7 +52,7 @@ class RigClient:
 
     def __init__(self, url: str, reply_timeout: float = 0.05, baudrate: int = DEFAULT_BAUDRATE) -> None:
         if not (0 < reply_timeout <= 1.0):
-            raise ValueError(f"reply_timeout must be in (0, 1] s, got {reply_timeout!r}")
+            raise InputError(f"reply_timeout must be in (0, 1] s, got {reply_timeout!r}")
         self.link = SerialLink(url, baudrate)
         self.reply_timeout = float(reply_timeout)
         self.config: P.Config | None = None

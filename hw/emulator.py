@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from drillgym import RigParams
+from drillgym.errors import InputError
 
 from . import protocol as P
 from .firmware import Firmware, FirmwareConfig
@@ -107,7 +108,7 @@ class RigEmulator:
                  jitter_s: float = 0.0, faults: FaultPlan | None = None, link_path: str | Path | None = None,
                  log=None) -> None:
         if latency_s < 0 or jitter_s < 0:
-            raise ValueError(f"latency_s and jitter_s must be >= 0 s, got {latency_s!r}, {jitter_s!r}")
+            raise InputError(f"latency_s and jitter_s must be >= 0 s, got {latency_s!r}, {jitter_s!r}")
         self.firmware = Firmware(configuration, params, firmware, effects=effects, effect_params=effect_params, dt=dt,
                                  method=method, alpha0=alpha0, lvdt_noise_std=lvdt_noise_std, seed=seed)
         self.firmware.on_log = log

@@ -42,7 +42,7 @@ from drillgym.envs.observation import make_observation_model
 from drillgym.envs.options import U_MAX, EnvOptions
 from drillgym.envs.reward import TrackingReward
 from drillgym.envs.task import SpeedTrackingTask, StickSlipMonitor
-from drillgym.errors import SafetyError
+from drillgym.errors import InputError, SafetyError
 from drillgym.measurement import EncoderVelocityEstimator, counts_to_angle
 
 from . import protocol as P
@@ -150,10 +150,10 @@ class HardwareEnv(gym.Env):
                  baudrate: int = DEFAULT_BAUDRATE, **options: Any) -> None:
         fixed = sorted(set(options) & set(HARDWARE_FIXED_OPTIONS))
         if fixed:
-            raise ValueError(f"option(s) {fixed} do not apply to the hardware environment (properties of the rig "
+            raise InputError(f"option(s) {fixed} do not apply to the hardware environment (properties of the rig "
                              f"or its firmware)")
         if not (rest_time > 0 and rest_timeout > rest_time):
-            raise ValueError(f"need 0 < rest_time < rest_timeout, got {rest_time!r}, {rest_timeout!r}")
+            raise InputError(f"need 0 < rest_time < rest_timeout, got {rest_time!r}, {rest_timeout!r}")
         self.limits = limits or SafetyLimits()
         self.record = Path(record)
         self.rest_time, self.rest_timeout = float(rest_time), float(rest_timeout)
@@ -169,7 +169,7 @@ class HardwareEnv(gym.Env):
             if reply_timeout is None:  # wait as long as the firmware keeps the motor going without a command
                 self._reply_timeout = self._client.reply_timeout = min(cfg.watchdog_ms * 1e-3, 1.0)
             if abs(cfg.period_s - control_dt) > 1e-9:
-                raise ValueError(f"the firmware on {self.port} runs a {cfg.period_s} s control period and refused "
+                raise InputError(f"the firmware on {self.port} runs a {cfg.period_s} s control period and refused "
                                  f"{control_dt} s")
             self.options = EnvOptions.from_kwargs(configuration=configuration, counts_per_rev=cfg.counts_per_rev,
                                                   lvdt_noise_std=0.0, **options)

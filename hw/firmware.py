@@ -26,6 +26,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from drillgym import BatchSimulator, RigParams
+from drillgym.errors import InputError
 from drillgym.measurement import EncoderVelocityEstimator, angle_to_counts, counts_to_angle, lvdt_measure
 
 from . import protocol as P
@@ -60,13 +61,13 @@ class FirmwareConfig:
 
     def __post_init__(self) -> None:
         if not (isinstance(self.counts_per_rev, int) and self.counts_per_rev > 0):
-            raise ValueError(f"counts_per_rev must be a positive integer, got {self.counts_per_rev!r}")
+            raise InputError(f"counts_per_rev must be a positive integer, got {self.counts_per_rev!r}")
         for name in ("lvdt_m_per_lsb", "control_period_s", "watchdog_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be > 0, got {v!r}")
+                raise InputError(f"{name} must be > 0, got {v!r}")
         if len(self.firmware_id.encode("ascii")) > 16:
-            raise ValueError(f"firmware_id must be at most 16 ASCII characters, got {self.firmware_id!r}")
+            raise InputError(f"firmware_id must be at most 16 ASCII characters, got {self.firmware_id!r}")
 
 
 @dataclass(frozen=True)
@@ -143,7 +144,7 @@ class Firmware:
     def _substeps(self, period_s: float) -> int:
         n = int(round(period_s / self.sim.dt))
         if n < 1 or abs(n * self.sim.dt - period_s) > 1e-9:
-            raise ValueError(f"control period {period_s} s is not a multiple of the plant step {self.sim.dt} s")
+            raise InputError(f"control period {period_s} s is not a multiple of the plant step {self.sim.dt} s")
         return n
 
     def config_message(self) -> P.Config:

@@ -14,6 +14,8 @@ import time
 
 import serial
 
+from drillgym.errors import MissingFileError, SafetyError, UnavailableError
+
 try:  # pyserial's POSIX flush() calls termios directly, whose error is not an OSError
     import termios
 
@@ -21,7 +23,6 @@ try:  # pyserial's POSIX flush() calls termios directly, whose error is not an O
 except ImportError:  # pragma: no cover - Windows
     PORT_ERRORS = (serial.SerialException, OSError)
 
-from drillgym.errors import SafetyError
 
 from . import protocol as P
 
@@ -72,12 +73,12 @@ class SerialLink:
     def __init__(self, url: str, baudrate: int = DEFAULT_BAUDRATE) -> None:
         self.url = str(url)
         if "://" not in self.url and not os.path.exists(self.url):
-            raise FileNotFoundError(f"serial port {self.url!r} does not exist (is the rig or `drillgym rig emulate` "
+            raise MissingFileError(f"serial port {self.url!r} does not exist (is the rig or `drillgym rig emulate` "
                                     f"running?)")
         try:
             self.ser = serial.serial_for_url(self.url, baudrate=baudrate, timeout=0.002, write_timeout=WRITE_TIMEOUT_S)
         except PORT_ERRORS as exc:
-            raise ValueError(f"cannot open serial port {self.url!r}: {exc}") from None
+            raise UnavailableError(f"cannot open serial port {self.url!r}: {exc}") from None
         self.parser = P.FrameParser()
         self._tx_seq = 0
         self._rx_seq: int | None = None

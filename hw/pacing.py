@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import time
 
+from drillgym.errors import InputError
+
 __all__ = ["Pacer"]
 
 
@@ -17,7 +19,7 @@ class Pacer:
 
     def __init__(self, period: float) -> None:
         if not period > 0:
-            raise ValueError(f"control period must be > 0 s, got {period!r}")
+            raise InputError(f"control period must be > 0 s, got {period!r}")
         self.period = float(period)
         self.next: float | None = None
         self.overruns = 0

@@ -11,6 +11,8 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal
 
+from drillgym.errors import InputError
+
 __all__ = ["CounterUnwrap", "LvdtProcessor"]
 
 _WRAP = 1 << 32
@@ -51,7 +53,7 @@ class LvdtProcessor:
 
     def __init__(self, m_per_lsb: float, sample_rate_hz: float, cutoff_hz: float = 5.0, order: int = 2) -> None:
         if not (m_per_lsb > 0 and sample_rate_hz > 0 and cutoff_hz > 0):
-            raise ValueError("LVDT scale, sample rate and cut-off must be > 0")
+            raise InputError("LVDT scale, sample rate and cut-off must be > 0")
         self.scale = float(m_per_lsb)
         self.offset = np.zeros(2)  # m
         self.sos = (signal.butter(order, cutoff_hz, fs=sample_rate_hz, output="sos")

@@ -23,6 +23,8 @@ from dataclasses import astuple, dataclass, field
 from enum import IntEnum, IntFlag
 from typing import ClassVar
 
+from drillgym.errors import DrillgymError
+
 from .crc import crc16
 
 __all__ = ["PROTOCOL_VERSION", "START", "HEADER_SIZE", "MAX_PAYLOAD", "MsgType", "StopReason", "Status",
@@ -37,7 +39,7 @@ CRC_SIZE = 2
 MAX_PAYLOAD = 64
 
 
-class ProtocolError(ValueError):
+class ProtocolError(DrillgymError, ValueError):
     """A frame or message that is not valid protocol (bad payload, unknown type, wrong version)."""
 
 

@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 from typing import Mapping
 
+from drillgym.errors import InputError
 from drillgym.io import StreamingCsvWriter
 
 __all__ = ["EpisodeRecorder", "episode_path", "columns"]
@@ -55,7 +56,7 @@ class EpisodeRecorder:
 
     def __init__(self, path: str | Path, lateral: bool, meta: Mapping, flush_interval_s: float = 0.5) -> None:
         if not 0 < flush_interval_s <= 1.0:
-            raise ValueError(f"flush_interval_s must be in (0, 1] s, got {flush_interval_s!r}")
+            raise InputError(f"flush_interval_s must be in (0, 1] s, got {flush_interval_s!r}")
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.rows = 0

@@ -19,6 +19,8 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from drillgym.errors import DataFormatError, InputError, MissingFileError, UnavailableError
+
 __all__ = ["ConstantController", "PlaybackController", "LinearPolicy", "make_controller", "load_policy", "measurement_of",
            "run_episode", "EpisodeResult"]
 
@@ -50,13 +52,13 @@ class PlaybackController:
 
         path = Path(path)
         if not path.is_file():
-            raise ValueError(f"controller play:{path}: no such input file")
+            raise MissingFileError(f"controller play:{path}: no such input file")
         try:
             self.t, self.u = read_input_file(path)
         except (OSError, ValueError, KeyError) as exc:
-            raise ValueError(f"controller play:{path}: not a readable input file ({exc})") from None
+            raise DataFormatError(f"controller play:{path}: not a readable input file ({exc})") from None
         if self.t.size == 0 or not np.all(np.isfinite(self.u)):
-            raise ValueError(f"controller play:{path}: the input has no samples or non-finite voltages")
+            raise DataFormatError(f"controller play:{path}: the input has no samples or non-finite voltages")
         self.path = path
 
     def reset(self, measurement: Mapping[str, float] | None = None) -> None:
@@ -81,10 +83,10 @@ class LinearPolicy:
     def load(cls, path: str | Path) -> "LinearPolicy":
         with np.load(path) as z:
             if "W" not in z or "b" not in z:
-                raise ValueError(f"{path}: a linear policy file needs arrays 'W' (1, obs_dim) and 'b' (1,)")
+                raise InputError(f"{path}: a linear policy file needs arrays 'W' (1, obs_dim) and 'b' (1,)")
             W, b = np.atleast_2d(z["W"]).astype(float), np.atleast_1d(z["b"]).astype(float)
         if W.shape[0] != b.shape[0]:
-            raise ValueError(f"{path}: W has {W.shape[0]} rows but b has {b.shape[0]} entries")
+            raise InputError(f"{path}: W has {W.shape[0]} rows but b has {b.shape[0]} entries")
         return cls(W, b)
 
     def save(self, path: str | Path) -> None:
@@ -93,7 +95,7 @@ class LinearPolicy:
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         obs = np.asarray(obs, dtype=float)
         if obs.shape != (self.W.shape[1],):
-            raise ValueError(f"linear policy expects an observation of {self.W.shape[1]} values, got {obs.shape}")
+            raise InputError(f"linear policy expects an observation of {self.W.shape[1]} values, got {obs.shape}")
         return (self.W @ obs + self.b).astype(np.float32)
 
 
@@ -101,7 +103,7 @@ def _optional(module: str, what: str):
     try:
         return importlib.import_module(module)
     except ImportError as exc:
-        raise ValueError(f"{what} needs the '{module}' package, which cannot be imported ({exc}); "
+        raise UnavailableError(f"{what} needs the '{module}' package, which cannot be imported ({exc}); "
                          f"use the built-in ones instead") from None
 
 
@@ -115,11 +117,11 @@ def make_controller(spec: str, configuration: str, omega_ref: float | None, cont
         try:
             return ConstantController(float(spec.split(":", 1)[1]))
         except ValueError:
-            raise ValueError(f"controller {spec!r}: expected const:<volts>, e.g. const:2.0") from None
+            raise InputError(f"controller {spec!r}: expected const:<volts>, e.g. const:2.0") from None
     mod = _optional("controllers", f"controller {spec!r}")
     make = getattr(mod, "make", None)
     if make is None:
-        raise ValueError(f"controller {spec!r}: the controllers package has no make(); only const:<volts> is available")
+        raise InputError(f"controller {spec!r}: the controllers package has no make(); only const:<volts> is available")
     kwargs: dict[str, Any] = {"config": configuration, "dt": control_dt}
     if params is not None:
         kwargs["params"] = params
@@ -132,13 +134,13 @@ def load_policy(path: str | Path) -> Callable[[np.ndarray], np.ndarray]:
     """A policy (observation -> action) from a file: ``.npz`` linear, else via ``agents.load_policy``."""
     p = Path(path)
     if not p.exists():
-        raise FileNotFoundError(f"policy file {p} does not exist")
+        raise MissingFileError(f"policy file {p} does not exist")
     if p.suffix == ".npz":
         return LinearPolicy.load(p)
     mod = _optional("agents", f"policy {p}")
     loader = getattr(mod, "load_policy", None)
     if loader is None:
-        raise ValueError(f"policy {p}: the agents package has no load_policy(); use a .npz linear policy")
+        raise InputError(f"policy {p}: the agents package has no load_policy(); use a .npz linear policy")
     return loader(p)
 
 

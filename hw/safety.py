@@ -13,6 +13,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from drillgym.errors import InputError
+
 from .protocol import StopReason
 
 __all__ = ["SafetyLimits", "VoltageLimiter", "check_limits"]
@@ -36,7 +38,7 @@ class SafetyLimits:
         for name in ("v_max", "slew_v_per_s", "max_speed", "max_displacement"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"safety limit {name!r} must be a finite number > 0, got {v!r}")
+                raise InputError(f"safety limit {name!r} must be a finite number > 0, got {v!r}")
 
 
 class VoltageLimiter:

@@ -24,6 +24,7 @@ from tqdm.auto import tqdm
 
 from drillgym import RigParams, parse_configuration
 from drillgym.effects import compose
+from drillgym.errors import InputError
 
 from .metrics import run_metrics
 from .population import UncertaintySet, load_uncertainty, sample_plants
@@ -63,7 +64,7 @@ def run_job(controller: str, config: str, scenario: Scenario, targets: Sequence[
             u_fold = stick_slip_region(config, base).u_fold
         x0 = cycle_states(config, tg, plant, u_fold, effects=comp, effect_params=values)
     elif scenario.start != "rest":
-        raise ValueError(f"scenario start must be 'rest' or 'cycle', got {scenario.start!r}")
+        raise InputError(f"scenario start must be 'rest' or 'cycle', got {scenario.start!r}")
     from ..registry import split_period
 
     kw = {}
@@ -195,26 +196,26 @@ def evaluate(controllers: Sequence[str], configs: Sequence[str] = ("torsional", 
     scen = [SCENARIOS[s] if isinstance(s, str) and s in SCENARIOS else s for s in scenarios]
     for s in scen:
         if not isinstance(s, Scenario):
-            raise ValueError(f"unknown scenario {s!r}; choose from {', '.join(SCENARIOS)}")
+            raise InputError(f"unknown scenario {s!r}; choose from {', '.join(SCENARIOS)}")
     for c in configs:
         parse_configuration(c)
     if not (0 < window < duration):
-        raise ValueError(f"window ({window} s) must be positive and shorter than duration ({duration} s)")
+        raise InputError(f"window ({window} s) must be positive and shorter than duration ({duration} s)")
     from .. import available
 
     from ..registry import split_period
 
     for c in controllers:
         if not c.startswith("agent:") and split_period(c)[0] not in available():
-            raise ValueError(f"unknown controller {c!r}; choose from {', '.join(available())} (NAME@MS for another "
+            raise InputError(f"unknown controller {c!r}; choose from {', '.join(available())} (NAME@MS for another "
                              "control period) or agent:PATH")
     comp, values = compose(effects, effect_params)  # errors name the effect before any job starts
     pop_kw: dict = {}
     if any(s.population for s in scen):
         if comp.effects:
-            raise ValueError("the plants scenario draws its own effects; do not combine it with --add-effect")
+            raise InputError("the plants scenario draws its own effects; do not combine it with --add-effect")
         if int(plants) != plants or plants < 1:
-            raise ValueError(f"the number of plants must be a positive integer, got {plants!r}")
+            raise InputError(f"the number of plants must be a positive integer, got {plants!r}")
         us = uncertainty if isinstance(uncertainty, UncertaintySet) else load_uncertainty(uncertainty)
         sample_plants(1, seed, us, params)  # errors of the set before any job starts
         pop_kw = {"n_plants": int(plants), "uncertainty": us}

@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from drillgym import RigParams
+from drillgym.errors import InputError
 
 __all__ = ["SSI_THRESHOLD", "TRACKING_TOLERANCE", "SAFETY_SPEED", "METRICS", "stick_slip_severity", "run_metrics", "lowest_free_speed"]
 
@@ -57,7 +58,7 @@ def run_metrics(run, window: float, params: RigParams | None = None) -> dict[str
     """Metrics (each an (n,) array) of a :class:`controllers.evaluation.runner.ClosedLoopRun`."""
     p = params or RigParams()
     if not (0 < window <= run.t[-1] + run.dt):
-        raise ValueError(f"steady-state window must be in (0, {run.t[-1] + run.dt:.3g}] s, got {window!r}")
+        raise InputError(f"steady-state window must be in (0, {run.t[-1] + run.dt:.3g}] s, got {window!r}")
     ss = run.t >= run.t[-1] + run.dt - window
     wl = run.omega_l[:, ss]
     ssi = stick_slip_severity(wl, run.omega_ref)

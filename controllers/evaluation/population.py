@@ -23,6 +23,7 @@ import numpy as np
 
 from drillgym import RigParams
 from drillgym.effects import Composition, compose
+from drillgym.errors import InputError
 from drillgym.params import PARAM_NAMES
 
 __all__ = ["DEFAULT_UNCERTAINTY", "UncertaintySet", "PlantPopulation", "load_uncertainty", "sample_plants"]
@@ -53,7 +54,7 @@ class UncertaintySet:
         order = ["motor_lag", "input_delay", "position_friction"]
         unknown = sorted(n for n in names if n not in _EFFECT_OF)
         if unknown:
-            raise ValueError(f"uncertainty set {self.source}: unknown effect parameter {unknown[0]!r}; "
+            raise InputError(f"uncertainty set {self.source}: unknown effect parameter {unknown[0]!r}; "
                              f"known: {', '.join(_EFFECT_OF)}")
         return [e for e in order if e in {_EFFECT_OF[n] for n in names}]
 
@@ -67,9 +68,9 @@ def _pair(v: Any, what: str, source: str) -> tuple[float, float]:
     try:
         lo, hi = (float(x) for x in v)
     except (TypeError, ValueError):
-        raise ValueError(f"uncertainty set {source}: {what} must be [lo, hi], got {v!r}") from None
+        raise InputError(f"uncertainty set {source}: {what} must be [lo, hi], got {v!r}") from None
     if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
-        raise ValueError(f"uncertainty set {source}: {what} needs finite lo <= hi, got [{lo}, {hi}]")
+        raise InputError(f"uncertainty set {source}: {what} needs finite lo <= hi, got [{lo}, {hi}]")
     return lo, hi
 
 
@@ -81,34 +82,34 @@ def load_uncertainty(path: "str | Path | None" = None) -> UncertaintySet:
     try:
         raw = yaml.safe_load(path.read_text()) or {}
     except OSError as exc:
-        raise ValueError(f"uncertainty set {path}: cannot read it ({exc.strerror})") from None
+        raise InputError(f"uncertainty set {path}: cannot read it ({exc.strerror})") from None
     except yaml.YAMLError as exc:
-        raise ValueError(f"uncertainty set {path}: not valid YAML ({str(exc).splitlines()[0]})") from None
+        raise InputError(f"uncertainty set {path}: not valid YAML ({str(exc).splitlines()[0]})") from None
     src = str(path)
     if not isinstance(raw, dict) or set(raw) - set(_SECTIONS):
         bad = sorted(set(raw) - set(_SECTIONS)) if isinstance(raw, dict) else [type(raw).__name__]
-        raise ValueError(f"uncertainty set {src}: unknown section {bad[0]!r}; sections: {', '.join(_SECTIONS)}")
+        raise InputError(f"uncertainty set {src}: unknown section {bad[0]!r}; sections: {', '.join(_SECTIONS)}")
     rel = {}
     for k, v in (raw.get("relative") or {}).items():
         if k not in PARAM_NAMES:
-            raise ValueError(f"uncertainty set {src}: {k!r} is not a base parameter (RigParams)")
+            raise InputError(f"uncertainty set {src}: {k!r} is not a base parameter (RigParams)")
         if not (isinstance(v, (int, float)) and 0 <= v < 1):
-            raise ValueError(f"uncertainty set {src}: relative range of {k} must be in [0, 1), got {v!r}")
+            raise InputError(f"uncertainty set {src}: relative range of {k} must be in [0, 1), got {v!r}")
         rel[k] = float(v)
     eff = {k: _pair(v, k, src) for k, v in (raw.get("effects") or {}).items()}
     har = {}
     for k, v in (raw.get("harmonics") or {}).items():
         names = tuple(s.strip() for s in str(k).split(","))
         if len(names) != 2 or not (isinstance(v, (int, float)) and v >= 0):
-            raise ValueError(f"uncertainty set {src}: harmonics entry must be 'cos,sin': max amplitude, got {k!r}: {v!r}")
+            raise InputError(f"uncertainty set {src}: harmonics entry must be 'cos,sin': max amplitude, got {k!r}: {v!r}")
         har[names] = float(v)
     enc = raw.get("encoder") or {}
     cpr = _pair(enc.get("counts_per_rev", [8000, 8000]), "encoder counts_per_rev", src)
     if cpr[0] < 1:
-        raise ValueError(f"uncertainty set {src}: encoder counts_per_rev must be >= 1, got {cpr[0]}")
+        raise InputError(f"uncertainty set {src}: encoder counts_per_rev must be >= 1, got {cpr[0]}")
     noise = _pair(enc.get("angle_noise", [0.0, 0.0]), "encoder angle_noise", src)
     if noise[0] < 0:
-        raise ValueError(f"uncertainty set {src}: encoder angle_noise must be >= 0 rad, got {noise[0]}")
+        raise InputError(f"uncertainty set {src}: encoder angle_noise must be >= 0 rad, got {noise[0]}")
     us = UncertaintySet(rel, eff, har, (int(cpr[0]), int(cpr[1])), noise, src)
     us.effect_names()  # unknown effect parameters fail here
     return us
@@ -143,7 +144,7 @@ def sample_plants(n: int, seed: int = 0, uncertainty: "UncertaintySet | str | Pa
     ``plants.yaml``); the same (n, seed, set) always gives the same plants, and the first k plants of
     a population of n > k are the population of k."""
     if int(n) != n or n < 1:
-        raise ValueError(f"the number of plants must be a positive integer, got {n!r}")
+        raise InputError(f"the number of plants must be a positive integer, got {n!r}")
     us = uncertainty if isinstance(uncertainty, UncertaintySet) else load_uncertainty(uncertainty)
     base = params or RigParams()
     comp, _ = compose(us.effect_names(), {})

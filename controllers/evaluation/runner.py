@@ -17,6 +17,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from drillgym import BatchSimulator, Configuration, parse_configuration
+from drillgym.errors import InputError
 from drillgym.measurement import DEFAULT_COUNTS_PER_REV
 
 from ..base import Controller
@@ -93,10 +94,10 @@ def run_closed_loop(controller: Controller, config: "str | Configuration", omega
     ref = np.atleast_1d(np.asarray(omega_ref, dtype=float))
     n = ref.size
     if not (np.isfinite(duration) and duration > 0):
-        raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
+        raise InputError(f"duration must be a positive number of seconds, got {duration!r}")
     sub = int(round(controller.dt / sim_dt))
     if sub < 1 or abs(sub * sim_dt - controller.dt) > 1e-9:
-        raise ValueError(f"control period {controller.dt} s must be a multiple of the integrator step {sim_dt} s")
+        raise InputError(f"control period {controller.dt} s must be a multiple of the integrator step {sim_dt} s")
     m = int(round(duration / controller.dt))
     sim = BatchSimulator(cfg, n, params=params, dt=sim_dt, effects=effects, effect_params=effect_params)
     sim.reset(alpha0=alpha0, x0=x0)
@@ -104,7 +105,7 @@ def run_closed_loop(controller: Controller, config: "str | Configuration", omega
     cpr = np.broadcast_to(np.asarray(counts_per_rev, dtype=float), (n,)).copy()
     noise = np.broadcast_to(np.asarray(angle_noise, dtype=float), (n,)).copy()
     if np.any(noise < 0) or not np.all(np.isfinite(noise)):
-        raise ValueError("angle_noise must be non-negative (rad)")
+        raise InputError("angle_noise must be non-negative (rad)")
     out = {k: np.empty((n, m)) for k in ("u", "omega_u", "omega_l", "alpha", "stuck_l", "friction_l", "r")}
     t = np.arange(m) * controller.dt
     for k in range(m):

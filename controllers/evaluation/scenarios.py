@@ -16,6 +16,7 @@ import numpy as np
 
 from drillgym import RigParams, simulate_batch
 from drillgym.equilibria import equilibrium_voltage
+from drillgym.errors import InputError
 from drillgym.measurement import DEFAULT_COUNTS_PER_REV
 
 __all__ = ["Scenario", "SCENARIOS", "DEFAULT_TARGETS", "parse_scenarios", "plant_params", "cycle_states"]
@@ -67,10 +68,10 @@ def parse_scenarios(names: str) -> list[Scenario]:
     out = []
     for n in [s.strip() for s in names.split(",") if s.strip()]:
         if n not in SCENARIOS:
-            raise ValueError(f"unknown scenario {n!r}; choose from {', '.join(SCENARIOS)}")
+            raise InputError(f"unknown scenario {n!r}; choose from {', '.join(SCENARIOS)}")
         out.append(SCENARIOS[n])
     if not out:
-        raise ValueError("no scenario given")
+        raise InputError("no scenario given")
     return out
 
 

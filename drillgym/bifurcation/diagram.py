@@ -14,6 +14,7 @@ import numpy as np
 
 from ..configurations import Configuration
 from ..equilibria import RigModel, as_model, slip_equilibrium, supported_configuration
+from ..errors import InputError
 from ..params import RigParams
 from .continuation import Fold, PeriodicBranch, continue_branch, start_at_hopf
 from .equilibrium_branch import EquilibriumBranch, HopfPoint, equilibrium_branch
@@ -213,7 +214,7 @@ def compute_diagram(config: str, params: "RigParams | RigModel | None" = None, *
     params = as_model(params)
     cfg = supported_configuration(config)
     if not (np.isfinite(umin) and np.isfinite(umax) and 0 <= umin < umax):
-        raise ValueError(f"need 0 <= umin < umax, got umin={umin}, umax={umax}")
+        raise InputError(f"need 0 <= umin < umax, got umin={umin}, umax={umax}")
     say = progress or (lambda msg: None)
     count = step or (lambda kind, k: None)
 

@@ -18,6 +18,7 @@ from scipy.optimize import brentq
 from ..configurations import Configuration
 from ..equilibria import eigenvalues, equilibrium_voltage, slip_equilibrium, stick_set, supported_configuration
 from ..equilibria import RigModel, as_model
+from ..errors import InputError
 from ..params import RigParams
 
 
@@ -121,12 +122,12 @@ def equilibrium_branch(config: "str | Configuration", params: "RigParams | RigMo
     params = as_model(params)
     cfg = supported_configuration(config)
     if not (np.isfinite(umax) and umax > 0):
-        raise ValueError(f"umax must be a positive voltage, got {umax!r}")
+        raise InputError(f"umax must be a positive voltage, got {umax!r}")
     w_hi = 1.0
     while equilibrium_voltage(cfg, w_hi, params) < umax:
         w_hi *= 1.5
         if w_hi > 1e4:
-            raise ValueError(f"no slip equilibrium reaches u = {umax} V below 1e4 rad/s")
+            raise InputError(f"no slip equilibrium reaches u = {umax} V below 1e4 rad/s")
     w = np.geomspace(omega_min, w_hi, n)
     eqs = [slip_equilibrium(cfg, v, params) for v in w]
     u = np.array([e.u for e in eqs])

@@ -27,6 +27,7 @@ import numpy as np
 from ..configurations import Configuration
 from ..dynamics import S_TL, S_TU, S_VX, S_VY, S_WL, S_WU, S_X, S_Y
 from ..effects.composition import Composition, compose
+from ..errors import FitError
 from ..integrators import fixed_step_tableau
 from .summary import F_OK, F_R_MAX, F_R_MIN, F_STICK, F_T, F_WL_MAX, F_WL_MIN, N_SUMMARY  # noqa: F401
 
@@ -118,6 +119,6 @@ class SectionMap:
         traj = simulate(self.config, u, transient, dt=self.dt, x0=y0, params=self.p, effects=self.composition)
         Z, S = self.flow_states(traj.final_state[None, :], np.array([u]))
         if S[0, F_OK] == 0:
-            raise RuntimeError(f"no return to the section omega_l = {self.level(u):.4g} rad/s at u = {u} V "
+            raise FitError(f"no return to the section omega_l = {self.level(u):.4g} rad/s at u = {u} V "
                                f"within {self.t_max} s (no oscillation to follow)")
         return Z[0]

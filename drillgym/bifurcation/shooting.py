@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import FitError
 from .poincare import F_OK, F_R_MAX, F_R_MIN, F_STICK, F_T, F_WL_MAX, F_WL_MIN, SectionMap
 
 FD_STEP = 1e-6  # perturbation of the (scaled) section coordinates and of u (V)

@@ -27,6 +27,7 @@ import numpy as np
 
 from ..equilibria import slip_equilibria
 from ..equilibria import RigModel, as_model
+from ..errors import InputError
 from ..parallel import LocalExecutor, map_ordered, parallelism
 from ..params import RigParams
 from ..simulator import simulate_batch
@@ -87,9 +88,9 @@ def _executor(executor: Executor | None) -> tuple[Executor, bool]:
 def _check(voltages, duration: float, window: float) -> np.ndarray:
     u = np.asarray(voltages, dtype=float).reshape(-1)
     if u.size == 0 or not np.all(np.isfinite(u)):
-        raise ValueError("sweep voltages must be a non-empty list of finite numbers (V)")
+        raise InputError("sweep voltages must be a non-empty list of finite numbers (V)")
     if not 0 < window <= duration:
-        raise ValueError(f"window ({window} s) must be positive and not longer than the run ({duration} s)")
+        raise InputError(f"window ({window} s) must be positive and not longer than the run ({duration} s)")
     return u
 
 
@@ -138,7 +139,7 @@ def sweep_constant(config: str, voltages, *, start: str = "rest", duration: floa
                 x0[k] = eqs[0].state
                 x0[k, 3] *= 1.001  # a small disturbance, as on the rig
     else:
-        raise ValueError(f"start must be 'rest' or 'equilibrium', got {start!r}")
+        raise InputError(f"start must be 'rest' or 'equilibrium', got {start!r}")
     ex, own = _executor(executor)
     n_chunks = max(1, min(len(u), parallelism(ex) * 2)) if chunk is None else max(1, -(-len(u) // chunk))
     parts = [idx for idx in np.array_split(np.arange(len(u)), n_chunks) if len(idx)]

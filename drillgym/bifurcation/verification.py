@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import FitError
 from ..simulator import simulate_batch
 from .poincare import SectionMap
 from .shooting import PeriodicSolution
@@ -109,7 +110,7 @@ def simulated_monodromy(smap: SectionMap, sol: PeriodicSolution, eps: float = 1e
             Y0.append(smap.to_state(z, sol.u))
     times, pts = section_returns(smap, sol.u, np.array(Y0), 1.3 * sol.period + 0.5, dt)
     if any(len(tk) == 0 for tk in times):
-        raise RuntimeError(f"a perturbed orbit did not return to the section at u = {sol.u:.5g} V")
+        raise FitError(f"a perturbed orbit did not return to the section at u = {sol.u:.5g} V")
     M = np.empty((n, n))
     for j in range(n):
         M[:, j] = (pts[2 * j][0] - pts[2 * j + 1][0]) / (2 * eps)

@@ -8,6 +8,7 @@ from typing import List, Optional
 
 import typer
 
+from ..errors import InputError
 from .effect_options import add_effect_option, effect_param_option, effects_from_cli
 
 
@@ -39,10 +40,10 @@ def register(app: typer.Typer) -> None:
         from ..params import RigParams
 
         if not (ds_max > 0):
-            raise ValueError(f"--ds-max must be a positive step, got {ds_max}")
+            raise InputError(f"--ds-max must be a positive step, got {ds_max}")
         cfg = parse_configuration(config)
         if cfg.label not in ("torsional", "lateral", "coupled"):
-            raise ValueError(f"--config must be torsional, lateral or coupled, got {config!r}")
+            raise InputError(f"--config must be torsional, lateral or coupled, got {config!r}")
         hi = umax if umax is not None else (50.0 if cfg.label == "lateral" else 5.0)
         from ..equilibria import RigModel
 

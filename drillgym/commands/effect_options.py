@@ -9,6 +9,7 @@ from typing import List, Optional
 import typer
 
 from ..effects.composition import Composition, compose
+from ..errors import InputError
 
 ADD_EFFECT_HELP = ("effect added to the base model: a name (see `drillgym effects`) or path/to/file.py:NAME; "
                    "repeat for several")
@@ -29,11 +30,11 @@ def parse_effect_params(items: Optional[List[str]]) -> dict[str, float]:
     for item in items or []:
         name, sep, value = item.partition("=")
         if not sep or not name.strip():
-            raise ValueError(f"--effect-param {item!r}: expected NAME=VALUE, e.g. tau_m=0.02")
+            raise InputError(f"--effect-param {item!r}: expected NAME=VALUE, e.g. tau_m=0.02")
         try:
             out[name.strip()] = float(value)
         except ValueError:
-            raise ValueError(f"--effect-param {item!r}: {value!r} is not a number") from None
+            raise InputError(f"--effect-param {item!r}: {value!r} is not a number") from None
     return out
 
 
@@ -43,5 +44,5 @@ def effects_from_cli(add_effect: Optional[List[str]], effect_param: Optional[Lis
     the effect and what is wrong)."""
     values = parse_effect_params(effect_param)
     if values and not add_effect:
-        raise ValueError(f"--effect-param {next(iter(values))}: no effect added (use --add-effect NAME)")
+        raise InputError(f"--effect-param {next(iter(values))}: no effect added (use --add-effect NAME)")
     return compose(list(add_effect or []), values)

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Iterable
 
+from ..errors import InputError
+
 __all__ = ["MAP_HELP", "parse_mapping"]
 
 MAP_HELP = ("read a column under another name, COLUMN=NAME (repeatable): theta_u=enc1; a column of a .mat "
@@ -23,10 +25,10 @@ def parse_mapping(items: Iterable[str]) -> dict[str, str]:
     for item in items:
         col, sep, name = (p.strip() for p in item.partition("="))
         if not sep or not col or not name:
-            raise ValueError(f"--map {item!r}: expected COLUMN=NAME, e.g. theta_u=enc1")
+            raise InputError(f"--map {item!r}: expected COLUMN=NAME, e.g. theta_u=enc1")
         if col not in KNOWN_COLUMNS:
-            raise ValueError(f"--map {item!r}: unknown column {col!r}; expected one of {', '.join(KNOWN_COLUMNS)}")
+            raise InputError(f"--map {item!r}: unknown column {col!r}; expected one of {', '.join(KNOWN_COLUMNS)}")
         if col in out:
-            raise ValueError(f"--map {item!r}: column {col!r} is mapped twice")
+            raise InputError(f"--map {item!r}: column {col!r} is mapped twice")
         out[col] = name
     return out

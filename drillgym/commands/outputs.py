@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..errors import OutputPathError
+
 __all__ = ["CREATES_DIRS", "output_file", "output_dir"]
 
 #: the sentence the --help of every written path ends with
@@ -21,17 +23,17 @@ def _mkdir(directory: Path, for_path: Path) -> None:
     try:
         directory.mkdir(parents=True, exist_ok=True)
     except (FileExistsError, NotADirectoryError):
-        raise ValueError(f"{for_path}: cannot create directory {directory}: a file of that name is in the way") \
+        raise OutputPathError(f"{for_path}: cannot create directory {directory}: a file of that name is in the way") \
             from None
     except OSError as exc:
-        raise ValueError(f"{for_path}: cannot create directory {directory} ({exc.strerror})") from None
+        raise OutputPathError(f"{for_path}: cannot create directory {directory} ({exc.strerror})") from None
 
 
 def output_file(path: str | Path) -> Path:
     """``path`` ready to be written: its missing parent directories created; refused if it is a directory."""
     path = Path(path)
     if path.is_dir():
-        raise ValueError(f"{path} is a directory; give a file name")
+        raise OutputPathError(f"{path} is a directory; give a file name")
     _mkdir(path.parent, path)
     return path
 

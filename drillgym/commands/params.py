@@ -16,6 +16,7 @@ from typing import Optional
 
 import typer
 
+from ..errors import InputError, MissingFileError
 from .outputs import CREATES_DIRS, output_file
 
 
@@ -62,9 +63,9 @@ def register(app: typer.Typer) -> None:
         from ..params import RigParams
 
         if out is not None and out.suffix.lower() not in (".json", ".yaml", ".yml"):
-            raise ValueError(f"--out {out}: a parameter file must end in .json, .yaml or .yml")
+            raise InputError(f"--out {out}: a parameter file must end in .json, .yaml or .yml")
         if params is not None and not params.exists():
-            raise FileNotFoundError(f"{params}: parameter file not found")
+            raise MissingFileError(f"{params}: parameter file not found")
         p = RigParams.from_file(params) if params is not None else RigParams()
         if out is None:
             typer.echo(params_yaml(p), nl=False)

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import List, Mapping, Optional
 
 from ..effects import Composition, compose
+from ..errors import InputError
 from ..params import RigParams
 from .effect_options import parse_effect_params
 
@@ -25,7 +26,7 @@ def plant_from_cli(params_file: Optional[Path], add_effect: Optional[List[str]],
     extra = parse_effect_params(effect_param)
     specs = list(mf.specs) + list(add_effect or [])
     if extra and not specs:
-        raise ValueError(f"--effect-param {next(iter(extra))}: no effect added (use --add-effect NAME)")
+        raise InputError(f"--effect-param {next(iter(extra))}: no effect added (use --add-effect NAME)")
     comp, values = compose(specs, {**mf.values, **extra})
     return mf.params, comp, values
 

@@ -8,6 +8,7 @@ from typing import List, Optional
 import typer
 
 from ..configurations import Configuration
+from ..errors import InputError
 from .effect_options import add_effect_option, effect_param_option, effects_from_cli
 from ..io import U_LIMIT_FILE
 from .budget import check_run_fits
@@ -59,12 +60,12 @@ def check_input_span(t, path: Path, duration: float | None) -> float:
     import numpy as np
 
     if t[0] > 1e-9:
-        raise ValueError(f"--input {path}: starts at t = {t[0]:g} s; the run starts at 0 s (shift the file's times)")
+        raise InputError(f"--input {path}: starts at t = {t[0]:g} s; the run starts at 0 s (shift the file's times)")
     span = float(t[-1] + (t[-1] - t[-2] if len(t) > 1 else 0.0))
     if duration is None:
         return span
     if np.isfinite(duration) and duration > span * (1 + 1e-9) + 1e-9:
-        raise ValueError(f"--input {path} covers {span:g} s, shorter than --duration {duration:g} s: shorten "
+        raise InputError(f"--input {path} covers {span:g} s, shorter than --duration {duration:g} s: shorten "
                          f"--duration (or leave it out to run the file's length) or extend the file")
     return duration
 
@@ -114,15 +115,15 @@ def register(app: typer.Typer) -> None:
         cfg = parse_configuration(config)
         if cfg is Configuration.FREE_VIBRATION:
             if u is not None or input_file is not None:
-                raise ValueError("free_vibration holds the upper disc (the motor voltage has no effect): leave out "
+                raise InputError("free_vibration holds the upper disc (the motor voltage has no effect): leave out "
                                  "--u/--input and give --alpha0 RAD, the release angle")
             if alpha0 is None:
-                raise ValueError("free_vibration releases the lower disc from a winding: give --alpha0 RAD "
+                raise InputError("free_vibration releases the lower disc from a winding: give --alpha0 RAD "
                                  "(e.g. --alpha0 1.0)")
         elif (u is None) == (input_file is None):
-            raise ValueError("give exactly one of --u VOLTS or --input FILE")
+            raise InputError("give exactly one of --u VOLTS or --input FILE")
         if u is not None and not abs(u) <= U_LIMIT_FILE:
-            raise ValueError(f"--u {u:g} V is beyond the +-{U_LIMIT_FILE:g} V a recording may hold (the rig's "
+            raise InputError(f"--u {u:g} V is beyond the +-{U_LIMIT_FILE:g} V a recording may hold (the rig's "
                              f"amplifier gives +-5 V); choose |u| <= {U_LIMIT_FILE:g} V")
         comp, values = effects_from_cli(add_effect, effect_param)
         rig = RigParams.from_file(params) if params else RigParams()

@@ -21,6 +21,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from ..configurations import STATE_NAMES
+from ..errors import InputTypeError, ParameterError
 from ..integrators import OUTPUT_NAMES
 from ..params import N_PARAMS, PARAM_INFO, PARAM_NAMES, ParameterError, RigParams
 from .base import Delay, Effect, EffectError, Measurement, Parameter
@@ -229,17 +230,17 @@ class Composition:
                 extra = self.vector(None, values)[N_PARAMS:]
                 P = np.hstack([P, np.tile(extra, (P.shape[0], 1))])
             if P.shape[1] != self.n_params:
-                raise ValueError(f"parameter matrix must have {self.n_params} columns ({self.label}), got {P.shape[1]}")
+                raise ParameterError(f"parameter matrix must have {self.n_params} columns ({self.label}), got {P.shape[1]}")
             if P.shape[0] == 1:
                 P = np.repeat(P, n, axis=0)
             if not np.all(np.isfinite(P)):
-                raise ValueError("parameter matrix contains NaN or inf")
+                raise ParameterError("parameter matrix contains NaN or inf")
             return np.ascontiguousarray(P)
         plist = list(params)
         if len(plist) == 1:
             plist = plist * n
         if not all(isinstance(q, RigParams) for q in plist):
-            raise TypeError("params must be RigParams, a sequence of RigParams or a (B, n_params) array")
+            raise InputTypeError("params must be RigParams, a sequence of RigParams or a (B, n_params) array")
         return np.stack([self.vector(q, values) for q in plist])
 
     # ------------------------------------------------------------------ compiled model

@@ -11,6 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import InputError, InputTypeError
+
 __all__ = ["action_voltage"]
 
 
@@ -33,18 +35,18 @@ def action_voltage(action: Any, high: float = 5.0) -> float:
         v = float(action)
     else:
         if action is None or isinstance(action, (str, bytes, bool, np.bool_)):
-            raise TypeError(f"action must be {_expected(high)}; got {type(action).__name__} {action!r}")
+            raise InputTypeError(f"action must be {_expected(high)}; got {type(action).__name__} {action!r}")
         try:
             arr = np.asarray(action)
         except Exception:  # noqa: BLE001 - anything numpy cannot read is the wrong type
-            raise TypeError(f"action must be {_expected(high)}; got {type(action).__name__}") from None
+            raise InputTypeError(f"action must be {_expected(high)}; got {type(action).__name__}") from None
         if arr.dtype.kind not in "iuf":
-            raise TypeError(f"action must be {_expected(high)}; got {type(action).__name__} of dtype {arr.dtype}: "
+            raise InputTypeError(f"action must be {_expected(high)}; got {type(action).__name__} of dtype {arr.dtype}: "
                             f"{action!r}")
         if arr.shape not in ((1,), ()):
-            raise ValueError(f"action must hold one voltage, shape (1,); got shape {arr.shape}. Expected "
+            raise InputError(f"action must hold one voltage, shape (1,); got shape {arr.shape}. Expected "
                              f"{_expected(high)}")
         v = float(arr.reshape(-1)[0])
     if not math.isfinite(v):
-        raise ValueError(f"action (motor voltage) must be finite, got {action!r}")
+        raise InputError(f"action (motor voltage) must be finite, got {action!r}")
     return v

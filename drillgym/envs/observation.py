@@ -45,6 +45,7 @@ from gymnasium import spaces
 from numba import njit
 
 from ..effects.composition import BASE, Composition
+from ..errors import InputError
 from ..measurement import EncoderVelocityEstimator, lvdt_measure, quantize_angle
 from . import observation_kernels as ok
 from .observation_kernels import MM, rotate, rotate_compiled
@@ -389,7 +390,7 @@ def _rows(x, n: int, name: str) -> np.ndarray:
         return np.ascontiguousarray(a.reshape(n))
     if a.size == 1:
         return np.full(n, a.reshape(()))
-    raise ValueError(f"{name} must hold one value per rig ({n}), got shape {a.shape}")
+    raise InputError(f"{name} must hold one value per rig ({n}), got shape {a.shape}")
 
 
 _MODELS = {"full": FullObservation, "sensors": SensorObservation, "motor": MotorObservation}

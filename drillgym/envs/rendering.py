@@ -14,6 +14,8 @@ from collections import deque
 
 import numpy as np
 
+from ..errors import InputError
+
 __all__ = ["RigRenderer"]
 
 LATERAL_ZOOM = 10.0  # lateral displacement drawn 10x (a few mm on a 0.1 m disc)
@@ -32,7 +34,7 @@ class RigRenderer:
     def __init__(self, mode: str, history: float, control_dt: float, lateral: bool, size: tuple = (6.4, 3.2),
                  dpi: int = 80) -> None:
         if mode not in ("human", "rgb_array"):
-            raise ValueError(f"render_mode must be 'human' or 'rgb_array', got {mode!r}")
+            raise InputError(f"render_mode must be 'human' or 'rgb_array', got {mode!r}")
         self.mode, self.lateral = mode, lateral
         n = max(2, int(round(history / control_dt)))
         self.t, self.wu, self.wl = deque(maxlen=n), deque(maxlen=n), deque(maxlen=n)

@@ -19,6 +19,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
+from ..errors import InputError, InputTypeError
 from .vector import DrillVectorEnv
 
 __all__ = ["SB3VecEnvAdapter", "make_sb3_vec"]
@@ -29,9 +30,9 @@ class SB3VecEnvAdapter(VecEnv):
 
     def __init__(self, venv: DrillVectorEnv) -> None:
         if not isinstance(venv, DrillVectorEnv):
-            raise TypeError(f"SB3VecEnvAdapter wraps a DrillVectorEnv, got {type(venv).__name__}")
+            raise InputTypeError(f"SB3VecEnvAdapter wraps a DrillVectorEnv, got {type(venv).__name__}")
         if venv.autoreset_mode is not AutoresetMode.SAME_STEP:
-            raise ValueError("SB3VecEnvAdapter needs a DrillVectorEnv with autoreset_mode=AutoresetMode.SAME_STEP "
+            raise InputError("SB3VecEnvAdapter needs a DrillVectorEnv with autoreset_mode=AutoresetMode.SAME_STEP "
                              "(use make_sb3_vec)")
         self.venv = venv
         self._actions: np.ndarray | None = None
@@ -99,6 +100,6 @@ def make_sb3_vec(env_id: str, num_envs: int, **options: Any) -> SB3VecEnvAdapter
 
     options = {**REGISTERED_DEFAULTS, **options}
     if env_id not in ENV_IDS:
-        raise ValueError(f"unknown drillgym environment {env_id!r}; expected one of {sorted(ENV_IDS)}")
+        raise InputError(f"unknown drillgym environment {env_id!r}; expected one of {sorted(ENV_IDS)}")
     return SB3VecEnvAdapter(DrillVectorEnv(num_envs, ENV_IDS[env_id], autoreset_mode=AutoresetMode.SAME_STEP,
                                            **options))
