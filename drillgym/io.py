@@ -161,7 +161,23 @@ class TimeSeries:
         return TimeSeries({k: v[sel] for k, v in self.columns.items()}, dict(self.meta), self.source)
 
     def validate(self, config: Configuration | None = None) -> "TimeSeries":
-        """Check required columns, finiteness, increasing time and physical ranges; returns self."""
+        """Check required columns, finiteness, increasing time and physical ranges.
+
+        Parameters
+        ----------
+        config : Configuration, optional
+            Rig configuration that sets the required columns; default the metadata's.
+
+        Returns
+        -------
+        TimeSeries
+            This series.
+
+        Raises
+        ------
+        DataFormatError
+            A check fails; the message names the column and the sample.
+        """
         _validate(self.columns, config if config is not None else self.configuration, self.source, None)
         return self
 

@@ -63,9 +63,11 @@ class RigClient:
 
     @property
     def url(self) -> str:
+        """The serial port or pyserial URL."""
         return self.link.url
 
     def close(self) -> None:
+        """Close the serial link (the firmware's watchdog stops the motor)."""
         self.link.close()
 
     # ------------------------------------------------------------------ receiving

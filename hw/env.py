@@ -322,6 +322,27 @@ class HardwareEnv(gym.Env):
 
     # ------------------------------------------------------------------ gym API
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        """Start an episode: reconnect if needed, bring the rig to rest at 0 V, open a recording.
+
+        Parameters
+        ----------
+        seed : int, optional
+            Seed of the target draw (the rig itself is not random).
+        options : dict, optional
+            Unused (Gymnasium's signature).
+
+        Returns
+        -------
+        observation : ndarray
+            The first observation (float32).
+        info : dict
+            The info keys of :class:`drillgym.envs.DrillEnv`.
+
+        Raises
+        ------
+        SafetyError
+            The rig did not come to rest within ``rest_timeout``, or the link failed.
+        """
         super().reset(seed=seed)
         self.end_episode()
         self._fault = None
@@ -397,6 +418,31 @@ class HardwareEnv(gym.Env):
                                   f"(encoders still moving, or the firmware keeps the motor stopped)")
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
+        """Send the action's voltage (clamped and slew-limited) and wait for the control period's sample.
+
+        Parameters
+        ----------
+        action : array_like
+            One voltage: / 5 V with ``normalize_action``, else in V.
+
+        Returns
+        -------
+        observation : ndarray
+            The observation at the end of the period (float32).
+        reward : float
+            The period's reward.
+        terminated : bool
+            A limit of the task or a safety stop (``info["safety_stop"]``).
+        truncated : bool
+            The episode reached ``episode_duration``.
+        info : dict
+            As :class:`drillgym.envs.DrillEnv`, with ``clamped_from`` and ``safety_stop`` when they apply.
+
+        Raises
+        ------
+        SafetyError
+            No episode is running (call :meth:`reset`), or the link failed (:class:`hw.link.LinkError`).
+        """
         if not self._running:
             why = f" after a fault ({self._fault})" if self._fault is not None else ""
             raise SafetyError(f"the hardware episode is not running{why}; call reset()")

@@ -256,10 +256,12 @@ class Effect:
 
     @classmethod
     def argument_names(cls, function: str) -> tuple[str, ...]:
+        """The argument names of one of the effect's physics functions (e.g. ``"torque"``)."""
         return tuple(inspect.signature(cls.defined_functions()[function]).parameters)
 
     @classmethod
     def source_file(cls) -> str:
+        """The file that defines the effect (``"<unknown file>"`` when there is none)."""
         try:
             return inspect.getsourcefile(cls) or "<unknown file>"
         except TypeError:
@@ -286,6 +288,11 @@ class Force(Effect):
     Define ``torque(...)`` (N m) for ``acts_on`` ``"upper"``, ``"lower"`` or ``"string"``, or
     ``force(...) -> (FX, FY)`` (N, fixed frame) for ``"lateral"``.
 
+    Parameters
+    ----------
+    **values : float
+        Parameter values by name, as :class:`Effect`.
+
     Attributes
     ----------
     acts_on : str
@@ -308,6 +315,11 @@ class Friction(Effect):
     Stick stays exact and set-valued: the kernels keep the disc at zero speed while its holding
     torque is in [lo, hi].
 
+    Parameters
+    ----------
+    **values : float
+        Parameter values by name, as :class:`Effect`.
+
     Attributes
     ----------
     disc : str
@@ -327,6 +339,11 @@ class Input(Effect):
     the step stays stable; an undeclared stiff state would make the explicit Runge-Kutta step
     diverge when its time constant is below about 0.36 dt.
 
+    Parameters
+    ----------
+    **values : float
+        Parameter values by name, as :class:`Effect`.
+
     Attributes
     ----------
     lag : dict of str to str
@@ -345,6 +362,11 @@ class Delay(Effect):
 
     The delay depends on parameters only and is at most the upper bound of the parameters it uses,
     which sizes the delay line.
+
+    Parameters
+    ----------
+    **values : float
+        Parameter values by name, as :class:`Effect`.
     """
 
     kind = "delay"
@@ -356,6 +378,11 @@ class Measurement(Effect):
 
     ``measure`` returns the new values of ``channels`` in that order (a tuple when several; rad for
     the angles, m for X and Y).
+
+    Parameters
+    ----------
+    **values : float
+        Parameter values by name, as :class:`Effect`.
 
     Attributes
     ----------
@@ -372,4 +399,5 @@ KINDS: dict[str, type[Effect]] = {c.kind: c for c in (Force, Friction, Input, De
 
 
 def is_identifier(name: str) -> bool:
+    """True when ``name`` is a Python identifier and not a keyword."""
     return isinstance(name, str) and name.isidentifier() and not keyword.iskeyword(name)

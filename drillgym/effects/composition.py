@@ -126,6 +126,7 @@ class Composition:
         return len(self.effects)
 
     def has_kind(self, kind: type[Effect]) -> bool:
+        """True when one of the effects is of ``kind`` (Force, Friction, Input, Delay, Measurement)."""
         return any(issubclass(e, kind) for e in self.effects)
 
     @property
@@ -147,6 +148,7 @@ class Composition:
         return tuple(sorted(cols))
 
     def param_index(self, name: str) -> int:
+        """Index of parameter ``name`` (base or effect) in a parameter vector; ParameterError if unknown."""
         try:
             return self._pindex[name]
         except KeyError:
@@ -179,11 +181,28 @@ class Composition:
         return self._owner.get(name)
 
     def default_values(self) -> dict[str, float]:
+        """Every effect parameter's default value by name."""
         return {n: p.value for n, p in self._params.items()}
 
     # ------------------------------------------------------------------ parameter vectors
     def check_values(self, values: Mapping[str, float]) -> dict[str, float]:
-        """Effect parameter values completed with defaults and checked against their bounds."""
+        """Effect parameter values completed with defaults and checked against their bounds.
+
+        Parameters
+        ----------
+        values : mapping of str to float
+            Effect parameter values by name, in each parameter's unit.
+
+        Returns
+        -------
+        dict of str to float
+            Every effect parameter's value.
+
+        Raises
+        ------
+        ParameterError
+            An unknown name, or a value that is not a number or lies outside its bounds.
+        """
         unknown = set(values) - set(self._params)
         if unknown:
             n = sorted(unknown)[0]
@@ -203,13 +222,39 @@ class Composition:
         return out
 
     def vector(self, params: RigParams | None = None, values: Mapping[str, float] | None = None) -> np.ndarray:
-        """The kernels' parameter vector: base parameters, then the effects' (defaults where not given)."""
+        """The kernels' parameter vector: base parameters, then the effects' (defaults where not given).
+
+        Parameters
+        ----------
+        params : RigParams, optional
+            Base parameters; default the identified set.
+        values : mapping of str to float, optional
+            Effect parameter values by name.
+
+        Returns
+        -------
+        ndarray
+            (n_params,) float64 in the layout of :attr:`param_names`.
+        """
         base = (params or RigParams()).to_vector()
         vals = self.check_values(values or {})
         return np.concatenate([base, np.array([vals[n] for n in self.effect_param_names], dtype=np.float64)])
 
     def split(self, vec: np.ndarray) -> tuple[RigParams, dict[str, float]]:
-        """(RigParams, effect values) of a parameter vector."""
+        """Split a parameter vector into base parameters and effect values.
+
+        Parameters
+        ----------
+        vec : ndarray
+            (n_params,) vector in the layout of :attr:`param_names`.
+
+        Returns
+        -------
+        RigParams
+            The base parameters.
+        dict of str to float
+            The effect parameters by name.
+        """
         vec = np.asarray(vec, dtype=float)
         if vec.shape != (self.n_params,):
             raise ParameterError(f"parameter vector of {self.label!r} has {self.n_params} entries, got {vec.shape}")
@@ -221,7 +266,30 @@ class Composition:
         return {n: float(v) for n, v in zip(self.param_names, np.asarray(vec, dtype=float))}
 
     def matrix(self, params: Any, n: int, values: Mapping[str, float] | None = None) -> np.ndarray:
-        """(n, n_params) parameter matrix from RigParams, a list of them, or a matrix."""
+        """The (n, n_params) parameter matrix of n runs.
+
+        Parameters
+        ----------
+        params : RigParams, sequence of RigParams, ndarray or None
+            One parameter set for all runs, one per run, or a matrix with n (or 1) rows of the base
+            parameters (effect values appended from ``values``) or of all parameters.
+        n : int
+            Number of runs.
+        values : mapping of str to float, optional
+            Effect parameter values by name, for rows given without them.
+
+        Returns
+        -------
+        ndarray
+            (n, n_params) float64, C-contiguous.
+
+        Raises
+        ------
+        ParameterError
+            A matrix of the wrong width or with non-finite entries.
+        InputTypeError
+            ``params`` of another type.
+        """
         if params is None or isinstance(params, RigParams):
             return np.tile(self.vector(params, values), (n, 1))
         if isinstance(params, np.ndarray) and params.dtype != object:
@@ -256,7 +324,10 @@ class Composition:
         return self._kernels
 
     def delay_line_length(self, P: np.ndarray, dt: float) -> int:
-        """Length of the per-trajectory delay line for parameter rows P and step dt (1 without delay)."""
+        """Length of the per-trajectory delay line for parameter rows ``P`` and step ``dt`` (s).
+
+        1 without a Delay effect; otherwise the longest delay of the rows in steps, plus 3.
+        """
         if not self.has_delay:
             return 1
         hk = self.kernels.hooks.hk_delay
@@ -265,7 +336,22 @@ class Composition:
 
     def measure(self, theta_u: np.ndarray, theta_l: np.ndarray, X: np.ndarray, Y: np.ndarray,
                 vec: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """The channels as the sensors read them (the Measurement effects applied), arrays in, arrays out."""
+        """The channels as the sensors read them (the Measurement effects applied).
+
+        Parameters
+        ----------
+        theta_u, theta_l : ndarray
+            Disc angles (rad).
+        X, Y : ndarray
+            Lateral position of the lower disc centre, fixed frame (m).
+        vec : ndarray
+            Parameter vector (:meth:`vector`).
+
+        Returns
+        -------
+        tuple of ndarray
+            ``(theta_u, theta_l, X, Y)`` as measured, shaped as ``theta_u``.
+        """
         arrs = [np.ascontiguousarray(np.asarray(a, dtype=np.float64).ravel()) for a in (theta_u, theta_l, X, Y)]
         shape = np.shape(theta_u)
         if not self.has_measurement:
@@ -274,6 +360,7 @@ class Composition:
         return tuple(out[i].reshape(shape) for i in range(4))
 
     def describe(self) -> str:
+        """Several lines: each effect's :meth:`Effect.describe`, or that it is the base model."""
         if not self.effects:
             return "base model (no effects)"
         return "\n".join(e.describe() for e in self.effects)

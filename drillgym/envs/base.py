@@ -146,6 +146,22 @@ class DrillEnv(gym.Env):
         return self.batch.obs_model.names
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        """Start an episode from rest with a new target and initial winding.
+
+        Parameters
+        ----------
+        seed : int, optional
+            Seed of the episode's random draws (target, winding, randomised parameters, sensor noise).
+        options : dict, optional
+            Unused (Gymnasium's signature).
+
+        Returns
+        -------
+        observation : ndarray
+            The first observation (float32).
+        info : dict
+            The info keys of the class docstring.
+        """
         super().reset(seed=seed)
         b = self.batch
         b.rngs[0] = self.np_random
@@ -158,6 +174,31 @@ class DrillEnv(gym.Env):
         return b.obs[0].copy(), self._info()
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
+        """Hold the action's voltage over one control period.
+
+        Parameters
+        ----------
+        action : array_like
+            One voltage, shape (1,) or a scalar: / 5 V with ``normalize_action``, else in V.
+
+        Returns
+        -------
+        observation : ndarray
+            The observation at the end of the period (float32).
+        reward : float
+            The period's reward.
+        terminated : bool
+            A speed or the lateral displacement left its limits.
+        truncated : bool
+            The episode reached ``episode_duration``.
+        info : dict
+            The info keys of the class docstring.
+
+        Raises
+        ------
+        InputError
+            An action that is not one finite number.
+        """
         v = action_voltage(action, self._high) * self._scale
         self._u[0] = U_MAX if v > U_MAX else (-U_MAX if v < -U_MAX else v)  # amplifier saturation
         b = self.batch
@@ -177,6 +218,7 @@ class DrillEnv(gym.Env):
         self._renderer.record(float(b.time[0]), float(b.system.omega_u[0]), float(b.system.omega_l[0]))
 
     def render(self) -> np.ndarray | None:
+        """The rig drawn from above with a strip chart of the speeds (``"rgb_array"``: an RGB image)."""
         if self._renderer is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
             return None
@@ -186,6 +228,7 @@ class DrillEnv(gym.Env):
                                    float(self.batch.omega_ref[0]), bool(s.stuck_l[0]))
 
     def close(self) -> None:
+        """Close the render window, if any."""
         if self._renderer is not None:
             self._renderer.close()
 

@@ -251,7 +251,23 @@ class EnvOptions:
 
     @classmethod
     def from_kwargs(cls, **kwargs: Any) -> "EnvOptions":
-        """Options from keyword arguments, naming any unknown one."""
+        """Options from keyword arguments.
+
+        Parameters
+        ----------
+        **kwargs
+            Fields of :class:`EnvOptions` by name.
+
+        Returns
+        -------
+        EnvOptions
+            The validated options.
+
+        Raises
+        ------
+        InputError
+            An unknown option (all valid names are listed) or a bad value.
+        """
         names = {f.name for f in fields(cls)}
         unknown = sorted(set(kwargs) - names)
         if unknown:

@@ -86,11 +86,28 @@ class DrillVectorEnv(VectorEnv):
 
     @property
     def observation_names(self) -> tuple[str, ...]:
+        """Layout of an observation row."""
         return self.batch.obs_model.names
 
     # ------------------------------------------------------------------------
     def reset(self, *, seed: "int | Sequence[int | None] | None" = None,
               options: dict | None = None) -> tuple[np.ndarray, dict]:
+        """Start an episode on every rig.
+
+        Parameters
+        ----------
+        seed : int or sequence of int, optional
+            One seed s (rig i gets s + i) or one per rig.
+        options : dict, optional
+            Unused (Gymnasium's signature).
+
+        Returns
+        -------
+        observations : ndarray
+            (N, dim) float32.
+        infos : dict
+            Arrays of length N with ``_key`` masks.
+        """
         if seed is None or isinstance(seed, (int, np.integer)):
             super().reset(seed=None if seed is None else int(seed))
             seeds = [None] * self.num_envs if seed is None else [int(seed) + i for i in range(self.num_envs)]
@@ -108,6 +125,30 @@ class DrillVectorEnv(VectorEnv):
         return self.batch.obs.copy(), self._infos()
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+        """Hold each rig's voltage over one control period (one batched core call).
+
+        Parameters
+        ----------
+        actions : array_like
+            (N,) or (N, 1) voltages: / 5 V with ``normalize_action``, else in V.
+
+        Returns
+        -------
+        observations : ndarray
+            (N, dim) float32.
+        rewards : ndarray
+            (N,).
+        terminations, truncations : ndarray
+            (N,) booleans.
+        infos : dict
+            Arrays of length N with ``_key`` masks (with ``SAME_STEP`` autoreset, also ``final_obs`` and
+            ``final_info`` of the rigs whose episode ended).
+
+        Raises
+        ------
+        InputError
+            Not N actions, or a non-finite one.
+        """
         a = np.asarray(actions, dtype=np.float64)
         if a.size != self.num_envs:
             raise InputError(f"actions must hold {self.num_envs} voltages (shape ({self.num_envs},) or "
@@ -163,6 +204,7 @@ class DrillVectorEnv(VectorEnv):
         self._renderer.record(float(b.time[0]), float(b.system.omega_u[0]), float(b.system.omega_l[0]))
 
     def render(self) -> np.ndarray | None:
+        """Rig 0 as an RGB image with ``render_mode="rgb_array"``, else None."""
         if self._renderer is None:
             return None
         s = self.batch.system
