@@ -76,7 +76,15 @@ def stick_slip_region(config: "str | Configuration", params: RigParams | None = 
 
 
 class BaselineController(Controller):
-    """Open loop: the constant voltage of the stable slip equilibrium at the target speed."""
+    """Open loop: the constant voltage of the stable slip equilibrium at the target speed.
+
+    Parameters
+    ----------
+    omega_ref : float or ndarray, optional
+        Target lower-disc speed(s) (rad/s), as :class:`controllers.Controller`.
+    config, params, dt, u_max : optional
+        As :class:`controllers.Controller`.
+    """
 
     name = "baseline"
     uses = ()

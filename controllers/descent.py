@@ -39,12 +39,22 @@ class DescentController(Controller):
     """Open-loop approach from above the fold, a slow ramp down the stable branch, integral action on
     the measured motor angle.
 
-    Args (besides :class:`Controller`'s):
-        approach: speed (rad/s) of the approach; None: the equilibrium at ``approach_fraction`` x u_max.
-        approach_fraction: fraction of the amplifier's range for the default approach (-).
-        hold: time (s) at the approach speed before the descent.
-        ramp: duration (s) of the linear voltage ramp down to the target's equilibrium voltage.
-        ki: integral gain on the motor-angle error (V/rad; 0: pure open loop).
+    Parameters
+    ----------
+    omega_ref : float or ndarray, optional
+        Target lower-disc speed(s) (rad/s), as :class:`controllers.Controller`.
+    approach : float, optional
+        Speed of the approach (rad/s); None: the equilibrium at ``approach_fraction`` x u_max.
+    approach_fraction : float, optional
+        Fraction of the amplifier's range for the default approach.  Default 0.98.
+    hold : float, optional
+        Time at the approach speed before the descent (s).  Default 8.
+    ramp : float, optional
+        Duration of the linear voltage ramp down to the target's equilibrium voltage (s).  Default 25.
+    ki : float, optional
+        Integral gain on the motor-angle error (V/rad; 0: pure open loop).  Default 0.05.
+    **kw
+        ``config``, ``params``, ``dt``, ``u_max`` of :class:`controllers.Controller`.
     """
 
     name = "descent"

@@ -92,16 +92,33 @@ class ObserverController(Controller):
     law's relative level (``disturbance='scale'``), so a brake 20 % off its identified level is
     estimated and cancelled with its slope.
 
-    Args (besides :class:`Controller`'s):
-        counts_per_rev, angle_noise: the encoder the filter expects (counts/rev, rad std).
-        disturbance: what the filter's fifth state is: 'scale' (default: the brake law's level is off
-            by a factor 1 + d, as with the oil's temperature; the law then also corrects the slope it
-            cancels) or 'offset' (a torque added to the law).
-        sigma_d: random-walk intensity of that state (1/sqrt(s) for 'scale', N m/sqrt(s) for 'offset').
-        sigma_upper, sigma_lower: white torque noise on the discs (N m/sqrt(Hz)), model error.
-        noise_floor: angle noise (rad) the filter assumes on top of quantization and ``angle_noise``.
-        bandwidth, tau_ref, low_speed, approach, hold, ramp, low_bandwidth, integral: the law's
-            options (:class:`controllers.flatness.FlatnessLaw`).
+    Parameters
+    ----------
+    omega_ref : float or ndarray, optional
+        Target lower-disc speed(s) (rad/s), as :class:`controllers.Controller`.
+    counts_per_rev : int, optional
+        Encoder resolution the filter expects (counts/rev).  Default 8000.
+    angle_noise : float, optional
+        Angle noise the filter expects (rad, standard deviation).
+    sigma_d : float, optional
+        Random-walk intensity of the disturbance state (1/sqrt(s) for 'scale', N m/sqrt(s) for 'offset').
+    sigma_upper, sigma_lower : float, optional
+        White torque noise on the discs (N m/sqrt(Hz)), model error.
+    noise_floor : float, optional
+        Angle noise (rad) the filter assumes on top of quantization and ``angle_noise``.
+    bandwidth, tau_ref, low_speed, approach, hold, ramp, low_bandwidth, integral : float, optional
+        The law's options (:class:`controllers.flatness.FlatnessLaw`; rad/s, s).
+    disturbance : str, optional
+        What the filter's fifth state is: ``"scale"`` (default: the brake law's level is off by a factor
+        1 + d, as with the oil's temperature; the law then also corrects the slope it cancels) or
+        ``"offset"`` (a torque added to the law).
+    sigma_du : float, optional
+        > 0 adds an upper-disc disturbance torque state (N m) with this random-walk intensity
+        (N m/sqrt(s)), cancelled by the motor.  Default 0 (none).
+    p0_du : float, optional
+        Prior standard deviation of that state (N m).
+    **kw
+        ``config``, ``params``, ``dt``, ``u_max`` of :class:`controllers.Controller`.
     """
 
     name = "observer"
@@ -163,7 +180,32 @@ class ObserverController(Controller):
 
 
 class LQGController(Controller):
-    """LQG: stationary Kalman gain (control.dlqe) + LQR gain (control.dlqr), estimates from the motor angle."""
+    """LQG: stationary Kalman gain (control.dlqe) + LQR gain (control.dlqr), estimates from the motor angle.
+
+    Parameters
+    ----------
+    omega_ref : float or ndarray, optional
+        Target lower-disc speed(s) (rad/s), as :class:`controllers.Controller`.
+    counts_per_rev : int, optional
+        Encoder resolution the filter expects (counts/rev).  Default 8000.
+    angle_noise : float, optional
+        Angle noise the filter expects (rad, standard deviation).
+    sigma_d : float, optional
+        Random-walk intensity of the friction disturbance state (N m/sqrt(s)).
+    sigma_upper, sigma_lower : float, optional
+        White torque noise on the discs (N m/sqrt(Hz)), model error.
+    weights : tuple of float, optional
+        LQR state weights on the (alpha, omega_u, omega_l) errors.  Default (1, 10, 10).
+    r : float, optional
+        LQR input weight (1/V^2).  Default 100.
+    outer_gain : float, optional
+        Integral action on the measured motor angle (1/s): the target moves by -outer_gain x the angle
+        error.  Default 0 (none).
+    outer_start : float, optional
+        Time after reset from which the integral acts (s).  Default 5.
+    **kw
+        ``config``, ``params``, ``dt``, ``u_max`` of :class:`controllers.Controller`.
+    """
 
     name = "lqg"
     uses = ("theta_u",)

@@ -24,7 +24,21 @@ __all__ = ["PIController", "MotorSpeedPI"]
 
 
 class MotorSpeedPI:
-    """Batched PI speed loop: u = u_ff + kp e + ki integral(e), e = omega_cmd - omega_u (V, rad/s)."""
+    """Batched PI speed loop: u = u_ff + kp e + ki integral(e), e = omega_cmd - omega_u (V, rad/s).
+
+    Parameters
+    ----------
+    n : int
+        Number of rigs.
+    dt : float
+        Control period (s).
+    kp : float
+        Proportional gain (V s/rad), >= 0.
+    ki : float
+        Integral gain (V/rad), >= 0.
+    u_max : float
+        Voltage limit (V); the integral stops winding up at it.
+    """
 
     def __init__(self, n: int, dt: float, kp: float, ki: float, u_max: float) -> None:
         if kp < 0 or ki < 0:
@@ -41,7 +55,21 @@ class MotorSpeedPI:
 
 
 class PIController(Controller):
-    """PI speed control of the motor (upper disc) at the target speed, speed from the motor encoder."""
+    """PI speed control of the motor (upper disc) at the target speed, speed from the motor encoder.
+
+    Parameters
+    ----------
+    omega_ref : float or ndarray, optional
+        Target lower-disc speed(s) (rad/s), as :class:`controllers.Controller`.
+    kp : float, optional
+        Proportional gain (V s/rad).  Default 3.
+    ki : float, optional
+        Integral gain (V/rad).  Default 10.
+    velocity_tau : float, optional
+        Time constant of the encoder speed estimate's low-pass (s).  Default 0.02.
+    **kw
+        ``config``, ``params``, ``dt``, ``u_max`` of :class:`controllers.Controller`.
+    """
 
     name = "pi"
     uses = ("theta_u",)

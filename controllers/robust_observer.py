@@ -30,8 +30,8 @@ real rig (a 1 ms motor lag or km 5 % high already ruins it):
   rest of the episode to the PI motor-speed loop at the target (:class:`controllers.pi.MotorSpeedPI`):
   stick-slip perhaps, but never a run into the rig's over-speed stop.
 
-:class:`controllers.observer.ObserverController` (``observer``), the design for a rig equal to its model, is unchanged
-(the RL agents build on it).
+:class:`controllers.observer.ObserverController` (``observer``) is the design for a rig equal to its model; the RL
+agents build on it.
 """
 
 from __future__ import annotations
@@ -51,7 +51,36 @@ __all__ = ["RobustObserverController"]
 
 class RobustObserverController(ObserverController):
     """Extended Kalman filter on the motor angle + feedback-linearising law, built to hold on a rig that
-    differs from its model (smooth command, robust covariances, integral on the measured angle, safe fallback)."""
+    differs from its model (smooth command, robust covariances, integral on the measured angle, safe fallback).
+
+    Parameters
+    ----------
+    omega_ref : float or ndarray, optional
+        Target lower-disc speed(s) (rad/s), as :class:`controllers.Controller`.
+    smooth_tau : float, optional
+        Time constant of the low-pass on the law's voltage (s; 0: none).  Default 0.02.
+    assumed_counts : int, optional
+        Encoder resolution the filter assumes (counts/rev), coarser than the nominal 8000.
+    noise_floor : float, optional
+        Angle-noise floor the filter assumes (rad).
+    sigma_upper, sigma_lower : float, optional
+        White torque noise on the discs (N m/sqrt(Hz)).
+    sigma_d : float, optional
+        Random-walk intensity of the brake disturbance state.
+    sigma_du : float, optional
+        Random-walk intensity of the upper-disc disturbance torque (N m/sqrt(s)).
+    p0_du : float, optional
+        Prior standard deviation of that torque (N m).
+    outer_gain : float, optional
+        Gain of the slow integral loop on the measured motor angle (rad/s per rad).  Default 0.05.
+    overspeed : float, optional
+        Measured motor speed (rad/s) above which the rig falls back to the PI loop.  Default 20.
+    bu_margin : float, optional
+        The design model's upper viscous friction is divided by this factor (the low edge of the set).
+    **kw
+        Other options of :class:`controllers.observer.ObserverController` and
+        :class:`controllers.Controller`.
+    """
 
     name = "observer-robust"
 

@@ -40,7 +40,30 @@ __all__ = ["SoftTorqueController"]
 
 class SoftTorqueController(PIController):
     """Soft-torque active damping: the PI motor speed loop, its command yielding to the estimated
-    string torque."""
+    string torque (see the module docstring).
+
+    Parameters
+    ----------
+    omega_ref : float or ndarray, optional
+        Target lower-disc speed(s) (rad/s), as :class:`controllers.Controller`.
+    impedance : float, optional
+        Impedance Z of the speed command's yield (N m s/rad); None: the string's characteristic
+        impedance sqrt(ktheta Jl).
+    hp_ratio : float, optional
+        Corner of the torque high-pass as a fraction of the torsional mode.  Default 1/3.
+    kp, ki : float, optional
+        Gains of the PI speed loop (V s/rad, V/rad).  Default 1 and 3.
+    velocity_tau : float, optional
+        Time constant of the encoder speed estimate's low-pass (s).  Default 0.02.
+    torque_tau : float, optional
+        Time constant of the string-torque estimate's low-pass (s).  Default 0.5.
+    km_margin : float, optional
+        Factor on the model's motor constant in the torque estimate (1.05: the edge of a +-5 % set).
+    bu_margin : float, optional
+        The estimate's upper viscous friction is the model's divided by this factor.
+    **kw
+        ``config``, ``params``, ``dt``, ``u_max`` of :class:`controllers.Controller`.
+    """
 
     name = "softtorque"
     uses = ("theta_u",)

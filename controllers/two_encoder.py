@@ -103,7 +103,28 @@ def _design(params: RigParams, omega: float, dt: float, o: TwoEncoderDesign):
 
 
 class TwoEncoderLQG(Controller):
-    """Gain-scheduled LQG on the motor and lower encoders (see the module doc)."""
+    """Gain-scheduled LQG on the motor and lower encoders (see the module docstring).
+
+    Parameters
+    ----------
+    omega_ref : float or ndarray, optional
+        Target lower-disc speed(s) (rad/s), as :class:`controllers.Controller`.
+    design : TwoEncoderDesign, optional
+        Design options (model, noise, weights).
+    approach : float, optional
+        Targets below this speed are reached from above, from this speed (rad/s).  Default 3.
+    hold : float, optional
+        Time at ``approach`` (s).  Default 5.
+    ramp : float, optional
+        Duration of the linear ramp down to the target (s).  Default 15.
+    tau_ref : float, optional
+        Time constant of the reference's first-order lag (s).  Default 1.
+    feedforward : float, optional
+        Weight of the estimated lower-disc torque in the equilibrium shift (the string winds by
+        -d/ktheta more, the motor leads by d/ktheta; 0: none).  Default 1.
+    **kw
+        ``config``, ``params``, ``dt``, ``u_max`` of :class:`controllers.Controller`.
+    """
 
     name = "lqg-2enc"
     uses = ("theta_u", "theta_l")
