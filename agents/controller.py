@@ -40,7 +40,23 @@ OBSERVATION_KEYS = ("observation", "motor_history", "velocity_filter_tau", "max_
 
 
 class AgentController(Controller):
-    """Trained policy (exported, numpy) with the env's observation model and the residual voltage structure."""
+    """Trained policy (exported, numpy) with the env's observation model and the residual voltage structure.
+
+    Parameters
+    ----------
+    policy : ExportedPolicy
+        A policy trained on the ``"sensors"`` or ``"motor"`` observation (:func:`agents.load_policy`).
+    omega_ref : float or ndarray, optional
+        Target lower-disc speed(s) (rad/s).
+    **kw
+        ``config``, ``params``, ``dt``, ``u_max`` of :class:`controllers.Controller`; ``dt`` defaults to
+        the policy's control period and must equal it.
+
+    Raises
+    ------
+    InputError
+        A policy of the ``"full"`` observation, or ``dt`` different from the training's control period.
+    """
 
     name = "agent"
 
@@ -147,7 +163,17 @@ class AgentController(Controller):
 
 class TargetSwitchedController(Controller):
     """Learned networks chosen by the target (:mod:`agents.switched`): each rig runs, as its own
-    :class:`AgentController`, the network whose band holds its target; nothing else computes the voltage."""
+    :class:`AgentController`, the network whose band holds its target; nothing else computes the voltage.
+
+    Parameters
+    ----------
+    policy : TargetSwitchedPolicy
+        The networks and their band edges (rad/s).
+    omega_ref : float or ndarray, optional
+        Target lower-disc speed(s) (rad/s).
+    **kw
+        Options of :class:`AgentController`.
+    """
 
     name = "agent"
 
@@ -160,6 +186,7 @@ class TargetSwitchedController(Controller):
         self.groups: list[tuple[int, np.ndarray]] = []
 
     def describe(self) -> str:
+        """One line: the networks, their target bands (rad/s) and the measurements they read."""
         edges = self.switched.edges
         bands = [f"< {hi:g}" if lo is None else f">= {lo:g}" if hi is None else f"{lo:g}-{hi:g}"
                  for lo, hi in zip((None, *edges), (*edges, None))]

@@ -111,8 +111,23 @@ def obs_normalization(model) -> dict[str, np.ndarray] | None:
 
 
 def export_policy(model, path: str | Path, config: dict[str, Any]) -> Path:
-    """Write the deterministic policy of ``model`` and the run ``config`` (see :mod:`agents.train`)
-    to ``path`` (.npz), with the frozen observation normalisation when the model trained with one."""
+    """Write the deterministic policy of a model as a numpy file.
+
+    Parameters
+    ----------
+    model : stable_baselines3.common.base_class.BaseAlgorithm
+        A trained SB3 model with an MLP policy.
+    path : str or path
+        Output ``.npz`` file.
+    config : dict
+        The run's configuration (see :mod:`agents.train`), stored in the file's metadata.
+
+    Returns
+    -------
+    Path
+        The path written: weights, activations, action bounds, and the frozen observation
+        normalisation when the model trained with one.
+    """
     layers, acts, output = policy_layers(model)
     low, high = model.action_space.low.astype(np.float32), model.action_space.high.astype(np.float32)
     meta = {"format": FORMAT_VERSION, "activations": acts, "output": output,
@@ -150,9 +165,24 @@ def _jsonable(o):
 class ExportedPolicy:
     """A policy exported by :func:`export_policy`, evaluated with numpy (float32).
 
-    ``act(obs)``: observations (n, obs_dim) or (obs_dim,) -> actions (n, act_dim) / (act_dim,)
-    in the action space of the training env ([-1, 1]).  ``meta``: the run's metadata.  Observations are
-    first standardised with the training's frozen statistics when it normalised them (``obs_norm``)."""
+    Observations are first standardised with the training's frozen statistics when it normalised them
+    (``obs_norm``).  Usually built by :meth:`load` or :func:`agents.load_policy`.
+
+    Parameters
+    ----------
+    layers : list of tuple of ndarray
+        (W, b) of each layer, W of shape (out, in).
+    activations : list of str
+        Activation after each layer.
+    output : str
+        ``"tanh"`` or ``"clip"``: how the last layer maps into the action bounds.
+    action_low, action_high : ndarray
+        Bounds of the training env's action space.
+    meta : dict
+        The file's metadata (``obs_dim``, the run's ``config``).
+    obs_norm : tuple, optional
+        (mean, 1/std, clip) of the training's observation normalisation.
+    """
 
     def __init__(self, layers: list[tuple[np.ndarray, np.ndarray]], activations: list[str], output: str,
                  action_low: np.ndarray, action_high: np.ndarray, meta: dict[str, Any],
@@ -169,6 +199,7 @@ class ExportedPolicy:
 
     @classmethod
     def load(cls, path: str | Path) -> "ExportedPolicy":
+        """The policy in a ``policy.npz`` of one network (:func:`agents.load_policy` also reads switched sets)."""
         with policy_file(path, "exported drillgym policy") as (meta, z):
             if "members" in meta:
                 raise InputError("it is a target-switched policy of several networks; load it with "
@@ -207,6 +238,18 @@ class ExportedPolicy:
         return float(self.config["hyperparams"].get("env_kwargs", {}).get("control_dt", 0.01))
 
     def act(self, obs: np.ndarray) -> np.ndarray:
+        """The deterministic action of each observation.
+
+        Parameters
+        ----------
+        obs : ndarray
+            Observations (n, obs_dim) or one (obs_dim,).
+
+        Returns
+        -------
+        ndarray
+            Actions (n, act_dim) or (act_dim,), in the training env's action space ([-1, 1]).
+        """
         x = np.asarray(obs, dtype=np.float32)
         single = x.ndim == 1
         x = np.atleast_2d(x)

@@ -47,7 +47,24 @@ def iqm(x: Sequence[float]) -> float:
 
 
 def iqm_ci(x: Sequence[float], confidence: float = 0.95, n_resamples: int = 2000, seed: int = 0) -> tuple[float, float]:
-    """Percentile-bootstrap ``confidence`` interval of the IQM (NaN, NaN for fewer than 2 values or no spread)."""
+    """Percentile-bootstrap confidence interval of the interquartile mean.
+
+    Parameters
+    ----------
+    x : sequence of float
+        The values (one per seed).
+    confidence : float, optional
+        Confidence level.  Default 0.95.
+    n_resamples : int, optional
+        Bootstrap resamples.  Default 2000.
+    seed : int, optional
+        Seed of the resampling.
+
+    Returns
+    -------
+    low, high : float
+        The interval; (NaN, NaN) for fewer than 2 values, (x, x) when all values are equal.
+    """
     from scipy.stats import bootstrap
 
     a = np.asarray(x, dtype=float)
@@ -91,10 +108,35 @@ def _train_one(kwargs: dict[str, Any]) -> dict[str, Any]:
 
 def train_seeds(env_id: str, algo: str, out: str | Path, seeds: Sequence[int], *, workers: int | None = None,
                 evaluate_held: bool = True, ray: str | None = None, **train_kwargs: Any) -> SeedSummary:
-    """Train ``algo`` on ``env_id`` once per seed into ``out/seed_<s>/`` and write the results (module
-    docstring).  ``train_kwargs``: keywords of :func:`agents.train.train` (``eval_every`` defaults to a
-    twentieth of the run, at least 10,000 steps, so that every seed has a learning curve).  ``ray``: run the
-    seeds as Ray Tune trials there ('local', 'auto' or an address; :func:`drillgym.tune.run_trials`)."""
+    """Train ``algo`` on ``env_id`` once per seed into ``out/seed_<s>/`` and write the results.
+
+    Parameters
+    ----------
+    env_id : str
+        Gymnasium id of the environment.
+    algo : str
+        Algorithm (:data:`agents.train.ALGOS`).
+    out : str or path
+        Directory of the runs and of the results (``results.csv``, ``results.md``,
+        ``learning_curves.png``; module docstring).
+    seeds : sequence of int
+        The seeds, at least one.
+    workers : int, optional
+        Seeds trained at once (processes); default one per seed up to the CPU count.
+    evaluate_held : bool, optional
+        Also measure each seed's lowest held target from rest (rad/s).
+    ray : str, optional
+        Run the seeds as Ray Tune trials there: ``"local"``, ``"auto"`` or an address
+        (:func:`drillgym.tune.run_trials`).
+    **train_kwargs
+        Keywords of :func:`agents.train.train`; ``eval_every`` defaults to a twentieth of the run, at least
+        10,000 steps, so that every seed has a learning curve.
+
+    Returns
+    -------
+    SeedSummary
+        Per-seed rows and their aggregates per metric (IQM, bootstrap interval, median).
+    """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     seeds = [int(s) for s in seeds]

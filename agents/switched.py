@@ -38,8 +38,25 @@ SWITCH_FORMAT = 1
 
 
 class TargetSwitchedPolicy:
-    """Exported networks ``members`` chosen by the target speed; ``edges`` (rad/s, increasing) separate
-    their bands: member k serves ``edges[k-1] <= omega_ref < edges[k]``."""
+    """Exported networks chosen by the target speed.
+
+    Parameters
+    ----------
+    members : sequence of ExportedPolicy
+        At least two single networks, lowest band first, trained on the same environment and control
+        period.
+    edges : sequence of float
+        Band edges (rad/s), positive and increasing, one fewer than ``members``: member k serves
+        ``edges[k-1] <= omega_ref < edges[k]``.
+    note : str, optional
+        Free text stored with the policy.
+
+    Raises
+    ------
+    InputError
+        Fewer than two networks, wrong or unordered edges, nested switches, or networks of different
+        environments or control periods.
+    """
 
     def __init__(self, members: Sequence[ExportedPolicy], edges: Sequence[float],
                  note: str = "") -> None:
@@ -92,6 +109,7 @@ class TargetSwitchedPolicy:
 
     @classmethod
     def load(cls, path: "str | Path") -> "TargetSwitchedPolicy":
+        """The target-switched policy in a ``.npz`` written by :meth:`save`."""
         with policy_file(path, "target-switched drillgym policy") as (meta, z):
             return cls.from_arrays(meta, z)
 
@@ -103,8 +121,25 @@ def read_policy(path: "str | Path") -> "ExportedPolicy | TargetSwitchedPolicy":
 
 
 def combine(paths: Sequence["str | Path"], edges: Sequence[float], out: "str | Path", note: str = "") -> Path:
-    """Write the target-switched policy of the exported networks ``paths`` (lowest band first) split at
-    ``edges`` (rad/s) to ``out``; the networks must share the environment and the control period."""
+    """Combine exported networks into one target-switched policy file.
+
+    Parameters
+    ----------
+    paths : sequence of str or path
+        Exported networks (``policy.npz``), lowest band first; they must share the environment and the
+        control period.
+    edges : sequence of float
+        Band edges (rad/s), one fewer than ``paths``.
+    out : str or path
+        Output ``.npz`` (its directory is created).
+    note : str, optional
+        Free text stored with the policy.
+
+    Returns
+    -------
+    Path
+        The path written.
+    """
     members = [ExportedPolicy.load(p) for p in paths]
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
