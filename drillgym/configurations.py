@@ -40,6 +40,13 @@ __all__ = ["Configuration", "N_STATE", "STATE_NAMES", "parse_configuration"]
 
 
 class Configuration(IntEnum):
+    """How the rig is set up (MODEL.md).
+
+    ``UPPER``: the upper disc alone; ``TORSIONAL``: both discs, lateral motion held, brake on;
+    ``LATERAL``: lower disc free to whirl, brake off; ``COUPLED``: lateral motion free, brake on;
+    ``FREE_VIBRATION``: the lateral free-vibration experiment.
+    """
+
     UPPER = 0
     TORSIONAL = 1
     LATERAL = 2
@@ -48,18 +55,22 @@ class Configuration(IntEnum):
 
     @property
     def label(self) -> str:
+        """Lower-case name, as the command line and files spell it (``"torsional"``)."""
         return self.name.lower()
 
     @property
     def has_lower(self) -> bool:
+        """True when the lower disc is part of the model (every configuration but ``UPPER``)."""
         return self is not Configuration.UPPER
 
     @property
     def lateral_free(self) -> bool:
+        """True when the lower disc moves laterally (``LATERAL``, ``COUPLED``)."""
         return self in (Configuration.LATERAL, Configuration.COUPLED)
 
     @property
     def brake(self) -> bool:
+        """True when the brake acts on the lower disc (``TORSIONAL``, ``COUPLED``)."""
         return self in (Configuration.TORSIONAL, Configuration.COUPLED)
 
 
@@ -69,7 +80,23 @@ N_STATE = len(STATE_NAMES)
 
 
 def parse_configuration(config: "str | Configuration | int") -> Configuration:
-    """'torsional' / Configuration.TORSIONAL / 1 -> Configuration; clear error otherwise."""
+    """The Configuration of a name, member or number.
+
+    Parameters
+    ----------
+    config : str, Configuration or int
+        ``"torsional"`` (any case, ``-`` for ``_``), ``Configuration.TORSIONAL`` or ``1``.
+
+    Returns
+    -------
+    Configuration
+        The configuration.
+
+    Raises
+    ------
+    InputError
+        An unknown configuration; the message lists the valid names.
+    """
     if isinstance(config, Configuration):
         return config
     if isinstance(config, str):

@@ -57,13 +57,41 @@ def quasi_random(duration: float, *, rate_hz: float = 1000.0, seed: int | None =
                  fade_s: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
     """The report's quasi-random estimation signal.
 
-    Random levels, each held for a random time uniform in ``hold`` (s), then low-passed
-    (zero-phase Butterworth at ``f_max`` Hz, so the content lies below ``f_max``) and scaled
-    into ``offset ± (amplitude - |offset|)``: ``amplitude`` is the largest |u| (V), e.g. the
-    amplifier's range, and must exceed |offset|; the first ``fade_s`` seconds fade in from 0 V
-    (the rig starts at rest).
+    Random levels, each held for a random time uniform in ``hold``, then low-passed (zero-phase
+    Butterworth at ``f_max``, so the content lies below it) and scaled into
+    ``offset ± (amplitude - |offset|)``; the first ``fade_s`` seconds fade in from 0 V (the rig starts
+    at rest).
 
-    Returns ``(t, u)``: time (s) from 0 at ``rate_hz`` and voltage (V).
+    Parameters
+    ----------
+    duration : float
+        Length of the signal (s).
+    rate_hz : float, optional
+        Sample rate (Hz).  Default 1000.
+    seed : int or None, optional
+        Seed of the random draws.
+    amplitude : float, optional
+        Largest |u| (V), e.g. the amplifier's range; must exceed |offset|.  Default 5.
+    offset : float, optional
+        Centre of the signal (V): it spans ``offset ± (amplitude - |offset|)``.
+    f_max : float, optional
+        Cut-off of the low-pass (Hz).  Default 5.
+    hold : tuple of float, optional
+        Range (min, max) of the time each level is held (s).  Default (0.3, 3).
+    fade_s : float, optional
+        Fade-in time from 0 V (s).  Default 0.5.
+
+    Returns
+    -------
+    t : ndarray
+        Time (s) from 0 at ``rate_hz``.
+    u : ndarray
+        Voltage (V).
+
+    Raises
+    ------
+    InputError
+        A non-positive duration, rate or amplitude, |offset| >= amplitude, or bad hold times.
     """
     _check(duration, rate_hz, amplitude, f_max)
     if not (0 < hold[0] <= hold[1]):
@@ -88,12 +116,41 @@ def quasi_random(duration: float, *, rate_hz: float = 1000.0, seed: int | None =
 def sum_of_sines(duration: float, *, rate_hz: float = 1000.0, seed: int | None = 0, amplitude: float = U_MAX,
                  offset: float = 0.0, frequencies: tuple[float, ...] = (0.05, 0.11, 0.23, 0.47, 0.9, 1.7),
                  f_max: float = 5.0, fade_s: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
-    """Sum-of-sines validation signal: equal-amplitude sines at ``frequencies`` (Hz, all below
-    ``f_max``) with seeded random phases, scaled into ``offset ± (amplitude - |offset|)`` (V;
-    ``amplitude`` is the largest |u|, as in :func:`quasi_random`), faded in from 0 V over
-    ``fade_s`` seconds.
+    """Sum-of-sines validation signal.
 
-    Returns ``(t, u)``.
+    Equal-amplitude sines with seeded random phases, scaled into ``offset ± (amplitude - |offset|)``,
+    faded in from 0 V over ``fade_s`` seconds.
+
+    Parameters
+    ----------
+    duration : float
+        Length of the signal (s).
+    rate_hz : float, optional
+        Sample rate (Hz).  Default 1000.
+    seed : int or None, optional
+        Seed of the random draws.
+    amplitude : float, optional
+        Largest |u| (V), e.g. the amplifier's range; must exceed |offset|.  Default 5.
+    offset : float, optional
+        Centre of the signal (V): it spans ``offset ± (amplitude - |offset|)``.
+    frequencies : tuple of float, optional
+        Frequencies of the sines (Hz), all below ``f_max``.
+    f_max : float, optional
+        Upper bound of the frequencies (Hz).  Default 5.
+    fade_s : float, optional
+        Fade-in time from 0 V (s).  Default 0.5.
+
+    Returns
+    -------
+    t : ndarray
+        Time (s) from 0 at ``rate_hz``.
+    u : ndarray
+        Voltage (V).
+
+    Raises
+    ------
+    InputError
+        Bad duration, rate, amplitude, offset or frequencies.
     """
     _check(duration, rate_hz, amplitude, f_max)
     _check_offset(amplitude, offset)
@@ -110,7 +167,24 @@ def sum_of_sines(duration: float, *, rate_hz: float = 1000.0, seed: int | None =
 
 
 def write_input_file(path: str | Path, t: np.ndarray, u: np.ndarray, description: str = "") -> Path:
-    """Write an input signal as a DATA_FORMAT CSV (columns ``t, u``; metadata line first)."""
+    """Write an input signal as a DATA_FORMAT CSV (columns ``t, u``; metadata line first).
+
+    Parameters
+    ----------
+    path : str or path
+        Output file.
+    t : ndarray
+        Time (s), 1-D, strictly increasing.
+    u : ndarray
+        Voltage (V), same shape.
+    description : str, optional
+        Free text stored in the metadata.
+
+    Returns
+    -------
+    Path
+        The path written.
+    """
     t = np.asarray(t, dtype=float)
     u = np.asarray(u, dtype=float)
     if t.shape != u.shape or t.ndim != 1:
@@ -129,7 +203,18 @@ def write_input_file(path: str | Path, t: np.ndarray, u: np.ndarray, description
 
 
 def read_input_file(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """Read the ``t, u`` columns of a DATA_FORMAT CSV (an input file or a full recording)."""
+    """Read the ``t, u`` columns of a DATA_FORMAT CSV (an input file or a full recording).
+
+    Parameters
+    ----------
+    path : str or path
+        The file.
+
+    Returns
+    -------
+    t, u : ndarray
+        Time (s) and voltage (V).
+    """
     from .io import read_input_signal
 
     return read_input_signal(path)

@@ -40,10 +40,18 @@ __all__ = ["FaultPlan", "RigEmulator"]
 class FaultPlan:
     """Link faults to inject, by the index (1-based) of the SET_VOLTAGE they concern.
 
-    ``corrupt_sample``: flip a byte in the SAMPLE answering that command; ``drop_command``: the
-    command never reaches the firmware; ``drop_sample``: its SAMPLE never reaches the host;
-    ``delay_command``: the command (and everything behind it on the line) arrives
-    ``delay_s`` late.
+    Parameters
+    ----------
+    corrupt_sample : int, optional
+        Flip a byte in the SAMPLE answering that command.
+    drop_command : int, optional
+        That command never reaches the firmware.
+    drop_sample : int, optional
+        Its SAMPLE never reaches the host.
+    delay_command : int, optional
+        That command (and everything behind it on the line) arrives ``delay_s`` late.
+    delay_s : float, optional
+        The delay of ``delay_command`` (s).  Default 0.2.
     """
 
     corrupt_sample: int | None = None

@@ -46,10 +46,20 @@ def _wrap_i32(v: int) -> int:
 class FirmwareConfig:
     """Settings of the (emulated) firmware.
 
-    ``counts_per_rev`` encoder resolution, ``lvdt_m_per_lsb`` LVDT scale (m per raw count),
-    ``control_period_s`` default control period (s; the host may change it with IDENTIFY),
-    ``watchdog_s`` motor to 0 V after this long without SET_VOLTAGE (s), ``limits`` the firmware's
-    own safety limits, ``firmware_id`` (<= 16 ASCII characters).
+    Parameters
+    ----------
+    counts_per_rev : int, optional
+        Encoder resolution (counts per revolution).  Default 8000.
+    lvdt_m_per_lsb : float, optional
+        LVDT scale (m per raw count).  Default 1e-7.
+    control_period_s : float, optional
+        Default control period (s); the host may change it with IDENTIFY.  Default 0.01.
+    watchdog_s : float, optional
+        The motor goes to 0 V after this long without SET_VOLTAGE (s).  Default 0.1.
+    limits : SafetyLimits, optional
+        The firmware's own safety limits.
+    firmware_id : str, optional
+        Identifier sent in CONFIG (at most 16 ASCII characters).
     """
 
     counts_per_rev: int = 8000

@@ -22,11 +22,18 @@ __all__ = ["SafetyLimits", "VoltageLimiter", "check_limits"]
 
 @dataclass(frozen=True)
 class SafetyLimits:
-    """Limits of the rig (SI units).
+    """Limits of the rig (SI units), each a finite number > 0.
 
-    ``v_max`` amplifier range (V, |u| <= v_max), ``slew_v_per_s`` largest voltage rate (V/s),
-    ``max_speed`` over-speed threshold on |omega_u| and |omega_l| (rad/s), ``max_displacement``
-    lateral over-displacement threshold on |X|, |Y| of the LVDTs (m).
+    Parameters
+    ----------
+    v_max : float, optional
+        Amplifier range (V): |u| <= v_max.  Default 5.
+    slew_v_per_s : float, optional
+        Largest voltage rate (V/s).  Default 1000.
+    max_speed : float, optional
+        Over-speed threshold on |omega_u| and |omega_l| (rad/s).  Default 40.
+    max_displacement : float, optional
+        Lateral over-displacement threshold on |X|, |Y| of the LVDTs (m).  Default 0.02.
     """
 
     v_max: float = 5.0
@@ -44,8 +51,12 @@ class SafetyLimits:
 class VoltageLimiter:
     """Clamp to [-v_max, v_max] and limit the change per call to slew_v_per_s * dt (V).
 
-    Non-finite commands (NaN, inf) give 0 V.  ``limit`` returns (voltage, limited) where
-    ``limited`` says whether the command was changed.
+    Non-finite commands (NaN, inf) give 0 V.
+
+    Parameters
+    ----------
+    limits : SafetyLimits
+        The amplifier range and slew rate.
     """
 
     def __init__(self, limits: SafetyLimits) -> None:
@@ -57,6 +68,22 @@ class VoltageLimiter:
         self.last = float(voltage)
 
     def limit(self, command: float, dt: float) -> tuple[float, bool]:
+        """The voltage to apply for a command.
+
+        Parameters
+        ----------
+        command : float
+            Commanded voltage (V).
+        dt : float
+            Time since the last call (s).
+
+        Returns
+        -------
+        voltage : float
+            The clamped, slew-limited voltage (V).
+        limited : bool
+            Whether the command was changed.
+        """
         lim = self.limits
         u = float(command)
         if not math.isfinite(u):
@@ -71,7 +98,22 @@ class VoltageLimiter:
 
 def check_limits(limits: SafetyLimits, omega_u: float, omega_l: float, x: float = 0.0,
                  y: float = 0.0) -> StopReason | None:
-    """The reason to stop for measured speeds (rad/s) and LVDT displacement (m), or None."""
+    """The reason to stop for measured speeds and LVDT displacement, or None.
+
+    Parameters
+    ----------
+    limits : SafetyLimits
+        The thresholds.
+    omega_u, omega_l : float
+        Measured disc speeds (rad/s).
+    x, y : float, optional
+        LVDT displacement (m).
+
+    Returns
+    -------
+    StopReason or None
+        ``OVERSPEED`` or ``OVER_DISPLACEMENT``, or None within the limits.
+    """
     if not (abs(omega_u) <= limits.max_speed and abs(omega_l) <= limits.max_speed):
         return StopReason.OVERSPEED
     if not (abs(x) <= limits.max_displacement and abs(y) <= limits.max_displacement):
