@@ -166,8 +166,16 @@ def _sosfiltfilt_rows(sos: np.ndarray, zi: np.ndarray, X: np.ndarray, pad: int) 
 class EncoderVelocityEstimator:
     """Causal speed estimate from quantized angles: backward difference, then a first-order low-pass.
 
-    Vectorised over a batch: angles of shape (n,).  ``tau`` (s) is the filter time
-    constant (0: raw difference).
+    Vectorised over a batch: angles of shape (n,).
+
+    Parameters
+    ----------
+    n : int
+        Number of rigs.
+    dt : float
+        Sample period (s).
+    tau : float, optional
+        Time constant of the low-pass (s; 0: raw difference).  Default 0.02.
     """
 
     def __init__(self, n: int, dt: float, tau: float = 0.02) -> None:
@@ -177,6 +185,7 @@ class EncoderVelocityEstimator:
         self.omega = np.zeros(n)
 
     def reset(self, theta: np.ndarray, index: np.ndarray | slice | None = None) -> None:
+        """Restart rigs ``index`` (default all) at angles ``theta`` (rad), speed estimate 0."""
         sel = slice(None) if index is None else index
         self.prev[sel] = theta
         self.omega[sel] = 0.0
@@ -190,7 +199,19 @@ class EncoderVelocityEstimator:
 
 @dataclass(frozen=True)
 class MeasurementModel:
-    """How the rig measures: encoder resolution, LVDT noise and the offline LVDT low-pass."""
+    """How the rig measures: encoder resolution, LVDT noise and the offline LVDT low-pass.
+
+    Parameters
+    ----------
+    counts_per_rev : int, optional
+        Encoder resolution (counts per revolution).  Default 8000.
+    lvdt_noise_std : float, optional
+        LVDT noise (m, standard deviation).  Default 3e-6.
+    lvdt_lowpass_hz : float or None, optional
+        Cut-off of the offline zero-phase LVDT low-pass (Hz); None: no filter.  Default 5.
+    sample_rate_hz : float or None, optional
+        Sample rate of the measurement (Hz); None: the simulation's.
+    """
 
     counts_per_rev: int = DEFAULT_COUNTS_PER_REV
     lvdt_noise_std: float = DEFAULT_LVDT_NOISE
@@ -200,9 +221,28 @@ class MeasurementModel:
 
 def measure_trajectory(traj, model: MeasurementModel = MeasurementModel(), seed: int | None = 0,
                        description: str = ""):
-    """A synthetic measurement (TimeSeries in the interchange format) of a simulated Trajectory:
-    the run's Measurement effects (offsets, skew, ...), quantized encoder angles, LVDT readings
-    with noise, offline 5 Hz zero-phase low-pass."""
+    """A synthetic measurement of a simulated run, as the rig would record it.
+
+    The run's Measurement effects (offsets, skew, ...), quantized encoder angles, LVDT readings with
+    noise, the offline zero-phase LVDT low-pass.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        A run of :func:`drillgym.simulate`.
+    model : MeasurementModel, optional
+        The measurement chain; default the rig's.
+    seed : int or None, optional
+        Seed of the LVDT noise.
+    description : str, optional
+        Free text stored in the metadata.
+
+    Returns
+    -------
+    TimeSeries
+        The measurement in the interchange format (``t``, ``u``, ``theta_u``, ``theta_l``, ``x``, ``y``
+        as the configuration has them; SI units).
+    """
     from .io import TimeSeries
 
     rng = np.random.default_rng(seed)

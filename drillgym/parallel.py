@@ -303,9 +303,21 @@ class RayExecutor(Executor):
 
 
 def open_executor(ray: str | None, workers: int = 2) -> Executor | None:
-    """The executor a command's ``--ray``/``--workers`` ask for: a :class:`RayExecutor` when ``ray`` is
-    given ('local' starts ``workers`` CPUs), else a :class:`LocalExecutor` of ``workers`` processes, or
-    None for ``workers <= 1`` (run in this process).  Use it as a context manager."""
+    """The executor a command's ``--ray``/``--workers`` ask for.  Use it as a context manager.
+
+    Parameters
+    ----------
+    ray : str or None
+        ``"local"``, ``"auto"`` or a Ray address; None or empty: no Ray.
+    workers : int, optional
+        Processes of the local pool, or CPUs a ``"local"`` Ray instance starts.  Default 2.
+
+    Returns
+    -------
+    Executor or None
+        A :class:`RayExecutor` when ``ray`` is given, else a :class:`LocalExecutor` of ``workers``
+        processes, or None for ``workers <= 1`` (run in this process).
+    """
     if ray:
         return RayExecutor(ray, workers=workers if ray == "local" else None)
     return LocalExecutor(workers) if workers > 1 else None
@@ -323,8 +335,29 @@ def map_ordered(executor: Executor | None, fn: Callable, tasks: Iterable[Sequenc
                 progress: Callable[[int], None] | None = None, sizes: Sequence[int] | None = None) -> list:
     """``[fn(*t) for t in tasks]`` on ``executor`` (None: in this process), results in task order.
 
-    ``progress(n)`` is called as each task completes, with ``sizes[i]`` (default 1). The first failure
-    cancels the tasks not yet started and is raised (a :class:`TaskFailed` naming its inputs)."""
+    Parameters
+    ----------
+    executor : Executor or None
+        Runs the tasks; None: in this process.
+    fn : callable
+        The function; it and its arguments must pickle for a process pool or Ray.
+    tasks : iterable of sequence
+        Positional arguments of each call.
+    progress : callable, optional
+        ``progress(n)`` as each task completes, with ``sizes[i]``.
+    sizes : sequence of int, optional
+        Work units of each task for ``progress`` (default 1 each).
+
+    Returns
+    -------
+    list
+        The results, in task order.
+
+    Raises
+    ------
+    TaskFailed
+        The first failure, naming its inputs; the tasks not yet started are cancelled.
+    """
     tasks = [tuple(t) for t in tasks]
     sizes = list(sizes) if sizes is not None else [1] * len(tasks)
     if executor is None:

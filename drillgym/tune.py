@@ -57,8 +57,38 @@ def run_trials(fn: Callable[[Any], Any], configs: Sequence[Any], *, ray: str | N
                name: str = "drillgym", storage: str | Path | None = None, progress: bool = True) -> list:
     """``[fn(c) for c in configs]`` as Ray Tune trials; see the module docstring.
 
-    ``ray``: 'local', 'auto' or an address (:func:`drillgym.parallel.connect_ray`; None: already
-    connected); ``workers``: CPUs of a 'local' instance (default: all)."""
+    Parameters
+    ----------
+    fn : callable
+        ``fn(config)``, run once per config in a trial; its results are returned in config order.
+    configs : sequence
+        The configs, at least one.
+    ray : str or None, optional
+        ``"local"`` (default), ``"auto"`` or an address (:func:`drillgym.parallel.connect_ray`);
+        None: already connected.
+    cpus_per_trial : float, optional
+        CPUs Ray reserves per trial.  Default 1.
+    workers : int, optional
+        CPUs of a ``"local"`` instance; default all.
+    retries : int, optional
+        Times a failed trial is retried.  Default 1.
+    name : str, optional
+        Name of the Tune experiment.
+    storage : str or path, optional
+        Directory of Tune's results; default Ray's.
+    progress : bool, optional
+        Show Tune's progress.
+
+    Returns
+    -------
+    list
+        ``fn(c)`` for each config, in order.
+
+    Raises
+    ------
+    InputError
+        No config.
+    """
     from ray import tune
     from ray.tune import RunConfig, FailureConfig, TuneConfig
 
