@@ -1,29 +1,33 @@
 """The rig's experimental configurations (MODEL.md table) and the state layout.
 
-| name            | lateral motion | brake | lower friction law | upper disc |
-|-----------------|----------------|-------|--------------------|------------|
-| upper           | -              | -     | - (string off)     | driven     |
-| torsional       | held x = y = 0 | on    | Stribeck brake     | driven     |
-| lateral         | free           | off   | bearing            | driven     |
-| coupled         | free           | on    | Stribeck brake     | driven     |
-| free_vibration  | held           | off   | bearing            | clamped    |
+==============  ==============  =====  ==================  ==========
+name            lateral motion  brake  lower friction law  upper disc
+==============  ==============  =====  ==================  ==========
+upper           -               -      - (string off)      driven
+torsional       held x = y = 0  on     Stribeck brake      driven
+lateral         free            off    bearing             driven
+coupled         free            on     Stribeck brake      driven
+free_vibration  held            off    bearing             clamped
+==============  ==============  =====  ==================  ==========
 
 ``free_vibration`` is the identification experiment of report 3.3: the upper
 disc is held, the lower disc is twisted by alpha0 and released.
 
 State vector (length ``N_STATE`` for the base model), SI units, used by every kernel:
 
-| index | name     | meaning                                                      |
-|-------|----------|--------------------------------------------------------------|
-| 0     | theta_u  | upper disc angle (rad)                                       |
-| 1     | theta_l  | lower disc angle (rad); alpha = theta_l - theta_u            |
-| 2     | omega_u  | upper disc speed (rad/s)                                     |
-| 3     | omega_l  | lower disc speed (rad/s)                                     |
-| 4     | x        | lateral displacement of centre B, frame rotating with theta_u (m) |
-| 5     | y        | idem (m)                                                     |
-| 6     | vx       | dx/dt in the rotating frame (m/s)                            |
-| 7     | vy       | dy/dt (m/s)                                                  |
-| 8 ...   | (effects) | continuous states of the composition's effects, e.g. ``u_m`` of motor_lag |
+=====  =========  =========================================================================
+index  name       meaning
+=====  =========  =========================================================================
+0      theta_u    upper disc angle (rad)
+1      theta_l    lower disc angle (rad); alpha = theta_l - theta_u
+2      omega_u    upper disc speed (rad/s)
+3      omega_l    lower disc speed (rad/s)
+4      x          lateral displacement of centre B, frame rotating with theta_u (m)
+5      y          idem (m)
+6      vx         dx/dt in the rotating frame (m/s)
+7      vy         dy/dt (m/s)
+8 ...  (effects)  continuous states of the composition's effects, e.g. ``u_m`` of motor_lag
+=====  =========  =========================================================================
 
 Friction modes (length 2 integer vector: upper, lower): +1 / -1 slipping in
 that direction, 0 stuck (velocity exactly zero, friction torque inside the
