@@ -78,7 +78,19 @@ class Status(IntFlag):
 
 @dataclass(frozen=True)
 class Frame:
-    """A valid frame as the parser returns it."""
+    """A valid frame as the parser returns it.
+
+    Parameters
+    ----------
+    type : int
+        Message type (:class:`MsgType`).
+    seq : int
+        Sequence number (0 to 65535).
+    payload : bytes
+        The message's payload.
+    version : int, optional
+        Protocol version of the frame.
+    """
 
     type: int
     seq: int
@@ -93,10 +105,12 @@ class Message:
     FORMAT: ClassVar[struct.Struct]
 
     def pack(self) -> bytes:
+        """The payload bytes of the message (little-endian, ``FORMAT``)."""
         return self.FORMAT.pack(*astuple(self))
 
     @classmethod
     def unpack(cls, payload: bytes) -> "Message":
+        """The message of a payload; ProtocolError when its size is not ``FORMAT.size``."""
         if len(payload) != cls.FORMAT.size:
             raise ProtocolError(f"{cls.TYPE.name} payload has {len(payload)} bytes, expected {cls.FORMAT.size}")
         return cls(*cls.FORMAT.unpack(payload))
@@ -104,7 +118,13 @@ class Message:
 
 @dataclass(frozen=True)
 class Identify(Message):
-    """Ask for the CONFIG; ``period_us`` > 0 also sets the control period (µs, multiple of the plant step)."""
+    """Ask for the CONFIG, optionally setting the control period.
+
+    Parameters
+    ----------
+    period_us : int, optional
+        Control period to set (µs, a multiple of the plant step); 0 keeps the firmware's.
+    """
 
     TYPE: ClassVar = MsgType.IDENTIFY
     FORMAT: ClassVar = struct.Struct("<I")
@@ -113,7 +133,13 @@ class Identify(Message):
 
 @dataclass(frozen=True)
 class SetVoltage(Message):
-    """Motor voltage (V) to hold over the next control period."""
+    """Motor voltage to hold over the next control period.
+
+    Parameters
+    ----------
+    volts : float, optional
+        Voltage (V); the firmware clamps and slew-limits it.
+    """
 
     TYPE: ClassVar = MsgType.SET_VOLTAGE
     FORMAT: ClassVar = struct.Struct("<d")
@@ -122,7 +148,13 @@ class SetVoltage(Message):
 
 @dataclass(frozen=True)
 class Heartbeat(Message):
-    """Link check; the firmware sends the same token back."""
+    """Link check; the firmware sends the same token back.
+
+    Parameters
+    ----------
+    token : int, optional
+        Unsigned 32-bit value.
+    """
 
     TYPE: ClassVar = MsgType.HEARTBEAT
     FORMAT: ClassVar = struct.Struct("<I")
@@ -131,7 +163,13 @@ class Heartbeat(Message):
 
 @dataclass(frozen=True)
 class EmergencyStop(Message):
-    """Stop the motor (0 V) and latch until CLEAR_STOP; ``reason`` is a StopReason."""
+    """Stop the motor (0 V) and latch until CLEAR_STOP.
+
+    Parameters
+    ----------
+    reason : int, optional
+        A :class:`StopReason`; default ``HOST``.
+    """
 
     TYPE: ClassVar = MsgType.EMERGENCY_STOP
     FORMAT: ClassVar = struct.Struct("<B")
@@ -150,9 +188,28 @@ class ClearStop(Message):
 class Config(Message):
     """Identification and configuration of the firmware.
 
-    ``counts_per_rev`` encoder counts per revolution (both discs), ``lvdt_m_per_lsb`` LVDT scale (m per
-    count of the raw value), ``period_us`` control period (µs), ``watchdog_ms``, ``v_max`` (V),
-    ``slew_v_per_s`` (V/s), ``max_speed`` (rad/s), ``max_displacement`` (m), ``firmware_id`` (ASCII, 16 bytes).
+    Parameters
+    ----------
+    protocol_version : int, optional
+        Protocol version the firmware speaks.
+    counts_per_rev : int, optional
+        Encoder counts per revolution (both discs).
+    lvdt_m_per_lsb : float, optional
+        LVDT scale (m per count of the raw value).
+    period_us : int, optional
+        Control period (µs).
+    watchdog_ms : int, optional
+        The motor goes to 0 V after this long without SET_VOLTAGE (ms).
+    v_max : float, optional
+        Amplifier range (V).
+    slew_v_per_s : float, optional
+        Largest voltage rate (V/s).
+    max_speed : float, optional
+        Over-speed threshold (rad/s).
+    max_displacement : float, optional
+        Lateral over-displacement threshold (m).
+    firmware_id : bytes, optional
+        Identifier (ASCII, 16 bytes, zero-padded).
     """
 
     TYPE: ClassVar = MsgType.CONFIG
@@ -170,20 +227,33 @@ class Config(Message):
 
     @property
     def name(self) -> str:
+        """The firmware identifier as text."""
         return self.firmware_id.rstrip(b"\0").decode("ascii", "replace")
 
     @property
     def period_s(self) -> float:
+        """Control period (s)."""
         return self.period_us * 1e-6
 
 
 @dataclass(frozen=True)
 class Sample(Message):
-    """Measurements at the end of the control period started by the SET_VOLTAGE ``ack_seq``.
+    """Measurements at the end of the control period started by a SET_VOLTAGE.
 
-    ``timestamp_us`` firmware time (µs), ``counts_u``/``counts_l`` encoder counts, ``lvdt_x``/``lvdt_y``
-    raw LVDT values (LSB), ``volts`` voltage applied over the period (V, after the firmware's safety),
-    ``status`` Status bits.
+    Parameters
+    ----------
+    ack_seq : int, optional
+        Sequence number of the SET_VOLTAGE that started the period.
+    timestamp_us : int, optional
+        Firmware time (µs).
+    counts_u, counts_l : int, optional
+        Encoder counts of the upper and lower disc.
+    lvdt_x, lvdt_y : int, optional
+        Raw LVDT values (LSB).
+    volts : float, optional
+        Voltage applied over the period (V, after the firmware's safety).
+    status : int, optional
+        :class:`Status` bits.
     """
 
     TYPE: ClassVar = MsgType.SAMPLE
@@ -200,7 +270,15 @@ class Sample(Message):
 
 @dataclass(frozen=True)
 class Ack(Message):
-    """A command (``acked_type``, ``acked_seq``) was executed."""
+    """A command without data reply was executed.
+
+    Parameters
+    ----------
+    acked_type : int, optional
+        Its message type.
+    acked_seq : int, optional
+        Its sequence number.
+    """
 
     TYPE: ClassVar = MsgType.ACK
     FORMAT: ClassVar = struct.Struct("<BH")

@@ -26,7 +26,13 @@ __all__ = ["ConstantController", "PlaybackController", "LinearPolicy", "make_con
 
 
 class ConstantController:
-    """A constant voltage (V), whatever the measurements: ``const:2.0``."""
+    """A constant voltage, whatever the measurements: ``const:2.0``.
+
+    Parameters
+    ----------
+    volts : float
+        The voltage (V).
+    """
 
     name = "const"
 
@@ -34,7 +40,7 @@ class ConstantController:
         self.volts = float(volts)
 
     def reset(self, measurement: Mapping[str, float] | None = None) -> None:
-        pass
+        """Nothing to reset (the controller interface's method)."""
 
     def __call__(self, measurement: Mapping[str, float]) -> float:
         return self.volts
@@ -43,7 +49,20 @@ class ConstantController:
 class PlaybackController:
     """Plays an input file (DATA_FORMAT ``t, u``; e.g. ``drillgym signal``) sample-and-hold against
     the episode's time, 0 V after its end: ``play:est.csv`` records an excitation run for
-    ``drillgym identify``."""
+    ``drillgym identify``.
+
+    Parameters
+    ----------
+    path : str or path
+        The input file.
+
+    Raises
+    ------
+    MissingFileError
+        The file does not exist.
+    DataFormatError
+        The file cannot be read, has no samples or non-finite voltages.
+    """
 
     name = "play"
 
@@ -62,7 +81,7 @@ class PlaybackController:
         self.path = path
 
     def reset(self, measurement: Mapping[str, float] | None = None) -> None:
-        pass
+        """Nothing to reset: the playback follows the episode's time ``t``."""
 
     def __call__(self, measurement: Mapping[str, float]) -> float:
         t = float(measurement.get("t", 0.0))
@@ -74,13 +93,22 @@ class PlaybackController:
 
 @dataclass(frozen=True)
 class LinearPolicy:
-    """action = W @ obs + b (deterministic; the env clips it to the action space)."""
+    """action = W @ obs + b (deterministic; the env clips it to the action space).
+
+    Parameters
+    ----------
+    W : ndarray
+        Weights (act_dim, obs_dim).
+    b : ndarray
+        Offsets (act_dim,).
+    """
 
     W: np.ndarray
     b: np.ndarray
 
     @classmethod
     def load(cls, path: str | Path) -> "LinearPolicy":
+        """The policy in a ``.npz`` with arrays ``W`` and ``b``; InputError when they are missing or disagree."""
         with np.load(path) as z:
             if "W" not in z or "b" not in z:
                 raise InputError(f"{path}: a linear policy file needs arrays 'W' (1, obs_dim) and 'b' (1,)")
@@ -90,6 +118,7 @@ class LinearPolicy:
         return cls(W, b)
 
     def save(self, path: str | Path) -> None:
+        """Write ``W`` and ``b`` to a ``.npz``."""
         np.savez(path, W=self.W, b=self.b)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
@@ -109,8 +138,33 @@ def _optional(module: str, what: str):
 
 def make_controller(spec: str, configuration: str, omega_ref: float | None, control_dt: float,
                     params: Any = None):
-    """A controller from ``const:V``, ``play:FILE`` or a name known to ``controllers.make`` (built
-    on ``params``, a RigParams, when given: e.g. the identified model)."""
+    """A controller from its command-line spec.
+
+    Parameters
+    ----------
+    spec : str
+        ``const:V``, ``play:FILE`` or a name known to :func:`controllers.make` (``agent:PATH`` included).
+    configuration : str
+        Rig configuration.
+    omega_ref : float or None
+        Target lower-disc speed (rad/s), when the controller needs one.
+    control_dt : float
+        Control period (s).
+    params : RigParams, optional
+        The design model (e.g. the identified one); default the controller's.
+
+    Returns
+    -------
+    object
+        A controller: ``reset(measurement)``, then ``controller(measurement) -> volts``.
+
+    Raises
+    ------
+    InputError
+        A malformed spec.
+    UnavailableError
+        The ``controllers`` package cannot be imported.
+    """
     if spec.startswith("play:"):
         return PlaybackController(spec.split(":", 1)[1])
     if spec.startswith("const:"):
@@ -131,7 +185,25 @@ def make_controller(spec: str, configuration: str, omega_ref: float | None, cont
 
 
 def load_policy(path: str | Path) -> Callable[[np.ndarray], np.ndarray]:
-    """A policy (observation -> action) from a file: ``.npz`` linear, else via ``agents.load_policy``."""
+    """A policy (observation -> action) from a file.
+
+    Parameters
+    ----------
+    path : str or path
+        A ``.npz`` linear policy (:class:`LinearPolicy`), else any file :func:`agents.load_policy` reads.
+
+    Returns
+    -------
+    callable
+        ``policy(observation) -> action``.
+
+    Raises
+    ------
+    MissingFileError
+        The file does not exist.
+    UnavailableError
+        The ``agents`` package cannot be imported.
+    """
     p = Path(path)
     if not p.exists():
         raise MissingFileError(f"policy file {p} does not exist")
@@ -153,7 +225,25 @@ def measurement_of(info: Mapping[str, Any]) -> dict[str, float]:
 
 @dataclass
 class EpisodeResult:
-    """Outcome of one episode: steps, return, how it ended, the recording file, timing (s)."""
+    """Outcome of one episode on the rig.
+
+    Parameters
+    ----------
+    steps : int
+        Control periods run.
+    total_reward : float
+        Sum of the rewards.
+    terminated, truncated : bool
+        How the episode ended.
+    recording : str
+        The episode's recording file.
+    safety_stop : str or None
+        The safety stop that ended it, if any.
+    tick_errors : ndarray
+        Pacing error of each period (s).
+    round_trips : ndarray
+        Round trip of each SET_VOLTAGE/SAMPLE exchange (s).
+    """
 
     steps: int
     total_reward: float
@@ -167,7 +257,28 @@ class EpisodeResult:
 
 def run_episode(env, *, controller=None, policy=None, seed: int | None = None, max_steps: int | None = None,
                 on_step: Callable[[int, dict], None] | None = None) -> EpisodeResult:
-    """One episode of a controller (measurements -> volts) or a policy (observation -> action)."""
+    """One episode of a controller (measurements -> volts) or a policy (observation -> action).
+
+    Parameters
+    ----------
+    env : HardwareEnv
+        The rig's environment (possibly wrapped).
+    controller : object, optional
+        A controller (:func:`make_controller`); give this or ``policy``.
+    policy : callable, optional
+        ``policy(observation) -> action`` (:func:`load_policy`).
+    seed : int, optional
+        Seed of the reset.
+    max_steps : int, optional
+        Stop after this many control periods (the episode is then ended cleanly).
+    on_step : callable, optional
+        ``on_step(step, info)`` after every period.
+
+    Returns
+    -------
+    EpisodeResult
+        Steps, return, how the episode ended, the recording file and the timing.
+    """
     if (controller is None) == (policy is None):
         raise ValueError("give exactly one of controller or policy")
     obs, info = env.reset(seed=seed)
