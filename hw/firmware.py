@@ -149,6 +149,7 @@ class Firmware:
     # ------------------------------------------------------------------ configuration
     @property
     def period_s(self) -> float:
+        """Control period (s), a whole number of plant steps."""
         return self.n_sub * self.sim.dt
 
     def _substeps(self, period_s: float) -> int:
@@ -158,6 +159,7 @@ class Firmware:
         return n
 
     def config_message(self) -> P.Config:
+        """The CONFIG reply to IDENTIFY: protocol version, encoder and LVDT scales, period, limits, id."""
         c, lim = self.config, self.config.limits
         return P.Config(P.PROTOCOL_VERSION, c.counts_per_rev, c.lvdt_m_per_lsb, int(round(self.period_s * 1e6)),
                         int(round(c.watchdog_s * 1e3)), lim.v_max, lim.slew_v_per_s, lim.max_speed,

@@ -87,9 +87,11 @@ class SerialLink:
     # ------------------------------------------------------------------ state
     @property
     def is_open(self) -> bool:
+        """True while the port is open."""
         return self.ser is not None and self.ser.is_open
 
     def close(self) -> None:
+        """Close the port (idempotent; errors of a vanished port are ignored)."""
         if self.ser is not None:
             try:
                 self.ser.close()
@@ -108,7 +110,23 @@ class SerialLink:
 
     # ------------------------------------------------------------------ I/O
     def send(self, msg: P.Message) -> int:
-        """Write one message; returns its sequence number."""
+        """Write one message.
+
+        Parameters
+        ----------
+        msg : hw.protocol.Message
+            The message.
+
+        Returns
+        -------
+        int
+            Its sequence number.
+
+        Raises
+        ------
+        LinkLostError
+            The port is closed, disconnected or does not accept data.
+        """
         if not self.is_open:
             raise LinkLostError(f"serial port {self.url!r} is closed")
         seq = self._tx_seq
@@ -123,8 +141,25 @@ class SerialLink:
         return seq
 
     def receive(self, deadline: float) -> list[tuple[P.Frame, float]]:
-        """Valid frames (with their arrival time, time.monotonic) read until at least one arrived
-        or ``deadline`` (time.monotonic) passed.  Tracks the firmware's sequence numbers."""
+        """Read valid frames until at least one arrived or the deadline passed.
+
+        Tracks the firmware's sequence numbers.
+
+        Parameters
+        ----------
+        deadline : float
+            Latest time to wait until (s, ``time.monotonic``).
+
+        Returns
+        -------
+        list of tuple
+            ``(frame, arrival time)`` pairs (arrival in s, ``time.monotonic``); empty at the deadline.
+
+        Raises
+        ------
+        LinkLostError
+            The port is closed or disconnected.
+        """
         if not self.is_open:
             raise LinkLostError(f"serial port {self.url!r} is closed")
         out: list[tuple[P.Frame, float]] = []

@@ -15,6 +15,11 @@ class Pacer:
     ``wait()`` sleeps until the next scheduled tick and returns how late it woke (s).  When the
     caller is more than one period late the schedule restarts from now (no burst of catch-up
     ticks) and ``overruns`` counts it.
+
+    Parameters
+    ----------
+    period : float
+        The period (s), > 0.
     """
 
     def __init__(self, period: float) -> None:
@@ -30,6 +35,7 @@ class Pacer:
         self.next = time.monotonic()
 
     def wait(self) -> float:
+        """Sleep until the next tick; return how late it woke (s)."""
         if self.next is None:
             self.start()
         now = time.monotonic()

@@ -25,9 +25,11 @@ class CounterUnwrap:
         self.value: int | None = None
 
     def reset(self) -> None:
+        """Forget the history: the next sample starts the count."""
         self.value = None
 
     def update(self, raw: int) -> int:
+        """The unbounded count after one more raw sample of the 32-bit counter."""
         if self.value is None:
             self.value = int(raw)
         else:

@@ -31,15 +31,27 @@ _RAW = ("counts_u", "counts_l", "lvdt_x_raw", "lvdt_y_raw", "u_cmd", "status", "
 
 
 def columns(lateral: bool) -> tuple[str, ...]:
-    """Column names of a recording."""
+    """Column names of a recording; ``lateral`` adds the LVDT columns."""
     lat = ("x", "y", "x_lp", "y_lp") if lateral else ()
     return ("t", "u", "theta_u", "theta_l") + lat + ("omega_u_est", "omega_l_est") + _RAW
 
 
 def episode_path(record: str | Path, episode: int) -> Path:
-    """Where episode ``episode`` (0-based) is recorded: ``record`` itself (a .csv file) for the first
-    episode and ``<stem>_<k>.csv`` next to it for the others, or ``<dir>/<timestamp>_ep<k>.csv`` when
-    ``record`` is a directory."""
+    """Where an episode is recorded.
+
+    Parameters
+    ----------
+    record : str or path
+        A ``.csv`` file or a directory.
+    episode : int
+        Episode number (0-based).
+
+    Returns
+    -------
+    Path
+        ``record`` itself for the first episode and ``<stem>_<k>.csv`` next to it for the others, or
+        ``<dir>/<timestamp>_ep<k>.csv`` when ``record`` is a directory.
+    """
     p = Path(record)
     if p.suffix.lower() == ".csv":
         return p if episode == 0 else p.with_name(f"{p.stem}_{episode:03d}.csv")
@@ -52,7 +64,19 @@ class EpisodeRecorder:
     The disk work (formatting, writing, ``fsync`` every ``flush_interval_s`` of samples) happens on a
     writer thread: on a busy machine one ``fsync`` can take longer than the firmware's watchdog, and the
     control loop must not wait for it.  ``write`` only queues the row; ``close`` waits for the thread to
-    write and sync the rest."""
+    write and sync the rest.
+
+    Parameters
+    ----------
+    path : str or path
+        The CSV file (its directory is created).
+    lateral : bool
+        The configuration has LVDT signals (``x``, ``y`` columns).
+    meta : mapping
+        Metadata written in the file's ``# meta:`` line.
+    flush_interval_s : float, optional
+        Longest time of samples between two syncs to disk (s, in (0, 1]).  Default 0.5.
+    """
 
     def __init__(self, path: str | Path, lateral: bool, meta: Mapping, flush_interval_s: float = 0.5) -> None:
         if not 0 < flush_interval_s <= 1.0:
@@ -82,6 +106,7 @@ class EpisodeRecorder:
             self._error = exc
 
     def write(self, row: Mapping[str, float]) -> None:
+        """Queue one sample (column name -> value); raises an error the writer thread met."""
         if self._error is not None:
             raise self._error
         self._queue.put(dict(row))
