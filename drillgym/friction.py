@@ -70,7 +70,20 @@ def bearing_law(aw: float, d: float, Tcl: float, bl: float) -> float:
 
 # ----------------------------------------------------------------- numpy helpers
 def upper_friction(w: np.ndarray, params: RigParams | None = None) -> np.ndarray:
-    """Upper slip friction torque Tfu(w) (N m) of the base law for w != 0 (0 at w = 0), vectorised."""
+    """Upper slip friction torque Tfu(w) of the base law, vectorised.
+
+    Parameters
+    ----------
+    w : ndarray
+        Upper disc speed(s) (rad/s).
+    params : RigParams, optional
+        Base parameters; default the identified set.
+
+    Returns
+    -------
+    ndarray
+        Tfu (N m), shaped as ``w``; 0 at w = 0 (the stick set is not a value).
+    """
     p = params or RigParams()
     w = np.asarray(w, dtype=float)
     law = np.vectorize(lambda v: upper_law(abs(v), float(np.sign(v)), p.Tcu, p.dTcu, p.bu, p.dbu))
@@ -78,8 +91,22 @@ def upper_friction(w: np.ndarray, params: RigParams | None = None) -> np.ndarray
 
 
 def lower_friction(w: np.ndarray, params: RigParams | None = None, brake: bool = True) -> np.ndarray:
-    """Lower slip friction torque Tfl(w) (N m) of the base law (brake: Stribeck, else bearing)
-    for w != 0 (0 at w = 0), vectorised."""
+    """Lower slip friction torque Tfl(w) of the base law, vectorised.
+
+    Parameters
+    ----------
+    w : ndarray
+        Lower disc speed(s) (rad/s).
+    params : RigParams, optional
+        Base parameters; default the identified set.
+    brake : bool, optional
+        The brake's Stribeck law (True, default) or the bearing law (False).
+
+    Returns
+    -------
+    ndarray
+        Tfl (N m), shaped as ``w``; 0 at w = 0 (the stick set is not a value).
+    """
     p = params or RigParams()
     w = np.asarray(w, dtype=float)
     if brake:
@@ -91,7 +118,24 @@ def lower_friction(w: np.ndarray, params: RigParams | None = None, brake: bool =
 
 def lower_friction_slope(w: np.ndarray, params: RigParams | None = None, brake: bool = True,
                          rel_step: float = 1e-6) -> np.ndarray:
-    """Linearised friction damping dTfl/dw (N m s/rad) at w != 0 by central differences."""
+    """Linearised friction damping dTfl/dw at w != 0 by central differences.
+
+    Parameters
+    ----------
+    w : ndarray
+        Lower disc speed(s) (rad/s), not 0.
+    params : RigParams, optional
+        Base parameters; default the identified set.
+    brake : bool, optional
+        The brake's Stribeck law (True, default) or the bearing law (False).
+    rel_step : float, optional
+        Difference step relative to |w| (at least 1e-3 rad/s times it).
+
+    Returns
+    -------
+    ndarray
+        dTfl/dw (N m s/rad), shaped as ``w``.
+    """
     w = np.asarray(w, dtype=float)
     h = rel_step * np.maximum(np.abs(w), 1e-3)
     return (lower_friction(w + h, params, brake) - lower_friction(w - h, params, brake)) / (2 * h)

@@ -24,10 +24,24 @@ def _expected(high: float) -> str:
 def action_voltage(action: Any, high: float = 5.0) -> float:
     """The action's value (action units: V, or x 5 V when normalised) as a float.
 
-    Accepts a real number or an array-like of shape (1,) (or 0-d) with a numeric dtype.
-    Raises TypeError for None, strings, booleans and non-numeric arrays, ValueError for another
-    shape or a NaN/inf value; each names what is expected.  ``high`` is the action space's bound,
-    only for the message.
+    Parameters
+    ----------
+    action : float or array_like
+        A real number or an array-like of shape (1,) (or 0-d) with a numeric dtype.
+    high : float, optional
+        The action space's bound, only for the error message.
+
+    Returns
+    -------
+    float
+        The action's value.
+
+    Raises
+    ------
+    InputTypeError
+        None, a string, a boolean or a non-numeric array; the message names what is expected.
+    InputError
+        Another shape, or a NaN or infinite value.
     """
     if type(action) is np.ndarray and action.shape == (1,) and action.dtype.kind == "f":  # the common case, fast
         v = float(action[0])

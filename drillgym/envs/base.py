@@ -28,7 +28,7 @@ _ROW0 = np.zeros(1, dtype=np.int64)
 
 
 def action_space(normalize: bool) -> spaces.Box:
-    """The motor voltage: Box [-5, 5] V, or [-1, 1] (x 5 V) when normalised."""
+    """The motor voltage's action space: Box [-5, 5] V, or [-1, 1] (x 5 V) when ``normalize`` is true."""
     hi = 1.0 if normalize else U_MAX
     return spaces.Box(-hi, hi, shape=(1,), dtype=np.float32)
 

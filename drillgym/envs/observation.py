@@ -95,7 +95,22 @@ def _observe_full(Y, u_prev, omega_ref, lateral, low, high, out):
 
 
 class ObservationModel:
-    """Base class: layout ``names``, bounds, ``space``; batched ``reset`` and ``observe``."""
+    """Base class: layout ``names``, bounds, ``space``; batched ``reset`` and ``observe``.
+
+    Parameters
+    ----------
+    n : int
+        Number of rigs.
+    options : EnvOptions
+        The environment's options (mode, limits, sensors, effects).
+
+    Attributes
+    ----------
+    names : tuple of str
+        Layout of an observation row.
+    space : gymnasium.spaces.Box
+        The observation space of one rig (float32).
+    """
 
     mode: str = ""
     #: True when the engine's compiled kernel writes this observation itself (``full_obs_row``)
@@ -113,6 +128,7 @@ class ObservationModel:
 
     @property
     def dim(self) -> int:
+        """Length of an observation row."""
         return len(self.names)
 
     def _layout(self, o: EnvOptions) -> tuple[list[str], list[float], list[float]]:  # pragma: no cover
@@ -147,7 +163,15 @@ class ObservationModel:
 
 
 class FullObservation(ObservationModel):
-    """The true state (see the module docstring for the layout)."""
+    """The true state (see the module docstring for the layout).
+
+    Parameters
+    ----------
+    n : int
+        Number of rigs.
+    options : EnvOptions
+        The environment's options.
+    """
 
     mode = "full"
     compiled = True
@@ -260,7 +284,20 @@ class SensorObservation(ObservationModel):
     """Encoder angles, estimated speeds, LVDT readings (see the module docstring for the layout).
 
     ``est_u``, ``est_l``: the speed estimators of the two encoders; their ``prev`` / ``omega``
-    arrays are rows of the state ``E`` (4, n) that the compiled kernels update."""
+    arrays are rows of the state ``E`` (4, n) that the compiled kernels update.
+
+    Parameters
+    ----------
+    n : int
+        Number of rigs.
+    options : EnvOptions
+        The environment's options (mode, limits, sensors, effects).
+    sensors : SimulatedSensors, optional
+        The simulated sensors; default built from ``options``.
+    params : ndarray, optional
+        The rigs' (n, n_params) parameter matrix, read live by the simulated sensors; default the
+        options' parameters.
+    """
 
     mode = "sensors"
 
@@ -316,9 +353,21 @@ class SensorObservation(ObservationModel):
 
     def from_readings(self, theta_u: np.ndarray, theta_l: np.ndarray, X: np.ndarray | None, Y: np.ndarray | None,
                       u_prev: np.ndarray, omega_ref: np.ndarray, out: np.ndarray) -> None:
-        """Observation from one period's readings: encoder angles (rad), LVDTs (m; None or ignored
-        without lateral entries), voltage (V), target (rad/s); arrays of one value per rig.
-        Updates the speed estimators (call once per control period)."""
+        """Observation from one period's readings; updates the speed estimators (call once per period).
+
+        Parameters
+        ----------
+        theta_u, theta_l : ndarray
+            Encoder angles (rad), one per rig.
+        X, Y : ndarray or None
+            LVDT readings (m); None or ignored without lateral entries.
+        u_prev : ndarray
+            Voltage applied over the period (V).
+        omega_ref : ndarray
+            Target speeds (rad/s).
+        out : ndarray
+            The (n, dim) float32 observation array, written in place.
+        """
         n = self._check_out(out)
         theta_u, theta_l = _rows(theta_u, n, "theta_u"), _rows(theta_l, n, "theta_l")
         if self.lateral:
@@ -333,7 +382,20 @@ class MotorObservation(ObservationModel):
     """Motor-side encoder increments and voltage history (see the module docstring for the layout).
 
     ``est``: the raw increment estimator (its ``prev`` / ``omega`` are rows of ``E`` (2, n));
-    ``hist`` (n, 2H): increments (rad/s) then voltages (V), newest first."""
+    ``hist`` (n, 2H): increments (rad/s) then voltages (V), newest first.
+
+    Parameters
+    ----------
+    n : int
+        Number of rigs.
+    options : EnvOptions
+        The environment's options (mode, limits, sensors, effects).
+    sensors : SimulatedSensors, optional
+        The simulated sensors; default built from ``options``.
+    params : ndarray, optional
+        The rigs' (n, n_params) parameter matrix, read live by the simulated sensors; default the
+        options' parameters.
+    """
 
     mode = "motor"
 
@@ -374,8 +436,19 @@ class MotorObservation(ObservationModel):
 
     def from_readings(self, theta_u: np.ndarray, u_prev: np.ndarray, omega_ref: np.ndarray,
                       out: np.ndarray) -> None:
-        """Observation from the motor encoder angle (rad), the applied voltage (V) and the target
-        (rad/s), one value per rig."""
+        """Observation from one period's motor encoder reading (call once per control period).
+
+        Parameters
+        ----------
+        theta_u : ndarray
+            Motor encoder angle (rad), one per rig.
+        u_prev : ndarray
+            Voltage applied over the period (V).
+        omega_ref : ndarray
+            Target speeds (rad/s).
+        out : ndarray
+            The (n, dim) float32 observation array, written in place.
+        """
         n = self._check_out(out)
         ok.motor_rows(_rows(theta_u, n, "theta_u"), _rows(u_prev, n, "u_prev"), _rows(omega_ref, n, "omega_ref"),
                       self.E, self.hist, self.cv, True, out)
@@ -404,9 +477,23 @@ def _params(n: int, o: EnvOptions, params: np.ndarray | None) -> np.ndarray:
 
 
 def make_observation_model(n: int, options: EnvOptions, params: np.ndarray | None = None) -> ObservationModel:
-    """The observation model of ``options.observation`` for n rigs; ``params`` the rigs' (n, n_params)
-    parameter matrix in the layout of ``options.effects`` (read live by the simulated sensors;
-    default the options' parameters and effect values)."""
+    """The observation model of ``options.observation`` for n rigs.
+
+    Parameters
+    ----------
+    n : int
+        Number of rigs.
+    options : EnvOptions
+        The environment's options.
+    params : ndarray, optional
+        The rigs' (n, n_params) parameter matrix in the layout of ``options.effects``, read live by the
+        simulated sensors; default the options' parameters and effect values.
+
+    Returns
+    -------
+    ObservationModel
+        A :class:`FullObservation`, :class:`SensorObservation` or :class:`MotorObservation`.
+    """
     if options.observation == "full":
         return FullObservation(n, options)
     return _MODELS[options.observation](n, options, params=params)

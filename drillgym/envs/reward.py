@@ -39,7 +39,13 @@ def _reward_kernel(Y, MODE, u, u_prev, omega_ref, w, out):
 
 
 class TrackingReward:
-    """Batched reward of the tracking task (formula in the module docstring)."""
+    """Batched reward of the tracking task (formula in the module docstring).
+
+    Parameters
+    ----------
+    weights : RewardWeights
+        Weights of the reward terms.
+    """
 
     def __init__(self, weights: RewardWeights) -> None:
         self.weights = weights
