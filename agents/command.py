@@ -93,7 +93,17 @@ class SpeedCommand:
     """The commanded speed of ``n`` rigs over time: the schedule through its three lags.
 
     ``value`` (rad/s, (n,)) is the command at the current time; :meth:`advance` moves every rig one
-    control period ``dt`` (s) on; :meth:`reset` starts rigs from rest (time 0, command 0)."""
+    control period on; :meth:`reset` starts rigs from rest (time 0, command 0).
+
+    Parameters
+    ----------
+    schedule : CommandSchedule
+        The schedule.
+    n : int
+        Number of rigs.
+    dt : float
+        Control period (s), > 0.
+    """
 
     def __init__(self, schedule: CommandSchedule, n: int, dt: float) -> None:
         if not (np.isfinite(dt) and dt > 0):

@@ -91,7 +91,30 @@ def _parse_policy_kwargs(v: Any) -> dict:
 
 
 def load_hyperparams(algo: str, env_id: str, path: "str | Path | None" = None) -> dict[str, Any]:
-    """The entry of ``env_id`` in the hyperparameter file of ``algo`` (default ``agents/hyperparams/<algo>.yml``)."""
+    """The entry of ``env_id`` in the hyperparameter file of ``algo``, merged with its drillgym section.
+
+    Parameters
+    ----------
+    algo : str
+        Algorithm name (``"ppo"``, ``"sac"``, ...).
+    env_id : str
+        Gymnasium id of the environment (the file's entry).
+    path : str or path, optional
+        The YAML file (rl-zoo3 layout); default ``agents/hyperparams/<algo>.yml``.
+
+    Returns
+    -------
+    dict
+        The entry: SB3 keywords, rl-zoo3 keys and drillgym's structure keys, with ``env_kwargs`` and
+        ``policy`` set.
+
+    Raises
+    ------
+    MissingFileError
+        The file does not exist.
+    InputError
+        Invalid YAML, no entry for ``env_id``, or drillgym keys outside their section.
+    """
     f = Path(path) if path is not None else HYPERPARAMS_DIR / f"{algo}.yml"
     if not f.is_file():
         raise MissingFileError(f"hyperparameter file {f} not found")
@@ -118,7 +141,24 @@ def load_hyperparams(algo: str, env_id: str, path: "str | Path | None" = None) -
 
 
 def parse_overrides(items: list[str]) -> dict[str, Any]:
-    """``["learning_rate=1e-3", "env_kwargs.motor_history=48"]`` -> a nested dict (values parsed as YAML)."""
+    """Command-line overrides as a nested dict.
+
+    Parameters
+    ----------
+    items : list of str
+        ``KEY=VALUE`` items, e.g. ``["learning_rate=1e-3", "env_kwargs.motor_history=48"]``; dots nest
+        the key, values are parsed as YAML.
+
+    Returns
+    -------
+    dict
+        The nested overrides.
+
+    Raises
+    ------
+    InputError
+        An item that is not ``KEY=VALUE``, invalid YAML, or two items in conflict.
+    """
     out: dict[str, Any] = {}
     for item in items:
         key, sep, value = item.partition("=")
@@ -145,7 +185,20 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
 
 
 def apply_overrides(hp: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
-    """``hp`` with ``overrides`` merged in (nested dicts such as env_kwargs are merged key by key)."""
+    """``hp`` with ``overrides`` merged in (nested dicts such as env_kwargs are merged key by key).
+
+    Parameters
+    ----------
+    hp : dict
+        Hyperparameters (:func:`load_hyperparams`).
+    overrides : dict
+        Entries replacing those of ``hp`` (:func:`parse_overrides`).
+
+    Returns
+    -------
+    dict
+        A merged copy; ``hp`` is not changed.
+    """
     out = dict(hp)
     for k, v in overrides.items():
         out[k] = apply_overrides(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v

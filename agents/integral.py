@@ -21,5 +21,23 @@ Z_MAX = 2.0
 
 
 def advance(z: np.ndarray, obs: np.ndarray, control_dt: float, z_max: float = Z_MAX) -> np.ndarray:
-    """The integral after one period whose 'motor' observation is ``obs`` (n, dim)."""
+    """The integral after one control period.
+
+    Parameters
+    ----------
+    z : ndarray
+        The integral of each rig (rad), (n,).
+    obs : ndarray
+        The period's 'motor' observations (n, dim): entry 0 the newest motor speed increment (rad/s),
+        the last entry the target (rad/s).
+    control_dt : float
+        Control period (s).
+    z_max : float, optional
+        Clip of the integral (rad).  Default 2.
+
+    Returns
+    -------
+    ndarray
+        The new integral (rad), (n,).
+    """
     return np.clip(z + control_dt * (obs[:, 0].astype(float) - obs[:, -1].astype(float)), -z_max, z_max)
