@@ -38,8 +38,23 @@ _SECTIONS = ("relative", "effects", "harmonics", "encoder")
 
 @dataclass(frozen=True)
 class UncertaintySet:
-    """What a plant may be: relative ranges of base parameters (fraction), [lo, hi] of effect
-    parameters, max amplitudes of (cos, sin) effect pairs, encoder counts [lo, hi] and angle noise [lo, hi] (rad)."""
+    """What a plant may be (usually read by :func:`load_uncertainty`).
+
+    Parameters
+    ----------
+    relative : mapping of str to float, optional
+        Relative range of base parameters: name -> r, drawn uniformly in value x (1 +- r), 0 <= r < 1.
+    effects : mapping of str to tuple of float, optional
+        Effect parameters: name -> [lo, hi] (the parameter's unit), drawn uniformly.
+    harmonics : mapping of tuple of str to float, optional
+        (cos, sin) pairs of effect parameters -> largest amplitude; amplitude and phase are drawn.
+    counts_per_rev : tuple of int, optional
+        Encoder resolution range [lo, hi] (counts/rev).
+    angle_noise : tuple of float, optional
+        Angle noise range [lo, hi] (rad, standard deviation).
+    source : str, optional
+        Where the set comes from, named in error messages.
+    """
 
     relative: Mapping[str, float] = field(default_factory=dict)
     effects: Mapping[str, tuple[float, float]] = field(default_factory=dict)
@@ -75,7 +90,24 @@ def _pair(v: Any, what: str, source: str) -> tuple[float, float]:
 
 
 def load_uncertainty(path: "str | Path | None" = None) -> UncertaintySet:
-    """Read an uncertainty set from YAML (default :data:`DEFAULT_UNCERTAINTY`); one-line errors."""
+    """Read an uncertainty set from YAML.
+
+    Parameters
+    ----------
+    path : str or path, optional
+        The YAML file (sections ``relative``, ``effects``, ``harmonics``, ``encoder``); default
+        :data:`DEFAULT_UNCERTAINTY` (``plants.yaml``).
+
+    Returns
+    -------
+    UncertaintySet
+        The validated set.
+
+    Raises
+    ------
+    InputError
+        An unreadable file, invalid YAML, an unknown section or parameter, or a bad range; one line.
+    """
     import yaml
 
     path = Path(path) if path is not None else DEFAULT_UNCERTAINTY
@@ -117,8 +149,23 @@ def load_uncertainty(path: "str | Path | None" = None) -> UncertaintySet:
 
 @dataclass
 class PlantPopulation:
-    """n plants: the composition they share, the (n, n_params) parameter matrix, their encoders and
-    the drawn values by name (one dict per plant, keys :meth:`UncertaintySet.columns`)."""
+    """n plants drawn from an uncertainty set (:func:`sample_plants`).
+
+    Parameters
+    ----------
+    composition : Composition
+        The effects the plants share.
+    matrix : ndarray
+        (n, n_params) parameter matrix in the composition's layout.
+    counts_per_rev : ndarray
+        Encoder resolution of each plant (counts/rev), (n,).
+    angle_noise : ndarray
+        Angle noise of each plant (rad), (n,).
+    columns : list of dict
+        The drawn values by name, one dict per plant (keys :meth:`UncertaintySet.columns`).
+    uncertainty : UncertaintySet
+        The set they were drawn from.
+    """
 
     composition: Composition
     matrix: np.ndarray
@@ -129,6 +176,7 @@ class PlantPopulation:
 
     @property
     def n(self) -> int:
+        """Number of plants."""
         return int(self.matrix.shape[0])
 
     def subset(self, index: "np.ndarray | list[int]") -> "PlantPopulation":
@@ -140,9 +188,27 @@ class PlantPopulation:
 
 def sample_plants(n: int, seed: int = 0, uncertainty: "UncertaintySet | str | Path | None" = None,
                   params: RigParams | None = None) -> PlantPopulation:
-    """Draw n plants around ``params`` (default the nominal set) from the uncertainty set (default
-    ``plants.yaml``); the same (n, seed, set) always gives the same plants, and the first k plants of
-    a population of n > k are the population of k."""
+    """Draw n plants around ``params`` from an uncertainty set.
+
+    The same (n, seed, set) always gives the same plants, and the first k plants of a population of
+    n > k are the population of k.
+
+    Parameters
+    ----------
+    n : int
+        Number of plants (>= 1).
+    seed : int, optional
+        Seed of the population.
+    uncertainty : UncertaintySet, str or path, optional
+        The set, or its YAML file; default ``plants.yaml``.
+    params : RigParams, optional
+        The nominal base parameters; default the identified set.
+
+    Returns
+    -------
+    PlantPopulation
+        The plants.
+    """
     if int(n) != n or n < 1:
         raise InputError(f"the number of plants must be a positive integer, got {n!r}")
     us = uncertainty if isinstance(uncertainty, UncertaintySet) else load_uncertainty(uncertainty)

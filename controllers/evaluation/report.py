@@ -122,8 +122,25 @@ def plot_ssi(rows: Sequence[dict], path: "str | Path", scenario: str = "rest", p
 
 
 def write_report(rows: Sequence[dict], out_dir: "str | Path", params=None, plant: str | None = None) -> dict[str, Path]:
-    """results.csv, summary.md (table per scenario) and ssi_vs_target.png in ``out_dir``; ``plant``: one
-    line on the plant's hidden effects (default from the rows' ``plant`` labels)."""
+    """Write the evaluation's report: results.csv, summary.md (a table per scenario), ssi_vs_target.png.
+
+    Parameters
+    ----------
+    rows : sequence of dict
+        The rows of :func:`controllers.evaluation.evaluate`.
+    out_dir : str or path
+        Output directory (created).
+    params : RigParams, optional
+        Nominal parameters of the open-loop diagram in the figure; default the identified set.
+    plant : str, optional
+        One line on the plant's hidden effects; default from the rows' ``plant`` labels.
+
+    Returns
+    -------
+    dict of str to Path
+        The files written by kind: ``csv``, ``markdown``, ``figure``, and ``population_figure`` for a
+        population scenario.
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = {"csv": write_csv(rows, out / "results.csv")}
