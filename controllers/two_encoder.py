@@ -103,7 +103,7 @@ def _design(params: RigParams, omega: float, dt: float, o: TwoEncoderDesign):
 
 
 class TwoEncoderLQG(Controller):
-    """Gain-scheduled LQG on the motor and lower encoders (see the module docstring).
+    """Gain-scheduled LQG on the motor and lower encoders (see the module doc).
 
     Parameters
     ----------
