@@ -18,6 +18,21 @@ LATERAL_COULOMB_EPS = 1e-4
 
 
 class PositionFriction(Friction):
+    """Friction level of the lower disc that depends on its angle (spots on the brake surface).
+
+    Library name ``position_friction``; :meth:`describe` gives its physics and the residual it leaves when missing.
+
+    Parameters
+    ----------
+    **values : float
+        Parameter values by name:
+
+        * ``pf_c1``: cos(theta_l) coefficient of the friction level, in [-0.9, 0.9]; default 0.
+        * ``pf_s1``: sin(theta_l) coefficient, in [-0.9, 0.9]; default 0.
+        * ``pf_c2``: cos(2 theta_l) coefficient, in [-0.9, 0.9]; default 0.
+        * ``pf_s2``: sin(2 theta_l) coefficient, in [-0.9, 0.9]; default 0.
+    """
+
     name = "position_friction"
     disc = "lower"
     parameters = (
@@ -45,6 +60,19 @@ class PositionFriction(Friction):
 
 
 class BrakeAsymmetry(Friction):
+    """Brake friction levels that differ between the two directions of rotation.
+
+    Library name ``brake_asymmetry``; :meth:`describe` gives its physics and the residual it leaves when missing.
+
+    Parameters
+    ----------
+    **values : float
+        Parameter values by name:
+
+        * ``asym_s``: relative change of the static level for negative rotation, in [-0.9, 5]; default 0.
+        * ``asym_c``: relative change of the slip level for negative rotation, in [-0.9, 5]; default 0.
+    """
+
     name = "brake_asymmetry"
     disc = "lower"
     parameters = (
@@ -74,6 +102,18 @@ class BrakeAsymmetry(Friction):
 
 
 class StringDamping(Force):
+    """Torsional damping of the string, in parallel with its stiffness.
+
+    Library name ``string_damping``; :meth:`describe` gives its physics and the residual it leaves when missing.
+
+    Parameters
+    ----------
+    **values : float
+        Parameter values by name:
+
+        * ``dtheta``: torsional damping of the string (N m s/rad), in [0, 10]; default 0.002.
+    """
+
     name = "string_damping"
     acts_on = "string"
     parameters = (Parameter("dtheta", "N m s/rad", 0.0, 10.0, 0.002, 0.005, "torsional damping of the string",
@@ -91,6 +131,18 @@ class StringDamping(Force):
 
 
 class MotorLag(Input):
+    """First-order lag of the amplifier and motor: tau_m du_m/dt = u - u_m.
+
+    Library name ``motor_lag``; :meth:`describe` gives its physics and the residual it leaves when missing.
+
+    Parameters
+    ----------
+    **values : float
+        Parameter values by name:
+
+        * ``tau_m``: first-order amplifier/motor time constant (s), in [0.0001, 5]; default 0.005.
+    """
+
     name = "motor_lag"
     parameters = (Parameter("tau_m", "s", 1e-4, 5.0, 0.005, 0.02, "first-order amplifier/motor time constant"),)
     states = (State("u_m", "V", "voltage at the motor after the lag"),)
@@ -111,6 +163,18 @@ class MotorLag(Input):
 
 
 class InputDelay(Delay):
+    """Pure transport delay between the commanded voltage and the motor.
+
+    Library name ``input_delay``; :meth:`describe` gives its physics and the residual it leaves when missing.
+
+    Parameters
+    ----------
+    **values : float
+        Parameter values by name:
+
+        * ``delay``: pure transport delay of the command (s), in [0, 0.5]; default 0.005.
+    """
+
     name = "input_delay"
     parameters = (Parameter("delay", "s", 0.0, 0.5, 0.005, 0.02, "pure transport delay of the command", neutral=0.0),)
     configurations = ("upper", "torsional", "lateral", "coupled")
@@ -126,6 +190,19 @@ class InputDelay(Delay):
 
 
 class LateralAnisotropy(Force):
+    """Lateral stiffness and damping that differ in x and y (fixed frame).
+
+    Library name ``lateral_anisotropy``; :meth:`describe` gives its physics and the residual it leaves when missing.
+
+    Parameters
+    ----------
+    **values : float
+        Parameter values by name:
+
+        * ``dk``: kx = k + dk, ky = k - dk (fixed frame) (N/m), in [-1500, 1500]; default 0.
+        * ``db``: bx = b + db, by = b - db (fixed frame) (N s/m), in [-20, 20]; default 0.
+    """
+
     name = "lateral_anisotropy"
     acts_on = "lateral"
     parameters = (
@@ -146,6 +223,18 @@ class LateralAnisotropy(Force):
 
 
 class LateralCoulomb(Force):
+    """Dry friction in the lateral guides and LVDT cores, against the lateral velocity.
+
+    Library name ``lateral_coulomb``; :meth:`describe` gives its physics and the residual it leaves when missing.
+
+    Parameters
+    ----------
+    **values : float
+        Parameter values by name:
+
+        * ``Fc_lat``: dry friction in the lateral guides (N), in [0, 50]; default 0.2.
+    """
+
     name = "lateral_coulomb"
     acts_on = "lateral"
     parameters = (Parameter("Fc_lat", "N", 0.0, 50.0, 0.2, 0.5, "dry friction in the lateral guides", neutral=0.0),)
@@ -164,6 +253,18 @@ class LateralCoulomb(Force):
 
 
 class FrictionDrift(Friction):
+    """Lower friction level drifting along the run (the brake's oil warming up).
+
+    Library name ``friction_drift``; :meth:`describe` gives its physics and the residual it leaves when missing.
+
+    Parameters
+    ----------
+    **values : float
+        Parameter values by name:
+
+        * ``drift``: relative drift rate of the friction level (1/s), in [-0.02, 0.02]; default 0.
+    """
+
     name = "friction_drift"
     disc = "lower"
     parameters = (Parameter("drift", "1/s", -0.02, 0.02, 0.0, 5e-4, "relative drift rate of the friction level",
@@ -181,6 +282,19 @@ class FrictionDrift(Friction):
 
 
 class LvdtOffset(Measurement):
+    """Offsets of the LVDT readings with the disc at rest.
+
+    Library name ``lvdt_offset``; :meth:`describe` gives its physics and the residual it leaves when missing.
+
+    Parameters
+    ----------
+    **values : float
+        Parameter values by name:
+
+        * ``lvdt_x0``: lVDT x reading with the disc at rest (m), in [-0.01, 0.01]; default 0.
+        * ``lvdt_y0``: lVDT y reading with the disc at rest (m), in [-0.01, 0.01]; default 0.
+    """
+
     name = "lvdt_offset"
     channels = ("X", "Y")
     parameters = (
@@ -197,6 +311,18 @@ class LvdtOffset(Measurement):
 
 
 class LvdtSkew(Measurement):
+    """Non-perpendicular LVDT axes: the y reading contains a fraction of x.
+
+    Library name ``lvdt_skew``; :meth:`describe` gives its physics and the residual it leaves when missing.
+
+    Parameters
+    ----------
+    **values : float
+        Parameter values by name:
+
+        * ``lvdt_skew``: angle by which the y LVDT axis deviates from perpendicular (rad), in [-0.3, 0.3]; default 0.
+    """
+
     name = "lvdt_skew"
     channels = ("Y",)
     parameters = (Parameter("lvdt_skew", "rad", -0.3, 0.3, 0.0, 0.01,
