@@ -78,6 +78,15 @@ class RigModel:
 
     Every function of this module and of :mod:`drillgym.bifurcation` takes one where it takes
     ``params``: ``RigModel(RigParams(), ["motor_lag"], {"tau_m": 0.02})``.
+
+    Parameters
+    ----------
+    params : RigParams, optional
+        Base parameters; default the identified set.
+    effects : optional
+        Effects (names, file specs, classes or instances, :mod:`drillgym.effects`).
+    effect_params : mapping of str to float, optional
+        The effects' parameter values by name.
     """
 
     def __init__(self, params: RigParams | None = None, effects=None, effect_params=None) -> None:
@@ -97,6 +106,7 @@ class RigModel:
 
     @property
     def composition(self) -> Composition:
+        """The composition of effects."""
         return self.comp
 
     def f(self, y: np.ndarray, mode: np.ndarray, u: float, cfg: Configuration, t: float = 0.0) -> np.ndarray:
@@ -105,6 +115,7 @@ class RigModel:
         return self.dy.copy()
 
     def zero_state(self) -> np.ndarray:
+        """A zero state vector of the model's length (8 + the effects' states)."""
         return np.zeros(self.n_state)
 
 
@@ -112,7 +123,22 @@ _Rig = RigModel
 
 
 def as_model(params: "RigParams | RigModel | None" = None, effects=None, effect_params=None) -> RigModel:
-    """A RigModel from RigParams (+ effects) or a RigModel itself."""
+    """A RigModel from RigParams (+ effects), or a RigModel itself.
+
+    Parameters
+    ----------
+    params : RigParams or RigModel, optional
+        Base parameters (default the identified set) or a model, returned as it is.
+    effects : optional
+        Effects of a new model.
+    effect_params : mapping of str to float, optional
+        Their parameter values by name.
+
+    Returns
+    -------
+    RigModel
+        The model.
+    """
     if isinstance(params, RigModel):
         return params
     return RigModel(params, effects, effect_params)
@@ -206,6 +232,7 @@ class Equilibrium:
 
     @property
     def model(self) -> "_Rig":
+        """The RigModel of the equilibrium (its effects included)."""
         return self.rig if self.rig is not None else _Rig(self.params)
 
     @property
@@ -225,6 +252,7 @@ class Equilibrium:
         return bool(np.max(self.eigenvalues.real) < 0.0)
 
     def to_dict(self) -> dict:
+        """JSON-ready summary: kind, u (V), omega (rad/s), alpha (rad), x, y, r (m), stability."""
         return {"kind": "slip", "u": self.u, "omega": self.omega, "alpha": self.alpha, "x": self.x, "y": self.y,
                 "r": self.r, "stable": self.stable,
                 "max_real_eigenvalue": float(np.max(self.eigenvalues.real))}
@@ -239,6 +267,7 @@ class StickSet:
     alpha_hi: float
 
     def to_dict(self) -> dict:
+        """JSON-ready summary: kind, u (V), omega = 0, alpha_lo, alpha_hi (rad), stable."""
         return {"kind": "stick", "u": self.u, "omega": 0.0, "alpha_lo": self.alpha_lo, "alpha_hi": self.alpha_hi,
                 "stable": True}
 

@@ -57,7 +57,18 @@ MAT_ALIASES = {
 
 
 def required_columns(config: Configuration | None) -> tuple[str, ...]:
-    """Columns a file must have for a configuration (None: the minimum t, u, theta_u)."""
+    """Columns a file must have for a configuration.
+
+    Parameters
+    ----------
+    config : Configuration or None
+        The configuration; None: the minimum ``t``, ``u``, ``theta_u``.
+
+    Returns
+    -------
+    tuple of str
+        ``t``, ``u``, ``theta_u``; ``theta_l`` but for ``upper``; ``x``, ``y`` for ``lateral`` and ``coupled``.
+    """
     cols = ["t", "u", "theta_u"]
     if config is not None and config is not Configuration.UPPER:
         cols.append("theta_l")
@@ -342,7 +353,28 @@ def _finish(cols: dict, meta: dict, src: str, config, lines, required=None) -> T
 
 def read_mat(path: str | Path, config: "str | Configuration | None" = None,
              mapping: Mapping[str, str] | None = None) -> TimeSeries:
-    """Read a Simulink/MATLAB .mat file; columns found by name (see MAT_ALIASES) or by ``mapping``."""
+    """Read and validate a Simulink/MATLAB ``.mat`` file.
+
+    Parameters
+    ----------
+    path : str or path
+        The ``.mat`` file: arrays, a "structure with time" or a timeseries-like struct.
+    config : str or Configuration, optional
+        Rig configuration, used when the file names none; it sets the required columns.
+    mapping : mapping of str to str, optional
+        Variables read under drillgym's names, e.g. ``{"theta_u": "ScopeData:2"}`` (column 2 of a muxed
+        variable, 1-based); other columns are found by name (``MAT_ALIASES``).
+
+    Returns
+    -------
+    TimeSeries
+        The validated columns (SI units).
+
+    Raises
+    ------
+    DataFormatError
+        The file cannot be read or a required column cannot be found or used.
+    """
     import scipy.io
 
     path = Path(path)
@@ -592,6 +624,17 @@ class StreamingCsvWriter:
     At most ``flush_interval_s`` of samples (by their ``t`` column) is held in
     memory, so a killed process loses at most that much.  Each flush ends with
     ``os.fsync``.  Use as a context manager; ``close()`` flushes the rest.
+
+    Parameters
+    ----------
+    path : str or path
+        The CSV file (overwritten).
+    columns : sequence of str
+        Column names, ``t`` among them.
+    meta : mapping, optional
+        Metadata written in the ``# meta:`` line.
+    flush_interval_s : float, optional
+        Longest time of samples held in memory (s, by the ``t`` column).  Default 0.5.
     """
 
     def __init__(self, path: str | Path, columns: Sequence[str], meta: Mapping | None = None,
@@ -609,6 +652,7 @@ class StreamingCsvWriter:
         self.flush()
 
     def write(self, row: Mapping[str, float] | Sequence[float]) -> None:
+        """Append one row: a mapping by column name, or values in column order."""
         if self._fh is None:
             raise ValueError(f"{self.path}: recording already closed")
         if isinstance(row, Mapping):
@@ -626,10 +670,12 @@ class StreamingCsvWriter:
             self._t_last_flush = t
 
     def write_many(self, rows: Iterable[Sequence[float]]) -> None:
+        """Append rows of values in column order."""
         for r in rows:
             self.write(r)
 
     def flush(self) -> None:
+        """Write the held rows and ``fsync`` the file."""
         if self._fh is None:
             return
         if self._buf:
@@ -639,6 +685,7 @@ class StreamingCsvWriter:
         os.fsync(self._fh.fileno())
 
     def close(self) -> None:
+        """Flush the rest and close the file (idempotent)."""
         if self._fh is not None:
             self.flush()
             self._fh.close()
