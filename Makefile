@@ -9,7 +9,7 @@ PY     := $(VENV)/bin/python
 PIP    := $(PY) -m pip
 STAMP  := $(VENV)/.installed
 
-.PHONY: venv demo test lint-format bench clean
+.PHONY: venv demo test lint-format docs bench clean
 
 venv: $(STAMP)
 
@@ -19,7 +19,7 @@ $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PIP) install --upgrade pip wheel setuptools
 	$(PIP) install torch==2.13.0
-	$(PIP) install -e '.[dev]'
+	$(PIP) install -e '.[dev,docs]'
 	$(VENV)/bin/drillgym prepare  # compile diagnose's models once (about 3 min), not in the user's first diagnosis
 	touch $(STAMP)
 
@@ -38,8 +38,12 @@ test: $(STAMP)
 lint-format: $(STAMP)
 	$(VENV)/bin/ruff format --check .
 
+# the documentation site into site/ (mkdocs.yml; warnings are errors)
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict -d site
+
 bench: $(STAMP)
 	$(PY) benchmarks/bench_simulator.py
 
 clean:
-	rm -rf $(VENV) out .pytest_cache
+	rm -rf $(VENV) out site .pytest_cache
