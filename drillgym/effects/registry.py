@@ -67,7 +67,25 @@ def _effects_in(module: Any) -> list[type[Effect]]:
 
 
 def load_class_from_file(path: str | Path, name: str) -> type[Effect]:
-    """The effect class ``name`` (effect name or class name) defined in the Python file ``path``."""
+    """The effect class defined in a Python file.
+
+    Parameters
+    ----------
+    path : str or path
+        The Python file (imported once per process).
+    name : str
+        The effect's ``name`` or its class name.
+
+    Returns
+    -------
+    type
+        The Effect subclass.
+
+    Raises
+    ------
+    EffectError
+        The file does not exist or does not import (the message gives the line), or defines no such effect.
+    """
     path = Path(path).expanduser().resolve()
     module = _import_file(path)
     found = [c for c in _effects_in(module) if name in (c.name, c.__name__, c.__qualname__)]
@@ -116,8 +134,23 @@ def available_effects() -> dict[str, type[Effect]]:
 
 
 def resolve_effect(spec: "str | type[Effect] | Effect") -> "type[Effect] | Effect":
-    """An effect class (or instance, passed through) from a spec: an Effect class or instance, a
-    name (library or entry point), or ``path/to/file.py:NAME``."""
+    """An effect class (or instance, passed through) from a spec.
+
+    Parameters
+    ----------
+    spec : str, Effect subclass or Effect
+        An Effect class or instance, a name (library or entry point), or ``path/to/file.py:NAME``.
+
+    Returns
+    -------
+    Effect subclass or Effect
+        The class, or the instance given.
+
+    Raises
+    ------
+    EffectError
+        An unknown name, a file spec without ``:NAME``, or anything else.
+    """
     if isinstance(spec, Effect) or (inspect.isclass(spec) and issubclass(spec, Effect)):
         return spec
     if not isinstance(spec, str) or not spec.strip():
