@@ -244,6 +244,17 @@ class KalmanObserver:
     estimates as the columns of its ``x`` (5, n).  Per control period:
     :meth:`update` with the measured angle, read :attr:`x`, then
     :meth:`predict` with the voltage applied over the period.
+
+    Parameters
+    ----------
+    model : DisturbanceModel
+        The estimator's model (:func:`disturbance_model`).
+    p0_alpha : float, optional
+        Initial standard deviation of the winding (rad).
+    p0_speed : float, optional
+        Initial standard deviation of the speeds (rad/s).
+    p0_d : float, optional
+        Initial standard deviation of the disturbance state (its unit, see :class:`DisturbanceModel`).
     """
 
     def __init__(self, model: DisturbanceModel, *, p0_alpha: float = 5.0, p0_speed: float = 2.0,
@@ -298,6 +309,26 @@ class ExtendedKalmanObserver:
     in one numpy call (``tests/test_controllers_kalman.py`` checks the numbers against one filterpy
     ``KalmanFilter`` per trajectory).  Default initial uncertainty: a rig at rest, winding known to
     0.1 rad.  Rows may be reset and updated on their own (``index``), for vector environments.
+
+    Parameters
+    ----------
+    model : DisturbanceModel
+        The estimator's model (:func:`disturbance_model`).
+    p0_alpha : float, optional
+        Initial standard deviation of the winding (rad).
+    p0_speed : float, optional
+        Initial standard deviation of the speeds (rad/s).
+    p0_d : float, optional
+        Initial standard deviation of the disturbance state (its unit, see :class:`DisturbanceModel`).
+    slope_step : float, optional
+        Finite-difference step of the brake slope (rad/s).
+    p0_du : float, optional
+        Initial standard deviation of the upper-disc torque state (N m), when the model has one.
+
+    Raises
+    ------
+    InputError
+        A model without the nominal brake law (``friction_known=False``).
     """
 
     def __init__(self, model: DisturbanceModel, *, p0_alpha: float = 0.1, p0_speed: float = 0.05,

@@ -64,8 +64,20 @@ def motor_angle_model(params: RigParams, omega: float) -> control.StateSpace:
 
 @dataclass(frozen=True)
 class MotorAngleLimit:
-    """The motor-angle loop at one operating point: RHP poles and zeros (1/s) and the lower bound
-    on the peak sensitivity and complementary sensitivity of every stabilising LTI controller."""
+    """The motor-angle loop at one operating point: RHP poles and zeros and the lower bound on the peak
+    sensitivity and complementary sensitivity of every stabilising LTI controller.
+
+    Parameters
+    ----------
+    omega : float
+        Lower-disc speed of the equilibrium (rad/s).
+    slope : float
+        Brake slope dTfl/domega there (N m s/rad).
+    rhp_poles, rhp_zeros : tuple of complex
+        Right-half-plane poles and zeros of theta_u/u (1/s).
+    bound : float
+        Lower bound on ||S||_inf and ||T||_inf (1 without an RHP pole).
+    """
 
     omega: float
     slope: float
@@ -86,8 +98,24 @@ def tolerated_error(bound: float) -> float:
 
 
 def motor_angle_limit(params: RigParams | None, omega: float) -> MotorAngleLimit:
-    """RHP poles and zeros of theta_u/u at the equilibrium ``omega`` (rad/s) and the bound
-    max_p prod_z |z + conj p| / |z - p| on ||S||_inf and ||T||_inf (1 when there is no RHP pole)."""
+    """RHP poles and zeros of theta_u/u at an equilibrium, and the bound they set on any controller.
+
+    The bound is max_p prod_z |z + conj p| / |z - p| on ||S||_inf and ||T||_inf (1 when there is no RHP
+    pole).
+
+    Parameters
+    ----------
+    params : RigParams or None
+        Base parameters; None: the identified set.
+    omega : float
+        Lower-disc speed of the equilibrium (rad/s), > 0.
+
+    Returns
+    -------
+    MotorAngleLimit
+        Poles, zeros and the bound; ``tolerated`` is the largest relative input error the best loop
+        tolerates.
+    """
     p = params or RigParams()
     if not (np.isfinite(omega) and omega > 0):
         raise InputError(f"omega must be a positive speed (rad/s), got {omega!r}")
