@@ -31,6 +31,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from drillgym.errors import InputError
+from drillgym.io import create_directory
 
 __all__ = ["train_seeds", "iqm", "iqm_ci", "SeedSummary", "NOT_HELD", "write_results", "plot_learning_curves"]
 
@@ -137,8 +138,7 @@ def train_seeds(env_id: str, algo: str, out: str | Path, seeds: Sequence[int], *
     SeedSummary
         Per-seed rows and their aggregates per metric (IQM, bootstrap interval, median).
     """
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = create_directory(out)
     seeds = [int(s) for s in seeds]
     if not seeds:
         raise InputError("need at least one seed")

@@ -29,6 +29,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from drillgym.errors import InputError
+from drillgym.io import create_directory
 
 from .export import ExportedPolicy, policy_file
 
@@ -142,5 +143,5 @@ def combine(paths: Sequence["str | Path"], edges: Sequence[float], out: "str | P
     """
     members = [ExportedPolicy.load(p) for p in paths]
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
+    create_directory(out.parent, out)
     return TargetSwitchedPolicy(members, edges, note).save(out)

@@ -29,6 +29,7 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
 from drillgym.errors import InputError, MissingFileError
+from drillgym.io import create_directory
 
 from .envs import make_training_env
 from .hyperparams import algorithm_kwargs, apply_overrides, load_hyperparams
@@ -105,11 +106,30 @@ def _settings(env_id: str, algo: str, obs: str | None, timesteps: int | None, n_
     if n_envs is not None:
         hp["n_envs"] = n_envs
     hp["env_kwargs"] = env_kwargs
-    if not (int(hp.get("n_timesteps", 0)) >= (0 if allow_zero else 1)):
+    for key, kind in _NUMERIC_KEYS.items():  # a value of the wrong type is named here, not deep in training
+        if key in hp:
+            _number(key, hp[key], kind)
+    if not (_number("n_timesteps", hp.get("n_timesteps", 0), int) >= (0 if allow_zero else 1)):
         raise InputError(f"number of timesteps must be >= 1, got {hp.get('n_timesteps')!r}")
     hp["n_timesteps"] = int(hp["n_timesteps"])
     hp["n_envs"] = int(hp.get("n_envs", 1))
     return hp
+
+
+#: hyperparameters that drillgym reads as numbers (int or float)
+_NUMERIC_KEYS = {"n_timesteps": int, "n_envs": int, "frame_stack": int, "gamma": float, "nominal_fraction": float,
+                 "nominal_below": float}
+
+
+def _number(key: str, value: Any, kind: type) -> "int | float":
+    """``value`` of hyperparameter ``key`` as ``kind``; InputError naming the key when it is not one."""
+    try:
+        if isinstance(value, bool) or (kind is int and isinstance(value, float) and not value.is_integer()):
+            raise TypeError
+        return kind(value)
+    except (TypeError, ValueError):
+        what = "an integer" if kind is int else "a number"
+        raise InputError(f"hyperparameter {key!r} must be {what}, got {value!r}") from None
 
 
 def planned_timesteps(env_id: str, algo: str, timesteps: int | None = None, hyperparams: str | Path | None = None,
@@ -267,8 +287,7 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
         distill_kwargs.pop("teacher", None)
     if teacher is None and hp["n_timesteps"] < 1:
         raise InputError(f"number of timesteps must be >= 1 without a teacher, got {hp['n_timesteps']!r}")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = create_directory(out)
     _warn_short_run(cls, hp)
     venv = _env(env_id, hp, hp["n_envs"], seed)
     config = {"env_id": env_id, "algo": algo, "seed": int(seed), "hyperparams": hp, "command": command}

@@ -34,10 +34,11 @@ from typing import IO, Iterable, Mapping, Sequence
 import numpy as np
 
 from .configurations import Configuration, parse_configuration
-from .errors import DataFormatError, InputError
+from .errors import DataFormatError, InputError, OutputPathError
 
 __all__ = ["TimeSeries", "read_timeseries", "read_input_signal", "read_csv", "read_mat", "write_timeseries", "write_trajectory_csv",
-           "StreamingCsvWriter", "required_columns", "DataFormatError", "U_LIMIT_FILE", "XY_LIMIT_FILE"]
+           "StreamingCsvWriter", "required_columns", "DataFormatError", "U_LIMIT_FILE", "XY_LIMIT_FILE",
+           "create_directory"]
 
 U_LIMIT_FILE = 50.0  # V: larger |u| in a file is refused
 XY_LIMIT_FILE = 0.05  # m: larger |x|, |y| in a file is refused
@@ -546,6 +547,38 @@ def read_input_signal(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     else:
         ts = read_csv(path, required=("t", "u"))
     return ts.columns["t"], ts.columns["u"]
+
+
+def create_directory(directory: str | Path, for_path: str | Path | None = None) -> Path:
+    """Create ``directory`` and its missing parents (nothing if it exists).
+
+    Parameters
+    ----------
+    directory : str or path-like
+        The directory to create.
+    for_path : str or path-like, optional
+        The output the directory is made for, named in the message. Default: ``directory``.
+
+    Returns
+    -------
+    pathlib.Path
+        ``directory``.
+
+    Raises
+    ------
+    OutputPathError
+        If a file is in the way or the directory cannot be created (no permission, read-only).
+    """
+    directory = Path(directory)
+    for_path = directory if for_path is None else Path(for_path)
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        raise OutputPathError(f"{for_path}: cannot create directory {directory}: a file of that name is in the "
+                              f"way") from None
+    except OSError as exc:
+        raise OutputPathError(f"{for_path}: cannot create directory {directory} ({exc.strerror})") from None
+    return directory
 
 
 def _fmt(v: float) -> str:

@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from drillgym import RigParams
-from drillgym.errors import InputError
+from drillgym.errors import InputError, OutputPathError
 
 from . import protocol as P
 from .firmware import Firmware, FirmwareConfig
@@ -152,9 +152,15 @@ class RigEmulator:
         os.set_blocking(self._master, False)
         self.port = os.ttyname(self._slave)
         if self.link_path is not None:
-            if self.link_path.is_symlink() or self.link_path.exists():
-                self.link_path.unlink()
-            self.link_path.symlink_to(self.port)
+            try:
+                if self.link_path.is_symlink() or self.link_path.exists():
+                    self.link_path.unlink()
+                self.link_path.symlink_to(self.port)
+            except OSError as exc:
+                os.close(self._master)
+                os.close(self._slave)
+                raise OutputPathError(f"{self.link_path}: cannot link it to the pseudo-terminal {self.port} "
+                                      f"({exc.strerror})") from None
         self._threads = [threading.Thread(target=self._guard, args=(self._serial_loop,), name="rig-serial",
                                           daemon=True),
                          threading.Thread(target=self._guard, args=(self._timer_loop,), name="rig-timer",

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Mapping
 
 from drillgym.errors import InputError
-from drillgym.io import StreamingCsvWriter
+from drillgym.io import StreamingCsvWriter, create_directory
 
 __all__ = ["EpisodeRecorder", "episode_path", "columns"]
 
@@ -82,7 +82,7 @@ class EpisodeRecorder:
         if not 0 < flush_interval_s <= 1.0:
             raise InputError(f"flush_interval_s must be in (0, 1] s, got {flush_interval_s!r}")
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        create_directory(self.path.parent, self.path)
         self.rows = 0
         self._writer = StreamingCsvWriter(self.path, columns(lateral), meta, flush_interval_s)
         self._queue: queue.SimpleQueue = queue.SimpleQueue()

@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 import importlib
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping
@@ -109,7 +110,13 @@ class LinearPolicy:
     @classmethod
     def load(cls, path: str | Path) -> "LinearPolicy":
         """The policy in a ``.npz`` with arrays ``W`` and ``b``; InputError when they are missing or disagree."""
-        with np.load(path) as z:
+        try:
+            z = np.load(path, allow_pickle=False)
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+            raise InputError(f"{path}: not a linear policy file (.npz with arrays W and b): {exc}") from None
+        if not hasattr(z, "files"):  # a single .npy array
+            raise InputError(f"{path}: a linear policy file needs arrays 'W' (1, obs_dim) and 'b' (1,)")
+        with z:
             if "W" not in z or "b" not in z:
                 raise InputError(f"{path}: a linear policy file needs arrays 'W' (1, obs_dim) and 'b' (1,)")
             W, b = np.atleast_2d(z["W"]).astype(float), np.atleast_1d(z["b"]).astype(float)

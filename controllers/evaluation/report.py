@@ -10,6 +10,8 @@ from typing import Sequence
 
 import numpy as np
 
+from drillgym.io import create_directory
+
 from .metrics import SSI_THRESHOLD, lowest_free_speed
 
 __all__ = ["write_csv", "summary", "markdown_table", "plot_ssi", "write_report"]
@@ -141,8 +143,7 @@ def write_report(rows: Sequence[dict], out_dir: "str | Path", params=None, plant
         The files written by kind: ``csv``, ``markdown``, ``figure``, and ``population_figure`` for a
         population scenario.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = create_directory(out_dir)
     files = {"csv": write_csv(rows, out / "results.csv")}
     parts = ["# Controller evaluation\n", f"Stick-slip: SSI >= {SSI_THRESHOLD} in steady state. 'lowest free target': "
              "lowest target of the grid from which every higher target is held: no stick-slip and the mean "

@@ -10,6 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from ..io import create_directory  # noqa: E402
 from .diagram import BifurcationDiagram  # noqa: E402
 from .measured import REPORT_POINTS  # noqa: E402
 
@@ -145,8 +146,7 @@ def plot_periods(d: BifurcationDiagram, ax=None):
 def save_figures(d: BifurcationDiagram, out_dir: str | Path, prefix: str = "bifurcation",
                  report: bool = True) -> list[Path]:
     """Write the configuration's figures as PNG into out_dir; returns the paths."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = create_directory(out_dir)
     name = d.config.label
     paths = []
 

@@ -10,6 +10,7 @@ import typer
 
 from ..errors import InputError
 from .effect_options import add_effect_option, effect_param_option, effects_from_cli
+from .outputs import check_output_dir, output_dir
 
 
 def register(app: typer.Typer) -> None:
@@ -39,6 +40,7 @@ def register(app: typer.Typer) -> None:
         from ..configurations import parse_configuration
         from ..params import RigParams
 
+        check_output_dir(out)  # refused now, not after the minutes of the diagram
         if not (ds_max > 0):
             raise InputError(f"--ds-max must be a positive step, got {ds_max}")
         cfg = parse_configuration(config)
@@ -89,7 +91,7 @@ def register(app: typer.Typer) -> None:
             n_cycles = completed(cycles)
             bar.update(cycles, total=n_cycles, of=f"{n_cycles:.0f}")
             bar.update(stage, total=1, completed=1, description=f"{cfg.label}: done")
-        out.mkdir(parents=True, exist_ok=True)
+        out = output_dir(out)
         paths = save_figures(diag, out, report=not no_report)
         diag.save_json(out / "branches.json")
         typer.echo(f"Hopf points (V): {[round(h.u, 4) for h in diag.hopf]}")

@@ -12,7 +12,7 @@ from ..errors import InputError
 from .effect_options import add_effect_option, effect_param_option, effects_from_cli
 from ..io import U_LIMIT_FILE
 from .budget import check_run_fits
-from .outputs import CREATES_DIRS, output_file
+from .outputs import CREATES_DIRS, figure_file, output_file
 
 
 def _load_input(path: Path):
@@ -134,6 +134,7 @@ def register(app: typer.Typer) -> None:
             signal = float(u) if u is not None else 0.0
             duration = 30.0 if duration is None else duration
         out = output_file(out)
+        plot = figure_file(plot) if plot else None
         check_run_fits(duration, dt, record_every, out)
         traj = simulate(cfg, signal, duration, dt=dt, params=rig, alpha0=alpha0 or 0.0, method=method,
                         record_every=record_every, effects=comp, effect_params=values)
@@ -144,5 +145,5 @@ def register(app: typer.Typer) -> None:
         traj.to_csv(out, description=f"drillgym simulate --config {cfg.label} {how}")
         typer.echo(f"wrote {out} ({len(traj.t)} samples); {_summary(traj)}")
         if plot:
-            plot_run(traj, output_file(plot))
+            plot_run(traj, plot)
             typer.echo(f"wrote {plot}")
