@@ -39,26 +39,70 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
             log=None, on_round: "Callable[[int, float], None] | None" = None) -> dict[str, float]:
     """Regress the actor of the SB3 ``model`` (PPO/MLP, its env's observation) on the ``teacher``'s actions.
 
-    ``iterations`` DAgger rounds of ``steps`` periods on ``n_envs`` rigs of ``env_id`` with ``env_kwargs``
-    (domain randomisation included); ``epochs`` passes of Adam (``lr``) over the aggregated data per round;
-    ``lr_final``: the learning rate falls geometrically from ``lr`` in the first round to this in the last
-    (:func:`round_learning_rate`; None: constant).
-    ``privileged``: the model's observation carries the privileged critic's entries (ignored by the actor).
-    ``motor_integral``: the model's observation ends with the motor-angle tracking integral
-    (:mod:`agents.integral`); the 'flatness' teacher then uses that integral as its own.
-    ``command``: settings of the command schedule (:mod:`agents.command`; needs ``motor_integral``): the
-    student sees the scheduled speed command as its target and the 'flatness' teacher tracks it.
-    ``teacher``: 'flatness' (``teacher_kwargs``: its options) or the path of an exported full-state policy.
-    ``population``: an uncertainty set ('default' or a YAML path) the rigs are drawn from; a fraction
-    ``nominal_fraction`` of the episodes runs the nominal rig instead, and every episode whose target is
-    below ``nominal_below`` (rad/s).
-    ``beta``: in round i > 0 a fraction ``beta**i`` of the rigs is still driven by the teacher (DAgger's
-    mixing; 0: the student drives every rig after the first round).  ``noise``: standard deviation of
-    Gaussian noise on the executed actions (normalised; the labels stay the teacher's clean actions), so
-    the data cover the states a slightly wrong action leads to.
-    ``on_round(i, mse)``: called after round i's regression (0-based) with its action error, e.g. to
-    snapshot or validate the student round by round.
-    Returns the last round's mean squared action error and the number of labelled states."""
+    ``iterations`` DAgger rounds of ``steps`` periods on ``n_envs`` rigs (domain randomisation included),
+    each followed by ``epochs`` passes of Adam over the aggregated data.
+
+    Parameters
+    ----------
+    model : stable_baselines3.common.base_class.BaseAlgorithm
+        The student: a PPO model with an MLP policy on its env's observation.
+    env_id : str
+        Gymnasium id of the environment.
+    env_kwargs : dict
+        Options of the environment (:class:`drillgym.envs.EnvOptions`).
+    teacher : str or path
+        ``"flatness"`` (:mod:`agents.teachers`; options in ``teacher_kwargs``) or the path of an exported
+        full-state policy.
+    n_envs : int, optional
+        Rigs stepped together.  Default 64.
+    iterations : int, optional
+        DAgger rounds.  Default 8.
+    steps : int, optional
+        Control periods per round.  Default 500.
+    epochs : int, optional
+        Passes over the aggregated data per round.  Default 4.
+    batch_size : int, optional
+        Minibatch size of the regression.
+    lr : float, optional
+        Adam's learning rate (in the first round).  Default 1e-3.
+    seed : int, optional
+        Seed of the rigs and of the regression.
+    privileged : bool, optional
+        The model's observation carries the privileged critic's entries (ignored by the actor).
+    population : str, optional
+        An uncertainty set (``"default"`` or a YAML path) the rigs are drawn from.
+    nominal_fraction : float, optional
+        Fraction of the episodes on the nominal rig instead of a drawn plant.
+    nominal_below : float, optional
+        Every episode whose target is below this speed (rad/s) runs the nominal rig.
+    teacher_kwargs : dict, optional
+        Options of the ``"flatness"`` teacher.
+    beta : float, optional
+        In round i > 0 a fraction ``beta**i`` of the rigs is still driven by the teacher (DAgger's mixing;
+        0: the student drives every rig after the first round).
+    noise : float, optional
+        Standard deviation of Gaussian noise on the executed actions (normalised; the labels stay the
+        teacher's clean actions), so that the data cover the states a slightly wrong action leads to.
+    motor_integral : bool, optional
+        The model's observation ends with the motor-angle tracking integral (:mod:`agents.integral`); the
+        ``"flatness"`` teacher then uses that integral as its own.
+    command : dict, optional
+        Settings of the command schedule (:mod:`agents.command`; needs ``motor_integral``): the student sees
+        the scheduled speed command as its target and the ``"flatness"`` teacher tracks it.
+    lr_final : float, optional
+        The learning rate falls geometrically from ``lr`` in the first round to this in the last
+        (:func:`round_learning_rate`); None: constant.
+    log : callable, optional
+        ``log(message: str)``: one line per round.
+    on_round : callable, optional
+        ``on_round(i, mse)`` after round i's regression (0-based) with its action error, e.g. to snapshot
+        or validate the student round by round.
+
+    Returns
+    -------
+    dict
+        ``mse``: the last round's mean squared action error; ``states``: the number of labelled states.
+    """
     import torch as th
 
     from drillgym.envs.sb3 import make_sb3_vec

@@ -84,7 +84,23 @@ class LatestCheckpoint(BaseCallback):
 
 @dataclass
 class TrainResult:
-    """Outcome of :func:`train`: the model, its files and the wall time (s)."""
+    """Outcome of :func:`train`: the model, its files and the wall time.
+
+    Parameters
+    ----------
+    model : BaseAlgorithm
+        The trained SB3 model.
+    out : Path
+        The run directory.
+    model_path : Path
+        ``model.zip``.
+    policy_path : Path or None
+        The exported ``policy.npz`` (None for RecurrentPPO or ``export=False``).
+    wall_time : float
+        Training time (s).
+    timesteps : int
+        Environment steps trained in all.
+    """
 
     model: BaseAlgorithm
     out: Path

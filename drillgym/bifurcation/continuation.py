@@ -37,8 +37,17 @@ from .shooting import PeriodicSolution, ShootingFailure, make_solution, residual
 
 @dataclass
 class Fold:
-    """A fold (saddle-node) of periodic solutions at voltage ``u`` (V); ``discontinuous`` when the
-    orbits there contain stick (the stick-slip cycle is born / dies at it)."""
+    """A fold (saddle-node) of periodic solutions.
+
+    Parameters
+    ----------
+    u : float
+        Voltage of the fold (V).
+    omega_l_max : float
+        Largest lower-disc speed of the orbit there (rad/s).
+    discontinuous : bool
+        The orbits there contain stick: the stick-slip cycle is born or dies at the fold.
+    """
 
     u: float
     omega_l_max: float
@@ -50,13 +59,24 @@ class Fold:
 
 @dataclass
 class PeriodicBranch:
-    """Solutions along one continuation run (in order of arclength) and the folds found on it."""
+    """Solutions along one continuation run and the folds found on it.
+
+    Parameters
+    ----------
+    solutions : list of PeriodicSolution, optional
+        The periodic solutions, in order of arclength.
+    folds : list of Fold, optional
+        The folds found on the branch.
+    end_reason : str, optional
+        Why the continuation stopped.
+    """
 
     solutions: list[PeriodicSolution] = field(default_factory=list)
     folds: list[Fold] = field(default_factory=list)
     end_reason: str = ""
 
     def array(self, name: str) -> np.ndarray:
+        """One attribute of every solution (e.g. ``"u"``, ``"period"``) as an array."""
         return np.array([getattr(s, name) for s in self.solutions])
 
 

@@ -28,7 +28,23 @@ GRAZING_STICK_TIME = 0.05  # s: a branch that stops with less stick than this en
 
 @dataclass
 class BifurcationDiagram:
-    """Everything of one diagram (voltages in V, speeds in rad/s, r in m, periods in s)."""
+    """Everything of one diagram (voltages in V, speeds in rad/s, r in m, periods in s).
+
+    Parameters
+    ----------
+    config : Configuration
+        The rig configuration.
+    equilibria : EquilibriumBranch
+        The slip equilibrium branch and its Hopf points.
+    periodic : list of PeriodicBranch, optional
+        Periodic branches born at the Hopf points.
+    folds : list of Fold, optional
+        Their folds.
+    sweeps : list of SweepResult, optional
+        Brute-force and quasi-static sweeps.
+    measured : list of dict, optional
+        Measured points (:func:`measured_diagram`).
+    """
 
     config: Configuration
     equilibria: EquilibriumBranch
@@ -39,6 +55,7 @@ class BifurcationDiagram:
 
     @property
     def hopf(self) -> list[HopfPoint]:
+        """The Hopf points of the equilibrium branch."""
         return self.equilibria.hopf
 
     def to_dict(self) -> dict:

@@ -24,8 +24,19 @@ from ..params import RigParams
 
 @dataclass(frozen=True)
 class HopfPoint:
-    """A Hopf point: voltage u (V), equilibrium speed omega (rad/s), crossing frequency (rad/s) and
-    direction ('loses' / 'gains' stability as u increases)."""
+    """A Hopf point of the slip equilibrium branch.
+
+    Parameters
+    ----------
+    u : float
+        Voltage (V).
+    omega : float
+        Equilibrium speed (rad/s).
+    frequency : float
+        Frequency of the crossing eigenvalue pair (rad/s).
+    direction : str
+        ``"loses"`` or ``"gains"``: what the equilibrium does to its stability as u increases.
+    """
 
     u: float
     omega: float
@@ -38,7 +49,29 @@ class HopfPoint:
 
 @dataclass
 class EquilibriumBranch:
-    """Slip equilibria along the grid of speeds (arrays, SI units) plus the stick interval [0, u_stick]."""
+    """Slip equilibria along the grid of speeds plus the stick interval [0, u_stick].
+
+    Parameters
+    ----------
+    config : Configuration
+        The rig configuration.
+    omega : ndarray
+        Speeds of the grid (rad/s).
+    u : ndarray
+        Voltage of each equilibrium (V).
+    alpha : ndarray
+        Winding (rad).
+    r : ndarray
+        Whirl amplitude (m; 0 when the lower disc is held).
+    max_real : ndarray
+        Largest real part of the eigenvalues (1/s): negative where the equilibrium is stable.
+    u_stick : float
+        Voltage up to which the stick set exists (V).
+    hopf : list of HopfPoint, optional
+        The Hopf points on the branch.
+    params : RigModel or RigParams, optional
+        The model the branch was computed on.
+    """
 
     config: Configuration
     omega: np.ndarray
@@ -53,6 +86,7 @@ class EquilibriumBranch:
 
     @property
     def stable(self) -> np.ndarray:
+        """Where the equilibrium is stable (bool array over the grid)."""
         return self.max_real < 0
 
     def section_speed(self, u: float) -> float:

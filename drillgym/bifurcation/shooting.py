@@ -29,9 +29,27 @@ FD_STEP = 1e-6  # perturbation of the (scaled) section coordinates and of u (V)
 
 @dataclass
 class PeriodicSolution:
-    """A periodic solution at voltage ``u`` (V): section point ``z`` (scaled reduced coordinates),
-    period (s), extremes of omega_l (rad/s) and r (m) along the orbit, stuck time of the lower
-    disc per period (s) and the non-trivial Floquet multipliers."""
+    """A periodic solution of the rig at a constant voltage.
+
+    Parameters
+    ----------
+    u : float
+        Voltage (V).
+    z : ndarray
+        Section point (scaled reduced coordinates of the section map).
+    period : float
+        Period (s).
+    omega_l_min, omega_l_max : float
+        Extremes of the lower-disc speed along the orbit (rad/s).
+    r_min, r_max : float
+        Extremes of the whirl amplitude (m).
+    stick_time : float
+        Time the lower disc sticks per period (s).
+    multipliers : ndarray
+        The non-trivial Floquet multipliers.
+    section_offset : float, optional
+        ``z`` lies on omega_l = omega_s(u) + section_offset (rad/s).
+    """
 
     u: float
     z: np.ndarray

@@ -38,8 +38,20 @@ RECORD_EVERY = 10  # samples kept every 10 steps (10 ms at dt = 1 ms): enough fo
 
 @dataclass
 class SweepResult:
-    """Per voltage (V): steady-state min/max omega_l (rad/s), min/max r (m), period (s, NaN when not
-    oscillating), stuck fraction of the lower disc; ``kind`` is 'rest', 'equilibrium', 'up' or 'down'."""
+    """Steady-state statistics of a sweep, per voltage.
+
+    Attribute access gives a statistic per voltage: ``omega_l_min``, ``omega_l_max`` (rad/s), ``r_min``,
+    ``r_max`` (m), ``period`` (s, NaN when not oscillating), ``stick_fraction`` of the lower disc.
+
+    Parameters
+    ----------
+    kind : str
+        ``"rest"``, ``"equilibrium"``, ``"up"`` or ``"down"``.
+    u : ndarray
+        Voltages (V).
+    stats : ndarray
+        (n, 6) statistics in the order above.
+    """
 
     kind: str
     u: np.ndarray
