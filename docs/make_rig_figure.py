@@ -18,8 +18,13 @@ def main(path: str = "docs/figures/rig.png") -> None:
     ax.add_patch(Rectangle((-1.6, 8.3), 3.2, 0.35, fc="#d9d9d9", **box))
     ax.text(1.8, 8.47, r"upper disc $J_u$, encoder $\theta_u$", va="center", fontsize=8.5)
     ax.plot([0, 0], [8.3, 2.35], color="#555", lw=1.4)
-    ax.text(0.15, 5.4, "steel string, 2 mm x 1.47 m\n" + r"$k_\theta$ (torsion), $\alpha=\theta_l-\theta_u$",
-            fontsize=8.5, va="center")
+    ax.text(
+        0.15,
+        5.4,
+        "steel string, 2 mm x 1.47 m\n" + r"$k_\theta$ (torsion), $\alpha=\theta_l-\theta_u$",
+        fontsize=8.5,
+        va="center",
+    )
     ax.add_patch(Rectangle((-1.6, 2.0), 3.2, 0.35, fc="#f4a460", **box))
     ax.plot([1.0], [2.17], "ko", ms=6)
     ax.text(1.8, 2.95, r"lower disc $J_l$, encoder $\theta_l$" + "\nmass unbalance e (whirl x, y)", fontsize=8.5)
