@@ -12,6 +12,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, VecFrameStac
 from drillgym.envs import ENV_IDS
 from drillgym.envs.options import U_MAX
 from drillgym.envs.sb3 import make_sb3_vec
+from drillgym.errors import InputError
 from drillgym.measurement import counts_to_angle
 
 from .batch import episode_batch
@@ -21,7 +22,8 @@ from .observer_residual import ObserverResidual
 from .population import population_env_kwargs, use_population
 from .residual import ResidualVoltage
 
-__all__ = ["make_training_env", "episode_batch", "ResidualActionVecEnv", "ObserverResidualVecEnv", "MotorIntegralVecEnv"]
+__all__ = ["make_training_env", "episode_batch", "ResidualActionVecEnv", "ObserverResidualVecEnv",
+           "MotorIntegralVecEnv"]
 
 
 class ResidualActionVecEnv(VecEnvWrapper):
@@ -32,7 +34,7 @@ class ResidualActionVecEnv(VecEnvWrapper):
     def __init__(self, venv: VecEnv, residual: ResidualVoltage) -> None:
         hi = float(venv.action_space.high[0])
         if abs(hi - U_MAX) > 1e-6:
-            raise ValueError("ResidualActionVecEnv needs the env's action in volts (normalize_action=False)")
+            raise InputError("ResidualActionVecEnv needs the env's action in volts (normalize_action=False)")
         super().__init__(venv, action_space=spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32))
         self.residual = residual
         self.control_dt = float(venv.get_attr("options")[0].control_dt)
@@ -62,16 +64,17 @@ class ObserverResidualVecEnv(VecEnvWrapper):
     VecEnv in ``motor`` mode with the action in volts.
 
     The motor angle is rebuilt from the observation's latest encoder increment (``omega_u_inc_0`` times
-    the control period, 0 at each episode's start, rounded to the encoder's grid); the wrapper's observation is the structure's
-    features (:data:`agents.observer_residual.FEATURES`), its action the residual in [-1, 1].
+    the control period, 0 at each episode's start, rounded to the encoder's grid); the wrapper's
+    observation is the structure's features (:data:`agents.observer_residual.FEATURES`), its action the
+    residual in [-1, 1].
     """
 
     def __init__(self, venv: VecEnv, base: ObserverResidual) -> None:
         if abs(float(venv.action_space.high[0]) - U_MAX) > 1e-6:
-            raise ValueError("ObserverResidualVecEnv needs the env's action in volts (normalize_action=False)")
+            raise InputError("ObserverResidualVecEnv needs the env's action in volts (normalize_action=False)")
         names = venv.get_attr("observation_names")[0]
         if names[0] != "omega_u_inc_0":
-            raise ValueError("ObserverResidualVecEnv needs the 'motor' observation mode")
+            raise InputError("ObserverResidualVecEnv needs the 'motor' observation mode")
         obs_space = spaces.Box(-10.0, 10.0, shape=(base.dim,), dtype=np.float32)
         super().__init__(venv, observation_space=obs_space,
                          action_space=spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32))
@@ -129,7 +132,7 @@ class MotorIntegralVecEnv(VecEnvWrapper):
     def __init__(self, venv: VecEnv, control_dt: float, z_max: float = Z_MAX, command=None) -> None:
         names = venv.get_attr("observation_names")[0]
         if names[0] != "omega_u_inc_0" or names[-1] != "omega_ref":
-            raise ValueError("the motor-angle integral needs the 'motor' observation mode")
+            raise InputError("the motor-angle integral needs the 'motor' observation mode")
         box = venv.observation_space
         space = spaces.Box(np.append(box.low, -z_max).astype(np.float32), np.append(box.high, z_max).astype(np.float32),
                            dtype=np.float32)
@@ -140,7 +143,7 @@ class MotorIntegralVecEnv(VecEnvWrapper):
         self.z = np.zeros(n)
         self.target, self.command_now = np.zeros(n), np.zeros(n)
 
-    def _put_command(self, obs: np.ndarray, index: "np.ndarray | slice" = slice(None)) -> None:
+    def _put_command(self, obs: np.ndarray, index: np.ndarray | slice = slice(None)) -> None:
         """Write the command into the target entry of ``obs`` (rows ``index``) and :attr:`command_now`."""
         if self.command is not None:
             obs[index, -1] = self.command.value[index]
@@ -183,38 +186,79 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
                       observer: dict[str, Any] | None = None, frame_stack: int = 1,
                       normalize_reward: bool = False, normalize_obs: bool = False, gamma: float = 0.99,
                       monitor: bool = True, privileged: bool = False, motor_integral: bool = False,
-                      command: "dict[str, float] | None" = None, population: "str | None" = None,
+                      command: dict[str, float] | None = None, population: str | None = None,
                       nominal_fraction: float = 0.0, nominal_below: float = 0.0) -> VecEnv:
     """An SB3 VecEnv of ``n_envs`` rigs in one batched core call per step.
 
-    ``residual`` (V): the action in [-1, 1] is a correction ``residual * a`` on the feedforward voltage
-    (:mod:`agents.residual`); None: the action is the voltage normalised to [-1, 1].
-    ``startup``: (kick V, hold s, ramp s) start-up schedule of the feedforward (with ``residual``).
-    ``base='observer'``: the residual corrects the ``observer`` controller instead
-    (:mod:`agents.observer_residual`; needs ``residual`` and the 'motor' observation); ``observer``:
-    keywords of that controller.
-    ``normalize_reward``: scale rewards by a running std of the ``gamma``-discounted return (SB3
-    ``VecNormalize``).  ``normalize_obs``: standardise observations by running statistics (SB3
-    ``VecNormalize``); the exported policy carries the frozen statistics (:mod:`agents.export`).
-    ``privileged``: append the critic's privileged entries (:class:`agents.privileged.PrivilegedObsVecEnv`).
-    ``motor_integral``: append the motor-angle tracking integral (:class:`MotorIntegralVecEnv`, :mod:`agents.integral`;
-    'motor' observation, no residual structure).  ``command``: the command schedule's settings
-    (:class:`agents.command.CommandSchedule`; needs ``motor_integral``).
-    ``population``: every episode's rig is drawn from this uncertainty set ('default' or a YAML path,
-    :mod:`agents.population`; the nominal rig with probability ``nominal_fraction`` and for targets below
-    ``nominal_below`` rad/s); plain actions only.
-    ``frame_stack``: number of stacked observations (1 = none).  ``seed``: rig i gets seed + i.
+    Parameters
+    ----------
+    env_id : str
+        A drillgym environment id, e.g. ``"drillgym/Torsional-v0"``.
+    n_envs : int
+        Number of rigs.
+    seed : int, optional
+        Rig ``i`` gets seed ``seed + i``.
+    env_kwargs : dict, optional
+        Options of the environment (:class:`drillgym.envs.EnvOptions`).
+    residual : float, optional
+        Scale (V) of a residual action: the action in [-1, 1] is a correction ``residual * a`` on
+        the feedforward voltage (:mod:`agents.residual`). None: the action is the voltage
+        normalised to [-1, 1].
+    startup : tuple, optional
+        ``(kick V, hold s, ramp s)`` start-up schedule of the feedforward (with ``residual``).
+    base : str, optional
+        ``"observer"``: the residual corrects the ``observer`` controller instead
+        (:mod:`agents.observer_residual`; needs ``residual`` and the ``"motor"`` observation).
+    observer : dict, optional
+        Keywords of the ``observer`` controller (with ``base="observer"``).
+    frame_stack : int, optional
+        Number of stacked observations (1 = none).
+    normalize_reward : bool, optional
+        Scale rewards by a running standard deviation of the ``gamma``-discounted return (SB3
+        ``VecNormalize``).
+    normalize_obs : bool, optional
+        Standardise observations by running statistics (SB3 ``VecNormalize``); the exported policy
+        carries the frozen statistics (:mod:`agents.export`).
+    gamma : float, optional
+        Discount of the return that ``normalize_reward`` scales by.
+    monitor : bool, optional
+        Record episode returns and lengths (SB3 ``VecMonitor``).
+    privileged : bool, optional
+        Append the critic's privileged entries (:class:`agents.privileged.PrivilegedObsVecEnv`).
+    motor_integral : bool, optional
+        Append the motor-angle tracking integral (:class:`MotorIntegralVecEnv`,
+        :mod:`agents.integral`; ``"motor"`` observation, no residual structure).
+    command : dict, optional
+        Settings of the command schedule (:class:`agents.command.CommandSchedule`; needs
+        ``motor_integral``).
+    population : str, optional
+        Draw every episode's rig from this uncertainty set (``"default"`` or a YAML path,
+        :mod:`agents.population`); plain actions only.
+    nominal_fraction : float, optional
+        With ``population``: the probability of the nominal rig.
+    nominal_below : float, optional
+        With ``population``: targets below this speed (rad/s) get the nominal rig.
+
+    Returns
+    -------
+    stable_baselines3.common.vec_env.VecEnv
+        The wrapped, seeded vector environment.
+
+    Raises
+    ------
+    InputError
+        An unknown environment, ``n_envs < 1``, or options that do not go together.
     """
     if env_id not in ENV_IDS:
-        raise ValueError(f"unknown drillgym environment {env_id!r}; expected one of {sorted(ENV_IDS)}")
+        raise InputError(f"unknown drillgym environment {env_id!r}; expected one of {sorted(ENV_IDS)}")
     if not (isinstance(n_envs, int) and n_envs >= 1):
-        raise ValueError(f"n_envs must be an integer >= 1, got {n_envs!r}")
+        raise InputError(f"n_envs must be an integer >= 1, got {n_envs!r}")
     kw = dict(env_kwargs or {})
     if base not in (None, "observer"):
-        raise ValueError(f"base must be 'observer' or absent, got {base!r}")
+        raise InputError(f"base must be 'observer' or absent, got {base!r}")
     if base == "observer":
         if residual is None:
-            raise ValueError("base 'observer' needs a residual scale (V)")
+            raise InputError("base 'observer' needs a residual scale (V)")
         kw["normalize_action"] = False
         venv = make_sb3_vec(env_id, n_envs, **kw)
         o = venv.venv.options
@@ -233,15 +277,15 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
         if population is not None:
             use_population(venv, population, nominal_fraction, nominal_below)
     if population is not None and (residual is not None or base is not None):
-        raise ValueError("a plant population is drawn for plain actions only (no residual or base controller)")
+        raise InputError("a plant population is drawn for plain actions only (no residual or base controller)")
     schedule = schedule_of(command, motor_integral)
     if motor_integral:
         if residual is not None or base is not None:
-            raise ValueError("the motor-angle integral works without a residual structure")
+            raise InputError("the motor-angle integral works without a residual structure")
         venv = MotorIntegralVecEnv(venv, float(venv.get_attr("options")[0].control_dt), command=schedule)
     if privileged:
         if frame_stack > 1 or base is not None:
-            raise ValueError("the privileged critic works without frame stacking and without a base controller")
+            raise InputError("the privileged critic works without frame stacking and without a base controller")
         from .privileged import PrivilegedObsVecEnv
 
         venv = PrivilegedObsVecEnv(venv)

@@ -16,19 +16,35 @@ from typing import Any
 
 import numpy as np
 
+from drillgym.errors import InputError
+
 from .batch import episode_batch
 
 __all__ = ["PopulationRandomizer", "population_env_kwargs", "use_population"]
 
 
-def _uncertainty(population: "str | Path | None"):
+def _uncertainty(population: str | Path | None):
     from controllers.evaluation.population import load_uncertainty
 
     return load_uncertainty(None if population in (None, "default", True) else population)
 
 
-def population_env_kwargs(env_kwargs: dict[str, Any], population: "str | Path | None") -> dict[str, Any]:
-    """``env_kwargs`` with the uncertainty set's effects (motor lag, delay, position friction) in the model."""
+def population_env_kwargs(env_kwargs: dict[str, Any], population: str | Path | None) -> dict[str, Any]:
+    """Environment options whose model holds the uncertainty set's effects.
+
+    Parameters
+    ----------
+    env_kwargs : dict
+        Options of the environment (:class:`drillgym.envs.EnvOptions`).
+    population : str or pathlib.Path or None
+        The uncertainty set: ``"default"`` (or None) or a YAML path.
+
+    Returns
+    -------
+    dict
+        A copy of ``env_kwargs`` with the set's effects (motor lag, delay, position friction) added
+        to ``effects`` and the env's own randomisation removed.
+    """
     us = _uncertainty(population)
     kw = dict(env_kwargs)
     effects = list(kw.get("effects") or [])
@@ -41,32 +57,65 @@ def population_env_kwargs(env_kwargs: dict[str, Any], population: "str | Path | 
 class PopulationRandomizer:
     """Per-episode parameter rows drawn from an uncertainty set (the env's ``ParameterRandomizer`` role).
 
-    ``composition``: the env's model (it must hold the set's effects); ``base``: the nominal RigParams.
-    ``nominal_fraction``: probability (0-1) that an episode's rig is the nominal one instead (base
-    parameters nominal, every effect of the set at its lower bound, no position friction); ``nominal_below``
-    (rad/s): episodes whose target is below it always run the nominal rig (the plants are drawn only for
-    targets where the rig's slip equilibrium can be held without damping the brake's negative slope,
-    e.g. from the second Hopf point, 2.83 rad/s nominal, up: there the teacher's labels hold on every
-    plant, and below it no motor-side law damps every plant, :mod:`controllers.limits`)."""
+    Parameters
+    ----------
+    composition : Composition
+        The env's model; it must hold the set's effects.
+    base : RigParams
+        The nominal base parameters.
+    population : str or pathlib.Path, optional
+        The uncertainty set: ``"default"`` (or None) or a YAML path.
+    nominal_fraction : float, optional
+        Probability (0-1) that an episode's rig is the nominal one instead (base parameters
+        nominal, every effect of the set at its lower bound, no position friction).
+    nominal_below : float, optional
+        Episodes whose target is below this speed (rad/s) always run the nominal rig.
+
+    Raises
+    ------
+    InputError
+        ``nominal_fraction`` outside [0, 1], ``nominal_below`` negative, or the model lacks the
+        set's effects.
+
+    Notes
+    -----
+    The plants are drawn only for targets where the rig's slip equilibrium can be held without
+    damping the brake's negative slope, e.g. from the second Hopf point (2.83 rad/s nominal) up:
+    there the teacher's labels hold on every plant, and below it no motor-side law damps every
+    plant (:mod:`controllers.limits`).
+    """
 
     active = True
 
-    def __init__(self, composition, base, population: "str | Path | None" = None,
+    def __init__(self, composition, base, population: str | Path | None = None,
                  nominal_fraction: float = 0.0, nominal_below: float = 0.0) -> None:
         if not (0.0 <= nominal_fraction <= 1.0):
-            raise ValueError(f"nominal_fraction must be in [0, 1], got {nominal_fraction!r}")
+            raise InputError(f"nominal_fraction must be in [0, 1], got {nominal_fraction!r}")
         if not (np.isfinite(nominal_below) and nominal_below >= 0.0):
-            raise ValueError(f"nominal_below must be a speed >= 0 (rad/s), got {nominal_below!r}")
+            raise InputError(f"nominal_below must be a speed >= 0 (rad/s), got {nominal_below!r}")
         self.nominal_fraction, self.nominal_below = float(nominal_fraction), float(nominal_below)
         self.us = _uncertainty(population)
         missing = [e for e in self.us.effect_names() if e not in set(composition.names)]
         if missing:
-            raise ValueError(f"the env's model lacks the population's effects {missing}; "
+            raise InputError(f"the env's model lacks the population's effects {missing}; "
                              f"build it with population_env_kwargs")
         self.composition, self.base = composition, base
 
-    def sample(self, rng: np.random.Generator, omega_ref: "float | None" = None) -> np.ndarray:
-        """One parameter vector (the composition's layout) for an episode of target ``omega_ref`` (rad/s)."""
+    def sample(self, rng: np.random.Generator, omega_ref: float | None = None) -> np.ndarray:
+        """One parameter vector for an episode.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+            The episode's random generator.
+        omega_ref : float, optional
+            The episode's target speed (rad/s).
+
+        Returns
+        -------
+        numpy.ndarray
+            The parameters in the composition's layout.
+        """
         us = self.us
         low = omega_ref is not None and omega_ref < self.nominal_below
         if low or (self.nominal_fraction > 0 and rng.random() < self.nominal_fraction):
@@ -81,10 +130,21 @@ class PopulationRandomizer:
         return self.composition.vector(self.base.replace(**scaled), values)
 
 
-def use_population(venv, population: "str | Path | None" = None, nominal_fraction: float = 0.0,
+def use_population(venv, population: str | Path | None = None, nominal_fraction: float = 0.0,
                    nominal_below: float = 0.0) -> None:
-    """Draw every later episode's rig of the drillgym SB3 VecEnv ``venv`` (or a wrapper of it) from the set
-    (the nominal rig with probability ``nominal_fraction``, and for targets below ``nominal_below`` rad/s)."""
+    """Draw every later episode's rig of a drillgym SB3 VecEnv from an uncertainty set.
+
+    Parameters
+    ----------
+    venv : stable_baselines3.common.vec_env.VecEnv
+        A VecEnv built with :func:`population_env_kwargs` options, or a wrapper of one.
+    population : str or pathlib.Path, optional
+        The uncertainty set: ``"default"`` (or None) or a YAML path.
+    nominal_fraction : float, optional
+        Probability of the nominal rig.
+    nominal_below : float, optional
+        Targets below this speed (rad/s) get the nominal rig.
+    """
     batch = episode_batch(venv)
     batch.randomizer = PopulationRandomizer(batch.system.composition, batch.options.rig_params, population,
                                             nominal_fraction, nominal_below)

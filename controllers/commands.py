@@ -13,7 +13,6 @@ from __future__ import annotations
 import warnings
 from contextlib import nullcontext
 from pathlib import Path
-from typing import List, Optional
 
 import typer
 
@@ -22,13 +21,22 @@ from drillgym.errors import InputError
 
 
 def register(app: typer.Typer) -> None:
+    """Add ``evaluate`` to the ``drillgym`` application.
+
+    Parameters
+    ----------
+    app : typer.Typer
+        The ``drillgym`` command-line application.
+    """
+
     @app.command("evaluate")
     def evaluate_cmd(
         config: str = typer.Option("torsional,coupled", "--config", help="configuration(s), comma-separated"),
         controllers: str = typer.Option("baseline,pi,softtorque,observer", "--controllers",
                                         help="comma-separated: baseline, pi, softtorque, observer, lqg, agent:PATH; "
                                              "NAME@MS sets the control period, e.g. observer@10"),
-        out: Path = typer.Option(..., "--out", help="output directory (results.csv, summary.md, figure); missing directories are created"),
+        out: Path = typer.Option(..., "--out", help="output directory (results.csv, summary.md, figure); missing "
+                                                      "directories are created"),
         scenarios: str = typer.Option("rest", "--scenarios",
                                       help="comma-separated: rest, cycle, friction-20, friction+20, noisy, plants "
                                            "(a population of plants drawn from --uncertainty)"),
@@ -41,18 +49,17 @@ def register(app: typer.Typer) -> None:
         duration: float = typer.Option(60.0, "--duration", help="simulated time per run (s)"),
         window: float = typer.Option(20.0, "--window", help="steady-state window at the end (s)"),
         workers: int = typer.Option(2, "--workers", help="parallel processes"),
-        ray: Optional[str] = typer.Option(None, "--ray", help="run the jobs on Ray: 'auto' (a running cluster), "
+        ray: str | None = typer.Option(None, "--ray", help="run the jobs on Ray: 'auto' (a running cluster), "
                                                            "'local' (start one here with --workers CPUs) or HOST:PORT"),
         params: Path = typer.Option(None, "--params", help="parameter file (JSON/YAML) of the nominal model: "
                                                            "RigParams, or a model file whose effects the plant runs"),
-        add_effect: Optional[List[str]] = add_effect_option(),
-        effect_param: Optional[List[str]] = effect_param_option(),
+        add_effect: list[str] | None = add_effect_option(),
+        effect_param: list[str] | None = effect_param_option(),
     ) -> None:
         """Evaluate controllers on the scenarios; write a CSV, a markdown table and the SSI figure.
         The plant runs the hidden effects (--add-effect, and a model file's); the controllers do not."""
         from controllers.evaluation import DEFAULT_TARGETS, evaluate, parse_scenarios
         from controllers.evaluation.report import write_report
-
         from drillgym.commands.plant import describe_plant, plant_from_cli
 
         cfgs = [c.strip() for c in config.split(",") if c.strip()]
@@ -67,7 +74,8 @@ def register(app: typer.Typer) -> None:
         p = base if params else None
         from drillgym.parallel import open_executor
 
-        with warnings.catch_warnings(record=True) as caught, (open_executor(ray, workers) if ray else nullcontext()) as ex:
+        pool = open_executor(ray, workers) if ray else nullcontext()
+        with warnings.catch_warnings(record=True) as caught, pool as ex:
             warnings.simplefilter("always")
             rows = evaluate(names, cfgs, parse_scenarios(scenarios), tg, duration=duration, window=window, params=p,
                             workers=workers, effects=comp, effect_params=values, plants=plants, seed=seed,

@@ -18,7 +18,6 @@ from __future__ import annotations
 import signal
 from contextlib import contextmanager
 from pathlib import Path
-from typing import List, Optional
 
 import typer
 
@@ -54,12 +53,12 @@ def _interruptible():
 
 @rig_app.command("emulate")
 def emulate_cmd(
-    port: Optional[Path] = typer.Option(None, help="also create a symlink to the pseudo-terminal here"),
+    port: Path | None = typer.Option(None, help="also create a symlink to the pseudo-terminal here"),
     config: str = typer.Option("torsional", help="rig configuration: torsional, lateral or coupled"),
-    params: Optional[Path] = typer.Option(None, help="parameter file (JSON/YAML) of the emulated rig: RigParams or "
+    params: Path | None = typer.Option(None, help="parameter file (JSON/YAML) of the emulated rig: RigParams or "
                                                      "a model file with effects (identify --out)"),
-    add_effect: Optional[List[str]] = add_effect_option(),
-    effect_param: Optional[List[str]] = effect_param_option(),
+    add_effect: list[str] | None = add_effect_option(),
+    effect_param: list[str] | None = effect_param_option(),
     counts_per_rev: int = typer.Option(8000, help="encoder counts per revolution"),
     lvdt_noise: float = typer.Option(3e-6, help="LVDT noise standard deviation (m)"),
     latency_ms: float = typer.Option(0.0, help="serial latency of every reply (ms)"),
@@ -91,8 +90,10 @@ def emulate_cmd(
 
     sys.setswitchinterval(5e-4)  # serial and timer threads share the interpreter: hand it over every 0.5 ms
     emu = RigEmulator(config, base, fw, effects=comp, effect_params=values, dt=dt, alpha0=alpha0,
-                      lvdt_noise_std=lvdt_noise, seed=seed, latency_s=latency_ms * 1e-3, jitter_s=jitter_ms * 1e-3, link_path=port, log=log)
-    priority = prioritize(realtime)  # before the threads start: they inherit it (the emulator stands in for a microcontroller)
+                      lvdt_noise_std=lvdt_noise, seed=seed, latency_s=latency_ms * 1e-3, jitter_s=jitter_ms * 1e-3,
+                      link_path=port, log=log)
+    # before the threads start: they inherit it (the emulator stands in for a microcontroller)
+    priority = prioritize(realtime)
     emu.start()
     log(f"emulator ready: watchdog {watchdog_ms:g} ms, scheduling priority {priority}")
     signal.signal(signal.SIGTERM, _interrupt)
@@ -109,21 +110,21 @@ def emulate_cmd(
 @rig_app.command("run")
 def run_cmd(
     port: str = typer.Option(..., help="serial device or pyserial URL of the rig (or of `drillgym rig emulate`)"),
-    controller: Optional[str] = typer.Option(None, help="controller: const:<volts>, play:<input file> (an excitation "
+    controller: str | None = typer.Option(None, help="controller: const:<volts>, play:<input file> (an excitation "
                                                         "from `drillgym signal`) or a name from controllers/"),
-    params: Optional[Path] = typer.Option(None, help="model the controller is built on (JSON/YAML, may be partial: "
+    params: Path | None = typer.Option(None, help="model the controller is built on (JSON/YAML, may be partial: "
                                                      "e.g. what `drillgym identify --out` wrote); default MODEL.md's"),
-    policy: Optional[Path] = typer.Option(None, help="policy: what `drillgym train` writes (policy.npz, model.zip or the "
+    policy: Path | None = typer.Option(None, help="policy: what `drillgym train` writes (policy.npz, model.zip or the "
                                                "run directory; it builds its own observation from the encoders) or "
                                                "a linear .npz (W, b) on --observation"),
     duration: float = typer.Option(10.0, help="episode length (s)"),
     record: Path = typer.Option(Path("rig_run.csv"), help=f"recording file (DATA_FORMAT csv); {CREATES_DIRS}"),
     config: str = typer.Option("torsional", help="how the rig is set up: torsional, lateral or coupled"),
     observation: str = typer.Option("sensors", help="policy observation: full, sensors or motor"),
-    omega_ref: Optional[float] = typer.Option(None, help="target lower-disc speed (rad/s); default drawn per seed"),
+    omega_ref: float | None = typer.Option(None, help="target lower-disc speed (rad/s); default drawn per seed"),
     control_ms: float = typer.Option(10.0, help="control period (ms)"),
     seed: int = typer.Option(0, help="episode seed"),
-    reply_timeout_ms: Optional[float] = typer.Option(None, help="longest wait for the firmware's reply (ms); default "
+    reply_timeout_ms: float | None = typer.Option(None, help="longest wait for the firmware's reply (ms); default "
                                                                 "the firmware's watchdog (its CONFIG)"),
     dry_run: bool = typer.Option(False, "--dry-run", help="check port, firmware, control period, controller or "
                                                           "policy, limits and recording path; send no voltage"),
@@ -143,11 +144,11 @@ def run_cmd(
     import numpy as np
 
     import hw
+    from drillgym.commands.outputs import output_dir, output_file
     from hw.runner import load_policy, make_controller
 
-    from drillgym.commands.outputs import output_dir, output_file
-
-    from .rig_ops import check_writable, dry_run as do_dry_run, trained_agent, warm_up
+    from .rig_ops import check_writable, trained_agent, warm_up
+    from .rig_ops import dry_run as do_dry_run
 
     if (controller is None) == (policy is None):
         raise InputError("give exactly one of --controller or --policy")
@@ -203,7 +204,8 @@ def run_cmd(
                f"{'terminated' if res.terminated else 'truncated' if res.truncated else 'stopped'}"
                + (f" (safety stop: {res.safety_stop})" if res.safety_stop else ""))
     if res.steps:
-        typer.echo(f"round trip median {ms * np.median(res.round_trips):.2f} ms, max {ms * res.round_trips.max():.2f} ms; "
+        typer.echo(f"round trip median {ms * np.median(res.round_trips):.2f} ms, "
+                   f"max {ms * res.round_trips.max():.2f} ms; "
                    f"tick error p99 {ms * np.percentile(res.tick_errors, 99):.2f} ms")
     if notice.count:
         typer.echo(f"{notice.count} of {res.steps} commands were clamped to the amplifier range")
@@ -235,7 +237,7 @@ def estop_cmd(
         k = emergency_stop(port, attempts, timeout_ms * 1e-3)
     except SafetyError as exc:
         typer.echo(f"drillgym: {exc}", err=True)
-        raise typer.Exit(STOP_EXIT)
+        raise typer.Exit(STOP_EXIT) from None
     typer.echo(f"emergency stop acknowledged by the firmware on {port}" + (f" (attempt {k})" if k > 1 else "")
                + ": motor at 0 V, latched until the next `drillgym rig run`")
 
@@ -267,12 +269,12 @@ def _run_episode(make_env, ctrl, pol, seed, notice, realtime, reconnect, reconne
         motor = ("motor stopped (0 V)" if acked else "EMERGENCY_STOP not acknowledged by the firmware (its "
                  f"watchdog stops the motor within {env.unwrapped.firmware.watchdog_ms} ms): check the rig")
         say(f"drillgym: interrupted: {motor}, recording kept: {rec if rec is not None else 'none yet'}")
-        raise typer.Exit(INTERRUPT_EXIT)
+        raise typer.Exit(INTERRUPT_EXIT) from None
     except SafetyError as exc:
         if env is not None:
             env.close()
         say(f"drillgym: safety stop: {exc}")
-        raise typer.Exit(STOP_EXIT)
+        raise typer.Exit(STOP_EXIT) from None
     finally:
         if env is not None:
             env.close()

@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -42,7 +42,22 @@ _WHY = {
 
 
 def stop_reason(stop: str | None, watchdog_ms: float, terminated: bool) -> str | None:
-    """The one-line reason an episode ended early, or None when it ran its course."""
+    """The one-line reason an episode ended early.
+
+    Parameters
+    ----------
+    stop : str or None
+        The safety stop the firmware or the host reported (``"WATCHDOG"``, ``"OVERSPEED"``, ...).
+    watchdog_ms : float
+        The firmware's watchdog (ms), named in the watchdog's reason.
+    terminated : bool
+        The episode ended on the task's safety limit.
+
+    Returns
+    -------
+    str or None
+        The reason, or None when the episode ran its course.
+    """
     if stop is not None:
         return f"{stop}: " + _WHY.get(stop, "stop").format(watchdog_ms=f"{watchdog_ms:g}")
     if terminated:
@@ -51,8 +66,22 @@ def stop_reason(stop: str | None, watchdog_ms: float, terminated: bool) -> str |
 
 
 class ClampNotice:
-    """``on_step`` callback of :func:`hw.runner.run_episode`: tells the operator, once, that a command
-    was beyond the amplifier range and has been clamped, and counts how often."""
+    """Tell the operator, once, that a command beyond the amplifier range was clamped; count how often.
+
+    The ``on_step`` callback of :func:`hw.runner.run_episode`.
+
+    Parameters
+    ----------
+    echo : callable
+        Prints one line for the operator.
+    v_max : float, optional
+        The amplifier range (V). Default 5.
+
+    Attributes
+    ----------
+    count : int
+        Commands clamped so far.
+    """
 
     def __init__(self, echo: Callable[[str], None], v_max: float = 5.0) -> None:
         self.echo, self.v_max, self.count = echo, v_max, 0
@@ -67,7 +96,18 @@ class ClampNotice:
 
 
 def check_writable(record: Path) -> None:
-    """Refuse a recording path that could not be written (nothing is created)."""
+    """Refuse a recording path that could not be written; nothing is created.
+
+    Parameters
+    ----------
+    record : pathlib.Path
+        The recording file (``.csv``) or directory.
+
+    Raises
+    ------
+    InputError
+        The path lies under a file, or its directory is not writable.
+    """
     p = Path(record).resolve()
     if p.suffix.lower() == ".csv":
         p = p.parent  # a recording file (overwritten if it exists): its directory must be writable
@@ -80,8 +120,29 @@ def check_writable(record: Path) -> None:
 
 
 def dry_run(make_env: Callable[[], object], ctrl, policy, record: Path, echo: Callable[[str], None]) -> None:
-    """Open the port, identify the firmware and check the policy against the observation space; no voltage
-    is sent (the port is closed with EMERGENCY_STOP, as always: the next run's handshake clears it)."""
+    """Check everything a run needs without sending a voltage.
+
+    Opens the port, identifies the firmware and checks the policy against the observation space;
+    the port is closed with EMERGENCY_STOP, as always (the next run's handshake clears it).
+
+    Parameters
+    ----------
+    make_env : callable
+        Builds the hardware environment (opens the port).
+    ctrl : Controller or None
+        The controller, when no policy is given.
+    policy : callable or None
+        The policy (observation to action).
+    record : pathlib.Path
+        The recording path the run would write.
+    echo : callable
+        Prints one line for the operator.
+
+    Raises
+    ------
+    InputError
+        The recording path is not writable, or the policy's action is unusable.
+    """
     from drillgym.envs.action import action_voltage
 
     check_writable(record)
@@ -112,8 +173,27 @@ def dry_run(make_env: Callable[[], object], ctrl, policy, record: Path, echo: Ca
 
 
 def emergency_stop(port: str, attempts: int = 3, timeout_s: float = 0.2) -> int:
-    """Send EMERGENCY_STOP (HOST) until the firmware acknowledges it; returns the attempt that was acknowledged.
-    Raises SafetyError when no ACK came (another program may be reading the port, or the firmware is dead)."""
+    """Send EMERGENCY_STOP (HOST) until the firmware acknowledges it.
+
+    Parameters
+    ----------
+    port : str
+        Serial device or pyserial URL of the rig.
+    attempts : int, optional
+        Sends at most. Default 3.
+    timeout_s : float, optional
+        Wait for each acknowledgement (s). Default 0.2.
+
+    Returns
+    -------
+    int
+        The attempt that was acknowledged (1-based).
+
+    Raises
+    ------
+    SafetyError
+        No acknowledgement came (another program may be reading the port, or the firmware is dead).
+    """
     from drillgym.errors import SafetyError
     from hw.client import RigClient
     from hw.link import LinkTimeoutError
@@ -139,8 +219,33 @@ def _wait_for_port(port: str, seconds: float) -> None:
 
 def run_with_reconnect(env, run: Callable[[], object], reconnect: int, wait_s: float,
                        echo: Callable[[str], None]):
-    """``run()`` (one episode); after a lost link or a firmware that stopped answering, reopen the port
-    and run a new episode, at most ``reconnect`` times.  Returns (result, faults)."""
+    """Run one episode; after a lost link or a silent firmware, reopen the port and run a new one.
+
+    Parameters
+    ----------
+    env : gymnasium.Env
+        The hardware environment (its port is waited for before reconnecting).
+    run : callable
+        Runs one episode and returns its result.
+    reconnect : int
+        New episodes allowed after link faults.
+    wait_s : float
+        Wait before reconnecting (s).
+    echo : callable
+        Prints one line for the operator.
+
+    Returns
+    -------
+    result : object
+        What the last ``run()`` returned.
+    faults : list of str
+        The link faults that were recovered from.
+
+    Raises
+    ------
+    hw.link.LinkLostError, hw.link.LinkTimeoutError
+        A link fault after ``reconnect`` reconnections.
+    """
     from hw.link import LinkLostError, LinkTimeoutError
 
     faults: list[str] = []
@@ -156,8 +261,19 @@ def run_with_reconnect(env, run: Callable[[], object], reconnect: int, wait_s: f
 
 
 def trained_agent(path: Path) -> bool:
-    """True when PATH is what ``drillgym train`` writes (a run directory, its ``model.zip``, or an exported
-    ``policy.npz`` with its metadata), as opposed to a bare linear ``.npz`` (arrays W, b)."""
+    """Whether a path is what ``drillgym train`` writes.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        A run directory, a ``model.zip``, or a ``.npz`` file.
+
+    Returns
+    -------
+    bool
+        True for a run directory, its ``model.zip`` or an exported ``policy.npz`` with its
+        metadata; False for a bare linear ``.npz`` (arrays W, b).
+    """
     p = Path(path)
     if p.is_dir() or p.suffix == ".zip":
         return True
@@ -170,8 +286,20 @@ def trained_agent(path: Path) -> bool:
 
 
 def warm_up(ctrl, omega_ref: float | None, dt: float) -> None:
-    """Reset the controller and let it act a few times on a rig at rest, before the port is opened: its compiled
-    parts (e.g. a trained agent's observation model) load now, not inside the firmware's watchdog."""
+    """Reset the controller and let it act a few times on a rig at rest, before the port is opened.
+
+    Its compiled parts (e.g. a trained agent's observation model) load now, not inside the
+    firmware's watchdog.
+
+    Parameters
+    ----------
+    ctrl : Controller
+        The controller.
+    omega_ref : float or None
+        Target lower-disc speed (rad/s); None uses 4 rad/s.
+    dt : float
+        Control period (s).
+    """
     m = {"t": 0.0, "theta_u": 0.0, "theta_l": 0.0, "x": 0.0, "y": 0.0,
          "omega_ref": 4.0 if omega_ref is None else float(omega_ref)}
     ctrl.reset(m)
