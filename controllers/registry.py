@@ -1,12 +1,12 @@
 """Controllers by name: ``controllers.make("observer", config="torsional", omega_ref=3.0)``.
 
-Names: ``baseline``, ``pi``, ``descent`` (approach from above along the stable branch), ``softtorque``, ``observer`` (designed for a rig equal to its model),
-``observer-robust`` (the same structure built to hold on a rig that differs from its model), ``lqg``,
-``lqg-2enc`` (LQG on the motor and lower encoders), and
-``agent:PATH`` for a trained policy.  ``NAME@MS`` runs a controller at another
-control period (ms), e.g. ``observer@10`` for the observer at the environments'
-10 ms instead of its 2 ms (the harness compares controllers at equal rates that way).  Agents plug in through one documented
-callable, registered by the agents package (or anyone) with
+Names: ``baseline``, ``pi``, ``descent`` (approach from above along the stable branch),
+``softtorque``, ``observer`` (designed for a rig equal to its model), ``observer-robust`` (the same
+structure built to hold on a rig that differs from its model), ``lqg``, ``lqg-2enc`` (LQG on the
+motor and lower encoders), and ``agent:PATH`` for a trained policy.  ``NAME@MS`` runs a controller
+at another control period (ms), e.g. ``observer@10`` for the observer at the environments' 10 ms
+instead of its 2 ms (the harness compares controllers at equal rates that way).  Agents plug in
+through one documented callable, registered by the agents package (or anyone) with
 :func:`register_agent_loader`::
 
     def load(path: str, *, config: str, omega_ref, params, dt: float, **kw) -> controllers.Controller: ...
@@ -22,17 +22,17 @@ no loader is registered, the first installed entry point of the group
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from importlib import metadata
-from typing import Callable
 
 from drillgym.errors import InputError, InputTypeError
 
 from .base import Controller
 from .baseline import BaselineController
+from .descent import DescentController
 from .observer import LQGController, ObserverController
 from .pi import PIController
 from .robust_observer import RobustObserverController
-from .descent import DescentController
 from .softtorque import SoftTorqueController
 from .two_encoder import TwoEncoderLQG
 
@@ -40,7 +40,8 @@ __all__ = ["CONTROLLERS", "make", "available", "split_period", "register_agent_l
            "AGENT_LOADER_GROUP"]
 
 CONTROLLERS: dict[str, type[Controller]] = {
-    c.name: c for c in (BaselineController, PIController, DescentController, SoftTorqueController, RobustObserverController,
+    c.name: c for c in (BaselineController, PIController, DescentController, SoftTorqueController,
+                        RobustObserverController,
                         ObserverController, LQGController, TwoEncoderLQG)
 }
 

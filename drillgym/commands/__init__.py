@@ -50,7 +50,7 @@ def command_entry_points() -> list[metadata.EntryPoint]:
     return [unique[name] for name in sorted(unique)]
 
 
-def register_commands(app: "typer.Typer") -> None:
+def register_commands(app: typer.Typer) -> None:
     """Add every command to the ``drillgym`` application.
 
     The core's modules (:data:`MODULES`) come first, then the installed providers of
