@@ -36,11 +36,45 @@ def axpy(X0, h, KX, out):
 def lanes_rk4(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibration, S0, OK, W, TT, cfg, E):
     """One classical RK4 step of every lane.
 
-    S (n, B) lane states (rows ROWS_DIAG or ROWS_FULL), updated in place; K1 (n, B) the
-    derivative at the step start, replaced by the one at the end (reused by the next step);
-    FR (2, B) friction torques at the end; S0 receives the start state; OK[k] = 1 when lane k's
-    event functions (as ``model.event_values``) stayed positive.  W (4n, B) work space; TT (B,)
-    the step's start times.
+    Parameters
+    ----------
+    S : numpy.ndarray
+        Lane states ``(n, B)`` (rows ``ROWS_DIAG`` or ``ROWS_FULL`` of :mod:`drillgym.kernels.lanes`),
+        advanced in place.
+    K1 : numpy.ndarray
+        The derivative ``(n, B)`` at the step start, replaced by the one at the end (reused by the
+        next step).
+    FR : numpy.ndarray
+        Receives the friction torques ``(2, B)`` at the step end (N m).
+    MU, ML : numpy.ndarray
+        Friction modes of the upper and lower disc ``(B,)`` (0 stuck, +-1 slipping).
+    U : numpy.ndarray
+        Voltage of each lane over the step ``(B,)`` (V).
+    PT : numpy.ndarray
+        Lane parameter matrix ``(n_params + n_switches, B)``.
+    h : float
+        Step (s).
+    full : bool
+        Four coordinates (lateral, coupled), else the diagonal-mass equations.
+    string_on : float
+        1.0 when the string couples the discs, 0.0 for the upper disc alone.
+    brake : bool
+        The lower disc runs the brake's law.
+    free_vibration : bool
+        The upper disc is held.
+    S0 : numpy.ndarray
+        Receives the start state ``(n, B)``.
+    OK : numpy.ndarray
+        Receives 1 for each lane whose event functions (as ``model.event_values``) stayed
+        positive, else 0.
+    W : numpy.ndarray
+        Work space ``(4 n, B)``.
+    TT : numpy.ndarray
+        The step's start time of each lane (s).
+    cfg : int
+        Configuration code.
+    E : numpy.ndarray
+        The effects' work rows ``(N_E + 1, B)``.
     """
     n = S.shape[0]
     B = S.shape[1]
@@ -101,9 +135,12 @@ def stage_sum(S0, K1, W, coef, m, h, out):
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
 def lanes_erk(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibration, S0, OK, W, TT, cfg, E, A, b,
                c):
-    """One step of an explicit Runge-Kutta tableau (A, b, c; e.g. DP5) of every lane: the contract of
-    :func:`lanes_rk4`, the stages summed as the scalar kernel's general Butcher loop
-    (``stepping._rk_step``).  W (s n, B): the stage state, then the stage derivatives 2..s."""
+    """One step of an explicit Runge-Kutta tableau (e.g. DP5) of every lane.
+
+    The contract of :func:`lanes_rk4`, the stages summed as the scalar kernel's general Butcher
+    loop. ``W`` is ``(s n, B)``: the stage state, then the stage derivatives 2..s; ``A``, ``b``,
+    ``c`` are the tableau.
+    """
     n = S.shape[0]
     s = b.shape[0]
     copy_rows(S, S0)

@@ -146,7 +146,24 @@ def _record_lanes(OUT, row, T0, tt, U, ucol, S, FR, MU, ML, inv, Y, COLS, XW, YW
 
 @njit(inline="always")
 def command_col(n_u, i, USTEP, j):
-    """(column of U holding the command of step i, table cursor): as stepping.command_at."""
+    """The column of U holding the command of step ``i``, and the table cursor (as ``stepping.command_at``).
+
+    Parameters
+    ----------
+    n_u : int
+        Columns of U.
+    i : int
+        The step.
+    USTEP : numpy.ndarray or None
+        First step of each entry of a command table; None when U is not a table.
+    j : int
+        The table cursor of the previous call (0 at the start).
+
+    Returns
+    -------
+    tuple of (int, int)
+        The column and the new cursor.
+    """
     if USTEP is None:
         return (i if n_u > 1 else 0), j
     m = USTEP.shape[0]
@@ -190,12 +207,48 @@ def _lane_delay_step(HIST, HEAD, k, u, m):
 @njit(cache=True, nogil=True)
 def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, FRIC_OUT, HIST, HEAD, A, b, c,
               COLS=None, USTEP=None):
-    """Batch run on lanes: same contract as stepping.run_batch_serial (a fixed-step tableau A, b, c:
-    RK4 unrolled, others such as DP5 by the general Butcher sums; exact friction),
-    plus FRIC_OUT (B, 2) final friction.  U may hold one column (constant command) or, with USTEP
-    (m,), the columns of a piecewise-constant table (U[:, j] from step USTEP[j] on).  OUT is
-    sample-major, (n_samples, n_columns, B) (the caller's data[k] is OUT[:, :, k]); it may have zero
-    samples (no recording)."""
+    """Run a batch on lanes, with exact friction and a fixed-step tableau.
+
+    The contract of ``stepping.run_batch_serial``, plus the final friction torques. Classical RK4
+    is unrolled; other tableaus (e.g. DP5) run by the general Butcher sums.
+
+    Parameters
+    ----------
+    Y : numpy.ndarray
+        States ``(B, n_state)``, advanced in place.
+    MODE : numpy.ndarray
+        Friction modes ``(B, 2)`` (0 stuck, +-1 slipping), updated in place.
+    U : numpy.ndarray
+        Commands (V), ``(B, 1)`` for a constant, ``(B, n_steps)`` per step, or with ``USTEP`` the
+        ``m`` entries of a piecewise-constant table (``U[:, j]`` from step ``USTEP[j]`` on).
+    P : numpy.ndarray
+        Parameter matrix ``(B, n_params)``.
+    cfg : int
+        Configuration code.
+    dt : float
+        Integration step (s).
+    T0 : numpy.ndarray
+        Start time of each run (s).
+    rec_every : int
+        Record every k-th step.
+    OUT : numpy.ndarray
+        Sample-major output ``(n_samples, n_columns, B)`` (a run's samples are ``OUT[:, :, k]``);
+        zero samples records nothing.
+    n_steps : int
+        Steps to run.
+    init_modes : bool
+        Start from the modes the initial states imply (else resolve ``MODE`` as given).
+    FRIC_OUT : numpy.ndarray
+        Receives the final friction torques ``(B, 2)`` (N m).
+    HIST, HEAD : numpy.ndarray
+        Delay lines ``(B, L)`` and their heads ``(B,)``, updated in place.
+    A, b, c : numpy.ndarray
+        The fixed-step Butcher tableau.
+    COLS : numpy.ndarray, optional
+        Indices of the recorded columns; None records all.
+    USTEP : numpy.ndarray, optional
+        First step of each entry of a command table.
+    """
     B = Y.shape[0]
     full = lateral_free(cfg)
     rows = ROWS_FULL if full else ROWS_DIAG
