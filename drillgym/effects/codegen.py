@@ -40,7 +40,7 @@ __all__ = ["cache_root", "hooks_source", "build_kernels", "CompiledModel", "CORE
            "package_name", "prune_stale", "STALE_AFTER_S"]
 
 #: the kernel templates of :mod:`drillgym.kernels` copied into every generated package
-CORE_TEMPLATES = ("model", "stepping", "lane_rhs", "lane_steps", "lanes")
+CORE_TEMPLATES = ("model", "stepping", "lane_steps", "lanes")
 #: client templates (modules whose compiled code calls the kernels; see :meth:`CompiledModel.client`). The
 #: generated packages are keyed on the sources these and the core templates import, transitively.
 CLIENT_TEMPLATES = ("drillgym.envs.period_kernel", "drillgym.envs.sensor_kernel", "drillgym.bifurcation.flows")

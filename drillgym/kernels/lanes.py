@@ -1,8 +1,8 @@
 """Kernel template: lane-parallel (SIMD) runs, a batch of trajectories as one vectorised loop.
 
 One step of B trajectories is the same arithmetic on B lanes: :func:`lanes_run` lays the batch out
-as structure-of-arrays, steps every lane with :mod:`drillgym.kernels.lane_steps` (right-hand side:
-:mod:`drillgym.kernels.lane_rhs`) and records the samples column by column over the lanes.
+as structure-of-arrays, steps every lane with :mod:`drillgym.kernels.lane_steps` (which holds the
+right-hand side on lanes too) and records the samples column by column over the lanes.
 
 Exactness is kept by construction: a lane whose step crossed an event is rolled back and
 re-stepped with the scalar event-locating ``hybrid_step``. Events are rare (a few per stick-slip
@@ -37,8 +37,7 @@ from drillgym.dynamics import (
     lateral_free,
 )
 from drillgym.kernels.hooks import HAS_DELAY, HAS_LAG, N_STATE, hk_delay, hk_lag_start, hk_lane_params
-from drillgym.kernels.lane_rhs import N_E, lane_derivative
-from drillgym.kernels.lane_steps import lanes_erk, lanes_rk4
+from drillgym.kernels.lane_steps import N_E, lane_derivative, lanes_erk, lanes_rk4
 from drillgym.kernels.model import initial_modes, record, resolve_modes
 from drillgym.kernels.stepping import alloc_work, delay_line_step, hybrid_step
 
