@@ -46,6 +46,7 @@ from typing import Any
 import yaml
 
 from drillgym.errors import InputError, MissingFileError
+from drillgym.io import describe_parse_error
 
 __all__ = ["HYPERPARAMS_DIR", "load_hyperparams", "parse_overrides", "apply_overrides", "DRILLGYM_KEYS",
            "ZOO_KEYS", "STRUCTURE_SECTION", "STRUCTURE_KEYS", "algorithm_kwargs"]
@@ -121,7 +122,7 @@ def load_hyperparams(algo: str, env_id: str, path: "str | Path | None" = None) -
     try:
         data = yaml.safe_load(f.read_text()) or {}
     except yaml.YAMLError as exc:
-        raise InputError(f"hyperparameter file {f} is not valid YAML: {exc}") from exc
+        raise InputError(f"hyperparameter file {f} is not valid YAML: {describe_parse_error(exc)}") from exc
     if env_id not in data or env_id == STRUCTURE_SECTION:
         raise InputError(f"hyperparameter file {f} has no entry for {env_id!r}; "
                          f"entries: {sorted(k for k in data if k != STRUCTURE_SECTION)}")
@@ -168,7 +169,8 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
         try:
             v = yaml.safe_load(value)
         except yaml.YAMLError as exc:
-            raise InputError(f"hyperparameter override {item!r}: value is not valid YAML ({exc})") from exc
+            raise InputError(f"hyperparameter override {item!r}: value is not valid YAML "
+                             f"({describe_parse_error(exc)})") from exc
         if isinstance(v, str):  # YAML 1.1 reads '1e-3' as a string
             try:
                 v = float(v)

@@ -12,6 +12,7 @@ from pathlib import Path
 import yaml
 
 from drillgym.errors import InputError, MissingFileError
+from drillgym.io import describe_parse_error
 
 from .controller import AgentController, TargetSwitchedController
 from .export import ExportedPolicy
@@ -49,13 +50,22 @@ def load_policy(path: str | Path) -> "ExportedPolicy | TargetSwitchedPolicy":
     cfg_file = p.with_name("config.yml")
     if not cfg_file.is_file():
         raise MissingFileError(f"agent {p}: no config.yml beside it (needed to rebuild the observation)")
-    config = yaml.safe_load(cfg_file.read_text())
+    try:
+        config = yaml.safe_load(cfg_file.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise InputError(f"agent {p}: {cfg_file.name} beside it cannot be read: {describe_parse_error(exc)}") from None
+    if not isinstance(config, dict) or "algo" not in config:
+        raise InputError(f"agent {p}: {cfg_file.name} beside it names no 'algo' (not a drillgym training run)")
     import tempfile
 
     from .export import export_policy
     from .train import algo_class
 
-    model = algo_class(config["algo"]).load(p, device="cpu")
+    try:
+        model = algo_class(config["algo"]).load(p, device="cpu")
+    except Exception as exc:  # noqa: BLE001 - anything SB3 cannot load is not a model it wrote
+        raise InputError(f"agent {p}: not a readable {config['algo']} model ({type(exc).__name__}: "
+                         f"{describe_parse_error(exc)})") from exc
     with tempfile.TemporaryDirectory() as d:
         return ExportedPolicy.load(export_policy(model, Path(d) / "policy.npz", config))
 

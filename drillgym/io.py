@@ -38,7 +38,7 @@ from .errors import DataFormatError, InputError, OutputPathError
 
 __all__ = ["TimeSeries", "read_timeseries", "read_input_signal", "read_csv", "read_mat", "write_timeseries", "write_trajectory_csv",
            "StreamingCsvWriter", "required_columns", "DataFormatError", "U_LIMIT_FILE", "XY_LIMIT_FILE",
-           "create_directory"]
+           "create_directory", "describe_parse_error"]
 
 U_LIMIT_FILE = 50.0  # V: larger |u| in a file is refused
 XY_LIMIT_FILE = 0.05  # m: larger |x|, |y| in a file is refused
@@ -547,6 +547,28 @@ def read_input_signal(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     else:
         ts = read_csv(path, required=("t", "u"))
     return ts.columns["t"], ts.columns["u"]
+
+
+def describe_parse_error(exc: BaseException) -> str:
+    """Where and what a YAML or JSON parser found wrong, on one line.
+
+    Parameters
+    ----------
+    exc : BaseException
+        The parser's error (:class:`json.JSONDecodeError`, a ``yaml.YAMLError`` or anything else).
+
+    Returns
+    -------
+    str
+        ``"line L, column C: problem"`` when the parser says where, else its message on one line.
+    """
+    if isinstance(exc, json.JSONDecodeError):
+        return f"line {exc.lineno}, column {exc.colno}: {exc.msg}"
+    mark, problem = getattr(exc, "problem_mark", None), getattr(exc, "problem", None)
+    if mark is not None and problem:
+        context = getattr(exc, "context", None)
+        return f"line {mark.line + 1}, column {mark.column + 1}: {problem}" + (f" ({context})" if context else "")
+    return " ".join(str(exc).split()) or type(exc).__name__
 
 
 def create_directory(directory: str | Path, for_path: str | Path | None = None) -> Path:

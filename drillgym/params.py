@@ -271,7 +271,10 @@ class RigParams:
             else:
                 data = json.loads(text)
         except Exception as exc:  # noqa: BLE001 - report any parse error with the file name
-            raise ParameterError(f"{path}: not valid {path.suffix.lstrip('.') or 'JSON'}: {exc}") from None
+            from .io import describe_parse_error
+
+            raise ParameterError(f"{path}: not valid {path.suffix.lstrip('.') or 'JSON'}: "
+                                 f"{describe_parse_error(exc)}") from None
         return cls.from_dict(data, source=str(path), partial=partial)
 
     def to_file(self, path: str | Path) -> Path:

@@ -24,6 +24,7 @@ import numpy as np
 from drillgym import RigParams
 from drillgym.effects import Composition, compose
 from drillgym.errors import InputError
+from drillgym.io import describe_parse_error
 from drillgym.params import PARAM_NAMES
 
 __all__ = ["DEFAULT_UNCERTAINTY", "UncertaintySet", "PlantPopulation", "load_uncertainty", "sample_plants"]
@@ -116,7 +117,7 @@ def load_uncertainty(path: "str | Path | None" = None) -> UncertaintySet:
     except OSError as exc:
         raise InputError(f"uncertainty set {path}: cannot read it ({exc.strerror})") from None
     except yaml.YAMLError as exc:
-        raise InputError(f"uncertainty set {path}: not valid YAML ({str(exc).splitlines()[0]})") from None
+        raise InputError(f"uncertainty set {path}: not valid YAML ({describe_parse_error(exc)})") from None
     src = str(path)
     if not isinstance(raw, dict) or set(raw) - set(_SECTIONS):
         bad = sorted(set(raw) - set(_SECTIONS)) if isinstance(raw, dict) else [type(raw).__name__]
