@@ -14,9 +14,20 @@ prefer_full_vector_width()  # 512-bit vectors on AVX-512 hosts (opt out: DRILLGY
 invalidate_stale_kernels()  # before any compiled kernel is loaded from numba's cache
 
 from .configurations import Configuration, N_STATE, STATE_NAMES, parse_configuration
-from .errors import (DataFormatError, DrillgymError, EffectError, FitError, InputError, InputTypeError,
-                     MissingFileError, OutputPathError, ParameterError, SafetyError, SimulationError,
-                     UnavailableError)
+from .errors import (
+    DataFormatError,
+    DrillgymError,
+    EffectError,
+    FitError,
+    InputError,
+    InputTypeError,
+    MissingFileError,
+    OutputPathError,
+    ParameterError,
+    SafetyError,
+    SimulationError,
+    UnavailableError,
+)
 from .integrators import DEFAULT_DT, OUTPUT_NAMES
 from .params import RigParams
 from .simulator import BatchSimulator, BatchTrajectory, Trajectory, initial_state, simulate, simulate_batch

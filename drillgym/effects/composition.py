@@ -21,7 +21,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from ..configurations import STATE_NAMES
-from ..errors import InputTypeError, ParameterError
+from ..errors import InputTypeError
 from ..integrators import OUTPUT_NAMES
 from ..params import N_PARAMS, PARAM_INFO, PARAM_NAMES, ParameterError, RigParams
 from .base import Delay, Effect, EffectError, Measurement, Parameter
