@@ -62,7 +62,7 @@ class CommandSchedule:
             raise InputError(f"command schedule: approach must be a positive speed (rad/s), got {self.approach!r}")
 
     @classmethod
-    def from_config(cls, spec: "dict[str, Any] | None") -> "CommandSchedule | None":
+    def from_config(cls, spec: dict[str, Any] | None) -> CommandSchedule | None:
         """The schedule of a hyperparameter entry (``command_schedule: {approach, hold, ramp, lag}``); None: none."""
         if spec is None:
             return None
@@ -73,7 +73,7 @@ class CommandSchedule:
             raise InputError(f"command schedule: unknown keys {unknown}; expected approach, hold, ramp, lag")
         return cls(**{k: float(v) for k, v in spec.items()})
 
-    def __call__(self, t: "float | np.ndarray", target: "float | np.ndarray") -> np.ndarray:
+    def __call__(self, t: float | np.ndarray, target: float | np.ndarray) -> np.ndarray:
         """Commanded speed (rad/s) at time ``t`` (s since the start) towards ``target`` (rad/s)."""
         t = np.asarray(t, dtype=float)
         target = np.asarray(target, dtype=float)
@@ -81,7 +81,7 @@ class CommandSchedule:
         return np.where(target < self.approach, self.approach + s * (target - self.approach), target)
 
 
-def schedule_of(spec: "dict[str, Any] | None", motor_integral: bool) -> "CommandSchedule | None":
+def schedule_of(spec: dict[str, Any] | None, motor_integral: bool) -> CommandSchedule | None:
     """The schedule of a hyperparameter entry's ``command_schedule``, which needs the motor-angle integral
     (the integral follows the command); None: no schedule."""
     if spec is not None and not motor_integral:
@@ -117,7 +117,7 @@ class SpeedCommand:
         """Commanded speed now (rad/s)."""
         return self.y[2].copy()
 
-    def reset(self, index: "np.ndarray | slice" = slice(None)) -> None:
+    def reset(self, index: np.ndarray | slice = slice(None)) -> None:
         """Rigs ``index`` start from rest: time 0, command 0."""
         self.t[index] = 0.0
         self.y[:, index] = 0.0

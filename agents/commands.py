@@ -59,37 +59,65 @@ def register(app: typer.Typer) -> None:
     def train_cmd(
         env: str = typer.Option("drillgym/Torsional-v0", "--env", help="environment id"),
         algo: str = typer.Option("sac", "--algo", help="ppo, sac, td3 or recurrentppo"),
-        out: Path = typer.Option(..., "--out", help="run directory (model.zip, policy.npz, config.yml, tb/, "
-                                                      "checkpoints/); missing directories are created"),
-        obs: str | None = typer.Option(None, "--obs", help="observation mode: full, sensors, motor (default: the "
-                                                        "hyperparameter file's)"),
-        timesteps: int | None = typer.Option(None, "--timesteps", help="environment steps (default: the "
-                                                                    "file's n_timesteps)"),
+        out: Path = typer.Option(
+            ...,
+            "--out",
+            help="run directory (model.zip, policy.npz, config.yml, tb/, "
+            "checkpoints/); missing directories are created",
+        ),
+        obs: str | None = typer.Option(
+            None, "--obs", help="observation mode: full, sensors, motor (default: the hyperparameter file's)"
+        ),
+        timesteps: int | None = typer.Option(
+            None, "--timesteps", help="environment steps (default: the file's n_timesteps)"
+        ),
         seed: int = typer.Option(0, "--seed", help="seed of networks, exploration and envs (with --seeds: the first)"),
-        seeds: int = typer.Option(1, "--seeds", help="train this many seeds (SEED, SEED+1, ...) into OUT/seed_<s>/, in "
-                                  "parallel where cores allow; writes OUT/results.csv, OUT/results.md (per-seed lowest "
-                                  "held target, returns; IQM with bootstrap 95 % interval) and "
-                                  "OUT/learning_curves.png"),
-        workers: int | None = typer.Option(None, "--workers", help="seeds trained at once (default: "
-                                                                  "min(seeds, CPU cores))"),
-        ray: str | None = typer.Option(None, "--ray", help="with --seeds: train them as Ray Tune trials on 'auto' (a "
-                                                           "running cluster), 'local' (start one here) or HOST:PORT"),
-        eval_every: int | None = typer.Option(None, "--eval-every", help="environment steps between evaluations of the "
-                                                 "deterministic policy; the best is kept in OUT/best/ (0 = none; "
-                                                 "default: a twentieth of the run, at least 10000)"),
+        seeds: int = typer.Option(
+            1,
+            "--seeds",
+            help="train this many seeds (SEED, SEED+1, ...) into OUT/seed_<s>/, in "
+            "parallel where cores allow; writes OUT/results.csv, OUT/results.md (per-seed lowest "
+            "held target, returns; IQM with bootstrap 95 % interval) and "
+            "OUT/learning_curves.png",
+        ),
+        workers: int | None = typer.Option(
+            None, "--workers", help="seeds trained at once (default: min(seeds, CPU cores))"
+        ),
+        ray: str | None = typer.Option(
+            None,
+            "--ray",
+            help="with --seeds: train them as Ray Tune trials on 'auto' (a "
+            "running cluster), 'local' (start one here) or HOST:PORT",
+        ),
+        eval_every: int | None = typer.Option(
+            None,
+            "--eval-every",
+            help="environment steps between evaluations of the "
+            "deterministic policy; the best is kept in OUT/best/ (0 = none; "
+            "default: a twentieth of the run, at least 10000)",
+        ),
         n_envs: int | None = typer.Option(None, "--n-envs", help="rigs in the batched vector env"),
-        hyperparams: Path | None = typer.Option(None, "--hyperparams", help="YAML file (rl-zoo3 layout) "
-                                                                "instead of agents/hyperparams/<algo>.yml"),
-        set_: list[str] | None = typer.Option(None, "--set", help="override a hyperparameter, KEY=VALUE (YAML value; "
-                                                 "env options as env_kwargs.NAME=VALUE), repeatable"),
+        hyperparams: Path | None = typer.Option(
+            None, "--hyperparams", help="YAML file (rl-zoo3 layout) instead of agents/hyperparams/<algo>.yml"
+        ),
+        set_: list[str] | None = typer.Option(
+            None,
+            "--set",
+            help="override a hyperparameter, KEY=VALUE (YAML value; env options as env_kwargs.NAME=VALUE), repeatable",
+        ),
         resume: bool = typer.Option(False, "--resume", help="continue from OUT/checkpoints/latest.zip"),
-        checkpoint_every: int = typer.Option(50_000, "--checkpoint-every", help="environment steps between "
-                                                                                 "checkpoints"),
+        checkpoint_every: int = typer.Option(
+            50_000, "--checkpoint-every", help="environment steps between checkpoints"
+        ),
         progress: bool = typer.Option(True, "--progress/--no-progress", help="progress bar"),
         tensorboard: bool = typer.Option(True, "--tensorboard/--no-tensorboard", help="TensorBoard logs in OUT/tb"),
-        teacher: Path | None = typer.Option(None, "--teacher", help="policy.npz of a run on the 'full' observation: "
-                                               "distilled (DAgger) into this run's network before the RL steps "
-                                               "(--timesteps 0: distillation only)"),
+        teacher: Path | None = typer.Option(
+            None,
+            "--teacher",
+            help="policy.npz of a run on the 'full' observation: "
+            "distilled (DAgger) into this run's network before the RL steps "
+            "(--timesteps 0: distillation only)",
+        ),
         add_effect: list[str] | None = add_effect_option(),
         effect_param: list[str] | None = effect_param_option(),
     ) -> None:
@@ -116,35 +144,57 @@ def register(app: typer.Typer) -> None:
             from agents.train import planned_timesteps
 
             eval_every = max(10_000, planned_timesteps(env, algo, timesteps, hyperparams, overrides) // 20)
-        kw = dict(obs=obs, timesteps=timesteps, n_envs=n_envs, hyperparams=hyperparams, overrides=overrides,
-                  resume=resume, tensorboard=tensorboard, checkpoint_every=checkpoint_every, command=command,
-                  eval_every=eval_every, teacher=teacher)
+        kw = dict(
+            obs=obs,
+            timesteps=timesteps,
+            n_envs=n_envs,
+            hyperparams=hyperparams,
+            overrides=overrides,
+            resume=resume,
+            tensorboard=tensorboard,
+            checkpoint_every=checkpoint_every,
+            command=command,
+            eval_every=eval_every,
+            teacher=teacher,
+        )
         if seeds > 1 or ray:  # several seeds, or seeds on Ray: one summary over them
             from agents.seeds import train_seeds
 
-            summary = train_seeds(env, algo, out, list(range(seed, seed + seeds)), workers=workers, ray=ray,
-                                  **kw)
+            summary = train_seeds(env, algo, out, list(range(seed, seed + seeds)), workers=workers, ray=ray, **kw)
             held = summary.aggregates.get("lowest_held")
-            typer.echo(f"trained {seeds} seeds in {process_seconds():.1f} s wall clock since the command started; "
-                       f"wrote {out / 'results.md'}, "
-                       f"{out / 'learning_curves.png'}"
-                       + (f"; lowest held target IQM {held['iqm']:.2f} rad/s "
-                          f"[{held['ci_low']:.2f}, {held['ci_high']:.2f}]" if held else ""))
+            typer.echo(
+                f"trained {seeds} seeds in {process_seconds():.1f} s wall clock since the command started; "
+                f"wrote {out / 'results.md'}, "
+                f"{out / 'learning_curves.png'}"
+                + (
+                    f"; lowest held target IQM {held['iqm']:.2f} rad/s [{held['ci_low']:.2f}, {held['ci_high']:.2f}]"
+                    if held
+                    else ""
+                )
+            )
             return
         res = train(env, algo, out, seed=seed, progress=progress, **kw)
-        typer.echo(f"trained {res.timesteps} steps in {process_seconds():.1f} s wall clock since the command started "
-                   f"({res.wall_time:.1f} s of them learning); wrote {res.model_path}"
-                   + (f", {res.policy_path}" if res.policy_path else "")
-                   + (f"; best evaluated model in {out / 'best'}" if eval_every else ""))
+        typer.echo(
+            f"trained {res.timesteps} steps in {process_seconds():.1f} s wall clock since the command started "
+            f"({res.wall_time:.1f} s of them learning); wrote {res.model_path}"
+            + (f", {res.policy_path}" if res.policy_path else "")
+            + (f"; best evaluated model in {out / 'best'}" if eval_every else "")
+        )
 
     @app.command("combine-policies")
     def combine_cmd(
-        policies: list[Path] = typer.Argument(..., help="exported networks (policy.npz or run directories), the "
-                                                        "lowest target band first"),
-        edges: str = typer.Option(..., "--edges", help="target speeds (rad/s) where one network hands over to the "
-                                                       "next, comma-separated, increasing (one fewer than networks)"),
-        out: Path = typer.Option(..., "--out", help="the target-switched policy (.npz); "
-                                                      "missing directories are created"),
+        policies: list[Path] = typer.Argument(
+            ..., help="exported networks (policy.npz or run directories), the lowest target band first"
+        ),
+        edges: str = typer.Option(
+            ...,
+            "--edges",
+            help="target speeds (rad/s) where one network hands over to the "
+            "next, comma-separated, increasing (one fewer than networks)",
+        ),
+        out: Path = typer.Option(
+            ..., "--out", help="the target-switched policy (.npz); missing directories are created"
+        ),
         note: str = typer.Option("", "--note", help="free text stored with the policy (why these bands)"),
     ) -> None:
         """Combine learned networks into one policy that gives each target to the network of its band

@@ -26,8 +26,8 @@ from drillgym.envs.observation import make_observation_model
 from drillgym.envs.options import U_MAX, EnvOptions
 from drillgym.errors import InputError
 
-from .export import ExportedPolicy
 from .command import SpeedCommand, schedule_of
+from .export import ExportedPolicy
 from .integral import advance
 from .observer_residual import ObserverResidual
 from .residual import ResidualVoltage
@@ -66,19 +66,27 @@ class AgentController(Controller):
         env_kwargs = hp.get("env_kwargs", {})
         self.mode = env_kwargs.get("observation", "full")
         if self.mode == "full":
-            raise InputError("agent trained on the 'full' observation (true state) cannot run on measurements; "
-                             "train with --obs motor or --obs sensors")
+            raise InputError(
+                "agent trained on the 'full' observation (true state) cannot run on measurements; "
+                "train with --obs motor or --obs sensors"
+            )
         control_dt = policy.control_dt
         kw.setdefault("dt", control_dt)
         if abs(kw["dt"] - control_dt) > 1e-12:
             raise InputError(f"agent was trained at control period {control_dt} s, not {kw['dt']} s")
         super().__init__(omega_ref, **kw)
         self.policy = policy
-        self.uses = ("theta_u",) if self.mode == "motor" else (
-            ("theta_u", "theta_l", "x", "y") if self.config.lateral_free else ("theta_u", "theta_l"))
+        self.uses = (
+            ("theta_u",)
+            if self.mode == "motor"
+            else (("theta_u", "theta_l", "x", "y") if self.config.lateral_free else ("theta_u", "theta_l"))
+        )
         self.obs_options = EnvOptions.from_kwargs(
-            configuration=self.config.label, counts_per_rev=0, lvdt_noise_std=0.0,
-            **{k: (tuple(v) if isinstance(v, list) else v) for k, v in env_kwargs.items() if k in OBSERVATION_KEYS})
+            configuration=self.config.label,
+            counts_per_rev=0,
+            lvdt_noise_std=0.0,
+            **{k: (tuple(v) if isinstance(v, list) else v) for k, v in env_kwargs.items() if k in OBSERVATION_KEYS},
+        )
         self.frame_stack = int(hp.get("frame_stack", 1))
         self.integral = bool(hp.get("motor_integral", False))  # the motor-angle tracking integral (agents.integral)
         if self.integral and self.mode != "motor":
@@ -93,8 +101,9 @@ class AgentController(Controller):
             if self.base.dim != policy.obs_dim:
                 raise InputError(f"agent expects {policy.obs_dim} inputs; the observer base gives {self.base.dim}")
             return
-        self.residual = None if scale is None else ResidualVoltage(self.config.label, scale, self.params,
-                                                                   hp.get("startup"))
+        self.residual = (
+            None if scale is None else ResidualVoltage(self.config.label, scale, self.params, hp.get("startup"))
+        )
 
     def _reset(self, m: dict[str, np.ndarray]) -> None:
         n = self.n
@@ -105,9 +114,11 @@ class AgentController(Controller):
         self.model = make_observation_model(n, self.obs_options)
         dim = self.model.dim * self.frame_stack
         if dim + int(self.integral) != self.policy.obs_dim:
-            raise InputError(f"agent expects {self.policy.obs_dim} observation entries; the "
-                             f"{self.mode!r} model of {self.config.label} gives {self.model.dim} x {self.frame_stack}"
-                             + (" + 1 (integral)" if self.integral else ""))
+            raise InputError(
+                f"agent expects {self.policy.obs_dim} observation entries; the "
+                f"{self.mode!r} model of {self.config.label} gives {self.model.dim} x {self.frame_stack}"
+                + (" + 1 (integral)" if self.integral else "")
+            )
         Y = np.zeros((n, N_STATE))
         Y[:, 0] = m.get("theta_u", 0.0)
         Y[:, 1] = m.get("theta_l", 0.0)
@@ -137,8 +148,15 @@ class AgentController(Controller):
                 self.obs[:, -1] = self.command.value
         else:
             lat = self.config.lateral_free
-            self.model.from_readings(m["theta_u"], m["theta_l"], m["x"] if lat else None, m["y"] if lat else None,
-                                     self.u_prev, self.omega_ref, self.obs)
+            self.model.from_readings(
+                m["theta_u"],
+                m["theta_l"],
+                m["x"] if lat else None,
+                m["y"] if lat else None,
+                self.u_prev,
+                self.omega_ref,
+                self.obs,
+            )
         self._push()
 
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
@@ -179,7 +197,9 @@ class TargetSwitchedController(Controller):
 
     def __init__(self, policy: TargetSwitchedPolicy, omega_ref=None, **kw) -> None:
         self.switched = policy
-        self.members = [AgentController(p, omega_ref, **kw) for p in policy.members]  # one control period (the policy's check)
+        self.members = [
+            AgentController(p, omega_ref, **kw) for p in policy.members
+        ]  # one control period (the policy's check)
         kw.setdefault("dt", self.members[0].dt)
         super().__init__(omega_ref, **kw)
         self.uses = tuple(dict.fromkeys(u for m in self.members for u in m.uses))
@@ -188,12 +208,16 @@ class TargetSwitchedController(Controller):
     def describe(self) -> str:
         """One line: the networks, their target bands (rad/s) and the measurements they read."""
         edges = self.switched.edges
-        bands = [f"< {hi:g}" if lo is None else f">= {lo:g}" if hi is None else f"{lo:g}-{hi:g}"
-                 for lo, hi in zip((None, *edges), (*edges, None))]
-        return (f"agent: {len(self.members)} learned networks chosen by the target (rad/s: {', '.join(bands)}) "
-                f"(reads: {', '.join(self.uses)})")
+        bands = [
+            f"< {hi:g}" if lo is None else f">= {lo:g}" if hi is None else f"{lo:g}-{hi:g}"
+            for lo, hi in zip((None, *edges), (*edges, None))
+        ]
+        return (
+            f"agent: {len(self.members)} learned networks chosen by the target (rad/s: {', '.join(bands)}) "
+            f"(reads: {', '.join(self.uses)})"
+        )
 
-    def approach_time(self, omega_ref: "float | np.ndarray") -> np.ndarray:
+    def approach_time(self, omega_ref: float | np.ndarray) -> np.ndarray:
         """The approach time of the network serving each target."""
         ref = np.asarray(omega_ref, dtype=float)
         k = self.switched.member_of(ref)

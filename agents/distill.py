@@ -16,9 +16,10 @@ plant population's uncertainty set (:mod:`agents.population`; lags and delays in
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -30,13 +31,32 @@ from .envs import episode_batch
 __all__ = ["distill"]
 
 
-def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path, *, n_envs: int = 64,
-            iterations: int = 8, steps: int = 500, epochs: int = 4, batch_size: int = 4096, lr: float = 1e-3,
-            seed: int = 0, privileged: bool = False, population: "str | None" = None, nominal_fraction: float = 0.0,
-            nominal_below: float = 0.0, teacher_kwargs: dict[str, Any] | None = None, beta: float = 0.0,
-            noise: float = 0.0, motor_integral: bool = False,
-            command: "dict[str, float] | None" = None, lr_final: float | None = None,
-            log=None, on_round: "Callable[[int, float], None] | None" = None) -> dict[str, float]:
+def distill(
+    model,
+    env_id: str,
+    env_kwargs: dict[str, Any],
+    teacher: str | Path,
+    *,
+    n_envs: int = 64,
+    iterations: int = 8,
+    steps: int = 500,
+    epochs: int = 4,
+    batch_size: int = 4096,
+    lr: float = 1e-3,
+    seed: int = 0,
+    privileged: bool = False,
+    population: str | None = None,
+    nominal_fraction: float = 0.0,
+    nominal_below: float = 0.0,
+    teacher_kwargs: dict[str, Any] | None = None,
+    beta: float = 0.0,
+    noise: float = 0.0,
+    motor_integral: bool = False,
+    command: dict[str, float] | None = None,
+    lr_final: float | None = None,
+    log=None,
+    on_round: Callable[[int, float], None] | None = None,
+) -> dict[str, float]:
     """Regress the actor of the SB3 ``model`` (PPO/MLP, its env's observation) on the ``teacher``'s actions.
 
     ``iterations`` DAgger rounds of ``steps`` periods on ``n_envs`` rigs (domain randomisation included),
@@ -149,7 +169,7 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
     for it in range(iterations):
         for g in opt.param_groups:
             g["lr"] = round_learning_rate(lr, lr_final, it, iterations)
-        by_teacher = rng.random(n_envs) < (1.0 if it == 0 else beta ** it)
+        by_teacher = rng.random(n_envs) < (1.0 if it == 0 else beta**it)
         for _ in range(steps):
             a_t = teacher_actions()
             X.append(obs.copy())
@@ -170,7 +190,7 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
         for _ in range(epochs):
             perm = th.as_tensor(rng.permutation(n))
             for k in range(0, n, batch_size):
-                idx = perm[k:k + batch_size]
+                idx = perm[k : k + batch_size]
                 x = data_x[idx]
                 feats = policy.pi_features_extractor(x)
                 pred = policy.action_net(policy.mlp_extractor.forward_actor(feats))[:, 0]
@@ -179,8 +199,9 @@ def distill(model, env_id: str, env_kwargs: dict[str, Any], teacher: str | Path,
                 loss.backward()
                 opt.step()
         with th.no_grad():
-            mse = float(th.mean((mean_action(data_x[-steps * n_envs:].numpy()).clamp(-1, 1)
-                                 - data_y[-steps * n_envs:]) ** 2))
+            mse = float(
+                th.mean((mean_action(data_x[-steps * n_envs :].numpy()).clamp(-1, 1) - data_y[-steps * n_envs :]) ** 2)
+            )
         if log is not None:
             log(f"DAgger round {it + 1}/{iterations}: {n} labelled states, action MSE {mse:.4f}")
         if on_round is not None:
@@ -203,9 +224,9 @@ def _teacher(teacher: str | Path, n: int, batch, options: dict[str, Any], integr
     """(actions(), reset(index)) of the teacher on the rigs of ``batch`` (actions in [-1, 1], (n,));
     ``integral``: the :class:`agents.integral.MotorIntegralVecEnv` whose integral the flatness teacher uses."""
     if str(teacher) == "flatness":
-        from .teachers import FlatnessTeacher
-
         from drillgym.params import N_PARAMS
+
+        from .teachers import FlatnessTeacher
 
         t = FlatnessTeacher(n, batch.options.rig_params, batch.options.control_dt, **options)
         s = batch.system

@@ -22,8 +22,13 @@ from .observer_residual import ObserverResidual
 from .population import population_env_kwargs, use_population
 from .residual import ResidualVoltage
 
-__all__ = ["make_training_env", "episode_batch", "ResidualActionVecEnv", "ObserverResidualVecEnv",
-           "MotorIntegralVecEnv"]
+__all__ = [
+    "make_training_env",
+    "episode_batch",
+    "ResidualActionVecEnv",
+    "ObserverResidualVecEnv",
+    "MotorIntegralVecEnv",
+]
 
 
 class ResidualActionVecEnv(VecEnvWrapper):
@@ -76,8 +81,9 @@ class ObserverResidualVecEnv(VecEnvWrapper):
         if names[0] != "omega_u_inc_0":
             raise InputError("ObserverResidualVecEnv needs the 'motor' observation mode")
         obs_space = spaces.Box(-10.0, 10.0, shape=(base.dim,), dtype=np.float32)
-        super().__init__(venv, observation_space=obs_space,
-                         action_space=spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32))
+        super().__init__(
+            venv, observation_space=obs_space, action_space=spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
+        )
         self.base = base
         opts = venv.get_attr("options")[0]
         self.control_dt, self.counts_per_rev = float(opts.control_dt), int(opts.counts_per_rev)
@@ -134,8 +140,11 @@ class MotorIntegralVecEnv(VecEnvWrapper):
         if names[0] != "omega_u_inc_0" or names[-1] != "omega_ref":
             raise InputError("the motor-angle integral needs the 'motor' observation mode")
         box = venv.observation_space
-        space = spaces.Box(np.append(box.low, -z_max).astype(np.float32), np.append(box.high, z_max).astype(np.float32),
-                           dtype=np.float32)
+        space = spaces.Box(
+            np.append(box.low, -z_max).astype(np.float32),
+            np.append(box.high, z_max).astype(np.float32),
+            dtype=np.float32,
+        )
         super().__init__(venv, observation_space=space)
         self.dt, self.z_max = float(control_dt), float(z_max)
         n = venv.num_envs
@@ -181,13 +190,28 @@ class MotorIntegralVecEnv(VecEnvWrapper):
         return np.hstack([last, self.z[:, None]]).astype(np.float32), rew, done, infos
 
 
-def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: dict[str, Any] | None = None,
-                      residual: float | None = None, startup: tuple | None = None, base: str | None = None,
-                      observer: dict[str, Any] | None = None, frame_stack: int = 1,
-                      normalize_reward: bool = False, normalize_obs: bool = False, gamma: float = 0.99,
-                      monitor: bool = True, privileged: bool = False, motor_integral: bool = False,
-                      command: dict[str, float] | None = None, population: str | None = None,
-                      nominal_fraction: float = 0.0, nominal_below: float = 0.0) -> VecEnv:
+def make_training_env(
+    env_id: str,
+    n_envs: int,
+    *,
+    seed: int = 0,
+    env_kwargs: dict[str, Any] | None = None,
+    residual: float | None = None,
+    startup: tuple | None = None,
+    base: str | None = None,
+    observer: dict[str, Any] | None = None,
+    frame_stack: int = 1,
+    normalize_reward: bool = False,
+    normalize_obs: bool = False,
+    gamma: float = 0.99,
+    monitor: bool = True,
+    privileged: bool = False,
+    motor_integral: bool = False,
+    command: dict[str, float] | None = None,
+    population: str | None = None,
+    nominal_fraction: float = 0.0,
+    nominal_below: float = 0.0,
+) -> VecEnv:
     """An SB3 VecEnv of ``n_envs`` rigs in one batched core call per step.
 
     Parameters
@@ -262,13 +286,13 @@ def make_training_env(env_id: str, n_envs: int, *, seed: int = 0, env_kwargs: di
         kw["normalize_action"] = False
         venv = make_sb3_vec(env_id, n_envs, **kw)
         o = venv.venv.options
-        venv = ObserverResidualVecEnv(venv, ObserverResidual(ENV_IDS[env_id], residual, o.params, o.control_dt,
-                                                             observer))
+        venv = ObserverResidualVecEnv(
+            venv, ObserverResidual(ENV_IDS[env_id], residual, o.params, o.control_dt, observer)
+        )
     elif residual is not None:
         kw["normalize_action"] = False
         venv: VecEnv = make_sb3_vec(env_id, n_envs, **kw)
-        venv = ResidualActionVecEnv(venv, ResidualVoltage(ENV_IDS[env_id], residual, venv.venv.options.params,
-                                                                startup))
+        venv = ResidualActionVecEnv(venv, ResidualVoltage(ENV_IDS[env_id], residual, venv.venv.options.params, startup))
     else:
         kw["normalize_action"] = True
         if population is not None:

@@ -12,8 +12,9 @@ lowest target of the grid from which every higher one is held (NaN when the high
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -23,9 +24,17 @@ __all__ = ["TARGETS", "evaluate_policy_targets", "lowest_held_target"]
 TARGETS = tuple(float(v) for v in np.arange(1.5, 8.01, 0.5))
 
 
-def evaluate_policy_targets(policy: str | Path, targets: Sequence[float] = TARGETS, *, config: str = "torsional",
-                            duration: float = 60.0, window: float = 20.0, seed: int = 0,
-                            effects: Any = None, effect_params: dict | None = None) -> list[dict]:
+def evaluate_policy_targets(
+    policy: str | Path,
+    targets: Sequence[float] = TARGETS,
+    *,
+    config: str = "torsional",
+    duration: float = 60.0,
+    window: float = 20.0,
+    seed: int = 0,
+    effects: Any = None,
+    effect_params: dict | None = None,
+) -> list[dict]:
     """Run the agent from rest at each target and measure it with the controllers' harness.
 
     Parameters
@@ -56,8 +65,17 @@ def evaluate_policy_targets(policy: str | Path, targets: Sequence[float] = TARGE
     from controllers.evaluation.harness import run_job
     from controllers.evaluation.scenarios import SCENARIOS
 
-    return run_job(f"agent:{Path(policy)}", config, SCENARIOS["rest"], list(targets), duration=duration,
-                   window=window, seed=seed, effects=effects, effect_params=effect_params)
+    return run_job(
+        f"agent:{Path(policy)}",
+        config,
+        SCENARIOS["rest"],
+        list(targets),
+        duration=duration,
+        window=window,
+        seed=seed,
+        effects=effects,
+        effect_params=effect_params,
+    )
 
 
 def lowest_held_target(policy: str | Path, targets: Sequence[float] = TARGETS, **kw: Any) -> float:

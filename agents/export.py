@@ -14,9 +14,10 @@ action space (or squashes it with tanh under gSDE's ``squash_output``); TD3's ac
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 
@@ -51,14 +52,19 @@ def _walk(module, layers: list, acts: list) -> None:
         for m in module:
             _walk(m, layers, acts)
     elif isinstance(module, nn.Linear):
-        layers.append((module.weight.detach().cpu().numpy().astype(np.float32),
-                       module.bias.detach().cpu().numpy().astype(np.float32)))
+        layers.append(
+            (
+                module.weight.detach().cpu().numpy().astype(np.float32),
+                module.bias.detach().cpu().numpy().astype(np.float32),
+            )
+        )
         acts.append("identity")
     elif type(module) in simple or isinstance(module, nn.Hardtanh):
         if not acts or acts[-1] != "identity":
             raise InputError(f"activation {module} does not follow a linear layer; cannot export")
-        acts[-1] = (f"hardtanh:{module.min_val}:{module.max_val}" if isinstance(module, nn.Hardtanh)
-                    else simple[type(module)])
+        acts[-1] = (
+            f"hardtanh:{module.min_val}:{module.max_val}" if isinstance(module, nn.Hardtanh) else simple[type(module)]
+        )
     elif isinstance(module, (nn.Flatten, nn.Identity)):
         pass
     else:
@@ -105,9 +111,11 @@ def obs_normalization(model) -> dict[str, np.ndarray] | None:
     if venv is None or not venv.norm_obs:
         return None
     rms, k = venv.obs_rms, actor_dim(model)
-    return {"obs_mean": rms.mean[:k].astype(np.float32),
-            "obs_scale": (1.0 / np.sqrt(rms.var[:k] + venv.epsilon)).astype(np.float32),
-            "obs_clip": np.float32(venv.clip_obs)}
+    return {
+        "obs_mean": rms.mean[:k].astype(np.float32),
+        "obs_scale": (1.0 / np.sqrt(rms.var[:k] + venv.epsilon)).astype(np.float32),
+        "obs_clip": np.float32(venv.clip_obs),
+    }
 
 
 def export_policy(model, path: str | Path, config: dict[str, Any]) -> Path:
@@ -130,8 +138,13 @@ def export_policy(model, path: str | Path, config: dict[str, Any]) -> Path:
     """
     layers, acts, output = policy_layers(model)
     low, high = model.action_space.low.astype(np.float32), model.action_space.high.astype(np.float32)
-    meta = {"format": FORMAT_VERSION, "activations": acts, "output": output,
-            "obs_dim": actor_dim(model), "config": config}
+    meta = {
+        "format": FORMAT_VERSION,
+        "activations": acts,
+        "output": output,
+        "obs_dim": actor_dim(model),
+        "config": config,
+    }
     arrays = {f"W{i}": W for i, (W, _) in enumerate(layers)} | {f"b{i}": b for i, (_, b) in enumerate(layers)}
     arrays |= obs_normalization(model) or {}
     path = Path(path)
@@ -184,9 +197,16 @@ class ExportedPolicy:
         (mean, 1/std, clip) of the training's observation normalisation.
     """
 
-    def __init__(self, layers: list[tuple[np.ndarray, np.ndarray]], activations: list[str], output: str,
-                 action_low: np.ndarray, action_high: np.ndarray, meta: dict[str, Any],
-                 obs_norm: tuple[np.ndarray, np.ndarray, float] | None = None) -> None:
+    def __init__(
+        self,
+        layers: list[tuple[np.ndarray, np.ndarray]],
+        activations: list[str],
+        output: str,
+        action_low: np.ndarray,
+        action_high: np.ndarray,
+        meta: dict[str, Any],
+        obs_norm: tuple[np.ndarray, np.ndarray, float] | None = None,
+    ) -> None:
         if len(activations) != len(layers) or output not in ("tanh", "clip"):
             raise InputError(f"bad exported policy: activations {activations}, output {output!r}")
         self.layers = [(np.ascontiguousarray(W.T), b) for W, b in layers]  # x @ W.T + b
@@ -198,24 +218,33 @@ class ExportedPolicy:
         self.obs_norm = obs_norm  # (mean, 1/std, clip) of the training's VecNormalize, or None
 
     @classmethod
-    def load(cls, path: str | Path) -> "ExportedPolicy":
+    def load(cls, path: str | Path) -> ExportedPolicy:
         """The policy in a ``policy.npz`` of one network (:func:`agents.load_policy` also reads switched sets)."""
         with policy_file(path, "exported drillgym policy") as (meta, z):
             if "members" in meta:
-                raise InputError("it is a target-switched policy of several networks; load it with "
-                                 "agents.load_policy")
+                raise InputError("it is a target-switched policy of several networks; load it with agents.load_policy")
             return cls.from_arrays(meta, z)
 
     @classmethod
-    def from_arrays(cls, meta: dict[str, Any], arrays: Any, prefix: str = "") -> "ExportedPolicy":
+    def from_arrays(cls, meta: dict[str, Any], arrays: Any, prefix: str = "") -> ExportedPolicy:
         """The policy of ``meta`` whose weights are ``arrays[prefix + 'W0']``, ... (an open ``.npz`` or a dict)."""
         files = set(arrays.files if hasattr(arrays, "files") else arrays)
         n = len(meta["activations"])
         layers = [(arrays[f"{prefix}W{i}"], arrays[f"{prefix}b{i}"]) for i in range(n)]
-        norm = ((arrays[f"{prefix}obs_mean"], arrays[f"{prefix}obs_scale"], float(arrays[f"{prefix}obs_clip"]))
-                if f"{prefix}obs_mean" in files else None)
-        return cls(layers, meta["activations"], meta["output"], arrays[f"{prefix}action_low"],
-                   arrays[f"{prefix}action_high"], meta, norm)
+        norm = (
+            (arrays[f"{prefix}obs_mean"], arrays[f"{prefix}obs_scale"], float(arrays[f"{prefix}obs_clip"]))
+            if f"{prefix}obs_mean" in files
+            else None
+        )
+        return cls(
+            layers,
+            meta["activations"],
+            meta["output"],
+            arrays[f"{prefix}action_low"],
+            arrays[f"{prefix}action_high"],
+            meta,
+            norm,
+        )
 
     def to_arrays(self, prefix: str = "") -> dict[str, np.ndarray]:
         """The arrays :meth:`from_arrays` reads back (weights as exported, action bounds, normalisation)."""

@@ -48,19 +48,53 @@ import yaml
 from drillgym.errors import InputError, MissingFileError
 from drillgym.io import describe_parse_error
 
-__all__ = ["HYPERPARAMS_DIR", "load_hyperparams", "parse_overrides", "apply_overrides", "DRILLGYM_KEYS",
-           "ZOO_KEYS", "STRUCTURE_SECTION", "STRUCTURE_KEYS", "algorithm_kwargs"]
+__all__ = [
+    "HYPERPARAMS_DIR",
+    "load_hyperparams",
+    "parse_overrides",
+    "apply_overrides",
+    "DRILLGYM_KEYS",
+    "ZOO_KEYS",
+    "STRUCTURE_SECTION",
+    "STRUCTURE_KEYS",
+    "algorithm_kwargs",
+]
 
 HYPERPARAMS_DIR = Path(__file__).resolve().parent / "hyperparams"
 #: keys of an rl-zoo3 entry that are not keywords of the SB3 algorithm (rl-zoo3 pops them itself)
-ZOO_KEYS = ("n_envs", "n_timesteps", "policy", "env_kwargs", "normalize", "frame_stack", "env_wrapper", "callback",
-            "noise_type", "noise_std", "vec_env_wrapper", "eval_env_kwargs", "normalize_kwargs")
+ZOO_KEYS = (
+    "n_envs",
+    "n_timesteps",
+    "policy",
+    "env_kwargs",
+    "normalize",
+    "frame_stack",
+    "env_wrapper",
+    "callback",
+    "noise_type",
+    "noise_std",
+    "vec_env_wrapper",
+    "eval_env_kwargs",
+    "normalize_kwargs",
+)
 #: top-level section of a hyperparameter file with drillgym's policy structures (per env id)
 STRUCTURE_SECTION = "drillgym"
 #: drillgym's own keys (the structure section, and the merged entry's normalisation flags)
-STRUCTURE_KEYS = ("residual", "startup", "base", "observer", "normalize_reward", "normalize_obs", "privileged_critic",
-                  "distill", "motor_integral", "command_schedule", "population", "nominal_fraction",
-                  "nominal_below")
+STRUCTURE_KEYS = (
+    "residual",
+    "startup",
+    "base",
+    "observer",
+    "normalize_reward",
+    "normalize_obs",
+    "privileged_critic",
+    "distill",
+    "motor_integral",
+    "command_schedule",
+    "population",
+    "nominal_fraction",
+    "nominal_below",
+)
 #: every key of a merged entry that is not a keyword of the SB3 algorithm
 DRILLGYM_KEYS = ZOO_KEYS + STRUCTURE_KEYS
 
@@ -91,7 +125,7 @@ def _parse_policy_kwargs(v: Any) -> dict:
     raise InputError(f"policy_kwargs must be a mapping or a 'dict(...)' string, got {v!r}")
 
 
-def load_hyperparams(algo: str, env_id: str, path: "str | Path | None" = None) -> dict[str, Any]:
+def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> dict[str, Any]:
     """The entry of ``env_id`` in the hyperparameter file of ``algo``, merged with its drillgym section.
 
     Parameters
@@ -124,13 +158,17 @@ def load_hyperparams(algo: str, env_id: str, path: "str | Path | None" = None) -
     except yaml.YAMLError as exc:
         raise InputError(f"hyperparameter file {f} is not valid YAML: {describe_parse_error(exc)}") from exc
     if env_id not in data or env_id == STRUCTURE_SECTION:
-        raise InputError(f"hyperparameter file {f} has no entry for {env_id!r}; "
-                         f"entries: {sorted(k for k in data if k != STRUCTURE_SECTION)}")
+        raise InputError(
+            f"hyperparameter file {f} has no entry for {env_id!r}; "
+            f"entries: {sorted(k for k in data if k != STRUCTURE_SECTION)}"
+        )
     hp = dict(data[env_id] or {})
     bad = [k for k in STRUCTURE_KEYS if k in hp]
     if bad:
-        raise InputError(f"hyperparameter file {f}: {bad} are drillgym keys, not keywords of the algorithm; "
-                         f"put them under the top-level section '{STRUCTURE_SECTION}: {{{env_id}: ...}}'")
+        raise InputError(
+            f"hyperparameter file {f}: {bad} are drillgym keys, not keywords of the algorithm; "
+            f"put them under the top-level section '{STRUCTURE_SECTION}: {{{env_id}: ...}}'"
+        )
     hp.update((data.get(STRUCTURE_SECTION) or {}).get(env_id) or {})
     if "normalize" in hp:
         hp["normalize_obs"], hp["normalize_reward"] = _normalize_flags(hp.pop("normalize"))
@@ -169,8 +207,9 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
         try:
             v = yaml.safe_load(value)
         except yaml.YAMLError as exc:
-            raise InputError(f"hyperparameter override {item!r}: value is not valid YAML "
-                             f"({describe_parse_error(exc)})") from exc
+            raise InputError(
+                f"hyperparameter override {item!r}: value is not valid YAML ({describe_parse_error(exc)})"
+            ) from exc
         if isinstance(v, str):  # YAML 1.1 reads '1e-3' as a string
             try:
                 v = float(v)

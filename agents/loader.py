@@ -21,7 +21,7 @@ from .switched import TargetSwitchedPolicy, read_policy
 __all__ = ["load_policy", "load_controller"]
 
 
-def load_policy(path: str | Path) -> "ExportedPolicy | TargetSwitchedPolicy":
+def load_policy(path: str | Path) -> ExportedPolicy | TargetSwitchedPolicy:
     """The exported policy of PATH, as :func:`agents.load_policy`.
 
     Parameters
@@ -64,14 +64,16 @@ def load_policy(path: str | Path) -> "ExportedPolicy | TargetSwitchedPolicy":
     try:
         model = algo_class(config["algo"]).load(p, device="cpu")
     except Exception as exc:  # noqa: BLE001 - anything SB3 cannot load is not a model it wrote
-        raise InputError(f"agent {p}: not a readable {config['algo']} model ({type(exc).__name__}: "
-                         f"{describe_parse_error(exc)})") from exc
+        raise InputError(
+            f"agent {p}: not a readable {config['algo']} model ({type(exc).__name__}: {describe_parse_error(exc)})"
+        ) from exc
     with tempfile.TemporaryDirectory() as d:
         return ExportedPolicy.load(export_policy(model, Path(d) / "policy.npz", config))
 
 
-def load_controller(path: str, *, config: str = "torsional", omega_ref=None, params=None,
-                    **kw) -> "AgentController | TargetSwitchedController":
+def load_controller(
+    path: str, *, config: str = "torsional", omega_ref=None, params=None, **kw
+) -> AgentController | TargetSwitchedController:
     """The agent at PATH as a Controller for rig configuration ``config``, as :func:`agents.load_controller`.
 
     Parameters

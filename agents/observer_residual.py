@@ -65,8 +65,14 @@ class ObserverResidual:
         shaping, ...).
     """
 
-    def __init__(self, config: str, scale: float, params: RigParams | None = None, dt: float = 0.01,
-                 observer: dict[str, Any] | None = None) -> None:
+    def __init__(
+        self,
+        config: str,
+        scale: float,
+        params: RigParams | None = None,
+        dt: float = 0.01,
+        observer: dict[str, Any] | None = None,
+    ) -> None:
         if not (np.isfinite(scale) and scale > 0):
             raise InputError(f"residual scale must be a positive voltage, got {scale!r}")
         self._ctrl = ObserverController(1.0, config=config, params=params, dt=dt, **(observer or {}))
@@ -113,8 +119,18 @@ class ObserverResidual:
         """Policy inputs (n, :attr:`dim`) from the current estimates, float32 (see :data:`FEATURES`)."""
         x, ref, Ts = self.x, self.target, self.params.Ts
         d = self.model.lower_friction(x)
-        f = np.stack([x[I_WL] - ref, x[I_WU] - ref, self.params.ktheta * x[I_AL] / Ts, d / Ts,
-                      self.u_base / U_MAX, np.minimum(self.t / PHASE_TIME, 1.0), ref / 8.0], axis=1)
+        f = np.stack(
+            [
+                x[I_WL] - ref,
+                x[I_WU] - ref,
+                self.params.ktheta * x[I_AL] / Ts,
+                d / Ts,
+                self.u_base / U_MAX,
+                np.minimum(self.t / PHASE_TIME, 1.0),
+                ref / 8.0,
+            ],
+            axis=1,
+        )
         return np.clip(f, -10.0, 10.0).astype(np.float32)
 
     def base(self) -> np.ndarray:

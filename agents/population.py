@@ -87,8 +87,14 @@ class PopulationRandomizer:
 
     active = True
 
-    def __init__(self, composition, base, population: str | Path | None = None,
-                 nominal_fraction: float = 0.0, nominal_below: float = 0.0) -> None:
+    def __init__(
+        self,
+        composition,
+        base,
+        population: str | Path | None = None,
+        nominal_fraction: float = 0.0,
+        nominal_below: float = 0.0,
+    ) -> None:
         if not (0.0 <= nominal_fraction <= 1.0):
             raise InputError(f"nominal_fraction must be in [0, 1], got {nominal_fraction!r}")
         if not (np.isfinite(nominal_below) and nominal_below >= 0.0):
@@ -97,8 +103,9 @@ class PopulationRandomizer:
         self.us = _uncertainty(population)
         missing = [e for e in self.us.effect_names() if e not in set(composition.names)]
         if missing:
-            raise InputError(f"the env's model lacks the population's effects {missing}; "
-                             f"build it with population_env_kwargs")
+            raise InputError(
+                f"the env's model lacks the population's effects {missing}; build it with population_env_kwargs"
+            )
         self.composition, self.base = composition, base
 
     def sample(self, rng: np.random.Generator, omega_ref: float | None = None) -> np.ndarray:
@@ -130,8 +137,9 @@ class PopulationRandomizer:
         return self.composition.vector(self.base.replace(**scaled), values)
 
 
-def use_population(venv, population: str | Path | None = None, nominal_fraction: float = 0.0,
-                   nominal_below: float = 0.0) -> None:
+def use_population(
+    venv, population: str | Path | None = None, nominal_fraction: float = 0.0, nominal_below: float = 0.0
+) -> None:
     """Draw every later episode's rig of a drillgym SB3 VecEnv from an uncertainty set.
 
     Parameters
@@ -146,5 +154,6 @@ def use_population(venv, population: str | Path | None = None, nominal_fraction:
         Targets below this speed (rad/s) get the nominal rig.
     """
     batch = episode_batch(venv)
-    batch.randomizer = PopulationRandomizer(batch.system.composition, batch.options.rig_params, population,
-                                            nominal_fraction, nominal_below)
+    batch.randomizer = PopulationRandomizer(
+        batch.system.composition, batch.options.rig_params, population, nominal_fraction, nominal_below
+    )

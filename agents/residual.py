@@ -28,7 +28,7 @@ exported policy's controller and on the rig (:class:`agents.controller.AgentCont
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -55,8 +55,9 @@ class ResidualVoltage:
         (kick V, hold s, ramp s) start-up schedule, or None (constant u_eq).
     """
 
-    def __init__(self, config: str, scale: float, params: RigParams | None = None,
-                 startup: Sequence[float] | None = None) -> None:
+    def __init__(
+        self, config: str, scale: float, params: RigParams | None = None, startup: Sequence[float] | None = None
+    ) -> None:
         if not (np.isfinite(scale) and scale > 0):
             raise InputError(f"residual scale must be a positive voltage, got {scale!r}")
         if startup is not None:
@@ -84,7 +85,7 @@ class ResidualVoltage:
             self._ref[changed] = w[changed]
         return self._ueq
 
-    def feedforward(self, omega_ref: np.ndarray, t: "float | np.ndarray" = np.inf) -> np.ndarray:
+    def feedforward(self, omega_ref: np.ndarray, t: float | np.ndarray = np.inf) -> np.ndarray:
         """u_ff (V) for targets (rad/s) at times since start ``t`` (s)."""
         u = self.equilibrium(omega_ref)
         if self.startup is None:
@@ -93,7 +94,7 @@ class ResidualVoltage:
         s = np.clip((np.asarray(t, dtype=float) - hold) / ramp, 0.0, 1.0)
         return kick + (u - kick) * s
 
-    def voltage(self, action: np.ndarray, omega_ref: np.ndarray, t: "float | np.ndarray" = np.inf) -> np.ndarray:
+    def voltage(self, action: np.ndarray, omega_ref: np.ndarray, t: float | np.ndarray = np.inf) -> np.ndarray:
         """Voltages (n,) for actions (n,) or (n, 1), targets (n,) (rad/s), times since start (s)."""
         a = np.clip(np.asarray(action, dtype=float).reshape(-1), -1.0, 1.0)
         return np.clip(self.feedforward(omega_ref, t) + self.scale * a, -U_MAX, U_MAX)

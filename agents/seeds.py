@@ -22,11 +22,12 @@ from __future__ import annotations
 import csv
 import os
 import time
+from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from multiprocessing import get_context
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -73,8 +74,15 @@ def iqm_ci(x: Sequence[float], confidence: float = 0.95, n_resamples: int = 2000
         return float("nan"), float("nan")
     if np.ptp(a) == 0:  # every seed alike: the bootstrap has nothing to resample
         return float(a[0]), float(a[0])
-    res = bootstrap((a,), lambda v, axis: np.apply_along_axis(iqm, axis, v), confidence_level=confidence,
-                    n_resamples=n_resamples, method="percentile", random_state=seed, vectorized=True)
+    res = bootstrap(
+        (a,),
+        lambda v, axis: np.apply_along_axis(iqm, axis, v),
+        confidence_level=confidence,
+        n_resamples=n_resamples,
+        method="percentile",
+        random_state=seed,
+        vectorized=True,
+    )
     return float(res.confidence_interval.low), float(res.confidence_interval.high)
 
 
@@ -96,7 +104,12 @@ def _train_one(kwargs: dict[str, Any]) -> dict[str, Any]:
     t0 = time.perf_counter()
     res = train(**kwargs)
     wall = time.perf_counter() - t0
-    row = {"seed": kwargs["seed"], "timesteps": res.timesteps, "wall_time": round(wall, 1), "train_time": round(res.wall_time, 1)}
+    row = {
+        "seed": kwargs["seed"],
+        "timesteps": res.timesteps,
+        "wall_time": round(wall, 1),
+        "train_time": round(res.wall_time, 1),
+    }
     ev = Path(res.out) / "evaluations.npz"
     if ev.is_file():
         with np.load(ev) as z:
@@ -107,8 +120,17 @@ def _train_one(kwargs: dict[str, Any]) -> dict[str, Any]:
     return row
 
 
-def train_seeds(env_id: str, algo: str, out: str | Path, seeds: Sequence[int], *, workers: int | None = None,
-                evaluate_held: bool = True, ray: str | None = None, **train_kwargs: Any) -> SeedSummary:
+def train_seeds(
+    env_id: str,
+    algo: str,
+    out: str | Path,
+    seeds: Sequence[int],
+    *,
+    workers: int | None = None,
+    evaluate_held: bool = True,
+    ray: str | None = None,
+    **train_kwargs: Any,
+) -> SeedSummary:
     """Train ``algo`` on ``env_id`` once per seed into ``out/seed_<s>/`` and write the results.
 
     Parameters
@@ -146,16 +168,33 @@ def train_seeds(env_id: str, algo: str, out: str | Path, seeds: Sequence[int], *
     if train_kwargs.get("eval_every") is None:
         from .train import planned_timesteps
 
-        n = planned_timesteps(env_id, algo, train_kwargs.get("timesteps"), train_kwargs.get("hyperparams"),
-                              train_kwargs.get("overrides"))
+        n = planned_timesteps(
+            env_id, algo, train_kwargs.get("timesteps"), train_kwargs.get("hyperparams"), train_kwargs.get("overrides")
+        )
         train_kwargs["eval_every"] = max(10_000, n // 20)
-    jobs = [dict(train_kwargs, env_id=env_id, algo=algo, out=out / f"seed_{s}", seed=s, evaluate_held=evaluate_held,
-                 progress=False) for s in seeds]
+    jobs = [
+        dict(
+            train_kwargs,
+            env_id=env_id,
+            algo=algo,
+            out=out / f"seed_{s}",
+            seed=s,
+            evaluate_held=evaluate_held,
+            progress=False,
+        )
+        for s in seeds
+    ]
     if ray is not None:
         from drillgym.tune import run_trials
 
-        rows = run_trials(_train_one, jobs, ray=ray, workers=workers if ray == "local" else None,
-                          name=f"{algo}_seeds", storage=out.resolve() / "tune")
+        rows = run_trials(
+            _train_one,
+            jobs,
+            ray=ray,
+            workers=workers if ray == "local" else None,
+            name=f"{algo}_seeds",
+            storage=out.resolve() / "tune",
+        )
     elif workers <= 1:
         rows = [_train_one(j) for j in jobs]
     else:
@@ -186,10 +225,17 @@ def write_results(rows: list[dict[str, Any]], out: Path) -> SeedSummary:
     fmt = lambda v: f"{v:.3g}" if isinstance(v, float) else str(v)  # noqa: E731
     lines = ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
     lines += ["| " + " | ".join(fmt(r.get(k, "")) for k in keys) + " |" for r in rows]
-    lines += ["", f"Over {len(rows)} seeds (lowest held target: none held counts as {NOT_HELD} rad/s):", "",
-              "| metric | IQM | 95 % CI (bootstrap) | median |", "|---|---|---|---|"]
-    lines += [f"| {m} | {a['iqm']:.3g} | [{a['ci_low']:.3g}, {a['ci_high']:.3g}] | {a['median']:.3g} |"
-              for m, a in aggregates.items()]
+    lines += [
+        "",
+        f"Over {len(rows)} seeds (lowest held target: none held counts as {NOT_HELD} rad/s):",
+        "",
+        "| metric | IQM | 95 % CI (bootstrap) | median |",
+        "|---|---|---|---|",
+    ]
+    lines += [
+        f"| {m} | {a['iqm']:.3g} | [{a['ci_low']:.3g}, {a['ci_high']:.3g}] | {a['median']:.3g} |"
+        for m, a in aggregates.items()
+    ]
     (out / "results.md").write_text("\n".join(lines) + "\n")
     return SeedSummary(rows, aggregates, out)
 

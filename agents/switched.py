@@ -23,8 +23,9 @@ File format: one ``.npz`` whose ``meta`` holds ``{"format", "switch": {"by": "ta
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -59,38 +60,46 @@ class TargetSwitchedPolicy:
         environments or control periods.
     """
 
-    def __init__(self, members: Sequence[ExportedPolicy], edges: Sequence[float],
-                 note: str = "") -> None:
+    def __init__(self, members: Sequence[ExportedPolicy], edges: Sequence[float], note: str = "") -> None:
         members = list(members)
         edges = [float(e) for e in edges]
         if len(members) < 2:
             raise InputError(f"a target-switched policy needs at least two networks, got {len(members)}")
         if len(edges) != len(members) - 1:
-            raise InputError(f"{len(members)} networks need {len(members) - 1} target edge(s) (rad/s), got {len(edges)}")
+            raise InputError(
+                f"{len(members)} networks need {len(members) - 1} target edge(s) (rad/s), got {len(edges)}"
+            )
         if not all(np.isfinite(edges)) or any(e <= 0 for e in edges) or any(b <= a for a, b in zip(edges, edges[1:])):
             raise InputError(f"target edges must be positive, finite and increasing (rad/s), got {edges}")
         if any("members" in m.meta for m in members):
             raise InputError("a member of a target-switched policy must be a single network, not another switch")
         dts = sorted({m.control_dt for m in members})
         if len(dts) != 1:
-            raise InputError(f"the networks were trained at different control periods {dts} s; they cannot share "
-                             "one rig loop")
+            raise InputError(
+                f"the networks were trained at different control periods {dts} s; they cannot share one rig loop"
+            )
         if len({m.config.get("env_id") for m in members}) != 1:
-            raise InputError("the networks were trained on different environments: "
-                             + ", ".join(str(m.config.get("env_id")) for m in members))
+            raise InputError(
+                "the networks were trained on different environments: "
+                + ", ".join(str(m.config.get("env_id")) for m in members)
+            )
         self.members, self.edges, self.note = members, tuple(edges), note
 
     @property
     def meta(self) -> dict[str, Any]:
         """The file's metadata: format, switch rule, the members' metadata, the note."""
-        return {"format": SWITCH_FORMAT, "switch": {"by": "target", "edges": list(self.edges)},
-                "members": [m.meta for m in self.members], "note": self.note}
+        return {
+            "format": SWITCH_FORMAT,
+            "switch": {"by": "target", "edges": list(self.edges)},
+            "members": [m.meta for m in self.members],
+            "note": self.note,
+        }
 
-    def member_of(self, omega_ref: "float | np.ndarray") -> np.ndarray:
+    def member_of(self, omega_ref: float | np.ndarray) -> np.ndarray:
         """Index of the network serving each target (rad/s)."""
         return np.searchsorted(np.asarray(self.edges), np.asarray(omega_ref, dtype=float), side="right")
 
-    def save(self, path: "str | Path") -> Path:
+    def save(self, path: str | Path) -> Path:
         """Write the policy to ``path`` (.npz)."""
         path = Path(path)
         arrays: dict[str, np.ndarray] = {}
@@ -100,7 +109,7 @@ class TargetSwitchedPolicy:
         return path
 
     @classmethod
-    def from_arrays(cls, meta: dict[str, Any], arrays: Any) -> "TargetSwitchedPolicy":
+    def from_arrays(cls, meta: dict[str, Any], arrays: Any) -> TargetSwitchedPolicy:
         """The policy of the file's ``meta`` and arrays (an open ``.npz``)."""
         switch = meta["switch"]
         if switch.get("by") != "target":
@@ -109,19 +118,19 @@ class TargetSwitchedPolicy:
         return cls(members, switch["edges"], meta.get("note", ""))
 
     @classmethod
-    def load(cls, path: "str | Path") -> "TargetSwitchedPolicy":
+    def load(cls, path: str | Path) -> TargetSwitchedPolicy:
         """The target-switched policy in a ``.npz`` written by :meth:`save`."""
         with policy_file(path, "target-switched drillgym policy") as (meta, z):
             return cls.from_arrays(meta, z)
 
 
-def read_policy(path: "str | Path") -> "ExportedPolicy | TargetSwitchedPolicy":
+def read_policy(path: str | Path) -> ExportedPolicy | TargetSwitchedPolicy:
     """The policy in the ``.npz`` at ``path``, read once: one network, or a target-switched set of them."""
     with policy_file(path, "exported drillgym policy") as (meta, z):
         return TargetSwitchedPolicy.from_arrays(meta, z) if "members" in meta else ExportedPolicy.from_arrays(meta, z)
 
 
-def combine(paths: Sequence["str | Path"], edges: Sequence[float], out: "str | Path", note: str = "") -> Path:
+def combine(paths: Sequence[str | Path], edges: Sequence[float], out: str | Path, note: str = "") -> Path:
     """Combine exported networks into one target-switched policy file.
 
     Parameters

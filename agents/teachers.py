@@ -59,8 +59,18 @@ class FlatnessTeacher:
         Design the law on each rig's true base parameters (:meth:`set_plants`), not ``params``.
     """
 
-    def __init__(self, n: int, params: RigParams | None = None, dt: float = 0.01, *, bandwidth: float = 2.5,
-                 tau_ref: float = 1.0, integral: float = 1.0, z_max: float = 2.0, per_plant: bool = False) -> None:
+    def __init__(
+        self,
+        n: int,
+        params: RigParams | None = None,
+        dt: float = 0.01,
+        *,
+        bandwidth: float = 2.5,
+        tau_ref: float = 1.0,
+        integral: float = 1.0,
+        z_max: float = 2.0,
+        per_plant: bool = False,
+    ) -> None:
         from controllers.flatness import FlatnessLaw
 
         if not (isinstance(n, int) and n >= 1):
@@ -69,8 +79,9 @@ class FlatnessTeacher:
             raise InputError(f"z_max must be a positive angle (rad), got {z_max!r}")
         self.n, self.dt, self.z_max = int(n), float(dt), float(z_max)
         law = _per_plant_law(FlatnessLaw) if per_plant else FlatnessLaw
-        self.law = law(params or RigParams(), self.dt, bandwidth=bandwidth, tau_ref=tau_ref,
-                       low_speed=0.0, integral_high=integral)
+        self.law = law(
+            params or RigParams(), self.dt, bandwidth=bandwidth, tau_ref=tau_ref, low_speed=0.0, integral_high=integral
+        )
         self.per_plant = bool(per_plant)
         if per_plant:
             self.law.p = _PlantArrays(params or RigParams(), self.n)
@@ -92,8 +103,14 @@ class FlatnessTeacher:
             raise ValueError("set_plants needs a per_plant teacher")
         self.law.p.set(np.asarray(index, dtype=np.int64), np.asarray(base, dtype=float))
 
-    def act(self, omega_u: np.ndarray, alpha: np.ndarray, omega_l: np.ndarray,
-            z: np.ndarray | None = None, target: np.ndarray | None = None) -> np.ndarray:
+    def act(
+        self,
+        omega_u: np.ndarray,
+        alpha: np.ndarray,
+        omega_l: np.ndarray,
+        z: np.ndarray | None = None,
+        target: np.ndarray | None = None,
+    ) -> np.ndarray:
         """Normalised voltages (n,) for the true speeds (rad/s) and winding alpha = theta_l - theta_u (rad);
         advances the reference and the integral by one period.  ``z`` (rad, (n,)): an integral to use
         instead of the teacher's own (e.g. the student's observable motor-angle integral, :mod:`agents.integral`).
@@ -103,8 +120,13 @@ class FlatnessTeacher:
             self.law.target = np.asarray(target, dtype=float).copy()
         r = self.law.y[2].copy()  # the reference the law uses now
         zz = self.z if z is None else np.asarray(z, dtype=float)
-        u = self.law(np.asarray(omega_u, dtype=float), np.asarray(alpha, dtype=float),
-                     np.asarray(omega_l, dtype=float), np.zeros(self.n), z=zz)
+        u = self.law(
+            np.asarray(omega_u, dtype=float),
+            np.asarray(alpha, dtype=float),
+            np.asarray(omega_l, dtype=float),
+            np.zeros(self.n),
+            z=zz,
+        )
         self.z = np.clip(self.z + self.dt * (omega_l - r), -self.z_max, self.z_max)
         return np.clip(u / U_MAX, -1.0, 1.0)
 
@@ -119,8 +141,9 @@ class _PlantArrays:
 
     def set(self, index: np.ndarray, rows: np.ndarray) -> None:
         if rows.ndim != 2 or rows.shape[0] != index.size or rows.shape[1] < len(PARAM_NAMES):
-            raise ValueError(f"base parameter rows must have shape ({index.size}, >= {len(PARAM_NAMES)}), "
-                             f"got {rows.shape}")
+            raise ValueError(
+                f"base parameter rows must have shape ({index.size}, >= {len(PARAM_NAMES)}), got {rows.shape}"
+            )
         for j, name in enumerate(PARAM_NAMES):
             getattr(self, name)[index] = rows[:, j]
 

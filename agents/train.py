@@ -34,8 +34,17 @@ from drillgym.io import create_directory
 from .envs import make_training_env
 from .hyperparams import algorithm_kwargs, apply_overrides, load_hyperparams
 
-__all__ = ["ALGOS", "algo_class", "train", "planned_timesteps", "TrainResult", "LatestCheckpoint", "BestPolicyCallback", "CONFIG_FILE",
-           "MODEL_FILE"]
+__all__ = [
+    "ALGOS",
+    "algo_class",
+    "train",
+    "planned_timesteps",
+    "TrainResult",
+    "LatestCheckpoint",
+    "BestPolicyCallback",
+    "CONFIG_FILE",
+    "MODEL_FILE",
+]
 
 ALGOS = ("ppo", "sac", "td3", "recurrentppo")
 CONFIG_FILE = "config.yml"
@@ -110,9 +119,16 @@ class TrainResult:
     timesteps: int
 
 
-def _settings(env_id: str, algo: str, obs: str | None, timesteps: int | None, n_envs: int | None,
-              hyperparams: str | Path | None, overrides: dict[str, Any] | None,
-              allow_zero: bool = False) -> dict[str, Any]:
+def _settings(
+    env_id: str,
+    algo: str,
+    obs: str | None,
+    timesteps: int | None,
+    n_envs: int | None,
+    hyperparams: str | Path | None,
+    overrides: dict[str, Any] | None,
+    allow_zero: bool = False,
+) -> dict[str, Any]:
     hp = apply_overrides(load_hyperparams(algo, env_id, hyperparams), overrides or {})
     env_kwargs = dict(hp["env_kwargs"])
     if obs is not None:
@@ -133,11 +149,17 @@ def _settings(env_id: str, algo: str, obs: str | None, timesteps: int | None, n_
 
 
 #: hyperparameters that drillgym reads as numbers (int or float)
-_NUMERIC_KEYS = {"n_timesteps": int, "n_envs": int, "frame_stack": int, "gamma": float, "nominal_fraction": float,
-                 "nominal_below": float}
+_NUMERIC_KEYS = {
+    "n_timesteps": int,
+    "n_envs": int,
+    "frame_stack": int,
+    "gamma": float,
+    "nominal_fraction": float,
+    "nominal_below": float,
+}
 
 
-def _number(key: str, value: Any, kind: type) -> "int | float":
+def _number(key: str, value: Any, kind: type) -> int | float:
     """``value`` of hyperparameter ``key`` as ``kind``; InputError naming the key when it is not one."""
     try:
         if isinstance(value, bool) or (kind is int and isinstance(value, float) and not value.is_integer()):
@@ -148,26 +170,43 @@ def _number(key: str, value: Any, kind: type) -> "int | float":
         raise InputError(f"hyperparameter {key!r} must be {what}, got {value!r}") from None
 
 
-def planned_timesteps(env_id: str, algo: str, timesteps: int | None = None, hyperparams: str | Path | None = None,
-                      overrides: dict[str, Any] | None = None) -> int:
+def planned_timesteps(
+    env_id: str,
+    algo: str,
+    timesteps: int | None = None,
+    hyperparams: str | Path | None = None,
+    overrides: dict[str, Any] | None = None,
+) -> int:
     """Environment steps a run of these settings will train (``timesteps`` or the file's ``n_timesteps``)."""
     algo_class(algo)  # an unknown algorithm is named before its hyperparameter file is looked for
-    return _settings(env_id, algo.lower(), None, timesteps, None, hyperparams, overrides, allow_zero=True)["n_timesteps"]
+    return _settings(env_id, algo.lower(), None, timesteps, None, hyperparams, overrides, allow_zero=True)[
+        "n_timesteps"
+    ]
 
 
 def _env(env_id: str, hp: dict[str, Any], n: int, seed: int, evaluation: bool = False):
     """The training VecEnv of the (merged) hyperparameters ``hp``; ``evaluation``: its frozen twin (no
     statistics updates, raw rewards) for :class:`BestPolicyCallback`."""
-    venv = make_training_env(env_id, n, seed=seed, env_kwargs=hp["env_kwargs"],
-                             residual=hp.get("residual"), startup=hp.get("startup"),
-                             base=hp.get("base"), observer=hp.get("observer"),
-                             frame_stack=int(hp.get("frame_stack", 1)),
-                             normalize_reward=bool(hp.get("normalize_reward", False)),
-                             normalize_obs=bool(hp.get("normalize_obs", False)), gamma=float(hp.get("gamma", 0.99)),
-                             privileged=bool(hp.get("privileged_critic", False)),
-                             motor_integral=bool(hp.get("motor_integral", False)), command=hp.get("command_schedule"),
-                             population=hp.get("population"), nominal_fraction=float(hp.get("nominal_fraction", 0.0)),
-                             nominal_below=float(hp.get("nominal_below", 0.0)))
+    venv = make_training_env(
+        env_id,
+        n,
+        seed=seed,
+        env_kwargs=hp["env_kwargs"],
+        residual=hp.get("residual"),
+        startup=hp.get("startup"),
+        base=hp.get("base"),
+        observer=hp.get("observer"),
+        frame_stack=int(hp.get("frame_stack", 1)),
+        normalize_reward=bool(hp.get("normalize_reward", False)),
+        normalize_obs=bool(hp.get("normalize_obs", False)),
+        gamma=float(hp.get("gamma", 0.99)),
+        privileged=bool(hp.get("privileged_critic", False)),
+        motor_integral=bool(hp.get("motor_integral", False)),
+        command=hp.get("command_schedule"),
+        population=hp.get("population"),
+        nominal_fraction=float(hp.get("nominal_fraction", 0.0)),
+        nominal_below=float(hp.get("nominal_below", 0.0)),
+    )
     if evaluation and isinstance(venv, VecNormalize):
         venv.training, venv.norm_reward = False, False
     return venv
@@ -181,8 +220,12 @@ def _warn_short_run(cls: type, hp: dict[str, Any]) -> None:
     if isinstance(starts, inspect.Parameter):
         starts = starts.default
     if isinstance(starts, (int, float)) and hp["n_timesteps"] <= starts:
-        warnings.warn(f"--timesteps {hp['n_timesteps']} is not above the algorithm's learning_starts ({int(starts)}): "
-                      f"the agent collects random steps only and never learns", UserWarning, stacklevel=3)
+        warnings.warn(
+            f"--timesteps {hp['n_timesteps']} is not above the algorithm's learning_starts ({int(starts)}): "
+            f"the agent collects random steps only and never learns",
+            UserWarning,
+            stacklevel=3,
+        )
 
 
 #: the evaluation rigs' seeds start here above the training seed (disjoint from the training rigs')
@@ -196,11 +239,26 @@ class BestPolicyCallback(EvalCallback):
     directory, exporting the best model's ``policy.npz`` beside it (``out/best/``); ``eval_every`` in
     environment steps of all rigs together."""
 
-    def __init__(self, eval_env, out: Path, config: dict[str, Any], *, eval_every: int, n_envs: int,
-                 n_episodes: int, export: bool = True) -> None:
-        super().__init__(eval_env, n_eval_episodes=n_episodes, eval_freq=max(1, int(eval_every) // max(1, n_envs)),
-                         best_model_save_path=str(Path(out) / "best"), log_path=str(out), deterministic=True,
-                         warn=False)
+    def __init__(
+        self,
+        eval_env,
+        out: Path,
+        config: dict[str, Any],
+        *,
+        eval_every: int,
+        n_envs: int,
+        n_episodes: int,
+        export: bool = True,
+    ) -> None:
+        super().__init__(
+            eval_env,
+            n_eval_episodes=n_episodes,
+            eval_freq=max(1, int(eval_every) // max(1, n_envs)),
+            best_model_save_path=str(Path(out) / "best"),
+            log_path=str(out),
+            deterministic=True,
+            warn=False,
+        )
         self.config, self.export = config, export
 
     def _on_step(self) -> bool:
@@ -223,13 +281,30 @@ def _algo_kwargs(hp: dict[str, Any], n_actions: int) -> dict[str, Any]:
     return kw
 
 
-def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, timesteps: int | None = None,
-          seed: int = 0, n_envs: int | None = None, hyperparams: str | Path | None = None,
-          overrides: dict[str, Any] | None = None, resume: bool = False, progress: bool = True,
-          tensorboard: bool = True, checkpoint_every: int = 50_000, export: bool = True, verbose: int = 0,
-          torch_threads: int | None = 1, command: str | None = None, eval_every: int = 0,
-          eval_envs: int = 8, teacher: str | Path | None = None,
-          distill_kwargs: dict[str, Any] | None = None) -> TrainResult:
+def train(
+    env_id: str,
+    algo: str,
+    out: str | Path,
+    *,
+    obs: str | None = None,
+    timesteps: int | None = None,
+    seed: int = 0,
+    n_envs: int | None = None,
+    hyperparams: str | Path | None = None,
+    overrides: dict[str, Any] | None = None,
+    resume: bool = False,
+    progress: bool = True,
+    tensorboard: bool = True,
+    checkpoint_every: int = 50_000,
+    export: bool = True,
+    verbose: int = 0,
+    torch_threads: int | None = 1,
+    command: str | None = None,
+    eval_every: int = 0,
+    eval_envs: int = 8,
+    teacher: str | Path | None = None,
+    distill_kwargs: dict[str, Any] | None = None,
+) -> TrainResult:
     """Train ``algo`` on ``env_id`` and write the run into ``out`` (see the module docstring).
 
     Parameters
@@ -330,8 +405,10 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
             from .privileged import PRIVILEGED, PrivilegedCriticPolicy
 
             policy = PrivilegedCriticPolicy
-            kw["policy_kwargs"] = {**kw.get("policy_kwargs", {}),
-                                   "actor_dim": venv.observation_space.shape[0] - len(PRIVILEGED)}
+            kw["policy_kwargs"] = {
+                **kw.get("policy_kwargs", {}),
+                "actor_dim": venv.observation_space.shape[0] - len(PRIVILEGED),
+            }
         model = cls(policy, venv, seed=seed, tensorboard_log=tb, verbose=verbose, **kw)
     t_distill = time.perf_counter()
     if teacher is not None and not resume:
@@ -343,15 +420,28 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
         then = distill_kwargs.get("then")
         if then is not None and (not isinstance(then, dict) or "teacher" in then or "then" in then):
             # refused before the first stage's minutes of training, not after them
-            raise InputError(f"distill.then must be a mapping of DAgger options (no teacher, no third stage), "
-                             f"got {then!r}")
-        common = dict(privileged=bool(hp.get("privileged_critic")), motor_integral=bool(hp.get("motor_integral")),
-                      command=hp.get("command_schedule"), log=print)
+            raise InputError(
+                f"distill.then must be a mapping of DAgger options (no teacher, no third stage), got {then!r}"
+            )
+        common = dict(
+            privileged=bool(hp.get("privileged_critic")),
+            motor_integral=bool(hp.get("motor_integral")),
+            command=hp.get("command_schedule"),
+            log=print,
+        )
         distill(model, env_id, hp["env_kwargs"], teacher, n_envs=hp["n_envs"], seed=seed, **common, **first)
         if then:  # a second DAgger stage from the first's student, with these options changed
             print(f"second DAgger stage: {then}")
-            distill(model, env_id, hp["env_kwargs"], teacher, n_envs=hp["n_envs"], seed=seed + THEN_SEED_OFFSET,
-                    **common, **{**first, **then})
+            distill(
+                model,
+                env_id,
+                hp["env_kwargs"],
+                teacher,
+                n_envs=hp["n_envs"],
+                seed=seed + THEN_SEED_OFFSET,
+                **common,
+                **{**first, **then},
+            )
     t_distill = time.perf_counter() - t_distill
     remaining = hp["n_timesteps"] - (model.num_timesteps if resume else 0)
     cb = LatestCheckpoint(out / "checkpoints", checkpoint_every)
@@ -359,12 +449,26 @@ def train(env_id: str, algo: str, out: str | Path, *, obs: str | None = None, ti
     eval_env = None
     if eval_every:
         eval_env = _env(env_id, hp, eval_envs, seed + EVAL_SEED_OFFSET, evaluation=True)
-        callbacks.append(BestPolicyCallback(eval_env, out, config, eval_every=eval_every, n_envs=hp["n_envs"],
-                                            n_episodes=eval_envs, export=export and algo != "recurrentppo"))
+        callbacks.append(
+            BestPolicyCallback(
+                eval_env,
+                out,
+                config,
+                eval_every=eval_every,
+                n_envs=hp["n_envs"],
+                n_episodes=eval_envs,
+                export=export and algo != "recurrentppo",
+            )
+        )
     t0 = time.perf_counter()
     if remaining > 0:
-        model.learn(remaining, callback=CallbackList(callbacks), progress_bar=progress,
-                    reset_num_timesteps=not resume, tb_log_name=algo)
+        model.learn(
+            remaining,
+            callback=CallbackList(callbacks),
+            progress_bar=progress,
+            reset_num_timesteps=not resume,
+            tb_log_name=algo,
+        )
     wall = time.perf_counter() - t0 + t_distill
     if getattr(cb, "model", None) is None:  # no RL steps (distillation only): learn() never bound the callback
         cb.init_callback(model)

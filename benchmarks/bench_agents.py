@@ -47,13 +47,17 @@ def inference(policy_path: Path) -> None:
     ctrl.reset({"t": 0.0, "theta_u": 0.0})
     th = iter(np.cumsum(np.full(10_000_000, 0.03)))
     print(f"numpy policy act():              {1e6 * best_time(lambda: policy.act(obs)):8.1f} us per step")
-    print(f"AgentController.act() (all):     {1e6 * best_time(lambda: ctrl.act({'t': 0.0, 'theta_u': next(th)})):8.1f} us per step")
+    print(
+        f"AgentController.act() (all):     {1e6 * best_time(lambda: ctrl.act({'t': 0.0, 'theta_u': next(th)})):8.1f} us per step"
+    )
     model_zip = policy_path.with_name("model.zip")
     if model_zip.is_file():
         from agents.train import algo_class
 
         model = algo_class(policy.config["algo"]).load(model_zip, device="cpu")
-        print(f"SB3 predict (torch, reference):  {1e6 * best_time(lambda: model.predict(obs, deterministic=True), 500):8.1f} us per step")
+        print(
+            f"SB3 predict (torch, reference):  {1e6 * best_time(lambda: model.predict(obs, deterministic=True), 500):8.1f} us per step"
+        )
 
 
 def zero_residual(policy_path: Path, directory: Path) -> Path:
@@ -71,16 +75,30 @@ def zero_residual(policy_path: Path, directory: Path) -> Path:
 def table(policy_path: Path, workers: int) -> None:
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as d:
-        names = {f"agent:{policy_path}": f"agent ({policy_path.parent.name})",
-                 f"agent:{zero_residual(policy_path, Path(d))}": "structure alone (residual 0)"}
-        rows = evaluate(["baseline", "softtorque", *names], ["torsional", "coupled"], ["rest"], DEFAULT_TARGETS,
-                        workers=workers, progress=False)
+        names = {
+            f"agent:{policy_path}": f"agent ({policy_path.parent.name})",
+            f"agent:{zero_residual(policy_path, Path(d))}": "structure alone (residual 0)",
+        }
+        rows = evaluate(
+            ["baseline", "softtorque", *names],
+            ["torsional", "coupled"],
+            ["rest"],
+            DEFAULT_TARGETS,
+            workers=workers,
+            progress=False,
+        )
         text = markdown_table(rows, "rest")
         for k, v in names.items():
             text = text.replace(k, v)
         print(text)
-        rob = evaluate(list(names), ["torsional"], ["rest", "friction-20", "friction+20"], DEFAULT_TARGETS,
-                       workers=workers, progress=False)
+        rob = evaluate(
+            list(names),
+            ["torsional"],
+            ["rest", "friction-20", "friction+20"],
+            DEFAULT_TARGETS,
+            workers=workers,
+            progress=False,
+        )
     print("torsional, per target (rad/s): SSI / tracking RMS (rad/s) over the last 20 s")
     print("                                          " + " ".join(f"{w:5.1f}" for w in DEFAULT_TARGETS))
     for key, label in names.items():

@@ -46,7 +46,7 @@ def _memory_child(n: int, duration: float, record: str) -> None:
     tr = simulate_batch("torsional", np.linspace(0.5, 4.5, n), duration, record_every=10, record=rec)
     wall = time.perf_counter() - t0
     peak_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    print(json.dumps({"wall": wall, "peak_gb": peak_kb / 1024 ** 2, "out_gb": tr.data.nbytes / 1024 ** 3}))
+    print(json.dumps({"wall": wall, "peak_gb": peak_kb / 1024**2, "out_gb": tr.data.nbytes / 1024**3}))
 
 
 def main() -> None:
@@ -73,26 +73,35 @@ def main() -> None:
         for k, c in cases.items():
             best[k] = min(best[k], _timed(c[0], args.duration, c[1], c[2]))
     load = os.getloadavg()[0]
-    print(f"{N_LANES} lanes, {args.duration:g} s, dt 1 ms, one core; best of {args.repeats} interleaved; "
-          f"load average {load:.1f} on {os.cpu_count()} cores")
+    print(
+        f"{N_LANES} lanes, {args.duration:g} s, dt 1 ms, one core; best of {args.repeats} interleaved; "
+        f"load average {load:.1f} on {os.cpu_count()} cores"
+    )
     for k in cases:
         print(f"  {k:<36} {best[k]:8.3f} s  {N_LANES * args.duration / best[k]:>10,.0f}x real time")
     ref = best["torsional every 1000th"]
-    print(f"every step / every 1000th (all columns):  {ref / best['torsional every step, all columns']:.2f} "
-          f"(goal >= 0.6)")
-    print(f"every step / every 1000th (t, omega_l):    {ref / best['torsional every step, t+omega_l']:.2f} "
-          f"(goal >= 0.6)")
+    print(
+        f"every step / every 1000th (all columns):  {ref / best['torsional every step, all columns']:.2f} (goal >= 0.6)"
+    )
+    print(
+        f"every step / every 1000th (t, omega_l):    {ref / best['torsional every step, t+omega_l']:.2f} (goal >= 0.6)"
+    )
     print(f"coupled / torsional (every 1000th):        {ref / best['coupled every 1000th']:.2f} (goal >= 0.4)")
-    print(f"torsional batch, one core:                 {N_LANES * args.duration / ref:,.0f}x real time "
-          f"(goal >= 30,000x on a quiet machine; load {load:.1f} here)")
+    print(
+        f"torsional batch, one core:                 {N_LANES * args.duration / ref:,.0f}x real time "
+        f"(goal >= 30,000x on a quiet machine; load {load:.1f} here)"
+    )
     if args.skip_memory:
         return
     for rec in ("all", "t,omega_l"):
-        out = subprocess.run([sys.executable, __file__, "--memory-child", "4096", "60", rec], check=True,
-                             capture_output=True, text=True).stdout
+        out = subprocess.run(
+            [sys.executable, __file__, "--memory-child", "4096", "60", rec], check=True, capture_output=True, text=True
+        ).stdout
         r = json.loads(out.strip().splitlines()[-1])
-        print(f"4096 lanes x 60 s, every 10th step, record {rec:<10}: peak RSS {r['peak_gb']:.2f} GB "
-              f"(output {r['out_gb']:.2f} GB), {r['wall']:.1f} s (goal <= 4 GB)")
+        print(
+            f"4096 lanes x 60 s, every 10th step, record {rec:<10}: peak RSS {r['peak_gb']:.2f} GB "
+            f"(output {r['out_gb']:.2f} GB), {r['wall']:.1f} s (goal <= 4 GB)"
+        )
 
 
 if __name__ == "__main__":

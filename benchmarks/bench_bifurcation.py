@@ -17,15 +17,25 @@ def main() -> None:
     ap.add_argument("--sweep-dt", type=float, default=1e-3, help="sweep integration step (s) (R7: 1 ms)")
     a = ap.parse_args()
     t0 = time.perf_counter()
-    d = compute_diagram("torsional", umin=0.0, umax=5.0, sweep_step=0.05, sweep_duration=a.sweep_duration,
-                        sweep_dt=a.sweep_dt, staircase=True, ds_max=0.3)
+    d = compute_diagram(
+        "torsional",
+        umin=0.0,
+        umax=5.0,
+        sweep_step=0.05,
+        sweep_duration=a.sweep_duration,
+        sweep_dt=a.sweep_dt,
+        staircase=True,
+        ds_max=0.3,
+    )
     dt = time.perf_counter() - t0
     n_cyc = sum(len(b.solutions) for b in d.periodic)
     print(f"cores: {os.cpu_count()}")
     print(f"Hopf points (V): {[round(h.u, 4) for h in d.hopf]}")
     print(f"folds (V): {[round(f.u, 4) for f in d.folds]}")
-    print(f"periodic solutions: {n_cyc} on {len(d.periodic)} branches; sweep voltages: {len(d.sweeps[0].u)} x "
-          f"{len(d.sweeps)} sweeps")
+    print(
+        f"periodic solutions: {n_cyc} on {len(d.periodic)} branches; sweep voltages: {len(d.sweeps[0].u)} x "
+        f"{len(d.sweeps)} sweeps"
+    )
     print(f"sweeps: {a.sweep_duration:g} s per voltage at dt = {1e3 * a.sweep_dt:g} ms")
     print(f"full torsional diagram: {dt:.1f} s wall clock (target < 120 s)")
 

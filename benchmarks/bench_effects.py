@@ -23,13 +23,12 @@ import os
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 CUBIC = f"{ROOT}/examples/effects/string_cubic.py:string_cubic"
 
-TIMER = r'''
+TIMER = r"""
 import json, sys, time
 import numpy as np
 from drillgym import simulate_batch
@@ -49,15 +48,20 @@ for v in (0.5, 1.5, 2.5, 3.5):
 out["coupled single 2.5 V"] = rtf("coupled", [2.5], duration)
 out["torsional batch 256"] = rtf("torsional", list(np.linspace(0.5, 4.5, 256)), duration / 6)
 print(json.dumps(out))
-'''
+"""
 
 
 def timed(python_path: str, duration: float, specs: list[str], values: dict, cache: str | None = None) -> dict:
     env = dict(os.environ, PYTHONPATH=python_path, NUMBA_NUM_THREADS="1")
     if cache:
         env["DRILLGYM_KERNEL_CACHE"] = cache
-    r = subprocess.run([sys.executable, "-c", TIMER, str(duration), json.dumps({"specs": specs, "values": values})],
-                       capture_output=True, text=True, env=env, cwd=python_path)
+    r = subprocess.run(
+        [sys.executable, "-c", TIMER, str(duration), json.dumps({"specs": specs, "values": values})],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=python_path,
+    )
     if r.returncode != 0:
         raise RuntimeError(r.stderr[-2000:])
     return json.loads(r.stdout.strip().splitlines()[-1])
@@ -65,10 +69,12 @@ def timed(python_path: str, duration: float, specs: list[str], values: dict, cac
 
 def compile_time(specs: list[str], cache: str) -> float:
     env = dict(os.environ, PYTHONPATH=str(ROOT), DRILLGYM_KERNEL_CACHE=cache)
-    code = ("import time, numpy as np; t0 = time.perf_counter(); from drillgym import simulate_batch\n"
-            f"simulate_batch('torsional', np.array([1.0]), 0.1, effects={specs!r})\n"
-            f"simulate_batch('torsional', np.full(8, 1.0), 0.1, effects={specs!r})\n"
-            "print(time.perf_counter() - t0)")
+    code = (
+        "import time, numpy as np; t0 = time.perf_counter(); from drillgym import simulate_batch\n"
+        f"simulate_batch('torsional', np.array([1.0]), 0.1, effects={specs!r})\n"
+        f"simulate_batch('torsional', np.full(8, 1.0), 0.1, effects={specs!r})\n"
+        "print(time.perf_counter() - t0)"
+    )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
     if r.returncode != 0:
         raise RuntimeError(r.stderr[-2000:])
@@ -84,8 +90,11 @@ def main() -> None:
     two = {"specs": ["motor_lag", CUBIC], "values": {"tau_m": 0.02, "c3": 0.01}}
     with tempfile.TemporaryDirectory() as tmp:
         wt = Path(tmp) / "before"
-        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(wt), args.before],
-                       check=True, capture_output=True)
+        subprocess.run(
+            ["git", "-C", str(ROOT), "worktree", "add", "--detach", str(wt), args.before],
+            check=True,
+            capture_output=True,
+        )
         try:
             before = timed(str(wt), args.duration, [], {})
             base = timed(str(ROOT), args.duration, [], {})
@@ -99,11 +108,15 @@ def main() -> None:
     print(f"real-time factor, best of 5, one core; single runs {args.duration:g} s, batch {args.duration / 6:g} s")
     print(f"{'run':<26} {'reference':>10} {'base':>10} {'ratio':>7} {'2 effects':>10} {'ratio':>7}")
     for k in before:
-        print(f"{k:<26} {before[k]:>9,.0f}x {base[k]:>9,.0f}x {base[k] / before[k]:>7.3f} "
-              f"{effects[k]:>9,.0f}x {effects[k] / base[k]:>7.3f}")
+        print(
+            f"{k:<26} {before[k]:>9,.0f}x {base[k]:>9,.0f}x {base[k] / before[k]:>7.3f} "
+            f"{effects[k]:>9,.0f}x {effects[k] / base[k]:>7.3f}"
+        )
     print("goals: base / reference >= 0.90; 2 effects (motor_lag + string_cubic.py) / base >= 0.75")
-    print(f"new composition (string_damping + string_cubic.py), fresh process: compile + first runs {t_compile:.1f} s "
-          f"(goal <= 30 s); again from the cache: {t_reuse:.1f} s")
+    print(
+        f"new composition (string_damping + string_cubic.py), fresh process: compile + first runs {t_compile:.1f} s "
+        f"(goal <= 30 s); again from the cache: {t_reuse:.1f} s"
+    )
 
 
 if __name__ == "__main__":

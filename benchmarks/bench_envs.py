@@ -73,9 +73,13 @@ def main() -> None:
     print(f"{'environment':46s} {'steps/s':>12s} {'vs Pendulum-v1':>15s}")
     print(f"{'Pendulum-v1 (gymnasium.make)':46s} {pend:12,.0f} {1.0:15.2f}")
     print(f"{'drillgym/Torsional-v0 [full], 1 env':46s} {tors:12,.0f} {tors / pend:15.2f}")
-    for env_id, mode in [("drillgym/Torsional-v0", "sensors"), ("drillgym/Torsional-v0", "motor"),
-                         ("drillgym/Coupled-v0", "full"), ("drillgym/Coupled-v0", "sensors"),
-                         ("drillgym/Coupled-v0", "motor")]:
+    for env_id, mode in [
+        ("drillgym/Torsional-v0", "sensors"),
+        ("drillgym/Torsional-v0", "motor"),
+        ("drillgym/Coupled-v0", "full"),
+        ("drillgym/Coupled-v0", "sensors"),
+        ("drillgym/Coupled-v0", "motor"),
+    ]:
         rate = best(lambda: single_rate(gym.make(env_id, observation=mode), s), r)
         print(f"{env_id + f' [{mode}], 1 env':46s} {rate:12,.0f} {rate / pend:15.2f}")
     for env_id in ("drillgym/Torsional-v0", "drillgym/Coupled-v0"):
@@ -95,10 +99,13 @@ def main() -> None:
     print(f"{'drillgym/Coupled-v0 [sensors] +lvdt offset+skew':46s} {rate:12,.0f} {rate / pend:15.2f}")
     pend2 = best(lambda: single_rate(gym.make("Pendulum-v1"), s), r)
     print(f"{'Pendulum-v1 again (load check)':46s} {pend2:12,.0f} {pend2 / pend:15.2f}")
-    print(f"\ntorsional single env / Pendulum-v1 = {tors / pend:.2f} (target >= 1.0); runs alternated: "
-          f"Pendulum {', '.join(f'{x:,.0f}' for x in pend_runs)}; "
-          f"torsional {', '.join(f'{x:,.0f}' for x in tors_runs)}")
+    print(
+        f"\ntorsional single env / Pendulum-v1 = {tors / pend:.2f} (target >= 1.0); runs alternated: "
+        f"Pendulum {', '.join(f'{x:,.0f}' for x in pend_runs)}; "
+        f"torsional {', '.join(f'{x:,.0f}' for x in tors_runs)}"
+    )
     print("env step = one 10 ms control period (dt = 10 ms event-driven RK4, exact stick/slip switching)")
+
 
 if __name__ == "__main__":
     main()

@@ -32,13 +32,31 @@ FIGURES = [
     ("Torsional [full], N=256", "drillgym/Torsional-v0", {}, 256, True),
     ("Torsional [sensors], N=256", "drillgym/Torsional-v0", {"observation": "sensors"}, 256, True),
     ("Coupled [full], N=256", "drillgym/Coupled-v0", {}, 256, True),
-    ("Torsional [full] +delay+lag, 1 env", "drillgym/Torsional-v0",
-     {"effects": ["input_delay", "motor_lag"], "effect_params": {"delay": 0.03, "tau_m": 0.02}}, 0, False),
-    ("Torsional [full] +delay+lag, N=256", "drillgym/Torsional-v0",
-     {"effects": ["input_delay", "motor_lag"], "effect_params": {"delay": 0.03, "tau_m": 0.02}}, 256, False),
-    ("Coupled [sensors] +lvdt offset+skew, 1 env", "drillgym/Coupled-v0",
-     {"observation": "sensors", "effects": ["lvdt_offset", "lvdt_skew"],
-      "effect_params": {"lvdt_x0": 1e-3, "lvdt_skew": 0.05}}, 0, False),
+    (
+        "Torsional [full] +delay+lag, 1 env",
+        "drillgym/Torsional-v0",
+        {"effects": ["input_delay", "motor_lag"], "effect_params": {"delay": 0.03, "tau_m": 0.02}},
+        0,
+        False,
+    ),
+    (
+        "Torsional [full] +delay+lag, N=256",
+        "drillgym/Torsional-v0",
+        {"effects": ["input_delay", "motor_lag"], "effect_params": {"delay": 0.03, "tau_m": 0.02}},
+        256,
+        False,
+    ),
+    (
+        "Coupled [sensors] +lvdt offset+skew, 1 env",
+        "drillgym/Coupled-v0",
+        {
+            "observation": "sensors",
+            "effects": ["lvdt_offset", "lvdt_skew"],
+            "effect_params": {"lvdt_x0": 1e-3, "lvdt_skew": 0.05},
+        },
+        0,
+        False,
+    ),
 ]
 
 
@@ -89,8 +107,14 @@ def main() -> None:
     procs = {}
     for name, root in roots.items():
         env = dict(os.environ, PYTHONPATH=str(root))
-        procs[name] = subprocess.Popen([sys.executable, str(HERE), "--worker"], cwd=root, env=env, text=True,
-                                       stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+        procs[name] = subprocess.Popen(
+            [sys.executable, str(HERE), "--worker"],
+            cwd=root,
+            env=env,
+            text=True,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+        )
 
     def measure(name: str, env_id: str, opts: dict, n: int) -> float:
         p = procs[name]

@@ -35,14 +35,42 @@ def _value(cell: str) -> float:
 
 def evaluate(controller: str, population: int, out: Path) -> dict[str, float]:
     """Nominal lowest held target and the population's median / p90 / worst / none of ``controller``."""
-    subprocess.run([*DRILLGYM, "evaluate", "--config", "torsional", "--controllers", controller, "--scenarios",
-                    "rest,plants", "--plants", "20", "--seed", str(population), "--out", str(out), "--workers", "2"],
-                   check=True, capture_output=True, cwd=ROOT)
-    rows = [[c.strip() for c in line.split("|")] for line in (out / "summary.md").read_text().splitlines()
-            if line.startswith(f"| {controller} |")]
+    subprocess.run(
+        [
+            *DRILLGYM,
+            "evaluate",
+            "--config",
+            "torsional",
+            "--controllers",
+            controller,
+            "--scenarios",
+            "rest,plants",
+            "--plants",
+            "20",
+            "--seed",
+            str(population),
+            "--out",
+            str(out),
+            "--workers",
+            "2",
+        ],
+        check=True,
+        capture_output=True,
+        cwd=ROOT,
+    )
+    rows = [
+        [c.strip() for c in line.split("|")]
+        for line in (out / "summary.md").read_text().splitlines()
+        if line.startswith(f"| {controller} |")
+    ]
     rest, plants = rows[0], rows[1]
-    return {"nominal": _value(rest[3]), "median": _value(plants[5]), "p90": _value(plants[6]),
-            "worst": _value(plants[7]), "none": float(plants[8])}
+    return {
+        "nominal": _value(rest[3]),
+        "median": _value(plants[5]),
+        "p90": _value(plants[6]),
+        "worst": _value(plants[7]),
+        "none": float(plants[8]),
+    }
 
 
 def main() -> None:
@@ -58,26 +86,48 @@ def main() -> None:
     seeds = [int(s) for s in args.seeds.split(",")]
     work = Path(tempfile.mkdtemp(prefix="bench_switched_"))
     table: dict[str, dict] = {}
-    print(f"target-switched policy: nominal-trained network below {args.edge:g} rad/s, population-trained from it; "
-          f"harness: 60 s from rest, last 20 s; populations of 20 plants, seeds 0 and 1")
-    print(f"{'policy':<12} {'nominal':>8} | {'pop 0: median  p90  worst none':>31} | {'pop 1: median  p90  worst none':>31}")
+    print(
+        f"target-switched policy: nominal-trained network below {args.edge:g} rad/s, population-trained from it; "
+        f"harness: 60 s from rest, last 20 s; populations of 20 plants, seeds 0 and 1"
+    )
+    print(
+        f"{'policy':<12} {'nominal':>8} | {'pop 0: median  p90  worst none':>31} | {'pop 1: median  p90  worst none':>31}"
+    )
     runs = {f"seed {s}": f"agent:{work / f'seed_{s}.npz'}" for s in seeds} | {"descent": "descent"}
     for s in seeds:
-        subprocess.run([*DRILLGYM, "combine-policies", str(args.low / f"seed_{s}"), str(args.high / f"seed_{s}"),
-                        "--edges", f"{args.edge:g}", "--out", str(work / f"seed_{s}.npz")], check=True,
-                       capture_output=True, cwd=ROOT)
+        subprocess.run(
+            [
+                *DRILLGYM,
+                "combine-policies",
+                str(args.low / f"seed_{s}"),
+                str(args.high / f"seed_{s}"),
+                "--edges",
+                f"{args.edge:g}",
+                "--out",
+                str(work / f"seed_{s}.npz"),
+            ],
+            check=True,
+            capture_output=True,
+            cwd=ROOT,
+        )
     for name, ctrl in runs.items():
         r0, r1 = (evaluate(ctrl, p, work / f"{name.replace(' ', '_')}_pop{p}") for p in (0, 1))
         table[name] = {"nominal": r0["nominal"], "pop0": r0, "pop1": r1}
         cells = lambda r: f"{r['median']:>13.2f} {r['p90']:>4.2f} {r['worst']:>6.2f} {r['none']:>4.0f}"  # noqa: E731
         print(f"{name:<12} {r0['nominal']:>8.2f} | {cells(r0):>31} | {cells(r1):>31}", flush=True)
     print(f"over {len(seeds)} seeds (a seed holding nothing counts as {NOT_HELD} rad/s):")
-    for label, key in [("nominal lowest held", lambda r: r["nominal"]), ("pop 0 p90", lambda r: r["pop0"]["p90"]),
-                       ("pop 1 p90", lambda r: r["pop1"]["p90"])]:
+    for label, key in [
+        ("nominal lowest held", lambda r: r["nominal"]),
+        ("pop 0 p90", lambda r: r["pop0"]["p90"]),
+        ("pop 1 p90", lambda r: r["pop1"]["p90"]),
+    ]:
         v = np.array([key(table[f"seed {s}"]) for s in seeds])
         lo, hi = iqm_ci(v)
-        print(f"  {label:<20} median {np.median(v):.2f}, IQM {iqm(v):.2f} [{lo:.2f}, {hi:.2f}]; per seed "
-              + ", ".join(f"{x:.2f}" for x in v) + f"; descent {key(table['descent']):.2f}")
+        print(
+            f"  {label:<20} median {np.median(v):.2f}, IQM {iqm(v):.2f} [{lo:.2f}, {hi:.2f}]; per seed "
+            + ", ".join(f"{x:.2f}" for x in v)
+            + f"; descent {key(table['descent']):.2f}"
+        )
     if args.json:
         args.json.write_text(json.dumps(table, indent=1))
 

@@ -29,24 +29,41 @@ def main() -> None:
     a = ap.parse_args()
     p = RigParams()
     print("nominal rig (MODEL.md)")
-    print(f"{'omega (rad/s)':>13} {'slope (N m s)':>14} {'RHP poles (1/s)':>22} {'RHP zeros (1/s)':>22} "
-          f"{'bound ||T||':>12} {'tolerated':>10}")
+    print(
+        f"{'omega (rad/s)':>13} {'slope (N m s)':>14} {'RHP poles (1/s)':>22} {'RHP zeros (1/s)':>22} "
+        f"{'bound ||T||':>12} {'tolerated':>10}"
+    )
     for w in TARGETS:
         lim = motor_angle_limit(p, w)
-        fmt = lambda zs: ", ".join(f"{z.real:.3f}{z.imag:+.3f}j" if abs(z.imag) > 1e-9 else f"{z.real:.3f}"  # noqa: E731
-                                   for z in zs[:2]) or "-"
-        print(f"{w:13.2f} {lim.slope:14.4f} {fmt(lim.rhp_poles):>22} {fmt(lim.rhp_zeros):>22} {lim.bound:12.1f} "
-              f"{100 * lim.tolerated:9.2f}%")
+        fmt = (
+            lambda zs: (
+                ", ".join(
+                    f"{z.real:.3f}{z.imag:+.3f}j" if abs(z.imag) > 1e-9 else f"{z.real:.3f}"  # noqa: E731
+                    for z in zs[:2]
+                )
+                or "-"
+            )
+        )
+        print(
+            f"{w:13.2f} {lim.slope:14.4f} {fmt(lim.rhp_poles):>22} {fmt(lim.rhp_zeros):>22} {lim.bound:12.1f} "
+            f"{100 * lim.tolerated:9.2f}%"
+        )
     pop = sample_plants(a.plants, a.seed)
     nb = len(p.to_vector())
     print(f"\n{a.plants} plants of the default uncertainty set (seed {a.seed}), their base parameters")
-    print(f"{'omega (rad/s)':>13} {'median bound':>13} {'p90 bound':>10} {'max bound':>10} {'plants with bound <= 20':>24}")
+    print(
+        f"{'omega (rad/s)':>13} {'median bound':>13} {'p90 bound':>10} {'max bound':>10} {'plants with bound <= 20':>24}"
+    )
     for w in TARGETS:
         b = np.array([motor_angle_limit(RigParams.from_vector(pop.matrix[k, :nb]), w).bound for k in range(pop.n)])
-        print(f"{w:13.2f} {np.median(b):13.1f} {np.quantile(b, 0.9, method='higher'):10.1f} {b.max():10.1f} "
-              f"{int(np.sum(b <= 20)):>17d} of {pop.n}")
-    print("\nbound <= 20 is what km +-5 % alone needs (a 5 % input gain error destabilises a loop with ||T|| >= 20);"
-          "\nlags of 1-50 ms and delays of 0-20 ms add several % more at the lower disc's 1-5 rad/s.")
+        print(
+            f"{w:13.2f} {np.median(b):13.1f} {np.quantile(b, 0.9, method='higher'):10.1f} {b.max():10.1f} "
+            f"{int(np.sum(b <= 20)):>17d} of {pop.n}"
+        )
+    print(
+        "\nbound <= 20 is what km +-5 % alone needs (a 5 % input gain error destabilises a loop with ||T|| >= 20);"
+        "\nlags of 1-50 ms and delays of 0-20 ms add several % more at the lower disc's 1-5 rad/s."
+    )
 
 
 if __name__ == "__main__":

@@ -38,8 +38,9 @@ def main() -> None:
         print(population_table(rows))
         return
     t0 = time.perf_counter()
-    rows = evaluate(a.controllers.split(","), a.config.split(","), ["plants"], plants=a.plants, seed=a.seed,
-                    workers=a.workers)
+    rows = evaluate(
+        a.controllers.split(","), a.config.split(","), ["plants"], plants=a.plants, seed=a.seed, workers=a.workers
+    )
     dt = time.perf_counter() - t0
     write_report(rows, a.out)
     print(population_table(rows))

@@ -50,8 +50,7 @@ def main() -> None:
     print(f"dt = 1 ms, RK4, exact (event-driven) stick; {os.cpu_count()} cores, numba threads {get_num_threads()}")
     print(f"{'configuration':<12} {'run':<18} {'real-time factor':>17} {'target':>8}")
     for config in ("torsional", "coupled"):
-        for label, n, par in (("single", 1, False), ("batch 256, 1 core", 256, False),
-                              ("batch 256, all", 256, True)):
+        for label, n, par in (("single", 1, False), ("batch 256, 1 core", 256, False), ("batch 256, all", 256, True)):
             dur = args.duration if n == 1 else args.duration / 6
             f = realtime_factor(config, n, dur, par)
             key = (config, "single" if n == 1 else "batch")

@@ -25,8 +25,9 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from drillgym import simulate  # noqa: E402
 from scipy_switch_model import simulate_switch_model  # noqa: E402
+
+from drillgym import simulate  # noqa: E402
 
 
 def _drillgym(method: str, duration: float, u: float) -> float:
@@ -46,10 +47,12 @@ def main() -> None:
     ap.add_argument("--u", type=float, default=1.0, help="command (V)")
     ap.add_argument("--repeats", type=int, default=7)
     args = ap.parse_args()
-    runs = {"drillgym rk4": lambda: _drillgym("rk4", args.duration, args.u),
-            "drillgym dp45": lambda: _drillgym("dp45", args.duration, args.u),
-            "scipy DOP853": lambda: _scipy("DOP853", args.duration, args.u),
-            "scipy RK45": lambda: _scipy("RK45", args.duration, args.u)}
+    runs = {
+        "drillgym rk4": lambda: _drillgym("rk4", args.duration, args.u),
+        "drillgym dp45": lambda: _drillgym("dp45", args.duration, args.u),
+        "scipy DOP853": lambda: _scipy("DOP853", args.duration, args.u),
+        "scipy RK45": lambda: _scipy("RK45", args.duration, args.u),
+    }
     for f in runs.values():  # compile / load the kernels
         f()
     best = {k: np.inf for k in runs}
@@ -59,16 +62,20 @@ def main() -> None:
             t0 = time.perf_counter()
             peak[k] = f()
             best[k] = min(best[k], time.perf_counter() - t0)
-    print(f"torsional, {args.duration:g} s at {args.u:g} V from rest; best of {args.repeats} interleaved; "
-          f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+    print(
+        f"torsional, {args.duration:g} s at {args.u:g} V from rest; best of {args.repeats} interleaved; "
+        f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores"
+    )
     print(f"{'method':<16} {'wall s':>9} {'max omega_l (rad/s)':>20}")
     for k in runs:
         print(f"{k:<16} {best[k]:>9.4f} {peak[k]:>20.7f}")
     ref = min(best["scipy DOP853"], best["scipy RK45"])
     for k in ("drillgym rk4", "drillgym dp45"):
         dev = max(abs(peak[k] / peak[s] - 1.0) for s in ("scipy DOP853", "scipy RK45"))
-        print(f"{k}: faster scipy / drillgym = {ref / best[k]:.1f}x (goal >= 10x); max omega_l differs by "
-              f"{100 * dev:.2g} % (goal <= 1 %)")
+        print(
+            f"{k}: faster scipy / drillgym = {ref / best[k]:.1f}x (goal >= 10x); max omega_l differs by "
+            f"{100 * dev:.2g} % (goal <= 1 %)"
+        )
 
 
 if __name__ == "__main__":

@@ -55,25 +55,44 @@ def scipy_recording(c3: float = C3, seed: int = 3, eps: float = 2e-3, noise_rad:
     def rhs(tt, s):
         tu, tl, wu, wl = s
         a = tl - tu
-        string = p.ktheta * (a + c3 * a ** 3)
+        string = p.ktheta * (a + c3 * a**3)
         su, sl = np.tanh(wu / eps), np.tanh(wl / eps)
         tfu = (p.Tcu * su + p.dTcu * abs(su)) + p.bu * wu + p.dbu * abs(wu)
-        tfl = (p.Tc + (p.Ts - p.Tc) * np.exp(-abs(wl / p.ws) ** p.delta)) * sl + p.bb * wl
+        tfl = (p.Tc + (p.Ts - p.Tc) * np.exp(-(abs(wl / p.ws) ** p.delta))) * sl + p.bb * wl
         return [wu, wl, (p.km * np.interp(tt, t, u) - tfu + string) / p.Ju, (-tfl - string) / p.Jl]
 
     sol = solve_ivp(rhs, (0.0, DURATION), [0.0] * 4, method="Radau", t_eval=t, rtol=1e-7, atol=1e-9, max_step=0.01)
     rng = np.random.default_rng(seed)
-    cols = {"t": t, "u": u, "theta_u": quantize_angle(sol.y[0] + rng.normal(0, noise_rad, t.size)),
-            "theta_l": quantize_angle(sol.y[1] + rng.normal(0, noise_rad, t.size))}
-    return TimeSeries(cols, {"configuration": "torsional", "source": "scipy Radau, smoothed friction",
-                             "sample_rate_hz": RATE, "description": f"cubic string c3={c3}"}, "<scipy>")
+    cols = {
+        "t": t,
+        "u": u,
+        "theta_u": quantize_angle(sol.y[0] + rng.normal(0, noise_rad, t.size)),
+        "theta_l": quantize_angle(sol.y[1] + rng.normal(0, noise_rad, t.size)),
+    }
+    return TimeSeries(
+        cols,
+        {
+            "configuration": "torsional",
+            "source": "scipy Radau, smoothed friction",
+            "sample_rate_hz": RATE,
+            "description": f"cubic string c3={c3}",
+        },
+        "<scipy>",
+    )
 
 
 def drillgym_recording(c3: float = C3, seed: int = 2) -> TimeSeries:
     from drillgym.identification.synthetic import synthetic_measurement
 
-    return synthetic_measurement("torsional", duration=DURATION, rate_hz=RATE, offset=1.0, seed=seed,
-                                 effects=[str(ROOT / SPEC)], effect_params={"c3": c3})
+    return synthetic_measurement(
+        "torsional",
+        duration=DURATION,
+        rate_hz=RATE,
+        offset=1.0,
+        seed=seed,
+        effects=[str(ROOT / SPEC)],
+        effect_params={"c3": c3},
+    )
 
 
 def identify(csv: Path, out: Path, spec: str = SPEC) -> tuple[dict, float]:
@@ -82,8 +101,10 @@ def identify(csv: Path, out: Path, spec: str = SPEC) -> tuple[dict, float]:
     from drillgym.cli import app
 
     t0 = time.perf_counter()
-    r = CliRunner().invoke(app, ["identify", str(csv), "--config", "torsional", "--add-effect", str(ROOT / spec),
-                                 "--json", "--out", str(out)])
+    r = CliRunner().invoke(
+        app,
+        ["identify", str(csv), "--config", "torsional", "--add-effect", str(ROOT / spec), "--json", "--out", str(out)],
+    )
     if r.exit_code != 0:
         raise SystemExit(r.output)
     return json.loads(r.output), time.perf_counter() - t0
@@ -101,21 +122,31 @@ def main() -> None:
         csv = write_timeseries(work / f"{name}.csv", make())
         js, dt = identify(csv, work / f"{name}_model.json")
         results[name] = (csv, js)
-        print(f"{name} recording ({DURATION:g} s at {RATE:g} Hz, c3 = {C3}): identify {dt:.1f} s, "
-              f"fitted c3 = {js['fitted']['c3']:.5f} ± {js['std']['c3']:.1g}")
+        print(
+            f"{name} recording ({DURATION:g} s at {RATE:g} Hz, c3 = {C3}): identify {dt:.1f} s, "
+            f"fitted c3 = {js['fitted']['c3']:.5f} ± {js['std']['c3']:.1g}"
+        )
         for c in js["r2_before"]:
             b, f = js["r2_before"][c], js["r2_after"][c]
-            print(f"  {c:<8} R² {b:.5f} -> {f:.5f}   1 - R²: {1 - b:.3g} -> {1 - f:.3g} "
-                  f"(x{(1 - f) / (1 - b):.3f})")
+            print(f"  {c:<8} R² {b:.5f} -> {f:.5f}   1 - R²: {1 - b:.3g} -> {1 - f:.3g} (x{(1 - f) / (1 - b):.3f})")
     figure(results, Path(a.figure))
     from drillgym.identification.synthetic import synthetic_measurement
 
     spec = "examples/effects/string_backlash.py:string_backlash"
-    ts = synthetic_measurement("torsional", duration=20.0, rate_hz=RATE, offset=0.5, seed=4,
-                               effects=[str(ROOT / spec)], effect_params={"gap": GAP})
+    ts = synthetic_measurement(
+        "torsional",
+        duration=20.0,
+        rate_hz=RATE,
+        offset=0.5,
+        seed=4,
+        effects=[str(ROOT / spec)],
+        effect_params={"gap": GAP},
+    )
     js, dt = identify(write_timeseries(work / "backlash.csv", ts), work / "backlash_model.json", spec)
-    print(f"backlash recording (drillgym, 20 s at {RATE:g} Hz, gap = {GAP} rad): identify {dt:.1f} s, "
-          f"fitted gap = {js['fitted']['gap']:.5f} ± {js['std']['gap']:.1g} rad")
+    print(
+        f"backlash recording (drillgym, 20 s at {RATE:g} Hz, gap = {GAP} rad): identify {dt:.1f} s, "
+        f"fitted gap = {js['fitted']['gap']:.5f} ± {js['std']['gap']:.1g} rad"
+    )
     for c in js["r2_before"]:
         b, f = js["r2_before"][c], js["r2_after"][c]
         print(f"  {c:<8} R² {b:.5f} -> {f:.5f}   1 - R²: {1 - b:.3g} -> {1 - f:.3g}")
@@ -144,8 +175,13 @@ def figure(results: dict, path: Path) -> None:
         ax = axes[0, j]
         ax.plot(t, a, "k", lw=1.2, label="measured")
         ax.plot(t, before.predicted["alpha"], "C3--", lw=1, label=f"base model (R² {js['r2_before']['alpha']:.4f})")
-        ax.plot(t, after.predicted["alpha"], "C0", lw=1,
-                label=f"+ string_cubic, c3 = {js['fitted']['c3']:.4f} (R² {js['r2_after']['alpha']:.5f})")
+        ax.plot(
+            t,
+            after.predicted["alpha"],
+            "C0",
+            lw=1,
+            label=f"+ string_cubic, c3 = {js['fitted']['c3']:.4f} (R² {js['r2_after']['alpha']:.5f})",
+        )
         ax.set(ylabel="twist α (rad)", title=f"{name} recording (c3 = {C3}), 4 s segments")
         ax.legend(loc="best", fontsize=8, framealpha=0.8)
         ax = axes[1, j]

@@ -23,8 +23,21 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 #: MODEL.md's parameter table (torsional, brake on)
-PARAMS = dict(Ju=0.4765, km=4.3228, Tcu=0.37975, dTcu=-0.00575, bu=2.4245, dbu=-0.0084, Jl=0.0414, ktheta=0.0775,
-              Ts=0.2781, Tc=0.0473, ws=1.4302, delta=2.0575, bb=0.0105)
+PARAMS = dict(
+    Ju=0.4765,
+    km=4.3228,
+    Tcu=0.37975,
+    dTcu=-0.00575,
+    bu=2.4245,
+    dbu=-0.0084,
+    Jl=0.0414,
+    ktheta=0.0775,
+    Ts=0.2781,
+    Tc=0.0473,
+    ws=1.4302,
+    delta=2.0575,
+    bb=0.0105,
+)
 
 
 @dataclass
@@ -39,8 +52,15 @@ class SwitchRun:
     y_end: np.ndarray | None = None
 
 
-def simulate_switch_model(u: float, duration: float, alpha0: float = 0.0, rtol: float = 1e-8, atol: float = 1e-10,
-                          method: str = "DOP853", prm: dict | None = None) -> SwitchRun:
+def simulate_switch_model(
+    u: float,
+    duration: float,
+    alpha0: float = 0.0,
+    rtol: float = 1e-8,
+    atol: float = 1e-10,
+    method: str = "DOP853",
+    prm: dict | None = None,
+) -> SwitchRun:
     """Torsional rig from rest (twist alpha0, rad) under the constant command u (V) for duration s."""
     P = dict(PARAMS, **(prm or {}))
     Ju, km, Tcu, dTcu, bu, dbu = P["Ju"], P["km"], P["Tcu"], P["dTcu"], P["bu"], P["dbu"]
@@ -57,7 +77,7 @@ def simulate_switch_model(u: float, duration: float, alpha0: float = 0.0, rtol: 
 
     def tf_lower(w: float, d: int) -> float:
         aw = abs(w)
-        return d * (Tc + (Ts - Tc) * math.exp(-(aw / ws) ** delta) + bb * aw)
+        return d * (Tc + (Ts - Tc) * math.exp(-((aw / ws) ** delta)) + bb * aw)
 
     modes = [0, 0]
 
@@ -107,8 +127,9 @@ def simulate_switch_model(u: float, duration: float, alpha0: float = 0.0, rtol: 
     modes[1] = new_mode(lam_l, lo_l, hi_l)
     t = 0.0
     while t < duration:
-        sol = solve_ivp(rhs, (t, duration), y, method=method, rtol=rtol, atol=atol,
-                        events=(ev_upper, ev_lower, ev_peak))
+        sol = solve_ivp(
+            rhs, (t, duration), y, method=method, rtol=rtol, atol=atol, events=(ev_upper, ev_lower, ev_peak)
+        )
         if modes[1]:
             for tp, yp in zip(sol.t_events[2], sol.y_events[2]):
                 run.t_max.append(float(tp))

@@ -24,7 +24,8 @@ which observers use as their known input.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import ClassVar, Mapping
+from collections.abc import Mapping
+from typing import ClassVar
 
 import numpy as np
 
@@ -78,8 +79,15 @@ class Controller(ABC):
     default_dt: ClassVar[float] = DEFAULT_CONTROL_DT
     """Control period (s) when none is given: the period the controller is designed and evaluated at."""
 
-    def __init__(self, omega_ref: "float | np.ndarray | None" = None, *, config: "str | Configuration" = "torsional",
-                 params: RigParams | None = None, dt: float | None = None, u_max: float = U_MAX) -> None:
+    def __init__(
+        self,
+        omega_ref: float | np.ndarray | None = None,
+        *,
+        config: str | Configuration = "torsional",
+        params: RigParams | None = None,
+        dt: float | None = None,
+        u_max: float = U_MAX,
+    ) -> None:
         dt = type(self).default_dt if dt is None else dt
         if not (np.isfinite(dt) and dt > 0):
             raise InputError(f"control period dt must be a positive number of seconds, got {dt!r}")
@@ -119,14 +127,16 @@ class Controller(ABC):
         elif self._omega_ref_default is not None:
             ref = self._omega_ref_default
         else:
-            raise InputError(f"controller {self.name!r} needs a target speed: pass omega_ref= or a measurement 'omega_ref'")
+            raise InputError(
+                f"controller {self.name!r} needs a target speed: pass omega_ref= or a measurement 'omega_ref'"
+            )
         n = max(n, np.size(ref))
         self.n = n
         self.omega_ref = np.array(np.broadcast_to(ref, (n,)), dtype=float)
         self.u_prev = np.zeros(n)
         self._reset(self._arrays(m, check=False))
 
-    def act(self, measurement: Measurement) -> "float | np.ndarray":
+    def act(self, measurement: Measurement) -> float | np.ndarray:
         """Voltage to hold for the next control period.
 
         Parameters
@@ -159,7 +169,7 @@ class Controller(ABC):
         doc = (type(self).__doc__ or "").strip().splitlines()[0]
         return f"{self.name}: {doc} (reads: {', '.join(self.uses) or 'nothing'})"
 
-    def approach_time(self, omega_ref: "float | np.ndarray") -> np.ndarray:
+    def approach_time(self, omega_ref: float | np.ndarray) -> np.ndarray:
         """Time from reset until the approach to each target is over and the controller holds it.
 
         An evaluation whose steady window starts earlier judges a transient.
@@ -196,7 +206,7 @@ class Controller(ABC):
         return out
 
 
-def _check_ref(ref: "float | np.ndarray") -> np.ndarray:
+def _check_ref(ref: float | np.ndarray) -> np.ndarray:
     r = np.atleast_1d(np.asarray(ref, dtype=float))
     if not np.all(np.isfinite(r)) or np.any(r <= 0):
         raise InputError(f"omega_ref must be positive finite speeds (rad/s), got {ref!r}")

@@ -39,15 +39,16 @@ class StickSlipRegion:
     u_hopf: float
     u_fold: float
 
-    def contains(self, omega: "float | np.ndarray") -> "bool | np.ndarray":
+    def contains(self, omega: float | np.ndarray) -> bool | np.ndarray:
         w = np.asarray(omega, dtype=float)
         out = (w > self.omega_lo) & (w < self.omega_hi)
         return bool(out) if out.ndim == 0 else out
 
 
 @lru_cache(maxsize=16)
-def stick_slip_region(config: "str | Configuration", params: RigParams | None = None,
-                      resolution: float = 0.01) -> StickSlipRegion:
+def stick_slip_region(
+    config: str | Configuration, params: RigParams | None = None, resolution: float = 0.01
+) -> StickSlipRegion:
     """Where stick-slip is what the open-loop rig does from rest (first Hopf point to second fold).
 
     The Hopf point comes from the eigenvalues along the equilibrium branch; the fold from two
@@ -102,6 +103,10 @@ class BaselineController(Controller):
         reg = stick_slip_region(self.config.label, self.params)
         u = float(equilibrium_voltage(self.config, w, self.params))
         if reg.contains(w):
-            return (f"target {w:.2f} rad/s (u = {u:.3f} V) lies in the stick-slip region "
-                    f"{reg.omega_lo:.3f}-{reg.omega_hi:.2f} rad/s ({self.config.label}): from rest the rig sticks and slips")
-        return f"target {w:.2f} rad/s (u = {u:.3f} V): the stable equilibrium is reached from rest ({self.config.label})"
+            return (
+                f"target {w:.2f} rad/s (u = {u:.3f} V) lies in the stick-slip region "
+                f"{reg.omega_lo:.3f}-{reg.omega_hi:.2f} rad/s ({self.config.label}): from rest the rig sticks and slips"
+            )
+        return (
+            f"target {w:.2f} rad/s (u = {u:.3f} V): the stable equilibrium is reached from rest ({self.config.label})"
+        )

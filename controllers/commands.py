@@ -32,27 +32,44 @@ def register(app: typer.Typer) -> None:
     @app.command("evaluate")
     def evaluate_cmd(
         config: str = typer.Option("torsional,coupled", "--config", help="configuration(s), comma-separated"),
-        controllers: str = typer.Option("baseline,pi,softtorque,observer", "--controllers",
-                                        help="comma-separated: baseline, pi, softtorque, observer, lqg, agent:PATH; "
-                                             "NAME@MS sets the control period, e.g. observer@10"),
-        out: Path = typer.Option(..., "--out", help="output directory (results.csv, summary.md, figure); missing "
-                                                      "directories are created"),
-        scenarios: str = typer.Option("rest", "--scenarios",
-                                      help="comma-separated: rest, cycle, friction-20, friction+20, noisy, plants "
-                                           "(a population of plants drawn from --uncertainty)"),
+        controllers: str = typer.Option(
+            "baseline,pi,softtorque,observer",
+            "--controllers",
+            help="comma-separated: baseline, pi, softtorque, observer, lqg, agent:PATH; "
+            "NAME@MS sets the control period, e.g. observer@10",
+        ),
+        out: Path = typer.Option(
+            ..., "--out", help="output directory (results.csv, summary.md, figure); missing directories are created"
+        ),
+        scenarios: str = typer.Option(
+            "rest",
+            "--scenarios",
+            help="comma-separated: rest, cycle, friction-20, friction+20, noisy, plants "
+            "(a population of plants drawn from --uncertainty)",
+        ),
         plants: int = typer.Option(20, "--plants", help="number of plants of the 'plants' scenario"),
         seed: int = typer.Option(0, "--seed", help="seed of the plant population (and of the measurement noise)"),
-        uncertainty: Path = typer.Option(None, "--uncertainty",
-                                         help="uncertainty set (YAML) of the 'plants' scenario; default "
-                                              "controllers/evaluation/plants.yaml"),
+        uncertainty: Path = typer.Option(
+            None,
+            "--uncertainty",
+            help="uncertainty set (YAML) of the 'plants' scenario; default controllers/evaluation/plants.yaml",
+        ),
         targets: str = typer.Option("", "--targets", help="target speeds (rad/s), comma-separated; default 0.5:8:0.5"),
         duration: float = typer.Option(60.0, "--duration", help="simulated time per run (s)"),
         window: float = typer.Option(20.0, "--window", help="steady-state window at the end (s)"),
         workers: int = typer.Option(2, "--workers", help="parallel processes"),
-        ray: str | None = typer.Option(None, "--ray", help="run the jobs on Ray: 'auto' (a running cluster), "
-                                                           "'local' (start one here with --workers CPUs) or HOST:PORT"),
-        params: Path = typer.Option(None, "--params", help="parameter file (JSON/YAML) of the nominal model: "
-                                                           "RigParams, or a model file whose effects the plant runs"),
+        ray: str | None = typer.Option(
+            None,
+            "--ray",
+            help="run the jobs on Ray: 'auto' (a running cluster), "
+            "'local' (start one here with --workers CPUs) or HOST:PORT",
+        ),
+        params: Path = typer.Option(
+            None,
+            "--params",
+            help="parameter file (JSON/YAML) of the nominal model: "
+            "RigParams, or a model file whose effects the plant runs",
+        ),
         add_effect: list[str] | None = add_effect_option(),
         effect_param: list[str] | None = effect_param_option(),
     ) -> None:
@@ -77,9 +94,22 @@ def register(app: typer.Typer) -> None:
         pool = open_executor(ray, workers) if ray else nullcontext()
         with warnings.catch_warnings(record=True) as caught, pool as ex:
             warnings.simplefilter("always")
-            rows = evaluate(names, cfgs, parse_scenarios(scenarios), tg, duration=duration, window=window, params=p,
-                            workers=workers, effects=comp, effect_params=values, plants=plants, seed=seed,
-                            uncertainty=uncertainty, executor=ex)
+            rows = evaluate(
+                names,
+                cfgs,
+                parse_scenarios(scenarios),
+                tg,
+                duration=duration,
+                window=window,
+                params=p,
+                workers=workers,
+                effects=comp,
+                effect_params=values,
+                plants=plants,
+                seed=seed,
+                uncertainty=uncertainty,
+                executor=ex,
+            )
         for w in caught:
             typer.echo(f"warning: {w.message}", err=True)
         files = write_report(rows, out, p, plant=describe_plant(comp, values))

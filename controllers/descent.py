@@ -61,8 +61,17 @@ class DescentController(Controller):
     uses = ("theta_u",)
     default_dt = 0.01
 
-    def __init__(self, omega_ref=None, *, approach: float | None = None, approach_fraction: float = 0.98,
-                 hold: float = 8.0, ramp: float = 25.0, ki: float = 0.05, **kw) -> None:
+    def __init__(
+        self,
+        omega_ref=None,
+        *,
+        approach: float | None = None,
+        approach_fraction: float = 0.98,
+        hold: float = 8.0,
+        ramp: float = 25.0,
+        ki: float = 0.05,
+        **kw,
+    ) -> None:
         super().__init__(omega_ref, **kw)
         for name, v in (("hold", hold), ("ramp", ramp), ("ki", ki)):
             if not (np.isfinite(v) and v >= 0):
@@ -72,13 +81,18 @@ class DescentController(Controller):
         if approach is not None and not (np.isfinite(approach) and approach > 0):
             raise InputError(f"approach must be a positive speed (rad/s), got {approach!r}")
         self.hold, self.ramp, self.ki = float(hold), float(ramp), float(ki)
-        self.u_approach = (approach_fraction * self.u_max if approach is None
-                           else float(equilibrium_voltage(self.config, float(approach), self.params)))
+        self.u_approach = (
+            approach_fraction * self.u_max
+            if approach is None
+            else float(equilibrium_voltage(self.config, float(approach), self.params))
+        )
         if self.u_approach > self.u_max:
-            raise InputError(f"approach speed {approach} rad/s needs {self.u_approach:.2f} V, beyond the "
-                             f"amplifier's {self.u_max:g} V")
+            raise InputError(
+                f"approach speed {approach} rad/s needs {self.u_approach:.2f} V, beyond the "
+                f"amplifier's {self.u_max:g} V"
+            )
 
-    def approach_time(self, omega_ref: "float | np.ndarray") -> np.ndarray:
+    def approach_time(self, omega_ref: float | np.ndarray) -> np.ndarray:
         """Time (s) until the voltage reaches the target's equilibrium voltage, plus 5 s of settling
         for the integral (targets whose voltage is above the approach's: 5 s)."""
         u = np.asarray(equilibrium_voltage(self.config, np.asarray(omega_ref, dtype=float), self.params))
@@ -86,8 +100,11 @@ class DescentController(Controller):
 
     def _reset(self, m: dict[str, np.ndarray]) -> None:
         self.t = 0.0
-        self.u_target = np.broadcast_to(equilibrium_voltage(self.config, self.omega_ref, self.params),
-                                        (self.n,)).astype(float).copy()
+        self.u_target = (
+            np.broadcast_to(equilibrium_voltage(self.config, self.omega_ref, self.params), (self.n,))
+            .astype(float)
+            .copy()
+        )
         self.descends = self.u_target < self.u_approach
         self.theta0 = np.broadcast_to(m.get("theta_u", 0.0), (self.n,)).astype(float).copy()
         self.reference_angle = np.zeros(self.n)  # integral of the commanded speed since the descent began (rad)

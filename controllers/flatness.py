@@ -51,12 +51,12 @@ def chain_gain(bandwidth: float, r: float = 1.0, integral: float = 0.0) -> np.nd
     if not (np.isfinite(integral) and integral >= 0):
         raise InputError(f"integral weight must be a non-negative number, got {integral!r}")
     b = float(bandwidth)
-    q = [integral * b ** 8] if integral > 0 else []
+    q = [integral * b**8] if integral > 0 else []
     n = len(q) + 3
     A = np.diag(np.ones(n - 1), 1)
     B = np.zeros((n, 1))
     B[-1, 0] = 1.0
-    K, _, _ = control.lqr(A, B, np.diag(q + [b ** 6, b ** 4, b ** 2]), np.array([[r]]))
+    K, _, _ = control.lqr(A, B, np.diag(q + [b**6, b**4, b**2]), np.array([[r]]))
     return np.asarray(K)[0]
 
 
@@ -99,14 +99,33 @@ class FlatnessLaw:
         Weight of the integral for the other targets (0: none).
     """
 
-    def __init__(self, params: RigParams, dt: float, *, bandwidth: float = 2.5, tau_ref: float = 1.0,
-                 w_rest: float = 0.1, step: float = 2e-3, low_speed: float = 0.0, approach: float = 2.5,
-                 hold: float = 8.0, ramp: float = 15.0, low_bandwidth: float = 1.0, integral: float = 0.0,
-                 disturbance: str = "offset", integral_high: float = 0.0) -> None:
+    def __init__(
+        self,
+        params: RigParams,
+        dt: float,
+        *,
+        bandwidth: float = 2.5,
+        tau_ref: float = 1.0,
+        w_rest: float = 0.1,
+        step: float = 2e-3,
+        low_speed: float = 0.0,
+        approach: float = 2.5,
+        hold: float = 8.0,
+        ramp: float = 15.0,
+        low_bandwidth: float = 1.0,
+        integral: float = 0.0,
+        disturbance: str = "offset",
+        integral_high: float = 0.0,
+    ) -> None:
         if not (np.isfinite(tau_ref) and tau_ref > 0):
             raise InputError(f"tau_ref must be a positive time (s), got {tau_ref!r}")
-        for name, v in (("low_speed", low_speed), ("approach", approach), ("hold", hold), ("ramp", ramp),
-                        ("integral", integral)):
+        for name, v in (
+            ("low_speed", low_speed),
+            ("approach", approach),
+            ("hold", hold),
+            ("ramp", ramp),
+            ("integral", integral),
+        ):
             if not (np.isfinite(v) and v >= 0):
                 raise InputError(f"{name} must be a non-negative number, got {v!r}")
         if disturbance not in ("offset", "scale"):
@@ -116,11 +135,22 @@ class FlatnessLaw:
             raise InputError(f"approach ({approach} rad/s) must not be below low_speed ({low_speed} rad/s)")
         self.p, self.dt, self.tau = params, float(dt), float(tau_ref)
         self.w_rest, self.h = float(w_rest), float(step)
-        self.low_speed, self.approach, self.hold, self.ramp = float(low_speed), float(approach), float(hold), float(ramp)
-        self.K_high = chain_gain(bandwidth, integral=integral_high) if integral_high > 0 else \
-            np.concatenate([[0.0], chain_gain(bandwidth)])
-        self.K_low = chain_gain(low_bandwidth, integral=integral) if integral > 0 else \
-            np.concatenate([[0.0], chain_gain(low_bandwidth)])
+        self.low_speed, self.approach, self.hold, self.ramp = (
+            float(low_speed),
+            float(approach),
+            float(hold),
+            float(ramp),
+        )
+        self.K_high = (
+            chain_gain(bandwidth, integral=integral_high)
+            if integral_high > 0
+            else np.concatenate([[0.0], chain_gain(bandwidth)])
+        )
+        self.K_low = (
+            chain_gain(low_bandwidth, integral=integral)
+            if integral > 0
+            else np.concatenate([[0.0], chain_gain(low_bandwidth)])
+        )
         self.K = np.broadcast_to(self.K_high, (1, 4))
         self.z = np.zeros(1)
         self.y = np.zeros((3, 1))
@@ -166,13 +196,14 @@ class FlatnessLaw:
         h = self.h
         w = np.maximum(w, self.w_rest + h)
         t0, tp, tm = self.lower_friction(w), self.lower_friction(w + h), self.lower_friction(w - h)
-        T, T1, T2 = t0, (tp - tm) / (2 * h), (tp - 2 * t0 + tm) / h ** 2
+        T, T1, T2 = t0, (tp - tm) / (2 * h), (tp - 2 * t0 + tm) / h**2
         if self.scale:
             return (1.0 + d) * T, (1.0 + d) * T1, (1.0 + d) * T2
         return T + d, T1, T2
 
-    def __call__(self, omega_u: np.ndarray, alpha: np.ndarray, omega_l: np.ndarray, d: np.ndarray,
-                 z: "np.ndarray | None" = None) -> np.ndarray:
+    def __call__(
+        self, omega_u: np.ndarray, alpha: np.ndarray, omega_l: np.ndarray, d: np.ndarray, z: np.ndarray | None = None
+    ) -> np.ndarray:
         """Voltage (V, (n,), not clipped) for the estimated state; ``z`` (rad, (n,)): the integral of the
         speed error to use instead of the law's own."""
         p, kt = self.p, self.p.ktheta

@@ -48,10 +48,13 @@ class ControllerPolicy:
         self.names = tuple(base.observation_names)
         self.mode = opts.observation
         if self.mode not in ("sensors", "motor"):
-            raise InputError(f"ControllerPolicy needs observation='sensors' or 'motor' (measurements), "
-                             f"got observation={self.mode!r}")
+            raise InputError(
+                f"ControllerPolicy needs observation='sensors' or 'motor' (measurements), got observation={self.mode!r}"
+            )
         if abs(opts.control_dt - controller.dt) > 1e-12:
-            raise InputError(f"controller period {controller.dt} s differs from the env's control_dt {opts.control_dt} s")
+            raise InputError(
+                f"controller period {controller.dt} s differs from the env's control_dt {opts.control_dt} s"
+            )
         self.dt = float(opts.control_dt)
         self.scale = 1.0 / U_MAX if opts.normalize_action else 1.0
         self._i = {n: k for k, n in enumerate(self.names)}
@@ -60,8 +63,10 @@ class ControllerPolicy:
             provided |= {"x", "y"}
         missing = [m for m in controller.uses if m not in provided]
         if missing:
-            raise InputError(f"controller {controller.name!r} needs {missing}, which observation={self.mode!r} "
-                             f"of this env does not carry")
+            raise InputError(
+                f"controller {controller.name!r} needs {missing}, which observation={self.mode!r} "
+                f"of this env does not carry"
+            )
         self._theta = np.zeros(2)
         self._t = 0.0
         self._pending: dict | None = None

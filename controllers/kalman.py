@@ -47,8 +47,15 @@ from drillgym.errors import InputError
 from drillgym.friction import lower_friction
 from drillgym.measurement import DEFAULT_COUNTS_PER_REV
 
-__all__ = ["STATES", "I_DU", "DisturbanceModel", "disturbance_model", "KalmanObserver", "ExtendedKalmanObserver",
-           "steady_state_gain"]
+__all__ = [
+    "STATES",
+    "I_DU",
+    "DisturbanceModel",
+    "disturbance_model",
+    "KalmanObserver",
+    "ExtendedKalmanObserver",
+    "steady_state_gain",
+]
 
 STATES = ("theta_u", "omega_u", "alpha", "omega_l", "d")
 """State order of the estimator: rad, rad/s, rad, rad/s, N m (or relative level); a model built with
@@ -131,11 +138,19 @@ class DisturbanceModel:
         return np.where(np.abs(x[I_WU]) > eps, slip, rest)
 
 
-def disturbance_model(params: RigParams | None = None, dt: float = 0.01, *,
-                      counts_per_rev: int = DEFAULT_COUNTS_PER_REV, angle_noise: float = 0.0,
-                      sigma_d: float = 0.02, sigma_upper: float = 0.03, sigma_lower: float = 0.005,
-                      friction_known: bool = True, disturbance: str = "offset",
-                      sigma_du: float = 0.0) -> DisturbanceModel:
+def disturbance_model(
+    params: RigParams | None = None,
+    dt: float = 0.01,
+    *,
+    counts_per_rev: int = DEFAULT_COUNTS_PER_REV,
+    angle_noise: float = 0.0,
+    sigma_d: float = 0.02,
+    sigma_upper: float = 0.03,
+    sigma_lower: float = 0.005,
+    friction_known: bool = True,
+    disturbance: str = "offset",
+    sigma_du: float = 0.0,
+) -> DisturbanceModel:
     """Build the estimator's model.
 
     Parameters
@@ -170,8 +185,13 @@ def disturbance_model(params: RigParams | None = None, dt: float = 0.01, *,
         raise InputError(f"disturbance must be 'offset' or 'scale', got {disturbance!r}")
     if disturbance == "scale" and not friction_known:
         raise InputError("a 'scale' disturbance needs the nominal brake law (friction_known=True)")
-    for name, v in (("sigma_d", sigma_d), ("sigma_upper", sigma_upper), ("sigma_lower", sigma_lower),
-                    ("angle_noise", angle_noise), ("sigma_du", sigma_du)):
+    for name, v in (
+        ("sigma_d", sigma_d),
+        ("sigma_upper", sigma_upper),
+        ("sigma_lower", sigma_lower),
+        ("angle_noise", angle_noise),
+        ("sigma_du", sigma_du),
+    ):
         if not (np.isfinite(v) and v >= 0):
             raise InputError(f"{name} must be a non-negative number, got {v!r}")
     # exact Jacobian of the core at a slip equilibrium (angles variant: theta_u, theta_l, omega_u, omega_l)
@@ -213,12 +233,13 @@ def disturbance_model(params: RigParams | None = None, dt: float = 0.01, *,
     G[I_D, 2] = 1.0
     if nx == 6:
         G[I_DU, 3] = 1.0
-    Qc = np.diag([sigma_upper ** 2, sigma_lower ** 2, sigma_d ** 2, sigma_du ** 2][:nx - 2])
+    Qc = np.diag([sigma_upper**2, sigma_lower**2, sigma_d**2, sigma_du**2][: nx - 2])
     Qd = _discrete_noise(A, G @ Qc @ G.T, dt)
     q = 2.0 * np.pi / counts_per_rev if counts_per_rev > 0 else 0.0
-    R = np.array([[q * q / 12.0 + angle_noise ** 2 + 1e-12]])
-    return DisturbanceModel(p, float(dt), A, B, np.asarray(sysd.A), np.asarray(sysd.B), C, Qd, R, friction_known,
-                            disturbance)
+    R = np.array([[q * q / 12.0 + angle_noise**2 + 1e-12]])
+    return DisturbanceModel(
+        p, float(dt), A, B, np.asarray(sysd.A), np.asarray(sysd.B), C, Qd, R, friction_known, disturbance
+    )
 
 
 def _discrete_noise(A: np.ndarray, Qc: np.ndarray, dt: float) -> np.ndarray:
@@ -257,8 +278,9 @@ class KalmanObserver:
         Initial standard deviation of the disturbance state (its unit, see :class:`DisturbanceModel`).
     """
 
-    def __init__(self, model: DisturbanceModel, *, p0_alpha: float = 5.0, p0_speed: float = 2.0,
-                 p0_d: float = 0.3) -> None:
+    def __init__(
+        self, model: DisturbanceModel, *, p0_alpha: float = 5.0, p0_speed: float = 2.0, p0_d: float = 0.3
+    ) -> None:
         self.model = model
         self.kf = KalmanFilter(dim_x=5, dim_z=1, dim_u=3)
         self.kf.F = model.Ad.copy()
@@ -266,9 +288,9 @@ class KalmanObserver:
         self.kf.H = model.H.copy()
         self.kf.Q = model.Qd.copy()
         self.kf.R = model.R.copy()
-        self._P0 = np.diag([model.R[0, 0], p0_speed ** 2, p0_alpha ** 2, p0_speed ** 2, p0_d ** 2])
+        self._P0 = np.diag([model.R[0, 0], p0_speed**2, p0_alpha**2, p0_speed**2, p0_d**2])
 
-    def reset(self, theta_u: np.ndarray, alpha0: "float | np.ndarray" = 0.0) -> None:
+    def reset(self, theta_u: np.ndarray, alpha0: float | np.ndarray = 0.0) -> None:
         """Start at rest at the measured angles theta_u (n,), winding guess alpha0 (rad)."""
         th = np.atleast_1d(np.asarray(theta_u, dtype=float))
         x = np.zeros((5, th.size))
@@ -331,14 +353,22 @@ class ExtendedKalmanObserver:
         A model without the nominal brake law (``friction_known=False``).
     """
 
-    def __init__(self, model: DisturbanceModel, *, p0_alpha: float = 0.1, p0_speed: float = 0.05,
-                 p0_d: float = 0.01, slope_step: float = 1e-3, p0_du: float = 0.1) -> None:
+    def __init__(
+        self,
+        model: DisturbanceModel,
+        *,
+        p0_alpha: float = 0.1,
+        p0_speed: float = 0.05,
+        p0_d: float = 0.01,
+        slope_step: float = 1e-3,
+        p0_du: float = 0.1,
+    ) -> None:
         if model.friction_known is False:
             raise InputError("the extended filter needs the nominal brake law (friction_known=True)")
         self.model = model
         self.h = float(slope_step)
         self.dim = int(model.Ad.shape[0])  # 5, or 6 with the upper-disc torque du
-        self.P0 = np.diag([model.R[0, 0], p0_speed ** 2, p0_alpha ** 2, p0_speed ** 2, p0_d ** 2, p0_du ** 2][:self.dim])
+        self.P0 = np.diag([model.R[0, 0], p0_speed**2, p0_alpha**2, p0_speed**2, p0_d**2, p0_du**2][: self.dim])
         self.x = np.zeros((self.dim, 0))
         """Current estimates (dim, n), rows in :data:`STATES` order (then du)."""
         self.P = np.zeros((0, self.dim, self.dim))
@@ -349,8 +379,7 @@ class ExtendedKalmanObserver:
         self.x = np.zeros((self.dim, int(n)))
         self.P = np.broadcast_to(self.P0, (int(n), self.dim, self.dim)).copy()
 
-    def reset(self, theta_u: np.ndarray, alpha0: "float | np.ndarray" = 0.0,
-              index: "np.ndarray | None" = None) -> None:
+    def reset(self, theta_u: np.ndarray, alpha0: float | np.ndarray = 0.0, index: np.ndarray | None = None) -> None:
         """Start at rest at the measured angles theta_u (rad), winding guess alpha0 (rad).
 
         ``index`` None: all trajectories, their number is theta_u's size; otherwise only the rows
@@ -365,7 +394,7 @@ class ExtendedKalmanObserver:
         self.x[I_AL, idx] = np.broadcast_to(np.asarray(alpha0, dtype=float), idx.shape)
         self.P[idx] = self.P0
 
-    def update(self, theta_u: np.ndarray, index: "np.ndarray | slice" = slice(None)) -> np.ndarray:
+    def update(self, theta_u: np.ndarray, index: np.ndarray | slice = slice(None)) -> np.ndarray:
         """Correct rows ``index`` with their measured motor angles (rad); returns all estimates (5, n)."""
         P, x, r = self.P[index], self.x[:, index], self.model.R[0, 0]
         K = P[:, :, I_TU] / (P[:, I_TU, I_TU] + r)[:, None]  # (m, 5): P H' S^-1 with H = e_theta_u
@@ -388,9 +417,9 @@ class ExtendedKalmanObserver:
             slope = slope * (1.0 + x[I_D])
             level = np.where(slipping, lower_friction(w, p), 0.0)
             F[:, I_WL, I_D] -= m.dt * level / p.Jl
-            F[:, I_AL, I_D] -= 0.5 * m.dt ** 2 * level / p.Jl
+            F[:, I_AL, I_D] -= 0.5 * m.dt**2 * level / p.Jl
         F[:, I_WL, I_WL] -= m.dt * slope / p.Jl
-        F[:, I_AL, I_WL] -= 0.5 * m.dt ** 2 * slope / p.Jl
+        F[:, I_AL, I_WL] -= 0.5 * m.dt**2 * slope / p.Jl
         return F
 
     def predict(self, u: np.ndarray) -> None:

@@ -53,10 +53,14 @@ def motor_angle_model(params: RigParams, omega: float) -> control.StateSpace:
     p = params
     s = brake_slope(omega, p)
     bu = p.bu + p.dbu
-    A = np.array([[0.0, 1.0, 0.0, 0.0],
-                  [0.0, -bu / p.Ju, p.ktheta / p.Ju, 0.0],
-                  [0.0, -1.0, 0.0, 1.0],
-                  [0.0, 0.0, -p.ktheta / p.Jl, -s / p.Jl]])
+    A = np.array(
+        [
+            [0.0, 1.0, 0.0, 0.0],
+            [0.0, -bu / p.Ju, p.ktheta / p.Ju, 0.0],
+            [0.0, -1.0, 0.0, 1.0],
+            [0.0, 0.0, -p.ktheta / p.Jl, -s / p.Jl],
+        ]
+    )
     B = np.array([[0.0], [p.km / p.Ju], [0.0], [0.0]])
     C = np.array([[1.0, 0.0, 0.0, 0.0]])
     return control.ss(A, B, C, np.zeros((1, 1)))

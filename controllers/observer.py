@@ -64,9 +64,15 @@ def _lqr_gain_cached(omega_ref: float, params: RigParams, dt: float, q: tuple, r
     return np.asarray(K)[0, order]  # gains on (alpha, omega_u, omega_l)
 
 
-def lqr_gain(omega_ref: float, params: RigParams | None = None, dt: float = 0.01, *,
-             weights: tuple[float, float, float] = DEFAULT_LQR_WEIGHTS, r: float = DEFAULT_LQR_R,
-             slope: float | None = None) -> np.ndarray:
+def lqr_gain(
+    omega_ref: float,
+    params: RigParams | None = None,
+    dt: float = 0.01,
+    *,
+    weights: tuple[float, float, float] = DEFAULT_LQR_WEIGHTS,
+    r: float = DEFAULT_LQR_R,
+    slope: float | None = None,
+) -> np.ndarray:
     """LQR gain (V per rad, V s/rad, V s/rad) on the errors of (alpha, omega_u, omega_l) at omega_ref.
 
     ``slope`` (N m s/rad): brake slope of the design model; default the steepest one
@@ -125,25 +131,56 @@ class ObserverController(Controller):
     uses = ("theta_u",)
     default_dt = 0.002
 
-    def __init__(self, omega_ref=None, *, counts_per_rev: int = 8000, angle_noise: float = 0.0,
-                 sigma_d: float = 0.01, sigma_upper: float = 1e-3, sigma_lower: float = 1e-3,
-                 noise_floor: float = 0.0, bandwidth: float = 2.5, tau_ref: float = 1.0,
-                 low_speed: float = 2.0, approach: float = 2.5, hold: float = 12.0, ramp: float = 15.0,
-                 low_bandwidth: float = 1.0, integral: float = 0.1, disturbance: str = "scale",
-                 sigma_du: float = 0.0, p0_du: float = 0.1, **kw) -> None:
+    def __init__(
+        self,
+        omega_ref=None,
+        *,
+        counts_per_rev: int = 8000,
+        angle_noise: float = 0.0,
+        sigma_d: float = 0.01,
+        sigma_upper: float = 1e-3,
+        sigma_lower: float = 1e-3,
+        noise_floor: float = 0.0,
+        bandwidth: float = 2.5,
+        tau_ref: float = 1.0,
+        low_speed: float = 2.0,
+        approach: float = 2.5,
+        hold: float = 12.0,
+        ramp: float = 15.0,
+        low_bandwidth: float = 1.0,
+        integral: float = 0.1,
+        disturbance: str = "scale",
+        sigma_du: float = 0.0,
+        p0_du: float = 0.1,
+        **kw,
+    ) -> None:
         super().__init__(omega_ref, **kw)
-        self.model = disturbance_model(self.params, self.dt, counts_per_rev=counts_per_rev,
-                                       angle_noise=float(np.hypot(angle_noise, noise_floor)), sigma_d=sigma_d,
-                                       sigma_upper=sigma_upper, sigma_lower=sigma_lower, disturbance=disturbance,
-                                       sigma_du=sigma_du)
+        self.model = disturbance_model(
+            self.params,
+            self.dt,
+            counts_per_rev=counts_per_rev,
+            angle_noise=float(np.hypot(angle_noise, noise_floor)),
+            sigma_d=sigma_d,
+            sigma_upper=sigma_upper,
+            sigma_lower=sigma_lower,
+            disturbance=disturbance,
+            sigma_du=sigma_du,
+        )
         self.p0_du = float(p0_du)
         # targets below low_speed (rad/s): reached from `approach` by a ramp down, slower error chain with
         # integral action (see controllers.flatness); the ramp ends at hold + ramp = 27 s, 13 s before the
         # steady window (last 20 s) of the 60 s evaluation runs
-        self.law_options = {"bandwidth": float(bandwidth), "tau_ref": float(tau_ref), "low_speed": float(low_speed),
-                            "approach": float(approach), "hold": float(hold), "ramp": float(ramp),
-                            "low_bandwidth": float(low_bandwidth), "integral": float(integral),
-                            "disturbance": disturbance}
+        self.law_options = {
+            "bandwidth": float(bandwidth),
+            "tau_ref": float(tau_ref),
+            "low_speed": float(low_speed),
+            "approach": float(approach),
+            "hold": float(hold),
+            "ramp": float(ramp),
+            "low_bandwidth": float(low_bandwidth),
+            "integral": float(integral),
+            "disturbance": disturbance,
+        }
         FlatnessLaw(self.params, self.dt, **self.law_options)  # check the options now
 
     def _reset(self, m: dict[str, np.ndarray]) -> None:
@@ -151,7 +188,7 @@ class ObserverController(Controller):
         self.observer.reset(np.broadcast_to(m.get("theta_u", 0.0), (self.n,)))
         self.law = self.new_law(self.omega_ref)
 
-    def approach_time(self, omega_ref: "float | np.ndarray") -> np.ndarray:
+    def approach_time(self, omega_ref: float | np.ndarray) -> np.ndarray:
         """Time (s) the law's reference needs: six lag time constants, after the hold and the ramp down
         for targets below ``low_speed`` (27 + 6 s with the defaults)."""
         o = self.law_options
@@ -210,18 +247,36 @@ class LQGController(Controller):
     name = "lqg"
     uses = ("theta_u",)
 
-    def __init__(self, omega_ref=None, *, counts_per_rev: int = 8000, angle_noise: float = 0.0,
-                 sigma_d: float = 0.02, sigma_upper: float = 0.03, sigma_lower: float = 0.005,
-                 weights: tuple[float, float, float] = DEFAULT_LQR_WEIGHTS,
-                 r: float = DEFAULT_LQR_R, outer_gain: float = 0.0, outer_start: float = 5.0, **kw) -> None:
+    def __init__(
+        self,
+        omega_ref=None,
+        *,
+        counts_per_rev: int = 8000,
+        angle_noise: float = 0.0,
+        sigma_d: float = 0.02,
+        sigma_upper: float = 0.03,
+        sigma_lower: float = 0.005,
+        weights: tuple[float, float, float] = DEFAULT_LQR_WEIGHTS,
+        r: float = DEFAULT_LQR_R,
+        outer_gain: float = 0.0,
+        outer_start: float = 5.0,
+        **kw,
+    ) -> None:
         super().__init__(omega_ref, **kw)
         if not (np.isfinite(outer_gain) and outer_gain >= 0 and np.isfinite(outer_start) and outer_start >= 0):
-            raise InputError(f"outer_gain (1/s) and outer_start (s) must be non-negative, got {outer_gain!r}, "
-                             f"{outer_start!r}")
+            raise InputError(
+                f"outer_gain (1/s) and outer_start (s) must be non-negative, got {outer_gain!r}, {outer_start!r}"
+            )
         self.outer_gain, self.outer_start = float(outer_gain), float(outer_start)
-        self.model = disturbance_model(self.params, self.dt, counts_per_rev=counts_per_rev,
-                                       angle_noise=angle_noise, sigma_d=sigma_d,
-                                       sigma_upper=sigma_upper, sigma_lower=sigma_lower)
+        self.model = disturbance_model(
+            self.params,
+            self.dt,
+            counts_per_rev=counts_per_rev,
+            angle_noise=angle_noise,
+            sigma_d=sigma_d,
+            sigma_upper=sigma_upper,
+            sigma_lower=sigma_lower,
+        )
         self.weights = tuple(weights)
         self.r = float(r)
         self.slope = steepest_brake_slope(self.params)

@@ -36,13 +36,28 @@ from .robust_observer import RobustObserverController
 from .softtorque import SoftTorqueController
 from .two_encoder import TwoEncoderLQG
 
-__all__ = ["CONTROLLERS", "make", "available", "split_period", "register_agent_loader", "AgentLoader",
-           "AGENT_LOADER_GROUP"]
+__all__ = [
+    "CONTROLLERS",
+    "make",
+    "available",
+    "split_period",
+    "register_agent_loader",
+    "AgentLoader",
+    "AGENT_LOADER_GROUP",
+]
 
 CONTROLLERS: dict[str, type[Controller]] = {
-    c.name: c for c in (BaselineController, PIController, DescentController, SoftTorqueController,
-                        RobustObserverController,
-                        ObserverController, LQGController, TwoEncoderLQG)
+    c.name: c
+    for c in (
+        BaselineController,
+        PIController,
+        DescentController,
+        SoftTorqueController,
+        RobustObserverController,
+        ObserverController,
+        LQGController,
+        TwoEncoderLQG,
+    )
 }
 
 AgentLoader = Callable[..., Controller]
@@ -79,13 +94,16 @@ def _installed_agent_loader(name: str) -> AgentLoader:
     except TypeError:  # pragma: no cover - Python < 3.10 API
         eps = sorted(metadata.entry_points().get(AGENT_LOADER_GROUP, []), key=lambda ep: ep.name)
     if not eps:
-        raise InputError(f"no agent loader available for {name!r}: install the agents package (its entry point "
-                         f"{AGENT_LOADER_GROUP}) or call controllers.register_agent_loader")
+        raise InputError(
+            f"no agent loader available for {name!r}: install the agents package (its entry point "
+            f"{AGENT_LOADER_GROUP}) or call controllers.register_agent_loader"
+        )
     try:
         return eps[0].load()
     except ImportError as exc:
-        raise InputError(f"no agent loader available for {name!r}: entry point {eps[0].value} does not load: "
-                         f"{exc}") from exc
+        raise InputError(
+            f"no agent loader available for {name!r}: entry point {eps[0].value} does not load: {exc}"
+        ) from exc
 
 
 def available() -> list[str]:
@@ -168,7 +186,7 @@ def make(name: str, config: str = "torsional", omega_ref=None, params=None, **kw
             raise InputError(f"controller {name!r}: period {dt * 1e3:g} ms from the name but dt={kw['dt']} s given")
         kw["dt"] = dt
     if name.startswith("agent:"):
-        path = name[len("agent:"):]
+        path = name[len("agent:") :]
         if not path:
             raise InputError("agent controller needs a path: agent:PATH")
         loader = _agent_loader if _agent_loader is not None else _installed_agent_loader(name)

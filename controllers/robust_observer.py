@@ -84,10 +84,23 @@ class RobustObserverController(ObserverController):
 
     name = "observer-robust"
 
-    def __init__(self, omega_ref=None, *, smooth_tau: float = 0.02, assumed_counts: int = 4096,
-                 noise_floor: float = 3e-4, sigma_upper: float = 0.01, sigma_lower: float = 0.003,
-                 sigma_d: float = 0.02, sigma_du: float = 0.002, p0_du: float = 0.3, outer_gain: float = 0.05,
-                 overspeed: float = 20.0, bu_margin: float = 1.1, **kw) -> None:
+    def __init__(
+        self,
+        omega_ref=None,
+        *,
+        smooth_tau: float = 0.02,
+        assumed_counts: int = 4096,
+        noise_floor: float = 3e-4,
+        sigma_upper: float = 0.01,
+        sigma_lower: float = 0.003,
+        sigma_d: float = 0.02,
+        sigma_du: float = 0.002,
+        p0_du: float = 0.3,
+        outer_gain: float = 0.05,
+        overspeed: float = 20.0,
+        bu_margin: float = 1.1,
+        **kw,
+    ) -> None:
         if not (np.isfinite(bu_margin) and bu_margin > 0):
             raise InputError(f"bu_margin must be a positive factor, got {bu_margin!r}")
         if bu_margin != 1.0:  # design on the least damped motor of the set: a real one only adds damping
@@ -100,9 +113,17 @@ class RobustObserverController(ObserverController):
         for name, v in (("smooth_tau", smooth_tau), ("overspeed", overspeed)):
             if not (np.isfinite(v) and v >= 0):
                 raise InputError(f"{name} must be a non-negative number, got {v!r}")
-        super().__init__(omega_ref, counts_per_rev=int(assumed_counts), noise_floor=noise_floor,
-                         sigma_upper=sigma_upper, sigma_lower=sigma_lower, sigma_d=sigma_d, sigma_du=sigma_du,
-                         p0_du=p0_du, **kw)
+        super().__init__(
+            omega_ref,
+            counts_per_rev=int(assumed_counts),
+            noise_floor=noise_floor,
+            sigma_upper=sigma_upper,
+            sigma_lower=sigma_lower,
+            sigma_d=sigma_d,
+            sigma_du=sigma_du,
+            p0_du=p0_du,
+            **kw,
+        )
         if not (np.isfinite(outer_gain) and outer_gain >= 0):
             raise InputError(f"outer_gain must be a non-negative rate (1/s), got {outer_gain!r}")
         self.outer_gain = float(outer_gain)
@@ -138,8 +159,14 @@ class RobustObserverController(ObserverController):
             u = law(x[I_WU], x[I_AL], x[I_WL], x[I_D])
             if x.shape[0] > I_DU:
                 u = u - x[I_DU] / self.params.km
-        bad = ~np.isfinite(u) | ~np.all(np.isfinite(x), axis=0) | (np.abs(x[I_AL]) > 30.0) \
-            | (np.abs(x[I_WL]) > 25.0) | (np.abs(x[I_WU]) > 25.0) | (np.abs(w_meas) > self.overspeed)
+        bad = (
+            ~np.isfinite(u)
+            | ~np.all(np.isfinite(x), axis=0)
+            | (np.abs(x[I_AL]) > 30.0)
+            | (np.abs(x[I_WL]) > 25.0)
+            | (np.abs(x[I_WU]) > 25.0)
+            | (np.abs(w_meas) > self.overspeed)
+        )
         self.safe |= bad
         u = np.clip(np.where(self.safe, 0.0, u), -self.u_max, self.u_max)
         self.u_cmd = self.smooth * self.u_cmd + (1.0 - self.smooth) * u

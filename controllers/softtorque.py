@@ -68,9 +68,20 @@ class SoftTorqueController(PIController):
     name = "softtorque"
     uses = ("theta_u",)
 
-    def __init__(self, omega_ref=None, *, impedance: float | None = None, hp_ratio: float = 1.0 / 3.0,
-                 kp: float = 1.0, ki: float = 3.0, velocity_tau: float = 0.02, torque_tau: float = 0.5,
-                 km_margin: float = 1.0, bu_margin: float = 1.0, **kw) -> None:
+    def __init__(
+        self,
+        omega_ref=None,
+        *,
+        impedance: float | None = None,
+        hp_ratio: float = 1.0 / 3.0,
+        kp: float = 1.0,
+        ki: float = 3.0,
+        velocity_tau: float = 0.02,
+        torque_tau: float = 0.5,
+        km_margin: float = 1.0,
+        bu_margin: float = 1.0,
+        **kw,
+    ) -> None:
         super().__init__(omega_ref, kp=kp, ki=ki, velocity_tau=velocity_tau, **kw)
         p = self.params
         self.omega_n = math.sqrt(p.ktheta / p.Jl)  # torsional mode (rad/s)
@@ -97,8 +108,11 @@ class SoftTorqueController(PIController):
         acc = (w - self.w_prev) / self.dt
         self.w_prev = w.copy()
         b = self.bu_scale
-        tfu = np.where(w > 0, p.Tcu + p.dTcu + b * (p.bu + p.dbu) * w,
-                       np.where(w < 0, -(p.Tcu - p.dTcu) + b * (p.bu - p.dbu) * w, 0.0))
+        tfu = np.where(
+            w > 0,
+            p.Tcu + p.dTcu + b * (p.bu + p.dbu) * w,
+            np.where(w < 0, -(p.Tcu - p.dTcu) + b * (p.bu - p.dbu) * w, 0.0),
+        )
         # the voltage through the same low-pass as the speed estimate, so the motor torque cancels exactly
         self.u_f = self.speed.a * self.u_f + (1 - self.speed.a) * self.u_prev
         raw = p.Ju * acc + tfu - self.km_model * self.u_f

@@ -91,8 +91,8 @@ def _design(params: RigParams, omega: float, dt: float, o: TwoEncoderDesign):
     C[1, 0], C[1, 2] = 1.0, 1.0  # theta_l = theta_u + alpha
     G = np.zeros((6, 3))
     G[1, 0], G[3, 1], G[5, 2] = 1.0 / p.Ju, 1.0 / p.Jl, 1.0
-    Qd = G @ np.diag([o.sigma_upper ** 2, o.sigma_lower ** 2, o.sigma_d ** 2]) @ G.T * dt + 1e-12 * np.eye(6)
-    rv = (2 * np.pi / o.counts) ** 2 / 12 + o.noise_floor ** 2
+    Qd = G @ np.diag([o.sigma_upper**2, o.sigma_lower**2, o.sigma_d**2]) @ G.T * dt + 1e-12 * np.eye(6)
+    rv = (2 * np.pi / o.counts) ** 2 / 12 + o.noise_floor**2
     P, _, _ = control.dare(Ad.T, C.T, Qd, rv * np.eye(2))
     P = np.asarray(P)
     L = P @ C.T @ np.linalg.inv(C @ P @ C.T + rv * np.eye(2))
@@ -130,8 +130,18 @@ class TwoEncoderLQG(Controller):
     uses = ("theta_u", "theta_l")
     default_dt = 0.002
 
-    def __init__(self, omega_ref=None, *, design: TwoEncoderDesign | None = None, approach: float = 3.0,
-                 hold: float = 5.0, ramp: float = 15.0, tau_ref: float = 1.0, feedforward: float = 1.0, **kw) -> None:
+    def __init__(
+        self,
+        omega_ref=None,
+        *,
+        design: TwoEncoderDesign | None = None,
+        approach: float = 3.0,
+        hold: float = 5.0,
+        ramp: float = 15.0,
+        tau_ref: float = 1.0,
+        feedforward: float = 1.0,
+        **kw,
+    ) -> None:
         super().__init__(omega_ref, **kw)
         for name, v in (("approach", approach), ("hold", hold), ("ramp", ramp)):
             if not (np.isfinite(v) and v >= 0):
@@ -144,7 +154,7 @@ class TwoEncoderLQG(Controller):
         self.approach, self.hold, self.ramp, self.tau_ref = float(approach), float(hold), float(ramp), float(tau_ref)
         self.feedforward = float(feedforward)
 
-    def approach_time(self, omega_ref: "float | np.ndarray") -> np.ndarray:
+    def approach_time(self, omega_ref: float | np.ndarray) -> np.ndarray:
         """Time (s) the reference needs: the hold and ramp for targets below ``approach``, plus 6 lags."""
         w = np.asarray(omega_ref, dtype=float)
         return np.where(w < self.approach, self.hold + self.ramp, 0.0) + 6.0 * self.tau_ref
@@ -176,8 +186,9 @@ class TwoEncoderLQG(Controller):
 
     def _target(self) -> np.ndarray:
         s = float(np.clip((self.t - self.hold) / self.ramp, 0.0, 1.0)) if self.ramp > 0 else float(self.t >= self.hold)
-        return np.where(self.omega_ref < self.approach, self.approach + s * (self.omega_ref - self.approach),
-                        self.omega_ref)
+        return np.where(
+            self.omega_ref < self.approach, self.approach + s * (self.omega_ref - self.approach), self.omega_ref
+        )
 
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
         r = np.maximum(self.r, GRID)  # designs exist from GRID up; the reference starts there

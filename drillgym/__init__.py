@@ -13,7 +13,7 @@ from ._simd import prefer_full_vector_width
 prefer_full_vector_width()  # 512-bit vectors on AVX-512 hosts (opt out: DRILLGYM_SIMD=256)
 invalidate_stale_kernels()  # before any compiled kernel is loaded from numba's cache
 
-from .configurations import Configuration, N_STATE, STATE_NAMES, parse_configuration
+from .configurations import N_STATE, STATE_NAMES, Configuration, parse_configuration
 from .errors import (
     DataFormatError,
     DrillgymError,
@@ -35,11 +35,31 @@ from .simulator import BatchSimulator, BatchTrajectory, Trajectory, initial_stat
 __version__ = "0.1.0"
 
 __all__ = [
-    "Configuration", "N_STATE", "STATE_NAMES", "parse_configuration", "DEFAULT_DT", "OUTPUT_NAMES",
-    "ParameterError", "RigParams", "BatchSimulator", "BatchTrajectory", "Trajectory", "initial_state",
-    "simulate", "simulate_batch",
-    "DrillgymError", "InputError", "InputTypeError", "DataFormatError", "EffectError", "OutputPathError",
-    "MissingFileError", "SimulationError", "FitError", "UnavailableError", "SafetyError",
+    "Configuration",
+    "N_STATE",
+    "STATE_NAMES",
+    "parse_configuration",
+    "DEFAULT_DT",
+    "OUTPUT_NAMES",
+    "ParameterError",
+    "RigParams",
+    "BatchSimulator",
+    "BatchTrajectory",
+    "Trajectory",
+    "initial_state",
+    "simulate",
+    "simulate_batch",
+    "DrillgymError",
+    "InputError",
+    "InputTypeError",
+    "DataFormatError",
+    "EffectError",
+    "OutputPathError",
+    "MissingFileError",
+    "SimulationError",
+    "FitError",
+    "UnavailableError",
+    "SafetyError",
 ]
 
 import importlib.util as _ilu

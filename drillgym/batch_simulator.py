@@ -71,10 +71,19 @@ class BatchSimulator:
     >>> sim.omega_l, sim.stuck_l, sim.friction[:, 1]
     """
 
-    def __init__(self, config: str | Configuration, n: int = 1, *, params: ParamsLike = None,
-                 dt: float = DEFAULT_DT, method: str = "rk4", friction: str = "exact",
-                 smooth_eps: float = DEFAULT_SMOOTH_EPS, effects: Any = None,
-                 effect_params: Mapping[str, float] | None = None) -> None:
+    def __init__(
+        self,
+        config: str | Configuration,
+        n: int = 1,
+        *,
+        params: ParamsLike = None,
+        dt: float = DEFAULT_DT,
+        method: str = "rk4",
+        friction: str = "exact",
+        smooth_eps: float = DEFAULT_SMOOTH_EPS,
+        effects: Any = None,
+        effect_params: Mapping[str, float] | None = None,
+    ) -> None:
         self.config = parse_configuration(config)
         if int(n) < 1:
             raise InputError(f"n must be >= 1, got {n!r}")
@@ -121,13 +130,18 @@ class BatchSimulator:
                 h = self.HEAD[k]
                 if h >= 0:
                     old = np.roll(self.HIST[k], -(h + 1))  # oldest ... newest
-                    H[k, L - old.size:] = old
-                    H[k, :L - old.size] = old[0]
+                    H[k, L - old.size :] = old
+                    H[k, : L - old.size] = old[0]
                     self.HEAD[k] = L - 1
             self.HIST = H
 
-    def reset(self, index: int | np.ndarray | slice | None = None, *, alpha0: float | np.ndarray = 0.0,
-              x0: np.ndarray | None = None) -> None:
+    def reset(
+        self,
+        index: int | np.ndarray | slice | None = None,
+        *,
+        alpha0: float | np.ndarray = 0.0,
+        x0: np.ndarray | None = None,
+    ) -> None:
         """Put runs at rest with winding ``alpha0`` (or at states ``x0``), at t = 0.
 
         The delay lines are emptied: before the first command the motor saw it held.
@@ -175,8 +189,23 @@ class BatchSimulator:
             self.T += int(n_steps) * self.dt
             return
         A, b, c = self._tab
-        self.kernels.stepping.advance_batch(self.Y, self.MODE, uu, self.P, int(self.config), self.dt, int(n_steps),
-                                            self.T, self._eps, A, b, c, self.FRIC, self.HIST, self.HEAD)
+        self.kernels.stepping.advance_batch(
+            self.Y,
+            self.MODE,
+            uu,
+            self.P,
+            int(self.config),
+            self.dt,
+            int(n_steps),
+            self.T,
+            self._eps,
+            A,
+            b,
+            c,
+            self.FRIC,
+            self.HIST,
+            self.HEAD,
+        )
 
     def _advance_lanes(self, uu: np.ndarray, n_steps: int) -> None:
         """The lane kernel on whole blocks of lanes, as :func:`drillgym.lane_runner.run_lanes`.
@@ -189,11 +218,31 @@ class BatchSimulator:
         if width != n:
             self._pad = arrays = pad_lanes(arrays, width, self._pad)
         Y, MODE, U, P, T, FRIC, HIST, HEAD = arrays
-        self.kernels.lanes.lanes_run(Y, MODE, U, P, int(self.config), self.dt, T, 1, self._no_record, n_steps, False,
-                                     FRIC, HIST, HEAD, *self._tab)
+        self.kernels.lanes.lanes_run(
+            Y,
+            MODE,
+            U,
+            P,
+            int(self.config),
+            self.dt,
+            T,
+            1,
+            self._no_record,
+            n_steps,
+            False,
+            FRIC,
+            HIST,
+            HEAD,
+            *self._tab,
+        )
         if width != n:
-            self.Y[:], self.MODE[:], self.FRIC[:], self.HIST[:], self.HEAD[:] = Y[:n], MODE[:n], FRIC[:n], HIST[:n], \
-                HEAD[:n]
+            self.Y[:], self.MODE[:], self.FRIC[:], self.HIST[:], self.HEAD[:] = (
+                Y[:n],
+                MODE[:n],
+                FRIC[:n],
+                HIST[:n],
+                HEAD[:n],
+            )
 
     def kernel_args(self, u: np.ndarray, n_steps: int) -> tuple:
         """Arguments of the composition's compiled ``stepping.advance_batch``.
@@ -213,8 +262,23 @@ class BatchSimulator:
             The positional arguments of ``advance_batch``.
         """
         A, b, c = self._tab
-        return (self.Y, self.MODE, u, self.P, int(self.config), self.dt, int(n_steps), self.T, self._eps, A, b, c,
-                self.FRIC, self.HIST, self.HEAD)
+        return (
+            self.Y,
+            self.MODE,
+            u,
+            self.P,
+            int(self.config),
+            self.dt,
+            int(n_steps),
+            self.T,
+            self._eps,
+            A,
+            b,
+            c,
+            self.FRIC,
+            self.HIST,
+            self.HEAD,
+        )
 
     # views of the state -------------------------------------------------------
     @property

@@ -21,8 +21,12 @@ import typer
 
 from .commands import register_commands
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
-                  help="drillgym: drill-string rig simulator, environments, analysis and hardware twin.")
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    help="drillgym: drill-string rig simulator, environments, analysis and hardware twin.",
+)
 
 
 @app.callback()
@@ -93,8 +97,11 @@ def main(argv: list[str] | None = None) -> None:
             print(f"drillgym: error: {one_line(exc)}", file=sys.stderr)
             sys.exit(USER_ERROR_EXIT)
         traceback.print_exc()
-        print("drillgym: internal error: the traceback above is a bug in drillgym, not in your input; "
-              "please report it with the command you ran", file=sys.stderr)
+        print(
+            "drillgym: internal error: the traceback above is a bug in drillgym, not in your input; "
+            "please report it with the command you ran",
+            file=sys.stderr,
+        )
         sys.exit(INTERNAL_ERROR_EXIT)
 
 

@@ -83,7 +83,7 @@ STATE_NAMES = ("theta_u", "theta_l", "omega_u", "omega_l", "x", "y", "vx", "vy")
 N_STATE = len(STATE_NAMES)
 
 
-def parse_configuration(config: "str | Configuration | int") -> Configuration:
+def parse_configuration(config: str | Configuration | int) -> Configuration:
     """The Configuration of a name, member or number.
 
     Parameters

@@ -92,8 +92,17 @@ def mass_matrix(y: np.ndarray, p: np.ndarray, M: np.ndarray) -> None:
 
 
 @njit(inline="always", fastmath=True, error_model="numpy")
-def reduced_accelerations(drive: float, string: float, extra_l: float, tfu: float, tfl: float, Ju: float,
-                          Jl: float, slip_u: bool, slip_l: bool) -> tuple:
+def reduced_accelerations(
+    drive: float,
+    string: float,
+    extra_l: float,
+    tfu: float,
+    tfl: float,
+    Ju: float,
+    Jl: float,
+    slip_u: bool,
+    slip_l: bool,
+) -> tuple:
     """The reduced equations (3.19), (3.20): Ju wu' = drive + string - Tfu, Jl wl' = -string + extra_l - Tfl.
 
     drive = km u (+ any extra torque on the upper disc) (N m), string = ktheta alpha (+ extra string
@@ -115,9 +124,30 @@ def isotropic_lateral_forces(x: float, yy: float, vx: float, vy: float, W: float
 
 
 @njit(inline="always", fastmath=True, error_model="numpy")
-def coupled_system(x: float, yy: float, vx: float, vy: float, W: float, wl: float, s: float, c: float,
-                   m: float, P: float, Ju: float, Jl: float, drive: float, string: float, extra_l: float,
-                   tfu: float, tfl: float, Qu: float, Qx: float, Qy: float, slip_u: bool, slip_l: bool) -> tuple:
+def coupled_system(
+    x: float,
+    yy: float,
+    vx: float,
+    vy: float,
+    W: float,
+    wl: float,
+    s: float,
+    c: float,
+    m: float,
+    P: float,
+    Ju: float,
+    Jl: float,
+    drive: float,
+    string: float,
+    extra_l: float,
+    tfu: float,
+    tfl: float,
+    Qu: float,
+    Qx: float,
+    Qy: float,
+    slip_u: bool,
+    slip_l: bool,
+) -> tuple:
     """MODEL.md's coupled equations with the lateral accelerations eliminated (Schur complement of the
     m I block): the 2x2 system S (wu', wl') = g of the discs, and the lateral right-hand sides.
     Arguments as :func:`full_accelerations`.  Returns (s00, s01, s11, g0, g1, F2, F3): S's entries
@@ -142,8 +172,9 @@ def coupled_system(x: float, yy: float, vx: float, vy: float, W: float, wl: floa
 
 
 @njit(inline="always", fastmath=True, error_model="numpy")
-def lateral_accelerations(x: float, yy: float, s: float, c: float, m: float, P: float, F2: float, F3: float,
-                          a0: float, a1: float) -> tuple:
+def lateral_accelerations(
+    x: float, yy: float, s: float, c: float, m: float, P: float, F2: float, F3: float, a0: float, a1: float
+) -> tuple:
     """(vx', vy') (m/s^2) from the lateral right-hand sides F2, F3 (N) and the disc accelerations
     a0 = wu', a1 = wl' (rad/s^2): the lateral rows of MODEL.md's mass matrix."""
     inv_m = 1.0 / m
@@ -151,9 +182,30 @@ def lateral_accelerations(x: float, yy: float, s: float, c: float, m: float, P: 
 
 
 @njit(inline="always", fastmath=True, error_model="numpy")
-def full_accelerations(x: float, yy: float, vx: float, vy: float, W: float, wl: float, s: float, c: float,
-                       m: float, P: float, Ju: float, Jl: float, drive: float, string: float, extra_l: float,
-                       tfu: float, tfl: float, Qu: float, Qx: float, Qy: float, slip_u: bool, slip_l: bool) -> tuple:
+def full_accelerations(
+    x: float,
+    yy: float,
+    vx: float,
+    vy: float,
+    W: float,
+    wl: float,
+    s: float,
+    c: float,
+    m: float,
+    P: float,
+    Ju: float,
+    Jl: float,
+    drive: float,
+    string: float,
+    extra_l: float,
+    tfu: float,
+    tfl: float,
+    Qu: float,
+    Qx: float,
+    Qy: float,
+    slip_u: bool,
+    slip_l: bool,
+) -> tuple:
     """Accelerations of the four coordinates (MODEL.md), with stuck discs as constraints.
 
     s, c = sin, cos of alpha; m = mr + mt, P = e mr; drive = km u (+ extra upper torque); string on the
@@ -163,8 +215,9 @@ def full_accelerations(x: float, yy: float, vx: float, vy: float, W: float, wl: 
     leaving a 2x2 system in (wu', wl') where a stuck disc's constraint and multiplier are explicit.
     Returns (wu', wl', vx', vy', Tfu, Tfl).
     """
-    s00, s01, s11, g0, g1, F2, F3 = coupled_system(x, yy, vx, vy, W, wl, s, c, m, P, Ju, Jl, drive, string, extra_l,
-                                                   tfu, tfl, Qu, Qx, Qy, slip_u, slip_l)
+    s00, s01, s11, g0, g1, F2, F3 = coupled_system(
+        x, yy, vx, vy, W, wl, s, c, m, P, Ju, Jl, drive, string, extra_l, tfu, tfl, Qu, Qx, Qy, slip_u, slip_l
+    )
     det = s00 * s11 - s01 * s01
     a0 = ((s11 * g0 - s01 * g1) / det if slip_l else g0 / s00) if slip_u else 0.0
     a1 = ((s00 * g1 - s01 * g0) / det if slip_u else g1 / s11) if slip_l else 0.0

@@ -51,8 +51,8 @@ velocities where stability changes (R2), the Hopf voltages (R3).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import control
 import numpy as np
@@ -65,8 +65,20 @@ from .errors import FitError, InputError
 from .params import ParameterError, RigParams
 
 __all__ = [
-    "RigModel", "as_model", "Equilibrium", "StickSet", "RouthHurwitz", "equilibrium_voltage", "slip_equilibrium", "slip_equilibria",
-    "stick_set", "linearise", "eigenvalues", "routh_hurwitz_torsional", "lower_damping", "supported_configuration",
+    "RigModel",
+    "as_model",
+    "Equilibrium",
+    "StickSet",
+    "RouthHurwitz",
+    "equilibrium_voltage",
+    "slip_equilibrium",
+    "slip_equilibria",
+    "stick_set",
+    "linearise",
+    "eigenvalues",
+    "routh_hurwitz_torsional",
+    "lower_damping",
+    "supported_configuration",
     "state_names",
 ]
 
@@ -122,7 +134,7 @@ class RigModel:
 _Rig = RigModel
 
 
-def as_model(params: "RigParams | RigModel | None" = None, effects=None, effect_params=None) -> RigModel:
+def as_model(params: RigParams | RigModel | None = None, effects=None, effect_params=None) -> RigModel:
     """A RigModel from RigParams (+ effects), or a RigModel itself.
 
     Parameters
@@ -147,8 +159,9 @@ def as_model(params: "RigParams | RigModel | None" = None, effects=None, effect_
 _rig_of = as_model
 
 
-def supported_configuration(config: "str | Configuration", params: "RigParams | _Rig | None" = None,
-                            effects=None, effect_params=None) -> Configuration:
+def supported_configuration(
+    config: str | Configuration, params: RigParams | _Rig | None = None, effects=None, effect_params=None
+) -> Configuration:
     """Parse ``config`` and check that equilibria are defined for it (else ValueError)."""
     cfg = parse_configuration(config)
     if cfg is Configuration.FREE_VIBRATION:
@@ -157,8 +170,13 @@ def supported_configuration(config: "str | Configuration", params: "RigParams | 
 
 
 # --------------------------------------------------------------------- states
-def state_names(config: "str | Configuration", variant: str = "reduced", params: "RigParams | _Rig | None" = None,
-                effects=None, effect_params=None) -> list[str]:
+def state_names(
+    config: str | Configuration,
+    variant: str = "reduced",
+    params: RigParams | _Rig | None = None,
+    effects=None,
+    effect_params=None,
+) -> list[str]:
     """Names of the linearisation's states for ``config`` and ``variant`` ('reduced' or 'angles')."""
     cfg = parse_configuration(config)
     if variant not in ("reduced", "angles"):
@@ -166,7 +184,9 @@ def state_names(config: "str | Configuration", variant: str = "reduced", params:
     if cfg is Configuration.UPPER:
         names = ["omega_u"] if variant == "reduced" else ["theta_u", "omega_u"]
     else:
-        names = ["alpha", "omega_u", "omega_l"] if variant == "reduced" else ["theta_u", "theta_l", "omega_u", "omega_l"]
+        names = (
+            ["alpha", "omega_u", "omega_l"] if variant == "reduced" else ["theta_u", "theta_l", "omega_u", "omega_l"]
+        )
         if cfg.lateral_free:
             names += ["x", "y", "vx", "vy"]
     rig = _rig_of(params, effects, effect_params) if (effects is not None or isinstance(params, _Rig)) else None
@@ -217,7 +237,7 @@ class Equilibrium:
     params: RigParams = field(default_factory=RigParams, repr=False, compare=False)
     eigenvalues: np.ndarray = field(default=None, repr=False, compare=False)
     effect_states: tuple = field(default=(), repr=False, compare=False)
-    rig: "_Rig | None" = field(default=None, repr=False, compare=False)
+    rig: _Rig | None = field(default=None, repr=False, compare=False)
 
     @property
     def r(self) -> float:
@@ -231,7 +251,7 @@ class Equilibrium:
         return np.array([d, d if self.config is not Configuration.UPPER else 0], dtype=np.int64)
 
     @property
-    def model(self) -> "_Rig":
+    def model(self) -> _Rig:
         """The RigModel of the equilibrium (its effects included)."""
         return self.rig if self.rig is not None else _Rig(self.params)
 
@@ -253,9 +273,17 @@ class Equilibrium:
 
     def to_dict(self) -> dict:
         """JSON-ready summary: kind, u (V), omega (rad/s), alpha (rad), x, y, r (m), stability."""
-        return {"kind": "slip", "u": self.u, "omega": self.omega, "alpha": self.alpha, "x": self.x, "y": self.y,
-                "r": self.r, "stable": self.stable,
-                "max_real_eigenvalue": float(np.max(self.eigenvalues.real))}
+        return {
+            "kind": "slip",
+            "u": self.u,
+            "omega": self.omega,
+            "alpha": self.alpha,
+            "x": self.x,
+            "y": self.y,
+            "r": self.r,
+            "stable": self.stable,
+            "max_real_eigenvalue": float(np.max(self.eigenvalues.real)),
+        }
 
 
 @dataclass(frozen=True)
@@ -268,8 +296,14 @@ class StickSet:
 
     def to_dict(self) -> dict:
         """JSON-ready summary: kind, u (V), omega = 0, alpha_lo, alpha_hi (rad), stable."""
-        return {"kind": "stick", "u": self.u, "omega": 0.0, "alpha_lo": self.alpha_lo, "alpha_hi": self.alpha_hi,
-                "stable": True}
+        return {
+            "kind": "stick",
+            "u": self.u,
+            "omega": 0.0,
+            "alpha_lo": self.alpha_lo,
+            "alpha_hi": self.alpha_hi,
+            "stable": True,
+        }
 
 
 def _slip_torques(omega: float, rig: _Rig, cfg: Configuration) -> tuple[float, float]:
@@ -292,8 +326,8 @@ def _closed_form(cfg: Configuration, omega: float, rig: _Rig) -> tuple[float, fl
     W = omega
     kk = params.k - params.m * W * W
     D = kk * kk + (params.b * W) ** 2
-    r2 = P * P * W ** 4 / D
-    alpha = -(tfl + P * P * params.b * W ** 5 / D) / params.ktheta
+    r2 = P * P * W**4 / D
+    alpha = -(tfl + P * P * params.b * W**5 / D) / params.ktheta
     c, s = math.cos(alpha), math.sin(alpha)
     x = P * W * W / D * (kk * c + params.b * W * s)
     y = P * W * W / D * (-params.b * W * c + kk * s)
@@ -321,7 +355,7 @@ def _refine(cfg: Configuration, omega: float, guess: tuple, rig: _Rig) -> tuple[
         st[3] = omega if cfg is not Configuration.UPPER else 0.0
         if lateral:
             st[4], st[5] = z[2], z[3]
-        st[8:] = z[2 + 2 * lateral:]
+        st[8:] = z[2 + 2 * lateral :]
         return u, st
 
     def residual(v: np.ndarray, shift: float = 0.0, t: float = 0.0) -> np.ndarray:
@@ -338,18 +372,28 @@ def _refine(cfg: Configuration, omega: float, guess: tuple, rig: _Rig) -> tuple[
     sol, _, ier, msg = fsolve(residual, np.asarray(z0) / scale, full_output=True, xtol=1e-13)
     res = residual(sol)
     if np.max(np.abs(res)) > 1e-8:
-        raise FitError(f"slip equilibrium at omega={omega} rad/s of the model {rig.comp.label!r} did not "
-                           f"converge: {msg}")
+        raise FitError(
+            f"slip equilibrium at omega={omega} rad/s of the model {rig.comp.label!r} did not converge: {msg}"
+        )
     moved = np.max(np.abs(residual(sol, shift=1.2345, t=7.5)))
     if moved > 1e-6:
-        raise ParameterError(f"the model {rig.comp.label!r} has no constant equilibria: its effects depend on the "
-                             f"disc angles or on time (residual {moved:.2g} after a rotation); remove those effects")
+        raise ParameterError(
+            f"the model {rig.comp.label!r} has no constant equilibria: its effects depend on the "
+            f"disc angles or on time (residual {moved:.2g} after a rotation); remove those effects"
+        )
     u, st = state(sol)
     return float(u), float(st[1] - st[0]), float(st[4]), float(st[5]), tuple(float(v) for v in st[8:])
 
 
-def slip_equilibrium(config: "str | Configuration", omega: float, params: "RigParams | _Rig | None" = None,
-                     *, with_eigenvalues: bool = True, effects=None, effect_params=None) -> Equilibrium:
+def slip_equilibrium(
+    config: str | Configuration,
+    omega: float,
+    params: RigParams | _Rig | None = None,
+    *,
+    with_eigenvalues: bool = True,
+    effects=None,
+    effect_params=None,
+) -> Equilibrium:
     """The slip equilibrium whose discs turn at ``omega``, and the voltage that holds it.
 
     Closed form for the base model; with effects refined by Newton on the simulator's residual.
@@ -392,8 +436,13 @@ def slip_equilibrium(config: "str | Configuration", omega: float, params: "RigPa
     return eq
 
 
-def equilibrium_voltage(config: "str | Configuration", omega: "float | np.ndarray",
-                        params: "RigParams | _Rig | None" = None, effects=None, effect_params=None) -> np.ndarray:
+def equilibrium_voltage(
+    config: str | Configuration,
+    omega: float | np.ndarray,
+    params: RigParams | _Rig | None = None,
+    effects=None,
+    effect_params=None,
+) -> np.ndarray:
     """The constant voltage that holds the slip equilibrium at speed ``omega``.
 
     Parameters
@@ -425,9 +474,15 @@ def equilibrium_voltage(config: "str | Configuration", omega: "float | np.ndarra
     return out if np.ndim(omega) else out[0]
 
 
-def slip_equilibria(config: "str | Configuration", u: float, params: "RigParams | _Rig | None" = None,
-                    omega_max: float = 200.0, n_grid: int = 400, effects=None, effect_params=None
-                    ) -> list[Equilibrium]:
+def slip_equilibria(
+    config: str | Configuration,
+    u: float,
+    params: RigParams | _Rig | None = None,
+    omega_max: float = 200.0,
+    n_grid: int = 400,
+    effects=None,
+    effect_params=None,
+) -> list[Equilibrium]:
     """All slip equilibria at voltage ``u`` with 0 < |omega| <= omega_max, sorted by speed.
 
     Roots of u(omega) = u are bracketed on a geometric grid of omega (in the
@@ -474,8 +529,9 @@ def slip_equilibria(config: "str | Configuration", u: float, params: "RigParams 
     return sorted(out, key=lambda e: abs(e.omega))
 
 
-def stick_set(config: "str | Configuration", u: float, params: "RigParams | _Rig | None" = None,
-              effects=None, effect_params=None) -> StickSet | None:
+def stick_set(
+    config: str | Configuration, u: float, params: RigParams | _Rig | None = None, effects=None, effect_params=None
+) -> StickSet | None:
     """The stick equilibrium set at voltage ``u``, or None when the discs cannot rest (|u| too large).
 
     Both discs at rest: the holding torques (upper: km u + string torque, lower: -string torque)
@@ -618,8 +674,13 @@ def eigenvalues(eq: Equilibrium) -> np.ndarray:
     return lam[np.argsort(-lam.real)]
 
 
-def lower_damping(omega: "float | np.ndarray", params: "RigParams | _Rig | None" = None, brake: bool = True,
-                  effects=None, effect_params=None) -> np.ndarray:
+def lower_damping(
+    omega: float | np.ndarray,
+    params: RigParams | _Rig | None = None,
+    brake: bool = True,
+    effects=None,
+    effect_params=None,
+) -> np.ndarray:
     """Linearised lower friction damping dl = dTfl/domega at omega != 0 (central differences).
 
     Parameters
@@ -646,8 +707,12 @@ def lower_damping(omega: "float | np.ndarray", params: "RigParams | _Rig | None"
     w = np.atleast_1d(np.asarray(omega, dtype=float))
     h = 1e-6 * np.maximum(np.abs(w), 1e-3)
     d = np.sign(w)  # float directions (+1.0/-1.0): the kernels take them as floats
-    out = np.array([(slip(v + hv, dv, 0.0, y, rig.p, brake) - slip(v - hv, dv, 0.0, y, rig.p, brake)) / (2 * hv)
-                    for v, hv, dv in zip(w, h, d)])
+    out = np.array(
+        [
+            (slip(v + hv, dv, 0.0, y, rig.p, brake) - slip(v - hv, dv, 0.0, y, rig.p, brake)) / (2 * hv)
+            for v, hv, dv in zip(w, h, d)
+        ]
+    )
     return out if np.ndim(omega) else out[0]
 
 
@@ -702,7 +767,9 @@ def routh_hurwitz_torsional(params: RigParams | None = None, omega_max: float = 
     dl_c = brentq(margin, -min(du, params.Jl * du / params.Ju) * (1 - 1e-9), 0.0, xtol=1e-15)
     grid = np.geomspace(1e-4, omega_max, 2000)
     g = lower_damping(grid, params) - dl_c
-    roots = tuple(brentq(lambda w: lower_damping(w, params) - dl_c, grid[i], grid[i + 1], xtol=1e-14)
-                  for i in np.flatnonzero(np.sign(g[:-1]) != np.sign(g[1:])))
+    roots = tuple(
+        brentq(lambda w: lower_damping(w, params) - dl_c, grid[i], grid[i + 1], xtol=1e-14)
+        for i in np.flatnonzero(np.sign(g[:-1]) != np.sign(g[1:]))
+    )
     u_h = tuple(float(equilibrium_voltage(Configuration.TORSIONAL, w, params)) for w in roots)
     return RouthHurwitz(float(dl_c), tuple(float(w) for w in roots), u_h)

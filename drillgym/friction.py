@@ -116,8 +116,9 @@ def lower_friction(w: np.ndarray, params: RigParams | None = None, brake: bool =
     return law(w) if w.size else np.zeros_like(w)
 
 
-def lower_friction_slope(w: np.ndarray, params: RigParams | None = None, brake: bool = True,
-                         rel_step: float = 1e-6) -> np.ndarray:
+def lower_friction_slope(
+    w: np.ndarray, params: RigParams | None = None, brake: bool = True, rel_step: float = 1e-6
+) -> np.ndarray:
     """Linearised friction damping dTfl/dw at w != 0 by central differences.
 
     Parameters

@@ -45,14 +45,17 @@ RK4_A = np.array([[0.0, 0, 0, 0], [0.5, 0, 0, 0], [0, 0.5, 0, 0], [0, 0, 1.0, 0]
 RK4_B = np.array([1 / 6, 1 / 3, 1 / 3, 1 / 6])
 RK4_C = np.array([0.0, 0.5, 0.5, 1.0])
 
-DP5_A = np.array([
-    [0, 0, 0, 0, 0, 0],
-    [1 / 5, 0, 0, 0, 0, 0],
-    [3 / 40, 9 / 40, 0, 0, 0, 0],
-    [44 / 45, -56 / 15, 32 / 9, 0, 0, 0],
-    [19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729, 0, 0],
-    [9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656, 0],
-], dtype=np.float64)
+DP5_A = np.array(
+    [
+        [0, 0, 0, 0, 0, 0],
+        [1 / 5, 0, 0, 0, 0, 0],
+        [3 / 40, 9 / 40, 0, 0, 0, 0],
+        [44 / 45, -56 / 15, 32 / 9, 0, 0, 0],
+        [19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729, 0, 0],
+        [9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656, 0],
+    ],
+    dtype=np.float64,
+)
 DP5_B = np.array([35 / 384, 0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84])
 DP5_C = np.array([0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0])
 
@@ -63,8 +66,26 @@ ADAPTIVE = ("dp45",)
 DEFAULT_RTOL, DEFAULT_ATOL = 1e-11, 1e-12
 
 #: recorded columns of the base model; a composition appends its effects' states
-OUTPUT_NAMES = ("t", "u", "theta_u", "theta_l", "omega_u", "omega_l", "x_rot", "y_rot", "vx_rot", "vy_rot",
-                "alpha", "x", "y", "r", "Tfu", "Tfl", "stick_u", "stick_l")
+OUTPUT_NAMES = (
+    "t",
+    "u",
+    "theta_u",
+    "theta_l",
+    "omega_u",
+    "omega_l",
+    "x_rot",
+    "y_rot",
+    "vx_rot",
+    "vy_rot",
+    "alpha",
+    "x",
+    "y",
+    "r",
+    "Tfu",
+    "Tfl",
+    "stick_u",
+    "stick_l",
+)
 N_OUT = len(OUTPUT_NAMES)
 
 

@@ -27,18 +27,32 @@ import csv
 import json
 import math
 import os
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Iterable, Mapping, Sequence
+from typing import IO
 
 import numpy as np
 
 from .configurations import Configuration, parse_configuration
 from .errors import DataFormatError, InputError, OutputPathError
 
-__all__ = ["TimeSeries", "read_timeseries", "read_input_signal", "read_csv", "read_mat", "write_timeseries", "write_trajectory_csv",
-           "StreamingCsvWriter", "required_columns", "DataFormatError", "U_LIMIT_FILE", "XY_LIMIT_FILE",
-           "create_directory", "describe_parse_error"]
+__all__ = [
+    "TimeSeries",
+    "read_timeseries",
+    "read_input_signal",
+    "read_csv",
+    "read_mat",
+    "write_timeseries",
+    "write_trajectory_csv",
+    "StreamingCsvWriter",
+    "required_columns",
+    "DataFormatError",
+    "U_LIMIT_FILE",
+    "XY_LIMIT_FILE",
+    "create_directory",
+    "describe_parse_error",
+]
 
 U_LIMIT_FILE = 50.0  # V: larger |u| in a file is refused
 XY_LIMIT_FILE = 0.05  # m: larger |x|, |y| in a file is refused
@@ -135,7 +149,7 @@ class TimeSeries:
             return np.hypot(self.columns["x"], self.columns["y"])
         return None
 
-    def resample(self, rate_hz: float) -> "TimeSeries":
+    def resample(self, rate_hz: float) -> TimeSeries:
         """The series on a uniform grid from the first sample.
 
         Parameters
@@ -166,13 +180,13 @@ class TimeSeries:
         meta = dict(self.meta, sample_rate_hz=rate_hz)
         return TimeSeries(out, meta, self.source)
 
-    def window(self, t0: float, t1: float) -> "TimeSeries":
+    def window(self, t0: float, t1: float) -> TimeSeries:
         """The samples with t0 <= t <= t1 (s), times unchanged."""
         t = self.columns["t"]
         sel = (t >= t0) & (t <= t1)
         return TimeSeries({k: v[sel] for k, v in self.columns.items()}, dict(self.meta), self.source)
 
-    def validate(self, config: Configuration | None = None) -> "TimeSeries":
+    def validate(self, config: Configuration | None = None) -> TimeSeries:
         """Check required columns, finiteness, increasing time and physical ranges.
 
         Parameters
@@ -194,8 +208,13 @@ class TimeSeries:
         return self
 
 
-def _validate(cols: Mapping[str, np.ndarray], config: Configuration | None, source: str,
-              line_of_row: Sequence[int] | None, required: Sequence[str] | None = None) -> None:
+def _validate(
+    cols: Mapping[str, np.ndarray],
+    config: Configuration | None,
+    source: str,
+    line_of_row: Sequence[int] | None,
+    required: Sequence[str] | None = None,
+) -> None:
     def where(i: int) -> str:
         return f"line {line_of_row[i]}" if line_of_row is not None else f"sample {i}"
 
@@ -216,16 +235,20 @@ def _validate(cols: Mapping[str, np.ndarray], config: Configuration | None, sour
     bad = np.flatnonzero(dt <= 0)
     if bad.size:
         i = bad[0] + 1
-        raise DataFormatError(f"{source}: {where(i)}, column 't': time is not strictly increasing "
-                              f"({float(cols['t'][i - 1])!r} then {float(cols['t'][i])!r})")
+        raise DataFormatError(
+            f"{source}: {where(i)}, column 't': time is not strictly increasing "
+            f"({float(cols['t'][i - 1])!r} then {float(cols['t'][i])!r})"
+        )
     limits = {"u": U_LIMIT_FILE, "x": XY_LIMIT_FILE, "y": XY_LIMIT_FILE}
     for name, lim in limits.items():
         if name in cols:
             bad = np.flatnonzero(np.abs(cols[name]) > lim)
             if bad.size:
                 unit = "V" if name == "u" else "m"
-                raise DataFormatError(f"{source}: {where(bad[0])}, column '{name}': {float(cols[name][bad[0]])!r} {unit} "
-                                      f"is outside the physical range |{name}| <= {lim} {unit}")
+                raise DataFormatError(
+                    f"{source}: {where(bad[0])}, column '{name}': {float(cols[name][bad[0]])!r} {unit} "
+                    f"is outside the physical range |{name}| <= {lim} {unit}"
+                )
 
 
 def _check_mapping(mapping: Mapping[str, str] | None, src: str) -> dict[str, str]:
@@ -233,8 +256,9 @@ def _check_mapping(mapping: Mapping[str, str] | None, src: str) -> dict[str, str
     mapping = dict(mapping or {})
     bad = sorted(set(mapping) - set(KNOWN_COLUMNS))
     if bad:
-        raise DataFormatError(f"{src}: mapping names unknown column(s) {', '.join(bad)}; "
-                              f"expected some of {', '.join(KNOWN_COLUMNS)}")
+        raise DataFormatError(
+            f"{src}: mapping names unknown column(s) {', '.join(bad)}; expected some of {', '.join(KNOWN_COLUMNS)}"
+        )
     return mapping
 
 
@@ -243,17 +267,24 @@ def _rename(header: list[str], mapping: Mapping[str, str], src: str) -> list[str
     out = list(header)
     for col, name in mapping.items():
         if name not in header:
-            raise DataFormatError(f"{src}: mapping names column '{name}' for '{col}', but the file has only: "
-                                  f"{', '.join(header)}")
+            raise DataFormatError(
+                f"{src}: mapping names column '{name}' for '{col}', but the file has only: {', '.join(header)}"
+            )
         if col in header and col != name and col not in mapping.values():
-            raise DataFormatError(f"{src}: mapping reads '{name}' as '{col}', but the file has a column '{col}' "
-                                  f"too; map that one as well or leave '{col}' out of the mapping")
+            raise DataFormatError(
+                f"{src}: mapping reads '{name}' as '{col}', but the file has a column '{col}' "
+                f"too; map that one as well or leave '{col}' out of the mapping"
+            )
         out[header.index(name)] = col
     return out
 
 
-def read_csv(path: str | Path, config: "str | Configuration | None" = None,
-             required: Sequence[str] | None = None, mapping: Mapping[str, str] | None = None) -> TimeSeries:
+def read_csv(
+    path: str | Path,
+    config: str | Configuration | None = None,
+    required: Sequence[str] | None = None,
+    mapping: Mapping[str, str] | None = None,
+) -> TimeSeries:
     """Read and validate a DATA_FORMAT CSV.
 
     Parameters
@@ -300,7 +331,9 @@ def read_csv(path: str | Path, config: "str | Configuration | None" = None,
                         try:
                             meta.update(json.loads(body[5:]))
                         except json.JSONDecodeError as exc:
-                            raise DataFormatError(f"{src}: line {lineno}: metadata is not valid JSON ({exc.msg})") from None
+                            raise DataFormatError(
+                                f"{src}: line {lineno}: metadata is not valid JSON ({exc.msg})"
+                            ) from None
                     continue
                 fields = next(csv.reader([line]))
                 if header is None:
@@ -341,8 +374,9 @@ def _finish(cols: dict, meta: dict, src: str, config, lines, required=None) -> T
     if config is not None:
         cfg = parse_configuration(config)
         if "configuration" in meta and parse_configuration(meta["configuration"]) is not cfg:
-            raise DataFormatError(f"{src}: file says configuration '{meta['configuration']}', "
-                                  f"but '{cfg.label}' was requested")
+            raise DataFormatError(
+                f"{src}: file says configuration '{meta['configuration']}', but '{cfg.label}' was requested"
+            )
         meta.setdefault("configuration", cfg.label)
     try:
         cfg_obj = parse_configuration(meta["configuration"]) if meta.get("configuration") else None
@@ -352,8 +386,9 @@ def _finish(cols: dict, meta: dict, src: str, config, lines, required=None) -> T
     return TimeSeries(cols, meta, src)
 
 
-def read_mat(path: str | Path, config: "str | Configuration | None" = None,
-             mapping: Mapping[str, str] | None = None) -> TimeSeries:
+def read_mat(
+    path: str | Path, config: str | Configuration | None = None, mapping: Mapping[str, str] | None = None
+) -> TimeSeries:
     """Read and validate a Simulink/MATLAB ``.mat`` file.
 
     Parameters
@@ -414,15 +449,19 @@ def read_mat(path: str | Path, config: "str | Configuration | None" = None,
                     if 1 in arr.shape:
                         arr = arr.ravel()
                     else:
-                        raise DataFormatError(f"{src}: variable '{n}' for column '{col}' has {min(arr.shape)} "
-                                              f"columns; choose one: --map {col}={n}:K (mapping={{'{col}': "
-                                              f"'{n}:K'}}), K = 1..{min(arr.shape)}")
+                        raise DataFormatError(
+                            f"{src}: variable '{n}' for column '{col}' has {min(arr.shape)} "
+                            f"columns; choose one: --map {col}={n}:K (mapping={{'{col}': "
+                            f"'{n}:K'}}), K = 1..{min(arr.shape)}"
+                        )
                 cols[col] = np.asarray(arr, dtype=float).ravel()
                 break
         else:
             if col in mapping:
-                raise DataFormatError(f"{src}: mapping names variable '{mapping[col]}' for column '{col}', "
-                                      f"but the file has only: {', '.join(sorted(flat))}")
+                raise DataFormatError(
+                    f"{src}: mapping names variable '{mapping[col]}' for column '{col}', "
+                    f"but the file has only: {', '.join(sorted(flat))}"
+                )
     if "t" not in cols and time_from_struct is not None:
         cols["t"] = time_from_struct
     lengths = {k: len(v) for k, v in cols.items()}
@@ -435,8 +474,10 @@ def read_mat(path: str | Path, config: "str | Configuration | None" = None,
         if "missing column" not in str(exc):
             raise
         unused = [n for n in sorted(flat) if not any(flat[n] is c for c in cols.values())]
-        raise DataFormatError(f"{exc}; the file has {', '.join(unused) or 'no other variable'}: name the columns "
-                              f"with --map COLUMN=NAME (mapping= in Python)") from None
+        raise DataFormatError(
+            f"{exc}; the file has {', '.join(unused) or 'no other variable'}: name the columns "
+            f"with --map COLUMN=NAME (mapping= in Python)"
+        ) from None
 
 
 def _add_array(flat: dict, key: str, value) -> None:
@@ -479,8 +520,9 @@ def _add_signals(flat: dict, key: str, signals, src: str) -> None:
             flat[f"{key}:{k + 1}"] = c
 
 
-def read_timeseries(path: str | Path, config: "str | Configuration | None" = None,
-                    mapping: Mapping[str, str] | None = None) -> TimeSeries:
+def read_timeseries(
+    path: str | Path, config: str | Configuration | None = None, mapping: Mapping[str, str] | None = None
+) -> TimeSeries:
     """Read a CSV or .mat time series (by extension) and validate it.
 
     Parameters
@@ -596,8 +638,9 @@ def create_directory(directory: str | Path, for_path: str | Path | None = None) 
     try:
         directory.mkdir(parents=True, exist_ok=True)
     except (FileExistsError, NotADirectoryError):
-        raise OutputPathError(f"{for_path}: cannot create directory {directory}: a file of that name is in the "
-                              f"way") from None
+        raise OutputPathError(
+            f"{for_path}: cannot create directory {directory}: a file of that name is in the way"
+        ) from None
     except OSError as exc:
         raise OutputPathError(f"{for_path}: cannot create directory {directory} ({exc.strerror})") from None
     return directory
@@ -648,8 +691,14 @@ def trajectory_to_timeseries(traj, description: str = "") -> TimeSeries:
     cols["Tfu"] = traj.Tfu
     cols["Tfl"] = traj.Tfl
     cols["stick_l"] = traj.stick_l
-    meta = {"configuration": cfg.label, "source": "simulation", "sample_rate_hz": 1.0 / (traj.t[1] - traj.t[0])
-            if len(traj.t) > 1 else None, "dt": traj.dt, "method": traj.method, "description": description}
+    meta = {
+        "configuration": cfg.label,
+        "source": "simulation",
+        "sample_rate_hz": 1.0 / (traj.t[1] - traj.t[0]) if len(traj.t) > 1 else None,
+        "dt": traj.dt,
+        "method": traj.method,
+        "description": description,
+    }
     return TimeSeries({k: np.asarray(v, dtype=float) for k, v in cols.items()}, meta, "<simulation>")
 
 
@@ -692,8 +741,9 @@ class StreamingCsvWriter:
         Longest time of samples held in memory (s, by the ``t`` column).  Default 0.5.
     """
 
-    def __init__(self, path: str | Path, columns: Sequence[str], meta: Mapping | None = None,
-                 flush_interval_s: float = 0.5) -> None:
+    def __init__(
+        self, path: str | Path, columns: Sequence[str], meta: Mapping | None = None, flush_interval_s: float = 0.5
+    ) -> None:
         if "t" not in columns:
             raise ValueError("a recording needs a 't' column")
         self.path = Path(path)
@@ -746,7 +796,7 @@ class StreamingCsvWriter:
             self._fh.close()
             self._fh = None
 
-    def __enter__(self) -> "StreamingCsvWriter":
+    def __enter__(self) -> StreamingCsvWriter:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -96,8 +96,9 @@ def pad_lanes(arrays: Sequence[np.ndarray], width: int, out: list[np.ndarray] | 
     return out
 
 
-def run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, parallel, HIST, HEAD, T0, COLS,
-              USTEP, tab):
+def run_lanes(
+    lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, parallel, HIST, HEAD, T0, COLS, USTEP, tab
+):
     """Run the SIMD lane kernel over a batch, one chunk per core in threads when parallel.
 
     Chunks are whole blocks of :data:`LANE_BLOCK` lanes (:func:`lane_chunks`): a short chunk is
@@ -141,13 +142,45 @@ def run_lanes(lanes_run, Y, MODE, U, P, cfg, dt, record_every, OUT, n_steps, par
     def run(lo, hi, width):
         s = slice(lo, hi)
         if hi - lo == width:
-            lanes_run(Y[s], MODE[s], U[s], P[s], cfg, dt, T0[s].copy(), record_every, OUT[:, :, s], n_steps, True,
-                      FR[s], HIST[s], HEAD[s], *tab, *optional_args(COLS, USTEP, OUT.shape[1]))
+            lanes_run(
+                Y[s],
+                MODE[s],
+                U[s],
+                P[s],
+                cfg,
+                dt,
+                T0[s].copy(),
+                record_every,
+                OUT[:, :, s],
+                n_steps,
+                True,
+                FR[s],
+                HIST[s],
+                HEAD[s],
+                *tab,
+                *optional_args(COLS, USTEP, OUT.shape[1]),
+            )
             return
         Yp, MODEp, Up, Pp, Tp, FRp, HISTp, HEADp = pad_lanes([a[s] for a in (Y, MODE, U, P, T0, FR, HIST, HEAD)], width)
         OUTp = np.empty(OUT.shape[:2] + (width,))
-        lanes_run(Yp, MODEp, Up, Pp, cfg, dt, Tp, record_every, OUTp, n_steps, True, FRp, HISTp, HEADp, *tab,
-                  *optional_args(COLS, USTEP, OUT.shape[1]))
+        lanes_run(
+            Yp,
+            MODEp,
+            Up,
+            Pp,
+            cfg,
+            dt,
+            Tp,
+            record_every,
+            OUTp,
+            n_steps,
+            True,
+            FRp,
+            HISTp,
+            HEADp,
+            *tab,
+            *optional_args(COLS, USTEP, OUT.shape[1]),
+        )
         n = hi - lo
         Y[s], MODE[s], FR[s], HIST[s], HEAD[s] = Yp[:n], MODEp[:n], FRp[:n], HISTp[:n], HEADp[:n]
         OUT[:, :, s] = OUTp[:, :, :n]

@@ -24,11 +24,21 @@ import numpy as np
 from numba import njit
 from scipy import signal
 
-from .params import RigParams
-
-__all__ = ["DEFAULT_COUNTS_PER_REV", "DEFAULT_LVDT_NOISE", "quantize_angle", "angle_to_counts", "counts_to_angle",
-           "lvdt_measure", "lowpass_zero_phase", "EncoderVelocityEstimator", "MeasurementModel", "measure_trajectory",
-           "encoder_reading", "lvdt_reading", "filtered_speed"]
+__all__ = [
+    "DEFAULT_COUNTS_PER_REV",
+    "DEFAULT_LVDT_NOISE",
+    "quantize_angle",
+    "angle_to_counts",
+    "counts_to_angle",
+    "lvdt_measure",
+    "lowpass_zero_phase",
+    "EncoderVelocityEstimator",
+    "MeasurementModel",
+    "measure_trajectory",
+    "encoder_reading",
+    "lvdt_reading",
+    "filtered_speed",
+]
 
 DEFAULT_COUNTS_PER_REV = 8000
 DEFAULT_LVDT_NOISE = 3e-6  # m (standard deviation)
@@ -49,6 +59,7 @@ def counts_to_angle(counts: np.ndarray | int, counts_per_rev: int = DEFAULT_COUN
 # Each takes numpy arrays or floats and calls nothing but numpy ufuncs, so numba compiles the
 # very same function into the environments' observation kernel (drillgym.envs.observation_kernels):
 # one formula per quantity for the numpy and the compiled path.
+
 
 def encoder_reading(theta, counts_per_rev):
     """The angle (rad) an encoder with ``counts_per_rev`` (> 0: quantized; <= 0: exact) reports for
@@ -79,8 +90,9 @@ def quantize_angle(theta: np.ndarray | float, counts_per_rev: int = DEFAULT_COUN
     return encoder_reading(np.asarray(theta, dtype=float), counts_per_rev)
 
 
-def lvdt_measure(X: np.ndarray, Y: np.ndarray, noise_std: float = 0.0,
-                 rng: np.random.Generator | None = None) -> tuple[np.ndarray, np.ndarray]:
+def lvdt_measure(
+    X: np.ndarray, Y: np.ndarray, noise_std: float = 0.0, rng: np.random.Generator | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """LVDT readings (m) of the fixed-frame displacement (X, Y) (m) with white noise of ``noise_std`` (m)."""
     xm = np.array(X, dtype=float)
     ym = np.array(Y, dtype=float)
@@ -219,8 +231,7 @@ class MeasurementModel:
     sample_rate_hz: float | None = None  # None: keep the simulation's rate
 
 
-def measure_trajectory(traj, model: MeasurementModel = MeasurementModel(), seed: int | None = 0,
-                       description: str = ""):
+def measure_trajectory(traj, model: MeasurementModel = MeasurementModel(), seed: int | None = 0, description: str = ""):
     """A synthetic measurement of a simulated run, as the rig would record it.
 
     The run's Measurement effects (offsets, skew, ...), quantized encoder angles, LVDT readings with
@@ -262,6 +273,11 @@ def measure_trajectory(traj, model: MeasurementModel = MeasurementModel(), seed:
             ym = lowpass_zero_phase(ym, fs, model.lvdt_lowpass_hz)
         cols["x"], cols["y"] = xm, ym
     cols = {k: np.asarray(v, dtype=float)[::step] for k, v in cols.items()}
-    meta = {"configuration": traj.config.label, "source": "simulation", "sample_rate_hz": fs / step,
-            "description": description or "synthetic measurement", "counts_per_rev": model.counts_per_rev}
+    meta = {
+        "configuration": traj.config.label,
+        "source": "simulation",
+        "sample_rate_hz": fs / step,
+        "description": description or "synthetic measurement",
+        "counts_per_rev": model.counts_per_rev,
+    }
     return TimeSeries(cols, meta, "<synthetic>")

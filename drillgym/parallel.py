@@ -32,19 +32,32 @@ from __future__ import annotations
 
 import os
 import threading
+from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any
 
 import numpy as np
 
 from .errors import InputError, UnavailableError
 
-__all__ = ["TaskFailed", "RayUnavailable", "LocalExecutor", "RayExecutor", "open_executor", "connect_ray",
-           "map_ordered", "parallelism", "describe_inputs", "RAY_HELP"]
+__all__ = [
+    "TaskFailed",
+    "RayUnavailable",
+    "LocalExecutor",
+    "RayExecutor",
+    "open_executor",
+    "connect_ray",
+    "map_ordered",
+    "parallelism",
+    "describe_inputs",
+    "RAY_HELP",
+]
 
-RAY_HELP = ("run on Ray: 'auto' (a running cluster, started with `ray start --head`), 'local' (start one "
-            "on this machine) or the address of a cluster's head (HOST:PORT or ray://HOST:10001)")
+RAY_HELP = (
+    "run on Ray: 'auto' (a running cluster, started with `ray start --head`), 'local' (start one "
+    "on this machine) or the address of a cluster's head (HOST:PORT or ray://HOST:10001)"
+)
 _ENV_FORWARDED = ("DRILLGYM_KERNEL_CACHE", "DRILLGYM_SIMD")
 
 
@@ -91,21 +104,24 @@ def _first_line(exc: BaseException) -> str:
 
 def _short(value: Any, limit: int = 60) -> str:
     if isinstance(value, np.ndarray):
-        text = (np.array2string(value.ravel()[:4], precision=4, separator=",")[:-1] + (",...]" if value.size > 4 else "]")
-                if value.size else "[]")
+        text = (
+            np.array2string(value.ravel()[:4], precision=4, separator=",")[:-1] + (",...]" if value.size > 4 else "]")
+            if value.size
+            else "[]"
+        )
         return f"array{tuple(value.shape)} {text}"
     if isinstance(value, (list, tuple)) and len(value) > 6:
         inner = ", ".join(_short(v, 12) for v in value[:4])
         return f"{type(value).__name__}[{len(value)}]({inner}, ...)"
     text = repr(value)
-    return text if len(text) <= limit else text[:limit - 3] + "..."
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def describe_inputs(args: tuple, kwargs: dict, limit: int = 400) -> str:
     """A one-line description of a task's inputs (long values shortened)."""
     parts = [_short(a) for a in args] + [f"{k}={_short(v)}" for k, v in kwargs.items()]
     text = ", ".join(parts)
-    return text if len(text) <= limit else text[:limit - 3] + "..."
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 # --------------------------------------------------------------------------------------------- local
@@ -155,8 +171,12 @@ class LocalExecutor(Executor):
                 self._renew(pool)
                 self._launch(outer, fn, args, kwargs, attempt + 1)
             elif isinstance(exc, BrokenProcessPool):
-                _settle(outer, error=TaskFailed(fn, args, kwargs, "its worker process died (killed or out of "
-                                                                  "memory)", attempts=attempt))
+                _settle(
+                    outer,
+                    error=TaskFailed(
+                        fn, args, kwargs, "its worker process died (killed or out of memory)", attempts=attempt
+                    ),
+                )
             else:
                 _settle(outer, error=TaskFailed(fn, args, kwargs, exc, attempts=attempt))
 
@@ -207,7 +227,9 @@ def connect_ray(address: str, *, num_cpus: int | None = None) -> bool:
         ray.init(address=address, **kw)
     except ConnectionError as exc:
         where = "no Ray cluster is running on this machine" if address == "auto" else f"no Ray cluster at {address}"
-        raise RayUnavailable(f"--ray {address}: {where} (start one with `ray start --head`, or use --ray local)") from exc
+        raise RayUnavailable(
+            f"--ray {address}: {where} (start one with `ray start --head`, or use --ray local)"
+        ) from exc
     except (ValueError, RuntimeError) as exc:
         raise RayUnavailable(f"--ray {address}: cannot connect: {_first_line(exc)}") from exc
     return False
@@ -235,13 +257,16 @@ class RayExecutor(Executor):
     ``retries`` times; an exception raised by the task becomes :class:`TaskFailed`. ``shutdown``
     stops the Ray instance when this executor started it (``'local'``)."""
 
-    def __init__(self, address: str | None = "local", *, workers: int | None = None, retries: int = 2,
-                 cpus_per_task: float = 1.0):
+    def __init__(
+        self, address: str | None = "local", *, workers: int | None = None, retries: int = 2, cpus_per_task: float = 1.0
+    ):
         self.address = address
         self._owns = connect_ray(address, num_cpus=workers) if address is not None else False
         if address is None and not _ray().is_initialized():  # else Ray would start an instance of its own
-            raise RayUnavailable("RayExecutor(None) needs a connected Ray: give an address ('local', 'auto', "
-                                 "HOST:PORT) or call connect_ray first")
+            raise RayUnavailable(
+                "RayExecutor(None) needs a connected Ray: give an address ('local', 'auto', "
+                "HOST:PORT) or call connect_ray first"
+            )
         self.retries = int(retries)
         self.cpus_per_task = float(cpus_per_task)
         self._refs: dict = {}
@@ -258,8 +283,11 @@ class RayExecutor(Executor):
         if self._closed:
             raise RuntimeError("cannot submit to a RayExecutor after shutdown")
         ray = _ray()
-        ref = _remote().options(num_cpus=self.cpus_per_task, max_retries=self.retries,
-                                retry_exceptions=False).remote(fn, args, kwargs)
+        ref = (
+            _remote()
+            .options(num_cpus=self.cpus_per_task, max_retries=self.retries, retry_exceptions=False)
+            .remote(fn, args, kwargs)
+        )
         outer: Future = Future()
         with self._lock:
             self._refs[id(outer)] = ref
@@ -331,8 +359,13 @@ def parallelism(executor: Executor | None) -> int:
     return int(n) if n else (os.cpu_count() or 1)
 
 
-def map_ordered(executor: Executor | None, fn: Callable, tasks: Iterable[Sequence[Any]],
-                progress: Callable[[int], None] | None = None, sizes: Sequence[int] | None = None) -> list:
+def map_ordered(
+    executor: Executor | None,
+    fn: Callable,
+    tasks: Iterable[Sequence[Any]],
+    progress: Callable[[int], None] | None = None,
+    sizes: Sequence[int] | None = None,
+) -> list:
     """``[fn(*t) for t in tasks]`` on ``executor`` (None: in this process), results in task order.
 
     Parameters

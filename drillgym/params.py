@@ -17,10 +17,11 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from types import SimpleNamespace
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -28,8 +29,8 @@ from .errors import ParameterError
 
 __all__ = ["RigParams", "ParameterError", "PARAM_INFO", "IDX", "N_PARAMS", "BASE_PARAMETERS"]
 
-def _p(value: float, unit: str, source: str, lo: float = -math.inf, hi: float = math.inf,
-       doc: str = "") -> Any:
+
+def _p(value: float, unit: str, source: str, lo: float = -math.inf, hi: float = math.inf, doc: str = "") -> Any:
     return field(default=value, metadata={"unit": unit, "source": source, "lo": lo, "hi": hi, "doc": doc})
 
 
@@ -123,6 +124,7 @@ class RigParams:
     k: float = _p(2974.25, "N/m", "table 3.6", 1e-6, 1e7, "lateral stiffness")
     b: float = _p(25.0, "N s/m", "table 3.6", 0.0, 1e5, "lateral viscous damping")
     e: float = _p(0.0048917, "m", "table 3.6", 0.0, 0.05, "mass unbalance eccentricity")
+
     # ------------------------------------------------------------------ API
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -144,11 +146,11 @@ class RigParams:
             raise ParameterError(f"parameter 'dTcu' = {self.dTcu}: |dTcu| must not exceed Tcu = {self.Tcu}")
 
     @classmethod
-    def default(cls) -> "RigParams":
+    def default(cls) -> RigParams:
         """The identified parameter set of MODEL.md."""
         return cls()
 
-    def replace(self, **changes: float) -> "RigParams":
+    def replace(self, **changes: float) -> RigParams:
         """A copy with some parameters changed (validated).
 
         Parameters
@@ -171,7 +173,7 @@ class RigParams:
             raise ParameterError(f"unknown parameter(s): {', '.join(sorted(unknown))}")
         return replace(self, **changes)
 
-    def scaled(self, **factors: float) -> "RigParams":
+    def scaled(self, **factors: float) -> RigParams:
         """A copy with parameters multiplied by factors, e.g. ``scaled(Ts=1.2, Tc=1.2)``.
 
         Parameters
@@ -191,7 +193,7 @@ class RigParams:
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any], *, source: str = "mapping", partial: bool = False) -> "RigParams":
+    def from_dict(cls, data: Mapping[str, Any], *, source: str = "mapping", partial: bool = False) -> RigParams:
         """Build from a mapping of parameter names to numbers.
 
         Parameters
@@ -236,7 +238,7 @@ class RigParams:
             raise ParameterError(f"{source}: {exc}") from None
 
     @classmethod
-    def from_file(cls, path: str | Path, *, partial: bool = True) -> "RigParams":
+    def from_file(cls, path: str | Path, *, partial: bool = True) -> RigParams:
         """Load from JSON (``.json``) or YAML (``.yaml``/``.yml``).
 
         Parameters
@@ -273,8 +275,9 @@ class RigParams:
         except Exception as exc:  # noqa: BLE001 - report any parse error with the file name
             from .io import describe_parse_error
 
-            raise ParameterError(f"{path}: not valid {path.suffix.lstrip('.') or 'JSON'}: "
-                                 f"{describe_parse_error(exc)}") from None
+            raise ParameterError(
+                f"{path}: not valid {path.suffix.lstrip('.') or 'JSON'}: {describe_parse_error(exc)}"
+            ) from None
         return cls.from_dict(data, source=str(path), partial=partial)
 
     def to_file(self, path: str | Path) -> Path:
@@ -305,7 +308,7 @@ class RigParams:
         return np.array([getattr(self, n) for n in PARAM_NAMES], dtype=np.float64)
 
     @classmethod
-    def from_vector(cls, vec: np.ndarray) -> "RigParams":
+    def from_vector(cls, vec: np.ndarray) -> RigParams:
         """Build from a flat vector in the kernel layout (the inverse of :meth:`to_vector`)."""
         vec = np.asarray(vec, dtype=float)
         if vec.shape != (N_PARAMS,):

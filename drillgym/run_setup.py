@@ -19,8 +19,18 @@ from .errors import InputError
 from .params import RigParams
 from .trajectory import column_index
 
-__all__ = ["InputLike", "ParamsLike", "DEFAULT_SMOOTH_EPS", "initial_state", "input_matrix", "delay_lines",
-           "initial_states", "friction_eps", "record_columns", "optional_args"]
+__all__ = [
+    "InputLike",
+    "ParamsLike",
+    "DEFAULT_SMOOTH_EPS",
+    "initial_state",
+    "input_matrix",
+    "delay_lines",
+    "initial_states",
+    "friction_eps",
+    "record_columns",
+    "optional_args",
+]
 
 #: a motor command: a scalar, one value per run, per-step values, a ``(t, u)`` table or a function of time
 InputLike = float | Sequence[float] | np.ndarray | tuple | Callable[[np.ndarray], np.ndarray]
@@ -29,8 +39,16 @@ ParamsLike = RigParams | Sequence[RigParams] | np.ndarray | None
 DEFAULT_SMOOTH_EPS = 1e-3  # rad/s, for friction="smooth"
 
 
-def initial_state(alpha0: float = 0.0, theta_u0: float = 0.0, omega_u0: float = 0.0, omega_l0: float = 0.0,
-                  x0: float = 0.0, y0: float = 0.0, vx0: float = 0.0, vy0: float = 0.0) -> np.ndarray:
+def initial_state(
+    alpha0: float = 0.0,
+    theta_u0: float = 0.0,
+    omega_u0: float = 0.0,
+    omega_l0: float = 0.0,
+    x0: float = 0.0,
+    y0: float = 0.0,
+    vx0: float = 0.0,
+    vy0: float = 0.0,
+) -> np.ndarray:
     """A mechanical state vector (see :mod:`drillgym.configurations`).
 
     Effect states, when a composition has any, start at 0.
@@ -145,13 +163,15 @@ def input_matrix(u: InputLike, n_batch: int, n_steps: int, dt: float) -> tuple[n
         raise InputError(f"input has {U.shape[0]} rows for a batch of {n_batch}")
     if not np.all(np.isfinite(U)):
         bad = np.argwhere(~np.isfinite(U))[0]
-        raise InputError(f"input voltage is NaN/inf (trajectory {bad[0]}, {'entry' if steps is not None else 'step'} "
-                         f"{bad[1]})")
+        raise InputError(
+            f"input voltage is NaN/inf (trajectory {bad[0]}, {'entry' if steps is not None else 'step'} {bad[1]})"
+        )
     return U, steps
 
 
-def delay_lines(comp: Composition, P: np.ndarray, dt: float,
-                u_before: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def delay_lines(
+    comp: Composition, P: np.ndarray, dt: float, u_before: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Delay lines and their heads for the composition's Delay effects.
 
     Without ``u_before`` the lines are empty (head -1: the first command is taken as held before
@@ -191,8 +211,8 @@ def delay_lines(comp: Composition, P: np.ndarray, dt: float,
             if not np.all(np.isfinite(ub)):
                 raise InputError("u_before contains NaN or inf")
             m = min(ub.shape[1], L)
-            H[:, L - m:] = ub[:, ub.shape[1] - m:]
-            H[:, :L - m] = ub[:, ub.shape[1] - m:ub.shape[1] - m + 1]
+            H[:, L - m :] = ub[:, ub.shape[1] - m :]
+            H[:, : L - m] = ub[:, ub.shape[1] - m : ub.shape[1] - m + 1]
             head[:] = L - 1
     return H, head
 
@@ -236,8 +256,7 @@ def initial_states(comp: Composition, B: int, x0: Any, alpha0: Any) -> np.ndarra
     if given == N_STATE and n > N_STATE:  # mechanical states only: effect states start at 0
         X = np.concatenate([X, np.zeros(X.shape[:-1] + (n - N_STATE,))], axis=-1)
     if X.shape[-1] != n:
-        raise InputError(f"initial state must have {n} entries ({', '.join(comp.full_state_names)}), "
-                         f"got {X.shape[-1]}")
+        raise InputError(f"initial state must have {n} entries ({', '.join(comp.full_state_names)}), got {X.shape[-1]}")
     Y = np.array(np.broadcast_to(X, (B, n)))
     if not np.all(np.isfinite(Y)):
         raise InputError("initial state contains NaN or inf")

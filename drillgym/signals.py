@@ -48,13 +48,23 @@ def _check(duration: float, rate_hz: float, amplitude: float, f_max: float) -> N
 
 def _check_offset(amplitude: float, offset: float) -> None:
     if abs(offset) >= amplitude and offset != 0:
-        raise InputError(f"offset {offset} V must be smaller in size than the amplitude {amplitude} V (the largest "
-                         f"|u|; the signal spans offset ± (amplitude - |offset|))")
+        raise InputError(
+            f"offset {offset} V must be smaller in size than the amplitude {amplitude} V (the largest "
+            f"|u|; the signal spans offset ± (amplitude - |offset|))"
+        )
 
 
-def quasi_random(duration: float, *, rate_hz: float = 1000.0, seed: int | None = 0, amplitude: float = U_MAX,
-                 offset: float = 0.0, f_max: float = 5.0, hold: tuple[float, float] = (0.3, 3.0),
-                 fade_s: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+def quasi_random(
+    duration: float,
+    *,
+    rate_hz: float = 1000.0,
+    seed: int | None = 0,
+    amplitude: float = U_MAX,
+    offset: float = 0.0,
+    f_max: float = 5.0,
+    hold: tuple[float, float] = (0.3, 3.0),
+    fade_s: float = 0.5,
+) -> tuple[np.ndarray, np.ndarray]:
     """The report's quasi-random estimation signal.
 
     Random levels, each held for a random time uniform in ``hold``, then low-passed (zero-phase
@@ -104,7 +114,7 @@ def quasi_random(duration: float, *, rate_hz: float = 1000.0, seed: int | None =
     i = 0
     while i < n:
         k = max(1, int(rng.uniform(*hold) * rate_hz))
-        u[i:i + k] = rng.uniform(-1.0, 1.0)
+        u[i : i + k] = rng.uniform(-1.0, 1.0)
         i += k
     sos = sps.butter(4, f_max, fs=rate_hz, output="sos")
     u = sps.sosfiltfilt(sos, u)
@@ -113,9 +123,17 @@ def quasi_random(duration: float, *, rate_hz: float = 1000.0, seed: int | None =
     return t, _fade_in(t, u, fade_s)
 
 
-def sum_of_sines(duration: float, *, rate_hz: float = 1000.0, seed: int | None = 0, amplitude: float = U_MAX,
-                 offset: float = 0.0, frequencies: tuple[float, ...] = (0.05, 0.11, 0.23, 0.47, 0.9, 1.7),
-                 f_max: float = 5.0, fade_s: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+def sum_of_sines(
+    duration: float,
+    *,
+    rate_hz: float = 1000.0,
+    seed: int | None = 0,
+    amplitude: float = U_MAX,
+    offset: float = 0.0,
+    frequencies: tuple[float, ...] = (0.05, 0.11, 0.23, 0.47, 0.9, 1.7),
+    f_max: float = 5.0,
+    fade_s: float = 0.5,
+) -> tuple[np.ndarray, np.ndarray]:
     """Sum-of-sines validation signal.
 
     Equal-amplitude sines with seeded random phases, scaled into ``offset ± (amplitude - |offset|)``,
@@ -192,8 +210,11 @@ def write_input_file(path: str | Path, t: np.ndarray, u: np.ndarray, description
     if np.any(np.diff(t) <= 0):
         raise InputError("signal time must be strictly increasing")
     path = Path(path)
-    meta = {"source": "signal", "description": description,
-            "sample_rate_hz": round(float(1.0 / np.median(np.diff(t))), 6) if t.size > 1 else None}
+    meta = {
+        "source": "signal",
+        "description": description,
+        "sample_rate_hz": round(float(1.0 / np.median(np.diff(t))), 6) if t.size > 1 else None,
+    }
     with path.open("w", encoding="utf-8") as fh:
         fh.write(f"# meta: {json.dumps(meta)}\n")
         fh.write("t,u\n")

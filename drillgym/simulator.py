@@ -52,9 +52,23 @@ from .run_setup import (
 )
 from .trajectory import BatchTrajectory, Trajectory
 
-__all__ = ["simulate", "simulate_batch", "Trajectory", "BatchTrajectory", "BatchSimulator", "initial_state",
-           "InputLike", "ParamsLike", "LANE_BLOCK", "LANES_MIN_BATCH", "DEFAULT_SMOOTH_EPS", "block_width",
-           "lane_chunks", "pad_lanes", "run_lanes"]
+__all__ = [
+    "simulate",
+    "simulate_batch",
+    "Trajectory",
+    "BatchTrajectory",
+    "BatchSimulator",
+    "initial_state",
+    "InputLike",
+    "ParamsLike",
+    "LANE_BLOCK",
+    "LANES_MIN_BATCH",
+    "DEFAULT_SMOOTH_EPS",
+    "block_width",
+    "lane_chunks",
+    "pad_lanes",
+    "run_lanes",
+]
 
 _input_matrix = input_matrix  # the name the integrator tests import
 
@@ -79,14 +93,29 @@ def _batch_size(n_batch, x0, alpha0, params, u, n_steps: int) -> int:
     return max(max(sizes), 1)
 
 
-def simulate_batch(config: str | Configuration, u: InputLike, duration: float, *, dt: float = DEFAULT_DT,
-                   params: ParamsLike = None, x0: np.ndarray | None = None, alpha0: float | Sequence[float] = 0.0,
-                   n_batch: int | None = None, method: str = "rk4", record_every: int = 1,
-                   friction: str = "exact", smooth_eps: float = DEFAULT_SMOOTH_EPS,
-                   parallel: bool = False, effects: Any = None,
-                   effect_params: Mapping[str, float] | None = None, t0: float | Sequence[float] = 0.0,
-                   u_before: np.ndarray | None = None, record: Sequence[str] | None = None,
-                   rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL) -> BatchTrajectory:
+def simulate_batch(
+    config: str | Configuration,
+    u: InputLike,
+    duration: float,
+    *,
+    dt: float = DEFAULT_DT,
+    params: ParamsLike = None,
+    x0: np.ndarray | None = None,
+    alpha0: float | Sequence[float] = 0.0,
+    n_batch: int | None = None,
+    method: str = "rk4",
+    record_every: int = 1,
+    friction: str = "exact",
+    smooth_eps: float = DEFAULT_SMOOTH_EPS,
+    parallel: bool = False,
+    effects: Any = None,
+    effect_params: Mapping[str, float] | None = None,
+    t0: float | Sequence[float] = 0.0,
+    u_before: np.ndarray | None = None,
+    record: Sequence[str] | None = None,
+    rtol: float = DEFAULT_RTOL,
+    atol: float = DEFAULT_ATOL,
+) -> BatchTrajectory:
     """Simulate B runs in one compiled call.
 
     Parameters
@@ -188,32 +217,83 @@ def simulate_batch(config: str | Configuration, u: InputLike, duration: float, *
     # seen through data (B, n_samples, n_columns) as a transposed view; the scalar paths store run by run
     OUT = np.empty((n_rec, len(names), B)).transpose(2, 0, 1) if lanes else np.empty((B, n_rec, len(names)))
     if adaptive:
-        args = (Y, MODE, U, P, int(cfg), float(dt), T0, eps, A, b, c, int(record_every), OUT, True, n_steps, HIST, HEAD,
-                float(rtol), float(atol))
+        args = (
+            Y,
+            MODE,
+            U,
+            P,
+            int(cfg),
+            float(dt),
+            T0,
+            eps,
+            A,
+            b,
+            c,
+            int(record_every),
+            OUT,
+            True,
+            n_steps,
+            HIST,
+            HEAD,
+            float(rtol),
+            float(atol),
+        )
         k.stepping.run_batch_adaptive(*args, *optional_args(COLS, USTEP, OUT.shape[2]))
     elif lanes:
-        run_lanes(k.lanes.lanes_run, Y, MODE, U, P, int(cfg), float(dt), int(record_every), OUT.transpose(1, 2, 0),
-                  n_steps, parallel, HIST, HEAD, T0, COLS, USTEP, (A, b, c))
+        run_lanes(
+            k.lanes.lanes_run,
+            Y,
+            MODE,
+            U,
+            P,
+            int(cfg),
+            float(dt),
+            int(record_every),
+            OUT.transpose(1, 2, 0),
+            n_steps,
+            parallel,
+            HIST,
+            HEAD,
+            T0,
+            COLS,
+            USTEP,
+            (A, b, c),
+        )
     else:
         runner = k.stepping.run_batch_parallel if parallel else k.stepping.run_batch_serial
         args = (Y, MODE, U, P, int(cfg), float(dt), T0, eps, A, b, c, int(record_every), OUT, True, n_steps, HIST, HEAD)
         runner(*args, *optional_args(COLS, USTEP, OUT.shape[2]))
     if not np.all(np.isfinite(Y)):
         bad = int(np.argwhere(~np.all(np.isfinite(Y), axis=1))[0, 0])
-        raise SimulationError(f"trajectory {bad} diverged (NaN/inf state) with the model {comp.label!r}: "
-                              f"check the effects' formulas and parameter values")
+        raise SimulationError(
+            f"trajectory {bad} diverged (NaN/inf state) with the model {comp.label!r}: "
+            f"check the effects' formulas and parameter values"
+        )
     keep = B <= 64 or params is not None
     plist = [RigParams.from_vector(P[i, :N_PARAMS]) for i in range(B)] if keep else [RigParams()] * B
     vlist = [comp.split(P[i])[1] for i in range(B)] if keep else [dict(values)] * B
     return BatchTrajectory(cfg, plist, float(dt), method, OUT, comp, vlist, names if record is not None else None)
 
 
-def simulate(config: str | Configuration, u: InputLike, duration: float, *, dt: float = DEFAULT_DT,
-             params: RigParams | None = None, x0: np.ndarray | None = None, alpha0: float = 0.0,
-             method: str = "rk4", record_every: int = 1, friction: str = "exact",
-             smooth_eps: float = DEFAULT_SMOOTH_EPS, effects: Any = None,
-             effect_params: Mapping[str, float] | None = None, record: Sequence[str] | None = None,
-             rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL) -> Trajectory:
+def simulate(
+    config: str | Configuration,
+    u: InputLike,
+    duration: float,
+    *,
+    dt: float = DEFAULT_DT,
+    params: RigParams | None = None,
+    x0: np.ndarray | None = None,
+    alpha0: float = 0.0,
+    method: str = "rk4",
+    record_every: int = 1,
+    friction: str = "exact",
+    smooth_eps: float = DEFAULT_SMOOTH_EPS,
+    effects: Any = None,
+    effect_params: Mapping[str, float] | None = None,
+    record: Sequence[str] | None = None,
+    rtol: float = DEFAULT_RTOL,
+    atol: float = DEFAULT_ATOL,
+) -> Trajectory:
     """Simulate one run of the rig.
 
     Parameters
@@ -266,8 +346,9 @@ def simulate(config: str | Configuration, u: InputLike, duration: float, *, dt: 
     """
     if params is not None and not isinstance(params, RigParams):
         if not (isinstance(params, np.ndarray) and params.ndim == 1):
-            raise InputTypeError("simulate() takes one RigParams (or one parameter vector); use simulate_batch for "
-                                 "several")
+            raise InputTypeError(
+                "simulate() takes one RigParams (or one parameter vector); use simulate_batch for several"
+            )
         params = params[None, :]
     if x0 is not None and np.ndim(x0) != 1:
         raise InputError("simulate() takes one initial state")
@@ -275,7 +356,23 @@ def simulate(config: str | Configuration, u: InputLike, duration: float, *, dt: 
         raise InputError("simulate() takes a scalar or one input sequence; use simulate_batch for several")
     if not callable(u) and not isinstance(u, tuple) and np.ndim(u) == 1:
         u = np.asarray(u, dtype=np.float64)[None, :]  # one per-step sequence
-    batch = simulate_batch(config, u, duration, dt=dt, params=params, x0=x0, alpha0=alpha0, n_batch=1,
-                           method=method, record_every=record_every, friction=friction, smooth_eps=smooth_eps,
-                           effects=effects, effect_params=effect_params, record=record, rtol=rtol, atol=atol)
+    batch = simulate_batch(
+        config,
+        u,
+        duration,
+        dt=dt,
+        params=params,
+        x0=x0,
+        alpha0=alpha0,
+        n_batch=1,
+        method=method,
+        record_every=record_every,
+        friction=friction,
+        smooth_eps=smooth_eps,
+        effects=effects,
+        effect_params=effect_params,
+        record=record,
+        rtol=rtol,
+        atol=atol,
+    )
     return batch[0]

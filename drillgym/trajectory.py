@@ -186,8 +186,9 @@ class BatchTrajectory:
 
     def __getitem__(self, k: int) -> Trajectory:
         vals = self.effect_values[k] if self.effect_values else {}
-        return Trajectory(self.config, self.params[k], self.dt, self.method, self.data[k], self.composition, vals,
-                          self.names)
+        return Trajectory(
+            self.config, self.params[k], self.dt, self.method, self.data[k], self.composition, vals, self.names
+        )
 
     def __getattr__(self, name: str) -> np.ndarray:
         if "data" in self.__dict__ and "composition" in self.__dict__:

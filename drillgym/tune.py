@@ -18,8 +18,9 @@ bookkeeping goes to ``storage`` (default ``~/ray_results``).
 from __future__ import annotations
 
 import os
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any
 
 from .errors import InputError
 from .parallel import TaskFailed, connect_ray
@@ -52,9 +53,18 @@ def _label(config: Any, index: int) -> str:
     return f"config {index}"
 
 
-def run_trials(fn: Callable[[Any], Any], configs: Sequence[Any], *, ray: str | None = "local",
-               cpus_per_trial: float = 1.0, workers: int | None = None, retries: int = 1,
-               name: str = "drillgym", storage: str | Path | None = None, progress: bool = True) -> list:
+def run_trials(
+    fn: Callable[[Any], Any],
+    configs: Sequence[Any],
+    *,
+    ray: str | None = "local",
+    cpus_per_trial: float = 1.0,
+    workers: int | None = None,
+    retries: int = 1,
+    name: str = "drillgym",
+    storage: str | Path | None = None,
+    progress: bool = True,
+) -> list:
     """``[fn(c) for c in configs]`` as Ray Tune trials; see the module docstring.
 
     Parameters
@@ -90,7 +100,7 @@ def run_trials(fn: Callable[[Any], Any], configs: Sequence[Any], *, ray: str | N
         No config.
     """
     from ray import tune
-    from ray.tune import RunConfig, FailureConfig, TuneConfig
+    from ray.tune import FailureConfig, RunConfig, TuneConfig
 
     configs = list(configs)
     if not configs:
@@ -100,11 +110,16 @@ def run_trials(fn: Callable[[Any], Any], configs: Sequence[Any], *, ray: str | N
         storage_path = str(Path(storage).resolve()) if storage is not None else None
         tuner = tune.Tuner(
             tune.with_resources(_trainable(fn, configs), {"cpu": cpus_per_trial}),
-            param_space={"trial": tune.grid_search([{"index": i, "label": _label(c, i)}
-                                                     for i, c in enumerate(configs)])},
+            param_space={
+                "trial": tune.grid_search([{"index": i, "label": _label(c, i)} for i, c in enumerate(configs)])
+            },
             tune_config=TuneConfig(reuse_actors=False),
-            run_config=RunConfig(name=name, storage_path=storage_path, verbose=1 if progress else 0,
-                                 failure_config=FailureConfig(max_failures=int(retries))),
+            run_config=RunConfig(
+                name=name,
+                storage_path=storage_path,
+                verbose=1 if progress else 0,
+                failure_config=FailureConfig(max_failures=int(retries)),
+            ),
         )
         grid = tuner.fit()
         out: list = [None] * len(configs)

@@ -80,12 +80,15 @@ class RigClient:
         if not self.strict:
             return
         if new_bad:
-            raise LinkCorruptError(f"{self.url}: corrupted data from the firmware rejected "
-                                   f"(CRC mismatches so far: {st.crc_errors}, malformed: {st.malformed}, "
-                                   f"bytes outside frames: {st.garbage_bytes}); stopping")
+            raise LinkCorruptError(
+                f"{self.url}: corrupted data from the firmware rejected "
+                f"(CRC mismatches so far: {st.crc_errors}, malformed: {st.malformed}, "
+                f"bytes outside frames: {st.garbage_bytes}); stopping"
+            )
         if new_gaps:
-            raise LinkSequenceError(f"{self.url}: {new_gaps} frame(s) from the firmware missing "
-                                    f"(sequence number gap); stopping")
+            raise LinkSequenceError(
+                f"{self.url}: {new_gaps} frame(s) from the firmware missing (sequence number gap); stopping"
+            )
 
     def _wait_for(self, want, what: str, sent: float, timeout: float | None = None) -> tuple[P.Message, float]:
         deadline = sent + (self.reply_timeout if timeout is None else timeout)
@@ -103,10 +106,16 @@ class RigClient:
                 return found
             if time.monotonic() >= deadline:
                 st = self.link.parser.stats
-                version = (f"; firmware speaks protocol version(s) {sorted(st.foreign_versions)}, host speaks "
-                           f"{P.PROTOCOL_VERSION}" if st.foreign_versions else "")
-                raise LinkTimeoutError(f"{self.url}: no {what} within {1e3 * (deadline - sent):.0f} ms "
-                                       f"(frame lost or late, or firmware not responding){version}")
+                version = (
+                    f"; firmware speaks protocol version(s) {sorted(st.foreign_versions)}, host speaks "
+                    f"{P.PROTOCOL_VERSION}"
+                    if st.foreign_versions
+                    else ""
+                )
+                raise LinkTimeoutError(
+                    f"{self.url}: no {what} within {1e3 * (deadline - sent):.0f} ms "
+                    f"(frame lost or late, or firmware not responding){version}"
+                )
 
     # ------------------------------------------------------------------ commands
     def identify(self, period_s: float = 0.0, attempts: int = 3) -> P.Config:
@@ -140,14 +149,19 @@ class RigClient:
             try:
                 # the motor is not driven during the handshake (the watchdog arms at the first command): a
                 # loaded host may take its time (0.2 s per attempt failed under a cold test run)
-                cfg, _ = self._wait_for(lambda m: isinstance(m, P.Config), "CONFIG reply to IDENTIFY", sent,
-                                        max(self.reply_timeout, HANDSHAKE_TIMEOUT_S))
+                cfg, _ = self._wait_for(
+                    lambda m: isinstance(m, P.Config),
+                    "CONFIG reply to IDENTIFY",
+                    sent,
+                    max(self.reply_timeout, HANDSHAKE_TIMEOUT_S),
+                )
             except LinkTimeoutError as exc:
                 last = exc
                 continue
             if cfg.protocol_version != P.PROTOCOL_VERSION:
-                raise LinkError(f"{self.url}: firmware protocol version {cfg.protocol_version}, host speaks "
-                                f"{P.PROTOCOL_VERSION}")
+                raise LinkError(
+                    f"{self.url}: firmware protocol version {cfg.protocol_version}, host speaks {P.PROTOCOL_VERSION}"
+                )
             self.config = cfg
             return cfg
         raise last  # type: ignore[misc]
@@ -180,8 +194,9 @@ class RigClient:
         """
         sent = time.monotonic()
         seq = self.link.send(P.SetVoltage(float(volts)))
-        sample, t = self._wait_for(lambda m: isinstance(m, P.Sample) and m.ack_seq == seq,
-                                   f"SAMPLE reply to SET_VOLTAGE seq {seq}", sent)
+        sample, t = self._wait_for(
+            lambda m: isinstance(m, P.Sample) and m.ack_seq == seq, f"SAMPLE reply to SET_VOLTAGE seq {seq}", sent
+        )
         stop, self._pending_stop = self._pending_stop, None
         return Reply(sample, sent, t, stop)
 
@@ -240,10 +255,10 @@ class RigClient:
             sent = time.monotonic()
             seq = self.link.send(P.EmergencyStop(int(P.StopReason.HOST)))
             try:
-                self._wait_for(lambda m, seq=seq: isinstance(m, P.Ack) and m.acked_seq == seq,
-                               "ACK of EMERGENCY_STOP", sent)
+                self._wait_for(
+                    lambda m, seq=seq: isinstance(m, P.Ack) and m.acked_seq == seq, "ACK of EMERGENCY_STOP", sent
+                )
                 return k
             except LinkTimeoutError as exc:
                 last = exc
         raise last  # type: ignore[misc]
-

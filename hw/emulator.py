@@ -23,9 +23,10 @@ import select
 import threading
 import time
 import tty
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from drillgym import RigParams
 from drillgym.errors import InputError, OutputPathError
@@ -67,7 +68,7 @@ class _Timed:
     order: int
     data: object = field(compare=False)  # bytes to send, or a held Frame
 
-    def __lt__(self, other: "_Timed") -> bool:
+    def __lt__(self, other: _Timed) -> bool:
         return (self.due, self.order) < (other.due, other.order)
 
 
@@ -109,16 +110,39 @@ class RigEmulator:
         e.g. ``drillgym rig emulate`` prints them with a time stamp.
     """
 
-    def __init__(self, configuration: str = "torsional", params: RigParams | None = None,
-                 firmware: FirmwareConfig | None = None, *, effects: Any = None,
-                 effect_params: Mapping[str, float] | None = None, dt: float = 1e-3, method: str = "rk4",
-                 alpha0: float = 0.0, lvdt_noise_std: float = 0.0, seed: int | None = 0, latency_s: float = 0.0,
-                 jitter_s: float = 0.0, faults: FaultPlan | None = None, link_path: str | Path | None = None,
-                 log=None) -> None:
+    def __init__(
+        self,
+        configuration: str = "torsional",
+        params: RigParams | None = None,
+        firmware: FirmwareConfig | None = None,
+        *,
+        effects: Any = None,
+        effect_params: Mapping[str, float] | None = None,
+        dt: float = 1e-3,
+        method: str = "rk4",
+        alpha0: float = 0.0,
+        lvdt_noise_std: float = 0.0,
+        seed: int | None = 0,
+        latency_s: float = 0.0,
+        jitter_s: float = 0.0,
+        faults: FaultPlan | None = None,
+        link_path: str | Path | None = None,
+        log=None,
+    ) -> None:
         if latency_s < 0 or jitter_s < 0:
             raise InputError(f"latency_s and jitter_s must be >= 0 s, got {latency_s!r}, {jitter_s!r}")
-        self.firmware = Firmware(configuration, params, firmware, effects=effects, effect_params=effect_params, dt=dt,
-                                 method=method, alpha0=alpha0, lvdt_noise_std=lvdt_noise_std, seed=seed)
+        self.firmware = Firmware(
+            configuration,
+            params,
+            firmware,
+            effects=effects,
+            effect_params=effect_params,
+            dt=dt,
+            method=method,
+            alpha0=alpha0,
+            lvdt_noise_std=lvdt_noise_std,
+            seed=seed,
+        )
         self.firmware.on_log = log
         self.latency_s = float(latency_s)
         self.jitter_s = float(jitter_s)
@@ -159,12 +183,13 @@ class RigEmulator:
             except OSError as exc:
                 os.close(self._master)
                 os.close(self._slave)
-                raise OutputPathError(f"{self.link_path}: cannot link it to the pseudo-terminal {self.port} "
-                                      f"({exc.strerror})") from None
-        self._threads = [threading.Thread(target=self._guard, args=(self._serial_loop,), name="rig-serial",
-                                          daemon=True),
-                         threading.Thread(target=self._guard, args=(self._timer_loop,), name="rig-timer",
-                                          daemon=True)]
+                raise OutputPathError(
+                    f"{self.link_path}: cannot link it to the pseudo-terminal {self.port} ({exc.strerror})"
+                ) from None
+        self._threads = [
+            threading.Thread(target=self._guard, args=(self._serial_loop,), name="rig-serial", daemon=True),
+            threading.Thread(target=self._guard, args=(self._timer_loop,), name="rig-timer", daemon=True),
+        ]
         for t in self._threads:
             t.start()
         return str(self.link_path) if self.link_path is not None else self.port
@@ -185,7 +210,7 @@ class RigEmulator:
         if self.link_path is not None and self.link_path.is_symlink():
             self.link_path.unlink()
 
-    def __enter__(self) -> "RigEmulator":
+    def __enter__(self) -> RigEmulator:
         self.start()
         return self
 
@@ -241,8 +266,13 @@ class RigEmulator:
     def stats(self) -> dict:
         """Counts for tests and benchmarks."""
         fw = self.firmware
-        return {"commands": fw.commands, "seq_gaps": fw.seq_gaps, "stop_reason": fw.stop_reason,
-                "volts": fw.volts, "faults": dict(self.fault_times)}
+        return {
+            "commands": fw.commands,
+            "seq_gaps": fw.seq_gaps,
+            "stop_reason": fw.stop_reason,
+            "volts": fw.volts,
+            "faults": dict(self.fault_times),
+        }
 
     # ------------------------------------------------------------------ threads
     def _guard(self, loop) -> None:
@@ -319,7 +349,7 @@ class RigEmulator:
             if self.faults.delay_command == nxt:
                 self.fault_times["delay_command"] = now
         if self._rx_held or (frame.type == P.MsgType.SET_VOLTAGE and self.faults.delay_command == nxt):
-            due = (self._rx_held[-1].due if self._rx_held else now + self.faults.delay_s)
+            due = self._rx_held[-1].due if self._rx_held else now + self.faults.delay_s
             self._order += 1
             self._rx_held.append(_Timed(due, self._order, frame))
             return

@@ -56,8 +56,20 @@ from .safety import SafetyLimits, VoltageLimiter, check_limits
 __all__ = ["HardwareEnv", "HARDWARE_FIXED_OPTIONS"]
 
 #: EnvOptions that describe the simulated plant; on hardware they are properties of the rig.
-HARDWARE_FIXED_OPTIONS = ("params", "randomize", "randomize_names", "effects", "effect_params", "dt", "method",
-                          "friction", "alpha0_range", "lvdt_noise_std", "counts_per_rev", "render_history")
+HARDWARE_FIXED_OPTIONS = (
+    "params",
+    "randomize",
+    "randomize_names",
+    "effects",
+    "effect_params",
+    "dt",
+    "method",
+    "friction",
+    "alpha0_range",
+    "lvdt_noise_std",
+    "counts_per_rev",
+    "render_history",
+)
 _ROW0 = np.zeros(1, dtype=np.int64)
 #: EMERGENCY_STOP sent this often at an episode's end until the firmware acknowledges it (each waits one reply
 #: timeout); unacknowledged, the firmware watchdog stops the motor.
@@ -144,14 +156,26 @@ class HardwareEnv(gym.Env):
 
     metadata = {"render_modes": []}
 
-    def __init__(self, port: str, configuration: str = "torsional", *, record: str | Path = "recordings",
-                 limits: SafetyLimits | None = None, rest_time: float = 0.2, rest_timeout: float = 30.0,
-                 reply_timeout: float = 0.05, lvdt_cutoff_hz: float = 5.0, flush_interval_s: float = 0.5,
-                 baudrate: int = DEFAULT_BAUDRATE, **options: Any) -> None:
+    def __init__(
+        self,
+        port: str,
+        configuration: str = "torsional",
+        *,
+        record: str | Path = "recordings",
+        limits: SafetyLimits | None = None,
+        rest_time: float = 0.2,
+        rest_timeout: float = 30.0,
+        reply_timeout: float = 0.05,
+        lvdt_cutoff_hz: float = 5.0,
+        flush_interval_s: float = 0.5,
+        baudrate: int = DEFAULT_BAUDRATE,
+        **options: Any,
+    ) -> None:
         fixed = sorted(set(options) & set(HARDWARE_FIXED_OPTIONS))
         if fixed:
-            raise InputError(f"option(s) {fixed} do not apply to the hardware environment (properties of the rig "
-                             f"or its firmware)")
+            raise InputError(
+                f"option(s) {fixed} do not apply to the hardware environment (properties of the rig or its firmware)"
+            )
         if not (rest_time > 0 and rest_timeout > rest_time):
             raise InputError(f"need 0 < rest_time < rest_timeout, got {rest_time!r}, {rest_timeout!r}")
         self.limits = limits or SafetyLimits()
@@ -169,10 +193,12 @@ class HardwareEnv(gym.Env):
             if reply_timeout is None:  # wait as long as the firmware keeps the motor going without a command
                 self._reply_timeout = self._client.reply_timeout = min(cfg.watchdog_ms * 1e-3, 1.0)
             if abs(cfg.period_s - control_dt) > 1e-9:
-                raise InputError(f"the firmware on {self.port} runs a {cfg.period_s} s control period and refused "
-                                 f"{control_dt} s")
-            self.options = EnvOptions.from_kwargs(configuration=configuration, counts_per_rev=cfg.counts_per_rev,
-                                                  lvdt_noise_std=0.0, **options)
+                raise InputError(
+                    f"the firmware on {self.port} runs a {cfg.period_s} s control period and refused {control_dt} s"
+                )
+            self.options = EnvOptions.from_kwargs(
+                configuration=configuration, counts_per_rev=cfg.counts_per_rev, lvdt_noise_std=0.0, **options
+            )
         except BaseException:
             self._finalizer()
             raise
@@ -243,11 +269,15 @@ class HardwareEnv(gym.Env):
             reply = self._client.exchange(volts)
         except LinkError as exc:
             self._on_fault(exc)
-            kept = (f"recording kept up to the fault: {self.recording}" if self.recording is not None else
-                    "nothing recorded yet (the fault came before the episode's first sample, while the rig was "
-                    "brought to rest at 0 V)")
-            raise type(exc)(f"{exc}; motor stop requested (firmware watchdog: {self.firmware.watchdog_ms} ms), "
-                            f"{kept}") from exc
+            kept = (
+                f"recording kept up to the fault: {self.recording}"
+                if self.recording is not None
+                else "nothing recorded yet (the fault came before the episode's first sample, while the rig was "
+                "brought to rest at 0 V)"
+            )
+            raise type(exc)(
+                f"{exc}; motor stop requested (firmware watchdog: {self.firmware.watchdog_ms} ms), {kept}"
+            ) from exc
         self.last_reply = reply
         return reply
 
@@ -284,19 +314,33 @@ class HardwareEnv(gym.Env):
         cu, cl = self._cu.update(s.counts_u), self._cl.update(s.counts_l)
         tu, tl = (float(a) for a in counts_to_angle(np.array([cu, cl]), cpr))
         xy, xy_lp = self._lvdt.update(s.lvdt_x, s.lvdt_y)
-        return {"t": (s.timestamp_us - self._t0_us) * 1e-6, "u": s.volts, "theta_u": tu, "theta_l": tl,
-                "x": xy[0], "y": xy[1], "x_lp": xy_lp[0], "y_lp": xy_lp[1], "counts_u": cu, "counts_l": cl,
-                "lvdt_x_raw": s.lvdt_x, "lvdt_y_raw": s.lvdt_y, "status": int(s.status),
-                "t_host": reply.received - self._t0_host}
+        return {
+            "t": (s.timestamp_us - self._t0_us) * 1e-6,
+            "u": s.volts,
+            "theta_u": tu,
+            "theta_l": tl,
+            "x": xy[0],
+            "y": xy[1],
+            "x_lp": xy_lp[0],
+            "y_lp": xy_lp[1],
+            "counts_u": cu,
+            "counts_l": cl,
+            "lvdt_x_raw": s.lvdt_x,
+            "lvdt_y_raw": s.lvdt_y,
+            "status": int(s.status),
+            "t_host": reply.received - self._t0_host,
+        }
 
-    def _measured_state(self, m: dict[str, float], omega: np.ndarray, dxy: np.ndarray, angle_shift: float = 0.0) -> None:
+    def _measured_state(
+        self, m: dict[str, float], omega: np.ndarray, dxy: np.ndarray, angle_shift: float = 0.0
+    ) -> None:
         """Fill the state-shaped array the envs' reward/task/'full' observation read, from measurements."""
         Y = self._Y[0]
         Y[0], Y[1] = m["theta_u"] + angle_shift, m["theta_l"] + angle_shift
         Y[2], Y[3] = omega
         c, s = math.cos(Y[0]), math.sin(Y[0])
         X, Yf = m["x_lp"], m["y_lp"]
-        Y[4], Y[5] = X * c + Yf * s, -X * s + Yf * c   # rotating frame
+        Y[4], Y[5] = X * c + Yf * s, -X * s + Yf * c  # rotating frame
         vbx, vby = dxy[0] * c + dxy[1] * s, -dxy[0] * s + dxy[1] * c
         Y[6], Y[7] = vbx + Y[2] * Y[5], vby - Y[2] * Y[4]
 
@@ -382,14 +426,25 @@ class HardwareEnv(gym.Env):
         self.limiter.reset(0.0)
         self._u_prev[0] = 0.0
         self._steps = 0
-        meta = {"configuration": o.configuration, "source": "emulator" if self.firmware.name.startswith("drillgym-emu")
-                else "rig", "sample_rate_hz": 1.0 / o.control_dt, "description": f"hardware episode {self._episode}",
-                "port": self.port, "firmware_id": self.firmware.name, "protocol_version": P.PROTOCOL_VERSION,
-                "counts_per_rev": self.firmware.counts_per_rev, "lvdt_m_per_lsb": self.firmware.lvdt_m_per_lsb,
-                "lvdt_offset_m": self._lvdt.offset.tolist(), "lvdt_cutoff_hz": self.lvdt_cutoff_hz,
-                "omega_ref": float(self._omega_ref[0]), "seed": seed, "observation": o.observation}
-        self.recorder = EpisodeRecorder(episode_path(self.record, self._episode), o.lateral, meta,
-                                        self.flush_interval_s)
+        meta = {
+            "configuration": o.configuration,
+            "source": "emulator" if self.firmware.name.startswith("drillgym-emu") else "rig",
+            "sample_rate_hz": 1.0 / o.control_dt,
+            "description": f"hardware episode {self._episode}",
+            "port": self.port,
+            "firmware_id": self.firmware.name,
+            "protocol_version": P.PROTOCOL_VERSION,
+            "counts_per_rev": self.firmware.counts_per_rev,
+            "lvdt_m_per_lsb": self.firmware.lvdt_m_per_lsb,
+            "lvdt_offset_m": self._lvdt.offset.tolist(),
+            "lvdt_cutoff_hz": self.lvdt_cutoff_hz,
+            "omega_ref": float(self._omega_ref[0]),
+            "seed": seed,
+            "observation": o.observation,
+        }
+        self.recorder = EpisodeRecorder(
+            episode_path(self.record, self._episode), o.lateral, meta, self.flush_interval_s
+        )
         self._pending = None
         self._record(m, 0.0, np.zeros(2))
         self._running = True
@@ -414,8 +469,10 @@ class HardwareEnv(gym.Env):
                 return window[-n_rest:]
             if time.monotonic() > t_end:
                 self._on_fault(SafetyError("rig not at rest"))
-                raise SafetyError(f"the rig did not come to rest at 0 V within {self.rest_timeout} s "
-                                  f"(encoders still moving, or the firmware keeps the motor stopped)")
+                raise SafetyError(
+                    f"the rig did not come to rest at 0 V within {self.rest_timeout} s "
+                    f"(encoders still moving, or the firmware keeps the motor stopped)"
+                )
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
         """Send the action's voltage (clamped and slew-limited) and wait for the control period's sample.
@@ -476,11 +533,15 @@ class HardwareEnv(gym.Env):
                 why = reply.stop if reply.stop is not None else self._client.stop_reason()
             except LinkError:  # the link failed while the motor is stopped anyway: the status bits tell enough
                 why = None
-            stop = why.name if why is not None else (
-                "WATCHDOG" if reply.sample.status & P.Status.WATCHDOG else "FIRMWARE")
+            stop = (
+                why.name if why is not None else ("WATCHDOG" if reply.sample.status & P.Status.WATCHDOG else "FIRMWARE")
+            )
         else:
-            reason = check_limits(self.limits, omega[0], omega[1], m["x"], m["y"]) if o.lateral else \
-                check_limits(self.limits, omega[0], omega[1])
+            reason = (
+                check_limits(self.limits, omega[0], omega[1], m["x"], m["y"])
+                if o.lateral
+                else check_limits(self.limits, omega[0], omega[1])
+            )
             stop = reason.name if reason is not None else None
         terminated = bool(self._unsafe[0]) or stop is not None
         truncated = self._steps >= self.task.max_steps
@@ -497,20 +558,31 @@ class HardwareEnv(gym.Env):
         mode = self.obs_model.mode
         tu, tl = np.array([m["theta_u"]]), np.array([m["theta_l"]])
         if mode == "sensors":
-            self.obs_model.from_readings(tu, tl, np.array([m["x_lp"]]), np.array([m["y_lp"]]), self._u_prev,
-                                         self._omega_ref, self._obs)
+            self.obs_model.from_readings(
+                tu, tl, np.array([m["x_lp"]]), np.array([m["y_lp"]]), self._u_prev, self._omega_ref, self._obs
+            )
         elif mode == "motor":
             self.obs_model.from_readings(tu, self._u_prev, self._omega_ref, self._obs)
         else:  # 'full' from the measured state (speeds estimated from the encoders)
             self.obs_model.observe(self._Y, self._u_prev, self._omega_ref, self._obs, [self.np_random])
 
-    def _info(self, m: dict[str, float], omega: np.ndarray, tick_error: float = 0.0,
-              reply: Reply | None = None) -> dict:
-        return {"omega_l": float(omega[1]), "stuck": bool(self._MODE[0, 1] == 0), "friction_torque": math.nan,
-                "stick_slip_severity": float(self.monitor.ssi[0]), "omega_ref": float(self._omega_ref[0]),
-                "voltage": float(m["u"]), "time": float(m["t"]), "measurement": m,
-                "round_trip_s": reply.round_trip if reply is not None else 0.0, "tick_error_s": float(tick_error),
-                "overruns": self.pacer.overruns, "recording": str(self.recording)}
+    def _info(
+        self, m: dict[str, float], omega: np.ndarray, tick_error: float = 0.0, reply: Reply | None = None
+    ) -> dict:
+        return {
+            "omega_l": float(omega[1]),
+            "stuck": bool(self._MODE[0, 1] == 0),
+            "friction_torque": math.nan,
+            "stick_slip_severity": float(self.monitor.ssi[0]),
+            "omega_ref": float(self._omega_ref[0]),
+            "voltage": float(m["u"]),
+            "time": float(m["t"]),
+            "measurement": m,
+            "round_trip_s": reply.round_trip if reply is not None else 0.0,
+            "tick_error_s": float(tick_error),
+            "overruns": self.pacer.overruns,
+            "recording": str(self.recording),
+        }
 
     def close(self) -> None:
         """Motor to 0 V, recording closed, port closed (always; safe to call twice)."""

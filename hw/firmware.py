@@ -20,8 +20,9 @@ frame and the wall-clock time and returns the frames to send back (see :mod:`hw.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -116,14 +117,25 @@ class Firmware:
         Seed of the LVDT noise.
     """
 
-    def __init__(self, configuration: str = "torsional", params: RigParams | None = None,
-                 config: FirmwareConfig | None = None, *, effects: Any = None,
-                 effect_params: Mapping[str, float] | None = None, dt: float = 1e-3, method: str = "rk4",
-                 alpha0: float = 0.0, lvdt_noise_std: float = 0.0, seed: int | None = 0) -> None:
+    def __init__(
+        self,
+        configuration: str = "torsional",
+        params: RigParams | None = None,
+        config: FirmwareConfig | None = None,
+        *,
+        effects: Any = None,
+        effect_params: Mapping[str, float] | None = None,
+        dt: float = 1e-3,
+        method: str = "rk4",
+        alpha0: float = 0.0,
+        lvdt_noise_std: float = 0.0,
+        seed: int | None = 0,
+    ) -> None:
         self.params = params or RigParams()
         self.config = config or FirmwareConfig()
-        self.sim = BatchSimulator(configuration, 1, params=self.params, dt=dt, method=method, effects=effects,
-                                  effect_params=effect_params)
+        self.sim = BatchSimulator(
+            configuration, 1, params=self.params, dt=dt, method=method, effects=effects, effect_params=effect_params
+        )
         self.composition = self.sim.composition
         self.sim.reset(alpha0=alpha0)
         self.sim.advance(np.zeros(1), 0)  # load the compiled kernel now, not at the first command
@@ -135,7 +147,7 @@ class Firmware:
         self._speed.reset(self._angles())
         self.volts = 0.0
         self.stop_reason: P.StopReason | None = None
-        self.armed = False            # a SET_VOLTAGE arrived since the last (re)start: watchdog running
+        self.armed = False  # a SET_VOLTAGE arrived since the last (re)start: watchdog running
         self.last_command: float | None = None
         self._idle_anchor: float | None = None
         self._tx_seq = 0
@@ -161,9 +173,18 @@ class Firmware:
     def config_message(self) -> P.Config:
         """The CONFIG reply to IDENTIFY: protocol version, encoder and LVDT scales, period, limits, id."""
         c, lim = self.config, self.config.limits
-        return P.Config(P.PROTOCOL_VERSION, c.counts_per_rev, c.lvdt_m_per_lsb, int(round(self.period_s * 1e6)),
-                        int(round(c.watchdog_s * 1e3)), lim.v_max, lim.slew_v_per_s, lim.max_speed,
-                        lim.max_displacement, c.firmware_id.encode("ascii"))
+        return P.Config(
+            P.PROTOCOL_VERSION,
+            c.counts_per_rev,
+            c.lvdt_m_per_lsb,
+            int(round(self.period_s * 1e6)),
+            int(round(c.watchdog_s * 1e3)),
+            lim.v_max,
+            lim.slew_v_per_s,
+            lim.max_speed,
+            lim.max_displacement,
+            c.firmware_id.encode("ascii"),
+        )
 
     @property
     def effect_values(self) -> dict[str, float]:
@@ -218,9 +239,14 @@ class Firmware:
             self.on_log(message)
 
     def _stop(self, reason: P.StopReason, now: float, emit: bool = True) -> list[bytes]:
-        self._log(f"motor stopped (0 V, latched): {P.StopReason(reason).name}"
-                  + (f" (no command for {1e3 * (now - self.last_command):.0f} ms)"
-                     if reason == P.StopReason.WATCHDOG and self.last_command is not None else ""))
+        self._log(
+            f"motor stopped (0 V, latched): {P.StopReason(reason).name}"
+            + (
+                f" (no command for {1e3 * (now - self.last_command):.0f} ms)"
+                if reason == P.StopReason.WATCHDOG and self.last_command is not None
+                else ""
+            )
+        )
         self.stop_reason = P.StopReason(reason)
         self.armed = False
         self.limiter.reset(0.0)
@@ -248,8 +274,16 @@ class Firmware:
         if self._gap_flag:
             status |= P.Status.SEQ_GAP
             self._gap_flag = False
-        return P.Sample(ack_seq & 0xFFFF, int(round(float(self.sim.T[0]) * 1e6)), _wrap_i32(cu), _wrap_i32(cl),
-                        _wrap_i32(round(x / s)), _wrap_i32(round(y / s)), self.volts, int(status))
+        return P.Sample(
+            ack_seq & 0xFFFF,
+            int(round(float(self.sim.T[0]) * 1e6)),
+            _wrap_i32(cu),
+            _wrap_i32(cl),
+            _wrap_i32(round(x / s)),
+            _wrap_i32(round(y / s)),
+            self.volts,
+            int(status),
+        )
 
     # ------------------------------------------------------------------ protocol
     def handle(self, frame: P.Frame, now: float) -> list[bytes]:
@@ -267,8 +301,9 @@ class Firmware:
         if isinstance(msg, P.Heartbeat):
             return [self._frame(msg)]
         if isinstance(msg, P.Identify):
-            self._log("host connected: IDENTIFY" + (f" (control period {msg.period_us / 1e3:g} ms)"
-                                                     if msg.period_us else ""))
+            self._log(
+                "host connected: IDENTIFY" + (f" (control period {msg.period_us / 1e3:g} ms)" if msg.period_us else "")
+            )
             if msg.period_us:
                 try:
                     n = self._substeps(msg.period_us * 1e-6)
@@ -324,8 +359,12 @@ class Firmware:
         until the main loop has parsed it, at most one more watchdog period."""
         out: list[bytes] = []
         late = None if self.last_command is None else now - self.last_command
-        if self.armed and late is not None and late >= self.config.watchdog_s and not (
-                rx_pending and late < 2 * self.config.watchdog_s):
+        if (
+            self.armed
+            and late is not None
+            and late >= self.config.watchdog_s
+            and not (rx_pending and late < 2 * self.config.watchdog_s)
+        ):
             # A microcontroller's watchdog is a hardware timer: it fires at its deadline, however late
             # this poll comes (the emulator's timer thread can be starved on a loaded host).  A stop held
             # back by a pending command happens when it is decided, now.

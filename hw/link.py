@@ -26,8 +26,15 @@ except ImportError:  # pragma: no cover - Windows
 
 from . import protocol as P
 
-__all__ = ["LinkError", "LinkLostError", "LinkTimeoutError", "LinkCorruptError", "LinkSequenceError",
-           "SerialLink", "DEFAULT_BAUDRATE"]
+__all__ = [
+    "LinkError",
+    "LinkLostError",
+    "LinkTimeoutError",
+    "LinkCorruptError",
+    "LinkSequenceError",
+    "SerialLink",
+    "DEFAULT_BAUDRATE",
+]
 
 DEFAULT_BAUDRATE = 921600
 
@@ -73,8 +80,9 @@ class SerialLink:
     def __init__(self, url: str, baudrate: int = DEFAULT_BAUDRATE) -> None:
         self.url = str(url)
         if "://" not in self.url and not os.path.exists(self.url):
-            raise MissingFileError(f"serial port {self.url!r} does not exist (is the rig or `drillgym rig emulate` "
-                                    f"running?)")
+            raise MissingFileError(
+                f"serial port {self.url!r} does not exist (is the rig or `drillgym rig emulate` running?)"
+            )
         try:
             self.ser = serial.serial_for_url(self.url, baudrate=baudrate, timeout=0.002, write_timeout=WRITE_TIMEOUT_S)
         except PORT_ERRORS as exc:
@@ -135,7 +143,9 @@ class SerialLink:
             self.ser.write(P.encode(msg, seq))
             self.ser.flush()
         except serial.SerialTimeoutException:
-            raise LinkLostError(f"serial port {self.url!r} not accepting data: write timed out (disconnected, or peer not reading)") from None
+            raise LinkLostError(
+                f"serial port {self.url!r} not accepting data: write timed out (disconnected, or peer not reading)"
+            ) from None
         except PORT_ERRORS as exc:
             raise LinkLostError(f"serial port {self.url!r} disconnected (write failed: {exc})") from None
         return seq

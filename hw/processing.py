@@ -58,8 +58,9 @@ class LvdtProcessor:
             raise InputError("LVDT scale, sample rate and cut-off must be > 0")
         self.scale = float(m_per_lsb)
         self.offset = np.zeros(2)  # m
-        self.sos = (signal.butter(order, cutoff_hz, fs=sample_rate_hz, output="sos")
-                    if cutoff_hz < sample_rate_hz / 2 else None)
+        self.sos = (
+            signal.butter(order, cutoff_hz, fs=sample_rate_hz, output="sos") if cutoff_hz < sample_rate_hz / 2 else None
+        )
         self._zi = None
 
     def calibrate_rest(self, raw_x: np.ndarray, raw_y: np.ndarray) -> np.ndarray:

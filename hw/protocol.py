@@ -27,12 +27,33 @@ from drillgym.errors import DrillgymError
 
 from .crc import crc16
 
-__all__ = ["PROTOCOL_VERSION", "START", "HEADER_SIZE", "MAX_PAYLOAD", "MsgType", "StopReason", "Status",
-           "ProtocolError", "Frame", "Message", "Identify", "SetVoltage", "Heartbeat", "EmergencyStop",
-           "ClearStop", "Config", "Sample", "Ack", "encode", "decode", "FrameParser", "ParserStats"]
+__all__ = [
+    "PROTOCOL_VERSION",
+    "START",
+    "HEADER_SIZE",
+    "MAX_PAYLOAD",
+    "MsgType",
+    "StopReason",
+    "Status",
+    "ProtocolError",
+    "Frame",
+    "Message",
+    "Identify",
+    "SetVoltage",
+    "Heartbeat",
+    "EmergencyStop",
+    "ClearStop",
+    "Config",
+    "Sample",
+    "Ack",
+    "encode",
+    "decode",
+    "FrameParser",
+    "ParserStats",
+]
 
 PROTOCOL_VERSION = 1
-START = b"\xA5\x5A"
+START = b"\xa5\x5a"
 _HEADER = struct.Struct("<2sBBHH")
 HEADER_SIZE = _HEADER.size  # 8 bytes
 CRC_SIZE = 2
@@ -46,34 +67,34 @@ class ProtocolError(DrillgymError, ValueError):
 class MsgType(IntEnum):
     """Message types; 0x0_ are sent by the host, 0x8_ by the firmware."""
 
-    IDENTIFY = 0x01        # host -> fw: request CONFIG, optionally set the control period
-    SET_VOLTAGE = 0x02     # host -> fw: motor voltage; the firmware answers with a SAMPLE
-    HEARTBEAT = 0x03       # both ways: the firmware echoes the token
+    IDENTIFY = 0x01  # host -> fw: request CONFIG, optionally set the control period
+    SET_VOLTAGE = 0x02  # host -> fw: motor voltage; the firmware answers with a SAMPLE
+    HEARTBEAT = 0x03  # both ways: the firmware echoes the token
     EMERGENCY_STOP = 0x04  # both ways: host request, or the firmware reporting a trip
-    CLEAR_STOP = 0x05      # host -> fw: clear a latched stop (the firmware answers with ACK)
-    CONFIG = 0x81          # fw -> host: identification and configuration
-    SAMPLE = 0x82          # fw -> host: one sample at the end of a control period
-    ACK = 0x85             # fw -> host: a command without data reply was executed
+    CLEAR_STOP = 0x05  # host -> fw: clear a latched stop (the firmware answers with ACK)
+    CONFIG = 0x81  # fw -> host: identification and configuration
+    SAMPLE = 0x82  # fw -> host: one sample at the end of a control period
+    ACK = 0x85  # fw -> host: a command without data reply was executed
 
 
 class StopReason(IntEnum):
     """Why the motor was stopped (EMERGENCY_STOP payload)."""
 
-    HOST = 1               # the host asked for it
-    OVERSPEED = 2          # |omega| above the limit
+    HOST = 1  # the host asked for it
+    OVERSPEED = 2  # |omega| above the limit
     OVER_DISPLACEMENT = 3  # LVDT displacement above the limit
-    WATCHDOG = 4           # no SET_VOLTAGE for the watchdog time
-    LINK_LOST = 5          # the serial link went down (USB detach, cable pulled)
+    WATCHDOG = 4  # no SET_VOLTAGE for the watchdog time
+    LINK_LOST = 5  # the serial link went down (USB detach, cable pulled)
 
 
 class Status(IntFlag):
     """Status bits of a SAMPLE."""
 
     OK = 0
-    STOPPED = 1    # a stop is latched: the motor is held at 0 V
-    WATCHDOG = 2   # the latched stop came from the watchdog
-    LIMITED = 4    # the commanded voltage was clamped or slew-limited
-    SEQ_GAP = 8    # the firmware saw a gap in the host's sequence numbers (lost frame)
+    STOPPED = 1  # a stop is latched: the motor is held at 0 V
+    WATCHDOG = 2  # the latched stop came from the watchdog
+    LIMITED = 4  # the commanded voltage was clamped or slew-limited
+    SEQ_GAP = 8  # the firmware saw a gap in the host's sequence numbers (lost frame)
 
 
 @dataclass(frozen=True)
@@ -109,7 +130,7 @@ class Message:
         return self.FORMAT.pack(*astuple(self))
 
     @classmethod
-    def unpack(cls, payload: bytes) -> "Message":
+    def unpack(cls, payload: bytes) -> Message:
         """The message of a payload; ProtocolError when its size is not ``FORMAT.size``."""
         if len(payload) != cls.FORMAT.size:
             raise ProtocolError(f"{cls.TYPE.name} payload has {len(payload)} bytes, expected {cls.FORMAT.size}")
@@ -286,8 +307,9 @@ class Ack(Message):
     acked_seq: int = 0
 
 
-_MESSAGES: dict[int, type[Message]] = {c.TYPE: c for c in (Identify, SetVoltage, Heartbeat, EmergencyStop,
-                                                           ClearStop, Config, Sample, Ack)}
+_MESSAGES: dict[int, type[Message]] = {
+    c.TYPE: c for c in (Identify, SetVoltage, Heartbeat, EmergencyStop, ClearStop, Config, Sample, Ack)
+}
 PAYLOAD_SIZES = {t: c.FORMAT.size for t, c in _MESSAGES.items()}
 assert max(PAYLOAD_SIZES.values()) <= MAX_PAYLOAD
 
@@ -340,11 +362,11 @@ def decode(frame: Frame) -> Message:
 class ParserStats:
     """What the parser threw away (counts)."""
 
-    frames: int = 0            # valid frames returned
-    garbage_bytes: int = 0     # bytes skipped while looking for a start marker
-    bad_headers: int = 0       # length above MAX_PAYLOAD
-    crc_errors: int = 0        # CRC mismatch: a corrupted frame, rejected
-    malformed: int = 0         # CRC fine but unknown type or wrong length for its type
+    frames: int = 0  # valid frames returned
+    garbage_bytes: int = 0  # bytes skipped while looking for a start marker
+    bad_headers: int = 0  # length above MAX_PAYLOAD
+    crc_errors: int = 0  # CRC mismatch: a corrupted frame, rejected
+    malformed: int = 0  # CRC fine but unknown type or wrong length for its type
     foreign_versions: set = field(default_factory=set)  # protocol versions seen but not spoken
 
     @property
@@ -401,7 +423,7 @@ class FrameParser:
             if i < 0:
                 keep = 1 if buf[-1:] == START[:1] else 0
                 st.garbage_bytes += len(buf) - keep
-                del buf[:len(buf) - keep]
+                del buf[: len(buf) - keep]
                 break
             if i:
                 st.garbage_bytes += i
@@ -421,7 +443,7 @@ class FrameParser:
             if len(buf) < total:
                 break
             (crc,) = struct.unpack_from("<H", buf, HEADER_SIZE + n)
-            if crc16(buf[2:HEADER_SIZE + n]) != crc:
+            if crc16(buf[2 : HEADER_SIZE + n]) != crc:
                 st.crc_errors += 1
                 del buf[:1]
                 continue
@@ -429,7 +451,7 @@ class FrameParser:
                 st.foreign_versions.add(version)
                 del buf[:1]
                 continue
-            out.append(Frame(mtype, seq, bytes(buf[HEADER_SIZE:HEADER_SIZE + n]), version))
+            out.append(Frame(mtype, seq, bytes(buf[HEADER_SIZE : HEADER_SIZE + n]), version))
             st.frames += 1
             del buf[:total]
         return out

@@ -21,8 +21,8 @@ import os
 
 __all__ = ["prioritize", "quiet_gc", "lock_memory"]
 
-NICE = -10          # the nice value asked for (needs CAP_SYS_NICE or root)
-RT_PRIORITY = 10    # SCHED_FIFO priority with realtime=True (1..99; low: above every normal process only)
+NICE = -10  # the nice value asked for (needs CAP_SYS_NICE or root)
+RT_PRIORITY = 10  # SCHED_FIFO priority with realtime=True (1..99; low: above every normal process only)
 _MCL_CURRENT, _MCL_FUTURE, _MCL_ONFAULT = 1, 2, 4
 
 
@@ -59,7 +59,9 @@ def _priority(realtime: bool) -> str:
         current = os.getpriority(os.PRIO_PROCESS, 0)
         if current > NICE:
             os.setpriority(os.PRIO_PROCESS, 0, NICE)
-        return f"nice {os.getpriority(os.PRIO_PROCESS, 0)}" + (" (real-time refused: no permission)" if realtime else "")
+        return f"nice {os.getpriority(os.PRIO_PROCESS, 0)}" + (
+            " (real-time refused: no permission)" if realtime else ""
+        )
     except (PermissionError, OSError, AttributeError):
         return "normal (no permission to raise it: see the README's hardware section)"
 

@@ -19,8 +19,8 @@ from __future__ import annotations
 import queue
 import threading
 import time
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Mapping
 
 from drillgym.errors import InputError
 from drillgym.io import StreamingCsvWriter, create_directory

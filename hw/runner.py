@@ -14,16 +14,25 @@ from __future__ import annotations
 
 import importlib
 import zipfile
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any
 
 import numpy as np
 
 from drillgym.errors import DataFormatError, InputError, MissingFileError, UnavailableError
 
-__all__ = ["ConstantController", "PlaybackController", "LinearPolicy", "make_controller", "load_policy", "measurement_of",
-           "run_episode", "EpisodeResult"]
+__all__ = [
+    "ConstantController",
+    "PlaybackController",
+    "LinearPolicy",
+    "make_controller",
+    "load_policy",
+    "measurement_of",
+    "run_episode",
+    "EpisodeResult",
+]
 
 
 class ConstantController:
@@ -108,7 +117,7 @@ class LinearPolicy:
     b: np.ndarray
 
     @classmethod
-    def load(cls, path: str | Path) -> "LinearPolicy":
+    def load(cls, path: str | Path) -> LinearPolicy:
         """The policy in a ``.npz`` with arrays ``W`` and ``b``; InputError when they are missing or disagree."""
         try:
             z = np.load(path, allow_pickle=False)
@@ -139,12 +148,12 @@ def _optional(module: str, what: str):
     try:
         return importlib.import_module(module)
     except ImportError as exc:
-        raise UnavailableError(f"{what} needs the '{module}' package, which cannot be imported ({exc}); "
-                         f"use the built-in ones instead") from None
+        raise UnavailableError(
+            f"{what} needs the '{module}' package, which cannot be imported ({exc}); use the built-in ones instead"
+        ) from None
 
 
-def make_controller(spec: str, configuration: str, omega_ref: float | None, control_dt: float,
-                    params: Any = None):
+def make_controller(spec: str, configuration: str, omega_ref: float | None, control_dt: float, params: Any = None):
     """A controller from its command-line spec.
 
     Parameters
@@ -226,8 +235,14 @@ def load_policy(path: str | Path) -> Callable[[np.ndarray], np.ndarray]:
 def measurement_of(info: Mapping[str, Any]) -> dict[str, float]:
     """The controller measurement (controllers.base.MEASUREMENTS) from a HardwareEnv info dict."""
     m = info["measurement"]
-    return {"t": m["t"], "theta_u": m["theta_u"], "theta_l": m["theta_l"], "x": m["x_lp"], "y": m["y_lp"],
-            "omega_ref": info["omega_ref"]}
+    return {
+        "t": m["t"],
+        "theta_u": m["theta_u"],
+        "theta_l": m["theta_l"],
+        "x": m["x_lp"],
+        "y": m["y_lp"],
+        "omega_ref": info["omega_ref"],
+    }
 
 
 @dataclass
@@ -262,8 +277,15 @@ class EpisodeResult:
     round_trips: np.ndarray
 
 
-def run_episode(env, *, controller=None, policy=None, seed: int | None = None, max_steps: int | None = None,
-                on_step: Callable[[int, dict], None] | None = None) -> EpisodeResult:
+def run_episode(
+    env,
+    *,
+    controller=None,
+    policy=None,
+    seed: int | None = None,
+    max_steps: int | None = None,
+    on_step: Callable[[int, dict], None] | None = None,
+) -> EpisodeResult:
     """One episode of a controller (measurements -> volts) or a policy (observation -> action).
 
     Parameters
@@ -295,8 +317,11 @@ def run_episode(env, *, controller=None, policy=None, seed: int | None = None, m
     ticks, rtts = [], []
     try:
         while not (term or trunc) and (max_steps is None or steps < max_steps):
-            action = (np.array([controller(measurement_of(info))], dtype=np.float32) if controller is not None
-                      else policy(obs))
+            action = (
+                np.array([controller(measurement_of(info))], dtype=np.float32)
+                if controller is not None
+                else policy(obs)
+            )
             obs, r, term, trunc, info = env.step(action)
             steps += 1
             total += r

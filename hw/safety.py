@@ -96,8 +96,9 @@ class VoltageLimiter:
         return u, limited
 
 
-def check_limits(limits: SafetyLimits, omega_u: float, omega_l: float, x: float = 0.0,
-                 y: float = 0.0) -> StopReason | None:
+def check_limits(
+    limits: SafetyLimits, omega_u: float, omega_l: float, x: float = 0.0, y: float = 0.0
+) -> StopReason | None:
     """The reason to stop for measured speeds and LVDT displacement, or None.
 
     Parameters

@@ -70,22 +70,41 @@ def test_sb3_adapter_is_public_and_normalised() -> None:
 
 def test_timesteps_below_learning_starts_warn(tmp_path) -> None:
     with pytest.warns(UserWarning, match="learning_starts"):
-        train("drillgym/Torsional-v0", "sac", tmp_path, timesteps=40, progress=False, tensorboard=False,
-              overrides={**FAST, "learning_starts": 100, "buffer_size": 500}, export=False)
+        train(
+            "drillgym/Torsional-v0",
+            "sac",
+            tmp_path,
+            timesteps=40,
+            progress=False,
+            tensorboard=False,
+            overrides={**FAST, "learning_starts": 100, "buffer_size": 500},
+            export=False,
+        )
 
 
 def test_evaluation_keeps_the_best_model_and_normalisation_is_exported(tmp_path) -> None:
-    res = train("drillgym/Torsional-v0", "ppo", tmp_path, timesteps=256, seed=0, progress=False, tensorboard=False,
-                overrides={**FAST, "n_steps": 16, "batch_size": 32, "normalize_obs": True, "privileged_critic": False},
-                eval_every=64, eval_envs=2)
+    res = train(
+        "drillgym/Torsional-v0",
+        "ppo",
+        tmp_path,
+        timesteps=256,
+        seed=0,
+        progress=False,
+        tensorboard=False,
+        overrides={**FAST, "n_steps": 16, "batch_size": 32, "normalize_obs": True, "privileged_critic": False},
+        eval_every=64,
+        eval_envs=2,
+    )
     with np.load(tmp_path / "evaluations.npz") as z:
         assert len(z["timesteps"]) >= 3 and z["results"].shape[1] == 2
     for f in ("best/best_model.zip", "best/policy.npz"):
         assert (tmp_path / f).is_file(), f
     policy = ExportedPolicy.load(res.policy_path)
     assert policy.obs_norm is not None  # standardised observations: the statistics travel with the policy
-    stats = VecNormalize.load(str(tmp_path / "checkpoints" / "latest_vecnormalize.pkl"), make_sb3_vec(
-        "drillgym/Torsional-v0", 1, observation="motor"))
+    stats = VecNormalize.load(
+        str(tmp_path / "checkpoints" / "latest_vecnormalize.pkl"),
+        make_sb3_vec("drillgym/Torsional-v0", 1, observation="motor"),
+    )
     rng = np.random.default_rng(0)
     obs = rng.normal(0.0, 3.0, (50, policy.obs_dim)).astype(np.float32)
     expected, _ = res.model.predict(stats.normalize_obs(obs), deterministic=True)
@@ -101,8 +120,10 @@ def test_iqm_and_bootstrap_interval() -> None:
 
 
 def test_seed_results_table_and_curves(tmp_path) -> None:
-    rows = [{"seed": s, "timesteps": 100, "wall_time": 10.0 + s, "lowest_held": v, "final_reward": -s}
-            for s, v in zip(range(4), [2.0, 2.5, float("nan"), 3.0])]
+    rows = [
+        {"seed": s, "timesteps": 100, "wall_time": 10.0 + s, "lowest_held": v, "final_reward": -s}
+        for s, v in zip(range(4), [2.0, 2.5, float("nan"), 3.0])
+    ]
     summary = write_results(rows, tmp_path)
     held = summary.aggregates["lowest_held"]
     assert held["median"] == pytest.approx((2.5 + 3.0) / 2)  # none held counts as NOT_HELD, above the grid
@@ -118,8 +139,16 @@ def test_seed_results_table_and_curves(tmp_path) -> None:
 
 
 def test_privileged_critic_trains_and_the_deployed_actor_ignores_the_privileged_entries(tmp_path) -> None:
-    res = train("drillgym/Torsional-v0", "ppo", tmp_path, timesteps=128, seed=0, progress=False, tensorboard=False,
-                overrides={**FAST, "n_steps": 16, "batch_size": 32, "privileged_critic": True})
+    res = train(
+        "drillgym/Torsional-v0",
+        "ppo",
+        tmp_path,
+        timesteps=128,
+        seed=0,
+        progress=False,
+        tensorboard=False,
+        overrides={**FAST, "n_steps": 16, "batch_size": 32, "privileged_critic": True},
+    )
     model = res.model
     assert model.observation_space.shape == (36,) and model.policy.actor_dim == 33
     policy = ExportedPolicy.load(res.policy_path)

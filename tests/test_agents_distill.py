@@ -17,22 +17,46 @@ from agents.train import train
 
 def _teacher(path) -> None:
     """A linear 'full'-observation teacher whose action depends on the target: a = 0.1 omega_ref - 0.5."""
-    meta = {"format": 1, "activations": ["identity"], "output": "clip", "obs_dim": 5,
-            "config": {"env_id": "drillgym/Torsional-v0", "algo": "ppo",
-                       "hyperparams": {"env_kwargs": {"observation": "full"}}}}
-    np.savez(path, meta=np.array(json.dumps(meta)), action_low=np.float32([-1]), action_high=np.float32([1]),
-             W0=np.float32([[0.0, 0.0, 0.0, 0.0, 0.1]]), b0=np.float32([-0.5]))
+    meta = {
+        "format": 1,
+        "activations": ["identity"],
+        "output": "clip",
+        "obs_dim": 5,
+        "config": {
+            "env_id": "drillgym/Torsional-v0",
+            "algo": "ppo",
+            "hyperparams": {"env_kwargs": {"observation": "full"}},
+        },
+    }
+    np.savez(
+        path,
+        meta=np.array(json.dumps(meta)),
+        action_low=np.float32([-1]),
+        action_high=np.float32([1]),
+        W0=np.float32([[0.0, 0.0, 0.0, 0.0, 0.1]]),
+        b0=np.float32([-0.5]),
+    )
 
 
 def test_student_on_the_motor_side_learns_the_teachers_actions(tmp_path) -> None:
     _teacher(tmp_path / "teacher.npz")
-    res = train("drillgym/Torsional-v0", "ppo", tmp_path / "student", timesteps=0, seed=0, progress=False,
-                tensorboard=False, teacher=tmp_path / "teacher.npz",
-                overrides={"n_envs": 8, "env_kwargs": {"episode_duration": 1.0}},
-                distill_kwargs={"iterations": 2, "steps": 60, "epochs": 60, "lr": 3e-3})
+    res = train(
+        "drillgym/Torsional-v0",
+        "ppo",
+        tmp_path / "student",
+        timesteps=0,
+        seed=0,
+        progress=False,
+        tensorboard=False,
+        teacher=tmp_path / "teacher.npz",
+        overrides={"n_envs": 8, "env_kwargs": {"episode_duration": 1.0}},
+        distill_kwargs={"iterations": 2, "steps": 60, "epochs": 60, "lr": 3e-3},
+    )
     assert res.timesteps == 0
     cfg = yaml.safe_load((tmp_path / "student" / "config.yml").read_text())
-    assert cfg["teacher"]["policy"].endswith("teacher.npz") and cfg["hyperparams"]["env_kwargs"]["observation"] == "motor"
+    assert (
+        cfg["teacher"]["policy"].endswith("teacher.npz") and cfg["hyperparams"]["env_kwargs"]["observation"] == "motor"
+    )
     student = ExportedPolicy.load(res.policy_path)
     assert student.obs_dim == 33  # the motor side only (the privileged critic's entries are not deployed)
     refs = (2.5, 4.0, 5.5, 7.0)  # the states the student visits (DAgger trained it on those)
@@ -55,25 +79,48 @@ def _median_error(student, refs) -> float:
 
 def test_second_dagger_stage_continues_from_the_first_with_its_own_options(tmp_path) -> None:
     _teacher(tmp_path / "teacher.npz")
-    common = dict(timesteps=0, seed=0, progress=False, tensorboard=False, teacher=tmp_path / "teacher.npz",
-                  overrides={"n_envs": 8, "env_kwargs": {"episode_duration": 1.0}})
+    common = dict(
+        timesteps=0,
+        seed=0,
+        progress=False,
+        tensorboard=False,
+        teacher=tmp_path / "teacher.npz",
+        overrides={"n_envs": 8, "env_kwargs": {"episode_duration": 1.0}},
+    )
     # the first stage does nothing (0 rounds): whatever the student knows comes from the second
-    res = train("drillgym/Torsional-v0", "ppo", tmp_path / "staged", **common,
-                distill_kwargs={"iterations": 0, "steps": 60, "epochs": 60, "lr": 3e-3, "then": {"iterations": 2}})
+    res = train(
+        "drillgym/Torsional-v0",
+        "ppo",
+        tmp_path / "staged",
+        **common,
+        distill_kwargs={"iterations": 0, "steps": 60, "epochs": 60, "lr": 3e-3, "then": {"iterations": 2}},
+    )
     student = ExportedPolicy.load(res.policy_path)
     # the teacher's actions at 2.5 and 7 rad/s: -0.25 and +0.2 (an untrained actor gives about 0)
     assert _median_error(student, (2.5, 7.0)) < 0.05
     with pytest.raises(ValueError, match="distill.then"):
-        train("drillgym/Torsional-v0", "ppo", tmp_path / "bad", **common,
-              distill_kwargs={"iterations": 0, "then": {"teacher": "flatness"}})
+        train(
+            "drillgym/Torsional-v0",
+            "ppo",
+            tmp_path / "bad",
+            **common,
+            distill_kwargs={"iterations": 0, "then": {"teacher": "flatness"}},
+        )
 
 
 def test_flatness_teacher_holds_a_low_target_from_rest_on_the_true_state() -> None:
     from agents.teachers import FlatnessTeacher
     from drillgym.envs.sb3 import make_sb3_vec
 
-    venv = make_sb3_vec("drillgym/Torsional-v0", 2, observation="full", omega_ref=2.0, alpha0_range=(0.0, 0.0),
-                        episode_duration=40.0, normalize_action=True)
+    venv = make_sb3_vec(
+        "drillgym/Torsional-v0",
+        2,
+        observation="full",
+        omega_ref=2.0,
+        alpha0_range=(0.0, 0.0),
+        episode_duration=40.0,
+        normalize_action=True,
+    )
     venv.seed(0)
     venv.reset()
     s = venv.venv.batch.system
@@ -112,7 +159,9 @@ def test_population_randomizer_draws_the_uncertainty_set() -> None:
     rows = np.array([mixed.sample(np.random.default_rng(k)) for k in range(200)])
     nominal = rows[:, comp.param_index("km")] == RigParams().km
     assert 0.35 < nominal.mean() < 0.65  # about half the rigs are the nominal one
-    assert np.all(rows[nominal, comp.param_index("pf_c1")] == 0.0) and np.all(rows[nominal, comp.param_index("delay")] == 0.0)
+    assert np.all(rows[nominal, comp.param_index("pf_c1")] == 0.0) and np.all(
+        rows[nominal, comp.param_index("delay")] == 0.0
+    )
     assert np.all(rows[nominal, comp.param_index("tau_m")] == 1e-3)  # the set's lower bound: "no lag"
     with pytest.raises(ValueError, match="nominal_fraction"):
         PopulationRandomizer(comp, RigParams(), nominal_fraction=1.5)
@@ -133,8 +182,9 @@ def test_population_below_a_target_speed_is_the_nominal_rig_and_the_env_passes_t
     with pytest.raises(ValueError, match="nominal_below"):
         PopulationRandomizer(comp, RigParams(), nominal_below=-1.0)
     # the env draws each episode's target first and hands it to the randomizer
-    kw = population_env_kwargs({"observation": "motor", "omega_ref_range": [1.5, 8.0], "normalize_action": True},
-                               "default")
+    kw = population_env_kwargs(
+        {"observation": "motor", "omega_ref_range": [1.5, 8.0], "normalize_action": True}, "default"
+    )
     venv = make_sb3_vec("drillgym/Torsional-v0", 64, **kw)
     use_population(venv, "default", nominal_below=5.5)
     venv.seed(3)
@@ -152,8 +202,18 @@ def test_motor_integral_is_the_same_in_training_and_on_the_rig(tmp_path) -> None
     from agents.integral import advance
     from drillgym.envs.sb3 import make_sb3_vec
 
-    venv = MotorIntegralVecEnv(make_sb3_vec("drillgym/Torsional-v0", 2, observation="motor", motor_history=4,
-                                            omega_ref=3.0, episode_duration=0.2, normalize_action=True), 0.01)
+    venv = MotorIntegralVecEnv(
+        make_sb3_vec(
+            "drillgym/Torsional-v0",
+            2,
+            observation="motor",
+            motor_history=4,
+            omega_ref=3.0,
+            episode_duration=0.2,
+            normalize_action=True,
+        ),
+        0.01,
+    )
     venv.seed(0)
     obs = venv.reset()
     z = np.zeros(2)
@@ -166,11 +226,18 @@ def test_motor_integral_is_the_same_in_training_and_on_the_rig(tmp_path) -> None
             z[:] = 0.0
         assert np.allclose(obs[:, -1], z, atol=1e-6)
     assert 0 < np.abs(z).max() < 2.0
-    res = train("drillgym/Torsional-v0", "ppo", tmp_path / "student", timesteps=0, seed=0, progress=False,
-                tensorboard=False, teacher="flatness",
-                overrides={"n_envs": 4, "motor_integral": True,
-                           "env_kwargs": {"episode_duration": 0.3, "motor_history": 4}},
-                distill_kwargs={"iterations": 2, "steps": 20, "epochs": 2, "beta": 0.5, "noise": 0.1})
+    res = train(
+        "drillgym/Torsional-v0",
+        "ppo",
+        tmp_path / "student",
+        timesteps=0,
+        seed=0,
+        progress=False,
+        tensorboard=False,
+        teacher="flatness",
+        overrides={"n_envs": 4, "motor_integral": True, "env_kwargs": {"episode_duration": 0.3, "motor_history": 4}},
+        distill_kwargs={"iterations": 2, "steps": 20, "epochs": 2, "beta": 0.5, "noise": 0.1},
+    )
     student = ExportedPolicy.load(res.policy_path)
     assert student.obs_dim == 4 + 4 + 1 + 1  # increments, voltages, target, integral
     ctl = AgentController(student, omega_ref=3.0, dt=0.01)
@@ -210,16 +277,39 @@ def test_command_schedule_reaches_the_target_from_above_and_is_the_same_on_the_r
         CommandSchedule.from_config({"approach": 8.5, "slope": 1.0})
 
     short = {"approach": 6.0, "hold": 0.05, "ramp": 0.1, "lag": 0.05}
-    res = train("drillgym/Torsional-v0", "ppo", tmp_path / "student", timesteps=0, seed=0, progress=False,
-                tensorboard=False, teacher="flatness",
-                overrides={"n_envs": 4, "motor_integral": True, "command_schedule": short,
-                           "env_kwargs": {"episode_duration": 0.3, "motor_history": 4}},
-                distill_kwargs={"iterations": 1, "steps": 20, "epochs": 1, "population": "default"})
+    res = train(
+        "drillgym/Torsional-v0",
+        "ppo",
+        tmp_path / "student",
+        timesteps=0,
+        seed=0,
+        progress=False,
+        tensorboard=False,
+        teacher="flatness",
+        overrides={
+            "n_envs": 4,
+            "motor_integral": True,
+            "command_schedule": short,
+            "env_kwargs": {"episode_duration": 0.3, "motor_history": 4},
+        },
+        distill_kwargs={"iterations": 1, "steps": 20, "epochs": 1, "population": "default"},
+    )
     student = ExportedPolicy.load(res.policy_path)
-    venv = MotorIntegralVecEnv(make_sb3_vec("drillgym/Torsional-v0", 1, observation="motor", motor_history=4,
-                                            omega_ref=3.0, episode_duration=0.3, normalize_action=True,
-                                            alpha0_range=(0.0, 0.0), counts_per_rev=0), 0.01,
-                               command=CommandSchedule(**short))
+    venv = MotorIntegralVecEnv(
+        make_sb3_vec(
+            "drillgym/Torsional-v0",
+            1,
+            observation="motor",
+            motor_history=4,
+            omega_ref=3.0,
+            episode_duration=0.3,
+            normalize_action=True,
+            alpha0_range=(0.0, 0.0),
+            counts_per_rev=0,
+        ),
+        0.01,
+        command=CommandSchedule(**short),
+    )
     venv.seed(0)
     obs = venv.reset()
     s = episode_batch(venv).system
@@ -269,8 +359,9 @@ def test_rl_training_env_draws_its_rigs_from_the_population() -> None:
     from agents.envs import make_training_env
     from drillgym import RigParams
 
-    venv = make_training_env("drillgym/Torsional-v0", 8, seed=1, env_kwargs={"observation": "motor"},
-                             population="default")
+    venv = make_training_env(
+        "drillgym/Torsional-v0", 8, seed=1, env_kwargs={"observation": "motor"}, population="default"
+    )
     venv.reset()
     system = episode_batch(venv).system
     km = system.params_matrix[:, system.composition.param_index("km")] / RigParams().km
@@ -278,8 +369,9 @@ def test_rl_training_env_draws_its_rigs_from_the_population() -> None:
     assert {"motor_lag", "input_delay"} <= set(system.composition.names)
     venv.close()
     with pytest.raises(ValueError, match="plain actions"):
-        make_training_env("drillgym/Torsional-v0", 2, env_kwargs={"observation": "motor"}, residual=1.5,
-                          population="default")
+        make_training_env(
+            "drillgym/Torsional-v0", 2, env_kwargs={"observation": "motor"}, residual=1.5, population="default"
+        )
 
 
 def test_distillation_learning_rate_falls_geometrically_to_its_final_value():
@@ -302,10 +394,20 @@ def test_each_dagger_round_is_reported_with_its_action_error(tmp_path) -> None:
 
     _teacher(tmp_path / "teacher.npz")
     kw = {"observation": "motor", "episode_duration": 1.0}
-    model = PPO("MlpPolicy", make_sb3_vec("drillgym/Torsional-v0", 4, normalize_action=True, **kw), n_steps=8,
-                batch_size=8)
+    model = PPO(
+        "MlpPolicy", make_sb3_vec("drillgym/Torsional-v0", 4, normalize_action=True, **kw), n_steps=8, batch_size=8
+    )
     seen = []
-    out = distill(model, "drillgym/Torsional-v0", kw, tmp_path / "teacher.npz", n_envs=4, iterations=3, steps=10,
-                  epochs=1, on_round=lambda i, mse: seen.append((i, mse)))
+    out = distill(
+        model,
+        "drillgym/Torsional-v0",
+        kw,
+        tmp_path / "teacher.npz",
+        n_envs=4,
+        iterations=3,
+        steps=10,
+        epochs=1,
+        on_round=lambda i, mse: seen.append((i, mse)),
+    )
     assert [i for i, _ in seen] == [0, 1, 2]
     assert seen[-1][1] == out["mse"] and all(np.isfinite(m) for _, m in seen)

@@ -55,16 +55,31 @@ def test_zero_residual_is_the_observer_controller():
 def test_training_wrapper_and_controller_agree(tmp_path):
     """A short training run writes a policy; fed the same encoder angles, AgentController builds the
     training wrapper's observation and returns the voltage the wrapper applies."""
-    res = train("drillgym/Torsional-v0", "ppo", tmp_path, timesteps=256, seed=0, hyperparams=HP,
-                overrides=_overrides(FAST), progress=False, tensorboard=False)
+    res = train(
+        "drillgym/Torsional-v0",
+        "ppo",
+        tmp_path,
+        timesteps=256,
+        seed=0,
+        hyperparams=HP,
+        overrides=_overrides(FAST),
+        progress=False,
+        tensorboard=False,
+    )
     assert res.policy_path is not None and res.policy_path.is_file()
     ctrl = controllers.make(f"agent:{res.policy_path}", config="torsional", omega_ref=3.0)
     assert ctrl.uses == ("theta_u",)
     observer = load_hyperparams("ppo", "drillgym/Torsional-v0", HP)["observer"]  # the options it was trained with
-    venv = make_training_env("drillgym/Torsional-v0", 1, seed=4, residual=0.5, base="observer", observer=observer,
-                             monitor=False,
-                             env_kwargs={"observation": "motor", "motor_history": 1, "omega_ref": 3.0,
-                                         "episode_duration": 30.0})
+    venv = make_training_env(
+        "drillgym/Torsional-v0",
+        1,
+        seed=4,
+        residual=0.5,
+        base="observer",
+        observer=observer,
+        monitor=False,
+        env_kwargs={"observation": "motor", "motor_history": 1, "omega_ref": 3.0, "episode_duration": 30.0},
+    )
     obs = venv.reset()
     sysm = venv.venv.venv.batch.system
     ctrl.reset({"t": 0.0, "theta_u": float(quantize_angle(sysm.theta_u[0]))})
@@ -79,8 +94,9 @@ def test_observer_base_errors():
     with pytest.raises(ValueError, match="needs a residual scale"):
         make_training_env("drillgym/Torsional-v0", 1, base="observer", env_kwargs={"observation": "motor"})
     with pytest.raises(ValueError, match="'motor' observation"):
-        make_training_env("drillgym/Torsional-v0", 1, residual=0.5, base="observer",
-                          env_kwargs={"observation": "sensors"})
+        make_training_env(
+            "drillgym/Torsional-v0", 1, residual=0.5, base="observer", env_kwargs={"observation": "sensors"}
+        )
     with pytest.raises(ValueError, match="base must be 'observer'"):
         make_training_env("drillgym/Torsional-v0", 1, residual=0.5, base="pid")
     with pytest.raises(ValueError, match="positive voltage"):

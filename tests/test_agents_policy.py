@@ -24,8 +24,13 @@ def test_controller_builds_the_env_observation_and_voltage():
     ctrl = controllers.make(f"agent:{PPO_MOTOR}", config="torsional", omega_ref=3.0)
     assert isinstance(ctrl, AgentController) and ctrl.uses == ("theta_u",)
     opts = ctrl.policy.config["hyperparams"]["env_kwargs"]
-    env = gym.make("drillgym/Torsional-v0", observation="motor", motor_history=opts["motor_history"],
-                   omega_ref=3.0, normalize_action=False).unwrapped
+    env = gym.make(
+        "drillgym/Torsional-v0",
+        observation="motor",
+        motor_history=opts["motor_history"],
+        omega_ref=3.0,
+        normalize_action=False,
+    ).unwrapped
     obs, _ = env.reset(seed=5)
     system = env.batch.system
 
@@ -45,8 +50,10 @@ def test_controller_builds_the_env_observation_and_voltage():
 
 
 def test_kept_policy_beats_the_baseline_at_3_rad_s():
-    base, agent = (run_job(c, "torsional", SCENARIOS["rest"], [3.0], duration=60.0, window=20.0)[0]
-                   for c in ("baseline", f"agent:{KEPT}"))
+    base, agent = (
+        run_job(c, "torsional", SCENARIOS["rest"], [3.0], duration=60.0, window=20.0)[0]
+        for c in ("baseline", f"agent:{KEPT}")
+    )
     assert base["ssi"] > 1.0  # the open-loop rig sticks and slips
     assert agent["ssi"] < 0.1 < base["ssi"]
 
@@ -55,8 +62,10 @@ def test_kept_policy_beats_the_baseline_at_3_rad_s():
 def test_kept_policy_holds_2_rad_s_with_friction_20_percent_off(scenario):
     """Below the fold (2 rad/s) the open loop sticks and slips; the agent, friction 20 % off its
     training value, holds the target without stick-slip and without running faster than it."""
-    base, agent = (run_job(c, "torsional", SCENARIOS[scenario], [2.0], duration=60.0, window=20.0)[0]
-                   for c in ("baseline", f"agent:{KEPT}"))
+    base, agent = (
+        run_job(c, "torsional", SCENARIOS[scenario], [2.0], duration=60.0, window=20.0)[0]
+        for c in ("baseline", f"agent:{KEPT}")
+    )
     assert base["ssi"] > 1.0
     assert agent["ssi"] < 0.1 and agent["tracking_rms"] < 0.1
 
@@ -98,8 +107,12 @@ ROBUST = str(agents.KEPT_POLICY.parents[1] / "torsional_motor_learned_robust" / 
 def test_robust_learned_policy_holds_3_5_rad_s_from_rest_with_friction_20_percent_off(scenario):
     """The population-trained motor-side policy (speed command from above, agents/command.py): from rest,
     where the open loop sticks and slips at 3.5 rad/s, it holds the target with the brake 20 % off."""
-    base, agent = (run_job(c, "torsional", SCENARIOS[scenario], [3.5], duration=60.0, window=20.0)[0]
-                   for c in ("baseline", f"agent:{ROBUST}"))
+    base, agent = (
+        run_job(c, "torsional", SCENARIOS[scenario], [3.5], duration=60.0, window=20.0)[0]
+        for c in ("baseline", f"agent:{ROBUST}")
+    )
     assert base["ssi"] > 1.0
     assert agent["ssi"] < 0.1 and agent["tracking_rms"] < 0.1
-    assert 3.15 < agent["omega_l_min"] and agent["omega_l_max"] < 3.85  # within 10 % of the target throughout the window
+    assert (
+        3.15 < agent["omega_l_min"] and agent["omega_l_max"] < 3.85
+    )  # within 10 % of the target throughout the window

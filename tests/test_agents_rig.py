@@ -22,8 +22,9 @@ ENV = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("P
 
 
 def _run(*args: str, timeout: float = 240) -> tuple[int, str, str]:
-    p = subprocess.run([sys.executable, "-m", "drillgym.cli", *args], capture_output=True, text=True, env=ENV,
-                       timeout=timeout)
+    p = subprocess.run(
+        [sys.executable, "-m", "drillgym.cli", *args], capture_output=True, text=True, env=ENV, timeout=timeout
+    )
     return p.returncode, p.stdout, p.stderr
 
 
@@ -31,8 +32,10 @@ def test_what_train_writes_is_taken_as_a_trained_agent(tmp_path) -> None:
     from hw.commands.rig_ops import trained_agent
     from hw.runner import LinearPolicy
 
-    assert all(trained_agent(p) for p in (LEARNED, LEARNED / "policy.npz", LEARNED / "model.zip", SWITCHED,
-                                          SWITCHED / "policy.npz"))
+    assert all(
+        trained_agent(p)
+        for p in (LEARNED, LEARNED / "policy.npz", LEARNED / "model.zip", SWITCHED, SWITCHED / "policy.npz")
+    )
     LinearPolicy(np.zeros((1, 7)), np.zeros(1)).save(tmp_path / "linear.npz")
     assert not trained_agent(tmp_path / "linear.npz")  # a bare W, b policy stays a linear policy
 
@@ -42,8 +45,21 @@ def test_kept_learned_policy_runs_on_the_emulated_rig(tmp_path, policy: Path) ->
     rec = tmp_path / "run.csv"
     # behaviour, not timing: a relaxed watchdog (the host's reply timeout follows it, up to 1 s) for a loaded machine
     with RigEmulator("torsional", dt=5e-3, firmware=FirmwareConfig(watchdog_s=2.0)) as emu:
-        code, out, err = _run("rig", "run", "--port", emu.port, "--policy", str(policy), "--omega-ref", "4.0",
-                              "--duration", "1.0", "--record", str(rec), "--no-realtime")
+        code, out, err = _run(
+            "rig",
+            "run",
+            "--port",
+            emu.port,
+            "--policy",
+            str(policy),
+            "--omega-ref",
+            "4.0",
+            "--duration",
+            "1.0",
+            "--record",
+            str(rec),
+            "--no-realtime",
+        )
     assert code == 0, (out, err)
     ts = read_timeseries(rec)
     u = ts.u[:-1]  # a row's u applies from its time on; the last row: 0 V after the episode

@@ -36,8 +36,10 @@ def test_a_combined_file_keeps_each_network_and_its_band(tmp_path) -> None:
         ExportedPolicy.load(path)  # a single-network loader names what the file is
 
 
-@pytest.mark.parametrize("edges, match", [([], "need 1 target edge"), ([3.0, 4.0], "need 1 target edge"),
-                                          ([-1.0], "positive"), ([float("nan")], "finite")])
+@pytest.mark.parametrize(
+    "edges, match",
+    [([], "need 1 target edge"), ([3.0, 4.0], "need 1 target edge"), ([-1.0], "positive"), ([float("nan")], "finite")],
+)
 def test_bad_bands_are_refused_with_the_reason(tmp_path, edges, match) -> None:
     with pytest.raises(ValueError, match=match):
         combine([NOMINAL, ROBUST], edges, tmp_path / "x.npz")
@@ -63,8 +65,7 @@ def test_each_rig_runs_the_network_of_its_target_exactly_as_alone(tmp_path) -> N
     path = combine([NOMINAL, ROBUST], [3.0], tmp_path / "policy.npz")
     targets = np.array([2.0, 4.0, 2.5, 3.0])
     both = TargetSwitchedController(agents.load_policy(str(path)), config="torsional")
-    alone = [AgentController(ExportedPolicy.load(NOMINAL if w < 3.0 else ROBUST), config="torsional")
-             for w in targets]
+    alone = [AgentController(ExportedPolicy.load(NOMINAL if w < 3.0 else ROBUST), config="torsional") for w in targets]
     both.reset({"t": np.zeros(4), "theta_u": np.zeros(4), "omega_ref": targets})
     for i, c in enumerate(alone):
         c.reset({"t": 0.0, "theta_u": 0.0, "omega_ref": float(targets[i])})
@@ -84,7 +85,9 @@ def test_kept_switched_policy_holds_both_bands_on_the_simulated_rig() -> None:
     3.5 rad/s with the brake 20 % weaker (the population-trained network's), where the open loop sticks."""
     assert isinstance(read_policy(SWITCHED), TargetSwitchedPolicy)
     low = run_job(f"agent:{SWITCHED}", "torsional", SCENARIOS["rest"], [2.5], duration=60.0, window=20.0)[0]
-    high, base = (run_job(c, "torsional", SCENARIOS["friction-20"], [3.5], duration=60.0, window=20.0)[0]
-                  for c in (f"agent:{SWITCHED}", "baseline"))
+    high, base = (
+        run_job(c, "torsional", SCENARIOS["friction-20"], [3.5], duration=60.0, window=20.0)[0]
+        for c in (f"agent:{SWITCHED}", "baseline")
+    )
     assert low["ssi"] < 0.1 and abs(low["offset"]) < 0.1
     assert base["ssi"] > 1.0 and high["ssi"] < 0.1 and abs(high["offset"]) < 0.1

@@ -24,10 +24,25 @@ def _random_obs(policy: ExportedPolicy, n: int = 200) -> np.ndarray:
 
 
 def test_sac_trains_saves_loads_and_resumes(tmp_path):
-    res = train("drillgym/Torsional-v0", "sac", tmp_path, obs="motor", timesteps=300, seed=3, overrides=OFF_POLICY,
-                progress=False, checkpoint_every=100)
+    res = train(
+        "drillgym/Torsional-v0",
+        "sac",
+        tmp_path,
+        obs="motor",
+        timesteps=300,
+        seed=3,
+        overrides=OFF_POLICY,
+        progress=False,
+        checkpoint_every=100,
+    )
     assert res.timesteps == 300
-    for f in ("model.zip", "policy.npz", "config.yml", "checkpoints/latest.zip", "checkpoints/latest_replay_buffer.pkl"):
+    for f in (
+        "model.zip",
+        "policy.npz",
+        "config.yml",
+        "checkpoints/latest.zip",
+        "checkpoints/latest_replay_buffer.pkl",
+    ):
         assert (tmp_path / f).is_file(), f
     assert any((tmp_path / "tb").rglob("events.out.tfevents*"))  # TensorBoard log
     cfg = yaml.safe_load((tmp_path / "config.yml").read_text())
@@ -36,20 +51,41 @@ def test_sac_trains_saves_loads_and_resumes(tmp_path):
     model = SAC.load(tmp_path / "model.zip")
     assert model.num_timesteps == 300 and model.observation_space.shape == (33,)
     # resume continues the step count from the checkpoint up to the new total
-    res2 = train("drillgym/Torsional-v0", "sac", tmp_path, obs="motor", timesteps=400, seed=3, overrides=OFF_POLICY,
-                 progress=False, resume=True)
+    res2 = train(
+        "drillgym/Torsional-v0",
+        "sac",
+        tmp_path,
+        obs="motor",
+        timesteps=400,
+        seed=3,
+        overrides=OFF_POLICY,
+        progress=False,
+        resume=True,
+    )
     assert res2.timesteps == 400
     assert SAC.load(tmp_path / "model.zip").num_timesteps == 400
 
 
-@pytest.mark.parametrize("algo,cls,extra", [
-    ("sac", SAC, OFF_POLICY),
-    ("td3", TD3, OFF_POLICY),
-    ("ppo", PPO, {**FAST, "n_steps": 32, "batch_size": 64, "privileged_critic": False}),
-])
+@pytest.mark.parametrize(
+    "algo,cls,extra",
+    [
+        ("sac", SAC, OFF_POLICY),
+        ("td3", TD3, OFF_POLICY),
+        ("ppo", PPO, {**FAST, "n_steps": 32, "batch_size": 64, "privileged_critic": False}),
+    ],
+)
 def test_exported_policy_matches_sb3(tmp_path, algo, cls, extra):
-    train("drillgym/Torsional-v0", algo, tmp_path, obs="motor", timesteps=256, seed=0, overrides=extra,
-          progress=False, tensorboard=False)
+    train(
+        "drillgym/Torsional-v0",
+        algo,
+        tmp_path,
+        obs="motor",
+        timesteps=256,
+        seed=0,
+        overrides=extra,
+        progress=False,
+        tensorboard=False,
+    )
     model = cls.load(tmp_path / "model.zip", device="cpu")
     policy = ExportedPolicy.load(tmp_path / "policy.npz")
     obs = _random_obs(policy)
@@ -64,7 +100,9 @@ def test_hyperparameter_files_are_rl_zoo_style():
         assert hp["n_envs"] >= 1 and hp["n_timesteps"] > 0 and "policy" in hp
         assert hp["env_kwargs"]["observation"] == "motor"
     assert parse_overrides(["learning_rate=1e-3", "env_kwargs.motor_history=48"]) == {
-        "learning_rate": 1e-3, "env_kwargs": {"motor_history": 48}}
+        "learning_rate": 1e-3,
+        "env_kwargs": {"motor_history": 48},
+    }
 
 
 def test_training_errors_name_the_problem(tmp_path):
@@ -93,9 +131,30 @@ def run_cli(capsys, *args) -> tuple[int, str]:
 def test_cli_train_writes_an_agent_for_evaluate(tmp_path, capsys, monkeypatch):
     out = tmp_path / "run"
     monkeypatch.setattr(sys, "argv", ["drillgym", "train", "--seed", "4"])  # what config.yml records
-    code, text = run_cli(capsys, "train", "--env", "drillgym/Torsional-v0", "--algo", "sac", "--obs", "motor", "--timesteps", "64",
-                  "--n-envs", "2", "--seed", "4", "--set", "learning_starts=16", "--set", "buffer_size=500",
-                  "--no-progress", "--no-tensorboard", "--out", str(out))
+    code, text = run_cli(
+        capsys,
+        "train",
+        "--env",
+        "drillgym/Torsional-v0",
+        "--algo",
+        "sac",
+        "--obs",
+        "motor",
+        "--timesteps",
+        "64",
+        "--n-envs",
+        "2",
+        "--seed",
+        "4",
+        "--set",
+        "learning_starts=16",
+        "--set",
+        "buffer_size=500",
+        "--no-progress",
+        "--no-tensorboard",
+        "--out",
+        str(out),
+    )
     assert code == 0, text
     assert "trained 64 steps" in text
     cfg = yaml.safe_load((out / "config.yml").read_text())
@@ -130,18 +189,48 @@ def test_ppo_resume_keeps_reward_normalisation(tmp_path):
     extra = {**FAST, "n_steps": 32, "batch_size": 64, "normalize_reward": True}
     train("drillgym/Torsional-v0", "ppo", tmp_path, timesteps=128, overrides=extra, progress=False, tensorboard=False)
     assert (tmp_path / "checkpoints" / "latest_vecnormalize.pkl").is_file()
-    res = train("drillgym/Torsional-v0", "ppo", tmp_path, timesteps=256, overrides=extra, progress=False,
-                tensorboard=False, resume=True)
+    res = train(
+        "drillgym/Torsional-v0",
+        "ppo",
+        tmp_path,
+        timesteps=256,
+        overrides=extra,
+        progress=False,
+        tensorboard=False,
+        resume=True,
+    )
     assert res.timesteps == 256
     assert res.model.get_vec_normalize_env().ret_rms.count > 200  # 128 + 128 samples: statistics carried over
 
 
 def test_cli_train_on_a_rig_with_effects(tmp_path, capsys):
     out = tmp_path / "eff"
-    code, text = run_cli(capsys, "train", "--env", "drillgym/Torsional-v0", "--algo", "sac", "--obs", "motor",
-                         "--timesteps", "32", "--n-envs", "2", "--set", "learning_starts=16", "--set", "buffer_size=200",
-                         "--no-progress", "--no-tensorboard", "--out", str(out), "--add-effect", "input_delay",
-                         "--effect-param", "delay=0.04")
+    code, text = run_cli(
+        capsys,
+        "train",
+        "--env",
+        "drillgym/Torsional-v0",
+        "--algo",
+        "sac",
+        "--obs",
+        "motor",
+        "--timesteps",
+        "32",
+        "--n-envs",
+        "2",
+        "--set",
+        "learning_starts=16",
+        "--set",
+        "buffer_size=200",
+        "--no-progress",
+        "--no-tensorboard",
+        "--out",
+        str(out),
+        "--add-effect",
+        "input_delay",
+        "--effect-param",
+        "delay=0.04",
+    )
     assert code == 0, text
     env_kwargs = yaml.safe_load((out / "config.yml").read_text())["hyperparams"]["env_kwargs"]
     assert env_kwargs["effects"] == ["input_delay"] and env_kwargs["effect_params"] == {"delay": 0.04}

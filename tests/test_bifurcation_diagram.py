@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from drillgym import RigParams, simulate
-from drillgym.bifurcation import (equilibrium_branch, measured_point, periodic_branches, sweep_constant)
+from drillgym.bifurcation import equilibrium_branch, measured_point, periodic_branches, sweep_constant
 from drillgym.bifurcation.poincare import SectionMap
 from drillgym.bifurcation.shooting import residual_and_jacobian
 from drillgym.errors import DataFormatError
@@ -27,7 +27,7 @@ def test_hopf_points(branches, config):
 def test_lateral_r_eq_peaks_near_8V_and_tends_to_3_69mm():
     b = equilibrium_branch("lateral", umax=50.0, n=300)
     assert 7.5 < b.u[np.argmax(b.r)] < 9.0
-    assert 3.69e-3 < b.r[-1] < 3.85e-3 and b.r[-1] < b.r[-10]   # decreasing towards e mr / m
+    assert 3.69e-3 < b.r[-1] < 3.85e-3 and b.r[-1] < b.r[-10]  # decreasing towards e mr / m
 
 
 def _second_fold(branch):
@@ -55,7 +55,7 @@ def test_first_fold_below_first_hopf(branches):
     brs, folds = periodic_branches(branches["torsional"], umin=0.0, umax=0.3, ds_max=0.5)
     h1 = branches["torsional"].hopf[0].u
     assert folds and folds[0].u < h1
-    assert not brs[0].solutions[1].stable                       # unstable cycle born at the subcritical Hopf
+    assert not brs[0].solutions[1].stable  # unstable cycle born at the subcritical Hopf
     assert any(s.stable and s.stick_slip for s in brs[0].solutions)  # it turns into the stick-slip cycle
 
 
@@ -87,7 +87,7 @@ def test_measured_point_from_a_file_matches_the_simulation(tmp_path):
     path = tmp_path / "run.csv"
     traj.to_csv(path)
     m = measured_point(path, "torsional")
-    half = traj.omega_l[len(traj.omega_l) // 2:]
+    half = traj.omega_l[len(traj.omega_l) // 2 :]
     assert m["u"] == pytest.approx(1.0)
     assert m["omega_l_max"] == pytest.approx(half.max(), rel=0.02)
     assert m["period"] == pytest.approx(6.66, rel=0.02)
@@ -106,8 +106,24 @@ def test_cli_writes_branches_and_figures(tmp_path):
 
     from drillgym.cli import app
 
-    res = CliRunner().invoke(app, ["bifurcation", "--config", "torsional", "--out", str(tmp_path), "--umin", "1.6",
-                                   "--umax", "2.2", "--sweep-step", "0.3", "--sweep-duration", "30"])
+    res = CliRunner().invoke(
+        app,
+        [
+            "bifurcation",
+            "--config",
+            "torsional",
+            "--out",
+            str(tmp_path),
+            "--umin",
+            "1.6",
+            "--umax",
+            "2.2",
+            "--sweep-step",
+            "0.3",
+            "--sweep-duration",
+            "30",
+        ],
+    )
     assert res.exit_code == 0, res.output
     d = json.loads((tmp_path / "branches.json").read_text())
     assert {"hopf", "fold", "equilibria", "cycles"} <= set(d)
@@ -119,14 +135,14 @@ def test_lateral_whirl_branch_starts_at_the_hopf_point_near_8_78V():
     """The whirl branch born at ~8.78 V (lateral configuration) is found and starts stable (supercritical)."""
     b = equilibrium_branch("lateral", umax=50.0, n=300)
     brs, folds = periodic_branches(b, umin=8.7, umax=8.79, max_points=15)
-    (br,) = brs                                   # the Hopf point at ~10.59 V is outside the window
-    assert folds == []                            # the first fold of this branch is at ~8.831 V
+    (br,) = brs  # the Hopf point at ~10.59 V is outside the window
+    assert folds == []  # the first fold of this branch is at ~8.831 V
     u = br.array("u")
     assert abs(u[0] - b.hopf[0].u) < 1e-3 and np.all(np.diff(u) > 0)
     first = br.solutions[1]
     assert first.stable and 0.9 < abs(first.multipliers[0]) < 1.0
     assert not any(s.stick_slip for s in br.solutions)
-    assert first.r_min > 0.02                     # whirl around the eccentric equilibrium (r_eq ~ 28.6 mm)
+    assert first.r_min > 0.02  # whirl around the eccentric equilibrium (r_eq ~ 28.6 mm)
 
 
 def test_cli_refuses_a_non_positive_continuation_step(tmp_path, capsys):

@@ -11,8 +11,7 @@ from drillgym.bifurcation.continuation import _resection, continue_branch, secti
 from drillgym.bifurcation.diagram import _hopf_start
 from drillgym.bifurcation.poincare import SectionMap
 from drillgym.bifurcation.shooting import residual_and_jacobian, shoot
-from drillgym.bifurcation.verification import (leading_growth, long_run_fate, periodicity_error,
-                                               simulated_monodromy)
+from drillgym.bifurcation.verification import leading_growth, long_run_fate, periodicity_error, simulated_monodromy
 
 
 def _map(branch, dt=1e-3):
@@ -21,7 +20,7 @@ def _map(branch, dt=1e-3):
 
 def _section_jacobian(smap, sol):
     _, J, _ = residual_and_jacobian(smap.with_offset(sol.section_offset), sol.z, sol.u)
-    return J[:, :smap.dim] + np.eye(smap.dim)
+    return J[:, : smap.dim] + np.eye(smap.dim)
 
 
 @pytest.fixture(scope="module")

@@ -30,7 +30,9 @@ def _scope(path, tr):
 
 def test_structure_with_time_several_columns(tmp_path, run):
     path = _scope(tmp_path / "scope.mat", run)
-    with pytest.raises(DataFormatError, match=r"'scopedata' for column 'u' has 3 columns; choose one: --map u=scopedata:K"):
+    with pytest.raises(
+        DataFormatError, match=r"'scopedata' for column 'u' has 3 columns; choose one: --map u=scopedata:K"
+    ):
         read_timeseries(path, "torsional", {"u": "ScopeData"})
     ts = read_timeseries(path, "torsional", {"u": "ScopeData:1", "theta_u": "ScopeData:2", "theta_l": "ScopeData:3"})
     np.testing.assert_array_equal(ts.theta_l, run.theta_l)
@@ -40,8 +42,10 @@ def test_structure_with_time_several_columns(tmp_path, run):
 
 
 def test_structure_with_time_several_signals_labels_and_columns(tmp_path, run):
-    sigs = np.array([(run.u.reshape(-1, 1), "u"), (run.theta_u.reshape(-1, 1), "theta_u"),
-                     (run.theta_l.reshape(-1, 1), "")], dtype=[("values", object), ("label", object)])
+    sigs = np.array(
+        [(run.u.reshape(-1, 1), "u"), (run.theta_u.reshape(-1, 1), "theta_u"), (run.theta_l.reshape(-1, 1), "")],
+        dtype=[("values", object), ("label", object)],
+    )
     path = tmp_path / "logs.mat"
     scipy.io.savemat(path, {"logs": {"time": run.t, "signals": sigs}})
     with pytest.raises(DataFormatError, match="missing column.*theta_l"):
@@ -64,8 +68,20 @@ def test_csv_mapping(tmp_path):
 
 def test_compare_reads_a_scope_log_through_map(tmp_path, run):
     path = _scope(tmp_path / "scope.mat", run)
-    res = run_cli("compare", str(path), "--config", "torsional", "--map", "u=ScopeData:1", "--map",
-                  "theta_u=ScopeData:2", "--map", "theta_l=ScopeData:3", "--out", str(tmp_path / "new" / "cmp"))
+    res = run_cli(
+        "compare",
+        str(path),
+        "--config",
+        "torsional",
+        "--map",
+        "u=ScopeData:1",
+        "--map",
+        "theta_u=ScopeData:2",
+        "--map",
+        "theta_l=ScopeData:3",
+        "--out",
+        str(tmp_path / "new" / "cmp"),
+    )
     assert res.returncode == 0, res.stderr
     assert (tmp_path / "new" / "cmp" / "report.txt").exists()  # missing directories created
     res = run_cli("compare", str(path), "--config", "torsional", "--out", str(tmp_path / "cmp2"))

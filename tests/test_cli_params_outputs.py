@@ -8,7 +8,6 @@ import pytest
 from typer.testing import CliRunner
 
 from drillgym.cli import app
-
 from drillgym.params import PARAM_INFO, RigParams
 
 
@@ -50,8 +49,19 @@ def test_params_refuses_other_suffixes(tmp_path):
 def test_one_rule_for_output_paths(tmp_path):
     """simulate --out / --plot, signal OUT and params --out create missing directories (as rig run --record
     does, tests/test_hw_cli.py); a file in the way is refused in one line; every such option says so."""
-    res = run_cli("simulate", "--config", "upper", "--u", "1", "--duration", "0.2", "--out",
-                  str(tmp_path / "a" / "b" / "run.csv"), "--plot", str(tmp_path / "c" / "run.png"))
+    res = run_cli(
+        "simulate",
+        "--config",
+        "upper",
+        "--u",
+        "1",
+        "--duration",
+        "0.2",
+        "--out",
+        str(tmp_path / "a" / "b" / "run.csv"),
+        "--plot",
+        str(tmp_path / "c" / "run.png"),
+    )
     assert res.returncode == 0, res.stderr
     assert (tmp_path / "a" / "b" / "run.csv").exists() and (tmp_path / "c" / "run.png").exists()
     res = run_cli("signal", str(tmp_path / "d" / "u.csv"), "--duration", "1")
@@ -59,8 +69,17 @@ def test_one_rule_for_output_paths(tmp_path):
     (tmp_path / "file").write_text("")
     res = run_cli("simulate", "--u", "1", "--duration", "0.2", "--out", str(tmp_path / "file" / "run.csv"))
     assert res.returncode == 2 and res.stderr.count("\n") == 1 and "a file of that name is in the way" in res.stderr
-    for command, option in [("simulate", "--out"), ("simulate", "--plot"), ("params", "--out"), ("signal", "OUT"),
-                            ("compare", "--out"), ("identify", "--out"), ("identify", "--report"),
-                            ("identify-staged", "--out"), ("bifurcation", "--out"), ("rig run", "--record")]:
+    for command, option in [
+        ("simulate", "--out"),
+        ("simulate", "--plot"),
+        ("params", "--out"),
+        ("signal", "OUT"),
+        ("compare", "--out"),
+        ("identify", "--out"),
+        ("identify", "--report"),
+        ("identify-staged", "--out"),
+        ("bifurcation", "--out"),
+        ("rig run", "--record"),
+    ]:
         res = CliRunner().invoke(app, [*command.split(), "--help"], terminal_width=200)
         assert "missing directories are created" in " ".join(res.output.replace("│", " ").split()), (command, option)

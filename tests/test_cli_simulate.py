@@ -14,8 +14,9 @@ def run_cli(*args):
 
 def test_simulate_writes_run_and_plot(tmp_path):
     out, png = tmp_path / "run.csv", tmp_path / "run.png"
-    res = run_cli("simulate", "--config", "coupled", "--u", "1.0", "--duration", "20", "--out", str(out),
-                  "--plot", str(png))
+    res = run_cli(
+        "simulate", "--config", "coupled", "--u", "1.0", "--duration", "20", "--out", str(out), "--plot", str(png)
+    )
     assert res.returncode == 0, res.stderr
     ts = read_timeseries(out)
     assert ts.configuration.label == "coupled" and len(ts) == 20001
@@ -63,8 +64,10 @@ def test_input_file_shorter_than_duration_is_refused_and_its_length_is_the_defau
     sig = tmp_path / "u.csv"
     sig.write_text("t,u\n0,0\n0.5,2\n1.0,2\n")  # covers 1.5 s (the last sample held one interval)
     out = tmp_path / "run.csv"
-    _one_line_error(run_cli("simulate", "--config", "upper", "--input", str(sig), "--duration", "5", "--out",
-                            str(out)), "covers 1.5 s, shorter than --duration 5 s")
+    _one_line_error(
+        run_cli("simulate", "--config", "upper", "--input", str(sig), "--duration", "5", "--out", str(out)),
+        "covers 1.5 s, shorter than --duration 5 s",
+    )
     res = run_cli("simulate", "--config", "upper", "--input", str(sig), "--out", str(out))
     assert res.returncode == 0, res.stderr
     assert read_timeseries(out).t[-1] == 1.5
@@ -81,10 +84,13 @@ def test_huge_duration_refused_before_allocating(tmp_path):
 
 def test_free_vibration_takes_alpha0_and_no_voltage(tmp_path):
     out = tmp_path / "fv.csv"
-    _one_line_error(run_cli("simulate", "--config", "free_vibration", "--duration", "1", "--out", str(out)),
-                    "give --alpha0 RAD")
-    _one_line_error(run_cli("simulate", "--config", "free_vibration", "--u", "1", "--alpha0", "1", "--out", str(out)),
-                    "leave out --u/--input")
+    _one_line_error(
+        run_cli("simulate", "--config", "free_vibration", "--duration", "1", "--out", str(out)), "give --alpha0 RAD"
+    )
+    _one_line_error(
+        run_cli("simulate", "--config", "free_vibration", "--u", "1", "--alpha0", "1", "--out", str(out)),
+        "leave out --u/--input",
+    )
     res = run_cli("simulate", "--config", "free_vibration", "--alpha0", "1.0", "--duration", "2", "--out", str(out))
     assert res.returncode == 0, res.stderr
     ts = read_timeseries(out)
@@ -106,5 +112,7 @@ def test_partial_parameter_file(tmp_path):
     res = run_cli("simulate", "--u", "1", "--duration", "0.5", "--params", str(p), "--out", str(out))
     assert res.returncode == 0, res.stderr
     p.write_text("Ts: 0.35\nTs_typo: 1\n")
-    _one_line_error(run_cli("simulate", "--u", "1", "--duration", "0.5", "--params", str(p), "--out", str(out)),
-                    "unknown parameter(s): Ts_typo")
+    _one_line_error(
+        run_cli("simulate", "--u", "1", "--duration", "0.5", "--params", str(p), "--out", str(out)),
+        "unknown parameter(s): Ts_typo",
+    )

@@ -11,9 +11,13 @@ from controllers.gym_adapter import ControllerPolicy, run_episode
 
 @pytest.mark.parametrize("mode", ["sensors", "motor"])
 def test_observer_episode_in_the_torsional_env(mode):
-    env = gym.make("drillgym/Torsional-v0", observation=mode, omega_ref=2.0, alpha0_range=(0.0, 0.0),
-                   episode_duration=40.0)
-    res = {name: run_episode(controllers.make(name, omega_ref=2.0, dt=0.01), env, seed=0) for name in ("baseline", "observer")}
+    env = gym.make(
+        "drillgym/Torsional-v0", observation=mode, omega_ref=2.0, alpha0_range=(0.0, 0.0), episode_duration=40.0
+    )
+    res = {
+        name: run_episode(controllers.make(name, omega_ref=2.0, dt=0.01), env, seed=0)
+        for name in ("baseline", "observer")
+    }
     assert len(res["observer"]["t"]) == 4000 and res["observer"]["t"][-1] == pytest.approx(40.0)
     ss = slice(-1500, None)
     base, obs = res["baseline"]["omega_l"][ss], res["observer"]["omega_l"][ss]
@@ -24,8 +28,9 @@ def test_observer_episode_in_the_torsional_env(mode):
 
 
 def test_policy_unwraps_angles_and_scales_actions():
-    env = gym.make("drillgym/Torsional-v0", observation="sensors", omega_ref=8.0, normalize_action=True,
-                   alpha0_range=(0.0, 0.0))
+    env = gym.make(
+        "drillgym/Torsional-v0", observation="sensors", omega_ref=8.0, normalize_action=True, alpha0_range=(0.0, 0.0)
+    )
     pol = ControllerPolicy(controllers.make("baseline", omega_ref=8.0), env)
     obs, _ = env.reset(seed=1)
     pol.reset(obs)
@@ -42,5 +47,6 @@ def test_policy_refuses_what_it_cannot_serve():
     with pytest.raises(ValueError, match="observation='sensors' or 'motor'"):
         ControllerPolicy(controllers.make("pi", omega_ref=1.0), gym.make("drillgym/Torsional-v0", observation="full"))
     with pytest.raises(ValueError, match="control_dt"):
-        ControllerPolicy(controllers.make("pi", omega_ref=1.0, dt=0.02),
-                         gym.make("drillgym/Torsional-v0", observation="sensors"))
+        ControllerPolicy(
+            controllers.make("pi", omega_ref=1.0, dt=0.02), gym.make("drillgym/Torsional-v0", observation="sensors")
+        )

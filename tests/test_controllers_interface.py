@@ -10,8 +10,16 @@ from drillgym.equilibria import slip_equilibria
 
 
 def test_registry_names_and_errors():
-    assert controllers.available() == ["baseline", "descent", "lqg", "lqg-2enc", "observer", "observer-robust", "pi",
-                                       "softtorque"]
+    assert controllers.available() == [
+        "baseline",
+        "descent",
+        "lqg",
+        "lqg-2enc",
+        "observer",
+        "observer-robust",
+        "pi",
+        "softtorque",
+    ]
     with pytest.raises(ValueError, match="unknown controller 'pid'"):
         controllers.make("pid", omega_ref=1.0)
     with pytest.raises(ValueError, match="omega_ref"):

@@ -18,7 +18,7 @@ def _estimate(u: float, duration: float):
     obs.reset(th[:1])
     est = np.empty(len(th))
     for i in range(len(th)):
-        est[i] = obs.update(th[i:i + 1])[I_WL, 0]
+        est[i] = obs.update(th[i : i + 1])[I_WL, 0]
         obs.predict(np.array([u]))
     return est, tr.omega_l[::k], tr.stick_l[::k].astype(bool)
 
@@ -67,12 +67,14 @@ def test_extended_filter_tracks_stick_slip_better_than_the_linear_one():
     k = int(round(DT / 1e-3))
     th, wl = quantize_angle(tr.theta_u[::k]), tr.omega_l[::k]
     errs = {}
-    for name, obs in (("kf", KalmanObserver(disturbance_model(dt=DT))),
-                      ("ekf", ExtendedKalmanObserver(disturbance_model(dt=DT, sigma_upper=0.01, sigma_d=0.005)))):
+    for name, obs in (
+        ("kf", KalmanObserver(disturbance_model(dt=DT))),
+        ("ekf", ExtendedKalmanObserver(disturbance_model(dt=DT, sigma_upper=0.01, sigma_d=0.005))),
+    ):
         obs.reset(th[:1])
         est = np.empty(len(th))
         for i in range(len(th)):
-            est[i] = obs.update(th[i:i + 1])[I_WL, 0]
+            est[i] = obs.update(th[i : i + 1])[I_WL, 0]
             obs.predict(np.array([1.5]))
         ss = slice(len(th) // 3, None)
         errs[name] = np.sqrt(np.mean((est[ss] - wl[ss]) ** 2))
@@ -110,8 +112,8 @@ def test_batched_extended_filter_equals_filterpy_per_trajectory():
         F = ekf.jacobians(xs)
         uk = model.known_inputs(xs, us)
         for k, kf in enumerate(ref):
-            kf.predict(u=uk[:, k:k + 1], F=F[k])
-            kf.x = model.Ad @ xs[:, k:k + 1] + model.Bd @ uk[:, k:k + 1]  # nonlinear mean, linearised covariance
+            kf.predict(u=uk[:, k : k + 1], F=F[k])
+            kf.x = model.Ad @ xs[:, k : k + 1] + model.Bd @ uk[:, k : k + 1]  # nonlinear mean, linearised covariance
         ekf.predict(us)
     assert x[I_WL, 2] > 1.0  # the 3.5 V run is slipping: the comparison covered the slope term
 
@@ -140,11 +142,12 @@ def test_scale_disturbance_estimates_the_brake_level(factor):
     p = RigParams()
     tr = simulate("torsional", u=4.0, duration=20.0, params=p.scaled(Ts=factor, Tc=factor, bb=factor))
     th = quantize_angle(tr.theta_u[::2])
-    ekf = ExtendedKalmanObserver(disturbance_model(p, 0.002, sigma_d=0.01, sigma_upper=1e-3, sigma_lower=1e-3,
-                                                   disturbance="scale"))
+    ekf = ExtendedKalmanObserver(
+        disturbance_model(p, 0.002, sigma_d=0.01, sigma_upper=1e-3, sigma_lower=1e-3, disturbance="scale")
+    )
     ekf.reset(th[:1])
     for i in range(len(th)):
-        x = ekf.update(th[i:i + 1])
+        x = ekf.update(th[i : i + 1])
         ekf.predict(np.array([4.0]))
     assert x[I_D, 0] == pytest.approx(factor - 1.0, abs=0.02)
     assert x[I_WL, 0] == pytest.approx(tr.omega_l[-1], abs=0.02)

@@ -43,7 +43,9 @@ def test_observer_removes_stick_slip_from_rest_at_0_5_to_3_rad_s_where_baseline_
     assert np.all(obs["ssi"] < 0.1) and np.all(obs["stuck"] == 0.0)
     assert np.all(np.abs(obs["offset"]) < 0.1)  # on the target, not a smooth rotation elsewhere
     assert obs["tracking_rms"][3] < 0.1 and np.all(obs["u_peak"] <= 5.0)
-    base = run_metrics(run_closed_loop(controllers.make("baseline", config=config, omega_ref=tg), config, tg, 60.0), 20.0)
+    base = run_metrics(
+        run_closed_loop(controllers.make("baseline", config=config, omega_ref=tg), config, tg, 60.0), 20.0
+    )
     assert np.all(base["ssi"] > 0.5) and np.all(base["stuck"] > 0.05)
 
 
@@ -51,7 +53,8 @@ def test_observer_at_the_environments_10_ms_period_does_not_hold_1_rad_s():
     """Why the observer samples at 500 Hz: at 10 ms the estimate is too coarse at 1 rad/s (harness, observer@10)."""
     from controllers.evaluation import evaluate
 
-    (row,) = evaluate(["observer@10"], ["torsional"], ["rest"], targets=[1.0], duration=60.0, window=20.0,
-                      workers=1, progress=False)
+    (row,) = evaluate(
+        ["observer@10"], ["torsional"], ["rest"], targets=[1.0], duration=60.0, window=20.0, workers=1, progress=False
+    )
     assert row["controller"] == "observer@10" and row["control_dt"] == 0.01
     assert row["ssi"] > 0.1

@@ -42,8 +42,16 @@ def test_no_run_past_the_over_speed_stop_on_off_model_plants():
     idx = np.repeat(np.arange(3), tg.size)
     ref = np.tile(tg, 3)
     c = controllers.make("observer-robust", omega_ref=ref)
-    run = run_closed_loop(c, "torsional", ref, 15.0, params=pop.matrix[idx], counts_per_rev=pop.counts_per_rev[idx],
-                          angle_noise=pop.angle_noise[idx], effects=pop.composition)
+    run = run_closed_loop(
+        c,
+        "torsional",
+        ref,
+        15.0,
+        params=pop.matrix[idx],
+        counts_per_rev=pop.counts_per_rev[idx],
+        angle_noise=pop.angle_noise[idx],
+        effects=pop.composition,
+    )
     met = run_metrics(run, 5.0)
     assert not met["runaway"].any() and np.all(met["u_peak"] <= 5.0)
 

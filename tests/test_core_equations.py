@@ -21,20 +21,33 @@ def model_md_accelerations(state, u, p: RigParams, Tfu, Tfl):
     m, mr, e, Jl, Ju = p.m, p.mr, p.e, p.Jl, p.Ju
     b, k, kth, km = p.b, p.k, p.ktheta, p.km
     # rows x, y, alpha, theta_u; columns x'', y'', alpha'', theta_u''
-    M = np.array([
-        [m, 0, -e * mr * s, -(e * mr * s + m * y)],
-        [0, m, e * mr * c, e * mr * c + m * x],
-        [-e * mr * s, e * mr * c, Jl, Jl + e * mr * (x * c + y * s)],
-        [-(e * mr * s + m * y), e * mr * c + m * x, Jl + e * mr * (x * c + y * s),
-         Ju + Jl + 2 * e * mr * (x * c + y * s) + m * (x * x + y * y)],
-    ])
-    rhs = -np.array([
-        b * (xd - y * W) + k * x - m * x * W**2 - 2 * m * W * yd - e * mr * c * (ad + W) ** 2,
-        b * (yd + x * W) + k * y - m * y * W**2 + 2 * m * W * xd - e * mr * s * (ad + W) ** 2,
-        2 * e * mr * W * (c * xd + s * yd) + e * mr * W**2 * (x * s - y * c) + kth * a + Tfl,
-        b * ((x * x + y * y) * W + x * yd - y * xd) - e * mr * (x * s - y * c) * (ad**2 + 2 * ad * W)
-        + 2 * e * mr * W * (c * xd + s * yd) + 2 * m * W * (x * xd + y * yd) + Tfu + Tfl - km * u,
-    ])
+    M = np.array(
+        [
+            [m, 0, -e * mr * s, -(e * mr * s + m * y)],
+            [0, m, e * mr * c, e * mr * c + m * x],
+            [-e * mr * s, e * mr * c, Jl, Jl + e * mr * (x * c + y * s)],
+            [
+                -(e * mr * s + m * y),
+                e * mr * c + m * x,
+                Jl + e * mr * (x * c + y * s),
+                Ju + Jl + 2 * e * mr * (x * c + y * s) + m * (x * x + y * y),
+            ],
+        ]
+    )
+    rhs = -np.array(
+        [
+            b * (xd - y * W) + k * x - m * x * W**2 - 2 * m * W * yd - e * mr * c * (ad + W) ** 2,
+            b * (yd + x * W) + k * y - m * y * W**2 + 2 * m * W * xd - e * mr * s * (ad + W) ** 2,
+            2 * e * mr * W * (c * xd + s * yd) + e * mr * W**2 * (x * s - y * c) + kth * a + Tfl,
+            b * ((x * x + y * y) * W + x * yd - y * xd)
+            - e * mr * (x * s - y * c) * (ad**2 + 2 * ad * W)
+            + 2 * e * mr * W * (c * xd + s * yd)
+            + 2 * m * W * (x * xd + y * yd)
+            + Tfu
+            + Tfl
+            - km * u,
+        ]
+    )
     xdd, ydd, add, thudd = np.linalg.solve(M, rhs)
     return np.array([xdd, ydd, thudd, add + thudd])
 
@@ -43,9 +56,16 @@ def model_md_accelerations(state, u, p: RigParams, Tfu, Tfl):
 def test_coupled_kernel_matches_model_md(seed):
     rng = np.random.default_rng(seed)
     p = RigParams()
-    y = initial_state(alpha0=rng.uniform(-3, 3), theta_u0=rng.uniform(-5, 5), omega_u0=rng.uniform(0.5, 8),
-                      omega_l0=rng.uniform(0.5, 12), x0=rng.uniform(-4e-3, 4e-3), y0=rng.uniform(-4e-3, 4e-3),
-                      vx0=rng.uniform(-0.05, 0.05), vy0=rng.uniform(-0.05, 0.05))
+    y = initial_state(
+        alpha0=rng.uniform(-3, 3),
+        theta_u0=rng.uniform(-5, 5),
+        omega_u0=rng.uniform(0.5, 8),
+        omega_l0=rng.uniform(0.5, 12),
+        x0=rng.uniform(-4e-3, 4e-3),
+        y0=rng.uniform(-4e-3, 4e-3),
+        vx0=rng.uniform(-0.05, 0.05),
+        vy0=rng.uniform(-0.05, 0.05),
+    )
     mode = np.array([1, 1], dtype=np.int64)
     dy, fric = np.zeros(8), np.zeros(2)
     state_derivative(0.0, y, mode, 2.3, p.to_vector(), int(Configuration.COUPLED), 0.0, dy, fric)

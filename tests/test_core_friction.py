@@ -10,7 +10,7 @@ from drillgym.friction import lower_friction, lower_friction_slope, upper_fricti
 def test_friction_laws_match_model_md():
     p = RigParams()
     w = np.array([0.5, 2.0, 7.0])
-    expected = p.Tc + (p.Ts - p.Tc) * np.exp(-np.abs(w / p.ws) ** p.delta) + p.bb * w
+    expected = p.Tc + (p.Ts - p.Tc) * np.exp(-(np.abs(w / p.ws) ** p.delta)) + p.bb * w
     np.testing.assert_allclose(lower_friction(w), expected, rtol=1e-12)
     np.testing.assert_allclose(lower_friction(-w), -expected, rtol=1e-12)
     np.testing.assert_allclose(lower_friction(w, brake=False), p.Tcl + p.bl * w, rtol=1e-12)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from drillgym import RigParams, initial_state, simulate, simulate_batch, BatchSimulator
+from drillgym import BatchSimulator, RigParams, initial_state, simulate, simulate_batch
 
 
 def test_rk4_converges_on_a_stick_slip_cycle():
@@ -113,7 +113,6 @@ def test_motor_lag_and_input_delay_effects_act():
     assert initial_state(alpha0=0.5)[1] == 0.5
 
 
-
 def test_motor_lag_far_below_the_step_is_stable_and_exact():
     """The lag state is integrated exactly over each step (MotorLag.lag): tau_m = 1e-4 s at dt = 1 ms
     (explicit RK4 diverges below about 0.36 dt) stays finite, its state follows the input exactly,
@@ -133,6 +132,7 @@ def test_motor_lag_far_below_the_step_is_stable_and_exact():
     coarse = simulate("torsional", u, 1.5, **slow)
     fine = simulate("torsional", u, 1.5, dt=2.5e-4, record_every=4, **slow)
     assert np.max(np.abs(coarse.omega_l - fine.omega_l)) < 1e-8
+
 
 def test_simd_lane_kernel_matches_scalar_kernel():
     """Batches of the diagonal-mass configurations run on the SIMD lane kernel; the scalar kernel

@@ -27,16 +27,19 @@ def write(tmp_path, text, name="d.csv"):
     return p
 
 
-@pytest.mark.parametrize("body,fragment", [
-    ("t,u\n0,1\n0.1,1\n", "missing column\\(s\\) theta_u"),
-    ("t,u,theta_u\n0,1,0\n0.1,nan,0\n", "line 3, column 'u': value is NaN"),
-    ("t,u,theta_u\n0,1,0\n0.1,1,0\n0.1,1,0\n", "line 4, column 't': time is not strictly increasing"),
-    ("t,u,theta_u\n0,1,0\n0.1,abc,0\n", "line 3, column 'u': 'abc' is not a number"),
-    ("t,u,theta_u\n0,1,0\n0.1,60,0\n", "column 'u': 60.0 V is outside"),
-    ("t,u,theta_u\n0,1,0\n0.1,1\n", "line 3: 2 fields, header has 3"),
-    ("# meta: {oops\nt,u,theta_u\n", "line 1: metadata is not valid JSON"),
-    ("", "no header line"),
-])
+@pytest.mark.parametrize(
+    "body,fragment",
+    [
+        ("t,u\n0,1\n0.1,1\n", "missing column\\(s\\) theta_u"),
+        ("t,u,theta_u\n0,1,0\n0.1,nan,0\n", "line 3, column 'u': value is NaN"),
+        ("t,u,theta_u\n0,1,0\n0.1,1,0\n0.1,1,0\n", "line 4, column 't': time is not strictly increasing"),
+        ("t,u,theta_u\n0,1,0\n0.1,abc,0\n", "line 3, column 'u': 'abc' is not a number"),
+        ("t,u,theta_u\n0,1,0\n0.1,60,0\n", "column 'u': 60.0 V is outside"),
+        ("t,u,theta_u\n0,1,0\n0.1,1\n", "line 3: 2 fields, header has 3"),
+        ("# meta: {oops\nt,u,theta_u\n", "line 1: metadata is not valid JSON"),
+        ("", "no header line"),
+    ],
+)
 def test_bad_files_are_refused_naming_the_problem(tmp_path, body, fragment):
     path = write(tmp_path, body)
     with pytest.raises(DataFormatError, match=fragment) as info:
@@ -89,8 +92,9 @@ def test_resample_holds_voltage_and_interpolates_angles():
 
 def test_streaming_writer_flushes_blocks(tmp_path):
     path = tmp_path / "rec.csv"
-    w = StreamingCsvWriter(path, ["t", "u", "theta_u"], {"configuration": "upper", "source": "rig"},
-                           flush_interval_s=0.1)
+    w = StreamingCsvWriter(
+        path, ["t", "u", "theta_u"], {"configuration": "upper", "source": "rig"}, flush_interval_s=0.1
+    )
     for i in range(50):
         w.write([i * 0.01, 1.0, 0.001 * i])
     # without close(): everything up to the last block boundary is already on disk

@@ -29,6 +29,7 @@ def test_full_vector_width_only_on_avx512_hosts(monkeypatch):
     monkeypatch.setenv("NUMBA_CPU_FEATURES", "+avx2")  # a user's own setting is never overridden
     assert _simd.prefer_full_vector_width() is False
     import os
+
     assert os.environ["NUMBA_CPU_FEATURES"] == "+avx2"
 
 
@@ -53,4 +54,5 @@ def test_generated_kernels_are_keyed_on_what_they_import_transitively(tmp_path):
         assert digest() != before
         before = digest()
     assert modules_digest(["drillgym.kernels.model"], ("hooks A",), pkg) != modules_digest(
-        ["drillgym.kernels.model"], ("hooks B",), pkg)
+        ["drillgym.kernels.model"], ("hooks B",), pkg
+    )

@@ -10,8 +10,16 @@ from drillgym.params import BASE_PARAMETERS, N_PARAMS, ParameterError, RigParams
 
 def test_defaults_are_model_md_values():
     p = RigParams()
-    assert (p.Ju, p.km, p.Jl, p.ktheta, p.Ts, p.Tc, p.ws, p.delta) == (0.4765, 4.3228, 0.0414, 0.0775, 0.2781,
-                                                                       0.0473, 1.4302, 2.0575)
+    assert (p.Ju, p.km, p.Jl, p.ktheta, p.Ts, p.Tc, p.ws, p.delta) == (
+        0.4765,
+        4.3228,
+        0.0414,
+        0.0775,
+        0.2781,
+        0.0473,
+        1.4302,
+        2.0575,
+    )
     assert p.m == pytest.approx(9.9137 + 3.2302)
 
 
@@ -22,12 +30,15 @@ def test_r4_stick_voltage_and_r6_lateral_eigenfrequency():
     assert p.e * p.mr / p.m * 1e3 == pytest.approx(3.69, abs=0.005)  # R6 limit radius
 
 
-@pytest.mark.parametrize("name,value,fragment", [
-    ("Ju", -0.1, "'Ju'"),
-    ("Jl", float("nan"), "'Jl'"),
-    ("ktheta", float("inf"), "'ktheta'"),
-    ("e", 0.5, "'e'"),
-])
+@pytest.mark.parametrize(
+    "name,value,fragment",
+    [
+        ("Ju", -0.1, "'Ju'"),
+        ("Jl", float("nan"), "'Jl'"),
+        ("ktheta", float("inf"), "'ktheta'"),
+        ("e", 0.5, "'e'"),
+    ],
+)
 def test_bad_values_name_the_parameter(name, value, fragment):
     with pytest.raises(ParameterError, match=fragment):
         RigParams().replace(**{name: value})

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from drillgym import simulate
-from drillgym.effects import EffectError, LIBRARY, available_effects, compose
+from drillgym.effects import LIBRARY, EffectError, available_effects, compose
 from drillgym.effects.codegen import hooks_source
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -19,8 +19,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def write_effect(tmp_path: Path, body: str, name: str = "my_effect.py") -> Path:
     path = tmp_path / name
-    path.write_text("from drillgym.effects import Force, Friction, Input, Delay, Measurement, Parameter, State\n"
-                    "import math\n\n" + textwrap.dedent(body))
+    path.write_text(
+        "from drillgym.effects import Force, Friction, Input, Delay, Measurement, Parameter, State\n"
+        "import math\n\n" + textwrap.dedent(body)
+    )
     return path
 
 
@@ -61,40 +63,77 @@ def test_unknown_effect_name_lists_the_known_ones():
         compose(["motor_lagg"])
 
 
-@pytest.mark.parametrize("body, message", [
-    ("class Broken(Force):\n    name = 'broken'\n    acts_on = 'string'\n    def torque(alpha:\n        return 0\n",
-     "does not import"),
-    ("raise RuntimeError('no licence')\n", "does not import.*RuntimeError: no licence"),
-    ("class Middle(Force):\n    name = 'middle'\n    acts_on = 'middle_disc'\n"
-     "    def torque(alpha):\n        return alpha\n", "acts_on = 'middle_disc' is not a coordinate"),
-    ("class Odd(Force):\n    name = 'odd'\n    acts_on = 'lower'\n"
-     "    def torque(omega_x):\n        return omega_x\n", "unknown quantity/coordinate 'omega_x'"),
-    ("class Loose(Force):\n    name = 'loose'\n    acts_on = 'lower'\n"
-     "    parameters = (Parameter('c', '-', None, 1.0, 0.0, 0.1),)\n"
-     "    def torque(alpha, c):\n        return c * alpha\n", "needs a finite lo"),
-    ("class Nan(Force):\n    name = 'nan_effect'\n    acts_on = 'lower'\n"
-     "    def torque(omega_l):\n        return math.log(omega_l)\n", "fails at a typical state|not finite"),
-    ("class Nan2(Force):\n    name = 'nan2'\n    acts_on = 'lower'\n"
-     "    def torque(omega_l):\n        return math.sqrt(abs(omega_l)) * float('nan')\n", "not finite"),
-    ("class Selfish(Force):\n    name = 'selfish'\n    acts_on = 'lower'\n"
-     "    def torque(self, alpha):\n        return alpha\n", "without self"),
-    ("class Clash(Force):\n    name = 'clash'\n    acts_on = 'lower'\n"
-     "    parameters = (Parameter('Ts', 'N m', 0.0, 1.0, 0.1, 0.1),)\n"
-     "    def torque(Ts):\n        return Ts\n", "already taken"),
-    ("class NoState(Input):\n    name = 'nostate'\n    states = (State('z', 'V'),)\n"
-     "    def voltage(u, z):\n        return z\n", "defines derivative"),
-    ("class BadLag(Input):\n    name = 'badlag'\n    states = (State('z', 'V'),)\n"
-     "    parameters = (Parameter('tau', 's', 0.0, 1.0, 0.1, 0.1),)\n    lag = {'z': 'tau'}\n"
-     "    def derivative(u, z, tau):\n        return (u - z) / tau\n"
-     "    def voltage(z):\n        return z\n", "lag time constant 'tau' needs a lower bound > 0"),
-    ("class Biased(Force):\n    name = 'biased'\n    acts_on = 'lower'\n"
-     "    parameters = (Parameter('c', '-', -1.0, 1.0, 0.0, 0.1, neutral=0.0),)\n"
-     "    def torque(omega_l, c):\n        return c * omega_l + 0.01\n",
-     "torque\\(\\) does not vanish at the declared neutral values \\(c=0\\)"),
-    ("class Outside(Force):\n    name = 'outside'\n    acts_on = 'lower'\n"
-     "    parameters = (Parameter('c', '-', 0.0, 1.0, 0.5, 0.1, neutral=-1.0),)\n"
-     "    def torque(omega_l, c):\n        return c * omega_l\n", "neutral = -1.0 is not a number within its bounds"),
-])
+@pytest.mark.parametrize(
+    "body, message",
+    [
+        (
+            "class Broken(Force):\n    name = 'broken'\n    acts_on = 'string'\n    def torque(alpha:\n        return 0\n",
+            "does not import",
+        ),
+        ("raise RuntimeError('no licence')\n", "does not import.*RuntimeError: no licence"),
+        (
+            "class Middle(Force):\n    name = 'middle'\n    acts_on = 'middle_disc'\n"
+            "    def torque(alpha):\n        return alpha\n",
+            "acts_on = 'middle_disc' is not a coordinate",
+        ),
+        (
+            "class Odd(Force):\n    name = 'odd'\n    acts_on = 'lower'\n"
+            "    def torque(omega_x):\n        return omega_x\n",
+            "unknown quantity/coordinate 'omega_x'",
+        ),
+        (
+            "class Loose(Force):\n    name = 'loose'\n    acts_on = 'lower'\n"
+            "    parameters = (Parameter('c', '-', None, 1.0, 0.0, 0.1),)\n"
+            "    def torque(alpha, c):\n        return c * alpha\n",
+            "needs a finite lo",
+        ),
+        (
+            "class Nan(Force):\n    name = 'nan_effect'\n    acts_on = 'lower'\n"
+            "    def torque(omega_l):\n        return math.log(omega_l)\n",
+            "fails at a typical state|not finite",
+        ),
+        (
+            "class Nan2(Force):\n    name = 'nan2'\n    acts_on = 'lower'\n"
+            "    def torque(omega_l):\n        return math.sqrt(abs(omega_l)) * float('nan')\n",
+            "not finite",
+        ),
+        (
+            "class Selfish(Force):\n    name = 'selfish'\n    acts_on = 'lower'\n"
+            "    def torque(self, alpha):\n        return alpha\n",
+            "without self",
+        ),
+        (
+            "class Clash(Force):\n    name = 'clash'\n    acts_on = 'lower'\n"
+            "    parameters = (Parameter('Ts', 'N m', 0.0, 1.0, 0.1, 0.1),)\n"
+            "    def torque(Ts):\n        return Ts\n",
+            "already taken",
+        ),
+        (
+            "class NoState(Input):\n    name = 'nostate'\n    states = (State('z', 'V'),)\n"
+            "    def voltage(u, z):\n        return z\n",
+            "defines derivative",
+        ),
+        (
+            "class BadLag(Input):\n    name = 'badlag'\n    states = (State('z', 'V'),)\n"
+            "    parameters = (Parameter('tau', 's', 0.0, 1.0, 0.1, 0.1),)\n    lag = {'z': 'tau'}\n"
+            "    def derivative(u, z, tau):\n        return (u - z) / tau\n"
+            "    def voltage(z):\n        return z\n",
+            "lag time constant 'tau' needs a lower bound > 0",
+        ),
+        (
+            "class Biased(Force):\n    name = 'biased'\n    acts_on = 'lower'\n"
+            "    parameters = (Parameter('c', '-', -1.0, 1.0, 0.0, 0.1, neutral=0.0),)\n"
+            "    def torque(omega_l, c):\n        return c * omega_l + 0.01\n",
+            "torque\\(\\) does not vanish at the declared neutral values \\(c=0\\)",
+        ),
+        (
+            "class Outside(Force):\n    name = 'outside'\n    acts_on = 'lower'\n"
+            "    parameters = (Parameter('c', '-', 0.0, 1.0, 0.5, 0.1, neutral=-1.0),)\n"
+            "    def torque(omega_l, c):\n        return c * omega_l\n",
+            "neutral = -1.0 is not a number within its bounds",
+        ),
+    ],
+)
 def test_bad_effect_files_get_one_line_errors_naming_file_and_problem(tmp_path, body, message):
     path = tmp_path / "bad_effect.py"
     path.write_text("from drillgym.effects import Force, Input, Parameter, State\nimport math\n\n" + body)
@@ -127,15 +166,47 @@ def test_effect_values_are_checked_against_their_bounds():
 def test_cli_refuses_a_bad_effect_in_one_line(tmp_path):
     path = tmp_path / "bad.py"
     path.write_text("this is not python\n")
-    r = subprocess.run([sys.executable, "-m", "drillgym.cli", "simulate", "--u", "1", "--duration", "1",
-                        "--out", str(tmp_path / "o.csv"), "--add-effect", f"{path}:x"],
-                       capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "drillgym.cli",
+            "simulate",
+            "--u",
+            "1",
+            "--duration",
+            "1",
+            "--out",
+            str(tmp_path / "o.csv"),
+            "--add-effect",
+            f"{path}:x",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert r.returncode == 2
     lines = [ln for ln in r.stderr.strip().splitlines() if ln]
     assert len(lines) == 1 and "bad.py" in lines[0] and "does not import" in lines[0]
-    r = subprocess.run([sys.executable, "-m", "drillgym.cli", "simulate", "--u", "1", "--duration", "1",
-                        "--out", str(tmp_path / "o.csv"), "--effect-param", "tau_m=0.1"],
-                       capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "drillgym.cli",
+            "simulate",
+            "--u",
+            "1",
+            "--duration",
+            "1",
+            "--out",
+            str(tmp_path / "o.csv"),
+            "--effect-param",
+            "tau_m=0.1",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert r.returncode == 2 and "no effect added" in r.stderr
 
 
@@ -144,9 +215,19 @@ def test_effects_command_lists_and_validates(tmp_path):
     assert r.returncode == 0
     for name in LIBRARY:
         assert name in r.stdout
-    r = subprocess.run([sys.executable, "-m", "drillgym.cli", "effects", "--show",
-                        f"{ROOT}/examples/effects/string_cubic.py:string_cubic"],
-                       capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "drillgym.cli",
+            "effects",
+            "--show",
+            f"{ROOT}/examples/effects/string_cubic.py:string_cubic",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert r.returncode == 0 and "c3" in r.stdout and "1/rad^2" in r.stdout
 
 
@@ -158,7 +239,8 @@ def test_entry_point_effects_are_found_by_name(tmp_path, monkeypatch):
         "from drillgym.effects import Force, Parameter\n\n"
         "class Wind(Force):\n    name = 'wind'\n    acts_on = 'upper'\n"
         "    parameters = (Parameter('gust', 'N m', 0.0, 1.0, 0.1, 0.01),)\n"
-        "    def torque(gust):\n        return -gust\n")
+        "    def torque(gust):\n        return -gust\n"
+    )
     dist = pkg / "rig_extras-0.1.dist-info"
     dist.mkdir()
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: rig-extras\nVersion: 0.1\n")
@@ -196,14 +278,18 @@ def test_kernel_cache_is_keyed_by_content_never_stale(tmp_path):
     """The same effect file edited between two runs: the second run sees the new physics (a new cached
     package), and a third identical run reuses the second's cache."""
     path = tmp_path / "push.py"
-    script = ("import sys; from drillgym import simulate; from drillgym.effects import compose\n"
-              f"c, _ = compose(['{path}:push']); tr = simulate('upper', 0.0, 1.0, effects=c)\n"
-              "print(tr.omega_u[-1], c.kernels.package)")
+    script = (
+        "import sys; from drillgym import simulate; from drillgym.effects import compose\n"
+        f"c, _ = compose(['{path}:push']); tr = simulate('upper', 0.0, 1.0, effects=c)\n"
+        "print(tr.omega_u[-1], c.kernels.package)"
+    )
     env = dict(os.environ, DRILLGYM_KERNEL_CACHE=str(tmp_path / "cache"))
 
     def run(gain: float) -> tuple[float, str]:
-        path.write_text("from drillgym.effects import Force\n\nclass Push(Force):\n    name = 'push'\n"
-                        f"    acts_on = 'upper'\n\n    def torque(t):\n        return {gain}\n")
+        path.write_text(
+            "from drillgym.effects import Force\n\nclass Push(Force):\n    name = 'push'\n"
+            f"    acts_on = 'upper'\n\n    def torque(t):\n        return {gain}\n"
+        )
         out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=600)
         assert out.returncode == 0, out.stderr
         w, pkg = out.stdout.split()

@@ -19,11 +19,26 @@ from drillgym.simulator import LANES_MIN_BATCH
 
 ROOT = Path(__file__).resolve().parents[1]
 ALL_LIBRARY = list(LIBRARY)
-LIBRARY_VALUES = {"pf_c1": 0.12, "pf_s2": -0.05, "asym_s": 0.3, "asym_c": 0.2, "dtheta": 0.004, "tau_m": 0.03,
-                  "delay": 0.0237, "dk": 150.0, "db": 2.0, "lvdt_x0": 2e-4, "lvdt_y0": -1e-4, "lvdt_skew": 0.03,
-                  "Fc_lat": 1.5, "drift": 0.004}
-USER = [f"{ROOT}/examples/effects/string_cubic.py:string_cubic",
-        f"{ROOT}/examples/effects/string_backlash.py:string_backlash"]
+LIBRARY_VALUES = {
+    "pf_c1": 0.12,
+    "pf_s2": -0.05,
+    "asym_s": 0.3,
+    "asym_c": 0.2,
+    "dtheta": 0.004,
+    "tau_m": 0.03,
+    "delay": 0.0237,
+    "dk": 150.0,
+    "db": 2.0,
+    "lvdt_x0": 2e-4,
+    "lvdt_y0": -1e-4,
+    "lvdt_skew": 0.03,
+    "Fc_lat": 1.5,
+    "drift": 0.004,
+}
+USER = [
+    f"{ROOT}/examples/effects/string_cubic.py:string_cubic",
+    f"{ROOT}/examples/effects/string_backlash.py:string_backlash",
+]
 USER_VALUES = {"c3": 0.015, "gap": 0.05}
 DT = 1e-3
 PERIOD = 10  # steps per control period of the stepping paths
@@ -37,8 +52,11 @@ def command(n_steps: int) -> np.ndarray:
     return np.repeat(u[::PERIOD], PERIOD)[:n_steps]
 
 
-CASES = [("coupled", ALL_LIBRARY, LIBRARY_VALUES), ("torsional", USER, USER_VALUES),
-         ("lateral", ["lateral_anisotropy", "motor_lag", "input_delay"], LIBRARY_VALUES)]
+CASES = [
+    ("coupled", ALL_LIBRARY, LIBRARY_VALUES),
+    ("torsional", USER, USER_VALUES),
+    ("lateral", ["lateral_anisotropy", "motor_lag", "input_delay"], LIBRARY_VALUES),
+]
 
 
 @pytest.fixture(scope="module", params=CASES, ids=[c[0] + "-" + str(len(c[1])) for c in CASES])
@@ -62,8 +80,9 @@ def test_effects_change_the_run(case):
 def test_batch_lanes_match_single_run(case):
     config, comp, vals, U, ref = case
     B = LANES_MIN_BATCH
-    batch = simulate_batch(config, np.tile(U, (B, 1)), DURATION, dt=DT, effects=comp, effect_params=vals,
-                           alpha0=np.full(B, 0.3))
+    batch = simulate_batch(
+        config, np.tile(U, (B, 1)), DURATION, dt=DT, effects=comp, effect_params=vals, alpha0=np.full(B, 0.3)
+    )
     for k in (0, B - 1):
         np.testing.assert_allclose(batch.data[k], ref.data, rtol=0, atol=1e-8)
 
@@ -87,8 +106,9 @@ def test_dp5_and_smooth_options_run_the_same_effects(case):
     config, comp, vals, U, ref = case
     dp5 = simulate(config, U, DURATION, dt=DT, effects=comp, effect_params=vals, alpha0=0.3, method="dp5")
     assert np.max(np.abs(dp5.omega_l - ref.omega_l)) < 0.05
-    smooth = simulate(config, U, DURATION, dt=DT, effects=comp, effect_params=vals, alpha0=0.3, friction="smooth",
-                      smooth_eps=1e-3)
+    smooth = simulate(
+        config, U, DURATION, dt=DT, effects=comp, effect_params=vals, alpha0=0.3, friction="smooth", smooth_eps=1e-3
+    )
     assert np.all(np.isfinite(smooth.data))
 
 
@@ -133,8 +153,16 @@ def test_a_run_restarted_in_the_middle_continues_the_whole_run():
     U = command(n)
     whole = simulate("torsional", U, n * DT, effects=comp, effect_params=vals, alpha0=0.3)
     i = 3000
-    seg = simulate_batch("torsional", U[None, i:], (n - i) * DT, effects=comp, effect_params=vals,
-                         x0=whole.data[i, list(range(2, 10)) + [18]], t0=i * DT, u_before=U[:i])
+    seg = simulate_batch(
+        "torsional",
+        U[None, i:],
+        (n - i) * DT,
+        effects=comp,
+        effect_params=vals,
+        x0=whole.data[i, list(range(2, 10)) + [18]],
+        t0=i * DT,
+        u_before=U[:i],
+    )
     np.testing.assert_allclose(seg.data[0, -1, 2:10], whole.data[-1, 2:10], atol=1e-9)
     np.testing.assert_allclose(seg.t[0], whole.t[i:], atol=1e-9)
 

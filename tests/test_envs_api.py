@@ -84,16 +84,19 @@ def test_actions_are_clipped_like_the_amplifier() -> None:
     assert norm.step(np.array([3.0]))[4]["voltage"] == 5.0
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    ({"observation": "camera"}, "observation"),
-    ({"bogus": 1}, "bogus"),
-    ({"control_dt": 0.01, "dt": 0.003}, "dt"),
-    ({"omega_ref_range": (5.0, 2.0)}, "omega_ref_range"),
-    ({"randomize": 1.5}, "randomize"),
-    ({"randomize_names": ("Ts", "nope")}, "nope"),
-    ({"reward": {"track": -1.0}}, "track"),
-    ({"configuration": "upper"}, "configuration"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"observation": "camera"}, "observation"),
+        ({"bogus": 1}, "bogus"),
+        ({"control_dt": 0.01, "dt": 0.003}, "dt"),
+        ({"omega_ref_range": (5.0, 2.0)}, "omega_ref_range"),
+        ({"randomize": 1.5}, "randomize"),
+        ({"randomize_names": ("Ts", "nope")}, "nope"),
+        ({"reward": {"track": -1.0}}, "track"),
+        ({"configuration": "upper"}, "configuration"),
+    ],
+)
 def test_bad_options_name_the_option(kwargs, match) -> None:
     with pytest.raises(ValueError, match=match):
         EnvOptions.from_kwargs(**kwargs)

@@ -49,8 +49,9 @@ def _env_run(effects, values, u: np.ndarray, seed: int = 0) -> tuple[np.ndarray,
 
 
 def _reference(effects, values, u: np.ndarray, alpha0: float, dt: float) -> np.ndarray:
-    traj = drillgym.simulate("torsional", u=u, duration=len(u) * dt, dt=dt, alpha0=alpha0, effects=effects,
-                             effect_params=values)
+    traj = drillgym.simulate(
+        "torsional", u=u, duration=len(u) * dt, dt=dt, alpha0=alpha0, effects=effects, effect_params=values
+    )
     return traj.omega_l[1:]
 
 
@@ -88,15 +89,26 @@ def test_env_options_reject_unknown_effects_and_parameters() -> None:
     with pytest.raises(Exception, match="no_such_effect"):
         gym.make("drillgym/Torsional-v0", effects=["no_such_effect"])
     with pytest.raises(ValueError, match="tau_m"):
-        gym.make("drillgym/Torsional-v0", normalize_action=False, effects=["input_delay"], effect_params={"tau_m": 0.02})
+        gym.make(
+            "drillgym/Torsional-v0", normalize_action=False, effects=["input_delay"], effect_params={"tau_m": 0.02}
+        )
     with pytest.raises(ValueError, match="delay"):
-        gym.make("drillgym/Torsional-v0", normalize_action=False, effects=["input_delay"], effect_params={"delay": 2.0})  # above 0.5 s
+        gym.make(
+            "drillgym/Torsional-v0", normalize_action=False, effects=["input_delay"], effect_params={"delay": 2.0}
+        )  # above 0.5 s
 
 
 def test_randomisation_may_name_effect_parameters() -> None:
     n = 4
-    venv = make_vec("drillgym/Torsional-v0", n, normalize_action=False, effects=["input_delay"], effect_params={"delay": 0.05},
-                    randomize=0.5, randomize_names=("delay", "Ts"))
+    venv = make_vec(
+        "drillgym/Torsional-v0",
+        n,
+        normalize_action=False,
+        effects=["input_delay"],
+        effect_params={"delay": 0.05},
+        randomize=0.5,
+        randomize_names=("delay", "Ts"),
+    )
     venv.reset(seed=3)
     comp = venv.batch.system.composition
     P = venv.batch.system.params_matrix.copy()
@@ -109,16 +121,37 @@ def test_randomisation_may_name_effect_parameters() -> None:
     alpha0 = venv.batch.system.alpha.copy()
     W = np.array([venv.step(np.full(n, v, dtype=np.float32))[4]["omega_l"] for v in u])
     for i in range(n):
-        traj = drillgym.simulate("torsional", u=u.astype(np.float64), duration=len(u) * venv.options.dt,
-                                 dt=venv.options.dt, alpha0=float(alpha0[i]), params=P[i], effects=comp)
+        traj = drillgym.simulate(
+            "torsional",
+            u=u.astype(np.float64),
+            duration=len(u) * venv.options.dt,
+            dt=venv.options.dt,
+            alpha0=float(alpha0[i]),
+            params=P[i],
+            effects=comp,
+        )
         assert np.abs(W[:, i] - traj.omega_l[1:]).max() <= TOL, f"rig {i} (delay {d[i]:.4f} s)"
     with pytest.raises(ValueError, match="tau_m"):
-        make_vec("drillgym/Torsional-v0", 2, normalize_action=False, effects=["input_delay"], randomize=0.1, randomize_names=("tau_m",))
+        make_vec(
+            "drillgym/Torsional-v0",
+            2,
+            normalize_action=False,
+            effects=["input_delay"],
+            randomize=0.1,
+            randomize_names=("tau_m",),
+        )
 
 
 def test_randomised_effect_parameters_stay_within_their_bounds() -> None:
-    venv = make_vec("drillgym/Torsional-v0", 16, normalize_action=False, effects=["input_delay"], effect_params={"delay": 0.4},
-                    randomize=0.9, randomize_names=("delay",))
+    venv = make_vec(
+        "drillgym/Torsional-v0",
+        16,
+        normalize_action=False,
+        effects=["input_delay"],
+        effect_params={"delay": 0.4},
+        randomize=0.9,
+        randomize_names=("delay",),
+    )
     venv.reset(seed=0)
     comp = venv.batch.system.composition
     d = venv.batch.system.params_matrix[:, comp.param_index("delay")]
@@ -153,8 +186,11 @@ def _sensors_episode(env_id: str, mode: str, steps: int = 120, **kw):
 
 def test_sensors_observation_applies_library_measurement_effects() -> None:
     x0, y0, skew = 1e-3, -5e-4, 0.1
-    kw = dict(lvdt_noise_std=0.0, effects=["lvdt_offset", "lvdt_skew"],
-              effect_params={"lvdt_x0": x0, "lvdt_y0": y0, "lvdt_skew": skew})
+    kw = dict(
+        lvdt_noise_std=0.0,
+        effects=["lvdt_offset", "lvdt_skew"],
+        effect_params={"lvdt_x0": x0, "lvdt_y0": y0, "lvdt_skew": skew},
+    )
     env, Y, obs = _sensors_episode("drillgym/Coupled-v0", "sensors", **kw)
     _, Yb, obs_b = _sensors_episode("drillgym/Coupled-v0", "sensors", lvdt_noise_std=0.0)
     np.testing.assert_allclose(Y, Yb, rtol=0, atol=1e-12)  # measurement effects never touch the dynamics
@@ -174,8 +210,9 @@ def test_sensors_observation_applies_library_measurement_effects() -> None:
 @pytest.mark.parametrize("mode", ["sensors", "motor"])
 def test_observations_apply_a_user_measurement_effect(mode: str) -> None:
     gain = 1.25
-    env, Y, obs = _sensors_episode("drillgym/Torsional-v0", mode, effects=[EncoderGain],
-                                   effect_params={"enc_gain": gain})
+    env, Y, obs = _sensors_episode(
+        "drillgym/Torsional-v0", mode, effects=[EncoderGain], effect_params={"enc_gain": gain}
+    )
     _, Yb, obs_b = _sensors_episode("drillgym/Torsional-v0", mode)
     np.testing.assert_allclose(Y, Yb, rtol=0, atol=1e-12)
     o = env.unwrapped.options

@@ -16,8 +16,13 @@ import drillgym  # noqa: F401  (registers the ids)
 from drillgym.envs import EnvOptions, make_vec
 from drillgym.envs.observation import MotorObservation, SensorObservation, fixed_frame_lateral
 from drillgym.envs.task import SpeedTrackingTask
-from drillgym.measurement import (EncoderVelocityEstimator, angle_to_counts, counts_to_angle, lvdt_measure,
-                                  quantize_angle)
+from drillgym.measurement import (
+    EncoderVelocityEstimator,
+    angle_to_counts,
+    counts_to_angle,
+    lvdt_measure,
+    quantize_angle,
+)
 
 U_MAX = 5.0
 
@@ -140,8 +145,9 @@ def test_readings_path_equals_simulated_path() -> None:
     n, steps = 3, 300
     o = EnvOptions.from_kwargs(configuration="coupled", observation="sensors")
     sim, hw = SensorObservation(n, o), SensorObservation(n, o)
-    msim, mhw = (MotorObservation(n, EnvOptions.from_kwargs(configuration="coupled", observation="motor"))
-                 for _ in range(2))
+    msim, mhw = (
+        MotorObservation(n, EnvOptions.from_kwargs(configuration="coupled", observation="motor")) for _ in range(2)
+    )
     states = _random_walk(n, steps, 1)
     rngs_sim = [np.random.default_rng(i) for i in range(n)]
     rngs_hw = [np.random.default_rng(i) for i in range(n)]
@@ -161,7 +167,7 @@ def test_readings_path_equals_simulated_path() -> None:
         msim.observe(Y, u, ref, mout_sim, None)
         mhw.from_readings(quantize_angle(Y[:, 0], o.counts_per_rev), u, ref, mout_hw)
         np.testing.assert_array_equal(mout_sim, mout_hw, err_msg=f"motor, period {k}")
-    assert np.abs(out_sim[:, 3]).max() > 1.0 and np.ptp(mout_sim[0, msim.H:2 * msim.H]) > 1.0  # speeds, voltages
+    assert np.abs(out_sim[:, 3]).max() > 1.0 and np.ptp(mout_sim[0, msim.H : 2 * msim.H]) > 1.0  # speeds, voltages
     np.testing.assert_array_equal(sim.est_u.omega, hw.est_u.omega)  # the estimators' state is shared
     X, Yf = fixed_frame_lateral(states[-1])
     assert 0 < np.abs(out_sim[:, 5] - 1e3 * X).max() < 0.05  # mm: noise of a few um

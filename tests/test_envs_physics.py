@@ -25,8 +25,9 @@ def _run_constant(env_id: str, u: float, steps: int, **options) -> tuple[list[di
 
 def test_constant_1V_from_rest_gives_stick_slip_like_the_core() -> None:
     alpha0 = 0.3
-    infos, obs = _run_constant("drillgym/Torsional-v0", 1.0, 3000, alpha0_range=(alpha0, alpha0), omega_ref=2.0,
-                               episode_duration=40.0)
+    infos, obs = _run_constant(
+        "drillgym/Torsional-v0", 1.0, 3000, alpha0_range=(alpha0, alpha0), omega_ref=2.0, episode_duration=40.0
+    )
     wl = np.array([i["omega_l"] for i in infos])
     stuck = np.array([i["stuck"] for i in infos])
     # same kernel, same step: the env is the core
@@ -116,7 +117,9 @@ def test_reward_penalises_tracking_error_stick_and_effort() -> None:
 
 
 def test_domain_randomisation_draws_parameters_per_episode() -> None:
-    env = gym.make("drillgym/Torsional-v0", normalize_action=False, randomize=0.1, randomize_names=("Ts", "ktheta")).unwrapped
+    env = gym.make(
+        "drillgym/Torsional-v0", normalize_action=False, randomize=0.1, randomize_names=("Ts", "ktheta")
+    ).unwrapped
     base = RigParams().to_vector()
     env.reset(seed=1)
     p1 = env.batch.system.params_matrix[0].copy()
@@ -131,7 +134,9 @@ def test_domain_randomisation_draws_parameters_per_episode() -> None:
 
 
 def test_sensor_observation_is_quantized_and_noisy() -> None:
-    env = gym.make("drillgym/Coupled-v0", normalize_action=False, observation="sensors", counts_per_rev=100, lvdt_noise_std=5e-6).unwrapped
+    env = gym.make(
+        "drillgym/Coupled-v0", normalize_action=False, observation="sensors", counts_per_rev=100, lvdt_noise_std=5e-6
+    ).unwrapped
     env.reset(seed=0)
     for _ in range(200):
         obs, *_ = env.step(np.array([3.0]))

@@ -29,16 +29,19 @@ def test_env_pickles_and_continues_identically(env_id):
     assert pickle.loads(pickle.dumps(env.spec)).vector_entry_point(num_envs=2).num_envs == 2
 
 
-@pytest.mark.parametrize("action, error, words", [
-    (np.zeros((1, 1)), ValueError, "got shape (1, 1)"),
-    (np.zeros(2), ValueError, "got shape (2,)"),
-    ("2.0", TypeError, "got str '2.0'"),
-    ("abc", TypeError, "got str 'abc'"),
-    (None, TypeError, "got NoneType None"),
-    (True, TypeError, "got bool True"),
-    ([object()], TypeError, "of dtype object"),
-    (np.array([np.nan]), ValueError, "must be finite"),
-])
+@pytest.mark.parametrize(
+    "action, error, words",
+    [
+        (np.zeros((1, 1)), ValueError, "got shape (1, 1)"),
+        (np.zeros(2), ValueError, "got shape (2,)"),
+        ("2.0", TypeError, "got str '2.0'"),
+        ("abc", TypeError, "got str 'abc'"),
+        (None, TypeError, "got NoneType None"),
+        (True, TypeError, "got bool True"),
+        ([object()], TypeError, "of dtype object"),
+        (np.array([np.nan]), ValueError, "must be finite"),
+    ],
+)
 def test_malformed_actions_say_what_is_expected(action, error, words):
     env = gym.make("drillgym/Torsional-v0", normalize_action=False).unwrapped
     env.reset(seed=0)

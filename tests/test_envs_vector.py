@@ -14,8 +14,10 @@ from drillgym.envs.sb3 import SB3VecEnvAdapter, make_sb3_vec
 N = 4
 
 
-@pytest.mark.parametrize("env_id, mode", [("drillgym/Torsional-v0", "full"), ("drillgym/Coupled-v0", "sensors"),
-                                          ("drillgym/Lateral-v0", "motor")])
+@pytest.mark.parametrize(
+    "env_id, mode",
+    [("drillgym/Torsional-v0", "full"), ("drillgym/Coupled-v0", "sensors"), ("drillgym/Lateral-v0", "motor")],
+)
 def test_vector_env_matches_single_envs_with_next_step_autoreset(env_id: str, mode: str) -> None:
     opts = dict(observation=mode, episode_duration=0.5, randomize=0.05)
     venv = make_vec(env_id, N, normalize_action=False, **opts)
@@ -54,8 +56,8 @@ def test_same_step_autoreset_reports_final_observation() -> None:
     obs, rew, term, trunc, info = venv.step(np.full(3, 2.0))
     assert trunc.all() and info["_final_obs"].all()
     final = np.stack(info["final_obs"])
-    assert np.all(final[:, 3] == 2.0)          # last applied voltage in the final observation
-    assert np.all(obs[:, 3] == 0.0)            # already reset
+    assert np.all(final[:, 3] == 2.0)  # last applied voltage in the final observation
+    assert np.all(obs[:, 3] == 0.0)  # already reset
     assert np.all(info["final_info"]["time"] == pytest.approx(0.1))
 
 

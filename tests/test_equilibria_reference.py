@@ -7,8 +7,14 @@ from scipy.optimize import minimize_scalar
 
 from drillgym import RigParams
 from drillgym.effects import BASE
-from drillgym.equilibria import (linearise, lower_damping, routh_hurwitz_torsional, slip_equilibria,
-                                 slip_equilibrium, stick_set)
+from drillgym.equilibria import (
+    linearise,
+    lower_damping,
+    routh_hurwitz_torsional,
+    slip_equilibria,
+    slip_equilibrium,
+    stick_set,
+)
 from drillgym.errors import ParameterError
 
 
@@ -47,14 +53,18 @@ def test_r5_equilibrium_speed_at_3v6():
 
 def test_r6_lateral_resonance_and_limit():
     p = RigParams()
-    res = minimize_scalar(lambda w: -slip_equilibrium("lateral", w, with_eigenvalues=False).r,
-                          bounds=(5, 40), method="bounded", options={"xatol": 1e-6})
-    assert 15.04 <= res.x <= 15.04 * 1.01          # peak at the lateral eigenfrequency sqrt(k/m)
+    res = minimize_scalar(
+        lambda w: -slip_equilibrium("lateral", w, with_eigenvalues=False).r,
+        bounds=(5, 40),
+        method="bounded",
+        options={"xatol": 1e-6},
+    )
+    assert 15.04 <= res.x <= 15.04 * 1.01  # peak at the lateral eigenfrequency sqrt(k/m)
     assert round(np.sqrt(p.k / p.m), 2) == 15.04
     u_peak = slip_equilibrium("lateral", res.x).u
-    assert 7.5 < u_peak < 9.0                       # "r_eq peaks near u = 8 V"
+    assert 7.5 < u_peak < 9.0  # "r_eq peaks near u = 8 V"
     r_inf = slip_equilibrium("lateral", 1e4, with_eigenvalues=False).r
-    assert round(r_inf * 1e3, 2) == 3.69            # e mr / (mr + mt)
+    assert round(r_inf * 1e3, 2) == 3.69  # e mr / (mr + mt)
 
 
 def test_stability_changes_at_hopf_points():
@@ -67,8 +77,9 @@ def test_stability_changes_at_hopf_points():
 def test_equilibrium_is_a_rest_point_of_the_simulator(config):
     eq = slip_equilibria(config, 2.5)[0]
     dy, fric = np.zeros(8), np.zeros(2)
-    BASE.kernels.model.state_derivative(0.0, eq.state, eq.modes, 2.5, RigParams().to_vector(), int(eq.config), 0.0,
-                                        dy, fric)
+    BASE.kernels.model.state_derivative(
+        0.0, eq.state, eq.modes, 2.5, RigParams().to_vector(), int(eq.config), 0.0, dy, fric
+    )
     assert np.allclose(dy[[2, 3, 6, 7]], 0.0, atol=1e-10)
     assert np.isclose(dy[0], eq.omega) and np.isclose(dy[1], eq.omega)
 
@@ -92,7 +103,7 @@ def test_angles_variant_for_observers():
     assert sys.state_labels[:4] == ["theta_u", "theta_l", "omega_u", "omega_l"]
     assert sys.output_labels == ["theta_u", "theta_l", "r"]
     lam = np.linalg.eigvals(sys.A)
-    assert np.sum(np.abs(lam) < 1e-6) == 1          # the free rotation of the whole rig
+    assert np.sum(np.abs(lam) < 1e-6) == 1  # the free rotation of the whole rig
     red = np.linalg.eigvals(linearise(eq).A)
     assert np.allclose(np.sort_complex(lam[np.abs(lam) > 1e-6]), np.sort_complex(red), atol=1e-6)
 

@@ -13,8 +13,15 @@ import drillgym
 import drillgym.errors as E
 from drillgym.cli import INTERNAL_ERROR_EXIT, USER_ERROR_EXIT, is_user_error, main, one_line
 
-INPUT_KINDS = [E.InputError, E.InputTypeError, E.ParameterError, E.DataFormatError, E.EffectError,
-               E.OutputPathError, E.MissingFileError]
+INPUT_KINDS = [
+    E.InputError,
+    E.InputTypeError,
+    E.ParameterError,
+    E.DataFormatError,
+    E.EffectError,
+    E.OutputPathError,
+    E.MissingFileError,
+]
 RUN_KINDS = [E.SimulationError, E.FitError, E.UnavailableError, E.SafetyError]
 
 
@@ -35,6 +42,7 @@ def assert_one_line(code: int, err: str, *words: str) -> None:
 
 
 # --------------------------------------------------------------------------- the hierarchy
+
 
 @pytest.mark.parametrize("kind", INPUT_KINDS + RUN_KINDS)
 def test_every_kind_is_a_drillgym_error_exported_from_the_package(kind):
@@ -77,8 +85,13 @@ def test_the_errors_of_the_subpackages_are_kinds_of_the_hierarchy():
     assert issubclass(RayUnavailable, E.UnavailableError)
     assert issubclass(ShootingFailure, E.FitError)
     assert issubclass(hw.protocol.ProtocolError, E.DrillgymError) and issubclass(hw.protocol.ProtocolError, ValueError)
-    for link_error in (hw.link.LinkError, hw.link.LinkLostError, hw.link.LinkTimeoutError, hw.link.LinkCorruptError,
-                       hw.link.LinkSequenceError):
+    for link_error in (
+        hw.link.LinkError,
+        hw.link.LinkLostError,
+        hw.link.LinkTimeoutError,
+        hw.link.LinkCorruptError,
+        hw.link.LinkSequenceError,
+    ):
         assert issubclass(link_error, E.SafetyError)
 
 
@@ -96,14 +109,17 @@ def test_library_calls_raise_the_kinds():
 
 # --------------------------------------------------------------------------- what the CLI prints
 
+
 def test_a_drillgym_error_is_one_line_with_exit_code_2(capsys, tmp_path):
     code, err = run(capsys, "simulate", "--config", "nope", "--u", "1", "--out", str(tmp_path / "run.csv"))
     assert_one_line(code, err, "unknown configuration 'nope'", "torsional")
     assert not (tmp_path / "run.csv").exists()
 
 
-@pytest.mark.parametrize("bug", [ZeroDivisionError("division by zero"), KeyError("omega_l"),
-                                 ValueError("an internal ValueError is a bug too")])
+@pytest.mark.parametrize(
+    "bug",
+    [ZeroDivisionError("division by zero"), KeyError("omega_l"), ValueError("an internal ValueError is a bug too")],
+)
 def test_an_internal_error_prints_its_traceback_and_one_line_saying_so(capsys, monkeypatch, tmp_path, bug):
     """A bare ValueError is no longer taken for bad input: only a DrillgymError is."""
     import drillgym.configurations
@@ -141,16 +157,37 @@ def test_a_message_on_several_lines_is_printed_on_one():
 
 # --------------------------------------------------------------------------- bad inputs across commands
 
+
 def test_simulate_refuses_a_figure_format_before_the_run(capsys, tmp_path):
-    code, err = run(capsys, "simulate", "--u", "1", "--duration", "0.01", "--out", str(tmp_path / "run.csv"),
-                    "--plot", str(tmp_path / "run.xyz"))
+    code, err = run(
+        capsys,
+        "simulate",
+        "--u",
+        "1",
+        "--duration",
+        "0.01",
+        "--out",
+        str(tmp_path / "run.csv"),
+        "--plot",
+        str(tmp_path / "run.xyz"),
+    )
     assert_one_line(code, err, "--plot", "run.xyz", ".png")
     assert not (tmp_path / "run.csv").exists()
 
 
 def test_simulate_names_a_missing_parameter_file(capsys, tmp_path):
-    code, err = run(capsys, "simulate", "--u", "1", "--duration", "0.01", "--params", str(tmp_path / "nope.yaml"),
-                    "--out", str(tmp_path / "run.csv"))
+    code, err = run(
+        capsys,
+        "simulate",
+        "--u",
+        "1",
+        "--duration",
+        "0.01",
+        "--params",
+        str(tmp_path / "nope.yaml"),
+        "--out",
+        str(tmp_path / "run.csv"),
+    )
     assert_one_line(code, err, "nope.yaml")
 
 
@@ -177,8 +214,9 @@ def test_evaluate_names_an_unknown_controller(capsys, tmp_path):
 
 
 def test_rig_run_names_a_missing_serial_port(capsys, tmp_path):
-    code, err = run(capsys, "rig", "run", "--port", str(tmp_path / "ttyNOPE"), "--controller", "const:1",
-                    "--duration", "1")
+    code, err = run(
+        capsys, "rig", "run", "--port", str(tmp_path / "ttyNOPE"), "--controller", "const:1", "--duration", "1"
+    )
     assert_one_line(code, err, "ttyNOPE", "does not exist")
 
 

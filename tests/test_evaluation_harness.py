@@ -26,8 +26,16 @@ def test_lowest_free_speed_is_contiguous_from_the_top():
 
 
 def test_harness_rows_and_report(tmp_path):
-    rows = evaluate(["baseline", "pi"], ["torsional"], ["rest", "friction+20"], targets=[2.0, 7.5],
-                    duration=30.0, window=10.0, workers=1, progress=False)
+    rows = evaluate(
+        ["baseline", "pi"],
+        ["torsional"],
+        ["rest", "friction+20"],
+        targets=[2.0, 7.5],
+        duration=30.0,
+        window=10.0,
+        workers=1,
+        progress=False,
+    )
     assert len(rows) == 2 * 2 * 2
     base = {(r["scenario"], r["omega_ref"]): r for r in rows if r["controller"] == "baseline"}
     assert base[("rest", 2.0)]["stick_slip"] and not base[("rest", 7.5)]["stick_slip"]
@@ -106,8 +114,15 @@ class _Recorder(Controller):
 def test_closed_loop_measurements_pass_through_measurement_effects():
     x0, skew = 2e-3, 0.2
     rec = _Recorder(config="coupled")
-    run_closed_loop(rec, "coupled", np.array([3.0, 3.0]), 0.5, counts_per_rev=0, effects=["lvdt_offset", "lvdt_skew"],
-                    effect_params={"lvdt_x0": x0, "lvdt_y0": 0.0, "lvdt_skew": skew})
+    run_closed_loop(
+        rec,
+        "coupled",
+        np.array([3.0, 3.0]),
+        0.5,
+        counts_per_rev=0,
+        effects=["lvdt_offset", "lvdt_skew"],
+        effect_params={"lvdt_x0": x0, "lvdt_y0": 0.0, "lvdt_skew": skew},
+    )
     plain = _Recorder(config="coupled")
     run_closed_loop(plain, "coupled", np.array([3.0, 3.0]), 0.5, counts_per_rev=0)
     m, p = rec.seen[-1], plain.seen[-1]
@@ -119,31 +134,67 @@ def test_closed_loop_measurements_pass_through_measurement_effects():
 def test_evaluate_cli_with_hidden_effects(tmp_path, capsys):
     out = tmp_path / "ev"
     with pytest.raises(SystemExit) as ok:
-        main(["evaluate", "--config", "torsional", "--controllers", "pi", "--targets", "2", "--duration", "6",
-              "--window", "2", "--workers", "1", "--out", str(out), "--add-effect", "input_delay",
-              "--effect-param", "delay=0.1"])
+        main(
+            [
+                "evaluate",
+                "--config",
+                "torsional",
+                "--controllers",
+                "pi",
+                "--targets",
+                "2",
+                "--duration",
+                "6",
+                "--window",
+                "2",
+                "--workers",
+                "1",
+                "--out",
+                str(out),
+                "--add-effect",
+                "input_delay",
+                "--effect-param",
+                "delay=0.1",
+            ]
+        )
     assert ok.value.code == 0
     assert "Plant: hidden effects: input_delay(delay=0.1)" in (out / "summary.md").read_text()
     with open(out / "results.csv") as f:
         assert [r["plant"] for r in csv.DictReader(f)] == ["input_delay"]
     with pytest.raises(SystemExit) as e:
-        main(["evaluate", "--config", "torsional", "--controllers", "pi", "--out", str(out), "--effect-param",
-              "delay=0.1"])
+        main(
+            [
+                "evaluate",
+                "--config",
+                "torsional",
+                "--controllers",
+                "pi",
+                "--out",
+                str(out),
+                "--effect-param",
+                "delay=0.1",
+            ]
+        )
     assert e.value.code == 2 and "--add-effect" in capsys.readouterr().err
 
 
 # --------------------------------------------------------------------- plant population
-from controllers.evaluation.population import load_uncertainty, sample_plants  # noqa: E402
 from controllers.evaluation.harness import short_run_warnings  # noqa: E402
+from controllers.evaluation.population import load_uncertainty, sample_plants  # noqa: E402
 
 
 def test_uncertainty_set_default_file_and_one_line_errors(tmp_path):
     us = load_uncertainty()
     assert us.relative["km"] == 0.05 and us.effects["delay"] == (0.0, 0.02)
     assert us.effect_names() == ["motor_lag", "input_delay", "position_friction"]
-    for text, match in (("windy: {a: 1}", "unknown section 'windy'"), ("relative: {kmm: 0.1}", "not a base parameter"),
-                        ("relative: {km: 2}", r"in \[0, 1\)"), ("effects: {tau_x: [0, 1]}", "unknown effect parameter"),
-                        ("effects: {delay: [0.1, 0.0]}", "lo <= hi"), ("relative: [", "not valid YAML")):
+    for text, match in (
+        ("windy: {a: 1}", "unknown section 'windy'"),
+        ("relative: {kmm: 0.1}", "not a base parameter"),
+        ("relative: {km: 2}", r"in \[0, 1\)"),
+        ("effects: {tau_x: [0, 1]}", "unknown effect parameter"),
+        ("effects: {delay: [0.1, 0.0]}", "lo <= hi"),
+        ("relative: [", "not valid YAML"),
+    ):
         f = tmp_path / "u.yaml"
         f.write_text(text)
         with pytest.raises(ValueError, match=match):
@@ -171,9 +222,31 @@ def test_sampled_plants_are_reproducible_nested_and_inside_the_set():
 def test_plants_scenario_rows_columns_summary_and_figure(tmp_path, capsys):
     """CLI: one row per (controller, plant, target) with the plant's values; median/p90 table; figure."""
     with pytest.raises(SystemExit) as ok:
-        main(["evaluate", "--config", "torsional", "--controllers", "baseline", "--scenarios", "plants", "--plants",
-              "3", "--seed", "5", "--targets", "2.0,7.5", "--duration", "12", "--window", "4", "--workers", "1",
-              "--out", str(tmp_path)])
+        main(
+            [
+                "evaluate",
+                "--config",
+                "torsional",
+                "--controllers",
+                "baseline",
+                "--scenarios",
+                "plants",
+                "--plants",
+                "3",
+                "--seed",
+                "5",
+                "--targets",
+                "2.0,7.5",
+                "--duration",
+                "12",
+                "--window",
+                "4",
+                "--workers",
+                "1",
+                "--out",
+                str(tmp_path),
+            ]
+        )
     assert ok.value.code == 0
     with open(tmp_path / "results.csv") as f:
         rows = list(csv.DictReader(f))
@@ -187,8 +260,9 @@ def test_plants_scenario_rows_columns_summary_and_figure(tmp_path, capsys):
     assert "median lowest held" in out and "| baseline | 10 | torsional | 3 |" in out
     assert (tmp_path / "plants_lowest_held.png").stat().st_size > 10_000
     with pytest.raises(ValueError, match="do not combine"):
-        evaluate(["baseline"], ["torsional"], ["plants"], targets=[1.0], plants=2, effects=["input_delay"],
-                 progress=False)
+        evaluate(
+            ["baseline"], ["torsional"], ["plants"], targets=[1.0], plants=2, effects=["input_delay"], progress=False
+        )
 
 
 def test_short_run_warning_names_the_controller_and_the_duration_needed():
@@ -196,5 +270,6 @@ def test_short_run_warning_names_the_controller_and_the_duration_needed():
     assert len(lines) == 1 and lines[0].startswith("observer:") and "1 rad/s" in lines[0] and "--duration" in lines[0]
     assert short_run_warnings(["observer"], "torsional", [1.0, 3.0], duration=60.0, window=20.0) == []
     with pytest.warns(UserWarning, match="steady window starts at 5 s"):
-        evaluate(["observer"], ["torsional"], ["rest"], targets=[1.0], duration=6.0, window=1.0, workers=1,
-                 progress=False)
+        evaluate(
+            ["observer"], ["torsional"], ["rest"], targets=[1.0], duration=6.0, window=1.0, workers=1, progress=False
+        )

@@ -25,13 +25,21 @@ from hw.runner import LinearPolicy
 pytestmark = pytest.mark.xdist_group("rig-realtime")
 
 REST_COMMANDS = 21  # zero-volt commands of the rest phase before the episode's first step
-ENV = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]),
-                                                    os.environ.get("PYTHONPATH", "")])}
+ENV = {
+    **os.environ,
+    "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]), os.environ.get("PYTHONPATH", "")]),
+}
 
 
 def cli(*args, **kw):
-    return subprocess.Popen([sys.executable, "-m", "drillgym.cli", *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=ENV, **kw)
+    return subprocess.Popen(
+        [sys.executable, "-m", "drillgym.cli", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=ENV,
+        **kw,
+    )
 
 
 def run(*args, timeout=180):
@@ -76,8 +84,19 @@ def test_watchdog_stop_exits_3_with_one_line(tmp_path, emu):
 def test_ctrl_c_exits_130_with_one_line(tmp_path, emu, eventually):
     """Also when the process inherited an ignored SIGINT (a parent's SIG_IGN passes on to its children)."""
     rec = tmp_path / "run.csv"
-    p = cli("rig", "run", "--port", emu.port, "--controller", "const:1.0", "--duration", "60", "--record", str(rec),
-            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    p = cli(
+        "rig",
+        "run",
+        "--port",
+        emu.port,
+        "--controller",
+        "const:1.0",
+        "--duration",
+        "60",
+        "--record",
+        str(rec),
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN),
+    )
     wait_commands(emu, REST_COMMANDS + 20, p)
     p.send_signal(signal.SIGINT)
     out, err = p.communicate(timeout=60)
@@ -93,8 +112,18 @@ def test_firmware_over_speed_stop_exits_3(tmp_path):
 
     fw = FirmwareConfig(limits=SafetyLimits(max_speed=0.5))
     with RigEmulator("torsional", firmware=fw, dt=5e-3) as e:
-        code, out, err = run("rig", "run", "--port", e.port, "--controller", "const:5", "--duration", "10",
-                             "--record", str(tmp_path / "r.csv"))
+        code, out, err = run(
+            "rig",
+            "run",
+            "--port",
+            e.port,
+            "--controller",
+            "const:5",
+            "--duration",
+            "10",
+            "--record",
+            str(tmp_path / "r.csv"),
+        )
         assert e.firmware.stop_reason == P.StopReason.OVERSPEED and e.firmware.volts == 0.0
     assert code == 3 and err.count("\n") == 1 and "OVERSPEED: over-speed" in err, (out, err)
 
@@ -114,8 +143,9 @@ def test_estop_from_the_command_line(tmp_path, emu, eventually):
     assert p.returncode == 3 and err.startswith("drillgym: safety stop"), (out, err)
     # two programs on one port steal each other's bytes: the running host may see a broken frame first and stop
     # on it; the e-stop, the host's own stop or (both lost) the watchdog leaves the motor at 0 V
-    assert eventually(lambda: emu.firmware.volts == 0.0 and emu.firmware.stop_reason in (P.StopReason.HOST,
-                                                                                    P.StopReason.WATCHDOG))
+    assert eventually(
+        lambda: emu.firmware.volts == 0.0 and emu.firmware.stop_reason in (P.StopReason.HOST, P.StopReason.WATCHDOG)
+    )
     code, out, err = run("rig", "estop", "--port", str(tmp_path / "nothing"))
     assert code == 2 and "does not exist" in err
 
@@ -127,8 +157,17 @@ def test_estop_without_acknowledgement_exits_3(tmp_path, emu):
 
 
 def test_dry_run_sends_no_voltage(tmp_path, emu):
-    code, out, err = run("rig", "run", "--port", emu.port, "--controller", "const:20", "--record",
-                         str(tmp_path / "new" / "r.csv"), "--dry-run")
+    code, out, err = run(
+        "rig",
+        "run",
+        "--port",
+        emu.port,
+        "--controller",
+        "const:20",
+        "--record",
+        str(tmp_path / "new" / "r.csv"),
+        "--dry-run",
+    )
     assert code == 0, (out, err)
     assert "control period 10 ms accepted, watchdog 100 ms" in out and "20 V will be clamped to +-5 V" in out
     assert "nothing was sent that moves the motor" in out
@@ -149,8 +188,9 @@ def test_clamp_is_told_once_and_kept(tmp_path, emu):
         if rig is not emu:
             rig.start()
         try:
-            code, out, err = run("rig", "run", "--port", rig.port, "--controller", "const:20", "--duration", "0.5",
-                                 "--record", str(rec))
+            code, out, err = run(
+                "rig", "run", "--port", rig.port, "--controller", "const:20", "--duration", "0.5", "--record", str(rec)
+            )
         finally:
             if rig is not emu:
                 rig.stop()
@@ -170,8 +210,22 @@ def test_reconnect_after_the_port_went_away(tmp_path):
     rec = tmp_path / "run.csv"
     first = RigEmulator("torsional", dt=5e-3, link_path=link)
     first.start()
-    p = cli("rig", "run", "--port", str(link), "--controller", "const:1.0", "--duration", "1.0", "--record", str(rec),
-            "--reconnect", "1", "--reconnect-wait", "0.5")
+    p = cli(
+        "rig",
+        "run",
+        "--port",
+        str(link),
+        "--controller",
+        "const:1.0",
+        "--duration",
+        "1.0",
+        "--record",
+        str(rec),
+        "--reconnect",
+        "1",
+        "--reconnect-wait",
+        "0.5",
+    )
     try:
         wait_commands(first, REST_COMMANDS + 20, p)
     finally:
@@ -192,8 +246,18 @@ def test_emulate_logs_connections_and_stops(tmp_path):
     emu = cli("rig", "emulate", "--port", str(link), "--dt", "0.005")
     try:
         assert "rig emulator (torsional) on /dev/pts/" in emu.stdout.readline()
-        code, out, err = run("rig", "run", "--port", str(link), "--controller", "const:1", "--duration", "0.3",
-                             "--record", str(tmp_path / "r.csv"))
+        code, out, err = run(
+            "rig",
+            "run",
+            "--port",
+            str(link),
+            "--controller",
+            "const:1",
+            "--duration",
+            "0.3",
+            "--record",
+            str(tmp_path / "r.csv"),
+        )
         assert code == 0, (out, err)
         assert run("rig", "estop", "--port", str(link))[0] == 0
     finally:
@@ -230,8 +294,19 @@ def test_default_watchdog_run_completes_on_a_loaded_machine(tmp_path):
             emu = cli("rig", "emulate", "--port", str(link), "--dt", "0.005")
             try:
                 assert "rig emulator" in emu.stdout.readline()
-                code, out, err = run("rig", "run", "--port", str(link), "--controller", "const:2.5", "--duration",
-                                     "3", "--record", str(record), timeout=300)
+                code, out, err = run(
+                    "rig",
+                    "run",
+                    "--port",
+                    str(link),
+                    "--controller",
+                    "const:2.5",
+                    "--duration",
+                    "3",
+                    "--record",
+                    str(record),
+                    timeout=300,
+                )
             finally:
                 emu.send_signal(signal.SIGTERM)
                 emu.communicate(timeout=30)
@@ -239,7 +314,10 @@ def test_default_watchdog_run_completes_on_a_loaded_machine(tmp_path):
                 assert "300 steps" in out and len(read_timeseries(record)) == 301
                 return
             # a clean stop, the file kept (or none yet: a fault while the rig was brought to rest, before the episode)
-            assert code == 3 and "safety stop" in err and (record.exists() or "nothing recorded yet" in err), (code, err)
+            assert code == 3 and "safety stop" in err and (record.exists() or "nothing recorded yet" in err), (
+                code,
+                err,
+            )
             failures.append(f"attempt {attempt + 1}: exit {code}; stdout: {out.strip()}; stderr: {err.strip()}")
         pytest.fail("\n".join(failures))
     finally:

@@ -46,19 +46,29 @@ def _drive(fw: Firmware, volts: np.ndarray) -> tuple[np.ndarray, np.ndarray, lis
     return np.array(applied), np.array(wl), samples
 
 
-@pytest.mark.parametrize("effects, values", [
-    (["input_delay"], {"delay": 0.03}),
-    (["motor_lag"], {"tau_m": 0.05}),
-    ([CUBIC], {"c3": 0.01}),
-])
+@pytest.mark.parametrize(
+    "effects, values",
+    [
+        (["input_delay"], {"delay": 0.03}),
+        (["motor_lag"], {"tau_m": 0.05}),
+        ([CUBIC], {"c3": 0.01}),
+    ],
+)
 def test_emulated_plant_matches_the_simulator_with_hidden_effects(effects, values) -> None:
     alpha0 = 0.3
     fw = Firmware("torsional", effects=effects, effect_params=values, dt=DT, alpha0=alpha0)
     applied, wl, _ = _drive(fw, _commands())
     assert np.ptp(applied) > 2.0  # the slew-limited commands varied
     n_sub = fw.n_sub
-    traj = drillgym.simulate("torsional", u=np.repeat(applied, n_sub), duration=len(applied) * n_sub * DT, dt=DT,
-                             alpha0=alpha0, effects=effects, effect_params=values)
+    traj = drillgym.simulate(
+        "torsional",
+        u=np.repeat(applied, n_sub),
+        duration=len(applied) * n_sub * DT,
+        dt=DT,
+        alpha0=alpha0,
+        effects=effects,
+        effect_params=values,
+    )
     ref = traj.omega_l[n_sub::n_sub]
     assert np.abs(wl - ref).max() <= 1e-9
     base = Firmware("torsional", dt=DT, alpha0=alpha0)
@@ -69,8 +79,13 @@ def test_emulated_plant_matches_the_simulator_with_hidden_effects(effects, value
 
 def test_emulated_lvdts_read_through_measurement_effects() -> None:
     x0, y0, skew = 1e-3, -5e-4, 0.1
-    fw = Firmware("coupled", effects=["lvdt_offset", "lvdt_skew"],
-                  effect_params={"lvdt_x0": x0, "lvdt_y0": y0, "lvdt_skew": skew}, dt=DT, alpha0=0.5)
+    fw = Firmware(
+        "coupled",
+        effects=["lvdt_offset", "lvdt_skew"],
+        effect_params={"lvdt_x0": x0, "lvdt_y0": y0, "lvdt_skew": skew},
+        dt=DT,
+        alpha0=0.5,
+    )
     _, _, samples = _drive(fw, np.full(150, 4.0))
     X, Y = (float(a[0]) for a in fw.sim.lateral_fixed)
     assert abs(X) + abs(Y) > 1e-6  # the disc moved laterally
@@ -97,9 +112,24 @@ def test_plant_from_cli_reads_effects_and_names_bad_input(tmp_path) -> None:
 
 def test_rig_emulate_cli_starts_with_hidden_effects(tmp_path) -> None:
     link = tmp_path / "rig"
-    proc = subprocess.Popen([str(VENV_BIN / "drillgym"), "rig", "emulate", "--port", str(link), "--dt", "0.005",
-                             "--add-effect", "input_delay", "--effect-param", "delay=0.04"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [
+            str(VENV_BIN / "drillgym"),
+            "rig",
+            "emulate",
+            "--port",
+            str(link),
+            "--dt",
+            "0.005",
+            "--add-effect",
+            "input_delay",
+            "--effect-param",
+            "delay=0.04",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         line = proc.stdout.readline()
         assert "rig emulator (torsional) on /dev/pts/" in line and link.is_symlink(), proc.stderr.read()
@@ -107,6 +137,10 @@ def test_rig_emulate_cli_starts_with_hidden_effects(tmp_path) -> None:
     finally:
         proc.terminate()
         proc.wait(timeout=30)
-    bad = subprocess.run([str(VENV_BIN / "drillgym"), "rig", "emulate", "--effect-param", "delay=0.04"],
-                         capture_output=True, text=True, timeout=120)
+    bad = subprocess.run(
+        [str(VENV_BIN / "drillgym"), "rig", "emulate", "--effect-param", "delay=0.04"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert bad.returncode == 2 and bad.stderr.strip().count("\n") == 0 and "--add-effect" in bad.stderr

@@ -50,8 +50,15 @@ def _sim_env(seed, **opts):
 def _sim_measurement(env, obs, t):
     s = env.unwrapped.batch.system
     from drillgym.measurement import quantize_angle
-    return {"t": t, "theta_u": float(quantize_angle(s.theta_u[0], CPR)), "theta_l": float(quantize_angle(s.theta_l[0], CPR)),
-            "x": 0.0, "y": 0.0, "omega_ref": float(env.unwrapped.batch.omega_ref[0])}
+
+    return {
+        "t": t,
+        "theta_u": float(quantize_angle(s.theta_u[0], CPR)),
+        "theta_l": float(quantize_angle(s.theta_l[0], CPR)),
+        "x": 0.0,
+        "y": 0.0,
+        "omega_ref": float(env.unwrapped.batch.omega_ref[0]),
+    }
 
 
 def test_controller_episode_matches_simulation(tmp_path, eventually):
@@ -111,8 +118,15 @@ def test_policy_episode_matches_simulation(tmp_path):
 def test_reset_brings_spinning_rig_to_rest_and_lvdt_offset_removed(tmp_path):
     hidden = dict(effects=["lvdt_offset"], effect_params={"lvdt_x0": 1e-3, "lvdt_y0": -5e-4})  # LVDT offsets at rest
     with RigEmulator("coupled", firmware=RELAXED, dt=5e-3, **hidden) as emu:
-        env = gym.make(hw.ENV_ID, port=emu.port, configuration="coupled", record=tmp_path / "run.csv",
-                       episode_duration=0.5, omega_ref=4.0, reply_timeout=REPLY)
+        env = gym.make(
+            hw.ENV_ID,
+            port=emu.port,
+            configuration="coupled",
+            record=tmp_path / "run.csv",
+            episode_duration=0.5,
+            omega_ref=4.0,
+            reply_timeout=REPLY,
+        )
         run_episode(env, controller=measurement_const(4.0), seed=1)
         assert abs(emu.firmware.sim.omega_u[0]) > 1.0  # still turning after the episode (0 V, coasting)
         obs, info = env.reset(seed=2)
@@ -131,14 +145,21 @@ def test_reset_brings_spinning_rig_to_rest_and_lvdt_offset_removed(tmp_path):
 
 def measurement_const(v):
     from hw.runner import ConstantController
+
     return ConstantController(v)
 
 
 def test_host_safety_layer_clamps_slews_and_stops(tmp_path, eventually):
     limits = SafetyLimits(v_max=4.0, slew_v_per_s=100.0, max_speed=2.0)
     with RigEmulator("torsional", firmware=RELAXED, dt=5e-3) as emu:
-        env = gym.make(hw.ENV_ID, port=emu.port, record=tmp_path / "s.csv", limits=limits, episode_duration=5.0,
-                       reply_timeout=REPLY)
+        env = gym.make(
+            hw.ENV_ID,
+            port=emu.port,
+            record=tmp_path / "s.csv",
+            limits=limits,
+            episode_duration=5.0,
+            reply_timeout=REPLY,
+        )
         env.reset(seed=0)
         with pytest.raises(ValueError, match="finite"):
             env.step(np.array([np.nan]))

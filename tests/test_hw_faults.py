@@ -66,12 +66,16 @@ def _check_recording(path, steps):
     assert np.all(rec.u[:-1] == 3.0) and rec.u[-1] == 0.0  # a row's u applies from its time on
 
 
-@pytest.mark.parametrize("fault, error, message", [
-    (FaultPlan(corrupt_sample=FAULT_AT), LinkCorruptError, "CRC mismatches so far: 1"),
-    (FaultPlan(drop_sample=FAULT_AT), LinkTimeoutError, "no SAMPLE reply to SET_VOLTAGE"),
-    (FaultPlan(drop_command=FAULT_AT), LinkTimeoutError, "no SAMPLE reply to SET_VOLTAGE"),
-    (FaultPlan(delay_command=FAULT_AT, delay_s=0.3), LinkTimeoutError, "frame lost or late"),
-], ids=["corrupted-bytes", "dropped-sample", "dropped-command", "late-frame"])
+@pytest.mark.parametrize(
+    "fault, error, message",
+    [
+        (FaultPlan(corrupt_sample=FAULT_AT), LinkCorruptError, "CRC mismatches so far: 1"),
+        (FaultPlan(drop_sample=FAULT_AT), LinkTimeoutError, "no SAMPLE reply to SET_VOLTAGE"),
+        (FaultPlan(drop_command=FAULT_AT), LinkTimeoutError, "no SAMPLE reply to SET_VOLTAGE"),
+        (FaultPlan(delay_command=FAULT_AT, delay_s=0.3), LinkTimeoutError, "frame lost or late"),
+    ],
+    ids=["corrupted-bytes", "dropped-sample", "dropped-command", "late-frame"],
+)
 def test_link_fault_detected_motor_stopped_recording_intact(tmp_path, fault, error, message):
     for attempt in range(3):  # a fresh rig when a starved test process let the watchdog stop it first
         rec = tmp_path / f"rec{attempt}.csv"
@@ -86,7 +90,7 @@ def test_link_fault_detected_motor_stopped_recording_intact(tmp_path, fault, err
                 env.close()
                 continue
             assert isinstance(exc, error) and message in str(exc) and "recording kept up to the fault" in str(exc)
-            (kind, t_fault), = emu.fault_times.items()
+            ((kind, t_fault),) = emu.fault_times.items()
             time.sleep(0.15)
             delay = emu.zero_delay(t_fault)
             assert delay is not None and delay <= ZERO_WITHIN, f"motor at 0 V {delay} s after {kind}"
@@ -139,8 +143,12 @@ def test_emulator_killed_or_port_unplugged(tmp_path, fault):
 def test_emulator_process_killed(tmp_path):
     """`drillgym rig emulate` SIGKILLed mid-episode: the host sees the port vanish."""
     link = tmp_path / "rig"
-    proc = subprocess.Popen([str(VENV_BIN / "drillgym"), "rig", "emulate", "--port", str(link), "--dt", "0.005"],
-                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    proc = subprocess.Popen(
+        [str(VENV_BIN / "drillgym"), "rig", "emulate", "--port", str(link), "--dt", "0.005"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
     try:
         line = proc.stdout.readline()
         assert "rig emulator (torsional) on /dev/pts/" in line and link.is_symlink()
@@ -163,9 +171,24 @@ def _kill_host_mid_run(tmp_path, attempt):
     rec = tmp_path / f"run{attempt}.csv"
     emu = RigEmulator("torsional", dt=5e-3)
     emu.__enter__()
-    proc = subprocess.Popen([str(VENV_BIN / "drillgym"), "rig", "run", "--port", emu.port, "--controller",
-                             "const:2.5", "--duration", "20", "--record", str(rec)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [
+            str(VENV_BIN / "drillgym"),
+            "rig",
+            "run",
+            "--port",
+            emu.port,
+            "--controller",
+            "const:2.5",
+            "--duration",
+            "20",
+            "--record",
+            str(rec),
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         t_end = time.monotonic() + 180
         while emu.firmware.commands < 21 + 60 and proc.poll() is None and time.monotonic() < t_end:

@@ -12,8 +12,16 @@ from hw import protocol as P
 from hw.crc import CRC16_CHECK, crc16
 from hw.link import SerialLink
 
-MESSAGES = [P.Identify(10000), P.SetVoltage(-2.75), P.Heartbeat(0xDEADBEEF), P.EmergencyStop(P.StopReason.OVERSPEED),
-            P.ClearStop(), P.Config(), P.Sample(7, 123456789, -5, 2**31 - 1, -12, 34, 1.25, 5), P.Ack(2, 65535)]
+MESSAGES = [
+    P.Identify(10000),
+    P.SetVoltage(-2.75),
+    P.Heartbeat(0xDEADBEEF),
+    P.EmergencyStop(P.StopReason.OVERSPEED),
+    P.ClearStop(),
+    P.Config(),
+    P.Sample(7, 123456789, -5, 2**31 - 1, -12, 34, 1.25, 5),
+    P.Ack(2, 65535),
+]
 
 
 def _crc_bitwise(data: bytes) -> int:
@@ -46,7 +54,7 @@ def test_every_message_round_trips(msg):
 
 
 def test_parser_reassembles_split_frames_and_skips_garbage():
-    stream = b"\x00\xA5\xA5junk" + P.encode(MESSAGES[6], 1) + b"\x5A\xA5" + P.encode(MESSAGES[1], 2)
+    stream = b"\x00\xa5\xa5junk" + P.encode(MESSAGES[6], 1) + b"\x5a\xa5" + P.encode(MESSAGES[1], 2)
     p = P.FrameParser()
     got = []
     for b in stream:  # one byte at a time
@@ -71,7 +79,7 @@ def test_parser_rejects_foreign_version_unknown_type_wrong_length_and_oversize()
 
     p = P.FrameParser()
     assert p.feed(frame(2, P.MsgType.SET_VOLTAGE, bytes(8))) == []
-    assert p.feed(frame(1, 0x7E, b"")) == []                      # unknown type
+    assert p.feed(frame(1, 0x7E, b"")) == []  # unknown type
     assert p.feed(frame(1, P.MsgType.SET_VOLTAGE, bytes(4))) == []  # wrong length for the type
     assert p.feed(struct.pack("<2sBBHH", P.START, 1, 2, 0, 999)) == []  # length above MAX_PAYLOAD
     assert p.stats.foreign_versions == {2} and p.stats.malformed == 2 and p.stats.bad_headers == 1
@@ -84,6 +92,7 @@ def test_link_over_pyserial_loop_url():
     link = SerialLink("loop://")
     seq = link.send(P.Heartbeat(42))
     import time
+
     [(frame, _)] = link.receive(time.monotonic() + 0.5)
     assert frame.seq == seq and P.decode(frame) == P.Heartbeat(42)
     link.close()
@@ -93,8 +102,12 @@ def test_link_over_pyserial_loop_url():
 
 # ---------------------------------------------------------------- fuzzing (>= 10,000 frames in all)
 TYPES = sorted(P.PAYLOAD_SIZES)
-FUZZ = settings(max_examples=2500, deadline=None, derandomize=True,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+FUZZ = settings(
+    max_examples=2500,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
 IDLE = bytes(P.HEADER_SIZE + P.MAX_PAYLOAD + 2)  # line traffic after the test stream
 
 
@@ -120,7 +133,7 @@ def frame_specs(draw):
     for bit in flips:
         out[bit // 8] ^= 0x80 >> (bit % 8)
     if kind == "truncate":
-        out = out[:draw(st.integers(0, len(out) - 1))]
+        out = out[: draw(st.integers(0, len(out) - 1))]
     if kind == "garbage":  # bytes before the frame
         out = bytearray(draw(st.binary(max_size=24))) + out
     return frame, bytes(out), kind
@@ -146,7 +159,7 @@ def test_fuzz_mutated_frames_never_accepted(specs, chunk):
     p = P.FrameParser()
     got = []
     for i in range(0, len(stream), chunk):
-        got += p.feed(stream[i:i + chunk])
+        got += p.feed(stream[i : i + chunk])
     got_bytes = [stream_bytes(f) for f in got]
     originals = [frame for frame, _, _ in specs]
     for g in got_bytes:  # accepted frames are original frames, nothing else

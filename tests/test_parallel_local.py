@@ -91,13 +91,31 @@ def test_train_seeds_go_to_ray_tune_trials(tmp_path, monkeypatch):
 
     def fake_run_trials(fn, jobs, *, ray, **kw):
         calls.append((fn.__name__, [j["seed"] for j in jobs], [j["out"] for j in jobs], ray))
-        return [{"seed": j["seed"], "timesteps": 64, "wall_time": 1.0, "train_time": 1.0, "lowest_held": 8.5}
-                for j in jobs]
+        return [
+            {"seed": j["seed"], "timesteps": 64, "wall_time": 1.0, "train_time": 1.0, "lowest_held": 8.5} for j in jobs
+        ]
 
     monkeypatch.setattr(drillgym.tune, "run_trials", fake_run_trials)
     with pytest.raises(SystemExit) as ok:
-        main(["train", "--algo", "ppo", "--timesteps", "64", "--seeds", "2", "--seed", "3", "--ray", "local",
-              "--eval-every", "0", "--out", str(tmp_path)])
+        main(
+            [
+                "train",
+                "--algo",
+                "ppo",
+                "--timesteps",
+                "64",
+                "--seeds",
+                "2",
+                "--seed",
+                "3",
+                "--ray",
+                "local",
+                "--eval-every",
+                "0",
+                "--out",
+                str(tmp_path),
+            ]
+        )
     assert ok.value.code == 0
     assert calls == [("_train_one", [3, 4], [tmp_path / "seed_3", tmp_path / "seed_4"], "local")]
     with open(tmp_path / "results.csv") as f:

@@ -9,12 +9,11 @@ import math
 
 import numpy as np
 import pytest
+import test_parallel_local
+from test_parallel_local import die_once, draw, fail_on, refuse_one, square_trial
 
 from drillgym.cli import main
 from drillgym.parallel import RayExecutor, TaskFailed, connect_ray, map_ordered
-
-import test_parallel_local
-from test_parallel_local import die_once, draw, fail_on, refuse_one, square_trial
 
 pytestmark = pytest.mark.xdist_group("ray")
 
@@ -53,8 +52,11 @@ def test_ray_results_ordered_and_equal_to_in_process(ray_executor):
 
 
 def test_ray_task_error_names_inputs_and_dead_worker_is_retried(ray_executor, tmp_path):
-    with pytest.raises(TaskFailed, match=r"^task fail_on\(2, array\(10,\) \[0\.,1\.,2\.,3\.,\.\.\.\]\) failed: "
-                                         r"ValueError: x = 2 is refused$"):
+    with pytest.raises(
+        TaskFailed,
+        match=r"^task fail_on\(2, array\(10,\) \[0\.,1\.,2\.,3\.,\.\.\.\]\) failed: "
+        r"ValueError: x = 2 is refused$",
+    ):
         map_ordered(ray_executor, fail_on, [(1, np.arange(3.0)), (2, np.arange(10.0))])
     assert map_ordered(ray_executor, die_once, [(str(tmp_path / "marker"),)]) == ["ok"]
 
@@ -82,8 +84,19 @@ def test_sweep_on_ray_equals_local(ray_executor):
 
 
 def test_evaluate_cli_ray_local_equals_local(ray_executor, tmp_path):
-    args = ["evaluate", "--config", "torsional", "--controllers", "baseline,observer", "--targets", "2,6",
-            "--duration", "5", "--window", "2"]
+    args = [
+        "evaluate",
+        "--config",
+        "torsional",
+        "--controllers",
+        "baseline,observer",
+        "--targets",
+        "2,6",
+        "--duration",
+        "5",
+        "--window",
+        "2",
+    ]
     for name, extra in (("D0", ["--workers", "2"]), ("D1", ["--ray", "local"])):
         with pytest.raises(SystemExit) as ok:
             main(args + extra + ["--out", str(tmp_path / name)])
@@ -99,18 +112,38 @@ def test_ray_auto_without_a_cluster_is_one_line(monkeypatch, tmp_path, capsys):
 
     def no_cluster(address=None, **kw):
         assert address == "auto"
-        raise ConnectionError("Could not find any running Ray instance. Please specify the one to connect to by "
-                              "setting `--address` flag or `RAY_ADDRESS` environment variable.")
+        raise ConnectionError(
+            "Could not find any running Ray instance. Please specify the one to connect to by "
+            "setting `--address` flag or `RAY_ADDRESS` environment variable."
+        )
 
     monkeypatch.setattr(ray, "is_initialized", lambda: False)
     monkeypatch.setattr(ray, "init", no_cluster)
     with pytest.raises(SystemExit) as e:
-        main(["evaluate", "--config", "torsional", "--controllers", "baseline", "--targets", "2", "--duration", "4",
-              "--window", "2", "--ray", "auto", "--out", str(tmp_path / "o")])
+        main(
+            [
+                "evaluate",
+                "--config",
+                "torsional",
+                "--controllers",
+                "baseline",
+                "--targets",
+                "2",
+                "--duration",
+                "4",
+                "--window",
+                "2",
+                "--ray",
+                "auto",
+                "--out",
+                str(tmp_path / "o"),
+            ]
+        )
     err = capsys.readouterr().err.strip()
     assert e.value.code == 2 and "\n" not in err
-    assert err.endswith("--ray auto: no Ray cluster is running on this machine (start one with `ray start --head`, "
-                        "or use --ray local)")
+    assert err.endswith(
+        "--ray auto: no Ray cluster is running on this machine (start one with `ray start --head`, or use --ray local)"
+    )
     assert not (tmp_path / "o").exists()
 
 
@@ -120,6 +153,9 @@ def test_tune_trials_ordered_equal_and_failures_named(ray_executor, tmp_path):
     configs = [{"x": x} for x in (3, 0, 2)]
     got = run_trials(square_trial, configs, ray=None, storage=tmp_path, progress=False)
     assert got == [square_trial(c) for c in configs]
-    with pytest.raises(TaskFailed, match=r"^task refuse_one\(\{'x': 1\}\) failed after 2 attempts: "
-                                         r"ValueError: x = 1 is refused$"):
+    with pytest.raises(
+        TaskFailed,
+        match=r"^task refuse_one\(\{'x': 1\}\) failed after 2 attempts: "
+        r"ValueError: x = 1 is refused$",
+    ):
         run_trials(refuse_one, [{"x": 0}, {"x": 1}], ray=None, storage=tmp_path, progress=False, retries=1)

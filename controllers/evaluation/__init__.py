@@ -12,5 +12,17 @@ from .metrics import SSI_THRESHOLD, lowest_free_speed, run_metrics, stick_slip_s
 from .runner import ClosedLoopRun, run_closed_loop
 from .scenarios import DEFAULT_TARGETS, SCENARIOS, Scenario, parse_scenarios
 
-__all__ = ["evaluate", "run_job", "SSI_THRESHOLD", "lowest_free_speed", "run_metrics", "stick_slip_severity",
-           "ClosedLoopRun", "run_closed_loop", "DEFAULT_TARGETS", "SCENARIOS", "Scenario", "parse_scenarios"]
+__all__ = [
+    "evaluate",
+    "run_job",
+    "SSI_THRESHOLD",
+    "lowest_free_speed",
+    "run_metrics",
+    "stick_slip_severity",
+    "ClosedLoopRun",
+    "run_closed_loop",
+    "DEFAULT_TARGETS",
+    "SCENARIOS",
+    "Scenario",
+    "parse_scenarios",
+]

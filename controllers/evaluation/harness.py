@@ -16,8 +16,9 @@ progress bar.  Results are rows (dicts) with the metrics of :mod:`.metrics`.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Mapping, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 from tqdm.auto import tqdm
@@ -37,11 +38,23 @@ DEFAULT_DURATION = 60.0  # s per run
 DEFAULT_WINDOW = 20.0  # s of steady state at the end
 
 
-def run_job(controller: str, config: str, scenario: Scenario, targets: Sequence[float], *,
-            duration: float = DEFAULT_DURATION, window: float = DEFAULT_WINDOW, params: dict | None = None,
-            u_fold: float | None = None, seed: int = 0, effects: Any = None,
-            effect_params: Mapping[str, float] | None = None, plants: Sequence[int] = (), n_plants: int = 0,
-            uncertainty: Any = None) -> list[dict]:
+def run_job(
+    controller: str,
+    config: str,
+    scenario: Scenario,
+    targets: Sequence[float],
+    *,
+    duration: float = DEFAULT_DURATION,
+    window: float = DEFAULT_WINDOW,
+    params: dict | None = None,
+    u_fold: float | None = None,
+    seed: int = 0,
+    effects: Any = None,
+    effect_params: Mapping[str, float] | None = None,
+    plants: Sequence[int] = (),
+    n_plants: int = 0,
+    uncertainty: Any = None,
+) -> list[dict]:
     """Run one controller in one configuration and scenario for every target; one row per target.
 
     ``params``: nominal base parameters (dict; the controller's model and the plant's base);
@@ -52,8 +65,19 @@ def run_job(controller: str, config: str, scenario: Scenario, targets: Sequence[
 
     base = RigParams.from_dict(params) if params else RigParams()
     if scenario.population:
-        return _run_population_job(controller, config, scenario, targets, base, duration=duration, window=window,
-                                   seed=seed, plants=plants, n_plants=n_plants, uncertainty=uncertainty)
+        return _run_population_job(
+            controller,
+            config,
+            scenario,
+            targets,
+            base,
+            duration=duration,
+            window=window,
+            seed=seed,
+            plants=plants,
+            n_plants=n_plants,
+            uncertainty=uncertainty,
+        )
     comp, values = compose(effects, effect_params)
     plant = plant_params(scenario, base)
     tg = np.asarray(targets, dtype=float)
@@ -61,6 +85,7 @@ def run_job(controller: str, config: str, scenario: Scenario, targets: Sequence[
     if scenario.start == "cycle":
         if u_fold is None:
             from ..baseline import stick_slip_region
+
             u_fold = stick_slip_region(config, base).u_fold
         x0 = cycle_states(config, tg, plant, u_fold, effects=comp, effect_params=values)
     elif scenario.start != "rest":
@@ -71,21 +96,49 @@ def run_job(controller: str, config: str, scenario: Scenario, targets: Sequence[
     if split_period(controller)[0] in ("observer", "observer-robust", "lqg"):
         kw = {"counts_per_rev": scenario.counts_per_rev, "angle_noise": scenario.angle_noise}
     ctrl = make(controller, config=config, omega_ref=tg, params=base, **kw)  # nominal: no hidden effect
-    run = run_closed_loop(ctrl, config, tg, duration, params=plant, x0=x0, counts_per_rev=scenario.counts_per_rev,
-                          angle_noise=scenario.angle_noise, seed=seed, effects=comp, effect_params=values)
+    run = run_closed_loop(
+        ctrl,
+        config,
+        tg,
+        duration,
+        params=plant,
+        x0=x0,
+        counts_per_rev=scenario.counts_per_rev,
+        angle_noise=scenario.angle_noise,
+        seed=seed,
+        effects=comp,
+        effect_params=values,
+    )
     met = run_metrics(run, window, base)
     rows = []
     for i, w in enumerate(tg):
-        row = {"controller": controller, "config": parse_configuration(config).label, "scenario": scenario.name,
-               "plant": comp.label, "omega_ref": float(w), "control_dt": float(ctrl.dt)}
+        row = {
+            "controller": controller,
+            "config": parse_configuration(config).label,
+            "scenario": scenario.name,
+            "plant": comp.label,
+            "omega_ref": float(w),
+            "control_dt": float(ctrl.dt),
+        }
         row.update({k: (bool(v[i]) if v.dtype == bool else float(v[i])) for k, v in met.items()})
         rows.append(row)
     return rows
 
 
-def _run_population_job(controller: str, config: str, scenario: Scenario, targets: Sequence[float], base: RigParams,
-                        *, duration: float, window: float, seed: int, plants: Sequence[int], n_plants: int,
-                        uncertainty: Any) -> list[dict]:
+def _run_population_job(
+    controller: str,
+    config: str,
+    scenario: Scenario,
+    targets: Sequence[float],
+    base: RigParams,
+    *,
+    duration: float,
+    window: float,
+    seed: int,
+    plants: Sequence[int],
+    n_plants: int,
+    uncertainty: Any,
+) -> list[dict]:
     """The plants ``plants`` x ``targets`` as one batch; the controller built from ``base`` with its
     default encoder assumptions (the plants' encoders and noise are not told)."""
     from .. import make
@@ -96,22 +149,43 @@ def _run_population_job(controller: str, config: str, scenario: Scenario, target
     idx = np.repeat(np.arange(pop.n), m)  # plant of each trajectory
     ref = np.tile(tg, pop.n)
     ctrl = make(controller, config=config, omega_ref=ref, params=base)
-    run = run_closed_loop(ctrl, config, ref, duration, params=pop.matrix[idx], counts_per_rev=pop.counts_per_rev[idx],
-                          angle_noise=pop.angle_noise[idx], seed=int(seed) * 100_003 + int(plants[0]),
-                          effects=pop.composition)  # measurement noise: its own stream per chunk of plants
+    run = run_closed_loop(
+        ctrl,
+        config,
+        ref,
+        duration,
+        params=pop.matrix[idx],
+        counts_per_rev=pop.counts_per_rev[idx],
+        angle_noise=pop.angle_noise[idx],
+        seed=int(seed) * 100_003 + int(plants[0]),
+        effects=pop.composition,
+    )  # measurement noise: its own stream per chunk of plants
     met = run_metrics(run, window, base)
     rows = []
     for i in range(ref.size):
         k = int(idx[i])
-        row = {"controller": controller, "config": parse_configuration(config).label, "scenario": scenario.name,
-               "plant": int(plants[k]), **pop.columns[k], "omega_ref": float(ref[i]), "control_dt": float(ctrl.dt)}
+        row = {
+            "controller": controller,
+            "config": parse_configuration(config).label,
+            "scenario": scenario.name,
+            "plant": int(plants[k]),
+            **pop.columns[k],
+            "omega_ref": float(ref[i]),
+            "control_dt": float(ctrl.dt),
+        }
         row.update({key: (bool(v[i]) if v.dtype == bool else float(v[i])) for key, v in met.items()})
         rows.append(row)
     return rows
 
 
-def short_run_warnings(controllers: Sequence[str], config: str, targets: Sequence[float], duration: float,
-                       window: float, params: RigParams | None = None) -> list[str]:
+def short_run_warnings(
+    controllers: Sequence[str],
+    config: str,
+    targets: Sequence[float],
+    duration: float,
+    window: float,
+    params: RigParams | None = None,
+) -> list[str]:
     """One line per controller whose approach to a target (its :meth:`Controller.approach_time`) ends
     after the steady window starts (``duration - window`` s): that run judges a transient."""
     from .. import make
@@ -124,18 +198,33 @@ def short_run_warnings(controllers: Sequence[str], config: str, targets: Sequenc
         need = np.asarray(make(c, config=config, omega_ref=tg, params=params or RigParams()).approach_time(tg))
         late = need > duration - window
         if np.any(late):
-            out.append(f"{c}: the approach to {', '.join(f'{w:g}' for w in tg[late])} rad/s takes up to "
-                       f"{need.max():.0f} s, but the steady window starts at {duration - window:g} s: "
-                       f"use --duration >= {np.ceil(need.max() + window):.0f}")
+            out.append(
+                f"{c}: the approach to {', '.join(f'{w:g}' for w in tg[late])} rad/s takes up to "
+                f"{need.max():.0f} s, but the steady window starts at {duration - window:g} s: "
+                f"use --duration >= {np.ceil(need.max() + window):.0f}"
+            )
     return out
 
 
-def evaluate(controllers: Sequence[str], configs: Sequence[str] = ("torsional", "coupled"),
-             scenarios: Sequence["str | Scenario"] = ("rest",), targets: Sequence[float] = DEFAULT_TARGETS, *,
-             duration: float = DEFAULT_DURATION, window: float = DEFAULT_WINDOW, params: RigParams | None = None,
-             executor: Executor | None = None, workers: int = 2, progress: bool = True, effects: Any = None,
-             effect_params: Mapping[str, float] | None = None, plants: int = 20, seed: int = 0,
-             uncertainty: Any = None, plants_per_job: int = 10) -> list[dict]:
+def evaluate(
+    controllers: Sequence[str],
+    configs: Sequence[str] = ("torsional", "coupled"),
+    scenarios: Sequence[str | Scenario] = ("rest",),
+    targets: Sequence[float] = DEFAULT_TARGETS,
+    *,
+    duration: float = DEFAULT_DURATION,
+    window: float = DEFAULT_WINDOW,
+    params: RigParams | None = None,
+    executor: Executor | None = None,
+    workers: int = 2,
+    progress: bool = True,
+    effects: Any = None,
+    effect_params: Mapping[str, float] | None = None,
+    plants: int = 20,
+    seed: int = 0,
+    uncertainty: Any = None,
+    plants_per_job: int = 10,
+) -> list[dict]:
     """Evaluate every controller in every configuration and scenario on the target grid.
 
     Each run starts as its scenario says, lasts ``duration`` and is judged on its last ``window``
@@ -202,13 +291,14 @@ def evaluate(controllers: Sequence[str], configs: Sequence[str] = ("torsional", 
     if not (0 < window < duration):
         raise InputError(f"window ({window} s) must be positive and shorter than duration ({duration} s)")
     from .. import available
-
     from ..registry import split_period
 
     for c in controllers:
         if not c.startswith("agent:") and split_period(c)[0] not in available():
-            raise InputError(f"unknown controller {c!r}; choose from {', '.join(available())} (NAME@MS for another "
-                             "control period) or agent:PATH")
+            raise InputError(
+                f"unknown controller {c!r}; choose from {', '.join(available())} (NAME@MS for another "
+                "control period) or agent:PATH"
+            )
     comp, values = compose(effects, effect_params)  # errors name the effect before any job starts
     pop_kw: dict = {}
     if any(s.population for s in scen):
@@ -226,12 +316,25 @@ def evaluate(controllers: Sequence[str], configs: Sequence[str] = ("torsional", 
     u_folds = {}
     if any(s.start == "cycle" for s in scen):
         from ..baseline import stick_slip_region
+
         u_folds = {c: stick_slip_region(c, params or RigParams()).u_fold for c in configs}
     chunks = [list(range(a, min(a + plants_per_job, int(plants)))) for a in range(0, int(plants), plants_per_job)]
-    jobs = [(c, cfg, s, ch) for c in controllers for cfg in configs for s in scen
-            for ch in (chunks if s.population else [[]])]
-    kw = dict(targets=list(map(float, targets)), duration=duration, window=window, params=pdict,
-              effects=comp.specs(), effect_params=values, seed=seed)  # specs: a user file's effect reaches workers
+    jobs = [
+        (c, cfg, s, ch)
+        for c in controllers
+        for cfg in configs
+        for s in scen
+        for ch in (chunks if s.population else [[]])
+    ]
+    kw = dict(
+        targets=list(map(float, targets)),
+        duration=duration,
+        window=window,
+        params=pdict,
+        effects=comp.specs(),
+        effect_params=values,
+        seed=seed,
+    )  # specs: a user file's effect reaches workers
     rows: list[dict] = []
     bar = tqdm(total=len(jobs), desc="evaluate", unit="job", disable=not progress)
     if executor is None and workers <= 1:
@@ -241,8 +344,12 @@ def evaluate(controllers: Sequence[str], configs: Sequence[str] = ("torsional", 
     else:
         ex = executor or ProcessPoolExecutor(max_workers=workers)
         try:
-            futs = [ex.submit(run_job, c, cfg, s, u_fold=u_folds.get(cfg), plants=ch,
-                              **(pop_kw if s.population else {}), **kw) for c, cfg, s, ch in jobs]
+            futs = [
+                ex.submit(
+                    run_job, c, cfg, s, u_fold=u_folds.get(cfg), plants=ch, **(pop_kw if s.population else {}), **kw
+                )
+                for c, cfg, s, ch in jobs
+            ]
             for f in as_completed(futs):
                 rows += f.result()
                 bar.update()
@@ -251,6 +358,13 @@ def evaluate(controllers: Sequence[str], configs: Sequence[str] = ("torsional", 
                 ex.shutdown()
     bar.close()
     order = {c: i for i, c in enumerate(controllers)}
-    rows.sort(key=lambda r: (order[r["controller"]], r["config"], r["scenario"],
-                             r["plant"] if isinstance(r.get("plant"), int) else -1, r["omega_ref"]))
+    rows.sort(
+        key=lambda r: (
+            order[r["controller"]],
+            r["config"],
+            r["scenario"],
+            r["plant"] if isinstance(r.get("plant"), int) else -1,
+            r["omega_ref"],
+        )
+    )
     return rows

@@ -22,16 +22,37 @@ import numpy as np
 from drillgym import RigParams
 from drillgym.errors import InputError
 
-__all__ = ["SSI_THRESHOLD", "TRACKING_TOLERANCE", "SAFETY_SPEED", "METRICS", "stick_slip_severity", "run_metrics", "lowest_free_speed"]
+__all__ = [
+    "SSI_THRESHOLD",
+    "TRACKING_TOLERANCE",
+    "SAFETY_SPEED",
+    "METRICS",
+    "stick_slip_severity",
+    "run_metrics",
+    "lowest_free_speed",
+]
 
 SSI_THRESHOLD = 0.1
 TRACKING_TOLERANCE = 0.1  # relative offset of the mean lower-disc speed from the target
 SAFETY_SPEED = 40.0  # rad/s, the rig's over-speed stop (hw.safety.SafetyLimits.max_speed)
-METRICS = ("ssi", "stuck", "tracking_rms", "u_peak", "u_rms", "energy", "stick_slip", "omega_l_min", "omega_l_max",
-           "u_mean", "offset", "speed_peak", "runaway")
+METRICS = (
+    "ssi",
+    "stuck",
+    "tracking_rms",
+    "u_peak",
+    "u_rms",
+    "energy",
+    "stick_slip",
+    "omega_l_min",
+    "omega_l_max",
+    "u_mean",
+    "offset",
+    "speed_peak",
+    "runaway",
+)
 
 
-def stick_slip_severity(omega_l: np.ndarray, omega_ref: "float | np.ndarray | None" = None) -> np.ndarray:
+def stick_slip_severity(omega_l: np.ndarray, omega_ref: float | np.ndarray | None = None) -> np.ndarray:
     """Stick-slip severity (max omega_l - min omega_l) / (2 mean omega_l) of each run.
 
     Parameters
@@ -49,8 +70,9 @@ def stick_slip_severity(omega_l: np.ndarray, omega_ref: "float | np.ndarray | No
     w = np.atleast_2d(np.asarray(omega_l, dtype=float))
     mean = w.mean(axis=1)
     floor = 1e-2 * (np.abs(np.broadcast_to(omega_ref, mean.shape)) if omega_ref is not None else 1.0)
-    ssi = np.where(mean > np.maximum(floor, 1e-9), (w.max(axis=1) - w.min(axis=1)) / (2 * np.where(mean > 0, mean, 1)),
-                   np.inf)
+    ssi = np.where(
+        mean > np.maximum(floor, 1e-9), (w.max(axis=1) - w.min(axis=1)) / (2 * np.where(mean > 0, mean, 1)), np.inf
+    )
     return ssi if np.ndim(omega_l) == 2 else ssi[0]
 
 
@@ -68,7 +90,7 @@ def run_metrics(run, window: float, params: RigParams | None = None) -> dict[str
         "stuck": run.stuck_l[:, ss].mean(axis=1),
         "tracking_rms": np.sqrt(np.mean((wl - run.omega_ref[:, None]) ** 2, axis=1)),
         "u_peak": np.abs(run.u).max(axis=1),
-        "u_rms": np.sqrt(np.mean(run.u ** 2, axis=1)),
+        "u_rms": np.sqrt(np.mean(run.u**2, axis=1)),
         "energy": np.sum(p.km * run.u * run.omega_u, axis=1) * run.dt,
         "stick_slip": ssi >= SSI_THRESHOLD,
         "omega_l_min": wl.min(axis=1),
@@ -80,8 +102,13 @@ def run_metrics(run, window: float, params: RigParams | None = None) -> dict[str
     }
 
 
-def lowest_free_speed(targets: np.ndarray, ssi: np.ndarray, threshold: float = SSI_THRESHOLD,
-                      offset: np.ndarray | None = None, tolerance: float = TRACKING_TOLERANCE) -> float:
+def lowest_free_speed(
+    targets: np.ndarray,
+    ssi: np.ndarray,
+    threshold: float = SSI_THRESHOLD,
+    offset: np.ndarray | None = None,
+    tolerance: float = TRACKING_TOLERANCE,
+) -> float:
     """Lowest target from which every higher target of the grid is held.
 
     A target is held when it shows no stick-slip (SSI < ``threshold``) and, when ``offset`` is given,

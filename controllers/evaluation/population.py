@@ -15,9 +15,10 @@ controllers are not told.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -32,8 +33,14 @@ __all__ = ["DEFAULT_UNCERTAINTY", "UncertaintySet", "PlantPopulation", "load_unc
 DEFAULT_UNCERTAINTY = Path(__file__).with_name("plants.yaml")
 """The default uncertainty set (YAML, documented in the file)."""
 
-_EFFECT_OF = {"tau_m": "motor_lag", "delay": "input_delay", "pf_c1": "position_friction",
-              "pf_s1": "position_friction", "pf_c2": "position_friction", "pf_s2": "position_friction"}
+_EFFECT_OF = {
+    "tau_m": "motor_lag",
+    "delay": "input_delay",
+    "pf_c1": "position_friction",
+    "pf_s1": "position_friction",
+    "pf_c2": "position_friction",
+    "pf_s2": "position_friction",
+}
 _SECTIONS = ("relative", "effects", "harmonics", "encoder")
 
 
@@ -70,14 +77,20 @@ class UncertaintySet:
         order = ["motor_lag", "input_delay", "position_friction"]
         unknown = sorted(n for n in names if n not in _EFFECT_OF)
         if unknown:
-            raise InputError(f"uncertainty set {self.source}: unknown effect parameter {unknown[0]!r}; "
-                             f"known: {', '.join(_EFFECT_OF)}")
+            raise InputError(
+                f"uncertainty set {self.source}: unknown effect parameter {unknown[0]!r}; "
+                f"known: {', '.join(_EFFECT_OF)}"
+            )
         return [e for e in order if e in {_EFFECT_OF[n] for n in names}]
 
     def columns(self) -> list[str]:
         """Names of the per-plant values, in the order of the results' columns."""
-        return (list(self.relative) + list(self.effects) + [n for pair in self.harmonics for n in pair]
-                + ["counts_per_rev", "angle_noise"])
+        return (
+            list(self.relative)
+            + list(self.effects)
+            + [n for pair in self.harmonics for n in pair]
+            + ["counts_per_rev", "angle_noise"]
+        )
 
 
 def _pair(v: Any, what: str, source: str) -> tuple[float, float]:
@@ -90,7 +103,7 @@ def _pair(v: Any, what: str, source: str) -> tuple[float, float]:
     return lo, hi
 
 
-def load_uncertainty(path: "str | Path | None" = None) -> UncertaintySet:
+def load_uncertainty(path: str | Path | None = None) -> UncertaintySet:
     """Read an uncertainty set from YAML.
 
     Parameters
@@ -134,7 +147,9 @@ def load_uncertainty(path: "str | Path | None" = None) -> UncertaintySet:
     for k, v in (raw.get("harmonics") or {}).items():
         names = tuple(s.strip() for s in str(k).split(","))
         if len(names) != 2 or not (isinstance(v, (int, float)) and v >= 0):
-            raise InputError(f"uncertainty set {src}: harmonics entry must be 'cos,sin': max amplitude, got {k!r}: {v!r}")
+            raise InputError(
+                f"uncertainty set {src}: harmonics entry must be 'cos,sin': max amplitude, got {k!r}: {v!r}"
+            )
         har[names] = float(v)
     enc = raw.get("encoder") or {}
     cpr = _pair(enc.get("counts_per_rev", [8000, 8000]), "encoder counts_per_rev", src)
@@ -180,15 +195,22 @@ class PlantPopulation:
         """Number of plants."""
         return int(self.matrix.shape[0])
 
-    def subset(self, index: "np.ndarray | list[int]") -> "PlantPopulation":
+    def subset(self, index: np.ndarray | list[int]) -> PlantPopulation:
         """The plants ``index`` (in that order)."""
         i = np.asarray(index, dtype=int)
-        return PlantPopulation(self.composition, self.matrix[i], self.counts_per_rev[i], self.angle_noise[i],
-                               [self.columns[k] for k in i], self.uncertainty)
+        return PlantPopulation(
+            self.composition,
+            self.matrix[i],
+            self.counts_per_rev[i],
+            self.angle_noise[i],
+            [self.columns[k] for k in i],
+            self.uncertainty,
+        )
 
 
-def sample_plants(n: int, seed: int = 0, uncertainty: "UncertaintySet | str | Path | None" = None,
-                  params: RigParams | None = None) -> PlantPopulation:
+def sample_plants(
+    n: int, seed: int = 0, uncertainty: UncertaintySet | str | Path | None = None, params: RigParams | None = None
+) -> PlantPopulation:
     """Draw n plants around ``params`` from an uncertainty set.
 
     The same (n, seed, set) always gives the same plants, and the first k plants of a population of

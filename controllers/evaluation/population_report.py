@@ -10,8 +10,8 @@ which some run passed the over-speed stop (``runaway``).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -26,8 +26,11 @@ def plant_lowest(rows: Sequence[dict], controller: str, config: str, scenario: s
     sel = [r for r in rows if r["controller"] == controller and r["config"] == config and r["scenario"] == scenario]
     for k in sorted({int(r["plant"]) for r in sel}):
         pr = sorted((r for r in sel if int(r["plant"]) == k), key=lambda r: float(r["omega_ref"]))
-        low = lowest_free_speed(np.array([float(r["omega_ref"]) for r in pr]), np.array([float(r["ssi"]) for r in pr]),
-                                offset=np.array([float(r["offset"]) for r in pr]))
+        low = lowest_free_speed(
+            np.array([float(r["omega_ref"]) for r in pr]),
+            np.array([float(r["ssi"]) for r in pr]),
+            offset=np.array([float(r["offset"]) for r in pr]),
+        )
         out[k] = math.inf if math.isnan(low) else low
     return out
 
@@ -47,13 +50,23 @@ def population_summary(rows: Sequence[dict], scenario: str = "plants") -> list[d
             if not low:
                 continue
             v = np.array(list(low.values()))
-            run = {int(r["plant"]) for r in sel if r["controller"] == c and r["config"] == cfg and _truthy(r["runaway"])}
+            run = {
+                int(r["plant"]) for r in sel if r["controller"] == c and r["config"] == cfg and _truthy(r["runaway"])
+            }
             periods = {float(r["control_dt"]) for r in sel if r["controller"] == c}
-            out.append({"controller": c, "config": cfg, "plants": int(v.size),
-                        "control_dt": min(periods),
-                        "median": float(np.quantile(v, 0.5, method="higher")),
-                        "p90": float(np.quantile(v, 0.9, method="higher")), "worst": float(v.max()),
-                        "none_held": int(np.isinf(v).sum()), "runaway": len(run)})
+            out.append(
+                {
+                    "controller": c,
+                    "config": cfg,
+                    "plants": int(v.size),
+                    "control_dt": min(periods),
+                    "median": float(np.quantile(v, 0.5, method="higher")),
+                    "p90": float(np.quantile(v, 0.9, method="higher")),
+                    "worst": float(v.max()),
+                    "none_held": int(np.isinf(v).sum()),
+                    "runaway": len(run),
+                }
+            )
     return out
 
 
@@ -63,17 +76,40 @@ def _fmt(v: float) -> str:
 
 def population_table(rows: Sequence[dict], scenario: str = "plants") -> str:
     """Markdown table of :func:`population_summary`."""
-    head = ["controller", "period (ms)", "config", "plants", "median lowest held (rad/s)", "90th pct (rad/s)",
-            "worst (rad/s)", "plants holding none", "plants with a run past 40 rad/s"]
+    head = [
+        "controller",
+        "period (ms)",
+        "config",
+        "plants",
+        "median lowest held (rad/s)",
+        "90th pct (rad/s)",
+        "worst (rad/s)",
+        "plants holding none",
+        "plants with a run past 40 rad/s",
+    ]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for e in population_summary(rows, scenario):
-        lines.append("| " + " | ".join([e["controller"], f"{1e3 * e['control_dt']:g}", e["config"], str(e["plants"]),
-                                        _fmt(e["median"]), _fmt(e["p90"]), _fmt(e["worst"]), str(e["none_held"]),
-                                        str(e["runaway"])]) + " |")
+        lines.append(
+            "| "
+            + " | ".join(
+                [
+                    e["controller"],
+                    f"{1e3 * e['control_dt']:g}",
+                    e["config"],
+                    str(e["plants"]),
+                    _fmt(e["median"]),
+                    _fmt(e["p90"]),
+                    _fmt(e["worst"]),
+                    str(e["none_held"]),
+                    str(e["runaway"]),
+                ]
+            )
+            + " |"
+        )
     return "\n".join(lines) + "\n"
 
 
-def plot_population(rows: Sequence[dict], path: "str | Path", scenario: str = "plants") -> Path:
+def plot_population(rows: Sequence[dict], path: str | Path, scenario: str = "plants") -> Path:
     """Fraction of plants on which each controller holds every target from x up (one panel per configuration)."""
     import matplotlib
 
@@ -92,8 +128,12 @@ def plot_population(rows: Sequence[dict], path: "str | Path", scenario: str = "p
                 ax.step(x, [(low <= w).mean() for w in x], where="post", label=c)
         ax.axhline(0.5, color="k", lw=0.6, ls=":")
         ax.axhline(0.9, color="k", lw=0.6, ls="--")
-        ax.set(xlabel="target speed (rad/s)", ylabel="fraction of plants holding every target from here up",
-               title=f"{cfg}, {len({int(r['plant']) for r in sel})} plants, from rest", ylim=(-0.02, 1.02))
+        ax.set(
+            xlabel="target speed (rad/s)",
+            ylabel="fraction of plants holding every target from here up",
+            title=f"{cfg}, {len({int(r['plant']) for r in sel})} plants, from rest",
+            ylim=(-0.02, 1.02),
+        )
         ax.legend(fontsize=8)
     fig.tight_layout()
     path = Path(path)

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import csv
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -17,7 +17,7 @@ from .metrics import SSI_THRESHOLD, lowest_free_speed
 __all__ = ["write_csv", "summary", "markdown_table", "plot_ssi", "write_report"]
 
 
-def write_csv(rows: Sequence[dict], path: "str | Path") -> Path:
+def write_csv(rows: Sequence[dict], path: str | Path) -> Path:
     """All rows (one per controller, configuration, scenario, [plant,] target) as CSV; the columns are
     the union of the rows' keys in first-seen order (a population's rows add one column per parameter)."""
     path = Path(path)
@@ -31,10 +31,15 @@ def write_csv(rows: Sequence[dict], path: "str | Path") -> Path:
 
 
 def _select(rows, controller, config, scenario):
-    sel = sorted((r for r in rows if r["controller"] == controller and r["config"] == config
-                  and r["scenario"] == scenario), key=lambda r: r["omega_ref"])
-    return (np.array([r["omega_ref"] for r in sel]), np.array([r["ssi"] for r in sel]),
-            np.array([r.get("offset", 0.0) for r in sel]))
+    sel = sorted(
+        (r for r in rows if r["controller"] == controller and r["config"] == config and r["scenario"] == scenario),
+        key=lambda r: r["omega_ref"],
+    )
+    return (
+        np.array([r["omega_ref"] for r in sel]),
+        np.array([r["ssi"] for r in sel]),
+        np.array([r.get("offset", 0.0) for r in sel]),
+    )
 
 
 def summary(rows: Sequence[dict], scenario: str = "rest", speeds: Sequence[float] = (2.0, 4.0)) -> list[dict]:
@@ -80,7 +85,7 @@ def markdown_table(rows: Sequence[dict], scenario: str = "rest", speeds: Sequenc
     return "\n".join(lines) + "\n"
 
 
-def plot_ssi(rows: Sequence[dict], path: "str | Path", scenario: str = "rest", params=None) -> Path:
+def plot_ssi(rows: Sequence[dict], path: str | Path, scenario: str = "rest", params=None) -> Path:
     """SSI versus target speed, one curve per controller and configuration, with the open-loop diagram
     (equilibrium branch omega_l(u), stable/unstable, and the baseline's steady omega_l range) beside it."""
     import matplotlib
@@ -99,8 +104,11 @@ def plot_ssi(rows: Sequence[dict], path: "str | Path", scenario: str = "rest", p
             if t.size:
                 ax.semilogy(t, np.clip(np.where(np.isfinite(s), s, 10.0), 1e-4, 10.0), "o-", label=c)
         ax.axhline(SSI_THRESHOLD, color="k", lw=0.8, ls="--")
-        ax.set(xlabel="target speed omega_ref (rad/s)", ylabel="SSI (steady state)",
-               title=f"closed loop, {cfg}, from {scenario}")
+        ax.set(
+            xlabel="target speed omega_ref (rad/s)",
+            ylabel="SSI (steady state)",
+            title=f"closed loop, {cfg}, from {scenario}",
+        )
         ax.legend(fontsize=8)
         ax = axes[i, 1]
         br = equilibrium_branch(cfg, params, umax=5.0)
@@ -123,7 +131,7 @@ def plot_ssi(rows: Sequence[dict], path: "str | Path", scenario: str = "rest", p
     return path
 
 
-def write_report(rows: Sequence[dict], out_dir: "str | Path", params=None, plant: str | None = None) -> dict[str, Path]:
+def write_report(rows: Sequence[dict], out_dir: str | Path, params=None, plant: str | None = None) -> dict[str, Path]:
     """Write the evaluation's report: results.csv, summary.md (a table per scenario), ssi_vs_target.png.
 
     Parameters
@@ -145,26 +153,32 @@ def write_report(rows: Sequence[dict], out_dir: "str | Path", params=None, plant
     """
     out = create_directory(out_dir)
     files = {"csv": write_csv(rows, out / "results.csv")}
-    parts = ["# Controller evaluation\n", f"Stick-slip: SSI >= {SSI_THRESHOLD} in steady state. 'lowest free target': "
-             "lowest target of the grid from which every higher target is held: no stick-slip and the mean "
-             "lower-disc speed within 10 % of the target.\n"]
+    parts = [
+        "# Controller evaluation\n",
+        f"Stick-slip: SSI >= {SSI_THRESHOLD} in steady state. 'lowest free target': "
+        "lowest target of the grid from which every higher target is held: no stick-slip and the mean "
+        "lower-disc speed within 10 % of the target.\n",
+    ]
     population = [r for r in rows if r["scenario"] == "plants"]
     rows = [r for r in rows if r["scenario"] != "plants"]
     labels = sorted({str(r.get("plant", "base")) for r in rows})
     if plant is None and rows and labels != ["base"]:
         plant = "hidden effects: " + ", ".join(labels)
     if plant:
-        parts.append(f"\nPlant: {plant} (the controllers are built from the nominal parameters and do not know "
-                     "them).\n")
+        parts.append(
+            f"\nPlant: {plant} (the controllers are built from the nominal parameters and do not know them).\n"
+        )
     for sc in dict.fromkeys(r["scenario"] for r in rows):
         parts.append(f"\n## scenario: {sc}\n\n" + markdown_table(rows, sc))
     if population:
         from .population_report import plot_population, population_table
 
         n = len({int(r["plant"]) for r in population})
-        parts.append(f"\n## scenario: plants ({n} plants drawn from the uncertainty set, from rest)\n\n"
-                     "Each plant's lowest held target; median and 90th percentile over the plants (the higher "
-                     "plant's value); 'none': not even the highest target held.\n\n" + population_table(population))
+        parts.append(
+            f"\n## scenario: plants ({n} plants drawn from the uncertainty set, from rest)\n\n"
+            "Each plant's lowest held target; median and 90th percentile over the plants (the higher "
+            "plant's value); 'none': not even the highest target held.\n\n" + population_table(population)
+        )
         files["population_figure"] = plot_population(population, out / "plants_lowest_held.png")
     md = out / "summary.md"
     md.write_text("".join(parts))

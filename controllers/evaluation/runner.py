@@ -11,8 +11,9 @@ optional white angle noise, LVDT x, y in the fixed frame.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -48,12 +49,22 @@ class ClosedLoopRun:
         return float(self.t[1] - self.t[0])
 
 
-def run_closed_loop(controller: Controller, config: "str | Configuration", omega_ref: np.ndarray, duration: float, *,
-                    params=None, x0: np.ndarray | None = None, alpha0: "float | np.ndarray" = 0.0,
-                    counts_per_rev: "int | np.ndarray" = DEFAULT_COUNTS_PER_REV,
-                    angle_noise: "float | np.ndarray" = 0.0, seed: int = 0,
-                    sim_dt: float = SIM_DT, effects: Any = None,
-                    effect_params: Mapping[str, float] | None = None) -> ClosedLoopRun:
+def run_closed_loop(
+    controller: Controller,
+    config: str | Configuration,
+    omega_ref: np.ndarray,
+    duration: float,
+    *,
+    params=None,
+    x0: np.ndarray | None = None,
+    alpha0: float | np.ndarray = 0.0,
+    counts_per_rev: int | np.ndarray = DEFAULT_COUNTS_PER_REV,
+    angle_noise: float | np.ndarray = 0.0,
+    seed: int = 0,
+    sim_dt: float = SIM_DT,
+    effects: Any = None,
+    effect_params: Mapping[str, float] | None = None,
+) -> ClosedLoopRun:
     """Run ``controller`` on n simulated rigs for ``duration`` seconds.
 
     Parameters
@@ -124,19 +135,28 @@ def run_closed_loop(controller: Controller, config: "str | Configuration", omega
     return ClosedLoopRun(cfg, t, ref, **out)
 
 
-def _measure(sim: BatchSimulator, t: float, ref: np.ndarray, cpr: np.ndarray, noise: np.ndarray,
-             rng: np.random.Generator) -> dict[str, np.ndarray]:
+def _measure(
+    sim: BatchSimulator, t: float, ref: np.ndarray, cpr: np.ndarray, noise: np.ndarray, rng: np.random.Generator
+) -> dict[str, np.ndarray]:
     """What the rig's sensors report (batched; cpr counts/rev and noise rad std per run)."""
+
     def enc(theta: np.ndarray) -> np.ndarray:
         c = np.where(cpr > 0, cpr, 1.0)
         q = np.where(cpr > 0, np.floor(theta * (c / TWO_PI)) * (TWO_PI / c) + 0.0, theta)  # quantize_angle, per run
         return q + rng.normal(0.0, 1.0, q.shape) * noise if np.any(noise > 0) else q
 
     if sim.composition.has_measurement:  # the plant's Measurement effects (per rig: its parameter row)
-        tu, tl, X, Y = sim.composition.kernels.client("drillgym.envs.sensor_kernel").measured_channels_batch(sim.Y,
-                                                                                                            sim.P)
+        tu, tl, X, Y = sim.composition.kernels.client("drillgym.envs.sensor_kernel").measured_channels_batch(
+            sim.Y, sim.P
+        )
     else:
         tu, tl = sim.theta_u, sim.theta_l
         X, Y = sim.lateral_fixed
-    return {"t": np.full(sim.n, t), "theta_u": enc(tu), "theta_l": enc(tl), "x": X.copy(), "y": Y.copy(),
-            "omega_ref": ref}
+    return {
+        "t": np.full(sim.n, t),
+        "theta_u": enc(tu),
+        "theta_l": enc(tl),
+        "x": X.copy(),
+        "y": Y.copy(),
+        "omega_ref": ref,
+    }

@@ -9,8 +9,9 @@ from an uncertainty set (``plants``, :mod:`.population`).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -53,14 +54,17 @@ class Scenario:
     population: bool = False
 
 
-SCENARIOS = {s.name: s for s in (
-    Scenario("rest"),
-    Scenario("cycle", start="cycle"),
-    Scenario("friction-20", friction_scale=0.8),
-    Scenario("friction+20", friction_scale=1.2),
-    Scenario("noisy", counts_per_rev=2048, angle_noise=1e-3),
-    Scenario("plants", population=True),
-)}
+SCENARIOS = {
+    s.name: s
+    for s in (
+        Scenario("rest"),
+        Scenario("cycle", start="cycle"),
+        Scenario("friction-20", friction_scale=0.8),
+        Scenario("friction+20", friction_scale=1.2),
+        Scenario("noisy", counts_per_rev=2048, angle_noise=1e-3),
+        Scenario("plants", population=True),
+    )
+}
 
 
 def parse_scenarios(names: str) -> list[Scenario]:
@@ -82,12 +86,20 @@ def plant_params(s: Scenario, params: RigParams | None = None) -> RigParams:
     return p if f == 1.0 else p.scaled(Ts=f, Tc=f, bb=f)
 
 
-def cycle_states(config: str, targets: np.ndarray, params: RigParams, u_fold: float, *, effects: Any = None,
-                 effect_params: Mapping[str, float] | None = None) -> np.ndarray:
+def cycle_states(
+    config: str,
+    targets: np.ndarray,
+    params: RigParams,
+    u_fold: float,
+    *,
+    effects: Any = None,
+    effect_params: Mapping[str, float] | None = None,
+) -> np.ndarray:
     """States (n, n_state) on a developed open-loop stick-slip cycle of the plant (base ``params`` and
     its ``effects``) for each target: the cycle at the target's equilibrium voltage of the base model,
     held below the second fold ``u_fold`` (V) so that the cycle exists."""
     u = np.clip(equilibrium_voltage(config, np.asarray(targets, dtype=float), params), 0.5, u_fold - 0.2)
-    batch = simulate_batch(config, u, CYCLE_SETTLE, params=params, record_every=100, effects=effects,
-                           effect_params=effect_params)
+    batch = simulate_batch(
+        config, u, CYCLE_SETTLE, params=params, record_every=100, effects=effects, effect_params=effect_params
+    )
     return np.stack([batch[k].final_state for k in range(len(u))])

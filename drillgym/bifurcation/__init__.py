@@ -19,8 +19,23 @@ from .shooting import PeriodicSolution, ShootingFailure, shoot
 from .sweeps import SweepResult, sweep_constant, sweep_staircase
 
 __all__ = [
-    "Fold", "PeriodicBranch", "continue_branch", "start_at_hopf", "BifurcationDiagram", "compute_diagram",
-    "periodic_branches", "EquilibriumBranch", "HopfPoint", "equilibrium_branch", "REPORT_POINTS",
-    "measured_diagram", "measured_point", "PeriodicSolution", "ShootingFailure", "shoot", "SweepResult",
-    "sweep_constant", "sweep_staircase",
+    "Fold",
+    "PeriodicBranch",
+    "continue_branch",
+    "start_at_hopf",
+    "BifurcationDiagram",
+    "compute_diagram",
+    "periodic_branches",
+    "EquilibriumBranch",
+    "HopfPoint",
+    "equilibrium_branch",
+    "REPORT_POINTS",
+    "measured_diagram",
+    "measured_point",
+    "PeriodicSolution",
+    "ShootingFailure",
+    "shoot",
+    "SweepResult",
+    "sweep_constant",
+    "sweep_staircase",
 ]

@@ -26,8 +26,8 @@ per period, and the point is re-shot on the new section.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -101,8 +101,15 @@ def section_margin(smap: SectionMap, sol: PeriodicSolution) -> tuple[float, floa
     if not np.isfinite(sol.period) or sol.period <= 0:
         return 1.0, None
     sm = smap.with_offset(sol.section_offset)
-    tr = simulate(sm.config, sol.u, sol.period, dt=sm.dt, params=RigParams.from_vector(sm.p),
-                  x0=sm.to_state(sol.z, sol.u), method=sm.method)
+    tr = simulate(
+        sm.config,
+        sol.u,
+        sol.period,
+        dt=sm.dt,
+        params=RigParams.from_vector(sm.p),
+        x0=sm.to_state(sol.z, sol.u),
+        method=sm.method,
+    )
     w = tr.omega_l
     span = float(w.max() - w.min())
     if span <= 0 or len(w) < 5:
@@ -146,11 +153,23 @@ def _tangent(J: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
     return t / np.linalg.norm(t)
 
 
-def continue_branch(smap: SectionMap, start: PeriodicSolution, direction: float, *, umin: float, umax: float,
-                    ds: float = 0.05, ds_min: float = 1e-4, ds_max: float = 0.3, max_points: int = 400,
-                    amplitude_min: float = 2e-3, tol: float = 1e-8, max_newton: int = 8,
-                    resection: bool = True,
-                    progress: Callable[[PeriodicSolution], None] | None = None) -> PeriodicBranch:
+def continue_branch(
+    smap: SectionMap,
+    start: PeriodicSolution,
+    direction: float,
+    *,
+    umin: float,
+    umax: float,
+    ds: float = 0.05,
+    ds_min: float = 1e-4,
+    ds_max: float = 0.3,
+    max_points: int = 400,
+    amplitude_min: float = 2e-3,
+    tol: float = 1e-8,
+    max_newton: int = 8,
+    resection: bool = True,
+    progress: Callable[[PeriodicSolution], None] | None = None,
+) -> PeriodicBranch:
     """Follow the periodic branch through ``start`` with u initially moving in ``direction`` (+1/-1).
 
     Pseudo-arclength continuation in the scaled (z, u) space.  The branch ends when its amplitude falls
@@ -257,7 +276,7 @@ def find_folds(solutions: list[PeriodicSolution]) -> list[Fold]:
             a = 0.5 * (u[i + 1] - 2 * u[i] + u[i - 1])
             bq = 0.5 * (u[i + 1] - u[i - 1])
             u_f = u[i] - bq * bq / (4 * a) if a != 0 else u[i]
-            lo, hi = min(u[i - 1:i + 2]), max(u[i - 1:i + 2])
+            lo, hi = min(u[i - 1 : i + 2]), max(u[i - 1 : i + 2])
             u_f = float(np.clip(u_f, lo, hi + (hi - lo)) if a < 0 else np.clip(u_f, lo - (hi - lo), hi))
             stick = solutions[i].stick_slip or solutions[i - 1].stick_slip or solutions[i + 1].stick_slip
             folds.append(Fold(u_f, solutions[i].omega_l_max, bool(stick)))
@@ -271,8 +290,17 @@ def refine_fold(smap: SectionMap, branch: PeriodicBranch, fold: Fold, ds_min: fl
     i = int(np.argmin(np.abs(u - fold.u)))
     k = max(i - 2, 0)
     direction = np.sign(u[k + 1] - u[k]) or 1.0
-    local = continue_branch(smap, sols[k], direction, umin=-np.inf, umax=np.inf, ds=ds_min, ds_min=ds_min / 8,
-                            ds_max=ds_min * 2, max_points=int(8 * (abs(u[i] - u[k]) + 0.05) / ds_min) + 10)
+    local = continue_branch(
+        smap,
+        sols[k],
+        direction,
+        umin=-np.inf,
+        umax=np.inf,
+        ds=ds_min,
+        ds_min=ds_min / 8,
+        ds_max=ds_min * 2,
+        max_points=int(8 * (abs(u[i] - u[k]) + 0.05) / ds_min) + 10,
+    )
     near = [f for f in local.folds if abs(f.u - fold.u) < 0.2]
     return min(near, key=lambda f: abs(f.u - fold.u)) if near else fold
 
@@ -280,9 +308,17 @@ def refine_fold(smap: SectionMap, branch: PeriodicBranch, fold: Fold, ds_min: fl
 __all__ = ["Fold", "PeriodicBranch", "continue_branch", "find_folds", "refine_fold", "shoot"]
 
 
-def start_at_hopf(smap: SectionMap, u_hopf: float, z_eq: np.ndarray, eigvec: np.ndarray, omega_l_row: int,
-                  amplitude: float = 0.02, tol: float = 1e-9, max_iter: int = 40,
-                  max_step: float = 0.02) -> PeriodicSolution:
+def start_at_hopf(
+    smap: SectionMap,
+    u_hopf: float,
+    z_eq: np.ndarray,
+    eigvec: np.ndarray,
+    omega_l_row: int,
+    amplitude: float = 0.02,
+    tol: float = 1e-9,
+    max_iter: int = 40,
+    max_step: float = 0.02,
+) -> PeriodicSolution:
     """The small periodic solution born at a Hopf point, by shooting with the section point's first
     coordinate (alpha) held at ``z_eq[0] + amplitude`` and the voltage free.
 

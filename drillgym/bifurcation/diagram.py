@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import json
 import warnings
+from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Sequence
 
 import numpy as np
 
@@ -92,10 +92,19 @@ def _hopf_start(smap: SectionMap, h: HopfPoint, params: RigModel, amplitude: flo
     return start_at_hopf(smap, h.u, z_eq, V[:, i], 2, amplitude=amplitude)
 
 
-def periodic_branches(branch: EquilibriumBranch, params: "RigParams | RigModel | None" = None, *, umin: float = 0.0,
-                      umax: float = 5.0, dt: float = 1e-3, ds: float = 0.02, ds_max: float = 0.2,
-                      amplitude: float = 0.01, max_points: int = 300,
-                      progress: Callable[[object], None] | None = None) -> tuple[list[PeriodicBranch], list[Fold]]:
+def periodic_branches(
+    branch: EquilibriumBranch,
+    params: RigParams | RigModel | None = None,
+    *,
+    umin: float = 0.0,
+    umax: float = 5.0,
+    dt: float = 1e-3,
+    ds: float = 0.02,
+    ds_max: float = 0.2,
+    amplitude: float = 0.01,
+    max_points: int = 300,
+    progress: Callable[[object], None] | None = None,
+) -> tuple[list[PeriodicBranch], list[Fold]]:
     """Periodic branches born at each Hopf point of ``branch`` inside [umin, umax], and their folds.
 
     Each branch is followed by pseudo-arclength continuation until it leaves the
@@ -139,22 +148,34 @@ def periodic_branches(branch: EquilibriumBranch, params: "RigParams | RigModel |
             s1 = _hopf_start(smap, h, params, amplitude)
             s2 = _hopf_start(smap, h, params, 2 * amplitude)
         except ShootingFailure as exc:
-            warnings.warn(f"no periodic branch from the Hopf point u = {h.u:.4f} V ({exc})", RuntimeWarning,
-                          stacklevel=2)
+            warnings.warn(
+                f"no periodic branch from the Hopf point u = {h.u:.4f} V ({exc})", RuntimeWarning, stacklevel=2
+            )
             continue
         # a branch that comes back to a Hopf point ends there: once its omega_l range is below half that
         # of the start orbit (a fixed 2e-3 rad/s missed the lateral Hopf point at 8.78 V, where the
         # corrector then slid along the vanishing orbit)
         amp_stop = max(2e-3, 0.5 * (s1.omega_l_max - s1.omega_l_min))
-        br = continue_branch(smap, s1, np.sign(s2.u - s1.u) or 1.0, umin=umin, umax=umax, ds=ds, ds_max=ds_max,
-                             max_points=max_points, amplitude_min=amp_stop, progress=progress)
+        br = continue_branch(
+            smap,
+            s1,
+            np.sign(s2.u - s1.u) or 1.0,
+            umin=umin,
+            umax=umax,
+            ds=ds,
+            ds_max=ds_max,
+            max_points=max_points,
+            amplitude_min=amp_stop,
+            progress=progress,
+        )
         out.append(br)
         folds += br.folds
         last = br.solutions[-1]
         # grazing corner: the stick phase shrinks to nothing, or a slip orbit touches omega_l = 0
         # (a corrector failure of an orbit that never sticks and stays away from 0 is no fold)
-        if br.end_reason.startswith("corrector") and (0 < last.stick_time < GRAZING_STICK_TIME
-                                                      or last.omega_l_min < 1e-2):
+        if br.end_reason.startswith("corrector") and (
+            0 < last.stick_time < GRAZING_STICK_TIME or last.omega_l_min < 1e-2
+        ):
             folds.append(Fold(last.u, last.omega_l_max, True))
     return out, _merge_folds(folds)
 
@@ -164,19 +185,35 @@ def _merge_folds(folds: list[Fold], tol: float = 0.01) -> list[Fold]:
     for f in sorted(folds, key=lambda f: f.u):
         if merged and abs(f.u - merged[-1].u) < tol:
             m = merged[-1]
-            merged[-1] = Fold(max(m.u, f.u) if m.discontinuous or f.discontinuous else 0.5 * (m.u + f.u),
-                              max(m.omega_l_max, f.omega_l_max), m.discontinuous or f.discontinuous)
+            merged[-1] = Fold(
+                max(m.u, f.u) if m.discontinuous or f.discontinuous else 0.5 * (m.u + f.u),
+                max(m.omega_l_max, f.omega_l_max),
+                m.discontinuous or f.discontinuous,
+            )
         else:
             merged.append(f)
     return merged
 
 
-def compute_diagram(config: str, params: "RigParams | RigModel | None" = None, *, umin: float = 0.0, umax: float = 5.0,
-                    periodic: bool = True, sweep_step: float | None = 0.05, sweep_duration: float = 120.0,
-                    staircase: bool = True, sweep_umax: float | None = None, dt: float = 1e-3, sweep_dt: float | None = None, ds_max: float = 0.2,
-                    executor: Executor | None = None, measured: Sequence[dict] = (),
-                    progress: Callable[[str], None] | None = None,
-                    step: Callable[[str, int], None] | None = None) -> BifurcationDiagram:
+def compute_diagram(
+    config: str,
+    params: RigParams | RigModel | None = None,
+    *,
+    umin: float = 0.0,
+    umax: float = 5.0,
+    periodic: bool = True,
+    sweep_step: float | None = 0.05,
+    sweep_duration: float = 120.0,
+    staircase: bool = True,
+    sweep_umax: float | None = None,
+    dt: float = 1e-3,
+    sweep_dt: float | None = None,
+    ds_max: float = 0.2,
+    executor: Executor | None = None,
+    measured: Sequence[dict] = (),
+    progress: Callable[[str], None] | None = None,
+    step: Callable[[str, int], None] | None = None,
+) -> BifurcationDiagram:
     """The open-loop bifurcation diagram of one configuration.
 
     Equilibria and Hopf points, periodic branches and their folds, brute-force sweeps from rest and,
@@ -244,17 +281,37 @@ def compute_diagram(config: str, params: "RigParams | RigModel | None" = None, *
     diag = BifurcationDiagram(cfg, eqb, measured=list(measured))
     if periodic and eqb.hopf:
         say("periodic solutions")
-        diag.periodic, diag.folds = periodic_branches(eqb, params, umin=umin, umax=umax, dt=dt, ds_max=ds_max,
-                                                      progress=on_cycle)
+        diag.periodic, diag.folds = periodic_branches(
+            eqb, params, umin=umin, umax=umax, dt=dt, ds_max=ds_max, progress=on_cycle
+        )
     if sweep_step:
         say("sweeps")
         u = np.round(np.arange(umin, (sweep_umax or umax) + 1e-9, sweep_step), 10)
         sdt = sweep_dt or dt
         count("sweep_total", len(u) * (3 if staircase else 1))
         done = lambda k: count("sweep", k)  # noqa: E731
-        diag.sweeps.append(sweep_constant(cfg.label, u, start="rest", duration=sweep_duration, dt=sdt, params=params,
-                                          executor=executor, progress=done))
+        diag.sweeps.append(
+            sweep_constant(
+                cfg.label,
+                u,
+                start="rest",
+                duration=sweep_duration,
+                dt=sdt,
+                params=params,
+                executor=executor,
+                progress=done,
+            )
+        )
         if staircase:
-            diag.sweeps += list(sweep_staircase(cfg.label, u, dwell=max(20.0, sweep_duration / 4), dt=sdt,
-                                                params=params, executor=executor, progress=done))
+            diag.sweeps += list(
+                sweep_staircase(
+                    cfg.label,
+                    u,
+                    dwell=max(20.0, sweep_duration / 4),
+                    dt=sdt,
+                    params=params,
+                    executor=executor,
+                    progress=done,
+                )
+            )
     return diag

@@ -16,8 +16,15 @@ import numpy as np
 from scipy.optimize import brentq
 
 from ..configurations import Configuration
-from ..equilibria import eigenvalues, equilibrium_voltage, slip_equilibrium, stick_set, supported_configuration
-from ..equilibria import RigModel, as_model
+from ..equilibria import (
+    RigModel,
+    as_model,
+    eigenvalues,
+    equilibrium_voltage,
+    slip_equilibrium,
+    stick_set,
+    supported_configuration,
+)
 from ..errors import InputError
 from ..params import RigParams
 
@@ -81,7 +88,7 @@ class EquilibriumBranch:
     max_real: np.ndarray
     u_stick: float
     hopf: list[HopfPoint] = field(default_factory=list)
-    params: "RigModel | RigParams | None" = None
+    params: RigModel | RigParams | None = None
     _section_cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -120,9 +127,17 @@ class EquilibriumBranch:
     def to_dict(self, every: int = 1) -> list[dict]:
         out = [{"kind": "stick", "u_min": 0.0, "u_max": self.u_stick, "omega": 0.0, "stable": True}]
         for i in range(0, len(self.u), every):
-            out.append({"kind": "slip", "u": float(self.u[i]), "omega": float(self.omega[i]),
-                        "alpha": float(self.alpha[i]), "r": float(self.r[i]), "stable": bool(self.stable[i]),
-                        "max_real_eigenvalue": float(self.max_real[i])})
+            out.append(
+                {
+                    "kind": "slip",
+                    "u": float(self.u[i]),
+                    "omega": float(self.omega[i]),
+                    "alpha": float(self.alpha[i]),
+                    "r": float(self.r[i]),
+                    "stable": bool(self.stable[i]),
+                    "max_real_eigenvalue": float(self.max_real[i]),
+                }
+            )
         return out
 
 
@@ -130,8 +145,13 @@ def _max_real(cfg: Configuration, w: float, params: RigParams) -> float:
     return float(np.max(eigenvalues(slip_equilibrium(cfg, w, params, with_eigenvalues=False)).real))
 
 
-def equilibrium_branch(config: "str | Configuration", params: "RigParams | RigModel | None" = None,
-                       umax: float = 5.0, n: int = 300, omega_min: float = 1e-4) -> EquilibriumBranch:
+def equilibrium_branch(
+    config: str | Configuration,
+    params: RigParams | RigModel | None = None,
+    umax: float = 5.0,
+    n: int = 300,
+    omega_min: float = 1e-4,
+) -> EquilibriumBranch:
     """The slip equilibrium branch for 0 < u <= umax and its Hopf points.
 
     Parameters
@@ -181,5 +201,14 @@ def equilibrium_branch(config: "str | Configuration", params: "RigParams | RigMo
     u_stick = base.stick_voltage if cfg.brake else (base.Tcu + base.dTcu + base.Tcl) / base.km
     if ss is None:
         u_stick = 0.0
-    return EquilibriumBranch(cfg, w, np.array([e.u for e in eqs]), np.array([e.alpha for e in eqs]),
-                             np.array([e.r for e in eqs]), mr, float(u_stick), hopf, params)
+    return EquilibriumBranch(
+        cfg,
+        w,
+        np.array([e.u for e in eqs]),
+        np.array([e.alpha for e in eqs]),
+        np.array([e.r for e in eqs]),
+        mr,
+        float(u_stick),
+        hopf,
+        params,
+    )

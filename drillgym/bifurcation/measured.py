@@ -3,8 +3,8 @@ and the measured points the report gives (MODEL.md), as an overlay."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 from scipy.signal import savgol_filter
@@ -50,8 +50,10 @@ def measured_point(path: str | Path, config: str | None = None, settle_fraction:
         raise DataFormatError(f"{path}: too few samples ({n}) for a steady-state window")
     u = np.asarray(ts.u[i0:])
     if np.ptp(u) > CONSTANT_VOLTAGE_TOL:
-        raise DataFormatError(f"{path}: column u is not constant in the steady-state window "
-                              f"(range {np.ptp(u):.3g} V); a bifurcation point needs a constant voltage")
+        raise DataFormatError(
+            f"{path}: column u is not constant in the steady-state window "
+            f"(range {np.ptp(u):.3g} V); a bifurcation point needs a constant voltage"
+        )
     t = np.asarray(ts.t)
     if "omega_l" in ts:
         w = np.asarray(ts.omega_l)

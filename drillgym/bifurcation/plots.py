@@ -29,8 +29,15 @@ def _equilibria(ax, d: BifurcationDiagram, quantity: str) -> None:
     y = e.omega if quantity == "omega_l" else e.r * 1e3
     for i, (st, style) in enumerate(((True, "-"), (False, "--"))):
         for xs, ys in _segments(e.u, y, e.stable == st):
-            ax.plot(xs, ys, "k" + style, lw=1.3, label=("stable equilibrium" if st else "unstable equilibrium")
-                    if not ax.get_legend_handles_labels()[1].count("stable equilibrium" if st else "unstable equilibrium") else None)
+            ax.plot(
+                xs,
+                ys,
+                "k" + style,
+                lw=1.3,
+                label=("stable equilibrium" if st else "unstable equilibrium")
+                if not ax.get_legend_handles_labels()[1].count("stable equilibrium" if st else "unstable equilibrium")
+                else None,
+            )
     ax.plot([0, e.u_stick], [0, 0], "k-", lw=3, label="stick set")
 
 
@@ -64,8 +71,12 @@ def _points(ax, d: BifurcationDiagram, quantity: str) -> None:
 
 
 def _sweeps(ax, d: BifurcationDiagram, quantity: str) -> None:
-    marks = {"rest": ("x", "tab:gray", "sweep from rest"), "up": ("^", "tab:orange", "sweep up"),
-             "down": ("v", "tab:cyan", "sweep down"), "equilibrium": ("s", "tab:olive", "from equilibrium")}
+    marks = {
+        "rest": ("x", "tab:gray", "sweep from rest"),
+        "up": ("^", "tab:orange", "sweep up"),
+        "down": ("v", "tab:cyan", "sweep down"),
+        "equilibrium": ("s", "tab:olive", "from equilibrium"),
+    }
     for s in d.sweeps:
         m, c, lab = marks.get(s.kind, ("x", "k", s.kind))
         hi = s.omega_l_max if quantity == "omega_l" else s.r_max * 1e3
@@ -94,8 +105,7 @@ def _measured(ax, d: BifurcationDiagram, quantity: str, report: bool) -> None:
             ax.plot([], [], "-.", color="gray", label="report: measured Hopf/fold")
 
 
-def plot_diagram(d: BifurcationDiagram, quantity: str = "omega_l", ax=None, xlim=None, ylim=None,
-                 report: bool = True):
+def plot_diagram(d: BifurcationDiagram, quantity: str = "omega_l", ax=None, xlim=None, ylim=None, report: bool = True):
     """omega_l (rad/s) or r (mm) versus u (V): equilibria, cycles, Hopf/fold points, sweeps, measurements."""
     if ax is None:
         _, ax = plt.subplots(figsize=(7, 4.5))
@@ -132,8 +142,14 @@ def plot_periods(d: BifurcationDiagram, ax=None):
         if s.kind == "rest":
             ax.plot(s.u, s.period, "x", color="tab:gray", ms=4, label="sweep from rest")
     if d.measured:
-        ax.plot([m["u"] for m in d.measured], [m["period"] for m in d.measured], "D", mfc="none", color="k",
-                label="measured")
+        ax.plot(
+            [m["u"] for m in d.measured],
+            [m["period"] for m in d.measured],
+            "D",
+            mfc="none",
+            color="k",
+            label="measured",
+        )
     ax.set_xlabel("u (V)")
     ax.set_ylabel("period (s)")
     ax.grid(alpha=0.3)
@@ -143,8 +159,9 @@ def plot_periods(d: BifurcationDiagram, ax=None):
     return ax
 
 
-def save_figures(d: BifurcationDiagram, out_dir: str | Path, prefix: str = "bifurcation",
-                 report: bool = True) -> list[Path]:
+def save_figures(
+    d: BifurcationDiagram, out_dir: str | Path, prefix: str = "bifurcation", report: bool = True
+) -> list[Path]:
     """Write the configuration's figures as PNG into out_dir; returns the paths."""
     out = create_directory(out_dir)
     name = d.config.label

@@ -20,8 +20,6 @@ spread over the cores with numba threads.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ..configurations import Configuration
@@ -30,6 +28,7 @@ from ..effects.composition import Composition, compose
 from ..errors import FitError
 from ..integrators import fixed_step_tableau
 from .summary import F_OK, F_R_MAX, F_R_MIN, F_STICK, F_T, F_WL_MAX, F_WL_MIN, N_SUMMARY  # noqa: F401
+
 
 class SectionMap:
     """The Poincare map of ``config`` on the section omega_l = omega_s(u), in reduced coordinates.
@@ -40,9 +39,17 @@ class SectionMap:
     are O(1): x, y in mm, vx, vy in cm/s).
     """
 
-    def __init__(self, config: Configuration, params_vector: np.ndarray, omega_s, dt: float = 1e-3,
-                 t_max: float = 120.0, method: str = "rk4", offset: float = 0.0,
-                 composition: Composition | None = None) -> None:
+    def __init__(
+        self,
+        config: Configuration,
+        params_vector: np.ndarray,
+        omega_s,
+        dt: float = 1e-3,
+        t_max: float = 120.0,
+        method: str = "rk4",
+        offset: float = 0.0,
+        composition: Composition | None = None,
+    ) -> None:
         self.config = config
         self.composition = composition if composition is not None else compose(None)[0]
         self._flow_batch = self.composition.kernels.client("drillgym.bifurcation.flows").flow_batch
@@ -69,10 +76,18 @@ class SectionMap:
         """Section speed (rad/s) at voltage u: omega_s(u) + offset."""
         return float(self.omega_s(u)) + self.offset
 
-    def with_offset(self, offset: float) -> "SectionMap":
+    def with_offset(self, offset: float) -> SectionMap:
         """The same map on the shifted section omega_l = omega_s(u) + offset (rad/s)."""
-        return SectionMap(self.config, self.p, self.omega_s, dt=self.dt, t_max=self.t_max, method=self.method,
-                          offset=offset, composition=self.composition)
+        return SectionMap(
+            self.config,
+            self.p,
+            self.omega_s,
+            dt=self.dt,
+            t_max=self.t_max,
+            method=self.method,
+            offset=offset,
+            composition=self.composition,
+        )
 
     @property
     def dim(self) -> int:
@@ -119,6 +134,8 @@ class SectionMap:
         traj = simulate(self.config, u, transient, dt=self.dt, x0=y0, params=self.p, effects=self.composition)
         Z, S = self.flow_states(traj.final_state[None, :], np.array([u]))
         if S[0, F_OK] == 0:
-            raise FitError(f"no return to the section omega_l = {self.level(u):.4g} rad/s at u = {u} V "
-                               f"within {self.t_max} s (no oscillation to follow)")
+            raise FitError(
+                f"no return to the section omega_l = {self.level(u):.4g} rad/s at u = {u} V "
+                f"within {self.t_max} s (no oscillation to follow)"
+            )
         return Z[0]

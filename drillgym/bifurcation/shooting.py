@@ -73,20 +73,29 @@ class PeriodicSolution:
         return self.stick_time > 0.0
 
     def to_dict(self) -> dict:
-        return {"u": self.u, "period": self.period, "omega_l_min": self.omega_l_min,
-                "omega_l_max": self.omega_l_max, "r_min": self.r_min, "r_max": self.r_max,
-                "stick_time": self.stick_time, "stick_slip": self.stick_slip, "stable": self.stable,
-                "section_offset": self.section_offset,
-                "max_abs_multiplier": float(np.max(np.abs(self.multipliers))),
-                "multipliers": [[float(m.real), float(m.imag)] for m in self.multipliers]}
+        return {
+            "u": self.u,
+            "period": self.period,
+            "omega_l_min": self.omega_l_min,
+            "omega_l_max": self.omega_l_max,
+            "r_min": self.r_min,
+            "r_max": self.r_max,
+            "stick_time": self.stick_time,
+            "stick_slip": self.stick_slip,
+            "stable": self.stable,
+            "section_offset": self.section_offset,
+            "max_abs_multiplier": float(np.max(np.abs(self.multipliers))),
+            "multipliers": [[float(m.real), float(m.imag)] for m in self.multipliers],
+        }
 
 
 class ShootingFailure(FitError):
     """The flow did not return to the section (no orbit near this point)."""
 
 
-def residual_and_jacobian(smap: SectionMap, z: np.ndarray, u: float, h: float = FD_STEP
-                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def residual_and_jacobian(
+    smap: SectionMap, z: np.ndarray, u: float, h: float = FD_STEP
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """H(z, u) = P(z, u) - z, its Jacobian (n, n + 1) w.r.t. (z, u) by central differences, and the
     flow summary of the centre point.  Raises ShootingFailure when a flow does not return."""
     n = smap.dim
@@ -108,16 +117,24 @@ def residual_and_jacobian(smap: SectionMap, z: np.ndarray, u: float, h: float = 
     return H[0], J, summ[0]
 
 
-def make_solution(u: float, z: np.ndarray, J: np.ndarray, summary: np.ndarray, offset: float = 0.0
-                  ) -> PeriodicSolution:
+def make_solution(u: float, z: np.ndarray, J: np.ndarray, summary: np.ndarray, offset: float = 0.0) -> PeriodicSolution:
     """Package a converged fixed point with its Floquet multipliers eig(dP/dz) = eig(J_z + I);
     ``offset`` (rad/s) is the section's (:attr:`SectionMap.offset`)."""
     n = J.shape[0]
     mult = np.linalg.eigvals(J[:, :n] + np.eye(n))
     mult = mult[np.argsort(-np.abs(mult))]
-    return PeriodicSolution(float(u), np.asarray(z, dtype=float).copy(), float(summary[F_T]),
-                            float(summary[F_WL_MIN]), float(summary[F_WL_MAX]), float(summary[F_R_MIN]),
-                            float(summary[F_R_MAX]), float(summary[F_STICK]), mult, float(offset))
+    return PeriodicSolution(
+        float(u),
+        np.asarray(z, dtype=float).copy(),
+        float(summary[F_T]),
+        float(summary[F_WL_MIN]),
+        float(summary[F_WL_MAX]),
+        float(summary[F_R_MIN]),
+        float(summary[F_R_MAX]),
+        float(summary[F_STICK]),
+        mult,
+        float(offset),
+    )
 
 
 def shoot(smap: SectionMap, z0: np.ndarray, u: float, tol: float = 1e-9, max_iter: int = 20) -> PeriodicSolution:

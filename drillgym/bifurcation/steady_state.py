@@ -20,8 +20,9 @@ def period_of(t: np.ndarray, w: np.ndarray) -> float:
     return float(np.mean(np.diff(tc)))
 
 
-def stats_from_arrays(t: np.ndarray, omega_l: np.ndarray, r: np.ndarray | None = None,
-                      stick: np.ndarray | None = None) -> np.ndarray:
+def stats_from_arrays(
+    t: np.ndarray, omega_l: np.ndarray, r: np.ndarray | None = None, stick: np.ndarray | None = None
+) -> np.ndarray:
     """(omega_l_min, omega_l_max, r_min, r_max, period, stick_fraction) of a steady-state window."""
     r = np.zeros_like(omega_l) if r is None else r
     sf = float(np.mean(stick)) if stick is not None else float(np.mean(np.abs(omega_l) < 1e-3))

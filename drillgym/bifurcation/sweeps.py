@@ -19,14 +19,13 @@ raised as :class:`drillgym.parallel.TaskFailed` naming its voltages.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
-from ..equilibria import slip_equilibria
-from ..equilibria import RigModel, as_model
+from ..equilibria import RigModel, as_model, slip_equilibria
 from ..errors import InputError
 from ..parallel import LocalExecutor, map_ordered, parallelism
 from ..params import RigParams
@@ -69,23 +68,42 @@ class SweepResult:
         return d
 
 
-def _run_constant(config: str, u: np.ndarray, x0: np.ndarray | None, duration: float, window: float, dt: float,
-                  params: RigModel) -> np.ndarray:
+def _run_constant(
+    config: str, u: np.ndarray, x0: np.ndarray | None, duration: float, window: float, dt: float, params: RigModel
+) -> np.ndarray:
     uin = u if len(u) > 1 else float(u[0])
-    batch = simulate_batch(config, uin, duration, dt=dt, params=params.params, effects=params.comp,
-                           effect_params=params.values, x0=x0,
-                           n_batch=len(u), record_every=RECORD_EVERY)
+    batch = simulate_batch(
+        config,
+        uin,
+        duration,
+        dt=dt,
+        params=params.params,
+        effects=params.comp,
+        effect_params=params.values,
+        x0=x0,
+        n_batch=len(u),
+        record_every=RECORD_EVERY,
+    )
     n_win = int(round(window / (dt * RECORD_EVERY)))
     return np.stack([steady_state_stats(batch[k], n_win) for k in range(len(u))])
 
 
-def _run_staircase(config: str, levels: np.ndarray, dwell: float, window: float, dt: float,
-                   params: RigModel) -> np.ndarray:
+def _run_staircase(
+    config: str, levels: np.ndarray, dwell: float, window: float, dt: float, params: RigModel
+) -> np.ndarray:
     n_level = int(round(dwell / dt))
     U = np.repeat(levels, n_level)
-    traj = simulate_batch(config, U, len(U) * dt, dt=dt, params=params.params, effects=params.comp,
-                          effect_params=params.values, n_batch=1,
-                          record_every=RECORD_EVERY)[0]
+    traj = simulate_batch(
+        config,
+        U,
+        len(U) * dt,
+        dt=dt,
+        params=params.params,
+        effects=params.comp,
+        effect_params=params.values,
+        n_batch=1,
+        record_every=RECORD_EVERY,
+    )[0]
     n_win = int(round(window / (dt * RECORD_EVERY)))
     n_rec = n_level // RECORD_EVERY
     return np.stack([steady_state_stats(traj, n_win, end=(i + 1) * n_rec + 1) for i in range(len(levels))])
@@ -106,9 +124,19 @@ def _check(voltages, duration: float, window: float) -> np.ndarray:
     return u
 
 
-def sweep_constant(config: str, voltages, *, start: str = "rest", duration: float = 120.0, window: float = 20.0,
-                   dt: float = 1e-3, params: RigParams | None = None, executor: Executor | None = None,
-                   chunk: int | None = None, progress: Callable[[int], None] | None = None) -> SweepResult:
+def sweep_constant(
+    config: str,
+    voltages,
+    *,
+    start: str = "rest",
+    duration: float = 120.0,
+    window: float = 20.0,
+    dt: float = 1e-3,
+    params: RigParams | None = None,
+    executor: Executor | None = None,
+    chunk: int | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> SweepResult:
     """Simulate each voltage from the same start and measure its steady state.
 
     Parameters
@@ -164,9 +192,17 @@ def sweep_constant(config: str, voltages, *, start: str = "rest", duration: floa
     return SweepResult(start, u, stats)
 
 
-def sweep_staircase(config: str, voltages, *, dwell: float = 40.0, window: float = 15.0, dt: float = 1e-3,
-                    params: RigParams | None = None, executor: Executor | None = None,
-                    progress: Callable[[int], None] | None = None) -> tuple[SweepResult, SweepResult]:
+def sweep_staircase(
+    config: str,
+    voltages,
+    *,
+    dwell: float = 40.0,
+    window: float = 15.0,
+    dt: float = 1e-3,
+    params: RigParams | None = None,
+    executor: Executor | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> tuple[SweepResult, SweepResult]:
     """The quasi-static lab sweep up through ``voltages`` and back down (two runs in parallel).
 
     Parameters

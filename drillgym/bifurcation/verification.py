@@ -49,8 +49,9 @@ def _cubic_root(t4: np.ndarray, g4: np.ndarray) -> float:
     return t4[1] + 0.5 * (lo + hi)
 
 
-def section_returns(smap: SectionMap, u: float, Y0: np.ndarray, duration: float, dt: float = 1e-4,
-                    params=None, with_batch: bool = False):
+def section_returns(
+    smap: SectionMap, u: float, Y0: np.ndarray, duration: float, dt: float = 1e-4, params=None, with_batch: bool = False
+):
     """Simulate each full state of Y0 (B, 9) for ``duration`` s at constant voltage u (V) with the
     exact stick/slip simulator and step ``dt`` (s); return, per trajectory, the crossing times (s)
     and the reduced scaled coordinates (k, smap.dim) of the upward crossings of omega_l = omega_s(u)
@@ -61,8 +62,9 @@ def section_returns(smap: SectionMap, u: float, Y0: np.ndarray, duration: float,
     Y0 = np.atleast_2d(np.asarray(Y0, dtype=float))
     ws = smap.level(u)
     params = params if params is not None else RigParams.from_vector(smap.p)
-    batch = simulate_batch(smap.config, np.full(len(Y0), float(u)), duration, dt=dt, params=params, x0=Y0,
-                           n_batch=len(Y0))
+    batch = simulate_batch(
+        smap.config, np.full(len(Y0), float(u)), duration, dt=dt, params=params, x0=Y0, n_batch=len(Y0)
+    )
     times, points = [], []
     for k in range(len(Y0)):
         tr = batch[k]
@@ -73,7 +75,7 @@ def section_returns(smap: SectionMap, u: float, Y0: np.ndarray, duration: float,
         tk, zk = [], []
         if below.size:
             start = below[0]
-            idx = np.flatnonzero((g[start:-2] < 0) & (g[start + 1:-1] >= 0)) + start
+            idx = np.flatnonzero((g[start:-2] < 0) & (g[start + 1 : -1] >= 0)) + start
             for i in idx:
                 if i < 1:
                     continue
@@ -97,8 +99,7 @@ def periodicity_error(smap: SectionMap, sol: PeriodicSolution, dt: float = 1e-4)
     return float(np.max(np.abs(pts[0][0] - sol.z))), float(times[0][0])
 
 
-def simulated_monodromy(smap: SectionMap, sol: PeriodicSolution, eps: float = 1e-5, dt: float = 1e-4
-                        ) -> np.ndarray:
+def simulated_monodromy(smap: SectionMap, sol: PeriodicSolution, eps: float = 1e-5, dt: float = 1e-4) -> np.ndarray:
     """Jacobian (n, n) of the section map at the branch point from central differences of directly
     simulated first returns (perturbation ``eps`` of each scaled coordinate)."""
     n = smap.dim
@@ -117,8 +118,14 @@ def simulated_monodromy(smap: SectionMap, sol: PeriodicSolution, eps: float = 1e
     return M
 
 
-def leading_growth(smap: SectionMap, sol: PeriodicSolution, jacobian: np.ndarray, eps: float = 1e-7,
-                   n_returns: int = 3, dt: float = 1e-4) -> np.ndarray:
+def leading_growth(
+    smap: SectionMap,
+    sol: PeriodicSolution,
+    jacobian: np.ndarray,
+    eps: float = 1e-7,
+    n_returns: int = 3,
+    dt: float = 1e-4,
+) -> np.ndarray:
     """Growth factors per period of a perturbation ``eps`` along the (real part of the) leading
     eigenvector of ``jacobian`` (the section map's, (n, n)), measured against the simulation of the
     unperturbed point: |d_1| / |d_0| and then |d_{k+1}| / |d_k| for k = 1 .. n_returns - 1."""
@@ -133,8 +140,14 @@ def leading_growth(smap: SectionMap, sol: PeriodicSolution, jacobian: np.ndarray
     return np.array([d[i + 1] / d[i] if d[i] > 0 else 0.0 for i in range(k)])
 
 
-def long_run_fate(smap: SectionMap, sol: PeriodicSolution, jacobian: np.ndarray, eps: float = 1e-4,
-                  duration: float = 200.0, dt: float = 1e-3) -> dict:
+def long_run_fate(
+    smap: SectionMap,
+    sol: PeriodicSolution,
+    jacobian: np.ndarray,
+    eps: float = 1e-4,
+    duration: float = 200.0,
+    dt: float = 1e-3,
+) -> dict:
     """Simulate ``duration`` s from the branch point pushed by +-eps along the leading eigenvector of
     ``jacobian``.  Per side ('plus', 'minus'): distance (max-norm, scaled section coordinates) from the
     branch point at the first and at the last return, the number of returns, and over the last two
@@ -150,9 +163,13 @@ def long_run_fate(smap: SectionMap, sol: PeriodicSolution, jacobian: np.ndarray,
     for k, (name, p) in enumerate(zip(("plus", "minus"), pts)):
         dist = np.max(np.abs(p - sol.z), axis=1) if len(p) else np.array([np.inf])
         wl = tail[k].omega_l[-n_tail:]
-        out[name] = {"first": float(dist[0]), "last": float(dist[-1]), "returns": int(len(p)),
-                     "omega_l_range": float(wl.max() - wl.min()),
-                     "stuck_fraction": float(np.mean(tail[k].stick_l[-n_tail:] > 0))}
+        out[name] = {
+            "first": float(dist[0]),
+            "last": float(dist[-1]),
+            "returns": int(len(p)),
+            "omega_l_range": float(wl.max() - wl.min()),
+            "stuck_fraction": float(np.mean(tail[k].stick_l[-n_tail:] > 0)),
+        }
     return out
 
 

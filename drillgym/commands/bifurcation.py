@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import List, Optional
 
 import typer
 
@@ -17,20 +16,30 @@ def register(app: typer.Typer) -> None:
     @app.command("bifurcation")
     def bifurcation(
         config: str = typer.Option("torsional", "--config", help="torsional, lateral or coupled"),
-        out: Path = typer.Option(..., "--out", help="output directory (figures, branches.json); missing directories are created"),
+        out: Path = typer.Option(
+            ..., "--out", help="output directory (figures, branches.json); missing directories are created"
+        ),
         umin: float = typer.Option(0.0, "--umin", help="lowest voltage (V)"),
-        umax: Optional[float] = typer.Option(None, "--umax", help="highest voltage (V); default 5 (lateral: 50)"),
-        measured: Optional[List[Path]] = typer.Option(None, "--measured", help="constant-voltage measurement files"),
-        params: Optional[Path] = typer.Option(None, "--params", help="parameter file (JSON/YAML)"),
-        sweep_step: float = typer.Option(0.05, "--sweep-step", help="voltage step of the brute-force sweeps (V); 0: none"),
+        umax: float | None = typer.Option(None, "--umax", help="highest voltage (V); default 5 (lateral: 50)"),
+        measured: list[Path] | None = typer.Option(None, "--measured", help="constant-voltage measurement files"),
+        params: Path | None = typer.Option(None, "--params", help="parameter file (JSON/YAML)"),
+        sweep_step: float = typer.Option(
+            0.05, "--sweep-step", help="voltage step of the brute-force sweeps (V); 0: none"
+        ),
         sweep_duration: float = typer.Option(120.0, "--sweep-duration", help="simulated seconds per sweep voltage"),
         no_report: bool = typer.Option(False, "--no-report", help="leave out the report's measured points"),
-        ds_max: float = typer.Option(0.2, "--ds-max", help="largest continuation step (arclength); 1.0 follows "
-                                                           "the whole lateral whirl branch (slower)"),
-        ray: Optional[str] = typer.Option(None, "--ray", help="run the sweeps on Ray: 'auto' (a running cluster), "
-                                                           "'local' (start one here) or HOST:PORT"),
-        add_effect: List[str] = add_effect_option(),
-        effect_param: List[str] = effect_param_option(),
+        ds_max: float = typer.Option(
+            0.2,
+            "--ds-max",
+            help="largest continuation step (arclength); 1.0 follows the whole lateral whirl branch (slower)",
+        ),
+        ray: str | None = typer.Option(
+            None,
+            "--ray",
+            help="run the sweeps on Ray: 'auto' (a running cluster), 'local' (start one here) or HOST:PORT",
+        ),
+        add_effect: list[str] = add_effect_option(),
+        effect_param: list[str] = effect_param_option(),
     ) -> None:
         """Equilibria, Hopf points, periodic branches (shooting + continuation), folds, sweeps; figures + JSON."""
         from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
@@ -60,8 +69,16 @@ def register(app: typer.Typer) -> None:
         from ..parallel import open_executor
 
         executor = open_executor(ray, os.cpu_count() or 1) if ray else nullcontext()  # errors before any work
-        with executor as ex, Progress(SpinnerColumn(), TextColumn("{task.description:<30}"), BarColumn(),
-                      TextColumn("{task.completed:>5.0f}/{task.fields[of]}"), TimeElapsedColumn()) as bar:
+        with (
+            executor as ex,
+            Progress(
+                SpinnerColumn(),
+                TextColumn("{task.description:<30}"),
+                BarColumn(),
+                TextColumn("{task.completed:>5.0f}/{task.fields[of]}"),
+                TimeElapsedColumn(),
+            ) as bar,
+        ):
             stage = bar.add_task(f"{cfg.label}: start", total=None, of="-")
             cycles = bar.add_task("cycles (continuation points)", total=None, of="?", visible=False)
             sweeps = bar.add_task("sweeps (voltages)", total=None, of="?", visible=False)
@@ -84,10 +101,21 @@ def register(app: typer.Typer) -> None:
                 elif kind == "sweep":
                     bar.update(sweeps, advance=k)
 
-            diag = compute_diagram(cfg.label, p, umin=umin, umax=hi, sweep_step=sweep_step or None,
-                                   sweep_duration=sweep_duration, staircase=not lateral,
-                                   sweep_umax=min(hi, 5.0) if lateral else None,  # the report's lab range
-                                   measured=meas, ds_max=ds_max, progress=on_progress, step=on_step, executor=ex)
+            diag = compute_diagram(
+                cfg.label,
+                p,
+                umin=umin,
+                umax=hi,
+                sweep_step=sweep_step or None,
+                sweep_duration=sweep_duration,
+                staircase=not lateral,
+                sweep_umax=min(hi, 5.0) if lateral else None,  # the report's lab range
+                measured=meas,
+                ds_max=ds_max,
+                progress=on_progress,
+                step=on_step,
+                executor=ex,
+            )
             n_cycles = completed(cycles)
             bar.update(cycles, total=n_cycles, of=f"{n_cycles:.0f}")
             bar.update(stage, total=1, completed=1, description=f"{cfg.label}: done")

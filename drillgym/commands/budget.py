@@ -16,7 +16,7 @@ from ..errors import InputError
 
 __all__ = ["run_sizes", "available_memory", "check_run_fits"]
 
-_CSV_COLUMNS = 13   # t, u, theta_u, theta_l, x, y, omega_u, omega_l, Tfu, Tfl, stick_l (+ margin)
+_CSV_COLUMNS = 13  # t, u, theta_u, theta_l, x, y, omega_u, omega_l, Tfu, Tfl, stick_l (+ margin)
 _CHARS_PER_VALUE = 21
 
 
@@ -65,8 +65,10 @@ def check_run_fits(duration: float, dt: float, record_every: int, out: Path) -> 
     how = "shorten --duration, or raise --dt or --record-every"
     avail = available_memory()
     if avail is not None and memory > 0.8 * avail:
-        raise InputError(f"--duration {duration:g} s at --dt {dt:g} s ({n_steps:.3g} steps, --record-every "
-                         f"{record_every}) needs about {_gb(memory)} of memory, {_gb(avail)} available: {how}")
+        raise InputError(
+            f"--duration {duration:g} s at --dt {dt:g} s ({n_steps:.3g} steps, --record-every "
+            f"{record_every}) needs about {_gb(memory)} of memory, {_gb(avail)} available: {how}"
+        )
     free = shutil.disk_usage(_existing(out.parent)).free
     if csv > free:
         raise InputError(f"--out {out}: the run's csv would take about {_gb(csv)}, {_gb(free)} free there: {how}")

@@ -4,27 +4,26 @@
 
 from __future__ import annotations
 
-from typing import List, Optional
-
 import typer
 
 from ..effects.composition import Composition, compose
 from ..errors import InputError
 
-ADD_EFFECT_HELP = ("effect added to the base model: a name (see `drillgym effects`) or path/to/file.py:NAME; "
-                   "repeat for several")
+ADD_EFFECT_HELP = (
+    "effect added to the base model: a name (see `drillgym effects`) or path/to/file.py:NAME; repeat for several"
+)
 EFFECT_PARAM_HELP = "value of an added effect's parameter, NAME=VALUE (SI units); repeat for several"
 
 
-def add_effect_option() -> List[str]:
+def add_effect_option() -> list[str]:
     return typer.Option(None, "--add-effect", help=ADD_EFFECT_HELP)
 
 
-def effect_param_option() -> List[str]:
+def effect_param_option() -> list[str]:
     return typer.Option(None, "--effect-param", help=EFFECT_PARAM_HELP)
 
 
-def parse_effect_params(items: Optional[List[str]]) -> dict[str, float]:
+def parse_effect_params(items: list[str] | None) -> dict[str, float]:
     """``["tau_m=0.02", "c3=1.5"]`` -> {"tau_m": 0.02, "c3": 1.5}; a one-line error names a bad item."""
     out: dict[str, float] = {}
     for item in items or []:
@@ -38,8 +37,9 @@ def parse_effect_params(items: Optional[List[str]]) -> dict[str, float]:
     return out
 
 
-def effects_from_cli(add_effect: Optional[List[str]], effect_param: Optional[List[str]]
-                     ) -> tuple[Composition, dict[str, float]]:
+def effects_from_cli(
+    add_effect: list[str] | None, effect_param: list[str] | None
+) -> tuple[Composition, dict[str, float]]:
     """The composition and its effect values from the command-line options (errors name the file,
     the effect and what is wrong)."""
     values = parse_effect_params(effect_param)

@@ -4,24 +4,39 @@
 from __future__ import annotations
 
 import json
-from typing import Optional
 
 import typer
 
 
 def _as_dict(cls) -> dict:
-    return {"name": cls.name, "kind": cls.kind, "configurations": list(cls.configurations),
-            "parameters": [{"name": p.name, "unit": p.unit, "lo": p.lo, "hi": p.hi, "guess": p.guess, "scale": p.scale,
-                            "neutral": p.neutral, "doc": p.doc} for p in cls.parameters],
-            "states": [{"name": s.name, "unit": s.unit, "doc": s.doc} for s in cls.states],
-            "explanation": " ".join(cls.explanation.split()), "signature": " ".join(cls.signature.split()),
-            "source": cls.source_file()}
+    return {
+        "name": cls.name,
+        "kind": cls.kind,
+        "configurations": list(cls.configurations),
+        "parameters": [
+            {
+                "name": p.name,
+                "unit": p.unit,
+                "lo": p.lo,
+                "hi": p.hi,
+                "guess": p.guess,
+                "scale": p.scale,
+                "neutral": p.neutral,
+                "doc": p.doc,
+            }
+            for p in cls.parameters
+        ],
+        "states": [{"name": s.name, "unit": s.unit, "doc": s.doc} for s in cls.states],
+        "explanation": " ".join(cls.explanation.split()),
+        "signature": " ".join(cls.signature.split()),
+        "source": cls.source_file(),
+    }
 
 
 def register(app: typer.Typer) -> None:
     @app.command("effects")
     def effects_cmd(
-        show: Optional[str] = typer.Option(None, "--show", help="one effect: a name or path/to/file.py:NAME"),
+        show: str | None = typer.Option(None, "--show", help="one effect: a name or path/to/file.py:NAME"),
         as_json: bool = typer.Option(False, "--json", help="print JSON"),
     ) -> None:
         """List the effects that can be added to the model (library and installed packages), with their
@@ -40,5 +55,7 @@ def register(app: typer.Typer) -> None:
             typer.echo(cls.describe())
             typer.echo("")
         if not show:
-            typer.echo("add one with --add-effect NAME (or --add-effect path/to/file.py:NAME) and set its parameters "
-                       "with --effect-param NAME=VALUE; write your own: docs/EFFECTS.md")
+            typer.echo(
+                "add one with --add-effect NAME (or --add-effect path/to/file.py:NAME) and set its parameters "
+                "with --effect-param NAME=VALUE; write your own: docs/EFFECTS.md"
+            )

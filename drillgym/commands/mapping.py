@@ -7,14 +7,16 @@ columns (a Simulink "structure with time" whose ``signals.values`` is (N, k), or
 
 from __future__ import annotations
 
-from typing import Iterable
+from collections.abc import Iterable
 
 from ..errors import InputError
 
 __all__ = ["MAP_HELP", "parse_mapping"]
 
-MAP_HELP = ("read a column under another name, COLUMN=NAME (repeatable): theta_u=enc1; a column of a .mat "
-            "variable with several: theta_u=ScopeData:2 (1-based)")
+MAP_HELP = (
+    "read a column under another name, COLUMN=NAME (repeatable): theta_u=enc1; a column of a .mat "
+    "variable with several: theta_u=ScopeData:2 (1-based)"
+)
 
 
 def parse_mapping(items: Iterable[str]) -> dict[str, str]:

@@ -99,6 +99,8 @@ def figure_file(path: str | Path, option: str = "--plot") -> Path:
     fmt = path.suffix[1:].lower()
     formats = FigureCanvasAgg.get_supported_filetypes()
     if fmt and fmt not in formats:
-        raise OutputPathError(f"{option} {path}: a figure cannot be written as .{fmt}; use one of "
-                              f"{', '.join('.' + f for f in sorted(formats))}")
+        raise OutputPathError(
+            f"{option} {path}: a figure cannot be written as .{fmt}; use one of "
+            f"{', '.join('.' + f for f in sorted(formats))}"
+        )
     return output_file(path)

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Optional
 
 import typer
 
@@ -31,9 +30,11 @@ def params_yaml(p) -> str:
     """Commented YAML of a RigParams: ``name: value  # unit; source; meaning``, readable by RigParams.from_file."""
     from ..params import PARAM_INFO, PARAM_NAMES
 
-    lines = ["# drillgym parameter set (SI units). A file may give only some names: the others keep",
-             "# their default (the identified set of MODEL.md); unknown names are refused.",
-             "# Extension parameters (source 'effect ...') are 0 = effect off."]
+    lines = [
+        "# drillgym parameter set (SI units). A file may give only some names: the others keep",
+        "# their default (the identified set of MODEL.md); unknown names are refused.",
+        "# Extension parameters (source 'effect ...') are 0 = effect off.",
+    ]
     for n in PARAM_NAMES:
         info = PARAM_INFO[n]
         lines.append(f"{n}: {_yaml_float(getattr(p, n))}  # {info['unit']}; {info['source']}; {info['doc']}")
@@ -46,18 +47,29 @@ def params_json(p) -> str:
     from ..params import PARAM_INFO
 
     d = p.to_dict()
-    return json.dumps({"params": d, "units": {n: PARAM_INFO[n]["unit"] for n in d},
-                       "sources": {n: PARAM_INFO[n]["source"] for n in d},
-                       "doc": {n: PARAM_INFO[n]["doc"] for n in d}}, indent=2) + "\n"
+    return (
+        json.dumps(
+            {
+                "params": d,
+                "units": {n: PARAM_INFO[n]["unit"] for n in d},
+                "sources": {n: PARAM_INFO[n]["source"] for n in d},
+                "doc": {n: PARAM_INFO[n]["doc"] for n in d},
+            },
+            indent=2,
+        )
+        + "\n"
+    )
 
 
 def register(app: typer.Typer) -> None:
     @app.command("params")
     def params_cmd(
-        out: Optional[Path] = typer.Option(None, "--out", help="write to this file (.yaml, .yml or .json) instead of "
-                                                              f"printing; {CREATES_DIRS}"),
-        params: Optional[Path] = typer.Option(None, "--params", help="start from this (partial) parameter file "
-                                                                     "instead of the identified set"),
+        out: Path | None = typer.Option(
+            None, "--out", help=f"write to this file (.yaml, .yml or .json) instead of printing; {CREATES_DIRS}"
+        ),
+        params: Path | None = typer.Option(
+            None, "--params", help="start from this (partial) parameter file instead of the identified set"
+        ),
     ) -> None:
         """Print or write the parameter set (default: the identified one) with units and sources."""
         from ..params import RigParams
@@ -72,5 +84,7 @@ def register(app: typer.Typer) -> None:
             return
         text = params_json(p) if out.suffix.lower() == ".json" else params_yaml(p)
         output_file(out).write_text(text, encoding="utf-8")
-        typer.echo(f"wrote {out} ({len(p.to_dict())} parameters; edit or delete lines: a partial file "
-                   f"overrides only the names it gives)")
+        typer.echo(
+            f"wrote {out} ({len(p.to_dict())} parameters; edit or delete lines: a partial file "
+            f"overrides only the names it gives)"
+        )

@@ -4,8 +4,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import List, Mapping, Optional
 
 from ..effects import Composition, compose
 from ..errors import InputError
@@ -15,8 +15,9 @@ from .effect_options import parse_effect_params
 __all__ = ["plant_from_cli", "describe_plant"]
 
 
-def plant_from_cli(params_file: Optional[Path], add_effect: Optional[List[str]], effect_param: Optional[List[str]]
-                   ) -> tuple[RigParams, Composition, dict[str, float]]:
+def plant_from_cli(
+    params_file: Path | None, add_effect: list[str] | None, effect_param: list[str] | None
+) -> tuple[RigParams, Composition, dict[str, float]]:
     """(base RigParams, Composition, effect values): the base parameters and effects of ``params_file``
     (default MODEL.md's set, no effect), then the ``add_effect`` specs, with the ``effect_param``
     NAME=VALUE items; one-line errors name the file, the effect and what is wrong."""

@@ -3,17 +3,18 @@ does it once per install), so the first diagnosis of a recording is as fast as t
 
 from __future__ import annotations
 
-from typing import List
-
 import typer
 
 
 def register(app: typer.Typer) -> None:
     @app.command("prepare")
     def prepare_cmd(
-        config: List[str] = typer.Option(None, "--config",
-                                         help="configuration whose diagnosis models to compile (repeatable; "
-                                              "default: torsional, coupled, lateral, upper)"),
+        config: list[str] = typer.Option(
+            None,
+            "--config",
+            help="configuration whose diagnosis models to compile (repeatable; "
+            "default: torsional, coupled, lateral, upper)",
+        ),
     ) -> None:
         """Compile (or load from the cache) the search models of `drillgym diagnose` for these
         configurations: up to a minute each on 2 cores the first time, seconds once cached."""

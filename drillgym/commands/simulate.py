@@ -3,15 +3,14 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import List, Optional
 
 import typer
 
 from ..configurations import Configuration
 from ..errors import InputError
-from .effect_options import add_effect_option, effect_param_option, effects_from_cli
 from ..io import U_LIMIT_FILE
 from .budget import check_run_fits
+from .effect_options import add_effect_option, effect_param_option, effects_from_cli
 from .outputs import CREATES_DIRS, figure_file, output_file
 
 
@@ -39,8 +38,17 @@ def plot_run(traj, path: Path) -> Path:
         axes[1].plot(traj.t, traj.omega_l, label=r"$\omega_l$", lw=1)
         stick = traj.stick_l > 0.5
         if stick.any():
-            axes[1].fill_between(traj.t, 0, 1, where=stick, transform=axes[1].get_xaxis_transform(),
-                                 color="tab:red", alpha=0.12, lw=0, label="lower disc stuck")
+            axes[1].fill_between(
+                traj.t,
+                0,
+                1,
+                where=stick,
+                transform=axes[1].get_xaxis_transform(),
+                color="tab:red",
+                alpha=0.12,
+                lw=0,
+                label="lower disc stuck",
+            )
     axes[1].set_ylabel("speed (rad/s)")
     axes[1].legend(loc="upper right", fontsize=8)
     if lateral:
@@ -65,43 +73,57 @@ def check_input_span(t, path: Path, duration: float | None) -> float:
     if duration is None:
         return span
     if np.isfinite(duration) and duration > span * (1 + 1e-9) + 1e-9:
-        raise InputError(f"--input {path} covers {span:g} s, shorter than --duration {duration:g} s: shorten "
-                         f"--duration (or leave it out to run the file's length) or extend the file")
+        raise InputError(
+            f"--input {path} covers {span:g} s, shorter than --duration {duration:g} s: shorten "
+            f"--duration (or leave it out to run the file's length) or extend the file"
+        )
     return duration
 
 
 def _summary(traj) -> str:
     """The one-line result: final speed and stuck time of the disc(s) the configuration has."""
     if traj.config is Configuration.UPPER:
-        return (f"final omega_u = {traj.omega_u[-1]:.4f} rad/s, upper disc stuck "
-                f"{100 * traj.stick_u.mean():.1f} % of the time")
-    return (f"final omega_l = {traj.omega_l[-1]:.4f} rad/s, lower disc stuck "
-            f"{100 * traj.stick_l.mean():.1f} % of the time")
+        return (
+            f"final omega_u = {traj.omega_u[-1]:.4f} rad/s, upper disc stuck "
+            f"{100 * traj.stick_u.mean():.1f} % of the time"
+        )
+    return (
+        f"final omega_l = {traj.omega_l[-1]:.4f} rad/s, lower disc stuck {100 * traj.stick_l.mean():.1f} % of the time"
+    )
 
 
 def register(app: typer.Typer) -> None:
     @app.command("simulate")
     def simulate_cmd(
         config: str = typer.Option("torsional", help="upper, torsional, lateral, coupled or free_vibration"),
-        u: Optional[float] = typer.Option(None, help=f"constant motor voltage (V), |u| <= {U_LIMIT_FILE:g} V (what the "
-                                                     "time-series format accepts; the rig's amplifier gives +-5 V); "
-                                                     "not for free_vibration"),
-        input_file: Optional[Path] = typer.Option(None, "--input", help="input signal file (csv or .mat with t, u, "
-                                                                         "from t = 0) instead of --u"),
-        duration: Optional[float] = typer.Option(None, help="simulated time (s); default 30, with --input the file's "
-                                                            "length (a longer one is refused)"),
+        u: float | None = typer.Option(
+            None,
+            help=f"constant motor voltage (V), |u| <= {U_LIMIT_FILE:g} V (what the "
+            "time-series format accepts; the rig's amplifier gives +-5 V); "
+            "not for free_vibration",
+        ),
+        input_file: Path | None = typer.Option(
+            None, "--input", help="input signal file (csv or .mat with t, u, from t = 0) instead of --u"
+        ),
+        duration: float | None = typer.Option(
+            None, help="simulated time (s); default 30, with --input the file's length (a longer one is refused)"
+        ),
         dt: float = typer.Option(1e-3, help="integration step (s)"),
         method: str = typer.Option("rk4", help="rk4 or dp5"),
-        params: Optional[Path] = typer.Option(None, help="parameter file (JSON/YAML, may be partial: the names it "
-                                                         "gives override the identified set)"),
-        alpha0: Optional[float] = typer.Option(None, help="initial winding theta_l - theta_u (rad); default 0; "
-                                                          "free_vibration needs it: the angle the lower disc is "
-                                                          "twisted by and released from"),
+        params: Path | None = typer.Option(
+            None, help="parameter file (JSON/YAML, may be partial: the names it gives override the identified set)"
+        ),
+        alpha0: float | None = typer.Option(
+            None,
+            help="initial winding theta_l - theta_u (rad); default 0; "
+            "free_vibration needs it: the angle the lower disc is "
+            "twisted by and released from",
+        ),
         record_every: int = typer.Option(1, help="keep every k-th step in the output"),
         out: Path = typer.Option(..., help=f"output csv (DATA_FORMAT); {CREATES_DIRS}"),
-        plot: Optional[Path] = typer.Option(None, help=f"also write a figure (png); {CREATES_DIRS}"),
-        add_effect: List[str] = add_effect_option(),
-        effect_param: List[str] = effect_param_option(),
+        plot: Path | None = typer.Option(None, help=f"also write a figure (png); {CREATES_DIRS}"),
+        add_effect: list[str] = add_effect_option(),
+        effect_param: list[str] = effect_param_option(),
     ) -> None:
         """Simulate from rest and write the run as DATA_FORMAT csv (and a figure).
 
@@ -115,16 +137,21 @@ def register(app: typer.Typer) -> None:
         cfg = parse_configuration(config)
         if cfg is Configuration.FREE_VIBRATION:
             if u is not None or input_file is not None:
-                raise InputError("free_vibration holds the upper disc (the motor voltage has no effect): leave out "
-                                 "--u/--input and give --alpha0 RAD, the release angle")
+                raise InputError(
+                    "free_vibration holds the upper disc (the motor voltage has no effect): leave out "
+                    "--u/--input and give --alpha0 RAD, the release angle"
+                )
             if alpha0 is None:
-                raise InputError("free_vibration releases the lower disc from a winding: give --alpha0 RAD "
-                                 "(e.g. --alpha0 1.0)")
+                raise InputError(
+                    "free_vibration releases the lower disc from a winding: give --alpha0 RAD (e.g. --alpha0 1.0)"
+                )
         elif (u is None) == (input_file is None):
             raise InputError("give exactly one of --u VOLTS or --input FILE")
         if u is not None and not abs(u) <= U_LIMIT_FILE:
-            raise InputError(f"--u {u:g} V is beyond the +-{U_LIMIT_FILE:g} V a recording may hold (the rig's "
-                             f"amplifier gives +-5 V); choose |u| <= {U_LIMIT_FILE:g} V")
+            raise InputError(
+                f"--u {u:g} V is beyond the +-{U_LIMIT_FILE:g} V a recording may hold (the rig's "
+                f"amplifier gives +-5 V); choose |u| <= {U_LIMIT_FILE:g} V"
+            )
         comp, values = effects_from_cli(add_effect, effect_param)
         rig = RigParams.from_file(params) if params else RigParams()
         if input_file is not None:
@@ -136,12 +163,24 @@ def register(app: typer.Typer) -> None:
         out = output_file(out)
         plot = figure_file(plot) if plot else None
         check_run_fits(duration, dt, record_every, out)
-        traj = simulate(cfg, signal, duration, dt=dt, params=rig, alpha0=alpha0 or 0.0, method=method,
-                        record_every=record_every, effects=comp, effect_params=values)
-        how = (f"--u {u}" if u is not None else f"--input {input_file}" if input_file is not None
-               else f"--alpha0 {alpha0}")
+        traj = simulate(
+            cfg,
+            signal,
+            duration,
+            dt=dt,
+            params=rig,
+            alpha0=alpha0 or 0.0,
+            method=method,
+            record_every=record_every,
+            effects=comp,
+            effect_params=values,
+        )
+        how = (
+            f"--u {u}" if u is not None else f"--input {input_file}" if input_file is not None else f"--alpha0 {alpha0}"
+        )
         how += "".join(f" --add-effect {s}" for s in comp.specs()) + "".join(
-            f" --effect-param {k}={v:g}" for k, v in values.items())
+            f" --effect-param {k}={v:g}" for k, v in values.items()
+        )
         traj.to_csv(out, description=f"drillgym simulate --config {cfg.label} {how}")
         typer.echo(f"wrote {out} ({len(traj.t)} samples); {_summary(traj)}")
         if plot:

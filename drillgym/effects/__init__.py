@@ -13,15 +13,44 @@ every effect available, installed packages' (entry-point group ``drillgym.effect
 """
 
 from .base import (
-    CONFIGURATIONS, FRICTION_VOCABULARY, MEASUREMENT_CHANNELS, VOCABULARY, Delay, Effect, EffectError, Force,
-    Friction, Input, Measurement, Parameter, State,
+    CONFIGURATIONS,
+    FRICTION_VOCABULARY,
+    MEASUREMENT_CHANNELS,
+    VOCABULARY,
+    Delay,
+    Effect,
+    EffectError,
+    Force,
+    Friction,
+    Input,
+    Measurement,
+    Parameter,
+    State,
 )
 from .composition import BASE, Composition, compose
 from .library import LIBRARY
 from .registry import ENTRY_POINT_GROUP, available_effects, load_class_from_file, resolve_effect
 
 __all__ = [
-    "Effect", "Force", "Friction", "Input", "Delay", "Measurement", "Parameter", "State", "EffectError",
-    "Composition", "compose", "BASE", "LIBRARY", "available_effects", "resolve_effect", "load_class_from_file",
-    "ENTRY_POINT_GROUP", "VOCABULARY", "FRICTION_VOCABULARY", "MEASUREMENT_CHANNELS", "CONFIGURATIONS",
+    "Effect",
+    "Force",
+    "Friction",
+    "Input",
+    "Delay",
+    "Measurement",
+    "Parameter",
+    "State",
+    "EffectError",
+    "Composition",
+    "compose",
+    "BASE",
+    "LIBRARY",
+    "available_effects",
+    "resolve_effect",
+    "load_class_from_file",
+    "ENTRY_POINT_GROUP",
+    "VOCABULARY",
+    "FRICTION_VOCABULARY",
+    "MEASUREMENT_CHANNELS",
+    "CONFIGURATIONS",
 ]

@@ -52,13 +52,26 @@ from __future__ import annotations
 import inspect
 import keyword
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable, ClassVar
+from typing import Any, ClassVar
 
 from ..errors import EffectError
 
-__all__ = ["EffectError", "Parameter", "State", "Effect", "Force", "Friction", "Input", "Delay", "Measurement",
-           "KINDS", "VOCABULARY", "CONFIGURATIONS"]
+__all__ = [
+    "EffectError",
+    "Parameter",
+    "State",
+    "Effect",
+    "Force",
+    "Friction",
+    "Input",
+    "Delay",
+    "Measurement",
+    "KINDS",
+    "VOCABULARY",
+    "CONFIGURATIONS",
+]
 
 CONFIGURATIONS = ("upper", "torsional", "lateral", "coupled", "free_vibration")
 
@@ -213,8 +226,10 @@ class Effect:
         known = {p.name: p for p in self.parameters}
         unknown = set(values) - set(known)
         if unknown:
-            raise EffectError(f"effect {self.name!r}: unknown parameter(s) {', '.join(sorted(unknown))}; "
-                              f"it has {', '.join(known) or 'none'}")
+            raise EffectError(
+                f"effect {self.name!r}: unknown parameter(s) {', '.join(sorted(unknown))}; "
+                f"it has {', '.join(known) or 'none'}"
+            )
         self.values: dict[str, float] = {}
         for n, prm in known.items():
             v = values.get(n, prm.value)
@@ -223,8 +238,9 @@ class Effect:
             except (TypeError, ValueError):
                 raise EffectError(f"effect {self.name!r}: parameter {n!r} must be a number, got {v!r}") from None
             if not (math.isfinite(v) and prm.lo <= v <= prm.hi):
-                raise EffectError(f"effect {self.name!r}: parameter {n!r} = {v} {prm.unit} is outside "
-                                  f"[{prm.lo}, {prm.hi}]")
+                raise EffectError(
+                    f"effect {self.name!r}: parameter {n!r} = {v} {prm.unit} is outside [{prm.lo}, {prm.hi}]"
+                )
             self.values[n] = v
 
     def __repr__(self) -> str:

@@ -36,8 +36,17 @@ from .hookgen import hooks_source
 if TYPE_CHECKING:  # pragma: no cover
     from .composition import Composition
 
-__all__ = ["cache_root", "hooks_source", "build_kernels", "CompiledModel", "CORE_TEMPLATES", "CLIENT_TEMPLATES",
-           "package_name", "prune_stale", "STALE_AFTER_S"]
+__all__ = [
+    "cache_root",
+    "hooks_source",
+    "build_kernels",
+    "CompiledModel",
+    "CORE_TEMPLATES",
+    "CLIENT_TEMPLATES",
+    "package_name",
+    "prune_stale",
+    "STALE_AFTER_S",
+]
 
 #: the kernel templates of :mod:`drillgym.kernels` copied into every generated package
 CORE_TEMPLATES = ("model", "stepping", "lane_steps", "lanes")
@@ -68,9 +77,15 @@ def _environment_digest() -> str:
     h = hashlib.sha256()
     roots = [f"{_TEMPLATE_PACKAGE}.{name}" for name in (*CORE_TEMPLATES, "hooks")] + list(CLIENT_TEMPLATES)
     # the generated hooks import these (see hooks_source), and the code generator writes the hooks
-    roots += ["drillgym.effects.registry", "drillgym.effects.simd", "drillgym.effects.library",
-              "drillgym.effects.codegen", "drillgym.effects.hookgen", "drillgym.effects.hook_context",
-              "drillgym.vmath"]
+    roots += [
+        "drillgym.effects.registry",
+        "drillgym.effects.simd",
+        "drillgym.effects.library",
+        "drillgym.effects.codegen",
+        "drillgym.effects.hookgen",
+        "drillgym.effects.hook_context",
+        "drillgym.vmath",
+    ]
     h.update(modules_digest(roots).encode())
     h.update(numba.__version__.encode())
     h.update(sys.version.encode())

@@ -16,7 +16,8 @@ from __future__ import annotations
 import inspect
 import math
 import threading
-from typing import Any, Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -33,7 +34,7 @@ __all__ = ["Composition", "compose", "EffectsLike", "BASE"]
 EffectsLike = "Sequence[str | type[Effect] | Effect] | Composition | None"
 
 _LOCK = threading.RLock()
-_CACHE: dict[tuple, "Composition"] = {}
+_CACHE: dict[tuple, Composition] = {}
 
 
 class Composition:
@@ -57,7 +58,7 @@ class Composition:
         An invalid effect, an effect given twice, or two effects sharing a parameter or state name.
     """
 
-    def __new__(cls, effects: Sequence[type[Effect]] = ()) -> "Composition":
+    def __new__(cls, effects: Sequence[type[Effect]] = ()) -> Composition:
         key = tuple(effects)
         with _LOCK:
             if key in _CACHE:
@@ -152,8 +153,9 @@ class Composition:
         try:
             return self._pindex[name]
         except KeyError:
-            raise ParameterError(f"unknown parameter {name!r} for the model {self.label!r}; it has: "
-                                 f"{', '.join(self.param_names)}") from None
+            raise ParameterError(
+                f"unknown parameter {name!r} for the model {self.label!r}; it has: {', '.join(self.param_names)}"
+            ) from None
 
     @property
     def lag_state_columns(self) -> tuple[int, ...]:
@@ -216,8 +218,10 @@ class Composition:
                 raise ParameterError(f"effect parameter {n!r} must be a number, got {v!r}") from None
             prm = self._params[n]
             if not (math.isfinite(v) and prm.lo <= v <= prm.hi):
-                raise ParameterError(f"effect parameter {n!r} = {v} {prm.unit} is outside [{prm.lo}, {prm.hi}] "
-                                     f"(effect {self._owner[n].name})")
+                raise ParameterError(
+                    f"effect parameter {n!r} = {v} {prm.unit} is outside [{prm.lo}, {prm.hi}] "
+                    f"(effect {self._owner[n].name})"
+                )
             out[n] = v
         return out
 
@@ -258,8 +262,10 @@ class Composition:
         vec = np.asarray(vec, dtype=float)
         if vec.shape != (self.n_params,):
             raise ParameterError(f"parameter vector of {self.label!r} has {self.n_params} entries, got {vec.shape}")
-        return (RigParams.from_vector(vec[:N_PARAMS]),
-                {n: float(v) for n, v in zip(self.effect_param_names, vec[N_PARAMS:])})
+        return (
+            RigParams.from_vector(vec[:N_PARAMS]),
+            {n: float(v) for n, v in zip(self.effect_param_names, vec[N_PARAMS:])},
+        )
 
     def named(self, vec: np.ndarray) -> dict[str, float]:
         """All parameters of a vector by name."""
@@ -298,7 +304,9 @@ class Composition:
                 extra = self.vector(None, values)[N_PARAMS:]
                 P = np.hstack([P, np.tile(extra, (P.shape[0], 1))])
             if P.shape[1] != self.n_params:
-                raise ParameterError(f"parameter matrix must have {self.n_params} columns ({self.label}), got {P.shape[1]}")
+                raise ParameterError(
+                    f"parameter matrix must have {self.n_params} columns ({self.label}), got {P.shape[1]}"
+                )
             if P.shape[0] == 1:
                 P = np.repeat(P, n, axis=0)
             if not np.all(np.isfinite(P)):
@@ -334,8 +342,9 @@ class Composition:
         d = max((hk(row) for row in np.atleast_2d(P)), default=0.0)
         return int(math.ceil(max(d, 0.0) / dt)) + 3
 
-    def measure(self, theta_u: np.ndarray, theta_l: np.ndarray, X: np.ndarray, Y: np.ndarray,
-                vec: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def measure(
+        self, theta_u: np.ndarray, theta_l: np.ndarray, X: np.ndarray, Y: np.ndarray, vec: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The channels as the sensors read them (the Measurement effects applied).
 
         Parameters

@@ -17,8 +17,19 @@ from .base import Effect
 if TYPE_CHECKING:  # pragma: no cover
     from .composition import Composition
 
-__all__ = ["HookContext", "call_effect", "fixed_frame_prologue", "prologue", "cfg_guard", "switch_rows",
-           "switch_condition", "both", "guarded", "JIT", "CFG_CODES"]
+__all__ = [
+    "HookContext",
+    "call_effect",
+    "fixed_frame_prologue",
+    "prologue",
+    "cfg_guard",
+    "switch_rows",
+    "switch_condition",
+    "both",
+    "guarded",
+    "JIT",
+    "CFG_CODES",
+]
 
 #: configuration codes of the compiled kernels
 CFG_CODES = {"upper": 0, "torsional": 1, "lateral": 2, "coupled": 3, "free_vibration": 4}
@@ -61,10 +72,26 @@ class HookContext:
         return f"Y[nm + {j}, k]" if self.lane else f"y[{8 + j}]"
 
     def mech(self, name: str) -> str:
-        lane = {"theta_u": "thu", "theta_l": "thl", "omega_u": "wu", "omega_l": "wl", "x": "x", "y": "yy",
-                "vx": "vx", "vy": "vy"}
-        scalar = {"theta_u": "y[0]", "theta_l": "y[1]", "omega_u": "y[2]", "omega_l": "y[3]", "x": "y[4]",
-                  "y": "y[5]", "vx": "y[6]", "vy": "y[7]"}
+        lane = {
+            "theta_u": "thu",
+            "theta_l": "thl",
+            "omega_u": "wu",
+            "omega_l": "wl",
+            "x": "x",
+            "y": "yy",
+            "vx": "vx",
+            "vy": "vy",
+        }
+        scalar = {
+            "theta_u": "y[0]",
+            "theta_l": "y[1]",
+            "omega_u": "y[2]",
+            "omega_l": "y[3]",
+            "x": "y[4]",
+            "y": "y[5]",
+            "vx": "y[6]",
+            "vy": "y[7]",
+        }
         return (lane if self.lane else scalar)[name]
 
     def resolve(self, arg: str, chain_u: str = "u") -> str:
@@ -135,19 +162,30 @@ def call_effect(comp: Composition, ctx: HookContext, fn: str, chain_u: str = "u"
 def fixed_frame_prologue(lane: bool) -> list[str]:
     """Source lines computing the fixed-frame position and velocity (``_X``, ``_Y``, ``_VX``, ``_VY``)."""
     if lane:
-        return ["_st, _ct = vsincos(thu)",
-                "_X = x * _ct - yy * _st", "_Y = x * _st + yy * _ct",
-                "_VX = _ct * vx - _st * vy - _Y * wu", "_VY = _st * vx + _ct * vy + _X * wu"]
-    return ["_ct = math.cos(y[0])", "_st = math.sin(y[0])",
-            "_X = y[4] * _ct - y[5] * _st", "_Y = y[4] * _st + y[5] * _ct",
-            "_VX = _ct * y[6] - _st * y[7] - _Y * y[2]", "_VY = _st * y[6] + _ct * y[7] + _X * y[2]"]
+        return [
+            "_st, _ct = vsincos(thu)",
+            "_X = x * _ct - yy * _st",
+            "_Y = x * _st + yy * _ct",
+            "_VX = _ct * vx - _st * vy - _Y * wu",
+            "_VY = _st * vx + _ct * vy + _X * wu",
+        ]
+    return [
+        "_ct = math.cos(y[0])",
+        "_st = math.sin(y[0])",
+        "_X = y[4] * _ct - y[5] * _st",
+        "_Y = y[4] * _st + y[5] * _ct",
+        "_VX = _ct * y[6] - _st * y[7] - _Y * y[2]",
+        "_VY = _st * y[6] + _ct * y[7] + _X * y[2]",
+    ]
 
 
 def prologue(lane: bool, fixed_needed: bool, *more: str) -> list[str]:
     """The first lines of a hook: the fixed-frame quantities when an effect reads them, the brake
     flag, then ``more``."""
-    return (fixed_frame_prologue(lane) if fixed_needed else []) + ["brake = 1.0 if (cfg == 1 or cfg == 3) else 0.0",
-                                                                   *more]
+    return (fixed_frame_prologue(lane) if fixed_needed else []) + [
+        "brake = 1.0 if (cfg == 1 or cfg == 3) else 0.0",
+        *more,
+    ]
 
 
 def cfg_guard(eff: type[Effect]) -> str | None:

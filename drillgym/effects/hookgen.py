@@ -36,14 +36,26 @@ def _lane_params(comp: Composition) -> str:
     """hk_lane_params(P): the lane parameter matrix PT (N_PARAMS + N_SWITCHES, B), the parameter rows
     transposed, then one switch row per skippable effect (1.0 in every lane when any lane needs it)."""
     rows = switch_rows(comp)
-    lines = [f"@{JIT}", "def hk_lane_params(P):", "    B = P.shape[0]",
-             "    PT = np.empty((N_PARAMS + N_SWITCHES, B))",
-             "    for j in range(N_PARAMS):", "        for k in range(B):", "            PT[j, k] = P[k, j]"]
+    lines = [
+        f"@{JIT}",
+        "def hk_lane_params(P):",
+        "    B = P.shape[0]",
+        "    PT = np.empty((N_PARAMS + N_SWITCHES, B))",
+        "    for j in range(N_PARAMS):",
+        "        for k in range(B):",
+        "            PT[j, k] = P[k, j]",
+    ]
     for i, row in rows.items():
         eff = comp.effects[i]
         test = " or ".join(f"P[k, {comp.param_index(n)}] != {v!r}" for n, v in eff.neutral_values().items())
-        lines += ["    on = 0.0", "    for k in range(B):", f"        if {test}:", "            on = 1.0",
-                  "    for k in range(B):", f"        PT[{row}, k] = on  # {eff.name}"]
+        lines += [
+            "    on = 0.0",
+            "    for k in range(B):",
+            f"        if {test}:",
+            "            on = 1.0",
+            "    for k in range(B):",
+            f"        PT[{row}, k] = on  # {eff.name}",
+        ]
     lines.append("    return PT")
     return "\n".join(lines) + "\n"
 
@@ -105,13 +117,15 @@ def _rhs(comp: Composition, lane: bool) -> str:
     has_lateral = want_forces and any(issubclass(e, Force) and e.acts_on == "lateral" for e in comp.effects)
     if has_lateral:
         fixed_needed = True
-        tail = ["if cfg == 2 or cfg == 3:",
-                "    _Qu += -_QX * _Y + _QY * _X",
-                "    _Qx = _QX * _ct + _QY * _st",
-                "    _Qy = -_QX * _st + _QY * _ct",
-                "else:",
-                "    _Qx = 0.0",
-                "    _Qy = 0.0"]
+        tail = [
+            "if cfg == 2 or cfg == 3:",
+            "    _Qu += -_QX * _Y + _QY * _X",
+            "    _Qx = _QX * _ct + _QY * _st",
+            "    _Qy = -_QX * _st + _QY * _ct",
+            "else:",
+            "    _Qx = 0.0",
+            "    _Qy = 0.0",
+        ]
     else:
         tail = ["_Qx = 0.0", "_Qy = 0.0"]
     pro = prologue(lane, fixed_needed, "_Qu = 0.0", "_Ql = 0.0", "_Qs = 0.0", "_QX = 0.0", "_QY = 0.0")
@@ -134,8 +148,18 @@ EFFECT_ROWS = ("volt", "Qu", "Ql", "Qs", "Qx", "Qy", "tfu", "tfl", "gu", "gl")
 
 def _lane_loop(lines: list[str], fixed: bool, disc: str | None = None) -> list[str]:
     """``for k in range(n):`` over the lanes, with the lane's quantities the effect may name."""
-    pro = ["t = TT[k] + tc", "thu = thu_[k]", "thl = thl_[k]", "wu = wu_[k]", "wl = wl_[k]", "x = x_[k]",
-           "yy = y_[k]", "vx = vx_[k]", "vy = vy_[k]", "u = VOLT[k]"]
+    pro = [
+        "t = TT[k] + tc",
+        "thu = thu_[k]",
+        "thl = thl_[k]",
+        "wu = wu_[k]",
+        "wl = wl_[k]",
+        "x = x_[k]",
+        "yy = y_[k]",
+        "vx = vx_[k]",
+        "vy = vy_[k]",
+        "u = VOLT[k]",
+    ]
     if fixed:
         pro += fixed_frame_prologue(True)
     if disc is not None:
@@ -151,9 +175,12 @@ def _effects_lane(comp: Composition) -> str:
     In: the lane rows and, in E[6:8], the base friction laws' slip torques.  Out: E[0] the voltage at
     the motor (V), E[1:4] Qu, Ql, Qs (N m), E[4:6] Qx, Qy (N, rotating frame), E[6:8] the slip torques
     with the friction effects (0 for a stuck disc)."""
-    body = ["n = thu_.shape[0]", ", ".join(n.upper() for n in EFFECT_ROWS) + " = " +
-            ", ".join(f"E[{i}]" for i in range(len(EFFECT_ROWS))),
-            "for k in range(n):", "    VOLT[k] = U[k]"]
+    body = [
+        "n = thu_.shape[0]",
+        ", ".join(n.upper() for n in EFFECT_ROWS) + " = " + ", ".join(f"E[{i}]" for i in range(len(EFFECT_ROWS))),
+        "for k in range(n):",
+        "    VOLT[k] = U[k]",
+    ]
     body += [f"    {r}[k] = 0.0" for r in ("QU", "QL", "QS", "QX", "QY")] + ["    GU[k] = 1.0", "    GL[k] = 1.0"]
 
     def add(i: int, lines: list[str], ctx: HookContext, disc: str | None = None, cfg: bool = True) -> None:
@@ -177,10 +204,18 @@ def _effects_lane(comp: Composition) -> str:
             target = {"upper": "QU", "lower": "QL", "string": "QS"}[eff.acts_on]
             add(i, [f"{target}[k] += {call_effect(comp, ctx, 'torque')}"], ctx)
     if lateral:  # the fixed-frame forces' moment on the upper disc, and the forces in the rotating frame
-        turn = ["_qx = QX[k]", "_qy = QY[k]", "QU[k] += -_qx * _Y + _qy * _X", "QX[k] = _qx * _ct + _qy * _st",
-                "QY[k] = -_qx * _st + _qy * _ct"]
-        switches = [switch_condition(comp, True, i) for i, e in enumerate(comp.effects)
-                    if issubclass(e, Force) and e.acts_on == "lateral"]
+        turn = [
+            "_qx = QX[k]",
+            "_qy = QY[k]",
+            "QU[k] += -_qx * _Y + _qy * _X",
+            "QX[k] = _qx * _ct + _qy * _st",
+            "QY[k] = -_qx * _st + _qy * _ct",
+        ]
+        switches = [
+            switch_condition(comp, True, i)
+            for i, e in enumerate(comp.effects)
+            if issubclass(e, Force) and e.acts_on == "lateral"
+        ]
         any_on = None if None in switches else " or ".join(switches)
         body.extend(guarded(_lane_loop(turn, True), both("cfg == 2 or cfg == 3", any_on)))
     for disc, tf, g in (("upper", "TFU", "GU"), ("lower", "TFL", "GL")):  # 3. friction, in order
@@ -189,13 +224,16 @@ def _effects_lane(comp: Composition) -> str:
                 continue
             ctx = HookContext(True, comp, i, disc)
             fns = eff.defined_functions()
-            lines = ([f"{tf}[k] = {call_effect(comp, ctx, 'slip')}"] if "slip" in fns else []) + \
-                    ([f"{g}[k] = {g}[k] * {call_effect(comp, ctx, 'level')}"] if "level" in fns else [])
+            lines = ([f"{tf}[k] = {call_effect(comp, ctx, 'slip')}"] if "slip" in fns else []) + (
+                [f"{g}[k] = {g}[k] * {call_effect(comp, ctx, 'level')}"] if "level" in fns else []
+            )
             if lines:
                 add(i, lines, ctx, disc, cfg=False)
-    body += ["for k in range(n):",  # levels last (as the scalar hooks); a stuck disc has no slip torque
-             "    TFU[k] = GU[k] * TFU[k] if MU[k] != 0.0 else 0.0",
-             "    TFL[k] = GL[k] * TFL[k] if ML[k] != 0.0 else 0.0"]
+    body += [
+        "for k in range(n):",  # levels last (as the scalar hooks); a stuck disc has no slip torque
+        "    TFU[k] = GU[k] * TFU[k] if MU[k] != 0.0 else 0.0",
+        "    TFL[k] = GL[k] * TFL[k] if ML[k] != 0.0 else 0.0",
+    ]
     sig = "hk_effects_lane(thu_, thl_, wu_, wl_, x_, y_, vx_, vy_, Y, nm, MU, ML, U, PT, TT, tc, cfg, brake, E)"
     return "\n".join([f"@{JIT}", f"def {sig}:"] + ["    " + ln for ln in body] + ["    return 0"]) + "\n"
 
@@ -252,7 +290,7 @@ def _lag_start(comp: Composition) -> str:
     body: list[str] = []
     fixed_needed = False
     for i, eff, ctx in _input_chain(comp, False):
-        for st in (getattr(eff, "lag", None) or {}):
+        for st in getattr(eff, "lag", None) or {}:
             j = comp.state_index(st)
             body += [f"if y[{8 + j}] != y[{8 + j}]:", f"    y[{8 + j}] = u"]
         call = [f"u = {call_effect(comp, ctx, 'voltage', 'u')}"]
@@ -326,14 +364,27 @@ def _measure(comp: Composition) -> str:
                 args.append(a)  # a channel
         call = f"_e{i}_measure({', '.join(args)})"
         ch = ", ".join(eff.channels)
-        lines.append(f"    {ch}{',' if len(eff.channels) == 1 else ''} = {call}" if len(eff.channels) > 1
-                     else f"    {ch} = {call}")
+        lines.append(
+            f"    {ch}{',' if len(eff.channels) == 1 else ''} = {call}"
+            if len(eff.channels) > 1
+            else f"    {ch} = {call}"
+        )
     lines.append("    return theta_u, theta_l, X, Y")
-    lines += ["", "", "@njit(cache=True)", "def measure_arrays(TU, TL, X, Y, p):",
-              "    n = TU.shape[0]", "    out = np.empty((4, n))", "    for i in range(n):",
-              "        a, b, c, d = hk_measure(TU[i], TL[i], X[i], Y[i], p)",
-              "        out[0, i] = a", "        out[1, i] = b", "        out[2, i] = c", "        out[3, i] = d",
-              "    return out"]
+    lines += [
+        "",
+        "",
+        "@njit(cache=True)",
+        "def measure_arrays(TU, TL, X, Y, p):",
+        "    n = TU.shape[0]",
+        "    out = np.empty((4, n))",
+        "    for i in range(n):",
+        "        a, b, c, d = hk_measure(TU[i], TL[i], X[i], Y[i], p)",
+        "        out[0, i] = a",
+        "        out[1, i] = b",
+        "        out[2, i] = c",
+        "        out[3, i] = d",
+        "    return out",
+    ]
     return "\n".join(lines) + "\n"
 
 
@@ -390,13 +441,20 @@ def hooks_source(comp: Composition) -> str:
         f"HAS_LANE_EFFECTS = {any(issubclass(e, (Input, Force, Friction)) for e in comp.effects)}",
         "",
         "",
-        _lane_params(comp), "",
-        _rhs(comp, False), "",
-        _effects_lane(comp), "",
-        _rhs(comp, True), "",
-        _lag(comp, False), "",
-        _lag(comp, True), "",
-        _lag_start(comp), "",
+        _lane_params(comp),
+        "",
+        _rhs(comp, False),
+        "",
+        _effects_lane(comp),
+        "",
+        _rhs(comp, True),
+        "",
+        _lag(comp, False),
+        "",
+        _lag(comp, True),
+        "",
+        _lag_start(comp),
+        "",
     ]
     for disc in ("upper", "lower"):
         for what in ("slip", "bounds"):

@@ -10,8 +10,19 @@ import math
 
 from .base import Delay, Force, Friction, Input, Measurement, Parameter, State
 
-__all__ = ["PositionFriction", "BrakeAsymmetry", "StringDamping", "MotorLag", "InputDelay", "LateralAnisotropy",
-           "LvdtOffset", "LvdtSkew", "LateralCoulomb", "FrictionDrift", "LIBRARY"]
+__all__ = [
+    "PositionFriction",
+    "BrakeAsymmetry",
+    "StringDamping",
+    "MotorLag",
+    "InputDelay",
+    "LateralAnisotropy",
+    "LvdtOffset",
+    "LvdtSkew",
+    "LateralCoulomb",
+    "FrictionDrift",
+    "LIBRARY",
+]
 
 #: regularisation speed of the lateral dry-friction direction (m/s)
 LATERAL_COULOMB_EPS = 1e-4
@@ -47,11 +58,13 @@ class PositionFriction(Friction):
         "The friction level of the lower disc depends on the disc's angle: the brake blocks and the bearing do not "
         "touch a perfectly flat, round, evenly oiled surface, so each revolution passes the same high- and "
         "low-friction spots. The report saw bifurcation points scatter by ±0.1 V with the starting angle. "
-        "Modelled as Tfl × (1 + c1 cos θl + s1 sin θl + c2 cos 2θl + s2 sin 2θl), stick set scaled alike.")
+        "Modelled as Tfl × (1 + c1 cos θl + s1 sin θl + c2 cos 2θl + s2 sin 2θl), stick set scaled alike."
+    )
     signature = (
         "residual torque on the lower disc periodic in θl (once and twice per revolution); angle residuals grow in "
         "the slip phases and their spectrum peaks at the rotation frequency and its second harmonic; sticking "
-        "happens at preferred angles")
+        "happens at preferred angles"
+    )
 
     def level(theta_l, pf_c1, pf_s1, pf_c2, pf_s2):
         c, s = math.cos(theta_l), math.sin(theta_l)
@@ -76,20 +89,31 @@ class BrakeAsymmetry(Friction):
     name = "brake_asymmetry"
     disc = "lower"
     parameters = (
-        Parameter("asym_s", "-", -0.9, 5.0, 0.0, 0.05, "relative change of the static level for negative rotation",
-                  neutral=0.0),
-        Parameter("asym_c", "-", -0.9, 5.0, 0.0, 0.05, "relative change of the slip level for negative rotation",
-                  neutral=0.0),
+        Parameter(
+            "asym_s",
+            "-",
+            -0.9,
+            5.0,
+            0.0,
+            0.05,
+            "relative change of the static level for negative rotation",
+            neutral=0.0,
+        ),
+        Parameter(
+            "asym_c", "-", -0.9, 5.0, 0.0, 0.05, "relative change of the slip level for negative rotation", neutral=0.0
+        ),
     )
     configurations = ("torsional", "coupled")
     needs = ("negative_rotation",)
     explanation = (
         "The brake (oil film between blocks and disc) grips differently in the two directions of rotation: block "
         "geometry and the leading/trailing edge make the static and slip friction levels direction dependent. "
-        "Modelled as Ts × (1 + asym_s), Tc × (1 + asym_c) for negative rotation of the lower disc.")
+        "Modelled as Ts × (1 + asym_s), Tc × (1 + asym_c) for negative rotation of the lower disc."
+    )
     signature = (
         "residual correlated with sign(ωl): slips in the negative direction start later/earlier and run "
-        "slower/faster than the model; invisible if the disc never turns backwards")
+        "slower/faster than the model; invisible if the disc never turns backwards"
+    )
 
     def slip(T, direction, speed, brake, Ts, Tc, ws, delta, asym_s, asym_c):
         if direction > 0.0 or brake == 0.0:
@@ -116,15 +140,18 @@ class StringDamping(Force):
 
     name = "string_damping"
     acts_on = "string"
-    parameters = (Parameter("dtheta", "N m s/rad", 0.0, 10.0, 0.002, 0.005, "torsional damping of the string",
-                            neutral=0.0),)
+    parameters = (
+        Parameter("dtheta", "N m s/rad", 0.0, 10.0, 0.002, 0.005, "torsional damping of the string", neutral=0.0),
+    )
     configurations = ("torsional", "lateral", "coupled", "free_vibration")
     explanation = (
         "The steel string dissipates energy when it twists (material hysteresis, air drag on the string): a torque "
-        "dθ (ωl − ωu) in parallel with kθ α. The report assumed it negligible.")
+        "dθ (ωl − ωu) in parallel with kθ α. The report assumed it negligible."
+    )
     signature = (
         "torsional oscillations (the α mode at √(kθ/Jl) ≈ 1.4 rad/s) decay faster in the data than in the model; "
-        "residual α in quadrature with α̇, largest after slips and steps")
+        "residual α in quadrature with α̇, largest after slips and steps"
+    )
 
     def torque(alpha_dot, dtheta):
         return dtheta * alpha_dot
@@ -150,10 +177,12 @@ class MotorLag(Input):
     configurations = ("upper", "torsional", "lateral", "coupled")
     explanation = (
         "The amplifier and the motor's electrical time constant turn the commanded voltage into torque with a "
-        "first-order lag τm instead of instantly: τm u̇m = u − um.")
+        "first-order lag τm instead of instantly: τm u̇m = u − um."
+    )
     signature = (
         "the upper disc answers input steps later than the model: residual θu/ωu proportional to the input's "
-        "derivative, growing with the input's frequency content")
+        "derivative, growing with the input's frequency content"
+    )
 
     def derivative(u, u_m, tau_m):
         return (u - u_m) / tau_m
@@ -180,10 +209,12 @@ class InputDelay(Delay):
     configurations = ("upper", "torsional", "lateral", "coupled")
     explanation = (
         "A pure transport delay between the commanded voltage and the motor (sampling, communication, amplifier "
-        "dead time): the motor sees u(t − d).")
+        "dead time): the motor sees u(t − d)."
+    )
     signature = (
         "the whole response is shifted in time: residual ∝ u(t) − u(t − d), the cross-correlation between input and "
-        "residual peaks at a positive lag")
+        "residual peaks at a positive lag"
+    )
 
     def delay(delay):
         return delay
@@ -213,10 +244,12 @@ class LateralAnisotropy(Force):
     explanation = (
         "The leaf-spring constraints of the lower disc are not equally stiff and damped in x and y (report table "
         "3.5: kx = 2260, ky = 2035 N/m). Modelled as kx = k + dk, ky = k − dk, bx = b + db, by = b − db in the "
-        "fixed frame: the extra force is (−dk X − db Ẋ, dk Y + db Ẏ).")
+        "fixed frame: the extra force is (−dk X − db Ẋ, dk Y + db Ẏ)."
+    )
     signature = (
         "ripple in r at twice the whirl frequency; the orbit in the (x, y) plane is an ellipse, not a circle; x and "
-        "y residuals of different size")
+        "y residuals of different size"
+    )
 
     def force(X, Y, VX, VY, dk, db):
         return -dk * X - db * VX, dk * Y + db * VY
@@ -242,10 +275,12 @@ class LateralCoulomb(Force):
     explanation = (
         "Dry friction in the lateral guides and the LVDT cores (the report suspected LVDT friction for its worse fit "
         "at large lateral displacement, R² 0.905): a force of size Fc_lat against the lateral velocity, its "
-        "direction regularised below 0.1 mm/s.")
+        "direction regularised below 0.1 mm/s."
+    )
     signature = (
         "measured whirl amplitude r smaller than the model's, most at large r and near the whirl resonance; small "
-        "motions die out completely (lateral stick)")
+        "motions die out completely (lateral stick)"
+    )
 
     def force(VX, VY, Fc_lat):
         v = math.sqrt(VX * VX + VY * VY + LATERAL_COULOMB_EPS * LATERAL_COULOMB_EPS)
@@ -267,15 +302,18 @@ class FrictionDrift(Friction):
 
     name = "friction_drift"
     disc = "lower"
-    parameters = (Parameter("drift", "1/s", -0.02, 0.02, 0.0, 5e-4, "relative drift rate of the friction level",
-                            neutral=0.0),)
+    parameters = (
+        Parameter("drift", "1/s", -0.02, 0.02, 0.0, 5e-4, "relative drift rate of the friction level", neutral=0.0),
+    )
     configurations = ("torsional", "lateral", "coupled", "free_vibration")
     explanation = (
         "The brake's oil warms up during a run, its viscosity falls and the friction level drifts: lower friction "
-        "× (1 + drift t).")
+        "× (1 + drift t)."
+    )
     signature = (
         "residual that grows (or changes sign) along the run: early windows fit, late ones do not; stick phases "
-        "lengthen or shorten over time")
+        "lengthen or shorten over time"
+    )
 
     def level(t, drift):
         return 1.0 + drift * t
@@ -303,8 +341,9 @@ class LvdtOffset(Measurement):
     )
     configurations = ("lateral", "coupled")
     explanation = "The LVDTs read a nonzero position with the disc at rest (mounting, electronics offset)."
-    signature = ("constant offsets in the x, y residuals; ripple in r at the whirl frequency (the circle's centre is "
-                 "shifted)")
+    signature = (
+        "constant offsets in the x, y residuals; ripple in r at the whirl frequency (the circle's centre is shifted)"
+    )
 
     def measure(X, Y, lvdt_x0, lvdt_y0):
         return X + lvdt_x0, Y + lvdt_y0
@@ -325,16 +364,40 @@ class LvdtSkew(Measurement):
 
     name = "lvdt_skew"
     channels = ("Y",)
-    parameters = (Parameter("lvdt_skew", "rad", -0.3, 0.3, 0.0, 0.01,
-                            "angle by which the y LVDT axis deviates from perpendicular", neutral=0.0),)
+    parameters = (
+        Parameter(
+            "lvdt_skew",
+            "rad",
+            -0.3,
+            0.3,
+            0.0,
+            0.01,
+            "angle by which the y LVDT axis deviates from perpendicular",
+            neutral=0.0,
+        ),
+    )
     configurations = ("lateral", "coupled")
     explanation = "The two LVDT axes are not perpendicular: the y reading contains a fraction sin(skew) of x."
-    signature = ("y residual proportional to x; the measured orbit is a tilted ellipse; ripple in r at twice the whirl "
-                 "frequency")
+    signature = (
+        "y residual proportional to x; the measured orbit is a tilted ellipse; ripple in r at twice the whirl frequency"
+    )
 
     def measure(X, Y, lvdt_skew):
         return Y * math.cos(lvdt_skew) + X * math.sin(lvdt_skew)
 
 
-LIBRARY = {e.name: e for e in (PositionFriction, BrakeAsymmetry, StringDamping, MotorLag, InputDelay,
-                               LateralAnisotropy, LvdtOffset, LvdtSkew, LateralCoulomb, FrictionDrift)}
+LIBRARY = {
+    e.name: e
+    for e in (
+        PositionFriction,
+        BrakeAsymmetry,
+        StringDamping,
+        MotorLag,
+        InputDelay,
+        LateralAnisotropy,
+        LvdtOffset,
+        LvdtSkew,
+        LateralCoulomb,
+        FrictionDrift,
+    )
+}

@@ -12,9 +12,10 @@ import hashlib
 import importlib.util
 import inspect
 import sys
+from collections.abc import Callable
 from importlib import metadata
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from .base import Effect, EffectError
 from .library import LIBRARY
@@ -62,8 +63,11 @@ def _import_file(path: Path) -> Any:
 
 
 def _effects_in(module: Any) -> list[type[Effect]]:
-    return [v for v in vars(module).values()
-            if inspect.isclass(v) and issubclass(v, Effect) and v.__module__ == module.__name__ and v.kind]
+    return [
+        v
+        for v in vars(module).values()
+        if inspect.isclass(v) and issubclass(v, Effect) and v.__module__ == module.__name__ and v.kind
+    ]
 
 
 def load_class_from_file(path: str | Path, name: str) -> type[Effect]:
@@ -124,8 +128,9 @@ def available_effects() -> dict[str, type[Effect]]:
         try:
             obj = ep.load()
         except Exception as exc:  # noqa: BLE001
-            raise EffectError(f"entry point {ENTRY_POINT_GROUP}:{name} ({ep.value}) does not load: "
-                              f"{type(exc).__name__}: {exc}") from None
+            raise EffectError(
+                f"entry point {ENTRY_POINT_GROUP}:{name} ({ep.value}) does not load: {type(exc).__name__}: {exc}"
+            ) from None
         cls = type(obj) if isinstance(obj, Effect) else obj
         if not (inspect.isclass(cls) and issubclass(cls, Effect)):
             raise EffectError(f"entry point {ENTRY_POINT_GROUP}:{name} ({ep.value}) is not a drillgym Effect class")
@@ -133,7 +138,7 @@ def available_effects() -> dict[str, type[Effect]]:
     return out
 
 
-def resolve_effect(spec: "str | type[Effect] | Effect") -> "type[Effect] | Effect":
+def resolve_effect(spec: str | type[Effect] | Effect) -> type[Effect] | Effect:
     """An effect class (or instance, passed through) from a spec.
 
     Parameters
@@ -163,6 +168,7 @@ def resolve_effect(spec: "str | type[Effect] | Effect") -> "type[Effect] | Effec
         return load_class_from_file(path, name)
     known = LIBRARY if spec in LIBRARY else available_effects()
     if spec not in known:
-        raise EffectError(f"unknown effect {spec!r}; known effects: {', '.join(sorted(known))} "
-                          f"(or give a file: path/to/file.py:NAME)")
+        raise EffectError(
+            f"unknown effect {spec!r}; known effects: {', '.join(sorted(known))} (or give a file: path/to/file.py:NAME)"
+        )
     return known[spec]

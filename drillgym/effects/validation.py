@@ -11,8 +11,20 @@ from typing import Any
 
 from ..params import PARAM_NAMES, RigParams
 from .base import (
-    CONFIGURATIONS, FRICTION_VOCABULARY, MEASUREMENT_CHANNELS, VOCABULARY, Delay, Effect, EffectError, Force,
-    Friction, Input, Measurement, Parameter, State, is_identifier,
+    CONFIGURATIONS,
+    FRICTION_VOCABULARY,
+    MEASUREMENT_CHANNELS,
+    VOCABULARY,
+    Delay,
+    Effect,
+    EffectError,
+    Force,
+    Friction,
+    Input,
+    Measurement,
+    Parameter,
+    State,
+    is_identifier,
 )
 
 __all__ = ["validate_effect", "check_neutral"]
@@ -35,21 +47,30 @@ def _where(cls: type[Effect]) -> str:
 def _check_parameter(cls: type[Effect], prm: Any) -> None:
     w = _where(cls)
     if not isinstance(prm, Parameter):
-        raise EffectError(f"{w}: parameters must be drillgym.effects.Parameter(name, unit, lo, hi, guess, scale, doc), "
-                          f"got {prm!r}")
+        raise EffectError(
+            f"{w}: parameters must be drillgym.effects.Parameter(name, unit, lo, hi, guess, scale, doc), got {prm!r}"
+        )
     if not is_identifier(prm.name):
         raise EffectError(f"{w}: parameter name {prm.name!r} is not a Python identifier")
-    if prm.name in PARAM_NAMES or prm.name in VOCABULARY or prm.name in FRICTION_VOCABULARY \
-            or prm.name in MEASUREMENT_CHANNELS:
+    if (
+        prm.name in PARAM_NAMES
+        or prm.name in VOCABULARY
+        or prm.name in FRICTION_VOCABULARY
+        or prm.name in MEASUREMENT_CHANNELS
+    ):
         raise EffectError(f"{w}: parameter name {prm.name!r} is already taken (a base parameter or an argument name)")
     if prm.neutral is not None and not (isinstance(prm.neutral, (int, float)) and prm.lo <= prm.neutral <= prm.hi):
-        raise EffectError(f"{w}: parameter {prm.name!r}: neutral = {prm.neutral!r} is not a number within its bounds "
-                          f"[{prm.lo}, {prm.hi}]")
+        raise EffectError(
+            f"{w}: parameter {prm.name!r}: neutral = {prm.neutral!r} is not a number within its bounds "
+            f"[{prm.lo}, {prm.hi}]"
+        )
     for attr in ("lo", "hi", "guess", "scale"):
         v = getattr(prm, attr)
         if v is None or isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise EffectError(f"{w}: parameter {prm.name!r} needs a finite {attr} (bounds, guess and scale are "
-                              f"required for fitting), got {v!r}")
+            raise EffectError(
+                f"{w}: parameter {prm.name!r} needs a finite {attr} (bounds, guess and scale are "
+                f"required for fitting), got {v!r}"
+            )
     if not prm.lo < prm.hi:
         raise EffectError(f"{w}: parameter {prm.name!r} has bounds lo = {prm.lo} >= hi = {prm.hi}")
     if not prm.lo <= prm.guess <= prm.hi or not prm.lo <= prm.value <= prm.hi:
@@ -94,9 +115,15 @@ def _probe_values(cls: type[Effect], probe: dict[str, float], fn: str, disc: str
     vals["brake"] = 1.0
     if disc is not None:
         w = probe["omega_u"] if disc == "upper" else probe["omega_l"]
-        vals.update(omega=w, speed=abs(w), direction=1.0 if w >= 0 else -1.0,
-                    theta=probe["theta_u"] if disc == "upper" else probe["theta_l"],
-                    T=0.3 if w >= 0 else -0.3, lo=-0.3, hi=0.3)
+        vals.update(
+            omega=w,
+            speed=abs(w),
+            direction=1.0 if w >= 0 else -1.0,
+            theta=probe["theta_u"] if disc == "upper" else probe["theta_l"],
+            T=0.3 if w >= 0 else -0.3,
+            lo=-0.3,
+            hi=0.3,
+        )
     vals["theta_u"], vals["theta_l"] = probe["theta_u"], probe["theta_l"]
     return vals
 
@@ -114,15 +141,18 @@ def _expected_outputs(cls: type[Effect], fn: str) -> int:
 def validate_effect(cls: Any) -> None:
     """Raise EffectError (file, effect, problem) when ``cls`` cannot be compiled into the kernels."""
     if not (inspect.isclass(cls) and issubclass(cls, Effect)) or not cls.kind:
-        raise EffectError(f"{cls!r} is not an effect: subclass drillgym.effects.Force, Friction, Input, Delay or "
-                          f"Measurement")
+        raise EffectError(
+            f"{cls!r} is not an effect: subclass drillgym.effects.Force, Friction, Input, Delay or Measurement"
+        )
     w = _where(cls)
     if not is_identifier(cls.name):
         raise EffectError(f"{w}: the effect needs a name that is a Python identifier (class attribute name = ...)")
     bad_cfg = [c for c in cls.configurations if c not in CONFIGURATIONS]
     if bad_cfg:
-        raise EffectError(f"{w}: unknown configuration(s) {', '.join(map(repr, bad_cfg))}; "
-                          f"expected some of {', '.join(CONFIGURATIONS)}")
+        raise EffectError(
+            f"{w}: unknown configuration(s) {', '.join(map(repr, bad_cfg))}; "
+            f"expected some of {', '.join(CONFIGURATIONS)}"
+        )
     for prm in cls.parameters:
         _check_parameter(cls, prm)
     names = [p.name for p in cls.parameters]
@@ -137,8 +167,9 @@ def validate_effect(cls: Any) -> None:
     disc = None
     if issubclass(cls, Force):
         if cls.acts_on not in _FORCE_TARGETS:
-            raise EffectError(f"{w}: acts_on = {cls.acts_on!r} is not a coordinate; expected one of "
-                              f"{', '.join(_FORCE_TARGETS)}")
+            raise EffectError(
+                f"{w}: acts_on = {cls.acts_on!r} is not a coordinate; expected one of {', '.join(_FORCE_TARGETS)}"
+            )
         need = "force" if cls.acts_on == "lateral" else "torque"
         if need not in fns:
             raise EffectError(f"{w}: a Force acting on {cls.acts_on!r} defines {need}(...)")
@@ -176,16 +207,20 @@ def validate_effect(cls: Any) -> None:
     for fn, f in fns.items():
         params = inspect.signature(f).parameters
         if params and next(iter(params)) == "self":
-            raise EffectError(f"{w}: {fn}(self, ...): write effect functions without self (they are compiled "
-                              f"as plain functions of the quantities they name)")
+            raise EffectError(
+                f"{w}: {fn}(self, ...): write effect functions without self (they are compiled "
+                f"as plain functions of the quantities they name)"
+            )
         if any(p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD) for p in params.values()):
             raise EffectError(f"{w}: {fn}(...) must name its arguments (no *args/**kwargs)")
         allowed = _allowed_arguments(cls, fn)
         unknown = [a for a in params if a not in allowed]
         if unknown:
-            raise EffectError(f"{w}: {fn}() asks for unknown quantity/coordinate {unknown[0]!r}; it may use "
-                              f"its parameters, states, base parameters and: "
-                              f"{', '.join(sorted(allowed - set(PARAM_NAMES)))}")
+            raise EffectError(
+                f"{w}: {fn}() asks for unknown quantity/coordinate {unknown[0]!r}; it may use "
+                f"its parameters, states, base parameters and: "
+                f"{', '.join(sorted(allowed - set(PARAM_NAMES)))}"
+            )
         _probe(cls, fn, f, list(params), disc)
     check_neutral(cls)
 
@@ -248,5 +283,7 @@ def check_neutral(cls: type[Effect]) -> None:
             if any(abs(float(a) - b) > 1e-12 * max(1.0, abs(b)) for a, b in zip(outs, want)):
                 shown = ", ".join(f"{k}={v:g}" for k, v in neutral.items())
                 got, expected = (outs, want) if len(want) > 1 else (outs[0], want[0])
-                raise EffectError(f"{w}: {fn}() does not vanish at the declared neutral values ({shown}): returns "
-                                  f"{got!r}, expected {expected!r}; drop neutral= or fix the function")
+                raise EffectError(
+                    f"{w}: {fn}() does not vanish at the declared neutral values ({shown}): returns "
+                    f"{got!r}, expected {expected!r}; drop neutral= or fix the function"
+                )

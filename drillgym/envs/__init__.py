@@ -28,9 +28,23 @@ from .observation import FullObservation, MotorObservation, SensorObservation, m
 from .options import EnvOptions, RewardWeights
 from .vector import DrillVectorEnv
 
-__all__ = ["DrillEnv", "TorsionalEnv", "LateralEnv", "CoupledEnv", "DrillVectorEnv", "EnvOptions", "RewardWeights",
-           "FullObservation", "SensorObservation", "MotorObservation", "make_observation_model", "make_vec",
-           "make_sb3_vec", "ENV_IDS", "REGISTERED_DEFAULTS"]
+__all__ = [
+    "DrillEnv",
+    "TorsionalEnv",
+    "LateralEnv",
+    "CoupledEnv",
+    "DrillVectorEnv",
+    "EnvOptions",
+    "RewardWeights",
+    "FullObservation",
+    "SensorObservation",
+    "MotorObservation",
+    "make_observation_model",
+    "make_vec",
+    "make_sb3_vec",
+    "ENV_IDS",
+    "REGISTERED_DEFAULTS",
+]
 
 #: registered id -> rig configuration
 ENV_IDS = {"drillgym/Torsional-v0": "torsional", "drillgym/Lateral-v0": "lateral", "drillgym/Coupled-v0": "coupled"}
@@ -118,9 +132,13 @@ for _id, _cfg in ENV_IDS.items():
     if _id not in gymnasium.registry:
         # no TimeLimit wrapper: the env truncates itself after ``episode_duration`` and reports that
         # length as ``env.spec.max_episode_steps`` (DrillEnv.spec)
-        gymnasium.register(id=_id, entry_point=f"drillgym.envs.base:{_CLASSES[_cfg]}",
-                           vector_entry_point=VectorEntry(_cfg), disable_env_checker=False,
-                           kwargs=dict(REGISTERED_DEFAULTS))
+        gymnasium.register(
+            id=_id,
+            entry_point=f"drillgym.envs.base:{_CLASSES[_cfg]}",
+            vector_entry_point=VectorEntry(_cfg),
+            disable_env_checker=False,
+            kwargs=dict(REGISTERED_DEFAULTS),
+        )
 
 # The hardware twin (package ``hw``) shares these spaces; its id is registered here too, by entry-point
 # string only, so that ``import drillgym`` offers it without the physics core importing ``hw``.

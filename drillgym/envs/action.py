@@ -17,8 +17,10 @@ __all__ = ["action_voltage"]
 
 
 def _expected(high: float) -> str:
-    return (f"a number or an array of shape (1,), e.g. np.array([2.0], dtype=np.float32): one motor voltage "
-            f"in the action space Box(-{high:g}, {high:g}, (1,), float32)")
+    return (
+        f"a number or an array of shape (1,), e.g. np.array([2.0], dtype=np.float32): one motor voltage "
+        f"in the action space Box(-{high:g}, {high:g}, (1,), float32)"
+    )
 
 
 def action_voltage(action: Any, high: float = 5.0) -> float:
@@ -55,11 +57,13 @@ def action_voltage(action: Any, high: float = 5.0) -> float:
         except Exception:  # noqa: BLE001 - anything numpy cannot read is the wrong type
             raise InputTypeError(f"action must be {_expected(high)}; got {type(action).__name__}") from None
         if arr.dtype.kind not in "iuf":
-            raise InputTypeError(f"action must be {_expected(high)}; got {type(action).__name__} of dtype {arr.dtype}: "
-                            f"{action!r}")
+            raise InputTypeError(
+                f"action must be {_expected(high)}; got {type(action).__name__} of dtype {arr.dtype}: {action!r}"
+            )
         if arr.shape not in ((1,), ()):
-            raise InputError(f"action must hold one voltage, shape (1,); got shape {arr.shape}. Expected "
-                             f"{_expected(high)}")
+            raise InputError(
+                f"action must hold one voltage, shape (1,); got shape {arr.shape}. Expected {_expected(high)}"
+            )
         v = float(arr.reshape(-1)[0])
     if not math.isfinite(v):
         raise InputError(f"action (motor voltage) must be finite, got {action!r}")

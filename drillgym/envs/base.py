@@ -137,8 +137,11 @@ class DrillEnv(gym.Env):
         self._scale = 1.0 if not self.options.normalize_action else U_MAX
         self._high = float(self.action_space.high[0])
         self._u = self.batch.system.u  # (1,) voltage buffer of the core
-        self._renderer = (RigRenderer(render_mode, self.options.render_history, self.options.control_dt,
-                                      self.options.lateral) if render_mode else None)
+        self._renderer = (
+            RigRenderer(render_mode, self.options.render_history, self.options.control_dt, self.options.lateral)
+            if render_mode
+            else None
+        )
 
     @property
     def observation_names(self) -> tuple[str, ...]:
@@ -224,8 +227,14 @@ class DrillEnv(gym.Env):
             return None
         s = self.batch.system
         X, Y = s.lateral_fixed
-        return self._renderer.draw(float(s.theta_u[0]), float(s.theta_l[0]), float(X[0]), float(Y[0]),
-                                   float(self.batch.omega_ref[0]), bool(s.stuck_l[0]))
+        return self._renderer.draw(
+            float(s.theta_u[0]),
+            float(s.theta_l[0]),
+            float(X[0]),
+            float(Y[0]),
+            float(self.batch.omega_ref[0]),
+            bool(s.stuck_l[0]),
+        )
 
     def close(self) -> None:
         """Close the render window, if any."""

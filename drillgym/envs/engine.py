@@ -13,18 +13,31 @@ single env faster than Pendulum-v1 in every mode.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
+
+from .columns import (
+    C_REF,
+    C_REW,
+    C_SSI,
+    C_STEPS,
+    C_STUCK,
+    C_TERM,
+    C_TFL,
+    C_TIME,
+    C_TRUNC,
+    C_U,
+    C_WL,
+    INFO_COLUMNS,
+    S_COLUMNS,
+)
 from .observation import make_observation_model
 from .options import EnvOptions
 from .rig_system import ParameterRandomizer, RigSystem
-from .columns import C_REF, C_REW, C_SSI, C_STEPS, C_STUCK, C_TERM, C_TFL, C_TIME, C_TRUNC, C_U, C_WL
-from .columns import INFO_COLUMNS, S_COLUMNS
 from .task import SpeedTrackingTask, StickSlipMonitor
 
 __all__ = ["EpisodeBatch", "INFO_COLUMNS", "S_COLUMNS"]
-
 
 
 class EpisodeBatch:
@@ -42,10 +55,20 @@ class EpisodeBatch:
         o = options
         self.options = o
         self.n = int(n)
-        self.system = RigSystem(o.configuration, self.n, params=o.rig_params, dt=o.dt, n_substeps=o.n_substeps,
-                                method=o.method, friction=o.friction, effects=o.effects, effect_params=o.effect_params)
-        self.randomizer = ParameterRandomizer(self.system.params_matrix[0], o.randomize, o.randomize_names,
-                                              self.system.composition)
+        self.system = RigSystem(
+            o.configuration,
+            self.n,
+            params=o.rig_params,
+            dt=o.dt,
+            n_substeps=o.n_substeps,
+            method=o.method,
+            friction=o.friction,
+            effects=o.effects,
+            effect_params=o.effect_params,
+        )
+        self.randomizer = ParameterRandomizer(
+            self.system.params_matrix[0], o.randomize, o.randomize_names, self.system.composition
+        )
         self._period_kernel = self.system.composition.kernels.client("drillgym.envs.period_kernel").period_kernel
         self.task = SpeedTrackingTask(o)
         self.obs_model = make_observation_model(self.n, o, self.system.params_matrix)  # live: randomised rows
@@ -55,9 +78,25 @@ class EpisodeBatch:
         self.obs = np.zeros((self.n, self.obs_model.dim), dtype=np.float32)
         self.all = np.arange(self.n)
         w, om = o.reward, self.obs_model
-        self._tv = np.concatenate([[w.track, w.stick, w.effort, w.rate, o.max_speed, o.max_lateral, float(o.lateral),
-                                    self.task.max_steps, self.monitor.block_len, o.control_dt, float(om.compiled)],
-                                   om.low, om.high])
+        self._tv = np.concatenate(
+            [
+                [
+                    w.track,
+                    w.stick,
+                    w.effort,
+                    w.rate,
+                    o.max_speed,
+                    o.max_lateral,
+                    float(o.lateral),
+                    self.task.max_steps,
+                    self.monitor.block_len,
+                    o.control_dt,
+                    float(om.compiled),
+                ],
+                om.low,
+                om.high,
+            ]
+        )
         self._bind()
 
     def _bind(self) -> None:
@@ -126,16 +165,29 @@ class EpisodeBatch:
         """Info entries of all rigs (copies): omega_l (rad/s), stuck (bool), friction_torque (N m, lower
         disc), stick_slip_severity, omega_ref (rad/s), voltage (V, applied over the last period), time (s)."""
         S = self.S
-        return {"omega_l": S[:, C_WL].copy(), "stuck": S[:, C_STUCK] > 0.5, "friction_torque": S[:, C_TFL].copy(),
-                "stick_slip_severity": S[:, C_SSI].copy(), "omega_ref": S[:, C_REF].copy(),
-                "voltage": S[:, C_U].copy(), "time": S[:, C_TIME].copy()}
+        return {
+            "omega_l": S[:, C_WL].copy(),
+            "stuck": S[:, C_STUCK] > 0.5,
+            "friction_torque": S[:, C_TFL].copy(),
+            "stick_slip_severity": S[:, C_SSI].copy(),
+            "omega_ref": S[:, C_REF].copy(),
+            "voltage": S[:, C_U].copy(),
+            "time": S[:, C_TIME].copy(),
+        }
 
     def info_row(self, k: int, v: list | None = None) -> dict:
         """Info of rig k as Python scalars (the single env's ``info``); ``v`` = ``S[k].tolist()`` if known."""
         if v is None:
             v = self.S[k].tolist()
-        return {"omega_l": v[C_WL], "stuck": v[C_STUCK] > 0.5, "friction_torque": v[C_TFL],
-                "stick_slip_severity": v[C_SSI], "omega_ref": v[C_REF], "voltage": v[C_U], "time": v[C_TIME]}
+        return {
+            "omega_l": v[C_WL],
+            "stuck": v[C_STUCK] > 0.5,
+            "friction_torque": v[C_TFL],
+            "stick_slip_severity": v[C_SSI],
+            "omega_ref": v[C_REF],
+            "voltage": v[C_U],
+            "time": v[C_TIME],
+        }
 
     def set_rngs(self, rngs: Sequence[np.random.Generator]) -> None:
         if len(rngs) != self.n:

@@ -38,7 +38,7 @@ one compiled call (:mod:`.sensor_kernel`, specialised per composition, with
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from gymnasium import spaces
@@ -51,8 +51,16 @@ from . import observation_kernels as ok
 from .observation_kernels import MM, rotate, rotate_compiled
 from .options import U_MAX, EnvOptions
 
-__all__ = ["ObservationModel", "FullObservation", "SensorObservation", "MotorObservation", "SimulatedSensors",
-           "make_observation_model", "fixed_frame_lateral", "full_obs_row"]
+__all__ = [
+    "ObservationModel",
+    "FullObservation",
+    "SensorObservation",
+    "MotorObservation",
+    "SimulatedSensors",
+    "make_observation_model",
+    "fixed_frame_lateral",
+    "full_obs_row",
+]
 
 ALPHA_BOUND = 50.0  # rad
 
@@ -137,8 +145,9 @@ class ObservationModel:
     def _check_out(self, out: np.ndarray) -> int:
         """Number of rigs; ``out`` must be the (n, dim) float32 observation array."""
         if out.shape != (self.n, self.dim) or out.dtype != np.float32:
-            raise ValueError(f"out must be a float32 array of shape ({self.n}, {self.dim}), "
-                             f"got {out.dtype} {out.shape}")
+            raise ValueError(
+                f"out must be a float32 array of shape ({self.n}, {self.dim}), got {out.dtype} {out.shape}"
+            )
         return self.n
 
     @staticmethod
@@ -152,8 +161,15 @@ class ObservationModel:
         """Observations (len(index), dim) of rigs ``index`` just after reset (at rest, u_prev = 0)."""
         raise NotImplementedError
 
-    def observe(self, Y: np.ndarray, u_prev: np.ndarray, omega_ref: np.ndarray, out: np.ndarray,
-                rngs: Sequence[np.random.Generator], skip: np.ndarray | None = None) -> None:
+    def observe(
+        self,
+        Y: np.ndarray,
+        u_prev: np.ndarray,
+        omega_ref: np.ndarray,
+        out: np.ndarray,
+        rngs: Sequence[np.random.Generator],
+        skip: np.ndarray | None = None,
+    ) -> None:
         """Write the observations of all rigs into ``out`` (n, dim) float32 after one control period.
 
         ``Y`` true states (n, n_state), ``u_prev`` voltage applied over the period (V), ``omega_ref``
@@ -213,14 +229,24 @@ class SimulatedSensors:
     the next unused period of each rig's block: the compiled observation kernels read and
     advance them, :meth:`refill_spent` draws the next blocks."""
 
-    def __init__(self, n: int, counts_per_rev: int, lvdt_noise_std: float, lateral: bool,
-                 composition: Composition = BASE, P: np.ndarray | None = None, block: int = 128) -> None:
+    def __init__(
+        self,
+        n: int,
+        counts_per_rev: int,
+        lvdt_noise_std: float,
+        lateral: bool,
+        composition: Composition = BASE,
+        P: np.ndarray | None = None,
+        block: int = 128,
+    ) -> None:
         self.n, self.cpr, self.noise_std, self.lateral = n, counts_per_rev, lvdt_noise_std, lateral
         self.composition = composition
         self.P = composition.matrix(None, n) if P is None else P
         if self.P.shape != (n, composition.n_params):
-            raise ValueError(f"parameter matrix must have shape ({n}, {composition.n_params}) for the model "
-                             f"{composition.label!r}, got {self.P.shape}")
+            raise ValueError(
+                f"parameter matrix must have shape ({n}, {composition.n_params}) for the model "
+                f"{composition.label!r}, got {self.P.shape}"
+            )
         self.block = block
         self.noisy = lateral and lvdt_noise_std > 0
         self.noise = np.zeros((n, block, 2)) if self.noisy else np.zeros((0, 1, 2))
@@ -258,16 +284,16 @@ class SimulatedSensors:
         """(4, m) channels theta_u, theta_l (rad), X, Y (m) of the states ``Y`` (m, n_state) of rigs
         ``index`` (default all) as read before quantization and noise (Measurement effects applied)."""
         P = self.P if index is None else self.P[index]
-        return self.kernel.measured_channels_batch(np.ascontiguousarray(Y, dtype=np.float64),
-                                                   np.ascontiguousarray(P))
+        return self.kernel.measured_channels_batch(np.ascontiguousarray(Y, dtype=np.float64), np.ascontiguousarray(P))
 
     def encoders(self, Y: np.ndarray, index: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Quantized (theta_u, theta_l) in rad of the states ``Y`` of rigs ``index`` (default all)."""
         c = self.channels(Y, index)
         return quantize_angle(c[0], self.cpr), quantize_angle(c[1], self.cpr)
 
-    def lvdts(self, Y: np.ndarray, rngs: Sequence[np.random.Generator],
-              skip: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def lvdts(
+        self, Y: np.ndarray, rngs: Sequence[np.random.Generator], skip: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """LVDT readings (X_meas, Y_meas) in m of all rigs (advances the noise blocks as the kernels do)."""
         c = self.channels(Y)
         xm, ym = lvdt_measure(c[2], c[3])
@@ -301,12 +327,14 @@ class SensorObservation(ObservationModel):
 
     mode = "sensors"
 
-    def __init__(self, n: int, options: EnvOptions, sensors: SimulatedSensors | None = None,
-                 params: np.ndarray | None = None) -> None:
+    def __init__(
+        self, n: int, options: EnvOptions, sensors: SimulatedSensors | None = None, params: np.ndarray | None = None
+    ) -> None:
         super().__init__(n, options)
         o = options
-        self.sensors = sensors or SimulatedSensors(n, o.counts_per_rev, o.lvdt_noise_std, o.lateral, o.effects,
-                                                   _params(n, o, params))
+        self.sensors = sensors or SimulatedSensors(
+            n, o.counts_per_rev, o.lvdt_noise_std, o.lateral, o.effects, _params(n, o, params)
+        )
         self._observe_fn = None
         self.est_u = EncoderVelocityEstimator(n, o.control_dt, o.velocity_filter_tau)
         self.est_l = EncoderVelocityEstimator(n, o.control_dt, o.velocity_filter_tau)
@@ -351,8 +379,16 @@ class SensorObservation(ObservationModel):
         ok.sensors_rows(tu, tl, xm, ym, zero, omega_ref[index], self.E, self.cv, False, out)
         return out
 
-    def from_readings(self, theta_u: np.ndarray, theta_l: np.ndarray, X: np.ndarray | None, Y: np.ndarray | None,
-                      u_prev: np.ndarray, omega_ref: np.ndarray, out: np.ndarray) -> None:
+    def from_readings(
+        self,
+        theta_u: np.ndarray,
+        theta_l: np.ndarray,
+        X: np.ndarray | None,
+        Y: np.ndarray | None,
+        u_prev: np.ndarray,
+        omega_ref: np.ndarray,
+        out: np.ndarray,
+    ) -> None:
         """Observation from one period's readings; updates the speed estimators (call once per period).
 
         Parameters
@@ -374,8 +410,18 @@ class SensorObservation(ObservationModel):
             X, Y = _rows(X, n, "X"), _rows(Y, n, "Y")
         else:
             X, Y = theta_u, theta_l
-        ok.sensors_rows(theta_u, theta_l, X, Y, _rows(u_prev, n, "u_prev"), _rows(omega_ref, n, "omega_ref"),
-                        self.E, self.cv, True, out)
+        ok.sensors_rows(
+            theta_u,
+            theta_l,
+            X,
+            Y,
+            _rows(u_prev, n, "u_prev"),
+            _rows(omega_ref, n, "omega_ref"),
+            self.E,
+            self.cv,
+            True,
+            out,
+        )
 
 
 class MotorObservation(ObservationModel):
@@ -399,8 +445,9 @@ class MotorObservation(ObservationModel):
 
     mode = "motor"
 
-    def __init__(self, n: int, options: EnvOptions, sensors: SimulatedSensors | None = None,
-                 params: np.ndarray | None = None) -> None:
+    def __init__(
+        self, n: int, options: EnvOptions, sensors: SimulatedSensors | None = None, params: np.ndarray | None = None
+    ) -> None:
         super().__init__(n, options)
         o = options
         self.H = o.motor_history
@@ -434,8 +481,7 @@ class MotorObservation(ObservationModel):
             fn = self._observe_fn = self.sensors.kernel.motor_observe
         fn(Y, self.sensors.P, u_prev, omega_ref, self.E, self.hist, self.cv, out)
 
-    def from_readings(self, theta_u: np.ndarray, u_prev: np.ndarray, omega_ref: np.ndarray,
-                      out: np.ndarray) -> None:
+    def from_readings(self, theta_u: np.ndarray, u_prev: np.ndarray, omega_ref: np.ndarray, out: np.ndarray) -> None:
         """Observation from one period's motor encoder reading (call once per control period).
 
         Parameters
@@ -450,8 +496,16 @@ class MotorObservation(ObservationModel):
             The (n, dim) float32 observation array, written in place.
         """
         n = self._check_out(out)
-        ok.motor_rows(_rows(theta_u, n, "theta_u"), _rows(u_prev, n, "u_prev"), _rows(omega_ref, n, "omega_ref"),
-                      self.E, self.hist, self.cv, True, out)
+        ok.motor_rows(
+            _rows(theta_u, n, "theta_u"),
+            _rows(u_prev, n, "u_prev"),
+            _rows(omega_ref, n, "omega_ref"),
+            self.E,
+            self.hist,
+            self.cv,
+            True,
+            out,
+        )
 
 
 def _rows(x, n: int, name: str) -> np.ndarray:

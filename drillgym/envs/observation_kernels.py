@@ -27,8 +27,19 @@ from numba import njit
 
 from ..measurement import encoder_reading, filtered_speed
 
-__all__ = ["MM", "rotate", "wrap_angle", "rotate_compiled", "encoder_compiled", "sensor_constants",
-           "motor_constants", "sensor_row", "sensors_rows", "motor_row", "motor_rows"]
+__all__ = [
+    "MM",
+    "rotate",
+    "wrap_angle",
+    "rotate_compiled",
+    "encoder_compiled",
+    "sensor_constants",
+    "motor_constants",
+    "sensor_row",
+    "sensors_rows",
+    "motor_row",
+    "motor_rows",
+]
 
 MM = 1e3  # m -> mm
 
@@ -56,8 +67,9 @@ encoder_compiled = njit(cache=True)(encoder_reading)
 _speed = njit(cache=True)(filtered_speed)
 
 
-def sensor_constants(lateral: bool, counts_per_rev: int, a: float, dt: float, noise_std: float,
-                     low: np.ndarray, high: np.ndarray) -> np.ndarray:
+def sensor_constants(
+    lateral: bool, counts_per_rev: int, a: float, dt: float, noise_std: float, low: np.ndarray, high: np.ndarray
+) -> np.ndarray:
     """The ``cv`` vector of the sensors kernels (SC_* layout; noise in m, dt in s)."""
     head = [float(lateral), counts_per_rev, a, dt, noise_std]
     return np.concatenate([np.asarray(head, dtype=float), low, high]).astype(float)

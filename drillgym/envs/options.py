@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
-from typing import Any, Optional
+from typing import Any
 
 from ..configurations import Configuration, parse_configuration
 from ..errors import InputError
@@ -47,10 +47,10 @@ class RewardWeights:
         Weight of ``((u - u_prev) / 5 V)^2``.  Default 0.05.
     """
 
-    track: float = 1.0     # |omega_l - omega_ref| / omega_ref
-    stick: float = 0.5     # lower disc stuck at the end of the control period
-    effort: float = 0.01   # (u / 5 V)^2
-    rate: float = 0.05     # ((u - u_prev) / 5 V)^2
+    track: float = 1.0  # |omega_l - omega_ref| / omega_ref
+    stick: float = 0.5  # lower disc stuck at the end of the control period
+    effort: float = 0.01  # (u / 5 V)^2
+    rate: float = 0.05  # ((u - u_prev) / 5 V)^2
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -65,8 +65,9 @@ def _range(name: str, value: Any, lo: float = -math.inf, positive: bool = False)
     except (TypeError, ValueError):
         raise InputError(f"option {name!r} must be a pair (low, high), got {value!r}") from None
     if not (math.isfinite(a) and math.isfinite(b) and a <= b and a >= lo and (not positive or a > 0)):
-        raise InputError(f"option {name!r} must be a finite pair low <= high"
-                         f"{' with low > 0' if positive else ''}, got {value!r}")
+        raise InputError(
+            f"option {name!r} must be a finite pair low <= high{' with low > 0' if positive else ''}, got {value!r}"
+        )
     return a, b
 
 
@@ -138,17 +139,17 @@ class EnvOptions:
 
     configuration: str = "torsional"
     observation: str = "full"
-    params: Optional[RigParams] = None
+    params: RigParams | None = None
     randomize: float = 0.0
     randomize_names: tuple = BASE_PARAMETERS
     effects: Any = None
     effect_params: Any = None
     control_dt: float = 0.01
-    dt: Optional[float] = None
+    dt: float | None = None
     method: str = "rk4"
     friction: str = "exact"
     normalize_action: bool = False
-    omega_ref: Optional[float] = None
+    omega_ref: float | None = None
     omega_ref_range: tuple = (1.0, 8.0)
     alpha0_range: tuple = (-1.0, 1.0)
     episode_duration: float = 30.0
@@ -165,8 +166,9 @@ class EnvOptions:
     def __post_init__(self) -> None:
         cfg = parse_configuration(self.configuration)
         if cfg not in _ENV_CONFIGURATIONS:
-            raise InputError(f"option 'configuration' must be torsional, lateral or coupled, "
-                             f"got {self.configuration!r}")
+            raise InputError(
+                f"option 'configuration' must be torsional, lateral or coupled, got {self.configuration!r}"
+            )
         object.__setattr__(self, "configuration", cfg.label)
         if self.observation not in OBSERVATION_MODES:
             raise InputError(f"option 'observation' must be one of {OBSERVATION_MODES}, got {self.observation!r}")
@@ -212,8 +214,9 @@ class EnvOptions:
             raise InputError(f"option 'reward' must be RewardWeights or a dict, got {self.reward!r}")
         self._positive("ssi_window", self.ssi_window)
         if not (isinstance(self.counts_per_rev, int) and self.counts_per_rev >= 0):
-            raise InputError(f"option 'counts_per_rev' must be an integer >= 0 (0 = exact), "
-                             f"got {self.counts_per_rev!r}")
+            raise InputError(
+                f"option 'counts_per_rev' must be an integer >= 0 (0 = exact), got {self.counts_per_rev!r}"
+            )
         if not (math.isfinite(self.lvdt_noise_std) and self.lvdt_noise_std >= 0):
             raise InputError(f"option 'lvdt_noise_std' must be >= 0 m, got {self.lvdt_noise_std!r}")
         if not (math.isfinite(self.velocity_filter_tau) and self.velocity_filter_tau >= 0):
@@ -250,7 +253,7 @@ class EnvOptions:
         return self.params if self.params is not None else RigParams()
 
     @classmethod
-    def from_kwargs(cls, **kwargs: Any) -> "EnvOptions":
+    def from_kwargs(cls, **kwargs: Any) -> EnvOptions:
         """Options from keyword arguments.
 
         Parameters

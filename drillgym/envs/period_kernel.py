@@ -12,8 +12,26 @@ from __future__ import annotations
 from numba import njit
 
 from drillgym.envs.columns import (
-    C_REF, C_REW, C_SSI, C_STEPS, C_STUCK, C_TERM, C_TFL, C_TIME, C_TRUNC, C_U, C_WL, T_BLOCK, T_BOUNDS, T_DT, T_FULL,
-    T_LAT, T_LATERAL, T_SPEED, T_STEPS, T_W,
+    C_REF,
+    C_REW,
+    C_SSI,
+    C_STEPS,
+    C_STUCK,
+    C_TERM,
+    C_TFL,
+    C_TIME,
+    C_TRUNC,
+    C_U,
+    C_WL,
+    T_BLOCK,
+    T_BOUNDS,
+    T_DT,
+    T_FULL,
+    T_LAT,
+    T_LATERAL,
+    T_SPEED,
+    T_STEPS,
+    T_W,
 )
 from drillgym.envs.observation import full_obs_row
 from drillgym.envs.reward import reward_value
@@ -22,19 +40,20 @@ from drillgym.kernels.stepping import advance_batch
 
 __all__ = ["period_kernel"]
 
+
 @njit(cache=True)
 def period_kernel(Y, MODE, u, P, cfg, dt, n_sub, T, eps, A, b, c, FRIC, HIST, HEAD, S, W, C, tv, OBS):
     """One control period of every rig: the core's advance_batch, then per rig reward, SSI,
     limits, episode length and (full mode) the observation.  S: (n, len(S_COLUMNS)); W, C: the
     StickSlipMonitor arrays; tv: task constants (T_* layout, observation bounds at the end)."""
     advance_batch(Y, MODE, u, P, cfg, dt, n_sub, T, eps, A, b, c, FRIC, HIST, HEAD)
-    rw = tv[T_W:T_W + 4]
+    rw = tv[T_W : T_W + 4]
     lateral = tv[T_LATERAL] > 0.0
     block_len = int(tv[T_BLOCK])
     full_obs = tv[T_FULL] > 0.0
     dim = OBS.shape[1]
-    low = tv[T_BOUNDS:T_BOUNDS + dim]
-    high = tv[T_BOUNDS + dim:T_BOUNDS + 2 * dim]
+    low = tv[T_BOUNDS : T_BOUNDS + dim]
+    high = tv[T_BOUNDS + dim : T_BOUNDS + 2 * dim]
     for k in range(Y.shape[0]):
         y = Y[k]
         Sk = S[k]

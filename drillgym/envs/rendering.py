@@ -31,8 +31,9 @@ def can_show_windows(backend: str) -> bool:
 class RigRenderer:
     """Draws a rig state; ``record`` keeps the last ``history`` seconds for the strip chart."""
 
-    def __init__(self, mode: str, history: float, control_dt: float, lateral: bool, size: tuple = (6.4, 3.2),
-                 dpi: int = 80) -> None:
+    def __init__(
+        self, mode: str, history: float, control_dt: float, lateral: bool, size: tuple = (6.4, 3.2), dpi: int = 80
+    ) -> None:
         if mode not in ("human", "rgb_array"):
             raise InputError(f"render_mode must be 'human' or 'rgb_array', got {mode!r}")
         self.mode, self.lateral = mode, lateral
@@ -58,9 +59,13 @@ class RigRenderer:
 
                 backend = plt.get_backend()
                 if not can_show_windows(backend):
-                    warnings.warn(f"render_mode='human' but matplotlib's backend {backend!r} cannot open a window "
-                                  f"(no display?): nothing is shown; use render_mode='rgb_array' (frames as arrays, "
-                                  f"e.g. for gymnasium.wrappers.RecordVideo) or a display", UserWarning, stacklevel=2)
+                    warnings.warn(
+                        f"render_mode='human' but matplotlib's backend {backend!r} cannot open a window "
+                        f"(no display?): nothing is shown; use render_mode='rgb_array' (frames as arrays, "
+                        f"e.g. for gymnasium.wrappers.RecordVideo) or a display",
+                        UserWarning,
+                        stacklevel=2,
+                    )
                 plt.ion()
                 self._fig = plt.figure(figsize=self._size, dpi=self._dpi)
             else:

@@ -51,8 +51,9 @@ class TrackingReward:
         self.weights = weights
         self.w = np.array([weights.track, weights.stick, weights.effort, weights.rate])
 
-    def __call__(self, Y: np.ndarray, MODE: np.ndarray, u: np.ndarray, u_prev: np.ndarray,
-                 omega_ref: np.ndarray, out: np.ndarray) -> None:
+    def __call__(
+        self, Y: np.ndarray, MODE: np.ndarray, u: np.ndarray, u_prev: np.ndarray, omega_ref: np.ndarray, out: np.ndarray
+    ) -> None:
         """Write the rewards of all rigs into ``out`` (n,): states ``Y`` (n, n_state), friction modes
         ``MODE`` (n, 2), voltages ``u``, ``u_prev`` (V), targets ``omega_ref`` (rad/s)."""
         _reward_kernel(Y, MODE, u, u_prev, omega_ref, self.w, out)

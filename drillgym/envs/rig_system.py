@@ -9,7 +9,7 @@ action once) and per-episode domain randomisation of the parameters.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -36,7 +36,7 @@ class ParameterRandomizer:
     def active(self) -> bool:
         return self.fraction > 0 and self.index.size > 0
 
-    def sample(self, rng: np.random.Generator, omega_ref: "float | None" = None) -> np.ndarray:
+    def sample(self, rng: np.random.Generator, omega_ref: float | None = None) -> np.ndarray:
         """One parameter vector (the composition's kernel layout); ``omega_ref`` (rad/s, the episode's
         target, drawn first) is not used here: a randomizer may draw its rig depending on it."""
         p = self.base.copy()
@@ -71,11 +71,29 @@ class RigSystem:
         Effects of every rig and their parameter values, as :class:`drillgym.BatchSimulator`.
     """
 
-    def __init__(self, configuration: str, n: int, *, params: RigParams | None = None, dt: float = 1e-2,
-                 n_substeps: int = 1, method: str = "rk4", friction: str = "exact", effects=None,
-                 effect_params=None) -> None:
-        self.sim = BatchSimulator(configuration, n, params=params, dt=dt, method=method, friction=friction,
-                                  effects=effects, effect_params=effect_params)
+    def __init__(
+        self,
+        configuration: str,
+        n: int,
+        *,
+        params: RigParams | None = None,
+        dt: float = 1e-2,
+        n_substeps: int = 1,
+        method: str = "rk4",
+        friction: str = "exact",
+        effects=None,
+        effect_params=None,
+    ) -> None:
+        self.sim = BatchSimulator(
+            configuration,
+            n,
+            params=params,
+            dt=dt,
+            method=method,
+            friction=friction,
+            effects=effects,
+            effect_params=effect_params,
+        )
         self.composition = self.sim.composition
         self._advance = self.sim.kernels.stepping.advance_batch
         self.n = self.sim.n
@@ -114,8 +132,23 @@ class RigSystem:
         s = self.sim
         _, _, _, _, cfg, dt, _, _, eps, A, b, c, _, _, _ = self._args
         Y, MODE, FRIC = s.Y[index].copy(), s.MODE[index].copy(), s.FRIC[index].copy()
-        self._advance(Y, MODE, self.u[index], s.P[index], cfg, dt, 0, s.T[index].copy(), eps, A, b, c, FRIC,
-                      s.HIST[index].copy(), s.HEAD[index].copy())
+        self._advance(
+            Y,
+            MODE,
+            self.u[index],
+            s.P[index],
+            cfg,
+            dt,
+            0,
+            s.T[index].copy(),
+            eps,
+            A,
+            b,
+            c,
+            FRIC,
+            s.HIST[index].copy(),
+            s.HEAD[index].copy(),
+        )
         s.FRIC[index] = FRIC
 
     # ------------------------------------------------------------------------ views

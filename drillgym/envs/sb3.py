@@ -13,7 +13,8 @@ the adapter therefore drives the vector env in Gymnasium's ``SAME_STEP`` autores
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from gymnasium.vector import AutoresetMode
@@ -32,8 +33,9 @@ class SB3VecEnvAdapter(VecEnv):
         if not isinstance(venv, DrillVectorEnv):
             raise InputTypeError(f"SB3VecEnvAdapter wraps a DrillVectorEnv, got {type(venv).__name__}")
         if venv.autoreset_mode is not AutoresetMode.SAME_STEP:
-            raise InputError("SB3VecEnvAdapter needs a DrillVectorEnv with autoreset_mode=AutoresetMode.SAME_STEP "
-                             "(use make_sb3_vec)")
+            raise InputError(
+                "SB3VecEnvAdapter needs a DrillVectorEnv with autoreset_mode=AutoresetMode.SAME_STEP (use make_sb3_vec)"
+            )
         self.venv = venv
         self._actions: np.ndarray | None = None
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
@@ -101,5 +103,6 @@ def make_sb3_vec(env_id: str, num_envs: int, **options: Any) -> SB3VecEnvAdapter
     options = {**REGISTERED_DEFAULTS, **options}
     if env_id not in ENV_IDS:
         raise InputError(f"unknown drillgym environment {env_id!r}; expected one of {sorted(ENV_IDS)}")
-    return SB3VecEnvAdapter(DrillVectorEnv(num_envs, ENV_IDS[env_id], autoreset_mode=AutoresetMode.SAME_STEP,
-                                           **options))
+    return SB3VecEnvAdapter(
+        DrillVectorEnv(num_envs, ENV_IDS[env_id], autoreset_mode=AutoresetMode.SAME_STEP, **options)
+    )

@@ -15,7 +15,14 @@ import numpy as np
 from numba import njit
 
 from drillgym.envs.observation_kernels import (
-    MC_CPR, SC_CPR, SC_LATERAL, SC_NOISE, encoder_compiled, motor_row, rotate_compiled, sensor_row,
+    MC_CPR,
+    SC_CPR,
+    SC_LATERAL,
+    SC_NOISE,
+    encoder_compiled,
+    motor_row,
+    rotate_compiled,
+    sensor_row,
 )
 from drillgym.kernels.hooks import hk_measure
 

@@ -15,7 +15,8 @@ single env reset with seed s + i (exactly: same code path, per-rig random stream
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from gymnasium.utils import seeding
@@ -59,8 +60,15 @@ class DrillVectorEnv(VectorEnv):
 
     metadata = {"render_modes": ["rgb_array"], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, num_envs: int, configuration: str = "torsional", *, render_mode: str | None = None,
-                 autoreset_mode: "AutoresetMode | str" = AutoresetMode.NEXT_STEP, **options: Any) -> None:
+    def __init__(
+        self,
+        num_envs: int,
+        configuration: str = "torsional",
+        *,
+        render_mode: str | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        **options: Any,
+    ) -> None:
         if not (isinstance(num_envs, (int, np.integer)) and num_envs >= 1):
             raise InputError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         mode = AutoresetMode(autoreset_mode)
@@ -78,8 +86,11 @@ class DrillVectorEnv(VectorEnv):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise InputError(f"render_mode must be 'rgb_array' or None for the vector env, got {render_mode!r}")
         self.render_mode = render_mode
-        self._renderer = (RigRenderer(render_mode, self.options.render_history, self.options.control_dt,
-                                      self.options.lateral) if render_mode else None)
+        self._renderer = (
+            RigRenderer(render_mode, self.options.render_history, self.options.control_dt, self.options.lateral)
+            if render_mode
+            else None
+        )
         self._scale = U_MAX if self.options.normalize_action else 1.0
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._mask = np.ones(self.num_envs, dtype=bool)
@@ -90,8 +101,9 @@ class DrillVectorEnv(VectorEnv):
         return self.batch.obs_model.names
 
     # ------------------------------------------------------------------------
-    def reset(self, *, seed: "int | Sequence[int | None] | None" = None,
-              options: dict | None = None) -> tuple[np.ndarray, dict]:
+    def reset(
+        self, *, seed: int | Sequence[int | None] | None = None, options: dict | None = None
+    ) -> tuple[np.ndarray, dict]:
         """Start an episode on every rig.
 
         Parameters
@@ -151,8 +163,10 @@ class DrillVectorEnv(VectorEnv):
         """
         a = np.asarray(actions, dtype=np.float64)
         if a.size != self.num_envs:
-            raise InputError(f"actions must hold {self.num_envs} voltages (shape ({self.num_envs},) or "
-                             f"({self.num_envs}, 1)), got shape {a.shape}")
+            raise InputError(
+                f"actions must hold {self.num_envs} voltages (shape ({self.num_envs},) or "
+                f"({self.num_envs}, 1)), got shape {a.shape}"
+            )
         a = a.reshape(self.num_envs)
         if not np.isfinite(a).all():
             bad = int(np.flatnonzero(~np.isfinite(a))[0])
@@ -181,8 +195,7 @@ class DrillVectorEnv(VectorEnv):
                 term, trunc, rew = b.terminated, b.truncated, b.reward.copy()
                 b.reset(done)
                 infos = self._infos()
-                infos.update(final_obs=final_obs, _final_obs=final_mask, final_info=final_info,
-                             _final_info=final_mask)
+                infos.update(final_obs=final_obs, _final_obs=final_mask, final_info=final_info, _final_info=final_mask)
                 obs = b.obs.copy()
                 self._after_step()
                 return obs, rew, term, trunc, infos
@@ -209,8 +222,14 @@ class DrillVectorEnv(VectorEnv):
             return None
         s = self.batch.system
         X, Y = s.lateral_fixed
-        return self._renderer.draw(float(s.theta_u[0]), float(s.theta_l[0]), float(X[0]), float(Y[0]),
-                                   float(self.batch.omega_ref[0]), bool(s.stuck_l[0]))
+        return self._renderer.draw(
+            float(s.theta_u[0]),
+            float(s.theta_l[0]),
+            float(X[0]),
+            float(Y[0]),
+            float(self.batch.omega_ref[0]),
+            bool(s.stuck_l[0]),
+        )
 
     def close_extras(self, **kwargs: Any) -> None:
         if self._renderer is not None:

@@ -52,5 +52,7 @@ Measurement
     hk_measure(theta_u, theta_l, X, Y, p) -> (theta_u, theta_l, X, Y) as the sensors read them
 """
 
-raise ImportError("drillgym.kernels.hooks is the interface description; kernels are built per composition "
-                  "by drillgym.effects.codegen (use drillgym.effects.compose(...).kernels)")
+raise ImportError(
+    "drillgym.kernels.hooks is the interface description; kernels are built per composition "
+    "by drillgym.effects.codegen (use drillgym.effects.compose(...).kernels)"
+)

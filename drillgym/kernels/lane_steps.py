@@ -94,10 +94,25 @@ def lane_effects(thu_, thl_, wu_, wl_, x_, y_, vx_, vy_, Y, nm, MU, ML, U, PT, T
     Ts, Tc, ws, delta, bb = PT[_Ts], PT[_Tc], PT[_ws], PT[_delta], PT[_bb]
     TFU, TFL = E[_TFU], E[_TFL]
     for k in range(thu_.shape[0]):
-        TFU[k], TFL[k] = _base_laws(wu_[k], wl_[k], MU[k], ML[k], brake, Tcu[k], dTcu[k], bu[k], dbu[k], Tcl[k],
-                                    bl[k], Ts[k], Tc[k], ws[k], delta[k], bb[k])
-    hk_effects_lane(thu_, thl_, wu_, wl_, x_, y_, vx_, vy_, Y, nm, MU, ML, U, PT, TT, tc, cfg,
-                    1.0 if brake else 0.0, E)
+        TFU[k], TFL[k] = _base_laws(
+            wu_[k],
+            wl_[k],
+            MU[k],
+            ML[k],
+            brake,
+            Tcu[k],
+            dTcu[k],
+            bu[k],
+            dbu[k],
+            Tcl[k],
+            bl[k],
+            Ts[k],
+            Tc[k],
+            ws[k],
+            delta[k],
+            bb[k],
+        )
+    hk_effects_lane(thu_, thl_, wu_, wl_, x_, y_, vx_, vy_, Y, nm, MU, ML, U, PT, TT, tc, cfg, 1.0 if brake else 0.0, E)
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
@@ -129,8 +144,9 @@ def derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR, TT, tc, cfg, E):
             mu = MU[k]
             ml = ML[k]
             string = string_on * (kth[k] * (thl_[k] - thu_[k]) + QS[k])
-            a_u, a_l, fu, fl = reduced_accelerations(km[k] * VOLT[k] + QU[k], string, string_on * QL[k], TFU[k],
-                                                     TFL[k], Ju[k], Jl[k], mu != 0.0, ml != 0.0)
+            a_u, a_l, fu, fl = reduced_accelerations(
+                km[k] * VOLT[k] + QU[k], string, string_on * QL[k], TFU[k], TFL[k], Ju[k], Jl[k], mu != 0.0, ml != 0.0
+            )
             K2[k] = a_u
             K3[k] = a_l
             FR0[k] = fu
@@ -141,21 +157,37 @@ def derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR, TT, tc, cfg, E):
         for k in range(thu_.shape[0]):
             mu = MU[k]
             ml = ML[k]
-            tfu, tfl = _base_laws(wu_[k], wl_[k], mu, ml, brake, Tcu[k], dTcu[k], bu[k], dbu[k], Tcl[k], bl[k], Ts[k],
-                                  Tc[k], ws[k], delta[k], bb[k])
+            tfu, tfl = _base_laws(
+                wu_[k],
+                wl_[k],
+                mu,
+                ml,
+                brake,
+                Tcu[k],
+                dTcu[k],
+                bu[k],
+                dbu[k],
+                Tcl[k],
+                bl[k],
+                Ts[k],
+                Tc[k],
+                ws[k],
+                delta[k],
+                bb[k],
+            )
             tfu = tfu if mu != 0.0 else 0.0
             tfl = tfl if ml != 0.0 else 0.0
             string = string_on * kth[k] * (thl_[k] - thu_[k])
-            a_u, a_l, fu, fl = reduced_accelerations(km[k] * U[k], string, 0.0, tfu, tfl, Ju[k], Jl[k], mu != 0.0,
-                                                     ml != 0.0)
+            a_u, a_l, fu, fl = reduced_accelerations(
+                km[k] * U[k], string, 0.0, tfu, tfl, Ju[k], Jl[k], mu != 0.0, ml != 0.0
+            )
             K2[k] = a_u
             K3[k] = a_l
             FR0[k] = fu
             FR1[k] = fl
     if N_STATE > 8:
         for k in range(thu_.shape[0]):
-            hk_states_lane(k, TT[k] + tc, U[k], thu_[k], thl_[k], wu_[k], wl_[k], 0.0, 0.0, 0.0, 0.0, Y, 4, PT, cfg,
-                           K)
+            hk_states_lane(k, TT[k] + tc, U[k], thu_[k], thl_[k], wu_[k], wl_[k], 0.0, 0.0, 0.0, 0.0, Y, 4, PT, cfg, K)
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
@@ -189,9 +221,30 @@ def derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg, E):
         s, c = vsincos(alpha)
         string = kth[k] * alpha + QS[k]
         Qu, Qx, Qy = isotropic_lateral_forces(x, yy, vx, vy, W, k_[k], b_[k])
-        a_u, a_l, _, _, _, fl = full_accelerations(x, yy, vx, vy, W, wl, s, c, mr[k] + mt[k], e_[k] * mr[k],
-                                                   Ju[k], Jl[k], km[k] * VOLT[k] + QU[k], string, QL[k], TFU[k],
-                                                   TFL[k], Qu, Qx + QX[k], Qy + QY[k], mu != 0.0, ml != 0.0)
+        a_u, a_l, _, _, _, fl = full_accelerations(
+            x,
+            yy,
+            vx,
+            vy,
+            W,
+            wl,
+            s,
+            c,
+            mr[k] + mt[k],
+            e_[k] * mr[k],
+            Ju[k],
+            Jl[k],
+            km[k] * VOLT[k] + QU[k],
+            string,
+            QL[k],
+            TFU[k],
+            TFL[k],
+            Qu,
+            Qx + QX[k],
+            Qy + QY[k],
+            mu != 0.0,
+            ml != 0.0,
+        )
         K4[k] = a_u
         K5[k] = a_l
         FR1[k] = fl
@@ -213,9 +266,30 @@ def derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg, E):
         m = mr[k] + mt[k]
         P = e_[k] * mr[k]
         # g0 and s01 do not depend on the lower friction torque (0.0 here); g1 is not used
-        _, s01, _, g0, _, F2, F3 = coupled_system(x, yy, vx, vy, W, wl, s, c, m, P, Ju[k], Jl[k],
-                                                  km[k] * VOLT[k] + QU[k], string, QL[k], tfu, 0.0, Qu, Qx + QX[k],
-                                                  Qy + QY[k], mu != 0.0, ML[k] != 0.0)
+        _, s01, _, g0, _, F2, F3 = coupled_system(
+            x,
+            yy,
+            vx,
+            vy,
+            W,
+            wl,
+            s,
+            c,
+            m,
+            P,
+            Ju[k],
+            Jl[k],
+            km[k] * VOLT[k] + QU[k],
+            string,
+            QL[k],
+            tfu,
+            0.0,
+            Qu,
+            Qx + QX[k],
+            Qy + QY[k],
+            mu != 0.0,
+            ML[k] != 0.0,
+        )
         a_u = K4[k]
         a_l = K5[k]
         a_x, a_y = lateral_accelerations(x, yy, s, c, m, P, F2, F3, a_u, a_l)
@@ -224,8 +298,9 @@ def derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg, E):
         FR0[k] = tfu if mu != 0.0 else g0 - s01 * a_l
     if N_STATE > 8:
         for k in range(thu_.shape[0]):
-            hk_states_lane(k, TT[k] + tc, U[k], thu_[k], thl_[k], wu_[k], wl_[k], x_[k], y_[k], vx_[k], vy_[k], Y, 8,
-                           PT, cfg, K)
+            hk_states_lane(
+                k, TT[k] + tc, U[k], thu_[k], thl_[k], wu_[k], wl_[k], x_[k], y_[k], vx_[k], vy_[k], Y, 8, PT, cfg, K
+            )
 
 
 @njit(inline="always")
@@ -244,12 +319,29 @@ def lag_exact(S0, Yo, U, PT, TT, h, full, cfg):
     nm = 8 if full else 4
     for k in range(S0.shape[1]):
         if full:
-            hk_lag_lane(k, TT[k], U[k], S0[0, k], S0[1, k], S0[4, k], S0[5, k], S0[2, k], S0[3, k], S0[6, k],
-                        S0[7, k], S0, nm, PT, cfg, h, Yo)
+            hk_lag_lane(
+                k,
+                TT[k],
+                U[k],
+                S0[0, k],
+                S0[1, k],
+                S0[4, k],
+                S0[5, k],
+                S0[2, k],
+                S0[3, k],
+                S0[6, k],
+                S0[7, k],
+                S0,
+                nm,
+                PT,
+                cfg,
+                h,
+                Yo,
+            )
         else:
-            hk_lag_lane(k, TT[k], U[k], S0[0, k], S0[1, k], S0[2, k], S0[3, k], 0.0, 0.0, 0.0, 0.0, S0, nm, PT, cfg,
-                        h, Yo)
-
+            hk_lag_lane(
+                k, TT[k], U[k], S0[0, k], S0[1, k], S0[2, k], S0[3, k], 0.0, 0.0, 0.0, 0.0, S0, nm, PT, cfg, h, Yo
+            )
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
@@ -313,9 +405,9 @@ def lanes_rk4(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibratio
     hv = nm // 2  # first velocity row
     copy_rows(S, S0)
     Y = W[0:n]
-    K2 = W[n:2 * n]
-    K3 = W[2 * n:3 * n]
-    K4 = W[3 * n:4 * n]
+    K2 = W[n : 2 * n]
+    K3 = W[2 * n : 3 * n]
+    K4 = W[3 * n : 4 * n]
     axpy(S0, 0.5 * h, K1, Y)
     if HAS_LAG:
         lag_exact(S0, Y, U, PT, TT, 0.5 * h, full, cfg)
@@ -364,8 +456,7 @@ def stage_sum(S0, K1, W, coef, m, h, out):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
-def lanes_erk(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibration, S0, OK, W, TT, cfg, E, A, b,
-               c):
+def lanes_erk(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibration, S0, OK, W, TT, cfg, E, A, b, c):
     """One step of an explicit Runge-Kutta tableau (e.g. DP5) of every lane.
 
     The contract of :func:`lanes_rk4`, the stages summed as the scalar kernel's general Butcher
@@ -380,7 +471,7 @@ def lanes_erk(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibratio
         stage_sum(S0, K1, W, A[i], i, h, Y)
         if HAS_LAG:
             lag_exact(S0, Y, U, PT, TT, c[i] * h, full, cfg)
-        lane_derivative(Y, MU, ML, U, PT, full, string_on, brake, W[i * n:(i + 1) * n], FR, TT, c[i] * h, cfg, E)
+        lane_derivative(Y, MU, ML, U, PT, full, string_on, brake, W[i * n : (i + 1) * n], FR, TT, c[i] * h, cfg, E)
     stage_sum(S0, K1, W, b, s, h, S)
     if HAS_LAG:
         lag_exact(S0, S, U, PT, TT, h, full, cfg)
@@ -412,8 +503,9 @@ def event_check(S, FR, MU, ML, PT, full, string_on, brake, free_vibration, OK, T
         mu = MU[k]
         ml = ML[k]
         # both branches computed, then selected: branch-free, so the loop vectorises
-        lo_u, hi_u = hk_bounds_u_lane(-Tcu[k] + dTcu[k], Tcu[k] + dTcu[k], k, t, thu, thl, wu, wl, x, yy, vx, vy, S,
-                                      nm, PT, 0.0)
+        lo_u, hi_u = hk_bounds_u_lane(
+            -Tcu[k] + dTcu[k], Tcu[k] + dTcu[k], k, t, thu, thl, wu, wl, x, yy, vx, vy, S, nm, PT, 0.0
+        )
         gu = mu * wu if mu != 0.0 else min(hi_u - fu, fu - lo_u)
         gu = 1.0 if free_vibration else gu
         lim = Ts[k] if brake else Tcl[k]

@@ -204,8 +204,27 @@ def _lane_delay_step(HIST, HEAD, k, u, m):
 
 
 @njit(cache=True, nogil=True)
-def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, FRIC_OUT, HIST, HEAD, A, b, c,
-              COLS=None, USTEP=None):
+def lanes_run(
+    Y,
+    MODE,
+    U,
+    P,
+    cfg,
+    dt,
+    T0,
+    rec_every,
+    OUT,
+    n_steps,
+    init_modes,
+    FRIC_OUT,
+    HIST,
+    HEAD,
+    A,
+    b,
+    c,
+    COLS=None,
+    USTEP=None,
+):
     """Run a batch on lanes, with exact friction and a fixed-step tableau.
 
     The contract of ``stepping.run_batch_serial``, plus the final friction torques. Classical RK4
@@ -285,7 +304,7 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
         for j in range(2):
             mode[j] = MODE[k, j]
         c0 = command_col(n_u, 0, USTEP, 0)[0]
-        u0 = delay_line_step(HIST[k], HEAD[k:k + 1], U[k, c0], P[k], dt)
+        u0 = delay_line_step(HIST[k], HEAD[k : k + 1], U[k, c0], P[k], dt)
         if HAS_LAG:  # lag states not given: the first command held before the start, as the delay line
             hk_lag_start(T0[k], u0, y, P[k], cfg)
         if init_modes:
@@ -338,8 +357,7 @@ def lanes_run(Y, MODE, U, P, cfg, dt, T0, rec_every, OUT, n_steps, init_modes, F
                 mode[1] = np.int64(ML[k])
                 t = TT[k]
                 resolve_modes(t, y, mode, Ucur[k], P[k], cfg, k1, fric)
-                hybrid_step(t, y, k1, fric, mode, Ucur[k], P[k], cfg, 0.0, dt, A, b, c, K, ytmp, ynew,
-                            g0, g1, ftmp)
+                hybrid_step(t, y, k1, fric, mode, Ucur[k], P[k], cfg, 0.0, dt, A, b, c, K, ytmp, ynew, g0, g1, ftmp)
                 _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
         if record_on and (i + 1) % rec_every == 0:
             row = (i + 1) // rec_every

@@ -20,12 +20,30 @@ import numpy as np
 from numba import njit
 
 from drillgym.dynamics import (
-    FREE_VIBRATION, S_TL, S_TU, S_VX, S_VY, S_WL, S_WU, S_X, S_Y, UPPER, brake_on, full_accelerations,
-    isotropic_lateral_forces, lateral_free, reduced_accelerations,
+    FREE_VIBRATION,
+    S_TL,
+    S_TU,
+    S_VX,
+    S_VY,
+    S_WL,
+    S_WU,
+    S_X,
+    S_Y,
+    UPPER,
+    brake_on,
+    full_accelerations,
+    isotropic_lateral_forces,
+    lateral_free,
+    reduced_accelerations,
 )
 from drillgym.friction import bearing_law, brake_law, upper_law
 from drillgym.kernels.hooks import (
-    N_STATE, hk_bounds_l, hk_bounds_u, hk_rhs, hk_slip_l, hk_slip_u,
+    N_STATE,
+    hk_bounds_l,
+    hk_bounds_u,
+    hk_rhs,
+    hk_slip_l,
+    hk_slip_u,
 )
 from drillgym.params import IDX
 
@@ -90,8 +108,11 @@ def state_derivative(t, y, mode, u, p, cfg, smooth_eps, dy, fric):
         su = math.tanh(wu / smooth_eps)
         sl = math.tanh(wl / smooth_eps)
         tfu = su * upper_slip_torque(wu, 1.0, t, y, p) if su >= 0 else -su * upper_slip_torque(wu, -1.0, t, y, p)
-        tfl = sl * lower_slip_torque(wl, 1.0, t, y, p, brake) if sl >= 0 else \
-            -sl * lower_slip_torque(wl, -1.0, t, y, p, brake)
+        tfl = (
+            sl * lower_slip_torque(wl, 1.0, t, y, p, brake)
+            if sl >= 0
+            else -sl * lower_slip_torque(wl, -1.0, t, y, p, brake)
+        )
         mu = 2  # "slipping, torque given"
         ml = 2
     else:
@@ -130,9 +151,30 @@ def state_derivative(t, y, mode, u, p, cfg, smooth_eps, dy, fric):
     Qu, Qx, Qy = isotropic_lateral_forces(x, yy, vx, vy, wu, p[_k], p[_b])
     s = math.sin(alpha)
     c = math.cos(alpha)
-    a_u, a_l, a_x, a_y, fu, fl = full_accelerations(x, yy, vx, vy, wu, wl, s, c, p[_mr] + p[_mt], p[_e] * p[_mr],
-                                                    p[_Ju], p[_Jl], torque, string, Qe_l, tfu, tfl, Qu,
-                                                    Qx + Qe_x, Qy + Qe_y, mu != 0, ml != 0)
+    a_u, a_l, a_x, a_y, fu, fl = full_accelerations(
+        x,
+        yy,
+        vx,
+        vy,
+        wu,
+        wl,
+        s,
+        c,
+        p[_mr] + p[_mt],
+        p[_e] * p[_mr],
+        p[_Ju],
+        p[_Jl],
+        torque,
+        string,
+        Qe_l,
+        tfu,
+        tfl,
+        Qu,
+        Qx + Qe_x,
+        Qy + Qe_y,
+        mu != 0,
+        ml != 0,
+    )
     dy[S_WU] = a_u
     dy[S_WL] = a_l
     dy[S_X] = vx

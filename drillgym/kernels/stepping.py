@@ -19,12 +19,17 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from drillgym.dynamics import S_WL, S_WU, lateral_free
+from drillgym.dynamics import S_WL, S_WU, brake_on, lateral_free
 from drillgym.kernels.hooks import HAS_DELAY, HAS_LAG, N_STATE, hk_delay, hk_lag, hk_lag_start
 from drillgym.kernels.model import (
-    event_values, initial_modes, lower_stick_bounds, record, resolve_modes, state_derivative, upper_stick_bounds,
+    event_values,
+    initial_modes,
+    lower_stick_bounds,
+    record,
+    resolve_modes,
+    state_derivative,
+    upper_stick_bounds,
 )
-from drillgym.dynamics import brake_on
 
 MAX_EVENTS_PER_STEP = 8
 ILLINOIS_ITERATIONS = 6
@@ -35,8 +40,16 @@ def alloc_work(n_stages: int):
     """Work arrays of ``hybrid_step`` for a tableau of n_stages:
     (K stage derivatives + end derivative, ytmp, k1, ynew, fric, ftmp, g0, g1)."""
     K = np.zeros((n_stages + 1, N_STATE))
-    return (K, np.zeros(N_STATE), np.zeros(N_STATE), np.zeros(N_STATE), np.zeros(2), np.zeros(2), np.zeros(2),
-            np.zeros(2))
+    return (
+        K,
+        np.zeros(N_STATE),
+        np.zeros(N_STATE),
+        np.zeros(N_STATE),
+        np.zeros(2),
+        np.zeros(2),
+        np.zeros(2),
+        np.zeros(2),
+    )
 
 
 @njit(inline="always")
@@ -298,8 +311,9 @@ def start_trajectory(y, mode, U, p, cfg, dt, t0, eps, out, init_modes, n_steps, 
 
 
 @njit(cache=True)
-def run_trajectory(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, init_modes, n_steps, hist, head,
-                   cols=None, USTEP=None):
+def run_trajectory(
+    y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, init_modes, n_steps, hist, head, cols=None, USTEP=None
+):
     """Integrate one trajectory over n_steps steps (command U[i] held over step i; U may hold one
     value for a constant command).
 
@@ -312,8 +326,9 @@ def run_trajectory(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, ini
     K, ytmp, k1, ynew, fric, ftmp, g0, g1 = alloc_work(b.shape[0])
     record_on = out.shape[0] > 0
     t = t0
-    u, jc = start_trajectory(y, mode, U, p, cfg, dt, t0, eps, out, init_modes, n_steps, hist, head, cols, USTEP,
-                             k1, fric)
+    u, jc = start_trajectory(
+        y, mode, U, p, cfg, dt, t0, eps, out, init_modes, n_steps, hist, head, cols, USTEP, k1, fric
+    )
     n_switch = 0
     row = np.int64(1)  # not a literal: one compiled record
     u_prev = u
@@ -338,23 +353,63 @@ def run_trajectory(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, ini
 
 
 @njit(cache=True)
-def run_batch_serial(Y, MODE, U, P, cfg, dt, T0, eps, A, b, c, rec_every, OUT, init_modes, n_steps, HIST, HEAD,
-                     COLS=None, USTEP=None):
+def run_batch_serial(
+    Y, MODE, U, P, cfg, dt, T0, eps, A, b, c, rec_every, OUT, init_modes, n_steps, HIST, HEAD, COLS=None, USTEP=None
+):
     """run_trajectory over a batch: Y (B, N_STATE), MODE (B, 2), U (B, n) or (B, 1), P (B, n_par),
     OUT (B, n_rec, N_OUT), HIST (B, L) delay lines, HEAD (B,) their newest entries; with USTEP (m,),
     U (B, m) is a piecewise-constant table (see :func:`command_at`)."""
     for k in range(Y.shape[0]):
-        run_trajectory(Y[k], MODE[k], U[k], P[k], cfg, dt, T0[k], eps, A, b, c, rec_every, OUT[k], init_modes,
-                       n_steps, HIST[k], HEAD[k:k + 1], COLS, USTEP)
+        run_trajectory(
+            Y[k],
+            MODE[k],
+            U[k],
+            P[k],
+            cfg,
+            dt,
+            T0[k],
+            eps,
+            A,
+            b,
+            c,
+            rec_every,
+            OUT[k],
+            init_modes,
+            n_steps,
+            HIST[k],
+            HEAD[k : k + 1],
+            COLS,
+            USTEP,
+        )
 
 
 @njit(cache=True, parallel=True)
-def run_batch_parallel(Y, MODE, U, P, cfg, dt, T0, eps, A, b, c, rec_every, OUT, init_modes, n_steps, HIST, HEAD,
-                       COLS=None, USTEP=None):
+def run_batch_parallel(
+    Y, MODE, U, P, cfg, dt, T0, eps, A, b, c, rec_every, OUT, init_modes, n_steps, HIST, HEAD, COLS=None, USTEP=None
+):
     """As run_batch_serial, trajectories spread over numba's threads."""
     for k in prange(Y.shape[0]):
-        run_trajectory(Y[k], MODE[k], U[k], P[k], cfg, dt, T0[k], eps, A, b, c, rec_every, OUT[k], init_modes,
-                       n_steps, HIST[k], HEAD[k:k + 1], COLS, USTEP)
+        run_trajectory(
+            Y[k],
+            MODE[k],
+            U[k],
+            P[k],
+            cfg,
+            dt,
+            T0[k],
+            eps,
+            A,
+            b,
+            c,
+            rec_every,
+            OUT[k],
+            init_modes,
+            n_steps,
+            HIST[k],
+            HEAD[k : k + 1],
+            COLS,
+            USTEP,
+        )
 
 
 @njit(cache=True)
@@ -369,7 +424,7 @@ def advance_batch(Y, MODE, u, P, cfg, dt, n_sub, T, eps, A, b, c, FRIC, HIST, HE
         fric = FRIC[k]
         p = P[k]
         hist = HIST[k]
-        head = HEAD[k:k + 1]
+        head = HEAD[k : k + 1]
         t = T[k]
         ue = delay_line_step(hist, head, u[k], p, dt) if n_sub > 0 else delay_line_read(hist, head, u[k], p, dt)
         if HAS_LAG and n_sub > 0:  # the first step after a reset: lag states at the first command held
@@ -398,8 +453,7 @@ def advance_batch(Y, MODE, u, P, cfg, dt, n_sub, T, eps, A, b, c, FRIC, HIST, HE
 # adaptive embedded Runge-Kutta (Dormand-Prince 5(4)) between located events, outputs on the grid
 
 #: b - b_hat of Dormand-Prince 5(4) (7 stages, the 7th the derivative at the step end: FSAL)
-DP54_E = np.array([71.0 / 57600.0, 0.0, -71.0 / 16695.0, 71.0 / 1920.0, -17253.0 / 339200.0, 22.0 / 525.0,
-                   -1.0 / 40.0])
+DP54_E = np.array([71.0 / 57600.0, 0.0, -71.0 / 16695.0, 71.0 / 1920.0, -17253.0 / 339200.0, 22.0 / 525.0, -1.0 / 40.0])
 
 
 @njit(cache=True, _nrt=False)
@@ -435,8 +489,29 @@ def _crossing_estimate(t, y0, k0, mode, fric0, u, p, cfg, eps, h, A, b, c, K, yt
 
 
 @njit(cache=True)
-def run_trajectory_adaptive(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every, out, init_modes, n_steps, hist,
-                            head, rtol, atol, cols=None, USTEP=None):
+def run_trajectory_adaptive(
+    y,
+    mode,
+    U,
+    p,
+    cfg,
+    dt,
+    t0,
+    eps,
+    A,
+    b,
+    c,
+    rec_every,
+    out,
+    init_modes,
+    n_steps,
+    hist,
+    head,
+    rtol,
+    atol,
+    cols=None,
+    USTEP=None,
+):
     """As :func:`run_trajectory` (same contract, command U[i] held over grid step i, outputs on the grid
     t0 + i dt), but integrated with adaptive Dormand-Prince 5(4) steps (A, b, c: DP5) between the
     grid points where the command changes: steps grow as long as the embedded error estimate stays
@@ -462,8 +537,9 @@ def run_trajectory_adaptive(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every,
             if cols[j] == 14 or cols[j] == 15:
                 need_fric = True
     t = t0
-    u, jc = start_trajectory(y, mode, U, p, cfg, dt, t0, eps, out, init_modes, n_steps, hist, head, cols, USTEP,
-                             k1, fric)
+    u, jc = start_trajectory(
+        y, mode, U, p, cfg, dt, t0, eps, out, init_modes, n_steps, hist, head, cols, USTEP, k1, fric
+    )
     row = np.int64(1)
     n_switch = 0
     jr = 0  # table cursor of the recorded commands (jc runs ahead, to the next change)
@@ -495,25 +571,22 @@ def run_trajectory_adaptive(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every,
             if nev > 0 and hs > t_next_grid - t + 1e-9 * dt:
                 # a switch inside a long step: step to the grid point before the estimated crossing ...
                 copy_step_state(y0, k0, fr0, md0, y, k1, fric, mode)
-                tau = _crossing_estimate(t, y0, k0, mode, fr0, u, p, cfg, eps, hs, A, b, c, K, ytmp, ynew, ftmp,
-                                         g0, g1)
+                tau = _crossing_estimate(t, y0, k0, mode, fr0, u, p, cfg, eps, hs, A, b, c, K, ytmp, ynew, ftmp, g0, g1)
                 g_before = np.int64(math.floor((t + min(tau, 1.0) * hs - t0) / dt + 1e-9)) - 1
                 nev = 1
                 if g_before > g_done + 1 and tau <= 1.0:
                     hs = t0 + g_before * dt - t
-                    nev = hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, hs, A, b, c, K, ytmp, ynew, g0, g1,
-                                      ftmp)
+                    nev = hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, hs, A, b, c, K, ytmp, ynew, g0, g1, ftmp)
                     if nev > 0:  # the crossing came earlier than estimated
                         copy_step_state(y0, k0, fr0, md0, y, k1, fric, mode)
                 if nev > 0:  # ... and from there over the grid interval holding it (events exact there)
                     hs = t_next_grid - t
-                    nev = hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, hs, A, b, c, K, ytmp, ynew, g0, g1,
-                                      ftmp)
+                    nev = hybrid_step(t, y, k1, fric, mode, u, p, cfg, eps, hs, A, b, c, K, ytmp, ynew, g0, g1, ftmp)
             if nev == 0:
                 err = _dp54_error(y0, y, K, hs, rtol, atol, n_act)
                 if err > 1.0:
                     copy_step_state(y0, k0, fr0, md0, y, k1, fric, mode)
-                    h = hs * max(0.2, 0.9 * err ** -0.2)
+                    h = hs * max(0.2, 0.9 * err**-0.2)
                     continue
                 h = hs * min(5.0, max(0.2, 0.9 * (err + 1e-30) ** -0.2))
                 h = max(h, 1e-3 * dt)
@@ -558,9 +631,51 @@ def run_trajectory_adaptive(y, mode, U, p, cfg, dt, t0, eps, A, b, c, rec_every,
 
 
 @njit(cache=True)
-def run_batch_adaptive(Y, MODE, U, P, cfg, dt, T0, eps, A, b, c, rec_every, OUT, init_modes, n_steps, HIST, HEAD,
-                       rtol, atol, COLS=None, USTEP=None):
+def run_batch_adaptive(
+    Y,
+    MODE,
+    U,
+    P,
+    cfg,
+    dt,
+    T0,
+    eps,
+    A,
+    b,
+    c,
+    rec_every,
+    OUT,
+    init_modes,
+    n_steps,
+    HIST,
+    HEAD,
+    rtol,
+    atol,
+    COLS=None,
+    USTEP=None,
+):
     """run_trajectory_adaptive over a batch (one after the other)."""
     for k in range(Y.shape[0]):
-        run_trajectory_adaptive(Y[k], MODE[k], U[k], P[k], cfg, dt, T0[k], eps, A, b, c, rec_every, OUT[k],
-                                init_modes, n_steps, HIST[k], HEAD[k:k + 1], rtol, atol, COLS, USTEP)
+        run_trajectory_adaptive(
+            Y[k],
+            MODE[k],
+            U[k],
+            P[k],
+            cfg,
+            dt,
+            T0[k],
+            eps,
+            A,
+            b,
+            c,
+            rec_every,
+            OUT[k],
+            init_modes,
+            n_steps,
+            HIST[k],
+            HEAD[k : k + 1],
+            rtol,
+            atol,
+            COLS,
+            USTEP,
+        )

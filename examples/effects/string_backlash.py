@@ -14,16 +14,25 @@ class StringBacklash(Force):
     name = "string_backlash"
     acts_on = "string"
     parameters = (
-        Parameter("gap", unit="rad", lo=0.0, hi=1.0, guess=0.02, scale=0.01,
-                  doc="half-width of the free play in the string's coupling"),
+        Parameter(
+            "gap",
+            unit="rad",
+            lo=0.0,
+            hi=1.0,
+            guess=0.02,
+            scale=0.01,
+            doc="half-width of the free play in the string's coupling",
+        ),
     )
     explanation = (
         "The string is clamped to the discs through couplings with a little play: over |α| < gap the string "
         "carries no torque, beyond it the elastic twist is α − gap sign(α). The base model's kθ α is replaced "
-        "by kθ dz(α), so the extra torque is kθ (dz(α) − α).")
+        "by kθ dz(α), so the extra torque is kθ (dz(α) − α)."
+    )
     signature = (
         "after every reversal of the twist the lower disc lags by up to 2·gap; the torque residual is a "
-        "saturated ramp in α (−kθ α inside the gap, ∓kθ gap outside), largest in the slip phases")
+        "saturated ramp in α (−kθ α inside the gap, ∓kθ gap outside), largest in the slip phases"
+    )
 
     def torque(alpha, ktheta, gap):
         """Extra string torque (N m): ktheta * (dead_zone(alpha) - alpha)."""

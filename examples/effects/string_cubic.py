@@ -13,17 +13,27 @@ class StringCubic(Force):
     name = "string_cubic"
     acts_on = "string"  # a torque in the string: +torque on the upper disc, -torque on the lower
     parameters = (
-        Parameter("c3", unit="1/rad^2", lo=-0.05, hi=0.2, guess=0.0, scale=0.005,
-                  doc="relative cubic stiffness of the string", neutral=0.0),
+        Parameter(
+            "c3",
+            unit="1/rad^2",
+            lo=-0.05,
+            hi=0.2,
+            guess=0.0,
+            scale=0.005,
+            doc="relative cubic stiffness of the string",
+            neutral=0.0,
+        ),
     )
     explanation = (
         "A long thin steel string under large twist does not stay linear: its torsional stiffness grows "
         "with the twist (geometric stiffening of the helically deformed string) or falls (slack in its "
-        "clamps). To third order the string torque is kθ (α + c3 α³).")
+        "clamps). To third order the string torque is kθ (α + c3 α³)."
+    )
     signature = (
         "residual torque proportional to α³: small at small twist, growing fast in the stick phases where the "
-        "string winds up most; the stick-slip period and the peak twist differ from the model in the same sense")
+        "string winds up most; the stick-slip period and the peak twist differ from the model in the same sense"
+    )
 
     def torque(alpha, ktheta, c3):
         """Extra string torque (N m), in the sense of ktheta * alpha."""
-        return ktheta * c3 * alpha ** 3
+        return ktheta * c3 * alpha**3

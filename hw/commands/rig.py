@@ -55,8 +55,10 @@ def _interruptible():
 def emulate_cmd(
     port: Path | None = typer.Option(None, help="also create a symlink to the pseudo-terminal here"),
     config: str = typer.Option("torsional", help="rig configuration: torsional, lateral or coupled"),
-    params: Path | None = typer.Option(None, help="parameter file (JSON/YAML) of the emulated rig: RigParams or "
-                                                     "a model file with effects (identify --out)"),
+    params: Path | None = typer.Option(
+        None,
+        help="parameter file (JSON/YAML) of the emulated rig: RigParams or a model file with effects (identify --out)",
+    ),
     add_effect: list[str] | None = add_effect_option(),
     effect_param: list[str] | None = effect_param_option(),
     counts_per_rev: int = typer.Option(8000, help="encoder counts per revolution"),
@@ -68,8 +70,11 @@ def emulate_cmd(
     dt: float = typer.Option(1e-3, help="integration step of the emulated plant (s)"),
     alpha0: float = typer.Option(0.0, help="initial winding of the string (rad)"),
     seed: int = typer.Option(0, help="seed of the LVDT noise and latency jitter"),
-    realtime: bool = typer.Option(True, "--realtime/--no-realtime", help="real-time scheduling (SCHED_FIFO) if "
-                                                                         "permitted, else nice -10 as far as allowed"),
+    realtime: bool = typer.Option(
+        True,
+        "--realtime/--no-realtime",
+        help="real-time scheduling (SCHED_FIFO) if permitted, else nice -10 as far as allowed",
+    ),
 ) -> None:
     """Emulate the rig's microcontroller on a pseudo-terminal until Ctrl-C.  The plant runs the hidden
     effects (--add-effect, and those of a model file in --params); the host does not know them."""
@@ -77,8 +82,7 @@ def emulate_cmd(
     from hw.firmware import FirmwareConfig
 
     base, comp, values = plant_from_cli(params, add_effect, effect_param)
-    fw = FirmwareConfig(counts_per_rev=counts_per_rev, control_period_s=period_ms * 1e-3,
-                        watchdog_s=watchdog_ms * 1e-3)
+    fw = FirmwareConfig(counts_per_rev=counts_per_rev, control_period_s=period_ms * 1e-3, watchdog_s=watchdog_ms * 1e-3)
     import time
 
     from hw.realtime import prioritize
@@ -89,16 +93,32 @@ def emulate_cmd(
     import sys
 
     sys.setswitchinterval(5e-4)  # serial and timer threads share the interpreter: hand it over every 0.5 ms
-    emu = RigEmulator(config, base, fw, effects=comp, effect_params=values, dt=dt, alpha0=alpha0,
-                      lvdt_noise_std=lvdt_noise, seed=seed, latency_s=latency_ms * 1e-3, jitter_s=jitter_ms * 1e-3,
-                      link_path=port, log=log)
+    emu = RigEmulator(
+        config,
+        base,
+        fw,
+        effects=comp,
+        effect_params=values,
+        dt=dt,
+        alpha0=alpha0,
+        lvdt_noise_std=lvdt_noise,
+        seed=seed,
+        latency_s=latency_ms * 1e-3,
+        jitter_s=jitter_ms * 1e-3,
+        link_path=port,
+        log=log,
+    )
     # before the threads start: they inherit it (the emulator stands in for a microcontroller)
     priority = prioritize(realtime)
     emu.start()
     log(f"emulator ready: watchdog {watchdog_ms:g} ms, scheduling priority {priority}")
     signal.signal(signal.SIGTERM, _interrupt)
-    typer.echo(f"rig emulator ({config}) on {emu.port}" + (f" (link {port})" if port else "")
-               + f"; {describe_plant(comp, values)}", err=False)
+    typer.echo(
+        f"rig emulator ({config}) on {emu.port}"
+        + (f" (link {port})" if port else "")
+        + f"; {describe_plant(comp, values)}",
+        err=False,
+    )
     typer.echo("Ctrl-C to stop", err=True)
     try:
         emu.serve_forever()
@@ -110,13 +130,22 @@ def emulate_cmd(
 @rig_app.command("run")
 def run_cmd(
     port: str = typer.Option(..., help="serial device or pyserial URL of the rig (or of `drillgym rig emulate`)"),
-    controller: str | None = typer.Option(None, help="controller: const:<volts>, play:<input file> (an excitation "
-                                                        "from `drillgym signal`) or a name from controllers/"),
-    params: Path | None = typer.Option(None, help="model the controller is built on (JSON/YAML, may be partial: "
-                                                     "e.g. what `drillgym identify --out` wrote); default MODEL.md's"),
-    policy: Path | None = typer.Option(None, help="policy: what `drillgym train` writes (policy.npz, model.zip or the "
-                                               "run directory; it builds its own observation from the encoders) or "
-                                               "a linear .npz (W, b) on --observation"),
+    controller: str | None = typer.Option(
+        None,
+        help="controller: const:<volts>, play:<input file> (an excitation "
+        "from `drillgym signal`) or a name from controllers/",
+    ),
+    params: Path | None = typer.Option(
+        None,
+        help="model the controller is built on (JSON/YAML, may be partial: "
+        "e.g. what `drillgym identify --out` wrote); default MODEL.md's",
+    ),
+    policy: Path | None = typer.Option(
+        None,
+        help="policy: what `drillgym train` writes (policy.npz, model.zip or the "
+        "run directory; it builds its own observation from the encoders) or "
+        "a linear .npz (W, b) on --observation",
+    ),
     duration: float = typer.Option(10.0, help="episode length (s)"),
     record: Path = typer.Option(Path("rig_run.csv"), help=f"recording file (DATA_FORMAT csv); {CREATES_DIRS}"),
     config: str = typer.Option("torsional", help="how the rig is set up: torsional, lateral or coupled"),
@@ -124,16 +153,25 @@ def run_cmd(
     omega_ref: float | None = typer.Option(None, help="target lower-disc speed (rad/s); default drawn per seed"),
     control_ms: float = typer.Option(10.0, help="control period (ms)"),
     seed: int = typer.Option(0, help="episode seed"),
-    reply_timeout_ms: float | None = typer.Option(None, help="longest wait for the firmware's reply (ms); default "
-                                                                "the firmware's watchdog (its CONFIG)"),
-    dry_run: bool = typer.Option(False, "--dry-run", help="check port, firmware, control period, controller or "
-                                                          "policy, limits and recording path; send no voltage"),
-    reconnect: int = typer.Option(0, help="after a lost link or a silent firmware, reopen the port and start a new "
-                                          "episode (next recording file), at most this often"),
+    reply_timeout_ms: float | None = typer.Option(
+        None, help="longest wait for the firmware's reply (ms); default the firmware's watchdog (its CONFIG)"
+    ),
+    dry_run: bool = typer.Option(
+        False,
+        "--dry-run",
+        help="check port, firmware, control period, controller or policy, limits and recording path; send no voltage",
+    ),
+    reconnect: int = typer.Option(
+        0,
+        help="after a lost link or a silent firmware, reopen the port and start a new "
+        "episode (next recording file), at most this often",
+    ),
     reconnect_wait: float = typer.Option(2.0, help="seconds to wait before reconnecting"),
-    realtime: bool = typer.Option(True, "--realtime/--no-realtime", help="real-time scheduling (SCHED_FIFO) for "
-                                                                         "the episode if permitted, else nice -10 as "
-                                                                         "far as allowed"),
+    realtime: bool = typer.Option(
+        True,
+        "--realtime/--no-realtime",
+        help="real-time scheduling (SCHED_FIFO) for the episode if permitted, else nice -10 as far as allowed",
+    ),
 ) -> None:
     """Run one episode of a controller or a policy on the rig, recorded to --record.
 
@@ -166,14 +204,18 @@ def run_cmd(
     model = None
     if params is not None:
         if controller is None or controller.startswith(("const:", "play:", "agent:")):
-            raise InputError("--params builds a named controller on a model; it does not apply to const:, play:, "
-                             "agent: or --policy")
+            raise InputError(
+                "--params builds a named controller on a model; it does not apply to const:, play:, agent: or --policy"
+            )
         from drillgym.identification.model_file import read_model
 
         mf = read_model(params)  # a parameter file or a model file with effects (identify --out)
         if mf.specs:
-            typer.echo(f"note: {params} also names effects ({', '.join(map(str, mf.specs))}); the controller is "
-                       f"built on its base parameters only", err=True)
+            typer.echo(
+                f"note: {params} also names effects ({', '.join(map(str, mf.specs))}); the controller is "
+                f"built on its base parameters only",
+                err=True,
+            )
         model = mf.params
     ctrl = make_controller(controller, config, omega_ref, control_ms * 1e-3, model) if controller else None
     if controller is not None and controller.startswith("agent:"):
@@ -197,16 +239,21 @@ def run_cmd(
         output_dir(record)
     notice = ClampNotice(say)
     with _interruptible():
-        res, faults, watchdog_ms = _run_episode(make_env, ctrl, pol, seed, notice, realtime, reconnect,
-                                                reconnect_wait, say)
+        res, faults, watchdog_ms = _run_episode(
+            make_env, ctrl, pol, seed, notice, realtime, reconnect, reconnect_wait, say
+        )
     ms = 1e3
-    typer.echo(f"{res.steps} steps, return {res.total_reward:.2f}, "
-               f"{'terminated' if res.terminated else 'truncated' if res.truncated else 'stopped'}"
-               + (f" (safety stop: {res.safety_stop})" if res.safety_stop else ""))
+    typer.echo(
+        f"{res.steps} steps, return {res.total_reward:.2f}, "
+        f"{'terminated' if res.terminated else 'truncated' if res.truncated else 'stopped'}"
+        + (f" (safety stop: {res.safety_stop})" if res.safety_stop else "")
+    )
     if res.steps:
-        typer.echo(f"round trip median {ms * np.median(res.round_trips):.2f} ms, "
-                   f"max {ms * res.round_trips.max():.2f} ms; "
-                   f"tick error p99 {ms * np.percentile(res.tick_errors, 99):.2f} ms")
+        typer.echo(
+            f"round trip median {ms * np.median(res.round_trips):.2f} ms, "
+            f"max {ms * res.round_trips.max():.2f} ms; "
+            f"tick error p99 {ms * np.percentile(res.tick_errors, 99):.2f} ms"
+        )
     if notice.count:
         typer.echo(f"{notice.count} of {res.steps} commands were clamped to the amplifier range")
     if faults:
@@ -238,8 +285,11 @@ def estop_cmd(
     except SafetyError as exc:
         typer.echo(f"drillgym: {exc}", err=True)
         raise typer.Exit(STOP_EXIT) from None
-    typer.echo(f"emergency stop acknowledged by the firmware on {port}" + (f" (attempt {k})" if k > 1 else "")
-               + ": motor at 0 V, latched until the next `drillgym rig run`")
+    typer.echo(
+        f"emergency stop acknowledged by the firmware on {port}"
+        + (f" (attempt {k})" if k > 1 else "")
+        + ": motor at 0 V, latched until the next `drillgym rig run`"
+    )
 
 
 def _run_episode(make_env, ctrl, pol, seed, notice, realtime, reconnect, reconnect_wait, say):
@@ -257,8 +307,12 @@ def _run_episode(make_env, ctrl, pol, seed, notice, realtime, reconnect, reconne
         watchdog_ms = env.unwrapped.firmware.watchdog_ms
         with quiet_gc():
             res, faults = run_with_reconnect(
-                env, lambda: run_episode(env, controller=ctrl, policy=pol, seed=seed, on_step=notice),
-                reconnect, reconnect_wait, say)
+                env,
+                lambda: run_episode(env, controller=ctrl, policy=pol, seed=seed, on_step=notice),
+                reconnect,
+                reconnect_wait,
+                say,
+            )
         return res, faults, watchdog_ms
     except KeyboardInterrupt:
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the stop short
@@ -266,8 +320,12 @@ def _run_episode(make_env, ctrl, pol, seed, notice, realtime, reconnect, reconne
         if env is not None:
             env.close()  # ends the episode: EMERGENCY_STOP until acknowledged, recording flushed and closed
             rec, acked = env.unwrapped.recording, env.unwrapped.stop_acknowledged is not False
-        motor = ("motor stopped (0 V)" if acked else "EMERGENCY_STOP not acknowledged by the firmware (its "
-                 f"watchdog stops the motor within {env.unwrapped.firmware.watchdog_ms} ms): check the rig")
+        motor = (
+            "motor stopped (0 V)"
+            if acked
+            else "EMERGENCY_STOP not acknowledged by the firmware (its "
+            f"watchdog stops the motor within {env.unwrapped.firmware.watchdog_ms} ms): check the rig"
+        )
         say(f"drillgym: interrupted: {motor}, recording kept: {rec if rec is not None else 'none yet'}")
         raise typer.Exit(INTERRUPT_EXIT) from None
     except SafetyError as exc:

@@ -24,15 +24,23 @@ import numpy as np
 
 from drillgym.errors import InputError
 
-__all__ = ["STOP_EXIT", "INTERRUPT_EXIT", "stop_reason", "ClampNotice", "dry_run", "emergency_stop",
-           "run_with_reconnect", "check_writable"]
+__all__ = [
+    "STOP_EXIT",
+    "INTERRUPT_EXIT",
+    "stop_reason",
+    "ClampNotice",
+    "dry_run",
+    "emergency_stop",
+    "run_with_reconnect",
+    "check_writable",
+]
 
 STOP_EXIT = 3
 INTERRUPT_EXIT = 130
 
 _WHY = {
     "WATCHDOG": "the firmware's watchdog stopped the motor: no command for {watchdog_ms} ms (host stalled or "
-                "too slow; see the README's hardware section)",
+    "too slow; see the README's hardware section)",
     "OVERSPEED": "over-speed: a disc turned faster than the limit",
     "OVER_DISPLACEMENT": "over-displacement: the lower disc moved laterally beyond the limit",
     "HOST": "emergency stop requested by a host (e.g. `drillgym rig estop`)",
@@ -90,9 +98,11 @@ class ClampNotice:
         if "clamped_from" in info:
             self.count += 1
             if self.count == 1:
-                self.echo(f"note: {info['clamped_from']:g} V asked for at step {step}; the amplifier gives "
-                          f"+-{self.v_max:g} V, so commands beyond it are clamped to +-{self.v_max:g} V "
-                          f"(said once; counted at the end)")
+                self.echo(
+                    f"note: {info['clamped_from']:g} V asked for at step {step}; the amplifier gives "
+                    f"+-{self.v_max:g} V, so commands beyond it are clamped to +-{self.v_max:g} V "
+                    f"(said once; counted at the end)"
+                )
 
 
 def check_writable(record: Path) -> None:
@@ -150,11 +160,15 @@ def dry_run(make_env: Callable[[], object], ctrl, policy, record: Path, echo: Ca
     try:
         u = env.unwrapped
         fw, lim = u.firmware, u.limits
-        echo(f"dry run: {u.port}: firmware {fw.name!r}, protocol {fw.protocol_version}, control period "
-             f"{fw.period_s * 1e3:g} ms accepted, watchdog {fw.watchdog_ms} ms")
-        echo(f"dry run: limits host / firmware: +-{lim.v_max:g} / +-{fw.v_max:g} V, slew {lim.slew_v_per_s:g} / "
-             f"{fw.slew_v_per_s:g} V/s, over-speed {lim.max_speed:g} / {fw.max_speed:g} rad/s, over-displacement "
-             f"{lim.max_displacement * 1e3:g} / {fw.max_displacement * 1e3:g} mm")
+        echo(
+            f"dry run: {u.port}: firmware {fw.name!r}, protocol {fw.protocol_version}, control period "
+            f"{fw.period_s * 1e3:g} ms accepted, watchdog {fw.watchdog_ms} ms"
+        )
+        echo(
+            f"dry run: limits host / firmware: +-{lim.v_max:g} / +-{fw.v_max:g} V, slew {lim.slew_v_per_s:g} / "
+            f"{fw.slew_v_per_s:g} V/s, over-speed {lim.max_speed:g} / {fw.max_speed:g} rad/s, over-displacement "
+            f"{lim.max_displacement * 1e3:g} / {fw.max_displacement * 1e3:g} mm"
+        )
         if policy is not None:
             a = policy(np.zeros(env.observation_space.shape, dtype=np.float32))
             try:
@@ -202,9 +216,11 @@ def emergency_stop(port: str, attempts: int = 3, timeout_s: float = 0.2) -> int:
     try:
         return client.emergency_stop(wait=True, attempts=attempts)
     except LinkTimeoutError:
-        raise SafetyError(f"{port}: EMERGENCY_STOP sent {attempts} times, no acknowledgement within "
-                          f"{timeout_s * 1e3:.0f} ms each (another program reading the port may have taken it, or "
-                          f"the firmware is not responding): check the rig") from None
+        raise SafetyError(
+            f"{port}: EMERGENCY_STOP sent {attempts} times, no acknowledgement within "
+            f"{timeout_s * 1e3:.0f} ms each (another program reading the port may have taken it, or "
+            f"the firmware is not responding): check the rig"
+        ) from None
     finally:
         client.close()
 
@@ -217,8 +233,7 @@ def _wait_for_port(port: str, seconds: float) -> None:
         time.sleep(0.1)
 
 
-def run_with_reconnect(env, run: Callable[[], object], reconnect: int, wait_s: float,
-                       echo: Callable[[str], None]):
+def run_with_reconnect(env, run: Callable[[], object], reconnect: int, wait_s: float, echo: Callable[[str], None]):
     """Run one episode; after a lost link or a silent firmware, reopen the port and run a new one.
 
     Parameters
@@ -300,8 +315,14 @@ def warm_up(ctrl, omega_ref: float | None, dt: float) -> None:
     dt : float
         Control period (s).
     """
-    m = {"t": 0.0, "theta_u": 0.0, "theta_l": 0.0, "x": 0.0, "y": 0.0,
-         "omega_ref": 4.0 if omega_ref is None else float(omega_ref)}
+    m = {
+        "t": 0.0,
+        "theta_u": 0.0,
+        "theta_l": 0.0,
+        "x": 0.0,
+        "y": 0.0,
+        "omega_ref": 4.0 if omega_ref is None else float(omega_ref),
+    }
     ctrl.reset(m)
     for k in (1, 2, 3):  # the first act answers the reset; the later ones read the encoder too
         ctrl.act({**m, "t": k * dt})
