@@ -1,4 +1,4 @@
-"""The selection's fits go to convergence (:func:`drillgym.diagnosis.selection.converged_fit`): nested models
+"""The selection's fits go to convergence (:func:`drillgym.diagnosis.context.converged_fit`): nested models
 are compared each at its optimum, and the model is left in the state of the fit returned."""
 
 import dataclasses
@@ -6,13 +6,13 @@ import dataclasses
 import numpy as np
 
 from drillgym import RigParams
-from drillgym.diagnosis.ranking import default_segment, default_weights
+from drillgym.diagnosis.context import CONVERGE_ROUNDS, SelectionContext, converged_fit, fit_free
+from drillgym.diagnosis.screening import default_segment, default_weights
+from drillgym.diagnosis.search_model import base_free_parameters, search_composition, selection_model
 from drillgym.diagnosis.segments import robust_noise
-from drillgym.diagnosis.selection import (CONVERGE_ROUNDS, _fit, _State, base_free_parameters, converged_fit,
-                                          search_composition, selection_model)
 from drillgym.effects import compose
 from drillgym.identification.experiment import prepare_experiment
-from drillgym.identification.fitting import Objective, _SpeedVariables, base_vector
+from drillgym.identification.fitting import Objective, SpeedVariables, base_vector
 from drillgym.identification.synthetic import synthetic_measurement
 
 
@@ -28,14 +28,14 @@ def _state():
     model = selection_model([ex], default_segment(ex.config), comp)
     obj = Objective(model, default_weights(ex.config), scales)
     names = base_free_parameters(ex.config, True)
-    return _State(obj, comp, vec0.copy(), vec0.copy(), tuple(names), {}), vec0, list(names)
+    return SelectionContext(obj, comp, vec0.copy(), vec0.copy(), tuple(names), {}), vec0, list(names)
 
 
 def test_converged_fit_reaches_lower_rss_than_one_round_and_leaves_its_speeds():
     st, vec0, names = _state()
     obj = st.obj
     obj.model.refine_initial_speeds(vec0, obj.weights, obj.scales, fresh=True)
-    one = _fit(st, vec0, names, 4)  # one short round, as an under-converged fit
+    one = fit_free(st, vec0, names, 4)  # one short round, as an under-converged fit
     full = converged_fit(st, vec0, names, 4)
     assert full.rss_after <= one.rss_after
     assert full.rss_after < 0.9 * one.rss_after, (one.rss_after, full.rss_after)  # more rounds did gain
@@ -57,7 +57,7 @@ def test_each_speed_column_is_its_own_segments_sensitivity():
     st, vec0, _ = _state()
     obj, h = st.obj, 0.005
     model = obj.model
-    sv = _SpeedVariables(obj)
+    sv = SpeedVariables(obj)
     assert sv.count >= len(model.segments(0)[0])  # the upper disc turns at every start (the lower one may stick)
     r0 = obj.residual_matrix(vec0[None, :])[0]
     D = (obj.residual_matrix(np.repeat(vec0[None, :], 2, axis=0), dspeed=np.diag([h, h])) - r0) / h

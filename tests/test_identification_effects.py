@@ -1,4 +1,4 @@
-"""Identification with effects a user writes (issue 12): ``identify --add-effect file.py:NAME``.
+"""Identification with effects a user writes: ``identify --add-effect file.py:NAME``.
 
 Recordings of a rig whose string is cubic (torque kθ (α + c3 α³)) are made two ways:
 drillgym's own simulator with the user file examples/effects/string_cubic.py, and an

@@ -48,7 +48,18 @@ def one_blas_thread() -> Iterator[None]:
 
 
 def on_one_blas_thread(func: F) -> F:
-    """``func`` run inside :func:`one_blas_thread`."""
+    """A function run inside :func:`one_blas_thread`.
+
+    Parameters
+    ----------
+    func : callable
+        The function.
+
+    Returns
+    -------
+    callable
+        The wrapped function.
+    """
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         with one_blas_thread():

@@ -24,6 +24,7 @@ import numpy as np
 from scipy.signal import savgol_coeffs, savgol_filter
 
 from ..configurations import N_STATE, Configuration, parse_configuration
+from ..errors import DataFormatError, InputError
 from ..io import TimeSeries
 from ..effects import BASE, Composition
 from .sensors import invert_measurement
@@ -36,8 +37,24 @@ SPEED_WINDOW_S = 0.06  # s: Savitzky–Golay window of the speed estimates
 
 
 def estimate_rate(theta: np.ndarray, fs: float, window_s: float = 0.04, deriv: int = 1) -> np.ndarray:
-    """Derivative (order ``deriv``) of a uniformly sampled signal by a Savitzky–Golay filter
-    (cubic, window ``window_s`` seconds) — robust to encoder quantization; units per s^deriv."""
+    """Derivative of a uniformly sampled signal by a cubic Savitzky–Golay filter (robust to encoder quantization).
+
+    Parameters
+    ----------
+    theta : numpy.ndarray
+        The signal.
+    fs : float
+        Its sample rate (Hz).
+    window_s : float, optional
+        The filter's window (s).  Default 0.04.
+    deriv : int, optional
+        The derivative's order.  Default 1.
+
+    Returns
+    -------
+    numpy.ndarray
+        The derivative (units per s^deriv).
+    """
     n = len(theta)
     win = max(5, int(round(window_s * fs)) | 1)
     if win > n:
@@ -52,17 +69,36 @@ def estimate_rate(theta: np.ndarray, fs: float, window_s: float = 0.04, deriv: i
 class Experiment:
     """A recording on a uniform comparison grid, with estimated speeds.
 
-    Attributes: ``config``; ``t`` comparison grid (s, absolute times of the file);
-    ``fs`` its rate (Hz); ``meas`` measured channels on the grid (``theta_u``,
-    ``theta_l``, ``x``, ``y`` fixed frame, as available); ``rates`` their time
-    derivatives (``omega_u``, ``omega_l``, ``Xd``, ``Yd``); ``u_time``, ``u_value``
-    the recorded input; ``speed_noise`` the standard deviation (rad/s) of each speed estimate
-    from encoder quantization; ``lvdt_lowpass_hz`` the offline LVDT filter the data went
-    through (applied to the model's lateral outputs as well; None: none); ``recording`` the
-    TimeSeries it was prepared from (to compare on another grid, e.g. the recording's own rate);
-    ``t_origin`` the file time (s) at which the model's clock reads 0 (the run's start, which
-    time-dependent effects such as a friction drift count from); None: this experiment's first sample.
-    A part of a recording keeps the whole recording's origin (:attr:`clock_start`).
+    Attributes
+    ----------
+    config : Configuration
+        The configuration.
+    t : numpy.ndarray
+        The comparison grid (s, absolute times of the file).
+    fs : float
+        Its rate (Hz).
+    meas : dict of str to numpy.ndarray
+        Measured channels on the grid (``theta_u``, ``theta_l`` in rad; ``x``, ``y`` fixed frame in m, as
+        available).
+    rates : dict of str to numpy.ndarray
+        Their time derivatives (``omega_u``, ``omega_l`` in rad/s; ``Xd``, ``Yd`` in m/s).
+    u_time, u_value : numpy.ndarray
+        The recorded input (s, V).
+    lvdt_lowpass_hz : float or None
+        The offline LVDT filter the data went through (applied to the model's lateral outputs as well;
+        None: none).
+    name : str
+        The experiment's name.
+    meta : dict
+        The recording's metadata.
+    speed_noise : dict
+        The standard deviation (rad/s) of each speed estimate from encoder quantization.
+    recording : TimeSeries or None
+        The recording it was prepared from (to compare on another grid, e.g. the recording's own rate).
+    t_origin : float or None
+        The file time (s) at which the model's clock reads 0 (the run's start, which time-dependent effects
+        such as a friction drift count from); None: this experiment's first sample.  A part of a recording
+        keeps the whole recording's origin (:attr:`clock_start`).
     """
 
     config: Configuration
@@ -94,9 +130,25 @@ class Experiment:
         return float(self.t[-1] - self.t[0])
 
     def input_on_grid(self, dt: float, n_steps: int, t_start: float) -> np.ndarray:
-        """The recorded input (zero-order hold on its own samples) averaged over each simulator step
-        [t_start + k dt, t_start + (k + 1) dt), k < n_steps (V): exactly the recorded samples when the
-        grids coincide, and the same impulse per step when the data are sampled faster than dt."""
+        """The recorded input (zero-order hold on its own samples) averaged over each simulator step.
+
+        Exactly the recorded samples when the grids coincide, and the same impulse per step when the data
+        are sampled faster than ``dt``.
+
+        Parameters
+        ----------
+        dt : float
+            The simulator step (s).
+        n_steps : int
+            Steps.
+        t_start : float
+            The first step's start (s).
+
+        Returns
+        -------
+        numpy.ndarray
+            The input (V) over [t_start + k dt, t_start + (k + 1) dt), k < n_steps.
+        """
         tk, uk = self.u_time, self.u_value
         F = np.concatenate([[0.0], np.cumsum(uk[:-1] * np.diff(tk))])  # integral of the ZOH input at tk
 
@@ -108,21 +160,52 @@ class Experiment:
         return np.diff(integral(tq)) / dt
 
     def channel(self, name: str) -> np.ndarray:
-        """A measured channel, also the derived ``alpha`` = θl − θu and ``r`` = √(x² + y²)."""
+        """A measured channel, also the derived ``alpha`` = θl − θu and ``r`` = √(x² + y²).
+
+        Parameters
+        ----------
+        name : str
+            The channel.
+
+        Returns
+        -------
+        numpy.ndarray
+            Its samples on the comparison grid.
+
+        Raises
+        ------
+        InputError
+            The recording has no such channel.
+        """
         if name == "alpha":
             return self.meas["theta_l"] - self.meas["theta_u"]
         if name == "r":
             return np.hypot(self.meas["x"], self.meas["y"])
         if name not in self.meas:
-            raise ValueError(f"{self.name}: the recording has no channel {name!r}")
+            raise InputError(f"{self.name}: the recording has no channel {name!r}")
         return self.meas[name]
 
     def initial_states(self, idx: np.ndarray, P: np.ndarray, composition: "Composition | None" = None
                        ) -> np.ndarray:
-        """Mechanical states (len(idx), N_STATE) at grid indices ``idx`` for parameter rows ``P``
-        (same length, in the layout of ``composition``, default the base model).  The readings go
-        backwards through the composition's measurement effects (LVDT offsets, skew, any user
-        Measurement effect) of each row (:func:`.sensors.invert_measurement`)."""
+        """Mechanical states at grid indices for parameter rows.
+
+        The readings go backwards through the composition's measurement effects (LVDT offsets, skew, any
+        user Measurement effect) of each row (:func:`.sensors.invert_measurement`).
+
+        Parameters
+        ----------
+        idx : numpy.ndarray
+            Grid indices.
+        P : numpy.ndarray
+            Parameter rows (same length), in the layout of ``composition``.
+        composition : Composition, optional
+            The model (default: the base model).
+
+        Returns
+        -------
+        numpy.ndarray
+            (len(idx), N_STATE) states.
+        """
         comp = composition if composition is not None else BASE
         idx = np.asarray(idx, dtype=int)
         P = np.atleast_2d(np.asarray(P, dtype=float))
@@ -168,16 +251,40 @@ def prepare_experiment(ts: TimeSeries, config: "str | Configuration | None" = No
                        stick_threshold: float = STICK_THRESHOLD, name: str | None = None) -> Experiment:
     """Make a validated recording ready for comparison (see the module docstring).
 
-    ``config`` overrides/fills the file's configuration; an unknown or missing
-    configuration is an error naming the file.
+    Parameters
+    ----------
+    ts : TimeSeries
+        The recording.
+    config : str or Configuration, optional
+        Overrides or fills the file's configuration.
+    compare_rate_hz : float, optional
+        Comparison grid rate (Hz).
+    lvdt_lowpass_hz : float or None, optional
+        The LVDTs' low-pass cut-off (Hz).  Default 5.
+    stick_threshold : float, optional
+        Speed (rad/s) below which a disc counts as stuck.
+    name : str, optional
+        The experiment's name (default: the recording's source).
+
+    Returns
+    -------
+    Experiment
+        The experiment.
+
+    Raises
+    ------
+    InputError
+        An unknown or missing configuration (the message names the file).
+    DataFormatError
+        Too few samples.
     """
     cfg = parse_configuration(config) if config is not None else ts.configuration
     if cfg is None:
-        raise ValueError(f"{ts.source}: no configuration in the file's metadata; pass one (--config)")
+        raise InputError(f"{ts.source}: no configuration in the file's metadata; pass one (--config)")
     ts.validate(cfg)
     fs_data = ts.sample_rate_hz
     if len(ts) < 20:
-        raise ValueError(f"{ts.source}: {len(ts)} samples are too few to compare (need >= 20)")
+        raise DataFormatError(f"{ts.source}: {len(ts)} samples are too few to compare (need >= 20)")
     # uniform grid at the data rate (capped at 2 kHz) for derivatives
     fs_w = min(fs_data, 2000.0)
     uni = ts.resample(fs_w)

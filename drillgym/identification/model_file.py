@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from ..effects import Composition, EffectError, compose
+from ..errors import MissingFileError
 from ..params import ParameterError, RigParams
 
 __all__ = ["ModelFile", "read_model", "write_model"]
@@ -66,10 +67,28 @@ def _resolve_spec(spec: str, file: str | None, where: Path) -> str:
 
 
 def read_model(path: str | Path) -> ModelFile:
-    """The model in a parameter file (see the module docstring); errors name the file."""
+    """The model in a parameter file (see the module docstring).
+
+    Parameters
+    ----------
+    path : str or path
+        The file (JSON or YAML).
+
+    Returns
+    -------
+    ModelFile
+        Base parameters, effect specs and their values.
+
+    Raises
+    ------
+    MissingFileError
+        The file does not exist.
+    ParameterError
+        A file that cannot be used (the message names the file).
+    """
     path = Path(path)
     if not path.exists():
-        raise FileNotFoundError(f"{path}: parameter file not found")
+        raise MissingFileError(f"{path}: parameter file not found")
     data = _load(path)
     params = RigParams.from_dict(data, source=str(path))
     specs: list[str] = []
@@ -93,7 +112,22 @@ def read_model(path: str | Path) -> ModelFile:
 
 
 def write_model(path: str | Path, params: RigParams, records: Sequence[Mapping[str, Any]] = ()) -> Path:
-    """Write base parameters and effect records (``{"name", "spec", "file", "values"}``) as JSON or YAML."""
+    """Write base parameters and effect records as JSON or YAML.
+
+    Parameters
+    ----------
+    path : str or path
+        The file (``.json``, ``.yaml`` or ``.yml``).
+    params : RigParams
+        The base parameters.
+    records : sequence of mapping, optional
+        Effect records ``{"name", "spec", "file", "values"}``.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+    """
     path = Path(path)
     data = {"params": params.to_dict(), "effects": [dict(r) for r in records]}
     if path.suffix.lower() in (".yaml", ".yml"):

@@ -37,20 +37,21 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from scipy.signal import lfilter, lfilter_zi
 
 from ..configurations import N_STATE, Configuration
-from ..effects import BASE, Composition, compose
+from ..effects import Composition
 from ..effects.library import MotorLag
+from ..errors import InputError
 from ..integrators import OUTPUT_NAMES, fixed_step_tableau
 from ..measurement import lowpass_zero_phase
 from ..params import N_PARAMS
 from ..simulator import LANES_MIN_BATCH, run_lanes
 from .experiment import Experiment
+from .predictions import Prediction, as_composition, steps_per_sample
 
 __all__ = ["SegmentedModel", "Prediction", "CHANNELS", "as_composition"]
 
@@ -62,66 +63,35 @@ MAX_DT = 2e-3  # s: simulator step bound (DP5: > 200 steps per lateral period)
 _COL = {n: i for i, n in enumerate(OUTPUT_NAMES)}
 
 
-def steps_per_sample(ex: Experiment, max_dt: float, input_aligned: bool = False) -> int:
-    """Simulator steps per comparison sample: the fewest with a step (1/fs/steps) <= ``max_dt`` (s).
-    ``input_aligned``: the fewest, up to four times that many, whose step is a whole multiple or a whole
-    fraction of the recorded input's sample period, so that the zero-order-hold input never jumps
-    inside a step (a jump inside a Runge-Kutta step costs its order: on a 200 Hz input, RK4 at 4 ms
-    steps predicts θl 3.5e-6 rad from a 0.25 ms reference, at aligned 2.5 ms steps 6e-11 rad; tested)."""
-    rec = max(1, int(math.ceil(1.0 / (ex.fs * max_dt) - 1e-9)))
-    if not input_aligned or len(ex.u_time) < 2:
-        return rec
-    period = float(np.median(np.diff(ex.u_time)))
-    for k in range(rec, 4 * rec + 1):
-        ratio = (1.0 / (ex.fs * k)) / period
-        for r in (ratio, 1.0 / ratio):
-            if r >= 1.0 - 1e-6 and abs(r - round(r)) < 1e-6 * r:
-                return k
-    return rec
-
-
-def as_composition(effects: Any) -> Composition:
-    """A Composition from a Composition, effect names/specs/classes, or None (the base model)."""
-    if effects is None:
-        return BASE
-    if isinstance(effects, Composition):
-        return effects
-    return compose(effects)[0]
-
-
-@dataclass
-class Prediction:
-    """Model outputs of one parameter row on every experiment: per experiment a dict
-    channel -> (n_seg, seg_len) array (NaN beyond the record's end)."""
-
-    outputs: list[dict[str, np.ndarray]]
-    model: "SegmentedModel"
-
-    def stitched(self, k: int, channel: str) -> np.ndarray:
-        """Experiment k's channel on its comparison grid (segments joined; each segment's first
-        sample is the data's own start value)."""
-        seg = self.outputs[k][channel]
-        return self.model.stitch(k, seg)
-
-
 class SegmentedModel:
     """Predicts experiments for parameter matrices (B, composition.n_params) by multiple shooting.
 
-    Args:
-        experiments: the recordings (one configuration each; several allowed).
-        segment_s: segment length (s); None or <= 0: one free run per experiment.
-        method: 'dp5' (default, smooth in the parameters) or 'rk4'.
-        max_dt: bound on the simulator step (s).
-        input_aligned: choose the step so that the recorded input changes only at step boundaries
-            when one of at most four times as many steps allows it (:func:`steps_per_sample`).
-        composition: the model (a Composition or effects as for :func:`drillgym.effects.compose`;
-            default the base model).
+    Parameters
+    ----------
+    experiments : list of Experiment
+        The recordings (one configuration each; several allowed).
+    segment_s : float or None, optional
+        Segment length (s); None or <= 0: one free run per experiment.  Default 4.
+    method : str, optional
+        ``'dp5'`` (default, smooth in the parameters) or ``'rk4'``.
+    max_dt : float, optional
+        Bound on the simulator step (s).
+    composition : Composition or effects, optional
+        The model (a Composition or effects as for :func:`drillgym.effects.compose`; default the base model).
+    input_aligned : bool, optional
+        Choose the step so that the recorded input changes only at step boundaries when one of at most four
+        times as many steps allows it (:func:`steps_per_sample`).  Default False.
+
+    Raises
+    ------
+    InputError
+        No experiments.
     """
 
     def __init__(self, experiments: list[Experiment], segment_s: float | None = 4.0, method: str = "dp5",
                  max_dt: float = MAX_DT, composition: Any = None, input_aligned: bool = False) -> None:
         if not experiments:
-            raise ValueError("no experiments to compare with")
+            raise InputError("no experiments to compare with")
         self.experiments = list(experiments)
         self.method = method
         self._set_composition(composition)
@@ -163,8 +133,24 @@ class SegmentedModel:
         with all segments' ω_u (resp. ω_l) perturbed gives every segment's sensitivity.
         A disc stuck at a segment's start (speed exactly 0) is left stuck, and a correction never
         exceeds three standard deviations of the estimate's quantization noise
-        (``Experiment.speed_noise``): it removes derivative noise, not model error.  ``fresh``: start from
-        the data's estimates (earlier corrections, made for another parameter vector, dropped)."""
+        (``Experiment.speed_noise``): it removes derivative noise, not model error.
+
+        Parameters
+        ----------
+        vec : numpy.ndarray
+            The model's parameter vector.
+        weights : dict of str to float
+            The channels' weights.
+        scales : dict of str to float
+            The channels' residual scales.
+        iterations : int, optional
+            Gauss–Newton iterations.  Default 2.
+        h : float, optional
+            Speed step of the sensitivities (rad/s).  Default 0.005.
+        fresh : bool, optional
+            Start from the data's estimates (earlier corrections, made for another parameter vector,
+            dropped).  Default False.
+        """
         if fresh:
             self.speed_offsets = [np.zeros_like(o) for o in self.speed_offsets]
         for _ in range(iterations):
@@ -235,8 +221,18 @@ class SegmentedModel:
         self._tau_col = comp.param_index("tau_m") if self._lag is not None else None
 
     def with_composition(self, composition: Any) -> "SegmentedModel":
-        """The same experiments, segments and speed corrections with another model (a composition
-        that extends this one: the diagnosis tries each candidate effect so)."""
+        """The same experiments, segments and speed corrections with another model.
+
+        Parameters
+        ----------
+        composition : Composition or effects
+            A composition that extends this one (the diagnosis tries each candidate effect so).
+
+        Returns
+        -------
+        SegmentedModel
+            The model.
+        """
         other = object.__new__(SegmentedModel)
         other.__dict__.update(self.__dict__)
         other._plans = [dict(p) for p in self._plans]
@@ -246,11 +242,35 @@ class SegmentedModel:
 
     # ------------------------------------------------------------------ helpers
     def segments(self, k: int) -> tuple[np.ndarray, int]:
-        """Start indices and length (samples) of experiment k's segments."""
+        """An experiment's segments.
+
+        Parameters
+        ----------
+        k : int
+            The experiment.
+
+        Returns
+        -------
+        tuple of (numpy.ndarray, int)
+            The segments' start indices and their length (samples).
+        """
         return self._plans[k]["starts"], self._plans[k]["L"]
 
     def stitch(self, k: int, seg: np.ndarray) -> np.ndarray:
-        """Join segment outputs (n_seg, L+1) into a record-length array (NaN where not covered)."""
+        """Join segment outputs into a record-length array.
+
+        Parameters
+        ----------
+        k : int
+            The experiment.
+        seg : numpy.ndarray
+            The segments' outputs (n_seg, L+1).
+
+        Returns
+        -------
+        numpy.ndarray
+            The record-length array (NaN where not covered).
+        """
         ex = self.experiments[k]
         starts, L = self.segments(k)
         out = np.full(ex.n, np.nan)
@@ -265,7 +285,20 @@ class SegmentedModel:
         :data:`LVDT_EDGE_PERIODS` periods of its cut-off from either end of a segment: the data were
         filtered over the whole record, a segment's prediction can only be filtered within the segment,
         and the two differ there by the filter's edge transient (on an independent rig's coupled
-        recordings the LVDT misfit fell from 9 noise units to the noise without those samples)."""
+        recordings the LVDT misfit fell from 9 noise units to the noise without those samples).
+
+        Parameters
+        ----------
+        k : int
+            The experiment.
+        channel : str
+            The channel.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n_seg, L+1), NaN beyond the record and where not compared.
+        """
         ex = self.experiments[k]
         starts, L = self.segments(k)
         y = ex.channel(channel)
@@ -283,15 +316,26 @@ class SegmentedModel:
         return out
 
     def matrix(self, P: Any) -> np.ndarray:
-        """Parameter rows (B, composition.n_params) from a matrix, a vector or RigParams (effects at
-        their defaults when the rows hold only the base parameters)."""
+        """Parameter rows of the composition.
+
+        Parameters
+        ----------
+        P : numpy.ndarray or RigParams
+            A matrix, a vector or RigParams (effects at their defaults when the rows hold only the base
+            parameters).
+
+        Returns
+        -------
+        numpy.ndarray
+            (B, composition.n_params).
+        """
         if not isinstance(P, np.ndarray):
             return self.composition.matrix(P, 1)
         P = np.atleast_2d(np.asarray(P, dtype=float))
         if P.shape[1] == N_PARAMS and self.composition.n_params != N_PARAMS:
             return self.composition.matrix(P, P.shape[0])
         if P.shape[1] != self.composition.n_params:
-            raise ValueError(f"parameter matrix must have {self.composition.n_params} columns "
+            raise InputError(f"parameter matrix must have {self.composition.n_params} columns "
                              f"({', '.join(self.composition.param_names)}), got {P.shape[1]}")
         return P
 
@@ -325,10 +369,23 @@ class SegmentedModel:
     # ------------------------------------------------------------------ prediction
     def predict(self, P: np.ndarray, channels: tuple[str, ...] = CHANNELS,
                 dspeed: np.ndarray | None = None) -> list[Prediction]:
-        """Model outputs for each parameter row of P (B, composition.n_params) -> list of B Predictions.
+        """The model's outputs for each parameter row.
 
-        ``dspeed`` (B, 2): extra (ω_u, ω_l) added to every segment's initial speeds of that row
-        (used to compute sensitivities in :meth:`refine_initial_speeds`)."""
+        Parameters
+        ----------
+        P : numpy.ndarray
+            Parameter rows (B, composition.n_params).
+        channels : tuple of str, optional
+            The channels predicted.
+        dspeed : numpy.ndarray, optional
+            (B, 2): extra (ω_u, ω_l) added to every segment's initial speeds of that row (rad/s; the
+            sensitivities of :meth:`refine_initial_speeds`).
+
+        Returns
+        -------
+        list of Prediction
+            One per row.
+        """
         per_exp = self.predict_arrays(P, channels, dspeed)
         B = np.atleast_2d(P).shape[0]
         return [Prediction([per_exp[k] and {c: v[b] for c, v in per_exp[k].items()} for k in range(len(per_exp))],
@@ -336,7 +393,22 @@ class SegmentedModel:
 
     def predict_arrays(self, P: np.ndarray, channels: tuple[str, ...] = CHANNELS,
                        dspeed: np.ndarray | None = None) -> list[dict[str, np.ndarray]]:
-        """:meth:`predict`'s outputs for all rows at once: per experiment, channel -> (B, n_seg, seg_len)."""
+        """:meth:`predict`'s outputs for all rows at once.
+
+        Parameters
+        ----------
+        P : numpy.ndarray
+            Parameter rows (B, composition.n_params).
+        channels : tuple of str, optional
+            The channels predicted.
+        dspeed : numpy.ndarray, optional
+            (B, 2) speed offsets, as :meth:`predict`.
+
+        Returns
+        -------
+        list of dict of str to numpy.ndarray
+            Per experiment, channel -> (B, n_seg, seg_len).
+        """
         P = self.matrix(P)
         B = P.shape[0]
         S = np.ascontiguousarray(P[:, self._sim_cols])  # rows of the simulated composition

@@ -23,16 +23,24 @@ _ITER = 6
 
 def invert_measurement(comp: Composition, readings: np.ndarray, rates: np.ndarray | None, vec: np.ndarray
                        ) -> tuple[np.ndarray, np.ndarray | None]:
-    """(states, rates) whose measurement is ``readings``.
+    """The states and rates whose measurement is the readings.
 
-    Args:
-        comp: the composition whose Measurement effects the readings went through.
-        readings: (n, 4) columns θu (rad), θl (rad), X (m), Y (m) as read by the sensors.
-        rates: (n, 4) their measured time derivatives (per s), or None.
-        vec: the composition's parameter vector.
-    Returns:
-        (n, 4) true θu, θl, X, Y and (n, 4) true rates (the measured rates through the inverse
-        Jacobian; entries measured exactly 0 on a channel the inversion does not mix stay 0).
+    Parameters
+    ----------
+    comp : Composition
+        The composition whose Measurement effects the readings went through.
+    readings : numpy.ndarray
+        (n, 4) columns θu (rad), θl (rad), X (m), Y (m) as read by the sensors.
+    rates : numpy.ndarray or None
+        (n, 4) their measured time derivatives (per s).
+    vec : numpy.ndarray
+        The composition's parameter vector.
+
+    Returns
+    -------
+    tuple of (numpy.ndarray, numpy.ndarray or None)
+        (n, 4) true θu, θl, X, Y and (n, 4) true rates (the measured rates through the inverse Jacobian;
+        entries measured exactly 0 on a channel the inversion does not mix stay 0).
     """
     m = np.asarray(readings, dtype=float)
     if not comp.has_measurement:

@@ -42,6 +42,7 @@ from typing import Sequence
 import numpy as np
 
 from ..configurations import Configuration
+from ..errors import InputError
 from ..io import TimeSeries
 from ..params import IDX, RigParams
 from .experiment import Experiment, prepare_experiment
@@ -83,8 +84,22 @@ _STAGE_CONFIG = {"upper": Configuration.UPPER, "free_vibration": Configuration.F
 
 
 def bearing_experiment(ts: TimeSeries, compare_rate_hz: float = 100.0) -> Experiment:
-    """A recording of the torsional system WITHOUT brake (lateral motion held) as an experiment the
-    ``lateral`` kernel reproduces exactly with e = 0 (see the module docstring)."""
+    """A recording of the torsional system without brake as an experiment of the lateral kernel.
+
+    Lateral motion held: the ``lateral`` kernel reproduces it exactly with e = 0 (see the module docstring).
+
+    Parameters
+    ----------
+    ts : TimeSeries
+        The recording.
+    compare_rate_hz : float, optional
+        Comparison grid rate (Hz).  Default 100.
+
+    Returns
+    -------
+    Experiment
+        The experiment.
+    """
     ex = prepare_experiment(ts, Configuration.TORSIONAL if ts.configuration is None else ts.configuration,
                             compare_rate_hz=compare_rate_hz)
     ex.config = Configuration.LATERAL
@@ -147,7 +162,24 @@ def _stage_params(params: RigParams, stage: _Stage) -> RigParams:
 
 def r2_free_run(experiments: Sequence[Experiment], params: RigParams, channels: Sequence[str],
                 fixed: dict | None = None) -> dict[str, float]:
-    """R² per channel (report eq. 3.2) of free runs from each recording's initial state."""
+    """R² per channel (report eq. 3.2) of free runs from each recording's initial state.
+
+    Parameters
+    ----------
+    experiments : sequence of Experiment
+        The recordings.
+    params : RigParams
+        The parameters.
+    channels : sequence of str
+        The channels.
+    fixed : dict, optional
+        Parameters held at other values.
+
+    Returns
+    -------
+    dict of str to float
+        R² per channel.
+    """
     if not experiments:
         return {}
     vec = params.to_vector()
@@ -170,20 +202,45 @@ def r2_free_run(experiments: Sequence[Experiment], params: RigParams, channels: 
 def identify_stage(stage: str, estimation, params: RigParams, validation=None, *,
                    compare_rate_hz: float = 100.0, max_nfev: int = 40,
                    parameters: Sequence[str] | None = None, refine_speeds: bool = True) -> StageResult:
-    """Run one stage of the procedure (``upper``, ``free_vibration``, ``lower``, ``lateral``, ``brake``).
+    """Run one stage of the procedure.
 
-    ``estimation``/``validation``: recordings (TimeSeries) or experiments of that stage;
-    ``params``: the current parameter set (earlier stages' results, initial guesses for this one).
-    ``refine_speeds``: the segment-start speeds are fitted with the parameters (module docstring); False:
-    held at the data's estimates.
+    Parameters
+    ----------
+    stage : str
+        ``upper``, ``free_vibration``, ``lower``, ``lateral`` or ``brake``.
+    estimation : TimeSeries, Experiment or a sequence of them
+        The stage's recordings.
+    params : RigParams
+        The current parameter set (earlier stages' results, initial guesses for this one).
+    validation : TimeSeries, Experiment or a sequence of them, optional
+        Validation recordings.
+    compare_rate_hz : float, optional
+        Comparison grid rate (Hz).  Default 100.
+    max_nfev : int, optional
+        Least-squares evaluations.  Default 40.
+    parameters : sequence of str, optional
+        The parameters fitted (default: the stage's).
+    refine_speeds : bool, optional
+        Fit the segment-start speeds with the parameters (module docstring); False: hold them at the data's
+        estimates.  Default True.
+
+    Returns
+    -------
+    StageResult
+        The stage's fit and R².
+
+    Raises
+    ------
+    InputError
+        An unknown stage, or no estimation data.
     """
     if stage not in STAGES:
-        raise ValueError(f"unknown identification stage {stage!r}; expected one of: {', '.join(STAGES)}")
+        raise InputError(f"unknown identification stage {stage!r}; expected one of: {', '.join(STAGES)}")
     st = STAGES[stage]
     est = _as_experiments(estimation, stage, compare_rate_hz)
     val = _as_experiments(validation, stage, compare_rate_hz)
     if not est:
-        raise ValueError(f"stage {stage!r}: no estimation data")
+        raise InputError(f"stage {stage!r}: no estimation data")
     start = _stage_params(params, st)
     fixed = {"e": 0.0} if stage == "lower" else {}
     if fixed:
@@ -216,16 +273,35 @@ def identify_stage(stage: str, estimation, params: RigParams, validation=None, *
 def identify_staged(data: dict[str, object], params: RigParams | None = None, *,
                     validation: dict[str, object] | None = None, compare_rate_hz: float = 100.0,
                     max_nfev: int = 40) -> IdentificationResult:
-    """The full procedure: run the stages for which ``data`` has recordings, in the report's order.
+    """The full procedure: the stages that have recordings, in the report's order.
 
-    ``data``/``validation`` map stage names (see :data:`STAGES`) to one recording or a list
-    (the brake stage takes several, at different initial windings).  ``params`` are the
-    initial guesses (default MODEL.md).  Returns the final parameter set and each stage's
-    fit, R² and identifiability warnings.
+    Parameters
+    ----------
+    data : dict
+        Stage name (see :data:`STAGES`) -> one recording or a list (the brake stage takes several, at
+        different initial windings).
+    params : RigParams, optional
+        The initial guesses (default: MODEL.md).
+    validation : dict, optional
+        Stage name -> validation recordings.
+    compare_rate_hz : float, optional
+        Comparison grid rate (Hz).  Default 100.
+    max_nfev : int, optional
+        Least-squares evaluations per stage.  Default 40.
+
+    Returns
+    -------
+    IdentificationResult
+        The final parameter set and each stage's fit, R² and identifiability warnings.
+
+    Raises
+    ------
+    InputError
+        An unknown stage name.
     """
     unknown = set(data) - set(STAGES)
     if unknown:
-        raise ValueError(f"unknown identification stage(s) {', '.join(sorted(unknown))}; "
+        raise InputError(f"unknown identification stage(s) {', '.join(sorted(unknown))}; "
                          f"expected: {', '.join(STAGES)}")
     p = params or RigParams()
     stages = []
