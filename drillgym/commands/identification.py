@@ -8,6 +8,7 @@ from typing import List, Optional
 
 import typer
 
+from ..errors import InputError
 from .effect_options import add_effect_option, effect_param_option
 from .mapping import MAP_HELP, parse_mapping
 from .outputs import CREATES_DIRS, output_file
@@ -51,7 +52,7 @@ def _model(path: Optional[Path], add_effect: Optional[List[str]], effect_param: 
     values = dict(mf.values)
     extra = parse_effect_params(effect_param)
     if extra and not (add_effect or mf.specs):
-        raise ValueError(f"--effect-param {next(iter(extra))}: no effect in the model (use --add-effect NAME)")
+        raise InputError(f"--effect-param {next(iter(extra))}: no effect in the model (use --add-effect NAME)")
     values.update(extra)
     specs = list(mf.specs) + list(add_effect or [])
     comp, vals = compose(specs, values)
@@ -71,9 +72,9 @@ def _segment(value: str) -> "float | None":
     try:
         s = float(v)
     except ValueError:
-        raise ValueError(f"--segment must be 'auto', 'none' or a number of seconds, got {value!r}") from None
+        raise InputError(f"--segment must be 'auto', 'none' or a number of seconds, got {value!r}") from None
     if s <= 0:
-        raise ValueError(f"--segment must be positive, got {value!r}")
+        raise InputError(f"--segment must be positive, got {value!r}")
     return s
 
 
@@ -85,231 +86,241 @@ def _experiment(data: Path, config: Optional[str], rate: float, mapping: Optiona
                               compare_rate_hz=rate)
 
 
-def register(app: typer.Typer) -> None:
-    @app.command("signal")
-    def signal_cmd(
-        out: Path = typer.Argument(..., help=f"output CSV (columns t, u); {CREATES_DIRS}"),
-        kind: str = typer.Option("quasi_random", "--kind", help="quasi_random (estimation) or sum_of_sines (validation)"),
-        duration: float = typer.Option(60.0, help="duration (s)"),
-        rate: float = typer.Option(1000.0, help="sample rate (Hz)"),
-        amplitude: float = typer.Option(5.0, help="largest |u| (V); the signal spans offset ± (amplitude - |offset|)"),
-        offset: float = typer.Option(0.0, help="mean voltage (V)"),
-        seed: int = typer.Option(0, help="random seed"),
-    ) -> None:
-        """Write an excitation signal (the report's estimation/validation inputs) as an input file."""
-        from ..signals import quasi_random, sum_of_sines, write_input_file
+def signal_cmd(
+    out: Path = typer.Argument(..., help=f"output CSV (columns t, u); {CREATES_DIRS}"),
+    kind: str = typer.Option("quasi_random", "--kind", help="quasi_random (estimation) or sum_of_sines (validation)"),
+    duration: float = typer.Option(60.0, help="duration (s)"),
+    rate: float = typer.Option(1000.0, help="sample rate (Hz)"),
+    amplitude: float = typer.Option(5.0, help="largest |u| (V); the signal spans offset ± (amplitude - |offset|)"),
+    offset: float = typer.Option(0.0, help="mean voltage (V)"),
+    seed: int = typer.Option(0, help="random seed"),
+) -> None:
+    """Write an excitation signal (the report's estimation/validation inputs) as an input file."""
+    from ..signals import quasi_random, sum_of_sines, write_input_file
 
-        gens = {"quasi_random": quasi_random, "sum_of_sines": sum_of_sines}
-        if kind not in gens:
-            raise ValueError(f"--kind must be one of {', '.join(gens)}, got {kind!r}")
-        t, u = gens[kind](duration, rate_hz=rate, seed=seed, amplitude=amplitude, offset=offset)
-        write_input_file(output_file(out), t, u, description=f"{kind}, seed {seed}")
-        typer.echo(f"wrote {out}: {kind}, {duration:g} s at {rate:g} Hz, u in [{u.min():.2f}, {u.max():.2f}] V")
+    gens = {"quasi_random": quasi_random, "sum_of_sines": sum_of_sines}
+    if kind not in gens:
+        raise InputError(f"--kind must be one of {', '.join(gens)}, got {kind!r}")
+    t, u = gens[kind](duration, rate_hz=rate, seed=seed, amplitude=amplitude, offset=offset)
+    write_input_file(output_file(out), t, u, description=f"{kind}, seed {seed}")
+    typer.echo(f"wrote {out}: {kind}, {duration:g} s at {rate:g} Hz, u in [{u.min():.2f}, {u.max():.2f}] V")
 
-    @app.command("compare")
-    def compare_cmd(
-        data: Path = typer.Argument(..., help="recording (DATA_FORMAT csv or .mat)"),
-        params: Optional[Path] = typer.Option(None, "--params", help="parameter file, may be partial "
-                                                                     "(default MODEL.md set)"),
-        config: Optional[str] = typer.Option(None, "--config", help="configuration if the file has none"),
-        out: Path = typer.Option(Path("compare_out"), "--out", help=f"output directory; {CREATES_DIRS}"),
-        segment: str = typer.Option("none", "--segment",
-                                    help="'none': free run from the initial state; seconds: re-start from data "
-                                         "every so many seconds (stick-slip); 'auto': 4 s with the brake"),
-        rate: float = typer.Option(100.0, help="comparison grid rate (Hz)"),
-        add_effect: List[str] = add_effect_option(),
-        effect_param: List[str] = effect_param_option(),
-        map_: List[str] = typer.Option([], "--map", help=MAP_HELP),
-    ) -> None:
-        """Simulate a recording's input from its initial state; R², RMS and where the error lives."""
-        from ..diagnosis.compare import compare, write_compare
-        from ..diagnosis.ranking import default_segment
 
-        base, model, values, _ = _model(params, add_effect, effect_param)
-        ex = _experiment(data, config, rate, map_)
-        seg = _segment(segment)
-        if seg is not None and seg < 0:
-            seg = default_segment(ex.config) if ex.config.brake else None
-        comp = compare(ex, base, segment_s=seg, effects=model, effect_params=values)
-        paths = write_compare(comp, out)
-        typer.echo(comp.text())
-        typer.echo(f"figures and report in {out}/: " + ", ".join(p.name for p in paths))
+def compare_cmd(
+    data: Path = typer.Argument(..., help="recording (DATA_FORMAT csv or .mat)"),
+    params: Optional[Path] = typer.Option(None, "--params", help="parameter file, may be partial "
+                                                                 "(default MODEL.md set)"),
+    config: Optional[str] = typer.Option(None, "--config", help="configuration if the file has none"),
+    out: Path = typer.Option(Path("compare_out"), "--out", help=f"output directory; {CREATES_DIRS}"),
+    segment: str = typer.Option("none", "--segment",
+                                help="'none': free run from the initial state; seconds: re-start from data "
+                                     "every so many seconds (stick-slip); 'auto': 4 s with the brake"),
+    rate: float = typer.Option(100.0, help="comparison grid rate (Hz)"),
+    add_effect: List[str] = add_effect_option(),
+    effect_param: List[str] = effect_param_option(),
+    map_: List[str] = typer.Option([], "--map", help=MAP_HELP),
+) -> None:
+    """Simulate a recording's input from its initial state; R², RMS and where the error lives."""
+    from ..diagnosis.compare import compare, write_compare
+    from ..diagnosis.screening import default_segment
 
-    @app.command("diagnose")
-    def diagnose_cmd(
-        data: Path = typer.Argument(..., help="recording (DATA_FORMAT csv or .mat)"),
-        params: Optional[Path] = typer.Option(None, "--params", help="base parameter file (default MODEL.md set)"),
-        config: Optional[str] = typer.Option(None, "--config", help="configuration if the file has none"),
-        as_json: bool = typer.Option(False, "--json", help="print one JSON object: selected, ranking, "
-                                                          "base_parameters, candidate, ..."),
-        segment: str = typer.Option("auto", "--segment", help="multiple-shooting segment (s), 'auto' or 'none'"),
-        rate: float = typer.Option(50.0, help="comparison grid rate (Hz)"),
-        sparse: bool = typer.Option(True, "--sparse/--no-sparse",
-                                    help="also look for an effect outside the library in the residual torques"),
-        candidate_out: Optional[Path] = typer.Option(None, "--candidate-out",
-                                                     help="write the candidate effect found in the residual torques "
-                                                          "to this .py file (default: RECORDING_candidate.py next "
-                                                          "to the recording, when one is found)"),
-        fixed_base: bool = typer.Option(False, "--fixed-base",
-                                        help="hold the base parameters (default: re-identify those the recording "
-                                             "excites and report which moved)"),
-        refit_base: bool = typer.Option(False, "--refit-base", hidden=True, help="(always on; see --fixed-base)"),
-        add_effect: List[str] = add_effect_option(),
-        effect_param: List[str] = effect_param_option(),
-        candidate: List[str] = typer.Option(None, "--candidate",
-                                            help="also try this effect (name or path/to/file.py:NAME; repeatable); "
-                                                 "default candidates: the library's"),
-        map_: List[str] = typer.Option([], "--map", help=MAP_HELP),
-    ) -> None:
-        """Which SET of effects the recording shows (forward selection with refit, the base parameters
-        re-identified alongside), which base parameters moved, and a candidate effect file for what the
-        library does not explain; the model is --params with its effects plus --add-effect."""
-        from ..diagnosis.discovery import discover
-        from ..diagnosis.effects import effects_for, get_effect
-        from ..diagnosis.ranking import diagnose
-        from ..identification.experiment import prepare_experiment
-        from ..io import read_timeseries
+    base, model, values, _ = _model(params, add_effect, effect_param)
+    ex = _experiment(data, config, rate, map_)
+    seg = _segment(segment)
+    if seg is not None and seg < 0:
+        seg = default_segment(ex.config) if ex.config.brake else None
+    comp = compare(ex, base, segment_s=seg, effects=model, effect_params=values)
+    paths = write_compare(comp, out)
+    typer.echo(comp.text())
+    typer.echo(f"figures and report in {out}/: " + ", ".join(p.name for p in paths))
 
-        if candidate_out is not None and candidate_out.suffix != ".py":
-            raise ValueError(f"--candidate-out {candidate_out}: the effect file must end in .py")
-        base, model, values, _ = _model(params, add_effect, effect_param)
-        extra = [get_effect(c) for c in candidate or []]
-        ts = read_timeseries(data, config, parse_mapping(map_ or []))
-        ex = prepare_experiment(ts, config, compare_rate_hz=rate)
-        cands = None
-        if extra:
-            cands = effects_for(ex.config) + [e for e in extra if e.name not in {c.name for c in effects_for(ex.config)}]
-        d = diagnose(ex, base, effects=cands, base_effects=model, effect_params=values, segment_s=_segment(segment),
-                     fixed_base=fixed_base)
-        if sparse and ex.config is not ex.config.UPPER:
-            fine = prepare_experiment(ts, config, compare_rate_hz=min(250.0, ts.sample_rate_hz))
-            out_file = candidate_out or data.with_name(data.stem + "_candidate.py")
-            d.candidate, d.advice = discover(fine, d, out_file)
-        if as_json:
-            typer.echo(_json(d.to_json()))
-        else:
-            typer.echo(d.text())
-            if d.candidate is not None:
-                c = d.candidate
-                typer.echo(f"candidate outside the library ({c.explained:.0%} of the residual torque): "
-                           f"{c.expression()}")
-                typer.echo(f"  written to {c.effect_file.rsplit(':', 1)[0]}; fit it: drillgym identify {data} "
-                           f"--add-effect {c.effect_file} --out p.json")
 
-    @app.command("identify")
-    def identify_cmd(
-        data: Path = typer.Argument(..., help="recording (DATA_FORMAT csv or .mat)"),
-        out: Path = typer.Option(..., "--out", help=f"model file to write (.json or .yaml): params and effects; {CREATES_DIRS}"),
-        config: Optional[str] = typer.Option(None, "--config", help="configuration if the file has none"),
-        add_effect: List[str] = add_effect_option(),
-        effect_param: List[str] = typer.Option(None, "--effect-param",
-                                               help="starting value of an added effect's parameter (or the value "
-                                                    "of one already in --params), NAME=VALUE; repeatable"),
-        params: Optional[Path] = typer.Option(None, "--params",
-                                              help="model file: base parameters, and effects with their values "
-                                                   "(default MODEL.md set, no effects)"),
-        fit: List[str] = typer.Option(None, "--fit", help="also fit this parameter of the model (repeatable)"),
-        refit_base: bool = typer.Option(False, "--refit-base",
-                                        help="also fit the configuration's base parameters with the effects"),
-        as_json: bool = typer.Option(False, "--json", help="print r2_before, r2_after, fitted, std, effects as JSON"),
-        report: Optional[Path] = typer.Option(None, "--report", help="directory for a markdown report with figures; " + CREATES_DIRS),
-        segment: str = typer.Option("auto", "--segment", help="multiple-shooting segment (s), 'auto' or 'none'"),
-        rate: float = typer.Option(50.0, help="comparison grid rate (Hz)"),
-        max_nfev: int = typer.Option(30, "--max-nfev", help="least-squares evaluations"),
-        map_: List[str] = typer.Option([], "--map", help=MAP_HELP),
-    ) -> None:
-        """Add effects to the model (library names or your own files) and fit their parameters to a recording;
-        with none, refit the configuration's base parameters.  Writes the model (params and effects)."""
-        from ..diagnosis.effects import get_effect
-        from ..diagnosis.ranking import default_segment, diagnose
-        from ..diagnosis.refit import effect_records, refit
-        from ..diagnosis.report import write_report
-        from ..identification.model_file import write_model
-        from .effect_options import parse_effect_params
+def diagnose_cmd(
+    data: Path = typer.Argument(..., help="recording (DATA_FORMAT csv or .mat)"),
+    params: Optional[Path] = typer.Option(None, "--params", help="base parameter file (default MODEL.md set)"),
+    config: Optional[str] = typer.Option(None, "--config", help="configuration if the file has none"),
+    as_json: bool = typer.Option(False, "--json", help="print one JSON object: selected, ranking, "
+                                                      "base_parameters, candidate, ..."),
+    segment: str = typer.Option("auto", "--segment", help="multiple-shooting segment (s), 'auto' or 'none'"),
+    rate: float = typer.Option(50.0, help="comparison grid rate (Hz)"),
+    sparse: bool = typer.Option(True, "--sparse/--no-sparse",
+                                help="also look for an effect outside the library in the residual torques"),
+    candidate_out: Optional[Path] = typer.Option(None, "--candidate-out",
+                                                 help="write the candidate effect found in the residual torques "
+                                                      "to this .py file (default: RECORDING_candidate.py next "
+                                                      "to the recording, when one is found)"),
+    fixed_base: bool = typer.Option(False, "--fixed-base",
+                                    help="hold the base parameters (default: re-identify those the recording "
+                                         "excites and report which moved)"),
+    add_effect: List[str] = add_effect_option(),
+    effect_param: List[str] = effect_param_option(),
+    candidate: List[str] = typer.Option(None, "--candidate",
+                                        help="also try this effect (name or path/to/file.py:NAME; repeatable); "
+                                             "default candidates: the library's"),
+    map_: List[str] = typer.Option([], "--map", help=MAP_HELP),
+) -> None:
+    """Which SET of effects the recording shows (forward selection with refit, the base parameters
+    re-identified alongside), which base parameters moved, and a candidate effect file for what the
+    library does not explain; the model is --params with its effects plus --add-effect."""
+    from ..diagnosis import DiagnosisOptions, diagnose
+    from ..diagnosis.effects import effects_for, get_effect
+    from ..identification.experiment import prepare_experiment
+    from ..io import read_timeseries
 
-        if out.suffix.lower() not in (".json", ".yaml", ".yml"):
-            raise ValueError(f"--out {out}: parameter file must end in .json, .yaml or .yml")
-        added = list(add_effect or [])
-        specs = {get_effect(n).name: n for n in added}
-        mf = _model_file(params)
-        base_comp, base_values = mf.composition()
-        starts = parse_effect_params(effect_param)
-        held = {k: v for k, v in starts.items() if k in base_values}
-        ex = _experiment(data, config, rate, map_)
-        seg = _segment(segment)
-        if seg is not None and seg < 0:
-            seg = default_segment(ex.config)
-        res = refit(ex, mf.params, effects=added, effect_params=starts, base_effects=base_comp,
-                    base_values={**base_values, **held}, fit=list(fit or []), refit_base=refit_base, segment_s=seg,
-                    max_nfev=max_nfev)
-        for spec, e in zip(mf.specs, base_comp.effects):
-            specs.setdefault(e.name, spec)
-        records = effect_records(res.composition, res.effect_values, specs)
-        write_model(output_file(out), res.params, records)
-        if report is not None:
-            d = diagnose(ex, mf.params, base_effects=base_comp, effect_params=base_values, segment_s=seg)
-            write_report(report, ex, mf.params, d, res, seg, base_comp, base_values)
-        if as_json:
-            typer.echo(_json({"r2_before": res.r2_before, "r2_after": res.r2_after, "rms_before": res.rms_before,
-                              "rms_after": res.rms_after, "fitted": res.values, "std": res.std,
-                              "effects": records, "effects_added": res.effects, "model_before": res.model_before,
-                              "params": res.params.to_dict(), "warnings": res.warnings, "out": str(out)}))
-        else:
-            typer.echo(f"effects added: {', '.join(res.effects) or 'none (base parameters refitted)'}")
-            for k, v in res.values.items():
-                sd = res.std.get(k)
-                typer.echo(f"  {k} = {v:.6g}" + (f" ± {sd:.2g}" if sd is not None and sd == sd else ""))
-            for c in res.r2_before:
-                typer.echo(f"  {c:<8} R² {res.r2_before[c]:.4f} -> {res.r2_after[c]:.4f}   "
-                           f"RMS {res.rms_before[c]:.4g} -> {res.rms_after[c]:.4g}")
-            for w in res.warnings:
+    if candidate_out is not None and candidate_out.suffix != ".py":
+        raise InputError(f"--candidate-out {candidate_out}: the effect file must end in .py")
+    base, model, values, _ = _model(params, add_effect, effect_param)
+    extra = [get_effect(c) for c in candidate or []]
+    ts = read_timeseries(data, config, parse_mapping(map_ or []))
+    ex = prepare_experiment(ts, config, compare_rate_hz=rate)
+    cands = None
+    if extra:
+        cands = effects_for(ex.config) + [e for e in extra if e.name not in {c.name for c in effects_for(ex.config)}]
+    options = DiagnosisOptions(effects=cands, base_effects=model, effect_params=values,
+                               segment_s=_segment(segment), fixed_base=fixed_base, discover=sparse,
+                               candidate_out=candidate_out or data.with_name(data.stem + "_candidate.py"))
+    d = diagnose(ex, base, options=options)
+    if as_json:
+        typer.echo(_json(d.to_json()))
+    else:
+        typer.echo(d.text())
+        if d.candidate is not None:
+            c = d.candidate
+            typer.echo(f"candidate outside the library ({c.explained:.0%} of the residual torque): "
+                       f"{c.expression()}")
+            typer.echo(f"  written to {c.effect_file.rsplit(':', 1)[0]}; fit it: drillgym identify {data} "
+                       f"--add-effect {c.effect_file} --out p.json")
+
+
+def identify_cmd(
+    data: Path = typer.Argument(..., help="recording (DATA_FORMAT csv or .mat)"),
+    out: Path = typer.Option(..., "--out", help=f"model file to write (.json or .yaml): params and effects; {CREATES_DIRS}"),
+    config: Optional[str] = typer.Option(None, "--config", help="configuration if the file has none"),
+    add_effect: List[str] = add_effect_option(),
+    effect_param: List[str] = typer.Option(None, "--effect-param",
+                                           help="starting value of an added effect's parameter (or the value "
+                                                "of one already in --params), NAME=VALUE; repeatable"),
+    params: Optional[Path] = typer.Option(None, "--params",
+                                          help="model file: base parameters, and effects with their values "
+                                               "(default MODEL.md set, no effects)"),
+    fit: List[str] = typer.Option(None, "--fit", help="also fit this parameter of the model (repeatable)"),
+    refit_base: bool = typer.Option(False, "--refit-base",
+                                    help="also fit the configuration's base parameters with the effects"),
+    as_json: bool = typer.Option(False, "--json", help="print r2_before, r2_after, fitted, std, effects as JSON"),
+    report: Optional[Path] = typer.Option(None, "--report", help="directory for a markdown report with figures; " + CREATES_DIRS),
+    segment: str = typer.Option("auto", "--segment", help="multiple-shooting segment (s), 'auto' or 'none'"),
+    rate: float = typer.Option(50.0, help="comparison grid rate (Hz)"),
+    max_nfev: int = typer.Option(30, "--max-nfev", help="least-squares evaluations"),
+    map_: List[str] = typer.Option([], "--map", help=MAP_HELP),
+) -> None:
+    """Add effects to the model (library names or your own files) and fit their parameters to a recording;
+    with none, refit the configuration's base parameters.  Writes the model (params and effects)."""
+    from ..diagnosis.effects import get_effect
+    from ..diagnosis import diagnose
+    from ..diagnosis.refit import effect_records, refit
+    from ..diagnosis.screening import default_segment
+    from ..diagnosis.report import write_report
+    from ..identification.model_file import write_model
+    from .effect_options import parse_effect_params
+
+    if out.suffix.lower() not in (".json", ".yaml", ".yml"):
+        raise InputError(f"--out {out}: parameter file must end in .json, .yaml or .yml")
+    added = list(add_effect or [])
+    specs = {get_effect(n).name: n for n in added}
+    mf = _model_file(params)
+    base_comp, base_values = mf.composition()
+    starts = parse_effect_params(effect_param)
+    held = {k: v for k, v in starts.items() if k in base_values}
+    ex = _experiment(data, config, rate, map_)
+    seg = _segment(segment)
+    if seg is not None and seg < 0:
+        seg = default_segment(ex.config)
+    res = refit(ex, mf.params, effects=added, effect_params=starts, base_effects=base_comp,
+                base_values={**base_values, **held}, fit=list(fit or []), refit_base=refit_base, segment_s=seg,
+                max_nfev=max_nfev)
+    for spec, e in zip(mf.specs, base_comp.effects):
+        specs.setdefault(e.name, spec)
+    records = effect_records(res.composition, res.effect_values, specs)
+    write_model(output_file(out), res.params, records)
+    if report is not None:
+        d = diagnose(ex, mf.params, base_effects=base_comp, effect_params=base_values, segment_s=seg)
+        write_report(report, ex, mf.params, d, res, seg, base_comp, base_values)
+    if as_json:
+        typer.echo(_json({"r2_before": res.r2_before, "r2_after": res.r2_after, "rms_before": res.rms_before,
+                          "rms_after": res.rms_after, "fitted": res.values, "std": res.std,
+                          "effects": records, "effects_added": res.effects, "model_before": res.model_before,
+                          "params": res.params.to_dict(), "warnings": res.warnings, "out": str(out)}))
+    else:
+        typer.echo(f"effects added: {', '.join(res.effects) or 'none (base parameters refitted)'}")
+        for k, v in res.values.items():
+            sd = res.std.get(k)
+            typer.echo(f"  {k} = {v:.6g}" + (f" ± {sd:.2g}" if sd is not None and sd == sd else ""))
+        for c in res.r2_before:
+            typer.echo(f"  {c:<8} R² {res.r2_before[c]:.4f} -> {res.r2_after[c]:.4f}   "
+                       f"RMS {res.rms_before[c]:.4g} -> {res.rms_after[c]:.4g}")
+        for w in res.warnings:
+            typer.echo(f"  warning: {w}")
+        typer.echo(f"wrote {out}" + (f"; report in {report}/report.md" if report else ""))
+
+
+def identify_staged_cmd(
+    out: Path = typer.Option(..., "--out", help=f"parameter file to write (.json or .yaml); {CREATES_DIRS}"),
+    upper: List[Path] = typer.Option([], "--upper", help="recording of the upper part alone"),
+    free_vibration: List[Path] = typer.Option([], "--free-vibration", help="free-vibration release test"),
+    lower: List[Path] = typer.Option([], "--lower", help="torsional recording with the brake off"),
+    lateral: List[Path] = typer.Option([], "--lateral", help="lateral recording (brake off)"),
+    brake: List[Path] = typer.Option([], "--brake", help="torsional recordings with the brake (several alpha0)"),
+    validate: List[str] = typer.Option([], "--validate", help="STAGE=FILE validation recording (repeatable)"),
+    params: Optional[Path] = typer.Option(None, "--params", help="initial guesses (default MODEL.md set)"),
+    as_json: bool = typer.Option(False, "--json", help="print the stages as JSON"),
+) -> None:
+    """The report's staged identification: upper, free vibration, lower, lateral, brake."""
+    from ..identification.staged import STAGES, identify_staged
+    from ..io import read_timeseries
+
+    cfg = {"upper": "upper", "free_vibration": "free_vibration", "lower": "torsional", "lateral": "lateral",
+           "brake": "torsional"}
+    files = {"upper": upper, "free_vibration": free_vibration, "lower": lower, "lateral": lateral, "brake": brake}
+    data = {k: [read_timeseries(f, None if read_timeseries(f).configuration else cfg[k]) for f in v]
+            for k, v in files.items() if v}
+    if not data:
+        raise InputError("no recordings given: use --upper, --free-vibration, --lower, --lateral, --brake")
+    val: dict = {}
+    for item in validate:
+        if "=" not in item:
+            raise InputError(f"--validate expects STAGE=FILE, got {item!r}")
+        k, f = item.split("=", 1)
+        if k not in STAGES:
+            raise InputError(f"--validate: unknown stage {k!r}; expected one of {', '.join(STAGES)}")
+        val.setdefault(k, []).append(read_timeseries(Path(f), cfg[k]))
+    mf = _model_file(params)
+    if mf.specs:
+        raise InputError(f"--params {params}: the staged identification fits the base model; the file has effects "
+                         f"({', '.join(mf.specs)}): use identify --add-effect for those")
+    res = identify_staged(data, mf.params, validation=val)
+    res.params.to_file(output_file(out))
+    if as_json:
+        typer.echo(_json(res.to_json()))
+    else:
+        for s in res.stages:
+            typer.echo(f"stage {s.name}: " + ", ".join(f"{k}={v:.5g}±{s.fit.std[k]:.2g}"
+                                                       for k, v in s.fit.values.items()))
+            typer.echo(f"  R² estimation {s.r2_estimation}  validation {s.r2_validation}")
+            for w in s.fit.warnings:
                 typer.echo(f"  warning: {w}")
-            typer.echo(f"wrote {out}" + (f"; report in {report}/report.md" if report else ""))
+        typer.echo(f"wrote {out}")
 
-    @app.command("identify-staged")
-    def identify_staged_cmd(
-        out: Path = typer.Option(..., "--out", help=f"parameter file to write (.json or .yaml); {CREATES_DIRS}"),
-        upper: List[Path] = typer.Option([], "--upper", help="recording of the upper part alone"),
-        free_vibration: List[Path] = typer.Option([], "--free-vibration", help="free-vibration release test"),
-        lower: List[Path] = typer.Option([], "--lower", help="torsional recording with the brake off"),
-        lateral: List[Path] = typer.Option([], "--lateral", help="lateral recording (brake off)"),
-        brake: List[Path] = typer.Option([], "--brake", help="torsional recordings with the brake (several alpha0)"),
-        validate: List[str] = typer.Option([], "--validate", help="STAGE=FILE validation recording (repeatable)"),
-        params: Optional[Path] = typer.Option(None, "--params", help="initial guesses (default MODEL.md set)"),
-        as_json: bool = typer.Option(False, "--json", help="print the stages as JSON"),
-    ) -> None:
-        """The report's staged identification: upper, free vibration, lower, lateral, brake."""
-        from ..identification.staged import STAGES, identify_staged
-        from ..io import read_timeseries
 
-        cfg = {"upper": "upper", "free_vibration": "free_vibration", "lower": "torsional", "lateral": "lateral",
-               "brake": "torsional"}
-        files = {"upper": upper, "free_vibration": free_vibration, "lower": lower, "lateral": lateral, "brake": brake}
-        data = {k: [read_timeseries(f, None if read_timeseries(f).configuration else cfg[k]) for f in v]
-                for k, v in files.items() if v}
-        if not data:
-            raise ValueError("no recordings given: use --upper, --free-vibration, --lower, --lateral, --brake")
-        val: dict = {}
-        for item in validate:
-            if "=" not in item:
-                raise ValueError(f"--validate expects STAGE=FILE, got {item!r}")
-            k, f = item.split("=", 1)
-            if k not in STAGES:
-                raise ValueError(f"--validate: unknown stage {k!r}; expected one of {', '.join(STAGES)}")
-            val.setdefault(k, []).append(read_timeseries(Path(f), cfg[k]))
-        mf = _model_file(params)
-        if mf.specs:
-            raise ValueError(f"--params {params}: the staged identification fits the base model; the file has effects "
-                             f"({', '.join(mf.specs)}): use identify --add-effect for those")
-        res = identify_staged(data, mf.params, validation=val)
-        res.params.to_file(output_file(out))
-        if as_json:
-            typer.echo(_json(res.to_json()))
-        else:
-            for s in res.stages:
-                typer.echo(f"stage {s.name}: " + ", ".join(f"{k}={v:.5g}±{s.fit.std[k]:.2g}"
-                                                           for k, v in s.fit.values.items()))
-                typer.echo(f"  R² estimation {s.r2_estimation}  validation {s.r2_validation}")
-                for w in s.fit.warnings:
-                    typer.echo(f"  warning: {w}")
-            typer.echo(f"wrote {out}")
+def register(app: typer.Typer) -> None:
+    """Add the commands ``signal``, ``compare``, ``diagnose``, ``identify`` and ``identify-staged``.
+
+    Parameters
+    ----------
+    app : typer.Typer
+        The command-line application.
+    """
+    app.command("signal")(signal_cmd)
+    app.command("compare")(compare_cmd)
+    app.command("diagnose")(diagnose_cmd)
+    app.command("identify")(identify_cmd)
+    app.command("identify-staged")(identify_staged_cmd)

@@ -1,20 +1,27 @@
-"""Model versus measurement: compare, diagnose the missing effect, propose new terms.
+"""Model versus measurement: compare, diagnose the missing effects, propose new terms.
 
-* :mod:`.effects` — the candidates (the effect library of :mod:`drillgym.effects`, or any effect)
-  and their fit variables;
-* :mod:`.selection` — which SET of effects: forward selection with refit, the base parameters
-  re-identified alongside, backward check, base-model decision, lag versus delay;
-* :mod:`.ranking` — :func:`diagnose` (the selection, formatted) and the one-at-a-time ranking;
-* :mod:`.discovery` — a candidate effect outside the library from the residual torques on both
-  discs, written as an effect file (``diagnose --candidate-out``);
-* :mod:`.refit` — add effects to the model and fit them (``drillgym identify --add-effect``);
-* :mod:`.compare` — where the model fails (time, speed, angle, lateral amplitude, spectrum);
-* :mod:`.sparse` — data-driven candidate term for the residual torque (sparse regression);
-* :mod:`.report` — markdown report: base model -> diagnosis -> effect added -> refit.
+:func:`diagnose` is a pipeline of named steps (:mod:`.pipeline`):
+
+* :mod:`.screening` — the recording prepared and conditioned, the candidates it can show, the search model;
+* :mod:`.orders` — the select step: the forward selection (:mod:`.forward`, :mod:`.backward`) in several
+  orders, the better model by the criterion (:mod:`.criterion`);
+* :mod:`.checks` — the check step: position-dependent effects in both halves (:mod:`.reproducibility`), a
+  lag or a delay at the recording's own rate (:mod:`.lag_delay`, :mod:`.timing`), a drift or a position
+  friction on a disc that hardly turns;
+* :mod:`.ranking` — the report step (and the one-at-a-time ranking);
+* :mod:`.discovery` — a candidate effect outside the library from the residual torques on both discs,
+  written as an effect file (``diagnose --candidate-out``).
+
+Beside it: :mod:`.results` (the typed results), :mod:`.context` (the fit state), :mod:`.scoring` (evidence
+and significance), :mod:`.effects` (the candidates), :mod:`.refit` (``identify --add-effect``),
+:mod:`.compare` (where the model fails), :mod:`.sparse` (residual torques and a sparse regression),
+:mod:`.report` (markdown report: base model -> diagnosis -> effect added -> refit).
 """
 
 from ..effects import Effect
 from .effects import EFFECTS, effects_for, get_effect
-from .ranking import Diagnosis, EffectScore, diagnose
+from .pipeline import DiagnosisOptions, diagnose
+from .results import BaseChange, Candidate, Diagnosis, EffectScore, Selection
 
-__all__ = ["EFFECTS", "Effect", "effects_for", "get_effect", "Diagnosis", "EffectScore", "diagnose"]
+__all__ = ["EFFECTS", "Effect", "effects_for", "get_effect", "Diagnosis", "DiagnosisOptions", "EffectScore",
+           "BaseChange", "Candidate", "Selection", "diagnose"]

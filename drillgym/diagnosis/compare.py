@@ -105,8 +105,32 @@ def compare(data: "TimeSeries | Experiment", params: "RigParams | np.ndarray | N
             effect_params: Mapping[str, float] | None = None) -> Comparison:
     """Simulate the recording's input from its initial state and locate the error (see module docstring).
 
-    The model: ``params`` (RigParams, default MODEL.md; or a vector in the composition's layout)
-    with ``effects`` (names, file specs, classes or a Composition) and their ``effect_params``."""
+    Parameters
+    ----------
+    data : TimeSeries or Experiment
+        The recording.
+    params : RigParams or numpy.ndarray, optional
+        Base parameters (default: MODEL.md), or a vector in the composition's layout.
+    config : str or Configuration, optional
+        The configuration when the recording's metadata has none.
+    segment_s : float or None, optional
+        Multiple-shooting segment length (s); None: one free run from the initial state.
+    compare_rate_hz : float, optional
+        Comparison grid rate (Hz).  Default 100.
+    n_windows : int, optional
+        Time windows the error is located in.  Default 10.
+    refine_speeds : bool, optional
+        Refine the segments' initial speeds for the model.  Default True.
+    effects : any, optional
+        The model's effects (names, file specs, classes or a Composition).
+    effect_params : mapping of str to float, optional
+        Their values.
+
+    Returns
+    -------
+    Comparison
+        Where the model fails: per channel, in time, over speed, angle and lateral amplitude, in frequency.
+    """
     comp, values = compose(effects, effect_params)
     vec = base_vector(comp, params, values)
     p = RigParams.from_vector(vec[:N_PARAMS])
@@ -270,7 +294,20 @@ def _spectrum(comp: Comparison, e: np.ndarray) -> None:
 
 
 def write_compare(comp: Comparison, out_dir: str | Path) -> list[Path]:
-    """Figures (time, binned residuals, spectrum), ``report.txt`` and ``compare.json`` in ``out_dir``."""
+    """Write a comparison's figures (time, binned residuals, spectrum), ``report.txt`` and ``compare.json``.
+
+    Parameters
+    ----------
+    comp : Comparison
+        The comparison.
+    out_dir : str or path
+        The directory (made if missing).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written.
+    """
     import matplotlib
 
     matplotlib.use("Agg")

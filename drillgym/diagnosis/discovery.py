@@ -1,6 +1,6 @@
 """Discovery beyond the library: a candidate effect from the residual torques, written as an effect file.
 
-After the selection (:mod:`.selection`), what the model still misses is read from the residual
+After the selection (:mod:`.forward`), what the model still misses is read from the residual
 generalised torques on BOTH discs (:func:`.sparse.residual_torques`: the data's accelerations
 against the model's in the data's state, times the inertia or mass matrix; lateral forces enter
 through the mass matrix in the coupled configuration), each disc's where that disc slips, whatever the
@@ -28,7 +28,7 @@ regressed coefficients as guesses and bounds of ±4 times their size, so that
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
@@ -36,6 +36,7 @@ import numpy as np
 
 from ..identification.experiment import Experiment
 from ..params import N_PARAMS, RigParams
+from .results import Candidate
 from .sparse import ResidualTorque
 
 __all__ = ["Candidate", "find_candidate", "write_effect_file", "advice", "discover", "MIN_EXPLAINED_SHARE"]
@@ -86,10 +87,10 @@ def _stribeck_terms(ws: float, delta: float) -> list[_Term]:
         x = np.abs(w) / ws
         return np.sign(w) * np.exp(-x ** delta) * delta * x ** delta
     xs = f"max(speed / {ws!r}, 1e-12)"
-    out.append(_Term(f"∂/∂δ of sign(ωl) exp(−(|ωl|/ws)^δ)",
+    out.append(_Term("∂/∂δ of sign(ωl) exp(−(|ωl|/ws)^δ)",
                      f"-direction * math.exp(-{xs} ** {delta!r}) * {xs} ** {delta!r} * math.log({xs})",
                      lambda d: dshape_ddelta(d["wl"])))
-    out.append(_Term(f"ws·∂/∂ws of sign(ωl) exp(−(|ωl|/ws)^δ)",
+    out.append(_Term("ws·∂/∂ws of sign(ωl) exp(−(|ωl|/ws)^δ)",
                      f"direction * math.exp(-(speed / {ws!r}) ** {delta!r}) * {delta!r} * (speed / {ws!r}) ** {delta!r}",
                      lambda d: dshape_dws(d["wl"])))
     return out
@@ -131,40 +132,6 @@ _SENSE = {"lower_friction": (0.0, -1.0), "upper_friction": (-1.0, 0.0), "string"
           "lower_force": (0.0, 1.0), "upper_force": (1.0, 0.0)}
 
 
-@dataclass
-class Candidate:
-    """A candidate effect found in the residual torques."""
-
-    group: str
-    terms: dict[str, float]  # label -> coefficient (N m per unit of the term)
-    codes: dict[str, str]  # label -> Python expression
-    at_rest: dict[str, float]
-    explained: float
-    n_samples: int
-    name: str = ""
-    effect_file: str | None = None
-    rest: dict[str, float] = field(default_factory=dict)  # other groups' best shares
-    #: label -> coefficient that would make the term alone as large as the residual torque (N m per unit):
-    #: the file's bounds cover it too (collinear terms can get small regression coefficients)
-    reach: dict[str, float] = field(default_factory=dict)
-
-    @property
-    def dof(self) -> int:
-        return len(self.terms)
-
-    def expression(self) -> str:
-        where = {"lower_friction": "lower-disc slip friction +=", "upper_friction": "upper-disc slip friction +=",
-                 "string": "string torque (added to kθ α) +=", "lower_force": "torque on the lower disc +=",
-                 "upper_force": "torque on the upper disc +="}[self.group]
-        parts = " ".join(f"{c:+.4g}·{n}" if n != "1" else f"{c:+.4g}" for n, c in self.terms.items())
-        return f"{where} {parts}  [N m]"
-
-    def to_json(self) -> dict:
-        return {"name": self.name, "expression": self.expression(), "dof": self.dof,
-                "explained": round(self.explained, 4), "effect_file": self.effect_file, "group": self.group,
-                "terms": self.terms}
-
-
 def _data(rt: ResidualTorque, u: np.ndarray) -> dict[str, np.ndarray]:
     S = rt.states
     return {"thu": S[:, 0], "thl": S[:, 1], "wu": S[:, 2], "wl": S[:, 3], "a": S[:, 1] - S[:, 0],
@@ -188,11 +155,88 @@ def _nuisance(d: dict, n: int, Ju: float, Jl: float, ws: float, delta: float) ->
 
 def find_candidate(rt: ResidualTorque, u: np.ndarray, Ju: float, Jl: float, lateral: bool = False,
                    ws: float = 1.4302, delta: float = 2.0575) -> Candidate | None:
-    """The best candidate group and terms for the residual torques ``rt`` (``u``: the input at its
-    samples, V; ``Ju``, ``Jl``: inertias, kg m²; ``ws``, ``delta``: the Stribeck law's speed and
-    exponent); None if too few samples slip.  Terms are regressed jointly with the columns a change
-    of the base parameters would give (:func:`_nuisance`), so a candidate explains only what the
-    base parameters cannot; ``explained`` is its share of the residual left by those."""
+    """The best candidate group and terms for some residual torques.
+
+    Terms are regressed jointly with the columns a change of the base parameters would give, so a
+    candidate explains only what the base parameters cannot; ``explained`` is its share of the residual
+    left by those.
+
+    Parameters
+    ----------
+    rt : ResidualTorque
+        The residual torques on both discs.
+    u : numpy.ndarray
+        The input at their samples (V).
+    Ju, Jl : float
+        The discs' inertias (kg m²).
+    lateral : bool, optional
+        Whether the lower disc moves laterally (coupled configuration).  Default False.
+    ws : float, optional
+        The Stribeck law's speed (rad/s).
+    delta : float, optional
+        The Stribeck law's exponent.
+
+    Returns
+    -------
+    Candidate or None
+        The candidate, or None if too few samples slip.
+    """
+    prepared = _weighted_rows(rt, u, Ju, Jl)
+    if prepared is None:
+        return None
+    d, ok, n, y, W, smooth = prepared
+    y = smooth(W * y)
+    Nm = np.column_stack([smooth(c) for c in (W[:, None] * _nuisance(d, n, Ju, Jl, ws, delta)).T])
+    best: Candidate | None = None
+    shares: dict[str, float] = {}
+    groups = _groups(lateral, ws, delta)
+    # each group is judged on the rows of the discs it acts on, and a both-disc group (the string) also on
+    # each disc alone: a disc whose residual is noise (e.g. the upper disc's under voltage steps, which the
+    # second derivative smears) must not hide a term the other disc shows clearly
+    rowsets = {"upper": np.r_[np.ones(n, bool), np.zeros(n, bool)], "lower": np.r_[np.zeros(n, bool), np.ones(n, bool)],
+               "both": np.ones(2 * n, bool)}
+    for where, rows in rowsets.items():
+        Wr = W * rows
+        if not np.any(Wr > 0):
+            continue
+        Q, _ = np.linalg.qr(Nm * rows[:, None])
+
+        def project(v: np.ndarray) -> np.ndarray:
+            return v - Q @ (Q.T @ v)
+
+        yr = project(y * rows)
+        tss = float(yr @ yr) or 1.0
+        for group, terms in groups.items():
+            su, sl = _SENSE[group]
+            acts = {"upper": su != 0, "lower": sl != 0, "both": su != 0 and sl != 0}[where]
+            if not acts:
+                continue
+            cols = [project(rows * smooth(W * np.concatenate([su * g / Ju, sl * g / Jl])))
+                    for g in (np.asarray(tm.values(d), dtype=float) for tm in terms)]
+            chosen, share = _greedy_terms(cols, yr, tss)
+            shares[group] = max(shares.get(group, 0.0), share)
+            if chosen and (best is None or share > best.explained):
+                # the file's coefficients: the terms alone (with per-disc offsets), as the effect will act on the
+                # model as it is; the joint regression above only decides which terms and how much they explain
+                raw = [rows * smooth(W * np.concatenate([su * np.asarray(terms[j].values(d), float) / Ju,
+                                                         sl * np.asarray(terms[j].values(d), float) / Jl]))
+                       for j in chosen]
+                coef = _alone_coefficients(raw, Nm, rows, y)
+                if coef is None:
+                    continue  # the terms alone cancel each other: not a usable candidate
+                best = Candidate(group, {terms[j].label: float(coef[i]) for i, j in enumerate(chosen)},
+                                 {terms[j].label: terms[j].code for j in chosen},
+                                 {terms[j].label: terms[j].at_rest for j in chosen}, share, n)
+    if best is not None:
+        best.rest = shares
+        _set_reach(best, rt, d, ok, W, n, groups[best.group])
+    return best
+
+
+def _weighted_rows(rt: ResidualTorque, u: np.ndarray, Ju: float, Jl: float):
+    """The regression's rows: (state data of the rows used, their mask, their count, the residual in
+    acceleration units [upper; lower], each row's weight, the moving average over each disc's rows), or None
+    when too few samples slip."""
     from ..identification.experiment import estimate_rate
 
     fs = 1.0 / float(np.median(np.diff(rt.t)))
@@ -237,91 +281,79 @@ def find_candidate(rt: ResidualTorque, u: np.ndarray, Ju: float, Jl: float, late
         k = np.ones(m) / m
         return np.concatenate([np.convolve(v[:n], k, mode="same"), np.convolve(v[n:], k, mode="same")])
 
-    y = smooth(W * y)
-    Nm = np.column_stack([smooth(c) for c in (W[:, None] * _nuisance(d, n, Ju, Jl, ws, delta)).T])
-    best: Candidate | None = None
-    shares: dict[str, float] = {}
-    groups = _groups(lateral, ws, delta)
-    # each group is judged on the rows of the discs it acts on, and a both-disc group (the string) also on
-    # each disc alone: a disc whose residual is noise (e.g. the upper disc's under voltage steps, which the
-    # second derivative smears) must not hide a term the other disc shows clearly
-    rowsets = {"upper": np.r_[np.ones(n, bool), np.zeros(n, bool)], "lower": np.r_[np.zeros(n, bool), np.ones(n, bool)],
-               "both": np.ones(2 * n, bool)}
-    for where, rows in rowsets.items():
-        Wr = W * rows
-        if not np.any(Wr > 0):
-            continue
-        Q, _ = np.linalg.qr(Nm * rows[:, None])
+    return d, ok, n, y, W, smooth
 
-        def project(v: np.ndarray) -> np.ndarray:
-            return v - Q @ (Q.T @ v)
 
-        yr = project(y * rows)
-        tss = float(yr @ yr) or 1.0
-        for group, terms in groups.items():
-            su, sl = _SENSE[group]
-            acts = {"upper": su != 0, "lower": sl != 0, "both": su != 0 and sl != 0}[where]
-            if not acts:
+def _greedy_terms(cols: list[np.ndarray], yr: np.ndarray, tss: float) -> tuple[list[int], float]:
+    """Terms entered one at a time (at most ``MAX_TERMS``), each the one that explains most beside those in;
+    returns their indices and the share of ``yr``'s variance they explain."""
+    chosen: list[int] = []
+    share = 0.0
+    for _ in range(MAX_TERMS):
+        trial = None
+        for j in range(len(cols)):
+            if j in chosen or not np.any(np.abs(cols[j]) > 1e-12 * (np.abs(cols[j]).max() + 1e-300)):
                 continue
-            cols = []
-            for tm in terms:
-                g = np.asarray(tm.values(d), dtype=float)
-                cols.append(project(rows * smooth(W * np.concatenate([su * g / Ju, sl * g / Jl]))))
-            chosen: list[int] = []
-            share = 0.0
-            for _ in range(MAX_TERMS):
-                trial = None
-                for j in range(len(terms)):
-                    if j in chosen or not np.any(np.abs(cols[j]) > 1e-12 * (np.abs(cols[j]).max() + 1e-300)):
-                        continue
-                    X = np.column_stack([cols[i] for i in chosen + [j]])
-                    c, *_ = np.linalg.lstsq(X, yr, rcond=None)
-                    # terms that cancel each other (each contributing more than the residual itself, as
-                    # collinear terms do) fit the noise, not an effect: such a set is not a candidate
-                    if np.any(np.abs(c) * np.linalg.norm(X, axis=0) > MAX_CANCEL * math.sqrt(tss)):
-                        continue
-                    sh = 1.0 - float(np.sum((yr - X @ c) ** 2)) / tss
-                    if trial is None or sh > trial[1]:
-                        trial = (j, sh, c)
-                # a further term must explain MIN_GAIN of the residual, or a third of what the terms so far leave
-                if trial is None or trial[1] - share < min(MIN_GAIN, (1.0 - share) / 3.0):
-                    break
-                chosen.append(trial[0])
-                share = trial[1]
-            shares[group] = max(shares.get(group, 0.0), share)
-            if chosen and (best is None or share > best.explained):
-                # the file's coefficients: the terms alone (with per-disc offsets), as the effect will act on the
-                # model as it is; the joint regression above only decides which terms and how much they explain
-                raw = [rows * smooth(W * np.concatenate([su * np.asarray(terms[j].values(d), float) / Ju,
-                                                         sl * np.asarray(terms[j].values(d), float) / Jl]))
-                       for j in chosen]
-                X = np.column_stack(raw + [Nm[:, 0] * rows, Nm[:, 1] * rows])
-                coef, *_ = np.linalg.lstsq(X, y * rows, rcond=None)
-                k = len(chosen)
-                if np.any(np.abs(coef[:k]) * np.linalg.norm(X[:, :k], axis=0)
-                          > MAX_CANCEL * np.linalg.norm(y * rows)):
-                    continue  # the terms alone cancel each other: not a usable candidate
-                best = Candidate(group, {terms[j].label: float(coef[i]) for i, j in enumerate(chosen)},
-                                 {terms[j].label: terms[j].code for j in chosen},
-                                 {terms[j].label: terms[j].at_rest for j in chosen}, share, n)
-    if best is not None:
-        best.rest = shares
-        su, sl = _SENSE[best.group]
-        res_rms = float(np.sqrt(np.mean(np.concatenate(
-            ([(rt.tau_l[ok][W[n:] > 0]) ** 2] if sl else []) + ([(rt.tau_u[ok][W[:n] > 0]) ** 2] if su else [])))))
-        for j, tm in enumerate(groups[best.group]):
-            if tm.label in best.terms:
-                g = np.asarray(tm.values(d), dtype=float)
-                best.reach[tm.label] = res_rms / max(float(np.sqrt(np.mean(g ** 2))), 1e-12)
-    return best
+            X = np.column_stack([cols[i] for i in chosen + [j]])
+            c, *_ = np.linalg.lstsq(X, yr, rcond=None)
+            # terms that cancel each other (each contributing more than the residual itself, as collinear
+            # terms do) fit the noise, not an effect: such a set is not a candidate
+            if np.any(np.abs(c) * np.linalg.norm(X, axis=0) > MAX_CANCEL * math.sqrt(tss)):
+                continue
+            sh = 1.0 - float(np.sum((yr - X @ c) ** 2)) / tss
+            if trial is None or sh > trial[1]:
+                trial = (j, sh, c)
+        # a further term must explain MIN_GAIN of the residual, or a third of what the terms so far leave
+        if trial is None or trial[1] - share < min(MIN_GAIN, (1.0 - share) / 3.0):
+            break
+        chosen.append(trial[0])
+        share = trial[1]
+    return chosen, share
+
+
+def _alone_coefficients(raw: list[np.ndarray], Nm: np.ndarray, rows: np.ndarray, y: np.ndarray
+                        ) -> np.ndarray | None:
+    """The terms' coefficients regressed alone (with per-disc offsets), or None when they cancel each other."""
+    X = np.column_stack(raw + [Nm[:, 0] * rows, Nm[:, 1] * rows])
+    coef, *_ = np.linalg.lstsq(X, y * rows, rcond=None)
+    k = len(raw)
+    if np.any(np.abs(coef[:k]) * np.linalg.norm(X[:, :k], axis=0) > MAX_CANCEL * np.linalg.norm(y * rows)):
+        return None
+    return coef
+
+
+def _set_reach(best: Candidate, rt: ResidualTorque, d: dict, ok: np.ndarray, W: np.ndarray, n: int,
+               terms: list[_Term]) -> None:
+    """Each term's coefficient that would make it alone as large as the residual torque (``best.reach``)."""
+    su, sl = _SENSE[best.group]
+    res_rms = float(np.sqrt(np.mean(np.concatenate(
+        ([(rt.tau_l[ok][W[n:] > 0]) ** 2] if sl else []) + ([(rt.tau_u[ok][W[:n] > 0]) ** 2] if su else [])))))
+    for tm in terms:
+        if tm.label in best.terms:
+            g = np.asarray(tm.values(d), dtype=float)
+            best.reach[tm.label] = res_rms / max(float(np.sqrt(np.mean(g ** 2))), 1e-12)
 
 
 _ARGS_FRICTION = ("T", "direction", "speed", "omega")
 
 
 def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None) -> Path:
-    """Write the candidate as an effect file; sets ``cand.name`` and ``cand.effect_file``
-    (``path:name``, what ``--add-effect`` takes)."""
+    """Write a candidate as an effect file.
+
+    Parameters
+    ----------
+    cand : Candidate
+        The candidate; its ``name`` and ``effect_file`` (``path:name``, what ``--add-effect`` takes) are set.
+    path : str or path
+        The file (``.py``).
+    name : str, optional
+        The effect's name (default: ``candidate_GROUP``).
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+    """
     path = Path(path)
     name = name or f"candidate_{cand.group}"
     cls = "".join(p.capitalize() for p in name.split("_"))
@@ -381,7 +413,20 @@ def _uses(cand: Candidate, var: str) -> bool:
 
 
 def advice(ex: Experiment, rt: ResidualTorque | None) -> list[str]:
-    """Which experiments would show more, from what the recording does not cover."""
+    """Which experiments would show more, from what the recording does not cover.
+
+    Parameters
+    ----------
+    ex : Experiment
+        The recording.
+    rt : ResidualTorque or None
+        Its residual torques.
+
+    Returns
+    -------
+    list of str
+        The advice.
+    """
     out = []
     wl = ex.rates.get("omega_l", np.zeros(ex.n))
     if np.mean(wl < -0.1) < 0.05:
@@ -409,8 +454,30 @@ MIN_RESIDUAL_UNITS = 4.0  # noise units: a model closer than this to the data le
 
 def discover(ex: Experiment, diagnosis, candidate_out: str | Path | None = None, name: str | None = None
              ) -> tuple[Candidate | None, list[str]]:
-    """The candidate effect for what the diagnosed model (selected effects, base parameters as
-    decided) still misses, written to ``candidate_out`` when given; and advice when none is found."""
+    """The candidate effect for what the diagnosed model still misses.
+
+    The model is the diagnosis' (selected effects, base parameters as decided); when the base parameters
+    moved, the nominal base is looked at too (the base refit may have absorbed part of an effect outside the
+    library).
+
+    Parameters
+    ----------
+    ex : Experiment
+        The recording, on a grid fine enough for its accelerations (the command line uses its own
+        samples up to 250 Hz).
+    diagnosis : Diagnosis
+        The diagnosis of the recording.
+    candidate_out : str or path, optional
+        Where to write the candidate's effect file.
+    name : str, optional
+        The effect's name in it.
+
+    Returns
+    -------
+    tuple of (Candidate or None, list of str)
+        The candidate (None when the model fits to within a few noise units, or nothing explains enough of
+        the residual torque) and, when none is found, the experiments that would show more.
+    """
     from .sparse import residual_torques
 
     if diagnosis.vector is None or ex.config.label == "upper":

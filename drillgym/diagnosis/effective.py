@@ -35,14 +35,19 @@ def _lag1(r: np.ndarray, same: "np.ndarray | None") -> float:
 
 
 def effective_samples(r: np.ndarray, blocks: "np.ndarray | None" = None) -> float:
-    """Effectively independent samples of the residual vector ``r``.
+    """Effectively independent samples of a residual vector.
 
-    Args:
-        r: residual entries (any units).
-        blocks: per entry, the index of its independent block (the multiple-shooting segment and channel,
-            :attr:`~drillgym.identification.fitting.Objective.block_ids`); None: one block.
+    Parameters
+    ----------
+    r : numpy.ndarray
+        Residual entries (any units).
+    blocks : numpy.ndarray, optional
+        Per entry, the index of its independent block (the multiple-shooting segment and channel,
+        :attr:`~drillgym.identification.fitting.Objective.block_ids`); None: one block.
 
-    Returns:
+    Returns
+    -------
+    float
         N_eff (module docstring), at least :data:`MIN_EFFECTIVE`; ``len(r)`` for fewer than 3 entries or an
         all-zero residual.
     """

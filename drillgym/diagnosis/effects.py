@@ -25,34 +25,102 @@ EFFECTS: dict[str, type[Effect]] = dict(LIBRARY)
 
 
 def get_effect(spec: "str | type[Effect]") -> type[Effect]:
-    """An effect class from a name (library, entry point) or ``path/to/file.py:NAME``; a one-line
-    error lists the known names."""
+    """An effect class from a name (library, entry point) or ``path/to/file.py:NAME``.
+
+    Parameters
+    ----------
+    spec : str or Effect class
+        The name, file spec or class.
+
+    Returns
+    -------
+    Effect class
+        The effect.
+
+    Raises
+    ------
+    EffectError
+        An unknown name or a file that cannot be used (the one-line message lists the known names).
+    """
     try:
         obj = resolve_effect(spec)
     except EffectError as exc:
-        raise ValueError(str(exc)) from None
+        raise EffectError(str(exc)) from None
     return obj if isinstance(obj, type) else type(obj)
 
 
 def applies_to(effect: type[Effect], config: Configuration) -> bool:
-    """Whether an effect acts in a configuration (its ``configurations`` class attribute)."""
+    """Whether an effect acts in a configuration (its ``configurations`` class attribute).
+
+    Parameters
+    ----------
+    effect : Effect class
+        The effect.
+    config : Configuration
+        The configuration.
+
+    Returns
+    -------
+    bool
+        Whether it acts there.
+    """
     return config.label in effect.configurations
 
 
 def effects_for(config: Configuration) -> list[type[Effect]]:
-    """The library's effects that can act in a configuration."""
+    """The library's effects that can act in a configuration.
+
+    Parameters
+    ----------
+    config : Configuration
+        The configuration.
+
+    Returns
+    -------
+    list of Effect classes
+        The effects.
+    """
     return [e for e in EFFECTS.values() if applies_to(e, config)]
 
 
 def with_candidate(model: Composition, candidate: type[Effect]) -> Composition:
-    """The composition the candidate is tried in: the model's effects, then the candidate."""
+    """The composition a candidate is tried in: the model's effects, then the candidate.
+
+    Parameters
+    ----------
+    model : Composition
+        The model.
+    candidate : Effect class
+        The candidate.
+
+    Returns
+    -------
+    Composition
+        The composition.
+    """
     return Composition(tuple(model.effects) + (candidate,))
 
 
 def fit_variables(composition: Composition, effect: type[Effect], start: np.ndarray | None = None,
                   values: dict[str, Any] | None = None) -> list[FitVariable]:
-    """The effect's parameters as fit variables (bounds, guess and scale from its Parameters);
-    ``values`` (by name) or the vector ``start`` give other starting values."""
+    """An effect's parameters as fit variables (bounds, guess and scale from its Parameters).
+
+    Parameters
+    ----------
+    composition : Composition
+        The composition the effect is in.
+    effect : Effect class
+        The effect.
+    start : numpy.ndarray, optional
+        A vector of ``composition`` to start from.
+    values : dict of str to float, optional
+        Starting values by name (before ``start``).
+
+    Returns
+    -------
+    list of FitVariable
+        The variables.
+    """
     out = []
     for p in effect.parameters:
         x0 = None

@@ -2,7 +2,7 @@
 as the next.
 
 A diagnosis fits one search model per configuration (the base model with every candidate effect of
-the configuration held at its neutral values, :func:`drillgym.diagnosis.ranking.diagnose`); numba
+the configuration held at its neutral values, :func:`drillgym.diagnosis.diagnose`); numba
 compiles its kernels on first use (about a minute on 2 cores) and caches them on disk
 (:mod:`drillgym.effects.codegen`).  :func:`prepare_diagnosis` runs the whole command's path on a
 few seconds of simulated data per configuration, so the cache holds them; ``make venv`` calls it
@@ -25,14 +25,28 @@ PREPARED_CONFIGS = ("torsional", "coupled", "lateral", "upper")
 
 
 def prepare_diagnosis(configs: Sequence[str] = PREPARED_CONFIGS, duration: float = 6.0) -> dict[str, float]:
-    """Run ``diagnose`` and the discovery of a candidate (as ``drillgym diagnose`` does) on ``duration``
-    s of a simulated recording of each configuration with the library's default candidates; returns
-    the seconds each took (compilation included when the kernels were not cached yet)."""
+    """Compile the diagnosis' kernels: diagnose a short simulated recording of each configuration.
+
+    Runs ``diagnose`` and the discovery of a candidate (as ``drillgym diagnose`` does) with the library's
+    default candidates.
+
+    Parameters
+    ----------
+    configs : sequence of str, optional
+        The configurations.
+    duration : float, optional
+        Length of each recording (s).  Default 6.
+
+    Returns
+    -------
+    dict of str to float
+        The seconds each configuration took (compilation included when the kernels were not cached yet).
+    """
     from ..configurations import Configuration, parse_configuration
     from ..identification.experiment import prepare_experiment
     from ..identification.synthetic import synthetic_measurement
     from .discovery import discover
-    from .ranking import diagnose
+    from .pipeline import diagnose
 
     out: dict[str, float] = {}
     for name in configs:

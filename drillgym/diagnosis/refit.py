@@ -17,12 +17,13 @@ repeated from its result (a poor starting guess must not bias the nuisance speed
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Mapping, Sequence
 
-import numpy as np
 
+from ..configurations import Configuration
 from ..effects import Composition, compose
+from ..errors import InputError
 from ..identification.experiment import Experiment, prepare_experiment
 from ..identification.fitting import FitVariable, Objective, base_vector, fit_parameters
 from ..identification.segmented import SegmentedModel
@@ -31,15 +32,34 @@ from ..io import TimeSeries
 from ..params import RigParams
 from .compare import compare
 from .effects import applies_to, get_effect
-from .ranking import BASE_STAGE, default_segment, default_weights
+from .screening import default_segment, default_weights
 
-__all__ = ["RefitResult", "refit", "BASE_STAGE", "effect_records"]
+__all__ = ["RefitOptions", "RefitResult", "refit", "BASE_STAGE", "effect_records"]
+
+#: the staged identification's stage whose parameters are a configuration's base parameters
+BASE_STAGE = {Configuration.UPPER: "upper", Configuration.TORSIONAL: "brake", Configuration.COUPLED: "brake",
+              Configuration.LATERAL: "lateral", Configuration.FREE_VIBRATION: "free_vibration"}
 
 
 def effect_records(comp: Composition, values: Mapping[str, float], specs: Mapping[str, str] | None = None
                    ) -> list[dict]:
-    """The effects of a composition as reusable records: ``{"name", "spec", "file", "values"}``
-    (``spec`` is what ``--add-effect`` accepts: the name, or ``file.py:NAME`` for a file's effect)."""
+    """The effects of a composition as reusable records.
+
+    Parameters
+    ----------
+    comp : Composition
+        The composition.
+    values : mapping of str to float
+        Its effects' parameter values.
+    specs : mapping of str to str, optional
+        Effect name -> the spec it was given by.
+
+    Returns
+    -------
+    list of dict
+        ``{"name", "spec", "file", "values"}`` per effect (``spec`` is what ``--add-effect`` accepts: the
+        name, or ``file.py:NAME`` for a file's effect).
+    """
     out = []
     for e in comp.effects:
         f = getattr(e, "__drillgym_file__", None)
@@ -51,11 +71,29 @@ def effect_records(comp: Composition, values: Mapping[str, float], specs: Mappin
 
 @dataclass
 class RefitResult:
-    """The fitted model and the error before/after.
+    """The fitted model and the error before and after.
 
-    ``params`` the base parameters after the fit; ``composition`` and ``effect_values`` the
-    model's effects and all their parameters; ``values``/``std`` the fitted parameters and their
-    standard errors, by parameter name; ``effects`` the names of the effects added."""
+    Attributes
+    ----------
+    params : RigParams
+        The base parameters after the fit.
+    r2_before, r2_after : dict of str to float
+        R² per channel before and after.
+    rms_before, rms_after : dict of str to float
+        RMS error per channel before and after (physical units).
+    values, std : dict of str to float
+        The fitted parameters and their standard errors, by name.
+    effects : list of str
+        The names of the effects added.
+    warnings : list of str
+        Identifiability warnings.
+    composition : Composition or None
+        The model's effects.
+    effect_values : dict of str to float
+        All their parameters.
+    model_before : str
+        The label of the model before.
+    """
 
     params: RigParams
     r2_before: dict[str, float]
@@ -80,40 +118,91 @@ class RefitResult:
                 "warnings": self.warnings, "params": self.params.to_dict()}
 
 
-def refit(data: "TimeSeries | Experiment", params: RigParams | None = None, config=None, *,
-          effects: Sequence[Any] = (), effect_params: Mapping[str, float] | None = None,
-          base_effects: Any = None, base_values: Mapping[str, float] | None = None,
-          fit: Sequence[str] = (), refit_base: bool = False, segment_s: float | None = -1.0,
-          compare_rate_hz: float = 50.0, max_nfev: int = 30) -> RefitResult:
-    """Add ``effects`` to the model (``params`` + ``base_effects`` at ``base_values``) and fit them.
+@dataclass
+class RefitOptions:
+    """What :func:`refit` adds and fits.
 
-    Args:
-        data: the recording (TimeSeries) or a prepared experiment.
-        effects: effects to add and fit: names, ``path/to/file.py:NAME`` or Effect classes.
-        effect_params: starting values of the added effects' parameters (default: their guesses).
-        base_effects, base_values: effects already in the model and their (held) values.
-        fit: further parameters of the model to fit (base or effect names).
-        refit_base: also fit the configuration's base parameters (the stage of :data:`BASE_STAGE`).
-        segment_s: multiple-shooting segment (s); -1: the configuration's default; None: free run.
+    Attributes
+    ----------
+    effects : sequence
+        Effects to add and fit: names, ``path/to/file.py:NAME`` or Effect classes.
+    effect_params : mapping of str to float, optional
+        Starting values of the added effects' parameters (default: their guesses).
+    base_effects : any, optional
+        Effects already in the model.
+    base_values : mapping of str to float, optional
+        Their (held) values.
+    fit : sequence of str
+        Further parameters of the model to fit (base or effect names).
+    refit_base : bool
+        Also fit the configuration's base parameters (the stage of :data:`BASE_STAGE`).  Default False.
+    segment_s : float or None
+        Multiple-shooting segment length (s); -1: the configuration's default; None: one free run.
+    compare_rate_hz : float
+        Comparison grid rate (Hz) when a recording is given.  Default 50.
+    max_nfev : int
+        Least-squares evaluations.  Default 30.
     """
+
+    effects: Sequence[Any] = ()
+    effect_params: Mapping[str, float] | None = None
+    base_effects: Any = None
+    base_values: Mapping[str, float] | None = None
+    fit: Sequence[str] = ()
+    refit_base: bool = False
+    segment_s: float | None = -1.0
+    compare_rate_hz: float = 50.0
+    max_nfev: int = 30
+
+
+def refit(data: "TimeSeries | Experiment", params: RigParams | None = None, config: Any = None, *,
+          options: RefitOptions | None = None, **settings: Any) -> RefitResult:
+    """Add effects to a model and fit them.
+
+    Parameters
+    ----------
+    data : TimeSeries or Experiment
+        The recording or a prepared experiment.
+    params : RigParams, optional
+        The model's base parameters (default: MODEL.md).
+    config : str or Configuration, optional
+        The configuration when the recording's metadata has none.
+    options : RefitOptions, optional
+        What to add and fit (default: :class:`RefitOptions` ()).
+    **settings
+        Fields of :class:`RefitOptions` (``effects``, ``effect_params``, ``base_effects``, ``base_values``,
+        ``fit``, ``refit_base``, ``segment_s``, ``compare_rate_hz``, ``max_nfev``), overriding ``options``.
+
+    Returns
+    -------
+    RefitResult
+        The fitted model and the error before and after.
+
+    Raises
+    ------
+    InputError
+        An added effect that does not act in the recording's configuration.
+    """
+    o = replace(options or RefitOptions(), **settings)
     base = params or RigParams()
-    ex = data if isinstance(data, Experiment) else prepare_experiment(data, config, compare_rate_hz=compare_rate_hz)
+    ex = data if isinstance(data, Experiment) else prepare_experiment(data, config, compare_rate_hz=o.compare_rate_hz)
+    segment_s = o.segment_s
     if segment_s is not None and segment_s < 0:
         segment_s = default_segment(ex.config)
-    comp0, values0 = compose(base_effects, base_values)
-    added = [get_effect(e) for e in effects]
+    comp0, values0 = compose(o.base_effects, o.base_values)
+    added = [get_effect(e) for e in o.effects]
     for e in added:
         if not applies_to(e, ex.config):
-            raise ValueError(f"effect {e.name!r} does not act in configuration '{ex.config.label}' "
+            raise InputError(f"effect {e.name!r} does not act in configuration '{ex.config.label}' "
                              f"(it applies to: {', '.join(e.configurations)})")
     new = [e for e in added if e.name not in comp0.names]
     comp = Composition(tuple(comp0.effects) + tuple(new))
-    start_values = {**values0, **{k: v for k, v in (effect_params or {}).items()}}
+    start_values = {**values0, **{k: v for k, v in (o.effect_params or {}).items()}}
     vec_start = base_vector(comp, base, comp.check_values(start_values))
     names: list[str] = [p.name for e in added for p in e.parameters]
-    if refit_base or (not added and not fit):
+    if o.refit_base or (not added and not o.fit):
         names += [n for n in STAGES[BASE_STAGE[ex.config]].parameters if n not in names]
-    names += [n for n in fit if n not in names]
+    names += [n for n in o.fit if n not in names]
     for n in names:
         comp.param_index(n)  # a one-line error for an unknown name
     variables = [FitVariable.named(comp, n, vec_start) for n in names]
@@ -124,7 +213,7 @@ def refit(data: "TimeSeries | Experiment", params: RigParams | None = None, conf
         warnings.simplefilter("ignore")
         # the data's speeds at the segment starts refined for the start, then fitted with the parameters
         model.refine_initial_speeds(vec_start, obj.weights, obj.scales, fresh=True)
-        res = fit_parameters(obj, vec_start, variables, max_nfev=max_nfev, fit_speeds=True)
+        res = fit_parameters(obj, vec_start, variables, max_nfev=o.max_nfev, fit_speeds=True)
     before = compare(ex, vec_before, segment_s=segment_s, effects=comp0)
     after = compare(ex, res.vector, segment_s=segment_s, effects=comp)
     return RefitResult(res.params, {c: m["r2"] for c, m in before.metrics.items()},

@@ -8,7 +8,7 @@ from typing import Any, Mapping
 from ..identification.experiment import Experiment
 from ..params import RigParams
 from .compare import compare, write_compare
-from .ranking import Diagnosis
+from .results import Diagnosis
 from .refit import RefitResult
 
 __all__ = ["write_report"]
@@ -26,8 +26,32 @@ def _metrics_table(before: dict[str, float], after: dict[str, float], rms_b: dic
 def write_report(out_dir: str | Path, ex: Experiment, base: RigParams, diagnosis: Diagnosis | None,
                  result: RefitResult, segment_s: float | None, base_effects: Any = None,
                  base_values: Mapping[str, float] | None = None) -> Path:
-    """Write ``report.md`` with figures of the model before (``base`` with ``base_effects`` at
-    ``base_values``) and after the refit (``result``) in ``out_dir``."""
+    """Write ``report.md`` with figures of the model before and after a refit.
+
+    Parameters
+    ----------
+    out_dir : str or path
+        The directory (made if missing).
+    ex : Experiment
+        The recording.
+    base : RigParams
+        The model's base parameters before.
+    diagnosis : Diagnosis or None
+        The diagnosis of the model before.
+    result : RefitResult
+        The refit.
+    segment_s : float or None
+        Multiple-shooting segment length (s).
+    base_effects : any, optional
+        The model's effects before.
+    base_values : mapping of str to float, optional
+        Their values.
+
+    Returns
+    -------
+    pathlib.Path
+        The report file.
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     cb = compare(ex, base, segment_s=segment_s, effects=base_effects, effect_params=base_values)

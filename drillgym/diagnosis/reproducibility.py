@@ -9,7 +9,7 @@ base parameters); a real effect gives the same parameters in both halves: the tw
 must point the same way, their cosine similarity above
 :data:`MIN_COSINE` (the angle between them below 60°).  A test on the standard errors was tried first and
 does not work here: with the base parameters free, each half's errors are so large that a harmonic whose
-phase turns by 120° between the halves still passes (recording #8 of the selection benchmark), while
+phase turns by 120° between the halves still passes (a recording of the selection benchmark), while
 the full recording's errors are too small for the halves of a real position friction (a second harmonic
 absent from the rig comes out +0.008 in one half, -0.005 in the other).  The chi-square of the difference
 is reported alongside::
@@ -27,7 +27,7 @@ must show the effect on its own, its Wald statistic above the chi-square's 99 % 
 
     W = sum_i (p_i / s_i)^2,   W > chi2_0.99(k)   (k the effect's parameters)
 
-Seen on an independent rig (random seed 1313 #14): the lower disc slipped in one excursion of 1.5
+Seen on an independent rig: the lower disc slipped in one excursion of 1.5
 revolutions, all in the first half; the second half's standard errors were about 30 against values of
 0.04, the cosine 0.995, and a 4-harmonic position friction stood in for the true friction drift.
 """
@@ -42,6 +42,8 @@ import numpy as np
 
 from ..identification.experiment import Experiment
 from ..identification.fitting import Objective
+from .context import SelectionContext, fit_free
+from .search_model import SearchModel, selection_model
 
 __all__ = ["split_halves", "HalfAgreement", "halves_agree", "POSITION_NEEDS", "MIN_COSINE", "SHOWN_LEVEL"]
 
@@ -54,9 +56,22 @@ SHOWN_LEVEL = 0.99
 
 
 def split_halves(ex: Experiment) -> tuple[Experiment, Experiment]:
-    """The first and the second half (in time) of an experiment; the recorded input is kept whole (the
-    model reads it by absolute time), and so is the clock: the second half's model starts at the time
-    since the recording's start (a friction drift is 1 + drift t over the whole run, not restarted)."""
+    """The first and the second half (in time) of an experiment.
+
+    The recorded input is kept whole (the model reads it by absolute time), and so is the clock: the second
+    half's model starts at the time since the recording's start (a friction drift is 1 + drift t over the
+    whole run, not restarted).
+
+    Parameters
+    ----------
+    ex : Experiment
+        The experiment.
+
+    Returns
+    -------
+    tuple of (Experiment, Experiment)
+        The halves (they share the middle sample).
+    """
     n = ex.n
     h = n // 2
     origin = float(ex.t[0]) if ex.t_origin is None else ex.t_origin
@@ -81,9 +96,21 @@ class HalfAgreement:
     second_std: dict[str, float] = field(default_factory=dict)
 
     def shown(self, half: str) -> bool:
-        """Whether the ``half`` ('first' or 'second') shows the effect on its own: W = sum (p / s)^2 above
-        the chi-square quantile (module docstring).  A parameter with an infinite standard error (the half
-        does not depend on it) adds nothing; with no standard error known at all, nothing is judged (True)."""
+        """Whether a half shows the effect on its own: W = sum (p / s)^2 above the chi-square quantile.
+
+        A parameter with an infinite standard error (the half does not depend on it) adds nothing; with no
+        standard error known at all, nothing is judged (True).
+
+        Parameters
+        ----------
+        half : str
+            ``'first'`` or ``'second'``.
+
+        Returns
+        -------
+        bool
+            Whether it shows the effect.
+        """
         from scipy.stats import chi2
 
         values, std = (self.first, self.first_std) if half == "first" else (self.second, self.second_std)
@@ -124,22 +151,45 @@ class HalfAgreement:
                 f"decides")
 
 
-def halves_agree(exps: Sequence[Experiment], comp, vector: np.ndarray, effect, free_base: Sequence[str],
-                 segment_s: float | None, weights: dict[str, float], scales: dict[str, float],
-                 nominal: np.ndarray, max_nfev: int = 15) -> HalfAgreement:
-    """Refit ``effect``'s parameters (and ``free_base``) of the model ``comp``/``vector`` on each half of
-    ``exps`` and compare them (see the module docstring)."""
-    from .selection import _fit, _State, selection_model
+def halves_agree(exps: Sequence[Experiment], model: SearchModel, vector: np.ndarray, effect,
+                 free_base: Sequence[str], segment_s: float | None, scales: dict[str, float],
+                 max_nfev: int = 15) -> HalfAgreement:
+    """Refit an effect's parameters on each half of the recordings and compare them (module docstring).
 
+    Parameters
+    ----------
+    exps : sequence of Experiment
+        The recordings.
+    model : SearchModel
+        The search model: its composition, channel weights and nominal vector.
+    vector : numpy.ndarray
+        The model's vector.
+    effect : Effect class
+        The effect checked.
+    free_base : sequence of str
+        The base parameters refitted with it.
+    segment_s : float or None
+        Multiple-shooting segment length (s).
+    scales : dict of str to float
+        The channels' scales.
+    max_nfev : int, optional
+        Least-squares evaluations per half.  Default 15.
+
+    Returns
+    -------
+    HalfAgreement
+        The two halves' parameters and their agreement.
+    """
+    comp, weights, nominal = model.comp, model.obj.weights, model.nominal
     names = [p.name for p in effect.parameters]
     halves = list(zip(*(split_halves(ex) for ex in exps)))  # (first halves, second halves)
     fits = []
     for part in halves:
-        model = selection_model(part, segment_s, comp)
-        obj = Objective(model, weights, scales)
-        model.refine_initial_speeds(vector, obj.weights, obj.scales)
-        st = _State(obj, comp, vector.copy(), nominal.copy(), tuple(free_base), {effect.name: effect})
-        fits.append(_fit(st, vector, list(free_base) + names, max_nfev))
+        halves_model = selection_model(part, segment_s, comp)
+        obj = Objective(halves_model, weights, scales)
+        halves_model.refine_initial_speeds(vector, obj.weights, obj.scales)
+        ctx = SelectionContext(obj, comp, vector.copy(), nominal.copy(), tuple(free_base), {effect.name: effect})
+        fits.append(fit_free(ctx, vector, list(free_base) + names, max_nfev))
     a, b = fits
     c2 = 0.0
     for p in names:

@@ -36,12 +36,25 @@ QUALITY_CAP_S = 0.4  # s: a start this far from any stick/slip transition is as 
 
 
 def encoder_quantum(theta: np.ndarray, max_multiple: int = 50) -> float | None:
-    """The encoder count (rad) of a recorded angle; None if the angle never changes.
+    """The encoder count (rad) of a recorded angle.
 
     Every difference between samples of a quantized angle is a whole number of counts, but on a
     coarse grid (or when the disc never stops) even the smallest difference can be several counts:
     the count is the largest ``d_min / k`` (k <= ``max_multiple``) of which all differences are whole
-    multiples, ``d_min`` the smallest difference above round-off (``MIN_COUNT_RAD``)."""
+    multiples, ``d_min`` the smallest difference above round-off (``MIN_COUNT_RAD``).
+
+    Parameters
+    ----------
+    theta : numpy.ndarray
+        The angle (rad).
+    max_multiple : int, optional
+        The largest number of counts the smallest difference may hold.  Default 50.
+
+    Returns
+    -------
+    float or None
+        The count (rad), or None if the angle never changes.
+    """
     d = np.abs(np.diff(np.asarray(theta, dtype=float)))
     d = d[d > MIN_COUNT_RAD]
     if not d.size:
@@ -56,7 +69,7 @@ def encoder_quantum(theta: np.ndarray, max_multiple: int = 50) -> float | None:
 
 
 def robust_noise(ex: Experiment) -> tuple[Experiment, dict[str, float]]:
-    """(experiment with corrected ``speed_noise``, residual scales per channel).
+    """An experiment's noise read robustly: its speed-noise limits and its channels' residual scales.
 
     Angle scale: one encoder count / √12 (at least 1e-4 rad, as
     :func:`drillgym.identification.fitting.default_scales`); LVDT channels 10 µm.
@@ -64,7 +77,18 @@ def robust_noise(ex: Experiment) -> tuple[Experiment, dict[str, float]]:
     on the comparison grid (``ex.fs``), i.e. the speed resolution the comparison itself has.  It is
     deliberately wider than the noise of the data-rate estimate (the speed estimates also carry the
     smoothing error of the derivative at stick/slip kinks): limiting the corrections to the data-rate
-    quantization noise left exact models at up to 2.4 noise units on 500 Hz–1 kHz recordings."""
+    quantization noise left exact models at up to 2.4 noise units on 500 Hz–1 kHz recordings.
+
+    Parameters
+    ----------
+    ex : Experiment
+        The experiment.
+
+    Returns
+    -------
+    tuple of (Experiment, dict of str to float)
+        The experiment with corrected ``speed_noise``, and the residual scale of each channel.
+    """
     fs = ex.fs
     win = max(5, int(round(SPEED_WINDOW_S * fs)) | 1)
     gain = float(np.linalg.norm(savgol_coeffs(win, min(3, win - 1), deriv=1, delta=1.0 / fs)))
@@ -108,11 +132,19 @@ def _transition_distance(ex: Experiment) -> np.ndarray:
 
 
 def place_segment_starts(model: SegmentedModel, min_step: float = 0.6) -> None:
-    """Move the segment starts of ``model`` (in place) to well-conditioned samples.
+    """Move a segmented model's segment starts (in place) to well-conditioned samples.
 
     Segments keep their length L; each next start is the sample in [prev + min_step L, prev + L]
     farthest from a stick/slip transition (ties: the latest, the least overlap), so segments never
-    leave a gap and overlap by at most (1 − min_step) L.  A free run (one segment) is left alone."""
+    leave a gap and overlap by at most (1 − min_step) L.  A free run (one segment) is left alone.
+
+    Parameters
+    ----------
+    model : SegmentedModel
+        The model.
+    min_step : float, optional
+        The shortest step between starts, as a share of the segment length.  Default 0.6.
+    """
     for k, ex in enumerate(model.experiments):
         plan = model._plans[k]
         L = plan["L"]

@@ -74,7 +74,26 @@ def residual_torques(ex: Experiment, params: "RigParams | np.ndarray | None" = N
     The model: ``params`` (RigParams or a vector in the composition's layout) with ``effects``
     (a Composition or effect specs; default the base model) and their ``effect_params``.
     Effect states are taken at rest (a motor lag's ``u_m`` equal to the input).
-    Samples within 0.1 s (the second-derivative window) of a stick phase are left out."""
+    Samples within 0.1 s (the second-derivative window) of a stick phase are left out.
+
+    Parameters
+    ----------
+    ex : Experiment
+        The recording.
+    params : RigParams or numpy.ndarray, optional
+        Base parameters, or a vector in the composition's layout (default: MODEL.md).
+    min_speed : float, optional
+        Speed (rad/s) above which a disc slips.  Default 0.05.
+    effects : any, optional
+        A Composition or effect specs (default: the base model).
+    effect_params : dict of str to float, optional
+        The effects' parameter values.
+
+    Returns
+    -------
+    ResidualTorque
+        The residual torques on both discs and the states they were taken in.
+    """
     comp = as_composition(effects)
     p = base_vector(comp, params, effect_params)
     state_derivative = comp.kernels.model.state_derivative
@@ -128,7 +147,18 @@ def residual_torques(ex: Experiment, params: "RigParams | np.ndarray | None" = N
 
 
 def candidate_library(rt: ResidualTorque) -> tuple[np.ndarray, list[str]]:
-    """Candidate functions (columns) at the samples and their names."""
+    """Candidate functions (columns) at the samples, and their names.
+
+    Parameters
+    ----------
+    rt : ResidualTorque
+        The residual torques and their states.
+
+    Returns
+    -------
+    tuple of (numpy.ndarray, list of str)
+        The columns and their names.
+    """
     S = rt.states
     th, wl, wu = S[:, 1], S[:, 3], S[:, 2]
     a = S[:, 1] - S[:, 0]
@@ -169,7 +199,22 @@ def sparse_residual_model(rt: ResidualTorque, threshold: float = 0.05, max_terms
     """STLSQ (pysindy) of the lower residual torque on :func:`candidate_library`.
 
     Columns are standardised; ``threshold`` is relative to the torque's standard deviation.
-    At most ``max_terms`` terms are kept (the largest contributions)."""
+    At most ``max_terms`` terms are kept (the largest contributions).
+
+    Parameters
+    ----------
+    rt : ResidualTorque
+        The residual torques.
+    threshold : float, optional
+        The STLSQ threshold, relative to the torque's standard deviation.  Default 0.05.
+    max_terms : int, optional
+        Terms kept.  Default 4.
+
+    Returns
+    -------
+    SparseTerm
+        The terms and their coefficients.
+    """
     import pysindy as ps
 
     ok = rt.lower_valid

@@ -23,9 +23,25 @@ N_POINTS = 8
 
 
 def search_points(effect: type[Effect], n: int = N_POINTS, span: float = SPAN_SCALES, seed: int = 0) -> np.ndarray:
-    """(n + 1, k) parameter rows of ``effect`` (its k parameters in declared order): the guess first, then
-    ``n`` points within ``span`` scales of it, clipped into the bounds (repeated rows removed, so fewer
-    may come back).  Deterministic for a given ``seed``."""
+    """Parameter rows to start an effect's fit from: its guess, then points spread around it.
+
+    Parameters
+    ----------
+    effect : Effect class
+        The effect (its k parameters in declared order).
+    n : int, optional
+        Points besides the guess.
+    span : float, optional
+        Their spread, in the parameters' scales.
+    seed : int, optional
+        The random seed (the points are deterministic for a given seed).  Default 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n + 1, k) rows: the guess first, then the points clipped into the bounds (repeated rows removed,
+        so fewer may come back).
+    """
     ps = effect.parameters
     k = len(ps)
     guess = np.array([p.guess for p in ps], dtype=float)

@@ -4,7 +4,7 @@ A first-order motor lag (time constant tau_m) and a dead time (delay d) of the s
 slow response alike: on the 50 Hz comparison grid of the selection their fits differ by a nat or
 less.  They differ in the first tens of milliseconds after each change of the voltage: a delay
 shifts the whole response (nothing happens for d seconds, then everything does), a lag starts the
-response at once but rounds it.  So the swap decided on the comparison grid (:mod:`.selection`) is
+response at once but rounds it.  So the swap decided on the comparison grid (:mod:`.backward`) is
 checked again on the recording's own samples (up to :data:`FINE_RATE_HZ`):
 
 * the selected model, and the same model with the other one in its place, have their time constant /
@@ -13,7 +13,7 @@ checked again on the recording's own samples (up to :data:`FINE_RATE_HZ`):
   by orders of magnitude of the RSS), the rest of the model held.  When the selection refitted the base
   parameters (with the incumbent in the model), the decision is checked twice and stated as a tie if
   either reverses it: the other one given its own base parameters, refitted with it on the comparison grid
-  (:func:`drillgym.diagnosis.ranking._own_base`: as the decision itself it is no better a judge, see there),
+  (:func:`drillgym.diagnosis.lag_delay.own_base`: as the decision itself it is no better a judge, see there),
   and both with the nominal base parameters;
 * the two log-likelihoods are compared (N_eff ln of the RSS ratio, the smaller N_eff of the two fine
   residuals).  The winner by more than :data:`FINE_TIE_NATS` is taken; within that, the two are
@@ -29,7 +29,7 @@ stands, except that it is stated as a tie when the lag or delay is shorter than 
 plus one recording period (:func:`resolvable_lag_delay`).  At any rate, the decision is a tie when the input
 is smooth (:func:`input_share_above` below :data:`SMOOTH_INPUT_SHARE` above the upper disc's corner
 frequency): on a ramp a lag and a delay shift the response alike, and a decisive fine-grid gap there is the
-model's error elsewhere (:func:`drillgym.diagnosis.ranking._check_lag_delay`).
+model's error elsewhere (:func:`drillgym.diagnosis.lag_delay.check_lag_delay`).
 """
 
 from __future__ import annotations
@@ -42,11 +42,13 @@ from typing import Mapping, Sequence
 import numpy as np
 from scipy.signal import welch
 
+from ..errors import InputError
 from ..identification.experiment import Experiment, prepare_experiment
 from ..identification.fitting import Objective
 from ..identification.segmented import SegmentedModel
 from .effects import get_effect
 from .effective import effective_samples
+from .scoring import SEPARATES_LAG_DELAY
 
 __all__ = ["FINE_RATE_HZ", "FINE_TIE_NATS", "LAG_DELAY", "SMOOTH_INPUT_SHARE", "FineDecision", "decide_lag_delay",
            "decide_lag_delay_many",
@@ -67,10 +69,10 @@ GRID_POINTS, SEARCH_ITERATIONS = 9, 12
 #: a decision at the recording's rate by fewer nats is stated as a tie.  The gap is a Gaussian likelihood
 #: ratio with N_eff from the lag-1 correlation; a real rig's friction is not the model's, so it is
 #: overconfident.  On the independent recordings of ``bench_diagnosis_selection.py`` (the three fixed
-#: matrices and random-combination seeds 101-505) the wrong decisions had gaps of 6.0, 9.9, 19.2 and 40.0
+#: matrices and five matrices of random combinations) the wrong decisions had gaps of 6.0, 9.9, 19.2 and 40.0
 #: nats; the right ones 0.0-14.4 nats (stated ties) or 54.9 nats and more (most above 100).  Below 50 nats
-#: a decision is not trusted.  (It was 3 nats, :data:`~.selection.TIE_NATS`, as on the comparison grid,
-#: then 20 until random seed 505's 40-nat wrong decision.)
+#: a decision is not trusted (the comparison grid's :data:`.scoring.TIE_NATS`, 3 nats, and 20 nats both let
+#: a wrong decision through).
 FINE_TIE_NATS = 50.0
 
 
@@ -115,8 +117,22 @@ SMOOTH_INPUT_SHARE = 0.01
 
 
 def input_share_above(ex: Experiment, f_hz: float) -> float:
-    """Share of the recorded input's variance at frequencies above ``f_hz`` (Welch periodogram of the input
-    on its own samples, resampled uniformly at their mean rate; 1.0 when too short to tell)."""
+    """Share of the recorded input's variance at frequencies above a given one.
+
+    Welch periodogram of the input on its own samples, resampled uniformly at their mean rate.
+
+    Parameters
+    ----------
+    ex : Experiment
+        The recording.
+    f_hz : float
+        The frequency (Hz).
+
+    Returns
+    -------
+    float
+        The share (1.0 when the input is too short to tell).
+    """
     t, u = np.asarray(ex.u_time, dtype=float), np.asarray(ex.u_value, dtype=float)
     if len(t) < 16 or t[-1] <= t[0]:
         return 1.0
@@ -132,7 +148,18 @@ def resolvable_lag_delay(exps: Sequence[Experiment]) -> float:
     too slow for the fine check (:mod:`.timing`): one period of the comparison grid plus one of the
     recording (which does not say whether its voltage was held or ramped between samples).  Shorter, a
     lag and a delay of the same size differ by less than a comparison sample: seen on independent
-    recordings at 200 Hz, 17-20 ms delays and lags taken for each other with no tie."""
+    recordings at 200 Hz, 17-20 ms delays and lags taken for each other with no tie.
+
+    Parameters
+    ----------
+    exps : sequence of Experiment
+        The recordings.
+
+    Returns
+    -------
+    float
+        The shortest resolvable lag or delay (s), the largest of the recordings'.
+    """
     out = 0.0
     for ex in exps:
         ts = ex.recording
@@ -143,11 +170,32 @@ def resolvable_lag_delay(exps: Sequence[Experiment]) -> float:
 
 @dataclass
 class FineDecision:
-    """Outcome of the check: ``chosen`` effect, the score ``gap`` (nats; positive favours ``chosen``
-    over ``other``), the fine grid's rate (Hz), each effect's fitted value there (s), and the effectively
-    independent residual samples ``n_eff`` the gap was scaled by (gap = n_eff ln(RSS_other / RSS_chosen)).
+    """Outcome of the check at the recording's own rate.
+
     The gap grows with the recording's length while a rig's own model error does not shrink, so
-    :attr:`log_rss_ratio` (the relative difference of the two fits) is reported beside it."""
+    :attr:`log_rss_ratio` (the relative difference of the two fits) is reported beside it.
+
+    Attributes
+    ----------
+    chosen, other : str
+        The effect chosen and the other one.
+    gap : float
+        The score gap (nats; positive favours ``chosen``): n_eff ln(RSS_other / RSS_chosen).
+    rate_hz : float
+        The fine grid's rate (Hz).
+    values : dict of str to float
+        Each effect's fitted value there (s).
+    doubt : str
+        Why a decisive gap is not trusted ("" if it is): a model wrong elsewhere decides nothing.
+    n_eff : float
+        Effectively independent samples of the residuals compared (NaN: not known).
+    nominal_base : dict or None
+        The same check with the base parameters at their nominal values when they were refitted
+        (``{chosen, score_gap_nats, log_rss_ratio}``; None: not run).
+    own_base : dict or None
+        The same check with the other one given its own base parameters, refitted with it on the comparison
+        grid (None: not run).
+    """
 
     chosen: str
     other: str
@@ -176,7 +224,18 @@ class FineDecision:
                 "log_rss_ratio": round(self.log_rss_ratio, 6) if self.n_eff > 0 else None}
 
     def reversed_by(self, check: "FineDecision") -> bool:
-        """Whether ``check`` (the same question asked of other models) decides the other way decisively."""
+        """Whether another decision reverses this one decisively.
+
+        Parameters
+        ----------
+        check : FineDecision
+            The same question asked of other models.
+
+        Returns
+        -------
+        bool
+            Whether it chose the other one by :data:`FINE_TIE_NATS` or more.
+        """
         return check.chosen != self.chosen and check.gap >= FINE_TIE_NATS
 
     @property
@@ -195,16 +254,25 @@ class FineDecision:
         v = ", ".join(f"{k} {1e3 * x:.0f} ms" for k, x in self.values.items())
         why = (f"score difference {abs(self.gap):.1f} nats, not trusted: {self.doubt}" if self.doubt else
                f"score difference {abs(self.gap):.1f} nats")
-        from .selection import SEPARATES_LAG_DELAY
-
         return (f"indistinguishable from {self.other} at the recording's rate ({self.rate_hz:.0f} Hz; {why}; "
                 f"fitted {v}): " + SEPARATES_LAG_DELAY)
 
 
 def fine_rate(ex: Experiment) -> "float | None":
-    """Rate (Hz) of the fine grid for ``ex``: its recording's own (at most :data:`FINE_RATE_HZ`), or None if it
-    has no recording, one slower than :data:`MIN_FINE_RATE_HZ`, or one not :data:`MIN_REFINEMENT` times finer
-    than its comparison grid."""
+    """The rate of the fine grid for an experiment.
+
+    Parameters
+    ----------
+    ex : Experiment
+        The experiment.
+
+    Returns
+    -------
+    float or None
+        Its recording's own rate (Hz, at most :data:`FINE_RATE_HZ`), or None if it has no recording, one
+        slower than :data:`MIN_FINE_RATE_HZ`, or one not :data:`MIN_REFINEMENT` times finer than its
+        comparison grid.
+    """
     ts = ex.recording
     if ts is None or len(ts.t) < 3:
         return None
@@ -213,7 +281,18 @@ def fine_rate(ex: Experiment) -> "float | None":
 
 
 def fine_experiments(exps: Sequence[Experiment]) -> "list[Experiment] | None":
-    """The experiments again on their recordings' own rate (:func:`fine_rate`), or None if one has no finer data."""
+    """The experiments again on their recordings' own rate (:func:`fine_rate`).
+
+    Parameters
+    ----------
+    exps : sequence of Experiment
+        The experiments.
+
+    Returns
+    -------
+    list of Experiment or None
+        The fine experiments, or None if one has no finer data.
+    """
     rates = [fine_rate(ex) for ex in exps]
     if not exps or any(r is None for r in rates):
         return None
@@ -223,10 +302,30 @@ def fine_experiments(exps: Sequence[Experiment]) -> "list[Experiment] | None":
 
 def decide_lag_delay(exps: Sequence[Experiment], comp, models: Mapping[str, np.ndarray], incumbent: str,
                      weights: dict, segment_s: "float | None") -> "FineDecision | None":
-    """Lag or delay on the recordings' own rate.  ``models``: the model vector (composition ``comp``) with the
-    motor lag and the one with the input delay (the other one neutral in each); ``incumbent``: the one
-    selected on the comparison grid.  Each one's time constant / delay is searched again on the fine grid,
-    the rest of its vector held.  None when the recordings are not fine enough (:func:`fine_rate`)."""
+    """Lag or delay, decided on the recordings' own rate.
+
+    Each one's time constant or delay is searched again on the fine grid, the rest of its vector held.
+
+    Parameters
+    ----------
+    exps : sequence of Experiment
+        The recordings.
+    comp : Composition
+        The models' composition.
+    models : mapping of str to numpy.ndarray
+        The model vector with the motor lag and the one with the input delay (the other one neutral in each).
+    incumbent : str
+        The one selected on the comparison grid.
+    weights : dict of str to float
+        The channels' weights.
+    segment_s : float or None
+        Multiple-shooting segment length (s).
+
+    Returns
+    -------
+    FineDecision or None
+        The decision, or None when the recordings are not fine enough (:func:`fine_rate`).
+    """
     return decide_lag_delay_many(exps, comp, [(models, incumbent)], weights, segment_s)[0]
 
 
@@ -237,12 +336,38 @@ def decide_lag_delay_many(exps: Sequence[Experiment], comp, questions: Sequence[
     searches run together (threads over the cores: three searches on two cores take the time of two
     rounds, not three).  A search asked twice (the same vector, parameter and range) runs once; ``known``
     (a dict, updated in place) carries searches over from an earlier call.  The decisions are those of
-    :func:`decide_lag_delay` asked one by one."""
+    :func:`decide_lag_delay` asked one by one.
+
+    Parameters
+    ----------
+    exps : sequence of Experiment
+        The recordings.
+    comp : Composition
+        The models' composition.
+    questions : sequence of (mapping of str to numpy.ndarray, str)
+        Each question's models (as :func:`decide_lag_delay`) and incumbent.
+    weights : dict of str to float
+        The channels' weights.
+    segment_s : float or None
+        Multiple-shooting segment length (s).
+    known : dict, optional
+        Searches made already, by key; updated in place.
+
+    Returns
+    -------
+    list of FineDecision or None
+        One decision per question.
+
+    Raises
+    ------
+    InputError
+        A question without both models, or with an incumbent that is neither.
+    """
     from .segments import place_segment_starts, robust_noise
 
     for models, incumbent in questions:
         if set(models) != set(LAG_DELAY) or incumbent not in LAG_DELAY:
-            raise ValueError(f"decide_lag_delay needs the models of {LAG_DELAY} and one of them as incumbent")
+            raise InputError(f"decide_lag_delay needs the models of {LAG_DELAY} and one of them as incumbent")
     fine = fine_experiments(exps)
     if fine is None:
         return [None] * len(questions)

@@ -1,0 +1,91 @@
+"""The diagnosis as a pipeline: screen, select, check, report, discover.
+
+1. :func:`.screening.screen` — the recording prepared and conditioned, the candidates it can show, the
+   search model (every candidate at its neutral values);
+2. :func:`.orders.select` — the forward selection in several orders (:mod:`.forward`, :mod:`.backward`),
+   the better model by the criterion (:mod:`.criterion`);
+3. :func:`.checks.check` — position-dependent effects in both halves of the recording, a lag or a delay
+   at the recording's own rate, a drift or a position friction on a disc that hardly turns;
+4. :func:`.ranking.report` — the diagnosis: the ranking, the base parameters that moved, the warnings;
+5. :func:`.discovery.discover` (with ``discover``) — a candidate effect outside the library from the
+   residual torques of the (first) recording on its own samples up to 250 Hz, written as an effect file.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any, Sequence
+
+from ..configurations import Configuration
+from ..identification.blas import one_blas_thread
+from ..identification.experiment import Experiment, prepare_experiment
+from ..io import TimeSeries
+from ..params import RigParams
+from .checks import check
+from .discovery import discover
+from .orders import select
+from .ranking import report
+from .results import Diagnosis
+from .screening import DiagnosisOptions, screen
+
+__all__ = ["DiagnosisOptions", "diagnose"]
+
+
+def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: RigParams | None = None,
+             config: "str | Configuration | None" = None, *, options: DiagnosisOptions | None = None,
+             **settings: Any) -> Diagnosis:
+    """Which set of effects the recording shows, with the base parameters re-identified.
+
+    Parameters
+    ----------
+    data : TimeSeries, Experiment or sequence of Experiment
+        A recording or prepared experiments.
+    params : RigParams, optional
+        Nominal base parameters (default: MODEL.md).
+    config : str or Configuration, optional
+        The configuration when the recording's metadata has none.
+    options : DiagnosisOptions, optional
+        The settings (default: :class:`DiagnosisOptions` ()).
+    **settings
+        Fields of :class:`DiagnosisOptions` (``effects``, ``base_effects``, ``effect_params``,
+        ``segment_s``, ``compare_rate_hz``, ``lvdt_lowpass_hz``, ``refine_speeds``, ``fixed_base``,
+        ``n_joint``, ``max_effects``, ``discover``, ``candidate_out``), overriding ``options``.
+
+    Returns
+    -------
+    Diagnosis
+        The effects selected, the ranking, the base parameters that moved, and (with ``discover``) a
+        candidate effect outside the library or advice.
+
+    Raises
+    ------
+    InputError
+        An unknown candidate effect, or a recording without a configuration.
+    TypeError
+        A setting that is not a field of :class:`DiagnosisOptions`.
+
+    Examples
+    --------
+    >>> from drillgym.diagnosis import diagnose
+    >>> d = diagnose(recording)                          # doctest: +SKIP
+    >>> d.selected, d.base_parameters                    # doctest: +SKIP
+    """
+    opts = replace(options or DiagnosisOptions(), **settings)
+    with one_blas_thread():  # every step's threads (fits side by side, the lag/delay searches) see the same BLAS
+        screening = screen(data, params, config, opts)
+        outcome = select(screening.model, opts.selection())
+        check(screening, outcome, opts.selection())
+        diagnosis = report(screening, outcome)
+    if opts.discover and screening.config is not Configuration.UPPER:
+        diagnosis.candidate, diagnosis.advice = discover(_fine(screening.exps[0]), diagnosis, opts.candidate_out)
+    return diagnosis
+
+
+def _fine(ex: Experiment) -> Experiment:
+    """The experiment on its recording's own samples, up to 250 Hz (the discovery's grid); itself when it
+    has no recording."""
+    ts = ex.recording
+    if ts is None:
+        return ex
+    return prepare_experiment(ts, ex.config, compare_rate_hz=min(250.0, ts.sample_rate_hz),
+                              lvdt_lowpass_hz=ex.lvdt_lowpass_hz)

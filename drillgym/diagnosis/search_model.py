@@ -1,0 +1,167 @@
+"""The search model: one composition holding the model's effects and every candidate, and what it frees.
+
+The search model is one composition that holds the model's own effects and every candidate, each
+candidate at its *neutral* values (:func:`neutral_values`: the effect vanishes), so a candidate is
+switched on by freeing its parameters: no new composition is compiled per combination, and any set of
+effects is one parameter vector.  The base parameters the configuration excites (:data:`BASE_FREE`:
+upper part km, Tcu, bu; string ktheta; lower part Jl; brake law Ts, Tc, ws, delta, bb or the bearing's
+Tcl, bl; lateral k, b, e) are re-identified (Ju is held: it fixes the scale of the torques).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from ..configurations import Configuration
+from ..effects import Composition, Effect
+from ..identification.experiment import Experiment
+from ..identification.fitting import Objective
+from ..identification.segmented import SegmentedModel
+from .segments import place_segment_starts
+
+__all__ = ["BASE_FREE", "SELECTION_DT", "SearchModel", "neutral_values", "search_composition",
+           "base_free_parameters", "selection_model"]
+
+#: simulator step bound (s) of the selection's fits, RK4, the input's samples on step boundaries
+#: (:func:`~drillgym.identification.segmented.steps_per_sample`; 4 ms at 500 Hz and 1 kHz, 2.5 ms at 200 Hz).
+#: Recordings at 500 Hz and 1 kHz are predicted within 0.04 noise units of RK4 at 0.25 ms, twice as fast as
+#: 2 ms steps.  5 ms steps stay within 0.054 noise units at the nominal parameters, but a coupled recording's
+#: LVDT skew (lateral dry friction) then scores 11 nats instead of 52 (4 ms) and 92 (2 ms)
+SELECTION_DT = 4e-3
+_UPPER = ("km", "Tcu", "bu")
+_BRAKE = ("Ts", "Tc", "ws", "delta", "bb")
+_LATERAL = ("k", "b", "e")
+#: base parameters re-identified per configuration (Ju held: it sets the torque scale)
+BASE_FREE: dict[Configuration, tuple[str, ...]] = {
+    Configuration.UPPER: _UPPER + ("dTcu", "dbu"),
+    Configuration.TORSIONAL: _UPPER + ("ktheta", "Jl") + _BRAKE,
+    Configuration.COUPLED: _UPPER + ("ktheta", "Jl") + _BRAKE + _LATERAL,
+    Configuration.LATERAL: _UPPER + ("ktheta", "Jl", "Tcl", "bl") + _LATERAL,
+    Configuration.FREE_VIBRATION: ("Jl", "ktheta", "Tcl", "bl"),
+}
+#: values at which the library's effects vanish (any other parameter: 0 clipped into its bounds)
+_NEUTRAL = {"tau_m": 1e-4}
+
+def neutral_values(effects: Sequence[type[Effect]]) -> dict[str, float]:
+    """Parameter values at which each effect is switched off.
+
+    The declared ``Parameter.neutral``, else the nearest value known here (a motor lag of 0.1 ms), else 0
+    clipped into the parameter's bounds (a user's candidate must vanish there).
+
+    Parameters
+    ----------
+    effects : sequence of Effect classes
+        The effects.
+
+    Returns
+    -------
+    dict of str to float
+        Parameter name -> its neutral value.
+    """
+    out = {}
+    for e in effects:
+        for p in e.parameters:
+            v = p.neutral if p.neutral is not None else _NEUTRAL.get(p.name, min(max(0.0, p.lo), p.hi))
+            out[p.name] = float(v)
+    return out
+
+
+def search_composition(model: Composition, candidates: Sequence[type[Effect]]) -> Composition:
+    """The model's effects, then the candidates not in it.
+
+    A motor lag comes first among the candidates, so that the segmented model applies it exactly to the input.
+
+    Parameters
+    ----------
+    model : Composition
+        The model diagnosed.
+    candidates : sequence of Effect classes
+        The candidates.
+
+    Returns
+    -------
+    Composition
+        The search model's composition.
+    """
+    cands = [c for c in candidates if c.name not in model.names]
+    cands.sort(key=lambda c: 0 if c.name == "motor_lag" else 1)
+    return Composition(tuple(model.effects) + tuple(cands))
+
+
+def base_free_parameters(config: Configuration, brake_on: bool = True) -> tuple[str, ...]:
+    """The base parameters re-identified for a configuration.
+
+    Parameters
+    ----------
+    config : Configuration
+        The recording's configuration.
+    brake_on : bool, optional
+        Whether the brake presses on the lower disc (torsional and coupled); without it the bearing's
+        friction (Tcl, bl) replaces the brake law.  Default True.
+
+    Returns
+    -------
+    tuple of str
+        Base parameter names.
+    """
+    names = BASE_FREE[config]
+    if config in (Configuration.TORSIONAL, Configuration.COUPLED) and not brake_on:
+        names = tuple(n for n in names if n not in _BRAKE) + ("Tcl", "bl")
+    return names
+
+
+def selection_model(exps: Sequence[Experiment], segment_s: float | None, comp: Composition) -> SegmentedModel:
+    """The segmented simulation the selection fits.
+
+    RK4 with steps of at most :data:`SELECTION_DT` on the input's samples, the segments starting where the
+    data say (:func:`.segments.place_segment_starts`).
+
+    Parameters
+    ----------
+    exps : sequence of Experiment
+        The recordings.
+    segment_s : float or None
+        Multiple-shooting segment length (s); None: one free run.
+    comp : Composition
+        The model's composition.
+
+    Returns
+    -------
+    SegmentedModel
+        The model.
+    """
+    model = SegmentedModel(list(exps), segment_s, composition=comp, method="rk4", max_dt=SELECTION_DT,
+                           input_aligned=True)
+    if segment_s is not None:
+        place_segment_starts(model)
+    return model
+
+
+@dataclass
+class SearchModel:
+    """The problem the selection solves: the objective, the search composition, its nominal vector,
+    the candidates and the base parameters that may be freed.
+
+    Attributes
+    ----------
+    obj : Objective
+        The residual of the search model against the recordings (its channel scales may be rescaled
+        per sensor by :func:`.scoring.balance_sensors`).
+    comp : Composition
+        The search composition (:func:`search_composition`).
+    nominal : numpy.ndarray
+        The nominal vector: base parameters as given, effects of the model at their values, candidates neutral.
+    candidates : list of Effect classes
+        The candidates the recordings can show.
+    base_names : tuple of str
+        The base parameters re-identified (empty: the base is held).
+    """
+
+    obj: Objective
+    comp: Composition
+    nominal: np.ndarray
+    candidates: list[type[Effect]]
+    base_names: tuple[str, ...]
