@@ -1,4 +1,4 @@
-"""How long one `drillgym diagnose` takes on 60 s of 1 kHz data (issue 13's goal: within 60 s on 2 cores).
+"""How long one `drillgym diagnose` takes on 60 s of 1 kHz data (the goal: within 60 s on 2 cores).
 
 Three recordings of 60 s at 1 kHz, each diagnosed by the command line as a user runs it (a fresh
 process: import, kernels loaded from the on-disk cache, model selection with the base model
@@ -16,7 +16,7 @@ kernels of compositions no earlier call used, the second shows the steady cost.
 (``bench_diagnosis_selection.build_matrix(seed, random_n=16)``, case ``i``; recordings of the
 independent rig, 2-3 effects, base parameters off in some) made 60 s long at 1 kHz, each diagnosed once,
 with the verdict of that benchmark (right / a stated lag-delay tie / WRONG).  ``--combos default``: six
-cases, four coupled (1616 #3, 404 #5, 606 #7, 1818 #2, 1818 #9, 1919 #4), the set of stop 40's figures.
+combinations, four of them coupled (:data:`DEFAULT_COMBOS`), the set of the documented timing table.
 
     .venv/bin/python benchmarks/bench_diagnose_time.py [--out DIR] [--combos default|SEED:I,SEED:I,...]
 """
@@ -65,6 +65,7 @@ def _diagnose(path: Path) -> tuple[float, dict]:
     return wall, json.loads(p.stdout[p.stdout.index("{"):])
 
 
+#: the default random combinations, SEED:I (the matrix seed, the case's index): four coupled, two torsional
 DEFAULT_COMBOS = "1616:3,404:5,606:7,1818:2,1818:9,1919:4"
 
 
@@ -85,7 +86,7 @@ def _combos(spec: str, out: Path) -> None:
         # as the selection benchmark: a selected effect with a note (a stated tie) may be its lag/delay partner
         ties = {s["effect"]: s["note"] for s in res.get("ranking", []) if s.get("note") and s["effect"] in res["selected"]}
         v = verdict({**c, "error": None, "selected": res["selected"], "ties": ties})
-        print(f"  {seed:>5} #{i:<2} {c['config']:<9} {c['signal']:<12} {wall:6.1f} s (goal <= 60 s)  {v:<5} "
+        print(f"  {c['config']:<9} {c['signal']:<12} {wall:6.1f} s (goal <= 60 s)  {v:<5} "
               f"true {sorted(c['effects'])} -> {res['selected']}")
     print(f"  total {total:.1f} s")
 

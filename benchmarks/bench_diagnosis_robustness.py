@@ -244,7 +244,7 @@ def main() -> None:
         cases = [c for c in cases if c["id"] in keep]
     if a.limit:
         cases = cases[:a.limit]
-    print(f"{len(cases)} recordings, {a.jobs} processes, seed {SEED}", flush=True)
+    print(f"{len(cases)} recordings, {a.jobs} processes, seed={SEED}", flush=True)
     t0 = time.perf_counter()
     results = []
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:

@@ -44,7 +44,7 @@ SEED = 20261123
 SIGNALS = ("quasi_random", "steps", "ramps", "sum_of_sines")
 MISMATCH_PARAMS = ("km", "Tcu", "bu", "ktheta", "Jl", "Ts", "Tc", "ws", "bb")
 
-#: effect combinations (config, {effect: params}); the four of the issue first
+#: effect combinations (config, {effect: params}); the first four: two effects each, one per kind of pair
 COMBOS = [
     ("torsional", {"position_friction": {"pf_c1": 0.12, "pf_s1": -0.08}, "motor_lag": {"tau_m": 0.03}}),
     ("torsional", {"string_damping": {"dtheta": 0.006}, "input_delay": {"delay": 0.03}}),
@@ -186,7 +186,7 @@ def run_case(c: dict) -> dict:
             out["ties"] = {s.effect: s.note for s in d.ranking if s.note and s.effect in d.selected}
             out["paths"] = dict(d.paths)
             out["lag_delay"] = d.lag_delay
-            out["moved"] = {k: round(v["change_pct"], 1) for k, v in d.base_parameters.items()}
+            out["moved"] = {k: round(v.change_pct, 1) for k, v in d.base_parameters.items()}
             out["rmse"] = (round(d.rmse_before, 1), round(d.rmse_after or 0.0, 1))
             out["candidate"] = d.candidate.expression() if d.candidate else None
             out["explained"] = d.candidate.explained if d.candidate else None
@@ -328,7 +328,7 @@ def main() -> None:
     what = " (random combinations)" if a.random_combos else " (quick matrix)" if a.quick else ""
     import bench_diagnosis_rig
     print(f"{len(cases)} recordings of the independent rig{what}, {a.jobs} processes, "
-          f"seed {a.seed}, rig friction smoothing {bench_diagnosis_rig.rig_eps() * 1e3:g} mrad/s", flush=True)
+          f"seed={a.seed}, rig friction smoothing {bench_diagnosis_rig.rig_eps() * 1e3:g} mrad/s", flush=True)
     t0 = time.perf_counter()
     results = []
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:
