@@ -8,7 +8,8 @@ residual scale, frame stacking) into one ``.npz``.  :class:`ExportedPolicy` eval
 it with numpy only (no torch, no SB3): a 33-64-64-1 MLP takes a few microseconds.
 
 Output transform: SAC squashes the Gaussian mean with tanh; PPO clips the mean to the
-action space (or squashes it with tanh under gSDE's ``squash_output``); TD3's actor ends with tanh already (then clipping is the identity).
+action space (or squashes it with tanh under gSDE's ``squash_output``); TD3's actor ends with tanh
+already (then clipping is the identity).
 """
 
 from __future__ import annotations

@@ -12,7 +12,8 @@ ordinary :func:`agents.train.train` run with its evaluation callback), ``workers
 
 Aggregates as rliable recommends for few runs: the interquartile mean (IQM, the mean of the middle 50 %,
 ``scipy.stats.trim_mean(x, 0.25)``) with a percentile-bootstrap 95 % confidence interval
-(``scipy.stats.bootstrap``, 2000 resamples; NaN for a single seed, the value itself when all seeds agree), and the median.  Files:
+(``scipy.stats.bootstrap``, 2000 resamples; NaN for a single seed, the value itself when all seeds agree), and
+the median.  Files:
 ``results.csv`` (one row per seed), ``results.md`` (that table and the aggregates), ``learning_curves.png``
 (evaluation return against environment steps, one line per seed, IQM over the seeds in bold).
 """

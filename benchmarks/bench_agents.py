@@ -47,17 +47,15 @@ def inference(policy_path: Path) -> None:
     ctrl.reset({"t": 0.0, "theta_u": 0.0})
     th = iter(np.cumsum(np.full(10_000_000, 0.03)))
     print(f"numpy policy act():              {1e6 * best_time(lambda: policy.act(obs)):8.1f} us per step")
-    print(
-        f"AgentController.act() (all):     {1e6 * best_time(lambda: ctrl.act({'t': 0.0, 'theta_u': next(th)})):8.1f} us per step"
-    )
+    t_all = best_time(lambda: ctrl.act({"t": 0.0, "theta_u": next(th)}))
+    print(f"AgentController.act() (all):     {1e6 * t_all:8.1f} us per step")
     model_zip = policy_path.with_name("model.zip")
     if model_zip.is_file():
         from agents.train import algo_class
 
         model = algo_class(policy.config["algo"]).load(model_zip, device="cpu")
-        print(
-            f"SB3 predict (torch, reference):  {1e6 * best_time(lambda: model.predict(obs, deterministic=True), 500):8.1f} us per step"
-        )
+        t_sb3 = best_time(lambda: model.predict(obs, deterministic=True), 500)
+        print(f"SB3 predict (torch, reference):  {1e6 * t_sb3:8.1f} us per step")
 
 
 def zero_residual(policy_path: Path, directory: Path) -> Path:

@@ -80,17 +80,19 @@ def main() -> None:
         ("drillgym/Coupled-v0", "sensors"),
         ("drillgym/Coupled-v0", "motor"),
     ]:
-        rate = best(lambda: single_rate(gym.make(env_id, observation=mode), s), r)
+        rate = best(lambda env_id=env_id, mode=mode: single_rate(gym.make(env_id, observation=mode), s), r)
         print(f"{env_id + f' [{mode}], 1 env':46s} {rate:12,.0f} {rate / pend:15.2f}")
     for env_id in ("drillgym/Torsional-v0", "drillgym/Coupled-v0"):
         for mode, sizes in (("full", (64, 256)), ("sensors", (256,)), ("motor", (256,))):
             for n in sizes:
-                rate = best(lambda: vector_rate(make_vec(env_id, n, observation=mode), s), r)
+                rate = best(
+                    lambda env_id=env_id, n=n, mode=mode: vector_rate(make_vec(env_id, n, observation=mode), s), r
+                )
                 print(f"{env_id + f' [{mode}], vector N={n}':46s} {rate:12,.0f} {rate / pend:15.2f}")
     # a composition of two effects (goal: within 25 % of the base model); its kernels compile once, cached
     two = dict(effects=["input_delay", "motor_lag"], effect_params={"delay": 0.03, "tau_m": 0.02})
     for mode in ("full", "sensors"):
-        rate = best(lambda: single_rate(gym.make("drillgym/Torsional-v0", observation=mode, **two), s), r)
+        rate = best(lambda mode=mode: single_rate(gym.make("drillgym/Torsional-v0", observation=mode, **two), s), r)
         print(f"{f'drillgym/Torsional-v0 [{mode}] +delay+lag, 1 env':46s} {rate:12,.0f} {rate / pend:15.2f}")
     rate = best(lambda: vector_rate(make_vec("drillgym/Torsional-v0", 256, **two), s), r)
     print(f"{'drillgym/Torsional-v0 [full] +delay+lag, N=256':46s} {rate:12,.0f} {rate / pend:15.2f}")

@@ -91,7 +91,8 @@ def main() -> None:
         f"harness: 60 s from rest, last 20 s; populations of 20 plants, seeds 0 and 1"
     )
     print(
-        f"{'policy':<12} {'nominal':>8} | {'pop 0: median  p90  worst none':>31} | {'pop 1: median  p90  worst none':>31}"
+        f"{'policy':<12} {'nominal':>8} | {'pop 0: median  p90  worst none':>31} | "
+        f"{'pop 1: median  p90  worst none':>31}"
     )
     runs = {f"seed {s}": f"agent:{work / f'seed_{s}.npz'}" for s in seeds} | {"descent": "descent"}
     for s in seeds:

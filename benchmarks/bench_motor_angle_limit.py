@@ -22,6 +22,11 @@ from drillgym import RigParams
 TARGETS = (0.5, 1.0, 1.5, 2.0, 2.5, 2.75, 3.0, 3.5)
 
 
+def _fmt(zs) -> str:
+    """The first two of ``zs`` as complex numbers to 3 decimals, or ``-`` when there are none."""
+    return ", ".join(f"{z.real:.3f}{z.imag:+.3f}j" if abs(z.imag) > 1e-9 else f"{z.real:.3f}" for z in zs[:2]) or "-"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--plants", type=int, default=20)
@@ -35,24 +40,16 @@ def main() -> None:
     )
     for w in TARGETS:
         lim = motor_angle_limit(p, w)
-        fmt = (
-            lambda zs: (
-                ", ".join(
-                    f"{z.real:.3f}{z.imag:+.3f}j" if abs(z.imag) > 1e-9 else f"{z.real:.3f}"  # noqa: E731
-                    for z in zs[:2]
-                )
-                or "-"
-            )
-        )
         print(
-            f"{w:13.2f} {lim.slope:14.4f} {fmt(lim.rhp_poles):>22} {fmt(lim.rhp_zeros):>22} {lim.bound:12.1f} "
+            f"{w:13.2f} {lim.slope:14.4f} {_fmt(lim.rhp_poles):>22} {_fmt(lim.rhp_zeros):>22} {lim.bound:12.1f} "
             f"{100 * lim.tolerated:9.2f}%"
         )
     pop = sample_plants(a.plants, a.seed)
     nb = len(p.to_vector())
     print(f"\n{a.plants} plants of the default uncertainty set (seed {a.seed}), their base parameters")
     print(
-        f"{'omega (rad/s)':>13} {'median bound':>13} {'p90 bound':>10} {'max bound':>10} {'plants with bound <= 20':>24}"
+        f"{'omega (rad/s)':>13} {'median bound':>13} {'p90 bound':>10} {'max bound':>10} "
+        f"{'plants with bound <= 20':>24}"
     )
     for w in TARGETS:
         b = np.array([motor_angle_limit(RigParams.from_vector(pop.matrix[k, :nb]), w).bound for k in range(pop.n)])

@@ -131,7 +131,8 @@ def main() -> None:
     if len(ratios):
         print(
             f"paired warm rounds (ray / local pool of the same round): "
-            f"{', '.join(f'{100 * (q - 1):+.1f} %' for q in ratios)}; median {100 * (ratios[len(ratios) // 2] - 1):+.1f} %"
+            f"{', '.join(f'{100 * (q - 1):+.1f} %' for q in ratios)}; "
+            f"median {100 * (ratios[len(ratios) // 2] - 1):+.1f} %"
         )
     diff = _differences(results["local pool"], results["ray"])
     print(f"rows identical on both backends: {identical}" + (f" ({diff})" if diff else ""))

@@ -187,8 +187,11 @@ class Controller(ABC):
         return np.zeros(np.shape(np.asarray(omega_ref, dtype=float)))
 
     # -- for subclasses --------------------------------------------------------
-    def _reset(self, m: dict[str, np.ndarray]) -> None:
-        """Reset internal state; ``m`` holds the measurements given to :meth:`reset` as (n,) arrays."""
+    def _reset(self, m: dict[str, np.ndarray]) -> None:  # noqa: B027 - optional hook, stateless controllers keep it
+        """Reset internal state; ``m`` holds the measurements given to :meth:`reset` as (n,) arrays.
+
+        A hook: the default does nothing, for controllers without internal state.
+        """
 
     @abstractmethod
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:

@@ -4,8 +4,8 @@ Two explicit tableaus: classical RK4 and Dormand-Prince 5 (the 5th-order
 solution of DOPRI5, MATLAB's ``ode5``: a cost that is smooth in the parameters
 for identification).  ``dp45`` takes adaptive Dormand-Prince 5(4) steps (embedded error
 estimate, tolerances ``rtol``/``atol``) between the located events, with outputs interpolated
-on the same fixed grid: the fastest choice for one long trajectory.  Both run on a fixed grid of step ``dt``; the default
-``DEFAULT_DT = 1 ms`` resolves the fastest mode of the coupled rig (lateral,
+on the same fixed grid: the fastest choice for one long trajectory.  Both run on a fixed grid of step ``dt``; the
+default ``DEFAULT_DT = 1 ms`` resolves the fastest mode of the coupled rig (lateral,
 15 rad/s, period 0.42 s) with >400 steps per period and keeps RK4's error on
 the stick-slip cycle below 1e-6 rad/s (tests compare against dt/4).
 

@@ -42,8 +42,8 @@ def prioritize(realtime: bool = False) -> str:
     ``realtime``: ask for SCHED_FIFO (the loop sleeps between periods, so it cannot starve the machine
     unless it hangs in a busy loop; the kernel's real-time throttling leaves other processes 5 % even
     then, and the firmware's watchdog stops the motor).  On a loaded 2-core machine nice -10 was not
-    enough (reply timeouts and watchdog stops in 4 of 5 runs), SCHED_FIFO was (5 of 5 completed).  Otherwise, or when that is
-    refused, ask for nice -10.  Without permission the priority stays as it was (said so)."""
+    enough (reply timeouts and watchdog stops in 4 of 5 runs), SCHED_FIFO was (5 of 5 completed).  Otherwise, or when
+    that is refused, ask for nice -10.  Without permission the priority stays as it was (said so)."""
     locked = ", memory locked" if lock_memory() else ""
     return _priority(realtime) + locked
 

@@ -217,7 +217,7 @@ def test_motor_integral_is_the_same_in_training_and_on_the_rig(tmp_path) -> None
     venv.seed(0)
     obs = venv.reset()
     z = np.zeros(2)
-    for k in range(25):  # over an episode's end (20 periods)
+    for _ in range(25):  # over an episode's end (20 periods)
         obs, _, done, infos = venv.step(np.full((2, 1), 0.8))
         last = np.array([i["terminal_observation"][:-1] if d else o[:-1] for o, d, i in zip(obs, done, infos)])
         z = advance(z, last, 0.01)

@@ -67,7 +67,8 @@ def test_unknown_effect_name_lists_the_known_ones():
     "body, message",
     [
         (
-            "class Broken(Force):\n    name = 'broken'\n    acts_on = 'string'\n    def torque(alpha:\n        return 0\n",
+            "class Broken(Force):\n    name = 'broken'\n    acts_on = 'string'\n"
+            "    def torque(alpha:\n        return 0\n",
             "does not import",
         ),
         ("raise RuntimeError('no licence')\n", "does not import.*RuntimeError: no licence"),

@@ -180,7 +180,7 @@ def test_recording_only_some_columns_gives_the_same_values():
     one = simulate("torsional", 1.0, 2.0, record=["Tfl"], effects=["motor_lag"])
     np.testing.assert_array_equal(one.Tfl, simulate("torsional", 1.0, 2.0, effects=["motor_lag"]).Tfl)
     with pytest.raises(AttributeError, match="not recorded"):
-        one.omega_l
+        _ = one.omega_l
     with pytest.raises(ValueError, match="unknown column 'speed'"):
         simulate("torsional", 1.0, 1.0, record=("speed",))
 

@@ -176,12 +176,12 @@ def _sensors_episode(env_id: str, mode: str, steps: int = 120, **kw):
     env = gym.make(env_id, normalize_action=False, observation=mode, **kw)
     obs, _ = env.reset(seed=2)
     system = env.unwrapped.batch.system
-    Y, O = [system.Y[0].copy()], [obs]
+    Y, observations = [system.Y[0].copy()], [obs]
     for k in range(steps):
         obs, *_ = env.step(np.array([3.5 if k < 60 else 4.8], dtype=np.float32))
         Y.append(system.Y[0].copy())
-        O.append(obs)
-    return env, np.array(Y), np.array(O)
+        observations.append(obs)
+    return env, np.array(Y), np.array(observations)
 
 
 def test_sensors_observation_applies_library_measurement_effects() -> None:

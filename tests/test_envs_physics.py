@@ -81,7 +81,7 @@ def test_env_reports_the_monitor_severity() -> None:
 def test_over_speed_terminates() -> None:
     env = gym.make("drillgym/Torsional-v0", normalize_action=False, max_speed=3.0, omega_ref=2.0).unwrapped
     env.reset(seed=0)
-    for k in range(1000):
+    for _ in range(1000):
         _, _, terminated, truncated, info = env.step(np.array([5.0]))
         if terminated:
             break

@@ -87,7 +87,7 @@ def test_sb3_adapter_steps_and_resets() -> None:
     venv.seed(4)
     obs = venv.reset()
     assert obs.shape == (3, 5)
-    for k in range(5):
+    for _ in range(5):
         obs, rew, dones, infos = venv.step(np.full((3, 1), 1.0, dtype=np.float32))
     assert dones.all() and rew.dtype == np.float32
     assert all(info["TimeLimit.truncated"] and info["terminal_observation"].shape == (5,) for info in infos)

@@ -113,7 +113,7 @@ def test_emulator_killed_or_port_unplugged(tmp_path, fault):
             env = HardwareEnv(emu.port, record=rec, episode_duration=5.0)
             t_fault = []
 
-            def inject(step):
+            def inject(step, emu=emu, t_fault=t_fault):
                 if step == 30:
                     time.sleep(0.005)  # the fault strikes mid-period
                     t_fault.append(getattr(emu, fault)())

@@ -351,7 +351,6 @@ def start_at_hopf(
     PeriodicSolution
         The small periodic orbit near the Hopf point.
     """
-    n = smap.dim
     v = np.asarray(eigvec, dtype=complex)
     # phase where Re(v_wl e^{i phi}) = 0 with d/dt > 0 (i.e. Re(i v_wl e^{i phi}) > 0)
     phi = np.angle(1j / v[omega_l_row]) if abs(v[omega_l_row]) > 0 else 0.0

@@ -27,7 +27,7 @@ def _segments(x: np.ndarray, y: np.ndarray, mask: np.ndarray):
 def _equilibria(ax, d: BifurcationDiagram, quantity: str) -> None:
     e = d.equilibria
     y = e.omega if quantity == "omega_l" else e.r * 1e3
-    for i, (st, style) in enumerate(((True, "-"), (False, "--"))):
+    for st, style in ((True, "-"), (False, "--")):
         for xs, ys in _segments(e.u, y, e.stable == st):
             ax.plot(
                 xs,

@@ -72,8 +72,9 @@ class DrillEnv(gym.Env):
     | 3     | ``u_prev``, voltage of the last period | -5  | 5   | V     |
     | 4     | ``omega_ref``, target speed            | 0   | 30  | rad/s |
 
-    The speed bounds are 2 ``max_speed`` (default 30 rad/s), the target's ``max_speed``.  The lateral and coupled configurations insert
-    ``X``, ``Y`` (mm, fixed frame) and ``dX``, ``dY`` (mm/s) after ``alpha``.  Dimensions per mode:
+    The speed bounds are 2 ``max_speed`` (default 30 rad/s), the target's ``max_speed``.  The lateral and coupled
+    configurations insert ``X``, ``Y`` (mm, fixed frame) and ``dX``, ``dY`` (mm/s) after ``alpha``.
+    Dimensions per mode:
 
     | Id                      | full | sensors | motor  |
     |-------------------------|------|---------|--------|

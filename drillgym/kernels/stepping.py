@@ -163,8 +163,8 @@ def _rk_step(t, y0, k1, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, y_out, fric):
     for i in range(1, s):
         for j in range(n):
             acc = 0.0
-            for l in range(i):
-                acc += A[i, l] * K[l, j]
+            for m in range(i):
+                acc += A[i, m] * K[m, j]
             ytmp[j] = y0[j] + h * acc
         if HAS_LAG:
             hk_lag(t, u, y0, p, cfg, c[i] * h, ytmp)
