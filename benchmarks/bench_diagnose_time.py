@@ -42,27 +42,50 @@ OFF = RigParams().scaled(km=0.97, Ts=1.06, Jl=1.04)  # a base model a few percen
 CASES = {
     "torsional, no effect, base off": dict(config="torsional", params=OFF, signal="quasi_random", offset=1.0, seed=3),
     "torsional, position_friction + motor_lag, base off": dict(
-        config="torsional", params=OFF, signal="steps", offset=1.2, seed=4,
-        effects=["position_friction", "motor_lag"], effect_params={"pf_c1": 0.12, "pf_s1": 0.08, "tau_m": 0.04}),
+        config="torsional",
+        params=OFF,
+        signal="steps",
+        offset=1.2,
+        seed=4,
+        effects=["position_friction", "motor_lag"],
+        effect_params={"pf_c1": 0.12, "pf_s1": 0.08, "tau_m": 0.04},
+    ),
     "coupled, lateral_anisotropy + lvdt_offset": dict(
-        config="coupled", signal="sum_of_sines", offset=3.0, seed=5,
-        effects=["lateral_anisotropy", "lvdt_offset"], effect_params={"dk": 250.0, "db": 3.0, "lvdt_x0": 3e-4}),
+        config="coupled",
+        signal="sum_of_sines",
+        offset=3.0,
+        seed=5,
+        effects=["lateral_anisotropy", "lvdt_offset"],
+        effect_params={"dk": 250.0, "db": 3.0, "lvdt_x0": 3e-4},
+    ),
 }
 RIG_CASES = {
     "independent rig, coupled, three effects, base off": dict(
-        config="coupled", signal="ramps", offset=2.66, amplitude=1.5, seed=2576,
-        effects={"position_friction": {"pf_c1": 0.15, "pf_s1": 0.0}, "lvdt_offset": {"lvdt_x0": -3e-4, "lvdt_y0": 3e-4},
-                 "friction_drift": {"drift": -0.004}},
-        scale={"Ts": 1.037, "bu": 0.955, "Jl": 1.053}),
+        config="coupled",
+        signal="ramps",
+        offset=2.66,
+        amplitude=1.5,
+        seed=2576,
+        effects={
+            "position_friction": {"pf_c1": 0.15, "pf_s1": 0.0},
+            "lvdt_offset": {"lvdt_x0": -3e-4, "lvdt_y0": 3e-4},
+            "friction_drift": {"drift": -0.004},
+        },
+        scale={"Ts": 1.037, "bu": 0.955, "Jl": 1.053},
+    ),
 }
 
 
 def _diagnose(path: Path) -> tuple[float, dict]:
     t0 = time.perf_counter()
-    p = subprocess.run([sys.executable, "-m", "drillgym.cli", "diagnose", str(path), "--json"], capture_output=True,
-                       text=True, check=True)
+    p = subprocess.run(
+        [sys.executable, "-m", "drillgym.cli", "diagnose", str(path), "--json"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     wall = time.perf_counter() - t0
-    return wall, json.loads(p.stdout[p.stdout.index("{"):])
+    return wall, json.loads(p.stdout[p.stdout.index("{") :])
 
 
 #: the default random combinations, SEED:I (the matrix seed, the case's index): four coupled, two torsional
@@ -78,48 +101,80 @@ def _combos(spec: str, out: Path) -> None:
     for item in (DEFAULT_COMBOS if spec == "default" else spec).split(","):
         seed, i = (int(x) for x in item.split(":"))
         c = dict(build_matrix(seed=seed, random_n=16)[i], duration=DUR, rate_hz=RATE)
-        ts = rig_recording(c["config"], c["signal"], DUR, RATE, c["seed"], c["effects"], c["scale"], c["offset"],
-                           c["amplitude"])
+        ts = rig_recording(
+            c["config"], c["signal"], DUR, RATE, c["seed"], c["effects"], c["scale"], c["offset"], c["amplitude"]
+        )
         path = write_timeseries(out / f"combo_{seed}_{i}.csv", ts)
         wall, res = _diagnose(path)
         total += wall
         # as the selection benchmark: a selected effect with a note (a stated tie) may be its lag/delay partner
-        ties = {s["effect"]: s["note"] for s in res.get("ranking", []) if s.get("note") and s["effect"] in res["selected"]}
+        ties = {
+            s["effect"]: s["note"] for s in res.get("ranking", []) if s.get("note") and s["effect"] in res["selected"]
+        }
         v = verdict({**c, "error": None, "selected": res["selected"], "ties": ties})
-        print(f"  {c['config']:<9} {c['signal']:<12} {wall:6.1f} s (goal <= 60 s)  {v:<5} "
-              f"true {sorted(c['effects'])} -> {res['selected']}")
+        print(
+            f"  {c['config']:<9} {c['signal']:<12} {wall:6.1f} s (goal <= 60 s)  {v:<5} "
+            f"true {sorted(c['effects'])} -> {res['selected']}"
+        )
     print(f"  total {total:.1f} s")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=None, help="keep the recordings here (default: a temporary dir)")
-    ap.add_argument("--combos", default=None, help="time random combinations SEED:I,... made 60 s long ('default': "
-                    "six); see the module docstring")
+    ap.add_argument(
+        "--combos",
+        default=None,
+        help="time random combinations SEED:I,... made 60 s long ('default': six); see the module docstring",
+    )
     args = ap.parse_args()
     out = args.out or Path(tempfile.mkdtemp(prefix="bench_diagnose_"))
     out.mkdir(parents=True, exist_ok=True)
-    print(f"{DUR:g} s at {RATE:g} Hz per recording; `drillgym diagnose FILE --json` in a fresh process; "
-          f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}")
+    print(
+        f"{DUR:g} s at {RATE:g} Hz per recording; `drillgym diagnose FILE --json` in a fresh process; "
+        f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}"
+    )
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from bench_diagnosis_rig import rig_recording
 
     if args.combos:
         _combos(args.combos, out)
         return
-    recordings = {name: synthetic_measurement(kw["config"], kw.get("params"), duration=DUR, rate_hz=RATE,
-                                              **{k: v for k, v in kw.items() if k not in ("config", "params")})
-                  for name, kw in CASES.items()}
-    recordings.update({name: rig_recording(kw["config"], kw["signal"], DUR, RATE, kw["seed"], kw["effects"],
-                                           kw["scale"], kw["offset"], kw["amplitude"])
-                       for name, kw in RIG_CASES.items()})
+    recordings = {
+        name: synthetic_measurement(
+            kw["config"],
+            kw.get("params"),
+            duration=DUR,
+            rate_hz=RATE,
+            **{k: v for k, v in kw.items() if k not in ("config", "params")},
+        )
+        for name, kw in CASES.items()
+    }
+    recordings.update(
+        {
+            name: rig_recording(
+                kw["config"],
+                kw["signal"],
+                DUR,
+                RATE,
+                kw["seed"],
+                kw["effects"],
+                kw["scale"],
+                kw["offset"],
+                kw["amplitude"],
+            )
+            for name, kw in RIG_CASES.items()
+        }
+    )
     for i, (name, ts) in enumerate(recordings.items()):
         path = write_timeseries(out / f"rec{i}.csv", ts)
         first, res = _diagnose(path)
         second, _ = _diagnose(path)
         moved = ", ".join(f"{k} {v['change_pct']:+.1f}%" for k, v in res.get("base_parameters", {}).items())
-        print(f"  {name:<52} first {first:6.1f} s, second {second:6.1f} s (goal <= 60 s); "
-              f"selected {res['selected']}; base moved: {moved or 'none'}")
+        print(
+            f"  {name:<52} first {first:6.1f} s, second {second:6.1f} s (goal <= 60 s); "
+            f"selected {res['selected']}; base moved: {moved or 'none'}"
+        )
 
 
 if __name__ == "__main__":

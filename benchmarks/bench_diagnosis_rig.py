@@ -39,8 +39,9 @@ def rig_eps() -> float:
 OUTSIDE = ("brake_quadratic", "stribeck_shape", "upper_stribeck", "string_cubic", "string_freeplay")
 
 
-def input_signal(kind: str, duration: float, rate_hz: float, seed: int, offset: float, amplitude: float
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def input_signal(
+    kind: str, duration: float, rate_hz: float, seed: int, offset: float, amplitude: float
+) -> tuple[np.ndarray, np.ndarray]:
     """(t, u): 'quasi_random', 'sum_of_sines', 'steps' (levels held 1.5-5 s), 'ramps' (up/down
     ramps between random levels, 3-8 s each) within offset ± amplitude, clipped to ±5 V."""
     rng = np.random.default_rng(seed)
@@ -54,7 +55,7 @@ def input_signal(kind: str, duration: float, rate_hz: float, seed: int, offset: 
         i = 0
         while i < t.size:
             k = max(1, int(rng.uniform(1.5, 5.0) * rate_hz))
-            u[i:i + k] = offset + amplitude * rng.uniform(-1.0, 1.0)
+            u[i : i + k] = offset + amplitude * rng.uniform(-1.0, 1.0)
             i += k
     elif kind == "ramps":
         knots_t, knots_u, tt = [0.0], [offset], 0.0
@@ -69,8 +70,9 @@ def input_signal(kind: str, duration: float, rate_hz: float, seed: int, offset: 
 
 
 class _Rig:
-    def __init__(self, config: str, p: RigParams, effects: dict[str, dict[str, float]], t: np.ndarray,
-                 u: np.ndarray) -> None:
+    def __init__(
+        self, config: str, p: RigParams, effects: dict[str, dict[str, float]], t: np.ndarray, u: np.ndarray
+    ) -> None:
         self.config, self.p, self.fx, self.t, self.u = config, p, effects, t, u
         self.eps = rig_eps()
 
@@ -86,7 +88,7 @@ class _Rig:
         T = (p.Tcu * s + p.dTcu * abs(s)) + p.bu * w + p.dbu * abs(w)
         if "upper_stribeck" in self.fx:  # a static bump at low speed (outside the library)
             f = self.fx["upper_stribeck"]
-            T += f["Tsu"] * math.exp(-(w / f["wsu"]) ** 2) * s
+            T += f["Tsu"] * math.exp(-((w / f["wsu"]) ** 2)) * s
         return T
 
     def lower_friction(self, tt: float, w: float, th: float) -> float:
@@ -95,15 +97,19 @@ class _Rig:
         if "brake_asymmetry" in fx and w < 0:
             Ts, Tc = Ts * (1 + fx["brake_asymmetry"]["asym_s"]), Tc * (1 + fx["brake_asymmetry"]["asym_c"])
         x = abs(w / p.ws)
-        shape = 1.0 / (1.0 + x * x) if "stribeck_shape" in fx else math.exp(-x ** p.delta)
+        shape = 1.0 / (1.0 + x * x) if "stribeck_shape" in fx else math.exp(-(x**p.delta))
         T = (Tc + (Ts - Tc) * shape) * s + p.bb * w
         if "brake_quadratic" in fx:  # an oil-drag term ω|ω| (outside the library)
             T += fx["brake_quadratic"]["cq"] * w * abs(w)
         level = 1.0
         if "position_friction" in fx:
             f = fx["position_friction"]
-            level += (f.get("pf_c1", 0) * math.cos(th) + f.get("pf_s1", 0) * math.sin(th)
-                      + f.get("pf_c2", 0) * math.cos(2 * th) + f.get("pf_s2", 0) * math.sin(2 * th))
+            level += (
+                f.get("pf_c1", 0) * math.cos(th)
+                + f.get("pf_s1", 0) * math.sin(th)
+                + f.get("pf_c2", 0) * math.cos(2 * th)
+                + f.get("pf_s2", 0) * math.sin(2 * th)
+            )
         if "friction_drift" in fx:
             level *= 1.0 + fx["friction_drift"]["drift"] * tt
         return level * T
@@ -116,7 +122,7 @@ class _Rig:
             el = a - g if a > g else (a + g if a < -g else 0.0)
         T = p.ktheta * el
         if "string_cubic" in fx:
-            T += p.ktheta * fx["string_cubic"]["c3"] * a ** 3
+            T += p.ktheta * fx["string_cubic"]["c3"] * a**3
         if "string_damping" in fx:
             T += fx["string_damping"]["dtheta"] * ad
         return T
@@ -127,8 +133,7 @@ class _Rig:
         um = s[4] if "motor_lag" in self.fx else None
         v = self.drive(tt, um)
         S = self.string_torque(tl - tu, wl - wu)
-        out = [wu, wl, (p.km * v - self.upper_friction(wu) + S) / p.Ju,
-               (-self.lower_friction(tt, wl, tl) - S) / p.Jl]
+        out = [wu, wl, (p.km * v - self.upper_friction(wu) + S) / p.Ju, (-self.lower_friction(tt, wl, tl) - S) / p.Jl]
         if um is not None:
             out.append((self.drive(tt, None) - um) / self.fx["motor_lag"]["tau_m"])
         return out
@@ -160,19 +165,37 @@ class _Rig:
             FX += -fx["lateral_coulomb"]["Fc_lat"] * VX / vv
             FY += -fx["lateral_coulomb"]["Fc_lat"] * VY / vv
         Fx, Fy = FX * cu + FY * su, -FX * su + FY * cu
-        M = np.array([
-            [m, 0.0, -e * mr * sn, -(e * mr * sn + m * y)],
-            [0.0, m, e * mr * c, e * mr * c + m * x],
-            [-e * mr * sn, e * mr * c, p.Jl, p.Jl + e * mr * (x * c + y * sn)],
-            [-(e * mr * sn + m * y), e * mr * c + m * x, p.Jl + e * mr * (x * c + y * sn),
-             p.Ju + p.Jl + 2 * e * mr * (x * c + y * sn) + m * (x * x + y * y)]])
-        f = np.array([
-            -(p.b * (xd - y * W) + p.k * x - m * x * W * W - 2 * m * W * yd - e * mr * c * (ad + W) ** 2) + Fx,
-            -(p.b * (yd + x * W) + p.k * y - m * y * W * W + 2 * m * W * xd - e * mr * sn * (ad + W) ** 2) + Fy,
-            -(2 * e * mr * W * (c * xd + sn * yd) + e * mr * W * W * (x * sn - y * c) + S + Tfl),
-            -(p.b * ((x * x + y * y) * W + x * yd - y * xd) - e * mr * (x * sn - y * c) * (ad * ad + 2 * ad * W)
-              + 2 * e * mr * W * (c * xd + sn * yd) + 2 * m * W * (x * xd + y * yd) + Tfu + Tfl)
-            + p.km * v - y * Fx + x * Fy])
+        M = np.array(
+            [
+                [m, 0.0, -e * mr * sn, -(e * mr * sn + m * y)],
+                [0.0, m, e * mr * c, e * mr * c + m * x],
+                [-e * mr * sn, e * mr * c, p.Jl, p.Jl + e * mr * (x * c + y * sn)],
+                [
+                    -(e * mr * sn + m * y),
+                    e * mr * c + m * x,
+                    p.Jl + e * mr * (x * c + y * sn),
+                    p.Ju + p.Jl + 2 * e * mr * (x * c + y * sn) + m * (x * x + y * y),
+                ],
+            ]
+        )
+        f = np.array(
+            [
+                -(p.b * (xd - y * W) + p.k * x - m * x * W * W - 2 * m * W * yd - e * mr * c * (ad + W) ** 2) + Fx,
+                -(p.b * (yd + x * W) + p.k * y - m * y * W * W + 2 * m * W * xd - e * mr * sn * (ad + W) ** 2) + Fy,
+                -(2 * e * mr * W * (c * xd + sn * yd) + e * mr * W * W * (x * sn - y * c) + S + Tfl),
+                -(
+                    p.b * ((x * x + y * y) * W + x * yd - y * xd)
+                    - e * mr * (x * sn - y * c) * (ad * ad + 2 * ad * W)
+                    + 2 * e * mr * W * (c * xd + sn * yd)
+                    + 2 * m * W * (x * xd + y * yd)
+                    + Tfu
+                    + Tfl
+                )
+                + p.km * v
+                - y * Fx
+                + x * Fy,
+            ]
+        )
         acc = np.linalg.solve(M, f)
         out = [xd, yd, ad, W, acc[0], acc[1], acc[2], acc[3]]
         if um is not None:
@@ -180,10 +203,18 @@ class _Rig:
         return out
 
 
-def rig_recording(config: str, signal: str = "quasi_random", duration: float = 30.0, rate_hz: float = 500.0,
-                  seed: int = 0, effects: dict[str, dict[str, float]] | None = None,
-                  scale: dict[str, float] | None = None, offset: float = 1.0, amplitude: float = 3.0,
-                  alpha0: float = 0.0) -> TimeSeries:
+def rig_recording(
+    config: str,
+    signal: str = "quasi_random",
+    duration: float = 30.0,
+    rate_hz: float = 500.0,
+    seed: int = 0,
+    effects: dict[str, dict[str, float]] | None = None,
+    scale: dict[str, float] | None = None,
+    offset: float = 1.0,
+    amplitude: float = 3.0,
+    alpha0: float = 0.0,
+) -> TimeSeries:
     """A recording of the independent rig (see the module docstring).  ``config``: 'torsional' or
     'coupled'; ``effects``: {effect name: its parameters} (library names and :data:`OUTSIDE`);
     ``scale``: factors on base parameters (the rig's base parameters differ from MODEL.md)."""
@@ -208,9 +239,12 @@ def rig_recording(config: str, signal: str = "quasi_random", duration: float = 3
         tu, tl = sol.y[0], sol.y[1]
     else:
         tu, tl = sol.y[3], sol.y[2] + sol.y[3]
-    cols = {"t": t, "u": u,
-            "theta_u": quantize_angle(tu + rng.normal(0, 1e-4, t.size)),
-            "theta_l": quantize_angle(tl + rng.normal(0, 1e-4, t.size))}
+    cols = {
+        "t": t,
+        "u": u,
+        "theta_u": quantize_angle(tu + rng.normal(0, 1e-4, t.size)),
+        "theta_l": quantize_angle(tl + rng.normal(0, 1e-4, t.size)),
+    }
     if config == "coupled":
         x, y = sol.y[0], sol.y[1]
         X, Y = x * np.cos(tu) - y * np.sin(tu), x * np.sin(tu) + y * np.cos(tu)
@@ -221,6 +255,10 @@ def rig_recording(config: str, signal: str = "quasi_random", duration: float = 3
             Y = Y * math.cos(sk) + X * math.sin(sk)
         cols["x"] = lowpass_zero_phase(X + rng.normal(0, 3e-6, t.size), rate_hz, 5.0)
         cols["y"] = lowpass_zero_phase(Y + rng.normal(0, 3e-6, t.size), rate_hz, 5.0)
-    meta = {"configuration": config, "source": "emulator", "sample_rate_hz": rate_hz,
-            "description": f"independent scipy rig, {signal}, effects {sorted(effects)}"}
+    meta = {
+        "configuration": config,
+        "source": "emulator",
+        "sample_rate_hz": rate_hz,
+        "description": f"independent scipy rig, {signal}, effects {sorted(effects)}",
+    }
     return TimeSeries(cols, meta, "<independent rig>")

@@ -4,8 +4,8 @@ A fixed-seed matrix of synthetic recordings
 (:func:`drillgym.identification.synthetic.synthetic_measurement`: simulation +
 the rig's measurement chain) with ONE hidden effect (or none) is diagnosed
 without telling it the effect (the hidden effect is added to the simulated model with
-``effects=[name]``; each candidate is tried as a composition, base + candidate).  Varied per recording: the effect and its
-magnitude (weak / medium / strong, values below), the effect's *form* (variant
+``effects=[name]``; each candidate is tried as a composition, base + candidate).  Varied per recording: the effect
+and its magnitude (weak / medium / strong, values below), the effect's *form* (variant
 A: the library's form; variant B: a slightly different one the library's
 parameters allow: other phases, a second harmonic, the other sign, unequal
 asymmetries, delays off the sample grid), the input signal (quasi-random, sum
@@ -126,14 +126,29 @@ def build_matrix(seed: int = SEED) -> list[dict]:
             off = float(rng.uniform(olo, ohi))
             if cfg == "coupled" and name in ("none",):
                 off = float(rng.uniform(0.5, 3.0))
-            c = {"id": len(cases), "effect": name, "mag": MAGS[mag] if mag >= 0 else "-", "variant": var,
-                 "config": cfg, "signal": sig, "offset": round(off, 2),
-                 "duration": float(rng.choice([30.0, 45.0, 60.0])), "rate_hz": float(rng.choice([200.0, 500.0, 1000.0])),
-                 "alpha0": float(rng.choice([0.0, 0.0, 1.5, -3.0, 6.0])), "seed": int(rng.integers(1, 10_000)),
-                 "params": effect_params(name, mag, var, rng)}
+            c = {
+                "id": len(cases),
+                "effect": name,
+                "mag": MAGS[mag] if mag >= 0 else "-",
+                "variant": var,
+                "config": cfg,
+                "signal": sig,
+                "offset": round(off, 2),
+                "duration": float(rng.choice([30.0, 45.0, 60.0])),
+                "rate_hz": float(rng.choice([200.0, 500.0, 1000.0])),
+                "alpha0": float(rng.choice([0.0, 0.0, 1.5, -3.0, 6.0])),
+                "seed": int(rng.integers(1, 10_000)),
+                "params": effect_params(name, mag, var, rng),
+            }
             if sig == "constant":  # a stick-slip level (brake) or a whirl level (lateral effects)
-                c["u"] = round(float(rng.uniform(2.5, 3.5) if cfg == "coupled" and name.startswith(("lat", "lvdt"))
-                                     else rng.uniform(0.6, 2.5)), 2)
+                c["u"] = round(
+                    float(
+                        rng.uniform(2.5, 3.5)
+                        if cfg == "coupled" and name.startswith(("lat", "lvdt"))
+                        else rng.uniform(0.6, 2.5)
+                    ),
+                    2,
+                )
             cases.append(c)
     return cases
 
@@ -168,8 +183,14 @@ def run_case(c: dict) -> dict:
         out["any_sig"] = [s.effect for s in d.significant()]
         out["error"] = None
     except Exception as exc:  # a crash is a result too
-        out.update(time_s=float("nan"), ranking=[], first=None, first_sig=False, any_sig=[],
-                   error=f"{type(exc).__name__}: {exc}")
+        out.update(
+            time_s=float("nan"),
+            ranking=[],
+            first=None,
+            first_sig=False,
+            any_sig=[],
+            error=f"{type(exc).__name__}: {exc}",
+        )
     return out
 
 
@@ -200,17 +221,22 @@ def summarise(results: list[dict]) -> str:
         mt = statistics.median(ts) if ts else float("nan")
         if name == "none":
             fp = sum(x == "FP" for x in v)
-            lines.append(f"{'none (FP rate)':<20}{len(rs):>4}{fp / len(rs):>7.0%}{'':>7}{'':>7}{'':>8}{'':>7}"
-                         f"{sum(x == 'CRASH' for x in v):>7}{mt:>10.1f}")
+            lines.append(
+                f"{'none (FP rate)':<20}{len(rs):>4}{fp / len(rs):>7.0%}{'':>7}{'':>7}{'':>8}{'':>7}"
+                f"{sum(x == 'CRASH' for x in v):>7}{mt:>10.1f}"
+            )
             continue
 
-        def frac(mag: str) -> str:
+        def frac(mag: str, rs: list = rs) -> str:
             sub = [verdict(r) for r in rs if r["mag"] == mag]
             return f"{sum(x == 'hit' for x in sub)}/{len(sub)}" if sub else "-"
+
         hit = sum(x == "hit" for x in v)
         tot_hit, tot_n = tot_hit + hit, tot_n + len(rs)
-        lines.append(f"{name:<20}{len(rs):>4}{hit / len(rs):>7.0%}{frac('weak'):>7}{frac('medium'):>7}"
-                     f"{frac('strong'):>8}{sum(x == 'WRONG' for x in v):>7}{sum(x == 'CRASH' for x in v):>7}{mt:>10.1f}")
+        lines.append(
+            f"{name:<20}{len(rs):>4}{hit / len(rs):>7.0%}{frac('weak'):>7}{frac('medium'):>7}"
+            f"{frac('strong'):>8}{sum(x == 'WRONG' for x in v):>7}{sum(x == 'CRASH' for x in v):>7}{mt:>10.1f}"
+        )
     if tot_n:
         lines.append(f"{'all effects':<20}{tot_n:>4}{tot_hit / tot_n:>7.0%}")
     ts = [r["time_s"] for r in results if r["time_s"] == r["time_s"]]
@@ -220,12 +246,16 @@ def summarise(results: list[dict]) -> str:
 
 
 def case_line(r: dict) -> str:
-    cond = (f"{r['config'][:4]} {r['signal'][:8]:<8} {('u=' + str(r['u'])) if 'u' in r else ('o=' + str(r['offset'])):<6} "
-            f"{r['duration']:>3.0f}s {r['rate_hz']:>4.0f}Hz a0={r['alpha0']:+.1f}")
+    cond = (
+        f"{r['config'][:4]} {r['signal'][:8]:<8} {('u=' + str(r['u'])) if 'u' in r else ('o=' + str(r['offset'])):<6} "
+        f"{r['duration']:>3.0f}s {r['rate_hz']:>4.0f}Hz a0={r['alpha0']:+.1f}"
+    )
     top = ", ".join(f"{e}{'*' if s else ''} {sc:.0f}" for e, sc, _, s in r["ranking"][:3])
     par = ",".join(f"{k}={v:.3g}" for k, v in r["params"].items())
-    return (f"{r['id']:>3} {verdict(r):<6}{r['effect']:<19}{r['mag']:<7}{r['variant']:<2}{cond}  "
-            f"t={r['time_s']:.1f}s  [{par}]  -> {top}{'  ERROR ' + r['error'] if r['error'] else ''}")
+    return (
+        f"{r['id']:>3} {verdict(r):<6}{r['effect']:<19}{r['mag']:<7}{r['variant']:<2}{cond}  "
+        f"t={r['time_s']:.1f}s  [{par}]  -> {top}{'  ERROR ' + r['error'] if r['error'] else ''}"
+    )
 
 
 def main() -> None:
@@ -243,7 +273,7 @@ def main() -> None:
         keep = {int(x) for x in a.ids.split(",")}
         cases = [c for c in cases if c["id"] in keep]
     if a.limit:
-        cases = cases[:a.limit]
+        cases = cases[: a.limit]
     print(f"{len(cases)} recordings, {a.jobs} processes, seed={SEED}", flush=True)
     t0 = time.perf_counter()
     results = []

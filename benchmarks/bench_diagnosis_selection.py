@@ -50,11 +50,23 @@ COMBOS = [
     ("torsional", {"string_damping": {"dtheta": 0.006}, "input_delay": {"delay": 0.03}}),
     ("coupled", {"lateral_anisotropy": {"dk": 250.0, "db": 3.0}, "lvdt_offset": {"lvdt_x0": 4e-4, "lvdt_y0": -2e-4}}),
     ("torsional", {"brake_asymmetry": {"asym_s": 0.3, "asym_c": 0.3}, "friction_drift": {"drift": 0.004}}),
-    ("torsional", {"position_friction": {"pf_c1": -0.1, "pf_s1": 0.1}, "string_damping": {"dtheta": 0.008},
-                   "motor_lag": {"tau_m": 0.04}}),
+    (
+        "torsional",
+        {
+            "position_friction": {"pf_c1": -0.1, "pf_s1": 0.1},
+            "string_damping": {"dtheta": 0.008},
+            "motor_lag": {"tau_m": 0.04},
+        },
+    ),
     ("coupled", {"lvdt_skew": {"lvdt_skew": 0.035}, "lateral_coulomb": {"Fc_lat": 1.5}}),
-    ("coupled", {"position_friction": {"pf_c1": 0.15, "pf_s1": 0.0}, "lvdt_offset": {"lvdt_x0": -3e-4, "lvdt_y0": 3e-4},
-                 "friction_drift": {"drift": -0.004}}),
+    (
+        "coupled",
+        {
+            "position_friction": {"pf_c1": 0.15, "pf_s1": 0.0},
+            "lvdt_offset": {"lvdt_x0": -3e-4, "lvdt_y0": 3e-4},
+            "friction_drift": {"drift": -0.004},
+        },
+    ),
     ("torsional", {"input_delay": {"delay": 0.05}, "friction_drift": {"drift": 0.005}}),
 ]
 OUTSIDE = [
@@ -72,19 +84,37 @@ DURATIONS = (20.0, 30.0, 45.0, 60.0)
 #: parameters (magnitudes 0.6-1.4x the fixed combinations' values, random signs and phases where the physics
 #: allows both)
 _RANDOM_EFFECTS: dict[str, tuple[tuple[str, ...], object]] = {
-    "position_friction": (("torsional", "coupled"), lambda r: (lambda a, ph: {
-        "pf_c1": round(a * math.cos(ph), 4), "pf_s1": round(a * math.sin(ph), 4)})(
-        r.uniform(0.08, 0.18), r.uniform(0, 2 * math.pi))),
+    "position_friction": (
+        ("torsional", "coupled"),
+        lambda r: (lambda a, ph: {"pf_c1": round(a * math.cos(ph), 4), "pf_s1": round(a * math.sin(ph), 4)})(
+            r.uniform(0.08, 0.18), r.uniform(0, 2 * math.pi)
+        ),
+    ),
     "motor_lag": (("torsional", "coupled"), lambda r: {"tau_m": round(r.uniform(0.02, 0.05), 4)}),
     "input_delay": (("torsional", "coupled"), lambda r: {"delay": round(r.uniform(0.02, 0.05), 4)}),
     "string_damping": (("torsional", "coupled"), lambda r: {"dtheta": round(r.uniform(0.004, 0.01), 4)}),
-    "friction_drift": (("torsional", "coupled"), lambda r: {"drift": round(r.choice([-1, 1]) * r.uniform(0.003, 0.006), 4)}),
-    "brake_asymmetry": (("torsional",), lambda r: {"asym_s": round(r.uniform(0.2, 0.4), 3),
-                                                   "asym_c": round(r.uniform(0.2, 0.4), 3)}),
-    "lateral_anisotropy": (("coupled",), lambda r: {"dk": round(r.choice([-1, 1]) * r.uniform(150, 350), 1),
-                                                    "db": round(r.choice([-1, 1]) * r.uniform(1.8, 4.2), 2)}),
-    "lvdt_offset": (("coupled",), lambda r: {"lvdt_x0": round(r.choice([-1, 1]) * r.uniform(2e-4, 5e-4), 6),
-                                             "lvdt_y0": round(r.choice([-1, 1]) * r.uniform(2e-4, 5e-4), 6)}),
+    "friction_drift": (
+        ("torsional", "coupled"),
+        lambda r: {"drift": round(r.choice([-1, 1]) * r.uniform(0.003, 0.006), 4)},
+    ),
+    "brake_asymmetry": (
+        ("torsional",),
+        lambda r: {"asym_s": round(r.uniform(0.2, 0.4), 3), "asym_c": round(r.uniform(0.2, 0.4), 3)},
+    ),
+    "lateral_anisotropy": (
+        ("coupled",),
+        lambda r: {
+            "dk": round(r.choice([-1, 1]) * r.uniform(150, 350), 1),
+            "db": round(r.choice([-1, 1]) * r.uniform(1.8, 4.2), 2),
+        },
+    ),
+    "lvdt_offset": (
+        ("coupled",),
+        lambda r: {
+            "lvdt_x0": round(r.choice([-1, 1]) * r.uniform(2e-4, 5e-4), 6),
+            "lvdt_y0": round(r.choice([-1, 1]) * r.uniform(2e-4, 5e-4), 6),
+        },
+    ),
     "lvdt_skew": (("coupled",), lambda r: {"lvdt_skew": round(r.choice([-1, 1]) * r.uniform(0.025, 0.045), 4)}),
     "lateral_coulomb": (("coupled",), lambda r: {"Fc_lat": round(r.uniform(1.0, 2.0), 3)}),
 }
@@ -100,8 +130,7 @@ def random_combos(rng: np.random.Generator, n: int) -> list[tuple[str, dict]]:
         names = list(rng.choice(pool, size=int(rng.integers(2, 4)), replace=False))
         if "motor_lag" in names and "input_delay" in names:
             continue
-        out.append((config, {str(e): {k: float(v) for k, v in _RANDOM_EFFECTS[str(e)][1](rng).items()}
-                             for e in names}))
+        out.append((config, {str(e): {k: float(v) for k, v in _RANDOM_EFFECTS[str(e)][1](rng).items()} for e in names}))
     return out
 
 
@@ -113,9 +142,14 @@ def _conditions(rng: np.random.Generator, config: str, effects: dict) -> dict:
         off, amp = float(rng.uniform(2.3, 3.0)), 1.5
     else:
         off, amp = float(rng.uniform(0.8, 1.5)), 3.0
-    return {"signal": sig, "offset": round(off, 2), "amplitude": amp,
-            "duration": float(rng.choice(DURATIONS)),
-            "rate_hz": float(rng.choice([200.0, 500.0, 1000.0])), "seed": int(rng.integers(1, 10_000))}
+    return {
+        "signal": sig,
+        "offset": round(off, 2),
+        "amplitude": amp,
+        "duration": float(rng.choice(DURATIONS)),
+        "rate_hz": float(rng.choice([200.0, 500.0, 1000.0])),
+        "seed": int(rng.integers(1, 10_000)),
+    }
 
 
 def _mismatch(rng: np.random.Generator, n: int) -> dict[str, float]:
@@ -167,8 +201,17 @@ def run_case(c: dict) -> dict:
 
     out = dict(c)
     try:
-        ts = rig_recording(c["config"], c["signal"], c["duration"], c["rate_hz"], c["seed"], c["effects"],
-                           c["scale"], c["offset"], c["amplitude"])
+        ts = rig_recording(
+            c["config"],
+            c["signal"],
+            c["duration"],
+            c["rate_hz"],
+            c["seed"],
+            c["effects"],
+            c["scale"],
+            c["offset"],
+            c["amplitude"],
+        )
         t0 = time.perf_counter()
         ex = prepare_experiment(ts, compare_rate_hz=50.0)
         d = diagnose(ex)
@@ -198,16 +241,21 @@ def run_case(c: dict) -> dict:
     except Exception as exc:  # a crash is a result too
         import traceback
 
-        out.update(time_s=float("nan"), selected=[], error=f"{type(exc).__name__}: {exc}",
-                   trace=traceback.format_exc()[-800:])
+        out.update(
+            time_s=float("nan"), selected=[], error=f"{type(exc).__name__}: {exc}", trace=traceback.format_exc()[-800:]
+        )
     return out
 
 
 #: pairs the diagnosis may state as a tie (one selected, a note naming the other): a lag and a delay, and a friction
 #: that drifts in time and one that depends on the angle (on a recording whose lower disc slides through less than
 #: a revolution)
-_PAIR = {"motor_lag": "input_delay", "input_delay": "motor_lag",
-         "friction_drift": "position_friction", "position_friction": "friction_drift"}
+_PAIR = {
+    "motor_lag": "input_delay",
+    "input_delay": "motor_lag",
+    "friction_drift": "position_friction",
+    "position_friction": "friction_drift",
+}
 #: lower-disc speed (rad/s) below which the recording turns backward, and the share of samples under which a
 #: brake asymmetry (acting on backward rotation only) is invisible in it
 BACKWARD_RAD_S, BACKWARD_SHARE = 0.1, 0.02
@@ -217,8 +265,11 @@ def unseen(r: dict) -> set[str]:
     """Hidden effects the recording cannot show, that the diagnosis also stated it cannot see: a brake
     asymmetry when the lower disc turns backward in fewer than BACKWARD_SHARE of the samples (a random
     ramp input that happens to stay positive)."""
-    if "brake_asymmetry" in r["effects"] and r.get("backward_share", 1.0) < BACKWARD_SHARE \
-            and "brake_asymmetry" in r.get("skipped", {}):
+    if (
+        "brake_asymmetry" in r["effects"]
+        and r.get("backward_share", 1.0) < BACKWARD_SHARE
+        and "brake_asymmetry" in r.get("skipped", {})
+    ):
         return {"brake_asymmetry"}
     return set()
 
@@ -244,8 +295,7 @@ def verdict(r: dict) -> str:
 
 
 def case_line(r: dict) -> str:
-    cond = (f"{r['config'][:4]} {r['signal'][:10]:<10} o={r['offset']:<5} {r['duration']:>3.0f}s "
-            f"{r['rate_hz']:>4.0f}Hz")
+    cond = f"{r['config'][:4]} {r['signal'][:10]:<10} o={r['offset']:<5} {r['duration']:>3.0f}s {r['rate_hz']:>4.0f}Hz"
     eff = "+".join(r["effects"]) or "-"
     sc = ",".join(f"{k}{(v - 1) * 100:+.0f}%" for k, v in r["scale"].items())
     line = f"{r['id']:>3} {verdict(r):<7}{r['kind']:<9}{cond}  t={r['time_s']:.0f}s  [{eff}] [{sc}] -> {r['selected']}"
@@ -276,23 +326,28 @@ def summarise(results: list[dict]) -> str:
     if cl:
         lines.append(f"clean recordings, nothing selected:        {sum(v[r['id']] == 'ok' for r in cl)}/{len(cl)}")
     if mm:
-        lines.append(f"base mismatch only, nothing selected:      {sum(v[r['id']] == 'ok' for r in mm)}/{len(mm)}"
-                     f"   (base parameters reported as moved: {sum(bool(r.get('moved')) for r in mm)}/{len(mm)})")
+        lines.append(
+            f"base mismatch only, nothing selected:      {sum(v[r['id']] == 'ok' for r in mm)}/{len(mm)}"
+            f"   (base parameters reported as moved: {sum(bool(r.get('moved')) for r in mm)}/{len(mm)})"
+        )
     if co:
         right = sum(v[r["id"]] == "right" for r in co)
         tie = sum(v[r["id"]] == "tie" for r in co)
-        lines.append(f"combinations, selected set right:          {right}/{len(co)} ({right / len(co):.0%}); "
-                     f"with a stated tie: {right + tie}/{len(co)}")
+        lines.append(
+            f"combinations, selected set right:          {right}/{len(co)} ({right / len(co):.0%}); "
+            f"with a stated tie: {right + tie}/{len(co)}"
+        )
         hidden = sum(v[r["id"]] == "unseen" for r in co)
         if hidden:
-            lines.append(f"  right but for a hidden effect the recording cannot show (stated as not excited): "
-                         f"{hidden}/{len(co)}")
+            lines.append(
+                f"  right but for a hidden effect the recording cannot show (stated as not excited): {hidden}/{len(co)}"
+            )
         mmc = [r for r in co if r["scale"]]
-        lines.append(f"  of which with base parameters off 2-8 %: "
-                     f"{sum(v[r['id']] == 'right' for r in mmc)}/{len(mmc)}")
+        lines.append(f"  of which with base parameters off 2-8 %: {sum(v[r['id']] == 'right' for r in mmc)}/{len(mmc)}")
     if ou:
-        lines.append(f"outside the library, candidate halves 1-R²: {sum(v[r['id']] == 'halved' for r in ou)}/{len(ou)}"
-                     f" kinds")
+        lines.append(
+            f"outside the library, candidate halves 1-R²: {sum(v[r['id']] == 'halved' for r in ou)}/{len(ou)} kinds"
+        )
     ts = [r["time_s"] for r in results if r["time_s"] == r["time_s"]]
     if ts:
         lines.append(f"diagnose time (incl. discovery): median {statistics.median(ts):.1f} s, max {max(ts):.1f} s")
@@ -306,14 +361,28 @@ def main() -> None:
     ap.add_argument("--kind", default=None)
     ap.add_argument("--ids", default=None)
     ap.add_argument("--quick", action="store_true", help="the reduced matrix (21 recordings of 20-30 s)")
-    ap.add_argument("--seed", type=int, default=SEED,
-                    help=f"seed of the matrix (conditions, mismatch draws, noise); default {SEED}, another one: held out")
-    ap.add_argument("--random-combos", type=int, default=0, metavar="N",
-                    help="instead of the fixed matrix: N combinations of 2-3 library effects drawn at random "
-                         "(effects, magnitudes, configuration; every other one with base parameters off 2-8 %%)")
-    ap.add_argument("--rig-smoothing", type=float, default=None, metavar="EPS",
-                    help="the independent rig's friction smoothing tanh(w/EPS) (rad/s; default "
-                         "bench_diagnosis_rig.EPS): how much its discs creep while stuck")
+    ap.add_argument(
+        "--seed",
+        type=int,
+        default=SEED,
+        help=f"seed of the matrix (conditions, mismatch draws, noise); default {SEED}, another one: held out",
+    )
+    ap.add_argument(
+        "--random-combos",
+        type=int,
+        default=0,
+        metavar="N",
+        help="instead of the fixed matrix: N combinations of 2-3 library effects drawn at random "
+        "(effects, magnitudes, configuration; every other one with base parameters off 2-8 %%)",
+    )
+    ap.add_argument(
+        "--rig-smoothing",
+        type=float,
+        default=None,
+        metavar="EPS",
+        help="the independent rig's friction smoothing tanh(w/EPS) (rad/s; default "
+        "bench_diagnosis_rig.EPS): how much its discs creep while stuck",
+    )
     a = ap.parse_args()
     if a.rig_smoothing is not None:
         if not a.rig_smoothing > 0:
@@ -327,8 +396,12 @@ def main() -> None:
         cases = [c for c in cases if c["id"] in keep]
     what = " (random combinations)" if a.random_combos else " (quick matrix)" if a.quick else ""
     import bench_diagnosis_rig
-    print(f"{len(cases)} recordings of the independent rig{what}, {a.jobs} processes, "
-          f"seed={a.seed}, rig friction smoothing {bench_diagnosis_rig.rig_eps() * 1e3:g} mrad/s", flush=True)
+
+    print(
+        f"{len(cases)} recordings of the independent rig{what}, {a.jobs} processes, "
+        f"seed={a.seed}, rig friction smoothing {bench_diagnosis_rig.rig_eps() * 1e3:g} mrad/s",
+        flush=True,
+    )
     t0 = time.perf_counter()
     results = []
     with ProcessPoolExecutor(max_workers=a.jobs) as pool:

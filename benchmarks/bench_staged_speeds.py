@@ -34,8 +34,9 @@ TRUE = RigParams()
 
 
 def _drillgym(config: str, seed: int, rate: float, signal: str = "quasi_random", **kw):
-    return synthetic_measurement(config, TRUE, duration=kw.pop("duration", 20.0), rate_hz=rate, seed=seed,
-                                 signal=signal, **kw)
+    return synthetic_measurement(
+        config, TRUE, duration=kw.pop("duration", 20.0), rate_hz=rate, seed=seed, signal=signal, **kw
+    )
 
 
 def cases():
@@ -45,18 +46,47 @@ def cases():
     brake = ("Ts", "Tc", "ws", "delta", "bb")
     for rate in (250.0, 100.0):
         fv = synthetic_measurement("free_vibration", TRUE, duration=15.0, rate_hz=rate, u=0.0, alpha0=3.0)
-        out.append((f"drillgym free_vibration {rate:.0f} Hz", "free_vibration", fv,
-                    TRUE.scaled(Jl=1.3, bl=0.7, Tcl=1.5), ("Jl", "bl", "Tcl")))
-        out.append((f"drillgym lower {rate:.0f} Hz", "lower", _drillgym("torsional_bearing", 1, rate, offset=0.5),
-                    TRUE.scaled(Jl=1.1, ktheta=0.9, bl=1.3, Tcl=1.2), ("Jl", "ktheta", "bl", "Tcl")))
-        out.append((f"drillgym lateral {rate:.0f} Hz", "lateral", _drillgym("lateral", 1, rate, offset=3.0),
-                    TRUE.scaled(k=0.8, b=1.3, e=1.2, mt=0.8), ("k", "b", "e")))
-        out.append((f"drillgym brake {rate:.0f} Hz", "brake",
-                    [_drillgym("torsional", s, rate, offset=1.0, alpha0=a) for s, a in ((1, 0.0), (2, 2.0), (3, -2.0))],
-                    brake_start, brake))
+        out.append(
+            (
+                f"drillgym free_vibration {rate:.0f} Hz",
+                "free_vibration",
+                fv,
+                TRUE.scaled(Jl=1.3, bl=0.7, Tcl=1.5),
+                ("Jl", "bl", "Tcl"),
+            )
+        )
+        out.append(
+            (
+                f"drillgym lower {rate:.0f} Hz",
+                "lower",
+                _drillgym("torsional_bearing", 1, rate, offset=0.5),
+                TRUE.scaled(Jl=1.1, ktheta=0.9, bl=1.3, Tcl=1.2),
+                ("Jl", "ktheta", "bl", "Tcl"),
+            )
+        )
+        out.append(
+            (
+                f"drillgym lateral {rate:.0f} Hz",
+                "lateral",
+                _drillgym("lateral", 1, rate, offset=3.0),
+                TRUE.scaled(k=0.8, b=1.3, e=1.2, mt=0.8),
+                ("k", "b", "e"),
+            )
+        )
+        out.append(
+            (
+                f"drillgym brake {rate:.0f} Hz",
+                "brake",
+                [_drillgym("torsional", s, rate, offset=1.0, alpha0=a) for s, a in ((1, 0.0), (2, 2.0), (3, -2.0))],
+                brake_start,
+                brake,
+            )
+        )
     for rate in (500.0, 200.0):
-        recs = [rig_recording("torsional", duration=20.0, rate_hz=rate, seed=s, alpha0=a)
-                for s, a in ((1, 0.0), (2, 2.0), (3, -2.0))]
+        recs = [
+            rig_recording("torsional", duration=20.0, rate_hz=rate, seed=s, alpha0=a)
+            for s, a in ((1, 0.0), (2, 2.0), (3, -2.0))
+        ]
         out.append((f"independent brake {rate:.0f} Hz", "brake", recs, brake_start, brake))
     return out
 
@@ -69,8 +99,9 @@ def main() -> None:
                 warnings.simplefilter("ignore")
                 r = identify_stage(stage, est, start, refine_speeds=refine)
             dt = time.perf_counter() - t0
-            errs = " ".join(f"{n} {100 * (r.fit.values[n] / getattr(TRUE, n) - 1):+.2f}%" for n in scored
-                            if n in r.fit.values)
+            errs = " ".join(
+                f"{n} {100 * (r.fit.values[n] / getattr(TRUE, n) - 1):+.2f}%" for n in scored if n in r.fit.values
+            )
             mode = "fitted" if refine else "held"
             print(f"{name:32s} speeds {mode:6s} {dt:6.1f} s  RSS {r.fit.rss_after:10.4g}  {errs}", flush=True)
 

@@ -47,13 +47,43 @@ SECOND_SEED, SECOND_CASES = 101, (2, 3)
 #: recordings beyond those: (configuration, signal, duration s, rate Hz, noise and input seed, hidden effects,
 #: base parameter factors, input offset V, input amplitude V, extra command options)
 EXTRA = [
-    ("torsional", "steps", 30.0, 500.0, 4031, {"motor_lag": {"tau_m": 0.035}}, {"km": 0.96, "Ts": 1.05, "Jl": 1.04},
-     1.2, 3.0, ()),
-    ("torsional", "sum_of_sines", 30.0, 1000.0, 6589,
-     {"brake_asymmetry": {"asym_s": 0.367, "asym_c": 0.214}, "friction_drift": {"drift": -0.0041}}, {}, 0.0, 3.0, ()),
+    (
+        "torsional",
+        "steps",
+        30.0,
+        500.0,
+        4031,
+        {"motor_lag": {"tau_m": 0.035}},
+        {"km": 0.96, "Ts": 1.05, "Jl": 1.04},
+        1.2,
+        3.0,
+        (),
+    ),
+    (
+        "torsional",
+        "sum_of_sines",
+        30.0,
+        1000.0,
+        6589,
+        {"brake_asymmetry": {"asym_s": 0.367, "asym_c": 0.214}, "friction_drift": {"drift": -0.0041}},
+        {},
+        0.0,
+        3.0,
+        (),
+    ),
     ("torsional", "ramps", 20.0, 200.0, 808, {"motor_lag": {"tau_m": 0.029}}, {}, 1.3, 3.0, ()),
-    ("torsional", "quasi_random", 20.0, 500.0, 77, {}, {"km": 0.97, "Ts": 1.06, "Jl": 1.04}, 1.0, 3.0,
-     ("--fixed-base",)),
+    (
+        "torsional",
+        "quasi_random",
+        20.0,
+        500.0,
+        77,
+        {},
+        {"km": 0.97, "Ts": 1.06, "Jl": 1.04},
+        1.0,
+        3.0,
+        ("--fixed-base",),
+    ),
 ]
 
 
@@ -62,8 +92,9 @@ def _name(i: int, c: dict) -> str:
     eff = "+".join(c["effects"]) or "none"
     base = "_base-off" if c["scale"] else ""
     opts = "".join(o.replace("--", "_") for o in c.get("options", ()))
-    return (f"{i:02d}_{c['kind']}_{c['config']}_{eff}{base}_{c['signal']}_{c['duration']:.0f}s_"
-            f"{c['rate_hz']:.0f}Hz{opts}")
+    return (
+        f"{i:02d}_{c['kind']}_{c['config']}_{eff}{base}_{c['signal']}_{c['duration']:.0f}s_{c['rate_hz']:.0f}Hz{opts}"
+    )
 
 
 def cases() -> list[dict]:
@@ -74,9 +105,21 @@ def cases() -> list[dict]:
     second = build_matrix(seed=SECOND_SEED, random_n=max(SECOND_CASES) + 1)
     out += [dict(second[i], options=()) for i in SECOND_CASES]
     for config, signal, dur, rate, seed, effects, scale, offset, amp, opts in EXTRA:
-        out.append({"kind": "extra", "config": config, "signal": signal, "duration": dur, "rate_hz": rate,
-                    "seed": seed, "effects": effects, "scale": scale, "offset": offset, "amplitude": amp,
-                    "options": opts})
+        out.append(
+            {
+                "kind": "extra",
+                "config": config,
+                "signal": signal,
+                "duration": dur,
+                "rate_hz": rate,
+                "seed": seed,
+                "effects": effects,
+                "scale": scale,
+                "offset": offset,
+                "amplitude": amp,
+                "options": opts,
+            }
+        )
     for i, c in enumerate(out):
         c["name"] = _name(i, c)
     return out
@@ -91,8 +134,17 @@ def write_recording(c: dict, directory: Path) -> Path:
 
     from drillgym.io import write_timeseries
 
-    ts = rig_recording(c["config"], c["signal"], c["duration"], c["rate_hz"], c["seed"], c["effects"], c["scale"],
-                       c["offset"], c["amplitude"])
+    ts = rig_recording(
+        c["config"],
+        c["signal"],
+        c["duration"],
+        c["rate_hz"],
+        c["seed"],
+        c["effects"],
+        c["scale"],
+        c["offset"],
+        c["amplitude"],
+    )
     tmp = path.with_suffix(f".{os.getpid()}.tmp.csv")
     write_timeseries(tmp, ts)
     tmp.replace(path)

@@ -2,15 +2,13 @@
 friction on a disc that hardly turns, a replacement that compensates with its base."""
 
 import pytest
+from test_diagnosis_selection import recording
 
 from drillgym import RigParams
-from drillgym.diagnosis.search_model import neutral_values, search_composition
 from drillgym.diagnosis.results import Selection
+from drillgym.diagnosis.search_model import neutral_values, search_composition
 from drillgym.effects import LIBRARY, compose
 from drillgym.identification.synthetic import synthetic_measurement
-
-
-from test_diagnosis_selection import recording
 
 
 def test_a_model_that_replaces_a_doubted_effect_by_base_parameters_at_bounds_does_not_replace_it():
@@ -28,7 +26,9 @@ def test_a_model_that_replaces_a_doubted_effect_by_base_parameters_at_bounds_doe
     assert not compensates_dropped(kept, replace(at_bounds, at_bounds=["Ts"]))  # as many as before: taken
     # only left out, nothing in its place: the check's decision stands whatever the bounds
     assert not compensates_dropped(replace(kept, selected=kept.selected + ["friction_drift"]), at_bounds)
-    assert compensates_dropped(Selection(selected=[], at_bounds=None), Selection(selected=["motor_lag"], at_bounds=["Ts"]))
+    assert compensates_dropped(
+        Selection(selected=[], at_bounds=None), Selection(selected=["motor_lag"], at_bounds=["Ts"])
+    )
 
 
 def test_split_halves_and_the_agreement_of_a_position_effect():
@@ -42,25 +42,32 @@ def test_split_halves_and_the_agreement_of_a_position_effect():
     assert a.t[0] == ex.t[0] and b.t[-1] == ex.t[-1] and a.t[-1] == b.t[0]  # they share the middle sample
     assert a.n + b.n == ex.n + 1 and all(len(v) == a.n for v in (*a.meas.values(), *a.rates.values()))
     assert np.array_equal(a.u_value, ex.u_value)  # the input is kept whole (read by absolute time)
-    same = HalfAgreement("position_friction", 7.9, {"pf_c1": -0.102, "pf_s1": 0.110},
-                         {"pf_c1": -0.102, "pf_s1": 0.104})
-    turned = HalfAgreement("position_friction", 1.6, {"pf_c1": -0.004, "pf_s1": 0.014},
-                           {"pf_c1": -0.012, "pf_s1": -0.028})
+    same = HalfAgreement("position_friction", 7.9, {"pf_c1": -0.102, "pf_s1": 0.110}, {"pf_c1": -0.102, "pf_s1": 0.104})
+    turned = HalfAgreement(
+        "position_friction", 1.6, {"pf_c1": -0.004, "pf_s1": 0.014}, {"pf_c1": -0.012, "pf_s1": -0.028}
+    )
     assert same.agree and not turned.agree
     assert "both halves" in turned.note() and "more revolutions" in turned.note()
     # a half whose fit leaves the parameters where they started (standard errors of about 30: the disc did not
     # slip there) points the same way trivially and cannot confirm the effect (an independent rig whose lower
     # disc slipped in one excursion, all in the first half)
-    one_half = HalfAgreement("position_friction", 0.0, {"pf_c1": 0.0389, "pf_s1": -0.0092},
-                             {"pf_c1": 0.0377, "pf_s1": -0.0068}, {"pf_c1": 0.0044, "pf_s1": 0.0141},
-                             {"pf_c1": 28.1, "pf_s1": 44.4})
+    one_half = HalfAgreement(
+        "position_friction",
+        0.0,
+        {"pf_c1": 0.0389, "pf_s1": -0.0092},
+        {"pf_c1": 0.0377, "pf_s1": -0.0068},
+        {"pf_c1": 0.0044, "pf_s1": 0.0141},
+        {"pf_c1": 28.1, "pf_s1": 44.4},
+    )
     assert one_half.cosine > 0.99 and one_half.shown("first") and not one_half.shown("second")
     assert not one_half.agree and "not seen in the second half" in one_half.note()
-    seen_twice = HalfAgreement("position_friction", 0.0, one_half.first, one_half.second, one_half.first_std,
-                               {"pf_c1": 0.006, "pf_s1": 0.02})
+    seen_twice = HalfAgreement(
+        "position_friction", 0.0, one_half.first, one_half.second, one_half.first_std, {"pf_c1": 0.006, "pf_s1": 0.02}
+    )
     assert seen_twice.agree
-    unknown = HalfAgreement("position_friction", 0.0, one_half.first, one_half.second,
-                            {"pf_c1": float("inf"), "pf_s1": float("nan")}, {})
+    unknown = HalfAgreement(
+        "position_friction", 0.0, one_half.first, one_half.second, {"pf_c1": float("inf"), "pf_s1": float("nan")}, {}
+    )
     assert not unknown.shown("first") and unknown.shown("second")  # inf: not seen; no errors at all: not judged
 
 
@@ -92,7 +99,10 @@ def test_second_half_keeps_the_recordings_clock_for_a_friction_drift():
         return float(np.sqrt(np.mean(r * r)))
 
     m1, m2 = misfit(first), misfit(second)
-    assert m2 < 3.0 * max(m1, 1.0), (m1, m2)  # the true model fits both halves (clock restarted: 720 vs 1.4 noise units)
+    assert m2 < 3.0 * max(m1, 1.0), (
+        m1,
+        m2,
+    )  # the true model fits both halves (clock restarted: 720 vs 1.4 noise units)
 
 
 def test_a_drift_on_less_than_a_revolution_of_sliding_is_a_tie_with_a_position_friction():
@@ -118,8 +128,10 @@ def test_a_drift_on_less_than_a_revolution_of_sliding_is_a_tie_with_a_position_f
     assert sliding_angle_range([turning]) == pytest.approx(45.0, rel=1e-3)
     assert sliding_angle_range([stuck]) == 0.0
     effects = [LIBRARY[n] for n in ("position_friction", "friction_drift", "string_damping")]
-    for selected, tied, other in ((["friction_drift", "string_damping"], "friction_drift", "position_friction"),
-                                  (["position_friction"], "position_friction", "friction_drift")):
+    for selected, tied, other in (
+        (["friction_drift", "string_damping"], "friction_drift", "position_friction"),
+        (["position_friction"], "position_friction", "friction_drift"),
+    ):
         out = Selection(selected=list(selected))
         state_time_or_angle_tie(out, [creeping], effects)
         assert list(out.ties) == [tied] and other in out.ties[tied] and "0.75 rad" in out.ties[tied]
@@ -147,17 +159,23 @@ def test_a_half_whose_disc_slides_less_than_two_revolutions_cannot_refute_a_posi
     from drillgym.identification.experiment import prepare_experiment
 
     t = np.arange(4001) / 200.0
-    turning_late = prepare_experiment(synthetic_measurement("torsional", duration=20.0, rate_hz=200.0,
-                                                            input=(t, np.where(t < 10.0, 0.0, 3.0)), seed=3))
-    turning = prepare_experiment(synthetic_measurement("torsional", duration=20.0, rate_hz=200.0,
-                                                       input=(t, np.full_like(t, 3.0)), seed=3))
+    turning_late = prepare_experiment(
+        synthetic_measurement(
+            "torsional", duration=20.0, rate_hz=200.0, input=(t, np.where(t < 10.0, 0.0, 3.0)), seed=3
+        )
+    )
+    turning = prepare_experiment(
+        synthetic_measurement("torsional", duration=20.0, rate_hz=200.0, input=(t, np.full_like(t, 3.0)), seed=3)
+    )
     # the disc starts at 7.5 s: its first half slides through 7.5 rad, between one and two revolutions
-    one_turn = prepare_experiment(synthetic_measurement("torsional", duration=20.0, rate_hz=200.0,
-                                                        input=(t, np.where(t < 7.5, 0.0, 3.0)), seed=3))
+    one_turn = prepare_experiment(
+        synthetic_measurement("torsional", duration=20.0, rate_hz=200.0, input=(t, np.where(t < 7.5, 0.0, 3.0)), seed=3)
+    )
 
     def check(first_std: float, second_std: float, second: float = 0.1) -> HalfAgreement:
-        return HalfAgreement("position_friction", 0.0, {"pf_c1": 0.1}, {"pf_c1": second}, {"pf_c1": first_std},
-                             {"pf_c1": second_std})
+        return HalfAgreement(
+            "position_friction", 0.0, {"pf_c1": 0.1}, {"pf_c1": second}, {"pf_c1": first_std}, {"pf_c1": second_std}
+        )
 
     unseen_first = check(1.0, 0.01)  # W = 0.01 in the first half: not shown there; shown in the second
     assert not unseen_first.shown("first") and unseen_first.shown("second")

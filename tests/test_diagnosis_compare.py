@@ -19,9 +19,15 @@ from drillgym.io import write_timeseries
 
 @pytest.fixture(scope="module")
 def pf_data():
-    return synthetic_measurement("torsional", duration=20.0, rate_hz=250.0, offset=1.0, seed=1,
-                                 effects=["position_friction"],
-                                 effect_params={"pf_c1": 0.3 * np.cos(1.0), "pf_s1": 0.3 * np.sin(1.0)})
+    return synthetic_measurement(
+        "torsional",
+        duration=20.0,
+        rate_hz=250.0,
+        offset=1.0,
+        seed=1,
+        effects=["position_friction"],
+        effect_params={"pf_c1": 0.3 * np.cos(1.0), "pf_s1": 0.3 * np.sin(1.0)},
+    )
 
 
 def test_compare_names_angle_dependence(pf_data, tmp_path):
@@ -59,8 +65,15 @@ def test_compare_claims_failures_only_above_noise(pf_data, tmp_path):
 def test_sparse_term_for_position_friction_and_string_damping(pf_data):
     term = sparse_residual_model(residual_torques(prepare_experiment(pf_data), RigParams()))
     assert {"sign(ωl) cos θl", "sign(ωl) sin θl"} & set(term.terms), term.expression()
-    ts = synthetic_measurement("torsional", duration=20.0, rate_hz=250.0, offset=1.0, seed=1,
-                               effects=["string_damping"], effect_params={"dtheta": 0.01})
+    ts = synthetic_measurement(
+        "torsional",
+        duration=20.0,
+        rate_hz=250.0,
+        offset=1.0,
+        seed=1,
+        effects=["string_damping"],
+        effect_params={"dtheta": 0.01},
+    )
     term = sparse_residual_model(residual_torques(prepare_experiment(ts), RigParams()))
     assert term.terms.get("α̇", 0.0) == pytest.approx(-0.01, rel=0.3), term.expression()
     assert "α̇" in term.expression()
@@ -81,8 +94,15 @@ def test_prepare_experiment_rates_and_errors(tmp_path):
 
 
 def test_cli_diagnose_identify_signal(tmp_path):
-    ts = synthetic_measurement("torsional", duration=8.0, rate_hz=250.0, offset=1.0, seed=1,
-                               effects=["string_damping"], effect_params={"dtheta": 0.01})
+    ts = synthetic_measurement(
+        "torsional",
+        duration=8.0,
+        rate_hz=250.0,
+        offset=1.0,
+        seed=1,
+        effects=["string_damping"],
+        effect_params={"dtheta": 0.01},
+    )
     data = write_timeseries(tmp_path / "run.csv", ts)
     runner = CliRunner()
     # the CLI chain (the selection itself, base refit and discovery, is tested in test_diagnosis_selection.py)
@@ -91,8 +111,22 @@ def test_cli_diagnose_identify_signal(tmp_path):
     js = json.loads(r.output)
     assert js["ranking"][0]["effect"] == "string_damping" and js["selected"] == ["string_damping"]
     out = tmp_path / "p.json"
-    r = runner.invoke(app, ["identify", str(data), "--config", "torsional", "--add-effect", "string_damping",
-                            "--json", "--out", str(out), "--report", str(tmp_path / "rep")])
+    r = runner.invoke(
+        app,
+        [
+            "identify",
+            str(data),
+            "--config",
+            "torsional",
+            "--add-effect",
+            "string_damping",
+            "--json",
+            "--out",
+            str(out),
+            "--report",
+            str(tmp_path / "rep"),
+        ],
+    )
     assert r.exit_code == 0, r.output
     js = json.loads(r.output)
     assert js["r2_after"]["alpha"] > js["r2_before"]["alpha"]

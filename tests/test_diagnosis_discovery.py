@@ -5,6 +5,8 @@ import json
 from pathlib import Path
 
 import pytest
+from test_diagnosis_selection import independent_rig
+from test_identification_effects import scipy_cubic_string
 from typer.testing import CliRunner
 
 from drillgym import RigParams
@@ -14,15 +16,16 @@ from drillgym.diagnosis.discovery import Candidate, write_effect_file
 from drillgym.effects import compose
 from drillgym.io import write_timeseries
 
-from test_identification_effects import scipy_cubic_string
-
-from test_diagnosis_selection import independent_rig
-
 
 def test_candidate_file_is_a_valid_effect(tmp_path):
-    cand = Candidate("lower_friction", {"ωl|ωl|": 0.004, "sign(ωl) exp(−|ωl|/1)": -0.01},
-                     {"ωl|ωl|": "omega * speed", "sign(ωl) exp(−|ωl|/1)": "direction * math.exp(-speed / 1.0)"},
-                     {"ωl|ωl|": 0.0, "sign(ωl) exp(−|ωl|/1)": 1.0}, 0.8, 1000)
+    cand = Candidate(
+        "lower_friction",
+        {"ωl|ωl|": 0.004, "sign(ωl) exp(−|ωl|/1)": -0.01},
+        {"ωl|ωl|": "omega * speed", "sign(ωl) exp(−|ωl|/1)": "direction * math.exp(-speed / 1.0)"},
+        {"ωl|ωl|": 0.0, "sign(ωl) exp(−|ωl|/1)": 1.0},
+        0.8,
+        1000,
+    )
     path = write_effect_file(cand, tmp_path / "cand.py")
     comp, values = compose([cand.effect_file])
     assert comp.names == ("candidate_lower_friction",)
@@ -44,8 +47,9 @@ def test_cli_outside_the_library_candidate_file_halves_the_error(tmp_path):
     cand = js["candidate"]
     assert cand is not None and "α³" in cand["expression"] and cand["dof"] >= 1 and cand["explained"] > 0.5
     assert Path(cand["effect_file"].rsplit(":", 1)[0]) == out and out.exists()
-    r2 = CliRunner().invoke(app, ["identify", str(data), "--add-effect", cand["effect_file"], "--json",
-                                  "--out", str(tmp_path / "p.json")])
+    r2 = CliRunner().invoke(
+        app, ["identify", str(data), "--add-effect", cand["effect_file"], "--json", "--out", str(tmp_path / "p.json")]
+    )
     assert r2.exit_code == 0, r2.output
     fit = json.loads(r2.output)
     for c in ("theta_l", "alpha"):  # the user watches the error fall: at least halved
@@ -81,7 +85,7 @@ def test_candidate_found_on_the_lower_disc_when_the_upper_disc_is_noise():
     assert cand.explained > 0.5, cand.explained
     sats = [(k, v) for k, v in cand.terms.items() if k.startswith("sat")]
     assert len(sats) == 1, cand.terms
-    (label, coef), = sats
+    ((label, coef),) = sats
     g = float(label.split(",")[1].strip(" )"))
     assert coef < 0 and abs(coef * min(g, 1.0)) == pytest.approx(p.ktheta * 0.1, rel=0.5), cand.terms
 
@@ -94,11 +98,12 @@ def test_an_upper_disc_friction_is_discovered_while_the_lower_disc_is_stuck():
     import numpy as np
 
     from drillgym.diagnosis.discovery import discover
-    from drillgym.identification.experiment import prepare_experiment
     from drillgym.diagnosis.sparse import residual_torques
+    from drillgym.identification.experiment import prepare_experiment
 
-    ts = independent_rig()("torsional", "ramps", 20.0, 500.0, 1979, {"upper_stribeck": {"Tsu": 0.15, "wsu": 0.5}},
-                            {}, 0.83, 3.0)
+    ts = independent_rig()(
+        "torsional", "ramps", 20.0, 500.0, 1979, {"upper_stribeck": {"Tsu": 0.15, "wsu": 0.5}}, {}, 0.83, 3.0
+    )
     d = diagnose(ts)
     fine = prepare_experiment(ts, compare_rate_hz=250.0)
     rt = residual_torques(fine, d.vector, effects=d.composition)
@@ -106,5 +111,5 @@ def test_an_upper_disc_friction_is_discovered_while_the_lower_disc_is_stuck():
     assert np.all(np.isnan(rt.tau_l[~rt.slip])) and np.all(np.isfinite(rt.tau_u[rt.upper_valid]))
     cand, _ = discover(fine, d)
     assert cand is not None and cand.group == "upper_friction", cand
-    (label, coef), = [(k, v) for k, v in cand.terms.items() if "ωu/0.5" in k]
+    ((label, coef),) = [(k, v) for k, v in cand.terms.items() if "ωu/0.5" in k]
     assert coef == pytest.approx(0.15, rel=0.25), cand.terms

@@ -1,4 +1,5 @@
 """The diagnosis' effective sample count per block and the spread its candidate fits start from."""
+
 import numpy as np
 import pytest
 
@@ -12,7 +13,7 @@ def _ar1(n: int, rho: float, rng: np.random.Generator) -> np.ndarray:
     x = np.empty(n)
     x[0] = e[0]
     for i in range(1, n):
-        x[i] = rho * x[i - 1] + np.sqrt(1 - rho ** 2) * e[i]
+        x[i] = rho * x[i - 1] + np.sqrt(1 - rho**2) * e[i]
     return x
 
 

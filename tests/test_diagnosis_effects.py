@@ -13,8 +13,8 @@ import pytest
 from drillgym import RigParams
 from drillgym.diagnosis import EFFECTS, diagnose, get_effect
 from drillgym.diagnosis.effects import fit_variables
-from drillgym.effects import compose
 from drillgym.diagnosis.refit import refit
+from drillgym.effects import compose
 from drillgym.identification.synthetic import synthetic_measurement
 
 CASES = [
@@ -31,8 +31,15 @@ CASES = [
 
 
 def _measure(config, offset, name=None, **effect):
-    return synthetic_measurement(config, duration=20.0, rate_hz=250.0, offset=offset, seed=1,
-                                 effects=[name] if name else None, effect_params=effect)
+    return synthetic_measurement(
+        config,
+        duration=20.0,
+        rate_hz=250.0,
+        offset=offset,
+        seed=1,
+        effects=[name] if name else None,
+        effect_params=effect,
+    )
 
 
 @pytest.mark.parametrize("config,offset,name,effect", CASES, ids=[c[2] for c in CASES])
@@ -62,8 +69,10 @@ def test_one_at_a_time_ranking_keeps_the_noise_floor_without_false_alarms():
 
     clean = rank_effects(_measure("torsional", 1.0))
     assert [s.effect for s in clean.ranking if s.significant] == [], clean.text()
-    hidden = rank_effects(_measure("torsional", 1.0, "string_damping", dtheta=0.01),
-                          effects=["string_damping", "friction_drift", "motor_lag"])
+    hidden = rank_effects(
+        _measure("torsional", 1.0, "string_damping", dtheta=0.01),
+        effects=["string_damping", "friction_drift", "motor_lag"],
+    )
     assert hidden.ranking[0].effect == "string_damping" and hidden.ranking[0].significant, hidden.text()
 
 
@@ -97,8 +106,18 @@ def test_json_shape_and_skips():
 
 
 def test_effect_library_documented():
-    required = {"position_friction", "brake_asymmetry", "string_damping", "motor_lag", "input_delay",
-                "lateral_anisotropy", "lvdt_offset", "lvdt_skew", "lateral_coulomb", "friction_drift"}
+    required = {
+        "position_friction",
+        "brake_asymmetry",
+        "string_damping",
+        "motor_lag",
+        "input_delay",
+        "lateral_anisotropy",
+        "lvdt_offset",
+        "lvdt_skew",
+        "lateral_coulomb",
+        "friction_drift",
+    }
     assert required <= set(EFFECTS)
     for e in EFFECTS.values():
         assert len(e.explanation) > 80 and e.signature and e.configurations
@@ -125,6 +144,7 @@ def test_refit_with_effect_cuts_error():
 
 # --- robustness on recordings unlike the ones above (benchmarks/bench_diagnosis_robustness.py) --------------
 # Each recording below was misdiagnosed before the segment conditioning of drillgym/diagnosis/segments.py.
+
 
 def test_encoder_quantum_ignores_interpolation_roundoff():
     from drillgym.diagnosis.segments import encoder_quantum
@@ -153,8 +173,9 @@ def test_coupled_speed_noise_and_scales_from_encoder_count():
 def test_no_effect_steps_200hz_wound_string_nothing_significant():
     """Random steps at 200 Hz, string wound by -3 rad: a segment starting at a speed reversal made
     position_friction and brake_asymmetry 'significant' on an exact model."""
-    ts = synthetic_measurement("torsional", duration=45.0, rate_hz=200.0, signal="steps", offset=0.81,
-                               alpha0=-3.0, seed=4861)
+    ts = synthetic_measurement(
+        "torsional", duration=45.0, rate_hz=200.0, signal="steps", offset=0.81, alpha0=-3.0, seed=4861
+    )
     d = diagnose(ts)
     assert d.significant() == [], d.text()
     assert d.rmse_before < 2.0  # the exact model fits to the noise level (noise units)
@@ -172,8 +193,17 @@ def test_lvdt_skew_with_wound_string_and_steps_ranks_first():
     """Skew 0.05 rad, random steps, alpha0 = 6 rad, 500 Hz: was missed (45 s: ranked below three wrong
     'significant' effects); the lower disc's start speeds were never refined, their noise level having
     been read from interpolation round-off."""
-    ts = synthetic_measurement("coupled", duration=30.0, rate_hz=500.0, signal="steps", offset=3.47, alpha0=6.0,
-                               seed=9201, effects=["lvdt_skew"], effect_params={"lvdt_skew": 0.05})
+    ts = synthetic_measurement(
+        "coupled",
+        duration=30.0,
+        rate_hz=500.0,
+        signal="steps",
+        offset=3.47,
+        alpha0=6.0,
+        seed=9201,
+        effects=["lvdt_skew"],
+        effect_params={"lvdt_skew": 0.05},
+    )
     d = diagnose(ts)
     assert d.best.effect == "lvdt_skew" and d.best.significant, d.text()
     assert d.best.values["lvdt_skew"] == pytest.approx(0.05, rel=0.3)
@@ -182,14 +212,16 @@ def test_lvdt_skew_with_wound_string_and_steps_ranks_first():
 
 # --- candidates as compositions: a user's effect, effects already in the model ----------------------------------
 
+
 def test_user_candidate_ranks_first_and_model_effects_are_held():
     """A cubic string (user file) is missing from the base model: tried as base + candidate it ranks first;
     once in the model (base_effects) it is not a candidate again and nothing else is significant."""
     from pathlib import Path
 
     cubic = str(Path(__file__).resolve().parents[1] / "examples/effects/string_cubic.py") + ":string_cubic"
-    ts = synthetic_measurement("torsional", duration=16.0, rate_hz=250.0, offset=1.0, seed=2, effects=[cubic],
-                               effect_params={"c3": 0.015})
+    ts = synthetic_measurement(
+        "torsional", duration=16.0, rate_hz=250.0, offset=1.0, seed=2, effects=[cubic], effect_params={"c3": 0.015}
+    )
     d = diagnose(ts, effects=["string_damping", cubic])
     assert d.best.effect == "string_cubic" and d.best.significant, d.text()
     assert d.best.values["c3"] == pytest.approx(0.015, rel=0.05)

@@ -4,8 +4,8 @@ cannot tell them apart."""
 import pytest
 
 from drillgym import RigParams
-from drillgym.diagnosis.search_model import neutral_values, search_composition
 from drillgym.diagnosis.results import BaseChange, Selection
+from drillgym.diagnosis.search_model import neutral_values, search_composition
 from drillgym.effects import BASE, LIBRARY, compose
 from drillgym.identification.synthetic import synthetic_measurement
 
@@ -18,8 +18,17 @@ def test_lag_or_delay_is_decided_at_the_recordings_own_rate(truth, wrong):
     from drillgym.identification.fitting import base_vector
 
     value = {"input_delay": {"delay": 0.04}, "motor_lag": {"tau_m": 0.04}}
-    ts = synthetic_measurement("torsional", duration=15.0, rate_hz=1000.0, signal="steps", offset=1.5, amplitude=2.0,
-                               seed=3, effects=[truth], effect_params=value[truth])
+    ts = synthetic_measurement(
+        "torsional",
+        duration=15.0,
+        rate_hz=1000.0,
+        signal="steps",
+        offset=1.5,
+        amplitude=2.0,
+        seed=3,
+        effects=[truth],
+        effect_params=value[truth],
+    )
     ex = prepare_experiment(ts, compare_rate_hz=50.0)
     cands = {n: LIBRARY[n] for n in ("motor_lag", "input_delay")}
     comp = search_composition(BASE, list(cands.values()))
@@ -35,12 +44,20 @@ def test_lag_or_delay_is_decided_at_the_recordings_own_rate(truth, wrong):
     assert dec.other in dec.tie_note() and "1000 Hz" in dec.tie_note()  # what the ranking states on a tie
     # questions asked together: a search asked twice runs once, and each decision is the one asked alone
     known: dict = {}
-    both = decide_lag_delay_many([ex], comp, [(models, wrong), (models, truth)], default_weights(ex.config),
-                                 default_segment(ex.config), known=known)
+    both = decide_lag_delay_many(
+        [ex],
+        comp,
+        [(models, wrong), (models, truth)],
+        default_weights(ex.config),
+        default_segment(ex.config),
+        known=known,
+    )
     assert len(known) == 2 and [d.chosen for d in both] == [truth, truth]
     assert both[0].gap == dec.gap and both[0].values == dec.values
     # no finer data than the comparison grid: no decision
-    coarse = prepare_experiment(synthetic_measurement("torsional", duration=5.0, rate_hz=50.0, seed=3), compare_rate_hz=50.0)
+    coarse = prepare_experiment(
+        synthetic_measurement("torsional", duration=5.0, rate_hz=50.0, seed=3), compare_rate_hz=50.0
+    )
     assert fine_experiments([coarse]) is None
     slow = synthetic_measurement("torsional", duration=5.0, rate_hz=200.0, seed=3)  # too slow to tell (module doc)
     assert fine_rate(prepare_experiment(slow, compare_rate_hz=50.0)) is None and fine_rate(ex) == 1000.0
@@ -69,10 +86,12 @@ def test_shortest_lag_or_delay_told_apart_without_the_fine_check():
     from drillgym.diagnosis.timing import resolvable_lag_delay
     from drillgym.identification.experiment import prepare_experiment
 
-    slow = prepare_experiment(synthetic_measurement("torsional", duration=4.0, rate_hz=200.0, seed=1),
-                              compare_rate_hz=50.0)
-    fast = prepare_experiment(synthetic_measurement("torsional", duration=4.0, rate_hz=1000.0, seed=1),
-                              compare_rate_hz=50.0)
+    slow = prepare_experiment(
+        synthetic_measurement("torsional", duration=4.0, rate_hz=200.0, seed=1), compare_rate_hz=50.0
+    )
+    fast = prepare_experiment(
+        synthetic_measurement("torsional", duration=4.0, rate_hz=1000.0, seed=1), compare_rate_hz=50.0
+    )
     assert resolvable_lag_delay([slow]) == pytest.approx(0.025, rel=1e-3)
     assert resolvable_lag_delay([fast]) == pytest.approx(0.021, rel=1e-3)
     assert resolvable_lag_delay([slow, fast]) == pytest.approx(0.025, rel=1e-3)  # the slowest decides
@@ -82,8 +101,10 @@ def test_km_and_bu_moved_alike_are_named_as_a_possible_motor_lag():
     from drillgym.diagnosis.backward import slow_motor_warning
 
     def moved(km, bu):
-        return {"km": BaseChange(4.3228, 4.3228 * (1 + km / 100), km, float("nan")),
-                "bu": BaseChange(2.4245, 2.4245 * (1 + bu / 100), bu, float("nan"))}
+        return {
+            "km": BaseChange(4.3228, 4.3228 * (1 + km / 100), km, float("nan")),
+            "bu": BaseChange(2.4245, 2.4245 * (1 + bu / 100), bu, float("nan")),
+        }
 
     ju = RigParams().Ju
     (w,) = slow_motor_warning(moved(-10.0, -9.9), ["brake_asymmetry"], ju)  # the independent rig's 33 ms lag
@@ -106,15 +127,17 @@ def test_a_ramp_input_is_smooth_and_steps_are_not():
     rng = np.random.default_rng(3)
     t = np.arange(4001) / 200.0
     knots = np.cumsum(np.r_[0.0, rng.uniform(3.0, 8.0, 8)])
-    inputs = {"ramps": np.interp(t, knots, 1.0 + 3.0 * rng.uniform(-1, 1, knots.size)),
-              "steps": 1.0 + 3.0 * rng.uniform(-1, 1, 10)[np.minimum((t // 2.0).astype(int), 9)],
-              "quasi_random": 1.0 + 3.0 * quasi_random(20.0, rate_hz=200.0, seed=3, amplitude=1.0, offset=0.0)[1],
-              "sum_of_sines": 1.0 + 3.0 * sum_of_sines(20.0, rate_hz=200.0, seed=3, amplitude=1.0, offset=0.0)[1]}
+    inputs = {
+        "ramps": np.interp(t, knots, 1.0 + 3.0 * rng.uniform(-1, 1, knots.size)),
+        "steps": 1.0 + 3.0 * rng.uniform(-1, 1, 10)[np.minimum((t // 2.0).astype(int), 9)],
+        "quasi_random": 1.0 + 3.0 * quasi_random(20.0, rate_hz=200.0, seed=3, amplitude=1.0, offset=0.0)[1],
+        "sum_of_sines": 1.0 + 3.0 * sum_of_sines(20.0, rate_hz=200.0, seed=3, amplitude=1.0, offset=0.0)[1],
+    }
     p = RigParams()
     corner = p.bu / (2 * np.pi * p.Ju)
     shares = {}
     for kind, u in inputs.items():
-        u = np.clip(u[:t.size], -5.0, 5.0)
+        u = np.clip(u[: t.size], -5.0, 5.0)
         ts = synthetic_measurement("torsional", duration=20.0, rate_hz=200.0, input=(t, u), seed=3)
         shares[kind] = input_share_above(prepare_experiment(ts, compare_rate_hz=50.0), corner)
     assert shares["ramps"] < SMOOTH_INPUT_SHARE, shares
@@ -125,12 +148,12 @@ def test_a_decisive_lag_delay_check_on_a_smooth_input_is_a_tie_at_any_rate(monke
     """What tells a lag from a delay is the response to fast changes of the voltage.  On ramps recorded at
     500 Hz a decisive fine-grid gap (150 nats) is the model's error elsewhere: stated as a tie naming the
     smooth input; the same gap on steps stands."""
+    from types import SimpleNamespace
+
     import numpy as np
 
     import drillgym.diagnosis.timing as timing
     from drillgym.diagnosis.effects import get_effect
-    from types import SimpleNamespace
-
     from drillgym.diagnosis.lag_delay import check_lag_delay
     from drillgym.identification.experiment import prepare_experiment
     from drillgym.identification.fitting import base_vector
@@ -143,16 +166,26 @@ def test_a_decisive_lag_delay_check_on_a_smooth_input_is_a_tie_at_any_rate(monke
     rng = np.random.default_rng(5)
     t = np.arange(10001) / 500.0
     knots = np.cumsum(np.r_[0.0, rng.uniform(3.0, 8.0, 8)])
-    inputs = {"ramps": np.interp(t, knots, 1.5 + 2.0 * rng.uniform(-1, 1, knots.size)),
-              "steps": 1.5 + 2.0 * rng.uniform(-1, 1, 10)[np.minimum((t // 2.0).astype(int), 9)]}
-    monkeypatch.setattr(timing, "decide_lag_delay_many", lambda *a, **k: [timing.FineDecision(
-        "motor_lag", "input_delay", 150.0, 500.0, {"motor_lag": 0.04, "input_delay": 0.04}, n_eff=3000.0)])
+    inputs = {
+        "ramps": np.interp(t, knots, 1.5 + 2.0 * rng.uniform(-1, 1, knots.size)),
+        "steps": 1.5 + 2.0 * rng.uniform(-1, 1, 10)[np.minimum((t // 2.0).astype(int), 9)],
+    }
+    monkeypatch.setattr(
+        timing,
+        "decide_lag_delay_many",
+        lambda *a, **k: [
+            timing.FineDecision(
+                "motor_lag", "input_delay", 150.0, 500.0, {"motor_lag": 0.04, "input_delay": 0.04}, n_eff=3000.0
+            )
+        ],
+    )
     for kind, u in inputs.items():
         ts = synthetic_measurement("torsional", duration=20.0, rate_hz=500.0, input=(t, u), seed=3)
         ex = prepare_experiment(ts, compare_rate_hz=50.0)
         out = Selection(selected=["motor_lag"], vector=vec)
-        search = SimpleNamespace(obj=SimpleNamespace(weights={}), comp=comp, candidates=cands, base_names=(),
-                                 nominal=nominal)
+        search = SimpleNamespace(
+            obj=SimpleNamespace(weights={}), comp=comp, candidates=cands, base_names=(), nominal=nominal
+        )
         dec = check_lag_delay(out, [ex], search, 4.0)
         assert dec.chosen == "motor_lag" and out.selected == ["motor_lag"]
         if kind == "ramps":

@@ -4,22 +4,22 @@ criterion with the base parameters' prior."""
 import pytest
 
 from drillgym import RigParams
-from drillgym.diagnosis.search_model import neutral_values, search_composition
 from drillgym.diagnosis.results import Selection
+from drillgym.diagnosis.search_model import neutral_values, search_composition
 from drillgym.effects import BASE, LIBRARY, compose
 
 
 def test_the_common_torque_scale_is_divided_out_and_a_lag_tried_on_the_rescaled_base_only_when_it_is_off(monkeypatch):
     """The common scale of the torque and inertia parameters (Ju the other way) is removed with their ratios kept;
     the lag is tried again only when that scale is more than 5 % below 1 (a slower upper disc, as a lag makes it)."""
-    import numpy as np
-
     from dataclasses import replace
+
+    import numpy as np
 
     from drillgym.configurations import parse_configuration
     from drillgym.diagnosis.context import SelectionOptions, torque_scale_removed
-    from drillgym.diagnosis.search_model import SearchModel, base_free_parameters
     from drillgym.diagnosis.orders import lag_from_rescaled_base
+    from drillgym.diagnosis.search_model import SearchModel, base_free_parameters
 
     cands = [LIBRARY[n] for n in ("motor_lag", "string_damping")]
     comp = search_composition(BASE, cands)
@@ -58,8 +58,11 @@ def test_the_common_torque_scale_is_divided_out_and_a_lag_tried_on_the_rescaled_
 
     seen = {}
     monkeypatch.setattr(orders, "best_effect_start", lambda obj, comp_, vec, effect: vec)
-    monkeypatch.setattr(orders, "forward_select",
-                        lambda model_, options, start: seen.update(start=start) or Selection(list(start.initial)))
+    monkeypatch.setattr(
+        orders,
+        "forward_select",
+        lambda model_, options, start: seen.update(start=start) or Selection(list(start.initial)),
+    )
     assert lag_from_rescaled_base(kept, model, opts).selected == ["string_damping", "motor_lag"]
     np.testing.assert_allclose(seen["start"].vector, back)
 
@@ -74,8 +77,8 @@ def test_union_of_the_search_orders_is_tried_only_when_no_order_selected_it(monk
     import drillgym.diagnosis.orders as orders
     from drillgym.configurations import parse_configuration
     from drillgym.diagnosis.context import SelectionOptions
-    from drillgym.diagnosis.search_model import SearchModel, base_free_parameters
     from drillgym.diagnosis.orders import union_of_paths, union_start
+    from drillgym.diagnosis.search_model import SearchModel, base_free_parameters
 
     cands = [LIBRARY[n] for n in ("string_damping", "lvdt_skew", "motor_lag", "lateral_anisotropy")]
     comp = search_composition(BASE, cands)
@@ -102,13 +105,21 @@ def test_union_of_the_search_orders_is_tried_only_when_no_order_selected_it(monk
     # a delay beside the kept lag is its near-alias, decided by the lag/delay checks: nothing new
     delay = [LIBRARY["input_delay"]]
     comp_d = search_composition(BASE, cands + delay)
-    lag_kept = Selection(selected=["string_damping", "motor_lag"],
-                         vector=comp_d.vector(RigParams(), neutral_values(cands + delay)))
+    lag_kept = Selection(
+        selected=["string_damping", "motor_lag"], vector=comp_d.vector(RigParams(), neutral_values(cands + delay))
+    )
     with_delay = Selection(selected=["string_damping", "input_delay", "lvdt_skew"], vector=lag_kept.vector)
-    assert union_start(lag_kept, [lag_kept, Selection(selected=["input_delay"], vector=lag_kept.vector)], comp_d,
-                       cands + delay) is None
+    assert (
+        union_start(
+            lag_kept, [lag_kept, Selection(selected=["input_delay"], vector=lag_kept.vector)], comp_d, cands + delay
+        )
+        is None
+    )
     assert union_start(lag_kept, [lag_kept, with_delay], comp_d, cands + delay)[0] == [
-        "string_damping", "motor_lag", "lvdt_skew"]
+        "string_damping",
+        "motor_lag",
+        "lvdt_skew",
+    ]
     assert union_start(kept, [kept, kept], comp, cands) is None
     # the kept model (the effects-first order, not among the base-freed ones) holds the union: nothing new
     assert union_start(kept, [model(["motor_lag"]), model(["string_damping"])], comp, cands) is None
@@ -119,8 +130,11 @@ def test_union_of_the_search_orders_is_tried_only_when_no_order_selected_it(monk
     assert union_of_paths(kept, [kept, other], held, opts) is None  # base held
 
     seen = {}
-    monkeypatch.setattr(orders, "forward_select", lambda model_, options, start: seen.update(
-        options=options, start=start) or Selection(list(start.initial)))
+    monkeypatch.setattr(
+        orders,
+        "forward_select",
+        lambda model_, options, start: seen.update(options=options, start=start) or Selection(list(start.initial)),
+    )
     assert union_of_paths(kept, [kept, other], search, opts).selected == order
     np.testing.assert_allclose(seen["start"].vector, start)
     assert seen["options"].max_effects == 4
@@ -132,10 +146,10 @@ def test_base_prior_prefers_the_effect_to_a_base_moved_far_when_both_fit_alike()
     absorbs a motor lag), or the same plus the lag with the base within 3 %.  The information criterion
     alone takes the first (one parameter fewer); with the base parameters' prior (5 % around MODEL.md) the
     lag.  A base moved that far is also beyond the prior's 95 % quantile, a few percent is within it."""
+    from drillgym.configurations import Configuration
+    from drillgym.diagnosis.criterion import base_prior_cost, better, plausible_prior
     from drillgym.diagnosis.effects import get_effect
     from drillgym.diagnosis.search_model import BASE_FREE, SearchModel
-    from drillgym.diagnosis.criterion import base_prior_cost, better, plausible_prior
-    from drillgym.configurations import Configuration
     from drillgym.identification.fitting import base_vector
 
     cands = [get_effect(n) for n in ("friction_drift", "string_damping", "motor_lag")]

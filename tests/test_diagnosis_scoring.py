@@ -2,6 +2,7 @@
 the screens of measurement effects."""
 
 import pytest
+from test_diagnosis_selection import independent_rig
 
 from drillgym import RigParams
 from drillgym.diagnosis.search_model import neutral_values, search_composition
@@ -9,16 +10,12 @@ from drillgym.effects import BASE, LIBRARY, compose
 from drillgym.identification.synthetic import synthetic_measurement
 
 
-from test_diagnosis_selection import independent_rig
-
-
 def test_measurement_effect_scored_per_channel_is_not_drowned_by_another_channel():
     """An effect that removes a y-only residual (an LVDT skew) while a large, correlated residual stays in
     the angle channel: pooled, the angle channel's variance swamps it; per channel it is clearly found."""
     import numpy as np
 
-    from drillgym.diagnosis.scoring import score
-    from drillgym.diagnosis.scoring import significant
+    from drillgym.diagnosis.scoring import score, significant
     from drillgym.identification.fitting import FitResult
 
     rng = np.random.default_rng(0)
@@ -30,15 +27,17 @@ def test_measurement_effect_scored_per_channel_is_not_drowned_by_another_channel
     r0 = np.concatenate([angle, y_with_skew])
     r1 = np.concatenate([angle, y_small])
     channels = np.repeat([0, 1], n)
-    big = FitResult(["lvdt_skew"], {}, {}, RigParams(), np.zeros(1), float(r0 @ r0), float(r1 @ r1), 2 * n, 1,
-                    residual=r1)
+    big = FitResult(
+        ["lvdt_skew"], {}, {}, RigParams(), np.zeros(1), float(r0 @ r0), float(r1 @ r1), 2 * n, 1, residual=r1
+    )
     pooled, _ = score(float(r0 @ r0), big, 1)
     per_channel, ne = score(r0, big, 1, channels=channels)
     assert pooled < 15.0 < per_channel  # SIGNIFICANCE is 15 nats
     assert not significant(per_channel, float(r0 @ r0), float(r1 @ r1), 2 * n)  # pooled RMS cut < 20 %
     assert significant(per_channel, float(r0 @ r0), float(r1 @ r1), 2 * n, r0, r1, channels)
-    nothing = FitResult(["lvdt_skew"], {}, {}, RigParams(), np.zeros(1), float(r0 @ r0), float(r0 @ r0), 2 * n, 1,
-                        residual=r0.copy())
+    nothing = FitResult(
+        ["lvdt_skew"], {}, {}, RigParams(), np.zeros(1), float(r0 @ r0), float(r0 @ r0), 2 * n, 1, residual=r0.copy()
+    )
     assert score(r0, nothing, 1, channels=channels)[0] < 0  # explaining nothing costs the penalty
 
 
@@ -55,7 +54,11 @@ def test_objective_channel_ids_follow_the_residual_layout():
     r = obj.residual_matrix(RigParams().to_vector()[None, :])[0]
     assert obj.channel_ids.shape == r.shape
     assert sorted(set(obj.channel_ids.tolist())) == list(range(len(obj.channels))) and obj.channels == [
-        "theta_l", "theta_u", "x", "y"]
+        "theta_l",
+        "theta_u",
+        "x",
+        "y",
+    ]
     assert np.count_nonzero(np.diff(obj.channel_ids)) == 3  # one experiment: four channels, one block each
 
 
@@ -75,16 +78,23 @@ def test_each_sensor_is_weighted_by_its_own_misfit():
     ids = np.repeat(np.arange(4), n)
     noise = {"theta_l": 2e-4, "theta_u": 2e-4, "x": 1e-5, "y": 1e-5}
     obj = SimpleNamespace(channels=channels, channel_ids=ids, scales=dict(noise))
-    r = np.concatenate([8.0 * rng.standard_normal(n), 8.0 * rng.standard_normal(n),
-                        0.5 * rng.standard_normal(n), 0.5 * rng.standard_normal(n)])
+    r = np.concatenate(
+        [
+            8.0 * rng.standard_normal(n),
+            8.0 * rng.standard_normal(n),
+            0.5 * rng.standard_normal(n),
+            0.5 * rng.standard_normal(n),
+        ]
+    )
     f = balance_sensors(obj, r, noise)
     assert f["encoders"] == pytest.approx(8.0, rel=0.05) and f["LVDTs"] == 1.0
     assert obj.scales["theta_l"] == pytest.approx(8.0 * noise["theta_l"], rel=0.05)
     assert obj.scales["x"] == noise["x"] and obj.scales["y"] == noise["y"]
     r_balanced = r * np.where(ids < 2, noise["theta_l"] / obj.scales["theta_l"], 1.0)
     assert balance_sensors(obj, r_balanced, noise) == {}
-    one = SimpleNamespace(channels=["theta_l", "theta_u"], channel_ids=np.repeat([0, 1], n),
-                          scales={"theta_l": 2e-4, "theta_u": 2e-4})
+    one = SimpleNamespace(
+        channels=["theta_l", "theta_u"], channel_ids=np.repeat([0, 1], n), scales={"theta_l": 2e-4, "theta_u": 2e-4}
+    )
     assert balance_sensors(one, 8.0 * rng.standard_normal(2 * n), {"theta_l": 2e-4, "theta_u": 2e-4}) == {}
     assert one.scales == {"theta_l": 2e-4, "theta_u": 2e-4}
 
@@ -99,7 +109,7 @@ def test_noise_floor_is_in_noise_units_when_sensors_are_weighted():
     rng = np.random.default_rng(2)
     n = 3000
     e = rng.standard_normal(n)
-    e /= np.sqrt(np.mean(e ** 2))
+    e /= np.sqrt(np.mean(e**2))
     r0, r1 = np.concatenate([e, 1.35 * e]), np.concatenate([e, 1.05 * e])
     channels = np.repeat([0, 1], n)
     unit = np.concatenate([np.full(n, 5.0), np.full(n, 3.0)])
@@ -115,14 +125,13 @@ def test_noise_floor_follows_a_residual_already_below_one_noise_unit():
     than what remains (0.9 -> 0.7) is still refused, and above one unit the floor stays one unit²."""
     import numpy as np
 
-    from drillgym.diagnosis.scoring import MIN_EXPLAINED, noise_floor
-    from drillgym.diagnosis.scoring import significant
+    from drillgym.diagnosis.scoring import MIN_EXPLAINED, noise_floor, significant
 
     assert noise_floor(0.23) == pytest.approx(0.23) and noise_floor(4.0) == MIN_EXPLAINED
     rng = np.random.default_rng(3)
     n = 4000
     e = rng.standard_normal(n)
-    e /= np.sqrt(np.mean(e ** 2))
+    e /= np.sqrt(np.mean(e**2))
 
     def sig(a: float, b: float) -> bool:
         r0, r1 = a * e, b * e
@@ -149,7 +158,9 @@ def test_a_parameter_the_data_do_not_depend_on_has_no_finite_standard_error():
     from drillgym.identification.fitting import FitVariable, IdentifiabilityWarning, Objective, fit_parameters
     from drillgym.identification.segmented import SegmentedModel
 
-    ts = synthetic_measurement("torsional", duration=6.0, rate_hz=200.0, signal="steps", amplitude=2.5, offset=2.5, seed=1)  # constant 2.5 V
+    ts = synthetic_measurement(
+        "torsional", duration=6.0, rate_hz=200.0, signal="steps", amplitude=2.5, offset=2.5, seed=1
+    )  # constant 2.5 V
     comp, _ = compose(["motor_lag"], {"tau_m": 0.02})
     ex = prepare_experiment(ts, compare_rate_hz=50.0)
     obj = Objective(SegmentedModel([ex], 2.0, composition=comp), {"theta_u": 1.0, "theta_l": 1.0})
@@ -176,6 +187,7 @@ def test_fits_run_in_parallel_come_back_in_order_with_their_errors():
             if i == 1:
                 raise ValueError("no fit")
             return i * 10
+
         return run
 
     out = in_parallel([job(i) for i in range(3)])
@@ -193,14 +205,23 @@ def test_a_measurement_effect_is_screened_with_the_segments_start_speeds_on_its_
     import numpy as np
 
     from drillgym.diagnosis.context import SelectionContext, fit_free, screen_fit
-    from drillgym.diagnosis.search_model import selection_model
     from drillgym.diagnosis.screening import default_segment, default_weights
+    from drillgym.diagnosis.search_model import selection_model
     from drillgym.diagnosis.segments import robust_noise
     from drillgym.identification.experiment import prepare_experiment
     from drillgym.identification.fitting import Objective, base_vector
 
-    ts = independent_rig()("coupled", "sum_of_sines", 12.0, 200.0, 5, {"lvdt_skew": {"lvdt_skew": -0.044},
-                                                                        "lateral_coulomb": {"Fc_lat": 1.06}}, {}, 2.31, 1.5)
+    ts = independent_rig()(
+        "coupled",
+        "sum_of_sines",
+        12.0,
+        200.0,
+        5,
+        {"lvdt_skew": {"lvdt_skew": -0.044}, "lateral_coulomb": {"Fc_lat": 1.06}},
+        {},
+        2.31,
+        1.5,
+    )
     ex, scales = robust_noise(prepare_experiment(ts, compare_rate_hz=50.0))
     cands = [LIBRARY["lateral_coulomb"], LIBRARY["lvdt_skew"]]
     comp = search_composition(BASE, cands)
@@ -216,4 +237,6 @@ def test_a_measurement_effect_is_screened_with_the_segments_start_speeds_on_its_
     assert screened.values["lvdt_skew"] == pytest.approx(-0.044, rel=0.15)
     # a dynamic effect is screened with the speeds held, as before
     coulomb = screen_fit(st, vec, "lateral_coulomb", 4)
-    assert "lvdt_skew" not in coulomb.names and all(np.array_equal(a, b) for a, b in zip(obj.model.speeds_snapshot(), speeds))
+    assert "lvdt_skew" not in coulomb.names and all(
+        np.array_equal(a, b) for a, b in zip(obj.model.speeds_snapshot(), speeds)
+    )

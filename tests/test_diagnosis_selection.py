@@ -16,7 +16,6 @@ from drillgym.diagnosis.search_model import neutral_values, search_composition
 from drillgym.effects import BASE, LIBRARY
 from drillgym.identification.synthetic import synthetic_measurement
 
-
 MISMATCH = {"Ts": 1.06, "km": 0.97, "Jl": 1.04}
 
 
@@ -32,8 +31,16 @@ def independent_rig():
 
 def recording(params=None, effects=None, **values):
     """20 s of a simulated torsional recording at 250 Hz (quasi-random input about 1 V), hidden ``effects`` in it."""
-    return synthetic_measurement("torsional", params, duration=20.0, rate_hz=250.0, offset=1.0, seed=5,
-                                 effects=effects, effect_params=values or None)
+    return synthetic_measurement(
+        "torsional",
+        params,
+        duration=20.0,
+        rate_hz=250.0,
+        offset=1.0,
+        seed=5,
+        effects=effects,
+        effect_params=values or None,
+    )
 
 
 def test_two_effects_found_as_a_set():
@@ -54,7 +61,7 @@ def test_plain_mismatch_is_not_an_effect_and_moved_parameters_are_named():
     assert d.base_off
     moved = d.base_parameters
     assert moved and set(moved) & set(MISMATCH), moved
-    for name, m in moved.items():  # each entry names nominal, fitted and the change
+    for m in moved.values():  # each entry names nominal, fitted and the change
         assert m.change_pct == pytest.approx(100 * (m.fitted / m.nominal - 1))
     for name in set(moved) & set(MISMATCH):  # the parameters that were off moved the right way
         assert (moved[name].change_pct > 0) == (MISMATCH[name] > 1), moved
@@ -90,8 +97,9 @@ def test_exact_base_stands_when_the_base_first_fit_stops_in_a_worse_optimum(monk
     monkeypatch.setattr(forward, "converged_fit", recorded)  # the selection's fits
     monkeypatch.setattr(backward, "converged_fit", recorded)  # the nested model of the base decision
     truth = {"pf_c1": 0.135, "pf_s1": 0.21, "pf_c2": 0.0, "pf_s2": 0.0}
-    ts = synthetic_measurement("torsional", duration=40.0, rate_hz=100.0, u=2.5, effects=["position_friction"],
-                               effect_params=truth)
+    ts = synthetic_measurement(
+        "torsional", duration=40.0, rate_hz=100.0, u=2.5, effects=["position_friction"], effect_params=truth
+    )
     d = diagnose(ts)
     assert d.selected == ["position_friction"], d.text()
     assert not d.base_off and not d.base_parameters, d.text()
@@ -132,8 +140,17 @@ def test_lvdt_skew_and_lateral_friction_found_on_anindependent_rig():
     is right and the skew's value close."""
     rig_recording = independent_rig()
 
-    ts = rig_recording("coupled", "ramps", 12.0, 200.0, 5, {"lvdt_skew": {"lvdt_skew": 0.035},
-                                                           "lateral_coulomb": {"Fc_lat": 1.5}}, {}, 2.6, 1.5)
+    ts = rig_recording(
+        "coupled",
+        "ramps",
+        12.0,
+        200.0,
+        5,
+        {"lvdt_skew": {"lvdt_skew": 0.035}, "lateral_coulomb": {"Fc_lat": 1.5}},
+        {},
+        2.6,
+        1.5,
+    )
     d = diagnose(ts)
     assert sorted(d.selected) == ["lateral_coulomb", "lvdt_skew"], d.text()
     assert d.sensor_misfit and d.sensor_misfit["encoders"] > 1.5, d.text()
@@ -159,9 +176,17 @@ def test_a_drift_beside_a_brake_asymmetry_is_not_taken_for_a_position_friction()
     found directly.  Either way: the true set, the drift's value, no position friction."""
     rig_recording = independent_rig()
 
-    ts = rig_recording("torsional", "sum_of_sines", 30.0, 1000.0, 6589,
-                       {"brake_asymmetry": {"asym_s": 0.367, "asym_c": 0.214}, "friction_drift": {"drift": -0.0041}},
-                       {}, 0.0, 3.0)
+    ts = rig_recording(
+        "torsional",
+        "sum_of_sines",
+        30.0,
+        1000.0,
+        6589,
+        {"brake_asymmetry": {"asym_s": 0.367, "asym_c": 0.214}, "friction_drift": {"drift": -0.0041}},
+        {},
+        0.0,
+        3.0,
+    )
     d = diagnose(ts)
     assert sorted(d.selected) == ["brake_asymmetry", "friction_drift"], d.text()
     assert d.effect_values()["drift"] == pytest.approx(-0.0041, rel=0.2)
@@ -182,8 +207,7 @@ def test_lag_delay_decision_made_on_the_incumbents_base_is_checked():
     names why.)"""
     rig_recording = independent_rig()
 
-    ts = rig_recording("torsional", "quasi_random", 60.0, 1000.0, 271, {"motor_lag": {"tau_m": 0.0254}}, {},
-                       2.42, 1.5)
+    ts = rig_recording("torsional", "quasi_random", 60.0, 1000.0, 271, {"motor_lag": {"tau_m": 0.0254}}, {}, 2.42, 1.5)
     d = diagnose(ts)
     ld = d.lag_delay
     assert ld is not None and set(d.selected) & {"motor_lag", "input_delay"}, d.text()

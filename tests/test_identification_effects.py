@@ -31,8 +31,9 @@ BACKLASH = f"{ROOT}/examples/effects/string_backlash.py:string_backlash"
 C3 = 0.015  # 1/rad²
 
 
-def scipy_cubic_string(c3: float, duration: float = 25.0, rate_hz: float = 250.0, seed: int = 3,
-                       eps: float = 2e-3, noise_rad: float = 2e-4) -> TimeSeries:
+def scipy_cubic_string(
+    c3: float, duration: float = 25.0, rate_hz: float = 250.0, seed: int = 3, eps: float = 2e-3, noise_rad: float = 2e-4
+) -> TimeSeries:
     """A torsional recording from an independent model: MODEL.md's torsional equations with the cubic
     string, friction signs smoothed (tanh(ω/eps)), integrated by scipy's Radau; input interpolated
     linearly; angles quantised (8000 counts/rev) after Gaussian noise of ``noise_rad``."""
@@ -42,20 +43,24 @@ def scipy_cubic_string(c3: float, duration: float = 25.0, rate_hz: float = 250.0
     def rhs(tt, s):
         tu, tl, wu, wl = s
         a = tl - tu
-        string = p.ktheta * (a + c3 * a ** 3)
+        string = p.ktheta * (a + c3 * a**3)
         su, sl = np.tanh(wu / eps), np.tanh(wl / eps)
         tfu = (p.Tcu * su + p.dTcu * abs(su)) + p.bu * wu + p.dbu * abs(wu)
-        tfl = (p.Tc + (p.Ts - p.Tc) * np.exp(-abs(wl / p.ws) ** p.delta)) * sl + p.bb * wl
+        tfl = (p.Tc + (p.Ts - p.Tc) * np.exp(-(abs(wl / p.ws) ** p.delta))) * sl + p.bb * wl
         uu = np.interp(tt, t, u)
         return [wu, wl, (p.km * uu - tfu + string) / p.Ju, (-tfl - string) / p.Jl]
 
-    sol = solve_ivp(rhs, (0.0, duration), [0.0, 0.0, 0.0, 0.0], method="Radau", t_eval=t, rtol=1e-7, atol=1e-9,
-                    max_step=0.01)
+    sol = solve_ivp(
+        rhs, (0.0, duration), [0.0, 0.0, 0.0, 0.0], method="Radau", t_eval=t, rtol=1e-7, atol=1e-9, max_step=0.01
+    )
     assert sol.success, sol.message
     rng = np.random.default_rng(seed)
-    cols = {"t": t, "u": u,
-            "theta_u": quantize_angle(sol.y[0] + rng.normal(0, noise_rad, t.size)),
-            "theta_l": quantize_angle(sol.y[1] + rng.normal(0, noise_rad, t.size))}
+    cols = {
+        "t": t,
+        "u": u,
+        "theta_u": quantize_angle(sol.y[0] + rng.normal(0, noise_rad, t.size)),
+        "theta_l": quantize_angle(sol.y[1] + rng.normal(0, noise_rad, t.size)),
+    }
     meta = {"configuration": "torsional", "source": "scipy Radau, smoothed friction", "sample_rate_hz": rate_hz}
     return TimeSeries(cols, meta, "<scipy>")
 
@@ -74,8 +79,9 @@ def _halves_unexplained_variance(js: dict) -> None:
 
 
 def test_cubic_string_drillgym_recording(tmp_path):
-    ts = synthetic_measurement("torsional", duration=25.0, rate_hz=250.0, offset=1.0, seed=2,
-                               effects=[CUBIC], effect_params={"c3": C3})
+    ts = synthetic_measurement(
+        "torsional", duration=25.0, rate_hz=250.0, offset=1.0, seed=2, effects=[CUBIC], effect_params={"c3": C3}
+    )
     js, out = _identify(tmp_path, ts, "--add-effect", CUBIC)
     _halves_unexplained_variance(js)
     assert set(js["r2_before"]) == {"theta_u", "theta_l", "alpha"}
@@ -85,8 +91,10 @@ def test_cubic_string_drillgym_recording(tmp_path):
     # the written model is reusable: compare with --params reads the effect back and fits as well as after
     model = read_model(out)
     assert model.values == {"c3": js["fitted"]["c3"]} and model.specs[0].endswith("string_cubic.py:string_cubic")
-    r = CliRunner().invoke(app, ["compare", str(tmp_path / "rec.csv"), "--params", str(out), "--segment", "4",
-                                 "--out", str(tmp_path / "cmp")])
+    r = CliRunner().invoke(
+        app,
+        ["compare", str(tmp_path / "rec.csv"), "--params", str(out), "--segment", "4", "--out", str(tmp_path / "cmp")],
+    )
     assert r.exit_code == 0, r.output
     cmp = json.loads((tmp_path / "cmp" / "compare.json").read_text())
     assert cmp["model"] == "string_cubic" and cmp["effect_values"]["c3"] == pytest.approx(js["fitted"]["c3"])
@@ -100,8 +108,9 @@ def test_cubic_string_other_simulator_recording(tmp_path):
 
 
 def test_backlash_gap_fitted():
-    ts = synthetic_measurement("torsional", duration=20.0, rate_hz=250.0, offset=0.5, seed=4,
-                               effects=[BACKLASH], effect_params={"gap": 0.05})
+    ts = synthetic_measurement(
+        "torsional", duration=20.0, rate_hz=250.0, offset=0.5, seed=4, effects=[BACKLASH], effect_params={"gap": 0.05}
+    )
     ex = prepare_experiment(ts, compare_rate_hz=50.0)
     model = SegmentedModel([ex], 4.0, composition=[BACKLASH])
     obj = Objective(model, {"theta_u": 1.0, "theta_l": 1.0})
@@ -112,8 +121,16 @@ def test_backlash_gap_fitted():
 
 def test_fit_base_and_effect_parameters_by_name():
     """A FitVariable names any parameter of the composition: kθ (base) and c3 (effect) together."""
-    ts = synthetic_measurement("torsional", RigParams().scaled(ktheta=1.1), duration=20.0, rate_hz=250.0,
-                               offset=1.0, seed=2, effects=[CUBIC], effect_params={"c3": C3})
+    ts = synthetic_measurement(
+        "torsional",
+        RigParams().scaled(ktheta=1.1),
+        duration=20.0,
+        rate_hz=250.0,
+        offset=1.0,
+        seed=2,
+        effects=[CUBIC],
+        effect_params={"c3": C3},
+    )
     ex = prepare_experiment(ts, compare_rate_hz=50.0)
     model = SegmentedModel([ex], 4.0, composition=[CUBIC])
     obj = Objective(model, {"theta_u": 1.0, "theta_l": 1.0})
@@ -157,9 +174,10 @@ def test_segments_continue_the_full_run_with_time_delay_and_state_effects():
     effects = ["input_delay", "motor_lag", "friction_drift"]
     values = {"delay": 0.03, "tau_m": 0.05, "drift": 0.01}
     t, u = quasi_random(12.0, rate_hz=100.0, seed=5, amplitude=3.0, offset=1.0)
-    traj = simulate("torsional", (t, u), 12.0, dt=1e-3, method="dp5", record_every=10, effects=effects,
-                    effect_params=values)
-    ts = measure_trajectory(traj, MeasurementModel(counts_per_rev=2 ** 40), seed=0)
+    traj = simulate(
+        "torsional", (t, u), 12.0, dt=1e-3, method="dp5", record_every=10, effects=effects, effect_params=values
+    )
+    ts = measure_trajectory(traj, MeasurementModel(counts_per_rev=2**40), seed=0)
     ex = prepare_experiment(ts, "torsional", compare_rate_hz=100.0)
     ex.rates["omega_u"], ex.rates["omega_l"] = traj.omega_u.copy(), traj.omega_l.copy()  # exact start speeds
     model = SegmentedModel([ex], 3.0, composition=effects, max_dt=1e-3)
@@ -216,19 +234,20 @@ def test_lvdt_samples_near_segment_ends_are_not_compared():
         full = ~np.isnan(model.measured_segments(0, "theta_l"))
         for j in range(m.shape[0]):
             valid = np.flatnonzero(full[j])
-            assert np.all(np.isnan(m[j, valid[:edge + 1]])) and np.all(np.isnan(m[j, valid[-edge:]]))
-            assert np.all(np.isfinite(m[j, valid[edge + 1:-edge]]))
+            assert np.all(np.isnan(m[j, valid[: edge + 1]])) and np.all(np.isnan(m[j, valid[-edge:]]))
+            assert np.all(np.isfinite(m[j, valid[edge + 1 : -edge]]))
     assert not np.any(np.isnan(model.measured_segments(0, "theta_l")[full]))
     free = SegmentedModel([ex], None)
-    assert np.all(np.isfinite(free.measured_segments(0, "x")[0, :ex.n]))
+    assert np.all(np.isfinite(free.measured_segments(0, "x")[0, : ex.n]))
 
 
 def test_gaussian_prior_pulls_a_fit_toward_its_mean_and_leaves_the_data_rss():
     """fit_parameters' maximum a posteriori option: kθ 10 % off in the data; without a prior the fit finds
     it, with a tight prior (1 %) around the nominal value and a heavy weight it stays near the nominal, in
     between for a light weight; the returned RSS is the data's alone (the prior rows are not in it)."""
-    ts = synthetic_measurement("torsional", RigParams().scaled(ktheta=1.1), duration=20.0, rate_hz=250.0,
-                               offset=1.0, seed=2)
+    ts = synthetic_measurement(
+        "torsional", RigParams().scaled(ktheta=1.1), duration=20.0, rate_hz=250.0, offset=1.0, seed=2
+    )
     ex = prepare_experiment(ts, compare_rate_hz=50.0)
     model = SegmentedModel([ex], 4.0)
     obj = Objective(model, {"theta_u": 1.0, "theta_l": 1.0})
@@ -258,17 +277,27 @@ def test_a_motor_lag_starts_from_the_first_command_held_in_simulation_and_identi
     t = np.arange(0.0, 4.0, 0.01)
     u = np.where(t < 2.0, 3.0, 1.5)
     values = {"tau_m": 0.2}
-    traj = simulate("torsional", (t, u), 4.0, dt=1e-3, method="dp5", record_every=10, effects=["motor_lag"],
-                    effect_params=values)
+    traj = simulate(
+        "torsional", (t, u), 4.0, dt=1e-3, method="dp5", record_every=10, effects=["motor_lag"], effect_params=values
+    )
     assert traj.u_m[0] == 3.0
-    ts = measure_trajectory(traj, MeasurementModel(counts_per_rev=2 ** 40), seed=0)
+    ts = measure_trajectory(traj, MeasurementModel(counts_per_rev=2**40), seed=0)
     ex = prepare_experiment(ts, "torsional", compare_rate_hz=100.0)
     ex.rates["omega_u"], ex.rates["omega_l"] = traj.omega_u.copy(), traj.omega_l.copy()
     model = SegmentedModel([ex], 4.0, composition=["motor_lag"], max_dt=1e-3)
     pred = model.predict(traj.parameter_vector[None, :], ("theta_u",))[0].stitched(0, "theta_u")
     assert np.nanmax(np.abs(pred - traj.theta_u)) < 1e-4
-    at_zero = simulate("torsional", (t, u), 4.0, dt=1e-3, method="dp5", record_every=10, effects=["motor_lag"],
-                       effect_params=values, x0=np.r_[np.zeros(8), 0.0])
+    at_zero = simulate(
+        "torsional",
+        (t, u),
+        4.0,
+        dt=1e-3,
+        method="dp5",
+        record_every=10,
+        effects=["motor_lag"],
+        effect_params=values,
+        x0=np.r_[np.zeros(8), 0.0],
+    )
     assert np.abs(at_zero.theta_u[100] - traj.theta_u[100]) > 0.05  # the test can tell the two starts apart
 
 
@@ -288,8 +317,9 @@ def test_the_least_squares_steps_run_on_one_blas_thread(monkeypatch):
         return real(*args, **kw)
 
     monkeypatch.setattr(fitting, "least_squares", spy)
-    ts = synthetic_measurement("torsional", RigParams().scaled(ktheta=1.05), duration=6.0, rate_hz=100.0,
-                               offset=1.0, seed=1)
+    ts = synthetic_measurement(
+        "torsional", RigParams().scaled(ktheta=1.05), duration=6.0, rate_hz=100.0, offset=1.0, seed=1
+    )
     model = SegmentedModel([prepare_experiment(ts, compare_rate_hz=50.0)], 2.0)
     obj = Objective(model, {"theta_u": 1.0, "theta_l": 1.0})
     with threadpoolctl.threadpool_limits(limits=2, user_api="blas"):
@@ -303,8 +333,9 @@ def test_the_least_squares_steps_run_on_one_blas_thread(monkeypatch):
 def test_an_objective_with_its_own_speeds_gives_the_same_residual_and_keeps_its_corrections_apart():
     """``Objective.with_own_speeds``: the copy predicts what the objective does, and a refinement of the
     copy's segment-start speeds leaves the objective's as they were (fits run side by side on copies)."""
-    ts = synthetic_measurement("torsional", RigParams().scaled(ktheta=1.05), duration=6.0, rate_hz=100.0,
-                               offset=1.0, seed=1)
+    ts = synthetic_measurement(
+        "torsional", RigParams().scaled(ktheta=1.05), duration=6.0, rate_hz=100.0, offset=1.0, seed=1
+    )
     model = SegmentedModel([prepare_experiment(ts, compare_rate_hz=50.0)], 2.0)
     obj = Objective(model, {"theta_u": 1.0, "theta_l": 1.0})
     vec = model.composition.vector(RigParams())
@@ -362,8 +393,9 @@ def test_the_residual_rows_are_each_rows_measured_samples_in_c_order():
     """``Objective.residual_matrix`` takes every row's measured samples from the batch at once: the same
     numbers as each prediction's segments taken one by one, rows contiguous (the fits' Jacobians are built
     from them, and their layout reaches LAPACK)."""
-    ts = synthetic_measurement("torsional", RigParams().scaled(ktheta=1.05), duration=6.0, rate_hz=100.0,
-                               offset=1.0, seed=1)
+    ts = synthetic_measurement(
+        "torsional", RigParams().scaled(ktheta=1.05), duration=6.0, rate_hz=100.0, offset=1.0, seed=1
+    )
     model = SegmentedModel([prepare_experiment(ts, compare_rate_hz=50.0)], 2.0)
     obj = Objective(model, {"theta_u": 1.0, "theta_l": 2.0})
     P = np.stack([model.composition.vector(RigParams().scaled(ktheta=s)) for s in (0.95, 1.0, 1.05)])

@@ -26,8 +26,9 @@ REPORT_R2 = {
 
 
 def _data(config, seed, signal="quasi_random", **kw):
-    return synthetic_measurement(config, TRUE, duration=kw.pop("duration", 20.0), rate_hz=250.0, seed=seed,
-                                 signal=signal, **kw)
+    return synthetic_measurement(
+        config, TRUE, duration=kw.pop("duration", 20.0), rate_hz=250.0, seed=seed, signal=signal, **kw
+    )
 
 
 def _check(res, stage, well_excited):
@@ -89,8 +90,9 @@ def test_not_identifiable_parameter_warns():
     est = _data("upper", 1, offset=0.5, duration=10.0)
     with warnings.catch_warnings(record=True) as rec:
         warnings.simplefilter("always")
-        res = identify_stage("upper", est, TRUE.scaled(Ju=1.1), parameters=("Ju", "km", "Tcu", "dTcu", "bu", "dbu"),
-                             max_nfev=8)
+        res = identify_stage(
+            "upper", est, TRUE.scaled(Ju=1.1), parameters=("Ju", "km", "Tcu", "dTcu", "bu", "dbu"), max_nfev=8
+        )
     msgs = [str(w.message) for w in rec if issubclass(w.category, IdentifiabilityWarning)]
     assert msgs and any("not separately identifiable" in m and "km" in m for m in res.fit.warnings)
 
@@ -99,8 +101,9 @@ def test_lower_stage_with_the_segment_speeds_fitted_beats_them_held():
     """``refine_speeds=True`` fits the segment-start speeds with the parameters (as diagnose does): on 20 s at
     100 Hz the lower stage's common scale of Jl, kθ, Tcl, bl, 0.3-0.7 % off with the data's speeds held,
     comes within 0.1 % (benchmarks/bench_staged_speeds.py)."""
-    est = synthetic_measurement("torsional_bearing", TRUE, duration=20.0, rate_hz=100.0, seed=1,
-                                signal="quasi_random", offset=0.5)
+    est = synthetic_measurement(
+        "torsional_bearing", TRUE, duration=20.0, rate_hz=100.0, seed=1, signal="quasi_random", offset=0.5
+    )
     start = TRUE.scaled(Jl=1.1, ktheta=0.9, bl=1.3, Tcl=1.2)
     held = identify_stage("lower", est, start, refine_speeds=False)
     fitted = identify_stage("lower", est, start, refine_speeds=True)

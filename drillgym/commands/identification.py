@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import List, Optional
 
 import typer
 
@@ -32,7 +31,7 @@ def _json(obj) -> str:
     return json.dumps(clean(obj), indent=2)
 
 
-def _model_file(path: Optional[Path]):
+def _model_file(path: Path | None):
     """The model in ``--params`` (RigParams only, or params and effects); default MODEL.md, no effects."""
     from ..identification.model_file import ModelFile, read_model
     from ..params import RigParams
@@ -42,7 +41,7 @@ def _model_file(path: Optional[Path]):
     return read_model(path)
 
 
-def _model(path: Optional[Path], add_effect: Optional[List[str]], effect_param: Optional[List[str]]):
+def _model(path: Path | None, add_effect: list[str] | None, effect_param: list[str] | None):
     """(RigParams, composition, effect values, {effect name: spec}) of ``--params`` (its effects) plus
     ``--add-effect``/``--effect-param``; one-line errors name the file, the effect and what is wrong."""
     from ..effects import compose
@@ -62,7 +61,7 @@ def _model(path: Optional[Path], add_effect: Optional[List[str]], effect_param: 
     return mf.params, comp, vals, names
 
 
-def _segment(value: str) -> "float | None":
+def _segment(value: str) -> float | None:
     """'auto' -> -1 (configuration default), 'none'/'0' -> free run, else seconds."""
     v = value.strip().lower()
     if v == "auto":
@@ -78,12 +77,11 @@ def _segment(value: str) -> "float | None":
     return s
 
 
-def _experiment(data: Path, config: Optional[str], rate: float, mapping: Optional[List[str]] = None):
+def _experiment(data: Path, config: str | None, rate: float, mapping: list[str] | None = None):
     from ..identification.experiment import prepare_experiment
     from ..io import read_timeseries
 
-    return prepare_experiment(read_timeseries(data, config, parse_mapping(mapping or [])), config,
-                              compare_rate_hz=rate)
+    return prepare_experiment(read_timeseries(data, config, parse_mapping(mapping or [])), config, compare_rate_hz=rate)
 
 
 def signal_cmd(
@@ -108,17 +106,19 @@ def signal_cmd(
 
 def compare_cmd(
     data: Path = typer.Argument(..., help="recording (DATA_FORMAT csv or .mat)"),
-    params: Optional[Path] = typer.Option(None, "--params", help="parameter file, may be partial "
-                                                                 "(default MODEL.md set)"),
-    config: Optional[str] = typer.Option(None, "--config", help="configuration if the file has none"),
+    params: Path | None = typer.Option(None, "--params", help="parameter file, may be partial (default MODEL.md set)"),
+    config: str | None = typer.Option(None, "--config", help="configuration if the file has none"),
     out: Path = typer.Option(Path("compare_out"), "--out", help=f"output directory; {CREATES_DIRS}"),
-    segment: str = typer.Option("none", "--segment",
-                                help="'none': free run from the initial state; seconds: re-start from data "
-                                     "every so many seconds (stick-slip); 'auto': 4 s with the brake"),
+    segment: str = typer.Option(
+        "none",
+        "--segment",
+        help="'none': free run from the initial state; seconds: re-start from data "
+        "every so many seconds (stick-slip); 'auto': 4 s with the brake",
+    ),
     rate: float = typer.Option(100.0, help="comparison grid rate (Hz)"),
-    add_effect: List[str] = add_effect_option(),
-    effect_param: List[str] = effect_param_option(),
-    map_: List[str] = typer.Option([], "--map", help=MAP_HELP),
+    add_effect: list[str] = add_effect_option(),
+    effect_param: list[str] = effect_param_option(),
+    map_: list[str] = typer.Option([], "--map", help=MAP_HELP),
 ) -> None:
     """Simulate a recording's input from its initial state; R², RMS and where the error lives."""
     from ..diagnosis.compare import compare, write_compare
@@ -137,27 +137,36 @@ def compare_cmd(
 
 def diagnose_cmd(
     data: Path = typer.Argument(..., help="recording (DATA_FORMAT csv or .mat)"),
-    params: Optional[Path] = typer.Option(None, "--params", help="base parameter file (default MODEL.md set)"),
-    config: Optional[str] = typer.Option(None, "--config", help="configuration if the file has none"),
-    as_json: bool = typer.Option(False, "--json", help="print one JSON object: selected, ranking, "
-                                                      "base_parameters, candidate, ..."),
+    params: Path | None = typer.Option(None, "--params", help="base parameter file (default MODEL.md set)"),
+    config: str | None = typer.Option(None, "--config", help="configuration if the file has none"),
+    as_json: bool = typer.Option(
+        False, "--json", help="print one JSON object: selected, ranking, base_parameters, candidate, ..."
+    ),
     segment: str = typer.Option("auto", "--segment", help="multiple-shooting segment (s), 'auto' or 'none'"),
     rate: float = typer.Option(50.0, help="comparison grid rate (Hz)"),
-    sparse: bool = typer.Option(True, "--sparse/--no-sparse",
-                                help="also look for an effect outside the library in the residual torques"),
-    candidate_out: Optional[Path] = typer.Option(None, "--candidate-out",
-                                                 help="write the candidate effect found in the residual torques "
-                                                      "to this .py file (default: RECORDING_candidate.py next "
-                                                      "to the recording, when one is found)"),
-    fixed_base: bool = typer.Option(False, "--fixed-base",
-                                    help="hold the base parameters (default: re-identify those the recording "
-                                         "excites and report which moved)"),
-    add_effect: List[str] = add_effect_option(),
-    effect_param: List[str] = effect_param_option(),
-    candidate: List[str] = typer.Option(None, "--candidate",
-                                        help="also try this effect (name or path/to/file.py:NAME; repeatable); "
-                                             "default candidates: the library's"),
-    map_: List[str] = typer.Option([], "--map", help=MAP_HELP),
+    sparse: bool = typer.Option(
+        True, "--sparse/--no-sparse", help="also look for an effect outside the library in the residual torques"
+    ),
+    candidate_out: Path | None = typer.Option(
+        None,
+        "--candidate-out",
+        help="write the candidate effect found in the residual torques "
+        "to this .py file (default: RECORDING_candidate.py next "
+        "to the recording, when one is found)",
+    ),
+    fixed_base: bool = typer.Option(
+        False,
+        "--fixed-base",
+        help="hold the base parameters (default: re-identify those the recording excites and report which moved)",
+    ),
+    add_effect: list[str] = add_effect_option(),
+    effect_param: list[str] = effect_param_option(),
+    candidate: list[str] = typer.Option(
+        None,
+        "--candidate",
+        help="also try this effect (name or path/to/file.py:NAME; repeatable); default candidates: the library's",
+    ),
+    map_: list[str] = typer.Option([], "--map", help=MAP_HELP),
 ) -> None:
     """Which SET of effects the recording shows (forward selection with refit, the base parameters
     re-identified alongside), which base parameters moved, and a candidate effect file for what the
@@ -176,9 +185,15 @@ def diagnose_cmd(
     cands = None
     if extra:
         cands = effects_for(ex.config) + [e for e in extra if e.name not in {c.name for c in effects_for(ex.config)}]
-    options = DiagnosisOptions(effects=cands, base_effects=model, effect_params=values,
-                               segment_s=_segment(segment), fixed_base=fixed_base, discover=sparse,
-                               candidate_out=candidate_out or data.with_name(data.stem + "_candidate.py"))
+    options = DiagnosisOptions(
+        effects=cands,
+        base_effects=model,
+        effect_params=values,
+        segment_s=_segment(segment),
+        fixed_base=fixed_base,
+        discover=sparse,
+        candidate_out=candidate_out or data.with_name(data.stem + "_candidate.py"),
+    )
     d = diagnose(ex, base, options=options)
     if as_json:
         typer.echo(_json(d.to_json()))
@@ -186,40 +201,51 @@ def diagnose_cmd(
         typer.echo(d.text())
         if d.candidate is not None:
             c = d.candidate
-            typer.echo(f"candidate outside the library ({c.explained:.0%} of the residual torque): "
-                       f"{c.expression()}")
-            typer.echo(f"  written to {c.effect_file.rsplit(':', 1)[0]}; fit it: drillgym identify {data} "
-                       f"--add-effect {c.effect_file} --out p.json")
+            typer.echo(f"candidate outside the library ({c.explained:.0%} of the residual torque): {c.expression()}")
+            typer.echo(
+                f"  written to {c.effect_file.rsplit(':', 1)[0]}; fit it: drillgym identify {data} "
+                f"--add-effect {c.effect_file} --out p.json"
+            )
 
 
 def identify_cmd(
     data: Path = typer.Argument(..., help="recording (DATA_FORMAT csv or .mat)"),
-    out: Path = typer.Option(..., "--out", help=f"model file to write (.json or .yaml): params and effects; {CREATES_DIRS}"),
-    config: Optional[str] = typer.Option(None, "--config", help="configuration if the file has none"),
-    add_effect: List[str] = add_effect_option(),
-    effect_param: List[str] = typer.Option(None, "--effect-param",
-                                           help="starting value of an added effect's parameter (or the value "
-                                                "of one already in --params), NAME=VALUE; repeatable"),
-    params: Optional[Path] = typer.Option(None, "--params",
-                                          help="model file: base parameters, and effects with their values "
-                                               "(default MODEL.md set, no effects)"),
-    fit: List[str] = typer.Option(None, "--fit", help="also fit this parameter of the model (repeatable)"),
-    refit_base: bool = typer.Option(False, "--refit-base",
-                                    help="also fit the configuration's base parameters with the effects"),
+    out: Path = typer.Option(
+        ..., "--out", help=f"model file to write (.json or .yaml): params and effects; {CREATES_DIRS}"
+    ),
+    config: str | None = typer.Option(None, "--config", help="configuration if the file has none"),
+    add_effect: list[str] = add_effect_option(),
+    effect_param: list[str] = typer.Option(
+        None,
+        "--effect-param",
+        help="starting value of an added effect's parameter (or the value "
+        "of one already in --params), NAME=VALUE; repeatable",
+    ),
+    params: Path | None = typer.Option(
+        None,
+        "--params",
+        help="model file: base parameters, and effects with their values (default MODEL.md set, no effects)",
+    ),
+    fit: list[str] = typer.Option(None, "--fit", help="also fit this parameter of the model (repeatable)"),
+    refit_base: bool = typer.Option(
+        False, "--refit-base", help="also fit the configuration's base parameters with the effects"
+    ),
     as_json: bool = typer.Option(False, "--json", help="print r2_before, r2_after, fitted, std, effects as JSON"),
-    report: Optional[Path] = typer.Option(None, "--report", help="directory for a markdown report with figures; " + CREATES_DIRS),
+    report: Path | None = typer.Option(
+        None, "--report", help="directory for a markdown report with figures; " + CREATES_DIRS
+    ),
     segment: str = typer.Option("auto", "--segment", help="multiple-shooting segment (s), 'auto' or 'none'"),
     rate: float = typer.Option(50.0, help="comparison grid rate (Hz)"),
     max_nfev: int = typer.Option(30, "--max-nfev", help="least-squares evaluations"),
-    map_: List[str] = typer.Option([], "--map", help=MAP_HELP),
+    map_: list[str] = typer.Option([], "--map", help=MAP_HELP),
 ) -> None:
     """Add effects to the model (library names or your own files) and fit their parameters to a recording;
     with none, refit the configuration's base parameters.  Writes the model (params and effects)."""
-    from ..diagnosis.effects import get_effect
     from ..diagnosis import diagnose
+    from ..diagnosis.effects import get_effect
     from ..diagnosis.refit import effect_records, refit
-    from ..diagnosis.screening import default_segment
     from ..diagnosis.report import write_report
+    from ..diagnosis.screening import default_segment
     from ..identification.model_file import write_model
     from .effect_options import parse_effect_params
 
@@ -235,9 +261,18 @@ def identify_cmd(
     seg = _segment(segment)
     if seg is not None and seg < 0:
         seg = default_segment(ex.config)
-    res = refit(ex, mf.params, effects=added, effect_params=starts, base_effects=base_comp,
-                base_values={**base_values, **held}, fit=list(fit or []), refit_base=refit_base, segment_s=seg,
-                max_nfev=max_nfev)
+    res = refit(
+        ex,
+        mf.params,
+        effects=added,
+        effect_params=starts,
+        base_effects=base_comp,
+        base_values={**base_values, **held},
+        fit=list(fit or []),
+        refit_base=refit_base,
+        segment_s=seg,
+        max_nfev=max_nfev,
+    )
     for spec, e in zip(mf.specs, base_comp.effects):
         specs.setdefault(e.name, spec)
     records = effect_records(res.composition, res.effect_values, specs)
@@ -246,18 +281,34 @@ def identify_cmd(
         d = diagnose(ex, mf.params, base_effects=base_comp, effect_params=base_values, segment_s=seg)
         write_report(report, ex, mf.params, d, res, seg, base_comp, base_values)
     if as_json:
-        typer.echo(_json({"r2_before": res.r2_before, "r2_after": res.r2_after, "rms_before": res.rms_before,
-                          "rms_after": res.rms_after, "fitted": res.values, "std": res.std,
-                          "effects": records, "effects_added": res.effects, "model_before": res.model_before,
-                          "params": res.params.to_dict(), "warnings": res.warnings, "out": str(out)}))
+        typer.echo(
+            _json(
+                {
+                    "r2_before": res.r2_before,
+                    "r2_after": res.r2_after,
+                    "rms_before": res.rms_before,
+                    "rms_after": res.rms_after,
+                    "fitted": res.values,
+                    "std": res.std,
+                    "effects": records,
+                    "effects_added": res.effects,
+                    "model_before": res.model_before,
+                    "params": res.params.to_dict(),
+                    "warnings": res.warnings,
+                    "out": str(out),
+                }
+            )
+        )
     else:
         typer.echo(f"effects added: {', '.join(res.effects) or 'none (base parameters refitted)'}")
         for k, v in res.values.items():
             sd = res.std.get(k)
             typer.echo(f"  {k} = {v:.6g}" + (f" ± {sd:.2g}" if sd is not None and sd == sd else ""))
         for c in res.r2_before:
-            typer.echo(f"  {c:<8} R² {res.r2_before[c]:.4f} -> {res.r2_after[c]:.4f}   "
-                       f"RMS {res.rms_before[c]:.4g} -> {res.rms_after[c]:.4g}")
+            typer.echo(
+                f"  {c:<8} R² {res.r2_before[c]:.4f} -> {res.r2_after[c]:.4f}   "
+                f"RMS {res.rms_before[c]:.4g} -> {res.rms_after[c]:.4g}"
+            )
         for w in res.warnings:
             typer.echo(f"  warning: {w}")
         typer.echo(f"wrote {out}" + (f"; report in {report}/report.md" if report else ""))
@@ -265,24 +316,32 @@ def identify_cmd(
 
 def identify_staged_cmd(
     out: Path = typer.Option(..., "--out", help=f"parameter file to write (.json or .yaml); {CREATES_DIRS}"),
-    upper: List[Path] = typer.Option([], "--upper", help="recording of the upper part alone"),
-    free_vibration: List[Path] = typer.Option([], "--free-vibration", help="free-vibration release test"),
-    lower: List[Path] = typer.Option([], "--lower", help="torsional recording with the brake off"),
-    lateral: List[Path] = typer.Option([], "--lateral", help="lateral recording (brake off)"),
-    brake: List[Path] = typer.Option([], "--brake", help="torsional recordings with the brake (several alpha0)"),
-    validate: List[str] = typer.Option([], "--validate", help="STAGE=FILE validation recording (repeatable)"),
-    params: Optional[Path] = typer.Option(None, "--params", help="initial guesses (default MODEL.md set)"),
+    upper: list[Path] = typer.Option([], "--upper", help="recording of the upper part alone"),
+    free_vibration: list[Path] = typer.Option([], "--free-vibration", help="free-vibration release test"),
+    lower: list[Path] = typer.Option([], "--lower", help="torsional recording with the brake off"),
+    lateral: list[Path] = typer.Option([], "--lateral", help="lateral recording (brake off)"),
+    brake: list[Path] = typer.Option([], "--brake", help="torsional recordings with the brake (several alpha0)"),
+    validate: list[str] = typer.Option([], "--validate", help="STAGE=FILE validation recording (repeatable)"),
+    params: Path | None = typer.Option(None, "--params", help="initial guesses (default MODEL.md set)"),
     as_json: bool = typer.Option(False, "--json", help="print the stages as JSON"),
 ) -> None:
     """The report's staged identification: upper, free vibration, lower, lateral, brake."""
     from ..identification.staged import STAGES, identify_staged
     from ..io import read_timeseries
 
-    cfg = {"upper": "upper", "free_vibration": "free_vibration", "lower": "torsional", "lateral": "lateral",
-           "brake": "torsional"}
+    cfg = {
+        "upper": "upper",
+        "free_vibration": "free_vibration",
+        "lower": "torsional",
+        "lateral": "lateral",
+        "brake": "torsional",
+    }
     files = {"upper": upper, "free_vibration": free_vibration, "lower": lower, "lateral": lateral, "brake": brake}
-    data = {k: [read_timeseries(f, None if read_timeseries(f).configuration else cfg[k]) for f in v]
-            for k, v in files.items() if v}
+    data = {
+        k: [read_timeseries(f, None if read_timeseries(f).configuration else cfg[k]) for f in v]
+        for k, v in files.items()
+        if v
+    }
     if not data:
         raise InputError("no recordings given: use --upper, --free-vibration, --lower, --lateral, --brake")
     val: dict = {}
@@ -295,16 +354,19 @@ def identify_staged_cmd(
         val.setdefault(k, []).append(read_timeseries(Path(f), cfg[k]))
     mf = _model_file(params)
     if mf.specs:
-        raise InputError(f"--params {params}: the staged identification fits the base model; the file has effects "
-                         f"({', '.join(mf.specs)}): use identify --add-effect for those")
+        raise InputError(
+            f"--params {params}: the staged identification fits the base model; the file has effects "
+            f"({', '.join(mf.specs)}): use identify --add-effect for those"
+        )
     res = identify_staged(data, mf.params, validation=val)
     res.params.to_file(output_file(out))
     if as_json:
         typer.echo(_json(res.to_json()))
     else:
         for s in res.stages:
-            typer.echo(f"stage {s.name}: " + ", ".join(f"{k}={v:.5g}±{s.fit.std[k]:.2g}"
-                                                       for k, v in s.fit.values.items()))
+            typer.echo(
+                f"stage {s.name}: " + ", ".join(f"{k}={v:.5g}±{s.fit.std[k]:.2g}" for k, v in s.fit.values.items())
+            )
             typer.echo(f"  R² estimation {s.r2_estimation}  validation {s.r2_validation}")
             for w in s.fit.warnings:
                 typer.echo(f"  warning: {w}")

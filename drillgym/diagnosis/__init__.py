@@ -23,5 +23,16 @@ from .effects import EFFECTS, effects_for, get_effect
 from .pipeline import DiagnosisOptions, diagnose
 from .results import BaseChange, Candidate, Diagnosis, EffectScore, Selection
 
-__all__ = ["EFFECTS", "Effect", "effects_for", "get_effect", "Diagnosis", "DiagnosisOptions", "EffectScore",
-           "BaseChange", "Candidate", "Selection", "diagnose"]
+__all__ = [
+    "EFFECTS",
+    "Effect",
+    "effects_for",
+    "get_effect",
+    "Diagnosis",
+    "DiagnosisOptions",
+    "EffectScore",
+    "BaseChange",
+    "Candidate",
+    "Selection",
+    "diagnose",
+]

@@ -21,15 +21,15 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Sequence
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .context import TORQUE_SCALE, base_at_bounds, converged_fit, fit_free
 from .effective import effective_samples
 from .results import BaseChange, Selection
-from .scoring import (MOVED_PCT, NESTED_RECHECK, SEPARATES_LAG_DELAY, SIGNIFICANCE, TIE_NATS, score,
-                      significant)
+from .scoring import MOVED_PCT, NESTED_RECHECK, SEPARATES_LAG_DELAY, SIGNIFICANCE, TIE_NATS, score, significant
 from .timing import LAG_DELAY
 
 if TYPE_CHECKING:
@@ -64,8 +64,9 @@ def backward_check(state: SearchState) -> None:
         for stp in state.steps:  # effects accepted up front get their score here
             if stp.effect == name and not stp.score == stp.score:
                 stp.score, stp.rss_before, stp.rss_after = sc, without.rss_after, state.rss
-        if not significant(sc, without.rss_after, state.rss, state.n, without.residual, state.residual, chans,
-                           state.units()):
+        if not significant(
+            sc, without.rss_after, state.rss, state.n, without.residual, state.residual, chans, state.units()
+        ):
             state.dropped[name] = f"removed by the backward check (score {sc:.1f} once the others are in)"
             ctx.selected.remove(name)
             ctx.vec, state.rss, state.residual = without.vector, without.rss_after, without.residual
@@ -91,8 +92,10 @@ def swap_lag_delay(state: SearchState) -> None:
                 state.rss = state.refine_for(ctx.vec) if state.options.refine else rss_b
                 a, b = b, a
             if abs(gap) < TIE_NATS:
-                state.ties[a] = (f"indistinguishable from {b} on these data (score difference {abs(gap):.1f} nats): "
-                                 + SEPARATES_LAG_DELAY)
+                state.ties[a] = (
+                    f"indistinguishable from {b} on these data (score difference {abs(gap):.1f} nats): "
+                    + SEPARATES_LAG_DELAY
+                )
             return
 
 
@@ -105,8 +108,11 @@ def _lag_delay_gap(state: SearchState, a: str, b: str):
     names_b = state.free_with(others + [b])
     swapped = fit_free(ctx, ctx.neutralise(ctx.vec, a), names_b, opts.max_nfev_joint, fresh=[b])
     if not (opts.refine and ctx.fit is not None):
-        gap = score(swapped.rss_after, ctx.fit, 0, opts.n_eff_ref, blocks=state.blocks)[0] \
-            if ctx.fit is not None else float("inf")
+        gap = (
+            score(swapped.rss_after, ctx.fit, 0, opts.n_eff_ref, blocks=state.blocks)[0]
+            if ctx.fit is not None
+            else float("inf")
+        )
         return gap, swapped, swapped.rss_after
     rss_b = state.refine_for(swapped.vector)
     again = fit_free(ctx, swapped.vector, names_b, opts.max_nfev_joint)
@@ -135,9 +141,17 @@ def decide_base(state: SearchState) -> Selection:
         The run's result.
     """
     ctx, opts, obj = state.ctx, state.options, state.obj
-    common = dict(selected=list(ctx.selected), steps=state.steps, last_round=state.last_round,
-                  dropped=state.dropped, ties=state.ties, rss_nominal=state.rss_nominal, n=state.n,
-                  excluded=state.excluded, blocks=state.blocks)
+    common = dict(
+        selected=list(ctx.selected),
+        steps=state.steps,
+        last_round=state.last_round,
+        dropped=state.dropped,
+        ties=state.ties,
+        rss_nominal=state.rss_nominal,
+        n=state.n,
+        excluded=state.excluded,
+        blocks=state.blocks,
+    )
     if not ctx.base_names:
         return Selection(**common, vector=ctx.vec, rss_final=state.rss, fit=ctx.fit)
     eff_names = ctx.effect_parameters(ctx.selected)
@@ -161,19 +175,35 @@ def decide_base(state: SearchState) -> Selection:
             ctx.vec, state.rss, ctx.fit, full = again.vector, again.rss_after, again, again
     rss_held = held.rss_after
     base_score, _ = score(rss_held, full, len(ctx.base_names), opts.n_eff_ref, blocks=state.blocks)
-    base_off = significant(base_score, rss_held, full.rss_after, state.n, held.residual, full.residual,
-                           unit=state.units()) or (base_score > SIGNIFICANCE and full.rss_after < 0.5 * rss_held)
+    base_off = significant(
+        base_score, rss_held, full.rss_after, state.n, held.residual, full.residual, unit=state.units()
+    ) or (base_score > SIGNIFICANCE and full.rss_after < 0.5 * rss_held)
     if not base_off:
         obj.model.speed_offsets = speeds_held
-        return Selection(**common, base_score=base_score, vector=held.vector, rss_final=rss_held,
-                         fit=held if eff_names else None, base_fit=full)
+        return Selection(
+            **common,
+            base_score=base_score,
+            vector=held.vector,
+            rss_final=rss_held,
+            fit=held if eff_names else None,
+            base_fit=full,
+        )
     moved = _moved(ctx, full)
     warn = [w for w in full.warnings if any(n in w for n in ctx.base_names)]
     warn += scale_warning(moved)
     warn += slow_motor_warning(moved, ctx.selected, float(ctx.nominal[ctx.comp.param_index("Ju")]))
-    return Selection(**common, at_bounds=base_at_bounds(ctx, ctx.vec), base_off=True, base_score=base_score,
-                     moved=moved, base_warnings=warn, vector=ctx.vec, rss_final=full.rss_after, fit=full,
-                     base_fit=full)
+    return Selection(
+        **common,
+        at_bounds=base_at_bounds(ctx, ctx.vec),
+        base_off=True,
+        base_score=base_score,
+        moved=moved,
+        base_warnings=warn,
+        vector=ctx.vec,
+        rss_final=full.rss_after,
+        fit=full,
+        base_fit=full,
+    )
 
 
 def _moved(ctx, full) -> dict[str, BaseChange]:
@@ -212,9 +242,11 @@ def scale_warning(moved: dict[str, BaseChange]) -> list[str]:
     alike = [c for c in ch if c * med > 0 and 0.6 < c / med < 1.6]
     if len(alike) < 4:
         return []
-    return [f"{len(alike)} torque and inertia parameters moved alike (about {med:+.0f} %): the data cannot tell this "
-            f"from the upper disc's inertia Ju off by {-med:+.0f} % (Ju is held), and a slow motor or amplifier "
-            f"(motor_lag) looks alike; check Ju, or fit with --add-effect motor_lag"]
+    return [
+        f"{len(alike)} torque and inertia parameters moved alike (about {med:+.0f} %): the data cannot tell this "
+        f"from the upper disc's inertia Ju off by {-med:+.0f} % (Ju is held), and a slow motor or amplifier "
+        f"(motor_lag) looks alike; check Ju, or fit with --add-effect motor_lag"
+    ]
 
 
 def slow_motor_warning(moved: dict[str, BaseChange], selected: Sequence[str], ju: float) -> list[str]:
@@ -248,6 +280,8 @@ def slow_motor_warning(moved: dict[str, BaseChange], selected: Sequence[str], ju
     dtau = ju / bu1 - ju / bu0
     if dtau <= 0:
         return []
-    return [f"km and bu moved alike ({a:+.1f} %, {b:+.1f} %): the upper disc's steady state is unchanged and it is "
-            f"slower by {1e3 * dtau:.0f} ms (Ju/bu), as a motor lag of that size would make it; on smooth inputs (ramps) "
-            f"the two look alike: a voltage step recorded at >= 500 Hz decides, or fit with --add-effect motor_lag"]
+    return [
+        f"km and bu moved alike ({a:+.1f} %, {b:+.1f} %): the upper disc's steady state is unchanged and it is "
+        f"slower by {1e3 * dtau:.0f} ms (Ju/bu), as a motor lag of that size would make it; on smooth inputs (ramps) "
+        f"the two look alike: a voltage step recorded at >= 500 Hz decides, or fit with --add-effect motor_lag"
+    ]

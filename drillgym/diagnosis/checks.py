@@ -13,8 +13,9 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import replace
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,8 +33,18 @@ from .search_model import SearchModel
 if TYPE_CHECKING:
     from .screening import Screening
 
-__all__ = ["check", "check_position_effects", "compensates_dropped", "half_cannot_show", "sliding_angle_range",
-           "state_time_or_angle_tie", "TIME_EFFECTS", "SLIDING_RAD_S", "MIN_ANGLE_SPAN", "MIN_REFUTING_SPAN"]
+__all__ = [
+    "check",
+    "check_position_effects",
+    "compensates_dropped",
+    "half_cannot_show",
+    "sliding_angle_range",
+    "state_time_or_angle_tie",
+    "TIME_EFFECTS",
+    "SLIDING_RAD_S",
+    "MIN_ANGLE_SPAN",
+    "MIN_REFUTING_SPAN",
+]
 
 #: effects whose friction level changes with time along the recording (the library's), told apart from a
 #: position-dependent one only when the lower disc slides through a revolution (:func:`state_time_or_angle_tie`)
@@ -78,8 +89,11 @@ def _check_positions(screening: Screening, outcome: SearchOutcome, options: Sele
     gone = list(checks)
     if not gone:
         return
-    again = forward_select(model, options, SearchStart(initial=tuple(out.selected), vector=out.vector,
-                                                       excluded={n: out.dropped[n] for n in gone}))
+    again = forward_select(
+        model,
+        options,
+        SearchStart(initial=tuple(out.selected), vector=out.vector, excluded={n: out.dropped[n] for n in gone}),
+    )
     paths["after_halves_check"] = again.labelled()
     if set(again.selected) != set(out.selected) and better(out, again, model) is again:
         again.dropped = {**out.dropped, **again.dropped}
@@ -94,14 +108,20 @@ def _check_positions(screening: Screening, outcome: SearchOutcome, options: Sele
     disagreed = [n for n in gone if checks[n].shown_in_both]
     kept = ""
     if disagreed and compensates_dropped(before_check, out):
-        kept = (f"kept because the model without it puts more base parameters at a bound "
-                f"({', '.join(out.at_bounds)}): check with a longer recording")
+        kept = (
+            f"kept because the model without it puts more base parameters at a bound "
+            f"({', '.join(out.at_bounds)}): check with a longer recording"
+        )
         paths["after_halves_check"].append("reverted")
-    elif half_cannot_show(screening.exps, [checks[n] for n in gone]) \
-            and better(out, before_check, model, bounds=True) is before_check:
-        kept = ("kept: that half of the recording cannot show it (its lower disc slid through less than two "
-                "revolutions), and the model with it is the better one; not told apart from a friction that "
-                "changes with time (friction_drift)")
+    elif (
+        half_cannot_show(screening.exps, [checks[n] for n in gone])
+        and better(out, before_check, model, bounds=True) is before_check
+    ):
+        kept = (
+            "kept: that half of the recording cannot show it (its lower disc slid through less than two "
+            "revolutions), and the model with it is the better one; not told apart from a friction that "
+            "changes with time (friction_drift)"
+        )
         paths["after_halves_check"].append("kept")
     if kept:
         for n in gone:
@@ -113,8 +133,9 @@ def _check_positions(screening: Screening, outcome: SearchOutcome, options: Sele
     outcome.kept = out
 
 
-def check_position_effects(out: Selection, exps: Sequence[Experiment], model: SearchModel,
-                           segment_s: float | None, scales: dict[str, float]) -> dict[str, HalfAgreement]:
+def check_position_effects(
+    out: Selection, exps: Sequence[Experiment], model: SearchModel, segment_s: float | None, scales: dict[str, float]
+) -> dict[str, HalfAgreement]:
     """Drop each selected position-dependent effect that is not the same in the two halves of the recording.
 
     One half does not show it, or their parameters differ (:func:`.reproducibility.halves_agree`); the
@@ -151,8 +172,14 @@ def check_position_effects(out: Selection, exps: Sequence[Experiment], model: Se
             continue
         if agreement.agree:
             continue
-        ctx = SelectionContext(model.obj, model.comp, out.vector.copy(), model.nominal.copy(), free_base,
-                               {e: by[e] for e in out.selected if e in by})
+        ctx = SelectionContext(
+            model.obj,
+            model.comp,
+            out.vector.copy(),
+            model.nominal.copy(),
+            free_base,
+            {e: by[e] for e in out.selected if e in by},
+        )
         rest = [e for e in out.selected if e != name]
         refit = fit_free(ctx, ctx.neutralise(out.vector, name), list(free_base) + ctx.effect_parameters(rest), 15)
         out.selected = rest
@@ -266,12 +293,16 @@ def state_time_or_angle_tie(out: Selection, exps: Sequence[Experiment], effects:
     span = sliding_angle_range(exps)
     if not MIN_ANGLE_SPAN <= span < 2 * math.pi:
         return
-    for held, others in (([n for n in out.selected if n in TIME_EFFECTS], position),
-                         ([n for n in out.selected if n in position], [n for n in TIME_EFFECTS if n in names])):
+    for held, others in (
+        ([n for n in out.selected if n in TIME_EFFECTS], position),
+        ([n for n in out.selected if n in position], [n for n in TIME_EFFECTS if n in names]),
+    ):
         alternatives = [o for o in others if o not in out.selected]
         for name in held:
             if alternatives and name not in out.ties:
-                out.ties[name] = (f"not told apart from {' or '.join(alternatives)}: the lower disc slid through "
-                                  f"{span:.2f} rad, less than one revolution, so a friction that changes with time "
-                                  f"and one that changes with the angle look alike; a recording in which the lower "
-                                  f"disc slides through several revolutions decides")
+                out.ties[name] = (
+                    f"not told apart from {' or '.join(alternatives)}: the lower disc slid through "
+                    f"{span:.2f} rad, less than one revolution, so a friction that changes with time "
+                    f"and one that changes with the angle look alike; a recording in which the lower "
+                    f"disc slides through several revolutions decides"
+                )

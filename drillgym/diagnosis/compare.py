@@ -18,9 +18,10 @@ channel; and where the error lives:
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 from scipy.signal import welch
@@ -64,23 +65,40 @@ class Comparison:
 
     def text(self) -> str:
         ex = self.experiment
-        how = "free run from the recording's initial state" if not self.segment_s else \
-            f"segments of {self.segment_s:g} s, each re-started from the recording (stick-slip phase drift)"
+        how = (
+            "free run from the recording's initial state"
+            if not self.segment_s
+            else f"segments of {self.segment_s:g} s, each re-started from the recording (stick-slip phase drift)"
+        )
         lines = [f"compare: {ex.name} ({ex.config.label}, {ex.duration:.1f} s, {how})"]
         if self.composition.effects:
-            lines.append("  model: base + " + ", ".join(self.composition.names) + " (" +
-                         ", ".join(f"{k} = {v:.4g}" for k, v in self.effect_values.items()) + ")")
+            lines.append(
+                "  model: base + "
+                + ", ".join(self.composition.names)
+                + " ("
+                + ", ".join(f"{k} = {v:.4g}" for k, v in self.effect_values.items())
+                + ")"
+            )
         for c, m in self.metrics.items():
             lines.append(f"  {c:<8} R² = {m['r2']:.4f}   RMS = {m['rms']:.4g} {'m' if c in ('x', 'y', 'r') else 'rad'}")
         lines += ["where the model fails:"] + [f"  - {f}" for f in self.findings]
         return "\n".join(lines)
 
     def to_json(self) -> dict:
-        return {"model": self.composition.label, "effect_values": self.effect_values,
-                "metrics": self.metrics, "windows": self.windows, "by_speed": self.by_speed,
-                "by_angle": self.by_angle, "by_alpha": self.by_alpha, "by_r": self.by_r, "findings": self.findings,
-                "noise": self.noise,
-                "segment_s": self.segment_s, "spectrum_peaks": self.spectrum.get("peaks", [])}
+        return {
+            "model": self.composition.label,
+            "effect_values": self.effect_values,
+            "metrics": self.metrics,
+            "windows": self.windows,
+            "by_speed": self.by_speed,
+            "by_angle": self.by_angle,
+            "by_alpha": self.by_alpha,
+            "by_r": self.by_r,
+            "findings": self.findings,
+            "noise": self.noise,
+            "segment_s": self.segment_s,
+            "spectrum_peaks": self.spectrum.get("peaks", []),
+        }
 
 
 NOISE_FACTOR = 3.0  # a channel fails only where its RMS error exceeds this many times its noise level
@@ -99,10 +117,18 @@ def _main_channel(ex: Experiment) -> str:
     return "theta_u" if ex.config is Configuration.UPPER else "theta_l"
 
 
-def compare(data: "TimeSeries | Experiment", params: "RigParams | np.ndarray | None" = None, config=None, *,
-            segment_s: float | None = None, compare_rate_hz: float = 100.0, n_windows: int = 10,
-            refine_speeds: bool = True, effects: Any = None,
-            effect_params: Mapping[str, float] | None = None) -> Comparison:
+def compare(
+    data: TimeSeries | Experiment,
+    params: RigParams | np.ndarray | None = None,
+    config=None,
+    *,
+    segment_s: float | None = None,
+    compare_rate_hz: float = 100.0,
+    n_windows: int = 10,
+    refine_speeds: bool = True,
+    effects: Any = None,
+    effect_params: Mapping[str, float] | None = None,
+) -> Comparison:
     """Simulate the recording's input from its initial state and locate the error (see module docstring).
 
     Parameters
@@ -156,27 +182,36 @@ def compare(data: "TimeSeries | Experiment", params: "RigParams | np.ndarray | N
         w = {"t0": float(ex.t[a] - ex.t[0]), "t1": float(ex.t[b - 1] - ex.t[0])}
         for c in chans:
             e = res[c][a:b]
-            w[c] = float(np.sqrt(np.nanmean(e ** 2)))
+            w[c] = float(np.sqrt(np.nanmean(e**2)))
         windows.append(w)
     overall = metrics[main]["rms"]
     worst = sorted(windows, key=lambda w: -w[main])[:2]
     for w in worst:
         if overall > 0 and w[main] > 1.5 * overall:
-            findings.append(f"{main} error is largest in {w['t0']:.1f}–{w['t1']:.1f} s "
-                            f"(RMS {w[main]:.3g}, {w[main] / overall:.1f}× the record's)")
+            findings.append(
+                f"{main} error is largest in {w['t0']:.1f}–{w['t1']:.1f} s "
+                f"(RMS {w[main]:.3g}, {w[main] / overall:.1f}× the record's)"
+            )
     if len(windows) >= 4 and overall > 0:
-        first, last = np.mean([w[main] for w in windows[:len(windows) // 3]]), \
-            np.mean([w[main] for w in windows[-(len(windows) // 3):]])
+        first, last = (
+            np.mean([w[main] for w in windows[: len(windows) // 3]]),
+            np.mean([w[main] for w in windows[-(len(windows) // 3) :]]),
+        )
         if last > 2 * first:
-            findings.append(f"the error grows along the run ({first:.3g} early, {last:.3g} late): "
-                            "a slow change (friction drift?) or accumulated phase")
-    comp = Comparison(ex, p, segment_s, predicted, metrics, windows, findings=findings, composition=model.composition,
-                      vector=vec)
+            findings.append(
+                f"the error grows along the run ({first:.3g} early, {last:.3g} late): "
+                "a slow change (friction drift?) or accumulated phase"
+            )
+    comp = Comparison(
+        ex, p, segment_s, predicted, metrics, windows, findings=findings, composition=model.composition, vector=vec
+    )
     comp.noise = _noise_levels(ex, chans)
     above = {c for c in chans if metrics[c]["rms"] > NOISE_FACTOR * comp.noise[c]}
     if not above:  # the model fits to the noise: there is no failure to locate
-        comp.findings[:] = [f"the model matches the recording within the measurement noise ({main} RMS "
-                            f"{metrics[main]['rms']:.3g} vs noise {comp.noise[main]:.3g}): no failure to report"]
+        comp.findings[:] = [
+            f"the model matches the recording within the measurement noise ({main} RMS "
+            f"{metrics[main]['rms']:.3g} vs noise {comp.noise[main]:.3g}): no failure to report"
+        ]
         return comp
     if main not in above:
         comp.findings[:] = [f for f in comp.findings if not f.startswith(main)]
@@ -199,40 +234,53 @@ def _torque_bins(comp: Comparison) -> None:
     wl = rt.states[ok, 3]
     th = np.mod(rt.states[ok, 1], 2 * np.pi)
     tau = rt.tau_l[ok]
-    total = float(np.sqrt(np.mean(tau ** 2)))
+    total = float(np.sqrt(np.mean(tau**2)))
     qs = np.unique(np.quantile(wl, np.linspace(0, 1, 9)))
     for a, b in zip(qs[:-1], qs[1:]):
         s = (wl >= a) & (wl <= b)
         if s.sum() > 5:
-            comp.by_speed.append({"omega_lo": float(a), "omega_hi": float(b), "mean": float(tau[s].mean()),
-                                  "rms": float(np.sqrt(np.mean(tau[s] ** 2))), "n": int(s.sum())})
+            comp.by_speed.append(
+                {
+                    "omega_lo": float(a),
+                    "omega_hi": float(b),
+                    "mean": float(tau[s].mean()),
+                    "rms": float(np.sqrt(np.mean(tau[s] ** 2))),
+                    "n": int(s.sum()),
+                }
+            )
     if comp.by_speed:
         w = max(comp.by_speed, key=lambda d: d["rms"])
         if w["rms"] > 1.3 * total:
-            comp.findings.append(f"residual torque on the lower disc is largest for ωl in "
-                                 f"[{w['omega_lo']:.2f}, {w['omega_hi']:.2f}] rad/s (RMS {w['rms']:.3g} N m, "
-                                 f"record {total:.3g} N m): the friction law there")
+            comp.findings.append(
+                f"residual torque on the lower disc is largest for ωl in "
+                f"[{w['omega_lo']:.2f}, {w['omega_hi']:.2f}] rad/s (RMS {w['rms']:.3g} N m, "
+                f"record {total:.3g} N m): the friction law there"
+            )
     eb = np.linspace(0, 2 * np.pi, 13)
     sg = np.sign(wl)
     for a, b in zip(eb[:-1], eb[1:]):
         s = (th >= a) & (th < b)
         if s.sum() > 5:
-            comp.by_angle.append({"theta_lo": float(a), "theta_hi": float(b),
-                                  "mean": float(np.mean(tau[s] * sg[s])), "n": int(s.sum())})
+            comp.by_angle.append(
+                {"theta_lo": float(a), "theta_hi": float(b), "mean": float(np.mean(tau[s] * sg[s])), "n": int(s.sum())}
+            )
     a_ = rt.states[ok, 1] - rt.states[ok, 0]
     qa = np.unique(np.quantile(a_, np.linspace(0, 1, 9)))
     for a, b in zip(qa[:-1], qa[1:]):
         s = (a_ >= a) & (a_ <= b)
         if s.sum() > 5:
-            comp.by_alpha.append({"alpha_lo": float(a), "alpha_hi": float(b), "mean": float(tau[s].mean()),
-                                  "n": int(s.sum())})
+            comp.by_alpha.append(
+                {"alpha_lo": float(a), "alpha_hi": float(b), "mean": float(tau[s].mean()), "n": int(s.sum())}
+            )
     if len(comp.by_alpha) >= 4:
         m = np.array([d["mean"] for d in comp.by_alpha])
         n = np.array([d["n"] for d in comp.by_alpha])
         eta2 = float(np.sum(n * (m - tau.mean()) ** 2) / max(np.sum((tau - tau.mean()) ** 2), 1e-300))
         if eta2 > 0.3 and 0.5 * (m.max() - m.min()) > 0.3 * total:
-            comp.findings.append(f"residual torque on the lower disc varies with the twist α (explains {eta2:.0%} "
-                                 f"of it, from {m.min():.3g} to {m.max():.3g} N m): the string's torque law")
+            comp.findings.append(
+                f"residual torque on the lower disc varies with the twist α (explains {eta2:.0%} "
+                f"of it, from {m.min():.3g} to {m.max():.3g} N m): the string's torque law"
+            )
     revolutions = float(np.ptp(rt.states[ok, 1])) / (2 * np.pi)
     if len(comp.by_angle) >= 6 and revolutions >= 3:
         m = np.array([d["mean"] for d in comp.by_angle])
@@ -242,14 +290,18 @@ def _torque_bins(comp: Comparison) -> None:
         eta2 = float(np.sum(n * (m - x.mean()) ** 2) / max(np.sum((x - x.mean()) ** 2), 1e-300))
         if amp > 0.3 * total and eta2 > 0.2:  # the angle explains a real share of the residual
             k = int(np.argmax(np.abs(m - m.mean())))
-            comp.findings.append(f"residual friction torque depends on the lower disc's angle: ±{amp:.3g} N m "
-                                 f"over a revolution, extreme near θl = {np.degrees(comp.by_angle[k]['theta_lo']):.0f}–"
-                                 f"{np.degrees(comp.by_angle[k]['theta_hi']):.0f}°, explaining {eta2:.0%} of its "
-                                 f"variance (angle-dependent friction?)")
+            comp.findings.append(
+                f"residual friction torque depends on the lower disc's angle: ±{amp:.3g} N m "
+                f"over a revolution, extreme near θl = {np.degrees(comp.by_angle[k]['theta_lo']):.0f}–"
+                f"{np.degrees(comp.by_angle[k]['theta_hi']):.0f}°, explaining {eta2:.0%} of its "
+                f"variance (angle-dependent friction?)"
+            )
     neg, pos = tau[wl < 0] * -1, tau[wl > 0]
     if neg.size > 20 and pos.size > 20 and abs(neg.mean() - pos.mean()) > 0.3 * total:
-        comp.findings.append(f"residual friction differs between directions: {pos.mean():.3g} N m (ωl > 0) vs "
-                             f"{neg.mean():.3g} N m (ωl < 0)")
+        comp.findings.append(
+            f"residual friction differs between directions: {pos.mean():.3g} N m (ωl > 0) vs "
+            f"{neg.mean():.3g} N m (ωl < 0)"
+        )
 
 
 def _r_bins(comp: Comparison, res: dict) -> None:
@@ -261,14 +313,17 @@ def _r_bins(comp: Comparison, res: dict) -> None:
     for a, b in zip(qs[:-1], qs[1:]):
         s = ok & (r >= a) & (r <= b)
         if s.sum() > 5:
-            comp.by_r.append({"r_lo": float(a), "r_hi": float(b), "rms": float(np.sqrt(np.mean(e[s] ** 2))),
-                              "n": int(s.sum())})
+            comp.by_r.append(
+                {"r_lo": float(a), "r_hi": float(b), "rms": float(np.sqrt(np.mean(e[s] ** 2))), "n": int(s.sum())}
+            )
     if len(comp.by_r) >= 2:
         w = max(comp.by_r, key=lambda d: d["rms"])
         tot = float(np.sqrt(np.mean(e[ok] ** 2)))
         if w["rms"] > 1.3 * tot:
-            comp.findings.append(f"lateral error is largest for r in [{w['r_lo'] * 1e3:.2f}, {w['r_hi'] * 1e3:.2f}] mm "
-                                 f"(RMS {w['rms'] * 1e3:.3g} mm vs {tot * 1e3:.3g} mm)")
+            comp.findings.append(
+                f"lateral error is largest for r in [{w['r_lo'] * 1e3:.2f}, {w['r_hi'] * 1e3:.2f}] mm "
+                f"(RMS {w['rms'] * 1e3:.3g} mm vs {tot * 1e3:.3g} mm)"
+            )
 
 
 def _spectrum(comp: Comparison, e: np.ndarray) -> None:
@@ -352,21 +407,33 @@ def write_compare(comp: Comparison, out_dir: str | Path) -> list[Path]:
         for ax, kind in zip(axes[0], panels):
             if kind == "speed":
                 x = [(d["omega_lo"] + d["omega_hi"]) / 2 for d in comp.by_speed]
-                ax.bar(x, [d["rms"] for d in comp.by_speed],
-                       width=[0.9 * (d["omega_hi"] - d["omega_lo"]) for d in comp.by_speed])
+                ax.bar(
+                    x,
+                    [d["rms"] for d in comp.by_speed],
+                    width=[0.9 * (d["omega_hi"] - d["omega_lo"]) for d in comp.by_speed],
+                )
                 ax.set(xlabel="ωl (rad/s)", ylabel="residual torque RMS (N m)", title="vs lower disc speed")
             elif kind == "angle":
-                ax.bar(np.degrees([d["theta_lo"] for d in comp.by_angle]), [d["mean"] for d in comp.by_angle],
-                       width=27, align="edge")
+                ax.bar(
+                    np.degrees([d["theta_lo"] for d in comp.by_angle]),
+                    [d["mean"] for d in comp.by_angle],
+                    width=27,
+                    align="edge",
+                )
                 ax.set(xlabel="θl mod 2π (deg)", ylabel="mean residual friction (N m)", title="vs lower disc angle")
             elif kind == "alpha":
-                ax.bar([(d["alpha_lo"] + d["alpha_hi"]) / 2 for d in comp.by_alpha],
-                       [d["mean"] for d in comp.by_alpha],
-                       width=[0.9 * (d["alpha_hi"] - d["alpha_lo"]) for d in comp.by_alpha])
+                ax.bar(
+                    [(d["alpha_lo"] + d["alpha_hi"]) / 2 for d in comp.by_alpha],
+                    [d["mean"] for d in comp.by_alpha],
+                    width=[0.9 * (d["alpha_hi"] - d["alpha_lo"]) for d in comp.by_alpha],
+                )
                 ax.set(xlabel="twist α (rad)", ylabel="mean residual torque (N m)", title="vs string twist")
             else:
-                ax.bar([1e3 * (d["r_lo"] + d["r_hi"]) / 2 for d in comp.by_r], [1e3 * d["rms"] for d in comp.by_r],
-                       width=[1e3 * (d["r_hi"] - d["r_lo"]) * 0.9 for d in comp.by_r])
+                ax.bar(
+                    [1e3 * (d["r_lo"] + d["r_hi"]) / 2 for d in comp.by_r],
+                    [1e3 * d["rms"] for d in comp.by_r],
+                    width=[1e3 * (d["r_hi"] - d["r_lo"]) * 0.9 for d in comp.by_r],
+                )
                 ax.set(xlabel="r (mm)", ylabel="lateral residual RMS (mm)", title="vs lateral amplitude")
         fig.tight_layout()
         paths.append(out / "bins.png")
@@ -380,8 +447,12 @@ def write_compare(comp: Comparison, out_dir: str | Path) -> list[Path]:
                 ax.axvline(v, ls="--", color="gray")
                 ax.text(v, ax.get_ylim()[1], name, rotation=90, va="top", fontsize=8)
         u_ = "m" if ex.config.lateral_free else "rad"
-        ax.set(xlim=(0, min(10, ex.fs / 2)), xlabel="f (Hz)", ylabel=f"PSD of residual ({u_}²/Hz)",
-               title="residual spectrum")
+        ax.set(
+            xlim=(0, min(10, ex.fs / 2)),
+            xlabel="f (Hz)",
+            ylabel=f"PSD of residual ({u_}²/Hz)",
+            title="residual spectrum",
+        )
         fig.tight_layout()
         paths.append(out / "spectrum.png")
         fig.savefig(paths[-1], dpi=90)

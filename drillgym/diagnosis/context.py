@@ -11,9 +11,10 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -25,9 +26,22 @@ from .effective import effective_samples
 from .search_model import neutral_values
 from .starts import search_points
 
-__all__ = ["BASE_BOUNDS", "CONVERGE_ROUNDS", "CONVERGE_RTOL", "TORQUE_SCALE", "SelectionContext", "SelectionOptions",
-           "fit_free", "converged_fit", "base_prior", "best_effect_start", "screen_fit", "torque_scale_removed",
-           "base_at_bounds", "in_parallel"]
+__all__ = [
+    "BASE_BOUNDS",
+    "CONVERGE_ROUNDS",
+    "CONVERGE_RTOL",
+    "TORQUE_SCALE",
+    "SelectionContext",
+    "SelectionOptions",
+    "fit_free",
+    "converged_fit",
+    "base_prior",
+    "best_effect_start",
+    "screen_fit",
+    "torque_scale_removed",
+    "base_at_bounds",
+    "in_parallel",
+]
 
 #: without the segments' speeds in the fit (:func:`converged_fit` with ``refine`` off), a fit with the base
 #: parameters free is repeated from its result for at most this many rounds, until a round removes less than
@@ -200,8 +214,9 @@ class SelectionContext:
         return issubclass(self.effects[name], Measurement)
 
 
-def _variables(ctx: SelectionContext, vec: np.ndarray, names: Sequence[str], fresh: Sequence[str] = ()
-               ) -> list[FitVariable]:
+def _variables(
+    ctx: SelectionContext, vec: np.ndarray, names: Sequence[str], fresh: Sequence[str] = ()
+) -> list[FitVariable]:
     """Fit variables: base parameters within BASE_BOUNDS of nominal (starting at ``vec``); effect
     parameters within their bounds, starting at ``vec`` (or at their guess for ``fresh`` effects)."""
     out = []
@@ -290,8 +305,9 @@ def screen_fit(ctx: SelectionContext, vec: np.ndarray, name: str, max_nfev: int,
     return fit_free(ctx, start, names, max_nfev)
 
 
-def torque_scale_removed(vec: np.ndarray, nominal: np.ndarray, comp: Composition, base_names: Sequence[str]
-                         ) -> tuple[np.ndarray, float]:
+def torque_scale_removed(
+    vec: np.ndarray, nominal: np.ndarray, comp: Composition, base_names: Sequence[str]
+) -> tuple[np.ndarray, float]:
     """``vec`` with the common scale of its free torque and inertia parameters divided out, and that scale.
 
     Their geometric mean ratio to ``nominal`` is set to 1, their ratios to each other kept.  The scale is
@@ -369,6 +385,7 @@ def in_parallel(jobs: Sequence[Callable[[], Any]]) -> list[Any]:
     list
         Their results or ValueErrors; any other error is raised.
     """
+
     def run(job):
         try:
             return job()
@@ -383,8 +400,14 @@ def in_parallel(jobs: Sequence[Callable[[], Any]]) -> list[Any]:
             return list(pool.map(run, jobs))
 
 
-def fit_free(ctx: SelectionContext, vec: np.ndarray, names: Sequence[str], max_nfev: int,
-             fresh: Sequence[str] = (), speeds: bool = False) -> FitResult:
+def fit_free(
+    ctx: SelectionContext,
+    vec: np.ndarray,
+    names: Sequence[str],
+    max_nfev: int,
+    fresh: Sequence[str] = (),
+    speeds: bool = False,
+) -> FitResult:
     """Fit the parameters ``names`` from ``vec``, the rest held.
 
     Standard errors are inflated by √(N / N_eff).  With no names: the model at ``vec`` as it is (the
@@ -413,21 +436,40 @@ def fit_free(ctx: SelectionContext, vec: np.ndarray, names: Sequence[str], max_n
     if not names:
         r = ctx.obj.residual_matrix(vec[None, :])[0]
         rss = float(r @ r)
-        return FitResult([], {}, {}, RigParams.from_vector(vec[:N_PARAMS]), vec.copy(), rss, rss, len(r), 1,
-                         residual=r, composition=ctx.comp)
+        return FitResult(
+            [],
+            {},
+            {},
+            RigParams.from_vector(vec[:N_PARAMS]),
+            vec.copy(),
+            rss,
+            rss,
+            len(r),
+            1,
+            residual=r,
+            composition=ctx.comp,
+        )
     prior, weight = _prior_rows(ctx, vec, names)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = fit_parameters(ctx.obj, vec, _variables(ctx, vec, names, fresh), max_nfev=max_nfev, prior=prior,
-                             prior_weight=weight, fit_speeds=speeds)
+        res = fit_parameters(
+            ctx.obj,
+            vec,
+            _variables(ctx, vec, names, fresh),
+            max_nfev=max_nfev,
+            prior=prior,
+            prior_weight=weight,
+            fit_speeds=speeds,
+        )
     if res.residual is not None and len(res.residual):
         f = math.sqrt(len(res.residual) / effective_samples(res.residual, ctx.obj.block_ids))
         res.std = {k: v * f for k, v in res.std.items()}
     return res
 
 
-def base_prior(comp: Composition, nominal: np.ndarray, names: Sequence[str], sigma: float
-               ) -> dict[str, tuple[float, float]]:
+def base_prior(
+    comp: Composition, nominal: np.ndarray, names: Sequence[str], sigma: float
+) -> dict[str, tuple[float, float]]:
     """The Gaussian prior of the base parameters among ``names``.
 
     Parameters
@@ -455,8 +497,9 @@ def base_prior(comp: Composition, nominal: np.ndarray, names: Sequence[str], sig
     return prior
 
 
-def converged_fit(ctx: SelectionContext, vec: np.ndarray, names: Sequence[str], max_nfev: int,
-                  refine: bool = True) -> FitResult:
+def converged_fit(
+    ctx: SelectionContext, vec: np.ndarray, names: Sequence[str], max_nfev: int, refine: bool = True
+) -> FitResult:
     """Fit ``names`` from ``vec`` to convergence.
 
     With ``refine`` the segments' initial speeds are fitted with them
@@ -508,8 +551,9 @@ def converged_fit(ctx: SelectionContext, vec: np.ndarray, names: Sequence[str], 
     return best
 
 
-def _prior_rows(ctx: SelectionContext, vec: np.ndarray, names: Sequence[str]
-                ) -> tuple[dict[str, tuple[float, float]] | None, float]:
+def _prior_rows(
+    ctx: SelectionContext, vec: np.ndarray, names: Sequence[str]
+) -> tuple[dict[str, tuple[float, float]] | None, float]:
     """The base parameters' prior for a fit of ``names`` from ``vec`` (:func:`base_prior` with
     ``ctx.prior_sigma``) and its weight: the residual's variance per effectively independent sample at
     ``vec`` (RSS / N_eff, so that the prior's Σ (Δp / (p σ))² adds to N_eff ln RSS as the selection

@@ -46,8 +46,10 @@ def base_prior_cost(sel: Selection, model: SearchModel) -> float:
         return 0.0
     v = sel.vector
     comp = model.comp
-    return sum(((float(v[comp.param_index(n)]) - mean) / std) ** 2
-               for n, (mean, std) in base_prior(comp, model.nominal, model.base_names, BASE_PRIOR_SIGMA).items())
+    return sum(
+        ((float(v[comp.param_index(n)]) - mean) / std) ** 2
+        for n, (mean, std) in base_prior(comp, model.nominal, model.base_names, BASE_PRIOR_SIGMA).items()
+    )
 
 
 def plausible_prior(base_names) -> float:

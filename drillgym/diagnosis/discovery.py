@@ -28,9 +28,9 @@ regressed coefficients as guesses and bounds of ±4 times their size, so that
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -57,16 +57,30 @@ class _Term:
 
 
 def _speed_terms(w: str, sym: str) -> list[_Term]:
-    out = [_Term(f"sign({sym})", "direction", lambda d: np.sign(d[w]), 1.0),
-           _Term(f"{sym}", "omega", lambda d: d[w]),
-           _Term(f"{sym}|{sym}|", "omega * speed", lambda d: d[w] * np.abs(d[w])),
-           _Term(f"{sym}³", "omega * omega * omega", lambda d: d[w] ** 3)]
+    out = [
+        _Term(f"sign({sym})", "direction", lambda d: np.sign(d[w]), 1.0),
+        _Term(f"{sym}", "omega", lambda d: d[w]),
+        _Term(f"{sym}|{sym}|", "omega * speed", lambda d: d[w] * np.abs(d[w])),
+        _Term(f"{sym}³", "omega * omega * omega", lambda d: d[w] ** 3),
+    ]
     for v in (0.3, 1.0, 3.0):
-        out.append(_Term(f"sign({sym}) exp(−|{sym}|/{v:g})", f"direction * math.exp(-speed / {v!r})",
-                         lambda d, v=v: np.sign(d[w]) * np.exp(-np.abs(d[w]) / v), 1.0))
+        out.append(
+            _Term(
+                f"sign({sym}) exp(−|{sym}|/{v:g})",
+                f"direction * math.exp(-speed / {v!r})",
+                lambda d, v=v: np.sign(d[w]) * np.exp(-np.abs(d[w]) / v),
+                1.0,
+            )
+        )
     for v in (0.25, 0.5, 1.0, 1.5, 3.0):
-        out.append(_Term(f"sign({sym}) exp(−({sym}/{v:g})²)", f"direction * math.exp(-(speed / {v!r}) ** 2)",
-                         lambda d, v=v: np.sign(d[w]) * np.exp(-(d[w] / v) ** 2), 1.0))
+        out.append(
+            _Term(
+                f"sign({sym}) exp(−({sym}/{v:g})²)",
+                f"direction * math.exp(-(speed / {v!r}) ** 2)",
+                lambda d, v=v: np.sign(d[w]) * np.exp(-((d[w] / v) ** 2)),
+                1.0,
+            )
+        )
     return out
 
 
@@ -76,66 +90,115 @@ def _stribeck_terms(ws: float, delta: float) -> list[_Term]:
     the shape with other exponents (a different law: e.g. a Lorentzian's long tail is close to δ = 1)."""
     out = []
     for dd in (0.5, 1.0, 3.0):
-        out.append(_Term(f"sign(ωl) exp(−(|ωl|/{ws:.3g})^{dd:g})", f"direction * math.exp(-(speed / {ws!r}) ** {dd!r})",
-                         lambda d, dd=dd: np.sign(d["wl"]) * np.exp(-(np.abs(d["wl"]) / ws) ** dd), 1.0))
+        out.append(
+            _Term(
+                f"sign(ωl) exp(−(|ωl|/{ws:.3g})^{dd:g})",
+                f"direction * math.exp(-(speed / {ws!r}) ** {dd!r})",
+                lambda d, dd=dd: np.sign(d["wl"]) * np.exp(-((np.abs(d["wl"]) / ws) ** dd)),
+                1.0,
+            )
+        )
 
     def dshape_ddelta(w: np.ndarray) -> np.ndarray:
         x = np.maximum(np.abs(w) / ws, 1e-12)
-        return -np.sign(w) * np.exp(-x ** delta) * x ** delta * np.log(x)
+        return -np.sign(w) * np.exp(-(x**delta)) * x**delta * np.log(x)
 
     def dshape_dws(w: np.ndarray) -> np.ndarray:
         x = np.abs(w) / ws
-        return np.sign(w) * np.exp(-x ** delta) * delta * x ** delta
+        return np.sign(w) * np.exp(-(x**delta)) * delta * x**delta
+
     xs = f"max(speed / {ws!r}, 1e-12)"
-    out.append(_Term("∂/∂δ of sign(ωl) exp(−(|ωl|/ws)^δ)",
-                     f"-direction * math.exp(-{xs} ** {delta!r}) * {xs} ** {delta!r} * math.log({xs})",
-                     lambda d: dshape_ddelta(d["wl"])))
-    out.append(_Term("ws·∂/∂ws of sign(ωl) exp(−(|ωl|/ws)^δ)",
-                     f"direction * math.exp(-(speed / {ws!r}) ** {delta!r}) * {delta!r} * (speed / {ws!r}) ** {delta!r}",
-                     lambda d: dshape_dws(d["wl"])))
+    out.append(
+        _Term(
+            "∂/∂δ of sign(ωl) exp(−(|ωl|/ws)^δ)",
+            f"-direction * math.exp(-{xs} ** {delta!r}) * {xs} ** {delta!r} * math.log({xs})",
+            lambda d: dshape_ddelta(d["wl"]),
+        )
+    )
+    out.append(
+        _Term(
+            "ws·∂/∂ws of sign(ωl) exp(−(|ωl|/ws)^δ)",
+            f"direction * math.exp(-(speed / {ws!r}) ** {delta!r}) * {delta!r} * (speed / {ws!r}) ** {delta!r}",
+            lambda d: dshape_dws(d["wl"]),
+        )
+    )
     return out
 
 
 def _groups(lateral: bool, ws: float = 1.4302, delta: float = 2.0575) -> dict[str, list[_Term]]:
-    lower = _speed_terms("wl", "ωl") + _stribeck_terms(ws, delta) + [
-        _Term("sign(ωl) cos θl", "direction * math.cos(theta_l)", lambda d: np.sign(d["wl"]) * np.cos(d["thl"])),
-        _Term("sign(ωl) sin θl", "direction * math.sin(theta_l)", lambda d: np.sign(d["wl"]) * np.sin(d["thl"])),
-        _Term("sign(ωl) cos 2θl", "direction * math.cos(2.0 * theta_l)",
-              lambda d: np.sign(d["wl"]) * np.cos(2 * d["thl"])),
-        _Term("sign(ωl) sin 2θl", "direction * math.sin(2.0 * theta_l)",
-              lambda d: np.sign(d["wl"]) * np.sin(2 * d["thl"])),
-        _Term("sign(ωl) t", "direction * t", lambda d: np.sign(d["wl"]) * d["t"])]
+    lower = (
+        _speed_terms("wl", "ωl")
+        + _stribeck_terms(ws, delta)
+        + [
+            _Term("sign(ωl) cos θl", "direction * math.cos(theta_l)", lambda d: np.sign(d["wl"]) * np.cos(d["thl"])),
+            _Term("sign(ωl) sin θl", "direction * math.sin(theta_l)", lambda d: np.sign(d["wl"]) * np.sin(d["thl"])),
+            _Term(
+                "sign(ωl) cos 2θl",
+                "direction * math.cos(2.0 * theta_l)",
+                lambda d: np.sign(d["wl"]) * np.cos(2 * d["thl"]),
+            ),
+            _Term(
+                "sign(ωl) sin 2θl",
+                "direction * math.sin(2.0 * theta_l)",
+                lambda d: np.sign(d["wl"]) * np.sin(2 * d["thl"]),
+            ),
+            _Term("sign(ωl) t", "direction * t", lambda d: np.sign(d["wl"]) * d["t"]),
+        ]
+    )
     upper = _speed_terms("wu", "ωu")
-    string = [_Term("α|α|", "alpha * abs(alpha)", lambda d: d["a"] * np.abs(d["a"])),
-              _Term("α³", "alpha ** 3", lambda d: d["a"] ** 3),
-              _Term("α⁵", "alpha ** 5", lambda d: d["a"] ** 5),
-              _Term("α̇", "alpha_dot", lambda d: d["ad"]),
-              _Term("sign(α̇)", "math.tanh(alpha_dot / 0.01)", lambda d: np.tanh(d["ad"] / 0.01))]
+    string = [
+        _Term("α|α|", "alpha * abs(alpha)", lambda d: d["a"] * np.abs(d["a"])),
+        _Term("α³", "alpha ** 3", lambda d: d["a"] ** 3),
+        _Term("α⁵", "alpha ** 5", lambda d: d["a"] ** 5),
+        _Term("α̇", "alpha_dot", lambda d: d["ad"]),
+        _Term("sign(α̇)", "math.tanh(alpha_dot / 0.01)", lambda d: np.tanh(d["ad"] / 0.01)),
+    ]
     for g in (0.02, 0.05, 0.1, 0.2, 0.5):
-        string.append(_Term(f"sat(α, {g:g})", f"min(max(alpha, {-g!r}), {g!r})",
-                            lambda d, g=g: np.clip(d["a"], -g, g)))
-    lower_force = [_Term("1", "1.0", lambda d: np.ones_like(d["t"])),
-                   _Term("cos θl", "math.cos(theta_l)", lambda d: np.cos(d["thl"])),
-                   _Term("sin θl", "math.sin(theta_l)", lambda d: np.sin(d["thl"])),
-                   _Term("t", "t", lambda d: d["t"])]
-    upper_force = [_Term("1", "1.0", lambda d: np.ones_like(d["t"])),
-                   _Term("u|u|", "u * abs(u)", lambda d: d["u"] * np.abs(d["u"])),
-                   _Term("u³", "u ** 3", lambda d: d["u"] ** 3),
-                   _Term("cos θu", "math.cos(theta_u)", lambda d: np.cos(d["thu"])),
-                   _Term("sin θu", "math.sin(theta_u)", lambda d: np.sin(d["thu"]))]
-    return {"lower_friction": lower, "upper_friction": upper, "string": string, "lower_force": lower_force,
-            "upper_force": upper_force}
+        string.append(_Term(f"sat(α, {g:g})", f"min(max(alpha, {-g!r}), {g!r})", lambda d, g=g: np.clip(d["a"], -g, g)))
+    lower_force = [
+        _Term("1", "1.0", lambda d: np.ones_like(d["t"])),
+        _Term("cos θl", "math.cos(theta_l)", lambda d: np.cos(d["thl"])),
+        _Term("sin θl", "math.sin(theta_l)", lambda d: np.sin(d["thl"])),
+        _Term("t", "t", lambda d: d["t"]),
+    ]
+    upper_force = [
+        _Term("1", "1.0", lambda d: np.ones_like(d["t"])),
+        _Term("u|u|", "u * abs(u)", lambda d: d["u"] * np.abs(d["u"])),
+        _Term("u³", "u ** 3", lambda d: d["u"] ** 3),
+        _Term("cos θu", "math.cos(theta_u)", lambda d: np.cos(d["thu"])),
+        _Term("sin θu", "math.sin(theta_u)", lambda d: np.sin(d["thu"])),
+    ]
+    return {
+        "lower_friction": lower,
+        "upper_friction": upper,
+        "string": string,
+        "lower_force": lower_force,
+        "upper_force": upper_force,
+    }
 
 
 #: (effect on the upper disc's torque, on the lower disc's) of a unit of the term, per group
-_SENSE = {"lower_friction": (0.0, -1.0), "upper_friction": (-1.0, 0.0), "string": (1.0, -1.0),
-          "lower_force": (0.0, 1.0), "upper_force": (1.0, 0.0)}
+_SENSE = {
+    "lower_friction": (0.0, -1.0),
+    "upper_friction": (-1.0, 0.0),
+    "string": (1.0, -1.0),
+    "lower_force": (0.0, 1.0),
+    "upper_force": (1.0, 0.0),
+}
 
 
 def _data(rt: ResidualTorque, u: np.ndarray) -> dict[str, np.ndarray]:
     S = rt.states
-    return {"thu": S[:, 0], "thl": S[:, 1], "wu": S[:, 2], "wl": S[:, 3], "a": S[:, 1] - S[:, 0],
-            "ad": S[:, 3] - S[:, 2], "t": rt.t, "u": u}
+    return {
+        "thu": S[:, 0],
+        "thl": S[:, 1],
+        "wu": S[:, 2],
+        "wl": S[:, 3],
+        "a": S[:, 1] - S[:, 0],
+        "ad": S[:, 3] - S[:, 2],
+        "t": rt.t,
+        "u": u,
+    }
 
 
 def _nuisance(d: dict, n: int, Ju: float, Jl: float, ws: float, delta: float) -> np.ndarray:
@@ -146,15 +209,32 @@ def _nuisance(d: dict, n: int, Ju: float, Jl: float, ws: float, delta: float) ->
     up = lambda g: np.concatenate([g / Ju, z])  # noqa: E731
     lo = lambda g: np.concatenate([z, g / Jl])  # noqa: E731
     one = np.ones(n)
-    strib = np.sign(d["wl"]) * np.exp(-np.abs(d["wl"] / ws) ** delta)
-    cols = [up(one), lo(one), up(np.sign(d["wu"])), up(d["wu"]), up(d["u"]), up(d["accu"]),
-            lo(np.sign(d["wl"])), lo(d["wl"]), lo(strib), lo(d["accl"]),
-            np.concatenate([d["a"] / Ju, -d["a"] / Jl])]
+    strib = np.sign(d["wl"]) * np.exp(-(np.abs(d["wl"] / ws) ** delta))
+    cols = [
+        up(one),
+        lo(one),
+        up(np.sign(d["wu"])),
+        up(d["wu"]),
+        up(d["u"]),
+        up(d["accu"]),
+        lo(np.sign(d["wl"])),
+        lo(d["wl"]),
+        lo(strib),
+        lo(d["accl"]),
+        np.concatenate([d["a"] / Ju, -d["a"] / Jl]),
+    ]
     return np.column_stack(cols)
 
 
-def find_candidate(rt: ResidualTorque, u: np.ndarray, Ju: float, Jl: float, lateral: bool = False,
-                   ws: float = 1.4302, delta: float = 2.0575) -> Candidate | None:
+def find_candidate(
+    rt: ResidualTorque,
+    u: np.ndarray,
+    Ju: float,
+    Jl: float,
+    lateral: bool = False,
+    ws: float = 1.4302,
+    delta: float = 2.0575,
+) -> Candidate | None:
     """The best candidate group and terms for some residual torques.
 
     Terms are regressed jointly with the columns a change of the base parameters would give, so a
@@ -193,15 +273,18 @@ def find_candidate(rt: ResidualTorque, u: np.ndarray, Ju: float, Jl: float, late
     # each group is judged on the rows of the discs it acts on, and a both-disc group (the string) also on
     # each disc alone: a disc whose residual is noise (e.g. the upper disc's under voltage steps, which the
     # second derivative smears) must not hide a term the other disc shows clearly
-    rowsets = {"upper": np.r_[np.ones(n, bool), np.zeros(n, bool)], "lower": np.r_[np.zeros(n, bool), np.ones(n, bool)],
-               "both": np.ones(2 * n, bool)}
+    rowsets = {
+        "upper": np.r_[np.ones(n, bool), np.zeros(n, bool)],
+        "lower": np.r_[np.zeros(n, bool), np.ones(n, bool)],
+        "both": np.ones(2 * n, bool),
+    }
     for where, rows in rowsets.items():
         Wr = W * rows
         if not np.any(Wr > 0):
             continue
         Q, _ = np.linalg.qr(Nm * rows[:, None])
 
-        def project(v: np.ndarray) -> np.ndarray:
+        def project(v: np.ndarray, Q: np.ndarray = Q) -> np.ndarray:
             return v - Q @ (Q.T @ v)
 
         yr = project(y * rows)
@@ -211,22 +294,39 @@ def find_candidate(rt: ResidualTorque, u: np.ndarray, Ju: float, Jl: float, late
             acts = {"upper": su != 0, "lower": sl != 0, "both": su != 0 and sl != 0}[where]
             if not acts:
                 continue
-            cols = [project(rows * smooth(W * np.concatenate([su * g / Ju, sl * g / Jl])))
-                    for g in (np.asarray(tm.values(d), dtype=float) for tm in terms)]
+            cols = [
+                project(rows * smooth(W * np.concatenate([su * g / Ju, sl * g / Jl])))
+                for g in (np.asarray(tm.values(d), dtype=float) for tm in terms)
+            ]
             chosen, share = _greedy_terms(cols, yr, tss)
             shares[group] = max(shares.get(group, 0.0), share)
             if chosen and (best is None or share > best.explained):
                 # the file's coefficients: the terms alone (with per-disc offsets), as the effect will act on the
                 # model as it is; the joint regression above only decides which terms and how much they explain
-                raw = [rows * smooth(W * np.concatenate([su * np.asarray(terms[j].values(d), float) / Ju,
-                                                         sl * np.asarray(terms[j].values(d), float) / Jl]))
-                       for j in chosen]
+                raw = [
+                    rows
+                    * smooth(
+                        W
+                        * np.concatenate(
+                            [
+                                su * np.asarray(terms[j].values(d), float) / Ju,
+                                sl * np.asarray(terms[j].values(d), float) / Jl,
+                            ]
+                        )
+                    )
+                    for j in chosen
+                ]
                 coef = _alone_coefficients(raw, Nm, rows, y)
                 if coef is None:
                     continue  # the terms alone cancel each other: not a usable candidate
-                best = Candidate(group, {terms[j].label: float(coef[i]) for i, j in enumerate(chosen)},
-                                 {terms[j].label: terms[j].code for j in chosen},
-                                 {terms[j].label: terms[j].at_rest for j in chosen}, share, n)
+                best = Candidate(
+                    group,
+                    {terms[j].label: float(coef[i]) for i, j in enumerate(chosen)},
+                    {terms[j].label: terms[j].code for j in chosen},
+                    {terms[j].label: terms[j].at_rest for j in chosen},
+                    share,
+                    n,
+                )
     if best is not None:
         best.rest = shares
         _set_reach(best, rt, d, ok, W, n, groups[best.group])
@@ -311,8 +411,7 @@ def _greedy_terms(cols: list[np.ndarray], yr: np.ndarray, tss: float) -> tuple[l
     return chosen, share
 
 
-def _alone_coefficients(raw: list[np.ndarray], Nm: np.ndarray, rows: np.ndarray, y: np.ndarray
-                        ) -> np.ndarray | None:
+def _alone_coefficients(raw: list[np.ndarray], Nm: np.ndarray, rows: np.ndarray, y: np.ndarray) -> np.ndarray | None:
     """The terms' coefficients regressed alone (with per-disc offsets), or None when they cancel each other."""
     X = np.column_stack(raw + [Nm[:, 0] * rows, Nm[:, 1] * rows])
     coef, *_ = np.linalg.lstsq(X, y * rows, rcond=None)
@@ -322,16 +421,24 @@ def _alone_coefficients(raw: list[np.ndarray], Nm: np.ndarray, rows: np.ndarray,
     return coef
 
 
-def _set_reach(best: Candidate, rt: ResidualTorque, d: dict, ok: np.ndarray, W: np.ndarray, n: int,
-               terms: list[_Term]) -> None:
+def _set_reach(
+    best: Candidate, rt: ResidualTorque, d: dict, ok: np.ndarray, W: np.ndarray, n: int, terms: list[_Term]
+) -> None:
     """Each term's coefficient that would make it alone as large as the residual torque (``best.reach``)."""
     su, sl = _SENSE[best.group]
-    res_rms = float(np.sqrt(np.mean(np.concatenate(
-        ([(rt.tau_l[ok][W[n:] > 0]) ** 2] if sl else []) + ([(rt.tau_u[ok][W[:n] > 0]) ** 2] if su else [])))))
+    res_rms = float(
+        np.sqrt(
+            np.mean(
+                np.concatenate(
+                    ([(rt.tau_l[ok][W[n:] > 0]) ** 2] if sl else []) + ([(rt.tau_u[ok][W[:n] > 0]) ** 2] if su else [])
+                )
+            )
+        )
+    )
     for tm in terms:
         if tm.label in best.terms:
             g = np.asarray(tm.values(d), dtype=float)
-            best.reach[tm.label] = res_rms / max(float(np.sqrt(np.mean(g ** 2))), 1e-12)
+            best.reach[tm.label] = res_rms / max(float(np.sqrt(np.mean(g**2))), 1e-12)
 
 
 _ARGS_FRICTION = ("T", "direction", "speed", "omega")
@@ -360,17 +467,29 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
     params, body = [], []
     for i, (label, c) in enumerate(cand.terms.items(), 1):
         size = max(abs(c), cand.reach.get(label, 0.0), 1e-9)
-        params.append(f'        Parameter("{name}_c{i}", "N m", {-4 * size!r}, {4 * size!r}, {c!r}, {size / 2!r},\n'
-                      f'                  doc="coefficient of {label}"),')
+        params.append(
+            f'        Parameter("{name}_c{i}", "N m", {-4 * size!r}, {4 * size!r}, {c!r}, {size / 2!r},\n'
+            f'                  doc="coefficient of {label}"),'
+        )
         body.append(f"{name}_c{i} * ({cand.codes[label]})")
     pnames = [f"{name}_c{i}" for i in range(1, len(cand.terms) + 1)]
     expr = " + ".join(body)
     used = [v for v in ("theta_l", "theta_u", "alpha", "alpha_dot", "t", "u") if _uses(cand, v)]
-    lines = ['"""Candidate effect written by `drillgym diagnose --candidate-out` from the residual torques.',
-             "", f"    {cand.expression()}", f"    (explains {cand.explained:.0%} of the residual torque; "
-             f"{cand.n_samples} samples)", "",
-             f"Fit it: drillgym identify RECORDING --add-effect {path.name}:{name} --out p.json", '"""', "",
-             "import math", "", "from drillgym.effects import Force, Friction, Parameter", "", ""]
+    lines = [
+        '"""Candidate effect written by `drillgym diagnose --candidate-out` from the residual torques.',
+        "",
+        f"    {cand.expression()}",
+        f"    (explains {cand.explained:.0%} of the residual torque; {cand.n_samples} samples)",
+        "",
+        f"Fit it: drillgym identify RECORDING --add-effect {path.name}:{name} --out p.json",
+        '"""',
+        "",
+        "import math",
+        "",
+        "from drillgym.effects import Force, Friction, Parameter",
+        "",
+        "",
+    ]
     friction = cand.group.endswith("friction")
     kind = "Friction" if friction else "Force"
     lines.append(f"class {cls}({kind}):")
@@ -430,30 +549,40 @@ def advice(ex: Experiment, rt: ResidualTorque | None) -> list[str]:
     out = []
     wl = ex.rates.get("omega_l", np.zeros(ex.n))
     if np.mean(wl < -0.1) < 0.05:
-        out.append("the lower disc hardly turns backwards: an input around 0 V (offset 0, amplitude >= 3 V) shows "
-                   "direction-dependent friction")
+        out.append(
+            "the lower disc hardly turns backwards: an input around 0 V (offset 0, amplitude >= 3 V) shows "
+            "direction-dependent friction"
+        )
     if rt is not None and np.mean(np.sign(rt.states[:, 1] - rt.states[:, 0]) < 0) < 0.05:
-        out.append("the string's twist α hardly changes sign: an input around 0 V (offset 0) that winds the string "
-                   "both ways shows free play or a non-linear string near zero twist")
+        out.append(
+            "the string's twist α hardly changes sign: an input around 0 V (offset 0) that winds the string "
+            "both ways shows free play or a non-linear string near zero twist"
+        )
     if np.percentile(np.abs(wl), 95) < 3.0:
-        out.append("the lower disc stays below 3 rad/s: slow ramps up to 4-5 V cover the Stribeck range and viscous "
-                   "terms")
+        out.append(
+            "the lower disc stays below 3 rad/s: slow ramps up to 4-5 V cover the Stribeck range and viscous terms"
+        )
     if "theta_l" in ex.meas and abs(ex.meas["theta_l"][-1] - ex.meas["theta_l"][0]) < 4 * math.pi:
-        out.append("the lower disc turns less than two revolutions: a longer run (several revolutions) shows "
-                   "angle-dependent effects")
+        out.append(
+            "the lower disc turns less than two revolutions: a longer run (several revolutions) shows "
+            "angle-dependent effects"
+        )
     if ex.duration < 40.0:
         out.append("a longer recording (60 s or more) separates slow drifts from noise")
     if not out:
-        out.append("the residual is not explained by any term of the candidate library: repeat the run to see "
-                   "whether it is reproducible (a disturbance, not a model error), or record at a higher rate")
+        out.append(
+            "the residual is not explained by any term of the candidate library: repeat the run to see "
+            "whether it is reproducible (a disturbance, not a model error), or record at a higher rate"
+        )
     return out
 
 
 MIN_RESIDUAL_UNITS = 4.0  # noise units: a model closer than this to the data leaves nothing to discover
 
 
-def discover(ex: Experiment, diagnosis, candidate_out: str | Path | None = None, name: str | None = None
-             ) -> tuple[Candidate | None, list[str]]:
+def discover(
+    ex: Experiment, diagnosis, candidate_out: str | Path | None = None, name: str | None = None
+) -> tuple[Candidate | None, list[str]]:
     """The candidate effect for what the diagnosed model still misses.
 
     The model is the diagnosis' (selected effects, base parameters as decided); when the base parameters

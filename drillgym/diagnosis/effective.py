@@ -16,6 +16,7 @@ one, so each segment of each channel is a short experiment of its own and counts
 Without it, a smooth misfit (ρ 0.995 on an independent rig that creeps little) set N_eff to 10 for a whole
 minute of data, and a group of effects that cut the residual sum of squares seven-fold scored 4 nats.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -26,7 +27,7 @@ __all__ = ["effective_samples", "MIN_EFFECTIVE"]
 MIN_EFFECTIVE = 10.0
 
 
-def _lag1(r: np.ndarray, same: "np.ndarray | None") -> float:
+def _lag1(r: np.ndarray, same: np.ndarray | None) -> float:
     """Lag-1 autocorrelation in [0, 0.999], from the neighbouring pairs ``same`` marks (all without)."""
     a, b = (r[:-1], r[1:]) if same is None else (r[:-1][same], r[1:][same])
     if len(a) < 2 or not (np.any(a - a.mean()) and np.any(b - b.mean())):
@@ -34,7 +35,7 @@ def _lag1(r: np.ndarray, same: "np.ndarray | None") -> float:
     return float(np.clip(np.corrcoef(a, b)[0, 1], 0.0, 0.999))
 
 
-def effective_samples(r: np.ndarray, blocks: "np.ndarray | None" = None) -> float:
+def effective_samples(r: np.ndarray, blocks: np.ndarray | None = None) -> float:
     """Effectively independent samples of a residual vector.
 
     Parameters

@@ -24,7 +24,7 @@ __all__ = ["EFFECTS", "get_effect", "effects_for", "applies_to", "with_candidate
 EFFECTS: dict[str, type[Effect]] = dict(LIBRARY)
 
 
-def get_effect(spec: "str | type[Effect]") -> type[Effect]:
+def get_effect(spec: str | type[Effect]) -> type[Effect]:
     """An effect class from a name (library, entry point) or ``path/to/file.py:NAME``.
 
     Parameters
@@ -101,8 +101,12 @@ def with_candidate(model: Composition, candidate: type[Effect]) -> Composition:
     return Composition(tuple(model.effects) + (candidate,))
 
 
-def fit_variables(composition: Composition, effect: type[Effect], start: np.ndarray | None = None,
-                  values: dict[str, Any] | None = None) -> list[FitVariable]:
+def fit_variables(
+    composition: Composition,
+    effect: type[Effect],
+    start: np.ndarray | None = None,
+    values: dict[str, Any] | None = None,
+) -> list[FitVariable]:
     """An effect's parameters as fit variables (bounds, guess and scale from its Parameters).
 
     Parameters

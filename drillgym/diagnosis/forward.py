@@ -27,8 +27,8 @@ percent off leaves a residual that some effect partly mimics.  One run of :func:
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -200,7 +200,7 @@ class SearchState:
         """
         self.ctx.vec, self.rss, self.ctx.fit = fit.vector, fit.rss_after, fit
 
-    def channels_for(self, name: str) -> "np.ndarray | None":
+    def channels_for(self, name: str) -> np.ndarray | None:
         """The channel of each residual entry, for scoring a candidate per channel.
 
         A measurement effect changes only its own channels, so its likelihood ratio is the per-channel one
@@ -261,13 +261,19 @@ def _begin(model: SearchModel, options: SelectionOptions, start: SearchStart) ->
     parameters fitted first (with them)."""
     excluded = dict(start.excluded)
     vec0, obj = model.nominal, model.obj
-    ctx = SelectionContext(obj, model.comp, vec0.copy(), vec0.copy(),
-                           tuple(model.base_names) if start.free_base else (),
-                           {c.name: c for c in model.candidates if c.name not in excluded},
-                           prior_sigma=start.prior_sigma)
+    ctx = SelectionContext(
+        obj,
+        model.comp,
+        vec0.copy(),
+        vec0.copy(),
+        tuple(model.base_names) if start.free_base else (),
+        {c.name: c for c in model.candidates if c.name not in excluded},
+        prior_sigma=start.prior_sigma,
+    )
     n = obj.residual_matrix(vec0[None, :]).shape[1]
-    state = SearchState(ctx, options, vec0, n, obj.block_ids, dict(obj.scales), balance=start.balance,
-                        excluded=excluded)
+    state = SearchState(
+        ctx, options, vec0, n, obj.block_ids, dict(obj.scales), balance=start.balance, excluded=excluded
+    )
     state.rss_nominal = state.refine_for(vec0)
     state.rss = state.rss_nominal
     ctx.selected = [n_ for n_ in start.initial if n_ in ctx.effects]
@@ -318,8 +324,13 @@ def _grow(state: SearchState, first_pass: bool) -> None:
         ctx.selected.append(best)
         state.steps.append(round_[best])
         # more passes with speeds refined for the extended model
-        state.take(state.converged(joint[best].vector if best in joint else screen[best].vector,
-                                   state.free_with(ctx.selected), opts.max_nfev_joint))
+        state.take(
+            state.converged(
+                joint[best].vector if best in joint else screen[best].vector,
+                state.free_with(ctx.selected),
+                opts.max_nfev_joint,
+            )
+        )
 
 
 def _screen(state: SearchState, first_pass: bool) -> dict[str, FitResult]:
@@ -333,9 +344,12 @@ def _screen(state: SearchState, first_pass: bool) -> dict[str, FitResult]:
     if ctx.base_names and first_pass:
         starts.append(ctx.nominal_base(ctx.vec))
     tasks = [(name, v) for name in ctx.effects if name not in ctx.selected for v in starts]
-    fits = in_parallel([lambda name=name, v=v: screen_fit(ctx, v, name, state.options.max_nfev_screen,
-                                                          state.options.refine)
-                        for name, v in tasks])
+    fits = in_parallel(
+        [
+            lambda name=name, v=v: screen_fit(ctx, v, name, state.options.max_nfev_screen, state.options.refine)
+            for name, v in tasks
+        ]
+    )
     screen: dict[str, FitResult] = {}
     for (name, _), r_ in zip(tasks, fits):
         if isinstance(r_, ValueError):
@@ -346,17 +360,27 @@ def _screen(state: SearchState, first_pass: bool) -> dict[str, FitResult]:
     return screen
 
 
-def _score_round(state: SearchState, screen: dict[str, FitResult], order: Sequence[str]
-                 ) -> tuple[dict[str, SelectionStep], dict[str, FitResult]]:
+def _score_round(
+    state: SearchState, screen: dict[str, FitResult], order: Sequence[str]
+) -> tuple[dict[str, SelectionStep], dict[str, FitResult]]:
     """Each screened candidate's step (its score against the current model), the ``n_joint`` best refitted
     jointly with the base parameters and the accepted effects; returns the steps and the fits that scored
     best for those refitted."""
     ctx, opts = state.ctx, state.options
     free_now = state.free_with(ctx.selected)
-    joint_fits = dict(zip(order[:opts.n_joint], in_parallel(
-        [lambda name=name: fit_free(ctx, screen[name].vector, free_now + ctx.effect_parameters([name]),
-                                    opts.max_nfev_joint)
-         for name in order[:opts.n_joint]])))
+    joint_fits = dict(
+        zip(
+            order[: opts.n_joint],
+            in_parallel(
+                [
+                    lambda name=name: fit_free(
+                        ctx, screen[name].vector, free_now + ctx.effect_parameters([name]), opts.max_nfev_joint
+                    )
+                    for name in order[: opts.n_joint]
+                ]
+            ),
+        )
+    )
     round_: dict[str, SelectionStep] = {}
     joint: dict[str, FitResult] = {}
     for name in order:
@@ -373,13 +397,17 @@ def _score_round(state: SearchState, screen: dict[str, FitResult], order: Sequen
             # can trade the torsional channels for its own (an independent rig's 2.5° LVDT skew: its screen
             # +133 nats; the joint refit, RSS 8916 -> 8864, moved the base so that θl and θu lost more nats
             # than y and x gained, -22 nats)
-            sj, nj = (score(state.residual, jr, k, opts.n_eff_ref, chans, state.blocks)
-                      if jr.rss_after <= state.rss else (-math.inf, ne))
+            sj, nj = (
+                score(state.residual, jr, k, opts.n_eff_ref, chans, state.blocks)
+                if jr.rss_after <= state.rss
+                else (-math.inf, ne)
+            )
             if sj > sc:
                 res, sc, ne = jr, sj, nj
             joint[name] = res
-        eff_vals = {p: res.values.get(p, float(res.vector[ctx.comp.param_index(p)]))
-                    for p in ctx.effect_parameters([name])}
+        eff_vals = {
+            p: res.values.get(p, float(res.vector[ctx.comp.param_index(p)])) for p in ctx.effect_parameters([name])
+        }
         eff_std = {p: res.std.get(p, float("nan")) for p in eff_vals}
         sig = significant(sc, state.rss, res.rss_after, state.n, state.residual, res.residual, chans, state.units())
         round_[name] = SelectionStep(name, sc, state.rss, res.rss_after, eff_vals, eff_std, sig, ne)
@@ -408,24 +436,35 @@ def _enter_group(state: SearchState, screen: dict[str, FitResult], order: Sequen
         return False
     for n in group:
         vals = {p: float(gr.vector[ctx.comp.param_index(p)]) for p in ctx.effect_parameters([n])}
-        state.steps.append(SelectionStep(n, sc, state.rss, gr.rss_after, vals,
-                                         {p: gr.std.get(p, float("nan")) for p in vals}, True, ne,
-                                         note=f"entered with {', '.join(g for g in group if g != n)}"))
+        state.steps.append(
+            SelectionStep(
+                n,
+                sc,
+                state.rss,
+                gr.rss_after,
+                vals,
+                {p: gr.std.get(p, float("nan")) for p in vals},
+                True,
+                ne,
+                note=f"entered with {', '.join(g for g in group if g != n)}",
+            )
+        )
     ctx.selected += group
     state.tried_group = True
     state.take(state.converged(gr.vector, state.free_with(ctx.selected), opts.max_nfev_joint))
     return True
 
 
-def _masked_groups(state: SearchState, screen: dict[str, FitResult], order: Sequence[str]
-                   ) -> "Iterator[tuple[list[str], np.ndarray]]":
+def _masked_groups(
+    state: SearchState, screen: dict[str, FitResult], order: Sequence[str]
+) -> Iterator[tuple[list[str], np.ndarray]]:
     """Groups of candidates to fit together when none is significant alone, each with its start vector:
     the ``n_group`` best by their screens (those that explained anything), then the best screened
     candidate with the partner whose screen beside it (its parameters fitted from their best start, the
     leader's held at its screened values) leaves the smallest RSS."""
     ctx, opts = state.ctx, state.options
     room = opts.max_effects - len(ctx.selected)
-    group = [n for n in order if screen[n].rss_after < state.rss][:min(opts.n_group, room)]
+    group = [n for n in order if screen[n].rss_after < state.rss][: min(opts.n_group, room)]
 
     def start(members: Sequence[str], src: dict[str, np.ndarray]) -> np.ndarray:
         gv = ctx.vec.copy()
@@ -433,6 +472,7 @@ def _masked_groups(state: SearchState, screen: dict[str, FitResult], order: Sequ
             for p in ctx.effect_parameters([n]):
                 gv[ctx.comp.param_index(p)] = src[n][ctx.comp.param_index(p)]
         return gv
+
     if len(group) >= 2:
         yield group, start(group, {n: screen[n].vector for n in group})
     lead = order[0]

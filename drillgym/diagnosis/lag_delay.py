@@ -14,7 +14,7 @@ the two shift the slow response alike.  :func:`check_lag_delay` asks again on th
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -27,15 +27,23 @@ from .scoring import SEPARATES_LAG_DELAY
 from .search_model import SearchModel
 from .timing import LAG_DELAY, SMOOTH_INPUT_SHARE, FineDecision, input_share_above, resolvable_lag_delay
 
-__all__ = ["check_lag_delay", "own_base", "nominal_base_models", "apply_nominal_check", "smooth_input_share",
-           "smooth_input_warning", "MOTOR_SIDE"]
+__all__ = [
+    "check_lag_delay",
+    "own_base",
+    "nominal_base_models",
+    "apply_nominal_check",
+    "smooth_input_share",
+    "smooth_input_warning",
+    "MOTOR_SIDE",
+]
 
 #: motor-side parameters a lag or delay on a smooth input is taken for (a constant voltage offset per ramp)
 MOTOR_SIDE = ("Tcu", "km", "bu")
 
 
-def check_lag_delay(out: Selection, exps: Sequence[Experiment], model: SearchModel, segment_s: float | None
-                    ) -> FineDecision | None:
+def check_lag_delay(
+    out: Selection, exps: Sequence[Experiment], model: SearchModel, segment_s: float | None
+) -> FineDecision | None:
     """Decide a selected motor lag or input delay again on the recordings' own rate (in place on ``out``).
 
     Both are searched with the selected model's base parameters (:func:`.timing.decide_lag_delay_many`);
@@ -66,13 +74,15 @@ def check_lag_delay(out: Selection, exps: Sequence[Experiment], model: SearchMod
     b = LAG_DELAY[1 - LAG_DELAY.index(a)]
     comp, obj = model.comp, model.obj
     free_base = tuple(model.base_names) if out.base_off else ()
-    ctx = SelectionContext(obj, comp, out.vector.copy(), model.nominal.copy(), free_base,
-                           {e: by[e] for e in set(out.selected) | {b}})
+    ctx = SelectionContext(
+        obj, comp, out.vector.copy(), model.nominal.copy(), free_base, {e: by[e] for e in set(out.selected) | {b}}
+    )
     without_a = ctx.neutralise(out.vector, a)
     model_b = without_a
     searches: dict = {}  # the fine searches made, reused by the checks below
-    dec = timing.decide_lag_delay_many(exps, comp, [({a: out.vector, b: without_a}, a)], obj.weights, segment_s,
-                                       known=searches)[0]
+    dec = timing.decide_lag_delay_many(
+        exps, comp, [({a: out.vector, b: without_a}, a)], obj.weights, segment_s, known=searches
+    )[0]
     corner, fast = smooth_input_share(exps, comp, model.nominal)
     if dec is None:
         _unresolved_tie(out, exps, ctx, a, b, (corner, fast))
@@ -83,19 +93,28 @@ def check_lag_delay(out: Selection, exps: Sequence[Experiment], model: SearchMod
         # what tells a lag from a delay is the response to fast changes of the voltage, at any sampling rate:
         # on a smooth input the fine grid's difference is the model's error elsewhere (a true 43 ms lag on
         # 60 s of ramps at 500 Hz, base parameters 3-6 % off: the delay by 152 nats)
-        dec.doubt = (f"{100 * fast:.2f} % of the input's variance lies above the upper disc's corner frequency "
-                     f"({corner:.2f} Hz): on so smooth an input a lag and a delay shift the response alike")
+        dec.doubt = (
+            f"{100 * fast:.2f} % of the input's variance lies above the upper disc's corner frequency "
+            f"({corner:.2f} Hz): on so smooth an input a lag and a delay shift the response alike"
+        )
     elif free_base and not dec.tie:
         # the base parameters were refitted with the incumbent in the model: the decision must hold when the
         # other one has its own, and with the nominal ones (both checks' searches run together)
         own = own_base(ctx, out, a, b, without_a)
         again, check = timing.decide_lag_delay_many(
-            exps, comp, [({a: out.vector, b: own}, a), (nominal_base_models(ctx, a), a)], obj.weights, segment_s,
-            known=searches)
+            exps,
+            comp,
+            [({a: out.vector, b: own}, a), (nominal_base_models(ctx, a), a)],
+            obj.weights,
+            segment_s,
+            known=searches,
+        )
         dec.own_base = again.brief()
         if dec.reversed_by(again):
-            dec.doubt = (f"with {b}'s own base parameters (refitted with it) the check decides {again.chosen} by "
-                         f"{again.gap:.0f} nats")
+            dec.doubt = (
+                f"with {b}'s own base parameters (refitted with it) the check decides {again.chosen} by "
+                f"{again.gap:.0f} nats"
+            )
         else:
             if dec.chosen == b:
                 model_b = own
@@ -109,24 +128,31 @@ def check_lag_delay(out: Selection, exps: Sequence[Experiment], model: SearchMod
     return dec
 
 
-def _unresolved_tie(out: Selection, exps: Sequence[Experiment], ctx: SelectionContext, a: str, b: str,
-                    share: tuple[float, float]) -> None:
+def _unresolved_tie(
+    out: Selection, exps: Sequence[Experiment], ctx: SelectionContext, a: str, b: str, share: tuple[float, float]
+) -> None:
     """Without finer data: a tie when the base parameters are at a bound, the lag or delay is shorter than
     the comparison grid resolves, or the input is smooth."""
     corner, fast = share
     if out.at_bounds and a not in out.ties:
-        out.ties[a] = (f"not told apart from {b}: the base parameters are at a bound of their range "
-                       f"({', '.join(out.at_bounds)}), the model is wrong elsewhere; " + SEPARATES_LAG_DELAY)
+        out.ties[a] = (
+            f"not told apart from {b}: the base parameters are at a bound of their range "
+            f"({', '.join(out.at_bounds)}), the model is wrong elsewhere; " + SEPARATES_LAG_DELAY
+        )
     value = float(out.vector[ctx.comp.param_index(ctx.effects[a].parameters[0].name)])
     shortest = resolvable_lag_delay(exps)
     if a not in out.ties and value < shortest:
-        out.ties[a] = (f"not told apart from {b} at this rate: {1e3 * value:.0f} ms is below what the "
-                       f"comparison grid and the recording's own samples resolve ({1e3 * shortest:.0f} ms: one "
-                       f"period of each); " + SEPARATES_LAG_DELAY)
+        out.ties[a] = (
+            f"not told apart from {b} at this rate: {1e3 * value:.0f} ms is below what the "
+            f"comparison grid and the recording's own samples resolve ({1e3 * shortest:.0f} ms: one "
+            f"period of each); " + SEPARATES_LAG_DELAY
+        )
     elif a not in out.ties and fast < SMOOTH_INPUT_SHARE:
-        out.ties[a] = (f"not told apart from {b} on this input: {100 * fast:.2f} % of its variance lies above the "
-                       f"upper disc's corner frequency ({corner:.2f} Hz), and on so smooth an input (ramps) a lag "
-                       f"and a delay shift the response alike; " + SEPARATES_LAG_DELAY)
+        out.ties[a] = (
+            f"not told apart from {b} on this input: {100 * fast:.2f} % of its variance lies above the "
+            f"upper disc's corner frequency ({corner:.2f} Hz), and on so smooth an input (ramps) a lag "
+            f"and a delay shift the response alike; " + SEPARATES_LAG_DELAY
+        )
 
 
 def _take_other(out: Selection, ctx: SelectionContext, a: str, b: str, model_b: np.ndarray, value: float) -> None:
@@ -183,12 +209,14 @@ def own_base(ctx: SelectionContext, out: Selection, a: str, b: str, without_a: n
     comp = ctx.comp
     start = without_a.copy()
     start[comp.param_index(ctx.effects[b].parameters[0].name)] = float(
-        out.vector[comp.param_index(ctx.effects[a].parameters[0].name)])
+        out.vector[comp.param_index(ctx.effects[a].parameters[0].name)]
+    )
     rest = [b if e == a else e for e in out.selected]
     model = ctx.obj.model
     with model.speeds_kept():
-        fitted = converged_fit(ctx, start, list(ctx.base_names) + ctx.effect_parameters(rest), 15,
-                               refine=bool(model.speed_offsets))
+        fitted = converged_fit(
+            ctx, start, list(ctx.base_names) + ctx.effect_parameters(rest), 15, refine=bool(model.speed_offsets)
+        )
     return fitted.vector
 
 
@@ -242,8 +270,10 @@ def apply_nominal_check(dec: FineDecision, check: FineDecision | None) -> None:
         return
     dec.nominal_base = check.brief()
     if dec.reversed_by(check):
-        dec.doubt = (f"with the base parameters at their nominal values the check decides {check.chosen} by "
-                     f"{check.gap:.0f} nats: the base refit absorbs the difference")
+        dec.doubt = (
+            f"with the base parameters at their nominal values the check decides {check.chosen} by "
+            f"{check.gap:.0f} nats: the base refit absorbs the difference"
+        )
 
 
 def smooth_input_share(exps: Sequence[Experiment], comp: Composition, nominal: np.ndarray) -> tuple[float, float]:
@@ -268,8 +298,13 @@ def smooth_input_share(exps: Sequence[Experiment], comp: Composition, nominal: n
     return corner, min(input_share_above(ex, corner) for ex in exps)
 
 
-def smooth_input_warning(exps: Sequence[Experiment], comp: Composition, nominal: np.ndarray,
-                         moved: dict[str, BaseChange], selected: Sequence[str]) -> list[str]:
+def smooth_input_warning(
+    exps: Sequence[Experiment],
+    comp: Composition,
+    nominal: np.ndarray,
+    moved: dict[str, BaseChange],
+    selected: Sequence[str],
+) -> list[str]:
     """A warning when a lag or delay may hide in the motor side's base parameters.
 
     Raised when the input is smooth (ramps), neither a motor lag nor an input delay was selected, and the
@@ -302,6 +337,8 @@ def smooth_input_warning(exps: Sequence[Experiment], comp: Composition, nominal:
     if fast >= SMOOTH_INPUT_SHARE:
         return []
     what = ", ".join(f"{n} {c:+.1f} %" for n, c in changed.items())
-    return [f"the input is smooth ({100 * fast:.2f} % of its variance above the upper disc's corner frequency, "
-            f"{corner:.2f} Hz): a motor lag or input delay acts on it as a constant voltage offset per ramp and cannot "
-            f"be told from the motor-side parameters that moved ({what}); a recording with voltage steps separates them"]
+    return [
+        f"the input is smooth ({100 * fast:.2f} % of its variance above the upper disc's corner frequency, "
+        f"{corner:.2f} Hz): a motor lag or input delay acts on it as a constant voltage offset per ramp and cannot "
+        f"be told from the motor-side parameters that moved ({what}); a recording with voltage steps separates them"
+    ]

@@ -19,8 +19,9 @@ better model each time:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -66,7 +67,7 @@ class SearchOutcome:
     paths: dict[str, list[str]] = field(default_factory=dict)
     sensor_misfit: dict[str, float] = field(default_factory=dict)
     scales: dict[str, float] = field(default_factory=dict)
-    lag_delay: "FineDecision | None" = None
+    lag_delay: FineDecision | None = None
 
 
 def select(model: SearchModel, options: SelectionOptions) -> SearchOutcome:
@@ -87,9 +88,11 @@ def select(model: SearchModel, options: SelectionOptions) -> SearchOutcome:
     obj = model.obj
     noise_scales = dict(obj.scales)
     out = forward_select(model, options, SearchStart(balance=True))
-    sensor_misfit = {name: obj.scales[chans[0]] / noise_scales[chans[0]]
-                     for name, chans in SENSORS.items() if chans[0] in obj.channels
-                     and obj.scales[chans[0]] != noise_scales[chans[0]]}
+    sensor_misfit = {
+        name: obj.scales[chans[0]] / noise_scales[chans[0]]
+        for name, chans in SENSORS.items()
+        if chans[0] in obj.channels and obj.scales[chans[0]] != noise_scales[chans[0]]
+    }
     outcome = SearchOutcome(out, {"base_first": out.labelled()}, sensor_misfit, dict(obj.scales))
     if not model.base_names:
         return outcome
@@ -122,8 +125,9 @@ def select(model: SearchModel, options: SelectionOptions) -> SearchOutcome:
     return outcome
 
 
-def _nominal_orders(model: SearchModel, options: SelectionOptions, outcome: SearchOutcome
-                    ) -> tuple[Selection, Selection | None]:
+def _nominal_orders(
+    model: SearchModel, options: SelectionOptions, outcome: SearchOutcome
+) -> tuple[Selection, Selection | None]:
     """The effects-first order on the nominal base, then continued with the base freed; the model kept
     and that continuation (None when the nominal order found nothing new)."""
     out, alt = outcome.kept, None
@@ -184,8 +188,9 @@ def lag_from_rescaled_base(out: Selection, model: SearchModel, options: Selectio
     return forward_select(model, options, SearchStart(initial=tuple(out.selected) + (lag.name,), vector=start))
 
 
-def union_start(kept: Selection, results: Sequence[Selection], comp: Composition,
-                effects: Sequence[type[Effect]]) -> tuple[list[str], np.ndarray] | None:
+def union_start(
+    kept: Selection, results: Sequence[Selection], comp: Composition, effects: Sequence[type[Effect]]
+) -> tuple[list[str], np.ndarray] | None:
     """The union of the effects the search orders selected, and a start for it.
 
     The start is the kept model's vector with each effect it lacks at the values of the first order that
@@ -228,8 +233,9 @@ def union_start(kept: Selection, results: Sequence[Selection], comp: Composition
     return [n for n in order if n in by], start
 
 
-def union_of_paths(kept: Selection, results: Sequence[Selection], model: SearchModel, options: SelectionOptions
-                   ) -> Selection | None:
+def union_of_paths(
+    kept: Selection, results: Sequence[Selection], model: SearchModel, options: SelectionOptions
+) -> Selection | None:
     """Backward elimination from the union of what the search orders selected, when no order selected it.
 
     The union (:func:`union_start`) is fitted jointly with the base parameters from the kept model, then the

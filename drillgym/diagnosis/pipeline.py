@@ -13,8 +13,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import replace
-from typing import Any, Sequence
+from typing import Any
 
 from ..configurations import Configuration
 from ..identification.blas import one_blas_thread
@@ -31,9 +32,14 @@ from .screening import DiagnosisOptions, screen
 __all__ = ["DiagnosisOptions", "diagnose"]
 
 
-def diagnose(data: "TimeSeries | Experiment | Sequence[Experiment]", params: RigParams | None = None,
-             config: "str | Configuration | None" = None, *, options: DiagnosisOptions | None = None,
-             **settings: Any) -> Diagnosis:
+def diagnose(
+    data: TimeSeries | Experiment | Sequence[Experiment],
+    params: RigParams | None = None,
+    config: str | Configuration | None = None,
+    *,
+    options: DiagnosisOptions | None = None,
+    **settings: Any,
+) -> Diagnosis:
     """Which set of effects the recording shows, with the base parameters re-identified.
 
     Parameters
@@ -87,5 +93,6 @@ def _fine(ex: Experiment) -> Experiment:
     ts = ex.recording
     if ts is None:
         return ex
-    return prepare_experiment(ts, ex.config, compare_rate_hz=min(250.0, ts.sample_rate_hz),
-                              lvdt_lowpass_hz=ex.lvdt_lowpass_hz)
+    return prepare_experiment(
+        ts, ex.config, compare_rate_hz=min(250.0, ts.sample_rate_hz), lvdt_lowpass_hz=ex.lvdt_lowpass_hz
+    )

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 __all__ = ["prepare_diagnosis", "PREPARED_CONFIGS"]
 

@@ -20,7 +20,8 @@ from __future__ import annotations
 
 import math
 import warnings
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -37,8 +38,15 @@ from .lag_delay import smooth_input_warning
 from .orders import SearchOutcome
 from .results import Diagnosis, EffectScore, Selection
 from .scoring import noise_floor
-from .screening import (DiagnosisOptions, Screening, condition, default_segment, default_weights,
-                        excitation_missing, prepare_experiments)
+from .screening import (
+    DiagnosisOptions,
+    Screening,
+    condition,
+    default_segment,
+    default_weights,
+    excitation_missing,
+    prepare_experiments,
+)
 from .segments import place_segment_starts
 from .timing import LAG_DELAY
 
@@ -77,14 +85,31 @@ def report(screening: Screening, outcome: SearchOutcome) -> Diagnosis:
     ne0 = effective_samples(model.obj.residual_matrix(vec0[None, :])[0], model.obj.block_ids)
     warn = list(out.base_warnings)
     if out.at_bounds:
-        warn.append(f"base parameters at the edge of their ±{100 * (BASE_BOUNDS[1] - 1):.0f} % range: "
-                    f"{', '.join(out.at_bounds)}: an effect the library lacks is absorbed by them, or the base "
-                    f"model is further off than a few percent (run identify-staged first)")
-    d = Diagnosis(ranking, screening.config, math.sqrt(out.rss_nominal / out.n), screening.channel_rms_before, ne0,
-                  screening.segment_s, skipped, refitted, screening.model_label, selected=list(out.selected),
-                  base_parameters=out.moved, base_off=out.base_off, base_score=out.base_score, warnings=warn,
-                  rmse_after=math.sqrt(out.rss_final / out.n), composition=comp, vector=vec,
-                  params=RigParams.from_vector(vec[:N_PARAMS]))
+        warn.append(
+            f"base parameters at the edge of their ±{100 * (BASE_BOUNDS[1] - 1):.0f} % range: "
+            f"{', '.join(out.at_bounds)}: an effect the library lacks is absorbed by them, or the base "
+            f"model is further off than a few percent (run identify-staged first)"
+        )
+    d = Diagnosis(
+        ranking,
+        screening.config,
+        math.sqrt(out.rss_nominal / out.n),
+        screening.channel_rms_before,
+        ne0,
+        screening.segment_s,
+        skipped,
+        refitted,
+        screening.model_label,
+        selected=list(out.selected),
+        base_parameters=out.moved,
+        base_off=out.base_off,
+        base_score=out.base_score,
+        warnings=warn,
+        rmse_after=math.sqrt(out.rss_final / out.n),
+        composition=comp,
+        vector=vec,
+        params=RigParams.from_vector(vec[:N_PARAMS]),
+    )
     d.warnings += smooth_input_warning(screening.exps, comp, vec0, out.moved, out.selected)
     d.paths = outcome.paths
     d.sensor_misfit = outcome.sensor_misfit
@@ -103,19 +128,43 @@ def _selected_scores(out: Selection, comp: Composition, by_name: dict[str, type[
         if st.effect not in out.selected:
             continue
         vals = {p.name: float(vec[comp.param_index(p.name)]) for p in by_name[st.effect].parameters}
-        std = {k: (fit.std.get(k, st.std.get(k, float("nan"))) if fit is not None else st.std.get(k, float("nan")))
-               for k in vals}
-        ranking.append(EffectScore(st.effect, st.score, math.sqrt(st.rss_before / N), math.sqrt(st.rss_after / N),
-                                   vals, std, {}, " ".join(by_name[st.effect].signature.split()), True,
-                                   out.ties.get(st.effect, "")))
+        std = {
+            k: (fit.std.get(k, st.std.get(k, float("nan"))) if fit is not None else st.std.get(k, float("nan")))
+            for k in vals
+        }
+        ranking.append(
+            EffectScore(
+                st.effect,
+                st.score,
+                math.sqrt(st.rss_before / N),
+                math.sqrt(st.rss_after / N),
+                vals,
+                std,
+                {},
+                " ".join(by_name[st.effect].signature.split()),
+                True,
+                out.ties.get(st.effect, ""),
+            )
+        )
     for name in out.selected:  # a lag/delay swap: the selected one took the other's place
         if name not in {r.effect for r in ranking}:
             vals = {p.name: float(vec[comp.param_index(p.name)]) for p in by_name[name].parameters}
             std = {k: fit.std.get(k, float("nan")) if fit is not None else float("nan") for k in vals}
             st = next(s for s in out.steps if s.effect in LAG_DELAY)
-            ranking.append(EffectScore(name, st.score, math.sqrt(st.rss_before / N), math.sqrt(st.rss_after / N),
-                                       vals, std, {}, " ".join(by_name[name].signature.split()), True,
-                                       out.ties.get(name, "")))
+            ranking.append(
+                EffectScore(
+                    name,
+                    st.score,
+                    math.sqrt(st.rss_before / N),
+                    math.sqrt(st.rss_after / N),
+                    vals,
+                    std,
+                    {},
+                    " ".join(by_name[name].signature.split()),
+                    True,
+                    out.ties.get(name, ""),
+                )
+            )
     return ranking
 
 
@@ -123,10 +172,21 @@ def _rest_scores(out: Selection, by_name: dict[str, type[Effect]]) -> list[Effec
     """The effects not selected, by their score in the last round."""
     N = out.n
     rest = sorted((s for n, s in out.last_round.items() if n not in out.selected), key=lambda s: -s.score)
-    return [EffectScore(st.effect, st.score, math.sqrt(st.rss_before / N), math.sqrt(st.rss_after / N),
-                        st.values, st.std, {}, " ".join(by_name[st.effect].signature.split()), False,
-                        out.dropped.get(st.effect, ""))
-            for st in rest]
+    return [
+        EffectScore(
+            st.effect,
+            st.score,
+            math.sqrt(st.rss_before / N),
+            math.sqrt(st.rss_after / N),
+            st.values,
+            st.std,
+            {},
+            " ".join(by_name[st.effect].signature.split()),
+            False,
+            out.dropped.get(st.effect, ""),
+        )
+        for st in rest
+    ]
 
 
 def transfer(vec: np.ndarray, src: Composition, dst: Composition) -> np.ndarray:
@@ -160,9 +220,16 @@ def _fit_effect(obj: Objective, start: np.ndarray, variables: Sequence[FitVariab
     return res
 
 
-def rank_effects(data: "TimeSeries | Experiment | Sequence[Experiment]", params: RigParams | None = None,
-                 config: Any = None, *, options: DiagnosisOptions | None = None, max_nfev: int = 12,
-                 n_second_pass: int = 3, **settings: Any) -> Diagnosis:
+def rank_effects(
+    data: TimeSeries | Experiment | Sequence[Experiment],
+    params: RigParams | None = None,
+    config: Any = None,
+    *,
+    options: DiagnosisOptions | None = None,
+    max_nfev: int = 12,
+    n_second_pass: int = 3,
+    **settings: Any,
+) -> Diagnosis:
     """Rank candidate effects one at a time against the model (see the module docstring).
 
     The speeds at the segment starts (estimated from the data by differentiation) are first refined for
@@ -218,12 +285,28 @@ def rank_effects(data: "TimeSeries | Experiment | Sequence[Experiment]", params:
     if opts.refine_speeds:
         _second_pass(tried, n_second_pass, max_nfev)
     n_eff = effective_samples(r0, obj.block_ids)
-    return Diagnosis(_scored(tried, r0, n_eff), cfg, math.sqrt(float(r0 @ r0) / len(r0)), ch0, n_eff, segment_s,
-                     skipped, {}, comp0.label)
+    return Diagnosis(
+        _scored(tried, r0, n_eff),
+        cfg,
+        math.sqrt(float(r0 @ r0) / len(r0)),
+        ch0,
+        n_eff,
+        segment_s,
+        skipped,
+        {},
+        comp0.label,
+    )
 
 
-def _one_at_a_time(obj: Objective, vec0: np.ndarray, comp0: Composition, candidates: Sequence[type[Effect]],
-                   exps: Sequence[Experiment], skipped: dict[str, str], max_nfev: int) -> dict:
+def _one_at_a_time(
+    obj: Objective,
+    vec0: np.ndarray,
+    comp0: Composition,
+    candidates: Sequence[type[Effect]],
+    exps: Sequence[Experiment],
+    skipped: dict[str, str],
+    max_nfev: int,
+) -> dict:
     """Each candidate fitted alone in the model + candidate: {name: (effect, objective, start, fit)}; the
     candidates not tried and those whose fits failed are recorded in ``skipped`` with why."""
     cfg = exps[0].config
@@ -274,13 +357,27 @@ def _scored(tried: dict, r0: np.ndarray, n_eff: float) -> list[EffectScore]:
         k = len(res.names)
         score = n_eff * math.log(rss0 / rss1) - k * math.log(n_eff) if rss0 > 0 else 0.0
         rmse1 = math.sqrt(rss1 / N)
-        sig = (score > SIGNIFICANCE and rmse1 < (1 - MIN_REDUCTION) * rmse0
-               and rmse0 ** 2 - rmse1 ** 2 > noise_floor(rmse1 ** 2))
-        scores.append(EffectScore(name, score, rmse0, rmse1, dict(res.values), dict(res.std), res.channel_rms or {},
-                                  " ".join(eff.signature.split()), sig))
+        sig = (
+            score > SIGNIFICANCE and rmse1 < (1 - MIN_REDUCTION) * rmse0 and rmse0**2 - rmse1**2 > noise_floor(rmse1**2)
+        )
+        scores.append(
+            EffectScore(
+                name,
+                score,
+                rmse0,
+                rmse1,
+                dict(res.values),
+                dict(res.std),
+                res.channel_rms or {},
+                " ".join(eff.signature.split()),
+                sig,
+            )
+        )
     scores.sort(key=lambda s: -s.score)
     for a, b in zip(scores, scores[1:]):  # near-ties: the data cannot tell these effects apart
         if a.significant and b.significant and a.score - b.score < max(TIE_NATS, 0.02 * abs(a.score)):
-            a.note = (f"indistinguishable from {b.effect} on these data (scores {a.score:.1f} vs {b.score:.1f}); "
-                      "an input with sharper steps or a higher sample rate would separate them")
+            a.note = (
+                f"indistinguishable from {b.effect} on these data (scores {a.score:.1f} vs {b.score:.1f}); "
+                "an input with sharper steps or a higher sample rate would separate them"
+            )
     return scores

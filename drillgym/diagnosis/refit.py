@@ -17,9 +17,9 @@ repeated from its result (a poor starting guess must not bias the nuisance speed
 from __future__ import annotations
 
 import warnings
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any, Mapping, Sequence
-
+from typing import Any
 
 from ..configurations import Configuration
 from ..effects import Composition, compose
@@ -37,12 +37,18 @@ from .screening import default_segment, default_weights
 __all__ = ["RefitOptions", "RefitResult", "refit", "BASE_STAGE", "effect_records"]
 
 #: the staged identification's stage whose parameters are a configuration's base parameters
-BASE_STAGE = {Configuration.UPPER: "upper", Configuration.TORSIONAL: "brake", Configuration.COUPLED: "brake",
-              Configuration.LATERAL: "lateral", Configuration.FREE_VIBRATION: "free_vibration"}
+BASE_STAGE = {
+    Configuration.UPPER: "upper",
+    Configuration.TORSIONAL: "brake",
+    Configuration.COUPLED: "brake",
+    Configuration.LATERAL: "lateral",
+    Configuration.FREE_VIBRATION: "free_vibration",
+}
 
 
-def effect_records(comp: Composition, values: Mapping[str, float], specs: Mapping[str, str] | None = None
-                   ) -> list[dict]:
+def effect_records(
+    comp: Composition, values: Mapping[str, float], specs: Mapping[str, str] | None = None
+) -> list[dict]:
     """The effects of a composition as reusable records.
 
     Parameters
@@ -64,8 +70,9 @@ def effect_records(comp: Composition, values: Mapping[str, float], specs: Mappin
     for e in comp.effects:
         f = getattr(e, "__drillgym_file__", None)
         spec = (specs or {}).get(e.name) or (f"{f}:{e.name}" if f else e.name)
-        out.append({"name": e.name, "spec": spec, "file": f,
-                    "values": {p.name: float(values[p.name]) for p in e.parameters}})
+        out.append(
+            {"name": e.name, "spec": spec, "file": f, "values": {p.name: float(values[p.name]) for p in e.parameters}}
+        )
     return out
 
 
@@ -112,10 +119,19 @@ class RefitResult:
         return effect_records(self.composition, self.effect_values) if self.composition is not None else []
 
     def to_json(self) -> dict:
-        return {"r2_before": self.r2_before, "r2_after": self.r2_after, "rms_before": self.rms_before,
-                "rms_after": self.rms_after, "effects_added": self.effects, "model_before": self.model_before,
-                "effects": self.effect_records(), "fitted": self.values, "std": self.std,
-                "warnings": self.warnings, "params": self.params.to_dict()}
+        return {
+            "r2_before": self.r2_before,
+            "r2_after": self.r2_after,
+            "rms_before": self.rms_before,
+            "rms_after": self.rms_after,
+            "effects_added": self.effects,
+            "model_before": self.model_before,
+            "effects": self.effect_records(),
+            "fitted": self.values,
+            "std": self.std,
+            "warnings": self.warnings,
+            "params": self.params.to_dict(),
+        }
 
 
 @dataclass
@@ -155,8 +171,14 @@ class RefitOptions:
     max_nfev: int = 30
 
 
-def refit(data: "TimeSeries | Experiment", params: RigParams | None = None, config: Any = None, *,
-          options: RefitOptions | None = None, **settings: Any) -> RefitResult:
+def refit(
+    data: TimeSeries | Experiment,
+    params: RigParams | None = None,
+    config: Any = None,
+    *,
+    options: RefitOptions | None = None,
+    **settings: Any,
+) -> RefitResult:
     """Add effects to a model and fit them.
 
     Parameters
@@ -193,8 +215,10 @@ def refit(data: "TimeSeries | Experiment", params: RigParams | None = None, conf
     added = [get_effect(e) for e in o.effects]
     for e in added:
         if not applies_to(e, ex.config):
-            raise InputError(f"effect {e.name!r} does not act in configuration '{ex.config.label}' "
-                             f"(it applies to: {', '.join(e.configurations)})")
+            raise InputError(
+                f"effect {e.name!r} does not act in configuration '{ex.config.label}' "
+                f"(it applies to: {', '.join(e.configurations)})"
+            )
     new = [e for e in added if e.name not in comp0.names]
     comp = Composition(tuple(comp0.effects) + tuple(new))
     start_values = {**values0, **{k: v for k, v in (o.effect_params or {}).items()}}
@@ -216,9 +240,17 @@ def refit(data: "TimeSeries | Experiment", params: RigParams | None = None, conf
         res = fit_parameters(obj, vec_start, variables, max_nfev=o.max_nfev, fit_speeds=True)
     before = compare(ex, vec_before, segment_s=segment_s, effects=comp0)
     after = compare(ex, res.vector, segment_s=segment_s, effects=comp)
-    return RefitResult(res.params, {c: m["r2"] for c, m in before.metrics.items()},
-                       {c: m["r2"] for c, m in after.metrics.items()},
-                       {c: m["rms"] for c, m in before.metrics.items()},
-                       {c: m["rms"] for c, m in after.metrics.items()}, dict(res.values), dict(res.std),
-                       [e.name for e in added], res.warnings, comp, res.effect_values, comp0.label)
-
+    return RefitResult(
+        res.params,
+        {c: m["r2"] for c, m in before.metrics.items()},
+        {c: m["r2"] for c, m in after.metrics.items()},
+        {c: m["rms"] for c, m in before.metrics.items()},
+        {c: m["rms"] for c, m in after.metrics.items()},
+        dict(res.values),
+        dict(res.std),
+        [e.name for e in added],
+        res.warnings,
+        comp,
+        res.effect_values,
+        comp0.label,
+    )

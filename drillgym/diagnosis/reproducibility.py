@@ -35,8 +35,8 @@ revolutions, all in the first half; the second half's standard errors were about
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import Sequence
 
 import numpy as np
 
@@ -77,9 +77,14 @@ def split_halves(ex: Experiment) -> tuple[Experiment, Experiment]:
     origin = float(ex.t[0]) if ex.t_origin is None else ex.t_origin
 
     def part(sl: slice, tag: str) -> Experiment:
-        return replace(ex, t=ex.t[sl], meas={k: v[sl] for k, v in ex.meas.items()},
-                       rates={k: v[sl] for k, v in ex.rates.items()}, name=f"{ex.name} ({tag} half)",
-                       t_origin=origin)
+        return replace(
+            ex,
+            t=ex.t[sl],
+            meas={k: v[sl] for k, v in ex.meas.items()},
+            rates={k: v[sl] for k, v in ex.rates.items()},
+            name=f"{ex.name} ({tag} half)",
+            t_origin=origin,
+        )
 
     return part(slice(0, h + 1), "first"), part(slice(h, n), "second")
 
@@ -141,19 +146,30 @@ class HalfAgreement:
     def note(self) -> str:
         unseen = [h for h in ("first", "second") if not self.shown(h)]
         if unseen:
-            return (f"not seen in the {' and '.join(unseen)} half of the recording (its fit leaves the parameters "
-                    f"undetermined): a position-dependent effect must repeat with the angle; a recording in which "
-                    f"the lower disc slips through several revolutions in both halves decides")
+            return (
+                f"not seen in the {' and '.join(unseen)} half of the recording (its fit leaves the parameters "
+                f"undetermined): a position-dependent effect must repeat with the angle; a recording in which "
+                f"the lower disc slips through several revolutions in both halves decides"
+            )
         vals = ", ".join(f"{p} {self.first[p]:.3g} / {self.second[p]:.3g}" for p in self.first)
-        return (f"not the same in both halves of the recording ({vals}; cosine {self.cosine:.2f}, chi2 "
-                f"{self.chi2:.1f}): "
-                f"a position-dependent effect must repeat with the angle; a longer recording (more revolutions) "
-                f"decides")
+        return (
+            f"not the same in both halves of the recording ({vals}; cosine {self.cosine:.2f}, chi2 "
+            f"{self.chi2:.1f}): "
+            f"a position-dependent effect must repeat with the angle; a longer recording (more revolutions) "
+            f"decides"
+        )
 
 
-def halves_agree(exps: Sequence[Experiment], model: SearchModel, vector: np.ndarray, effect,
-                 free_base: Sequence[str], segment_s: float | None, scales: dict[str, float],
-                 max_nfev: int = 15) -> HalfAgreement:
+def halves_agree(
+    exps: Sequence[Experiment],
+    model: SearchModel,
+    vector: np.ndarray,
+    effect,
+    free_base: Sequence[str],
+    segment_s: float | None,
+    scales: dict[str, float],
+    max_nfev: int = 15,
+) -> HalfAgreement:
     """Refit an effect's parameters on each half of the recordings and compare them (module docstring).
 
     Parameters
@@ -198,5 +214,11 @@ def halves_agree(exps: Sequence[Experiment], model: SearchModel, vector: np.ndar
         if not (math.isfinite(var) and var > 0):
             continue
         c2 += (a.values[p] - b.values[p]) ** 2 / var
-    return HalfAgreement(effect.name, c2, {p: a.values[p] for p in names}, {p: b.values[p] for p in names},
-                         {p: a.std.get(p, float("nan")) for p in names}, {p: b.std.get(p, float("nan")) for p in names})
+    return HalfAgreement(
+        effect.name,
+        c2,
+        {p: a.values[p] for p in names},
+        {p: b.values[p] for p in names},
+        {p: a.std.get(p, float("nan")) for p in names},
+        {p: b.std.get(p, float("nan")) for p in names},
+    )

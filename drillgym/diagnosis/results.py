@@ -60,9 +60,17 @@ class SelectionStep:
 
     def to_json(self) -> dict:
         """The step as a JSON-ready dict."""
-        return {"effect": self.effect, "score": self.score, "rss_before": self.rss_before,
-                "rss_after": self.rss_after, "values": self.values, "std": self.std,
-                "significant": self.significant, "n_eff": self.n_eff, "note": self.note}
+        return {
+            "effect": self.effect,
+            "score": self.score,
+            "rss_before": self.rss_before,
+            "rss_after": self.rss_after,
+            "values": self.values,
+            "std": self.std,
+            "significant": self.significant,
+            "n_eff": self.n_eff,
+            "note": self.note,
+        }
 
 
 @dataclass
@@ -157,11 +165,21 @@ class Selection:
 
     def to_json(self) -> dict:
         """The selection's decisions as a JSON-ready dict (the vector and fits left out)."""
-        return {"selected": list(self.selected), "steps": [s.to_json() for s in self.steps],
-                "dropped": self.dropped, "ties": self.ties, "at_bounds": self.at_bounds, "base_off": self.base_off,
-                "base_score": self.base_score, "moved": {k: v.to_json() for k, v in self.moved.items()},
-                "base_warnings": self.base_warnings, "rss_nominal": self.rss_nominal,
-                "rss_final": self.rss_final, "n": self.n, "excluded": self.excluded}
+        return {
+            "selected": list(self.selected),
+            "steps": [s.to_json() for s in self.steps],
+            "dropped": self.dropped,
+            "ties": self.ties,
+            "at_bounds": self.at_bounds,
+            "base_off": self.base_off,
+            "base_score": self.base_score,
+            "moved": {k: v.to_json() for k, v in self.moved.items()},
+            "base_warnings": self.base_warnings,
+            "rss_nominal": self.rss_nominal,
+            "rss_final": self.rss_final,
+            "n": self.n,
+            "excluded": self.excluded,
+        }
 
 
 @dataclass
@@ -206,14 +224,26 @@ class EffectScore:
 
     def to_json(self) -> dict:
         """The score as a JSON-ready dict."""
-        return {"effect": self.effect, "score": round(self.score, 3), "rmse_before": self.rmse_before,
-                "rmse_after": self.rmse_after, "reduction": round(self.reduction, 4),
-                "significant": self.significant, "values": self.values, "std": self.std, "note": self.note}
+        return {
+            "effect": self.effect,
+            "score": round(self.score, 3),
+            "rmse_before": self.rmse_before,
+            "rmse_after": self.rmse_after,
+            "reduction": round(self.reduction, 4),
+            "significant": self.significant,
+            "values": self.values,
+            "std": self.std,
+            "note": self.note,
+        }
 
 
-_WHERE = {"lower_friction": "lower-disc slip friction +=", "upper_friction": "upper-disc slip friction +=",
-          "string": "string torque (added to kθ α) +=", "lower_force": "torque on the lower disc +=",
-          "upper_force": "torque on the upper disc +="}
+_WHERE = {
+    "lower_friction": "lower-disc slip friction +=",
+    "upper_friction": "upper-disc slip friction +=",
+    "string": "string torque (added to kθ α) +=",
+    "lower_force": "torque on the lower disc +=",
+    "upper_force": "torque on the upper disc +=",
+}
 
 
 @dataclass
@@ -268,9 +298,15 @@ class Candidate:
 
     def to_json(self) -> dict:
         """The candidate as a JSON-ready dict."""
-        return {"name": self.name, "expression": self.expression(), "dof": self.dof,
-                "explained": round(self.explained, 4), "effect_file": self.effect_file, "group": self.group,
-                "terms": self.terms}
+        return {
+            "name": self.name,
+            "expression": self.expression(),
+            "dof": self.dof,
+            "explained": round(self.explained, 4),
+            "effect_file": self.effect_file,
+            "group": self.group,
+            "terms": self.terms,
+        }
 
 
 @dataclass
@@ -353,7 +389,7 @@ class Diagnosis:
     advice: list[str] = field(default_factory=list)
     nominal_vector: np.ndarray | None = None
     paths: dict[str, list[str]] = field(default_factory=dict)
-    lag_delay: "dict | None" = None
+    lag_delay: dict | None = None
     sensor_misfit: dict[str, float] = field(default_factory=dict)
 
     @property
@@ -372,54 +408,79 @@ class Diagnosis:
     def to_json(self) -> dict:
         """The diagnosis as a JSON-ready dict (what ``drillgym diagnose --json`` prints)."""
         cand = self.candidate.to_json() if self.candidate is not None else None
-        return {"selected": list(self.selected),
-                "ranking": [{**s.to_json(), "fitted": s.values} for s in self.ranking],
-                "base_parameters": {k: v.to_json() for k, v in self.base_parameters.items()},
-                "base_model_off": self.base_off,
-                "base_score": round(self.base_score, 3), "candidate": cand, "warnings": self.warnings,
-                "advice": self.advice, "configuration": self.config.label,
-                "rmse_before": self.rmse_before, "rmse_after": self.rmse_after,
-                "channel_rms_before": self.channel_rms_before, "n_eff": self.n_eff, "segment_s": self.segment_s,
-                "skipped": self.skipped, "base_refit": self.base_refit, "model": self.model,
-                "search_paths": self.paths, "lag_delay": self.lag_delay, "sensor_misfit": self.sensor_misfit}
+        return {
+            "selected": list(self.selected),
+            "ranking": [{**s.to_json(), "fitted": s.values} for s in self.ranking],
+            "base_parameters": {k: v.to_json() for k, v in self.base_parameters.items()},
+            "base_model_off": self.base_off,
+            "base_score": round(self.base_score, 3),
+            "candidate": cand,
+            "warnings": self.warnings,
+            "advice": self.advice,
+            "configuration": self.config.label,
+            "rmse_before": self.rmse_before,
+            "rmse_after": self.rmse_after,
+            "channel_rms_before": self.channel_rms_before,
+            "n_eff": self.n_eff,
+            "segment_s": self.segment_s,
+            "skipped": self.skipped,
+            "base_refit": self.base_refit,
+            "model": self.model,
+            "search_paths": self.paths,
+            "lag_delay": self.lag_delay,
+            "sensor_misfit": self.sensor_misfit,
+        }
 
     def text(self) -> str:
         """The diagnosis as the command line prints it."""
         lines = [self._header()]
         if self.sensor_misfit:
-            lines.append("each sensor weighted by the model's misfit on it (one misfit-weighted unit): "
-                         + ", ".join(f"{k} {v:.3g} noise units" for k, v in self.sensor_misfit.items()))
+            lines.append(
+                "each sensor weighted by the model's misfit on it (one misfit-weighted unit): "
+                + ", ".join(f"{k} {v:.3g} noise units" for k, v in self.sensor_misfit.items())
+            )
         lines += self._base_lines()
         lines += self._ranking_lines()
         if self.lag_delay and not self.lag_delay["tie"]:
             ld = self.lag_delay
-            lines.append(f"lag or delay, at the recording's rate ({ld['rate_hz']:.0f} Hz): {ld['chosen']} preferred to "
-                         f"{ld['other']} by {ld['score_gap_nats']:.1f} nats")
+            lines.append(
+                f"lag or delay, at the recording's rate ({ld['rate_hz']:.0f} Hz): {ld['chosen']} preferred to "
+                f"{ld['other']} by {ld['score_gap_nats']:.1f} nats"
+            )
         for w in self.warnings:
             lines.append(f"warning: {w}")
         for k, why in self.skipped.items():
             lines.append(f"skipped {k}: {why}")
         if self.advice:
-            lines.append("nothing outside the library explains the rest of the residual; experiments that would "
-                         "show more:")
+            lines.append(
+                "nothing outside the library explains the rest of the residual; experiments that would show more:"
+            )
             lines += [f"  - {a_}" for a_ in self.advice]
         return "\n".join(lines)
 
     def _header(self) -> str:
         after = f"; after {self.rmse_after:.3g}" if self.rmse_after is not None else ""
-        return (f"diagnosis of the model {self.model!r} ({self.config.label}; multiple shooting, segments of "
-                f"{self.segment_s if self.segment_s else 'whole record'} s; residual RMS "
-                f"{self.rmse_before:.3g} {'misfit-weighted' if self.sensor_misfit else 'noise'} units{after}; " +
-                ", ".join(f"{c} {v:.3g}" for c, v in self.channel_rms_before.items()) + ")")
+        return (
+            f"diagnosis of the model {self.model!r} ({self.config.label}; multiple shooting, segments of "
+            f"{self.segment_s if self.segment_s else 'whole record'} s; residual RMS "
+            f"{self.rmse_before:.3g} {'misfit-weighted' if self.sensor_misfit else 'noise'} units{after}; "
+            + ", ".join(f"{c} {v:.3g}" for c, v in self.channel_rms_before.items())
+            + ")"
+        )
 
     def _base_lines(self) -> list[str]:
         if self.base_off:
             if not self.base_parameters:
                 return ["the base model is off, but no single base parameter moved beyond its uncertainty"]
-            return ["the base model is off; re-identified base parameters that moved: " + ", ".join(
-                f"{k} {v.nominal:.5g} -> {v.fitted:.5g} ({v.change_pct:+.1f} %"
-                + (f" ± {100 * v.std / abs(v.nominal):.1f} %" if not math.isnan(v.std) else "")
-                + ")" for k, v in self.base_parameters.items())]
+            return [
+                "the base model is off; re-identified base parameters that moved: "
+                + ", ".join(
+                    f"{k} {v.nominal:.5g} -> {v.fitted:.5g} ({v.change_pct:+.1f} %"
+                    + (f" ± {100 * v.std / abs(v.nominal):.1f} %" if not math.isnan(v.std) else "")
+                    + ")"
+                    for k, v in self.base_parameters.items()
+                )
+            ]
         if self.base_parameters == {} and self.base_score:
             return ["base parameters: no significant change (the nominal base model stands)"]
         return []
@@ -427,14 +488,18 @@ class Diagnosis:
     def _ranking_lines(self) -> list[str]:
         lines = [f"{'rank':<5}{'effect':<20}{'score':>10}{'rms after':>11}{'cut':>7}  fitted values"]
         for i, s in enumerate(self.ranking, 1):
-            vals = ", ".join(f"{k}={v:.4g}" + (f"±{s.std[k]:.2g}" if s.std.get(k) == s.std.get(k) and k in s.std
-                                               else "") for k, v in s.values.items())
+            vals = ", ".join(
+                f"{k}={v:.4g}" + (f"±{s.std[k]:.2g}" if s.std.get(k) == s.std.get(k) and k in s.std else "")
+                for k, v in s.values.items()
+            )
             mark = "*" if s.significant else " "
             lines.append(f"{i:<4}{mark}{s.effect:<20}{s.score:>10.1f}{s.rmse_after:>11.3g}{s.reduction:>7.0%}  {vals}")
         rest = [r for r in self.ranking if not r.significant]
         if rest and self.rmse_after and abs(rest[0].rmse_before - self.rmse_after) > 0.05 * self.rmse_after:
-            lines.append(f"(rows without *: each fitted to the last model the selection tried, residual RMS "
-                         f"{rest[0].rmse_before:.3g}, not to the final one; 'cut' is relative to that model)")
+            lines.append(
+                f"(rows without *: each fitted to the last model the selection tried, residual RMS "
+                f"{rest[0].rmse_before:.3g}, not to the final one; 'cut' is relative to that model)"
+            )
         if self.selected:
             lines.append("effects found: " + ", ".join(self.selected))
             for s in self.ranking:

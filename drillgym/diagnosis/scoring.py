@@ -23,8 +23,20 @@ import numpy as np
 from ..identification.fitting import FitResult, Objective
 from .effective import effective_samples
 
-__all__ = ["SIGNIFICANCE", "MIN_REDUCTION", "MIN_EXPLAINED", "TIE_NATS", "SEPARATES_LAG_DELAY", "MOVED_PCT",
-           "NESTED_RECHECK", "SENSORS", "score", "significant", "noise_floor", "balance_sensors"]
+__all__ = [
+    "SIGNIFICANCE",
+    "MIN_REDUCTION",
+    "MIN_EXPLAINED",
+    "TIE_NATS",
+    "SEPARATES_LAG_DELAY",
+    "MOVED_PCT",
+    "NESTED_RECHECK",
+    "SENSORS",
+    "score",
+    "significant",
+    "noise_floor",
+    "balance_sensors",
+]
 
 SIGNIFICANCE = 15.0  # nats
 MIN_REDUCTION = 0.2  # fraction of the residual RMS an accepted effect must remove
@@ -32,8 +44,10 @@ MIN_EXPLAINED = 1.0  # noise units²
 #: a motor lag and an input delay whose models' scores differ by less (nats) on the comparison grid are a tie
 TIE_NATS = 3.0
 #: what a stated lag/delay tie recommends
-SEPARATES_LAG_DELAY = ("a voltage step recorded at 1 kHz or faster separates them (a delay shifts the whole "
-                       "response, a lag rounds its start)")
+SEPARATES_LAG_DELAY = (
+    "a voltage step recorded at 1 kHz or faster separates them (a delay shifts the whole "
+    "response, a lag rounds its start)"
+)
 MOVED_PCT = 1.0  # % change below which a base parameter is not reported as moved
 #: the base model decision refits the nested model (base held) to convergence with its own segment speeds
 #: when its quick fit (the freed model's speeds) is less than this many times worse than the freed model.
@@ -45,8 +59,14 @@ NESTED_RECHECK = 100.0
 SENSORS = {"encoders": ("theta_u", "theta_l", "alpha"), "LVDTs": ("x", "y", "r")}
 
 
-def score(rss_small: "float | np.ndarray", fit_big: FitResult, k: int, n_eff_ref: float = 0.0,
-          channels: "np.ndarray | None" = None, blocks: "np.ndarray | None" = None) -> tuple[float, float]:
+def score(
+    rss_small: float | np.ndarray,
+    fit_big: FitResult,
+    k: int,
+    n_eff_ref: float = 0.0,
+    channels: np.ndarray | None = None,
+    blocks: np.ndarray | None = None,
+) -> tuple[float, float]:
     """The score of a larger model's fit against a smaller model's RSS.
 
     With the smaller model's residual *vector* and ``channels``, each channel has its own noise variance
@@ -93,9 +113,16 @@ def score(rss_small: "float | np.ndarray", fit_big: FitResult, k: int, n_eff_ref
     return total - k * math.log(ne), ne
 
 
-def significant(sc: float, rss0: float, rss1: float, n: int, r0: "np.ndarray | None" = None,
-                r1: "np.ndarray | None" = None, channels: "np.ndarray | None" = None,
-                unit: "np.ndarray | None" = None) -> bool:
+def significant(
+    sc: float,
+    rss0: float,
+    rss1: float,
+    n: int,
+    r0: np.ndarray | None = None,
+    r1: np.ndarray | None = None,
+    channels: np.ndarray | None = None,
+    unit: np.ndarray | None = None,
+) -> bool:
     """Whether a larger model counts: its score above :data:`SIGNIFICANCE`, and the residual RMS cut by
     :data:`MIN_REDUCTION` by more than the noise floor, over all channels or (``channels`` given) in one.
 
@@ -125,15 +152,15 @@ def significant(sc: float, rss0: float, rss1: float, n: int, r0: "np.ndarray | N
     have = r0 is not None and r1 is not None and len(r0) == len(r1)
     u = unit if have and unit is not None and len(unit) == len(r0) else None
 
-    def power(r: np.ndarray, m: "np.ndarray | slice") -> float:
+    def power(r: np.ndarray, m: np.ndarray | slice) -> float:
         return float(np.mean(r[m] ** 2)) if u is None else float(np.mean((r[m] * u[m]) ** 2))
 
-    def above_noise(m: "np.ndarray | slice") -> bool:
+    def above_noise(m: np.ndarray | slice) -> bool:
         left = power(r1, m)
         return power(r0, m) - left > noise_floor(left)
 
     rm0, rm1 = math.sqrt(rss0 / n), math.sqrt(rss1 / n)
-    pooled = above_noise(slice(None)) if have else rm0 ** 2 - rm1 ** 2 > noise_floor(rm1 ** 2)
+    pooled = above_noise(slice(None)) if have else rm0**2 - rm1**2 > noise_floor(rm1**2)
     if rm1 < (1 - MIN_REDUCTION) * rm0 and pooled:
         return True
     if not have or channels is None or len(r0) != len(channels):
@@ -168,8 +195,9 @@ def noise_floor(left: float) -> float:
     return min(MIN_EXPLAINED, max(left, 0.0))
 
 
-def balance_sensors(obj: Objective, residual: np.ndarray, noise_scales: dict[str, float],
-                    tol: float = 0.25) -> dict[str, float]:
+def balance_sensors(
+    obj: Objective, residual: np.ndarray, noise_scales: dict[str, float], tol: float = 0.25
+) -> dict[str, float]:
     """Weigh each sensor by its own misfit (in place, on ``obj.scales``).
 
     The residual scale of every channel of a sensor (:data:`SENSORS`) becomes its noise scale times that
@@ -210,10 +238,12 @@ def balance_sensors(obj: Objective, residual: np.ndarray, noise_scales: dict[str
     for name, chans in present.items():
         now = obj.scales[chans[0]] / noise_scales[chans[0]]
         e = residual[np.isin(obj.channel_ids, [obj.channels.index(c) for c in chans])]
-        misfit = now * float(np.sqrt(np.mean(e ** 2))) if e.size else 1.0
+        misfit = now * float(np.sqrt(np.mean(e**2))) if e.size else 1.0
         factors[name] = max(1.0, misfit)
-    changed = any(abs(math.log(f * noise_scales[present[n][0]] / obj.scales[present[n][0]])) > math.log1p(tol)
-                  for n, f in factors.items())
+    changed = any(
+        abs(math.log(f * noise_scales[present[n][0]] / obj.scales[present[n][0]])) > math.log1p(tol)
+        for n, f in factors.items()
+    )
     if not changed:
         return {}
     for name, f in factors.items():

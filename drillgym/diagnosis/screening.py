@@ -13,8 +13,9 @@ recording (or by ``make venv``) serve the next.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -25,12 +26,20 @@ from ..identification.fitting import Objective, base_vector
 from ..io import TimeSeries
 from ..params import RigParams
 from .context import SelectionOptions
-from .search_model import SearchModel, base_free_parameters, neutral_values, search_composition, selection_model
 from .effects import applies_to, effects_for, get_effect
+from .search_model import SearchModel, base_free_parameters, neutral_values, search_composition, selection_model
 from .segments import robust_noise
 
-__all__ = ["DiagnosisOptions", "Screening", "screen", "prepare_experiments", "condition", "excitation_missing",
-           "default_weights", "default_segment"]
+__all__ = [
+    "DiagnosisOptions",
+    "Screening",
+    "screen",
+    "prepare_experiments",
+    "condition",
+    "excitation_missing",
+    "default_weights",
+    "default_segment",
+]
 
 
 @dataclass
@@ -153,8 +162,12 @@ def default_segment(config: Configuration) -> float:
     return 4.0 if config.brake else 8.0
 
 
-def prepare_experiments(data: "TimeSeries | Experiment | Sequence[Experiment]", config: "str | Configuration | None",
-                        compare_rate_hz: float, lvdt_lowpass_hz: float | None) -> list[Experiment]:
+def prepare_experiments(
+    data: TimeSeries | Experiment | Sequence[Experiment],
+    config: str | Configuration | None,
+    compare_rate_hz: float,
+    lvdt_lowpass_hz: float | None,
+) -> list[Experiment]:
     """The experiments of a recording, an experiment, or several.
 
     Parameters
@@ -222,8 +235,12 @@ def excitation_missing(effect: type[Effect], exps: Sequence[Experiment]) -> str:
     return ""
 
 
-def screen(data: "TimeSeries | Experiment | Sequence[Experiment]", params: RigParams | None,
-           config: "str | Configuration | None", options: DiagnosisOptions) -> Screening:
+def screen(
+    data: TimeSeries | Experiment | Sequence[Experiment],
+    params: RigParams | None,
+    config: str | Configuration | None,
+    options: DiagnosisOptions,
+) -> Screening:
     """Prepare and condition the recordings, sort the candidates, build the search model.
 
     Parameters
@@ -263,8 +280,9 @@ def screen(data: "TimeSeries | Experiment | Sequence[Experiment]", params: RigPa
     return Screening(exps, cfg, comp0.label, segment_s, model, skipped, obj.channel_rms(vec0))
 
 
-def _sort_candidates(candidates: Sequence[type[Effect]], comp0: Composition, cfg: Configuration,
-                     exps: Sequence[Experiment]) -> tuple[list, list, dict[str, str]]:
+def _sort_candidates(
+    candidates: Sequence[type[Effect]], comp0: Composition, cfg: Configuration, exps: Sequence[Experiment]
+) -> tuple[list, list, dict[str, str]]:
     """(usable, held at their neutral values, skipped with why) of the candidates."""
     skipped: dict[str, str] = {}
     usable: list[type[Effect]] = []

@@ -10,8 +10,8 @@ Tcl, bl; lateral k, b, e) are re-identified (Ju is held: it fixes the scale of t
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -22,8 +22,15 @@ from ..identification.fitting import Objective
 from ..identification.segmented import SegmentedModel
 from .segments import place_segment_starts
 
-__all__ = ["BASE_FREE", "SELECTION_DT", "SearchModel", "neutral_values", "search_composition",
-           "base_free_parameters", "selection_model"]
+__all__ = [
+    "BASE_FREE",
+    "SELECTION_DT",
+    "SearchModel",
+    "neutral_values",
+    "search_composition",
+    "base_free_parameters",
+    "selection_model",
+]
 
 #: simulator step bound (s) of the selection's fits, RK4, the input's samples on step boundaries
 #: (:func:`~drillgym.identification.segmented.steps_per_sample`; 4 ms at 500 Hz and 1 kHz, 2.5 ms at 200 Hz).
@@ -44,6 +51,7 @@ BASE_FREE: dict[Configuration, tuple[str, ...]] = {
 }
 #: values at which the library's effects vanish (any other parameter: 0 clipped into its bounds)
 _NEUTRAL = {"tau_m": 1e-4}
+
 
 def neutral_values(effects: Sequence[type[Effect]]) -> dict[str, float]:
     """Parameter values at which each effect is switched off.
@@ -133,8 +141,9 @@ def selection_model(exps: Sequence[Experiment], segment_s: float | None, comp: C
     SegmentedModel
         The model.
     """
-    model = SegmentedModel(list(exps), segment_s, composition=comp, method="rk4", max_dt=SELECTION_DT,
-                           input_aligned=True)
+    model = SegmentedModel(
+        list(exps), segment_s, composition=comp, method="rk4", max_dt=SELECTION_DT, input_aligned=True
+    )
     if segment_s is not None:
         place_segment_starts(model)
     return model

@@ -94,7 +94,7 @@ def robust_noise(ex: Experiment) -> tuple[Experiment, dict[str, float]]:
     gain = float(np.linalg.norm(savgol_coeffs(win, min(3, win - 1), deriv=1, delta=1.0 / fs)))
     noise = dict(ex.speed_noise)
     qs = []
-    for ang, om in (("theta_u", "omega_u"), ("theta_l", "omega_l")):
+    for ang, _om in (("theta_u", "omega_u"), ("theta_l", "omega_l")):
         if ang not in ex.meas:
             continue
         q = encoder_quantum(ex.meas[ang])

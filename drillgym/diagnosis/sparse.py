@@ -21,10 +21,9 @@ drift of stick-slip.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
-
-from typing import Any
 
 from ..configurations import N_STATE
 from ..dynamics import mass_matrix
@@ -54,7 +53,7 @@ class ResidualTorque:
     tau_l: np.ndarray
     states: np.ndarray
     slip: np.ndarray
-    slip_upper: "np.ndarray | None" = None
+    slip_upper: np.ndarray | None = None
 
     @property
     def upper_valid(self) -> np.ndarray:
@@ -67,8 +66,14 @@ class ResidualTorque:
         return self.slip & np.isfinite(self.tau_l)
 
 
-def residual_torques(ex: Experiment, params: "RigParams | np.ndarray | None" = None, min_speed: float = 0.05, *,
-                     effects: Any = None, effect_params: dict[str, float] | None = None) -> ResidualTorque:
+def residual_torques(
+    ex: Experiment,
+    params: RigParams | np.ndarray | None = None,
+    min_speed: float = 0.05,
+    *,
+    effects: Any = None,
+    effect_params: dict[str, float] | None = None,
+) -> ResidualTorque:
     """Residual generalised torques of a model on a recording (see the module docstring).
 
     The model: ``params`` (RigParams or a vector in the composition's layout) with ``effects``
@@ -166,14 +171,27 @@ def candidate_library(rt: ResidualTorque) -> tuple[np.ndarray, list[str]]:
     X, Yf = S[:, 4], S[:, 5]
     r = np.hypot(X, Yf)
     cols = {
-        "1": np.ones_like(th), "sign(ωl)": sg, "ωl": wl, "ωl|ωl|": wl * np.abs(wl),
-        "cos θl": np.cos(th), "sin θl": np.sin(th), "cos 2θl": np.cos(2 * th), "sin 2θl": np.sin(2 * th),
-        "sign(ωl) cos θl": sg * np.cos(th), "sign(ωl) sin θl": sg * np.sin(th),
-        "sign(ωl) cos 2θl": sg * np.cos(2 * th), "sign(ωl) sin 2θl": sg * np.sin(2 * th),
-        "α": a, "α³": a ** 3, "α̇": wl - wu, "sign(α̇)": np.sign(wl - wu), "t sign(ωl)": rt.t * sg, "[ωl<0]": (wl < 0) * sg,
+        "1": np.ones_like(th),
+        "sign(ωl)": sg,
+        "ωl": wl,
+        "ωl|ωl|": wl * np.abs(wl),
+        "cos θl": np.cos(th),
+        "sin θl": np.sin(th),
+        "cos 2θl": np.cos(2 * th),
+        "sin 2θl": np.sin(2 * th),
+        "sign(ωl) cos θl": sg * np.cos(th),
+        "sign(ωl) sin θl": sg * np.sin(th),
+        "sign(ωl) cos 2θl": sg * np.cos(2 * th),
+        "sign(ωl) sin 2θl": sg * np.sin(2 * th),
+        "α": a,
+        "α³": a**3,
+        "α̇": wl - wu,
+        "sign(α̇)": np.sign(wl - wu),
+        "t sign(ωl)": rt.t * sg,
+        "[ωl<0]": (wl < 0) * sg,
     }
     if np.any(r > 0):
-        cols.update({"x": X, "y": Yf, "r": r, "r² sign(ωl)": r ** 2 * sg})
+        cols.update({"x": X, "y": Yf, "r": r, "r² sign(ωl)": r**2 * sg})
     return np.column_stack(list(cols.values())), list(cols)
 
 
@@ -189,8 +207,10 @@ class SparseTerm:
         if not self.terms:
             return "τ_res ≈ 0 (no candidate term survives)"
         if self.r2 < MIN_SPARSE_R2:
-            return (f"no candidate term explains the residual torque (best sparse fit explains {self.r2:.0%}): "
-                    "it looks like noise")
+            return (
+                f"no candidate term explains the residual torque (best sparse fit explains {self.r2:.0%}): "
+                "it looks like noise"
+            )
         parts = [f"{c:+.4g}·{n}" if n != "1" else f"{c:+.4g}" for n, c in self.terms.items()]
         return "τ_res(θl, ω, α, x, y) ≈ " + " ".join(parts) + f"  [N m; explains {self.r2:.0%} of it]"
 

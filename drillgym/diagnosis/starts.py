@@ -7,6 +7,7 @@ residual where the true value explains 99.99 % of it, and the selection found no
 candidate is first evaluated, in one batch of the simulator's lanes, at a spread of values around its guess
 (within a few of its declared scales, inside its bounds), and its fit starts from the best of them.
 """
+
 from __future__ import annotations
 
 import numpy as np

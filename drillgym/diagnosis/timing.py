@@ -35,9 +35,9 @@ model's error elsewhere (:func:`drillgym.diagnosis.lag_delay.check_lag_delay`).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Mapping, Sequence
 
 import numpy as np
 from scipy.signal import welch
@@ -46,13 +46,21 @@ from ..errors import InputError
 from ..identification.experiment import Experiment, prepare_experiment
 from ..identification.fitting import Objective
 from ..identification.segmented import SegmentedModel
-from .effects import get_effect
 from .effective import effective_samples
+from .effects import get_effect
 from .scoring import SEPARATES_LAG_DELAY
 
-__all__ = ["FINE_RATE_HZ", "FINE_TIE_NATS", "LAG_DELAY", "SMOOTH_INPUT_SHARE", "FineDecision", "decide_lag_delay",
-           "decide_lag_delay_many",
-           "input_share_above", "resolvable_lag_delay"]
+__all__ = [
+    "FINE_RATE_HZ",
+    "FINE_TIE_NATS",
+    "LAG_DELAY",
+    "SMOOTH_INPUT_SHARE",
+    "FineDecision",
+    "decide_lag_delay",
+    "decide_lag_delay_many",
+    "input_share_above",
+    "resolvable_lag_delay",
+]
 
 #: highest comparison rate (Hz) of the fine check: 1 kHz resolves a 10 ms lag's rounding
 FINE_RATE_HZ = 1000.0
@@ -76,7 +84,7 @@ GRID_POINTS, SEARCH_ITERATIONS = 9, 12
 FINE_TIE_NATS = 50.0
 
 
-def _best_value(obj, comp, vector: np.ndarray, name: str, hi: float) -> "tuple[float, np.ndarray]":
+def _best_value(obj, comp, vector: np.ndarray, name: str, hi: float) -> tuple[float, np.ndarray]:
     """(value, residual) of the one parameter ``name`` (s) that fits best on [0, hi], the rest of ``vector``
     held: a coarse grid, then a bounded scalar search around its best point.  Derivative-free: the
     simulated response is piecewise constant in a delay (the input is held over integration steps), so a
@@ -104,8 +112,12 @@ def _best_value(obj, comp, vector: np.ndarray, name: str, hi: float) -> "tuple[f
     values = [rss(g) for g in grid]
     k = int(np.argmin(values))
     step = grid[1] - grid[0]
-    res = minimize_scalar(rss, bounds=(max(0.0, grid[k] - step), min(hi, grid[k] + step)), method="bounded",
-                          options={"xatol": 2e-4, "maxiter": SEARCH_ITERATIONS})
+    res = minimize_scalar(
+        rss,
+        bounds=(max(0.0, grid[k] - step), min(hi, grid[k] + step)),
+        method="bounded",
+        options={"xatol": 2e-4, "maxiter": SEARCH_ITERATIONS},
+    )
     x = float(res.x) if res.fun <= values[k] else float(grid[k])
     return x, residual(x)
 
@@ -208,10 +220,10 @@ class FineDecision:
     n_eff: float = float("nan")
     #: the same check with the base parameters at their nominal values when they were refitted
     #: ({chosen, score_gap_nats, log_rss_ratio}; None: not run)
-    nominal_base: "dict | None" = None
+    nominal_base: dict | None = None
     #: the same check with the other one given its own base parameters, refitted with it on the comparison
     #: grid, when the base parameters were refitted ({chosen, score_gap_nats, log_rss_ratio}; None: not run)
-    own_base: "dict | None" = None
+    own_base: dict | None = None
 
     @property
     def log_rss_ratio(self) -> float:
@@ -220,10 +232,13 @@ class FineDecision:
 
     def brief(self) -> dict:
         """{chosen, score_gap_nats, log_rss_ratio}: this decision as a check of another one reports it."""
-        return {"chosen": self.chosen, "score_gap_nats": round(self.gap, 2),
-                "log_rss_ratio": round(self.log_rss_ratio, 6) if self.n_eff > 0 else None}
+        return {
+            "chosen": self.chosen,
+            "score_gap_nats": round(self.gap, 2),
+            "log_rss_ratio": round(self.log_rss_ratio, 6) if self.n_eff > 0 else None,
+        }
 
-    def reversed_by(self, check: "FineDecision") -> bool:
+    def reversed_by(self, check: FineDecision) -> bool:
         """Whether another decision reverses this one decisively.
 
         Parameters
@@ -243,22 +258,35 @@ class FineDecision:
         return abs(self.gap) < FINE_TIE_NATS or bool(self.doubt)
 
     def to_json(self) -> dict:
-        return {"chosen": self.chosen, "other": self.other, "score_gap_nats": round(self.gap, 2),
-                "rate_hz": round(self.rate_hz, 1), "fitted_s": self.values, "tie": self.tie, "doubt": self.doubt,
-                "n_eff": round(self.n_eff, 1) if self.n_eff > 0 else None,
-                "log_rss_ratio": round(self.log_rss_ratio, 6) if self.n_eff > 0 else None,
-                "own_base": self.own_base, "nominal_base": self.nominal_base}
+        return {
+            "chosen": self.chosen,
+            "other": self.other,
+            "score_gap_nats": round(self.gap, 2),
+            "rate_hz": round(self.rate_hz, 1),
+            "fitted_s": self.values,
+            "tie": self.tie,
+            "doubt": self.doubt,
+            "n_eff": round(self.n_eff, 1) if self.n_eff > 0 else None,
+            "log_rss_ratio": round(self.log_rss_ratio, 6) if self.n_eff > 0 else None,
+            "own_base": self.own_base,
+            "nominal_base": self.nominal_base,
+        }
 
     def tie_note(self) -> str:
         """The ranking's note on the chosen effect when the two are a tie."""
         v = ", ".join(f"{k} {1e3 * x:.0f} ms" for k, x in self.values.items())
-        why = (f"score difference {abs(self.gap):.1f} nats, not trusted: {self.doubt}" if self.doubt else
-               f"score difference {abs(self.gap):.1f} nats")
-        return (f"indistinguishable from {self.other} at the recording's rate ({self.rate_hz:.0f} Hz; {why}; "
-                f"fitted {v}): " + SEPARATES_LAG_DELAY)
+        why = (
+            f"score difference {abs(self.gap):.1f} nats, not trusted: {self.doubt}"
+            if self.doubt
+            else f"score difference {abs(self.gap):.1f} nats"
+        )
+        return (
+            f"indistinguishable from {self.other} at the recording's rate ({self.rate_hz:.0f} Hz; {why}; "
+            f"fitted {v}): " + SEPARATES_LAG_DELAY
+        )
 
 
-def fine_rate(ex: Experiment) -> "float | None":
+def fine_rate(ex: Experiment) -> float | None:
     """The rate of the fine grid for an experiment.
 
     Parameters
@@ -280,7 +308,7 @@ def fine_rate(ex: Experiment) -> "float | None":
     return rate if rate >= max(MIN_REFINEMENT * ex.fs, 0.99 * MIN_FINE_RATE_HZ) else None
 
 
-def fine_experiments(exps: Sequence[Experiment]) -> "list[Experiment] | None":
+def fine_experiments(exps: Sequence[Experiment]) -> list[Experiment] | None:
     """The experiments again on their recordings' own rate (:func:`fine_rate`).
 
     Parameters
@@ -296,12 +324,20 @@ def fine_experiments(exps: Sequence[Experiment]) -> "list[Experiment] | None":
     rates = [fine_rate(ex) for ex in exps]
     if not exps or any(r is None for r in rates):
         return None
-    return [prepare_experiment(ex.recording, ex.config, compare_rate_hz=r, lvdt_lowpass_hz=ex.lvdt_lowpass_hz,
-                               name=ex.name) for ex, r in zip(exps, rates)]
+    return [
+        prepare_experiment(ex.recording, ex.config, compare_rate_hz=r, lvdt_lowpass_hz=ex.lvdt_lowpass_hz, name=ex.name)
+        for ex, r in zip(exps, rates)
+    ]
 
 
-def decide_lag_delay(exps: Sequence[Experiment], comp, models: Mapping[str, np.ndarray], incumbent: str,
-                     weights: dict, segment_s: "float | None") -> "FineDecision | None":
+def decide_lag_delay(
+    exps: Sequence[Experiment],
+    comp,
+    models: Mapping[str, np.ndarray],
+    incumbent: str,
+    weights: dict,
+    segment_s: float | None,
+) -> FineDecision | None:
     """Lag or delay, decided on the recordings' own rate.
 
     Each one's time constant or delay is searched again on the fine grid, the rest of its vector held.
@@ -329,9 +365,14 @@ def decide_lag_delay(exps: Sequence[Experiment], comp, models: Mapping[str, np.n
     return decide_lag_delay_many(exps, comp, [(models, incumbent)], weights, segment_s)[0]
 
 
-def decide_lag_delay_many(exps: Sequence[Experiment], comp, questions: Sequence[tuple[Mapping[str, np.ndarray], str]],
-                          weights: dict, segment_s: "float | None",
-                          known: "dict | None" = None) -> "list[FineDecision | None]":
+def decide_lag_delay_many(
+    exps: Sequence[Experiment],
+    comp,
+    questions: Sequence[tuple[Mapping[str, np.ndarray], str]],
+    weights: dict,
+    segment_s: float | None,
+    known: dict | None = None,
+) -> list[FineDecision | None]:
     """:func:`decide_lag_delay` for several (models, incumbent) questions on the same recordings, their
     searches run together (threads over the cores: three searches on two cores take the time of two
     rounds, not three).  A search asked twice (the same vector, parameter and range) runs once; ``known``
@@ -398,12 +439,14 @@ def decide_lag_delay_many(exps: Sequence[Experiment], comp, questions: Sequence[
         # Python runs.  A lane's result does not depend on the batch it runs in
         # (:data:`drillgym.simulator.LANE_BLOCK`), so this gives the values of the searches run one by one
         with ThreadPoolExecutor(min(len(jobs), 3)) as pool:
-            futures = {key: pool.submit(_best_value, obj.with_own_speeds(), comp, vec, name, hi)
-                       for key, (vec, name, hi) in jobs.items()}
+            futures = {
+                key: pool.submit(_best_value, obj.with_own_speeds(), comp, vec, name, hi)
+                for key, (vec, name, hi) in jobs.items()
+            }
             for key, fut in futures.items():
                 known[key] = fut.result()
-    out: "list[FineDecision | None]" = []
-    for (models, a), pair in zip(questions, keys):
+    out: list[FineDecision | None] = []
+    for (_models, a), pair in zip(questions, keys):
         b = LAG_DELAY[1 - LAG_DELAY.index(a)]
         (va, ra), (vb, rb) = known[pair[a]], known[pair[b]]
         ne = min(effective_samples(ra, obj.block_ids), effective_samples(rb, obj.block_ids))

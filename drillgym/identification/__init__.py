@@ -12,5 +12,17 @@ from .fitting import FitResult, FitVariable, IdentifiabilityWarning, Objective, 
 from .metrics import channel_metrics, r2, rms
 from .segmented import SegmentedModel
 
-__all__ = ["Experiment", "prepare_experiment", "FitResult", "FitVariable", "IdentifiabilityWarning", "Objective",
-           "default_scales", "fit_parameters", "channel_metrics", "r2", "rms", "SegmentedModel"]
+__all__ = [
+    "Experiment",
+    "prepare_experiment",
+    "FitResult",
+    "FitVariable",
+    "IdentifiabilityWarning",
+    "Objective",
+    "default_scales",
+    "fit_parameters",
+    "channel_metrics",
+    "r2",
+    "rms",
+    "SegmentedModel",
+]

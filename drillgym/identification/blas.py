@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import functools
 import threading
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import Any, Callable, Iterator, TypeVar
+from typing import Any, TypeVar
 
 from threadpoolctl import threadpool_limits
 
@@ -60,8 +61,10 @@ def on_one_blas_thread(func: F) -> F:
     callable
         The wrapped function.
     """
+
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         with one_blas_thread():
             return func(*args, **kwargs)
+
     return wrapper  # type: ignore[return-value]

@@ -24,9 +24,9 @@ import numpy as np
 from scipy.signal import savgol_coeffs, savgol_filter
 
 from ..configurations import N_STATE, Configuration, parse_configuration
+from ..effects import BASE, Composition
 from ..errors import DataFormatError, InputError
 from ..io import TimeSeries
-from ..effects import BASE, Composition
 from .sensors import invert_measurement
 
 __all__ = ["Experiment", "prepare_experiment", "estimate_rate"]
@@ -112,7 +112,7 @@ class Experiment:
     name: str = "experiment"
     meta: dict = field(default_factory=dict)
     speed_noise: dict = field(default_factory=dict)
-    recording: "TimeSeries | None" = field(default=None, repr=False, compare=False)
+    recording: TimeSeries | None = field(default=None, repr=False, compare=False)
     t_origin: float | None = None
 
     @property
@@ -154,7 +154,9 @@ class Experiment:
 
         def integral(tq: np.ndarray) -> np.ndarray:
             out = np.interp(tq, tk, F)
-            return np.where(tq > tk[-1], F[-1] + (tq - tk[-1]) * uk[-1], np.where(tq < tk[0], (tq - tk[0]) * uk[0], out))
+            return np.where(
+                tq > tk[-1], F[-1] + (tq - tk[-1]) * uk[-1], np.where(tq < tk[0], (tq - tk[0]) * uk[0], out)
+            )
 
         tq = t_start + np.arange(n_steps + 1) * dt
         return np.diff(integral(tq)) / dt
@@ -185,8 +187,7 @@ class Experiment:
             raise InputError(f"{self.name}: the recording has no channel {name!r}")
         return self.meas[name]
 
-    def initial_states(self, idx: np.ndarray, P: np.ndarray, composition: "Composition | None" = None
-                       ) -> np.ndarray:
+    def initial_states(self, idx: np.ndarray, P: np.ndarray, composition: Composition | None = None) -> np.ndarray:
         """Mechanical states at grid indices for parameter rows.
 
         The readings go backwards through the composition's measurement effects (LVDT offsets, skew, any
@@ -212,11 +213,22 @@ class Experiment:
         n = len(idx)
         zeros = np.zeros(n)
         lateral = self.config.lateral_free and "x" in self.meas
-        R = np.column_stack([self.meas["theta_u"][idx], self.meas.get("theta_l", self.meas["theta_u"])[idx],
-                             self.meas["x"][idx] if lateral else zeros, self.meas["y"][idx] if lateral else zeros])
-        D = np.column_stack([self.rates["omega_u"][idx],
-                             self.rates["omega_l"][idx] if "theta_l" in self.meas else zeros,
-                             self.rates["Xd"][idx] if lateral else zeros, self.rates["Yd"][idx] if lateral else zeros])
+        R = np.column_stack(
+            [
+                self.meas["theta_u"][idx],
+                self.meas.get("theta_l", self.meas["theta_u"])[idx],
+                self.meas["x"][idx] if lateral else zeros,
+                self.meas["y"][idx] if lateral else zeros,
+            ]
+        )
+        D = np.column_stack(
+            [
+                self.rates["omega_u"][idx],
+                self.rates["omega_l"][idx] if "theta_l" in self.meas else zeros,
+                self.rates["Xd"][idx] if lateral else zeros,
+                self.rates["Yd"][idx] if lateral else zeros,
+            ]
+        )
         if comp.has_measurement:
             S, V = np.empty_like(R), np.empty_like(D)
             # once per distinct setting of the measurement's parameters (the fits' other columns vary)
@@ -246,9 +258,15 @@ class Experiment:
         return Y
 
 
-def prepare_experiment(ts: TimeSeries, config: "str | Configuration | None" = None, *,
-                       compare_rate_hz: float = DEFAULT_COMPARE_RATE_HZ, lvdt_lowpass_hz: float | None = 5.0,
-                       stick_threshold: float = STICK_THRESHOLD, name: str | None = None) -> Experiment:
+def prepare_experiment(
+    ts: TimeSeries,
+    config: str | Configuration | None = None,
+    *,
+    compare_rate_hz: float = DEFAULT_COMPARE_RATE_HZ,
+    lvdt_lowpass_hz: float | None = 5.0,
+    stick_threshold: float = STICK_THRESHOLD,
+    name: str | None = None,
+) -> Experiment:
     """Make a validated recording ready for comparison (see the module docstring).
 
     Parameters
@@ -314,8 +332,20 @@ def prepare_experiment(ts: TimeSeries, config: "str | Configuration | None" = No
     if not cfg.lateral_free:
         meas.pop("x", None)
         meas.pop("y", None)
-    return Experiment(cfg, t_c, fs_c, meas, rates, ts.t.copy(), ts.u.copy(), lvdt_lowpass_hz,
-                      name or str(ts.source), dict(ts.meta), speed_noise, ts)
+    return Experiment(
+        cfg,
+        t_c,
+        fs_c,
+        meas,
+        rates,
+        ts.t.copy(),
+        ts.u.copy(),
+        lvdt_lowpass_hz,
+        name or str(ts.source),
+        dict(ts.meta),
+        speed_noise,
+        ts,
+    )
 
 
 def _derivative_noise(theta: np.ndarray, fs: float) -> float:

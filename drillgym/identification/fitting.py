@@ -18,8 +18,8 @@ from __future__ import annotations
 import copy
 import math
 import warnings
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Callable, Mapping, Sequence
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -32,8 +32,17 @@ from .experiment import Experiment
 from .segmented import SegmentedModel
 from .variables import FitVariable, SpeedVariables
 
-__all__ = ["FitVariable", "Objective", "FitResult", "FitOptions", "SpeedVariables", "fit_parameters",
-           "default_scales", "IdentifiabilityWarning", "base_vector"]
+__all__ = [
+    "FitVariable",
+    "Objective",
+    "FitResult",
+    "FitOptions",
+    "SpeedVariables",
+    "fit_parameters",
+    "default_scales",
+    "IdentifiabilityWarning",
+    "base_vector",
+]
 
 
 class IdentifiabilityWarning(UserWarning):
@@ -84,22 +93,31 @@ class Objective:
         None of the channels is in the data.
     """
 
-    def __init__(self, model: SegmentedModel, weights: dict[str, float],
-                 scales: dict[str, float] | None = None) -> None:
+    def __init__(
+        self, model: SegmentedModel, weights: dict[str, float], scales: dict[str, float] | None = None
+    ) -> None:
         self.model = model
         self.weights = dict(weights)
         self.scales = dict(scales or default_scales(model.experiments))
         self._meas = []
         for k, ex in enumerate(model.experiments):
-            chans = [c for c in weights if c in ex.meas or (c == "alpha" and "theta_l" in ex.meas)
-                     or (c == "r" and "x" in ex.meas)]
+            chans = [
+                c
+                for c in weights
+                if c in ex.meas or (c == "alpha" and "theta_l" in ex.meas) or (c == "r" and "x" in ex.meas)
+            ]
             self._meas.append({c: model.measured_segments(k, c) for c in chans})
         self.channels = sorted({c for m in self._meas for c in m})
         if not self.channels:
             raise InputError(f"none of the channels {list(weights)} is in the data")
         #: index into :attr:`channels` of every entry of a residual row (the layout of :meth:`residual_matrix`)
-        self.channel_ids = np.concatenate([np.full(int(np.count_nonzero(~np.isnan(m[:, 1:]))), self.channels.index(c))
-                                           for meas in self._meas for c, m in meas.items()])
+        self.channel_ids = np.concatenate(
+            [
+                np.full(int(np.count_nonzero(~np.isnan(m[:, 1:]))), self.channels.index(c))
+                for meas in self._meas
+                for c, m in meas.items()
+            ]
+        )
         #: index of the independent block (experiment, channel, multiple-shooting segment) of every entry of a
         #: residual row: a segment re-started from the data does not carry its misfit over to the next one
         rows = [np.count_nonzero(~np.isnan(m[:, 1:]), axis=1) for meas in self._meas for m in meas.values()]
@@ -107,16 +125,27 @@ class Objective:
         self.block_ids = np.repeat(np.arange(len(counts)), counts)
         #: index of the multiple-shooting segment (numbered over all experiments) of every entry of a residual row
         first = np.cumsum([0] + [len(model.segments(k)[0]) for k in range(len(model.experiments))])
-        seg = np.concatenate([first[k] + np.arange(m.shape[0]) for k, meas in enumerate(self._meas)
-                              for m in meas.values()]) if rows else np.zeros(0, dtype=int)
+        seg = (
+            np.concatenate(
+                [first[k] + np.arange(m.shape[0]) for k, meas in enumerate(self._meas) for m in meas.values()]
+            )
+            if rows
+            else np.zeros(0, dtype=int)
+        )
         self.segment_ids = np.repeat(seg, counts)
         self.segment_offsets = first[:-1]
         #: per (experiment, channel) of a residual row: the flat indices of its measured samples in a segment
         #: array's (n_seg, seg_len - 1) tail, and the measured values there
-        self._layout = [{c: (idx, m[:, 1:].ravel()[idx]) for c, m in meas.items()
-                         for idx in [np.flatnonzero(~np.isnan(m[:, 1:]).ravel())]} for meas in self._meas]
+        self._layout = [
+            {
+                c: (idx, m[:, 1:].ravel()[idx])
+                for c, m in meas.items()
+                for idx in [np.flatnonzero(~np.isnan(m[:, 1:]).ravel())]
+            }
+            for meas in self._meas
+        ]
 
-    def with_own_speeds(self) -> "Objective":
+    def with_own_speeds(self) -> Objective:
         """The same objective on a copy of its model whose speed corrections at the segment starts are its own
         (started from the model's): a fit that moves them, or refines them per point, can run beside others on
         this one.  The measured segments and residual layout are shared, not derived again."""
@@ -169,7 +198,7 @@ class Objective:
         for c in self.channels:
             es = [(pred.outputs[k][c] - m[c])[:, 1:] for k, m in enumerate(self._meas) if c in m]
             e = np.concatenate([x[np.isfinite(x)] for x in es])
-            out[c] = float(np.sqrt(np.mean(e ** 2)))
+            out[c] = float(np.sqrt(np.mean(e**2)))
         return out
 
 
@@ -236,8 +265,9 @@ class FitResult:
 ApplyFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
-def base_vector(composition: Composition, base: "RigParams | np.ndarray | None",
-                values: dict[str, float] | None = None) -> np.ndarray:
+def base_vector(
+    composition: Composition, base: RigParams | np.ndarray | None, values: dict[str, float] | None = None
+) -> np.ndarray:
     """A composition's parameter vector.
 
     Parameters
@@ -266,8 +296,9 @@ def base_vector(composition: Composition, base: "RigParams | np.ndarray | None",
     if vec.shape[0] == N_PARAMS and composition.n_params != N_PARAMS:
         return composition.vector(RigParams.from_vector(vec), values)
     if vec.shape[0] != composition.n_params:
-        raise InputError(f"parameter vector has {vec.shape[0]} entries, the model {composition.label!r} needs "
-                         f"{composition.n_params}")
+        raise InputError(
+            f"parameter vector has {vec.shape[0]} entries, the model {composition.label!r} needs {composition.n_params}"
+        )
     return vec.copy()
 
 
@@ -317,16 +348,23 @@ class FitOptions:
     collinearity_limit: float = 1000.0
     ftol: float = 1e-6
     xtol: float = 1e-6
-    prior: "Mapping[str, tuple[float, float]] | None" = None
+    prior: Mapping[str, tuple[float, float]] | None = None
     prior_weight: float = 1.0
     fit_speeds: bool = False
     speed_step: float = 0.005
 
 
 @on_one_blas_thread  # the simulations hold the cores; and a result that does not depend on thread timing
-def fit_parameters(objective: Objective, base: "RigParams | np.ndarray", variables: Sequence[FitVariable], *,
-                   apply: ApplyFn | None = None, effect_values: dict[str, float] | None = None,
-                   options: FitOptions | None = None, **settings) -> FitResult:
+def fit_parameters(
+    objective: Objective,
+    base: RigParams | np.ndarray,
+    variables: Sequence[FitVariable],
+    *,
+    apply: ApplyFn | None = None,
+    effect_values: dict[str, float] | None = None,
+    options: FitOptions | None = None,
+    **settings,
+) -> FitResult:
     """Fit some variables (everything else held) by trf least squares.
 
     With a ``prior``, the returned residual, RSS and standard errors' scale are the data's alone; the
@@ -401,8 +439,17 @@ def fit_parameters(objective: Objective, base: "RigParams | np.ndarray", variabl
     z0 = np.zeros(n + ks)
     q0 = fun_map(z0)
     r0 = res.fun(z0)
-    sol = least_squares(fun_map, z0, jac=jac_map, bounds=(zlo, zhi), method="trf", x_scale=1.0,
-                        max_nfev=opts.max_nfev, ftol=opts.ftol, xtol=opts.xtol)
+    sol = least_squares(
+        fun_map,
+        z0,
+        jac=jac_map,
+        bounds=(zlo, zhi),
+        method="trf",
+        x_scale=1.0,
+        max_nfev=opts.max_nfev,
+        ftol=opts.ftol,
+        xtol=opts.xtol,
+    )
     z = sol.x
     q1 = fun_map(z)
     r1 = res.fun(z)
@@ -418,9 +465,20 @@ def fit_parameters(objective: Objective, base: "RigParams | np.ndarray", variabl
     for mm in msgs:
         warnings.warn(mm, IdentifiabilityWarning, stacklevel=2)
     vec = apply(base_vec, values)
-    return FitResult(names, dict(zip(names, values.tolist())), dict(zip(names, std.tolist())),
-                     RigParams.from_vector(vec[:N_PARAMS]), vec, float(r0 @ r0), float(r1 @ r1), m, int(sol.nfev),
-                     msgs, r1, composition=comp)
+    return FitResult(
+        names,
+        dict(zip(names, values.tolist())),
+        dict(zip(names, std.tolist())),
+        RigParams.from_vector(vec[:N_PARAMS]),
+        vec,
+        float(r0 @ r0),
+        float(r1 @ r1),
+        m,
+        int(sol.nfev),
+        msgs,
+        r1,
+        composition=comp,
+    )
 
 
 class _Box:
@@ -442,10 +500,23 @@ class _Box:
 class _Residual:
     """The data's residual of z and its finite-difference Jacobian (the speeds' columns from two batched rows)."""
 
-    def __init__(self, objective: Objective, apply: ApplyFn, base_vec: np.ndarray, box: _Box,
-                 speeds: "SpeedVariables | None", opts: FitOptions) -> None:
+    def __init__(
+        self,
+        objective: Objective,
+        apply: ApplyFn,
+        base_vec: np.ndarray,
+        box: _Box,
+        speeds: SpeedVariables | None,
+        opts: FitOptions,
+    ) -> None:
         self.objective, self.apply, self.base_vec, self.box, self.speeds, self.opts = (
-            objective, apply, base_vec, box, speeds, opts)
+            objective,
+            apply,
+            base_vec,
+            box,
+            speeds,
+            opts,
+        )
         self.n = len(box.x0)
         self.ks = speeds.count if speeds is not None else 0
         self.cache: dict[bytes, np.ndarray] = {}
@@ -459,7 +530,7 @@ class _Residual:
         if key not in self.cache:
             self.cache.clear()
             if self.ks:
-                self.speeds.set(z[self.n:])
+                self.speeds.set(z[self.n :])
             self.cache[key] = self.objective.residual_matrix(self.rows(z[None, :]))[0]
         return self.cache[key]
 
@@ -502,8 +573,17 @@ class _Prior:
         return self.w * (box.x0[idx] + box.scale[idx] * z[idx] - self.mean) / self.std
 
 
-def _identifiability(names: Sequence[str], values: np.ndarray, J: np.ndarray, s2: float, z: np.ndarray,
-                     zlo: np.ndarray, zhi: np.ndarray, box: _Box, opts: FitOptions) -> tuple[np.ndarray, list[str]]:
+def _identifiability(
+    names: Sequence[str],
+    values: np.ndarray,
+    J: np.ndarray,
+    s2: float,
+    z: np.ndarray,
+    zlo: np.ndarray,
+    zhi: np.ndarray,
+    box: _Box,
+    opts: FitOptions,
+) -> tuple[np.ndarray, list[str]]:
     """The standard errors of the fitted values, and the identifiability messages."""
     n = len(names)
     msgs: list[str] = []
@@ -523,8 +603,10 @@ def _identifiability(names: Sequence[str], values: np.ndarray, J: np.ndarray, s2
         if gamma > opts.collinearity_limit:
             v = np.abs(vt[-1])
             involved = [names[i] for i in np.flatnonzero(v > 0.1 * v.max())]
-            msgs.append(f"near-singular JᵀJ (collinearity index {gamma:.0f} > {opts.collinearity_limit:.0f}): "
-                        f"{', '.join(involved)} are not separately identifiable from these data")
+            msgs.append(
+                f"near-singular JᵀJ (collinearity index {gamma:.0f} > {opts.collinearity_limit:.0f}): "
+                f"{', '.join(involved)} are not separately identifiable from these data"
+            )
     lim = opts.rel_std_limit
     for i, nm in enumerate(names):
         ref = max(abs(values[i]), 1e-12)

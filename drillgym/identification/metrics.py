@@ -45,7 +45,7 @@ def rms(e: np.ndarray) -> float:
     """
     e = np.asarray(e, dtype=float).ravel()
     e = e[np.isfinite(e)]
-    return float(np.sqrt(np.mean(e ** 2))) if e.size else float("nan")
+    return float(np.sqrt(np.mean(e**2))) if e.size else float("nan")
 
 
 def channel_metrics(measured: dict[str, np.ndarray], predicted: dict[str, np.ndarray]) -> dict[str, dict[str, float]]:
@@ -61,5 +61,8 @@ def channel_metrics(measured: dict[str, np.ndarray], predicted: dict[str, np.nda
     dict of str to dict
         ``{channel: {"r2": ..., "rms": ...}}``.
     """
-    return {c: {"r2": r2(measured[c], predicted[c]), "rms": rms(np.asarray(measured[c]) - predicted[c])}
-            for c in measured if c in predicted}
+    return {
+        c: {"r2": r2(measured[c], predicted[c]), "rms": rms(np.asarray(measured[c]) - predicted[c])}
+        for c in measured
+        if c in predicted
+    }

@@ -18,9 +18,10 @@ directory, the file is looked for next to the model file, then at ``file``.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 from ..effects import Composition, EffectError, compose
 from ..errors import MissingFileError

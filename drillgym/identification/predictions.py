@@ -76,7 +76,7 @@ class Prediction:
     channel -> (n_seg, seg_len) array (NaN beyond the record's end)."""
 
     outputs: list[dict[str, np.ndarray]]
-    model: "SegmentedModel"
+    model: SegmentedModel
 
     def stitched(self, k: int, channel: str) -> np.ndarray:
         """An experiment's channel on its comparison grid (segments joined; each segment's first sample is

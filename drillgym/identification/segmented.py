@@ -88,8 +88,15 @@ class SegmentedModel:
         No experiments.
     """
 
-    def __init__(self, experiments: list[Experiment], segment_s: float | None = 4.0, method: str = "dp5",
-                 max_dt: float = MAX_DT, composition: Any = None, input_aligned: bool = False) -> None:
+    def __init__(
+        self,
+        experiments: list[Experiment],
+        segment_s: float | None = 4.0,
+        method: str = "dp5",
+        max_dt: float = MAX_DT,
+        composition: Any = None,
+        input_aligned: bool = False,
+    ) -> None:
         if not experiments:
             raise InputError("no experiments to compare with")
         self.experiments = list(experiments)
@@ -125,8 +132,15 @@ class SegmentedModel:
         finally:
             self.speed_offsets = saved
 
-    def refine_initial_speeds(self, vec: np.ndarray, weights: dict[str, float], scales: dict[str, float],
-                              iterations: int = 2, h: float = 0.005, fresh: bool = False) -> None:
+    def refine_initial_speeds(
+        self,
+        vec: np.ndarray,
+        weights: dict[str, float],
+        scales: dict[str, float],
+        iterations: int = 2,
+        h: float = 0.005,
+        fresh: bool = False,
+    ) -> None:
         """Correct the speeds estimated from the data at the segment starts (nuisance states) by
         Gauss–Newton on the base model's residual, so that noisy derivative estimates of the
         recording do not pass for model error.  Segments are independent, so one batched run
@@ -156,7 +170,7 @@ class SegmentedModel:
         for _ in range(iterations):
             P = np.repeat(np.asarray(vec, dtype=float)[None, :], 3, axis=0)
             preds = self.predict(P, tuple(weights), dspeed=np.array([[0, 0], [h, 0], [0, h]], dtype=float))
-            for k, ex in enumerate(self.experiments):
+            for k in range(len(self.experiments)):
                 starts, L = self.segments(k)
                 r = [[], [], []]
                 for c, w in weights.items():
@@ -177,8 +191,9 @@ class SegmentedModel:
                         continue
                     A = J[j][:, cols]
                     step, *_ = np.linalg.lstsq(A, -e0[j], rcond=None)
-                    self.speed_offsets[k][j, cols] = np.clip(self.speed_offsets[k][j, cols] + step,
-                                                             -limit[cols], limit[cols])
+                    self.speed_offsets[k][j, cols] = np.clip(
+                        self.speed_offsets[k][j, cols] + step, -limit[cols], limit[cols]
+                    )
 
     def _correctable_speeds(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """Experiment k's segment-start speeds that may be corrected, (n_seg, 2) booleans for (ω_u, ω_l), and
@@ -187,8 +202,9 @@ class SegmentedModel:
         upper disc of a free-vibration test and the lower disc of an upper-disc test."""
         ex = self.experiments[k]
         starts, _ = self.segments(k)
-        w0 = np.stack([ex.rates.get("omega_u", np.zeros(ex.n))[starts],
-                       ex.rates.get("omega_l", np.zeros(ex.n))[starts]], axis=1)
+        w0 = np.stack(
+            [ex.rates.get("omega_u", np.zeros(ex.n))[starts], ex.rates.get("omega_l", np.zeros(ex.n))[starts]], axis=1
+        )
         limit = 3.0 * np.array([ex.speed_noise.get("omega_u", 0.0), ex.speed_noise.get("omega_l", 0.0)])
         free = w0 != 0.0
         if ex.config is Configuration.FREE_VIBRATION:
@@ -205,8 +221,12 @@ class SegmentedModel:
         out = []
         for k in range(len(self.experiments)):
             free, limit = self._correctable_speeds(k)
-            out += [(k, j, c, float(limit[c])) for j in range(free.shape[0]) for c in (0, 1)
-                    if free[j, c] and limit[c] > 0.0]
+            out += [
+                (k, j, c, float(limit[c]))
+                for j in range(free.shape[0])
+                for c in (0, 1)
+                if free[j, c] and limit[c] > 0.0
+            ]
         return out
 
     def _set_composition(self, composition: Any) -> None:
@@ -220,7 +240,7 @@ class SegmentedModel:
         self._sim_cols = np.array([comp.param_index(n) for n in self._sim.param_names], dtype=int)
         self._tau_col = comp.param_index("tau_m") if self._lag is not None else None
 
-    def with_composition(self, composition: Any) -> "SegmentedModel":
+    def with_composition(self, composition: Any) -> SegmentedModel:
         """The same experiments, segments and speed corrections with another model.
 
         Parameters
@@ -276,7 +296,7 @@ class SegmentedModel:
         out = np.full(ex.n, np.nan)
         for j, s in enumerate(starts):
             e = min(s + L + 1, ex.n)
-            out[s:e] = seg[j, :e - s]
+            out[s:e] = seg[j, : e - s]
         return out
 
     def measured_segments(self, k: int, channel: str) -> np.ndarray:
@@ -305,13 +325,13 @@ class SegmentedModel:
         out = np.full((len(starts), L + 1), np.nan)
         for j, s in enumerate(starts):
             e = min(s + L + 1, ex.n)
-            out[j, :e - s] = y[s:e]
+            out[j, : e - s] = y[s:e]
         if channel in ("x", "y", "r") and ex.lvdt_lowpass_hz and ex.config.lateral_free and len(starts) > 1:
             edge = int(math.ceil(LVDT_EDGE_PERIODS * ex.fs / ex.lvdt_lowpass_hz))
             if 0 < edge and 4 * edge < L:
                 for j in range(len(starts)):
                     valid = np.flatnonzero(~np.isnan(out[j]))
-                    out[j, valid[:edge + 1]] = np.nan  # the first sample is never compared
+                    out[j, valid[: edge + 1]] = np.nan  # the first sample is never compared
                     out[j, valid[-edge:]] = np.nan
         return out
 
@@ -335,8 +355,10 @@ class SegmentedModel:
         if P.shape[1] == N_PARAMS and self.composition.n_params != N_PARAMS:
             return self.composition.matrix(P, P.shape[0])
         if P.shape[1] != self.composition.n_params:
-            raise InputError(f"parameter matrix must have {self.composition.n_params} columns "
-                             f"({', '.join(self.composition.param_names)}), got {P.shape[1]}")
+            raise InputError(
+                f"parameter matrix must have {self.composition.n_params} columns "
+                f"({', '.join(self.composition.param_names)}), got {P.shape[1]}"
+            )
         return P
 
     def _inputs(self, ex: Experiment, plan: dict, taus: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
@@ -367,8 +389,9 @@ class SegmentedModel:
         return D, UM
 
     # ------------------------------------------------------------------ prediction
-    def predict(self, P: np.ndarray, channels: tuple[str, ...] = CHANNELS,
-                dspeed: np.ndarray | None = None) -> list[Prediction]:
+    def predict(
+        self, P: np.ndarray, channels: tuple[str, ...] = CHANNELS, dspeed: np.ndarray | None = None
+    ) -> list[Prediction]:
         """The model's outputs for each parameter row.
 
         Parameters
@@ -388,11 +411,14 @@ class SegmentedModel:
         """
         per_exp = self.predict_arrays(P, channels, dspeed)
         B = np.atleast_2d(P).shape[0]
-        return [Prediction([per_exp[k] and {c: v[b] for c, v in per_exp[k].items()} for k in range(len(per_exp))],
-                           self) for b in range(B)]
+        return [
+            Prediction([per_exp[k] and {c: v[b] for c, v in per_exp[k].items()} for k in range(len(per_exp))], self)
+            for b in range(B)
+        ]
 
-    def predict_arrays(self, P: np.ndarray, channels: tuple[str, ...] = CHANNELS,
-                       dspeed: np.ndarray | None = None) -> list[dict[str, np.ndarray]]:
+    def predict_arrays(
+        self, P: np.ndarray, channels: tuple[str, ...] = CHANNELS, dspeed: np.ndarray | None = None
+    ) -> list[dict[str, np.ndarray]]:
         """:meth:`predict`'s outputs for all rows at once.
 
         Parameters
@@ -421,7 +447,7 @@ class SegmentedModel:
             drive, um = self._inputs(ex, plan, taus)
             pick = np.arange(B) if drive.shape[0] == B else np.zeros(B, dtype=int)
             rows = np.repeat(S, ns, axis=0)
-            U = np.stack([drive[pick[b], s * rec:s * rec + n_steps] for b in range(B) for s in starts])
+            U = np.stack([drive[pick[b], s * rec : s * rec + n_steps] for b in range(B) for s in starts])
             X0 = np.zeros((B * ns, sim.n_state))
             X0[:, :N_STATE] = self._x0(ex, starts, P)
             X0[:, 2:4] += np.tile(self.speed_offsets[k], (B, 1))
@@ -431,7 +457,7 @@ class SegmentedModel:
                 X0[:, N_STATE:] = self._effect_states(ex, plan, S, drive[pick], starts)
             T0 = np.tile(ex.clock_start + starts / ex.fs, B)  # the run's clock (time-dependent effects)
             HIST, HEAD = self._delay_lines(rows, drive[pick], starts, rec, dt, ns)
-            D = self._simulate(ex.config, U, dt, rows, X0, T0, HIST, HEAD, rec, n_steps, ns)[:, :L + 1]
+            D = self._simulate(ex.config, U, dt, rows, X0, T0, HIST, HEAD, rec, n_steps, ns)[:, : L + 1]
             out = {}
             tu, tl = D[..., _COL["theta_u"]], D[..., _COL["theta_l"]]
             Xs, Ys = D[..., _COL["x"]], D[..., _COL["y"]]
@@ -462,8 +488,9 @@ class SegmentedModel:
             per_exp.append({c: out[c] for c in keep})
         return per_exp
 
-    def _delay_lines(self, rows: np.ndarray, drive: np.ndarray, starts: np.ndarray, rec: int, dt: float,
-                     ns: int) -> tuple[np.ndarray, np.ndarray]:
+    def _delay_lines(
+        self, rows: np.ndarray, drive: np.ndarray, starts: np.ndarray, rec: int, dt: float, ns: int
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Delay lines (B*ns, L) pre-filled with the drive before each segment start (newest last),
         heads at the newest entry; without a Delay effect, empty lines (head -1)."""
         n = rows.shape[0]
@@ -476,8 +503,9 @@ class SegmentedModel:
         H = drive[(lane // ns)[:, None], idx[lane % ns]]  # lane i: its row's drive before its segment
         return H, np.full(n, Ld - 1, dtype=np.int64)
 
-    def _effect_states(self, ex: Experiment, plan: dict, S: np.ndarray, drive: np.ndarray,
-                       starts: np.ndarray) -> np.ndarray:
+    def _effect_states(
+        self, ex: Experiment, plan: dict, S: np.ndarray, drive: np.ndarray, starts: np.ndarray
+    ) -> np.ndarray:
         """Effect states at each segment start (B*ns, n_states) from one free run of the record per row."""
         rec, dt = plan["rec"], plan["dt"]
         n_steps = int(starts[-1] * rec)
@@ -487,9 +515,10 @@ class SegmentedModel:
         X0 = np.zeros((B, sim.n_state))
         X0[:, :N_STATE] = ex.initial_states(np.zeros(B, dtype=int), self._full_rows(S), self.composition)
         HIST, HEAD = self._delay_lines(S, drive, np.zeros(1, dtype=int), rec, dt, 1)
-        D = self._simulate(ex.config, np.ascontiguousarray(drive[:, :n_steps]), dt, S, X0, np.zeros(B), HIST, HEAD,
-                           rec, n_steps, 1)
-        return D[:, starts, len(OUTPUT_NAMES):].reshape(B * ns, sim.n_states)
+        D = self._simulate(
+            ex.config, np.ascontiguousarray(drive[:, :n_steps]), dt, S, X0, np.zeros(B), HIST, HEAD, rec, n_steps, 1
+        )
+        return D[:, starts, len(OUTPUT_NAMES) :].reshape(B * ns, sim.n_states)
 
     def _full_rows(self, S: np.ndarray) -> np.ndarray:
         """Rows of the whole composition from rows of the simulated one (the lag's column at its default)."""
@@ -499,8 +528,20 @@ class SegmentedModel:
         P[:, self._sim_cols] = S
         return P
 
-    def _simulate(self, config: Configuration, U: np.ndarray, dt: float, rows: np.ndarray, X0: np.ndarray,
-                  T0: np.ndarray, HIST: np.ndarray, HEAD: np.ndarray, rec: int, n_steps: int, ns: int) -> np.ndarray:
+    def _simulate(
+        self,
+        config: Configuration,
+        U: np.ndarray,
+        dt: float,
+        rows: np.ndarray,
+        X0: np.ndarray,
+        T0: np.ndarray,
+        HIST: np.ndarray,
+        HEAD: np.ndarray,
+        rec: int,
+        n_steps: int,
+        ns: int,
+    ) -> np.ndarray:
         """One batched kernel call (B*ns, n_rec, n_outputs).  Rows that fail or diverge (a non-physical
         value tried by the optimiser) get NaN outputs; an exception reruns per parameter row."""
         sim = self._sim
@@ -518,19 +559,66 @@ class SegmentedModel:
             # benchmarks/bench_diagnose_time.py took 71 s instead of 100 s
             if Y.shape[0] >= LANES_MIN_BATCH:
                 OUT = np.empty((n_rec, len(sim.output_names), Y.shape[0]))  # the kernel writes every entry
-                run_lanes(sim.kernels.lanes.lanes_run, Y, MODE, U, rows, int(config), float(dt), int(rec), OUT,
-                          int(n_steps), True, HIST, HEAD, T0, None, None, (A, b, c))
+                run_lanes(
+                    sim.kernels.lanes.lanes_run,
+                    Y,
+                    MODE,
+                    U,
+                    rows,
+                    int(config),
+                    float(dt),
+                    int(rec),
+                    OUT,
+                    int(n_steps),
+                    True,
+                    HIST,
+                    HEAD,
+                    T0,
+                    None,
+                    None,
+                    (A, b, c),
+                )
                 OUT = OUT.transpose(2, 0, 1)
             else:
                 OUT = np.full((Y.shape[0], n_rec, len(sim.output_names)), np.nan)
-                sim.kernels.stepping.run_batch_parallel(Y, MODE, U, rows, int(config), float(dt), T0, 0.0, A, b, c,
-                                                        int(rec), OUT, True, int(n_steps), HIST, HEAD)
+                sim.kernels.stepping.run_batch_parallel(
+                    Y,
+                    MODE,
+                    U,
+                    rows,
+                    int(config),
+                    float(dt),
+                    T0,
+                    0.0,
+                    A,
+                    b,
+                    c,
+                    int(rec),
+                    OUT,
+                    True,
+                    int(n_steps),
+                    HIST,
+                    HEAD,
+                )
         except (SystemError, ZeroDivisionError, FloatingPointError, ValueError):
             if rows.shape[0] <= ns:
                 return np.full((rows.shape[0], n_rec, len(sim.output_names)), np.nan)
-            parts = [self._simulate(config, U[i:i + ns], dt, rows[i:i + ns], X0[i:i + ns], T0[i:i + ns],
-                                    HIST[i:i + ns], HEAD[i:i + ns], rec, n_steps, ns)
-                     for i in range(0, rows.shape[0], ns)]
+            parts = [
+                self._simulate(
+                    config,
+                    U[i : i + ns],
+                    dt,
+                    rows[i : i + ns],
+                    X0[i : i + ns],
+                    T0[i : i + ns],
+                    HIST[i : i + ns],
+                    HEAD[i : i + ns],
+                    rec,
+                    n_steps,
+                    ns,
+                )
+                for i in range(0, rows.shape[0], ns)
+            ]
             return np.concatenate(parts)
         bad = ~np.all(np.isfinite(OUT[:, -1, 2:10]), axis=1)
         OUT[bad] = np.nan

@@ -21,8 +21,9 @@ _H = 1e-7  # finite-difference step (rad or m) of the Jacobian
 _ITER = 6
 
 
-def invert_measurement(comp: Composition, readings: np.ndarray, rates: np.ndarray | None, vec: np.ndarray
-                       ) -> tuple[np.ndarray, np.ndarray | None]:
+def invert_measurement(
+    comp: Composition, readings: np.ndarray, rates: np.ndarray | None, vec: np.ndarray
+) -> tuple[np.ndarray, np.ndarray | None]:
     """The states and rates whose measurement is the readings.
 
     Parameters

@@ -36,8 +36,8 @@ initial state, on estimation and validation data.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 
@@ -50,8 +50,16 @@ from .fitting import FitResult, FitVariable, Objective, fit_parameters
 from .metrics import r2
 from .segmented import SegmentedModel
 
-__all__ = ["StageResult", "IdentificationResult", "STAGES", "KTHETA_GEOMETRY", "bearing_experiment",
-           "identify_stage", "identify_staged", "r2_free_run"]
+__all__ = [
+    "StageResult",
+    "IdentificationResult",
+    "STAGES",
+    "KTHETA_GEOMETRY",
+    "bearing_experiment",
+    "identify_stage",
+    "identify_staged",
+    "r2_free_run",
+]
 
 KTHETA_GEOMETRY = 0.0813  # N m/rad, from the string's geometry (report 3.3)
 ALPHA_WEIGHT = 13.0  # report: weight factor on alpha against theta_l (Ju ≈ 13 Jl)
@@ -69,18 +77,25 @@ class _Stage:
 
 STAGES: dict[str, _Stage] = {
     "upper": _Stage("upper", ("km", "Tcu", "dTcu", "bu", "dbu"), {"theta_u": 1.0}, ("theta_u",), None),
-    "free_vibration": _Stage("free_vibration", ("Jl", "bl", "Tcl"), {"theta_l": 1.0}, ("theta_l",), None,
-                             {"ktheta": KTHETA_GEOMETRY}),
-    "lower": _Stage("lower", ("Jl", "ktheta", "Tcl", "bl"), {"theta_l": 1.0, "alpha": ALPHA_WEIGHT},
-                    ("theta_l", "alpha"), 10.0),
+    "free_vibration": _Stage(
+        "free_vibration", ("Jl", "bl", "Tcl"), {"theta_l": 1.0}, ("theta_l",), None, {"ktheta": KTHETA_GEOMETRY}
+    ),
+    "lower": _Stage(
+        "lower", ("Jl", "ktheta", "Tcl", "bl"), {"theta_l": 1.0, "alpha": ALPHA_WEIGHT}, ("theta_l", "alpha"), 10.0
+    ),
     "lateral": _Stage("lateral", ("k", "b", "e", "mt"), {"r": 1.0}, ("r",), 10.0),
-    "brake": _Stage("brake", ("Ts", "Tc", "ws", "delta", "bb"), {"theta_l": 1.0, "alpha": ALPHA_WEIGHT},
-                    ("theta_l", "alpha"), 4.0),
+    "brake": _Stage(
+        "brake", ("Ts", "Tc", "ws", "delta", "bb"), {"theta_l": 1.0, "alpha": ALPHA_WEIGHT}, ("theta_l", "alpha"), 4.0
+    ),
 }
 
-_STAGE_CONFIG = {"upper": Configuration.UPPER, "free_vibration": Configuration.FREE_VIBRATION,
-                 "lower": Configuration.LATERAL, "lateral": Configuration.LATERAL,
-                 "brake": Configuration.TORSIONAL}
+_STAGE_CONFIG = {
+    "upper": Configuration.UPPER,
+    "free_vibration": Configuration.FREE_VIBRATION,
+    "lower": Configuration.LATERAL,
+    "lateral": Configuration.LATERAL,
+    "brake": Configuration.TORSIONAL,
+}
 
 
 def bearing_experiment(ts: TimeSeries, compare_rate_hz: float = 100.0) -> Experiment:
@@ -100,8 +115,9 @@ def bearing_experiment(ts: TimeSeries, compare_rate_hz: float = 100.0) -> Experi
     Experiment
         The experiment.
     """
-    ex = prepare_experiment(ts, Configuration.TORSIONAL if ts.configuration is None else ts.configuration,
-                            compare_rate_hz=compare_rate_hz)
+    ex = prepare_experiment(
+        ts, Configuration.TORSIONAL if ts.configuration is None else ts.configuration, compare_rate_hz=compare_rate_hz
+    )
     ex.config = Configuration.LATERAL
     ex.meas.pop("x", None)
     ex.meas.pop("y", None)
@@ -119,9 +135,15 @@ class StageResult:
     r2_validation: dict[str, float]
 
     def to_json(self) -> dict:
-        return {"stage": self.name, "values": self.fit.values, "std": self.fit.std,
-                "r2_estimation": self.r2_estimation, "r2_validation": self.r2_validation,
-                "warnings": self.fit.warnings, "nfev": self.fit.nfev}
+        return {
+            "stage": self.name,
+            "values": self.fit.values,
+            "std": self.fit.std,
+            "r2_estimation": self.r2_estimation,
+            "r2_validation": self.r2_validation,
+            "warnings": self.fit.warnings,
+            "nfev": self.fit.nfev,
+        }
 
 
 @dataclass
@@ -160,8 +182,9 @@ def _stage_params(params: RigParams, stage: _Stage) -> RigParams:
     return p
 
 
-def r2_free_run(experiments: Sequence[Experiment], params: RigParams, channels: Sequence[str],
-                fixed: dict | None = None) -> dict[str, float]:
+def r2_free_run(
+    experiments: Sequence[Experiment], params: RigParams, channels: Sequence[str], fixed: dict | None = None
+) -> dict[str, float]:
     """R² per channel (report eq. 3.2) of free runs from each recording's initial state.
 
     Parameters
@@ -199,9 +222,17 @@ def r2_free_run(experiments: Sequence[Experiment], params: RigParams, channels: 
     return out
 
 
-def identify_stage(stage: str, estimation, params: RigParams, validation=None, *,
-                   compare_rate_hz: float = 100.0, max_nfev: int = 40,
-                   parameters: Sequence[str] | None = None, refine_speeds: bool = True) -> StageResult:
+def identify_stage(
+    stage: str,
+    estimation,
+    params: RigParams,
+    validation=None,
+    *,
+    compare_rate_hz: float = 100.0,
+    max_nfev: int = 40,
+    parameters: Sequence[str] | None = None,
+    refine_speeds: bool = True,
+) -> StageResult:
     """Run one stage of the procedure.
 
     Parameters
@@ -270,9 +301,14 @@ def identify_stage(stage: str, estimation, params: RigParams, validation=None, *
     return StageResult(stage, res, r2e, r2v)
 
 
-def identify_staged(data: dict[str, object], params: RigParams | None = None, *,
-                    validation: dict[str, object] | None = None, compare_rate_hz: float = 100.0,
-                    max_nfev: int = 40) -> IdentificationResult:
+def identify_staged(
+    data: dict[str, object],
+    params: RigParams | None = None,
+    *,
+    validation: dict[str, object] | None = None,
+    compare_rate_hz: float = 100.0,
+    max_nfev: int = 40,
+) -> IdentificationResult:
     """The full procedure: the stages that have recordings, in the report's order.
 
     Parameters
@@ -301,8 +337,7 @@ def identify_staged(data: dict[str, object], params: RigParams | None = None, *,
     """
     unknown = set(data) - set(STAGES)
     if unknown:
-        raise InputError(f"unknown identification stage(s) {', '.join(sorted(unknown))}; "
-                         f"expected: {', '.join(STAGES)}")
+        raise InputError(f"unknown identification stage(s) {', '.join(sorted(unknown))}; expected: {', '.join(STAGES)}")
     p = params or RigParams()
     stages = []
     for name in STAGES:
@@ -310,8 +345,9 @@ def identify_staged(data: dict[str, object], params: RigParams | None = None, *,
             continue
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            sr = identify_stage(name, data[name], p, (validation or {}).get(name),
-                                compare_rate_hz=compare_rate_hz, max_nfev=max_nfev)
+            sr = identify_stage(
+                name, data[name], p, (validation or {}).get(name), compare_rate_hz=compare_rate_hz, max_nfev=max_nfev
+            )
         p = sr.fit.params
         stages.append(sr)
     return IdentificationResult(p, stages)

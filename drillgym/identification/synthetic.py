@@ -11,8 +11,9 @@ rig recording holds), not the simulator's delayed or lagged internal input.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
-from typing import Any, Callable, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -89,8 +90,9 @@ class SyntheticOptions:
     effect_params: Mapping[str, float] | None = None
 
 
-def synthetic_measurement(config: str, params: RigParams | None = None, *, options: SyntheticOptions | None = None,
-                          **settings: Any) -> TimeSeries:
+def synthetic_measurement(
+    config: str, params: RigParams | None = None, *, options: SyntheticOptions | None = None, **settings: Any
+) -> TimeSeries:
     """Simulate a configuration of the rig and measure it.
 
     Parameters
@@ -127,8 +129,18 @@ def synthetic_measurement(config: str, params: RigParams | None = None, *, optio
     sim_p = p.replace(e=0.0) if bearing else p
     comp, values = compose(o.effects, o.effect_params)
     if o.level_profile is None:
-        traj = simulate("lateral" if bearing else config, (t, uu), o.duration, dt=o.dt, params=sim_p,
-                        alpha0=o.alpha0, method="dp5", record_every=rec, effects=comp, effect_params=values)
+        traj = simulate(
+            "lateral" if bearing else config,
+            (t, uu),
+            o.duration,
+            dt=o.dt,
+            params=sim_p,
+            alpha0=o.alpha0,
+            method="dp5",
+            record_every=rec,
+            effects=comp,
+            effect_params=values,
+        )
     else:
         traj = _simulate_level_profile("lateral" if bearing else config, t, uu, o, sim_p, rec, comp, values)
     ts = measure_trajectory(traj, o.model, seed=o.seed)
@@ -161,7 +173,7 @@ def _input(o: SyntheticOptions, fs: float) -> tuple[np.ndarray, np.ndarray, str]
         i = 0
         while i < t.size:
             k = max(1, int(rng.uniform(2.0, 6.0) * fs))
-            uu[i:i + k] = offset + (amplitude - abs(offset)) * rng.uniform(-1.0, 1.0)
+            uu[i : i + k] = offset + (amplitude - abs(offset)) * rng.uniform(-1.0, 1.0)
             i += k
     elif signal == "quasi_random":
         t, uu = quasi_random(duration, rate_hz=fs, seed=seed, amplitude=amplitude, offset=offset)
@@ -172,14 +184,17 @@ def _input(o: SyntheticOptions, fs: float) -> tuple[np.ndarray, np.ndarray, str]
     return t, uu, signal
 
 
-def _simulate_level_profile(config: str, t: np.ndarray, uu: np.ndarray, o: SyntheticOptions, p: RigParams, rec: int,
-                            comp, values):
+def _simulate_level_profile(
+    config: str, t: np.ndarray, uu: np.ndarray, o: SyntheticOptions, p: RigParams, rec: int, comp, values
+):
     """A run whose lower friction level follows g(t): chunks continued from the previous final state
     (the library's friction_drift, added to the composition, interpolates g across each chunk)."""
     duration, dt, alpha0, g, chunk_s = o.duration, o.dt, o.alpha0, o.level_profile, o.level_chunk_s
     if comp.has_delay or comp.n_states or "friction_drift" in comp.names:
-        raise InputError("level_profile cannot be combined with friction_drift or effects with a delay or a state "
-                         "(they act from a run's start)")
+        raise InputError(
+            "level_profile cannot be combined with friction_drift or effects with a delay or a state "
+            "(they act from a run's start)"
+        )
     chunk_comp, _ = compose(list(comp.effects) + ["friction_drift"])
     if abs(float(g(0.0)) - 1.0) > 1e-9:
         raise InputError("level_profile must satisfy g(0) = 1")
@@ -196,8 +211,19 @@ def _simulate_level_profile(config: str, t: np.ndarray, uu: np.ndarray, o: Synth
         pc = p.replace(**{n: getattr(p, n) * g0 for n in _LOWER_LEVEL})
         drift = (g1 / g0 - 1.0) / (t1 - t0)
         sel = (t >= t0 - 1e-12) & (t <= t1 + 1.0 / fs + 1e-12)
-        tr = simulate(config, (t[sel] - t0, uu[sel]), t1 - t0, dt=dt, params=pc, alpha0=alpha0, x0=x0,
-                      method="dp5", record_every=rec, effects=chunk_comp, effect_params={**values, "drift": drift})
+        tr = simulate(
+            config,
+            (t[sel] - t0, uu[sel]),
+            t1 - t0,
+            dt=dt,
+            params=pc,
+            alpha0=alpha0,
+            x0=x0,
+            method="dp5",
+            record_every=rec,
+            effects=chunk_comp,
+            effect_params={**values, "drift": drift},
+        )
         data = tr.data.copy()
         data[:, 0] += t0
         blocks.append(data if not blocks else data[1:])

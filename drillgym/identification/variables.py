@@ -42,7 +42,7 @@ class FitVariable:
     scale: float
 
     @classmethod
-    def of_effect(cls, composition: Composition, name: str, x0: float | None = None) -> "FitVariable":
+    def of_effect(cls, composition: Composition, name: str, x0: float | None = None) -> FitVariable:
         """An effect's parameter with the effect's own bounds, guess and scale.
 
         Parameters
@@ -71,7 +71,7 @@ class FitVariable:
         return cls(name, float(v), float(prm.lo), float(prm.hi), float(prm.scale))
 
     @classmethod
-    def named(cls, composition: Composition, name: str, vector: np.ndarray | None = None) -> "FitVariable":
+    def named(cls, composition: Composition, name: str, vector: np.ndarray | None = None) -> FitVariable:
         """Any parameter of a composition as a fit variable.
 
         An effect's (its Parameter's bounds and scale, starting from ``vector``'s value when given, else the
@@ -101,7 +101,7 @@ class FitVariable:
         return cls.relative(base, name, 0.5, 2.0)
 
     @classmethod
-    def relative(cls, params: RigParams, name: str, lo: float = 0.3, hi: float = 3.0) -> "FitVariable":
+    def relative(cls, params: RigParams, name: str, lo: float = 0.3, hi: float = 3.0) -> FitVariable:
         """A base parameter fitted around its current value.
 
         Parameters
@@ -144,7 +144,7 @@ class SpeedVariables:
         gid = objective.segment_offsets[self.exp] + self.seg if self.count else np.zeros(0, dtype=int)
         order = np.argsort(objective.segment_ids, kind="stable")
         bounds = np.searchsorted(objective.segment_ids[order], np.arange(objective.segment_ids.max(initial=-1) + 2))
-        self.entries = [order[bounds[g]:bounds[g + 1]] for g in gid]
+        self.entries = [order[bounds[g] : bounds[g + 1]] for g in gid]
 
     def set(self, z: np.ndarray) -> None:
         """Set the model's speed corrections from the scaled variables ``z``."""
