@@ -1,0 +1,50 @@
+"""Time-series files of the rig (../shared/DATA_FORMAT.md): read, validate, write, stream.
+
+One format for measurements, recordings and simulations:
+
+* CSV: ``#`` comment lines first (``# meta: {json}`` holds metadata), then a
+  header and comma-separated rows.  Columns in SI units, any order; unknown
+  columns are kept.  Required: ``t``, ``u``, ``theta_u``; ``theta_l`` for every
+  configuration but ``upper``; ``x``, ``y`` (fixed frame) for ``lateral`` and
+  ``coupled``.
+* MATLAB ``.mat`` as Simulink writes it (arrays, "structure with time", or
+  a timeseries-like struct), columns mapped by name (aliases accepted) or an
+  explicit ``mapping={"column": "matlab_name"}``.  A variable with several
+  columns (a muxed ``signals.values`` of shape (N, k), several signals of a
+  "structure with time", a matrix) offers them as ``name:1`` … ``name:k``
+  (1-based, as in MATLAB), e.g. ``mapping={"theta_u": "ScopeData:2"}``; a
+  signal's ``label`` is a name too.  The CLI's ``--map theta_u=ScopeData:2``.
+* ``mapping`` works for CSV too: ``{"theta_u": "enc1"}`` reads column ``enc1``
+  as ``theta_u``.
+
+A file that cannot be used raises :class:`DataFormatError` naming the file,
+the line or column and what is wrong.  Nothing is dropped or guessed.
+"""
+
+from __future__ import annotations
+
+from ..errors import DataFormatError
+from .paths import create_directory, describe_parse_error
+from .reading import MAT_ALIASES, read_csv, read_input_signal, read_mat, read_timeseries
+from .timeseries import KNOWN_COLUMNS, U_LIMIT_FILE, XY_LIMIT_FILE, TimeSeries, required_columns
+from .writing import StreamingCsvWriter, trajectory_to_timeseries, write_timeseries, write_trajectory_csv
+
+__all__ = [
+    "TimeSeries",
+    "read_timeseries",
+    "read_input_signal",
+    "read_csv",
+    "read_mat",
+    "write_timeseries",
+    "write_trajectory_csv",
+    "StreamingCsvWriter",
+    "required_columns",
+    "DataFormatError",
+    "U_LIMIT_FILE",
+    "XY_LIMIT_FILE",
+    "create_directory",
+    "describe_parse_error",
+    "trajectory_to_timeseries",
+    "KNOWN_COLUMNS",
+    "MAT_ALIASES",
+]
