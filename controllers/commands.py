@@ -77,8 +77,10 @@ def register(app: typer.Typer) -> None:
         The plant runs the hidden effects (--add-effect, and a model file's); the controllers do not."""
         from controllers.evaluation import DEFAULT_TARGETS, evaluate, parse_scenarios
         from controllers.evaluation.report import write_report
+        from drillgym.commands.outputs import check_output_dir
         from drillgym.commands.plant import describe_plant, plant_from_cli
 
+        check_output_dir(out)  # refused before the runs, not after them
         cfgs = [c.strip() for c in config.split(",") if c.strip()]
         names = [c.strip() for c in controllers.split(",") if c.strip()]
         if not names:

@@ -220,6 +220,30 @@ def test_rig_run_names_a_missing_serial_port(capsys, tmp_path):
     assert_one_line(code, err, "ttyNOPE", "does not exist")
 
 
+def test_evaluate_refuses_an_output_directory_that_is_a_file_before_the_runs(capsys, monkeypatch, tmp_path):
+    import controllers.evaluation
+
+    def no_runs(*args, **kwargs):
+        raise AssertionError("evaluate ran before its --out was checked")
+
+    monkeypatch.setattr(controllers.evaluation, "evaluate", no_runs)
+    taken = tmp_path / "results.txt"
+    taken.write_text("x")
+    code, err = run(
+        capsys, "evaluate", "--controllers", "baseline", "--config", "torsional", "--targets", "1", "--out", str(taken)
+    )
+    assert_one_line(code, err, "--out", "results.txt", "is a file")
+    assert taken.read_text() == "x"
+
+
+@pytest.mark.parametrize("content", [b"not an npz", b"PK\x03\x04 not a zip archive", b""])
+def test_rig_run_names_a_policy_file_that_is_not_an_npz_archive(capsys, tmp_path, content):
+    bad = tmp_path / "policy.npz"
+    bad.write_bytes(content)
+    code, err = run(capsys, "rig", "run", "--port", str(tmp_path / "ttyNOPE"), "--policy", str(bad), "--duration", "1")
+    assert_one_line(code, err, "--policy", "policy.npz", "not a policy file")
+
+
 def test_a_linear_policy_file_that_is_not_one_is_named(tmp_path):
     from hw.runner import load_policy
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 import time
+import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -288,14 +289,26 @@ def trained_agent(path: Path) -> bool:
     bool
         True for a run directory, its ``model.zip`` or an exported ``policy.npz`` with its
         metadata; False for a bare linear ``.npz`` (arrays W, b).
+
+    Raises
+    ------
+    InputError
+        If a ``.npz`` file is not an archive numpy reads (``--policy`` named in one line).
     """
     p = Path(path)
     if p.is_dir() or p.suffix == ".zip":
         return True
     if p.suffix == ".npz" and p.is_file():
-        import numpy as np
-
-        with np.load(p, allow_pickle=False) as z:
+        try:
+            z = np.load(p, allow_pickle=False)
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+            reason = " ".join(str(exc).split()) or type(exc).__name__
+            raise InputError(
+                f"--policy {p}: not a policy file (a .npz written by drillgym train, or arrays W and b): {reason}"
+            ) from None
+        if not hasattr(z, "files"):  # a single .npy array: the linear policy's loader names what it needs
+            return False
+        with z:
             return "meta" in z.files
     return False
 
