@@ -314,9 +314,9 @@ def test_default_watchdog_run_completes_on_a_loaded_machine(tmp_path):
                 assert "300 steps" in out and len(read_timeseries(record)) == 301
                 return
             # a clean stop, the file kept (or none yet: a fault while the rig was brought to rest, before the episode)
+            # the message as a string: pytest prints it whole (a tuple is cut to 240 characters, the traceback lost)
             assert code == 3 and "safety stop" in err and (record.exists() or "nothing recorded yet" in err), (
-                code,
-                err,
+                f"exit {code}; stderr:\n{err}"
             )
             failures.append(f"attempt {attempt + 1}: exit {code}; stdout: {out.strip()}; stderr: {err.strip()}")
         pytest.fail("\n".join(failures))
