@@ -36,6 +36,7 @@ import numpy as np
 
 from ..identification.experiment import Experiment
 from ..params import N_PARAMS, RigParams
+from .effect_file import write_effect_file
 from .results import Candidate
 from .sparse import ResidualTorque
 
@@ -439,96 +440,6 @@ def _set_reach(
         if tm.label in best.terms:
             g = np.asarray(tm.values(d), dtype=float)
             best.reach[tm.label] = res_rms / max(float(np.sqrt(np.mean(g**2))), 1e-12)
-
-
-_ARGS_FRICTION = ("T", "direction", "speed", "omega")
-
-
-def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None) -> Path:
-    """Write a candidate as an effect file.
-
-    Parameters
-    ----------
-    cand : Candidate
-        The candidate; its ``name`` and ``effect_file`` (``path:name``, what ``--add-effect`` takes) are set.
-    path : str or path
-        The file (``.py``).
-    name : str, optional
-        The effect's name (default: ``candidate_GROUP``).
-
-    Returns
-    -------
-    pathlib.Path
-        The file written.
-    """
-    path = Path(path)
-    name = name or f"candidate_{cand.group}"
-    cls = "".join(p.capitalize() for p in name.split("_"))
-    params, body = [], []
-    for i, (label, c) in enumerate(cand.terms.items(), 1):
-        size = max(abs(c), cand.reach.get(label, 0.0), 1e-9)
-        params.append(
-            f'        Parameter("{name}_c{i}", "N m", {-4 * size!r}, {4 * size!r}, {c!r}, {size / 2!r},\n'
-            f'                  doc="coefficient of {label}"),'
-        )
-        body.append(f"{name}_c{i} * ({cand.codes[label]})")
-    pnames = [f"{name}_c{i}" for i in range(1, len(cand.terms) + 1)]
-    expr = " + ".join(body)
-    used = [v for v in ("theta_l", "theta_u", "alpha", "alpha_dot", "t", "u") if _uses(cand, v)]
-    lines = [
-        '"""Candidate effect written by `drillgym diagnose --candidate-out` from the residual torques.',
-        "",
-        f"    {cand.expression()}",
-        f"    (explains {cand.explained:.0%} of the residual torque; {cand.n_samples} samples)",
-        "",
-        f"Fit it: drillgym identify RECORDING --add-effect {path.name}:{name} --out p.json",
-        '"""',
-        "",
-        "import math",
-        "",
-        "from drillgym.effects import Force, Friction, Parameter",
-        "",
-        "",
-    ]
-    friction = cand.group.endswith("friction")
-    kind = "Friction" if friction else "Force"
-    lines.append(f"class {cls}({kind}):")
-    lines.append(f'    name = "{name}"')
-    if friction:
-        lines.append(f'    disc = "{cand.group.split("_")[0]}"')
-    else:
-        lines.append(f'    acts_on = "{cand.group.split("_")[0]}"')
-    lines.append("    parameters = (")
-    lines += params
-    lines.append("    )")
-    lines.append(f'    explanation = "Found in the residual torques by drillgym diagnose: {cand.expression()}."')
-    lines.append('    signature = "the residual torque this term was regressed on"')
-    lines.append("")
-    if friction:
-        speed_args = ", ".join(a for a in _ARGS_FRICTION if a == "T" or _uses(cand, a))
-        extra = "".join(f", {v}" for v in used)
-        lines.append(f"    def slip({speed_args}{extra}, {', '.join(pnames)}):")
-        lines.append(f"        return T + ({expr})")
-        rest = [f"{p} * {cand.at_rest[lb]!r}" for p, lb in zip(pnames, cand.terms) if cand.at_rest[lb]]
-        rest_args = [p for p, lb in zip(pnames, cand.terms) if cand.at_rest[lb]]
-        if rest:
-            lines.append("")
-            lines.append(f"    def stick(lo, hi, {', '.join(rest_args)}):")
-            lines.append(f"        d = {' + '.join(rest)}")
-            lines.append("        return min(lo - d, 0.0), max(hi + d, 0.0)")
-    else:
-        args = ", ".join(used)
-        lines.append(f"    def torque({args + ', ' if args else ''}{', '.join(pnames)}):")
-        lines.append(f"        return {expr}")
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    cand.name, cand.effect_file = name, f"{path}:{name}"
-    return path
-
-
-def _uses(cand: Candidate, var: str) -> bool:
-    import re
-
-    return any(re.search(rf"\b{var}\b", cand.codes[lb]) for lb in cand.terms)
 
 
 def advice(ex: Experiment, rt: ResidualTorque | None) -> list[str]:

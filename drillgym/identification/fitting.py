@@ -18,7 +18,7 @@ from __future__ import annotations
 import copy
 import math
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -29,6 +29,7 @@ from ..errors import InputError
 from ..params import N_PARAMS, RigParams
 from .blas import on_one_blas_thread
 from .experiment import Experiment
+from .least_squares import ApplyFn, FitOptions, GaussianPrior, ResidualFunction, ScaledBox, identifiability
 from .segmented import SegmentedModel
 from .variables import FitVariable, SpeedVariables
 
@@ -262,9 +263,6 @@ class FitResult:
         return math.sqrt(self.rss_after / max(self.n_residuals, 1))
 
 
-ApplyFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
-
-
 def base_vector(
     composition: Composition, base: RigParams | np.ndarray | None, values: dict[str, float] | None = None
 ) -> np.ndarray:
@@ -311,47 +309,6 @@ def _set_by_name(composition: Composition, names: Sequence[str]) -> ApplyFn:
         return v
 
     return apply
-
-
-@dataclass(frozen=True)
-class FitOptions:
-    """How :func:`fit_parameters` fits.
-
-    Attributes
-    ----------
-    max_nfev : int
-        Least-squares evaluations.  Default 30.
-    fd_step : float
-        Finite-difference step of the Jacobian, in the variables' scales.  Default 1e-3.
-    rel_std_limit : float
-        Relative standard error above which a parameter is reported as poorly identifiable.  Default 0.1.
-    collinearity_limit : float
-        Collinearity index above which the fit reports parameters that are not separately identifiable.
-        Default 1000.
-    ftol, xtol : float
-        Least-squares tolerances.  Default 1e-6.
-    prior : mapping of str to (float, float), optional
-        {variable: (mean, standard deviation)} of a Gaussian prior (maximum a posteriori: the rows
-        √prior_weight · (value − mean) / std are appended to the residual).
-    prior_weight : float
-        The data residual's variance per independent sample, so that one unit of Σ ((value − mean) / std)²
-        weighs as much as one of the data's log-likelihood.  Default 1.
-    fit_speeds : bool
-        Correct the speeds at the segment starts in the same fit.  Default False.
-    speed_step : float
-        The speeds' finite-difference step (rad/s).  Default 0.005.
-    """
-
-    max_nfev: int = 30
-    fd_step: float = 1e-3
-    rel_std_limit: float = 0.1
-    collinearity_limit: float = 1000.0
-    ftol: float = 1e-6
-    xtol: float = 1e-6
-    prior: Mapping[str, tuple[float, float]] | None = None
-    prior_weight: float = 1.0
-    fit_speeds: bool = False
-    speed_step: float = 0.005
 
 
 @on_one_blas_thread  # the simulations hold the cores; and a result that does not depend on thread timing
@@ -420,15 +377,15 @@ def fit_parameters(
     names = [v.name for v in variables]
     apply = apply or _set_by_name(comp, names)
     base_vec = base_vector(comp, base, effect_values)
-    box = _Box(variables)
+    box = ScaledBox(variables)
     n = len(variables)
     speeds = SpeedVariables(objective) if opts.fit_speeds else None
     ks = speeds.count if speeds is not None else 0
     zlo, zhi = box.zlo, box.zhi
     if ks:
         zlo, zhi = np.concatenate([zlo, speeds.zlo]), np.concatenate([zhi, speeds.zhi])
-    res = _Residual(objective, apply, base_vec, box, speeds, opts)
-    prior = _Prior(names, box, ks, opts)
+    res = ResidualFunction(objective, apply, base_vec, box, speeds, opts)
+    prior = GaussianPrior(names, box, ks, opts)
 
     def fun_map(z: np.ndarray) -> np.ndarray:
         return np.concatenate([res.fun(z), prior.rows(z)]) if prior.idx else res.fun(z)
@@ -461,7 +418,7 @@ def fit_parameters(
         speeds.set(z[n:])  # the model keeps the fitted speeds
     values = box.x0 + box.scale * z[:n]
     m = len(r1)
-    std, msgs = _identifiability(names, values, J, float(r1 @ r1) / max(m - n - ks, 1), z, zlo, zhi, box, opts)
+    std, msgs = identifiability(names, values, J, float(r1 @ r1) / max(m - n - ks, 1), z, zlo, zhi, box, opts)
     for mm in msgs:
         warnings.warn(mm, IdentifiabilityWarning, stacklevel=2)
     vec = apply(base_vec, values)
@@ -479,139 +436,3 @@ def fit_parameters(
         r1,
         composition=comp,
     )
-
-
-class _Box:
-    """The variables' start, scale and bounds; the fit runs on z = (x − x0) / scale."""
-
-    def __init__(self, variables: Sequence[FitVariable]) -> None:
-        names = [v.name for v in variables]
-        x0 = np.array([v.x0 for v in variables])
-        self.scale = np.array([v.scale for v in variables])
-        self.lo = lo = np.array([v.lo for v in variables])
-        self.hi = hi = np.array([v.hi for v in variables])
-        if np.any(lo >= hi):
-            bad = names[int(np.argmax(lo >= hi))]
-            raise InputError(f"fit variable {bad!r}: empty bounds")
-        self.x0 = np.clip(x0, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
-        self.zlo, self.zhi = (lo - self.x0) / self.scale, (hi - self.x0) / self.scale
-
-
-class _Residual:
-    """The data's residual of z and its finite-difference Jacobian (the speeds' columns from two batched rows)."""
-
-    def __init__(
-        self,
-        objective: Objective,
-        apply: ApplyFn,
-        base_vec: np.ndarray,
-        box: _Box,
-        speeds: SpeedVariables | None,
-        opts: FitOptions,
-    ) -> None:
-        self.objective, self.apply, self.base_vec, self.box, self.speeds, self.opts = (
-            objective,
-            apply,
-            base_vec,
-            box,
-            speeds,
-            opts,
-        )
-        self.n = len(box.x0)
-        self.ks = speeds.count if speeds is not None else 0
-        self.cache: dict[bytes, np.ndarray] = {}
-
-    def rows(self, Z: np.ndarray) -> np.ndarray:
-        n, box = self.n, self.box
-        return np.stack([self.apply(self.base_vec, box.x0 + box.scale * z[:n]) for z in Z])
-
-    def fun(self, z: np.ndarray) -> np.ndarray:
-        key = z.tobytes()
-        if key not in self.cache:
-            self.cache.clear()
-            if self.ks:
-                self.speeds.set(z[self.n :])
-            self.cache[key] = self.objective.residual_matrix(self.rows(z[None, :]))[0]
-        return self.cache[key]
-
-    def jac(self, z: np.ndarray, zhi: np.ndarray) -> np.ndarray:
-        n, fd_step, objective = self.n, self.opts.fd_step, self.objective
-        f0 = self.fun(z)
-        h = np.where(z[:n] + fd_step <= zhi[:n], fd_step, -fd_step)
-        Z = np.repeat(z[None, :], n, axis=0)
-        Z[:, :n] += np.diag(h)
-        if not self.ks:
-            R = objective.residual_matrix(self.rows(Z))
-            return ((R - f0[None, :]) / h[:, None]).T
-        speed_step = self.opts.speed_step
-        self.speeds.set(z[n:])
-        Z = np.vstack([Z, z[None, :], z[None, :]])
-        dspeed = np.zeros((n + 2, 2))
-        dspeed[n, 0] = dspeed[n + 1, 1] = speed_step
-        R = objective.residual_matrix(self.rows(Z), dspeed=dspeed)
-        Jp = ((R[:n] - f0[None, :]) / h[:, None]).T
-        return np.hstack([Jp, self.speeds.columns((R[n:] - f0[None, :]) / speed_step)])
-
-
-class _Prior:
-    """The prior's rows, linear in z, and their Jacobian."""
-
-    def __init__(self, names: Sequence[str], box: _Box, ks: int, opts: FitOptions) -> None:
-        prior = opts.prior
-        n = len(names)
-        self.idx = [i for i, nm in enumerate(names) if prior and nm in prior]
-        self.mean = np.array([prior[names[i]][0] for i in self.idx], dtype=float)
-        self.std = np.array([prior[names[i]][1] for i in self.idx], dtype=float)
-        self.w = math.sqrt(max(opts.prior_weight, 0.0))
-        self.box = box
-        self.jac = np.zeros((len(self.idx), n + ks))
-        for k, i in enumerate(self.idx):
-            self.jac[k, i] = self.w * box.scale[i] / self.std[k]
-
-    def rows(self, z: np.ndarray) -> np.ndarray:
-        idx, box = self.idx, self.box
-        return self.w * (box.x0[idx] + box.scale[idx] * z[idx] - self.mean) / self.std
-
-
-def _identifiability(
-    names: Sequence[str],
-    values: np.ndarray,
-    J: np.ndarray,
-    s2: float,
-    z: np.ndarray,
-    zlo: np.ndarray,
-    zhi: np.ndarray,
-    box: _Box,
-    opts: FitOptions,
-) -> tuple[np.ndarray, list[str]]:
-    """The standard errors of the fitted values, and the identifiability messages."""
-    n = len(names)
-    msgs: list[str] = []
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        cov = np.linalg.pinv(J.T @ J) * s2
-    std = box.scale * np.sqrt(np.clip(np.diag(cov)[:n], 0, None))
-    J = J[:, :n]
-    col = np.linalg.norm(J, axis=0)
-    std[col == 0] = np.inf  # the data do not depend on it: any value fits (pinv would say 0)
-    if np.any(col == 0):
-        for i in np.flatnonzero(col == 0):
-            msgs.append(f"{names[i]}: the data do not depend on it (not excited): not identifiable")
-    elif n > 1:
-        _, sv, vt = np.linalg.svd(J / col, full_matrices=False)
-        gamma = 1.0 / max(sv[-1], 1e-300)  # collinearity index (unit-norm columns)
-        if gamma > opts.collinearity_limit:
-            v = np.abs(vt[-1])
-            involved = [names[i] for i in np.flatnonzero(v > 0.1 * v.max())]
-            msgs.append(
-                f"near-singular JᵀJ (collinearity index {gamma:.0f} > {opts.collinearity_limit:.0f}): "
-                f"{', '.join(involved)} are not separately identifiable from these data"
-            )
-    lim = opts.rel_std_limit
-    for i, nm in enumerate(names):
-        ref = max(abs(values[i]), 1e-12)
-        if abs(values[i]) > 0 and std[i] / ref > lim and not any(nm in mm for mm in msgs):
-            msgs.append(f"{nm}: relative standard error {std[i] / ref:.0%} > {lim:.0%}: poorly identifiable")
-        if (z[i] <= zlo[i] + 1e-6 or z[i] >= zhi[i] - 1e-6) and np.isfinite(zlo[i] + zhi[i]):
-            msgs.append(f"{nm}: estimate {values[i]:.4g} is at a bound of [{box.lo[i]:.4g}, {box.hi[i]:.4g}]")
-    return std, msgs

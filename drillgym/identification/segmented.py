@@ -35,8 +35,6 @@ channels, the offline zero-phase low-pass (:func:`drillgym.measurement.lowpass_z
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
-from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -52,6 +50,7 @@ from ..params import N_PARAMS
 from ..simulator import LANES_MIN_BATCH, run_lanes
 from .experiment import Experiment
 from .predictions import Prediction, as_composition, steps_per_sample
+from .speeds import SpeedCorrections
 
 __all__ = ["SegmentedModel", "Prediction", "CHANNELS", "as_composition"]
 
@@ -63,7 +62,7 @@ MAX_DT = 2e-3  # s: simulator step bound (DP5: > 200 steps per lateral period)
 _COL = {n: i for i, n in enumerate(OUTPUT_NAMES)}
 
 
-class SegmentedModel:
+class SegmentedModel(SpeedCorrections):
     """Predicts experiments for parameter matrices (B, composition.n_params) by multiple shooting.
 
     Parameters
@@ -117,117 +116,6 @@ class SegmentedModel:
         self.n_rows_per_params = sum(len(p["starts"]) for p in self._plans)
         # corrections (rad/s) to the data's speed estimates at each segment start: (n_seg, 2) per experiment
         self.speed_offsets = [np.zeros((len(p["starts"]), 2)) for p in self._plans]
-
-    def speeds_snapshot(self) -> list[np.ndarray]:
-        """A copy of the speed corrections at the segment starts (rad/s, (n_seg, 2) per experiment)."""
-        return [o.copy() for o in self.speed_offsets]
-
-    @contextmanager
-    def speeds_kept(self) -> Iterator[None]:
-        """Within the block the speed corrections may change (a trial fit refines them); on leaving it
-        they are those of its start again."""
-        saved = self.speeds_snapshot()
-        try:
-            yield
-        finally:
-            self.speed_offsets = saved
-
-    def refine_initial_speeds(
-        self,
-        vec: np.ndarray,
-        weights: dict[str, float],
-        scales: dict[str, float],
-        iterations: int = 2,
-        h: float = 0.005,
-        fresh: bool = False,
-    ) -> None:
-        """Correct the speeds estimated from the data at the segment starts (nuisance states) by
-        Gauss–Newton on the base model's residual, so that noisy derivative estimates of the
-        recording do not pass for model error.  Segments are independent, so one batched run
-        with all segments' ω_u (resp. ω_l) perturbed gives every segment's sensitivity.
-        A disc stuck at a segment's start (speed exactly 0) is left stuck, and a correction never
-        exceeds three standard deviations of the estimate's quantization noise
-        (``Experiment.speed_noise``): it removes derivative noise, not model error.
-
-        Parameters
-        ----------
-        vec : numpy.ndarray
-            The model's parameter vector.
-        weights : dict of str to float
-            The channels' weights.
-        scales : dict of str to float
-            The channels' residual scales.
-        iterations : int, optional
-            Gauss–Newton iterations.  Default 2.
-        h : float, optional
-            Speed step of the sensitivities (rad/s).  Default 0.005.
-        fresh : bool, optional
-            Start from the data's estimates (earlier corrections, made for another parameter vector,
-            dropped).  Default False.
-        """
-        if fresh:
-            self.speed_offsets = [np.zeros_like(o) for o in self.speed_offsets]
-        for _ in range(iterations):
-            P = np.repeat(np.asarray(vec, dtype=float)[None, :], 3, axis=0)
-            preds = self.predict(P, tuple(weights), dspeed=np.array([[0, 0], [h, 0], [0, h]], dtype=float))
-            for k in range(len(self.experiments)):
-                starts, L = self.segments(k)
-                r = [[], [], []]
-                for c, w in weights.items():
-                    if c not in preds[0].outputs[k]:
-                        continue
-                    m = self.measured_segments(k, c)[:, 1:]
-                    for b in range(3):
-                        e = (preds[b].outputs[k][c][:, 1:] - m) * (w / scales[c])
-                        r[b].append(np.nan_to_num(e))
-                if not r[0]:
-                    continue
-                e0, e1, e2 = (np.concatenate(x, axis=1) for x in r)
-                J = np.stack([(e1 - e0) / h, (e2 - e0) / h], axis=2)  # (n_seg, M, 2)
-                free, limit = self._correctable_speeds(k)
-                for j in range(len(starts)):
-                    cols = np.flatnonzero(free[j])
-                    if cols.size == 0:
-                        continue
-                    A = J[j][:, cols]
-                    step, *_ = np.linalg.lstsq(A, -e0[j], rcond=None)
-                    self.speed_offsets[k][j, cols] = np.clip(
-                        self.speed_offsets[k][j, cols] + step, -limit[cols], limit[cols]
-                    )
-
-    def _correctable_speeds(self, k: int) -> tuple[np.ndarray, np.ndarray]:
-        """Experiment k's segment-start speeds that may be corrected, (n_seg, 2) booleans for (ω_u, ω_l), and
-        the bound of a correction per component (rad/s, (2,)): three standard deviations of the estimate's
-        quantization noise.  Left out: a disc the data show stuck at the start (speed estimate exactly 0), the
-        upper disc of a free-vibration test and the lower disc of an upper-disc test."""
-        ex = self.experiments[k]
-        starts, _ = self.segments(k)
-        w0 = np.stack(
-            [ex.rates.get("omega_u", np.zeros(ex.n))[starts], ex.rates.get("omega_l", np.zeros(ex.n))[starts]], axis=1
-        )
-        limit = 3.0 * np.array([ex.speed_noise.get("omega_u", 0.0), ex.speed_noise.get("omega_l", 0.0)])
-        free = w0 != 0.0
-        if ex.config is Configuration.FREE_VIBRATION:
-            free[:, 0] = False
-        if ex.config is Configuration.UPPER:
-            free[:, 1] = False
-        return free, limit
-
-    def speed_variables(self) -> list[tuple[int, int, int, float]]:
-        """The segment-start speeds a fit may correct (:meth:`_correctable_speeds`, as
-        :meth:`refine_initial_speeds` corrects them), as (experiment, segment, component, limit): component 0
-        is ω_u, 1 is ω_l; ``limit`` (rad/s) bounds the correction (a component whose bound is 0 cannot move and
-        is left out)."""
-        out = []
-        for k in range(len(self.experiments)):
-            free, limit = self._correctable_speeds(k)
-            out += [
-                (k, j, c, float(limit[c]))
-                for j in range(free.shape[0])
-                for c in (0, 1)
-                if free[j, c] and limit[c] > 0.0
-            ]
-        return out
 
     def _set_composition(self, composition: Any) -> None:
         """The model and the composition actually simulated (the library's motor lag, when it is the
