@@ -90,6 +90,14 @@ class RigClient:
                 f"{self.url}: {new_gaps} frame(s) from the firmware missing (sequence number gap); stopping"
             )
 
+    def _stop_of(self, msg: P.EmergencyStop) -> P.StopReason:
+        try:
+            return P.StopReason(msg.reason)
+        except ValueError:  # a protocol violation, not a bug of the host: a link fault (the motor is stopped)
+            raise LinkCorruptError(
+                f"{self.url}: EMERGENCY_STOP from the firmware with an unknown reason {msg.reason}; stopping"
+            ) from None
+
     def _wait_for(self, want, what: str, sent: float, timeout: float | None = None) -> tuple[P.Message, float]:
         deadline = sent + (self.reply_timeout if timeout is None else timeout)
         while True:
@@ -99,7 +107,7 @@ class RigClient:
             for frame, t in frames:  # the whole batch: a stop sent right behind the wanted reply is kept
                 msg = P.decode(frame)
                 if isinstance(msg, P.EmergencyStop):
-                    self._pending_stop = P.StopReason(msg.reason)
+                    self._pending_stop = self._stop_of(msg)
                 elif found is None and want(msg):
                     found = msg, t
             if found is not None:

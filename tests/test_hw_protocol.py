@@ -100,6 +100,17 @@ def test_link_over_pyserial_loop_url():
         SerialLink("/dev/does-not-exist-drillgym")
 
 
+def test_a_stop_with_an_unknown_reason_is_a_link_fault_not_an_internal_error():
+    from hw.client import RigClient
+    from hw.link import LinkCorruptError
+
+    client = RigClient("loop://")  # pyserial's loop URL reads back what is written: the stop comes "from the firmware"
+    client.link.send(P.EmergencyStop(99))
+    with pytest.raises(LinkCorruptError, match="unknown reason 99"):
+        client.stop_reason(wait_s=0.5)
+    client.close()
+
+
 # ---------------------------------------------------------------- fuzzing (>= 10,000 frames in all)
 TYPES = sorted(P.PAYLOAD_SIZES)
 FUZZ = settings(
