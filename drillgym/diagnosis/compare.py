@@ -370,6 +370,16 @@ def write_compare(comp: Comparison, out_dir: str | Path) -> list[Path]:
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    paths = [_time_figure(plt, comp, out)]
+    paths += _bins_figure(plt, comp, out)
+    paths += _spectrum_figure(plt, comp, out)
+    (out / "report.txt").write_text(comp.text() + "\n", encoding="utf-8")
+    (out / "compare.json").write_text(json.dumps(comp.to_json(), indent=2) + "\n", encoding="utf-8")
+    return paths + [out / "report.txt", out / "compare.json"]
+
+
+def _time_figure(plt, comp: Comparison, out: Path) -> Path:
+    """Measured and modelled channels and their residual in time: ``time.png``."""
     ex = comp.experiment
     t = ex.t - ex.t[0]
     chans = list(comp.predicted)
@@ -390,9 +400,14 @@ def write_compare(comp: Comparison, out_dir: str | Path) -> list[Path]:
     axes[-1, 0].set_xlabel("t (s)")
     axes[-1, 1].set_xlabel("t (s)")
     fig.tight_layout()
-    paths = [out / "time.png"]
-    fig.savefig(paths[-1], dpi=90)
+    path = out / "time.png"
+    fig.savefig(path, dpi=90)
     plt.close(fig)
+    return path
+
+
+def _bins_figure(plt, comp: Comparison, out: Path) -> list[Path]:
+    """The residual binned by speed, angle, twist and lateral amplitude: ``bins.png`` (when any has data)."""
     panels = []
     if comp.by_speed:
         panels.append("speed")
@@ -436,9 +451,15 @@ def write_compare(comp: Comparison, out_dir: str | Path) -> list[Path]:
                 )
                 ax.set(xlabel="r (mm)", ylabel="lateral residual RMS (mm)", title="vs lateral amplitude")
         fig.tight_layout()
-        paths.append(out / "bins.png")
-        fig.savefig(paths[-1], dpi=90)
+        fig.savefig(out / "bins.png", dpi=90)
         plt.close(fig)
+        return [out / "bins.png"]
+    return []
+
+
+def _spectrum_figure(plt, comp: Comparison, out: Path) -> list[Path]:
+    """The residual's spectrum with the model's natural frequencies marked: ``spectrum.png``."""
+    ex = comp.experiment
     if comp.spectrum:
         fig, ax = plt.subplots(figsize=(8, 3.5))
         ax.semilogy(comp.spectrum["f"], comp.spectrum["P"])
@@ -454,9 +475,7 @@ def write_compare(comp: Comparison, out_dir: str | Path) -> list[Path]:
             title="residual spectrum",
         )
         fig.tight_layout()
-        paths.append(out / "spectrum.png")
-        fig.savefig(paths[-1], dpi=90)
+        fig.savefig(out / "spectrum.png", dpi=90)
         plt.close(fig)
-    (out / "report.txt").write_text(comp.text() + "\n", encoding="utf-8")
-    (out / "compare.json").write_text(json.dumps(comp.to_json(), indent=2) + "\n", encoding="utf-8")
-    return paths + [out / "report.txt", out / "compare.json"]
+        return [out / "spectrum.png"]
+    return []
