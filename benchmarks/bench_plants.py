@@ -2,7 +2,7 @@
 uncertainty set (controllers/evaluation/plants.yaml), from rest, 60 s runs, the default target grid.
 
     .venv/bin/python benchmarks/bench_plants.py --seed 0 --plants 20 --config torsional \\
-        --out docs/controller_eval/plants_seed0
+        --out out/plants_seed0
 
 Writes the harness's report (results.csv with one row per controller, plant and target, summary.md
 with the median / 90th-percentile lowest held target, plants_lowest_held.png) and prints the table and

@@ -1,6 +1,6 @@
 """The README comparison table: every controller, torsional and coupled, from rest, targets 0.5-8 rad/s.
 
-Writes docs/controller_table.md (+ results CSV and the SSI figure in docs/controller_eval/) and prints the
+Writes docs/controller_table.md (+ the results CSV and the SSI figure in out/controller_table/) and prints the
 table and the wall time.  Run: .venv/bin/python benchmarks/evaluate_table.py [--workers 2]
 """
 
@@ -35,7 +35,7 @@ def main() -> None:
         workers=a.workers,
     )
     wall = time.perf_counter() - t0
-    write_report(rows, ROOT / "docs" / "controller_eval")
+    write_report(rows, ROOT / "out" / "controller_table")
     table = markdown_table(rows, "rest")
     others = "".join(f"\n## scenario: {sc}\n\n" + markdown_table(rows, sc) for sc in scenarios if sc != "rest")
     text = (

@@ -80,5 +80,5 @@ def test_record_video_dependency_is_declared_and_documented():
         import tomli as tomllib
     extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]
     assert any(d.startswith("moviepy") for d in extras["video"])
-    readme = (ROOT / "README.md").read_text()
-    assert "pip install -e '.[video]'" in readme and "RecordVideo" in readme
+    page = (ROOT / "docs" / "environments.md").read_text()
+    assert "pip install -e '.[video]'" in page and "RecordVideo" in page
