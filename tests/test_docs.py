@@ -98,6 +98,10 @@ def test_docs_site_builds_with_warnings_as_errors(tmp_path):
     assert res.returncode == 0, res.stderr[-4000:]
     assert (tmp_path / "site" / "index.html").exists()
     assert (tmp_path / "site" / "api" / "simulation" / "index.html").exists()
+    # numpydoc's cross-reference roles are rendered (docs/griffe_sphinx_roles.py), never shown raw
+    for page in (tmp_path / "site" / "api").rglob("index.html"):
+        raw = re.findall(r":(?:class|func|meth|mod|attr|exc):`", page.read_text(encoding="utf-8"))
+        assert not raw, f"{page.relative_to(tmp_path)} shows {len(raw)} Sphinx roles as text"
 
 
 def test_make_docs_target_builds_strict():
