@@ -9,7 +9,7 @@ PY     := $(VENV)/bin/python
 PIP    := $(PY) -m pip
 STAMP  := $(VENV)/.installed
 
-.PHONY: venv demo test lint-format docs bench clean
+.PHONY: venv demo test lint docs bench clean
 
 venv: $(STAMP)
 
@@ -28,14 +28,13 @@ demo: $(STAMP)
 	$(VENV)/bin/drillgym simulate --config torsional --u 1.0 --duration 30 --out out/demo.csv --plot out/demo.png
 	@echo "wrote out/demo.csv and out/demo.png"
 
-# the import contracts and the lint rules of pyproject.toml first (seconds), then the suite
-test: $(STAMP)
-	$(VENV)/bin/lint-imports
-	$(VENV)/bin/ruff check .
+# the import contracts, the lint rules and the formatting of pyproject.toml first (seconds), then the suite
+test: lint
 	$(PY) -m pytest -q -n 2 --dist loadgroup tests
 
-# the formatting check (ruff format --check), to be folded into `test` once the tree is formatted
-lint-format: $(STAMP)
+lint: $(STAMP)
+	$(VENV)/bin/lint-imports
+	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
 
 # the documentation site into site/ (mkdocs.yml; warnings are errors)
