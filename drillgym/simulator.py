@@ -238,7 +238,7 @@ def simulate_batch(
             float(rtol),
             float(atol),
         )
-        k.stepping.run_batch_adaptive(*args, *optional_args(COLS, USTEP, OUT.shape[2]))
+        k.adaptive.run_batch_adaptive(*args, *optional_args(COLS, USTEP, OUT.shape[2]))
     elif lanes:
         run_lanes(
             k.lanes.lanes_run,

@@ -49,7 +49,7 @@ __all__ = [
 ]
 
 #: the kernel templates of :mod:`drillgym.kernels` copied into every generated package
-CORE_TEMPLATES = ("model", "stepping", "lane_steps", "lanes")
+CORE_TEMPLATES = ("model", "commands", "stepping", "adaptive", "lane_steps", "lanes")
 #: client templates (modules whose compiled code calls the kernels; see :meth:`CompiledModel.client`). The
 #: generated packages are keyed on the sources these and the core templates import, transitively.
 CLIENT_TEMPLATES = ("drillgym.envs.period_kernel", "drillgym.envs.sensor_kernel", "drillgym.bifurcation.flows")
@@ -237,7 +237,7 @@ class CompiledModel:
 
     Attributes
     ----------
-    hooks, model, stepping, lanes : module
+    hooks, model, stepping, adaptive, lanes : module
         The generated hooks and the specialised kernel templates; :meth:`client` gives specialised
         client templates.
     """
@@ -248,6 +248,7 @@ class CompiledModel:
         self.hooks = importlib.import_module(f"{package}.hooks")
         self.model = importlib.import_module(f"{package}.model")
         self.stepping = importlib.import_module(f"{package}.stepping")
+        self.adaptive = importlib.import_module(f"{package}.adaptive")
         self.lanes = importlib.import_module(f"{package}.lanes")
         self._clients: dict[str, ModuleType] = {}
 

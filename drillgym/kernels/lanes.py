@@ -36,10 +36,11 @@ from drillgym.dynamics import (
     brake_on,
     lateral_free,
 )
+from drillgym.kernels.commands import delay_line_step
 from drillgym.kernels.hooks import HAS_DELAY, HAS_LAG, N_STATE, hk_delay, hk_lag_start, hk_lane_params
 from drillgym.kernels.lane_steps import N_E, lane_derivative, lanes_erk, lanes_rk4
 from drillgym.kernels.model import initial_modes, record, resolve_modes
-from drillgym.kernels.stepping import alloc_work, delay_line_step, hybrid_step
+from drillgym.kernels.stepping import alloc_work, hybrid_step
 
 __all__ = ["ROWS_DIAG", "ROWS_FULL", "command_col", "lanes_run"]
 
@@ -145,7 +146,7 @@ def _record_lanes(OUT, row, T0, tt, U, ucol, S, FR, MU, ML, inv, Y, COLS, XW, YW
 
 @njit(inline="always")
 def command_col(n_u, i, USTEP, j):
-    """The column of U holding the command of step ``i``, and the table cursor (as ``stepping.command_at``).
+    """The column of U holding the command of step ``i``, and the table cursor (as ``commands.command_at``).
 
     Parameters
     ----------
@@ -173,7 +174,7 @@ def command_col(n_u, i, USTEP, j):
 
 @njit(cache=True, _nrt=False)
 def _lane_delay_step(HIST, HEAD, k, u, m):
-    """:func:`stepping.delay_line_step` for lane k, its delay given in steps (``m`` = max(delay, 0) / dt,
+    """:func:`commands.delay_line_step` for lane k, its delay given in steps (``m`` = max(delay, 0) / dt,
     worked out once per run, as that function does at every step): the same arithmetic on the lane's rows
     in place (row views taken per lane and step cost numba's reference counting: a fifth of a step of
     the coupled model)."""
