@@ -104,7 +104,8 @@ def _combos(spec: str, out: Path) -> None:
         ts = rig_recording(
             c["config"], c["signal"], DUR, RATE, c["seed"], c["effects"], c["scale"], c["offset"], c["amplitude"]
         )
-        path = write_timeseries(out / f"combo_{seed}_{i}.csv", ts)
+        effects = "+".join(sorted(c["effects"])) or "none"
+        path = write_timeseries(out / f"{c['config']}_{effects}_{c['signal']}_60s_1000Hz.csv", ts)
         wall, res = _diagnose(path)
         total += wall
         # as the selection benchmark: a selected effect with a note (a stated tie) may be its lag/delay partner

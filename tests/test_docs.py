@@ -16,7 +16,7 @@ DOCS = ROOT / "docs"
 PAGES = sorted(DOCS.rglob("*.md"))
 HAVE_MKDOCS = all(importlib.util.find_spec(m) is not None for m in ("mkdocs", "material", "mkdocstrings_handlers"))
 
-# "stop 44", "issue 17", "#30", "2828 #12", "seed 2828 ": journal words, not documentation
+# journal words, not documentation: a stop or issue number, a case number of a seeded matrix
 JOURNAL = re.compile(r"stop [0-9]+|issue #?[0-9]+|[0-9]{4} #[0-9]+|seed [0-9]{4} |fixed #[0-9]+", re.I)
 
 
