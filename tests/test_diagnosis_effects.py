@@ -229,3 +229,11 @@ def test_user_candidate_ranks_first_and_model_effects_are_held():
     assert d2.model == "string_cubic" and d2.skipped["string_cubic"] == "already in the model"
     assert d2.significant() == [], d2.text()
     assert d2.rmse_before < 0.05 * d.rmse_before
+
+
+def test_diagnose_refuses_an_unknown_setting_naming_it_and_the_valid_ones():
+    from drillgym.diagnosis import diagnose
+    from drillgym.errors import InputTypeError
+
+    with pytest.raises(InputTypeError, match="unknown setting.*refit_base.*the settings are .*segment_s"):
+        diagnose(None, refit_base=True)

@@ -14,10 +14,11 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import fields, replace
 from typing import Any
 
 from ..configurations import Configuration
+from ..errors import InputTypeError
 from ..identification.blas import one_blas_thread
 from ..identification.experiment import Experiment, prepare_experiment
 from ..io import TimeSeries
@@ -67,8 +68,8 @@ def diagnose(
     ------
     InputError
         An unknown candidate effect, or a recording without a configuration.
-    TypeError
-        A setting that is not a field of :class:`DiagnosisOptions`.
+    InputTypeError
+        A setting that is not a field of :class:`DiagnosisOptions` (also a :class:`TypeError`).
 
     Examples
     --------
@@ -76,6 +77,10 @@ def diagnose(
     >>> d = diagnose(recording)                          # doctest: +SKIP
     >>> d.selected, d.base_parameters                    # doctest: +SKIP
     """
+    unknown = sorted(set(settings) - {f.name for f in fields(DiagnosisOptions)})
+    if unknown:
+        valid = ", ".join(f.name for f in fields(DiagnosisOptions))
+        raise InputTypeError(f"diagnose: unknown setting(s) {', '.join(unknown)}; the settings are {valid}")
     opts = replace(options or DiagnosisOptions(), **settings)
     with one_blas_thread():  # every step's threads (fits side by side, the lag/delay searches) see the same BLAS
         screening = screen(data, params, config, opts)
