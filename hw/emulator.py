@@ -30,6 +30,7 @@ from typing import Any
 
 from drillgym import RigParams
 from drillgym.errors import InputError, OutputPathError
+from drillgym.io import create_directory
 
 from . import protocol as P
 from .firmware import Firmware, FirmwareConfig
@@ -70,6 +71,38 @@ class _Timed:
 
     def __lt__(self, other: _Timed) -> bool:
         return (self.due, self.order) < (other.due, other.order)
+
+
+def check_link_path(path: Path) -> None:
+    """Refuse a link path whose use would replace something the user did not ask to replace.
+
+    The emulator links ``path`` to its pseudo-terminal. A link left by an earlier emulator (one that
+    points into ``/dev/pts``, or a dangling one) is replaced; anything else is refused before the
+    pseudo-terminal opens.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The ``--port`` path of ``drillgym rig emulate``.
+
+    Raises
+    ------
+    OutputPathError
+        ``path`` is a file, a directory, or a link to something other than a pseudo-terminal.
+    """
+    if path.is_symlink():
+        target = os.readlink(path)
+        if target.startswith("/dev/pts/") or not path.exists():
+            return
+        raise OutputPathError(
+            f"--port {path}: is a link to {target}, not to a pseudo-terminal; choose another path for the link"
+        )
+    if path.exists():
+        kind = "a directory" if path.is_dir() else "a file"
+        raise OutputPathError(
+            f"--port {path}: exists ({kind}); the emulator would replace it by a link to its pseudo-terminal: "
+            "choose another path or remove it yourself"
+        )
 
 
 class RigEmulator:
@@ -171,6 +204,9 @@ class RigEmulator:
         """Open the pseudo-terminal, start the threads; returns the device path for the host."""
         if self._threads:
             raise RuntimeError("emulator already started")
+        if self.link_path is not None:
+            check_link_path(self.link_path)
+            create_directory(self.link_path.parent, for_path=self.link_path)
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave)  # no echo, no line discipline: a byte pipe like a UART
         os.set_blocking(self._master, False)
@@ -207,8 +243,8 @@ class RigEmulator:
                 except OSError:
                     pass
         self._master = self._slave = None
-        if self.link_path is not None and self.link_path.is_symlink():
-            self.link_path.unlink()
+        if self.link_path is not None and self.link_path.is_symlink() and os.readlink(self.link_path) == self.port:
+            self.link_path.unlink()  # our own link only: another emulator may have taken the path since
 
     def __enter__(self) -> RigEmulator:
         self.start()

@@ -366,3 +366,44 @@ def test_run_restores_the_callers_signal_handlers():
     finally:
         for sig, h in before.items():
             signal.signal(sig, h)
+
+
+def test_emulate_never_replaces_a_users_file_with_its_link(tmp_path):
+    """`rig emulate --port data.csv` on an existing file: refused in one line, the file untouched."""
+    data = tmp_path / "data.csv"
+    data.write_text("t,u\n0,1\n")
+    code, out, err = run("rig", "emulate", "--port", str(data), timeout=120)
+    assert code == 2, (out, err)
+    assert len(err.strip().splitlines()) == 1 and "--port" in err and "exists (a file)" in err
+    assert data.read_text() == "t,u\n0,1\n" and not data.is_symlink()
+
+
+def test_emulator_link_replaces_only_a_stale_pty_link_and_removes_only_its_own(tmp_path):
+    from drillgym.errors import OutputPathError
+
+    other = tmp_path / "other"
+    other.write_text("keep")
+    elsewhere = tmp_path / "to_other"
+    elsewhere.symlink_to(other)
+    with pytest.raises(OutputPathError, match="not to a pseudo-terminal"):
+        RigEmulator(link_path=elsewhere).start()
+    assert elsewhere.is_symlink() and other.read_text() == "keep"
+
+    stale = tmp_path / "sub" / "rig"  # under a missing folder, created
+    stale.parent.mkdir()
+    stale.symlink_to("/dev/pts/99999")  # left by an emulator that was killed
+    emu = RigEmulator(link_path=stale)
+    emu.start()
+    try:
+        assert os.readlink(stale) == emu.port
+    finally:
+        emu.stop()
+    assert not stale.exists() and not stale.is_symlink()
+
+    fresh = tmp_path / "missing" / "dir" / "rig"
+    emu = RigEmulator(link_path=fresh)
+    emu.start()
+    try:
+        assert os.readlink(fresh) == emu.port
+    finally:
+        emu.stop()
