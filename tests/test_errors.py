@@ -254,3 +254,35 @@ def test_a_linear_policy_file_that_is_not_one_is_named(tmp_path):
             load_policy(bad)
     with pytest.raises(E.MissingFileError, match="does not exist"):
         load_policy(tmp_path / "missing.npz")
+
+
+@pytest.mark.parametrize(
+    ("options", "words"),
+    [
+        (("--duration", "1", "--dt", "0.003"), ("--dt 0.003", "does not divide --duration 1", "0.999 s")),
+        (("--duration", "2", "--record-every", "300"), ("--record-every 300", "2000 steps", "not be recorded")),
+        (("--duration", "2", "--record-every", "100000"), ("--record-every 100000", "2000 steps")),
+    ],
+)
+def test_simulate_refuses_a_step_grid_that_cuts_the_run_or_its_end(capsys, tmp_path, options, words):
+    code, err = run(capsys, "simulate", "--u", "1", *options, "--out", str(tmp_path / "run.csv"))
+    assert_one_line(code, err, *words)
+    assert not (tmp_path / "run.csv").exists()
+
+
+def test_simulate_records_the_end_of_the_run_when_the_grid_divides_it(capsys, tmp_path):
+    from drillgym.io import read_timeseries
+
+    with pytest.raises(SystemExit) as exit_:
+        main(["simulate", "--u", "1", "--duration", "0.2", "--record-every", "40", "--out", str(tmp_path / "r.csv")])
+    assert exit_.value.code in (0, None)
+    assert read_timeseries(tmp_path / "r.csv").t[-1] == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize("rate", ["0", "-100", "nan"])
+def test_compare_names_a_rate_that_is_not_positive(capsys, tmp_path, rate):
+    with pytest.raises(SystemExit):
+        main(["simulate", "--u", "1", "--duration", "1", "--out", str(tmp_path / "a.csv")])
+    capsys.readouterr()
+    code, err = run(capsys, "compare", str(tmp_path / "a.csv"), "--rate", rate, "--out", str(tmp_path / "cmp"))
+    assert_one_line(code, err, "--rate", "positive")

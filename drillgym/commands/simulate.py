@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import typer
@@ -80,6 +81,44 @@ def check_input_span(t, path: Path, duration: float | None) -> float:
     return duration
 
 
+def check_step_grid(duration: float, dt: float, record_every: int, duration_given: bool = True) -> None:
+    """Refuse a step or a recording interval that would cut the run short or leave its end unrecorded.
+
+    Parameters
+    ----------
+    duration : float
+        ``--duration`` (s).
+    dt : float
+        ``--dt`` (s).
+    record_every : int
+        ``--record-every``.
+    duration_given : bool, optional
+        Whether the user gave ``--duration``; a duration taken from an ``--input`` file's length ends on
+        the nearest step instead of being refused.
+
+    Raises
+    ------
+    InputError
+        ``dt`` does not divide ``duration``, or ``record_every`` does not divide the number of steps.
+    """
+    if not (math.isfinite(duration) and math.isfinite(dt) and duration > 0 and dt > 0):
+        return  # the simulator names a bad duration or step
+    steps = duration / dt
+    n_steps = round(steps)
+    if n_steps < 1 or (duration_given and abs(steps - n_steps) > 1e-6 * max(1.0, steps)):
+        raise InputError(
+            f"--dt {dt:g} s does not divide --duration {duration:g} s ({steps:.6g} steps): the run would end "
+            f"at {n_steps * dt:g} s; choose a step that divides the duration"
+        )
+    if record_every < 1:
+        raise InputError(f"--record-every must be >= 1, got {record_every}")
+    if n_steps % record_every:
+        raise InputError(
+            f"--record-every {record_every} does not divide the run's {n_steps} steps: its end "
+            f"({duration:g} s) would not be recorded; choose a divisor of {n_steps}"
+        )
+
+
 def _summary(traj) -> str:
     """The one-line result: final speed and stuck time of the disc(s) the configuration has."""
     if traj.config is Configuration.UPPER:
@@ -152,6 +191,7 @@ def register(app: typer.Typer) -> None:
                 f"--u {u:g} V is beyond the +-{U_LIMIT_FILE:g} V a recording may hold (the rig's "
                 f"amplifier gives +-5 V); choose |u| <= {U_LIMIT_FILE:g} V"
             )
+        duration_given = duration is not None
         comp, values = effects_from_cli(add_effect, effect_param)
         rig = RigParams.from_file(params) if params else RigParams()
         if input_file is not None:
@@ -162,6 +202,7 @@ def register(app: typer.Typer) -> None:
             duration = 30.0 if duration is None else duration
         out = output_file(out)
         plot = figure_file(plot) if plot else None
+        check_step_grid(duration, dt, record_every, duration_given=duration_given)
         check_run_fits(duration, dt, record_every, out)
         traj = simulate(
             cfg,

@@ -296,6 +296,8 @@ def prepare_experiment(
     DataFormatError
         Too few samples.
     """
+    if not (math.isfinite(compare_rate_hz) and compare_rate_hz > 0):
+        raise InputError(f"the comparison rate (--rate) must be a positive number of Hz, got {compare_rate_hz!r}")
     cfg = parse_configuration(config) if config is not None else ts.configuration
     if cfg is None:
         raise InputError(f"{ts.source}: no configuration in the file's metadata; pass one (--config)")
