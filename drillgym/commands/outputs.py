@@ -21,23 +21,19 @@ __all__ = ["CREATES_DIRS", "output_file", "output_dir", "check_output_dir", "fig
 CREATES_DIRS = "missing directories are created"
 
 
-def _mkdir(directory: Path, for_path: Path) -> None:
-    create_directory(directory, for_path)
-
-
 def output_file(path: str | Path) -> Path:
     """``path`` ready to be written: its missing parent directories created; refused if it is a directory."""
     path = Path(path)
     if path.is_dir():
         raise OutputPathError(f"{path} is a directory; give a file name")
-    _mkdir(path.parent, path)
+    create_directory(path.parent, path)
     return path
 
 
 def output_dir(path: str | Path) -> Path:
     """The directory ``path``, created with its missing parents."""
     path = Path(path)
-    _mkdir(path, path)
+    create_directory(path)
     return path
 
 
