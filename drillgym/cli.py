@@ -41,6 +41,8 @@ register_commands(app)  # the core's commands, then those of installed packages 
 USER_ERROR_EXIT = 2
 #: exit code of a bug (any other exception): its traceback is printed
 INTERNAL_ERROR_EXIT = 1
+#: exit code of a run interrupted by the user (Ctrl-C), as a shell reports SIGINT
+INTERRUPTED_EXIT = 130
 
 
 def is_user_error(exc: BaseException) -> bool:
@@ -91,7 +93,14 @@ def main(argv: list[str] | None = None) -> None:
         parser exit 2 with its usage message; ``rig run`` has its own codes for a safety stop.
     """
     try:
-        app(args=argv, standalone_mode=True)
+        result = app(args=argv, standalone_mode=False)
+    except typer.TyperException as exc:  # the option parser's usage errors: one line too
+        if not is_help_request(exc):  # (the help of a group called alone is printed already)
+            print(f"drillgym: error: {usage_message(exc)}", file=sys.stderr)
+        sys.exit(USER_ERROR_EXIT)
+    except typer.Abort:
+        print("drillgym: aborted", file=sys.stderr)
+        sys.exit(INTERRUPTED_EXIT)
     except Exception as exc:
         if is_user_error(exc):
             print(f"drillgym: error: {one_line(exc)}", file=sys.stderr)
@@ -103,6 +112,33 @@ def main(argv: list[str] | None = None) -> None:
             file=sys.stderr,
         )
         sys.exit(INTERNAL_ERROR_EXIT)
+    # without standalone mode the parser returns a command's typer.Exit code (or None when it returned)
+    sys.exit(result if isinstance(result, int) else 0)
+
+
+def is_help_request(exc: typer.TyperException) -> bool:
+    """Whether the parser's ``exc`` is a group called without a command (its message is the help)."""
+    return type(exc).__name__ == "NoArgsIsHelpError"
+
+
+def usage_message(exc: typer.TyperException) -> str:
+    """A usage error of the option parser as one line, with where to find the valid options.
+
+    Parameters
+    ----------
+    exc : typer.TyperException
+        The parser's error (an unknown option or command, a missing option, a value of the wrong type).
+
+    Returns
+    -------
+    str
+        ``"<message> (see 'drillgym <command> --help')"`` on one line.
+    """
+    message = " ".join(part.strip() for part in exc.format_message().splitlines() if part.strip())
+    ctx = getattr(exc, "ctx", None)
+    if ctx is None:
+        return message
+    return f"{message} (see '{ctx.command_path} --help')"
 
 
 if __name__ == "__main__":
