@@ -2,6 +2,11 @@
 
 Both hold the recorded samples of the columns ``output_names`` of their composition of effects
 and give each column as an attribute (``traj.omega_l``, ``batch.omega_l``).
+
+:func:`check_run` is the test every produced run passes before it is returned (the simulator's
+single runs and batches, the stepping :class:`~drillgym.batch_simulator.BatchSimulator`): a run
+whose state is not finite, or whose disc speed exceeds :func:`speed_limit`, is a
+:class:`~drillgym.errors.SimulationError` naming the run, the time and the state.
 """
 
 from __future__ import annotations
@@ -13,10 +18,17 @@ import numpy as np
 
 from .configurations import Configuration
 from .effects.composition import Composition
-from .errors import InputError
-from .params import RigParams
+from .errors import InputError, SimulationError
+from .params import IDX, RigParams
 
-__all__ = ["Trajectory", "BatchTrajectory", "column_index"]
+__all__ = ["Trajectory", "BatchTrajectory", "column_index", "check_run", "speed_limit", "SPEED_FACTOR", "U_REACH"]
+
+#: V: the largest voltage any input of drillgym may hold (the files' and the command line's limit;
+#: the rig's amplifier gives +-5 V)
+U_REACH = 50.0
+#: a disc speed beyond this many times the motor's no-load speed at :data:`U_REACH` is a diverged run
+SPEED_FACTOR = 100.0
+_SPEEDS = ("omega_u", "omega_l")
 
 
 def column_index(names: Sequence[str]) -> dict[str, int]:
@@ -33,6 +45,142 @@ def column_index(names: Sequence[str]) -> dict[str, int]:
         The position of each name.
     """
     return {n: i for i, n in enumerate(names)}
+
+
+def speed_limit(p: np.ndarray) -> np.ndarray:
+    """The disc speed no run of the rig can reach (rad/s), per parameter vector.
+
+    In steady rotation at a voltage ``u`` the motor torque ``km u`` balances the viscous friction
+    of the upper disc, the bearing and the brake, so no disc turns faster than the motor's no-load
+    speed ``km u / (bu + bl + bb)`` (89 rad/s at 50 V with the nominal parameters; the rig's 5 V
+    give 9 rad/s). The limit is :data:`SPEED_FACTOR` times that speed at :data:`U_REACH` (8900 rad/s,
+    85,000 rpm, nominally): far above any transient (a released wound-up string, an effect's
+    torque), far below a numerical divergence. Without viscous friction there is no such speed
+    and the limit is infinite (only non-finite states count).
+
+    Parameters
+    ----------
+    p : numpy.ndarray
+        Parameter vectors ``(n_params,)`` or ``(B, n_params)`` (base parameters first).
+
+    Returns
+    -------
+    numpy.ndarray
+        The limit of each vector (rad/s), ``inf`` without viscous friction.
+    """
+    p = np.atleast_2d(np.asarray(p, dtype=np.float64))
+    viscous = p[:, IDX.bu] + p[:, IDX.bl] + p[:, IDX.bb]
+    with np.errstate(divide="ignore"):
+        return np.where(viscous > 0, SPEED_FACTOR * p[:, IDX.km] * U_REACH / viscous, np.inf)
+
+
+def _bad_values(run: np.ndarray, j_speeds: list[int], limit: float) -> np.ndarray:
+    """Mask of the values of one run ``(n_samples, n_columns)`` that are not finite or too fast."""
+    bad = ~np.isfinite(run)
+    for j in j_speeds:
+        bad[:, j] |= np.abs(run[:, j]) > limit
+    return bad
+
+
+def _first_bad(data: np.ndarray, names: Sequence[str], limits: np.ndarray) -> tuple[int, int, list[int]] | None:
+    """``(run, sample, columns)`` of the earliest sample with a non-finite value or an over-fast speed
+    (the earliest over the runs), or None."""
+    speeds = [names.index(n) for n in _SPEEDS if n in names]
+    finite = np.isfinite(data.sum(axis=(1, 2)))  # one pass: a NaN or inf anywhere makes the sum non-finite
+    fast = np.zeros(data.shape[0], dtype=bool)
+    for j in speeds:
+        fast |= np.abs(data[:, :, j]).max(axis=1) > limits
+    first = None
+    for b in np.flatnonzero(~finite | fast):
+        rows = np.flatnonzero(_bad_values(data[b], speeds, limits[b]).any(axis=1))
+        if rows.size and (first is None or rows[0] < first[1]):  # none: the sum overflowed, all values are fine
+            first = (int(b), int(rows[0]))
+    if first is None:
+        return None
+    b, k = first
+    return b, k, [int(j) for j in np.flatnonzero(_bad_values(data[b, k : k + 1], speeds, limits[b])[0])]
+
+
+def check_run(
+    data: np.ndarray,
+    names: Sequence[str],
+    final: np.ndarray,
+    state_names: Sequence[str],
+    P: np.ndarray,
+    t0: np.ndarray,
+    dt: float,
+    record_every: int,
+    label: str = "base",
+) -> None:
+    """Refuse a run that diverged: a non-finite value, or a disc faster than :func:`speed_limit`.
+
+    Checks every recorded sample (the first bad one is named: its time, column and value) and the
+    final states (for what was not recorded). A run whose samples are all finite and physical
+    costs two passes over the recorded data: no check in the compiled loops.
+
+    Parameters
+    ----------
+    data : numpy.ndarray
+        Recorded samples ``(B, n_samples, n_columns)``.
+    names : sequence of str
+        The recorded columns.
+    final : numpy.ndarray
+        Final states ``(B, n_state)``.
+    state_names : sequence of str
+        Names of the states (the composition's ``full_state_names``).
+    P : numpy.ndarray
+        Parameter matrix ``(B, n_params)``.
+    t0 : numpy.ndarray
+        Start time of each run (s), ``(B,)``.
+    dt : float
+        Integration step (s).
+    record_every : int
+        Steps between recorded samples.
+    label : str, optional
+        The model (composition's label), named in the message.
+
+    Raises
+    ------
+    SimulationError
+        The run diverged: names the run (in a batch), the time, the state, its value and the limit.
+    """
+    names = list(names)
+    limits = speed_limit(P) if len(P) else np.zeros(0)
+    limits = np.broadcast_to(limits, (data.shape[0],))
+    where = _first_bad(data, names, limits)
+    if where is not None:
+        b, k, cols = where
+        t = float(data[b, k, names.index("t")]) if "t" in names else float(t0[b]) + k * record_every * dt
+        _raise(data.shape[0], b, t, [(names[j], float(data[b, k, j])) for j in cols], float(limits[b]), label)
+    final = np.asarray(final)
+    state_names = list(state_names)
+    bad = ~np.isfinite(final)
+    for n in _SPEEDS:
+        if n in state_names:
+            bad[:, state_names.index(n)] |= np.abs(final[:, state_names.index(n)]) > limits
+    if bad.any():
+        b = int(np.flatnonzero(bad.any(axis=1))[0])
+        values = [(state_names[j], float(final[b, j])) for j in np.flatnonzero(bad[b])]
+        _raise(final.shape[0], b, None, values, float(limits[b]), label)
+
+
+def _raise(n_runs: int, b: int, t: float | None, values: list[tuple[str, float]], limit: float, label: str) -> None:
+    """Raise the :class:`SimulationError` of run ``b``: the time, the states that left the range (speeds first)."""
+    values = sorted(values, key=lambda nv: nv[0] not in _SPEEDS)
+    run = f"run {b} of the batch " if n_runs > 1 else "the run "
+    when = f"at t = {t:.6g} s" if t is not None else "by its end (the state was not recorded)"
+    model = "" if label in ("", "base") else f" with the effects {label}"
+    shown = ", ".join(f"{n} = {v:.3g}" for n, v in values[:3])
+    shown += f" and {len(values) - 3} more" if len(values) > 3 else ""
+    if not all(np.isfinite(v) for _, v in values):
+        why = f"{shown} (not finite){model}: check the effects' formulas, parameter values and x0"
+    else:
+        verb = "exceed" if len(values) > 1 else "exceeds"
+        why = (
+            f"{shown} rad/s {verb} {limit:.3g} rad/s, {SPEED_FACTOR:g} times the motor's no-load speed "
+            f"at {U_REACH:g} V (a physical run cannot reach it){model}: check the parameters, x0 and alpha0"
+        )
+    raise SimulationError(f"{run}diverged {when}: {why}")
 
 
 @dataclass
