@@ -34,6 +34,7 @@ from drillgym.io import create_directory
 
 from . import protocol as P
 from .firmware import Firmware, FirmwareConfig
+from .timing import DurationStats, GcPauses
 
 __all__ = ["FaultPlan", "RigEmulator"]
 
@@ -68,6 +69,7 @@ class _Timed:
     due: float
     order: int
     data: object = field(compare=False)  # bytes to send, or a held Frame
+    since: float = field(default=0.0, compare=False)  # a SAMPLE answering a command: when the command was read
 
     def __lt__(self, other: _Timed) -> bool:
         return (self.due, self.order) < (other.due, other.order)
@@ -198,6 +200,13 @@ class RigEmulator:
         self._threads: list[threading.Thread] = []
         self.errors: list[BaseException] = []
         self._rx_busy = False  # the serial thread holds bytes it has read but not executed yet
+        #: command read -> its SAMPLE written to the pseudo-terminal (s), configured latency included
+        self.service = DurationStats()
+        #: work of one serial-loop pass (read, parse, execute, write; s), waiting excluded
+        self.serial_work = DurationStats()
+        #: how late the timer thread woke after its planned wait (s)
+        self.timer_late = DurationStats()
+        self.gc_pauses = GcPauses()
 
     # ------------------------------------------------------------------ lifecycle
     def start(self) -> str:
@@ -226,6 +235,7 @@ class RigEmulator:
             threading.Thread(target=self._guard, args=(self._serial_loop,), name="rig-serial", daemon=True),
             threading.Thread(target=self._guard, args=(self._timer_loop,), name="rig-timer", daemon=True),
         ]
+        self.gc_pauses.install()
         for t in self._threads:
             t.start()
         return str(self.link_path) if self.link_path is not None else self.port
@@ -243,6 +253,7 @@ class RigEmulator:
                 except OSError:
                     pass
         self._master = self._slave = None
+        self.gc_pauses.remove()
         if self.link_path is not None and self.link_path.is_symlink() and os.readlink(self.link_path) == self.port:
             self.link_path.unlink()  # our own link only: another emulator may have taken the path since
 
@@ -298,6 +309,16 @@ class RigEmulator:
         after = [e for e in events if e.time > since and e.volts == 0.0]
         return after[0].time - since if after else None
 
+    def timing_summary(self) -> str:
+        """One line of the emulator's own timing since start: how long it took to answer a command (read ->
+        SAMPLE written), its longest serial-loop pass, its timer thread's latest wake-up, its GC pauses."""
+        return (
+            f"{self.service.count} commands served; service time {self.service.summary()}; "
+            f"longest serial-loop pass {1e3 * self.serial_work.max:.2f} ms; "
+            f"timer thread woke late by at most {1e3 * self.timer_late.max:.2f} ms; "
+            f"garbage collector: {self.gc_pauses.summary()}"
+        )
+
     @property
     def stats(self) -> dict:
         """Counts for tests and benchmarks."""
@@ -308,6 +329,8 @@ class RigEmulator:
             "stop_reason": fw.stop_reason,
             "volts": fw.volts,
             "faults": dict(self.fault_times),
+            "service_max_s": self.service.max,
+            "gc_longest_s": self.gc_pauses.pauses.longest,
         }
 
     # ------------------------------------------------------------------ threads
@@ -320,6 +343,7 @@ class RigEmulator:
 
     def _queue_tx(self, frames: list[bytes], now: float, index: int | None = None) -> None:
         for data in frames:
+            since = now if index is not None and data[3] == P.MsgType.SAMPLE else 0.0
             if index is not None and data[3] == P.MsgType.SAMPLE:
                 if self.faults.drop_sample == index:
                     self.fault_times["drop_sample"] = now
@@ -333,7 +357,7 @@ class RigEmulator:
             due = max(due, self._last_tx_due)  # a UART keeps the order of bytes
             self._last_tx_due = due
             self._order += 1
-            heapq.heappush(self._tx, _Timed(due, self._order, data))
+            heapq.heappush(self._tx, _Timed(due, self._order, data, since))
 
     def _execute(self, frame: P.Frame, now: float) -> None:
         index = None
@@ -366,7 +390,7 @@ class RigEmulator:
                 return  # unplugged
             if self._io_dead.is_set():
                 return  # killed while waiting: what arrived is never executed
-            now = time.monotonic()
+            now = t_pass = time.monotonic()
             for frame in parser.feed(data) if data else ():
                 self._receive(frame, now)
             self._rx_busy = False
@@ -374,6 +398,8 @@ class RigEmulator:
                 self._execute(heapq.heappop(self._rx_held).data, now)
             with self._lock:
                 self._write_due(master, now)
+            done = time.monotonic()
+            self.serial_work.add(done - t_pass, done)
 
     def _receive(self, frame: P.Frame, now: float) -> None:
         nxt = self._commands + 1
@@ -404,6 +430,9 @@ class RigEmulator:
                 item.data = item.data[n:]
                 return
             heapq.heappop(self._tx)
+            if item.since:
+                done = time.monotonic()
+                self.service.add(done - item.since, done)
 
     def _rx_pending(self) -> bool:
         """Bytes from the host have arrived (in the pty or read by the serial thread) but are not executed yet:
@@ -428,7 +457,15 @@ class RigEmulator:
                 deadline = fw.watchdog_deadline()
             wait = fw.period_s if deadline is None else min(fw.period_s, deadline - time.monotonic())
             if wait > 0.002:
-                self._wake.wait(wait - 0.001)  # wake early, then close in on the deadline in small sleeps
+                planned = time.monotonic() + wait - 0.001
+                woken = self._wake.wait(wait - 0.001)  # wake early, then close in on the deadline in small sleeps
                 self._wake.clear()
             elif wait > 0:
+                planned = time.monotonic() + min(wait, 2e-4)
+                woken = False
                 time.sleep(min(wait, 2e-4))
+            else:
+                continue
+            if not woken:
+                t = time.monotonic()
+                self.timer_late.add(max(t - planned, 0.0), t)

@@ -20,6 +20,7 @@ frame and the wall-clock time and returns the frames to send back (see :mod:`hw.
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -33,7 +34,11 @@ from drillgym.measurement import EncoderVelocityEstimator, angle_to_counts, coun
 from . import protocol as P
 from .safety import SafetyLimits, VoltageLimiter, check_limits
 
-__all__ = ["FirmwareConfig", "Firmware", "VoltageEvent"]
+__all__ = ["FirmwareConfig", "Firmware", "VoltageEvent", "EVENTS_KEPT"]
+
+#: the voltage changes kept in ``Firmware.events`` (the latest; 20 s at 2 ms): a list growing by one object per
+#: command made the emulator's garbage collector scan an ever larger heap, up to pauses longer than the watchdog
+EVENTS_KEPT = 10_000
 
 _I32 = 1 << 32
 
@@ -154,7 +159,7 @@ class Firmware:
         self._rx_seq: int | None = None
         self.seq_gaps = 0
         self._gap_flag = False
-        self.events: list[VoltageEvent] = []
+        self.events: deque[VoltageEvent] = deque(maxlen=EVENTS_KEPT)
         self.commands = 0
         self.on_log = None  # callable(str): connections, stops and clears, for an operator's log
 

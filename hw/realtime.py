@@ -19,7 +19,7 @@ import ctypes.util
 import gc
 import os
 
-__all__ = ["prioritize", "quiet_gc", "lock_memory"]
+__all__ = ["prioritize", "quiet_gc", "lock_memory", "freeze_heap"]
 
 NICE = -10  # the nice value asked for (needs CAP_SYS_NICE or root)
 RT_PRIORITY = 10  # SCHED_FIFO priority with realtime=True (1..99; low: above every normal process only)
@@ -79,3 +79,16 @@ def quiet_gc():
         if was_enabled:
             gc.enable()
         gc.unfreeze()
+
+
+def freeze_heap() -> int:
+    """Collect once, then freeze every object that exists (the collector never scans them again); the number frozen.
+
+    For a process that serves a real-time loop for hours and cannot suspend its collector (the rig emulator): its
+    collections then scan only the objects made since, a few hundred, instead of the whole heap of the numerical
+    libraries (about 250,000 objects, up to 220 ms for a full collection, measured in the emulator, longer than the
+    firmware's watchdog).  Cycles made later are still collected.
+    """
+    gc.collect()
+    gc.freeze()
+    return gc.get_freeze_count()

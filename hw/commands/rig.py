@@ -85,7 +85,7 @@ def emulate_cmd(
     fw = FirmwareConfig(counts_per_rev=counts_per_rev, control_period_s=period_ms * 1e-3, watchdog_s=watchdog_ms * 1e-3)
     import time
 
-    from hw.realtime import prioritize
+    from hw.realtime import freeze_heap, prioritize
 
     def log(message: str) -> None:
         typer.echo(f"[{time.strftime('%H:%M:%S')}] {message}", err=True)
@@ -110,6 +110,7 @@ def emulate_cmd(
     )
     # before the threads start: they inherit it (the emulator stands in for a microcontroller)
     priority = prioritize(realtime)
+    freeze_heap()  # the libraries' heap out of the collector's reach: its pauses stay well below a control period
     emu.start()
     log(f"emulator ready: watchdog {watchdog_ms:g} ms, scheduling priority {priority}")
     signal.signal(signal.SIGTERM, _interrupt)
@@ -124,7 +125,7 @@ def emulate_cmd(
         emu.serve_forever()
     except KeyboardInterrupt:
         emu.stop()
-    log("emulator stopped")
+    log(f"emulator stopped: {emu.timing_summary()}")
 
 
 @rig_app.command("run")
@@ -184,6 +185,7 @@ def run_cmd(
     import hw
     from drillgym.commands.outputs import output_dir, output_file
     from hw.runner import load_policy, make_controller
+    from hw.timing import PERCENTILES, percentile_summary
 
     from .rig_ops import check_writable, trained_agent, warm_up
     from .rig_ops import dry_run as do_dry_run
@@ -249,9 +251,10 @@ def run_cmd(
         + (f" (safety stop: {res.safety_stop})" if res.safety_stop else "")
     )
     if res.steps:
+        rt = res.round_trips
         typer.echo(
-            f"round trip median {ms * np.median(res.round_trips):.2f} ms, "
-            f"max {ms * res.round_trips.max():.2f} ms; "
+            f"reply time (command sent -> its SAMPLE received) over {rt.size} commands: "
+            f"{percentile_summary(np.percentile(rt, PERCENTILES), rt.max())}; "
             f"tick error p99 {ms * np.percentile(res.tick_errors, 99):.2f} ms"
         )
     if notice.count:
