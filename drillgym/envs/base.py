@@ -96,13 +96,18 @@ class DrillEnv(gym.Env):
     ``omega_ref`` drawn from U(``omega_ref_range``) = U(1, 8) rad/s, or fixed by ``omega_ref``; with
     ``randomize = x`` every parameter of ``randomize_names`` is drawn per episode in +/- x of its value.
 
-    **Episode end.** Terminated when |omega_u| or |omega_l| exceeds ``max_speed`` (30 rad/s), or the lateral
-    displacement r exceeds ``max_lateral`` (20 mm).  Truncated after ``episode_duration`` (30 s = 3000
+    **Episode end.** Terminated when |omega_u| or |omega_l| exceeds ``max_speed`` (30 rad/s), the lateral
+    displacement r exceeds ``max_lateral`` (20 mm), or a state is no longer finite (an effect's formula gave
+    NaN or inf: the observation, the reward and the info values are then the last finite ones).
+    Truncated after ``episode_duration`` (30 s = 3000
     steps, ``env.spec.max_episode_steps``); the env truncates itself (no ``TimeLimit`` wrapper).
 
     **Info.** ``omega_l`` (rad/s), ``stuck`` (lower disc stuck), ``friction_torque`` (lower friction,
     N m), ``stick_slip_severity`` (running severity over ``ssi_window`` = 5 s), ``omega_ref`` (rad/s),
-    ``voltage`` (V), ``time`` (s).
+    ``voltage`` (V), ``time`` (s); when terminated, ``termination``: why, in one line naming the state, its
+    value, the limit and the time (``"over-speed: omega_l = 31.2 rad/s beyond max_speed = 30 rad/s at t =
+    4.56 s"``, ``"lateral displacement: ..."``, ``"non-finite state: omega_l = nan, ... in the control period
+    ending at t = 0.5 s ..."``).
 
     Examples
     --------
@@ -192,7 +197,8 @@ class DrillEnv(gym.Env):
         reward : float
             The period's reward.
         terminated : bool
-            A speed or the lateral displacement left its limits.
+            A speed or the lateral displacement left its limits, or a state is not finite (``info["termination"]``
+            says which).
         truncated : bool
             The episode reached ``episode_duration``.
         info : dict

@@ -31,6 +31,7 @@ from .columns import (
     C_WL,
     INFO_COLUMNS,
     S_COLUMNS,
+    TERM_NONFINITE,
 )
 from .observation import make_observation_model
 from .options import EnvOptions
@@ -48,7 +49,8 @@ class EpisodeBatch:
     Outputs after :meth:`reset` / :meth:`step`: ``obs`` (n, dim) float32 and ``S`` (n, 11), the
     quantities of ``S_COLUMNS``: voltage applied over the last period (V), omega_ref (rad/s),
     reward, stick-slip severity, omega_l (rad/s), lower friction torque (N m), stuck (0/1),
-    time (s), steps, terminated (0/1), truncated (0/1).
+    time (s), steps, terminated (0: running, 1: a safety limit, 2: a non-finite state), truncated (0/1).
+    :meth:`termination_reason` says why a rig's episode was terminated.
     """
 
     def __init__(self, options: EnvOptions, n: int) -> None:
@@ -76,6 +78,7 @@ class EpisodeBatch:
         self.rngs: list = [None] * self.n
         self.S = np.zeros((self.n, len(S_COLUMNS)))
         self.obs = np.zeros((self.n, self.obs_model.dim), dtype=np.float32)
+        self._obs_prev = np.zeros_like(self.obs)  # the last observations, kept for a rig whose state is not finite
         self.all = np.arange(self.n)
         w, om = o.reward, self.obs_model
         self._tv = np.concatenate(
@@ -138,7 +141,11 @@ class EpisodeBatch:
         self._period_kernel(*self._kernel_args)
         if not self.obs_model.compiled:
             S = self.S
+            np.copyto(self._obs_prev, self.obs)
             self.obs_model.observe(self.system.Y, S[:, C_U], S[:, C_REF], self.obs, self.rngs, skip)
+            bad = S[:, C_TERM] == TERM_NONFINITE
+            if bad.any():  # the compiled 'full' observation keeps the last finite one itself
+                self.obs[bad] = self._obs_prev[bad]
 
     # ------------------------------------------------------------------------
     @property
@@ -161,11 +168,47 @@ class EpisodeBatch:
     def truncated(self) -> np.ndarray:
         return self.S[:, C_TRUNC] > 0.5
 
+    def termination_reason(self, k: int) -> str:
+        """Why rig ``k``'s episode was terminated, one line naming the state, its value, the limit and the time.
+
+        Parameters
+        ----------
+        k : int
+            The rig.
+
+        Returns
+        -------
+        str
+            ``"non-finite state: omega_l = nan, ... at t = 1.23 s (...)"``, ``"over-speed: ..."`` or
+            ``"lateral displacement: ..."``; empty when the episode was not terminated.
+        """
+        code, t = self.S[k, C_TERM], self.S[k, C_TIME]
+        y = self.system.Y[k]
+        if code == TERM_NONFINITE:
+            names = self.system.composition.full_state_names
+            bad = [f"{n} = {float(v)}" for n, v in zip(names, y) if not np.isfinite(v)]
+            return (
+                f"non-finite state: {', '.join(bad)} in the control period ending at t = {t:.6g} s "
+                "(the model's formulas, an effect's, gave NaN or inf; observation and reward are the last finite ones)"
+            )
+        if code < 0.5:
+            return ""
+        o = self.options
+        for name, w in (("omega_u", y[2]), ("omega_l", y[3])):
+            if abs(w) > o.max_speed:
+                return f"over-speed: {name} = {w:.4g} rad/s beyond max_speed = {o.max_speed:g} rad/s at t = {t:.6g} s"
+        r = float(np.hypot(y[4], y[5]))
+        return (
+            f"lateral displacement: r = {r * 1e3:.4g} mm beyond max_lateral = {o.max_lateral * 1e3:g} mm "
+            f"at t = {t:.6g} s"
+        )
+
     def info_arrays(self) -> dict[str, np.ndarray]:
         """Info entries of all rigs (copies): omega_l (rad/s), stuck (bool), friction_torque (N m, lower
-        disc), stick_slip_severity, omega_ref (rad/s), voltage (V, applied over the last period), time (s)."""
+        disc), stick_slip_severity, omega_ref (rad/s), voltage (V, applied over the last period), time (s);
+        with ``termination`` (str, empty for a running rig) when a rig's episode was terminated."""
         S = self.S
-        return {
+        info = {
             "omega_l": S[:, C_WL].copy(),
             "stuck": S[:, C_STUCK] > 0.5,
             "friction_torque": S[:, C_TFL].copy(),
@@ -174,12 +217,19 @@ class EpisodeBatch:
             "voltage": S[:, C_U].copy(),
             "time": S[:, C_TIME].copy(),
         }
+        done = np.flatnonzero(S[:, C_TERM] > 0.5)
+        if done.size:
+            reasons = np.full(self.n, "", dtype=object)
+            for k in done:
+                reasons[k] = self.termination_reason(int(k))
+            info["termination"] = reasons
+        return info
 
     def info_row(self, k: int, v: list | None = None) -> dict:
         """Info of rig k as Python scalars (the single env's ``info``); ``v`` = ``S[k].tolist()`` if known."""
         if v is None:
             v = self.S[k].tolist()
-        return {
+        info = {
             "omega_l": v[C_WL],
             "stuck": v[C_STUCK] > 0.5,
             "friction_torque": v[C_TFL],
@@ -188,6 +238,9 @@ class EpisodeBatch:
             "voltage": v[C_U],
             "time": v[C_TIME],
         }
+        if v[C_TERM] > 0.5:
+            info["termination"] = self.termination_reason(k)
+        return info
 
     def set_rngs(self, rngs: Sequence[np.random.Generator]) -> None:
         if len(rngs) != self.n:

@@ -9,6 +9,7 @@ model as :func:`drillgym.simulate`.
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from drillgym.envs.columns import (
@@ -32,6 +33,9 @@ from drillgym.envs.columns import (
     T_SPEED,
     T_STEPS,
     T_W,
+    TERM_LIMIT,
+    TERM_NONE,
+    TERM_NONFINITE,
 )
 from drillgym.envs.observation import full_obs_row
 from drillgym.envs.reward import reward_value
@@ -45,7 +49,11 @@ __all__ = ["period_kernel"]
 def period_kernel(Y, MODE, u, P, cfg, dt, n_sub, T, eps, A, b, c, FRIC, HIST, HEAD, S, W, C, tv, OBS):
     """One control period of every rig: the core's advance_batch, then per rig reward, SSI,
     limits, episode length and (full mode) the observation.  S: (n, len(S_COLUMNS)); W, C: the
-    StickSlipMonitor arrays; tv: task constants (T_* layout, observation bounds at the end)."""
+    StickSlipMonitor arrays; tv: task constants (T_* layout, observation bounds at the end).
+
+    A rig whose state is no longer finite (an effect's formula gave NaN or inf) is terminated
+    (``TERM_NONFINITE``) and keeps its last finite reward, speed, friction, stick flag, severity
+    and observation."""
     advance_batch(Y, MODE, u, P, cfg, dt, n_sub, T, eps, A, b, c, FRIC, HIST, HEAD)
     rw = tv[T_W : T_W + 4]
     lateral = tv[T_LATERAL] > 0.0
@@ -57,6 +65,17 @@ def period_kernel(Y, MODE, u, P, cfg, dt, n_sub, T, eps, A, b, c, FRIC, HIST, HE
     for k in range(Y.shape[0]):
         y = Y[k]
         Sk = S[k]
+        finite = True
+        for i in range(y.shape[0]):
+            if not np.isfinite(y[i]):
+                finite = False
+        if not finite:
+            Sk[C_U] = u[k]
+            Sk[C_STEPS] += 1.0
+            Sk[C_TIME] = Sk[C_STEPS] * tv[T_DT]
+            Sk[C_TERM] = TERM_NONFINITE
+            Sk[C_TRUNC] = 1.0 if Sk[C_STEPS] >= tv[T_STEPS] else 0.0
+            continue
         stuck = MODE[k, 1] == 0
         Sk[C_REW] = reward_value(y[3], Sk[C_REF], stuck, u[k], Sk[C_U], rw)
         Sk[C_U] = u[k]
@@ -66,7 +85,7 @@ def period_kernel(Y, MODE, u, P, cfg, dt, n_sub, T, eps, A, b, c, FRIC, HIST, HE
         Sk[C_STUCK] = 1.0 if stuck else 0.0
         Sk[C_STEPS] += 1.0
         Sk[C_TIME] = Sk[C_STEPS] * tv[T_DT]
-        Sk[C_TERM] = 1.0 if unsafe_row(y, tv[T_SPEED], tv[T_LAT], lateral) else 0.0
+        Sk[C_TERM] = TERM_LIMIT if unsafe_row(y, tv[T_SPEED], tv[T_LAT], lateral) else TERM_NONE
         Sk[C_TRUNC] = 1.0 if Sk[C_STEPS] >= tv[T_STEPS] else 0.0
         if full_obs:
             full_obs_row(y, u[k], Sk[C_REF], lateral, low, high, OBS[k])

@@ -39,7 +39,9 @@ class DrillVectorEnv(VectorEnv):
     actions (N,) or (N, 1) (voltage / 5 V, or V with ``normalize_action=False``), observations
     (N, dim) float32, rewards, terminations and truncations (N,).  Info keys (arrays of length N,
     each with a ``_key`` mask): ``omega_l`` (rad/s), ``stuck``, ``friction_torque`` (N m),
-    ``stick_slip_severity``, ``omega_ref`` (rad/s), ``voltage`` (V), ``time`` (s).
+    ``stick_slip_severity``, ``omega_ref`` (rad/s), ``voltage`` (V), ``time`` (s); ``termination`` (why,
+    see :class:`drillgym.envs.DrillEnv`), masked by ``_termination`` to the rigs terminated in the step.
+    A rig whose state becomes non-finite is terminated like one over a limit and autoreset the same way.
     ``reset(seed=s)`` seeds rig i with s + i, so rig i reproduces a single env reset with seed s + i.
 
     Parameters
@@ -71,7 +73,13 @@ class DrillVectorEnv(VectorEnv):
     ) -> None:
         if not (isinstance(num_envs, (int, np.integer)) and num_envs >= 1):
             raise InputError(f"num_envs must be an integer >= 1, got {num_envs!r}")
-        mode = AutoresetMode(autoreset_mode)
+        try:
+            mode = AutoresetMode(autoreset_mode)
+        except ValueError:
+            raise InputError(
+                f"autoreset_mode must be AutoresetMode.NEXT_STEP ('NextStep') or AutoresetMode.SAME_STEP "
+                f"('SameStep'), got {autoreset_mode!r}"
+            ) from None
         if mode is AutoresetMode.DISABLED:
             raise InputError("autoreset_mode DISABLED is not supported; use NEXT_STEP or SAME_STEP")
         self.options = EnvOptions.from_kwargs(configuration=configuration, **options)
@@ -210,6 +218,8 @@ class DrillVectorEnv(VectorEnv):
         info = self.batch.info_arrays()
         for k in list(info):
             info["_" + k] = self._mask
+        if "termination" in info:  # only the terminated rigs have a reason
+            info["_termination"] = self.batch.terminated.copy()
         return info
 
     def _record(self) -> None:
