@@ -7,6 +7,7 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from .configurations import Configuration, parse_configuration
 from .effects.composition import compose
@@ -14,8 +15,21 @@ from .errors import InputError
 from .integrators import ADAPTIVE, DEFAULT_DT, tableau
 from .lane_runner import LANES_MIN_BATCH, block_width, pad_lanes
 from .run_setup import DEFAULT_SMOOTH_EPS, ParamsLike, delay_lines, friction_eps, initial_states
+from .trajectory import check_run, speed_limit
 
 __all__ = ["BatchSimulator"]
+
+
+@njit(cache=True)
+def _diverged(Y, speed_limit):
+    """True when a state of ``Y`` (n, n_state) is not finite or a disc speed exceeds ``speed_limit`` (rad/s)."""
+    for k in range(Y.shape[0]):
+        for i in range(Y.shape[1]):
+            if not np.isfinite(Y[k, i]):
+                return True
+        if abs(Y[k, 2]) > speed_limit or abs(Y[k, 3]) > speed_limit:
+            return True
+    return False
 
 
 class BatchSimulator:
@@ -106,6 +120,7 @@ class BatchSimulator:
         self._no_record = np.zeros((0, len(self.composition.output_names), block_width(self.n)))
         self._pad: list[np.ndarray] | None = None  # the lane kernel's padded buffers, reused
         self._lanes = self.n >= LANES_MIN_BATCH and self._eps == 0.0
+        self._speed_limit = float(speed_limit(self.P).min())  # rad/s, the smallest over the runs (:meth:`_check`)
 
     def set_params(self, params: ParamsLike, index: int | np.ndarray | slice | None = None) -> None:
         """Replace the parameters of all or some runs.
@@ -120,6 +135,7 @@ class BatchSimulator:
         sel = slice(None) if index is None else index
         m = len(np.arange(self.n)[sel])
         self.P[sel] = self.composition.matrix(params, m, self.effect_values)
+        self._speed_limit = float(speed_limit(self.P).min())
         self._resize_delay_lines()
 
     def _resize_delay_lines(self) -> None:
@@ -180,6 +196,9 @@ class BatchSimulator:
         ------
         InputError
             A voltage is NaN or infinite.
+        SimulationError
+            A run diverged: a state is not finite or a disc speed exceeds
+            :func:`drillgym.trajectory.speed_limit` (names the run, the time and the state).
         """
         uu = np.ascontiguousarray(np.broadcast_to(np.asarray(u, dtype=np.float64), (self.n,)))
         if not np.all(np.isfinite(uu)):
@@ -187,6 +206,7 @@ class BatchSimulator:
         if self._lanes and n_steps > 0:
             self._advance_lanes(uu, int(n_steps))
             self.T += int(n_steps) * self.dt
+            self._check()
             return
         A, b, c = self._tab
         self.kernels.stepping.advance_batch(
@@ -206,6 +226,20 @@ class BatchSimulator:
             self.HIST,
             self.HEAD,
         )
+        self._check()
+
+    def _check(self) -> None:
+        """Raise :class:`SimulationError` when a run diverged (a few us when none did).
+
+        The fast test compares the speeds with the smallest limit of the parameters last seen; when it
+        fails, the limits are taken anew from ``P`` (which callers may have changed) for the verdict.
+        """
+        Y = self.Y
+        if not _diverged(Y, self._speed_limit):
+            return
+        names = self.composition.full_state_names
+        check_run(np.empty((self.n, 0, 0)), (), Y, names, self.P, self.T, self.dt, 1, self.composition.label, self.T)
+        self._speed_limit = float(speed_limit(self.P).min())  # no run diverged: the parameters had changed
 
     def _advance_lanes(self, uu: np.ndarray, n_steps: int) -> None:
         """The lane kernel on whole blocks of lanes, as :func:`drillgym.lane_runner.run_lanes`.
