@@ -184,6 +184,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--omega-ref", type=float, default=1.0, help="target lower-disc speed (rad/s, default 1)")
     ap.add_argument("--parallel", type=int, default=1, help="runs side by side (each its own emulator; default 1)")
     args = ap.parse_args(argv)
+    signal.signal(signal.SIGTERM, signal.default_int_handler)  # stopped: each run's finally stops its emulator
     if args.runs < 1 or args.parallel < 1:
         ap.error(f"--runs and --parallel must be >= 1, got {args.runs}, {args.parallel}")
     if not (math.isfinite(args.duration) and args.duration > 0):

@@ -11,9 +11,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from drillgym.errors import InputError
-
 from . import protocol as P
+from .checks import number
 from .link import DEFAULT_BAUDRATE, LinkCorruptError, LinkError, LinkSequenceError, LinkTimeoutError, SerialLink
 
 __all__ = ["RigClient", "Reply"]
@@ -51,10 +50,9 @@ class RigClient:
     """
 
     def __init__(self, url: str, reply_timeout: float = 0.05, baudrate: int = DEFAULT_BAUDRATE) -> None:
-        if not (0 < reply_timeout <= 1.0):
-            raise InputError(f"reply_timeout must be in (0, 1] s, got {reply_timeout!r}")
+        reply_timeout = number(reply_timeout, "reply_timeout", low=0.0, high=1.0, low_open=True, unit="s")
         self.link = SerialLink(url, baudrate)
-        self.reply_timeout = float(reply_timeout)
+        self.reply_timeout = reply_timeout
         self.config: P.Config | None = None
         self.strict = False  # during an episode: any rejected byte or missing frame is an error
         self._rejected = 0

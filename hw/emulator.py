@@ -29,10 +29,11 @@ from pathlib import Path
 from typing import Any
 
 from drillgym import RigParams
-from drillgym.errors import InputError, OutputPathError
+from drillgym.errors import OutputPathError
 from drillgym.io import create_directory
 
 from . import protocol as P
+from .checks import number
 from .firmware import Firmware, FirmwareConfig
 from .timing import DurationStats, GcPauses
 
@@ -164,8 +165,8 @@ class RigEmulator:
         link_path: str | Path | None = None,
         log=None,
     ) -> None:
-        if latency_s < 0 or jitter_s < 0:
-            raise InputError(f"latency_s and jitter_s must be >= 0 s, got {latency_s!r}, {jitter_s!r}")
+        latency_s = number(latency_s, "latency_s", low=0.0, high=60.0, unit="s")
+        jitter_s = number(jitter_s, "jitter_s", low=0.0, high=60.0, unit="s")
         self.firmware = Firmware(
             configuration,
             params,

@@ -42,15 +42,16 @@ from drillgym.envs.observation import make_observation_model
 from drillgym.envs.options import U_MAX, EnvOptions
 from drillgym.envs.reward import TrackingReward
 from drillgym.envs.task import SpeedTrackingTask, StickSlipMonitor
-from drillgym.errors import InputError, SafetyError
+from drillgym.errors import InputError, InputTypeError, SafetyError
 from drillgym.measurement import EncoderVelocityEstimator, counts_to_angle
 
 from . import protocol as P
+from .checks import check_port, check_record_path, integer, number
 from .client import Reply, RigClient
 from .link import DEFAULT_BAUDRATE, LinkError, LinkLostError, LinkTimeoutError
 from .pacing import Pacer
 from .processing import CounterUnwrap, LvdtProcessor
-from .recording import EpisodeRecorder, episode_path
+from .recording import EpisodeRecorder, RecordingError, episode_path
 from .safety import SafetyLimits, VoltageLimiter, check_limits
 
 __all__ = ["HardwareEnv", "HARDWARE_FIXED_OPTIONS"]
@@ -176,16 +177,27 @@ class HardwareEnv(gym.Env):
             raise InputError(
                 f"option(s) {fixed} do not apply to the hardware environment (properties of the rig or its firmware)"
             )
-        if not (rest_time > 0 and rest_timeout > rest_time):
-            raise InputError(f"need 0 < rest_time < rest_timeout, got {rest_time!r}, {rest_timeout!r}")
+        # everything checked before the port is opened: the options as the simulated envs check them (the
+        # firmware's encoder resolution is applied after the handshake), then the hardware's own arguments
+        control_dt = number(options.get("control_dt", EnvOptions.control_dt), "control_dt", low=0.0, low_open=True)
+        # the simulated envs' integration step does not apply (the firmware integrates nothing on the host's side)
+        EnvOptions.from_kwargs(configuration=configuration, lvdt_noise_std=0.0, dt=control_dt, **options)
+        self.port = check_port(port, "port")
+        self.record = check_record_path(record, "record")
+        if limits is not None and not isinstance(limits, SafetyLimits):
+            raise InputTypeError(f"limits must be a hw.safety.SafetyLimits, got {type(limits).__name__}")
+        self.rest_time = number(rest_time, "rest_time", low=0.0, low_open=True, unit="s")
+        self.rest_timeout = number(rest_timeout, "rest_timeout", low=self.rest_time, low_open=True, unit="s")
+        if reply_timeout is not None:
+            reply_timeout = number(reply_timeout, "reply_timeout", low=0.0, high=1.0, low_open=True, unit="s")
+        nyquist = 0.5 / control_dt
+        self.lvdt_cutoff_hz = number(
+            lvdt_cutoff_hz, "lvdt_cutoff_hz", low=0.0, high=nyquist, low_open=True, unit="Hz (half the control rate)"
+        )
+        self.flush_interval_s = number(flush_interval_s, "flush_interval_s", low=0.0, high=1.0, low_open=True, unit="s")
+        integer(baudrate, "baudrate", low=1)
         self.limits = limits or SafetyLimits()
-        self.record = Path(record)
-        self.rest_time, self.rest_timeout = float(rest_time), float(rest_timeout)
-        self.lvdt_cutoff_hz = float(lvdt_cutoff_hz)
-        self.flush_interval_s = float(flush_interval_s)
-        self.port = str(port)
         self._reply_timeout, self._baudrate = reply_timeout, baudrate
-        control_dt = float(options.get("control_dt", EnvOptions.control_dt))
         self._client = RigClient(self.port, 0.05 if reply_timeout is None else reply_timeout, baudrate)
         self._finalizer = weakref.finalize(self, _stop_motor, self._client)
         try:
@@ -196,8 +208,17 @@ class HardwareEnv(gym.Env):
                 raise InputError(
                     f"the firmware on {self.port} runs a {cfg.period_s} s control period and refused {control_dt} s"
                 )
+            if control_dt >= cfg.watchdog_ms * 1e-3:
+                raise InputError(
+                    f"control_dt {control_dt:g} s is not shorter than the firmware's watchdog ({cfg.watchdog_ms} ms): "
+                    "every period would stop the motor; use a shorter control period"
+                )
             self.options = EnvOptions.from_kwargs(
-                configuration=configuration, counts_per_rev=cfg.counts_per_rev, lvdt_noise_std=0.0, **options
+                configuration=configuration,
+                counts_per_rev=cfg.counts_per_rev,
+                lvdt_noise_std=0.0,
+                dt=control_dt,
+                **options,
             )
         except BaseException:
             self._finalizer()
@@ -359,7 +380,7 @@ class HardwareEnv(gym.Env):
         """Write the last row (0 V from then on: the episode ended, the motor is stopped) and close."""
         if self.recorder is None:
             return
-        if self._pending is not None and not self.recorder.closed:
+        if self._pending is not None and not self.recorder.closed and not self.recorder.failed:
             self.recorder.write({**self._pending, "u": 0.0, "u_cmd": 0.0})
         self._pending = None
         self.recorder.close()
@@ -526,7 +547,11 @@ class HardwareEnv(gym.Env):
         self.monitor.update(self._Y[:, 3])
         self.task.unsafe(self._Y, self._unsafe)
         self._steps += 1
-        self._record(m, u_cmd, omega)
+        try:
+            self._record(m, u_cmd, omega)
+        except RecordingError as exc:  # an episode never runs unrecorded: stop it, keep what was written
+            self._on_fault(exc)
+            raise
         stop = None
         if reply.sample.status & P.Status.STOPPED:
             try:

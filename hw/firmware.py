@@ -32,6 +32,7 @@ from drillgym.errors import InputError
 from drillgym.measurement import EncoderVelocityEstimator, angle_to_counts, counts_to_angle, lvdt_measure
 
 from . import protocol as P
+from .checks import integer, number
 from .safety import SafetyLimits, VoltageLimiter, check_limits
 
 __all__ = ["FirmwareConfig", "Firmware", "VoltageEvent", "EVENTS_KEPT"]
@@ -82,6 +83,10 @@ class FirmwareConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise InputError(f"{name} must be > 0, got {v!r}")
+        if not 1e-3 <= self.watchdog_s <= 65.535:
+            raise InputError(f"watchdog_s must be in [0.001, 65.535] s (in whole ms), got {self.watchdog_s!r}")
+        if self.control_period_s > 60.0:
+            raise InputError(f"control_period_s must be at most 60 s, got {self.control_period_s!r}")
         if len(self.firmware_id.encode("ascii")) > 16:
             raise InputError(f"firmware_id must be at most 16 ASCII characters, got {self.firmware_id!r}")
 
@@ -136,6 +141,10 @@ class Firmware:
         lvdt_noise_std: float = 0.0,
         seed: int | None = 0,
     ) -> None:
+        lvdt_noise_std = number(lvdt_noise_std, "lvdt_noise_std", low=0.0, high=1.0, unit="m")
+        alpha0 = number(alpha0, "alpha0", low=-100.0, high=100.0, unit="rad")
+        if seed is not None:
+            integer(seed, "seed", low=0)
         self.params = params or RigParams()
         self.config = config or FirmwareConfig()
         self.sim = BatchSimulator(

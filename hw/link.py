@@ -9,12 +9,11 @@ becomes a :class:`LinkLostError`.
 
 from __future__ import annotations
 
-import os
 import time
 
 import serial
 
-from drillgym.errors import MissingFileError, SafetyError, UnavailableError
+from drillgym.errors import SafetyError, UnavailableError
 
 try:  # pyserial's POSIX flush() calls termios directly, whose error is not an OSError
     import termios
@@ -25,6 +24,7 @@ except ImportError:  # pragma: no cover - Windows
 
 
 from . import protocol as P
+from .checks import check_port, integer
 
 __all__ = [
     "LinkError",
@@ -78,11 +78,8 @@ class SerialLink:
     """
 
     def __init__(self, url: str, baudrate: int = DEFAULT_BAUDRATE) -> None:
-        self.url = str(url)
-        if "://" not in self.url and not os.path.exists(self.url):
-            raise MissingFileError(
-                f"serial port {self.url!r} does not exist (is the rig or `drillgym rig emulate` running?)"
-            )
+        self.url = check_port(url, "serial port")
+        integer(baudrate, "baudrate", low=1)
         try:
             self.ser = serial.serial_for_url(self.url, baudrate=baudrate, timeout=0.002, write_timeout=WRITE_TIMEOUT_S)
         except PORT_ERRORS as exc:

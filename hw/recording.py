@@ -22,10 +22,16 @@ import time
 from collections.abc import Mapping
 from pathlib import Path
 
-from drillgym.errors import InputError
+from drillgym.errors import InputError, OutputPathError, SafetyError
 from drillgym.io import StreamingCsvWriter, create_directory
 
-__all__ = ["EpisodeRecorder", "episode_path", "columns"]
+__all__ = ["EpisodeRecorder", "RecordingError", "episode_path", "columns"]
+
+
+class RecordingError(SafetyError):
+    """The recording could not be written on (a full disk, an I/O error): the episode is stopped (an episode is
+    never run unrecorded) and what was written up to the last flush is kept; the message says where."""
+
 
 _RAW = ("counts_u", "counts_l", "lvdt_x_raw", "lvdt_y_raw", "u_cmd", "status", "t_host")
 
@@ -84,9 +90,13 @@ class EpisodeRecorder:
         self.path = Path(path)
         create_directory(self.path.parent, self.path)
         self.rows = 0
-        self._writer = StreamingCsvWriter(self.path, columns(lateral), meta, flush_interval_s)
+        try:
+            self._writer = StreamingCsvWriter(self.path, columns(lateral), meta, flush_interval_s)
+        except OSError as exc:
+            raise OutputPathError(f"recording {self.path}: cannot be written ({exc.strerror or exc})") from None
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self._error: BaseException | None = None
+        self._reported = False
         self._thread = threading.Thread(target=self._drain, name="recording", daemon=True)
         self._thread.start()
         self.closed = False
@@ -105,18 +115,47 @@ class EpisodeRecorder:
         except BaseException as exc:  # noqa: BLE001
             self._error = exc
 
+    @property
+    def failed(self) -> bool:
+        """The writer thread met an error: nothing more is written."""
+        return self._error is not None
+
+    def _raise(self) -> None:
+        """Report the writer thread's error once, as one line saying what is kept and where."""
+        if self._error is None or self._reported:
+            return
+        self._reported = True
+        exc = self._error
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc) or type(exc).__name__
+        raise RecordingError(
+            f"recording {self.path}: cannot write to it ({why}); the episode is stopped; the recording so far "
+            f"(up to its last flush) is kept in {self.path}"
+        ) from None
+
     def write(self, row: Mapping[str, float]) -> None:
-        """Queue one sample (column name -> value); raises an error the writer thread met."""
+        """Queue one sample (column name -> value).
+
+        Raises
+        ------
+        RecordingError
+            The writer thread could not write (said once; later rows are dropped).
+        """
         if self._error is not None:
-            raise self._error
+            self._raise()
+            return
         self._queue.put(dict(row))
         self.rows += 1
 
     def close(self) -> None:
-        """Flush the rest to disk and close (idempotent)."""
+        """Flush the rest to disk and close (idempotent).
+
+        Raises
+        ------
+        RecordingError
+            The last rows could not be written (unless already reported by :meth:`write`).
+        """
         if not self.closed:
             self.closed = True
             self._queue.put(None)
             self._thread.join()
-            if self._error is not None:
-                raise self._error
+            self._raise()

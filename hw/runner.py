@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 import importlib
+import math
 import zipfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -122,7 +123,10 @@ class LinearPolicy:
         try:
             z = np.load(path, allow_pickle=False)
         except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-            raise InputError(f"{path}: not a linear policy file (.npz with arrays W and b): {exc}") from None
+            raise InputError(
+                f"{path}: not a linear policy file (.npz with arrays W and b; numpy could not read it: "
+                f"{npz_problem(exc)})"
+            ) from None
         if not hasattr(z, "files"):  # a single .npy array
             raise InputError(f"{path}: a linear policy file needs arrays 'W' (1, obs_dim) and 'b' (1,)")
         with z:
@@ -142,6 +146,21 @@ class LinearPolicy:
         if obs.shape != (self.W.shape[1],):
             raise InputError(f"linear policy expects an observation of {self.W.shape[1]} values, got {obs.shape}")
         return (self.W @ obs + self.b).astype(np.float32)
+
+
+def npz_problem(exc: BaseException) -> str:
+    """What is wrong with a file ``numpy.load(..., allow_pickle=False)`` refused, in a few words (not numpy's advice
+    about pickles: a policy file is never unpickled)."""
+    if isinstance(exc, zipfile.BadZipFile):
+        return f"a damaged .npz archive ({exc})"
+    if isinstance(exc, EOFError):
+        return "empty or cut short"
+    if isinstance(exc, OSError):
+        return exc.strerror or str(exc) or type(exc).__name__
+    text = " ".join(str(exc).split())
+    if "pickle" in text:
+        return "neither a .npz archive nor a .npy array"
+    return text or type(exc).__name__
 
 
 def _optional(module: str, what: str):
@@ -185,9 +204,12 @@ def make_controller(spec: str, configuration: str, omega_ref: float | None, cont
         return PlaybackController(spec.split(":", 1)[1])
     if spec.startswith("const:"):
         try:
-            return ConstantController(float(spec.split(":", 1)[1]))
+            volts = float(spec.split(":", 1)[1])
         except ValueError:
             raise InputError(f"controller {spec!r}: expected const:<volts>, e.g. const:2.0") from None
+        if not math.isfinite(volts):
+            raise InputError(f"controller {spec!r}: the voltage must be a finite number of volts, e.g. const:2.0")
+        return ConstantController(volts)
     mod = _optional("controllers", f"controller {spec!r}")
     make = getattr(mod, "make", None)
     if make is None:

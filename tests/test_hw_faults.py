@@ -152,7 +152,9 @@ def test_emulator_process_killed(tmp_path):
     try:
         line = proc.stdout.readline()
         assert "rig emulator (torsional) on /dev/pts/" in line and link.is_symlink()
-        env = HardwareEnv(str(link), record=tmp_path / "rec.csv", episode_duration=5.0)
+        # the killed emulator's pty closes once the kernel has torn the process down (its memory before its files),
+        # which on a loaded machine took longer than a 50 ms reply timeout: wait long enough to see the port vanish
+        env = HardwareEnv(str(link), record=tmp_path / "rec.csv", episode_duration=5.0, reply_timeout=0.5)
         exc, steps = _run_until_fault(env, lambda k: k == 25 and os.kill(proc.pid, signal.SIGKILL))
         assert isinstance(exc, LinkLostError) and "disconnected" in str(exc)
         env.close()

@@ -24,7 +24,7 @@ import typer
 from drillgym.commands.effect_options import add_effect_option, effect_param_option
 from drillgym.commands.outputs import CREATES_DIRS
 from drillgym.commands.plant import describe_plant, plant_from_cli
-from drillgym.errors import InputError, SafetyError
+from drillgym.errors import InputError, MissingFileError, SafetyError
 
 from .rig_ops import INTERRUPT_EXIT, STOP_EXIT, ClampNotice, stop_reason
 
@@ -81,6 +81,9 @@ def emulate_cmd(
     from hw.emulator import RigEmulator
     from hw.firmware import FirmwareConfig
 
+    _check_emulate_options(
+        port, config, counts_per_rev, lvdt_noise, latency_ms, jitter_ms, period_ms, watchdog_ms, dt, alpha0, seed
+    )
     base, comp, values = plant_from_cli(params, add_effect, effect_param)
     fw = FirmwareConfig(counts_per_rev=counts_per_rev, control_period_s=period_ms * 1e-3, watchdog_s=watchdog_ms * 1e-3)
     import time
@@ -108,9 +111,12 @@ def emulate_cmd(
         link_path=port,
         log=log,
     )
+    # the libraries' heap out of the collector's reach (its pauses stay well below a control period), at normal
+    # priority: the one full collection takes ~0.1 s of CPU, which at real-time priority would hold up other
+    # real-time processes (another rig's host) as long
+    freeze_heap()
     # before the threads start: they inherit it (the emulator stands in for a microcontroller)
     priority = prioritize(realtime)
-    freeze_heap()  # the libraries' heap out of the collector's reach: its pauses stay well below a control period
     emu.start()
     log(f"emulator ready: watchdog {watchdog_ms:g} ms, scheduling priority {priority}")
     signal.signal(signal.SIGTERM, _interrupt)
@@ -187,20 +193,22 @@ def run_cmd(
     from hw.runner import load_policy, make_controller
     from hw.timing import PERCENTILES, percentile_summary
 
-    from .rig_ops import check_writable, trained_agent, warm_up
     from .rig_ops import dry_run as do_dry_run
+    from .rig_ops import trained_agent, warm_up
 
     if (controller is None) == (policy is None):
         raise InputError("give exactly one of --controller or --policy")
-    if not duration > 0:
-        raise InputError(f"--duration must be > 0 s, got {duration}")
-    if reconnect < 0 or not reconnect_wait >= 0:
-        raise InputError(f"--reconnect and --reconnect-wait must be >= 0, got {reconnect}, {reconnect_wait}")
+    opts = _check_run_options(
+        port, duration, record, config, observation, omega_ref, control_ms, seed, reply_timeout_ms, reconnect,
+        reconnect_wait,
+    )  # fmt: skip
     hw.register()
-    opts = {"observation": observation, "episode_duration": duration, "control_dt": control_ms * 1e-3}
-    if omega_ref is not None:
-        opts["omega_ref"] = omega_ref
     # controller and policy first: a bad one is refused before the port is touched
+    if policy is not None and not policy.exists():
+        raise MissingFileError(
+            f"--policy {policy} does not exist; give what `drillgym train` wrote (its run directory, policy.npz or "
+            "model.zip) or a linear policy .npz (arrays W and b)"
+        )
     if policy is not None and trained_agent(policy):  # a trained agent runs as the controller agent:PATH
         controller, policy = f"agent:{policy}", None
     model = None
@@ -234,7 +242,6 @@ def run_cmd(
     if dry_run:
         do_dry_run(make_env, ctrl, pol, record, typer.echo)
         return
-    check_writable(record)
     if record.suffix.lower() == ".csv":
         output_file(record)
     else:
@@ -279,10 +286,13 @@ def estop_cmd(
     Works while another program runs the rig (that run then stops with a safety stop).
     Exit code 0 when the firmware acknowledged, 3 when it did not (check the rig).
     """
+    from hw.checks import check_port, integer, number
+
     from .rig_ops import emergency_stop
 
-    if attempts < 1 or not timeout_ms > 0:
-        raise InputError(f"--attempts must be >= 1 and --timeout-ms > 0, got {attempts}, {timeout_ms}")
+    check_port(port, "--port")
+    integer(attempts, "--attempts", low=1, high=100)
+    number(timeout_ms, "--timeout-ms", low=0.0, high=1000.0, low_open=True, unit="ms")
     try:
         k = emergency_stop(port, attempts, timeout_ms * 1e-3)
     except SafetyError as exc:
@@ -306,9 +316,9 @@ def _run_episode(make_env, ctrl, pol, seed, notice, realtime, reconnect, reconne
     env = None
     try:
         env = make_env()  # handshake and compiled kernels loaded at normal priority, then the episode's
-        typer.echo(f"scheduling priority: {prioritize(realtime)}")
         watchdog_ms = env.unwrapped.firmware.watchdog_ms
-        with quiet_gc():
+        with quiet_gc():  # its full collection at normal priority too: ~0.1 s that would hold up real-time work
+            typer.echo(f"scheduling priority: {prioritize(realtime)}")
             res, faults = run_with_reconnect(
                 env,
                 lambda: run_episode(env, controller=ctrl, policy=pol, seed=seed, on_step=notice),
@@ -339,3 +349,77 @@ def _run_episode(make_env, ctrl, pol, seed, notice, realtime, reconnect, reconne
     finally:
         if env is not None:
             env.close()
+
+
+def _check_config(config: str, option: str = "--config") -> str:
+    from drillgym.envs.options import _ENV_CONFIGURATIONS
+
+    names = [c.name.lower() for c in _ENV_CONFIGURATIONS]
+    if config.strip().lower().replace("-", "_") not in names:
+        raise InputError(f"{option} {config!r}: not a rig configuration; use one of {', '.join(names)}")
+    return config
+
+
+def _check_run_options(
+    port, duration, record, config, observation, omega_ref, control_ms, seed, reply_timeout_ms, reconnect, wait
+) -> dict:
+    """Every option of ``rig run`` checked before anything is built or opened; the environment's options."""
+    from drillgym.envs.options import OBSERVATION_MODES, EnvOptions
+    from hw.checks import check_port, check_record_path, integer, number
+
+    check_port(port, "--port")
+    number(duration, "--duration", low=0.0, low_open=True, unit="s")
+    number(control_ms, "--control-ms", low=0.0, high=1000.0, low_open=True, unit="ms")
+    if duration < control_ms * 1e-3:
+        raise InputError(f"--duration {duration:g} s is shorter than one control period (--control-ms {control_ms:g})")
+    _check_config(config)
+    if observation not in OBSERVATION_MODES:
+        raise InputError(f"--observation {observation!r}: use one of {', '.join(OBSERVATION_MODES)}")
+    if omega_ref is not None:
+        number(omega_ref, "--omega-ref", low=0.0, low_open=True, unit="rad/s")
+    integer(seed, "--seed", low=0, high=2**32 - 1)
+    if reply_timeout_ms is not None:
+        number(reply_timeout_ms, "--reply-timeout-ms", low=0.0, high=1000.0, low_open=True, unit="ms")
+    integer(reconnect, "--reconnect", low=0)
+    number(wait, "--reconnect-wait", low=0.0, high=3600.0, unit="s")
+    check_record_path(record, "--record")
+    opts = {"observation": observation, "episode_duration": duration, "control_dt": control_ms * 1e-3}
+    if omega_ref is not None:
+        opts["omega_ref"] = omega_ref
+    names = {"omega_ref": "--omega-ref", "episode_duration": "--duration", "control_dt": "--control-ms"}
+    try:
+        EnvOptions.from_kwargs(configuration=config, lvdt_noise_std=0.0, **opts)
+    except InputError as exc:  # the environment's own limits (e.g. omega_ref beyond max_speed), named as options
+        msg = str(exc)
+        for name, option in names.items():
+            msg = msg.replace(f"option '{name}'", option)
+        raise InputError(msg) from None
+    return opts
+
+
+def _check_emulate_options(
+    port, config, counts_per_rev, lvdt_noise, latency_ms, jitter_ms, period_ms, watchdog_ms, dt, alpha0, seed
+) -> None:
+    """Every option of ``rig emulate`` checked before the plant is built or the pseudo-terminal opened."""
+    from hw.checks import check_creatable, integer, number
+    from hw.emulator import check_link_path
+
+    if port is not None:
+        if not str(port).strip():
+            raise InputError("--port: an empty path; give a path for the link to the pseudo-terminal")
+        check_link_path(port)
+        if not port.is_symlink():
+            check_creatable(port, "--port", "link")
+    _check_config(config)
+    integer(counts_per_rev, "--counts-per-rev", low=1, high=2**31 - 1)
+    number(lvdt_noise, "--lvdt-noise", low=0.0, high=1.0, unit="m")
+    number(latency_ms, "--latency-ms", low=0.0, high=60000.0, unit="ms")
+    number(jitter_ms, "--jitter-ms", low=0.0, high=60000.0, unit="ms")
+    number(period_ms, "--period-ms", low=0.0, high=60000.0, low_open=True, unit="ms")
+    number(watchdog_ms, "--watchdog-ms", low=1.0, high=65535.0, unit="ms (CONFIG carries it in whole ms)")
+    number(dt, "--dt", low=1e-6, high=period_ms * 1e-3, unit="s (at most the control period, --period-ms)")
+    n = round(period_ms * 1e-3 / dt)
+    if abs(n * dt - period_ms * 1e-3) > 1e-9:
+        raise InputError(f"--period-ms {period_ms:g} is not a whole number of plant steps (--dt {dt:g} s)")
+    number(alpha0, "--alpha0", low=-100.0, high=100.0, unit="rad")
+    integer(seed, "--seed", low=0, high=2**32 - 1)

@@ -107,7 +107,7 @@ class ClampNotice:
 
 
 def check_writable(record: Path) -> None:
-    """Refuse a recording path that could not be written; nothing is created.
+    """Refuse a recording path that could not be written; nothing is created (:func:`hw.checks.check_record_path`).
 
     Parameters
     ----------
@@ -116,18 +116,13 @@ def check_writable(record: Path) -> None:
 
     Raises
     ------
-    InputError
-        The path lies under a file, or its directory is not writable.
+    OutputPathError
+        A directory, device, pipe or socket where a .csv file is named, a file where a directory is named, a path
+        under a file or where nothing can be created (``/proc``, no permission).
     """
-    p = Path(record).resolve()
-    if p.suffix.lower() == ".csv":
-        p = p.parent  # a recording file (overwritten if it exists): its directory must be writable
-    while not p.exists() and p != p.parent:
-        p = p.parent
-    if not p.is_dir():
-        raise InputError(f"--record {record}: {p} is a file, not a directory")
-    if not os.access(p, os.W_OK | os.X_OK):
-        raise InputError(f"--record {record}: no permission to write in {p}")
+    from hw.checks import check_record_path
+
+    check_record_path(record, "--record")
 
 
 def dry_run(make_env: Callable[[], object], ctrl, policy, record: Path, echo: Callable[[str], None]) -> None:
@@ -302,9 +297,11 @@ def trained_agent(path: Path) -> bool:
         try:
             z = np.load(p, allow_pickle=False)
         except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-            reason = " ".join(str(exc).split()) or type(exc).__name__
+            from hw.runner import npz_problem
+
             raise InputError(
-                f"--policy {p}: not a policy file (a .npz written by drillgym train, or arrays W and b): {reason}"
+                f"--policy {p}: not a policy file (numpy could not read it: {npz_problem(exc)}); give a .npz written "
+                "by drillgym train, a linear policy (arrays W and b) or a training run's directory"
             ) from None
         if not hasattr(z, "files"):  # a single .npy array: the linear policy's loader names what it needs
             return False
