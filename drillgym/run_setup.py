@@ -8,6 +8,7 @@ and :class:`drillgym.BatchSimulator`.
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -15,7 +16,8 @@ import numpy as np
 
 from .configurations import N_STATE
 from .effects.composition import Composition
-from .errors import InputError
+from .errors import InputError, InputTypeError
+from .io import U_LIMIT_FILE
 from .params import RigParams
 from .trajectory import column_index
 
@@ -23,6 +25,11 @@ __all__ = [
     "InputLike",
     "ParamsLike",
     "DEFAULT_SMOOTH_EPS",
+    "U_LIMIT",
+    "real_number",
+    "whole_number",
+    "as_voltages",
+    "real_numbers",
     "initial_state",
     "input_matrix",
     "delay_lines",
@@ -37,6 +44,98 @@ InputLike = float | Sequence[float] | np.ndarray | tuple | Callable[[np.ndarray]
 #: parameters: one RigParams, one per run, or a parameter matrix
 ParamsLike = RigParams | Sequence[RigParams] | np.ndarray | None
 DEFAULT_SMOOTH_EPS = 1e-3  # rad/s, for friction="smooth"
+#: V: the largest motor command a run accepts, as the command line and recordings (the amplifier gives +-5 V)
+U_LIMIT = U_LIMIT_FILE
+
+
+def _shown(value: Any) -> str:
+    """``value`` for a message: numbers as plain numbers (never ``np.float64(2.1)``), the rest by repr."""
+    if isinstance(value, numbers.Real) and not isinstance(value, bool):
+        return f"{float(value):g}"
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def real_number(name: str, value: Any, unit: str) -> float:
+    """``value`` as a float, refused unless it is one real number.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, for the message.
+    value : Any
+        What the caller gave.
+    unit : str
+        Its unit, for the message (e.g. ``"s"``).
+
+    Returns
+    -------
+    float
+        The value (finiteness and range are the caller's to check).
+
+    Raises
+    ------
+    InputTypeError
+        ``value`` is a string, a bool, None, an array of several values or anything not a real number.
+    """
+    if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
+        value = value.item()
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise InputTypeError(f"{name} must be a number ({unit}), got {_shown(value)} of type {type(value).__name__}")
+    return float(value)
+
+
+def whole_number(name: str, value: Any, minimum: int) -> int:
+    """``value`` as an int >= ``minimum``; refused if it is not a whole number (2.5, "3", True) or smaller.
+
+    Raises
+    ------
+    InputTypeError
+        ``value`` is not an integer.
+    InputError
+        ``value`` is smaller than ``minimum``.
+    """
+    if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iu":
+        value = value.item()
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise InputTypeError(f"{name} must be a whole number, got {_shown(value)} of type {type(value).__name__}")
+    if value < minimum:
+        raise InputError(f"{name} must be >= {minimum}, got {value}")
+    return int(value)
+
+
+def real_numbers(name: str, value: Any, unit: str) -> np.ndarray:
+    """``value`` (a number or an array of numbers) as a float array; refused if it holds anything else or NaN/inf.
+
+    Raises
+    ------
+    InputTypeError
+        ``value`` is None, a string, a bool or holds something other than numbers.
+    InputError
+        A value is NaN or infinite.
+    """
+    if value is None or isinstance(value, (str, bytes, bool)):
+        raise InputTypeError(f"{name} must be a number or an array of numbers ({unit}), got {_shown(value)}")
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputTypeError(f"{name} must hold numbers ({unit}), got {_shown(value)}") from None
+    if not np.all(np.isfinite(array)):
+        raise InputError(f"{name} must be finite ({unit}), got {_shown(value)}")
+    return array
+
+
+def as_voltages(u: Any, what: str = "u") -> np.ndarray:
+    """``u`` as a float array, refused in the caller's words if it holds anything but numbers."""
+    if u is None or isinstance(u, (str, bytes, bool)):
+        raise InputTypeError(
+            f"{what} must be a voltage (V): a number, per-step values, a (t, u) table or a function of time; "
+            f"got {_shown(u)}"
+        )
+    try:
+        return np.asarray(u, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputTypeError(f"{what} must hold numbers (V), got {_shown(u)}") from None
 
 
 def initial_state(
@@ -137,9 +236,12 @@ def input_matrix(u: InputLike, n_batch: int, n_steps: int, dt: float) -> tuple[n
     """
     steps = None
     if callable(u):
-        U = np.asarray(u(np.arange(n_steps) * dt), dtype=np.float64)
+        U = as_voltages(u(np.arange(n_steps) * dt), "the value of the input function u(t)")
+        if U.ndim == 0:
+            U = np.full(n_steps, float(U))
     elif isinstance(u, tuple) and len(u) == 2:
-        ts, us = (np.asarray(a, dtype=np.float64) for a in u)
+        ts = as_voltages(u[0], "the times t of a (t, u) input")
+        us = as_voltages(u[1], "the voltages u of a (t, u) input")
         if ts.ndim != 1 or ts.size == 0 or us.shape[-1] != ts.size or us.ndim > 2:
             raise InputError(f"a (t, u) input needs t (m,) and u (m,) or (B, m); got {ts.shape} and {us.shape}")
         if not (np.all(np.isfinite(ts)) and np.all(np.diff(ts) >= 0)):
@@ -147,7 +249,7 @@ def input_matrix(u: InputLike, n_batch: int, n_steps: int, dt: float) -> tuple[n
         steps = table_steps(ts, n_steps, dt)
         U = us
     else:
-        U = np.asarray(u, dtype=np.float64)
+        U = as_voltages(u, "u")
         if U.ndim == 0:
             U = np.full((n_batch, 1), float(U))
         elif U.ndim == 1 and U.shape[0] == n_batch and n_steps != n_batch:
@@ -165,6 +267,12 @@ def input_matrix(u: InputLike, n_batch: int, n_steps: int, dt: float) -> tuple[n
         bad = np.argwhere(~np.isfinite(U))[0]
         raise InputError(
             f"input voltage is NaN/inf (trajectory {bad[0]}, {'entry' if steps is not None else 'step'} {bad[1]})"
+        )
+    if U.size and not np.max(np.abs(U)) <= U_LIMIT:
+        bad = np.unravel_index(np.argmax(np.abs(U)), U.shape)
+        raise InputError(
+            f"input voltage {U[bad]:g} V (trajectory {bad[0]}, {'entry' if steps is not None else 'step'} {bad[1]}) "
+            f"is beyond the model's range |u| <= {U_LIMIT:g} V (the rig's amplifier gives +-5 V)"
         )
     return U, steps
 
@@ -248,10 +356,10 @@ def initial_states(comp: Composition, B: int, x0: Any, alpha0: Any) -> np.ndarra
     n = comp.n_state
     if x0 is None:
         Y = np.zeros((B, n))
-        Y[:, 1] = np.broadcast_to(np.asarray(alpha0, dtype=float), (B,))
+        Y[:, 1] = np.broadcast_to(real_numbers("alpha0", alpha0, "rad"), (B,))
         Y[:, list(comp.lag_state_columns)] = np.nan
         return Y
-    X = np.asarray(x0, dtype=np.float64)
+    X = real_numbers("the initial state x0", x0, "the states' units")
     given = X.shape[-1]
     if given == N_STATE and n > N_STATE:  # mechanical states only: effect states start at 0
         X = np.concatenate([X, np.zeros(X.shape[:-1] + (n - N_STATE,))], axis=-1)

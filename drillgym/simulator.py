@@ -34,7 +34,7 @@ import numpy as np
 from .batch_simulator import BatchSimulator
 from .configurations import Configuration, parse_configuration
 from .effects.composition import compose
-from .errors import InputError, InputTypeError, SimulationError
+from .errors import InputError, InputTypeError
 from .integrators import ADAPTIVE, DEFAULT_ATOL, DEFAULT_DT, DEFAULT_RTOL, tableau
 from .lane_runner import LANE_BLOCK, LANES_MIN_BATCH, block_width, lane_chunks, pad_lanes, run_lanes
 from .params import N_PARAMS, RigParams
@@ -42,15 +42,18 @@ from .run_setup import (
     DEFAULT_SMOOTH_EPS,
     InputLike,
     ParamsLike,
+    as_voltages,
     delay_lines,
     friction_eps,
     initial_state,
     initial_states,
     input_matrix,
     optional_args,
+    real_number,
     record_columns,
+    whole_number,
 )
-from .trajectory import BatchTrajectory, Trajectory
+from .trajectory import BatchTrajectory, Trajectory, check_run
 
 __all__ = [
     "simulate",
@@ -124,8 +127,9 @@ def simulate_batch(
         ``"upper"``, ``"torsional"``, ``"lateral"``, ``"coupled"`` or ``"free_vibration"``.
     u : float, array_like, tuple or callable
         Motor voltage command (V): a scalar, one value per run ``(B,)``, per-step values ``(n,)``
-        or ``(B, n)``, a ``(t, u)`` pair of arrays (zero-order hold), or a function of time. Any
-        voltage is accepted (the +-5 V amplifier limit belongs to the environments and the rig).
+        or ``(B, n)``, a ``(t, u)`` pair of arrays (zero-order hold), or a function of time.
+        ``|u| <= 50 V`` as on the command line and in recordings (the +-5 V amplifier limit
+        belongs to the environments and the rig).
     duration : float
         Simulated time (s).
     dt : float, optional
@@ -186,12 +190,12 @@ def simulate_batch(
     """
     cfg = parse_configuration(config)
     comp, values = compose(effects, effect_params)
+    duration, dt = real_number("duration", duration, "s"), real_number("dt", dt, "s")
     if not (np.isfinite(duration) and duration > 0):
-        raise InputError(f"duration must be a positive number of seconds, got {duration!r}")
+        raise InputError(f"duration must be a positive number of seconds, got {duration:g}")
     if not (np.isfinite(dt) and 0 < dt <= 0.1):
-        raise InputError(f"dt must be in (0, 0.1] s, got {dt!r}")
-    if int(record_every) < 1:
-        raise InputError(f"record_every must be >= 1, got {record_every!r}")
+        raise InputError(f"dt must be in (0, 0.1] s, got {dt:g}")
+    record_every = whole_number("record_every", record_every, 1)
     n_steps = int(round(duration / dt))
     B = _batch_size(n_batch, x0, alpha0, params, u, n_steps)
     P = comp.matrix(params, B, values)
@@ -263,12 +267,7 @@ def simulate_batch(
         runner = k.stepping.run_batch_parallel if parallel else k.stepping.run_batch_serial
         args = (Y, MODE, U, P, int(cfg), float(dt), T0, eps, A, b, c, int(record_every), OUT, True, n_steps, HIST, HEAD)
         runner(*args, *optional_args(COLS, USTEP, OUT.shape[2]))
-    if not np.all(np.isfinite(Y)):
-        bad = int(np.argwhere(~np.all(np.isfinite(Y), axis=1))[0, 0])
-        raise SimulationError(
-            f"trajectory {bad} diverged (NaN/inf state) with the model {comp.label!r}: "
-            f"check the effects' formulas and parameter values"
-        )
+    check_run(OUT, names, Y, comp.full_state_names, P, T0, float(dt), int(record_every), comp.label)
     keep = B <= 64 or params is not None
     plist = [RigParams.from_vector(P[i, :N_PARAMS]) for i in range(B)] if keep else [RigParams()] * B
     vlist = [comp.split(P[i])[1] for i in range(B)] if keep else [dict(values)] * B
@@ -352,10 +351,12 @@ def simulate(
         params = params[None, :]
     if x0 is not None and np.ndim(x0) != 1:
         raise InputError("simulate() takes one initial state")
+    if np.ndim(alpha0) != 0:
+        raise InputError("simulate() takes one initial winding alpha0; use simulate_batch for several")
     if not callable(u) and not isinstance(u, tuple) and np.ndim(u) > 1:
         raise InputError("simulate() takes a scalar or one input sequence; use simulate_batch for several")
     if not callable(u) and not isinstance(u, tuple) and np.ndim(u) == 1:
-        u = np.asarray(u, dtype=np.float64)[None, :]  # one per-step sequence
+        u = as_voltages(u)[None, :]  # one per-step sequence
     batch = simulate_batch(
         config,
         u,

@@ -72,6 +72,7 @@ def test_unknown_effect_name_lists_the_known_ones():
             "does not import",
         ),
         ("raise RuntimeError('no licence')\n", "does not import.*RuntimeError: no licence"),
+        ("import sys\nsys.exit(3)\n", r"calls sys.exit\(3\) when imported \(line 5\)"),
         (
             "class Middle(Force):\n    name = 'middle'\n    acts_on = 'middle_disc'\n"
             "    def torque(alpha):\n        return alpha\n",

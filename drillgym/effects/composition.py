@@ -383,7 +383,12 @@ def _as_list(effects: Any) -> list:
         return []
     if isinstance(effects, (str, Effect)) or inspect.isclass(effects):
         return [effects]
-    return list(effects)
+    if isinstance(effects, Iterable):
+        return list(effects)
+    raise EffectError(
+        f"effects must be an effect (a library name, 'path/to/file.py:NAME', an Effect class or instance) "
+        f"or a sequence of them, got {effects!r}"
+    )
 
 
 def compose(effects: Any = None, values: Mapping[str, float] | None = None) -> tuple[Composition, dict[str, float]]:

@@ -49,7 +49,7 @@ def _import_file(path: Path) -> Any:
     sys.modules[modname] = module
     try:
         spec.loader.exec_module(module)
-    except Exception as exc:  # noqa: BLE001 - any import failure is reported in one line
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - any import failure (sys.exit too) in one line
         sys.modules.pop(modname, None)
         where = ""
         tb = exc.__traceback__
@@ -57,6 +57,8 @@ def _import_file(path: Path) -> Any:
             if tb.tb_frame.f_code.co_filename == str(path):
                 where = f" (line {tb.tb_lineno})"
             tb = tb.tb_next
+        if isinstance(exc, SystemExit):
+            raise EffectError(f"{path}: effect file calls sys.exit({exc.code!r}) when imported{where}") from None
         raise EffectError(f"{path}: effect file does not import{where}: {type(exc).__name__}: {exc}") from None
     _FILE_MODULES[key] = module
     return module
