@@ -68,7 +68,7 @@ def test_one_rule_for_output_paths(tmp_path):
     assert res.returncode == 0 and (tmp_path / "d" / "u.csv").exists(), res.stderr
     (tmp_path / "file").write_text("")
     res = run_cli("simulate", "--u", "1", "--duration", "0.2", "--out", str(tmp_path / "file" / "run.csv"))
-    assert res.returncode == 2 and res.stderr.count("\n") == 1 and "a file of that name is in the way" in res.stderr
+    assert res.returncode == 2 and res.stderr.count("\n") == 1 and "is a file, not a directory" in res.stderr
     for command, option in [
         ("simulate", "--out"),
         ("simulate", "--plot"),

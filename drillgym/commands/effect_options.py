@@ -37,12 +37,53 @@ def parse_effect_params(items: list[str] | None) -> dict[str, float]:
     return out
 
 
-def effects_from_cli(
-    add_effect: list[str] | None, effect_param: list[str] | None
+def check_effects_act(comp: Composition, config, option: str = "--add-effect") -> None:
+    """Refuse an effect that does not act in ``config`` (it would change nothing, silently).
+
+    Parameters
+    ----------
+    comp : Composition
+        The effects.
+    config : Configuration
+        The configuration of the run or the recording.
+    option : str, optional
+        The option that named the effects, for the message.
+
+    Raises
+    ------
+    InputError
+        An effect whose ``configurations`` leave out ``config``.
+    """
+    for e in comp.effects:
+        acts = tuple(e.configurations)
+        if acts and config.label not in acts:
+            raise InputError(
+                f"{option} {e.name}: the effect does not act in the {config.label} configuration "
+                f"(it acts in {', '.join(acts)}); leave it out"
+            )
+
+
+def compose_named(
+    specs: list[str], values: dict[str, float], effect_option: str = "--add-effect"
 ) -> tuple[Composition, dict[str, float]]:
-    """The composition and its effect values from the command-line options (errors name the file,
-    the effect and what is wrong)."""
+    """:func:`compose` whose errors name the option: a bad effect ``effect_option``, a bad value ``--effect-param``."""
+    from .options import option
+
+    with option(effect_option):
+        comp, defaults = compose(list(specs))  # an effect instance in a file brings its values
+    with option("--effect-param"):
+        return compose(comp, {**defaults, **values})
+
+
+def effects_from_cli(
+    add_effect: list[str] | None, effect_param: list[str] | None, config=None
+) -> tuple[Composition, dict[str, float]]:
+    """The composition and its effect values from the command-line options (errors name the option,
+    the file, the effect and what is wrong); with ``config``, an effect that does not act in it is refused."""
     values = parse_effect_params(effect_param)
     if values and not add_effect:
         raise InputError(f"--effect-param {next(iter(values))}: no effect added (use --add-effect NAME)")
-    return compose(list(add_effect or []), values)
+    comp, vals = compose_named(list(add_effect or []), values)
+    if config is not None:
+        check_effects_act(comp, config)
+    return comp, vals

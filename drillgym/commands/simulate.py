@@ -12,6 +12,7 @@ from ..errors import InputError
 from ..io import U_LIMIT_FILE
 from .budget import check_run_fits
 from .effect_options import add_effect_option, effect_param_option, effects_from_cli
+from .options import option
 from .outputs import CREATES_DIRS, figure_file, output_file
 
 
@@ -119,6 +120,62 @@ def check_step_grid(duration: float, dt: float, record_every: int, duration_give
         )
 
 
+#: largest initial winding |--alpha0| (rad) a run may start from: ten turns of the string
+ALPHA0_LIMIT = 20 * math.pi
+
+#: the integration methods of ``--method``
+METHODS = ("rk4", "dp5")
+
+
+def _finite(option: str, value: float, unit: str) -> None:
+    if not math.isfinite(value):
+        raise InputError(f"{option} must be a finite number of {unit}, got {value:g}")
+
+
+def check_run_options(
+    u: float | None, duration: float | None, dt: float, method: str, alpha0: float | None, record_every: int
+) -> None:
+    """Refuse, in the options' terms and before anything is read or run, values no run can use.
+
+    Parameters
+    ----------
+    u : float or None
+        ``--u`` (V): finite (its range is checked against the file format's limit by the caller).
+    duration : float or None
+        ``--duration`` (s): finite and positive when given.
+    dt : float
+        ``--dt`` (s): in (0, 0.1].
+    method : str
+        ``--method``: one of :data:`METHODS`.
+    alpha0 : float or None
+        ``--alpha0`` (rad): finite, at most :data:`ALPHA0_LIMIT` in magnitude.
+    record_every : int
+        ``--record-every``: at least 1.
+
+    Raises
+    ------
+    InputError
+        Naming the option, the value and what would be valid.
+    """
+    if u is not None:
+        _finite("--u", u, "volts")
+    if duration is not None and not (math.isfinite(duration) and duration > 0):
+        raise InputError(f"--duration must be a positive number of seconds, got {duration:g}")
+    if not (math.isfinite(dt) and 0 < dt <= 0.1):
+        raise InputError(f"--dt must be a step in (0, 0.1] s, got {dt:g}")
+    if method not in METHODS:
+        raise InputError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
+    if alpha0 is not None:
+        _finite("--alpha0", alpha0, "radians")
+        if abs(alpha0) > ALPHA0_LIMIT:
+            raise InputError(
+                f"--alpha0 {alpha0:g} rad is beyond the +-{ALPHA0_LIMIT:.4g} rad (ten turns) a string can be "
+                f"wound; choose |alpha0| <= {ALPHA0_LIMIT:.4g}"
+            )
+    if record_every < 1:
+        raise InputError(f"--record-every must be >= 1, got {record_every}")
+
+
 def _summary(traj) -> str:
     """The one-line result: final speed and stuck time of the disc(s) the configuration has."""
     if traj.config is Configuration.UPPER:
@@ -147,18 +204,18 @@ def register(app: typer.Typer) -> None:
         duration: float | None = typer.Option(
             None, help="simulated time (s); default 30, with --input the file's length (a longer one is refused)"
         ),
-        dt: float = typer.Option(1e-3, help="integration step (s)"),
+        dt: float = typer.Option(1e-3, help="integration step (s), at most 0.1; must divide --duration"),
         method: str = typer.Option("rk4", help="rk4 or dp5"),
         params: Path | None = typer.Option(
             None, help="parameter file (JSON/YAML, may be partial: the names it gives override the identified set)"
         ),
         alpha0: float | None = typer.Option(
             None,
-            help="initial winding theta_l - theta_u (rad); default 0; "
+            help=f"initial winding theta_l - theta_u (rad), |alpha0| <= {ALPHA0_LIMIT:.4g} (ten turns); default 0; "
             "free_vibration needs it: the angle the lower disc is "
             "twisted by and released from",
         ),
-        record_every: int = typer.Option(1, help="keep every k-th step in the output"),
+        record_every: int = typer.Option(1, help="keep every k-th step in the output (a divisor of the steps)"),
         out: Path = typer.Option(..., help=f"output csv (DATA_FORMAT); {CREATES_DIRS}"),
         plot: Path | None = typer.Option(None, help=f"also write a figure (png); {CREATES_DIRS}"),
         add_effect: list[str] = add_effect_option(),
@@ -173,7 +230,9 @@ def register(app: typer.Typer) -> None:
         from ..params import RigParams
         from ..simulator import simulate
 
-        cfg = parse_configuration(config)
+        with option("--config"):
+            cfg = parse_configuration(config)
+        check_run_options(u, duration, dt, method, alpha0, record_every)
         if cfg is Configuration.FREE_VIBRATION:
             if u is not None or input_file is not None:
                 raise InputError(
@@ -186,21 +245,23 @@ def register(app: typer.Typer) -> None:
                 )
         elif (u is None) == (input_file is None):
             raise InputError("give exactly one of --u VOLTS or --input FILE")
-        if u is not None and not abs(u) <= U_LIMIT_FILE:
+        if u is not None and not abs(u) <= U_LIMIT_FILE:  # finite: checked above
             raise InputError(
                 f"--u {u:g} V is beyond the +-{U_LIMIT_FILE:g} V a recording may hold (the rig's "
                 f"amplifier gives +-5 V); choose |u| <= {U_LIMIT_FILE:g} V"
             )
         duration_given = duration is not None
-        comp, values = effects_from_cli(add_effect, effect_param)
-        rig = RigParams.from_file(params) if params else RigParams()
+        comp, values = effects_from_cli(add_effect, effect_param, cfg)
+        with option("--params"):
+            rig = RigParams.from_file(params) if params else RigParams()
         if input_file is not None:
-            signal = _load_input(input_file)  # its values are checked by the reader (|u| <= 50 V)
+            with option("--input"):
+                signal = _load_input(input_file)  # its values are checked by the reader (|u| <= 50 V)
             duration = check_input_span(signal[0], input_file, duration)
         else:
             signal = float(u) if u is not None else 0.0
             duration = 30.0 if duration is None else duration
-        out = output_file(out)
+        out = output_file(out, "--out", suffixes=(".csv",))
         plot = figure_file(plot) if plot else None
         check_step_grid(duration, dt, record_every, duration_given=duration_given)
         check_run_fits(duration, dt, record_every, out)
