@@ -111,6 +111,7 @@ def check_run(
     dt: float,
     record_every: int,
     label: str = "base",
+    t_end: np.ndarray | None = None,
 ) -> None:
     """Refuse a run that diverged: a non-finite value, or a disc faster than :func:`speed_limit`.
 
@@ -138,6 +139,8 @@ def check_run(
         Steps between recorded samples.
     label : str, optional
         The model (composition's label), named in the message.
+    t_end : numpy.ndarray, optional
+        Time of the final states (s), ``(B,)``; named when only they are bad (default: "by its end").
 
     Raises
     ------
@@ -161,7 +164,7 @@ def check_run(
     if bad.any():
         b = int(np.flatnonzero(bad.any(axis=1))[0])
         values = [(state_names[j], float(final[b, j])) for j in np.flatnonzero(bad[b])]
-        _raise(final.shape[0], b, None, values, float(limits[b]), label)
+        _raise(final.shape[0], b, None if t_end is None else float(t_end[b]), values, float(limits[b]), label)
 
 
 def _raise(n_runs: int, b: int, t: float | None, values: list[tuple[str, float]], limit: float, label: str) -> None:
