@@ -149,7 +149,8 @@ def export_policy(model, path: str | Path, config: dict[str, Any]) -> Path:
     arrays = {f"W{i}": W for i, (W, _) in enumerate(layers)} | {f"b{i}": b for i, (_, b) in enumerate(layers)}
     arrays |= obs_normalization(model) or {}
     path = Path(path)
-    np.savez(path, meta=np.array(json.dumps(meta, default=_jsonable)), action_low=low, action_high=high, **arrays)
+    text = json.dumps(meta, default=_jsonable, allow_nan=False)  # strict JSON: no NaN literal
+    np.savez(path, meta=np.array(text), action_low=low, action_high=high, **arrays)
     return path
 
 

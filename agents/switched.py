@@ -22,7 +22,6 @@ File format: one ``.npz`` whose ``meta`` holds ``{"format", "switch": {"by": "ta
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -30,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from drillgym.errors import InputError
-from drillgym.io import create_directory
+from drillgym.io import create_directory, dumps_json
 
 from .export import ExportedPolicy, policy_file
 
@@ -105,7 +104,7 @@ class TargetSwitchedPolicy:
         arrays: dict[str, np.ndarray] = {}
         for k, m in enumerate(self.members):
             arrays |= m.to_arrays(prefix=f"m{k}_")
-        np.savez(path, meta=np.array(json.dumps(self.meta)), **arrays)
+        np.savez(path, meta=np.array(dumps_json(self.meta, nonfinite="refuse")), **arrays)
         return path
 
     @classmethod

@@ -300,7 +300,9 @@ class RigParams:
 
             path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
         else:
-            path.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+            from .io.jsonfile import write_json
+
+            write_json(path, data, nonfinite="refuse")
         return path
 
     def to_vector(self) -> np.ndarray:

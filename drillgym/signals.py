@@ -14,13 +14,13 @@ and V, which :func:`drillgym.simulate` accepts directly as its input and
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 from scipy import signal as sps
 
 from .errors import InputError
+from .io.jsonfile import dumps_json
 
 __all__ = ["quasi_random", "sum_of_sines", "write_input_file", "read_input_file", "U_MAX"]
 
@@ -216,7 +216,7 @@ def write_input_file(path: str | Path, t: np.ndarray, u: np.ndarray, description
         "sample_rate_hz": round(float(1.0 / np.median(np.diff(t))), 6) if t.size > 1 else None,
     }
     with path.open("w", encoding="utf-8") as fh:
-        fh.write(f"# meta: {json.dumps(meta)}\n")
+        fh.write(f"# meta: {dumps_json(meta)}\n")
         fh.write("t,u\n")
         for a, b in zip(t, u):
             fh.write(f"{float(a)!r},{float(b)!r}\n")

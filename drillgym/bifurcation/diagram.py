@@ -3,7 +3,6 @@ branches (from each Hopf point, by shooting and continuation), folds, sweeps, me
 
 from __future__ import annotations
 
-import json
 import warnings
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
@@ -75,7 +74,9 @@ class BifurcationDiagram:
 
     def save_json(self, path: str | Path) -> Path:
         path = Path(path)
-        path.write_text(json.dumps(self.to_dict(), indent=1))
+        from ..io.jsonfile import write_json
+
+        write_json(path, self.to_dict(), indent=1)
         return path
 
 

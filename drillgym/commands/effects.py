@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-import json
-
 import typer
 
 
@@ -49,7 +47,9 @@ def register(app: typer.Typer) -> None:
         else:
             classes = list(available_effects().values())
         if as_json:
-            typer.echo(json.dumps([_as_dict(c) for c in classes], indent=1))
+            from ..io.jsonfile import dumps_json
+
+            typer.echo(dumps_json([_as_dict(c) for c in classes], indent=1, nonfinite="refuse"))
             return
         for cls in classes:
             typer.echo(cls.describe())

@@ -2,33 +2,25 @@
 
 from __future__ import annotations
 
-import json
+import math
 from pathlib import Path
 
+import numpy as np
 import typer
 
-from ..errors import InputError
+from ..errors import DrillgymError, InputError
 from .effect_options import add_effect_option, effect_param_option
 from .mapping import MAP_HELP, parse_mapping
-from .outputs import CREATES_DIRS, output_file
+from .options import named, option
+from .outputs import CREATES_DIRS, check_output_dir, check_output_file, output_file
 
 
 def _json(obj) -> str:
-    """JSON text with non-finite numbers (e.g. R² of a constant channel) as null."""
-    import math
+    """Strict JSON text: a non-finite number (e.g. R² of a constant channel) is written as null and named in
+    the object's ``warnings`` list (:func:`drillgym.io.dumps_json`), never as a bare NaN or a silent null."""
+    from ..io.jsonfile import dumps_json
 
-    def clean(o):
-        if isinstance(o, dict):
-            return {k: clean(v) for k, v in o.items()}
-        if isinstance(o, (list, tuple)):
-            return [clean(v) for v in o]
-        if isinstance(o, float) and not math.isfinite(o):
-            return None
-        if hasattr(o, "item") and not isinstance(o, (str, bytes)):
-            return clean(o.item())
-        return o
-
-    return json.dumps(clean(obj), indent=2)
+    return dumps_json(obj, indent=2)
 
 
 def _model_file(path: Path | None):
@@ -45,43 +37,126 @@ def _model(path: Path | None, add_effect: list[str] | None, effect_param: list[s
     """(RigParams, composition, effect values, {effect name: spec}) of ``--params`` (its effects) plus
     ``--add-effect``/``--effect-param``; one-line errors name the file, the effect and what is wrong."""
     from ..effects import compose
-    from .effect_options import parse_effect_params
+    from .effect_options import compose_named, parse_effect_params
 
-    mf = _model_file(path)
+    with option("--params"):
+        mf = _model_file(path)
+        compose(list(mf.specs), dict(mf.values))
     values = dict(mf.values)
     extra = parse_effect_params(effect_param)
     if extra and not (add_effect or mf.specs):
         raise InputError(f"--effect-param {next(iter(extra))}: no effect in the model (use --add-effect NAME)")
     values.update(extra)
     specs = list(mf.specs) + list(add_effect or [])
-    comp, vals = compose(specs, values)
+    comp, vals = compose_named(specs, values)
     names = {}
     for spec, e in zip(specs, comp.effects):
         names.setdefault(e.name, spec)
     return mf.params, comp, vals, names
 
 
+#: what ``--segment`` takes, for its help and its message
+SEGMENT_HELP = "'auto' (the configuration's default), 'none' (a free run) or a positive number of seconds"
+
+
 def _segment(value: str) -> float | None:
-    """'auto' -> -1 (configuration default), 'none'/'0' -> free run, else seconds."""
+    """'auto' -> -1 (configuration default), 'none' -> free run, else a positive finite number of seconds."""
     v = value.strip().lower()
     if v == "auto":
         return -1.0
-    if v in ("none", "0", "free"):
+    if v in ("none", "free"):
         return None
     try:
         s = float(v)
     except ValueError:
-        raise InputError(f"--segment must be 'auto', 'none' or a number of seconds, got {value!r}") from None
-    if s <= 0:
-        raise InputError(f"--segment must be positive, got {value!r}")
+        raise InputError(f"--segment must be {SEGMENT_HELP}, got {value!r}") from None
+    if not (math.isfinite(s) and s > 0):
+        raise InputError(f"--segment must be {SEGMENT_HELP}, got {value!r}")
     return s
 
 
-def _experiment(data: Path, config: str | None, rate: float, mapping: list[str] | None = None):
-    from ..identification.experiment import prepare_experiment
+def _rate(rate: float) -> float:
+    """``--rate`` checked: a positive finite number of Hz."""
+    if not (math.isfinite(rate) and rate > 0):
+        raise InputError(f"--rate must be a positive number of Hz, got {rate:g}")
+    return rate
+
+
+def _config(config: str | None):
+    """``--config`` parsed (None: the recording's own)."""
+    from ..configurations import parse_configuration
+
+    if config is None:
+        return None
+    with option("--config"):
+        return parse_configuration(config)
+
+
+def _read(data: Path, config: str | None, mapping: list[str] | None, name: str = "DATA"):
+    """The recording ``data`` read, a refusal naming ``name``, ``--config`` or ``--map`` as the cause."""
     from ..io import read_timeseries
 
-    return prepare_experiment(read_timeseries(data, config, parse_mapping(mapping or [])), config, compare_rate_hz=rate)
+    cfg = _config(config)
+    with option("--map"):
+        columns = parse_mapping(mapping or [])
+    try:
+        own = read_timeseries(data, None, columns)
+    except DrillgymError as exc:
+        raise named("--map" if columns and "mapping" in str(exc) else name, exc) from exc
+    if cfg is None:
+        return own
+    if own.configuration is not None and own.configuration is not cfg:
+        raise InputError(
+            f"--config {cfg.label}: {data} is a {own.configuration.label} recording; leave out --config "
+            f"or give {own.configuration.label}"
+        )
+    with option(name):
+        return read_timeseries(data, cfg, columns)
+
+
+def _experiment(data: Path, config: str | None, rate: float, mapping: list[str] | None = None):
+    """The recording prepared for comparison on a ``rate`` Hz grid (at most its own sample rate)."""
+    from ..identification.experiment import prepare_experiment
+
+    _rate(rate)
+    ts = _read(data, config, mapping)
+    t = np.asarray(ts.t, dtype=float)
+    if t.size > 1 and t[-1] > t[0]:
+        fs = (t.size - 1) / (t[-1] - t[0])
+        if rate > fs * (1 + 1e-6):
+            raise InputError(f"--rate {rate:g} Hz is above the recording's sample rate {fs:.6g} Hz; choose <= {fs:.6g}")
+    with option("DATA"):
+        return prepare_experiment(ts, config, compare_rate_hz=rate)
+
+
+#: most samples ``drillgym signal`` writes (about 2 GB of csv)
+SIGNAL_MAX_SAMPLES = 50_000_000
+
+
+def _check_signal(duration: float, rate: float, amplitude: float, offset: float, seed: int) -> None:
+    """Refuse, naming the option, a signal no file can hold: checked before anything is generated."""
+    from ..io import U_LIMIT_FILE
+
+    if not (math.isfinite(duration) and duration > 0):
+        raise InputError(f"--duration must be a positive number of seconds, got {duration:g}")
+    if not (math.isfinite(rate) and rate > 0):
+        raise InputError(f"--rate must be a positive number of Hz, got {rate:g}")
+    if duration * rate > SIGNAL_MAX_SAMPLES:
+        raise InputError(
+            f"--duration {duration:g} s at --rate {rate:g} Hz is {duration * rate:.3g} samples, more than "
+            f"{SIGNAL_MAX_SAMPLES:.0e}: shorten --duration or lower --rate"
+        )
+    if duration * rate < 2:
+        raise InputError(f"--duration {duration:g} s at --rate {rate:g} Hz gives fewer than 2 samples")
+    if not (math.isfinite(amplitude) and 0 < amplitude <= U_LIMIT_FILE):
+        raise InputError(f"--amplitude must be in (0, {U_LIMIT_FILE:g}] V, got {amplitude:g}")
+    if not (math.isfinite(offset) and abs(offset) < amplitude):
+        raise InputError(
+            f"--offset {offset:g} V must be smaller in size than --amplitude {amplitude:g} V (the signal spans "
+            f"offset +- (amplitude - |offset|))"
+        )
+    if seed < 0:
+        raise InputError(f"--seed must be >= 0, got {seed}")
 
 
 def signal_cmd(
@@ -97,10 +172,12 @@ def signal_cmd(
     from ..signals import quasi_random, sum_of_sines, write_input_file
 
     gens = {"quasi_random": quasi_random, "sum_of_sines": sum_of_sines}
+    check_output_file(out, "OUT", suffixes=(".csv",))
     if kind not in gens:
         raise InputError(f"--kind must be one of {', '.join(gens)}, got {kind!r}")
+    _check_signal(duration, rate, amplitude, offset, seed)
     t, u = gens[kind](duration, rate_hz=rate, seed=seed, amplitude=amplitude, offset=offset)
-    write_input_file(output_file(out), t, u, description=f"{kind}, seed {seed}")
+    write_input_file(output_file(out, "OUT", suffixes=(".csv",)), t, u, description=f"{kind}, seed {seed}")
     typer.echo(f"wrote {out}: {kind}, {duration:g} s at {rate:g} Hz, u in [{u.min():.2f}, {u.max():.2f}] V")
 
 
@@ -112,7 +189,7 @@ def compare_cmd(
     segment: str = typer.Option(
         "none",
         "--segment",
-        help="'none': free run from the initial state; seconds: re-start from data "
+        help="'none': free run from the initial state; a positive number of seconds: re-start from data "
         "every so many seconds (stick-slip); 'auto': 4 s with the brake",
     ),
     rate: float = typer.Option(100.0, help="comparison grid rate (Hz)"),
@@ -123,10 +200,13 @@ def compare_cmd(
     """Simulate a recording's input from its initial state; R², RMS and where the error lives."""
     from ..diagnosis.compare import compare, write_compare
     from ..diagnosis.screening import default_segment
+    from .effect_options import check_effects_act
 
+    check_output_dir(out)
+    seg = _segment(segment)
     base, model, values, _ = _model(params, add_effect, effect_param)
     ex = _experiment(data, config, rate, map_)
-    seg = _segment(segment)
+    check_effects_act(model, ex.config)
     if seg is not None and seg < 0:
         seg = default_segment(ex.config) if ex.config.brake else None
     comp = compare(ex, base, segment_s=seg, effects=model, effect_params=values)
@@ -142,7 +222,7 @@ def diagnose_cmd(
     as_json: bool = typer.Option(
         False, "--json", help="print one JSON object: selected, ranking, base_parameters, candidate, ..."
     ),
-    segment: str = typer.Option("auto", "--segment", help="multiple-shooting segment (s), 'auto' or 'none'"),
+    segment: str = typer.Option("auto", "--segment", help=f"multiple-shooting segment: {SEGMENT_HELP}"),
     rate: float = typer.Option(50.0, help="comparison grid rate (Hz)"),
     sparse: bool = typer.Option(
         True, "--sparse/--no-sparse", help="also look for an effect outside the library in the residual torques"
@@ -173,15 +253,20 @@ def diagnose_cmd(
     library does not explain; the model is --params with its effects plus --add-effect."""
     from ..diagnosis import DiagnosisOptions, diagnose
     from ..diagnosis.effects import effects_for, get_effect
-    from ..identification.experiment import prepare_experiment
-    from ..io import read_timeseries
+    from .effect_options import check_effects_act
 
     if candidate_out is not None and candidate_out.suffix != ".py":
         raise InputError(f"--candidate-out {candidate_out}: the effect file must end in .py")
+    if candidate_out is not None:
+        check_output_file(candidate_out, "--candidate-out", suffixes=(".py",))
+    seg = _segment(segment)
     base, model, values, _ = _model(params, add_effect, effect_param)
-    extra = [get_effect(c) for c in candidate or []]
-    ts = read_timeseries(data, config, parse_mapping(map_ or []))
-    ex = prepare_experiment(ts, config, compare_rate_hz=rate)
+    with option("--candidate"):
+        extra = [get_effect(c) for c in candidate or []]
+    ex = _experiment(data, config, rate, map_)
+    check_effects_act(model, ex.config)
+    if candidate_out is None:
+        check_output_file(data.with_name(data.stem + "_candidate.py"), "--candidate-out", suffixes=(".py",))
     cands = None
     if extra:
         cands = effects_for(ex.config) + [e for e in extra if e.name not in {c.name for c in effects_for(ex.config)}]
@@ -189,7 +274,7 @@ def diagnose_cmd(
         effects=cands,
         base_effects=model,
         effect_params=values,
-        segment_s=_segment(segment),
+        segment_s=seg,
         fixed_base=fixed_base,
         discover=sparse,
         candidate_out=candidate_out or data.with_name(data.stem + "_candidate.py"),
@@ -234,7 +319,7 @@ def identify_cmd(
     report: Path | None = typer.Option(
         None, "--report", help="directory for a markdown report with figures; " + CREATES_DIRS
     ),
-    segment: str = typer.Option("auto", "--segment", help="multiple-shooting segment (s), 'auto' or 'none'"),
+    segment: str = typer.Option("auto", "--segment", help=f"multiple-shooting segment: {SEGMENT_HELP}"),
     rate: float = typer.Option(50.0, help="comparison grid rate (Hz)"),
     max_nfev: int = typer.Option(30, "--max-nfev", help="least-squares evaluations"),
     map_: list[str] = typer.Option([], "--map", help=MAP_HELP),
@@ -246,19 +331,30 @@ def identify_cmd(
     from ..diagnosis.refit import effect_records, refit
     from ..diagnosis.report import write_report
     from ..diagnosis.screening import default_segment
+    from ..effects import compose as compose_effects
     from ..identification.model_file import write_model
-    from .effect_options import parse_effect_params
+    from .effect_options import check_effects_act, parse_effect_params
 
     if out.suffix.lower() not in (".json", ".yaml", ".yml"):
         raise InputError(f"--out {out}: parameter file must end in .json, .yaml or .yml")
+    check_output_file(out, "--out", suffixes=(".json", ".yaml", ".yml"))
+    if report is not None:
+        check_output_dir(report, "--report")
+    if max_nfev < 1:
+        raise InputError(f"--max-nfev must be >= 1, got {max_nfev}")
+    seg = _segment(segment)
     added = list(add_effect or [])
-    specs = {get_effect(n).name: n for n in added}
-    mf = _model_file(params)
-    base_comp, base_values = mf.composition()
+    with option("--add-effect"):
+        specs = {get_effect(n).name: n for n in added}
+    with option("--params"):
+        mf = _model_file(params)
+        base_comp, base_values = mf.composition()
     starts = parse_effect_params(effect_param)
     held = {k: v for k, v in starts.items() if k in base_values}
     ex = _experiment(data, config, rate, map_)
-    seg = _segment(segment)
+    with option("--add-effect"):
+        check_effects_act(compose_effects(added)[0], ex.config)
+    check_effects_act(base_comp, ex.config, "--params")
     if seg is not None and seg < 0:
         seg = default_segment(ex.config)
     res = refit(

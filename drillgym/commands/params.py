@@ -10,12 +10,12 @@ gives override the defaults, unknown names are refused.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import typer
 
 from ..errors import InputError, MissingFileError
+from ..io.jsonfile import dumps_json
 from .outputs import CREATES_DIRS, output_file
 
 
@@ -48,7 +48,7 @@ def params_json(p) -> str:
 
     d = p.to_dict()
     return (
-        json.dumps(
+        dumps_json(
             {
                 "params": d,
                 "units": {n: PARAM_INFO[n]["unit"] for n in d},

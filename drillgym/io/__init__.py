@@ -17,6 +17,9 @@ One format for measurements, recordings and simulations:
 * ``mapping`` works for CSV too: ``{"theta_u": "enc1"}`` reads column ``enc1``
   as ``theta_u``.
 
+Every JSON drillgym writes (files, the ``# meta:`` line, printed JSON) goes through
+:func:`write_json`/:func:`dumps_json`: strict JSON, no ``NaN`` literal.
+
 A file that cannot be used raises :class:`DataFormatError` naming the file,
 the line or column and what is wrong.  Nothing is dropped or guessed.
 """
@@ -24,6 +27,7 @@ the line or column and what is wrong.  Nothing is dropped or guessed.
 from __future__ import annotations
 
 from ..errors import DataFormatError
+from .jsonfile import dumps_json, jsonable, loads_strict, write_json
 from .paths import create_directory, describe_parse_error
 from .reading import MAT_ALIASES, read_csv, read_input_signal, read_mat, read_timeseries
 from .timeseries import KNOWN_COLUMNS, U_LIMIT_FILE, XY_LIMIT_FILE, TimeSeries, required_columns
@@ -47,4 +51,8 @@ __all__ = [
     "trajectory_to_timeseries",
     "KNOWN_COLUMNS",
     "MAT_ALIASES",
+    "write_json",
+    "dumps_json",
+    "loads_strict",
+    "jsonable",
 ]

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
@@ -11,6 +10,7 @@ from typing import IO
 import numpy as np
 
 from ..configurations import Configuration
+from .jsonfile import dumps_json
 from .timeseries import TimeSeries
 
 
@@ -36,7 +36,7 @@ def write_timeseries(path: str | Path, ts: TimeSeries) -> Path:
     path = Path(path)
     names = list(ts.columns)
     with path.open("w", encoding="utf-8", newline="") as fh:
-        fh.write(f"# meta: {json.dumps(ts.meta)}\n")
+        fh.write(f"# meta: {dumps_json(ts.meta)}\n")
         fh.write(",".join(names) + "\n")
         data = np.column_stack([ts.columns[n] for n in names])
         for row in data:
@@ -120,7 +120,7 @@ class StreamingCsvWriter:
         self._buf: list[str] = []
         self._t_last_flush: float | None = None
         self._fh: IO[str] | None = self.path.open("w", encoding="utf-8", newline="")
-        self._fh.write(f"# meta: {json.dumps(dict(meta or {}))}\n")
+        self._fh.write(f"# meta: {dumps_json(dict(meta or {}))}\n")
         self._fh.write(",".join(self.columns) + "\n")
         self.flush()
 
