@@ -152,7 +152,7 @@ class HardwareEnv(gym.Env):
     :class:`drillgym.errors.SafetyError`) after asking the firmware to stop.
 
     **Info.** The simulated envs' keys (``friction_torque`` is NaN: not measurable), ``clamped_from``
-    and ``safety_stop`` when they apply.
+    and ``safety_stop`` when they apply; a terminated episode says why in ``termination`` (as the simulated envs).
     """
 
     metadata = {"render_modes": []}
@@ -575,9 +575,26 @@ class HardwareEnv(gym.Env):
             info["clamped_from"] = requested  # V asked for beyond the amplifier range (applied: +-U_MAX)
         if stop is not None:
             info["safety_stop"] = stop
+        if terminated:
+            info["termination"] = self._termination_reason(stop, m["t"])
         if terminated or truncated:
             self.end_episode()
         return self._obs[0].copy(), float(self._reward[0]), terminated, truncated, info
+
+    def _termination_reason(self, stop: str | None, t: float) -> str:
+        """Why the episode was terminated, one line as the simulated envs' ``info["termination"]``: the safety
+        stop, or the task's limit with the measured value, the limit and the time (s, the episode's)."""
+        if stop is not None:
+            return f"safety stop: {stop} at t = {t:.6g} s"
+        o, y = self.options, self._Y[0]
+        for name, w in (("omega_u", y[2]), ("omega_l", y[3])):
+            if abs(w) > o.max_speed:
+                return f"over-speed: {name} = {w:.4g} rad/s beyond max_speed = {o.max_speed:g} rad/s at t = {t:.6g} s"
+        r = math.hypot(y[4], y[5])
+        return (
+            f"lateral displacement: r = {r * 1e3:.4g} mm beyond max_lateral = {o.max_lateral * 1e3:g} mm "
+            f"at t = {t:.6g} s"
+        )
 
     def _observe(self, m: dict[str, float]) -> None:
         mode = self.obs_model.mode

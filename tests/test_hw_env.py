@@ -167,7 +167,7 @@ def test_host_safety_layer_clamps_slews_and_stops(tmp_path, eventually):
         while stop is None and k < 300:
             *_, term, trunc, info = env.step(np.array([50.0]))  # far out of range
             stop, k = info.get("safety_stop"), k + 1
-        assert term and stop == "OVERSPEED"
+        assert term and stop == "OVERSPEED" and info["termination"].startswith("safety stop: OVERSPEED at t = ")
         assert eventually(lambda: emu.firmware.volts == 0.0 and emu.firmware.stop_reason == P.StopReason.HOST)
         with pytest.raises(hw.env.SafetyError, match="not running"):
             env.step(np.array([1.0]))

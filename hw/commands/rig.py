@@ -154,7 +154,11 @@ def run_cmd(
         "a linear .npz (W, b) on --observation",
     ),
     duration: float = typer.Option(10.0, help="episode length (s)"),
-    record: Path = typer.Option(Path("rig_run.csv"), help=f"recording file (DATA_FORMAT csv); {CREATES_DIRS}"),
+    record: Path = typer.Option(
+        Path("rig_run.csv"),
+        help="recording file (DATA_FORMAT .csv, replaced if it exists; later episodes: <name>_001.csv, ...) or a "
+        f"directory for timestamped recordings; checked before anything, also with --dry-run; {CREATES_DIRS}",
+    ),
     config: str = typer.Option("torsional", help="how the rig is set up: torsional, lateral or coupled"),
     observation: str = typer.Option("sensors", help="policy observation: full, sensors or motor"),
     omega_ref: float | None = typer.Option(None, help="target lower-disc speed (rad/s); default drawn per seed"),
