@@ -17,7 +17,6 @@ channel; and where the error lives:
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,6 +32,7 @@ from ..identification.fitting import base_vector, default_scales
 from ..identification.metrics import channel_metrics
 from ..identification.segmented import SegmentedModel
 from ..io import TimeSeries
+from ..io.jsonfile import write_json
 from ..params import N_PARAMS, RigParams
 from .sparse import residual_torques
 
@@ -169,6 +169,7 @@ def compare(
         w = {c: 1.0 for c in chans if c in ("theta_u", "theta_l", "x", "y")}
         model.refine_initial_speeds(vec, w, default_scales([ex]))
     pred = model.predict(vec[None, :], tuple(chans))[0]
+    model.check_finite("compare", vec)
     predicted = {c: pred.stitched(0, c) for c in chans}
     meas = {c: ex.channel(c) for c in chans}
     metrics = channel_metrics(meas, predicted)
@@ -374,7 +375,7 @@ def write_compare(comp: Comparison, out_dir: str | Path) -> list[Path]:
     paths += _bins_figure(plt, comp, out)
     paths += _spectrum_figure(plt, comp, out)
     (out / "report.txt").write_text(comp.text() + "\n", encoding="utf-8")
-    (out / "compare.json").write_text(json.dumps(comp.to_json(), indent=2) + "\n", encoding="utf-8")
+    write_json(out / "compare.json", comp.to_json())
     return paths + [out / "report.txt", out / "compare.json"]
 
 

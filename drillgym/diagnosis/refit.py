@@ -24,6 +24,7 @@ from typing import Any
 from ..configurations import Configuration
 from ..effects import Composition, compose
 from ..errors import InputError
+from ..identification.acting import check_fit_names
 from ..identification.experiment import Experiment, prepare_experiment
 from ..identification.fitting import FitVariable, Objective, base_vector, fit_parameters
 from ..identification.segmented import SegmentedModel
@@ -203,7 +204,9 @@ def refit(
     Raises
     ------
     InputError
-        An added effect that does not act in the recording's configuration.
+        An added effect or a base parameter to fit that does not act in the recording's configuration.
+    FitError
+        The model before or after the fit gives non-finite states on the recording (no R² or RMS).
     """
     o = replace(options or RefitOptions(), **settings)
     base = params or RigParams()
@@ -211,6 +214,7 @@ def refit(
     segment_s = o.segment_s
     if segment_s is not None and segment_s < 0:
         segment_s = default_segment(ex.config)
+    check_fit_names(o.fit, ex.config)
     comp0, values0 = compose(o.base_effects, o.base_values)
     added = [get_effect(e) for e in o.effects]
     for e in added:

@@ -274,7 +274,7 @@ def prepare_experiment(
     ts : TimeSeries
         The recording.
     config : str or Configuration, optional
-        Overrides or fills the file's configuration.
+        The configuration when the recording has none (another than the recording's is refused).
     compare_rate_hz : float, optional
         Comparison grid rate (Hz).
     lvdt_lowpass_hz : float or None, optional
@@ -292,13 +292,19 @@ def prepare_experiment(
     Raises
     ------
     InputError
-        An unknown or missing configuration (the message names the file).
+        An unknown or missing configuration, or one that contradicts the recording's (the message names
+        the file).
     DataFormatError
         Too few samples.
     """
     if not (math.isfinite(compare_rate_hz) and compare_rate_hz > 0):
         raise InputError(f"the comparison rate (--rate) must be a positive number of Hz, got {compare_rate_hz!r}")
     cfg = parse_configuration(config) if config is not None else ts.configuration
+    if ts.configuration is not None and cfg is not ts.configuration:
+        raise InputError(
+            f"{ts.source}: the recording is of configuration {ts.configuration.label}, but {cfg.label} was "
+            f"requested (config); a recording is compared with the model of its own configuration"
+        )
     if cfg is None:
         raise InputError(f"{ts.source}: no configuration in the file's metadata; pass one (--config)")
     ts.validate(cfg)

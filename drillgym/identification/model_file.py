@@ -3,7 +3,7 @@
 Written by ``drillgym identify --out p.json`` and read by ``--params`` of the identification
 commands (``identify``, ``compare``, ``diagnose``)::
 
-    {"params": {"Ju": 0.4765, ...},                      # RigParams (every base parameter)
+    {"params": {"Ju": 0.4765, ...},                      # RigParams (the others keep their default)
      "effects": [{"name": "string_cubic",
                   "spec": "examples/effects/string_cubic.py:string_cubic",
                   "file": "/abs/path/examples/effects/string_cubic.py",
@@ -25,6 +25,7 @@ from typing import Any
 
 from ..effects import Composition, EffectError, compose
 from ..errors import MissingFileError
+from ..io.jsonfile import write_json
 from ..params import ParameterError, RigParams
 
 __all__ = ["ModelFile", "read_model", "write_model"]
@@ -91,7 +92,7 @@ def read_model(path: str | Path) -> ModelFile:
     if not path.exists():
         raise MissingFileError(f"{path}: parameter file not found")
     data = _load(path)
-    params = RigParams.from_dict(data, source=str(path))
+    params = RigParams.from_dict(data, source=str(path), partial=True)  # a partial file: the rest keep their default
     specs: list[str] = []
     values: dict[str, float] = {}
     effects = data.get("effects", []) if isinstance(data, Mapping) else []
@@ -136,5 +137,5 @@ def write_model(path: str | Path, params: RigParams, records: Sequence[Mapping[s
 
         path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
     else:
-        path.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+        write_json(path, data, nonfinite="refuse")
     return path

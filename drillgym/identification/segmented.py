@@ -43,7 +43,7 @@ from scipy.signal import lfilter, lfilter_zi
 from ..configurations import N_STATE, Configuration
 from ..effects import Composition
 from ..effects.library import MotorLag
-from ..errors import InputError
+from ..errors import FitError, InputError
 from ..integrators import OUTPUT_NAMES, fixed_step_tableau
 from ..measurement import lowpass_zero_phase
 from ..params import N_PARAMS
@@ -116,6 +116,10 @@ class SegmentedModel(SpeedCorrections):
         self.n_rows_per_params = sum(len(p["starts"]) for p in self._plans)
         # corrections (rad/s) to the data's speed estimates at each segment start: (n_seg, 2) per experiment
         self.speed_offsets = [np.zeros((len(p["starts"]), 2)) for p in self._plans]
+        #: runs of the last prediction whose states became non-finite: (experiment, parameter row, time in s
+        #: of the first non-finite sample on the recording's clock, or None when the kernel failed)
+        self.diverged: list[tuple[int, int, float | None]] = []
+        self._exp_k = 0
 
     def _set_composition(self, composition: Any) -> None:
         """The model and the composition actually simulated (the library's motor lag, when it is the
@@ -328,7 +332,9 @@ class SegmentedModel(SpeedCorrections):
         S = np.ascontiguousarray(P[:, self._sim_cols])  # rows of the simulated composition
         sim = self._sim
         per_exp = []
+        self.diverged = []
         for k, (ex, plan) in enumerate(zip(self.experiments, self._plans)):
+            self._exp_k = k
             starts, L, rec, dt, n_steps = plan["starts"], plan["L"], plan["rec"], plan["dt"], plan["n_steps"]
             ns = len(starts)
             taus = P[:, self._tau_col] if self._tau_col is not None else None
@@ -375,6 +381,35 @@ class SegmentedModel(SpeedCorrections):
                 out[c][:, mask] = np.nan
             per_exp.append({c: out[c] for c in keep})
         return per_exp
+
+    def check_finite(self, what: str, vector: np.ndarray | None = None) -> None:
+        """Refuse the last prediction if one of its runs became non-finite (:attr:`diverged`).
+
+        Parameters
+        ----------
+        what : str
+            The result that needs the prediction (``"compare"``, ``"stage 'brake'"``), named first.
+        vector : numpy.ndarray, optional
+            The parameter row predicted, for the effects' values in the message.
+
+        Raises
+        ------
+        FitError
+            Names the model, its effects' values, the recording and the time of the first non-finite state.
+        """
+        if not self.diverged:
+            return
+        k, _, t = min(self.diverged, key=lambda d: (d[2] is None, d[2] or 0.0, d[0]))
+        values = ""
+        if vector is not None and self.composition.effects:
+            vals = self.composition.split(np.asarray(vector, dtype=float))[1]
+            values = " (" + ", ".join(f"{n} = {v:.4g}" for n, v in vals.items()) + ")"
+        when = f"from t = {t:.6g} s" if t is not None else "(the kernel failed)"
+        raise FitError(
+            f"{what}: the model {self.composition.label}{values} gives non-finite states on "
+            f"{self.experiments[k].name} {when}: its statistics cannot be computed; check the effects' "
+            "formulas and parameter values"
+        )
 
     def _delay_lines(
         self, rows: np.ndarray, drive: np.ndarray, starts: np.ndarray, rec: int, dt: float, ns: int
@@ -490,6 +525,7 @@ class SegmentedModel(SpeedCorrections):
                 )
         except (SystemError, ZeroDivisionError, FloatingPointError, ValueError):
             if rows.shape[0] <= ns:
+                self.diverged += [(self._exp_k, r, None) for r in range(rows.shape[0] // ns)]
                 return np.full((rows.shape[0], n_rec, len(sim.output_names)), np.nan)
             parts = [
                 self._simulate(
@@ -509,6 +545,9 @@ class SegmentedModel(SpeedCorrections):
             ]
             return np.concatenate(parts)
         bad = ~np.all(np.isfinite(OUT[:, -1, 2:10]), axis=1)
+        for i in np.flatnonzero(bad):  # rare: a parameter row the optimiser tried, or a broken effect
+            first = int(np.argmax(~np.all(np.isfinite(OUT[i, :, 2:10]), axis=1)))
+            self.diverged.append((self._exp_k, int(i) // ns, float(T0[i]) + first * rec * dt))
         OUT[bad] = np.nan
         return OUT
 

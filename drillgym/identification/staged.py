@@ -45,6 +45,7 @@ from ..configurations import Configuration
 from ..errors import InputError
 from ..io import TimeSeries
 from ..params import IDX, RigParams
+from .acting import check_fit_names
 from .experiment import Experiment, prepare_experiment
 from .fitting import FitResult, FitVariable, Objective, fit_parameters
 from .metrics import r2
@@ -161,11 +162,48 @@ class IdentificationResult:
         return {"params": self.params.to_dict(), "stages": [s.to_json() for s in self.stages]}
 
 
+#: the configuration each stage's recordings must have (the lower stage: the torsional system, brake off)
+_RECORDING_CONFIG = {
+    "upper": Configuration.UPPER,
+    "free_vibration": Configuration.FREE_VIBRATION,
+    "lower": Configuration.TORSIONAL,
+    "lateral": Configuration.LATERAL,
+    "brake": Configuration.TORSIONAL,
+}
+_STAGE_WHAT = {
+    "upper": "the upper part alone (string disconnected)",
+    "free_vibration": "the free-vibration release test (upper disc clamped)",
+    "lower": "the torsional system with the brake off",
+    "lateral": "the lateral configuration (brake off, lateral motion free)",
+    "brake": "the torsional system with the brake on",
+}
+
+
+def _check_recording(d, stage: str) -> None:
+    """Refuse a recording of another configuration than the stage's (a fit of the wrong equations)."""
+    want = _RECORDING_CONFIG[stage]
+    if isinstance(d, Experiment):
+        ok = (Configuration.LATERAL, Configuration.TORSIONAL) if stage == "lower" else (want,)
+        got, name = d.config, d.name
+    elif isinstance(d, TimeSeries):
+        ok, got, name = (want,), d.configuration, d.source
+    else:
+        raise InputError(f"stage {stage!r}: expected a TimeSeries or an Experiment, got {type(d).__name__}")
+    if got is not None and got not in ok:
+        raise InputError(
+            f"stage {stage!r}: {name} is a recording of configuration {got.label}; the stage needs "
+            f"{_STAGE_WHAT[stage]}, configuration {want.label}"
+        )
+
+
 def _as_experiments(data, stage: str, compare_rate_hz: float) -> list[Experiment]:
     if data is None:
         return []
     if isinstance(data, (TimeSeries, Experiment)):
         data = [data]
+    data = list(data)
+    for d in data:
+        _check_recording(d, stage)
     out = []
     for d in data:
         if isinstance(d, Experiment):
@@ -210,6 +248,7 @@ def r2_free_run(
         vec[getattr(IDX, n)] = v
     model = SegmentedModel(list(experiments), None)
     pred = model.predict(vec[None, :], tuple(channels))[0]
+    model.check_finite("R² of a free run")
     out = {}
     for c in channels:
         ys, yh = [], []
@@ -263,11 +302,17 @@ def identify_stage(
     Raises
     ------
     InputError
-        An unknown stage, or no estimation data.
+        An unknown stage, no estimation data, a recording of another configuration than the stage's, or
+        a parameter that does not act in it.
+    FitError
+        The fitted model gives non-finite states on a recording (no R²).
     """
     if stage not in STAGES:
         raise InputError(f"unknown identification stage {stage!r}; expected one of: {', '.join(STAGES)}")
     st = STAGES[stage]
+    check_fit_names(
+        parameters or (), _RECORDING_CONFIG[stage], option=f"stage {stage!r}: parameter", brake=stage != "lower"
+    )
     est = _as_experiments(estimation, stage, compare_rate_hz)
     val = _as_experiments(validation, stage, compare_rate_hz)
     if not est:
@@ -333,11 +378,18 @@ def identify_staged(
     Raises
     ------
     InputError
-        An unknown stage name.
+        An unknown stage name, or a recording of another configuration than its stage's (checked for every
+        stage before any fit).
+    FitError
+        A stage's fitted model gives non-finite states on a recording.
     """
-    unknown = set(data) - set(STAGES)
+    unknown = set(data) - set(STAGES) | set(validation or {}) - set(STAGES)
     if unknown:
         raise InputError(f"unknown identification stage(s) {', '.join(sorted(unknown))}; expected: {', '.join(STAGES)}")
+    for source in (data, validation or {}):
+        for name, recs in source.items():
+            for d in [recs] if isinstance(recs, (TimeSeries, Experiment)) else list(recs or []):
+                _check_recording(d, name)
     p = params or RigParams()
     stages = []
     for name in STAGES:
