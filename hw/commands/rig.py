@@ -294,9 +294,9 @@ def estop_cmd(
 
     from .rig_ops import emergency_stop
 
-    check_port(port, "--port")
     integer(attempts, "--attempts", low=1, high=100)
     number(timeout_ms, "--timeout-ms", low=0.0, high=1000.0, low_open=True, unit="ms")
+    check_port(port, "--port")
     try:
         k = emergency_stop(port, attempts, timeout_ms * 1e-3)
     except SafetyError as exc:
@@ -371,7 +371,6 @@ def _check_run_options(
     from drillgym.envs.options import OBSERVATION_MODES, EnvOptions
     from hw.checks import check_port, check_record_path, integer, number
 
-    check_port(port, "--port")
     number(duration, "--duration", low=0.0, low_open=True, unit="s")
     number(control_ms, "--control-ms", low=0.0, high=1000.0, low_open=True, unit="ms")
     if duration < control_ms * 1e-3:
@@ -386,6 +385,7 @@ def _check_run_options(
         number(reply_timeout_ms, "--reply-timeout-ms", low=0.0, high=1000.0, low_open=True, unit="ms")
     integer(reconnect, "--reconnect", low=0)
     number(wait, "--reconnect-wait", low=0.0, high=3600.0, unit="s")
+    check_port(port, "--port")
     check_record_path(record, "--record")
     opts = {"observation": observation, "episode_duration": duration, "control_dt": control_ms * 1e-3}
     if omega_ref is not None:
