@@ -206,12 +206,94 @@ def _ray():
     return ray
 
 
+#: seconds to wait for a Ray head's port to accept a connection before ``ray.init``
+RAY_CONNECT_TIMEOUT = 3.0
+
+
+def check_ray_address(address: Any) -> str:
+    """Refuse, in one line and within :data:`RAY_CONNECT_TIMEOUT` seconds, a ``--ray`` no cluster answers.
+
+    Parameters
+    ----------
+    address : str
+        ``"local"``, ``"auto"`` (a cluster started on this machine by ``ray start``), or a head's
+        ``HOST:PORT`` (``ray://HOST:PORT`` for the Ray client).
+
+    Returns
+    -------
+    str
+        ``address``.
+
+    Raises
+    ------
+    InputError
+        ``address`` is empty or not of that form (a port that is not a number in 1..65535).
+    RayUnavailable
+        Nothing accepts a connection at ``HOST:PORT``, or no cluster runs here for ``"auto"``.
+    """
+    import socket
+
+    if not isinstance(address, str) or not address.strip():
+        raise InputError(f"--ray must be 'auto', 'local' or HOST:PORT of a Ray head, got {address!r}")
+    if address in ("local", "auto"):
+        if (
+            address == "auto"
+            and not os.environ.get("RAY_ADDRESS")
+            and not os.path.exists("/tmp/ray/ray_current_cluster")
+        ):
+            raise RayUnavailable(
+                "--ray auto: no Ray cluster is running on this machine (start one with `ray start --head`, "
+                "or use --ray local)"
+            )
+        return address
+    hostport = address.split("://", 1)[1] if "://" in address else address
+    host, sep, port = hostport.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise InputError(f"--ray must be 'auto', 'local' or HOST:PORT of a Ray head (port 1-65535), got {address!r}")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=RAY_CONNECT_TIMEOUT):
+            pass
+    except OSError as exc:
+        why = exc.strerror or type(exc).__name__
+        raise RayUnavailable(
+            f"--ray {address}: no Ray head answers there ({why}); start one with `ray start --head` or use --ray local"
+        ) from None
+    if "://" not in address:  # a head's GCS answers its cluster id; a port of something else does not
+        why = _gcs_answer(f"{host}:{port}")
+        if why:
+            raise RayUnavailable(
+                f"--ray {address}: no Ray head answers there ({why}); start one with `ray start --head` or use "
+                "--ray local"
+            )
+    return address
+
+
+def _gcs_answer(hostport: str) -> str:
+    """'' when a Ray GCS at ``hostport`` answers its cluster id within the timeout, else why not."""
+    try:
+        import grpc
+        from ray.core.generated import gcs_service_pb2, gcs_service_pb2_grpc
+    except ImportError:  # pragma: no cover - without the stubs, ray.init says it
+        return ""
+    channel = grpc.insecure_channel(hostport)
+    try:
+        stub = gcs_service_pb2_grpc.NodeInfoGcsServiceStub(channel)
+        stub.GetClusterId(gcs_service_pb2.GetClusterIdRequest(), timeout=RAY_CONNECT_TIMEOUT)
+    except grpc.RpcError as exc:
+        return f"not a Ray head: {exc.code().name.lower()}"
+    finally:
+        channel.close()
+    return ""
+
+
 def connect_ray(address: str, *, num_cpus: int | None = None) -> bool:
     """Connect this process to Ray; returns True when it started a Ray instance itself.
 
     ``address``: 'auto' (a running cluster; refused in one line when none runs), 'local' (start an
     instance on this machine with ``num_cpus`` CPUs) or a head's address.
     An existing connection is reused."""
+    check_ray_address(address)  # in seconds and one line, not Ray's retries and warnings
+    os.environ.setdefault("RAY_BACKEND_LOG_LEVEL", "error")  # Ray's core logs to stderr otherwise
     ray = _ray()
     if ray.is_initialized():
         return False

@@ -196,6 +196,82 @@ def _merge_folds(folds: list[Fold], tol: float = 0.01) -> list[Fold]:
     return merged
 
 
+#: most voltages one brute-force sweep may simulate (a step of 2.5 mV over 5 V)
+MAX_SWEEP_VOLTAGES = 2001
+
+#: the steady-state window at the end of each constant-voltage sweep run (s); a run must be longer
+SWEEP_WINDOW = 20.0
+
+
+def check_diagram_options(
+    umin: float,
+    umax: float,
+    sweep_step: float | None,
+    sweep_duration: float,
+    ds_max: float,
+    sweep_umax: float | None = None,
+    names: dict[str, str] | None = None,
+) -> None:
+    """Refuse, before any work, the settings of :func:`compute_diagram` it cannot use.
+
+    Parameters
+    ----------
+    umin, umax : float
+        Voltage window (V): finite, 0 <= umin < umax.
+    sweep_step : float or None
+        Voltage step of the sweeps (V): None or 0 for none, else finite, positive and giving at most
+        :data:`MAX_SWEEP_VOLTAGES` voltages.
+    sweep_duration : float
+        Length of each sweep run (s): finite and at least :data:`SWEEP_WINDOW` (its steady-state window).
+    ds_max : float
+        Largest continuation step: finite and positive.
+    sweep_umax : float, optional
+        Highest sweep voltage (V); default ``umax``.
+    names : dict of str to str, optional
+        How to call each setting in the message (the command line gives its options). Default: the
+        argument names.
+
+    Raises
+    ------
+    InputError
+        Naming the setting, the value and what would be valid.
+    """
+    from ..io import U_LIMIT_FILE
+
+    n = {k: k for k in ("umin", "umax", "sweep_step", "sweep_duration", "ds_max")}
+    n.update(names or {})
+    for key, v in (("umin", umin), ("umax", umax)):
+        if not (isinstance(v, (int, float, np.floating, np.integer)) and np.isfinite(v)):
+            raise InputError(f"{n[key]} must be a finite voltage (V), got {v!r}")
+    if umax > U_LIMIT_FILE:
+        raise InputError(
+            f"{n['umax']} {umax:g} V is beyond the +-{U_LIMIT_FILE:g} V a recording may hold; "
+            f"choose <= {U_LIMIT_FILE:g}"
+        )
+    if not 0 <= umin < umax:
+        raise InputError(f"need 0 <= {n['umin']} < {n['umax']} (V), got {n['umin']} {umin:g}, {n['umax']} {umax:g}")
+    if not (np.isfinite(ds_max) and ds_max > 0):
+        raise InputError(f"{n['ds_max']} must be a positive finite continuation step, got {ds_max:g}")
+    if not sweep_step:
+        return
+    if not (np.isfinite(sweep_step) and sweep_step > 0):
+        raise InputError(
+            f"{n['sweep_step']} must be a positive voltage step (V), or 0 for no sweeps; got {sweep_step:g}"
+        )
+    hi = sweep_umax if sweep_umax is not None else umax
+    count = int((hi - umin) / sweep_step + 1e-9) + 1
+    if count > MAX_SWEEP_VOLTAGES:
+        raise InputError(
+            f"{n['sweep_step']} {sweep_step:g} V over [{umin:g}, {hi:g}] V is {count} sweep voltages, more than "
+            f"{MAX_SWEEP_VOLTAGES}: choose a step >= {(hi - umin) / (MAX_SWEEP_VOLTAGES - 1):.3g} V (or 0: no sweeps)"
+        )
+    if not (np.isfinite(sweep_duration) and sweep_duration >= SWEEP_WINDOW):
+        raise InputError(
+            f"{n['sweep_duration']} must be at least the {SWEEP_WINDOW:g} s steady-state window each sweep run "
+            f"ends with, got {sweep_duration:g} s"
+        )
+
+
 def compute_diagram(
     config: str,
     params: RigParams | RigModel | None = None,
@@ -264,12 +340,12 @@ def compute_diagram(
     Raises
     ------
     InputError
-        A voltage window that is not 0 <= umin < umax.
+        A setting :func:`check_diagram_options` refuses (a voltage window that is not
+        0 <= umin < umax, a sweep step giving too many voltages, sweeps shorter than their window).
     """
     params = as_model(params)
     cfg = supported_configuration(config)
-    if not (np.isfinite(umin) and np.isfinite(umax) and 0 <= umin < umax):
-        raise InputError(f"need 0 <= umin < umax, got umin={umin}, umax={umax}")
+    check_diagram_options(umin, umax, sweep_step, sweep_duration, ds_max, sweep_umax)
     say = progress or (lambda msg: None)
     count = step or (lambda kind, k: None)
 

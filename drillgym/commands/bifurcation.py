@@ -9,6 +9,7 @@ import typer
 
 from ..errors import InputError
 from .effect_options import add_effect_option, effect_param_option, effects_from_cli
+from .options import option
 from .outputs import check_output_dir, output_dir
 
 
@@ -24,9 +25,11 @@ def register(app: typer.Typer) -> None:
         measured: list[Path] | None = typer.Option(None, "--measured", help="constant-voltage measurement files"),
         params: Path | None = typer.Option(None, "--params", help="parameter file (JSON/YAML)"),
         sweep_step: float = typer.Option(
-            0.05, "--sweep-step", help="voltage step of the brute-force sweeps (V); 0: none"
+            0.05, "--sweep-step", help="voltage step of the brute-force sweeps (V), at most 2001 voltages; 0: none"
         ),
-        sweep_duration: float = typer.Option(120.0, "--sweep-duration", help="simulated seconds per sweep voltage"),
+        sweep_duration: float = typer.Option(
+            120.0, "--sweep-duration", help="simulated seconds per sweep voltage, >= 20 (its steady-state window)"
+        ),
         no_report: bool = typer.Option(False, "--no-report", help="leave out the report's measured points"),
         ds_max: float = typer.Option(
             0.2,
@@ -45,30 +48,40 @@ def register(app: typer.Typer) -> None:
         from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
         from ..bifurcation import compute_diagram, measured_diagram
+        from ..bifurcation.diagram import check_diagram_options
         from ..bifurcation.plots import save_figures
         from ..configurations import parse_configuration
+        from ..parallel import check_ray_address
         from ..params import RigParams
 
         check_output_dir(out)  # refused now, not after the minutes of the diagram
-        if not (ds_max > 0):
-            raise InputError(f"--ds-max must be a positive step, got {ds_max}")
-        cfg = parse_configuration(config)
+        with option("--config"):
+            cfg = parse_configuration(config)
         if cfg.label not in ("torsional", "lateral", "coupled"):
             raise InputError(f"--config must be torsional, lateral or coupled, got {config!r}")
         hi = umax if umax is not None else (50.0 if cfg.label == "lateral" else 5.0)
+        lateral = cfg.label == "lateral"
+        names = {k: "--" + k.replace("_", "-") for k in ("umin", "umax", "sweep_step", "sweep_duration", "ds_max")}
+        check_diagram_options(
+            umin, hi, sweep_step, sweep_duration, ds_max, sweep_umax=min(hi, 5.0) if lateral else None, names=names
+        )
+        if ray is not None:
+            check_ray_address(ray)
         from ..equilibria import RigModel
 
-        comp, values = effects_from_cli(add_effect, effect_param)
-        p = RigModel(RigParams.from_file(params) if params else RigParams(), comp, values)
-        meas = measured_diagram(measured, cfg.label) if measured else []
-        lateral = cfg.label == "lateral"
+        comp, values = effects_from_cli(add_effect, effect_param, cfg)
+        with option("--params"):
+            rig = RigParams.from_file(params) if params else RigParams()
+        p = RigModel(rig, comp, values)
+        with option("--measured"):
+            meas = measured_diagram(measured, cfg.label) if measured else []
         # one bar per kind of work: continuation points (open-ended: a branch stops at a fold, a Hopf
         # point or the window) and sweep voltages (total known once the sweeps start)
         from contextlib import nullcontext
 
         from ..parallel import open_executor
 
-        executor = open_executor(ray, os.cpu_count() or 1) if ray else nullcontext()  # errors before any work
+        executor = open_executor(ray, os.cpu_count() or 1) if ray is not None else nullcontext()  # before any work
         with (
             executor as ex,
             Progress(

@@ -372,7 +372,7 @@ def identify_cmd(
     for spec, e in zip(mf.specs, base_comp.effects):
         specs.setdefault(e.name, spec)
     records = effect_records(res.composition, res.effect_values, specs)
-    write_model(output_file(out), res.params, records)
+    write_model(output_file(out, "--out", suffixes=(".json", ".yaml", ".yml")), res.params, records)
     if report is not None:
         d = diagnose(ex, mf.params, base_effects=base_comp, effect_params=base_values, segment_s=seg)
         write_report(report, ex, mf.params, d, res, seg, base_comp, base_values)
@@ -433,13 +433,27 @@ def identify_staged_cmd(
         "brake": "torsional",
     }
     files = {"upper": upper, "free_vibration": free_vibration, "lower": lower, "lateral": lateral, "brake": brake}
-    data = {
-        k: [read_timeseries(f, None if read_timeseries(f).configuration else cfg[k]) for f in v]
-        for k, v in files.items()
-        if v
-    }
-    if not data:
+    if out.suffix.lower() not in (".json", ".yaml", ".yml"):
+        raise InputError(f"--out {out}: a parameter file must end in .json, .yaml or .yml")
+    check_output_file(out, "--out", suffixes=(".json", ".yaml", ".yml"))
+    if not any(files.values()):
         raise InputError("no recordings given: use --upper, --free-vibration, --lower, --lateral, --brake")
+
+    def stage_recording(stage: str, path: Path, opt: str):
+        """A stage's recording, refused when it is of another configuration than the stage fits."""
+        with option(opt):
+            own = read_timeseries(path)
+        want = cfg[stage]
+        if own.configuration is not None and own.configuration.label != want:
+            raise InputError(
+                f"{opt} {path}: a {own.configuration.label} recording; the {stage} stage fits a {want} recording"
+            )
+        if own.configuration is not None:
+            return own
+        with option(opt):
+            return read_timeseries(path, want)
+
+    data = {k: [stage_recording(k, f, "--" + k.replace("_", "-")) for f in v] for k, v in files.items() if v}
     val: dict = {}
     for item in validate:
         if "=" not in item:
@@ -447,15 +461,11 @@ def identify_staged_cmd(
         k, f = item.split("=", 1)
         if k not in STAGES:
             raise InputError(f"--validate: unknown stage {k!r}; expected one of {', '.join(STAGES)}")
-        val.setdefault(k, []).append(read_timeseries(Path(f), cfg[k]))
-    mf = _model_file(params)
-    if mf.specs:
-        raise InputError(
-            f"--params {params}: the staged identification fits the base model; the file has effects "
-            f"({', '.join(mf.specs)}): use identify --add-effect for those"
-        )
+        val.setdefault(k, []).append(stage_recording(k, Path(f), "--validate"))
+    with option("--params"):
+        mf = _model_file(params)
     res = identify_staged(data, mf.params, validation=val)
-    res.params.to_file(output_file(out))
+    res.params.to_file(output_file(out, "--out", suffixes=(".json", ".yaml", ".yml")))
     if as_json:
         typer.echo(_json(res.to_json()))
     else:
