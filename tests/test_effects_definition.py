@@ -72,7 +72,7 @@ def test_unknown_effect_name_lists_the_known_ones():
             "does not import",
         ),
         ("raise RuntimeError('no licence')\n", "does not import.*RuntimeError: no licence"),
-        ("import sys\nsys.exit(3)\n", r"calls sys.exit\(3\) when imported \(line 5\)"),
+        ("import sys\nsys.exit(3)\n", r"calls sys.exit\(3\) when imported \(line 6\)"),
         (
             "class Middle(Force):\n    name = 'middle'\n    acts_on = 'middle_disc'\n"
             "    def torque(alpha):\n        return alpha\n",
@@ -125,8 +125,60 @@ def test_unknown_effect_name_lists_the_known_ones():
         (
             "class Biased(Force):\n    name = 'biased'\n    acts_on = 'lower'\n"
             "    parameters = (Parameter('c', '-', -1.0, 1.0, 0.0, 0.1, neutral=0.0),)\n"
-            "    def torque(omega_l, c):\n        return c * omega_l + 0.01\n",
-            "torque\\(\\) does not vanish at the declared neutral values \\(c=0\\)",
+            "    def torque(omega_l, c):\n        return np.float64(c * omega_l + 0.01)\n",
+            r"a Force at its neutral values must add no torque: torque\(\) gives 0.01 N m on the lower disc "
+            r"at omega_l = 0 rad/s \(declared neutral: c = 0\); drop neutral= or fix the function",
+        ),
+        (
+            "class WideZone(Input):\n    name = 'wide_zone'\n"
+            "    parameters = (Parameter('u0', 'V', 0.0, 1.0, 0.4, 0.1, neutral=0.0),)\n"
+            "    def voltage(u, u0):\n        return u - 0.4 * math.copysign(1.0, u) if abs(u) > u0 else 0.0\n",
+            r"an Input effect at its neutral values must pass the voltage through unchanged: voltage\(\) gives "
+            r"2.1 V for 2.5 V \(declared neutral: u0 = 0\)",
+        ),
+        (
+            "class Drag(Friction):\n    name = 'drag'\n"
+            "    parameters = (Parameter('cq', 'N m s^2', 0.0, 1.0, 0.0, 0.01, neutral=0.0),)\n"
+            "    def slip(T, direction, speed, cq):\n        return T + direction * (cq + 0.02) * speed\n",
+            r"a Friction effect at its neutral values must leave the slip torque unchanged: slip\(\) gives "
+            r"0.45 N m for T = 0.3 N m at direction = 1, speed = 7.5 rad/s",
+        ),
+        (
+            "class Grip(Friction):\n    name = 'grip'\n"
+            "    parameters = (Parameter('g', '-', 0.0, 1.0, 0.0, 0.01, neutral=0.0),)\n"
+            "    def stick(lo, hi, g):\n        return lo * (1.0 + g) - 0.05, hi\n",
+            r"must leave the stick set unchanged: stick\(\) gives \(-0.35, 0.3\) N m "
+            r"for \(lo, hi\) = \(-0.3, 0.3\) N m",
+        ),
+        (
+            "class Warm(Friction):\n    name = 'warm'\n"
+            "    parameters = (Parameter('drift_w', '1/s', -0.1, 0.1, 0.0, 0.01, neutral=0.0),)\n"
+            "    def level(t, drift_w):\n        return 1.1 + drift_w * t\n",
+            r"must leave the friction level unchanged: level\(\) gives 1.1 instead of 1 at t = 0 s",
+        ),
+        (
+            "class Late(Delay):\n    name = 'late'\n"
+            "    parameters = (Parameter('d', 's', 0.0, 0.1, 0.0, 0.01, neutral=0.0),)\n"
+            "    def delay(d):\n        return d + 0.001\n",
+            r"a Delay effect at its neutral values must delay by nothing: delay\(\) gives 0.001 s",
+        ),
+        (
+            "class Skewed(Measurement):\n    name = 'skewed'\n    channels = ('theta_l',)\n"
+            "    parameters = (Parameter('g', '-', -0.1, 0.1, 0.0, 0.01, neutral=0.0),)\n"
+            "    def measure(theta_l, g):\n        return theta_l * (1.0 + g) + 0.01\n",
+            r"a Measurement effect at its neutral values must leave the reading unchanged: measure\(\) gives "
+            r"theta_l = 0.01 rad for 0 rad",
+        ),
+        (
+            "class Ratio(Force):\n    name = 'ratio'\n    acts_on = 'upper'\n"
+            "    parameters = (Parameter('c', '-', 0.0, 1.0, 0.5, 0.1, neutral=0.0),)\n"
+            "    def torque(omega_u, c):\n        return omega_u * c / c\n",
+            r"torque\(\) fails at its declared neutral values \(c = 0\) at omega_u = 0 rad/s: ZeroDivisionError",
+        ),
+        (
+            "class Listy(Force):\n    name = 'listy'\n    acts_on = 'upper'\n"
+            "    def torque(omega_u):\n        return np.array([omega_u, 1.0])\n",
+            r"torque\(\) returns ndarray \[0. 1.\], not a number",
         ),
         (
             "class Outside(Force):\n    name = 'outside'\n    acts_on = 'lower'\n"
@@ -138,12 +190,16 @@ def test_unknown_effect_name_lists_the_known_ones():
 )
 def test_bad_effect_files_get_one_line_errors_naming_file_and_problem(tmp_path, body, message):
     path = tmp_path / "bad_effect.py"
-    path.write_text("from drillgym.effects import Force, Input, Parameter, State\nimport math\n\n" + body)
+    path.write_text(
+        "from drillgym.effects import Delay, Force, Friction, Input, Measurement, Parameter, State\n"
+        "import math\nimport numpy as np\n\n" + body
+    )
     name = body.split("name = '")[1].split("'")[0] if "name = '" in body else "x"
     with pytest.raises(EffectError, match=message) as err:
         compose([f"{path}:{name}"])
     text = str(err.value)
     assert "\n" not in text and "bad_effect.py" in text
+    assert "np.float64(" not in text and "array(" not in text
 
 
 def test_missing_effect_in_a_file_and_missing_file(tmp_path):

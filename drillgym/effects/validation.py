@@ -26,6 +26,7 @@ from .base import (
     State,
     is_identifier,
 )
+from .quantities import QUANTITY_UNITS, allowed_arguments, describe_allowed
 
 __all__ = ["validate_effect", "check_neutral"]
 
@@ -77,26 +78,6 @@ def _check_parameter(cls: type[Effect], prm: Any) -> None:
         raise EffectError(f"{w}: parameter {prm.name!r}: guess/default outside its bounds [{prm.lo}, {prm.hi}]")
     if prm.scale <= 0:
         raise EffectError(f"{w}: parameter {prm.name!r} needs a positive scale, got {prm.scale}")
-
-
-def _allowed_arguments(cls: type[Effect], fn: str) -> set[str]:
-    own = {p.name for p in cls.parameters} | {s.name for s in cls.states}
-    base = set(PARAM_NAMES)
-    if issubclass(cls, Measurement) and fn == "measure":
-        return own | base | set(MEASUREMENT_CHANNELS)
-    if issubclass(cls, Delay) and fn == "delay":
-        return own | base
-    allowed = own | base | set(VOCABULARY)
-    if issubclass(cls, Friction):
-        allowed |= set(FRICTION_VOCABULARY) - {"u"}
-        allowed.discard("u")
-        if fn == "slip":
-            allowed -= {"lo", "hi"}
-        elif fn == "stick":
-            allowed -= {"T", "direction", "speed"}
-        elif fn == "level":
-            allowed -= {"T", "lo", "hi", "direction", "speed"}
-    return allowed
 
 
 def _probe_values(cls: type[Effect], probe: dict[str, float], fn: str, disc: str | None) -> dict[str, float]:
@@ -213,13 +194,11 @@ def validate_effect(cls: Any) -> None:
             )
         if any(p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD) for p in params.values()):
             raise EffectError(f"{w}: {fn}(...) must name its arguments (no *args/**kwargs)")
-        allowed = _allowed_arguments(cls, fn)
+        allowed = allowed_arguments(cls, fn)
         unknown = [a for a in params if a not in allowed]
         if unknown:
             raise EffectError(
-                f"{w}: {fn}() asks for unknown quantity/coordinate {unknown[0]!r}; it may use "
-                f"its parameters, states, base parameters and: "
-                f"{', '.join(sorted(allowed - set(PARAM_NAMES)))}"
+                f"{w}: {fn}() asks for unknown quantity/coordinate {unknown[0]!r}; {describe_allowed(cls, fn)}"
             )
         _probe(cls, fn, f, list(params), disc)
     check_neutral(cls)
@@ -241,9 +220,10 @@ def _probe(cls: type[Effect], fn: str, f: Any, args: list[str], disc: str | None
             try:
                 fv = float(v)
             except (TypeError, ValueError):
-                raise EffectError(f"{w}: {fn}() returns {v!r}, not a number") from None
+                shown = str(v) if len(str(v)) <= 60 else str(v)[:57] + "..."
+                raise EffectError(f"{w}: {fn}() returns {type(v).__name__} {shown}, not a number") from None
             if not math.isfinite(fv):
-                shown = ", ".join(f"{a}={vals[a]:g}" for a in args)
+                shown = ", ".join(f"{a} = {_num(vals[a])}" for a in args)
                 raise EffectError(f"{w}: {fn}() returns {fv} (not finite) at {shown}")
 
 
@@ -264,26 +244,103 @@ def _unchanged(cls: type[Effect], fn: str, vals: dict[str, float]) -> tuple[floa
     return tuple(vals[c] for c in cls.channels)  # measure
 
 
+def _num(v: float, unit: str = "") -> str:
+    """A number as a message shows it: plain float, 4 significant digits, with its unit."""
+    return f"{float(v):.4g}" + (f" {unit}" if unit and unit != "-" else "")
+
+
+def _at_state(args: list[str], vals: dict[str, float], skip: set[str]) -> str:
+    """`` at omega_l = 7.5 rad/s, t = 12.5 s`` for the state quantities a function asks for (not its parameters)."""
+    shown = [f"{a} = {_num(vals[a], QUANTITY_UNITS.get(a, ''))}" for a in args if a not in skip and a in QUANTITY_UNITS]
+    return f" at {', '.join(shown)}" if shown else ""
+
+
+#: quantities a function's neutral-value message already names as what it should have returned
+_SHOWN_AS_INPUT = {
+    "voltage": {"u"},
+    "slip": {"T"},
+    "stick": {"lo", "hi"},
+    "torque": set(),
+    "force": set(),
+    "level": set(),
+    "delay": set(),
+}
+
+
+def _neutral_meaning(cls: type[Effect], fn: str, outs: tuple[float, ...], want: tuple[float, ...], at: str) -> str:
+    """What the function should do at its neutral values, and what it did, in the words of its kind."""
+    if fn == "voltage":
+        return (
+            f"an Input effect at its neutral values must pass the voltage through unchanged: voltage() gives "
+            f"{_num(outs[0], 'V')} for {_num(want[0], 'V')}{at}"
+        )
+    if fn == "torque":
+        where = "in the string" if getattr(cls, "acts_on", "") == "string" else f"on the {cls.acts_on} disc"
+        return f"a Force at its neutral values must add no torque: torque() gives {_num(outs[0], 'N m')} {where}{at}"
+    if fn == "force":
+        return (
+            f"a Force at its neutral values must add no force: force() gives (FX, FY) = "
+            f"({_num(outs[0])}, {_num(outs[1])}) N{at}"
+        )
+    if fn == "slip":
+        return (
+            f"a Friction effect at its neutral values must leave the slip torque unchanged: slip() gives "
+            f"{_num(outs[0], 'N m')} for T = {_num(want[0], 'N m')}{at}"
+        )
+    if fn == "stick":
+        return (
+            f"a Friction effect at its neutral values must leave the stick set unchanged: stick() gives "
+            f"({_num(outs[0])}, {_num(outs[1])}) N m for (lo, hi) = ({_num(want[0])}, {_num(want[1])}) N m{at}"
+        )
+    if fn == "level":
+        return (
+            f"a Friction effect at its neutral values must leave the friction level unchanged: level() gives "
+            f"{_num(outs[0])} instead of 1{at}"
+        )
+    if fn == "delay":
+        return f"a Delay effect at its neutral values must delay by nothing: delay() gives {_num(outs[0], 's')}"
+    units = {"theta_u": "rad", "theta_l": "rad", "X": "m", "Y": "m"}
+    got = ", ".join(f"{c} = {_num(o, units[c])}" for c, o in zip(cls.channels, outs))
+    read = ", ".join(_num(v, units[c]) for c, v in zip(cls.channels, want))
+    return (
+        f"a Measurement effect at its neutral values must leave the reading unchanged: measure() gives {got} for {read}"
+    )
+
+
 def check_neutral(cls: type[Effect]) -> None:
     """An effect whose parameters all declare ``neutral`` must add nothing there (the kernels skip it):
     at the typical states, a torque or force of 0, a slip torque T, a stick set (lo, hi), a level of
-    1, the voltage u, a delay of 0, the channels unchanged (to 1e-12)."""
+    1, the voltage u, a delay of 0, the channels unchanged (to 1e-12).
+
+    Raises
+    ------
+    EffectError
+        One line: the file, the effect, the neutral values, what the kind must do there and what the
+        function gives instead, at which state (plain numbers with units).
+    """
     neutral = cls.neutral_values()
     if neutral is None:
         return
     w = _where(cls)
     disc = getattr(cls, "disc", None) if issubclass(cls, Friction) else None
+    declared = ", ".join(f"{k} = {_num(v)}" for k, v in neutral.items())
     for fn, f in cls.defined_functions().items():
         args = list(inspect.signature(f).parameters)
         for probe in _PROBES:
             vals = {**_probe_values(cls, probe, fn, disc), **neutral}
-            out = f(*[vals[a] for a in args])
-            outs = out if isinstance(out, tuple) else (out,)
-            want = _unchanged(cls, fn, vals)
-            if any(abs(float(a) - b) > 1e-12 * max(1.0, abs(b)) for a, b in zip(outs, want)):
-                shown = ", ".join(f"{k}={v:g}" for k, v in neutral.items())
-                got, expected = (outs, want) if len(want) > 1 else (outs[0], want[0])
+            at = _at_state(args, vals, set(neutral) | _SHOWN_AS_INPUT.get(fn, set(MEASUREMENT_CHANNELS)))
+            try:
+                out = f(*[vals[a] for a in args])
+                outs = tuple(float(o) for o in (out if isinstance(out, tuple) else (out,)))
+            except Exception as exc:  # noqa: BLE001 - any failure of the user's function, in one line
                 raise EffectError(
-                    f"{w}: {fn}() does not vanish at the declared neutral values ({shown}): returns "
-                    f"{got!r}, expected {expected!r}; drop neutral= or fix the function"
+                    f"{w}: {fn}() fails at its declared neutral values ({declared}){at}: {type(exc).__name__}: {exc}"
+                ) from None
+            want = _unchanged(cls, fn, vals)
+            if len(outs) != len(want):
+                raise EffectError(f"{w}: {fn}() returns {len(outs)} value(s), expected {len(want)}")
+            if any(not abs(a - b) <= 1e-12 * max(1.0, abs(b)) for a, b in zip(outs, want)):
+                raise EffectError(
+                    f"{w}: {_neutral_meaning(cls, fn, outs, want, at)} (declared neutral: {declared}); "
+                    f"drop neutral= or fix the function"
                 )
