@@ -125,7 +125,34 @@ def register(app: typer.Typer) -> None:
         OUT/config.yml."""
         from agents.hyperparams import parse_overrides
         from agents.train import train
+        from drillgym.commands.options import option
+        from drillgym.commands.outputs import check_output_dir
+        from drillgym.configurations import parse_configuration
+        from drillgym.envs import ENV_IDS
+        from drillgym.errors import MissingFileError
 
+        check_output_dir(out)
+        if env not in ENV_IDS:
+            raise InputError(f"--env must be one of {', '.join(ENV_IDS)}, got {env!r}")
+        from agents.train import ALGOS
+
+        if algo not in ALGOS:
+            raise InputError(f"--algo must be one of {', '.join(ALGOS)}, got {algo!r}")
+        if obs is not None and obs not in ("full", "sensors", "motor"):
+            raise InputError(f"--obs must be full, sensors or motor, got {obs!r}")
+        if timesteps is not None and (timesteps < 0 or (timesteps == 0 and teacher is None)):
+            raise InputError(f"--timesteps must be >= 1 (0 only with --teacher: distillation only), got {timesteps}")
+        if seed < 0:
+            raise InputError(f"--seed must be >= 0, got {seed}")
+        if workers is not None and workers < 1:
+            raise InputError(f"--workers must be >= 1, got {workers}")
+        for opt, path in (("--hyperparams", hyperparams), ("--teacher", teacher)):
+            if path is not None and not path.is_file():
+                raise MissingFileError(f"{opt} {path}: {'a directory' if path.is_dir() else 'file not found'}")
+        if ray is not None:
+            from drillgym.parallel import check_ray_address
+
+            check_ray_address(ray)
         if n_envs is not None and n_envs < 1:
             raise InputError(f"--n-envs must be >= 1, got {n_envs}")
         if checkpoint_every < 1:
@@ -135,15 +162,18 @@ def register(app: typer.Typer) -> None:
         if eval_every is not None and eval_every < 0:
             raise InputError(f"--eval-every must be >= 0, got {eval_every}")
         command = "drillgym " + " ".join(shlex.quote(a) for a in sys.argv[1:])
-        overrides = parse_overrides(set_ or [])
+        with option("--set"):
+            overrides = parse_overrides(set_ or [])
         if add_effect or effect_param:
-            comp, values = effects_from_cli(add_effect, effect_param)  # one-line errors before training starts
+            cfg = parse_configuration(ENV_IDS[env])
+            comp, values = effects_from_cli(add_effect, effect_param, cfg)  # one-line errors before training
             env_kw = overrides.setdefault("env_kwargs", {})
             env_kw.update(effects=comp.specs(), effect_params=dict(values))
         if eval_every is None:  # a twentieth of the run, at least 10,000 steps apart
             from agents.train import planned_timesteps
 
-            eval_every = max(10_000, planned_timesteps(env, algo, timesteps, hyperparams, overrides) // 20)
+            with option("--hyperparams" if hyperparams is not None else "--env"):
+                eval_every = max(10_000, planned_timesteps(env, algo, timesteps, hyperparams, overrides) // 20)
         kw = dict(
             obs=obs,
             timesteps=timesteps,
@@ -205,6 +235,19 @@ def register(app: typer.Typer) -> None:
             cuts = [float(v) for v in edges.split(",") if v.strip()]
         except ValueError:
             raise InputError(f"--edges must be speeds in rad/s separated by commas, got {edges!r}") from None
+        import math
+
+        from drillgym.commands.options import option
+        from drillgym.commands.outputs import check_output_file
+        from drillgym.errors import MissingFileError
+
+        if not cuts or not all(math.isfinite(c) and c > 0 for c in cuts) or cuts != sorted(set(cuts)):
+            raise InputError(f"--edges must be increasing positive finite speeds (rad/s), got {edges!r}")
+        check_output_file(out, "--out", suffixes=(".npz",))
         files = [p / "policy.npz" if p.is_dir() else p for p in policies]
-        path = combine(files, cuts, out, note=note)
+        for f in files:
+            if not f.is_file():
+                raise MissingFileError(f"POLICIES: {f} not found (a policy.npz or a run directory holding one)")
+        with option("POLICIES"):
+            path = combine(files, cuts, out, note=note)
         typer.echo(f"wrote {path}: {len(files)} networks, handing over at {', '.join(f'{c:g}' for c in cuts)} rad/s")

@@ -76,9 +76,15 @@ def register(app: typer.Typer) -> None:
         """Evaluate controllers on the scenarios; write a CSV, a markdown table and the SSI figure.
         The plant runs the hidden effects (--add-effect, and a model file's); the controllers do not."""
         from controllers.evaluation import DEFAULT_TARGETS, evaluate, parse_scenarios
+        from controllers.evaluation.harness import check_evaluation_options
+        from controllers.evaluation.population import load_uncertainty
         from controllers.evaluation.report import write_report
+        from drillgym.commands.effect_options import check_effects_act
+        from drillgym.commands.options import option
         from drillgym.commands.outputs import check_output_dir
         from drillgym.commands.plant import describe_plant, plant_from_cli
+        from drillgym.configurations import parse_configuration
+        from drillgym.parallel import check_ray_address
 
         check_output_dir(out)  # refused before the runs, not after them
         cfgs = [c.strip() for c in config.split(",") if c.strip()]
@@ -89,7 +95,23 @@ def register(app: typer.Typer) -> None:
             tg = [float(v) for v in targets.split(",")] if targets.strip() else list(DEFAULT_TARGETS)
         except ValueError as exc:
             raise InputError(f"--targets must be numbers separated by commas, got {targets!r}") from exc
+        with option("--config"):
+            parsed = [parse_configuration(c) for c in cfgs]
+        options = {"controllers": "--controllers", "configs": "--config", "targets": "--targets"}
+        options.update({k: "--" + k for k in ("duration", "window", "plants", "seed", "workers")})
+        check_evaluation_options(names, cfgs, tg, duration, window, plants, seed, workers, names=options)
+        with option("--scenarios"):
+            scen = parse_scenarios(scenarios)
+        if ray is not None:
+            check_ray_address(ray)
+        if uncertainty is not None:
+            if not any(s.population for s in scen):
+                raise InputError("--uncertainty is the set of the 'plants' scenario: add --scenarios plants")
+            with option("--uncertainty"):
+                uncertainty = load_uncertainty(uncertainty)
         base, comp, values = plant_from_cli(params, add_effect, effect_param)
+        for c in parsed:
+            check_effects_act(comp, c)
         p = base if params else None
         from drillgym.parallel import open_executor
 
@@ -99,7 +121,7 @@ def register(app: typer.Typer) -> None:
             rows = evaluate(
                 names,
                 cfgs,
-                parse_scenarios(scenarios),
+                scen,
                 tg,
                 duration=duration,
                 window=window,

@@ -206,6 +206,119 @@ def short_run_warnings(
     return out
 
 
+#: the configurations the harness evaluates controllers in (a lower disc and a motor)
+EVALUATED_CONFIGS = ("torsional", "coupled", "lateral")
+
+#: highest target speed of the lower disc (rad/s) the harness accepts
+TARGET_MAX = 50.0
+
+
+def check_evaluation_options(
+    controllers: Sequence[str],
+    configs: Sequence[str],
+    targets: Sequence[float],
+    duration: float,
+    window: float,
+    plants: int = 20,
+    seed: int = 0,
+    workers: int = 2,
+    names: Mapping[str, str] | None = None,
+) -> None:
+    """Refuse, before any run, the settings of :func:`evaluate` it cannot use.
+
+    Parameters
+    ----------
+    controllers : sequence of str
+        Controller names, ``NAME@MS`` or ``agent:PATH`` (the path must exist).
+    configs : sequence of str
+        Configurations, each one of :data:`EVALUATED_CONFIGS`.
+    targets : sequence of float
+        Target speeds (rad/s): finite, in (0, :data:`TARGET_MAX`].
+    duration, window : float
+        Run length and steady-state window (s): finite, 0 < window < duration.
+    plants, seed, workers : int
+        Plants of a population (>= 1), seed (>= 0), processes (>= 1).
+    names : mapping of str to str, optional
+        How to call each setting in the messages (the command line gives its options).
+
+    Raises
+    ------
+    InputError
+        Naming the setting, the value and what would be valid.
+    MissingFileError
+        An ``agent:PATH`` whose path does not exist.
+    """
+    import math
+    from pathlib import Path
+
+    from drillgym.errors import MissingFileError
+
+    from .. import available
+    from ..registry import split_period
+
+    n = {k: k for k in ("controllers", "configs", "targets", "duration", "window", "plants", "seed", "workers")}
+    n.update(names or {})
+    if not list(controllers):
+        raise InputError(f"{n['controllers']}: no controller given; choose from {', '.join(available())}")
+    for c in controllers:
+        if c.startswith("agent:"):
+            path = Path(c[len("agent:") :])
+            if not str(path).strip() or not path.exists():
+                raise MissingFileError(f"{n['controllers']} {c}: {path} not found (a policy.npz or a run directory)")
+            continue  # loaded by check_agents, once the configurations are known
+        try:
+            name = split_period(c)[0]
+        except InputError as exc:
+            raise InputError(f"{n['controllers']} {c}: {exc}") from None
+        if name not in available():
+            raise InputError(
+                f"{n['controllers']}: unknown controller {c!r}; choose from {', '.join(available())} (NAME@MS for "
+                "another control period) or agent:PATH"
+            )
+    if not list(configs):
+        raise InputError(f"{n['configs']}: no configuration given; choose from {', '.join(EVALUATED_CONFIGS)}")
+    for c in configs:
+        label = parse_configuration(c).label
+        if label not in EVALUATED_CONFIGS:
+            raise InputError(
+                f"{n['configs']} {c}: controllers are evaluated in {', '.join(EVALUATED_CONFIGS)} (a motor and a "
+                "lower disc)"
+            )
+    tg = list(targets)
+    if not tg:
+        raise InputError(f"{n['targets']}: no target speed given")
+    for v in tg:
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and 0 < v <= TARGET_MAX):
+            raise InputError(f"{n['targets']}: target speeds must be in (0, {TARGET_MAX:g}] rad/s, got {v!r}")
+    for key, v in (("duration", duration), ("window", window)):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise InputError(f"{n[key]} must be a positive finite number of seconds, got {v!r}")
+    if not window < duration:
+        raise InputError(f"{n['window']} ({window:g} s) must be shorter than {n['duration']} ({duration:g} s)")
+    for key, v, lo in (("plants", plants, 1), ("seed", seed, 0), ("workers", workers, 1)):
+        if isinstance(v, bool) or int(v) != v or v < lo:
+            raise InputError(f"{n[key]} must be an integer >= {lo}, got {v!r}")
+    check_agents(controllers, configs, tg[0], n["controllers"])
+
+
+def check_agents(controllers: Sequence[str], configs: Sequence[str], omega_ref: float, name: str) -> None:
+    """Load every ``agent:PATH`` of ``controllers`` once per configuration, before any job: a file that is
+    not a policy, or a policy of another configuration, is refused naming ``name`` and the path."""
+    from drillgym.errors import DrillgymError
+
+    from ..registry import make
+
+    for c in controllers:
+        if not c.startswith("agent:"):
+            continue
+        for cfg in configs:
+            try:
+                make(c, config=parse_configuration(cfg).label, omega_ref=omega_ref)
+            except DrillgymError as exc:
+                msg = " ".join(str(exc).split())
+                raise InputError(f"{name} {c}: {msg}") from exc
+
+
 def evaluate(
     controllers: Sequence[str],
     configs: Sequence[str] = ("torsional", "coupled"),
@@ -282,6 +395,7 @@ def evaluate(
         An unknown controller or scenario, a bad window, hidden effects with the plants scenario, or a
         bad number of plants.
     """
+    check_evaluation_options(controllers, configs, targets, duration, window, plants, seed, workers)
     scen = [SCENARIOS[s] if isinstance(s, str) and s in SCENARIOS else s for s in scenarios]
     for s in scen:
         if not isinstance(s, Scenario):

@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import typer
 
+from ..errors import InputError
+from .options import option
+
 
 def _as_dict(cls) -> dict:
     return {
@@ -41,8 +44,11 @@ def register(app: typer.Typer) -> None:
         parameters (unit, bounds, guess); --show validates and describes one, a user file included."""
         from ..effects import available_effects, compose
 
-        if show:
-            comp, _ = compose([show])  # validates it exactly as every command would
+        if show is not None:
+            if not show.strip():
+                raise InputError("--show needs one effect: a name (see `drillgym effects`) or path/to/file.py:NAME")
+            with option("--show"):
+                comp, _ = compose([show])  # validates it exactly as every command would
             classes = list(comp.effects)
         else:
             classes = list(available_effects().values())

@@ -22,13 +22,17 @@ def plant_from_cli(
     (default MODEL.md's set, no effect), then the ``add_effect`` specs, with the ``effect_param``
     NAME=VALUE items; one-line errors name the file, the effect and what is wrong."""
     from ..identification.model_file import ModelFile, read_model
+    from .effect_options import compose_named
+    from .options import option
 
-    mf = read_model(params_file) if params_file is not None else ModelFile(RigParams())
+    with option("--params"):
+        mf = read_model(params_file) if params_file is not None else ModelFile(RigParams())
+        compose(list(mf.specs), dict(mf.values))
     extra = parse_effect_params(effect_param)
     specs = list(mf.specs) + list(add_effect or [])
     if extra and not specs:
         raise InputError(f"--effect-param {next(iter(extra))}: no effect added (use --add-effect NAME)")
-    comp, values = compose(specs, {**mf.values, **extra})
+    comp, values = compose_named(specs, {**mf.values, **extra})
     return mf.params, comp, values
 
 
