@@ -39,6 +39,7 @@ _REPLY = re.compile(
 _SERVICE = re.compile(r"service time p50 [\d.]+, p90 [\d.]+, p99 [\d.]+, p99\.9 [\d.]+, max ([\d.]+) ms")
 _GC = re.compile(r"longest ([\d.]+) ms \(generation")
 _STEPS = re.compile(r"^(\d+) steps", re.M)
+_SERVED = re.compile(r"(\d+) commands served")
 READY_TIMEOUT_S = 180.0  # the emulator's start (imports, compiled kernels) on a loaded machine
 
 
@@ -148,10 +149,11 @@ def _result(host: subprocess.CompletedProcess, emulator_log: str, wall: float) -
     if host.returncode != 0:
         lines = [ln for ln in err.splitlines() if ln.startswith("drillgym:")] or err.strip().splitlines()[-1:]
         stop = f"exit {host.returncode}: {lines[-1] if lines else 'no message'}"
+    served = _SERVED.search(emulator_log)  # a stopped run prints no summary: the emulator's count (rest phase included)
     res = RunResult(
         completed=host.returncode == 0,
         stop=stop,
-        commands=int(m.group(1)) if m else int(steps.group(1)) if steps else 0,
+        commands=int(m.group(1)) if m else int(steps.group(1)) if steps else int(served.group(1)) if served else 0,
         wall_s=wall,
     )
     if m:

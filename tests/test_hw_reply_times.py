@@ -76,6 +76,8 @@ def test_benchmark_reads_what_the_commands_print():
     res2 = bench._result(stopped, log, 2.0)
     assert not res2.completed and "exit 3" in res2.stop and "no SAMPLE reply" in res2.stop and res2.commands == 100
     assert "1 completed, 1 stopped" in bench.totals([res, res2]) and "STOPPED" in res2.line()
+    silent = subprocess.CompletedProcess([], 3, "", "drillgym: safety stop: /tmp/rig: no SAMPLE reply ...\n")
+    assert bench._result(silent, log, 2.0).commands == 3  # no summary from the host: the emulator's count
 
 
 @pytest.mark.slow
