@@ -271,3 +271,15 @@ def test_linear_policy_file_checks(tmp_path):
     (tmp_path / "empty.npz").write_bytes(b"")
     with pytest.raises(InputError, match="empty.npz"):
         load_policy(tmp_path / "empty.npz")
+
+
+def test_emulate_takes_a_partial_parameter_file_as_every_command_does(tmp_path):
+    from drillgym import RigParams
+    from drillgym.commands.plant import plant_from_cli
+
+    f = tmp_path / "partial.json"
+    f.write_text('{"Ju": 0.5}')
+    base, comp, _ = plant_from_cli(f, None, None)  # what `rig emulate --params` builds its plant from
+    assert base.Ju == 0.5 and base.km == RigParams().km and not comp.effects
+    emu = RigEmulator("torsional", params=base, dt=5e-3)
+    assert emu.firmware.params.Ju == 0.5
