@@ -89,6 +89,9 @@ def test_non_number_and_corrupt_file(tmp_path):
     (tmp_path / "b.json").write_text("{not json")
     with pytest.raises(ParameterError, match="b.json: not valid"):
         RigParams.from_file(tmp_path / "b.json")
+    (tmp_path / "c.json").write_bytes(bytes(range(128, 256)))
+    with pytest.raises(ParameterError, match=r"c.json: not a parameter file \(not UTF-8 text\)"):
+        RigParams.from_file(tmp_path / "c.json")
 
 
 def test_vector_layout_round_trip():
