@@ -207,10 +207,20 @@ def build_kernels(comp: Composition) -> CompiledModel:
     -------
     CompiledModel
         Its kernel modules (compiled by numba on first use).
+
+    Raises
+    ------
+    EffectError
+        A function of a user's effect that numba cannot compile (checked once, before the composition's
+        package is written: :func:`drillgym.effects.compile_check.check_compiles`).
     """
     hooks = hooks_source(comp)
     package = package_name(comp, hooks)
     root = cache_root()
+    if not (root / package).exists():  # a new composition: its user effects' bodies compiled alone first
+        from .compile_check import check_compiles
+
+        check_compiles(comp)
     _write_package(root, package, hooks, comp.label)
     _ensure_on_path(root)
     importlib.invalidate_caches()
