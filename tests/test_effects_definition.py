@@ -12,7 +12,15 @@ import pytest
 
 from drillgym import simulate
 from drillgym.effects import LIBRARY, EffectError, available_effects, compose
+from drillgym.effects.base import FRICTION_VOCABULARY, MEASUREMENT_CHANNELS, VOCABULARY
 from drillgym.effects.codegen import hooks_source
+from drillgym.effects.quantities import (
+    KIND_FUNCTIONS,
+    base_parameters_markdown,
+    fixed_quantities,
+    quantities_markdown,
+    quantity_table,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -358,3 +366,32 @@ def test_kernel_cache_is_keyed_by_content_never_stale(tmp_path):
     w3, p3 = run(2.0)
     assert p1 != p2 and p2 == p3
     assert w2 > w1 > 0.0 and w3 == w2
+
+
+def test_the_docs_list_exactly_the_quantities_a_function_may_ask_for():
+    """docs/EFFECTS.md holds the generated tables verbatim, and the refusal of an unknown argument lists the same
+    fixed quantities for that kind and function."""
+    text = (ROOT / "docs" / "EFFECTS.md").read_text(encoding="utf-8")
+    assert quantities_markdown() in text and base_parameters_markdown() in text
+    names = {q.name for q in quantity_table()}
+    assert names == set(VOCABULARY) | set(FRICTION_VOCABULARY) | set(MEASUREMENT_CHANNELS)
+    for kind, functions in KIND_FUNCTIONS.items():
+        for fn in functions:
+            assert set(fixed_quantities(kind, fn)) <= names
+            listed = {q.name for q in quantity_table() if f"{kind}.{fn}" in q.functions}
+            assert listed == set(fixed_quantities(kind, fn)), (kind, fn)
+
+
+def test_an_unknown_argument_is_refused_with_what_that_function_may_use(tmp_path):
+    path = write_effect(
+        tmp_path,
+        "class Grippy(Friction):\n    name = 'grippy'\n"
+        "    parameters = (Parameter('g', '-', 0.0, 1.0, 0.1, 0.1),)\n"
+        "    def stick(lo, hi, speed, g):\n        return lo - g * speed, hi\n",
+    )
+    with pytest.raises(EffectError) as err:
+        compose([f"{path}:grippy"])
+    text = str(err.value)
+    assert "stick() asks for unknown quantity/coordinate 'speed'" in text
+    assert "its parameters (g)" in text and "Ju, km" in text
+    assert text.endswith(f"and: {', '.join(fixed_quantities('Friction', 'stick'))} (docs/EFFECTS.md lists them)")

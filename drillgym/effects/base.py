@@ -85,14 +85,14 @@ VOCABULARY: dict[str, str] = {
     "omega_l": "lower disc speed (rad/s)",
     "alpha": "twist of the string theta_l - theta_u (rad)",
     "alpha_dot": "twist rate omega_l - omega_u (rad/s)",
-    "x": "lower disc centre, frame rotating with the upper disc (m)",
-    "y": "idem (m)",
+    "x": "lower disc centre x, frame rotating with the upper disc (m)",
+    "y": "lower disc centre y, frame rotating with the upper disc (m)",
     "vx": "dx/dt in the rotating frame (m/s)",
     "vy": "dy/dt in the rotating frame (m/s)",
-    "X": "lower disc centre, fixed (LVDT) frame (m)",
-    "Y": "idem (m)",
-    "VX": "velocity of the lower disc centre, fixed frame (m/s)",
-    "VY": "idem (m/s)",
+    "X": "lower disc centre X, fixed (LVDT) frame (m)",
+    "Y": "lower disc centre Y, fixed (LVDT) frame (m)",
+    "VX": "velocity X of the lower disc centre, fixed frame (m/s)",
+    "VY": "velocity Y of the lower disc centre, fixed frame (m/s)",
     "brake": "1.0 when the brake is on (torsional, coupled), else 0.0",
 }
 #: extra names of Friction functions
@@ -221,6 +221,8 @@ class Effect:
     needs: ClassVar[tuple[str, ...]] = ()
     #: the functions a kind provides (validated and compiled)
     functions: ClassVar[tuple[str, ...]] = ()
+    #: what the order of the effects means for this kind (``describe`` prints it)
+    order_note: ClassVar[str] = ""
 
     def __init__(self, **values: float) -> None:
         known = {p.name: p for p in self.parameters}
@@ -295,6 +297,8 @@ class Effect:
             lines.append("  physics: " + " ".join(cls.explanation.split()))
         if cls.signature:
             lines.append("  residual when missing: " + " ".join(cls.signature.split()))
+        if cls.order_note:
+            lines.append("  order: " + cls.order_note)
         return "\n".join(lines)
 
 
@@ -370,6 +374,10 @@ class Input(Effect):
 
     kind = "input"
     functions = ("voltage",)
+    order_note = (
+        "Input effects act in the order they are added (--add-effect, effects=[...]): the first added is nearest "
+        "the command, the last nearest the motor; effects read from --params come before those added"
+    )
     lag: ClassVar[dict[str, str]] = {}
 
 
@@ -387,6 +395,7 @@ class Delay(Effect):
 
     kind = "delay"
     functions = ("delay",)
+    order_note = "delays act on the command before any Input effect, wherever they are added; several delays add up"
 
 
 class Measurement(Effect):

@@ -25,7 +25,7 @@ from ..configurations import STATE_NAMES
 from ..errors import InputTypeError
 from ..integrators import OUTPUT_NAMES
 from ..params import N_PARAMS, PARAM_INFO, PARAM_NAMES, ParameterError, RigParams
-from .base import Delay, Effect, EffectError, Measurement, Parameter
+from .base import Delay, Effect, EffectError, Input, Measurement, Parameter
 from .registry import resolve_effect
 from .validation import validate_effect
 
@@ -368,11 +368,63 @@ class Composition:
         out = self.kernels.hooks.measure_arrays(*arrs, np.asarray(vec, dtype=np.float64))
         return tuple(out[i].reshape(shape) for i in range(4))
 
+    def signal_path(self, among: Iterable[str] | None = None) -> list[str]:
+        """The path of the command to the motor: the Delay effects (their delays add up, so their order does not
+        matter), then the Input effects in the composition's order, the first nearest the command.
+
+        Parameters
+        ----------
+        among : iterable of str, optional
+            Only these effects (e.g. those a diagnosis selected); default all.
+
+        Returns
+        -------
+        list of str
+            Effect names, command side first; empty when the composition has neither kind.
+
+        Examples
+        --------
+        >>> comp, _ = compose(["input_delay", "examples/effects/motor_dead_zone.py:dead_zone", "motor_lag"])
+        >>> comp.signal_path()        # the motor sees lag(dead_zone(u(t - delay)))
+        ['input_delay', 'dead_zone', 'motor_lag']
+        """
+        keep = set(self.names if among is None else among)
+        delays = [e.name for e in self.effects if issubclass(e, Delay) and e.name in keep]
+        return delays + [e.name for e in self.effects if issubclass(e, Input) and e.name in keep]
+
+    def order_fields(self, name: str) -> dict[str, Any]:
+        """What a JSON record of effect ``name`` says about where it acts: ``{"kind": ...}`` and, for a
+        Delay or Input effect, ``"signal_path_position"`` (1 = nearest the command, see :meth:`signal_path`).
+
+        Parameters
+        ----------
+        name : str
+            An effect of the composition.
+
+        Returns
+        -------
+        dict
+            ``{"kind": "input", "signal_path_position": 2}``, or ``{"kind": "force"}`` for an effect off the path.
+        """
+        eff = next((e for e in self.effects if e.name == name), None)
+        if eff is None:
+            raise EffectError(f"effect {name!r} is not in the model {self.label!r}; it has {', '.join(self.names)}")
+        out: dict[str, Any] = {"kind": eff.kind}
+        path = self.signal_path()
+        if name in path:
+            out["signal_path_position"] = path.index(name) + 1
+        return out
+
     def describe(self) -> str:
-        """Several lines: each effect's :meth:`Effect.describe`, or that it is the base model."""
+        """Several lines: each effect's :meth:`Effect.describe`, or that it is the base model; with more than one
+        effect on the command's path, that path (:meth:`signal_path`)."""
         if not self.effects:
             return "base model (no effects)"
-        return "\n".join(e.describe() for e in self.effects)
+        lines = [e.describe() for e in self.effects]
+        path = self.signal_path()
+        if len(path) > 1:
+            lines.append("signal path from the command to the motor: command -> " + " -> ".join(path) + " -> motor")
+        return "\n".join(lines)
 
 
 BASE = None  # set below (the empty composition)
