@@ -278,7 +278,10 @@ def check_evaluation_options(
     if not list(configs):
         raise InputError(f"{n['configs']}: no configuration given; choose from {', '.join(EVALUATED_CONFIGS)}")
     for c in configs:
-        label = parse_configuration(c).label
+        try:
+            label = parse_configuration(c).label
+        except InputError as exc:
+            raise InputError(f"{n['configs']}: {' '.join(str(exc).split())}") from None
         if label not in EVALUATED_CONFIGS:
             raise InputError(
                 f"{n['configs']} {c}: controllers are evaluated in {', '.join(EVALUATED_CONFIGS)} (a motor and a "

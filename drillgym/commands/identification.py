@@ -75,6 +75,27 @@ def _segment(value: str) -> float | None:
     return s
 
 
+#: fewest comparison-grid samples a multiple-shooting segment spans
+SEGMENT_MIN_SAMPLES = 10
+
+
+def _check_segment(seg: float | None, ex) -> None:
+    """Refuse a ``--segment`` (s) shorter than :data:`SEGMENT_MIN_SAMPLES` grid samples or longer than
+    the recording (one segment is a free run: 'none' says so)."""
+    if seg is None:
+        return
+    t = np.asarray(ex.t, dtype=float)
+    span = float(t[-1] - t[0]) if t.size > 1 else 0.0
+    shortest = SEGMENT_MIN_SAMPLES / float(ex.fs)
+    if seg < shortest:
+        raise InputError(
+            f"--segment {seg:g} s spans fewer than {SEGMENT_MIN_SAMPLES} samples of the {ex.fs:g} Hz comparison "
+            f"grid: choose >= {shortest:g} s, or 'none'"
+        )
+    if seg > span:
+        raise InputError(f"--segment {seg:g} s is longer than the recording ({span:g} s): use 'none' for a free run")
+
+
 def _rate(rate: float) -> float:
     """``--rate`` checked: a positive finite number of Hz."""
     if not (math.isfinite(rate) and rate > 0):
@@ -209,6 +230,8 @@ def compare_cmd(
     check_effects_act(model, ex.config)
     if seg is not None and seg < 0:
         seg = default_segment(ex.config) if ex.config.brake else None
+    else:
+        _check_segment(seg, ex)
     comp = compare(ex, base, segment_s=seg, effects=model, effect_params=values)
     paths = write_compare(comp, out)
     typer.echo(comp.text())
@@ -265,6 +288,8 @@ def diagnose_cmd(
         extra = [get_effect(c) for c in candidate or []]
     ex = _experiment(data, config, rate, map_)
     check_effects_act(model, ex.config)
+    if seg is not None and seg > 0:
+        _check_segment(seg, ex)
     if candidate_out is None:
         check_output_file(data.with_name(data.stem + "_candidate.py"), "--candidate-out", suffixes=(".py",))
     cands = None
@@ -357,18 +382,28 @@ def identify_cmd(
     check_effects_act(base_comp, ex.config, "--params")
     if seg is not None and seg < 0:
         seg = default_segment(ex.config)
-    res = refit(
-        ex,
-        mf.params,
-        effects=added,
-        effect_params=starts,
-        base_effects=base_comp,
-        base_values={**base_values, **held},
-        fit=list(fit or []),
-        refit_base=refit_base,
-        segment_s=seg,
-        max_nfev=max_nfev,
-    )
+    else:
+        _check_segment(seg, ex)
+    try:
+        res = refit(
+            ex,
+            mf.params,
+            effects=added,
+            effect_params=starts,
+            base_effects=base_comp,
+            base_values={**base_values, **held},
+            fit=list(fit or []),
+            refit_base=refit_base,
+            segment_s=seg,
+            max_nfev=max_nfev,
+        )
+    except InputError as exc:  # the fit refuses its settings before any evaluation: name the option
+        msg = str(exc)
+        if any(f"'{f}'" in msg for f in fit or []):
+            raise named("--fit", exc) from exc
+        if "effect parameter" in msg:
+            raise named("--effect-param", exc) from exc
+        raise
     for spec, e in zip(mf.specs, base_comp.effects):
         specs.setdefault(e.name, spec)
     records = effect_records(res.composition, res.effect_values, specs)

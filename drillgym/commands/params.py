@@ -16,7 +16,8 @@ import typer
 
 from ..errors import InputError, MissingFileError
 from ..io.jsonfile import dumps_json
-from .outputs import CREATES_DIRS, output_file
+from .options import option
+from .outputs import CREATES_DIRS, check_output_file, output_file
 
 
 def _yaml_float(v: float) -> str:
@@ -76,14 +77,17 @@ def register(app: typer.Typer) -> None:
 
         if out is not None and out.suffix.lower() not in (".json", ".yaml", ".yml"):
             raise InputError(f"--out {out}: a parameter file must end in .json, .yaml or .yml")
+        if out is not None:
+            check_output_file(out, "--out", suffixes=(".json", ".yaml", ".yml"))
         if params is not None and not params.exists():
-            raise MissingFileError(f"{params}: parameter file not found")
-        p = RigParams.from_file(params) if params is not None else RigParams()
+            raise MissingFileError(f"--params {params}: parameter file not found")
+        with option("--params"):
+            p = RigParams.from_file(params) if params is not None else RigParams()
         if out is None:
             typer.echo(params_yaml(p), nl=False)
             return
         text = params_json(p) if out.suffix.lower() == ".json" else params_yaml(p)
-        output_file(out).write_text(text, encoding="utf-8")
+        output_file(out, "--out", suffixes=(".json", ".yaml", ".yml")).write_text(text, encoding="utf-8")
         typer.echo(
             f"wrote {out} ({len(p.to_dict())} parameters; edit or delete lines: a partial file "
             f"overrides only the names it gives)"
