@@ -46,6 +46,22 @@ def process_seconds() -> float:
 _IMPORTED = __import__("time").perf_counter()
 
 
+def _check_npz(path: Path) -> None:
+    """Refuse, naming POLICIES and ``path``, a file numpy cannot open as an .npz archive."""
+    import zipfile
+
+    import numpy as np
+
+    if not zipfile.is_zipfile(path):
+        raise InputError(f"POLICIES: {path} is not an exported policy: not an .npz archive")
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            archive.files  # noqa: B018 - opening the index is the check
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        why = " ".join(str(exc).split())[:120] or type(exc).__name__
+        raise InputError(f"POLICIES: {path} is not an exported policy (.npz): {why}") from None
+
+
 def register(app: typer.Typer) -> None:
     """Add ``train`` and ``combine-policies`` to the ``drillgym`` application.
 
@@ -248,6 +264,7 @@ def register(app: typer.Typer) -> None:
         for f in files:
             if not f.is_file():
                 raise MissingFileError(f"POLICIES: {f} not found (a policy.npz or a run directory holding one)")
+            _check_npz(f)
         with option("POLICIES"):
             path = combine(files, cuts, out, note=note)
         typer.echo(f"wrote {path}: {len(files)} networks, handing over at {', '.join(f'{c:g}' for c in cuts)} rad/s")

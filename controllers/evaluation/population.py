@@ -126,9 +126,11 @@ def load_uncertainty(path: str | Path | None = None) -> UncertaintySet:
 
     path = Path(path) if path is not None else DEFAULT_UNCERTAINTY
     try:
-        raw = yaml.safe_load(path.read_text()) or {}
+        raw = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
     except OSError as exc:
         raise InputError(f"uncertainty set {path}: cannot read it ({exc.strerror})") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"uncertainty set {path}: not UTF-8 text (byte {exc.start}); give a YAML file") from None
     except yaml.YAMLError as exc:
         raise InputError(f"uncertainty set {path}: not valid YAML ({describe_parse_error(exc)})") from None
     src = str(path)

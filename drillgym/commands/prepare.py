@@ -22,6 +22,9 @@ def register(app: typer.Typer) -> None:
         from ..diagnosis.prepare import PREPARED_CONFIGS, prepare_diagnosis
 
         # a wrong name fails before any work
-        names = [parse_configuration(c).label for c in (config or PREPARED_CONFIGS)]
+        from .options import option
+
+        with option("--config"):
+            names = [parse_configuration(c).label for c in (config or PREPARED_CONFIGS)]
         for name, seconds in prepare_diagnosis(names).items():
             typer.echo(f"{name}: diagnose's models compiled and cached ({seconds:.0f} s)")
