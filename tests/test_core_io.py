@@ -113,3 +113,18 @@ def test_synthetic_measurement_quantizes_and_filters():
     assert np.std(m.x - tr.x) < 5e-6  # 5 Hz low-pass removes most of the noise
     assert json.loads(json.dumps(m.meta))["configuration"] == "coupled"
     assert quantize_angle(0.0) == 0.0
+
+
+def test_writing_a_series_replaces_the_file_whole_or_says_why(tmp_path):
+    from drillgym.errors import OutputPathError
+
+    traj = simulate("torsional", u=2.0, duration=0.2)
+    out = tmp_path / "run.csv"
+    out.write_text("old\n")
+    out.chmod(0o640)
+    write_trajectory_csv(traj, out)
+    assert read_timeseries(out).columns["omega_l"][-1] == traj.omega_l[-1]
+    assert out.stat().st_mode & 0o777 == 0o640  # the replaced file keeps its permissions
+    assert [p.name for p in tmp_path.iterdir()] == ["run.csv"]  # no temporary file left
+    with pytest.raises(OutputPathError, match=r"missing/run\.csv: cannot write the time series \("):
+        write_trajectory_csv(traj, tmp_path / "missing" / "run.csv")
