@@ -225,3 +225,16 @@ def test_observations_apply_a_user_measurement_effect(mode: str) -> None:
         inc = np.diff(q) / o.control_dt
         np.testing.assert_allclose(obs[1:, 0], np.float32(inc), rtol=1e-6, atol=1e-4)
     assert np.abs(obs - obs_b).max() > 0.1  # the effect is visible
+
+
+@pytest.mark.parametrize("make", ["single", "vector"])
+def test_an_effect_that_does_not_act_in_the_configuration_is_refused(make: str) -> None:
+    from drillgym.errors import InputError
+
+    with pytest.raises(InputError, match="lateral_anisotropy does not act in the torsional configuration"):
+        if make == "single":
+            gym.make("drillgym/Torsional-v0", effects=["lateral_anisotropy"])
+        else:
+            make_vec("drillgym/Torsional-v0", 2, effects=["lateral_anisotropy"])
+    env = gym.make("drillgym/Coupled-v0", effects=["lateral_anisotropy"])  # it acts there
+    assert "lateral_anisotropy" in env.unwrapped.options.effects.names
