@@ -155,3 +155,14 @@ def test_the_signal_path_is_given_for_the_json_records_and_printed():
     assert f"signal path from the command to the motor: {path}" in text
     assert "order: Input effects act in the order they are added" in text
     assert "signal path" not in compose([DEAD_ZONE])[0].describe()
+
+
+def test_effects_show_says_what_the_order_of_an_input_effect_means():
+    from typer.testing import CliRunner
+
+    from drillgym.cli import app
+
+    r = CliRunner().invoke(app, ["effects", "--show", DEAD_ZONE])
+    assert r.exit_code == 0, r.output
+    assert "order: Input effects act in the order they are added" in r.output
+    assert "the first added is nearest the command" in r.output
