@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import shlex
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import typer
@@ -46,20 +48,43 @@ def process_seconds() -> float:
 _IMPORTED = __import__("time").perf_counter()
 
 
-def _check_npz(path: Path) -> None:
-    """Refuse, naming POLICIES and ``path``, a file numpy cannot open as an .npz archive."""
+@contextmanager
+def _train_errors(overrides: list[str]) -> Iterator[None]:
+    """Name the option behind a refusal the learners raise at their start: a ``--set`` key the algorithm
+    or the environment does not take, a ``--teacher`` that cannot be distilled."""
+    from drillgym.commands.options import named
+
+    keys = [o.partition("=")[0].strip() for o in overrides]
+    try:
+        yield
+    except InputError as exc:
+        msg = str(exc)
+        if "environment option" in msg or "hyperparameter" in msg:
+            raise named("--set", exc) from exc
+        if msg.startswith("a teacher") or "teacher" in msg.split(":", 1)[0]:
+            raise named("--teacher", exc) from exc
+        raise
+    except TypeError as exc:  # the algorithm's constructor refuses a key it does not know
+        bad = next((k for k in keys if f"'{k.split('.')[-1]}'" in str(exc)), None)
+        if bad is None or "unexpected keyword argument" not in str(exc):
+            raise
+        raise InputError(f"--set {bad}: not a hyperparameter of this algorithm ({exc})") from None
+
+
+def _check_npz(path: Path, option: str = "POLICIES") -> None:
+    """Refuse, naming ``option`` and ``path``, a file numpy cannot open as an .npz archive."""
     import zipfile
 
     import numpy as np
 
     if not zipfile.is_zipfile(path):
-        raise InputError(f"POLICIES: {path} is not an exported policy: not an .npz archive")
+        raise InputError(f"{option}: {path} is not an exported policy: not an .npz archive")
     try:
         with np.load(path, allow_pickle=False) as archive:
             archive.files  # noqa: B018 - opening the index is the check
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
         why = " ".join(str(exc).split())[:120] or type(exc).__name__
-        raise InputError(f"POLICIES: {path} is not an exported policy (.npz): {why}") from None
+        raise InputError(f"{option}: {path} is not an exported policy (.npz): {why}") from None
 
 
 def register(app: typer.Typer) -> None:
@@ -165,6 +190,15 @@ def register(app: typer.Typer) -> None:
         for opt, path in (("--hyperparams", hyperparams), ("--teacher", teacher)):
             if path is not None and not path.is_file():
                 raise MissingFileError(f"{opt} {path}: {'a directory' if path.is_dir() else 'file not found'}")
+        if hyperparams is not None:
+            try:
+                hyperparams.read_text(encoding="utf-8")
+            except UnicodeDecodeError as exc:
+                raise InputError(
+                    f"--hyperparams {hyperparams}: not UTF-8 text (byte {exc.start}); give a YAML file"
+                ) from None
+        if teacher is not None:
+            _check_npz(teacher, "--teacher")
         if ray is not None:
             from drillgym.parallel import check_ray_address
 
@@ -206,7 +240,8 @@ def register(app: typer.Typer) -> None:
         if seeds > 1 or ray:  # several seeds, or seeds on Ray: one summary over them
             from agents.seeds import train_seeds
 
-            summary = train_seeds(env, algo, out, list(range(seed, seed + seeds)), workers=workers, ray=ray, **kw)
+            with _train_errors(set_ or []):
+                summary = train_seeds(env, algo, out, list(range(seed, seed + seeds)), workers=workers, ray=ray, **kw)
             held = summary.aggregates.get("lowest_held")
             typer.echo(
                 f"trained {seeds} seeds in {process_seconds():.1f} s wall clock since the command started; "
@@ -219,7 +254,8 @@ def register(app: typer.Typer) -> None:
                 )
             )
             return
-        res = train(env, algo, out, seed=seed, progress=progress, **kw)
+        with _train_errors(set_ or []):
+            res = train(env, algo, out, seed=seed, progress=progress, **kw)
         typer.echo(
             f"trained {res.timesteps} steps in {process_seconds():.1f} s wall clock since the command started "
             f"({res.wall_time:.1f} s of them learning); wrote {res.model_path}"
