@@ -28,6 +28,7 @@ def _as_dict(cls) -> dict:
             for p in cls.parameters
         ],
         "states": [{"name": s.name, "unit": s.unit, "doc": s.doc} for s in cls.states],
+        "order": cls.order_note,
         "explanation": " ".join(cls.explanation.split()),
         "signature": " ".join(cls.signature.split()),
         "source": cls.source_file(),
@@ -47,8 +48,11 @@ def register(app: typer.Typer) -> None:
         if show is not None:
             if not show.strip():
                 raise InputError("--show needs one effect: a name (see `drillgym effects`) or path/to/file.py:NAME")
+            from ..effects.compile_check import check_compiles
+
             with option("--show"):
                 comp, _ = compose([show])  # validates it exactly as every command would
+                check_compiles(comp)  # a body numba cannot compile, refused as the first run would
             classes = list(comp.effects)
         else:
             classes = list(available_effects().values())
