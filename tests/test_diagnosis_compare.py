@@ -142,3 +142,28 @@ def test_cli_diagnose_identify_signal(tmp_path):
     assert isinstance(r.exception, DataFormatError)
     r = runner.invoke(app, ["identify", str(data), "--add-effect", "bogus", "--out", str(out)])
     assert isinstance(r.exception, ValueError) and "bogus" in str(r.exception)
+
+
+@pytest.mark.parametrize("segment_s", [0.0, -1.0, float("nan"), float("inf")])
+def test_compare_refuses_a_segment_that_is_not_a_positive_time(segment_s):
+    from drillgym.errors import InputError
+
+    ts = synthetic_measurement("upper", duration=2.0, rate_hz=100.0)
+    with pytest.raises(InputError, match=r"^segment_s must be a positive number of seconds"):
+        compare(ts, segment_s=segment_s)
+
+
+def test_compare_json_names_the_signal_path_and_why_a_statistic_is_missing(tmp_path):
+    from drillgym.io import TimeSeries, loads_strict
+
+    t = np.arange(300) * 0.01
+    still = TimeSeries(
+        {"t": t, "u": np.zeros_like(t), "theta_u": np.zeros_like(t)}, {"configuration": "upper"}, "still"
+    )
+    comp = compare(still, effects=["input_delay", "motor_lag"], effect_params={"delay": 0.02, "tau_m": 0.03})
+    write_compare(comp, tmp_path)
+    data = loads_strict((tmp_path / "compare.json").read_text(encoding="utf-8"))
+    assert data["signal_path"] == ["input_delay", "motor_lag"]
+    assert data["metrics"]["theta_u"]["r2"] is None  # no variance: R² undefined
+    why = "metrics.theta_u.r2: not computed because the measured theta_u is constant (R² divides by its variance)"
+    assert data["warnings"] == [why]

@@ -17,6 +17,7 @@ channel; and where the error lives:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,6 +28,7 @@ from scipy.signal import welch
 
 from ..configurations import Configuration
 from ..effects import BASE, Composition, compose
+from ..errors import InputError
 from ..identification.experiment import Experiment, prepare_experiment
 from ..identification.fitting import base_vector, default_scales
 from ..identification.metrics import channel_metrics
@@ -84,12 +86,45 @@ class Comparison:
         lines += ["where the model fails:"] + [f"  - {f}" for f in self.findings]
         return "\n".join(lines)
 
+    def undefined(self) -> list[str]:
+        """Why each statistic that could not be computed is missing (``"metrics.x.r2: not computed because ..."``).
+
+        Returns
+        -------
+        list of str
+            One line per non-finite statistic (``to_json`` writes those as null with these lines).
+        """
+        out = []
+        for c, m in self.metrics.items():
+            meas = np.asarray(self.experiment.channel(c), dtype=float)
+            ok = np.isfinite(meas) & np.isfinite(self.predicted[c])
+            for k, v in m.items():
+                if np.isfinite(v):
+                    continue
+                if not ok.any():
+                    why = f"no sample of {c} is both measured and predicted"
+                elif k == "r2":
+                    why = f"the measured {c} is constant (R² divides by its variance)"
+                else:
+                    why = f"{c} has no finite compared sample"
+                out.append(f"metrics.{c}.{k}: not computed because {why}")
+        for i, w in enumerate(self.windows):
+            for c, v in w.items():
+                if not np.isfinite(v):
+                    out.append(
+                        f"windows[{i}].{c}: not computed because no sample of {c} is compared in "
+                        f"{w['t0']:.3g}-{w['t1']:.3g} s (segment starts and ends are not compared)"
+                    )
+        return out
+
     def to_json(self) -> dict:
+        """The comparison as strict JSON types: a statistic that could not be computed is null, and
+        ``warnings`` says why (:meth:`undefined`)."""
         return {
             "model": self.composition.label,
             "effect_values": self.effect_values,
-            "metrics": self.metrics,
-            "windows": self.windows,
+            "metrics": {c: _finite_or_none(m) for c, m in self.metrics.items()},
+            "windows": [_finite_or_none(w) for w in self.windows],
             "by_speed": self.by_speed,
             "by_angle": self.by_angle,
             "by_alpha": self.by_alpha,
@@ -98,7 +133,14 @@ class Comparison:
             "noise": self.noise,
             "segment_s": self.segment_s,
             "spectrum_peaks": self.spectrum.get("peaks", []),
+            "signal_path": self.composition.signal_path(),
+            "warnings": self.undefined(),
         }
+
+
+def _finite_or_none(d: Mapping[str, float]) -> dict[str, float | None]:
+    """The mapping with its non-finite numbers as None (the caller says why in its warnings)."""
+    return {k: (float(v) if np.isfinite(v) else None) for k, v in d.items()}
 
 
 NOISE_FACTOR = 3.0  # a channel fails only where its RMS error exceeds this many times its noise level
@@ -157,6 +199,10 @@ def compare(
     Comparison
         Where the model fails: per channel, in time, over speed, angle and lateral amplitude, in frequency.
     """
+    if segment_s is not None and not (
+        isinstance(segment_s, (int, float)) and not isinstance(segment_s, bool) and 0 < segment_s < math.inf
+    ):
+        raise InputError(f"segment_s must be a positive number of seconds (or None: one free run), got {segment_s!r}")
     comp, values = compose(effects, effect_params)
     vec = base_vector(comp, params, values)
     p = RigParams.from_vector(vec[:N_PARAMS])

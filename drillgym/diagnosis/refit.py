@@ -64,15 +64,22 @@ def effect_records(
     Returns
     -------
     list of dict
-        ``{"name", "spec", "file", "values"}`` per effect (``spec`` is what ``--add-effect`` accepts: the
-        name, or ``file.py:NAME`` for a file's effect).
+        ``{"name", "spec", "file", "values", "kind"}`` per effect (``spec`` is what ``--add-effect`` accepts:
+        the name, or ``file.py:NAME`` for a file's effect), with ``signal_path_position`` for a Delay or
+        Input effect (1 = nearest the command: :meth:`drillgym.effects.Composition.signal_path`).
     """
     out = []
     for e in comp.effects:
         f = getattr(e, "__drillgym_file__", None)
         spec = (specs or {}).get(e.name) or (f"{f}:{e.name}" if f else e.name)
         out.append(
-            {"name": e.name, "spec": spec, "file": f, "values": {p.name: float(values[p.name]) for p in e.parameters}}
+            {
+                "name": e.name,
+                "spec": spec,
+                "file": f,
+                "values": {p.name: float(values[p.name]) for p in e.parameters},
+                **comp.order_fields(e.name),
+            }
         )
     return out
 
@@ -214,6 +221,11 @@ def refit(
     segment_s = o.segment_s
     if segment_s is not None and segment_s < 0:
         segment_s = default_segment(ex.config)
+    if segment_s is not None and not 0 < segment_s < float("inf"):
+        raise InputError(
+            f"segment_s must be a positive number of seconds, negative for the configuration's default, or "
+            f"None (one free run), got {o.segment_s!r}"
+        )
     check_fit_names(o.fit, ex.config)
     comp0, values0 = compose(o.base_effects, o.base_values)
     added = [get_effect(e) for e in o.effects]

@@ -429,7 +429,15 @@ class Diagnosis:
             "search_paths": self.paths,
             "lag_delay": self.lag_delay,
             "sensor_misfit": self.sensor_misfit,
+            "signal_path": self._signal_path(),
         }
+
+    def _signal_path(self) -> list[str]:
+        """The Delay and Input effects of the base model and the selection, command side first."""
+        if self.composition is None:
+            return []
+        base = [] if self.model == "base" else self.model.split("+")
+        return self.composition.signal_path(among=[*base, *self.selected])
 
     def text(self) -> str:
         """The diagnosis as the command line prints it."""
