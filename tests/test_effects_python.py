@@ -6,6 +6,7 @@ import re
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from drillgym.effects import EffectError
@@ -108,3 +109,36 @@ def test_the_docs_table_lists_exactly_these_constructs():
     text = DOC.read_text(encoding="utf-8")
     rows = re.findall(r"^\| (.+?) \| (yes|no) \|", text, flags=re.M)
     assert rows == [(label, "yes" if works else "no") for label, _, works in CONSTRUCTS]
+
+
+FEATURES = '''
+    def torque(omega_u):
+        """0 when every construct computes what plain arithmetic does (then the run is the base model's)."""
+        a, b = GAIN * doubled(omega_u), 0.0
+        for k in range(2):
+            b += 0.25 * omega_u
+        kink = omega_u - 0.4 if omega_u > 0.4 else (omega_u + 0.4 if omega_u < -0.4 else 0.0)
+        smooth = np.tanh(omega_u) - math.tanh(omega_u) + abs(min(omega_u, 0.0)) - max(-omega_u, 0.0)
+        return 3.0 * (a - b + smooth + kink - kink)
+'''
+
+
+@pytest.mark.slow
+def test_the_constructs_run_in_the_kernels_of_a_simulation_single_and_batched(tmp_path):
+    """An njit helper, a module constant, a loop, conditional expressions, numpy and math, inside the real
+    kernels (scalar single run and SIMD lane batch): the torque they compute is zero, so the runs are the base
+    model's; a construct compiled to something else would move the disc differently."""
+    from drillgym import simulate, simulate_batch
+    from drillgym.simulator import LANES_MIN_BATCH
+
+    path = tmp_path / "features.py"
+    path.write_text(HEADER + "\n\nclass Features(Force):\n    name = 'features'\n    acts_on = 'upper'\n" + FEATURES)
+    cls = load_class_from_file(path, "features")
+    f = cls.defined_functions()["torque"]
+    assert all(f(w) == pytest.approx(0.0, abs=1e-15) for w in (-2.0, -0.3, 0.0, 0.5, 3.0))
+    u = (np.array([0.0, 0.3, 0.6]), np.array([1.5, -2.0, 0.8]))
+    base = simulate("upper", u, 1.0)
+    run = simulate("upper", u, 1.0, effects=[f"{path}:features"])
+    np.testing.assert_allclose(run.omega_u, base.omega_u, rtol=0, atol=1e-9)
+    batch = simulate_batch("upper", u, 1.0, n_batch=LANES_MIN_BATCH, effects=[f"{path}:features"])
+    np.testing.assert_allclose(batch.omega_u[0], base.omega_u, rtol=0, atol=1e-9)
