@@ -105,3 +105,19 @@ def test_vector_env_terminates_only_the_broken_rigs(effect: dict, mode: str) -> 
         assert "termination" not in info  # the rigs were reset within the step
     assert np.isfinite(obs).all()
     assert np.isfinite(venv.batch.system.Y).all()
+
+
+def test_sb3_adapter_passes_the_reason_on(effect: dict) -> None:
+    pytest.importorskip("stable_baselines3")
+    from drillgym.envs.sb3 import make_sb3_vec
+
+    venv = make_sb3_vec("drillgym/Torsional-v0", 2, omega_ref=4.0, **effect)
+    venv.reset()
+    for _ in range(100):
+        venv.step_async(np.array([[1.0], [0.0]]))
+        obs, reward, dones, infos = venv.step_wait()
+        if dones.any():
+            break
+    assert dones.tolist() == [True, False]
+    assert infos[0]["termination"].startswith("non-finite state: ") and "termination" not in infos[1]
+    assert np.isfinite(infos[0]["terminal_observation"]).all() and np.isfinite(obs).all()

@@ -90,9 +90,14 @@ class SB3VecEnvAdapter(VecEnv):
     _INFO_KEYS = ("omega_l", "stuck", "friction_torque", "stick_slip_severity", "omega_ref", "voltage", "time")
 
     def _split(self, info: dict) -> list[dict]:
-        """Gymnasium's dict of arrays -> SB3's list of per-env dicts (the drillgym info keys)."""
+        """Gymnasium's dict of arrays -> SB3's list of per-env dicts (the drillgym info keys, and
+        ``termination`` for a terminated rig)."""
         cols = [info[k].tolist() for k in self._INFO_KEYS]
-        return [dict(zip(self._INFO_KEYS, vals)) for vals in zip(*cols)]
+        out = [dict(zip(self._INFO_KEYS, vals)) for vals in zip(*cols)]
+        if "termination" in info:
+            for i in np.flatnonzero(info["_termination"]):
+                out[i]["termination"] = info["termination"][i]
+        return out
 
 
 def make_sb3_vec(env_id: str, num_envs: int, **options: Any) -> SB3VecEnvAdapter:
