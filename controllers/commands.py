@@ -55,7 +55,7 @@ def register(app: typer.Typer) -> None:
             help="uncertainty set (YAML) of the 'plants' scenario; default controllers/evaluation/plants.yaml",
         ),
         targets: str = typer.Option("", "--targets", help="target speeds (rad/s), comma-separated; default 0.5:8:0.5"),
-        duration: float = typer.Option(60.0, "--duration", help="simulated time per run (s)"),
+        duration: float = typer.Option(60.0, "--duration", help="simulated time per run (s), at most 3600"),
         window: float = typer.Option(20.0, "--window", help="steady-state window at the end (s)"),
         workers: int = typer.Option(2, "--workers", help="parallel processes"),
         ray: str | None = typer.Option(

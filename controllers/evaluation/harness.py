@@ -212,6 +212,9 @@ EVALUATED_CONFIGS = ("torsional", "coupled", "lateral")
 #: highest target speed of the lower disc (rad/s) the harness accepts
 TARGET_MAX = 50.0
 
+#: longest run (s) the harness simulates per controller, configuration, scenario and target
+DURATION_MAX = 3600.0
+
 
 def check_evaluation_options(
     controllers: Sequence[str],
@@ -235,7 +238,7 @@ def check_evaluation_options(
     targets : sequence of float
         Target speeds (rad/s): finite, in (0, :data:`TARGET_MAX`].
     duration, window : float
-        Run length and steady-state window (s): finite, 0 < window < duration.
+        Run length and steady-state window (s): finite, 0 < window < duration <= :data:`DURATION_MAX`.
     plants, seed, workers : int
         Plants of a population (>= 1), seed (>= 0), processes (>= 1).
     names : mapping of str to str, optional
@@ -296,6 +299,8 @@ def check_evaluation_options(
     for key, v in (("duration", duration), ("window", window)):
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
             raise InputError(f"{n[key]} must be a positive finite number of seconds, got {v!r}")
+    if duration > DURATION_MAX:
+        raise InputError(f"{n['duration']} must be at most {DURATION_MAX:g} s per run, got {duration:g}")
     if not window < duration:
         raise InputError(f"{n['window']} ({window:g} s) must be shorter than {n['duration']} ({duration:g} s)")
     for key, v, lo in (("plants", plants, 1), ("seed", seed, 0), ("workers", workers, 1)):

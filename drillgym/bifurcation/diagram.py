@@ -202,6 +202,9 @@ MAX_SWEEP_VOLTAGES = 2001
 #: the steady-state window at the end of each constant-voltage sweep run (s); a run must be longer
 SWEEP_WINDOW = 20.0
 
+#: longest constant-voltage sweep run (s)
+SWEEP_DURATION_MAX = 3600.0
+
 
 def check_diagram_options(
     umin: float,
@@ -265,10 +268,10 @@ def check_diagram_options(
             f"{n['sweep_step']} {sweep_step:g} V over [{umin:g}, {hi:g}] V is {count} sweep voltages, more than "
             f"{MAX_SWEEP_VOLTAGES}: choose a step >= {(hi - umin) / (MAX_SWEEP_VOLTAGES - 1):.3g} V (or 0: no sweeps)"
         )
-    if not (np.isfinite(sweep_duration) and sweep_duration >= SWEEP_WINDOW):
+    if not (np.isfinite(sweep_duration) and SWEEP_WINDOW <= sweep_duration <= SWEEP_DURATION_MAX):
         raise InputError(
             f"{n['sweep_duration']} must be at least the {SWEEP_WINDOW:g} s steady-state window each sweep run "
-            f"ends with, got {sweep_duration:g} s"
+            f"ends with and at most {SWEEP_DURATION_MAX:g} s, got {sweep_duration:g} s"
         )
 
 

@@ -28,7 +28,7 @@ def register(app: typer.Typer) -> None:
             0.05, "--sweep-step", help="voltage step of the brute-force sweeps (V), at most 2001 voltages; 0: none"
         ),
         sweep_duration: float = typer.Option(
-            120.0, "--sweep-duration", help="simulated seconds per sweep voltage, >= 20 (its steady-state window)"
+            120.0, "--sweep-duration", help="simulated seconds per sweep voltage, 20 (its steady-state window) to 3600"
         ),
         no_report: bool = typer.Option(False, "--no-report", help="leave out the report's measured points"),
         ds_max: float = typer.Option(

@@ -290,8 +290,9 @@ def diagnose_cmd(
     check_effects_act(model, ex.config)
     if seg is not None and seg > 0:
         _check_segment(seg, ex)
-    if candidate_out is None:
-        check_output_file(data.with_name(data.stem + "_candidate.py"), "--candidate-out", suffixes=(".py",))
+    default_out = data.with_name(data.stem + "_candidate.py")
+    if candidate_out is None and default_out.exists():  # replaced only if it is an effect file
+        check_output_file(default_out, "--candidate-out", suffixes=(".py",))
     cands = None
     if extra:
         cands = effects_for(ex.config) + [e for e in extra if e.name not in {c.name for c in effects_for(ex.config)}]
