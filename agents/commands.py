@@ -290,7 +290,7 @@ def register(app: typer.Typer) -> None:
         import math
 
         from drillgym.commands.options import option
-        from drillgym.commands.outputs import check_output_file
+        from drillgym.commands.outputs import check_output_file, output_file
         from drillgym.errors import MissingFileError
 
         if not cuts or not all(math.isfinite(c) and c > 0 for c in cuts) or cuts != sorted(set(cuts)):
@@ -301,6 +301,7 @@ def register(app: typer.Typer) -> None:
             if not f.is_file():
                 raise MissingFileError(f"POLICIES: {f} not found (a policy.npz or a run directory holding one)")
             _check_npz(f)
+        output_file(out, "--out", suffixes=(".npz",))  # its missing directories created, as --help says
         with option("POLICIES"):
             path = combine(files, cuts, out, note=note)
         typer.echo(f"wrote {path}: {len(files)} networks, handing over at {', '.join(f'{c:g}' for c in cuts)} rad/s")
