@@ -261,6 +261,8 @@ def register(app: typer.Typer) -> None:
         else:
             signal = float(u) if u is not None else 0.0
             duration = 30.0 if duration is None else duration
+        if input_file is not None and out.resolve() == input_file.resolve():
+            raise InputError(f"--out {out} is the --input file: the run would replace its input; choose another name")
         out = output_file(out, "--out", suffixes=(".csv",))
         plot = figure_file(plot) if plot else None
         check_step_grid(duration, dt, record_every, duration_given=duration_given)
