@@ -126,7 +126,13 @@ class HardwareEnv(gym.Env):
     Raises
     ------
     InputError
-        An option of the simulated plant, or ``rest_time`` / ``rest_timeout`` out of order.
+        Before the port is opened: an option of the simulated plant, an environment option out of range (as the
+        simulated envs refuse it), a ``port`` that is no serial device, a ``record`` path that cannot be written
+        (:func:`hw.checks.check_record_path`), a non-finite or out-of-range ``rest_time``, ``rest_timeout``,
+        ``reply_timeout``, ``lvdt_cutoff_hz`` (up to half the control rate) or ``flush_interval_s``.  After the
+        handshake: a control period the firmware refuses or not shorter than its watchdog.
+    MissingFileError
+        The serial device does not exist.
 
     Notes
     -----
