@@ -68,6 +68,11 @@ CONSTRUCTS = [
     ("module-level constants (frozen when the kernels are compiled)", "return GAIN * omega_u", True),
     ("helpers decorated with `numba.njit`", "return doubled(omega_u)", True),
     ("a `lambda` or a nested `def`", "sq = lambda z: z * z\nreturn sq(omega_u)", True),
+    (
+        "a list or `np.array` inside the function (allocated at every call: slow)",
+        "a = [omega_u, 2.0 * omega_u]\nb = np.array([omega_u, 1.0])\nreturn a[0] + a[1] + b.sum()",
+        True,
+    ),
     ("plain Python helpers (not decorated)", "return plain_doubled(omega_u)", False),
     ("`try` / `except`", "try:\n    return 1.0 / omega_u\nexcept ZeroDivisionError:\n    return 0.0", False),
     ("`import` inside the function", "import cmath\nreturn omega_u", False),
