@@ -2,6 +2,7 @@
 (numba nopython, inlined, scalar and lane variants), its result compared with plain Python; what numba refuses
 is refused in one line before any kernel is built.  docs/EFFECTS.md's table is this one."""
 
+import math
 import re
 import textwrap
 from pathlib import Path
@@ -147,3 +148,20 @@ def test_the_constructs_run_in_the_kernels_of_a_simulation_single_and_batched(tm
     np.testing.assert_allclose(run.omega_u, base.omega_u, rtol=0, atol=1e-9)
     batch = simulate_batch("upper", u, 1.0, n_batch=LANES_MIN_BATCH, effects=[f"{path}:features"])
     np.testing.assert_allclose(batch.omega_u[0], base.omega_u, rtol=0, atol=1e-9)
+
+
+def test_a_math_domain_error_is_nan_in_the_kernels_not_an_exception():
+    """Python raises ValueError for math.log of a negative number; compiled as the kernels compile it (numpy
+    error model) it gives NaN, which a y != y test still sees with this numba."""
+
+    def log_shifted(omega_u):
+        return math.log(omega_u - 10.0)
+
+    def is_nan(omega_u):
+        y = math.log(omega_u - 10.0)
+        return 1.0 if y != y else 0.0
+
+    with pytest.raises(ValueError):
+        log_shifted(0.5)
+    assert math.isnan(compile_function(log_shifted, 1)(0.5))
+    assert compile_function(is_nan, 1)(0.5) == 1.0 and compile_function(is_nan, 1)(20.0) == 0.0
