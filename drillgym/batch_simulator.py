@@ -9,9 +9,9 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from .configurations import Configuration, parse_configuration
+from .configurations import N_STATE, Configuration, parse_configuration
 from .effects.composition import compose
-from .errors import InputError
+from .errors import InputError, SimulationError
 from .integrators import ADAPTIVE, DEFAULT_DT, tableau
 from .lane_runner import LANES_MIN_BATCH, block_width, pad_lanes
 from .run_setup import DEFAULT_SMOOTH_EPS, ParamsLike, delay_lines, friction_eps, initial_states
@@ -22,9 +22,11 @@ __all__ = ["BatchSimulator"]
 
 @njit(cache=True)
 def _diverged(Y, speed_limit):
-    """True when a state of ``Y`` (n, n_state) is not finite or a disc speed exceeds ``speed_limit`` (rad/s)."""
+    """True when a mechanical state of ``Y`` (n, n_state) is not finite or a disc speed exceeds ``speed_limit``
+    (rad/s). The effects' states are left out: a lag's state is NaN until the first step sets it from the
+    command, and a broken effect shows in the mechanical states within a step."""
     for k in range(Y.shape[0]):
-        for i in range(Y.shape[1]):
+        for i in range(N_STATE):
             if not np.isfinite(Y[k, i]):
                 return True
         if abs(Y[k, 2]) > speed_limit or abs(Y[k, 3]) > speed_limit:
@@ -203,11 +205,23 @@ class BatchSimulator:
         uu = np.ascontiguousarray(np.broadcast_to(np.asarray(u, dtype=np.float64), (self.n,)))
         if not np.all(np.isfinite(uu)):
             raise InputError("voltage is NaN or inf")
-        if self._lanes and n_steps > 0:
-            self._advance_lanes(uu, int(n_steps))
-            self.T += int(n_steps) * self.dt
+        t_start = float(self.T.min())
+        try:
+            if self._lanes and n_steps > 0:
+                self._advance_lanes(uu, int(n_steps))
+                self.T += int(n_steps) * self.dt
+            else:
+                self._advance_scalar(uu, int(n_steps))
+        except (ZeroDivisionError, OverflowError, FloatingPointError) as exc:  # the compiled model on a wild state
+            raise SimulationError(
+                f"a run diverged after t = {t_start:.6g} s: the compiled model failed ({exc}) with the effects "
+                f"{self.composition.label}; check the parameters and the initial state"
+            ) from None
+        if n_steps > 0:
             self._check()
-            return
+
+    def _advance_scalar(self, uu: np.ndarray, n_steps: int) -> None:
+        """The scalar stepping kernel over all runs (small batches, smooth friction)."""
         A, b, c = self._tab
         self.kernels.stepping.advance_batch(
             self.Y,
@@ -216,7 +230,7 @@ class BatchSimulator:
             self.P,
             int(self.config),
             self.dt,
-            int(n_steps),
+            n_steps,
             self.T,
             self._eps,
             A,
@@ -226,7 +240,6 @@ class BatchSimulator:
             self.HIST,
             self.HEAD,
         )
-        self._check()
 
     def _check(self) -> None:
         """Raise :class:`SimulationError` when a run diverged (a few us when none did).
@@ -237,8 +250,8 @@ class BatchSimulator:
         Y = self.Y
         if not _diverged(Y, self._speed_limit):
             return
-        names = self.composition.full_state_names
-        check_run(np.empty((self.n, 0, 0)), (), Y, names, self.P, self.T, self.dt, 1, self.composition.label, self.T)
+        names, label = self.composition.full_state_names[:N_STATE], self.composition.label
+        check_run(np.empty((self.n, 0, 0)), (), Y[:, :N_STATE], names, self.P, self.T, self.dt, 1, label, self.T)
         self._speed_limit = float(speed_limit(self.P).min())  # no run diverged: the parameters had changed
 
     def _advance_lanes(self, uu: np.ndarray, n_steps: int) -> None:

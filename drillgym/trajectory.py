@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
 from .configurations import Configuration
 from .effects.composition import Composition
@@ -74,31 +75,37 @@ def speed_limit(p: np.ndarray) -> np.ndarray:
         return np.where(viscous > 0, SPEED_FACTOR * p[:, IDX.km] * U_REACH / viscous, np.inf)
 
 
-def _bad_values(run: np.ndarray, j_speeds: list[int], limit: float) -> np.ndarray:
-    """Mask of the values of one run ``(n_samples, n_columns)`` that are not finite or too fast."""
-    bad = ~np.isfinite(run)
-    for j in j_speeds:
-        bad[:, j] |= np.abs(run[:, j]) > limit
-    return bad
+@njit(cache=True)
+def _first_bad_sample(D, speed_cols, limits):
+    """``(sample, run)`` of the earliest sample of ``D`` (n_samples, n_columns, B) with a non-finite value or a
+    speed column beyond its run's limit; ``(-1, -1)`` when none. One read of the data, stopping at the first."""
+    n, m, B = D.shape
+    for k in range(n):
+        for j in range(m):
+            for b in range(B):
+                if not np.isfinite(D[k, j, b]):
+                    return k, b
+        for j in speed_cols:
+            for b in range(B):
+                if abs(D[k, j, b]) > limits[b]:
+                    return k, b
+    return -1, -1
 
 
 def _first_bad(data: np.ndarray, names: Sequence[str], limits: np.ndarray) -> tuple[int, int, list[int]] | None:
     """``(run, sample, columns)`` of the earliest sample with a non-finite value or an over-fast speed
     (the earliest over the runs), or None."""
-    speeds = [names.index(n) for n in _SPEEDS if n in names]
-    finite = np.isfinite(data.sum(axis=(1, 2)))  # one pass: a NaN or inf anywhere makes the sum non-finite
-    fast = np.zeros(data.shape[0], dtype=bool)
-    for j in speeds:
-        fast |= np.abs(data[:, :, j]).max(axis=1) > limits
-    first = None
-    for b in np.flatnonzero(~finite | fast):
-        rows = np.flatnonzero(_bad_values(data[b], speeds, limits[b]).any(axis=1))
-        if rows.size and (first is None or rows[0] < first[1]):  # none: the sum overflowed, all values are fine
-            first = (int(b), int(rows[0]))
-    if first is None:
+    speeds = np.array([names.index(n) for n in _SPEEDS if n in names], dtype=np.int64)
+    if data.size == 0:
         return None
-    b, k = first
-    return b, k, [int(j) for j in np.flatnonzero(_bad_values(data[b, k : k + 1], speeds, limits[b])[0])]
+    k, b = _first_bad_sample(data.transpose(1, 2, 0), speeds, np.ascontiguousarray(limits, dtype=np.float64))
+    if k < 0:
+        return None
+    row = data[b, k]
+    bad = ~np.isfinite(row)
+    for j in speeds:
+        bad[j] |= abs(row[j]) > limits[b]
+    return int(b), int(k), [int(j) for j in np.flatnonzero(bad)]
 
 
 def check_run(
