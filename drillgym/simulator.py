@@ -26,6 +26,7 @@ This module keeps their public names importable from ``drillgym.simulator``.
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -34,7 +35,7 @@ import numpy as np
 from .batch_simulator import BatchSimulator
 from .configurations import Configuration, parse_configuration
 from .effects.composition import compose
-from .errors import InputError, InputTypeError
+from .errors import EffectError, InputError, InputTypeError, SimulationError
 from .integrators import ADAPTIVE, DEFAULT_ATOL, DEFAULT_DT, DEFAULT_RTOL, tableau
 from .lane_runner import LANE_BLOCK, LANES_MIN_BATCH, block_width, lane_chunks, pad_lanes, run_lanes
 from .params import N_PARAMS, RigParams
@@ -220,58 +221,113 @@ def simulate_batch(
     # the lane kernel stores a sample's column over the lanes contiguously: sample-major storage,
     # seen through data (B, n_samples, n_columns) as a transposed view; the scalar paths store run by run
     OUT = np.empty((n_rec, len(names), B)).transpose(2, 0, 1) if lanes else np.empty((B, n_rec, len(names)))
-    if adaptive:
-        args = (
-            Y,
-            MODE,
-            U,
-            P,
-            int(cfg),
-            float(dt),
-            T0,
-            eps,
-            A,
-            b,
-            c,
-            int(record_every),
-            OUT,
-            True,
-            n_steps,
-            HIST,
-            HEAD,
-            float(rtol),
-            float(atol),
-        )
-        k.adaptive.run_batch_adaptive(*args, *optional_args(COLS, USTEP, OUT.shape[2]))
-    elif lanes:
-        run_lanes(
-            k.lanes.lanes_run,
-            Y,
-            MODE,
-            U,
-            P,
-            int(cfg),
-            float(dt),
-            int(record_every),
-            OUT.transpose(1, 2, 0),
-            n_steps,
-            parallel,
-            HIST,
-            HEAD,
-            T0,
-            COLS,
-            USTEP,
-            (A, b, c),
-        )
-    else:
-        runner = k.stepping.run_batch_parallel if parallel else k.stepping.run_batch_serial
-        args = (Y, MODE, U, P, int(cfg), float(dt), T0, eps, A, b, c, int(record_every), OUT, True, n_steps, HIST, HEAD)
-        runner(*args, *optional_args(COLS, USTEP, OUT.shape[2]))
+    with arithmetic_failure_is_divergence(comp.label):
+        if adaptive:
+            args = (
+                Y,
+                MODE,
+                U,
+                P,
+                int(cfg),
+                float(dt),
+                T0,
+                eps,
+                A,
+                b,
+                c,
+                int(record_every),
+                OUT,
+                True,
+                n_steps,
+                HIST,
+                HEAD,
+                float(rtol),
+                float(atol),
+            )
+            k.adaptive.run_batch_adaptive(*args, *optional_args(COLS, USTEP, OUT.shape[2]))
+        elif lanes:
+            run_lanes(
+                k.lanes.lanes_run,
+                Y,
+                MODE,
+                U,
+                P,
+                int(cfg),
+                float(dt),
+                int(record_every),
+                OUT.transpose(1, 2, 0),
+                n_steps,
+                parallel,
+                HIST,
+                HEAD,
+                T0,
+                COLS,
+                USTEP,
+                (A, b, c),
+            )
+        else:
+            runner = k.stepping.run_batch_parallel if parallel else k.stepping.run_batch_serial
+            args = (Y, MODE, U, P, int(cfg), float(dt), T0, eps, A, b, c, int(record_every), OUT, True, n_steps)
+            runner(*args, HIST, HEAD, *optional_args(COLS, USTEP, OUT.shape[2]))
     check_run(OUT, names, Y, comp.full_state_names, P, T0, float(dt), int(record_every), comp.label)
     keep = B <= 64 or params is not None
     plist = [RigParams.from_vector(P[i, :N_PARAMS]) for i in range(B)] if keep else [RigParams()] * B
     vlist = [comp.split(P[i])[1] for i in range(B)] if keep else [dict(values)] * B
     return BatchTrajectory(cfg, plist, float(dt), method, OUT, comp, vlist, names if record is not None else None)
+
+
+@contextlib.contextmanager
+def arithmetic_failure_is_divergence(model: str):
+    """Within the block, a division by zero or an overflow of the compiled model is a :class:`SimulationError`.
+
+    The kernels stop at the first such failure (the state has left every physical range: a
+    speed that overflows the brake law, a zero mass of the lateral model); the user gets one line
+    naming the model instead of numba's traceback.
+    """
+    try:
+        yield
+    except (ZeroDivisionError, OverflowError, FloatingPointError) as exc:
+        raise SimulationError(
+            f"the run diverged: the compiled model {model!r} failed ({type(exc).__name__}: {exc}) with the "
+            f"parameters and initial state given; check the parameters, x0, alpha0 and the effects' values"
+        ) from None
+
+
+def check_one_run(config: Any, duration: Any, dt: Any, record_every: Any, effects: Any, effect_params: Any) -> None:
+    """Refuse, as ``drillgym simulate`` does, a step that does not divide the duration, a recording
+    interval that does not divide the steps and an effect that does not act in the configuration
+    (each would change the run or its record without a word).
+
+    Raises
+    ------
+    InputError
+        ``dt`` does not divide ``duration`` (the run would end early or late), or ``record_every``
+        does not divide the steps (the run's end would not be recorded).
+    EffectError
+        An effect does not act in ``config``.
+    """
+    cfg = parse_configuration(config)
+    duration, dt = real_number("duration", duration, "s"), real_number("dt", dt, "s")
+    if np.isfinite(duration) and np.isfinite(dt) and 0 < dt <= 0.1 and duration > 0:
+        steps = duration / dt
+        if abs(steps - round(steps)) > 1e-6 * max(1.0, steps) or round(steps) < 1:
+            raise InputError(
+                f"dt = {dt:g} s does not divide duration = {duration:g} s ({steps:g} steps): the run would end "
+                f"at {max(round(steps), 1) * dt:g} s; choose a step that divides the duration"
+            )
+        every = whole_number("record_every", record_every, 1)
+        if round(steps) % every:
+            raise InputError(
+                f"record_every = {every} does not divide the run's {round(steps)} steps: its end "
+                f"({duration:g} s) would not be recorded; choose a divisor of {round(steps)}"
+            )
+    comp, _ = compose(effects, effect_params)
+    idle = comp.not_acting_in(cfg.label)
+    if idle:
+        raise EffectError(
+            f"effects: {idle[0].name} does not act in the {cfg.label} configuration (it acts in "
+            f"{', '.join(idle[0].configurations)}); leave it out"
+        )
 
 
 def simulate(
@@ -353,6 +409,7 @@ def simulate(
         raise InputError("simulate() takes one initial state")
     if np.ndim(alpha0) != 0:
         raise InputError("simulate() takes one initial winding alpha0; use simulate_batch for several")
+    check_one_run(config, duration, dt, record_every, effects, effect_params)
     if not callable(u) and not isinstance(u, tuple) and np.ndim(u) > 1:
         raise InputError("simulate() takes a scalar or one input sequence; use simulate_batch for several")
     if not callable(u) and not isinstance(u, tuple) and np.ndim(u) == 1:

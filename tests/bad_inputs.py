@@ -160,7 +160,6 @@ class Case:
 #: failing cases whose fix lies with another part of the project, reported there: (words all in the
 #: command line, why). A matching failure is tolerated (returned as 'known'), a passing case is fine.
 KNOWN_ELSEWHERE = [
-    (("--params", "binary.csv"), "a parameter file that is not UTF-8: RigParams.from_file"),
     (("rig", "run", "--controller"), "rig run's controller refusal does not name --controller yet"),
 ]
 

@@ -67,9 +67,6 @@ SIMULATE_BAD = {
 @given(data=st.data())
 def test_simulate(data):
     name, value = draw_kwargs(data, SIMULATE_BAD)
-    key = (name, tuple(value) if isinstance(value, list) else value)
-    if key in NOT_YET_REFUSED:  # an expected failure of test_simulate_refuses_what_the_cli_refuses
-        return
     kw = {"config": "torsional", "u": 3.0, "duration": 0.1, "dt": 1e-3}
     kw[name] = value
     try:
@@ -82,23 +79,12 @@ def test_simulate(data):
     pytest.fail(f"simulate accepted {name}={value!r}: {len(traj.t)} samples")
 
 
-#: cases the command line refuses and the Python simulate() does not refuse yet (reported to its owner)
-NOT_YET_REFUSED = {
-    ("dt", 0.03): "simulate(dt=0.03, duration=0.1): a step that does not divide the duration",
-    ("effects", ("lateral_anisotropy",)): "simulate(effects=['lateral_anisotropy']) on torsional (compiles ~20 s)",
-}
-
-
 @pytest.mark.parametrize(
     "kw,names",
     [
         ({"u": 1e6}, ("u", "voltage", "V")),
-        pytest.param({"dt": 0.03}, ("dt", "duration"), marks=pytest.mark.xfail(reason=NOT_YET_REFUSED[("dt", 0.03)])),
-        pytest.param(
-            {"effects": ["lateral_anisotropy"]},
-            ("lateral_anisotropy",),
-            marks=pytest.mark.xfail(reason=NOT_YET_REFUSED[("effects", ("lateral_anisotropy",))], run=False),
-        ),
+        ({"dt": 0.03}, ("dt", "duration")),
+        ({"effects": ["lateral_anisotropy"]}, ("lateral_anisotropy",)),
     ],
 )
 def test_simulate_refuses_what_the_cli_refuses(kw, names):

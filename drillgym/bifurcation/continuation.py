@@ -96,12 +96,12 @@ def section_margin(smap: SectionMap, sol: PeriodicSolution) -> tuple[float, floa
     level in the middle of the widest gap between extremum values that the orbit crosses upwards
     exactly once per period (None when no such level is better)."""
     from ..params import RigParams
-    from ..simulator import simulate
+    from ..simulator import simulate_batch
 
     if not np.isfinite(sol.period) or sol.period <= 0:
         return 1.0, None
     sm = smap.with_offset(sol.section_offset)
-    tr = simulate(
+    tr = simulate_batch(  # one period: not a whole number of steps, which simulate() refuses
         sm.config,
         sol.u,
         sol.period,
@@ -109,7 +109,8 @@ def section_margin(smap: SectionMap, sol: PeriodicSolution) -> tuple[float, floa
         params=RigParams.from_vector(sm.p),
         x0=sm.to_state(sol.z, sol.u),
         method=sm.method,
-    )
+        n_batch=1,
+    )[0]
     w = tr.omega_l
     span = float(w.max() - w.min())
     if span <= 0 or len(w) < 5:

@@ -129,9 +129,12 @@ class SectionMap:
     def find_on_orbit(self, y0: np.ndarray, u: float, transient: float) -> np.ndarray:
         """Simulate ``transient`` seconds from the state y0 at voltage u, then flow to the section:
         reduced coordinates of the point where the attractor crosses it (a shooting start)."""
-        from ..simulator import simulate
+        from ..simulator import simulate_batch
 
-        traj = simulate(self.config, u, transient, dt=self.dt, x0=y0, params=self.p, effects=self.composition)
+        # any transient: it need not be a whole number of steps, which simulate() refuses
+        traj = simulate_batch(
+            self.config, u, transient, dt=self.dt, x0=y0, params=self.p, effects=self.composition, n_batch=1
+        )[0]
         Z, S = self.flow_states(traj.final_state[None, :], np.array([u]))
         if S[0, F_OK] == 0:
             raise FitError(

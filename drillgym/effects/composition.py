@@ -368,6 +368,14 @@ class Composition:
         out = self.kernels.hooks.measure_arrays(*arrs, np.asarray(vec, dtype=np.float64))
         return tuple(out[i].reshape(shape) for i in range(4))
 
+    def not_acting_in(self, configuration: str) -> list[type[Effect]]:
+        """The effects that do not act in ``configuration`` (a configuration label such as ``"torsional"``).
+
+        Such an effect would change nothing in a run of that configuration, silently: the commands
+        and :func:`drillgym.simulate` refuse it.
+        """
+        return [e for e in self.effects if e.configurations and configuration not in tuple(e.configurations)]
+
     def signal_path(self, among: Iterable[str] | None = None) -> list[str]:
         """The path of the command to the motor: the Delay effects (their delays add up, so their order does not
         matter), then the Input effects in the composition's order, the first nearest the command.

@@ -23,7 +23,7 @@ from ..io import TimeSeries
 from ..measurement import MeasurementModel, measure_trajectory
 from ..params import RigParams
 from ..signals import quasi_random, sum_of_sines
-from ..simulator import simulate
+from ..simulator import simulate_batch
 
 __all__ = ["SyntheticOptions", "synthetic_measurement", "BEARING"]
 
@@ -129,7 +129,7 @@ def synthetic_measurement(
     sim_p = p.replace(e=0.0) if bearing else p
     comp, values = compose(o.effects, o.effect_params)
     if o.level_profile is None:
-        traj = simulate(
+        traj = simulate_batch(
             "lateral" if bearing else config,
             (t, uu),
             o.duration,
@@ -140,7 +140,8 @@ def synthetic_measurement(
             record_every=rec,
             effects=comp,
             effect_params=values,
-        )
+            n_batch=1,
+        )[0]  # any duration and rate: simulate() would refuse a record interval that does not divide the run
     else:
         traj = _simulate_level_profile("lateral" if bearing else config, t, uu, o, sim_p, rec, comp, values)
     ts = measure_trajectory(traj, o.model, seed=o.seed)
@@ -211,7 +212,7 @@ def _simulate_level_profile(
         pc = p.replace(**{n: getattr(p, n) * g0 for n in _LOWER_LEVEL})
         drift = (g1 / g0 - 1.0) / (t1 - t0)
         sel = (t >= t0 - 1e-12) & (t <= t1 + 1.0 / fs + 1e-12)
-        tr = simulate(
+        tr = simulate_batch(
             config,
             (t[sel] - t0, uu[sel]),
             t1 - t0,
@@ -223,7 +224,8 @@ def _simulate_level_profile(
             record_every=rec,
             effects=chunk_comp,
             effect_params={**values, "drift": drift},
-        )
+            n_batch=1,
+        )[0]
         data = tr.data.copy()
         data[:, 0] += t0
         blocks.append(data if not blocks else data[1:])
