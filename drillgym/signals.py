@@ -27,6 +27,10 @@ __all__ = ["quasi_random", "sum_of_sines", "write_input_file", "read_input_file"
 U_MAX = 5.0  # V: amplifier range of the rig
 
 
+#: Hz: the upper end of the excitation signals' band (the rig's torsional dynamics lie below it)
+F_MAX_HZ = 5.0
+
+
 def _fade_in(t: np.ndarray, u: np.ndarray, fade_s: float) -> np.ndarray:
     """Raised-cosine fade from 0 V over the first ``fade_s`` seconds (the rig starts at rest, 0 V)."""
     if fade_s <= 0:
@@ -42,8 +46,13 @@ def _check(duration: float, rate_hz: float, amplitude: float, f_max: float) -> N
         raise InputError(f"signal sample rate must be a positive number of Hz, got {rate_hz!r}")
     if not (0 < amplitude <= 50):
         raise InputError(f"signal amplitude must be in (0, 50] V, got {amplitude!r}")
-    if not (0 < f_max < rate_hz / 2):
-        raise InputError(f"f_max = {f_max!r} Hz must be positive and below the Nyquist rate {rate_hz / 2} Hz")
+    if not (np.isfinite(f_max) and f_max > 0):
+        raise InputError(f"the signal's band f_max must be a positive number of Hz, got {f_max:g}")
+    if not f_max < rate_hz / 2:
+        raise InputError(
+            f"a sample rate of {rate_hz:g} Hz cannot carry the signal's band up to f_max = {f_max:g} Hz "
+            f"(its Nyquist rate is {rate_hz / 2:g} Hz): choose a rate above {2 * f_max:g} Hz"
+        )
 
 
 def _check_offset(amplitude: float, offset: float) -> None:
@@ -61,7 +70,7 @@ def quasi_random(
     seed: int | None = 0,
     amplitude: float = U_MAX,
     offset: float = 0.0,
-    f_max: float = 5.0,
+    f_max: float = F_MAX_HZ,
     hold: tuple[float, float] = (0.3, 3.0),
     fade_s: float = 0.5,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -131,7 +140,7 @@ def sum_of_sines(
     amplitude: float = U_MAX,
     offset: float = 0.0,
     frequencies: tuple[float, ...] = (0.05, 0.11, 0.23, 0.47, 0.9, 1.7),
-    f_max: float = 5.0,
+    f_max: float = F_MAX_HZ,
     fade_s: float = 0.5,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Sum-of-sines validation signal.

@@ -152,6 +152,8 @@ def _experiment(data: Path, config: str | None, rate: float, mapping: list[str] 
 
 #: most samples ``drillgym signal`` writes (about 2 GB of csv)
 SIGNAL_MAX_SAMPLES = 50_000_000
+#: Hz: the band of the generated signals (drillgym.signals.F_MAX_HZ)
+SIGNAL_BAND_HZ = 5.0
 
 
 def _check_signal(duration: float, rate: float, amplitude: float, offset: float, seed: int) -> None:
@@ -169,9 +171,16 @@ def _check_signal(duration: float, rate: float, amplitude: float, offset: float,
         )
     if duration * rate < 2:
         raise InputError(f"--duration {duration:g} s at --rate {rate:g} Hz gives fewer than 2 samples")
+    if rate <= 2 * SIGNAL_BAND_HZ:
+        raise InputError(
+            f"--rate {rate:g} Hz cannot carry the signal's band up to {SIGNAL_BAND_HZ:g} Hz: choose a rate "
+            f"above {2 * SIGNAL_BAND_HZ:g} Hz"
+        )
     if not (math.isfinite(amplitude) and 0 < amplitude <= U_LIMIT_FILE):
         raise InputError(f"--amplitude must be in (0, {U_LIMIT_FILE:g}] V, got {amplitude:g}")
-    if not (math.isfinite(offset) and abs(offset) < amplitude):
+    if not math.isfinite(offset):
+        raise InputError(f"--offset must be a finite number of volts, got {offset:g}")
+    if not abs(offset) < amplitude:
         raise InputError(
             f"--offset {offset:g} V must be smaller in size than --amplitude {amplitude:g} V (the signal spans "
             f"offset +- (amplitude - |offset|))"
