@@ -150,4 +150,4 @@ def test_cli_refuses_a_non_positive_continuation_step(tmp_path, capsys):
 
     with pytest.raises(SystemExit) as e:
         main(["bifurcation", "--config", "torsional", "--out", str(tmp_path), "--ds-max", "0"])
-    assert e.value.code == 2 and "--ds-max must be a positive step" in capsys.readouterr().err
+    assert e.value.code == 2 and "--ds-max must be a positive finite continuation step" in capsys.readouterr().err

@@ -48,6 +48,10 @@ def _load(path: Path) -> Any:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise ParameterError(f"{path}: cannot read parameter file ({exc.strerror})") from None
+    except UnicodeDecodeError:
+        raise ParameterError(
+            f"{path}: not a parameter file (not UTF-8 text); give a JSON or YAML file of name: value"
+        ) from None
     try:
         if path.suffix.lower() in (".yaml", ".yml"):
             import yaml
