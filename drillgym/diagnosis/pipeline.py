@@ -7,6 +7,7 @@
 3. :func:`.checks.check` — position-dependent effects in both halves of the recording, a lag or a delay
    at the recording's own rate, a drift or a position friction on a disc that hardly turns;
 4. :func:`.ranking.report` — the diagnosis: the ranking, the base parameters that moved, the warnings;
+   :func:`.unexplained.unexplained` — the final residual against the noise, where it lives, what it depends on;
 5. :func:`.discovery.discover` (with ``discover``) — a candidate effect outside the library from the
    residual torques of the (first) recording on its own samples up to 250 Hz, written as an effect file.
 """
@@ -29,6 +30,7 @@ from .orders import select
 from .ranking import report
 from .results import Diagnosis
 from .screening import DiagnosisOptions, screen
+from .unexplained import unexplained
 
 __all__ = ["DiagnosisOptions", "diagnose"]
 
@@ -84,9 +86,11 @@ def diagnose(
     opts = replace(options or DiagnosisOptions(), **settings)
     with one_blas_thread():  # every step's threads (fits side by side, the lag/delay searches) see the same BLAS
         screening = screen(data, params, config, opts)
+        noise = dict(screening.model.obj.scales)  # the selection may weight the sensors by their misfit
         outcome = select(screening.model, opts.selection())
         check(screening, outcome, opts.selection())
         diagnosis = report(screening, outcome)
+        diagnosis.unexplained = unexplained(screening.model.obj, diagnosis.vector, noise)
     if opts.discover and screening.config is not Configuration.UPPER:
         diagnosis.candidate, diagnosis.advice = discover(_fine(screening.exps[0]), diagnosis, opts.candidate_out)
     return diagnosis

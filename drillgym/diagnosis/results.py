@@ -22,6 +22,7 @@ from ..configurations import Configuration
 from ..effects import Composition
 from ..identification.fitting import FitResult
 from ..params import RigParams
+from .unexplained import Unexplained
 
 __all__ = ["SelectionStep", "BaseChange", "Selection", "EffectScore", "Candidate", "Diagnosis"]
 
@@ -365,6 +366,9 @@ class Diagnosis:
         The lag/delay decision at the recording's rate (:meth:`.timing.FineDecision.to_json`).
     sensor_misfit : dict of str to float
         Sensor -> the model's misfit on it (noise units), by which its channels were rescaled.
+    unexplained : Unexplained or None
+        The final model's residual against the measurement noise, where it lives and what it depends on
+        (None: not measured).  "The base model stands" is said only when it is at the noise.
     """
 
     ranking: list[EffectScore]
@@ -391,6 +395,7 @@ class Diagnosis:
     paths: dict[str, list[str]] = field(default_factory=dict)
     lag_delay: dict | None = None
     sensor_misfit: dict[str, float] = field(default_factory=dict)
+    unexplained: Unexplained | None = None
 
     @property
     def best(self) -> EffectScore | None:
@@ -404,6 +409,38 @@ class Diagnosis:
     def effect_values(self) -> dict[str, float]:
         """The selected effects' fitted parameters by name."""
         return {k: v for s in self.ranking if s.effect in self.selected for k, v in s.values.items()}
+
+    def selected_model(self) -> tuple[RigParams, list[dict], dict[str, float]]:
+        """The model the diagnosis selected, as :func:`drillgym.identification.model_file.write_model` takes it.
+
+        Returns
+        -------
+        RigParams
+            The final base parameters (re-identified ones included).
+        list of dict
+            One record per effect of the model diagnosed and of the selection, with its fitted values and
+            (finite) standard errors: the signal path's effects first, command side first, then the others
+            in the search model's order, so composing the records' specs gives the same signal path.
+        dict of str to float
+            Standard errors of the base parameters that moved (their units).
+        """
+        from ..effects import Composition
+        from .refit import effect_records
+
+        if self.composition is None or self.vector is None or self.params is None:
+            raise ValueError("the diagnosis holds no final model (a ranking alone selects nothing)")
+        keep = set(([] if self.model == "base" else self.model.split("+")) + list(self.selected))
+        path = self.composition.signal_path(among=keep)
+        rest = [e.name for e in self.composition.effects if e.name in keep and e.name not in path]
+        by_name = {e.name: e for e in self.composition.effects}
+        sub = Composition(tuple(by_name[n] for n in path + rest))
+        values = self.composition.named(self.vector)
+        records = effect_records(sub, values)
+        std = {k: v for s in self.ranking if s.effect in keep for k, v in s.std.items() if math.isfinite(v)}
+        for r in records:
+            r["std"] = {k: std[k] for k in r["values"] if k in std}
+        base_std = {k: v.std for k, v in self.base_parameters.items() if math.isfinite(v.std)}
+        return self.params, records, base_std
 
     def to_json(self) -> dict:
         """The diagnosis as a JSON-ready dict (what ``drillgym diagnose --json`` prints)."""
@@ -430,6 +467,7 @@ class Diagnosis:
             "lag_delay": self.lag_delay,
             "sensor_misfit": self.sensor_misfit,
             "signal_path": self._signal_path(),
+            "unexplained": self.unexplained.to_json() if self.unexplained is not None else None,
         }
 
     def _signal_path(self) -> list[str]:
@@ -441,7 +479,8 @@ class Diagnosis:
 
     def text(self) -> str:
         """The diagnosis as the command line prints it."""
-        lines = [self._header()]
+        lines = self.unexplained.lines() if self.unexplained is not None else []
+        lines.append(self._header())
         if self.sensor_misfit:
             lines.append(
                 "each sensor weighted by the model's misfit on it (one misfit-weighted unit): "
@@ -460,9 +499,8 @@ class Diagnosis:
         for k, why in self.skipped.items():
             lines.append(f"skipped {k}: {why}")
         if self.advice:
-            lines.append(
-                "nothing outside the library explains the rest of the residual; experiments that would show more:"
-            )
+            rest = "the rest of the residual" if self.at_noise else "the residual left unexplained (first lines)"
+            lines.append(f"nothing outside the library explains {rest}; experiments that would show more:")
             lines += [f"  - {a_}" for a_ in self.advice]
         return "\n".join(lines)
 
@@ -490,8 +528,19 @@ class Diagnosis:
                 )
             ]
         if self.base_parameters == {} and self.base_score:
-            return ["base parameters: no significant change (the nominal base model stands)"]
+            if self.at_noise:
+                return ["base parameters: no significant change (the nominal base model stands)"]
+            return [
+                "base parameters: no significant change, but the model does not stand: its residual stays above "
+                "the noise (first lines)"
+            ]
         return []
+
+    @property
+    def at_noise(self) -> bool:
+        """Whether the final residual is at the measurement noise (:attr:`Unexplained.explained`); False when
+        it was not measured: nothing is said to stand unmeasured."""
+        return self.unexplained is not None and self.unexplained.explained
 
     def _ranking_lines(self) -> list[str]:
         lines = [f"{'rank':<5}{'effect':<20}{'score':>10}{'rms after':>11}{'cut':>7}  fitted values"]

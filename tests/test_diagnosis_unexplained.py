@@ -1,0 +1,86 @@
+"""Never silent: the final model's residual against the measurement noise, first in the diagnosis.
+
+A dead zone in the motor drive (a user Input effect, examples/effects/motor_dead_zone.py) is outside the
+library: the diagnosis must say its residual is not explained, never that the base model stands.
+"""
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from drillgym.cli import app
+from drillgym.diagnosis import diagnose
+from drillgym.diagnosis.unexplained import EXPLAINED_RATIO, UNEXPLAINED_RATIO, _binned
+from drillgym.identification.synthetic import synthetic_measurement
+from drillgym.io import write_timeseries
+
+DEAD_ZONE = "examples/effects/motor_dead_zone.py:dead_zone"
+
+
+def steps(duration, levels=(0.0, 1.0, 0.6, 1.5, 0.3, 1.2, 2.0, 0.8), hold=1.0):
+    """Voltage steps (t, u) on a 1 ms grid, each level held ``hold`` seconds."""
+    t = np.arange(0.0, duration, 1e-3)
+    return t, np.asarray(levels)[(t // hold).astype(int) % len(levels)]
+
+
+def step_recording(duration=8.0, effects=None, **values):
+    return synthetic_measurement(
+        "torsional",
+        duration=duration,
+        rate_hz=250.0,
+        input=steps(duration),
+        seed=3,
+        effects=effects,
+        effect_params=values or None,
+    )
+
+
+def test_dead_zone_is_reported_unexplained_first_and_never_as_standing():
+    d = diagnose(step_recording(effects=[DEAD_ZONE], u0=0.4), effects=["motor_lag"], fixed_base=True)
+    un = d.unexplained
+    assert un is not None and un.verdict == "not_explained", d.text()
+    assert un.worst >= UNEXPLAINED_RATIO and not d.at_noise
+    text = d.text()
+    assert text.splitlines()[0].startswith("NOT EXPLAINED"), text
+    assert "stands" not in text and "the rest of the residual" not in text
+    assert un.depends_on is not None and 0.0 < un.depends_on.explained <= 1.0
+    assert un.depends_on.quantity in {"u", "omega_u", "omega_l", "alpha", "theta_u_mod_2pi"}
+    js = d.to_json()["unexplained"]
+    assert js["verdict"] == "not_explained" and js["explained"] is False
+    assert set(js["channels"]) == {"theta_u", "theta_l"} and min(js["channels"].values()) > EXPLAINED_RATIO
+    assert js["ratio_to_noise"] == pytest.approx(d.rmse_after, rel=1e-6)  # no sensor weighting here
+    for p in js["where"]:  # a phase is named only where the drift is concentrated
+        assert p["drift_share"] > p["time_share"]
+
+
+def test_the_recordings_own_model_is_at_the_noise():
+    d = diagnose(step_recording(), effects=["motor_lag"], fixed_base=True)
+    un = d.unexplained
+    assert un.explained and un.verdict == "explained", d.text()
+    assert 0.5 < un.ratio_to_noise < EXPLAINED_RATIO
+    assert un.where == [] and un.depends_on is None
+    assert d.text().splitlines()[0].startswith("explained:")
+
+
+def test_dependence_finds_the_quantity_and_its_worst_range():
+    rng = np.random.default_rng(1)
+    x = rng.uniform(-2.0, 2.0, 20000)
+    drift = np.where(np.abs(x) < 0.4, 5.0 * x, 0.0) + rng.normal(0.0, 0.1, x.size)
+    explained, lo, hi, bins = _binned(drift, x, np.linspace(-2.0, 2.0, 21))
+    assert explained > 0.9 and -0.4 <= lo and hi <= 0.4 + 1e-12
+    assert len(bins) == 20 and max(abs(b[2]) for b in bins) > 1.0
+    noise_only, *_ = _binned(rng.normal(0.0, 1.0, x.size), x, np.linspace(-2.0, 2.0, 21))
+    assert noise_only < 0.01
+
+
+def test_cli_json_carries_the_unexplained_residual(tmp_path):
+    data = write_timeseries(tmp_path / "rec.csv", step_recording(effects=[DEAD_ZONE], u0=0.4))
+    r = CliRunner().invoke(
+        app, ["diagnose", str(data), "--json", "--no-sparse", "--fixed-base", "--candidate", "motor_lag"]
+    )
+    assert r.exit_code == 0, r.output
+    un = json.loads(r.output)["unexplained"]
+    assert un["verdict"] == "not_explained" and un["worst_channel_ratio"] >= UNEXPLAINED_RATIO
+    assert {"ratio_to_noise", "channels", "where", "depends_on", "thresholds"} <= set(un)
