@@ -11,13 +11,12 @@ from __future__ import annotations
 import math
 import numbers
 import os
-import stat
-import tempfile
 from pathlib import Path
 
 from drillgym.errors import InputError, InputTypeError, MissingFileError, OutputPathError
+from drillgym.io.outputs import check_output_dir, check_output_file, path_kind
 
-__all__ = ["number", "integer", "check_record_path", "check_port", "check_creatable", "describe_kind"]
+__all__ = ["number", "integer", "check_record_path", "check_port"]
 
 
 def _show(value) -> str:
@@ -93,51 +92,6 @@ def integer(value, name: str, *, low: int | None = None, high: int | None = None
     return v
 
 
-def describe_kind(path: Path) -> str:
-    """What an existing path is: ``a directory``, ``a regular file``, ``a device``, ``a pipe``, ``a socket``."""
-    mode = path.stat().st_mode
-    if stat.S_ISDIR(mode):
-        return "a directory"
-    if stat.S_ISREG(mode):
-        return "a regular file"
-    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
-        return "a device"
-    if stat.S_ISFIFO(mode):
-        return "a pipe"
-    if stat.S_ISSOCK(mode):
-        return "a socket"
-    return "not a regular file"
-
-
-def check_creatable(path: Path, option: str, what: str = "file") -> None:
-    """Refuse a path that does not exist and cannot be created: a file among its parents, or a nearest existing
-    directory that takes no new entry (asked of the file system itself: root passes ``os.access`` in ``/proc``).
-
-    Parameters
-    ----------
-    path : pathlib.Path
-        The path (it does not exist).
-    option : str
-        The option that named it, for the message.
-    what : str, optional
-        ``file`` or ``directory``, for the message.
-
-    Raises
-    ------
-    OutputPathError
-        It cannot be created.
-    """
-    parent = next((p for p in path.absolute().parents if os.path.lexists(p)), Path("/"))
-    if not parent.is_dir():
-        raise OutputPathError(
-            f"{option} {path}: cannot be created: {parent} is {describe_kind(parent)}, not a directory"
-        )
-    try:
-        os.rmdir(tempfile.mkdtemp(prefix=".drillgym-probe-", dir=parent))
-    except OSError as exc:
-        raise OutputPathError(f"{option} {path}: cannot create a {what} in {parent} ({exc.strerror})") from None
-
-
 def check_record_path(record, option: str = "--record") -> Path:
     """Refuse, before any port is opened, a recording path that cannot be written; nothing is created.
 
@@ -168,32 +122,12 @@ def check_record_path(record, option: str = "--record") -> Path:
     if not str(record).strip():
         raise OutputPathError(f"{option}: an empty path; give a .csv file or a directory")
     if p.suffix.lower() == ".csv":
-        if p.exists():
-            kind = describe_kind(p)
-            if kind != "a regular file":
-                raise OutputPathError(
-                    f"{option} {p} is {kind}; give a .csv file name (or a directory path without the .csv suffix)"
-                )
-            if not os.access(p, os.W_OK):
-                raise OutputPathError(f"{option} {p} exists and is not writable")
-            return p
-        if p.is_symlink():
-            raise OutputPathError(f"{option} {p} is a broken symbolic link; give a .csv file name")
-        check_creatable(p, option, "file")
-        return p
-    if p.exists():
-        kind = describe_kind(p)
-        if kind != "a directory":
-            raise OutputPathError(
-                f"{option} {p} is {kind}; give a directory for the recordings, or a file name ending in .csv"
-            )
-        try:
-            os.rmdir(tempfile.mkdtemp(prefix=".drillgym-probe-", dir=p))
-        except OSError as exc:
-            raise OutputPathError(f"{option} {p}: cannot write in the directory ({exc.strerror})") from None
-        return p
-    check_creatable(p, option, "directory")
-    return p
+        return check_output_file(p, option, suffixes=[".csv"])
+    if p.exists() and not p.is_dir():
+        raise OutputPathError(
+            f"{option} {p} is {path_kind(p)}; give a directory for the recordings, or a file name ending in .csv"
+        )
+    return check_output_dir(p, option)
 
 
 def check_port(port, option: str = "--port") -> str:
@@ -232,7 +166,7 @@ def check_port(port, option: str = "--port") -> str:
             f"{option} {port} does not exist (no such serial device: is the rig plugged in, or `drillgym rig emulate` "
             "running?)"
         )
-    kind = describe_kind(Path(port))
+    kind = path_kind(Path(port))
     if kind != "a device":
         raise InputError(
             f"{option} {port} is {kind}, not a serial device: give the rig's device (e.g. /dev/ttyUSB0), the link "

@@ -21,15 +21,13 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path, PurePath
 from typing import Any
 
 import numpy as np
 
-from ..errors import OutputPathError
+from .paths import written_whole
 
 __all__ = ["jsonable", "dumps_json", "write_json", "loads_strict", "WARNINGS_KEY"]
 
@@ -153,29 +151,10 @@ def write_json(path: str | Path, obj: Any, *, indent: int | None = 2, nonfinite:
     OutputPathError
         The file cannot be written (a directory of that name, no permission, a full disk).
     """
-    path = Path(path)
     text = dumps_json(obj, indent=indent, nonfinite=nonfinite) + "\n"
-    if path.is_dir():
-        raise OutputPathError(f"{path}: is a directory, cannot write a JSON file there")
-    tmp = None
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent if str(path.parent) else ".")
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        if path.exists():
-            os.chmod(tmp, path.stat().st_mode & 0o7777)
-        else:
-            umask = os.umask(0)
-            os.umask(umask)
-            os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-        tmp = None
-    except OSError as exc:
-        raise OutputPathError(f"{path}: cannot write the JSON file ({exc.strerror or exc})") from None
-    finally:
-        if tmp is not None and os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
+    with written_whole(path, "the JSON file") as fh:
+        fh.write(text)
+    return Path(path)
 
 
 def _refuse_constant(name: str) -> Any:

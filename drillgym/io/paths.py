@@ -1,9 +1,14 @@
-"""Output directories and parse errors of user files, reported in one line."""
+"""Output files written whole, output directories and parse errors of user files, reported in one line."""
 
 from __future__ import annotations
 
 import json
+import os
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import TextIO
 
 from ..errors import OutputPathError
 
@@ -61,3 +66,55 @@ def create_directory(directory: str | Path, for_path: str | Path | None = None) 
     except OSError as exc:
         raise OutputPathError(f"{for_path}: cannot create directory {directory} ({exc.strerror})") from None
     return directory
+
+
+def _umask() -> int:
+    """The process's file-creation mask (read by setting it back at once)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+@contextmanager
+def written_whole(path: str | Path, what: str, newline: str | None = None) -> Iterator[TextIO]:
+    """A text file that replaces ``path`` only once it is complete.
+
+    The text goes to a temporary file beside ``path``, renamed over it when the block ends without an
+    error: a full disk or an interruption leaves the old file (or none) and never half a file.  A
+    replaced file keeps its permissions; a new one gets the umask's.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file; replaced if it exists.
+    what : str
+        What is written, for the message (``"the JSON file"``).
+    newline : str, optional
+        As :func:`open`'s ``newline``.
+
+    Yields
+    ------
+    TextIO
+        The temporary file, open for writing (UTF-8).
+
+    Raises
+    ------
+    OutputPathError
+        The file cannot be written (a directory of that name, no permission, a full disk).
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise OutputPathError(f"{path}: is a directory, cannot write {what} there")
+    tmp = None
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent if str(path.parent) else ".")
+        with os.fdopen(fd, "w", encoding="utf-8", newline=newline) as fh:
+            yield fh
+        os.chmod(tmp, path.stat().st_mode & 0o7777 if path.exists() else 0o666 & ~_umask())
+        os.replace(tmp, path)
+        tmp = None
+    except OSError as exc:
+        raise OutputPathError(f"{path}: cannot write {what} ({exc.strerror or exc})") from None
+    finally:
+        if tmp is not None and os.path.exists(tmp):
+            os.unlink(tmp)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import IO
@@ -11,8 +10,8 @@ from typing import IO
 import numpy as np
 
 from ..configurations import Configuration
-from ..errors import OutputPathError
 from .jsonfile import dumps_json
+from .paths import written_whole
 from .timeseries import TimeSeries
 
 
@@ -45,30 +44,12 @@ def write_timeseries(path: str | Path, ts: TimeSeries) -> Path:
     names = list(ts.columns)
     meta = dumps_json(ts.meta)
     data = np.column_stack([ts.columns[n] for n in names])
-    tmp = None
-    try:  # a temporary file renamed over the target once complete: a full disk never leaves half a file
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write(f"# meta: {meta}\n")
-            fh.write(",".join(names) + "\n")
-            for row in data:
-                fh.write(",".join(_fmt(v) for v in row) + "\n")
-        os.chmod(tmp, path.stat().st_mode & 0o7777 if path.exists() else 0o666 & ~_umask())
-        os.replace(tmp, path)
-        tmp = None
-    except OSError as exc:
-        raise OutputPathError(f"{path}: cannot write the time series ({exc.strerror or exc})") from None
-    finally:
-        if tmp is not None and os.path.exists(tmp):
-            os.unlink(tmp)
+    with written_whole(path, "the time series", newline="") as fh:
+        fh.write(f"# meta: {meta}\n")
+        fh.write(",".join(names) + "\n")
+        for row in data:
+            fh.write(",".join(_fmt(v) for v in row) + "\n")
     return path
-
-
-def _umask() -> int:
-    """The process's file-creation mask (read by setting it back at once)."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 def trajectory_to_timeseries(traj, description: str = "") -> TimeSeries:

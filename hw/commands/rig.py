@@ -405,7 +405,8 @@ def _check_emulate_options(
     port, config, counts_per_rev, lvdt_noise, latency_ms, jitter_ms, period_ms, watchdog_ms, dt, alpha0, seed
 ) -> None:
     """Every option of ``rig emulate`` checked before the plant is built or the pseudo-terminal opened."""
-    from hw.checks import check_creatable, integer, number
+    from drillgym.io.outputs import check_creatable
+    from hw.checks import integer, number
     from hw.emulator import check_link_path
 
     if port is not None:
