@@ -35,7 +35,7 @@ import numpy as np
 from .batch_simulator import BatchSimulator
 from .configurations import Configuration, parse_configuration
 from .effects.composition import compose
-from .errors import EffectError, InputError, InputTypeError, SimulationError
+from .errors import InputError, InputTypeError, SimulationError
 from .integrators import ADAPTIVE, DEFAULT_ATOL, DEFAULT_DT, DEFAULT_RTOL, tableau
 from .lane_runner import LANE_BLOCK, LANES_MIN_BATCH, block_width, lane_chunks, pad_lanes, run_lanes
 from .params import N_PARAMS, RigParams
@@ -322,12 +322,7 @@ def check_one_run(config: Any, duration: Any, dt: Any, record_every: Any, effect
                 f"({duration:g} s) would not be recorded; choose a divisor of {round(steps)}"
             )
     comp, _ = compose(effects, effect_params)
-    idle = comp.not_acting_in(cfg.label)
-    if idle:
-        raise EffectError(
-            f"effects: {idle[0].name} does not act in the {cfg.label} configuration (it acts in "
-            f"{', '.join(idle[0].configurations)}); leave it out"
-        )
+    comp.refuse_not_acting(cfg.label)
 
 
 def simulate(

@@ -231,7 +231,7 @@ def test_observations_apply_a_user_measurement_effect(mode: str) -> None:
 def test_an_effect_that_does_not_act_in_the_configuration_is_refused(make: str) -> None:
     from drillgym.errors import InputError
 
-    with pytest.raises(InputError, match="lateral_anisotropy does not act in the torsional configuration"):
+    with pytest.raises(InputError, match="lateral_anisotropy: the effect does not act in the torsional configuration"):
         if make == "single":
             gym.make("drillgym/Torsional-v0", effects=["lateral_anisotropy"])
         else:

@@ -349,12 +349,7 @@ def compute_diagram(
     params = as_model(params)
     cfg = supported_configuration(config)
     check_diagram_options(umin, umax, sweep_step, sweep_duration, ds_max, sweep_umax)
-    for e in params.comp.effects:  # an effect the configuration does not have fails deep in the kernels
-        if e.configurations and cfg.label not in tuple(e.configurations):
-            raise InputError(
-                f"effect {e.name} does not act in the {cfg.label} configuration (it acts in "
-                f"{', '.join(e.configurations)}); leave it out"
-            )
+    params.comp.refuse_not_acting(cfg.label, "effect")  # else it fails deep in the kernels
     say = progress or (lambda msg: None)
     count = step or (lambda kind, k: None)
 

@@ -54,13 +54,7 @@ def check_effects_act(comp: Composition, config, option: str = "--add-effect") -
     InputError
         An effect whose ``configurations`` leave out ``config``.
     """
-    for e in comp.effects:
-        acts = tuple(e.configurations)
-        if acts and config.label not in acts:
-            raise InputError(
-                f"{option} {e.name}: the effect does not act in the {config.label} configuration "
-                f"(it acts in {', '.join(acts)}); leave it out"
-            )
+    comp.refuse_not_acting(config.label, option)
 
 
 def compose_named(

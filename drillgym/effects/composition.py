@@ -376,6 +376,28 @@ class Composition:
         """
         return [e for e in self.effects if e.configurations and configuration not in tuple(e.configurations)]
 
+    def refuse_not_acting(self, configuration: str, option: str = "effects") -> None:
+        """Refuse, in one line naming ``option``, an effect that does not act in ``configuration``.
+
+        Parameters
+        ----------
+        configuration : str
+            The configuration label of the run or the recording (``"torsional"``).
+        option : str, optional
+            The option or argument that named the effects, for the message.
+
+        Raises
+        ------
+        EffectError
+            The first effect of :meth:`not_acting_in`: it would change nothing, silently.
+        """
+        idle = self.not_acting_in(configuration)
+        if idle:
+            raise EffectError(
+                f"{option} {idle[0].name}: the effect does not act in the {configuration} configuration (it acts "
+                f"in {', '.join(idle[0].configurations)}); leave it out"
+            )
+
     def signal_path(self, among: Iterable[str] | None = None) -> list[str]:
         """The path of the command to the motor: the Delay effects (their delays add up, so their order does not
         matter), then the Input effects in the composition's order, the first nearest the command.

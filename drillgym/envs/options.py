@@ -190,13 +190,7 @@ class EnvOptions:
         from ..effects.composition import compose
 
         comp, values = compose(self.effects, self.effect_params)
-        for e in comp.effects:  # an effect that does not act here would change nothing, silently
-            acts = tuple(e.configurations)
-            if acts and cfg.label not in acts:
-                raise InputError(
-                    f"option 'effects': {e.name} does not act in the {cfg.label} configuration (it acts in "
-                    f"{', '.join(acts)}); leave it out"
-                )
+        comp.refuse_not_acting(cfg.label, "option 'effects'")
         object.__setattr__(self, "effects", comp)
         object.__setattr__(self, "effect_params", dict(values))
         unknown = [n for n in self.randomize_names if n not in comp.param_names]
