@@ -378,13 +378,14 @@ def train(
         distill_kwargs.pop("teacher", None)
     if teacher is None and hp["n_timesteps"] < 1:
         raise InputError(f"number of timesteps must be >= 1 without a teacher, got {hp['n_timesteps']!r}")
-    out = create_directory(out)
+    if teacher is not None and not resume:
+        if algo != "ppo" or hp.get("normalize_obs") or int(hp.get("frame_stack", 1)) != 1:
+            raise InputError("a teacher is distilled into PPO without observation normalisation or frame stacking")
     _warn_short_run(cls, hp)
     venv = _env(env_id, hp, hp["n_envs"], seed)
     config = {"env_id": env_id, "algo": algo, "seed": int(seed), "hyperparams": hp, "command": command}
     if teacher is not None:
         config["teacher"] = {"policy": str(teacher), **distill_kwargs}
-    (out / CONFIG_FILE).write_text(yaml.safe_dump(config, sort_keys=False))
     ckpt = out / "checkpoints" / "latest.zip"
     tb = str(out / "tb") if tensorboard else None
     if resume:
@@ -410,10 +411,11 @@ def train(
                 "actor_dim": venv.observation_space.shape[0] - len(PRIVILEGED),
             }
         model = cls(policy, venv, seed=seed, tensorboard_log=tb, verbose=verbose, **kw)
+    # written once the environment and the model took every option: a refused --set key leaves nothing behind
+    out = create_directory(out)
+    (out / CONFIG_FILE).write_text(yaml.safe_dump(config, sort_keys=False))
     t_distill = time.perf_counter()
     if teacher is not None and not resume:
-        if algo != "ppo" or hp.get("normalize_obs") or int(hp.get("frame_stack", 1)) != 1:
-            raise InputError("a teacher is distilled into PPO without observation normalisation or frame stacking")
         from .distill import distill
 
         first = {k: v for k, v in distill_kwargs.items() if k != "then"}

@@ -441,6 +441,16 @@ def test_train(data, a, root):
     check_case(case, root)
 
 
+@pytest.mark.parametrize("setting", ["nope_key=1", "env_kwargs.nope=1"])
+def test_a_refused_train_setting_leaves_no_run_directory(setting, root):
+    """The run directory (and its config.yml) is written once the algorithm took every --set key."""
+    run = fresh_dir(root) / "run"
+    code, _, err = run_cli("train", "--out", str(run), "--timesteps", "1", "--no-progress", "--no-tensorboard",
+                           "--set", setting)  # fmt: skip
+    assert_refused(code, err, "--set")
+    assert not run.exists()
+
+
 @examples(8)
 @given(data=st.data())
 def test_combine_policies(data, a, root):
@@ -481,6 +491,17 @@ def _alarm(signum, frame):  # pragma: no cover - only when a command hangs
     raise KeyboardInterrupt
 
 
+def check_case_within(case: Case, root: Path, seconds: int) -> None:
+    """:func:`check_case`, interrupted after ``seconds`` (a value wrongly accepted would run on)."""
+    old = signal.signal(signal.SIGALRM, _alarm)
+    signal.alarm(seconds)
+    try:
+        check_case(case, root)
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+
+
 @examples(12)
 @given(data=st.data())
 def test_rig_run(data, a, root):
@@ -516,14 +537,7 @@ def test_rig_run(data, a, root):
         "--reconnect": nonneg_int_bad(),
         "--reconnect-wait": st.one_of(finite_float_bad(), st.just("-1")),
     }
-    case = draw_case(data, table, base)
-    old = signal.signal(signal.SIGALRM, _alarm)
-    signal.alarm(20)
-    try:
-        check_case(case, root)
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, old)
+    check_case_within(draw_case(data, table, base), root, seconds=20)
 
 
 @examples(10)
@@ -548,14 +562,7 @@ def test_rig_emulate(data, a, root):
         "--alpha0": st.one_of(finite_float_bad(), st.just("1e9")),
         "--seed": ["abc", "1.5", ""],
     }
-    case = draw_case(data, table, base)
-    old = signal.signal(signal.SIGALRM, _alarm)
-    signal.alarm(10)
-    try:
-        check_case(case, root)
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, old)
+    check_case_within(draw_case(data, table, base), root, seconds=10)
 
 
 @examples(6)
