@@ -279,6 +279,12 @@ def diagnose_cmd(
         help="also try this effect (name or path/to/file.py:NAME; repeatable); default candidates: the library's",
     ),
     map_: list[str] = typer.Option([], "--map", help=MAP_HELP),
+    model_out: Path | None = typer.Option(
+        None,
+        "--model-out",
+        help="write the model selected (base parameters, re-identified ones included, and the effects with "
+        f"their fitted values and standard errors) as a model file (.json or .yaml); {CREATES_DIRS}",
+    ),
 ) -> None:
     """Which SET of effects the recording shows (forward selection with refit, the base parameters
     re-identified alongside), which base parameters moved, and a candidate effect file for what the
@@ -291,6 +297,10 @@ def diagnose_cmd(
         raise InputError(f"--candidate-out {candidate_out}: the effect file must end in .py")
     if candidate_out is not None:
         check_output_file(candidate_out, "--candidate-out", suffixes=(".py",))
+    if model_out is not None:
+        if model_out.suffix.lower() not in (".json", ".yaml", ".yml"):
+            raise InputError(f"--model-out {model_out}: a model file must end in .json, .yaml or .yml")
+        check_output_file(model_out, "--model-out", suffixes=(".json", ".yaml", ".yml"))
     seg = _segment(segment)
     base, model, values, _ = _model(params, add_effect, effect_param)
     with option("--candidate"):
@@ -315,6 +325,10 @@ def diagnose_cmd(
         candidate_out=candidate_out or data.with_name(data.stem + "_candidate.py"),
     )
     d = diagnose(ex, base, options=options)
+    if model_out is not None:
+        from ..identification.model_file import write_model
+
+        write_model(output_file(model_out, "--model-out", suffixes=(".json", ".yaml", ".yml")), *d.selected_model())
     if as_json:
         typer.echo(_json(d.to_json()))
     else:
@@ -326,6 +340,8 @@ def diagnose_cmd(
                 f"  written to {c.effect_file.rsplit(':', 1)[0]}; fit it: drillgym identify {data} "
                 f"--add-effect {c.effect_file} --out p.json"
             )
+        if model_out is not None:
+            typer.echo(f"wrote {model_out}: the model selected ({'+'.join(d.selected) or 'no effect added'})")
 
 
 def identify_cmd(

@@ -7,7 +7,9 @@ commands (``identify``, ``compare``, ``diagnose``)::
      "effects": [{"name": "string_cubic",
                   "spec": "examples/effects/string_cubic.py:string_cubic",
                   "file": "/abs/path/examples/effects/string_cubic.py",
-                  "values": {"c3": 0.0151}}]}
+                  "values": {"c3": 0.0151},
+                  "std": {"c3": 0.0004}}],                 # optional: standard errors of the values
+     "std": {"km": 0.0012}}                               # optional: standard errors of base parameters
 
 A file of RigParams only (the older format, or ``{"params": {...}}`` alone) is a model without
 effects.  YAML (``.yaml``/``.yml``) holds the same structure.  An effect's ``spec`` is what
@@ -18,6 +20,7 @@ directory, the file is looked for next to the model file, then at ``file``.
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,11 +36,13 @@ __all__ = ["ModelFile", "read_model", "write_model"]
 
 @dataclass
 class ModelFile:
-    """A model read from a file: base parameters, effect specs (in order) and all effect values."""
+    """A model read from a file: base parameters, effect specs (in order), all effect values, and the
+    standard errors the identification reported (by parameter name, base or effect; absent: unknown)."""
 
     params: RigParams
     specs: list[str] = field(default_factory=list)
     values: dict[str, float] = field(default_factory=dict)
+    std: dict[str, float] = field(default_factory=dict)
 
     def composition(self) -> tuple[Composition, dict[str, float]]:
         return compose(self.specs, self.values)
@@ -99,6 +104,7 @@ def read_model(path: str | Path) -> ModelFile:
     params = RigParams.from_dict(data, source=str(path), partial=True)  # a partial file: the rest keep their default
     specs: list[str] = []
     values: dict[str, float] = {}
+    std = _std(data.get("std", {}) if isinstance(data, Mapping) else {}, path, "'std'")
     effects = data.get("effects", []) if isinstance(data, Mapping) else []
     if not isinstance(effects, list):
         raise ParameterError(f"{path}: 'effects' must be a list of {{spec, values}} records")
@@ -110,14 +116,34 @@ def read_model(path: str | Path) -> ModelFile:
         if not isinstance(vals, Mapping):
             raise ParameterError(f"{path}: effect record {k}: 'values' must map parameter names to numbers")
         values.update(vals)
+        std.update(_std(rec.get("std", {}), path, f"effect record {k}: 'std'"))
     try:
         compose(specs, values)
     except (EffectError, ParameterError) as exc:
         raise ParameterError(f"{path}: {exc}") from None
-    return ModelFile(params, specs, {k: float(v) for k, v in values.items()})
+    return ModelFile(params, specs, {k: float(v) for k, v in values.items()}, std)
 
 
-def write_model(path: str | Path, params: RigParams, records: Sequence[Mapping[str, Any]] = ()) -> Path:
+def _std(raw: Any, path: Path, what: str) -> dict[str, float]:
+    """Standard errors ``name -> number`` (null: unknown, left out)."""
+    if not isinstance(raw, Mapping):
+        raise ParameterError(f"{path}: {what} must map parameter names to standard errors")
+    out = {}
+    for k, v in raw.items():
+        if v is None:
+            continue
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0:
+            raise ParameterError(f"{path}: {what}: the standard error of {k!r} must be a number >= 0, got {v!r}")
+        out[str(k)] = float(v)
+    return out
+
+
+def write_model(
+    path: str | Path,
+    params: RigParams,
+    records: Sequence[Mapping[str, Any]] = (),
+    std: Mapping[str, float] | None = None,
+) -> Path:
     """Write base parameters and effect records as JSON or YAML.
 
     Parameters
@@ -127,7 +153,9 @@ def write_model(path: str | Path, params: RigParams, records: Sequence[Mapping[s
     params : RigParams
         The base parameters.
     records : sequence of mapping, optional
-        Effect records ``{"name", "spec", "file", "values"}``.
+        Effect records ``{"name", "spec", "file", "values"}`` (optionally ``"std"``: their standard errors).
+    std : mapping of str to float, optional
+        Standard errors of base parameters (their units); non-finite ones are left out (unknown).
 
     Returns
     -------
@@ -135,7 +163,10 @@ def write_model(path: str | Path, params: RigParams, records: Sequence[Mapping[s
         The file written.
     """
     path = Path(path)
-    data = {"params": params.to_dict(), "effects": [dict(r) for r in records]}
+    data: dict[str, Any] = {"params": params.to_dict(), "effects": [dict(r) for r in records]}
+    known = {k: float(v) for k, v in (std or {}).items() if math.isfinite(v)}
+    if known:
+        data["std"] = known
     if path.suffix.lower() in (".yaml", ".yml"):
         import yaml
 
