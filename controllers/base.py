@@ -67,6 +67,10 @@ class Controller(ABC):
     params : RigParams, optional
         The model the controller is designed on (default: the identified set).  The plant may differ
         (parameter-mismatch scenarios); the controller never sees the truth.
+    model : ControllerModel, ModelFile or path, optional
+        A model with effects (:mod:`controllers.model`, a model file), instead of ``params``.  A controller
+        whose :attr:`uses_effects` is False refuses a model with effects, naming the first; a model-based one
+        refuses the effects its model has no place for.
     dt : float, optional
         Control period (s); default :attr:`default_dt` of the class (10 ms; the observer samples the encoder at
         500 Hz).
@@ -78,6 +82,8 @@ class Controller(ABC):
     uses: ClassVar[tuple[str, ...]] = ()
     default_dt: ClassVar[float] = DEFAULT_CONTROL_DT
     """Control period (s) when none is given: the period the controller is designed and evaluated at."""
+    uses_effects: ClassVar[bool] = False
+    """Whether the controller's own model runs the effects of the model it is built on."""
 
     def __init__(
         self,
@@ -87,6 +93,7 @@ class Controller(ABC):
         params: RigParams | None = None,
         dt: float | None = None,
         u_max: float = U_MAX,
+        model=None,
     ) -> None:
         dt = type(self).default_dt if dt is None else dt
         if not (np.isfinite(dt) and dt > 0):
@@ -96,7 +103,18 @@ class Controller(ABC):
         self.config = parse_configuration(config)
         if not self.config.has_lower:
             raise InputError(f"controllers act on the lower disc; configuration {self.config.label!r} has none")
-        self.params = params or RigParams()
+        from .model import model_of
+
+        self.effects = model_of(model, params)
+        """The model the controller is built on (:class:`controllers.model.ControllerModel`)."""
+        if self.effects.composition.effects:
+            if not self.uses_effects:
+                raise InputError(
+                    f"controller {self.name!r} is built on base parameters only and cannot use the model's effect "
+                    f"{self.effects.composition.names[0]!r}; give it the base parameters (a model without effects)"
+                )
+            self.effects.check_usable(f"controller {self.name!r}", self.uses)
+        self.params = self.effects.params
         self.dt = float(dt)
         self.u_max = float(u_max)
         self._omega_ref_default = None if omega_ref is None else _check_ref(omega_ref)

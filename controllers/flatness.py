@@ -97,6 +97,10 @@ class FlatnessLaw:
         curvature times 1 + d), as the estimator's :class:`controllers.kalman.DisturbanceModel`.
     integral_high : float, optional
         Weight of the integral for the other targets (0: none).
+    brake : callable, optional
+        ``brake(w)`` -> brake torque (N m) at lower speeds w (rad/s, (n,)) of the model with its effects (e.g. at
+        the estimated lower angle: :class:`controllers.observer.ObserverController`); default the base law of
+        ``params``.  Its slope and curvature are taken in w alone.
     """
 
     def __init__(
@@ -116,6 +120,7 @@ class FlatnessLaw:
         integral: float = 0.0,
         disturbance: str = "offset",
         integral_high: float = 0.0,
+        brake=None,
     ) -> None:
         if not (np.isfinite(tau_ref) and tau_ref > 0):
             raise InputError(f"tau_ref must be a positive time (s), got {tau_ref!r}")
@@ -131,6 +136,7 @@ class FlatnessLaw:
         if disturbance not in ("offset", "scale"):
             raise InputError(f"disturbance must be 'offset' or 'scale', got {disturbance!r}")
         self.scale = disturbance == "scale"
+        self.brake = brake
         if low_speed > approach:
             raise InputError(f"approach ({approach} rad/s) must not be below low_speed ({low_speed} rad/s)")
         self.p, self.dt, self.tau = params, float(dt), float(tau_ref)
@@ -185,7 +191,7 @@ class FlatnessLaw:
 
     def lower_friction(self, w: np.ndarray) -> np.ndarray:
         """Brake torque Tfl(w) (N m) of the design model at speeds w != 0 (rad/s, (n,))."""
-        return lower_friction(w, self.p)
+        return lower_friction(w, self.p) if self.brake is None else self.brake(w)
 
     def upper_friction(self, w: np.ndarray) -> np.ndarray:
         """Upper friction torque Tfu(w) (N m) of the design model at speeds w != 0 (rad/s, (n,))."""

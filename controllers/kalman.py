@@ -23,6 +23,13 @@ rest (stick).
 Measurement: the quantized motor-side angle theta_u only; its noise variance
 is q^2/12 (q = 2 pi / counts per rev) plus any extra white noise.
 
+A model with effects (``model=``, :class:`controllers.model.ControllerModel`) extends it: a motor lag
+adds the state ``u_m`` (V; the motor torque is km u_m), a delay the line of past commands (V; exact
+zero-order hold of the fractional delay, :func:`controllers.model.delayed_discretisation`), after
+``d`` (and ``du``); Friction effects on the lower disc replace the brake law, its stick set and the
+slope of the covariance propagation by the composition's compiled law at the estimated lower angle
+theta_u + alpha.
+
 Three estimators share the model: :class:`KalmanObserver` (filterpy
 ``KalmanFilter``, time-varying covariance, batched: the covariance does not
 depend on the data, so one filter carries the states of n trajectories as the
@@ -46,6 +53,8 @@ from drillgym.equilibria import linearise, lower_damping, slip_equilibrium
 from drillgym.errors import InputError
 from drillgym.friction import lower_friction
 from drillgym.measurement import DEFAULT_COUNTS_PER_REV
+
+from .model import ControllerModel, delayed_discretisation
 
 __all__ = [
     "STATES",
@@ -86,6 +95,36 @@ class DisturbanceModel:
     disturbance: str = "offset"
     """What the state ``d`` is: 'offset' (N m added to the nominal brake law) or 'scale'
     (relative level: the brake law times 1 + d while the disc slips)."""
+    effects: ControllerModel | None = None
+    """The model with its effects (None: the base model of ``params``)."""
+    has_du: bool = False
+    """Whether the state ``du`` (row :data:`I_DU`) is there."""
+    lag_index: int = -1
+    """Row of the motor-lag state u_m (V); -1 without a lag."""
+    line_index: int = -1
+    """First row of the line of past commands u[k-1], u[k-2], ... (V); -1 without a delay."""
+    delay_steps: int = 0
+    """Whole control periods of the delay (the command the motor sees now is u[k - delay_steps])."""
+
+    def motor_voltage(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """The voltage acting on the motor now (V, (n,)): the lag state, else the delayed command, else u."""
+        if self.lag_index >= 0:
+            return x[self.lag_index]
+        if self.line_index >= 0 and self.delay_steps > 0:
+            return x[self.line_index + self.delay_steps - 1]
+        return u
+
+    def brake_law(self, w: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """Brake torque (N m, (n,)) of the model at lower speeds w (rad/s, != 0) and the estimated lower angles."""
+        if self.effects is None or not self.effects.friction_effects:
+            return lower_friction(w, self.params)
+        return self.effects.lower_friction(w, x[I_TU] + x[I_AL])
+
+    def stick_limit(self, x: np.ndarray) -> np.ndarray | float:
+        """Largest torque (N m) the brake holds the resting disc with, at the estimated lower angles."""
+        if self.effects is None or not self.effects.friction_effects:
+            return self.params.Ts
+        return self.effects.stick_limit(x[I_TU] + x[I_AL])
 
     @property
     def upper_coulomb(self) -> float:
@@ -112,9 +151,9 @@ class DisturbanceModel:
             return np.zeros(x.shape[1])
         wl = x[I_WL]
         level = 1.0 + x[I_D] if self.disturbance == "scale" else 1.0
-        ts = self.params.Ts * level
+        ts = self.stick_limit(x) * level
         hold = np.clip(-self.params.ktheta * x[I_AL], -ts, ts)
-        slip = level * lower_friction(np.where(np.abs(wl) > eps, wl, eps), self.params)
+        slip = level * self.brake_law(np.where(np.abs(wl) > eps, wl, eps), x)
         return np.where(np.abs(wl) > eps, slip, hold)
 
     def lower_friction(self, x: np.ndarray) -> np.ndarray:
@@ -130,8 +169,8 @@ class DisturbanceModel:
         torque that keeps the disc at rest, limited to the stick set.
         """
         p = self.params
-        drive = p.km * u + p.ktheta * x[I_AL] - self.upper_damping * x[I_WU]
-        if x.shape[0] > I_DU:
+        drive = p.km * self.motor_voltage(x, u) + p.ktheta * x[I_AL] - self.upper_damping * x[I_WU]
+        if self.has_du:
             drive = drive + x[I_DU]
         rest = np.clip(drive, -p.Tcu + p.dTcu, p.Tcu + p.dTcu)
         slip = np.where(x[I_WU] > 0, p.Tcu + p.dTcu, -(p.Tcu - p.dTcu))
@@ -150,6 +189,7 @@ def disturbance_model(
     friction_known: bool = True,
     disturbance: str = "offset",
     sigma_du: float = 0.0,
+    model: ControllerModel | None = None,
 ) -> DisturbanceModel:
     """Build the estimator's model.
 
@@ -177,7 +217,15 @@ def disturbance_model(
     sigma_du : float, optional
         > 0 adds a sixth state ``du`` (N m), a torque on the upper disc that the model misses (motor constant,
         upper friction, lag errors), as a random walk of this intensity (N m/sqrt(s)).
+    model : ControllerModel, optional
+        The model with its effects (its base parameters replace ``params``): a motor lag becomes a state, a
+        delay a line of past commands, lower-disc friction effects change the brake law (module doc).
     """
+    if model is not None:
+        if params is not None and params != model.params:
+            raise InputError("give the estimator's base parameters either as params or in its model, not both")
+        model.check_usable("the motor-angle Kalman filter", ("theta_u",))
+        params = model.params
     p = params or RigParams()
     if not (np.isfinite(dt) and dt > 0):
         raise InputError(f"dt must be a positive period (s), got {dt!r}")
@@ -224,9 +272,6 @@ def disturbance_model(
         A = np.pad(A, ((0, 1), (0, 1)))
         A[I_WU, I_DU] = 1.0 / p.Ju
         B = np.pad(B, ((0, 1), (0, 0)))
-    C = np.zeros((1, nx))
-    C[0, I_TU] = 1.0
-    sysd = control.c2d(control.ss(A, B, C, np.zeros((1, 3))), dt, method="zoh")
     G = np.zeros((nx, nx - 2))
     G[I_WU, 0] = 1.0 / p.Ju
     G[I_WL, 1] = 1.0 / p.Jl
@@ -234,11 +279,45 @@ def disturbance_model(
     if nx == 6:
         G[I_DU, 3] = 1.0
     Qc = np.diag([sigma_upper**2, sigma_lower**2, sigma_d**2, sigma_du**2][: nx - 2])
+    lag = model.lag if model is not None else 0.0
+    lag_index = -1
+    if lag > 0:  # u_m: tau_m du_m/dt = u - u_m, the motor torque km u_m
+        lag_index, nx = nx, nx + 1
+        A, B, G = np.pad(A, ((0, 1), (0, 1))), np.pad(B, ((0, 1), (0, 0))), np.pad(G, ((0, 1), (0, 0)))
+        A[:, lag_index] = B[:, 0]
+        B[:, 0] = 0.0
+        A[lag_index, lag_index] = -1.0 / lag
+        B[lag_index, 0] = 1.0 / lag
     Qd = _discrete_noise(A, G @ Qc @ G.T, dt)
+    delay = model.delay if model is not None else 0.0
+    if delay > 0:
+        sysd = delayed_discretisation(A, B, dt, delay)
+        Ad, Bd, n_line = sysd.Ad, sysd.Bd, sysd.n_line
+        Qd = np.pad(Qd, ((0, n_line), (0, n_line)))
+    else:
+        sysd = control.c2d(control.ss(A, B, np.eye(nx)[:1], np.zeros((1, 3))), dt, method="zoh")
+        Ad, Bd, n_line = np.asarray(sysd.A), np.asarray(sysd.B), 0
+    C = np.zeros((1, nx + n_line))
+    C[0, I_TU] = 1.0
     q = 2.0 * np.pi / counts_per_rev if counts_per_rev > 0 else 0.0
     R = np.array([[q * q / 12.0 + angle_noise**2 + 1e-12]])
     return DisturbanceModel(
-        p, float(dt), A, B, np.asarray(sysd.A), np.asarray(sysd.B), C, Qd, R, friction_known, disturbance
+        p,
+        float(dt),
+        A,
+        B,
+        Ad,
+        Bd,
+        C,
+        Qd,
+        R,
+        friction_known,
+        disturbance,
+        effects=model,
+        has_du=sigma_du > 0,
+        lag_index=lag_index,
+        line_index=nx if n_line else -1,
+        delay_steps=int(np.floor(delay / dt + 1e-9)) if n_line else 0,
     )
 
 
@@ -281,6 +360,8 @@ class KalmanObserver:
     def __init__(
         self, model: DisturbanceModel, *, p0_alpha: float = 5.0, p0_speed: float = 2.0, p0_d: float = 0.3
     ) -> None:
+        if model.Ad.shape[0] != 5:
+            raise InputError("the linear KalmanObserver takes the 5-state model; use ExtendedKalmanObserver")
         self.model = model
         self.kf = KalmanFilter(dim_x=5, dim_z=1, dim_u=3)
         self.kf.F = model.Ad.copy()
@@ -367,8 +448,9 @@ class ExtendedKalmanObserver:
             raise InputError("the extended filter needs the nominal brake law (friction_known=True)")
         self.model = model
         self.h = float(slope_step)
-        self.dim = int(model.Ad.shape[0])  # 5, or 6 with the upper-disc torque du
-        self.P0 = np.diag([model.R[0, 0], p0_speed**2, p0_alpha**2, p0_speed**2, p0_d**2, p0_du**2][: self.dim])
+        self.dim = int(model.Ad.shape[0])  # 5, 6 with the upper-disc torque du, then a lag state, a delay line
+        p0 = [model.R[0, 0], p0_speed**2, p0_alpha**2, p0_speed**2, p0_d**2] + ([p0_du**2] if model.has_du else [])
+        self.P0 = np.diag(p0 + [0.0] * (self.dim - len(p0)))  # the rig at rest: no voltage at the motor, none sent
         self.x = np.zeros((self.dim, 0))
         """Current estimates (dim, n), rows in :data:`STATES` order (then du)."""
         self.P = np.zeros((0, self.dim, self.dim))
@@ -409,13 +491,13 @@ class ExtendedKalmanObserver:
         m, p, h = self.model, self.model.params, self.h
         wl = x[I_WL]
         w = np.maximum(np.abs(wl), 2 * h)
-        slope = (lower_friction(w + h, p) - lower_friction(w - h, p)) / (2 * h)
+        slope = (m.brake_law(w + h, x) - m.brake_law(w - h, x)) / (2 * h)
         slipping = np.abs(wl) > 1e-3
         slope = np.where(slipping, slope, 0.0)  # a disc at rest has no slope
         F = np.broadcast_to(m.Ad, (x.shape[1], self.dim, self.dim)).copy()
         if m.disturbance == "scale":  # Tfl = (1 + d) T(omega_l): slope scaled, d acts through T
             slope = slope * (1.0 + x[I_D])
-            level = np.where(slipping, lower_friction(w, p), 0.0)
+            level = np.where(slipping, m.brake_law(w, x), 0.0)
             F[:, I_WL, I_D] -= m.dt * level / p.Jl
             F[:, I_AL, I_D] -= 0.5 * m.dt**2 * level / p.Jl
         F[:, I_WL, I_WL] -= m.dt * slope / p.Jl

@@ -130,6 +130,7 @@ class ObserverController(Controller):
     name = "observer"
     uses = ("theta_u",)
     default_dt = 0.002
+    uses_effects = True
 
     def __init__(
         self,
@@ -165,6 +166,7 @@ class ObserverController(Controller):
             sigma_lower=sigma_lower,
             disturbance=disturbance,
             sigma_du=sigma_du,
+            model=self.effects,
         )
         self.p0_du = float(p0_du)
         # targets below low_speed (rad/s): reached from `approach` by a ramp down, slower error chain with
@@ -197,9 +199,14 @@ class ObserverController(Controller):
 
     def new_law(self, target: np.ndarray) -> FlatnessLaw:
         """A fresh law with this controller's options, started from rest towards ``target`` (rad/s, (n,))."""
-        law = FlatnessLaw(self.params, self.dt, **self.law_options)
+        brake = self._brake if self.effects.friction_effects else None
+        law = FlatnessLaw(self.params, self.dt, brake=brake, **self.law_options)
         law.reset(target)
         return law
+
+    def _brake(self, w: np.ndarray) -> np.ndarray:
+        """The model's brake torque (N m) at speeds w (rad/s) and the estimated lower angles (its effects)."""
+        return self.model.brake_law(w, self.observer.x)
 
     @property
     def estimate(self) -> np.ndarray:
@@ -209,7 +216,7 @@ class ObserverController(Controller):
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
         x = self.observer.update(m["theta_u"])
         u = self.law(x[I_WU], x[I_AL], x[I_WL], x[I_D])
-        if x.shape[0] > I_DU:  # the estimated upper-disc torque the model misses, cancelled by the motor
+        if self.model.has_du:  # the estimated upper-disc torque the model misses, cancelled by the motor
             u = u - x[I_DU] / self.params.km
         u = np.clip(u, -self.u_max, self.u_max)
         self.observer.predict(u)
@@ -246,6 +253,7 @@ class LQGController(Controller):
 
     name = "lqg"
     uses = ("theta_u",)
+    uses_effects = True
 
     def __init__(
         self,
@@ -276,6 +284,7 @@ class LQGController(Controller):
             sigma_d=sigma_d,
             sigma_upper=sigma_upper,
             sigma_lower=sigma_lower,
+            model=self.effects,
         )
         self.weights = tuple(weights)
         self.r = float(r)
@@ -287,7 +296,7 @@ class LQGController(Controller):
         gains = {w: lqr_gain(w, self.params, self.dt, weights=self.weights, r=self.r, slope=self.slope) for w in refs}
         self.K = np.stack([gains[w] for w in self.omega_ref])  # (n, 3)
         self.Kf, _ = steady_state_gain(self.model)
-        self._x = np.zeros((5, self.n))
+        self._x = np.zeros((self.model.Ad.shape[0], self.n))
         self._x[I_TU] = np.broadcast_to(m.get("theta_u", 0.0), (self.n,))
         self._t = 0.0
         self._theta0 = self._x[I_TU].copy()

@@ -157,7 +157,7 @@ class RobustObserverController(ObserverController):
         law.target = np.maximum(self.omega_ref - self.outer_gain * z, 0.1 * self.omega_ref)
         with np.errstate(all="ignore"):
             u = law(x[I_WU], x[I_AL], x[I_WL], x[I_D])
-            if x.shape[0] > I_DU:
+            if self.model.has_du:
                 u = u - x[I_DU] / self.params.km
         bad = (
             ~np.isfinite(u)

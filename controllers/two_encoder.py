@@ -18,6 +18,11 @@ measuring theta_u and theta_l:
   ``hold`` s, then a linear ramp over ``ramp`` s), through a first-order lag ``tau_ref``; designs on a
   0.25 rad/s grid of speeds, the nearest one used.
 
+Built on a model with effects (``model=``, :mod:`controllers.model`): the model's motor lag replaces the
+design lag ``tau``, its delay adds the line of past commands to the design model (exact zero-order hold, LQR
+and Kalman gains on the augmented state), and its lower-disc friction effects set the equilibrium's
+winding and voltage at the estimated lower angle (the design slope stays the base law's).
+
 Its robustness was checked on the linearisation first: the default design is stable on all 40
 plants of a tuning population (seed 11 of the default uncertainty set, lags and delays included) at
 every speed from 0.3 to 8 rad/s; the evaluation population is another seed.
@@ -25,12 +30,11 @@ every speed from 0.3 to 8 rad/s; the evaluation population is another seed.
 
 from __future__ import annotations
 
-from dataclasses import astuple, dataclass
+from dataclasses import astuple, dataclass, replace
 from functools import lru_cache
 
 import control
 import numpy as np
-from scipy.linalg import expm
 
 from drillgym import RigParams
 from drillgym.equilibria import equilibrium_voltage
@@ -39,6 +43,7 @@ from drillgym.friction import lower_friction
 
 from .base import Controller
 from .limits import brake_slope
+from .model import delayed_discretisation
 
 __all__ = ["TwoEncoderLQG", "TwoEncoderDesign"]
 
@@ -62,16 +67,10 @@ class TwoEncoderDesign:
     r: float = 3.0  # V^-2
 
 
-def _discretise(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    n, m = A.shape[0], B.shape[1]
-    M = expm(np.block([[A, B], [np.zeros((m, n + m))]]) * dt)
-    return M[:n, :n], M[:n, n:]
-
-
 @lru_cache(maxsize=512)
-def _design(params: RigParams, omega: float, dt: float, o: TwoEncoderDesign):
+def _design(params: RigParams, omega: float, dt: float, o: TwoEncoderDesign, delay: float = 0.0):
     """(A, B, C, K, L) of the discrete design at ``omega`` (rad/s); states (theta_u, omega_u, alpha,
-    omega_l, u_a, d) in deviations from the equilibrium."""
+    omega_l, u_a, d) in deviations from the equilibrium, then the line of past commands of a ``delay`` (s)."""
     p = params
     s = brake_slope(omega, p)
     if s < 0:
@@ -85,20 +84,23 @@ def _design(params: RigParams, omega: float, dt: float, o: TwoEncoderDesign):
     A[4, 4] = -1.0 / o.tau
     B = np.zeros((6, 1))
     B[4, 0] = 1.0 / o.tau
-    Ad, Bd = _discretise(A, B, dt)
-    C = np.zeros((2, 6))
+    sysd = delayed_discretisation(A, B, dt, delay)
+    Ad, Bd, nx = sysd.Ad, sysd.Bd, 6 + sysd.n_line
+    C = np.zeros((2, nx))
     C[0, 0] = 1.0
     C[1, 0], C[1, 2] = 1.0, 1.0  # theta_l = theta_u + alpha
-    G = np.zeros((6, 3))
+    G = np.zeros((nx, 3))
     G[1, 0], G[3, 1], G[5, 2] = 1.0 / p.Ju, 1.0 / p.Jl, 1.0
-    Qd = G @ np.diag([o.sigma_upper**2, o.sigma_lower**2, o.sigma_d**2]) @ G.T * dt + 1e-12 * np.eye(6)
+    Qd = G @ np.diag([o.sigma_upper**2, o.sigma_lower**2, o.sigma_d**2]) @ G.T * dt + 1e-12 * np.eye(nx)
     rv = (2 * np.pi / o.counts) ** 2 / 12 + o.noise_floor**2
     P, _, _ = control.dare(Ad.T, C.T, Qd, rv * np.eye(2))
     P = np.asarray(P)
     L = P @ C.T @ np.linalg.inv(C @ P @ C.T + rv * np.eye(2))
-    Q = np.diag([o.q_theta, o.q_omega_u, 0.0, o.q_omega_l, 0.0])
-    K5, _, _ = control.dlqr(Ad[:5, :5], Bd[:5], Q, np.array([[o.r]]))
-    K = np.hstack([np.asarray(K5), [[0.0]]])
+    keep = [0, 1, 2, 3, 4] + list(range(6, nx))  # d is estimated, not controlled
+    Q = np.diag([o.q_theta, o.q_omega_u, 0.0, o.q_omega_l, 0.0] + [0.0] * sysd.n_line)
+    Ks, _, _ = control.dlqr(Ad[np.ix_(keep, keep)], Bd[keep], Q, np.array([[o.r]]))
+    K = np.zeros((1, nx))
+    K[0, keep] = np.asarray(Ks)[0]
     return Ad, Bd, C, K, L
 
 
@@ -129,6 +131,7 @@ class TwoEncoderLQG(Controller):
     name = "lqg-2enc"
     uses = ("theta_u", "theta_l")
     default_dt = 0.002
+    uses_effects = True
 
     def __init__(
         self,
@@ -149,6 +152,9 @@ class TwoEncoderLQG(Controller):
         if not (np.isfinite(tau_ref) and tau_ref > 0):
             raise InputError(f"tau_ref must be a positive time (s), got {tau_ref!r}")
         self.design = design or TwoEncoderDesign()
+        if self.effects.lag > 0:  # the model's motor lag instead of the design's robust middle
+            self.design = replace(self.design, tau=self.effects.lag)
+        self.delay = self.effects.delay
         if not all(np.isfinite(v) and v > 0 for v in astuple(self.design)[:3]):
             raise InputError(f"design: tau, slope_margin and the noise levels must be positive, got {self.design}")
         self.approach, self.hold, self.ramp, self.tau_ref = float(approach), float(hold), float(ramp), float(tau_ref)
@@ -173,7 +179,7 @@ class TwoEncoderLQG(Controller):
         p = self.params
         self._alpha_grid = -lower_friction(self._grid, p) / p.ktheta
         self._u_grid = np.asarray(equilibrium_voltage(self.config, self._grid, p), dtype=float)
-        mats = [_design(p, float(w), float(self.dt), self.design) for w in self._grid]
+        mats = [_design(p, float(w), float(self.dt), self.design, self.delay) for w in self._grid]
         self._A, self._B, self._C, self._K, self._L = (np.stack([mm[i] for mm in mats]) for i in range(5))
         self.t = 0.0
         self.r = np.zeros(n)  # reference speed (rad/s), from rest
@@ -181,7 +187,7 @@ class TwoEncoderLQG(Controller):
         tl = np.broadcast_to(m.get("theta_l", 0.0), (n,)).astype(float)
         self.theta_ref = tu.copy()
         # absolute estimate (theta_u, omega_u, alpha, omega_l, u_a, d): the rig at rest
-        self.x = np.zeros((n, 6))
+        self.x = np.zeros((n, self._A.shape[1]))  # and the line of past commands: none sent
         self.x[:, 0], self.x[:, 2] = tu, tl - tu
 
     def _target(self) -> np.ndarray:
@@ -195,6 +201,9 @@ class TwoEncoderLQG(Controller):
         k = np.clip(np.rint(r / GRID).astype(int) - 1, 0, self._grid.size - 1)
         A, B, C, K, L = self._A[k], self._B[k], self._C[k], self._K[k], self._L[k]
         a_eq, u_eq = self._equilibrium(r)
+        if self.effects.friction_effects:  # the model's brake at the estimated lower angle shifts the equilibrium
+            extra = self.effects.lower_friction(r, self.x[:, 0] + self.x[:, 2]) - lower_friction(r, self.params)
+            a_eq, u_eq = a_eq - extra / self.params.ktheta, u_eq + extra / self.params.km
         # the estimated extra torque on the lower disc shifts the equilibrium: the string winds by -d/k_theta
         # more, the motor leads by d/k_theta (the lower disc stays on its track); with angle-dependent
         # friction this is a feedforward of the torque ripple
@@ -202,6 +211,7 @@ class TwoEncoderLQG(Controller):
         a_eq = a_eq - shift
         eq = np.zeros_like(self.x)
         eq[:, 0], eq[:, 1], eq[:, 2], eq[:, 3], eq[:, 4] = self.theta_ref + shift, r, a_eq, r, u_eq
+        eq[:, 6:] = u_eq[:, None]  # the line's commands, about the equilibrium voltage
         xd = self.x - eq
         tu = np.asarray(m["theta_u"], dtype=float)
         tl = np.asarray(m["theta_l"], dtype=float)

@@ -1,0 +1,128 @@
+"""One model file from diagnosis to control: ``diagnose --model-out`` and controllers built on a model's effects."""
+
+import json
+
+import numpy as np
+import pytest
+
+from drillgym import RigParams
+from drillgym.errors import InputError
+from drillgym.identification.model_file import read_model, write_model
+
+
+@pytest.fixture(scope="module")
+def lag_diagnosis():
+    """The diagnosis of 6 s of a simulated torsional recording (250 Hz) whose motor lags by 40 ms."""
+    from drillgym.diagnosis import DiagnosisOptions, diagnose
+    from drillgym.identification.synthetic import synthetic_measurement
+
+    lag = {"effects": ["motor_lag"], "effect_params": {"tau_m": 0.04}}
+    ts = synthetic_measurement("torsional", duration=6.0, rate_hz=250.0, offset=1.0, seed=5, **lag)
+    return diagnose(ts, options=DiagnosisOptions(effects=["motor_lag", "input_delay"], discover=False))
+
+
+def test_the_selected_model_is_a_model_file_with_the_fitted_lag(lag_diagnosis, tmp_path):
+    d = lag_diagnosis
+    assert d.selected == ["motor_lag"], d.text()
+    params, records, base_std = d.selected_model()
+    assert [r["name"] for r in records] == ["motor_lag"]
+    assert records[0]["values"]["tau_m"] == pytest.approx(0.04, rel=0.05)
+    assert records[0]["std"]["tau_m"] > 0
+    mf = read_model(write_model(tmp_path / "m.json", params, records, base_std))
+    assert mf.specs == ["motor_lag"] and mf.values["tau_m"] == records[0]["values"]["tau_m"]
+    assert mf.std["tau_m"] == records[0]["std"]["tau_m"] and mf.params == params
+
+
+def test_diagnose_model_out_writes_what_read_model_reads(lag_diagnosis, tmp_path, monkeypatch):
+    """The command's option end to end (the diagnosis itself is the fixture's, of the same recording)."""
+    import drillgym.diagnosis as diagnosis
+    from drillgym.cli import main
+    from drillgym.identification.synthetic import synthetic_measurement
+    from drillgym.io import write_timeseries
+
+    rec = tmp_path / "lag.csv"
+    write_timeseries(rec, synthetic_measurement("torsional", duration=2.0, rate_hz=250.0, seed=5))
+    monkeypatch.setattr(diagnosis, "diagnose", lambda *a, **k: lag_diagnosis)
+    out = tmp_path / "sub" / "selected.yaml"
+    with pytest.raises(SystemExit) as done:
+        main(["diagnose", str(rec), "--no-sparse", "--model-out", str(out)])
+    assert done.value.code in (0, None)
+    mf = read_model(out)
+    assert mf.specs == ["motor_lag"] and mf.values["tau_m"] == pytest.approx(0.04, rel=0.05)
+    bad = tmp_path / "selected.txt"
+    with pytest.raises(SystemExit) as exc:
+        main(["diagnose", str(rec), "--model-out", str(bad)])
+    assert exc.value.code == 2 and not bad.exists()
+
+
+def test_model_files_carry_standard_errors_and_refuse_bad_ones(tmp_path):
+    p = tmp_path / "m.json"
+    write_model(p, RigParams(), [{"name": "motor_lag", "spec": "motor_lag", "values": {"tau_m": 0.03}}], {"km": 0.01})
+    assert read_model(p).std == {"km": 0.01}
+    data = json.loads(p.read_text())
+    data["std"] = {"km": -1}
+    p.write_text(json.dumps(data))
+    with pytest.raises(Exception, match="standard error of 'km'"):
+        read_model(p)
+
+
+# ------------------------------------------------------------------------------------------ controllers on a model
+def _model(specs, values):
+    from controllers.model import ControllerModel
+    from drillgym.effects import compose
+
+    comp, vals = compose(specs, values)
+    return ControllerModel(RigParams(), comp, vals)
+
+
+def test_delay_line_discretisation_is_exact_for_an_integrator():
+    from controllers.model import delayed_discretisation
+
+    dt = 0.002
+    s = delayed_discretisation(np.zeros((1, 1)), np.ones((1, 1)), dt, 1.5 * dt)
+    # x+ = x + (dt/2) u[k-1] + (dt/2) u[k-2]: the line holds u[k-1], u[k-2]
+    assert s.n_line == 2
+    np.testing.assert_allclose(s.Ad[0], [1.0, dt / 2, dt / 2])
+    np.testing.assert_allclose(s.Bd[:, 0], [0.0, 1.0, 0.0])
+    np.testing.assert_allclose(s.Ad[2], [0.0, 1.0, 0.0])
+
+
+def test_filter_model_has_the_lag_state_and_the_delay_line():
+    from controllers.kalman import disturbance_model
+
+    base = disturbance_model(dt=0.002)
+    lag = disturbance_model(dt=0.002, model=_model(["motor_lag"], {"tau_m": 0.04}))
+    both = disturbance_model(dt=0.002, model=_model(["motor_lag", "input_delay"], {"tau_m": 0.04, "delay": 0.005}))
+    assert base.Ad.shape == (5, 5) and lag.Ad.shape == (6, 6) and both.Ad.shape == (6 + 3, 6 + 3)
+    assert lag.lag_index == 5 and both.line_index == 6 and both.delay_steps == 2
+    # a step of the command reaches the motor speed only through the lag: no direct effect in one period
+    assert abs(lag.Bd[1, 0]) < 0.05 * abs(base.Bd[1, 0])
+
+
+def test_controllers_refuse_effects_they_cannot_use():
+    import controllers
+
+    with pytest.raises(InputError, match="'string_damping'"):
+        controllers.make("observer", omega_ref=3.0, model=_model(["string_damping"], {}))
+    with pytest.raises(InputError, match="'motor_lag'"):
+        controllers.make("descent", omega_ref=3.0, model=_model(["motor_lag"], {"tau_m": 0.04}))
+    ok = controllers.make("observer", omega_ref=3.0, model=_model(["lvdt_offset"], {}))  # off the motor encoder
+    assert ok.effects.label == "lvdt_offset"
+
+
+def test_an_observer_that_knows_the_motor_lag_holds_where_the_lag_free_one_does_worse():
+    """Plant with a 40 ms motor lag, 2.5 rad/s from rest (12 s, the last 5 s judged)."""
+    import controllers
+    from controllers.evaluation.metrics import run_metrics
+    from controllers.evaluation.runner import run_closed_loop
+
+    lag = _model(["motor_lag"], {"tau_m": 0.04})
+    res = {}
+    for name, model in (("with", lag), ("without", None)):
+        ctrl = controllers.make("observer", omega_ref=2.5, model=model)
+        run = run_closed_loop(
+            ctrl, "torsional", np.array([2.5]), 12.0, effects=lag.composition, effect_params=dict(lag.values)
+        )
+        res[name] = run_metrics(run, 5.0, RigParams())
+    assert res["with"]["ssi"][0] < 0.1, res
+    assert res["without"]["ssi"][0] > 2 * res["with"]["ssi"][0], res
