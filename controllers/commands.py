@@ -2,7 +2,9 @@
 
 ``drillgym evaluate`` runs controllers (and trained agents, ``agent:PATH``) on the evaluation
 harness. ``--add-effect``/``--effect-param`` give the plant hidden effects; the controllers are
-built from the nominal base parameters and never know them.
+built from the nominal base parameters and never know them, or on ``--model FILE`` (a model file:
+base parameters and effects, e.g. written by ``identify --out`` or ``diagnose --model-out``), whose
+effects ``observer``, ``lqg`` and ``lqg-2enc`` run and the others leave (their base parameters only).
 
 The CLI finds :func:`register` through the ``drillgym.commands`` entry-point group
 (``pyproject.toml``).
@@ -72,6 +74,13 @@ def register(app: typer.Typer) -> None:
         ),
         add_effect: list[str] | None = add_effect_option(),
         effect_param: list[str] | None = effect_param_option(),
+        model: Path = typer.Option(
+            None,
+            "--model",
+            help="model file (JSON/YAML: base parameters and effects) the controllers are built on: observer, lqg "
+            "and lqg-2enc run its effects (a lag, a delay, lower-disc friction), the others its base parameters; "
+            "default the nominal model (--params) without effects",
+        ),
     ) -> None:
         """Evaluate controllers on the scenarios; write a CSV, a markdown table and the SSI figure.
         The plant runs the hidden effects (--add-effect, and a model file's); the controllers do not."""
@@ -110,6 +119,16 @@ def register(app: typer.Typer) -> None:
             with option("--uncertainty"):
                 uncertainty = load_uncertainty(uncertainty)
         base, comp, values = plant_from_cli(params, add_effect, effect_param)
+        ctrl_model = None
+        if model is not None:
+            from controllers.evaluation.harness import build_controller
+            from controllers.model import model_of
+
+            with option("--model"):
+                ctrl_model = model_of(model)
+                for c in names:  # an effect a controller cannot use: refused before any run
+                    for cfg in cfgs if not c.startswith("agent:") else ():
+                        build_controller(c, cfg, tg[:1], ctrl_model.params, ctrl_model)
         for c in parsed:
             check_effects_act(comp, c)
         p = base if params else None
@@ -133,6 +152,7 @@ def register(app: typer.Typer) -> None:
                 seed=seed,
                 uncertainty=uncertainty,
                 executor=ex,
+                model=ctrl_model,
             )
         for w in caught:
             typer.echo(f"warning: {w.message}", err=True)

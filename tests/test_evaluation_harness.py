@@ -178,6 +178,29 @@ def test_evaluate_cli_with_hidden_effects(tmp_path, capsys):
     assert e.value.code == 2 and "--add-effect" in capsys.readouterr().err
 
 
+def test_evaluate_cli_builds_the_model_based_controllers_on_model(tmp_path, capsys):
+    import json
+
+    lag = tmp_path / "lag.json"
+    lag.write_text(json.dumps({"effects": [{"spec": "motor_lag", "values": {"tau_m": 0.04}}]}))
+    force = tmp_path / "force.json"
+    force.write_text(json.dumps({"effects": [{"spec": "string_damping", "values": {"dtheta": 0.002}}]}))
+    out = tmp_path / "ev"
+    args = ["evaluate", "--config", "torsional", "--targets", "3", "--duration", "1", "--window", "0.5"]
+    args += ["--workers", "1", "--out", str(out), "--controllers", "observer,pi"]
+    with pytest.raises(SystemExit) as ok:
+        main(args + ["--model", str(lag)])
+    assert ok.value.code == 0
+    with open(out / "results.csv") as f:
+        assert {r["controller"]: r["model"] for r in csv.DictReader(f)} == {"observer": "motor_lag", "pi": "base"}
+    assert "observer on motor_lag" in (out / "summary.md").read_text()
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as e:
+        main(args + ["--model", str(force)])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and "--model" in err and "'string_damping'" in err and len(err.strip().splitlines()) == 1
+
+
 # --------------------------------------------------------------------- plant population
 from controllers.evaluation.harness import short_run_warnings  # noqa: E402
 from controllers.evaluation.population import load_uncertainty, sample_plants  # noqa: E402

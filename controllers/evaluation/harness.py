@@ -3,7 +3,9 @@
 One job = one controller, one configuration, one scenario, all target speeds
 as one batch of the core's simulator (:func:`.runner.run_closed_loop`).  The plant may run
 hidden effects (``effects``/``effect_params``, :mod:`drillgym.effects`): the controllers are
-always built from the nominal base parameters and never know them.  Jobs
+built from the nominal base parameters and never know them, or from a ``model`` of their own
+(:class:`controllers.model.ControllerModel`, e.g. an identified model file): ``observer``, ``lqg`` and
+``lqg-2enc`` run its effects, the others its base parameters (the rows' ``model`` column says which).  Jobs
 run in a ``concurrent.futures`` executor (processes by default), with a tqdm
 progress bar.  Results are rows (dicts) with the metrics of :mod:`.metrics`.
 
@@ -54,15 +56,15 @@ def run_job(
     plants: Sequence[int] = (),
     n_plants: int = 0,
     uncertainty: Any = None,
+    model: Any = None,
 ) -> list[dict]:
     """Run one controller in one configuration and scenario for every target; one row per target.
 
     ``params``: nominal base parameters (dict; the controller's model and the plant's base);
     ``effects``/``effect_params``: hidden effects of the plant only (specs, classes or a Composition).
     A population scenario runs the plants ``plants`` (indices) of the population of ``n_plants`` drawn
-    with ``seed`` from ``uncertainty`` (:mod:`.population`): one row per (plant, target)."""
-    from .. import make
-
+    with ``seed`` from ``uncertainty`` (:mod:`.population`): one row per (plant, target).  ``model``: the
+    controller's own model (:class:`controllers.model.ControllerModel`; default ``params`` without effects)."""
     base = RigParams.from_dict(params) if params else RigParams()
     if scenario.population:
         return _run_population_job(
@@ -77,6 +79,7 @@ def run_job(
             plants=plants,
             n_plants=n_plants,
             uncertainty=uncertainty,
+            model=model,
         )
     comp, values = compose(effects, effect_params)
     plant = plant_params(scenario, base)
@@ -95,7 +98,7 @@ def run_job(
     kw = {}
     if split_period(controller)[0] in ("observer", "observer-robust", "lqg"):
         kw = {"counts_per_rev": scenario.counts_per_rev, "angle_noise": scenario.angle_noise}
-    ctrl = make(controller, config=config, omega_ref=tg, params=base, **kw)  # nominal: no hidden effect
+    ctrl, label = build_controller(controller, config, tg, base, model, **kw)  # never the hidden effects
     run = run_closed_loop(
         ctrl,
         config,
@@ -117,6 +120,7 @@ def run_job(
             "config": parse_configuration(config).label,
             "scenario": scenario.name,
             "plant": comp.label,
+            "model": label,
             "omega_ref": float(w),
             "control_dt": float(ctrl.dt),
         }
@@ -138,17 +142,16 @@ def _run_population_job(
     plants: Sequence[int],
     n_plants: int,
     uncertainty: Any,
+    model: Any = None,
 ) -> list[dict]:
-    """The plants ``plants`` x ``targets`` as one batch; the controller built from ``base`` with its
-    default encoder assumptions (the plants' encoders and noise are not told)."""
-    from .. import make
-
+    """The plants ``plants`` x ``targets`` as one batch; the controller built from ``base`` (or ``model``) with
+    its default encoder assumptions (the plants' encoders and noise are not told)."""
     pop = sample_plants(n_plants, seed, uncertainty, base).subset(list(plants))
     tg = np.asarray(targets, dtype=float)
     m = tg.size
     idx = np.repeat(np.arange(pop.n), m)  # plant of each trajectory
     ref = np.tile(tg, pop.n)
-    ctrl = make(controller, config=config, omega_ref=ref, params=base)
+    ctrl, label = build_controller(controller, config, ref, base, model)
     run = run_closed_loop(
         ctrl,
         config,
@@ -170,12 +173,32 @@ def _run_population_job(
             "scenario": scenario.name,
             "plant": int(plants[k]),
             **pop.columns[k],
+            "model": label,
             "omega_ref": float(ref[i]),
             "control_dt": float(ctrl.dt),
         }
         row.update({key: (bool(v[i]) if v.dtype == bool else float(v[i])) for key, v in met.items()})
         rows.append(row)
     return rows
+
+
+def build_controller(
+    controller: str, config: str, omega_ref: np.ndarray, base: RigParams, model: Any = None, **kw
+) -> tuple[Any, str]:
+    """The controller and the label of the model it runs (``base``, or the effects it uses joined by ``+``).
+
+    With a ``model`` (:class:`controllers.model.ControllerModel`), a controller that runs effects is built on
+    it, any other on its base parameters (label ``base``); without one, on ``base``.
+    """
+    from .. import make
+    from ..registry import CONTROLLERS, split_period
+
+    if model is None:
+        return make(controller, config=config, omega_ref=omega_ref, params=base, **kw), "base"
+    cls = CONTROLLERS.get(split_period(controller)[0])
+    if cls is not None and cls.uses_effects:
+        return make(controller, config=config, omega_ref=omega_ref, model=model, **kw), model.label
+    return make(controller, config=config, omega_ref=omega_ref, params=model.params, **kw), "base"
 
 
 def short_run_warnings(
@@ -345,6 +368,7 @@ def evaluate(
     seed: int = 0,
     uncertainty: Any = None,
     plants_per_job: int = 10,
+    model: Any = None,
 ) -> list[dict]:
     """Evaluate every controller in every configuration and scenario on the target grid.
 
@@ -390,6 +414,9 @@ def evaluate(
         :class:`controllers.evaluation.population.UncertaintySet`); default ``plants.yaml``.
     plants_per_job : int, optional
         Plants per job of a population scenario.
+    model : ControllerModel, ModelFile or path, optional
+        The controllers' own model (base parameters and effects, e.g. identified): ``observer``, ``lqg`` and
+        ``lqg-2enc`` run its effects, the others its base parameters.  Default: ``params`` without effects.
 
     Returns
     -------
@@ -422,6 +449,13 @@ def evaluate(
                 "control period) or agent:PATH"
             )
     comp, values = compose(effects, effect_params)  # errors name the effect before any job starts
+    if model is not None:
+        from ..model import model_of
+
+        model = model_of(model)
+        for c in controllers:  # refusals (an effect a controller cannot use) before any job starts
+            for cfg in configs if not c.startswith("agent:") else ():
+                build_controller(c, cfg, np.asarray(targets, dtype=float)[:1], RigParams(), model)
     pop_kw: dict = {}
     if any(s.population for s in scen):
         if comp.effects:
@@ -456,6 +490,7 @@ def evaluate(
         effects=comp.specs(),
         effect_params=values,
         seed=seed,
+        model=model,
     )  # specs: a user file's effect reaches workers
     rows: list[dict] = []
     bar = tqdm(total=len(jobs), desc="evaluate", unit="job", disable=not progress)

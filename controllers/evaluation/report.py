@@ -164,10 +164,16 @@ def write_report(rows: Sequence[dict], out_dir: str | Path, params=None, plant: 
     labels = sorted({str(r.get("plant", "base")) for r in rows})
     if plant is None and rows and labels != ["base"]:
         plant = "hidden effects: " + ", ".join(labels)
+    models = {str(r["controller"]): str(r.get("model", "base")) for r in rows + population}
+    own = {c: m for c, m in models.items() if m != "base"}
     if plant:
-        parts.append(
-            f"\nPlant: {plant} (the controllers are built from the nominal parameters and do not know them).\n"
-        )
+        told = "the controllers are built from the nominal parameters and do not know them"
+        if own:
+            told = "the controllers are built from their model: " + ", ".join(f"{c} on {m}" for c, m in own.items())
+            told += ", the others on its base parameters" if len(own) < len(models) else ""
+        parts.append(f"\nPlant: {plant} ({told}).\n")
+    elif own:
+        parts.append("\nControllers' model: " + ", ".join(f"{c} on {m}" for c, m in own.items()) + ".\n")
     for sc in dict.fromkeys(r["scenario"] for r in rows):
         parts.append(f"\n## scenario: {sc}\n\n" + markdown_table(rows, sc))
     if population:

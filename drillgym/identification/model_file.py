@@ -101,6 +101,8 @@ def read_model(path: str | Path) -> ModelFile:
     if not path.exists():
         raise MissingFileError(f"{path}: parameter file not found")
     data = _load(path)
+    if isinstance(data, Mapping) and "params" not in data and ("effects" in data or "std" in data):
+        data = {**data, "params": {}}  # effects alone: on the default base parameters
     params = RigParams.from_dict(data, source=str(path), partial=True)  # a partial file: the rest keep their default
     specs: list[str] = []
     values: dict[str, float] = {}
