@@ -65,7 +65,8 @@ class Controller(ABC):
     config : str or Configuration, optional
         Rig configuration the controller is designed for ('torsional', 'coupled', ...).
     params : RigParams, optional
-        The model the controller is designed on (default: the identified set).  The plant may differ
+        The model the controller is designed on (default: the identified set; a model with effects is taken
+        as ``model``).  The plant may differ
         (parameter-mismatch scenarios); the controller never sees the truth.
     model : ControllerModel, ModelFile or path, optional
         A model with effects (:mod:`controllers.model`, a model file), instead of ``params``.  A controller
@@ -105,6 +106,8 @@ class Controller(ABC):
             raise InputError(f"controllers act on the lower disc; configuration {self.config.label!r} has none")
         from .model import model_of
 
+        if params is not None and not isinstance(params, RigParams) and model is None:
+            model, params = params, None  # a model (ControllerModel, ModelFile) given where params are expected
         self.effects = model_of(model, params)
         """The model the controller is built on (:class:`controllers.model.ControllerModel`)."""
         if self.effects.composition.effects:

@@ -147,6 +147,12 @@ def run_cmd(
         help="model the controller is built on (JSON/YAML, may be partial: "
         "e.g. what `drillgym identify --out` wrote); default MODEL.md's",
     ),
+    model_file: Path | None = typer.Option(
+        None,
+        "--model",
+        help="model file (base parameters and effects, e.g. from `drillgym diagnose --model-out`) the controller is "
+        "built on: observer, lqg and lqg-2enc run its lag, delay and lower-disc friction; not with --params",
+    ),
     policy: Path | None = typer.Option(
         None,
         help="policy: what `drillgym train` writes (policy.npz, model.zip or the "
@@ -231,6 +237,16 @@ def run_cmd(
                 err=True,
             )
         model = mf.params
+    if model_file is not None:
+        if params is not None or controller is None or controller.startswith(("const:", "play:", "agent:")):
+            raise InputError("--model builds a named controller on a model file; not with --params, const:, play:, "
+                             "agent: or --policy")  # fmt: skip
+        from controllers.model import model_of
+        from drillgym.commands.options import option
+
+        with option("--model"):
+            model = model_of(model_file)
+            make_controller(controller, config, omega_ref, control_ms * 1e-3, model)  # refuses an unusable effect
     ctrl = make_controller(controller, config, omega_ref, control_ms * 1e-3, model) if controller else None
     if controller is not None and controller.startswith("agent:"):
         warm_up(ctrl, omega_ref, control_ms * 1e-3)
