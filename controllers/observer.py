@@ -36,6 +36,7 @@ from drillgym.errors import InputError
 from .base import Controller
 from .flatness import FlatnessLaw
 from .kalman import I_AL, I_D, I_DU, I_TU, I_WL, I_WU, ExtendedKalmanObserver, disturbance_model, steady_state_gain
+from .margin import check_margins
 
 __all__ = ["ObserverController", "LQGController", "lqr_gain", "steepest_brake_slope"]
 
@@ -123,6 +124,9 @@ class ObserverController(Controller):
         (N m/sqrt(s)), cancelled by the motor.  Default 0 (none).
     p0_du : float, optional
         Prior standard deviation of that state (N m).
+    fallback : bool, optional
+        Drive with ``descent`` the targets its model is not accurate enough for (:mod:`controllers.margin`:
+        the model file's standard error of km against the motor-angle limit); default False: warn only.
     **kw
         ``config``, ``params``, ``dt``, ``u_max`` of :class:`controllers.Controller`.
     """
@@ -153,9 +157,11 @@ class ObserverController(Controller):
         disturbance: str = "scale",
         sigma_du: float = 0.0,
         p0_du: float = 0.1,
+        fallback: bool = False,
         **kw,
     ) -> None:
         super().__init__(omega_ref, **kw)
+        self.fallback = bool(fallback)
         self.model = disturbance_model(
             self.params,
             self.dt,
@@ -189,6 +195,7 @@ class ObserverController(Controller):
         self.observer = ExtendedKalmanObserver(self.model, p0_du=self.p0_du)
         self.observer.reset(np.broadcast_to(m.get("theta_u", 0.0), (self.n,)))
         self.law = self.new_law(self.omega_ref)
+        self.margins, self._short, self._descent = check_margins(self, m, self.fallback)
 
     def approach_time(self, omega_ref: float | np.ndarray) -> np.ndarray:
         """Time (s) the law's reference needs: six lag time constants, after the hold and the ramp down
@@ -219,6 +226,8 @@ class ObserverController(Controller):
         if self.model.has_du:  # the estimated upper-disc torque the model misses, cancelled by the motor
             u = u - x[I_DU] / self.params.km
         u = np.clip(u, -self.u_max, self.u_max)
+        if self._descent is not None:  # targets the model is not accurate enough for
+            u = np.where(self._short, self._descent.act(m), u)
         self.observer.predict(u)
         return u
 
@@ -247,6 +256,8 @@ class LQGController(Controller):
         error.  Default 0 (none).
     outer_start : float, optional
         Time after reset from which the integral acts (s).  Default 5.
+    fallback : bool, optional
+        Drive with ``descent`` the targets its model is not accurate enough for (:mod:`controllers.margin`).
     **kw
         ``config``, ``params``, ``dt``, ``u_max`` of :class:`controllers.Controller`.
     """
@@ -268,9 +279,11 @@ class LQGController(Controller):
         r: float = DEFAULT_LQR_R,
         outer_gain: float = 0.0,
         outer_start: float = 5.0,
+        fallback: bool = False,
         **kw,
     ) -> None:
         super().__init__(omega_ref, **kw)
+        self.fallback = bool(fallback)
         if not (np.isfinite(outer_gain) and outer_gain >= 0 and np.isfinite(outer_start) and outer_start >= 0):
             raise InputError(
                 f"outer_gain (1/s) and outer_start (s) must be non-negative, got {outer_gain!r}, {outer_start!r}"
@@ -300,6 +313,7 @@ class LQGController(Controller):
         self._x[I_TU] = np.broadcast_to(m.get("theta_u", 0.0), (self.n,))
         self._t = 0.0
         self._theta0 = self._x[I_TU].copy()
+        self.margins, self._short, self._descent = check_margins(self, m, self.fallback)
 
     @property
     def estimate(self) -> np.ndarray:
@@ -321,5 +335,7 @@ class LQGController(Controller):
         u_star = (mdl.upper_coulomb + mdl.upper_damping * ref + d_hat) / p.km
         err = np.stack([x[I_AL] - alpha_star, x[I_WU] - ref, x[I_WL] - ref])
         u = np.clip(u_star - np.einsum("nk,kn->n", self.K, err), -self.u_max, self.u_max)
+        if self._descent is not None:  # targets the model is not accurate enough for
+            u = np.where(self._short, self._descent.act(m), u)
         self._x = mdl.Ad @ x + mdl.Bd @ mdl.known_inputs(x, u)
         return u

@@ -126,3 +126,35 @@ def test_an_observer_that_knows_the_motor_lag_holds_where_the_lag_free_one_does_
         res[name] = run_metrics(run, 5.0, RigParams())
     assert res["with"]["ssi"][0] < 0.1, res
     assert res["without"]["ssi"][0] > 2 * res["with"]["ssi"][0], res
+
+
+# ------------------------------------------------------------------------------------------ margins
+def test_margin_compares_the_limit_with_the_identified_km():
+    from controllers.margin import model_margins
+    from controllers.model import ControllerModel
+
+    p = RigParams()
+    tight, loose = (ControllerModel(p, std={"km": f * p.km}) for f in (0.001, 0.02))
+    m_tight, m_loose = model_margins(tight, [4.0, 2.0]), model_margins(loose, [2.0, 4.0])
+    assert [g.omega for g in m_tight] == [2.0, 4.0]
+    assert m_tight[0].needed == pytest.approx(0.011, rel=0.2) and np.isinf(m_tight[1].needed)
+    assert m_tight[0].achieved == pytest.approx(0.002) and m_tight[0].enough is True
+    assert m_loose[0].enough is False and m_loose[1].enough is True
+    assert model_margins(ControllerModel(p), [2.0])[0].enough is None  # no standard error: not known
+
+
+def test_observer_warns_and_falls_back_to_descent_where_its_model_is_not_good_enough():
+    import controllers
+    from controllers.model import ControllerModel
+
+    p = RigParams()
+    loose = ControllerModel(p, std={"km": 0.02 * p.km})
+    meas = {"t": 0.0, "theta_u": np.zeros(2)}
+    ctrl = controllers.make("observer", omega_ref=np.array([2.0, 4.0]), model=loose, fallback=True)
+    with pytest.warns(UserWarning, match=r"observer at 2 rad/s tolerates 1\.\d+%.*NOT enough; descent drives it"):
+        ctrl.reset(meas)
+    ref = controllers.make("descent", omega_ref=np.array([2.0, 4.0]), dt=ctrl.dt)
+    ref.reset(meas)
+    u, u_ref = ctrl(meas), ref(meas)
+    assert list(ctrl._short) == [True, False]
+    assert u[0] == u_ref[0] and u[1] != u_ref[1]

@@ -121,6 +121,7 @@ def run_job(
             "scenario": scenario.name,
             "plant": comp.label,
             "model": label,
+            **margin_columns(ctrl, float(w)),
             "omega_ref": float(w),
             "control_dt": float(ctrl.dt),
         }
@@ -174,12 +175,24 @@ def _run_population_job(
             "plant": int(plants[k]),
             **pop.columns[k],
             "model": label,
+            **margin_columns(ctrl, float(ref[i])),
             "omega_ref": float(ref[i]),
             "control_dt": float(ctrl.dt),
         }
         row.update({key: (bool(v[i]) if v.dtype == bool else float(v[i])) for key, v in met.items()})
         rows.append(row)
     return rows
+
+
+def margin_columns(ctrl: Any, omega: float) -> dict[str, float]:
+    """``model_tolerates`` (the relative km error the motor-angle limit tolerates at ``omega``, inf: any) and
+    ``model_accuracy`` (what the model file offers, NaN: unknown) of a controller that reports its
+    margins (:mod:`controllers.margin`), else both NaN."""
+    nan = float("nan")
+    for g in getattr(ctrl, "margins", None) or []:
+        if g.omega == omega:
+            return {"model_tolerates": g.needed, "model_accuracy": nan if g.achieved is None else g.achieved}
+    return {"model_tolerates": nan, "model_accuracy": nan}
 
 
 def build_controller(

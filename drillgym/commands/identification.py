@@ -433,7 +433,10 @@ def identify_cmd(
     for spec, e in zip(mf.specs, base_comp.effects):
         specs.setdefault(e.name, spec)
     records = effect_records(res.composition, res.effect_values, specs)
-    write_model(output_file(out, "--out", suffixes=(".json", ".yaml", ".yml")), res.params, records)
+    for r in records:  # the standard errors of what was fitted travel with the model (controllers' margins)
+        r["std"] = {k: res.std[k] for k in r["values"] if math.isfinite(res.std.get(k, math.nan))}
+    base_std = {k: v for k, v in res.std.items() if k not in res.effect_values}
+    write_model(output_file(out, "--out", suffixes=(".json", ".yaml", ".yml")), res.params, records, base_std)
     if report is not None:
         d = diagnose(ex, mf.params, base_effects=base_comp, effect_params=base_values, segment_s=seg)
         write_report(report, ex, mf.params, d, res, seg, base_comp, base_values)
