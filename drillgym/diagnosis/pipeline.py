@@ -7,6 +7,7 @@
 3. :func:`.checks.check` — position-dependent effects in both halves of the recording, a lag or a delay
    at the recording's own rate, a drift or a position friction on a disc that hardly turns;
 4. :func:`.ranking.report` — the diagnosis: the ranking, the base parameters that moved, the warnings;
+   :func:`.input_order.input_order` — two Input effects fitted in both orders, the better reported;
    :func:`.unexplained.unexplained` — the final residual against the noise, where it lives, what it depends on;
 5. :func:`.discovery.discover` (with ``discover``) — a candidate effect outside the library from the
    residual torques of the (first) recording on its own samples up to 250 Hz, written as an effect file.
@@ -26,6 +27,7 @@ from ..io import TimeSeries
 from ..params import RigParams
 from .checks import check
 from .discovery import discover
+from .input_order import input_order
 from .orders import select
 from .ranking import report
 from .results import Diagnosis
@@ -83,6 +85,8 @@ def diagnose(
     if unknown:
         valid = ", ".join(f.name for f in fields(DiagnosisOptions))
         raise InputTypeError(f"diagnose: unknown setting(s) {', '.join(unknown)}; the settings are {valid}")
+    if params is not None and not isinstance(params, RigParams):
+        raise InputTypeError(f"params must be RigParams (None: MODEL.md's), got {type(params).__name__}")
     opts = replace(options or DiagnosisOptions(), **settings)
     with one_blas_thread():  # every step's threads (fits side by side, the lag/delay searches) see the same BLAS
         screening = screen(data, params, config, opts)
@@ -90,6 +94,7 @@ def diagnose(
         outcome = select(screening.model, opts.selection())
         check(screening, outcome, opts.selection())
         diagnosis = report(screening, outcome)
+        diagnosis.input_order = input_order(screening, diagnosis)
         diagnosis.unexplained = unexplained(screening.model.obj, diagnosis.vector, noise)
     if opts.discover and screening.config is not Configuration.UPPER:
         diagnosis.candidate, diagnosis.advice = discover(_fine(screening.exps[0]), diagnosis, opts.candidate_out)

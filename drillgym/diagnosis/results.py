@@ -244,6 +244,7 @@ _WHERE = {
     "string": "string torque (added to kθ α) +=",
     "lower_force": "torque on the lower disc +=",
     "upper_force": "torque on the upper disc +=",
+    "motor_voltage": "voltage at the motor = u",
 }
 
 
@@ -254,9 +255,10 @@ class Candidate:
     Attributes
     ----------
     group : str
-        Where it acts: ``lower_friction``, ``upper_friction``, ``string``, ``lower_force`` or ``upper_force``.
+        Where it acts: ``lower_friction``, ``upper_friction``, ``string``, ``lower_force``, ``upper_force`` or
+        ``motor_voltage`` (the voltage the motor sees).
     terms : dict of str to float
-        Term label -> coefficient (N m per unit of the term).
+        Term label -> coefficient (N m per unit of the term; V for ``motor_voltage``).
     codes : dict of str to str
         Term label -> its Python expression in the effect file.
     at_rest : dict of str to float
@@ -295,7 +297,7 @@ class Candidate:
     def expression(self) -> str:
         """The candidate as one line: where it acts and its terms with their coefficients (N m)."""
         parts = " ".join(f"{c:+.4g}·{n}" if n != "1" else f"{c:+.4g}" for n, c in self.terms.items())
-        return f"{_WHERE[self.group]} {parts}  [N m]"
+        return f"{_WHERE[self.group]} {parts}  [{'V' if self.group == 'motor_voltage' else 'N m'}]"
 
     def to_json(self) -> dict:
         """The candidate as a JSON-ready dict."""
@@ -366,6 +368,8 @@ class Diagnosis:
         The lag/delay decision at the recording's rate (:meth:`.timing.FineDecision.to_json`).
     sensor_misfit : dict of str to float
         Sensor -> the model's misfit on it (noise units), by which its channels were rescaled.
+    input_order : InputOrder or None
+        The model's two Input effects fitted in both orders (:mod:`.input_order`; None: not two).
     unexplained : Unexplained or None
         The final model's residual against the measurement noise, where it lives and what it depends on
         (None: not measured).  "The base model stands" is said only when it is at the noise.
@@ -396,6 +400,7 @@ class Diagnosis:
     lag_delay: dict | None = None
     sensor_misfit: dict[str, float] = field(default_factory=dict)
     unexplained: Unexplained | None = None
+    input_order: Any = None
 
     @property
     def best(self) -> EffectScore | None:
@@ -468,6 +473,7 @@ class Diagnosis:
             "sensor_misfit": self.sensor_misfit,
             "signal_path": self._signal_path(),
             "unexplained": self.unexplained.to_json() if self.unexplained is not None else None,
+            "input_order": self.input_order.to_json() if self.input_order is not None else None,
         }
 
     def _signal_path(self) -> list[str]:
@@ -494,6 +500,8 @@ class Diagnosis:
                 f"lag or delay, at the recording's rate ({ld['rate_hz']:.0f} Hz): {ld['chosen']} preferred to "
                 f"{ld['other']} by {ld['score_gap_nats']:.1f} nats"
             )
+        if self.input_order is not None:
+            lines.append(self.input_order.line())
         for w in self.warnings:
             lines.append(f"warning: {w}")
         for k, why in self.skipped.items():
