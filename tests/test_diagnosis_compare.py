@@ -144,13 +144,18 @@ def test_cli_diagnose_identify_signal(tmp_path):
     assert isinstance(r.exception, ValueError) and "bogus" in str(r.exception)
 
 
-@pytest.mark.parametrize("segment_s", [0.0, -1.0, float("nan"), float("inf")])
+@pytest.mark.parametrize("segment_s", [0.0, float("nan"), float("inf"), "4"])
 def test_compare_refuses_a_segment_that_is_not_a_positive_time(segment_s):
     from drillgym.errors import InputError
 
     ts = synthetic_measurement("upper", duration=2.0, rate_hz=100.0)
-    with pytest.raises(InputError, match=r"^segment_s must be a positive number of seconds"):
+    with pytest.raises(InputError, match=r"^segment_s must be a (positive )?number of seconds"):
         compare(ts, segment_s=segment_s)
+
+
+def test_compare_takes_a_negative_segment_as_the_configurations_default_as_refit_and_diagnose_do():
+    ts = synthetic_measurement("upper", duration=20.0, rate_hz=100.0)
+    assert compare(ts, segment_s=-1.0).segment_s == 8.0
 
 
 def test_compare_json_names_the_signal_path_and_why_a_statistic_is_missing(tmp_path):

@@ -17,7 +17,6 @@ channel; and where the error lives:
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,10 +27,10 @@ from scipy.signal import welch
 
 from ..configurations import Configuration
 from ..effects import BASE, Composition, compose
-from ..errors import InputError
 from ..identification.experiment import Experiment, prepare_experiment
 from ..identification.fitting import base_vector, default_scales
 from ..identification.metrics import channel_metrics
+from ..identification.segment_length import segment_length
 from ..identification.segmented import SegmentedModel
 from ..io import TimeSeries
 from ..io.jsonfile import write_json
@@ -182,7 +181,9 @@ def compare(
     config : str or Configuration, optional
         The configuration when the recording's metadata has none.
     segment_s : float or None, optional
-        Multiple-shooting segment length (s); None: one free run from the initial state.
+        Multiple-shooting segment length (s); negative: the configuration's default
+        (:func:`~drillgym.identification.segment_length.default_segment`); None: one free run from the initial
+        state.  Default None.
     compare_rate_hz : float, optional
         Comparison grid rate (Hz).  Default 100.
     n_windows : int, optional
@@ -199,14 +200,11 @@ def compare(
     Comparison
         Where the model fails: per channel, in time, over speed, angle and lateral amplitude, in frequency.
     """
-    if segment_s is not None and not (
-        isinstance(segment_s, (int, float)) and not isinstance(segment_s, bool) and 0 < segment_s < math.inf
-    ):
-        raise InputError(f"segment_s must be a positive number of seconds (or None: one free run), got {segment_s!r}")
     comp, values = compose(effects, effect_params)
     vec = base_vector(comp, params, values)
     p = RigParams.from_vector(vec[:N_PARAMS])
     ex = data if isinstance(data, Experiment) else prepare_experiment(data, config, compare_rate_hz=compare_rate_hz)
+    segment_s = segment_length(segment_s, ex)
     chans = ["theta_u"] if ex.config is Configuration.UPPER else ["theta_u", "theta_l", "alpha"]
     if ex.config.lateral_free:
         chans += ["x", "y", "r"]

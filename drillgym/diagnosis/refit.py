@@ -23,17 +23,19 @@ from typing import Any
 
 from ..configurations import Configuration
 from ..effects import Composition, compose
-from ..errors import InputError
+from ..errors import InputTypeError
 from ..identification.acting import check_fit_names
 from ..identification.experiment import Experiment, prepare_experiment
 from ..identification.fitting import FitVariable, Objective, base_vector, fit_parameters
+from ..identification.segment_length import segment_length
 from ..identification.segmented import SegmentedModel
 from ..identification.staged import STAGES
 from ..io import TimeSeries
 from ..params import RigParams
 from .compare import compare
-from .effects import applies_to, get_effect
-from .screening import default_segment, default_weights
+from .effects import get_effect
+from .option_checks import as_sequence, check_refit_options
+from .screening import default_weights
 
 __all__ = ["RefitOptions", "RefitResult", "refit", "BASE_STAGE", "effect_records"]
 
@@ -178,6 +180,11 @@ class RefitOptions:
     compare_rate_hz: float = 50.0
     max_nfev: int = 30
 
+    def __post_init__(self) -> None:
+        self.effects = as_sequence("effects", self.effects) or ()
+        self.fit = as_sequence("fit", self.fit) or ()
+        check_refit_options(self)
+
 
 def refit(
     data: TimeSeries | Experiment,
@@ -215,26 +222,16 @@ def refit(
     FitError
         The model before or after the fit gives non-finite states on the recording (no R² or RMS).
     """
+    if params is not None and not isinstance(params, RigParams):
+        raise InputTypeError(f"params must be RigParams (None: MODEL.md's), got {type(params).__name__}")
     o = replace(options or RefitOptions(), **settings)
     base = params or RigParams()
     ex = data if isinstance(data, Experiment) else prepare_experiment(data, config, compare_rate_hz=o.compare_rate_hz)
-    segment_s = o.segment_s
-    if segment_s is not None and segment_s < 0:
-        segment_s = default_segment(ex.config)
-    if segment_s is not None and not 0 < segment_s < float("inf"):
-        raise InputError(
-            f"segment_s must be a positive number of seconds, negative for the configuration's default, or "
-            f"None (one free run), got {o.segment_s!r}"
-        )
+    segment_s = segment_length(o.segment_s, ex)
     check_fit_names(o.fit, ex.config)
     comp0, values0 = compose(o.base_effects, o.base_values)
     added = [get_effect(e) for e in o.effects]
-    for e in added:
-        if not applies_to(e, ex.config):
-            raise InputError(
-                f"effect {e.name!r} does not act in configuration '{ex.config.label}' "
-                f"(it applies to: {', '.join(e.configurations)})"
-            )
+    Composition(tuple(added)).refuse_not_acting(ex.config.label, "effects")
     new = [e for e in added if e.name not in comp0.names]
     comp = Composition(tuple(comp0.effects) + tuple(new))
     start_values = {**values0, **{k: v for k, v in (o.effect_params or {}).items()}}

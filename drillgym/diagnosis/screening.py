@@ -23,10 +23,12 @@ from ..configurations import Configuration
 from ..effects import Composition, Effect, compose
 from ..identification.experiment import Experiment, prepare_experiment
 from ..identification.fitting import Objective, base_vector
+from ..identification.segment_length import default_segment, segment_length
 from ..io import TimeSeries
 from ..params import RigParams
 from .context import SelectionOptions
 from .effects import applies_to, effects_for, get_effect
+from .option_checks import as_sequence, check_diagnosis_options
 from .search_model import SearchModel, base_free_parameters, neutral_values, search_composition, selection_model
 from .segments import robust_noise
 
@@ -90,6 +92,10 @@ class DiagnosisOptions:
     discover: bool = False
     candidate_out: Any = None
 
+    def __post_init__(self) -> None:
+        self.effects = as_sequence("effects", self.effects)
+        check_diagnosis_options(self)
+
     def selection(self) -> SelectionOptions:
         """The options of the forward selection."""
         return SelectionOptions(n_joint=self.n_joint, max_effects=self.max_effects, refine=self.refine_speeds)
@@ -144,22 +150,6 @@ def default_weights(config: Configuration) -> dict[str, float]:
     if config.lateral_free:
         return {"theta_u": 1.0, "theta_l": 1.0, "x": 1.0, "y": 1.0}
     return {"theta_u": 1.0, "theta_l": 1.0}
-
-
-def default_segment(config: Configuration) -> float:
-    """The multiple-shooting segment length (s): 4 s (a few stick-slip cycles) with the brake, 8 s without.
-
-    Parameters
-    ----------
-    config : Configuration
-        The configuration.
-
-    Returns
-    -------
-    float
-        Seconds.
-    """
-    return 4.0 if config.brake else 8.0
 
 
 def prepare_experiments(
@@ -263,10 +253,11 @@ def screen(
     comp0, values0 = compose(options.base_effects, options.effect_params)
     exps = prepare_experiments(data, config, options.compare_rate_hz, options.lvdt_lowpass_hz)
     cfg = exps[0].config
+    comp0.refuse_not_acting(cfg.label, "base_effects")
+    if options.effects is not None:
+        Composition(tuple(get_effect(e) for e in options.effects)).refuse_not_acting(cfg.label, "effects")
     candidates = [get_effect(e) for e in options.effects] if options.effects else effects_for(cfg)
-    segment_s = options.segment_s
-    if segment_s is not None and segment_s < 0:
-        segment_s = default_segment(cfg)
+    segment_s = segment_length(options.segment_s, exps)
     exps, scales = condition(exps)
     usable, held, skipped = _sort_candidates(candidates, comp0, cfg, exps)
     # the candidates the data cannot show stay in the model at their neutral values (the kernels skip them)

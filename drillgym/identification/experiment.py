@@ -18,6 +18,7 @@ A recording (:class:`drillgym.io.TimeSeries`, any rate, any length) becomes an
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -25,7 +26,7 @@ from scipy.signal import savgol_coeffs, savgol_filter
 
 from ..configurations import N_STATE, Configuration, parse_configuration
 from ..effects import BASE, Composition
-from ..errors import DataFormatError, InputError
+from ..errors import DataFormatError, InputError, InputTypeError
 from ..io import TimeSeries
 from .sensors import invert_measurement
 
@@ -297,6 +298,8 @@ def prepare_experiment(
     DataFormatError
         Too few samples.
     """
+    if isinstance(compare_rate_hz, bool) or not isinstance(compare_rate_hz, numbers.Real):
+        raise InputTypeError(f"the comparison rate (--rate) must be a number of Hz, got {compare_rate_hz!r}")
     if not (math.isfinite(compare_rate_hz) and compare_rate_hz > 0):
         raise InputError(f"the comparison rate (--rate) must be a positive number of Hz, got {compare_rate_hz!r}")
     cfg = parse_configuration(config) if config is not None else ts.configuration
@@ -311,6 +314,11 @@ def prepare_experiment(
     fs_data = ts.sample_rate_hz
     if len(ts) < 20:
         raise DataFormatError(f"{ts.source}: {len(ts)} samples are too few to compare (need >= 20)")
+    if compare_rate_hz > fs_data * 1.01:  # 1 %: a jittered clock's median rate; the grid is capped at it anyway
+        raise InputError(
+            f"the comparison rate (--rate) {compare_rate_hz:g} Hz is above the recording's sample rate "
+            f"{fs_data:.6g} Hz ({ts.source}); choose <= {fs_data:.6g}"
+        )
     # uniform grid at the data rate (capped at 2 kHz) for derivatives
     fs_w = min(fs_data, 2000.0)
     uni = ts.resample(fs_w)
