@@ -14,7 +14,7 @@ from .effects.composition import compose
 from .errors import InputError, SimulationError
 from .integrators import ADAPTIVE, DEFAULT_DT, tableau
 from .lane_runner import LANES_MIN_BATCH, block_width, pad_lanes
-from .run_setup import DEFAULT_SMOOTH_EPS, ParamsLike, delay_lines, friction_eps, initial_states
+from .run_setup import DEFAULT_SMOOTH_EPS, ParamsLike, delay_lines, friction_eps, initial_states, whole_number
 from .trajectory import check_run, speed_limit
 
 __all__ = ["BatchSimulator"]
@@ -101,8 +101,7 @@ class BatchSimulator:
         effect_params: Mapping[str, float] | None = None,
     ) -> None:
         self.config = parse_configuration(config)
-        if int(n) < 1:
-            raise InputError(f"n must be >= 1, got {n!r}")
+        n = whole_number("n", n, 1)
         self.composition, self.effect_values = compose(effects, effect_params)
         self.kernels = self.composition.kernels
         self.n = int(n)

@@ -125,6 +125,24 @@ def real_numbers(name: str, value: Any, unit: str) -> np.ndarray:
     return array
 
 
+def step_grid(duration: Any, dt: Any) -> tuple[float, float]:
+    """A run's ``duration`` (s) and step ``dt`` (s), refused unless they are numbers in range.
+
+    Raises
+    ------
+    InputTypeError
+        Either is not a number.
+    InputError
+        ``duration`` not positive and finite, or ``dt`` outside (0, 0.1] s.
+    """
+    duration, dt = real_number("duration", duration, "s"), real_number("dt", dt, "s")
+    if not (np.isfinite(duration) and duration > 0):
+        raise InputError(f"duration must be a positive number of seconds, got {duration:g}")
+    if not (np.isfinite(dt) and 0 < dt <= 0.1):
+        raise InputError(f"dt must be in (0, 0.1] s, got {dt:g}")
+    return duration, dt
+
+
 def as_voltages(u: Any, what: str = "u") -> np.ndarray:
     """``u`` as a float array, refused in the caller's words if it holds anything but numbers."""
     if u is None or isinstance(u, (str, bytes, bool)):
@@ -169,8 +187,33 @@ def initial_state(
     -------
     numpy.ndarray
         ``(theta_u, theta_l, omega_u, omega_l, x, y, vx, vy)``.
+
+    Raises
+    ------
+    InputTypeError
+        A value that is not a number.
+    InputError
+        A value that is not finite.
     """
-    return np.array([theta_u0, theta_u0 + alpha0, omega_u0, omega_l0, x0, y0, vx0, vy0], dtype=np.float64)
+    given = dict(alpha0=alpha0, theta_u0=theta_u0, omega_u0=omega_u0, omega_l0=omega_l0, x0=x0, y0=y0, vx0=vx0, vy0=vy0)
+    units = dict(alpha0="rad", theta_u0="rad", omega_u0="rad/s", omega_l0="rad/s", x0="m", y0="m", vx0="m/s", vy0="m/s")
+    v = {k: real_number(k, x, units[k]) for k, x in given.items()}
+    bad = next((k for k, x in v.items() if not np.isfinite(x)), None)
+    if bad is not None:
+        raise InputError(f"{bad} must be finite, got {v[bad]}")
+    return np.array(
+        [
+            v["theta_u0"],
+            v["theta_u0"] + v["alpha0"],
+            v["omega_u0"],
+            v["omega_l0"],
+            v["x0"],
+            v["y0"],
+            v["vx0"],
+            v["vy0"],
+        ],
+        dtype=np.float64,
+    )
 
 
 def table_steps(ts: np.ndarray, n_steps: int, dt: float) -> np.ndarray:

@@ -14,15 +14,30 @@ and V, which :func:`drillgym.simulate` accepts directly as its input and
 
 from __future__ import annotations
 
+import math
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy import signal as sps
 
 from .errors import InputError
+from .io import U_LIMIT_FILE
 from .io.jsonfile import dumps_json
+from .io.outputs import check_output_file
+from .io.paths import written_whole
+from .run_setup import real_number, real_numbers, whole_number
 
-__all__ = ["quasi_random", "sum_of_sines", "write_input_file", "read_input_file", "U_MAX"]
+__all__ = [
+    "quasi_random",
+    "sum_of_sines",
+    "check_signal",
+    "write_input_file",
+    "read_input_file",
+    "U_MAX",
+    "MAX_SAMPLES",
+]
 
 U_MAX = 5.0  # V: amplifier range of the rig
 
@@ -39,28 +54,90 @@ def _fade_in(t: np.ndarray, u: np.ndarray, fade_s: float) -> np.ndarray:
     return u * 0.5 * (1.0 - np.cos(np.pi * w))
 
 
-def _check(duration: float, rate_hz: float, amplitude: float, f_max: float) -> None:
-    if not (np.isfinite(duration) and duration > 0):
-        raise InputError(f"signal duration must be a positive number of seconds, got {duration!r}")
-    if not (np.isfinite(rate_hz) and rate_hz > 0):
-        raise InputError(f"signal sample rate must be a positive number of Hz, got {rate_hz!r}")
-    if not (0 < amplitude <= 50):
-        raise InputError(f"signal amplitude must be in (0, 50] V, got {amplitude!r}")
-    if not (np.isfinite(f_max) and f_max > 0):
-        raise InputError(f"the signal's band f_max must be a positive number of Hz, got {f_max:g}")
+#: most samples one signal may have (about 2 GB as CSV)
+MAX_SAMPLES = 50_000_000
+
+
+def check_signal(
+    duration: Any,
+    rate_hz: Any,
+    amplitude: Any,
+    offset: Any = 0.0,
+    seed: Any = 0,
+    f_max: Any = F_MAX_HZ,
+    *,
+    names: Mapping[str, str] | None = None,
+) -> None:
+    """Refuse, before anything is generated, settings no signal can have.
+
+    Parameters
+    ----------
+    duration : float
+        Length (s): positive, finite.
+    rate_hz : float
+        Sample rate (Hz): above twice ``f_max``; ``duration * rate_hz`` between 2 and :data:`MAX_SAMPLES`.
+    amplitude : float
+        Largest |u| (V): in (0, 50].
+    offset : float, optional
+        Centre (V): finite and smaller in size than ``amplitude``.
+    seed : int or None, optional
+        Seed: None or a whole number >= 0.
+    f_max : float, optional
+        The band's upper end (Hz).
+    names : mapping of str to str, optional
+        The name each argument has for the user (``{"rate_hz": "--rate"}`` on the command line); default the
+        argument names.
+
+    Raises
+    ------
+    InputTypeError
+        A setting that is not a number (a string, a bool, None).
+    InputError
+        A setting out of its range.
+    """
+    name = {k: k for k in ("duration", "rate_hz", "amplitude", "offset", "seed", "f_max")} | dict(names or {})
+    duration = real_number(name["duration"], duration, "s")
+    rate_hz = real_number(name["rate_hz"], rate_hz, "Hz")
+    amplitude = real_number(name["amplitude"], amplitude, "V")
+    offset = real_number(name["offset"], offset, "V")
+    f_max = real_number(name["f_max"], f_max, "Hz")
+    if not (math.isfinite(duration) and duration > 0):
+        raise InputError(f"{name['duration']} must be a positive number of seconds, got {duration:g}")
+    if not (math.isfinite(rate_hz) and rate_hz > 0):
+        raise InputError(f"{name['rate_hz']} must be a positive number of Hz, got {rate_hz:g}")
+    if duration * rate_hz > MAX_SAMPLES:
+        raise InputError(
+            f"{name['duration']} {duration:g} s at {name['rate_hz']} {rate_hz:g} Hz is {duration * rate_hz:.3g} "
+            f"samples, more than {MAX_SAMPLES:.0e}: shorten {name['duration']} or lower {name['rate_hz']}"
+        )
+    if duration * rate_hz < 2:
+        raise InputError(
+            f"{name['duration']} {duration:g} s at {name['rate_hz']} {rate_hz:g} Hz gives fewer than 2 samples"
+        )
+    if not (math.isfinite(f_max) and f_max > 0):
+        raise InputError(f"the signal's band {name['f_max']} must be a positive number of Hz, got {f_max:g}")
     if not f_max < rate_hz / 2:
         raise InputError(
-            f"a sample rate of {rate_hz:g} Hz cannot carry the signal's band up to f_max = {f_max:g} Hz "
-            f"(its Nyquist rate is {rate_hz / 2:g} Hz): choose a rate above {2 * f_max:g} Hz"
+            f"{name['rate_hz']} {rate_hz:g} Hz cannot carry the signal's band up to {f_max:g} Hz (its Nyquist "
+            f"rate is {rate_hz / 2:g} Hz): choose a rate above {2 * f_max:g} Hz"
         )
-
-
-def _check_offset(amplitude: float, offset: float) -> None:
-    if abs(offset) >= amplitude and offset != 0:
+    if not (math.isfinite(amplitude) and 0 < amplitude <= U_LIMIT_FILE):
+        raise InputError(f"{name['amplitude']} must be in (0, {U_LIMIT_FILE:g}] V, got {amplitude:g}")
+    if not math.isfinite(offset):
+        raise InputError(f"{name['offset']} must be a finite number of volts, got {offset:g}")
+    if offset != 0 and not abs(offset) < amplitude:
         raise InputError(
-            f"offset {offset} V must be smaller in size than the amplitude {amplitude} V (the largest "
-            f"|u|; the signal spans offset ± (amplitude - |offset|))"
+            f"{name['offset']} {offset:g} V must be smaller in size than {name['amplitude']} {amplitude:g} V "
+            f"(the signal spans offset ± (amplitude - |offset|))"
         )
+    if seed is not None:
+        whole_number(name["seed"], seed, 0)
+
+
+def _check_fade(fade_s: Any) -> None:
+    fade_s = real_number("fade_s", fade_s, "s")
+    if not (math.isfinite(fade_s) and fade_s >= 0):
+        raise InputError(f"fade_s must be a number of seconds >= 0, got {fade_s:g}")
 
 
 def quasi_random(
@@ -112,10 +189,11 @@ def quasi_random(
     InputError
         A non-positive duration, rate or amplitude, |offset| >= amplitude, or bad hold times.
     """
-    _check(duration, rate_hz, amplitude, f_max)
-    if not (0 < hold[0] <= hold[1]):
-        raise InputError(f"hold times must satisfy 0 < min <= max, got {hold!r}")
-    _check_offset(amplitude, offset)
+    check_signal(duration, rate_hz, amplitude, offset, seed, f_max)
+    _check_fade(fade_s)
+    lo, hi = real_numbers("hold", hold, "s") if np.size(hold) == 2 else (math.nan, math.nan)
+    if not (0 < lo <= hi):
+        raise InputError(f"hold must be two times (s) with 0 < min <= max, got {hold!r}")
     rng = np.random.default_rng(seed)
     n = int(round(duration * rate_hz)) + 1
     t = np.arange(n) / rate_hz
@@ -179,9 +257,9 @@ def sum_of_sines(
     InputError
         Bad duration, rate, amplitude, offset or frequencies.
     """
-    _check(duration, rate_hz, amplitude, f_max)
-    _check_offset(amplitude, offset)
-    f = np.asarray(frequencies, dtype=float)
+    check_signal(duration, rate_hz, amplitude, offset, seed, f_max)
+    _check_fade(fade_s)
+    f = real_numbers("frequencies", frequencies, "Hz")
     if f.size == 0 or np.any(f <= 0) or np.any(f >= f_max):
         raise InputError(f"frequencies must be positive and below f_max = {f_max} Hz, got {tuple(frequencies)}")
     rng = np.random.default_rng(seed)
@@ -212,19 +290,21 @@ def write_input_file(path: str | Path, t: np.ndarray, u: np.ndarray, description
     Path
         The path written.
     """
-    t = np.asarray(t, dtype=float)
-    u = np.asarray(u, dtype=float)
+    t = real_numbers("t", t, "s")
+    u = real_numbers("u", u, "V")
     if t.shape != u.shape or t.ndim != 1:
         raise InputError(f"t and u must be 1-D arrays of one length, got shapes {t.shape} and {u.shape}")
     if np.any(np.diff(t) <= 0):
         raise InputError("signal time must be strictly increasing")
-    path = Path(path)
+    if u.size and np.max(np.abs(u)) > U_LIMIT_FILE:
+        raise InputError(f"u must stay within ±{U_LIMIT_FILE:g} V, got {float(np.max(np.abs(u))):g} V")
+    path = check_output_file(path, "path", suffixes=(".csv",))
     meta = {
         "source": "signal",
         "description": description,
         "sample_rate_hz": round(float(1.0 / np.median(np.diff(t))), 6) if t.size > 1 else None,
     }
-    with path.open("w", encoding="utf-8") as fh:
+    with written_whole(path, "the input signal") as fh:
         fh.write(f"# meta: {dumps_json(meta)}\n")
         fh.write("t,u\n")
         for a, b in zip(t, u):

@@ -52,6 +52,7 @@ from .run_setup import (
     optional_args,
     real_number,
     record_columns,
+    step_grid,
     whole_number,
 )
 from .trajectory import BatchTrajectory, Trajectory, check_run
@@ -191,11 +192,7 @@ def simulate_batch(
     """
     cfg = parse_configuration(config)
     comp, values = compose(effects, effect_params)
-    duration, dt = real_number("duration", duration, "s"), real_number("dt", dt, "s")
-    if not (np.isfinite(duration) and duration > 0):
-        raise InputError(f"duration must be a positive number of seconds, got {duration:g}")
-    if not (np.isfinite(dt) and 0 < dt <= 0.1):
-        raise InputError(f"dt must be in (0, 0.1] s, got {dt:g}")
+    duration, dt = step_grid(duration, dt)
     record_every = whole_number("record_every", record_every, 1)
     n_steps = int(round(duration / dt))
     B = _batch_size(n_batch, x0, alpha0, params, u, n_steps)

@@ -236,7 +236,7 @@ def test_local_executor_workers(workers):
 # --------------------------------------------------------------------------------------- identification, comparison
 
 
-@pytest.mark.parametrize("rate", [0.0, -1.0, float("nan"), float("inf")])
+@pytest.mark.parametrize("rate", [0.0, -1.0, float("nan"), float("inf"), "50", 1e6])
 def test_prepare_experiment_rate(rate, tmp_path):
     from drillgym.identification import prepare_experiment
     from drillgym.io import read_timeseries
@@ -247,7 +247,7 @@ def test_prepare_experiment_rate(rate, tmp_path):
     refused(lambda: prepare_experiment(ts, "torsional", compare_rate_hz=rate), "rate")
 
 
-@pytest.mark.parametrize("segment", [float("nan"), -1.0, 0.0, float("inf")])
+@pytest.mark.parametrize("segment", [float("nan"), 0.0, float("inf"), "4", 100.0, 1e-3])
 def test_compare_segment(segment, tmp_path):
     from drillgym.diagnosis.compare import compare
     from drillgym.identification import prepare_experiment
@@ -262,3 +262,164 @@ def test_compare_segment(segment, tmp_path):
         assert "segment" in str(exc), str(exc)
         return
     pytest.fail(f"compare accepted segment_s={segment!r}: {res}")
+
+
+DIAGNOSE_BAD = {
+    "segment_s": ["abc", float("nan"), 0.0, float("inf"), 100.0, True],
+    "compare_rate_hz": ["x", 0.0, -5.0, float("nan"), 1e6],
+    "lvdt_lowpass_hz": [-1.0, 0.0, float("inf"), "5"],
+    "n_joint": [0, -1, 1.5, "2"],
+    "max_effects": [0, -1, "a", 2.5],
+    "effects": ["motor_lag", ["nope"], ["lateral_anisotropy"], 3],
+    "base_effects": [["lvdt_skew"], ["nope"]],
+    "effect_params": [{"nope": 1.0}, [("tau_m", 1.0)]],
+    "refine_speeds": ["no", 1, None],
+    "fixed_base": ["yes", 0],
+    "discover": ["yes", 1],
+    "candidate_out": ["/proc/x.py", "cand.txt", 3],
+}
+
+
+@pytest.fixture(scope="module")
+def short_recording():
+    from drillgym.identification.synthetic import synthetic_measurement
+
+    return synthetic_measurement("torsional", duration=4.0, rate_hz=200.0, seed=1)
+
+
+@examples(30)
+@given(data=st.data())
+def test_diagnose_refuses_its_settings_before_any_work(data, short_recording):
+    """Every setting the command line checks is checked by the function too, before the search."""
+    from drillgym.diagnosis import diagnose
+
+    name, value = draw_kwargs(data, DIAGNOSE_BAD)
+    kw = {name: value}
+    if name == "candidate_out":
+        kw["discover"] = True
+    refused(lambda: diagnose(short_recording, **kw), name, "rate", "effect", "parameter")
+
+
+@pytest.mark.parametrize("params", ["x", {"Ju": 1.0}, 3])
+def test_diagnose_refuses_params_that_are_not_rig_params(params, short_recording):
+    from drillgym.diagnosis import diagnose
+
+    refused(lambda: diagnose(short_recording, params), "params")
+
+
+REFIT_BAD = {
+    "effects": [["lvdt_skew"], ["nope"], 3],
+    "effect_params": [{"nope": 1.0}, [("tau_m", 1.0)]],
+    "base_values": [{"tau_m": 1.0}, "x"],
+    "fit": [["nope"], ["k"], "k", 3],
+    "refit_base": ["no", 1],
+    "segment_s": ["x", float("nan"), 0.0, 100.0],
+    "compare_rate_hz": [0.0, "x", 1e6],
+    "max_nfev": [0, 1.5, "a", -3],
+}
+
+
+@examples(20)
+@given(data=st.data())
+def test_refit_refuses_its_settings_before_any_work(data, short_recording):
+    """``refit`` (what ``identify`` runs) refuses what the command line refuses."""
+    from drillgym.diagnosis.refit import refit
+
+    name, value = draw_kwargs(data, REFIT_BAD)
+    refused(lambda: refit(short_recording, **{name: value}), name, "rate", "effect", "parameter", "--fit")
+
+
+def test_refit_takes_one_name_as_one_effect_and_one_parameter():
+    """A single string is one item (not its characters), as ``compose`` takes it."""
+    from drillgym.diagnosis.refit import RefitOptions
+
+    o = RefitOptions(effects="motor_lag", fit="km")
+    assert o.effects == ("motor_lag",) and o.fit == ("km",)
+
+
+# --------------------------------------------------------------------------------------- signals
+
+
+SIGNAL_BAD = {
+    "duration": BAD_NUMBERS + [0.0, -1.0, 1e12],
+    "rate_hz": BAD_NUMBERS + [0.0, -100.0, 8.0],
+    "amplitude": BAD_NUMBERS + [0.0, -1.0, 51.0],
+    "offset": [float("nan"), float("inf"), "1", None, 6.0, -5.0],
+    "seed": ["abc", -1, 1.5],
+    "fade_s": [float("nan"), -1.0, "x"],
+}
+
+
+@examples(25)
+@given(data=st.data())
+def test_signal_generators_refuse_what_the_signal_command_refuses(data):
+    from drillgym.signals import quasi_random, sum_of_sines
+
+    name, value = draw_kwargs(data, SIGNAL_BAD)
+    make = data.draw(st.sampled_from([quasi_random, sum_of_sines]), label="generator")
+    kw = {"duration": 2.0, "rate_hz": 100.0, name: value}
+    refused(lambda: make(kw.pop("duration"), **kw), name)
+
+
+@pytest.mark.parametrize(
+    "t, u, name",
+    [
+        ([0.0, 0.1, 0.2], [0.0, float("nan"), 1.0], "u"),
+        ([0.0, 0.1, 0.2], [0.0, 60.0, 1.0], "u"),
+        ([0.0, 0.1, 0.1], [0.0, 1.0, 1.0], "time"),
+        (["a", "b"], [0.0, 1.0], "t"),
+    ],
+)
+def test_write_input_file_refuses_a_signal_no_run_can_take(t, u, name, tmp_path):
+    from drillgym.signals import write_input_file
+
+    refused(lambda: write_input_file(tmp_path / "in.csv", t, u), name)
+    assert not (tmp_path / "in.csv").exists()
+
+
+def test_write_input_file_never_replaces_a_file_of_another_kind(tmp_path):
+    from drillgym.signals import write_input_file
+
+    keep = tmp_path / "keep.npz"
+    keep.write_bytes(b"the user's own")
+    refused(lambda: write_input_file(keep, [0.0, 0.1], [0.0, 1.0]), "keep.npz")
+    assert keep.read_bytes() == b"the user's own"
+
+
+# --------------------------------------------------------------------------------------- equilibria, sweeps, batches
+
+
+def _eq():
+    from drillgym import equilibria
+
+    return equilibria
+
+
+def _bf():
+    from drillgym import bifurcation
+
+    return bifurcation
+
+
+SHORT = dict(duration=1.0, window=0.5)
+EQUILIBRIA_BAD = [
+    ("omega", lambda: _eq().equilibrium_voltage("torsional", float("nan"))),
+    ("omega", lambda: _eq().equilibrium_voltage("torsional", "x")),
+    ("omega", lambda: _eq().slip_equilibrium("torsional", "x")),
+    ("effects", lambda: _eq().slip_equilibrium("torsional", 1.0, effects=["lvdt_skew"])),
+    ("n", lambda: _bf().equilibrium_branch("torsional", n=0)),
+    ("n", lambda: _bf().equilibrium_branch("torsional", n="a")),
+    ("voltages", lambda: _bf().sweep_constant("torsional", ["a"], **SHORT)),
+    ("voltages", lambda: _bf().sweep_constant("torsional", [1e6], **SHORT)),
+    ("dt", lambda: _bf().sweep_constant("torsional", [2.0], dt=0.3, **SHORT)),
+    ("alpha0", lambda: drillgym.initial_state(alpha0="x")),
+    ("alpha0", lambda: drillgym.initial_state(alpha0=float("nan"))),
+    ("n", lambda: drillgym.BatchSimulator("torsional", "2")),
+    ("n", lambda: drillgym.BatchSimulator("torsional", 2.5)),
+]
+
+
+@pytest.mark.parametrize("name, call", EQUILIBRIA_BAD)
+def test_equilibria_sweeps_and_batches_refuse_before_any_run(name, call):
+    """Refused in the caller's words, before a worker starts (its refusal would come back wrapped)."""
+    refused(call, name)

@@ -27,6 +27,7 @@ from ..equilibria import (
 )
 from ..errors import InputError
 from ..params import RigParams
+from ..run_setup import real_number, whole_number
 
 
 @dataclass(frozen=True)
@@ -175,8 +176,13 @@ def equilibrium_branch(
     """
     params = as_model(params)
     cfg = supported_configuration(config)
+    umax = real_number("umax", umax, "V")
     if not (np.isfinite(umax) and umax > 0):
         raise InputError(f"umax must be a positive voltage, got {umax!r}")
+    n = whole_number("n", n, 2)
+    omega_min = real_number("omega_min", omega_min, "rad/s")
+    if not (np.isfinite(omega_min) and omega_min > 0):
+        raise InputError(f"omega_min must be a positive speed (rad/s), got {omega_min!r}")
     w_hi = 1.0
     while equilibrium_voltage(cfg, w_hi, params) < umax:
         w_hi *= 1.5

@@ -29,6 +29,7 @@ from ..equilibria import RigModel, as_model, slip_equilibria
 from ..errors import InputError
 from ..parallel import LocalExecutor, map_ordered, parallelism
 from ..params import RigParams
+from ..run_setup import U_LIMIT, as_voltages, real_number, step_grid
 from ..simulator import simulate_batch
 from .steady_state import STAT_NAMES, steady_state_stats
 
@@ -115,10 +116,16 @@ def _executor(executor: Executor | None) -> tuple[Executor, bool]:
     return LocalExecutor(os.cpu_count() or 1), True
 
 
-def _check(voltages, duration: float, window: float) -> np.ndarray:
-    u = np.asarray(voltages, dtype=float).reshape(-1)
+def _check(voltages, duration: float, window: float, dt: float) -> np.ndarray:
+    """The sweep's voltages, checked with its run settings before any run starts (a worker's refusal would
+    come back wrapped in the executor's error)."""
+    u = as_voltages(voltages, "voltages").reshape(-1)
     if u.size == 0 or not np.all(np.isfinite(u)):
         raise InputError("sweep voltages must be a non-empty list of finite numbers (V)")
+    if np.max(np.abs(u)) > U_LIMIT:
+        raise InputError(f"sweep voltages must stay within ±{U_LIMIT:g} V, got {float(np.max(np.abs(u))):g} V")
+    duration, dt = step_grid(duration, dt)
+    window = real_number("window", window, "s")
     if not 0 < window <= duration:
         raise InputError(f"window ({window} s) must be positive and not longer than the run ({duration} s)")
     return u
@@ -167,7 +174,7 @@ def sweep_constant(
     SweepResult
         Per voltage: steady-state omega_l range (rad/s), r range (m), period (s), stuck fraction.
     """
-    u = _check(voltages, duration, window)
+    u = _check(voltages, duration, window, dt)
     params = as_model(params)
     if start == "rest":
         x0 = None
@@ -229,7 +236,7 @@ def sweep_staircase(
     up, down : SweepResult
         The sweep up and the sweep down.
     """
-    u = np.sort(_check(voltages, dwell, window))
+    u = np.sort(_check(voltages, dwell, window, dt))
     params = as_model(params)
     ex, own = _executor(executor)
     try:

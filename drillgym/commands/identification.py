@@ -75,25 +75,11 @@ def _segment(value: str) -> float | None:
     return s
 
 
-#: fewest comparison-grid samples a multiple-shooting segment spans
-SEGMENT_MIN_SAMPLES = 10
-
-
 def _check_segment(seg: float | None, ex) -> None:
-    """Refuse a ``--segment`` (s) shorter than :data:`SEGMENT_MIN_SAMPLES` grid samples or longer than
-    the recording (one segment is a free run: 'none' says so)."""
-    if seg is None:
-        return
-    t = np.asarray(ex.t, dtype=float)
-    span = float(t[-1] - t[0]) if t.size > 1 else 0.0
-    shortest = SEGMENT_MIN_SAMPLES / float(ex.fs)
-    if seg < shortest:
-        raise InputError(
-            f"--segment {seg:g} s spans fewer than {SEGMENT_MIN_SAMPLES} samples of the {ex.fs:g} Hz comparison "
-            f"grid: choose >= {shortest:g} s, or 'none'"
-        )
-    if seg > span:
-        raise InputError(f"--segment {seg:g} s is longer than the recording ({span:g} s): use 'none' for a free run")
+    """Refuse a ``--segment`` (s) the recording cannot take (see ``drillgym.identification.segment_length``)."""
+    from ..identification.segment_length import segment_length
+
+    segment_length(seg, ex, "--segment")
 
 
 def _rate(rate: float) -> float:
@@ -150,43 +136,15 @@ def _experiment(data: Path, config: str | None, rate: float, mapping: list[str] 
         return prepare_experiment(ts, config, compare_rate_hz=rate)
 
 
-#: most samples ``drillgym signal`` writes (about 2 GB of csv)
-SIGNAL_MAX_SAMPLES = 50_000_000
-#: Hz: the band of the generated signals (drillgym.signals.F_MAX_HZ)
-SIGNAL_BAND_HZ = 5.0
+#: the options of ``drillgym signal`` by the argument of :func:`drillgym.signals.check_signal` they set
+SIGNAL_OPTIONS = {"duration": "--duration", "rate_hz": "--rate", "amplitude": "--amplitude", "offset": "--offset"}
 
 
 def _check_signal(duration: float, rate: float, amplitude: float, offset: float, seed: int) -> None:
     """Refuse, naming the option, a signal no file can hold: checked before anything is generated."""
-    from ..io import U_LIMIT_FILE
+    from ..signals import check_signal
 
-    if not (math.isfinite(duration) and duration > 0):
-        raise InputError(f"--duration must be a positive number of seconds, got {duration:g}")
-    if not (math.isfinite(rate) and rate > 0):
-        raise InputError(f"--rate must be a positive number of Hz, got {rate:g}")
-    if duration * rate > SIGNAL_MAX_SAMPLES:
-        raise InputError(
-            f"--duration {duration:g} s at --rate {rate:g} Hz is {duration * rate:.3g} samples, more than "
-            f"{SIGNAL_MAX_SAMPLES:.0e}: shorten --duration or lower --rate"
-        )
-    if duration * rate < 2:
-        raise InputError(f"--duration {duration:g} s at --rate {rate:g} Hz gives fewer than 2 samples")
-    if rate <= 2 * SIGNAL_BAND_HZ:
-        raise InputError(
-            f"--rate {rate:g} Hz cannot carry the signal's band up to {SIGNAL_BAND_HZ:g} Hz: choose a rate "
-            f"above {2 * SIGNAL_BAND_HZ:g} Hz"
-        )
-    if not (math.isfinite(amplitude) and 0 < amplitude <= U_LIMIT_FILE):
-        raise InputError(f"--amplitude must be in (0, {U_LIMIT_FILE:g}] V, got {amplitude:g}")
-    if not math.isfinite(offset):
-        raise InputError(f"--offset must be a finite number of volts, got {offset:g}")
-    if not abs(offset) < amplitude:
-        raise InputError(
-            f"--offset {offset:g} V must be smaller in size than --amplitude {amplitude:g} V (the signal spans "
-            f"offset +- (amplitude - |offset|))"
-        )
-    if seed < 0:
-        raise InputError(f"--seed must be >= 0, got {seed}")
+    check_signal(duration, rate, amplitude, offset, seed, names={**SIGNAL_OPTIONS, "seed": "--seed"})
 
 
 def signal_cmd(
@@ -336,6 +294,8 @@ def diagnose_cmd(
         if d.candidate is not None:
             c = d.candidate
             typer.echo(f"candidate outside the library ({c.explained:.0%} of the residual torque): {c.expression()}")
+            if c.fit is not None:
+                typer.echo(c.fit.line())
             typer.echo(
                 f"  written to {c.effect_file.rsplit(':', 1)[0]}; fit it: drillgym identify {data} "
                 f"--add-effect {c.effect_file} --out p.json"

@@ -10,6 +10,7 @@ from scipy.optimize import brentq, fsolve
 from ..configurations import Configuration
 from ..errors import FitError, InputError
 from ..params import ParameterError, RigParams
+from ..run_setup import real_number, real_numbers
 from .linear import eigenvalues
 from .model import (
     Equilibrium,
@@ -136,6 +137,8 @@ def slip_equilibrium(
     """
     rig = as_model(params, effects, effect_params)
     cfg = supported_configuration(config)
+    rig.comp.refuse_not_acting(cfg.label, "effects")
+    omega = real_number("omega", omega, "rad/s")
     if not (np.isfinite(omega) and omega != 0.0):
         raise InputError(f"omega must be a finite non-zero speed for a slip equilibrium, got {omega!r}")
     u, alpha, x, y = _closed_form(cfg, float(omega), rig)
@@ -180,7 +183,8 @@ def equilibrium_voltage(
     """
     rig = as_model(params, effects, effect_params)
     cfg = supported_configuration(config)
-    w = np.atleast_1d(np.asarray(omega, dtype=float))
+    rig.comp.refuse_not_acting(cfg.label, "effects")
+    w = np.atleast_1d(real_numbers("omega", omega, "rad/s"))
     if rig.dynamic_effects:
         out = np.array([slip_equilibrium(cfg, float(v), rig, with_eigenvalues=False).u for v in w])
     else:
