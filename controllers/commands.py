@@ -81,11 +81,20 @@ def register(app: typer.Typer) -> None:
             "and lqg-2enc run its effects (a lag, a delay, lower-disc friction), the others its base parameters; "
             "default the nominal model (--params) without effects",
         ),
+        identify: bool = typer.Option(
+            False,
+            "--identify",
+            help="with --scenarios plants: identify each plant first (an excitation run with the plant's lag, delay, "
+            "friction and encoders; diagnose; identify) and build every controller on its identified model",
+        ),
+        excitation: float = typer.Option(
+            30.0, "--excitation", help="length of each plant's excitation run with --identify (s)"
+        ),
     ) -> None:
         """Evaluate controllers on the scenarios; write a CSV, a markdown table and the SSI figure.
         The plant runs the hidden effects (--add-effect, and a model file's); the controllers do not."""
         from controllers.evaluation import DEFAULT_TARGETS, evaluate, parse_scenarios
-        from controllers.evaluation.harness import check_evaluation_options
+        from controllers.evaluation.harness import DURATION_MAX, check_evaluation_options
         from controllers.evaluation.population import load_uncertainty
         from controllers.evaluation.report import write_report
         from drillgym.commands.effect_options import check_effects_act
@@ -113,6 +122,17 @@ def register(app: typer.Typer) -> None:
             scen = parse_scenarios(scenarios)
         if ray is not None:
             check_ray_address(ray)
+        ident = None
+        if identify:
+            from controllers.evaluation.identify import ExcitationOptions
+
+            if not any(s.population for s in scen):
+                raise InputError("--identify identifies each plant of a population: add --scenarios plants")
+            if model is not None:
+                raise InputError("--identify builds the controllers on each plant's identified model: drop --model")
+            if not (excitation >= 2.0 and excitation <= DURATION_MAX):
+                raise InputError(f"--excitation must be in [2, {DURATION_MAX:g}] s, got {excitation:g}")
+            ident = ExcitationOptions(duration=float(excitation))
         if uncertainty is not None:
             if not any(s.population for s in scen):
                 raise InputError("--uncertainty is the set of the 'plants' scenario: add --scenarios plants")
@@ -153,6 +173,7 @@ def register(app: typer.Typer) -> None:
                 uncertainty=uncertainty,
                 executor=ex,
                 model=ctrl_model,
+                identify=ident,
             )
         for w in caught:
             typer.echo(f"warning: {w.message}", err=True)

@@ -15,6 +15,11 @@ included, through the composition's compiled kernels (:mod:`drillgym.effects`):
   angle; the law's derivatives hold the angle fixed over a period: :mod:`controllers.observer`);
 * **Measurement** effects on channels the controller does not read (the LVDT's) change nothing it uses.
 
+A friction effect that depends on time (``friction_drift``: the level drifts from the recording's start)
+has no origin in a controller's run: the controller's law evaluates it at t = 0 (where the drift is
+neutral) and its disturbance state (the brake's estimated level or torque) takes the drift; building
+such a controller warns, naming the effect.
+
 Any other effect (an Input effect without a lag, a Force, a Friction on the upper disc, a
 Measurement on an encoder the controller reads) is refused in one line that names it: a controller
 never silently runs a model other than the one it is given.
@@ -26,6 +31,7 @@ never silently runs a model other than the one it is given.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -103,6 +109,12 @@ class ControllerModel:
             elif issubclass(e, Friction):
                 if e.disc != "lower":
                     why = f"friction on the {e.disc} disc"
+                elif any("t" in e.argument_names(f) for f in e.defined_functions()):
+                    warnings.warn(
+                        f"{who}: the model's effect {e.name!r} depends on time; the law takes it at t = 0 and the "
+                        "disturbance state estimates its drift",
+                        stacklevel=3,
+                    )
             elif issubclass(e, Measurement):
                 hit = [c for c in e.channels if c in seen.values()]
                 if hit:

@@ -296,3 +296,23 @@ def test_short_run_warning_names_the_controller_and_the_duration_needed():
         evaluate(
             ["observer"], ["torsional"], ["rest"], targets=[1.0], duration=6.0, window=1.0, workers=1, progress=False
         )
+
+
+# --------------------------------------------------------------------- identify, then control
+def test_excitation_run_records_what_the_plants_encoders_report():
+    from controllers.evaluation.identify import ExcitationOptions, excitation_recording
+
+    pop = sample_plants(2, 0)
+    ts = excitation_recording(pop.matrix[1], pop.composition, 2048, 0.0, 3, ExcitationOptions(duration=1.0))
+    assert len(ts) == 500 and ts.configuration.label == "torsional" and ts.meta["counts_per_rev"] == 2048
+    counts = np.asarray(ts.theta_u) / (2 * np.pi / 2048)
+    np.testing.assert_allclose(counts, np.round(counts), atol=1e-6)  # the plant's encoder, not the nominal 8000
+    assert np.ptp(ts.u) > 2.0 and 0.0 <= ts.u.min() and ts.u.max() <= 5.0 and np.ptp(ts.theta_u) > 0
+
+
+def test_identify_is_refused_without_a_population(tmp_path, capsys):
+    args = ["evaluate", "--config", "torsional", "--controllers", "pi", "--out", str(tmp_path / "ev"), "--identify"]
+    with pytest.raises(SystemExit) as e:
+        main(args + ["--scenarios", "rest"])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and "--identify" in err and "plants" in err and not (tmp_path / "ev").exists()

@@ -57,6 +57,7 @@ def run_job(
     n_plants: int = 0,
     uncertainty: Any = None,
     model: Any = None,
+    identified: Mapping[int, Any] | None = None,
 ) -> list[dict]:
     """Run one controller in one configuration and scenario for every target; one row per target.
 
@@ -64,7 +65,9 @@ def run_job(
     ``effects``/``effect_params``: hidden effects of the plant only (specs, classes or a Composition).
     A population scenario runs the plants ``plants`` (indices) of the population of ``n_plants`` drawn
     with ``seed`` from ``uncertainty`` (:mod:`.population`): one row per (plant, target).  ``model``: the
-    controller's own model (:class:`controllers.model.ControllerModel`; default ``params`` without effects)."""
+    controller's own model (:class:`controllers.model.ControllerModel`; default ``params`` without effects);
+    ``identified``: plant index -> :class:`.identify.IdentifiedPlant`, each plant's controller built on its own
+    identified model."""
     base = RigParams.from_dict(params) if params else RigParams()
     if scenario.population:
         return _run_population_job(
@@ -80,6 +83,7 @@ def run_job(
             n_plants=n_plants,
             uncertainty=uncertainty,
             model=model,
+            identified=identified,
         )
     comp, values = compose(effects, effect_params)
     plant = plant_params(scenario, base)
@@ -144,10 +148,20 @@ def _run_population_job(
     n_plants: int,
     uncertainty: Any,
     model: Any = None,
+    identified: Mapping[int, Any] | None = None,
 ) -> list[dict]:
     """The plants ``plants`` x ``targets`` as one batch; the controller built from ``base`` (or ``model``) with
     its default encoder assumptions (the plants' encoders and noise are not told)."""
     pop = sample_plants(n_plants, seed, uncertainty, base).subset(list(plants))
+    if identified:  # one controller per plant, on that plant's identified model
+        rows = []
+        for k in plants:
+            one = _run_population_job(
+                controller, config, scenario, targets, base, duration=duration, window=window, seed=seed,
+                plants=[k], n_plants=n_plants, uncertainty=uncertainty, model=identified[k].model,
+            )  # fmt: skip
+            rows += [{**r, **identified[k].columns()} for r in one]
+        return rows
     tg = np.asarray(targets, dtype=float)
     m = tg.size
     idx = np.repeat(np.arange(pop.n), m)  # plant of each trajectory
@@ -182,6 +196,54 @@ def _run_population_job(
         row.update({key: (bool(v[i]) if v.dtype == bool else float(v[i])) for key, v in met.items()})
         rows.append(row)
     return rows
+
+
+def identify_population(
+    n: int,
+    seed: int,
+    uncertainty: Any,
+    params: RigParams | None,
+    options: Any,
+    config: str,
+    executor: Executor | None = None,
+    workers: int = 1,
+    progress: bool = True,
+) -> dict[int, Any]:
+    """Plant index -> :class:`.identify.IdentifiedPlant` of each plant of the population (one excitation run,
+    diagnose and identify per plant; in ``executor`` or a pool of ``workers`` processes)."""
+    from .identify import ExcitationOptions
+
+    opts = options if isinstance(options, ExcitationOptions) else ExcitationOptions()
+    out: dict[int, Any] = {}
+    bar = tqdm(total=n, desc="identify", unit="plant", disable=not progress)
+    args = [(k, n, seed, uncertainty, params, opts, config) for k in range(n)]
+    if executor is None and workers <= 1:
+        for a in args:
+            out[a[0]] = _identify_one(*a)
+            bar.update()
+    else:
+        ex = executor or ProcessPoolExecutor(max_workers=workers)
+        try:
+            futs = {ex.submit(_identify_one, *a): a[0] for a in args}
+            for f in as_completed(futs):
+                out[futs[f]] = f.result()
+                bar.update()
+        finally:
+            if executor is None:
+                ex.shutdown()
+    bar.close()
+    return out
+
+
+def _identify_one(k: int, n: int, seed: int, uncertainty: Any, params: RigParams | None, opts: Any, config: str):
+    from .identify import excitation_recording, identify_plant
+
+    pop = sample_plants(n, seed, uncertainty, params).subset([k])
+    rec = excitation_recording(
+        pop.matrix[0], pop.composition, pop.counts_per_rev[0], pop.angle_noise[0], int(seed) * 100_003 + k, opts,
+        parse_configuration(config).label,
+    )  # fmt: skip
+    return identify_plant(rec, [n for n in pop.columns[0] if n not in ("counts_per_rev", "angle_noise")], opts)
 
 
 def margin_columns(ctrl: Any, omega: float) -> dict[str, float]:
@@ -382,6 +444,7 @@ def evaluate(
     uncertainty: Any = None,
     plants_per_job: int = 10,
     model: Any = None,
+    identify: Any = None,
 ) -> list[dict]:
     """Evaluate every controller in every configuration and scenario on the target grid.
 
@@ -430,6 +493,10 @@ def evaluate(
     model : ControllerModel, ModelFile or path, optional
         The controllers' own model (base parameters and effects, e.g. identified): ``observer``, ``lqg`` and
         ``lqg-2enc`` run its effects, the others its base parameters.  Default: ``params`` without effects.
+    identify : ExcitationOptions or bool, optional
+        For a population scenario: identify each plant first (:mod:`.identify`: an excitation run, diagnose,
+        identify) and build every controller on that plant's identified model; the rows gain the identified
+        values (``id_<name>``), the effects selected and the identification time (``identify_s``).
 
     Returns
     -------
@@ -478,6 +545,16 @@ def evaluate(
         us = uncertainty if isinstance(uncertainty, UncertaintySet) else load_uncertainty(uncertainty)
         sample_plants(1, seed, us, params)  # errors of the set before any job starts
         pop_kw = {"n_plants": int(plants), "uncertainty": us}
+        if identify:
+            if model is not None:
+                raise InputError(
+                    "identify builds the controllers on each plant's identified model; do not give a model"
+                )
+            pop_kw["identified"] = identify_population(
+                int(plants), seed, us, params, identify, configs[0], executor, workers, progress
+            )
+    elif identify:
+        raise InputError("identify applies to a population of plants: add the scenario 'plants'")
     for cfg in configs:
         for line in short_run_warnings(controllers, cfg, targets, duration, window, params):
             warnings.warn(line, stacklevel=2)
@@ -507,17 +584,22 @@ def evaluate(
     )  # specs: a user file's effect reaches workers
     rows: list[dict] = []
     bar = tqdm(total=len(jobs), desc="evaluate", unit="job", disable=not progress)
+
+    def job_kw(s: Scenario, ch: list[int]) -> dict:
+        if not s.population:
+            return {}
+        ident = pop_kw.get("identified")
+        return {**pop_kw, "identified": {k: ident[k] for k in ch} if ident else None}
+
     if executor is None and workers <= 1:
         for c, cfg, s, ch in jobs:
-            rows += run_job(c, cfg, s, u_fold=u_folds.get(cfg), plants=ch, **(pop_kw if s.population else {}), **kw)
+            rows += run_job(c, cfg, s, u_fold=u_folds.get(cfg), plants=ch, **job_kw(s, ch), **kw)
             bar.update()
     else:
         ex = executor or ProcessPoolExecutor(max_workers=workers)
         try:
             futs = [
-                ex.submit(
-                    run_job, c, cfg, s, u_fold=u_folds.get(cfg), plants=ch, **(pop_kw if s.population else {}), **kw
-                )
+                ex.submit(run_job, c, cfg, s, u_fold=u_folds.get(cfg), plants=ch, **job_kw(s, ch), **kw)
                 for c, cfg, s, ch in jobs
             ]
             for f in as_completed(futs):

@@ -140,3 +140,49 @@ def plot_population(rows: Sequence[dict], path: str | Path, scenario: str = "pla
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def identification_rows(rows: Sequence[dict], scenario: str = "plants") -> list[dict]:
+    """One entry per identified plant: its index, the effects selected, the identification time (s), and per
+    parameter the true and identified values (``id_<name>`` columns of :mod:`.identify`)."""
+    seen: dict[int, dict] = {}
+    for r in rows:
+        if r["scenario"] == scenario and "identify_s" in r and int(r["plant"]) not in seen:
+            names = [k[3:] for k in r if k.startswith("id_")]
+            seen[int(r["plant"])] = {
+                "plant": int(r["plant"]),
+                "selected": r["selected"],
+                "identify_s": float(r["identify_s"]),
+                "true": {n: float(r[n]) for n in names},
+                "identified": {n: float(r["id_" + n]) for n in names},
+            }
+    return [seen[k] for k in sorted(seen)]
+
+
+def identification_table(rows: Sequence[dict], scenario: str = "plants") -> str:
+    """Markdown: per plant the effects selected, the identification time and each parameter's identified value
+    against the true one (base parameters: error in %; effect parameters: both values; '-' not selected)."""
+    ident = identification_rows(rows, scenario)
+    if not ident:
+        return ""
+    names = list(ident[0]["true"])
+    lines = [
+        "| plant | effects selected | identification (s) | " + " | ".join(names) + " |",
+        "|" + "---|" * (3 + len(names)),
+    ]
+    for e in ident:
+        cells = []
+        for n in names:
+            t, i = e["true"][n], e["identified"][n]
+            if math.isnan(i):
+                cells.append(f"- ({t:.3g})")
+            elif n in _EFFECT_PARAMETERS:
+                cells.append(f"{i:.3g} ({t:.3g})")
+            else:
+                cells.append(f"{100 * (i - t) / t:+.1f} %")
+        lines.append(f"| {e['plant']} | {e['selected']} | {e['identify_s']:.0f} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+#: parameters of the population's effects (shown as identified (true) values, not as a relative error)
+_EFFECT_PARAMETERS = ("tau_m", "delay", "pf_c1", "pf_s1", "pf_c2", "pf_s2", "counts_per_rev", "angle_noise")

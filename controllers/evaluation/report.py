@@ -177,7 +177,7 @@ def write_report(rows: Sequence[dict], out_dir: str | Path, params=None, plant: 
     for sc in dict.fromkeys(r["scenario"] for r in rows):
         parts.append(f"\n## scenario: {sc}\n\n" + markdown_table(rows, sc))
     if population:
-        from .population_report import plot_population, population_table
+        from .population_report import identification_table, plot_population, population_table
 
         n = len({int(r["plant"]) for r in population})
         parts.append(
@@ -185,6 +185,14 @@ def write_report(rows: Sequence[dict], out_dir: str | Path, params=None, plant: 
             "Each plant's lowest held target; median and 90th percentile over the plants (the higher "
             "plant's value); 'none': not even the highest target held.\n\n" + population_table(population)
         )
+        ident = identification_table(population)
+        if ident:
+            parts.append(
+                "\nEach controller built on its plant's identified model (excitation run, diagnose, identify). "
+                "Per plant: the effects selected, the identification time, and each parameter identified: base "
+                "parameters as their error, effect parameters as identified (true); '-': effect not selected.\n\n"
+                + ident
+            )
         files["population_figure"] = plot_population(population, out / "plants_lowest_held.png")
     md = out / "summary.md"
     md.write_text("".join(parts))

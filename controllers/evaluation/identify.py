@@ -1,0 +1,227 @@
+"""Identify, then control, per plant: an excitation run, ``diagnose`` + ``identify`` on its recording.
+
+For ``evaluate --scenarios plants --identify``: each plant of the population gets
+
+1. an **excitation run** through the path every closed-loop run of the harness takes
+   (:func:`.runner.run_closed_loop`: the plant's composition with its lag, delay and position
+   friction, its encoders' quantisation and noise), playing the quasi-random estimation signal
+   (:func:`drillgym.signals.quasi_random`) and recording what the sensors report (motor and lower
+   encoder angles) at the recording rate;
+2. **diagnose** on that recording (:func:`drillgym.diagnosis.diagnose`: which effects of the library the
+   recording shows, the base parameters re-identified alongside), then **identify**
+   (:func:`drillgym.diagnosis.refit.refit`): the base parameters the diagnosis re-identifies
+   (:data:`drillgym.diagnosis.search_model.BASE_FREE`: km, Tcu, bu, kθ, Jl and the brake law in the
+   torsional configuration) and the selected effects' parameters fitted together, with their standard errors;
+3. the model (:class:`controllers.model.ControllerModel`) every controller of the evaluation is built on.
+
+The identification never sees the plant's values; :class:`IdentifiedPlant` keeps them side by side
+for the results.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drillgym.io import TimeSeries
+from drillgym.signals import quasi_random
+
+from ..base import Controller
+from ..model import ControllerModel
+from .runner import run_closed_loop
+
+__all__ = ["ExcitationOptions", "IdentifiedPlant", "excitation_recording", "identify_plant"]
+
+
+@dataclass(frozen=True)
+class ExcitationOptions:
+    """The excitation run and the identification's settings.
+
+    Attributes
+    ----------
+    duration : float
+        Length of the excitation (s).
+    rate_hz : float
+        Recording rate (Hz): the encoders are read and the command updated at this rate.
+    amplitude, offset : float
+        The quasi-random signal spans offset +- (amplitude - |offset|) (V).
+    compare_rate_hz : float
+        Comparison grid of the diagnosis and the fit (Hz).
+    max_nfev : int
+        Least-squares evaluations of the final fit.
+    """
+
+    duration: float = 30.0
+    rate_hz: float = 500.0
+    amplitude: float = 5.0
+    offset: float = 2.5
+    compare_rate_hz: float = 50.0
+    max_nfev: int = 30
+
+
+class _Playback(Controller):
+    """Plays a voltage sequence and keeps what the sensors reported (theta_u, theta_l) at each period."""
+
+    name = "playback"
+    uses = ("theta_u", "theta_l")
+
+    def __init__(self, u: np.ndarray, dt: float) -> None:
+        super().__init__(1.0, dt=dt)
+        self.u = np.asarray(u, dtype=float)
+        self.k = 0
+        self.seen: dict[str, list[np.ndarray]] = {"theta_u": [], "theta_l": []}
+
+    def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
+        for key in self.seen:
+            self.seen[key].append(np.array(m[key], dtype=float))
+        u = self.u[min(self.k, self.u.size - 1)]
+        self.k += 1
+        return np.full(self.n, u)
+
+
+def excitation_recording(
+    plant: np.ndarray,
+    composition,
+    counts_per_rev: float,
+    angle_noise: float,
+    seed: int,
+    options: ExcitationOptions | None = None,
+    config: str = "torsional",
+) -> TimeSeries:
+    """The recording of one plant's excitation run.
+
+    Parameters
+    ----------
+    plant : ndarray
+        The plant's parameter row (base, then its effects' parameters: ``composition``'s layout).
+    composition : Composition
+        The plant's effects.
+    counts_per_rev, angle_noise : float
+        The plant's encoders (counts/rev; rad, standard deviation).
+    seed : int
+        Seed of the signal and of the encoder noise.
+    options : ExcitationOptions, optional
+        The run's settings.
+    config : str, optional
+        The configuration.
+
+    Returns
+    -------
+    TimeSeries
+        ``t``, ``u``, ``theta_u``, ``theta_l`` at ``rate_hz``, as the sensors reported them.
+    """
+    o = options or ExcitationOptions()
+    dt = 1.0 / o.rate_hz
+    t, u = quasi_random(o.duration, rate_hz=o.rate_hz, seed=seed, amplitude=o.amplitude, offset=o.offset)
+    play = _Playback(u, dt)
+    run = run_closed_loop(
+        play,
+        config,
+        np.ones(1),
+        o.duration,
+        params=np.atleast_2d(plant),
+        counts_per_rev=counts_per_rev,
+        angle_noise=angle_noise,
+        seed=seed,
+        effects=composition,
+    )
+    cols = {"t": run.t, "u": run.u[0]}
+    cols.update({k: np.array([v[0] for v in vals]) for k, vals in play.seen.items()})
+    meta = {
+        "configuration": config,
+        "source": "simulation",
+        "sample_rate_hz": o.rate_hz,
+        "description": "excitation run of a plant (quasi-random input)",
+        "counts_per_rev": int(counts_per_rev),
+    }
+    return TimeSeries(cols, meta, "<excitation>")
+
+
+@dataclass
+class IdentifiedPlant:
+    """What identification made of one plant.
+
+    Attributes
+    ----------
+    model : ControllerModel
+        The identified model (base parameters, the selected effects, standard errors).
+    selected : list of str
+        The effects the diagnosis selected.
+    seconds : float
+        Wall-clock time of the diagnosis and the fit (s), the excitation run excluded.
+    values : dict of str to float
+        Identified value of each parameter the plant's uncertainty varies (NaN for an effect not selected).
+    warnings : list of str
+        The diagnosis's and the fit's warnings.
+    """
+
+    model: ControllerModel
+    selected: list[str]
+    seconds: float
+    values: dict[str, float] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    def columns(self) -> dict[str, float | str]:
+        """Result columns: ``id_<name>`` per identified value, ``selected``, ``identify_s``."""
+        out: dict[str, float | str] = {f"id_{k}": v for k, v in self.values.items()}
+        out["selected"] = "+".join(self.selected) or "none"
+        out["identify_s"] = self.seconds
+        return out
+
+
+def identify_plant(
+    recording: TimeSeries, names: list[str], options: ExcitationOptions | None = None
+) -> IdentifiedPlant:
+    """Diagnose the recording, then fit the base parameters and the selected effects together.
+
+    Parameters
+    ----------
+    recording : TimeSeries
+        The excitation run's recording.
+    names : list of str
+        Parameters whose identified values to report (base or effect names).
+    options : ExcitationOptions, optional
+        The comparison grid and the fit's evaluations.
+
+    Returns
+    -------
+    IdentifiedPlant
+        The model and what was found.
+    """
+    from drillgym.diagnosis import DiagnosisOptions, diagnose
+    from drillgym.diagnosis.refit import refit
+    from drillgym.diagnosis.search_model import BASE_FREE
+    from drillgym.effects import compose
+
+    o = options or ExcitationOptions()
+    start = time.perf_counter()
+    d = diagnose(recording, options=DiagnosisOptions(compare_rate_hz=o.compare_rate_hz, discover=False))
+    params, records, _ = d.selected_model()
+    specs = [r["spec"] for r in records]
+    values = {k: v for r in records for k, v in r["values"].items()}
+    comp, values = compose(specs, values)
+    res = refit(
+        recording,
+        params,
+        base_effects=comp,
+        base_values=values,
+        fit=list(BASE_FREE[d.config]) + list(comp.effect_param_names),  # what the diagnosis re-identifies
+        refit_base=False,
+        compare_rate_hz=o.compare_rate_hz,
+        max_nfev=o.max_nfev,
+    )
+    fitted = {**values, **{k: v for k, v in res.values.items() if k in values}}
+    std = {k: v for k, v in res.std.items() if math.isfinite(v)}
+    model = ControllerModel(res.params, comp, fitted, std)
+    seconds = time.perf_counter() - start
+    found = {**res.params.to_dict(), **fitted}
+    return IdentifiedPlant(
+        model,
+        list(d.selected),
+        seconds,
+        {n: float(found.get(n, math.nan)) for n in names},
+        list(d.warnings) + list(res.warnings),
+    )
