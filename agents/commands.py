@@ -1,9 +1,10 @@
-"""The agents' commands of the ``drillgym`` CLI: ``train`` and ``combine-policies``.
+"""The agents' commands of the ``drillgym`` CLI: ``train``, ``combine-policies`` and ``benchmark``.
 
 ``drillgym train`` trains an RL agent (stable-baselines3) on a drillgym environment;
 ``--add-effect``/``--effect-param`` train on rigs with those effects (the env options
 ``effects``/``effect_params``, saved in config.yml by spec). ``drillgym combine-policies`` joins
-trained networks into one target-switched policy.
+trained networks into one target-switched policy. ``drillgym benchmark`` scores a policy on a named task
+(:mod:`agents.benchmark_command`).
 
 The CLI finds :func:`register` through the ``drillgym.commands`` entry-point group
 (``pyproject.toml``); the training stack (torch, stable-baselines3) loads only when a command runs.
@@ -88,13 +89,16 @@ def _check_npz(path: Path, option: str = "POLICIES") -> None:
 
 
 def register(app: typer.Typer) -> None:
-    """Add ``train`` and ``combine-policies`` to the ``drillgym`` application.
+    """Add ``train``, ``combine-policies`` and ``benchmark`` to the ``drillgym`` application.
 
     Parameters
     ----------
     app : typer.Typer
         The ``drillgym`` command-line application.
     """
+    from agents.benchmark_command import register_benchmark
+
+    register_benchmark(app)
 
     @app.command("train")
     def train_cmd(

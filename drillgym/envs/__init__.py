@@ -12,7 +12,8 @@ Structure (physical system separate from the environment, as gym-electric-motor)
 ``rig_system`` (N rigs on the batched core), ``observation`` (observation models),
 ``reward``, ``task`` (targets, limits, stick-slip severity), ``engine`` (n episodes stepped
 together), ``base`` (the ``gymnasium.Env``), ``vector`` (the ``VectorEnv``), ``rendering``,
-``sb3`` (stable-baselines3 adapter), ``options`` (every constructor option).
+``sb3`` (stable-baselines3 adapter), ``options`` (every constructor option), ``tasks`` (the named
+benchmark tasks, ``drillgym/Nominal-Motor-v0`` ... : fixed options, plants and evaluation protocol).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from ..errors import InputError
 from .base import CoupledEnv, DrillEnv, LateralEnv, TorsionalEnv
 from .observation import FullObservation, MotorObservation, SensorObservation, make_observation_model
 from .options import EnvOptions, RewardWeights
+from .tasks import TASKS, BenchmarkTask
 from .vector import DrillVectorEnv
 
 __all__ = [
@@ -44,6 +46,8 @@ __all__ = [
     "make_sb3_vec",
     "ENV_IDS",
     "REGISTERED_DEFAULTS",
+    "TASKS",
+    "BenchmarkTask",
 ]
 
 #: registered id -> rig configuration
@@ -138,6 +142,18 @@ for _id, _cfg in ENV_IDS.items():
             vector_entry_point=VectorEntry(_cfg),
             disable_env_checker=False,
             kwargs=dict(REGISTERED_DEFAULTS),
+        )
+
+# The named benchmark tasks (drillgym.envs.tasks: fixed options, plants and evaluation protocol), by entry-point
+# string: a population task's plants are drawn by the controllers' evaluation package, which the core does not import.
+for _id in TASKS:
+    if _id not in gymnasium.registry:
+        gymnasium.register(
+            id=_id,
+            entry_point="agents.benchmark_env:make_task_env",
+            vector_entry_point="agents.benchmark_env:make_task_vec",
+            disable_env_checker=False,
+            kwargs={"task": _id},
         )
 
 # The hardware twin (package ``hw``) shares these spaces; its id is registered here too, by entry-point

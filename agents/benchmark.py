@@ -1,0 +1,345 @@
+"""The score of a policy on a named task (``drillgym benchmark``): the task's protocol on its held-out plants.
+
+A policy is a classical controller (a name :func:`controllers.available` lists, or ``NAME@MS``) or a learned
+one (``agent:PATH``); several learned policies (``agent:`` paths, e.g. the seeds of one recipe) are scored
+one by one and aggregated over the seeds with the IQM and its stratified-bootstrap 95 % interval
+(:mod:`.benchmark_stats`).  Runs go through the controllers' evaluation harness
+(:func:`controllers.evaluation.evaluate`), the plants of a population task are the task's held-out list.
+
+    >>> from agents.benchmark import BenchmarkOptions, run_benchmark
+    >>> res = run_benchmark("drillgym/Population-Motor-v0", ["descent"])
+    >>> res.scores[0].p90, res.aggregates["p90"].iqm
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from drillgym.envs.tasks import BenchmarkTask, get_task
+from drillgym.errors import InputError, MissingFileError
+
+from .benchmark_stats import Aggregate, iqm_interval
+
+__all__ = ["BenchmarkOptions", "PolicyScore", "BenchmarkResult", "resolve_policies", "run_benchmark", "METRICS"]
+
+#: the aggregated metrics of a policy seed (:class:`PolicyScore` fields)
+METRICS = ("median", "p90", "ssi", "energy")
+
+
+@dataclass(frozen=True)
+class BenchmarkOptions:
+    """Reductions of the task's protocol (for quick checks; a reduced score is marked as such).
+
+    Parameters
+    ----------
+    plants : int, optional
+        The first ``plants`` of the held-out list (plant k does not depend on the list's length);
+        default the whole list.
+    duration, window : float, optional
+        Run length and steady window (s); default the protocol's.
+    targets : tuple of float, optional
+        Target grid (rad/s); default the protocol's.
+    workers : int, optional
+        Processes of the harness (1: this process).
+    progress : bool, optional
+        Show the harness's progress bar.
+    """
+
+    plants: int | None = None
+    duration: float | None = None
+    window: float | None = None
+    targets: tuple[float, ...] | None = None
+    workers: int = 1
+    progress: bool = False
+
+    def settings(self, task: BenchmarkTask) -> dict:
+        """The settings of a run: plants, targets, duration, window, seed."""
+        p, pr = task.plants, task.protocol
+        n = p.eval_plants if self.plants is None else int(self.plants)
+        if p.population and not (1 <= n <= p.eval_plants):
+            raise InputError(f"--plants must be in 1..{p.eval_plants} (the held-out list of {task.id}), got {n}")
+        return {
+            "plants": n if p.population else 1,
+            "targets": tuple(pr.targets if self.targets is None else self.targets),
+            "duration": float(pr.duration if self.duration is None else self.duration),
+            "window": float(pr.window if self.window is None else self.window),
+            "seed": p.eval_seed,
+        }
+
+    def reduced(self, task: BenchmarkTask) -> bool:
+        """True when any setting differs from the task's protocol."""
+        s, pr = self.settings(task), task.protocol
+        full_plants = task.plants.eval_plants if task.plants.population else 1
+        return (s["plants"], s["targets"], s["duration"], s["window"]) != (
+            full_plants,
+            pr.targets,
+            pr.duration,
+            pr.window,
+        )
+
+
+@dataclass(frozen=True)
+class PolicyScore:
+    """The score of one policy (one seed) on a task.
+
+    Parameters
+    ----------
+    policy : str
+        The controller spec (name, ``NAME@MS`` or ``agent:PATH``).
+    plant_lowest : tuple of float
+        Each held-out plant's lowest held target (rad/s; inf: not even the highest target held).
+    median, p90 : float
+        Median and 90th percentile of ``plant_lowest`` (rad/s; ``numpy.quantile(method="higher")``).
+    ssi : float
+        Median stick-slip severity over all runs (plants x targets; dimensionless).
+    energy : float
+        Mean motor work of a run over all runs (J per run of the protocol's duration).
+    none_held : int
+        Plants holding no target.
+    runaway : int
+        Plants on which a run passed the rig's over-speed stop (40 rad/s).
+    """
+
+    policy: str
+    plant_lowest: tuple[float, ...]
+    median: float
+    p90: float
+    ssi: float
+    energy: float
+    none_held: int
+    runaway: int
+
+    def to_json(self) -> dict:
+        """The score as JSON-ready values (inf: a plant holding nothing; written as null with a warning)."""
+        return {
+            "policy": self.policy,
+            "plant_lowest": list(self.plant_lowest),
+            "median": self.median,
+            "p90": self.p90,
+            "ssi": self.ssi,
+            "energy": self.energy,
+            "none_held": self.none_held,
+            "runaway": self.runaway,
+        }
+
+
+@dataclass(frozen=True)
+class BenchmarkResult:
+    """A policy's score on a task: one :class:`PolicyScore` per seed and their aggregates.
+
+    Parameters
+    ----------
+    task : str
+        The task id.
+    scores : tuple of PolicyScore
+        One per policy seed.
+    aggregates : dict of str to Aggregate
+        Per metric of :data:`METRICS`: IQM and stratified-bootstrap 95 % interval over the seeds.
+    settings : dict
+        The protocol as run: plants, targets (rad/s), duration and window (s), seed.
+    reduced : bool
+        True when the settings differ from the task's protocol (not the task's score).
+    """
+
+    task: str
+    scores: tuple[PolicyScore, ...]
+    aggregates: dict[str, Aggregate] = field(default_factory=dict)
+    settings: dict = field(default_factory=dict)
+    reduced: bool = False
+
+    def to_json(self) -> dict:
+        """The result as JSON-ready values; inf (no target held) is written as null, the top-level
+        ``warnings`` list naming it (:func:`drillgym.io.jsonfile.dumps_json`)."""
+        return {
+            "task": self.task,
+            "reduced": self.reduced,
+            "settings": {**self.settings, "targets": list(self.settings.get("targets", ()))},
+            "scores": [s.to_json() for s in self.scores],
+            "aggregates": {k: a.to_json() for k, a in self.aggregates.items()},
+        }
+
+    def lines(self) -> list[str]:
+        """The result as printed lines: one per seed, then the IQM and interval per metric."""
+        s = self.settings
+        head = (
+            f"{self.task}: {s['plants']} held-out plant(s), targets {s['targets'][0]:g}-{s['targets'][-1]:g} rad/s "
+            f"({len(s['targets'])}), {s['duration']:g} s runs judged over the last {s['window']:g} s"
+        )
+        out = [head + (" (REDUCED protocol: not the task's score)" if self.reduced else "")]
+        for p in self.scores:
+            out.append(
+                f"  {p.policy}: lowest held target median {_speed(p.median)}, 90th pct {_speed(p.p90)}; "
+                f"SSI {p.ssi:.3g}; energy {p.energy:.3g} J/run; plants holding none {p.none_held}, runaway {p.runaway}"
+            )
+        if len(self.scores) > 1:
+            for m, a in self.aggregates.items():
+                out.append(f"  IQM over {a.seeds} seeds, {m}: {_num(a.iqm)} [{_num(a.ci_low)}, {_num(a.ci_high)}] 95 %")
+        return out
+
+
+def _speed(v: float) -> str:
+    return "none held" if math.isinf(v) else f"{v:.2f} rad/s"
+
+
+def _num(v: float) -> str:
+    return "inf" if math.isinf(v) else ("-" if math.isnan(v) else f"{v:.3g}")
+
+
+def _seed_dirs(path: Path) -> dict[int, Path]:
+    out = {}
+    for d in path.iterdir() if path.is_dir() else ():
+        m = re.fullmatch(r"seed_(\d+)", d.name)
+        if m and d.is_dir():
+            out[int(m.group(1))] = d
+    return dict(sorted(out.items()))
+
+
+def resolve_policies(specs: Sequence[str], seeds: Sequence[int] | None = None) -> list[str]:
+    """The controller specs to score, one per policy seed.
+
+    Parameters
+    ----------
+    specs : sequence of str
+        Classical controller names (``NAME`` or ``NAME@MS``) or ``agent:PATH`` (a policy.npz, a run directory,
+        or a directory of seeds ``seed_<s>/`` as ``drillgym train --seeds`` writes).  Several ``agent:`` specs
+        are seeds of one policy.
+    seeds : sequence of int, optional
+        With one ``agent:DIR`` of seed directories: the seeds to score (default all of them).
+
+    Returns
+    -------
+    list of str
+        ``NAME``, ``NAME@MS`` or ``agent:PATH`` specs.
+
+    Raises
+    ------
+    InputError
+        No policy, a classical controller mixed with others, duplicates, or ``--seeds`` without a directory of
+        seeds (or naming a seed it lacks).
+    MissingFileError
+        An ``agent:`` path that does not exist.
+    """
+    specs = [s.strip() for s in specs]
+    if not specs or not all(specs):
+        raise InputError("--policy: no policy given; a controller name (drillgym controllers) or agent:PATH")
+    agents = [s for s in specs if s.startswith("agent:")]
+    if agents and len(agents) != len(specs) or (not agents and len(specs) > 1):
+        raise InputError("--policy: give one classical controller, or agent:PATH specs (the seeds of one policy)")
+    if len(set(specs)) != len(specs):
+        raise InputError(f"--policy: the same policy given twice ({', '.join(specs)})")
+    if not agents:
+        if seeds:
+            raise InputError(f"--seeds applies to agent:DIR with seed_<s>/ directories; {specs[0]} is deterministic")
+        return specs
+    out = []
+    for s in agents:
+        path = Path(s[len("agent:") :])
+        if not path.exists():
+            raise MissingFileError(f"--policy {s}: {path} not found (a policy.npz, a run directory or seed_<s>/ dirs)")
+        dirs = _seed_dirs(path)
+        if seeds and not dirs:
+            raise InputError(f"--seeds: {path} holds no seed_<s>/ directories")
+        if dirs:
+            chosen = list(seeds) if seeds else list(dirs)
+            missing = [k for k in chosen if k not in dirs]
+            if missing:
+                raise InputError(f"--seeds: {path} has no seed_{missing[0]}/; it has seeds {', '.join(map(str, dirs))}")
+            out += [f"agent:{dirs[k]}" for k in chosen]
+        else:
+            out.append(s)
+    return out
+
+
+def check_sensing(task: BenchmarkTask, spec: str) -> None:
+    """Refuse a policy that reads more than the task's sensors (``Controller.uses`` against ``task.reads``)."""
+    from controllers import make
+
+    ctrl = make(spec, config=task.config, omega_ref=task.protocol.targets[-1])
+    extra = [m for m in ctrl.uses if m not in task.reads]
+    if extra:
+        raise InputError(
+            f"--policy {spec} reads {', '.join(extra)}, which task {task.id} does not measure (it gives "
+            f"{', '.join(task.reads)})"
+        )
+
+
+def _score(task: BenchmarkTask, spec: str, rows: list[dict]) -> PolicyScore:
+    from controllers.evaluation.metrics import lowest_free_speed
+    from controllers.evaluation.population_report import plant_lowest
+
+    sel = [r for r in rows if r["controller"] == spec]
+    if task.plants.population:
+        low = list(plant_lowest(sel, spec, task.config).values())
+        run = {int(r["plant"]) for r in sel if r["runaway"]}
+    else:
+        v = lowest_free_speed(
+            np.array([r["omega_ref"] for r in sel]),
+            np.array([r["ssi"] for r in sel]),
+            offset=np.array([r["offset"] for r in sel]),
+        )
+        low = [math.inf if math.isnan(v) else v]
+        run = {0} if any(r["runaway"] for r in sel) else set()
+    a = np.array(low, dtype=float)
+    return PolicyScore(
+        spec,
+        tuple(float(v) for v in a),
+        float(np.quantile(a, 0.5, method="higher")),
+        float(np.quantile(a, 0.9, method="higher")),
+        float(np.median([r["ssi"] for r in sel])),
+        float(np.mean([r["energy"] for r in sel])),
+        int(np.isinf(a).sum()),
+        len(run),
+    )
+
+
+def run_benchmark(task_id: str, policies: Sequence[str], options: BenchmarkOptions | None = None) -> BenchmarkResult:
+    """Score policies (seeds of one policy, or one classical controller) on a named task.
+
+    Parameters
+    ----------
+    task_id : str
+        A task id (:data:`drillgym.envs.tasks.TASKS`).
+    policies : sequence of str
+        Resolved specs (:func:`resolve_policies`).
+    options : BenchmarkOptions, optional
+        Reductions of the protocol and the harness's workers; default the task's protocol.
+
+    Returns
+    -------
+    BenchmarkResult
+        Per seed the score, over the seeds the IQM and interval of each metric.
+
+    Raises
+    ------
+    InputError
+        An unknown task, a policy reading more than the task's sensors, or a bad setting.
+    """
+    from controllers.evaluation import evaluate
+
+    task = get_task(task_id)
+    opts = options or BenchmarkOptions()
+    st = opts.settings(task)
+    for spec in policies:
+        check_sensing(task, spec)
+    rows = evaluate(
+        list(policies),
+        [task.config],
+        ["plants" if task.plants.population else "rest"],
+        list(st["targets"]),
+        duration=st["duration"],
+        window=st["window"],
+        workers=opts.workers,
+        progress=opts.progress,
+        plants=st["plants"],
+        seed=st["seed"],
+        uncertainty=None if task.plants.uncertainty == "default" else task.plants.uncertainty,
+    )
+    scores = tuple(_score(task, spec, rows) for spec in policies)
+    agg = {m: iqm_interval([getattr(s, m) for s in scores]) for m in METRICS}
+    return BenchmarkResult(task.id, scores, agg, st, opts.reduced(task))
