@@ -236,7 +236,7 @@ def test_local_executor_workers(workers):
 # --------------------------------------------------------------------------------------- identification, comparison
 
 
-@pytest.mark.parametrize("rate", [0.0, -1.0, float("nan"), float("inf"), "50", 1e6])
+@pytest.mark.parametrize("rate", [0.0, -1.0, float("nan"), float("inf"), "50", 1e6, 1e-3])
 def test_prepare_experiment_rate(rate, tmp_path):
     from drillgym.identification import prepare_experiment
     from drillgym.io import read_timeseries
@@ -311,7 +311,7 @@ REFIT_BAD = {
     "effects": [["lvdt_skew"], ["nope"], 3],
     "effect_params": [{"nope": 1.0}, [("tau_m", 1.0)]],
     "base_values": [{"tau_m": 1.0}, "x"],
-    "fit": [["nope"], ["k"], "k", 3],
+    "fit": [["nope"], ["k"], "k", 3, ["km", "km"]],
     "refit_base": ["no", 1],
     "segment_s": ["x", float("nan"), 0.0, 100.0],
     "compare_rate_hz": [0.0, "x", 1e6],

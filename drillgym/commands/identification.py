@@ -249,6 +249,7 @@ def diagnose_cmd(
     library does not explain; the model is --params with its effects plus --add-effect."""
     from ..diagnosis import DiagnosisOptions, diagnose
     from ..diagnosis.effects import effects_for, get_effect
+    from ..effects import Composition
     from .effect_options import check_effects_act
 
     if candidate_out is not None and candidate_out.suffix != ".py":
@@ -265,6 +266,7 @@ def diagnose_cmd(
         extra = [get_effect(c) for c in candidate or []]
     ex = _experiment(data, config, rate, map_)
     check_effects_act(model, ex.config)
+    check_effects_act(Composition(tuple(extra)), ex.config, "--candidate")
     if seg is not None and seg > 0:
         _check_segment(seg, ex)
     default_out = data.with_name(data.stem + "_candidate.py")

@@ -66,8 +66,13 @@ def check_fit_names(names: Iterable[str], config: Configuration, option: str = "
     Raises
     ------
     InputError
-        ``"--fit k: the lateral stiffness does not act in configuration torsional; parameters that do: ..."``.
+        ``"--fit k: the lateral stiffness does not act in configuration torsional; parameters that do: ..."``,
+        or a parameter named twice.
     """
+    names = list(names)
+    twice = next((n for i, n in enumerate(names) if n in names[:i]), None)
+    if twice is not None:
+        raise InputError(f"{option} {twice}: given twice; name each parameter once")
     acting = parameters_acting(config, **kwargs)
     for n in names:
         if n in PARAM_INFO and n not in acting:

@@ -259,6 +259,10 @@ class Experiment:
         return Y
 
 
+#: fewest samples a recording, and its comparison grid, must have to be compared
+MIN_SAMPLES = 20
+
+
 def prepare_experiment(
     ts: TimeSeries,
     config: str | Configuration | None = None,
@@ -312,8 +316,8 @@ def prepare_experiment(
         raise InputError(f"{ts.source}: no configuration in the file's metadata; pass one (--config)")
     ts.validate(cfg)
     fs_data = ts.sample_rate_hz
-    if len(ts) < 20:
-        raise DataFormatError(f"{ts.source}: {len(ts)} samples are too few to compare (need >= 20)")
+    if len(ts) < MIN_SAMPLES:
+        raise DataFormatError(f"{ts.source}: {len(ts)} samples are too few to compare (need >= {MIN_SAMPLES})")
     if compare_rate_hz > fs_data * 1.01:  # 1 %: a jittered clock's median rate; the grid is capped at it anyway
         raise InputError(
             f"the comparison rate (--rate) {compare_rate_hz:g} Hz is above the recording's sample rate "
@@ -337,6 +341,12 @@ def prepare_experiment(
         rates["Yd"] = estimate_rate(cols["y"], fs_w, window_s=0.1)
     fs_c = min(float(compare_rate_hz), fs_w)
     n_c = int(math.floor(ts.duration * fs_c + 1e-9)) + 1
+    if n_c < MIN_SAMPLES:
+        raise InputError(
+            f"the comparison rate (--rate) {compare_rate_hz:g} Hz gives {n_c} samples over the recording's "
+            f"{ts.duration:g} s ({ts.source}); need >= {MIN_SAMPLES}: choose >= "
+            f"{(MIN_SAMPLES - 1) / ts.duration:.3g} Hz"
+        )
     t_c = uni.t[0] + np.arange(n_c) / fs_c
     meas = {c: np.interp(t_c, uni.t, cols[c]) for c in ("theta_u", "theta_l", "x", "y") if c in cols}
     rates = {k: np.interp(t_c, uni.t, v) for k, v in rates.items()}
