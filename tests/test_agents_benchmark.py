@@ -170,3 +170,11 @@ def test_task_definitions_refuse_bad_values():
         BenchmarkTask("drillgym/X-v0", "torsional", "lidar", PlantSet(False))
     with pytest.raises(InputError, match="torsional or coupled"):
         BenchmarkTask("drillgym/X-v0", "lateral", "motor", PlantSet(False))
+
+
+def test_reference_table_lists_on_a_richer_task_only_the_policies_that_read_more():
+    from agents.benchmark_table import candidate_policies, fits
+
+    two, motor = get_task("Nominal-TwoEncoder-v0"), get_task("Nominal-Motor-v0")
+    assert fits(two, "lqg-2enc") and not fits(two, "descent") and not fits(motor, "lqg-2enc")
+    assert fits(motor, "descent") and "baseline" in candidate_policies()
