@@ -61,6 +61,8 @@ class BenchmarkOptions:
     def settings(self, task: BenchmarkTask) -> dict:
         """The settings of a run: plants, targets, duration, window, seed."""
         p, pr = task.plants, task.protocol
+        if self.plants is not None and not p.population:
+            raise InputError(f"--plants applies to a population task; {task.id} runs the identified rig only")
         n = p.eval_plants if self.plants is None else int(self.plants)
         if p.population and not (1 <= n <= p.eval_plants):
             raise InputError(f"--plants must be in 1..{p.eval_plants} (the held-out list of {task.id}), got {n}")

@@ -157,6 +157,7 @@ def test_benchmark_refuses_bad_input_in_one_line(tmp_path):
         (["Nope", "--policy", "descent"], "unknown task"),
         (["Nominal-Motor-v0", "--policy", "lqg-2enc"], "reads theta_l"),
         (["Population-Motor-v0", "--policy", "descent", "--plants", "21"], "--plants must be in 1..20"),
+        (["Nominal-Motor-v0", "--policy", "descent", "--plants", "2"], "--plants applies to a population task"),
         (["Population-Motor-v0", "--policy", "descent", "--json", str(tmp_path)], "--json"),
     ]
     for args, msg in bad:
