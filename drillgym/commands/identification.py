@@ -472,7 +472,8 @@ def identify_staged_cmd(
         want = cfg[stage]
         if own.configuration is not None and own.configuration.label != want:
             raise InputError(
-                f"{opt} {path}: a {own.configuration.label} recording; the {stage} stage fits a {want} recording"
+                f"{opt} {path}: a {own.configuration.label} recording; the {stage} stage fits recordings of "
+                f"configuration {want}"
             )
         if own.configuration is not None:
             return own
