@@ -84,3 +84,27 @@ def test_cli_json_carries_the_unexplained_residual(tmp_path):
     un = json.loads(r.output)["unexplained"]
     assert un["verdict"] == "not_explained" and un["worst_channel_ratio"] >= UNEXPLAINED_RATIO
     assert {"ratio_to_noise", "channels", "where", "depends_on", "thresholds"} <= set(un)
+
+
+def test_dead_zone_candidate_is_an_input_effect_whose_own_fit_explains_the_recording(tmp_path):
+    levels = (0.0, 1.0, 0.6, 1.5, 0.3, 1.2, 2.0, 0.8, -0.5, -1.5, 0.2, 2.5)
+    ts = synthetic_measurement(
+        "torsional",
+        duration=20.0,
+        rate_hz=250.0,
+        input=steps(20.0, levels, hold=2.0),
+        seed=3,
+        effects=[DEAD_ZONE],
+        effect_params={"u0": 0.4},
+    )
+    out = tmp_path / "cand.py"
+    d = diagnose(ts, effects=["motor_lag"], fixed_base=True, discover=True, candidate_out=out)
+    c = d.candidate
+    assert c is not None and c.group == "motor_voltage", d.text()
+    assert "class CandidateMotorVoltage(Input)" in out.read_text() and "def voltage(u," in out.read_text()
+    assert c.fit is not None and c.fit.variance_cut >= 0.5, c.to_json()
+    width = next(v for k, v in c.fit.values.items() if k.endswith("_w1"))
+    coef = next(v for k, v in c.fit.values.items() if k.endswith("_c1"))
+    assert width == pytest.approx(0.4, rel=0.05) and coef == pytest.approx(-1.0, rel=0.05), c.fit.values
+    js = d.to_json()["candidate"]["fit"]
+    assert js["ratio_after"] < js["ratio_before"] and js["variance_cut"] >= 0.5

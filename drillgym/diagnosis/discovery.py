@@ -13,13 +13,17 @@ on a library of terms shaped by physics, grouped by where they would act:
   Stribeck range, sign(ω) cos/sin of the disc angle (once and twice per revolution), sign(ω) t;
 * ``string``: a torque added to kθ α: α|α|, α³, α⁵, saturation sat(α, g) (free play / dead zone:
   kθ (dz(α) − α) = −kθ sat(α, g)), α̇, sign(α̇);
-* ``lower_force`` / ``upper_force``: constant, cos/sin of the disc angle, time; on the upper disc
-  also u|u| and u³ (a motor that is not linear in the voltage).
+* ``lower_force`` / ``upper_force``: constant, cos/sin of the disc angle, time; on the upper disc the
+  harmonics cos/sin kθu of the motor angle (cogging, :data:`COGGING_HARMONICS`);
+* ``motor_voltage``: a change of the voltage the motor sees, as a function of the voltage: sign(u), |u|,
+  u|u|, u³ (a motor constant that depends on the voltage), sat(u, u0) for scanned widths u0 (a dead zone
+  is −sat(u, u0)); regressed as the torque km × (the change) on the upper disc, written as an Input effect.
 
 Each group's terms enter by greedy forward selection (at most ``MAX_TERMS``, each one must
 explain ``MIN_GAIN`` more of the residual's variance); the group that explains most wins.  The
 candidate is written as a Python effect file of the open-effect mechanism (:func:`write_effect_file`:
-a ``Friction`` with ``slip`` and ``stick`` for friction groups, a ``Force`` otherwise), with the
+a ``Friction`` with ``slip`` and ``stick`` for friction groups, an ``Input`` for the voltage, a ``Force``
+otherwise), with the
 regressed coefficients as guesses and bounds of ±4 times their size, so that
 ``drillgym identify --add-effect FILE.py:NAME`` fits it.  When nothing explains the residual,
 :func:`advice` says which experiment would show more.
@@ -47,6 +51,10 @@ MIN_GAIN = 0.03  # share of the residual variance a further term must explain
 MAX_CANCEL = 2.0  # a term may contribute at most this many times the residual's size
 SMOOTH_S = 0.3  # s: moving average of the residual torques and the terms before the regression
 MIN_EXPLAINED_SHARE = 0.3  # a candidate must explain at least this share of the residual torque
+#: the groups on the motor side: the best of them is kept beside a better-regressed candidate elsewhere, and the
+#: candidates' own fits decide (each group is regressed on its own disc's rows, so shares of different discs
+#: compare residuals of different sizes)
+MOTOR_GROUPS = ("motor_voltage", "upper_force")
 
 
 @dataclass
@@ -55,6 +63,7 @@ class _Term:
     code: str  # Python expression of the effect function's arguments
     values: Callable[[dict], np.ndarray]
     at_rest: float = 0.0  # value at zero speed approached from above (friction terms: stick set change)
+    width: float | None = None  # a scanned width (V): the file fits it, as a parameter named in the code by U0
 
 
 def _speed_terms(w: str, sym: str) -> list[_Term]:
@@ -162,20 +171,52 @@ def _groups(lateral: bool, ws: float = 1.4302, delta: float = 2.0575) -> dict[st
         _Term("sin θl", "math.sin(theta_l)", lambda d: np.sin(d["thl"])),
         _Term("t", "t", lambda d: d["t"]),
     ]
-    upper_force = [
-        _Term("1", "1.0", lambda d: np.ones_like(d["t"])),
-        _Term("u|u|", "u * abs(u)", lambda d: d["u"] * np.abs(d["u"])),
-        _Term("u³", "u ** 3", lambda d: d["u"] ** 3),
-        _Term("cos θu", "math.cos(theta_u)", lambda d: np.cos(d["thu"])),
-        _Term("sin θu", "math.sin(theta_u)", lambda d: np.sin(d["thu"])),
-    ]
+    upper_force = [_Term("1", "1.0", lambda d: np.ones_like(d["t"]))] + _cogging_terms()
     return {
         "lower_friction": lower,
         "upper_friction": upper,
         "string": string,
         "lower_force": lower_force,
         "upper_force": upper_force,
+        "motor_voltage": _voltage_terms(),
     }
+
+
+#: harmonics of the motor angle tried as a cogging torque (per revolution)
+COGGING_HARMONICS = (1, 2, 3, 4, 6, 8, 12)
+#: half-widths (V) of the dead zones tried: sat(u, u0) = u − sign(u) max(|u| − u0, 0)
+DEAD_ZONE_WIDTHS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.7, 1.0)
+
+
+def _cogging_terms() -> list[_Term]:
+    """cos kθu and sin kθu for k in :data:`COGGING_HARMONICS`: a torque on the upper disc that depends on the
+    motor angle (cogging, an eccentric load)."""
+    out = []
+    for k in COGGING_HARMONICS:
+        arg = "theta_u" if k == 1 else f"{float(k)!r} * theta_u"
+        sym = "θu" if k == 1 else f"{k}θu"
+        out.append(_Term(f"cos {sym}", f"math.cos({arg})", lambda d, k=k: np.cos(k * d["thu"])))
+        out.append(_Term(f"sin {sym}", f"math.sin({arg})", lambda d, k=k: np.sin(k * d["thu"])))
+    return out
+
+
+def _voltage_terms() -> list[_Term]:
+    """Changes of the voltage the motor sees, as functions of the voltage u entering the drive: sign(u) (an
+    offset that follows the direction), |u|, u|u| and u³ (a motor constant that depends on the voltage:
+    saturation), and sat(u, u0) for the widths :data:`DEAD_ZONE_WIDTHS` (−sat(u, u0) is a dead zone of
+    half-width u0: the motor sees sign(u) max(|u| − u0, 0)).  Regressed as a torque km × (change) on the
+    upper disc; written as an Input effect."""
+    out = [
+        _Term("sign(u)", "(1.0 if u > 0.0 else (-1.0 if u < 0.0 else 0.0))", lambda d: np.sign(d["u"])),
+        _Term("|u|", "abs(u)", lambda d: np.abs(d["u"])),
+        _Term("u|u|", "u * abs(u)", lambda d: d["u"] * np.abs(d["u"])),
+        _Term("u³", "u ** 3", lambda d: d["u"] ** 3),
+    ]
+    for u0 in DEAD_ZONE_WIDTHS:
+        out.append(
+            _Term(f"sat(u, {u0:g})", "min(max(u, -U0), U0)", lambda d, u0=u0: np.clip(d["u"], -u0, u0), width=u0)
+        )
+    return out
 
 
 #: (effect on the upper disc's torque, on the lower disc's) of a unit of the term, per group
@@ -185,6 +226,7 @@ _SENSE = {
     "string": (1.0, -1.0),
     "lower_force": (0.0, 1.0),
     "upper_force": (1.0, 0.0),
+    "motor_voltage": (1.0, 0.0),  # per volt at the motor: times km (the coefficients are turned into volts)
 }
 
 
@@ -235,6 +277,7 @@ def find_candidate(
     lateral: bool = False,
     ws: float = 1.4302,
     delta: float = 2.0575,
+    km: float = 4.3228,
 ) -> Candidate | None:
     """The best candidate group and terms for some residual torques.
 
@@ -256,11 +299,14 @@ def find_candidate(
         The Stribeck law's speed (rad/s).
     delta : float, optional
         The Stribeck law's exponent.
+    km : float, optional
+        The motor constant (N m/V): a voltage change Δv is the torque km Δv on the upper disc.
 
     Returns
     -------
     Candidate or None
-        The candidate, or None if too few samples slip.
+        The candidate, or None if too few samples slip; a ``motor_voltage`` candidate's coefficients are in
+        volts at the motor per unit of its terms.
     """
     prepared = _weighted_rows(rt, u, Ju, Jl)
     if prepared is None:
@@ -268,7 +314,7 @@ def find_candidate(
     d, ok, n, y, W, smooth = prepared
     y = smooth(W * y)
     Nm = np.column_stack([smooth(c) for c in (W[:, None] * _nuisance(d, n, Ju, Jl, ws, delta)).T])
-    best: Candidate | None = None
+    cands: dict[str, Candidate] = {}
     shares: dict[str, float] = {}
     groups = _groups(lateral, ws, delta)
     # each group is judged on the rows of the discs it acts on, and a both-disc group (the string) also on
@@ -301,7 +347,7 @@ def find_candidate(
             ]
             chosen, share = _greedy_terms(cols, yr, tss)
             shares[group] = max(shares.get(group, 0.0), share)
-            if chosen and (best is None or share > best.explained):
+            if chosen and (group not in cands or share > cands[group].explained):
                 # the file's coefficients: the terms alone (with per-disc offsets), as the effect will act on the
                 # model as it is; the joint regression above only decides which terms and how much they explain
                 raw = [
@@ -320,17 +366,27 @@ def find_candidate(
                 coef = _alone_coefficients(raw, Nm, rows, y)
                 if coef is None:
                     continue  # the terms alone cancel each other: not a usable candidate
-                best = Candidate(
+                cands[group] = Candidate(
                     group,
                     {terms[j].label: float(coef[i]) for i, j in enumerate(chosen)},
                     {terms[j].label: terms[j].code for j in chosen},
                     {terms[j].label: terms[j].at_rest for j in chosen},
                     share,
                     n,
+                    widths={terms[j].label: terms[j].width for j in chosen if terms[j].width is not None},
                 )
-    if best is not None:
-        best.rest = shares
-        _set_reach(best, rt, d, ok, W, n, groups[best.group])
+    for c in cands.values():
+        c.rest = shares
+        _set_reach(c, rt, d, ok, W, n, groups[c.group])
+        if c.group == "motor_voltage":  # the torque km Δv on the upper disc -> the voltage change Δv (V)
+            c.terms = {k: v / km for k, v in c.terms.items()}
+            c.reach = {k: v / km for k, v in c.reach.items()}
+    if not cands:
+        return None
+    best = max(cands.values(), key=lambda c: c.explained)
+    motor = [c for g, c in cands.items() if g in MOTOR_GROUPS and c.explained >= MIN_EXPLAINED_SHARE]
+    if best.group not in MOTOR_GROUPS and motor:  # the motor side's best, fitted beside it (.candidate_fit)
+        best.alternative = max(motor, key=lambda c: c.explained)
     return best
 
 
@@ -534,7 +590,7 @@ def discover(
     for vec in vectors:
         rt_v = residual_torques(ex, vec, effects=diagnosis.composition)
         p = RigParams.from_vector(vec[:N_PARAMS])  # the inertias and brake law of the model that left it
-        c = find_candidate(rt_v, u, p.Ju, p.Jl, ex.config.lateral_free, p.ws, p.delta)
+        c = find_candidate(rt_v, u, p.Ju, p.Jl, ex.config.lateral_free, p.ws, p.delta, p.km)
         if c is not None and (cand is None or c.explained > cand.explained):
             cand, rt = c, rt_v
         rt = rt if rt is not None else rt_v

@@ -1,6 +1,7 @@
 """A candidate effect written as an effect file of the open-effect mechanism.
 
-A friction group becomes a ``Friction`` with ``slip`` and ``stick``, any other group a ``Force``; the
+A friction group becomes a ``Friction`` with ``slip`` and ``stick``, the motor's voltage an ``Input`` (the
+voltage the motor sees, from the voltage entering it), any other group a ``Force``; the
 regressed coefficients are the guesses and the bounds cover four times their size (and the size that would
 make each term alone as large as the residual torque), so that ``drillgym identify --add-effect
 FILE.py:NAME`` fits it.
@@ -37,16 +38,28 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
     path = Path(path)
     name = name or f"candidate_{cand.group}"
     cls = "".join(p.capitalize() for p in name.split("_"))
-    params, body = [], []
+    voltage = cand.group == "motor_voltage"
+    unit = "V" if voltage else "N m"
+    params, body, widths = [], [], []
     for i, (label, c) in enumerate(cand.terms.items(), 1):
         size = max(abs(c), cand.reach.get(label, 0.0), 1e-9)
         params.append(
-            f'        Parameter("{name}_c{i}", "N m", {-4 * size!r}, {4 * size!r}, {c!r}, {size / 2!r},\n'
-            f'                  doc="coefficient of {label}"),'
+            f'        Parameter("{name}_c{i}", "{unit}", {-4 * size!r}, {4 * size!r}, {c!r}, {size / 2!r},\n'
+            f'                  doc="coefficient of {label}", neutral=0.0),'
         )
-        body.append(f"{name}_c{i} * ({cand.codes[label]})")
-    pnames = [f"{name}_c{i}" for i in range(1, len(cand.terms) + 1)]
+        code = cand.codes[label]
+        if label in cand.widths:  # a scanned width: fitted too, from the width found
+            w = cand.widths[label]
+            params.append(
+                f'        Parameter("{name}_w{i}", "V", 0.0, {max(2.0, 3 * w)!r}, {w!r}, 0.1,\n'
+                f'                  doc="width of {label.split("(")[0]}(u, width)"),'
+            )
+            code = code.replace("U0", f"{name}_w{i}")
+            widths.append(f"{name}_w{i}")
+        body.append(f"{name}_c{i} * ({code})")
+    pnames = [f"{name}_c{i}" for i in range(1, len(cand.terms) + 1)] + widths
     expr = " + ".join(body)
+    kind_import = "Friction" if cand.group.endswith("friction") else ("Input" if voltage else "Force")
     used = [v for v in ("theta_l", "theta_u", "alpha", "alpha_dot", "t", "u") if _uses(cand, v)]
     lines = [
         '"""Candidate effect written by `drillgym diagnose --candidate-out` from the residual torques.',
@@ -59,16 +72,18 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
         "",
         "import math",
         "",
-        "from drillgym.effects import Force, Friction, Parameter",
+        f"from drillgym.effects import {kind_import}, Parameter",
         "",
         "",
     ]
     friction = cand.group.endswith("friction")
-    kind = "Friction" if friction else "Force"
+    kind = "Friction" if friction else ("Input" if voltage else "Force")
     lines.append(f"class {cls}({kind}):")
     lines.append(f'    name = "{name}"')
     if friction:
         lines.append(f'    disc = "{cand.group.split("_")[0]}"')
+    elif voltage:
+        lines.append('    configurations = ("upper", "torsional", "lateral", "coupled")  # the motor drives these')
     else:
         lines.append(f'    acts_on = "{cand.group.split("_")[0]}"')
     lines.append("    parameters = (")
@@ -89,6 +104,9 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
             lines.append(f"    def stick(lo, hi, {', '.join(rest_args)}):")
             lines.append(f"        d = {' + '.join(rest)}")
             lines.append("        return min(lo - d, 0.0), max(hi + d, 0.0)")
+    elif voltage:
+        lines.append(f"    def voltage(u, {', '.join(pnames)}):")
+        lines.append(f"        return u + {expr}")
     else:
         args = ", ".join(used)
         lines.append(f"    def torque({args + ', ' if args else ''}{', '.join(pnames)}):")

@@ -10,7 +10,9 @@
    :func:`.input_order.input_order` — two Input effects fitted in both orders, the better reported;
    :func:`.unexplained.unexplained` — the final residual against the noise, where it lives, what it depends on;
 5. :func:`.discovery.discover` (with ``discover``) — a candidate effect outside the library from the
-   residual torques of the (first) recording on its own samples up to 250 Hz, written as an effect file.
+   residual torques of the (first) recording on its own samples up to 250 Hz, written as an effect file;
+   :func:`.candidate_fit.choose_candidate` — the candidate (and the motor side's best beside it) added to the
+   final model and fitted; the one whose fit removes more is kept, its residual reported.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from ..identification.blas import one_blas_thread
 from ..identification.experiment import Experiment, prepare_experiment
 from ..io import TimeSeries
 from ..params import RigParams
+from .candidate_fit import choose_candidate
 from .checks import check
 from .discovery import discover
 from .input_order import input_order
@@ -98,6 +101,9 @@ def diagnose(
         diagnosis.unexplained = unexplained(screening.model.obj, diagnosis.vector, noise)
     if opts.discover and screening.config is not Configuration.UPPER:
         diagnosis.candidate, diagnosis.advice = discover(_fine(screening.exps[0]), diagnosis, opts.candidate_out)
+        if diagnosis.candidate is not None:  # its own identification is part of the answer
+            with one_blas_thread():
+                diagnosis.candidate = choose_candidate(screening, diagnosis, noise, opts.candidate_out)
     return diagnosis
 
 

@@ -112,6 +112,7 @@ def report(screening: Screening, outcome: SearchOutcome) -> Diagnosis:
     )
     d.warnings += smooth_input_warning(screening.exps, comp, vec0, out.moved, out.selected)
     d.paths = outcome.paths
+    d.at_bounds = list(out.at_bounds)
     d.sensor_misfit = outcome.sensor_misfit
     d.lag_delay = outcome.lag_delay.to_json() if outcome.lag_delay is not None else None
     d.nominal_vector = vec.copy()

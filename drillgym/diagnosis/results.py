@@ -276,6 +276,13 @@ class Candidate:
     reach : dict of str to float
         Term label -> the coefficient that would make the term alone as large as the residual torque
         (N m per unit): the file's bounds cover it too.
+    widths : dict of str to float
+        Term label -> the width (V) scanned for it (a dead zone's u0), fitted as a parameter of the file
+        (named ``U0`` in the term's code).
+    fit : any
+        The candidate's own fit on the diagnosis' recordings (:class:`.candidate_fit.CandidateFit`), or None.
+    alternative : Candidate or None
+        The motor side's best candidate when this one acts elsewhere (its fit decides which is reported).
     """
 
     group: str
@@ -288,6 +295,9 @@ class Candidate:
     effect_file: str | None = None
     rest: dict[str, float] = field(default_factory=dict)
     reach: dict[str, float] = field(default_factory=dict)
+    widths: dict[str, float] = field(default_factory=dict)
+    fit: Any = None
+    alternative: Any = None
 
     @property
     def dof(self) -> int:
@@ -309,6 +319,16 @@ class Candidate:
             "effect_file": self.effect_file,
             "group": self.group,
             "terms": self.terms,
+            "widths": self.widths,
+            "fit": self.fit.to_json() if self.fit is not None else None,
+            "alternative": None
+            if self.alternative is None
+            else {
+                "expression": self.alternative.expression(),
+                "group": self.alternative.group,
+                "explained": round(self.alternative.explained, 4),
+                "fit": self.alternative.fit.to_json() if self.alternative.fit is not None else None,
+            },
         }
 
 
@@ -368,6 +388,8 @@ class Diagnosis:
         The lag/delay decision at the recording's rate (:meth:`.timing.FineDecision.to_json`).
     sensor_misfit : dict of str to float
         Sensor -> the model's misfit on it (noise units), by which its channels were rescaled.
+    at_bounds : list of str
+        Base parameters the final model left at a bound of their range.
     input_order : InputOrder or None
         The model's two Input effects fitted in both orders (:mod:`.input_order`; None: not two).
     unexplained : Unexplained or None
@@ -401,6 +423,7 @@ class Diagnosis:
     sensor_misfit: dict[str, float] = field(default_factory=dict)
     unexplained: Unexplained | None = None
     input_order: Any = None
+    at_bounds: list[str] = field(default_factory=list)
 
     @property
     def best(self) -> EffectScore | None:

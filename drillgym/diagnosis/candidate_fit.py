@@ -1,0 +1,203 @@
+"""The candidate's own identification: its effect file added to the diagnosed model and fitted.
+
+Discovery (:mod:`.discovery`) regresses the residual torques and writes the candidate as an effect file; whether
+it explains the recording is decided the way ``drillgym identify --add-effect FILE:NAME`` would decide it: the
+file's effect is added to the final model and its parameters are fitted by multiple shooting on the diagnosis'
+own recordings (with the base parameters as the diagnosis freed them, or held at their nominal values when the
+diagnosis left them at a bound of their range: an effect the library lacks was absorbed there), with the
+segments' start speeds.  Motor-side terms are fitted through the same terms compiled once
+(:mod:`.motor_terms`): a file's coefficients make its compiled model new for every recording.  The answer
+is the residual against the noise with the candidate
+(:func:`.unexplained.unexplained`) beside the one without.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..effects import Composition, Effect
+from .context import SelectionContext, converged_fit
+from .effect_file import write_effect_file
+from .effects import get_effect
+from .motor_terms import MotorVoltageTerms, UpperTorqueTerms, term_parameters
+from .ranking import transfer
+from .results import Candidate, Diagnosis
+from .screening import Screening
+from .unexplained import Unexplained, unexplained
+
+__all__ = ["CandidateFit", "fit_candidate", "choose_candidate", "MAX_NFEV"]
+
+#: least-squares evaluations of the candidate's fit
+MAX_NFEV = 20
+
+
+@dataclass
+class CandidateFit:
+    """The candidate fitted on the diagnosis' recordings.
+
+    Attributes
+    ----------
+    values : dict of str to float
+        Its fitted parameters.
+    base_held : bool
+        Whether the base parameters were held at their nominal values (the diagnosis left some at a bound).
+    before, after : Unexplained
+        The residual against the noise without and with the candidate.
+    """
+
+    values: dict[str, float]
+    base_held: bool
+    before: Unexplained
+    after: Unexplained
+
+    @property
+    def variance_cut(self) -> float:
+        """Share of the residual's mean square (the unexplained variance, noise units²) the candidate removes."""
+        b = self.before.ratio_to_noise**2
+        return 1.0 - self.after.ratio_to_noise**2 / b if b > 0 else 0.0
+
+    def to_json(self) -> dict:
+        """``{values, base_held, ratio_before, ratio_after, variance_cut, verdict_after, channels_after}``."""
+        return {
+            "values": self.values,
+            "base_held": self.base_held,
+            "ratio_before": self.before.ratio_to_noise,
+            "ratio_after": self.after.ratio_to_noise,
+            "variance_cut": round(self.variance_cut, 4),
+            "verdict_after": self.after.verdict,
+            "channels_after": self.after.channels,
+        }
+
+    def line(self) -> str:
+        """The fit in words."""
+        vals = ", ".join(f"{k} = {v:.4g}" for k, v in self.values.items())
+        base = "base held at nominal" if self.base_held else "base as diagnosed"
+        return (
+            f"  its fit on this recording ({base}): {vals}; residual {self.before.ratio_to_noise:.3g} -> "
+            f"{self.after.ratio_to_noise:.3g} times the noise ({self.variance_cut:.0%} of the unexplained "
+            f"variance removed; {self.after.verdict.replace('_', ' ')} with it)"
+        )
+
+
+def fit_candidate(
+    screening: Screening, diagnosis: Diagnosis, candidate: Candidate, noise_scales: dict[str, float]
+) -> CandidateFit | None:
+    """Fit a written candidate on the diagnosis' recordings (see the module docstring).
+
+    Parameters
+    ----------
+    screening : Screening
+        The recordings screened (their objective and scales as the selection left them).
+    diagnosis : Diagnosis
+        The diagnosis (final model, base decision, its residual against the noise).
+    candidate : Candidate
+        The candidate, with its effect file written (``effect_file``).
+    noise_scales : dict of str to float
+        The channels' noise (the objective's scales before any weighting).
+
+    Returns
+    -------
+    CandidateFit or None
+        The fit, or None when the candidate has no file or the diagnosis no final model.
+    """
+    if diagnosis.vector is None or diagnosis.composition is None:
+        return None
+    effect, start_values = _effect_of(candidate)
+    if effect is None:
+        return None
+    comp = diagnosis.composition
+    with_it = Composition((*comp.effects, effect))
+    model = screening.model
+    held = bool(diagnosis.at_bounds)
+    base = diagnosis.nominal_vector if held and diagnosis.nominal_vector is not None else diagnosis.vector
+    start = transfer(base, comp, with_it)
+    for p in effect.parameters:
+        start[with_it.param_index(p.name)] = start_values.get(p.name, p.neutral if p.neutral is not None else p.guess)
+    base_names = tuple(model.base_names) if diagnosis.base_off and not held else ()
+    obj = model.obj.with_own_speeds()
+    obj.model = obj.model.with_composition(with_it)
+    ctx = SelectionContext(obj, with_it, start, transfer(model.nominal, comp, with_it), base_names, {})
+    names = list(start_values)
+    fit = converged_fit(ctx, start, [*names, *base_names], MAX_NFEV)
+    before = diagnosis.unexplained or unexplained(model.obj, diagnosis.vector, noise_scales)
+    after = unexplained(obj, np.asarray(fit.vector), noise_scales)
+    values = {_file_name(candidate, n): float(fit.vector[with_it.param_index(n)]) for n in names}
+    return CandidateFit(values, held, before, after)
+
+
+def _effect_of(candidate: Candidate) -> tuple[type[Effect] | None, dict[str, float]]:
+    """The effect the candidate is fitted through and the start of its free parameters: for motor-side terms
+    the effects of :mod:`.motor_terms` (compiled once), else the candidate's own file (None: not written)."""
+    if candidate.group in ("motor_voltage", "upper_force"):
+        start = {}
+        for label, c in candidate.terms.items():
+            name = term_parameters(candidate.group, label)
+            if name is None:
+                break
+            start[name] = c
+            if label in candidate.widths:
+                start["mv_w"] = candidate.widths[label]
+        else:
+            return (MotorVoltageTerms if candidate.group == "motor_voltage" else UpperTorqueTerms), start
+    if candidate.effect_file is None:
+        return None, {}
+    effect = get_effect(candidate.effect_file)
+    return effect, {p.name: p.guess for p in effect.parameters}
+
+
+def choose_candidate(
+    screening: Screening, diagnosis: Diagnosis, noise_scales: dict[str, float], candidate_out: str | Path | None
+) -> Candidate:
+    """The discovered candidate fitted, or its motor-side alternative when that one's own fit removes more.
+
+    The motor side's candidate is fitted first (its terms are compiled once); when it leaves the recording at the
+    noise, the other is not fitted.  The candidate kept is the one written to ``candidate_out``; the other is
+    its :attr:`~.results.Candidate.alternative`.
+
+    Parameters
+    ----------
+    screening : Screening
+        The recordings screened.
+    diagnosis : Diagnosis
+        The diagnosis, with its candidate (:func:`.discovery.discover`).
+    noise_scales : dict of str to float
+        The channels' noise.
+    candidate_out : str or path or None
+        Where the kept candidate's effect file goes.
+
+    Returns
+    -------
+    Candidate
+        The candidate kept, with its fit.
+    """
+    cand = diagnosis.candidate
+    alt, cand.alternative = cand.alternative, None
+    if alt is None:
+        cand.fit = fit_candidate(screening, diagnosis, cand, noise_scales)
+        return cand
+    alt.fit = fit_candidate(screening, diagnosis, alt, noise_scales)
+    if alt.fit is not None and alt.fit.after.explained:
+        keep, other = alt, cand
+    else:
+        cand.fit = fit_candidate(screening, diagnosis, cand, noise_scales)
+        cut = {id(c): c.fit.variance_cut if c.fit is not None else -1.0 for c in (alt, cand)}
+        keep, other = (alt, cand) if cut[id(alt)] > cut[id(cand)] else (cand, alt)
+    if keep is alt and candidate_out is not None:
+        write_effect_file(alt, candidate_out)
+    keep.alternative = other
+    return keep
+
+
+def _file_name(candidate: Candidate, parameter: str) -> str:
+    """The name a fitted parameter has in the candidate's file (``NAME_c<i>``, ``NAME_w<i>``), or its own name."""
+    if not candidate.name:
+        return parameter
+    for i, label in enumerate(candidate.terms, 1):
+        if term_parameters(candidate.group, label) == parameter:
+            return f"{candidate.name}_c{i}"
+        if parameter == "mv_w" and label in candidate.widths:
+            return f"{candidate.name}_w{i}"
+    return parameter
