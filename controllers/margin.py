@@ -60,11 +60,13 @@ class ModelMargin:
 
     def line(self, controller: str) -> str:
         """One line for the user."""
-        need = "any model error (the brake is stable there)" if math.isinf(self.needed) else f"{self.needed:.2%}"
+        need = (
+            "any model error (the brake is stable there)" if math.isinf(self.needed) else f"{100 * self.needed:.3g} %"
+        )
         have = (
             "unknown (the model file has no standard error of km)"
             if self.achieved is None
-            else f"{self.achieved:.2%} ({SIGMAS:g} standard errors of km)"
+            else f"{100 * self.achieved:.3g} % ({SIGMAS:g} standard errors of km)"
         )
         verdict = {True: "enough", False: "NOT enough", None: "not known to be enough"}[self.enough]
         return f"{controller} at {self.omega:g} rad/s tolerates {need}; the model is right to {have}: {verdict}"

@@ -151,7 +151,7 @@ def test_observer_warns_and_falls_back_to_descent_where_its_model_is_not_good_en
     loose = ControllerModel(p, std={"km": 0.02 * p.km})
     meas = {"t": 0.0, "theta_u": np.zeros(2)}
     ctrl = controllers.make("observer", omega_ref=np.array([2.0, 4.0]), model=loose, fallback=True)
-    with pytest.warns(UserWarning, match=r"observer at 2 rad/s tolerates 1\.\d+%.*NOT enough; descent drives it"):
+    with pytest.warns(UserWarning, match=r"observer at 2 rad/s tolerates 1\.\d+ %.*NOT enough; descent drives it"):
         ctrl.reset(meas)
     ref = controllers.make("descent", omega_ref=np.array([2.0, 4.0]), dt=ctrl.dt)
     ref.reset(meas)

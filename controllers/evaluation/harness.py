@@ -246,15 +246,14 @@ def _identify_one(k: int, n: int, seed: int, uncertainty: Any, params: RigParams
     return identify_plant(rec, [n for n in pop.columns[0] if n not in ("counts_per_rev", "angle_noise")], opts)
 
 
-def margin_columns(ctrl: Any, omega: float) -> dict[str, float]:
+def margin_columns(ctrl: Any, omega: float) -> dict[str, float | None]:
     """``model_tolerates`` (the relative km error the motor-angle limit tolerates at ``omega``, inf: any) and
-    ``model_accuracy`` (what the model file offers, NaN: unknown) of a controller that reports its
-    margins (:mod:`controllers.margin`), else both NaN."""
-    nan = float("nan")
+    ``model_accuracy`` (what the model file offers; None: unknown) of a controller that reports its margins
+    (:mod:`controllers.margin`); no columns for the others."""
     for g in getattr(ctrl, "margins", None) or []:
         if g.omega == omega:
-            return {"model_tolerates": g.needed, "model_accuracy": nan if g.achieved is None else g.achieved}
-    return {"model_tolerates": nan, "model_accuracy": nan}
+            return {"model_tolerates": g.needed, "model_accuracy": g.achieved}
+    return {}
 
 
 def build_controller(
