@@ -187,6 +187,8 @@ def choose_candidate(
         keep, other = (alt, cand) if cut[id(alt)] > cut[id(cand)] else (cand, alt)
     if keep is alt and candidate_out is not None:
         write_effect_file(alt, candidate_out)
+        if alt.fit is not None:  # its values by the names its file gives them
+            alt.fit.values = {_file_name(alt, k): v for k, v in alt.fit.values.items()}
     keep.alternative = other
     return keep
 
