@@ -25,6 +25,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -41,6 +42,45 @@ _GC = re.compile(r"longest ([\d.]+) ms \(generation")
 _STEPS = re.compile(r"^(\d+) steps", re.M)
 _SERVED = re.compile(r"(\d+) commands served")
 READY_TIMEOUT_S = 180.0  # the emulator's start (imports, compiled kernels) on a loaded machine
+STEAL_SAMPLE_S = 0.05  # the steal-time monitor's sampling period
+
+
+class StealMonitor:
+    """The hypervisor's steal time (``/proc/stat``) while a run goes: its longest burst.
+
+    A virtual machine whose CPUs are taken away as a whole pauses the emulator and the host at once; a
+    watchdog stop then is the host's silence as the firmware would see it, but no program on the
+    machine caused it.  Sampled every :data:`STEAL_SAMPLE_S` seconds in a thread.
+    """
+
+    def __init__(self) -> None:
+        self.longest_ms = 0.0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._tick_ms = 1e3 / os.sysconf("SC_CLK_TCK")
+
+    @staticmethod
+    def _steal_ticks() -> int:
+        with open("/proc/stat") as fh:
+            fields = fh.readline().split()
+        return int(fields[8]) if len(fields) > 8 else 0
+
+    def _run(self) -> None:
+        last = self._steal_ticks()
+        while not self._stop.wait(STEAL_SAMPLE_S):
+            now = self._steal_ticks()
+            self.longest_ms = max(self.longest_ms, (now - last) * self._tick_ms)
+            last = now
+
+    def __enter__(self) -> StealMonitor:
+        if os.path.exists("/proc/stat"):
+            self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join()
 
 
 @dataclass
@@ -54,6 +94,8 @@ class RunResult:
     service_max_ms: float = math.nan
     gc_longest_ms: float = math.nan
     wall_s: float = 0.0
+    steal_longest_ms: float = math.nan
+    kept: str | None = None
 
     def line(self) -> str:
         """The run's one-line report."""
@@ -61,7 +103,9 @@ class RunResult:
         reply = ", ".join(f"{q} {self.reply_ms[q]:.2f}" for q in QUANTILES) if self.reply_ms else "none"
         return (
             f"{how}; {self.commands} commands; reply time {reply} ms; emulator worst service time "
-            f"{self.service_max_ms:.2f} ms, longest GC pause {self.gc_longest_ms:.2f} ms; {self.wall_s:.0f} s wall"
+            f"{self.service_max_ms:.2f} ms, longest GC pause {self.gc_longest_ms:.2f} ms; longest steal burst "
+            f"{self.steal_longest_ms:.0f} ms of CPU in {STEAL_SAMPLE_S * 1e3:.0f} ms; {self.wall_s:.0f} s wall"
+            + (f"; logs kept in {self.kept}" if self.kept else "")
         )
 
 
@@ -125,20 +169,30 @@ def run_once(
     emu = _start_emulator(link, control_ms * 1e-3, log)
     t0 = time.monotonic()
     try:
-        host = subprocess.run(
-            _cli(
-                "rig", "run", "--port", str(link), "--controller", controller, "--control-ms", f"{control_ms:g}",
-                "--omega-ref", f"{omega_ref:g}", "--duration", f"{duration:g}", "--record", str(workdir / "run.csv"),
-            ),
-            capture_output=True,
-            text=True,
-            env=ENV,
-            timeout=1.5 * duration + 300,
-        )  # fmt: skip
+        with StealMonitor() as steal:
+            host = subprocess.run(
+                _cli(
+                    "rig", "run", "--port", str(link), "--controller", controller,
+                    "--control-ms", f"{control_ms:g}", "--omega-ref", f"{omega_ref:g}",
+                    "--duration", f"{duration:g}", "--record", str(workdir / "run.csv"),
+                ),
+                capture_output=True,
+                text=True,
+                env=ENV,
+                timeout=1.5 * duration + 300,
+            )  # fmt: skip
     finally:
         wall = time.monotonic() - t0
         _stop(emu)
-    return _result(host, log.read_text(), wall)
+    res = _result(host, log.read_text(), wall)
+    res.steal_longest_ms = steal.longest_ms
+    if not res.completed:  # a stop is kept for its diagnosis: the host's output and the emulator's log
+        kept = Path(tempfile.mkdtemp(prefix="bench_rig_stop_"))
+        (kept / "host.out").write_text(host.stdout)
+        (kept / "host.err").write_text(host.stderr)
+        (kept / "emulator.log").write_text(log.read_text())
+        res.kept = str(kept)
+    return res
 
 
 def _result(host: subprocess.CompletedProcess, emulator_log: str, wall: float) -> RunResult:

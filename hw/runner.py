@@ -287,6 +287,8 @@ class EpisodeResult:
         Pacing error of each period (s).
     round_trips : ndarray
         Round trip of each SET_VOLTAGE/SAMPLE exchange (s).
+    overruns : int
+        Periods the loop ran more than one period late (the schedule restarted from then).
     """
 
     steps: int
@@ -297,6 +299,7 @@ class EpisodeResult:
     safety_stop: str | None
     tick_errors: np.ndarray
     round_trips: np.ndarray
+    overruns: int = 0
 
 
 def run_episode(
@@ -355,4 +358,5 @@ def run_episode(
     finally:
         if not (term or trunc):
             env.unwrapped.end_episode()
-    return EpisodeResult(steps, total, term, trunc, info["recording"], stop, np.array(ticks), np.array(rtts))
+    overruns = int(info.get("overruns", 0))
+    return EpisodeResult(steps, total, term, trunc, info["recording"], stop, np.array(ticks), np.array(rtts), overruns)

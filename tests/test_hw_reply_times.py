@@ -92,4 +92,5 @@ def test_smoke_mode_runs_one_short_pair(tmp_path):
     assert p.returncode == 0, (out, p.stderr)
     run_line = next(ln for ln in out.splitlines() if ln.startswith("run 1:"))
     assert "completed; 1000 commands; reply time p50" in run_line and "emulator worst service time" in run_line
+    assert "longest steal burst" in run_line and "logs kept" not in run_line  # a completed run keeps nothing
     assert "1 runs: 1 completed, 0 stopped" in out

@@ -282,7 +282,12 @@ def run_cmd(
         typer.echo(
             f"reply time (command sent -> its SAMPLE received) over {rt.size} commands: "
             f"{percentile_summary(np.percentile(rt, PERCENTILES), rt.max())}; "
-            f"tick error p99 {ms * np.percentile(res.tick_errors, 99):.2f} ms"
+            f"tick error p99 {ms * np.percentile(res.tick_errors, 99):.2f} ms, max {ms * res.tick_errors.max():.2f} ms"
+        )
+    if res.overruns:
+        typer.echo(
+            f"{res.overruns} of {res.steps} control periods overran (ran more than one period late): the loop did "
+            f"not keep --control-ms {control_ms:g}"
         )
     if notice.count:
         typer.echo(f"{notice.count} of {res.steps} commands were clamped to the amplifier range")
