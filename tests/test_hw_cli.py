@@ -194,9 +194,10 @@ def test_clamp_is_told_once_and_kept(tmp_path, emu):
         finally:
             if rig is not emu:
                 rig.stop()
-        # a link fault (no reply within the watchdog period; seen once in a full `make test` with the other
-        # worker busy) is the test process being starved, not the clamp: the safety stop itself is tested above
-        if not (code == 3 and "motor stop requested" in err):
+        # a link fault or a watchdog stop (no reply, or no command seen, within 100 ms: seen in full `make test`
+        # runs with the other worker and other jobs busy) is this process's emulator thread being starved at
+        # normal priority, not the clamp: the safety stops themselves are tested above
+        if not (code == 3 and ("motor stop requested" in err or "WATCHDOG" in out)):
             break
     assert code == 0, (out, err)
     assert err.count("note:") == 1 and "20 V asked for at step 1; the amplifier gives +-5 V" in err, err
