@@ -90,7 +90,7 @@ def test_an_effect_the_data_cannot_show_stays_neutral_in_the_one_search_model():
 
 
 def test_json_shape_and_skips():
-    d = diagnose(_measure("torsional", 2.0), RigParams().scaled(Ts=1.05), effects=["string_damping", "lvdt_offset"])
+    d = diagnose(_measure("torsional", 2.0), RigParams().scaled(Ts=1.05), effects=["string_damping"])
     js = d.to_json()
     assert js["selected"] == [] and js["base_model_off"]
     assert set(js["base_parameters"]) >= {"Ts"}  # the base refit names the parameter that is off
@@ -100,7 +100,8 @@ def test_json_shape_and_skips():
     assert js["base_parameters"]["Ts"]["change_pct"] < -2.0
     assert [r["effect"] for r in js["ranking"]] == ["string_damping"]
     assert set(js["ranking"][0]) >= {"effect", "score", "significant", "fitted", "rmse_before", "rmse_after"}
-    assert "configuration" in js["skipped"]["lvdt_offset"]
+    with pytest.raises(ValueError, match="does not act in the torsional configuration"):  # refused, not skipped
+        diagnose(_measure("torsional", 2.0), effects=["string_damping", "lvdt_offset"])
     with pytest.raises(ValueError, match="unknown effect"):
         diagnose(_measure("torsional", 2.0), effects=["bogus"])
 
