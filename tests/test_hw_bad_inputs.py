@@ -130,7 +130,7 @@ def test_record_path_checks(tmp_path):
         "/proc/x.csv": "cannot create",
         str(tmp_path / "pipe.csv"): "a pipe",
         str(tmp_path / "dir.csv"): "a directory",
-        str(tmp_path / "plain"): "a regular file",
+        str(tmp_path / "plain"): "is a file",
         str(tmp_path / "plain" / "x.csv"): "not a directory",
         "/dev/null": "a device",
         "": "empty",
@@ -148,7 +148,7 @@ def test_port_checks(tmp_path):
     (tmp_path / "plain").write_text("x")
     with pytest.raises(MissingFileError, match="does not exist"):
         check_port(str(tmp_path / "none"))
-    for p, what in [(tmp_path, "a directory"), (tmp_path / "plain", "a regular file"), ("", "empty")]:
+    for p, what in [(tmp_path, "a directory"), (tmp_path / "plain", "is a file"), ("", "empty")]:
         with pytest.raises(InputError, match=what):
             check_port(str(p) if p != "" else p)
     assert check_port("loop://") == "loop://" and check_port(DEVICE) == DEVICE

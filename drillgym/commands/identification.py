@@ -79,7 +79,7 @@ def _check_segment(seg: float | None, ex) -> None:
     """Refuse a ``--segment`` (s) the recording cannot take (see ``drillgym.identification.segment_length``)."""
     from ..identification.segment_length import segment_length
 
-    segment_length(seg, ex, "--segment")
+    segment_length(seg, ex, "--segment", longer_than_recording=False)
 
 
 def _rate(rate: float) -> float:

@@ -259,8 +259,10 @@ class Experiment:
         return Y
 
 
-#: fewest samples a recording, and its comparison grid, must have to be compared
+#: fewest samples a recording must have to be compared
 MIN_SAMPLES = 20
+#: fewest samples of the comparison grid (one multiple-shooting segment's least)
+MIN_GRID_SAMPLES = 10
 
 
 def prepare_experiment(
@@ -341,11 +343,11 @@ def prepare_experiment(
         rates["Yd"] = estimate_rate(cols["y"], fs_w, window_s=0.1)
     fs_c = min(float(compare_rate_hz), fs_w)
     n_c = int(math.floor(ts.duration * fs_c + 1e-9)) + 1
-    if n_c < MIN_SAMPLES:
+    if n_c < MIN_GRID_SAMPLES:
         raise InputError(
             f"the comparison rate (--rate) {compare_rate_hz:g} Hz gives {n_c} samples over the recording's "
-            f"{ts.duration:g} s ({ts.source}); need >= {MIN_SAMPLES}: choose >= "
-            f"{(MIN_SAMPLES - 1) / ts.duration:.3g} Hz"
+            f"{ts.duration:g} s ({ts.source}); need >= {MIN_GRID_SAMPLES}: choose >= "
+            f"{(MIN_GRID_SAMPLES - 1) / ts.duration:.3g} Hz"
         )
     t_c = uni.t[0] + np.arange(n_c) / fs_c
     meas = {c: np.interp(t_c, uni.t, cols[c]) for c in ("theta_u", "theta_l", "x", "y") if c in cols}

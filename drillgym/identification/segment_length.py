@@ -44,7 +44,11 @@ def default_segment(config: Configuration) -> float:
 
 
 def segment_length(
-    segment_s: float | None, experiments: Experiment | Sequence[Experiment], name: str = "segment_s"
+    segment_s: float | None,
+    experiments: Experiment | Sequence[Experiment],
+    name: str = "segment_s",
+    *,
+    longer_than_recording: bool = True,
 ) -> float | None:
     """The segment length (s) for these experiments, or None for one free run.
 
@@ -56,6 +60,9 @@ def segment_length(
         The recordings compared (one configuration).
     name : str, optional
         The setting's name for the message (``"--segment"`` on the command line).
+    longer_than_recording : bool, optional
+        Accept a segment longer than a recording (it is then one segment: a free run).  The command line
+        refuses it (``False``): the user asked for segments.
 
     Returns
     -------
@@ -68,7 +75,7 @@ def segment_length(
         ``segment_s`` is not a number (a string, a bool).
     InputError
         NaN, zero or infinite; shorter than :data:`SEGMENT_MIN_SAMPLES` samples of a comparison grid;
-        longer than the shortest recording.
+        longer than the shortest recording when ``longer_than_recording`` is False.
     """
     if segment_s is None:
         return None
@@ -94,7 +101,7 @@ def segment_length(
                 f"grid: choose >= {shortest:g} s, or a free run (None; --segment none)"
             )
         span = float(ex.t[-1] - ex.t[0]) if len(ex.t) > 1 else 0.0
-        if seg > span:
+        if seg > span and not longer_than_recording:
             raise InputError(
                 f"{name} {seg:g} s is longer than the recording ({span:g} s): for one free run give None "
                 "(--segment none on the command line)"

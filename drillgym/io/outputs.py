@@ -78,7 +78,7 @@ def check_writable_dir(directory: Path, option: str, path: Path | None = None) -
     try:
         os.rmdir(tempfile.mkdtemp(prefix=".drillgym-probe-", dir=directory))
     except OSError as exc:
-        raise OutputPathError(f"{where}: cannot write in {directory} ({exc.strerror})") from None
+        raise OutputPathError(f"{where}: cannot create an entry in {directory} ({exc.strerror})") from None
 
 
 def check_creatable(path: Path, option: str, what: str = "file name") -> None:
