@@ -8,6 +8,10 @@ depend on how threads happened to interleave: OpenBLAS splits a dot product of m
 two fits on two threads that enter and leave it interleaved leave BLAS at one or at several threads by
 chance (seen: the same diagnose gave two different results on the same recording).  Here the limit is
 counted: the first user sets it, the last one gives the caller's setting back.
+
+Known limit: OpenBLAS 0.3.30/0.3.31 (numpy 2.4, scipy 1.17) ignores a thread count set on another thread
+once the process's main thread has set one itself (with ``threadpool_limits`` or this block): the fits
+then run BLAS at the main thread's setting, the same count every time, so results stay repeatable.
 """
 
 from __future__ import annotations
