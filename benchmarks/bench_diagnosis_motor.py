@@ -8,6 +8,9 @@ motor-side effects outside drillgym's library, each coded from its physical desc
 * ``cogging``: a torque −Tcog sin(6 θu + φ) on the upper disc (Tcog = 0.08-0.15 N m, six per revolution);
 * ``saturation``: the motor sees v (1 − s v²) (s = 0.008-0.015 /V²: a motor constant falling with the voltage);
 * ``voltage_offset``: the motor sees v + u_off (u_off = ±0.1-0.2 V);
+* ``backlash``: a gap of ±b between the motor's rotor (a fifth of Ju, the motor's torque on it, its encoder
+  θu) and the upper disc (the rest of Ju, the bearing friction and the string), closed by a stiff damped
+  coupling (500 N m/rad, 4 N m s/rad: 13 Hz) (b = 0.01-0.03 rad);
 
 each alone and with a library effect (a motor lag, τ = 20-40 ms, before the motor-side effect: the motor sees
 f(u_m)), on voltage steps, ramps or quasi-random input (cycled over the rows), with the base parameters
@@ -17,7 +20,8 @@ the candidate's own fit).  Reported per kind:
 
 * ``halved``: the share of recordings where the candidate's own fit at least halves the unexplained variance
   (the final residual's mean square in noise units²);
-* ``lag_selected``: with the motor lag hidden, the share where it is selected;
+* ``lag_selected``: with the motor lag hidden, the share where it is selected, by the library's selection or
+  beside the candidate (``lag_selected_by_the_selection``: by the selection alone);
 * ``silent``: recordings whose final residual (without the candidate) is ≥ 10× the noise on a channel and that
   are reported as explained or as "the base model stands" (must be 0).
 
@@ -46,13 +50,31 @@ from drillgym import RigParams  # noqa: E402
 from drillgym.io import TimeSeries  # noqa: E402
 from drillgym.measurement import quantize_angle  # noqa: E402
 
-KINDS = ("dead_zone", "cogging", "saturation", "voltage_offset")
+KINDS = ("dead_zone", "cogging", "saturation", "voltage_offset", "backlash")
 SIGNALS = ("steps", "ramps", "quasi_random")
 MISMATCHED = ("km", "bu", "Tcu", "Ts", "Tc", "ktheta", "Jl")
 
 
+#: the backlash's rotor: its share of Ju, the coupling's stiffness (N m/rad) and damping (N m s/rad)
+ROTOR_SHARE, COUPLING_K, COUPLING_C = 0.2, 500.0, 4.0
+
+
 class MotorRig(_Rig):
-    """The independent rig with motor-side effects (``self.fx`` keys: :data:`KINDS` and ``motor_lag``)."""
+    """The independent rig with motor-side effects (``self.fx`` keys: :data:`KINDS` and ``motor_lag``).
+
+    State: θu, θl, ωu, ωl, then the lag's voltage (with ``motor_lag``), then the rotor's angle and speed
+    (with ``backlash``; θu is then the upper disc's and the encoder reads the rotor's)."""
+
+    def rotor_index(self) -> int:
+        """Where the rotor's angle sits in the state (with ``backlash``)."""
+        return 5 if "motor_lag" in self.fx else 4
+
+    def coupling(self, gap_angle: float, gap_speed: float) -> float:
+        """The torque from the rotor to the disc across the backlash (N m)."""
+        b = self.fx["backlash"]["b"]
+        if abs(gap_angle) <= b:
+            return 0.0
+        return COUPLING_K * (gap_angle - math.copysign(b, gap_angle)) + COUPLING_C * gap_speed
 
     def motor_voltage(self, v: float) -> float:
         """The voltage the motor turns into torque, from the voltage v reaching it (V)."""
@@ -79,15 +101,19 @@ class MotorRig(_Rig):
         lag = "motor_lag" in self.fx
         v = self.motor_voltage(s[4] if lag else self.drive(tt, None))
         S = self.string_torque(tl - tu, wl - wu)
-        out = [
-            wu,
-            wl,
-            (p.km * v - self.upper_friction(wu) + S + self.cogging(tu)) / p.Ju,
-            (-self.lower_friction(tt, wl, tl) - S) / p.Jl,
-        ]
+        rotor = None
+        if "backlash" in self.fx:
+            k = self.rotor_index()
+            jm = ROTOR_SHARE * p.Ju
+            T = self.coupling(s[k] - tu, s[k + 1] - wu)
+            disc = (T - self.upper_friction(wu) + S + self.cogging(tu)) / (p.Ju - jm)
+            rotor = [s[k + 1], (p.km * v - T) / jm]
+        else:
+            disc = (p.km * v - self.upper_friction(wu) + S + self.cogging(tu)) / p.Ju
+        out = [wu, wl, disc, (-self.lower_friction(tt, wl, tl) - S) / p.Jl]
         if lag:
             out.append((self.drive(tt, None) - s[4]) / self.fx["motor_lag"]["tau_m"])
-        return out
+        return out + (rotor or [])
 
 
 def motor_recording(signal: str, duration: float, rate_hz: float, seed: int, effects: dict, scale: dict) -> TimeSeries:
@@ -95,7 +121,11 @@ def motor_recording(signal: str, duration: float, rate_hz: float, seed: int, eff
     p = RigParams().scaled(**scale)
     t, u = input_signal(signal, duration, rate_hz, seed, offset=1.0 if signal != "steps" else 1.2, amplitude=1.6)
     rig = MotorRig("torsional", p, effects, t, u)
-    y0 = [0.0, 0.0, 0.0, 0.0] + ([u[0]] if "motor_lag" in effects else [])
+    y0 = (
+        [0.0, 0.0, 0.0, 0.0]
+        + ([u[0]] if "motor_lag" in effects else [])
+        + ([0.0, 0.0] if "backlash" in effects else [])
+    )
     sol = solve_ivp(
         rig.rhs_torsional, (0.0, duration), y0, method="LSODA", t_eval=t, rtol=1e-7, atol=1e-9, max_step=0.01
     )
@@ -105,7 +135,9 @@ def motor_recording(signal: str, duration: float, rate_hz: float, seed: int, eff
     cols = {
         "t": t,
         "u": u,
-        "theta_u": quantize_angle(sol.y[0] + rng.normal(0, 1e-4, t.size)),
+        "theta_u": quantize_angle(
+            sol.y[rig.rotor_index() if "backlash" in effects else 0] + rng.normal(0, 1e-4, t.size)
+        ),
         "theta_l": quantize_angle(sol.y[1] + rng.normal(0, 1e-4, t.size)),
     }
     meta = {
@@ -125,16 +157,25 @@ def draw(kind: str, rng: np.random.Generator) -> dict[str, float]:
         return {"Tcog": float(rng.uniform(0.08, 0.15)), "phase": float(rng.uniform(0, 2 * math.pi))}
     if kind == "saturation":
         return {"s": float(rng.uniform(0.008, 0.015))}
+    if kind == "backlash":
+        return {"b": float(rng.uniform(0.01, 0.03))}
     return {"u_off": float(rng.choice([-1, 1]) * rng.uniform(0.1, 0.2))}
 
 
 def rows(seeds: int) -> list[dict]:
-    """The matrix: every kind alone and with a motor lag, per seed; the input cycles over :data:`SIGNALS`."""
+    """The matrix: every kind alone and with a motor lag, per seed; the input cycles over :data:`SIGNALS`.
+
+    Each row's draws come from its index among the rows of its kind's generation (the first four kinds, then
+    ``backlash`` added later), so adding a kind leaves the earlier rows as they were."""
     out = []
-    i = 0
+    first = KINDS[:4]
+    counters = {"first": 0, "later": 0}
     for seed in range(seeds):
         for kind in KINDS:
             for with_lag in (False, True):
+                group = "first" if kind in first else "later"
+                i = counters[group] + (0 if group == "first" else 10_000)
+                counters[group] += 1
                 rng = np.random.default_rng(1000 * seed + 17 * i + 3)
                 effects = {kind: draw(kind, rng)}
                 if with_lag:
@@ -144,7 +185,6 @@ def rows(seeds: int) -> list[dict]:
                     {"kind": kind, "lag": with_lag, "signal": SIGNALS[i % 3], "seed": seed + i, "effects": effects}
                     | {"scale": scale}
                 )
-                i += 1
     return out
 
 
@@ -160,10 +200,14 @@ def run_row(row: dict, duration: float, rate_hz: float, work: Path) -> dict:
     text = d.text()
     c = d.candidate
     fit = c.fit if c is not None else None
+    beside = fit.beside if fit is not None else None
     return {
         **{k: row[k] for k in ("kind", "lag", "signal", "seed")},
         "hidden": row["effects"],
         "selected": d.selected,
+        "beside_candidate": beside.selected if beside is not None else None,
+        "beside_replaces": beside.replaces if beside is not None else None,
+        "beside_scores": beside.scores if beside is not None else None,
         "ratio": un.ratio_to_noise,
         "worst": un.worst,
         "verdict": un.verdict,
@@ -179,6 +223,12 @@ def run_row(row: dict, duration: float, rate_hz: float, work: Path) -> dict:
     }
 
 
+def _lag_found(r: dict) -> bool:
+    """The motor lag selected: by the library's selection, or beside the candidate (``diagnosis.beside``)."""
+    kept = "motor_lag" in r["selected"] and r["beside_replaces"] != "motor_lag"
+    return kept or r["beside_candidate"] == "motor_lag"
+
+
 def summary(results: list[dict]) -> dict:
     """Per kind: halved, lag_selected (rows with the lag), silent; and the totals."""
     out = {}
@@ -190,7 +240,10 @@ def summary(results: list[dict]) -> dict:
         out[kind] = {
             "n": len(rs),
             "halved": sum(r["halved"] for r in rs) / len(rs),
-            "lag_selected": (sum("motor_lag" in r["selected"] for r in lag) / len(lag)) if lag else None,
+            "lag_selected": (sum(_lag_found(r) for r in lag) / len(lag)) if lag else None,
+            "lag_selected_by_the_selection": (sum("motor_lag" in r["selected"] for r in lag) / len(lag))
+            if lag
+            else None,
             "silent": sum(r["silent"] for r in rs),
         }
     out["total"] = {

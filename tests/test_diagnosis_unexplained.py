@@ -77,10 +77,14 @@ def test_dependence_finds_the_quantity_and_its_worst_range():
 
 def test_cli_json_carries_the_unexplained_residual(tmp_path):
     data = write_timeseries(tmp_path / "rec.csv", step_recording(effects=[DEAD_ZONE], u0=0.4))
+    figure = tmp_path / "figs" / "residual.png"
     r = CliRunner().invoke(
-        app, ["diagnose", str(data), "--json", "--no-sparse", "--fixed-base", "--candidate", "motor_lag"]
+        app,
+        ["diagnose", str(data), "--json", "--no-sparse", "--fixed-base", "--candidate", "motor_lag"]
+        + ["--plot", str(figure)],
     )
     assert r.exit_code == 0, r.output
+    assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     un = json.loads(r.output)["unexplained"]
     assert un["verdict"] == "not_explained" and un["worst_channel_ratio"] >= UNEXPLAINED_RATIO
     assert {"ratio_to_noise", "channels", "where", "depends_on", "thresholds"} <= set(un)
@@ -108,3 +112,57 @@ def test_dead_zone_candidate_is_an_input_effect_whose_own_fit_explains_the_recor
     assert width == pytest.approx(0.4, rel=0.05) and coef == pytest.approx(-1.0, rel=0.05), c.fit.values
     js = d.to_json()["candidate"]["fit"]
     assert js["ratio_after"] < js["ratio_before"] and js["variance_cut"] >= 0.5
+    assert c.fit.beside is None or c.fit.beside.selected is None, c.fit.beside  # no lag hidden: none beside
+
+
+def test_a_motor_lag_hidden_by_a_dead_zone_is_selected_beside_the_candidate(tmp_path):
+    """A 30 ms motor lag before a 0.4 V dead zone: the dead zone's residual (thousands of noise units) hides the
+    lag from the library's selection; fitted again beside the discovered candidate, the lag counts and comes
+    out at its value, and the command line's advice adds it ahead of the candidate."""
+    levels = (0.0, 1.0, 0.6, 1.5, 0.3, 1.2, 2.0, 0.8, -0.5, -1.5, 0.2, 2.5)
+    ts = synthetic_measurement(
+        "torsional",
+        duration=20.0,
+        rate_hz=250.0,
+        input=steps(20.0, levels, hold=2.0),
+        seed=4,
+        effects=["motor_lag", DEAD_ZONE],
+        effect_params={"u0": 0.4, "tau_m": 0.03},
+    )
+    d = diagnose(
+        ts, effects=["motor_lag", "input_delay"], fixed_base=True, discover=True, candidate_out=tmp_path / "c.py"
+    )
+    c = d.candidate
+    assert c is not None and c.fit is not None and c.fit.variance_cut >= 0.5, d.text()
+    beside = c.fit.beside
+    if "motor_lag" in d.selected:  # the selection took it itself: nothing to add beside the candidate
+        tau = d.effect_values()["tau_m"]
+    else:
+        assert beside is not None and beside.selected == "motor_lag", (d.selected, beside)
+        tau = beside.values["tau_m"]
+        assert beside.after.ratio_to_noise < c.fit.after.ratio_to_noise
+        assert d.to_json()["candidate"]["fit"]["beside"]["selected"] == "motor_lag"
+    assert tau == pytest.approx(0.03, rel=0.2)
+
+
+def test_the_figure_draws_every_panel_it_has_data_for(tmp_path, monkeypatch):
+    """Not explained: channels, phases and three dependences (the most explaining first); explained: the
+    channels alone (no phase, no dependence to draw)."""
+    import matplotlib.axes
+
+    from drillgym.diagnosis.figure import plot_unexplained
+    from drillgym.diagnosis.unexplained import Dependence, Phase, Unexplained
+
+    drawn = []
+    monkeypatch.setattr(matplotlib.axes.Axes, "stairs", lambda ax, v, e, **kw: drawn.append((list(v), list(e))))
+    bins = [(0.0, 0.5, 3.0), (0.5, 1.0, -1.0), (1.0, 1.5, 40.0)]
+    dep = [Dependence(q, q, "V", x, 1.0, 1.5, bins) for q, x in (("u", 0.6), ("omega_u", 0.3), ("alpha", 0.1))]
+    un = Unexplained(
+        200.0, {"theta_u": 250.0, "theta_l": 150.0}, [Phase("steps", "after steps", 0.7, 0.2)], dep[0], dep[1:]
+    )
+    path = plot_unexplained(un, tmp_path / "u.png", title="rec.csv")
+    assert path.stat().st_size > 0 and len(drawn) == 3
+    assert drawn[0] == ([3.0, -1.0, 40.0], [0.0, 0.5, 1.0, 1.5])
+    drawn.clear()
+    plot_unexplained(Unexplained(1.2, {"theta_u": 1.1, "theta_l": 1.3}), tmp_path / "e.png")
+    assert (tmp_path / "e.png").stat().st_size > 0 and drawn == []

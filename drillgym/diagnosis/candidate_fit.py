@@ -13,12 +13,14 @@ is the residual against the noise with the candidate
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ..effects import Composition, Effect
+from ..identification.fitting import FitResult, Objective
 from .context import SelectionContext, converged_fit
 from .effect_file import write_effect_file
 from .effects import get_effect
@@ -28,10 +30,38 @@ from .results import Candidate, Diagnosis
 from .screening import Screening
 from .unexplained import Unexplained, unexplained
 
-__all__ = ["CandidateFit", "fit_candidate", "choose_candidate", "MAX_NFEV"]
+__all__ = ["CandidateFit", "CandidateFitState", "fit_candidate", "choose_candidate", "MAX_NFEV"]
 
 #: least-squares evaluations of the candidate's fit
 MAX_NFEV = 20
+
+
+@dataclass
+class CandidateFitState:
+    """Where the candidate's fit ended, for fits that start from it (:mod:`.beside`).
+
+    Attributes
+    ----------
+    objective : Objective
+        The objective fitted (its model holds the candidate, its segments' start speeds as fitted).
+    composition : Composition
+        The search model's composition with the candidate.
+    result : FitResult
+        The fit (vector, residual, RSS).
+    fitted : list of str
+        The candidate's parameters (their names in ``composition``).
+    base_names : tuple of str
+        The base parameters fitted with them (empty: held).
+    nominal : numpy.ndarray
+        The nominal vector of ``composition``.
+    """
+
+    objective: Objective
+    composition: Composition
+    result: FitResult
+    fitted: list[str]
+    base_names: tuple[str, ...]
+    nominal: np.ndarray
 
 
 @dataclass
@@ -46,12 +76,25 @@ class CandidateFit:
         Whether the base parameters were held at their nominal values (the diagnosis left some at a bound).
     before, after : Unexplained
         The residual against the noise without and with the candidate.
+    state : CandidateFitState or None
+        Where the fit ended (not in the JSON).
+    file_names : dict of str to str
+        A fitted parameter's name -> its name in the candidate's file.
+    beside : BesideCandidate or None
+        The library's signal-path effects fitted beside the candidate (:mod:`.beside`; None: not tried).
     """
 
     values: dict[str, float]
     base_held: bool
     before: Unexplained
     after: Unexplained
+    state: CandidateFitState | None = field(default=None, repr=False, compare=False)
+    file_names: dict[str, str] = field(default_factory=dict)
+    beside: Any = None
+
+    def file_name(self, parameter: str) -> str:
+        """The name a fitted parameter has in the candidate's file (its own name when it has none there)."""
+        return self.file_names.get(parameter, parameter)
 
     @property
     def variance_cut(self) -> float:
@@ -69,6 +112,7 @@ class CandidateFit:
             "variance_cut": round(self.variance_cut, 4),
             "verdict_after": self.after.verdict,
             "channels_after": self.after.channels,
+            "beside": self.beside.to_json() if self.beside is not None else None,
         }
 
     def line(self) -> str:
@@ -124,8 +168,10 @@ def fit_candidate(
     fit = converged_fit(ctx, start, [*names, *base_names], MAX_NFEV)
     before = diagnosis.unexplained or unexplained(model.obj, diagnosis.vector, noise_scales)
     after = unexplained(obj, np.asarray(fit.vector), noise_scales)
-    values = {_file_name(candidate, n): float(fit.vector[with_it.param_index(n)]) for n in names}
-    return CandidateFit(values, held, before, after)
+    file_names = {n: _file_name(candidate, n) for n in names}
+    values = {file_names[n]: float(fit.vector[with_it.param_index(n)]) for n in names}
+    state = CandidateFitState(obj, with_it, fit, names, base_names, ctx.nominal)
+    return CandidateFit(values, held, before, after, state, file_names)
 
 
 def _effect_of(candidate: Candidate) -> tuple[type[Effect] | None, dict[str, float]]:
@@ -189,6 +235,7 @@ def choose_candidate(
         write_effect_file(alt, candidate_out)
         if alt.fit is not None:  # its values by the names its file gives them
             alt.fit.values = {_file_name(alt, k): v for k, v in alt.fit.values.items()}
+            alt.fit.file_names = {k: _file_name(alt, k) for k in alt.fit.file_names}
     keep.alternative = other
     return keep
 

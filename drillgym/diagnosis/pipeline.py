@@ -12,7 +12,9 @@
 5. :func:`.discovery.discover` (with ``discover``) — a candidate effect outside the library from the
    residual torques of the (first) recording on its own samples up to 250 Hz, written as an effect file;
    :func:`.candidate_fit.choose_candidate` — the candidate (and the motor side's best beside it) added to the
-   final model and fitted; the one whose fit removes more is kept, its residual reported.
+   final model and fitted; the one whose fit removes more is kept, its residual reported;
+   :func:`.beside.beside_candidate` — the library's signal-path effects (a motor lag, an input delay) the
+   selection did not take, fitted again with the candidate in the model: a motor-side residual hides them.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from ..identification.blas import one_blas_thread
 from ..identification.experiment import Experiment, prepare_experiment
 from ..io import TimeSeries
 from ..params import RigParams
+from .beside import beside_candidate
 from .candidate_fit import choose_candidate
 from .checks import check
 from .discovery import discover
@@ -104,6 +107,8 @@ def diagnose(
         if diagnosis.candidate is not None:  # its own identification is part of the answer
             with one_blas_thread():
                 diagnosis.candidate = choose_candidate(screening, diagnosis, noise, opts.candidate_out)
+                if diagnosis.candidate.fit is not None:
+                    diagnosis.candidate.fit.beside = beside_candidate(screening, diagnosis, noise)
     return diagnosis
 
 

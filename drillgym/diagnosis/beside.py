@@ -1,0 +1,198 @@
+"""The library's signal-path effects tried again beside a discovered candidate.
+
+A motor-side effect the library lacks (a dead zone, cogging, a voltage offset) leaves a residual of up to
+thousands of noise units.  Beside it a 20-40 ms motor lag changes that residual by a small fraction, and the
+forward selection, which scores each library effect against the model *without* the candidate, rarely takes
+it: the base parameters or an input delay absorb it (the motor-side benchmark,
+``benchmarks/bench_diagnosis_motor.py``, reports how often the selection alone takes it).
+
+Once the candidate's own fit (:mod:`.candidate_fit`) has removed most of the residual, each effect of the
+library's signal path that the selection did not take (:data:`SIGNAL_PATH`) is fitted again *with the
+candidate in the model*: its parameters, the candidate's and (when the candidate's fit freed them) the base
+parameters, with the segments' start speeds, from the best of its search points.  Two trials per effect:
+
+* *added* to the model with the candidate, scored against the candidate alone by the selection's own rules
+  (:func:`.scoring.score`, :func:`.scoring.significant`);
+* *in place of* the signal-path effect the selection took (a delay where a lag was, or the reverse: beside
+  a large residual the selection may take the wrong one), the other switched off; a model of the same size,
+  so it counts when it is better by more than a tie (:data:`.scoring.TIE_NATS`).
+
+The best trial that counts is reported.  The search model already holds these effects, ahead of the candidate
+on the signal path (the command is delayed or lagged, then shaped, as ``--add-effect`` order reads), so nothing
+new is compiled.  When two trials of different effects count and score within :data:`.scoring.TIE_NATS`, the
+tie is stated with the experiment that separates them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..effects import Effect
+from ..identification.fitting import FitResult, Objective
+from .candidate_fit import CandidateFitState
+from .context import SelectionContext, best_effect_start, converged_fit
+from .results import Diagnosis
+from .scoring import SEPARATES_LAG_DELAY, TIE_NATS, score, significant
+from .screening import Screening
+from .unexplained import Unexplained, unexplained
+
+__all__ = ["BesideCandidate", "SIGNAL_PATH", "MIN_CANDIDATE_CUT", "beside_candidate"]
+
+#: the library effects tried again beside a candidate: the ones a motor-side residual hides
+SIGNAL_PATH = ("motor_lag", "input_delay")
+#: the share of the unexplained variance the candidate's own fit must remove before anything is tried beside it
+MIN_CANDIDATE_CUT = 0.5
+#: least-squares evaluations of each fit beside the candidate
+MAX_NFEV = 20
+
+
+@dataclass
+class BesideCandidate:
+    """The library's signal-path effects fitted beside the candidate.
+
+    Attributes
+    ----------
+    selected : str or None
+        The effect that counts beside the candidate (None: none does).
+    replaces : str or None
+        The signal-path effect of the diagnosis that ``selected`` takes the place of (None: added).
+    scores : dict of str to float
+        Every trial (``NAME`` added, ``NAME for OTHER`` in place of it) -> its score against the candidate
+        alone (nats).
+    values : dict of str to float
+        The selected effect's fitted parameters (its units; empty when none).
+    candidate_values : dict of str to float
+        The candidate's parameters refitted with it (empty when none).
+    after : Unexplained or None
+        The residual against the noise with the candidate and the selected effect (None when none).
+    tie_with : str or None
+        Another effect whose trial counts too and scores within :data:`.scoring.TIE_NATS`.
+    """
+
+    selected: str | None
+    replaces: str | None = None
+    scores: dict[str, float] = field(default_factory=dict)
+    values: dict[str, float] = field(default_factory=dict)
+    candidate_values: dict[str, float] = field(default_factory=dict)
+    after: Unexplained | None = None
+    tie_with: str | None = None
+
+    def to_json(self) -> dict:
+        """``{selected, replaces, scores, values, candidate_values, ratio_after, verdict_after, tie_with}``."""
+        return {
+            "selected": self.selected,
+            "replaces": self.replaces,
+            "scores": {k: round(v, 2) for k, v in self.scores.items()},
+            "values": self.values,
+            "candidate_values": self.candidate_values,
+            "ratio_after": self.after.ratio_to_noise if self.after is not None else None,
+            "verdict_after": self.after.verdict if self.after is not None else None,
+            "tie_with": self.tie_with,
+        }
+
+    def line(self) -> str:
+        """The result in words."""
+        tried = ", ".join(f"{k} {v:.1f} nats" for k, v in self.scores.items())
+        if self.selected is None:
+            return f"  beside it, no library effect of the signal path counts ({tried})"
+        vals = ", ".join(f"{k} = {v:.4g}" for k, v in self.values.items())
+        how = f"selected in place of {self.replaces}" if self.replaces else "selected"
+        out = (
+            f"  beside it, the library's {self.selected} is {how} ({vals}; {tried}); residual with both "
+            f"{self.after.ratio_to_noise:.3g} times the noise ({self.after.verdict.replace('_', ' ')})"
+        )
+        if self.tie_with:
+            out += f"; a tie with {self.tie_with}: {SEPARATES_LAG_DELAY}"
+        return out
+
+
+@dataclass
+class _Trial:
+    """One effect fitted beside the candidate, added or in place of another."""
+
+    effect: type[Effect]
+    replaces: str | None
+    score: float = 0.0
+    counts: bool = False
+    result: FitResult | None = None
+    objective: Objective | None = None
+
+    @property
+    def label(self) -> str:
+        return self.effect.name if self.replaces is None else f"{self.effect.name} for {self.replaces}"
+
+
+def beside_candidate(
+    screening: Screening, diagnosis: Diagnosis, noise_scales: dict[str, float]
+) -> BesideCandidate | None:
+    """Fit the library's signal-path effects beside the diagnosis' fitted candidate (module docstring).
+
+    Parameters
+    ----------
+    screening : Screening
+        The recordings screened.
+    diagnosis : Diagnosis
+        The diagnosis, with its candidate fitted (:func:`.candidate_fit.choose_candidate`).
+    noise_scales : dict of str to float
+        The channels' noise (the objective's scales before any weighting).
+
+    Returns
+    -------
+    BesideCandidate or None
+        None when there is no fitted candidate, it removes less than :data:`MIN_CANDIDATE_CUT` of the
+        unexplained variance, it leaves the recording at the noise (nothing left to explain), or every
+        signal-path effect is already in the model.
+    """
+    cand = diagnosis.candidate
+    fit = cand.fit if cand is not None else None
+    if fit is None or fit.state is None or fit.variance_cut < MIN_CANDIDATE_CUT or fit.after.explained:
+        return None
+    state = fit.state
+    own_model = set(diagnosis.model.split("+"))
+    by_name = {e.name: e for e in screening.model.candidates if e.name in SIGNAL_PATH}
+    taken = [n for n in diagnosis.selected if n in by_name and n not in own_model]
+    trials = [_Trial(e, r) for e in by_name.values() if e.name not in own_model | set(taken) for r in (None, *taken)]
+    if not trials:
+        return None
+    for trial in trials:
+        _fit_trial(trial, state, by_name)
+    scores = {t.label: t.score for t in trials}
+    counting = sorted((t for t in trials if t.counts), key=lambda t: -t.score)
+    if not counting:
+        return BesideCandidate(None, scores=scores)
+    best = counting[0]
+    rival = next((t for t in counting[1:] if t.effect is not best.effect), None)
+    tie = rival.effect.name if rival is not None and best.score - rival.score < TIE_NATS else None
+    comp, res = state.composition, best.result
+    return BesideCandidate(
+        best.effect.name,
+        best.replaces,
+        scores,
+        {p.name: float(res.vector[comp.param_index(p.name)]) for p in best.effect.parameters},
+        {fit.file_name(n): float(res.vector[comp.param_index(n)]) for n in state.fitted},
+        unexplained(best.objective, np.asarray(res.vector), noise_scales),
+        tie,
+    )
+
+
+def _fit_trial(trial: _Trial, state: CandidateFitState, by_name: dict[str, type[Effect]]) -> None:
+    """Fit one trial from the candidate's fit and score it against the candidate alone."""
+    obj = state.objective.with_own_speeds()
+    vec0 = np.asarray(state.result.vector)
+    ctx = SelectionContext(obj, state.composition, vec0, state.nominal, state.base_names, dict(by_name))
+    vec = ctx.vec if trial.replaces is None else ctx.neutralise(ctx.vec, trial.replaces)
+    start = best_effect_start(obj, state.composition, vec, trial.effect)
+    own = [p.name for p in trial.effect.parameters]
+    res = converged_fit(ctx, start, [*state.fitted, *own, *state.base_names], MAX_NFEV)
+    r0, ids = state.result.residual, obj.channel_ids
+    k = len(own) - (len(by_name[trial.replaces].parameters) if trial.replaces else 0)
+    trial.score, _ = score(r0, res, k, channels=ids, blocks=obj.block_ids)
+    if trial.replaces is None:
+        trial.counts = significant(
+            trial.score, state.result.rss_after, res.rss_after, len(res.residual), r0, res.residual, ids
+        )
+    else:
+        trial.counts = trial.score > TIE_NATS
+    trial.result, trial.objective = res, obj
