@@ -318,6 +318,7 @@ def test_diagnose(data, a, root):
         "--effect-param": EFFECT_PARAM_BAD,
         "--candidate": ["nope", "", f"{a.exiting_effect}:NAME", f"{a.text}:NAME"],
         "--map": ["theta_u", "theta_u=nope"],
+        "--plot": output_file_bad(a, work, ".png") + [str(work / "fig.xyz"), str(work / "keep.txt")],
     }
     check_case(draw_case(data, table, base), root)
 

@@ -12,7 +12,7 @@ from ..errors import DrillgymError, InputError
 from .effect_options import add_effect_option, effect_param_option
 from .mapping import MAP_HELP, parse_mapping
 from .options import named, option
-from .outputs import CREATES_DIRS, check_output_dir, check_output_file, output_file
+from .outputs import CREATES_DIRS, check_output_dir, check_output_file, figure_file, output_file
 
 
 def _json(obj) -> str:
@@ -205,6 +205,25 @@ def compare_cmd(
     typer.echo(f"figures and report in {out}/: " + ", ".join(p.name for p in paths))
 
 
+#: how a candidate effect file written by ``diagnose`` begins (only such a file is replaced)
+CANDIDATE_FILE_HEAD = '"""Candidate effect written by `drillgym diagnose'
+
+
+def _check_candidate_file(path: Path) -> None:
+    """Refuse an existing ``--candidate-out`` that is not a candidate file diagnose wrote (a user's own code)."""
+    if not path.is_file():
+        return
+    try:
+        head = path.read_text(encoding="utf-8", errors="replace")[: len(CANDIDATE_FILE_HEAD)]
+    except OSError as exc:
+        raise InputError(f"--candidate-out {path}: cannot be read ({exc.strerror or exc})") from None
+    if head != CANDIDATE_FILE_HEAD:
+        raise InputError(
+            f"--candidate-out {path}: exists and is not a candidate file diagnose wrote; it is not replaced "
+            "(give a new path)"
+        )
+
+
 def diagnose_cmd(
     data: Path = typer.Argument(..., help="recording (DATA_FORMAT csv or .mat)"),
     params: Path | None = typer.Option(None, "--params", help="base parameter file (default MODEL.md set)"),
@@ -243,6 +262,12 @@ def diagnose_cmd(
         help="write the model selected (base parameters, re-identified ones included, and the effects with "
         f"their fitted values and standard errors) as a model file (.json or .yaml); {CREATES_DIRS}",
     ),
+    plot: Path | None = typer.Option(
+        None,
+        "--plot",
+        help="also write a figure (png) of the residual left unexplained: per channel against the noise, the "
+        f"phases it concentrates in, and against the quantity it depends on most; {CREATES_DIRS}",
+    ),
 ) -> None:
     """Which SET of effects the recording shows (forward selection with refit, the base parameters
     re-identified alongside), which base parameters moved, and a candidate effect file for what the
@@ -256,10 +281,12 @@ def diagnose_cmd(
         raise InputError(f"--candidate-out {candidate_out}: the effect file must end in .py")
     if candidate_out is not None:
         check_output_file(candidate_out, "--candidate-out", suffixes=(".py",))
+        _check_candidate_file(candidate_out)
     if model_out is not None:
         if model_out.suffix.lower() not in (".json", ".yaml", ".yml"):
             raise InputError(f"--model-out {model_out}: a model file must end in .json, .yaml or .yml")
         check_output_file(model_out, "--model-out", suffixes=(".json", ".yaml", ".yml"))
+    plot = figure_file(plot) if plot is not None else None
     seg = _segment(segment)
     base, model, values, _ = _model(params, add_effect, effect_param)
     with option("--candidate"):
@@ -289,6 +316,10 @@ def diagnose_cmd(
         from ..identification.model_file import write_model
 
         write_model(output_file(model_out, "--model-out", suffixes=(".json", ".yaml", ".yml")), *d.selected_model())
+    if plot is not None and d.unexplained is not None:
+        from ..diagnosis.figure import plot_unexplained
+
+        plot_unexplained(d.unexplained, plot, title=data.name)
     if as_json:
         typer.echo(_json(d.to_json()))
     else:
@@ -296,12 +327,18 @@ def diagnose_cmd(
         if d.candidate is not None:
             c = d.candidate
             typer.echo(f"candidate outside the library ({c.explained:.0%} of the residual torque): {c.expression()}")
+            beside = c.fit.beside if c.fit is not None else None
             if c.fit is not None:
                 typer.echo(c.fit.line())
+            if beside is not None:
+                typer.echo(beside.line())
+            lead = f"--add-effect {beside.selected} " if beside is not None and beside.selected else ""
             typer.echo(
                 f"  written to {c.effect_file.rsplit(':', 1)[0]}; fit it: drillgym identify {data} "
-                f"--add-effect {c.effect_file} --out p.json"
+                f"{lead}--add-effect {c.effect_file} --out p.json"
             )
+        if plot is not None and d.unexplained is not None:
+            typer.echo(f"wrote {plot}: the residual left unexplained")
         if model_out is not None:
             typer.echo(f"wrote {model_out}: the model selected ({'+'.join(d.selected) or 'no effect added'})")
 
