@@ -4,12 +4,18 @@ Below omega_2 no linear controller reading only the motor angle tolerates more t
 1/M of multiplicative input error, M the bound of :func:`controllers.limits.motor_angle_limit` at the
 target (4.3 % at 2.5 rad/s, 1.1 % at 2.0 rad/s on the nominal rig).  A model file written by
 identification (``identify --out``, ``diagnose --model-out``) carries the standard errors of what was
-fitted; the motor constant's, times :data:`SIGMAS`, is what the identification achieved for that
-input error.  :func:`model_margins` compares the two per target; a model-based controller reports
-them (``margins``), warns when a target needs more than the model has, and may fall back to
-``descent`` for those targets (``fallback=True``).  Only km's error is counted: a lag or delay
-identified with an error also costs margin (omega tau ~ 1/M at the crossover), which this check
-does not include.
+fitted.  What the identification achieved is counted as that input error, :data:`SIGMAS` standard errors
+of each part, summed in quadrature:
+
+* the motor constant: its relative error σ_km / km;
+* the signal path's timing: a lag's time constant or a delay off by δ changes the input by about ω δ at
+  frequency ω (|e^{-jωδ} − 1| ≈ ω δ; a lag's relative change is at most that), counted at the unstable
+  lower-disc mode's frequency |p| (the loop must act there: its complementary sensitivity peaks near it).
+
+:func:`model_margins` compares the two per target; a model-based controller reports them (``margins``),
+warns when a target needs more than the model has, and may fall back to ``descent`` for those targets
+(``fallback=True``).  A lag or delay in the model whose standard error the file does not carry makes the
+achieved accuracy unknown.
 """
 
 from __future__ import annotations
@@ -17,7 +23,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -25,10 +31,12 @@ import numpy as np
 from .limits import motor_angle_limit
 from .model import ControllerModel
 
-__all__ = ["SIGMAS", "ModelMargin", "model_margins", "check_margins"]
+__all__ = ["SIGMAS", "TIMING_PARAMETERS", "ModelMargin", "model_margins", "check_margins"]
 
 #: standard errors counted as the identification's accuracy (about 95 % of the estimates within)
 SIGMAS = 2.0
+#: the signal path's timing parameters (s) whose error costs margin: a lag's time constant, a delay
+TIMING_PARAMETERS = ("tau_m", "delay")
 
 
 @dataclass(frozen=True)
@@ -43,13 +51,17 @@ class ModelMargin:
         Largest relative input (km) error the best motor-angle-only loop tolerates there (fraction; inf
         where the brake is stable).
     achieved : float or None
-        :data:`SIGMAS` x the relative standard error of km in the model file (fraction); None: the file
-        carries none.
+        :data:`SIGMAS` x the model's input error (fraction; the module docstring): km's relative standard
+        error and the timing parameters' at the unstable mode's frequency, in quadrature; None: the file
+        carries no standard error of km or of a lag or delay in the model.
+    parts : dict of str to float
+        Each counted part of ``achieved`` (fraction) by parameter name.
     """
 
     omega: float
     needed: float
     achieved: float | None
+    parts: dict[str, float] = field(default_factory=dict)
 
     @property
     def enough(self) -> bool | None:
@@ -64,23 +76,46 @@ class ModelMargin:
             "any model error (the brake is stable there)" if math.isinf(self.needed) else f"{100 * self.needed:.3g} %"
         )
         have = (
-            "unknown (the model file has no standard error of km)"
+            "unknown (the model file has no standard error of km, or of a lag or delay it holds)"
             if self.achieved is None
-            else f"{100 * self.achieved:.3g} % ({SIGMAS:g} standard errors of km)"
+            else f"{100 * self.achieved:.3g} % ({SIGMAS:g} standard errors: "
+            + ", ".join(f"{k} {100 * v:.3g} %" for k, v in self.parts.items())
+            + ")"
         )
         verdict = {True: "enough", False: "NOT enough", None: "not known to be enough"}[self.enough]
         return f"{controller} at {self.omega:g} rad/s tolerates {need}; the model is right to {have}: {verdict}"
 
 
 def model_margins(model: ControllerModel, targets: Sequence[float] | np.ndarray) -> list[ModelMargin]:
-    """The :class:`ModelMargin` of each distinct target (rad/s), in increasing order."""
+    """The :class:`ModelMargin` of each distinct target (rad/s), in increasing order.
+
+    Parameters
+    ----------
+    model : ControllerModel
+        The controller's model, with the standard errors its file carries.
+    targets : sequence of float
+        Target lower-disc speeds (rad/s).
+
+    Returns
+    -------
+    list of ModelMargin
+        One per distinct target.
+    """
     p = model.params
     sd = model.std.get("km")
-    achieved = None if sd is None or not math.isfinite(sd) else SIGMAS * sd / abs(p.km)
+    km_part = None if sd is None or not math.isfinite(sd) else SIGMAS * sd / abs(p.km)
+    timing = {n: model.std.get(n) for n in TIMING_PARAMETERS if n in model.values}
+    known = km_part is not None and all(v is not None and math.isfinite(v) for v in timing.values())
     out = []
     for w in sorted({float(v) for v in np.atleast_1d(targets)}):
         lim = motor_angle_limit(p, w)
-        out.append(ModelMargin(w, lim.tolerated if lim.rhp_poles else math.inf, achieved))
+        needed = lim.tolerated if lim.rhp_poles else math.inf
+        if not known:
+            out.append(ModelMargin(w, needed, None))
+            continue
+        mode = max((abs(z) for z in lim.rhp_poles), default=0.0)  # rad/s
+        parts = {"km": km_part} | {n: SIGMAS * mode * float(v) for n, v in timing.items()}
+        out.append(ModelMargin(w, needed, math.sqrt(sum(x * x for x in parts.values())), parts))
     return out
 
 

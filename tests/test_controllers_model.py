@@ -143,6 +143,26 @@ def test_margin_compares_the_limit_with_the_identified_km():
     assert model_margins(ControllerModel(p), [2.0])[0].enough is None  # no standard error: not known
 
 
+def test_margin_counts_a_lag_and_a_delay_at_the_unstable_modes_frequency():
+    """A lag's 1 ms standard error costs 2 x 1 ms x |p| of input accuracy at the target, on top of km's, in
+    quadrature; a lag without a standard error leaves the accuracy unknown."""
+    from controllers.limits import motor_angle_limit
+    from controllers.margin import model_margins
+    from controllers.model import ControllerModel
+    from drillgym.effects import compose
+
+    p = RigParams()
+    comp, values = compose(["motor_lag", "input_delay"], {"tau_m": 0.03, "delay": 0.005})
+    std = {"km": 0.001 * p.km, "tau_m": 1e-3, "delay": 2e-3}
+    (g,) = model_margins(ControllerModel(p, comp, values, std), [2.0])
+    mode = max(abs(z) for z in motor_angle_limit(p, 2.0).rhp_poles)
+    assert g.parts["tau_m"] == pytest.approx(2 * mode * 1e-3) and g.parts["delay"] == pytest.approx(4 * mode * 1e-3)
+    assert g.achieved == pytest.approx(np.sqrt(0.002**2 + (2e-3 * mode) ** 2 + (4e-3 * mode) ** 2))
+    assert g.achieved > model_margins(ControllerModel(p, std={"km": 0.001 * p.km}), [2.0])[0].achieved
+    no_lag_std = ControllerModel(p, comp, values, {"km": 0.001 * p.km, "delay": 2e-3})
+    assert model_margins(no_lag_std, [2.0])[0].achieved is None
+
+
 def test_observer_warns_and_falls_back_to_descent_where_its_model_is_not_good_enough():
     import controllers
     from controllers.model import ControllerModel
