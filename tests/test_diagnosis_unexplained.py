@@ -37,6 +37,20 @@ def step_recording(duration=8.0, effects=None, **values):
     )
 
 
+def long_step_recording(seed, effects, **values):
+    """20 s of two-second voltage steps of both signs at 250 Hz (drillgym's simulator, the effects given)."""
+    levels = (0.0, 1.0, 0.6, 1.5, 0.3, 1.2, 2.0, 0.8, -0.5, -1.5, 0.2, 2.5)
+    return synthetic_measurement(
+        "torsional",
+        duration=20.0,
+        rate_hz=250.0,
+        input=steps(20.0, levels, hold=2.0),
+        seed=seed,
+        effects=effects,
+        effect_params=values,
+    )
+
+
 def test_dead_zone_is_reported_unexplained_first_and_never_as_standing():
     d = diagnose(step_recording(effects=[DEAD_ZONE], u0=0.4), effects=["motor_lag"], fixed_base=True)
     un = d.unexplained
@@ -91,16 +105,7 @@ def test_cli_json_carries_the_unexplained_residual(tmp_path):
 
 
 def test_dead_zone_candidate_is_an_input_effect_whose_own_fit_explains_the_recording(tmp_path):
-    levels = (0.0, 1.0, 0.6, 1.5, 0.3, 1.2, 2.0, 0.8, -0.5, -1.5, 0.2, 2.5)
-    ts = synthetic_measurement(
-        "torsional",
-        duration=20.0,
-        rate_hz=250.0,
-        input=steps(20.0, levels, hold=2.0),
-        seed=3,
-        effects=[DEAD_ZONE],
-        effect_params={"u0": 0.4},
-    )
+    ts = long_step_recording(3, [DEAD_ZONE], u0=0.4)
     out = tmp_path / "cand.py"
     d = diagnose(ts, effects=["motor_lag"], fixed_base=True, discover=True, candidate_out=out)
     c = d.candidate
@@ -119,16 +124,7 @@ def test_a_motor_lag_hidden_by_a_dead_zone_is_selected_beside_the_candidate(tmp_
     """A 30 ms motor lag before a 0.4 V dead zone: the dead zone's residual (thousands of noise units) hides the
     lag from the library's selection; fitted again beside the discovered candidate, the lag counts and comes
     out at its value, and the command line's advice adds it ahead of the candidate."""
-    levels = (0.0, 1.0, 0.6, 1.5, 0.3, 1.2, 2.0, 0.8, -0.5, -1.5, 0.2, 2.5)
-    ts = synthetic_measurement(
-        "torsional",
-        duration=20.0,
-        rate_hz=250.0,
-        input=steps(20.0, levels, hold=2.0),
-        seed=4,
-        effects=["motor_lag", DEAD_ZONE],
-        effect_params={"u0": 0.4, "tau_m": 0.03},
-    )
+    ts = long_step_recording(4, ["motor_lag", DEAD_ZONE], u0=0.4, tau_m=0.03)
     d = diagnose(
         ts, effects=["motor_lag", "input_delay"], fixed_base=True, discover=True, candidate_out=tmp_path / "c.py"
     )

@@ -297,8 +297,9 @@ def diagnose_cmd(
     if seg is not None and seg > 0:
         _check_segment(seg, ex)
     default_out = data.with_name(data.stem + "_candidate.py")
-    if candidate_out is None and default_out.exists():  # replaced only if it is an effect file
+    if candidate_out is None and default_out.exists():  # replaced only if it is a candidate file diagnose wrote
         check_output_file(default_out, "--candidate-out", suffixes=(".py",))
+        _check_candidate_file(default_out)
     cands = None
     if extra:
         cands = effects_for(ex.config) + [e for e in extra if e.name not in {c.name for c in effects_for(ex.config)}]
@@ -309,14 +310,14 @@ def diagnose_cmd(
         segment_s=seg,
         fixed_base=fixed_base,
         discover=sparse,
-        candidate_out=candidate_out or data.with_name(data.stem + "_candidate.py"),
+        candidate_out=candidate_out or default_out,
     )
     d = diagnose(ex, base, options=options)
     if model_out is not None:
         from ..identification.model_file import write_model
 
         write_model(output_file(model_out, "--model-out", suffixes=(".json", ".yaml", ".yml")), *d.selected_model())
-    if plot is not None and d.unexplained is not None:
+    if plot is not None:
         from ..diagnosis.figure import plot_unexplained
 
         plot_unexplained(d.unexplained, plot, title=data.name)
@@ -337,7 +338,7 @@ def diagnose_cmd(
                 f"  written to {c.effect_file.rsplit(':', 1)[0]}; fit it: drillgym identify {data} "
                 f"{lead}--add-effect {c.effect_file} --out p.json"
             )
-        if plot is not None and d.unexplained is not None:
+        if plot is not None:
             typer.echo(f"wrote {plot}: the residual left unexplained")
         if model_out is not None:
             typer.echo(f"wrote {model_out}: the model selected ({'+'.join(d.selected) or 'no effect added'})")
