@@ -277,7 +277,8 @@ def main() -> None:
             cut = "-" if r["candidate_cut"] is None else f"{r['candidate_cut']:.0%}"
             print(
                 f"{r['kind']:<15}{'+lag' if r['lag'] else '':<5}{r['signal']:<13} residual {r['worst']:9.3g}x noise "
-                f"({r['verdict']}); selected {r['selected']}; candidate {r['candidate_group']} cut {cut}; "
+                f"({r['verdict']}); selected {r['selected']}; beside the candidate {r['beside_candidate']} "
+                f"(in place of {r['beside_replaces']}); candidate {r['candidate_group']} cut {cut}; "
                 f"silent {r['silent']}; {r['seconds']:.0f} s",
                 flush=True,
             )
