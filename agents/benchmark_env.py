@@ -20,7 +20,7 @@ from drillgym.envs import DrillEnv, DrillVectorEnv
 from drillgym.envs.tasks import BenchmarkTask, PlantListRandomizer, get_task
 from drillgym.errors import InputError
 
-__all__ = ["make_task_env", "make_task_vec", "train_plants", "eval_plants"]
+__all__ = ["make_task_env", "make_task_vec", "train_plants", "eval_plants", "install_plants"]
 
 
 @lru_cache(maxsize=8)
@@ -52,7 +52,8 @@ def _options(task: BenchmarkTask, free: dict[str, Any]) -> dict[str, Any]:
     return opts
 
 
-def _install(batch, task: BenchmarkTask) -> None:
+def install_plants(batch, task: BenchmarkTask) -> None:
+    """Draw every later episode's rig of an episode batch from the task's training plants (none: nominal)."""
     pop = train_plants(task)
     if pop is None:
         return
@@ -88,7 +89,7 @@ def make_task_env(task: str, render_mode: str | None = None, **options: Any) -> 
     """
     t = get_task(task)
     env = DrillEnv(render_mode=render_mode, **_options(t, options))
-    _install(env.batch, t)
+    install_plants(env.batch, t)
     return env
 
 
@@ -114,7 +115,7 @@ def make_task_vec(task: str, num_envs: int, **options: Any) -> DrillVectorEnv:
     extra = {k: options.pop(k) for k in ("autoreset_mode",) if k in options}
     opts = _options(t, options)
     venv = DrillVectorEnv(num_envs, opts.pop("configuration"), **extra, **opts)
-    _install(venv.batch, t)
+    install_plants(venv.batch, t)
     return venv
 
 

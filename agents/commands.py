@@ -102,7 +102,12 @@ def register(app: typer.Typer) -> None:
 
     @app.command("train")
     def train_cmd(
-        env: str = typer.Option("drillgym/Torsional-v0", "--env", help="environment id"),
+        env: str = typer.Option(
+            "drillgym/Torsional-v0",
+            "--env",
+            help="environment id, or a benchmark task id (drillgym/Population-Motor-v0, ...: "
+            "its fixed options and training plants; see docs/benchmark.md)",
+        ),
         algo: str = typer.Option("sac", "--algo", help="ppo, sac, td3 or recurrentppo"),
         out: Path = typer.Option(
             ...,
@@ -177,8 +182,13 @@ def register(app: typer.Typer) -> None:
         from drillgym.errors import MissingFileError
 
         check_output_dir(out)
-        if env not in ENV_IDS:
-            raise InputError(f"--env must be one of {', '.join(ENV_IDS)}, got {env!r}")
+        from agents.task_training import configuration_of, is_task
+        from drillgym.envs.tasks import TASKS
+
+        if env not in ENV_IDS and not is_task(env):
+            raise InputError(f"--env must be one of {', '.join(ENV_IDS)} or a task ({', '.join(TASKS)}), got {env!r}")
+        if is_task(env) and (add_effect or effect_param):
+            raise InputError(f"--add-effect/--effect-param: task {env} fixes its plants (train on a free env id)")
         from agents.train import ALGOS
 
         if algo not in ALGOS:
@@ -219,7 +229,7 @@ def register(app: typer.Typer) -> None:
         with option("--set"):
             overrides = parse_overrides(set_ or [])
         if add_effect or effect_param:
-            cfg = parse_configuration(ENV_IDS[env])
+            cfg = parse_configuration(configuration_of(env))
             comp, values = effects_from_cli(add_effect, effect_param, cfg)  # one-line errors before training
             env_kw = overrides.setdefault("env_kwargs", {})
             env_kw.update(effects=comp.specs(), effect_params=dict(values))

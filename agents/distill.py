@@ -127,14 +127,23 @@ def distill(
 
     from drillgym.envs.sb3 import make_sb3_vec
 
+    from .task_training import base_env_id, install_task_plants, task_env_kwargs, task_model_options, task_of
+
+    task = task_of(env_id)
     kw = {**env_kwargs, "normalize_action": True}
+    if task is not None:  # the task's options and training plants (its plants are fixed: no population)
+        if population is not None:
+            raise InputError(f"task {task.id} fixes its plants: distill without a population")
+        kw = {**task_env_kwargs(task, kw), **task_model_options(task)}
     if population is not None:
         from .population import population_env_kwargs, use_population
 
         kw = population_env_kwargs(kw, population)
-    venv = make_sb3_vec(env_id, n_envs, **kw)
+    venv = make_sb3_vec(base_env_id(env_id), n_envs, **kw)
     if population is not None:
         use_population(venv, population, nominal_fraction, nominal_below)
+    if task is not None:
+        install_task_plants(venv, task)
     integral = None
     schedule = schedule_of(command, motor_integral)
     if motor_integral:

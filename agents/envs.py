@@ -21,6 +21,7 @@ from .integral import Z_MAX, advance
 from .observer_residual import ObserverResidual
 from .population import population_env_kwargs, use_population
 from .residual import ResidualVoltage
+from .task_training import base_env_id, install_task_plants, task_env_kwargs, task_model_options, task_of
 
 __all__ = [
     "make_training_env",
@@ -217,7 +218,9 @@ def make_training_env(
     Parameters
     ----------
     env_id : str
-        A drillgym environment id, e.g. ``"drillgym/Torsional-v0"``.
+        A drillgym environment id, e.g. ``"drillgym/Torsional-v0"``, or a benchmark task id
+        (``"drillgym/Population-Motor-v0"``): its base env with the task's options, the episodes' rigs drawn
+        from its training plants (:mod:`agents.task_training`).
     n_envs : int
         Number of rigs.
     seed : int, optional
@@ -273,11 +276,15 @@ def make_training_env(
     InputError
         An unknown environment, ``n_envs < 1``, or options that do not go together.
     """
-    if env_id not in ENV_IDS:
-        raise InputError(f"unknown drillgym environment {env_id!r}; expected one of {sorted(ENV_IDS)}")
+    task = task_of(env_id)
+    env_id = base_env_id(env_id)  # a task is its base env with the task's options and plants
     if not (isinstance(n_envs, int) and n_envs >= 1):
         raise InputError(f"n_envs must be an integer >= 1, got {n_envs!r}")
     kw = dict(env_kwargs or {})
+    if task is not None:
+        if population is not None or nominal_fraction or nominal_below:
+            raise InputError(f"task {task.id} fixes its plants: no population, nominal_fraction or nominal_below")
+        kw = {**task_env_kwargs(task, kw), **task_model_options(task)}
     if base not in (None, "observer"):
         raise InputError(f"base must be 'observer' or absent, got {base!r}")
     if base == "observer":
@@ -302,6 +309,8 @@ def make_training_env(
             use_population(venv, population, nominal_fraction, nominal_below)
     if population is not None and (residual is not None or base is not None):
         raise InputError("a plant population is drawn for plain actions only (no residual or base controller)")
+    if task is not None:
+        install_task_plants(venv, task)
     schedule = schedule_of(command, motor_integral)
     if motor_integral:
         if residual is not None or base is not None:

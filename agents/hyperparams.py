@@ -81,6 +81,7 @@ ZOO_KEYS = (
 STRUCTURE_SECTION = "drillgym"
 #: drillgym's own keys (the structure section, and the merged entry's normalisation flags)
 STRUCTURE_KEYS = (
+    "hyperparams_entry",
     "residual",
     "startup",
     "base",
@@ -125,7 +126,9 @@ def _parse_policy_kwargs(v: Any) -> dict:
     raise InputError(f"policy_kwargs must be a mapping or a 'dict(...)' string, got {v!r}")
 
 
-def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> dict[str, Any]:
+def load_hyperparams(
+    algo: str, env_id: str, path: str | Path | None = None, fallback: str | None = None
+) -> dict[str, Any]:
     """The entry of ``env_id`` in the hyperparameter file of ``algo``, merged with its drillgym section.
 
     Parameters
@@ -136,6 +139,9 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
         Gymnasium id of the environment (the file's entry).
     path : str or path, optional
         The YAML file (rl-zoo3 layout); default ``agents/hyperparams/<algo>.yml``.
+    fallback : str, optional
+        The entry read when the file has none for ``env_id`` (a task's base env,
+        :mod:`agents.task_training`); the entry read is returned as ``hyperparams_entry``.
 
     Returns
     -------
@@ -157,6 +163,10 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
         data = yaml.safe_load(f.read_text()) or {}
     except yaml.YAMLError as exc:
         raise InputError(f"hyperparameter file {f} is not valid YAML: {describe_parse_error(exc)}") from exc
+    if env_id not in data and fallback is not None and fallback in data:
+        hp = load_hyperparams(algo, fallback, f)
+        hp["hyperparams_entry"] = fallback
+        return hp
     if env_id not in data or env_id == STRUCTURE_SECTION:
         raise InputError(
             f"hyperparameter file {f} has no entry for {env_id!r}; "
@@ -176,6 +186,7 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
         hp["policy_kwargs"] = _parse_policy_kwargs(hp["policy_kwargs"])
     hp.setdefault("env_kwargs", {})
     hp.setdefault("policy", "MlpPolicy")
+    hp["hyperparams_entry"] = env_id
     return hp
 
 

@@ -33,6 +33,7 @@ from drillgym.io import create_directory
 
 from .envs import make_training_env
 from .hyperparams import algorithm_kwargs, apply_overrides, load_hyperparams
+from .task_training import base_env_id, check_task_structure, task_env_kwargs, task_of
 
 __all__ = [
     "ALGOS",
@@ -129,10 +130,18 @@ def _settings(
     overrides: dict[str, Any] | None,
     allow_zero: bool = False,
 ) -> dict[str, Any]:
-    hp = apply_overrides(load_hyperparams(algo, env_id, hyperparams), overrides or {})
+    task = task_of(env_id)
+    hp = load_hyperparams(algo, env_id, hyperparams, fallback=base_env_id(env_id) if task is not None else None)
+    if task is not None:  # the task's fixed options in place of a base entry's; the user's are checked
+        from_base = hp["hyperparams_entry"] != env_id
+        hp["env_kwargs"] = task_env_kwargs(task, dict(hp["env_kwargs"]), from_base_entry=from_base)
+    hp = apply_overrides(hp, overrides or {})
     env_kwargs = dict(hp["env_kwargs"])
     if obs is not None:
         env_kwargs["observation"] = obs
+    if task is not None:
+        env_kwargs = task_env_kwargs(task, env_kwargs)
+        check_task_structure(task, hp)
     if timesteps is not None:
         hp["n_timesteps"] = timesteps
     if n_envs is not None:
