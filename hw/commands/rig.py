@@ -5,6 +5,9 @@
         plant runs the hidden effects (and those of a model file given to --params)
     drillgym rig run --port PATH (--controller NAME | --policy FILE) --duration S --record FILE [--dry-run]
         run a controller or a policy on the rig through drillgym/Hardware-v0, recording it
+    drillgym rig tune --port PATH --model-out MODEL.json [--duration S] [--control-ms MS]
+        identify the rig (excitation run, diagnose + identify) into the model file its controllers read
+        (:mod:`hw.commands.tune`)
     drillgym rig estop --port PATH
         emergency stop: motor to 0 V, latched until the next run's handshake
 
