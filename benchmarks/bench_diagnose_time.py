@@ -12,13 +12,17 @@ kernels of compositions no earlier call used, the second shows the steady cost.
    effects (position_friction + lvdt_offset + friction_drift), base parameters off by 4-5 %: the
    slowest kind of the selection benchmark's matrix.
 
+``--motor``: instead, recordings of the independent motor rig of ``bench_diagnosis_motor`` (effects outside
+the library on the motor side, each after a motor lag, base parameters off; :data:`MOTOR_CASES`), where the
+candidate's own fit and the library's signal-path effects fitted beside it run too.
+
 ``--combos``: instead, random combinations of the selection benchmark's matrix
 (``bench_diagnosis_selection.build_matrix(seed, random_n=16)``, case ``i``; recordings of the
 independent rig, 2-3 effects, base parameters off in some) made 60 s long at 1 kHz, each diagnosed once,
 with the verdict of that benchmark (right / a stated lag-delay tie / WRONG).  ``--combos default``: six
 combinations, four of them coupled (:data:`DEFAULT_COMBOS`), the set of the documented timing table.
 
-    .venv/bin/python benchmarks/bench_diagnose_time.py [--out DIR] [--combos default|SEED:I,SEED:I,...]
+    .venv/bin/python benchmarks/bench_diagnose_time.py [--out DIR] [--motor] [--combos default|SEED:I,...]
 """
 
 from __future__ import annotations
@@ -75,6 +79,47 @@ RIG_CASES = {
     ),
 }
 
+#: motor-side recordings (``bench_diagnosis_motor.motor_recording``): effect parameters and base scales
+MOTOR_CASES = {
+    "motor rig, dead zone 0.4 V + lag 30 ms, steps, base off": dict(
+        signal="steps",
+        seed=11,
+        effects={"dead_zone": {"u0": 0.4}, "motor_lag": {"tau_m": 0.03}},
+        scale={"km": 0.97, "Ts": 1.04, "Jl": 1.03},
+    ),
+    "motor rig, cogging 0.12 N m + lag 35 ms, quasi-random, base off": dict(
+        signal="quasi_random",
+        seed=12,
+        effects={"cogging": {"Tcog": 0.12, "phase": 1.0}, "motor_lag": {"tau_m": 0.035}},
+        scale={"km": 1.03, "bu": 0.96, "ktheta": 1.02},
+    ),
+    "motor rig, voltage offset 0.15 V + lag 25 ms, ramps, base off": dict(
+        signal="ramps",
+        seed=13,
+        effects={"voltage_offset": {"u_off": 0.15}, "motor_lag": {"tau_m": 0.025}},
+        scale={"km": 0.98, "Tc": 1.04, "Jl": 0.97},
+    ),
+}
+
+
+def _motor(out: Path) -> None:
+    """Time two diagnoses of each motor-side recording (:data:`MOTOR_CASES`)."""
+    from bench_diagnosis_motor import motor_recording
+
+    for i, (name, kw) in enumerate(MOTOR_CASES.items()):
+        ts = motor_recording(kw["signal"], DUR, RATE, kw["seed"], kw["effects"], kw["scale"])
+        path = write_timeseries(out / f"motor{i}.csv", ts)
+        first, res = _diagnose(path)
+        second, _ = _diagnose(path)
+        cand = res.get("candidate") or {}
+        fit = cand.get("fit") or {}
+        beside = fit.get("beside") or {}
+        print(
+            f"  {name:<64} first {first:6.1f} s, second {second:6.1f} s (goal <= 60 s); "
+            f"selected {res['selected']}; candidate {cand.get('group')} cut {fit.get('variance_cut')}; "
+            f"beside it {beside.get('selected')} (in place of {beside.get('replaces')})"
+        )
+
 
 def _diagnose(path: Path) -> tuple[float, dict]:
     t0 = time.perf_counter()
@@ -128,6 +173,7 @@ def main() -> None:
         default=None,
         help="time random combinations SEED:I,... made 60 s long ('default': six); see the module docstring",
     )
+    ap.add_argument("--motor", action="store_true", help="time motor-side recordings instead (see the docstring)")
     args = ap.parse_args()
     out = args.out or Path(tempfile.mkdtemp(prefix="bench_diagnose_"))
     out.mkdir(parents=True, exist_ok=True)
@@ -140,6 +186,9 @@ def main() -> None:
 
     if args.combos:
         _combos(args.combos, out)
+        return
+    if args.motor:
+        _motor(out)
         return
     recordings = {
         name: synthetic_measurement(

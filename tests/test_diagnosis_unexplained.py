@@ -162,3 +162,47 @@ def test_the_figure_draws_every_panel_it_has_data_for(tmp_path, monkeypatch):
     drawn.clear()
     plot_unexplained(Unexplained(1.2, {"theta_u": 1.1, "theta_l": 1.3}), tmp_path / "e.png")
     assert (tmp_path / "e.png").stat().st_size > 0 and drawn == []
+
+
+OFFSET_EFFECT = '''
+from drillgym.effects import Input, Parameter
+
+
+class DriveOffset(Input):
+    """The motor sees u + u_off: a constant offset of the drive."""
+
+    name = "drive_offset"
+    parameters = (Parameter("u_off", "V", -1.0, 1.0, 0.0, 0.05, doc="offset of the drive", neutral=0.0),)
+    configurations = ("upper", "torsional", "lateral", "coupled")
+    explanation = "The drive adds a constant voltage u_off to every command."
+    signature = "a constant torque km u_off on the upper disc"
+
+    def voltage(u, u_off):
+        return u + u_off
+'''
+
+
+def test_an_offset_with_a_lag_on_ramps_frees_the_base_and_states_the_lag_delay_tie(tmp_path):
+    """A 0.15 V drive offset after a 30 ms lag, km 3 % and Jl 4 % off, on ramps: the candidate has the
+    constant term, and beside it the lag (or the delay), fitted with the base parameters, counts with the tie
+    stated: on ramps nothing tells them apart.  (On ramps the offset and the upper disc's Coulomb friction Tcu
+    trade against each other: the base parameters are not asserted.)"""
+    from drillgym import RigParams
+
+    (tmp_path / "offset.py").write_text(OFFSET_EFFECT)
+    t = np.arange(0.0, 20.0, 1e-3)
+    u = np.interp(t, [0, 3, 8, 12, 16, 20], [1.0, 2.4, 0.2, 2.0, -0.4, 1.5])
+    true = RigParams().scaled(km=0.97, Jl=1.04)
+    ts = synthetic_measurement(
+        "torsional", true, duration=20.0, rate_hz=250.0, input=(t, u), seed=5,
+        effects=["motor_lag", f"{tmp_path / 'offset.py'}:drive_offset"], effect_params={"tau_m": 0.03, "u_off": 0.15},
+    )  # fmt: skip
+    d = diagnose(ts, discover=True, candidate_out=tmp_path / "c.py")
+    c = d.candidate
+    assert c is not None and c.group == "motor_voltage" and "1" in c.terms, d.text()
+    beside = c.fit.beside
+    assert beside is not None and beside.selected in ("motor_lag", "input_delay"), (d.selected, beside)
+    assert beside.tie_with in ("motor_lag", "input_delay") and beside.tie_with != beside.selected
+    assert beside.after.ratio_to_noise < min(10.0, c.fit.after.ratio_to_noise), (beside.after, c.fit.after)
+    assert set(beside.base_change_pct) >= {"km", "Jl"}  # fitted with the base parameters
+    assert "a tie with" in beside.line()

@@ -17,10 +17,17 @@ parameters, with the segments' start speeds, from the best of its search points.
   a large residual the selection may take the wrong one), the other switched off; a model of the same size,
   so it counts when it is better by more than a tie (:data:`.scoring.TIE_NATS`).
 
-The best trial that counts is reported.  The search model already holds these effects, ahead of the candidate
+Every trial fits the base parameters too (those the candidate's fit freed or, when it held them as the
+diagnosis left them, every one the diagnosis may free): a lag beside an offset is absorbed by a motor constant
+10 % off until both are fitted together.  A trial whose base parameters end at a bound of their range does not
+count (the diagnosis' own rule: something still missing is absorbed there).  The best trial that counts is
+reported.  The search model already holds these effects, ahead of the candidate
 on the signal path (the command is delayed or lagged, then shaped, as ``--add-effect`` order reads), so nothing
-new is compiled.  When two trials of different effects count and score within :data:`.scoring.TIE_NATS`, the
-tie is stated with the experiment that separates them.
+new is compiled.  When two trials of different effects count and score within :data:`.scoring.TIE_NATS`, or
+both count on an input too smooth to tell a lag from a delay (the selection's rule, :mod:`.lag_delay`: less than
+:data:`.timing.SMOOTH_INPUT_SHARE` of its variance above the upper disc's corner frequency; on ramps the two
+shift the response alike, and the better one is decided by the model's error elsewhere), the tie is stated with
+the experiment that separates them.
 """
 
 from __future__ import annotations
@@ -32,10 +39,12 @@ import numpy as np
 from ..effects import Effect
 from ..identification.fitting import FitResult, Objective
 from .candidate_fit import CandidateFitState
-from .context import SelectionContext, best_effect_start, converged_fit
+from .context import SelectionContext, base_at_bounds, best_effect_start, converged_fit
+from .lag_delay import smooth_input_share
 from .results import Diagnosis
 from .scoring import SEPARATES_LAG_DELAY, TIE_NATS, score, significant
 from .screening import Screening
+from .timing import SMOOTH_INPUT_SHARE
 from .unexplained import Unexplained, unexplained
 
 __all__ = ["BesideCandidate", "SIGNAL_PATH", "MIN_CANDIDATE_CUT", "beside_candidate"]
@@ -69,6 +78,8 @@ class BesideCandidate:
         The residual against the noise with the candidate and the selected effect (None when none).
     tie_with : str or None
         Another effect whose trial counts too and scores within :data:`.scoring.TIE_NATS`.
+    base_change_pct : dict of str to float
+        The base parameters fitted with them -> their change from nominal (%).
     """
 
     selected: str | None
@@ -78,9 +89,11 @@ class BesideCandidate:
     candidate_values: dict[str, float] = field(default_factory=dict)
     after: Unexplained | None = None
     tie_with: str | None = None
+    base_change_pct: dict[str, float] = field(default_factory=dict)
 
     def to_json(self) -> dict:
-        """``{selected, replaces, scores, values, candidate_values, ratio_after, verdict_after, tie_with}``."""
+        """``{selected, replaces, scores, values, candidate_values, ratio_after, verdict_after, tie_with,
+        base_change_pct}``."""
         return {
             "selected": self.selected,
             "replaces": self.replaces,
@@ -90,6 +103,7 @@ class BesideCandidate:
             "ratio_after": self.after.ratio_to_noise if self.after is not None else None,
             "verdict_after": self.after.verdict if self.after is not None else None,
             "tie_with": self.tie_with,
+            "base_change_pct": {k: round(v, 3) for k, v in self.base_change_pct.items()},
         }
 
     def line(self) -> str:
@@ -103,6 +117,9 @@ class BesideCandidate:
             f"  beside it, the library's {self.selected} is {how} ({vals}; {tried}); residual with both "
             f"{self.after.ratio_to_noise:.3g} times the noise ({self.after.verdict.replace('_', ' ')})"
         )
+        moved = ", ".join(f"{k} {v:+.1f} %" for k, v in self.base_change_pct.items() if abs(v) >= 0.05)
+        if moved:
+            out += f"; base parameters with both: {moved}"
         if self.tie_with:
             out += f"; a tie with {self.tie_with}: {SEPARATES_LAG_DELAY}"
         return out
@@ -156,8 +173,9 @@ def beside_candidate(
     trials = [_Trial(e, r) for e in by_name.values() if e.name not in own_model | set(taken) for r in (None, *taken)]
     if not trials:
         return None
+    reference = _reference(state, taken, by_name)
     for trial in trials:
-        _fit_trial(trial, state, by_name)
+        _fit_trial(trial, state, reference, by_name)
     scores = {t.label: t.score for t in trials}
     counting = sorted((t for t in trials if t.counts), key=lambda t: -t.score)
     if not counting:
@@ -165,6 +183,10 @@ def beside_candidate(
     best = counting[0]
     rival = next((t for t in counting[1:] if t.effect is not best.effect), None)
     tie = rival.effect.name if rival is not None and best.score - rival.score < TIE_NATS else None
+    if rival is not None and tie is None:
+        corner, fast = smooth_input_share(screening.exps, screening.model.comp, screening.model.nominal)
+        if fast < SMOOTH_INPUT_SHARE:  # the selection's own rule (:mod:`.lag_delay`): nothing tells them apart
+            tie = rival.effect.name
     comp, res = state.composition, best.result
     return BesideCandidate(
         best.effect.name,
@@ -174,25 +196,62 @@ def beside_candidate(
         {fit.file_name(n): float(res.vector[comp.param_index(n)]) for n in state.fitted},
         unexplained(best.objective, np.asarray(res.vector), noise_scales),
         tie,
+        {
+            n: 100.0 * (res.vector[comp.param_index(n)] / state.nominal[comp.param_index(n)] - 1.0)
+            for n in _base(state)
+            if state.nominal[comp.param_index(n)] != 0.0
+        },
     )
 
 
-def _fit_trial(trial: _Trial, state: CandidateFitState, by_name: dict[str, type[Effect]]) -> None:
-    """Fit one trial from the candidate's fit and score it against the candidate alone."""
+def _context(state: CandidateFitState, by_name: dict[str, type[Effect]]) -> SelectionContext:
+    """A fit context on the candidate's model with its own segment start speeds."""
     obj = state.objective.with_own_speeds()
     vec0 = np.asarray(state.result.vector)
-    ctx = SelectionContext(obj, state.composition, vec0, state.nominal, state.base_names, dict(by_name))
-    vec = ctx.vec if trial.replaces is None else ctx.neutralise(ctx.vec, trial.replaces)
+    return SelectionContext(obj, state.composition, vec0, state.nominal, _base(state), dict(by_name))
+
+
+def _reference(state: CandidateFitState, taken: list[str], by_name: dict[str, type[Effect]]) -> FitResult:
+    """What the trials are scored against: the candidate's own fit, with the signal-path effects the selection
+    took refitted jointly with it (their parameters, the candidate's and the freed base parameters).
+
+    The candidate's fit holds those effects at the selection's values, found without the candidate; a trial
+    fits its own effect with the candidate.  Scored against the held incumbent, a delay fitted in place of a
+    lag would win only because it was fitted and the lag was not."""
+    if not taken:
+        return state.result
+    ctx = _context(state, by_name)
+    own = [p.name for n in taken for p in by_name[n].parameters]
+    res = converged_fit(ctx, ctx.vec, [*state.fitted, *own, *_base(state)], MAX_NFEV)
+    if base_at_bounds(ctx, np.asarray(res.vector)) or res.rss_after >= state.result.rss_after:
+        return state.result
+    return res
+
+
+def _fit_trial(trial: _Trial, state: CandidateFitState, reference: FitResult, by_name: dict[str, type[Effect]]) -> None:
+    """Fit one trial from the reference fit and score it against it."""
+    ctx = _context(state, by_name)
+    obj, vec0 = ctx.obj, np.asarray(reference.vector)
+    vec = vec0 if trial.replaces is None else ctx.neutralise(vec0, trial.replaces)
     start = best_effect_start(obj, state.composition, vec, trial.effect)
     own = [p.name for p in trial.effect.parameters]
-    res = converged_fit(ctx, start, [*state.fitted, *own, *state.base_names], MAX_NFEV)
-    r0, ids = state.result.residual, obj.channel_ids
+    res = converged_fit(ctx, start, [*state.fitted, *own, *_base(state)], MAX_NFEV)
+    r0, ids = reference.residual, obj.channel_ids
     k = len(own) - (len(by_name[trial.replaces].parameters) if trial.replaces else 0)
+    k += len(_base(state)) - (len(state.base_names) if reference is state.result else len(_base(state)))
     trial.score, _ = score(r0, res, k, channels=ids, blocks=obj.block_ids)
     if trial.replaces is None:
         trial.counts = significant(
-            trial.score, state.result.rss_after, res.rss_after, len(res.residual), r0, res.residual, ids
+            trial.score, reference.rss_after, res.rss_after, len(res.residual), r0, res.residual, ids
         )
     else:
         trial.counts = trial.score > TIE_NATS
+    if base_at_bounds(ctx, np.asarray(res.vector)):  # something still missing is absorbed there
+        trial.counts = False
     trial.result, trial.objective = res, obj
+
+
+def _base(state: CandidateFitState) -> tuple[str, ...]:
+    """The base parameters the fits beside the candidate free: the candidate's, or every one it may free (a
+    lag absorbed by the base parameters comes out only when they are fitted with it)."""
+    return state.base_names or state.freeable

@@ -5,9 +5,10 @@ it explains the recording is decided the way ``drillgym identify --add-effect FI
 file's effect is added to the final model and its parameters are fitted by multiple shooting on the diagnosis'
 own recordings (with the base parameters as the diagnosis freed them, or held at their nominal values when the
 diagnosis left them at a bound of their range: an effect the library lacks was absorbed there), with the
-segments' start speeds.  Motor-side terms are fitted through the same terms compiled once
-(:mod:`.motor_terms`): a file's coefficients make its compiled model new for every recording.  The answer
-is the residual against the noise with the candidate
+segments' start speeds.  When the diagnosis kept the nominal base parameters and the candidate's fit is not at
+the noise, the fit is repeated with them freed, and kept when that counts by the selection's rules.  Motor-side
+terms are fitted through the same terms compiled once (:mod:`.motor_terms`): a file's coefficients make its
+compiled model new for every recording.  The answer is the residual against the noise with the candidate
 (:func:`.unexplained.unexplained`) beside the one without.
 """
 
@@ -21,12 +22,13 @@ import numpy as np
 
 from ..effects import Composition, Effect
 from ..identification.fitting import FitResult, Objective
-from .context import SelectionContext, converged_fit
+from .context import SelectionContext, base_at_bounds, converged_fit
 from .effect_file import write_effect_file
 from .effects import get_effect
 from .motor_terms import MotorVoltageTerms, UpperTorqueTerms, term_parameters
 from .ranking import transfer
 from .results import Candidate, Diagnosis
+from .scoring import score, significant
 from .screening import Screening
 from .unexplained import Unexplained, unexplained
 
@@ -54,6 +56,9 @@ class CandidateFitState:
         The base parameters fitted with them (empty: held).
     nominal : numpy.ndarray
         The nominal vector of ``composition``.
+    freeable : tuple of str
+        The base parameters a later fit from here may free (empty when the diagnosis held them at nominal
+        because it left some at a bound).
     """
 
     objective: Objective
@@ -62,6 +67,7 @@ class CandidateFitState:
     fitted: list[str]
     base_names: tuple[str, ...]
     nominal: np.ndarray
+    freeable: tuple[str, ...] = ()
 
 
 @dataclass
@@ -82,6 +88,8 @@ class CandidateFit:
         A fitted parameter's name -> its name in the candidate's file.
     beside : BesideCandidate or None
         The library's signal-path effects fitted beside the candidate (:mod:`.beside`; None: not tried).
+    base_fitted : dict of str to float
+        The base parameters fitted with the candidate -> their change from nominal (%); empty: as diagnosed.
     """
 
     values: dict[str, float]
@@ -91,6 +99,7 @@ class CandidateFit:
     state: CandidateFitState | None = field(default=None, repr=False, compare=False)
     file_names: dict[str, str] = field(default_factory=dict)
     beside: Any = None
+    base_fitted: dict[str, float] = field(default_factory=dict)
 
     def file_name(self, parameter: str) -> str:
         """The name a fitted parameter has in the candidate's file (its own name when it has none there)."""
@@ -103,7 +112,8 @@ class CandidateFit:
         return 1.0 - self.after.ratio_to_noise**2 / b if b > 0 else 0.0
 
     def to_json(self) -> dict:
-        """``{values, base_held, ratio_before, ratio_after, variance_cut, verdict_after, channels_after}``."""
+        """``{values, base_held, ratio_before, ratio_after, variance_cut, verdict_after, channels_after, beside,
+        base_fitted_change_pct}``."""
         return {
             "values": self.values,
             "base_held": self.base_held,
@@ -113,12 +123,16 @@ class CandidateFit:
             "verdict_after": self.after.verdict,
             "channels_after": self.after.channels,
             "beside": self.beside.to_json() if self.beside is not None else None,
+            "base_fitted_change_pct": {k: round(v, 3) for k, v in self.base_fitted.items()},
         }
 
     def line(self) -> str:
         """The fit in words."""
         vals = ", ".join(f"{k} = {v:.4g}" for k, v in self.values.items())
         base = "base held at nominal" if self.base_held else "base as diagnosed"
+        if self.base_fitted:
+            moved = ", ".join(f"{k} {v:+.1f} %" for k, v in self.base_fitted.items() if abs(v) >= 0.05)
+            base = f"base parameters fitted with it: {moved or 'none moved'}"
         return (
             f"  its fit on this recording ({base}): {vals}; residual {self.before.ratio_to_noise:.3g} -> "
             f"{self.after.ratio_to_noise:.3g} times the noise ({self.variance_cut:.0%} of the unexplained "
@@ -166,12 +180,22 @@ def fit_candidate(
     ctx = SelectionContext(obj, with_it, start, transfer(model.nominal, comp, with_it), base_names, {})
     names = list(start_values)
     fit = converged_fit(ctx, start, [*names, *base_names], MAX_NFEV)
+    if not base_names and not held and not unexplained(obj, np.asarray(fit.vector), noise_scales).explained:
+        freed = _with_base_freed(ctx, fit, names, tuple(model.base_names))
+        if freed is not None:
+            (obj, ctx, fit), base_names = freed, tuple(model.base_names)
     before = diagnosis.unexplained or unexplained(model.obj, diagnosis.vector, noise_scales)
     after = unexplained(obj, np.asarray(fit.vector), noise_scales)
     file_names = {n: _file_name(candidate, n) for n in names}
     values = {file_names[n]: float(fit.vector[with_it.param_index(n)]) for n in names}
-    state = CandidateFitState(obj, with_it, fit, names, base_names, ctx.nominal)
-    return CandidateFit(values, held, before, after, state, file_names)
+    freeable = () if held else tuple(model.base_names)
+    state = CandidateFitState(obj, with_it, fit, names, base_names, ctx.nominal, freeable)
+    moved = {
+        n: 100.0 * (fit.vector[with_it.param_index(n)] / ctx.nominal[with_it.param_index(n)] - 1.0)
+        for n in base_names
+        if ctx.nominal[with_it.param_index(n)] != 0.0
+    }
+    return CandidateFit(values, held, before, after, state, file_names, base_fitted=moved)
 
 
 def _effect_of(candidate: Candidate) -> tuple[type[Effect] | None, dict[str, float]]:
@@ -192,6 +216,30 @@ def _effect_of(candidate: Candidate) -> tuple[type[Effect] | None, dict[str, flo
         return None, {}
     effect = get_effect(candidate.effect_file)
     return effect, {p.name: p.guess for p in effect.parameters}
+
+
+def _with_base_freed(
+    ctx: SelectionContext, fit: FitResult, names: list[str], base_names: tuple[str, ...]
+) -> tuple[Objective, SelectionContext, FitResult] | None:
+    """The candidate fitted again with the base parameters freed, when that counts by the selection's rules.
+
+    The diagnosis judged the base parameters beside a residual the candidate now takes: a mismatch of a few
+    per cent that was lost beside a dead zone or an offset stands out once the candidate is in (a motor
+    constant 3 % off beside a 0.1 V offset leaves hundreds of noise units), and the candidate's own terms
+    would otherwise absorb it.  None: freeing them does not count (:func:`.scoring.significant`), or a base
+    parameter ends at a bound of its range (something still missing is absorbed there: the diagnosis' own rule,
+    :func:`.context.base_at_bounds`)."""
+    obj = ctx.obj.with_own_speeds()
+    vec = np.asarray(fit.vector)
+    free = SelectionContext(obj, ctx.comp, vec, ctx.nominal, base_names, {})
+    res = converged_fit(free, vec, [*names, *base_names], MAX_NFEV)
+    ids = obj.channel_ids
+    sc, _ = score(fit.residual, res, len(base_names), channels=ids, blocks=obj.block_ids)
+    if not significant(sc, fit.rss_after, res.rss_after, len(res.residual), fit.residual, res.residual, ids):
+        return None
+    if base_at_bounds(free, np.asarray(res.vector)):
+        return None
+    return obj, free, res
 
 
 def choose_candidate(

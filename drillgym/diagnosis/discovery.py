@@ -15,7 +15,8 @@ on a library of terms shaped by physics, grouped by where they would act:
   kθ (dz(α) − α) = −kθ sat(α, g)), α̇, sign(α̇);
 * ``lower_force`` / ``upper_force``: constant, cos/sin of the disc angle, time; on the upper disc the
   harmonics cos/sin kθu of the motor angle (cogging, :data:`COGGING_HARMONICS`);
-* ``motor_voltage``: a change of the voltage the motor sees, as a function of the voltage: sign(u), |u|,
+* ``motor_voltage``: a change of the voltage the motor sees, as a function of the voltage: 1 (an offset),
+  sign(u), |u|,
   u|u|, u³ (a motor constant that depends on the voltage), sat(u, u0) for scanned widths u0 (a dead zone
   is −sat(u, u0)); regressed as the torque km × (the change) on the upper disc, written as an Input effect.
 
@@ -201,12 +202,13 @@ def _cogging_terms() -> list[_Term]:
 
 
 def _voltage_terms() -> list[_Term]:
-    """Changes of the voltage the motor sees, as functions of the voltage u entering the drive: sign(u) (an
-    offset that follows the direction), |u|, u|u| and u³ (a motor constant that depends on the voltage:
-    saturation), and sat(u, u0) for the widths :data:`DEAD_ZONE_WIDTHS` (−sat(u, u0) is a dead zone of
-    half-width u0: the motor sees sign(u) max(|u| − u0, 0)).  Regressed as a torque km × (change) on the
+    """Changes of the voltage the motor sees, as functions of the voltage u entering the drive: 1 (a constant offset
+    of the drive), sign(u) (an offset that follows the direction), |u|, u|u| and u³ (a motor constant that depends
+    on the voltage: saturation), and sat(u, u0) for the widths :data:`DEAD_ZONE_WIDTHS` (−sat(u, u0) is a dead
+    zone of half-width u0: the motor sees sign(u) max(|u| − u0, 0)).  Regressed as a torque km × (change) on the
     upper disc; written as an Input effect."""
     out = [
+        _Term("1", "1.0", lambda d: np.ones_like(d["u"])),
         _Term("sign(u)", "(1.0 if u > 0.0 else (-1.0 if u < 0.0 else 0.0))", lambda d: np.sign(d["u"])),
         _Term("|u|", "abs(u)", lambda d: np.abs(d["u"])),
         _Term("u|u|", "u * abs(u)", lambda d: d["u"] * np.abs(d["u"])),

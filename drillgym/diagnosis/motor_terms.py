@@ -4,7 +4,7 @@ A candidate file written by discovery holds its regressed coefficients, so its s
 of a composition with it) differs for every recording.  Its motor-side terms are fitted instead through these
 two effects, whose functions are the same terms with every coefficient a parameter (0: the term is off):
 
-* :class:`MotorVoltageTerms` (Input): the motor sees u + a sign(u) + b |u| + c u|u| + d u³ + e sat(u, w);
+* :class:`MotorVoltageTerms` (Input): the motor sees u + o + a sign(u) + b |u| + c u|u| + d u³ + e sat(u, w);
 * :class:`UpperTorqueTerms` (Force on the upper disc): a constant and cos/sin kθu for k in
   :data:`.discovery.COGGING_HARMONICS` (cogging).
 
@@ -24,10 +24,11 @@ HARMONICS = (1, 2, 3, 4, 6, 8, 12)
 
 
 class MotorVoltageTerms(Input):
-    """The voltage at the motor: u + a sign(u) + b |u| + c u|u| + d u³ + e sat(u, w)."""
+    """The voltage at the motor: u + o + a sign(u) + b |u| + c u|u| + d u³ + e sat(u, w)."""
 
     name = "motor_voltage_terms"
     parameters = (
+        Parameter("mv_offset", "V", -3.0, 3.0, 0.0, 0.05, "constant offset", neutral=0.0),
         Parameter("mv_sign", "V", -3.0, 3.0, 0.0, 0.05, "coefficient of sign(u)", neutral=0.0),
         Parameter("mv_abs", "-", -2.0, 2.0, 0.0, 0.02, "coefficient of |u|", neutral=0.0),
         Parameter("mv_uabs", "1/V", -1.0, 1.0, 0.0, 0.005, "coefficient of u|u|", neutral=0.0),
@@ -39,9 +40,9 @@ class MotorVoltageTerms(Input):
     explanation = "The voltage the motor sees as a function of the voltage entering the drive (discovery's terms)."
     signature = "a residual torque on the upper disc that is a function of the voltage"
 
-    def voltage(u, mv_sign, mv_abs, mv_uabs, mv_u3, mv_sat, mv_w):
+    def voltage(u, mv_offset, mv_sign, mv_abs, mv_uabs, mv_u3, mv_sat, mv_w):
         s = 1.0 if u > 0.0 else (-1.0 if u < 0.0 else 0.0)
-        shaped = mv_sign * s + mv_abs * abs(u) + mv_uabs * u * abs(u) + mv_u3 * u**3
+        shaped = mv_offset + mv_sign * s + mv_abs * abs(u) + mv_uabs * u * abs(u) + mv_u3 * u**3
         return u + shaped + mv_sat * min(max(u, -mv_w), mv_w)
 
 
@@ -115,6 +116,8 @@ def term_parameters(group: str, label: str) -> str | None:
         The parameter's name, or None when the term has none here.
     """
     if group == "motor_voltage":
+        if label == "1":
+            return "mv_offset"
         return "mv_sat" if label.startswith("sat(u") else _VOLTAGE.get(label)
     if group == "upper_force":
         if label == "1":
