@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from drillgym.configurations import parse_configuration
 from drillgym.io import TimeSeries
 from drillgym.signals import quasi_random
 
@@ -63,16 +64,17 @@ class ExcitationOptions:
 
 
 class _Playback(Controller):
-    """Plays a voltage sequence and keeps what the sensors reported (theta_u, theta_l) at each period."""
+    """Plays a voltage sequence and keeps what the sensors reported at each period: the encoders, and the
+    LVDTs in a configuration with the lateral motion."""
 
     name = "playback"
-    uses = ("theta_u", "theta_l")
+    uses = ("theta_u", "theta_l", "x", "y")
 
-    def __init__(self, u: np.ndarray, dt: float) -> None:
+    def __init__(self, u: np.ndarray, dt: float, channels: tuple[str, ...] = ("theta_u", "theta_l")) -> None:
         super().__init__(1.0, dt=dt)
         self.u = np.asarray(u, dtype=float)
         self.k = 0
-        self.seen: dict[str, list[np.ndarray]] = {"theta_u": [], "theta_l": []}
+        self.seen: dict[str, list[np.ndarray]] = {c: [] for c in channels}
 
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
         for key in self.seen:
@@ -111,12 +113,14 @@ def excitation_recording(
     Returns
     -------
     TimeSeries
-        ``t``, ``u``, ``theta_u``, ``theta_l`` at ``rate_hz``, as the sensors reported them.
+        ``t``, ``u``, ``theta_u``, ``theta_l`` (and ``x``, ``y`` with the lateral motion) at ``rate_hz``, as the
+        sensors reported them.
     """
     o = options or ExcitationOptions()
     dt = 1.0 / o.rate_hz
     t, u = quasi_random(o.duration, rate_hz=o.rate_hz, seed=seed, amplitude=o.amplitude, offset=o.offset)
-    play = _Playback(u, dt)
+    lateral = parse_configuration(config).lateral_free
+    play = _Playback(u, dt, ("theta_u", "theta_l", "x", "y") if lateral else ("theta_u", "theta_l"))
     run = run_closed_loop(
         play,
         config,
