@@ -310,6 +310,18 @@ def test_excitation_run_records_what_the_plants_encoders_report():
     assert np.ptp(ts.u) > 2.0 and 0.0 <= ts.u.min() and ts.u.max() <= 5.0 and np.ptp(ts.theta_u) > 0
 
 
+def test_a_coupled_excitation_run_records_the_lvdts_a_coupled_diagnosis_reads():
+    from controllers.evaluation.identify import ExcitationOptions, excitation_recording
+    from drillgym.identification.experiment import prepare_experiment
+
+    pop = sample_plants(2, 0)
+    o = ExcitationOptions(duration=6.0)  # long enough for the lower disc to break away and whirl
+    ts = excitation_recording(pop.matrix[0], pop.composition, 8000, 0.0, 3, o, "coupled")
+    assert ts.configuration.label == "coupled" and {"x", "y"} <= set(ts.columns)
+    assert np.all(np.isfinite(ts.columns["x"])) and np.ptp(ts.columns["x"]) > 0
+    prepare_experiment(ts)  # what diagnose reads: refused before when x, y were missing
+
+
 def test_identify_is_refused_without_a_population(tmp_path, capsys):
     args = ["evaluate", "--config", "torsional", "--controllers", "pi", "--out", str(tmp_path / "ev"), "--identify"]
     with pytest.raises(SystemExit) as e:
