@@ -543,6 +543,25 @@ def test_rig_run(data, a, root):
 
 @examples(10)
 @given(data=st.data())
+def test_rig_tune(data, a, root):
+    """Refused before the port is opened and before the excitation moves anything."""
+    work = fresh_dir(root)
+    base = ["rig", "tune", "--port", "loop://", "--model-out", str(work / "m.json"), "--record", str(work / "r.csv")]
+    base += ["--duration", "0.1", "--no-realtime"]
+    table = {
+        "--port": ["", a.missing, a.adir, a.text],
+        "--model-out": [str(work / "m.txt"), *[p for p in output_file_bad(a, work, ".json") if p != str(work)]],
+        "--record": [p for p in output_file_bad(a, work) if p not in (a.adir, str(work))],
+        "--duration": positive_float_bad(),
+        "--control-ms": positive_float_bad(),
+        "--config": choice_bad(["torsional", "coupled"]),
+        "--seed": ["abc", "1.5", ""],
+    }
+    check_case_within(draw_case(data, table, base), root, seconds=20)
+
+
+@examples(10)
+@given(data=st.data())
 def test_rig_emulate(data, a, root):
     """Refused before the pseudo-terminal opens (an accepted value would run until the alarm)."""
     work = fresh_dir(root)

@@ -62,6 +62,7 @@ def tune_cmd(
     import hw
     from drillgym.io.outputs import check_output_file, output_file
     from drillgym.signals import quasi_random, write_input_file
+    from hw.checks import check_record_path
     from hw.runner import make_controller
 
     from .rig import _check_run_options, _interruptible, _run_episode
@@ -70,6 +71,7 @@ def tune_cmd(
         raise InputError(f"--config {config!r}: rig tune identifies the torsional or the coupled set-up")
     if record.suffix.lower() != ".csv":
         raise InputError(f"--record {record}: the excitation's recording must be one .csv file")
+    check_record_path(record, "--record")
     suffixes = (".json", ".yaml", ".yml")
     if model_out.suffix.lower() not in suffixes:
         raise InputError(f"--model-out {model_out}: a model file must end in .json, .yaml or .yml")
