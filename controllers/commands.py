@@ -87,8 +87,10 @@ def register(app: typer.Typer) -> None:
             help="with --scenarios plants: identify each plant first (an excitation run with the plant's lag, delay, "
             "friction and encoders; diagnose; identify) and build every controller on its identified model",
         ),
-        excitation: float = typer.Option(
-            30.0, "--excitation", help="length of each plant's excitation run with --identify (s)"
+        excitation: float | None = typer.Option(
+            None,
+            "--excitation",
+            help="length of each plant's excitation run with --identify (s); default 60 torsional, 30 coupled",
         ),
     ) -> None:
         """Evaluate controllers on the scenarios; write a CSV, a markdown table and the SSI figure.
@@ -130,9 +132,9 @@ def register(app: typer.Typer) -> None:
                 raise InputError("--identify identifies each plant of a population: add --scenarios plants")
             if model is not None:
                 raise InputError("--identify builds the controllers on each plant's identified model: drop --model")
-            if not (excitation >= 2.0 and excitation <= DURATION_MAX):
+            if excitation is not None and not (excitation >= 2.0 and excitation <= DURATION_MAX):
                 raise InputError(f"--excitation must be in [2, {DURATION_MAX:g}] s, got {excitation:g}")
-            ident = ExcitationOptions(duration=float(excitation))
+            ident = ExcitationOptions(duration=None if excitation is None else float(excitation))
         if uncertainty is not None:
             if not any(s.population for s in scen):
                 raise InputError("--uncertainty is the set of the 'plants' scenario: add --scenarios plants")

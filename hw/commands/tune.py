@@ -42,7 +42,9 @@ def tune_cmd(
     record: Path = typer.Option(
         Path("rig_tune.csv"), help="recording of the excitation run (DATA_FORMAT .csv, replaced if it exists)"
     ),
-    duration: float = typer.Option(30.0, help="length of the excitation (s)"),
+    duration: float | None = typer.Option(
+        None, help="length of the excitation (s); default 60 torsional, 30 coupled (evaluate --identify's)"
+    ),
     control_ms: float = typer.Option(2.0, help="control period (ms): the signal's sample time and the recording's"),
     config: str = typer.Option("torsional", help="how the rig is set up: torsional or coupled"),
     seed: int = typer.Option(0, help="seed of the excitation signal"),
@@ -76,6 +78,10 @@ def tune_cmd(
     if model_out.suffix.lower() not in suffixes:
         raise InputError(f"--model-out {model_out}: a model file must end in .json, .yaml or .yml")
     check_output_file(model_out, "--model-out", suffixes=suffixes)
+    if duration is None:
+        from controllers.evaluation.identify import EXCITATION_S
+
+        duration = EXCITATION_S[config]
     opts = _check_run_options(port, duration, record, config, "motor", None, control_ms, seed, None, 0, 0.0)
     rate = 1e3 / control_ms
     hw.register()
