@@ -328,3 +328,14 @@ def test_identify_is_refused_without_a_population(tmp_path, capsys):
         main(args + ["--scenarios", "rest"])
     err = capsys.readouterr().err
     assert e.value.code == 2 and "--identify" in err and "plants" in err and not (tmp_path / "ev").exists()
+
+
+def test_a_single_timing_effect_is_tried_again_as_a_lag_and_a_delay():
+    from controllers.evaluation.identify import LAG_SHARE, _with_both_timing_effects
+
+    specs, values = _with_both_timing_effects(["input_delay", "position_friction"], {"delay": 0.05, "pf_c1": 0.1})
+    assert specs == ["motor_lag", "input_delay", "position_friction"]  # the lag first on the signal path
+    assert values["tau_m"] == pytest.approx(LAG_SHARE * 0.05) and values["delay"] == pytest.approx(0.015)
+    assert values["pf_c1"] == 0.1
+    assert _with_both_timing_effects(["motor_lag", "input_delay"], {"tau_m": 0.04, "delay": 0.01}) is None
+    assert _with_both_timing_effects(["position_friction"], {"pf_c1": 0.1}) is None

@@ -221,26 +221,75 @@ def identify_plant(
     params, records, _ = d.selected_model()
     specs = [r["spec"] for r in records]
     values = {k: v for r in records for k, v in r["values"].items()}
-    comp, values = compose(specs, values)
-    res = refit(
-        recording,
-        params,
-        base_effects=comp,
-        base_values=values,
-        fit=list(BASE_FREE[d.config]) + list(comp.effect_param_names),  # what the diagnosis re-identifies
-        refit_base=False,
-        compare_rate_hz=o.compare_rate_hz,
-        max_nfev=o.max_nfev,
-    )
+
+    def fit(specs: list[str], values: dict[str, float]):
+        comp, values = compose(specs, values)
+        res = refit(
+            recording,
+            params,
+            base_effects=comp,
+            base_values=values,
+            fit=list(BASE_FREE[d.config]) + list(comp.effect_param_names),  # what the diagnosis re-identifies
+            refit_base=False,
+            compare_rate_hz=o.compare_rate_hz,
+            max_nfev=o.max_nfev,
+        )
+        return comp, values, res
+
+    comp, values, res = fit(specs, values)
+    notes: list[str] = []
+    both = _with_both_timing_effects(specs, values)
+    if both is not None:  # the diagnosis took one of a lag and a delay: both, when they fit clearly better
+        comp2, values2, res2 = fit(*both)
+        ss, ss2 = _sum_of_squares(res), _sum_of_squares(res2)
+        if ss2 < (1.0 - BOTH_TIMING_GAIN) * ss:
+            comp, values, res = comp2, values2, res2
+            notes.append(f"a motor lag and an input delay fitted together: residual {ss2:.3g} against {ss:.3g} rad²")
     fitted = {**values, **{k: v for k, v in res.values.items() if k in values}}
     std = {k: v for k, v in res.std.items() if math.isfinite(v)}
     model = ControllerModel(res.params, comp, fitted, std)
     seconds = time.perf_counter() - start
     found = {**res.params.to_dict(), **fitted}
+    selected = list(d.selected) + [n for n in comp.names if n in TIMING_EFFECTS and n not in d.selected]
     return IdentifiedPlant(
         model,
-        list(d.selected),
+        selected,
         seconds,
         {n: float(found.get(n, math.nan)) for n in names},
-        list(d.warnings) + list(res.warnings),
+        list(d.warnings) + list(res.warnings) + notes,
     )
+
+
+#: the signal path's timing effects the diagnosis may take one of
+TIMING_EFFECTS = ("motor_lag", "input_delay")
+#: share of the residual sum of squares the fit with both must remove to replace the fit with one
+BOTH_TIMING_GAIN = 0.05
+#: where the fit with both starts: this share of the one's time as the lag, the rest as the delay
+LAG_SHARE = 0.7
+
+
+def _with_both_timing_effects(specs: list[str], values: dict[str, float]) -> tuple[list[str], dict] | None:
+    """The model with a lag and a delay when the diagnosis took one of them (else None): the one's time split,
+    :data:`LAG_SHARE` to the lag, the lag first on the signal path.
+
+    The diagnosis tells a lag from a delay on the comparison grid, where the two shift the slow response alike;
+    a plant with both (or with the other one) is then read as one element of about their sum and the base
+    parameters absorb the difference as a common scale (population seed 0, plant 7: a 46 ms lag and a 17 ms
+    delay read as a 56 ms delay, km -4.0 %; fitted with both, a 63 ms lag, km -0.02 %)."""
+    taken = [s for s in specs if s in TIMING_EFFECTS]
+    if len(taken) != 1:
+        return None
+    total = values.get("tau_m", values.get("delay"))
+    if total is None or not total > 0:
+        return None
+    rest = [s for s in specs if s not in TIMING_EFFECTS]
+    return ["motor_lag", "input_delay", *rest], {
+        **values,
+        "tau_m": LAG_SHARE * total,
+        "delay": (1.0 - LAG_SHARE) * total,
+    }
+
+
+def _sum_of_squares(res) -> float:
+    """The fit's residual: the sum over channels of the squared RMS (rad²)."""
+    return float(sum(v * v for v in res.rms_after.values()))
