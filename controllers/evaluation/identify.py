@@ -40,8 +40,9 @@ __all__ = ["EXCITATION_S", "ExcitationOptions", "IdentifiedPlant", "excitation_r
 #: default length of the excitation (s) per configuration: long enough for the lower disc to turn the
 #: revolutions a position-dependent friction needs to be told from noise (on 30 s of torsional excitation a
 #: 5 % friction harmonic was skipped as "not the same in both halves" on some plants), short enough that the
-#: identification stays within a minute on 2 cores (idle machine, the slowest plants of population seed 0:
-#: torsional 60 s -> 14-29 s; coupled, whose model runs about three times slower, 30 s -> 45-49 s, 60 s -> 77 s)
+#: identification stays within a minute on 2 cores (idle machine, the slowest plants of the documented
+#: population: torsional 60 s -> 14-29 s; coupled, whose model runs about three times slower, 30 s -> 45-49 s,
+#: 60 s -> 77 s)
 EXCITATION_S = {"torsional": 60.0, "coupled": 30.0}
 
 
@@ -274,8 +275,8 @@ def _with_both_timing_effects(specs: list[str], values: dict[str, float]) -> tup
 
     The diagnosis tells a lag from a delay on the comparison grid, where the two shift the slow response alike;
     a plant with both (or with the other one) is then read as one element of about their sum and the base
-    parameters absorb the difference as a common scale (population seed 0, plant 7: a 46 ms lag and a 17 ms
-    delay read as a 56 ms delay, km -4.0 %; fitted with both, a 63 ms lag, km -0.02 %)."""
+    parameters absorb the difference as a common scale (a plant with a 46 ms lag and a 17 ms delay read as a
+    56 ms delay, km -4.0 %; fitted with both, a 63 ms lag, km -0.02 %)."""
     taken = [s for s in specs if s in TIMING_EFFECTS]
     if len(taken) != 1:
         return None

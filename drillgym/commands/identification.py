@@ -432,9 +432,7 @@ def identify_cmd(
         raise
     for spec, e in zip(mf.specs, base_comp.effects):
         specs.setdefault(e.name, spec)
-    records = effect_records(res.composition, res.effect_values, specs)
-    for r in records:  # the standard errors of what was fitted travel with the model (controllers' margins)
-        r["std"] = {k: res.std[k] for k in r["values"] if math.isfinite(res.std.get(k, math.nan))}
+    records = effect_records(res.composition, res.effect_values, specs, std=res.std)
     base_std = {k: v for k, v in res.std.items() if k not in res.effect_values}
     write_model(output_file(out, "--out", suffixes=(".json", ".yaml", ".yml")), res.params, records, base_std)
     if report is not None:

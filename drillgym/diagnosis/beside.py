@@ -38,7 +38,7 @@ import numpy as np
 
 from ..effects import Effect
 from ..identification.fitting import FitResult, Objective
-from .candidate_fit import CandidateFitState
+from .candidate_fit import CandidateFitState, change_pct, moved_text
 from .context import SelectionContext, base_at_bounds, best_effect_start, converged_fit
 from .lag_delay import smooth_input_share
 from .results import Diagnosis
@@ -117,7 +117,7 @@ class BesideCandidate:
             f"  beside it, the library's {self.selected} is {how} ({vals}; {tried}); residual with both "
             f"{self.after.ratio_to_noise:.3g} times the noise ({self.after.verdict.replace('_', ' ')})"
         )
-        moved = ", ".join(f"{k} {v:+.1f} %" for k, v in self.base_change_pct.items() if abs(v) >= 0.05)
+        moved = moved_text(self.base_change_pct)
         if moved:
             out += f"; base parameters with both: {moved}"
         if self.tie_with:
@@ -196,11 +196,7 @@ def beside_candidate(
         {fit.file_name(n): float(res.vector[comp.param_index(n)]) for n in state.fitted},
         unexplained(best.objective, np.asarray(res.vector), noise_scales),
         tie,
-        {
-            n: 100.0 * (res.vector[comp.param_index(n)] / state.nominal[comp.param_index(n)] - 1.0)
-            for n in _base(state)
-            if state.nominal[comp.param_index(n)] != 0.0
-        },
+        change_pct(comp, res.vector, state.nominal, _base(state)),
     )
 
 
@@ -238,7 +234,8 @@ def _fit_trial(trial: _Trial, state: CandidateFitState, reference: FitResult, by
     res = converged_fit(ctx, start, [*state.fitted, *own, *_base(state)], MAX_NFEV)
     r0, ids = reference.residual, obj.channel_ids
     k = len(own) - (len(by_name[trial.replaces].parameters) if trial.replaces else 0)
-    k += len(_base(state)) - (len(state.base_names) if reference is state.result else len(_base(state)))
+    if reference is state.result:  # base parameters the trial frees beyond the candidate's fit
+        k += len(_base(state)) - len(state.base_names)
     trial.score, _ = score(r0, res, k, channels=ids, blocks=obj.block_ids)
     if trial.replaces is None:
         trial.counts = significant(

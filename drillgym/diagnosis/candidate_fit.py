@@ -131,8 +131,7 @@ class CandidateFit:
         vals = ", ".join(f"{k} = {v:.4g}" for k, v in self.values.items())
         base = "base held at nominal" if self.base_held else "base as diagnosed"
         if self.base_fitted:
-            moved = ", ".join(f"{k} {v:+.1f} %" for k, v in self.base_fitted.items() if abs(v) >= 0.05)
-            base = f"base parameters fitted with it: {moved or 'none moved'}"
+            base = f"base parameters fitted with it: {moved_text(self.base_fitted) or 'none moved'}"
         return (
             f"  its fit on this recording ({base}): {vals}; residual {self.before.ratio_to_noise:.3g} -> "
             f"{self.after.ratio_to_noise:.3g} times the noise ({self.variance_cut:.0%} of the unexplained "
@@ -190,12 +189,23 @@ def fit_candidate(
     values = {file_names[n]: float(fit.vector[with_it.param_index(n)]) for n in names}
     freeable = () if held else tuple(model.base_names)
     state = CandidateFitState(obj, with_it, fit, names, base_names, ctx.nominal, freeable)
-    moved = {
-        n: 100.0 * (fit.vector[with_it.param_index(n)] / ctx.nominal[with_it.param_index(n)] - 1.0)
-        for n in base_names
-        if ctx.nominal[with_it.param_index(n)] != 0.0
-    }
+    moved = change_pct(with_it, fit.vector, ctx.nominal, base_names)
     return CandidateFit(values, held, before, after, state, file_names, base_fitted=moved)
+
+
+def change_pct(comp: Composition, vector, nominal: np.ndarray, names) -> dict[str, float]:
+    """Parameters' change from nominal (%) in a vector of ``comp`` (those with a nominal value of 0 left out)."""
+    out = {}
+    for n in names:
+        i = comp.param_index(n)
+        if nominal[i] != 0.0:
+            out[n] = 100.0 * (float(vector[i]) / nominal[i] - 1.0)
+    return out
+
+
+def moved_text(changes: dict[str, float]) -> str:
+    """``km -2.9 %, Jl +4.1 %`` for the changes (%) of at least 0.05 %."""
+    return ", ".join(f"{k} {v:+.1f} %" for k, v in changes.items() if abs(v) >= 0.05)
 
 
 def _effect_of(candidate: Candidate) -> tuple[type[Effect] | None, dict[str, float]]:

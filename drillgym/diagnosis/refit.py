@@ -16,6 +16,7 @@ repeated from its result (a poor starting guess must not bias the nuisance speed
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -50,7 +51,10 @@ BASE_STAGE = {
 
 
 def effect_records(
-    comp: Composition, values: Mapping[str, float], specs: Mapping[str, str] | None = None
+    comp: Composition,
+    values: Mapping[str, float],
+    specs: Mapping[str, str] | None = None,
+    std: Mapping[str, float] | None = None,
 ) -> list[dict]:
     """The effects of a composition as reusable records.
 
@@ -62,6 +66,9 @@ def effect_records(
         Its effects' parameter values.
     specs : mapping of str to str, optional
         Effect name -> the spec it was given by.
+    std : mapping of str to float, optional
+        Standard errors by parameter name: each record gets ``"std"`` with the finite ones of its parameters
+        (they travel with the model file: the controllers' margins read them).
 
     Returns
     -------
@@ -83,6 +90,10 @@ def effect_records(
                 **comp.order_fields(e.name),
             }
         )
+        if std is not None:
+            out[-1]["std"] = {
+                p.name: float(std[p.name]) for p in e.parameters if math.isfinite(std.get(p.name, math.nan))
+            }
     return out
 
 

@@ -463,10 +463,8 @@ class Diagnosis:
         by_name = {e.name: e for e in self.composition.effects}
         sub = Composition(tuple(by_name[n] for n in path + rest))
         values = self.composition.named(self.vector)
-        records = effect_records(sub, values)
-        std = {k: v for s in self.ranking if s.effect in keep for k, v in s.std.items() if math.isfinite(v)}
-        for r in records:
-            r["std"] = {k: std[k] for k in r["values"] if k in std}
+        std = {k: v for s in self.ranking if s.effect in keep for k, v in s.std.items()}
+        records = effect_records(sub, values, std=std)
         base_std = {k: v.std for k, v in self.base_parameters.items() if math.isfinite(v.std)}
         return self.params, records, base_std
 

@@ -18,7 +18,6 @@ written), 130 interrupted, 2 bad option (nothing moved).
 
 from __future__ import annotations
 
-import math
 import tempfile
 from pathlib import Path
 
@@ -120,9 +119,7 @@ def _identify_and_write(recording: Path, model_out: Path, echo) -> None:
 
     found = identify_plant(read_timeseries(recording), [])
     m = found.model
-    records = effect_records(m.composition, dict(m.values))
-    for r in records:
-        r["std"] = {k: float(m.std[k]) for k in r["values"] if k in m.std and math.isfinite(m.std[k])}
+    records = effect_records(m.composition, dict(m.values), std=m.std)
     base_std = {k: float(v) for k, v in m.std.items() if k in RigParams().to_dict()}
     path = write_model(output_file(model_out, "--model-out"), m.params, records, base_std)
     nominal = RigParams()
