@@ -219,6 +219,7 @@ def run_row(row: dict, duration: float, rate_hz: float, work: Path) -> dict:
         "candidate": c.expression() if c is not None else None,
         "candidate_group": c.group if c is not None else None,
         "candidate_cut": fit.variance_cut if fit is not None else None,
+        "candidate_with": list(fit.with_library) if fit is not None else [],
         "candidate_values": fit.values if fit is not None else None,
         "ratio_with_candidate": fit.after.ratio_to_noise if fit is not None else None,
         "halved": bool(fit is not None and fit.variance_cut >= 0.5),
@@ -227,9 +228,10 @@ def run_row(row: dict, duration: float, rate_hz: float, work: Path) -> dict:
 
 
 def _lag_found(r: dict) -> bool:
-    """The motor lag selected: by the library's selection, or beside the candidate (``diagnosis.beside``)."""
+    """The motor lag selected: by the library's selection, beside the candidate (``diagnosis.beside``), or fitted
+    with the candidate whose terms were found through it (``candidate_with``)."""
     kept = "motor_lag" in r["selected"] and r["beside_replaces"] != "motor_lag"
-    return kept or r["beside_candidate"] == "motor_lag"
+    return kept or r["beside_candidate"] == "motor_lag" or "motor_lag" in r.get("candidate_with", ())
 
 
 def _lag_or_tie(r: dict) -> bool:

@@ -185,7 +185,8 @@ class DriveOffset(Input):
 def test_an_offset_with_a_lag_on_ramps_frees_the_base_and_states_the_lag_delay_tie(tmp_path):
     """A 0.15 V drive offset after a 30 ms lag, km 3 % and Jl 4 % off, on ramps: the candidate has the
     constant term, and beside it the lag (or the delay), fitted with the base parameters, counts with the tie
-    stated: on ramps nothing tells them apart.  (On ramps the offset and the upper disc's Coulomb friction Tcu
+    stated: on ramps nothing tells them apart.  (The lag may come with the candidate itself, its terms found
+    through it: then the delay is tried in its place.)  (On ramps the offset and the upper disc's Coulomb friction Tcu
     trade against each other: the base parameters are not asserted.)"""
     from drillgym import RigParams
 
@@ -203,6 +204,8 @@ def test_an_offset_with_a_lag_on_ramps_frees_the_base_and_states_the_lag_delay_t
     beside = c.fit.beside
     assert beside is not None and beside.selected in ("motor_lag", "input_delay"), (d.selected, beside)
     assert beside.tie_with in ("motor_lag", "input_delay") and beside.tie_with != beside.selected
-    assert beside.after.ratio_to_noise < min(10.0, c.fit.after.ratio_to_noise), (beside.after, c.fit.after)
+    carried = beside.selected in c.fit.with_library  # the candidate's terms were found through the lag
+    assert beside.after.ratio_to_noise < 10.0, beside.after
+    assert carried or beside.after.ratio_to_noise < c.fit.after.ratio_to_noise, (beside.after, c.fit.after)
     assert set(beside.base_change_pct) >= {"km", "Jl"}  # fitted with the base parameters
     assert "a tie with" in beside.line()

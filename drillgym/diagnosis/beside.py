@@ -27,7 +27,9 @@ new is compiled.  When two trials of different effects count and score within :d
 both count on an input too smooth to tell a lag from a delay (the selection's rule, :mod:`.lag_delay`: less than
 :data:`.timing.SMOOTH_INPUT_SHARE` of its variance above the upper disc's corner frequency; on ramps the two
 shift the response alike, and the better one is decided by the model's error elsewhere), the tie is stated with
-the experiment that separates them.
+the experiment that separates them.  A lag the candidate was found through and fitted with
+(:attr:`.candidate_fit.CandidateFit.with_library`) is treated as one the selection took: the delay is tried in its
+place, and the lag is reported as selected beside the candidate, with the tie when the delay does as well.
 """
 
 from __future__ import annotations
@@ -64,7 +66,8 @@ class BesideCandidate:
     Attributes
     ----------
     selected : str or None
-        The effect that counts beside the candidate (None: none does).
+        The effect that counts beside the candidate, or the one the candidate was fitted with (its terms found
+        through it: :attr:`.candidate_fit.CandidateFit.with_library`) when no trial beats that one (None: none).
     replaces : str or None
         The signal-path effect of the diagnosis that ``selected`` takes the place of (None: added).
     scores : dict of str to float
@@ -159,27 +162,31 @@ def beside_candidate(
     -------
     BesideCandidate or None
         None when there is no fitted candidate, it removes less than :data:`MIN_CANDIDATE_CUT` of the
-        unexplained variance, it leaves the recording at the noise (nothing left to explain), or every
-        signal-path effect is already in the model.
+        unexplained variance, it leaves the recording at the noise (nothing left to explain) without a lag of its
+        own, or every signal-path effect is already in the model.
     """
     cand = diagnosis.candidate
     fit = cand.fit if cand is not None else None
-    if fit is None or fit.state is None or fit.variance_cut < MIN_CANDIDATE_CUT or fit.after.explained:
+    if fit is None or fit.state is None or fit.variance_cut < MIN_CANDIDATE_CUT:
+        return None
+    if fit.after.explained and not fit.with_library:  # nothing left to explain (a carried lag is still reported)
         return None
     state = fit.state
     own_model = set(diagnosis.model.split("+"))
     by_name = {e.name: e for e in screening.model.candidates if e.name in SIGNAL_PATH}
-    taken = [n for n in diagnosis.selected if n in by_name and n not in own_model]
+    by_selection = [n for n in diagnosis.selected if n in by_name and n not in own_model]
+    carried = [n for n in fit.with_library if n in by_name]  # fitted with the candidate (found through it)
+    taken = by_selection + carried
     trials = [_Trial(e, r) for e in by_name.values() if e.name not in own_model | set(taken) for r in (None, *taken)]
     if not trials:
         return None
-    reference = _reference(state, taken, by_name)
+    reference = _reference(state, by_selection, by_name)
     for trial in trials:
         _fit_trial(trial, state, reference, by_name)
     scores = {t.label: t.score for t in trials}
     counting = sorted((t for t in trials if t.counts), key=lambda t: -t.score)
     if not counting:
-        return BesideCandidate(None, scores=scores)
+        return _carried(fit, trials, scores, screening) if carried else BesideCandidate(None, scores=scores)
     best = counting[0]
     rival = next((t for t in counting[1:] if t.effect is not best.effect), None)
     tie = rival.effect.name if rival is not None and best.score - rival.score < TIE_NATS else None
@@ -197,6 +204,32 @@ def beside_candidate(
         unexplained(best.objective, np.asarray(res.vector), noise_scales),
         tie,
         change_pct(comp, res.vector, state.nominal, _base(state)),
+    )
+
+
+def _carried(fit, trials: list[_Trial], scores: dict[str, float], screening: Screening) -> BesideCandidate:
+    """The signal-path effect the candidate was fitted with (found through it), reported as selected beside it
+    when no trial beats it: with a tie stated when the other one in its place scores within
+    :data:`.scoring.TIE_NATS` of it, or the input is too smooth to tell them apart (the selection's rule)."""
+    state = fit.state
+    name = next(n for n in fit.with_library if n in SIGNAL_PATH)
+    swap = next((t for t in trials if t.replaces == name), None)
+    tie = None
+    if swap is not None:
+        _, fast = smooth_input_share(screening.exps, screening.model.comp, screening.model.nominal)
+        if swap.score > -TIE_NATS or fast < SMOOTH_INPUT_SHARE:
+            tie = swap.effect.name
+    comp, vec = state.composition, state.result.vector
+    effect = next(e for e in comp.effects if e.name == name)
+    return BesideCandidate(
+        name,
+        None,
+        scores,
+        {p.name: float(vec[comp.param_index(p.name)]) for p in effect.parameters},
+        {k: v for k, v in fit.values.items() if k not in {p.name for p in effect.parameters}},
+        fit.after,
+        tie,
+        dict(fit.base_fitted),
     )
 
 

@@ -14,7 +14,7 @@ compiled model new for every recording.  The answer is the residual against the 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +23,7 @@ import numpy as np
 from ..effects import Composition, Effect
 from ..identification.fitting import FitResult, Objective
 from .context import SelectionContext, base_at_bounds, converged_fit
+from .discovery import dead_zone_variant
 from .effect_file import write_effect_file
 from .effects import get_effect
 from .motor_terms import MotorVoltageTerms, UpperTorqueTerms, term_parameters
@@ -90,6 +91,9 @@ class CandidateFit:
         The library's signal-path effects fitted beside the candidate (:mod:`.beside`; None: not tried).
     base_fitted : dict of str to float
         The base parameters fitted with the candidate -> their change from nominal (%); empty: as diagnosed.
+    with_library : tuple of str
+        The library's effects fitted with it, ahead of it on the signal path (``motor_lag`` when its terms were
+        found through a lag); their parameters are among ``values``.
     """
 
     values: dict[str, float]
@@ -100,6 +104,7 @@ class CandidateFit:
     file_names: dict[str, str] = field(default_factory=dict)
     beside: Any = None
     base_fitted: dict[str, float] = field(default_factory=dict)
+    with_library: tuple[str, ...] = ()
 
     def file_name(self, parameter: str) -> str:
         """The name a fitted parameter has in the candidate's file (its own name when it has none there)."""
@@ -113,7 +118,7 @@ class CandidateFit:
 
     def to_json(self) -> dict:
         """``{values, base_held, ratio_before, ratio_after, variance_cut, verdict_after, channels_after, beside,
-        base_fitted_change_pct}``."""
+        base_fitted_change_pct, with_library_effects}``."""
         return {
             "values": self.values,
             "base_held": self.base_held,
@@ -124,6 +129,7 @@ class CandidateFit:
             "channels_after": self.after.channels,
             "beside": self.beside.to_json() if self.beside is not None else None,
             "base_fitted_change_pct": {k: round(v, 3) for k, v in self.base_fitted.items()},
+            "with_library_effects": list(self.with_library),
         }
 
     def line(self) -> str:
@@ -132,6 +138,8 @@ class CandidateFit:
         base = "base held at nominal" if self.base_held else "base as diagnosed"
         if self.base_fitted:
             base = f"base parameters fitted with it: {moved_text(self.base_fitted) or 'none moved'}"
+        if self.with_library:
+            base = f"with the library's {' and '.join(self.with_library)} ahead of it; {base}"
         return (
             f"  its fit on this recording ({base}): {vals}; residual {self.before.ratio_to_noise:.3g} -> "
             f"{self.after.ratio_to_noise:.3g} times the noise ({self.variance_cut:.0%} of the unexplained "
@@ -166,13 +174,18 @@ def fit_candidate(
     if effect is None:
         return None
     comp = diagnosis.composition
-    with_it = Composition((*comp.effects, effect))
+    ahead = _library_ahead(candidate)
+    present = {e.name for e in comp.effects}  # the search model holds them switched off
+    with_it = Composition((*comp.effects, *(e for n, e in ahead.items() if n not in present), effect))
     model = screening.model
     held = bool(diagnosis.at_bounds)
     base = diagnosis.nominal_vector if held and diagnosis.nominal_vector is not None else diagnosis.vector
     start = transfer(base, comp, with_it)
     for p in effect.parameters:
         start[with_it.param_index(p.name)] = start_values.get(p.name, p.neutral if p.neutral is not None else p.guess)
+    if ahead:  # the lag the terms were regressed through, fitted with them
+        start[with_it.param_index("tau_m")] = candidate.through_lag
+        start_values = {**start_values, "tau_m": candidate.through_lag}
     base_names = tuple(model.base_names) if diagnosis.base_off and not held else ()
     obj = model.obj.with_own_speeds()
     obj.model = obj.model.with_composition(with_it)
@@ -190,7 +203,13 @@ def fit_candidate(
     freeable = () if held else tuple(model.base_names)
     state = CandidateFitState(obj, with_it, fit, names, base_names, ctx.nominal, freeable)
     moved = change_pct(with_it, fit.vector, ctx.nominal, base_names)
-    return CandidateFit(values, held, before, after, state, file_names, base_fitted=moved)
+    return CandidateFit(values, held, before, after, state, file_names, base_fitted=moved, with_library=tuple(ahead))
+
+
+def _library_ahead(candidate: Candidate) -> dict[str, type[Effect]]:
+    """The library's effects fitted ahead of the candidate on the signal path: ``motor_lag`` when its terms were
+    regressed through a lag (:attr:`~.results.Candidate.through_lag`)."""
+    return {"motor_lag": get_effect("motor_lag")} if candidate.through_lag is not None else {}
 
 
 def change_pct(comp: Composition, vector, nominal: np.ndarray, names) -> dict[str, float]:
@@ -277,25 +296,64 @@ def choose_candidate(
     Candidate
         The candidate kept, with its fit.
     """
-    cand = diagnosis.candidate
+    written = cand = diagnosis.candidate
     alt, cand.alternative = cand.alternative, None
     if alt is None:
-        cand.fit = fit_candidate(screening, diagnosis, cand, noise_scales)
-        return cand
-    alt.fit = fit_candidate(screening, diagnosis, alt, noise_scales)
-    if alt.fit is not None and alt.fit.after.explained:
-        keep, other = alt, cand
+        keep, other = _fitted_form(screening, diagnosis, cand, noise_scales), None
     else:
-        cand.fit = fit_candidate(screening, diagnosis, cand, noise_scales)
-        cut = {id(c): c.fit.variance_cut if c.fit is not None else -1.0 for c in (alt, cand)}
-        keep, other = (alt, cand) if cut[id(alt)] > cut[id(cand)] else (cand, alt)
-    if keep is alt and candidate_out is not None:
-        write_effect_file(alt, candidate_out)
-        if alt.fit is not None:  # its values by the names its file gives them
-            alt.fit.values = {_file_name(alt, k): v for k, v in alt.fit.values.items()}
-            alt.fit.file_names = {k: _file_name(alt, k) for k in alt.fit.file_names}
+        alt = _fitted_form(screening, diagnosis, alt, noise_scales)
+        if alt.fit is not None and alt.fit.after.explained:
+            keep, other = alt, cand
+        else:
+            cand = _fitted_form(screening, diagnosis, cand, noise_scales)
+            cut = {id(c): c.fit.variance_cut if c.fit is not None else -1.0 for c in (alt, cand)}
+            keep, other = (alt, cand) if cut[id(alt)] > cut[id(cand)] else (cand, alt)
+    if keep is not written and candidate_out is not None:  # the file written holds the discovered candidate
+        write_effect_file(keep, candidate_out)
+        if keep.fit is not None:  # its values by the names its file gives them
+            keep.fit.values = {_file_name(keep, k): v for k, v in keep.fit.values.items()}
+            keep.fit.file_names = {k: _file_name(keep, k) for k in keep.fit.file_names}
     keep.alternative = other
     return keep
+
+
+def _fitted_form(
+    screening: Screening, diagnosis: Diagnosis, cand: Candidate, noise_scales: dict[str, float]
+) -> Candidate:
+    """The candidate fitted, or its dead-zone reading (:func:`.discovery.dead_zone_variant`) when that one's fit
+    removes more of the unexplained variance (the other is not kept)."""
+    cand.fit = fit_candidate(screening, diagnosis, cand, noise_scales)
+    cand = _lag_that_counts(screening, diagnosis, cand, noise_scales)
+    variant = dead_zone_variant(cand)
+    if variant is None or cand.fit is None or cand.fit.after.explained:
+        return cand
+    variant.fit = fit_candidate(screening, diagnosis, variant, noise_scales)
+    if variant.fit is not None and variant.fit.variance_cut > cand.fit.variance_cut:
+        return variant
+    return cand
+
+
+def _lag_that_counts(
+    screening: Screening, diagnosis: Diagnosis, cand: Candidate, noise_scales: dict[str, float]
+) -> Candidate:
+    """The candidate found through a lag (fitted with it), or the same terms fitted without the lag when the lag
+    does not count by the selection's rules against them (:func:`.scoring.score`, :func:`.scoring.significant`,
+    one parameter more; a base parameter at a bound with the lag does not count either)."""
+    if cand.through_lag is None or cand.fit is None or cand.fit.state is None:
+        return cand
+    plain = replace(cand, through_lag=None, fit=None)
+    plain.fit = fit_candidate(screening, diagnosis, plain, noise_scales)
+    if plain.fit is None or plain.fit.state is None:
+        return cand
+    with_lag, without = cand.fit.state, plain.fit.state
+    obj, r0 = with_lag.objective, without.result.residual
+    sc, _ = score(r0, with_lag.result, 1, channels=obj.channel_ids, blocks=obj.block_ids)
+    counts = significant(
+        sc, without.result.rss_after, with_lag.result.rss_after, len(r0), r0, with_lag.result.residual, obj.channel_ids
+    )
+    vec = np.asarray(with_lag.result.vector)
+    ctx = SelectionContext(obj, with_lag.composition, vec, with_lag.nominal, with_lag.base_names, {})
+    return cand if counts and not base_at_bounds(ctx, vec) else plain
 
 
 def _file_name(candidate: Candidate, parameter: str) -> str:

@@ -39,11 +39,15 @@ from pathlib import Path
 
 import numpy as np
 
+from ..effects import Composition
 from ..identification.experiment import Experiment
 from ..params import N_PARAMS, RigParams
 from .effect_file import write_effect_file
+from .effects import get_effect
+from .ranking import transfer
 from .results import Candidate
 from .sparse import ResidualTorque
+from .timing import LAG_DELAY
 
 __all__ = ["Candidate", "find_candidate", "write_effect_file", "advice", "discover", "MIN_EXPLAINED_SHARE"]
 
@@ -600,7 +604,6 @@ def discover(
     residual = diagnosis.rmse_after if diagnosis.rmse_after is not None else diagnosis.rmse_before
     if residual < MIN_RESIDUAL_UNITS:
         return None, []
-    u = ex.input_on_grid(1.0 / ex.fs, ex.n, ex.t[0])
     vectors = [diagnosis.vector]
     if (diagnosis.base_parameters or diagnosis.base_off) and diagnosis.nominal_vector is not None:
         # the base refit may have absorbed part of an effect outside the library: look at the nominal base too
@@ -609,12 +612,13 @@ def discover(
     for vec in vectors:
         rt_v = residual_torques(ex, vec, effects=diagnosis.composition)
         p = RigParams.from_vector(vec[:N_PARAMS])  # the inertias and brake law of the model that left it
-        c = find_candidate(rt_v, u, p.Ju, p.Jl, ex.config.lateral_free, p.ws, p.delta, p.km)
+        # the voltage terms are functions of the voltage the model's motor sees (after its delay and lag)
+        c = find_candidate(rt_v, rt_v.u_motor, p.Ju, p.Jl, ex.config.lateral_free, p.ws, p.delta, p.km)
         if c is not None and (cand is None or c.explained > cand.explained):
             cand, rt = c, rt_v
         rt = rt if rt is not None else rt_v
     if diagnosis.unexplained is not None and not diagnosis.unexplained.explained:
-        cand = _with_motor_side(cand, ex, diagnosis, u)
+        cand = _with_motor_side(cand, ex, diagnosis)
     if cand is None or cand.explained < MIN_EXPLAINED_SHARE or residual < MIN_RESIDUAL_UNITS:
         if residual < MIN_RESIDUAL_UNITS:
             return None, []
@@ -624,19 +628,106 @@ def discover(
     return cand, []
 
 
-def _with_motor_side(cand: Candidate | None, ex: Experiment, diagnosis, u: np.ndarray) -> Candidate | None:
+def _with_motor_side(cand: Candidate | None, ex: Experiment, diagnosis) -> Candidate | None:
     """The candidate, with the motor side's best regressed without the base parameters' columns beside it (its
-    :attr:`~.results.Candidate.alternative`; the candidates' own fits decide), or that one when there is none."""
-    from .sparse import residual_torques
-
-    vec = diagnosis.vector
-    p = RigParams.from_vector(vec[:N_PARAMS])
-    rt = residual_torques(ex, vec, effects=diagnosis.composition)
-    motor = find_candidate(rt, u, p.Ju, p.Jl, ex.config.lateral_free, p.ws, p.delta, p.km, False, MOTOR_GROUPS)
+    :attr:`~.results.Candidate.alternative`, in place of the joint regression's motor-side one when it was found
+    through a lag or explains more; the candidates' own fits decide), or that one when there is none."""
+    motor = _motor_side_candidate(ex, diagnosis)
     if motor is None or motor.explained < MIN_EXPLAINED_SHARE:
         return cand
     if cand is None or cand.explained < MIN_EXPLAINED_SHARE:
         return motor
-    if cand.alternative is None and motor.terms != cand.terms:
+    if motor.terms == cand.terms and motor.through_lag is None:
+        return cand
+    alt = cand.alternative
+    if alt is None or motor.through_lag is not None or motor.explained > alt.explained:
         cand.alternative = motor
     return cand
+
+
+#: first-order lags (s) the motor side's terms are also regressed through when the model has no lag or delay
+LAGS_TRIED = (0.005, 0.01, 0.02, 0.04, 0.08, 0.16)
+
+
+def _motor_side_candidate(ex: Experiment, diagnosis) -> Candidate | None:
+    """The motor side's best candidate on the diagnosed model's residual torques and, when that model has neither
+    a motor lag nor an input delay, on those of the model with a lag of each of :data:`LAGS_TRIED` ahead of the
+    terms (the candidate's :attr:`~.results.Candidate.through_lag`): a voltage transformation seen through an
+    unselected lag is not a function of the commanded voltage (a dead zone after a 20 ms lag on steps looks like
+    upper-disc friction there).  The lag is kept when its candidate leaves less than :data:`LAG_KEPT_SHARE` of the
+    residual power the one without leaves."""
+    from .sparse import residual_torques
+
+    comp, vec = diagnosis.composition or Composition(()), diagnosis.vector
+    p = RigParams.from_vector(vec[:N_PARAMS])
+    models = [(None, comp, vec)]
+    if not set(diagnosis.selected) & set(LAG_DELAY):
+        # the search model holds the lag switched off (at its neutral values); a selection's model gets it added
+        with_lag = (
+            comp
+            if "motor_lag" in {e.name for e in comp.effects}
+            else Composition((*comp.effects, get_effect("motor_lag")))
+        )
+        for tau in LAGS_TRIED:
+            v = transfer(vec, comp, with_lag)
+            v[with_lag.param_index("tau_m")] = tau
+            models.append((tau, with_lag, v))
+    best, best_left = None, math.inf
+    for tau, c, v in models:
+        rt = residual_torques(ex, v, effects=c)
+        motor = find_candidate(
+            rt, rt.u_motor, p.Ju, p.Jl, ex.config.lateral_free, p.ws, p.delta, p.km, False, MOTOR_GROUPS
+        )
+        if motor is None:
+            continue
+        left = (1.0 - motor.explained) * _upper_power(rt)
+        if tau is not None and best is not None and best.through_lag is None and left > LAG_KEPT_SHARE * best_left:
+            continue
+        if left < best_left:
+            motor.through_lag = tau
+            best, best_left = motor, left
+    return best
+
+
+#: a lag ahead of the motor side's terms is kept when its candidate leaves less than this share of the residual
+#: power the candidate without a lag leaves (a lag is another parameter: it must explain clearly more)
+LAG_KEPT_SHARE = 0.5
+
+
+def _upper_power(rt) -> float:
+    """The residual torque's mean square on the upper disc where it is known (N² m²)."""
+    tau = rt.tau_u[rt.upper_valid]
+    return float(np.mean(tau**2)) if tau.size else math.inf
+
+
+def dead_zone_variant(cand: Candidate) -> Candidate | None:
+    """The motor-side candidate with its negative offset read as a dead zone, or None when it has none.
+
+    A constant ``c < 0`` (or ``c sign(u)``) among a candidate's voltage terms and a dead zone of half-width
+    ``|c|`` (``−sat(u, |c|)``) change the voltage alike wherever ``|u| > |c|``; inside the zone the motor sees no
+    voltage and the upper disc mostly sticks, where the residual torques are not known, so the regression cannot
+    tell them apart.  The candidate's fit on the recordings can (:func:`.candidate_fit.choose_candidate`)."""
+    if cand.group != "motor_voltage":
+        return None
+    label = next((k for k in ("1", "sign(u)") if cand.terms.get(k, 0.0) < 0.0), None)
+    if label is None or any(k.startswith("sat(u") for k in cand.terms):
+        return None
+    width = abs(cand.terms[label])
+    sat = next(t for t in _voltage_terms() if t.width is not None)
+    zone = f"sat(u, {width:.3g})"
+    terms = {zone if k == label else k: (-1.0 if k == label else v) for k, v in cand.terms.items()}
+    codes = {zone if k == label else k: (sat.code if k == label else v) for k, v in cand.codes.items()}
+    at_rest = {zone if k == label else k: (0.0 if k == label else v) for k, v in cand.at_rest.items()}
+    return Candidate(
+        cand.group,
+        terms,
+        codes,
+        at_rest,
+        cand.explained,
+        cand.n_samples,
+        cand.name,
+        rest=cand.rest,
+        reach={zone if k == label else k: v for k, v in cand.reach.items()},
+        widths={**cand.widths, zone: width},
+        through_lag=cand.through_lag,
+    )

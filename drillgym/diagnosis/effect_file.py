@@ -67,7 +67,7 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
         f"    {cand.expression()}",
         f"    (explains {cand.explained:.0%} of the residual torque; {cand.n_samples} samples)",
         "",
-        f"Fit it: drillgym identify RECORDING --add-effect {path.name}:{name} --out p.json",
+        *_fit_it(cand, path.name, name),
         '"""',
         "",
         "import math",
@@ -120,3 +120,14 @@ def _uses(cand: Candidate, var: str) -> bool:
     import re
 
     return any(re.search(rf"\b{var}\b", cand.codes[lb]) for lb in cand.terms)
+
+
+def _fit_it(cand: Candidate, file_name: str, name: str) -> list[str]:
+    """The docstring's lines on how to fit the candidate (with the lag its terms were found through, if any)."""
+    if cand.through_lag is None:
+        return [f"Fit it: drillgym identify RECORDING --add-effect {file_name}:{name} --out p.json"]
+    return [
+        f"Its terms act on the voltage after a motor lag (about {cand.through_lag * 1e3:.0f} ms found): fit both,",
+        "the lag first on the signal path:",
+        f"drillgym identify RECORDING --add-effect motor_lag --add-effect {file_name}:{name} --out p.json",
+    ]

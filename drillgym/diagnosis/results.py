@@ -283,6 +283,10 @@ class Candidate:
         The candidate's own fit on the diagnosis' recordings (:class:`.candidate_fit.CandidateFit`), or None.
     alternative : Candidate or None
         The motor side's best candidate when this one acts elsewhere (its fit decides which is reported).
+    through_lag : float or None
+        A motor-side candidate regressed on the voltage after a first-order lag of this time constant (s): the
+        residual is explained best with the library's ``motor_lag`` ahead of the terms, and the candidate's fit
+        fits that lag with them.  None: on the model's own voltage at the motor.
     """
 
     group: str
@@ -298,6 +302,7 @@ class Candidate:
     widths: dict[str, float] = field(default_factory=dict)
     fit: Any = None
     alternative: Any = None
+    through_lag: float | None = None
 
     @property
     def dof(self) -> int:
@@ -320,6 +325,7 @@ class Candidate:
             "group": self.group,
             "terms": self.terms,
             "widths": self.widths,
+            "through_lag_s": self.through_lag,
             "fit": self.fit.to_json() if self.fit is not None else None,
             "alternative": None
             if self.alternative is None

@@ -27,6 +27,7 @@ import numpy as np
 
 from ..configurations import N_STATE
 from ..dynamics import mass_matrix
+from ..effects import Input
 from ..identification.experiment import Experiment, estimate_rate
 from ..identification.fitting import base_vector
 from ..identification.segmented import as_composition
@@ -43,7 +44,8 @@ class ResidualTorque:
 
     ``tau_u``, ``tau_l``: on the upper / lower disc (N m); ``states`` (n, N_STATE) the data's
     states; ``t`` times (s); ``slip`` samples where the lower (or, in 'upper', the upper) disc slips;
-    ``slip_upper`` samples where the upper disc slips (None: as ``slip``).  Each disc's torque balance holds
+    ``slip_upper`` samples where the upper disc slips (None: as ``slip``); ``u_motor`` the model's voltage at the
+    motor (V; after its Delay and Input effects).  Each disc's torque balance holds
     while that disc slips, whatever the other one does: the upper disc's is known while the lower disc is
     stuck (its string torque kθ α is measured).
     """
@@ -54,6 +56,7 @@ class ResidualTorque:
     states: np.ndarray
     slip: np.ndarray
     slip_upper: np.ndarray | None = None
+    u_motor: np.ndarray | None = None
 
     @property
     def upper_valid(self) -> np.ndarray:
@@ -78,8 +81,10 @@ def residual_torques(
 
     The model: ``params`` (RigParams or a vector in the composition's layout) with ``effects``
     (a Composition or effect specs; default the base model) and their ``effect_params``.
-    Effect states are taken at rest (a motor lag's ``u_m`` equal to the input).
-    Samples within 0.1 s (the second-derivative window) of a stick phase are left out.
+    The command reaches the motor as in the simulator: delayed by the Delay effects, then through the Input
+    effects in their order, whose states (a motor lag's ``u_m``) are integrated along the recording
+    (:func:`motor_voltage_along`).  Samples within 0.1 s (the second-derivative window) of a stick phase are
+    left out.
 
     Parameters
     ----------
@@ -106,9 +111,7 @@ def residual_torques(
     n = ex.n
     Y = np.zeros((n, comp.n_state))
     Y[:, :N_STATE] = ex.initial_states(np.arange(n), np.repeat(p[None, :], n, axis=0), comp)
-    u = ex.input_on_grid(1.0 / ex.fs, n, ex.t[0])
-    if "u_m" in comp.state_names:
-        Y[:, N_STATE + comp.state_index("u_m")] = u
+    u_motor = motor_voltage_along(ex, comp, p, Y)
     acc = np.zeros((n, 4))
     acc[:, 0] = estimate_rate(ex.meas["theta_u"], ex.fs, window_s=0.1, deriv=2)
     if "theta_l" in ex.meas:
@@ -138,7 +141,7 @@ def residual_torques(
         mode[1] = 1 if y[3] > 0 else (-1 if y[3] < 0 else 0)
         if mode[0] == 0:  # stuck upper disc: its torque balance is unknown (set-valued)
             mode[0] = 1
-        state_derivative(ex.t[i] - ex.t[0], y, mode, u[i], p, cfg, 0.0, dy, fric)
+        state_derivative(ex.t[i] - ex.t[0], y, mode, u_motor.command[i], p, cfg, 0.0, dy, fric)
         da = acc[i] - np.array([dy[2], dy[3], dy[6], dy[7]])
         if ex.config.lateral_free:
             mass_matrix(y, p, M)
@@ -148,7 +151,69 @@ def residual_torques(
             tau[i, 1] = inertia.Jl * da[1]
     tau[~slip, 1:] = np.nan  # the lower disc's balance (and the lateral forces, through it) only while it slips
     tau[~slip_upper, 0] = np.nan
-    return ResidualTorque(ex.t - ex.t[0], tau[:, 0], tau[:, 1], Y, slip, slip_upper)
+    return ResidualTorque(ex.t - ex.t[0], tau[:, 0], tau[:, 1], Y, slip, slip_upper, u_motor.at_motor)
+
+
+@dataclass
+class MotorVoltage:
+    """The voltage along a recording: ``command`` the command as it leaves the Delay effects (V), ``at_motor``
+    the voltage the motor sees after the Input effects (V)."""
+
+    command: np.ndarray
+    at_motor: np.ndarray
+
+
+def motor_voltage_along(ex: Experiment, comp: Any, p: np.ndarray, Y: np.ndarray) -> MotorVoltage:
+    """The command's path to the motor along a recording, as the simulator takes it, with the discs' states
+    the data's.
+
+    The recorded input is delayed by the composition's Delay effects (the first value held before the start);
+    the effects' states (columns ``N_STATE:`` of ``Y``, filled in place) start as the simulator starts them (a
+    lag state at the steady state of the first command, the others at 0) and are advanced sample by sample: a
+    declared lag (``Input.lag``) exactly, any other state by its derivative (explicit Euler over the sample
+    period).
+
+    Parameters
+    ----------
+    ex : Experiment
+        The recording.
+    comp : Composition
+        The model's composition.
+    p : numpy.ndarray
+        The model's parameter vector in the composition's layout.
+    Y : numpy.ndarray
+        (n, comp.n_state) states: the discs' from the data; the effects' are written here.
+
+    Returns
+    -------
+    MotorVoltage
+        The delayed command and the voltage at the motor at every sample (V).
+    """
+    n, dt = ex.n, 1.0 / ex.fs
+    hooks = comp.kernels.hooks
+    delay = float(hooks.hk_delay(p)) if comp.has_delay else 0.0
+    command = ex.input_on_grid(dt, n, ex.t[0] - delay)
+    at_motor = command.copy()
+    if comp.n_state == N_STATE and not comp.has_kind(Input):
+        return MotorVoltage(command, at_motor)
+    cfg = int(ex.config)
+    dy = np.zeros(comp.n_state)
+    y_next = np.zeros(comp.n_state)
+    Y[0, N_STATE:] = 0.0
+    lags = list(comp.lag_state_columns)
+    for _ in lags:  # each lag at the voltage entering it (one pass per lag of a chain): advanced for "ever"
+        y_next[:] = Y[0]
+        hooks.hk_lag(0.0, command[0], Y[0], p, cfg, 1e12, y_next)
+        Y[0, lags] = y_next[lags]
+    for i in range(n):
+        t = ex.t[i] - ex.t[0]
+        dy[:] = 0.0
+        at_motor[i] = hooks.hk_rhs(t, command[i], Y[i], p, cfg, dy)[0]
+        if i + 1 < n:
+            y_next[:] = Y[i] + dt * dy
+            hooks.hk_lag(t, command[i], Y[i], p, cfg, dt, y_next)
+            Y[i + 1, N_STATE:] = y_next[N_STATE:]
+    return MotorVoltage(command, at_motor)
 
 
 def candidate_library(rt: ResidualTorque) -> tuple[np.ndarray, list[str]]:

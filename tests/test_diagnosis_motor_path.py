@@ -1,0 +1,112 @@
+"""The command's path to the motor in the residual torques, and motor-side candidates read through it."""
+
+import numpy as np
+import pytest
+
+from drillgym import RigParams
+from drillgym.diagnosis.discovery import Candidate, dead_zone_variant
+from drillgym.diagnosis.sparse import motor_voltage_along, residual_torques
+from drillgym.effects import compose
+from drillgym.identification.experiment import prepare_experiment
+from drillgym.identification.synthetic import synthetic_measurement
+
+TAU, DELAY = 0.03, 0.02
+
+
+def _steps(effects, **values):
+    """15 s of voltage steps at 250 Hz from the simulator, with ``effects`` at ``values``."""
+    ts = synthetic_measurement(
+        "torsional",
+        None,
+        duration=15.0,
+        rate_hz=250.0,
+        signal="steps",
+        offset=1.5,
+        seed=3,
+        effects=effects,
+        effect_params=values or None,
+    )
+    return prepare_experiment(ts, compare_rate_hz=250.0)
+
+
+def test_the_voltage_at_the_motor_is_the_command_delayed_then_lagged():
+    """A lag of 30 ms after a delay of 20 ms: the voltage along the recording is the first-order filter of the
+    command shifted by the delay (the first value held before the start), exactly at every sample."""
+    ex = _steps(["input_delay", "motor_lag"], delay=DELAY, tau_m=TAU)
+    comp, vals = compose(["input_delay", "motor_lag"], {"delay": DELAY, "tau_m": TAU})
+    p = comp.vector(RigParams(), vals)
+    Y = np.zeros((ex.n, comp.n_state))
+    v = motor_voltage_along(ex, comp, p, Y)
+    dt = 1.0 / ex.fs
+    shifted = ex.input_on_grid(dt, ex.n, ex.t[0] - DELAY)
+    assert np.allclose(v.command, shifted)
+    assert not np.allclose(shifted, ex.input_on_grid(dt, ex.n, ex.t[0]))  # the delay moved the steps
+    expected = np.empty(ex.n)
+    expected[0] = shifted[0]
+    decay = np.exp(-dt / TAU)
+    for i in range(1, ex.n):
+        expected[i] = shifted[i - 1] + (expected[i - 1] - shifted[i - 1]) * decay
+    assert np.allclose(v.at_motor, expected, atol=1e-9)
+
+
+def test_residual_torques_are_smaller_with_the_lag_the_recording_has():
+    """On steps with a 30 ms motor lag, the residual torque on the upper disc of the model with that lag is far
+    below the one of the base model (whose motor sees the command at once)."""
+    ex = _steps(["motor_lag"], tau_m=TAU)
+    comp, vals = compose(["motor_lag"], {"tau_m": TAU})
+    with_lag = residual_torques(ex, comp.vector(RigParams(), vals), effects=comp)
+    base = residual_torques(ex)
+
+    def power(rt):
+        return float(np.nanmean(rt.tau_u[rt.upper_valid] ** 2))
+
+    assert power(with_lag) < 0.5 * power(base), (power(with_lag), power(base))
+    assert with_lag.u_motor is not None and not np.allclose(with_lag.u_motor, base.u_motor)
+
+
+def _candidate(terms):
+    return Candidate("motor_voltage", dict(terms), {k: "1.0" for k in terms}, dict.fromkeys(terms, 0.0), 0.9, 100)
+
+
+def test_a_negative_offset_is_also_read_as_a_dead_zone():
+    """A constant −0.4 V among the voltage terms (what a dead zone of 0.4 V is on one-signed voltages) gets a
+    variant with −sat(u, 0.4) in its place, the other terms kept; a positive offset or a candidate with a dead
+    zone already has none."""
+    variant = dead_zone_variant(_candidate({"1": -0.4, "u|u|": 0.01}))
+    assert variant is not None
+    assert variant.terms == {"sat(u, 0.4)": -1.0, "u|u|": 0.01}
+    assert variant.widths == {"sat(u, 0.4)": pytest.approx(0.4)}
+    assert "min(max(u, -U0), U0)" == variant.codes["sat(u, 0.4)"]
+    assert dead_zone_variant(_candidate({"1": 0.2})) is None
+    assert dead_zone_variant(_candidate({"sat(u, 0.3)": -1.0, "1": -0.1})) is None
+
+
+def test_a_dead_zone_behind_an_unselected_lag_is_found_through_the_lag():
+    """Ramps through a 30 ms lag then a 0.4 V dead zone (drillgym's simulator, the user's dead-zone file), the
+    base model diagnosed (no lag selected): the motor side's candidate is regressed through a lag of the grid
+    next to 30 ms (it leaves less than half the residual the same search without a lag leaves)."""
+    from types import SimpleNamespace
+
+    from drillgym.diagnosis import discovery
+
+    dead_zone = "examples/effects/motor_dead_zone.py:dead_zone"
+    rng = np.random.default_rng(4)
+    knots = np.cumsum(rng.uniform(3.0, 8.0, 6))
+    t = np.arange(0.0, 20.0, 1e-3)
+    u = np.interp(t, np.r_[0.0, knots], np.r_[1.0, 1.0 + 1.6 * rng.uniform(-1.0, 1.0, knots.size)])
+    ts = synthetic_measurement(
+        "torsional",
+        None,
+        duration=20.0,
+        rate_hz=250.0,
+        input=(t, u),
+        seed=4,
+        effects=["motor_lag", dead_zone],
+        effect_params={"tau_m": TAU, "u0": 0.4},
+    )
+    ex = prepare_experiment(ts, compare_rate_hz=250.0)
+    base = SimpleNamespace(composition=None, vector=RigParams().to_vector(), selected=[])
+    cand = discovery._motor_side_candidate(ex, base)
+    # on one-signed voltages the dead zone is a constant: km × (−0.4 V) at the motor, or that torque on the disc
+    assert cand is not None and cand.group in ("motor_voltage", "upper_force"), cand
+    assert cand.through_lag in (0.02, 0.04), cand.through_lag  # the grid's neighbours of 30 ms
