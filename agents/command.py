@@ -11,8 +11,8 @@ speed command (rad/s) the policy is asked to follow, not a voltage::
                  = target                                      later
     (targets at or above ``approach``: omega_cmd = target throughout)
 
-passed through three first-order lags of time constant ``lag`` (a gentle start from rest; the command
-is 0 at the start).  :class:`SpeedCommand` replaces the target entry of the 'motor' observation by it,
+passed through ``order`` first-order lags (three by default) of time constant ``lag`` (a gentle start from
+rest; the command is 0 at the start).  :class:`SpeedCommand` replaces the target entry of the 'motor' observation by it,
 and the motor-angle tracking integral (:mod:`agents.integral`) follows it.  It is a function of the
 clock and the target only (numpy, no model): :class:`agents.envs.MotorIntegralVecEnv` computes it in
 training and :class:`agents.controller.AgentController` on the rig, with the same class.  The voltage is
@@ -45,15 +45,20 @@ class CommandSchedule:
     ramp : float, optional
         Duration (s) of the linear ramp from the approach speed down to the target.
     lag : float, optional
-        Time constant (s) of each of the three lags the schedule passes through (0: none).
+        Time constant (s) of each of the lags the schedule passes through (0: none).
+    order : int, optional
+        Number of those lags, 1 to 3 (one: the reference of ``lqg-2enc``, :mod:`controllers.two_encoder`).
     """
 
     approach: float = 8.5
     hold: float = 8.0
     ramp: float = 20.0
     lag: float = 1.0
+    order: int = 3
 
     def __post_init__(self) -> None:
+        if isinstance(self.order, bool) or not isinstance(self.order, int) or self.order not in (1, 2, 3):
+            raise InputError(f"command schedule: order must be 1, 2 or 3 lags, got {self.order!r}")
         for name in ("approach", "hold", "ramp", "lag"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v >= 0):
@@ -63,15 +68,16 @@ class CommandSchedule:
 
     @classmethod
     def from_config(cls, spec: dict[str, Any] | None) -> CommandSchedule | None:
-        """The schedule of a hyperparameter entry (``command_schedule: {approach, hold, ramp, lag}``); None: none."""
+        """The schedule of a hyperparameter entry (``command_schedule: {approach, hold, ramp, lag, order}``);
+        None: none."""
         if spec is None:
             return None
         if not isinstance(spec, dict):
-            raise InputError(f"command schedule: expected a mapping {{approach, hold, ramp, lag}}, got {spec!r}")
-        unknown = sorted(set(spec) - {"approach", "hold", "ramp", "lag"})
+            raise InputError(f"command schedule: expected a mapping {{approach, hold, ramp, lag, order}}, got {spec!r}")
+        unknown = sorted(set(spec) - {"approach", "hold", "ramp", "lag", "order"})
         if unknown:
-            raise InputError(f"command schedule: unknown keys {unknown}; expected approach, hold, ramp, lag")
-        return cls(**{k: float(v) for k, v in spec.items()})
+            raise InputError(f"command schedule: unknown keys {unknown}; expected approach, hold, ramp, lag, order")
+        return cls(**{k: (v if k == "order" else float(v)) for k, v in spec.items()})
 
     def __call__(self, t: float | np.ndarray, target: float | np.ndarray) -> np.ndarray:
         """Commanded speed (rad/s) at time ``t`` (s since the start) towards ``target`` (rad/s)."""
@@ -90,7 +96,7 @@ def schedule_of(spec: dict[str, Any] | None, motor_integral: bool) -> CommandSch
 
 
 class SpeedCommand:
-    """The commanded speed of ``n`` rigs over time: the schedule through its three lags.
+    """The commanded speed of ``n`` rigs over time: the schedule through its lags.
 
     ``value`` (rad/s, (n,)) is the command at the current time; :meth:`advance` moves every rig one
     control period on; :meth:`reset` starts rigs from rest (time 0, command 0).
@@ -115,7 +121,7 @@ class SpeedCommand:
     @property
     def value(self) -> np.ndarray:
         """Commanded speed now (rad/s)."""
-        return self.y[2].copy()
+        return self.y[self.schedule.order - 1].copy()
 
     def reset(self, index: np.ndarray | slice = slice(None)) -> None:
         """Rigs ``index`` start from rest: time 0, command 0."""
@@ -131,6 +137,6 @@ class SpeedCommand:
         else:  # exact discretisation of each lag for a constant input over the period
             a = 1.0 - np.exp(-self.dt / tau)
             self.y[0] += a * (w - self.y[0])
-            self.y[1] += a * (self.y[0] - self.y[1])
-            self.y[2] += a * (self.y[1] - self.y[2])
+            for k in range(1, self.schedule.order):
+                self.y[k] += a * (self.y[k - 1] - self.y[k])
         self.t += self.dt

@@ -28,7 +28,7 @@ from drillgym.errors import InputError
 
 from .command import SpeedCommand, schedule_of
 from .export import ExportedPolicy
-from .integral import advance
+from .integral import advance, wrapped_speed
 from .observer_residual import ObserverResidual
 from .residual import ResidualVoltage
 from .switched import TargetSwitchedPolicy
@@ -89,8 +89,6 @@ class AgentController(Controller):
         )
         self.frame_stack = int(hp.get("frame_stack", 1))
         self.integral = bool(hp.get("motor_integral", False))  # the motor-angle tracking integral (agents.integral)
-        if self.integral and self.mode != "motor":
-            raise InputError("the motor-angle integral needs the 'motor' observation")
         self.schedule = schedule_of(hp.get("command_schedule"), self.integral)  # the speed command (agents.command)
         scale = hp.get("residual")
         self.base = None
@@ -131,6 +129,7 @@ class AgentController(Controller):
             self.obs[:, -1] = self.command.value
         self.stack = np.zeros((n, dim), dtype=np.float32)
         self.z = np.zeros(n)
+        self.prev = self.obs[:, 0].astype(float)  # the wrapped motor angle a period ago ('sensors')
         self._push()
         self._first = True
         self._t = np.zeros(n)  # time since reset (s), counted in control periods as in training
@@ -143,9 +142,6 @@ class AgentController(Controller):
     def _observe(self, m: dict[str, np.ndarray]) -> None:
         if self.mode == "motor":
             self.model.from_readings(m["theta_u"], self.u_prev, self.omega_ref, self.obs)
-            if self.command is not None:  # as agents.envs.MotorIntegralVecEnv: the command at this time
-                self.command.advance(np.broadcast_to(self.omega_ref, (self.n,)))
-                self.obs[:, -1] = self.command.value
         else:
             lat = self.config.lateral_free
             self.model.from_readings(
@@ -157,6 +153,9 @@ class AgentController(Controller):
                 self.omega_ref,
                 self.obs,
             )
+        if self.command is not None:  # as agents.envs.MotorIntegralVecEnv: the command at this time
+            self.command.advance(np.broadcast_to(self.omega_ref, (self.n,)))
+            self.obs[:, -1] = self.command.value
         self._push()
 
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
@@ -170,7 +169,9 @@ class AgentController(Controller):
             self._observe(m)
             self._t = self._t + self.dt
             if self.integral:
-                self.z = advance(self.z, self.obs, self.dt)
+                speed = None if self.mode == "motor" else wrapped_speed(self.obs[:, 0], self.prev, self.dt)
+                self.z = advance(self.z, self.obs, self.dt, speed=speed)
+                self.prev = self.obs[:, 0].astype(float)
         self._first = False
         x = np.hstack([self.stack, self.z[:, None].astype(np.float32)]) if self.integral else self.stack
         a = self.policy.act(x)[:, 0]

@@ -3,8 +3,13 @@ taught to a network that sees only what the rig's motor side gives (the student:
 observation, e.g. 'motor').
 
 Teachers: an exported ``policy.npz`` trained on the 'full' observation (e.g. PPO, ``ppo_teacher.yml``),
-or ``'flatness'``: the hand-made full-state law of :class:`agents.teachers.FlatnessTeacher` (stateful:
-it is reset per rig when that rig's episode ends).
+``'flatness'``: the hand-made full-state law of :class:`agents.teachers.FlatnessTeacher` (stateful:
+it is reset per rig when that rig's episode ends), or ``'lqg-2enc'``: the classical two-encoder LQG
+(:class:`controllers.two_encoder.TwoEncoderLQG`) run *in shadow* (:class:`agents.teachers.ShadowTeacher`): it
+reads the encoder angles the student's observation carries, its Kalman filter predicts with the voltage
+actually executed (the student's, when the student drives), and its voltage is the label; a student with
+the same measurements and enough memory (``frame_stack``, the motor-angle integral and the command
+schedule of its reference) can reproduce it.
 
 Training only: the student is the SB3 model's actor, so it is exported and deployed as any other
 policy (no teacher, no controller inside).  DAgger (Ross et al. 2011): the student drives the rigs
@@ -19,7 +24,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -28,7 +33,21 @@ from drillgym.errors import InputError
 from .command import schedule_of
 from .envs import episode_batch
 
-__all__ = ["distill"]
+__all__ = ["distill", "Teacher"]
+
+
+class Teacher(NamedTuple):
+    """A teacher on a batch of rigs, as the DAgger loop drives it.
+
+    ``actions(obs)``: the labels (normalised voltages in [-1, 1], (n,)) for the student's observations
+    ``obs`` (n, obs_dim) of the rigs now; ``reset(index, obs)``: the rigs ``index`` start a new episode, ``obs``
+    the observations of the batch after their reset; ``applied(a)``: the normalised actions (n,) the rigs
+    execute over the period just begun (after ``actions``).
+    """
+
+    actions: Callable[[np.ndarray], np.ndarray]
+    reset: Callable[[np.ndarray, np.ndarray], None]
+    applied: Callable[[np.ndarray], None]
 
 
 def distill(
@@ -54,6 +73,8 @@ def distill(
     motor_integral: bool = False,
     command: dict[str, float] | None = None,
     lr_final: float | None = None,
+    frame_stack: int = 1,
+    whiten: float = 0.0,
     log=None,
     on_round: Callable[[int, float], None] | None = None,
 ) -> dict[str, float]:
@@ -71,8 +92,8 @@ def distill(
     env_kwargs : dict
         Options of the environment (:class:`drillgym.envs.EnvOptions`).
     teacher : str or path
-        ``"flatness"`` (:mod:`agents.teachers`; options in ``teacher_kwargs``) or the path of an exported
-        full-state policy.
+        ``"flatness"`` or ``"lqg-2enc"`` (:mod:`agents.teachers`; options in ``teacher_kwargs``) or the path of
+        an exported full-state policy.
     n_envs : int, optional
         Rigs stepped together.  Default 64.
     iterations : int, optional
@@ -96,7 +117,7 @@ def distill(
     nominal_below : float, optional
         Every episode whose target is below this speed (rad/s) runs the nominal rig.
     teacher_kwargs : dict, optional
-        Options of the ``"flatness"`` teacher.
+        Options of the ``"flatness"`` teacher, or keywords of the ``"lqg-2enc"`` controller.
     beta : float, optional
         In round i > 0 a fraction ``beta**i`` of the rigs is still driven by the teacher (DAgger's mixing;
         0: the student drives every rig after the first round).
@@ -112,6 +133,15 @@ def distill(
     lr_final : float, optional
         The learning rate falls geometrically from ``lr`` in the first round to this in the last
         (:func:`round_learning_rate`); None: constant.
+    frame_stack : int, optional
+        The model's observation holds the last ``frame_stack`` observations (with ``motor_integral``: stacked
+        by :class:`agents.envs.MotorIntegralVecEnv`, the integral once at the end; else SB3's
+        ``VecFrameStack``), as :func:`agents.envs.make_training_env` builds it.
+    whiten : float, optional
+        > 0: the regression preconditions the student's inputs (:class:`_Whitening`, from the first round's
+        states; the covariance's eigenvalues floored at ``whiten`` times the largest), folded into the first
+        layer's weights whenever the model is handed out (``on_round``, the end): the deployed network stays a
+        plain MLP on the raw observation.  0: none.
     log : callable, optional
         ``log(message: str)``: one line per round.
     on_round : callable, optional
@@ -149,28 +179,43 @@ def distill(
     if motor_integral:
         from .envs import MotorIntegralVecEnv
 
-        venv = integral = MotorIntegralVecEnv(venv, float(venv.venv.options.control_dt), command=schedule)
+        venv = integral = MotorIntegralVecEnv(
+            venv, float(venv.venv.options.control_dt), command=schedule, frames=frame_stack
+        )
+    elif frame_stack > 1:
+        from stable_baselines3.common.vec_env import VecFrameStack
+
+        venv = VecFrameStack(venv, frame_stack)
     if privileged:
         from .privileged import PrivilegedObsVecEnv
 
         venv = PrivilegedObsVecEnv(venv)
     venv.seed(seed)
     batch = episode_batch(venv)
-    teacher_actions, teacher_reset = _teacher(teacher, n_envs, batch, teacher_kwargs or {}, integral)
+    teach = _teacher(teacher, n_envs, batch, teacher_kwargs or {}, integral, frame_stack)
 
     policy = model.policy
     params = list(policy.mlp_extractor.policy_net.parameters()) + list(policy.action_net.parameters())
     opt = th.optim.Adam(params, lr=lr)
+    if not (np.isfinite(whiten) and 0.0 <= whiten < 1.0):
+        raise InputError(f"whiten must be an eigenvalue floor in [0, 1) (0: none), got {whiten!r}")
+    if whiten > 0 and privileged:
+        raise InputError("whiten preconditions the actor's whole observation: not with the privileged critic")
+    white: _Whitening | None = None
+
+    def actor(x: th.Tensor) -> th.Tensor:
+        feats = policy.pi_features_extractor(x)
+        if white is not None:
+            feats = white(feats)
+        return policy.action_net(policy.mlp_extractor.forward_actor(feats))[:, 0]
 
     def mean_action(obs: np.ndarray) -> th.Tensor:
-        x = th.as_tensor(obs, dtype=th.float32)
-        feats = policy.pi_features_extractor(x)
-        return policy.action_net(policy.mlp_extractor.forward_actor(feats))[:, 0]
+        return actor(th.as_tensor(obs, dtype=th.float32))
 
     X: list[np.ndarray] = []
     Y: list[np.ndarray] = []
     obs = venv.reset()
-    teacher_reset(np.arange(n_envs))
+    teach.reset(np.arange(n_envs), obs)
     rng = np.random.default_rng(seed)
     mse = float("nan")
     if not (0.0 <= beta <= 1.0 and noise >= 0.0):
@@ -180,7 +225,7 @@ def distill(
             g["lr"] = round_learning_rate(lr, lr_final, it, iterations)
         by_teacher = rng.random(n_envs) < (1.0 if it == 0 else beta**it)
         for _ in range(steps):
-            a_t = teacher_actions()
+            a_t = teach.actions(obs)
             X.append(obs.copy())
             Y.append(a_t.astype(np.float32))
             a = a_t
@@ -190,19 +235,20 @@ def distill(
             if noise > 0:
                 a = a + noise * rng.standard_normal(n_envs)
             a = np.clip(a, -1.0, 1.0)
+            teach.applied(a)
             obs, _, done, _ = venv.step(a.reshape(-1, 1))
             if done.any():
-                teacher_reset(np.flatnonzero(done))
+                teach.reset(np.flatnonzero(done), obs)
         data_x = th.as_tensor(np.concatenate(X), dtype=th.float32)
         data_y = th.as_tensor(np.concatenate(Y), dtype=th.float32)
         n = data_x.shape[0]
+        if whiten > 0 and white is None:  # from the first round's states (the teacher's)
+            white = _Whitening(data_x.numpy(), whiten, policy.mlp_extractor.policy_net[0])
         for _ in range(epochs):
             perm = th.as_tensor(rng.permutation(n))
             for k in range(0, n, batch_size):
                 idx = perm[k : k + batch_size]
-                x = data_x[idx]
-                feats = policy.pi_features_extractor(x)
-                pred = policy.action_net(policy.mlp_extractor.forward_actor(feats))[:, 0]
+                pred = actor(data_x[idx])
                 loss = th.mean((pred.clamp(-1.5, 1.5) - data_y[idx]) ** 2)
                 opt.zero_grad()
                 loss.backward()
@@ -214,9 +260,82 @@ def distill(
         if log is not None:
             log(f"DAgger round {it + 1}/{iterations}: {n} labelled states, action MSE {mse:.4f}")
         if on_round is not None:
-            on_round(it, mse)
+            if white is None:
+                on_round(it, mse)
+            else:
+                with white.folded():
+                    on_round(it, mse)
     venv.close()
+    if white is not None:
+        white.fold()
     return {"mse": mse, "states": int(sum(len(x) for x in X))}
+
+
+class _Whitening:
+    """The fixed affine map ``x -> M (x - mu)`` of the student's inputs the regression trains through.
+
+    ``mu``: the inputs' mean; ``M = V diag((e + floor max e)^-1/2) V^T diag(1/sd)``, the inverse square
+    root of the standardised inputs' covariance (eigen-decomposition ``V, e``), its eigenvalues floored at
+    ``floor`` times the largest.  A stacked history is strongly correlated (consecutive frames differ by
+    little) and the labels hinge on those small differences: plain gradient steps on the raw inputs fit them
+    poorly.  The map is linear, so the first layer ``W, b`` on whitened inputs is the layer ``W M,
+    b - W M mu`` on the raw ones (:meth:`fold`): the deployed network is a plain MLP.
+
+    Parameters
+    ----------
+    x : ndarray
+        The inputs (states, dim) it is computed from.
+    floor : float
+        Eigenvalue floor, relative to the largest (> 0).
+    layer : torch.nn.Linear
+        The first layer of the actor, trained on the whitened inputs.
+    """
+
+    def __init__(self, x: np.ndarray, floor: float, layer) -> None:
+        import torch as th
+
+        if not isinstance(layer, th.nn.Linear):
+            raise InputError(f"whiten needs an actor whose first layer is linear, got {layer}")
+        x = np.asarray(x, dtype=np.float64)
+        mu, sd = x.mean(axis=0), x.std(axis=0)
+        sd = np.where(sd > 1e-6, sd, 1.0)  # an entry constant in these states is not amplified
+        e, V = np.linalg.eigh(np.cov(((x - mu) / sd).T))
+        e = np.maximum(e, 0.0)
+        M = (V / np.sqrt(e + floor * e.max())) @ V.T / sd[None, :]
+        self.mu = th.as_tensor(mu, dtype=th.float32)
+        self.M = th.as_tensor(M, dtype=th.float32)
+        self.layer = layer
+
+    def __call__(self, x):
+        return (x - self.mu) @ self.M.T
+
+    def fold(self) -> None:
+        """Merge the map into the first layer (for good: the actor then reads raw inputs)."""
+        import torch as th
+
+        with th.no_grad():
+            w = self.layer.weight @ self.M
+            self.layer.bias.sub_(w @ self.mu)
+            self.layer.weight.copy_(w)
+
+    def folded(self):
+        """A context in which the first layer reads raw inputs (the weights restored on exit)."""
+        from contextlib import contextmanager
+
+        import torch as th
+
+        @contextmanager
+        def ctx():
+            saved = self.layer.weight.detach().clone(), self.layer.bias.detach().clone()
+            self.fold()
+            try:
+                yield
+            finally:
+                with th.no_grad():
+                    self.layer.weight.copy_(saved[0])
+                    self.layer.bias.copy_(saved[1])
+
+        return ctx()
 
 
 def round_learning_rate(lr: float, lr_final: float | None, it: int, iterations: int) -> float:
@@ -229,9 +348,30 @@ def round_learning_rate(lr: float, lr_final: float | None, it: int, iterations: 
     return lr * (lr_final / lr) ** (it / (iterations - 1))
 
 
-def _teacher(teacher: str | Path, n: int, batch, options: dict[str, Any], integral=None):
-    """(actions(), reset(index)) of the teacher on the rigs of ``batch`` (actions in [-1, 1], (n,));
-    ``integral``: the :class:`agents.integral.MotorIntegralVecEnv` whose integral the flatness teacher uses."""
+def _teacher(teacher: str | Path, n: int, batch, options: dict[str, Any], integral=None, frames: int = 1) -> Teacher:
+    """The teacher on the rigs of ``batch``; ``integral``: the :class:`agents.integral.MotorIntegralVecEnv`
+    whose integral the flatness teacher uses; ``frames``: the observations stacked in the student's."""
+    ignore = lambda *args: None  # noqa: E731 - a teacher without use for the executed action or the reset
+    if str(teacher) == "lqg-2enc":
+        from .teachers import ShadowTeacher
+
+        o = batch.options
+        if o.observation != "sensors":
+            raise InputError(
+                f"teacher 'lqg-2enc' reads both encoders: the 'sensors' observation, not {o.observation!r}"
+            )
+        top = max(float(o.omega_ref_range[1]), float(o.omega_ref or 0.0))  # the highest target of an episode
+        t = ShadowTeacher("lqg-2enc", n, o.control_dt, list(batch.obs_model.names), top=top, **options)
+        dim = batch.obs_model.dim
+
+        def frame(obs: np.ndarray) -> np.ndarray:  # the newest sensors observation of the student's
+            return np.asarray(obs)[:, (frames - 1) * dim : frames * dim]
+
+        return Teacher(
+            lambda obs: t.act(frame(obs), batch.omega_ref),
+            lambda index, obs: t.reset(index, frame(obs), batch.omega_ref),
+            t.applied,
+        )
     if str(teacher) == "flatness":
         from drillgym.params import N_PARAMS
 
@@ -240,30 +380,32 @@ def _teacher(teacher: str | Path, n: int, batch, options: dict[str, Any], integr
         t = FlatnessTeacher(n, batch.options.rig_params, batch.options.control_dt, **options)
         s = batch.system
 
-        def reset(index: np.ndarray) -> None:
+        def reset(index: np.ndarray, obs: np.ndarray) -> None:
             if t.per_plant:  # the rigs' new episodes' true base parameters (drawn at their reset)
                 t.set_plants(index, s.params_matrix[index, :N_PARAMS])
             # the student's command (the scheduled target) is the teacher's
             t.reset(index, (batch.omega_ref if integral is None else integral.command_now)[index])
 
         if integral is None:
-            return lambda: t.act(s.omega_u, s.alpha, s.omega_l), reset
+            return Teacher(lambda obs: t.act(s.omega_u, s.alpha, s.omega_l), reset, ignore)
         # the student's integral is the teacher's
-        return lambda: t.act(s.omega_u, s.alpha, s.omega_l, integral.z, target=integral.command_now), reset
+        return Teacher(
+            lambda obs: t.act(s.omega_u, s.alpha, s.omega_l, integral.z, target=integral.command_now), reset, ignore
+        )
     from drillgym.envs.observation import FullObservation
 
     from .export import ExportedPolicy
 
     if options:
-        raise InputError("teacher options apply to the 'flatness' teacher only")
+        raise InputError("teacher options apply to the 'flatness' and 'lqg-2enc' teachers only")
     teach = ExportedPolicy.load(teacher)
     if teach.config["hyperparams"]["env_kwargs"].get("observation", "full") != "full":
         raise InputError(f"teacher {teacher} was not trained on the 'full' observation")
     full = FullObservation(n, replace(batch.options, observation="full"))
     tobs = np.zeros((n, full.dim), dtype=np.float32)
 
-    def actions() -> np.ndarray:
+    def actions(obs: np.ndarray) -> np.ndarray:
         full.observe(batch.system.Y, batch.S[:, 0], batch.omega_ref, tobs, batch.rngs)
         return teach.act(tobs)[:, 0]
 
-    return actions, lambda index: None
+    return Teacher(actions, ignore, ignore)

@@ -17,7 +17,7 @@ from drillgym.measurement import counts_to_angle
 
 from .batch import episode_batch
 from .command import SpeedCommand, schedule_of
-from .integral import Z_MAX, advance
+from .integral import Z_MAX, advance, wrapped_speed
 from .observer_residual import ObserverResidual
 from .population import population_env_kwargs, use_population
 from .residual import ResidualVoltage
@@ -128,30 +128,43 @@ class ObserverResidualVecEnv(VecEnvWrapper):
 
 
 class MotorIntegralVecEnv(VecEnvWrapper):
-    """Appends the motor-angle tracking integral ``z`` (rad) to a drillgym SB3 VecEnv's 'motor' observation
-    (0 at each episode's start; a finished rig's terminal observation carries its last value).
+    """Appends the motor-angle tracking integral ``z`` (rad) to a drillgym SB3 VecEnv's 'motor' or 'sensors'
+    observation (0 at each episode's start; a finished rig's terminal observation carries its last value).
 
     ``command``: a :class:`agents.command.CommandSchedule`; the observation's target entry is then the
     commanded speed at the observation's time (:class:`agents.command.SpeedCommand`), and ``z`` integrates
     the motor speed against it.  :attr:`target` holds each rig's episode target (rad/s),
-    :attr:`command_now` the command the last observation carries (the target without a schedule)."""
+    :attr:`command_now` the command the last observation carries (the target without a schedule).
+    ``frames`` > 1: the last ``frames`` observations (oldest first, zeros before the episode's start, as SB3's
+    ``VecFrameStack``), then ``z`` once: the layout :class:`agents.controller.AgentController` builds.
+    :attr:`frame` holds the newest observation (n, dim), the target entry carrying the command."""
 
-    def __init__(self, venv: VecEnv, control_dt: float, z_max: float = Z_MAX, command=None) -> None:
+    def __init__(self, venv: VecEnv, control_dt: float, z_max: float = Z_MAX, command=None, frames: int = 1) -> None:
         names = venv.get_attr("observation_names")[0]
-        if names[0] != "omega_u_inc_0" or names[-1] != "omega_ref":
-            raise InputError("the motor-angle integral needs the 'motor' observation mode")
+        if names[0] not in ("omega_u_inc_0", "theta_u_wrapped") or names[-1] != "omega_ref":
+            raise InputError("the motor-angle integral needs the 'motor' or 'sensors' observation mode")
+        if isinstance(frames, bool) or not isinstance(frames, int) or frames < 1:
+            raise InputError(f"frame_stack must be an integer >= 1, got {frames!r}")
+        self.wrapped = names[0] == "theta_u_wrapped"
         box = venv.observation_space
         space = spaces.Box(
-            np.append(box.low, -z_max).astype(np.float32),
-            np.append(box.high, z_max).astype(np.float32),
+            np.append(np.tile(box.low, frames), -z_max).astype(np.float32),
+            np.append(np.tile(box.high, frames), z_max).astype(np.float32),
             dtype=np.float32,
         )
         super().__init__(venv, observation_space=space)
-        self.dt, self.z_max = float(control_dt), float(z_max)
-        n = venv.num_envs
+        self.dt, self.z_max, self.frames = float(control_dt), float(z_max), int(frames)
+        n, self.dim = venv.num_envs, box.shape[0]
         self.command = None if command is None else SpeedCommand(command, n, self.dt)
         self.z = np.zeros(n)
         self.target, self.command_now = np.zeros(n), np.zeros(n)
+        self.prev = np.zeros(n)  # the wrapped motor angle a period ago ('sensors')
+        self.stack = np.zeros((n, frames * self.dim), dtype=np.float32)
+
+    @property
+    def frame(self) -> np.ndarray:
+        """The newest observation of each rig (n, dim) (its target entry: the command)."""
+        return self.stack[:, -self.dim :]
 
     def _put_command(self, obs: np.ndarray, index: np.ndarray | slice = slice(None)) -> None:
         """Write the command into the target entry of ``obs`` (rows ``index``) and :attr:`command_now`."""
@@ -159,15 +172,23 @@ class MotorIntegralVecEnv(VecEnvWrapper):
             obs[index, -1] = self.command.value[index]
         self.command_now[index] = obs[index, -1]
 
+    def _push(self, obs: np.ndarray) -> np.ndarray:
+        """Stack the observations and append ``z``: the wrapper's output."""
+        self.stack[:, : -self.dim] = self.stack[:, self.dim :]
+        self.stack[:, -self.dim :] = obs
+        return np.hstack([self.stack, self.z[:, None]]).astype(np.float32)
+
     def reset(self) -> np.ndarray:
         obs = self.venv.reset()
         self.reset_infos = getattr(self.venv, "reset_infos", self.reset_infos)  # for wrappers above (privileged critic)
         self.z[:] = 0.0
         self.target[:] = obs[:, -1]
+        self.prev[:] = obs[:, 0]
         if self.command is not None:
             self.command.reset()
         self._put_command(obs)
-        return np.hstack([obs, self.z[:, None]]).astype(np.float32)
+        self.stack[:] = 0.0
+        return self._push(obs)
 
     def step_wait(self):
         obs, rew, done, infos = self.venv.step_wait()
@@ -177,18 +198,25 @@ class MotorIntegralVecEnv(VecEnvWrapper):
         for i in np.flatnonzero(done):  # the ending episode's last period is in its terminal observation
             last[i] = infos[i]["terminal_observation"]
         self._put_command(last)
-        self.z = advance(self.z, last, self.dt, self.z_max)
+        speed = wrapped_speed(last[:, 0], self.prev, self.dt) if self.wrapped else None
+        self.z = advance(self.z, last, self.dt, self.z_max, speed)
+        self.prev[:] = last[:, 0]
         ended = np.flatnonzero(done)
+        out = self._push(last)
         for i in ended:
-            infos[i]["terminal_observation"] = np.append(last[i], self.z[i]).astype(np.float32)
+            infos[i]["terminal_observation"] = out[i].copy()
         if ended.size:
             self.z[ended] = 0.0
             self.target[ended] = obs[ended, -1]
+            self.prev[ended] = obs[ended, 0]
             last[ended] = obs[ended]
             if self.command is not None:
                 self.command.reset(ended)
             self._put_command(last, ended)
-        return np.hstack([last, self.z[:, None]]).astype(np.float32), rew, done, infos
+            self.stack[ended] = 0.0
+            self.stack[ended, -self.dim :] = last[ended]
+            out[ended] = np.append(self.stack[ended], self.z[ended, None], axis=1)
+        return out, rew, done, infos
 
 
 def make_training_env(
@@ -253,8 +281,9 @@ def make_training_env(
     privileged : bool, optional
         Append the critic's privileged entries (:class:`agents.privileged.PrivilegedObsVecEnv`).
     motor_integral : bool, optional
-        Append the motor-angle tracking integral (:class:`MotorIntegralVecEnv`,
-        :mod:`agents.integral`; ``"motor"`` observation, no residual structure).
+        Append the motor-angle tracking integral (:class:`MotorIntegralVecEnv`, :mod:`agents.integral`;
+        ``"motor"`` or ``"sensors"`` observation, no residual structure); with ``frame_stack`` the wrapper
+        stacks the frames and appends the integral once.
     command : dict, optional
         Settings of the command schedule (:class:`agents.command.CommandSchedule`; needs
         ``motor_integral``).
@@ -315,7 +344,9 @@ def make_training_env(
     if motor_integral:
         if residual is not None or base is not None:
             raise InputError("the motor-angle integral works without a residual structure")
-        venv = MotorIntegralVecEnv(venv, float(venv.get_attr("options")[0].control_dt), command=schedule)
+        venv = MotorIntegralVecEnv(
+            venv, float(venv.get_attr("options")[0].control_dt), command=schedule, frames=frame_stack
+        )
     if privileged:
         if frame_stack > 1 or base is not None:
             raise InputError("the privileged critic works without frame stacking and without a base controller")
@@ -324,7 +355,7 @@ def make_training_env(
         venv = PrivilegedObsVecEnv(venv)
     if monitor:
         venv = VecMonitor(venv)
-    if frame_stack > 1:
+    if frame_stack > 1 and not motor_integral:  # with the integral its wrapper stacks the frames
         venv = VecFrameStack(venv, frame_stack)
     if normalize_reward or normalize_obs:
         venv = VecNormalize(venv, norm_obs=normalize_obs, norm_reward=normalize_reward, gamma=gamma)

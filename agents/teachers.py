@@ -18,6 +18,12 @@ know the lags, delays or position friction the population adds).
 
 The teacher is stateful per rig (the reference's three lags, the integral); :meth:`reset` starts the
 rigs ``index`` of a batch (e.g. those whose episode just ended) towards their new targets.
+
+:class:`ShadowTeacher` is not privileged: a classical controller (``lqg-2enc``) run in shadow on what the
+student's 'sensors' observation carries (the wrapped encoder angles, unwrapped here as
+:class:`controllers.gym_adapter.ControllerPolicy` does), its state estimate predicted with the voltage
+actually executed; its voltage is the label.  A student with the same readings and enough memory can
+reproduce it exactly.
 """
 
 from __future__ import annotations
@@ -30,10 +36,12 @@ from drillgym.errors import InputError
 from drillgym.friction import brake_law, upper_law
 from drillgym.params import PARAM_NAMES
 
-__all__ = ["FlatnessTeacher", "TEACHERS"]
+__all__ = ["FlatnessTeacher", "ShadowTeacher", "TEACHERS"]
 
 #: teachers known by name to ``drillgym train --teacher NAME`` (otherwise a path to an exported policy)
-TEACHERS = ("flatness",)
+TEACHERS = ("flatness", "lqg-2enc")
+#: classical controllers that run in shadow as a teacher (they restart single rigs and take the applied input)
+SHADOW_CONTROLLERS = ("lqg-2enc",)
 
 
 class FlatnessTeacher:
@@ -129,6 +137,61 @@ class FlatnessTeacher:
         )
         self.z = np.clip(self.z + self.dt * (omega_l - r), -self.z_max, self.z_max)
         return np.clip(u / U_MAX, -1.0, 1.0)
+
+
+class ShadowTeacher:
+    """A classical controller run in shadow on the student's sensor readings: labels in [-1, 1].
+
+    Parameters
+    ----------
+    name : str
+        The controller (:data:`SHADOW_CONTROLLERS`), built on its default (nominal) model as the benchmark
+        builds it.
+    n : int
+        Number of rigs.
+    dt : float
+        Control period (s): the env's.
+    names : sequence of str
+        The layout of the 'sensors' observation (``theta_u_wrapped``, ``theta_l_wrapped`` are read).
+    top : float, optional
+        The highest target any rig will get (rad/s): the controller's designs cover it.  Default 8.
+    **options
+        Keywords of the controller (e.g. ``approach``, ``hold``, ``ramp``, ``tau_ref`` of ``lqg-2enc``).
+    """
+
+    def __init__(self, name: str, n: int, dt: float, names, *, top: float = 8.0, **options) -> None:
+        from controllers import make
+
+        if name not in SHADOW_CONTROLLERS:
+            raise InputError(f"shadow teacher must be one of {', '.join(SHADOW_CONTROLLERS)}, got {name!r}")
+        names = list(names)
+        if "theta_u_wrapped" not in names or "theta_l_wrapped" not in names:
+            raise InputError(f"teacher {name!r} reads both encoders: the 'sensors' observation, not {names}")
+        self.n, self.cols = int(n), [names.index("theta_u_wrapped"), names.index("theta_l_wrapped")]
+        self.controller = make(name, dt=float(dt), **options)
+        self.theta = np.zeros((self.n, 2))  # the unwrapped encoder angles (rad)
+        self.controller.reset({"theta_u": self.theta[:, 0], "theta_l": self.theta[:, 1], "omega_ref": np.full(n, top)})
+
+    def _measurement(self, targets: np.ndarray) -> dict[str, np.ndarray]:
+        return {"theta_u": self.theta[:, 0], "theta_l": self.theta[:, 1], "omega_ref": np.asarray(targets, float)}
+
+    def reset(self, index: np.ndarray, obs: np.ndarray, targets: np.ndarray) -> None:
+        """Rigs ``index`` start an episode: ``obs`` (n, dim) the batch's 'sensors' observations after their
+        reset, ``targets`` (rad/s, (n,)) the episodes' targets."""
+        index = np.asarray(index, dtype=np.int64)
+        self.theta[index] = np.asarray(obs, dtype=float)[index][:, self.cols]
+        self.controller.reset_rigs(index, self._measurement(targets))
+
+    def act(self, obs: np.ndarray, targets: np.ndarray) -> np.ndarray:
+        """Labels (normalised voltages, (n,)) for the batch's 'sensors' observations ``obs`` (n, dim) of this
+        period; advances the controller by one period (its own voltage assumed until :meth:`applied`)."""
+        w = np.asarray(obs, dtype=float)[:, self.cols]
+        self.theta += (w - self.theta + np.pi) % (2.0 * np.pi) - np.pi  # the change since the last reading
+        return np.asarray(self.controller.act(self._measurement(targets))) / U_MAX
+
+    def applied(self, actions: np.ndarray) -> None:
+        """The normalised actions (n,) the rigs execute over the period just begun."""
+        self.controller.applied(np.asarray(actions, dtype=float) * U_MAX)
 
 
 class _PlantArrays:

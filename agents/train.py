@@ -280,8 +280,22 @@ class BestPolicyCallback(EvalCallback):
         return go_on
 
 
+#: ``policy_kwargs.activation_fn`` by name (YAML cannot name a torch class)
+ACTIVATIONS = ("relu", "tanh", "elu")
+
+
 def _algo_kwargs(hp: dict[str, Any], n_actions: int) -> dict[str, Any]:
     kw = algorithm_kwargs(hp)
+    pk = kw.get("policy_kwargs")
+    act = pk.get("activation_fn") if isinstance(pk, dict) else None
+    if isinstance(act, str):
+        import torch
+
+        name = act.lower().removeprefix("nn.")
+        if name not in ACTIVATIONS:
+            raise InputError(f"policy_kwargs.activation_fn must be one of {', '.join(ACTIVATIONS)}, got {act!r}")
+        cls = {"relu": torch.nn.ReLU, "tanh": torch.nn.Tanh, "elu": torch.nn.ELU}[name]
+        kw["policy_kwargs"] = {**pk, "activation_fn": cls}
     noise_type, noise_std = hp.get("noise_type"), hp.get("noise_std", 0.1)
     if noise_type == "normal":
         kw["action_noise"] = NormalActionNoise(np.zeros(n_actions), noise_std * np.ones(n_actions))
@@ -359,7 +373,7 @@ def train(
     eval_envs : int, optional
         Episodes per evaluation (one rig each).
     teacher : str or path, optional
-        An exported policy of the 'full' observation or 'flatness' (:mod:`agents.teachers`): before the RL
+        An exported policy of the 'full' observation, 'flatness' or 'lqg-2enc' (:mod:`agents.teachers`): before the RL
         steps, its actions are distilled into this model's actor by DAgger (:mod:`agents.distill`,
         ``distill_kwargs`` over the hyperparameters' ``distill`` entry, whose ``teacher`` is the default);
         ``timesteps`` may then be 0 (distillation only).  The entry's ``then`` (a mapping of DAgger options)
@@ -388,8 +402,15 @@ def train(
     if teacher is None and hp["n_timesteps"] < 1:
         raise InputError(f"number of timesteps must be >= 1 without a teacher, got {hp['n_timesteps']!r}")
     if teacher is not None and not resume:
-        if algo != "ppo" or hp.get("normalize_obs") or int(hp.get("frame_stack", 1)) != 1:
-            raise InputError("a teacher is distilled into PPO without observation normalisation or frame stacking")
+        if (
+            algo != "ppo"
+            or hp.get("normalize_obs")
+            or (int(hp.get("frame_stack", 1)) != 1 and hp.get("privileged_critic"))
+        ):
+            raise InputError(
+                "a teacher is distilled into PPO without observation normalisation (nor frame stacking with the "
+                "privileged critic)"
+            )
     _warn_short_run(cls, hp)
     venv = _env(env_id, hp, hp["n_envs"], seed)
     config = {"env_id": env_id, "algo": algo, "seed": int(seed), "hyperparams": hp, "command": command}
@@ -438,6 +459,7 @@ def train(
             privileged=bool(hp.get("privileged_critic")),
             motor_integral=bool(hp.get("motor_integral")),
             command=hp.get("command_schedule"),
+            frame_stack=int(hp.get("frame_stack", 1)),
             log=print,
         )
         distill(model, env_id, hp["env_kwargs"], teacher, n_envs=hp["n_envs"], seed=seed, **common, **first)

@@ -181,17 +181,73 @@ class TwoEncoderLQG(Controller):
         self._u_grid = np.asarray(equilibrium_voltage(self.config, self._grid, p), dtype=float)
         mats = [_design(p, float(w), float(self.dt), self.design, self.delay) for w in self._grid]
         self._A, self._B, self._C, self._K, self._L = (np.stack([mm[i] for mm in mats]) for i in range(5))
-        self.t = 0.0
+        self.t = np.zeros(n)  # time since each rig's reset (s)
         self.r = np.zeros(n)  # reference speed (rad/s), from rest
-        tu = np.broadcast_to(m.get("theta_u", 0.0), (n,)).astype(float)
-        tl = np.broadcast_to(m.get("theta_l", 0.0), (n,)).astype(float)
-        self.theta_ref = tu.copy()
+        self.theta_ref = np.zeros(n)
+        self.x = np.zeros((n, self._A.shape[1]))
+        self._b = np.zeros((n, self._A.shape[1]))  # the input column of the design used last (per rig)
+        self._start(np.arange(n), m)
+
+    def _start(self, index: np.ndarray, m: dict[str, np.ndarray]) -> None:
+        """Rigs ``index`` at rest at the encoder angles of ``m`` ((n,) arrays), reference and time from 0."""
+        n = self.n
+        tu = np.broadcast_to(m.get("theta_u", 0.0), (n,)).astype(float)[index]
+        tl = np.broadcast_to(m.get("theta_l", 0.0), (n,)).astype(float)[index]
+        self.t[index], self.r[index] = 0.0, 0.0
+        self.theta_ref[index] = tu
         # absolute estimate (theta_u, omega_u, alpha, omega_l, u_a, d): the rig at rest
-        self.x = np.zeros((n, self._A.shape[1]))  # and the line of past commands: none sent
-        self.x[:, 0], self.x[:, 2] = tu, tl - tu
+        self.x[index] = 0.0  # and the line of past commands: none sent
+        self.x[index, 0], self.x[index, 2] = tu, tl - tu
+
+    def reset_rigs(self, index: np.ndarray, measurement) -> None:
+        """Restart the rigs ``index`` only (e.g. those of a batch whose episode just ended), the others untouched.
+
+        Parameters
+        ----------
+        index : ndarray of int
+            The rigs (rows of the batch of :meth:`reset`) that start again from rest.
+        measurement : mapping of str to float or ndarray
+            The rigs' first measurements, (n,) arrays over the whole batch (rows ``index`` are read):
+            ``theta_u``, ``theta_l`` (rad) and optionally ``omega_ref`` (rad/s, their new targets).
+
+        Raises
+        ------
+        InputError
+            Called before :meth:`reset`, or a new target that is not a positive finite speed.
+        """
+        if self.n == 0:
+            raise InputError(f"controller {self.name!r}: reset() the batch before reset_rigs()")
+        index = np.asarray(index, dtype=np.int64)
+        m = self._arrays(measurement, check=False)
+        if "omega_ref" in m:
+            ref = m["omega_ref"][index]
+            if not np.all(np.isfinite(ref)) or np.any(ref <= 0):
+                raise InputError(f"omega_ref must be positive finite speeds (rad/s), got {ref!r}")
+            if np.max(ref, initial=0.0) + 1.0 > self._grid[-1] + 1e-9:
+                raise InputError(
+                    f"reset_rigs: target {float(np.max(ref)):g} rad/s is above the designs' grid (up to "
+                    f"{self._grid[-1]:g}); reset() the batch with the highest target first"
+                )
+            self.omega_ref[index] = ref
+        self.u_prev[index] = 0.0
+        self._start(index, m)
+
+    def applied(self, voltage) -> None:
+        """The voltage (V) actually held over the period just begun, when it differs from this controller's
+        own output (the controller run in shadow, e.g. as a teacher): the estimate's prediction uses it.
+
+        Parameters
+        ----------
+        voltage : float or ndarray
+            Applied voltage of each rig (V), clipped to [-u_max, u_max]; call after :meth:`act`.
+        """
+        u = np.clip(np.broadcast_to(np.asarray(voltage, dtype=float), (self.n,)), -self.u_max, self.u_max)
+        # the prediction is linear in the input: x_next += B (u_applied - u_own)
+        self.x = self.x + self._b * (u - self.u_prev)[:, None]
+        self.u_prev = u.copy()
 
     def _target(self) -> np.ndarray:
-        s = float(np.clip((self.t - self.hold) / self.ramp, 0.0, 1.0)) if self.ramp > 0 else float(self.t >= self.hold)
+        s = np.clip((self.t - self.hold) / self.ramp, 0.0, 1.0) if self.ramp > 0 else (self.t >= self.hold) * 1.0
         return np.where(
             self.omega_ref < self.approach, self.approach + s * (self.omega_ref - self.approach), self.omega_ref
         )
@@ -219,6 +275,7 @@ class TwoEncoderLQG(Controller):
         xd = xd + np.einsum("nij,nj->ni", L, y - np.einsum("nij,nj->ni", C, xd))
         u = np.clip(u_eq - np.einsum("nij,nj->ni", K, xd)[:, 0], -self.u_max, self.u_max)
         xd = np.einsum("nij,nj->ni", A, xd) + B[:, :, 0] * (u - u_eq)[:, None]
+        self._b = B[:, :, 0]
         # advance the reference and keep the estimate in absolute coordinates
         self.theta_ref = self.theta_ref + r * self.dt
         self.x = xd + eq
