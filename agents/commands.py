@@ -164,7 +164,7 @@ def register(app: typer.Typer) -> None:
         teacher: Path | None = typer.Option(
             None,
             "--teacher",
-            help="policy.npz of a run on the 'full' observation: "
+            help="policy.npz of a run on the 'full' observation, or a teacher's name (flatness, lqg-2enc): "
             "distilled (DAgger) into this run's network before the RL steps "
             "(--timesteps 0: distillation only)",
         ),
@@ -201,8 +201,12 @@ def register(app: typer.Typer) -> None:
             raise InputError(f"--seed must be >= 0, got {seed}")
         if workers is not None and workers < 1:
             raise InputError(f"--workers must be >= 1, got {workers}")
+        from agents.teachers import TEACHERS
+
+        if teacher is not None and str(teacher) in TEACHERS:  # a teacher by name, not a file
+            teacher = str(teacher)
         for opt, path in (("--hyperparams", hyperparams), ("--teacher", teacher)):
-            if path is not None and not path.is_file():
+            if isinstance(path, Path) and not path.is_file():
                 raise MissingFileError(f"{opt} {path}: {'a directory' if path.is_dir() else 'file not found'}")
         if hyperparams is not None:
             try:
@@ -211,7 +215,7 @@ def register(app: typer.Typer) -> None:
                 raise InputError(
                     f"--hyperparams {hyperparams}: not UTF-8 text (byte {exc.start}); give a YAML file"
                 ) from None
-        if teacher is not None:
+        if isinstance(teacher, Path):
             _check_npz(teacher, "--teacher")
         if ray is not None:
             from drillgym.parallel import check_ray_address

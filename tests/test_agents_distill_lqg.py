@@ -137,30 +137,47 @@ def test_student_sees_the_same_stacked_observation_command_and_integral_in_train
 def test_tiny_dagger_from_lqg_2enc_lowers_the_imitation_error_and_exports_a_plain_network(tmp_path, capsys) -> None:
     import re
 
-    from agents.export import ExportedPolicy
-    from agents.train import train
+    import yaml
 
-    res = train(
-        "drillgym/Torsional-v0",
-        "ppo",
-        tmp_path / "student",
-        timesteps=0,
-        seed=0,
-        progress=False,
-        tensorboard=False,
-        overrides={
-            "n_envs": 8,
-            "frame_stack": 4,
-            "privileged_critic": False,
-            "motor_integral": True,
-            "command_schedule": SCHEDULE,
-            "policy_kwargs": {"net_arch": {"pi": [64, 64], "vf": [16]}, "activation_fn": "relu"},
-            "env_kwargs": {"observation": "sensors", "episode_duration": 1.0},
-            "distill": {"teacher": "lqg-2enc", "iterations": 3, "steps": 100, "epochs": 8, "whiten": 1e-6},
-        },
-    )
-    assert "teacher: lqg-2enc" in (tmp_path / "student" / "config.yml").read_text()
-    student = ExportedPolicy.load(res.policy_path)
-    assert student.obs_dim == 4 * 7 + 1 and student.activations[0] is not None
+    from agents.export import ExportedPolicy
+    from drillgym.cli import main
+
+    entry = {
+        "n_envs": 8,
+        "n_timesteps": 0,
+        "policy": "MlpPolicy",
+        "normalize": False,
+        "frame_stack": 4,
+        "policy_kwargs": {"net_arch": {"pi": [64, 64], "vf": [16]}, "activation_fn": "relu"},
+        "env_kwargs": {"observation": "sensors", "episode_duration": 1.0},
+    }
+    structure = {
+        "motor_integral": True,
+        "command_schedule": SCHEDULE,
+        "distill": {"iterations": 3, "steps": 100, "epochs": 8, "whiten": 1e-6},
+    }
+    hp = tmp_path / "hp.yml"
+    hp.write_text(yaml.safe_dump({"drillgym/Torsional-v0": entry, "drillgym": {"drillgym/Torsional-v0": structure}}))
+    out = tmp_path / "student"
+    args = ["train", "--env", "drillgym/Torsional-v0", "--algo", "ppo", "--hyperparams", str(hp), "--teacher"]
+    with pytest.raises(SystemExit) as done:
+        main(
+            [
+                *args,
+                "lqg-2enc",
+                "--timesteps",
+                "0",
+                "--seed",
+                "0",
+                "--no-progress",
+                "--no-tensorboard",
+                "--out",
+                str(out),
+            ]
+        )
+    assert done.value.code in (0, None)
+    assert "policy: lqg-2enc" in (out / "config.yml").read_text()
+    student = ExportedPolicy.load(out / "policy.npz")
+    assert student.obs_dim == 4 * 7 + 1  # 4 frames of the sensors observation, then the integral
     mses = [float(x) for x in re.findall(r"action MSE ([0-9.]+)", capsys.readouterr().out)]
     assert len(mses) == 3 and mses[-1] < 0.5 * mses[0]
