@@ -230,8 +230,9 @@ def run_row(row: dict, duration: float, rate_hz: float, work: Path) -> dict:
 def _lag_found(r: dict) -> bool:
     """The motor lag selected: by the library's selection, beside the candidate (``diagnosis.beside``), or fitted
     with the candidate whose terms were found through it (``candidate_with``)."""
-    kept = "motor_lag" in r["selected"] and r["beside_replaces"] != "motor_lag"
-    return kept or r["beside_candidate"] == "motor_lag" or "motor_lag" in r.get("candidate_with", ())
+    replaced = r["beside_replaces"] == "motor_lag"  # the delay fitted in its place counts instead
+    kept = ("motor_lag" in r["selected"] or "motor_lag" in r.get("candidate_with", ())) and not replaced
+    return kept or r["beside_candidate"] == "motor_lag"
 
 
 def _lag_or_tie(r: dict) -> bool:
