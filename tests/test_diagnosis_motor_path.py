@@ -110,3 +110,16 @@ def test_a_dead_zone_behind_an_unselected_lag_is_found_through_the_lag():
     # on one-signed voltages the dead zone is a constant: km × (−0.4 V) at the motor, or that torque on the disc
     assert cand is not None and cand.group in ("motor_voltage", "upper_force"), cand
     assert cand.through_lag in (0.02, 0.04), cand.through_lag  # the grid's neighbours of 30 ms
+
+
+def test_a_candidate_fit_worse_than_none_says_so():
+    """A candidate whose fit leaves more than the model without it (a negative cut) is not reported as removing a
+    share of the residual."""
+    from drillgym.diagnosis.candidate_fit import CandidateFit
+    from drillgym.diagnosis.unexplained import Unexplained
+
+    worse = CandidateFit({"c1": 0.1}, True, Unexplained(300.0, {"theta_u": 300.0}), Unexplained(2600.0, {}))
+    assert worse.variance_cut < 0
+    assert "explains none of it" in worse.line() and "%" not in worse.line()
+    better = CandidateFit({"c1": 0.1}, False, Unexplained(300.0, {}), Unexplained(30.0, {}))
+    assert "99% of the unexplained variance removed" in better.line()

@@ -140,10 +140,14 @@ class CandidateFit:
             base = f"base parameters fitted with it: {moved_text(self.base_fitted) or 'none moved'}"
         if self.with_library:
             base = f"with the library's {' and '.join(self.with_library)} ahead of it; {base}"
+        if self.variance_cut < 0.0:  # e.g. with the base held at nominal, where the diagnosis had it at a bound
+            outcome = "it explains none of it: the model without it fits better"
+        else:
+            outcome = f"{self.variance_cut:.0%} of the unexplained variance removed"
         return (
             f"  its fit on this recording ({base}): {vals}; residual {self.before.ratio_to_noise:.3g} -> "
-            f"{self.after.ratio_to_noise:.3g} times the noise ({self.variance_cut:.0%} of the unexplained "
-            f"variance removed; {self.after.verdict.replace('_', ' ')} with it)"
+            f"{self.after.ratio_to_noise:.3g} times the noise ({outcome}; "
+            f"{self.after.verdict.replace('_', ' ')} with it)"
         )
 
 
