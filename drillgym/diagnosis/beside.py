@@ -15,7 +15,9 @@ parameters, with the segments' start speeds, from the best of its search points.
   (:func:`.scoring.score`, :func:`.scoring.significant`);
 * *in place of* the signal-path effect the selection took (a delay where a lag was, or the reverse: beside
   a large residual the selection may take the wrong one), the other switched off; a model of the same size,
-  so it counts when it is better by more than a tie (:data:`.scoring.TIE_NATS`).
+  so it counts when its score is above the selection's significance (:data:`.scoring.SIGNIFICANCE`): the
+  incumbent was chosen by the selection's rules, and a few nats on a residual still above the noise do not
+  overturn it (a lag found with a saturation, 29 ms for 30.5 ms hidden, lost 7 nats to a delay).
 
 Every trial fits the base parameters too (those the candidate's fit freed or, when it held them as the
 diagnosis left them, every one the diagnosis may free): a lag beside an offset is absorbed by a motor constant
@@ -44,7 +46,7 @@ from .candidate_fit import CandidateFitState, change_pct, moved_text
 from .context import SelectionContext, base_at_bounds, best_effect_start, converged_fit
 from .lag_delay import smooth_input_share
 from .results import Diagnosis
-from .scoring import SEPARATES_LAG_DELAY, TIE_NATS, score, significant
+from .scoring import SEPARATES_LAG_DELAY, SIGNIFICANCE, TIE_NATS, score, significant
 from .screening import Screening
 from .timing import SMOOTH_INPUT_SHARE
 from .unexplained import Unexplained, unexplained
@@ -275,7 +277,7 @@ def _fit_trial(trial: _Trial, state: CandidateFitState, reference: FitResult, by
             trial.score, reference.rss_after, res.rss_after, len(res.residual), r0, res.residual, ids
         )
     else:
-        trial.counts = trial.score > TIE_NATS
+        trial.counts = trial.score > SIGNIFICANCE  # the incumbent was chosen by the selection's rules
     if base_at_bounds(ctx, np.asarray(res.vector)):  # something still missing is absorbed there
         trial.counts = False
     trial.result, trial.objective = res, obj
