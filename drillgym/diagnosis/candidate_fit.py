@@ -332,6 +332,7 @@ def _fitted_form(
     if variant is None or cand.fit is None or cand.fit.after.explained:
         return cand
     variant.fit = fit_candidate(screening, diagnosis, variant, noise_scales)
+    variant = _lag_that_counts(screening, diagnosis, variant, noise_scales)
     if variant.fit is not None and variant.fit.variance_cut > cand.fit.variance_cut:
         return variant
     return cand
@@ -342,7 +343,8 @@ def _lag_that_counts(
 ) -> Candidate:
     """The candidate found through a lag (fitted with it), or the same terms fitted without the lag when the lag
     does not count by the selection's rules against them (:func:`.scoring.score`, :func:`.scoring.significant`,
-    one parameter more; a base parameter at a bound with the lag does not count either)."""
+    one parameter more; a base parameter at a bound with the lag, or a lag fitted below :data:`MIN_LAG_S`, does
+    not count either)."""
     if cand.through_lag is None or cand.fit is None or cand.fit.state is None:
         return cand
     plain = replace(cand, through_lag=None, fit=None)
@@ -357,7 +359,13 @@ def _lag_that_counts(
     )
     vec = np.asarray(with_lag.result.vector)
     ctx = SelectionContext(obj, with_lag.composition, vec, with_lag.nominal, with_lag.base_names, {})
-    return cand if counts and not base_at_bounds(ctx, vec) else plain
+    tau = float(vec[with_lag.composition.param_index("tau_m")])
+    return cand if counts and tau >= MIN_LAG_S and not base_at_bounds(ctx, vec) else plain
+
+
+#: a lag the candidate's terms were found through counts only when fitted at least this long (s): shorter, it is
+#: no lag at the rates recorded (≤ 1 kHz), and the fit has taken it out
+MIN_LAG_S = 1e-3
 
 
 def _file_name(candidate: Candidate, parameter: str) -> str:
