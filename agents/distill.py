@@ -4,7 +4,7 @@ observation, e.g. 'motor').
 
 Teachers: an exported ``policy.npz`` trained on the 'full' observation (e.g. PPO, ``ppo_teacher.yml``),
 ``'flatness'``: the hand-made full-state law of :class:`agents.teachers.FlatnessTeacher` (stateful:
-it is reset per rig when that rig's episode ends), or ``'lqg-2enc'``: the classical two-encoder LQG
+it is reset per rig when that rig's episode ends), or ``'lqg-2enc'`` (``'observer'``): the classical two-encoder LQG
 (:class:`controllers.two_encoder.TwoEncoderLQG`) run *in shadow* (:class:`agents.teachers.ShadowTeacher`): it
 reads the encoder angles the student's observation carries, its Kalman filter predicts with the voltage
 actually executed (the student's, when the student drives), and its voltage is the label; a student with
@@ -92,8 +92,8 @@ def distill(
     env_kwargs : dict
         Options of the environment (:class:`drillgym.envs.EnvOptions`).
     teacher : str or path
-        ``"flatness"`` or ``"lqg-2enc"`` (:mod:`agents.teachers`; options in ``teacher_kwargs``) or the path of
-        an exported full-state policy.
+        ``"flatness"``, ``"lqg-2enc"`` or ``"observer"`` (:mod:`agents.teachers`; options in ``teacher_kwargs``)
+        or the path of an exported full-state policy.
     n_envs : int, optional
         Rigs stepped together.  Default 64.
     iterations : int, optional
@@ -117,7 +117,7 @@ def distill(
     nominal_below : float, optional
         Every episode whose target is below this speed (rad/s) runs the nominal rig.
     teacher_kwargs : dict, optional
-        Options of the ``"flatness"`` teacher, or keywords of the ``"lqg-2enc"`` controller.
+        Options of the ``"flatness"`` teacher, or keywords of the shadow controller (``"lqg-2enc"``, ``"observer"``).
     beta : float, optional
         In round i > 0 a fraction ``beta**i`` of the rigs is still driven by the teacher (DAgger's mixing;
         0: the student drives every rig after the first round).
@@ -351,17 +351,15 @@ def round_learning_rate(lr: float, lr_final: float | None, it: int, iterations: 
 def _teacher(teacher: str | Path, n: int, batch, options: dict[str, Any], integral=None, frames: int = 1) -> Teacher:
     """The teacher on the rigs of ``batch``; ``integral``: the :class:`agents.integral.MotorIntegralVecEnv`
     whose integral the flatness teacher uses; ``frames``: the observations stacked in the student's."""
+    from .teachers import SHADOW_CONTROLLERS
+
     ignore = lambda *args: None  # noqa: E731 - a teacher without use for the executed action or the reset
-    if str(teacher) == "lqg-2enc":
+    if str(teacher) in SHADOW_CONTROLLERS:
         from .teachers import ShadowTeacher
 
         o = batch.options
-        if o.observation != "sensors":
-            raise InputError(
-                f"teacher 'lqg-2enc' reads both encoders: the 'sensors' observation, not {o.observation!r}"
-            )
         top = max(float(o.omega_ref_range[1]), float(o.omega_ref or 0.0))  # the highest target of an episode
-        t = ShadowTeacher("lqg-2enc", n, o.control_dt, list(batch.obs_model.names), top=top, **options)
+        t = ShadowTeacher(str(teacher), n, o.control_dt, list(batch.obs_model.names), top=top, **options)
         dim = batch.obs_model.dim
 
         def frame(obs: np.ndarray) -> np.ndarray:  # the newest sensors observation of the student's
@@ -397,7 +395,7 @@ def _teacher(teacher: str | Path, n: int, batch, options: dict[str, Any], integr
     from .export import ExportedPolicy
 
     if options:
-        raise InputError("teacher options apply to the 'flatness' and 'lqg-2enc' teachers only")
+        raise InputError("teacher options apply to the teachers by name only (flatness, lqg-2enc, observer)")
     teach = ExportedPolicy.load(teacher)
     if teach.config["hyperparams"]["env_kwargs"].get("observation", "full") != "full":
         raise InputError(f"teacher {teacher} was not trained on the 'full' observation")

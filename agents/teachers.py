@@ -19,11 +19,11 @@ know the lags, delays or position friction the population adds).
 The teacher is stateful per rig (the reference's three lags, the integral); :meth:`reset` starts the
 rigs ``index`` of a batch (e.g. those whose episode just ended) towards their new targets.
 
-:class:`ShadowTeacher` is not privileged: a classical controller (``lqg-2enc``) run in shadow on what the
-student's 'sensors' observation carries (the wrapped encoder angles, unwrapped here as
-:class:`controllers.gym_adapter.ControllerPolicy` does), its state estimate predicted with the voltage
-actually executed; its voltage is the label.  A student with the same readings and enough memory can
-reproduce it exactly.
+:class:`ShadowTeacher` is not privileged: a classical controller (``lqg-2enc``, ``observer``) run in shadow on
+what the student's observation carries (the 'sensors' wrapped encoder angles, unwrapped here as
+:class:`controllers.gym_adapter.ControllerPolicy` does; the 'motor' motor-angle increments, summed), its state
+estimate predicted with the voltage actually executed; its voltage is the label.  A student with the same
+readings and enough memory can reproduce it.
 """
 
 from __future__ import annotations
@@ -39,9 +39,9 @@ from drillgym.params import PARAM_NAMES
 __all__ = ["FlatnessTeacher", "ShadowTeacher", "TEACHERS"]
 
 #: teachers known by name to ``drillgym train --teacher NAME`` (otherwise a path to an exported policy)
-TEACHERS = ("flatness", "lqg-2enc")
+TEACHERS = ("flatness", "lqg-2enc", "observer")
 #: classical controllers that run in shadow as a teacher (they restart single rigs and take the applied input)
-SHADOW_CONTROLLERS = ("lqg-2enc",)
+SHADOW_CONTROLLERS = ("lqg-2enc", "observer")
 
 
 class FlatnessTeacher:
@@ -152,11 +152,18 @@ class ShadowTeacher:
     dt : float
         Control period (s): the env's.
     names : sequence of str
-        The layout of the 'sensors' observation (``theta_u_wrapped``, ``theta_l_wrapped`` are read).
+        The layout of the student's observation: for each encoder the controller ``uses`` (``theta_u``,
+        ``theta_l``), its wrapped angle (``theta_u_wrapped``, 'sensors') or its newest increment over the
+        period (``omega_u_inc_0``, rad/s, 'motor': the angle changes by it times ``dt``) is read.
     top : float, optional
         The highest target any rig will get (rad/s): the controller's designs cover it.  Default 8.
     **options
         Keywords of the controller (e.g. ``approach``, ``hold``, ``ramp``, ``tau_ref`` of ``lqg-2enc``).
+
+    Raises
+    ------
+    InputError
+        An unknown controller, or an observation without an encoder the controller uses.
     """
 
     def __init__(self, name: str, n: int, dt: float, names, *, top: float = 8.0, **options) -> None:
@@ -164,34 +171,56 @@ class ShadowTeacher:
 
         if name not in SHADOW_CONTROLLERS:
             raise InputError(f"shadow teacher must be one of {', '.join(SHADOW_CONTROLLERS)}, got {name!r}")
-        names = list(names)
-        if "theta_u_wrapped" not in names or "theta_l_wrapped" not in names:
-            raise InputError(f"teacher {name!r} reads both encoders: the 'sensors' observation, not {names}")
-        self.n, self.cols = int(n), [names.index("theta_u_wrapped"), names.index("theta_l_wrapped")]
-        self.controller = make(name, dt=float(dt), **options)
-        self.theta = np.zeros((self.n, 2))  # the unwrapped encoder angles (rad)
-        self.controller.reset({"theta_u": self.theta[:, 0], "theta_l": self.theta[:, 1], "omega_ref": np.full(n, top)})
+        self.n, self.dt = int(n), float(dt)
+        self.controller = make(name, dt=self.dt, **options)
+        self.uses = tuple(self.controller.uses)
+        self.cols, self.wrapped = _encoder_columns(name, self.uses, list(names))
+        self.theta = np.zeros((self.n, len(self.uses)))  # the unwrapped encoder angles (rad)
+        self.fresh = np.ones(self.n, dtype=bool)  # rigs whose angle is that of their reset observation
+        self.controller.reset(self._measurement(np.full(self.n, top)))
 
     def _measurement(self, targets: np.ndarray) -> dict[str, np.ndarray]:
-        return {"theta_u": self.theta[:, 0], "theta_l": self.theta[:, 1], "omega_ref": np.asarray(targets, float)}
+        m = {k: self.theta[:, j] for j, k in enumerate(self.uses)}
+        m["omega_ref"] = np.asarray(targets, float)
+        return m
 
     def reset(self, index: np.ndarray, obs: np.ndarray, targets: np.ndarray) -> None:
-        """Rigs ``index`` start an episode: ``obs`` (n, dim) the batch's 'sensors' observations after their
-        reset, ``targets`` (rad/s, (n,)) the episodes' targets."""
+        """Rigs ``index`` start an episode: ``obs`` (n, dim) the batch's observations after their reset,
+        ``targets`` (rad/s, (n,)) the episodes' targets (increments: the angles restart from 0)."""
         index = np.asarray(index, dtype=np.int64)
-        self.theta[index] = np.asarray(obs, dtype=float)[index][:, self.cols]
+        self.theta[index] = np.where(self.wrapped, np.asarray(obs, dtype=float)[index][:, self.cols], 0.0)
+        self.fresh[index] = True
         self.controller.reset_rigs(index, self._measurement(targets))
 
     def act(self, obs: np.ndarray, targets: np.ndarray) -> np.ndarray:
-        """Labels (normalised voltages, (n,)) for the batch's 'sensors' observations ``obs`` (n, dim) of this
-        period; advances the controller by one period (its own voltage assumed until :meth:`applied`)."""
+        """Labels (normalised voltages, (n,)) for the batch's observations ``obs`` (n, dim) of this period;
+        advances the controller by one period (its own voltage assumed until :meth:`applied`)."""
         w = np.asarray(obs, dtype=float)[:, self.cols]
-        self.theta += (w - self.theta + np.pi) % (2.0 * np.pi) - np.pi  # the change since the last reading
+        change = np.where(self.wrapped, (w - self.theta + np.pi) % (2.0 * np.pi) - np.pi, w * self.dt)
+        self.theta += np.where(self.fresh[:, None] & ~self.wrapped, 0.0, change)  # the change since the last reading
+        self.fresh[:] = False
         return np.asarray(self.controller.act(self._measurement(targets))) / U_MAX
 
     def applied(self, actions: np.ndarray) -> None:
         """The normalised actions (n,) the rigs execute over the period just begun."""
         self.controller.applied(np.asarray(actions, dtype=float) * U_MAX)
+
+
+def _encoder_columns(name: str, uses: tuple[str, ...], names: list[str]) -> tuple[list[int], np.ndarray]:
+    """The observation's columns of the encoders ``uses`` (theta_u, theta_l), and whether each is a wrapped
+    angle (rad; else the increment over the period, rad/s)."""
+    cols, wrapped = [], []
+    for enc in uses:
+        inc = enc.replace("theta", "omega") + "_inc_0"
+        if f"{enc}_wrapped" in names:
+            cols.append(names.index(f"{enc}_wrapped"))
+            wrapped.append(True)
+        elif inc in names:
+            cols.append(names.index(inc))
+            wrapped.append(False)
+        else:
+            raise InputError(f"teacher {name!r} reads {', '.join(uses)}: the observation {names[:3]}... has no {enc}")
+    return cols, np.array(wrapped)
 
 
 class _PlantArrays:

@@ -162,7 +162,7 @@ class FlatnessLaw:
         self.y = np.zeros((3, 1))
         self.target = np.zeros(1)
         self.low = np.zeros(1, dtype=bool)
-        self.t = 0.0
+        self.t = np.zeros(1)
 
     def reset(self, target: np.ndarray) -> None:
         """Start from rest towards the targets (rad/s), (n,)."""
@@ -171,12 +171,22 @@ class FlatnessLaw:
         self.low = self.target < self.low_speed
         self.K = np.where(self.low[:, None], self.K_low, self.K_high)  # (n, 4): on (int e, e, e', e'')
         self.z = np.zeros(self.target.size)
-        self.t = 0.0
+        self.t = np.zeros(self.target.size)  # time since each rig's start (s)
 
-    def setpoint(self, t: float) -> np.ndarray:
-        """Input of the reference lags (rad/s, (n,)) at time t (s): the target, or for a low target
-        ``approach`` until ``hold``, then a linear ramp down to the target over ``ramp``."""
-        s = float(np.clip((t - self.hold) / self.ramp, 0.0, 1.0)) if self.ramp > 0 else float(t >= self.hold)
+    def restart(self, index: np.ndarray, target: np.ndarray) -> None:
+        """Rigs ``index`` start again from rest towards ``target`` (rad/s, one per index), the others untouched."""
+        index = np.asarray(index, dtype=np.int64)
+        self.target, self.low, self.K = self.target.copy(), self.low.copy(), np.array(self.K)
+        self.target[index] = np.asarray(target, dtype=float)
+        self.low[index] = self.target[index] < self.low_speed
+        self.K[index] = np.where(self.low[index, None], self.K_low, self.K_high)
+        self.y[:, index], self.z[index], self.t[index] = 0.0, 0.0, 0.0
+
+    def setpoint(self, t: float | np.ndarray) -> np.ndarray:
+        """Input of the reference lags (rad/s, (n,)) at time t (s, scalar or per rig): the target, or for a low
+        target ``approach`` until ``hold``, then a linear ramp down to the target over ``ramp``."""
+        t = np.asarray(t, dtype=float)
+        s = np.clip((t - self.hold) / self.ramp, 0.0, 1.0) if self.ramp > 0 else (t >= self.hold) * 1.0
         return np.where(self.low, self.approach + s * (self.target - self.approach), self.target)
 
     def reference(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -221,8 +231,8 @@ class FlatnessLaw:
         j = np.where(rest, 0.0, (-kt * (omega_l - omega_u) - T1 * a) / p.Jl)
         if z is not None:
             self.z = np.asarray(z, dtype=float)
-        elif self.t > self.hold + self.ramp:  # integral of the speed error once the reference has settled
-            self.z = self.z + self.dt * (omega_l - r)
+        else:  # integral of the speed error once the reference has settled (per rig)
+            self.z = np.where(self.t > self.hold + self.ramp, self.z + self.dt * (omega_l - r), self.z)
         v = r3 - np.einsum("nk,kn->n", self.K, np.stack([self.z, omega_l - r, a - r1, j - r2]))
         wu_dot = (p.Jl * v + kt * a + T2 * a * a + T1 * j) / kt  # the upper acceleration that gives v
         tfu = self.upper_friction(np.where(omega_u == 0, 1e-9, omega_u))

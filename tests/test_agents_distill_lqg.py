@@ -39,7 +39,7 @@ def test_shadow_teacher_labels_are_what_lqg_2enc_outputs_on_the_same_readings() 
         obs, *_ = env.step(a)
     assert abs(teacher.theta[0, 0]) > np.pi  # unwrapped
     with pytest.raises(ValueError, match="shadow teacher"):
-        ShadowTeacher("observer", 1, 0.01, env.unwrapped.observation_names)
+        ShadowTeacher("lqg", 1, 0.01, env.unwrapped.observation_names)
 
 
 def test_per_rig_reset_restarts_only_that_rigs_filter_and_the_applied_voltage_is_predicted() -> None:
@@ -91,16 +91,21 @@ def test_per_rig_reset_restarts_only_that_rigs_filter_and_the_applied_voltage_is
     assert np.mean(err[True][100:]) < 0.3 * np.mean(err[False][100:])
 
 
-def test_student_sees_the_same_stacked_observation_command_and_integral_in_training_and_on_the_rig(tmp_path) -> None:
+@pytest.mark.parametrize("mode", ["sensors", "motor"])
+def test_student_sees_the_same_stacked_observation_command_and_integral_in_training_and_on_the_rig(mode) -> None:
     from agents.command import CommandSchedule
     from agents.controller import AgentController
 
+    kw = {"observation": mode} if mode == "sensors" else {"observation": mode, "motor_history": 3}
+    dim = 7  # 'sensors': 5 readings, the last voltage, the target; 'motor': 3 increments, 3 voltages, the target
+    encoders = ("theta_u", "theta_l") if mode == "sensors" else ("theta_u",)
+
     class Recorder:  # an exported policy that records its inputs
         control_dt = 0.01
-        obs_dim = 3 * 7 + 1
+        obs_dim = 3 * dim + 1
         config = {
             "hyperparams": {
-                "env_kwargs": {"observation": "sensors"},
+                "env_kwargs": kw,
                 "frame_stack": 3,
                 "motor_integral": True,
                 "command_schedule": SCHEDULE,
@@ -112,26 +117,26 @@ def test_student_sees_the_same_stacked_observation_command_and_integral_in_train
             return np.full((len(x), 1), 0.7, dtype=np.float32)
 
     venv = MotorIntegralVecEnv(
-        _sensors_env(1, counts_per_rev=0, alpha0_range=(0.0, 0.0), episode_duration=1.0),
+        _sensors_env(1, counts_per_rev=0, alpha0_range=(0.0, 0.0), episode_duration=1.0, **kw),
         0.01,
         command=CommandSchedule(**SCHEDULE),
         frames=3,
     )
     venv.seed(0)
     obs = venv.reset()
-    assert obs.shape == (1, 22) and not obs[0, :14].any()  # zeros before the episode's start
+    assert obs.shape == (1, 3 * dim + 1) and not obs[0, : 2 * dim].any()  # zeros before the episode's start
     s = episode_batch(venv).system
     rec = Recorder()
     ctl = AgentController(rec, omega_ref=3.0, dt=0.01)
-    ctl.reset({"theta_u": s.Y[:, 0].copy(), "theta_l": s.Y[:, 1].copy()})
+    ctl.reset({k: s.Y[:, j].copy() for j, k in enumerate(encoders)})
     commands = []
     for _ in range(90):  # past a wrap of the motor angle, within the episode (100 periods)
-        u = ctl.act({"theta_u": s.Y[:, 0].copy(), "theta_l": s.Y[:, 1].copy()})
+        u = ctl.act({k: s.Y[:, j].copy() for j, k in enumerate(encoders)})
         np.testing.assert_allclose(rec.x, obs, rtol=0, atol=2e-5)
         commands.append(float(obs[0, -2]))
         obs, *_ = venv.step((u / 5.0).reshape(-1, 1))
     assert commands[0] == 0.0 and 2.9 < max(commands) <= 3.0
-    assert abs(s.Y[0, 0]) > np.pi and abs(obs[0, -1]) < 2.0  # the integral followed the wrapped motor angle
+    assert abs(s.Y[0, 0]) > np.pi and abs(obs[0, -1]) < 2.0  # the integral followed the motor angle
 
 
 def test_tiny_dagger_from_lqg_2enc_lowers_the_imitation_error_and_exports_a_plain_network(tmp_path, capsys) -> None:
