@@ -164,7 +164,7 @@ def register(app: typer.Typer) -> None:
         teacher: Path | None = typer.Option(
             None,
             "--teacher",
-            help="policy.npz of a run on the 'full' observation, or a teacher's name (flatness, lqg-2enc): "
+            help="policy.npz of a run on the 'full' observation, or a teacher's name (flatness, lqg-2enc, observer): "
             "distilled (DAgger) into this run's network before the RL steps "
             "(--timesteps 0: distillation only)",
         ),
