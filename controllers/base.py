@@ -185,6 +185,36 @@ class Controller(ABC):
 
     __call__ = act
 
+    def reset_rigs(self, index: np.ndarray, measurement: Measurement) -> None:
+        """Restart the rigs ``index`` only (e.g. those of a batch whose episode just ended), the others untouched.
+
+        Parameters
+        ----------
+        index : ndarray of int
+            The rigs (rows of the batch of :meth:`reset`) that start again from rest.
+        measurement : mapping of str to float or ndarray
+            The rigs' first measurements, (n,) arrays over the whole batch (rows ``index`` are read): those in
+            :attr:`uses` and optionally ``omega_ref`` (rad/s, their new targets).
+
+        Raises
+        ------
+        InputError
+            Called before :meth:`reset`, or a new target that is not a positive finite speed (or one the
+            controller was not designed for).
+        NotImplementedError
+            The controller cannot restart single rigs of a batch.
+        """
+        if self.n == 0:
+            raise InputError(f"controller {self.name!r}: reset() the batch before reset_rigs()")
+        index = np.asarray(index, dtype=np.int64)
+        m = self._arrays(measurement, check=False)
+        if "omega_ref" in m:
+            ref = _check_ref(m["omega_ref"][index])
+            self._check_new_targets(ref)
+            self.omega_ref[index] = ref
+        self.u_prev[index] = 0.0
+        self._restart_rigs(index, m)
+
     def describe(self) -> str:
         """One line: what the controller is and which measurements it reads."""
         doc = (type(self).__doc__ or "").strip().splitlines()[0]
@@ -213,6 +243,15 @@ class Controller(ABC):
 
         A hook: the default does nothing, for controllers without internal state.
         """
+
+    def _check_new_targets(self, ref: np.ndarray) -> None:  # noqa: B027 - optional hook
+        """Refuse (InputError) new targets (rad/s) given to :meth:`reset_rigs` that the controller cannot
+        hold; a hook: the default accepts every positive finite speed."""
+
+    def _restart_rigs(self, index: np.ndarray, m: dict[str, np.ndarray]) -> None:
+        """Restart the internal state of the rigs ``index`` from the measurements ``m`` ((n,) arrays); their
+        targets and last voltages are already reset by :meth:`reset_rigs`."""
+        raise NotImplementedError(f"controller {self.name!r} cannot restart single rigs of a batch")
 
     @abstractmethod
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:

@@ -197,32 +197,7 @@ class ObserverController(Controller):
         self.law = self.new_law(self.omega_ref)
         self.margins, self._short, self._descent = check_margins(self, m, self.fallback)
 
-    def reset_rigs(self, index: np.ndarray, measurement) -> None:
-        """Restart the rigs ``index`` only (e.g. those of a batch whose episode just ended), the others untouched.
-
-        Parameters
-        ----------
-        index : ndarray of int
-            The rigs (rows of the batch of :meth:`reset`) that start again from rest.
-        measurement : mapping of str to float or ndarray
-            The rigs' first measurements, (n,) arrays over the whole batch (rows ``index`` are read):
-            ``theta_u`` (rad) and optionally ``omega_ref`` (rad/s, their new targets).
-
-        Raises
-        ------
-        InputError
-            Called before :meth:`reset`, or a new target that is not a positive finite speed.
-        """
-        if self.n == 0:
-            raise InputError(f"controller {self.name!r}: reset() the batch before reset_rigs()")
-        index = np.asarray(index, dtype=np.int64)
-        m = self._arrays(measurement, check=False)
-        if "omega_ref" in m:
-            ref = m["omega_ref"][index]
-            if not np.all(np.isfinite(ref)) or np.any(ref <= 0):
-                raise InputError(f"omega_ref must be positive finite speeds (rad/s), got {ref!r}")
-            self.omega_ref[index] = ref
-        self.u_prev[index] = 0.0
+    def _restart_rigs(self, index: np.ndarray, m: dict[str, np.ndarray]) -> None:
         theta = np.broadcast_to(np.asarray(m.get("theta_u", 0.0), dtype=float), (self.n,))[index]
         self.observer.reset(theta, index=index)
         self.law.restart(index, self.omega_ref[index])

@@ -199,37 +199,14 @@ class TwoEncoderLQG(Controller):
         self.x[index] = 0.0  # and the line of past commands: none sent
         self.x[index, 0], self.x[index, 2] = tu, tl - tu
 
-    def reset_rigs(self, index: np.ndarray, measurement) -> None:
-        """Restart the rigs ``index`` only (e.g. those of a batch whose episode just ended), the others untouched.
+    def _check_new_targets(self, ref: np.ndarray) -> None:
+        if np.max(ref, initial=0.0) + 1.0 > self._grid[-1] + 1e-9:
+            raise InputError(
+                f"reset_rigs: target {float(np.max(ref)):g} rad/s is above the designs' grid (up to "
+                f"{self._grid[-1]:g}); reset() the batch with the highest target first"
+            )
 
-        Parameters
-        ----------
-        index : ndarray of int
-            The rigs (rows of the batch of :meth:`reset`) that start again from rest.
-        measurement : mapping of str to float or ndarray
-            The rigs' first measurements, (n,) arrays over the whole batch (rows ``index`` are read):
-            ``theta_u``, ``theta_l`` (rad) and optionally ``omega_ref`` (rad/s, their new targets).
-
-        Raises
-        ------
-        InputError
-            Called before :meth:`reset`, or a new target that is not a positive finite speed.
-        """
-        if self.n == 0:
-            raise InputError(f"controller {self.name!r}: reset() the batch before reset_rigs()")
-        index = np.asarray(index, dtype=np.int64)
-        m = self._arrays(measurement, check=False)
-        if "omega_ref" in m:
-            ref = m["omega_ref"][index]
-            if not np.all(np.isfinite(ref)) or np.any(ref <= 0):
-                raise InputError(f"omega_ref must be positive finite speeds (rad/s), got {ref!r}")
-            if np.max(ref, initial=0.0) + 1.0 > self._grid[-1] + 1e-9:
-                raise InputError(
-                    f"reset_rigs: target {float(np.max(ref)):g} rad/s is above the designs' grid (up to "
-                    f"{self._grid[-1]:g}); reset() the batch with the highest target first"
-                )
-            self.omega_ref[index] = ref
-        self.u_prev[index] = 0.0
+    def _restart_rigs(self, index: np.ndarray, m: dict[str, np.ndarray]) -> None:
         self._start(index, m)
 
     def applied(self, voltage) -> None:

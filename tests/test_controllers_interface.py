@@ -90,3 +90,20 @@ def test_agent_hook():
         controllers.registry._agent_loader = None
     with pytest.raises(ValueError, match="agent:PATH"):
         controllers.make("agent:")
+
+
+def test_reset_rigs_checks_before_restarting_and_refuses_what_it_cannot_restart():
+    pi = controllers.make("pi", omega_ref=2.0)
+    with pytest.raises(ValueError, match="reset\\(\\) the batch before"):
+        pi.reset_rigs(np.array([0]), {"theta_u": np.zeros(2)})
+    pi.reset({"theta_u": np.zeros(2), "omega_u": np.zeros(2), "omega_ref": np.array([2.0, 3.0])})
+    with pytest.raises(NotImplementedError, match="cannot restart single rigs"):
+        pi.reset_rigs(np.array([0]), {"theta_u": np.zeros(2)})
+    obs = controllers.make("observer", omega_ref=2.0)
+    obs.reset({"theta_u": np.zeros(2), "omega_ref": np.array([2.0, 3.0])})
+    with pytest.raises(ValueError, match="positive finite"):
+        obs.reset_rigs(np.array([1]), {"theta_u": np.zeros(2), "omega_ref": np.array([2.0, -1.0])})
+    assert np.array_equal(obs.omega_ref, [2.0, 3.0])  # a refused restart changes nothing
+    obs.u_prev[:] = 1.0
+    obs.reset_rigs(np.array([1]), {"theta_u": np.zeros(2), "omega_ref": np.array([9.0, 4.0])})
+    assert np.array_equal(obs.omega_ref, [2.0, 4.0]) and np.array_equal(obs.u_prev, [1.0, 0.0])
