@@ -28,7 +28,7 @@ from drillgym.errors import InputError
 
 from .command import SpeedCommand, schedule_of
 from .export import ExportedPolicy
-from .integral import advance, wrapped_speed
+from .integral import Z_MAX, advance, wrapped_speed
 from .observer_residual import ObserverResidual
 from .residual import ResidualVoltage
 from .switched import TargetSwitchedPolicy
@@ -170,7 +170,9 @@ class AgentController(Controller):
             self._t = self._t + self.dt
             if self.integral:
                 speed = None if self.mode == "motor" else wrapped_speed(self.obs[:, 0], self.prev, self.dt)
-                self.z = advance(self.z, self.obs, self.dt, speed=speed)
+                active = None if self.command is None else self.command.integrating(self.omega_ref)
+                z_max = Z_MAX if self.command is None else self.schedule.z_max
+                self.z = advance(self.z, self.obs, self.dt, z_max, speed, active)
                 self.prev = self.obs[:, 0].astype(float)
         self._first = False
         x = np.hstack([self.stack, self.z[:, None].astype(np.float32)]) if self.integral else self.stack

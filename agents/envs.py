@@ -139,13 +139,17 @@ class MotorIntegralVecEnv(VecEnvWrapper):
     ``VecFrameStack``), then ``z`` once: the layout :class:`agents.controller.AgentController` builds.
     :attr:`frame` holds the newest observation (n, dim), the target entry carrying the command."""
 
-    def __init__(self, venv: VecEnv, control_dt: float, z_max: float = Z_MAX, command=None, frames: int = 1) -> None:
+    def __init__(
+        self, venv: VecEnv, control_dt: float, z_max: float | None = None, command=None, frames: int = 1
+    ) -> None:
         names = venv.get_attr("observation_names")[0]
         if names[0] not in ("omega_u_inc_0", "theta_u_wrapped") or names[-1] != "omega_ref":
             raise InputError("the motor-angle integral needs the 'motor' or 'sensors' observation mode")
         if isinstance(frames, bool) or not isinstance(frames, int) or frames < 1:
             raise InputError(f"frame_stack must be an integer >= 1, got {frames!r}")
         self.wrapped = names[0] == "theta_u_wrapped"
+        if z_max is None:  # the command schedule's clip, else the default
+            z_max = Z_MAX if command is None else command.z_max
         box = venv.observation_space
         space = spaces.Box(
             np.append(np.tile(box.low, frames), -z_max).astype(np.float32),
@@ -199,7 +203,8 @@ class MotorIntegralVecEnv(VecEnvWrapper):
             last[i] = infos[i]["terminal_observation"]
         self._put_command(last)
         speed = wrapped_speed(last[:, 0], self.prev, self.dt) if self.wrapped else None
-        self.z = advance(self.z, last, self.dt, self.z_max, speed)
+        active = None if self.command is None else self.command.integrating(self.target)
+        self.z = advance(self.z, last, self.dt, self.z_max, speed, active)
         self.prev[:] = last[:, 0]
         ended = np.flatnonzero(done)
         out = self._push(last)

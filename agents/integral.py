@@ -23,7 +23,12 @@ Z_MAX = 2.0
 
 
 def advance(
-    z: np.ndarray, obs: np.ndarray, control_dt: float, z_max: float = Z_MAX, speed: np.ndarray | None = None
+    z: np.ndarray,
+    obs: np.ndarray,
+    control_dt: float,
+    z_max: float = Z_MAX,
+    speed: np.ndarray | None = None,
+    active: np.ndarray | None = None,
 ) -> np.ndarray:
     """The integral after one control period.
 
@@ -41,6 +46,9 @@ def advance(
     speed : ndarray, optional
         The motor speed over the period (rad/s, (n,)) instead of entry 0 (the 'sensors' observation:
         :func:`wrapped_speed`).
+    active : ndarray of bool, optional
+        The rigs whose integral runs this period (n,) (:meth:`agents.command.SpeedCommand.integrating`); the
+        others keep theirs.  Default: all.
 
     Returns
     -------
@@ -48,7 +56,8 @@ def advance(
         The new integral (rad), (n,).
     """
     w = obs[:, 0].astype(float) if speed is None else np.asarray(speed, dtype=float)
-    return np.clip(z + control_dt * (w - obs[:, -1].astype(float)), -z_max, z_max)
+    new = np.clip(z + control_dt * (w - obs[:, -1].astype(float)), -z_max, z_max)
+    return new if active is None else np.where(active, new, z)
 
 
 def wrapped_speed(angle: np.ndarray, prev: np.ndarray, control_dt: float) -> np.ndarray:

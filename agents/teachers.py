@@ -157,6 +157,10 @@ class ShadowTeacher:
         period (``omega_u_inc_0``, rad/s, 'motor': the angle changes by it times ``dt``) is read.
     top : float, optional
         The highest target any rig will get (rad/s): the controller's designs cover it.  Default 8.
+    given_integral : bool, optional
+        The controller's law takes its integral state from :meth:`act`'s ``z`` (the student's motor-angle
+        integral, rad, :mod:`agents.integral`) instead of integrating its own estimated speed error, so that its
+        voltage is a function of what the student sees (``observer`` only: a law with an integral state).
     **options
         Keywords of the controller (e.g. ``approach``, ``hold``, ``ramp``, ``tau_ref`` of ``lqg-2enc``).
 
@@ -166,11 +170,15 @@ class ShadowTeacher:
         An unknown controller, or an observation without an encoder the controller uses.
     """
 
-    def __init__(self, name: str, n: int, dt: float, names, *, top: float = 8.0, **options) -> None:
+    def __init__(
+        self, name: str, n: int, dt: float, names, *, top: float = 8.0, given_integral: bool = False, **options
+    ) -> None:
         from controllers import make
 
         if name not in SHADOW_CONTROLLERS:
             raise InputError(f"shadow teacher must be one of {', '.join(SHADOW_CONTROLLERS)}, got {name!r}")
+        if given_integral and name != "observer":
+            raise InputError(f"given_integral needs a law with an integral state (observer), not {name!r}")
         self.n, self.dt = int(n), float(dt)
         self.controller = make(name, dt=self.dt, **options)
         self.uses = tuple(self.controller.uses)
@@ -178,6 +186,9 @@ class ShadowTeacher:
         self.theta = np.zeros((self.n, len(self.uses)))  # the unwrapped encoder angles (rad)
         self.fresh = np.ones(self.n, dtype=bool)  # rigs whose angle is that of their reset observation
         self.controller.reset(self._measurement(np.full(self.n, top)))
+        self.given = _GivenIntegral(self.controller.law) if given_integral else None
+        if self.given is not None:
+            self.controller.law = self.given
 
     def _measurement(self, targets: np.ndarray) -> dict[str, np.ndarray]:
         m = {k: self.theta[:, j] for j, k in enumerate(self.uses)}
@@ -192,9 +203,14 @@ class ShadowTeacher:
         self.fresh[index] = True
         self.controller.reset_rigs(index, self._measurement(targets))
 
-    def act(self, obs: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    def act(self, obs: np.ndarray, targets: np.ndarray, z: np.ndarray | None = None) -> np.ndarray:
         """Labels (normalised voltages, (n,)) for the batch's observations ``obs`` (n, dim) of this period;
-        advances the controller by one period (its own voltage assumed until :meth:`applied`)."""
+        advances the controller by one period (its own voltage assumed until :meth:`applied`).  ``z`` (rad, (n,)):
+        the integral state of a ``given_integral`` teacher's law."""
+        if (z is None) != (self.given is None):
+            raise InputError("a given_integral teacher needs the integral z, and only it takes one")
+        if self.given is not None:
+            self.given.z = np.asarray(z, dtype=float)
         w = np.asarray(obs, dtype=float)[:, self.cols]
         change = np.where(self.wrapped, (w - self.theta + np.pi) % (2.0 * np.pi) - np.pi, w * self.dt)
         self.theta += np.where(self.fresh[:, None] & ~self.wrapped, 0.0, change)  # the change since the last reading
@@ -204,6 +220,21 @@ class ShadowTeacher:
     def applied(self, actions: np.ndarray) -> None:
         """The normalised actions (n,) the rigs execute over the period just begun."""
         self.controller.applied(np.asarray(actions, dtype=float) * U_MAX)
+
+
+class _GivenIntegral:
+    """A :class:`controllers.flatness.FlatnessLaw` called with the integral state ``z`` (rad, (n,)) set from
+    outside (its other attributes and methods the law's own)."""
+
+    def __init__(self, law) -> None:
+        self.law = law
+        self.z = np.zeros(law.target.size)
+
+    def __getattr__(self, name: str):
+        return getattr(self.law, name)
+
+    def __call__(self, *args, **kw) -> np.ndarray:
+        return self.law(*args, z=self.z, **kw)
 
 
 def _encoder_columns(name: str, uses: tuple[str, ...], names: list[str]) -> tuple[list[int], np.ndarray]:

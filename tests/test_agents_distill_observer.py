@@ -1,4 +1,5 @@
-"""DAgger from the motor-encoder observer run in shadow: labels from the 'motor' observation, per-rig restart."""
+"""DAgger from the motor-encoder observer run in shadow: labels from the 'motor' observation, per-rig restart, the
+settled integral the teacher takes from the student, the whitening of the student's inputs."""
 
 from __future__ import annotations
 
@@ -71,3 +72,95 @@ def test_observer_restarts_one_rig_alone_and_predicts_with_the_applied_voltage()
         if k < 10:
             np.testing.assert_allclose(shadow.estimate, own.estimate, rtol=0, atol=1e-12)
     assert np.abs(shadow.estimate[1] - own.estimate[1]).min() > 1e-3  # 1 V more: a faster motor predicted
+
+
+def test_settled_integral_starts_when_the_ramp_ends_for_low_targets_alike_in_training_and_on_the_rig() -> None:
+    from agents.command import CommandSchedule, SpeedCommand
+    from agents.controller import AgentController
+    from agents.envs import MotorIntegralVecEnv, episode_batch
+    from drillgym.envs.sb3 import make_sb3_vec
+
+    spec = {"approach": 2.5, "hold": 0.05, "ramp": 0.1, "lag": 0.05, "order": 3, "settled_integral": True}
+    sched = CommandSchedule.from_config(spec)
+    assert list(sched.integrating([0.1, 0.2, 0.2], [1.0, 1.0, 3.0])) == [False, True, False]  # as the observer's
+    assert CommandSchedule(**{**spec, "settled_integral": False}).integrating(0.1, 1.0).all()
+    with pytest.raises(InputError, match="settled_integral"):
+        CommandSchedule.from_config({**spec, "settled_integral": 1})
+    cmd = SpeedCommand(sched, 2, 0.01)
+    for _ in range(16):
+        cmd.advance(np.array([1.0, 1.0]))
+    assert list(cmd.integrating(np.array([1.0, 3.0]))) == [True, False]
+
+    kw = {"observation": "motor", "motor_history": 2}
+
+    class Recorder:  # an exported policy that records its inputs
+        control_dt = 0.01
+        obs_dim = 2 * 5 + 1
+        config = {"hyperparams": {"env_kwargs": kw, "frame_stack": 2, "motor_integral": True, "command_schedule": spec}}
+
+        def act(self, x):
+            self.x = np.array(x)
+            return np.full((len(x), 1), 0.9, dtype=np.float32)
+
+    env = make_sb3_vec(
+        "drillgym/Torsional-v0", 1, omega_ref=1.0, episode_duration=1.0, normalize_action=True, counts_per_rev=0, **kw
+    )
+    venv = MotorIntegralVecEnv(env, 0.01, command=sched, frames=2)
+    venv.seed(0)
+    obs = venv.reset()
+    s = episode_batch(venv).system
+    rec = Recorder()
+    ctl = AgentController(rec, omega_ref=1.0, dt=0.01)
+    ctl.reset({"theta_u": s.Y[:, 0].copy()})
+    z = []
+    for _ in range(40):
+        u = ctl.act({"theta_u": s.Y[:, 0].copy()})
+        np.testing.assert_allclose(rec.x, obs, rtol=0, atol=2e-5)
+        z.append(float(obs[0, -1]))
+        obs, *_ = venv.step((u / 5.0).reshape(-1, 1))
+    assert not any(z[:15]) and abs(z[-1]) > 1e-3  # 0 until hold + ramp = 0.15 s, then the motor angle's excess
+
+
+def test_given_integral_teacher_uses_the_students_integral_for_low_targets_only() -> None:
+    import gymnasium as gym
+
+    from agents.teachers import ShadowTeacher
+
+    env = gym.make("drillgym/Torsional-v0", observation="motor", omega_ref=1.5, normalize_action=True)
+    obs, _ = env.reset(seed=3)
+    names = env.unwrapped.observation_names
+    targets = np.array([1.5, 1.5, 3.0, 3.0])
+    own = ShadowTeacher("observer", 4, 0.01, names)
+    given = ShadowTeacher("observer", 4, 0.01, names, given_integral=True)
+    batch = np.repeat(obs[None, :], 4, axis=0)
+    for t in (own, given):
+        t.reset(np.arange(4), batch, targets)
+    z = np.array([0.0, 3.0, 0.0, 3.0])
+    a_own, a_given = own.act(batch, targets), given.act(batch, targets, z)
+    assert a_given[0] == pytest.approx(a_own[0], abs=1e-9)  # z = 0: the observer's own integral before the ramp's end
+    assert abs(a_given[1] - a_given[0]) > 1e-3  # a low target's law acts on the given integral
+    assert a_given[3] == pytest.approx(a_given[2], abs=1e-9)  # the high branch has no integral
+    with pytest.raises(InputError, match="needs the integral z"):
+        given.act(batch, targets)
+    with pytest.raises(InputError, match="given_integral needs a law"):
+        ShadowTeacher("lqg-2enc", 1, 0.01, names, given_integral=True)
+
+
+def test_whitening_passes_an_entry_constant_in_the_first_states_unscaled() -> None:
+    import torch as th
+
+    from agents.distill import _Whitening
+
+    rng = np.random.default_rng(0)
+    a = rng.standard_normal(2000)
+    x = np.stack([a, a + 1e-3 * rng.standard_normal(2000), np.zeros(2000)], axis=1)  # the integral still at 0
+    layer = th.nn.Linear(3, 4)
+    white = _Whitening(x, 1e-6, layer)
+    M = white.M.numpy()
+    assert M[2, 2] == pytest.approx(1.0, rel=1e-3) and np.abs(M[:2, 2]).max() < 1e-6 and np.abs(M[2, :2]).max() < 1e-6
+    assert np.abs(M[:2, :2]).max() > 100  # the nearly collinear pair is decorrelated (and amplified)
+    probe = th.as_tensor(np.array([[0.3, 0.31, 5.0]]), dtype=th.float32)
+    with th.no_grad():
+        whitened = layer(white(probe))
+        with white.folded():
+            assert th.allclose(layer(probe), whitened, atol=1e-3)
