@@ -31,6 +31,7 @@ import numpy as np
 from drillgym.errors import InputError
 
 from .command import schedule_of
+from .curriculum import LowTargets
 from .envs import episode_batch
 
 __all__ = ["distill", "Teacher"]
@@ -75,6 +76,8 @@ def distill(
     lr_final: float | None = None,
     frame_stack: int = 1,
     whiten: float = 0.0,
+    low_targets: dict[str, float] | None = None,
+    bias: float = 0.0,
     log=None,
     on_round: Callable[[int, float], None] | None = None,
 ) -> dict[str, float]:
@@ -142,6 +145,13 @@ def distill(
         states; the covariance's eigenvalues floored at ``whiten`` times the largest), folded into the first
         layer's weights whenever the model is handed out (``on_round``, the end): the deployed network stays a
         plain MLP on the raw observation.  0: none.
+    bias : float, optional
+        Standard deviation of a constant offset on the executed actions (normalised), drawn per rig and episode
+        (the labels stay the teacher's clean actions): a steady error the teacher's integral corrects, so the
+        data cover the integral's range.
+    low_targets : dict, optional
+        ``{fraction, below}``: that fraction of the episodes' targets drawn uniformly below ``below`` (rad/s)
+        instead of the env's (or task's) uniform range (:class:`agents.curriculum.LowTargets`; training only).
     log : callable, optional
         ``log(message: str)``: one line per round.
     on_round : callable, optional
@@ -192,6 +202,9 @@ def distill(
         venv = PrivilegedObsVecEnv(venv)
     venv.seed(seed)
     batch = episode_batch(venv)
+    curriculum = LowTargets.from_config(low_targets)
+    if curriculum is not None:
+        curriculum.install(batch)
     teach = _teacher(teacher, n_envs, batch, teacher_kwargs or {}, integral, frame_stack)
 
     policy = model.policy
@@ -218,8 +231,11 @@ def distill(
     teach.reset(np.arange(n_envs), obs)
     rng = np.random.default_rng(seed)
     mse = float("nan")
-    if not (0.0 <= beta <= 1.0 and noise >= 0.0):
-        raise InputError(f"beta must be in [0, 1] and noise >= 0, got beta={beta!r}, noise={noise!r}")
+    if not (0.0 <= beta <= 1.0 and noise >= 0.0 and bias >= 0.0):
+        raise InputError(
+            f"beta must be in [0, 1], noise and bias >= 0, got beta={beta!r}, noise={noise!r}, bias={bias!r}"
+        )
+    offset = bias * rng.standard_normal(n_envs) if bias > 0 else np.zeros(n_envs)  # each episode's action offset
     for it in range(iterations):
         for g in opt.param_groups:
             g["lr"] = round_learning_rate(lr, lr_final, it, iterations)
@@ -234,11 +250,13 @@ def distill(
                     a = np.where(by_teacher, a_t, mean_action(obs).numpy())
             if noise > 0:
                 a = a + noise * rng.standard_normal(n_envs)
-            a = np.clip(a, -1.0, 1.0)
+            a = np.clip(a + offset, -1.0, 1.0)
             teach.applied(a)
             obs, _, done, _ = venv.step(a.reshape(-1, 1))
             if done.any():
                 teach.reset(np.flatnonzero(done), obs)
+                if bias > 0:
+                    offset[done] = bias * rng.standard_normal(int(done.sum()))
         data_x = th.as_tensor(np.concatenate(X), dtype=th.float32)
         data_y = th.as_tensor(np.concatenate(Y), dtype=th.float32)
         n = data_x.shape[0]
@@ -276,10 +294,12 @@ class _Whitening:
 
     ``mu``: the inputs' mean; ``M = V diag((e + floor max e)^-1/2) V^T diag(1/sd)``, the inverse square
     root of the standardised inputs' covariance (eigen-decomposition ``V, e``), its eigenvalues floored at
-    ``floor`` times the largest.  A stacked history is strongly correlated (consecutive frames differ by
-    little) and the labels hinge on those small differences: plain gradient steps on the raw inputs fit them
-    poorly.  The map is linear, so the first layer ``W, b`` on whitened inputs is the layer ``W M,
-    b - W M mu`` on the raw ones (:meth:`fold`): the deployed network is a plain MLP.
+    ``floor`` times the largest.  An entry constant in those states (e.g. an integral still at 0) is left out of
+    the decorrelation and passes unscaled: the floor would amplify it a thousandfold.  A stacked history is
+    strongly correlated (consecutive frames differ by little) and the labels hinge on those small differences:
+    plain gradient steps on the raw inputs fit them poorly.  The map is linear, so the first layer ``W, b`` on
+    whitened inputs is the layer ``W M, b - W M mu`` on the raw ones (:meth:`fold`): the deployed network is a
+    plain MLP.
 
     Parameters
     ----------
@@ -298,8 +318,12 @@ class _Whitening:
             raise InputError(f"whiten needs an actor whose first layer is linear, got {layer}")
         x = np.asarray(x, dtype=np.float64)
         mu, sd = x.mean(axis=0), x.std(axis=0)
-        sd = np.where(sd > 1e-6, sd, 1.0)  # an entry constant in these states is not amplified
-        e, V = np.linalg.eigh(np.cov(((x - mu) / sd).T))
+        const = sd <= 1e-6
+        sd = np.where(const, 1.0, sd)
+        cov = np.atleast_2d(np.cov(((x - mu) / sd).T))
+        cov[const, :], cov[:, const] = 0.0, 0.0
+        cov[const, const] = 1.0  # an entry constant in these states (e.g. an integral still at 0) passes unscaled
+        e, V = np.linalg.eigh(cov)
         e = np.maximum(e, 0.0)
         M = (V / np.sqrt(e + floor * e.max())) @ V.T / sd[None, :]
         self.mu = th.as_tensor(mu, dtype=th.float32)
@@ -360,13 +384,18 @@ def _teacher(teacher: str | Path, n: int, batch, options: dict[str, Any], integr
         o = batch.options
         top = max(float(o.omega_ref_range[1]), float(o.omega_ref or 0.0))  # the highest target of an episode
         t = ShadowTeacher(str(teacher), n, o.control_dt, list(batch.obs_model.names), top=top, **options)
+        if t.given is not None and integral is None:
+            raise InputError("given_integral: the teacher takes the student's integral (motor_integral: true)")
         dim = batch.obs_model.dim
 
         def frame(obs: np.ndarray) -> np.ndarray:  # the newest sensors observation of the student's
             return np.asarray(obs)[:, (frames - 1) * dim : frames * dim]
 
+        def z(obs: np.ndarray) -> np.ndarray | None:  # the student's integral, its observation's last entry
+            return None if t.given is None else np.asarray(obs)[:, -1]
+
         return Teacher(
-            lambda obs: t.act(frame(obs), batch.omega_ref),
+            lambda obs: t.act(frame(obs), batch.omega_ref, z(obs)),
             lambda index, obs: t.reset(index, frame(obs), batch.omega_ref),
             t.applied,
         )
