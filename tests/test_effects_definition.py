@@ -395,3 +395,20 @@ def test_an_unknown_argument_is_refused_with_what_that_function_may_use(tmp_path
     assert "stick() asks for unknown quantity/coordinate 'speed'" in text
     assert "its parameters (g)" in text and "Ju, km" in text
     assert text.endswith(f"and: {', '.join(fixed_quantities('Friction', 'stick'))} (docs/EFFECTS.md lists them)")
+
+
+def test_an_effect_defined_inside_a_function_is_refused_in_one_line():
+    """The compiled kernels import an effect by its module and name: one defined in a function's body cannot be
+    imported, and is refused before any code is generated."""
+    from drillgym.effects import Input, Parameter, compose
+    from drillgym.errors import EffectError
+
+    class Local(Input):
+        name = "local_offset"
+        parameters = (Parameter("u_off", "V", -1.0, 1.0, 0.0, 0.05, "offset", neutral=0.0),)
+
+        def voltage(u, u_off):
+            return u + u_off
+
+    with pytest.raises(EffectError, match="defined inside a function; define it at a module's top level"):
+        compose([Local])

@@ -126,6 +126,8 @@ def validate_effect(cls: Any) -> None:
             f"{cls!r} is not an effect: subclass drillgym.effects.Force, Friction, Input, Delay or Measurement"
         )
     w = _where(cls)
+    if "<locals>" in cls.__qualname__:  # the compiled kernels import it by module and name
+        raise EffectError(f"{w}: the effect class is defined inside a function; define it at a module's top level")
     if not is_identifier(cls.name):
         raise EffectError(f"{w}: the effect needs a name that is a Python identifier (class attribute name = ...)")
     bad_cfg = [c for c in cls.configurations if c not in CONFIGURATIONS]
