@@ -6,11 +6,22 @@ import pytest
 from drillgym import RigParams
 from drillgym.diagnosis.discovery import Candidate, dead_zone_variant
 from drillgym.diagnosis.sparse import motor_voltage_along, residual_torques
-from drillgym.effects import compose
+from drillgym.effects import Input, Parameter, compose
 from drillgym.identification.experiment import prepare_experiment
 from drillgym.identification.synthetic import synthetic_measurement
+from drillgym.params import PARAM_NAMES
 
 TAU, DELAY = 0.03, 0.02
+
+
+class VoltageOffset(Input):
+    """The motor sees the voltage plus a constant offset (a user's effect, outside the library)."""
+
+    name = "voltage_offset_for_test"
+    parameters = (Parameter("u_off", "V", -1.0, 1.0, 0.0, 0.05, "offset", neutral=0.0),)
+
+    def voltage(u, u_off):
+        return u + u_off
 
 
 def _steps(effects, **values):
@@ -105,7 +116,7 @@ def test_a_dead_zone_behind_an_unselected_lag_is_found_through_the_lag():
         effect_params={"tau_m": TAU, "u0": 0.4},
     )
     ex = prepare_experiment(ts, compare_rate_hz=250.0)
-    base = SimpleNamespace(composition=None, vector=RigParams().to_vector(), selected=[])
+    base = SimpleNamespace(composition=None, vector=RigParams().to_vector(), selected=[], at_bounds=[])
     cand = discovery._motor_side_candidate(ex, base)
     # on one-signed voltages the dead zone is a constant: km × (−0.4 V) at the motor, or that torque on the disc
     assert cand is not None and cand.group in ("motor_voltage", "upper_force"), cand
@@ -123,3 +134,76 @@ def test_a_candidate_fit_worse_than_none_says_so():
     assert "explains none of it" in worse.line() and "%" not in worse.line()
     better = CandidateFit({"c1": 0.1}, False, Unexplained(300.0, {}), Unexplained(30.0, {}))
     assert "99% of the unexplained variance removed" in better.line()
+
+
+def test_fits_beside_a_candidate_also_start_from_its_regressed_terms():
+    """The candidate's own fit may bend its terms to stand in for a lag it lacks; the fits beside it start once
+    from that fit and once from the terms as regressed, the rest of the vector the same."""
+    from types import SimpleNamespace
+
+    from drillgym.diagnosis.beside import _starts
+    from drillgym.diagnosis.candidate_fit import CandidateFitState
+    from drillgym.diagnosis.effects import get_effect
+    from drillgym.diagnosis.motor_terms import MotorVoltageTerms
+    from drillgym.effects import Composition
+
+    comp = Composition((get_effect("motor_lag"), MotorVoltageTerms))
+    fitted = comp.vector(RigParams(), {"mv_sat": -1.57, "mv_w": 0.24, "tau_m": 0.03})
+    reference = SimpleNamespace(vector=fitted)
+    state = CandidateFitState(None, comp, reference, ["mv_sat", "mv_w"], (), fitted, (), {"mv_sat": -1.0, "mv_w": 0.37})
+    first, second = _starts(state, reference)
+    assert np.array_equal(first, fitted)
+    i, w = comp.param_index("mv_sat"), comp.param_index("mv_w")
+    assert (second[i], second[w]) == (-1.0, 0.37)
+    others = np.ones(fitted.size, bool)
+    others[[i, w]] = False
+    assert np.array_equal(second[others], fitted[others])
+    same = CandidateFitState(None, comp, reference, ["mv_sat", "mv_w"], (), fitted, (), {"mv_sat": -1.57, "mv_w": 0.24})
+    assert len(_starts(same, reference)) == 1  # a fit that did not move them: one start
+
+
+@pytest.mark.parametrize(
+    ("score", "at_bound", "tie", "better"),
+    [(-1.0, False, "input_delay", None), (-40.0, False, None, None), (200.0, True, None, "input_delay")],
+)
+def test_a_carried_lag_states_a_tie_or_a_better_fit_at_a_bound(monkeypatch, score, at_bound, tie, better):
+    """The lag a candidate was found through, with the delay fitted in its place: a tie when the delay scores
+    within the tie margin, nothing when far worse, and when far better only with a base parameter at a bound
+    of its range, that is said (not a tie, not counted)."""
+    from types import SimpleNamespace
+
+    import drillgym.diagnosis.beside as beside
+    from drillgym.diagnosis.effects import get_effect
+    from drillgym.effects import Composition
+
+    monkeypatch.setattr(beside, "smooth_input_share", lambda *a: (1.0, 1.0))  # steps: fast enough to separate
+    comp = Composition((get_effect("motor_lag"),))
+    state = SimpleNamespace(composition=comp, result=SimpleNamespace(vector=comp.vector(RigParams(), {"tau_m": 0.03})))
+    fit = SimpleNamespace(with_library=("motor_lag",), state=state, values={}, after=None, base_fitted={})
+    swap = beside._Trial(get_effect("input_delay"), "motor_lag", score=score, at_bound=at_bound)
+    screening = SimpleNamespace(exps=None, model=SimpleNamespace(comp=None, nominal=None))
+    out = beside._carried(fit, [swap], {swap.label: score}, screening)
+    assert out.selected == "motor_lag" and out.values["tau_m"] == pytest.approx(0.03)
+    assert (out.tie_with, out.better_at_bound) == (tie, better)
+
+
+def test_the_motor_side_is_looked_at_on_the_nominal_base_when_the_diagnosis_left_one_at_a_bound():
+    """A −0.15 V voltage offset on steps (drillgym's simulator, an offset written as a user's Input effect), diagnosed
+    with the motor constant taken 12 % down to its bound: on that model's residual the offset is partly hidden, on
+    the nominal base it is the whole residual; the motor side's candidate is the offset's torque found there."""
+    from types import SimpleNamespace
+
+    from drillgym.diagnosis import discovery
+
+    ex = _steps([VoltageOffset], u_off=-0.15)
+    nominal = RigParams().to_vector()
+    at_bound = nominal.copy()
+    at_bound[PARAM_NAMES.index("km")] *= 0.88
+    diagnosed = SimpleNamespace(composition=None, vector=at_bound, selected=[], at_bounds=["km"], nominal_vector=None)
+    alone = discovery._motor_side_candidate(ex, diagnosed)
+    cand = discovery._motor_side_candidate(ex, SimpleNamespace(**{**vars(diagnosed), "nominal_vector": nominal}))
+    assert cand is not None and cand.explained > 0.9 and cand.through_lag is None, cand
+    # on one-signed steps the offset is a constant torque: km × u_off at the motor, or on the upper disc
+    torque = cand.terms["1"] * (RigParams().km if cand.group == "motor_voltage" else 1.0)
+    assert torque == pytest.approx(-0.15 * RigParams().km, rel=0.05), cand
+    assert alone is None or cand.explained > alone.explained, (cand, alone)

@@ -9,7 +9,8 @@ it: the base parameters or an input delay absorb it (the motor-side benchmark,
 Once the candidate's own fit (:mod:`.candidate_fit`) has removed most of the residual, each effect of the
 library's signal path that the selection did not take (:data:`SIGNAL_PATH`) is fitted again *with the
 candidate in the model*: its parameters, the candidate's and (when the candidate's fit freed them) the base
-parameters, with the segments' start speeds, from the best of its search points.  Two trials per effect:
+parameters, with the segments' start speeds, from the best of its search points, once from the candidate's fit
+and once from its terms as regressed (the better fit is kept).  Two trials per effect:
 
 * *added* to the model with the candidate, scored against the candidate alone by the selection's own rules
   (:func:`.scoring.score`, :func:`.scoring.significant`);
@@ -85,6 +86,9 @@ class BesideCandidate:
         Another effect whose trial counts too and scores within :data:`.scoring.TIE_NATS`.
     base_change_pct : dict of str to float
         The base parameters fitted with them -> their change from nominal (%).
+    better_at_bound : str or None
+        An effect that fits better in the selected one's place but only with a base parameter at a bound of its
+        range, so does not count (said, not hidden).
     """
 
     selected: str | None
@@ -95,10 +99,11 @@ class BesideCandidate:
     after: Unexplained | None = None
     tie_with: str | None = None
     base_change_pct: dict[str, float] = field(default_factory=dict)
+    better_at_bound: str | None = None
 
     def to_json(self) -> dict:
         """``{selected, replaces, scores, values, candidate_values, ratio_after, verdict_after, tie_with,
-        base_change_pct}``."""
+        base_change_pct, better_at_bound}``."""
         return {
             "selected": self.selected,
             "replaces": self.replaces,
@@ -109,6 +114,7 @@ class BesideCandidate:
             "verdict_after": self.after.verdict if self.after is not None else None,
             "tie_with": self.tie_with,
             "base_change_pct": {k: round(v, 3) for k, v in self.base_change_pct.items()},
+            "better_at_bound": self.better_at_bound,
         }
 
     def line(self) -> str:
@@ -127,6 +133,11 @@ class BesideCandidate:
             out += f"; base parameters with both: {moved}"
         if self.tie_with:
             out += f"; a tie with {self.tie_with}: {SEPARATES_LAG_DELAY}"
+        if self.better_at_bound:
+            out += (
+                f"; {self.better_at_bound} in its place fits better but only with a base parameter at a bound of "
+                "its range (not counted: something else is still missing)"
+            )
         return out
 
 
@@ -138,6 +149,7 @@ class _Trial:
     replaces: str | None
     score: float = 0.0
     counts: bool = False
+    at_bound: bool = False
     result: FitResult | None = None
     objective: Objective | None = None
 
@@ -212,14 +224,17 @@ def beside_candidate(
 def _carried(fit, trials: list[_Trial], scores: dict[str, float], screening: Screening) -> BesideCandidate:
     """The signal-path effect the candidate was fitted with (found through it), reported as selected beside it
     when no trial beats it: with a tie stated when the other one in its place scores within
-    :data:`.scoring.TIE_NATS` of it, or the input is too smooth to tell them apart (the selection's rule)."""
+    :data:`.scoring.TIE_NATS` of it, or the input is too smooth to tell them apart (the selection's rule); when
+    the other one scores clearly better but only with a base parameter at a bound, that is said instead."""
     state = fit.state
     name = next(n for n in fit.with_library if n in SIGNAL_PATH)
     swap = next((t for t in trials if t.replaces == name), None)
-    tie = None
+    tie = better = None
     if swap is not None:
         _, fast = smooth_input_share(screening.exps, screening.model.comp, screening.model.nominal)
-        if swap.score > -TIE_NATS or fast < SMOOTH_INPUT_SHARE:
+        if swap.at_bound and swap.score >= TIE_NATS:
+            better = swap.effect.name
+        elif swap.score > -TIE_NATS or fast < SMOOTH_INPUT_SHARE:
             tie = swap.effect.name
     comp, vec = state.composition, state.result.vector
     effect = next(e for e in comp.effects if e.name == name)
@@ -232,6 +247,7 @@ def _carried(fit, trials: list[_Trial], scores: dict[str, float], screening: Scr
         fit.after,
         tie,
         dict(fit.base_fitted),
+        better,
     )
 
 
@@ -260,13 +276,17 @@ def _reference(state: CandidateFitState, taken: list[str], by_name: dict[str, ty
 
 
 def _fit_trial(trial: _Trial, state: CandidateFitState, reference: FitResult, by_name: dict[str, type[Effect]]) -> None:
-    """Fit one trial from the reference fit and score it against it."""
+    """Fit one trial from each of :func:`_starts` and score the better against the reference fit."""
     ctx = _context(state, by_name)
-    obj, vec0 = ctx.obj, np.asarray(reference.vector)
-    vec = vec0 if trial.replaces is None else ctx.neutralise(vec0, trial.replaces)
-    start = best_effect_start(obj, state.composition, vec, trial.effect)
+    obj = ctx.obj
     own = [p.name for p in trial.effect.parameters]
-    res = converged_fit(ctx, start, [*state.fitted, *own, *_base(state)], MAX_NFEV)
+    fits = []
+    for vec0 in _starts(state, reference):
+        vec = vec0 if trial.replaces is None else ctx.neutralise(vec0, trial.replaces)
+        start = best_effect_start(obj, state.composition, vec, trial.effect)
+        fits.append(converged_fit(ctx, start, [*state.fitted, *own, *_base(state)], MAX_NFEV))
+    within = [f for f in fits if not base_at_bounds(ctx, np.asarray(f.vector))]
+    res = min(within or fits, key=lambda f: f.rss_after)
     r0, ids = reference.residual, obj.channel_ids
     k = len(own) - (len(by_name[trial.replaces].parameters) if trial.replaces else 0)
     if reference is state.result:  # base parameters the trial frees beyond the candidate's fit
@@ -279,8 +299,22 @@ def _fit_trial(trial: _Trial, state: CandidateFitState, reference: FitResult, by
     else:
         trial.counts = trial.score > SIGNIFICANCE  # the incumbent was chosen by the selection's rules
     if base_at_bounds(ctx, np.asarray(res.vector)):  # something still missing is absorbed there
-        trial.counts = False
+        trial.counts, trial.at_bound = False, True
     trial.result, trial.objective = res, obj
+
+
+def _starts(state: CandidateFitState, reference: FitResult) -> list[np.ndarray]:
+    """Where a trial's fit starts: the reference fit, and the same with the candidate's parameters as discovery
+    regressed them (without the effect tried, the candidate's own fit may have bent its terms to stand in for
+    it: a dead zone after a 29 ms lag fitted as −1.57·sat(u, 0.24) for the −1·sat(u, 0.37) regressed and
+    −1·sat(u, 0.36) hidden, from where the lag's fit ends with a base parameter at a bound)."""
+    vec = np.asarray(reference.vector)
+    if not state.regressed:
+        return [vec]
+    regressed = vec.copy()
+    for name, value in state.regressed.items():
+        regressed[state.composition.param_index(name)] = value
+    return [vec] if np.array_equal(regressed, vec) else [vec, regressed]
 
 
 def _base(state: CandidateFitState) -> tuple[str, ...]:

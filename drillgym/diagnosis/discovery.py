@@ -655,11 +655,12 @@ def _motor_side_candidate(ex: Experiment, diagnosis) -> Candidate | None:
     terms (the candidate's :attr:`~.results.Candidate.through_lag`): a voltage transformation seen through an
     unselected lag is not a function of the commanded voltage (a dead zone after a 20 ms lag on steps looks like
     upper-disc friction there).  The lag is kept when its candidate leaves less than :data:`LAG_KEPT_SHARE` of the
-    residual power the one without leaves."""
+    residual power the one without leaves.  When the diagnosis left a base parameter at a bound of its range, the
+    model with the nominal base parameters is looked at too (the bound may have absorbed the motor side: a
+    voltage offset on ramps takes the motor constant 12 % off, to its bound)."""
     from .sparse import residual_torques
 
     comp, vec = diagnosis.composition or Composition(()), diagnosis.vector
-    p = RigParams.from_vector(vec[:N_PARAMS])
     models = [(None, comp, vec)]
     if not set(diagnosis.selected) & set(LAG_DELAY):
         # the search model holds the lag switched off (at its neutral values); a selection's model gets it added
@@ -672,8 +673,11 @@ def _motor_side_candidate(ex: Experiment, diagnosis) -> Candidate | None:
             v = transfer(vec, comp, with_lag)
             v[with_lag.param_index("tau_m")] = tau
             models.append((tau, with_lag, v))
+    if diagnosis.at_bounds and diagnosis.nominal_vector is not None:
+        models.append((None, comp, diagnosis.nominal_vector))
     best, best_left = None, math.inf
     for tau, c, v in models:
+        p = RigParams.from_vector(v[:N_PARAMS])
         rt = residual_torques(ex, v, effects=c)
         motor = find_candidate(
             rt, rt.u_motor, p.Ju, p.Jl, ex.config.lateral_free, p.ws, p.delta, p.km, False, MOTOR_GROUPS
