@@ -295,7 +295,7 @@ class _Whitening:
     ``mu``: the inputs' mean; ``M = V diag((e + floor max e)^-1/2) V^T diag(1/sd)``, the inverse square
     root of the standardised inputs' covariance (eigen-decomposition ``V, e``), its eigenvalues floored at
     ``floor`` times the largest.  An entry constant in those states (e.g. an integral still at 0) is left out of
-    the decorrelation and passes unscaled: the floor would amplify it a thousandfold.  A stacked history is
+    the decorrelation and passes unscaled, not amplified by the floor's (floor max e)^-1/2.  A stacked history is
     strongly correlated (consecutive frames differ by little) and the labels hinge on those small differences:
     plain gradient steps on the raw inputs fit them poorly.  The map is linear, so the first layer ``W, b`` on
     whitened inputs is the layer ``W M, b - W M mu`` on the raw ones (:meth:`fold`): the deployed network is a

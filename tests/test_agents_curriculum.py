@@ -1,4 +1,5 @@
-"""The training-only low-target curriculum: which targets the episodes get, and nothing else."""
+"""Training-only data shaping of DAgger: the low-target curriculum (which targets the episodes get, nothing else)
+and the per-episode action offsets."""
 
 from __future__ import annotations
 
@@ -44,3 +45,25 @@ def test_low_targets_refuse_bad_settings() -> None:
         LowTargets.from_config({"fraction": 0.3})
     with pytest.raises(InputError, match="needs drawn targets with 9.0"):
         _targets(LowTargets(0.5, 9.0), n=2, resets=1)  # above the range's top: not a low target
+
+
+def test_dagger_offsets_are_constant_per_rig_and_episode_and_redrawn_at_its_end(monkeypatch) -> None:
+    from stable_baselines3 import PPO
+
+    import agents.distill as distill_module
+    from agents.distill import Teacher, distill
+
+    applied = []
+    teacher = Teacher(lambda obs: np.zeros(len(obs)), lambda index, obs: None, lambda a: applied.append(a.copy()))
+    monkeypatch.setattr(distill_module, "_teacher", lambda *args, **kw: teacher)
+    kw = {"observation": "motor", "motor_history": 2, "episode_duration": 0.1}
+    model = PPO("MlpPolicy", make_sb3_vec("drillgym/Torsional-v0", 6, normalize_action=True, **kw), n_steps=8, batch_size=48)
+    distill(model, "drillgym/Torsional-v0", kw, "flatness", n_envs=6, iterations=1, steps=25, beta=1.0, bias=0.2)
+    a = np.array(applied)  # (periods, rigs): the teacher's 0 plus each rig's offset
+    assert np.ptp(a[:10], axis=0).max() == 0 and np.ptp(a[10:20], axis=0).max() == 0  # constant in an episode
+    assert np.all(a[10] != a[9]) and 0.05 < a[:10].std() < 0.5  # redrawn when the 10-period episodes end
+    base = []
+    teacher2 = Teacher(teacher.actions, teacher.reset, lambda a: base.append(a.copy()))
+    monkeypatch.setattr(distill_module, "_teacher", lambda *args, **kw: teacher2)
+    distill(model, "drillgym/Torsional-v0", kw, "flatness", n_envs=6, iterations=1, steps=5, beta=1.0)
+    assert not np.any(base)  # no offset by default
