@@ -57,7 +57,9 @@ def test_dagger_offsets_are_constant_per_rig_and_episode_and_redrawn_at_its_end(
     teacher = Teacher(lambda obs: np.zeros(len(obs)), lambda index, obs: None, lambda a: applied.append(a.copy()))
     monkeypatch.setattr(distill_module, "_teacher", lambda *args, **kw: teacher)
     kw = {"observation": "motor", "motor_history": 2, "episode_duration": 0.1}
-    model = PPO("MlpPolicy", make_sb3_vec("drillgym/Torsional-v0", 6, normalize_action=True, **kw), n_steps=8, batch_size=48)
+    model = PPO(
+        "MlpPolicy", make_sb3_vec("drillgym/Torsional-v0", 6, normalize_action=True, **kw), n_steps=8, batch_size=48
+    )
     distill(model, "drillgym/Torsional-v0", kw, "flatness", n_envs=6, iterations=1, steps=25, beta=1.0, bias=0.2)
     a = np.array(applied)  # (periods, rigs): the teacher's 0 plus each rig's offset
     assert np.ptp(a[:10], axis=0).max() == 0 and np.ptp(a[10:20], axis=0).max() == 0  # constant in an episode
