@@ -209,3 +209,27 @@ def test_an_offset_with_a_lag_on_ramps_frees_the_base_and_states_the_lag_delay_t
     assert carried or beside.after.ratio_to_noise < c.fit.after.ratio_to_noise, (beside.after, c.fit.after)
     assert set(beside.base_change_pct) >= {"km", "Jl"}  # fitted with the base parameters
     assert "a tie with" in beside.line()
+
+
+def test_the_selection_is_judged_again_with_the_candidate_in(tmp_path):
+    """String damping beside a 0.2 V dead zone: the selection does not take the damping (the dead zone's residual
+    hides it) and discovery finds it as a string term.  An effect listed as selected that does nothing with the
+    candidate in the model (friction drift at its neutral value) is said to count no longer, in words and in the
+    JSON."""
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    from drillgym.diagnosis.effects import get_effect
+    from drillgym.diagnosis.recheck import recheck_selection
+
+    ts = long_step_recording(6, ["string_damping", DEAD_ZONE], u0=0.2, dtheta=0.3)
+    library = ["string_damping", "friction_drift"]
+    d = diagnose(ts, effects=library, fixed_base=True, discover=True, candidate_out=tmp_path / "c.py")
+    fit = d.candidate.fit
+    assert fit is not None and fit.variance_cut > 0.5 and fit.recheck is None, d.text()  # nothing selected
+    screening = SimpleNamespace(model=SimpleNamespace(candidates=[get_effect(n) for n in library]))
+    listed = replace(d, selected=["friction_drift"])
+    fit.recheck = recheck_selection(screening, listed)
+    assert fit.recheck.dropped == ["friction_drift"] and fit.recheck.scores["friction_drift"] < 15.0, fit.recheck
+    assert "friction_drift no longer counts" in fit.recheck.line()
+    assert listed.to_json()["candidate"]["fit"]["selection_rechecked"]["no_longer_counts"] == ["friction_drift"]

@@ -333,6 +333,8 @@ def diagnose_cmd(
                 typer.echo(c.fit.line())
             if beside is not None:
                 typer.echo(beside.line())
+            if c.fit is not None and c.fit.recheck is not None:
+                typer.echo(c.fit.recheck.line())
             lead = f"--add-effect {beside.selected} " if beside is not None and beside.selected else ""
             typer.echo(
                 f"  written to {c.effect_file.rsplit(':', 1)[0]}; fit it: drillgym identify {data} "

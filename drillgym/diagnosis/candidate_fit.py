@@ -99,6 +99,8 @@ class CandidateFit:
     with_library : tuple of str
         The library's effects fitted with it, ahead of it on the signal path (``motor_lag`` when its terms were
         found through a lag); their parameters are among ``values``.
+    recheck : Recheck or None
+        The selected effects scored again with it in the model (:mod:`.recheck`; None: none to recheck).
     """
 
     values: dict[str, float]
@@ -110,6 +112,7 @@ class CandidateFit:
     beside: Any = None
     base_fitted: dict[str, float] = field(default_factory=dict)
     with_library: tuple[str, ...] = ()
+    recheck: Any = None
 
     def file_name(self, parameter: str) -> str:
         """The name a fitted parameter has in the candidate's file (its own name when it has none there)."""
@@ -123,7 +126,7 @@ class CandidateFit:
 
     def to_json(self) -> dict:
         """``{values, base_held, ratio_before, ratio_after, variance_cut, verdict_after, channels_after, beside,
-        base_fitted_change_pct, with_library_effects}``."""
+        base_fitted_change_pct, with_library_effects, selection_rechecked}``."""
         return {
             "values": self.values,
             "base_held": self.base_held,
@@ -135,6 +138,7 @@ class CandidateFit:
             "beside": self.beside.to_json() if self.beside is not None else None,
             "base_fitted_change_pct": {k: round(v, 3) for k, v in self.base_fitted.items()},
             "with_library_effects": list(self.with_library),
+            "selection_rechecked": self.recheck.to_json() if self.recheck is not None else None,
         }
 
     def line(self) -> str:

@@ -14,7 +14,8 @@
    :func:`.candidate_fit.choose_candidate` — the candidate (and the motor side's best beside it) added to the
    final model and fitted; the one whose fit removes more is kept, its residual reported;
    :func:`.beside.beside_candidate` — the library's signal-path effects (a motor lag, an input delay) the
-   selection did not take, fitted again with the candidate in the model: a motor-side residual hides them.
+   selection did not take, fitted again with the candidate in the model: a motor-side residual hides them;
+   :func:`.recheck.recheck_selection` — the effects the selection took, scored again with the candidate in.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ from .discovery import discover
 from .input_order import input_order
 from .orders import select
 from .ranking import report
+from .recheck import recheck_selection
 from .results import Diagnosis
 from .screening import DiagnosisOptions, screen
 from .unexplained import unexplained
@@ -109,6 +111,7 @@ def diagnose(
                 diagnosis.candidate = choose_candidate(screening, diagnosis, noise, opts.candidate_out)
                 if diagnosis.candidate.fit is not None:
                     diagnosis.candidate.fit.beside = beside_candidate(screening, diagnosis, noise)
+                    diagnosis.candidate.fit.recheck = recheck_selection(screening, diagnosis)
     return diagnosis
 
 
