@@ -164,3 +164,22 @@ def test_whitening_passes_an_entry_constant_in_the_first_states_unscaled() -> No
         whitened = layer(white(probe))
         with white.folded():
             assert th.allclose(layer(probe), whitened, atol=1e-3)
+
+
+def test_kept_observer_student_is_a_plain_network_on_the_motor_angle_with_the_settled_integral() -> None:
+    from pathlib import Path
+
+    from agents import load_policy
+    from agents.controller import AgentController
+
+    policy = load_policy(Path(__file__).parents[1] / "agents/policies/nominal_motor_observer_distilled/policy.npz")
+    hp = policy.config["hyperparams"]
+    assert hp["command_schedule"]["settled_integral"] and hp["distill"]["teacher_kwargs"]["given_integral"]
+    assert policy.obs_dim == 16 * 33 + 1 and all(a in ("relu", "identity") for a in policy.meta["activations"])
+    ctl = AgentController(policy, omega_ref=np.array([2.0, 4.0]))
+    assert ctl.uses == ("theta_u",)
+    ctl.reset({"theta_u": np.zeros(2)})
+    for k in range(50):
+        u = ctl.act({"theta_u": np.array([0.02, 0.04]) * k})
+        assert np.all(np.isfinite(u)) and np.all(np.abs(u) <= 5.0)
+    assert not ctl.z.any()  # no integral before the ramp's end (2.0) nor for a target above 2.5 rad/s
