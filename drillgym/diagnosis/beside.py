@@ -44,7 +44,7 @@ import numpy as np
 from ..effects import Effect
 from ..identification.fitting import FitResult, Objective
 from .candidate_fit import CandidateFitState, change_pct, moved_text
-from .context import SelectionContext, base_at_bounds, best_effect_start, converged_fit
+from .context import base_at_bounds, best_effect_start, converged_fit
 from .lag_delay import smooth_input_share
 from .results import Diagnosis
 from .scoring import SEPARATES_LAG_DELAY, SIGNIFICANCE, TIE_NATS, score, significant
@@ -251,13 +251,6 @@ def _carried(fit, trials: list[_Trial], scores: dict[str, float], screening: Scr
     )
 
 
-def _context(state: CandidateFitState, by_name: dict[str, type[Effect]]) -> SelectionContext:
-    """A fit context on the candidate's model with its own segment start speeds."""
-    obj = state.objective.with_own_speeds()
-    vec0 = np.asarray(state.result.vector)
-    return SelectionContext(obj, state.composition, vec0, state.nominal, _base(state), dict(by_name))
-
-
 def _reference(state: CandidateFitState, taken: list[str], by_name: dict[str, type[Effect]]) -> FitResult:
     """What the trials are scored against: the candidate's own fit, with the signal-path effects the selection
     took refitted jointly with it (their parameters, the candidate's and the freed base parameters).
@@ -267,7 +260,7 @@ def _reference(state: CandidateFitState, taken: list[str], by_name: dict[str, ty
     lag would win only because it was fitted and the lag was not."""
     if not taken:
         return state.result
-    ctx = _context(state, by_name)
+    ctx = state.context(_base(state), dict(by_name))
     own = [p.name for n in taken for p in by_name[n].parameters]
     res = converged_fit(ctx, ctx.vec, [*state.fitted, *own, *_base(state)], MAX_NFEV)
     if base_at_bounds(ctx, np.asarray(res.vector)) or res.rss_after >= state.result.rss_after:
@@ -277,7 +270,7 @@ def _reference(state: CandidateFitState, taken: list[str], by_name: dict[str, ty
 
 def _fit_trial(trial: _Trial, state: CandidateFitState, reference: FitResult, by_name: dict[str, type[Effect]]) -> None:
     """Fit one trial from each of :func:`_starts` and score the better against the reference fit."""
-    ctx = _context(state, by_name)
+    ctx = state.context(_base(state), dict(by_name))
     obj = ctx.obj
     own = [p.name for p in trial.effect.parameters]
     free = [*state.fitted, *own, *_base(state)]

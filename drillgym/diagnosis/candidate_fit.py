@@ -75,6 +75,27 @@ class CandidateFitState:
     freeable: tuple[str, ...] = ()
     regressed: dict[str, float] = field(default_factory=dict)
 
+    def context(self, base_names: tuple[str, ...], effects: dict[str, type[Effect]]) -> SelectionContext:
+        """A fit context on the candidate's model from where its fit ended, its segments' start speeds its own.
+
+        Parameters
+        ----------
+        base_names : tuple of str
+            The base parameters a fit in it may free.
+        effects : dict of str to Effect class
+            The library's effects it may switch on or off, by name.
+
+        Returns
+        -------
+        SelectionContext
+            The context, on a copy of the objective with its own segment start speeds (fits in it leave
+            this state's untouched).
+        """
+        obj = self.objective.with_own_speeds()
+        return SelectionContext(
+            obj, self.composition, np.asarray(self.result.vector), self.nominal, base_names, effects
+        )
+
 
 @dataclass
 class CandidateFit:

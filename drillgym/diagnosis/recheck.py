@@ -20,7 +20,7 @@ import numpy as np
 from ..effects import Effect
 from .beside import SIGNAL_PATH
 from .candidate_fit import MAX_NFEV, CandidateFitState
-from .context import SelectionContext, converged_fit
+from .context import converged_fit
 from .results import Diagnosis
 from .scoring import score, significant
 from .screening import Screening
@@ -94,9 +94,8 @@ def recheck_selection(screening: Screening, diagnosis: Diagnosis) -> Recheck | N
 def _without(state: CandidateFitState, effect: type[Effect], by_name: dict[str, type[Effect]]) -> tuple[float, bool]:
     """The candidate's fit with ``effect`` switched off and the rest refitted; ``effect``'s score against that
     (nats) and whether it counts."""
-    obj, vec = state.objective.with_own_speeds(), np.asarray(state.result.vector)
-    ctx = SelectionContext(obj, state.composition, vec, state.nominal, state.base_names, by_name)
-    start = ctx.neutralise(vec, effect.name)
+    ctx = state.context(state.base_names, by_name)
+    obj, start = ctx.obj, ctx.neutralise(np.asarray(state.result.vector), effect.name)
     res = converged_fit(ctx, start, [*state.fitted, *state.base_names], MAX_NFEV)
     with_it, ids = state.result, obj.channel_ids
     sc, _ = score(res.residual, with_it, len(effect.parameters), channels=ids, blocks=obj.block_ids)
