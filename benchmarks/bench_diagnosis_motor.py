@@ -26,7 +26,7 @@ the candidate's own fit).  Reported per kind:
 * ``silent``: recordings whose final residual (without the candidate) is ≥ 10× the noise on a channel and that
   are reported as explained or as "the base model stands" (must be 0).
 
-    python benchmarks/bench_diagnosis_motor.py [--seeds 1] [--limit N] [--duration 20] [--out results.json]
+    python benchmarks/bench_diagnosis_motor.py [--seeds 1] [--first-seed 0] [--limit N] [--duration 20] [--out results.json]
 
 Runs one recording at a time (one core); the default matrix is 8 recordings.
 """
@@ -277,6 +277,9 @@ def summary(results: list[dict]) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, default=1, help="repetitions of the matrix (new draws each)")
+    ap.add_argument(
+        "--first-seed", type=int, default=0, help="skip the repetitions before this one (fresh draws, same rows)"
+    )
     ap.add_argument("--limit", type=int, default=0, help="run only the first N recordings (0: all)")
     ap.add_argument("--duration", type=float, default=20.0, help="recording length (s)")
     ap.add_argument("--rate", type=float, default=250.0, help="sample rate (Hz)")
@@ -285,7 +288,8 @@ def main() -> None:
     a = ap.parse_args()
     if a.jobs != 1:
         ap.error("--jobs: only 1 (one recording at a time, one core)")
-    matrix = rows(a.seeds)
+    per_repetition = 2 * len(KINDS)
+    matrix = rows(a.first_seed + a.seeds)[a.first_seed * per_repetition :]
     if a.limit:
         matrix = matrix[: a.limit]
     results = []
