@@ -207,3 +207,84 @@ def test_the_motor_side_is_looked_at_on_the_nominal_base_when_the_diagnosis_left
     torque = cand.terms["1"] * (RigParams().km if cand.group == "motor_voltage" else 1.0)
     assert torque == pytest.approx(-0.15 * RigParams().km, rel=0.05), cand
     assert alone is None or cand.explained > alone.explained, (cand, alone)
+
+
+def _fit_recorder(monkeypatch, rss_by_call):
+    """``beside``'s fits replaced by a recorder: each call's freed names, and a fit whose RSS is the next one of
+    ``rss_by_call``."""
+    from types import SimpleNamespace
+
+    import drillgym.diagnosis.beside as beside
+
+    calls = []
+
+    def fake_fit(ctx, vec, names, max_nfev):
+        calls.append(list(names))
+        rss = rss_by_call[min(len(calls) - 1, len(rss_by_call) - 1)]
+        return SimpleNamespace(vector=np.asarray(vec), rss_after=rss, residual=np.full(4, np.sqrt(rss / 4)))
+
+    monkeypatch.setattr(beside, "converged_fit", fake_fit)
+    monkeypatch.setattr(beside, "base_at_bounds", lambda ctx, vec: [])
+    monkeypatch.setattr(beside, "best_effect_start", lambda obj, comp, vec, effect: vec)
+    return calls
+
+
+def _carried_lag_state():
+    """A candidate fitted with the lag it was found through (its tau_m among the fitted names)."""
+    from types import SimpleNamespace
+
+    from drillgym.diagnosis.candidate_fit import CandidateFitState
+    from drillgym.diagnosis.effects import get_effect
+    from drillgym.diagnosis.motor_terms import MotorVoltageTerms
+    from drillgym.diagnosis.search_model import neutral_values
+    from drillgym.effects import Composition
+
+    comp = Composition((get_effect("motor_lag"), get_effect("input_delay"), MotorVoltageTerms))
+    vec = comp.vector(RigParams(), {"mv_sat": -1.0, "mv_w": 0.4, "tau_m": 0.03})
+    result = SimpleNamespace(vector=vec, rss_after=100.0, residual=np.full(4, 5.0))
+    state = CandidateFitState(None, comp, result, ["mv_sat", "mv_w", "tau_m"], ("km",), vec)
+
+    def neutralise(v, name):
+        out = v.copy()
+        for p, value in neutral_values([get_effect(name)]).items():
+            out[comp.param_index(p)] = value
+        return out
+
+    ctx = SimpleNamespace(obj=SimpleNamespace(channel_ids=None, block_ids=None), vec=vec, neutralise=neutralise)
+    state.context = lambda base_names, effects: ctx
+    return state, {n: get_effect(n) for n in ("motor_lag", "input_delay")}
+
+
+def test_a_delay_tried_in_place_of_a_carried_lag_leaves_the_lag_off(monkeypatch):
+    """The delay fitted in place of the lag the candidate carries: the lag's time constant is neither freed nor
+    left on (a swap that refitted the lag scored 120 nats for a 6 µs delay and was reported as replacing it)."""
+    import drillgym.diagnosis.beside as beside
+    from drillgym.diagnosis.effects import get_effect
+    from drillgym.diagnosis.search_model import neutral_values
+
+    calls = _fit_recorder(monkeypatch, [90.0])
+    state, by_name = _carried_lag_state()
+    trial = beside._Trial(get_effect("input_delay"), "motor_lag")
+    beside._fit_trial(trial, state, state.result, by_name)
+    assert calls and all("tau_m" not in names and "delay" in names for names in calls), calls
+    lag_off = neutral_values([get_effect("motor_lag")])["tau_m"]
+    assert trial.result.vector[state.composition.param_index("tau_m")] == lag_off  # started (so ended here) off
+    added = beside._Trial(get_effect("input_delay"), None)
+    calls.clear()
+    beside._fit_trial(added, state, state.result, by_name)
+    assert all("tau_m" in names for names in calls)  # added beside it, the lag stays fitted
+
+
+@pytest.mark.parametrize(("rss", "kept"), [(80.0, "refitted"), (120.0, "own")])
+def test_trials_are_scored_against_the_candidate_fit_given_the_same_effort(monkeypatch, rss, kept):
+    """The reference of the trials beside a candidate is its own fit continued with the trials' free parameters
+    (the carried lag's included), taken where it fits better: a trial is credited for its effect, not for the
+    evaluations the candidate's own fit did not spend."""
+    import drillgym.diagnosis.beside as beside
+
+    calls = _fit_recorder(monkeypatch, [rss])
+    state, by_name = _carried_lag_state()
+    ref = beside._reference(state, [], by_name)  # nothing the selection took: the carried lag is in the fit
+    assert calls and all({"tau_m", "mv_sat", "km"} <= set(names) and "delay" not in names for names in calls)
+    assert (ref is state.result) == (kept == "own")
+    assert ref.rss_after == min(rss, state.result.rss_after)
