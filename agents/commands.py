@@ -1,9 +1,10 @@
-"""The agents' commands of the ``drillgym`` CLI: ``train``, ``combine-policies`` and ``benchmark``.
+"""The agents' commands of the ``drillgym`` CLI: train, combine-policies, average-policies and benchmark.
 
 ``drillgym train`` trains an RL agent (stable-baselines3) on a drillgym environment;
 ``--add-effect``/``--effect-param`` train on rigs with those effects (the env options
 ``effects``/``effect_params``, saved in config.yml by spec). ``drillgym combine-policies`` joins
-trained networks into one target-switched policy. ``drillgym benchmark`` scores a policy on a named task
+trained networks into one target-switched policy, ``drillgym average-policies`` networks of one recipe into
+their mean (:mod:`agents.ensemble`). ``drillgym benchmark`` scores a policy on a named task
 (:mod:`agents.benchmark_command`).
 
 The CLI finds :func:`register` through the ``drillgym.commands`` entry-point group
@@ -323,3 +324,28 @@ def register(app: typer.Typer) -> None:
         with option("POLICIES"):
             path = combine(files, cuts, out, note=note)
         typer.echo(f"wrote {path}: {len(files)} networks, handing over at {', '.join(f'{c:g}' for c in cuts)} rad/s")
+
+    @app.command("average-policies")
+    def average_cmd(
+        policies: list[Path] = typer.Argument(
+            ..., help="exported networks of one recipe (policy.npz or run directories), seeds differing"
+        ),
+        out: Path = typer.Option(..., "--out", help="the averaged network (.npz); missing directories are created"),
+    ) -> None:
+        """Average networks of one recipe into one wider network whose action is the mean of theirs (before the
+        output clip); runs wherever a policy.npz does (agents/ensemble.py)."""
+        from agents.ensemble import average
+        from drillgym.commands.options import option
+        from drillgym.commands.outputs import check_output_file, output_file
+        from drillgym.errors import MissingFileError
+
+        check_output_file(out, "--out", suffixes=(".npz",))
+        files = [p / "policy.npz" if p.is_dir() else p for p in policies]
+        for f in files:
+            if not f.is_file():
+                raise MissingFileError(f"POLICIES: {f} not found (a policy.npz or a run directory holding one)")
+            _check_npz(f)
+        output_file(out, "--out", suffixes=(".npz",))
+        with option("POLICIES"):
+            path = average(files, out)
+        typer.echo(f"wrote {path}: the mean of {len(files)} networks")

@@ -258,6 +258,13 @@ class ExportedPolicy:
             out |= {f"{prefix}obs_mean": mean, f"{prefix}obs_scale": scale, f"{prefix}obs_clip": np.float32(clip)}
         return out
 
+    def save(self, path: str | Path) -> Path:
+        """Write the network to ``path`` (.npz), as :func:`export_policy` does: :meth:`load` reads it back."""
+        path = Path(path)
+        text = json.dumps(self.meta, default=_jsonable, allow_nan=False)
+        np.savez(path, meta=np.array(text), **self.to_arrays())
+        return path
+
     @property
     def config(self) -> dict[str, Any]:
         """The training run's configuration (env id, algo, seed, hyperparameters)."""
