@@ -26,7 +26,8 @@ the candidate's own fit).  Reported per kind:
 * ``silent``: recordings whose final residual (without the candidate) is ≥ 10× the noise on a channel and that
   are reported as explained or as "the base model stands" (must be 0).
 
-    python benchmarks/bench_diagnosis_motor.py [--seeds 1] [--first-seed 0] [--limit N] [--duration 20] [--out results.json]
+    python benchmarks/bench_diagnosis_motor.py [--seeds 1] [--first-seed 0] [--limit N] [--duration 20]
+        [--out results.json]
 
 Runs one recording at a time (one core); the default matrix is 8 recordings.
 """
