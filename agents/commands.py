@@ -73,6 +73,18 @@ def _train_errors(overrides: list[str]) -> Iterator[None]:
         raise InputError(f"--set {bad}: not a hyperparameter of this algorithm ({exc})") from None
 
 
+def _policy_files(policies: list[Path]) -> list[Path]:
+    """The ``policy.npz`` of each argument (a file, or a run directory holding one), each checked to be one."""
+    from drillgym.errors import MissingFileError
+
+    files = [p / "policy.npz" if p.is_dir() else p for p in policies]
+    for f in files:
+        if not f.is_file():
+            raise MissingFileError(f"POLICIES: {f} not found (a policy.npz or a run directory holding one)")
+        _check_npz(f)
+    return files
+
+
 def _check_npz(path: Path, option: str = "POLICIES") -> None:
     """Refuse, naming ``option`` and ``path``, a file numpy cannot open as an .npz archive."""
     import zipfile
@@ -310,16 +322,11 @@ def register(app: typer.Typer) -> None:
 
         from drillgym.commands.options import option
         from drillgym.commands.outputs import check_output_file, output_file
-        from drillgym.errors import MissingFileError
 
         if not cuts or not all(math.isfinite(c) and c > 0 for c in cuts) or cuts != sorted(set(cuts)):
             raise InputError(f"--edges must be increasing positive finite speeds (rad/s), got {edges!r}")
         check_output_file(out, "--out", suffixes=(".npz",))
-        files = [p / "policy.npz" if p.is_dir() else p for p in policies]
-        for f in files:
-            if not f.is_file():
-                raise MissingFileError(f"POLICIES: {f} not found (a policy.npz or a run directory holding one)")
-            _check_npz(f)
+        files = _policy_files(policies)
         output_file(out, "--out", suffixes=(".npz",))  # its missing directories created, as --help says
         with option("POLICIES"):
             path = combine(files, cuts, out, note=note)
@@ -337,14 +344,9 @@ def register(app: typer.Typer) -> None:
         from agents.ensemble import average
         from drillgym.commands.options import option
         from drillgym.commands.outputs import check_output_file, output_file
-        from drillgym.errors import MissingFileError
 
         check_output_file(out, "--out", suffixes=(".npz",))
-        files = [p / "policy.npz" if p.is_dir() else p for p in policies]
-        for f in files:
-            if not f.is_file():
-                raise MissingFileError(f"POLICIES: {f} not found (a policy.npz or a run directory holding one)")
-            _check_npz(f)
+        files = _policy_files(policies)
         output_file(out, "--out", suffixes=(".npz",))
         with option("POLICIES"):
             path = average(files, out)

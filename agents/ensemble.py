@@ -16,7 +16,7 @@ and the file is a plain ``policy.npz`` that ``agent:PATH``, ``drillgym benchmark
 network.  Nothing but the networks computes the voltage.
 
     >>> from agents.ensemble import average
-    >>> average(["runs/a/seed_1", "runs/a/seed_2", "runs/a/seed_3"], "runs/a_mean/policy.npz")
+    >>> average([f"runs/a/seed_{s}/policy.npz" for s in (1, 2, 3)], "runs/a_mean/policy.npz")
 """
 
 from __future__ import annotations
@@ -66,7 +66,7 @@ def average_networks(members: Sequence[ExportedPolicy]) -> ExportedPolicy:
         _check_same_recipe(first, m, i)
     k = len(members)
     n = len(first.layers)
-    weights = [[W.T for W, _ in m.layers] for m in members]  # (out, in) each
+    weights = [[Wt.T for Wt, _ in m.layers] for m in members]  # (out, in) each: the layers hold W transposed
     biases = [[b for _, b in m.layers] for m in members]
     layers: list[tuple[np.ndarray, np.ndarray]] = []
     for i in range(n):
@@ -119,7 +119,7 @@ def average(paths: Sequence[str | Path], out: str | Path) -> Path:
     Parameters
     ----------
     paths : sequence of str or path
-        The members' ``policy.npz`` files or run directories holding one.
+        The members' ``policy.npz`` files.
     out : str or path
         Output ``.npz`` (its directory is created).
 
@@ -128,8 +128,7 @@ def average(paths: Sequence[str | Path], out: str | Path) -> Path:
     Path
         The path written.
     """
-    files = [Path(p) / "policy.npz" if Path(p).is_dir() else Path(p) for p in paths]
-    net = average_networks([ExportedPolicy.load(f) for f in files])
+    net = average_networks([ExportedPolicy.load(p) for p in paths])
     out = Path(out)
     create_directory(out.parent, out)
     return net.save(out)

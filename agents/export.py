@@ -148,9 +148,13 @@ def export_policy(model, path: str | Path, config: dict[str, Any]) -> Path:
     }
     arrays = {f"W{i}": W for i, (W, _) in enumerate(layers)} | {f"b{i}": b for i, (_, b) in enumerate(layers)}
     arrays |= obs_normalization(model) or {}
+    return _write(path, meta, {"action_low": low, "action_high": high} | arrays)
+
+
+def _write(path: str | Path, meta: dict[str, Any], arrays: dict[str, np.ndarray]) -> Path:
+    """One network's ``.npz``: its metadata as strict JSON (no NaN literal) beside its arrays."""
     path = Path(path)
-    text = json.dumps(meta, default=_jsonable, allow_nan=False)  # strict JSON: no NaN literal
-    np.savez(path, meta=np.array(text), action_low=low, action_high=high, **arrays)
+    np.savez(path, meta=np.array(json.dumps(meta, default=_jsonable, allow_nan=False)), **arrays)
     return path
 
 
@@ -260,10 +264,7 @@ class ExportedPolicy:
 
     def save(self, path: str | Path) -> Path:
         """Write the network to ``path`` (.npz), as :func:`export_policy` does: :meth:`load` reads it back."""
-        path = Path(path)
-        text = json.dumps(self.meta, default=_jsonable, allow_nan=False)
-        np.savez(path, meta=np.array(text), **self.to_arrays())
-        return path
+        return _write(path, self.meta, self.to_arrays())
 
     @property
     def config(self) -> dict[str, Any]:
