@@ -206,3 +206,21 @@ def test_effects_at_their_neutral_values_leave_a_batch_as_the_base_model():
         np.testing.assert_allclose(off.data[k][:, :cols], base.data[k], rtol=0, atol=1e-9)
         np.testing.assert_allclose(on.data[k][:, :cols], base.data[k], rtol=0, atol=1e-9)
     assert np.max(np.abs(on.data[-1][:, :cols] - base.data[-1])) > 0.05
+
+
+def test_an_effect_file_written_again_is_imported_again(tmp_path):
+    """A file replaced in the same process (an edited effect, a candidate file diagnose wrote again) is read
+    again: the first import is not served for the new content."""
+    from drillgym.effects.registry import load_class_from_file
+
+    path = tmp_path / "edited.py"
+    head = "from drillgym.effects import Force, Parameter\n\n\n"
+    body = (
+        "class {cls}(Force):\n    name = '{name}'\n    acts_on = 'upper'\n"
+        "    parameters = (Parameter('{par}', 'N m', -1.0, 1.0, 0.0, 0.01, 'torque', neutral=0.0),)\n\n"
+        "    def torque({par}):\n        return {par}\n"
+    )
+    path.write_text(head + body.format(cls="First", name="first", par="t_first"), encoding="utf-8")
+    assert load_class_from_file(path, "first").name == "first"
+    path.write_text(head + body.format(cls="Second", name="second", par="t_second"), encoding="utf-8")
+    assert load_class_from_file(path, "second").parameters[0].name == "t_second"

@@ -35,11 +35,17 @@ def effect_function(cls: type[Effect], name: str) -> Callable[..., Any]:
 
 
 def _import_file(path: Path) -> Any:
-    key = str(path)
-    if key in _FILE_MODULES:
-        return _FILE_MODULES[key]
+    """The module of an effect file, imported once per content: a file written again (an edited effect, a
+    candidate file diagnose replaced) is imported again, not served from the first import."""
     if not path.is_file():
         raise EffectError(f"{path}: effect file not found")
+    try:
+        content = hashlib.sha256(path.read_bytes()).hexdigest()[:12]
+    except OSError as exc:
+        raise EffectError(f"{path}: effect file cannot be read ({exc.strerror or exc})") from None
+    key = f"{path}:{content}"
+    if key in _FILE_MODULES:
+        return _FILE_MODULES[key]
     digest = hashlib.sha256(key.encode()).hexdigest()[:12]
     modname = f"drillgym_user_effects.{path.stem}_{digest}"
     spec = importlib.util.spec_from_file_location(modname, path)
