@@ -257,7 +257,9 @@ def measure_trajectory(traj, model: MeasurementModel = MeasurementModel(), seed:
     from .io import TimeSeries
 
     rng = np.random.default_rng(seed)
-    tu, tl, X, Y = traj.composition.measure(traj.theta_u, traj.theta_l, traj.x, traj.y, traj.parameter_vector)
+    tu, tl, X, Y = traj.composition.measure(
+        traj.theta_u, traj.theta_l, traj.x, traj.y, traj.parameter_vector, traj.omega_u, traj.omega_l
+    )
     t = np.asarray(traj.t)
     fs = 1.0 / float(np.median(np.diff(t)))
     step = 1

@@ -210,7 +210,8 @@ class Firmware:
         """theta_u, theta_l (rad), X, Y (m, fixed frame) of the plant as the sensors read them (the
         composition's Measurement effects applied), before quantization and noise; arrays (1,)."""
         X, Y = self.sim.lateral_fixed
-        return self.composition.measure(self.sim.Y[:, 0], self.sim.Y[:, 1], X, Y, self.sim.P[0])
+        Y8 = self.sim.Y
+        return self.composition.measure(Y8[:, 0], Y8[:, 1], X, Y, self.sim.P[0], Y8[:, 2], Y8[:, 3])
 
     def _counts(self) -> np.ndarray:
         """Encoder counts (int64, 2) of the measured angles."""

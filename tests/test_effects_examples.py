@@ -20,11 +20,13 @@ STICTION = f"{EX}/upper_stiction.py:upper_stiction"
 DEAD_ZONE = f"{EX}/motor_dead_zone.py:dead_zone"
 SAMPLED = f"{EX}/sampled_command.py:sampled_command"
 ECCENTRIC = f"{EX}/encoder_eccentricity.py:encoder_eccentricity"
+BACKLASH = f"{EX}/motor_backlash.py:motor_backlash"
 P = RigParams()
 
 
 def test_the_examples_cover_every_kind():
-    kinds = {compose([spec])[0].effects[0].kind for spec in (CUBIC, STICTION, DEAD_ZONE, SAMPLED, ECCENTRIC)}
+    specs = (CUBIC, STICTION, DEAD_ZONE, SAMPLED, ECCENTRIC, BACKLASH)
+    kinds = {compose([spec])[0].effects[0].kind for spec in specs}
     assert kinds == set(KINDS)
 
 
@@ -92,12 +94,66 @@ def test_measurement_example_changes_the_reading_not_the_motion():
     base = simulate("torsional", 1.5, 4.0)
     np.testing.assert_allclose(run.theta_l, base.theta_l, rtol=0, atol=1e-12)  # the motion is the base model's
     zeros = np.zeros_like(run.theta_l)
-    tu, tl, _, _ = comp.measure(run.theta_u, run.theta_l, zeros, zeros, comp.vector(P, vals))
+    tu, tl, _, _ = comp.measure(run.theta_u, run.theta_l, zeros, zeros, comp.vector(P, vals), run.omega_u, run.omega_l)
     np.testing.assert_array_equal(tu, run.theta_u)
     want = run.theta_l + 0.004 * np.cos(run.theta_l) - 0.003 * np.sin(run.theta_l)
     np.testing.assert_allclose(tl, want, rtol=0, atol=1e-12)
     ts = measure_trajectory(run)  # the rig's measurement chain: this effect, then the encoders' quantisation
     np.testing.assert_allclose(ts.theta_l, quantize_angle(want), rtol=0, atol=1e-9)
+
+
+def _reversing_steps() -> tuple[np.ndarray, np.ndarray]:
+    """Voltage steps (s, V) that turn the upper disc both ways."""
+    return np.array([0.0, 1.0, 2.5, 4.0, 5.5]), np.array([0.0, 2.5, -2.0, 2.0, -2.5])
+
+
+def test_a_measurement_may_read_the_speed_the_backlash_example_on_every_path():
+    """The motor encoder reads θu + play tanh(ωu / w_play): the motion is the base model's, and the reading is the
+    same through the composition, the rig's measurement chain and the environments' sensor kernel."""
+    values = {"play": 0.02, "w_play": 0.05}
+    comp, vals = compose([BACKLASH], values)
+    run = simulate("torsional", _reversing_steps(), 7.0, effects=comp, effect_params=vals)
+    base = simulate("torsional", _reversing_steps(), 7.0)
+    np.testing.assert_allclose(run.theta_u, base.theta_u, rtol=0, atol=1e-12)
+    assert run.omega_u.min() < -0.5 and run.omega_u.max() > 0.5  # it reverses
+    zeros = np.zeros_like(run.theta_u)
+    p = comp.vector(P, vals)
+    tu, tl, _, _ = comp.measure(run.theta_u, run.theta_l, zeros, zeros, p, run.omega_u, run.omega_l)
+    want = run.theta_u + 0.02 * np.tanh(run.omega_u / 0.05)
+    np.testing.assert_allclose(tu, want, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(tl, run.theta_l)
+    np.testing.assert_allclose(measure_trajectory(run).theta_u, quantize_angle(want), rtol=0, atol=1e-9)
+    states = np.zeros((run.t.size, comp.n_state))
+    states[:, 0], states[:, 1], states[:, 2], states[:, 3] = run.theta_u, run.theta_l, run.omega_u, run.omega_l
+    sensors = comp.kernels.client("drillgym.envs.sensor_kernel")
+    env_tu = sensors.measured_channels_batch(states, np.tile(p, (run.t.size, 1)))[0]
+    np.testing.assert_allclose(env_tu, want, rtol=0, atol=1e-12)
+
+
+def test_the_backlash_example_is_identified_on_reversing_steps():
+    """20 s of steps that reverse the upper disc, read through a 0.02 rad play: fitting the play and its speed
+    finds them and the error falls.  The segments' start speeds are fitted too: where the disc starts or reverses,
+    the reading's own rate holds the play's change (2 rad/s at the first sample); without room for that the fit
+    stays at the start's error (318 -> 307 noise units, play 0.016)."""
+    ts = synthetic_measurement(
+        "torsional",
+        duration=20.0,
+        rate_hz=250.0,
+        signal="steps",
+        offset=0.0,
+        amplitude=2.5,
+        seed=3,
+        effects=[BACKLASH],
+        effect_params={"play": 0.02, "w_play": 0.05},
+    )
+    ex = prepare_experiment(ts, compare_rate_hz=50.0)
+    model = SegmentedModel([ex], 2.0, composition=[BACKLASH])
+    obj = Objective(model, {"theta_u": 1.0, "theta_l": 1.0})
+    variables = [FitVariable.of_effect(model.composition, n) for n in ("play", "w_play")]
+    res = fit_parameters(obj, RigParams(), variables, max_nfev=30, fit_speeds=True)
+    assert res.values["play"] == pytest.approx(0.02, rel=0.01)
+    assert res.values["w_play"] == pytest.approx(0.05, rel=0.1)
+    assert res.rmse_after < 0.02 * res.rmse_before
 
 
 def _rhs_and_lag(specs: list[str], u: float, u_m: float) -> tuple[float, float, float]:

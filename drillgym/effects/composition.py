@@ -139,6 +139,15 @@ class Composition:
         return self.has_kind(Measurement)
 
     @property
+    def measurement_reads_speeds(self) -> bool:
+        """True when a Measurement effect's reading depends on a disc's speed (``omega_u`` / ``omega_l``): the
+        reading's rate then holds the reading's own change where the speed changes sign."""
+        return any(
+            issubclass(e, Measurement) and {"omega_u", "omega_l"} & set(e.argument_names("measure"))
+            for e in self.effects
+        )
+
+    @property
     def measurement_columns(self) -> tuple[int, ...]:
         """Indices of the parameters the Measurement effects read (their own and any base parameter
         their ``measure`` names): rows equal there are measured alike."""
@@ -343,7 +352,14 @@ class Composition:
         return int(math.ceil(max(d, 0.0) / dt)) + 3
 
     def measure(
-        self, theta_u: np.ndarray, theta_l: np.ndarray, X: np.ndarray, Y: np.ndarray, vec: np.ndarray
+        self,
+        theta_u: np.ndarray,
+        theta_l: np.ndarray,
+        X: np.ndarray,
+        Y: np.ndarray,
+        vec: np.ndarray,
+        omega_u: np.ndarray,
+        omega_l: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The channels as the sensors read them (the Measurement effects applied).
 
@@ -355,16 +371,21 @@ class Composition:
             Lateral position of the lower disc centre, fixed frame (m).
         vec : ndarray
             Parameter vector (:meth:`vector`).
+        omega_u, omega_l : ndarray
+            Disc speeds (rad/s), shaped as ``theta_u``: a reading may depend on the direction of motion.
 
         Returns
         -------
         tuple of ndarray
             ``(theta_u, theta_l, X, Y)`` as measured, shaped as ``theta_u``.
         """
-        arrs = [np.ascontiguousarray(np.asarray(a, dtype=np.float64).ravel()) for a in (theta_u, theta_l, X, Y)]
         shape = np.shape(theta_u)
         if not self.has_measurement:
             return tuple(np.asarray(a, dtype=float).copy() for a in (theta_u, theta_l, X, Y))
+        arrs = [
+            np.ascontiguousarray(np.broadcast_to(np.asarray(a, dtype=np.float64), shape).ravel())
+            for a in (theta_u, theta_l, X, Y, omega_u, omega_l)
+        ]
         out = self.kernels.hooks.measure_arrays(*arrs, np.asarray(vec, dtype=np.float64))
         return tuple(out[i].reshape(shape) for i in range(4))
 

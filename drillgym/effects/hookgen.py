@@ -349,7 +349,7 @@ def _delay(comp: Composition) -> str:
 
 
 def _measure(comp: Composition) -> str:
-    lines = [f"@{JIT}", "def hk_measure(theta_u, theta_l, X, Y, p):"]
+    lines = [f"@{JIT}", "def hk_measure(theta_u, theta_l, X, Y, omega_u, omega_l, p):"]
     for i, eff in enumerate(comp.effects):
         if not issubclass(eff, Measurement):
             continue
@@ -361,7 +361,7 @@ def _measure(comp: Composition) -> str:
             elif a in IDX.__dict__:
                 args.append(f"p[{getattr(IDX, a)}]")
             else:
-                args.append(a)  # a channel
+                args.append(a)  # a channel or a disc's speed
         call = f"_e{i}_measure({', '.join(args)})"
         ch = ", ".join(eff.channels)
         lines.append(
@@ -374,11 +374,11 @@ def _measure(comp: Composition) -> str:
         "",
         "",
         "@njit(cache=True)",
-        "def measure_arrays(TU, TL, X, Y, p):",
+        "def measure_arrays(TU, TL, X, Y, WU, WL, p):",
         "    n = TU.shape[0]",
         "    out = np.empty((4, n))",
         "    for i in range(n):",
-        "        a, b, c, d = hk_measure(TU[i], TL[i], X[i], Y[i], p)",
+        "        a, b, c, d = hk_measure(TU[i], TL[i], X[i], Y[i], WU[i], WL[i], p)",
         "        out[0, i] = a",
         "        out[1, i] = b",
         "        out[2, i] = c",

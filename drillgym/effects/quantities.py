@@ -69,6 +69,9 @@ _CHANNEL_MEANING = {
     "X": "lateral position x of the lower disc centre as measured so far, fixed frame (m)",
     "Y": "lateral position y as measured so far, fixed frame (m)",
 }
+#: what ``Measurement.measure`` may read besides the channels: the discs' speeds (a reading that depends on the
+#: direction of motion: backlash between the encoder's shaft and the disc)
+MEASURE_SPEEDS = ("omega_u", "omega_l")
 
 
 @dataclass(frozen=True)
@@ -112,7 +115,9 @@ def fixed_quantities(kind: str, function: str) -> dict[str, str]:
         return {}
     kind = kind.capitalize()
     if kind == "Measurement":
-        return {c: _CHANNEL_MEANING[c] for c in MEASUREMENT_CHANNELS} if function == "measure" else {}
+        if function != "measure":
+            return {}
+        return {c: _CHANNEL_MEANING[c] for c in MEASUREMENT_CHANNELS} | {w: VOCABULARY[w] for w in MEASURE_SPEEDS}
     if kind == "Delay" and function == "delay":
         return {}
     out = dict(VOCABULARY)

@@ -37,7 +37,7 @@ def measured_channels(y, p):
     Yf = 0.0
     if y[4] != 0.0 or y[5] != 0.0:
         X, Yf = rotate_compiled(y[4], y[5], np.cos(y[0]), np.sin(y[0]))
-    return hk_measure(y[0], y[1], X, Yf, p)
+    return hk_measure(y[0], y[1], X, Yf, y[2], y[3], p)
 
 
 @njit(cache=True)

@@ -359,7 +359,8 @@ class SegmentedModel(SpeedCorrections):
                 tu, tl, Xs, Ys = (np.array(a) for a in (tu, tl, Xs, Ys))
                 for b in range(B):  # a parameter row's segments at once (they share its measurement)
                     i = slice(b * ns, (b + 1) * ns)
-                    tu[i], tl[i], Xs[i], Ys[i] = sim.measure(tu[i], tl[i], Xs[i], Ys[i], S[b])
+                    wu, wl = D[i, :, _COL["omega_u"]], D[i, :, _COL["omega_l"]]
+                    tu[i], tl[i], Xs[i], Ys[i] = sim.measure(tu[i], tl[i], Xs[i], Ys[i], S[b], wu, wl)
             out["theta_u"], out["theta_l"] = tu, tl
             if ex.config.lateral_free:
                 xm, ym = Xs, Ys

@@ -33,7 +33,8 @@ def invert_measurement(
     readings : numpy.ndarray
         (n, 4) columns θu (rad), θl (rad), X (m), Y (m) as read by the sensors.
     rates : numpy.ndarray or None
-        (n, 4) their measured time derivatives (per s).
+        (n, 4) their measured time derivatives (per s); the first two are the speeds a Measurement effect that
+        asks for ``omega_u`` / ``omega_l`` reads (None: 0).
     vec : numpy.ndarray
         The composition's parameter vector.
 
@@ -48,12 +49,14 @@ def invert_measurement(
         return m.copy(), None if rates is None else np.asarray(rates, dtype=float).copy()
     s = m.copy()
     J = np.empty((m.shape[0], 4, 4))
+    # a reading that depends on the direction of motion gets the discs' speeds as measured
+    wu, wl = (np.zeros(m.shape[0]),) * 2 if rates is None else (np.asarray(rates, dtype=float)[:, j] for j in (0, 1))
     for _ in range(_ITER):
-        h0 = np.column_stack(comp.measure(s[:, 0], s[:, 1], s[:, 2], s[:, 3], vec))
+        h0 = np.column_stack(comp.measure(s[:, 0], s[:, 1], s[:, 2], s[:, 3], vec, wu, wl))
         for j in range(4):
             sp = s.copy()
             sp[:, j] += _H
-            J[:, :, j] = (np.column_stack(comp.measure(sp[:, 0], sp[:, 1], sp[:, 2], sp[:, 3], vec)) - h0) / _H
+            J[:, :, j] = (np.column_stack(comp.measure(sp[:, 0], sp[:, 1], sp[:, 2], sp[:, 3], vec, wu, wl)) - h0) / _H
         r = h0 - m
         s = s - np.linalg.solve(J, r[:, :, None])[:, :, 0]
         if np.max(np.abs(r)) < 1e-12:

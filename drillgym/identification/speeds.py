@@ -96,20 +96,28 @@ class SpeedCorrections:
                     A = J[j][:, cols]
                     step, *_ = np.linalg.lstsq(A, -e0[j], rcond=None)
                     self.speed_offsets[k][j, cols] = np.clip(
-                        self.speed_offsets[k][j, cols] + step, -limit[cols], limit[cols]
+                        self.speed_offsets[k][j, cols] + step, -limit[j, cols], limit[j, cols]
                     )
 
     def _correctable_speeds(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """Experiment k's segment-start speeds that may be corrected, (n_seg, 2) booleans for (ω_u, ω_l), and
-        the bound of a correction per component (rad/s, (2,)): three standard deviations of the estimate's
+        the bound of each correction (rad/s, (n_seg, 2)): three standard deviations of the estimate's
         quantization noise.  Left out: a disc the data show stuck at the start (speed estimate exactly 0), the
-        upper disc of a free-vibration test and the lower disc of an upper-disc test."""
+        upper disc of a free-vibration test and the lower disc of an upper-disc test.
+
+        When the model's reading depends on a disc's speed (``Composition.measurement_reads_speeds``: free play
+        between an encoder's shaft and its disc), the reading changes by itself where that speed changes sign,
+        and the data's rate there holds that change (a 0.02 rad play read as 2 rad/s at a start from rest): a
+        start whose differentiation window holds a reversal, a stop or the recording's first sample may move by
+        as much as its estimate too."""
         ex = self.experiments[k]
         starts, _ = self.segments(k)
-        w0 = np.stack(
-            [ex.rates.get("omega_u", np.zeros(ex.n))[starts], ex.rates.get("omega_l", np.zeros(ex.n))[starts]], axis=1
-        )
-        limit = 3.0 * np.array([ex.speed_noise.get("omega_u", 0.0), ex.speed_noise.get("omega_l", 0.0)])
+        rates = np.stack([ex.rates.get(c, np.zeros(ex.n)) for c in ("omega_u", "omega_l")], axis=1)
+        w0 = rates[starts]
+        noise = np.array([ex.speed_noise.get("omega_u", 0.0), ex.speed_noise.get("omega_l", 0.0)])
+        limit = np.tile(3.0 * noise, (len(starts), 1))
+        if self.composition.measurement_reads_speeds:
+            limit += np.where(_sign_change_near(rates, starts, ex.fs), np.abs(w0), 0.0)
         free = w0 != 0.0
         if ex.config is Configuration.FREE_VIBRATION:
             free[:, 0] = False
@@ -126,9 +134,25 @@ class SpeedCorrections:
         for k in range(len(self.experiments)):
             free, limit = self._correctable_speeds(k)
             out += [
-                (k, j, c, float(limit[c]))
+                (k, j, c, float(limit[j, c]))
                 for j in range(free.shape[0])
                 for c in (0, 1)
-                if free[j, c] and limit[c] > 0.0
+                if free[j, c] and limit[j, c] > 0.0
             ]
         return out
+
+
+#: how far (s) from a segment start a reversal or stop makes the data's speed there unsure under a speed-dependent
+#: reading: the speed estimates' differentiation window on each side
+_READING_WINDOW_S = 0.06
+
+
+def _sign_change_near(rates: np.ndarray, starts: np.ndarray, fs: float) -> np.ndarray:
+    """(n_seg, 2): whether each disc's speed estimate is 0 or of the other sign somewhere within
+    :data:`_READING_WINDOW_S` of each start, or the window reaches the recording's first sample."""
+    m = max(1, int(np.ceil(_READING_WINDOW_S * fs)))
+    out = np.zeros((len(starts), 2), dtype=bool)
+    for j, s0 in enumerate(starts):
+        window = rates[max(0, s0 - m) : s0 + m + 1]
+        out[j] = np.any(window * np.sign(rates[s0]) <= 0.0, axis=0) | (s0 - m < 0)
+    return out

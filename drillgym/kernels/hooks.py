@@ -49,7 +49,8 @@ rows PT (N_PARAMS + N_SWITCHES, B))
     hk_bounds_u_lane(lo, hi, k, t, thu, thl, wu, wl, x, yy, vx, vy, Y, nm, PT, brake) / ..._l_lane
 
 Measurement
-    hk_measure(theta_u, theta_l, X, Y, p) -> (theta_u, theta_l, X, Y) as the sensors read them
+    hk_measure(theta_u, theta_l, X, Y, omega_u, omega_l, p) -> (theta_u, theta_l, X, Y) as the sensors read
+    them (the speeds in rad/s: a reading may depend on the direction of motion)
 """
 
 raise ImportError(
