@@ -327,7 +327,7 @@ def diagnose_cmd(
         typer.echo(d.text())
         if d.candidate is not None:
             c = d.candidate
-            typer.echo(f"candidate outside the library ({c.explained:.0%} of the residual torque): {c.expression()}")
+            typer.echo(c.found_line())
             beside = c.fit.beside if c.fit is not None else None
             if c.fit is not None:
                 typer.echo(c.fit.line())

@@ -27,7 +27,8 @@ from .context import SelectionContext, base_at_bounds, converged_fit
 from .discovery import dead_zone_variant
 from .effect_file import write_effect_file
 from .effects import get_effect
-from .motor_terms import MotorVoltageTerms, UpperTorqueTerms, term_parameters
+from .encoder_reading import MIN_READING_CUT, with_fitted_terms
+from .motor_terms import TERM_EFFECTS, WIDTH_PARAMETERS, term_parameters
 from .ranking import transfer
 from .results import Candidate, Diagnosis
 from .scoring import score, significant
@@ -291,7 +292,7 @@ def moved_text(changes: dict[str, float]) -> str:
 def _effect_of(candidate: Candidate) -> tuple[type[Effect] | None, dict[str, float]]:
     """The effect the candidate is fitted through and the start of its free parameters: for motor-side terms
     the effects of :mod:`.motor_terms` (compiled once), else the candidate's own file (None: not written)."""
-    if candidate.group in ("motor_voltage", "upper_force"):
+    if candidate.group in TERM_EFFECTS:
         start = {}
         for label, c in candidate.terms.items():
             name = term_parameters(candidate.group, label)
@@ -299,9 +300,9 @@ def _effect_of(candidate: Candidate) -> tuple[type[Effect] | None, dict[str, flo
                 break
             start[name] = c
             if label in candidate.widths:
-                start["mv_w"] = candidate.widths[label]
+                start[WIDTH_PARAMETERS[candidate.group]] = candidate.widths[label]
         else:
-            return (MotorVoltageTerms if candidate.group == "motor_voltage" else UpperTorqueTerms), start
+            return TERM_EFFECTS[candidate.group], start
     if candidate.effect_file is None:
         return None, {}
     effect = get_effect(candidate.effect_file)
@@ -333,42 +334,54 @@ def _with_base_freed(
 
 
 def choose_candidate(
-    screening: Screening, diagnosis: Diagnosis, noise_scales: dict[str, float], candidate_out: str | Path | None
-) -> Candidate:
-    """The discovered candidate fitted, or its motor-side alternative when that one's own fit removes more.
+    screening: Screening,
+    diagnosis: Diagnosis,
+    noise_scales: dict[str, float],
+    candidate_out: str | Path | None,
+    reading: Candidate | None = None,
+) -> Candidate | None:
+    """The discovered candidate fitted, or its motor-side alternative, or the motor encoder's reading, whichever
+    fit removes most.
 
     The motor side's candidate is fitted first (its terms are compiled once); when it leaves the recording at the
-    noise, the other is not fitted.  The candidate kept is the one written to ``candidate_out``; the other is
-    its :attr:`~.results.Candidate.alternative`.
+    noise, the other is not fitted.  The motor encoder's reading (:mod:`.encoder_reading`) is fitted when neither
+    leaves the recording at the noise; with no discovered candidate it is kept only when its fit removes at least
+    :data:`.encoder_reading.MIN_READING_CUT` of the unexplained variance.  The candidate kept is the one written to
+    ``candidate_out``; the best of the others is its :attr:`~.results.Candidate.alternative`.
 
     Parameters
     ----------
     screening : Screening
         The recordings screened.
     diagnosis : Diagnosis
-        The diagnosis, with its candidate (:func:`.discovery.discover`).
+        The diagnosis, with its candidate (:func:`.discovery.discover`; None: only the reading is tried).
     noise_scales : dict of str to float
         The channels' noise.
     candidate_out : str or path or None
         Where the kept candidate's effect file goes.
+    reading : Candidate, optional
+        The motor encoder's reading (:func:`.encoder_reading.reading_candidate`; None: not tried).
 
     Returns
     -------
-    Candidate
-        The candidate kept, with its fit.
+    Candidate or None
+        The candidate kept, with its fit; None when there was none and the reading's fit removes too little.
     """
     written = cand = diagnosis.candidate
-    alt, cand.alternative = cand.alternative, None
-    if alt is None:
-        keep, other = _fitted_form(screening, diagnosis, cand, noise_scales), None
-    else:
-        alt = _fitted_form(screening, diagnosis, alt, noise_scales)
-        if alt.fit is not None and alt.fit.after.explained:
-            keep, other = alt, cand
-        else:
-            cand = _fitted_form(screening, diagnosis, cand, noise_scales)
-            cut = {id(c): c.fit.variance_cut if c.fit is not None else -1.0 for c in (alt, cand)}
-            keep, other = (alt, cand) if cut[id(alt)] > cut[id(cand)] else (cand, alt)
+    keep = other = None
+    if cand is not None:
+        keep, other = _discovered(screening, diagnosis, cand, noise_scales)
+    if reading is not None and (keep is None or keep.fit is None or not keep.fit.after.explained):
+        reading.fit = fit_candidate(screening, diagnosis, reading, noise_scales)
+        reading = with_fitted_terms(reading)
+        cut = {id(c): c.fit.variance_cut if c.fit is not None else -1.0 for c in (reading, keep) if c is not None}
+        bar = cut[id(keep)] if keep is not None else MIN_READING_CUT
+        if cut[id(reading)] > bar:
+            keep, other = reading, keep
+        elif other is None or cut[id(reading)] > (other.fit.variance_cut if other.fit is not None else -1.0):
+            other = reading
+    if keep is None:
+        return None
     if keep is not written and candidate_out is not None:  # the file written holds the discovered candidate
         write_effect_file(keep, candidate_out)
         if keep.fit is not None:  # its values by the names its file gives them
@@ -376,6 +389,22 @@ def choose_candidate(
             keep.fit.file_names = {k: _file_name(keep, k) for k in keep.fit.file_names}
     keep.alternative = other
     return keep
+
+
+def _discovered(
+    screening: Screening, diagnosis: Diagnosis, cand: Candidate, noise_scales: dict[str, float]
+) -> tuple[Candidate, Candidate | None]:
+    """The discovered candidate and its motor-side alternative fitted: (the one whose fit removes more, the
+    other); the other is not fitted when the motor side's leaves the recording at the noise."""
+    alt, cand.alternative = cand.alternative, None
+    if alt is None:
+        return _fitted_form(screening, diagnosis, cand, noise_scales), None
+    alt = _fitted_form(screening, diagnosis, alt, noise_scales)
+    if alt.fit is not None and alt.fit.after.explained:
+        return alt, cand
+    cand = _fitted_form(screening, diagnosis, cand, noise_scales)
+    cut = {id(c): c.fit.variance_cut if c.fit is not None else -1.0 for c in (alt, cand)}
+    return (alt, cand) if cut[id(alt)] > cut[id(cand)] else (cand, alt)
 
 
 def _fitted_form(
@@ -432,6 +461,6 @@ def _file_name(candidate: Candidate, parameter: str) -> str:
     for i, label in enumerate(candidate.terms, 1):
         if term_parameters(candidate.group, label) == parameter:
             return f"{candidate.name}_c{i}"
-        if parameter == "mv_w" and label in candidate.widths:
+        if parameter == WIDTH_PARAMETERS.get(candidate.group) and label in candidate.widths:
             return f"{candidate.name}_w{i}"
     return parameter

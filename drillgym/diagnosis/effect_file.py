@@ -1,7 +1,8 @@
 """A candidate effect written as an effect file of the open-effect mechanism.
 
 A friction group becomes a ``Friction`` with ``slip`` and ``stick``, the motor's voltage an ``Input`` (the
-voltage the motor sees, from the voltage entering it), any other group a ``Force``; the
+voltage the motor sees, from the voltage entering it), the motor encoder's reading a ``Measurement`` of
+``theta_u``, any other group a ``Force``; the
 regressed coefficients are the guesses and the bounds cover four times their size (and the size that would
 make each term alone as large as the residual torque), so that ``drillgym identify --add-effect
 FILE.py:NAME`` fits it.
@@ -16,6 +17,8 @@ from .results import Candidate
 __all__ = ["write_effect_file"]
 
 _ARGS_FRICTION = ("T", "direction", "speed", "omega")
+#: a group's coefficient unit and its scanned width's unit and lower bound (N m, no width: not listed)
+_UNITS = {"motor_voltage": ("V", "V", 0.0), "motor_encoder": ("rad", "rad/s", 1e-3)}
 
 
 def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None) -> Path:
@@ -39,7 +42,8 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
     name = name or f"candidate_{cand.group}"
     cls = "".join(p.capitalize() for p in name.split("_"))
     voltage = cand.group == "motor_voltage"
-    unit = "V" if voltage else "N m"
+    reading = cand.group == "motor_encoder"
+    unit, width_unit, width_lo = _UNITS.get(cand.group, ("N m", "V", 0.0))
     params, body, widths = [], [], []
     for i, (label, c) in enumerate(cand.terms.items(), 1):
         size = max(abs(c), cand.reach.get(label, 0.0), 1e-9)
@@ -50,22 +54,27 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
         code = cand.codes[label]
         if label in cand.widths:  # a scanned width: fitted too, from the width found
             w = cand.widths[label]
+            doc = "speed w over which the lead changes side" if reading else f"width of {label.split('(')[0]}(u, width)"
             params.append(
-                f'        Parameter("{name}_w{i}", "V", 0.0, {max(2.0, 3 * w)!r}, {w!r}, 0.1,\n'
-                f'                  doc="width of {label.split("(")[0]}(u, width)"),'
+                f'        Parameter("{name}_w{i}", "{width_unit}", {width_lo!r}, {max(2.0, 3 * w)!r}, {w!r}, 0.1,\n'
+                f'                  doc="{doc}"),'
             )
             code = code.replace("U0", f"{name}_w{i}")
             widths.append(f"{name}_w{i}")
         body.append(f"{name}_c{i} * ({code})")
     pnames = [f"{name}_c{i}" for i in range(1, len(cand.terms) + 1)] + widths
     expr = " + ".join(body)
-    kind_import = "Friction" if cand.group.endswith("friction") else ("Input" if voltage else "Force")
+    kinds = {"motor_voltage": "Input", "motor_encoder": "Measurement"}
+    kind_import = "Friction" if cand.group.endswith("friction") else kinds.get(cand.group, "Force")
+    found = "by its own fit" if reading else "from the residual torques"
     used = [v for v in ("theta_l", "theta_u", "alpha", "alpha_dot", "t", "u") if _uses(cand, v)]
     lines = [
-        '"""Candidate effect written by `drillgym diagnose --candidate-out` from the residual torques.',
+        f'"""Candidate effect written by `drillgym diagnose --candidate-out` {found}.',
         "",
         f"    {cand.expression()}",
-        f"    (explains {cand.explained:.0%} of the residual torque; {cand.n_samples} samples)",
+        f"    (its fit removes {cand.explained:.0%} of the unexplained variance)"
+        if reading
+        else f"    (explains {cand.explained:.0%} of the residual torque; {cand.n_samples} samples)",
         "",
         *_fit_it(cand, path.name, name),
         '"""',
@@ -77,20 +86,26 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
         "",
     ]
     friction = cand.group.endswith("friction")
-    kind = "Friction" if friction else ("Input" if voltage else "Force")
+    kind = kind_import
     lines.append(f"class {cls}({kind}):")
     lines.append(f'    name = "{name}"')
     if friction:
         lines.append(f'    disc = "{cand.group.split("_")[0]}"')
     elif voltage:
         lines.append('    configurations = ("upper", "torsional", "lateral", "coupled")  # the motor drives these')
+    elif reading:
+        lines.append('    channels = ("theta_u",)  # what the motor encoder reads')
     else:
         lines.append(f'    acts_on = "{cand.group.split("_")[0]}"')
     lines.append("    parameters = (")
     lines += params
     lines.append("    )")
-    lines.append(f'    explanation = "Found in the residual torques by drillgym diagnose: {cand.expression()}."')
-    lines.append('    signature = "the residual torque this term was regressed on"')
+    lines.append(f'    explanation = "Found {found} by drillgym diagnose: {cand.expression()}."')
+    lines.append(
+        '    signature = "a θu residual that changes side where the upper disc reverses"'
+        if reading
+        else '    signature = "the residual torque this term was regressed on"'
+    )
     lines.append("")
     if friction:
         speed_args = ", ".join(a for a in _ARGS_FRICTION if a == "T" or _uses(cand, a))
@@ -107,6 +122,9 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
     elif voltage:
         lines.append(f"    def voltage(u, {', '.join(pnames)}):")
         lines.append(f"        return u + {expr}")
+    elif reading:
+        lines.append(f"    def measure(theta_u, omega_u, {', '.join(pnames)}):")
+        lines.append(f"        return theta_u + {expr}")
     else:
         args = ", ".join(used)
         lines.append(f"    def torque({args + ', ' if args else ''}{', '.join(pnames)}):")

@@ -1,4 +1,4 @@
-"""The motor-side candidate terms as two effects compiled once: what a discovered candidate's fit runs.
+"""The motor-side candidate terms as effects compiled once: what a discovered candidate's fit runs.
 
 A candidate file written by discovery holds its regressed coefficients, so its source (and the compiled model
 of a composition with it) differs for every recording.  Its motor-side terms are fitted instead through these
@@ -6,7 +6,9 @@ two effects, whose functions are the same terms with every coefficient a paramet
 
 * :class:`MotorVoltageTerms` (Input): the motor sees u + o + a sign(u) + b |u| + c u|u| + d u³ + e sat(u, w);
 * :class:`UpperTorqueTerms` (Force on the upper disc): a constant and cos/sin kθu for k in
-  :data:`.discovery.COGGING_HARMONICS` (cogging).
+  :data:`.discovery.COGGING_HARMONICS` (cogging);
+* :class:`MotorEncoderTerms` (Measurement of θu): the motor encoder reads θu + b tanh(ωu / w), free play between
+  the motor's shaft (the encoder's) and the upper disc (backlash): the shaft leads the disc it drives.
 
 :func:`term_parameters` maps a candidate's term labels to their parameters here.
 """
@@ -15,9 +17,18 @@ from __future__ import annotations
 
 import math
 
-from ..effects import Force, Input, Parameter
+from ..effects import Force, Input, Measurement, Parameter
 
-__all__ = ["MotorVoltageTerms", "UpperTorqueTerms", "term_parameters", "HARMONICS"]
+__all__ = [
+    "MotorVoltageTerms",
+    "UpperTorqueTerms",
+    "MotorEncoderTerms",
+    "TERM_EFFECTS",
+    "WIDTH_PARAMETERS",
+    "term_parameters",
+    "HARMONICS",
+    "ENCODER_TERM",
+]
 
 #: the cogging harmonics (per revolution) the torque terms carry (as :data:`.discovery.COGGING_HARMONICS`)
 HARMONICS = (1, 2, 3, 4, 6, 8, 12)
@@ -97,6 +108,30 @@ class UpperTorqueTerms(Force):
         )
 
 
+#: the label of the motor encoder's term (:class:`MotorEncoderTerms`)
+ENCODER_TERM = "tanh(ωu/w)"
+
+
+class MotorEncoderTerms(Measurement):
+    """The motor encoder's reading: θu + me_play tanh(ωu / me_w) (free play between the shaft and the disc)."""
+
+    name = "motor_encoder_terms"
+    channels = ("theta_u",)
+    parameters = (
+        Parameter("me_play", "rad", -0.2, 0.2, 0.0, 2e-3, "half the free play the shaft leads by", neutral=0.0),
+        Parameter("me_w", "rad/s", 1e-3, 2.0, 0.05, 0.02, "speed over which the lead changes side"),
+    )
+    configurations = ("upper", "torsional", "lateral", "coupled")
+    explanation = (
+        "The motor encoder reads the motor's shaft, which drives the upper disc through free play: the shaft leads "
+        "the disc by the play in the direction it turns (discovery's terms)."
+    )
+    signature = "a θu residual that changes side where the upper disc reverses"
+
+    def measure(theta_u, omega_u, me_play, me_w):
+        return theta_u + me_play * math.tanh(omega_u / me_w)
+
+
 _VOLTAGE = {"sign(u)": "mv_sign", "|u|": "mv_abs", "u|u|": "mv_uabs", "u³": "mv_u3"}
 
 
@@ -106,7 +141,7 @@ def term_parameters(group: str, label: str) -> str | None:
     Parameters
     ----------
     group : str
-        The candidate's group (``motor_voltage`` or ``upper_force``).
+        The candidate's group (``motor_voltage``, ``upper_force`` or ``motor_encoder``).
     label : str
         The term's label (``sat(u, 0.4)``, ``cos 6θu``, ``1``, ...).
 
@@ -115,6 +150,8 @@ def term_parameters(group: str, label: str) -> str | None:
     str or None
         The parameter's name, or None when the term has none here.
     """
+    if group == "motor_encoder":
+        return "me_play" if label == ENCODER_TERM else None
     if group == "motor_voltage":
         if label == "1":
             return "mv_offset"
@@ -126,3 +163,9 @@ def term_parameters(group: str, label: str) -> str | None:
         k = arg[: -len("θu")] or "1"
         return f"ut_{f[0]}{k}" if f in ("cos", "sin") and int(k) in HARMONICS else None
     return None
+
+
+#: a motor-side group -> the effect its terms are fitted through
+TERM_EFFECTS = {"motor_voltage": MotorVoltageTerms, "upper_force": UpperTorqueTerms, "motor_encoder": MotorEncoderTerms}
+#: a group -> the parameter of its terms' scanned width (a dead zone's u0 in V, the encoder's lead speed in rad/s)
+WIDTH_PARAMETERS = {"motor_voltage": "mv_w", "motor_encoder": "me_w"}

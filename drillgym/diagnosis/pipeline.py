@@ -11,8 +11,9 @@
    :func:`.unexplained.unexplained` — the final residual against the noise, where it lives, what it depends on;
 5. :func:`.discovery.discover` (with ``discover``) — a candidate effect outside the library from the
    residual torques of the (first) recording on its own samples up to 250 Hz, written as an effect file;
-   :func:`.candidate_fit.choose_candidate` — the candidate (and the motor side's best beside it) added to the
-   final model and fitted; the one whose fit removes more is kept, its residual reported;
+   :func:`.candidate_fit.choose_candidate` — the candidate (and the motor side's best beside it, and the motor
+   encoder's reading, :mod:`.encoder_reading`) added to the final model and fitted; the one whose fit removes
+   most is kept, its residual reported;
    :func:`.beside.beside_candidate` — the library's signal-path effects (a motor lag, an input delay) the
    selection did not take, fitted again with the candidate in the model: a motor-side residual hides them;
    :func:`.recheck.recheck_selection` — the effects the selection took, scored again with the candidate in.
@@ -34,6 +35,7 @@ from .beside import beside_candidate
 from .candidate_fit import choose_candidate
 from .checks import check
 from .discovery import discover
+from .encoder_reading import reading_candidate
 from .input_order import input_order
 from .orders import select
 from .ranking import report
@@ -106,10 +108,13 @@ def diagnose(
         diagnosis.unexplained = unexplained(screening.model.obj, diagnosis.vector, noise)
     if opts.discover and screening.config is not Configuration.UPPER:
         diagnosis.candidate, diagnosis.advice = discover(_fine(screening.exps[0]), diagnosis, opts.candidate_out)
-        if diagnosis.candidate is not None:  # its own identification is part of the answer
+        reading = reading_candidate(diagnosis)  # the motor encoder's reading: only its own fit can show it
+        if diagnosis.candidate is not None or reading is not None:  # its own identification is part of the answer
             with one_blas_thread():
-                diagnosis.candidate = choose_candidate(screening, diagnosis, noise, opts.candidate_out)
-                if diagnosis.candidate.fit is not None:
+                diagnosis.candidate = choose_candidate(screening, diagnosis, noise, opts.candidate_out, reading)
+                if diagnosis.candidate is not None and diagnosis.candidate is reading:
+                    diagnosis.advice = []
+                if diagnosis.candidate is not None and diagnosis.candidate.fit is not None:
                     diagnosis.candidate.fit.beside = beside_candidate(screening, diagnosis, noise)
                     diagnosis.candidate.fit.recheck = recheck_selection(screening, diagnosis)
     return diagnosis

@@ -245,26 +245,30 @@ _WHERE = {
     "lower_force": "torque on the lower disc +=",
     "upper_force": "torque on the upper disc +=",
     "motor_voltage": "voltage at the motor = u",
+    "motor_encoder": "motor encoder reading = θu",
 }
+#: the unit of a group's coefficients (N m when not listed)
+_UNIT = {"motor_voltage": "V", "motor_encoder": "rad"}
 
 
 @dataclass
 class Candidate:
-    """A candidate effect found in the residual torques.
+    """A candidate effect found in the residual torques, or the motor encoder's reading (:mod:`.encoder_reading`).
 
     Attributes
     ----------
     group : str
-        Where it acts: ``lower_friction``, ``upper_friction``, ``string``, ``lower_force``, ``upper_force`` or
-        ``motor_voltage`` (the voltage the motor sees).
+        Where it acts: ``lower_friction``, ``upper_friction``, ``string``, ``lower_force``, ``upper_force``,
+        ``motor_voltage`` (the voltage the motor sees) or ``motor_encoder`` (what the motor encoder reads).
     terms : dict of str to float
-        Term label -> coefficient (N m per unit of the term; V for ``motor_voltage``).
+        Term label -> coefficient (N m per unit of the term; V for ``motor_voltage``, rad for ``motor_encoder``).
     codes : dict of str to str
         Term label -> its Python expression in the effect file.
     at_rest : dict of str to float
         Term label -> its value at zero speed approached from above.
     explained : float
-        Share of the residual torque's variance it explains.
+        Share of the residual torque's variance it explains (``motor_encoder``: share of the unexplained variance
+        its fit removes).
     n_samples : int
         Samples regressed.
     name : str
@@ -277,8 +281,8 @@ class Candidate:
         Term label -> the coefficient that would make the term alone as large as the residual torque
         (N m per unit): the file's bounds cover it too.
     widths : dict of str to float
-        Term label -> the width (V) scanned for it (a dead zone's u0), fitted as a parameter of the file
-        (named ``U0`` in the term's code).
+        Term label -> the width scanned for it (a dead zone's u0 in V; the encoder's lead speed in rad/s), fitted
+        as a parameter of the file (named ``U0`` in the term's code).
     fit : any
         The candidate's own fit on the diagnosis' recordings (:class:`.candidate_fit.CandidateFit`), or None.
     alternative : Candidate or None
@@ -310,9 +314,18 @@ class Candidate:
         return len(self.terms)
 
     def expression(self) -> str:
-        """The candidate as one line: where it acts and its terms with their coefficients (N m)."""
+        """The candidate as one line: where it acts and its terms with their coefficients (N m, V or rad)."""
         parts = " ".join(f"{c:+.4g}·{n}" if n != "1" else f"{c:+.4g}" for n, c in self.terms.items())
-        return f"{_WHERE[self.group]} {parts}  [{'V' if self.group == 'motor_voltage' else 'N m'}]"
+        widths = "".join(f", w = {w:.3g} rad/s" for w in self.widths.values()) if self.group == "motor_encoder" else ""
+        return f"{_WHERE[self.group]} {parts}{widths}  [{_UNIT.get(self.group, 'N m')}]"
+
+    def found_line(self) -> str:
+        """How the candidate was found and what it is, as the command line's first line on it."""
+        if self.group == "motor_encoder":
+            how = f"what the motor encoder reads, by its own fit: {self.explained:.0%} of the unexplained variance"
+        else:
+            how = f"{self.explained:.0%} of the residual torque"
+        return f"candidate outside the library ({how}): {self.expression()}"
 
     def to_json(self) -> dict:
         """The candidate as a JSON-ready dict."""

@@ -1,0 +1,83 @@
+"""The motor encoder's reading as a candidate: free play between the motor's shaft and the upper disc, which the
+residual torques cannot show, found by its own fit and written as a Measurement effect file."""
+
+import math
+
+import numpy as np
+import pytest
+
+from drillgym import RigParams
+from drillgym.diagnosis import diagnose
+from drillgym.diagnosis.effect_file import write_effect_file
+from drillgym.diagnosis.encoder_reading import reading_candidate
+from drillgym.diagnosis.motor_terms import ENCODER_TERM, MotorEncoderTerms
+from drillgym.diagnosis.results import Candidate
+from drillgym.effects import Measurement, Parameter, compose
+from drillgym.identification.synthetic import synthetic_measurement
+
+
+class ShaftPlay(Measurement):
+    """The test's own backlash (not the candidate's form: a hard sign, no smoothing)."""
+
+    name = "shaft_play_for_test"
+    channels = ("theta_u",)
+    parameters = (Parameter("gap", "rad", -0.1, 0.1, 0.0, 1e-3, "half the play", neutral=0.0),)
+
+    def measure(theta_u, omega_u, gap):
+        return theta_u + gap * (1.0 if omega_u > 0.0 else (-1.0 if omega_u < 0.0 else 0.0))
+
+
+def _encoder_candidate(play: float, width: float) -> Candidate:
+    return Candidate(
+        "motor_encoder", {ENCODER_TERM: play}, {ENCODER_TERM: "math.tanh(omega_u / U0)"}, {ENCODER_TERM: 0.0}, 0.9, 0,
+        widths={ENCODER_TERM: width}, reach={ENCODER_TERM: 0.05},
+    )  # fmt: skip
+
+
+def test_the_reading_candidate_is_written_as_a_measurement_of_theta_u(tmp_path):
+    cand = _encoder_candidate(0.021, 0.07)
+    path = write_effect_file(cand, tmp_path / "cand.py", "shaft_play")
+    comp, _ = compose([cand.effect_file])
+    effect = comp.effects[0]
+    assert issubclass(effect, Measurement) and effect.channels == ("theta_u",)
+    assert path.read_text(encoding="utf-8").startswith('"""Candidate effect written by `drillgym diagnose')
+    vals = {"shaft_play_c1": 0.021, "shaft_play_w1": 0.07}
+    p = comp.vector(RigParams(), vals)
+    theta, omega = np.array([1.0, 2.0, 3.0]), np.array([-0.5, 0.01, 2.0])
+    zeros = np.zeros(3)
+    tu, tl, _, _ = comp.measure(theta, zeros, zeros, zeros, p, omega, zeros)
+    np.testing.assert_allclose(tu, theta + 0.021 * np.tanh(omega / 0.07), rtol=0, atol=1e-15)
+    assert "motor encoder reading = θu +0.021·tanh(ωu/w), w = 0.07 rad/s  [rad]" == cand.expression()
+    assert cand.found_line().startswith("candidate outside the library (what the motor encoder reads, by its own fit")
+
+
+def test_the_terms_effect_reads_the_same_as_a_written_file():
+    comp, vals = compose([MotorEncoderTerms], {"me_play": 0.03, "me_w": 0.2})
+    p = comp.vector(RigParams(), vals)
+    omega = np.linspace(-1.0, 1.0, 7)
+    tu = comp.measure(np.zeros(7), np.zeros(7), np.zeros(7), np.zeros(7), p, omega, np.zeros(7))[0]
+    np.testing.assert_allclose(tu, 0.03 * np.tanh(omega / 0.2), rtol=0, atol=1e-15)
+
+
+@pytest.mark.slow
+def test_free_play_at_the_motor_encoder_is_found_by_its_own_fit(tmp_path):
+    """15 s of steps that reverse the upper disc, read through a 0.025 rad play (a hard sign, not the candidate's
+    tanh): the library explains nothing; the reading candidate is kept, its play found within 5 %, nearly all of
+    the unexplained variance removed, and the file it is written to fits like the candidate."""
+    ts = synthetic_measurement(
+        "torsional", None, duration=15.0, rate_hz=250.0, signal="steps", offset=0.0, amplitude=2.5, seed=3,
+        effects=[ShaftPlay], effect_params={"gap": 0.025},
+    )  # fmt: skip
+    out = tmp_path / "cand.py"
+    d = diagnose(ts, discover=True, candidate_out=out)
+    assert d.unexplained is not None and not d.unexplained.explained  # the play is well above the noise
+    c = d.candidate
+    assert c is not None and c.group == "motor_encoder"
+    assert c.fit.variance_cut > 0.9
+    play = next(v for k, v in c.fit.values.items() if k.endswith("_c1"))
+    assert play == pytest.approx(0.025, rel=0.05)
+    assert math.isclose(c.terms[ENCODER_TERM], play)
+    assert not d.advice  # a candidate kept: no advice that nothing explains the residual
+    comp, _ = compose([c.effect_file])
+    assert issubclass(comp.effects[0], Measurement)
+    assert reading_candidate(d) is not None  # the diagnosis' own residual (before the candidate) is not at the noise
