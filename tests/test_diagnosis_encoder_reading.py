@@ -81,3 +81,47 @@ def test_free_play_at_the_motor_encoder_is_found_by_its_own_fit(tmp_path):
     comp, _ = compose([c.effect_file])
     assert issubclass(comp.effects[0], Measurement)
     assert reading_candidate(d) is not None  # the diagnosis' own residual (before the candidate) is not at the noise
+
+
+class _Fit:
+    """What choose_candidate reads of a fit."""
+
+    def __init__(self, cut: float):
+        self.variance_cut = cut
+        self.values = {"me_play": 0.01, "me_w": 0.05}
+        self.after = type("After", (), {"explained": False})()
+
+
+@pytest.mark.parametrize(
+    ("discovered_cut", "reading_cut", "kept"),
+    [
+        (0.05, 0.2, "discovered"),
+        (0.05, 0.4, "reading"),
+        (0.6, 0.5, "discovered"),
+        (None, 0.2, None),
+        (None, 0.35, "reading"),
+    ],
+)
+def test_the_reading_is_kept_when_its_fit_removes_more_and_at_least_the_bar(
+    monkeypatch, discovered_cut, reading_cut, kept
+):
+    """The reading replaces the discovered candidate only when its own fit removes more of the unexplained
+    variance and at least MIN_READING_CUT (0.3) of it; with none discovered, the bar alone decides."""
+    from drillgym.diagnosis import candidate_fit
+
+    discovered = None
+    if discovered_cut is not None:
+        discovered = _encoder_candidate(0.0, 0.05)
+        discovered.group = "upper_force"
+        discovered.fit = _Fit(discovered_cut)
+    monkeypatch.setattr(candidate_fit, "_discovered", lambda s, d, c, n: (c, None))
+    monkeypatch.setattr(candidate_fit, "fit_candidate", lambda s, d, c, n: _Fit(reading_cut))
+    diagnosis = type("D", (), {"candidate": discovered})()
+    reading = _encoder_candidate(0.005, 0.05)
+    got = candidate_fit.choose_candidate(None, diagnosis, {}, None, reading)
+    if kept is None:
+        assert got is None
+    else:
+        assert got is (reading if kept == "reading" else discovered)
+        other = discovered if kept == "reading" else reading
+        assert got.alternative is other

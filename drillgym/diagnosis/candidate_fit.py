@@ -345,7 +345,7 @@ def choose_candidate(
 
     The motor side's candidate is fitted first (its terms are compiled once); when it leaves the recording at the
     noise, the other is not fitted.  The motor encoder's reading (:mod:`.encoder_reading`) is fitted when neither
-    leaves the recording at the noise; with no discovered candidate it is kept only when its fit removes at least
+    leaves the recording at the noise, and kept when its fit removes more than theirs and at least
     :data:`.encoder_reading.MIN_READING_CUT` of the unexplained variance.  The candidate kept is the one written to
     ``candidate_out``; the best of the others is its :attr:`~.results.Candidate.alternative`.
 
@@ -375,7 +375,7 @@ def choose_candidate(
         reading.fit = fit_candidate(screening, diagnosis, reading, noise_scales)
         reading = with_fitted_terms(reading)
         cut = {id(c): c.fit.variance_cut if c.fit is not None else -1.0 for c in (reading, keep) if c is not None}
-        bar = cut[id(keep)] if keep is not None else MIN_READING_CUT
+        bar = max(cut[id(keep)], MIN_READING_CUT) if keep is not None else MIN_READING_CUT
         if cut[id(reading)] > bar:
             keep, other = reading, keep
         elif other is None or cut[id(reading)] > (other.fit.variance_cut if other.fit is not None else -1.0):

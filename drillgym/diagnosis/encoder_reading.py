@@ -7,7 +7,7 @@ so the reading is off by about ±b and changes side where the disc reverses.  Tw
 an impulse the regression cannot fit.  The candidate is therefore judged by its own fit only
 (:func:`.candidate_fit.choose_candidate`): the encoder's reading θu + b tanh(ωu / w)
 (:class:`.motor_terms.MotorEncoderTerms`) fitted on the recordings, kept when it removes more of the unexplained
-variance than the discovered candidate (or, with none, at least :data:`MIN_READING_CUT` of it).
+variance than the discovered candidate and at least :data:`MIN_READING_CUT` of it.
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ __all__ = ["reading_candidate", "with_fitted_terms", "MIN_READING_CUT", "START_P
 
 #: where the fit of the play starts (rad; not 0, where the lead speed has no gradient) and its lead speed (rad/s)
 START_PLAY_RAD, START_WIDTH_RAD_S = 0.005, 0.05
-#: with no discovered candidate, the reading is kept when its fit removes at least this share of the unexplained
-#: variance (as a discovered candidate must explain :data:`.discovery.MIN_EXPLAINED_SHARE` of the residual torque)
+#: the reading is kept only when its fit removes at least this share of the unexplained variance (as a discovered
+#: candidate must explain :data:`.discovery.MIN_EXPLAINED_SHARE` of the residual torque)
 MIN_READING_CUT = 0.3
 
 
