@@ -10,7 +10,9 @@
   friction on a disc that hardly turns;
 * :mod:`.ranking` — the report step (and the one-at-a-time ranking);
 * :mod:`.discovery` — a candidate effect outside the library from the residual torques on both discs,
-  written as an effect file (``diagnose --candidate-out``).
+  written as an effect file (``diagnose --candidate-out``); :mod:`.encoder_reading` — the motor encoder's
+  reading (free play at the motor), a candidate only its own fit can show; :mod:`.candidate_fit` — each
+  candidate's own fit, the one that removes most kept.
 
 Beside it: :mod:`.results` (the typed results), :mod:`.context` (the fit state), :mod:`.scoring` (evidence
 and significance), :mod:`.effects` (the candidates), :mod:`.refit` (``identify --add-effect``),
