@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from .motor_terms import ENCODER_TERM
 from .results import Candidate, Diagnosis
+from .unexplained import EXPLAINED_RATIO
 
 __all__ = ["reading_candidate", "with_fitted_terms", "MIN_READING_CUT", "START_PLAY_RAD", "START_WIDTH_RAD_S"]
 
@@ -42,8 +43,6 @@ def reading_candidate(diagnosis: Diagnosis) -> Candidate | None:
     un = diagnosis.unexplained
     if diagnosis.vector is None or un is None or un.explained:
         return None
-    from .unexplained import EXPLAINED_RATIO
-
     if un.channels.get("theta_u", 0.0) < EXPLAINED_RATIO:
         return None
     return Candidate(
