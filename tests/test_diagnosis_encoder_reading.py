@@ -61,11 +61,11 @@ def test_the_terms_effect_reads_the_same_as_a_written_file():
 
 @pytest.mark.slow
 def test_free_play_at_the_motor_encoder_is_found_by_its_own_fit(tmp_path):
-    """15 s of steps that reverse the upper disc, read through a 0.025 rad play (a hard sign, not the candidate's
+    """10 s of steps that reverse the upper disc, read through a 0.025 rad play (a hard sign, not the candidate's
     tanh): the library explains nothing; the reading candidate is kept, its play found within 5 %, nearly all of
     the unexplained variance removed, and the file it is written to fits like the candidate."""
     ts = synthetic_measurement(
-        "torsional", None, duration=15.0, rate_hz=250.0, signal="steps", offset=0.0, amplitude=2.5, seed=3,
+        "torsional", None, duration=10.0, rate_hz=250.0, signal="steps", offset=0.0, amplitude=2.5, seed=3,
         effects=[ShaftPlay], effect_params={"gap": 0.025},
     )  # fmt: skip
     out = tmp_path / "cand.py"
