@@ -288,3 +288,21 @@ def test_trials_are_scored_against_the_candidate_fit_given_the_same_effort(monke
     assert calls and all({"tau_m", "mv_sat", "km"} <= set(names) and "delay" not in names for names in calls)
     assert (ref is state.result) == (kept == "own")
     assert ref.rss_after == min(rss, state.result.rss_after)
+
+
+@pytest.mark.parametrize(("doubted", "counts"), [(True, True), (False, False)])
+def test_a_swap_beside_the_candidate_needs_only_the_tie_margin_when_the_selection_could_not_tell(
+    monkeypatch, doubted, counts
+):
+    """In place of an effect the selection took, a trial 6 nats better counts only when the selection had said it
+    could not tell that effect from another (a stated lag/delay tie): then the incumbent has no precedence, and
+    the tie margin (3 nats) decides; otherwise the selection's significance (15 nats) does."""
+    import drillgym.diagnosis.beside as beside
+    from drillgym.diagnosis.effects import get_effect
+
+    _fit_recorder(monkeypatch, [90.0])
+    monkeypatch.setattr(beside, "score", lambda r0, res, k, channels=None, blocks=None: (6.0, None))
+    state, by_name = _carried_lag_state()
+    trial = beside._Trial(get_effect("motor_lag"), "input_delay", doubted)
+    beside._fit_trial(trial, state, state.result, by_name)
+    assert trial.counts is counts

@@ -18,7 +18,10 @@ and once from its terms as regressed (the better fit is kept).  Two trials per e
   a large residual the selection may take the wrong one), the other switched off; a model of the same size,
   so it counts when its score is above the selection's significance (:data:`.scoring.SIGNIFICANCE`): the
   incumbent was chosen by the selection's rules, and a few nats on a residual still above the noise do not
-  overturn it (a lag found with a saturation, 29 ms for 30.5 ms hidden, lost 7 nats to a delay).
+  overturn it (a lag found with a saturation, 29 ms for 30.5 ms hidden, lost 7 nats to a delay).  When the
+  selection itself said it could not tell the incumbent from another effect (its note: a lag/delay tie, a
+  near-tie of scores), the incumbent has no precedence: the other counts in its place from
+  :data:`.scoring.TIE_NATS` on.
 
 Every trial fits the base parameters too (those the candidate's fit freed or, when it held them as the
 diagnosis left them, every one the diagnosis may free): a lag beside an offset is absorbed by a motor constant
@@ -147,6 +150,7 @@ class _Trial:
 
     effect: type[Effect]
     replaces: str | None
+    incumbent_doubted: bool = False  # the selection stated it could not tell the replaced effect from another
     score: float = 0.0
     counts: bool = False
     at_bound: bool = False
@@ -191,7 +195,13 @@ def beside_candidate(
     by_selection = [n for n in diagnosis.selected if n in by_name and n not in own_model]
     carried = [n for n in fit.with_library if n in by_name]  # fitted with the candidate (found through it)
     taken = by_selection + carried
-    trials = [_Trial(e, r) for e in by_name.values() if e.name not in own_model | set(taken) for r in (None, *taken)]
+    doubted = {s.effect for s in diagnosis.ranking if s.effect in by_selection and s.note}
+    trials = [
+        _Trial(e, r, r in doubted)
+        for e in by_name.values()
+        if e.name not in own_model | set(taken)
+        for r in (None, *taken)
+    ]
     if not trials:
         return None
     reference = _reference(state, taken, by_name)
@@ -300,8 +310,8 @@ def _fit_trial(trial: _Trial, state: CandidateFitState, reference: FitResult, by
         trial.counts = significant(
             trial.score, reference.rss_after, res.rss_after, len(res.residual), r0, res.residual, ids
         )
-    else:
-        trial.counts = trial.score > SIGNIFICANCE  # the incumbent was chosen by the selection's rules
+    else:  # the incumbent was chosen by the selection's rules, unless it said it could not tell
+        trial.counts = trial.score > (TIE_NATS if trial.incumbent_doubted else SIGNIFICANCE)
     if base_at_bounds(ctx, np.asarray(res.vector)):  # something still missing is absorbed there
         trial.counts, trial.at_bound = False, True
     trial.result, trial.objective = res, obj
