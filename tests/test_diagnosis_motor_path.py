@@ -306,3 +306,19 @@ def test_a_swap_beside_the_candidate_needs_only_the_tie_margin_when_the_selectio
     trial = beside._Trial(get_effect("motor_lag"), "input_delay", doubted)
     beside._fit_trial(trial, state, state.result, by_name)
     assert trial.counts is counts
+
+
+@pytest.mark.parametrize(
+    ("scores", "said"),
+    [({"motor_lag": 23.8, "input_delay": 23.1}, True), ({"motor_lag": -5.9, "input_delay": -5.9}, False),
+     ({"motor_lag": 23.8, "input_delay": 12.0}, False)],
+)  # fmt: skip
+def test_a_lag_and_a_delay_that_help_alike_but_do_not_count_are_said_to_be_possible(scores, said):
+    """Beside the candidate neither counts, but both improve the fit by more than the tie margin and alike (free
+    play at the motor after a lag, quasi-random input: +23.8 and +23.1 nats): the line says one of them may be
+    there and which experiment tells them apart, instead of only listing the scores."""
+    from drillgym.diagnosis.beside import BesideCandidate
+
+    line = BesideCandidate(None, scores=scores).line()
+    assert line.startswith("  beside it, no library effect of the signal path counts")
+    assert ("one of them may be there" in line) is said

@@ -106,7 +106,7 @@ class BesideCandidate:
 
     def to_json(self) -> dict:
         """``{selected, replaces, scores, values, candidate_values, ratio_after, verdict_after, tie_with,
-        base_change_pct, better_at_bound}``."""
+        base_change_pct, better_at_bound, alike_below_significance}``."""
         return {
             "selected": self.selected,
             "replaces": self.replaces,
@@ -118,13 +118,30 @@ class BesideCandidate:
             "tie_with": self.tie_with,
             "base_change_pct": {k: round(v, 3) for k, v in self.base_change_pct.items()},
             "better_at_bound": self.better_at_bound,
+            "alike_below_significance": self.alike_below_significance(),
         }
+
+    def alike_below_significance(self) -> list[str]:
+        """The effects added beside the candidate that each improve its fit by more than the tie margin
+        (:data:`.scoring.TIE_NATS`), within that margin of each other, while none counts: a lag or a delay may be
+        there, and these data do not say which (empty otherwise)."""
+        added = {k: v for k, v in self.scores.items() if " for " not in k}
+        if self.selected is not None or len(added) < 2 or min(added.values()) <= TIE_NATS:
+            return []
+        return sorted(added) if max(added.values()) - min(added.values()) < TIE_NATS else []
 
     def line(self) -> str:
         """The result in words."""
         tried = ", ".join(f"{k} {v:.1f} nats" for k, v in self.scores.items())
         if self.selected is None:
-            return f"  beside it, no library effect of the signal path counts ({tried})"
+            out = f"  beside it, no library effect of the signal path counts ({tried})"
+            alike = self.alike_below_significance()
+            if alike:
+                out += (
+                    f"; {' and '.join(alike)} each improve the fit a little and alike: one of them may be there, "
+                    f"not told apart: {SEPARATES_LAG_DELAY}"
+                )
+            return out
         vals = ", ".join(f"{k} = {v:.4g}" for k, v in self.values.items())
         how = f"selected in place of {self.replaces}" if self.replaces else "selected"
         out = (
