@@ -322,3 +322,13 @@ def test_a_lag_and_a_delay_that_help_alike_but_do_not_count_are_said_to_be_possi
     line = BesideCandidate(None, scores=scores).line()
     assert line.startswith("  beside it, no library effect of the signal path counts")
     assert ("one of them may be there" in line) is said
+
+
+def test_a_trial_held_back_only_by_a_bound_is_said_when_none_counts():
+    """A lag 630 nats better beside a dead zone whose form is off (500 Hz, quasi-random input), not counted because a
+    base parameter ends at a bound: the line says so instead of only listing the scores."""
+    from drillgym.diagnosis.beside import BesideCandidate
+
+    held = BesideCandidate(None, scores={"motor_lag": 629.6, "input_delay": 310.3}, better_at_bound="motor_lag")
+    assert "motor_lag fits far better but only with a base parameter at a bound" in held.line()
+    assert "at a bound" not in BesideCandidate(None, scores={"motor_lag": 629.6}).line()

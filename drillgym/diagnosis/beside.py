@@ -90,8 +90,8 @@ class BesideCandidate:
     base_change_pct : dict of str to float
         The base parameters fitted with them -> their change from nominal (%).
     better_at_bound : str or None
-        An effect that fits better in the selected one's place but only with a base parameter at a bound of its
-        range, so does not count (said, not hidden).
+        An effect that fits better in the selected one's place, or above the significance when none is selected,
+        but only with a base parameter at a bound of its range, so does not count (said, not hidden).
     """
 
     selected: str | None
@@ -135,6 +135,11 @@ class BesideCandidate:
         tried = ", ".join(f"{k} {v:.1f} nats" for k, v in self.scores.items())
         if self.selected is None:
             out = f"  beside it, no library effect of the signal path counts ({tried})"
+            if self.better_at_bound:
+                out += (
+                    f"; {self.better_at_bound} fits far better but only with a base parameter at a bound of its "
+                    "range (not counted: something else is still missing, or the candidate's form is off)"
+                )
             alike = self.alike_below_significance()
             if alike:
                 out += (
@@ -227,7 +232,12 @@ def beside_candidate(
     scores = {t.label: t.score for t in trials}
     counting = sorted((t for t in trials if t.counts), key=lambda t: -t.score)
     if not counting:
-        return _carried(fit, trials, scores, screening) if carried else BesideCandidate(None, scores=scores)
+        if carried:
+            return _carried(fit, trials, scores, screening)
+        at_bound = max(
+            (t for t in trials if t.at_bound and t.score > SIGNIFICANCE), key=lambda t: t.score, default=None
+        )
+        return BesideCandidate(None, scores=scores, better_at_bound=at_bound.label if at_bound else None)
     best = counting[0]
     rival = next((t for t in counting[1:] if t.effect is not best.effect), None)
     tie = rival.effect.name if rival is not None and best.score - rival.score < TIE_NATS else None
