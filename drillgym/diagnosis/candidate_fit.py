@@ -374,11 +374,10 @@ def choose_candidate(
     if reading is not None and (keep is None or keep.fit is None or not keep.fit.after.explained):
         reading.fit = fit_candidate(screening, diagnosis, reading, noise_scales)
         reading = with_fitted_terms(reading)
-        cut = {id(c): c.fit.variance_cut if c.fit is not None else -1.0 for c in (reading, keep) if c is not None}
-        bar = max(cut[id(keep)], MIN_READING_CUT) if keep is not None else MIN_READING_CUT
-        if cut[id(reading)] > bar:
+        bar = max(_cut(keep), MIN_READING_CUT) if keep is not None else MIN_READING_CUT
+        if _cut(reading) > bar:
             keep, other = reading, keep
-        elif other is None or cut[id(reading)] > (other.fit.variance_cut if other.fit is not None else -1.0):
+        elif other is None or _cut(reading) > _cut(other):
             other = reading
     if keep is None:
         return None
@@ -403,8 +402,12 @@ def _discovered(
     if alt.fit is not None and alt.fit.after.explained:
         return alt, cand
     cand = _fitted_form(screening, diagnosis, cand, noise_scales)
-    cut = {id(c): c.fit.variance_cut if c.fit is not None else -1.0 for c in (alt, cand)}
-    return (alt, cand) if cut[id(alt)] > cut[id(cand)] else (cand, alt)
+    return (alt, cand) if _cut(alt) > _cut(cand) else (cand, alt)
+
+
+def _cut(cand: Candidate) -> float:
+    """The share of the unexplained variance the candidate's fit removes (-1 without a fit)."""
+    return cand.fit.variance_cut if cand.fit is not None else -1.0
 
 
 def _fitted_form(

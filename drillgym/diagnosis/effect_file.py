@@ -12,13 +12,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from .motor_terms import MotorEncoderTerms, width_parameter
 from .results import Candidate
 
 __all__ = ["write_effect_file"]
 
 _ARGS_FRICTION = ("T", "direction", "speed", "omega")
-#: a group's coefficient unit and its scanned width's unit and lower bound (N m, no width: not listed)
-_UNITS = {"motor_voltage": ("V", "V", 0.0), "motor_encoder": ("rad", "rad/s", 1e-3)}
 
 
 def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None) -> Path:
@@ -43,7 +42,8 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
     cls = "".join(p.capitalize() for p in name.split("_"))
     voltage = cand.group == "motor_voltage"
     reading = cand.group == "motor_encoder"
-    unit, width_unit, width_lo = _UNITS.get(cand.group, ("N m", "V", 0.0))
+    unit, width = cand.unit, width_parameter(cand.group)  # the width's unit and lower bound as its terms fit it
+    width_unit, width_lo = (width.unit, width.lo) if width is not None else ("V", 0.0)
     params, body, widths = [], [], []
     for i, (label, c) in enumerate(cand.terms.items(), 1):
         size = max(abs(c), cand.reach.get(label, 0.0), 1e-9)
@@ -101,11 +101,8 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
     lines += params
     lines.append("    )")
     lines.append(f'    explanation = "Found {found} by drillgym diagnose: {cand.expression()}."')
-    lines.append(
-        '    signature = "a θu residual that changes side where the upper disc reverses"'
-        if reading
-        else '    signature = "the residual torque this term was regressed on"'
-    )
+    signature = MotorEncoderTerms.signature if reading else "the residual torque this term was regressed on"
+    lines.append(f'    signature = "{signature}"')
     lines.append("")
     if friction:
         speed_args = ", ".join(a for a in _ARGS_FRICTION if a == "T" or _uses(cand, a))

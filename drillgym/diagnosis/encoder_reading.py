@@ -12,7 +12,7 @@ variance than the discovered candidate and at least :data:`MIN_READING_CUT` of i
 
 from __future__ import annotations
 
-from .motor_terms import ENCODER_TERM
+from .motor_terms import ENCODER_TERM, WIDTH_PARAMETERS, term_parameters
 from .results import Candidate, Diagnosis
 from .unexplained import EXPLAINED_RATIO
 
@@ -63,7 +63,8 @@ def with_fitted_terms(cand: Candidate) -> Candidate:
     fit = cand.fit
     if fit is None:
         return cand
-    play, width = fit.values.get("me_play"), fit.values.get("me_w")
+    play = fit.values.get(term_parameters("motor_encoder", ENCODER_TERM))
+    width = fit.values.get(WIDTH_PARAMETERS["motor_encoder"])
     if play is not None:
         cand.terms = {ENCODER_TERM: play}
     if width is not None:

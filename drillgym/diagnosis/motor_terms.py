@@ -25,6 +25,7 @@ __all__ = [
     "MotorEncoderTerms",
     "TERM_EFFECTS",
     "WIDTH_PARAMETERS",
+    "width_parameter",
     "term_parameters",
     "HARMONICS",
     "ENCODER_TERM",
@@ -169,3 +170,9 @@ def term_parameters(group: str, label: str) -> str | None:
 TERM_EFFECTS = {"motor_voltage": MotorVoltageTerms, "upper_force": UpperTorqueTerms, "motor_encoder": MotorEncoderTerms}
 #: a group -> the parameter of its terms' scanned width (a dead zone's u0 in V, the encoder's lead speed in rad/s)
 WIDTH_PARAMETERS = {"motor_voltage": "mv_w", "motor_encoder": "me_w"}
+
+
+def width_parameter(group: str) -> Parameter | None:
+    """The parameter a group's scanned width is fitted as (its unit and bounds), or None when it has none."""
+    name = WIDTH_PARAMETERS.get(group)
+    return next((p for p in TERM_EFFECTS[group].parameters if p.name == name), None) if name else None

@@ -317,7 +317,12 @@ class Candidate:
         """The candidate as one line: where it acts and its terms with their coefficients (N m, V or rad)."""
         parts = " ".join(f"{c:+.4g}·{n}" if n != "1" else f"{c:+.4g}" for n, c in self.terms.items())
         widths = "".join(f", w = {w:.3g} rad/s" for w in self.widths.values()) if self.group == "motor_encoder" else ""
-        return f"{_WHERE[self.group]} {parts}{widths}  [{_UNIT.get(self.group, 'N m')}]"
+        return f"{_WHERE[self.group]} {parts}{widths}  [{self.unit}]"
+
+    @property
+    def unit(self) -> str:
+        """The unit of its coefficients: N m, V (``motor_voltage``) or rad (``motor_encoder``)."""
+        return _UNIT.get(self.group, "N m")
 
     def found_line(self) -> str:
         """How the candidate was found and what it is, as the command line's first line on it."""
