@@ -102,6 +102,21 @@ class AgentController(Controller):
         self.residual = (
             None if scale is None else ResidualVoltage(self.config.label, scale, self.params, hp.get("startup"))
         )
+        self._check_sizes()
+
+    def _check_sizes(self) -> None:
+        """Refuse, as the policy loads, a network whose input or output does not fit this rig: its observation
+        size against the observation model of the configuration (frames, integral), one action (the voltage)."""
+        policy = self.policy
+        if np.shape(policy.low) != (1,):
+            raise InputError(f"agent gives {np.size(policy.low)} actions; the rig takes one (the motor voltage)")
+        dim = make_observation_model(1, self.obs_options).dim
+        if dim * self.frame_stack + int(self.integral) != policy.obs_dim:
+            raise InputError(
+                f"agent expects {policy.obs_dim} observation entries; the "
+                f"{self.mode!r} model of {self.config.label} gives {dim} x {self.frame_stack}"
+                + (" + 1 (integral)" if self.integral else "")
+            )
 
     def _reset(self, m: dict[str, np.ndarray]) -> None:
         n = self.n

@@ -64,6 +64,13 @@ def average_networks(members: Sequence[ExportedPolicy]) -> ExportedPolicy:
     first = members[0]
     for i, m in enumerate(members[1:], start=2):
         _check_same_recipe(first, m, i)
+    for i, m in enumerate(members[1:], start=2):
+        for j, other in enumerate(members[: i - 1], start=1):
+            if _same_weights(m, other):
+                raise InputError(
+                    f"network {i} of the average has the same weights as network {j}: "
+                    "the mean of a network with itself is no average (give distinct seeds)"
+                )
     k = len(members)
     n = len(first.layers)
     weights = [[Wt.T for Wt, _ in m.layers] for m in members]  # (out, in) each: the layers hold W transposed
@@ -108,6 +115,14 @@ def _check_same_recipe(a: ExportedPolicy, b: ExportedPolicy, index: int) -> None
         raise InputError(f"network {index} of the average has {what}: average networks of one recipe")
 
 
+def _same_weights(a: ExportedPolicy, b: ExportedPolicy) -> bool:
+    """Whether ``a`` and ``b`` hold identical weights and biases (one network given twice)."""
+    return all(
+        np.array_equal(wa, wb) and np.array_equal(ba, bb)
+        for (wa, ba), (wb, bb) in zip(a.layers, b.layers, strict=True)
+    )
+
+
 def _recipe(config: dict[str, Any]) -> dict[str, Any]:
     """The configuration without what members of one recipe may differ in."""
     return {k: v for k, v in config.items() if k not in _MAY_DIFFER}
@@ -128,6 +143,12 @@ def average(paths: Sequence[str | Path], out: str | Path) -> Path:
     Path
         The path written.
     """
+    seen: dict[Path, int] = {}
+    for i, p in enumerate(paths, start=1):
+        key = Path(p).resolve()
+        if key in seen:
+            raise InputError(f"network {i} of the average is {p}, the same file as network {seen[key]}")
+        seen[key] = i
     net = average_networks([ExportedPolicy.load(p) for p in paths])
     out = Path(out)
     create_directory(out.parent, out)

@@ -181,6 +181,47 @@ def _jsonable(o):
     raise InputTypeError(f"cannot store {type(o).__name__} in the policy metadata")
 
 
+def _check_network(layers, low, high, meta: dict[str, Any], obs_norm) -> None:
+    """Refuse a network that cannot act: non-finite weights, bounds or normalisation, or layers whose shapes
+    do not chain from the observation (``meta['obs_dim']``) to the action (the bounds' size)."""
+    try:
+        obs_dim = int(meta["obs_dim"])
+    except (KeyError, TypeError, ValueError):
+        raise InputError(f"bad exported policy: obs_dim {meta.get('obs_dim')!r} is not a size") from None
+    if obs_dim < 1:
+        raise InputError(f"bad exported policy: obs_dim must be >= 1, got {obs_dim}")
+    named = [(f"W{i}", W) for i, (W, _) in enumerate(layers)] + [(f"b{i}", b) for i, (_, b) in enumerate(layers)]
+    named += [("action_low", low), ("action_high", high)]
+    if obs_norm is not None:
+        named += [("obs_mean", obs_norm[0]), ("obs_scale", obs_norm[1]), ("obs_clip", obs_norm[2])]
+    for name, a in named:
+        a = np.asarray(a)
+        if a.dtype.kind not in "fiu":
+            raise InputError(f"bad exported policy: {name} holds {a.dtype} values, not numbers")
+        if not np.isfinite(a).all():
+            bad = int(np.size(a) - np.isfinite(a).sum())
+            raise InputError(f"bad exported policy: {name} holds {bad} non-finite value(s) (NaN or inf)")
+    width = obs_dim
+    for i, (W, b) in enumerate(layers):
+        W, b = np.asarray(W), np.asarray(b)
+        if W.ndim != 2 or W.shape[1] != width or b.shape != (W.shape[0],):
+            raise InputError(
+                f"bad exported policy: layer {i} has weights {W.shape} and bias {b.shape}, "
+                f"not (n, {width}) and (n,) (the layers do not chain from the {obs_dim} observation entries)"
+            )
+        width = W.shape[0]
+    low, high = np.asarray(low), np.asarray(high)
+    if low.shape != (width,) or high.shape != (width,) or not (low < high).all():
+        raise InputError(
+            f"bad exported policy: action bounds {low.shape}, {high.shape} do not fit its {width} output(s) "
+            "(or low is not below high)"
+        )
+    if obs_norm is not None and (
+        np.shape(obs_norm[0]) != (obs_dim,) or np.shape(obs_norm[1]) != (obs_dim,) or not float(obs_norm[2]) > 0
+    ):
+        raise InputError(f"bad exported policy: its observation normalisation does not fit {obs_dim} entries")
+
+
 class ExportedPolicy:
     """A policy exported by :func:`export_policy`, evaluated with numpy (float32).
 
@@ -215,6 +256,7 @@ class ExportedPolicy:
     ) -> None:
         if len(activations) != len(layers) or output not in ("tanh", "clip"):
             raise InputError(f"bad exported policy: activations {activations}, output {output!r}")
+        _check_network(layers, action_low, action_high, meta, obs_norm)
         self.layers = [(np.ascontiguousarray(W.T), b) for W, b in layers]  # x @ W.T + b
         self.activations = [_activation(a) for a in activations]
         self.output = output

@@ -441,9 +441,6 @@ def train(
                 "actor_dim": venv.observation_space.shape[0] - len(PRIVILEGED),
             }
         model = cls(policy, venv, seed=seed, tensorboard_log=tb, verbose=verbose, **kw)
-    # written once the environment and the model took every option: a refused --set key leaves nothing behind
-    out = create_directory(out)
-    (out / CONFIG_FILE).write_text(yaml.safe_dump(config, sort_keys=False))
     t_distill = time.perf_counter()
     if teacher is not None and not resume:
         from .distill import distill
@@ -476,6 +473,10 @@ def train(
                 **{**first, **then},
             )
     t_distill = time.perf_counter() - t_distill
+    # written once the environment, the model and the teacher took every option (the teacher's observation, the
+    # distillation's options are checked as it starts): a refused run leaves OUT as it was
+    out = create_directory(out)
+    (out / CONFIG_FILE).write_text(yaml.safe_dump(config, sort_keys=False))
     remaining = hp["n_timesteps"] - (model.num_timesteps if resume else 0)
     cb = LatestCheckpoint(out / "checkpoints", checkpoint_every)
     callbacks: list[BaseCallback] = [cb]
