@@ -118,8 +118,7 @@ def _check_same_recipe(a: ExportedPolicy, b: ExportedPolicy, index: int) -> None
 def _same_weights(a: ExportedPolicy, b: ExportedPolicy) -> bool:
     """Whether ``a`` and ``b`` hold identical weights and biases (one network given twice)."""
     return all(
-        np.array_equal(wa, wb) and np.array_equal(ba, bb)
-        for (wa, ba), (wb, bb) in zip(a.layers, b.layers, strict=True)
+        np.array_equal(wa, wb) and np.array_equal(ba, bb) for (wa, ba), (wb, bb) in zip(a.layers, b.layers, strict=True)
     )
 
 
