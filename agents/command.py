@@ -1,6 +1,6 @@
 """The command schedule a policy is given: the target reached from above along the stable branch.
 
-From rest the rig falls into stick-slip for every voltage up to the second fold (MODEL.md R7, R9), but
+From rest the rig falls into stick-slip for every voltage up to the second fold (docs/model.md, R7, R9), but
 its slip equilibrium is stable from the second Hopf point up.  A policy that sees only the motor angle
 cannot damp the lower disc robustly below that point (:mod:`controllers.limits`); what it can do is
 reach a low target *from above*, where no stick-slip cycle exists on the way.  The schedule is the

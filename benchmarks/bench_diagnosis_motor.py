@@ -1,6 +1,6 @@
 """Must-show matrix of the diagnosis on the motor side, on recordings of a simulator other than drillgym's.
 
-The rig is the independent scipy rig of ``bench_diagnosis_rig.py`` (MODEL.md written again by hand, smoothed
+The rig is the independent scipy rig of ``bench_diagnosis_rig.py`` (docs/model.md written again by hand, smoothed
 friction, LSODA, its own measurement chain: 0.1 mrad angle noise, 8000 counts/rev), extended here with
 motor-side effects outside drillgym's library, each coded from its physical description:
 

@@ -1,6 +1,6 @@
-"""An independent rig for the diagnosis benchmarks: MODEL.md written again, by hand, for scipy.
+"""An independent rig for the diagnosis benchmarks: docs/model.md written again, by hand, for scipy.
 
-Not drillgym's simulator: the equations of motion of ../shared/MODEL.md (torsional: the report's
+Not drillgym's simulator: the equations of motion of docs/model.md (torsional: the report's
 (3.19)-(3.20); coupled: the four Lagrange equations with the mass matrix solved at every call),
 friction signs smoothed (tanh(ω / eps), eps = 2 mrad/s: creep in the stick phases instead of
 drillgym's exact stick), integrated by scipy's ``solve_ivp`` (LSODA, rtol 1e-7), the input
@@ -217,7 +217,7 @@ def rig_recording(
 ) -> TimeSeries:
     """A recording of the independent rig (see the module docstring).  ``config``: 'torsional' or
     'coupled'; ``effects``: {effect name: its parameters} (library names and :data:`OUTSIDE`);
-    ``scale``: factors on base parameters (the rig's base parameters differ from MODEL.md)."""
+    ``scale``: factors on base parameters (the rig's base parameters differ from the identified set)."""
     effects = dict(effects or {})
     p = RigParams().scaled(**scale) if scale else RigParams()
     t, u = input_signal(signal, duration, rate_hz, seed, offset, amplitude)

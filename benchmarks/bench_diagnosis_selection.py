@@ -1,12 +1,12 @@
 """Benchmark: `drillgym diagnose` as model selection, on recordings of an independent rig.
 
-The recordings come from :mod:`bench_diagnosis_rig` (MODEL.md written again for scipy's
+The recordings come from :mod:`bench_diagnosis_rig` (docs/model.md written again for scipy's
 ``solve_ivp``, smoothed friction, its own measurement chain: NOT drillgym's simulator).  A
 fixed-seed matrix varies the input (quasi-random, steps, ramps, sums of sines), the rate
 (200 Hz-1 kHz), the duration (20-60 s), the configuration (torsional, coupled), and what the rig
 hides:
 
-* ``clean``: nothing (the rig is MODEL.md): nothing may be selected;
+* ``clean``: nothing (the rig is the model of docs/model.md): nothing may be selected;
 * ``mismatch``: base parameters off by 2-8 % (random parameters, random signs), no effect: nothing
   may be selected (the base parameters should be reported as moved);
 * ``combo``: two or three library effects at once, half of them with base parameters off by

@@ -1,10 +1,10 @@
 """Benchmark: full staged identification and one diagnose call on 60 s of 1 kHz data.
 
 Targets (2 cores): staged identification <= 120 s, diagnose <= 60 s.
-Data: synthetic measurements (MODEL.md parameters; encoder quantization, LVDT
+Data: synthetic measurements (the parameters of docs/model.md; encoder quantization, LVDT
 noise and 5 Hz filtering), quasi-random estimation and sum-of-sines
 validation signals, 60 s at 1 kHz per recording.  Initial guesses are the
-MODEL.md values perturbed by 15-30 %.  Prints wall times, recovered-parameter
+identified values perturbed by 15-30 %.  Prints wall times, recovered-parameter
 errors and R² per stage and channel (estimation / validation).
 
     .venv/bin/python benchmarks/bench_identification.py

@@ -33,7 +33,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     a = ap.parse_args()
     p = RigParams()
-    print("nominal rig (MODEL.md)")
+    print("nominal rig (docs/model.md)")
     print(
         f"{'omega (rad/s)':>13} {'slope (N m s)':>14} {'RHP poles (1/s)':>22} {'RHP zeros (1/s)':>22} "
         f"{'bound ||T||':>12} {'tolerated':>10}"

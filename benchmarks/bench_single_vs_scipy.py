@@ -1,6 +1,6 @@
 """One torsional trajectory (60 s, 1 V, stick-slip from rest): drillgym against an event-driven
 scipy ``solve_ivp`` switch model (benchmarks/scipy_switch_model.py, written independently from
-MODEL.md, DOP853 and RK45 at rtol 1e-8), timed interleaved in one run on one core.
+docs/model.md, DOP853 and RK45 at rtol 1e-8), timed interleaved in one run on one core.
 
 Prints each method's best wall time over the repeats, the ratio scipy / drillgym, and the largest
 lower-disc speed on the limit cycle (last half of the run) of each: the same cycle means the maxima

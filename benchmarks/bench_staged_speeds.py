@@ -3,7 +3,7 @@ with the parameters (``identify_stage(..., refine_speeds=False / True)``), measu
 
 Recordings:
 * drillgym's simulator through the rig's measurement chain (``synthetic_measurement``: encoders quantised
-  to 8000 counts/rev, LVDT noise and 5 Hz filter), MODEL.md's parameters, at 250 Hz and 100 Hz: the
+  to 8000 counts/rev, LVDT noise and 5 Hz filter), the identified parameters, at 250 Hz and 100 Hz: the
   free-vibration, lower (brake off), lateral and brake stages of ``tests/test_identification_stages.py``,
   each started from the same perturbed guesses;
 * the independent rig of ``benchmarks/bench_diagnosis_rig.py`` (scipy LSODA, smoothed friction, its own

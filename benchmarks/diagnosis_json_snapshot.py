@@ -4,7 +4,7 @@ Writes what ``drillgym diagnose DATA --json`` prints for each recording of a fix
 checkouts can be compared byte for byte (``diff -r``): a change meant to keep the diagnosis' behaviour
 must leave every file as it was.
 
-The recordings come from the independent rig of :mod:`bench_diagnosis_rig` (MODEL.md written again
+The recordings come from the independent rig of :mod:`bench_diagnosis_rig` (docs/model.md written again
 for scipy's ``solve_ivp``, not drillgym's simulator): the quick matrix of
 :func:`bench_diagnosis_selection.build_matrix` (clean recordings, base parameters off, two or three
 library effects at once, effects outside the library), two random combinations of a second matrix
@@ -13,7 +13,7 @@ library effects at once, effects outside the library), two random combinations o
 the base parameters refitted), a brake asymmetry beside a friction drift (the split-half check of a
 position-dependent effect), a lag on ramps at 200 Hz (a smooth input), and one diagnosis with the base
 parameters held (``--fixed-base``).  Each recording is written once to the recordings directory (CSV, as
-``/work/shared/DATA_FORMAT.md``; an existing file is kept, so every checkout reads the same bytes)
+docs/data_format.md; an existing file is kept, so every checkout reads the same bytes)
 and diagnosed through the command line in the process of a worker, in a working directory of the run's own
 (``OUT_work``) on a link to the recording; the candidate effect file that ``diagnose`` writes next to the
 recording is copied beside its JSON.

@@ -6,11 +6,11 @@ Two recordings of a torsional rig whose string torque is kθ (α + c3 α³), c3 
 * ``drillgym``: drillgym's simulator with the user file examples/effects/string_cubic.py, then
   the rig's measurement chain (:func:`drillgym.identification.synthetic.synthetic_measurement`:
   encoders quantised to 8000 counts/rev);
-* ``scipy``: an independent model written here: MODEL.md's torsional equations with the cubic
+* ``scipy``: an independent model written here: the torsional equations of docs/model.md with the cubic
   string, friction signs smoothed (tanh(ω/2e-3 rad/s)), scipy's Radau; Gaussian angle noise
   (0.2 mrad) then the same quantisation.
 
-Each is written as a DATA_FORMAT csv and identified by the CLI exactly as a user would::
+Each is written as a csv (docs/data_format.md) and identified by the CLI exactly as a user would::
 
     drillgym identify REC.csv --config torsional \\
         --add-effect examples/effects/string_cubic.py:string_cubic --json --out p.json

@@ -1,6 +1,6 @@
 """An independent reference: the torsional rig as an event-driven switch model on scipy's ``solve_ivp``.
 
-Written from ../shared/MODEL.md alone (no drillgym code): the report's (3.19), (3.20)
+Written from docs/model.md alone (no drillgym code): the report's (3.19), (3.20)
 
     Ju θ̈u + Tfu(θ̇u) − kθ α = km u,      Jl θ̈l + Tfl(θ̇l) + kθ α = 0,      α = θl − θu,
 
@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.integrate import solve_ivp
 
-#: MODEL.md's parameter table (torsional, brake on)
+#: the parameter table of docs/model.md (torsional, brake on)
 PARAMS = dict(
     Ju=0.4765,
     km=4.3228,

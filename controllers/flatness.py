@@ -1,7 +1,7 @@
 """Feedback-linearising tracking law for the lower-disc speed of the torsional model (flatness-based).
 
 The torsional model is a chain from the voltage to the lower speed
-(MODEL.md, absolute coordinates, alpha = theta_l - theta_u)::
+(docs/model.md, absolute coordinates, alpha = theta_l - theta_u)::
 
     Jl d omega_l/dt = -k_theta alpha - Tfl(omega_l)              -> a = d omega_l/dt
     d alpha/dt      = omega_l - omega_u                           -> j = d^2 omega_l/dt^2

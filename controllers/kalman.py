@@ -1,6 +1,6 @@
 """Kalman filter that sees only the motor angle: torsional model + unknown lower-friction deviation.
 
-Model (torsional equations of MODEL.md, absolute coordinates, slipping upper disc)::
+Model (torsional equations of docs/model.md, absolute coordinates, slipping upper disc)::
 
     d theta_u / dt = omega_u
     Ju d omega_u / dt = km u - Tcu+ - du omega_u + k_theta alpha     (du = bu + dbu, Tcu+ = Tcu + dTcu)

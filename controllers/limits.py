@@ -1,6 +1,6 @@
 """What any controller that sees only the motor angle can achieve: the near pole-zero cancellation.
 
-About the slip equilibrium at lower speed ``omega`` the torsional rig is linear (MODEL.md,
+About the slip equilibrium at lower speed ``omega`` the torsional rig is linear (docs/model.md,
 deviations, alpha = theta_l - theta_u)::
 
     Ju d omega_u/dt = km u - b_u omega_u + k_theta alpha          (b_u = bu + dbu)

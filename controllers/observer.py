@@ -88,7 +88,7 @@ class ObserverController(Controller):
     """Extended Kalman filter on the motor angle (filterpy's equations) + feedback-linearising LQR law on the estimates.
 
     Samples the motor encoder and updates the voltage at 500 Hz by default (``dt`` = 2 ms, within the
-    500 Hz-1 kHz of the rig's Simulink set-up, MODEL.md).  Why not the environments' 10 ms: below
+    500 Hz-1 kHz of the rig's Simulink set-up, docs/model.md).  Why not the environments' 10 ms: below
     2 rad/s the brake's negative slope makes the lower disc unstable (pole up to +3.1 1/s) and its
     speed is seen only through the winding's tiny effect on the heavily damped motor, so the
     estimate's error is set by how many quantized angles the filter gets per unstable time

@@ -1,6 +1,6 @@
 """The ``drillgym`` command line: one program, one subcommand per job.
 
-    drillgym simulate     simulate a configuration, write the run (DATA_FORMAT csv) and a figure
+    drillgym simulate     simulate a configuration, write the run (csv, docs/data_format.md) and a figure
     drillgym bifurcation  open-loop bifurcation diagrams
     drillgym compare / diagnose / identify   model versus measurements
     drillgym evaluate     controllers and agents on the evaluation harness

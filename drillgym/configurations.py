@@ -1,4 +1,4 @@
-"""The rig's experimental configurations (MODEL.md table) and the state layout.
+"""The rig's experimental configurations (docs/model.md) and the state layout.
 
 ==============  ==============  =====  ==================  ==========
 name            lateral motion  brake  lower friction law  upper disc
@@ -44,7 +44,7 @@ __all__ = ["Configuration", "N_STATE", "STATE_NAMES", "parse_configuration"]
 
 
 class Configuration(IntEnum):
-    """How the rig is set up (MODEL.md).
+    """How the rig is set up (docs/model.md).
 
     ``UPPER``: the upper disc alone; ``TORSIONAL``: both discs, lateral motion held, brake on;
     ``LATERAL``: lower disc free to whirl, brake off; ``COUPLED``: lateral motion free, brake on;

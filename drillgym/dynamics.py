@@ -1,9 +1,9 @@
-"""Equations of motion of the rig (MODEL.md), compiled with numba.
+"""Equations of motion of the rig (docs/model.md), compiled with numba.
 
 Generalised coordinates used by the kernels are q' = (theta_u, theta_l, x, y):
 the report's q = (x, y, alpha, theta_u) with alpha = theta_l - theta_u, so that
 the two friction torques act on single coordinates (a stuck disc is one
-coordinate with zero velocity).  The transformation q = T q' turns MODEL.md's
+coordinate with zero velocity).  The transformation q = T q' turns the model's
 Lagrange equations M q'' + h = Q into M' q''' + h' = Q' with M' = T^T M T:
 
     M' = | Ju + m r^2   G    -m y   m x |      P = e mr, c = cos alpha, s = sin alpha
@@ -16,7 +16,7 @@ Lagrange equations M q'' + h = Q into M' q''' + h' = Q' with M' = T^T M T:
     h'_x = -m x W^2 - 2 m W vy - P c wl^2
     h'_y = -m y W^2 + 2 m W vx - P s wl^2
 
-plus MODEL.md's lateral spring/damper forces (``isotropic_lateral_forces``).
+plus the model's lateral spring/damper forces (``isotropic_lateral_forces``).
 Generalised forces: Q'_u = km u - Tfu(wu), Q'_l = -Tfl(wl), plus whatever the
 composition's effects add (:mod:`drillgym.effects`).
 
@@ -119,7 +119,7 @@ def reduced_accelerations(
 
 @njit(inline="always", fastmath=True, error_model="numpy")
 def isotropic_lateral_forces(x: float, yy: float, vx: float, vy: float, W: float, k: float, b: float) -> tuple:
-    """MODEL.md's spring and damper terms as generalised forces (Q_u, Q_x, Q_y) for kx = ky, bx = by."""
+    """The model's spring and damper terms as generalised forces (Q_u, Q_x, Q_y) for kx = ky, bx = by."""
     return (b * (yy * vx - x * vy - W * (x * x + yy * yy)), -k * x - b * (vx - yy * W), -k * yy - b * (vy + x * W))
 
 
@@ -148,7 +148,7 @@ def coupled_system(
     slip_u: bool,
     slip_l: bool,
 ) -> tuple:
-    """MODEL.md's coupled equations with the lateral accelerations eliminated (Schur complement of the
+    """The coupled equations of docs/model.md with the lateral accelerations eliminated (Schur complement of the
     m I block): the 2x2 system S (wu', wl') = g of the discs, and the lateral right-hand sides.
     Arguments as :func:`full_accelerations`.  Returns (s00, s01, s11, g0, g1, F2, F3): S's entries
     (kg m^2), g (N m), F2, F3 (N)."""
@@ -176,7 +176,7 @@ def lateral_accelerations(
     x: float, yy: float, s: float, c: float, m: float, P: float, F2: float, F3: float, a0: float, a1: float
 ) -> tuple:
     """(vx', vy') (m/s^2) from the lateral right-hand sides F2, F3 (N) and the disc accelerations
-    a0 = wu', a1 = wl' (rad/s^2): the lateral rows of MODEL.md's mass matrix."""
+    a0 = wu', a1 = wl' (rad/s^2): the lateral rows of the model's mass matrix."""
     inv_m = 1.0 / m
     return (F2 + m * yy * a0 + P * s * a1) * inv_m, (F3 - m * x * a0 - P * c * a1) * inv_m
 
@@ -206,7 +206,7 @@ def full_accelerations(
     slip_u: bool,
     slip_l: bool,
 ) -> tuple:
-    """Accelerations of the four coordinates (MODEL.md), with stuck discs as constraints.
+    """Accelerations of the four coordinates (docs/model.md), with stuck discs as constraints.
 
     s, c = sin, cos of alpha; m = mr + mt, P = e mr; drive = km u (+ extra upper torque); string on the
     upper disc; extra_l an extra torque on the lower disc;

@@ -1,4 +1,4 @@
-"""Set-valued friction laws of the rig (MODEL.md "Friction laws").
+"""Set-valued friction laws of the rig (docs/model.md, "Friction laws").
 
 Each law is split in two parts, which is what an exact (switch / event-driven)
 treatment of stick needs:

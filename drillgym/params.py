@@ -1,7 +1,7 @@
 """The rig's parameter set: typed, immutable, with units and sources, validated.
 
 ``RigParams`` holds every physical parameter of the base model of
-../shared/MODEL.md.  Effects (:mod:`drillgym.effects`) carry their own
+docs/model.md.  Effects (:mod:`drillgym.effects`) carry their own
 parameters.  The simulator's compiled kernels take the parameters as a flat
 float64 vector: the base parameters in the layout of :meth:`RigParams.to_vector`
 and ``IDX`` (a kernel reads ``p[IDX.Ts]``), then the effects' parameters.
@@ -38,7 +38,7 @@ def _p(value: float, unit: str, source: str, lo: float = -math.inf, hi: float = 
 class RigParams:
     """Physical parameters of the drill-string rig (SI units).
 
-    Defaults are the identified set of MODEL.md (the source of each value is in
+    Defaults are the identified set of docs/model.md (the source of each value is in
     ``PARAM_INFO[name]["source"]`` and :meth:`describe`).  Instances are immutable: use :meth:`replace`
     or :meth:`scaled`.  Every value is checked against its physical range.
 
@@ -147,7 +147,7 @@ class RigParams:
 
     @classmethod
     def default(cls) -> RigParams:
-        """The identified parameter set of MODEL.md."""
+        """The identified parameter set of docs/model.md."""
         return cls()
 
     def replace(self, **changes: float) -> RigParams:
@@ -247,7 +247,7 @@ class RigParams:
             A flat mapping ``name -> value`` (SI units) in JSON or YAML, by extension.
         partial : bool, optional
             True (default): the file may name only some parameters; those override the defaults (the
-            identified set of MODEL.md), the rest keep their default.  False: a file missing a base
+            identified set of docs/model.md), the rest keep their default.  False: a file missing a base
             parameter is refused.  Unknown names are refused either way.
 
         Returns
@@ -329,7 +329,7 @@ class RigParams:
 
     @property
     def lateral_eigenfrequency(self) -> float:
-        """sqrt(k / (mr + mt)) in rad/s (MODEL.md R6)."""
+        """sqrt(k / (mr + mt)) in rad/s (docs/model.md, R6)."""
         return math.sqrt(self.k / self.m)
 
     @property

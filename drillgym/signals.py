@@ -8,7 +8,7 @@
 
 Both are seeded (same seed, same signal) and return ``(t, u)`` arrays in s
 and V, which :func:`drillgym.simulate` accepts directly as its input and
-:func:`write_input_file` writes as a DATA_FORMAT CSV with columns ``t, u``
+:func:`write_input_file` writes as a CSV (docs/data_format.md) with columns ``t, u``
 (for the simulator and for the rig).
 """
 
@@ -272,7 +272,7 @@ def sum_of_sines(
 
 
 def write_input_file(path: str | Path, t: np.ndarray, u: np.ndarray, description: str = "") -> Path:
-    """Write an input signal as a DATA_FORMAT CSV (columns ``t, u``; metadata line first).
+    """Write an input signal as a CSV of docs/data_format.md (columns ``t, u``; metadata line first).
 
     Parameters
     ----------
@@ -313,7 +313,7 @@ def write_input_file(path: str | Path, t: np.ndarray, u: np.ndarray, description
 
 
 def read_input_file(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """Read the ``t, u`` columns of a DATA_FORMAT CSV (an input file or a full recording).
+    """Read the ``t, u`` columns of a CSV of docs/data_format.md (an input file or a full recording).
 
     Parameters
     ----------

@@ -285,7 +285,7 @@ class Trajectory:
         return {n: self.data[:, i] for i, n in enumerate(self.output_names)}
 
     def to_csv(self, path, description: str = "") -> None:
-        """Write the run in the interchange format of ``shared/DATA_FORMAT.md``.
+        """Write the run in the interchange format of docs/data_format.md.
 
         Parameters
         ----------

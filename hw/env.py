@@ -372,7 +372,7 @@ class HardwareEnv(gym.Env):
         Y[6], Y[7] = vbx + Y[2] * Y[5], vby - Y[2] * Y[4]
 
     def _record(self, m: dict[str, float], u_cmd: float, omega: np.ndarray) -> None:
-        """Record a sample as DATA_FORMAT means it: a row's ``u`` is the voltage applied FROM its time
+        """Record a sample as docs/data_format.md means it: a row's ``u`` is the voltage applied FROM its time
         on (zero-order hold, as the simulator and the identification read it).  A SAMPLE reports the
         state at the end of a period and the voltage applied during it, so each row waits for the
         next reply, which tells the voltage applied after it (the last row: 0 V, the motor stopped)."""

@@ -1,10 +1,10 @@
-"""Recording of hardware episodes in the interchange format (../shared/DATA_FORMAT.md).
+"""Recording of hardware episodes in the interchange format (docs/data_format.md).
 
 Each episode is one CSV streamed by :class:`drillgym.io.StreamingCsvWriter` (flushed and
 fsync'ed in blocks of at most ``flush_interval_s`` of samples, so a killed process loses at
 most that much), on a writer thread so that a slow disk never holds up the control loop.  Columns:
 
-processed (SI units, DATA_FORMAT names): ``t`` (s, firmware time since the episode start),
+processed (SI units, the column names of docs/data_format.md): ``t`` (s, firmware time since the episode start),
 ``u`` (V, voltage the firmware applied), ``theta_u``, ``theta_l`` (rad, encoders),
 ``x``, ``y`` (m, LVDTs in the fixed frame, offset at rest removed; lateral configurations),
 ``x_lp``, ``y_lp`` (m, causal 5 Hz low-pass of x, y, what the policy saw),

@@ -58,7 +58,7 @@ class ConstantController:
 
 
 class PlaybackController:
-    """Plays an input file (DATA_FORMAT ``t, u``; e.g. ``drillgym signal``) sample-and-hold against
+    """Plays an input file (``t, u``, docs/data_format.md; e.g. ``drillgym signal``) sample-and-hold against
     the episode's time, 0 V after its end: ``play:est.csv`` records an excitation run for
     ``drillgym identify``.
 

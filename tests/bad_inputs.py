@@ -76,7 +76,7 @@ class Assets:
 
 def build_assets(root: Path) -> Assets:
     """Recordings of 0.2 s (torsional, upper, lateral), an input signal, a partial parameter file and
-    the garbage: a csv that is not DATA_FORMAT, an npz that is not a policy, JSON that is not a
+    the garbage: a csv that is not a time series, an npz that is not a policy, JSON that is not a
     parameter file, invalid JSON, an empty and a binary file, a directory, effect files that exit or raise."""
     root.mkdir(parents=True, exist_ok=True)
     a = Assets(root)
@@ -291,7 +291,7 @@ def output_dir_bad(a: Assets, work: Path) -> list[str]:
 
 
 def finite_file(path: Path) -> None:
-    """A DATA_FORMAT file that reads back with finite values."""
+    """A time-series file that reads back with finite values."""
     from drillgym.io import read_timeseries
 
     ts = read_timeseries(path)

@@ -1,4 +1,4 @@
-"""drillgym simulate: writes DATA_FORMAT csv and a figure; user errors exit 2 with one line."""
+"""drillgym simulate: writes a csv of docs/data_format.md and a figure; user errors exit 2 with one line."""
 
 import subprocess
 import sys

@@ -1,4 +1,4 @@
-"""The compiled equations of motion against MODEL.md written out literally, and energy conservation."""
+"""The compiled equations of motion against docs/model.md written out literally, and energy conservation."""
 
 import math
 
@@ -13,7 +13,7 @@ state_derivative = BASE.kernels.model.state_derivative
 
 
 def model_md_accelerations(state, u, p: RigParams, Tfu, Tfl):
-    """Accelerations (x'', y'', theta_u'', theta_l'') from MODEL.md's four equations, as printed there."""
+    """Accelerations (x'', y'', theta_u'', theta_l'') from the four equations of docs/model.md, as printed there."""
     thu, thl, W, wl, x, y, xd, yd = state
     a = thl - thu
     ad = wl - W

@@ -1,4 +1,4 @@
-"""Parameter set: defaults from MODEL.md, validation naming the parameter, file round trips."""
+"""Parameter set: defaults from docs/model.md, validation naming the parameter, file round trips."""
 
 import json
 import math

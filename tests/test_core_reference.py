@@ -1,4 +1,4 @@
-"""MODEL.md R7-R9 from simulation: stick-slip from rest, RK4 switch model, dt = 1 ms, 120 s."""
+"""R7-R9 of docs/model.md from simulation: stick-slip from rest, RK4 switch model, dt = 1 ms, 120 s."""
 
 import numpy as np
 import pytest

@@ -18,7 +18,7 @@ from drillgym.identification.synthetic import synthetic_measurement
 
 def _state():
     """A 12 s torsional recording of a rig with Ts -7 %, km -5 %, bb +5 %, and the selection's objective on it
-    at MODEL.md's base parameters."""
+    at the identified base parameters."""
     p = RigParams()
     rig = dataclasses.replace(p, Ts=0.93 * p.Ts, km=0.95 * p.km, bb=1.05 * p.bb)
     ts = synthetic_measurement("torsional", rig, duration=12.0, rate_hz=200.0, seed=11, offset=1.0, amplitude=3.0)

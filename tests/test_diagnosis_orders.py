@@ -144,7 +144,7 @@ def test_base_prior_prefers_the_effect_to_a_base_moved_far_when_both_fit_alike()
     """Two base-off selections fitting alike (RSS 4851 and 4888, about 70 effective samples): drift and
     string damping with every torque parameter about 9 % down together (the larger-Ju direction that
     absorbs a motor lag), or the same plus the lag with the base within 3 %.  The information criterion
-    alone takes the first (one parameter fewer); with the base parameters' prior (5 % around MODEL.md) the
+    alone takes the first (one parameter fewer); with the base parameters' prior (5 % around the identified set) the
     lag.  A base moved that far is also beyond the prior's 95 % quantile, a few percent is within it."""
     from drillgym.configurations import Configuration
     from drillgym.diagnosis.criterion import base_prior_cost, better, plausible_prior

@@ -196,7 +196,7 @@ def test_a_drift_beside_a_brake_asymmetry_is_not_taken_for_a_position_friction()
 
 
 def test_lag_delay_decision_made_on_the_incumbents_base_is_checked():
-    """An independent rig with a 25.4 ms motor lag and MODEL.md's base parameters, 60 s of a smooth
+    """An independent rig with a 25.4 ms motor lag and the identified base parameters, 60 s of a smooth
     quasi-random input at 1 kHz around 2.4 V: the base refit on the comparison grid moved every torque
     parameter about 2.4 % down with the input delay in the model, and with those base parameters for both
     the fine check chose the delay by 338 nats.  The lag with its own base parameters wins (about 500

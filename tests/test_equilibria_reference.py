@@ -1,4 +1,4 @@
-"""Equilibria, linearisation and Routh-Hurwitz: MODEL.md R1-R6, computed (not tabulated)."""
+"""Equilibria, linearisation and Routh-Hurwitz: R1-R6 of docs/model.md, computed (not tabulated)."""
 
 import control
 import numpy as np

@@ -83,7 +83,7 @@ def test_controller_episode_matches_simulation(tmp_path, eventually):
     rec = read_timeseries(tmp_path / "ctrl.csv")
     assert rec.meta["source"] == "emulator" and rec.configuration.label == "torsional"
     np.testing.assert_allclose(rec.t, np.arange(151) * 0.01, atol=1e-9)
-    # DATA_FORMAT: a row's u is applied from its time on (zero-order hold): the command of step k on the
+    # docs/data_format.md: a row's u is applied from its time on (zero-order hold): the command of step k on the
     # row of t_k, and 0 V on the last row (the episode ended); the simulator reads the file the same way
     np.testing.assert_allclose(rec.u[:-1], us, atol=1e-12)
     assert rec.u[-1] == 0.0

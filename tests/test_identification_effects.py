@@ -34,7 +34,7 @@ C3 = 0.015  # 1/rad²
 def scipy_cubic_string(
     c3: float, duration: float = 25.0, rate_hz: float = 250.0, seed: int = 3, eps: float = 2e-3, noise_rad: float = 2e-4
 ) -> TimeSeries:
-    """A torsional recording from an independent model: MODEL.md's torsional equations with the cubic
+    """A torsional recording from an independent model: the torsional equations of docs/model.md with the cubic
     string, friction signs smoothed (tanh(ω/eps)), integrated by scipy's Radau; input interpolated
     linearly; angles quantised (8000 counts/rev) after Gaussian noise of ``noise_rad``."""
     p = RigParams()

@@ -1,6 +1,6 @@
-"""Staged identification (MODEL.md "Identification procedure") on simulated measurements.
+"""Staged identification (docs/model.md, "How the report identified the parameters") on simulated measurements.
 
-Data are generated with the MODEL.md parameters (quantized encoders, LVDT noise
+Data are generated with the parameters of docs/model.md (quantized encoders, LVDT noise
 and 5 Hz filtering); each stage starts from perturbed guesses and must recover
 the parameters (2 % for the well-excited ones) and reach the report's R² on
 estimation (quasi-random) and validation (sum of sines) signals.
@@ -16,7 +16,7 @@ from drillgym.identification.staged import identify_stage, identify_staged
 from drillgym.identification.synthetic import synthetic_measurement
 
 TRUE = RigParams()
-# report R² (MODEL.md): estimation / validation
+# report R² (docs/model.md): estimation / validation
 REPORT_R2 = {
     "upper": ({"theta_u": 0.99995}, {"theta_u": 0.9993}),
     "lower": ({"theta_l": 0.9997, "alpha": 0.9992}, {"theta_l": 0.9985, "alpha": 0.9983}),

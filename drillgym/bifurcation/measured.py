@@ -1,5 +1,5 @@
 """Measured bifurcation diagrams: steady-state statistics of constant-voltage measurement files,
-and the measured points the report gives (MODEL.md), as an overlay."""
+and the measured points the report gives (docs/model.md), as an overlay."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from ..errors import DataFormatError
 from ..io import read_timeseries
 from .steady_state import STAT_NAMES, stats_from_arrays
 
-# measured points of the report (MODEL.md "Measured bifurcation points"), voltages in V, speeds in rad/s
+# measured points of the report (docs/model.md, "Measured bifurcation points"), voltages in V, speeds in rad/s
 REPORT_POINTS: dict[str, dict] = {
     "torsional": {"hopf": [1.7], "fold": [4.0], "coexistence": [{"u": 3.6, "omega_eq": 6.25}]},
     "coupled": {"hopf": [1.6], "fold": [3.5], "coexistence": [{"u": 3.4, "omega_eq": None}]},
@@ -31,7 +31,7 @@ def measured_point(path: str | Path, config: str | None = None, settle_fraction:
     Parameters
     ----------
     path : str or path
-        A DATA_FORMAT.md file of a run at constant voltage.
+        A time-series file (docs/data_format.md) of a run at constant voltage.
     config : str, optional
         Rig configuration, when the file's metadata names none.
     settle_fraction : float, optional

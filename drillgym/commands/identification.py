@@ -24,7 +24,7 @@ def _json(obj) -> str:
 
 
 def _model_file(path: Path | None):
-    """The model in ``--params`` (RigParams only, or params and effects); default MODEL.md, no effects."""
+    """The model in ``--params`` (RigParams only, or params and effects); default the identified set, no effects."""
     from ..identification.model_file import ModelFile, read_model
     from ..params import RigParams
 
@@ -170,8 +170,10 @@ def signal_cmd(
 
 
 def compare_cmd(
-    data: Path = typer.Argument(..., help="recording (DATA_FORMAT csv or .mat)"),
-    params: Path | None = typer.Option(None, "--params", help="parameter file, may be partial (default MODEL.md set)"),
+    data: Path = typer.Argument(..., help="recording (csv of docs/data_format.md, or .mat)"),
+    params: Path | None = typer.Option(
+        None, "--params", help="parameter file, may be partial (default: the identified set, docs/model.md)"
+    ),
     config: str | None = typer.Option(None, "--config", help="configuration if the file has none"),
     out: Path = typer.Option(Path("compare_out"), "--out", help=f"output directory; {CREATES_DIRS}"),
     segment: str = typer.Option(
@@ -225,8 +227,10 @@ def _check_candidate_file(path: Path) -> None:
 
 
 def diagnose_cmd(
-    data: Path = typer.Argument(..., help="recording (DATA_FORMAT csv or .mat)"),
-    params: Path | None = typer.Option(None, "--params", help="base parameter file (default MODEL.md set)"),
+    data: Path = typer.Argument(..., help="recording (csv of docs/data_format.md, or .mat)"),
+    params: Path | None = typer.Option(
+        None, "--params", help="base parameter file (default: the identified set, docs/model.md)"
+    ),
     config: str | None = typer.Option(None, "--config", help="configuration if the file has none"),
     as_json: bool = typer.Option(
         False, "--json", help="print one JSON object: selected, ranking, base_parameters, candidate, ..."
@@ -347,7 +351,7 @@ def diagnose_cmd(
 
 
 def identify_cmd(
-    data: Path = typer.Argument(..., help="recording (DATA_FORMAT csv or .mat)"),
+    data: Path = typer.Argument(..., help="recording (csv of docs/data_format.md, or .mat)"),
     out: Path = typer.Option(
         ..., "--out", help=f"model file to write (.json or .yaml): params and effects; {CREATES_DIRS}"
     ),
@@ -362,7 +366,7 @@ def identify_cmd(
     params: Path | None = typer.Option(
         None,
         "--params",
-        help="model file: base parameters, and effects with their values (default MODEL.md set, no effects)",
+        help="model file: base parameters, and effects with their values (default: the identified set, no effects)",
     ),
     fit: list[str] = typer.Option(None, "--fit", help="also fit this parameter of the model (repeatable)"),
     refit_base: bool = typer.Option(
@@ -482,7 +486,9 @@ def identify_staged_cmd(
     lateral: list[Path] = typer.Option([], "--lateral", help="lateral recording (brake off)"),
     brake: list[Path] = typer.Option([], "--brake", help="torsional recordings with the brake (several alpha0)"),
     validate: list[str] = typer.Option([], "--validate", help="STAGE=FILE validation recording (repeatable)"),
-    params: Path | None = typer.Option(None, "--params", help="initial guesses (default MODEL.md set)"),
+    params: Path | None = typer.Option(
+        None, "--params", help="initial guesses (default: the identified set, docs/model.md)"
+    ),
     as_json: bool = typer.Option(False, "--json", help="print the stages as JSON"),
 ) -> None:
     """The report's staged identification: upper, free vibration, lower, lateral, brake."""

@@ -33,7 +33,7 @@ def params_yaml(p) -> str:
 
     lines = [
         "# drillgym parameter set (SI units). A file may give only some names: the others keep",
-        "# their default (the identified set of MODEL.md); unknown names are refused.",
+        "# their default (the identified set of docs/model.md); unknown names are refused.",
         "# Extension parameters (source 'effect ...') are 0 = effect off.",
     ]
     for n in PARAM_NAMES:

@@ -19,7 +19,7 @@ def plant_from_cli(
     params_file: Path | None, add_effect: list[str] | None, effect_param: list[str] | None
 ) -> tuple[RigParams, Composition, dict[str, float]]:
     """(base RigParams, Composition, effect values): the base parameters and effects of ``params_file``
-    (default MODEL.md's set, no effect), then the ``add_effect`` specs, with the ``effect_param``
+    (default: the identified set, no effect), then the ``add_effect`` specs, with the ``effect_param``
     NAME=VALUE items; one-line errors name the file, the effect and what is wrong."""
     from ..identification.model_file import ModelFile, read_model
     from .effect_options import compose_named

@@ -17,7 +17,7 @@ from .outputs import CREATES_DIRS, figure_file, output_file
 
 
 def _load_input(path: Path):
-    """(t, u) of an input signal file (DATA_FORMAT csv or .mat with at least t, u)."""
+    """(t, u) of an input signal file (csv of docs/data_format.md, or .mat with at least t, u)."""
     from ..io import read_input_signal
 
     return read_input_signal(path)
@@ -216,12 +216,12 @@ def register(app: typer.Typer) -> None:
             "twisted by and released from",
         ),
         record_every: int = typer.Option(1, help="keep every k-th step in the output (a divisor of the steps)"),
-        out: Path = typer.Option(..., help=f"output csv (DATA_FORMAT); {CREATES_DIRS}"),
+        out: Path = typer.Option(..., help=f"output csv (docs/data_format.md); {CREATES_DIRS}"),
         plot: Path | None = typer.Option(None, help=f"also write a figure (png); {CREATES_DIRS}"),
         add_effect: list[str] = add_effect_option(),
         effect_param: list[str] = effect_param_option(),
     ) -> None:
-        """Simulate from rest and write the run as DATA_FORMAT csv (and a figure).
+        """Simulate from rest and write the run as csv (docs/data_format.md) and a figure.
 
         free_vibration (report 3.3) holds the upper disc and releases the lower disc from a
         winding: give --alpha0, no voltage (e.g. --config free_vibration --alpha0 1.0 --duration 20).

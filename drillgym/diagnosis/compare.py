@@ -177,7 +177,7 @@ def compare(
     data : TimeSeries or Experiment
         The recording.
     params : RigParams or numpy.ndarray, optional
-        Base parameters (default: MODEL.md), or a vector in the composition's layout.
+        Base parameters (default: the identified set), or a vector in the composition's layout.
     config : str or Configuration, optional
         The configuration when the recording's metadata has none.
     segment_s : float or None, optional

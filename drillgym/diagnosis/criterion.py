@@ -3,7 +3,7 @@
     N_eff ln RSS + k ln N_eff + Σ (Δp / (p σ))²
 
 k counts the effects' parameters, plus the base parameters when they were freed; the last term is −2 ln of
-the base parameters' Gaussian prior around MODEL.md's values (relative width :data:`BASE_PRIOR_SIGMA`,
+the base parameters' Gaussian prior around the identified values (relative width :data:`BASE_PRIOR_SIGMA`,
 "a few percent off"): the term a Laplace approximation of the evidence adds for such parameters.  Both
 models are counted with one N_eff (the smaller: residual samples of the worse-fitting model are the more
 correlated).
@@ -20,7 +20,7 @@ from .search_model import SearchModel
 
 __all__ = ["BASE_PRIOR_SIGMA", "better", "base_prior_cost", "plausible_prior", "beyond_prior"]
 
-#: relative spread of the base parameters around MODEL.md's values (the prior of :func:`better`)
+#: relative spread of the base parameters around their identified values (the prior of :func:`better`)
 BASE_PRIOR_SIGMA = 0.05
 
 

@@ -62,7 +62,7 @@ def diagnose(
     data : TimeSeries, Experiment or sequence of Experiment
         A recording or prepared experiments.
     params : RigParams, optional
-        Nominal base parameters (default: MODEL.md).
+        Nominal base parameters (default: the identified set of docs/model.md).
     config : str or Configuration, optional
         The configuration when the recording's metadata has none.
     options : DiagnosisOptions, optional
@@ -96,7 +96,7 @@ def diagnose(
         valid = ", ".join(f.name for f in fields(DiagnosisOptions))
         raise InputTypeError(f"diagnose: unknown setting(s) {', '.join(unknown)}; the settings are {valid}")
     if params is not None and not isinstance(params, RigParams):
-        raise InputTypeError(f"params must be RigParams (None: MODEL.md's), got {type(params).__name__}")
+        raise InputTypeError(f"params must be RigParams (None: the identified set), got {type(params).__name__}")
     opts = replace(options or DiagnosisOptions(), **settings)
     with one_blas_thread():  # every step's threads (fits side by side, the lag/delay searches) see the same BLAS
         screening = screen(data, params, config, opts)

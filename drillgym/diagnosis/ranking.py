@@ -242,7 +242,7 @@ def rank_effects(
     data : TimeSeries, Experiment or sequence of Experiment
         A recording or prepared experiments.
     params : RigParams, optional
-        Base parameters (default: MODEL.md).
+        Base parameters (default: the identified set of docs/model.md).
     config : str or Configuration, optional
         The configuration when the recording's metadata has none.
     options : DiagnosisOptions, optional

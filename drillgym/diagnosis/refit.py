@@ -212,7 +212,7 @@ def refit(
     data : TimeSeries or Experiment
         The recording or a prepared experiment.
     params : RigParams, optional
-        The model's base parameters (default: MODEL.md).
+        The model's base parameters (default: the identified set of docs/model.md).
     config : str or Configuration, optional
         The configuration when the recording's metadata has none.
     options : RefitOptions, optional
@@ -234,7 +234,7 @@ def refit(
         The model before or after the fit gives non-finite states on the recording (no R² or RMS).
     """
     if params is not None and not isinstance(params, RigParams):
-        raise InputTypeError(f"params must be RigParams (None: MODEL.md's), got {type(params).__name__}")
+        raise InputTypeError(f"params must be RigParams (None: the identified set), got {type(params).__name__}")
     o = replace(options or RefitOptions(), **settings)
     base = params or RigParams()
     ex = data if isinstance(data, Experiment) else prepare_experiment(data, config, compare_rate_hz=o.compare_rate_hz)

@@ -238,7 +238,7 @@ def screen(
     data : TimeSeries, Experiment or sequence of Experiment
         What to diagnose.
     params : RigParams or None
-        Nominal base parameters (default: MODEL.md).
+        Nominal base parameters (default: the identified set of docs/model.md).
     config : str or Configuration, optional
         The configuration when the recording's metadata has none.
     options : DiagnosisOptions

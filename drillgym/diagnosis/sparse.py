@@ -91,7 +91,7 @@ def residual_torques(
     ex : Experiment
         The recording.
     params : RigParams or numpy.ndarray, optional
-        Base parameters, or a vector in the composition's layout (default: MODEL.md).
+        Base parameters, or a vector in the composition's layout (default: the identified set).
     min_speed : float, optional
         Speed (rad/s) above which a disc slips.  Default 0.05.
     effects : any, optional

@@ -1,7 +1,7 @@
 """The Gymnasium environments of the drill-string rig.
 
 All three share :class:`DrillEnv` (its docstring gives the spaces, reward and episode end); they
-differ in the rig configuration (MODEL.md): ``drillgym/Torsional-v0`` (lateral motion held, brake on),
+differ in the rig configuration (docs/model.md): ``drillgym/Torsional-v0`` (lateral motion held, brake on),
 ``drillgym/Lateral-v0`` (lateral motion free, brake off) and ``drillgym/Coupled-v0`` (lateral motion
 free, brake on).  Options: :class:`drillgym.envs.options.EnvOptions`.
 """

@@ -1,6 +1,6 @@
 """Equilibria of the rig for a constant voltage, their linearisation and stability.
 
-Two kinds of equilibria (report 4.1.1, 4.2, 4.3.1; MODEL.md):
+Two kinds of equilibria (report 4.1.1, 4.2, 4.3.1; docs/model.md):
 
 * **stick set** (``omega_u = omega_l = 0``): both discs at rest, the friction
   torques inside their stick sets.  With Tfu = km u + k_theta alpha and

@@ -1,6 +1,6 @@
 """Which base parameters act in which configuration: a fit only frees parameters the recording depends on.
 
-A parameter that does not enter the configuration's equations (MODEL.md: the lateral stiffness ``k`` in
+A parameter that does not enter the configuration's equations (docs/model.md: the lateral stiffness ``k`` in
 ``torsional``, where the lateral motion is held; the brake's Stribeck law in ``lateral``, where the brake
 is off) cannot be fitted from its recording: the fit would return its start value with a warning at
 best. :func:`check_fit_names` refuses such a request in one line, naming the parameters that do act.
@@ -25,7 +25,7 @@ _LATERAL = ("mr", "mt", "k", "b", "e")
 
 
 def parameters_acting(config: Configuration, brake: bool | None = None) -> tuple[str, ...]:
-    """The base parameters that enter the equations of a configuration (MODEL.md).
+    """The base parameters that enter the equations of a configuration (docs/model.md).
 
     Parameters
     ----------

@@ -273,7 +273,7 @@ def base_vector(
     composition : Composition
         The composition.
     base : RigParams, numpy.ndarray or None
-        Base parameters (default: MODEL.md), a base-only vector (the effects get their defaults, or
+        Base parameters (default: the identified set), a base-only vector (the effects get their defaults, or
         ``values``) or a full vector.
     values : dict of str to float, optional
         The effects' parameter values.

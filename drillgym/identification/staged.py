@@ -1,4 +1,4 @@
-"""The report's staged identification procedure (MODEL.md, "Identification procedure").
+"""The report's staged identification procedure (docs/model.md).
 
 1. ``upper``: the upper part alone (string disconnected, Ju known) on θu:
    km, Tcu, ΔTcu, bu, Δbu.
@@ -362,7 +362,7 @@ def identify_staged(
         Stage name (see :data:`STAGES`) -> one recording or a list (the brake stage takes several, at
         different initial windings).
     params : RigParams, optional
-        The initial guesses (default: MODEL.md).
+        The initial guesses (default: the identified set of docs/model.md).
     validation : dict, optional
         Stage name -> validation recordings.
     compare_rate_hz : float, optional

@@ -102,7 +102,7 @@ def synthetic_measurement(
         ``"torsional_bearing"``: lateral motion held, brake off (simulated exactly as ``lateral`` with
         e = 0; the file says configuration 'torsional', brake force 0).
     params : RigParams, optional
-        The rig's parameters (default: MODEL.md).
+        The rig's parameters (default: the identified set of docs/model.md).
     options : SyntheticOptions, optional
         How to drive, simulate and measure it (default: :class:`SyntheticOptions` ()).
     **settings

@@ -1,4 +1,4 @@
-"""Time-series files of the rig (../shared/DATA_FORMAT.md): read, validate, write, stream.
+"""Time-series files of the rig (docs/data_format.md): read, validate, write, stream.
 
 One format for measurements, recordings and simulations:
 

@@ -1,4 +1,4 @@
-"""Reading time-series files: DATA_FORMAT CSV and Simulink/MATLAB ``.mat``, checked on the way in."""
+"""Reading time-series files: CSV (docs/data_format.md) and Simulink/MATLAB ``.mat``, checked on the way in."""
 
 from __future__ import annotations
 
@@ -60,7 +60,7 @@ def read_csv(
     required: Sequence[str] | None = None,
     mapping: Mapping[str, str] | None = None,
 ) -> TimeSeries:
-    """Read and validate a DATA_FORMAT CSV.
+    """Read and validate a CSV of the time-series format (docs/data_format.md).
 
     Parameters
     ----------
@@ -303,7 +303,7 @@ def read_timeseries(
     Parameters
     ----------
     path : str or path
-        A DATA_FORMAT CSV or a MATLAB/Simulink ``.mat`` file.
+        A CSV (docs/data_format.md) or a MATLAB/Simulink ``.mat`` file.
     config : str or Configuration, optional
         Rig configuration (``"upper"``, ``"torsional"``, ``"lateral"``, ``"coupled"``), used when the
         file's metadata names none; it sets the required columns (``t``, ``u``, ``theta_u``; ``theta_l``
@@ -342,7 +342,7 @@ def read_input_signal(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     Parameters
     ----------
     path : str or path
-        Any DATA_FORMAT CSV or ``.mat`` file with at least the columns ``t`` and ``u``.
+        Any CSV (docs/data_format.md) or ``.mat`` file with at least the columns ``t`` and ``u``.
 
     Returns
     -------

@@ -20,7 +20,7 @@ def _fmt(v: float) -> str:
 
 
 def write_timeseries(path: str | Path, ts: TimeSeries) -> Path:
-    """Write a TimeSeries as DATA_FORMAT CSV (full float precision, round-trips exactly).
+    """Write a TimeSeries as CSV (docs/data_format.md; full float precision, round-trips exactly).
 
     Parameters
     ----------
@@ -99,7 +99,7 @@ def write_trajectory_csv(traj, path: str | Path, description: str = "") -> Path:
 
 
 class StreamingCsvWriter:
-    """Append rows to a DATA_FORMAT CSV as they arrive, flushed to disk in blocks.
+    """Append rows to a CSV of docs/data_format.md as they arrive, flushed to disk in blocks.
 
     At most ``flush_interval_s`` of samples (by their ``t`` column) is held in
     memory, so a killed process loses at most that much.  Each flush ends with

@@ -192,7 +192,7 @@ def derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR, TT, tc, cfg, E):
 
 @njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
 def derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg, E):
-    """All four coordinates, MODEL.md's lateral constraints plus the effects' forces
+    """All four coordinates, the lateral constraints of docs/model.md plus the effects' forces
     (dynamics' formulas, Schur complement of the m I block, stuck discs as selects).
     Two loops over the lanes, each writing three arrays (one loop writing all six exceeds LLVM's
     runtime alias-check budget and runs scalar): the first solves the whole system and writes the disc

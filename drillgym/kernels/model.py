@@ -1,6 +1,6 @@
 """Kernel template: the right-hand side, friction laws and switching logic of one composition.
 
-The base model is MODEL.md's (equations in :mod:`drillgym.dynamics`, friction laws in
+The base model is that of docs/model.md (equations in :mod:`drillgym.dynamics`, friction laws in
 :mod:`drillgym.friction`); the composition's effects enter only through the hooks of
 :mod:`drillgym.kernels.hooks` (replaced by the generated module when this template is
 specialised, see :mod:`drillgym.effects.codegen`).

@@ -148,7 +148,7 @@ def run_cmd(
     params: Path | None = typer.Option(
         None,
         help="model the controller is built on (JSON/YAML, may be partial: "
-        "e.g. what `drillgym identify --out` wrote); default MODEL.md's",
+        "e.g. what `drillgym identify --out` wrote); default: the identified set (docs/model.md)",
     ),
     model_file: Path | None = typer.Option(
         None,
@@ -165,8 +165,8 @@ def run_cmd(
     duration: float = typer.Option(10.0, help="episode length (s)"),
     record: Path = typer.Option(
         Path("rig_run.csv"),
-        help="recording file (DATA_FORMAT .csv, replaced if it exists; later episodes: <name>_001.csv, ...) or a "
-        f"directory for timestamped recordings; checked before anything, also with --dry-run; {CREATES_DIRS}",
+        help="recording file (.csv, docs/data_format.md; replaced if it exists; later episodes: <name>_001.csv, "
+        f"...) or a directory for timestamped recordings; checked before anything, also with --dry-run; {CREATES_DIRS}",
     ),
     config: str = typer.Option("torsional", help="how the rig is set up: torsional, lateral or coupled"),
     observation: str = typer.Option("sensors", help="policy observation: full, sensors or motor"),

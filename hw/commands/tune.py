@@ -39,7 +39,7 @@ def tune_cmd(
         ..., "--model-out", help="model file written (.json, .yaml or .yml): base parameters, effects, standard errors"
     ),
     record: Path = typer.Option(
-        Path("rig_tune.csv"), help="recording of the excitation run (DATA_FORMAT .csv, replaced if it exists)"
+        Path("rig_tune.csv"), help="recording of the excitation run (.csv, docs/data_format.md; replaced if it exists)"
     ),
     duration: float | None = typer.Option(
         None, help="length of the excitation (s); default 60 torsional, 30 coupled (evaluate --identify's)"
@@ -130,7 +130,7 @@ def _identify_and_write(recording: Path, model_out: Path, echo) -> None:
     )
     effects = ", ".join(f"{k} = {v:.4g}" for k, v in m.values.items()) or "none"
     echo(f"identified in {found.seconds:.1f} s: effects {'+'.join(found.selected) or 'none'} ({effects})")
-    echo(f"base parameters off MODEL.md's: {moved or 'none by 0.5 % or more'}")
+    echo(f"base parameters off the identified set: {moved or 'none by 0.5 % or more'}")
     for w in found.warnings:
         echo(f"warning: {w}")
     for margin in model_margins(m, MARGIN_TARGETS):
