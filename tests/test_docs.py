@@ -109,3 +109,128 @@ def test_make_docs_target_builds_strict():
     target = re.search(r"^docs:.*\n((?:\t.*\n)+)", make, flags=re.M)
     assert target, "the Makefile has no docs target"
     assert "mkdocs build --strict" in target.group(1)
+
+
+# --- the product stands on its own: no file outside the repository, the model page follows the code
+
+#: a file outside the repository that a clone does not have (the model and the time-series format are
+#: docs/model.md and docs/data_format.md); written so that this file does not match itself
+OUTSIDE = re.compile(r"\.\./shared\b|\bshared[/\\](?:MODEL|DATA_FORMAT)\.md")
+#: files allowed to name them: the history
+OUTSIDE_ALLOWED = {"CHANGELOG.md"}
+
+
+def outside_references(root: Path, names: list[str]) -> list[str]:
+    """``file:line: text`` of every line of the named text files (relative to ``root``) that sends the reader
+    to a file outside the repository; binary files are skipped."""
+    hits = []
+    for name in names:
+        if name in OUTSIDE_ALLOWED:
+            continue
+        try:
+            text = (root / name).read_text(encoding="utf-8")
+        except (UnicodeDecodeError, IsADirectoryError, FileNotFoundError):
+            continue
+        for lineno, line in enumerate(text.splitlines(), start=1):
+            if OUTSIDE.search(line):
+                hits.append(f"{name}:{lineno}: {line.strip()[:100]}")
+    return hits
+
+
+def tracked_files() -> list[str]:
+    """The repository's tracked files (``git ls-files``), paths relative to its root."""
+    try:
+        res = subprocess.run(["git", "ls-files", "-z"], cwd=ROOT, capture_output=True, timeout=60)
+    except (OSError, subprocess.TimeoutExpired):
+        pytest.skip("git is not available")
+    if res.returncode != 0:
+        pytest.skip("not a git checkout")
+    return [n for n in res.stdout.decode("utf-8").split("\0") if n]
+
+
+def test_no_tracked_file_sends_the_reader_outside_the_repository():
+    hits = outside_references(ROOT, tracked_files())
+    assert not hits, (
+        "files outside the repository are named (the model is docs/model.md, the time-series format "
+        "docs/data_format.md):\n" + "\n".join(hits[:20])
+    )
+
+
+def test_outside_references_are_found(tmp_path):
+    """The check above can fail: each form is found, in any file but the changelog."""
+    (tmp_path / "a.py").write_text(
+        '"""Parameters of\n' + "/".join(("..", "shared", "MODEL.md")) + '."""\n', encoding="utf-8"
+    )
+    (tmp_path / "b.md").write_text("see `" + "/".join(("shared", "DATA_FORMAT.md")) + "`\n", encoding="utf-8")
+    (tmp_path / "c.txt").write_text("the model page is docs/model.md\n", encoding="utf-8")
+    (tmp_path / "CHANGELOG.md").write_text(
+        "- moved from " + "/".join(("..", "shared", "MODEL.md")) + "\n", encoding="utf-8"
+    )
+    (tmp_path / "d.bin").write_bytes(b"\xff\xfe\x00")
+    hits = outside_references(tmp_path, ["a.py", "b.md", "c.txt", "CHANGELOG.md", "d.bin"])
+    assert [h.split(":")[0] for h in hits] == ["a.py", "b.md"]
+    assert hits[0].startswith("a.py:2: ")
+
+
+def parameter_rows(page: str) -> dict[str, dict[str, str]]:
+    """The parameter table of the model page's "Parameters" section: code name -> {column: cell}."""
+    m = re.search(r"^## Parameters\n(.*?)(?=^##)", page, flags=re.M | re.S)
+    assert m, 'docs/model.md has no "## Parameters" section'
+    header: list[str] | None = None
+    rows: dict[str, dict[str, str]] = {}
+    for line in m.group(1).splitlines():
+        if not line.startswith("|"):
+            continue
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if header is None:
+            header = cells
+        elif not set("".join(cells)) <= set("-: "):
+            rows[cells[0].strip("`")] = dict(zip(header, cells))
+    return rows
+
+
+def parameter_drift(page: str) -> list[str]:
+    """Where the model page's parameter table differs from ``RigParams``: a parameter missing or extra, or
+    a default value, unit or source that is not the code's."""
+    from drillgym.params import PARAM_INFO, RigParams
+
+    rows = parameter_rows(page)
+    problems = [f"{name}: on the page, not in RigParams" for name in rows if name not in PARAM_INFO]
+    for name, value in RigParams().to_dict().items():
+        row = rows.get(name)
+        if row is None:
+            problems.append(f"{name}: no row in the parameter table")
+            continue
+        try:
+            shown = float(row.get("value", "").replace("−", "-"))
+        except ValueError:
+            shown = None
+        if shown != value:
+            problems.append(f"{name}: the page says {row.get('value')!r}, the default is {value!r}")
+        unit = row.get("unit", "").replace("²", "^2")
+        if unit != PARAM_INFO[name]["unit"]:
+            problems.append(f"{name}: unit {row.get('unit')!r} on the page, {PARAM_INFO[name]['unit']!r} in the code")
+        if not row.get("source", "").startswith(PARAM_INFO[name]["source"]):
+            problems.append(f"{name}: source {row.get('source')!r}, the code says {PARAM_INFO[name]['source']!r}")
+    return problems
+
+
+def test_model_page_gives_every_parameter_with_its_default():
+    page = (DOCS / "model.md").read_text(encoding="utf-8")
+    problems = parameter_drift(page)
+    assert not problems, "docs/model.md and drillgym.params.RigParams disagree:\n" + "\n".join(problems)
+
+
+def test_parameter_drift_is_found():
+    """The check above can fail: a changed value, a wrong unit, a missing row and an unknown row."""
+    page = (DOCS / "model.md").read_text(encoding="utf-8")
+    assert not parameter_drift(page)
+    changed = page.replace("| 0.2781 | N m |", "| 0.2782 | N m |").replace("| 2974.25 | N/m |", "| 2974.25 | N |")
+    problems = parameter_drift(changed)
+    assert any(p.startswith("Ts: the page says '0.2782'") for p in problems), problems
+    assert any(p.startswith("k: unit 'N'") for p in problems), problems
+    lines = [ln for ln in page.splitlines() if not ln.startswith("| `bb` |")]
+    lines.insert(lines.index(next(ln for ln in lines if ln.startswith("| `e` |"))), "| `Tx` | Tx | - | 1 | N m | - |")
+    problems = parameter_drift("\n".join(lines) + "\n")
+    assert "bb: no row in the parameter table" in problems
+    assert "Tx: on the page, not in RigParams" in problems
