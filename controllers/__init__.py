@@ -16,7 +16,29 @@
 * :mod:`.evaluation` - scenarios, metrics, closed-loop runs, report
 """
 
+from typing import TYPE_CHECKING
+
 from .base import MEASUREMENTS, U_MAX, Controller
-from .registry import CONTROLLERS, available, make, register_agent_loader
+
+if TYPE_CHECKING:  # pragma: no cover - loaded on first use (__getattr__)
+    from .registry import CONTROLLERS, available, make, register_agent_loader
 
 __all__ = ["Controller", "MEASUREMENTS", "U_MAX", "CONTROLLERS", "available", "make", "register_agent_loader"]
+
+#: the registry's names, imported on first use (PEP 562): it imports every controller and their design
+#: stack (python-control, scipy), which ``drillgym evaluate --help`` (this package's commands) does not need
+_REGISTRY_NAMES = ("CONTROLLERS", "available", "make", "register_agent_loader")
+
+
+def __getattr__(name: str):
+    if name in _REGISTRY_NAMES:
+        from . import registry
+
+        value = getattr(registry, name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -4,13 +4,23 @@ The physics core (parameters, equations of motion, set-valued friction,
 integrators, equilibria) lives in this package and depends on nothing else in
 the repository.  Importing ``drillgym`` also registers the Gymnasium
 environments ``drillgym/Torsional-v0``, ``drillgym/Lateral-v0``,
-``drillgym/Coupled-v0`` (and ``drillgym/Hardware-v0``) when they are available.
+``drillgym/Coupled-v0`` (and ``drillgym/Hardware-v0``) when they are available:
+at once if Gymnasium is imported already, else as soon as it is
+(:mod:`drillgym._import_hooks`).
+
+``import drillgym`` is light: the simulator, the parameters and the other names
+of ``__all__`` load on first use (``from drillgym import simulate`` as before).
 """
 
-from ._kernel_cache import invalidate_stale_kernels
-from ._simd import prefer_full_vector_width
+import importlib
+from typing import TYPE_CHECKING
 
-prefer_full_vector_width()  # 512-bit vectors on AVX-512 hosts (opt out: DRILLGYM_SIMD=256)
+from . import _import_hooks
+from ._kernel_cache import invalidate_stale_kernels
+
+# 512-bit vectors on AVX-512 hosts (opt out: DRILLGYM_SIMD=256), set when numba loads (before, it would
+# load LLVM: 110 MB); the Gymnasium ids registered when gymnasium loads (or now, if it is loaded)
+_import_hooks.install()
 invalidate_stale_kernels()  # before any compiled kernel is loaded from numba's cache
 
 from .configurations import N_STATE, STATE_NAMES, Configuration, parse_configuration
@@ -28,9 +38,25 @@ from .errors import (
     SimulationError,
     UnavailableError,
 )
-from .integrators import DEFAULT_DT, OUTPUT_NAMES
-from .params import RigParams
-from .simulator import BatchSimulator, BatchTrajectory, Trajectory, initial_state, simulate, simulate_batch
+
+if TYPE_CHECKING:  # pragma: no cover - the names below load on first use (_LAZY)
+    from .integrators import DEFAULT_DT, OUTPUT_NAMES
+    from .params import RigParams
+    from .simulator import BatchSimulator, BatchTrajectory, Trajectory, initial_state, simulate, simulate_batch
+
+#: name -> the module that defines it, imported on first use (PEP 562): ``import drillgym`` and the
+#: command line's ``--help`` do not load the simulator, numba, scipy or the environments
+_LAZY = {
+    "DEFAULT_DT": "integrators",
+    "OUTPUT_NAMES": "integrators",
+    "RigParams": "params",
+    "BatchSimulator": "simulator",
+    "BatchTrajectory": "simulator",
+    "Trajectory": "simulator",
+    "initial_state": "simulator",
+    "simulate": "simulator",
+    "simulate_batch": "simulator",
+}
 
 __version__ = "0.1.0"
 
@@ -62,7 +88,22 @@ __all__ = [
     "SafetyError",
 ]
 
-import importlib.util as _ilu
 
-if _ilu.find_spec("drillgym.envs") is not None:  # registers the Gymnasium ids
-    from . import envs as _envs  # noqa: F401
+def __getattr__(name: str):
+    """A name of :data:`_LAZY` or a submodule (``drillgym.envs``), imported on first use."""
+    module = _LAZY.get(name)
+    if module is not None:
+        value = getattr(importlib.import_module(f".{module}", __name__), name)
+        globals()[name] = value  # the next look-up does not come here
+        return value
+    if not name.startswith("__"):
+        try:
+            return importlib.import_module(f".{name}", __name__)
+        except ModuleNotFoundError as exc:
+            if exc.name != f"{__name__}.{name}":
+                raise
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
