@@ -22,6 +22,7 @@ from pathlib import Path
 import typer
 
 from drillgym.commands.effect_options import add_effect_option, effect_param_option, effects_from_cli
+from drillgym.commands.options import excludes, requires
 from drillgym.errors import InputError
 
 
@@ -114,6 +115,8 @@ def register(app: typer.Typer) -> None:
     register_benchmark(app)
 
     @app.command("train")
+    @requires("--workers", "--seeds", when=lambda n: n > 1, what="--seeds 2 or more", why="seeds trained at once")
+    @excludes("--teacher", "--resume", why="a resumed run continues its RL steps; the teacher taught at its start")
     def train_cmd(
         env: str = typer.Option(
             "drillgym/Torsional-v0",

@@ -19,7 +19,13 @@ from pathlib import Path
 import typer
 
 from drillgym.commands.effect_options import add_effect_option, effect_param_option
+from drillgym.commands.options import excludes, requires
 from drillgym.errors import InputError
+
+
+def _has_plants(scenarios: str) -> bool:
+    """Whether the ``--scenarios`` list holds the population of plants."""
+    return "plants" in [s.strip() for s in scenarios.split(",")]
 
 
 def register(app: typer.Typer) -> None:
@@ -32,6 +38,11 @@ def register(app: typer.Typer) -> None:
     """
 
     @app.command("evaluate")
+    @requires("--excitation", "--identify", why="the length of each plant's excitation run")
+    @requires("--identify", "--scenarios", when=_has_plants, what="--scenarios plants", why="it identifies each plant")
+    @requires("--uncertainty", "--scenarios", when=_has_plants, what="--scenarios plants")
+    @requires("--plants", "--scenarios", when=_has_plants, what="--scenarios plants")
+    @excludes("--model", "--identify", why="--identify builds the controllers on each plant's identified model")
     def evaluate_cmd(
         config: str = typer.Option("torsional,coupled", "--config", help="configuration(s), comma-separated"),
         controllers: str = typer.Option(

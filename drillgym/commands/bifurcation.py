@@ -9,12 +9,14 @@ import typer
 
 from ..errors import InputError
 from .effect_options import add_effect_option, effect_param_option, effects_from_cli
-from .options import option
+from .options import option, requires
 from .outputs import check_output_dir, output_dir
 
 
 def register(app: typer.Typer) -> None:
     @app.command("bifurcation")
+    @requires("--no-report", "--measured", why="it leaves out the measured points")
+    @requires("--sweep-duration", "--sweep-step", when=lambda v: v > 0, what="a --sweep-step above 0 (sweeps)")
     def bifurcation(
         config: str = typer.Option("torsional", "--config", help="torsional, lateral or coupled"),
         out: Path = typer.Option(

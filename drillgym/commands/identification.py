@@ -11,7 +11,7 @@ import typer
 from ..errors import DrillgymError, InputError
 from .effect_options import add_effect_option, effect_param_option
 from .mapping import MAP_HELP, parse_mapping
-from .options import named, option
+from .options import named, option, requires
 from .outputs import CREATES_DIRS, check_output_dir, check_output_file, figure_file, output_file
 
 
@@ -226,6 +226,7 @@ def _check_candidate_file(path: Path) -> None:
         )
 
 
+@requires("--candidate-out", "--sparse", why="the candidate is looked for in the residual torques")
 def diagnose_cmd(
     data: Path = typer.Argument(..., help="recording (csv of docs/data_format.md, or .mat)"),
     params: Path | None = typer.Option(

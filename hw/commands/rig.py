@@ -25,6 +25,7 @@ from pathlib import Path
 import typer
 
 from drillgym.commands.effect_options import add_effect_option, effect_param_option
+from drillgym.commands.options import requires
 from drillgym.commands.outputs import CREATES_DIRS
 from drillgym.commands.plant import describe_plant, plant_from_cli
 from drillgym.errors import InputError, MissingFileError, SafetyError
@@ -138,6 +139,8 @@ def emulate_cmd(
 
 
 @rig_app.command("run")
+@requires("--observation", "--policy", why="the observation of a linear policy")
+@requires("--reconnect-wait", "--reconnect", when=lambda n: n > 0, what="--reconnect 1 or more")
 def run_cmd(
     port: str = typer.Option(..., help="serial device or pyserial URL of the rig (or of `drillgym rig emulate`)"),
     controller: str | None = typer.Option(
