@@ -16,28 +16,31 @@
 * :mod:`.evaluation` - scenarios, metrics, closed-loop runs, report
 """
 
+import importlib
 from typing import TYPE_CHECKING
 
-from .base import MEASUREMENTS, U_MAX, Controller
-
 if TYPE_CHECKING:  # pragma: no cover - loaded on first use (__getattr__)
+    from .base import MEASUREMENTS, U_MAX, Controller
     from .registry import CONTROLLERS, available, make, register_agent_loader
 
 __all__ = ["Controller", "MEASUREMENTS", "U_MAX", "CONTROLLERS", "available", "make", "register_agent_loader"]
 
-#: the registry's names, imported on first use (PEP 562): it imports every controller and their design
-#: stack (python-control, scipy), which ``drillgym evaluate --help`` (this package's commands) does not need
-_REGISTRY_NAMES = ("CONTROLLERS", "available", "make", "register_agent_loader")
+#: name -> its module, imported on first use (PEP 562): the registry imports every controller and their
+#: design stack (python-control, scipy), which ``drillgym evaluate --help`` (this package's commands) does
+#: not need
+_LAZY = {
+    **dict.fromkeys(("Controller", "MEASUREMENTS", "U_MAX"), "base"),
+    **dict.fromkeys(("CONTROLLERS", "available", "make", "register_agent_loader"), "registry"),
+}
 
 
 def __getattr__(name: str):
-    if name in _REGISTRY_NAMES:
-        from . import registry
-
-        value = getattr(registry, name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
 
 
 def __dir__() -> list[str]:

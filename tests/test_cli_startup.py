@@ -17,8 +17,20 @@ from pathlib import Path
 
 import pytest
 
-#: top-level packages a help or a refusal must not load (numba also loads LLVM, 110 MB)
-HEAVY = ("numba", "llvmlite", "scipy", "torch", "gymnasium", "matplotlib", "control", "pandas", "stable_baselines3")
+#: top-level packages a help or a refusal must not load (numba also loads LLVM, 110 MB; numpy alone takes
+#: about a third of the time a help may take: a command module imports it inside its functions)
+HEAVY = (
+    "numpy",
+    "numba",
+    "llvmlite",
+    "scipy",
+    "torch",
+    "gymnasium",
+    "matplotlib",
+    "control",
+    "pandas",
+    "stable_baselines3",
+)
 
 #: prints the heavy packages loaded so far as one JSON line, after the code before it
 _REPORT = f"""

@@ -4,10 +4,14 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import typer
 
-from ..effects.composition import Composition, compose
 from ..errors import InputError
+
+if TYPE_CHECKING:  # pragma: no cover - the effects (numpy) load when a command runs, not for its --help
+    from ..effects.composition import Composition
 
 ADD_EFFECT_HELP = (
     "effect added to the base model: a name (see `drillgym effects`) or path/to/file.py:NAME; repeat for several"
@@ -61,6 +65,7 @@ def compose_named(
     specs: list[str], values: dict[str, float], effect_option: str = "--add-effect"
 ) -> tuple[Composition, dict[str, float]]:
     """:func:`compose` whose errors name the option: a bad effect ``effect_option``, a bad value ``--effect-param``."""
+    from ..effects.composition import compose
     from .options import option
 
     with option(effect_option):

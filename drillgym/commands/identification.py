@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import numpy as np
 import typer
 
 from ..errors import DrillgymError, InputError
@@ -123,6 +122,8 @@ def _read(data: Path, config: str | None, mapping: list[str] | None, name: str =
 
 def _experiment(data: Path, config: str | None, rate: float, mapping: list[str] | None = None):
     """The recording prepared for comparison on a ``rate`` Hz grid (at most its own sample rate)."""
+    import numpy as np
+
     from ..identification.experiment import prepare_experiment
 
     _rate(rate)

@@ -15,7 +15,6 @@ from pathlib import Path
 import typer
 
 from ..errors import InputError, MissingFileError
-from ..io.jsonfile import dumps_json
 from .options import option
 from .outputs import CREATES_DIRS, check_output_file, output_file
 
@@ -45,6 +44,7 @@ def params_yaml(p) -> str:
 def params_json(p) -> str:
     """JSON of a RigParams: ``{"params": {...}, "units": {...}, "sources": {...}, "doc": {...}}``
     (RigParams.from_file reads the ``params`` mapping and ignores the rest)."""
+    from ..io.jsonfile import dumps_json
     from ..params import PARAM_INFO
 
     d = p.to_dict()

@@ -6,11 +6,14 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from ..effects import Composition, compose
 from ..errors import InputError
-from ..params import RigParams
 from .effect_options import parse_effect_params
+
+if TYPE_CHECKING:  # pragma: no cover - the effects and parameters (numpy) load when a command runs
+    from ..effects import Composition
+    from ..params import RigParams
 
 __all__ = ["plant_from_cli", "describe_plant"]
 
@@ -21,7 +24,9 @@ def plant_from_cli(
     """(base RigParams, Composition, effect values): the base parameters and effects of ``params_file``
     (default: the identified set, no effect), then the ``add_effect`` specs, with the ``effect_param``
     NAME=VALUE items; one-line errors name the file, the effect and what is wrong."""
+    from ..effects import compose
     from ..identification.model_file import ModelFile, read_model
+    from ..params import RigParams
     from .effect_options import compose_named
     from .options import option
 

@@ -26,12 +26,29 @@ the line or column and what is wrong.  Nothing is dropped or guessed.
 
 from __future__ import annotations
 
+import importlib
+from typing import TYPE_CHECKING
+
 from ..errors import DataFormatError
-from .jsonfile import dumps_json, jsonable, loads_strict, write_json
+from .limits import KNOWN_COLUMNS, U_LIMIT_FILE, XY_LIMIT_FILE
 from .paths import create_directory, describe_parse_error
-from .reading import MAT_ALIASES, read_csv, read_input_signal, read_mat, read_timeseries
-from .timeseries import KNOWN_COLUMNS, U_LIMIT_FILE, XY_LIMIT_FILE, TimeSeries, required_columns
-from .writing import StreamingCsvWriter, trajectory_to_timeseries, write_timeseries, write_trajectory_csv
+
+if TYPE_CHECKING:  # pragma: no cover - loaded on first use (_LAZY)
+    from .jsonfile import dumps_json, jsonable, loads_strict, write_json
+    from .reading import MAT_ALIASES, read_csv, read_input_signal, read_mat, read_timeseries
+    from .timeseries import TimeSeries, required_columns
+    from .writing import StreamingCsvWriter, trajectory_to_timeseries, write_timeseries, write_trajectory_csv
+
+#: name -> the module that defines it, imported on first use (PEP 562): the readers and writers load numpy
+#: (and scipy for .mat), which the command line's help, quoting the limits above, does not need
+_LAZY = {
+    **dict.fromkeys(("dumps_json", "jsonable", "loads_strict", "write_json"), "jsonfile"),
+    **dict.fromkeys(("MAT_ALIASES", "read_csv", "read_input_signal", "read_mat", "read_timeseries"), "reading"),
+    **dict.fromkeys(("TimeSeries", "required_columns"), "timeseries"),
+    **dict.fromkeys(
+        ("StreamingCsvWriter", "trajectory_to_timeseries", "write_timeseries", "write_trajectory_csv"), "writing"
+    ),
+}
 
 __all__ = [
     "TimeSeries",
@@ -56,3 +73,23 @@ __all__ = [
     "loads_strict",
     "jsonable",
 ]
+
+
+def __getattr__(name: str):
+    """A name of :data:`_LAZY` or a submodule (``drillgym.io.reading``), imported on first use."""
+    module = _LAZY.get(name)
+    if module is not None:
+        value = getattr(importlib.import_module(f".{module}", __name__), name)
+        globals()[name] = value
+        return value
+    if not name.startswith("__"):
+        try:
+            return importlib.import_module(f".{name}", __name__)
+        except ModuleNotFoundError as exc:
+            if exc.name != f"{__name__}.{name}":
+                raise
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -10,10 +10,7 @@ import numpy as np
 
 from ..configurations import Configuration, parse_configuration
 from ..errors import DataFormatError, InputError
-
-U_LIMIT_FILE = 50.0  # V: larger |u| in a file is refused
-XY_LIMIT_FILE = 0.05  # m: larger |x|, |y| in a file is refused
-KNOWN_COLUMNS = ("t", "u", "theta_u", "theta_l", "x", "y", "omega_u", "omega_l")
+from .limits import KNOWN_COLUMNS, U_LIMIT_FILE, XY_LIMIT_FILE
 
 
 def required_columns(config: Configuration | None) -> tuple[str, ...]:

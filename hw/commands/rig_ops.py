@@ -21,8 +21,6 @@ import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
-
 from drillgym.errors import InputError
 
 __all__ = [
@@ -149,6 +147,8 @@ def dry_run(make_env: Callable[[], object], ctrl, policy, record: Path, echo: Ca
     InputError
         The recording path is not writable, or the policy's action is unusable.
     """
+    import numpy as np
+
     from drillgym.envs.action import action_voltage
 
     check_writable(record)
@@ -290,6 +290,8 @@ def trained_agent(path: Path) -> bool:
     InputError
         If a ``.npz`` file is not an archive numpy reads (``--policy`` named in one line).
     """
+    import numpy as np
+
     p = Path(path)
     if p.is_dir() or p.suffix == ".zip":
         return True
