@@ -18,8 +18,9 @@ progress bar.  Results are rows (dicts) with the metrics of :mod:`.metrics`.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -27,7 +28,7 @@ from tqdm.auto import tqdm
 
 from drillgym import RigParams, parse_configuration
 from drillgym.effects import compose
-from drillgym.errors import InputError
+from drillgym.errors import DrillgymError, InputError
 
 from .metrics import run_metrics
 from .population import UncertaintySet, load_uncertainty, sample_plants
@@ -155,13 +156,76 @@ def _run_population_job(
     pop = sample_plants(n_plants, seed, uncertainty, base).subset(list(plants))
     if identified:  # one controller per plant, on that plant's identified model
         rows = []
-        for k in plants:
-            one = _run_population_job(
-                controller, config, scenario, targets, base, duration=duration, window=window, seed=seed,
-                plants=[k], n_plants=n_plants, uncertainty=uncertainty, model=identified[k].model,
-            )  # fmt: skip
+        for i, k in enumerate(plants):
+            with on_plant(k, n_plants, seed, pop.columns[i], identified=True):
+                one = _run_plants(
+                    controller, config, scenario, targets, base, pop.subset([i]), duration, window, seed, [k],
+                    identified[k].model,
+                )  # fmt: skip
             rows += [{**r, **identified[k].columns()} for r in one]
         return rows
+    if len(plants) == 1:
+        with on_plant(plants[0], n_plants, seed, pop.columns[0]):
+            return _run_plants(controller, config, scenario, targets, base, pop, duration, window, seed, plants, model)
+    try:
+        return _run_plants(controller, config, scenario, targets, base, pop, duration, window, seed, plants, model)
+    except DrillgymError:  # which plant: each alone, the first that fails names itself
+        for k in plants:
+            _run_population_job(
+                controller, config, scenario, targets, base, duration=duration, window=window, seed=seed,
+                plants=[k], n_plants=n_plants, uncertainty=uncertainty, model=model,
+            )  # fmt: skip
+        raise
+
+
+def plant_label(k: int, n: int, seed: int, columns: Mapping[str, float]) -> str:
+    """``plant 3 of 20 (seed 0: km 4.38, Jl 0.0395, ...)``: a plant of a population and the values it was drawn with."""
+    values = ", ".join(f"{name} {_short(v)}" for name, v in columns.items())
+    return f"plant {k} of {n} (seed {seed}: {values})"
+
+
+def _short(v: float) -> str:
+    return str(int(v)) if float(v).is_integer() else f"{float(v):.3g}"
+
+
+@contextmanager
+def on_plant(
+    k: int, n: int, seed: int, columns: Mapping[str, float], *, identified: bool = False, doing: str = ""
+) -> Iterator[None]:
+    """Within the block, an error is re-raised (same kind) led by the plant it happened on (:func:`plant_label`),
+    what was being done (``doing``) and, with ``identified``, that the controller ran the model identified on
+    that plant."""
+    try:
+        yield
+    except DrillgymError as exc:
+        message = " ".join(str(exc).split())
+        if message.startswith("plant "):  # named already (an inner job)
+            raise
+        where = plant_label(k, n, seed, columns) + (f", {doing}" if doing else "")
+        if identified:
+            where += ", its controller built on the model identified on that plant"
+        text = f"{where}: {message}"
+        try:
+            new = type(exc)(text)
+        except Exception:  # a kind with its own constructor
+            new = InputError(text)
+        raise new from exc
+
+
+def _run_plants(
+    controller: str,
+    config: str,
+    scenario: Scenario,
+    targets: Sequence[float],
+    base: RigParams,
+    pop: Any,
+    duration: float,
+    window: float,
+    seed: int,
+    plants: Sequence[int],
+    model: Any,
+) -> list[dict]:
+    """The plants ``pop`` (indices ``plants``) x ``targets`` as one batch."""
     tg = np.asarray(targets, dtype=float)
     m = tg.size
     idx = np.repeat(np.arange(pop.n), m)  # plant of each trajectory
@@ -239,11 +303,12 @@ def _identify_one(k: int, n: int, seed: int, uncertainty: Any, params: RigParams
     from .identify import excitation_recording, identify_plant
 
     pop = sample_plants(n, seed, uncertainty, params).subset([k])
-    rec = excitation_recording(
-        pop.matrix[0], pop.composition, pop.counts_per_rev[0], pop.angle_noise[0], int(seed) * 100_003 + k, opts,
-        parse_configuration(config).label,
-    )  # fmt: skip
-    return identify_plant(rec, [n for n in pop.columns[0] if n not in ("counts_per_rev", "angle_noise")], opts)
+    with on_plant(k, n, seed, pop.columns[0], doing="identifying it"):
+        rec = excitation_recording(
+            pop.matrix[0], pop.composition, pop.counts_per_rev[0], pop.angle_noise[0], int(seed) * 100_003 + k, opts,
+            parse_configuration(config).label,
+        )  # fmt: skip
+        return identify_plant(rec, [n for n in pop.columns[0] if n not in ("counts_per_rev", "angle_noise")], opts)
 
 
 def margin_columns(ctrl: Any, omega: float) -> dict[str, float | None]:
