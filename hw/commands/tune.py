@@ -83,6 +83,15 @@ def tune_cmd(
         duration = EXCITATION_S[config]
     opts = _check_run_options(port, duration, record, config, "motor", None, control_ms, seed, None, 0, 0.0)
     rate = 1e3 / control_ms
+    from drillgym.signals import check_signal
+
+    try:  # the excitation's settings, before anything is created
+        check_signal(duration, rate, 5.0, 2.5, seed, names={"duration": "--duration", "seed": "--seed"})
+    except InputError as exc:
+        if "rate_hz" not in str(exc):
+            raise
+        why = str(exc).replace("lower rate_hz", "lengthen --control-ms").replace("rate_hz", "the rate")
+        raise InputError(f"--control-ms {control_ms:g} (the excitation sampled at {rate:g} Hz): {why}") from None
     hw.register()
     output_file(record, "--record")
     with tempfile.TemporaryDirectory(prefix="drillgym_tune_") as tmp:
