@@ -61,8 +61,10 @@ def check_run_fits(duration: float, dt: float, record_every: int, out: Path) -> 
     CSV exceeds the free space where ``out`` goes.  Bad ``duration``/``dt`` are left to the simulator."""
     if not (duration > 0 and dt > 0) or duration == float("inf"):
         return
-    n_steps, memory, csv = run_sizes(duration, dt, record_every)
     how = "shorten --duration, or raise --dt or --record-every"
+    if duration / dt == float("inf"):
+        raise InputError(f"--duration {duration:g} s at --dt {dt:g} s is more steps than any memory holds: {how}")
+    n_steps, memory, csv = run_sizes(duration, dt, record_every)
     avail = available_memory()
     if avail is not None and memory > 0.8 * avail:
         raise InputError(

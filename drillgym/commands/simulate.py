@@ -105,6 +105,8 @@ def check_step_grid(duration: float, dt: float, record_every: int, duration_give
     if not (math.isfinite(duration) and math.isfinite(dt) and duration > 0 and dt > 0):
         return  # the simulator names a bad duration or step
     steps = duration / dt
+    if not math.isfinite(steps):
+        return  # beyond any memory: the budget names it (check_run_fits)
     n_steps = round(steps)
     if n_steps < 1 or (duration_given and abs(steps - n_steps) > 1e-6 * max(1.0, steps)):
         raise InputError(
@@ -263,10 +265,10 @@ def register(app: typer.Typer) -> None:
             duration = 30.0 if duration is None else duration
         if input_file is not None and out.resolve() == input_file.resolve():
             raise InputError(f"--out {out} is the --input file: the run would replace its input; choose another name")
-        out = output_file(out, "--out", suffixes=(".csv",))
-        plot = figure_file(plot) if plot else None
         check_step_grid(duration, dt, record_every, duration_given=duration_given)
         check_run_fits(duration, dt, record_every, out)
+        out = output_file(out, "--out", suffixes=(".csv",))  # its directories created once every check passed
+        plot = figure_file(plot) if plot else None
         traj = simulate(
             cfg,
             signal,
