@@ -37,6 +37,18 @@ def _root() -> None:
 register_commands(app)  # the core's commands, then those of installed packages (entry points)
 
 
+def unset_help_is_false(group: typer.Typer) -> dict:
+    """The ``default_map`` giving False to the ``--help`` of ``group`` and of its subgroups (by name).
+
+    A group's ``--help`` not given is otherwise None, for which typer (0.29) builds a pydantic validator:
+    pydantic would load (0.14 s, 20 MB) before every subcommand's help and every refused option.
+    """
+    return {"help": False, **{g.name: unset_help_is_false(g.typer_instance) for g in group.registered_groups if g.name}}
+
+
+app.info.context_settings = {**(app.info.context_settings or {}), "default_map": unset_help_is_false(app)}
+
+
 #: exit code of an error the user can act on (a :class:`~drillgym.errors.DrillgymError`)
 USER_ERROR_EXIT = 2
 #: exit code of a bug (any other exception): its traceback is printed

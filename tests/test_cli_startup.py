@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pytest
 
-#: top-level packages a help or a refusal must not load (numba also loads LLVM, 110 MB; numpy alone takes
-#: about a third of the time a help may take: a command module imports it inside its functions)
+#: top-level packages a help or a refusal must not load (numba also loads LLVM, 110 MB; numpy and pydantic,
+#: which typer uses to check values, each take about a quarter of the time a help may take)
 HEAVY = (
     "numpy",
     "numba",
@@ -30,6 +30,7 @@ HEAVY = (
     "control",
     "pandas",
     "stable_baselines3",
+    "pydantic",
 )
 
 #: prints the heavy packages loaded so far as one JSON line, after the code before it
