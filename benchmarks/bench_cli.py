@@ -1,4 +1,4 @@
-"""How fast the command line answers: help, a refusal, ``import drillgym`` (issue 58).
+"""How fast the command line answers: help, a refusal, ``import drillgym``.
 
     .venv/bin/python benchmarks/bench_cli.py [--runs 10] [--tree DIR]
 
@@ -10,7 +10,7 @@ idle 2-core machine is 0.5 s median and 100 MB peak for the command line's cases
 drillgym``. The load average before and after is printed: figures taken beside other jobs are slower.
 
 ``--tree DIR`` measures the drillgym of another checkout with this venv (``PYTHONPATH=DIR``), e.g. the
-commit before issue 58: ``mkdir /tmp/before && git archive 8c4d60e | tar -x -C /tmp/before``, then
+commit before the imports on demand: ``mkdir /tmp/before && git archive 8c4d60e | tar -x -C /tmp/before``, then
 ``--tree /tmp/before``.
 """
 

@@ -1,4 +1,4 @@
-"""The command line answers without loading the numerics (issue 58): behaviour, not timing.
+"""The command line answers without loading the numerics: behaviour, not timing.
 
 ``drillgym --help``, the ``--help`` of every command and subcommand, and the refusal of a bad option
 run in a fresh interpreter and must not import numba, scipy, torch, Gymnasium (nor the other heavy
