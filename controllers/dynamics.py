@@ -1,0 +1,405 @@
+"""The composition as a controller's model: its compiled right-hand side, linearised, read and inverted.
+
+A model-based controller predicts with the model it is given, every effect included, through the
+composition's compiled kernels (:mod:`drillgym.effects`): :class:`ModelDynamics` evaluates the torsional
+``state_derivative`` of the composition (every Force, Friction on either disc, the Input chain with or
+without states; the exact stick logic with a disc at rest below ``eps``) at an estimator's state
+
+    z = (theta_u, omega_u, alpha, omega_l, d, [du], effect states ...)      (rad, rad/s, rad, rad/s, -, N m, ...)
+
+where ``d`` is the brake law's relative level error (``scale``: the brake's Ts, Tc, bb times 1 + d) or a
+torque added to it (``offset``, N m) and ``du`` a torque on the upper disc (N m), both estimated, not
+modelled.  Its Jacobian is taken numerically around the operating point (central differences with the
+friction modes held), so any library effect, user file or discovered candidate reaches the controller
+the same way.  The Measurement effects on the motor and lower encoders give the readings and their
+Jacobian (:meth:`ModelDynamics.readings`); the static part of the Input chain (a dead zone, an offset:
+the voltage at the motor for a command held long enough for the lags to settle) is inverted by bisection
+where it is monotone (:meth:`ModelDynamics.command`), so a controller may ask for a motor voltage and send
+the command that gives it.  Delay effects are the controllers' line of past commands
+(:func:`controllers.model.delayed_discretisation`); their length is the composition's ``hk_delay``.
+
+Time-dependent effects are evaluated at t = 0 (a controller's run has no origin in the recording).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from drillgym import Configuration
+from drillgym.effects import Composition
+from drillgym.effects.base import Input
+from drillgym.params import IDX
+
+__all__ = ["ModelDynamics", "I_TU", "I_WU", "I_AL", "I_WL", "I_D"]
+
+I_TU, I_WU, I_AL, I_WL, I_D = range(5)
+_CFG = int(Configuration.TORSIONAL)
+_COMPILED: dict[Composition, Any] = {}
+
+
+@dataclass(frozen=True)
+class _Kernels:
+    rhs: Any
+    jac: Any
+    volt: Any
+    inverse: Any
+
+
+def _kernels(comp: Composition) -> _Kernels:
+    """Batched calls of the composition's compiled model, compiled once per composition and process."""
+    if comp in _COMPILED:
+        return _COMPILED[comp]
+    from numba import njit
+
+    state_derivative = comp.kernels.model.state_derivative
+    resolve_modes = comp.kernels.model.resolve_modes
+    rhs_hook = comp.kernels.hooks.hk_rhs
+    ny = comp.n_state
+    ne = ny - 8
+    lag_cols = np.array([c - 8 for c in comp.lag_state_columns], dtype=np.int64)
+    lag_tau = np.array(
+        [comp.param_index(tau) for e in comp.effects for tau in (getattr(e, "lag", None) or {}).values()],
+        dtype=np.int64,
+    )
+    iTs, iTc, ibb, iJu, iJl = IDX.Ts, IDX.Tc, IDX.bb, IDX.Ju, IDX.Jl
+    cfg = _CFG
+
+    @njit(cache=False)
+    def _eval(z, v, p, e0, idu, scale, eps, freeze, mode_in, out, y, pp, dy, fric, mode):  # pragma: no cover
+        for i in range(ny):
+            y[i] = 0.0
+        y[0] = z[0]
+        y[1] = z[0] + z[2]
+        y[2] = z[1]
+        y[3] = z[3]
+        for j in range(ne):
+            y[8 + j] = z[e0 + j]
+        for i in range(p.size):
+            pp[i] = p[i]
+        if scale:
+            f = 1.0 + z[4]
+            pp[iTs] *= f
+            pp[iTc] *= f
+            pp[ibb] *= f
+        if freeze:
+            mode[0] = mode_in[0]
+            mode[1] = mode_in[1]
+        else:
+            mode[0] = 0 if abs(z[1]) <= eps else (1 if z[1] > 0 else -1)
+            mode[1] = 0 if abs(z[3]) <= eps else (1 if z[3] > 0 else -1)
+        if mode[0] == 0:
+            y[2] = 0.0
+        if mode[1] == 0:
+            y[3] = 0.0
+        if not freeze and (mode[0] == 0 or mode[1] == 0):
+            resolve_modes(0.0, y, mode, v, pp, cfg, dy, fric)
+        else:
+            state_derivative(0.0, y, mode, v, pp, cfg, 0.0, dy, fric)
+        for i in range(out.size):
+            out[i] = 0.0
+        out[0] = z[1]
+        out[1] = dy[2]
+        out[2] = z[3] - z[1]
+        out[3] = dy[3]
+        if not scale:
+            out[3] -= z[4] / pp[iJl]
+        if idu >= 0:
+            out[1] += z[idu] / pp[iJu]
+        for j in range(ne):
+            out[e0 + j] = dy[8 + j]
+
+    @njit(cache=False)
+    def rhs(Z, V, P, e0, idu, scale, eps, WU, WL, force, OUT, VOLT):  # pragma: no cover
+        """dz/dt of every row of Z and the voltage at the motor (V); with ``force`` the discs slip at speeds
+        WU, WL (modes held)."""
+        n, nz = Z.shape
+        y, pp, dy, d2 = np.zeros(ny), np.zeros(P.shape[1]), np.zeros(ny), np.zeros(ny)
+        fric, mode, mode_in = np.zeros(2), np.zeros(2, np.int64), np.zeros(2, np.int64)
+        z = np.zeros(nz)
+        for k in range(n):
+            for i in range(nz):
+                z[i] = Z[k, i]
+            if force:
+                z[1] = WU[k]
+                z[3] = WL[k]
+                mode_in[0] = 1 if WU[k] >= 0 else -1
+                mode_in[1] = 1 if WL[k] >= 0 else -1
+            _eval(z, V[k], P[k], e0, idu, scale, eps, force, mode_in, OUT[k], y, pp, dy, fric, mode)
+            VOLT[k] = rhs_hook(0.0, V[k], y, pp, cfg, d2)[0]
+
+    @njit(cache=False)
+    def jac(Z, V, P, e0, idu, scale, eps, H, J, B):  # pragma: no cover
+        """Central-difference Jacobians J = df/dz (n, nz, nz) and B = df/dv (n, nz), the modes held."""
+        n, nz = Z.shape
+        y, pp, dy = np.zeros(ny), np.zeros(P.shape[1]), np.zeros(ny)
+        fric, mode, mode0 = np.zeros(2), np.zeros(2, np.int64), np.zeros(2, np.int64)
+        z = np.zeros(nz)
+        fp, fm = np.zeros(nz), np.zeros(nz)
+        for k in range(n):
+            for i in range(nz):
+                z[i] = Z[k, i]
+            _eval(z, V[k], P[k], e0, idu, scale, eps, False, mode0, fp, y, pp, dy, fric, mode0)
+            for c in range(nz + 1):
+                h = H[c]
+                if c < nz:
+                    z[c] = Z[k, c] + h
+                    _eval(z, V[k], P[k], e0, idu, scale, eps, True, mode0, fp, y, pp, dy, fric, mode)
+                    z[c] = Z[k, c] - h
+                    _eval(z, V[k], P[k], e0, idu, scale, eps, True, mode0, fm, y, pp, dy, fric, mode)
+                    z[c] = Z[k, c]
+                    for i in range(nz):
+                        J[k, i, c] = (fp[i] - fm[i]) / (2.0 * h)
+                else:
+                    _eval(z, V[k] + h, P[k], e0, idu, scale, eps, True, mode0, fp, y, pp, dy, fric, mode)
+                    _eval(z, V[k] - h, P[k], e0, idu, scale, eps, True, mode0, fm, y, pp, dy, fric, mode)
+                    for i in range(nz):
+                        B[k, i] = (fp[i] - fm[i]) / (2.0 * h)
+
+    @njit(cache=False)
+    def _settled(z, u, p, e0, y, dy):  # pragma: no cover
+        """The voltage at the motor (V) for the command u held until the lags settled, at state z."""
+        for i in range(ny):
+            y[i] = 0.0
+        y[0] = z[0]
+        y[1] = z[0] + z[2]
+        y[2] = z[1]
+        y[3] = z[3]
+        for j in range(ne):
+            y[8 + j] = z[e0 + j]
+        for j in range(lag_cols.size):
+            y[8 + lag_cols[j]] = u
+        for _ in range(lag_cols.size + 1):  # each lag at the voltage entering it (the chain in order)
+            rhs_hook(0.0, u, y, p, cfg, dy)
+            for j in range(lag_cols.size):
+                y[8 + lag_cols[j]] += p[lag_tau[j]] * dy[8 + lag_cols[j]]
+        return rhs_hook(0.0, u, y, p, cfg, dy)[0]
+
+    @njit(cache=False)
+    def volt(Z, U, P, e0, OUT):  # pragma: no cover
+        n = Z.shape[0]
+        y, dy = np.zeros(ny), np.zeros(ny)
+        for k in range(n):
+            OUT[k] = _settled(Z[k], U[k], P[k], e0, y, dy)
+
+    @njit(cache=False)
+    def _edge(z, v, p, e0, lo, hi, upper, y, dy):  # pragma: no cover
+        """The lowest command with a settled voltage >= v (upper False) or the highest with one <= v."""
+        a, b = lo, hi
+        for _ in range(60):
+            c = 0.5 * (a + b)
+            g = _settled(z, c, p, e0, y, dy)
+            if (g < v) if not upper else (g <= v):
+                a = c
+            else:
+                b = c
+        return 0.5 * (a + b)
+
+    @njit(cache=False)
+    def inverse(Z, VM, P, e0, lo, hi, OUT):  # pragma: no cover
+        """Commands (V) within [lo, hi] whose settled motor voltage is VM (a monotone chain: bisection; the middle
+        of a flat stretch, e.g. 0 for v = 0 in a dead zone)."""
+        n = Z.shape[0]
+        y, dy = np.zeros(ny), np.zeros(ny)
+        for k in range(n):
+            a = _edge(Z[k], VM[k], P[k], e0, lo, hi, False, y, dy)
+            b = _edge(Z[k], VM[k], P[k], e0, lo, hi, True, y, dy)
+            OUT[k] = 0.5 * (a + b)
+
+    _COMPILED[comp] = _Kernels(rhs, jac, volt, inverse)
+    return _COMPILED[comp]
+
+
+@dataclass(frozen=True)
+class ModelDynamics:
+    """A composition with its parameter vector as the right-hand side of an estimator's state (module doc).
+
+    Parameters
+    ----------
+    composition : Composition
+        The model's effects.
+    vector : ndarray
+        Its parameter vector (base, then effect parameters).
+    scale : bool, optional
+        ``d`` (row :data:`I_D`) is the brake law's relative level (True) or a torque added to it (N m, False).
+    has_du : bool, optional
+        Row 5 is a torque on the upper disc (N m).
+    eps : float, optional
+        A disc slower than this (rad/s) is at rest (the stick logic decides whether it stays there).
+
+    Attributes
+    ----------
+    e0 : int
+        Row of the first effect state (after ``d`` and ``du``).
+    nz : int
+        Number of rows of z.
+    """
+
+    composition: Composition
+    vector: np.ndarray
+    scale: bool = True
+    has_du: bool = False
+    eps: float = 1e-3
+    e0: int = field(init=False)
+    nz: int = field(init=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "vector", np.ascontiguousarray(self.vector, dtype=np.float64))
+        object.__setattr__(self, "e0", 6 if self.has_du else 5)
+        object.__setattr__(self, "nz", self.e0 + self.composition.n_states)
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """Names of the rows of z."""
+        return (
+            ("theta_u", "omega_u", "alpha", "omega_l", "d")
+            + (("du",) if self.has_du else ())
+            + tuple(self.composition.state_names)
+        )
+
+    @property
+    def lag_rows(self) -> dict[int, float]:
+        """Rows of z of the declared first-order lag states -> their time constants (s)."""
+        comp, out = self.composition, {}
+        for e in comp.effects:
+            for st, tau in (getattr(e, "lag", None) or {}).items():
+                out[self.e0 + comp.state_index(st)] = float(self.vector[comp.param_index(tau)])
+        return out
+
+    @property
+    def delay(self) -> float:
+        """Transport delay of the command (s): the composition's compiled ``hk_delay``; 0 without one."""
+        if not self.composition.has_delay:
+            return 0.0
+        return float(self.composition.kernels.hooks.hk_delay(self.vector))
+
+    @property
+    def has_input_chain(self) -> bool:
+        """True when an Input effect transforms the command."""
+        return self.composition.has_kind(Input)
+
+    def _P(self, n: int) -> np.ndarray:
+        return np.broadcast_to(self.vector, (n, self.vector.size))
+
+    def _Z(self, z: np.ndarray) -> np.ndarray:
+        z = np.asarray(z, dtype=float)
+        return np.ascontiguousarray(z[: self.nz].T if z.ndim == 2 else z[: self.nz][None, :])
+
+    def f(self, z: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """dz/dt (rows of z per second, (nz, n)) at states z (>= nz rows, n columns) under commands v (V, (n,))
+        entering the Input chain (after any delay)."""
+        Z = self._Z(z)
+        n = Z.shape[0]
+        out = np.zeros((n, self.nz))
+        k = _kernels(self.composition)
+        zero = np.zeros(n)
+        V = np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), (n,)))
+        k.rhs(Z, V, self._P(n), self.e0, 5 if self.has_du else -1, self.scale, self.eps, zero, zero, False, out, zero)
+        return out.T
+
+    def jacobian(self, z: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(df/dz (n, nz, nz), df/dv (n, nz)) at states z and commands v, by central differences with the
+        friction modes of (z, v) held."""
+        Z = self._Z(z)
+        n = Z.shape[0]
+        J, B = np.zeros((n, self.nz, self.nz)), np.zeros((n, self.nz))
+        h = np.full(self.nz + 1, 1e-5)
+        h[I_AL], h[I_TU] = 1e-6, 1e-6
+        V = np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), (n,)))
+        _kernels(self.composition).jac(
+            Z, V, self._P(n), self.e0, 5 if self.has_du else -1, self.scale, self.eps, h, J, B
+        )
+        return J, B
+
+    def accelerations(self, z: np.ndarray, omega_u: np.ndarray, omega_l: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(dz/dt (nz, n), the voltage at the motor (V, (n,))) at z with the discs slipping at omega_u, omega_l
+        (rad/s, (n,)), the command 0 entering the Input chain."""
+        Z = self._Z(z)
+        n = Z.shape[0]
+        out, volt = np.zeros((n, self.nz)), np.zeros(n)
+        wu = np.ascontiguousarray(np.broadcast_to(np.asarray(omega_u, dtype=float), (n,)))
+        wl = np.ascontiguousarray(np.broadcast_to(np.asarray(omega_l, dtype=float), (n,)))
+        _kernels(self.composition).rhs(
+            Z, np.zeros(n), self._P(n), self.e0, 5 if self.has_du else -1, self.scale, self.eps, wu, wl, True, out, volt
+        )
+        return out.T, volt
+
+    def lower_torque(self, z: np.ndarray, omega_l: np.ndarray, omega_u: np.ndarray | None = None) -> np.ndarray:
+        """Torque (N m, (n,)) against the lower disc besides the string's kθ α while it slips at ``omega_l``
+        (rad/s): the brake law with its effects, the lower-disc forces and the string's extra torque (at
+        ``omega_u``, default the estimate's), with d = 0 (the brake law's own level)."""
+        z0 = np.array(z[: self.nz], dtype=float, copy=True)
+        z0[I_D] = 0.0
+        if self.has_du:
+            z0[5] = 0.0
+        wu = z0[I_WU] if omega_u is None else omega_u
+        a = self.accelerations(z0, wu, omega_l)[0][I_WL]
+        p = self.vector
+        return -p[IDX.ktheta] * z0[I_AL] - p[IDX.Jl] * a
+
+    def upper_torque(self, z: np.ndarray, omega_u: np.ndarray, omega_l: np.ndarray | None = None) -> np.ndarray:
+        """Torque (N m, (n,)) against the upper disc besides the motor and the string's kθ α while it slips at
+        ``omega_u`` (rad/s): its friction with the effects, the upper-disc forces and the string's extra torque."""
+        z0 = np.array(z[: self.nz], dtype=float, copy=True)
+        z0[I_D] = 0.0
+        if self.has_du:
+            z0[5] = 0.0
+        wl = z0[I_WL] if omega_l is None else omega_l
+        dz, vm = self.accelerations(z0, omega_u, wl)
+        p = self.vector
+        return p[IDX.km] * vm + p[IDX.ktheta] * z0[I_AL] - p[IDX.Ju] * dz[I_WU]
+
+    def motor_voltage(self, z: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Voltage at the motor (V, (n,)) for commands u (V) held until the lags settled: the static input map."""
+        Z = self._Z(z)
+        n = Z.shape[0]
+        U = np.ascontiguousarray(np.broadcast_to(np.asarray(u, dtype=float), (n,)))
+        out = np.zeros(n)
+        _kernels(self.composition).volt(Z, U, self._P(n), self.e0, out)
+        return out
+
+    def invertible(self, u_max: float = 5.0) -> bool:
+        """True when the static input map is non-decreasing and changes the command somewhere in ±2 u_max (V): its
+        inverse (:meth:`command`) then compensates it."""
+        if not self.has_input_chain:
+            return False
+        u = np.linspace(-2 * u_max, 2 * u_max, 801)
+        z = np.zeros((self.nz, u.size))
+        g = self.motor_voltage(z, u)
+        return bool(np.all(np.diff(g) >= -1e-9) and np.max(np.abs(g - u)) > 1e-9 and np.ptp(g) > 0)
+
+    def command(self, z: np.ndarray, v_motor: np.ndarray, u_max: float) -> np.ndarray:
+        """Commands (V, (n,), within ±2 u_max) whose settled voltage at the motor is ``v_motor`` (V): the static
+        input map inverted by bisection (a dead zone: v ± u0; an offset: v - offset)."""
+        Z = self._Z(z)
+        n = Z.shape[0]
+        out = np.zeros(n)
+        vm = np.ascontiguousarray(np.broadcast_to(np.asarray(v_motor, dtype=float), (n,)))
+        _kernels(self.composition).inverse(Z, vm, self._P(n), self.e0, -2.0 * u_max, 2.0 * u_max, out)
+        return out
+
+    def readings(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """What the motor and lower encoders read (rad, (2, n)) at states z: the Measurement effects applied."""
+        z = np.asarray(z, dtype=float)
+        tu, al, wu, wl = z[I_TU], z[I_AL], z[I_WU], z[I_WL]
+        zero = np.zeros_like(tu)
+        ru, rl, _, _ = self.composition.measure(tu, tu + al, zero, zero, self.vector, wu, wl)
+        return ru, rl
+
+    def reading_jacobian(self, z: np.ndarray, h: float = 1e-6) -> np.ndarray:
+        """d(readings)/dz (n, 2, nz) at states z (central differences in theta_u, omega_u, alpha, omega_l)."""
+        z = np.asarray(z, dtype=float)
+        n = z.shape[1]
+        H = np.zeros((n, 2, self.nz))
+        if not self.composition.has_measurement:
+            H[:, 0, I_TU] = 1.0
+            H[:, 1, I_TU] = H[:, 1, I_AL] = 1.0
+            return H
+        for c in (I_TU, I_WU, I_AL, I_WL):
+            zp, zm = z.copy(), z.copy()
+            zp[c] += h
+            zm[c] -= h
+            H[:, :, c] = ((np.stack(self.readings(zp)) - np.stack(self.readings(zm))) / (2 * h)).T
+        return H
