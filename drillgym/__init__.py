@@ -16,12 +16,11 @@ import importlib
 from typing import TYPE_CHECKING
 
 from . import _import_hooks
-from ._kernel_cache import invalidate_stale_kernels
 
-# 512-bit vectors on AVX-512 hosts (opt out: DRILLGYM_SIMD=256), set when numba loads (before, it would
-# load LLVM: 110 MB); the Gymnasium ids registered when gymnasium loads (or now, if it is loaded)
+# When numba loads (or now, if it is loaded): 512-bit vectors on AVX-512 hosts (opt out: DRILLGYM_SIMD=256;
+# before numba, as it reads them, not here: it would load LLVM, 110 MB) and the stale kernels dropped from
+# numba's cache; the Gymnasium ids registered when gymnasium loads (or now)
 _import_hooks.install()
-invalidate_stale_kernels()  # before any compiled kernel is loaded from numba's cache
 
 from .configurations import N_STATE, STATE_NAMES, Configuration, parse_configuration
 from .errors import (

@@ -5,7 +5,9 @@ an option, and what used to run there loaded the LLVM library (110 MB) and the e
 (Gymnasium, numba, scipy: seconds). Two things are tied to the import of another package instead:
 
 * :func:`drillgym._simd.prefer_full_vector_width` runs just *before* ``numba`` loads (it sets
-  ``NUMBA_CPU_FEATURES``, which numba reads then);
+  ``NUMBA_CPU_FEATURES``, which numba reads then), and so does
+  :func:`drillgym._kernel_cache.invalidate_stale_kernels` (before any kernel is loaded from numba's cache;
+  it hashes every source file, which the command line's help need not do);
 * :func:`register_envs` runs just *after* ``gymnasium`` loads: the ids ``drillgym/Torsional-v0``, ...
   are registered by :mod:`drillgym.envs`, so ``import drillgym; import gymnasium;
   gymnasium.make("drillgym/Torsional-v0")`` works in either order. (Gymnasium >= 1.0 no longer loads
@@ -25,7 +27,7 @@ import warnings
 from collections.abc import Callable
 from importlib.abc import MetaPathFinder
 
-__all__ = ["on_import", "register_envs", "install"]
+__all__ = ["on_import", "before_numba", "register_envs", "install"]
 
 
 def register_envs() -> None:
@@ -85,10 +87,17 @@ def on_import(name: str, before: Callable[[], object] | None = None, after: Call
     sys.meta_path.insert(0, _OnImport(name, before, after))
 
 
-def install() -> None:
-    """The hooks of ``import drillgym``: the SIMD width before numba, the Gymnasium ids after gymnasium."""
+def before_numba() -> None:
+    """The SIMD width numba compiles for, and the kernel cache made consistent with the sources."""
+    from ._kernel_cache import invalidate_stale_kernels
     from ._simd import prefer_full_vector_width
 
+    prefer_full_vector_width()
+    invalidate_stale_kernels()
+
+
+def install() -> None:
+    """The hooks of ``import drillgym``: :func:`before_numba`, and the Gymnasium ids after gymnasium."""
     if not any(isinstance(f, _OnImport) for f in sys.meta_path):
-        on_import("numba", before=prefer_full_vector_width)
+        on_import("numba", before=before_numba)
         on_import("gymnasium", after=register_envs)
