@@ -125,6 +125,10 @@ def real_numbers(name: str, value: Any, unit: str) -> np.ndarray:
     return array
 
 
+#: the most steps one run may take (1e9 steps of the rig's states alone fill 80 GB)
+MAX_STEPS = 1e9
+
+
 def step_grid(duration: Any, dt: Any) -> tuple[float, float]:
     """A run's ``duration`` (s) and step ``dt`` (s), refused unless they are numbers in range.
 
@@ -140,6 +144,11 @@ def step_grid(duration: Any, dt: Any) -> tuple[float, float]:
         raise InputError(f"duration must be a positive number of seconds, got {duration:g}")
     if not (np.isfinite(dt) and 0 < dt <= 0.1):
         raise InputError(f"dt must be in (0, 0.1] s, got {dt:g}")
+    if not duration / dt <= MAX_STEPS:
+        raise InputError(
+            f"duration {duration:g} s at dt {dt:g} s is {duration / dt:.3g} steps, more than a run can hold "
+            f"({MAX_STEPS:.0e}): shorten the duration or raise dt"
+        )
     return duration, dt
 
 

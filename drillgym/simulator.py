@@ -80,7 +80,7 @@ _input_matrix = input_matrix  # the name the integrator tests import
 
 def _batch_size(n_batch, x0, alpha0, params, u, n_steps: int) -> int:
     """The number of runs B that the arguments of :func:`simulate_batch` ask for (at least 1)."""
-    sizes = [n_batch or 0]
+    sizes = [0 if n_batch is None else whole_number("n_batch", n_batch, 1)]
     if x0 is not None and np.ndim(x0) == 2:
         sizes.append(np.shape(x0)[0])
     if np.ndim(alpha0) == 1:

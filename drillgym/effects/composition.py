@@ -527,6 +527,10 @@ def compose(effects: Any = None, values: Mapping[str, float] | None = None) -> t
     >>> from drillgym.effects import compose
     >>> comp, values = compose(["motor_lag"], {"tau_m": 0.02})
     """
+    if values is not None and not isinstance(values, Mapping):
+        raise InputTypeError(
+            f"effect_params must be a mapping of parameter names to values, got {type(values).__name__}"
+        )
     if isinstance(effects, Composition):
         return effects, effects.check_values(values or {})
     classes: list[type[Effect]] = []
