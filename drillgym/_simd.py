@@ -13,8 +13,10 @@ sets ``NUMBA_CPU_FEATURES`` to the host's own features plus ``-prefer-256-bit`` 
 It only changes how wide LLVM's vectors are, not which instructions the host can run.
 numba reads the setting when its CPU target is first used, so it applies to the whole
 process when ``drillgym`` is imported before other numba code is compiled (otherwise it
-has no effect).  numba's cache keys kernels on the CPU features, so the two widths never
-share a cached kernel.
+has no effect): ``import drillgym`` applies it just before numba loads, or at once if numba
+is loaded already (:mod:`drillgym._import_hooks`; reading the host's features loads LLVM,
+which the command line's help need not do).  numba's cache keys kernels on the CPU
+features, so the two widths never share a cached kernel.
 """
 
 from __future__ import annotations
