@@ -20,8 +20,7 @@ import numpy as np
 import controllers
 from controllers.evaluation.metrics import run_metrics
 from controllers.evaluation.runner import run_closed_loop
-from controllers.model import ControllerModel
-from drillgym import RigParams
+from drillgym import Model, RigParams
 from drillgym.effects import compose
 
 
@@ -36,7 +35,7 @@ def main() -> None:
     a = ap.parse_args()
     values = {k: float(v) for k, v in (item.split("=") for item in a.values.split(",") if item)}
     comp, vals = compose(a.effects.split(","), values)
-    model = ControllerModel(RigParams(), comp, vals)
+    model = Model.from_composition(RigParams(), comp, vals)
     tg = np.array([float(v) for v in a.targets.split(",")])
     print(f"plant: {comp.label} {vals}; {a.controller}, targets {tg.tolist()} rad/s, {a.duration:g} s runs")
     for label, m in (("built on the model with its effects", model), ("built on the base model", None)):

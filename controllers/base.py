@@ -68,10 +68,10 @@ class Controller(ABC):
         The model the controller is designed on (default: the identified set; a model with effects is taken
         as ``model``).  The plant may differ
         (parameter-mismatch scenarios); the controller never sees the truth.
-    model : ControllerModel, ModelFile or path, optional
-        A model with effects (:mod:`controllers.model`, a model file), instead of ``params``.  A controller
+    model : drillgym.Model or path, optional
+        A model with effects (a :class:`drillgym.Model` or its file), instead of ``params``.  A controller
         whose :attr:`uses_effects` is False refuses a model with effects, naming the first; a model-based one
-        refuses the effects its model has no place for.
+        refuses, naming it and why, an effect its model cannot represent (:func:`controllers.model.check_model`).
     dt : float, optional
         Control period (s); default :attr:`default_dt` of the class (10 ms; the observer samples the encoder at
         500 Hz).
@@ -107,16 +107,18 @@ class Controller(ABC):
         from .model import model_of
 
         if params is not None and not isinstance(params, RigParams) and model is None:
-            model, params = params, None  # a model (ControllerModel, ModelFile) given where params are expected
+            model, params = params, None  # a model (drillgym.Model, ModelFile) given where params are expected
         self.effects = model_of(model, params)
-        """The model the controller is built on (:class:`controllers.model.ControllerModel`)."""
+        """The model the controller is built on (a :class:`drillgym.Model`)."""
         if self.effects.composition.effects:
             if not self.uses_effects:
                 raise InputError(
                     f"controller {self.name!r} is built on base parameters only and cannot use the model's effect "
                     f"{self.effects.composition.names[0]!r}; give it the base parameters (a model without effects)"
                 )
-            self.effects.check_usable(f"controller {self.name!r}", self.uses)
+            from .model import check_model
+
+            check_model(self.effects, f"controller {self.name!r}", self.uses)
         self.params = self.effects.params
         self.dt = float(dt)
         self.u_max = float(u_max)

@@ -101,6 +101,9 @@ class FlatnessLaw:
         ``brake(w)`` -> brake torque (N m) at lower speeds w (rad/s, (n,)) of the model with its effects (e.g. at
         the estimated lower angle: :class:`controllers.observer.ObserverController`); default the base law of
         ``params``.  Its slope and curvature are taken in w alone.
+    upper : callable, optional
+        ``upper(w)`` -> torque (N m) against the upper disc besides the motor and kθ α at upper speeds w (rad/s,
+        (n,)) of the model with its effects; default the base law's upper friction.
     """
 
     def __init__(
@@ -121,6 +124,7 @@ class FlatnessLaw:
         disturbance: str = "offset",
         integral_high: float = 0.0,
         brake=None,
+        upper=None,
     ) -> None:
         if not (np.isfinite(tau_ref) and tau_ref > 0):
             raise InputError(f"tau_ref must be a positive time (s), got {tau_ref!r}")
@@ -137,6 +141,7 @@ class FlatnessLaw:
             raise InputError(f"disturbance must be 'offset' or 'scale', got {disturbance!r}")
         self.scale = disturbance == "scale"
         self.brake = brake
+        self.upper = upper
         if low_speed > approach:
             raise InputError(f"approach ({approach} rad/s) must not be below low_speed ({low_speed} rad/s)")
         self.p, self.dt, self.tau = params, float(dt), float(tau_ref)
@@ -205,7 +210,7 @@ class FlatnessLaw:
 
     def upper_friction(self, w: np.ndarray) -> np.ndarray:
         """Upper friction torque Tfu(w) (N m) of the design model at speeds w != 0 (rad/s, (n,))."""
-        return upper_friction(w, self.p)
+        return upper_friction(w, self.p) if self.upper is None else self.upper(w)
 
     def friction(self, w: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Brake torque (N m) corrected by d, its slope and curvature at speed w (forward rotation)."""

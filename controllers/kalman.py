@@ -1,60 +1,59 @@
-"""Kalman filter that sees only the motor angle: torsional model + unknown lower-friction deviation.
+"""Kalman filter that sees only the motor angle: the model's composition + an unknown brake-level deviation.
 
-Model (torsional equations of docs/model.md, absolute coordinates, slipping upper disc)::
+Model (torsional, absolute coordinates; the estimator's state, :data:`STATES`)::
 
-    d theta_u / dt = omega_u
-    Ju d omega_u / dt = km u - Tcu+ - du omega_u + k_theta alpha     (du = bu + dbu, Tcu+ = Tcu + dTcu)
-    d alpha / dt   = omega_l - omega_u
-    Jl d omega_l / dt = -k_theta alpha - Tfl
-    d d / dt       = w_d                                            (random walk)
+    z = (theta_u, omega_u, alpha, omega_l, d, [du], effect states ..., [line of past commands])
 
-with the brake torque ``Tfl`` = T(omega_l) + d (``disturbance='offset'``, d in N m) or
-(1 + d) T(omega_l) (``'scale'``, d dimensionless: a brake whose level is off, as with the oil's
-temperature) while the disc slips, T the identified Stribeck law (a known input), and the torque
-that holds the disc while it sticks (within the stick set).  ``d`` collects what the law misses
-(level errors, lateral losses in the coupled configuration); it is estimated, not modelled.  With
-``friction_known=False`` the law is not used and ``d`` is the whole brake torque.  The linear
-part (``A``, ``B``) is taken from the core's linearisation (:func:`drillgym.equilibria.linearise`,
-'angles' variant) with the brake's slope removed (the brake torque is an input), and discretised
-with zero-order hold (python-control ``c2d``).  The upper disc's Coulomb level enters as a known
-input; while the model says the upper disc rests, the known input is the torque that keeps it at
-rest (stick).
+    dz/dt = f(z, v)       the composition's compiled right-hand side (:class:`controllers.dynamics.ModelDynamics`)
+    d d / dt = w_d        (random walk)
 
-Measurement: the quantized motor-side angle theta_u only; its noise variance
-is q^2/12 (q = 2 pi / counts per rev) plus any extra white noise.
+with the brake torque T(omega_l) the model's law with its Friction effects, times 1 + d (``disturbance='scale'``,
+d dimensionless: a brake whose level is off, as with the oil's temperature) or plus d (``'offset'``, N m),
+the exact stick logic of the kernels while a disc rests (speed below 1 mrad/s), every Force, Friction on
+either disc and the Input chain (a lag state, a dead zone, an offset ...) of the model it is built on, and
+``du`` (``sigma_du > 0``) a torque on the upper disc the model misses.  ``v`` is the command after the
+model's Delay effects: a line of past commands (exact zero-order hold of the fractional delay,
+:func:`controllers.model.delayed_discretisation`).
 
-A model with effects (``model=``, :class:`controllers.model.ControllerModel`) extends it: a motor lag
-adds the state ``u_m`` (V; the motor torque is km u_m), a delay the line of past commands (V; exact
-zero-order hold of the fractional delay, :func:`controllers.model.delayed_discretisation`), after
-``d`` (and ``du``); Friction effects on the lower disc replace the brake law, its stick set and the
-slope of the covariance propagation by the composition's compiled law at the estimated lower angle
-theta_u + alpha.
+Discretisation (period ``dt``): ``A`` is the Jacobian of f at the slip equilibrium at 3 rad/s with the lower
+disc's speed and level columns left out (the brake's slope changes sign with the speed: it is evaluated at the
+estimate each period instead); the mean is propagated by the exponential Euler step
 
-Three estimators share the model: :class:`KalmanObserver` (filterpy
-``KalmanFilter``, time-varying covariance, batched: the covariance does not
-depend on the data, so one filter carries the states of n trajectories as the
-columns of ``x``), :class:`ExtendedKalmanObserver` (filterpy's equations with
-one covariance per trajectory, propagated with the brake's local slope at the
-estimate: the filter knows where the lower disc is locally unstable and trusts
-the measurement more there) and :func:`steady_state_gain` (python-control
-``dlqe``) for the LQG design.
+    z+ = z + Gamma f(z, v),      Gamma = int_0^dt e^{A s} ds
+
+(exact for a linear f, stable for a stiff lag), split at the fractional delay between the older and the newer
+command; the covariance with ``e^{A dt} + Gamma (J(z) - A)``, J the Jacobian of f at the estimate (numerical,
+friction modes held).  For the base model this is the linearisation of :func:`drillgym.equilibria.linearise`
+with the friction torques as known inputs.
+
+Measurement: what the motor encoder reads, the model's Measurement effects on theta_u applied (an encoder
+scale error, a backlash); its Jacobian is the filter's output map.  Its noise variance is q^2/12 (q = 2 pi /
+counts per rev) plus any extra white noise.
+
+Three estimators share the model: :class:`KalmanObserver` (filterpy ``KalmanFilter``, time-varying covariance,
+batched: the covariance does not depend on the data, so one filter carries the states of n trajectories as
+the columns of ``x``), :class:`ExtendedKalmanObserver` (filterpy's equations with one covariance per
+trajectory, propagated with the Jacobian at the estimate: the filter knows where the lower disc is locally
+unstable and trusts the measurement more there) and :func:`steady_state_gain` (python-control ``dlqe``) for
+the LQG design.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import control
 import numpy as np
 from filterpy.kalman import KalmanFilter
+from scipy.linalg import expm
 
-from drillgym import Configuration, RigParams
-from drillgym.equilibria import linearise, lower_damping, slip_equilibrium
+from drillgym import RigParams
 from drillgym.errors import InputError
-from drillgym.friction import lower_friction
 from drillgym.measurement import DEFAULT_COUNTS_PER_REV
 
-from .model import ControllerModel, delayed_discretisation
+from .dynamics import ModelDynamics
+from .model import check_model, delayed_discretisation, model_of
 
 __all__ = [
     "STATES",
@@ -64,22 +63,25 @@ __all__ = [
     "KalmanObserver",
     "ExtendedKalmanObserver",
     "steady_state_gain",
+    "compensate",
 ]
 
 STATES = ("theta_u", "omega_u", "alpha", "omega_l", "d")
-"""State order of the estimator: rad, rad/s, rad, rad/s, N m (or relative level); a model built with
-``sigma_du > 0`` has a sixth state ``du`` (N m): a torque on the upper disc the model misses."""
+"""State order of the estimator: rad, rad/s, rad, rad/s, relative level (or N m); a model built with
+``sigma_du > 0`` has a sixth state ``du`` (N m): a torque on the upper disc the model misses; then the model's
+effect states, then the line of past commands."""
 I_TU, I_WU, I_AL, I_WL, I_D = range(5)
 I_DU = 5
+_W0 = 3.0  # rad/s, the slip equilibrium of the fixed linear part
 
 
 @dataclass(frozen=True)
 class DisturbanceModel:
-    """Discrete model of the estimator (period ``dt``): x+ = Ad x + Bd [u, Tfu_c], z = H x + v.
+    """Discrete model of the estimator (period ``dt``; module doc).
 
-    ``Bd`` has two columns: the voltage u (V) and the upper friction offset
-    (N m, the part of Tfu not in ``Ad``).  ``Qd`` (process) and ``R``
-    (measurement) are covariances; ``Ac``, ``Bc`` the continuous model.
+    ``Ac``, ``Bc``: the fixed linear part (nc continuous states, the command); ``Ad``, ``Bd``: its exact
+    discretisation with the delay line (dim = nc + n_line states); ``H`` the output map at the reference;
+    ``Qd`` (process, dim x dim) and ``R`` (measurement) covariances.
     """
 
     params: RigParams
@@ -91,40 +93,101 @@ class DisturbanceModel:
     H: np.ndarray
     Qd: np.ndarray
     R: np.ndarray
+    dynamics: ModelDynamics
+    gamma_new: np.ndarray
+    """Gamma of the newer command (nc x nc): int_0^{dt-f} e^{A s} ds, f the fractional delay."""
+    gamma_old: np.ndarray
+    """Gamma of the older command (nc x nc): e^{A (dt-f)} int_0^f e^{A s} ds (zero without a fraction)."""
     friction_known: bool = True
     disturbance: str = "offset"
-    """What the state ``d`` is: 'offset' (N m added to the nominal brake law) or 'scale'
+    """What the state ``d`` is: 'offset' (N m added to the brake law) or 'scale'
     (relative level: the brake law times 1 + d while the disc slips)."""
-    effects: ControllerModel | None = None
-    """The model with its effects (None: the base model of ``params``)."""
+    effects: Any = None
+    """The model with its effects (a :class:`drillgym.Model`; None: the base model of ``params``)."""
     has_du: bool = False
     """Whether the state ``du`` (row :data:`I_DU`) is there."""
     lag_index: int = -1
-    """Row of the motor-lag state u_m (V); -1 without a lag."""
+    """Row of the first declared lag state (V); -1 without one."""
     line_index: int = -1
     """First row of the line of past commands u[k-1], u[k-2], ... (V); -1 without a delay."""
     delay_steps: int = 0
     """Whole control periods of the delay (the command the motor sees now is u[k - delay_steps])."""
+    reads_effects: bool = False
+    """Whether a Measurement effect changes what the motor encoder reads."""
+    compensates: bool = False
+    """Whether the model's static input map is inverted in the command (:func:`compensate`)."""
 
-    def motor_voltage(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """The voltage acting on the motor now (V, (n,)): the lag state, else the delayed command, else u."""
-        if self.lag_index >= 0:
-            return x[self.lag_index]
-        if self.line_index >= 0 and self.delay_steps > 0:
-            return x[self.line_index + self.delay_steps - 1]
-        return u
+    @property
+    def nc(self) -> int:
+        """Number of continuous states."""
+        return self.dynamics.nz
+
+    def commands(self, x: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(newer, older) commands (V, (n,)) the Input chain sees over the period starting now with command u."""
+        if self.line_index < 0:
+            return u, u
+        line = x[self.line_index :]
+        new = u if self.delay_steps == 0 else line[self.delay_steps - 1]
+        old = line[self.delay_steps] if self.delay_steps < line.shape[0] else new
+        return new, old
+
+    def predict_mean(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """The estimates one period on (dim, n) from x (dim, n) with the command u (V, (n,)) held."""
+        u = np.broadcast_to(np.asarray(u, dtype=float), (x.shape[1],))
+        nc = self.nc
+        new, old = self.commands(x, u)
+        out = x.copy()
+        out[:nc] = x[:nc] + self.gamma_new @ self.dynamics.f(x, new)
+        if np.any(self.gamma_old):
+            out[:nc] += self.gamma_old @ self.dynamics.f(x, old)
+        if self.line_index >= 0:
+            out[nc + 1 :] = x[nc:-1]
+            out[nc] = u
+        return out
+
+    def transition(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Jacobians of :meth:`predict_mean` (n, dim, dim) at x with the command u (the covariance's)."""
+        u = np.broadcast_to(np.asarray(u, dtype=float), (x.shape[1],))
+        nc = self.nc
+        new, _ = self.commands(x, u)
+        J, _ = self.dynamics.jacobian(x, new)
+        F = np.broadcast_to(self.Ad, (x.shape[1],) + self.Ad.shape).copy()
+        F[:, :nc, :nc] += (self.gamma_new + self.gamma_old) @ (J - self.Ac)
+        return F
+
+    def reading(self, x: np.ndarray) -> np.ndarray:
+        """What the motor encoder reads (rad, (n,)) at the estimates x."""
+        if not self.reads_effects:
+            return x[I_TU]
+        return self.dynamics.readings(x)[0]
+
+    def output_map(self, x: np.ndarray) -> np.ndarray:
+        """d(reading)/dx (n, dim) at the estimates x."""
+        H = np.zeros((x.shape[1], self.Ad.shape[0]))
+        if not self.reads_effects:
+            H[:, I_TU] = 1.0
+        else:
+            H[:, : self.nc] = self.dynamics.reading_jacobian(x)[:, 0]
+        return H
 
     def brake_law(self, w: np.ndarray, x: np.ndarray) -> np.ndarray:
-        """Brake torque (N m, (n,)) of the model at lower speeds w (rad/s, != 0) and the estimated lower angles."""
-        if self.effects is None or not self.effects.friction_effects:
-            return lower_friction(w, self.params)
-        return self.effects.lower_friction(w, x[I_TU] + x[I_AL])
+        """Torque (N m, (n,)) against the lower disc besides kθ α at lower speeds w (rad/s, != 0) and the estimates x:
+        the model's brake law with its effects (level 1), the lower-disc forces and the string's extra torque."""
+        return self.dynamics.lower_torque(x, np.broadcast_to(np.asarray(w, dtype=float), (x.shape[1],)))
 
-    def stick_limit(self, x: np.ndarray) -> np.ndarray | float:
-        """Largest torque (N m) the brake holds the resting disc with, at the estimated lower angles."""
-        if self.effects is None or not self.effects.friction_effects:
-            return self.params.Ts
-        return self.effects.stick_limit(x[I_TU] + x[I_AL])
+    def upper_law(self, w: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """Torque (N m, (n,)) against the upper disc besides the motor and kθ α at upper speeds w (rad/s)."""
+        return self.dynamics.upper_torque(x, np.broadcast_to(np.asarray(w, dtype=float), (x.shape[1],)))
+
+    def lower_friction(self, x: np.ndarray, eps: float = 1e-3) -> np.ndarray:
+        """Estimated torque (N m, (n,)) against the lower disc besides kθ α at the estimates x: the model's law
+        times 1 + d ('scale') or plus d ('offset') while it slips; while it rests, the torque that holds it."""
+        wl = x[I_WL]
+        slip = np.abs(wl) > eps
+        T = self.brake_law(np.where(slip, wl, eps), x)
+        T = T * (1.0 + x[I_D]) if self.disturbance == "scale" else T + x[I_D]
+        hold = -self.params.ktheta * x[I_AL]
+        return np.where(slip, T, hold)
 
     @property
     def upper_coulomb(self) -> float:
@@ -136,45 +199,34 @@ class DisturbanceModel:
         """Upper viscous friction for positive rotation, bu + dbu (N m s/rad)."""
         return self.params.bu + self.params.dbu
 
-    def known_inputs(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Input matrix (3, n) of the model: voltage, upper friction offset, nominal lower friction."""
-        return np.vstack([u, self.known_friction(x, u), self.nominal_lower_friction(x)])
 
-    def nominal_lower_friction(self, x: np.ndarray, eps: float = 1e-3) -> np.ndarray:
-        """Lower friction input of the model at the estimates x (5, n) (N m, (n,)); 0 when not modelled.
+def _gammas(A: np.ndarray, dt: float, frac: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(e^{A dt}, Gamma of the newer command, Gamma of the older one) for a fractional delay ``frac`` (s)."""
+    n = A.shape[0]
 
-        Slipping (|omega_l| > eps): the Stribeck law of the core (:func:`drillgym.friction.lower_friction`),
-        times 1 + d for the 'scale' disturbance; resting: the torque that holds the disc against the
-        string, limited to the stick set (+-Ts, scaled likewise).
-        """
-        if not self.friction_known:
-            return np.zeros(x.shape[1])
-        wl = x[I_WL]
-        level = 1.0 + x[I_D] if self.disturbance == "scale" else 1.0
-        ts = self.stick_limit(x) * level
-        hold = np.clip(-self.params.ktheta * x[I_AL], -ts, ts)
-        slip = level * self.brake_law(np.where(np.abs(wl) > eps, wl, eps), x)
-        return np.where(np.abs(wl) > eps, slip, hold)
+    def phi_gamma(tau: float) -> tuple[np.ndarray, np.ndarray]:
+        M = expm(np.block([[A, np.eye(n)], [np.zeros((n, 2 * n))]]) * tau)
+        return M[:n, :n], M[:n, n:]
 
-    def lower_friction(self, x: np.ndarray) -> np.ndarray:
-        """Estimated lower friction torque (N m, (n,)) at the estimates x (5, n): the model's input
-        plus the offset state (the 'scale' state is already in the input)."""
-        f = self.nominal_lower_friction(x)
-        return f if self.disturbance == "scale" else f + x[I_D]
+    Ad, _ = phi_gamma(dt)
+    Pn, Gn = phi_gamma(dt - frac)
+    Go = Pn @ phi_gamma(frac)[1] if frac > 0 else np.zeros((n, n))
+    return Ad, Gn, Go
 
-    def known_friction(self, x: np.ndarray, u: np.ndarray, eps: float = 1e-3) -> np.ndarray:
-        """Upper friction offset (N m, (n,)) for states x (5, n) and voltages u (n,).
 
-        Slipping (|omega_u| > eps): the Coulomb level with the sign of omega_u.  Resting: the
-        torque that keeps the disc at rest, limited to the stick set.
-        """
-        p = self.params
-        drive = p.km * self.motor_voltage(x, u) + p.ktheta * x[I_AL] - self.upper_damping * x[I_WU]
-        if self.has_du:
-            drive = drive + x[I_DU]
-        rest = np.clip(drive, -p.Tcu + p.dTcu, p.Tcu + p.dTcu)
-        slip = np.where(x[I_WU] > 0, p.Tcu + p.dTcu, -(p.Tcu - p.dTcu))
-        return np.where(np.abs(x[I_WU]) > eps, slip, rest)
+def _reference(dyn: ModelDynamics, p: RigParams) -> tuple[np.ndarray, float]:
+    """(z, command) of the model's slip equilibrium at :data:`_W0` (rad/s): the lags settled."""
+    z = np.zeros((dyn.nz, 1))
+    z[I_WU] = z[I_WL] = _W0
+    for _ in range(3):  # the winding that carries the lower torque, the effect states settled
+        z[I_AL] = -dyn.lower_torque(z, np.array([_W0]), np.array([_W0])) / p.ktheta
+    vm = (dyn.upper_torque(z, np.array([_W0])) - p.ktheta * z[I_AL]) / p.km
+    u = dyn.command(z, vm, 5.0) if dyn.invertible() else vm
+    for _ in range(len(dyn.lag_rows) + 2):
+        dz = dyn.f(z, u)
+        for row, tau in dyn.lag_rows.items():
+            z[row] += tau * dz[row]
+    return z, float(u[0])
 
 
 def disturbance_model(
@@ -189,7 +241,7 @@ def disturbance_model(
     friction_known: bool = True,
     disturbance: str = "offset",
     sigma_du: float = 0.0,
-    model: ControllerModel | None = None,
+    model: Any = None,
 ) -> DisturbanceModel:
     """Build the estimator's model.
 
@@ -208,8 +260,8 @@ def disturbance_model(
     sigma_upper, sigma_lower : float, optional
         White torque noise on the discs (N m / sqrt(Hz)), model error.
     friction_known : bool, optional
-        The nominal brake law (with stick) is a known input and ``d`` its unknown deviation (default); False:
-        ``d`` is the whole lower friction torque.
+        The model's brake law (with stick) is known and ``d`` its unknown deviation (default); False: ``d`` is
+        the whole lower friction torque (the brake's law and its effects left out).
     disturbance : str, optional
         'offset' (``d`` in N m added to the brake law) or 'scale' (``d`` the relative error of the brake law's
         level: Ts, Tc, bb all off by the same factor, as with the oil's temperature); 'scale' needs
@@ -217,16 +269,26 @@ def disturbance_model(
     sigma_du : float, optional
         > 0 adds a sixth state ``du`` (N m), a torque on the upper disc that the model misses (motor constant,
         upper friction, lag errors), as a random walk of this intensity (N m/sqrt(s)).
-    model : ControllerModel, optional
-        The model with its effects (its base parameters replace ``params``): a motor lag becomes a state, a
-        delay a line of past commands, lower-disc friction effects change the brake law (module doc).
+    model : drillgym.Model, optional
+        The model with its effects (its base parameters replace ``params``): every effect enters f (module doc).
+
+    Returns
+    -------
+    DisturbanceModel
+        The estimator's model.
+
+    Raises
+    ------
+    InputError
+        Bad options, or an effect the estimator's torsional model cannot represent (one line naming it).
     """
     if model is not None:
         if params is not None and params != model.params:
             raise InputError("give the estimator's base parameters either as params or in its model, not both")
-        model.check_usable("the motor-angle Kalman filter", ("theta_u",))
-        params = model.params
-    p = params or RigParams()
+        check_model(model, "the motor-angle Kalman filter", ("theta_u",))
+    else:
+        model = model_of(None, params)
+    p = model.params
     if not (np.isfinite(dt) and dt > 0):
         raise InputError(f"dt must be a positive period (s), got {dt!r}")
     if disturbance not in ("offset", "scale"):
@@ -242,89 +304,101 @@ def disturbance_model(
     ):
         if not (np.isfinite(v) and v >= 0):
             raise InputError(f"{name} must be a non-negative number, got {v!r}")
-    # exact Jacobian of the core at a slip equilibrium (angles variant: theta_u, theta_l, omega_u, omega_l)
-    eq = slip_equilibrium(Configuration.TORSIONAL, 3.0, p, with_eigenvalues=False)
-    lin = linearise(eq, "angles")
-    names = list(lin.state_labels)
-    iu, il, iwu, iwl = (names.index(s) for s in ("theta_u", "theta_l", "omega_u", "omega_l"))
-    A4, B4 = np.asarray(lin.A), np.asarray(lin.B)[:, 0]
-    brake_slope = lower_damping(eq.omega, p)
-    if abs(A4[iwl, iwl] + brake_slope / p.Jl) > 1e-4 * max(1.0, abs(brake_slope / p.Jl)):
-        raise RuntimeError("linearisation does not have the expected brake damping term")
-    # to (theta_u, omega_u, alpha, omega_l, d): alpha = theta_l - theta_u
-    T = np.zeros((4, 4))  # z4 = T @ (theta_u, theta_l, omega_u, omega_l)
-    T[I_TU, iu] = 1.0
-    T[I_WU, iwu] = 1.0
-    T[I_AL, il], T[I_AL, iu] = 1.0, -1.0
-    T[I_WL, iwl] = 1.0
-    Ti = np.linalg.inv(T)
-    A = np.zeros((5, 5))
-    A[:4, :4] = T @ A4 @ Ti
-    A[I_WL, I_WL] += brake_slope / p.Jl  # remove the brake's slope: the whole brake torque is the state d
-    A[I_WL, I_D] = -1.0 / p.Jl if disturbance == "offset" else 0.0  # a scale acts through the friction input
-    Bu = np.zeros(5)
-    Bu[:4] = T @ B4
-    Bl = np.zeros(5)
-    Bl[I_WL] = -1.0 / p.Jl
-    B = np.column_stack([Bu, -Bu / p.km, Bl])  # [u (V), upper friction offset (N m), nominal lower friction (N m)]
-    nx = 6 if sigma_du > 0 else 5
-    if nx == 6:  # du: a torque on the upper disc (N m), random walk
-        A = np.pad(A, ((0, 1), (0, 1)))
-        A[I_WU, I_DU] = 1.0 / p.Ju
-        B = np.pad(B, ((0, 1), (0, 0)))
-    G = np.zeros((nx, nx - 2))
+    vec = np.array(model.vector, dtype=float)
+    if not friction_known:  # d is the whole brake torque: no law, no stick set
+        from drillgym.params import IDX
+
+        vec[[IDX.Ts, IDX.Tc, IDX.bb]] = 0.0
+    dyn = ModelDynamics(model.composition, vec, scale=disturbance == "scale", has_du=sigma_du > 0)
+    nc = dyn.nz
+    z0, u0 = _reference(dyn, p)
+    J, b = dyn.jacobian(z0, np.array([u0]))
+    A, B = J[0].copy(), b[0][:, None].copy()
+    if friction_known:  # the lower disc's own-speed terms (the brake's slope): at the estimate, each period
+        A[:, I_WL] = 0.0
+        A[I_AL, I_WL] = 1.0  # alpha' = omega_l - omega_u stays
+    if disturbance == "scale":
+        A[:, I_D] = 0.0
+    G = np.zeros((nc, 4))
     G[I_WU, 0] = 1.0 / p.Ju
     G[I_WL, 1] = 1.0 / p.Jl
     G[I_D, 2] = 1.0
-    if nx == 6:
+    if sigma_du > 0:
         G[I_DU, 3] = 1.0
-    Qc = np.diag([sigma_upper**2, sigma_lower**2, sigma_d**2, sigma_du**2][: nx - 2])
-    lag = model.lag if model is not None else 0.0
-    lag_index = -1
-    if lag > 0:  # u_m: tau_m du_m/dt = u - u_m, the motor torque km u_m
-        lag_index, nx = nx, nx + 1
-        A, B, G = np.pad(A, ((0, 1), (0, 1))), np.pad(B, ((0, 1), (0, 0))), np.pad(G, ((0, 1), (0, 0)))
-        A[:, lag_index] = B[:, 0]
-        B[:, 0] = 0.0
-        A[lag_index, lag_index] = -1.0 / lag
-        B[lag_index, 0] = 1.0 / lag
+    Qc = np.diag([sigma_upper**2, sigma_lower**2, sigma_d**2, sigma_du**2])
     Qd = _discrete_noise(A, G @ Qc @ G.T, dt)
-    delay = model.delay if model is not None else 0.0
-    if delay > 0:
-        sysd = delayed_discretisation(A, B, dt, delay)
-        Ad, Bd, n_line = sysd.Ad, sysd.Bd, sysd.n_line
-        Qd = np.pad(Qd, ((0, n_line), (0, n_line)))
+    delay = dyn.delay
+    sysd = delayed_discretisation(A, B, dt, delay)
+    n_line = sysd.n_line
+    steps = int(np.floor(delay / dt + 1e-9)) if n_line else 0
+    frac = max(delay - steps * dt, 0.0) if n_line else 0.0
+    if frac < 1e-9 * dt:
+        frac = 0.0
+    Ad_c, g_new, g_old = _gammas(A, dt, frac)
+    Qd = np.pad(Qd, ((0, n_line), (0, n_line)))
+    reads = bool(dyn.composition.has_measurement) and "theta_u" in {
+        c for e in dyn.composition.effects for c in getattr(e, "channels", ())
+    }
+    H = np.zeros((1, nc + n_line))
+    if reads:
+        H[0, :nc] = dyn.reading_jacobian(z0)[0, 0]
     else:
-        sysd = control.c2d(control.ss(A, B, np.eye(nx)[:1], np.zeros((1, 3))), dt, method="zoh")
-        Ad, Bd, n_line = np.asarray(sysd.A), np.asarray(sysd.B), 0
-    C = np.zeros((1, nx + n_line))
-    C[0, I_TU] = 1.0
+        H[0, I_TU] = 1.0
     q = 2.0 * np.pi / counts_per_rev if counts_per_rev > 0 else 0.0
     R = np.array([[q * q / 12.0 + angle_noise**2 + 1e-12]])
+    lags = sorted(dyn.lag_rows)
     return DisturbanceModel(
         p,
         float(dt),
         A,
         B,
-        Ad,
-        Bd,
-        C,
+        sysd.Ad,
+        sysd.Bd,
+        H,
         Qd,
         R,
+        dyn,
+        g_new,
+        g_old,
         friction_known,
         disturbance,
         effects=model,
         has_du=sigma_du > 0,
-        lag_index=lag_index,
-        line_index=nx if n_line else -1,
-        delay_steps=int(np.floor(delay / dt + 1e-9)) if n_line else 0,
+        lag_index=lags[0] if lags else -1,
+        line_index=nc if n_line else -1,
+        delay_steps=steps,
+        reads_effects=reads,
+        compensates=dyn.invertible(),
     )
+
+
+def compensate(model: DisturbanceModel, x: np.ndarray, v: np.ndarray, u_max: float) -> np.ndarray:
+    """The commands (V, (n,)) that give the motor the voltages v (V) at the estimates x: the model's static input map
+    inverted where it is monotone (a dead zone: v +- u0; an offset: v - offset), else v itself.
+
+    Parameters
+    ----------
+    model : DisturbanceModel
+        The estimator's model.
+    x : ndarray
+        Estimates (dim, n).
+    v : ndarray
+        Wanted voltages at the motor (V, (n,)).
+    u_max : float
+        The amplifier's range (V); the inverse is searched within twice it.
+
+    Returns
+    -------
+    ndarray
+        Commands (V, (n,)), not clipped.
+    """
+    if not model.compensates:
+        return np.asarray(v, dtype=float)
+    return model.dynamics.command(x, v, u_max)
 
 
 def _discrete_noise(A: np.ndarray, Qc: np.ndarray, dt: float) -> np.ndarray:
     """Covariance of the discretised white process noise (Van Loan's method)."""
-    from scipy.linalg import expm
-
     n = A.shape[0]
     M = np.zeros((2 * n, 2 * n))
     M[:n, :n] = -A
@@ -363,9 +437,8 @@ class KalmanObserver:
         if model.Ad.shape[0] != 5:
             raise InputError("the linear KalmanObserver takes the 5-state model; use ExtendedKalmanObserver")
         self.model = model
-        self.kf = KalmanFilter(dim_x=5, dim_z=1, dim_u=3)
+        self.kf = KalmanFilter(dim_x=5, dim_z=1)
         self.kf.F = model.Ad.copy()
-        self.kf.B = model.Bd.copy()
         self.kf.H = model.H.copy()
         self.kf.Q = model.Qd.copy()
         self.kf.R = model.R.copy()
@@ -394,7 +467,9 @@ class KalmanObserver:
     def predict(self, u: np.ndarray) -> None:
         """Propagate over one period with the voltage u (n,) held (V)."""
         u = np.atleast_1d(np.asarray(u, dtype=float))
-        self.kf.predict(u=self.model.known_inputs(self.kf.x, u))
+        x = self.kf.x.copy()
+        self.kf.predict()
+        self.kf.x = self.model.predict_mean(x, u)  # the model's mean, the linear part's covariance
 
     def friction(self) -> np.ndarray:
         """Estimated lower friction torque (N m, (n,)): nominal law at the estimate + disturbance state."""
@@ -477,39 +552,36 @@ class ExtendedKalmanObserver:
         self.P[idx] = self.P0
 
     def update(self, theta_u: np.ndarray, index: np.ndarray | slice = slice(None)) -> np.ndarray:
-        """Correct rows ``index`` with their measured motor angles (rad); returns all estimates (5, n)."""
+        """Correct rows ``index`` with their measured motor angles (rad); returns all estimates (dim, n)."""
         P, x, r = self.P[index], self.x[:, index], self.model.R[0, 0]
-        K = P[:, :, I_TU] / (P[:, I_TU, I_TU] + r)[:, None]  # (m, 5): P H' S^-1 with H = e_theta_u
-        self.x[:, index] = x + K.T * (np.asarray(theta_u, dtype=float) - x[I_TU])
-        IKH = np.broadcast_to(np.eye(self.dim), P.shape).copy()
-        IKH[:, :, I_TU] -= K
+        z = np.broadcast_to(np.asarray(theta_u, dtype=float), (x.shape[1],))
+        if not self.model.reads_effects:  # H = e_theta_u
+            K = P[:, :, I_TU] / (P[:, I_TU, I_TU] + r)[:, None]  # (m, dim): P H' S^-1
+            self.x[:, index] = x + K.T * (z - x[I_TU])
+            IKH = np.broadcast_to(np.eye(self.dim), P.shape).copy()
+            IKH[:, :, I_TU] -= K
+        else:  # the reading through the model's Measurement effects, linearised at the estimate
+            H = self.model.output_map(x)  # (m, dim)
+            PH = np.einsum("mij,mj->mi", P, H)
+            K = PH / (np.einsum("mi,mi->m", H, PH) + r)[:, None]
+            self.x[:, index] = x + K.T * (z - self.model.reading(x))
+            IKH = np.broadcast_to(np.eye(self.dim), P.shape) - K[:, :, None] * H[:, None, :]
         self.P[index] = IKH @ P @ IKH.transpose(0, 2, 1) + r * K[:, :, None] * K[:, None, :]
         return self.x
 
-    def jacobians(self, x: np.ndarray) -> np.ndarray:
-        """Discrete Jacobians (n, 5, 5): ``Ad`` with the brake slope at the estimated omega_l."""
-        m, p, h = self.model, self.model.params, self.h
-        wl = x[I_WL]
-        w = np.maximum(np.abs(wl), 2 * h)
-        slope = (m.brake_law(w + h, x) - m.brake_law(w - h, x)) / (2 * h)
-        slipping = np.abs(wl) > 1e-3
-        slope = np.where(slipping, slope, 0.0)  # a disc at rest has no slope
-        F = np.broadcast_to(m.Ad, (x.shape[1], self.dim, self.dim)).copy()
-        if m.disturbance == "scale":  # Tfl = (1 + d) T(omega_l): slope scaled, d acts through T
-            slope = slope * (1.0 + x[I_D])
-            level = np.where(slipping, m.brake_law(w, x), 0.0)
-            F[:, I_WL, I_D] -= m.dt * level / p.Jl
-            F[:, I_AL, I_D] -= 0.5 * m.dt**2 * level / p.Jl
-        F[:, I_WL, I_WL] -= m.dt * slope / p.Jl
-        F[:, I_AL, I_WL] -= 0.5 * m.dt**2 * slope / p.Jl
-        return F
+    def jacobians(self, x: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
+        """Discrete Jacobians (n, dim, dim) of the prediction at the estimates x with the commands u (V; default
+        the voltage that keeps the motor's voltage, 0 without a lag)."""
+        u = np.zeros(x.shape[1]) if u is None else u
+        return self.model.transition(x, u)
 
     def predict(self, u: np.ndarray) -> None:
         """Propagate every trajectory over one period with the voltages u (V, (n,)) held."""
         m, x = self.model, self.x
-        F = self.jacobians(x)
+        u = np.broadcast_to(np.asarray(u, dtype=float), (x.shape[1],))
+        F = m.transition(x, u)
         self.P = F @ self.P @ F.transpose(0, 2, 1) + m.Qd
-        self.x = m.Ad @ x + m.Bd @ m.known_inputs(x, np.broadcast_to(np.asarray(u, dtype=float), (x.shape[1],)))
+        self.x = m.predict_mean(x, u)
 
     def friction(self) -> np.ndarray:
         """Estimated lower friction torque (N m, (n,)): nominal law at the estimate + disturbance state."""

@@ -28,8 +28,9 @@ from typing import Any
 
 import numpy as np
 
+from drillgym import Model
+
 from .limits import motor_angle_limit
-from .model import ControllerModel
 
 __all__ = ["SIGMAS", "TIMING_PARAMETERS", "ModelMargin", "model_margins", "check_margins"]
 
@@ -86,12 +87,12 @@ class ModelMargin:
         return f"{controller} at {self.omega:g} rad/s tolerates {need}; the model is right to {have}: {verdict}"
 
 
-def model_margins(model: ControllerModel, targets: Sequence[float] | np.ndarray) -> list[ModelMargin]:
+def model_margins(model: Model, targets: Sequence[float] | np.ndarray) -> list[ModelMargin]:
     """The :class:`ModelMargin` of each distinct target (rad/s), in increasing order.
 
     Parameters
     ----------
-    model : ControllerModel
+    model : drillgym.Model
         The controller's model, with the standard errors its file carries.
     targets : sequence of float
         Target lower-disc speeds (rad/s).

@@ -35,7 +35,18 @@ from drillgym.errors import InputError
 
 from .base import Controller
 from .flatness import FlatnessLaw
-from .kalman import I_AL, I_D, I_DU, I_TU, I_WL, I_WU, ExtendedKalmanObserver, disturbance_model, steady_state_gain
+from .kalman import (
+    I_AL,
+    I_D,
+    I_DU,
+    I_TU,
+    I_WL,
+    I_WU,
+    ExtendedKalmanObserver,
+    compensate,
+    disturbance_model,
+    steady_state_gain,
+)
 from .margin import check_margins
 
 __all__ = ["ObserverController", "LQGController", "lqr_gain", "steepest_brake_slope"]
@@ -225,14 +236,29 @@ class ObserverController(Controller):
 
     def new_law(self, target: np.ndarray) -> FlatnessLaw:
         """A fresh law with this controller's options, started from rest towards ``target`` (rad/s, (n,))."""
-        brake = self._brake if self.effects.friction_effects else None
-        law = FlatnessLaw(self.params, self.dt, brake=brake, **self.law_options)
+        known = bool(self.effects.composition.effects)  # the model's torques at the estimate, else the base laws
+        law = FlatnessLaw(
+            self.params,
+            self.dt,
+            brake=self._brake if known else None,
+            upper=self._upper if known else None,
+            **self.law_options,
+        )
         law.reset(target)
         return law
 
     def _brake(self, w: np.ndarray) -> np.ndarray:
-        """The model's brake torque (N m) at speeds w (rad/s) and the estimated lower angles (its effects)."""
+        """The model's torque against the lower disc besides kθ α (N m) at speeds w (rad/s), at the estimate."""
         return self.model.brake_law(w, self.observer.x)
+
+    def _upper(self, w: np.ndarray) -> np.ndarray:
+        """The model's torque against the upper disc besides the motor and kθ α (N m) at speeds w (rad/s)."""
+        return self.model.upper_law(w, self.observer.x)
+
+    def _command(self, v: np.ndarray) -> np.ndarray:
+        """The command (V) that gives the motor the voltage v (V): the model's static input map inverted where it
+        is monotone (a dead zone, an offset), else v."""
+        return compensate(self.model, self.observer.x, v, self.u_max)
 
     @property
     def estimate(self) -> np.ndarray:
@@ -244,7 +270,7 @@ class ObserverController(Controller):
         u = self.law(x[I_WU], x[I_AL], x[I_WL], x[I_D])
         if self.model.has_du:  # the estimated upper-disc torque the model misses, cancelled by the motor
             u = u - x[I_DU] / self.params.km
-        u = np.clip(u, -self.u_max, self.u_max)
+        u = np.clip(self._command(u), -self.u_max, self.u_max)
         if self._descent is not None:  # targets the model is not accurate enough for
             u = np.where(self._short, self._descent.act(m), u)
         self._updated = (self.observer.x.copy(), self.observer.P.copy())  # for applied()
@@ -352,10 +378,14 @@ class LQGController(Controller):
                 self._theta0 = np.asarray(m["theta_u"], dtype=float).copy()
             z = m["theta_u"] - self._theta0 - self.omega_ref * max(self._t - self.outer_start, 0.0)  # rad
             ref = np.clip(self.omega_ref - self.outer_gain * z, 0.5 * self.omega_ref, 1.5 * self.omega_ref)
-        u_star = (mdl.upper_coulomb + mdl.upper_damping * ref + d_hat) / p.km
+        if self.effects.composition.effects:  # the model's upper torque at the reference speed
+            u_star = (mdl.upper_law(ref, x) + d_hat) / p.km
+        else:
+            u_star = (mdl.upper_coulomb + mdl.upper_damping * ref + d_hat) / p.km
         err = np.stack([x[I_AL] - alpha_star, x[I_WU] - ref, x[I_WL] - ref])
-        u = np.clip(u_star - np.einsum("nk,kn->n", self.K, err), -self.u_max, self.u_max)
+        u = u_star - np.einsum("nk,kn->n", self.K, err)
+        u = np.clip(compensate(mdl, x, u, self.u_max), -self.u_max, self.u_max)
         if self._descent is not None:  # targets the model is not accurate enough for
             u = np.where(self._short, self._descent.act(m), u)
-        self._x = mdl.Ad @ x + mdl.Bd @ mdl.known_inputs(x, u)
+        self._x = mdl.predict_mean(x, u)
         return u

@@ -167,7 +167,7 @@ def make(name: str, config: str = "torsional", omega_ref=None, params=None, **kw
     params : RigParams, optional
         The model the controller is designed on; default the nominal parameters.
     **kw
-        ``model=``: a model with effects instead of ``params`` (:class:`controllers.model.ControllerModel`, a
+        ``model=``: a model with effects instead of ``params`` (a :class:`drillgym.Model`, a
         model file read by ``read_model`` or its path): ``observer``, ``lqg`` and ``lqg-2enc`` run its motor lag,
         delay and lower-disc friction effects; every controller refuses, naming it, an effect it cannot use.
         Further keywords of the controller's constructor (e.g. ``dt``, the control period in s).

@@ -18,10 +18,14 @@ measuring theta_u and theta_l:
   ``hold`` s, then a linear ramp over ``ramp`` s), through a first-order lag ``tau_ref``; designs on a
   0.25 rad/s grid of speeds, the nearest one used.
 
-Built on a model with effects (``model=``, :mod:`controllers.model`): the model's motor lag replaces the
-design lag ``tau``, its delay adds the line of past commands to the design model (exact zero-order hold, LQR
-and Kalman gains on the augmented state), and its lower-disc friction effects set the equilibrium's
-winding and voltage at the estimated lower angle (the design slope stays the base law's).
+Built on a model with effects (``model=``, :mod:`controllers.model`): the design's discs are the Jacobian of
+the model's composition at each design speed (:class:`controllers.dynamics.ModelDynamics`: string damping,
+upper-disc friction, forces, the brake's slope with its effects), the model's motor lag replaces the design
+lag ``tau``, its delay adds the line of past commands to the design model (exact zero-order hold, LQR and
+Kalman gains on the augmented state), the equilibrium's winding and voltage are the composition's torques
+at the reference speed and the estimated lower angle, the encoders' readings pass through its Measurement
+effects (the output map their Jacobian), and a monotone static input map (a dead zone, an offset) is
+inverted in the command.  An Input effect with a state other than one first-order lag is refused.
 
 Its robustness was checked on the linearisation first: the default design is stable on all 40
 plants of a tuning population (seed 11 of the default uncertainty set, lags and delays included) at
@@ -37,17 +41,24 @@ import control
 import numpy as np
 
 from drillgym import RigParams
+from drillgym.effects.base import Input
 from drillgym.equilibria import equilibrium_voltage
 from drillgym.errors import InputError
 from drillgym.friction import lower_friction
 
 from .base import Controller
+from .dynamics import ModelDynamics
 from .limits import brake_slope
-from .model import delayed_discretisation
+from .model import delayed_discretisation, input_delay, motor_lag
 
 __all__ = ["TwoEncoderLQG", "TwoEncoderDesign"]
 
 GRID = 0.25  # rad/s, spacing of the designs' speeds
+#: a told encoder's quantisation counts as this many counts of white noise (std) besides q^2/12: read once per
+#: period, a disc turning about a whole number of counts per period makes the error a slow sawtooth, not white
+ALIASING = 1.25
+#: innovations within this fraction of half a count are not corrected (the angle is within the reading's count)
+DEAD_BAND = 0.7
 
 
 @dataclass(frozen=True)
@@ -65,30 +76,49 @@ class TwoEncoderDesign:
     q_omega_u: float = 1.0  # (rad/s)^-2
     q_omega_l: float = 100.0  # (rad/s)^-2
     r: float = 3.0  # V^-2
+    dead_band: float = 0.0  # innovations within this fraction of half a count (of ``counts``) are not corrected
 
 
 @lru_cache(maxsize=512)
-def _design(params: RigParams, omega: float, dt: float, o: TwoEncoderDesign, delay: float = 0.0):
+def _design(
+    params: RigParams,
+    omega: float,
+    dt: float,
+    o: TwoEncoderDesign,
+    delay: float = 0.0,
+    discs: tuple | None = None,
+    readings: tuple | None = None,
+):
     """(A, B, C, K, L) of the discrete design at ``omega`` (rad/s); states (theta_u, omega_u, alpha,
-    omega_l, u_a, d) in deviations from the equilibrium, then the line of past commands of a ``delay`` (s)."""
+    omega_l, u_a, d) in deviations from the equilibrium, then the line of past commands of a ``delay`` (s).
+    ``discs``: the model's Jacobian rows of omega_u and omega_l in (theta_u, omega_u, alpha, omega_l) (1/s^2,
+    1/s; the brake's slope without the margin), default the base model's; ``readings``: the encoders' output
+    map (2 x 4), default theta_u and theta_u + alpha."""
     p = params
-    s = brake_slope(omega, p)
-    if s < 0:
-        s *= 1.0 + o.slope_margin
-    bu = p.bu + p.dbu
     A = np.zeros((6, 6))
     A[0, 1] = 1.0
-    A[1, 1], A[1, 2], A[1, 4] = -bu / p.Ju, p.ktheta / p.Ju, p.km / p.Ju
     A[2, 1], A[2, 3] = -1.0, 1.0
-    A[3, 2], A[3, 3], A[3, 5] = -p.ktheta / p.Jl, -s / p.Jl, -1.0 / p.Jl
+    A[1, 4], A[3, 5] = p.km / p.Ju, -1.0 / p.Jl
+    if discs is None:
+        s = brake_slope(omega, p)
+        A[1, 1], A[1, 2] = -(p.bu + p.dbu) / p.Ju, p.ktheta / p.Ju
+        A[3, 2], A[3, 3] = -p.ktheta / p.Jl, -s / p.Jl
+    else:
+        A[1, :4], A[3, :4] = np.reshape(discs, (2, 4))
+        s = -p.Jl * A[3, 3]
+    if s < 0:  # the brake's negative slope made steeper
+        A[3, 3] = -s * (1.0 + o.slope_margin) / p.Jl
     A[4, 4] = -1.0 / o.tau
     B = np.zeros((6, 1))
     B[4, 0] = 1.0 / o.tau
     sysd = delayed_discretisation(A, B, dt, delay)
     Ad, Bd, nx = sysd.Ad, sysd.Bd, 6 + sysd.n_line
     C = np.zeros((2, nx))
-    C[0, 0] = 1.0
-    C[1, 0], C[1, 2] = 1.0, 1.0  # theta_l = theta_u + alpha
+    if readings is None:
+        C[0, 0] = 1.0
+        C[1, 0], C[1, 2] = 1.0, 1.0  # theta_l = theta_u + alpha
+    else:
+        C[:, :4] = np.reshape(readings, (2, 4))
     G = np.zeros((nx, 3))
     G[1, 0], G[3, 1], G[5, 2] = 1.0 / p.Ju, 1.0 / p.Jl, 1.0
     Qd = G @ np.diag([o.sigma_upper**2, o.sigma_lower**2, o.sigma_d**2]) @ G.T * dt + 1e-12 * np.eye(nx)
@@ -102,6 +132,23 @@ def _design(params: RigParams, omega: float, dt: float, o: TwoEncoderDesign, del
     K = np.zeros((1, nx))
     K[0, keep] = np.asarray(Ks)[0]
     return Ad, Bd, C, K, L
+
+
+def _model_dynamics(model, who: str) -> ModelDynamics | None:
+    """The composition's dynamics of a model with effects (None without), refusing in one line an effect state
+    the design has no place for (it has one first-order lag on the command)."""
+    comp = model.composition
+    if not comp.effects:
+        return None
+    stateful = [e for e in comp.effects if e.states]
+    for i, e in enumerate(stateful):
+        lag = issubclass(e, Input) and len(e.states) == 1 and set(e.lag) == {e.states[0].name}
+        why = "" if lag else "a state other than a first-order lag on the command"
+        if lag and i > 0:
+            why = "a second lag on the command"
+        if why:
+            raise InputError(f"{who} cannot use the model's effect {e.name!r} ({why}: its design has one lag)")
+    return ModelDynamics(comp, np.asarray(model.vector, dtype=float), scale=False)
 
 
 class TwoEncoderLQG(Controller):
@@ -124,6 +171,13 @@ class TwoEncoderLQG(Controller):
     feedforward : float, optional
         Weight of the estimated lower-disc torque in the equilibrium shift (the string winds by
         -d/ktheta more, the motor leads by d/ktheta; 0: none).  Default 1.
+    counts_per_rev : int, optional
+        The encoders' resolution (counts/rev), when known: the filter's angle noise is then q^2/12 plus
+        :data:`ALIASING` counts (std) plus ``angle_noise``, and innovations within :data:`DEAD_BAND` of half a count
+        are not corrected (on 2048-count encoders the default design, which assumes 4096 counts, limit-cycles
+        at 1.4-1.6 rad/s, where the lower disc turns about one count per 2 ms period).  Default: the design's.
+    angle_noise : float, optional
+        White angle noise of the encoders (rad, std), with ``counts_per_rev``.
     **kw
         ``config``, ``params``, ``dt``, ``u_max`` of :class:`controllers.Controller`.
     """
@@ -143,6 +197,8 @@ class TwoEncoderLQG(Controller):
         ramp: float = 15.0,
         tau_ref: float = 1.0,
         feedforward: float = 1.0,
+        counts_per_rev: int | None = None,
+        angle_noise: float = 0.0,
         **kw,
     ) -> None:
         super().__init__(omega_ref, **kw)
@@ -152,9 +208,22 @@ class TwoEncoderLQG(Controller):
         if not (np.isfinite(tau_ref) and tau_ref > 0):
             raise InputError(f"tau_ref must be a positive time (s), got {tau_ref!r}")
         self.design = design or TwoEncoderDesign()
-        if self.effects.lag > 0:  # the model's motor lag instead of the design's robust middle
-            self.design = replace(self.design, tau=self.effects.lag)
-        self.delay = self.effects.delay
+        if counts_per_rev is not None:  # the encoders' resolution is known: it sets the measurement noise
+            if not (
+                np.isfinite(counts_per_rev) and counts_per_rev >= 1 and np.isfinite(angle_noise) and angle_noise >= 0
+            ):
+                raise InputError(
+                    f"counts_per_rev must be >= 1 and angle_noise >= 0, got {counts_per_rev!r}, {angle_noise!r}"
+                )
+            q = 2.0 * np.pi / counts_per_rev
+            floor = float(np.hypot(ALIASING * q, angle_noise))
+            self.design = replace(self.design, counts=int(counts_per_rev), noise_floor=floor, dead_band=DEAD_BAND)
+        self.dyn = _model_dynamics(self.effects, f"controller {self.name!r}")
+        lag = motor_lag(self.effects)
+        if lag > 0:  # the model's motor lag instead of the design's robust middle
+            self.design = replace(self.design, tau=lag)
+        self.delay = input_delay(self.effects)
+        self.compensates = self.dyn is not None and self.dyn.invertible(self.u_max)
         if not all(np.isfinite(v) and v > 0 for v in astuple(self.design)[:3]):
             raise InputError(f"design: tau, slope_margin and the noise levels must be positive, got {self.design}")
         self.approach, self.hold, self.ramp, self.tau_ref = float(approach), float(hold), float(ramp), float(tau_ref)
@@ -172,14 +241,38 @@ class TwoEncoderLQG(Controller):
         u = np.interp(r, grid, self._u_grid)
         return a, u
 
+    def _model_equilibrium(self, r: np.ndarray, theta_u: np.ndarray, alpha: np.ndarray):
+        """(z, alpha*, voltage at the motor*) of the model's slip equilibrium at speeds r (rad/s, (n,)) near the
+        estimated angles (rad): the composition's torques on both discs."""
+        p, dyn = self.params, self.dyn
+        z = np.zeros((dyn.nz, r.size))
+        z[0], z[1], z[2], z[3] = theta_u, r, alpha, r
+        a = -dyn.lower_torque(z, r, r) / p.ktheta
+        z[2] = a
+        v = (dyn.upper_torque(z, r, r) - p.ktheta * a) / p.km
+        return z, a, v
+
     def _reset(self, m: dict[str, np.ndarray]) -> None:
         n = self.n
         top = max(float(np.max(self.omega_ref)), self.approach) + 1.0
         self._grid = np.arange(GRID, top + GRID, GRID)
         p = self.params
-        self._alpha_grid = -lower_friction(self._grid, p) / p.ktheta
-        self._u_grid = np.asarray(equilibrium_voltage(self.config, self._grid, p), dtype=float)
-        mats = [_design(p, float(w), float(self.dt), self.design, self.delay) for w in self._grid]
+        discs = readings = [None] * self._grid.size
+        if self.dyn is None:
+            self._alpha_grid = -lower_friction(self._grid, p) / p.ktheta
+            self._u_grid = np.asarray(equilibrium_voltage(self.config, self._grid, p), dtype=float)
+        else:  # the composition's equilibrium and Jacobian at each design speed (the lower angle at 0)
+            zero = np.zeros(self._grid.size)
+            z, self._alpha_grid, self._u_grid = self._model_equilibrium(self._grid, zero, zero)
+            J, _ = self.dyn.jacobian(z, zero)
+            discs = [tuple(np.round(J[i][[1, 3], :4].ravel(), 12)) for i in range(self._grid.size)]
+            if self.dyn.composition.has_measurement:
+                H = self.dyn.reading_jacobian(z)[:, :, :4]
+                readings = [tuple(np.round(H[i].ravel(), 12)) for i in range(self._grid.size)]
+        mats = [
+            _design(p, float(w), float(self.dt), self.design, self.delay, discs[i], readings[i])
+            for i, w in enumerate(self._grid)
+        ]
         self._A, self._B, self._C, self._K, self._L = (np.stack([mm[i] for mm in mats]) for i in range(5))
         self.t = np.zeros(n)  # time since each rig's reset (s)
         self.r = np.zeros(n)  # reference speed (rad/s), from rest
@@ -198,6 +291,21 @@ class TwoEncoderLQG(Controller):
         # absolute estimate (theta_u, omega_u, alpha, omega_l, u_a, d): the rig at rest
         self.x[index] = 0.0  # and the line of past commands: none sent
         self.x[index, 0], self.x[index, 2] = tu, tl - tu
+
+    def _command(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """The commands (V) that give the motor the voltages v (V): the model's static input map inverted."""
+        if not self.compensates:
+            return v
+        return self.dyn.command(self._z(x), v, self.u_max)
+
+    def _motor(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """The voltage at the motor (V) the commands u (V) give once the lags settled (the static input map)."""
+        return self.dyn.motor_voltage(self._z(x), u)
+
+    def _z(self, x: np.ndarray) -> np.ndarray:
+        z = np.zeros((self.dyn.nz, x.shape[0]))
+        z[:4] = x[:, :4].T
+        return z
 
     def _check_new_targets(self, ref: np.ndarray) -> None:
         if np.max(ref, initial=0.0) + 1.0 > self._grid[-1] + 1e-9:
@@ -219,8 +327,9 @@ class TwoEncoderLQG(Controller):
             Applied voltage of each rig (V), clipped to [-u_max, u_max]; call after :meth:`act`.
         """
         u = np.clip(np.broadcast_to(np.asarray(voltage, dtype=float), (self.n,)), -self.u_max, self.u_max)
-        # the prediction is linear in the input: x_next += B (u_applied - u_own)
-        self.x = self.x + self._b * (u - self.u_prev)[:, None]
+        # the prediction is linear in the motor's voltage: x_next += B (v_applied - v_own)
+        dv = self._motor(self.x, u) - self._motor(self.x, self.u_prev) if self.compensates else u - self.u_prev
+        self.x = self.x + self._b * dv[:, None]
         self.u_prev = u.copy()
 
     def _target(self) -> np.ndarray:
@@ -233,10 +342,10 @@ class TwoEncoderLQG(Controller):
         r = np.maximum(self.r, GRID)  # designs exist from GRID up; the reference starts there
         k = np.clip(np.rint(r / GRID).astype(int) - 1, 0, self._grid.size - 1)
         A, B, C, K, L = self._A[k], self._B[k], self._C[k], self._K[k], self._L[k]
-        a_eq, u_eq = self._equilibrium(r)
-        if self.effects.friction_effects:  # the model's brake at the estimated lower angle shifts the equilibrium
-            extra = self.effects.lower_friction(r, self.x[:, 0] + self.x[:, 2]) - lower_friction(r, self.params)
-            a_eq, u_eq = a_eq - extra / self.params.ktheta, u_eq + extra / self.params.km
+        if self.dyn is None:
+            a_eq, u_eq = self._equilibrium(r)
+        else:  # the composition's torques at the reference speed and the estimated lower angle
+            _, a_eq, u_eq = self._model_equilibrium(r, self.x[:, 0], self.x[:, 2])
         # the estimated extra torque on the lower disc shifts the equilibrium: the string winds by -d/k_theta
         # more, the motor leads by d/k_theta (the lower disc stays on its track); with angle-dependent
         # friction this is a feedforward of the torque ripple
@@ -248,10 +357,23 @@ class TwoEncoderLQG(Controller):
         xd = self.x - eq
         tu = np.asarray(m["theta_u"], dtype=float)
         tl = np.asarray(m["theta_l"], dtype=float)
-        y = np.stack([tu - eq[:, 0], tl - eq[:, 0] - a_eq], axis=1)
-        xd = xd + np.einsum("nij,nj->ni", L, y - np.einsum("nij,nj->ni", C, xd))
-        u = np.clip(u_eq - np.einsum("nij,nj->ni", K, xd)[:, 0], -self.u_max, self.u_max)
-        xd = np.einsum("nij,nj->ni", A, xd) + B[:, :, 0] * (u - u_eq)[:, None]
+        if self.dyn is not None and self.dyn.composition.has_measurement:  # the readings through the model's
+            zx = np.zeros((self.dyn.nz, self.n))  # Measurement effects, at the estimate
+            zx[:4] = (xd + eq)[:, :4].T
+            innov = np.stack([tu, tl], axis=1) - np.stack(self.dyn.readings(zx), axis=1)
+        else:
+            y = np.stack([tu - eq[:, 0], tl - eq[:, 0] - a_eq], axis=1)
+            innov = y - np.einsum("nij,nj->ni", C, xd)
+        if self.design.dead_band > 0:  # within the encoder's quantisation cell the reading says nothing more
+            q = 2.0 * np.pi / self.design.counts  # a count of the encoder: the angle is in [reading, reading + q)
+            w = self.design.dead_band * q / 2
+            innov = innov + q / 2
+            innov = innov - np.clip(innov, -w, w)
+        xd = xd + np.einsum("nij,nj->ni", L, innov)
+        v = u_eq - np.einsum("nij,nj->ni", K, xd)[:, 0]  # the voltage the motor should see
+        u = np.clip(self._command(xd + eq, v), -self.u_max, self.u_max)
+        v = self._motor(xd + eq, u) if self.compensates else u
+        xd = np.einsum("nij,nj->ni", A, xd) + B[:, :, 0] * (v - u_eq)[:, None]
         self._b = B[:, :, 0]
         # advance the reference and keep the estimate in absolute coordinates
         self.theta_ref = self.theta_ref + r * self.dt

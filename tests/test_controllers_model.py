@@ -68,11 +68,9 @@ def test_model_files_carry_standard_errors_and_refuse_bad_ones(tmp_path):
 
 # ------------------------------------------------------------------------------------------ controllers on a model
 def _model(specs, values):
-    from controllers.model import ControllerModel
-    from drillgym.effects import compose
+    from drillgym import Model
 
-    comp, vals = compose(specs, values)
-    return ControllerModel(RigParams(), comp, vals)
+    return Model(RigParams(), tuple(specs), values)
 
 
 def test_delay_line_discretisation_is_exact_for_an_integrator():
@@ -102,8 +100,11 @@ def test_filter_model_has_the_lag_state_and_the_delay_line():
 def test_controllers_refuse_effects_they_cannot_use():
     import controllers
 
-    with pytest.raises(InputError, match="'string_damping'"):
-        controllers.make("observer", omega_ref=3.0, model=_model(["string_damping"], {}))
+    with pytest.raises(InputError, match=r"'lateral_anisotropy' \(a force on the lower disc's centre") as err:
+        controllers.make("observer", omega_ref=3.0, model=_model(["lateral_anisotropy"], {}))
+    assert "\n" not in str(err.value)
+    ok = controllers.make("observer", omega_ref=3.0, model=_model(["string_damping"], {}))  # a Force: in its model
+    assert ok.model.dynamics.nz == 5
     with pytest.raises(InputError, match="'motor_lag'"):
         controllers.make("descent", omega_ref=3.0, model=_model(["motor_lag"], {"tau_m": 0.04}))
     ok = controllers.make("observer", omega_ref=3.0, model=_model(["lvdt_offset"], {}))  # off the motor encoder
@@ -131,16 +132,16 @@ def test_an_observer_that_knows_the_motor_lag_holds_where_the_lag_free_one_does_
 # ------------------------------------------------------------------------------------------ margins
 def test_margin_compares_the_limit_with_the_identified_km():
     from controllers.margin import model_margins
-    from controllers.model import ControllerModel
+    from drillgym import Model
 
     p = RigParams()
-    tight, loose = (ControllerModel(p, std={"km": f * p.km}) for f in (0.001, 0.02))
+    tight, loose = (Model(p, std={"km": f * p.km}) for f in (0.001, 0.02))
     m_tight, m_loose = model_margins(tight, [4.0, 2.0]), model_margins(loose, [2.0, 4.0])
     assert [g.omega for g in m_tight] == [2.0, 4.0]
     assert m_tight[0].needed == pytest.approx(0.011, rel=0.2) and np.isinf(m_tight[1].needed)
     assert m_tight[0].achieved == pytest.approx(0.002) and m_tight[0].enough is True
     assert m_loose[0].enough is False and m_loose[1].enough is True
-    assert model_margins(ControllerModel(p), [2.0])[0].enough is None  # no standard error: not known
+    assert model_margins(Model(p), [2.0])[0].enough is None  # no standard error: not known
 
 
 def test_margin_counts_a_lag_and_a_delay_at_the_unstable_modes_frequency():
@@ -148,27 +149,27 @@ def test_margin_counts_a_lag_and_a_delay_at_the_unstable_modes_frequency():
     quadrature; a lag without a standard error leaves the accuracy unknown."""
     from controllers.limits import motor_angle_limit
     from controllers.margin import model_margins
-    from controllers.model import ControllerModel
+    from drillgym import Model
     from drillgym.effects import compose
 
     p = RigParams()
     comp, values = compose(["motor_lag", "input_delay"], {"tau_m": 0.03, "delay": 0.005})
     std = {"km": 0.001 * p.km, "tau_m": 1e-3, "delay": 2e-3}
-    (g,) = model_margins(ControllerModel(p, comp, values, std), [2.0])
+    (g,) = model_margins(Model.from_composition(p, comp, values, std), [2.0])
     mode = max(abs(z) for z in motor_angle_limit(p, 2.0).rhp_poles)
     assert g.parts["tau_m"] == pytest.approx(2 * mode * 1e-3) and g.parts["delay"] == pytest.approx(4 * mode * 1e-3)
     assert g.achieved == pytest.approx(np.sqrt(0.002**2 + (2e-3 * mode) ** 2 + (4e-3 * mode) ** 2))
-    assert g.achieved > model_margins(ControllerModel(p, std={"km": 0.001 * p.km}), [2.0])[0].achieved
-    no_lag_std = ControllerModel(p, comp, values, {"km": 0.001 * p.km, "delay": 2e-3})
+    assert g.achieved > model_margins(Model(p, std={"km": 0.001 * p.km}), [2.0])[0].achieved
+    no_lag_std = Model.from_composition(p, comp, values, {"km": 0.001 * p.km, "delay": 2e-3})
     assert model_margins(no_lag_std, [2.0])[0].achieved is None
 
 
 def test_observer_warns_and_falls_back_to_descent_where_its_model_is_not_good_enough():
     import controllers
-    from controllers.model import ControllerModel
+    from drillgym import Model
 
     p = RigParams()
-    loose = ControllerModel(p, std={"km": 0.02 * p.km})
+    loose = Model(p, std={"km": 0.02 * p.km})
     meas = {"t": 0.0, "theta_u": np.zeros(2)}
     ctrl = controllers.make("observer", omega_ref=np.array([2.0, 4.0]), model=loose, fallback=True)
     with pytest.warns(UserWarning, match=r"observer at 2 rad/s tolerates 1\.\d+ %.*NOT enough; descent drives it"):
