@@ -104,6 +104,9 @@ def draw_case(data, a, work: Path):
         value = None if p.kind == "flag" else valid_value(p, a)
         flag = dep.option if p.kind == "flag" else p.name
         argv = argv + [flag] if value is None else with_value(argv, p, value, k)
+        needs = next((q for q in params if dep.needs in (q.name, q.secondary)), None)
+        if needs is not None and needs.kind == "flag" and needs.default is True:  # on by default: switch it off
+            argv = argv + [needs.secondary]
         names += [dep.option]
         taken |= {p.name, dep.needs}
     elif (how == "refuse" or expensive) and refusable:
