@@ -101,7 +101,10 @@ def draw_case(data, a, work: Path):
     if how == "depend":  # an option that needs another, given alone: refused by the declared table
         dep = data.draw(st.sampled_from(deps), label="dependency")
         p = next(p for p in params if p.name == dep.option or p.secondary == dep.option)
-        value = None if p.kind == "flag" else valid_value(p, a)
+        value = None if p.kind == "flag" else (dep.example or valid_value(p, a))
+        if dep.when is None and dep.needs in argv:  # what it needs, left out (checked before the body runs)
+            i = argv.index(dep.needs)
+            argv = argv[:i] + argv[i + 2 :]
         flag = dep.option if p.kind == "flag" else p.name
         argv = argv + [flag] if value is None else with_value(argv, p, value, k)
         needs = next((q for q in params if dep.needs in (q.name, q.secondary)), None)

@@ -552,6 +552,21 @@ def identify_staged_cmd(
         typer.echo(f"wrote {out}")
 
 
+def _validates(stage: str):
+    """Whether ``--validate`` values name ``stage`` (STAGE=FILE)."""
+    return lambda items: any(str(i).split("=", 1)[0].strip() == stage for i in items or ())
+
+
+for _stage in ("brake", "lateral", "lower", "free_vibration", "upper"):  # a validation recording of a stage identified
+    identify_staged_cmd = requires(
+        "--validate",
+        "--" + _stage.replace("_", "-"),
+        given=_validates(_stage),
+        example=f"{_stage}=FILE",
+        why=f"{_stage}=FILE validates the {_stage} stage, which only its own recordings identify",
+    )(identify_staged_cmd)
+
+
 def register(app: typer.Typer) -> None:
     """Add the commands ``signal``, ``compare``, ``diagnose``, ``identify`` and ``identify-staged``.
 

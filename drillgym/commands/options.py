@@ -87,7 +87,8 @@ class Dependency:
 
     ``when``: a condition on the value of ``needs`` that satisfies it (default: given, i.e. a flag set, a value
     other than its default); ``what``: how the refusal names what is needed (default ``needs``); ``why``: a
-    clause after the refusal.
+    clause after the refusal; ``given``: a condition on the value of ``option`` under which the dependency holds
+    (default: whenever it is given), with ``example``, a value of ``option`` that meets it.
     """
 
     option: str
@@ -96,6 +97,8 @@ class Dependency:
     when: Callable[[Any], bool] | None = None
     what: str = ""
     why: str = ""
+    given: Callable[[Any], bool] | None = None
+    example: str = ""
 
     def message(self) -> str:
         """The one-line refusal: ``"--excitation needs --identify"``, ``"--teacher cannot go with --resume"``."""
@@ -163,6 +166,8 @@ def check_dependencies(fn: Callable, kwargs: dict[str, Any]) -> None:
             raise TypeError(f"{fn.__name__}: dependency {dep} names an option the command does not have")
         if not _given(kwargs.get(a), _default(params[a].default)):
             continue
+        if dep.given is not None and not dep.given(kwargs.get(a)):
+            continue
         value = kwargs.get(b)
         if dep.when is not None:
             has = bool(dep.when(value))
@@ -192,7 +197,14 @@ def _declare(dep: Dependency) -> Callable[[Callable], Callable]:
 
 
 def requires(
-    option: str, needs: str, *, when: Callable[[Any], bool] | None = None, what: str = "", why: str = ""
+    option: str,
+    needs: str,
+    *,
+    when: Callable[[Any], bool] | None = None,
+    what: str = "",
+    why: str = "",
+    given: Callable[[Any], bool] | None = None,
+    example: str = "",
 ) -> Callable[[Callable], Callable]:
     """Declare that ``option`` means something only beside ``needs``; decorate the command function with it
     (below ``@app.command``). Checked before the command's body runs: ``"--excitation needs --identify"``.
@@ -209,8 +221,11 @@ def requires(
         How the refusal names what is needed (default ``needs``), e.g. ``"--scenarios plants"``.
     why : str, optional
         A clause the refusal ends with, in parentheses.
+    given : callable, optional
+        The dependency holds only for values of ``option`` that meet this (e.g. ``--validate lower=FILE`` needs
+        ``--lower``); ``example``: such a value.
     """
-    return _declare(Dependency(option, needs, "requires", when, what, why))
+    return _declare(Dependency(option, needs, "requires", when, what, why, given, example))
 
 
 def excludes(
