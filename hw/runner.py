@@ -132,9 +132,16 @@ class LinearPolicy:
         with z:
             if "W" not in z or "b" not in z:
                 raise InputError(f"{path}: a linear policy file needs arrays 'W' (1, obs_dim) and 'b' (1,)")
-            W, b = np.atleast_2d(z["W"]).astype(float), np.atleast_1d(z["b"]).astype(float)
+            W, b = np.atleast_2d(z["W"]), np.atleast_1d(z["b"])
+        if W.dtype.kind not in "fiu" or b.dtype.kind not in "fiu" or W.ndim != 2 or b.ndim != 1:
+            raise InputError(f"{path}: a linear policy file needs arrays 'W' (1, obs_dim) and 'b' (1,) of numbers")
+        W, b = W.astype(float), b.astype(float)
         if W.shape[0] != b.shape[0]:
             raise InputError(f"{path}: W has {W.shape[0]} rows but b has {b.shape[0]} entries")
+        if W.shape[0] != 1 or W.shape[1] < 1:
+            raise InputError(f"{path}: W is {W.shape}; a linear policy gives one action (the voltage): W (1, obs_dim)")
+        if not (np.isfinite(W).all() and np.isfinite(b).all()):
+            raise InputError(f"{path}: W or b holds non-finite values (NaN or inf)")
         return cls(W, b)
 
     def save(self, path: str | Path) -> None:

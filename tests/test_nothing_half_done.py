@@ -284,3 +284,22 @@ def test_an_error_on_a_plant_s_identified_model_says_so(monkeypatch):
     msg = str(e.value)
     assert msg.startswith("plant 0 of 2 (seed 0: ") and "the model identified on that plant" in msg, msg
     assert msg.endswith("the observer cannot run this model's lag"), msg
+
+
+@pytest.mark.parametrize(
+    "W,b,words",
+    [
+        (np.array([[np.nan, 0.0, 1.0]]), np.zeros(1), "non-finite"),
+        (np.zeros((1, 3)), np.array([np.inf]), "non-finite"),
+        (np.zeros((2, 3)), np.zeros(2), "one action"),
+        (np.array([["a", "b"]]), np.zeros(1), "of numbers"),
+    ],
+    ids=["nan-weight", "inf-offset", "two-actions", "text"],
+)
+def test_a_bad_linear_policy_is_refused_on_load(tmp_path, W, b, words):
+    from hw.runner import LinearPolicy
+
+    np.savez(tmp_path / "p.npz", W=W, b=b)
+    with pytest.raises(InputError) as e:
+        LinearPolicy.load(tmp_path / "p.npz")
+    assert words in str(e.value) and "\n" not in str(e.value)
