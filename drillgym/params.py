@@ -219,6 +219,14 @@ class RigParams:
         if not isinstance(data, Mapping):
             raise ParameterError(f"{source}: expected a mapping of parameter names to numbers")
         if "params" in data and isinstance(data["params"], Mapping):
+            effects = data.get("effects")
+            if effects:  # a model file: its effects would be dropped without a word
+                names = ", ".join(str(e.get("name", e.get("spec"))) for e in effects if isinstance(e, Mapping))
+                names = names or repr(effects)
+                raise ParameterError(
+                    f"{source}: a model file with effects ({names}), read here for base parameters "
+                    "only: give it as a model (--model FILE, model=)"
+                )
             data = data["params"]
         unknown = set(data) - set(PARAM_INFO)
         if unknown:

@@ -38,6 +38,7 @@ from .effects.composition import compose
 from .errors import InputError, InputTypeError, SimulationError
 from .integrators import ADAPTIVE, DEFAULT_ATOL, DEFAULT_DT, DEFAULT_RTOL, tableau
 from .lane_runner import LANE_BLOCK, LANES_MIN_BATCH, block_width, lane_chunks, pad_lanes, run_lanes
+from .model import model_arguments
 from .params import N_PARAMS, RigParams
 from .run_setup import (
     DEFAULT_SMOOTH_EPS,
@@ -120,6 +121,7 @@ def simulate_batch(
     record: Sequence[str] | None = None,
     rtol: float = DEFAULT_RTOL,
     atol: float = DEFAULT_ATOL,
+    model: Any = None,
 ) -> BatchTrajectory:
     """Simulate B runs in one compiled call.
 
@@ -177,6 +179,9 @@ def simulate_batch(
         2.2 GB, ``record=("omega_l",), record_every=10`` takes 12 MB.
     rtol, atol : float, optional
         Relative and absolute tolerances of ``"dp45"``.
+    model : Model, str or path, optional
+        The rig's model (:class:`drillgym.Model` or a model file) all runs share: its base parameters,
+        effects and values; refused beside ``params``, ``effects`` or ``effect_params``.
 
     Returns
     -------
@@ -190,6 +195,7 @@ def simulate_batch(
     SimulationError
         A run diverged (NaN or infinite state).
     """
+    params, effects, effect_params = model_arguments(model, params, effects, effect_params, "simulate_batch()")
     cfg = parse_configuration(config)
     comp, values = compose(effects, effect_params)
     duration, dt = step_grid(duration, dt)
@@ -340,6 +346,7 @@ def simulate(
     record: Sequence[str] | None = None,
     rtol: float = DEFAULT_RTOL,
     atol: float = DEFAULT_ATOL,
+    model: Any = None,
 ) -> Trajectory:
     """Simulate one run of the rig.
 
@@ -376,6 +383,9 @@ def simulate(
         The columns to keep; default all.
     rtol, atol : float, optional
         Tolerances of ``"dp45"``.
+    model : Model, str or path, optional
+        The rig's model (:class:`drillgym.Model` or a model file): its base parameters, effects and
+        values; refused beside ``params``, ``effects`` or ``effect_params``.
 
     Returns
     -------
@@ -391,6 +401,7 @@ def simulate(
     SimulationError
         The run diverged.
     """
+    params, effects, effect_params = model_arguments(model, params, effects, effect_params, "simulate()")
     if params is not None and not isinstance(params, RigParams):
         if not (isinstance(params, np.ndarray) and params.ndim == 1):
             raise InputTypeError(

@@ -121,6 +121,8 @@ class RefitResult:
         All their parameters.
     model_before : str
         The label of the model before.
+    noise : dict of str to float
+        The recording's noise level per channel (physical units), as the comparison estimates it.
     """
 
     params: RigParams
@@ -135,6 +137,7 @@ class RefitResult:
     composition: Composition | None = None
     effect_values: dict[str, float] = field(default_factory=dict)
     model_before: str = "base"
+    noise: dict[str, float] = field(default_factory=dict)
 
     def effect_records(self) -> list[dict]:
         return effect_records(self.composition, self.effect_values) if self.composition is not None else []
@@ -277,4 +280,5 @@ def refit(
         comp,
         res.effect_values,
         comp0.label,
+        dict(after.noise),
     )

@@ -1,0 +1,587 @@
+"""The model of a rig as one value: base parameters, effects, their values, standard errors, provenance.
+
+A :class:`Model` is what identification gives (:func:`drillgym.identify`) and what every part of
+drillgym takes as ``model=`` (``simulate``, ``simulate_batch``, the environments, the controllers,
+``evaluate``, ``compare``, the bifurcation functions, ``train``) or ``--model FILE`` on the command
+line.  It is immutable; :meth:`Model.replace` gives a changed copy.
+
+A model file (JSON or YAML) holds the same structure::
+
+    {"format": "drillgym-model", "version": 2,
+     "params": {"Ju": 0.4765, ...},                   # base parameters (SI units)
+     "std": {"km": 0.0012},                           # standard errors of base parameters (optional)
+     "effects": [                                      # in signal-path order
+        {"name": "motor_lag", "spec": "motor_lag", "values": {"tau_m": 0.05}, "std": {"tau_m": 0.001}},
+        {"name": "candidate_motor", "spec": "rec_candidate.py:candidate_motor",
+         "file": "rec_candidate.py", "sha256": "9f2c...", "values": {...}}],
+     "provenance": {"recording": "rec.csv", "recording_sha256": "...", "route": "identify", ...}}
+
+**Effect files are code.**  A model's effects may be user or candidate files; loading the model
+imports and runs them, so a model file shared by a colleague is as powerful as a script.  Files are
+referenced relative to the model file (a model folder can be copied whole), and :meth:`Model.save`
+copies an effect file that lies outside the model's folder into it and records its SHA-256.
+:meth:`Model.load` refuses, in one line naming it, an effect file outside the model's folder, one
+without a recorded hash, or one changed since the model was written, unless the caller says it
+trusts the code (``trust=True``, ``--trust``), as ``torch.load(weights_only=True)`` does.
+:func:`code_files` lists the files a model would import, without importing them.
+
+The older model files (``{"params", "effects"[spec, file, values, std], "std"}`` written before this
+format, or a file of base parameters only) still read; their effect files carry no hash and need
+``trust=True``.
+
+Examples
+--------
+>>> from drillgym import Model, simulate
+>>> m = Model(effects=("motor_lag",), values={"tau_m": 0.05})
+>>> traj = simulate("torsional", u=1.0, duration=1.0, model=m)
+>>> m.save("out/model.json")
+>>> Model.load("out/model.json") == m
+True
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import shutil
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from functools import cached_property
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+
+from .effects import Composition, EffectError, compose
+from .effects.base import Effect
+from .errors import InputError, MissingFileError
+from .io.jsonfile import write_json
+from .params import ParameterError, RigParams
+
+__all__ = ["Model", "Provenance", "CodeFile", "code_files", "as_model", "UntrustedCodeError", "MODEL_SUFFIXES"]
+
+#: the suffixes of a model file
+MODEL_SUFFIXES = (".json", ".yaml", ".yml")
+#: the format tag and version written by :meth:`Model.save`
+FORMAT, VERSION = "drillgym-model", 2
+
+
+class UntrustedCodeError(InputError):
+    """A model file names code that is not trusted (outside the model's folder, unhashed or changed)."""
+
+
+@dataclass(frozen=True)
+class Provenance:
+    """Where a model came from.
+
+    Attributes
+    ----------
+    route : str
+        What made it: ``"identify"`` (:func:`drillgym.identify`, every route to it), ``"user"``.
+    recording : str or None
+        The recording identified on (its path as given).
+    recording_sha256 : str or None
+        SHA-256 of the recording file's bytes (None: not a file).
+    settings : mapping
+        The identification's settings (JSON-ready values).
+    version : str
+        The drillgym version that made it.
+    """
+
+    route: str = "user"
+    recording: str | None = None
+    recording_sha256: str | None = None
+    settings: Mapping[str, Any] = field(default_factory=dict)
+    version: str = ""
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "route": self.route,
+            "recording": self.recording,
+            "recording_sha256": self.recording_sha256,
+            "settings": dict(self.settings),
+            "version": self.version,
+        }
+
+    @classmethod
+    def from_json(cls, data: Any, where: str) -> Provenance:
+        if not isinstance(data, Mapping):
+            raise ParameterError(f"{where}: 'provenance' must be a mapping")
+        known = {f.name for f in fields(cls)}
+        unknown = set(data) - known
+        if unknown:
+            raise ParameterError(f"{where}: 'provenance' has unknown key(s): {', '.join(sorted(unknown))}")
+        return cls(**{k: (dict(v) if k == "settings" else v) for k, v in data.items()})
+
+
+@dataclass(frozen=True)
+class CodeFile:
+    """An effect file a model file names (listed without importing it).
+
+    Attributes
+    ----------
+    effect : str
+        The effect's name.
+    path : pathlib.Path
+        Where the file is (resolved).
+    inside : bool
+        True when the file lies in the model file's folder (or below it).
+    recorded_sha256 : str or None
+        The hash the model file records (None: none recorded, an older file).
+    matches : bool
+        True when the file exists and its content has the recorded hash.
+    """
+
+    effect: str
+    path: Path
+    inside: bool
+    recorded_sha256: str | None
+    matches: bool
+
+    @property
+    def trusted(self) -> bool:
+        """True when loading may import it without the user's word: inside the folder and unchanged."""
+        return self.inside and self.matches
+
+    def why_untrusted(self) -> str:
+        if not self.path.is_file():
+            return "not found"
+        if not self.inside:
+            return "outside the model's folder"
+        if self.recorded_sha256 is None:
+            return "no hash recorded in the model file"
+        return "changed since the model was written (its SHA-256 differs)"
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _frozen(mapping: Mapping[str, float] | None) -> Mapping[str, float]:
+    return MappingProxyType({str(k): float(v) for k, v in (mapping or {}).items()})
+
+
+def _effect_file(effect: type[Effect]) -> str | None:
+    return getattr(effect, "__drillgym_file__", None)
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    """The model of a rig: base parameters, effects in signal-path order, their values and standard errors.
+
+    Parameters
+    ----------
+    params : RigParams, optional
+        Base parameters (default: the identified set of the model page).
+    effects : sequence, optional
+        The effects: library names (``"motor_lag"``), file specs (``"path/file.py:NAME"``) or Effect
+        classes, in signal-path order (command side first).
+    values : mapping of str to float, optional
+        Effect parameter values by name (each parameter's unit); the others take their defaults.
+    std : mapping of str to float, optional
+        Standard errors by parameter name, base or effect (absent: unknown).
+    provenance : Provenance, optional
+        Where the model came from.
+
+    Raises
+    ------
+    EffectError, ParameterError
+        An unknown effect, an unknown effect parameter or a value outside its bounds.
+    """
+
+    params: RigParams = field(default_factory=RigParams)
+    effects: tuple[str | type[Effect], ...] = ()
+    values: Mapping[str, float] = field(default_factory=dict)
+    std: Mapping[str, float] = field(default_factory=dict)
+    provenance: Provenance = field(default_factory=Provenance)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.params, RigParams):
+            raise InputError(f"Model: params must be a RigParams, got {type(self.params).__name__}")
+        effects = self.effects
+        if isinstance(effects, (str, Composition)) or isinstance(effects, type):
+            effects = effects.effects if isinstance(effects, Composition) else (effects,)
+        object.__setattr__(self, "effects", tuple(effects))
+        comp, values = compose(list(self.effects), dict(self.values or {}))
+        object.__setattr__(self, "values", _frozen(values))
+        object.__setattr__(self, "std", _frozen({k: v for k, v in (self.std or {}).items() if math.isfinite(v)}))
+        object.__setattr__(self, "_composition", comp)
+
+    # ------------------------------------------------------------------ views
+    @property
+    def composition(self) -> Composition:
+        """The effects' composition (compiled once per composition and process)."""
+        return self._composition  # type: ignore[attr-defined]
+
+    @cached_property
+    def vector(self) -> np.ndarray:
+        """The composition's parameter vector (base, then effect parameters)."""
+        v = self.composition.vector(self.params, dict(self.values))
+        v.setflags(write=False)
+        return v
+
+    @property
+    def label(self) -> str:
+        """``base`` or the effects' names joined by ``+``."""
+        return self.composition.label
+
+    @property
+    def names(self) -> list[str]:
+        """The effects' names, in order."""
+        return [e.name for e in self.composition.effects]
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Model):
+            return NotImplemented
+        return (
+            self.params == other.params
+            and self.composition == other.composition
+            and dict(self.values) == dict(other.values)
+            and dict(self.std) == dict(other.std)
+        )
+
+    def __hash__(self) -> int:
+        return hash((self.params, self.composition, tuple(sorted(self.values.items()))))
+
+    def __repr__(self) -> str:
+        vals = ", ".join(f"{k}={v:.4g}" for k, v in self.values.items())
+        return f"Model({self.label}{': ' + vals if vals else ''})"
+
+    def replace(self, **changes: Any) -> Model:
+        """A copy with fields changed (``params``, ``effects``, ``values``, ``std``, ``provenance``)."""
+        kw = {f.name: getattr(self, f.name) for f in fields(self)}
+        unknown = set(changes) - set(kw)
+        if unknown:
+            raise InputError(f"Model.replace: unknown field(s): {', '.join(sorted(unknown))}")
+        kw.update(changes)
+        return Model(**kw)
+
+    @classmethod
+    def from_composition(
+        cls,
+        params: RigParams,
+        composition: Composition,
+        values: Mapping[str, float],
+        std: Mapping[str, float] | None = None,
+        provenance: Provenance | None = None,
+    ) -> Model:
+        """A model from a composition and its values (the effects keep the composition's order)."""
+        return cls(params, tuple(composition.effects), values, std or {}, provenance or Provenance())
+
+    def simulation_arguments(self) -> dict[str, Any]:
+        """``params``, ``effects`` and ``effect_params`` as the simulator takes them."""
+        return {"params": self.params, "effects": self.composition, "effect_params": dict(self.values)}
+
+    # ------------------------------------------------------------------ files
+    def records(self) -> list[dict[str, Any]]:
+        """One record per effect: ``name``, ``spec``, ``kind``, ``values``, ``std`` (and ``file`` for a file)."""
+        out = []
+        for e in self.composition.effects:
+            rec: dict[str, Any] = {"name": e.name, "kind": e.kind, "spec": e.name}
+            f = _effect_file(e)
+            if f is not None:
+                rec["file"] = f
+                rec["spec"] = f"{f}:{e.name}"
+            rec["values"] = {p.name: float(self.values[p.name]) for p in e.parameters}
+            std = {p.name: self.std[p.name] for p in e.parameters if p.name in self.std}
+            if std:
+                rec["std"] = std
+            out.append(rec)
+        return out
+
+    def save(self, path: str | Path) -> Path:
+        """Write the model file (JSON or YAML by suffix), copying effect files into its folder.
+
+        An effect file outside the model file's folder is copied into it (under its own name, or with a
+        hash suffix when another file of that name is there); the record names it relative to the model
+        file with its SHA-256, so the folder can be copied whole.
+
+        Parameters
+        ----------
+        path : str or path
+            The file (``.json``, ``.yaml`` or ``.yml``); its folder is created.
+
+        Returns
+        -------
+        pathlib.Path
+            The file written.
+
+        Raises
+        ------
+        InputError
+            A suffix other than a model file's, or an effect defined in Python code rather than in a file or
+            the library (it cannot be written).
+        """
+        path = Path(path)
+        if path.suffix.lower() not in MODEL_SUFFIXES:
+            raise InputError(f"{path}: a model file must end in .json, .yaml or .yml")
+        folder = path.parent
+        folder.mkdir(parents=True, exist_ok=True)
+        records = []
+        for rec in self.records():
+            e_file = rec.pop("file", None)
+            if e_file is not None:
+                rel = _place_in(Path(e_file), folder)
+                rec["spec"] = f"{rel.as_posix()}:{rec['name']}"
+                rec["file"] = rel.as_posix()
+                rec["sha256"] = _sha256(folder / rel)
+            else:
+                cls = next(e for e in self.composition.effects if e.name == rec["name"])
+                if _library_effect(cls) is not cls:
+                    raise InputError(
+                        f"effect {rec['name']!r} is defined in Python code, not in a file or the library: write it "
+                        "to a file (path/file.py) to save a model with it"
+                    )
+            records.append(rec)
+        base_std = {k: v for k, v in self.std.items() if k in RigParams.__dataclass_fields__}
+        data: dict[str, Any] = {"format": FORMAT, "version": VERSION, "params": self.params.to_dict()}
+        if base_std:
+            data["std"] = base_std
+        data["effects"] = records
+        data["provenance"] = self.provenance.to_json()
+        if path.suffix.lower() in (".yaml", ".yml"):
+            import yaml
+
+            from .io.paths import written_whole
+
+            with written_whole(path, "the model file") as fh:
+                fh.write(yaml.safe_dump(json.loads(json.dumps(data)), sort_keys=False))
+        else:
+            write_json(path, data, nonfinite="refuse")
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path, *, trust: bool = False) -> Model:
+        """Read a model file (this format, an older model file, or a file of base parameters).
+
+        Parameters
+        ----------
+        path : str or path
+            The file (JSON or YAML).
+        trust : bool, optional
+            Import effect files the model names even when they lie outside its folder, carry no recorded
+            hash or changed since it was written (default False: refused).  Only for files you trust:
+            importing an effect file runs it.
+
+        Returns
+        -------
+        Model
+
+        Raises
+        ------
+        MissingFileError
+            The file does not exist.
+        UntrustedCodeError
+            An effect file that is not trusted (the message names it and why), without ``trust``.
+        ParameterError
+            A file that cannot be used (the message names the file).
+        """
+        path = Path(path)
+        data = _read(path)
+        if not trust:
+            bad = [c for c in _code_files(data, path) if not c.trusted]
+            if bad:
+                c = bad[0]
+                raise UntrustedCodeError(
+                    f"{path}: effect {c.effect!r} is code in {c.path} ({c.why_untrusted()}); loading the model "
+                    "would run it: pass trust=True (--trust) if you trust that file"
+                )
+        params = RigParams.from_dict(data.get("params", {}), source=str(path), partial=True)
+        std = _std(data.get("std", {}), path, "'std'")
+        specs: list[str] = []
+        values: dict[str, float] = {}
+        for k, rec in enumerate(_effect_records(data, path)):
+            specs.append(_resolve_spec(rec, path))
+            vals = rec.get("values", {})
+            if not isinstance(vals, Mapping):
+                raise ParameterError(f"{path}: effect record {k}: 'values' must map parameter names to numbers")
+            for name, v in vals.items():
+                if isinstance(v, bool) or not isinstance(v, (int, float)):
+                    raise ParameterError(f"{path}: effect record {k}: {name!r} must be a number, got {v!r}")
+                values[str(name)] = float(v)
+            std.update(_std(rec.get("std", {}), path, f"effect record {k}: 'std'"))
+        prov = Provenance.from_json(data["provenance"], str(path)) if "provenance" in data else Provenance()
+        try:
+            return cls(params, tuple(specs), values, std, prov)
+        except (EffectError, ParameterError) as exc:
+            raise ParameterError(f"{path}: {exc}") from None
+
+
+def _library_effect(cls: type[Effect]) -> Any:
+    from .effects.library import LIBRARY
+
+    return LIBRARY.get(cls.name)
+
+
+def _place_in(file: Path, folder: Path) -> Path:
+    """The effect file's path relative to ``folder``, copying it there when it lies outside."""
+    file = file.resolve()
+    folder_r = folder.resolve()
+    if file.is_relative_to(folder_r):
+        return file.relative_to(folder_r)
+    target = folder_r / file.name
+    if target.exists() and _sha256(target) != _sha256(file):
+        target = folder_r / f"{file.stem}_{_sha256(file)[:8]}{file.suffix}"
+    if not target.exists():
+        shutil.copy2(file, target)
+    return target.relative_to(folder_r)
+
+
+def _read(path: Path) -> Mapping[str, Any]:
+    if not path.exists():
+        raise MissingFileError(f"{path}: model file not found")
+    if path.is_dir():
+        raise ParameterError(f"{path}: is a folder, not a model file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ParameterError(f"{path}: cannot read the model file ({exc.strerror})") from None
+    except UnicodeDecodeError:
+        raise ParameterError(f"{path}: not a model file (not UTF-8 text)") from None
+    try:
+        if path.suffix.lower() in (".yaml", ".yml"):
+            import yaml
+
+            data = yaml.safe_load(text)
+        else:
+            data = json.loads(text)
+    except Exception as exc:  # noqa: BLE001 - any parse error, one line with the file name
+        raise ParameterError(f"{path}: not valid {path.suffix.lstrip('.') or 'JSON'}: {exc}") from None
+    if not isinstance(data, Mapping):
+        raise ParameterError(f"{path}: a model file holds a mapping (params, effects), got {type(data).__name__}")
+    if "format" in data and data["format"] != FORMAT:
+        raise ParameterError(f"{path}: 'format' is {data['format']!r}, not {FORMAT!r}")
+    if "params" not in data and "effects" not in data and "std" not in data:
+        data = {"params": data}  # a file of base parameters only: a model without effects
+    known = {"format", "version", "params", "std", "effects", "provenance", "warnings"}
+    unknown = set(data) - known
+    if unknown:
+        raise ParameterError(f"{path}: unknown key(s) in a model file: {', '.join(sorted(map(str, unknown)))}")
+    return data
+
+
+def _effect_records(data: Mapping[str, Any], path: Path) -> list[Mapping[str, Any]]:
+    effects = data.get("effects", [])
+    if not isinstance(effects, list):
+        raise ParameterError(f"{path}: 'effects' must be a list of {{spec, values}} records")
+    for k, rec in enumerate(effects):
+        if not isinstance(rec, Mapping) or not isinstance(rec.get("spec", rec.get("name")), str):
+            raise ParameterError(f"{path}: effect record {k} needs a 'spec' (name or file.py:NAME)")
+    return effects
+
+
+def _record_file(rec: Mapping[str, Any], where: Path) -> Path | None:
+    """The effect file a record names (resolved), or None for a library effect."""
+    spec = rec.get("spec") or rec["name"]
+    if ".py:" not in spec:
+        return None
+    fpath = Path(spec.rpartition(":")[0])
+    cands = [fpath] if fpath.is_absolute() else [where.parent / fpath]
+    if isinstance(rec.get("file"), str):
+        f = Path(rec["file"])
+        cands.append(f if f.is_absolute() else where.parent / f)
+    for c in cands:
+        if c.is_file():
+            return c.resolve()
+    return cands[0].resolve()
+
+
+def _resolve_spec(rec: Mapping[str, Any], where: Path) -> str:
+    spec = rec.get("spec") or rec["name"]
+    file = _record_file(rec, where)
+    if file is None:
+        return spec
+    return f"{file}:{spec.rpartition(':')[2]}"
+
+
+def _code_files(data: Mapping[str, Any], path: Path) -> list[CodeFile]:
+    folder = path.parent.resolve()
+    out = []
+    for rec in _effect_records(data, path):
+        f = _record_file(rec, path)
+        if f is None:
+            continue
+        recorded = rec.get("sha256") if isinstance(rec.get("sha256"), str) else None
+        matches = f.is_file() and recorded is not None and _sha256(f) == recorded
+        out.append(CodeFile(str(rec.get("name") or rec["spec"]), f, f.is_relative_to(folder), recorded, matches))
+    return out
+
+
+def code_files(path: str | Path) -> list[CodeFile]:
+    """The effect files a model file would import, without importing them.
+
+    Parameters
+    ----------
+    path : str or path
+        The model file.
+
+    Returns
+    -------
+    list of CodeFile
+        One per file effect: where it is, whether it lies in the model's folder, whether its hash matches.
+    """
+    path = Path(path)
+    return _code_files(_read(path), path)
+
+
+def _std(raw: Any, path: Path, what: str) -> dict[str, float]:
+    """Standard errors ``name -> number`` (null: unknown, left out)."""
+    if not isinstance(raw, Mapping):
+        raise ParameterError(f"{path}: {what} must map parameter names to standard errors")
+    out = {}
+    for k, v in raw.items():
+        if v is None:
+            continue
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0:
+            raise ParameterError(f"{path}: {what}: the standard error of {k!r} must be a number >= 0, got {v!r}")
+        out[str(k)] = float(v)
+    return out
+
+
+def as_model(model: Any, *, trust: bool = False, who: str = "model") -> Model:
+    """A :class:`Model` from what a caller gives: a Model, or the path of a model file.
+
+    Parameters
+    ----------
+    model : Model, str or path
+        The model or its file.
+    trust : bool, optional
+        Passed to :meth:`Model.load` for a path.
+    who : str, optional
+        The argument's name in error messages.
+
+    Raises
+    ------
+    InputTypeError
+        Neither a Model nor a path.
+    """
+    if isinstance(model, Model):
+        return model
+    if isinstance(model, (str, Path)) or hasattr(model, "__fspath__"):
+        return Model.load(Path(model), trust=trust)
+    from .errors import InputTypeError
+
+    raise InputTypeError(f"{who} must be a drillgym.Model or the path of a model file, got {type(model).__name__}")
+
+
+def model_arguments(
+    model: Any, params: Any = None, effects: Any = None, effect_params: Any = None, who: str = "simulate"
+) -> tuple[Any, Any, Any]:
+    """``(params, effects, effect_params)`` of a run given ``model=`` (or the three as given without one).
+
+    Raises
+    ------
+    InputError
+        A model given beside ``params``, ``effects`` or ``effect_params`` (the model holds them).
+    """
+    if model is None:
+        return params, effects, effect_params
+    given = [
+        n for n, v in (("params", params), ("effects", effects), ("effect_params", effect_params)) if v is not None
+    ]
+    if given:
+        raise InputError(f"{who}: give model= or {', '.join(given)}, not both (the model holds its own)")
+    m = as_model(model, who=f"{who}: model")
+    return m.params, m.composition, dict(m.values)
