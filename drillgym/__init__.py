@@ -39,7 +39,9 @@ from .errors import (
 )
 
 if TYPE_CHECKING:  # pragma: no cover - the names below load on first use (_LAZY)
+    from .identified import Identified, IdentifyOptions, identify
     from .integrators import DEFAULT_DT, OUTPUT_NAMES
+    from .model import Model, Provenance
     from .params import RigParams
     from .simulator import BatchSimulator, BatchTrajectory, Trajectory, initial_state, simulate, simulate_batch
 
@@ -48,6 +50,11 @@ if TYPE_CHECKING:  # pragma: no cover - the names below load on first use (_LAZY
 _LAZY = {
     "DEFAULT_DT": "integrators",
     "OUTPUT_NAMES": "integrators",
+    "Identified": "identified",
+    "IdentifyOptions": "identified",
+    "identify": "identified",
+    "Model": "model",
+    "Provenance": "model",
     "RigParams": "params",
     "BatchSimulator": "simulator",
     "BatchTrajectory": "simulator",
@@ -68,6 +75,11 @@ __all__ = [
     "OUTPUT_NAMES",
     "ParameterError",
     "RigParams",
+    "Model",
+    "Provenance",
+    "identify",
+    "Identified",
+    "IdentifyOptions",
     "BatchSimulator",
     "BatchTrajectory",
     "Trajectory",
