@@ -155,3 +155,33 @@ def test_every_command_keeps_the_contract(data, a, root):
             raise
         with open(log, "a", encoding="utf-8") as fh:
             fh.write(" ".join(str(exc).split())[:700] + "\n")
+
+
+def _sure_value(p, a) -> str:
+    """One value of ``p`` every command must refuse, past the parser where there is one (NaN for a number)."""
+    values = must_refuse(p, a)
+    for preferred in ("nan", "nope!", a.missing, str(Path(a.root) / "notes.txt" / "x.out")):
+        if preferred in values:
+            return preferred
+    return values[0]
+
+
+def _every_option():
+    for cmd in COMMANDS:
+        for p in cmd.params:
+            if p.kind != "flag":
+                yield pytest.param(cmd, p, id=f"{' '.join(cmd.path)}:{p.name}")
+
+
+@pytest.mark.parametrize("cmd,p", list(_every_option()))
+def test_every_option_refuses_a_value_it_must(cmd, p, a, root):
+    """Each option and argument of each command, set to a value it must refuse (NaN for a number, a missing file,
+    an output under a file, an unknown word) on the command's base line: refused in one line, nothing written."""
+    from contract import base_argv
+
+    if not must_refuse(p, a):
+        pytest.skip(f"{p.name}: free text, no value of it is wrong")
+    work = fresh_work(root)
+    value = _sure_value(p, a)
+    argv = with_value(base_argv(cmd, a), p, value, len(cmd.path))
+    assert check_contract(cmd, argv, work, a, (p.name, value, Path(value).name)) == "refused"
