@@ -228,6 +228,11 @@ class Model:
         return self.composition.label
 
     @property
+    def specs(self) -> list[str]:
+        """The effects as ``--add-effect`` takes them: library names, or ``path/file.py:NAME`` for a file's."""
+        return [r["spec"] for r in self.records()]
+
+    @property
     def names(self) -> list[str]:
         """The effects' names, in order."""
         return [e.name for e in self.composition.effects]

@@ -27,6 +27,17 @@ def effect_param_option() -> list[str]:
     return typer.Option(None, "--effect-param", help=EFFECT_PARAM_HELP)
 
 
+#: what ``--trust`` says: loading a model file imports the effect files it names
+TRUST_HELP = (
+    "import the effect files the model file names even when they lie outside its folder, carry no recorded "
+    "hash or changed since it was written (an effect file is code: loading it runs it)"
+)
+
+
+def trust_option() -> bool:
+    return typer.Option(False, "--trust", help=TRUST_HELP)
+
+
 def parse_effect_params(items: list[str] | None) -> dict[str, float]:
     """``["tau_m=0.02", "c3=1.5"]`` -> {"tau_m": 0.02, "c3": 1.5}; a one-line error names a bad item."""
     out: dict[str, float] = {}
