@@ -53,6 +53,10 @@ class DrillEnv(gym.Env):
         Any field of :class:`drillgym.envs.options.EnvOptions` (observation mode, control period,
         target speed, episode length, limits, reward weights, domain randomisation, effects, sensor
         noise, ...).  Bad values raise :class:`drillgym.errors.InputError` naming the option.
+        ``model=`` (a :class:`drillgym.Model` or a model file's path) runs that model's base parameters
+        and effects (the same compiled composition as ``simulate(..., model=m)``); it is refused beside
+        ``params``, ``effects`` or ``effect_params``.  With ``randomize`` the drawn parameters vary around
+        the model's values.
 
     Notes
     -----
@@ -115,6 +119,7 @@ class DrillEnv(gym.Env):
     >>> env = gymnasium.make("drillgym/Torsional-v0", observation="sensors", omega_ref=4.0)
     >>> obs, info = env.reset(seed=0)
     >>> obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+    >>> env = gymnasium.make("drillgym/Torsional-v0", model=drillgym.Model.load("out/model.json"))
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 25}

@@ -86,6 +86,12 @@ class EnvOptions:
     observation : str, optional
         Observation mode: ``"full"`` (true state), ``"sensors"`` (what the rig measures) or ``"motor"``
         (the motor encoder only), see :mod:`drillgym.envs.observation`.
+    model : Model, str or path, optional
+        The rig's model (:class:`drillgym.Model` or the path of a model file, read with
+        :meth:`drillgym.Model.load` without ``trust``): its base parameters, effects and effect values,
+        run through the same compiled composition as ``simulate(..., model=m)``.  Refused beside
+        ``params``, ``effects`` or ``effect_params`` (the model holds its own).  It is resolved into
+        those three fields (the field then reads None; :attr:`rig_model` gives the model back).
     params : RigParams, optional
         Parameter set of the rig; default the identified set.
     randomize : float, optional
@@ -139,6 +145,7 @@ class EnvOptions:
 
     configuration: str = "torsional"
     observation: str = "full"
+    model: Any = None
     params: RigParams | None = None
     randomize: float = 0.0
     randomize_names: tuple = BASE_PARAMETERS
@@ -172,6 +179,12 @@ class EnvOptions:
         object.__setattr__(self, "configuration", cfg.label)
         if self.observation not in OBSERVATION_MODES:
             raise InputError(f"option 'observation' must be one of {OBSERVATION_MODES}, got {self.observation!r}")
+        if self.model is not None:  # resolved into params, effects, effect_params (refused beside them)
+            from ..model import model_arguments
+
+            p, e, v = model_arguments(self.model, self.params, self.effects, self.effect_params, "option 'model'")
+            for name, value in (("params", p), ("effects", e), ("effect_params", v), ("model", None)):
+                object.__setattr__(self, name, value)
         if self.params is not None and not isinstance(self.params, RigParams):
             raise InputError(f"option 'params' must be a RigParams, got {type(self.params).__name__}")
         self._positive("control_dt", self.control_dt, hi=1.0)
@@ -252,6 +265,13 @@ class EnvOptions:
     @property
     def rig_params(self) -> RigParams:
         return self.params if self.params is not None else RigParams()
+
+    @property
+    def rig_model(self):
+        """The rigs' model (:class:`drillgym.Model`): base parameters, effects and their values."""
+        from ..model import Model
+
+        return Model.from_composition(self.rig_params, self.effects, dict(self.effect_params))
 
     @classmethod
     def from_kwargs(cls, **kwargs: Any) -> EnvOptions:

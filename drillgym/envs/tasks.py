@@ -180,6 +180,12 @@ class BenchmarkTask:
 
     **Arguments.** ``gymnasium.make(task.id, **options)`` accepts only :data:`FREE_OPTIONS` (observation
     history, speed filter, reward weights, rendering); any other option is fixed by the task and refused.
+    ``model=`` (a :class:`drillgym.Model` or a model file's path) is the task's NOMINAL model: a ``Nominal``
+    task runs it (its base parameters and effects, in place of the identified rig); a ``Population`` task
+    draws its training plants around it (the uncertainty set's relative ranges scale the model's base
+    parameters, the set's effect parameters are drawn from their ranges, the model's other effect parameters
+    keep their values), so ``model=`` never means one single plant there.  ``drillgym benchmark TASK
+    --model FILE`` instead scores a policy on that model's plant alone.
     """
 
     id: str
