@@ -38,6 +38,58 @@ def trust_option() -> bool:
     return typer.Option(False, "--trust", help=TRUST_HELP)
 
 
+#: what ``--model FILE`` says on a command that runs the rig's model
+MODEL_HELP = (
+    "model file (JSON/YAML, drillgym.Model: base parameters and effects, e.g. what `drillgym identify` wrote) the "
+    "run uses; not with --params, --add-effect or --effect-param (the model holds its own)"
+)
+
+
+def model_option(help: str = MODEL_HELP):
+    return typer.Option(None, "--model", help=help)
+
+
+def model_from_cli(model_file, trust: bool = False, config=None, **beside):
+    """The :class:`drillgym.Model` of ``--model FILE`` (read with :meth:`drillgym.Model.load`, ``--trust``).
+
+    Parameters
+    ----------
+    model_file : path
+        The model file.
+    trust : bool, optional
+        ``--trust``: import effect files outside the model's folder, unhashed or changed.
+    config : Configuration, optional
+        The run's configuration: an effect of the model that does not act in it is refused.
+    **beside
+        The options that name the model's parts, by option (``{"--params": value, ...}`` as keywords
+        ``params=``, ``add_effect=``, ``effect_param=``): any of them given is refused in one line.
+
+    Returns
+    -------
+    drillgym.Model
+        The model.
+
+    Raises
+    ------
+    InputError
+        ``--model`` beside ``--params``, ``--add-effect`` or ``--effect-param``, or a file that cannot be used
+        (the message leads with ``--model``).
+    """
+    from ..model import Model
+    from .options import option
+
+    given = ["--" + k.replace("_", "-") for k, v in beside.items() if v]
+    if given:
+        raise InputError(
+            f"--model cannot go with {', '.join(given)} (the model file holds its base parameters and effects)"
+        )
+    with option("--model"):
+        m = Model.load(model_file, trust=trust)
+        if config is not None:
+            m.composition.refuse_not_acting(config.label, "the model's effects")
+    return m
+
+
 def parse_effect_params(items: list[str] | None) -> dict[str, float]:
     """``["tau_m=0.02", "c3=1.5"]`` -> {"tau_m": 0.02, "c3": 1.5}; a one-line error names a bad item."""
     out: dict[str, float] = {}

@@ -11,8 +11,15 @@ from ..configurations import Configuration
 from ..errors import InputError
 from ..io import U_LIMIT_FILE
 from .budget import check_run_fits
-from .effect_options import add_effect_option, effect_param_option, effects_from_cli
-from .options import option
+from .effect_options import (
+    add_effect_option,
+    effect_param_option,
+    effects_from_cli,
+    model_from_cli,
+    model_option,
+    trust_option,
+)
+from .options import excludes, option, requires
 from .outputs import CREATES_DIRS, figure_file, output_file
 
 
@@ -192,6 +199,10 @@ def _summary(traj) -> str:
 
 def register(app: typer.Typer) -> None:
     @app.command("simulate")
+    @excludes("--model", "--params", why="the model file holds its base parameters")
+    @excludes("--model", "--add-effect", why="the model file holds its effects")
+    @excludes("--model", "--effect-param", why="the model file holds its effects' values")
+    @requires("--trust", "--model", why="it trusts the effect files a model file names")
     def simulate_cmd(
         config: str = typer.Option("torsional", help="upper, torsional, lateral, coupled or free_vibration"),
         u: float | None = typer.Option(
@@ -222,6 +233,8 @@ def register(app: typer.Typer) -> None:
         plot: Path | None = typer.Option(None, help=f"also write a figure (png); {CREATES_DIRS}"),
         add_effect: list[str] = add_effect_option(),
         effect_param: list[str] = effect_param_option(),
+        model_file: Path | None = model_option(),
+        trust: bool = trust_option(),
     ) -> None:
         """Simulate from rest and write the run as csv (docs/data_format.md) and a figure.
 
@@ -253,9 +266,13 @@ def register(app: typer.Typer) -> None:
                 f"amplifier gives +-5 V); choose |u| <= {U_LIMIT_FILE:g} V"
             )
         duration_given = duration is not None
-        comp, values = effects_from_cli(add_effect, effect_param, cfg)
-        with option("--params"):
-            rig = RigParams.from_file(params) if params else RigParams()
+        if model_file is not None:
+            m = model_from_cli(model_file, trust, cfg, params=params, add_effect=add_effect, effect_param=effect_param)
+            rig, comp, values = m.params, m.composition, dict(m.values)
+        else:
+            comp, values = effects_from_cli(add_effect, effect_param, cfg)
+            with option("--params"):
+                rig = RigParams.from_file(params) if params else RigParams()
         if input_file is not None:
             with option("--input"):
                 signal = _load_input(input_file)  # its values are checked by the reader (|u| <= 50 V)
@@ -284,9 +301,12 @@ def register(app: typer.Typer) -> None:
         how = (
             f"--u {u}" if u is not None else f"--input {input_file}" if input_file is not None else f"--alpha0 {alpha0}"
         )
-        how += "".join(f" --add-effect {s}" for s in comp.specs()) + "".join(
-            f" --effect-param {k}={v:g}" for k, v in values.items()
-        )
+        if model_file is not None:
+            how += f" --model {model_file}"
+        else:
+            how += "".join(f" --add-effect {s}" for s in comp.specs()) + "".join(
+                f" --effect-param {k}={v:g}" for k, v in values.items()
+            )
         traj.to_csv(out, description=f"drillgym simulate --config {cfg.label} {how}")
         typer.echo(f"wrote {out} ({len(traj.t)} samples); {_summary(traj)}")
         if plot:
