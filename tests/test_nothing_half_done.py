@@ -224,23 +224,20 @@ def test_an_average_refuses_one_network_twice(tmp_path):
 
 
 def test_an_error_on_one_plant_names_it(monkeypatch):
+    """A batch of plants that fails is run plant by plant: the one that fails names itself."""
     from controllers.evaluation import harness
-    from controllers.evaluation.population import sample_plants
 
-    bad = sample_plants(4, 0, None, None).subset([2]).matrix[0]
-    real = harness.run_closed_loop
-
-    def diverging(ctrl, config, ref, duration, *, params, **kw):
-        if any(np.allclose(row, bad) for row in np.atleast_2d(params)):
+    def diverging(controller, config, scenario, targets, base, pop, duration, window, seed, plants, model):
+        if 2 in plants:
             raise SimulationError("the run diverged at t = 0.1 s")
-        return real(ctrl, config, ref, duration, params=params, **kw)
+        return []
 
-    monkeypatch.setattr(harness, "run_closed_loop", diverging)
+    monkeypatch.setattr(harness, "_run_plants", diverging)
     with pytest.raises(SimulationError) as e:
-        harness.evaluate(["baseline"], ["torsional"], ["plants"], [2.0], duration=0.3, window=0.1, plants=4,
+        harness.evaluate(["baseline"], ["torsional"], ["plants"], [2.0], duration=0.2, window=0.1, plants=3,
                          workers=1, progress=False)  # fmt: skip
     msg = str(e.value)
-    assert msg.startswith("plant 2 of 4 (seed 0: km ") and msg.endswith("the run diverged at t = 0.1 s"), msg
+    assert msg.startswith("plant 2 of 3 (seed 0: km ") and msg.endswith("the run diverged at t = 0.1 s"), msg
     assert "identified" not in msg
 
 
@@ -254,7 +251,7 @@ def test_an_error_identifying_a_plant_names_it(monkeypatch):
     monkeypatch.setattr(identify, "identify_plant", failing)
     monkeypatch.setattr(identify, "excitation_recording", lambda *args: None)
     with pytest.raises(FitError) as e:
-        harness.evaluate(["baseline"], ["torsional"], ["plants"], [2.0], duration=0.3, window=0.1, plants=2,
+        harness.evaluate(["baseline"], ["torsional"], ["plants"], [2.0], duration=0.2, window=0.1, plants=2,
                          workers=1, progress=False, identify=ExcitationOptions(duration=2.0))  # fmt: skip
     msg = str(e.value)
     assert msg.startswith("plant 0 of 2 (seed 0: ") and ", identifying it: the fit did not converge" in msg, msg
@@ -269,17 +266,13 @@ def test_an_error_on_a_plant_s_identified_model_says_so(monkeypatch):
         def columns(self):
             return {}
 
-    real = harness.build_controller
+    def refusing(controller, config, scenario, targets, base, pop, duration, window, seed, plants, model):
+        raise InputError("the observer cannot run this model's lag")
 
-    def refusing(controller, config, ref, base, model=None, **kw):
-        if model is not None:
-            raise InputError("the observer cannot run this model's lag")
-        return real(controller, config, ref, base, model, **kw)
-
-    monkeypatch.setattr(harness, "build_controller", refusing)
+    monkeypatch.setattr(harness, "_run_plants", refusing)
     monkeypatch.setattr(harness, "identify_population", lambda n, *args, **kw: {k: Identified() for k in range(n)})
     with pytest.raises(InputError) as e:
-        harness.evaluate(["observer"], ["torsional"], ["plants"], [2.0], duration=0.3, window=0.1, plants=2,
+        harness.evaluate(["baseline"], ["torsional"], ["plants"], [2.0], duration=0.2, window=0.1, plants=2,
                          workers=1, progress=False, identify=True)  # fmt: skip
     msg = str(e.value)
     assert msg.startswith("plant 0 of 2 (seed 0: ") and "the model identified on that plant" in msg, msg
