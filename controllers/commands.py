@@ -139,16 +139,11 @@ def register(app: typer.Typer) -> None:
         if identify:
             from controllers.evaluation.identify import ExcitationOptions
 
-            if not any(s.population for s in scen):
-                raise InputError("--identify identifies each plant of a population: add --scenarios plants")
-            if model is not None:
-                raise InputError("--identify builds the controllers on each plant's identified model: drop --model")
+            # with --scenarios plants and without --model: the declared dependencies above
             if excitation is not None and not (excitation >= 2.0 and excitation <= DURATION_MAX):
                 raise InputError(f"--excitation must be in [2, {DURATION_MAX:g}] s, got {excitation:g}")
             ident = ExcitationOptions(duration=None if excitation is None else float(excitation))
-        if uncertainty is not None:
-            if not any(s.population for s in scen):
-                raise InputError("--uncertainty is the set of the 'plants' scenario: add --scenarios plants")
+        if uncertainty is not None:  # with --scenarios plants (declared above)
             with option("--uncertainty"):
                 uncertainty = load_uncertainty(uncertainty)
         base, comp, values = plant_from_cli(params, add_effect, effect_param)
