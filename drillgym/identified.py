@@ -69,6 +69,12 @@ class IdentifyOptions:
         Least-squares evaluations of the final joint fit.
     fixed_base : bool
         Hold the base parameters at the start model's.
+    candidates : sequence or None
+        The library effects the selection may take (names, file specs or Effect classes); None: the
+        library's for the configuration.
+    segment_s : float or None
+        Multiple-shooting segment length of the diagnosis (s); -1: the configuration's default; None: one
+        free run.
     """
 
     config: str | None = None
@@ -78,6 +84,8 @@ class IdentifyOptions:
     compare_rate_hz: float = 50.0
     max_nfev: int = 30
     fixed_base: bool = False
+    candidates: Any = None
+    segment_s: float | None = -1.0
 
     def to_json(self) -> dict[str, Any]:
         """The settings recorded in the model's provenance (paths left out: they differ between routes)."""
@@ -86,6 +94,8 @@ class IdentifyOptions:
             "compare_rate_hz": self.compare_rate_hz,
             "max_nfev": self.max_nfev,
             "fixed_base": self.fixed_base,
+            "candidates": None if self.candidates is None else [getattr(c, "name", c) for c in self.candidates],
+            "segment_s": self.segment_s,
         }
 
 
@@ -112,6 +122,8 @@ class Identified:
         The diagnosis's and the fit's warnings, and the identification's notes.
     seconds : float
         Wall-clock time (s).
+    fit : RefitResult or None
+        The final joint fit: the error per channel before (the start model) and after, R², the fitted values.
     """
 
     model: Model
@@ -122,6 +134,7 @@ class Identified:
     residual_to_noise: dict[str, float] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
     seconds: float = 0.0
+    fit: Any = field(default=None, repr=False, compare=False)
 
     @property
     def unexplained(self) -> Any:
@@ -192,6 +205,8 @@ def identify(recording: TimeSeries | str | Path, options: IdentifyOptions | None
         effect_params=dict(start.values) or None,
         compare_rate_hz=o.compare_rate_hz,
         fixed_base=o.fixed_base,
+        effects=o.candidates,
+        segment_s=o.segment_s,
         discover=o.discover,
         candidate_out=cand_out,
     )
@@ -243,6 +258,7 @@ def identify(recording: TimeSeries | str | Path, options: IdentifyOptions | None
         ratios,
         tuple(dict.fromkeys(warnings)),
         time.perf_counter() - start_time,
+        res,
     )
 
 

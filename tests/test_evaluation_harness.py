@@ -331,7 +331,7 @@ def test_identify_is_refused_without_a_population(tmp_path, capsys):
 
 
 def test_a_single_timing_effect_is_tried_again_as_a_lag_and_a_delay():
-    from controllers.evaluation.identify import LAG_SHARE, _with_both_timing_effects
+    from drillgym.identified import LAG_SHARE, _with_both_timing_effects
 
     specs, values = _with_both_timing_effects(["input_delay", "position_friction"], {"delay": 0.05, "pf_c1": 0.1})
     assert specs == ["motor_lag", "input_delay", "position_friction"]  # the lag first on the signal path

@@ -1,18 +1,15 @@
-"""Identify, then control, per plant: an excitation run, ``diagnose`` + ``identify`` on its recording.
+"""Identify, then control, per plant: an excitation run, then :func:`drillgym.identify` on its recording.
 
 For ``evaluate --scenarios plants --identify``: each plant of the population gets
 
 1. an **excitation run** through the path every closed-loop run of the harness takes
-   (:func:`.runner.run_closed_loop`: the plant's composition with its lag, delay and position
-   friction, its encoders' quantisation and noise), playing the quasi-random estimation signal
-   (:func:`drillgym.signals.quasi_random`) and recording what the sensors report (motor and lower
-   encoder angles) at the recording rate;
-2. **diagnose** on that recording (:func:`drillgym.diagnosis.diagnose`: which effects of the library the
-   recording shows, the base parameters re-identified alongside), then **identify**
-   (:func:`drillgym.diagnosis.refit.refit`): the base parameters the diagnosis re-identifies
-   (:data:`drillgym.diagnosis.search_model.BASE_FREE`: km, Tcu, bu, kθ, Jl and the brake law in the
-   torsional configuration) and the selected effects' parameters fitted together, with their standard errors;
-3. the model (:class:`controllers.model.ControllerModel`) every controller of the evaluation is built on.
+   (:func:`.runner.run_closed_loop`: the plant's composition, its encoders' quantisation and noise),
+   playing the quasi-random estimation signal (:func:`drillgym.signals.quasi_random`) and recording
+   what the sensors report (motor and lower encoder angles) at the recording rate;
+2. **identification** by :func:`drillgym.identify`, the one front every route takes (``diagnose
+   --model-out``, ``drillgym identify``, ``rig tune``): diagnosis, a candidate outside the library when one
+   earns its place, the library selected again beside it, everything refitted jointly;
+3. the :class:`drillgym.Model` every controller of the evaluation is built on.
 
 The identification never sees the plant's values; :class:`IdentifiedPlant` keeps them side by side
 for the results.
@@ -21,17 +18,16 @@ for the results.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from drillgym.configurations import parse_configuration
 from drillgym.io import TimeSeries
+from drillgym.model import Model
 from drillgym.signals import quasi_random
 
 from ..base import Controller
-from ..model import ControllerModel
 from .runner import run_closed_loop
 
 __all__ = ["EXCITATION_S", "ExcitationOptions", "IdentifiedPlant", "excitation_recording", "identify_plant"]
@@ -166,10 +162,10 @@ class IdentifiedPlant:
 
     Attributes
     ----------
-    model : ControllerModel
+    model : drillgym.Model
         The identified model (base parameters, the selected effects, standard errors).
     selected : list of str
-        The effects the diagnosis selected.
+        The effects of the identified model.
     seconds : float
         Wall-clock time of the diagnosis and the fit (s), the excitation run excluded.
     values : dict of str to float
@@ -178,7 +174,7 @@ class IdentifiedPlant:
         The diagnosis's and the fit's warnings.
     """
 
-    model: ControllerModel
+    model: Model
     selected: list[str]
     seconds: float
     values: dict[str, float] = field(default_factory=dict)
@@ -195,7 +191,7 @@ class IdentifiedPlant:
 def identify_plant(
     recording: TimeSeries, names: list[str], options: ExcitationOptions | None = None
 ) -> IdentifiedPlant:
-    """Diagnose the recording, then fit the base parameters and the selected effects together.
+    """Identify the recording (:func:`drillgym.identify`, the route every command takes).
 
     Parameters
     ----------
@@ -211,86 +207,16 @@ def identify_plant(
     IdentifiedPlant
         The model and what was found.
     """
-    from drillgym.diagnosis import DiagnosisOptions, diagnose
-    from drillgym.diagnosis.refit import refit
-    from drillgym.diagnosis.search_model import BASE_FREE
-    from drillgym.effects import compose
+    from drillgym import identify
 
     o = options or ExcitationOptions()
-    start = time.perf_counter()
-    d = diagnose(recording, options=DiagnosisOptions(compare_rate_hz=o.compare_rate_hz, discover=False))
-    params, records, _ = d.selected_model()
-    specs = [r["spec"] for r in records]
-    values = {k: v for r in records for k, v in r["values"].items()}
-
-    def fit(specs: list[str], values: dict[str, float]):
-        comp, values = compose(specs, values)
-        res = refit(
-            recording,
-            params,
-            base_effects=comp,
-            base_values=values,
-            fit=list(BASE_FREE[d.config]) + list(comp.effect_param_names),  # what the diagnosis re-identifies
-            refit_base=False,
-            compare_rate_hz=o.compare_rate_hz,
-            max_nfev=o.max_nfev,
-        )
-        return comp, values, res
-
-    comp, values, res = fit(specs, values)
-    notes: list[str] = []
-    both = _with_both_timing_effects(specs, values)
-    if both is not None:  # the diagnosis took one of a lag and a delay: both, when they fit clearly better
-        comp2, values2, res2 = fit(*both)
-        ss, ss2 = _sum_of_squares(res), _sum_of_squares(res2)
-        if ss2 < (1.0 - BOTH_TIMING_GAIN) * ss:
-            comp, values, res = comp2, values2, res2
-            notes.append(f"a motor lag and an input delay fitted together: residual {ss2:.3g} against {ss:.3g} rad²")
-    fitted = {**values, **{k: v for k, v in res.values.items() if k in values}}
-    std = {k: v for k, v in res.std.items() if math.isfinite(v)}
-    model = ControllerModel(res.params, comp, fitted, std)
-    seconds = time.perf_counter() - start
-    found = {**res.params.to_dict(), **fitted}
-    selected = list(d.selected) + [n for n in comp.names if n in TIMING_EFFECTS and n not in d.selected]
+    found = identify(recording, compare_rate_hz=o.compare_rate_hz, max_nfev=o.max_nfev)
+    m = found.model
+    values = {**m.params.to_dict(), **m.values}
     return IdentifiedPlant(
-        model,
-        selected,
-        seconds,
-        {n: float(found.get(n, math.nan)) for n in names},
-        list(d.warnings) + list(res.warnings) + notes,
+        m,
+        list(m.names),
+        found.seconds,
+        {n: float(values.get(n, math.nan)) for n in names},
+        list(found.warnings),
     )
-
-
-#: the signal path's timing effects the diagnosis may take one of
-TIMING_EFFECTS = ("motor_lag", "input_delay")
-#: share of the residual sum of squares the fit with both must remove to replace the fit with one
-BOTH_TIMING_GAIN = 0.05
-#: where the fit with both starts: this share of the one's time as the lag, the rest as the delay
-LAG_SHARE = 0.7
-
-
-def _with_both_timing_effects(specs: list[str], values: dict[str, float]) -> tuple[list[str], dict] | None:
-    """The model with a lag and a delay when the diagnosis took one of them (else None): the one's time split,
-    :data:`LAG_SHARE` to the lag, the lag first on the signal path.
-
-    The diagnosis tells a lag from a delay on the comparison grid, where the two shift the slow response alike;
-    a plant with both (or with the other one) is then read as one element of about their sum and the base
-    parameters absorb the difference as a common scale (a plant with a 46 ms lag and a 17 ms delay read as a
-    56 ms delay, km -4.0 %; fitted with both, a 63 ms lag, km -0.02 %)."""
-    taken = [s for s in specs if s in TIMING_EFFECTS]
-    if len(taken) != 1:
-        return None
-    total = values.get("tau_m", values.get("delay"))
-    if total is None or not total > 0:
-        return None
-    rest = [s for s in specs if s not in TIMING_EFFECTS]
-    return ["motor_lag", "input_delay", *rest], {
-        **values,
-        "tau_m": LAG_SHARE * total,
-        "delay": (1.0 - LAG_SHARE) * total,
-    }
-
-
-def _sum_of_squares(res) -> float:
-    """The fit's residual: the sum over channels of the squared RMS (rad²)."""
-    return float(sum(v * v for v in res.rms_after.values()))

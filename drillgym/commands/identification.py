@@ -8,7 +8,7 @@ from pathlib import Path
 import typer
 
 from ..errors import DrillgymError, InputError
-from .effect_options import add_effect_option, effect_param_option
+from .effect_options import add_effect_option, effect_param_option, trust_option
 from .mapping import MAP_HELP, parse_mapping
 from .options import named, option, requires
 from .outputs import CREATES_DIRS, check_output_dir, check_output_file, figure_file, output_file
@@ -22,25 +22,22 @@ def _json(obj) -> str:
     return dumps_json(obj, indent=2)
 
 
-def _model_file(path: Path | None):
-    """The model in ``--params`` (RigParams only, or params and effects); default the identified set, no effects."""
-    from ..identification.model_file import ModelFile, read_model
-    from ..params import RigParams
+def _model_file(path: Path | None, trust: bool = False):
+    """The model in ``--params`` (base parameters only, or a model file); default the model page's set, no effects."""
+    from ..model import Model
 
     if path is None:
-        return ModelFile(RigParams())
-    return read_model(path)
+        return Model()
+    return Model.load(path, trust=trust)
 
 
-def _model(path: Path | None, add_effect: list[str] | None, effect_param: list[str] | None):
+def _model(path: Path | None, add_effect: list[str] | None, effect_param: list[str] | None, trust: bool = False):
     """(RigParams, composition, effect values, {effect name: spec}) of ``--params`` (its effects) plus
     ``--add-effect``/``--effect-param``; one-line errors name the file, the effect and what is wrong."""
-    from ..effects import compose
     from .effect_options import compose_named, parse_effect_params
 
     with option("--params"):
-        mf = _model_file(path)
-        compose(list(mf.specs), dict(mf.values))
+        mf = _model_file(path, trust)
     values = dict(mf.values)
     extra = parse_effect_params(effect_param)
     if extra and not (add_effect or mf.specs):
@@ -187,6 +184,14 @@ def compare_cmd(
     add_effect: list[str] = add_effect_option(),
     effect_param: list[str] = effect_param_option(),
     map_: list[str] = typer.Option([], "--map", help=MAP_HELP),
+    model_file: Path | None = typer.Option(
+        None,
+        "--model",
+        help="a model file (e.g. from `diagnose --model-out` or `identify`): compared beside the nominal model "
+        "(--params, default the identified set), the error of each per channel and in noise units",
+    ),
+    as_json: bool = typer.Option(False, "--json", help="print the comparison (with --model: of both models) as JSON"),
+    trust: bool = trust_option(),
 ) -> None:
     """Simulate a recording's input from its initial state; R², RMS and where the error lives."""
     from ..diagnosis.compare import compare, write_compare
@@ -195,15 +200,36 @@ def compare_cmd(
 
     check_output_dir(out)
     seg = _segment(segment)
-    base, model, values, _ = _model(params, add_effect, effect_param)
+    if model_file is not None and (add_effect or effect_param):
+        raise InputError("--model compares the model file as it is: drop --add-effect/--effect-param")
+    base, model, values, _ = _model(params, add_effect, effect_param, trust)
+    if model_file is not None:
+        with option("--model"):
+            identified = _model_file(model_file, trust)
     ex = _experiment(data, config, rate, map_)
     check_effects_act(model, ex.config)
     if seg is not None and seg < 0:
         seg = default_segment(ex.config) if ex.config.brake else None
     else:
         _check_segment(seg, ex)
+    if model_file is not None:
+        from ..diagnosis.model_compare import compare_models, write_model_comparison
+
+        check_effects_act(identified.composition, ex.config, "--model")
+        both = compare_models(ex, identified, nominal=base, segment_s=seg)
+        paths = write_compare(both.model, out) + write_model_comparison(both, out)
+        if as_json:
+            typer.echo(_json(both.to_json()))
+            return
+        typer.echo(both.model.text())
+        typer.echo(both.text())
+        typer.echo(f"figures and report in {out}/: " + ", ".join(p.name for p in paths))
+        return
     comp = compare(ex, base, segment_s=seg, effects=model, effect_params=values)
     paths = write_compare(comp, out)
+    if as_json:
+        typer.echo(_json(comp.to_json()))
+        return
     typer.echo(comp.text())
     typer.echo(f"figures and report in {out}/: " + ", ".join(p.name for p in paths))
 
@@ -262,6 +288,7 @@ def diagnose_cmd(
         help="also try this effect (name or path/to/file.py:NAME; repeatable); default candidates: the library's",
     ),
     map_: list[str] = typer.Option([], "--map", help=MAP_HELP),
+    trust: bool = trust_option(),
     model_out: Path | None = typer.Option(
         None,
         "--model-out",
@@ -294,7 +321,7 @@ def diagnose_cmd(
         check_output_file(model_out, "--model-out", suffixes=(".json", ".yaml", ".yml"))
     plot = figure_file(plot) if plot is not None else None
     seg = _segment(segment)
-    base, model, values, _ = _model(params, add_effect, effect_param)
+    base, model, values, _ = _model(params, add_effect, effect_param, trust)
     with option("--candidate"):
         extra = [get_effect(c) for c in candidate or []]
     ex = _experiment(data, config, rate, map_)
@@ -317,12 +344,15 @@ def diagnose_cmd(
         fixed_base=fixed_base,
         discover=sparse,
         candidate_out=candidate_out or default_out,
+        compare_rate_hz=rate,
     )
-    d = diagnose(ex, base, options=options)
-    if model_out is not None:
-        from ..identification.model_file import write_model
-
-        write_model(output_file(model_out, "--model-out", suffixes=(".json", ".yaml", ".yml")), *d.selected_model())
+    found = None
+    if model_out is None:
+        d = diagnose(ex, base, options=options)
+    else:  # the model file: the one identification every route takes (drillgym.identify)
+        found = _identify_front(ex, base, model, values, options)
+        d = found.diagnosis
+        found.model.save(output_file(model_out, "--model-out", suffixes=(".json", ".yaml", ".yml")))
     if plot is not None:
         from ..diagnosis.figure import plot_unexplained
 
@@ -348,8 +378,31 @@ def diagnose_cmd(
             )
         if plot is not None:
             typer.echo(f"wrote {plot}: the residual left unexplained")
-        if model_out is not None:
-            typer.echo(f"wrote {model_out}: the model selected ({'+'.join(d.selected) or 'no effect added'})")
+        if found is not None:
+            for line in found.lines():
+                typer.echo(line)
+            typer.echo(f"wrote {model_out}: the identified model ({found.model.label})")
+
+
+def _identify_front(ex, base, model, values, options):
+    """:func:`drillgym.identify` with a command's diagnosis settings (the recording as read, its configuration)."""
+    from ..identified import IdentifyOptions, identify
+    from ..model import Model
+
+    start = Model(base, tuple(model.effects), values) if model.effects or base != type(base)() else None
+    return identify(
+        ex.recording,
+        IdentifyOptions(
+            config=ex.config.label,
+            start=start,
+            discover=options.discover,
+            candidate_out=options.candidate_out,
+            compare_rate_hz=options.compare_rate_hz,
+            fixed_base=options.fixed_base,
+            candidates=options.effects,
+            segment_s=options.segment_s,
+        ),
+    )
 
 
 def identify_cmd(
@@ -382,16 +435,17 @@ def identify_cmd(
     rate: float = typer.Option(50.0, help="comparison grid rate (Hz)"),
     max_nfev: int = typer.Option(30, "--max-nfev", help="least-squares evaluations"),
     map_: list[str] = typer.Option([], "--map", help=MAP_HELP),
+    trust: bool = trust_option(),
 ) -> None:
     """Add effects to the model (library names or your own files) and fit their parameters to a recording;
     with none, refit the configuration's base parameters.  Writes the model (params and effects)."""
     from ..diagnosis import diagnose
     from ..diagnosis.effects import get_effect
-    from ..diagnosis.refit import effect_records, refit
+    from ..diagnosis.refit import refit
     from ..diagnosis.report import write_report
     from ..diagnosis.screening import default_segment
     from ..effects import compose as compose_effects
-    from ..identification.model_file import write_model
+    from ..model import Model
     from .effect_options import check_effects_act, parse_effect_params
 
     if out.suffix.lower() not in (".json", ".yaml", ".yml"):
@@ -404,10 +458,14 @@ def identify_cmd(
     seg = _segment(segment)
     added = list(add_effect or [])
     with option("--add-effect"):
-        specs = {get_effect(n).name: n for n in added}
+        for n in added:
+            get_effect(n)  # a one-line error for an unknown effect, before anything runs
     with option("--params"):
-        mf = _model_file(params)
-        base_comp, base_values = mf.composition()
+        mf = _model_file(params, trust)
+        base_comp, base_values = mf.composition, dict(mf.values)
+    if not added and not fit and not refit_base:  # the whole identification: drillgym.identify, as every route
+        _identify_whole(data, out, config, mf, effect_param, seg, rate, max_nfev, map_, report, as_json)
+        return
     starts = parse_effect_params(effect_param)
     held = {k: v for k, v in starts.items() if k in base_values}
     ex = _experiment(data, config, rate, map_)
@@ -438,11 +496,9 @@ def identify_cmd(
         if "effect parameter" in msg:
             raise named("--effect-param", exc) from exc
         raise
-    for spec, e in zip(mf.specs, base_comp.effects):
-        specs.setdefault(e.name, spec)
-    records = effect_records(res.composition, res.effect_values, specs, std=res.std)
-    base_std = {k: v for k, v in res.std.items() if k not in res.effect_values}
-    write_model(output_file(out, "--out", suffixes=(".json", ".yaml", ".yml")), res.params, records, base_std)
+    fitted = Model.from_composition(res.params, res.composition, res.effect_values, res.std)
+    fitted.save(output_file(out, "--out", suffixes=(".json", ".yaml", ".yml")))
+    records = fitted.records()
     if report is not None:
         d = diagnose(ex, mf.params, base_effects=base_comp, effect_params=base_values, segment_s=seg)
         write_report(report, ex, mf.params, d, res, seg, base_comp, base_values)
@@ -478,6 +534,66 @@ def identify_cmd(
         for w in res.warnings:
             typer.echo(f"  warning: {w}")
         typer.echo(f"wrote {out}" + (f"; report in {report}/report.md" if report else ""))
+
+
+def _identify_whole(data, out, config, start, effect_param, seg, rate, max_nfev, map_, report, as_json) -> None:
+    """``drillgym identify REC --out FILE`` without effects to add or parameters to fit: :func:`drillgym.identify`
+    from the model in ``--params`` (its effects held in the model and refitted), the model file written."""
+    from ..diagnosis.report import write_report
+    from ..identified import IdentifyOptions, identify
+    from .effect_options import parse_effect_params
+
+    values = parse_effect_params(effect_param)
+    if values and not start.effects:
+        raise InputError(f"--effect-param {next(iter(values))}: no effect in the model (use --add-effect NAME)")
+    with option("--effect-param"):
+        start = start.replace(values={**start.values, **values}) if values else start
+    ex = _experiment(data, config, rate, map_)
+    if seg is not None and seg > 0:
+        _check_segment(seg, ex)
+    found = identify(
+        ex.recording,
+        IdentifyOptions(
+            config=ex.config.label,
+            start=start if (start.effects or start.params != type(start.params)()) else None,
+            candidate_out=data.with_name(data.stem + "_candidate.py"),
+            compare_rate_hz=rate,
+            max_nfev=max_nfev,
+            segment_s=seg,
+        ),
+    )
+    found.model.save(output_file(out, "--out", suffixes=(".json", ".yaml", ".yml")))
+    if report is not None:
+        write_report(report, ex, start.params, found.diagnosis, found.fit, seg, start.composition, dict(start.values))
+    if as_json:
+        res = found.fit
+        typer.echo(
+            _json(
+                {
+                    "model": found.model.label,
+                    "effects": found.model.records(),
+                    "params": found.model.params.to_dict(),
+                    "std": dict(found.model.std),
+                    "r2_before": res.r2_before,
+                    "r2_after": res.r2_after,
+                    "rms_before": res.rms_before,
+                    "rms_after": res.rms_after,
+                    "residual_to_noise": found.residual_to_noise,
+                    "candidate": found.candidate,
+                    "warnings": list(found.warnings),
+                    "out": str(out),
+                }
+            )
+        )
+        return
+    for line in found.lines():
+        typer.echo(line)
+    for c in found.fit.r2_before:
+        typer.echo(
+            f"  {c:<8} R² {found.fit.r2_before[c]:.4f} -> {found.fit.r2_after[c]:.4f}   "
+            f"RMS {found.fit.rms_before[c]:.4g} -> {found.fit.rms_after[c]:.4g}"
+        )
+    typer.echo(f"wrote {out}" + (f"; report in {report}/report.md" if report else ""))
 
 
 def identify_staged_cmd(
@@ -535,9 +651,11 @@ def identify_staged_cmd(
         if k not in STAGES:
             raise InputError(f"--validate: unknown stage {k!r}; expected one of {', '.join(STAGES)}")
         val.setdefault(k, []).append(stage_recording(k, Path(f), "--validate"))
+    from ..params import RigParams
+
     with option("--params"):
-        mf = _model_file(params)
-    res = identify_staged(data, mf.params, validation=val)
+        base_params = RigParams.from_file(params) if params is not None else RigParams()
+    res = identify_staged(data, base_params, validation=val)
     res.params.to_file(output_file(out, "--out", suffixes=(".json", ".yaml", ".yml")))
     if as_json:
         typer.echo(_json(res.to_json()))

@@ -19,20 +19,17 @@ __all__ = ["plant_from_cli", "describe_plant"]
 
 
 def plant_from_cli(
-    params_file: Path | None, add_effect: list[str] | None, effect_param: list[str] | None
+    params_file: Path | None, add_effect: list[str] | None, effect_param: list[str] | None, trust: bool = False
 ) -> tuple[RigParams, Composition, dict[str, float]]:
     """(base RigParams, Composition, effect values): the base parameters and effects of ``params_file``
     (default: the identified set, no effect), then the ``add_effect`` specs, with the ``effect_param``
     NAME=VALUE items; one-line errors name the file, the effect and what is wrong."""
-    from ..effects import compose
-    from ..identification.model_file import ModelFile, read_model
-    from ..params import RigParams
+    from ..model import Model
     from .effect_options import compose_named
     from .options import option
 
     with option("--params"):
-        mf = read_model(params_file) if params_file is not None else ModelFile(RigParams())
-        compose(list(mf.specs), dict(mf.values))
+        mf = Model.load(params_file, trust=trust) if params_file is not None else Model()
     extra = parse_effect_params(effect_param)
     specs = list(mf.specs) + list(add_effect or [])
     if extra and not specs:

@@ -5,9 +5,10 @@ One command runs what the lab does by hand before a model-based controller goes 
 1. an **excitation run** on the rig: the quasi-random estimation signal (:func:`drillgym.signals.quasi_random`,
    0-5 V) played through ``drillgym/Hardware-v0`` exactly as ``rig run --controller play:FILE`` plays it (the
    safety limits, the watchdog and the recording are the same), recorded to ``--record``;
-2. **diagnose + identify** on that recording (:func:`controllers.evaluation.identify.identify_plant`, the
-   route ``evaluate --scenarios plants --identify`` takes for every plant): the library's effects the
-   recording shows, and the base parameters and those effects fitted together with their standard errors;
+2. **identification** of that recording by :func:`drillgym.identify`, the one front every route takes
+   (``diagnose --model-out``, ``drillgym identify``, ``evaluate --identify``): the library's effects the
+   recording shows, a candidate outside the library when one earns its place, and the base parameters and
+   every effect fitted together with their standard errors;
 3. the **model file** (``--model-out``) that ``rig run --model``, ``evaluate --model`` and
    ``controllers.make(..., model=)`` read, and, per target speed, the model accuracy a motor-angle-only
    controller needs there against what the identification achieved (:mod:`controllers.margin`).
@@ -117,20 +118,15 @@ def tune_cmd(
 
 
 def _identify_and_write(recording: Path, model_out: Path, echo) -> None:
-    """Diagnose and identify a recording, write the model file, print what was found and the margins."""
-    from controllers.evaluation.identify import identify_plant
+    """Identify a recording (:func:`drillgym.identify`, as every route), write the model file, print what was
+    found and the margins."""
     from controllers.margin import model_margins
-    from drillgym import RigParams
-    from drillgym.diagnosis.refit import effect_records
-    from drillgym.identification.model_file import write_model
-    from drillgym.io import read_timeseries
+    from drillgym import RigParams, identify
     from drillgym.io.outputs import output_file
 
-    found = identify_plant(read_timeseries(recording), [])
+    found = identify(recording)
     m = found.model
-    records = effect_records(m.composition, dict(m.values), std=m.std)
-    base_std = {k: float(v) for k, v in m.std.items() if k in RigParams().to_dict()}
-    path = write_model(output_file(model_out, "--model-out"), m.params, records, base_std)
+    path = m.save(output_file(model_out, "--model-out"))
     nominal = RigParams()
     moved = ", ".join(
         f"{k} {100 * (getattr(m.params, k) / v - 1):+.2f} %"
@@ -138,7 +134,7 @@ def _identify_and_write(recording: Path, model_out: Path, echo) -> None:
         if v and abs(getattr(m.params, k) / v - 1) >= 0.005
     )
     effects = ", ".join(f"{k} = {v:.4g}" for k, v in m.values.items()) or "none"
-    echo(f"identified in {found.seconds:.1f} s: effects {'+'.join(found.selected) or 'none'} ({effects})")
+    echo(f"identified in {found.seconds:.1f} s: effects {m.label} ({effects})")
     echo(f"base parameters off the identified set: {moved or 'none by 0.5 % or more'}")
     for w in found.warnings:
         echo(f"warning: {w}")
