@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..configurations import Configuration
-from ..equilibria import RigModel, as_model, slip_equilibrium, supported_configuration
+from ..equilibria import RigModel, as_model, model_or_params, slip_equilibrium, supported_configuration
 from ..errors import InputError
 from ..params import RigParams
 from .continuation import Fold, PeriodicBranch, continue_branch, start_at_hopf
@@ -105,6 +105,7 @@ def periodic_branches(
     amplitude: float = 0.01,
     max_points: int = 300,
     progress: Callable[[object], None] | None = None,
+    model=None,
 ) -> tuple[list[PeriodicBranch], list[Fold]]:
     """Periodic branches born at each Hopf point of ``branch`` inside [umin, umax], and their folds.
 
@@ -131,6 +132,9 @@ def periodic_branches(
         Most points per branch.
     progress : callable, optional
         Called with each new periodic solution.
+    model : drillgym.Model, str or path, optional
+        The rig's model (:class:`drillgym.Model` or a model file's path, read without ``trust``): its base
+        parameters, effects and values; refused beside ``params``.
 
     Returns
     -------
@@ -139,6 +143,8 @@ def periodic_branches(
     folds : list of Fold
         The folds found on them (voltage V, kind).
     """
+    if model is not None:
+        params = model_or_params(params, model, "periodic_branches()")
     params = as_model(params if params is not None else branch.params)
     smap = SectionMap(branch.config, params.p, branch.section_speed, dt=dt, composition=params.comp)
     out, folds = [], []
@@ -293,6 +299,7 @@ def compute_diagram(
     measured: Sequence[dict] = (),
     progress: Callable[[str], None] | None = None,
     step: Callable[[str, int], None] | None = None,
+    model=None,
 ) -> BifurcationDiagram:
     """The open-loop bifurcation diagram of one configuration.
 
@@ -334,6 +341,10 @@ def compute_diagram(
         ``step(kind: str, k: int)``, counting work for progress bars: ``("cycle", 1)`` per continuation
         point, ``("sweep_total", n)`` once before the sweeps (n simulated voltages in all),
         ``("sweep", k)`` as k of them complete.
+    model : drillgym.Model, str or path, optional
+        The rig's model (:class:`drillgym.Model` or a model file's path, read without ``trust``): its base
+        parameters, effects and values; refused beside ``params``.
+        Every part of the diagram (equilibria, periodic branches, sweeps) runs it.
 
     Returns
     -------
@@ -346,7 +357,7 @@ def compute_diagram(
         A setting :func:`check_diagram_options` refuses (a voltage window that is not
         0 <= umin < umax, a sweep step giving too many voltages, sweeps shorter than their window).
     """
-    params = as_model(params)
+    params = model_or_params(params, model, "compute_diagram()")
     cfg = supported_configuration(config)
     check_diagram_options(umin, umax, sweep_step, sweep_duration, ds_max, sweep_umax)
     params.comp.refuse_not_acting(cfg.label, "effect")  # else it fails deep in the kernels

@@ -18,9 +18,9 @@ from scipy.optimize import brentq
 from ..configurations import Configuration
 from ..equilibria import (
     RigModel,
-    as_model,
     eigenvalues,
     equilibrium_voltage,
+    model_or_params,
     slip_equilibrium,
     stick_set,
     supported_configuration,
@@ -152,6 +152,8 @@ def equilibrium_branch(
     umax: float = 5.0,
     n: int = 300,
     omega_min: float = 1e-4,
+    *,
+    model=None,
 ) -> EquilibriumBranch:
     """The slip equilibrium branch for 0 < u <= umax and its Hopf points.
 
@@ -168,13 +170,16 @@ def equilibrium_branch(
         Number of speeds on the branch.  Default 300.
     omega_min : float, optional
         Lowest speed of the branch (rad/s).
+    model : drillgym.Model, str or path, optional
+        The rig's model (:class:`drillgym.Model` or a model file's path, read without ``trust``): its base
+        parameters, effects and values; refused beside ``params``.
 
     Returns
     -------
     EquilibriumBranch
         Voltage, speed and stability along the branch, and its Hopf points.
     """
-    params = as_model(params)
+    params = model_or_params(params, model, "equilibrium_branch()")
     cfg = supported_configuration(config)
     umax = real_number("umax", umax, "V")
     if not (np.isfinite(umax) and umax > 0):

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..equilibria import RigModel, as_model, slip_equilibria
+from ..equilibria import RigModel, model_or_params, slip_equilibria
 from ..errors import InputError
 from ..parallel import LocalExecutor, map_ordered, parallelism
 from ..params import RigParams
@@ -143,6 +143,7 @@ def sweep_constant(
     executor: Executor | None = None,
     chunk: int | None = None,
     progress: Callable[[int], None] | None = None,
+    model=None,
 ) -> SweepResult:
     """Simulate each voltage from the same start and measure its steady state.
 
@@ -168,6 +169,9 @@ def sweep_constant(
         Voltages per task; default twice as many tasks as workers.
     progress : callable, optional
         Receives the number of voltages of each chunk as it completes.
+    model : drillgym.Model, str or path, optional
+        The rig's model (:class:`drillgym.Model` or a model file's path, read without ``trust``): its base
+        parameters, effects and values; refused beside ``params``.
 
     Returns
     -------
@@ -175,7 +179,7 @@ def sweep_constant(
         Per voltage: steady-state omega_l range (rad/s), r range (m), period (s), stuck fraction.
     """
     u = _check(voltages, duration, window, dt)
-    params = as_model(params)
+    params = model_or_params(params, model, "sweep_constant()")
     if start == "rest":
         x0 = None
     elif start == "equilibrium":
@@ -209,6 +213,7 @@ def sweep_staircase(
     params: RigParams | None = None,
     executor: Executor | None = None,
     progress: Callable[[int], None] | None = None,
+    model=None,
 ) -> tuple[SweepResult, SweepResult]:
     """The quasi-static lab sweep up through ``voltages`` and back down (two runs in parallel).
 
@@ -230,6 +235,9 @@ def sweep_staircase(
         Runs the two sweeps; default a process pool.
     progress : callable, optional
         Receives the number of levels of each run as it completes.
+    model : drillgym.Model, str or path, optional
+        The rig's model (:class:`drillgym.Model` or a model file's path, read without ``trust``): its base
+        parameters, effects and values; refused beside ``params``.
 
     Returns
     -------
@@ -237,7 +245,7 @@ def sweep_staircase(
         The sweep up and the sweep down.
     """
     u = np.sort(_check(voltages, dwell, window, dt))
-    params = as_model(params)
+    params = model_or_params(params, model, "sweep_staircase()")
     ex, own = _executor(executor)
     try:
         tasks = [(str(config), u, dwell, window, dt, params), (str(config), u[::-1].copy(), dwell, window, dt, params)]

@@ -8,8 +8,15 @@ from pathlib import Path
 import typer
 
 from ..errors import InputError
-from .effect_options import add_effect_option, effect_param_option, effects_from_cli
-from .options import option, requires
+from .effect_options import (
+    add_effect_option,
+    effect_param_option,
+    effects_from_cli,
+    model_from_cli,
+    model_option,
+    trust_option,
+)
+from .options import excludes, option, requires
 from .outputs import check_output_dir, output_dir
 
 
@@ -17,6 +24,10 @@ def register(app: typer.Typer) -> None:
     @app.command("bifurcation")
     @requires("--no-report", "--measured", why="it leaves out the measured points")
     @requires("--sweep-duration", "--sweep-step", when=lambda v: v > 0, what="a --sweep-step above 0 (sweeps)")
+    @excludes("--model", "--params", why="the model file holds its base parameters")
+    @excludes("--model", "--add-effect", why="the model file holds its effects")
+    @excludes("--model", "--effect-param", why="the model file holds its effects' values")
+    @requires("--trust", "--model", why="it trusts the effect files a model file names")
     def bifurcation(
         config: str = typer.Option("torsional", "--config", help="torsional, lateral or coupled"),
         out: Path = typer.Option(
@@ -45,6 +56,8 @@ def register(app: typer.Typer) -> None:
         ),
         add_effect: list[str] = add_effect_option(),
         effect_param: list[str] = effect_param_option(),
+        model_file: Path | None = model_option(),
+        trust: bool = trust_option(),
     ) -> None:
         """Equilibria, Hopf points, periodic branches (shooting + continuation), folds, sweeps; figures + JSON."""
         from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
@@ -71,9 +84,13 @@ def register(app: typer.Typer) -> None:
             check_ray_address(ray)
         from ..equilibria import RigModel
 
-        comp, values = effects_from_cli(add_effect, effect_param, cfg)
-        with option("--params"):
-            rig = RigParams.from_file(params) if params else RigParams()
+        if model_file is not None:
+            m = model_from_cli(model_file, trust, cfg, params=params, add_effect=add_effect, effect_param=effect_param)
+            rig, comp, values = m.params, m.composition, dict(m.values)
+        else:
+            comp, values = effects_from_cli(add_effect, effect_param, cfg)
+            with option("--params"):
+                rig = RigParams.from_file(params) if params else RigParams()
         p = RigModel(rig, comp, values)
         with option("--measured"):
             meas = measured_diagram(measured, cfg.label) if measured else []

@@ -51,13 +51,14 @@ velocities where stability changes (R2), the Hopf voltages (R3).
 from __future__ import annotations
 
 from .linear import FD_STEP, eigenvalues, linearise
-from .model import Equilibrium, RigModel, StickSet, as_model, state_names, supported_configuration
+from .model import Equilibrium, RigModel, StickSet, as_model, model_or_params, state_names, supported_configuration
 from .solutions import equilibrium_voltage, slip_equilibria, slip_equilibrium, stick_set
 from .stability import RouthHurwitz, lower_damping, routh_hurwitz_torsional
 
 __all__ = [
     "RigModel",
     "as_model",
+    "model_or_params",
     "Equilibrium",
     "StickSet",
     "RouthHurwitz",

@@ -83,6 +83,36 @@ def as_model(params: RigParams | RigModel | None = None, effects=None, effect_pa
     return RigModel(params, effects, effect_params)
 
 
+def model_or_params(params: RigParams | RigModel | None = None, model=None, who: str = "bifurcation") -> RigModel:
+    """The RigModel of a call given ``params`` or ``model=`` (a :class:`drillgym.Model` or a model file's path).
+
+    Parameters
+    ----------
+    params : RigParams or RigModel, optional
+        Base parameters or a model with effects (default the identified set), when no ``model`` is given.
+    model : drillgym.Model, str or path, optional
+        The rig's model (read without ``trust`` when a path): its base parameters, effects and values.
+    who : str, optional
+        The function, in error messages.
+
+    Returns
+    -------
+    RigModel
+        The model.
+
+    Raises
+    ------
+    InputError
+        ``model`` given beside ``params`` (the model holds its own).
+    """
+    if model is None:
+        return as_model(params)
+    from ..model import model_arguments
+
+    p, comp, values = model_arguments(model, params, None, None, who)
+    return RigModel(p, comp, values)
+
+
 def supported_configuration(
     config: str | Configuration, params: RigParams | RigModel | None = None, effects=None, effect_params=None
 ) -> Configuration:
