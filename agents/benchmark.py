@@ -255,6 +255,13 @@ def resolve_policies(specs: Sequence[str], seeds: Sequence[int] | None = None) -
             out += [f"agent:{dirs[k]}" for k in chosen]
         else:
             out.append(s)
+    seen: dict[Path, str] = {}
+    for s in out:  # one network named twice (a file and its run directory) would count as two seeds
+        p = Path(s[len("agent:") :])
+        key = ((p / "policy.npz" if (p / "policy.npz").is_file() else p / "model.zip") if p.is_dir() else p).resolve()
+        if key in seen:
+            raise InputError(f"--policy: {s} is the same network as {seen[key]}; give each seed once")
+        seen[key] = s
     return out
 
 

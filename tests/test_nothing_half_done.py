@@ -296,3 +296,12 @@ def test_a_bad_linear_policy_is_refused_on_load(tmp_path, W, b, words):
     with pytest.raises(InputError) as e:
         LinearPolicy.load(tmp_path / "p.npz")
     assert words in str(e.value) and "\n" not in str(e.value)
+
+
+def test_a_benchmark_refuses_one_network_as_two_seeds(tmp_path):
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    shutil.copy(KEPT, run_dir / "policy.npz")
+    argv = ["benchmark", "drillgym/Population-Motor-v0", "--policy", "agent:run", "--policy", "agent:run/policy.npz"]
+    code, _, err = run(argv, tmp_path)
+    assert "the same network as agent:run" in refused_line(code, err)
