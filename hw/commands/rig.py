@@ -1,8 +1,9 @@
 """``drillgym rig``: the hardware twin.
 
     drillgym rig emulate [--port PATH] [--params FILE] [--add-effect NAME|file.py:NAME] [--effect-param N=V] ...
+    drillgym rig emulate [--port PATH] --model MODEL.json [--trust] ...
         emulate the rig's microcontroller on a pseudo-terminal (prints the device path); the
-        plant runs the hidden effects (and those of a model file given to --params)
+        plant runs the hidden effects (and those of a model file given to --params), or the model of --model
     drillgym rig run --port PATH (--controller NAME | --policy FILE) --duration S --record FILE [--dry-run]
         run a controller or a policy on the rig through drillgym/Hardware-v0, recording it
     drillgym rig tune --port PATH --model-out MODEL.json [--duration S] [--control-ms MS]
@@ -24,8 +25,14 @@ from pathlib import Path
 
 import typer
 
-from drillgym.commands.effect_options import add_effect_option, effect_param_option
-from drillgym.commands.options import requires
+from drillgym.commands.effect_options import (
+    add_effect_option,
+    effect_param_option,
+    model_from_cli,
+    model_option,
+    trust_option,
+)
+from drillgym.commands.options import excludes, requires
 from drillgym.commands.outputs import CREATES_DIRS
 from drillgym.commands.plant import describe_plant, plant_from_cli
 from drillgym.errors import InputError, MissingFileError, SafetyError
@@ -56,6 +63,10 @@ def _interruptible():
 
 
 @rig_app.command("emulate")
+@excludes("--model", "--params", why="the model file holds its base parameters")
+@excludes("--model", "--add-effect", why="the model file holds its effects")
+@excludes("--model", "--effect-param", why="the model file holds its effects' values")
+@requires("--trust", "--model", why="it trusts the effect files a model file names")
 def emulate_cmd(
     port: Path | None = typer.Option(None, help="also create a symlink to the pseudo-terminal here"),
     config: str = typer.Option("torsional", help="rig configuration: torsional, lateral or coupled"),
@@ -65,6 +76,11 @@ def emulate_cmd(
     ),
     add_effect: list[str] | None = add_effect_option(),
     effect_param: list[str] | None = effect_param_option(),
+    model_file: Path | None = model_option(
+        "model file (JSON/YAML, drillgym.Model: base parameters and effects, e.g. what `drillgym identify` wrote) "
+        "the emulated plant runs, hidden from the host; not with --params, --add-effect or --effect-param"
+    ),
+    trust: bool = trust_option(),
     counts_per_rev: int = typer.Option(8000, help="encoder counts per revolution"),
     lvdt_noise: float = typer.Option(3e-6, help="LVDT noise standard deviation (m)"),
     latency_ms: float = typer.Option(0.0, help="serial latency of every reply (ms)"),
@@ -81,14 +97,24 @@ def emulate_cmd(
     ),
 ) -> None:
     """Emulate the rig's microcontroller on a pseudo-terminal until Ctrl-C.  The plant runs the hidden
-    effects (--add-effect, and those of a model file in --params); the host does not know them."""
+    effects (--add-effect, and those of a model file in --params), or the model of --model; the host does not
+    know them."""
     from hw.emulator import RigEmulator
     from hw.firmware import FirmwareConfig
 
     _check_emulate_options(
         port, config, counts_per_rev, lvdt_noise, latency_ms, jitter_ms, period_ms, watchdog_ms, dt, alpha0, seed
     )
-    base, comp, values = plant_from_cli(params, add_effect, effect_param)
+    if model_file is not None:
+        from drillgym.configurations import parse_configuration
+
+        m = model_from_cli(
+            model_file, trust, parse_configuration(config), params=params, add_effect=add_effect,
+            effect_param=effect_param,
+        )  # fmt: skip
+        base, comp, values = m.params, m.composition, dict(m.values)
+    else:
+        base, comp, values = plant_from_cli(params, add_effect, effect_param)
     fw = FirmwareConfig(counts_per_rev=counts_per_rev, control_period_s=period_ms * 1e-3, watchdog_s=watchdog_ms * 1e-3)
     import time
 
@@ -159,6 +185,12 @@ def run_cmd(
         help="model file (base parameters and effects, e.g. from `drillgym diagnose --model-out`) the controller is "
         "built on: observer, lqg and lqg-2enc run its lag, delay and lower-disc friction; not with --params",
     ),
+    trust: bool = typer.Option(
+        False,
+        "--trust",
+        help="import the effect files the model file of --model or --params names even when they lie outside its "
+        "folder, carry no recorded hash or changed since it was written (an effect file is code: loading it runs it)",
+    ),
     policy: Path | None = typer.Option(
         None,
         help="policy: what `drillgym train` writes (policy.npz, model.zip or the "
@@ -228,18 +260,22 @@ def run_cmd(
     if policy is not None and trained_agent(policy):  # a trained agent runs as the controller agent:PATH
         controller, policy = f"agent:{policy}", None
     model = None
+    if trust and params is None and model_file is None:
+        raise InputError("--trust needs --model or --params (it trusts the effect files a model file names)")
     if params is not None:
         if controller is None or controller.startswith(("const:", "play:", "agent:")):
             raise InputError(
                 "--params builds a named controller on a model; it does not apply to const:, play:, agent: or --policy"
             )
-        from drillgym.identification.model_file import read_model
+        from drillgym.commands.options import option
+        from drillgym.model import Model
 
-        mf = read_model(params)  # a parameter file or a model file with effects (identify --out)
-        if mf.specs:
+        with option("--params"):
+            mf = Model.load(params, trust=trust)  # a parameter file or a model file with effects (identify --out)
+        if mf.names:
             typer.echo(
-                f"note: {params} also names effects ({', '.join(map(str, mf.specs))}); the controller is "
-                f"built on its base parameters only",
+                f"note: {params} also names effects ({', '.join(mf.names)}); the controller is "
+                f"built on its base parameters only (give it as --model to use them)",
                 err=True,
             )
         model = mf.params
@@ -249,9 +285,10 @@ def run_cmd(
                              "agent: or --policy")  # fmt: skip
         from controllers.model import model_of
         from drillgym.commands.options import option
+        from drillgym.model import Model
 
         with option("--model"):
-            model = model_of(model_file)
+            model = model_of(Model.load(model_file, trust=trust))
             make_controller(controller, config, omega_ref, control_ms * 1e-3, model)  # refuses an unusable effect
     ctrl = make_controller(controller, config, omega_ref, control_ms * 1e-3, model) if controller else None
     if controller is not None and controller.startswith("agent:"):
