@@ -5,6 +5,10 @@ one (``agent:PATH``); several learned policies (``agent:`` paths, e.g. the seeds
 one by one and aggregated over the seeds with the IQM and its stratified-bootstrap 95 % interval
 (:mod:`.benchmark_stats`).  Runs go through the controllers' evaluation harness
 (:func:`controllers.evaluation.evaluate`), the plants of a population task are the task's held-out list.
+With ``model=`` (``drillgym benchmark TASK --model FILE``) the policies are scored on that model's plant
+alone (its base parameters and effects; the classical controllers are built on its base parameters, its
+effects hidden from them, as a task's plants are), with the task's sensors, targets and run length: a
+score of the policy on that rig, not the task's score.
 
     >>> from agents.benchmark import BenchmarkOptions, run_benchmark
     >>> res = run_benchmark("drillgym/Population-Motor-v0", ["descent"])
@@ -169,11 +173,15 @@ class BenchmarkResult:
     def lines(self) -> list[str]:
         """The result as printed lines: one per seed, then the IQM and interval per metric."""
         s = self.settings
+        plants = f"the plant of model {s['model']['label']}" if "model" in s else f"{s['plants']} held-out plant(s)"
         head = (
-            f"{self.task}: {s['plants']} held-out plant(s), targets {s['targets'][0]:g}-{s['targets'][-1]:g} rad/s "
+            f"{self.task}: {plants}, targets {s['targets'][0]:g}-{s['targets'][-1]:g} rad/s "
             f"({len(s['targets'])}), {s['duration']:g} s runs judged over the last {s['window']:g} s"
         )
-        out = [head + (" (REDUCED protocol: not the task's score)" if self.reduced else "")]
+        if "model" in s:
+            out = [head + " (a model's plant: not the task's score)"]
+        else:
+            out = [head + (" (REDUCED protocol: not the task's score)" if self.reduced else "")]
         for p in self.scores:
             out.append(
                 f"  {p.policy}: lowest held target median {_speed(p.median)}, 90th pct {_speed(p.p90)}; "
@@ -278,12 +286,12 @@ def check_sensing(task: BenchmarkTask, spec: str) -> None:
         )
 
 
-def _score(task: BenchmarkTask, spec: str, rows: list[dict]) -> PolicyScore:
+def _score(task: BenchmarkTask, spec: str, rows: list[dict], population: bool | None = None) -> PolicyScore:
     from controllers.evaluation.metrics import lowest_free_speed
     from controllers.evaluation.population_report import plant_lowest
 
     sel = [r for r in rows if r["controller"] == spec]
-    if task.plants.population:
+    if task.plants.population if population is None else population:
         low = list(plant_lowest(sel, spec, task.config).values())
         run = {int(r["plant"]) for r in sel if r["runaway"]}
     else:
@@ -307,7 +315,9 @@ def _score(task: BenchmarkTask, spec: str, rows: list[dict]) -> PolicyScore:
     )
 
 
-def run_benchmark(task_id: str, policies: Sequence[str], options: BenchmarkOptions | None = None) -> BenchmarkResult:
+def run_benchmark(
+    task_id: str, policies: Sequence[str], options: BenchmarkOptions | None = None, *, model=None
+) -> BenchmarkResult:
     """Score policies (seeds of one policy, or one classical controller) on a named task.
 
     Parameters
@@ -318,6 +328,9 @@ def run_benchmark(task_id: str, policies: Sequence[str], options: BenchmarkOptio
         Resolved specs (:func:`resolve_policies`).
     options : BenchmarkOptions, optional
         Reductions of the protocol and the harness's workers; default the task's protocol.
+    model : drillgym.Model, str or path, optional
+        Score on this model's plant alone (see the module docstring) instead of the task's plants; a path is
+        read without ``trust``.  Not with ``options.plants``.
 
     Returns
     -------
@@ -333,6 +346,8 @@ def run_benchmark(task_id: str, policies: Sequence[str], options: BenchmarkOptio
 
     task = get_task(task_id)
     opts = options or BenchmarkOptions()
+    if model is not None:
+        return _run_on_model(task, policies, opts, model)
     st = opts.settings(task)
     for spec in policies:
         check_sensing(task, spec)
@@ -352,3 +367,38 @@ def run_benchmark(task_id: str, policies: Sequence[str], options: BenchmarkOptio
     scores = tuple(_score(task, spec, rows) for spec in policies)
     agg = {m: iqm_interval([getattr(s, m) for s in scores]) for m in METRICS}
     return BenchmarkResult(task.id, scores, agg, st, opts.reduced(task))
+
+
+def _run_on_model(task: BenchmarkTask, policies: Sequence[str], opts: BenchmarkOptions, model) -> BenchmarkResult:
+    """The policies on one model's plant with the task's sensors, targets and run length (``run_benchmark``)."""
+    from controllers.evaluation import evaluate
+    from drillgym.model import as_model
+
+    if opts.plants is not None:
+        raise InputError(
+            "--plants picks the task's held-out plants; with a model (--model) the run has that plant only"
+        )
+    m = as_model(model, who="benchmark: model")
+    m.composition.refuse_not_acting(task.config, "the model's effects")
+    st = BenchmarkOptions(None, opts.duration, opts.window, opts.targets).settings(task)
+    st["plants"] = 1
+    st["model"] = {"label": m.label, "params": m.params.to_dict(), "effects": m.records()}
+    for spec in policies:
+        check_sensing(task, spec)
+    rows = evaluate(
+        list(policies),
+        [task.config],
+        ["rest"],
+        list(st["targets"]),
+        duration=st["duration"],
+        window=st["window"],
+        params=m.params,
+        effects=m.composition,
+        effect_params=dict(m.values),
+        workers=opts.workers,
+        progress=opts.progress,
+        seed=st["seed"],
+    )
+    scores = tuple(_score(task, spec, rows, population=False) for spec in policies)
+    agg = {k: iqm_interval([getattr(sc, k) for sc in scores]) for k in METRICS}
+    return BenchmarkResult(task.id, scores, agg, st, True)

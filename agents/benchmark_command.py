@@ -46,7 +46,12 @@ def register_benchmark(app: typer.Typer) -> None:
         The ``drillgym`` command-line application.
     """
 
+    from drillgym.commands.effect_options import model_option, trust_option
+    from drillgym.commands.options import excludes, requires
+
     @app.command("benchmark")
+    @excludes("--model", "--plants", why="the run has the model's plant only, not the task's held-out plants")
+    @requires("--trust", "--model", why="it trusts the effect files a model file names")
     def benchmark_cmd(
         task: str = typer.Argument(..., help="task id, e.g. drillgym/Population-Motor-v0 (see docs/benchmark.md)"),
         policy: list[str] = typer.Option(
@@ -68,6 +73,11 @@ def register_benchmark(app: typer.Typer) -> None:
             None, "--json", help="also write the result as JSON to this file; missing directories are created"
         ),
         progress: bool = typer.Option(False, "--progress/--no-progress", help="the harness's progress bar"),
+        model_file: Path | None = model_option(
+            "model file (JSON/YAML, drillgym.Model, e.g. what `drillgym identify` wrote): score the policy on that "
+            "model's plant alone (the task's sensors, targets and run length; not the task's score)"
+        ),
+        trust: bool = trust_option(),
     ) -> None:
         """Score a policy on a named task: lowest held target at the median and 90th percentile of the
         held-out plants, SSI, energy; over several policy seeds their IQM with a stratified-bootstrap 95 %
@@ -81,6 +91,12 @@ def register_benchmark(app: typer.Typer) -> None:
 
         with option("TASK"):
             t = get_task(task)
+        m = None
+        if model_file is not None:
+            from drillgym.commands.effect_options import model_from_cli
+            from drillgym.configurations import parse_configuration
+
+            m = model_from_cli(model_file, trust, parse_configuration(t.config))
         if json_out is not None:
             check_output_file(json_out, "--json", suffixes=(".json",))
         specs = resolve_policies(policy, parse_seeds(seeds) if seeds.strip() else None)
@@ -95,7 +111,7 @@ def register_benchmark(app: typer.Typer) -> None:
         check_evaluation_options(
             specs, [t.config], list(st["targets"]), st["duration"], st["window"], st["plants"], 0, workers, names
         )
-        res = run_benchmark(t.id, specs, opts)
+        res = run_benchmark(t.id, specs, opts, model=m)
         for line in res.lines():
             typer.echo(line)
         if json_out is not None:
