@@ -249,6 +249,7 @@ class ModelDynamics:
         object.__setattr__(self, "vector", np.ascontiguousarray(self.vector, dtype=np.float64))
         object.__setattr__(self, "e0", 6 if self.has_du else 5)
         object.__setattr__(self, "nz", self.e0 + self.composition.n_states)
+        object.__setattr__(self, "_rows", {})
 
     @property
     def state_names(self) -> tuple[str, ...]:
@@ -281,7 +282,9 @@ class ModelDynamics:
         return self.composition.has_kind(Input)
 
     def _P(self, n: int) -> np.ndarray:
-        return np.broadcast_to(self.vector, (n, self.vector.size))
+        if n not in self._rows:  # one parameter row per lane, made once per batch size
+            self._rows[n] = np.ascontiguousarray(np.tile(self.vector, (n, 1)))
+        return self._rows[n]
 
     def _Z(self, z: np.ndarray) -> np.ndarray:
         z = np.asarray(z, dtype=float)

@@ -157,11 +157,15 @@ def _run_population_job(
     if identified:  # one controller per plant, on that plant's identified model
         rows = []
         for i, k in enumerate(plants):
-            with on_plant(k, n_plants, seed, pop.columns[i], identified=True):
-                one = _run_plants(
-                    controller, config, scenario, targets, base, pop.subset([i]), duration, window, seed, [k],
-                    identified[k].model,
-                )  # fmt: skip
+            try:
+                with on_plant(k, n_plants, seed, pop.columns[i], identified=True):
+                    one = _run_plants(
+                        controller, config, scenario, targets, base, pop.subset([i]), duration, window, seed, [k],
+                        identified[k].model,
+                    )  # fmt: skip
+            except InputError as exc:  # a model the controller refuses: one line naming the plant, the others go on
+                warnings.warn(str(exc), stacklevel=2)
+                continue
             rows += [{**r, **identified[k].columns()} for r in one]
         return rows
     if len(plants) == 1:
