@@ -29,7 +29,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-
 from scipy_switch_model import PARAMS
 
 H = 2.5e-4  # s, the integration step
