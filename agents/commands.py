@@ -2,7 +2,8 @@
 
 ``drillgym train`` trains an RL agent (stable-baselines3) on a drillgym environment;
 ``--add-effect``/``--effect-param`` train on rigs with those effects (the env options
-``effects``/``effect_params``, saved in config.yml by spec). ``drillgym combine-policies`` joins
+``effects``/``effect_params``, saved in config.yml by spec), ``--model FILE`` on rigs running that
+model (``drillgym.Model``; recorded in config.yml). ``drillgym combine-policies`` joins
 trained networks into one target-switched policy, ``drillgym average-policies`` networks of one recipe into
 their mean (:mod:`agents.ensemble`). ``drillgym benchmark`` scores a policy on a named task
 (:mod:`agents.benchmark_command`).
@@ -21,7 +22,13 @@ from pathlib import Path
 
 import typer
 
-from drillgym.commands.effect_options import add_effect_option, effect_param_option, effects_from_cli
+from drillgym.commands.effect_options import (
+    add_effect_option,
+    effect_param_option,
+    effects_from_cli,
+    model_option,
+    trust_option,
+)
 from drillgym.commands.options import excludes, requires
 from drillgym.errors import InputError
 
@@ -117,6 +124,9 @@ def register(app: typer.Typer) -> None:
     @app.command("train")
     @requires("--workers", "--seeds", when=lambda n: n > 1, what="--seeds 2 or more", why="seeds trained at once")
     @excludes("--teacher", "--resume", why="a resumed run continues its RL steps; the teacher taught at its start")
+    @excludes("--model", "--add-effect", why="the model file holds its effects")
+    @excludes("--model", "--effect-param", why="the model file holds its effects' values")
+    @requires("--trust", "--model", why="it trusts the effect files a model file names")
     def train_cmd(
         env: str = typer.Option(
             "drillgym/Torsional-v0",
@@ -186,6 +196,12 @@ def register(app: typer.Typer) -> None:
         ),
         add_effect: list[str] | None = add_effect_option(),
         effect_param: list[str] | None = effect_param_option(),
+        model_file: Path | None = model_option(
+            "model file (JSON/YAML, drillgym.Model, e.g. what `drillgym identify` wrote) every training rig runs "
+            "(on a task id: the task's nominal model, a population task's plants drawn around it); not with "
+            "--add-effect, --effect-param or env_kwargs params/effects"
+        ),
+        trust: bool = trust_option(),
     ) -> None:
         """Train an agent; writes OUT/model.zip, OUT/policy.npz (for agent:PATH in `drillgym evaluate`),
         OUT/config.yml."""
@@ -248,6 +264,13 @@ def register(app: typer.Typer) -> None:
         command = "drillgym " + " ".join(shlex.quote(a) for a in sys.argv[1:])
         with option("--set"):
             overrides = parse_overrides(set_ or [])
+        if model_file is not None:  # read now: a bad file is refused in one line before training
+            from drillgym.commands.effect_options import model_from_cli
+
+            model_from_cli(model_file, trust, parse_configuration(configuration_of(env)))
+            clash = [k for k in ("params", "effects", "effect_params") if k in overrides.get("env_kwargs", {})]
+            if clash:
+                raise InputError(f"--model cannot go with --set env_kwargs.{clash[0]} (the model file holds its own)")
         if add_effect or effect_param:
             cfg = parse_configuration(configuration_of(env))
             comp, values = effects_from_cli(add_effect, effect_param, cfg)  # one-line errors before training
@@ -271,6 +294,8 @@ def register(app: typer.Typer) -> None:
             eval_every=eval_every,
             teacher=teacher,
         )
+        if model_file is not None:  # the path, not the Model: seeds may train in other processes
+            kw.update(model=str(model_file), trust=trust)
         if seeds > 1 or ray:  # several seeds, or seeds on Ray: one summary over them
             from agents.seeds import train_seeds
 

@@ -315,10 +315,11 @@ def make_training_env(
     if not (isinstance(n_envs, int) and n_envs >= 1):
         raise InputError(f"n_envs must be an integer >= 1, got {n_envs!r}")
     kw = dict(env_kwargs or {})
+    model = kw.pop("model", None) if task is not None else None  # a task's nominal model (benchmark_env)
     if task is not None:
         if population is not None or nominal_fraction or nominal_below:
             raise InputError(f"task {task.id} fixes its plants: no population, nominal_fraction or nominal_below")
-        kw = {**task_env_kwargs(task, kw), **task_model_options(task)}
+        kw = {**task_env_kwargs(task, kw), **task_model_options(task, model)}
     if base not in (None, "observer"):
         raise InputError(f"base must be 'observer' or absent, got {base!r}")
     if base == "observer":
@@ -344,7 +345,7 @@ def make_training_env(
     if population is not None and (residual is not None or base is not None):
         raise InputError("a plant population is drawn for plain actions only (no residual or base controller)")
     if task is not None:
-        install_task_plants(venv, task)
+        install_task_plants(venv, task, model)
     schedule = schedule_of(command, motor_integral)
     if motor_integral:
         if residual is not None or base is not None:

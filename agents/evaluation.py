@@ -34,6 +34,8 @@ def evaluate_policy_targets(
     seed: int = 0,
     effects: Any = None,
     effect_params: dict | None = None,
+    model: Any = None,
+    trust: bool = False,
 ) -> list[dict]:
     """Run the agent from rest at each target and measure it with the controllers' harness.
 
@@ -55,6 +57,11 @@ def evaluate_policy_targets(
         Hidden effects of the plant (names, file specs, classes or instances).
     effect_params : dict, optional
         Their parameter values by name.
+    model : drillgym.Model, str or path, optional
+        The plant's model (:class:`drillgym.Model` or a model file's path): its base parameters and effects;
+        refused beside ``effects`` or ``effect_params``.
+    trust : bool, optional
+        Read a model file's effect files even when untrusted (:meth:`drillgym.Model.load`).
 
     Returns
     -------
@@ -65,6 +72,13 @@ def evaluate_policy_targets(
     from controllers.evaluation.harness import run_job
     from controllers.evaluation.scenarios import SCENARIOS
 
+    params = None
+    if model is not None:
+        from drillgym.model import as_model, model_arguments
+
+        m = as_model(model, trust=trust, who="evaluate_policy_targets(): model")
+        rig, effects, effect_params = model_arguments(m, None, effects, effect_params, "evaluate_policy_targets()")
+        params = rig.to_dict()
     return run_job(
         f"agent:{Path(policy)}",
         config,
@@ -75,6 +89,7 @@ def evaluate_policy_targets(
         seed=seed,
         effects=effects,
         effect_params=effect_params,
+        params=params,
     )
 
 
@@ -89,7 +104,7 @@ def lowest_held_target(policy: str | Path, targets: Sequence[float] = TARGETS, *
         Target grid (rad/s).
     **kw
         Options of :func:`evaluate_policy_targets` (``config``, ``duration``, ``window``, ``seed``,
-        ``effects``, ``effect_params``).
+        ``effects``, ``effect_params``, ``model``, ``trust``).
 
     Returns
     -------

@@ -43,10 +43,19 @@ def population_env_kwargs(env_kwargs: dict[str, Any], population: str | Path | N
     -------
     dict
         A copy of ``env_kwargs`` with the set's effects (motor lag, delay, position friction) added
-        to ``effects`` and the env's own randomisation removed.
+        to ``effects`` and the env's own randomisation removed.  A ``model`` option (a
+        :class:`drillgym.Model` or a model file's path) is the nominal model: it becomes ``params``,
+        ``effects`` and ``effect_params`` (its other effects keep their values in every plant).
     """
     us = _uncertainty(population)
     kw = dict(env_kwargs)
+    if kw.get("model") is not None:
+        from drillgym.model import model_arguments
+
+        m_params, comp, values = model_arguments(
+            kw.pop("model"), kw.get("params"), kw.get("effects"), kw.get("effect_params"), "env option 'model'"
+        )
+        kw.update(params=m_params, effects=comp.specs(), effect_params=values)
     effects = list(kw.get("effects") or [])
     kw["effects"] = effects + [e for e in us.effect_names() if e not in effects]
     kw.pop("randomize", None)
@@ -70,6 +79,9 @@ class PopulationRandomizer:
         nominal, every effect of the set at its lower bound, no position friction).
     nominal_below : float, optional
         Episodes whose target is below this speed (rad/s) always run the nominal rig.
+    values : mapping of str to float, optional
+        The nominal values of the model's effect parameters the set does not draw (default: each
+        parameter's own).
 
     Raises
     ------
@@ -94,6 +106,7 @@ class PopulationRandomizer:
         population: str | Path | None = None,
         nominal_fraction: float = 0.0,
         nominal_below: float = 0.0,
+        values=None,
     ) -> None:
         if not (0.0 <= nominal_fraction <= 1.0):
             raise InputError(f"nominal_fraction must be in [0, 1], got {nominal_fraction!r}")
@@ -107,6 +120,7 @@ class PopulationRandomizer:
                 f"the env's model lacks the population's effects {missing}; build it with population_env_kwargs"
             )
         self.composition, self.base = composition, base
+        self.values = dict(values or {})
 
     def sample(self, rng: np.random.Generator, omega_ref: float | None = None) -> np.ndarray:
         """One parameter vector for an episode.
@@ -126,11 +140,11 @@ class PopulationRandomizer:
         us = self.us
         low = omega_ref is not None and omega_ref < self.nominal_below
         if low or (self.nominal_fraction > 0 and rng.random() < self.nominal_fraction):
-            values = {k: float(lo) for k, (lo, hi) in us.effects.items()}
+            values = {**self.values, **{k: float(lo) for k, (lo, hi) in us.effects.items()}}
             values.update({n: 0.0 for pair in us.harmonics for n in pair})
             return self.composition.vector(self.base, values)
         scaled = {k: getattr(self.base, k) * (1.0 + rng.uniform(-r, r)) for k, r in us.relative.items()}
-        values = {k: float(rng.uniform(lo, hi)) for k, (lo, hi) in us.effects.items()}
+        values = {**self.values, **{k: float(rng.uniform(lo, hi)) for k, (lo, hi) in us.effects.items()}}
         for (cn, sn), amax in us.harmonics.items():
             a, phi = rng.uniform(0.0, amax), rng.uniform(0.0, 2 * np.pi)
             values[cn], values[sn] = float(a * np.cos(phi)), float(a * np.sin(phi))
@@ -155,5 +169,10 @@ def use_population(
     """
     batch = episode_batch(venv)
     batch.randomizer = PopulationRandomizer(
-        batch.system.composition, batch.options.rig_params, population, nominal_fraction, nominal_below
+        batch.system.composition,
+        batch.options.rig_params,
+        population,
+        nominal_fraction,
+        nominal_below,
+        values=batch.options.effect_params,
     )

@@ -116,8 +116,10 @@ def _train_one(kwargs: dict[str, Any]) -> dict[str, Any]:
         with np.load(ev) as z:
             means = z["results"].mean(axis=1)
         row.update(final_reward=float(means[-1]), best_reward=float(means.max()))
-    if evaluate and res.policy_path is not None:
-        row["lowest_held"] = lowest_held_target(res.policy_path)
+    if evaluate and res.policy_path is not None:  # on the run's model's plant, if it has one
+        row["lowest_held"] = lowest_held_target(
+            res.policy_path, model=kwargs.get("model"), trust=bool(kwargs.get("trust", False))
+        )
     return row
 
 

@@ -151,7 +151,7 @@ def check_task_structure(task: BenchmarkTask, hp: dict[str, Any]) -> None:
                 )
 
 
-def install_task_plants(venv, task: BenchmarkTask) -> None:
+def install_task_plants(venv, task: BenchmarkTask, model: Any = None) -> None:
     """Draw every later episode's rig of a training VecEnv from the task's training plants (population tasks).
 
     Parameters
@@ -161,16 +161,22 @@ def install_task_plants(venv, task: BenchmarkTask) -> None:
         wrapper of one).
     task : BenchmarkTask
         The task.
+    model : drillgym.Model, optional
+        The task's nominal model the plants are drawn around (:mod:`agents.benchmark_env`).
     """
     from .batch import episode_batch
     from .benchmark_env import install_plants
 
-    install_plants(episode_batch(venv), task)
+    install_plants(episode_batch(venv), task, model)
 
 
-def task_model_options(task: BenchmarkTask) -> dict[str, Any]:
-    """The env options that put a population task's plant model in the env (its effects); empty for nominal."""
-    from .benchmark_env import train_plants
+def task_model_options(task: BenchmarkTask, model: Any = None) -> dict[str, Any]:
+    """The env options that put a task's plant model in the env: a population task's effects (empty for a
+    nominal one) or, with ``model`` (a :class:`drillgym.Model`), ``model=`` the task's nominal model
+    (:func:`agents.benchmark_env.task_model`)."""
+    from .benchmark_env import task_model, train_plants
 
+    if model is not None:
+        return {"model": task_model(task, model)}
     pop = train_plants(task)
     return {"effects": list(pop.composition.specs())} if pop is not None else {}

@@ -193,6 +193,22 @@ def planned_timesteps(
     ]
 
 
+def _with_model(hp: dict[str, Any], model: Any, trust: bool) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(``hp`` with env option ``model`` set, ``hp`` as ``config.yml`` records it: the model as JSON-ready
+    base parameters and effect records); refused beside env options that give the model's parts."""
+    from drillgym.model import as_model
+
+    m = as_model(model, trust=trust, who="train(): model")
+    kw = dict(hp["env_kwargs"])
+    clash = [k for k in ("model", "params", "effects", "effect_params") if kw.get(k) is not None]
+    if clash:
+        raise InputError(
+            f"train(): give model= or the env option(s) {', '.join(clash)}, not both (the model holds its own)"
+        )
+    record = {"label": m.label, "params": m.params.to_dict(), "effects": m.records()}
+    return {**hp, "env_kwargs": {**kw, "model": m}}, {**hp, "env_kwargs": {**kw, "model": record}}
+
+
 def _env(env_id: str, hp: dict[str, Any], n: int, seed: int, evaluation: bool = False):
     """The training VecEnv of the (merged) hyperparameters ``hp``; ``evaluation``: its frozen twin (no
     statistics updates, raw rewards) for :class:`BestPolicyCallback`."""
@@ -327,6 +343,8 @@ def train(
     eval_envs: int = 8,
     teacher: str | Path | None = None,
     distill_kwargs: dict[str, Any] | None = None,
+    model: Any = None,
+    trust: bool = False,
 ) -> TrainResult:
     """Train ``algo`` on ``env_id`` and write the run into ``out`` (see the module docstring).
 
@@ -381,6 +399,14 @@ def train(
         data, e.g. another training population).
     distill_kwargs : dict, optional
         DAgger options (:func:`agents.distill.distill`) over the hyperparameters' ``distill`` entry.
+    model : drillgym.Model, str or path, optional
+        The rig's model (:class:`drillgym.Model` or a model file's path): every training and evaluation rig
+        runs its base parameters and effects (env option ``model``; on a task id the task's nominal model,
+        :mod:`agents.benchmark_env`; with a ``population`` structure the nominal rig the plants are drawn
+        around).  Refused beside env options ``params``, ``effects`` or ``effect_params``.  ``config.yml``
+        records it (base parameters and effect records).
+    trust : bool, optional
+        Read a model file's effect files even when untrusted (:meth:`drillgym.Model.load`).
 
     Returns
     -------
@@ -394,6 +420,9 @@ def train(
     algo = algo.lower()
     cls = algo_class(algo)
     hp = _settings(env_id, algo, obs, timesteps, n_envs, hyperparams, overrides, allow_zero=True)
+    recorded_hp = hp
+    if model is not None:
+        hp, recorded_hp = _with_model(hp, model, trust)
     distill_kwargs = {**(hp.get("distill") or {}), **(distill_kwargs or {})}
     if teacher is None:
         teacher = distill_kwargs.pop("teacher", None)
@@ -413,7 +442,7 @@ def train(
             )
     _warn_short_run(cls, hp)
     venv = _env(env_id, hp, hp["n_envs"], seed)
-    config = {"env_id": env_id, "algo": algo, "seed": int(seed), "hyperparams": hp, "command": command}
+    config = {"env_id": env_id, "algo": algo, "seed": int(seed), "hyperparams": recorded_hp, "command": command}
     if teacher is not None:
         config["teacher"] = {"policy": str(teacher), **distill_kwargs}
     ckpt = out / "checkpoints" / "latest.zip"
