@@ -127,6 +127,16 @@ def _lag_delay_gap(state: SearchState, a: str, b: str):
     return ne * math.log(max(rss_b, 1e-300) / max(rss_a, 1e-300)), swapped, rss_b
 
 
+#: RMS of a residual in noise units at or below which a model reproduces the recording (no verdict against it)
+AT_NOISE = 1.0
+
+
+def _noise_rms(residual: np.ndarray, units: np.ndarray) -> float:
+    """The RMS of a residual in noise units (0 for an empty residual)."""
+    r = np.asarray(residual, dtype=float) * units
+    return float(np.sqrt(np.mean(r * r))) if r.size else 0.0
+
+
 def decide_base(state: SearchState) -> Selection:
     """Whether the base model is off, and the run's result (see the module docstring).
 
@@ -178,6 +188,8 @@ def decide_base(state: SearchState) -> Selection:
     base_off = significant(
         base_score, rss_held, full.rss_after, state.n, held.residual, full.residual, unit=state.units()
     ) or (base_score > SIGNIFICANCE and full.rss_after < 0.5 * rss_held)
+    if base_off and _noise_rms(held.residual, state.units()) <= AT_NOISE:
+        base_off = False  # the base model already reproduces the recording to its noise: nothing says it is off
     if not base_off:
         obj.model.speed_offsets = speeds_held
         return Selection(

@@ -35,6 +35,7 @@ from ..identification.segmented import SegmentedModel
 from ..io import TimeSeries
 from ..io.jsonfile import write_json
 from ..params import N_PARAMS, RigParams
+from .information import recording_information
 from .sparse import residual_torques
 
 __all__ = ["Comparison", "compare", "write_compare"]
@@ -252,6 +253,10 @@ def compare(
     )
     comp.noise = _noise_levels(ex, chans)
     above = {c for c in chans if metrics[c]["rms"] > NOISE_FACTOR * comp.noise[c]}
+    why_not = recording_information(ex.recording).why_not if ex.recording is not None else None
+    if not above and why_not is not None:  # a match that says nothing about the model
+        comp.findings[:] = [f"cannot tell from this recording: {why_not}"]
+        return comp
     if not above:  # the model fits to the noise: there is no failure to locate
         comp.findings[:] = [
             f"the model matches the recording within the measurement noise ({main} RMS "

@@ -36,6 +36,7 @@ from .candidate_fit import choose_candidate
 from .checks import check
 from .discovery import discover
 from .encoder_reading import reading_candidate
+from .information import require_information
 from .input_order import input_order
 from .orders import select
 from .ranking import report
@@ -84,6 +85,9 @@ def diagnose(
         An unknown candidate effect, or a recording without a configuration.
     InputTypeError
         A setting that is not a field of :class:`DiagnosisOptions` (also a :class:`TypeError`).
+    CannotTellError
+        A recording that cannot carry a verdict (the motor's disc does not turn): "cannot tell from this
+        recording", with what would tell.
 
     Examples
     --------
@@ -98,6 +102,8 @@ def diagnose(
     if params is not None and not isinstance(params, RigParams):
         raise InputTypeError(f"params must be RigParams (None: the identified set), got {type(params).__name__}")
     opts = replace(options or DiagnosisOptions(), **settings)
+    for rec in _recordings(data):  # no verdict from a recording that cannot carry one
+        require_information(rec)
     with one_blas_thread():  # every step's threads (fits side by side, the lag/delay searches) see the same BLAS
         screening = screen(data, params, config, opts)
         noise = dict(screening.model.obj.scales)  # the selection may weight the sensors by their misfit
@@ -118,6 +124,17 @@ def diagnose(
                     diagnosis.candidate.fit.beside = beside_candidate(screening, diagnosis, noise)
                     diagnosis.candidate.fit.recheck = recheck_selection(screening, diagnosis)
     return diagnosis
+
+
+def _recordings(data: Any) -> list[TimeSeries]:
+    """The recordings behind what :func:`diagnose` is given (those it can reach)."""
+    items = [data] if isinstance(data, (TimeSeries, Experiment)) else list(data)
+    out = []
+    for item in items:
+        rec = item if isinstance(item, TimeSeries) else getattr(item, "recording", None)
+        if rec is not None:
+            out.append(rec)
+    return out
 
 
 def _fine(ex: Experiment) -> Experiment:

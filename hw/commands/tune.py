@@ -124,7 +124,12 @@ def _identify_and_write(recording: Path, model_out: Path, echo) -> None:
     from drillgym import RigParams, identify
     from drillgym.io.outputs import output_file
 
-    found = identify(recording)
+    from drillgym.diagnosis.information import CannotTellError
+
+    try:
+        found = identify(recording)
+    except CannotTellError as exc:  # no model from a recording that cannot carry one
+        raise CannotTellError(f"{exc}; recording kept: {recording}; no model written") from None
     m = found.model
     path = m.save(output_file(model_out, "--model-out"))
     nominal = RigParams()
