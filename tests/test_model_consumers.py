@@ -201,7 +201,7 @@ def test_cli_simulate_model_equals_the_python_run(m, model_file, tmp_path):
         (
             ("benchmark", "drillgym/Population-Motor-v0", "--policy", "descent", "--model", "{file}", "--plants", "2"),
             "--model cannot go with --plants",
-        ),  # fmt: skip
+        ),
         (("train", "--model", "{file}", "--add-effect", "input_delay"), "--model cannot go with --add-effect"),
     ],
 )
