@@ -305,3 +305,13 @@ def test_a_benchmark_refuses_one_network_as_two_seeds(tmp_path):
     argv = ["benchmark", "drillgym/Population-Motor-v0", "--policy", "agent:run", "--policy", "agent:run/policy.npz"]
     code, _, err = run(argv, tmp_path)
     assert "the same network as agent:run" in refused_line(code, err)
+
+
+def test_a_run_that_diverges_leaves_no_directory(tmp_path):
+    """simulate's outputs (and their missing directories) are created once the run succeeded."""
+    (tmp_path / "stiff.json").write_text('{"Jl": 1e-6, "ktheta": 1000, "km": 50, "Ts": 50}')
+    before = snapshot(tmp_path)
+    argv = ["simulate", "--u", "3", "--duration", "0.5", "--params", "stiff.json", "--out", "new/x.csv"]
+    code, _, err = run([*argv, "--plot", "fig/x.png"], tmp_path)
+    assert "diverged" in refused_line(code, err)
+    assert snapshot(tmp_path) == before

@@ -20,7 +20,7 @@ from .effect_options import (
     trust_option,
 )
 from .options import excludes, option, requires
-from .outputs import CREATES_DIRS, figure_file, output_file
+from .outputs import CREATES_DIRS, check_figure_file, check_output_file, figure_file, output_file
 
 
 def _load_input(path: Path):
@@ -284,8 +284,9 @@ def register(app: typer.Typer) -> None:
             raise InputError(f"--out {out} is the --input file: the run would replace its input; choose another name")
         check_step_grid(duration, dt, record_every, duration_given=duration_given)
         check_run_fits(duration, dt, record_every, out)
-        out = output_file(out, "--out", suffixes=(".csv",))  # its directories created once every check passed
-        plot = figure_file(plot) if plot else None
+        check_output_file(out, "--out", suffixes=(".csv",))
+        if plot:
+            check_figure_file(plot)
         traj = simulate(
             cfg,
             signal,
@@ -307,6 +308,8 @@ def register(app: typer.Typer) -> None:
             how += "".join(f" --add-effect {s}" for s in comp.specs()) + "".join(
                 f" --effect-param {k}={v:g}" for k, v in values.items()
             )
+        out = output_file(out, "--out", suffixes=(".csv",))  # its directories created once the run succeeded
+        plot = figure_file(plot) if plot else None
         traj.to_csv(out, description=f"drillgym simulate --config {cfg.label} {how}")
         typer.echo(f"wrote {out} ({len(traj.t)} samples); {_summary(traj)}")
         if plot:
