@@ -11,7 +11,7 @@ from ..errors import DrillgymError, InputError
 from .effect_options import add_effect_option, effect_param_option, trust_option
 from .mapping import MAP_HELP, parse_mapping
 from .options import named, option, requires
-from .outputs import CREATES_DIRS, check_output_dir, check_output_file, figure_file, output_file
+from .outputs import CREATES_DIRS, check_figure_file, check_output_dir, check_output_file, figure_file, output_file
 
 
 def _json(obj) -> str:
@@ -319,7 +319,8 @@ def diagnose_cmd(
         if model_out.suffix.lower() not in (".json", ".yaml", ".yml"):
             raise InputError(f"--model-out {model_out}: a model file must end in .json, .yaml or .yml")
         check_output_file(model_out, "--model-out", suffixes=(".json", ".yaml", ".yml"))
-    plot = figure_file(plot) if plot is not None else None
+    if plot is not None:
+        check_figure_file(plot)  # its directories created once the diagnosis gave a figure
     seg = _segment(segment)
     base, model, values, _ = _model(params, add_effect, effect_param, trust)
     with option("--candidate"):
@@ -356,7 +357,7 @@ def diagnose_cmd(
     if plot is not None:
         from ..diagnosis.figure import plot_unexplained
 
-        plot_unexplained(d.unexplained, plot, title=data.name)
+        plot_unexplained(d.unexplained, figure_file(plot), title=data.name)
     if as_json:
         typer.echo(_json(d.to_json()))
     else:
