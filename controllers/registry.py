@@ -168,8 +168,9 @@ def make(name: str, config: str = "torsional", omega_ref=None, params=None, **kw
         The model the controller is designed on; default the nominal parameters.
     **kw
         ``model=``: a model with effects instead of ``params`` (a :class:`drillgym.Model`, a
-        model file read by ``read_model`` or its path): ``observer``, ``lqg`` and ``lqg-2enc`` run its motor lag,
-        delay and lower-disc friction effects; every controller refuses, naming it, an effect it cannot use.
+        model file read by ``read_model`` or its path): ``observer``, ``lqg`` and ``lqg-2enc`` run every effect of
+        it in their own model (:mod:`controllers.dynamics`); the others refuse a model with effects, and what a
+        model-based controller cannot represent is refused in one line naming the effect and why.
         Further keywords of the controller's constructor (e.g. ``dt``, the control period in s).
 
     Returns

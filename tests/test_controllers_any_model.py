@@ -139,3 +139,17 @@ def test_what_cannot_be_represented_is_refused_in_one_line(tmp_path):
     assert "'integrating_drive'" in msg and "a state other than a first-order lag" in msg and "\n" not in msg
     with pytest.raises(InputError, match="'lateral_coulomb'.*no lateral motion"):
         controllers.make("observer", omega_ref=3.0, model=Model(RigParams(), ("lateral_coulomb",), {}))
+
+
+def test_lqg_2enc_told_a_coarse_encoder_takes_its_quantisation_into_its_model():
+    """Told 2048 counts, the filter's angle noise is q^2/12 + (1.25 q)^2 + noise^2 and the dead band 0.7 of q/2
+    (benchmarks/bench_coarse_encoders.py: the default design limit-cycles at 1.4-1.6 rad/s there)."""
+    from controllers.two_encoder import ALIASING, DEAD_BAND
+
+    q = 2 * np.pi / 2048
+    ctrl = controllers.make("lqg-2enc", omega_ref=1.5, counts_per_rev=2048, angle_noise=5e-4)
+    assert ctrl.design.counts == 2048 and ctrl.design.dead_band == DEAD_BAND
+    assert ctrl.design.noise_floor == pytest.approx(np.hypot(ALIASING * q, 5e-4))
+    assert controllers.make("lqg-2enc", omega_ref=1.5).design.dead_band == 0.0  # not told: the default design
+    with pytest.raises(InputError, match="counts_per_rev"):
+        controllers.make("lqg-2enc", omega_ref=1.5, counts_per_rev=0)
