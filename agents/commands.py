@@ -349,14 +349,13 @@ def register(app: typer.Typer) -> None:
         import math
 
         from drillgym.commands.options import option
-        from drillgym.commands.outputs import check_output_file, output_file
+        from drillgym.commands.outputs import check_output_file
 
         if not cuts or not all(math.isfinite(c) and c > 0 for c in cuts) or cuts != sorted(set(cuts)):
             raise InputError(f"--edges must be increasing positive finite speeds (rad/s), got {edges!r}")
         check_output_file(out, "--out", suffixes=(".npz",))
         files = _policy_files(policies)
-        output_file(out, "--out", suffixes=(".npz",))  # its missing directories created, as --help says
-        with option("POLICIES"):
+        with option("POLICIES"):  # its missing directories created once the networks are checked, as --help says
             path = combine(files, cuts, out, note=note)
         typer.echo(f"wrote {path}: {len(files)} networks, handing over at {', '.join(f'{c:g}' for c in cuts)} rad/s")
 
@@ -371,11 +370,10 @@ def register(app: typer.Typer) -> None:
         output clip); runs wherever a policy.npz does (agents/ensemble.py)."""
         from agents.ensemble import average
         from drillgym.commands.options import option
-        from drillgym.commands.outputs import check_output_file, output_file
+        from drillgym.commands.outputs import check_output_file
 
         check_output_file(out, "--out", suffixes=(".npz",))
         files = _policy_files(policies)
-        output_file(out, "--out", suffixes=(".npz",))
-        with option("POLICIES"):
+        with option("POLICIES"):  # its missing directories created once the networks are checked
             path = average(files, out)
         typer.echo(f"wrote {path}: the mean of {len(files)} networks")

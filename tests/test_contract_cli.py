@@ -125,7 +125,7 @@ def draw_case(data, a, work: Path):
     extra = data.draw(st.integers(0, 2), label="extra")
     for _ in range(extra):  # more options set to values wrong for most commands, flags turned on
         p = data.draw(st.sampled_from(params), label="other option")
-        if p.name in taken or (p.argument and p.multiple):
+        if p.name in taken:
             continue
         if p.kind == "flag":
             argv = argv + [p.secondary or p.name] if data.draw(st.booleans(), label="off") else argv + [p.name]

@@ -315,3 +315,13 @@ def test_a_run_that_diverges_leaves_no_directory(tmp_path):
     code, _, err = run([*argv, "--plot", "fig/x.png"], tmp_path)
     assert "diverged" in refused_line(code, err)
     assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("command", ["average-policies", "combine-policies"])
+def test_a_refused_network_leaves_no_output_directory(tmp_path, command):
+    bad = _policy(tmp_path, "bad.npz", _nan)
+    argv = [command, str(KEPT), bad, "--out", "new/dir/out.npz"] + (["--edges", "3"] if command[0] == "c" else [])
+    before = snapshot(tmp_path)
+    code, _, err = run(argv, tmp_path)
+    assert "non-finite" in refused_line(code, err)
+    assert snapshot(tmp_path) == before
