@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import pickle
 
 import gymnasium
 import numpy as np
@@ -71,6 +72,9 @@ def test_an_env_runs_the_model_as_simulate_does(m, model_file):
     np.testing.assert_allclose(base, _simulated(Model(m.params)), rtol=1e-6, atol=1e-6)
     from_file = _run_env(gymnasium.make("drillgym/Torsional-v0", model=str(model_file), **ENV))
     np.testing.assert_array_equal(from_file, with_model)
+    env = gymnasium.make("drillgym/Torsional-v0", model=m, **ENV)
+    again = pickle.loads(pickle.dumps(env))  # the spec holds the model's parts, which pickle
+    assert again.unwrapped.options.rig_model == m and gymnasium.make(env.spec).unwrapped.options.rig_model == m
 
 
 def test_the_vector_env_runs_the_model(m):

@@ -27,6 +27,12 @@ __all__ = ["DrillEnv", "TorsionalEnv", "LateralEnv", "CoupledEnv", "action_space
 _ROW0 = np.zeros(1, dtype=np.int64)
 
 
+def _is_model(value: Any) -> bool:
+    from ..model import Model
+
+    return isinstance(value, Model)
+
+
 def action_space(normalize: bool) -> spaces.Box:
     """The motor voltage's action space: Box [-5, 5] V, or [-1, 1] (x 5 V) when ``normalize`` is true."""
     hi = 1.0 if normalize else U_MAX
@@ -135,6 +141,12 @@ class DrillEnv(gym.Env):
     def spec(self, value: EnvSpec | None) -> None:
         if value is not None and value.max_episode_steps != self.options.episode_steps:
             value = dataclasses.replace(value, max_episode_steps=self.options.episode_steps)
+        if value is not None and _is_model(value.kwargs.get("model")) and "task" not in value.kwargs:
+            # a Model object in the spec's kwargs does not pickle: its parts do, and make the same env
+            kw = {k: v for k, v in value.kwargs.items() if k != "model"}
+            o = self.options
+            kw.update(params=o.params, effects=o.effects.specs(), effect_params=dict(o.effect_params))
+            value = dataclasses.replace(value, kwargs=kw)
         self._spec = value
 
     def __init__(self, configuration: str = "torsional", render_mode: str | None = None, **options: Any) -> None:
