@@ -171,11 +171,11 @@ def distill(
 
     task = task_of(env_id)
     kw = {**env_kwargs, "normalize_action": True}
-    model = kw.pop("model", None) if task is not None else None  # a task's nominal model (benchmark_env)
+    task_model = kw.pop("model", None) if task is not None else None  # a task's nominal model (benchmark_env)
     if task is not None:  # the task's options and training plants (its plants are fixed: no population)
         if population is not None:
             raise InputError(f"task {task.id} fixes its plants: distill without a population")
-        kw = {**task_env_kwargs(task, kw), **task_model_options(task, model)}
+        kw = {**task_env_kwargs(task, kw), **task_model_options(task, task_model)}
     if population is not None:
         from .population import population_env_kwargs, use_population
 
@@ -184,7 +184,7 @@ def distill(
     if population is not None:
         use_population(venv, population, nominal_fraction, nominal_below)
     if task is not None:
-        install_task_plants(venv, task, model)
+        install_task_plants(venv, task, task_model)
     integral = None
     schedule = schedule_of(command, motor_integral)
     if motor_integral:
