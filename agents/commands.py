@@ -124,6 +124,7 @@ def register(app: typer.Typer) -> None:
     @app.command("train")
     @requires("--workers", "--seeds", when=lambda n: n > 1, what="--seeds 2 or more", why="seeds trained at once")
     @excludes("--teacher", "--resume", why="a resumed run continues its RL steps; the teacher taught at its start")
+    @requires("--teacher", "--algo", when=lambda a: a.lower() == "ppo", what="--algo ppo", why="distilled into PPO")
     @excludes("--model", "--add-effect", why="the model file holds its effects")
     @excludes("--model", "--effect-param", why="the model file holds its effects' values")
     @requires("--trust", "--model", why="it trusts the effect files a model file names")
@@ -249,6 +250,15 @@ def register(app: typer.Typer) -> None:
                 ) from None
         if isinstance(teacher, Path):
             _check_npz(teacher, "--teacher")
+            from agents.export import ExportedPolicy
+
+            with option("--teacher"):  # the teacher reads the true state: refused now, not after the rigs are built
+                taught = ExportedPolicy.load(teacher).config.get("hyperparams", {}).get("env_kwargs", {})
+            if taught.get("observation", "full") != "full":
+                raise InputError(
+                    f"--teacher {teacher}: trained on the {taught['observation']!r} observation; a teacher is a "
+                    "policy of the 'full' observation (the true state)"
+                )
         if ray is not None:
             from drillgym.parallel import check_ray_address
 

@@ -46,7 +46,7 @@ def refused_line(code: int, err: str) -> str:
 @pytest.mark.parametrize(
     "extra",
     [
-        ["--teacher", str(KEPT)],  # a teacher not of the 'full' observation: refused as distillation starts
+        ["--teacher", str(KEPT)],  # a teacher not of the 'full' observation
         ["--teacher", "flatness", "--set", "distill.whiten=2"],  # a distillation option refused at its start
     ],
     ids=["teacher-observation", "distill-option"],
