@@ -442,11 +442,11 @@ def check_contract(cmd: Command, argv: list[str], work: Path, a: Assets, names: 
     code, out, err = run(argv, work)
     after = snapshot(work, Path(a.root))
     changed = changes(before, after)
-    line = err.strip()
+    line = err.strip().split("\r")[-1].strip()  # a progress bar cleared by carriage returns is not a line
     assert "Traceback" not in err and "internal error" not in err, f"{argv}: a traceback\n{err[-3000:]}"
     assert code in (0, USER_ERROR), f"{argv}: exit {code}\n{err[-2000:]}"
     if code == USER_ERROR:
-        assert line and "\n" not in line, f"{argv}: the refusal is not one line:\n{err}"
+        assert line and "\n" not in err.strip(), f"{argv}: the refusal is not one line:\n{err}"
         assert line.startswith("drillgym: error: "), f"{argv}: {line}"
         assert not changed, f"{argv}: refused ({line}) after changing {changed}"
         if names:

@@ -285,20 +285,25 @@ def identify_population(
     out: dict[int, Any] = {}
     bar = tqdm(total=n, desc="identify", unit="plant", disable=not progress)
     args = [(k, n, seed, uncertainty, params, opts, config) for k in range(n)]
-    if executor is None and workers <= 1:
-        for a in args:
-            out[a[0]] = _identify_one(*a)
-            bar.update()
-    else:
-        ex = executor or ProcessPoolExecutor(max_workers=workers)
-        try:
-            futs = {ex.submit(_identify_one, *a): a[0] for a in args}
-            for f in as_completed(futs):
-                out[futs[f]] = f.result()
+    try:
+        if executor is None and workers <= 1:
+            for a in args:
+                out[a[0]] = _identify_one(*a)
                 bar.update()
-        finally:
-            if executor is None:
-                ex.shutdown()
+        else:
+            ex = executor or ProcessPoolExecutor(max_workers=workers)
+            try:
+                futs = {ex.submit(_identify_one, *a): a[0] for a in args}
+                for f in as_completed(futs):
+                    out[futs[f]] = f.result()
+                    bar.update()
+            finally:
+                if executor is None:
+                    ex.shutdown()
+    except BaseException:
+        bar.leave = False  # the bar cleared: the error that follows is the one line on stderr
+        bar.close()
+        raise
     bar.close()
     return out
 
@@ -659,23 +664,28 @@ def evaluate(
         ident = pop_kw.get("identified")
         return {**pop_kw, "identified": {k: ident[k] for k in ch} if ident else None}
 
-    if executor is None and workers <= 1:
-        for c, cfg, s, ch in jobs:
-            rows += run_job(c, cfg, s, u_fold=u_folds.get(cfg), plants=ch, **job_kw(s, ch), **kw)
-            bar.update()
-    else:
-        ex = executor or ProcessPoolExecutor(max_workers=workers)
-        try:
-            futs = [
-                ex.submit(run_job, c, cfg, s, u_fold=u_folds.get(cfg), plants=ch, **job_kw(s, ch), **kw)
-                for c, cfg, s, ch in jobs
-            ]
-            for f in as_completed(futs):
-                rows += f.result()
+    try:
+        if executor is None and workers <= 1:
+            for c, cfg, s, ch in jobs:
+                rows += run_job(c, cfg, s, u_fold=u_folds.get(cfg), plants=ch, **job_kw(s, ch), **kw)
                 bar.update()
-        finally:
-            if executor is None:
-                ex.shutdown()
+        else:
+            ex = executor or ProcessPoolExecutor(max_workers=workers)
+            try:
+                futs = [
+                    ex.submit(run_job, c, cfg, s, u_fold=u_folds.get(cfg), plants=ch, **job_kw(s, ch), **kw)
+                    for c, cfg, s, ch in jobs
+                ]
+                for f in as_completed(futs):
+                    rows += f.result()
+                    bar.update()
+            finally:
+                if executor is None:
+                    ex.shutdown()
+    except BaseException:
+        bar.leave = False  # the bar cleared: the error that follows is the one line on stderr
+        bar.close()
+        raise
     bar.close()
     order = {c: i for i, c in enumerate(controllers)}
     rows.sort(
