@@ -327,11 +327,16 @@ def test_a_refused_network_leaves_no_output_directory(tmp_path, command):
     assert snapshot(tmp_path) == before
 
 
-def test_a_run_refused_midway_is_one_line_after_the_progress_bar(tmp_path):
+def test_a_run_refused_midway_is_one_line_after_the_progress_bar(tmp_path, monkeypatch):
     """evaluate's progress bar is cleared before the refusal of a run that diverged: one line on the terminal."""
-    (tmp_path / "stiff.json").write_text('{"Jl": 1e-6, "ktheta": 1000, "km": 50, "Ts": 50}')
+    from controllers.evaluation import harness
+
+    def diverging(*args, **kw):
+        raise SimulationError("the run diverged at t = 0.05 s")
+
+    monkeypatch.setattr(harness, "run_job", diverging)
     argv = ["evaluate", "--config", "torsional", "--controllers", "baseline", "--targets", "1", "--duration", "0.2"]
-    code, _, err = run([*argv, "--window", "0.1", "--workers", "1", "--params", "stiff.json", "--out", "ev"], tmp_path)
+    code, _, err = run([*argv, "--window", "0.1", "--workers", "1", "--out", "ev"], tmp_path)
     assert code == 2 and "\n" not in err.strip(), err
     assert err.strip().split("\r")[-1].startswith("drillgym: error: the run diverged"), err
     assert not (tmp_path / "ev").exists()
