@@ -38,6 +38,18 @@ COMMANDS = commands()
 KNOWN: dict[tuple[tuple[str, ...], tuple[str, ...]], str] = {}
 
 
+@pytest.mark.parametrize(
+    "path,words", [pytest.param(*k, marks=pytest.mark.xfail(reason=why, strict=True)) for k, why in KNOWN.items()]
+)
+def test_a_known_fault_still_fails(path, words, a, root):
+    """Each known fault on its own (its base line with its words appended), failing until it is fixed: a fix turns
+    it into an unexpected pass, and its entry leaves :data:`KNOWN`."""
+    from contract import base_argv
+
+    cmd = next(c for c in COMMANDS if c.path == path)
+    check_contract(cmd, base_argv(cmd, a) + list(words), fresh_work(root), a, words)
+
+
 def examples(n: int):
     """Deterministic Hypothesis settings with ``n`` examples, no shrinking (a case is one command line)."""
     return settings(
