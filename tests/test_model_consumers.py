@@ -141,6 +141,25 @@ def test_bifurcation_with_a_model_equals_it_given_by_hand(m):
         sweep_constant("torsional", [2.0], params=m.params, model=m, **kw)
 
 
+def test_the_section_maps_simulations_run_its_model(m):
+    from drillgym.bifurcation import equilibrium_branch
+    from drillgym.bifurcation.poincare import SectionMap
+    from drillgym.bifurcation.verification import section_returns
+    from drillgym.configurations import Configuration
+    from drillgym.equilibria import model_or_params
+
+    rm = model_or_params(model=m)
+    smap = SectionMap(
+        Configuration.TORSIONAL, rm.p, equilibrium_branch("torsional", model=m, n=20).section_speed, composition=rm.comp
+    )
+    y0 = np.zeros((1, rm.n_state))
+    _, _, batch = section_returns(smap, 3.0, y0, 0.5, dt=1e-3, with_batch=True)  # the lagged model, not the base
+    traj = simulate("torsional", 3.0, 0.5, dt=1e-3, x0=y0[0], model=m)  # the lag state from 0 V
+    np.testing.assert_allclose(batch[0].omega_u, traj.omega_u, rtol=1e-12, atol=1e-12)
+    base = simulate("torsional", 3.0, 0.5, dt=1e-3, x0=y0[0, :8], params=m.params)
+    assert np.abs(base.omega_u - batch[0].omega_u).max() > 0.01  # rad/s: the lag
+
+
 # ------------------------------------------------------------------------------------------ agents
 
 

@@ -95,7 +95,6 @@ def section_margin(smap: SectionMap, sol: PeriodicSolution) -> tuple[float, floa
     from its section point), and, if that is below SECTION_MARGIN, the offset (rad/s) of a section
     level in the middle of the widest gap between extremum values that the orbit crosses upwards
     exactly once per period (None when no such level is better)."""
-    from ..params import RigParams
     from ..simulator import simulate_batch
 
     if not np.isfinite(sol.period) or sol.period <= 0:
@@ -106,7 +105,8 @@ def section_margin(smap: SectionMap, sol: PeriodicSolution) -> tuple[float, floa
         sol.u,
         sol.period,
         dt=sm.dt,
-        params=RigParams.from_vector(sm.p),
+        params=sm.p,  # the section map's model: its parameter vector and effects
+        effects=sm.composition,
         x0=sm.to_state(sol.z, sol.u),
         method=sm.method,
         n_batch=1,

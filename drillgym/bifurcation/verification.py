@@ -57,20 +57,27 @@ def section_returns(
     and the reduced scaled coordinates (k, smap.dim) of the upward crossings of omega_l = omega_s(u)
     (a crossing counts after omega_l has been below omega_s, as in the section map).  With
     ``with_batch`` the simulated BatchTrajectory is returned as a third item."""
-    from ..params import RigParams
-
     Y0 = np.atleast_2d(np.asarray(Y0, dtype=float))
     ws = smap.level(u)
-    params = params if params is not None else RigParams.from_vector(smap.p)
+    # default: the section map's model (its parameter vector and effects); given params run the base model
+    effects = smap.composition if params is None else None
+    params = params if params is not None else smap.p
     batch = simulate_batch(
-        smap.config, np.full(len(Y0), float(u)), duration, dt=dt, params=params, x0=Y0, n_batch=len(Y0)
+        smap.config,
+        np.full(len(Y0), float(u)),
+        duration,
+        dt=dt,
+        params=params,
+        effects=effects,
+        x0=Y0,
+        n_batch=len(Y0),
     )
     times, points = [], []
     for k in range(len(Y0)):
         tr = batch[k]
         t = tr.t
         g = tr.omega_l - ws
-        cols = [getattr(tr, _COLUMNS[c]) for c in smap.coords]
+        cols = [getattr(tr, _COLUMNS.get(c, c)) for c in smap.coords]  # an effect's state: its own column
         below = np.flatnonzero(g < 0)
         tk, zk = [], []
         if below.size:
