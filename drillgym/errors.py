@@ -39,6 +39,7 @@ __all__ = [
     "MissingFileError",
     "SimulationError",
     "FitError",
+    "FitFailedError",
     "UnavailableError",
     "SafetyError",
 ]
@@ -82,6 +83,12 @@ class SimulationError(DrillgymError, RuntimeError):
 
 class FitError(DrillgymError, RuntimeError):
     """An identification, a diagnosis or a numerical solve cannot produce a valid result (and says why)."""
+
+
+class FitFailedError(FitError):
+    """A fit that could not run or finish, for a reason it names (a non-finite residual at its start, a fitted
+    value leaving its physical range): the caller may skip that fit and record the reason; any other exception
+    inside a fit is a bug and propagates."""
 
 
 class UnavailableError(DrillgymError, RuntimeError):

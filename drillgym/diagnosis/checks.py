@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..effects import Effect
+from ..errors import FitFailedError
 from ..identification.experiment import Experiment
 from .context import SelectionContext, SelectionOptions, fit_free
 from .criterion import better
@@ -168,7 +169,7 @@ def check_position_effects(
         free_base = tuple(model.base_names) if out.base_off else ()
         try:
             agreement = halves_agree(exps, model, out.vector, eff, free_base, segment_s, scales)
-        except ValueError:
+        except FitFailedError:
             continue
         if agreement.agree:
             continue

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..effects import Composition, Effect
 from ..effects.base import Measurement
+from ..errors import FitFailedError
 from ..identification.fitting import FitResult, FitVariable, Objective, fit_parameters
 from ..params import N_PARAMS, PARAM_INFO, RigParams
 from .effective import effective_samples
@@ -383,13 +384,13 @@ def in_parallel(jobs: Sequence[Callable[[], Any]]) -> list[Any]:
     Returns
     -------
     list
-        Their results or ValueErrors; any other error is raised.
+        Their results or the FitFailedErrors of fits that failed for a reason they name; any other error is raised.
     """
 
     def run(job):
         try:
             return job()
-        except ValueError as exc:
+        except FitFailedError as exc:  # a fit that names why it failed; anything else is a bug and propagates
             return exc
 
     if len(jobs) < 2:

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import FitFailedError
 from ..identification.fitting import FitResult, Objective
 from .backward import backward_check, decide_base, swap_lag_delay
 from .context import SelectionContext, SelectionOptions, converged_fit, fit_free, in_parallel, screen_fit
@@ -352,7 +353,7 @@ def _screen(state: SearchState, first_pass: bool) -> dict[str, FitResult]:
     )
     screen: dict[str, FitResult] = {}
     for (name, _), r_ in zip(tasks, fits):
-        if isinstance(r_, ValueError):
+        if isinstance(r_, FitFailedError):
             state.excluded[name] = f"fit failed: {r_}"
             continue
         if name not in screen or r_.rss_after < screen[name].rss_after:
@@ -391,7 +392,7 @@ def _score_round(
         chans = state.channels_for(name)
         sc, ne = score(state.residual, res, k, opts.n_eff_ref, chans, state.blocks)
         jr = joint_fits.get(name)
-        if jr is not None and not isinstance(jr, ValueError):
+        if jr is not None and not isinstance(jr, FitFailedError):
             # the joint refit or the screen's fit, whichever scores higher: the joint refit lowers the pooled
             # RSS, but a measurement effect is scored per channel, and the base parameters refitted with it
             # can trade the torsional channels for its own (an independent rig's 2.5° LVDT skew: its screen
@@ -426,7 +427,7 @@ def _enter_group(state: SearchState, screen: dict[str, FitResult], order: Sequen
     for group, gv in _masked_groups(state, screen, order):
         try:
             gr = fit_free(ctx, gv, free_now + ctx.effect_parameters(group), opts.max_nfev_joint)
-        except ValueError:
+        except FitFailedError:
             continue
         kg = len(ctx.effect_parameters(group))
         sc, ne = score(state.rss, gr, kg, opts.n_eff_ref, blocks=state.blocks)
@@ -483,7 +484,7 @@ def _masked_groups(
             continue
         try:
             r = fit_free(ctx, ctx.best_start(base, other), ctx.effect_parameters([other]), opts.max_nfev_screen)
-        except ValueError:
+        except FitFailedError:
             continue
         if best is None or r.rss_after < best[0]:
             best = (r.rss_after, other, r.vector)

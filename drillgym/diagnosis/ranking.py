@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..effects import Composition, Effect
+from ..errors import EffectError, FitFailedError
 from ..identification.experiment import Experiment
 from ..identification.fitting import FitResult, FitVariable, Objective, base_vector, fit_parameters
 from ..identification.segmented import SegmentedModel
@@ -329,7 +330,7 @@ def _one_at_a_time(
             obj_c = Objective(obj.model.with_composition(comp), obj.weights, obj.scales)
             start = transfer(vec0, comp0, comp)
             tried[name] = (eff, obj_c, start, _fit_effect(obj_c, start, fit_variables(comp, eff), max_nfev))
-        except ValueError as exc:  # e.g. a fitted value leaves the physical range, or a bad effect
+        except (FitFailedError, EffectError) as exc:  # a fit that names why it failed, or an effect that cannot run
             skipped[name] = f"fit failed: {exc}"
     return tried
 
@@ -342,7 +343,7 @@ def _second_pass(tried: dict, n_second_pass: int, max_nfev: int) -> None:
         warm = fit_variables(obj_c.model.composition, eff, values=res.values)
         try:
             res2 = _fit_effect(obj_c, start, warm, max(4, max_nfev // 2))
-        except ValueError:
+        except FitFailedError:
             continue
         if res2.rss_after < res.rss_after:
             tried[name] = (eff, obj_c, start, res2)

@@ -25,7 +25,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..effects import Composition
-from ..errors import InputError
+from ..errors import FitFailedError, InputError, ParameterError
 from ..params import N_PARAMS, RigParams
 from .blas import on_one_blas_thread
 from .experiment import Experiment
@@ -363,8 +363,9 @@ def fit_parameters(
     ------
     InputError
         A variable with empty bounds.
-    ParameterError
-        A fitted base value out of its physical range.
+    FitFailedError
+        A fit that could not start (the residual is not finite at its start) or whose fitted base values
+        leave their physical range.
 
     Warns
     -----
@@ -396,6 +397,8 @@ def fit_parameters(
     z0 = np.zeros(n + ks)
     q0 = fun_map(z0)
     r0 = res.fun(z0)
+    if not np.all(np.isfinite(q0)):
+        raise FitFailedError(f"the fit of {', '.join(names)} did not start: the model's residual is not finite there")
     sol = least_squares(
         fun_map,
         z0,
@@ -422,11 +425,15 @@ def fit_parameters(
     for mm in msgs:
         warnings.warn(mm, IdentifiabilityWarning, stacklevel=2)
     vec = apply(base_vec, values)
+    try:
+        fitted = RigParams.from_vector(vec[:N_PARAMS])
+    except ParameterError as exc:
+        raise FitFailedError(f"the fit of {', '.join(names)} left the physical range: {exc}") from None
     return FitResult(
         names,
         dict(zip(names, values.tolist())),
         dict(zip(names, std.tolist())),
-        RigParams.from_vector(vec[:N_PARAMS]),
+        fitted,
         vec,
         float(r0 @ r0),
         float(r1 @ r1),
