@@ -259,7 +259,9 @@ def make_training_env(
     seed : int, optional
         Rig ``i`` gets seed ``seed + i``.
     env_kwargs : dict, optional
-        Options of the environment (:class:`drillgym.envs.EnvOptions`).
+        Options of the environment (:class:`drillgym.envs.EnvOptions`); ``model`` (a :class:`drillgym.Model`
+        or a model file's path) is the rigs' model, on a task id the task's nominal model
+        (:mod:`agents.benchmark_env`), with ``population`` the nominal rig the plants are drawn around.
     residual : float, optional
         Scale (V) of a residual action: the action in [-1, 1] is a correction ``residual * a`` on
         the feedforward voltage (:mod:`agents.residual`). None: the action is the voltage
