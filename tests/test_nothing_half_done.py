@@ -1,4 +1,4 @@
-"""Nothing half-done on bad input (issue 58), one test per class of fault, generated where a table gives the class.
+"""Nothing half-done on bad input: one test per class of fault, generated where a table gives the class.
 
 * Written before refused: a refused ``train`` leaves its OUT as it was (no config.yml replaced or left behind).
 * Options that only mean something beside another: every declared dependency of every command
