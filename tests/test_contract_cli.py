@@ -197,3 +197,13 @@ def test_every_option_refuses_a_value_it_must(cmd, p, a, root):
     value = _sure_value(p, a)
     argv = with_value(base_argv(cmd, a), p, value, len(cmd.path))
     assert check_contract(cmd, argv, work, a, (p.name, value, Path(value).name)) == "refused"
+
+
+@pytest.mark.parametrize("path", sorted(set(BASES) - EXPENSIVE), ids=" ".join)
+def test_a_cheap_command_runs_with_outputs_that_read_back(path, a, root):
+    """The base line of each cheap command runs (exit 0) and what it writes reads back: finite numbers, strict JSON."""
+    from contract import base_argv
+
+    cmd = next(c for c in COMMANDS if c.path == path)
+    argv = base_argv(cmd, a) + (["--json"] if any(p.name == "--json" and p.kind == "flag" for p in cmd.params) else [])
+    assert check_contract(cmd, argv, fresh_work(root), a, ()) == "ran"
