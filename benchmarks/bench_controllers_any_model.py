@@ -134,6 +134,9 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=60.0)
     ap.add_argument("--window", type=float, default=20.0)
     ap.add_argument("--out", default="out/any_model")
+    ap.add_argument("--reuse", action="store_true", help="take a plant's model.json from --out when it is there")
+    ap.add_argument("--identify-only", action="store_true", help="record and diagnose, run no controller")
+    ap.add_argument("--first", type=int, default=0, help="start at this plant (the draws stay those of --seed)")
     a = ap.parse_args()
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -144,24 +147,29 @@ def main() -> None:
     runaway = dict.fromkeys(names, 0)
     t_all = time.perf_counter()
     for i, (label, plant) in enumerate(draw_plants(a.plants, a.seed, a.counts, a.noise)):
+        if i < a.first:
+            continue
         t0 = time.perf_counter()
-        rec = excite(plant, a.excitation, a.seed * 1000 + i, out / f"plant{i}.csv")
         model = out / f"plant{i}_model.json"
-        diag = subprocess.run(
-            [str(Path(sys.executable).parent / "drillgym"), "diagnose", str(rec), "--model-out", str(model)],
-            capture_output=True,
-            text=True,
-        )
+        ok = True
+        if not (a.reuse and model.exists()):
+            rec = excite(plant, a.excitation, a.seed * 1000 + i, out / f"plant{i}.csv")
+            diag = subprocess.run(
+                [str(Path(sys.executable).parent / "drillgym"), "diagnose", str(rec), "--model-out", str(model)],
+                capture_output=True,
+                text=True,
+            )
+            ok = diag.returncode == 0
         t_id = time.perf_counter() - t0
-        if diag.returncode != 0 or not model.exists():
-            problems.append(f"plant {i} ({label}): diagnose failed: {diag.stderr.strip().splitlines()[-1:]}")
+        if not ok or not model.exists():
+            problems.append(f"plant {i} ({label}): diagnose failed")
             print(problems[-1], flush=True)
             for n in names:
                 lows[n].append(np.inf)
             continue
         effects = [e.get("name") for e in json.loads(model.read_text()).get("effects", [])]
         print(f"plant {i}: {label}, true {plant.effects}; diagnosed {effects} ({t_id:.0f} s)", flush=True)
-        for n in names:
+        for n in [] if a.identify_only else names:
             t1 = time.perf_counter()
             try:
                 ctrl = controllers.make(
@@ -182,6 +190,8 @@ def main() -> None:
                 f"{np.round(res['mean'], 2).tolist()} ({time.perf_counter() - t1:.0f} s)",
                 flush=True,
             )
+    if a.identify_only:
+        return
     print(f"\n{a.plants} plants, seed {a.seed}, {a.counts} counts, {a.noise:g} rad noise, targets {targets.tolist()}")
     for n in names:
         v = lows[n]

@@ -13,9 +13,9 @@ modelled.  Its Jacobian is taken numerically around the operating point (central
 friction modes held), so any library effect, user file or discovered candidate reaches the controller
 the same way.  The Measurement effects on the motor and lower encoders give the readings and their
 Jacobian (:meth:`ModelDynamics.readings`); the static part of the Input chain (a dead zone, an offset:
-the voltage at the motor for a command held long enough for the lags to settle) is inverted by bisection
-where it is monotone (:meth:`ModelDynamics.command`), so a controller may ask for a motor voltage and send
-the command that gives it.  Delay effects are the controllers' line of past commands
+the voltage at the motor for a command held long enough for the lags to settle) is inverted through its
+monotone hull where it is monotone beyond ±0.5 V (:meth:`ModelDynamics.command`), so a controller may ask
+for a motor voltage and send the command that gives it.  Delay effects are the controllers' line of past commands
 (:func:`controllers.model.delayed_discretisation`); their length is the composition's ``hk_delay``.
 
 Time-dependent effects are evaluated at t = 0 (a controller's run has no origin in the recording).
@@ -45,7 +45,6 @@ class _Kernels:
     rhs: Any
     jac: Any
     volt: Any
-    inverse: Any
 
 
 def _kernels(comp: Composition) -> _Kernels:
@@ -184,31 +183,7 @@ def _kernels(comp: Composition) -> _Kernels:
         for k in range(n):
             OUT[k] = _settled(Z[k], U[k], P[k], e0, y, dy)
 
-    @njit(cache=False)
-    def _edge(z, v, p, e0, lo, hi, upper, y, dy):  # pragma: no cover
-        """The lowest command with a settled voltage >= v (upper False) or the highest with one <= v."""
-        a, b = lo, hi
-        for _ in range(60):
-            c = 0.5 * (a + b)
-            g = _settled(z, c, p, e0, y, dy)
-            if (g < v) if not upper else (g <= v):
-                a = c
-            else:
-                b = c
-        return 0.5 * (a + b)
-
-    @njit(cache=False)
-    def inverse(Z, VM, P, e0, lo, hi, OUT):  # pragma: no cover
-        """Commands (V) within [lo, hi] whose settled motor voltage is VM (a monotone chain: bisection; the middle
-        of a flat stretch, e.g. 0 for v = 0 in a dead zone)."""
-        n = Z.shape[0]
-        y, dy = np.zeros(ny), np.zeros(ny)
-        for k in range(n):
-            a = _edge(Z[k], VM[k], P[k], e0, lo, hi, False, y, dy)
-            b = _edge(Z[k], VM[k], P[k], e0, lo, hi, True, y, dy)
-            OUT[k] = 0.5 * (a + b)
-
-    _COMPILED[comp] = _Kernels(rhs, jac, volt, inverse)
+    _COMPILED[comp] = _Kernels(rhs, jac, volt)
     return _COMPILED[comp]
 
 
@@ -363,25 +338,43 @@ class ModelDynamics:
         _kernels(self.composition).volt(Z, U, self._P(n), self.e0, out)
         return out
 
+    def _branches(self, u_max: float) -> tuple[float, tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        """(g(0), positive branch, negative branch) of the static input map's monotone hull at rest on ±2 u_max:
+        each branch (voltages, commands) increasing in |command|, the last command of each flat stretch kept."""
+        key = ("branches", float(u_max))
+        if key not in self._rows:
+            u = np.linspace(0.0, 2.0 * u_max, 2001)
+            z = np.zeros((self.nz, u.size))
+            out = []
+            for sign in (1.0, -1.0):
+                h = np.maximum.accumulate(sign * self.motor_voltage(z, sign * u))  # the hull, |command| growing
+                keep = np.append(np.diff(h) > 1e-12, True)
+                out.append((h[keep], u[keep]))
+            g0 = float(self.motor_voltage(np.zeros((self.nz, 1)), np.zeros(1))[0])
+            self._rows[key] = (g0, out[0], out[1])
+        return self._rows[key]
+
     def invertible(self, u_max: float = 5.0) -> bool:
-        """True when the static input map is non-decreasing and changes the command somewhere in ±2 u_max (V): its
-        inverse (:meth:`command`) then compensates it."""
+        """True when the static input map (a function of the command alone, at rest) changes the command somewhere
+        in ±2 u_max (V) and is non-decreasing beyond ±0.5 V: its monotone hull's inverse (:meth:`command`) then
+        compensates it (a dead zone, an offset; a fitted map that dips near 0 V is taken as the dead zone it
+        makes)."""
         if not self.has_input_chain:
             return False
         u = np.linspace(-2 * u_max, 2 * u_max, 801)
-        z = np.zeros((self.nz, u.size))
-        g = self.motor_voltage(z, u)
-        return bool(np.all(np.diff(g) >= -1e-9) and np.max(np.abs(g - u)) > 1e-9 and np.ptp(g) > 0)
+        g = self.motor_voltage(np.zeros((self.nz, u.size)), u)
+        outer = np.abs(u[:-1]) >= 0.5
+        return bool(np.all(np.diff(g)[outer] >= -1e-9) and np.max(np.abs(g - u)) > 1e-9 and np.ptp(g) > 0)
 
     def command(self, z: np.ndarray, v_motor: np.ndarray, u_max: float) -> np.ndarray:
-        """Commands (V, (n,), within ±2 u_max) whose settled voltage at the motor is ``v_motor`` (V): the static
-        input map inverted by bisection (a dead zone: v ± u0; an offset: v - offset)."""
-        Z = self._Z(z)
-        n = Z.shape[0]
-        out = np.zeros(n)
-        vm = np.ascontiguousarray(np.broadcast_to(np.asarray(v_motor, dtype=float), (n,)))
-        _kernels(self.composition).inverse(Z, vm, self._P(n), self.e0, -2.0 * u_max, 2.0 * u_max, out)
-        return out
+        """Commands (V, (n,), within ±2 u_max) whose settled voltage at the motor is ``v_motor`` (V): the monotone hull
+        of the static input map inverted (a dead zone: v ± u0; an offset: v − offset; 0 for g(0))."""
+        del z  # the map at rest: a function of the command alone
+        g0, (hp, up), (hn, un) = self._branches(u_max)
+        v = np.asarray(v_motor, dtype=float)
+        pos = np.interp(v, hp, up, left=0.0)
+        neg = -np.interp(-v, hn, un, left=0.0)
+        return np.where(v > g0, pos, np.where(v < g0, neg, 0.0))
 
     def readings(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """What the motor and lower encoders read (rad, (2, n)) at states z: the Measurement effects applied."""

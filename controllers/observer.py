@@ -138,6 +138,11 @@ class ObserverController(Controller):
     fallback : bool, optional
         Drive with ``descent`` the targets its model is not accurate enough for (:mod:`controllers.margin`:
         the model file's standard error of km against the motor-angle limit); default False: warn only.
+    angle_integral : bool, optional
+        Integral action on the estimated motor angle against the target's (weight ``integral``) at every target
+        once its approach is over, instead of the law's integral of the estimated lower speed below
+        ``low_speed`` only: an identified model's torque errors then leave no offset.  Default: on for a model
+        with effects, off for base parameters.
     **kw
         ``config``, ``params``, ``dt``, ``u_max`` of :class:`controllers.Controller`.
     """
@@ -169,10 +174,12 @@ class ObserverController(Controller):
         sigma_du: float = 0.0,
         p0_du: float = 0.1,
         fallback: bool = False,
+        angle_integral: bool | None = None,
         **kw,
     ) -> None:
         super().__init__(omega_ref, **kw)
         self.fallback = bool(fallback)
+        self.angle_integral = bool(self.effects.composition.effects) if angle_integral is None else bool(angle_integral)
         self.model = disturbance_model(
             self.params,
             self.dt,
@@ -200,6 +207,8 @@ class ObserverController(Controller):
             "integral": float(integral),
             "disturbance": disturbance,
         }
+        if self.angle_integral:  # every target integrates the motor angle's error once its approach is over
+            self.law_options["integral_high"] = float(integral)
         FlatnessLaw(self.params, self.dt, **self.law_options)  # check the options now
 
     def _reset(self, m: dict[str, np.ndarray]) -> None:
@@ -207,11 +216,26 @@ class ObserverController(Controller):
         self.observer.reset(np.broadcast_to(m.get("theta_u", 0.0), (self.n,)))
         self.law = self.new_law(self.omega_ref)
         self.margins, self._short, self._descent = check_margins(self, m, self.fallback)
+        self._settle = np.broadcast_to(np.asarray(self.approach_time(self.omega_ref), dtype=float), (self.n,)).copy()
+        self._integrating = np.zeros(self.n, dtype=bool)
+        self._theta0 = np.zeros(self.n)  # estimated motor angle when the integral starts (rad)
+        self._t_int = np.zeros(self.n)  # time since then (s)
+
+    def _angle_error(self, x: np.ndarray) -> np.ndarray:
+        """The integral of the speed error (rad) from the motor angle: the estimated motor angle (the reading through
+        the model's Measurement effects) against the target's, from when each rig's approach is over."""
+        start = (self.law.t >= self._settle) & ~self._integrating
+        self._theta0 = np.where(start, x[I_TU], self._theta0)
+        self._integrating |= start
+        self._t_int = np.where(self._integrating, self._t_int + self.dt, 0.0)
+        return np.where(self._integrating, x[I_TU] - self._theta0 - self.omega_ref * self._t_int, 0.0)
 
     def _restart_rigs(self, index: np.ndarray, m: dict[str, np.ndarray]) -> None:
         theta = np.broadcast_to(np.asarray(m.get("theta_u", 0.0), dtype=float), (self.n,))[index]
         self.observer.reset(theta, index=index)
         self.law.restart(index, self.omega_ref[index])
+        self._settle[index] = np.asarray(self.approach_time(self.omega_ref[index]), dtype=float)
+        self._integrating[index], self._t_int[index] = False, 0.0
 
     def applied(self, voltage) -> None:
         """The voltage (V) actually held over the period just begun, when it differs from this controller's
@@ -267,7 +291,8 @@ class ObserverController(Controller):
 
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
         x = self.observer.update(m["theta_u"])
-        u = self.law(x[I_WU], x[I_AL], x[I_WL], x[I_D])
+        z = self._angle_error(x) if self.angle_integral else None
+        u = self.law(x[I_WU], x[I_AL], x[I_WL], x[I_D], z)
         if self.model.has_du:  # the estimated upper-disc torque the model misses, cancelled by the motor
             u = u - x[I_DU] / self.params.km
         u = np.clip(self._command(u), -self.u_max, self.u_max)
