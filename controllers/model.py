@@ -29,7 +29,6 @@ import numpy as np
 from scipy.linalg import expm
 
 from drillgym import RigParams
-from drillgym.effects import Composition
 from drillgym.effects.base import Force, Input, Measurement
 from drillgym.errors import InputError
 from drillgym.model import Model
@@ -75,19 +74,6 @@ def model_of(model: Any = None, params: RigParams | None = None) -> Model:
     if hasattr(model, "specs") and hasattr(model, "params"):  # a ModelFile of read_model
         return Model(model.params, tuple(model.specs), dict(model.values), dict(getattr(model, "std", {}) or {}))
     raise InputError(f"a controller's model is a drillgym.Model or a model file's path, not {type(model).__name__}")
-
-
-def ControllerModel(  # noqa: N802 - the former class's name, kept for callers not yet on drillgym.Model
-    params: RigParams | None = None,
-    composition: Composition | None = None,
-    values: Any = None,
-    std: Any = None,
-) -> Model:
-    """A :class:`drillgym.Model` from base parameters, a composition, its values and standard errors (deprecated:
-    use :meth:`drillgym.Model.from_composition`)."""
-    if composition is None:
-        return Model(params or RigParams(), std=dict(std or {}))
-    return Model.from_composition(params or RigParams(), composition, dict(values or {}), dict(std or {}))
 
 
 #: the channels a controller may read, as Measurement effects name them

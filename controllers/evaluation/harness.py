@@ -4,7 +4,7 @@ One job = one controller, one configuration, one scenario, all target speeds
 as one batch of the core's simulator (:func:`.runner.run_closed_loop`).  The plant may run
 hidden effects (``effects``/``effect_params``, :mod:`drillgym.effects`): the controllers are
 built from the nominal base parameters and never know them, or from a ``model`` of their own
-(:class:`controllers.model.ControllerModel`, e.g. an identified model file): ``observer``, ``lqg`` and
+(a :class:`drillgym.Model`, e.g. an identified model file): ``observer``, ``lqg`` and
 ``lqg-2enc`` run its effects, the others its base parameters (the rows' ``model`` column says which).  Jobs
 run in a ``concurrent.futures`` executor (processes by default), with a tqdm
 progress bar.  Results are rows (dicts) with the metrics of :mod:`.metrics`.
@@ -66,7 +66,7 @@ def run_job(
     ``effects``/``effect_params``: hidden effects of the plant only (specs, classes or a Composition).
     A population scenario runs the plants ``plants`` (indices) of the population of ``n_plants`` drawn
     with ``seed`` from ``uncertainty`` (:mod:`.population`): one row per (plant, target).  ``model``: the
-    controller's own model (:class:`controllers.model.ControllerModel`; default ``params`` without effects);
+    controller's own model (a :class:`drillgym.Model`; default ``params`` without effects);
     ``identified``: plant index -> :class:`.identify.IdentifiedPlant`, each plant's controller built on its own
     identified model."""
     base = RigParams.from_dict(params) if params else RigParams()
@@ -335,7 +335,7 @@ def build_controller(
 ) -> tuple[Any, str]:
     """The controller and the label of the model it runs (``base``, or the effects it uses joined by ``+``).
 
-    With a ``model`` (:class:`controllers.model.ControllerModel`), a controller that runs effects is built on
+    With a ``model`` (a :class:`drillgym.Model`), a controller that runs effects is built on
     it, any other on its base parameters (label ``base``); without one, on ``base``.
     """
     from .. import make
@@ -563,7 +563,7 @@ def evaluate(
         :class:`controllers.evaluation.population.UncertaintySet`); default ``plants.yaml``.
     plants_per_job : int, optional
         Plants per job of a population scenario.
-    model : ControllerModel, ModelFile or path, optional
+    model : drillgym.Model or path, optional
         The controllers' own model (base parameters and effects, e.g. identified): ``observer``, ``lqg`` and
         ``lqg-2enc`` run its effects, the others its base parameters.  Default: ``params`` without effects.
     identify : ExcitationOptions or bool, optional
