@@ -257,7 +257,10 @@ def test_an_error_identifying_a_plant_names_it(monkeypatch):
     assert msg.startswith("plant 0 of 2 (seed 0: ") and ", identifying it: the fit did not converge" in msg, msg
 
 
-def test_an_error_on_a_plant_s_identified_model_says_so(monkeypatch):
+@pytest.mark.parametrize("kind", [SimulationError, InputError])
+def test_an_error_on_a_plant_s_identified_model_says_so(monkeypatch, kind):
+    """A run that fails on a plant's identified model names the plant and says the model was its own; a model the
+    controller refuses (an InputError) is that one warning line and the other plants go on."""
     from controllers.evaluation import harness
 
     class Identified:
@@ -267,14 +270,20 @@ def test_an_error_on_a_plant_s_identified_model_says_so(monkeypatch):
             return {}
 
     def refusing(controller, config, scenario, targets, base, pop, duration, window, seed, plants, model):
-        raise InputError("the observer cannot run this model's lag")
+        raise kind("the observer cannot run this model's lag")
 
     monkeypatch.setattr(harness, "_run_plants", refusing)
     monkeypatch.setattr(harness, "identify_population", lambda n, *args, **kw: {k: Identified() for k in range(n)})
-    with pytest.raises(InputError) as e:
-        harness.evaluate(["baseline"], ["torsional"], ["plants"], [2.0], duration=0.2, window=0.1, plants=2,
-                         workers=1, progress=False, identify=True)  # fmt: skip
-    msg = str(e.value)
+    run_ = lambda: harness.evaluate(["baseline"], ["torsional"], ["plants"], [2.0], duration=0.2, window=0.1,  # noqa: E731
+                                    plants=2, workers=1, progress=False, identify=True)  # fmt: skip
+    if kind is InputError:
+        with pytest.warns(UserWarning) as caught:
+            assert run_() == []
+        msg = str(caught[0].message)
+    else:
+        with pytest.raises(kind) as e:
+            run_()
+        msg = str(e.value)
     assert msg.startswith("plant 0 of 2 (seed 0: ") and "the model identified on that plant" in msg, msg
     assert msg.endswith("the observer cannot run this model's lag"), msg
 
