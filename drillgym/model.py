@@ -254,6 +254,15 @@ class Model:
         vals = ", ".join(f"{k}={v:.4g}" for k, v in self.values.items())
         return f"Model({self.label}{': ' + vals if vals else ''})"
 
+    def __reduce__(self) -> tuple:
+        """Pickled by its parts (effects by spec: a library name or ``path.py:NAME``), so a model crosses process
+        boundaries (vector envs, Ray, multiprocessing) and ``copy.deepcopy`` works."""
+        effects = tuple(
+            r["spec"] if _effect_file(e) is not None or _library_effect(e) is e else e
+            for r, e in zip(self.records(), self.composition.effects)
+        )
+        return (Model, (self.params, effects, dict(self.values), dict(self.std), self.provenance))
+
     def replace(self, **changes: Any) -> Model:
         """A copy with fields changed (``params``, ``effects``, ``values``, ``std``, ``provenance``)."""
         kw = {f.name: getattr(self, f.name) for f in fields(self)}

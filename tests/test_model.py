@@ -102,3 +102,12 @@ def test_simulate_takes_a_model_file(tmp_path):
     a = simulate("torsional", u=STEP, duration=0.5, model=path)
     b = simulate("torsional", u=STEP, duration=0.5, model=_lagged())
     assert np.array_equal(a.theta_u, b.theta_u)
+
+
+def test_a_model_pickles_and_copies_with_its_effect_files(tmp_path):
+    import copy
+    import pickle
+
+    m = Model(effects=("motor_lag", f"{EXAMPLE}:string_cubic"), values={"tau_m": 0.02, "c3": 0.03}, std={"c3": 0.001})
+    for back in (pickle.loads(pickle.dumps(m)), copy.deepcopy(m)):
+        assert back == m and back.std["c3"] == 0.001

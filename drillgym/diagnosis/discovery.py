@@ -14,7 +14,7 @@ on a library of terms shaped by physics, grouped by where they would act:
 * ``string``: a torque added to kθ α: α|α|, α³, α⁵, saturation sat(α, g) (free play / dead zone:
   kθ (dz(α) − α) = −kθ sat(α, g)), α̇, sign(α̇);
 * ``lower_force`` / ``upper_force``: constant, cos/sin of the disc angle, time; on the upper disc the
-  harmonics cos/sin kθu of the motor angle (cogging, :data:`COGGING_HARMONICS`);
+  harmonics cos/sin kθu of the motor angle (cogging, :data:`.discovery_terms.COGGING_HARMONICS`);
 * ``motor_voltage``: a change of the voltage the motor sees, as a function of the voltage: 1 (an offset),
   sign(u), |u|,
   u|u|, u³ (a motor constant that depends on the voltage), sat(u, u0) for scanned widths u0 (a dead zone
@@ -35,8 +35,6 @@ When nothing explains the residual,
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -44,6 +42,7 @@ import numpy as np
 from ..effects import Composition
 from ..identification.experiment import Experiment
 from ..params import N_PARAMS, RigParams
+from .discovery_terms import _SENSE, _groups, _Term, _voltage_terms
 from .effect_file import write_effect_file
 from .effects import get_effect
 from .ranking import transfer
@@ -62,180 +61,6 @@ MIN_EXPLAINED_SHARE = 0.3  # a candidate must explain at least this share of the
 #: candidates' own fits decide (each group is regressed on its own disc's rows, so shares of different discs
 #: compare residuals of different sizes)
 MOTOR_GROUPS = ("motor_voltage", "upper_force")
-
-
-@dataclass
-class _Term:
-    label: str  # as shown (unicode)
-    code: str  # Python expression of the effect function's arguments
-    values: Callable[[dict], np.ndarray]
-    at_rest: float = 0.0  # value at zero speed approached from above (friction terms: stick set change)
-    width: float | None = None  # a scanned width (V): the file fits it, as a parameter named in the code by U0
-
-
-def _speed_terms(w: str, sym: str) -> list[_Term]:
-    out = [
-        _Term(f"sign({sym})", "direction", lambda d: np.sign(d[w]), 1.0),
-        _Term(f"{sym}", "omega", lambda d: d[w]),
-        _Term(f"{sym}|{sym}|", "omega * speed", lambda d: d[w] * np.abs(d[w])),
-        _Term(f"{sym}³", "omega * omega * omega", lambda d: d[w] ** 3),
-    ]
-    for v in (0.3, 1.0, 3.0):
-        out.append(
-            _Term(
-                f"sign({sym}) exp(−|{sym}|/{v:g})",
-                f"direction * math.exp(-speed / {v!r})",
-                lambda d, v=v: np.sign(d[w]) * np.exp(-np.abs(d[w]) / v),
-                1.0,
-            )
-        )
-    for v in (0.25, 0.5, 1.0, 1.5, 3.0):
-        out.append(
-            _Term(
-                f"sign({sym}) exp(−({sym}/{v:g})²)",
-                f"direction * math.exp(-(speed / {v!r}) ** 2)",
-                lambda d, v=v: np.sign(d[w]) * np.exp(-((d[w] / v) ** 2)),
-                1.0,
-            )
-        )
-    return out
-
-
-def _stribeck_terms(ws: float, delta: float) -> list[_Term]:
-    """Changes of the lower disc's Stribeck shape sign(ω) exp(−(|ω|/ws)^δ) (the model's ws, δ): its
-    derivatives with respect to δ and ws (a different exponent or Stribeck speed: first order), and
-    the shape with other exponents (a different law: e.g. a Lorentzian's long tail is close to δ = 1)."""
-    out = []
-    for dd in (0.5, 1.0, 3.0):
-        out.append(
-            _Term(
-                f"sign(ωl) exp(−(|ωl|/{ws:.3g})^{dd:g})",
-                f"direction * math.exp(-(speed / {ws!r}) ** {dd!r})",
-                lambda d, dd=dd: np.sign(d["wl"]) * np.exp(-((np.abs(d["wl"]) / ws) ** dd)),
-                1.0,
-            )
-        )
-
-    def dshape_ddelta(w: np.ndarray) -> np.ndarray:
-        x = np.maximum(np.abs(w) / ws, 1e-12)
-        return -np.sign(w) * np.exp(-(x**delta)) * x**delta * np.log(x)
-
-    def dshape_dws(w: np.ndarray) -> np.ndarray:
-        x = np.abs(w) / ws
-        return np.sign(w) * np.exp(-(x**delta)) * delta * x**delta
-
-    xs = f"max(speed / {ws!r}, 1e-12)"
-    out.append(
-        _Term(
-            "∂/∂δ of sign(ωl) exp(−(|ωl|/ws)^δ)",
-            f"-direction * math.exp(-{xs} ** {delta!r}) * {xs} ** {delta!r} * math.log({xs})",
-            lambda d: dshape_ddelta(d["wl"]),
-        )
-    )
-    out.append(
-        _Term(
-            "ws·∂/∂ws of sign(ωl) exp(−(|ωl|/ws)^δ)",
-            f"direction * math.exp(-(speed / {ws!r}) ** {delta!r}) * {delta!r} * (speed / {ws!r}) ** {delta!r}",
-            lambda d: dshape_dws(d["wl"]),
-        )
-    )
-    return out
-
-
-def _groups(lateral: bool, ws: float = 1.4302, delta: float = 2.0575) -> dict[str, list[_Term]]:
-    lower = (
-        _speed_terms("wl", "ωl")
-        + _stribeck_terms(ws, delta)
-        + [
-            _Term("sign(ωl) cos θl", "direction * math.cos(theta_l)", lambda d: np.sign(d["wl"]) * np.cos(d["thl"])),
-            _Term("sign(ωl) sin θl", "direction * math.sin(theta_l)", lambda d: np.sign(d["wl"]) * np.sin(d["thl"])),
-            _Term(
-                "sign(ωl) cos 2θl",
-                "direction * math.cos(2.0 * theta_l)",
-                lambda d: np.sign(d["wl"]) * np.cos(2 * d["thl"]),
-            ),
-            _Term(
-                "sign(ωl) sin 2θl",
-                "direction * math.sin(2.0 * theta_l)",
-                lambda d: np.sign(d["wl"]) * np.sin(2 * d["thl"]),
-            ),
-            _Term("sign(ωl) t", "direction * t", lambda d: np.sign(d["wl"]) * d["t"]),
-        ]
-    )
-    upper = _speed_terms("wu", "ωu")
-    string = [
-        _Term("α|α|", "alpha * abs(alpha)", lambda d: d["a"] * np.abs(d["a"])),
-        _Term("α³", "alpha ** 3", lambda d: d["a"] ** 3),
-        _Term("α⁵", "alpha ** 5", lambda d: d["a"] ** 5),
-        _Term("α̇", "alpha_dot", lambda d: d["ad"]),
-        _Term("sign(α̇)", "math.tanh(alpha_dot / 0.01)", lambda d: np.tanh(d["ad"] / 0.01)),
-    ]
-    for g in (0.02, 0.05, 0.1, 0.2, 0.5):
-        string.append(_Term(f"sat(α, {g:g})", f"min(max(alpha, {-g!r}), {g!r})", lambda d, g=g: np.clip(d["a"], -g, g)))
-    lower_force = [
-        _Term("1", "1.0", lambda d: np.ones_like(d["t"])),
-        _Term("cos θl", "math.cos(theta_l)", lambda d: np.cos(d["thl"])),
-        _Term("sin θl", "math.sin(theta_l)", lambda d: np.sin(d["thl"])),
-        _Term("t", "t", lambda d: d["t"]),
-    ]
-    upper_force = [_Term("1", "1.0", lambda d: np.ones_like(d["t"]))] + _cogging_terms()
-    return {
-        "lower_friction": lower,
-        "upper_friction": upper,
-        "string": string,
-        "lower_force": lower_force,
-        "upper_force": upper_force,
-        "motor_voltage": _voltage_terms(),
-    }
-
-
-#: harmonics of the motor angle tried as a cogging torque (per revolution)
-COGGING_HARMONICS = (1, 2, 3, 4, 6, 8, 12)
-#: half-widths (V) of the dead zones tried: sat(u, u0) = u − sign(u) max(|u| − u0, 0)
-DEAD_ZONE_WIDTHS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.7, 1.0)
-
-
-def _cogging_terms() -> list[_Term]:
-    """cos kθu and sin kθu for k in :data:`COGGING_HARMONICS`: a torque on the upper disc that depends on the
-    motor angle (cogging, an eccentric load)."""
-    out = []
-    for k in COGGING_HARMONICS:
-        arg = "theta_u" if k == 1 else f"{float(k)!r} * theta_u"
-        sym = "θu" if k == 1 else f"{k}θu"
-        out.append(_Term(f"cos {sym}", f"math.cos({arg})", lambda d, k=k: np.cos(k * d["thu"])))
-        out.append(_Term(f"sin {sym}", f"math.sin({arg})", lambda d, k=k: np.sin(k * d["thu"])))
-    return out
-
-
-def _voltage_terms() -> list[_Term]:
-    """Changes of the voltage the motor sees, as functions of the voltage u entering the drive: 1 (a constant offset
-    of the drive), sign(u) (an offset that follows the direction), |u|, u|u| and u³ (a motor constant that depends
-    on the voltage: saturation), and sat(u, u0) for the widths :data:`DEAD_ZONE_WIDTHS` (−sat(u, u0) is a dead
-    zone of half-width u0: the motor sees sign(u) max(|u| − u0, 0)).  Regressed as a torque km × (change) on the
-    upper disc; written as an Input effect."""
-    out = [
-        _Term("1", "1.0", lambda d: np.ones_like(d["u"])),
-        _Term("sign(u)", "(1.0 if u > 0.0 else (-1.0 if u < 0.0 else 0.0))", lambda d: np.sign(d["u"])),
-        _Term("|u|", "abs(u)", lambda d: np.abs(d["u"])),
-        _Term("u|u|", "u * abs(u)", lambda d: d["u"] * np.abs(d["u"])),
-        _Term("u³", "u ** 3", lambda d: d["u"] ** 3),
-    ]
-    for u0 in DEAD_ZONE_WIDTHS:
-        out.append(
-            _Term(f"sat(u, {u0:g})", "min(max(u, -U0), U0)", lambda d, u0=u0: np.clip(d["u"], -u0, u0), width=u0)
-        )
-    return out
-
-
-#: (effect on the upper disc's torque, on the lower disc's) of a unit of the term, per group
-_SENSE = {
-    "lower_friction": (0.0, -1.0),
-    "upper_friction": (-1.0, 0.0),
-    "string": (1.0, -1.0),
-    "lower_force": (0.0, 1.0),
-    "upper_force": (1.0, 0.0),
-    "motor_voltage": (1.0, 0.0),  # per volt at the motor: times km (the coefficients are turned into volts)
-}
 
 
 def _data(rt: ResidualTorque, u: np.ndarray) -> dict[str, np.ndarray]:

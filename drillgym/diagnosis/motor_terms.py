@@ -6,7 +6,7 @@ two effects, whose functions are the same terms with every coefficient a paramet
 
 * :class:`MotorVoltageTerms` (Input): the motor sees u + o + a sign(u) + b |u| + c u|u| + d u³ + e sat(u, w);
 * :class:`UpperTorqueTerms` (Force on the upper disc): a constant and cos/sin kθu for k in
-  :data:`.discovery.COGGING_HARMONICS` (cogging);
+  :data:`.discovery_terms.COGGING_HARMONICS` (cogging);
 * :class:`MotorEncoderTerms` (Measurement of θu): the motor encoder reads θu + b tanh(ωu / w), free play between
   the motor's shaft (the encoder's) and the upper disc (backlash): the shaft leads the disc it drives.
 
@@ -31,7 +31,7 @@ __all__ = [
     "ENCODER_TERM",
 ]
 
-#: the cogging harmonics (per revolution) the torque terms carry (as :data:`.discovery.COGGING_HARMONICS`)
+#: the cogging harmonics (per revolution) the torque terms carry (as :data:`.discovery_terms.COGGING_HARMONICS`)
 HARMONICS = (1, 2, 3, 4, 6, 8, 12)
 
 

@@ -22,6 +22,7 @@ from ..configurations import Configuration
 from ..effects import Composition
 from ..identification.fitting import FitResult
 from ..params import RigParams
+from .candidate import Candidate
 from .unexplained import Unexplained
 
 __all__ = ["SelectionStep", "BaseChange", "Selection", "EffectScore", "Candidate", "Diagnosis"]
@@ -235,124 +236,6 @@ class EffectScore:
             "values": self.values,
             "std": self.std,
             "note": self.note,
-        }
-
-
-_WHERE = {
-    "lower_friction": "lower-disc slip friction +=",
-    "upper_friction": "upper-disc slip friction +=",
-    "string": "string torque (added to kθ α) +=",
-    "lower_force": "torque on the lower disc +=",
-    "upper_force": "torque on the upper disc +=",
-    "motor_voltage": "voltage at the motor = u",
-    "motor_encoder": "motor encoder reading = θu",
-}
-#: the unit of a group's coefficients (N m when not listed)
-_UNIT = {"motor_voltage": "V", "motor_encoder": "rad"}
-
-
-@dataclass
-class Candidate:
-    """A candidate effect found in the residual torques, or the motor encoder's reading (:mod:`.encoder_reading`).
-
-    Attributes
-    ----------
-    group : str
-        Where it acts: ``lower_friction``, ``upper_friction``, ``string``, ``lower_force``, ``upper_force``,
-        ``motor_voltage`` (the voltage the motor sees) or ``motor_encoder`` (what the motor encoder reads).
-    terms : dict of str to float
-        Term label -> coefficient (N m per unit of the term; V for ``motor_voltage``, rad for ``motor_encoder``).
-    codes : dict of str to str
-        Term label -> its Python expression in the effect file.
-    at_rest : dict of str to float
-        Term label -> its value at zero speed approached from above.
-    explained : float
-        Share of the residual torque's variance it explains (``motor_encoder``: share of the unexplained variance
-        its fit removes).
-    n_samples : int
-        Samples regressed.
-    name : str
-        The effect's name in its file.
-    effect_file : str or None
-        ``path.py:NAME`` of the file written, if any.
-    rest : dict of str to float
-        Other groups' best shares.
-    reach : dict of str to float
-        Term label -> the coefficient that would make the term alone as large as the residual torque
-        (N m per unit): the file's bounds cover it too.
-    widths : dict of str to float
-        Term label -> the width scanned for it (a dead zone's u0 in V; the encoder's lead speed in rad/s), fitted
-        as a parameter of the file (named ``U0`` in the term's code).
-    fit : any
-        The candidate's own fit on the diagnosis' recordings (:class:`.candidate_fit.CandidateFit`), or None.
-    alternative : Candidate or None
-        The motor side's best candidate when this one acts elsewhere (its fit decides which is reported).
-    through_lag : float or None
-        A motor-side candidate regressed on the voltage after a first-order lag of this time constant (s): the
-        residual is explained best with the library's ``motor_lag`` ahead of the terms, and the candidate's fit
-        fits that lag with them.  None: on the model's own voltage at the motor.
-    """
-
-    group: str
-    terms: dict[str, float]
-    codes: dict[str, str]
-    at_rest: dict[str, float]
-    explained: float
-    n_samples: int
-    name: str = ""
-    effect_file: str | None = None
-    rest: dict[str, float] = field(default_factory=dict)
-    reach: dict[str, float] = field(default_factory=dict)
-    widths: dict[str, float] = field(default_factory=dict)
-    fit: Any = None
-    alternative: Any = None
-    through_lag: float | None = None
-
-    @property
-    def dof(self) -> int:
-        """Number of terms (the effect's parameters)."""
-        return len(self.terms)
-
-    def expression(self) -> str:
-        """The candidate as one line: where it acts and its terms with their coefficients (N m, V or rad)."""
-        parts = " ".join(f"{c:+.4g}·{n}" if n != "1" else f"{c:+.4g}" for n, c in self.terms.items())
-        widths = "".join(f", w = {w:.3g} rad/s" for w in self.widths.values()) if self.group == "motor_encoder" else ""
-        return f"{_WHERE[self.group]} {parts}{widths}  [{self.unit}]"
-
-    @property
-    def unit(self) -> str:
-        """The unit of its coefficients: N m, V (``motor_voltage``) or rad (``motor_encoder``)."""
-        return _UNIT.get(self.group, "N m")
-
-    def found_line(self) -> str:
-        """How the candidate was found and what it is, as the command line's first line on it."""
-        if self.group == "motor_encoder":
-            how = f"what the motor encoder reads, by its own fit: {self.explained:.0%} of the unexplained variance"
-        else:
-            how = f"{self.explained:.0%} of the residual torque"
-        return f"candidate outside the library ({how}): {self.expression()}"
-
-    def to_json(self) -> dict:
-        """The candidate as a JSON-ready dict."""
-        return {
-            "name": self.name,
-            "expression": self.expression(),
-            "dof": self.dof,
-            "explained": round(self.explained, 4),
-            "effect_file": self.effect_file,
-            "group": self.group,
-            "terms": self.terms,
-            "widths": self.widths,
-            "through_lag_s": self.through_lag,
-            "fit": self.fit.to_json() if self.fit is not None else None,
-            "alternative": None
-            if self.alternative is None
-            else {
-                "expression": self.alternative.expression(),
-                "group": self.alternative.group,
-                "explained": round(self.alternative.explained, 4),
-                "fit": self.alternative.fit.to_json() if self.alternative.fit is not None else None,
-            },
         }
 
 
