@@ -18,7 +18,7 @@ from pathlib import Path
 
 import typer
 
-from drillgym.commands.effect_options import add_effect_option, effect_param_option
+from drillgym.commands.effect_options import add_effect_option, effect_param_option, trust_option
 from drillgym.commands.options import excludes, requires
 from drillgym.errors import InputError
 
@@ -92,6 +92,7 @@ def register(app: typer.Typer) -> None:
             "and lqg-2enc run its effects (a lag, a delay, lower-disc friction), the others its base parameters; "
             "default the nominal model (--params) without effects",
         ),
+        trust: bool = trust_option(),
         identify: bool = typer.Option(
             False,
             "--identify",
@@ -146,14 +147,16 @@ def register(app: typer.Typer) -> None:
         if uncertainty is not None:  # with --scenarios plants (declared above)
             with option("--uncertainty"):
                 uncertainty = load_uncertainty(uncertainty)
-        base, comp, values = plant_from_cli(params, add_effect, effect_param)
+        base, comp, values = plant_from_cli(params, add_effect, effect_param, trust)
         ctrl_model = None
         if model is not None:
             from controllers.evaluation.harness import build_controller
             from controllers.model import model_of
 
+            from drillgym.model import Model
+
             with option("--model"):
-                ctrl_model = model_of(model)
+                ctrl_model = model_of(Model.load(model, trust=trust))
                 for c in names:  # an effect a controller cannot use: refused before any run
                     for cfg in cfgs if not c.startswith("agent:") else ():
                         build_controller(c, cfg, tg[:1], ctrl_model.params, ctrl_model)
