@@ -152,7 +152,6 @@ def register(app: typer.Typer) -> None:
         if model is not None:
             from controllers.evaluation.harness import build_controller
             from controllers.model import model_of
-
             from drillgym.model import Model
 
             with option("--model"):
