@@ -161,13 +161,13 @@ def figure(results: dict, path: Path) -> None:
 
     from drillgym.diagnosis.compare import compare
     from drillgym.identification import prepare_experiment
-    from drillgym.identification.model_file import read_model
     from drillgym.io import read_timeseries
+    from drillgym.model import Model
 
     fig, axes = plt.subplots(2, 2, figsize=(12, 6), sharex=True, gridspec_kw={"height_ratios": [2, 1]})
     for j, (name, (csv, js)) in enumerate(results.items()):
         ex = prepare_experiment(read_timeseries(csv), compare_rate_hz=50.0)
-        model = read_model(csv.with_name(f"{name}_model.json"))
+        model = Model.load(csv.with_name(f"{name}_model.json"))
         before = compare(ex, RigParams(), segment_s=4.0)
         after = compare(ex, model.params, segment_s=4.0, effects=model.specs, effect_params=model.values)
         t = ex.t - ex.t[0]

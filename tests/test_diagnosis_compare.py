@@ -12,9 +12,9 @@ from drillgym.diagnosis.compare import compare, write_compare
 from drillgym.diagnosis.sparse import residual_torques, sparse_residual_model
 from drillgym.errors import DataFormatError
 from drillgym.identification import prepare_experiment
-from drillgym.identification.model_file import read_model
 from drillgym.identification.synthetic import synthetic_measurement
 from drillgym.io import write_timeseries
+from drillgym.model import Model
 
 
 @pytest.fixture(scope="module")
@@ -130,7 +130,7 @@ def test_cli_diagnose_identify_signal(tmp_path):
     assert r.exit_code == 0, r.output
     js = json.loads(r.output)
     assert js["r2_after"]["alpha"] > js["r2_before"]["alpha"]
-    model = read_model(out)
+    model = Model.load(out)
     assert model.specs == ["string_damping"] and model.values["dtheta"] == pytest.approx(0.01, rel=0.05)
     assert js["fitted"]["dtheta"] == model.values["dtheta"] and js["effects"][0]["name"] == "string_damping"
     assert "The error falling" in (tmp_path / "rep" / "report.md").read_text()

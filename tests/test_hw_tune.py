@@ -8,7 +8,7 @@ import pytest
 from test_hw_cli import run
 
 from drillgym import RigParams
-from drillgym.identification.model_file import read_model
+from drillgym.model import Model
 from hw.emulator import RigEmulator
 from hw.firmware import FirmwareConfig
 from hw.safety import SafetyLimits
@@ -26,7 +26,7 @@ def test_tune_identifies_a_hidden_lag_and_mismatch_into_a_model_file(tmp_path):
             "--duration", "15", "--control-ms", "2", timeout=300,
         )  # fmt: skip
     assert code == 0, (out, err)
-    mf = read_model(model)
+    mf = Model.load(model)
     assert "motor_lag" in [str(s) for s in mf.specs]
     assert mf.values["tau_m"] == pytest.approx(0.03, rel=0.25)
     assert mf.params.km == pytest.approx(HIDDEN.km, rel=0.015)

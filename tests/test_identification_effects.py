@@ -19,10 +19,10 @@ from typer.testing import CliRunner
 from drillgym import RigParams
 from drillgym.cli import app
 from drillgym.identification import FitVariable, Objective, SegmentedModel, fit_parameters, prepare_experiment
-from drillgym.identification.model_file import read_model
 from drillgym.identification.synthetic import synthetic_measurement
 from drillgym.io import TimeSeries, write_timeseries
 from drillgym.measurement import quantize_angle
+from drillgym.model import Model
 from drillgym.signals import quasi_random
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -89,7 +89,7 @@ def test_cubic_string_drillgym_recording(tmp_path):
     assert set(js["std"]) == {"c3"} and 0 < js["std"]["c3"] < 0.1 * C3
     assert js["effects"][0]["name"] == "string_cubic" and js["effects"][0]["file"].endswith("string_cubic.py")
     # the written model is reusable: compare with --params reads the effect back and fits as well as after
-    model = read_model(out)
+    model = Model.load(out)
     assert model.values == {"c3": js["fitted"]["c3"]} and model.specs[0].endswith("string_cubic.py:string_cubic")
     r = CliRunner().invoke(
         app,

@@ -21,9 +21,9 @@ from drillgym.diagnosis.refit import refit
 from drillgym.errors import FitError, InputError
 from drillgym.identification import prepare_experiment
 from drillgym.identification.acting import parameters_acting
-from drillgym.identification.model_file import read_model
 from drillgym.identification.staged import STAGES, identify_stage, identify_staged
 from drillgym.identification.synthetic import synthetic_measurement
+from drillgym.model import Model
 from drillgym.params import PARAM_INFO, RigParams
 
 
@@ -109,5 +109,5 @@ def test_a_model_with_non_finite_states_is_a_fit_error(torsional, tmp_path) -> N
 def test_a_partial_model_file_keeps_the_other_defaults(tmp_path) -> None:
     path = tmp_path / "partial.json"
     path.write_text(json.dumps({"params": {"km": 4.0}}), encoding="utf-8")
-    params = read_model(path).params
+    params = Model.load(path).params
     assert params.km == 4.0 and params.Ju == RigParams().Ju

@@ -346,7 +346,7 @@ class Diagnosis:
         return {k: v for s in self.ranking if s.effect in self.selected for k, v in s.values.items()}
 
     def selected_model(self) -> tuple[RigParams, list[dict], dict[str, float]]:
-        """The model the diagnosis selected, as :func:`drillgym.identification.model_file.write_model` takes it.
+        """The model the diagnosis selected: its base parameters, effect records and base standard errors.
 
         Returns
         -------
