@@ -28,6 +28,7 @@ from .errors import (
     DrillgymError,
     EffectError,
     FitError,
+    FitFailedError,
     InputError,
     InputTypeError,
     MissingFileError,
@@ -95,6 +96,7 @@ __all__ = [
     "MissingFileError",
     "SimulationError",
     "FitError",
+    "FitFailedError",
     "UnavailableError",
     "SafetyError",
 ]

@@ -22,7 +22,7 @@ INPUT_KINDS = [
     E.OutputPathError,
     E.MissingFileError,
 ]
-RUN_KINDS = [E.SimulationError, E.FitError, E.UnavailableError, E.SafetyError]
+RUN_KINDS = [E.SimulationError, E.FitError, E.FitFailedError, E.UnavailableError, E.SafetyError]
 
 
 def run(capsys, *argv: str) -> tuple[int, str]:

@@ -122,9 +122,8 @@ def _identify_and_write(recording: Path, model_out: Path, echo) -> None:
     found and the margins."""
     from controllers.margin import model_margins
     from drillgym import RigParams, identify
-    from drillgym.io.outputs import output_file
-
     from drillgym.diagnosis.information import CannotTellError
+    from drillgym.io.outputs import output_file
 
     try:
         found = identify(recording)
