@@ -107,7 +107,7 @@ class Controller(ABC):
         from .model import model_of
 
         if params is not None and not isinstance(params, RigParams) and model is None:
-            model, params = params, None  # a model (drillgym.Model, ModelFile) given where params are expected
+            model, params = params, None  # a model (drillgym.Model) given where params are expected
         self.effects = model_of(model, params)
         """The model the controller is built on (a :class:`drillgym.Model`)."""
         if self.effects.composition.effects:

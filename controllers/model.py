@@ -49,8 +49,8 @@ def model_of(model: Any = None, params: RigParams | None = None) -> Model:
 
     Parameters
     ----------
-    model : drillgym.Model, ModelFile, str or path, optional
-        A model, a model file read by ``read_model`` (older format) or a model file's path
+    model : drillgym.Model, str or path, optional
+        A model or a model file's path
         (:meth:`drillgym.Model.load`); None: ``params`` without effects.
     params : RigParams, optional
         Base parameters when no model is given (default: the identified set); refused together with a
@@ -71,8 +71,6 @@ def model_of(model: Any = None, params: RigParams | None = None) -> Model:
         raise InputError("give the controller's base parameters either as params or in its model, not both")
     if isinstance(model, str) or hasattr(model, "__fspath__"):
         return Model.load(model)
-    if hasattr(model, "specs") and hasattr(model, "params"):  # a ModelFile of read_model
-        return Model(model.params, tuple(model.specs), dict(model.values), dict(getattr(model, "std", {}) or {}))
     raise InputError(f"a controller's model is a drillgym.Model or a model file's path, not {type(model).__name__}")
 
 

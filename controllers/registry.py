@@ -167,8 +167,8 @@ def make(name: str, config: str = "torsional", omega_ref=None, params=None, **kw
     params : RigParams, optional
         The model the controller is designed on; default the nominal parameters.
     **kw
-        ``model=``: a model with effects instead of ``params`` (a :class:`drillgym.Model`, a
-        model file read by ``read_model`` or its path): ``observer``, ``lqg`` and ``lqg-2enc`` run every effect of
+        ``model=``: a model with effects instead of ``params`` (a :class:`drillgym.Model` or a model file's
+        path): ``observer``, ``lqg`` and ``lqg-2enc`` run every effect of
         it in their own model (:mod:`controllers.dynamics`); the others refuse a model with effects, and what a
         model-based controller cannot represent is refused in one line naming the effect and why.
         Further keywords of the controller's constructor (e.g. ``dt``, the control period in s).

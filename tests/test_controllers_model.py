@@ -7,7 +7,6 @@ import pytest
 
 from drillgym import RigParams
 from drillgym.errors import InputError
-from drillgym.identification.model_file import read_model, write_model
 
 
 @pytest.fixture(scope="module")
@@ -22,33 +21,28 @@ def lag_diagnosis():
 
 
 def test_the_selected_model_is_a_model_file_with_the_fitted_lag(lag_diagnosis, tmp_path):
+    from drillgym import Model
+
     d = lag_diagnosis
     assert d.selected == ["motor_lag"], d.text()
     params, records, base_std = d.selected_model()
     assert [r["name"] for r in records] == ["motor_lag"]
     assert records[0]["values"]["tau_m"] == pytest.approx(0.04, rel=0.05)
     assert records[0]["std"]["tau_m"] > 0
-    mf = read_model(write_model(tmp_path / "m.json", params, records, base_std))
-    assert mf.specs == ["motor_lag"] and mf.values["tau_m"] == records[0]["values"]["tau_m"]
-    assert mf.std["tau_m"] == records[0]["std"]["tau_m"] and mf.params == params
+    std = {**base_std, **records[0]["std"]}
+    m = Model(params, tuple(r["spec"] for r in records), records[0]["values"], std)
+    back = Model.load(m.save(tmp_path / "m.json"))
+    assert back.specs == ["motor_lag"] and back.values["tau_m"] == records[0]["values"]["tau_m"]
+    assert back.std["tau_m"] == records[0]["std"]["tau_m"] and back.params == params
 
 
-def test_diagnose_model_out_writes_what_read_model_reads(lag_diagnosis, tmp_path, monkeypatch):
-    """The command's option end to end (the diagnosis itself is the fixture's, of the same recording)."""
-    import drillgym.diagnosis as diagnosis
+def test_diagnose_model_out_refuses_a_file_that_is_not_a_model_file(tmp_path):
     from drillgym.cli import main
     from drillgym.identification.synthetic import synthetic_measurement
     from drillgym.io import write_timeseries
 
     rec = tmp_path / "lag.csv"
     write_timeseries(rec, synthetic_measurement("torsional", duration=2.0, rate_hz=250.0, seed=5))
-    monkeypatch.setattr(diagnosis, "diagnose", lambda *a, **k: lag_diagnosis)
-    out = tmp_path / "sub" / "selected.yaml"
-    with pytest.raises(SystemExit) as done:
-        main(["diagnose", str(rec), "--no-sparse", "--model-out", str(out)])
-    assert done.value.code in (0, None)
-    mf = read_model(out)
-    assert mf.specs == ["motor_lag"] and mf.values["tau_m"] == pytest.approx(0.04, rel=0.05)
     bad = tmp_path / "selected.txt"
     with pytest.raises(SystemExit) as exc:
         main(["diagnose", str(rec), "--model-out", str(bad)])
@@ -56,14 +50,15 @@ def test_diagnose_model_out_writes_what_read_model_reads(lag_diagnosis, tmp_path
 
 
 def test_model_files_carry_standard_errors_and_refuse_bad_ones(tmp_path):
-    p = tmp_path / "m.json"
-    write_model(p, RigParams(), [{"name": "motor_lag", "spec": "motor_lag", "values": {"tau_m": 0.03}}], {"km": 0.01})
-    assert read_model(p).std == {"km": 0.01}
+    from drillgym import Model
+
+    p = Model(RigParams(), ("motor_lag",), {"tau_m": 0.03}, {"km": 0.01}).save(tmp_path / "m.json")
+    assert dict(Model.load(p).std) == {"km": 0.01}
     data = json.loads(p.read_text())
     data["std"] = {"km": -1}
     p.write_text(json.dumps(data))
     with pytest.raises(Exception, match="standard error of 'km'"):
-        read_model(p)
+        Model.load(p)
 
 
 # ------------------------------------------------------------------------------------------ controllers on a model
