@@ -139,10 +139,13 @@ class ObserverController(Controller):
         Drive with ``descent`` the targets its model is not accurate enough for (:mod:`controllers.margin`:
         the model file's standard error of km against the motor-angle limit); default False: warn only.
     angle_integral : bool, optional
-        Integral action on the estimated motor angle against the target's (weight ``integral``) at every target
-        once its approach is over, instead of the law's integral of the estimated lower speed below
-        ``low_speed`` only: an identified model's torque errors then leave no offset.  Default: on for a model
-        with effects, off for base parameters.
+        Integral action on the estimated motor angle against the target's at every target once its approach is
+        over (from ``low_speed`` up with the weight ``angle_weight``, below it with ``integral``), instead of the
+        law's integral of the estimated lower speed below ``low_speed`` only: an identified model's torque errors
+        then leave no offset.  Default: on for a model with effects, off for base parameters.
+    angle_weight : float, optional
+        Weight of that integral from ``low_speed`` up in the error chain's LQR
+        (:func:`controllers.flatness.chain_gain`).  Default 0.01: slow beside the chain.
     **kw
         ``config``, ``params``, ``dt``, ``u_max`` of :class:`controllers.Controller`.
     """
@@ -175,6 +178,7 @@ class ObserverController(Controller):
         p0_du: float = 0.1,
         fallback: bool = False,
         angle_integral: bool | None = None,
+        angle_weight: float = 0.01,
         **kw,
     ) -> None:
         super().__init__(omega_ref, **kw)
@@ -208,7 +212,7 @@ class ObserverController(Controller):
             "disturbance": disturbance,
         }
         if self.angle_integral:  # every target integrates the motor angle's error once its approach is over
-            self.law_options["integral_high"] = float(integral)
+            self.law_options["integral_high"] = float(angle_weight)
         FlatnessLaw(self.params, self.dt, **self.law_options)  # check the options now
 
     def _reset(self, m: dict[str, np.ndarray]) -> None:
