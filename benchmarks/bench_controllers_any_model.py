@@ -1,6 +1,6 @@
 """Identify, then control, on plants of an independent simulator with the effects a diagnosis finds.
 
-Each plant (:mod:`independent_rig`: MODEL.md's torsional equations, no drillgym code) has a motor lag, an
+Each plant (:mod:`independent_rig`: docs/model.md's torsional equations, no drillgym code) has a motor lag, an
 input delay and position-dependent brake friction of random sizes, and one of: a drive dead zone, a drive
 offset, string damping, changed upper-disc friction, a motor-encoder scale error.  Per plant:
 

@@ -1,6 +1,7 @@
 """An independent plant for closed-loop benchmarks: the torsional rig with the effects a diagnosis finds.
 
-Written from ../shared/MODEL.md's torsional equations (the same as :mod:`scipy_switch_model`, no drillgym code)
+Written from the model page's torsional equations (docs/model.md; the same as :mod:`scipy_switch_model`, no
+drillgym code)
 
     Ju θ̈u + Tfu(θ̇u) − kθ α − c α̇ = km v,      Jl θ̈l + g(θl) Tfl(θ̇l) + kθ α + c α̇ = 0,
 
