@@ -16,8 +16,9 @@
 * :mod:`.evaluation` - scenarios, metrics, closed-loop runs, report
 """
 
-import importlib
 from typing import TYPE_CHECKING
+
+from drillgym._lazy import lazy_names
 
 if TYPE_CHECKING:  # pragma: no cover - loaded on first use (__getattr__)
     from .base import MEASUREMENTS, U_MAX, Controller
@@ -34,21 +35,4 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str):
-    """A name of :data:`_LAZY` or a submodule (``controllers.baseline``), imported on first use."""
-    module = _LAZY.get(name)
-    if module is not None:
-        value = getattr(importlib.import_module(f".{module}", __name__), name)
-        globals()[name] = value
-        return value
-    if not name.startswith("__"):
-        try:
-            return importlib.import_module(f".{name}", __name__)
-        except ModuleNotFoundError as exc:
-            if exc.name != f"{__name__}.{name}":
-                raise
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())

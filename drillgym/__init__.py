@@ -12,10 +12,10 @@ at once if Gymnasium is imported already, else as soon as it is
 of ``__all__`` load on first use (``from drillgym import simulate`` as before).
 """
 
-import importlib
 from typing import TYPE_CHECKING
 
 from . import _import_hooks
+from ._lazy import lazy_names
 
 # When numba loads (or now, if it is loaded): 512-bit vectors on AVX-512 hosts (opt out: DRILLGYM_SIMD=256;
 # before numba, as it reads them, not here: it would load LLVM, 110 MB) and the stale kernels dropped from
@@ -102,21 +102,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str):
-    """A name of :data:`_LAZY` or a submodule (``drillgym.envs``), imported on first use."""
-    module = _LAZY.get(name)
-    if module is not None:
-        value = getattr(importlib.import_module(f".{module}", __name__), name)
-        globals()[name] = value  # the next look-up does not come here
-        return value
-    if not name.startswith("__"):
-        try:
-            return importlib.import_module(f".{name}", __name__)
-        except ModuleNotFoundError as exc:
-            if exc.name != f"{__name__}.{name}":
-                raise
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())

@@ -26,9 +26,9 @@ the line or column and what is wrong.  Nothing is dropped or guessed.
 
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING
 
+from .._lazy import lazy_names
 from ..errors import DataFormatError
 from .limits import KNOWN_COLUMNS, U_LIMIT_FILE, XY_LIMIT_FILE
 from .paths import create_directory, describe_parse_error
@@ -75,21 +75,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str):
-    """A name of :data:`_LAZY` or a submodule (``drillgym.io.reading``), imported on first use."""
-    module = _LAZY.get(name)
-    if module is not None:
-        value = getattr(importlib.import_module(f".{module}", __name__), name)
-        globals()[name] = value
-        return value
-    if not name.startswith("__"):
-        try:
-            return importlib.import_module(f".{name}", __name__)
-        except ModuleNotFoundError as exc:
-            if exc.name != f"{__name__}.{name}":
-                raise
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_names(__name__, _LAZY, globals())
