@@ -11,9 +11,8 @@ from ..errors import InputError
 from .effect_options import (
     add_effect_option,
     effect_param_option,
-    effects_from_cli,
-    model_from_cli,
     model_option,
+    rig_from_cli,
     trust_option,
 )
 from .options import excludes, option, requires
@@ -67,7 +66,6 @@ def register(app: typer.Typer) -> None:
         from ..bifurcation.plots import save_figures
         from ..configurations import parse_configuration
         from ..parallel import check_ray_address
-        from ..params import RigParams
 
         check_output_dir(out)  # refused now, not after the minutes of the diagram
         with option("--config"):
@@ -84,13 +82,7 @@ def register(app: typer.Typer) -> None:
             check_ray_address(ray)
         from ..equilibria import RigModel
 
-        if model_file is not None:
-            m = model_from_cli(model_file, trust, cfg, params=params, add_effect=add_effect, effect_param=effect_param)
-            rig, comp, values = m.params, m.composition, dict(m.values)
-        else:
-            comp, values = effects_from_cli(add_effect, effect_param, cfg)
-            with option("--params"):
-                rig = RigParams.from_file(params) if params else RigParams()
+        rig, comp, values = rig_from_cli(model_file, trust, cfg, params, add_effect, effect_param)
         p = RigModel(rig, comp, values)
         with option("--measured"):
             meas = measured_diagram(measured, cfg.label) if measured else []

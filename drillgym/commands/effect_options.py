@@ -137,6 +137,21 @@ def compose_named(
         return compose(comp, {**defaults, **values})
 
 
+def rig_from_cli(model_file, trust: bool, config, params, add_effect, effect_param):
+    """``(RigParams, Composition, effect values)`` of a run: the model of ``--model FILE`` (refused beside
+    ``--params``/``--add-effect``/``--effect-param``), else ``--params`` with ``--add-effect``/``--effect-param``."""
+    if model_file is not None:
+        m = model_from_cli(model_file, trust, config, params=params, add_effect=add_effect, effect_param=effect_param)
+        return m.params, m.composition, dict(m.values)
+    from ..params import RigParams
+    from .options import option
+
+    comp, values = effects_from_cli(add_effect, effect_param, config)
+    with option("--params"):
+        rig = RigParams.from_file(params) if params else RigParams()
+    return rig, comp, values
+
+
 def effects_from_cli(
     add_effect: list[str] | None, effect_param: list[str] | None, config=None
 ) -> tuple[Composition, dict[str, float]]:

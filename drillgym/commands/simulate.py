@@ -14,9 +14,8 @@ from .budget import check_run_fits
 from .effect_options import (
     add_effect_option,
     effect_param_option,
-    effects_from_cli,
-    model_from_cli,
     model_option,
+    rig_from_cli,
     trust_option,
 )
 from .options import excludes, option, requires
@@ -242,7 +241,6 @@ def register(app: typer.Typer) -> None:
         winding: give --alpha0, no voltage (e.g. --config free_vibration --alpha0 1.0 --duration 20).
         """
         from ..configurations import parse_configuration
-        from ..params import RigParams
         from ..simulator import simulate
 
         with option("--config"):
@@ -266,13 +264,7 @@ def register(app: typer.Typer) -> None:
                 f"amplifier gives +-5 V); choose |u| <= {U_LIMIT_FILE:g} V"
             )
         duration_given = duration is not None
-        if model_file is not None:
-            m = model_from_cli(model_file, trust, cfg, params=params, add_effect=add_effect, effect_param=effect_param)
-            rig, comp, values = m.params, m.composition, dict(m.values)
-        else:
-            comp, values = effects_from_cli(add_effect, effect_param, cfg)
-            with option("--params"):
-                rig = RigParams.from_file(params) if params else RigParams()
+        rig, comp, values = rig_from_cli(model_file, trust, cfg, params, add_effect, effect_param)
         if input_file is not None:
             with option("--input"):
                 signal = _load_input(input_file)  # its values are checked by the reader (|u| <= 50 V)
