@@ -6,7 +6,7 @@ calls it, so one recording gives one model file whichever route a user takes.
 
 1. **diagnose** (:func:`drillgym.diagnosis.diagnose`): screen, select the library's effects, check,
    report; with ``discover``, a candidate effect outside the library from the residual, kept when its
-   fit removes part of the unexplained variance;
+   own fit removes at least :data:`MIN_CANDIDATE_CUT` of the unexplained variance;
 2. **select again with the candidate in the model**: a kept candidate's residual hid the library's
    effects beside it (a lag beside a dead zone, a position friction beside a drive offset), so the whole
    library is selected again on the model that holds the candidate;
@@ -45,6 +45,10 @@ TIMING_EFFECTS = ("motor_lag", "input_delay")
 BOTH_TIMING_GAIN = 0.05
 #: where the fit with both starts: this share of the one's time as the lag, the rest as the delay
 LAG_SHARE = 0.7
+#: share of the unexplained variance a candidate's own fit must remove to enter the model (the bar the motor
+#: encoder's reading meets to be kept, :data:`drillgym.diagnosis.encoder_reading.MIN_READING_CUT`): a candidate
+#: that removes less earns no place in the model a user builds on
+MIN_CANDIDATE_CUT = 0.3
 
 
 @dataclass(frozen=True)
@@ -296,7 +300,7 @@ def _selected(d: Any) -> tuple[list[str], dict[str, float], RigParams]:
 def _kept_candidate(d: Any) -> tuple[str, dict[str, float], list[str]] | None:
     """(spec, fitted values, library effects ahead of it) of the candidate the diagnosis kept, or None."""
     c = d.candidate
-    if c is None or c.fit is None or not c.effect_file or c.fit.variance_cut <= 0.0:
+    if c is None or c.fit is None or not c.effect_file or c.fit.variance_cut < MIN_CANDIDATE_CUT:
         return None
     ahead = list(c.fit.with_library)
     values = {c.fit.file_name(k): v for k, v in c.fit.values.items()}
