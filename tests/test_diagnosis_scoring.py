@@ -171,12 +171,14 @@ def test_a_parameter_the_data_do_not_depend_on_has_no_finite_standard_error():
 
 
 def test_fits_run_in_parallel_come_back_in_order_with_their_errors():
-    """The selection runs a round's independent fits on two threads: results in the jobs' order, a fit's
-    ValueError returned in its place (the selection excludes that candidate), other errors raised."""
+    """The selection runs a round's independent fits on two threads: results in the jobs' order, a fit that names
+    why it failed (FitFailedError) returned in its place (the selection excludes that candidate), any other error
+    (a bare ValueError among them: a bug) raised."""
     import threading
     import time
 
     from drillgym.diagnosis.context import in_parallel
+    from drillgym.errors import FitFailedError
 
     threads = set()
 
@@ -185,16 +187,22 @@ def test_fits_run_in_parallel_come_back_in_order_with_their_errors():
             threads.add(threading.get_ident())
             time.sleep(0.05 * (3 - i))  # the first job finishes last
             if i == 1:
-                raise ValueError("no fit")
+                raise FitFailedError("no fit")
             return i * 10
 
         return run
 
     out = in_parallel([job(i) for i in range(3)])
-    assert out[0] == 0 and out[2] == 20 and isinstance(out[1], ValueError) and str(out[1]) == "no fit"
+    assert out[0] == 0 and out[2] == 20 and isinstance(out[1], FitFailedError) and str(out[1]) == "no fit"
     assert len(threads) == 2
     with pytest.raises(ZeroDivisionError):
         in_parallel([lambda: 1, lambda: 1 / 0])
+
+    def bug():
+        raise ValueError("a bug inside a fit")
+
+    with pytest.raises(ValueError, match="a bug inside a fit"):
+        in_parallel([lambda: 1, bug])
 
 
 def test_a_measurement_effect_is_screened_with_the_segments_start_speeds_on_its_own_copy_of_the_model():
