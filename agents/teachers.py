@@ -233,8 +233,11 @@ class _GivenIntegral:
     def __getattr__(self, name: str):
         return getattr(self.law, name)
 
-    def __call__(self, *args, **kw) -> np.ndarray:
-        return self.law(*args, z=self.z, **kw)
+    def __call__(
+        self, omega_u: np.ndarray, alpha: np.ndarray, omega_l: np.ndarray, d: np.ndarray, z: np.ndarray | None = None
+    ) -> np.ndarray:
+        """The law with the integral set from outside (the caller's own ``z`` is replaced by it)."""
+        return self.law(omega_u, alpha, omega_l, d, z=self.z)
 
 
 def _encoder_columns(name: str, uses: tuple[str, ...], names: list[str]) -> tuple[list[int], np.ndarray]:

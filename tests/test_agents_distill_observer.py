@@ -33,6 +33,7 @@ def test_shadow_observer_labels_are_what_the_observer_outputs_on_the_motor_incre
         assert abs(float(label[0]) - float(a[0])) < 1e-5
         teacher.applied(a)
         obs, *_ = env.step(a)
+    teacher.act(obs[None, :], target)  # the last step's increment, read as the next period starts
     moved = float(Y[0, 0]) - start  # the true motor angle's change (rad): the increments' sum, within counts
     assert moved > 3.0 and abs(teacher.theta[0, 0] - moved) < 0.005  # a few counts of 2 pi / 8000
     with pytest.raises(InputError, match="has no theta_l"):
