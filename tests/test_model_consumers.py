@@ -1,4 +1,4 @@
-"""Issue 54, the model travels: every consumer takes ``model=`` (or ``--model FILE``) and runs exactly the
+"""The model travels: every consumer takes ``model=`` (or ``--model FILE``) and runs exactly the
 simulator's run of that model (``simulate(..., model=m)``), which differs from its run without it by what the
 model's effects contribute.  One library effect (``motor_lag``, compiled once) keeps the suite quick; a step in
 the command makes the lag show."""

@@ -282,30 +282,9 @@ def identify_population(
     from .identify import ExcitationOptions
 
     opts = options if isinstance(options, ExcitationOptions) else ExcitationOptions()
-    out: dict[int, Any] = {}
-    bar = tqdm(total=n, desc="identify", unit="plant", disable=not progress)
     args = [(k, n, seed, uncertainty, params, opts, config) for k in range(n)]
-    try:
-        if executor is None and workers <= 1:
-            for a in args:
-                out[a[0]] = _identify_one(*a)
-                bar.update()
-        else:
-            ex = executor or ProcessPoolExecutor(max_workers=workers)
-            try:
-                futs = {ex.submit(_identify_one, *a): a[0] for a in args}
-                for f in as_completed(futs):
-                    out[futs[f]] = f.result()
-                    bar.update()
-            finally:
-                if executor is None:
-                    ex.shutdown()
-    except BaseException:
-        bar.leave = False  # the bar cleared: the error that follows is the one line on stderr
-        bar.close()
-        raise
-    bar.close()
-    return out
+    found = _run_all([(_identify_one, a, {}) for a in args], executor, workers, "identify", "plant", progress)
+    return dict(enumerate(found))
 
 
 def _identify_one(k: int, n: int, seed: int, uncertainty: Any, params: RigParams | None, opts: Any, config: str):
@@ -655,8 +634,6 @@ def evaluate(
         seed=seed,
         model=model,
     )  # specs: a user file's effect reaches workers
-    rows: list[dict] = []
-    bar = tqdm(total=len(jobs), desc="evaluate", unit="job", disable=not progress)
 
     def job_kw(s: Scenario, ch: list[int]) -> dict:
         if not s.population:
@@ -664,29 +641,11 @@ def evaluate(
         ident = pop_kw.get("identified")
         return {**pop_kw, "identified": {k: ident[k] for k in ch} if ident else None}
 
-    try:
-        if executor is None and workers <= 1:
-            for c, cfg, s, ch in jobs:
-                rows += run_job(c, cfg, s, u_fold=u_folds.get(cfg), plants=ch, **job_kw(s, ch), **kw)
-                bar.update()
-        else:
-            ex = executor or ProcessPoolExecutor(max_workers=workers)
-            try:
-                futs = [
-                    ex.submit(run_job, c, cfg, s, u_fold=u_folds.get(cfg), plants=ch, **job_kw(s, ch), **kw)
-                    for c, cfg, s, ch in jobs
-                ]
-                for f in as_completed(futs):
-                    rows += f.result()
-                    bar.update()
-            finally:
-                if executor is None:
-                    ex.shutdown()
-    except BaseException:
-        bar.leave = False  # the bar cleared: the error that follows is the one line on stderr
-        bar.close()
-        raise
-    bar.close()
+    calls = [
+        (run_job, (c, cfg, s), {"u_fold": u_folds.get(cfg), "plants": ch, **job_kw(s, ch), **kw})
+        for c, cfg, s, ch in jobs
+    ]
+    rows = [row for part in _run_all(calls, executor, workers, "evaluate", "job", progress) for row in part]
     order = {c: i for i, c in enumerate(controllers)}
     rows.sort(
         key=lambda r: (
@@ -698,3 +657,32 @@ def evaluate(
         )
     )
     return rows
+
+
+def _run_all(calls: list, executor: Executor | None, workers: int, desc: str, unit: str, progress: bool) -> list:
+    """Run each ``(function, args, kwargs)`` of ``calls`` in turn (no executor, ``workers`` <= 1), else in
+    ``executor`` or a pool of ``workers`` processes, under a tqdm bar that is cleared before an error propagates
+    (the error is then the one line on stderr); the results in the calls' order."""
+    bar = tqdm(total=len(calls), desc=desc, unit=unit, disable=not progress)
+    out: list = [None] * len(calls)
+    try:
+        if executor is None and workers <= 1:
+            for i, (fn, a, kw) in enumerate(calls):
+                out[i] = fn(*a, **kw)
+                bar.update()
+        else:
+            ex = executor or ProcessPoolExecutor(max_workers=workers)
+            try:
+                futs = {ex.submit(fn, *a, **kw): i for i, (fn, a, kw) in enumerate(calls)}
+                for f in as_completed(futs):
+                    out[futs[f]] = f.result()
+                    bar.update()
+            finally:
+                if executor is None:
+                    ex.shutdown()
+    except BaseException:
+        bar.leave = False
+        bar.close()
+        raise
+    bar.close()
+    return out
