@@ -97,13 +97,7 @@ class Provenance:
     version: str = ""
 
     def to_json(self) -> dict[str, Any]:
-        return {
-            "route": self.route,
-            "recording": self.recording,
-            "recording_sha256": self.recording_sha256,
-            "settings": dict(self.settings),
-            "version": self.version,
-        }
+        return {f.name: getattr(self, f.name) for f in fields(self)} | {"settings": dict(self.settings)}
 
     @classmethod
     def from_json(cls, data: Any, where: str) -> Provenance:
