@@ -25,7 +25,9 @@ MODULES = (
     "drillgym.commands.simulate",
     "drillgym.commands.effects",
     "drillgym.commands.bifurcation",
+    "drillgym.commands.signal",
     "drillgym.commands.identification",
+    "drillgym.commands.staged",
     "drillgym.commands.params",
     "drillgym.commands.prepare",
 )
