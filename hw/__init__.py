@@ -3,9 +3,9 @@ safety layer, episode recording, and an emulator of the rig's microcontroller.
 
 Modules: :mod:`hw.protocol` (frames, messages, parser; hw/PROTOCOL.md), :mod:`hw.crc`,
 :mod:`hw.link` (pyserial transport, link errors), :mod:`hw.client` (host protocol client),
-:mod:`hw.safety`, :mod:`hw.processing`, :mod:`hw.pacing`, :mod:`hw.recording`,
-:mod:`hw.env` (:class:`HardwareEnv`), :mod:`hw.firmware` and :mod:`hw.emulator` (the
-emulated microcontroller on a pseudo-terminal).
+:mod:`hw.safety`, :mod:`hw.processing`, :mod:`hw.measurements` (a SAMPLE to the env's readings,
+state and observation), :mod:`hw.pacing`, :mod:`hw.recording`, :mod:`hw.env` (:class:`HardwareEnv`),
+:mod:`hw.firmware` and :mod:`hw.emulator` (the emulated microcontroller on a pseudo-terminal).
 """
 
 ENV_ID = "drillgym/Hardware-v0"

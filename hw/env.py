@@ -7,7 +7,7 @@ hardware:
 
 * real-time pacing at the control period (:class:`hw.pacing.Pacer`);
 * measurements: encoder counts -> rad, LVDT offset taken at rest, 5 Hz causal low-pass
-  (:mod:`hw.processing`); speeds are encoder estimates (also in the 'full' observation,
+  (:mod:`hw.measurements`); speeds are encoder estimates (also in the 'full' observation,
   and in the reward and the termination test); ``friction_torque`` is not measurable (NaN);
 * ``reset`` brings the rig to rest at 0 V (until the encoders stop moving) instead of
   setting a state; the initial winding is whatever the rig has;
@@ -35,7 +35,6 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from drillgym.configurations import N_STATE
 from drillgym.envs.action import action_voltage
 from drillgym.envs.base import action_space
 from drillgym.envs.observation import make_observation_model
@@ -43,14 +42,13 @@ from drillgym.envs.options import U_MAX, EnvOptions
 from drillgym.envs.reward import TrackingReward
 from drillgym.envs.task import SpeedTrackingTask, StickSlipMonitor
 from drillgym.errors import InputError, InputTypeError, SafetyError
-from drillgym.measurement import EncoderVelocityEstimator, counts_to_angle
 
 from . import protocol as P
 from .checks import check_port, check_record_path, integer, number
 from .client import Reply, RigClient
 from .link import DEFAULT_BAUDRATE, LinkError, LinkLostError, LinkTimeoutError
+from .measurements import RigMeasurements
 from .pacing import Pacer
-from .processing import CounterUnwrap, LvdtProcessor
 from .recording import EpisodeRecorder, RecordingError, episode_path
 from .safety import SafetyLimits, VoltageLimiter, check_limits
 
@@ -240,23 +238,18 @@ class HardwareEnv(gym.Env):
         self.monitor = StickSlipMonitor(1, o.ssi_window, o.control_dt)
         self.limiter = VoltageLimiter(self.limits)
         self.pacer = Pacer(o.control_dt)
-        self._speed = EncoderVelocityEstimator(2, o.control_dt, o.velocity_filter_tau)
-        self._lvdt = LvdtProcessor(cfg.lvdt_m_per_lsb, 1.0 / o.control_dt, self.lvdt_cutoff_hz)
-        self._cu, self._cl = CounterUnwrap(), CounterUnwrap()
+        self.measurements = RigMeasurements(
+            cfg.counts_per_rev, cfg.lvdt_m_per_lsb, o.control_dt, o.velocity_filter_tau, self.lvdt_cutoff_hz
+        )
         # measurements in the shape of the simulated envs' arrays (rows = rigs = 1)
-        self._Y = np.zeros((1, N_STATE))  # the state as measured (mechanical states)
-        self._MODE = np.zeros((1, 2), dtype=np.int64)
+        self._Y, self._MODE = self.measurements.Y, self.measurements.MODE  # the state as measured (mechanical states)
         self._obs = np.zeros((1, self.obs_model.dim), dtype=np.float32)
         self._reward = np.zeros(1)
         self._unsafe = np.zeros(1, dtype=bool)
         self._omega_ref = np.ones(1)
         self._u_prev = np.zeros(1)
-        self._xy_prev = np.zeros(2)
-        self._counts_l_prev = 0
         self._steps = 0
         self._episode = -1
-        self._t0_us = 0
-        self._t0_host = 0.0
         self._running = False
         self._fault: BaseException | None = None
         #: the last episode's end: True when the firmware acknowledged the EMERGENCY_STOP, False when it did not
@@ -333,44 +326,7 @@ class HardwareEnv(gym.Env):
                 self._on_fault(exc)
         self._close_recording()
 
-    # ------------------------------------------------------------------ measurements
-    def _read(self, reply: Reply) -> dict[str, float]:
-        """Processed readings of a SAMPLE (SI units)."""
-        s = reply.sample
-        cpr = self.firmware.counts_per_rev
-        cu, cl = self._cu.update(s.counts_u), self._cl.update(s.counts_l)
-        tu, tl = (float(a) for a in counts_to_angle(np.array([cu, cl]), cpr))
-        xy, xy_lp = self._lvdt.update(s.lvdt_x, s.lvdt_y)
-        return {
-            "t": (s.timestamp_us - self._t0_us) * 1e-6,
-            "u": s.volts,
-            "theta_u": tu,
-            "theta_l": tl,
-            "x": xy[0],
-            "y": xy[1],
-            "x_lp": xy_lp[0],
-            "y_lp": xy_lp[1],
-            "counts_u": cu,
-            "counts_l": cl,
-            "lvdt_x_raw": s.lvdt_x,
-            "lvdt_y_raw": s.lvdt_y,
-            "status": int(s.status),
-            "t_host": reply.received - self._t0_host,
-        }
-
-    def _measured_state(
-        self, m: dict[str, float], omega: np.ndarray, dxy: np.ndarray, angle_shift: float = 0.0
-    ) -> None:
-        """Fill the state-shaped array the envs' reward/task/'full' observation read, from measurements."""
-        Y = self._Y[0]
-        Y[0], Y[1] = m["theta_u"] + angle_shift, m["theta_l"] + angle_shift
-        Y[2], Y[3] = omega
-        c, s = math.cos(Y[0]), math.sin(Y[0])
-        X, Yf = m["x_lp"], m["y_lp"]
-        Y[4], Y[5] = X * c + Yf * s, -X * s + Yf * c  # rotating frame
-        vbx, vby = dxy[0] * c + dxy[1] * s, -dxy[0] * s + dxy[1] * c
-        Y[6], Y[7] = vbx + Y[2] * Y[5], vby - Y[2] * Y[4]
-
+    # ------------------------------------------------------------------ recording
     def _record(self, m: dict[str, float], u_cmd: float, omega: np.ndarray) -> None:
         """Record a sample as docs/data_format.md means it: a row's ``u`` is the voltage applied FROM its time
         on (zero-order hold, as the simulator and the identification read it).  A SAMPLE reports the
@@ -435,20 +391,12 @@ class HardwareEnv(gym.Env):
         o = self.options
         self._episode += 1
         self._omega_ref[0], _ = self.task.sample(self.np_random)  # alpha0: the rig's own winding
-        last = rest[-1]
-        self._t0_us, self._t0_host = last.sample.timestamp_us, last.received
-        self._lvdt.calibrate_rest(np.array([r.sample.lvdt_x for r in rest]), np.array([r.sample.lvdt_y for r in rest]))
-        self._cu.reset()
-        self._cl.reset()
-        m = self._read(last)
-        self._counts_l_prev = m["counts_l"]
-        self._speed.reset(np.array([m["theta_u"], m["theta_l"]]))
-        self._xy_prev[:] = (m["x_lp"], m["y_lp"])
+        m = self.measurements.start(rest)
         # states at rest, angles at the middle of their count: quantizing observation models give the counts back
-        self._measured_state(m, np.zeros(2), np.zeros(2), angle_shift=math.pi / self.firmware.counts_per_rev)
+        self.measurements.fill_state(m, np.zeros(2), np.zeros(2), angle_shift=math.pi / self.firmware.counts_per_rev)
         self.obs_model.reset(_ROW0, self._Y, [self.np_random])
         self._obs[:] = self.obs_model.initial(_ROW0, self._Y, self._omega_ref)
-        self._measured_state(m, np.zeros(2), np.zeros(2))
+        self.measurements.fill_state(m, np.zeros(2), np.zeros(2))
         self.monitor.reset(_ROW0)
         self.limiter.reset(0.0)
         self._u_prev[0] = 0.0
@@ -463,7 +411,7 @@ class HardwareEnv(gym.Env):
             "protocol_version": P.PROTOCOL_VERSION,
             "counts_per_rev": self.firmware.counts_per_rev,
             "lvdt_m_per_lsb": self.firmware.lvdt_m_per_lsb,
-            "lvdt_offset_m": self._lvdt.offset.tolist(),
+            "lvdt_offset_m": self.measurements.lvdt.offset.tolist(),
             "lvdt_cutoff_hz": self.lvdt_cutoff_hz,
             "omega_ref": float(self._omega_ref[0]),
             "seed": seed,
@@ -536,20 +484,14 @@ class HardwareEnv(gym.Env):
         tick_error = self.pacer.wait()
         reply = self._exchange(u_cmd)
         if self._steps == 0:  # the episode's clock starts with the first action
-            self._t0_us = reply.sample.timestamp_us - self.firmware.period_us
-            self._t0_host = reply.sent
-        m = self._read(reply)
+            self.measurements.t0_us = reply.sample.timestamp_us - self.firmware.period_us
+            self.measurements.t0_host = reply.sent
+        m, omega = self.measurements.update(reply)
         o = self.options
-        omega = self._speed.update(np.array([m["theta_u"], m["theta_l"]]))
-        xy = np.array([m["x_lp"], m["y_lp"]])
-        dxy, self._xy_prev[:] = (xy - self._xy_prev) / o.control_dt, xy
-        self._measured_state(m, omega, dxy)
-        self._MODE[0, 1] = 0 if m["counts_l"] == self._counts_l_prev else int(np.sign(omega[1]) or 1)
-        self._counts_l_prev = m["counts_l"]
         u = np.array([m["u"]])
         self.reward_fn(self._Y, self._MODE, u, self._u_prev, self._omega_ref, self._reward)
         self._u_prev[0] = m["u"]
-        self._observe(m)
+        self.measurements.observe(self.obs_model, m, self._u_prev, self._omega_ref, self._obs, [self.np_random])
         self.monitor.update(self._Y[:, 3])
         self.task.unsafe(self._Y, self._unsafe)
         self._steps += 1
@@ -601,18 +543,6 @@ class HardwareEnv(gym.Env):
             f"lateral displacement: r = {r * 1e3:.4g} mm beyond max_lateral = {o.max_lateral * 1e3:g} mm "
             f"at t = {t:.6g} s"
         )
-
-    def _observe(self, m: dict[str, float]) -> None:
-        mode = self.obs_model.mode
-        tu, tl = np.array([m["theta_u"]]), np.array([m["theta_l"]])
-        if mode == "sensors":
-            self.obs_model.from_readings(
-                tu, tl, np.array([m["x_lp"]]), np.array([m["y_lp"]]), self._u_prev, self._omega_ref, self._obs
-            )
-        elif mode == "motor":
-            self.obs_model.from_readings(tu, self._u_prev, self._omega_ref, self._obs)
-        else:  # 'full' from the measured state (speeds estimated from the encoders)
-            self.obs_model.observe(self._Y, self._u_prev, self._omega_ref, self._obs, [self.np_random])
 
     def _info(
         self, m: dict[str, float], omega: np.ndarray, tick_error: float = 0.0, reply: Reply | None = None
