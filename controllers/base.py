@@ -217,6 +217,20 @@ class Controller(ABC):
         self.u_prev[index] = 0.0
         self._restart_rigs(index, m)
 
+    def compiled_law(self):
+        """The controller's law as compiled code, started from its current state (call after :meth:`reset`).
+
+        The compiled closed loop (:func:`controllers.evaluation.runner.run_closed_loop`) then runs it for the
+        whole batch with no Python call per control period.  The default: None (no compiled law; the loop
+        calls :meth:`act` every period).
+
+        Returns
+        -------
+        controllers.compiled.CompiledLaw or None
+            The law, its state and constants; None when the controller (or its present settings) has none.
+        """
+        return None
+
     def describe(self) -> str:
         """One line: what the controller is and which measurements it reads."""
         doc = (type(self).__doc__ or "").strip().splitlines()[0]

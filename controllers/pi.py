@@ -84,6 +84,15 @@ class PIController(Controller):
         self.loop = MotorSpeedPI(self.n, self.dt, self.kp, self.ki, self.u_max)
         self.u_ff = np.broadcast_to(equilibrium_voltage(self.config, self.omega_ref, self.params), (self.n,)).copy()
 
+    def compiled_law(self):
+        """The PI loop as a compiled law (:mod:`controllers.compiled.pi_law`), from the current state."""
+        from .compiled import CompiledLaw
+        from .compiled.pi_law import pi_constants, pi_state, pi_step
+
+        s, loop = self.speed, self.loop
+        state = pi_state(s.prev, s.omega, loop.integral, self.u_ff, self.omega_ref)
+        return CompiledLaw(pi_step, state, pi_constants(s.a, s.dt, loop.kp, loop.ki, loop.u_max))
+
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
         w = self.speed.update(m["theta_u"])
         return self.loop(self.omega_ref, w, self.u_ff)

@@ -7,6 +7,11 @@ makes the harness fast.  The plant may run hidden effects (a composition of
 chain is the rig's: the composition's Measurement effects, then encoder angles
 quantized to ``counts_per_rev`` (:func:`drillgym.measurement.quantize_angle`),
 optional white angle noise, LVDT x, y in the fixed frame.
+
+A controller that offers a compiled law (:meth:`controllers.Controller.compiled_law`) runs instead in the
+compiled closed loop (:func:`drillgym.closed_loop.run_compiled_loop`): plant and law advance together for
+the whole run with no Python call per control period, the same measurement chain and noise stream; the
+step-by-step loop stays the reference (``compiled=False``).
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from drillgym import BatchSimulator, Configuration, parse_configuration
+from drillgym.closed_loop import run_compiled_loop
 from drillgym.errors import InputError
 from drillgym.measurement import DEFAULT_COUNTS_PER_REV
 
@@ -27,6 +33,7 @@ __all__ = ["ClosedLoopRun", "run_closed_loop"]
 
 SIM_DT = 1e-3  # s, integrator step (the core's default)
 TWO_PI = 2.0 * np.pi
+_SIGNALS = ("u", "omega_u", "omega_l", "alpha", "stuck_l", "friction_l", "r")
 
 
 @dataclass
@@ -64,6 +71,7 @@ def run_closed_loop(
     sim_dt: float = SIM_DT,
     effects: Any = None,
     effect_params: Mapping[str, float] | None = None,
+    compiled: bool | None = None,
 ) -> ClosedLoopRun:
     """Run ``controller`` on n simulated rigs for ``duration`` seconds.
 
@@ -95,11 +103,20 @@ def run_closed_loop(
     effects, effect_params : object, optional
         Hidden effects of the plant and their values (as :func:`drillgym.simulate`); the controller is built
         without them.
+    compiled : bool, optional
+        Run the controller's compiled law in the compiled closed loop: None (default) when the controller
+        offers one (:meth:`controllers.Controller.compiled_law`), else step by step; False: always step by
+        step (the reference); True: the compiled loop or an error.
 
     Returns
     -------
     ClosedLoopRun
         The signals of the n runs at the control period: arrays (n, m), times ``t`` (m,) in s.
+
+    Raises
+    ------
+    InputError
+        Bad settings, or ``compiled=True`` for a controller without a compiled law.
     """
     cfg = parse_configuration(config)
     ref = np.atleast_1d(np.asarray(omega_ref, dtype=float))
@@ -117,12 +134,25 @@ def run_closed_loop(
     noise = np.broadcast_to(np.asarray(angle_noise, dtype=float), (n,)).copy()
     if np.any(noise < 0) or not np.all(np.isfinite(noise)):
         raise InputError("angle_noise must be non-negative (rad)")
-    out = {k: np.empty((n, m)) for k in ("u", "omega_u", "omega_l", "alpha", "stuck_l", "friction_l", "r")}
     t = np.arange(m) * controller.dt
+    meas = _measure(sim, t[0], ref, cpr, noise, rng)
+    controller.reset(meas)
+    law = controller.compiled_law() if compiled is not False else None
+    if compiled and law is None:
+        raise InputError(f"controller {controller.name!r} offers no compiled law; run it with compiled=False or None")
+    if law is not None:
+        try:
+            sig = run_compiled_loop(
+                sim, law.step, law.state, law.constants, periods=m, control_dt=controller.dt, first=meas,
+                counts_per_rev=cpr, angle_noise=noise, rng=rng, u_max=controller.u_max,
+            )  # fmt: skip
+        except FloatingPointError:
+            raise FloatingPointError(f"controller {controller.name!r} produced a non-finite voltage") from None
+        return ClosedLoopRun(cfg, t, ref, **{k: getattr(sig, k) for k in _SIGNALS})
+    out = {k: np.empty((n, m)) for k in _SIGNALS}
     for k in range(m):
-        meas = _measure(sim, t[k], ref, cpr, noise, rng)
-        if k == 0:
-            controller.reset(meas)
+        if k > 0:
+            meas = _measure(sim, t[k], ref, cpr, noise, rng)
         u = np.broadcast_to(np.asarray(controller.act(meas), dtype=float), (n,))
         out["u"][:, k] = u
         out["omega_u"][:, k] = sim.omega_u

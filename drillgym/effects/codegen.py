@@ -52,7 +52,12 @@ __all__ = [
 CORE_TEMPLATES = ("model", "commands", "stepping", "adaptive", "lane_steps", "lanes")
 #: client templates (modules whose compiled code calls the kernels; see :meth:`CompiledModel.client`). The
 #: generated packages are keyed on the sources these and the core templates import, transitively.
-CLIENT_TEMPLATES = ("drillgym.envs.period_kernel", "drillgym.envs.sensor_kernel", "drillgym.bifurcation.flows")
+CLIENT_TEMPLATES = (
+    "drillgym.envs.period_kernel",
+    "drillgym.envs.sensor_kernel",
+    "drillgym.bifurcation.flows",
+    "drillgym.closed_loop.kernel",
+)
 _TEMPLATE_PACKAGE = "drillgym.kernels"
 
 
