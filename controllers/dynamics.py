@@ -67,7 +67,9 @@ def _kernels(comp: Composition) -> _Kernels:
     cfg = _CFG
 
     @njit(cache=False)
-    def _eval(z, v, p, e0, idu, scale, eps, freeze, mode_in, out, y, pp, dy, fric, mode):  # pragma: no cover
+    def _state(z, e0, y):  # pragma: no cover
+        """The composition's state y at an estimator's state z: the discs' angles and speeds, the effect states
+        (from row e0 of z); the lateral states 0."""
         for i in range(ny):
             y[i] = 0.0
         y[0] = z[0]
@@ -76,6 +78,10 @@ def _kernels(comp: Composition) -> _Kernels:
         y[3] = z[3]
         for j in range(ne):
             y[8 + j] = z[e0 + j]
+
+    @njit(cache=False)
+    def _eval(z, v, p, e0, idu, scale, eps, freeze, mode_in, out, y, pp, dy, fric, mode):  # pragma: no cover
+        _state(z, e0, y)
         for i in range(p.size):
             pp[i] = p[i]
         if scale:
@@ -160,14 +166,7 @@ def _kernels(comp: Composition) -> _Kernels:
     @njit(cache=False)
     def _settled(z, u, p, e0, y, dy):  # pragma: no cover
         """The voltage at the motor (V) for the command u held until the lags settled, at state z."""
-        for i in range(ny):
-            y[i] = 0.0
-        y[0] = z[0]
-        y[1] = z[0] + z[2]
-        y[2] = z[1]
-        y[3] = z[3]
-        for j in range(ne):
-            y[8 + j] = z[e0 + j]
+        _state(z, e0, y)
         for j in range(lag_cols.size):
             y[8 + lag_cols[j]] = u
         for _ in range(lag_cols.size + 1):  # each lag at the voltage entering it (the chain in order)
