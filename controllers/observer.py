@@ -255,6 +255,13 @@ class ObserverController(Controller):
         self.observer.predict(u)
         self.u_prev = u.copy()
 
+    def compiled_law(self):
+        """The filter and the law compiled (:mod:`controllers.compiled.observer_law`) from the current state; None
+        for a model with effects or the ``descent`` fallback (the step-by-step loop runs them)."""
+        from .compiled.observer_law import observer_law
+
+        return observer_law(self)
+
     def approach_time(self, omega_ref: float | np.ndarray) -> np.ndarray:
         """Time (s) the law's reference needs: six lag time constants, after the hold and the ramp down
         for targets below ``low_speed`` (27 + 6 s with the defaults)."""

@@ -1,0 +1,327 @@
+"""The ``observer`` controller's law compiled: extended Kalman filter on the motor angle + flatness law.
+
+What :meth:`controllers.observer.ObserverController.act` computes each period, for every lane, on a model
+without effects (the base torsional model, the state ``d`` the brake's level or an offset, optionally the
+upper-disc torque ``du``): the filter's update with the measured motor angle (Joseph form), the
+feedback-linearising law of :class:`controllers.flatness.FlatnessLaw` on the estimates (its reference
+lags, the integral of the speed error or of the motor angle's), the clip, then the filter's prediction
+with the applied voltage (the exponential Euler mean of :meth:`controllers.kalman.DisturbanceModel.predict_mean`,
+the covariance with its Jacobian).
+
+Arithmetic on lanes (structure of arrays, one row per quantity): the loops over the lanes vectorise; the
+brake's Stribeck law uses the vectorisable exp and log of :mod:`drillgym.vmath` (relative error below
+2e-15 against libm's).  The Jacobian of the right-hand side is taken analytically where the model is linear
+(the reference differences it numerically, exact there to its round-off) and by the same central
+differences as the reference in the speeds (the friction laws), with the modes resolved as
+:class:`controllers.dynamics.ModelDynamics` resolves them (a disc slower than ``eps`` at rest unless its
+holding torque leaves the stick set).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from drillgym.closed_loop.abi import LAW_SIGNATURE, M_REF, M_TU
+from drillgym.vmath import vexp, vlog
+
+__all__ = ["observer_step", "observer_law", "ROWS", "CONSTANTS", "MAX_DIM"]
+
+MAX_DIM = 6
+# state rows: estimates (MAX_DIM), covariance (MAX_DIM^2, row-major in the model's dim), then the law's
+_X0 = 0
+_P0 = MAX_DIM
+_L0 = _P0 + MAX_DIM * MAX_DIM
+ROWS = ("y1", "y2", "y3", "z", "t", "target", "low", "k0", "k1", "k2", "k3", "settle", "integrating", "theta0", "t_int")
+Y1, Y2, Y3, Z, TL, TARGET, LOW, K0, K1, K2, K3, SETTLE, INTEG, THETA0, TINT = range(_L0, _L0 + len(ROWS))
+N_ROWS = _L0 + len(ROWS)
+
+CONSTANTS = (
+    "dt", "r", "eps", "h", "Ju", "Jl", "km", "kth", "Tcu", "dTcu", "bu", "dbu", "Ts", "Tc", "ws", "delta", "bb",
+    "tau", "w_rest", "hf", "hold", "ramp", "approach", "u_max", "scale", "has_du", "angle_integral", "dim",
+)  # fmt: skip
+(DT, R, EPS, H, JU, JL, KM, KTH, TCU, DTCU, BU, DBU, TS, TC, WS, DELTA, BB,
+ TAU, W_REST, HF, HOLD, RAMP, APPROACH, U_MAX, SCALE, HAS_DU, ANGLE_INT, DIM) = range(len(CONSTANTS))  # fmt: skip
+_MAT0 = len(CONSTANTS)  # then Ad, Gamma, Ac, Qd (dim x dim each, row-major)
+
+
+@njit(inline="always")
+def _shape(aw, ws, delta):
+    """exp(-(aw/ws)^delta): the Stribeck law's decay at speed magnitude aw (rad/s), vectorisable."""
+    z = max(aw / ws, 1e-300)
+    return vexp(-vexp(delta * vlog(z)))
+
+
+@njit(inline="always")
+def _upper(aw, d, Tcu, dTcu, bu, dbu):
+    """Upper slip torque (N m), :func:`drillgym.friction.upper_law`."""
+    t_pos = Tcu + dTcu + (bu + dbu) * aw
+    t_neg = -(Tcu - dTcu + (bu - dbu) * aw)
+    return t_pos if d > 0 else (t_neg if d < 0 else 0.0)
+
+
+@njit(inline="always")
+def _sign(x):
+    return 1.0 if x > 0 else (-1.0 if x < 0 else 0.0)
+
+
+@njit(cache=True)
+def _update(M, X, C, n, dim, W):
+    """The filter's update with the measured motor angles (Joseph form); W: work rows (>= dim + dim^2)."""
+    r = C[R]
+    for k in range(n):
+        s = X[_P0, k] + r
+        innov = M[M_TU, k] - X[_X0, k]
+        for i in range(dim):
+            g = X[_P0 + i * dim, k] / s  # K = P e0 / (e0' P e0 + r)
+            W[i, k] = g
+            X[_X0 + i, k] += g * innov
+    for i in range(dim):  # A = (I - K e0') P
+        for j in range(dim):
+            for k in range(n):
+                W[dim + i * dim + j, k] = X[_P0 + i * dim + j, k] - W[i, k] * X[_P0 + j, k]
+    for i in range(dim):  # P = A (I - K e0')' + r K K'
+        for j in range(dim):
+            for k in range(n):
+                a = W[dim + i * dim + j, k] - W[dim + i * dim, k] * W[j, k]
+                X[_P0 + i * dim + j, k] = a + r * W[i, k] * W[j, k]
+
+
+@njit(cache=True)
+def _law(M, X, C, n, U):
+    """The flatness law's voltage (V, clipped) from the updated estimates, its reference lags advanced."""
+    dt, tau, kt, Jl, Ju, km = C[DT], C[TAU], C[KTH], C[JL], C[JU], C[KM]
+    Ts, Tc, ws, delta, bb, hf, w_rest = C[TS], C[TC], C[WS], C[DELTA], C[BB], C[HF], C[W_REST]
+    hold, ramp, u_max = C[HOLD], C[RAMP], C[U_MAX]
+    scale, has_du, angle = C[SCALE] > 0, C[HAS_DU] > 0, C[ANGLE_INT] > 0
+    for k in range(n):
+        wu, al, wl, d = X[_X0 + 1, k], X[_X0 + 2, k], X[_X0 + 3, k], X[_X0 + 4, k]
+        t_old = X[TL, k]
+        zval = 0.0
+        if angle:  # the motor angle's error since the approach ended (ObserverController._angle_error)
+            start = t_old >= X[SETTLE, k] and X[INTEG, k] == 0.0
+            if start:
+                X[THETA0, k] = X[_X0, k]
+                X[INTEG, k] = 1.0
+            X[TINT, k] = X[TINT, k] + dt if X[INTEG, k] > 0 else 0.0
+            zval = X[_X0, k] - X[THETA0, k] - M[M_REF, k] * X[TINT, k] if X[INTEG, k] > 0 else 0.0
+        # the reference: three lags of the setpoint (FlatnessLaw.reference)
+        target = X[TARGET, k]
+        if ramp > 0:
+            s = min(max((t_old - hold) / ramp, 0.0), 1.0)
+        else:
+            s = 1.0 if t_old >= hold else 0.0
+        w = C[APPROACH] + s * (target - C[APPROACH]) if X[LOW, k] > 0 else target
+        X[TL, k] = t_old + dt
+        y1, y2, r = X[Y1, k], X[Y2, k], X[Y3, k]
+        d1, d2, d3 = (w - y1) / tau, (y1 - y2) / tau, (y2 - r) / tau
+        dd2, dd3 = (d1 - d2) / tau, (d2 - d3) / tau
+        r3 = (dd2 - dd3) / tau
+        X[Y1, k], X[Y2, k], X[Y3, k] = y1 + dt * d1, y2 + dt * d2, r + dt * d3
+        r1, r2 = d3, dd3
+        # the brake law, its slope and curvature at the estimated lower speed (FlatnessLaw.friction)
+        ww = max(wl, w_rest + hf)
+        t0 = Tc + (Ts - Tc) * _shape(ww, ws, delta) + bb * ww
+        tp = Tc + (Ts - Tc) * _shape(ww + hf, ws, delta) + bb * (ww + hf)
+        tm = Tc + (Ts - Tc) * _shape(ww - hf, ws, delta) + bb * (ww - hf)
+        T, T1, T2 = t0, (tp - tm) / (2 * hf), (tp - 2 * t0 + tm) / hf**2
+        if scale:
+            T, T1, T2 = (1.0 + d) * T, (1.0 + d) * T1, (1.0 + d) * T2
+        else:
+            T = T + d
+        rest = wl <= w_rest and -kt * al < T
+        T1 = 0.0 if rest else T1
+        T2 = 0.0 if rest else T2
+        a = 0.0 if rest else (-kt * al - T) / Jl
+        j = 0.0 if rest else (-kt * (wl - wu) - T1 * a) / Jl
+        if angle:
+            X[Z, k] = zval
+        elif X[TL, k] > hold + ramp:
+            X[Z, k] = X[Z, k] + dt * (wl - r)
+        v = r3 - (X[K0, k] * X[Z, k] + X[K1, k] * (wl - r) + X[K2, k] * (a - r1) + X[K3, k] * (j - r2))
+        wu_dot = (Jl * v + kt * a + T2 * a * a + T1 * j) / kt
+        w0 = 1e-9 if wu == 0 else wu
+        tfu = _upper(abs(w0), _sign(w0), C[TCU], C[DTCU], C[BU], C[DBU])
+        u = (Ju * wu_dot + tfu - kt * al) / km
+        if has_du:
+            u = u - X[_X0 + 5, k] / km
+        U[k] = min(max(u, -u_max), u_max)
+
+
+@njit(cache=True)
+def _model(X, C, n, dim, U, Fv, J):
+    """The model's right-hand side Fv (dim, n) and its Jacobian J (dim*dim, n) at the estimates under U."""
+    eps, h, Ju, Jl, km, kt = C[EPS], C[H], C[JU], C[JL], C[KM], C[KTH]
+    Tcu, dTcu, bu, dbu = C[TCU], C[DTCU], C[BU], C[DBU]
+    Ts, Tc, ws, delta, bb = C[TS], C[TC], C[WS], C[DELTA], C[BB]
+    scale, has_du = C[SCALE] > 0, C[HAS_DU] > 0
+    for i in range(dim * dim):
+        for k in range(n):
+            J[i, k] = 0.0
+    for k in range(n):
+        z0, wu, z2, wl, d = X[_X0, k], X[_X0 + 1, k], X[_X0 + 2, k], X[_X0 + 3, k], X[_X0 + 4, k]
+        f = 1.0 + d if scale else 1.0
+        Tsf, Tcf, bbf = Ts * f, Tc * f, bb * f
+        alpha = (z0 + z2) - z0
+        Fu = km * U[k] + kt * alpha
+        Fl = 0.0 - kt * alpha
+        stuck_u = abs(wu) <= eps
+        stuck_l = abs(wl) <= eps
+        mu = 0.0 if stuck_u else _sign(wu)
+        ml = 0.0 if stuck_l else _sign(wl)
+        if stuck_u:  # the stick logic (resolve_modes): released when the holding torque leaves the stick set
+            mu = 1.0 if Fu > Tcu + dTcu else (-1.0 if Fu < -Tcu + dTcu else 0.0)
+        if stuck_l:
+            ml = 1.0 if Fl > Tsf else (-1.0 if Fl < -Tsf else 0.0)
+        yu = 0.0 if stuck_u else wu
+        awl = 0.0 if stuck_l else abs(wl)
+        tfu = _upper(abs(yu), mu, Tcu, dTcu, bu, dbu)
+        e_l = _shape(awl, ws, delta)
+        tfl = ml * (Tcf + (Tsf - Tcf) * e_l + bbf * awl)
+        au = (Fu - tfu) / Ju if mu != 0 else 0.0
+        a_l = (Fl - tfl) / Jl if ml != 0 else 0.0
+        Fv[0, k] = wu
+        Fv[1, k] = au + (X[_X0 + 5, k] / Ju if has_du else 0.0)
+        Fv[2, k] = wl - wu
+        Fv[3, k] = a_l - (0.0 if scale else d / Jl)
+        Fv[4, k] = 0.0
+        # Jacobian, the modes held (central differences in the speeds, as the reference)
+        J[0 * dim + 1, k] = 1.0
+        J[2 * dim + 1, k] = -1.0
+        J[2 * dim + 3, k] = 1.0
+        if mu != 0:
+            tp = _upper(abs(wu + h), mu, Tcu, dTcu, bu, dbu)
+            tm = _upper(abs(wu - h), mu, Tcu, dTcu, bu, dbu)
+            J[1 * dim + 1, k] = ((Fu - tp) / Ju - (Fu - tm) / Ju) / (2.0 * h)
+            J[1 * dim + 2, k] = kt / Ju
+        if ml != 0:
+            aw = abs(wl)
+            tp = ml * (Tcf + (Tsf - Tcf) * _shape(abs(wl + h), ws, delta) + bbf * abs(wl + h))
+            tm = ml * (Tcf + (Tsf - Tcf) * _shape(abs(wl - h), ws, delta) + bbf * abs(wl - h))
+            J[3 * dim + 2, k] = -kt / Jl
+            J[3 * dim + 3, k] = ((Fl - tp) / Jl - (Fl - tm) / Jl) / (2.0 * h)
+            if scale:
+                J[3 * dim + 4, k] = -ml * (Tc + (Ts - Tc) * _shape(aw, ws, delta) + bb * aw) / Jl
+        if not scale:
+            J[3 * dim + 4, k] = -1.0 / Jl
+        if has_du:
+            Fv[5, k] = 0.0
+            J[1 * dim + 5, k] = 1.0 / Ju
+
+
+@njit(cache=True)
+def _predict(X, C, n, dim, Fv, J, W):
+    """x += Gamma f; P = F P F' + Qd with F = Ad + Gamma (J - Ac).  W: work rows (>= 2 dim^2)."""
+    dd = dim * dim
+    Ad, G, Ac, Qd = _MAT0, _MAT0 + dd, _MAT0 + 2 * dd, _MAT0 + 3 * dd
+    for i in range(dim):  # the mean
+        for k in range(n):
+            W[i, k] = 0.0
+        for m in range(dim):
+            g = C[G + i * dim + m]
+            for k in range(n):
+                W[i, k] += g * Fv[m, k]
+    for i in range(dim):
+        for k in range(n):
+            X[_X0 + i, k] += W[i, k]
+    for i in range(dim):  # F into W[0:dd]
+        for j in range(dim):
+            for k in range(n):
+                W[i * dim + j, k] = C[Ad + i * dim + j]
+            for m in range(dim):
+                g = C[G + i * dim + m]
+                if g != 0.0:
+                    a = C[Ac + m * dim + j]
+                    for k in range(n):
+                        W[i * dim + j, k] += g * (J[m * dim + j, k] - a)
+    for i in range(dim):  # F P into W[dd:2dd]
+        for j in range(dim):
+            for k in range(n):
+                W[dd + i * dim + j, k] = 0.0
+            for m in range(dim):
+                for k in range(n):
+                    W[dd + i * dim + j, k] += W[i * dim + m, k] * X[_P0 + m * dim + j, k]
+    for i in range(dim):  # (F P) F' + Qd, the lanes innermost (vectorised); the symmetric half mirrored
+        for j in range(i, dim):
+            q = C[Qd + i * dim + j]
+            row = X[_P0 + i * dim + j]
+            for k in range(n):
+                row[k] = q
+            for m in range(dim):
+                a = W[dd + i * dim + m]
+                b = W[j * dim + m]
+                for k in range(n):
+                    row[k] += a[k] * b[k]
+            if j != i:
+                X[_P0 + j * dim + i, :n] = row[:n]
+
+
+@njit(LAW_SIGNATURE, cache=True)
+def observer_step(t, M, X, C, U):  # pragma: no cover - compiled
+    """One period of the observer controller for every lane: update, law, clip, predict (module doc)."""
+    n = U.size
+    dim = int(C[DIM])
+    W = np.empty((2 * dim * dim + dim, n))
+    Fv = np.empty((dim, n))
+    J = np.empty((dim * dim, n))
+    _update(M, X, C, n, dim, W)
+    _law(M, X, C, n, U)
+    _model(X, C, n, dim, U, Fv, J)
+    _predict(X, C, n, dim, Fv, J, W)
+
+
+def observer_law(c):
+    """The compiled law of an :class:`controllers.observer.ObserverController` after its reset, or None.
+
+    None when its settings need what the compiled filter does not run: a model with effects, the ``descent``
+    fallback for some targets.
+
+    Parameters
+    ----------
+    c : ObserverController
+        The controller, reset.
+
+    Returns
+    -------
+    controllers.compiled.CompiledLaw or None
+        The law with its state (the filter's estimates and covariances, the law's lags, integral and clock)
+        and constants (:data:`CONSTANTS`, then the filter's matrices).
+    """
+    from . import CompiledLaw
+
+    mdl, law, p = c.model, c.law, c.params
+    dim = mdl.nc
+    plain = (
+        not c.effects.composition.effects
+        and c._descent is None
+        and mdl.line_index < 0
+        and mdl.lag_index < 0
+        and not (mdl.reads_effects or mdl.compensates)
+        and mdl.friction_known
+        and mdl.Ad.shape[0] == dim <= MAX_DIM
+        and law.brake is None
+        and law.upper is None
+        and law.scale == mdl.dynamics.scale
+        and np.array_equal(mdl.dynamics.vector, p.to_vector())
+    )
+    if not plain:
+        return None
+    n = c.n
+    X = np.zeros((N_ROWS, n))
+    X[_X0 : _X0 + dim] = c.observer.x
+    X[_P0 : _P0 + dim * dim] = c.observer.P.reshape(n, dim * dim).T
+    X[Y1 : Y3 + 1] = law.y
+    X[Z], X[TL], X[TARGET], X[LOW] = law.z, law.t, law.target, law.low
+    X[K0 : K3 + 1] = np.broadcast_to(law.K, (n, 4)).T
+    X[SETTLE], X[INTEG], X[THETA0], X[TINT] = c._settle, c._integrating, c._theta0, c._t_int
+    values = dict(
+        dt=c.dt, r=mdl.R[0, 0], eps=mdl.dynamics.eps, h=1e-5, Ju=p.Ju, Jl=p.Jl, km=p.km, kth=p.ktheta,
+        Tcu=p.Tcu, dTcu=p.dTcu, bu=p.bu, dbu=p.dbu, Ts=p.Ts, Tc=p.Tc, ws=p.ws, delta=p.delta, bb=p.bb,
+        tau=law.tau, w_rest=law.w_rest, hf=law.h, hold=law.hold, ramp=law.ramp, approach=law.approach,
+        u_max=c.u_max, scale=float(law.scale), has_du=float(mdl.has_du), angle_integral=float(c.angle_integral),
+        dim=float(dim),
+    )  # fmt: skip
+    C = np.concatenate(
+        [[float(values[k]) for k in CONSTANTS]] + [np.ravel(a) for a in (mdl.Ad, mdl.gamma_new, mdl.Ac, mdl.Qd)]
+    )
+    return CompiledLaw(observer_step, np.ascontiguousarray(X), np.ascontiguousarray(C, dtype=np.float64))
