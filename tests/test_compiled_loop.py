@@ -1,0 +1,91 @@
+"""The compiled closed loop against the step-by-step reference (controllers.evaluation.runner.run_closed_loop).
+
+Tolerances:
+
+* ``pi``: the same runs bit for bit (the same plant kernels, measurement arithmetic and noise stream);
+* ``observer``: one period of the compiled law from the reference controller's state agrees with ``act`` to
+  1e-12 (V, and relative on the estimates) with quantized angles; whole runs with exact angles agree to 1e-8
+  relative on omega_l and 1e-5 V on u over 2 s.  Longer runs part: the closed loop amplifies round-off (the reference
+  against itself with its covariance scaled by 1 + 1e-15 differs by 1e-3 rad/s after 2 s).
+
+The plant runs a library effect (``motor_lag``) the controllers do not know.
+"""
+
+import numpy as np
+import pytest
+
+import controllers
+from controllers.evaluation.runner import run_closed_loop
+from drillgym.errors import InputError
+
+SIGNALS = ("u", "omega_u", "omega_l", "alpha", "stuck_l", "friction_l", "r")
+PLANT = {"effects": ["motor_lag"]}
+
+
+def _runs(name, ref, duration, **kw):
+    out = []
+    for compiled in (False, True):
+        c = controllers.make(name, config="torsional", omega_ref=ref)
+        out.append(run_closed_loop(c, "torsional", ref, duration, compiled=compiled, **PLANT, **kw))
+    return out
+
+
+@pytest.mark.parametrize("n", [3, 10])  # the scalar kernel (< 8 runs) and the lane kernel with padded lanes
+def test_pi_compiled_loop_is_the_reference_bit_for_bit(n):
+    ref = np.linspace(1.0, 6.0, n)
+    a, b = _runs("pi", ref, 1.0, angle_noise=2e-4, seed=5)
+    np.testing.assert_array_equal(a.t, b.t)
+    for k in SIGNALS:
+        np.testing.assert_array_equal(getattr(a, k), getattr(b, k), err_msg=k)
+
+
+def test_observer_law_one_period_matches_act_along_a_reference_run():
+    from controllers.compiled.observer_law import observer_law
+
+    n = 6
+    ref = np.linspace(1.0, 6.0, n)
+    c0 = controllers.make("observer", config="torsional", omega_ref=ref)
+    angles = []
+    act = c0.act
+    c0.act = lambda m: (angles.append(np.array(m["theta_u"])), act(m))[1]
+    run_closed_loop(c0, "torsional", ref, 0.6, compiled=False, **PLANT)  # quantized angles, 8000 counts/rev
+    c = controllers.make("observer", config="torsional", omega_ref=ref)
+    c.reset({"theta_u": angles[0], "omega_ref": ref})
+    M, U = np.zeros((5, n)), np.zeros(n)
+    M[4] = ref
+    for k, th in enumerate(angles):
+        law = observer_law(c)
+        X = law.state.copy()
+        M[0] = th
+        u = c.act({"theta_u": th})
+        law.step(k * c.dt, M, X, law.constants, U)
+        assert np.max(np.abs(U - u)) <= 1e-12
+        x = c.observer.x
+        assert np.all(np.abs(X[:5] - x) <= 1e-12 * (1.0 + np.abs(x)))
+
+
+def test_observer_compiled_run_matches_the_reference_with_exact_angles():
+    ref = np.array([1.0, 2.0, 3.0, 4.5, 6.0, 7.0, 2.5, 5.0])
+    a, b = _runs("observer", ref, 2.0, counts_per_rev=0)
+    scale = np.max(np.abs(a.omega_l))
+    assert np.max(np.abs(a.omega_l - b.omega_l)) <= 1e-8 * scale
+    assert np.max(np.abs(a.u - b.u)) <= 1e-5  # V: the law differentiates the estimates twice
+
+
+def test_a_controller_without_a_law_keeps_the_step_by_step_loop():
+    ref = np.array([2.0, 3.0])
+    c = controllers.make("baseline", config="torsional", omega_ref=ref)
+    assert c.compiled_law() is None
+    run = run_closed_loop(c, "torsional", ref, 0.1, **PLANT)  # compiled=None: no error
+    assert run.u.shape == (2, int(round(0.1 / c.dt)))
+    with pytest.raises(InputError, match="no compiled law"):
+        run_closed_loop(controllers.make("baseline", config="torsional", omega_ref=ref), "torsional", ref, 0.1,
+                        compiled=True)  # fmt: skip
+
+
+def test_observer_on_a_model_with_effects_has_no_compiled_law():
+    from drillgym import Model, RigParams
+
+    c = controllers.make("observer", config="torsional", omega_ref=[3.0], model=Model(RigParams(), ("motor_lag",)))
+    c.reset({"theta_u": np.zeros(1), "omega_ref": np.array([3.0])})
+    assert c.compiled_law() is None
