@@ -1,0 +1,59 @@
+"""Closed-loop throughput: the compiled loop against the step-by-step one, measured in the same run.
+
+``run_closed_loop`` with a controller that offers a compiled law (``compiled=None``) runs plant and law
+together in :func:`drillgym.closed_loop.run_compiled_loop`; ``compiled=False`` is today's path (one
+compiled ``advance`` and one Python ``act`` per control period).  For ``observer`` at 2 ms and ``pi`` at
+its 10 ms, on 1, 64 and 256 lanes (targets 1-6 rad/s, torsional, 8000 counts/rev), the real-time factor
+per core (lanes x simulated s / wall s, one thread) of both paths and their ratio, best of the repeats;
+each path warmed up first (numba compilation not timed).  Goals (observer, 256 lanes): >= 2,000x real time
+per core and >= 30x the step-by-step path.  The load average is printed: the absolute factors need a quiet
+machine, the ratios hold on a shared one.
+
+    .venv/bin/python benchmarks/bench_closed_loop.py [--duration 2] [--repeats 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import numpy as np
+
+import controllers
+from controllers.evaluation.runner import run_closed_loop
+
+LANES = (1, 64, 256)
+
+
+def _rtf(name: str, n: int, duration: float, compiled: bool, repeats: int) -> float:
+    ref = np.linspace(1.0, 6.0, n)
+    best = np.inf
+    for _ in range(repeats):
+        c = controllers.make(name, config="torsional", omega_ref=ref)
+        t0 = time.perf_counter()
+        run_closed_loop(c, "torsional", ref, duration, compiled=compiled)
+        best = min(best, time.perf_counter() - t0)
+    return n * duration / best
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--duration", type=float, default=2.0, help="simulated s of the compiled runs")
+    ap.add_argument("--reference-duration", type=float, default=0.5, help="simulated s of the step-by-step runs")
+    ap.add_argument("--repeats", type=int, default=3)
+    args = ap.parse_args()
+    for name in ("observer", "pi"):  # warm up: compile both paths
+        for compiled in (True, False):
+            _rtf(name, 8, 0.1, compiled, 1)
+    print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; real-time factor per core (one thread)")
+    print(f"{'controller':<12}{'lanes':>6}{'compiled':>12}{'step-by-step':>14}{'ratio':>8}")
+    for name in ("observer", "pi"):
+        for n in LANES:
+            fast = _rtf(name, n, args.duration, True, args.repeats)
+            slow = _rtf(name, n, args.reference_duration, False, args.repeats)
+            print(f"{name:<12}{n:>6}{fast:>11,.0f}x{slow:>13,.0f}x{fast / slow:>7.1f}x")
+
+
+if __name__ == "__main__":
+    main()
