@@ -14,7 +14,11 @@ kernels of compositions no earlier call used, the second shows the steady cost.
 
 ``--motor``: instead, recordings of the independent motor rig of ``bench_diagnosis_motor`` (effects outside
 the library on the motor side, each after a motor lag, base parameters off; :data:`MOTOR_CASES`), where the
-candidate's own fit and the library's signal-path effects fitted beside it run too.
+candidate's own fit and the whole library selected again with the candidate in the model run too.
+
+``--identify``: run the identification route instead (``drillgym diagnose FILE --json --model-out M.json``:
+:func:`drillgym.identify`, the library selected again beside a kept candidate and the joint refit included),
+the time the goal of 60 s is about for a model file.
 
 ``--combos``: instead, random combinations of the selection benchmark's matrix
 (``bench_diagnosis_selection.build_matrix(seed, random_n=16)``, case ``i``; recordings of the
@@ -22,7 +26,8 @@ independent rig, 2-3 effects, base parameters off in some) made 60 s long at 1 k
 with the verdict of that benchmark (right / a stated lag-delay tie / WRONG).  ``--combos default``: six
 combinations, four of them coupled (:data:`DEFAULT_COMBOS`), the set of the documented timing table.
 
-    .venv/bin/python benchmarks/bench_diagnose_time.py [--out DIR] [--motor] [--combos default|SEED:I,...]
+    .venv/bin/python benchmarks/bench_diagnose_time.py [--out DIR] [--motor] [--identify]
+        [--combos default|SEED:I,...]
 """
 
 from __future__ import annotations
@@ -113,18 +118,23 @@ def _motor(out: Path) -> None:
         second, _ = _diagnose(path)
         cand = res.get("candidate") or {}
         fit = cand.get("fit") or {}
-        beside = fit.get("beside") or {}
+        again = res.get("reselection") or {}
         print(
             f"  {name:<64} first {first:6.1f} s, second {second:6.1f} s (goal <= 60 s); "
             f"selected {res['selected']}; candidate {cand.get('group')} cut {fit.get('variance_cut')}; "
-            f"beside it {beside.get('selected')} (in place of {beside.get('replaces')})"
+            f"selected again beside it {again.get('selected')}"
         )
 
 
+#: with ``--identify``: the model file each diagnosis writes (the identification route)
+IDENTIFY = {"on": False}
+
+
 def _diagnose(path: Path) -> tuple[float, dict]:
+    model_out = ["--model-out", str(path.with_suffix(".model.json"))] if IDENTIFY["on"] else []
     t0 = time.perf_counter()
     p = subprocess.run(
-        [sys.executable, "-m", "drillgym.cli", "diagnose", str(path), "--json"],
+        [sys.executable, "-m", "drillgym.cli", "diagnose", str(path), "--json", *model_out],
         capture_output=True,
         text=True,
         check=True,
@@ -174,7 +184,9 @@ def main() -> None:
         help="time random combinations SEED:I,... made 60 s long ('default': six); see the module docstring",
     )
     ap.add_argument("--motor", action="store_true", help="time motor-side recordings instead (see the docstring)")
+    ap.add_argument("--identify", action="store_true", help="time `diagnose --model-out` (the identification)")
     args = ap.parse_args()
+    IDENTIFY["on"] = args.identify
     out = args.out or Path(tempfile.mkdtemp(prefix="bench_diagnose_"))
     out.mkdir(parents=True, exist_ok=True)
     print(

@@ -20,8 +20,9 @@ the candidate's own fit).  Reported per kind:
 
 * ``halved``: the share of recordings where the candidate's own fit at least halves the unexplained variance
   (the final residual's mean square in noise units²);
-* ``lag_selected``: with the motor lag hidden, the share where it is selected, by the library's selection or
-  beside the candidate (``lag_selected_by_the_selection``: by the selection alone; ``lag_selected_or_tie``: or
+* ``lag_selected``: with the motor lag hidden, the share where it is in the final model: selected by the
+  library's selection, or by the selection run again with the candidate in the model
+  (``lag_selected_by_the_selection``: by the first selection alone; ``lag_selected_or_tie``: or
   the input delay selected with a stated lag/delay tie, as ``bench_diagnosis_selection`` counts ties);
 * ``silent``: recordings whose final residual (without the candidate) is ≥ 10× the noise on a channel and that
   are reported as explained or as "the base model stands" (must be 0).
@@ -202,16 +203,16 @@ def run_row(row: dict, duration: float, rate_hz: float, work: Path) -> dict:
     text = d.text()
     c = d.candidate
     fit = c.fit if c is not None else None
-    beside = fit.beside if fit is not None else None
+    again = d.reselection
     return {
         **{k: row[k] for k in ("kind", "lag", "signal", "seed")},
         "hidden": row["effects"],
         "selected": d.selected,
-        "beside_candidate": beside.selected if beside is not None else None,
-        "beside_replaces": beside.replaces if beside is not None else None,
-        "beside_scores": beside.scores if beside is not None else None,
-        "beside_tie": beside.tie_with if beside is not None else None,
+        "reselected": again.selected if again is not None else None,
         "ties": {s.effect: s.note for s in d.ranking if s.note and s.effect in d.selected},
+        "reselection_ties": {s.effect: s.note for s in again.ranking if s.note and s.effect in again.selected}
+        if again is not None
+        else {},
         "ratio": un.ratio_to_noise,
         "worst": un.worst,
         "verdict": un.verdict,
@@ -229,11 +230,13 @@ def run_row(row: dict, duration: float, rate_hz: float, work: Path) -> dict:
 
 
 def _lag_found(r: dict) -> bool:
-    """The motor lag selected: by the library's selection, beside the candidate (``diagnosis.beside``), or fitted
-    with the candidate whose terms were found through it (``candidate_with``)."""
-    replaced = r["beside_replaces"] == "motor_lag"  # the delay fitted in its place counts instead
-    kept = ("motor_lag" in r["selected"] or "motor_lag" in r.get("candidate_with", ())) and not replaced
-    return kept or r["beside_candidate"] == "motor_lag"
+    """The motor lag in the model: fitted with the candidate whose terms were found through it
+    (``candidate_with``), else selected by the library's selection, or by the selection run again with the
+    candidate in the model (``reselected``), which replaces the first one's when it ran."""
+    if "motor_lag" in r.get("candidate_with", ()):
+        return True
+    final = r["reselected"] if r.get("reselected") is not None else r["selected"]
+    return "motor_lag" in final
 
 
 def _lag_or_tie(r: dict) -> bool:
@@ -241,11 +244,9 @@ def _lag_or_tie(r: dict) -> bool:
     apart, as the selection benchmark counts a stated tie)."""
     if _lag_found(r):
         return True
-    delay_kept = "input_delay" in r["selected"] and r["beside_replaces"] != "input_delay"
-    delay_beside = r["beside_candidate"] == "input_delay"
-    return bool(
-        (delay_beside and r.get("beside_tie") == "motor_lag") or (delay_kept and "input_delay" in (r.get("ties") or {}))
-    )
+    again = r.get("reselected") is not None
+    final, ties = (r["reselected"], r["reselection_ties"]) if again else (r["selected"], r.get("ties") or {})
+    return "input_delay" in final and "motor_lag" in ties.get("input_delay", "")
 
 
 def summary(results: list[dict]) -> dict:
@@ -301,8 +302,8 @@ def main() -> None:
             cut = "-" if r["candidate_cut"] is None else f"{r['candidate_cut']:.0%}"
             print(
                 f"{r['kind']:<15}{'+lag' if r['lag'] else '':<5}{r['signal']:<13} residual {r['worst']:9.3g}x noise "
-                f"({r['verdict']}); selected {r['selected']}; beside the candidate {r['beside_candidate']} "
-                f"(in place of {r['beside_replaces']}, tie {r['beside_tie']}); "
+                f"({r['verdict']}); selected {r['selected']}; with the candidate in, selected {r['reselected']} "
+                f"(ties {sorted(r['reselection_ties'])}); "
                 f"candidate {r['candidate_group']} cut {cut}; "
                 f"silent {r['silent']}; {r['seconds']:.0f} s",
                 flush=True,

@@ -6,14 +6,14 @@ calls it, so one recording gives one model file whichever route a user takes.
 
 1. **diagnose** (:func:`drillgym.diagnosis.diagnose`): screen, select the library's effects, check,
    report; with ``discover``, a candidate effect outside the library from the residual, kept when its
-   own fit removes at least :data:`MIN_CANDIDATE_CUT` of the unexplained variance;
-2. **select again with the candidate in the model**: a kept candidate's residual hid the library's
-   effects beside it (a lag beside a dead zone, a position friction beside a drive offset), so the whole
-   library is selected again on the model that holds the candidate;
-3. **refit everything jointly**: the base parameters the configuration excites and every effect
+   own fit removes at least :data:`~drillgym.diagnosis.reselection.MIN_CANDIDATE_CUT` of the unexplained
+   variance, and then the whole library selected again on the model that holds it, its parameters refitted
+   with the base (:mod:`drillgym.diagnosis.reselection`: its residual hid the effects beside it, a lag
+   beside a dead zone, a position friction beside a drive offset);
+2. **refit everything jointly**: the base parameters the configuration excites and every effect
    parameter fitted together, with their standard errors; where the selection took one of a motor lag
    and an input delay, the model with both is fitted too and kept when it removes clearly more;
-4. the :class:`~drillgym.model.Model`, with its provenance (the recording's content hash, the settings),
+3. the :class:`~drillgym.model.Model`, with its provenance (the recording's content hash, the settings),
    and what the final model still leaves unexplained (:class:`Identified`).
 
     >>> from drillgym import identify
@@ -45,10 +45,6 @@ TIMING_EFFECTS = ("motor_lag", "input_delay")
 BOTH_TIMING_GAIN = 0.05
 #: where the fit with both starts: this share of the one's time as the lag, the rest as the delay
 LAG_SHARE = 0.7
-#: share of the unexplained variance a candidate's own fit must remove to enter the model (the bar the motor
-#: encoder's reading meets to be kept, :data:`drillgym.diagnosis.encoder_reading.MIN_READING_CUT`): a candidate
-#: that removes less earns no place in the model a user builds on
-MIN_CANDIDATE_CUT = 0.3
 
 
 @dataclass(frozen=True)
@@ -194,6 +190,7 @@ def identify(recording: TimeSeries | str | Path, options: IdentifyOptions | None
     from dataclasses import fields, replace
 
     from .diagnosis import DiagnosisOptions, diagnose
+    from .diagnosis.reselection import kept_candidate
 
     unknown = sorted(set(settings) - {f.name for f in fields(IdentifyOptions)})
     if unknown:
@@ -216,24 +213,10 @@ def identify(recording: TimeSeries | str | Path, options: IdentifyOptions | None
     )
     d = diagnose(ts, start.params, o.config, options=base)
     _log("diagnosis", start_time)
-    specs, values, params = _selected(d)
-    reselection = None
-    candidate = _kept_candidate(d)
+    reselection = d.reselection  # the library selected again with a kept candidate in the model
+    kept = kept_candidate(d) if reselection is not None else None
+    specs, values, params = _selected(reselection or d)
     notes: list[str] = []
-    if candidate is not None:  # the whole library selected again, on the model that holds the candidate
-        spec, cand_values, ahead = candidate
-        held = list(start.composition.effects) + [a for a in ahead if a not in start.names]
-        values = {**dict(start.values), **cand_values}
-        held_comp, held_values = _compose_specs([*held, spec], values)
-        reselection = diagnose(
-            ts,
-            params,
-            o.config,
-            options=replace(base, base_effects=list(held_comp.effects), effect_params=held_values, discover=False),
-        )
-        specs, reselected, params = _selected(reselection)
-        _log("reselection", start_time)
-        values = {**values, **reselected}
     fit = _joint_fit(ts, d.config, params, specs, values, o, notes)
     comp, fitted, res = fit
     _log("joint fit", start_time)
@@ -249,7 +232,7 @@ def identify(recording: TimeSeries | str | Path, options: IdentifyOptions | None
     ratios = {c: float(res.rms_after[c] / n) for c, n in (res.noise or {}).items() if c in res.rms_after and n > 0}
     names = [e.name for e in comp.effects]
     selected = tuple(n for n in names if _is_library(comp, n))
-    cand_spec = candidate[0] if candidate is not None else None
+    cand_spec = kept.spec if kept is not None else None
     warnings = tuple(
         list(d.warnings) + (list(reselection.warnings) if reselection is not None else []) + list(res.warnings) + notes
     )
@@ -295,24 +278,6 @@ def _selected(d: Any) -> tuple[list[str], dict[str, float], RigParams]:
     specs = [r["spec"] for r in records]
     values = {k: v for r in records for k, v in r["values"].items()}
     return specs, values, params
-
-
-def _kept_candidate(d: Any) -> tuple[str, dict[str, float], list[str]] | None:
-    """(spec, fitted values, library effects ahead of it) of the candidate the diagnosis kept, or None."""
-    c = d.candidate
-    if c is None or c.fit is None or not c.effect_file or c.fit.variance_cut < MIN_CANDIDATE_CUT:
-        return None
-    ahead = list(c.fit.with_library)
-    values = {c.fit.file_name(k): v for k, v in c.fit.values.items()}
-    return c.effect_file, values, ahead
-
-
-def _compose_specs(specs: list[str], values: dict[str, float]):
-    from .effects import compose
-
-    comp, _ = compose(specs)
-    names = {p.name for e in comp.effects for p in e.parameters}
-    return compose(comp, {k: v for k, v in values.items() if k in names})
 
 
 def _is_library(comp: Any, name: str) -> bool:

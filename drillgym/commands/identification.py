@@ -332,14 +332,12 @@ def diagnose_cmd(
         if d.candidate is not None:
             c = d.candidate
             typer.echo(c.found_line())
-            beside = c.fit.beside if c.fit is not None else None
             if c.fit is not None:
                 typer.echo(c.fit.line())
-            if beside is not None:
-                typer.echo(beside.line())
-            if c.fit is not None and c.fit.recheck is not None:
-                typer.echo(c.fit.recheck.line())
-            lead = f"--add-effect {beside.selected} " if beside is not None and beside.selected else ""
+            for line in d.reselection_lines():
+                typer.echo(line)
+            beside = d.reselection.selected if d.reselection is not None else []
+            lead = "".join(f"--add-effect {e} " for e in beside)
             typer.echo(
                 f"  written to {c.effect_file.rsplit(':', 1)[0]}; fit it: drillgym identify {data} "
                 f"{lead}--add-effect {c.effect_file} --out p.json"

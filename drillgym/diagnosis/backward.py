@@ -222,6 +222,8 @@ def _moved(ctx, full) -> dict[str, BaseChange]:
     """The freed base parameters that moved by at least MOVED_PCT and three standard errors."""
     moved: dict[str, BaseChange] = {}
     for n in ctx.base_names:
+        if ctx.comp.owner(n) is not None:  # a model effect's parameter refitted with the base
+            continue
         i = ctx.comp.param_index(n)
         nom, val = float(ctx.nominal[i]), float(ctx.vec[i])
         sd = full.std.get(n, float("nan"))

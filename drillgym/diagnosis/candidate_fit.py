@@ -43,7 +43,7 @@ MAX_NFEV = 20
 
 @dataclass
 class CandidateFitState:
-    """Where the candidate's fit ended, for fits that start from it (:mod:`.beside`).
+    """Where the candidate's fit ended, for fits that start from it (the lag it was found through, judged).
 
     Attributes
     ----------
@@ -114,15 +114,11 @@ class CandidateFit:
         Where the fit ended (not in the JSON).
     file_names : dict of str to str
         A fitted parameter's name -> its name in the candidate's file.
-    beside : BesideCandidate or None
-        The library's signal-path effects fitted beside the candidate (:mod:`.beside`; None: not tried).
     base_fitted : dict of str to float
         The base parameters fitted with the candidate -> their change from nominal (%); empty: as diagnosed.
     with_library : tuple of str
         The library's effects fitted with it, ahead of it on the signal path (``motor_lag`` when its terms were
         found through a lag); their parameters are among ``values``.
-    recheck : Recheck or None
-        The selected effects scored again with it in the model (:mod:`.recheck`; None: none to recheck).
     """
 
     values: dict[str, float]
@@ -131,10 +127,8 @@ class CandidateFit:
     after: Unexplained
     state: CandidateFitState | None = field(default=None, repr=False, compare=False)
     file_names: dict[str, str] = field(default_factory=dict)
-    beside: Any = None
     base_fitted: dict[str, float] = field(default_factory=dict)
     with_library: tuple[str, ...] = ()
-    recheck: Any = None
 
     def file_name(self, parameter: str) -> str:
         """The name a fitted parameter has in the candidate's file (its own name when it has none there)."""
@@ -147,8 +141,8 @@ class CandidateFit:
         return 1.0 - self.after.ratio_to_noise**2 / b if b > 0 else 0.0
 
     def to_json(self) -> dict:
-        """``{values, base_held, ratio_before, ratio_after, variance_cut, verdict_after, channels_after, beside,
-        base_fitted_change_pct, with_library_effects, selection_rechecked}``."""
+        """``{values, base_held, ratio_before, ratio_after, variance_cut, verdict_after, channels_after,
+        base_fitted_change_pct, with_library_effects}``."""
         return {
             "values": self.values,
             "base_held": self.base_held,
@@ -157,10 +151,8 @@ class CandidateFit:
             "variance_cut": round(self.variance_cut, 4),
             "verdict_after": self.after.verdict,
             "channels_after": self.after.channels,
-            "beside": self.beside.to_json() if self.beside is not None else None,
             "base_fitted_change_pct": {k: round(v, 3) for k, v in self.base_fitted.items()},
             "with_library_effects": list(self.with_library),
-            "selection_rechecked": self.recheck.to_json() if self.recheck is not None else None,
         }
 
     def line(self) -> str:

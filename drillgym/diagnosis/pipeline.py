@@ -14,9 +14,8 @@
    :func:`.candidate_fit.choose_candidate` — the candidate (and the motor side's best beside it, and the motor
    encoder's reading, :mod:`.encoder_reading`) added to the final model and fitted; the one whose fit removes
    most is kept, its residual reported;
-   :func:`.beside.beside_candidate` — the library's signal-path effects (a motor lag, an input delay) the
-   selection did not take, fitted again with the candidate in the model: a motor-side residual hides them;
-   :func:`.recheck.recheck_selection` — the effects the selection took, scored again with the candidate in.
+6. :mod:`.reselection` — with a candidate kept in the model, the whole diagnosis again on the model that holds
+   it (its parameters refitted with the base): the candidate's residual hid the library's effects beside it.
 """
 
 from __future__ import annotations
@@ -31,7 +30,6 @@ from ..identification.blas import one_blas_thread
 from ..identification.experiment import Experiment, prepare_experiment
 from ..io import TimeSeries
 from ..params import RigParams
-from .beside import beside_candidate
 from .candidate_fit import choose_candidate
 from .checks import check
 from .discovery import discover
@@ -40,7 +38,7 @@ from .information import require_information
 from .input_order import input_order
 from .orders import select
 from .ranking import report
-from .recheck import recheck_selection
+from .reselection import kept_candidate, reselection_inputs
 from .results import Diagnosis
 from .screening import DiagnosisOptions, screen
 from .unexplained import unexplained
@@ -120,9 +118,10 @@ def diagnose(
                 diagnosis.candidate = choose_candidate(screening, diagnosis, noise, opts.candidate_out, reading)
                 if diagnosis.candidate is not None and diagnosis.candidate is reading:
                     diagnosis.advice = []
-                if diagnosis.candidate is not None and diagnosis.candidate.fit is not None:
-                    diagnosis.candidate.fit.beside = beside_candidate(screening, diagnosis, noise)
-                    diagnosis.candidate.fit.recheck = recheck_selection(screening, diagnosis)
+        kept = kept_candidate(diagnosis)
+        if kept is not None:
+            again, again_options = reselection_inputs(diagnosis, kept, opts)
+            diagnosis.reselection = diagnose(data, again, config, options=again_options)
     return diagnosis
 
 

@@ -302,6 +302,9 @@ class Diagnosis:
     unexplained : Unexplained or None
         The final model's residual against the measurement noise, where it lives and what it depends on
         (None: not measured).  "The base model stands" is said only when it is at the noise.
+    reselection : Diagnosis or None
+        The diagnosis run again on the model that holds a kept candidate (:mod:`.reselection`; None: no
+        candidate kept).
     """
 
     ranking: list[EffectScore]
@@ -331,6 +334,7 @@ class Diagnosis:
     unexplained: Unexplained | None = None
     input_order: Any = None
     at_bounds: list[str] = field(default_factory=list)
+    reselection: Diagnosis | None = None
 
     @property
     def best(self) -> EffectScore | None:
@@ -402,6 +406,7 @@ class Diagnosis:
             "signal_path": self._signal_path(),
             "unexplained": self.unexplained.to_json() if self.unexplained is not None else None,
             "input_order": self.input_order.to_json() if self.input_order is not None else None,
+            "reselection": self.reselection.to_json() if self.reselection is not None else None,
         }
 
     def _signal_path(self) -> list[str]:
@@ -439,6 +444,17 @@ class Diagnosis:
             lines.append(f"nothing outside the library explains {rest}; experiments that would show more:")
             lines += [f"  - {a_}" for a_ in self.advice]
         return "\n".join(lines)
+
+    def reselection_lines(self) -> list[str]:
+        """The library selected again with the kept candidate in the model, in words (empty: none kept)."""
+        r = self.reselection
+        if r is None:
+            return []
+        found = ", ".join(r.selected) or "no library effect"
+        out = [f"with the candidate in the model ({r.model}, refitted with the base), the library selected again: "]
+        out[0] += found
+        out += ["  " + line for line in r.text().splitlines()]
+        return out
 
     def _header(self) -> str:
         after = f"; after {self.rmse_after:.3g}" if self.rmse_after is not None else ""

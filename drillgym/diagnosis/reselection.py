@@ -1,0 +1,113 @@
+"""The whole library selected again with a discovered candidate in the model.
+
+A candidate effect outside the library (a dead zone, a voltage offset, cogging) leaves, before it is found, a
+residual of up to thousands of noise units.  Beside it the library's effects change that residual by a small
+fraction, so the first selection, which scores them against the model *without* the candidate, takes none of
+them, or one that imitates part of the candidate (a friction drift for an offset).  Once the candidate's own
+fit removes at least :data:`MIN_CANDIDATE_CUT` of the unexplained variance, the diagnosis runs again on the
+model that holds it: every library effect screened, selected, checked and reported by the same rules, with the
+candidate's parameters freed wherever the base parameters are (its first fit bent its terms to stand in for
+what was missing beside it: a dead zone's width fitted 0.66 V for 0.36 V beside a position friction, which the
+selection then found once both were fitted together).
+
+One mechanism for every kind: a lag or a delay beside a motor-side candidate, a position friction or a string
+damping beside a dead zone, an effect the first selection took that no longer counts (it is simply not selected
+again).  The pipeline stores the result as :attr:`~.results.Diagnosis.reselection`; :func:`drillgym.identify`
+builds its model from it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+from ..params import RigParams
+from .results import Diagnosis
+from .screening import DiagnosisOptions
+
+__all__ = ["MIN_CANDIDATE_CUT", "KeptCandidate", "kept_candidate", "reselection_inputs"]
+
+#: share of the unexplained variance a candidate's own fit must remove to enter the model (the bar the motor
+#: encoder's reading meets to be kept, :data:`.encoder_reading.MIN_READING_CUT`): a candidate that removes
+#: less earns no place in the model a user builds on
+MIN_CANDIDATE_CUT = 0.3
+
+
+@dataclass(frozen=True)
+class KeptCandidate:
+    """A candidate that entered the model.
+
+    Attributes
+    ----------
+    spec : str
+        Its effect file spec (``path.py:NAME``).
+    values : dict of str to float
+        Its fitted parameters (their names in the file), and those of the library effects fitted with it.
+    ahead : tuple of str
+        The library effects it was fitted with, ahead of it on the signal path (a lag its terms were found
+        through).
+    """
+
+    spec: str
+    values: dict[str, float]
+    ahead: tuple[str, ...]
+
+
+def kept_candidate(diagnosis: Diagnosis) -> KeptCandidate | None:
+    """The diagnosis' candidate when it enters the model, else None.
+
+    Parameters
+    ----------
+    diagnosis : Diagnosis
+        A diagnosis with discovery.
+
+    Returns
+    -------
+    KeptCandidate or None
+        The candidate, when it has an effect file and its fit removes at least :data:`MIN_CANDIDATE_CUT`.
+    """
+    c = diagnosis.candidate
+    if c is None or c.fit is None or not c.effect_file or c.fit.variance_cut < MIN_CANDIDATE_CUT:
+        return None
+    values = {c.fit.file_name(k): v for k, v in c.fit.values.items()}
+    return KeptCandidate(c.effect_file, values, tuple(c.fit.with_library))
+
+
+def reselection_inputs(
+    diagnosis: Diagnosis, kept: KeptCandidate, options: DiagnosisOptions
+) -> tuple[RigParams, DiagnosisOptions]:
+    """The base parameters and the options of the diagnosis run again with the candidate in the model.
+
+    Parameters
+    ----------
+    diagnosis : Diagnosis
+        The first diagnosis (its re-identified base parameters are the start).
+    kept : KeptCandidate
+        The candidate.
+    options : DiagnosisOptions
+        The first diagnosis' options.
+
+    Returns
+    -------
+    RigParams
+        The base parameters to start from.
+    DiagnosisOptions
+        The model's own effects, the library effects fitted with the candidate, and the candidate, held in
+        the model with their values and refitted with the base parameters; no discovery.
+    """
+    from ..effects import compose
+
+    first, values0 = compose(options.base_effects, options.effect_params)
+    held = [*first.effects, *(a for a in kept.ahead if a not in first.names), kept.spec]
+    comp, _ = compose(held)
+    names = set(comp.effect_param_names)
+    values: dict[str, Any] = {k: v for k, v in {**values0, **kept.values}.items() if k in names}
+    params = diagnosis.params if diagnosis.params is not None else RigParams()
+    again = replace(
+        options,
+        base_effects=list(comp.effects),
+        effect_params=values,
+        discover=False,
+        refit_model_effects=True,
+    )
+    return params, again
