@@ -8,7 +8,7 @@ from drillgym import RigParams
 from drillgym.diagnosis import DiagnosisOptions
 from drillgym.diagnosis.reselection import MIN_CANDIDATE_CUT, kept_candidate, reselection_inputs
 
-CANDIDATE = '''
+CANDIDATE = """
 from drillgym.effects import Input, Parameter
 
 
@@ -19,7 +19,7 @@ class CandidateMotorVoltage(Input):
 
     def voltage(u, candidate_motor_voltage_c1):
         return u + candidate_motor_voltage_c1
-'''
+"""
 
 
 def _diagnosis(cut: float, effect_file: str | None, with_library=()):
