@@ -41,7 +41,6 @@ True
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import shutil
@@ -56,16 +55,26 @@ import numpy as np
 
 from .effects import Composition, EffectError, compose
 from .effects.base import Effect
-from .errors import InputError, MissingFileError
+from .errors import InputError
 from .io.jsonfile import write_json
+from .model_files import (
+    FORMAT,
+    VERSION,
+    CodeFile,
+    _code_files,
+    _effect_records,
+    _read,
+    _resolve_spec,
+    _sha256,
+    _std,
+    code_files,
+)
 from .params import ParameterError, RigParams
 
 __all__ = ["Model", "Provenance", "CodeFile", "code_files", "as_model", "UntrustedCodeError", "MODEL_SUFFIXES"]
 
 #: the suffixes of a model file
 MODEL_SUFFIXES = (".json", ".yaml", ".yml")
-#: the format tag and version written by :meth:`Model.save`
-FORMAT, VERSION = "drillgym-model", 2
 
 
 class UntrustedCodeError(InputError):
@@ -108,49 +117,6 @@ class Provenance:
         if unknown:
             raise ParameterError(f"{where}: 'provenance' has unknown key(s): {', '.join(sorted(unknown))}")
         return cls(**{k: (dict(v) if k == "settings" else v) for k, v in data.items()})
-
-
-@dataclass(frozen=True)
-class CodeFile:
-    """An effect file a model file names (listed without importing it).
-
-    Attributes
-    ----------
-    effect : str
-        The effect's name.
-    path : pathlib.Path
-        Where the file is (resolved).
-    inside : bool
-        True when the file lies in the model file's folder (or below it).
-    recorded_sha256 : str or None
-        The hash the model file records (None: none recorded, an older file).
-    matches : bool
-        True when the file exists and its content has the recorded hash.
-    """
-
-    effect: str
-    path: Path
-    inside: bool
-    recorded_sha256: str | None
-    matches: bool
-
-    @property
-    def trusted(self) -> bool:
-        """True when loading may import it without the user's word: inside the folder and unchanged."""
-        return self.inside and self.matches
-
-    def why_untrusted(self) -> str:
-        if not self.path.is_file():
-            return "not found"
-        if not self.inside:
-            return "outside the model's folder"
-        if self.recorded_sha256 is None:
-            return "no hash recorded in the model file"
-        return "changed since the model was written (its SHA-256 differs)"
-
-
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def _frozen(mapping: Mapping[str, float] | None) -> Mapping[str, float]:
@@ -387,34 +353,71 @@ class Model:
             A file that cannot be used (the message names the file).
         """
         path = Path(path)
-        data = _read(path)
+        return cls.from_mapping(_read(path), path, trust=trust)
+
+    @classmethod
+    def from_mapping(
+        cls, data: Mapping[str, Any], path: str | Path, *, trust: bool = False, where: str = "", hashed: bool = True
+    ) -> Model:
+        """A model from the mapping a model file holds (``params``, ``std``, ``effects``, ``provenance``), e.g. one
+        entry of a file that holds several (the plants of ``evaluate --plants-file``).
+
+        Parameters
+        ----------
+        data : mapping
+            The model's keys, as in a model file.
+        path : str or path
+            The file it was read from: effect files resolve relative to its folder, and must lie in it (the trust
+            rule of :meth:`load`).
+        trust : bool, optional
+            As :meth:`load`.
+        where : str, optional
+            How errors name the mapping (default ``path``), e.g. ``"plants.yaml: plant 'worn' (#1)"``.
+        hashed : bool, optional
+            True (default): an effect file must carry its recorded SHA-256 to be trusted (files :meth:`save`
+            wrote); False: a file written by hand, an effect file in its folder is trusted unless a recorded
+            hash differs.
+
+        Returns
+        -------
+        Model
+
+        Raises
+        ------
+        UntrustedCodeError, ParameterError
+            As :meth:`load`, the messages led by ``where``.
+        """
+        path, where = Path(path), where or str(path)
+        records = _effect_records(data, where)  # malformed records: named by ``where`` before the files are listed
         if not trust:
-            bad = [c for c in _code_files(data, path) if not c.trusted]
+            ok = (lambda c: c.trusted) if hashed else (lambda c: c.inside and (c.recorded_sha256 is None or c.matches))
+            bad = [c for c in _code_files(data, path) if not ok(c)]
             if bad:
                 c = bad[0]
+                why = "outside the file's folder" if not c.inside and not hashed else c.why_untrusted()
                 raise UntrustedCodeError(
-                    f"{path}: effect {c.effect!r} is code in {c.path} ({c.why_untrusted()}); loading the model "
-                    "would run it: pass trust=True (--trust) if you trust that file"
+                    f"{where}: effect {c.effect!r} is code in {c.path} ({why}); loading it would run it: pass "
+                    "trust=True (--trust) if you trust that file"
                 )
-        params = RigParams.from_dict(data.get("params", {}), source=str(path), partial=True)
-        std = _std(data.get("std", {}), path, "'std'")
+        params = RigParams.from_dict(data.get("params", {}), source=where, partial=True)
+        std = _std(data.get("std", {}), where, "'std'")
         specs: list[str] = []
         values: dict[str, float] = {}
-        for k, rec in enumerate(_effect_records(data, path)):
+        for k, rec in enumerate(records):
             specs.append(_resolve_spec(rec, path))
             vals = rec.get("values", {})
             if not isinstance(vals, Mapping):
-                raise ParameterError(f"{path}: effect record {k}: 'values' must map parameter names to numbers")
+                raise ParameterError(f"{where}: effect record {k}: 'values' must map parameter names to numbers")
             for name, v in vals.items():
                 if isinstance(v, bool) or not isinstance(v, (int, float)):
-                    raise ParameterError(f"{path}: effect record {k}: {name!r} must be a number, got {v!r}")
+                    raise ParameterError(f"{where}: effect record {k}: {name!r} must be a number, got {v!r}")
                 values[str(name)] = float(v)
-            std.update(_std(rec.get("std", {}), path, f"effect record {k}: 'std'"))
-        prov = Provenance.from_json(data["provenance"], str(path)) if "provenance" in data else Provenance()
+            std.update(_std(rec.get("std", {}), where, f"effect record {k}: 'std'"))
+        prov = Provenance.from_json(data["provenance"], where) if "provenance" in data else Provenance()
         try:
             return cls(params, tuple(specs), values, std, prov)
         except (EffectError, ParameterError) as exc:
-            raise ParameterError(f"{path}: {exc}") from None
+            raise ParameterError(f"{where}: {exc}") from None
 
 
 def _library_effect(cls: type[Effect]) -> Any:
@@ -435,117 +438,6 @@ def _place_in(file: Path, folder: Path) -> Path:
     if not target.exists():
         shutil.copy2(file, target)
     return target.relative_to(folder_r)
-
-
-def _read(path: Path) -> Mapping[str, Any]:
-    if not path.exists():
-        raise MissingFileError(f"{path}: model file not found")
-    if path.is_dir():
-        raise ParameterError(f"{path}: is a folder, not a model file")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ParameterError(f"{path}: cannot read the model file ({exc.strerror})") from None
-    except UnicodeDecodeError:
-        raise ParameterError(f"{path}: not a model file (not UTF-8 text)") from None
-    try:
-        if path.suffix.lower() in (".yaml", ".yml"):
-            import yaml
-
-            data = yaml.safe_load(text)
-        else:
-            data = json.loads(text)
-    except Exception as exc:  # noqa: BLE001 - any parse error, one line with the file name
-        raise ParameterError(f"{path}: not valid {path.suffix.lstrip('.') or 'JSON'}: {exc}") from None
-    if not isinstance(data, Mapping):
-        raise ParameterError(f"{path}: a model file holds a mapping (params, effects), got {type(data).__name__}")
-    if "format" in data and data["format"] != FORMAT:
-        raise ParameterError(f"{path}: 'format' is {data['format']!r}, not {FORMAT!r}")
-    if "params" not in data and "effects" not in data and "std" not in data:
-        data = {"params": data}  # a file of base parameters only: a model without effects
-    known = {"format", "version", "params", "std", "effects", "provenance", "warnings"}
-    unknown = set(data) - known
-    if unknown:
-        raise ParameterError(f"{path}: unknown key(s) in a model file: {', '.join(sorted(map(str, unknown)))}")
-    return data
-
-
-def _effect_records(data: Mapping[str, Any], path: Path) -> list[Mapping[str, Any]]:
-    effects = data.get("effects", [])
-    if not isinstance(effects, list):
-        raise ParameterError(f"{path}: 'effects' must be a list of {{spec, values}} records")
-    for k, rec in enumerate(effects):
-        if not isinstance(rec, Mapping) or not isinstance(rec.get("spec", rec.get("name")), str):
-            raise ParameterError(f"{path}: effect record {k} needs a 'spec' (name or file.py:NAME)")
-    return effects
-
-
-def _record_file(rec: Mapping[str, Any], where: Path) -> Path | None:
-    """The effect file a record names (resolved), or None for a library effect."""
-    spec = rec.get("spec") or rec["name"]
-    if ".py:" not in spec:
-        return None
-    fpath = Path(spec.rpartition(":")[0])
-    cands = [fpath] if fpath.is_absolute() else [where.parent / fpath]
-    if isinstance(rec.get("file"), str):
-        f = Path(rec["file"])
-        cands.append(f if f.is_absolute() else where.parent / f)
-    for c in cands:
-        if c.is_file():
-            return c.resolve()
-    return cands[0].resolve()
-
-
-def _resolve_spec(rec: Mapping[str, Any], where: Path) -> str:
-    spec = rec.get("spec") or rec["name"]
-    file = _record_file(rec, where)
-    if file is None:
-        return spec
-    return f"{file}:{spec.rpartition(':')[2]}"
-
-
-def _code_files(data: Mapping[str, Any], path: Path) -> list[CodeFile]:
-    folder = path.parent.resolve()
-    out = []
-    for rec in _effect_records(data, path):
-        f = _record_file(rec, path)
-        if f is None:
-            continue
-        recorded = rec.get("sha256") if isinstance(rec.get("sha256"), str) else None
-        matches = f.is_file() and recorded is not None and _sha256(f) == recorded
-        out.append(CodeFile(str(rec.get("name") or rec["spec"]), f, f.is_relative_to(folder), recorded, matches))
-    return out
-
-
-def code_files(path: str | Path) -> list[CodeFile]:
-    """The effect files a model file would import, without importing them.
-
-    Parameters
-    ----------
-    path : str or path
-        The model file.
-
-    Returns
-    -------
-    list of CodeFile
-        One per file effect: where it is, whether it lies in the model's folder, whether its hash matches.
-    """
-    path = Path(path)
-    return _code_files(_read(path), path)
-
-
-def _std(raw: Any, path: Path, what: str) -> dict[str, float]:
-    """Standard errors ``name -> number`` (null: unknown, left out)."""
-    if not isinstance(raw, Mapping):
-        raise ParameterError(f"{path}: {what} must map parameter names to standard errors")
-    out = {}
-    for k, v in raw.items():
-        if v is None:
-            continue
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0:
-            raise ParameterError(f"{path}: {what}: the standard error of {k!r} must be a number >= 0, got {v!r}")
-        out[str(k)] = float(v)
-    return out
 
 
 def as_model(model: Any, *, trust: bool = False, who: str = "model") -> Model:

@@ -1,0 +1,176 @@
+"""Model files read without building the model: their records, their effect files and the code those hold.
+
+The parts of :meth:`drillgym.Model.load` that read a file (or one entry of a file that holds several, as the
+plants of ``evaluate --plants-file``) and list the effect files it names, without importing them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from .errors import MissingFileError
+from .params import ParameterError
+
+__all__ = ["CodeFile", "code_files", "FORMAT", "VERSION"]
+
+#: the format tag and version written by :meth:`drillgym.Model.save`
+FORMAT, VERSION = "drillgym-model", 2
+
+
+@dataclass(frozen=True)
+class CodeFile:
+    """An effect file a model file names (listed without importing it).
+
+    Attributes
+    ----------
+    effect : str
+        The effect's name.
+    path : pathlib.Path
+        Where the file is (resolved).
+    inside : bool
+        True when the file lies in the model file's folder (or below it).
+    recorded_sha256 : str or None
+        The hash the model file records (None: none recorded, an older file).
+    matches : bool
+        True when the file exists and its content has the recorded hash.
+    """
+
+    effect: str
+    path: Path
+    inside: bool
+    recorded_sha256: str | None
+    matches: bool
+
+    @property
+    def trusted(self) -> bool:
+        """True when loading may import it without the user's word: inside the folder and unchanged."""
+        return self.inside and self.matches
+
+    def why_untrusted(self) -> str:
+        if not self.path.is_file():
+            return "not found"
+        if not self.inside:
+            return "outside the model's folder"
+        if self.recorded_sha256 is None:
+            return "no hash recorded in the model file"
+        return "changed since the model was written (its SHA-256 differs)"
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _read(path: Path) -> Mapping[str, Any]:
+    if not path.exists():
+        raise MissingFileError(f"{path}: model file not found")
+    if path.is_dir():
+        raise ParameterError(f"{path}: is a folder, not a model file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ParameterError(f"{path}: cannot read the model file ({exc.strerror})") from None
+    except UnicodeDecodeError:
+        raise ParameterError(f"{path}: not a model file (not UTF-8 text)") from None
+    try:
+        if path.suffix.lower() in (".yaml", ".yml"):
+            import yaml
+
+            data = yaml.safe_load(text)
+        else:
+            data = json.loads(text)
+    except Exception as exc:  # noqa: BLE001 - any parse error, one line with the file name
+        raise ParameterError(f"{path}: not valid {path.suffix.lstrip('.') or 'JSON'}: {exc}") from None
+    if not isinstance(data, Mapping):
+        raise ParameterError(f"{path}: a model file holds a mapping (params, effects), got {type(data).__name__}")
+    if "format" in data and data["format"] != FORMAT:
+        raise ParameterError(f"{path}: 'format' is {data['format']!r}, not {FORMAT!r}")
+    if "params" not in data and "effects" not in data and "std" not in data:
+        data = {"params": data}  # a file of base parameters only: a model without effects
+    known = {"format", "version", "params", "std", "effects", "provenance", "warnings"}
+    unknown = set(data) - known
+    if unknown:
+        raise ParameterError(f"{path}: unknown key(s) in a model file: {', '.join(sorted(map(str, unknown)))}")
+    return data
+
+
+def _effect_records(data: Mapping[str, Any], path: str | Path) -> list[Mapping[str, Any]]:
+    effects = data.get("effects", [])
+    if not isinstance(effects, list):
+        raise ParameterError(f"{path}: 'effects' must be a list of {{spec, values}} records")
+    for k, rec in enumerate(effects):
+        if not isinstance(rec, Mapping) or not isinstance(rec.get("spec", rec.get("name")), str):
+            raise ParameterError(f"{path}: effect record {k} needs a 'spec' (name or file.py:NAME)")
+    return effects
+
+
+def _record_file(rec: Mapping[str, Any], where: Path) -> Path | None:
+    """The effect file a record names (resolved), or None for a library effect."""
+    spec = rec.get("spec") or rec["name"]
+    if ".py:" not in spec:
+        return None
+    fpath = Path(spec.rpartition(":")[0])
+    cands = [fpath] if fpath.is_absolute() else [where.parent / fpath]
+    if isinstance(rec.get("file"), str):
+        f = Path(rec["file"])
+        cands.append(f if f.is_absolute() else where.parent / f)
+    for c in cands:
+        if c.is_file():
+            return c.resolve()
+    return cands[0].resolve()
+
+
+def _resolve_spec(rec: Mapping[str, Any], where: Path) -> str:
+    spec = rec.get("spec") or rec["name"]
+    file = _record_file(rec, where)
+    if file is None:
+        return spec
+    return f"{file}:{spec.rpartition(':')[2]}"
+
+
+def _code_files(data: Mapping[str, Any], path: Path) -> list[CodeFile]:
+    folder = path.parent.resolve()
+    out = []
+    for rec in _effect_records(data, path):
+        f = _record_file(rec, path)
+        if f is None:
+            continue
+        recorded = rec.get("sha256") if isinstance(rec.get("sha256"), str) else None
+        matches = f.is_file() and recorded is not None and _sha256(f) == recorded
+        out.append(CodeFile(str(rec.get("name") or rec["spec"]), f, f.is_relative_to(folder), recorded, matches))
+    return out
+
+
+def code_files(path: str | Path) -> list[CodeFile]:
+    """The effect files a model file would import, without importing them.
+
+    Parameters
+    ----------
+    path : str or path
+        The model file.
+
+    Returns
+    -------
+    list of CodeFile
+        One per file effect: where it is, whether it lies in the model's folder, whether its hash matches.
+    """
+    path = Path(path)
+    return _code_files(_read(path), path)
+
+
+def _std(raw: Any, path: str | Path, what: str) -> dict[str, float]:
+    """Standard errors ``name -> number`` (null: unknown, left out)."""
+    if not isinstance(raw, Mapping):
+        raise ParameterError(f"{path}: {what} must map parameter names to standard errors")
+    out = {}
+    for k, v in raw.items():
+        if v is None:
+            continue
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0:
+            raise ParameterError(f"{path}: {what}: the standard error of {k!r} must be a number >= 0, got {v!r}")
+        out[str(k)] = float(v)
+    return out
