@@ -42,6 +42,9 @@ def register(app: typer.Typer) -> None:
     @requires("--identify", "--scenarios", when=_has_plants, what="--scenarios plants", why="it identifies each plant")
     @requires("--uncertainty", "--scenarios", when=_has_plants, what="--scenarios plants")
     @requires("--plants", "--scenarios", when=_has_plants, what="--scenarios plants")
+    @requires("--plants-file", "--scenarios", when=_has_plants, what="--scenarios plants")
+    @excludes("--plants-file", "--plants", why="the file lists the plants")
+    @excludes("--plants-file", "--uncertainty", why="the file lists the plants; nothing is drawn")
     @excludes("--model", "--identify", why="--identify builds the controllers on each plant's identified model")
     def evaluate_cmd(
         config: str = typer.Option("torsional,coupled", "--config", help="configuration(s), comma-separated"),
@@ -58,9 +61,18 @@ def register(app: typer.Typer) -> None:
             "rest",
             "--scenarios",
             help="comma-separated: rest, cycle, friction-20, friction+20, noisy, plants "
-            "(a population of plants drawn from --uncertainty)",
+            "(a population of plants drawn from --uncertainty, or listed in --plants-file)",
         ),
-        plants: int = typer.Option(20, "--plants", help="number of plants of the 'plants' scenario"),
+        plants: int | None = typer.Option(
+            None, "--plants", help="number of plants the 'plants' scenario draws from --uncertainty; default 20"
+        ),
+        plants_file: Path = typer.Option(
+            None,
+            "--plants-file",
+            help="plants file (YAML) of the 'plants' scenario: the plants you list (base parameters, effects and "
+            "their values, encoder, name) instead of drawn ones; effect files outside its folder need --trust; "
+            "see docs/controllers.md",
+        ),
         seed: int = typer.Option(0, "--seed", help="seed of the plant population (and of the measurement noise)"),
         uncertainty: Path = typer.Option(
             None,
@@ -131,7 +143,8 @@ def register(app: typer.Typer) -> None:
             parsed = [parse_configuration(c) for c in cfgs]
         options = {"controllers": "--controllers", "configs": "--config", "targets": "--targets"}
         options.update({k: "--" + k for k in ("duration", "window", "plants", "seed", "workers")})
-        check_evaluation_options(names, cfgs, tg, duration, window, plants, seed, workers, names=options)
+        n_drawn = 20 if plants is None else plants
+        check_evaluation_options(names, cfgs, tg, duration, window, n_drawn, seed, workers, names=options)
         with option("--scenarios"):
             scen = parse_scenarios(scenarios)
         if ray is not None:
@@ -148,6 +161,14 @@ def register(app: typer.Typer) -> None:
             with option("--uncertainty"):
                 uncertainty = load_uncertainty(uncertainty)
         base, comp, values = plant_from_cli(params, add_effect, effect_param, trust)
+        plant_set = None
+        if plants_file is not None:  # with --scenarios plants, without --plants/--uncertainty (declared above)
+            from controllers.evaluation.plants_file import load_plants
+
+            with option("--plants-file"):
+                plant_set = load_plants(plants_file, trust=trust, params=base if params else None)
+                for c in parsed:
+                    plant_set.refuse_not_acting(c.label)
         ctrl_model = None
         if model is not None:
             from controllers.evaluation.harness import build_controller
@@ -184,6 +205,7 @@ def register(app: typer.Typer) -> None:
                 executor=ex,
                 model=ctrl_model,
                 identify=ident,
+                plants_file=plant_set,
             )
         for w in caught:
             typer.echo(f"warning: {w.message}", err=True)

@@ -225,14 +225,14 @@ def test_an_average_refuses_one_network_twice(tmp_path):
 
 def test_an_error_on_one_plant_names_it(monkeypatch):
     """A batch of plants that fails is run plant by plant: the one that fails names itself."""
-    from controllers.evaluation import harness
+    from controllers.evaluation import harness, population_jobs
 
     def diverging(controller, config, scenario, targets, base, pop, duration, window, seed, plants, model):
         if 2 in plants:
             raise SimulationError("the run diverged at t = 0.1 s")
         return []
 
-    monkeypatch.setattr(harness, "_run_plants", diverging)
+    monkeypatch.setattr(population_jobs, "_run_plants", diverging)
     with pytest.raises(SimulationError) as e:
         harness.evaluate(["baseline"], ["torsional"], ["plants"], [2.0], duration=0.2, window=0.1, plants=3,
                          workers=1, progress=False)  # fmt: skip
@@ -261,7 +261,7 @@ def test_an_error_identifying_a_plant_names_it(monkeypatch):
 def test_an_error_on_a_plant_s_identified_model_says_so(monkeypatch, kind):
     """A run that fails on a plant's identified model names the plant and says the model was its own; a model the
     controller refuses (an InputError) is that one warning line and the other plants go on."""
-    from controllers.evaluation import harness
+    from controllers.evaluation import harness, population_jobs
 
     class Identified:
         model = object()
@@ -272,7 +272,7 @@ def test_an_error_on_a_plant_s_identified_model_says_so(monkeypatch, kind):
     def refusing(controller, config, scenario, targets, base, pop, duration, window, seed, plants, model):
         raise kind("the observer cannot run this model's lag")
 
-    monkeypatch.setattr(harness, "_run_plants", refusing)
+    monkeypatch.setattr(population_jobs, "_run_plants", refusing)
     monkeypatch.setattr(harness, "identify_population", lambda n, *args, **kw: {k: Identified() for k in range(n)})
     run_ = lambda: harness.evaluate(["baseline"], ["torsional"], ["plants"], [2.0], duration=0.2, window=0.1,  # noqa: E731
                                     plants=2, workers=1, progress=False, identify=True)  # fmt: skip

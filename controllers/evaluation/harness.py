@@ -7,7 +7,8 @@ built from the nominal base parameters and never know them, or from a ``model`` 
 (a :class:`drillgym.Model`, e.g. an identified model file): ``observer``, ``lqg`` and
 ``lqg-2enc`` run its effects, the others its base parameters (the rows' ``model`` column says which).  Jobs
 run in a ``concurrent.futures`` executor (processes by default), with a tqdm
-progress bar.  Results are rows (dicts) with the metrics of :mod:`.metrics`.
+progress bar.  Results are rows (dicts) with the metrics of :mod:`.metrics`.  A population of plants
+(drawn, or listed in a plants file: ``plants_file=``) runs in the jobs of :mod:`.population_jobs`.
 
     >>> from controllers.evaluation import evaluate
     >>> rows = evaluate(["baseline", "observer"], ["torsional"], ["rest"], targets=[2.0, 3.0])
@@ -18,20 +19,21 @@ progress bar.  Results are rows (dicts) with the metrics of :mod:`.metrics`.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Iterator, Mapping, Sequence
-from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
-from contextlib import contextmanager
+from collections.abc import Mapping, Sequence
+from concurrent.futures import Executor
 from typing import Any
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from drillgym import RigParams, parse_configuration
 from drillgym.effects import compose
-from drillgym.errors import DrillgymError, InputError
+from drillgym.errors import InputError
 
+from .jobs import build_controller, margin_columns, run_all
 from .metrics import run_metrics
+from .plants_file import PlantSet, load_plants
 from .population import UncertaintySet, load_uncertainty, sample_plants
+from .population_jobs import identify_population, run_population_job
 from .runner import run_closed_loop
 from .scenarios import DEFAULT_TARGETS, SCENARIOS, Scenario, cycle_states, plant_params
 
@@ -59,19 +61,21 @@ def run_job(
     uncertainty: Any = None,
     model: Any = None,
     identified: Mapping[int, Any] | None = None,
+    plant_set: PlantSet | None = None,
 ) -> list[dict]:
     """Run one controller in one configuration and scenario for every target; one row per target.
 
     ``params``: nominal base parameters (dict; the controller's model and the plant's base);
     ``effects``/``effect_params``: hidden effects of the plant only (specs, classes or a Composition).
     A population scenario runs the plants ``plants`` (indices) of the population of ``n_plants`` drawn
-    with ``seed`` from ``uncertainty`` (:mod:`.population`): one row per (plant, target).  ``model``: the
+    with ``seed`` from ``uncertainty`` (:mod:`.population`), or of the user's ``plant_set``
+    (:mod:`.plants_file`, plants of one composition): one row per (plant, target).  ``model``: the
     controller's own model (a :class:`drillgym.Model`; default ``params`` without effects);
     ``identified``: plant index -> :class:`.identify.IdentifiedPlant`, each plant's controller built on its own
     identified model."""
     base = RigParams.from_dict(params) if params else RigParams()
     if scenario.population:
-        return _run_population_job(
+        return run_population_job(
             controller,
             config,
             scenario,
@@ -85,6 +89,7 @@ def run_job(
             uncertainty=uncertainty,
             model=model,
             identified=identified,
+            plant_set=plant_set,
         )
     comp, values = compose(effects, effect_params)
     plant = plant_params(scenario, base)
@@ -133,199 +138,6 @@ def run_job(
         row.update({k: (bool(v[i]) if v.dtype == bool else float(v[i])) for k, v in met.items()})
         rows.append(row)
     return rows
-
-
-def _run_population_job(
-    controller: str,
-    config: str,
-    scenario: Scenario,
-    targets: Sequence[float],
-    base: RigParams,
-    *,
-    duration: float,
-    window: float,
-    seed: int,
-    plants: Sequence[int],
-    n_plants: int,
-    uncertainty: Any,
-    model: Any = None,
-    identified: Mapping[int, Any] | None = None,
-) -> list[dict]:
-    """The plants ``plants`` x ``targets`` as one batch; the controller built from ``base`` (or ``model``) with
-    its default encoder assumptions (the plants' encoders and noise are not told)."""
-    pop = sample_plants(n_plants, seed, uncertainty, base).subset(list(plants))
-    if identified:  # one controller per plant, on that plant's identified model
-        rows = []
-        for i, k in enumerate(plants):
-            try:
-                with on_plant(k, n_plants, seed, pop.columns[i], identified=True):
-                    one = _run_plants(
-                        controller, config, scenario, targets, base, pop.subset([i]), duration, window, seed, [k],
-                        identified[k].model,
-                    )  # fmt: skip
-            except InputError as exc:  # a model the controller refuses: one line naming the plant, the others go on
-                warnings.warn(str(exc), stacklevel=2)
-                continue
-            rows += [{**r, **identified[k].columns()} for r in one]
-        return rows
-    if len(plants) == 1:
-        with on_plant(plants[0], n_plants, seed, pop.columns[0]):
-            return _run_plants(controller, config, scenario, targets, base, pop, duration, window, seed, plants, model)
-    try:
-        return _run_plants(controller, config, scenario, targets, base, pop, duration, window, seed, plants, model)
-    except DrillgymError:  # which plant: each alone, the first that fails names itself
-        for k in plants:
-            _run_population_job(
-                controller, config, scenario, targets, base, duration=duration, window=window, seed=seed,
-                plants=[k], n_plants=n_plants, uncertainty=uncertainty, model=model,
-            )  # fmt: skip
-        raise
-
-
-def plant_label(k: int, n: int, seed: int, columns: Mapping[str, float]) -> str:
-    """``plant 3 of 20 (seed 0: km 4.38, Jl 0.0395, ...)``: a plant of a population and the values it was drawn with."""
-    values = ", ".join(f"{name} {_short(v)}" for name, v in columns.items())
-    return f"plant {k} of {n} (seed {seed}: {values})"
-
-
-def _short(v: float) -> str:
-    return str(int(v)) if float(v).is_integer() else f"{float(v):.3g}"
-
-
-@contextmanager
-def on_plant(
-    k: int, n: int, seed: int, columns: Mapping[str, float], *, identified: bool = False, doing: str = ""
-) -> Iterator[None]:
-    """Within the block, an error is re-raised (same kind) led by the plant it happened on (:func:`plant_label`),
-    what was being done (``doing``) and, with ``identified``, that the controller ran the model identified on
-    that plant."""
-    try:
-        yield
-    except DrillgymError as exc:
-        message = " ".join(str(exc).split())
-        if message.startswith("plant "):  # named already (an inner job)
-            raise
-        where = plant_label(k, n, seed, columns) + (f", {doing}" if doing else "")
-        if identified:
-            where += ", its controller built on the model identified on that plant"
-        text = f"{where}: {message}"
-        try:
-            new = type(exc)(text)
-        except Exception:  # a kind with its own constructor
-            new = InputError(text)
-        raise new from exc
-
-
-def _run_plants(
-    controller: str,
-    config: str,
-    scenario: Scenario,
-    targets: Sequence[float],
-    base: RigParams,
-    pop: Any,
-    duration: float,
-    window: float,
-    seed: int,
-    plants: Sequence[int],
-    model: Any,
-) -> list[dict]:
-    """The plants ``pop`` (indices ``plants``) x ``targets`` as one batch."""
-    tg = np.asarray(targets, dtype=float)
-    m = tg.size
-    idx = np.repeat(np.arange(pop.n), m)  # plant of each trajectory
-    ref = np.tile(tg, pop.n)
-    ctrl, label = build_controller(controller, config, ref, base, model)
-    run = run_closed_loop(
-        ctrl,
-        config,
-        ref,
-        duration,
-        params=pop.matrix[idx],
-        counts_per_rev=pop.counts_per_rev[idx],
-        angle_noise=pop.angle_noise[idx],
-        seed=int(seed) * 100_003 + int(plants[0]),
-        effects=pop.composition,
-    )  # measurement noise: its own stream per chunk of plants
-    met = run_metrics(run, window, base)
-    rows = []
-    for i in range(ref.size):
-        k = int(idx[i])
-        row = {
-            "controller": controller,
-            "config": parse_configuration(config).label,
-            "scenario": scenario.name,
-            "plant": int(plants[k]),
-            **pop.columns[k],
-            "model": label,
-            **margin_columns(ctrl, float(ref[i])),
-            "omega_ref": float(ref[i]),
-            "control_dt": float(ctrl.dt),
-        }
-        row.update({key: (bool(v[i]) if v.dtype == bool else float(v[i])) for key, v in met.items()})
-        rows.append(row)
-    return rows
-
-
-def identify_population(
-    n: int,
-    seed: int,
-    uncertainty: Any,
-    params: RigParams | None,
-    options: Any,
-    config: str,
-    executor: Executor | None = None,
-    workers: int = 1,
-    progress: bool = True,
-) -> dict[int, Any]:
-    """Plant index -> :class:`.identify.IdentifiedPlant` of each plant of the population (one excitation run,
-    diagnose and identify per plant; in ``executor`` or a pool of ``workers`` processes)."""
-    from .identify import ExcitationOptions
-
-    opts = options if isinstance(options, ExcitationOptions) else ExcitationOptions()
-    args = [(k, n, seed, uncertainty, params, opts, config) for k in range(n)]
-    found = _run_all([(_identify_one, a, {}) for a in args], executor, workers, "identify", "plant", progress)
-    return dict(enumerate(found))
-
-
-def _identify_one(k: int, n: int, seed: int, uncertainty: Any, params: RigParams | None, opts: Any, config: str):
-    from .identify import excitation_recording, identify_plant
-
-    pop = sample_plants(n, seed, uncertainty, params).subset([k])
-    with on_plant(k, n, seed, pop.columns[0], doing="identifying it"):
-        rec = excitation_recording(
-            pop.matrix[0], pop.composition, pop.counts_per_rev[0], pop.angle_noise[0], int(seed) * 100_003 + k, opts,
-            parse_configuration(config).label,
-        )  # fmt: skip
-        return identify_plant(rec, [n for n in pop.columns[0] if n not in ("counts_per_rev", "angle_noise")], opts)
-
-
-def margin_columns(ctrl: Any, omega: float) -> dict[str, float | None]:
-    """``model_tolerates`` (the relative km error the motor-angle limit tolerates at ``omega``, inf: any) and
-    ``model_accuracy`` (what the model file offers; None: unknown) of a controller that reports its margins
-    (:mod:`controllers.margin`); no columns for the others."""
-    for g in getattr(ctrl, "margins", None) or []:
-        if g.omega == omega:
-            return {"model_tolerates": g.needed, "model_accuracy": g.achieved}
-    return {}
-
-
-def build_controller(
-    controller: str, config: str, omega_ref: np.ndarray, base: RigParams, model: Any = None, **kw
-) -> tuple[Any, str]:
-    """The controller and the label of the model it runs (``base``, or the effects it uses joined by ``+``).
-
-    With a ``model`` (a :class:`drillgym.Model`), a controller that runs effects is built on
-    it, any other on its base parameters (label ``base``); without one, on ``base``.
-    """
-    from .. import make
-    from ..registry import CONTROLLERS, split_period
-
-    if model is None:
-        return make(controller, config=config, omega_ref=omega_ref, params=base, **kw), "base"
-    cls = CONTROLLERS.get(split_period(controller)[0])
-    if cls is not None and cls.uses_effects:
-        return make(controller, config=config, omega_ref=omega_ref, model=model, **kw), model.label
-    return make(controller, config=config, omega_ref=omega_ref, params=model.params, **kw), "base"
 
 
 def short_run_warnings(
@@ -491,12 +303,14 @@ def evaluate(
     progress: bool = True,
     effects: Any = None,
     effect_params: Mapping[str, float] | None = None,
-    plants: int = 20,
+    plants: int | None = None,
     seed: int = 0,
     uncertainty: Any = None,
     plants_per_job: int = 10,
     model: Any = None,
     identify: Any = None,
+    plants_file: Any = None,
+    trust: bool = False,
 ) -> list[dict]:
     """Evaluate every controller in every configuration and scenario on the target grid.
 
@@ -534,12 +348,13 @@ def evaluate(
     effect_params : mapping of str to float, optional
         The hidden effects' parameter values by name.
     plants : int, optional
-        Number of plants a population scenario draws.  Default 20.
+        Number of plants a population scenario draws.  Default 20 (not with ``plants_file``).
     seed : int, optional
         Seed of the plant population and of the measurement noise.
     uncertainty : str or UncertaintySet, optional
         Uncertainty set of the population (a YAML path or
-        :class:`controllers.evaluation.population.UncertaintySet`); default ``plants.yaml``.
+        :class:`controllers.evaluation.population.UncertaintySet`); default ``plants.yaml`` (not with
+        ``plants_file``).
     plants_per_job : int, optional
         Plants per job of a population scenario.
     model : drillgym.Model or path, optional
@@ -549,6 +364,12 @@ def evaluate(
         For a population scenario: identify each plant first (:mod:`.identify`: an excitation run, diagnose,
         identify) and build every controller on that plant's identified model; the rows gain the identified
         values (``id_<name>``), the effects selected and the identification time (``identify_s``).
+    plants_file : str, path or PlantSet, optional
+        For a population scenario: the plants the user wrote instead of drawn ones (a plants file,
+        :mod:`.plants_file`, or what :func:`.plants_file.load_plants` read); the rows name each plant
+        (``plant_name``) and its effects (``effects``).  Plants of one composition run as one batch.
+    trust : bool, optional
+        Import the plants file's effect files even when they lie outside its folder (importing runs them).
 
     Returns
     -------
@@ -559,10 +380,11 @@ def evaluate(
     Raises
     ------
     InputError
-        An unknown controller or scenario, a bad window, hidden effects with the plants scenario, or a
-        bad number of plants.
+        An unknown controller or scenario, a bad window, hidden effects with the plants scenario, a bad
+        number of plants, or a plants file that cannot be used (naming the file, the plant and what is wrong).
     """
-    check_evaluation_options(controllers, configs, targets, duration, window, plants, seed, workers)
+    n_drawn = 20 if plants is None else plants
+    check_evaluation_options(controllers, configs, targets, duration, window, n_drawn, seed, workers)
     scen = [SCENARIOS[s] if isinstance(s, str) and s in SCENARIOS else s for s in scenarios]
     for s in scen:
         if not isinstance(s, Scenario):
@@ -589,24 +411,24 @@ def evaluate(
             for cfg in configs if not c.startswith("agent:") else ():
                 build_controller(c, cfg, np.asarray(targets, dtype=float)[:1], RigParams(), model)
     pop_kw: dict = {}
+    chunks: list[list[int]] = [[]]
     if any(s.population for s in scen):
         if comp.effects:
             raise InputError("the plants scenario draws its own effects; do not combine it with --add-effect")
-        if int(plants) != plants or plants < 1:
-            raise InputError(f"the number of plants must be a positive integer, got {plants!r}")
-        us = uncertainty if isinstance(uncertainty, UncertaintySet) else load_uncertainty(uncertainty)
-        sample_plants(1, seed, us, params)  # errors of the set before any job starts
-        pop_kw = {"n_plants": int(plants), "uncertainty": us}
+        pop_kw, chunks = _population(plants, seed, uncertainty, plants_file, trust, params, configs, plants_per_job)
         if identify:
             if model is not None:
                 raise InputError(
                     "identify builds the controllers on each plant's identified model; do not give a model"
                 )
             pop_kw["identified"] = identify_population(
-                int(plants), seed, us, params, identify, configs[0], executor, workers, progress
-            )
+                pop_kw["n_plants"], seed, pop_kw["uncertainty"], params, identify, configs[0], executor, workers,
+                progress, plant_set=pop_kw.get("plant_set"),
+            )  # fmt: skip
     elif identify:
         raise InputError("identify applies to a population of plants: add the scenario 'plants'")
+    elif plants_file is not None:
+        raise InputError("plants_file applies to a population of plants: add the scenario 'plants'")
     for cfg in configs:
         for line in short_run_warnings(controllers, cfg, targets, duration, window, params):
             warnings.warn(line, stacklevel=2)
@@ -616,7 +438,6 @@ def evaluate(
         from ..baseline import stick_slip_region
 
         u_folds = {c: stick_slip_region(c, params or RigParams()).u_fold for c in configs}
-    chunks = [list(range(a, min(a + plants_per_job, int(plants)))) for a in range(0, int(plants), plants_per_job)]
     jobs = [
         (c, cfg, s, ch)
         for c in controllers
@@ -645,7 +466,7 @@ def evaluate(
         (run_job, (c, cfg, s), {"u_fold": u_folds.get(cfg), "plants": ch, **job_kw(s, ch), **kw})
         for c, cfg, s, ch in jobs
     ]
-    rows = [row for part in _run_all(calls, executor, workers, "evaluate", "job", progress) for row in part]
+    rows = [row for part in run_all(calls, executor, workers, "evaluate", "job", progress) for row in part]
     order = {c: i for i, c in enumerate(controllers)}
     rows.sort(
         key=lambda r: (
@@ -659,30 +480,31 @@ def evaluate(
     return rows
 
 
-def _run_all(calls: list, executor: Executor | None, workers: int, desc: str, unit: str, progress: bool) -> list:
-    """Run each ``(function, args, kwargs)`` of ``calls`` in turn (no executor, ``workers`` <= 1), else in
-    ``executor`` or a pool of ``workers`` processes, under a tqdm bar that is cleared before an error propagates
-    (the error is then the one line on stderr); the results in the calls' order."""
-    bar = tqdm(total=len(calls), desc=desc, unit=unit, disable=not progress)
-    out: list = [None] * len(calls)
-    try:
-        if executor is None and workers <= 1:
-            for i, (fn, a, kw) in enumerate(calls):
-                out[i] = fn(*a, **kw)
-                bar.update()
-        else:
-            ex = executor or ProcessPoolExecutor(max_workers=workers)
-            try:
-                futs = {ex.submit(fn, *a, **kw): i for i, (fn, a, kw) in enumerate(calls)}
-                for f in as_completed(futs):
-                    out[futs[f]] = f.result()
-                    bar.update()
-            finally:
-                if executor is None:
-                    ex.shutdown()
-    except BaseException:
-        bar.leave = False
-        bar.close()
-        raise
-    bar.close()
-    return out
+def _population(
+    plants: int | None,
+    seed: int,
+    uncertainty: Any,
+    plants_file: Any,
+    trust: bool,
+    params: RigParams | None,
+    configs: Sequence[str],
+    per_job: int,
+) -> tuple[dict, list[list[int]]]:
+    """The population's job arguments (``n_plants``, ``uncertainty``, ``plant_set``) and its chunks of plant
+    indices (at most ``per_job`` plants each; a user's plants gathered by composition), every refusal before
+    any job starts."""
+    if plants_file is not None:
+        if plants is not None or uncertainty is not None:
+            raise InputError("plants_file holds the plants: give neither plants nor uncertainty beside it")
+        ps = plants_file if isinstance(plants_file, PlantSet) else load_plants(plants_file, trust=trust, params=params)
+        for c in configs:
+            ps.refuse_not_acting(parse_configuration(c).label)
+        chunks = [g[a : a + per_job] for g in ps.groups() for a in range(0, len(g), per_job)]
+        return {"n_plants": ps.n, "uncertainty": None, "plant_set": ps}, chunks
+    n = 20 if plants is None else plants
+    if int(n) != n or n < 1:
+        raise InputError(f"the number of plants must be a positive integer, got {n!r}")
+    us = uncertainty if isinstance(uncertainty, UncertaintySet) else load_uncertainty(uncertainty)
+    sample_plants(1, seed, us, params)  # errors of the set before any job starts
+    chunks = [list(range(a, min(a + per_job, int(n)))) for a in range(0, int(n), per_job)]
+    return {"n_plants": int(n), "uncertainty": us}, chunks

@@ -167,7 +167,8 @@ def load_uncertainty(path: str | Path | None = None) -> UncertaintySet:
 
 @dataclass
 class PlantPopulation:
-    """n plants drawn from an uncertainty set (:func:`sample_plants`).
+    """n plants of one composition: drawn from an uncertainty set (:func:`sample_plants`) or a user's
+    (:meth:`.plants_file.PlantSet.population`).
 
     Parameters
     ----------
@@ -180,9 +181,11 @@ class PlantPopulation:
     angle_noise : ndarray
         Angle noise of each plant (rad), (n,).
     columns : list of dict
-        The drawn values by name, one dict per plant (keys :meth:`UncertaintySet.columns`).
-    uncertainty : UncertaintySet
-        The set they were drawn from.
+        The plants' values by name, one dict per plant (drawn: keys :meth:`UncertaintySet.columns`).
+    uncertainty : UncertaintySet or None
+        The set they were drawn from (None: plants a user wrote, :mod:`.plants_file`).
+    names : list of str, optional
+        The plants' names (a plants file's); empty: drawn plants, named by their index.
     """
 
     composition: Composition
@@ -190,7 +193,8 @@ class PlantPopulation:
     counts_per_rev: np.ndarray
     angle_noise: np.ndarray
     columns: list[dict[str, float]]
-    uncertainty: UncertaintySet
+    uncertainty: UncertaintySet | None
+    names: list[str] = field(default_factory=list)
 
     @property
     def n(self) -> int:
@@ -207,6 +211,7 @@ class PlantPopulation:
             self.angle_noise[i],
             [self.columns[k] for k in i],
             self.uncertainty,
+            [self.names[k] for k in i] if self.names else [],
         )
 
 

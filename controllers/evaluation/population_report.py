@@ -15,9 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
+from drillgym.params import PARAM_NAMES
+
 from .metrics import lowest_free_speed
 
-__all__ = ["plant_lowest", "population_summary", "population_table", "plot_population"]
+__all__ = ["plant_lowest", "population_summary", "population_table", "named_plants_table", "plot_population"]
 
 
 def plant_lowest(rows: Sequence[dict], controller: str, config: str, scenario: str = "plants") -> dict[int, float]:
@@ -109,6 +111,23 @@ def population_table(rows: Sequence[dict], scenario: str = "plants") -> str:
     return "\n".join(lines) + "\n"
 
 
+def named_plants_table(rows: Sequence[dict], scenario: str = "plants") -> str:
+    """Markdown: per plant of a plants file (its name and effects) each controller's lowest held target (rad/s;
+    'none': not even the highest held) per configuration; empty for drawn plants (no ``plant_name``)."""
+    sel = [r for r in rows if r["scenario"] == scenario and "plant_name" in r]
+    if not sel:
+        return ""
+    pairs = list(dict.fromkeys((r["controller"], r["config"]) for r in sel))
+    low = {pair: plant_lowest(sel, *pair, scenario) for pair in pairs}
+    plants = {int(r["plant"]): (str(r["plant_name"]), str(r.get("effects", ""))) for r in sel}
+    head = ["plant", "effects"] + [f"{c}, {cfg}: lowest held (rad/s)" for c, cfg in pairs]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for k in sorted(plants):
+        cells = [_fmt(low[pair][k]) if k in low[pair] else "-" for pair in pairs]
+        lines.append("| " + " | ".join([*plants[k], *cells]) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def plot_population(rows: Sequence[dict], path: str | Path, scenario: str = "plants") -> Path:
     """Fraction of plants on which each controller holds every target from x up (one panel per configuration)."""
     import matplotlib
@@ -143,14 +162,15 @@ def plot_population(rows: Sequence[dict], path: str | Path, scenario: str = "pla
 
 
 def identification_rows(rows: Sequence[dict], scenario: str = "plants") -> list[dict]:
-    """One entry per identified plant: its index, the effects selected, the identification time (s), and per
-    parameter the true and identified values (``id_<name>`` columns of :mod:`.identify`)."""
+    """One entry per identified plant: its name (a plants file's) or index, the effects selected, the
+    identification time (s), and per parameter the true and identified values (``id_<name>`` columns of
+    :mod:`.identify`)."""
     seen: dict[int, dict] = {}
     for r in rows:
         if r["scenario"] == scenario and "identify_s" in r and int(r["plant"]) not in seen:
             names = [k[3:] for k in r if k.startswith("id_")]
             seen[int(r["plant"])] = {
-                "plant": int(r["plant"]),
+                "plant": r.get("plant_name", int(r["plant"])),
                 "selected": r["selected"],
                 "identify_s": float(r["identify_s"]),
                 "true": {n: float(r[n]) for n in names},
@@ -176,7 +196,7 @@ def identification_table(rows: Sequence[dict], scenario: str = "plants") -> str:
             t, i = e["true"][n], e["identified"][n]
             if math.isnan(i):
                 cells.append(f"- ({t:.3g})")
-            elif n in _EFFECT_PARAMETERS:
+            elif n in _EFFECT_PARAMETERS or n not in PARAM_NAMES:  # a user's effect parameter too
                 cells.append(f"{i:.3g} ({t:.3g})")
             else:
                 cells.append(f"{100 * (i - t) / t:+.1f} %")

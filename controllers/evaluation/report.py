@@ -177,14 +177,18 @@ def write_report(rows: Sequence[dict], out_dir: str | Path, params=None, plant: 
     for sc in dict.fromkeys(r["scenario"] for r in rows):
         parts.append(f"\n## scenario: {sc}\n\n" + markdown_table(rows, sc))
     if population:
-        from .population_report import identification_table, plot_population, population_table
+        from .population_report import identification_table, named_plants_table, plot_population, population_table
 
         n = len({int(r["plant"]) for r in population})
+        named = named_plants_table(population)
+        origin = "listed in the plants file" if named else "drawn from the uncertainty set"
         parts.append(
-            f"\n## scenario: plants ({n} plants drawn from the uncertainty set, from rest)\n\n"
+            f"\n## scenario: plants ({n} plants {origin}, from rest)\n\n"
             "Each plant's lowest held target; median and 90th percentile over the plants (the higher "
             "plant's value); 'none': not even the highest target held.\n\n" + population_table(population)
         )
+        if named:
+            parts.append("\nEach plant of the file by its name, with its effects:\n\n" + named)
         ident = identification_table(population)
         if ident:
             parts.append(
