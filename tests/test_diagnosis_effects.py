@@ -65,7 +65,7 @@ def test_one_at_a_time_ranking_keeps_the_noise_floor_without_false_alarms():
     """`rank_effects` (each candidate alone against the model) counts the noise floor as the selection does
     (one noise unit², or what the model with the effect leaves when that is less): on an exact-model
     recording no candidate passes, with a hidden string damping that one does, and ranks first."""
-    from drillgym.diagnosis.ranking import rank_effects
+    from drillgym.diagnosis.one_at_a_time import rank_effects
 
     clean = rank_effects(_measure("torsional", 1.0))
     assert [s.effect for s in clean.ranking if s.significant] == [], clean.text()

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from drillgym import RigParams
-from drillgym.diagnosis.discovery import Candidate, dead_zone_variant
+from drillgym.diagnosis.discovery import Candidate
+from drillgym.diagnosis.discovery_terms import dead_zone_variant
 from drillgym.diagnosis.sparse import motor_voltage_along, residual_torques
 from drillgym.effects import Input, Parameter, compose
 from drillgym.identification.experiment import prepare_experiment

@@ -8,11 +8,15 @@
 * :mod:`.checks` — the check step: position-dependent effects in both halves (:mod:`.reproducibility`), a
   lag or a delay at the recording's own rate (:mod:`.lag_delay`, :mod:`.timing`), a drift or a position
   friction on a disc that hardly turns;
-* :mod:`.ranking` — the report step (and the one-at-a-time ranking);
+* :mod:`.ranking` — the report step (:mod:`.one_at_a_time`: each candidate alone against the model);
 * :mod:`.discovery` — a candidate effect outside the library from the residual torques on both discs,
   written as an effect file (``diagnose --candidate-out``); :mod:`.encoder_reading` — the motor encoder's
   reading (free play at the motor), a candidate only its own fit can show; :mod:`.candidate_fit` — each
-  candidate's own fit, the one that removes most kept.
+  candidate's own fit, the one that removes most kept;
+* :mod:`.reselection` — with a candidate kept, the diagnosis again on the model that holds it.
+
+The steps hand each other what :mod:`.state` holds (the settings, the screened recording, the search's outcome)
+and import nothing from each other (an import-linter contract).
 
 Beside it: :mod:`.results` (the typed results), :mod:`.context` (the fit state), :mod:`.scoring` (evidence
 and significance), :mod:`.effects` (the candidates), :mod:`.refit` (``identify --add-effect``),

@@ -24,15 +24,14 @@ import numpy as np
 from ..effects import Composition, Effect
 from ..identification.fitting import FitResult, Objective
 from .context import SelectionContext, base_at_bounds, converged_fit
-from .discovery import dead_zone_variant
+from .discovery_terms import dead_zone_variant
 from .effect_file import write_effect_file
 from .effects import get_effect
 from .encoder_reading import MIN_READING_CUT, with_fitted_terms
 from .motor_terms import TERM_EFFECTS, WIDTH_PARAMETERS, term_parameters
-from .ranking import transfer
 from .results import Candidate, Diagnosis
 from .scoring import score, significant
-from .screening import Screening
+from .state import Screening, transfer
 from .unexplained import Unexplained, unexplained
 
 __all__ = ["CandidateFit", "CandidateFitState", "fit_candidate", "choose_candidate", "MAX_NFEV"]

@@ -26,13 +26,13 @@ from .context import SelectionContext, SelectionOptions, fit_free
 from .criterion import better
 from .forward import SearchStart, forward_select
 from .lag_delay import check_lag_delay
-from .orders import SearchOutcome
 from .reproducibility import POSITION_NEEDS, HalfAgreement, halves_agree, split_halves
 from .results import Selection
 from .search_model import SearchModel
+from .state import SearchOutcome
 
 if TYPE_CHECKING:
-    from .screening import Screening
+    from .state import Screening
 
 __all__ = [
     "check",

@@ -42,12 +42,12 @@ import numpy as np
 from ..effects import Composition
 from ..identification.experiment import Experiment
 from ..params import N_PARAMS, RigParams
-from .discovery_terms import _SENSE, _groups, _Term, _voltage_terms
+from .discovery_terms import _SENSE, _groups, _Term
 from .effect_file import write_effect_file
 from .effects import get_effect
-from .ranking import transfer
 from .results import Candidate
 from .sparse import ResidualTorque
+from .state import transfer
 from .timing import LAG_DELAY
 
 __all__ = ["Candidate", "find_candidate", "write_effect_file", "advice", "discover", "MIN_EXPLAINED_SHARE"]
@@ -529,36 +529,3 @@ def _upper_power(rt) -> float:
     """The residual torque's mean square on the upper disc where it is known (N² m²)."""
     tau = rt.tau_u[rt.upper_valid]
     return float(np.mean(tau**2)) if tau.size else math.inf
-
-
-def dead_zone_variant(cand: Candidate) -> Candidate | None:
-    """The motor-side candidate with its negative offset read as a dead zone, or None when it has none.
-
-    A constant ``c < 0`` (or ``c sign(u)``) among a candidate's voltage terms and a dead zone of half-width
-    ``|c|`` (``−sat(u, |c|)``) change the voltage alike wherever ``|u| > |c|``; inside the zone the motor sees no
-    voltage and the upper disc mostly sticks, where the residual torques are not known, so the regression cannot
-    tell them apart.  The candidate's fit on the recordings can (:func:`.candidate_fit.choose_candidate`)."""
-    if cand.group != "motor_voltage":
-        return None
-    label = next((k for k in ("1", "sign(u)") if cand.terms.get(k, 0.0) < 0.0), None)
-    if label is None or any(k.startswith("sat(u") for k in cand.terms):
-        return None
-    width = abs(cand.terms[label])
-    sat = next(t for t in _voltage_terms() if t.width is not None)
-    zone = f"sat(u, {width:.3g})"
-    terms = {zone if k == label else k: (-1.0 if k == label else v) for k, v in cand.terms.items()}
-    codes = {zone if k == label else k: (sat.code if k == label else v) for k, v in cand.codes.items()}
-    at_rest = {zone if k == label else k: (0.0 if k == label else v) for k, v in cand.at_rest.items()}
-    return Candidate(
-        cand.group,
-        terms,
-        codes,
-        at_rest,
-        cand.explained,
-        cand.n_samples,
-        cand.name,
-        rest=cand.rest,
-        reach={zone if k == label else k: v for k, v in cand.reach.items()},
-        widths={**cand.widths, zone: width},
-        through_lag=cand.through_lag,
-    )

@@ -11,7 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["COGGING_HARMONICS", "DEAD_ZONE_WIDTHS"]
+from .results import Candidate
+
+__all__ = ["COGGING_HARMONICS", "DEAD_ZONE_WIDTHS", "dead_zone_variant"]
 
 
 @dataclass
@@ -186,3 +188,36 @@ _SENSE = {
     "upper_force": (1.0, 0.0),
     "motor_voltage": (1.0, 0.0),  # per volt at the motor: times km (the coefficients are turned into volts)
 }
+
+
+def dead_zone_variant(cand: Candidate) -> Candidate | None:
+    """The motor-side candidate with its negative offset read as a dead zone, or None when it has none.
+
+    A constant ``c < 0`` (or ``c sign(u)``) among a candidate's voltage terms and a dead zone of half-width
+    ``|c|`` (``−sat(u, |c|)``) change the voltage alike wherever ``|u| > |c|``; inside the zone the motor sees no
+    voltage and the upper disc mostly sticks, where the residual torques are not known, so the regression cannot
+    tell them apart.  The candidate's fit on the recordings can (:func:`.candidate_fit.choose_candidate`)."""
+    if cand.group != "motor_voltage":
+        return None
+    label = next((k for k in ("1", "sign(u)") if cand.terms.get(k, 0.0) < 0.0), None)
+    if label is None or any(k.startswith("sat(u") for k in cand.terms):
+        return None
+    width = abs(cand.terms[label])
+    sat = next(t for t in _voltage_terms() if t.width is not None)
+    zone = f"sat(u, {width:.3g})"
+    terms = {zone if k == label else k: (-1.0 if k == label else v) for k, v in cand.terms.items()}
+    codes = {zone if k == label else k: (sat.code if k == label else v) for k, v in cand.codes.items()}
+    at_rest = {zone if k == label else k: (0.0 if k == label else v) for k, v in cand.at_rest.items()}
+    return Candidate(
+        cand.group,
+        terms,
+        codes,
+        at_rest,
+        cand.explained,
+        cand.n_samples,
+        cand.name,
+        rest=cand.rest,
+        reach={zone if k == label else k: v for k, v in cand.reach.items()},
+        widths={**cand.widths, zone: width},
+        through_lag=cand.through_lag,
+    )

@@ -18,9 +18,8 @@ from ..effects import Composition
 from ..effects.base import Input
 from .context import SelectionContext, converged_fit
 from .effective import effective_samples
-from .ranking import transfer
 from .results import Diagnosis
-from .screening import Screening
+from .state import Screening, transfer
 
 __all__ = ["InputOrder", "input_order", "ORDER_TIE_NATS"]
 

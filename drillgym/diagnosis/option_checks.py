@@ -21,7 +21,7 @@ from ..io.outputs import check_output_file
 
 if TYPE_CHECKING:
     from .refit import RefitOptions
-    from .screening import DiagnosisOptions
+    from .state import DiagnosisOptions
 
 __all__ = ["check_diagnosis_options", "check_refit_options", "as_sequence"]
 

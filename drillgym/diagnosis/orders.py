@@ -20,8 +20,7 @@ better model each time:
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from dataclasses import replace
 
 import numpy as np
 
@@ -32,10 +31,8 @@ from .forward import SearchStart, forward_select
 from .results import Selection
 from .scoring import SENSORS
 from .search_model import SearchModel
+from .state import SearchOutcome
 from .timing import LAG_DELAY
-
-if TYPE_CHECKING:
-    from .timing import FineDecision
 
 __all__ = ["SearchOutcome", "select", "lag_from_rescaled_base", "union_start", "union_of_paths", "RESCALE_MIN"]
 
@@ -43,31 +40,6 @@ __all__ = ["SearchOutcome", "select", "lag_from_rescaled_base", "union_start", "
 #: base prior, :data:`.criterion.BASE_PRIOR_SIGMA`) for a motor lag to be tried again on the base with that
 #: scale divided out (:func:`lag_from_rescaled_base`)
 RESCALE_MIN = BASE_PRIOR_SIGMA
-
-
-@dataclass
-class SearchOutcome:
-    """What the search found: the model kept, what each order selected, the sensors' weights.
-
-    Attributes
-    ----------
-    kept : Selection
-        The model kept (the checks may replace it).
-    paths : dict of str to list of str
-        Each order's selection (``bound:NAME``: a base parameter at a bound of its range).
-    sensor_misfit : dict of str to float
-        Sensor -> the misfit (noise units) its channels were rescaled by.
-    scales : dict of str to float
-        The channels' scales as weighted.
-    lag_delay : FineDecision or None
-        The lag/delay decision at the recording's rate (set by the checks).
-    """
-
-    kept: Selection
-    paths: dict[str, list[str]] = field(default_factory=dict)
-    sensor_misfit: dict[str, float] = field(default_factory=dict)
-    scales: dict[str, float] = field(default_factory=dict)
-    lag_delay: FineDecision | None = None
 
 
 def select(model: SearchModel, options: SelectionOptions) -> SearchOutcome:

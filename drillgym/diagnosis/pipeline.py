@@ -40,7 +40,8 @@ from .orders import select
 from .ranking import report
 from .reselection import kept_candidate, reselection_inputs
 from .results import Diagnosis
-from .screening import DiagnosisOptions, screen
+from .screening import screen
+from .state import DiagnosisOptions
 from .unexplained import unexplained
 
 __all__ = ["DiagnosisOptions", "diagnose"]

@@ -36,7 +36,7 @@ from ..params import RigParams
 from .compare import compare
 from .effects import get_effect
 from .option_checks import as_sequence, check_refit_options
-from .screening import default_weights
+from .search_model import default_weights
 
 __all__ = ["RefitOptions", "RefitResult", "refit", "BASE_STAGE", "effect_records"]
 

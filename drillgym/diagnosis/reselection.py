@@ -23,7 +23,7 @@ from typing import Any
 
 from ..params import RigParams
 from .results import Diagnosis
-from .screening import DiagnosisOptions
+from .state import DiagnosisOptions
 
 __all__ = ["MIN_CANDIDATE_CUT", "KeptCandidate", "kept_candidate", "reselection_inputs"]
 

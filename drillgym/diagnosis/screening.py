@@ -13,9 +13,7 @@ recording (or by ``make venv``) serve the next.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
-from typing import Any
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -26,21 +24,22 @@ from ..identification.fitting import Objective, base_vector
 from ..identification.segment_length import default_segment, segment_length
 from ..io import TimeSeries
 from ..params import RigParams
-from .context import SelectionOptions
 from .effects import applies_to, effects_for, get_effect
-from .option_checks import as_sequence, check_diagnosis_options
-from .search_model import SearchModel, base_free_parameters, neutral_values, search_composition, selection_model
+from .search_model import (
+    SearchModel,
+    base_free_parameters,
+    default_weights,
+    neutral_values,
+    search_composition,
+    selection_model,
+)
 from .segments import robust_noise
-
-#: joint refits' budget, times the selection's, when the model's own effects are refitted with the base: a
-#: discovered candidate fitted without the library effect beside it starts far from where the two end together
-#: (a dead zone's width and a 39 ms motor lag: 21 ms after the usual 15 evaluations, 37 ms converged, and the
-#: residual on the motor angle 30 -> 1.6 noise units)
-REFIT_BUDGET = 3
+from .state import REFIT_BUDGET, DiagnosisOptions, Screening
 
 __all__ = [
     "DiagnosisOptions",
     "Screening",
+    "REFIT_BUDGET",
     "screen",
     "prepare_experiments",
     "condition",
@@ -48,123 +47,6 @@ __all__ = [
     "default_weights",
     "default_segment",
 ]
-
-
-@dataclass
-class DiagnosisOptions:
-    """The settings of a diagnosis.
-
-    Attributes
-    ----------
-    effects : sequence, optional
-        The candidates: names, ``path/to/file.py:NAME`` specs or Effect classes (default: the library's
-        effects that act in the configuration).  A candidate must vanish at its neutral values
-        (:func:`.context.neutral_values`).
-    base_effects : any, optional
-        Effects already in the model (as :func:`drillgym.effects.compose`), held at ``effect_params``.
-    effect_params : mapping of str to float, optional
-        Their values.
-    segment_s : float or None
-        Multiple-shooting segment length (s); -1: :func:`default_segment`; None: one free run.  Default -1.
-    compare_rate_hz : float
-        Comparison grid rate (Hz) when a recording is given.  Default 50.
-    lvdt_lowpass_hz : float or None
-        LVDT low-pass cut-off (Hz) when a recording is given.  Default 5.
-    refine_speeds : bool
-        Fit the segments' initial speeds with every model.  Default True.
-    fixed_base : bool
-        Hold the base parameters at the nominal ones (no re-identification).  Default False.
-    refit_model_effects : bool
-        Free the parameters of the model's own effects (``base_effects``) wherever the base parameters are
-        freed (with ``fixed_base``: in their place): an estimate held fixed (a discovered candidate's first fit)
-        leaves a residual no library effect beside it can remove, where refitting both together does.
-        Default False.
-    n_joint : int
-        Candidates refitted jointly with the base parameters per round.  Default 2.
-    max_effects : int
-        At most this many effects are selected.  Default 4.
-    discover : bool
-        Also look for an effect outside the library in the residual torques (:mod:`.discovery`), on the
-        recording's own samples (up to 250 Hz).  Default False.
-    candidate_out : str or path, optional
-        With ``discover``: where to write the candidate's effect file.
-    """
-
-    effects: Sequence[Any] | None = None
-    base_effects: Any = None
-    effect_params: Mapping[str, float] | None = None
-    segment_s: float | None = -1.0
-    compare_rate_hz: float = 50.0
-    lvdt_lowpass_hz: float | None = 5.0
-    refine_speeds: bool = True
-    fixed_base: bool = False
-    refit_model_effects: bool = False
-    n_joint: int = 2
-    max_effects: int = 4
-    discover: bool = False
-    candidate_out: Any = None
-
-    def __post_init__(self) -> None:
-        self.effects = as_sequence("effects", self.effects)
-        check_diagnosis_options(self)
-
-    def selection(self) -> SelectionOptions:
-        """The options of the forward selection."""
-        joint = SelectionOptions.max_nfev_joint * (REFIT_BUDGET if self.refit_model_effects else 1)
-        return SelectionOptions(
-            n_joint=self.n_joint, max_effects=self.max_effects, refine=self.refine_speeds, max_nfev_joint=joint
-        )
-
-
-@dataclass
-class Screening:
-    """A recording screened for the selection.
-
-    Attributes
-    ----------
-    exps : list of Experiment
-        The conditioned experiments.
-    config : Configuration
-        Their configuration.
-    model_label : str
-        The label of the model diagnosed (its effects).
-    segment_s : float or None
-        Multiple-shooting segment length (s).
-    model : SearchModel
-        The search model.
-    skipped : dict of str to str
-        Candidates not tried, and why.
-    channel_rms_before : dict of str to float
-        The nominal model's residual RMS per channel (noise units).
-    """
-
-    exps: list[Experiment]
-    config: Configuration
-    model_label: str
-    segment_s: float | None
-    model: SearchModel
-    skipped: dict[str, str] = field(default_factory=dict)
-    channel_rms_before: dict[str, float] = field(default_factory=dict)
-
-
-def default_weights(config: Configuration) -> dict[str, float]:
-    """The channels compared per configuration (all weight 1: the residuals are noise-normalised).
-
-    Parameters
-    ----------
-    config : Configuration
-        The configuration.
-
-    Returns
-    -------
-    dict of str to float
-        Channel -> weight.
-    """
-    if config is Configuration.UPPER:
-        return {"theta_u": 1.0}
-    if config.lateral_free:
-        return {"theta_u": 1.0, "theta_l": 1.0, "x": 1.0, "y": 1.0}
-    return {"theta_u": 1.0, "theta_l": 1.0}
 
 
 def prepare_experiments(

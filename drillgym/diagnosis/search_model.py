@@ -30,6 +30,7 @@ __all__ = [
     "search_composition",
     "base_free_parameters",
     "selection_model",
+    "default_weights",
 ]
 
 #: simulator step bound (s) of the selection's fits, RK4, the input's samples on step boundaries
@@ -174,3 +175,23 @@ class SearchModel:
     nominal: np.ndarray
     candidates: list[type[Effect]]
     base_names: tuple[str, ...]
+
+
+def default_weights(config: Configuration) -> dict[str, float]:
+    """The channels compared per configuration (all weight 1: the residuals are noise-normalised).
+
+    Parameters
+    ----------
+    config : Configuration
+        The configuration.
+
+    Returns
+    -------
+    dict of str to float
+        Channel -> weight.
+    """
+    if config is Configuration.UPPER:
+        return {"theta_u": 1.0}
+    if config.lateral_free:
+        return {"theta_u": 1.0, "theta_l": 1.0, "x": 1.0, "y": 1.0}
+    return {"theta_u": 1.0, "theta_l": 1.0}
