@@ -3,12 +3,18 @@
 Per control period and for every lane: the sensors (the composition's Measurement effects, encoder
 quantization to ``counts_per_rev``, white angle noise drawn by the caller), the law
 (:mod:`drillgym.closed_loop.abi`), the recorded signals, then the plant held at the law's command over
-``sub`` integration steps with the composition's own kernels: the SIMD lane kernel on whole blocks of
-lanes, or the scalar ``advance_batch`` for batches smaller than
-:data:`drillgym.lane_runner.LANES_MIN_BATCH`, exactly as :class:`drillgym.BatchSimulator.advance` steps
-them (the lanes past the last real one are copies of it, refreshed every period).  Specialised per
-composition of effects (:meth:`drillgym.effects.codegen.CompiledModel.client`); compiled once whatever
-the law, which it takes as a first-class function.
+``sub`` integration steps with the composition's own kernels, exactly as
+:meth:`drillgym.BatchSimulator.advance` steps them: the SIMD lane steps on whole blocks of lanes (the
+lanes past the last real one step beside it as its copies), or the scalar ``advance_batch`` for batches
+smaller than :data:`drillgym.lane_runner.LANES_MIN_BATCH`.
+
+The lane path is :func:`drillgym.kernels.lanes.lanes_run` called once per period, without what that call
+sets up anew each time: its work arrays, the transposed parameter rows and the delays are made once per
+compiled call (a chunk of periods) and the lanes stay laid out across periods.  What the plant's state
+implies is still worked out per period as ``lanes_run`` does (each lane's modes resolved and its
+step-start slopes taken at the new command on the scalar path), so the runs are the reference's bit for
+bit.  Specialised per composition of effects (:meth:`drillgym.effects.codegen.CompiledModel.client`);
+compiled once whatever the law, which it takes as a first-class function.
 """
 
 from __future__ import annotations
@@ -19,9 +25,13 @@ import numpy as np
 from numba import njit, types
 
 from drillgym.closed_loop.abi import LAW_TYPE, M_TL, M_TU, M_X, M_Y
-from drillgym.kernels.hooks import N_STATE, hk_measure
-from drillgym.kernels.lanes import lanes_run
-from drillgym.kernels.stepping import advance_batch
+from drillgym.dynamics import FREE_VIBRATION, UPPER, brake_on, lateral_free
+from drillgym.kernels.commands import delay_line_step
+from drillgym.kernels.hooks import HAS_DELAY, HAS_LAG, N_STATE, hk_delay, hk_lag_start, hk_lane_params, hk_measure
+from drillgym.kernels.lane_steps import N_E, lane_derivative, lanes_erk, lanes_rk4
+from drillgym.kernels.lanes import ROWS_DIAG, ROWS_FULL, _lane_delay_step, _lane_to_state, _state_to_lane
+from drillgym.kernels.model import resolve_modes
+from drillgym.kernels.stepping import advance_batch, alloc_work, hybrid_step
 
 __all__ = ["RUN_SIGNATURE", "run_periods", "OK", "NON_FINITE_COMMAND", "DIVERGED", "N_SIGNALS"]
 
@@ -88,6 +98,76 @@ def _pad(Y, MODE, UL, T, FRIC, HIST, HEAD, n):
 
 
 @njit(cache=True)
+def _lane_period(Y, MODE, UL, P, PT, cfg, dt, T, sub, FRIC, HIST, HEAD, A, b, c, DM, S, S0, K1, FR, MU, ML, EV, W, E,
+                 Ucur, Uprev, TT, y, mode, K, ytmp, k1, ynew, fric, ftmp, g0, g1):  # fmt: skip
+    """One period of the B lanes held at the commands UL (V): :func:`drillgym.kernels.lanes.lanes_run` with
+    ``n_steps = sub``, no record, the modes resolved as given; its work arrays (S ... TT, y ... g1), the
+    parameter rows PT and the delays in steps DM given.  The same arithmetic in the same order."""
+    B = Y.shape[0]
+    full = lateral_free(cfg)
+    rows = ROWS_FULL if full else ROWS_DIAG
+    n = rows.shape[0]
+    string_on = 0.0 if cfg == UPPER else 1.0
+    brake = brake_on(cfg)
+    fv = cfg == FREE_VIBRATION
+    for k in range(B):
+        for j in range(N_STATE):
+            y[j] = Y[k, j]
+        for j in range(2):
+            mode[j] = MODE[k, j]
+        u0 = delay_line_step(HIST[k], HEAD[k : k + 1], UL[k, 0], P[k], dt)
+        if HAS_LAG:
+            hk_lag_start(T[k], u0, y, P[k], cfg)
+        resolve_modes(T[k], y, mode, u0, P[k], cfg, k1, fric)
+        _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
+        for j in range(N_STATE):
+            Y[k, j] = y[j]
+        Uprev[k] = u0
+        Ucur[k] = u0
+    for i in range(sub):
+        new_input = False
+        for k in range(B):
+            TT[k] = T[k] + i * dt
+            if i > 0:
+                Ucur[k] = _lane_delay_step(HIST, HEAD, k, UL[k, 0], DM[k]) if HAS_DELAY else UL[k, 0]
+            new_input |= Ucur[k] != Uprev[k]
+        if new_input:
+            lane_derivative(S, MU, ML, Ucur, PT, full, string_on, brake, K1, FR, TT, 0.0, cfg, E)
+            for k in range(B):
+                if Ucur[k] == Uprev[k]:
+                    continue
+                Uprev[k] = Ucur[k]
+                if (MU[k] == 0.0 and not fv) or (ML[k] == 0.0 and cfg != UPPER):
+                    y[:] = Y[k]
+                    _lane_to_state(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
+                    resolve_modes(TT[k], y, mode, Ucur[k], P[k], cfg, k1, fric)
+                    _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
+        if b.shape[0] == 4:
+            lanes_rk4(S, K1, FR, MU, ML, Ucur, PT, dt, full, string_on, brake, fv, S0, EV, W, TT, cfg, E)
+        else:
+            lanes_erk(S, K1, FR, MU, ML, Ucur, PT, dt, full, string_on, brake, fv, S0, EV, W, TT, cfg, E, A, b, c)
+        for k in range(B):
+            if EV[k] == 0:  # an event inside this step: redo it exactly on the scalar path
+                y[:] = Y[k]
+                for j in range(n):
+                    y[rows[j]] = S0[j, k]
+                mode[0] = np.int64(MU[k])
+                mode[1] = np.int64(ML[k])
+                t = TT[k]
+                resolve_modes(t, y, mode, Ucur[k], P[k], cfg, k1, fric)
+                hybrid_step(t, y, k1, fric, mode, Ucur[k], P[k], cfg, 0.0, dt, A, b, c, K, ytmp, ynew, g0, g1, ftmp)
+                _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
+    for k in range(B):
+        for j in range(n):
+            Y[k, rows[j]] = S[j, k]
+        MODE[k, 0] = np.int64(MU[k])
+        MODE[k, 1] = np.int64(ML[k])
+        FRIC[k, 0] = FR[0, k]
+        FRIC[k, 1] = FR[1, k]
+        T[k] += sub * dt
+
+
+@njit(cache=True)
 def _diverged(Y, n, limit):
     for k in range(n):
         for j in range(min(N_STATE, 8)):
@@ -113,6 +193,19 @@ def run_periods(
     beyond which a run diverged (rad/s); ``OUT`` (7, n, total periods) the signals, column k0 + i.
     Status: OK, NON_FINITE_COMMAND (the period's command is not finite: nothing recorded) or DIVERGED
     (a state is not finite or a speed beyond ``limit`` after the period)."""
+    B = Y.shape[0]
+    nr = (ROWS_FULL if lateral_free(cfg) else ROWS_DIAG).shape[0]
+    PT = hk_lane_params(P)  # the lane path's work arrays, once per call (lanes_run makes them per period)
+    S, S0, K1 = np.empty((nr, B)), np.empty((nr, B)), np.zeros((nr, B))
+    FR, MU, ML, EV = np.zeros((2, B)), np.zeros(B), np.zeros(B), np.zeros(B, dtype=np.int64)
+    W, E = np.zeros((max(4, b.shape[0]) * nr, B)), np.zeros((N_E + 1, B))
+    Ucur, Uprev, TT = np.empty(B), np.empty(B), np.empty(B)
+    K, ytmp, k1, ynew, fric, ftmp, g0, g1 = alloc_work(b.shape[0])
+    y, mode = np.zeros(N_STATE), np.zeros(2, dtype=np.int64)
+    DM = np.zeros(B)  # each lane's delay in steps (a Delay effect)
+    if HAS_DELAY:
+        for j in range(B):
+            DM[j] = max(hk_delay(P[j]), 0.0) / dt
     for i in range(m):
         k = k0 + i
         if not (first_given and i == 0):
@@ -124,19 +217,18 @@ def run_periods(
                 return i, NON_FINITE_COMMAND
             U[j] = u
             UL[j, 0] = u
-            y = Y[j]
+            y_ = Y[j]
             OUT[0, j, k] = u
-            OUT[1, j, k] = y[2]
-            OUT[2, j, k] = y[3]
-            OUT[3, j, k] = y[1] - y[0]
+            OUT[1, j, k] = y_[2]
+            OUT[2, j, k] = y_[3]
+            OUT[3, j, k] = y_[1] - y_[0]
             OUT[4, j, k] = 1.0 if MODE[j, 1] == 0 else 0.0
             OUT[5, j, k] = FRIC[j, 1]
-            OUT[6, j, k] = np.hypot(y[4], y[5])
+            OUT[6, j, k] = np.hypot(y_[4], y_[5])
         if lanes:
             _pad(Y, MODE, UL, T, FRIC, HIST, HEAD, n)
-            lanes_run(Y, MODE, UL, P, cfg, dt, T, 1, NOREC, sub, False, FRIC, HIST, HEAD, A, b, c)
-            for j in range(Y.shape[0]):
-                T[j] += sub * dt
+            _lane_period(Y, MODE, UL, P, PT, cfg, dt, T, sub, FRIC, HIST, HEAD, A, b, c, DM, S, S0, K1, FR, MU, ML, EV,
+                         W, E, Ucur, Uprev, TT, y, mode, K, ytmp, k1, ynew, fric, ftmp, g0, g1)  # fmt: skip
         else:
             advance_batch(Y, MODE, UL[:, 0].copy(), P, cfg, dt, sub, T, eps, A, b, c, FRIC, HIST, HEAD)
         if _diverged(Y, n, limit):
