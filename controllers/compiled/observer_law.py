@@ -25,7 +25,7 @@ from numba import njit
 from drillgym.closed_loop.abi import LAW_SIGNATURE, M_REF, M_TU
 from drillgym.vmath import vexp, vlog
 
-__all__ = ["observer_step", "observer_law", "ROWS", "CONSTANTS", "MAX_DIM"]
+__all__ = ["observer_step", "observer_law", "model_rhs", "model_shapes", "law_shapes", "ROWS", "CONSTANTS", "MAX_DIM"]
 
 MAX_DIM = 6
 # state rows: estimates (MAX_DIM), covariance (MAX_DIM^2, row-major in the model's dim), then the law's
@@ -34,7 +34,13 @@ _P0 = MAX_DIM
 _L0 = _P0 + MAX_DIM * MAX_DIM
 ROWS = ("y1", "y2", "y3", "z", "t", "target", "low", "k0", "k1", "k2", "k3", "settle", "integrating", "theta0", "t_int")
 Y1, Y2, Y3, Z, TL, TARGET, LOW, K0, K1, K2, K3, SETTLE, INTEG, THETA0, TINT = range(_L0, _L0 + len(ROWS))
-N_ROWS = _L0 + len(ROWS)
+# then work rows, rewritten every period: the filter's (W: gain, then products), the model's right-hand side and
+# Jacobian, the brake law's shapes (three speeds of the law, three of the model)
+_W0 = _L0 + len(ROWS)
+_F0 = _W0 + 2 * MAX_DIM * MAX_DIM + MAX_DIM
+_J0 = _F0 + MAX_DIM
+_S0 = _J0 + MAX_DIM * MAX_DIM
+N_ROWS = _S0 + 6
 
 CONSTANTS = (
     "dt", "r", "eps", "h", "Ju", "Jl", "km", "kth", "Tcu", "dTcu", "bu", "dbu", "Ts", "Tc", "ws", "delta", "bb",
@@ -65,7 +71,31 @@ def _sign(x):
     return 1.0 if x > 0 else (-1.0 if x < 0 else 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
+def law_shapes(wl_, C, n, a, b, c):
+    """The brake law's shapes (:func:`_shape`) at the law's speed ww = max(wl, w_rest + hf) and ww +- hf into the
+    rows a, b, c, from the lower-speed estimates wl_ (rad/s): a branch-free loop of its own that vectorises."""
+    ws, delta, hf = C[WS], C[DELTA], C[HF]
+    lo = C[W_REST] + hf
+    for k in range(n):
+        ww = max(wl_[k], lo)
+        a[k] = _shape(ww, ws, delta)
+        b[k] = _shape(ww + hf, ws, delta)
+        c[k] = _shape(ww - hf, ws, delta)
+
+
+@njit(cache=True, error_model="numpy")
+def model_shapes(wl_, C, n, a, b, c):
+    """The brake law's shapes at |wl| and |wl +- h| (the model and its Jacobian) into the rows a, b, c."""
+    ws, delta, h = C[WS], C[DELTA], C[H]
+    for k in range(n):
+        wl = wl_[k]
+        a[k] = _shape(abs(wl), ws, delta)
+        b[k] = _shape(abs(wl + h), ws, delta)
+        c[k] = _shape(abs(wl - h), ws, delta)
+
+
+@njit(cache=True, error_model="numpy")
 def _update(M, X, C, n, dim, W):
     """The filter's update with the measured motor angles (Joseph form); W: work rows (>= dim + dim^2)."""
     r = C[R]
@@ -87,11 +117,11 @@ def _update(M, X, C, n, dim, W):
                 X[_P0 + i * dim + j, k] = a + r * W[i, k] * W[j, k]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _law(M, X, C, n, U):
     """The flatness law's voltage (V, clipped) from the updated estimates, its reference lags advanced."""
     dt, tau, kt, Jl, Ju, km = C[DT], C[TAU], C[KTH], C[JL], C[JU], C[KM]
-    Ts, Tc, ws, delta, bb, hf, w_rest = C[TS], C[TC], C[WS], C[DELTA], C[BB], C[HF], C[W_REST]
+    Ts, Tc, bb, hf, w_rest = C[TS], C[TC], C[BB], C[HF], C[W_REST]
     hold, ramp, u_max = C[HOLD], C[RAMP], C[U_MAX]
     scale, has_du, angle = C[SCALE] > 0, C[HAS_DU] > 0, C[ANGLE_INT] > 0
     for k in range(n):
@@ -121,9 +151,9 @@ def _law(M, X, C, n, U):
         r1, r2 = d3, dd3
         # the brake law, its slope and curvature at the estimated lower speed (FlatnessLaw.friction)
         ww = max(wl, w_rest + hf)
-        t0 = Tc + (Ts - Tc) * _shape(ww, ws, delta) + bb * ww
-        tp = Tc + (Ts - Tc) * _shape(ww + hf, ws, delta) + bb * (ww + hf)
-        tm = Tc + (Ts - Tc) * _shape(ww - hf, ws, delta) + bb * (ww - hf)
+        t0 = Tc + (Ts - Tc) * X[_S0, k] + bb * ww
+        tp = Tc + (Ts - Tc) * X[_S0 + 1, k] + bb * (ww + hf)
+        tm = Tc + (Ts - Tc) * X[_S0 + 2, k] + bb * (ww - hf)
         T, T1, T2 = t0, (tp - tm) / (2 * hf), (tp - 2 * t0 + tm) / hf**2
         if scale:
             T, T1, T2 = (1.0 + d) * T, (1.0 + d) * T1, (1.0 + d) * T2
@@ -148,16 +178,19 @@ def _law(M, X, C, n, U):
         U[k] = min(max(u, -u_max), u_max)
 
 
-@njit(cache=True)
-def _model(X, C, n, dim, U, Fv, J):
-    """The model's right-hand side Fv (dim, n) and its Jacobian J (dim*dim, n) at the estimates under U."""
+@njit(cache=True, error_model="numpy")
+def model_rhs(X, C, n, dim, U, SH, Fv, J, jac):
+    """The model's right-hand side Fv (dim, n) at the estimates (rows 0.. of X) under U, and with ``jac`` its
+    Jacobian J (dim*dim, n); SH the rows of :func:`model_shapes` at the estimates."""
     eps, h, Ju, Jl, km, kt = C[EPS], C[H], C[JU], C[JL], C[KM], C[KTH]
     Tcu, dTcu, bu, dbu = C[TCU], C[DTCU], C[BU], C[DBU]
     Ts, Tc, ws, delta, bb = C[TS], C[TC], C[WS], C[DELTA], C[BB]
     scale, has_du = C[SCALE] > 0, C[HAS_DU] > 0
-    for i in range(dim * dim):
-        for k in range(n):
-            J[i, k] = 0.0
+    shape0 = _shape(0.0, ws, delta)  # a disc at rest
+    if jac:
+        for i in range(dim * dim):
+            for k in range(n):
+                J[i, k] = 0.0
     for k in range(n):
         z0, wu, z2, wl, d = X[_X0, k], X[_X0 + 1, k], X[_X0 + 2, k], X[_X0 + 3, k], X[_X0 + 4, k]
         f = 1.0 + d if scale else 1.0
@@ -176,7 +209,7 @@ def _model(X, C, n, dim, U, Fv, J):
         yu = 0.0 if stuck_u else wu
         awl = 0.0 if stuck_l else abs(wl)
         tfu = _upper(abs(yu), mu, Tcu, dTcu, bu, dbu)
-        e_l = _shape(awl, ws, delta)
+        e_l = shape0 if stuck_l else SH[0, k]
         tfl = ml * (Tcf + (Tsf - Tcf) * e_l + bbf * awl)
         au = (Fu - tfu) / Ju if mu != 0 else 0.0
         a_l = (Fl - tfl) / Jl if ml != 0 else 0.0
@@ -185,6 +218,10 @@ def _model(X, C, n, dim, U, Fv, J):
         Fv[2, k] = wl - wu
         Fv[3, k] = a_l - (0.0 if scale else d / Jl)
         Fv[4, k] = 0.0
+        if has_du:
+            Fv[5, k] = 0.0
+        if not jac:
+            continue
         # Jacobian, the modes held (central differences in the speeds, as the reference)
         J[0 * dim + 1, k] = 1.0
         J[2 * dim + 1, k] = -1.0
@@ -196,20 +233,19 @@ def _model(X, C, n, dim, U, Fv, J):
             J[1 * dim + 2, k] = kt / Ju
         if ml != 0:
             aw = abs(wl)
-            tp = ml * (Tcf + (Tsf - Tcf) * _shape(abs(wl + h), ws, delta) + bbf * abs(wl + h))
-            tm = ml * (Tcf + (Tsf - Tcf) * _shape(abs(wl - h), ws, delta) + bbf * abs(wl - h))
+            tp = ml * (Tcf + (Tsf - Tcf) * SH[1, k] + bbf * abs(wl + h))
+            tm = ml * (Tcf + (Tsf - Tcf) * SH[2, k] + bbf * abs(wl - h))
             J[3 * dim + 2, k] = -kt / Jl
             J[3 * dim + 3, k] = ((Fl - tp) / Jl - (Fl - tm) / Jl) / (2.0 * h)
             if scale:
-                J[3 * dim + 4, k] = -ml * (Tc + (Ts - Tc) * _shape(aw, ws, delta) + bb * aw) / Jl
+                J[3 * dim + 4, k] = -ml * (Tc + (Ts - Tc) * SH[0, k] + bb * aw) / Jl
         if not scale:
             J[3 * dim + 4, k] = -1.0 / Jl
         if has_du:
-            Fv[5, k] = 0.0
             J[1 * dim + 5, k] = 1.0 / Ju
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _predict(X, C, n, dim, Fv, J, W):
     """x += Gamma f; P = F P F' + Qd with F = Ad + Gamma (J - Ac).  W: work rows (>= 2 dim^2)."""
     dd = dim * dim
@@ -261,12 +297,16 @@ def observer_step(t, M, X, C, U):  # pragma: no cover - compiled
     """One period of the observer controller for every lane: update, law, clip, predict (module doc)."""
     n = U.size
     dim = int(C[DIM])
-    W = np.empty((2 * dim * dim + dim, n))
-    Fv = np.empty((dim, n))
-    J = np.empty((dim * dim, n))
+    W = X[_W0 : _W0 + 2 * dim * dim + dim]
+    Fv = X[_F0 : _F0 + dim]
+    J = X[_J0 : _J0 + dim * dim]
+    SH = X[_S0 : _S0 + 6]
     _update(M, X, C, n, dim, W)
+    wl = X[_X0 + 3]
+    law_shapes(wl, C, n, SH[0], SH[1], SH[2])
+    model_shapes(wl, C, n, SH[3], SH[4], SH[5])
     _law(M, X, C, n, U)
-    _model(X, C, n, dim, U, Fv, J)
+    model_rhs(X, C, n, dim, U, SH[3:6], Fv, J, True)
     _predict(X, C, n, dim, Fv, J, W)
 
 
