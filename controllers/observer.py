@@ -425,3 +425,10 @@ class LQGController(Controller):
             u = np.where(self._short, self._descent.act(m), u)
         self._x = mdl.predict_mean(x, u)
         return u
+
+    def compiled_law(self):
+        """The filter and the law compiled (:mod:`controllers.compiled.lqg_law`) from the current state; None for
+        a model with effects or the ``descent`` fallback (the step-by-step loop runs them)."""
+        from .compiled.lqg_law import lqg_law
+
+        return lqg_law(self)

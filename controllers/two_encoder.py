@@ -332,6 +332,13 @@ class TwoEncoderLQG(Controller):
         self.x = self.x + self._b * dv[:, None]
         self.u_prev = u.copy()
 
+    def compiled_law(self):
+        """The filter and the law compiled (:mod:`controllers.compiled.two_encoder_law`) from the current state; None
+        for a model with effects (the step-by-step loop runs it)."""
+        from .compiled.two_encoder_law import two_encoder_law
+
+        return two_encoder_law(self)
+
     def _target(self) -> np.ndarray:
         s = np.clip((self.t - self.hold) / self.ramp, 0.0, 1.0) if self.ramp > 0 else (self.t >= self.hold) * 1.0
         return np.where(

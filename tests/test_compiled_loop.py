@@ -7,6 +7,8 @@ Tolerances:
   1e-12 (V, and relative on the estimates) with quantized angles; whole runs with exact angles agree to 1e-8
   relative on omega_l and 1e-5 V on u over 2 s.  Longer runs part: the closed loop amplifies round-off (the reference
   against itself with its covariance scaled by 1 + 1e-15 differs by 1e-3 rad/s after 2 s).
+* ``lqg``, ``lqg-2enc``: the same tolerances as ``observer`` (their laws use the vectorisable exp and log of the
+  brake law, and sum their matrix products in another order than numpy).
 
 The plant runs a library effect (``motor_lag``) the controllers do not know.
 """
@@ -62,6 +64,46 @@ def test_observer_law_one_period_matches_act_along_a_reference_run():
         assert np.max(np.abs(U - u)) <= 1e-12
         x = c.observer.x
         assert np.all(np.abs(X[:5] - x) <= 1e-12 * (1.0 + np.abs(x)))
+
+
+def _states(name, c):
+    """The reference controller's estimates (rows, n) and the compiled law's rows holding them."""
+    if name == "lqg":
+        return c._x, slice(0, c._x.shape[0])
+    return c.x.T, slice(0, c.x.shape[1])
+
+
+@pytest.mark.parametrize("name", ["lqg", "lqg-2enc"])
+def test_lqg_laws_one_period_match_act_along_a_reference_run(name):
+    n = 6
+    ref = np.linspace(1.0, 6.0, n)
+    c0 = controllers.make(name, config="torsional", omega_ref=ref)
+    ms = []
+    act = c0.act
+    c0.act = lambda m: (ms.append({k: np.array(v) for k, v in m.items()}), act(m))[1]
+    run_closed_loop(c0, "torsional", ref, 0.6, compiled=False, **PLANT)  # quantized angles, 8000 counts/rev
+    c = controllers.make(name, config="torsional", omega_ref=ref)
+    c.reset(ms[0])
+    M, U = np.zeros((5, n)), np.zeros(n)
+    M[4] = ref
+    for k, m in enumerate(ms):
+        law = c.compiled_law()
+        X = law.state.copy()
+        M[0], M[1] = m["theta_u"], m["theta_l"]
+        u = c.act(m)
+        law.step(k * c.dt, M, X, law.constants, U)
+        assert np.max(np.abs(U - u)) <= 1e-12
+        x, rows = _states(name, c)
+        assert np.all(np.abs(X[rows] - x) <= 1e-12 * (1.0 + np.abs(x)))
+
+
+@pytest.mark.parametrize("name", ["lqg", "lqg-2enc"])
+def test_lqg_compiled_runs_match_the_reference_with_exact_angles(name):
+    ref = np.array([1.0, 2.0, 3.0, 4.5, 6.0, 7.0, 2.5, 5.0])
+    a, b = _runs(name, ref, 2.0, counts_per_rev=0)
+    scale = np.max(np.abs(a.omega_l))
+    assert np.max(np.abs(a.omega_l - b.omega_l)) <= 1e-8 * scale
+    assert np.max(np.abs(a.u - b.u)) <= 1e-5
 
 
 def test_observer_compiled_run_matches_the_reference_with_exact_angles():
