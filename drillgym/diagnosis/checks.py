@@ -62,8 +62,9 @@ MIN_ANGLE_SPAN = 2 * math.pi / 12
 MIN_REFUTING_SPAN = 2 * 2 * math.pi
 
 
-def check(screening: Screening, outcome: SearchOutcome, options: SelectionOptions) -> None:
-    """Check the model kept (in place on ``outcome``: its model, paths and lag/delay decision).
+def check(screening: Screening, outcome: SearchOutcome, options: SelectionOptions) -> SearchOutcome:
+    """Check the model kept: the position-dependent effects in both halves, the lag or delay at the recording's
+    rate, a friction of time against one of the angle.
 
     Parameters
     ----------
@@ -73,23 +74,31 @@ def check(screening: Screening, outcome: SearchOutcome, options: SelectionOption
         What the search found.
     options : SelectionOptions
         How hard to search when the selection continues.
+
+    Returns
+    -------
+    SearchOutcome
+        The outcome checked: the model kept (the search's, or the selection continued without an effect the
+        halves refuted), the paths with the check's, the lag/delay decision.
     """
-    _check_positions(screening, outcome, options)
-    out = outcome.kept
-    outcome.lag_delay = check_lag_delay(out, screening.exps, screening.model, screening.segment_s)
+    out, paths = _check_positions(screening, outcome, options)
+    lag_delay = check_lag_delay(out, screening.exps, screening.model, screening.segment_s)
     state_time_or_angle_tie(out, screening.exps, screening.model.candidates)
+    return replace(outcome, kept=out, paths=paths, lag_delay=lag_delay)
 
 
-def _check_positions(screening: Screening, outcome: SearchOutcome, options: SelectionOptions) -> None:
+def _check_positions(
+    screening: Screening, outcome: SearchOutcome, options: SelectionOptions
+) -> tuple[Selection, dict[str, list[str]]]:
     """The split-half check of the position-dependent effects kept, and the selection continued from the
     remaining set without an effect it dropped (the dropped one had taken residual that another candidate
     explains: a friction drift beside a position friction fitted to it)."""
-    model, paths, out = screening.model, outcome.paths, outcome.kept
+    model, paths, out = screening.model, dict(outcome.paths), outcome.kept
     before_check = replace(out, vector=out.vector.copy(), dropped=dict(out.dropped), ties=dict(out.ties))
     checks = check_position_effects(out, screening.exps, model, screening.segment_s, outcome.scales)
     gone = list(checks)
     if not gone:
-        return
+        return out, paths
     again = forward_select(
         model,
         options,
@@ -131,7 +140,7 @@ def _check_positions(screening: Screening, outcome: SearchOutcome, options: Sele
     obj = model.obj
     if options.refine and (out is again or out is before_check):  # speed corrections for the model kept
         obj.model.refine_initial_speeds(out.vector, obj.weights, obj.scales, fresh=True)
-    outcome.kept = out
+    return out, paths
 
 
 def check_position_effects(

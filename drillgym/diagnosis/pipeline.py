@@ -106,24 +106,32 @@ def diagnose(
     with one_blas_thread():  # every step's threads (fits side by side, the lag/delay searches) see the same BLAS
         screening = screen(data, params, config, opts)
         noise = dict(screening.model.obj.scales)  # the selection may weight the sensors by their misfit
-        outcome = select(screening.model, opts.selection())
-        check(screening, outcome, opts.selection())
+        outcome = check(screening, select(screening.model, opts.selection()), opts.selection())
         diagnosis = report(screening, outcome)
-        diagnosis.input_order = input_order(screening, diagnosis)
-        diagnosis.unexplained = unexplained(screening.model.obj, diagnosis.vector, noise)
+        diagnosis = replace(
+            diagnosis,
+            input_order=input_order(screening, diagnosis),
+            unexplained=unexplained(screening.model.obj, diagnosis.vector, noise),
+        )
     if opts.discover and screening.config is not Configuration.UPPER:
-        diagnosis.candidate, diagnosis.advice = discover(_fine(screening.exps[0]), diagnosis, opts.candidate_out)
-        reading = reading_candidate(diagnosis)  # the motor encoder's reading: only its own fit can show it
-        if diagnosis.candidate is not None or reading is not None:  # its own identification is part of the answer
-            with one_blas_thread():
-                diagnosis.candidate = choose_candidate(screening, diagnosis, noise, opts.candidate_out, reading)
-                if diagnosis.candidate is not None and diagnosis.candidate is reading:
-                    diagnosis.advice = []
+        diagnosis = _discovered(screening, diagnosis, noise, opts)
         kept = kept_candidate(diagnosis)
         if kept is not None:
             again, again_options = reselection_inputs(diagnosis, kept, opts)
-            diagnosis.reselection = diagnose(data, again, config, options=again_options)
+            diagnosis = replace(diagnosis, reselection=diagnose(data, again, config, options=again_options))
     return diagnosis
+
+
+def _discovered(screening, diagnosis: Diagnosis, noise: dict[str, float], opts: DiagnosisOptions) -> Diagnosis:
+    """The diagnosis with a candidate effect outside the library (or advice), each candidate's own fit judged."""
+    found, advice = discover(_fine(screening.exps[0]), diagnosis, opts.candidate_out)
+    diagnosis = replace(diagnosis, candidate=found, advice=advice)
+    reading = reading_candidate(diagnosis)  # the motor encoder's reading: only its own fit can show it
+    if found is None and reading is None:
+        return diagnosis
+    with one_blas_thread():  # its own identification is part of the answer
+        chosen = choose_candidate(screening, diagnosis, noise, opts.candidate_out, reading)
+    return replace(diagnosis, candidate=chosen, advice=[] if chosen is not None and chosen is reading else advice)
 
 
 def _recordings(data: Any) -> list[TimeSeries]:

@@ -45,7 +45,8 @@ def report(screening: Screening, outcome: SearchOutcome) -> Diagnosis:
     for name, why in out.dropped.items():
         if name not in {r.effect for r in ranking}:
             skipped[name] = why
-    refitted = {n: float(vec[comp.param_index(n)]) for n in model.base_names} if out.base_off else {}
+    base = [n for n in model.base_names if comp.owner(n) is None]  # not a model effect's, refitted with them
+    refitted = {n: float(vec[comp.param_index(n)]) for n in base} if out.base_off else {}
     ne0 = effective_samples(model.obj.residual_matrix(vec0[None, :])[0], model.obj.block_ids)
     warn = list(out.base_warnings)
     if out.at_bounds:
@@ -54,7 +55,9 @@ def report(screening: Screening, outcome: SearchOutcome) -> Diagnosis:
             f"{', '.join(out.at_bounds)}: an effect the library lacks is absorbed by them, or the base "
             f"model is further off than a few percent (run identify-staged first)"
         )
-    d = Diagnosis(
+    nominal_vector = vec.copy()
+    nominal_vector[:N_PARAMS] = vec0[:N_PARAMS]
+    return Diagnosis(
         ranking,
         screening.config,
         math.sqrt(out.rss_nominal / out.n),
@@ -68,20 +71,17 @@ def report(screening: Screening, outcome: SearchOutcome) -> Diagnosis:
         base_parameters=out.moved,
         base_off=out.base_off,
         base_score=out.base_score,
-        warnings=warn,
+        warnings=warn + smooth_input_warning(screening.exps, comp, vec0, out.moved, out.selected),
         rmse_after=math.sqrt(out.rss_final / out.n),
         composition=comp,
         vector=vec,
         params=RigParams.from_vector(vec[:N_PARAMS]),
+        nominal_vector=nominal_vector,
+        paths=outcome.paths,
+        lag_delay=outcome.lag_delay.to_json() if outcome.lag_delay is not None else None,
+        sensor_misfit=outcome.sensor_misfit,
+        at_bounds=list(out.at_bounds),
     )
-    d.warnings += smooth_input_warning(screening.exps, comp, vec0, out.moved, out.selected)
-    d.paths = outcome.paths
-    d.at_bounds = list(out.at_bounds)
-    d.sensor_misfit = outcome.sensor_misfit
-    d.lag_delay = outcome.lag_delay.to_json() if outcome.lag_delay is not None else None
-    d.nominal_vector = vec.copy()
-    d.nominal_vector[:N_PARAMS] = vec0[:N_PARAMS]
-    return d
 
 
 def _selected_scores(out: Selection, comp: Composition, by_name: dict[str, type[Effect]]) -> list[EffectScore]:

@@ -239,7 +239,7 @@ class EffectScore:
         }
 
 
-@dataclass
+@dataclass(frozen=True)
 class Diagnosis:
     """The diagnosis of a recording.
 
