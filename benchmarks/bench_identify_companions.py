@@ -96,7 +96,7 @@ def run_row(row: dict, duration: float, rate_hz: float, work: Path) -> dict:
     last = found.reselection or d
     # a lag and a delay the selection states it cannot tell apart on this input count as the other one
     tie = any(s.effect in found.model.names and row["companion"] in s.note for s in last.ranking)
-    not_shown = last.skipped.get(row["companion"])
+    not_shown = last.skipped.get(row["companion"]) if row["companion"] not in found.model.names else None
     return {
         **{k: row[k] for k in ("kind", "companion", "signal", "seed")},
         "hidden": row["effects"],
