@@ -1,7 +1,9 @@
 """The diagnosis as a pipeline: screen, select, check, report, discover.
 
 1. :func:`.screening.screen` — the recording prepared and conditioned, the candidates it can show, the
-   search model (every candidate at its neutral values);
+   search model (every candidate at its neutral values); :func:`.detectability.detectability` — which effects
+   and base parameters the recording's input can show at all, and which pairs it shows alike (one batched
+   residual evaluation, no fit);
 2. :func:`.orders.select` — the forward selection in several orders (:mod:`.forward`, :mod:`.backward`),
    the better model by the criterion (:mod:`.criterion`);
 3. :func:`.checks.check` — position-dependent effects in both halves of the recording, a lag or a delay
@@ -32,6 +34,7 @@ from ..io import TimeSeries
 from ..params import RigParams
 from .candidate_fit import choose_candidate
 from .checks import check
+from .detectability import detectability
 from .discovery import discover
 from .encoder_reading import reading_candidate
 from .information import require_information
@@ -106,12 +109,14 @@ def diagnose(
     with one_blas_thread():  # every step's threads (fits side by side, the lag/delay searches) see the same BLAS
         screening = screen(data, params, config, opts)
         noise = dict(screening.model.obj.scales)  # the selection may weight the sensors by their misfit
+        shows = detectability(screening)  # in noise units: before the selection reweights the sensors
         outcome = check(screening, select(screening.model, opts.selection()), opts.selection())
         diagnosis = report(screening, outcome)
         diagnosis = replace(
             diagnosis,
             input_order=input_order(screening, diagnosis),
             unexplained=unexplained(screening.model.obj, diagnosis.vector, noise),
+            detectability=shows,
         )
     if opts.discover and screening.config is not Configuration.UPPER:
         diagnosis = _discovered(screening, diagnosis, noise, opts)

@@ -305,6 +305,10 @@ class Diagnosis:
     reselection : Diagnosis or None
         The diagnosis run again on the model that holds a kept candidate (:mod:`.reselection`; None: no
         candidate kept).
+    detectability : Detectability or None
+        What the recording's input can show at all: each effect and re-identified base parameter's change of
+        the prediction, the pairs of effects it shows alike, the experiment that would show the rest
+        (:mod:`.detectability`; None: not measured).
     """
 
     ranking: list[EffectScore]
@@ -335,6 +339,7 @@ class Diagnosis:
     input_order: Any = None
     at_bounds: list[str] = field(default_factory=list)
     reselection: Diagnosis | None = None
+    detectability: Any = None
 
     @property
     def best(self) -> EffectScore | None:
@@ -407,6 +412,7 @@ class Diagnosis:
             "unexplained": self.unexplained.to_json() if self.unexplained is not None else None,
             "input_order": self.input_order.to_json() if self.input_order is not None else None,
             "reselection": self.reselection.to_json() if self.reselection is not None else None,
+            "detectability": self.detectability.to_json() if self.detectability is not None else None,
         }
 
     def _signal_path(self) -> list[str]:
@@ -439,6 +445,9 @@ class Diagnosis:
             lines.append(f"warning: {w}")
         for k, why in self.skipped.items():
             lines.append(f"skipped {k}: {why}")
+        if self.detectability is not None:  # only what this recording cannot show (a pair the fine check decided: not)
+            ld = self.lag_delay
+            lines += self.detectability.lines([frozenset((ld["chosen"], ld["other"]))] if ld and not ld["tie"] else [])
         if self.advice:
             rest = "the rest of the residual" if self.at_noise else "the residual left unexplained (first lines)"
             lines.append(f"nothing outside the library explains {rest}; experiments that would show more:")
