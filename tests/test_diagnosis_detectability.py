@@ -113,3 +113,17 @@ def test_the_diagnosis_says_what_it_cannot_tell_in_text_and_json():
     d = diagnose(ts, effects=LAG_DELAY, fixed_base=True)  # the pipeline measures it after the screening
     assert d.detectability is not None and d.to_json()["detectability"]["alike"], d.text()
     assert "cannot tell motor_lag from input_delay" in d.text()
+
+
+def test_an_effect_the_diagnosis_skipped_is_not_said_twice():
+    """An effect the diagnosis skipped with its reason (the disc never turns backwards) gets no second "cannot
+    tell" line; an undetectable one it tried still does."""
+    from drillgym.diagnosis.detectability import Detectability, Sensitivity
+
+    def weak(name):
+        return Sensitivity(name, "Friction", {"p": 0.1}, 0.2, 0.2, False, "turn the disc backwards")
+
+    d = Detectability((weak("brake_asymmetry"), weak("friction_drift")), (), ())
+    lines = d.lines(said={"brake_asymmetry": "the lower disc hardly turns backwards"})
+    assert len(lines) == 1 and "friction_drift" in lines[0] and "brake_asymmetry" not in lines[0]
+    assert len(d.lines()) == 2

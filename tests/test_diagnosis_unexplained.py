@@ -136,6 +136,8 @@ def test_a_motor_lag_hidden_by_a_dead_zone_is_selected_beside_the_candidate(tmp_
     assert again.effect_values()["tau_m"] == pytest.approx(0.03, rel=0.2)
     assert again.unexplained.ratio_to_noise < c.fit.after.ratio_to_noise
     assert d.to_json()["reselection"]["selected"] == again.selected
+    said = d.reselection_lines()
+    assert said[0].startswith("with the candidate in the model") and "motor_lag" in said[0], said
 
 
 def test_the_figure_draws_every_panel_it_has_data_for(tmp_path, monkeypatch):

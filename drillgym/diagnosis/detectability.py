@@ -287,7 +287,7 @@ class Detectability:
         """The effects and base parameters this recording cannot show."""
         return [s for s in self.effects + self.base if not s.detectable]
 
-    def lines(self, decided: Collection[frozenset[str]] = ()) -> list[str]:
+    def lines(self, decided: Collection[frozenset[str]] = (), said: Collection[str] = ()) -> list[str]:
         """One line per effect, base parameter or pair this recording cannot tell (nothing else).
 
         Parameters
@@ -295,6 +295,8 @@ class Detectability:
         decided : collection of frozenset of str, optional
             Pairs a finer check decided after all (the lag/delay check at the recording's rate, not a tie):
             left out.
+        said : collection of str, optional
+            Effects the diagnosis already says why it did not try (skipped): left out.
 
         Returns
         -------
@@ -302,7 +304,7 @@ class Detectability:
             The lines.
         """
         pairs = [p for p in self.alike if frozenset((p.first, p.second)) not in decided]
-        return [s.line() for s in self.cannot()] + [p.line() for p in pairs]
+        return [s.line() for s in self.cannot() if s.name not in said] + [p.line() for p in pairs]
 
     def to_json(self) -> dict:
         """The sensitivities and pairs as a JSON-ready dict."""

@@ -13,7 +13,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -447,7 +447,8 @@ class Diagnosis:
             lines.append(f"skipped {k}: {why}")
         if self.detectability is not None:  # only what this recording cannot show (a pair the fine check decided: not)
             ld = self.lag_delay
-            lines += self.detectability.lines([frozenset((ld["chosen"], ld["other"]))] if ld and not ld["tie"] else [])
+            decided = [frozenset((ld["chosen"], ld["other"]))] if ld and not ld["tie"] else []
+            lines += self.detectability.lines(decided, said=self.skipped)
         if self.advice:
             rest = "the rest of the residual" if self.at_noise else "the residual left unexplained (first lines)"
             lines.append(f"nothing outside the library explains {rest}; experiments that would show more:")
@@ -462,7 +463,8 @@ class Diagnosis:
         found = ", ".join(r.selected) or "no library effect"
         out = [f"with the candidate in the model ({r.model}, refitted with the base), the library selected again: "]
         out[0] += found
-        out += ["  " + line for line in r.text().splitlines()]
+        # what the recording cannot show was said once, above
+        out += ["  " + line for line in replace(r, detectability=None).text().splitlines()]
         return out
 
     def _header(self) -> str:
