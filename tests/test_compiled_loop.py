@@ -33,12 +33,14 @@ def _runs(name, ref, duration, **kw):
 
 
 @pytest.mark.parametrize("n", [3, 10])  # the scalar kernel (< 8 runs) and the lane kernel with padded lanes
-def test_pi_compiled_loop_is_the_reference_bit_for_bit(n):
+def test_pi_compiled_loop_is_the_reference_to_round_off(n):
+    """The same runs to round-off: two separately compiled kernels may contract a multiply-add differently (a
+    fresh compile differed from the reference in 10 of 1000 samples by one unit in the last place)."""
     ref = np.linspace(1.0, 6.0, n)
     a, b = _runs("pi", ref, 1.0, angle_noise=2e-4, seed=5)
     np.testing.assert_array_equal(a.t, b.t)
     for k in SIGNALS:
-        np.testing.assert_array_equal(getattr(a, k), getattr(b, k), err_msg=k)
+        np.testing.assert_allclose(getattr(a, k), getattr(b, k), rtol=1e-12, atol=1e-12, err_msg=k)
 
 
 def test_observer_law_one_period_matches_act_along_a_reference_run():
