@@ -88,11 +88,16 @@ def modules_digest(modules: list[str], extra_sources: tuple[str, ...] = (), pack
     return h.hexdigest()
 
 
-def invalidate_stale_kernels(package_dir: Path = PACKAGE_DIR) -> bool:
-    """Delete the cached kernels when the sources changed; returns True when it did.
-    A read-only installation is left alone (numba then caches elsewhere or compiles)."""
-    stamp = package_dir / "__pycache__" / STAMP_NAME
-    digest = sources_digest(package_dir)
+def invalidate_stale_kernels(
+    package_dir: Path = PACKAGE_DIR, digest: str | None = None, stamp_name: str = STAMP_NAME
+) -> bool:
+    """Delete the cached kernels under ``package_dir`` when the sources changed; returns True when it did.
+
+    ``digest`` names the sources (default :func:`sources_digest` of ``package_dir``), kept in
+    ``__pycache__/stamp_name``.  A read-only installation is left alone (numba then caches elsewhere or
+    compiles)."""
+    stamp = package_dir / "__pycache__" / stamp_name
+    digest = sources_digest(package_dir) if digest is None else digest
     try:
         if stamp.read_text() == digest:
             return False

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from drillgym._kernel_cache import modules_digest
+from drillgym._kernel_cache import invalidate_stale_kernels, modules_digest
 
 __all__ = ["CompiledLaw", "invalidate_stale_laws"]
 
@@ -64,21 +64,7 @@ def invalidate_stale_laws() -> bool:
     bool
         True when it did (a read-only installation is left alone).
     """
-    stamp = _DIR / "__pycache__" / _STAMP
-    digest = _digest()
-    try:
-        if stamp.read_text() == digest:
-            return False
-    except OSError:
-        pass
-    try:
-        for f in list(_DIR.rglob("*.nbi")) + list(_DIR.rglob("*.nbc")):
-            f.unlink(missing_ok=True)
-        stamp.parent.mkdir(exist_ok=True)
-        stamp.write_text(digest)
-    except OSError:
-        return False
-    return True
+    return invalidate_stale_kernels(_DIR, _digest(), _STAMP)
 
 
 invalidate_stale_laws()
