@@ -107,3 +107,16 @@ def test_reset_rigs_checks_before_restarting_and_refuses_what_it_cannot_restart(
     obs.u_prev[:] = 1.0
     obs.reset_rigs(np.array([1]), {"theta_u": np.zeros(2), "omega_ref": np.array([9.0, 4.0])})
     assert np.array_equal(obs.omega_ref, [2.0, 4.0]) and np.array_equal(obs.u_prev, [1.0, 0.0])
+
+
+def test_softtorque_runs_its_own_law_not_the_compiled_pi_of_its_parent():
+    """SoftTorqueController inherits the PI loop but not its compiled law (which would run the plain PI): the
+    harness's default run is its step-by-step reference, which holds 3 rad/s where the PI stick-slips."""
+    from controllers.evaluation.metrics import run_metrics
+    from controllers.evaluation.runner import run_closed_loop
+
+    ref = np.array([3.0])
+    c = controllers.make("softtorque", config="coupled", omega_ref=ref)
+    assert c.compiled_law() is None
+    ssi = run_metrics(run_closed_loop(c, "coupled", ref, 30.0), 10.0)["ssi"]
+    assert ssi[0] < 0.1, ssi
