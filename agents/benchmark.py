@@ -33,7 +33,7 @@ from .benchmark_stats import Aggregate, iqm_interval
 __all__ = ["BenchmarkOptions", "PolicyScore", "BenchmarkResult", "resolve_policies", "run_benchmark", "METRICS"]
 
 #: the aggregated metrics of a policy seed (:class:`PolicyScore` fields)
-METRICS = ("median", "p90", "ssi", "energy")
+METRICS = ("median", "p90", "ssi", "whirl", "energy")
 
 
 @dataclass(frozen=True)
@@ -104,12 +104,19 @@ class PolicyScore:
         Median and 90th percentile of ``plant_lowest`` (rad/s; ``numpy.quantile(method="higher")``).
     ssi : float
         Median stick-slip severity over all runs (plants x targets; dimensionless).
+    whirl : float
+        Median whirl over all runs (95th percentile of the lower disc's lateral displacement over the steady
+        window / the 20 mm stop, :class:`drillgym.envs.tasks.EvaluationProtocol`; dimensionless, 0 on a
+        torsional task).
     energy : float
         Mean motor work of a run over all runs (J per run of the protocol's duration).
     none_held : int
         Plants holding no target.
     runaway : int
         Plants on which a run passed the rig's over-speed stop (40 rad/s).
+    whirl_limited : int
+        Plants whose lowest held target the whirl criterion raised (a coupled task's targets held on speed
+        and SSI but whirling past the protocol's ``whirl_threshold``); 0 on a torsional task.
     """
 
     policy: str
@@ -120,6 +127,8 @@ class PolicyScore:
     energy: float
     none_held: int
     runaway: int
+    whirl: float = 0.0
+    whirl_limited: int = 0
 
     def to_json(self) -> dict:
         """The score as JSON-ready values (inf: a plant holding nothing; written as null with a warning)."""
@@ -129,9 +138,11 @@ class PolicyScore:
             "median": self.median,
             "p90": self.p90,
             "ssi": self.ssi,
+            "whirl": self.whirl,
             "energy": self.energy,
             "none_held": self.none_held,
             "runaway": self.runaway,
+            "whirl_limited": self.whirl_limited,
         }
 
 
@@ -182,10 +193,13 @@ class BenchmarkResult:
             out = [head + " (a model's plant: not the task's score)"]
         else:
             out = [head + (" (REDUCED protocol: not the task's score)" if self.reduced else "")]
+        coupled = get_task(self.task).config == "coupled"
         for p in self.scores:
+            whirl = f"whirl {p.whirl:.3g} (plants limited by it {p.whirl_limited}); " if coupled else ""
             out.append(
                 f"  {p.policy}: lowest held target median {_speed(p.median)}, 90th pct {_speed(p.p90)}; "
-                f"SSI {p.ssi:.3g}; energy {p.energy:.3g} J/run; plants holding none {p.none_held}, runaway {p.runaway}"
+                f"SSI {p.ssi:.3g}; {whirl}energy {p.energy:.3g} J/run; plants holding none {p.none_held}, "
+                f"runaway {p.runaway}"
             )
         if len(self.scores) > 1:
             for m, a in self.aggregates.items():
@@ -291,18 +305,24 @@ def _score(task: BenchmarkTask, spec: str, rows: list[dict], population: bool | 
     from controllers.evaluation.population_report import plant_lowest
 
     sel = [r for r in rows if r["controller"] == spec]
-    if task.plants.population if population is None else population:
-        low = list(plant_lowest(sel, spec, task.config).values())
-        run = {int(r["plant"]) for r in sel if r["runaway"]}
-    else:
+    whirl = task.protocol.whirl_threshold if task.config == "coupled" else None
+    pop = task.plants.population if population is None else population
+
+    def lowest(threshold: float | None) -> list[float]:
+        if pop:
+            return list(plant_lowest(sel, spec, task.config, whirl_threshold=threshold).values())
         v = lowest_free_speed(
             np.array([r["omega_ref"] for r in sel]),
             np.array([r["ssi"] for r in sel]),
             offset=np.array([r["offset"] for r in sel]),
+            whirl=None if threshold is None else np.array([r["whirl"] for r in sel]),
+            whirl_threshold=threshold,
         )
-        low = [math.inf if math.isnan(v) else v]
-        run = {0} if any(r["runaway"] for r in sel) else set()
-    a = np.array(low, dtype=float)
+        return [math.inf if math.isnan(v) else v]
+
+    a = np.array(lowest(whirl), dtype=float)
+    limited = int(np.sum(a > np.array(lowest(None), dtype=float))) if whirl is not None else 0
+    run = {int(r["plant"]) if pop else 0 for r in sel if r["runaway"]}
     return PolicyScore(
         spec,
         tuple(float(v) for v in a),
@@ -312,6 +332,8 @@ def _score(task: BenchmarkTask, spec: str, rows: list[dict], population: bool | 
         float(np.mean([r["energy"] for r in sel])),
         int(np.isinf(a).sum()),
         len(run),
+        float(np.median([r["whirl"] if whirl is not None else r.get("whirl", 0.0) for r in sel])),
+        limited,
     )
 
 

@@ -19,7 +19,7 @@ from drillgym.errors import DrillgymError
 
 from .benchmark import BenchmarkOptions, BenchmarkResult, check_sensing, run_benchmark
 
-__all__ = ["candidate_policies", "table_row", "main"]
+__all__ = ["candidate_policies", "table_header", "table_row", "main"]
 
 POLICY_DIR = Path(__file__).resolve().parent / "policies"
 
@@ -60,12 +60,27 @@ def _fmt(v: float) -> str:
     return "none" if math.isinf(v) else f"{v:.2f}"
 
 
+#: the columns of a task's table; a coupled task's adds the whirl and the plants it limited after the SSI
+COLUMNS = ("policy", "median (rad/s)", "90th pct (rad/s)", "SSI", "energy (J/run)", "plants holding none", "CPU (s)")
+WHIRL_COLUMNS = ("whirl", "plants limited by whirl")
+
+
+def table_header(task: BenchmarkTask) -> str:
+    """The markdown header of a task's table (two lines)."""
+    cols = list(COLUMNS)
+    if task.config == "coupled":
+        cols[4:4] = WHIRL_COLUMNS
+    cols.append("command")
+    return "| " + " | ".join(cols) + " |\n" + "|---" * len(cols) + "|\n"
+
+
 def table_row(res: BenchmarkResult, command: str, cpu_s: float) -> str:
-    """One markdown row: policy, median / 90th pct (rad/s), SSI, energy (J/run), plants holding none, CPU s,
-    command."""
+    """One markdown row: policy, median / 90th pct (rad/s), SSI, on a coupled task the whirl and the plants it
+    limited, energy (J/run), plants holding none, CPU s, command."""
     s = res.scores[0]
+    whirl = f"{s.whirl:.3g} | {s.whirl_limited} | " if TASKS[res.task].config == "coupled" else ""
     return (
-        f"| `{s.policy}` | {_fmt(s.median)} | {_fmt(s.p90)} | {s.ssi:.3g} | {s.energy:.0f} | {s.none_held} | "
+        f"| `{s.policy}` | {_fmt(s.median)} | {_fmt(s.p90)} | {s.ssi:.3g} | {whirl}{s.energy:.0f} | {s.none_held} | "
         f"{cpu_s:.0f} | `{command}` |"
     )
 
@@ -93,8 +108,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     a.out.parent.mkdir(parents=True, exist_ok=True)
     with open(a.out, "a", encoding="utf-8") as md, open(a.out.with_suffix(".jsonl"), "a", encoding="utf-8") as js:
         for task in tasks:
-            md.write(f"\n### {task.id}\n\n| policy | median (rad/s) | 90th pct (rad/s) | SSI | energy (J/run) | ")
-            md.write("plants holding none | CPU (s) | command |\n|---|---|---|---|---|---|---|---|\n")
+            md.write(f"\n### {task.id}\n\n" + table_header(task))
             for spec in specs:
                 if not fits(task, spec):
                     continue

@@ -16,7 +16,7 @@ from agents.benchmark_command import parse_seeds
 from agents.benchmark_env import eval_plants, plant_rows_equal, train_plants
 from agents.benchmark_stats import iqm_interval
 from controllers.evaluation.population import sample_plants
-from drillgym.envs.tasks import TASKS, BenchmarkTask, PlantSet, get_task
+from drillgym.envs.tasks import TASKS, BenchmarkTask, EvaluationProtocol, PlantSet, get_task
 from drillgym.errors import InputError, MissingFileError
 from drillgym.io.jsonfile import dumps_json
 
@@ -118,6 +118,24 @@ def test_score_takes_each_plants_lowest_held_target():
     assert s.energy == pytest.approx(30.0) and s.ssi == pytest.approx(0.01)
 
 
+def test_a_coupled_task_holds_a_target_only_below_the_whirl_threshold():
+    """A run holding the speed without stick-slip but whirling past the protocol's threshold is not held on a
+    coupled task; on a torsional task the same rows score as they did without whirl (its disc is clamped)."""
+    coupled, torsional = get_task("Coupled-Population-Motor-v0"), get_task(POP)
+    limit = coupled.protocol.whirl_threshold
+    assert limit == torsional.protocol.whirl_threshold == 0.15
+    rows = _rows("descent", [{2.0, 3.0, 4.0}, {2.0, 3.0, 4.0}, {3.0, 4.0}])
+    for r in rows:  # plant 0 whirls at 2 rad/s, plant 2 at 3 rad/s (both held on SSI and speed there)
+        r["whirl"] = 2 * limit if (r["plant"], r["omega_ref"]) in ((0, 2.0), (2, 3.0)) else 0.05
+    s = _score(coupled, "descent", [{**r, "config": "coupled"} for r in rows])
+    assert s.plant_lowest == (3.0, 2.0, 4.0) and s.whirl_limited == 2 and s.whirl == pytest.approx(0.05)
+    t = _score(torsional, "descent", rows)
+    assert t.plant_lowest == (2.0, 2.0, 3.0) and t.whirl_limited == 0
+    assert json.loads(dumps_json(s.to_json()))["whirl_limited"] == 2
+    with pytest.raises(InputError, match="whirl_threshold"):
+        EvaluationProtocol(whirl_threshold=-1.0)
+
+
 def test_policy_specs_and_seed_directories(tmp_path):
     for k in (1, 2, 4):
         (tmp_path / f"seed_{k}").mkdir()
@@ -179,3 +197,11 @@ def test_reference_table_lists_on_a_richer_task_only_the_policies_that_read_more
     two, motor = get_task("Nominal-TwoEncoder-v0"), get_task("Nominal-Motor-v0")
     assert fits(two, "lqg-2enc") and not fits(two, "descent") and not fits(motor, "lqg-2enc")
     assert fits(motor, "descent") and "baseline" in candidate_policies()
+
+
+def test_the_coupled_tables_add_the_whirl_columns_and_the_torsional_ones_keep_theirs():
+    from agents.benchmark_table import table_header
+
+    torsional, coupled = table_header(get_task("Nominal-Motor-v0")), table_header(get_task("Coupled-Nominal-Motor-v0"))
+    assert torsional.startswith("| policy | median (rad/s) | 90th pct (rad/s) | SSI | energy (J/run) |")
+    assert "| SSI | whirl | plants limited by whirl | energy (J/run) |" in coupled and "whirl" not in torsional

@@ -13,6 +13,9 @@
 * omega_l_min, omega_l_max, u_mean: steady-state range of omega_l (rad/s) and mean voltage (V).
 * speed_peak: largest |omega_u| or |omega_l| over the whole run (rad/s); runaway: speed_peak above the
   rig's over-speed stop :data:`SAFETY_SPEED` (a controller must never get there on a slightly-off rig).
+* whirl: 95th percentile of the lateral displacement r = sqrt(x^2 + y^2) of the lower disc's centre over the
+  steady window, relative to the rig's lateral over-displacement stop :data:`LATERAL_STOP` (20 mm;
+  dimensionless, 0 with the constraints clamped, 1: the disc reaches the stop).
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ __all__ = [
     "SSI_THRESHOLD",
     "TRACKING_TOLERANCE",
     "SAFETY_SPEED",
+    "LATERAL_STOP",
     "METRICS",
     "stick_slip_severity",
     "run_metrics",
@@ -35,6 +39,7 @@ __all__ = [
 SSI_THRESHOLD = 0.1
 TRACKING_TOLERANCE = 0.1  # relative offset of the mean lower-disc speed from the target
 SAFETY_SPEED = 40.0  # rad/s, the rig's over-speed stop (hw.safety.SafetyLimits.max_speed)
+LATERAL_STOP = 0.02  # m, the rig's lateral over-displacement stop (hw.safety.SafetyLimits.max_displacement)
 METRICS = (
     "ssi",
     "stuck",
@@ -49,6 +54,7 @@ METRICS = (
     "offset",
     "speed_peak",
     "runaway",
+    "whirl",
 )
 
 
@@ -99,6 +105,7 @@ def run_metrics(run, window: float, params: RigParams | None = None) -> dict[str
         "offset": (wl.mean(axis=1) - run.omega_ref) / run.omega_ref,
         "speed_peak": peak,
         "runaway": peak > SAFETY_SPEED,
+        "whirl": np.quantile(run.r[:, ss], 0.95, axis=1) / LATERAL_STOP,
     }
 
 
@@ -108,11 +115,14 @@ def lowest_free_speed(
     threshold: float = SSI_THRESHOLD,
     offset: np.ndarray | None = None,
     tolerance: float = TRACKING_TOLERANCE,
+    whirl: np.ndarray | None = None,
+    whirl_threshold: float | None = None,
 ) -> float:
     """Lowest target from which every higher target of the grid is held.
 
-    A target is held when it shows no stick-slip (SSI < ``threshold``) and, when ``offset`` is given,
-    its mean speed is within ``tolerance`` of the target.
+    A target is held when it shows no stick-slip (SSI < ``threshold``), when ``offset`` is given, its mean
+    speed is within ``tolerance`` of the target and, when ``whirl`` is given, its whirl is below
+    ``whirl_threshold``.
 
     Parameters
     ----------
@@ -126,6 +136,10 @@ def lowest_free_speed(
         Relative offset (mean omega_l - target) / target at each target.
     tolerance : float, optional
         Largest |offset| of a held target.  Default 0.1.
+    whirl : ndarray, optional
+        Whirl at each target (dimensionless, the ``whirl`` metric of :func:`run_metrics`).
+    whirl_threshold : float, optional
+        Whirl from which a target is not held; needed with ``whirl``.
 
     Returns
     -------
@@ -137,6 +151,10 @@ def lowest_free_speed(
     held = np.asarray(ssi, dtype=float) < threshold
     if offset is not None:
         held &= np.abs(np.asarray(offset, dtype=float)) <= tolerance
+    if whirl is not None:
+        if whirl_threshold is None:
+            raise InputError("lowest_free_speed: whirl needs a whirl_threshold")
+        held &= np.asarray(whirl, dtype=float) < whirl_threshold
     ok = held[order]
     if not ok[0]:
         return float("nan")

@@ -22,8 +22,11 @@ from .metrics import lowest_free_speed
 __all__ = ["plant_lowest", "population_summary", "population_table", "named_plants_table", "plot_population"]
 
 
-def plant_lowest(rows: Sequence[dict], controller: str, config: str, scenario: str = "plants") -> dict[int, float]:
-    """Plant index -> lowest held target (rad/s; inf: none held) of one controller and configuration."""
+def plant_lowest(
+    rows: Sequence[dict], controller: str, config: str, scenario: str = "plants", whirl_threshold: float | None = None
+) -> dict[int, float]:
+    """Plant index -> lowest held target (rad/s; inf: none held) of one controller and configuration; with
+    ``whirl_threshold`` a target is held only when its whirl (``run_metrics``) is also below it."""
     out: dict[int, float] = {}
     sel = [r for r in rows if r["controller"] == controller and r["config"] == config and r["scenario"] == scenario]
     for k in sorted({int(r["plant"]) for r in sel}):
@@ -32,6 +35,8 @@ def plant_lowest(rows: Sequence[dict], controller: str, config: str, scenario: s
             np.array([float(r["omega_ref"]) for r in pr]),
             np.array([float(r["ssi"]) for r in pr]),
             offset=np.array([float(r["offset"]) for r in pr]),
+            whirl=None if whirl_threshold is None else np.array([float(r["whirl"]) for r in pr]),
+            whirl_threshold=whirl_threshold,
         )
         out[k] = math.inf if math.isnan(low) else low
     return out

@@ -107,9 +107,18 @@ class EvaluationProtocol:
 
     Every held-out plant runs every target from rest for ``duration`` seconds; a target is held when,
     over the last ``window`` seconds, the stick-slip severity is below 0.1 and the mean lower-disc speed
-    is within 10 % of the target.  A plant's *lowest held target* is the lowest target of the grid from
+    is within 10 % of the target and, on a rig whose lower disc moves laterally (``coupled``), its whirl
+    is below ``whirl_threshold``.  A plant's *lowest held target* is the lowest target of the grid from
     which every higher target is held (inf: not even the highest).  The score is its median and its
     90th percentile over the plants (``numpy.quantile(method="higher")``: a value some plant reached).
+
+    The *whirl* of a run is the 95th percentile of the lateral displacement r = sqrt(x² + y²) of the lower
+    disc's centre over the steady window, divided by the rig's lateral over-displacement stop (20 mm,
+    ``hw.safety.SafetyLimits.max_displacement``, the env's ``max_lateral``): dimensionless, 1 when the disc
+    reaches the stop (``controllers.evaluation.metrics.run_metrics``).  The mass unbalance alone makes a
+    steady rotation whirl (0.072, 1.45 mm, at 8 rad/s on the identified rig, up to 0.079 on the held-out
+    plants); the threshold is about twice that, so a target is lost to it only when the policy shakes the disc
+    laterally beyond what the unbalance gives (``docs/benchmark.md``).
 
     Parameters
     ----------
@@ -119,11 +128,16 @@ class EvaluationProtocol:
         Length of each run from rest (s).  Default 60.
     window : float, optional
         Steady-state window at the end of each run (s).  Default 20.
+    whirl_threshold : float, optional
+        Whirl (dimensionless, see above) from which a target of a ``coupled`` task is not held.  Default
+        0.15 (r = 3 mm at the 95th percentile).  Not applied on a ``torsional`` task (the disc is clamped
+        laterally there, its whirl is 0).
     """
 
     targets: tuple[float, ...] = EVAL_TARGETS
     duration: float = 60.0
     window: float = 20.0
+    whirl_threshold: float = 0.15
 
     def __post_init__(self) -> None:
         t = tuple(float(v) for v in self.targets)
@@ -132,6 +146,9 @@ class EvaluationProtocol:
         object.__setattr__(self, "targets", tuple(sorted(t)))
         if not (0 < self.window < self.duration):
             raise InputError(f"protocol window ({self.window} s) must be in (0, duration = {self.duration} s)")
+        w = self.whirl_threshold
+        if isinstance(w, bool) or not isinstance(w, (int, float)) or not (math.isfinite(w) and w > 0):
+            raise InputError(f"protocol whirl_threshold must be a positive finite number, got {w!r}")
 
 
 @dataclass(frozen=True)
