@@ -61,7 +61,8 @@ _IMPORTED = __import__("time").perf_counter()
 @contextmanager
 def _train_errors(overrides: list[str]) -> Iterator[None]:
     """Name the option behind a refusal the learners raise at their start: a ``--set`` key the algorithm
-    or the environment does not take, a ``--teacher`` that cannot be distilled."""
+    or the environment does not take, a ``--teacher`` that cannot be distilled, an ``--init`` policy that does
+    not fit the run."""
     from drillgym.commands.options import named
 
     keys = [o.partition("=")[0].strip() for o in overrides]
@@ -69,6 +70,8 @@ def _train_errors(overrides: list[str]) -> Iterator[None]:
         yield
     except InputError as exc:
         msg = str(exc)
+        if msg.startswith("init "):  # agents.finetune: the init policy does not fit this run
+            raise named("--init", exc) from exc
         if "environment option" in msg or "hyperparameter" in msg:
             raise named("--set", exc) from exc
         if msg.startswith("a teacher") or "teacher" in msg.split(":", 1)[0]:
@@ -124,6 +127,7 @@ def register(app: typer.Typer) -> None:
     @app.command("train")
     @requires("--workers", "--seeds", when=lambda n: n > 1, what="--seeds 2 or more", why="seeds trained at once")
     @excludes("--teacher", "--resume", why="a resumed run continues its RL steps; the teacher taught at its start")
+    @excludes("--init", "--resume", why="a resumed run continues from its own checkpoint")
     @requires("--teacher", "--algo", when=lambda a: a.lower() == "ppo", what="--algo ppo", why="distilled into PPO")
     @excludes("--model", "--add-effect", why="the model file holds its effects")
     @excludes("--model", "--effect-param", why="the model file holds its effects' values")
@@ -203,6 +207,12 @@ def register(app: typer.Typer) -> None:
             "--add-effect, --effect-param or env_kwargs params/effects"
         ),
         trust: bool = trust_option(),
+        init: Path | None = typer.Option(
+            None,
+            "--init",
+            help="start from the weights of this run directory's model.zip (a kept policy; the same --algo, "
+            "observation and network) instead of a fresh network; with --model: a policy adapted to that rig",
+        ),
     ) -> None:
         """Train an agent; writes OUT/model.zip, OUT/policy.npz (for agent:PATH in `drillgym evaluate`),
         OUT/config.yml."""
@@ -259,6 +269,11 @@ def register(app: typer.Typer) -> None:
                     f"--teacher {teacher}: trained on the {taught['observation']!r} observation; a teacher is a "
                     "policy of the 'full' observation (the true state)"
                 )
+        if init is not None:
+            from agents.finetune import init_model_file
+
+            with option("--init"):
+                init_model_file(init)
         if ray is not None:
             from drillgym.parallel import check_ray_address
 
@@ -306,6 +321,8 @@ def register(app: typer.Typer) -> None:
         )
         if model_file is not None:  # the path, not the Model: seeds may train in other processes
             kw.update(model=str(model_file), trust=trust)
+        if init is not None:
+            kw.update(init=str(init))
         if seeds > 1 or ray:  # several seeds, or seeds on Ray: one summary over them
             from agents.seeds import train_seeds
 

@@ -50,7 +50,12 @@ class AgentController(Controller):
         Target lower-disc speed(s) (rad/s).
     **kw
         ``config``, ``params``, ``dt``, ``u_max`` of :class:`controllers.Controller`; ``dt`` defaults to
-        the policy's control period and must equal it.
+        the policy's control period and must equal it.  ``model=`` (a :class:`drillgym.Model` or a model
+        file's path, as ``controllers.make("agent:DIR", model=...)``): the network does not read it, its
+        weights are what it learned on its training rig (``drillgym train --model FILE --init DIR`` adapts
+        them to a model).  Only the model's base parameters are used, by a residual or observer base (a policy
+        trained with ``residual`` or ``base: observer``), as ``params`` would be; a plain network ignores the
+        model altogether, and the model's effects are never used (not refused either).
 
     Raises
     ------
@@ -61,6 +66,11 @@ class AgentController(Controller):
     name = "agent"
 
     def __init__(self, policy: ExportedPolicy, omega_ref=None, **kw) -> None:
+        if kw.get("model") is not None:  # its base parameters only: the network learned its own rig
+            from controllers.model import model_of
+
+            kw["params"] = model_of(kw.pop("model"), kw.get("params")).params
+        kw.pop("model", None)
         cfg = policy.config
         hp = cfg["hyperparams"]
         env_kwargs = hp.get("env_kwargs", {})

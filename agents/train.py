@@ -345,6 +345,7 @@ def train(
     distill_kwargs: dict[str, Any] | None = None,
     model: Any = None,
     trust: bool = False,
+    init: str | Path | None = None,
 ) -> TrainResult:
     """Train ``algo`` on ``env_id`` and write the run into ``out`` (see the module docstring).
 
@@ -407,6 +408,10 @@ def train(
         records it (base parameters and effect records).
     trust : bool, optional
         Read a model file's effect files even when untrusted (:meth:`drillgym.Model.load`).
+    init : str or path, optional
+        Start from the weights of this run directory's ``model.zip`` (or that file) instead of a fresh network:
+        the same algorithm, spaces and layers, else refused (:mod:`agents.finetune`); not with ``resume``.
+        With ``model``: a policy adapted to that model's rig.  ``config.yml`` records it.
 
     Returns
     -------
@@ -440,9 +445,13 @@ def train(
                 "a teacher is distilled into PPO without observation normalisation (nor frame stacking with the "
                 "privileged critic)"
             )
+    if init is not None and resume:
+        raise InputError("init: a resumed run continues its own checkpoint; give init or resume, not both")
     _warn_short_run(cls, hp)
     venv = _env(env_id, hp, hp["n_envs"], seed)
     config = {"env_id": env_id, "algo": algo, "seed": int(seed), "hyperparams": recorded_hp, "command": command}
+    if init is not None:
+        config["init"] = str(init)
     if teacher is not None:
         config["teacher"] = {"policy": str(teacher), **distill_kwargs}
     ckpt = out / "checkpoints" / "latest.zip"
@@ -470,6 +479,10 @@ def train(
                 "actor_dim": venv.observation_space.shape[0] - len(PRIVILEGED),
             }
         model = cls(policy, venv, seed=seed, tensorboard_log=tb, verbose=verbose, **kw)
+        if init is not None:
+            from .finetune import start_from
+
+            start_from(model, init, venv)
     t_distill = time.perf_counter()
     if teacher is not None and not resume:
         from .distill import distill

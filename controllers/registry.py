@@ -171,6 +171,8 @@ def make(name: str, config: str = "torsional", omega_ref=None, params=None, **kw
         path): ``observer``, ``lqg`` and ``lqg-2enc`` run every effect of
         it in their own model (:mod:`controllers.dynamics`); the others refuse a model with effects, and what a
         model-based controller cannot represent is refused in one line naming the effect and why.
+        ``agent:PATH`` takes the model's base parameters only (for a residual or observer base; a plain
+        network ignores the model, see ``agents.controller.AgentController``).
         Further keywords of the controller's constructor (e.g. ``dt``, the control period in s).
 
     Returns
