@@ -25,13 +25,12 @@ import numpy as np
 from numba import njit, types
 
 from drillgym.closed_loop.abi import LAW_TYPE, M_TL, M_TU, M_X, M_Y
-from drillgym.dynamics import FREE_VIBRATION, UPPER, brake_on, lateral_free
+from drillgym.dynamics import lateral_free
 from drillgym.kernels.commands import delay_line_step
-from drillgym.kernels.hooks import HAS_DELAY, HAS_LAG, N_STATE, hk_delay, hk_lag_start, hk_lane_params, hk_measure
-from drillgym.kernels.lane_steps import N_E, lane_derivative, lanes_erk, lanes_rk4
-from drillgym.kernels.lanes import ROWS_DIAG, ROWS_FULL, _lane_delay_step, _lane_to_state, _state_to_lane
-from drillgym.kernels.model import resolve_modes
-from drillgym.kernels.stepping import advance_batch, alloc_work, hybrid_step
+from drillgym.kernels.hooks import HAS_DELAY, N_STATE, hk_delay, hk_lane_params, hk_measure
+from drillgym.kernels.lane_steps import N_E
+from drillgym.kernels.lanes import ROWS_DIAG, ROWS_FULL, lane_start, lanes_commands, lanes_step
+from drillgym.kernels.stepping import advance_batch, alloc_work
 
 __all__ = ["RUN_SIGNATURE", "run_periods", "OK", "NON_FINITE_COMMAND", "DIVERGED", "N_SIGNALS"]
 
@@ -107,56 +106,21 @@ def _lane_period(Y, MODE, UL, P, PT, cfg, dt, T, sub, FRIC, HIST, HEAD, A, b, c,
     full = lateral_free(cfg)
     rows = ROWS_FULL if full else ROWS_DIAG
     n = rows.shape[0]
-    string_on = 0.0 if cfg == UPPER else 1.0
-    brake = brake_on(cfg)
-    fv = cfg == FREE_VIBRATION
     for k in range(B):
         for j in range(N_STATE):
             y[j] = Y[k, j]
         for j in range(2):
             mode[j] = MODE[k, j]
         u0 = delay_line_step(HIST[k], HEAD[k : k + 1], UL[k, 0], P[k], dt)
-        if HAS_LAG:
-            hk_lag_start(T[k], u0, y, P[k], cfg)
-        resolve_modes(T[k], y, mode, u0, P[k], cfg, k1, fric)
-        _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
+        lane_start(T[k], y, mode, u0, P[k], cfg, False, S, K1, FR, MU, ML, rows, k, k1, fric)
         for j in range(N_STATE):
             Y[k, j] = y[j]
         Uprev[k] = u0
         Ucur[k] = u0
     for i in range(sub):
-        new_input = False
-        for k in range(B):
-            TT[k] = T[k] + i * dt
-            if i > 0:
-                Ucur[k] = _lane_delay_step(HIST, HEAD, k, UL[k, 0], DM[k]) if HAS_DELAY else UL[k, 0]
-            new_input |= Ucur[k] != Uprev[k]
-        if new_input:
-            lane_derivative(S, MU, ML, Ucur, PT, full, string_on, brake, K1, FR, TT, 0.0, cfg, E)
-            for k in range(B):
-                if Ucur[k] == Uprev[k]:
-                    continue
-                Uprev[k] = Ucur[k]
-                if (MU[k] == 0.0 and not fv) or (ML[k] == 0.0 and cfg != UPPER):
-                    y[:] = Y[k]
-                    _lane_to_state(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
-                    resolve_modes(TT[k], y, mode, Ucur[k], P[k], cfg, k1, fric)
-                    _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
-        if b.shape[0] == 4:
-            lanes_rk4(S, K1, FR, MU, ML, Ucur, PT, dt, full, string_on, brake, fv, S0, EV, W, TT, cfg, E)
-        else:
-            lanes_erk(S, K1, FR, MU, ML, Ucur, PT, dt, full, string_on, brake, fv, S0, EV, W, TT, cfg, E, A, b, c)
-        for k in range(B):
-            if EV[k] == 0:  # an event inside this step: redo it exactly on the scalar path
-                y[:] = Y[k]
-                for j in range(n):
-                    y[rows[j]] = S0[j, k]
-                mode[0] = np.int64(MU[k])
-                mode[1] = np.int64(ML[k])
-                t = TT[k]
-                resolve_modes(t, y, mode, Ucur[k], P[k], cfg, k1, fric)
-                hybrid_step(t, y, k1, fric, mode, Ucur[k], P[k], cfg, 0.0, dt, A, b, c, K, ytmp, ynew, g0, g1, ftmp)
-                _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
+        new_input = lanes_commands(i, dt, T, UL, 0, HIST, HEAD, DM, Ucur, Uprev, TT)
+        lanes_step(new_input, Y, P, PT, cfg, dt, A, b, c, rows, S, S0, K1, FR, MU, ML, EV, W, E, Ucur, Uprev, TT,
+                   y, mode, K, ytmp, k1, ynew, fric, ftmp, g0, g1)  # fmt: skip
     for k in range(B):
         for j in range(n):
             Y[k, rows[j]] = S[j, k]

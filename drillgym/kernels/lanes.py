@@ -42,7 +42,7 @@ from drillgym.kernels.lane_steps import N_E, lane_derivative, lanes_erk, lanes_r
 from drillgym.kernels.model import initial_modes, record, resolve_modes
 from drillgym.kernels.stepping import alloc_work, hybrid_step
 
-__all__ = ["ROWS_DIAG", "ROWS_FULL", "command_col", "lanes_run"]
+__all__ = ["ROWS_DIAG", "ROWS_FULL", "command_col", "lane_start", "lanes_commands", "lanes_step", "lanes_run"]
 
 # lane state rows -> state vector indices: diagonal mass (theta_u, theta_l, omega_u, omega_l);
 # full (theta_u, theta_l, x, y, omega_u, omega_l, vx, vy): positions first, then their velocities;
@@ -204,6 +204,81 @@ def _lane_delay_step(HIST, HEAD, k, u, m):
     return (1.0 - f) * HIST[k, i0] + f * HIST[k, i1]
 
 
+@njit(cache=True)
+def lane_start(t, y, mode, u0, p, cfg, init_modes, S, K1, FR, MU, ML, rows, k, k1, fric):
+    """Lane k of S started at time t (s) from the state y with the command u0 (V) entering the Input chain: a lag
+    state at u0 (the command held before the start, as the delay line), the modes found (``init_modes``) or
+    resolved from ``mode``; k1, fric its step-start slopes and friction."""
+    if HAS_LAG:
+        hk_lag_start(t, u0, y, p, cfg)
+    if init_modes:
+        initial_modes(t, y, u0, p, cfg, mode, k1, fric)
+    else:
+        resolve_modes(t, y, mode, u0, p, cfg, k1, fric)
+    _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
+
+
+@njit(cache=True)
+def lanes_commands(i, dt, T0, U, col, HIST, HEAD, DM, Ucur, Uprev, TT):
+    """The step i's times TT = T0 + i dt (s) and commands Ucur (V) of the lanes: column ``col`` of U through the
+    delay lines (DM their delays in steps; step 0 keeps Ucur); True when a lane's differs from Uprev."""
+    new_input = False
+    for k in range(Ucur.shape[0]):
+        TT[k] = T0[k] + i * dt
+        if i > 0:
+            Ucur[k] = _lane_delay_step(HIST, HEAD, k, U[k, col], DM[k]) if HAS_DELAY else U[k, col]
+        new_input |= Ucur[k] != Uprev[k]
+    return new_input
+
+
+@njit(cache=True)
+def lanes_step(new_input, Y, P, PT, cfg, dt, A, b, c, rows, S, S0, K1, FR, MU, ML, OK, W, E, Ucur, Uprev, TT,
+               y, mode, K, ytmp, k1, ynew, fric, ftmp, g0, g1):  # fmt: skip
+    """One integration step (dt, s) of the B lanes S at the commands Ucur (V) from the times TT (s).
+
+    With ``new_input`` (a lane's command differs from Uprev) the step-start slopes are taken again at the new
+    commands, every lane at once, and a stuck disc whose command changed is resolved on the scalar path; then the
+    lanes step (RK4 unrolled, or the tableau A, b, c) and a lane with an event inside the step (OK 0) is stepped
+    again exactly on the scalar path from its start S0.  Y (B, N_STATE) the lanes' full states (lateral and effect
+    states outside S), P and PT the parameter rows and their transposed lane rows; the rest are work arrays
+    (:func:`lanes_run` allocates them).
+    """
+    B = S.shape[1]
+    n = rows.shape[0]
+    full = lateral_free(cfg)
+    string_on = 0.0 if cfg == UPPER else 1.0
+    brake = brake_on(cfg)
+    fv = cfg == FREE_VIBRATION
+    if new_input:
+        # the step-start slopes at the new input, every lane at once (a lane whose input did not
+        # change gets its slopes again); then a stuck disc may be released: resolve it (scalar)
+        lane_derivative(S, MU, ML, Ucur, PT, full, string_on, brake, K1, FR, TT, 0.0, cfg, E)
+        for k in range(B):
+            if Ucur[k] == Uprev[k]:
+                continue
+            Uprev[k] = Ucur[k]
+            if (MU[k] == 0.0 and not fv) or (ML[k] == 0.0 and cfg != UPPER):
+                y[:] = Y[k]
+                _lane_to_state(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
+                resolve_modes(TT[k], y, mode, Ucur[k], P[k], cfg, k1, fric)
+                _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
+    if b.shape[0] == 4:  # classical RK4 (the only 4-stage tableau), unrolled
+        lanes_rk4(S, K1, FR, MU, ML, Ucur, PT, dt, full, string_on, brake, fv, S0, OK, W, TT, cfg, E)
+    else:
+        lanes_erk(S, K1, FR, MU, ML, Ucur, PT, dt, full, string_on, brake, fv, S0, OK, W, TT, cfg, E, A, b, c)
+    for k in range(B):
+        if OK[k] == 0:  # an event inside this step: redo it exactly on the scalar path
+            y[:] = Y[k]
+            for j in range(n):
+                y[rows[j]] = S0[j, k]
+            mode[0] = np.int64(MU[k])
+            mode[1] = np.int64(ML[k])
+            t = TT[k]
+            resolve_modes(t, y, mode, Ucur[k], P[k], cfg, k1, fric)
+            hybrid_step(t, y, k1, fric, mode, Ucur[k], P[k], cfg, 0.0, dt, A, b, c, K, ytmp, ynew, g0, g1, ftmp)
+            _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
+
+
 @njit(cache=True, nogil=True)
 def lanes_run(
     Y,
@@ -293,9 +368,6 @@ def lanes_run(
     K, ytmp, k1, ynew, fric, ftmp, g0, g1 = alloc_work(b.shape[0])
     y = np.zeros(N_STATE)
     mode = np.zeros(2, dtype=np.int64)
-    string_on = 0.0 if cfg == UPPER else 1.0
-    brake = brake_on(cfg)
-    fv = cfg == FREE_VIBRATION
     n_u = U.shape[1]
     record_on = OUT.shape[0] > 0
     row0 = np.int64(0)  # not a literal: one compiled record
@@ -306,13 +378,7 @@ def lanes_run(
             mode[j] = MODE[k, j]
         c0 = command_col(n_u, 0, USTEP, 0)[0]
         u0 = delay_line_step(HIST[k], HEAD[k : k + 1], U[k, c0], P[k], dt)
-        if HAS_LAG:  # lag states not given: the first command held before the start, as the delay line
-            hk_lag_start(T0[k], u0, y, P[k], cfg)
-        if init_modes:
-            initial_modes(T0[k], y, u0, P[k], cfg, mode, k1, fric)
-        else:
-            resolve_modes(T0[k], y, mode, u0, P[k], cfg, k1, fric)
-        _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
+        lane_start(T0[k], y, mode, u0, P[k], cfg, init_modes, S, K1, FR, MU, ML, rows, k, k1, fric)
         for j in range(N_STATE):
             Y[k, j] = y[j]
         if record_on:
@@ -326,40 +392,9 @@ def lanes_run(
     jc = 0
     for i in range(n_steps):
         col, jc = command_col(n_u, i, USTEP, jc)
-        new_input = False
-        for k in range(B):
-            TT[k] = T0[k] + i * dt
-            if i > 0:
-                Ucur[k] = _lane_delay_step(HIST, HEAD, k, U[k, col], DM[k]) if HAS_DELAY else U[k, col]
-            new_input |= Ucur[k] != Uprev[k]
-        if new_input:
-            # the step-start slopes at the new input, every lane at once (a lane whose input did not
-            # change gets its slopes again); then a stuck disc may be released: resolve it (scalar)
-            lane_derivative(S, MU, ML, Ucur, PT, full, string_on, brake, K1, FR, TT, 0.0, cfg, E)
-            for k in range(B):
-                if Ucur[k] == Uprev[k]:
-                    continue
-                Uprev[k] = Ucur[k]
-                if (MU[k] == 0.0 and not fv) or (ML[k] == 0.0 and cfg != UPPER):
-                    y[:] = Y[k]
-                    _lane_to_state(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
-                    resolve_modes(TT[k], y, mode, Ucur[k], P[k], cfg, k1, fric)
-                    _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
-        if b.shape[0] == 4:  # classical RK4 (the only 4-stage tableau), unrolled
-            lanes_rk4(S, K1, FR, MU, ML, Ucur, PT, dt, full, string_on, brake, fv, S0, OK, W, TT, cfg, E)
-        else:
-            lanes_erk(S, K1, FR, MU, ML, Ucur, PT, dt, full, string_on, brake, fv, S0, OK, W, TT, cfg, E, A, b, c)
-        for k in range(B):
-            if OK[k] == 0:  # an event inside this step: redo it exactly on the scalar path
-                y[:] = Y[k]
-                for j in range(n):
-                    y[rows[j]] = S0[j, k]
-                mode[0] = np.int64(MU[k])
-                mode[1] = np.int64(ML[k])
-                t = TT[k]
-                resolve_modes(t, y, mode, Ucur[k], P[k], cfg, k1, fric)
-                hybrid_step(t, y, k1, fric, mode, Ucur[k], P[k], cfg, 0.0, dt, A, b, c, K, ytmp, ynew, g0, g1, ftmp)
-                _state_to_lane(S, K1, FR, MU, ML, rows, k, y, k1, fric, mode)
+        new_input = lanes_commands(i, dt, T0, U, col, HIST, HEAD, DM, Ucur, Uprev, TT)
+        lanes_step(new_input, Y, P, PT, cfg, dt, A, b, c, rows, S, S0, K1, FR, MU, ML, OK, W, E, Ucur, Uprev, TT,
+                   y, mode, K, ytmp, k1, ynew, fric, ftmp, g0, g1)  # fmt: skip
         if record_on and (i + 1) % rec_every == 0:
             row = (i + 1) // rec_every
             ncol = command_col(n_u, min(i + 1, n_steps - 1), USTEP, jc)[0]
