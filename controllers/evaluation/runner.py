@@ -17,13 +17,13 @@ step-by-step loop stays the reference (``compiled=False``).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
 
 from drillgym import BatchSimulator, Configuration, parse_configuration
-from drillgym.closed_loop import run_compiled_loop
+from drillgym.closed_loop import LoopSignals, run_compiled_loop
 from drillgym.errors import InputError
 from drillgym.measurement import DEFAULT_COUNTS_PER_REV
 
@@ -33,23 +33,17 @@ __all__ = ["ClosedLoopRun", "run_closed_loop"]
 
 SIM_DT = 1e-3  # s, integrator step (the core's default)
 TWO_PI = 2.0 * np.pi
-_SIGNALS = ("u", "omega_u", "omega_l", "alpha", "stuck_l", "friction_l", "r")
+_SIGNALS = tuple(f.name for f in fields(LoopSignals))
 
 
 @dataclass
-class ClosedLoopRun:
-    """Signals of n closed-loop runs sampled at the control period: arrays (n, m), t (m,)."""
+class ClosedLoopRun(LoopSignals):
+    """Signals of n closed-loop runs sampled at the control period (:class:`drillgym.closed_loop.LoopSignals`: arrays
+    (n, m)), with the configuration, the times t (s, (m,)) and the targets omega_ref (rad/s, (n,))."""
 
     config: Configuration
     t: np.ndarray
     omega_ref: np.ndarray
-    u: np.ndarray
-    omega_u: np.ndarray
-    omega_l: np.ndarray
-    alpha: np.ndarray
-    stuck_l: np.ndarray
-    friction_l: np.ndarray
-    r: np.ndarray
 
     @property
     def dt(self) -> float:
@@ -148,7 +142,7 @@ def run_closed_loop(
             )  # fmt: skip
         except FloatingPointError:
             raise FloatingPointError(f"controller {controller.name!r} produced a non-finite voltage") from None
-        return ClosedLoopRun(cfg, t, ref, **{k: getattr(sig, k) for k in _SIGNALS})
+        return ClosedLoopRun(**{k: getattr(sig, k) for k in _SIGNALS}, config=cfg, t=t, omega_ref=ref)
     out = {k: np.empty((n, m)) for k in _SIGNALS}
     for k in range(m):
         if k > 0:
@@ -162,7 +156,7 @@ def run_closed_loop(
         out["friction_l"][:, k] = sim.friction[:, 1]
         out["r"][:, k] = np.hypot(sim.x, sim.y)
         sim.advance(u, sub)
-    return ClosedLoopRun(cfg, t, ref, **out)
+    return ClosedLoopRun(**out, config=cfg, t=t, omega_ref=ref)
 
 
 def _measure(

@@ -19,7 +19,7 @@ KERNEL_MODULE = "drillgym.closed_loop.kernel"
 CHUNK_PERIODS = 500
 
 
-@dataclass(frozen=True)
+@dataclass
 class LoopSignals:
     """Signals of n lanes at the control period, arrays (n, m).
 
