@@ -11,7 +11,11 @@ distinct target): the "loop" columns leave it out (the wall time of the reset is
 Goals (observer, 256 lanes): >= 2,000x real time per core and >= 30x the step-by-step path.  The load
 average is printed: the absolute factors need a quiet machine, the ratios hold on a shared one.
 
-    .venv/bin/python benchmarks/bench_closed_loop.py [--duration 2] [--repeats 3]
+The rows ``observer+fx``, ``lqg+fx`` and ``2enc+fx`` (``lqg-2enc``; 256 lanes) run the controllers built on a
+model with effects, the plants with the same effects: a motor lag (30 ms), an input delay (5 ms) and a dead zone
+(0.3 V, the user file ``examples/effects/motor_dead_zone.py``); ``--model`` runs only those rows.
+
+    NUMBA_NUM_THREADS=1 .venv/bin/python benchmarks/bench_closed_loop.py [--duration 2] [--repeats 3] [--model]
 """
 
 from __future__ import annotations
@@ -26,20 +30,30 @@ import controllers
 from controllers.evaluation.runner import run_closed_loop
 
 CASES = [("observer", n) for n in (1, 64, 256)] + [("pi", n) for n in (1, 64, 256)] + [("lqg", 256), ("lqg-2enc", 256)]
+MODEL_CASES = [("observer+fx", 256), ("lqg+fx", 256), ("2enc+fx", 256)]
+_NAMES = {"2enc+fx": "lqg-2enc+fx"}
+EFFECTS = ("motor_lag", "input_delay", "examples/effects/motor_dead_zone.py:dead_zone")
+VALUES = {"tau_m": 0.03, "delay": 0.005, "u0": 0.3}
 
 
 def _rtf(name: str, n: int, duration: float, compiled: bool, repeats: int) -> tuple[float, float]:
-    """(whole run, loop without the controller's reset): real-time factors, best of the repeats."""
+    """(whole run, loop without the controller's reset): real-time factors, best of the repeats; a name ending in
+    ``+fx``: the controller on the model with effects (module doc), the plants with them."""
+    from drillgym import Model, RigParams
+
     ref = np.linspace(1.0, 6.0, n)
+    fx = name.endswith("+fx")
+    kw = {"model": Model(RigParams(), EFFECTS, VALUES)} if fx else {}
+    plant = {"effects": list(EFFECTS), "effect_params": VALUES} if fx else {}
     best, best_loop = np.inf, np.inf
     for _ in range(repeats):
-        c = controllers.make(name, config="torsional", omega_ref=ref)
+        c = controllers.make(_NAMES.get(name, name).removesuffix("+fx"), config="torsional", omega_ref=ref, **kw)
         spent = []
         reset = c.reset
         c.reset = lambda m, reset=reset, spent=spent: (spent.append(time.perf_counter()), reset(m),
                                                         spent.append(time.perf_counter()))[1]  # fmt: skip
         t0 = time.perf_counter()
-        run_closed_loop(c, "torsional", ref, duration, compiled=compiled)
+        run_closed_loop(c, "torsional", ref, duration, compiled=compiled, **plant)
         wall = time.perf_counter() - t0
         best, best_loop = min(best, wall), min(best_loop, wall - (spent[1] - spent[0]))
     return n * duration / best, n * duration / best_loop
@@ -50,15 +64,17 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=2.0, help="simulated s of the compiled runs")
     ap.add_argument("--reference-duration", type=float, default=0.5, help="simulated s of the step-by-step runs")
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--model", action="store_true", help="only the controllers on a model with effects")
     args = ap.parse_args()
-    for name in dict(CASES):  # warm up: compile both paths
+    cases = MODEL_CASES if args.model else CASES + MODEL_CASES
+    for name in dict(cases):  # warm up: compile both paths
         for compiled in (True, False):
             _rtf(name, 8, 0.1, compiled, 1)
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; real-time factor per core (one thread)")
     print(f"{'':<18}{'whole run (reset included)':^34}{'loop (reset left out)':^34}")
     head = f"{'compiled':>12}{'step-by-step':>14}{'ratio':>8}"
     print(f"{'controller':<12}{'lanes':>6}{head}{head}")
-    for name, n in CASES:
+    for name, n in cases:
         fast, fast_loop = _rtf(name, n, args.duration, True, args.repeats)
         slow, slow_loop = _rtf(name, n, args.reference_duration, False, args.repeats)
         cols = "".join(f"{a:>11,.0f}x{b:>13,.0f}x{a / b:>7.1f}x" for a, b in ((fast, slow), (fast_loop, slow_loop)))

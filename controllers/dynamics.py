@@ -33,7 +33,7 @@ from drillgym.effects import Composition
 from drillgym.effects.base import Input
 from drillgym.params import IDX
 
-__all__ = ["ModelDynamics", "I_TU", "I_WU", "I_AL", "I_WL", "I_D"]
+__all__ = ["ModelDynamics", "model_kernels", "jacobian_steps", "I_TU", "I_WU", "I_AL", "I_WL", "I_D"]
 
 I_TU, I_WU, I_AL, I_WL, I_D = range(5)
 _CFG = int(Configuration.TORSIONAL)
@@ -42,13 +42,30 @@ _COMPILED: dict[Composition, Any] = {}
 
 @dataclass(frozen=True)
 class _Kernels:
+    """The composition's model as numba functions: batched (``rhs``, ``jac``, ``volt``) and per state, for
+    compiled callers (a controller's compiled law): ``evaluate`` (dz/dt at one state, the modes resolved or
+    held), ``slipping`` (dz/dt and the voltage at the motor with the discs slipping at given speeds) and
+    ``lane_jacobian`` (the central-difference Jacobians at one state), ``settled`` (the static input map at one
+    state)."""
+
     rhs: Any
     jac: Any
     volt: Any
+    evaluate: Any
+    slipping: Any
+    lane_jacobian: Any
+    settled: Any
 
 
-def _kernels(comp: Composition) -> _Kernels:
-    """Batched calls of the composition's compiled model, compiled once per composition and process."""
+def jacobian_steps(nz: int) -> np.ndarray:
+    """Central-difference steps of :meth:`ModelDynamics.jacobian`: the nz rows of z, then the command (V)."""
+    h = np.full(nz + 1, 1e-5)
+    h[I_AL], h[I_TU] = 1e-6, 1e-6
+    return h
+
+
+def model_kernels(comp: Composition) -> _Kernels:
+    """Numba functions of the composition's compiled model, compiled once per composition and process."""
     if comp in _COMPILED:
         return _COMPILED[comp]
     from numba import njit
@@ -80,7 +97,9 @@ def _kernels(comp: Composition) -> _Kernels:
             y[8 + j] = z[e0 + j]
 
     @njit(cache=False)
-    def _eval(z, v, p, e0, idu, scale, eps, freeze, mode_in, out, y, pp, dy, fric, mode):  # pragma: no cover
+    def evaluate(z, v, p, e0, idu, scale, eps, freeze, mode_in, out, y, pp, dy, fric, mode):  # pragma: no cover
+        """dz/dt into ``out`` at the state z (nz,) under the command v (V) entering the Input chain: the modes
+        resolved (the stick logic) or, with ``freeze``, ``mode_in``; y ... mode: work arrays."""
         _state(z, e0, y)
         for i in range(p.size):
             pp[i] = p[i]
@@ -117,6 +136,17 @@ def _kernels(comp: Composition) -> _Kernels:
             out[e0 + j] = dy[8 + j]
 
     @njit(cache=False)
+    def slipping(z, v, wu, wl, p, e0, idu, scale, eps, out, y, pp, dy, d2, fric, mode, mode_in):  # pragma: no cover
+        """dz/dt into ``out`` at z with the discs slipping at wu, wl (rad/s, set in z; modes held at their signs)
+        under the command v (V); returns the voltage at the motor (V)."""
+        z[1] = wu
+        z[3] = wl
+        mode_in[0] = 1 if wu >= 0 else -1
+        mode_in[1] = 1 if wl >= 0 else -1
+        evaluate(z, v, p, e0, idu, scale, eps, True, mode_in, out, y, pp, dy, fric, mode)
+        return rhs_hook(0.0, v, y, pp, cfg, d2)[0]
+
+    @njit(cache=False)
     def rhs(Z, V, P, e0, idu, scale, eps, WU, WL, force, OUT, VOLT):  # pragma: no cover
         """dz/dt of every row of Z and the voltage at the motor (V); with ``force`` the discs slip at speeds
         WU, WL (modes held)."""
@@ -128,12 +158,36 @@ def _kernels(comp: Composition) -> _Kernels:
             for i in range(nz):
                 z[i] = Z[k, i]
             if force:
-                z[1] = WU[k]
-                z[3] = WL[k]
-                mode_in[0] = 1 if WU[k] >= 0 else -1
-                mode_in[1] = 1 if WL[k] >= 0 else -1
-            _eval(z, V[k], P[k], e0, idu, scale, eps, force, mode_in, OUT[k], y, pp, dy, fric, mode)
-            VOLT[k] = rhs_hook(0.0, V[k], y, pp, cfg, d2)[0]
+                VOLT[k] = slipping(z, V[k], WU[k], WL[k], P[k], e0, idu, scale, eps, OUT[k], y, pp, dy, d2, fric,
+                                   mode, mode_in)  # fmt: skip
+            else:
+                evaluate(z, V[k], P[k], e0, idu, scale, eps, False, mode_in, OUT[k], y, pp, dy, fric, mode)
+                VOLT[k] = rhs_hook(0.0, V[k], y, pp, cfg, d2)[0]
+
+    @njit(cache=False)
+    def lane_jacobian(
+        z, v, p, e0, idu, scale, eps, H, with_b, J, B, f0, fp, fm, y, pp, dy, fric, mode, mode0
+    ):  # pragma: no cover
+        """Central-difference Jacobians at the state z (nz,; restored): J = df/dz (nz, nz) and, with ``with_b``,
+        B = df/dv (nz,), the modes of (z, v) held; f0 receives f(z, v); H the steps (nz + 1,)."""
+        nz = z.size
+        evaluate(z, v, p, e0, idu, scale, eps, False, mode0, f0, y, pp, dy, fric, mode0)
+        for c in range(nz + 1 if with_b else nz):
+            h = H[c]
+            if c < nz:
+                zc = z[c]
+                z[c] = zc + h
+                evaluate(z, v, p, e0, idu, scale, eps, True, mode0, fp, y, pp, dy, fric, mode)
+                z[c] = zc - h
+                evaluate(z, v, p, e0, idu, scale, eps, True, mode0, fm, y, pp, dy, fric, mode)
+                z[c] = zc
+                for i in range(nz):
+                    J[i, c] = (fp[i] - fm[i]) / (2.0 * h)
+            else:
+                evaluate(z, v + h, p, e0, idu, scale, eps, True, mode0, fp, y, pp, dy, fric, mode)
+                evaluate(z, v - h, p, e0, idu, scale, eps, True, mode0, fm, y, pp, dy, fric, mode)
+                for i in range(nz):
+                    B[i] = (fp[i] - fm[i]) / (2.0 * h)
 
     @njit(cache=False)
     def jac(Z, V, P, e0, idu, scale, eps, H, J, B):  # pragma: no cover
@@ -142,26 +196,12 @@ def _kernels(comp: Composition) -> _Kernels:
         y, pp, dy = np.zeros(ny), np.zeros(P.shape[1]), np.zeros(ny)
         fric, mode, mode0 = np.zeros(2), np.zeros(2, np.int64), np.zeros(2, np.int64)
         z = np.zeros(nz)
-        fp, fm = np.zeros(nz), np.zeros(nz)
+        f0, fp, fm = np.zeros(nz), np.zeros(nz), np.zeros(nz)
         for k in range(n):
             for i in range(nz):
                 z[i] = Z[k, i]
-            _eval(z, V[k], P[k], e0, idu, scale, eps, False, mode0, fp, y, pp, dy, fric, mode0)
-            for c in range(nz + 1):
-                h = H[c]
-                if c < nz:
-                    z[c] = Z[k, c] + h
-                    _eval(z, V[k], P[k], e0, idu, scale, eps, True, mode0, fp, y, pp, dy, fric, mode)
-                    z[c] = Z[k, c] - h
-                    _eval(z, V[k], P[k], e0, idu, scale, eps, True, mode0, fm, y, pp, dy, fric, mode)
-                    z[c] = Z[k, c]
-                    for i in range(nz):
-                        J[k, i, c] = (fp[i] - fm[i]) / (2.0 * h)
-                else:
-                    _eval(z, V[k] + h, P[k], e0, idu, scale, eps, True, mode0, fp, y, pp, dy, fric, mode)
-                    _eval(z, V[k] - h, P[k], e0, idu, scale, eps, True, mode0, fm, y, pp, dy, fric, mode)
-                    for i in range(nz):
-                        B[k, i] = (fp[i] - fm[i]) / (2.0 * h)
+            lane_jacobian(z, V[k], P[k], e0, idu, scale, eps, H, True, J[k], B[k], f0, fp, fm, y, pp, dy, fric, mode,
+                          mode0)  # fmt: skip
 
     @njit(cache=False)
     def _settled(z, u, p, e0, y, dy):  # pragma: no cover
@@ -182,7 +222,7 @@ def _kernels(comp: Composition) -> _Kernels:
         for k in range(n):
             OUT[k] = _settled(Z[k], U[k], P[k], e0, y, dy)
 
-    _COMPILED[comp] = _Kernels(rhs, jac, volt)
+    _COMPILED[comp] = _Kernels(rhs, jac, volt, evaluate, slipping, lane_jacobian, _settled)
     return _COMPILED[comp]
 
 
@@ -270,7 +310,7 @@ class ModelDynamics:
         Z = self._Z(z)
         n = Z.shape[0]
         out = np.zeros((n, self.nz))
-        k = _kernels(self.composition)
+        k = model_kernels(self.composition)
         zero = np.zeros(n)
         V = np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), (n,)))
         k.rhs(Z, V, self._P(n), self.e0, 5 if self.has_du else -1, self.scale, self.eps, zero, zero, False, out, zero)
@@ -282,10 +322,9 @@ class ModelDynamics:
         Z = self._Z(z)
         n = Z.shape[0]
         J, B = np.zeros((n, self.nz, self.nz)), np.zeros((n, self.nz))
-        h = np.full(self.nz + 1, 1e-5)
-        h[I_AL], h[I_TU] = 1e-6, 1e-6
+        h = jacobian_steps(self.nz)
         V = np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), (n,)))
-        _kernels(self.composition).jac(
+        model_kernels(self.composition).jac(
             Z, V, self._P(n), self.e0, 5 if self.has_du else -1, self.scale, self.eps, h, J, B
         )
         return J, B
@@ -298,7 +337,7 @@ class ModelDynamics:
         out, volt = np.zeros((n, self.nz)), np.zeros(n)
         wu = np.ascontiguousarray(np.broadcast_to(np.asarray(omega_u, dtype=float), (n,)))
         wl = np.ascontiguousarray(np.broadcast_to(np.asarray(omega_l, dtype=float), (n,)))
-        _kernels(self.composition).rhs(
+        model_kernels(self.composition).rhs(
             Z, np.zeros(n), self._P(n), self.e0, 5 if self.has_du else -1, self.scale, self.eps, wu, wl, True, out, volt
         )
         return out.T, volt
@@ -334,10 +373,10 @@ class ModelDynamics:
         n = Z.shape[0]
         U = np.ascontiguousarray(np.broadcast_to(np.asarray(u, dtype=float), (n,)))
         out = np.zeros(n)
-        _kernels(self.composition).volt(Z, U, self._P(n), self.e0, out)
+        model_kernels(self.composition).volt(Z, U, self._P(n), self.e0, out)
         return out
 
-    def _branches(self, u_max: float) -> tuple[float, tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    def input_map_branches(self, u_max: float) -> tuple[float, tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
         """(g(0), positive branch, negative branch) of the static input map's monotone hull at rest on ±2 u_max:
         each branch (voltages, commands) increasing in |command|, the last command of each flat stretch kept."""
         key = ("branches", float(u_max))
@@ -369,7 +408,7 @@ class ModelDynamics:
         """Commands (V, (n,), within ±2 u_max) whose settled voltage at the motor is ``v_motor`` (V): the monotone hull
         of the static input map inverted (a dead zone: v ± u0; an offset: v − offset; 0 for g(0))."""
         del z  # the map at rest: a function of the command alone
-        g0, (hp, up), (hn, un) = self._branches(u_max)
+        g0, (hp, up), (hn, un) = self.input_map_branches(u_max)
         v = np.asarray(v_motor, dtype=float)
         pos = np.interp(v, hp, up, left=0.0)
         neg = -np.interp(-v, hn, un, left=0.0)

@@ -256,11 +256,12 @@ class ObserverController(Controller):
         self.u_prev = u.copy()
 
     def compiled_law(self):
-        """The filter and the law compiled (:mod:`controllers.compiled.observer_law`) from the current state; None
-        for a model with effects or the ``descent`` fallback (the step-by-step loop runs them)."""
-        from .compiled.observer_law import observer_law
+        """The filter and the law compiled from the current state (:mod:`controllers.compiled.observer_law`, on a
+        model with effects :mod:`controllers.compiled.model_law`); None for the ``descent`` fallback, a Measurement
+        effect on the motor angle or a subclass with its own ``act`` (the step-by-step loop runs them)."""
+        from .compiled.model_law import compiled_law
 
-        return observer_law(self)
+        return compiled_law(self, "observer") if type(self)._act is ObserverController._act else None
 
     def approach_time(self, omega_ref: float | np.ndarray) -> np.ndarray:
         """Time (s) the law's reference needs: six lag time constants, after the hold and the ramp down
@@ -427,8 +428,9 @@ class LQGController(Controller):
         return u
 
     def compiled_law(self):
-        """The filter and the law compiled (:mod:`controllers.compiled.lqg_law`) from the current state; None for
-        a model with effects or the ``descent`` fallback (the step-by-step loop runs them)."""
-        from .compiled.lqg_law import lqg_law
+        """The filter and the law compiled from the current state (:mod:`controllers.compiled.lqg_law`, on a model
+        with effects :mod:`controllers.compiled.model_law`); None for the ``descent`` fallback or a subclass with
+        its own ``act`` (the step-by-step loop runs them)."""
+        from .compiled.model_law import compiled_law
 
-        return lqg_law(self)
+        return compiled_law(self, "lqg") if type(self)._act is LQGController._act else None

@@ -33,14 +33,16 @@ _X0 = 0
 _P0 = MAX_DIM
 _L0 = _P0 + MAX_DIM * MAX_DIM
 ROWS = ("y1", "y2", "y3", "z", "t", "target", "low", "k0", "k1", "k2", "k3", "settle", "integrating", "theta0", "t_int")
-Y1, Y2, Y3, Z, TL, TARGET, LOW, K0, K1, K2, K3, SETTLE, INTEG, THETA0, TINT = range(_L0, _L0 + len(ROWS))
+"""The flatness law's rows, from its first (:func:`law_rows`)."""
+Y1, Y2, Y3, Z, TL, TARGET, LOW, K0, K1, K2, K3, SETTLE, INTEG, THETA0, TINT = range(len(ROWS))
 # then work rows, rewritten every period: the filter's (W: gain, then products), the model's right-hand side and
-# Jacobian, the brake law's shapes (three speeds of the law, three of the model)
+# Jacobian, the brake law's shapes (three speeds of the law, three of the model), the law's torques
 _W0 = _L0 + len(ROWS)
 _F0 = _W0 + 2 * MAX_DIM * MAX_DIM + MAX_DIM
 _J0 = _F0 + MAX_DIM
 _S0 = _J0 + MAX_DIM * MAX_DIM
-N_ROWS = _S0 + 6
+_T0 = _S0 + 6
+N_ROWS = _T0 + 4
 
 CONSTANTS = (
     "dt", "r", "eps", "h", "Ju", "Jl", "km", "kth", "Tcu", "dTcu", "bu", "dbu", "Ts", "Tc", "ws", "delta", "bb",
@@ -96,64 +98,78 @@ def model_shapes(wl_, C, n, a, b, c):
 
 
 @njit(cache=True, error_model="numpy")
-def _update(M, X, C, n, dim, W):
-    """The filter's update with the measured motor angles (Joseph form); W: work rows (>= dim + dim^2)."""
-    r = C[R]
+def update(M, X, r, n, dim, p0, W):
+    """The filter's update with the measured motor angles (Joseph form): estimates in rows 0.., covariance from
+    row p0; r the angle's variance (rad^2); W: work rows (>= dim + dim^2)."""
     for k in range(n):
-        s = X[_P0, k] + r
+        s = X[p0, k] + r
         innov = M[M_TU, k] - X[_X0, k]
         for i in range(dim):
-            g = X[_P0 + i * dim, k] / s  # K = P e0 / (e0' P e0 + r)
+            g = X[p0 + i * dim, k] / s  # K = P e0 / (e0' P e0 + r)
             W[i, k] = g
             X[_X0 + i, k] += g * innov
     for i in range(dim):  # A = (I - K e0') P
         for j in range(dim):
             for k in range(n):
-                W[dim + i * dim + j, k] = X[_P0 + i * dim + j, k] - W[i, k] * X[_P0 + j, k]
+                W[dim + i * dim + j, k] = X[p0 + i * dim + j, k] - W[i, k] * X[p0 + j, k]
     for i in range(dim):  # P = A (I - K e0')' + r K K'
         for j in range(dim):
             for k in range(n):
                 a = W[dim + i * dim + j, k] - W[dim + i * dim, k] * W[j, k]
-                X[_P0 + i * dim + j, k] = a + r * W[i, k] * W[j, k]
+                X[p0 + i * dim + j, k] = a + r * W[i, k] * W[j, k]
 
 
 @njit(cache=True, error_model="numpy")
-def _law(M, X, C, n, U):
-    """The flatness law's voltage (V, clipped) from the updated estimates, its reference lags advanced."""
-    dt, tau, kt, Jl, Ju, km = C[DT], C[TAU], C[KTH], C[JL], C[JU], C[KM]
+def base_torques(X, C, n, SH, TQ):
+    """The law's torques of the model without effects into the rows TQ (N m): the brake law at the law's speed
+    ww and ww +- hf (:func:`law_shapes` in SH), the upper friction at the estimated upper speed."""
     Ts, Tc, bb, hf, w_rest = C[TS], C[TC], C[BB], C[HF], C[W_REST]
-    hold, ramp, u_max = C[HOLD], C[RAMP], C[U_MAX]
+    for k in range(n):
+        ww = max(X[_X0 + 3, k], w_rest + hf)
+        TQ[0, k] = Tc + (Ts - Tc) * SH[0, k] + bb * ww
+        TQ[1, k] = Tc + (Ts - Tc) * SH[1, k] + bb * (ww + hf)
+        TQ[2, k] = Tc + (Ts - Tc) * SH[2, k] + bb * (ww - hf)
+        wu = X[_X0 + 1, k]
+        w0 = 1e-9 if wu == 0 else wu
+        TQ[3, k] = _upper(abs(w0), _sign(w0), C[TCU], C[DTCU], C[BU], C[DBU])
+
+
+@njit(cache=True, error_model="numpy")
+def flatness_law(M, X, L, C, n, U, TQ):
+    """The flatness law's voltage (V, not clipped) from the updated estimates (rows 0.. of X), its rows L
+    (:data:`ROWS`) advanced; TQ the torques (N m): the brake law at the law's speed ww and ww +- hf, the upper
+    disc's at the estimated upper speed (:func:`base_torques`, or the model's with its effects)."""
+    dt, tau, kt, Jl, Ju, km = C[DT], C[TAU], C[KTH], C[JL], C[JU], C[KM]
+    hf, w_rest = C[HF], C[W_REST]
+    hold, ramp = C[HOLD], C[RAMP]
     scale, has_du, angle = C[SCALE] > 0, C[HAS_DU] > 0, C[ANGLE_INT] > 0
     for k in range(n):
         wu, al, wl, d = X[_X0 + 1, k], X[_X0 + 2, k], X[_X0 + 3, k], X[_X0 + 4, k]
-        t_old = X[TL, k]
+        t_old = L[TL, k]
         zval = 0.0
         if angle:  # the motor angle's error since the approach ended (ObserverController._angle_error)
-            start = t_old >= X[SETTLE, k] and X[INTEG, k] == 0.0
+            start = t_old >= L[SETTLE, k] and L[INTEG, k] == 0.0
             if start:
-                X[THETA0, k] = X[_X0, k]
-                X[INTEG, k] = 1.0
-            X[TINT, k] = X[TINT, k] + dt if X[INTEG, k] > 0 else 0.0
-            zval = X[_X0, k] - X[THETA0, k] - M[M_REF, k] * X[TINT, k] if X[INTEG, k] > 0 else 0.0
+                L[THETA0, k] = X[_X0, k]
+                L[INTEG, k] = 1.0
+            L[TINT, k] = L[TINT, k] + dt if L[INTEG, k] > 0 else 0.0
+            zval = X[_X0, k] - L[THETA0, k] - M[M_REF, k] * L[TINT, k] if L[INTEG, k] > 0 else 0.0
         # the reference: three lags of the setpoint (FlatnessLaw.reference)
-        target = X[TARGET, k]
+        target = L[TARGET, k]
         if ramp > 0:
             s = min(max((t_old - hold) / ramp, 0.0), 1.0)
         else:
             s = 1.0 if t_old >= hold else 0.0
-        w = C[APPROACH] + s * (target - C[APPROACH]) if X[LOW, k] > 0 else target
-        X[TL, k] = t_old + dt
-        y1, y2, r = X[Y1, k], X[Y2, k], X[Y3, k]
+        w = C[APPROACH] + s * (target - C[APPROACH]) if L[LOW, k] > 0 else target
+        L[TL, k] = t_old + dt
+        y1, y2, r = L[Y1, k], L[Y2, k], L[Y3, k]
         d1, d2, d3 = (w - y1) / tau, (y1 - y2) / tau, (y2 - r) / tau
         dd2, dd3 = (d1 - d2) / tau, (d2 - d3) / tau
         r3 = (dd2 - dd3) / tau
-        X[Y1, k], X[Y2, k], X[Y3, k] = y1 + dt * d1, y2 + dt * d2, r + dt * d3
+        L[Y1, k], L[Y2, k], L[Y3, k] = y1 + dt * d1, y2 + dt * d2, r + dt * d3
         r1, r2 = d3, dd3
         # the brake law, its slope and curvature at the estimated lower speed (FlatnessLaw.friction)
-        ww = max(wl, w_rest + hf)
-        t0 = Tc + (Ts - Tc) * X[_S0, k] + bb * ww
-        tp = Tc + (Ts - Tc) * X[_S0 + 1, k] + bb * (ww + hf)
-        tm = Tc + (Ts - Tc) * X[_S0 + 2, k] + bb * (ww - hf)
+        t0, tp, tm = TQ[0, k], TQ[1, k], TQ[2, k]
         T, T1, T2 = t0, (tp - tm) / (2 * hf), (tp - 2 * t0 + tm) / hf**2
         if scale:
             T, T1, T2 = (1.0 + d) * T, (1.0 + d) * T1, (1.0 + d) * T2
@@ -165,17 +181,22 @@ def _law(M, X, C, n, U):
         a = 0.0 if rest else (-kt * al - T) / Jl
         j = 0.0 if rest else (-kt * (wl - wu) - T1 * a) / Jl
         if angle:
-            X[Z, k] = zval
-        elif X[TL, k] > hold + ramp:
-            X[Z, k] = X[Z, k] + dt * (wl - r)
-        v = r3 - (X[K0, k] * X[Z, k] + X[K1, k] * (wl - r) + X[K2, k] * (a - r1) + X[K3, k] * (j - r2))
+            L[Z, k] = zval
+        elif L[TL, k] > hold + ramp:
+            L[Z, k] = L[Z, k] + dt * (wl - r)
+        v = r3 - (L[K0, k] * L[Z, k] + L[K1, k] * (wl - r) + L[K2, k] * (a - r1) + L[K3, k] * (j - r2))
         wu_dot = (Jl * v + kt * a + T2 * a * a + T1 * j) / kt
-        w0 = 1e-9 if wu == 0 else wu
-        tfu = _upper(abs(w0), _sign(w0), C[TCU], C[DTCU], C[BU], C[DBU])
-        u = (Ju * wu_dot + tfu - kt * al) / km
+        u = (Ju * wu_dot + TQ[3, k] - kt * al) / km
         if has_du:
             u = u - X[_X0 + 5, k] / km
-        U[k] = min(max(u, -u_max), u_max)
+        U[k] = u
+
+
+@njit(cache=True, error_model="numpy")
+def clip(U, n, u_max):
+    """The commands U (V) clipped to [-u_max, u_max] in place."""
+    for k in range(n):
+        U[k] = min(max(U[k], -u_max), u_max)
 
 
 @njit(cache=True, error_model="numpy")
@@ -246,41 +267,51 @@ def model_rhs(X, C, n, dim, U, SH, Fv, J, jac):
 
 
 @njit(cache=True, error_model="numpy")
-def _predict(X, C, n, dim, Fv, J, W):
-    """x += Gamma f; P = F P F' + Qd with F = Ad + Gamma (J - Ac).  W: work rows (>= 2 dim^2)."""
-    dd = dim * dim
-    Ad, G, Ac, Qd = _MAT0, _MAT0 + dd, _MAT0 + 2 * dd, _MAT0 + 3 * dd
-    for i in range(dim):  # the mean
+def predict_mean(X, C, n, nc, g, Fv, W):
+    """x[:nc] += Gamma f, Gamma (nc x nc) at C[g:], f in the rows Fv (nc, n).  W: work rows (>= nc)."""
+    for i in range(nc):
         for k in range(n):
             W[i, k] = 0.0
-        for m in range(dim):
-            g = C[G + i * dim + m]
+        for m in range(nc):
+            gi = C[g + i * nc + m]
             for k in range(n):
-                W[i, k] += g * Fv[m, k]
-    for i in range(dim):
+                W[i, k] += gi * Fv[m, k]
+    for i in range(nc):
         for k in range(n):
             X[_X0 + i, k] += W[i, k]
+
+
+@njit(cache=True, error_model="numpy")
+def predict_covariance(X, C, n, dim, nc, p0, mats, J, W):
+    """P = F P F' + Qd (covariance from row p0), F = Ad + Gamma (J - Ac) on the first nc rows and columns (Ad, Qd
+    dim x dim; Gamma, Ac nc x nc: at C[mats:] in the order Ad, Gamma, Ac, Qd; J (nc^2, n) the right-hand side's
+    Jacobian at the estimates).  W: work rows (>= 2 dim^2)."""
+    dd = dim * dim
+    Ad, G, Ac = mats, mats + dd, mats + dd + nc * nc
+    Qd = Ac + nc * nc
     for i in range(dim):  # F into W[0:dd]
         for j in range(dim):
             for k in range(n):
                 W[i * dim + j, k] = C[Ad + i * dim + j]
-            for m in range(dim):
-                g = C[G + i * dim + m]
+            if i >= nc or j >= nc:
+                continue
+            for m in range(nc):
+                g = C[G + i * nc + m]
                 if g != 0.0:
-                    a = C[Ac + m * dim + j]
+                    a = C[Ac + m * nc + j]
                     for k in range(n):
-                        W[i * dim + j, k] += g * (J[m * dim + j, k] - a)
+                        W[i * dim + j, k] += g * (J[m * nc + j, k] - a)
     for i in range(dim):  # F P into W[dd:2dd]
         for j in range(dim):
             for k in range(n):
                 W[dd + i * dim + j, k] = 0.0
             for m in range(dim):
                 for k in range(n):
-                    W[dd + i * dim + j, k] += W[i * dim + m, k] * X[_P0 + m * dim + j, k]
+                    W[dd + i * dim + j, k] += W[i * dim + m, k] * X[p0 + m * dim + j, k]
     for i in range(dim):  # (F P) F' + Qd, the lanes innermost (vectorised); the symmetric half mirrored
         for j in range(i, dim):
             q = C[Qd + i * dim + j]
-            row = X[_P0 + i * dim + j]
+            row = X[p0 + i * dim + j]
             for k in range(n):
                 row[k] = q
             for m in range(dim):
@@ -289,7 +320,7 @@ def _predict(X, C, n, dim, Fv, J, W):
                 for k in range(n):
                     row[k] += a[k] * b[k]
             if j != i:
-                X[_P0 + j * dim + i, :n] = row[:n]
+                X[p0 + j * dim + i, :n] = row[:n]
 
 
 @njit(LAW_SIGNATURE, cache=True)
@@ -301,20 +332,65 @@ def observer_step(t, M, X, C, U):  # pragma: no cover - compiled
     Fv = X[_F0 : _F0 + dim]
     J = X[_J0 : _J0 + dim * dim]
     SH = X[_S0 : _S0 + 6]
-    _update(M, X, C, n, dim, W)
+    TQ = X[_T0 : _T0 + 4]
+    update(M, X, C[R], n, dim, _P0, W)
     wl = X[_X0 + 3]
     law_shapes(wl, C, n, SH[0], SH[1], SH[2])
     model_shapes(wl, C, n, SH[3], SH[4], SH[5])
-    _law(M, X, C, n, U)
+    base_torques(X, C, n, SH, TQ)
+    flatness_law(M, X, X[_L0 : _L0 + len(ROWS)], C, n, U, TQ)
+    clip(U, n, C[U_MAX])
     model_rhs(X, C, n, dim, U, SH[3:6], Fv, J, True)
-    _predict(X, C, n, dim, Fv, J, W)
+    predict_mean(X, C, n, dim, _MAT0 + dim * dim, Fv, W)
+    predict_covariance(X, C, n, dim, dim, _P0, _MAT0, J, W)
+
+
+def filter_settled(c, dim: int, max_dim: int) -> bool:
+    """True when the compiled filters run the model-based controller c (reset) as its ``act`` does: no ``descent``
+    fallback, the nominal brake law, no Measurement effect on the motor angle and at most ``max_dim`` states."""
+    mdl = c.model
+    return c._descent is None and mdl.friction_known and not mdl.reads_effects and mdl.Ad.shape[0] == dim <= max_dim
+
+
+def plain_model(c) -> bool:
+    """True when the controller c is built on the base model of its parameters: no effect, delay, lag or input map."""
+    mdl = c.model
+    return (
+        not c.effects.composition.effects
+        and mdl.line_index < 0
+        and mdl.lag_index < 0
+        and not mdl.compensates
+        and np.array_equal(mdl.dynamics.vector, c.params.to_vector())
+    )
+
+
+def law_rows(c, L: np.ndarray) -> None:
+    """The flatness law's rows L (:data:`ROWS`, n) from the reset :class:`controllers.observer.ObserverController` c."""
+    law = c.law
+    L[Y1 : Y3 + 1] = law.y
+    L[Z], L[TL], L[TARGET], L[LOW] = law.z, law.t, law.target, law.low
+    L[K0 : K3 + 1] = np.broadcast_to(law.K, (c.n, 4)).T
+    L[SETTLE], L[INTEG], L[THETA0], L[TINT] = c._settle, c._integrating, c._theta0, c._t_int
+
+
+def observer_constants(c, dim: int) -> np.ndarray:
+    """The values of :data:`CONSTANTS` of the reset :class:`controllers.observer.ObserverController` c."""
+    mdl, law, p = c.model, c.law, c.params
+    values = dict(
+        dt=c.dt, r=mdl.R[0, 0], eps=mdl.dynamics.eps, h=1e-5, Ju=p.Ju, Jl=p.Jl, km=p.km, kth=p.ktheta,
+        Tcu=p.Tcu, dTcu=p.dTcu, bu=p.bu, dbu=p.dbu, Ts=p.Ts, Tc=p.Tc, ws=p.ws, delta=p.delta, bb=p.bb,
+        tau=law.tau, w_rest=law.w_rest, hf=law.h, hold=law.hold, ramp=law.ramp, approach=law.approach,
+        u_max=c.u_max, scale=float(law.scale), has_du=float(mdl.has_du), angle_integral=float(c.angle_integral),
+        dim=float(dim),
+    )  # fmt: skip
+    return np.array([float(values[k]) for k in CONSTANTS])
 
 
 def observer_law(c):
     """The compiled law of an :class:`controllers.observer.ObserverController` after its reset, or None.
 
-    None when its settings need what the compiled filter does not run: a model with effects, the ``descent``
-    fallback for some targets.
+    None when its settings need what this compiled filter does not run: a model with effects
+    (:mod:`controllers.compiled.model_law` runs those), the ``descent`` fallback for some targets.
 
     Parameters
     ----------
@@ -329,39 +405,15 @@ def observer_law(c):
     """
     from . import CompiledLaw
 
-    mdl, law, p = c.model, c.law, c.params
+    mdl, law = c.model, c.law
     dim = mdl.nc
-    plain = (
-        not c.effects.composition.effects
-        and c._descent is None
-        and mdl.line_index < 0
-        and mdl.lag_index < 0
-        and not (mdl.reads_effects or mdl.compensates)
-        and mdl.friction_known
-        and mdl.Ad.shape[0] == dim <= MAX_DIM
-        and law.brake is None
-        and law.upper is None
-        and law.scale == mdl.dynamics.scale
-        and np.array_equal(mdl.dynamics.vector, p.to_vector())
-    )
-    if not plain:
+    base_law = law.brake is None and law.upper is None and law.scale == mdl.dynamics.scale
+    if not (plain_model(c) and filter_settled(c, dim, MAX_DIM) and not mdl.reads_effects and base_law):
         return None
     n = c.n
     X = np.zeros((N_ROWS, n))
     X[_X0 : _X0 + dim] = c.observer.x
     X[_P0 : _P0 + dim * dim] = c.observer.P.reshape(n, dim * dim).T
-    X[Y1 : Y3 + 1] = law.y
-    X[Z], X[TL], X[TARGET], X[LOW] = law.z, law.t, law.target, law.low
-    X[K0 : K3 + 1] = np.broadcast_to(law.K, (n, 4)).T
-    X[SETTLE], X[INTEG], X[THETA0], X[TINT] = c._settle, c._integrating, c._theta0, c._t_int
-    values = dict(
-        dt=c.dt, r=mdl.R[0, 0], eps=mdl.dynamics.eps, h=1e-5, Ju=p.Ju, Jl=p.Jl, km=p.km, kth=p.ktheta,
-        Tcu=p.Tcu, dTcu=p.dTcu, bu=p.bu, dbu=p.dbu, Ts=p.Ts, Tc=p.Tc, ws=p.ws, delta=p.delta, bb=p.bb,
-        tau=law.tau, w_rest=law.w_rest, hf=law.h, hold=law.hold, ramp=law.ramp, approach=law.approach,
-        u_max=c.u_max, scale=float(law.scale), has_du=float(mdl.has_du), angle_integral=float(c.angle_integral),
-        dim=float(dim),
-    )  # fmt: skip
-    C = np.concatenate(
-        [[float(values[k]) for k in CONSTANTS]] + [np.ravel(a) for a in (mdl.Ad, mdl.gamma_new, mdl.Ac, mdl.Qd)]
-    )
+    law_rows(c, X[_L0 : _L0 + len(ROWS)])
+    C = np.concatenate([observer_constants(c, dim)] + [np.ravel(a) for a in (mdl.Ad, mdl.gamma_new, mdl.Ac, mdl.Qd)])
     return CompiledLaw(observer_step, np.ascontiguousarray(X), np.ascontiguousarray(C, dtype=np.float64))
