@@ -80,8 +80,8 @@ def register_benchmark(app: typer.Typer) -> None:
         trust: bool = trust_option(),
     ) -> None:
         """Score a policy on a named task: lowest held target at the median and 90th percentile of the
-        held-out plants, SSI, energy; over several policy seeds their IQM with a stratified-bootstrap 95 %
-        interval (rliable)."""
+        held-out plants, SSI, whirl (a coupled task's target is held only below the whirl threshold), energy;
+        over several policy seeds their IQM with a stratified-bootstrap 95 % interval (rliable)."""
         from agents.benchmark import BenchmarkOptions, resolve_policies, run_benchmark
         from controllers.evaluation.harness import check_evaluation_options
         from drillgym.commands.options import option
