@@ -9,9 +9,9 @@ import pytest
 from drillgym import RigParams
 from drillgym.diagnosis import diagnose
 from drillgym.diagnosis.effect_file import write_effect_file
-from drillgym.diagnosis.encoder_reading import reading_candidate
-from drillgym.diagnosis.motor_terms import ENCODER_TERM, MotorEncoderTerms
+from drillgym.diagnosis.motor_terms import ENCODER_TERM, EncoderTerms
 from drillgym.diagnosis.results import Candidate
+from drillgym.diagnosis.sensor_reading import reading_candidates
 from drillgym.effects import Measurement, Parameter, compose
 from drillgym.identification.synthetic import synthetic_measurement
 
@@ -52,7 +52,7 @@ def test_the_reading_candidate_is_written_as_a_measurement_of_theta_u(tmp_path):
 
 
 def test_the_terms_effect_reads_the_same_as_a_written_file():
-    comp, vals = compose([MotorEncoderTerms], {"me_play": 0.03, "me_w": 0.2})
+    comp, vals = compose([EncoderTerms], {"me_play": 0.03, "me_w": 0.2})
     p = comp.vector(RigParams(), vals)
     omega = np.linspace(-1.0, 1.0, 7)
     tu = comp.measure(np.zeros(7), np.zeros(7), np.zeros(7), np.zeros(7), p, omega, np.zeros(7))[0]
@@ -74,13 +74,13 @@ def test_free_play_at_the_motor_encoder_is_found_by_its_own_fit(tmp_path):
     c = d.candidate
     assert c is not None and c.group == "motor_encoder"
     assert c.fit.variance_cut > 0.9
-    play = next(v for k, v in c.fit.values.items() if k.endswith("_c1"))
+    play = c.fit.values[c.fit.file_name("me_play")]  # the play term, beside the scale and the offset
     assert play == pytest.approx(0.025, rel=0.05)
     assert math.isclose(c.terms[ENCODER_TERM], play)
     assert not d.advice  # a candidate kept: no advice that nothing explains the residual
     comp, _ = compose([c.effect_file])
     assert issubclass(comp.effects[0], Measurement)
-    assert reading_candidate(d) is not None  # the diagnosis' own residual (before the candidate) is not at the noise
+    assert reading_candidates(d)  # the diagnosis' own residual (before the candidate) is not at the noise
 
 
 class _Fit:
@@ -90,6 +90,7 @@ class _Fit:
         self.variance_cut = cut
         self.values = {"me_play": 0.01, "me_w": 0.05}
         self.after = type("After", (), {"explained": False})()
+        self.state = None  # where the fit ended (the base parameters fitted with it)
 
 
 @pytest.mark.parametrize(
@@ -118,7 +119,7 @@ def test_the_reading_is_kept_when_its_fit_removes_more_and_at_least_the_bar(
     monkeypatch.setattr(candidate_fit, "fit_candidate", lambda s, d, c, n: _Fit(reading_cut))
     diagnosis = type("D", (), {"candidate": discovered})()
     reading = _encoder_candidate(0.005, 0.05)
-    got = candidate_fit.choose_candidate(None, diagnosis, {}, None, reading)
+    got = candidate_fit.choose_candidate(None, diagnosis, {}, None, [reading])
     if kept is None:
         assert got is None
     else:

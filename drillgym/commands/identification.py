@@ -233,12 +233,14 @@ def diagnose_cmd(
     segment: str = typer.Option("auto", "--segment", help=f"multiple-shooting segment: {SEGMENT_HELP}"),
     rate: float = typer.Option(50.0, help="comparison grid rate (Hz)"),
     sparse: bool = typer.Option(
-        True, "--sparse/--no-sparse", help="also look for an effect outside the library in the residual torques"
+        True,
+        "--sparse/--no-sparse",
+        help="also look for an effect outside the library in the residual torques and the sensors' readings",
     ),
     candidate_out: Path | None = typer.Option(
         None,
         "--candidate-out",
-        help="write the candidate effect found in the residual torques "
+        help="write the candidate effect found in the residual torques or a sensor's reading "
         "to this .py file (default: RECORDING_candidate.py next "
         "to the recording, when one is found)",
     ),

@@ -10,8 +10,8 @@
   friction on a disc that hardly turns;
 * :mod:`.ranking` — the report step (:mod:`.one_at_a_time`: each candidate alone against the model);
 * :mod:`.discovery` — a candidate effect outside the library from the residual torques on both discs,
-  written as an effect file (``diagnose --candidate-out``); :mod:`.encoder_reading` — the motor encoder's
-  reading (free play at the motor), a candidate only its own fit can show; :mod:`.candidate_fit` — each
+  written as an effect file (``diagnose --candidate-out``); :mod:`.sensor_reading` — what each sensor reads
+  (a scale error, an offset, free play), candidates only their own fit can show; :mod:`.candidate_fit` — each
   candidate's own fit, the one that removes most kept;
 * :mod:`.reselection` — with a candidate kept, the diagnosis again on the model that holds it.
 

@@ -1,9 +1,12 @@
-"""A candidate effect outside the library, found in the residual torques (:mod:`.discovery`)."""
+"""A candidate effect outside the library, found in the residual torques (:mod:`.discovery`), or a sensor's
+reading (:mod:`.sensor_reading`)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from typing import Any
+
+from .reading_terms import SENSORS, reading_words
 
 __all__ = ["Candidate"]
 
@@ -15,30 +18,32 @@ _WHERE = {
     "lower_force": "torque on the lower disc +=",
     "upper_force": "torque on the upper disc +=",
     "motor_voltage": "voltage at the motor = u",
-    "motor_encoder": "motor encoder reading = θu",
+    **{g: f"{s.what[4:]} reading = {s.symbol}" for g, s in SENSORS.items()},
 }
-#: the unit of a group's coefficients (N m when not listed)
-_UNIT = {"motor_voltage": "V", "motor_encoder": "rad"}
+#: the unit of a group's coefficients (N m when not listed; a reading's: its own unit per unit of the term)
+_UNIT = {"motor_voltage": "V", **{g: s.unit for g, s in SENSORS.items()}}
 
 
 @dataclass
 class Candidate:
-    """A candidate effect found in the residual torques, or the motor encoder's reading (:mod:`.encoder_reading`).
+    """A candidate effect found in the residual torques, or a sensor's reading (:mod:`.sensor_reading`).
 
     Attributes
     ----------
     group : str
         Where it acts: ``lower_friction``, ``upper_friction``, ``string``, ``lower_force``, ``upper_force``,
-        ``motor_voltage`` (the voltage the motor sees) or ``motor_encoder`` (what the motor encoder reads).
+        ``motor_voltage`` (the voltage the motor sees), or a sensor's reading (:data:`.reading_terms.SENSORS`:
+        ``motor_encoder``, ``lower_encoder``, ``lvdt_x``, ``lvdt_y``).
     terms : dict of str to float
-        Term label -> coefficient (N m per unit of the term; V for ``motor_voltage``, rad for ``motor_encoder``).
+        Term label -> coefficient (N m per unit of the term; V for ``motor_voltage``; a reading's unit, rad or m,
+        per unit of the term: the scale error k is rad/rad or m/m).
     codes : dict of str to str
         Term label -> its Python expression in the effect file.
     at_rest : dict of str to float
         Term label -> its value at zero speed approached from above.
     explained : float
-        Share of the residual torque's variance it explains (``motor_encoder``: share of the unexplained variance
-        its fit removes).
+        Share of the residual torque's variance it explains (a reading: share of the unexplained variance its fit
+        removes).
     n_samples : int
         Samples regressed.
     name : str
@@ -86,20 +91,31 @@ class Candidate:
     def expression(self) -> str:
         """The candidate as one line: where it acts and its terms with their coefficients (N m, V or rad)."""
         parts = " ".join(f"{c:+.4g}·{n}" if n != "1" else f"{c:+.4g}" for n, c in self.terms.items())
-        widths = "".join(f", w = {w:.3g} rad/s" for w in self.widths.values()) if self.group == "motor_encoder" else ""
+        widths = "".join(f", w = {w:.3g} rad/s" for w in self.widths.values()) if self.is_reading else ""
         return f"{_WHERE[self.group]} {parts}{widths}  [{self.unit}]"
 
     @property
     def unit(self) -> str:
-        """The unit of its coefficients: N m, V (``motor_voltage``) or rad (``motor_encoder``)."""
+        """The unit of its coefficients: N m, V (``motor_voltage``), rad or m (a reading)."""
         return _UNIT.get(self.group, "N m")
+
+    @property
+    def is_reading(self) -> bool:
+        """Whether it is a sensor's reading (:mod:`.sensor_reading`), not a term of the residual torques."""
+        return self.group in SENSORS
+
+    def reading(self) -> str | None:
+        """What a reading candidate says about its sensor in words (:func:`.reading_terms.reading_words`), or
+        None for a candidate of the residual torques."""
+        return reading_words(self.group, self.terms, self.widths) if self.is_reading else None
 
     def found_line(self) -> str:
         """How the candidate was found and what it is, as the command line's first line on it."""
-        if self.group == "motor_encoder":
-            how = f"what the motor encoder reads, by its own fit: {self.explained:.0%} of the unexplained variance"
-        else:
-            how = f"{self.explained:.0%} of the residual torque"
+        if self.is_reading:
+            what = SENSORS[self.group].what
+            how = f"what {what} reads, by its own fit: {self.explained:.0%} of the unexplained variance"
+            return f"candidate outside the library ({how}): {self.reading()} — {self.expression()}"
+        how = f"{self.explained:.0%} of the residual torque"
         return f"candidate outside the library ({how}): {self.expression()}"
 
     def to_json(self) -> dict:
@@ -111,6 +127,7 @@ class Candidate:
             "explained": round(self.explained, 4),
             "effect_file": self.effect_file,
             "group": self.group,
+            "reading": self.reading(),
             "terms": self.terms,
             "widths": self.widths,
             "through_lag_s": self.through_lag,

@@ -7,14 +7,17 @@ own recordings (with the base parameters as the diagnosis freed them; when the d
 their range, where an effect the library lacks may have been absorbed, held at their nominal values and held as
 the diagnosis left them, the better fit kept), with the segments' start speeds.  When the base parameters were
 held (nominal, or at a bound) and the candidate's fit is not at the noise, the fit is repeated with them freed,
-and kept when that counts by the selection's rules and none ends at a bound.  Motor-side terms are fitted
-through the same terms compiled once (:mod:`.motor_terms`): a file's coefficients make its compiled model new
-for every recording.  The answer is the residual against the noise with the candidate
+and kept when that counts by the selection's rules and none ends at a bound.  A sensor's reading
+(:mod:`.sensor_reading`) is fitted with the selected library effects' parameters freed too: they may have stood
+in for it.  Motor-side terms and the readings are fitted through the same terms compiled once
+(:mod:`.motor_terms`, :mod:`.reading_terms`): a file's coefficients make its compiled model new for every
+recording.  The answer is the residual against the noise with the candidate
 (:func:`.unexplained.unexplained`) beside the one without.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -27,10 +30,10 @@ from .context import SelectionContext, base_at_bounds, converged_fit
 from .discovery_terms import dead_zone_variant
 from .effect_file import write_effect_file
 from .effects import get_effect
-from .encoder_reading import MIN_READING_CUT, with_fitted_terms
 from .motor_terms import TERM_EFFECTS, WIDTH_PARAMETERS, term_parameters
 from .results import Candidate, Diagnosis
 from .scoring import score, significant
+from .sensor_reading import MIN_READING_CUT, with_fitted_terms
 from .state import Screening, transfer
 from .unexplained import Unexplained, unexplained
 
@@ -207,7 +210,7 @@ def fit_candidate(
     if ahead:  # the lag the terms were regressed through, fitted with them
         start_values = {**start_values, "tau_m": candidate.through_lag}
     names = list(start_values)
-    setup = _CandidateModel(model, comp, with_it, effect, start_values)
+    setup = _CandidateModel(model, comp, with_it, effect, start_values, _stood_in(diagnosis, candidate))
     if diagnosis.at_bounds and diagnosis.nominal_vector is not None:
         # an effect the library lacks may have been absorbed at the bound: the base held at nominal, and held as
         # the diagnosis left it (its mismatch may be real: 5 % off beside an offset); the better fit is kept
@@ -222,7 +225,7 @@ def fit_candidate(
     if not base_names and not unexplained(obj, np.asarray(fit.vector), noise_scales).explained:
         # with the candidate in, a base parameter the effect had taken to a bound may come back (a dead zone
         # after a lag, 60 s of steps: km and bu at bounds, km 0.976 for 0.97 hidden once both are in)
-        freed = _with_base_freed(ctx, fit, names, tuple(model.base_names))
+        freed = _with_base_freed(ctx, fit, [*names, *setup.library], tuple(model.base_names))
         if freed is not None:
             (obj, ctx, fit), base_names, held = freed, tuple(model.base_names), False
     before = diagnosis.unexplained or unexplained(model.obj, diagnosis.vector, noise_scales)
@@ -243,6 +246,7 @@ class _CandidateModel:
     with_it: Composition  # ... with the candidate
     effect: type[Effect]  # the candidate's effect
     start_values: dict[str, float]  # its free parameters' start
+    library: tuple[str, ...] = ()  # the selected library effects' parameters fitted with it
 
     def fit(self, base: np.ndarray, base_names: tuple[str, ...]) -> tuple[Objective, SelectionContext, FitResult]:
         """The candidate's parameters and the base parameters ``base_names`` fitted from the model vector ``base``
@@ -256,7 +260,18 @@ class _CandidateModel:
         obj.model = obj.model.with_composition(self.with_it)
         nominal = transfer(self.model.nominal, self.comp, self.with_it)
         ctx = SelectionContext(obj, self.with_it, start, nominal, base_names, {})
-        return obj, ctx, converged_fit(ctx, start, [*self.start_values, *base_names], MAX_NFEV)
+        return obj, ctx, converged_fit(ctx, start, [*self.start_values, *self.library, *base_names], MAX_NFEV)
+
+
+def _stood_in(diagnosis: Diagnosis, candidate: Candidate) -> tuple[str, ...]:
+    """The parameters of the library effects the diagnosis selected, fitted with a sensor's reading: they may
+    have stood in for it (a drift for an encoder's scale error, the twist it misreads growing with the angle
+    turned) and go back towards neutral once it is in.  Empty for a candidate of the residual torques (its
+    terms were regressed beside them)."""
+    if not candidate.is_reading or diagnosis.composition is None:
+        return ()
+    chosen = set(diagnosis.selected)
+    return tuple(p.name for e in diagnosis.composition.effects if e.name in chosen for p in e.parameters)
 
 
 def _library_ahead(candidate: Candidate) -> dict[str, type[Effect]]:
@@ -329,42 +344,41 @@ def choose_candidate(
     diagnosis: Diagnosis,
     noise_scales: dict[str, float],
     candidate_out: str | Path | None,
-    reading: Candidate | None = None,
+    readings: Sequence[Candidate] = (),
 ) -> Candidate | None:
-    """The discovered candidate fitted, or its motor-side alternative, or the motor encoder's reading, whichever
-    fit removes most.
+    """The discovered candidate fitted, or its motor-side alternative, or a sensor's reading, whichever fit
+    removes most.
 
     The motor side's candidate is fitted first (its terms are compiled once); when it leaves the recording at the
-    noise, the other is not fitted.  The motor encoder's reading (:mod:`.encoder_reading`) is fitted when neither
-    leaves the recording at the noise, and kept when its fit removes more than theirs and at least
-    :data:`.encoder_reading.MIN_READING_CUT` of the unexplained variance.  The candidate kept is the one written to
-    ``candidate_out``; the best of the others is its :attr:`~.results.Candidate.alternative`.
+    noise, the other is not fitted.  The sensors' readings (:mod:`.sensor_reading`) are fitted when neither leaves
+    the recording at the noise; the reading whose fit removes most is kept when it removes more than theirs and at
+    least :data:`.sensor_reading.MIN_READING_CUT` of the unexplained variance.  The candidate kept is the one
+    written to ``candidate_out``; the best of the others is its :attr:`~.results.Candidate.alternative`.
 
     Parameters
     ----------
     screening : Screening
         The recordings screened.
     diagnosis : Diagnosis
-        The diagnosis, with its candidate (:func:`.discovery.discover`; None: only the reading is tried).
+        The diagnosis, with its candidate (:func:`.discovery.discover`; None: only the readings are tried).
     noise_scales : dict of str to float
         The channels' noise.
     candidate_out : str or path or None
         Where the kept candidate's effect file goes.
-    reading : Candidate, optional
-        The motor encoder's reading (:func:`.encoder_reading.reading_candidate`; None: not tried).
+    readings : sequence of Candidate, optional
+        The sensors' readings (:func:`.sensor_reading.reading_candidates`; empty: none tried).
 
     Returns
     -------
     Candidate or None
-        The candidate kept, with its fit; None when there was none and the reading's fit removes too little.
+        The candidate kept, with its fit; None when there was none and no reading's fit removes enough.
     """
     written = cand = diagnosis.candidate
     keep = other = None
     if cand is not None:
         keep, other = _discovered(screening, diagnosis, cand, noise_scales)
-    if reading is not None and (keep is None or keep.fit is None or not keep.fit.after.explained):
-        reading.fit = fit_candidate(screening, diagnosis, reading, noise_scales)
-        reading = with_fitted_terms(reading)
+    if readings and (keep is None or keep.fit is None or not keep.fit.after.explained):
+        reading = _best_reading(screening, diagnosis, readings, noise_scales)
         bar = max(_cut(keep), MIN_READING_CUT) if keep is not None else MIN_READING_CUT
         if _cut(reading) > bar:
             keep, other = reading, keep
@@ -379,6 +393,30 @@ def choose_candidate(
             keep.fit.file_names = {k: _file_name(keep, k) for k in keep.fit.file_names}
     keep.alternative = other
     return keep
+
+
+def _best_reading(
+    screening: Screening, diagnosis: Diagnosis, readings: Sequence[Candidate], noise_scales: dict[str, float]
+) -> Candidate:
+    """Every reading fitted: the one whose fit removes most, or, among those that leave the recording at the
+    noise, the one that moved fewest base parameters with it.
+
+    All are fitted, even after one reaches the noise: a scale error of one encoder reads nearly as the opposite
+    error of the other with every angle rescaled (the motor encoder's +1 % as the lower's −1 % with the inertias
+    and the motor constant 1 % off), which the base parameters freed beside the wrong one take up."""
+    for reading in readings:
+        reading.fit = fit_candidate(screening, diagnosis, reading, noise_scales)
+        with_fitted_terms(reading)
+    return max(readings, key=_reading_rank)
+
+
+def _reading_rank(cand: Candidate) -> tuple[bool, int, float]:
+    """A reading's rank (larger is better): at the noise with it, fewest base parameters fitted with it, its cut."""
+    fit = cand.fit
+    if fit is None:
+        return False, 0, -1.0
+    moved = len(fit.state.base_names) if fit.state is not None else 0
+    return bool(fit.after.explained), -moved if fit.after.explained else 0, fit.variance_cut
 
 
 def _discovered(

@@ -26,8 +26,9 @@ candidate is written as a Python effect file of the open-effect mechanism (:func
 a ``Friction`` with ``slip`` and ``stick`` for friction groups, an ``Input`` for the voltage, a ``Force``
 otherwise), with the
 regressed coefficients as guesses and bounds of ±4 times their size, so that
-``drillgym identify --add-effect FILE.py:NAME`` fits it.  What the motor encoder reads (free play between its
-shaft and the disc) is no torque and cannot be regressed here: :mod:`.encoder_reading` tries it by its own fit.
+``drillgym identify --add-effect FILE.py:NAME`` fits it.  What a sensor reads (a scale error, an offset, free
+play between an encoder's shaft and its disc) is no torque and cannot be regressed here: :mod:`.sensor_reading`
+tries each sensor's reading by its own fit.
 When nothing explains the residual,
 :func:`advice` says which experiment would show more.
 """

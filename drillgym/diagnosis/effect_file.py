@@ -1,8 +1,8 @@
 """A candidate effect written as an effect file of the open-effect mechanism.
 
 A friction group becomes a ``Friction`` with ``slip`` and ``stick``, the motor's voltage an ``Input`` (the
-voltage the motor sees, from the voltage entering it), the motor encoder's reading a ``Measurement`` of
-``theta_u``, any other group a ``Force``; the
+voltage the motor sees, from the voltage entering it), a sensor's reading a ``Measurement`` of its channel
+(:data:`.reading_terms.SENSORS`: ``theta_u``, ``theta_l``, ``X`` or ``Y``), any other group a ``Force``; the
 regressed coefficients are the guesses and the bounds cover four times their size (and the size that would
 make each term alone as large as the residual torque), so that ``drillgym identify --add-effect
 FILE.py:NAME`` fits it.
@@ -12,7 +12,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .motor_terms import MotorEncoderTerms, width_parameter
+from .motor_terms import width_parameter
+from .reading_terms import SENSORS
 from .results import Candidate
 
 __all__ = ["write_effect_file"]
@@ -41,15 +42,17 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
     name = name or f"candidate_{cand.group}"
     cls = "".join(p.capitalize() for p in name.split("_"))
     voltage = cand.group == "motor_voltage"
-    reading = cand.group == "motor_encoder"
-    unit, width = cand.unit, width_parameter(cand.group)  # the width's unit and lower bound as its terms fit it
+    sensor = SENSORS.get(cand.group)
+    reading = sensor is not None
+    width = width_parameter(cand.group)  # the width's unit and lower bound as its terms fit it
     width_unit, width_lo = (width.unit, width.lo) if width is not None else ("V", 0.0)
     params, body, widths = [], [], []
     for i, (label, c) in enumerate(cand.terms.items(), 1):
         size = max(abs(c), cand.reach.get(label, 0.0), 1e-9)
+        term_unit, doc = _term_doc(cand, label)
         params.append(
-            f'        Parameter("{name}_c{i}", "{unit}", {-4 * size!r}, {4 * size!r}, {c!r}, {size / 2!r},\n'
-            f'                  doc="coefficient of {label}", neutral=0.0),'
+            f'        Parameter("{name}_c{i}", "{term_unit}", {-4 * size!r}, {4 * size!r}, {c!r}, {size / 2!r},\n'
+            f'                  doc="{doc}", neutral=0.0),'
         )
         code = cand.codes[label]
         if label in cand.widths:  # a scanned width: fitted too, from the width found
@@ -64,14 +67,15 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
         body.append(f"{name}_c{i} * ({code})")
     pnames = [f"{name}_c{i}" for i in range(1, len(cand.terms) + 1)] + widths
     expr = " + ".join(body)
-    kinds = {"motor_voltage": "Input", "motor_encoder": "Measurement"}
-    kind_import = "Friction" if cand.group.endswith("friction") else kinds.get(cand.group, "Force")
+    kind_import = "Friction" if cand.group.endswith("friction") else "Input" if voltage else "Force"
+    kind_import = "Measurement" if reading else kind_import
     found = "by its own fit" if reading else "from the residual torques"
     used = [v for v in ("theta_l", "theta_u", "alpha", "alpha_dot", "t", "u") if _uses(cand, v)]
     lines = [
         f'"""Candidate effect written by `drillgym diagnose --candidate-out` {found}.',
         "",
         f"    {cand.expression()}",
+        *([f"    {cand.reading()}"] if reading else []),
         f"    (its fit removes {cand.explained:.0%} of the unexplained variance)"
         if reading
         else f"    (explains {cand.explained:.0%} of the residual torque; {cand.n_samples} samples)",
@@ -94,14 +98,15 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
     elif voltage:
         lines.append('    configurations = ("upper", "torsional", "lateral", "coupled")  # the motor drives these')
     elif reading:
-        lines.append('    channels = ("theta_u",)  # what the motor encoder reads')
+        lines.append(f'    channels = ("{sensor.variable}",)  # what {sensor.what} reads')
     else:
         lines.append(f'    acts_on = "{cand.group.split("_")[0]}"')
     lines.append("    parameters = (")
     lines += params
     lines.append("    )")
-    lines.append(f'    explanation = "Found {found} by drillgym diagnose: {cand.expression()}."')
-    signature = MotorEncoderTerms.signature if reading else "the residual torque this term was regressed on"
+    what = cand.reading() if reading else cand.expression()
+    lines.append(f'    explanation = "Found {found} by drillgym diagnose: {what}."')
+    signature = sensor.signature if reading else "the residual torque this term was regressed on"
     lines.append(f'    signature = "{signature}"')
     lines.append("")
     if friction:
@@ -120,8 +125,8 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
         lines.append(f"    def voltage(u, {', '.join(pnames)}):")
         lines.append(f"        return u + {expr}")
     elif reading:
-        lines.append(f"    def measure(theta_u, omega_u, {', '.join(pnames)}):")
-        lines.append(f"        return theta_u + {expr}")
+        lines.append(f"    def measure({_measure_args(cand)}, {', '.join(pnames)}):")
+        lines.append(f"        return {sensor.variable} + {expr}")
     else:
         args = ", ".join(used)
         lines.append(f"    def torque({args + ', ' if args else ''}{', '.join(pnames)}):")
@@ -129,6 +134,24 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
     cand.name, cand.effect_file = name, f"{path}:{name}"
     return path
+
+
+def _term_doc(cand: Candidate, label: str) -> tuple[str, str]:
+    """A term's coefficient's unit and doc in the file: a reading's as its terms' effect has them (the scale
+    error k is dimensionless), another candidate's in its unit, "coefficient of LABEL"."""
+    sensor = SENSORS.get(cand.group)
+    if sensor is None:
+        return cand.unit, f"coefficient of {label}"
+    p = next(p for p in sensor.effect.parameters if p.name == sensor.terms[label])
+    return p.unit, f"{p.doc} ({label})"
+
+
+def _measure_args(cand: Candidate) -> str:
+    """A reading's ``measure`` arguments before its parameters: the channel read, and the disc's speed when a
+    term reads it (the play)."""
+    sensor = SENSORS[cand.group]
+    speed = [sensor.speed] if sensor.speed and _uses(cand, sensor.speed) else []
+    return ", ".join([sensor.variable, *speed])
 
 
 def _uses(cand: Candidate, var: str) -> bool:

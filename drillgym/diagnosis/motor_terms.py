@@ -2,13 +2,13 @@
 
 A candidate file written by discovery holds its regressed coefficients, so its source (and the compiled model
 of a composition with it) differs for every recording.  Its motor-side terms are fitted instead through these
-two effects, whose functions are the same terms with every coefficient a parameter (0: the term is off):
+effects, whose functions are the same terms with every coefficient a parameter (0: the term is off):
 
 * :class:`MotorVoltageTerms` (Input): the motor sees u + o + a sign(u) + b |u| + c u|u| + d u³ + e sat(u, w);
 * :class:`UpperTorqueTerms` (Force on the upper disc): a constant and cos/sin kθu for k in
   :data:`.discovery_terms.COGGING_HARMONICS` (cogging);
-* :class:`MotorEncoderTerms` (Measurement of θu): the motor encoder reads θu + b tanh(ωu / w), free play between
-  the motor's shaft (the encoder's) and the upper disc (backlash): the shaft leads the disc it drives.
+* the sensors' readings (Measurement effects, :mod:`.reading_terms`): an encoder reads (1 + k) θ + c +
+  b tanh(ω / w), an LVDT (1 + k) x + c.
 
 :func:`term_parameters` maps a candidate's term labels to their parameters here.
 """
@@ -17,12 +17,13 @@ from __future__ import annotations
 
 import math
 
-from ..effects import Force, Input, Measurement, Parameter
+from ..effects import Force, Input, Parameter
+from .reading_terms import ENCODER_TERM, SENSORS, EncoderTerms
 
 __all__ = [
     "MotorVoltageTerms",
     "UpperTorqueTerms",
-    "MotorEncoderTerms",
+    "EncoderTerms",
     "TERM_EFFECTS",
     "WIDTH_PARAMETERS",
     "width_parameter",
@@ -109,40 +110,17 @@ class UpperTorqueTerms(Force):
         )
 
 
-#: the label of the motor encoder's term (:class:`MotorEncoderTerms`)
-ENCODER_TERM = "tanh(ωu/w)"
-
-
-class MotorEncoderTerms(Measurement):
-    """The motor encoder's reading: θu + me_play tanh(ωu / me_w) (free play between the shaft and the disc)."""
-
-    name = "motor_encoder_terms"
-    channels = ("theta_u",)
-    parameters = (
-        Parameter("me_play", "rad", -0.2, 0.2, 0.0, 2e-3, "half the free play the shaft leads by", neutral=0.0),
-        Parameter("me_w", "rad/s", 1e-3, 2.0, 0.05, 0.02, "speed over which the lead changes side"),
-    )
-    configurations = ("upper", "torsional", "lateral", "coupled")
-    explanation = (
-        "The motor encoder reads the motor's shaft, which drives the upper disc through free play: the shaft leads "
-        "the disc by the play in the direction it turns (discovery's terms)."
-    )
-    signature = "a θu residual that changes side where the upper disc reverses"
-
-    def measure(theta_u, omega_u, me_play, me_w):
-        return theta_u + me_play * math.tanh(omega_u / me_w)
-
-
 _VOLTAGE = {"sign(u)": "mv_sign", "|u|": "mv_abs", "u|u|": "mv_uabs", "u³": "mv_u3"}
 
 
 def term_parameters(group: str, label: str) -> str | None:
-    """The parameter of a discovery term in :class:`MotorVoltageTerms` or :class:`UpperTorqueTerms`.
+    """The parameter of a discovery term in :class:`MotorVoltageTerms` or :class:`UpperTorqueTerms`, or of a
+    sensor's reading term (:mod:`.reading_terms`).
 
     Parameters
     ----------
     group : str
-        The candidate's group (``motor_voltage``, ``upper_force`` or ``motor_encoder``).
+        The candidate's group (``motor_voltage``, ``upper_force`` or a sensor's, :data:`.reading_terms.SENSORS`).
     label : str
         The term's label (``sat(u, 0.4)``, ``cos 6θu``, ``1``, ...).
 
@@ -151,8 +129,8 @@ def term_parameters(group: str, label: str) -> str | None:
     str or None
         The parameter's name, or None when the term has none here.
     """
-    if group == "motor_encoder":
-        return "me_play" if label == ENCODER_TERM else None
+    if group in SENSORS:
+        return SENSORS[group].terms.get(label)
     if group == "motor_voltage":
         if label == "1":
             return "mv_offset"
@@ -167,9 +145,13 @@ def term_parameters(group: str, label: str) -> str | None:
 
 
 #: a motor-side group -> the effect its terms are fitted through
-TERM_EFFECTS = {"motor_voltage": MotorVoltageTerms, "upper_force": UpperTorqueTerms, "motor_encoder": MotorEncoderTerms}
-#: a group -> the parameter of its terms' scanned width (a dead zone's u0 in V, the encoder's lead speed in rad/s)
-WIDTH_PARAMETERS = {"motor_voltage": "mv_w", "motor_encoder": "me_w"}
+TERM_EFFECTS = {
+    "motor_voltage": MotorVoltageTerms,
+    "upper_force": UpperTorqueTerms,
+    **{g: s.effect for g, s in SENSORS.items()},
+}
+#: a group -> the parameter of its terms' scanned width (a dead zone's u0 in V, an encoder's lead speed in rad/s)
+WIDTH_PARAMETERS = {"motor_voltage": "mv_w", **{g: s.width for g, s in SENSORS.items() if s.width}}
 
 
 def width_parameter(group: str) -> Parameter | None:

@@ -13,9 +13,9 @@
    :func:`.unexplained.unexplained` — the final residual against the noise, where it lives, what it depends on;
 5. :func:`.discovery.discover` (with ``discover``) — a candidate effect outside the library from the
    residual torques of the (first) recording on its own samples up to 250 Hz, written as an effect file;
-   :func:`.candidate_fit.choose_candidate` — the candidate (and the motor side's best beside it, and the motor
-   encoder's reading, :mod:`.encoder_reading`) added to the final model and fitted; the one whose fit removes
-   most is kept, its residual reported;
+   :func:`.candidate_fit.choose_candidate` — the candidate (and the motor side's best beside it, and each
+   sensor's reading where its channel stays above the noise, :mod:`.sensor_reading`) added to the final model and
+   fitted; the one whose fit removes most is kept, its residual reported;
 6. :mod:`.reselection` — with a candidate kept in the model, the whole diagnosis again on the model that holds
    it (its parameters refitted with the base): the candidate's residual hid the library's effects beside it.
 """
@@ -36,7 +36,6 @@ from .candidate_fit import choose_candidate
 from .checks import check
 from .detectability import detectability
 from .discovery import discover
-from .encoder_reading import reading_candidate
 from .information import require_information
 from .input_order import input_order
 from .orders import select
@@ -44,6 +43,7 @@ from .ranking import report
 from .reselection import kept_candidate, reselection_inputs
 from .results import Diagnosis
 from .screening import screen
+from .sensor_reading import reading_candidates
 from .state import DiagnosisOptions
 from .unexplained import unexplained
 
@@ -131,12 +131,13 @@ def _discovered(screening, diagnosis: Diagnosis, noise: dict[str, float], opts: 
     """The diagnosis with a candidate effect outside the library (or advice), each candidate's own fit judged."""
     found, advice = discover(_fine(screening.exps[0]), diagnosis, opts.candidate_out)
     diagnosis = replace(diagnosis, candidate=found, advice=advice)
-    reading = reading_candidate(diagnosis)  # the motor encoder's reading: only its own fit can show it
-    if found is None and reading is None:
+    readings = reading_candidates(diagnosis)  # what each sensor reads: only its own fit can show it
+    if found is None and not readings:
         return diagnosis
     with one_blas_thread():  # its own identification is part of the answer
-        chosen = choose_candidate(screening, diagnosis, noise, opts.candidate_out, reading)
-    return replace(diagnosis, candidate=chosen, advice=[] if chosen is not None and chosen is reading else advice)
+        chosen = choose_candidate(screening, diagnosis, noise, opts.candidate_out, readings)
+    read = chosen is not None and chosen.is_reading
+    return replace(diagnosis, candidate=chosen, advice=[] if read else advice)
 
 
 def _recordings(data: Any) -> list[TimeSeries]:

@@ -27,8 +27,8 @@ from .state import DiagnosisOptions
 
 __all__ = ["MIN_CANDIDATE_CUT", "KeptCandidate", "kept_candidate", "reselection_inputs"]
 
-#: share of the unexplained variance a candidate's own fit must remove to enter the model (the bar the motor
-#: encoder's reading meets to be kept, :data:`.encoder_reading.MIN_READING_CUT`): a candidate that removes
+#: share of the unexplained variance a candidate's own fit must remove to enter the model (the bar a sensor's
+#: reading meets to be kept, :data:`.sensor_reading.MIN_READING_CUT`): a candidate that removes
 #: less earns no place in the model a user builds on
 MIN_CANDIDATE_CUT = 0.3
 
