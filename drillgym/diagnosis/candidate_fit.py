@@ -399,7 +399,7 @@ def _best_reading(
     screening: Screening, diagnosis: Diagnosis, readings: Sequence[Candidate], noise_scales: dict[str, float]
 ) -> Candidate:
     """Every reading fitted: the one whose fit removes most, or, among those that leave the recording at the
-    noise, the one that moved fewest base parameters with it.
+    noise, the one that moved fewest base parameters with it, and the least (RMS of their change, %).
 
     All are fitted, even after one reaches the noise: a scale error of one encoder reads nearly as the opposite
     error of the other with every angle rescaled (the motor encoder's +1 % as the lower's −1 % with the inertias
@@ -410,13 +410,17 @@ def _best_reading(
     return max(readings, key=_reading_rank)
 
 
-def _reading_rank(cand: Candidate) -> tuple[bool, int, float]:
-    """A reading's rank (larger is better): at the noise with it, fewest base parameters fitted with it, its cut."""
+def _reading_rank(cand: Candidate) -> tuple[bool, int, float, float]:
+    """A reading's rank (larger is better): at the noise with it; then fewest base parameters fitted with it and
+    their smallest change (RMS, %); then its cut."""
     fit = cand.fit
     if fit is None:
-        return False, 0, -1.0
+        return False, 0, 0.0, -1.0
+    if not fit.after.explained:
+        return False, 0, 0.0, fit.variance_cut
     moved = len(fit.state.base_names) if fit.state is not None else 0
-    return bool(fit.after.explained), -moved if fit.after.explained else 0, fit.variance_cut
+    change = float(np.sqrt(np.mean(np.square(list(fit.base_fitted.values()))))) if fit.base_fitted else 0.0
+    return True, -moved, -change, fit.variance_cut
 
 
 def _discovered(

@@ -13,7 +13,7 @@ the best reading is kept when it removes more of the unexplained variance than t
 least :data:`MIN_READING_CUT` of it.  Every reading is fitted: one encoder's scale error reads nearly as the
 opposite error of the other with every angle rescaled, which the base parameters freed beside the wrong one take
 up (the motor constant and the friction levels 1 % off), so the best is, of those that reach the noise, the one
-that moved fewest base parameters, else the one whose fit removes most.
+that moved fewest base parameters, and the least, else the one whose fit removes most.
 
 * An encoder: scale k θ, offset c, play b tanh(ω / w).
 * An LVDT (lateral and coupled configurations): scale k x, offset c.
