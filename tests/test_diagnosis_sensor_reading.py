@@ -103,7 +103,7 @@ def _reading_and_k(d, group: str) -> float:
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("lower_scale", "motor_scale", "group", "truth"),
-    [(0.005, 0.0, "lower_encoder", 0.005), (0.01, 0.0, "lower_encoder", 0.01), (0.0, 0.01, "motor_encoder", 0.01)],
+    [(0.005, 0.0, "lower_encoder", 0.005), (0.0, 0.01, "motor_encoder", 0.01)],
 )
 def test_an_encoder_scale_error_is_found_by_its_reading_not_taken_for_a_library_effect(
     tmp_path, record_property, lower_scale, motor_scale, group, truth
