@@ -221,14 +221,20 @@ class Controller(ABC):
         """The controller's law as compiled code, started from its current state (call after :meth:`reset`).
 
         The compiled closed loop (:func:`controllers.evaluation.runner.run_closed_loop`) then runs it for the
-        whole batch with no Python call per control period.  The default: None (no compiled law; the loop
-        calls :meth:`act` every period).
+        whole batch with no Python call per control period.  A subclass offers one by defining
+        :meth:`_compiled_law` beside the :meth:`_act` it compiles; a subclass that changes :meth:`_act` and keeps
+        an ancestor's compiled law gets None here (that law computes the ancestor's commands, not its own), so
+        the loop calls its :meth:`act` every period.
 
         Returns
         -------
         controllers.compiled.CompiledLaw or None
             The law, its state and constants; None when the controller (or its present settings) has none.
         """
+        return self._compiled_law() if _law_compiles_act(type(self)) else None
+
+    def _compiled_law(self):
+        """The compiled law of the :meth:`_act` defined beside it (None: none; see :meth:`compiled_law`)."""
         return None
 
     def describe(self) -> str:
@@ -290,3 +296,14 @@ def _check_ref(ref: float | np.ndarray) -> np.ndarray:
     if not np.all(np.isfinite(r)) or np.any(r <= 0):
         raise InputError(f"omega_ref must be positive finite speeds (rad/s), got {ref!r}")
     return r
+
+
+def _defined_by(cls: type, name: str) -> type:
+    """The class of ``cls``'s method resolution order whose body defines ``name``."""
+    return next(c for c in cls.__mro__ if name in vars(c))
+
+
+def _law_compiles_act(cls: type) -> bool:
+    """Whether the compiled law ``cls`` inherits was written for the ``_act`` it runs: the class defining
+    ``_compiled_law`` is the one defining ``_act`` or derives from it."""
+    return issubclass(_defined_by(cls, "_compiled_law"), _defined_by(cls, "_act"))

@@ -255,13 +255,13 @@ class ObserverController(Controller):
         self.observer.predict(u)
         self.u_prev = u.copy()
 
-    def compiled_law(self):
+    def _compiled_law(self):
         """The filter and the law compiled from the current state (:mod:`controllers.compiled.observer_law`, on a
         model with effects :mod:`controllers.compiled.model_law`); None for the ``descent`` fallback, a Measurement
         effect on the motor angle or a subclass with its own ``act`` (the step-by-step loop runs them)."""
         from .compiled.model_law import compiled_law
 
-        return compiled_law(self, "observer") if type(self)._act is ObserverController._act else None
+        return compiled_law(self, "observer")
 
     def approach_time(self, omega_ref: float | np.ndarray) -> np.ndarray:
         """Time (s) the law's reference needs: six lag time constants, after the hold and the ramp down
@@ -427,10 +427,10 @@ class LQGController(Controller):
         self._x = mdl.predict_mean(x, u)
         return u
 
-    def compiled_law(self):
+    def _compiled_law(self):
         """The filter and the law compiled from the current state (:mod:`controllers.compiled.lqg_law`, on a model
         with effects :mod:`controllers.compiled.model_law`); None for the ``descent`` fallback or a subclass with
         its own ``act`` (the step-by-step loop runs them)."""
         from .compiled.model_law import compiled_law
 
-        return compiled_law(self, "lqg") if type(self)._act is LQGController._act else None
+        return compiled_law(self, "lqg")

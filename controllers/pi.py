@@ -84,7 +84,7 @@ class PIController(Controller):
         self.loop = MotorSpeedPI(self.n, self.dt, self.kp, self.ki, self.u_max)
         self.u_ff = np.broadcast_to(equilibrium_voltage(self.config, self.omega_ref, self.params), (self.n,)).copy()
 
-    def compiled_law(self):
+    def _compiled_law(self):
         """The PI loop as a compiled law (:mod:`controllers.compiled.pi_law`), from the current state."""
         from .compiled import CompiledLaw
         from .compiled.pi_law import pi_constants, pi_state, pi_step

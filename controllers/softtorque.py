@@ -119,11 +119,6 @@ class SoftTorqueController(PIController):
         self.torque = self.a_tq * self.torque + (1 - self.a_tq) * raw
         return self.torque
 
-    def compiled_law(self):
-        """None: the torque yield has no compiled law; the PI's (:meth:`PIController.compiled_law`) would run
-        the plain PI loop in its place, so the harness runs this controller step by step."""
-        return None
-
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
         w = self.speed.update(m["theta_u"]).copy()
         tq = self.string_torque(w)

@@ -332,13 +332,13 @@ class TwoEncoderLQG(Controller):
         self.x = self.x + self._b * dv[:, None]
         self.u_prev = u.copy()
 
-    def compiled_law(self):
+    def _compiled_law(self):
         """The filter and the law compiled from the current state (:mod:`controllers.compiled.two_encoder_law`, on a
         model with effects :mod:`controllers.compiled.model_law`); None with a Measurement effect in the model or
         for a subclass with its own ``act`` (the step-by-step loop runs them)."""
         from .compiled.model_law import compiled_law
 
-        return compiled_law(self, "lqg-2enc") if type(self)._act is TwoEncoderLQG._act else None
+        return compiled_law(self, "lqg-2enc")
 
     def _target(self) -> np.ndarray:
         s = np.clip((self.t - self.hold) / self.ramp, 0.0, 1.0) if self.ramp > 0 else (self.t >= self.hold) * 1.0

@@ -109,6 +109,33 @@ def test_reset_rigs_checks_before_restarting_and_refuses_what_it_cannot_restart(
     assert np.array_equal(obs.omega_ref, [2.0, 4.0]) and np.array_equal(obs.u_prev, [1.0, 0.0])
 
 
+def test_a_subclass_that_changes_the_law_keeps_no_compiled_law_of_its_parent():
+    """A compiled law runs in place of ``act`` only when it was written beside the ``_act`` the controller runs:
+    a subclass that changes ``_act`` gets none (the parent's would compute the parent's commands), one that
+    changes nothing keeps it, one that compiles its own offers that."""
+    from controllers.pi import PIController
+
+    class Changed(PIController):
+        def _act(self, m):
+            return super()._act(m) + 0.1
+
+    class Same(PIController):
+        pass
+
+    class Recompiled(Changed):
+        def _compiled_law(self):
+            return "own"
+
+    m = {"theta_u": np.zeros(1), "omega_ref": np.array([3.0])}
+    laws = {}
+    for cls in (Changed, Same, Recompiled):
+        c = cls(config="torsional", omega_ref=np.array([3.0]))
+        c.reset(m)
+        laws[cls.__name__] = c.compiled_law()
+    assert laws["Changed"] is None and laws["Recompiled"] == "own", laws
+    assert laws["Same"] is not None and laws["Same"] != "own", laws
+
+
 def test_softtorque_runs_its_own_law_not_the_compiled_pi_of_its_parent():
     """SoftTorqueController inherits the PI loop but not its compiled law (which would run the plain PI): the
     harness's default run is its step-by-step reference, which holds 3 rad/s where the PI stick-slips."""
