@@ -147,3 +147,13 @@ def test_softtorque_runs_its_own_law_not_the_compiled_pi_of_its_parent():
     assert c.compiled_law() is None
     ssi = run_metrics(run_closed_loop(c, "coupled", ref, 30.0), 10.0)["ssi"]
     assert ssi[0] < 0.1, ssi
+
+
+def test_the_scores_limits_are_the_rigs_safety_limits():
+    """The evaluation judges runs against the rig's own stops (over-speed, lateral over-displacement), which
+    the hardware's safety layer defines: the two must not drift apart."""
+    from controllers.evaluation.metrics import LATERAL_STOP, SAFETY_SPEED
+    from hw.safety import SafetyLimits
+
+    limits = SafetyLimits()
+    assert (SAFETY_SPEED, LATERAL_STOP) == (limits.max_speed, limits.max_displacement)
