@@ -18,6 +18,8 @@ the period's readings (encoder angles, the voltage applied over the period).
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from controllers.base import Controller
@@ -55,7 +57,7 @@ class AgentController(Controller):
         weights are what it learned on its training rig (``drillgym train --model FILE --init DIR`` adapts
         them to a model).  Only the model's base parameters are used, by a residual or observer base (a policy
         trained with ``residual`` or ``base: observer``), as ``params`` would be; a plain network ignores the
-        model altogether, and the model's effects are never used (not refused either).
+        model altogether, and the model's effects are never used (a warning names them).
 
     Raises
     ------
@@ -69,7 +71,15 @@ class AgentController(Controller):
         if kw.get("model") is not None:  # its base parameters only: the network learned its own rig
             from controllers.model import model_of
 
-            kw["params"] = model_of(kw.pop("model"), kw.get("params")).params
+            model = model_of(kw.pop("model"), kw.get("params"))
+            kw["params"] = model.params
+            if model.composition.effects:  # said, not silently dropped
+                names = ", ".join(e.name for e in model.composition.effects)
+                warnings.warn(
+                    f"agent: the policy uses the model's base parameters only; its effects ({names}) are not used "
+                    "(drillgym train --model FILE --init DIR adapts a policy to them)",
+                    stacklevel=2,
+                )
         kw.pop("model", None)
         cfg = policy.config
         hp = cfg["hyperparams"]

@@ -55,8 +55,10 @@ def test_a_run_starts_from_the_init_weights_and_trains_them_on_the_model(tmp_pat
     assert any(not np.allclose(after[k], init[k]) for k in ("action_net.weight", "mlp_extractor.policy_net.0.weight"))
     cfg = yaml.safe_load((tmp_path / "adapted" / "config.yml").read_text())
     assert cfg["init"] == KEPT and cfg["hyperparams"]["env_kwargs"]["model"]["params"]["Ts"] == 0.3
-    # the adapted policy runs as a controller, built with the model it was adapted to
-    ctrl = controllers.make(f"agent:{tmp_path / 'adapted'}", model=model_file, omega_ref=3.0)
+    # the adapted policy runs as a controller, built with the model it was adapted to, the effects it does not
+    # use named
+    with pytest.warns(UserWarning, match=r"base parameters only; its effects \(motor_lag\) are not used"):
+        ctrl = controllers.make(f"agent:{tmp_path / 'adapted'}", model=model_file, omega_ref=3.0)
     assert ctrl.params.Ts == 0.3 and ctrl.uses == ("theta_u",)
 
 
