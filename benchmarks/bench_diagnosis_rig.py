@@ -37,6 +37,9 @@ def rig_eps() -> float:
 
 #: effects outside drillgym's library (for the "discovery" rows)
 OUTSIDE = ("brake_quadratic", "stribeck_shape", "upper_stribeck", "string_cubic", "string_freeplay")
+#: lateral effects outside drillgym's library (coupled only): a stiffening spring −k3 r² (X, Y) (N/m³) and a
+#: quadratic damping −c2 |V| V (N s²/m²), both in the fixed frame
+OUTSIDE_LATERAL = ("lateral_cubic", "lateral_quadratic_damping")
 
 
 def input_signal(
@@ -164,6 +167,12 @@ class _Rig:
             vv = math.sqrt(VX * VX + VY * VY + LAT_EPS * LAT_EPS)
             FX += -fx["lateral_coulomb"]["Fc_lat"] * VX / vv
             FY += -fx["lateral_coulomb"]["Fc_lat"] * VY / vv
+        if "lateral_cubic" in fx:  # a spring that stiffens with the radius (outside the library)
+            k3 = fx["lateral_cubic"]["k3"] * (X * X + Y * Y)
+            FX, FY = FX - k3 * X, FY - k3 * Y
+        if "lateral_quadratic_damping" in fx:  # a drag that grows with the speed squared (outside the library)
+            c2 = fx["lateral_quadratic_damping"]["c2"] * math.sqrt(VX * VX + VY * VY)
+            FX, FY = FX - c2 * VX, FY - c2 * VY
         Fx, Fy = FX * cu + FY * su, -FX * su + FY * cu
         M = np.array(
             [
@@ -216,7 +225,7 @@ def rig_recording(
     alpha0: float = 0.0,
 ) -> TimeSeries:
     """A recording of the independent rig (see the module docstring).  ``config``: 'torsional' or
-    'coupled'; ``effects``: {effect name: its parameters} (library names and :data:`OUTSIDE`);
+    'coupled'; ``effects``: {effect name: its parameters} (library names, :data:`OUTSIDE` and :data:`OUTSIDE_LATERAL`);
     ``scale``: factors on base parameters (the rig's base parameters differ from the identified set)."""
     effects = dict(effects or {})
     p = RigParams().scaled(**scale) if scale else RigParams()

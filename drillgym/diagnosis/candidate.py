@@ -18,10 +18,11 @@ _WHERE = {
     "lower_force": "torque on the lower disc +=",
     "upper_force": "torque on the upper disc +=",
     "motor_voltage": "voltage at the motor = u",
+    "lateral_force": "force on the lower disc's centre (FX, FY), fixed frame +=",
     **{g: f"{s.what[4:]} reading = {s.symbol}" for g, s in SENSORS.items()},
 }
 #: the unit of a group's coefficients (N m when not listed; a reading's: its own unit per unit of the term)
-_UNIT = {"motor_voltage": "V", **{g: s.unit for g, s in SENSORS.items()}}
+_UNIT = {"motor_voltage": "V", "lateral_force": "N", **{g: s.unit for g, s in SENSORS.items()}}
 
 
 @dataclass
@@ -32,11 +33,12 @@ class Candidate:
     ----------
     group : str
         Where it acts: ``lower_friction``, ``upper_friction``, ``string``, ``lower_force``, ``upper_force``,
-        ``motor_voltage`` (the voltage the motor sees), or a sensor's reading (:data:`.reading_terms.SENSORS`:
+        ``motor_voltage`` (the voltage the motor sees), ``lateral_force`` (a force on the lower disc's centre,
+        :mod:`.lateral_discovery`), or a sensor's reading (:data:`.reading_terms.SENSORS`:
         ``motor_encoder``, ``lower_encoder``, ``lvdt_x``, ``lvdt_y``).
     terms : dict of str to float
-        Term label -> coefficient (N m per unit of the term; V for ``motor_voltage``; a reading's unit, rad or m,
-        per unit of the term: the scale error k is rad/rad or m/m).
+        Term label -> coefficient (N m per unit of the term; V for ``motor_voltage``; N for ``lateral_force``; a
+        reading's unit, rad or m, per unit of the term: the scale error k is rad/rad or m/m).
     codes : dict of str to str
         Term label -> its Python expression in the effect file.
     at_rest : dict of str to float

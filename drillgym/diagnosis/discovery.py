@@ -19,6 +19,10 @@ on a library of terms shaped by physics, grouped by where they would act:
   sign(u), |u|,
   u|u|, u³ (a motor constant that depends on the voltage), sat(u, u0) for scanned widths u0 (a dead zone
   is −sat(u, u0)); regressed as the torque km × (the change) on the upper disc, written as an Input effect.
+* ``lateral_force`` (lateral and coupled configurations): a force on the lower disc's centre, regressed on the
+  residual lateral force (:mod:`.lateral_discovery`, terms :mod:`.lateral_terms`: springs and damping shaped by
+  the radius and the speed, anisotropy, a constant force, a force turning with the disc), written as a lateral
+  Force effect.
 
 Each group's terms enter by greedy forward selection (at most ``MAX_TERMS``, each one must
 explain ``MIN_GAIN`` more of the residual's variance); the group that explains most wins.  The
@@ -46,6 +50,8 @@ from ..params import N_PARAMS, RigParams
 from .discovery_terms import _SENSE, _groups, _Term
 from .effect_file import write_effect_file
 from .effects import get_effect
+from .greedy import MAX_CANCEL, greedy_terms
+from .lateral_discovery import LATERAL_GROUP, lateral_candidate
 from .results import Candidate
 from .sparse import ResidualTorque
 from .state import transfer
@@ -53,9 +59,6 @@ from .timing import LAG_DELAY
 
 __all__ = ["Candidate", "find_candidate", "write_effect_file", "advice", "discover", "MIN_EXPLAINED_SHARE"]
 
-MAX_TERMS = 3
-MIN_GAIN = 0.03  # share of the residual variance a further term must explain
-MAX_CANCEL = 2.0  # a term may contribute at most this many times the residual's size
 SMOOTH_S = 0.3  # s: moving average of the residual torques and the terms before the regression
 MIN_EXPLAINED_SHARE = 0.3  # a candidate must explain at least this share of the residual torque
 #: the groups on the motor side: the best of them is kept beside a better-regressed candidate elsewhere, and the
@@ -195,7 +198,7 @@ def find_candidate(
                 project(rows * smooth(W * np.concatenate([su * g / Ju, sl * g / Jl])))
                 for g in (np.asarray(tm.values(d), dtype=float) for tm in terms)
             ]
-            chosen, share = _greedy_terms(cols, yr, tss)
+            chosen, share = greedy_terms(cols, yr, tss)
             shares[group] = max(shares.get(group, 0.0), share)
             if chosen and (group not in cands or share > cands[group].explained):
                 # the file's coefficients: the terms alone (with per-disc offsets), as the effect will act on the
@@ -231,6 +234,10 @@ def find_candidate(
         if c.group == "motor_voltage":  # the torque km Δv on the upper disc -> the voltage change Δv (V)
             c.terms = {k: v / km for k, v in c.terms.items()}
             c.reach = {k: v / km for k, v in c.reach.items()}
+    lat = lateral_candidate(rt) if lateral and (only is None or LATERAL_GROUP in only) else None
+    if lat is not None:  # the residual lateral force, regressed on its own terms (.lateral_discovery)
+        shares[LATERAL_GROUP] = lat.explained
+        cands[LATERAL_GROUP], lat.rest = lat, shares
     if not cands:
         return None
     best = max(cands.values(), key=lambda c: c.explained)
@@ -289,33 +296,6 @@ def _weighted_rows(rt: ResidualTorque, u: np.ndarray, Ju: float, Jl: float):
         return np.concatenate([np.convolve(v[:n], k, mode="same"), np.convolve(v[n:], k, mode="same")])
 
     return d, ok, n, y, W, smooth
-
-
-def _greedy_terms(cols: list[np.ndarray], yr: np.ndarray, tss: float) -> tuple[list[int], float]:
-    """Terms entered one at a time (at most ``MAX_TERMS``), each the one that explains most beside those in;
-    returns their indices and the share of ``yr``'s variance they explain."""
-    chosen: list[int] = []
-    share = 0.0
-    for _ in range(MAX_TERMS):
-        trial = None
-        for j in range(len(cols)):
-            if j in chosen or not np.any(np.abs(cols[j]) > 1e-12 * (np.abs(cols[j]).max() + 1e-300)):
-                continue
-            X = np.column_stack([cols[i] for i in chosen + [j]])
-            c, *_ = np.linalg.lstsq(X, yr, rcond=None)
-            # terms that cancel each other (each contributing more than the residual itself, as collinear
-            # terms do) fit the noise, not an effect: such a set is not a candidate
-            if np.any(np.abs(c) * np.linalg.norm(X, axis=0) > MAX_CANCEL * math.sqrt(tss)):
-                continue
-            sh = 1.0 - float(np.sum((yr - X @ c) ** 2)) / tss
-            if trial is None or sh > trial[1]:
-                trial = (j, sh, c)
-        # a further term must explain MIN_GAIN of the residual, or a third of what the terms so far leave
-        if trial is None or trial[1] - share < min(MIN_GAIN, (1.0 - share) / 3.0):
-            break
-        chosen.append(trial[0])
-        share = trial[1]
-    return chosen, share
 
 
 def _alone_coefficients(raw: list[np.ndarray], Nm: np.ndarray, rows: np.ndarray, y: np.ndarray) -> np.ndarray | None:
@@ -430,6 +410,8 @@ def discover(
     if diagnosis.vector is None or ex.config.label == "upper":
         return None, []
     residual = diagnosis.rmse_after if diagnosis.rmse_after is not None else diagnosis.rmse_before
+    if diagnosis.sensor_misfit and diagnosis.unexplained is not None:  # misfit-weighted units: ~1 by design
+        residual = diagnosis.unexplained.ratio_to_noise
     if residual < MIN_RESIDUAL_UNITS:
         return None, []
     vectors = [diagnosis.vector]

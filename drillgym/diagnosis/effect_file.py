@@ -2,7 +2,8 @@
 
 A friction group becomes a ``Friction`` with ``slip`` and ``stick``, the motor's voltage an ``Input`` (the
 voltage the motor sees, from the voltage entering it), a sensor's reading a ``Measurement`` of its channel
-(:data:`.reading_terms.SENSORS`: ``theta_u``, ``theta_l``, ``X`` or ``Y``), any other group a ``Force``; the
+(:data:`.reading_terms.SENSORS`: ``theta_u``, ``theta_l``, ``X`` or ``Y``), the lateral force a lateral ``Force``
+(``force(...) -> (FX, FY)``, fixed frame), any other group a ``Force``; the
 regressed coefficients are the guesses and the bounds cover four times their size (and the size that would
 make each term alone as large as the residual torque), so that ``drillgym identify --add-effect
 FILE.py:NAME`` fits it.
@@ -69,8 +70,11 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
     expr = " + ".join(body)
     kind_import = "Friction" if cand.group.endswith("friction") else "Input" if voltage else "Force"
     kind_import = "Measurement" if reading else kind_import
-    found = "by its own fit" if reading else "from the residual torques"
-    used = [v for v in ("theta_l", "theta_u", "alpha", "alpha_dot", "t", "u") if _uses(cand, v)]
+    lateral = cand.group == "lateral_force"
+    found = (
+        "by its own fit" if reading else "from the residual lateral force" if lateral else "from the residual torques"
+    )
+    used = [v for v in ("X", "Y", "VX", "VY", "theta_l", "theta_u", "alpha", "alpha_dot", "t", "u") if _uses(cand, v)]
     lines = [
         f'"""Candidate effect written by `drillgym diagnose --candidate-out` {found}.',
         "",
@@ -78,7 +82,8 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
         *([f"    {cand.reading()}"] if reading else []),
         f"    (its fit removes {cand.explained:.0%} of the unexplained variance)"
         if reading
-        else f"    (explains {cand.explained:.0%} of the residual torque; {cand.n_samples} samples)",
+        else f"    (explains {cand.explained:.0%} of the residual {'force' if lateral else 'torque'}; "
+        f"{cand.n_samples} samples)",
         "",
         *_fit_it(cand, path.name, name),
         '"""',
@@ -101,12 +106,16 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
         lines.append(f'    channels = ("{sensor.variable}",)  # what {sensor.what} reads')
     else:
         lines.append(f'    acts_on = "{cand.group.split("_")[0]}"')
+    if lateral:
+        lines.append('    configurations = ("lateral", "coupled")  # the lower disc moves laterally in these')
     lines.append("    parameters = (")
     lines += params
     lines.append("    )")
     what = cand.reading() if reading else cand.expression()
     lines.append(f'    explanation = "Found {found} by drillgym diagnose: {what}."')
-    signature = sensor.signature if reading else "the residual torque this term was regressed on"
+    signature = (
+        sensor.signature if reading else f"the residual {'force' if lateral else 'torque'} this term was regressed on"
+    )
     lines.append(f'    signature = "{signature}"')
     lines.append("")
     if friction:
@@ -127,6 +136,13 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
     elif reading:
         lines.append(f"    def measure({_measure_args(cand)}, {', '.join(pnames)}):")
         lines.append(f"        return {sensor.variable} + {expr}")
+    elif lateral:  # each term's code is its pair (FX, FY) per unit coefficient
+        lines.append(f"    def force({', '.join(used + pnames)}):")
+        lines.append("        FX, FY = 0.0, 0.0")
+        for p, label in zip(pnames, cand.terms):
+            lines.append(f"        gx, gy = {cand.codes[label]}  # {label}")
+            lines.append(f"        FX, FY = FX + {p} * gx, FY + {p} * gy")
+        lines.append("        return FX, FY")
     else:
         args = ", ".join(used)
         lines.append(f"    def torque({args + ', ' if args else ''}{', '.join(pnames)}):")

@@ -45,7 +45,9 @@ class ResidualTorque:
     ``tau_u``, ``tau_l``: on the upper / lower disc (N m); ``states`` (n, N_STATE) the data's
     states; ``t`` times (s); ``slip`` samples where the lower (or, in 'upper', the upper) disc slips;
     ``slip_upper`` samples where the upper disc slips (None: as ``slip``); ``u_motor`` the model's voltage at the
-    motor (V; after its Delay and Input effects).  Each disc's torque balance holds
+    motor (V; after its Delay and Input effects); ``force_X``, ``force_Y`` the residual lateral force on the lower
+    disc's centre in the fixed (LVDT) frame (N; None when the disc does not move laterally), known where the lower
+    disc's balance is (the lateral rows of the mass matrix, turned by θu).  Each disc's torque balance holds
     while that disc slips, whatever the other one does: the upper disc's is known while the lower disc is
     stuck (its string torque kθ α is measured).
     """
@@ -57,6 +59,8 @@ class ResidualTorque:
     slip: np.ndarray
     slip_upper: np.ndarray | None = None
     u_motor: np.ndarray | None = None
+    force_X: np.ndarray | None = None
+    force_Y: np.ndarray | None = None
 
     @property
     def upper_valid(self) -> np.ndarray:
@@ -151,7 +155,11 @@ def residual_torques(
             tau[i, 1] = inertia.Jl * da[1]
     tau[~slip, 1:] = np.nan  # the lower disc's balance (and the lateral forces, through it) only while it slips
     tau[~slip_upper, 0] = np.nan
-    return ResidualTorque(ex.t - ex.t[0], tau[:, 0], tau[:, 1], Y, slip, slip_upper, u_motor.at_motor)
+    FX = FY = None
+    if ex.config.lateral_free:  # the generalised forces on x, y (rotating frame) are the force turned by -θu
+        c, s = np.cos(Y[:, 0]), np.sin(Y[:, 0])
+        FX, FY = tau[:, 2] * c - tau[:, 3] * s, tau[:, 2] * s + tau[:, 3] * c
+    return ResidualTorque(ex.t - ex.t[0], tau[:, 0], tau[:, 1], Y, slip, slip_upper, u_motor.at_motor, FX, FY)
 
 
 @dataclass

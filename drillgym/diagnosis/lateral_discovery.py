@@ -1,0 +1,149 @@
+"""Discovery on the lateral side: the residual lateral force regressed on forces shaped by physics.
+
+The residual lateral force on the lower disc's centre (:attr:`.sparse.ResidualTorque.force_X`, ``force_Y``: the
+lateral rows of ``M(q) (q̈_data − q̈_model)``, turned into the fixed frame) is known where the lower disc slips.
+The LVDTs' positions were low-passed (5 Hz, zero phase) before they were differentiated, so the residual holds
+nothing above that band: the residual and every term are filtered alike, by the same zero-phase low-pass
+(``LVDT_LOWPASS_HZ``) and a moving average of :data:`.discovery.SMOOTH_S` (a linear operation on both sides keeps
+the regression's relation), and regressed with the rows of both components stacked, [FX; FY].
+
+The terms (:func:`.lateral_terms.lateral_terms`) enter by the same greedy forward selection as the torque groups
+(:mod:`.greedy`), jointly with the base parameters' own columns (k, b, the unbalance e, the
+unbalance: :func:`.lateral_terms.lateral_nuisance`), so that a term explains only what the base cannot; the group,
+``lateral_force``, is ranked against the torque groups by the same criterion (the share of its residual it
+explains).  The candidate is written as a lateral ``Force`` effect (:func:`.effect_file.write_effect_file`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..identification.experiment import estimate_rate
+from ..measurement import lowpass_zero_phase
+from .candidate import Candidate
+from .greedy import MAX_CANCEL, greedy_terms
+from .lateral_terms import lateral_nuisance, lateral_terms
+from .sparse import ResidualTorque
+
+__all__ = ["LATERAL_GROUP", "LVDT_LOWPASS_HZ", "lateral_candidate", "lateral_data"]
+
+#: the group's name among discovery's groups
+LATERAL_GROUP = "lateral_force"
+#: the LVDTs' low-pass (Hz, zero phase) the residual and the terms are filtered by alike
+LVDT_LOWPASS_HZ = 5.0
+#: fewest samples with a known lateral balance
+MIN_SAMPLES = 50
+
+
+def lateral_data(rt: ResidualTorque) -> dict[str, np.ndarray]:
+    """The data the lateral terms are functions of, at every sample: the centre's position and velocity in the
+    fixed frame (``X``, ``Y`` m; ``VX``, ``VY`` m/s) and the lower disc's
+    angle, speed and acceleration (``thl`` rad, ``wl`` rad/s, ``dwl`` rad/s²).
+
+    Parameters
+    ----------
+    rt : ResidualTorque
+        The residual forces and the data's states (rotating-frame x, y, vx, vy).
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        The data by name.
+    """
+    S = rt.states
+    fs = 1.0 / float(np.median(np.diff(rt.t)))
+    c, s = np.cos(S[:, 0]), np.sin(S[:, 0])
+    x, y, W = S[:, 4], S[:, 5], S[:, 2]
+    vx, vy = S[:, 6] - W * y, S[:, 7] + W * x  # the centre's velocity, rotating-frame components
+    d = {
+        "X": x * c - y * s,
+        "Y": x * s + y * c,
+        "VX": vx * c - vy * s,
+        "VY": vx * s + vy * c,
+        "thl": S[:, 1],
+        "wl": S[:, 3],
+        "dwl": estimate_rate(S[:, 3], fs, window_s=0.1),
+    }
+    return d
+
+
+def lateral_candidate(rt: ResidualTorque, smooth_s: float = 0.3) -> Candidate | None:
+    """The lateral group's candidate for some residual forces (see the module docstring).
+
+    Parameters
+    ----------
+    rt : ResidualTorque
+        The residual torques and lateral forces (coupled or lateral configuration).
+    smooth_s : float, optional
+        The moving average's length (s) after the LVDTs' low-pass.  Default 0.3 (:data:`.discovery.SMOOTH_S`).
+
+    Returns
+    -------
+    Candidate or None
+        The ``lateral_force`` candidate (its coefficients in N per unit of each term, the share of the residual
+        force beyond the base parameters' columns it explains), or None when the disc does not move laterally,
+        too few samples have a known balance or no term explains enough.
+    """
+    if rt.force_X is None or rt.force_Y is None:
+        return None
+    ok = rt.lower_valid & np.isfinite(rt.force_X) & np.isfinite(rt.force_Y)
+    if ok.sum() < MIN_SAMPLES:
+        return None
+    FX, FY = np.where(ok, rt.force_X, 0.0), np.where(ok, rt.force_Y, 0.0)
+    # outliers (> 8 SDs of either component) are left out: not robust SDs, the force of a stiffening spring or of
+    # a stop is large in the few samples of large orbits and near zero in most
+    sc = float(np.std(np.concatenate([FX[ok], FY[ok]])))
+    if sc > 0:
+        ok = ok & (np.abs(FX - np.median(FX[ok])) < 8 * sc) & (np.abs(FY - np.median(FY[ok])) < 8 * sc)
+    w = ok.astype(float)
+    fs = 1.0 / float(np.median(np.diff(rt.t)))
+    m = max(1, int(round(smooth_s * fs)))
+    low = LVDT_LOWPASS_HZ < 0.5 * fs and rt.t.size > 30
+
+    def filt(v: np.ndarray) -> np.ndarray:
+        """The LVDTs' low-pass and the moving average, on the full grid (weight-0 samples enter as 0), then the
+        rows used."""
+        v = lowpass_zero_phase(w * v, fs, LVDT_LOWPASS_HZ) if low else w * v
+        if m > 1:
+            v = np.convolve(v, np.ones(m) / m, mode="same")
+        return v[ok]
+
+    def pair(fx: np.ndarray, fy: np.ndarray) -> np.ndarray:
+        return np.concatenate([filt(np.asarray(fx, float)), filt(np.asarray(fy, float))])
+
+    d = lateral_data(rt)
+    y = pair(FX, FY)
+    Q, _ = np.linalg.qr(np.column_stack([pair(*col) for col in lateral_nuisance(d, 1.0)]))
+
+    def project(v: np.ndarray) -> np.ndarray:
+        return v - Q @ (Q.T @ v)
+
+    yr = project(y)
+    tss = float(yr @ yr) or 1.0
+    terms = lateral_terms()
+    raw = [pair(*tm.values(d)) for tm in terms]
+    chosen, share = greedy_terms([project(c) for c in raw], yr, tss)
+    if not chosen:
+        return None
+    X = np.column_stack([raw[j] for j in chosen])
+    # the file's coefficients: the terms alone, as the effect will act on the model as it is; the joint regression
+    # above decides which terms enter and how much they explain
+    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+    if np.any(np.abs(coef) * np.linalg.norm(X, axis=0) > MAX_CANCEL * np.linalg.norm(y)):
+        coef, *_ = np.linalg.lstsq(np.column_stack([X, Q]), y, rcond=None)  # they cancel alone: the joint ones
+        coef = coef[: len(chosen)]
+    res_rms = float(np.sqrt(np.mean(np.concatenate([FX[ok], FY[ok]]) ** 2)))
+    reach = {}
+    for j in chosen:
+        gx, gy = terms[j].values(d)
+        size = float(np.sqrt(np.mean(np.concatenate([gx[ok], gy[ok]]) ** 2)))
+        reach[terms[j].label] = res_rms / max(size, 1e-300)
+    return Candidate(
+        LATERAL_GROUP,
+        {terms[j].label: float(coef[i]) for i, j in enumerate(chosen)},
+        {terms[j].label: terms[j].code for j in chosen},
+        {terms[j].label: 0.0 for j in chosen},
+        share,
+        int(ok.sum()),
+        reach=reach,
+    )

@@ -1,0 +1,91 @@
+"""Discovery on the lateral side: the residual lateral force regressed on forces shaped by physics, written as a
+lateral Force effect file, on recordings of the independent rig (benchmarks/bench_diagnosis_rig.py)."""
+
+import numpy as np
+import pytest
+from test_diagnosis_selection import independent_rig
+
+from drillgym import RigParams
+from drillgym.diagnosis.discovery import MIN_EXPLAINED_SHARE, Candidate, find_candidate, write_effect_file
+from drillgym.diagnosis.lateral_discovery import LATERAL_GROUP, lateral_candidate
+from drillgym.diagnosis.lateral_terms import lateral_terms
+from drillgym.diagnosis.sparse import residual_torques
+from drillgym.effects import compose
+from drillgym.identification.experiment import prepare_experiment
+
+
+def _coupled(effects: dict, seed: int = 5):
+    """12 s of ramps at 200 Hz about 2.6 V on the independent rig, coupled (whirl through the resonance)."""
+    return independent_rig()("coupled", "ramps", 12.0, 200.0, seed, effects, {}, 2.6, 1.5)
+
+
+def _best(effects: dict, seed: int = 5) -> Candidate | None:
+    """discovery's best group on the residual of the nominal model."""
+    ex = prepare_experiment(_coupled(effects, seed), "coupled", compare_rate_hz=200.0)
+    p = RigParams()
+    rt = residual_torques(ex, p)
+    return find_candidate(rt, rt.u_motor, p.Ju, p.Jl, True, p.ws, p.delta, p.km)
+
+
+@pytest.mark.parametrize(
+    ("effect", "values", "term", "size"),
+    [
+        ("lateral_cubic", {"k3": 6e7}, "r²·(X, Y)", -6e7),
+        ("lateral_quadratic_damping", {"c2": 300.0}, "|V|·(VX, VY)", -300.0),
+    ],
+)
+def test_a_lateral_force_outside_the_library_is_the_lateral_group(effect, values, term, size):
+    """A stiffening spring −k3 r² (X, Y) or a quadratic drag −c2 |V| V: the lateral group wins over every torque
+    group, its first term has the force's shape and (alone) its size."""
+    cand = _best({effect: values})
+    assert cand is not None and cand.group == LATERAL_GROUP, cand
+    assert next(iter(cand.terms)) == term, cand.expression()
+    assert cand.terms[term] == pytest.approx(size, rel=0.15), cand.expression()
+    assert cand.explained > MIN_EXPLAINED_SHARE and cand.explained > 2 * max(
+        v for g, v in cand.rest.items() if g != LATERAL_GROUP
+    ), cand.rest
+
+
+def test_a_library_anisotropy_has_the_library_shape():
+    """kx ≠ ky and bx ≠ by (the library's lateral_anisotropy, dk = 250 N/m, db = 3 N s/m) left out of the model:
+    the terms (X, −Y) and (VX, −VY) with the effect's own values (its force is (−dk X − db VX, dk Y + db VY))."""
+    cand = _best({"lateral_anisotropy": {"dk": 250.0, "db": 3.0}})
+    assert cand.group == LATERAL_GROUP and set(cand.terms) == {"(X, −Y)", "(VX, −VY)"}, cand.expression()
+    assert cand.terms["(X, −Y)"] == pytest.approx(-250.0, rel=0.1)
+    assert cand.terms["(VX, −VY)"] == pytest.approx(-3.0, rel=0.3)
+
+
+def test_a_string_effect_is_not_taken_for_a_lateral_force():
+    """A cubic string on the coupled rig: the string group, the lateral group's share below the bar."""
+    cand = _best({"string_cubic": {"c3": 0.015}})
+    assert cand.group == "string", cand.expression()
+    assert cand.rest.get(LATERAL_GROUP, 0.0) < MIN_EXPLAINED_SHARE, cand.rest
+
+
+def test_no_lateral_candidate_on_the_torsional_configuration():
+    ts = independent_rig()("torsional", "ramps", 6.0, 200.0, 5, {}, {}, 2.6, 1.5)
+    rt = residual_torques(prepare_experiment(ts, "torsional", compare_rate_hz=200.0), RigParams())
+    assert rt.force_X is None and lateral_candidate(rt) is None
+
+
+def test_lateral_candidate_file_is_a_lateral_force(tmp_path):
+    """The file is a lateral Force whose force(X, Y, VX, VY) is the terms' sum, fixed frame."""
+    terms = {t.label: t for t in lateral_terms()}
+    chosen = {"r²·(X, Y)": -5e7, "|V|·(VX, VY)": -200.0, "(cos θl, sin θl)": 0.3}
+    cand = Candidate(
+        LATERAL_GROUP,
+        chosen,
+        {k: terms[k].code for k in chosen},
+        dict.fromkeys(chosen, 0.0),
+        0.9,
+        1000,
+    )
+    text = write_effect_file(cand, tmp_path / "lat.py").read_text()
+    assert 'acts_on = "lateral"' in text and "def force(" in text
+    comp, values = compose([cand.effect_file])
+    eff = comp.effects[0]
+    X, Y, VX, VY, th = 2e-3, -1e-3, 0.01, 0.02, 0.7
+    fx, fy = eff.force(X, Y, VX, VY, th, *values.values())
+    r2, v = X * X + Y * Y, np.hypot(VX, VY)
+    assert fx == pytest.approx(-5e7 * r2 * X - 200.0 * v * VX + 0.3 * np.cos(th))
+    assert fy == pytest.approx(-5e7 * r2 * Y - 200.0 * v * VY + 0.3 * np.sin(th))
