@@ -1,4 +1,4 @@
-"""Cached kernels are dropped when any drillgym source changes (numba keys a cache on one file only)."""
+"""Cached kernels are dropped when a source they can see changes (numba keys a cache on one file only)."""
 
 from drillgym._kernel_cache import invalidate_stale_kernels, sources_digest
 
@@ -6,12 +6,16 @@ from drillgym._kernel_cache import invalidate_stale_kernels, sources_digest
 def test_stale_kernels_are_dropped_when_a_source_changes(tmp_path):
     pkg = tmp_path / "pkg"
     (pkg / "__pycache__").mkdir(parents=True)
+    (pkg / "integrators.py").write_text("from .dynamics import A\n\n@njit(cache=True)\ndef kernel():\n    return A\n")
     (pkg / "dynamics.py").write_text("A = 1\n")
+    (pkg / "cli.py").write_text("from .integrators import kernel\n")
     cached = pkg / "__pycache__" / "integrators.kernel-1.py311.nbi"
     assert invalidate_stale_kernels(pkg)  # first use: no stamp yet
     cached.write_text("compiled against A = 1")
     assert not invalidate_stale_kernels(pkg) and cached.exists()  # unchanged sources: cache kept
     before = sources_digest(pkg)
+    (pkg / "cli.py").write_text("from .integrators import kernel  # no kernel imports the command line\n")
+    assert sources_digest(pkg) == before and not invalidate_stale_kernels(pkg) and cached.exists()
     (pkg / "dynamics.py").write_text("A = 2\n")
     assert sources_digest(pkg) != before
     assert invalidate_stale_kernels(pkg) and not cached.exists()  # edited dependency: cache dropped
@@ -56,3 +60,32 @@ def test_generated_kernels_are_keyed_on_what_they_import_transitively(tmp_path):
     assert modules_digest(["drillgym.kernels.model"], ("hooks A",), pkg) != modules_digest(
         ["drillgym.kernels.model"], ("hooks B",), pkg
     )
+
+
+def test_imports_no_kernel_can_see_do_not_key_the_generated_kernels(tmp_path):
+    """A lazy import inside a function, or one under ``if TYPE_CHECKING:``, binds no global a kernel can
+    reach: an edit of such a module (the diagnosis the package names for type checkers) keeps every model."""
+    from drillgym._kernel_cache import modules_digest
+
+    pkg = tmp_path / "drillgym"
+    (pkg / "kernels").mkdir(parents=True)
+    (pkg / "__init__.py").write_text(
+        "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from . import diagnosis\n"
+    )
+    (pkg / "kernels" / "__init__.py").write_text("")
+    (pkg / "kernels" / "model.py").write_text(
+        "from drillgym import friction\n"
+        "try:\n    from drillgym import fast\nexcept ImportError:\n    fast = None\n"
+        "def helper():\n    from drillgym import cli\n"
+    )
+    for name in ("friction", "fast", "cli", "diagnosis"):
+        (pkg / f"{name}.py").write_text("X = 1\n")
+    digest = lambda: modules_digest(["drillgym.kernels.model"], package_dir=pkg)  # noqa: E731
+    before = digest()
+    for name in ("cli", "diagnosis"):
+        (pkg / f"{name}.py").write_text("X = 2\n")
+        assert digest() == before, name
+    for name in ("friction", "fast", "__init__"):  # module level, in a try block, the package imported from
+        (pkg / f"{name}.py").write_text("X = 3\n")
+        assert digest() != before, name
+        before = digest()
