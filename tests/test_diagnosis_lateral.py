@@ -89,3 +89,44 @@ def test_lateral_candidate_file_is_a_lateral_force(tmp_path):
     r2, v = X * X + Y * Y, np.hypot(VX, VY)
     assert fx == pytest.approx(-5e7 * r2 * X - 200.0 * v * VX + 0.3 * np.cos(th))
     assert fy == pytest.approx(-5e7 * r2 * Y - 200.0 * v * VY + 0.3 * np.sin(th))
+
+
+@pytest.mark.parametrize(("truth", "verdict"), [("lateral_cubic", True), ("lateral_coulomb", False)])
+def test_a_library_coulomb_standing_in_for_a_stiffening_spring_is_named(truth, verdict):
+    """The selection took lateral_coulomb (at the size a fit gives it on a stiffening spring): with a stiffening
+    spring in the recording the residual without it is r², not Coulomb, and the diagnosis says so; with Coulomb
+    friction in the recording it says nothing."""
+    from types import SimpleNamespace
+
+    from drillgym.diagnosis.lateral_library import library_versus_outside
+
+    values = {"lateral_cubic": {"k3": 6e7}, "lateral_coulomb": {"Fc_lat": 1.5}}[truth]
+    ex = prepare_experiment(_coupled({truth: values}), "coupled", compare_rate_hz=200.0)
+    comp, _ = compose(["lateral_coulomb"])
+    vec = comp.vector(RigParams(), {"Fc_lat": 1.5})
+    rt = residual_torques(ex, vec, effects=comp)
+    outside = [t for t in lateral_terms() if t.label == "r²·(X, Y)"]
+    cand = lateral_candidate(rt, terms=outside) or Candidate(LATERAL_GROUP, {"r²·(X, Y)": -1e7}, {}, {}, 0.5, 1)
+    diagnosis = SimpleNamespace(composition=comp, vector=vec, selected=["lateral_coulomb"])
+    found = library_versus_outside(ex, diagnosis, cand)
+    assert (found is not None) == verdict, found
+    if verdict:
+        assert found.library == "lateral_coulomb" and next(iter(found.outside.terms)) == "r²·(X, Y)"
+        assert "r²" in found.line() and "not Coulomb friction" in found.line(), found.line()
+
+
+@pytest.mark.slow
+def test_diagnosis_proposes_a_stiffening_spring_that_halves_the_lvdt_misfit(tmp_path):
+    """The whole diagnosis (selection, discovery, the candidate's own fit, the selection again) on a stiffening
+    spring: the candidate is the lateral force r²·(X, Y), its fit at least halves both LVDTs' misfit, and no
+    library lateral effect is named in its place."""
+    from drillgym.diagnosis import diagnose
+
+    d = diagnose(_coupled({"lateral_cubic": {"k3": 6e7}}), discover=True, candidate_out=tmp_path / "cand.py")
+    c = d.candidate
+    assert c is not None and c.group == LATERAL_GROUP and next(iter(c.terms)) == "r²·(X, Y)", d.text()
+    assert c.terms["r²·(X, Y)"] < 0 and c.fit is not None
+    for ch in ("x", "y"):
+        assert c.fit.after.channels[ch] <= 0.5 * c.fit.before.channels[ch], c.fit.line()
+    named = set(d.selected) | set(d.reselection.selected if d.reselection is not None else ())
+    assert not named & {"lateral_coulomb", "lateral_anisotropy"}, d.text()

@@ -117,7 +117,7 @@ class Candidate:
             what = SENSORS[self.group].what
             how = f"what {what} reads, by its own fit: {self.explained:.0%} of the unexplained variance"
             return f"candidate outside the library ({how}): {self.reading()} — {self.expression()}"
-        how = f"{self.explained:.0%} of the residual torque"
+        how = f"{self.explained:.0%} of the residual {'lateral force' if self.group == 'lateral_force' else 'torque'}"
         return f"candidate outside the library ({how}): {self.expression()}"
 
     def to_json(self) -> dict:

@@ -22,7 +22,7 @@ from ..identification.experiment import estimate_rate
 from ..measurement import lowpass_zero_phase
 from .candidate import Candidate
 from .greedy import MAX_CANCEL, greedy_terms
-from .lateral_terms import lateral_nuisance, lateral_terms
+from .lateral_terms import LateralTerm, lateral_nuisance, lateral_terms
 from .sparse import ResidualTorque
 
 __all__ = ["LATERAL_GROUP", "LVDT_LOWPASS_HZ", "lateral_candidate", "lateral_data"]
@@ -67,7 +67,9 @@ def lateral_data(rt: ResidualTorque) -> dict[str, np.ndarray]:
     return d
 
 
-def lateral_candidate(rt: ResidualTorque, smooth_s: float = 0.3) -> Candidate | None:
+def lateral_candidate(
+    rt: ResidualTorque, smooth_s: float = 0.3, terms: list[LateralTerm] | None = None
+) -> Candidate | None:
     """The lateral group's candidate for some residual forces (see the module docstring).
 
     Parameters
@@ -76,6 +78,8 @@ def lateral_candidate(rt: ResidualTorque, smooth_s: float = 0.3) -> Candidate | 
         The residual torques and lateral forces (coupled or lateral configuration).
     smooth_s : float, optional
         The moving average's length (s) after the LVDTs' low-pass.  Default 0.3 (:data:`.discovery.SMOOTH_S`).
+    terms : list of LateralTerm, optional
+        The terms tried (default: :func:`.lateral_terms.lateral_terms`).
 
     Returns
     -------
@@ -120,7 +124,7 @@ def lateral_candidate(rt: ResidualTorque, smooth_s: float = 0.3) -> Candidate | 
 
     yr = project(y)
     tss = float(yr @ yr) or 1.0
-    terms = lateral_terms()
+    terms = lateral_terms() if terms is None else list(terms)
     raw = [pair(*tm.values(d)) for tm in terms]
     chosen, share = greedy_terms([project(c) for c in raw], yr, tss)
     if not chosen:

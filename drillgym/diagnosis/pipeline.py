@@ -16,6 +16,8 @@
    :func:`.candidate_fit.choose_candidate` — the candidate (and the motor side's best beside it, and each
    sensor's reading where its channel stays above the noise, :mod:`.sensor_reading`) added to the final model and
    fitted; the one whose fit removes most is kept, its residual reported;
+   :func:`.lateral_library.library_versus_outside` — a library lateral effect the selection took that the residual
+   lateral force says is another force (a warning in words);
 6. :mod:`.reselection` — with a candidate kept in the model, the whole diagnosis again on the model that holds
    it (its parameters refitted with the base): the candidate's residual hid the library's effects beside it.
 """
@@ -38,6 +40,7 @@ from .detectability import detectability
 from .discovery import discover
 from .information import require_information
 from .input_order import input_order
+from .lateral_library import library_versus_outside
 from .orders import select
 from .ranking import report
 from .reselection import kept_candidate, reselection_inputs
@@ -129,8 +132,11 @@ def diagnose(
 
 def _discovered(screening, diagnosis: Diagnosis, noise: dict[str, float], opts: DiagnosisOptions) -> Diagnosis:
     """The diagnosis with a candidate effect outside the library (or advice), each candidate's own fit judged."""
-    found, advice = discover(_fine(screening.exps[0]), diagnosis, opts.candidate_out)
-    diagnosis = replace(diagnosis, candidate=found, advice=advice)
+    fine = _fine(screening.exps[0])
+    found, advice = discover(fine, diagnosis, opts.candidate_out)
+    verdict = library_versus_outside(fine, diagnosis, found)  # a library lateral effect standing in for another
+    warnings = [*diagnosis.warnings, verdict.line()] if verdict is not None else diagnosis.warnings
+    diagnosis = replace(diagnosis, candidate=found, advice=advice, warnings=warnings)
     readings = reading_candidates(diagnosis)  # what each sensor reads: only its own fit can show it
     if found is None and not readings:
         return diagnosis
