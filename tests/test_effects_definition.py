@@ -412,3 +412,42 @@ def test_an_effect_defined_inside_a_function_is_refused_in_one_line():
 
     with pytest.raises(EffectError, match="defined inside a function; define it at a module's top level"):
         compose([Local])
+
+
+def test_an_effect_file_is_compiled_once_wherever_it_lies_and_whatever_its_guesses(tmp_path, monkeypatch):
+    """The kernels depend on an effect file's code, not on its path, docstrings or parameters' guesses: a copy
+    elsewhere with other guesses (a model folder copied, a candidate written for another recording) runs in the
+    package the first one compiled, with the same physics; an edit of the code or of a module-level constant the
+    code reads makes a new package."""
+    from drillgym.effects.codegen import package_name
+
+    monkeypatch.setenv("DRILLGYM_KERNEL_CACHE", str(tmp_path / "cache"))
+
+    def written(folder: str, guess: float, doc: str, gain: str = "2.0", body: str = "GAIN * push") -> Path:
+        (tmp_path / folder).mkdir(exist_ok=True)
+        path = tmp_path / folder / "push.py"
+        path.write_text(
+            f"from drillgym.effects import Force, Parameter\n\nGAIN = {gain}\n\n\nclass Push(Force):\n"
+            f"    '''{doc}'''\n    name = 'push'\n    acts_on = 'upper'\n"
+            f"    parameters = (Parameter('push', 'N m', 0.0, 5.0, {guess}, 0.1, '{doc}'),)\n\n"
+            f"    def torque(push):\n        # {doc}\n        return {body}\n"
+        )
+        return path
+
+    def key(path: Path) -> str:
+        comp, _ = compose([f"{path}:push"])
+        return package_name(comp, hooks_source(comp))
+
+    first = written("a", 0.5, "a push on the upper disc")
+    copy = written("b", 1.25, "the same push, guessed again")
+    assert key(first) == key(copy)
+    assert key(written("c", 0.5, "x", body="GAIN * push * push")) != key(first)
+    assert key(written("d", 0.5, "x", gain="3.0")) != key(first)
+    runs = []
+    for path in (first, copy):
+        comp, _ = compose([f"{path}:push"])
+        runs.append(simulate("upper", 0.0, 0.5, effects=comp, effect_params={"push": 0.8}))
+    assert not (tmp_path / "cache" / key(first) / "effect_1.py").exists()
+    assert (tmp_path / "cache" / key(first) / "effect_0.py").read_text() == first.read_text()
+    assert runs[0].omega_u[-1] > 0.0 and np.array_equal(runs[0].omega_u, runs[1].omega_u)
+    assert len(list((tmp_path / "cache").glob("_dgk_*"))) == 1

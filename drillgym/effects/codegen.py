@@ -31,7 +31,8 @@ from typing import TYPE_CHECKING
 import numba
 
 from .._kernel_cache import modules_digest
-from .hookgen import hooks_source
+from .file_signature import code_signature
+from .hookgen import effect_file_copy, hooks_source
 
 if TYPE_CHECKING:  # pragma: no cover
     from .composition import Composition
@@ -123,17 +124,20 @@ def package_name(comp: Composition, hooks: str) -> str:
     -------
     str
         ``"_dgk_"`` followed by 24 hex digits of a SHA-256 over the drillgym sources the templates
-        and the code generator import, numba's and Python's versions, the hooks and the effects'
-        own source files.
+        and the code generator import, numba's and Python's versions, the hooks, the code of the
+        effect files (:func:`~drillgym.effects.file_signature.code_signature`: not where they are,
+        nor their parameters' guesses and words) and other effect modules' sources.
     """
     h = hashlib.sha256()
     h.update(_environment_digest().encode())
     h.update(hooks.encode())
     for eff in comp.effects:
         origin = getattr(eff, "__drillgym_file__", None)
-        if not origin and not eff.__module__.startswith("drillgym."):  # e.g. an entry-point effect
-            module = sys.modules.get(eff.__module__)
-            origin = getattr(module, "__file__", None)
+        if origin:
+            h.update(code_signature(Path(origin).read_text(encoding="utf-8")).encode())
+            continue
+        if not eff.__module__.startswith("drillgym."):  # e.g. an entry-point effect
+            origin = getattr(sys.modules.get(eff.__module__), "__file__", None)
         if origin:
             h.update(Path(origin).read_bytes())
     return "_dgk_" + h.hexdigest()[:24]
@@ -177,7 +181,7 @@ def prune_stale(root: Path) -> int:
     return removed
 
 
-def _write_package(root: Path, package: str, hooks: str, label: str) -> Path:
+def _write_package(root: Path, package: str, hooks: str, comp: Composition) -> Path:
     final = root / package
     if final.exists():
         return final
@@ -186,8 +190,12 @@ def _write_package(root: Path, package: str, hooks: str, label: str) -> Path:
     tmp = Path(tempfile.mkdtemp(prefix=f".{package}-", dir=root))
     try:
         (tmp / "ENVIRONMENT").write_text(_environment_digest() + "\n")
-        (tmp / "__init__.py").write_text(f'"""drillgym kernels for the composition {label!r} (generated)."""\n')
+        (tmp / "__init__.py").write_text(f'"""drillgym kernels for the composition {comp.label!r} (generated)."""\n')
         (tmp / "hooks.py").write_text(hooks)
+        for i, eff in enumerate(comp.effects):  # the effect files the hooks load (hookgen.effect_file_copy)
+            origin = getattr(eff, "__drillgym_file__", None)
+            if origin:
+                shutil.copyfile(origin, tmp / effect_file_copy(i))
         for name in CORE_TEMPLATES:
             (tmp / f"{name}.py").write_text(_specialise(_template_source(f"{_TEMPLATE_PACKAGE}.{name}"), package))
         try:
@@ -226,7 +234,7 @@ def build_kernels(comp: Composition) -> CompiledModel:
         from .compile_check import check_compiles
 
         check_compiles(comp)
-    _write_package(root, package, hooks, comp.label)
+    _write_package(root, package, hooks, comp)
     _ensure_on_path(root)
     importlib.invalidate_caches()
     return CompiledModel(package, root)
