@@ -117,6 +117,7 @@ def test_the_reading_is_kept_when_its_fit_removes_more_and_at_least_the_bar(
         discovered.fit = _Fit(discovered_cut)
     monkeypatch.setattr(candidate_fit, "_discovered", lambda s, d, c, n: (c, None))
     monkeypatch.setattr(candidate_fit, "fit_candidate", lambda s, d, c, n: _Fit(reading_cut))
+    monkeypatch.setattr(candidate_fit, "_screen_cut", lambda s, d, c, n: reading_cut)  # every one passes its screen
     diagnosis = type("D", (), {"candidate": discovered})()
     reading = _encoder_candidate(0.005, 0.05)
     got = candidate_fit.choose_candidate(None, diagnosis, {}, None, [reading])
@@ -126,3 +127,28 @@ def test_the_reading_is_kept_when_its_fit_removes_more_and_at_least_the_bar(
         assert got is (reading if kept == "reading" else discovered)
         other = discovered if kept == "reading" else reading
         assert got.alternative is other
+
+
+def test_a_reading_is_fitted_in_full_only_when_its_screen_removes_enough(monkeypatch):
+    """Of two readings, the one whose screen removes less than SCREEN_CUT is never fitted with the base parameters
+    freed, nor offered as the alternative; with every screen below it no reading is fitted at all."""
+    from drillgym.diagnosis import candidate_fit
+
+    discovered = _encoder_candidate(0.0, 0.05)
+    discovered.group = "upper_force"
+    discovered.fit = _Fit(0.05)
+    screens = {"motor": candidate_fit.SCREEN_CUT / 2, "lower": 2 * candidate_fit.SCREEN_CUT}
+    fitted = []
+    motor, lower = _encoder_candidate(0.005, 0.05), _encoder_candidate(0.005, 0.05)
+    names = {id(motor): "motor", id(lower): "lower"}
+    monkeypatch.setattr(candidate_fit, "_discovered", lambda s, d, c, n: (c, None))
+    monkeypatch.setattr(candidate_fit, "_screen_cut", lambda s, d, c, n: screens[names[id(c)]])
+    monkeypatch.setattr(candidate_fit, "fit_candidate", lambda s, d, c, n: fitted.append(names[id(c)]) or _Fit(0.5))
+    diagnosis = type("D", (), {"candidate": discovered})()
+    got = candidate_fit.choose_candidate(None, diagnosis, {}, None, [motor, lower])
+    assert fitted == ["lower"] and got is lower and got.alternative is discovered
+    screens["lower"] = 0.0
+    fitted.clear()
+    discovered.alternative = None
+    got = candidate_fit.choose_candidate(None, diagnosis, {}, None, [motor, lower])
+    assert fitted == [] and got is discovered and got.alternative is None

@@ -41,6 +41,12 @@ __all__ = ["CandidateFit", "CandidateFitState", "fit_candidate", "choose_candida
 
 #: least-squares evaluations of the candidate's fit
 MAX_NFEV = 20
+#: least-squares evaluations of a reading's screen: its own parameters (and those of the library effects it may have
+#: stood in for) fitted with the base parameters held as diagnosed, before a full fit frees them
+SCREEN_NFEV = 5
+#: a reading is fitted in full only when its screen removes at least this share of the unexplained variance (a
+#: third of the bar it must meet to be kept, :data:`.sensor_reading.MIN_READING_CUT`)
+SCREEN_CUT = 0.1
 
 
 @dataclass
@@ -247,6 +253,7 @@ class _CandidateModel:
     effect: type[Effect]  # the candidate's effect
     start_values: dict[str, float]  # its free parameters' start
     library: tuple[str, ...] = ()  # the selected library effects' parameters fitted with it
+    max_nfev: int = MAX_NFEV  # least-squares evaluations
 
     def fit(self, base: np.ndarray, base_names: tuple[str, ...]) -> tuple[Objective, SelectionContext, FitResult]:
         """The candidate's parameters and the base parameters ``base_names`` fitted from the model vector ``base``
@@ -260,7 +267,7 @@ class _CandidateModel:
         obj.model = obj.model.with_composition(self.with_it)
         nominal = transfer(self.model.nominal, self.comp, self.with_it)
         ctx = SelectionContext(obj, self.with_it, start, nominal, base_names, {})
-        return obj, ctx, converged_fit(ctx, start, [*self.start_values, *self.library, *base_names], MAX_NFEV)
+        return obj, ctx, converged_fit(ctx, start, [*self.start_values, *self.library, *base_names], self.max_nfev)
 
 
 def _stood_in(diagnosis: Diagnosis, candidate: Candidate) -> tuple[str, ...]:
@@ -350,10 +357,11 @@ def choose_candidate(
     removes most.
 
     The motor side's candidate is fitted first (its terms are compiled once); when it leaves the recording at the
-    noise, the other is not fitted.  The sensors' readings (:mod:`.sensor_reading`) are fitted when neither leaves
-    the recording at the noise; the reading whose fit removes most is kept when it removes more than theirs and at
-    least :data:`.sensor_reading.MIN_READING_CUT` of the unexplained variance.  The candidate kept is the one
-    written to ``candidate_out``; the best of the others is its :attr:`~.results.Candidate.alternative`.
+    noise, the other is not fitted.  The sensors' readings (:mod:`.sensor_reading`) are screened, and those that
+    pass fitted, when neither leaves the recording at the noise; the reading whose fit removes most is kept when it
+    removes more than theirs and at least :data:`.sensor_reading.MIN_READING_CUT` of the unexplained variance.  The
+    candidate kept is the one written to ``candidate_out``; the best of the others is its
+    :attr:`~.results.Candidate.alternative`.
 
     Parameters
     ----------
@@ -380,7 +388,9 @@ def choose_candidate(
     if readings and (keep is None or keep.fit is None or not keep.fit.after.explained):
         reading = _best_reading(screening, diagnosis, readings, noise_scales)
         bar = max(_cut(keep), MIN_READING_CUT) if keep is not None else MIN_READING_CUT
-        if _cut(reading) > bar:
+        if reading is None:
+            pass
+        elif _cut(reading) > bar:
             keep, other = reading, keep
         elif other is None or _cut(reading) > _cut(other):
             other = reading
@@ -397,17 +407,40 @@ def choose_candidate(
 
 def _best_reading(
     screening: Screening, diagnosis: Diagnosis, readings: Sequence[Candidate], noise_scales: dict[str, float]
-) -> Candidate:
-    """Every reading fitted: the one whose fit removes most, or, among those that leave the recording at the
-    noise, the one that moved fewest base parameters with it, and the least (RMS of their change, %).
+) -> Candidate | None:
+    """Every reading that passes its screen fitted: the one whose fit removes most, or, among those that leave the
+    recording at the noise, the one that moved fewest base parameters with it, and the least (RMS of their change,
+    %); None when no reading passes its screen.
 
-    All are fitted, even after one reaches the noise: a scale error of one encoder reads nearly as the opposite
-    error of the other with every angle rescaled (the motor encoder's +1 % as the lower's −1 % with the inertias
-    and the motor constant 1 % off), which the base parameters freed beside the wrong one take up."""
-    for reading in readings:
+    A reading is screened first (:func:`_screen_cut`) and fitted with the base parameters freed only when the screen
+    removes at least :data:`SCREEN_CUT` of the unexplained variance: a channel left above the noise by a torque the
+    model misses is no sensor's fault, and its reading's full fit costs as much as the candidate's.  All that pass
+    are fitted, even after one reaches the noise: a scale error of one encoder reads nearly as the opposite error
+    of the other with every angle rescaled (the motor encoder's +1 % as the lower's −1 % with the inertias and the
+    motor constant 1 % off), which the base parameters freed beside the wrong one take up."""
+    passed = [r for r in readings if _screen_cut(screening, diagnosis, r, noise_scales) >= SCREEN_CUT]
+    for reading in passed:
         reading.fit = fit_candidate(screening, diagnosis, reading, noise_scales)
         with_fitted_terms(reading)
-    return max(readings, key=_reading_rank)
+    return max(passed, key=_reading_rank) if passed else None
+
+
+def _screen_cut(
+    screening: Screening, diagnosis: Diagnosis, reading: Candidate, noise_scales: dict[str, float]
+) -> float:
+    """The share of the unexplained variance a reading removes in a short fit (:data:`SCREEN_NFEV` evaluations) of
+    its own parameters and of the library effects it may have stood in for, the base parameters held as
+    diagnosed (-1 when the diagnosis has no final model)."""
+    effect, start_values = _effect_of(reading)
+    comp, before = diagnosis.composition, diagnosis.unexplained
+    if effect is None or comp is None or diagnosis.vector is None or before is None or before.ratio_to_noise <= 0:
+        return -1.0
+    with_it = Composition((*comp.effects, effect))
+    library = _stood_in(diagnosis, reading)
+    setup = _CandidateModel(screening.model, comp, with_it, effect, start_values, library, SCREEN_NFEV)
+    obj, _, fit = setup.fit(diagnosis.vector, ())
+    after = unexplained(obj, np.asarray(fit.vector), noise_scales)
+    return 1.0 - (after.ratio_to_noise / before.ratio_to_noise) ** 2
 
 
 def _reading_rank(cand: Candidate) -> tuple[bool, int, float, float]:
