@@ -78,6 +78,7 @@ def test_the_observers_prediction_is_the_compositions_simulation(kind):
     assert base > 3 * own, (kind, own, base)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["observer", "lqg", "lqg-2enc"])
 def test_every_kind_runs_in_every_model_based_controller(name, tmp_path):
     from controllers.evaluation.runner import run_closed_loop

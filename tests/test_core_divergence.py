@@ -79,6 +79,7 @@ def test_a_nan_effect_names_the_time_and_states(nan_effect: str) -> None:
         )
 
 
+@pytest.mark.slow
 def test_a_batch_names_the_run_that_diverged_first(nan_effect: str) -> None:
     params = np.tile(drillgym.effects.compose([nan_effect])[0].vector(RigParams(), {"t_nan": 50.0}), (16, 1))
     params[5, -1] = 0.3  # run 5 breaks first (once its lower disc slips), run 9 much later

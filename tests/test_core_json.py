@@ -70,6 +70,7 @@ def _constant_upper(path: Path) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_every_command_writes_strict_json(tmp_path: Path) -> None:
     _cli("params", "--out", "p.json", cwd=tmp_path)
     assert "km" in loads_strict((tmp_path / "p.json").read_text(encoding="utf-8"))["params"]

@@ -34,6 +34,7 @@ def test_candidate_file_is_a_valid_effect(tmp_path):
     assert cand.to_json()["dof"] == 2 and "ωl|ωl|" in cand.expression()
 
 
+@pytest.mark.slow
 def test_cli_outside_the_library_candidate_file_halves_the_error(tmp_path):
     ts = scipy_cubic_string(0.015, duration=14.0, rate_hz=250.0)
     data = write_timeseries(tmp_path / "rec.csv", ts)

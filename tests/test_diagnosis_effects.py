@@ -214,6 +214,7 @@ def test_lvdt_skew_with_wound_string_and_steps_ranks_first():
 # --- candidates as compositions: a user's effect, effects already in the model ----------------------------------
 
 
+@pytest.mark.slow
 def test_user_candidate_ranks_first_and_model_effects_are_held():
     """A cubic string (user file) is missing from the base model: tried as base + candidate it ranks first;
     once in the model (base_effects) it is not a candidate again and nothing else is significant."""

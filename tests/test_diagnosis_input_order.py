@@ -4,12 +4,14 @@ A motor lag before a dead zone (the motor sees dead_zone(lag(u))) is not the sam
 before the lag; the model diagnosed here has them the wrong way round.
 """
 
+import pytest
 from test_diagnosis_unexplained import DEAD_ZONE, steps
 
 from drillgym.diagnosis import diagnose
 from drillgym.identification.synthetic import synthetic_measurement
 
 
+@pytest.mark.slow
 def test_two_input_effects_are_tried_in_both_orders_and_the_better_reported():
     ts = synthetic_measurement(
         "torsional",

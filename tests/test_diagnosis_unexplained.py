@@ -104,6 +104,7 @@ def test_cli_json_carries_the_unexplained_residual(tmp_path):
     assert {"ratio_to_noise", "channels", "where", "depends_on", "thresholds"} <= set(un)
 
 
+@pytest.mark.slow
 def test_dead_zone_candidate_is_an_input_effect_whose_own_fit_explains_the_recording(tmp_path):
     ts = long_step_recording(3, [DEAD_ZONE], u0=0.4)
     out = tmp_path / "cand.py"
@@ -121,6 +122,7 @@ def test_dead_zone_candidate_is_an_input_effect_whose_own_fit_explains_the_recor
     assert again is not None and "motor_lag" not in again.selected, d.reselection_lines()
 
 
+@pytest.mark.slow
 def test_a_motor_lag_hidden_by_a_dead_zone_is_selected_beside_the_candidate(tmp_path):
     """A 30 ms motor lag before a 0.4 V dead zone: the dead zone's residual (thousands of noise units) hides the
     lag from the library's selection; selected again on the model that holds the discovered candidate, the lag
@@ -181,6 +183,7 @@ class DriveOffset(Input):
 '''
 
 
+@pytest.mark.slow
 def test_an_offset_with_a_lag_on_ramps_frees_the_base_and_states_the_lag_delay_tie(tmp_path):
     """A 0.15 V drive offset after a 30 ms lag, km 3 % and Jl 4 % off, on ramps: the candidate has the
     constant term, and selected again beside it the lag (or the delay) counts with the tie stated: on ramps

@@ -77,6 +77,7 @@ def test_effects_change_the_run(case):
         assert np.max(np.abs(ref.u_m - ref.u)) > 0.1  # the lag's state is recorded and lags the command
 
 
+@pytest.mark.slow
 def test_batch_lanes_match_single_run(case):
     config, comp, vals, U, ref = case
     B = LANES_MIN_BATCH

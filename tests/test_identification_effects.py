@@ -78,6 +78,7 @@ def _halves_unexplained_variance(js: dict) -> None:
         assert 1.0 - js["r2_after"][c] <= 0.5 * (1.0 - before), (c, js["r2_before"], js["r2_after"])
 
 
+@pytest.mark.slow
 def test_cubic_string_drillgym_recording(tmp_path):
     ts = synthetic_measurement(
         "torsional", duration=25.0, rate_hz=250.0, offset=1.0, seed=2, effects=[CUBIC], effect_params={"c3": C3}

@@ -66,6 +66,7 @@ def test_every_stage_fits_parameters_that_act_in_its_experiment(stage: str) -> N
     assert set(STAGES[stage].parameters) <= set(parameters_acting(config, brake=brake))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("config", ["upper", "torsional", "lateral", "coupled"])
 def test_the_parameters_acting_are_those_that_change_a_run(config: str) -> None:
     names = [n for n in PARAM_INFO if n not in ("dTcu", "dbu")]  # asymmetries: signed, tested through Tcu/bu

@@ -55,6 +55,7 @@ def routes(recording, tmp_path_factory):
     return files
 
 
+@pytest.mark.slow
 def test_every_route_writes_the_same_model_file(routes):
     texts = {route: path.read_bytes() for route, path in routes.items()}
     assert len(set(texts.values())) == 1, {r: json.loads(t)["effects"] for r, t in texts.items()}

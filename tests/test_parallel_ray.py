@@ -83,6 +83,7 @@ def test_sweep_on_ray_equals_local(ray_executor):
     assert on_ray.stats.shape == (5, local.stats.shape[1]) and np.isfinite(on_ray.omega_l_max).all()
 
 
+@pytest.mark.slow
 def test_evaluate_cli_ray_local_equals_local(ray_executor, tmp_path):
     args = [
         "evaluate",
