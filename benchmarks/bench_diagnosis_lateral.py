@@ -7,7 +7,7 @@ force outside drillgym's library (:data:`bench_diagnosis_rig.OUTSIDE_LATERAL`):
 
 * ``lateral_cubic``: a spring that stiffens with the radius, −k3 r² (X, Y) (k3 = 3-9·10⁷ N/m³: at r = 3 mm
   10-30 % of the linear spring's k r);
-* ``lateral_quadratic_damping``: a drag −c2 |V| V (c2 = 150-400 N s²/m²);
+* ``lateral_quadratic_damping``: a drag −c2 |V| V (c2 = 500-1200 N s²/m²: at 4 cm/s 0.8-1.9 N, the viscous b V is 1 N);
 
 each alone and with a library effect beside it (``lateral_anisotropy``: dk = 150-300 N/m, db = 2-4 N s/m;
 ``position_friction``: pf_c1, pf_s1 = ±0.06-0.12), on ramps about 2.6 V (the whirl through its resonance),
@@ -20,7 +20,9 @@ and in total:
 * ``halved``: the candidate's own fit at least halves the LVDTs' misfit (the RMS of x and y in noise units);
 * ``wrong_library``: a library lateral effect that is not in the recording (``lateral_coulomb``, or
   ``lateral_anisotropy`` where it is not beside) is in the final model (the selection again's when it ran);
-* ``beside_found``: the library effect beside, when there is one, is in the final model.
+* ``beside_found``: the library effect beside, when there is one, is in the final model;
+* ``residual``: the diagnosed model's worst channel (noise units) before discovery: below
+  :data:`drillgym.diagnosis.discovery.MIN_RESIDUAL_UNITS` nothing is left to discover (k and b took the force).
 
     python benchmarks/bench_diagnosis_lateral.py [--draws 1] [--first-seed 0] [--only KIND] [--out results.json]
 
@@ -47,7 +49,7 @@ from drillgym.diagnosis import diagnose  # noqa: E402
 #: the hidden force, its size drawn in a range, and the term that has its shape
 KINDS = {
     "lateral_cubic": (lambda r: {"k3": round(r.uniform(3e7, 9e7), -5)}, "r²·(X, Y)"),
-    "lateral_quadratic_damping": (lambda r: {"c2": round(r.uniform(150.0, 400.0), 1)}, "|V|·(VX, VY)"),
+    "lateral_quadratic_damping": (lambda r: {"c2": round(r.uniform(500.0, 1200.0), 1)}, "|V|·(VX, VY)"),
 }
 #: the library effect beside it (None: alone)
 BESIDE = {
@@ -95,6 +97,7 @@ def run_one(kind: str, beside: str | None, seed: int, tmp: Path) -> dict:
         "lvdt_before": before,
         "lvdt_after": after,
         "halved": bool(after <= 0.5 * before),
+        "residual": round(d.unexplained.worst, 2) if d.unexplained is not None else None,
         "selected": list(d.selected),
         "selected_again": None if d.reselection is None else list(d.reselection.selected),
         "wrong_library": wrong,
@@ -119,7 +122,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
                     row = run_one(kind, beside, seed, Path(tmp))
                     rows.append(row)
                     print(
-                        f"{kind:<26}{beside or '-':<20}seed {seed:<3} {row['group'] or '-':<15} "
+                        f"{kind:<26}{beside or '-':<20}seed {seed:<3} worst channel {row['residual']:<6} "
+                        f"{row['group'] or '-':<15} "
                         f"lateral {row['lateral']!s:<6} LVDTs {row['lvdt_before']:.3g} -> {row['lvdt_after']:.3g} "
                         f"halved {row['halved']!s:<6} wrong library {','.join(row['wrong_library']) or '-':<20}"
                         f"beside found {row['beside_found']!s:<6} {row['seconds']:.0f} s",

@@ -19,11 +19,15 @@ def _coupled(effects: dict, seed: int = 5):
     return independent_rig()("coupled", "ramps", 12.0, 200.0, seed, effects, {}, 2.6, 1.5)
 
 
+def _residual(effects: dict, seed: int = 5):
+    """The residual torques and lateral forces of the nominal model on the rig's recording."""
+    ex = prepare_experiment(_coupled(effects, seed), "coupled", compare_rate_hz=200.0)
+    return residual_torques(ex, RigParams())
+
+
 def _best(effects: dict, seed: int = 5) -> Candidate | None:
     """discovery's best group on the residual of the nominal model."""
-    ex = prepare_experiment(_coupled(effects, seed), "coupled", compare_rate_hz=200.0)
-    p = RigParams()
-    rt = residual_torques(ex, p)
+    p, rt = RigParams(), _residual(effects, seed)
     return find_candidate(rt, rt.u_motor, p.Ju, p.Jl, True, p.ws, p.delta, p.km)
 
 
@@ -46,13 +50,18 @@ def test_a_lateral_force_outside_the_library_is_the_lateral_group(effect, values
     ), cand.rest
 
 
-def test_a_library_anisotropy_has_the_library_shape():
+def test_a_library_anisotropy_is_not_proposed_as_a_force_outside_the_library():
     """kx ≠ ky and bx ≠ by (the library's lateral_anisotropy, dk = 250 N/m, db = 3 N s/m) left out of the model:
-    the terms (X, −Y) and (VX, −VY) with the effect's own values (its force is (−dk X − db VX, dk Y + db VY))."""
-    cand = _best({"lateral_anisotropy": {"dk": 250.0, "db": 3.0}})
-    assert cand.group == LATERAL_GROUP and set(cand.terms) == {"(X, −Y)", "(VX, −VY)"}, cand.expression()
-    assert cand.terms["(X, −Y)"] == pytest.approx(-250.0, rel=0.1)
-    assert cand.terms["(VX, −VY)"] == pytest.approx(-3.0, rel=0.3)
+    regressed jointly with the library's shapes, no term outside the library explains the residual; regressed on
+    every shape alone, it is (X, −Y) and (VX, −VY) with the effect's own values (its force is
+    (−dk X − db VX, dk Y + db VY))."""
+    rt = _residual({"lateral_anisotropy": {"dk": 250.0, "db": 3.0}})
+    outside = lateral_candidate(rt)
+    assert outside is None or outside.explained < MIN_EXPLAINED_SHARE, outside.expression()
+    every = lateral_candidate(rt, terms=lateral_terms(), library=False)
+    assert set(every.terms) == {"(X, −Y)", "(VX, −VY)"}, every.expression()
+    assert every.terms["(X, −Y)"] == pytest.approx(-250.0, rel=0.1)
+    assert every.terms["(VX, −VY)"] == pytest.approx(-3.0, rel=0.3)
 
 
 def test_a_string_effect_is_not_taken_for_a_lateral_force():
@@ -106,7 +115,9 @@ def test_a_library_coulomb_standing_in_for_a_stiffening_spring_is_named(truth, v
     vec = comp.vector(RigParams(), {"Fc_lat": 1.5})
     rt = residual_torques(ex, vec, effects=comp)
     outside = [t for t in lateral_terms() if t.label == "r²·(X, Y)"]
-    cand = lateral_candidate(rt, terms=outside) or Candidate(LATERAL_GROUP, {"r²·(X, Y)": -1e7}, {}, {}, 0.5, 1)
+    cand = lateral_candidate(rt, terms=outside, library=False) or Candidate(
+        LATERAL_GROUP, {"r²·(X, Y)": -1e7}, {}, {}, 0.5, 1
+    )
     diagnosis = SimpleNamespace(composition=comp, vector=vec, selected=["lateral_coulomb"])
     found = library_versus_outside(ex, diagnosis, cand)
     assert (found is not None) == verdict, found

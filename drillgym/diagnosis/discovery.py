@@ -410,8 +410,10 @@ def discover(
     if diagnosis.vector is None or ex.config.label == "upper":
         return None, []
     residual = diagnosis.rmse_after if diagnosis.rmse_after is not None else diagnosis.rmse_before
-    if diagnosis.sensor_misfit and diagnosis.unexplained is not None:  # misfit-weighted units: ~1 by design
-        residual = diagnosis.unexplained.ratio_to_noise
+    if diagnosis.sensor_misfit and diagnosis.unexplained is not None:
+        # misfit-weighted units are ~1 by design: the worst channel in noise units (pooled, the encoders' smaller
+        # misfit hid the LVDTs' residual of a lateral force that k and b took to their bounds)
+        residual = diagnosis.unexplained.worst
     if residual < MIN_RESIDUAL_UNITS:
         return None, []
     vectors = [diagnosis.vector]

@@ -7,11 +7,12 @@ nothing above that band: the residual and every term are filtered alike, by the 
 (``LVDT_LOWPASS_HZ``) and a moving average of :data:`.discovery.SMOOTH_S` (a linear operation on both sides keeps
 the regression's relation), and regressed with the rows of both components stacked, [FX; FY].
 
-The terms (:func:`.lateral_terms.lateral_terms`) enter by the same greedy forward selection as the torque groups
-(:mod:`.greedy`), jointly with the base parameters' own columns (k, b, the unbalance e, the
-unbalance: :func:`.lateral_terms.lateral_nuisance`), so that a term explains only what the base cannot; the group,
-``lateral_force``, is ranked against the torque groups by the same criterion (the share of its residual it
-explains).  The candidate is written as a lateral ``Force`` effect (:func:`.effect_file.write_effect_file`).
+The terms outside the library (:func:`.lateral_terms.outside_terms`) enter by the same greedy forward selection as
+the torque groups (:mod:`.greedy`), jointly with the base parameters' own columns (k, b, the unbalance e:
+:func:`.lateral_terms.lateral_nuisance`) and the library lateral effects' shapes (anisotropy, dry friction), so
+that a term explains only what the base and the library cannot; the group, ``lateral_force``, is ranked against
+the torque groups by the same criterion (the share of its residual it explains).  The candidate is written as a
+lateral ``Force`` effect (:func:`.effect_file.write_effect_file`).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from ..identification.experiment import estimate_rate
 from ..measurement import lowpass_zero_phase
 from .candidate import Candidate
 from .greedy import MAX_CANCEL, greedy_terms
-from .lateral_terms import LateralTerm, lateral_nuisance, lateral_terms
+from .lateral_terms import LIBRARY_SHAPES, LateralTerm, lateral_nuisance, lateral_terms, outside_terms
 from .sparse import ResidualTorque
 
 __all__ = ["LATERAL_GROUP", "LVDT_LOWPASS_HZ", "lateral_candidate", "lateral_data"]
@@ -68,7 +69,7 @@ def lateral_data(rt: ResidualTorque) -> dict[str, np.ndarray]:
 
 
 def lateral_candidate(
-    rt: ResidualTorque, smooth_s: float = 0.3, terms: list[LateralTerm] | None = None
+    rt: ResidualTorque, smooth_s: float = 0.3, terms: list[LateralTerm] | None = None, library: bool = True
 ) -> Candidate | None:
     """The lateral group's candidate for some residual forces (see the module docstring).
 
@@ -79,7 +80,10 @@ def lateral_candidate(
     smooth_s : float, optional
         The moving average's length (s) after the LVDTs' low-pass.  Default 0.3 (:data:`.discovery.SMOOTH_S`).
     terms : list of LateralTerm, optional
-        The terms tried (default: :func:`.lateral_terms.lateral_terms`).
+        The terms tried (default: :func:`.lateral_terms.outside_terms`, those outside the library).
+    library : bool, optional
+        Regress jointly with the library lateral effects' shapes too (:data:`.lateral_terms.LIBRARY_SHAPES`:
+        the library has effects for them; default), not only with the base parameters' columns.
 
     Returns
     -------
@@ -117,25 +121,29 @@ def lateral_candidate(
 
     d = lateral_data(rt)
     y = pair(FX, FY)
-    Q, _ = np.linalg.qr(np.column_stack([pair(*col) for col in lateral_nuisance(d, 1.0)]))
+    joint = [pair(*col) for col in lateral_nuisance(d, 1.0)]
+    if library:
+        joint += [pair(*t.values(d)) for t in lateral_terms() if t.label in LIBRARY_SHAPES]
+    Q, _ = np.linalg.qr(np.column_stack(joint))
 
     def project(v: np.ndarray) -> np.ndarray:
         return v - Q @ (Q.T @ v)
 
     yr = project(y)
     tss = float(yr @ yr) or 1.0
-    terms = lateral_terms() if terms is None else list(terms)
+    terms = outside_terms() if terms is None else list(terms)
     raw = [pair(*tm.values(d)) for tm in terms]
     chosen, share = greedy_terms([project(c) for c in raw], yr, tss)
     if not chosen:
         return None
     X = np.column_stack([raw[j] for j in chosen])
-    # the file's coefficients: the terms alone, as the effect will act on the model as it is; the joint regression
-    # above decides which terms enter and how much they explain
-    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+    # the file's coefficients: the joint ones, beside the base's columns (a stiffening spring's linear part is k's:
+    # where the diagnosis took k to its bound for it, the terms alone would take the opposite sign); the
+    # candidate's fit holds the base at nominal too when the diagnosis left it at a bound
+    coef, *_ = np.linalg.lstsq(np.column_stack([X, Q]), y, rcond=None)
+    coef = coef[: len(chosen)]
     if np.any(np.abs(coef) * np.linalg.norm(X, axis=0) > MAX_CANCEL * np.linalg.norm(y)):
-        coef, *_ = np.linalg.lstsq(np.column_stack([X, Q]), y, rcond=None)  # they cancel alone: the joint ones
-        coef = coef[: len(chosen)]
+        return None  # the terms cancel each other: not a usable candidate
     res_rms = float(np.sqrt(np.mean(np.concatenate([FX[ok], FY[ok]]) ** 2)))
     reach = {}
     for j in chosen:

@@ -19,7 +19,7 @@ import numpy as np
 
 from .candidate import Candidate
 from .lateral_discovery import LATERAL_GROUP, lateral_candidate
-from .lateral_terms import LIBRARY_SHAPES, lateral_terms
+from .lateral_terms import LIBRARY_SHAPES, lateral_terms, outside_terms
 
 __all__ = ["OUTSIDE_BETTER", "LateralVerdict", "library_versus_outside"]
 
@@ -114,8 +114,9 @@ def library_versus_outside(ex, diagnosis, candidate: Candidate | None) -> Latera
             v[comp.param_index(name)] = val
         rt = residual_torques(ex, v, effects=comp)
         own = [t for t in lateral_terms() if LIBRARY_SHAPES.get(t.label) == eff.name]
-        rest = [t for t in lateral_terms() if t.label not in LIBRARY_SHAPES]
-        lib, out = lateral_candidate(rt, terms=own), lateral_candidate(rt, terms=rest)
+        rest = outside_terms()
+        lib = lateral_candidate(rt, terms=own, library=False)
+        out = lateral_candidate(rt, terms=rest, library=False)
         if out is None:
             continue
         lib_share = lib.explained if lib is not None else 0.0

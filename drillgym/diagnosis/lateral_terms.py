@@ -11,10 +11,12 @@ Every term is a force (FX, FY) in the fixed (LVDT) frame, shaped by physics:
 * a constant force (1, 0), (0, 1) (a brake's contact force, a preload);
 * a force that turns with the lower disc: (cos θl, sin θl) and (−sin θl, cos θl).
 
-The viscous (VX, VY), the linear spring (X, Y), the unbalance's force and the mass's are the base parameters'
-own columns (:func:`lateral_nuisance`): a term explains only what b, k, e and m cannot.  Each term's code is the
-Python expression of its (FX, FY) in the arguments ``X, Y, VX, VY, theta_l`` of a lateral ``Force`` effect
-(:func:`.effect_file.write_effect_file`).
+The viscous (VX, VY), the linear spring (X, Y) and the unbalance's force are the base parameters' own columns
+(:func:`lateral_nuisance`); the anisotropy (X, −Y), (VX, −VY) and the dry friction are the library's
+``lateral_anisotropy`` and ``lateral_coulomb`` (:data:`LIBRARY_SHAPES`): discovery regresses jointly with them and
+proposes the others (:func:`outside_terms`), so a candidate explains only what the base and the library cannot.
+Each term's code is the Python expression of its (FX, FY) in the arguments ``X, Y, VX, VY, theta_l`` of a lateral
+``Force`` effect (:func:`.effect_file.write_effect_file`).
 """
 
 from __future__ import annotations
@@ -24,7 +26,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["LateralTerm", "lateral_terms", "lateral_nuisance", "STOP_RADII", "DRY_EPS", "LIBRARY_SHAPES"]
+__all__ = [
+    "LateralTerm",
+    "lateral_terms",
+    "outside_terms",
+    "lateral_nuisance",
+    "STOP_RADII",
+    "DRY_EPS",
+    "LIBRARY_SHAPES",
+]
 
 #: radii (m) beyond which a stop's force (X, Y) max(r − r0, 0) / r is tried
 STOP_RADII = (0.5e-3, 1e-3, 2e-3, 3e-3)
@@ -121,6 +131,18 @@ def lateral_terms() -> list[LateralTerm]:
         ),
     ]
     return out
+
+
+def outside_terms() -> list[LateralTerm]:
+    """The lateral terms whose shape is no library effect's (not in :data:`LIBRARY_SHAPES`): what a candidate
+    outside the library is made of.
+
+    Returns
+    -------
+    list of LateralTerm
+        The terms.
+    """
+    return [t for t in lateral_terms() if t.label not in LIBRARY_SHAPES]
 
 
 def _stop(d: dict, r0: float) -> tuple[np.ndarray, np.ndarray]:
