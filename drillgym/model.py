@@ -69,7 +69,7 @@ from .model_files import (
     _std,
     code_files,
 )
-from .params import ParameterError, RigParams
+from .params import ParameterError, RigParams, number
 
 __all__ = ["Model", "Provenance", "CodeFile", "code_files", "as_model", "UntrustedCodeError", "MODEL_SUFFIXES"]
 
@@ -116,7 +116,21 @@ class Provenance:
         unknown = set(data) - known
         if unknown:
             raise ParameterError(f"{where}: 'provenance' has unknown key(s): {', '.join(sorted(unknown))}")
+        for k, v in data.items():
+            ok, what = _PROVENANCE_TYPES[k]
+            if not ok(v):
+                raise ParameterError(f"{where}: 'provenance': {k!r} must be {what}, got {v!r}")
         return cls(**{k: (dict(v) if k == "settings" else v) for k, v in data.items()})
+
+
+#: what each field of a model file's provenance holds: (check, how a refusal names it)
+_PROVENANCE_TYPES: dict[str, tuple[Any, str]] = {
+    "route": (lambda v: isinstance(v, str), "a text"),
+    "recording": (lambda v: v is None or isinstance(v, str), "a path (text) or null"),
+    "recording_sha256": (lambda v: v is None or isinstance(v, str), "a SHA-256 (text) or null"),
+    "settings": (lambda v: isinstance(v, Mapping), "a mapping of setting names to values"),
+    "version": (lambda v: isinstance(v, str), "a version (text)"),
+}
 
 
 def _frozen(mapping: Mapping[str, float] | None) -> Mapping[str, float]:
@@ -409,15 +423,39 @@ class Model:
             if not isinstance(vals, Mapping):
                 raise ParameterError(f"{where}: effect record {k}: 'values' must map parameter names to numbers")
             for name, v in vals.items():
-                if isinstance(v, bool) or not isinstance(v, (int, float)):
-                    raise ParameterError(f"{where}: effect record {k}: {name!r} must be a number, got {v!r}")
-                values[str(name)] = float(v)
+                values[str(name)] = number(v, f"{where}: effect record {k}: {name!r}")
             std.update(_std(rec.get("std", {}), where, f"effect record {k}: 'std'"))
         prov = Provenance.from_json(data["provenance"], where) if "provenance" in data else Provenance()
         try:
-            return cls(params, tuple(specs), values, std, prov)
+            model = cls(params, tuple(specs), values, std, prov)
         except (EffectError, ParameterError) as exc:
             raise ParameterError(f"{where}: {exc}") from None
+        _check_records(records, data.get("std", {}), model, where)
+        return model
+
+
+def _check_records(records: list[Mapping[str, Any]], base_std: Mapping[str, Any], model: Model, where: str) -> None:
+    """Refuse a record whose name or kind is not its effect's, or that gives a value or standard error of a
+    parameter its effect does not have (a value filed under the wrong effect would be read as if it were right)."""
+    effect_params = set(model.values)
+    unknown = sorted(set(map(str, base_std)) - set(RigParams.__dataclass_fields__) - effect_params)
+    if unknown:
+        raise ParameterError(f"{where}: 'std': unknown parameter(s) {', '.join(unknown)}")
+    for k, (rec, effect) in enumerate(zip(records, model.composition.effects)):
+        for key, real in (("name", effect.name), ("kind", effect.kind)):
+            if key in rec and rec[key] != real:
+                raise ParameterError(
+                    f"{where}: effect record {k}: {key!r} is {rec[key]!r} but its spec gives the effect "
+                    f"{effect.name!r} ({key} {real!r})"
+                )
+        own = {p.name for p in effect.parameters}
+        for key in ("values", "std"):
+            other = sorted(set(map(str, rec.get(key) or {})) - own)
+            if other:
+                raise ParameterError(
+                    f"{where}: effect record {k} ({effect.name}): {key} names {', '.join(other)}, not a parameter "
+                    f"of {effect.name} (it has {', '.join(sorted(own)) or 'none'})"
+                )
 
 
 def _library_effect(cls: type[Effect]) -> Any:

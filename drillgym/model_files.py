@@ -14,12 +14,15 @@ from pathlib import Path
 from typing import Any
 
 from .errors import MissingFileError
-from .params import ParameterError
+from .params import ParameterError, number
 
 __all__ = ["CodeFile", "code_files", "FORMAT", "VERSION"]
 
 #: the format tag and version written by :meth:`drillgym.Model.save`
 FORMAT, VERSION = "drillgym-model", 2
+
+#: the keys of an effect record (one effect of a model file)
+RECORD_KEYS = ("name", "kind", "spec", "file", "sha256", "values", "std")
 
 
 @dataclass(frozen=True)
@@ -89,6 +92,12 @@ def _read(path: Path) -> Mapping[str, Any]:
         raise ParameterError(f"{path}: a model file holds a mapping (params, effects), got {type(data).__name__}")
     if "format" in data and data["format"] != FORMAT:
         raise ParameterError(f"{path}: 'format' is {data['format']!r}, not {FORMAT!r}")
+    version = data.get("version", VERSION)
+    if isinstance(version, bool) or not isinstance(version, int) or not 1 <= version <= VERSION:
+        raise ParameterError(
+            f"{path}: 'version' is {version!r}; this drillgym reads model files of version 1 to {VERSION}"
+            + (" (the file was written by a later drillgym)" if isinstance(version, int) and version > VERSION else "")
+        )
     if "params" not in data and "effects" not in data and "std" not in data:
         data = {"params": data}  # a file of base parameters only: a model without effects
     known = {"format", "version", "params", "std", "effects", "provenance", "warnings"}
@@ -105,6 +114,12 @@ def _effect_records(data: Mapping[str, Any], path: str | Path) -> list[Mapping[s
     for k, rec in enumerate(effects):
         if not isinstance(rec, Mapping) or not isinstance(rec.get("spec", rec.get("name")), str):
             raise ParameterError(f"{path}: effect record {k} needs a 'spec' (name or file.py:NAME)")
+        unknown = set(rec) - set(RECORD_KEYS)
+        if unknown:
+            raise ParameterError(
+                f"{path}: effect record {k}: unknown key(s) {', '.join(sorted(map(str, unknown)))}; a record has "
+                f"{', '.join(RECORD_KEYS)}"
+            )
     return effects
 
 
@@ -170,7 +185,8 @@ def _std(raw: Any, path: str | Path, what: str) -> dict[str, float]:
     for k, v in raw.items():
         if v is None:
             continue
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not v >= 0:
+        x = number(v, f"{path}: {what}: the standard error of {k!r}")
+        if not x >= 0:
             raise ParameterError(f"{path}: {what}: the standard error of {k!r} must be a number >= 0, got {v!r}")
-        out[str(k)] = float(v)
+        out[str(k)] = x
     return out

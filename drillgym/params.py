@@ -27,7 +27,35 @@ import numpy as np
 
 from .errors import ParameterError
 
-__all__ = ["RigParams", "ParameterError", "PARAM_INFO", "IDX", "N_PARAMS", "BASE_PARAMETERS"]
+__all__ = ["RigParams", "ParameterError", "PARAM_INFO", "IDX", "N_PARAMS", "BASE_PARAMETERS", "number"]
+
+
+def number(value: Any, what: str) -> float:
+    """``value`` as a float, or a one-line refusal naming ``what``.
+
+    Parameters
+    ----------
+    value : object
+        A number read from a file or given by a caller (a bool, a text or None is not one).
+    what : str
+        How the refusal names the value, e.g. ``"parameter 'Jl'"``.
+
+    Returns
+    -------
+    float
+        The value (not checked for finiteness: ``nan`` and ``inf`` are floats).
+
+    Raises
+    ------
+    ParameterError
+        Not a number, or an integer too large for a float (``1`` followed by 400 zeros in a JSON file).
+    """
+    if value is None or isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise ParameterError(f"{what} must be a number, got {value!r}")
+    try:
+        return float(value)
+    except OverflowError:
+        raise ParameterError(f"{what} is not finite (an integer of {len(str(abs(int(value))))} digits)") from None
 
 
 def _p(value: float, unit: str, source: str, lo: float = -math.inf, hi: float = math.inf, doc: str = "") -> Any:
@@ -129,9 +157,7 @@ class RigParams:
     def __post_init__(self) -> None:
         for f in fields(self):
             v = getattr(self, f.name)
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
-                raise ParameterError(f"parameter {f.name!r}: expected a number, got {v!r}")
-            v = float(v)
+            v = number(v, f"parameter {f.name!r}")
             object.__setattr__(self, f.name, v)
             if not math.isfinite(v):
                 raise ParameterError(f"parameter {f.name!r} is not finite ({v})")
@@ -237,9 +263,7 @@ class RigParams:
                 raise ParameterError(f"{source}: missing parameter(s): {', '.join(missing)}")
         values = {}
         for name, v in data.items():
-            if v is None or isinstance(v, bool) or not isinstance(v, (int, float)):
-                raise ParameterError(f"{source}: parameter {name!r} must be a number, got {v!r}")
-            values[name] = float(v)
+            values[name] = number(v, f"{source}: parameter {name!r}")
         try:
             return cls(**values)
         except ParameterError as exc:

@@ -101,6 +101,62 @@ def build_assets(root: Path) -> Assets:
     return a
 
 
+# --------------------------------------------------------------------------------------- model files
+
+
+#: a valid model file (one library effect): each hostile model file is it with one thing wrong
+GOOD_MODEL = {
+    "format": "drillgym-model",
+    "version": 2,
+    "params": {"Jl": 0.04},
+    "effects": [{"name": "motor_lag", "kind": "input", "spec": "motor_lag", "values": {"tau_m": 0.03}}],
+    "provenance": {"route": "user", "recording": None, "recording_sha256": None, "settings": {}, "version": ""},
+}
+
+
+def _edited(edit: Callable[[dict], None]) -> dict:
+    import copy
+
+    data = copy.deepcopy(GOOD_MODEL)
+    edit(data)
+    return data
+
+
+#: hostile model files (name -> text, or a change of :data:`GOOD_MODEL`): each must be refused in one line
+#: naming the file, by every reader of a model file (``Model.load``, ``--model``, ``--params`` of diagnose)
+HOSTILE_MODELS: dict[str, str | Callable[[dict], None]] = {
+    "huge_integer": '{"params": {"Jl": 1' + "0" * 400 + "}}",
+    "huge_integer_value": '{"effects": [{"spec": "motor_lag", "values": {"tau_m": 1' + "0" * 400 + "}}]}",
+    "huge_integer_std": '{"params": {}, "std": {"Jl": 1' + "0" * 400 + "}}",
+    "provenance_types": lambda d: d.update(provenance={"route": 3, "settings": [1]}),
+    "provenance_settings_list": lambda d: d["provenance"].update(settings=[["a", 1, 2]]),
+    "later_version": lambda d: d.update(version=99),
+    "version_text": lambda d: d.update(version="two"),
+    "unknown_std_name": lambda d: d.update(std={"not_a_parameter": 1.0}),
+    "unknown_record_key": lambda d: d["effects"][0].update(colour="red"),
+    "record_name_not_its_effect": lambda d: d["effects"][0].update(name="input_delay"),
+    "record_kind_not_its_effect": lambda d: d["effects"][0].update(kind="force"),
+    "value_filed_under_another_effect": lambda d: d["effects"].append(
+        {"spec": "input_delay", "values": {"tau_m": 0.01}}
+    ),
+    "std_filed_under_another_effect": lambda d: d["effects"][0].update(std={"delay": 0.001}),
+}
+
+
+def build_hostile_models(root: Path) -> dict[str, str]:
+    """Write :data:`HOSTILE_MODELS` under ``root/models/`` (NAME.json); returns name -> path."""
+    import json
+
+    folder = root / "models"
+    folder.mkdir(parents=True, exist_ok=True)
+    out = {}
+    for name, what in HOSTILE_MODELS.items():
+        text = what if isinstance(what, str) else json.dumps(_edited(what))
+        (folder / f"{name}.json").write_text(text)
+        out[name] = str(folder / f"{name}.json")
+    return out
+
+
 # --------------------------------------------------------------------------------------- running
 
 

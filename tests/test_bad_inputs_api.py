@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from bad_inputs import GOOD_MODEL, HOSTILE_MODELS, build_hostile_models
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
@@ -423,3 +424,25 @@ EQUILIBRIA_BAD = [
 def test_equilibria_sweeps_and_batches_refuse_before_any_run(name, call):
     """Refused in the caller's words, before a worker starts (its refusal would come back wrapped)."""
     refused(call, name)
+
+
+# --------------------------------------------------------------------------------------- model files
+
+
+@pytest.fixture(scope="module")
+def hostile_models(tmp_path_factory):
+    return build_hostile_models(tmp_path_factory.mktemp("hostile"))
+
+
+def test_the_model_the_hostile_files_are_made_from_loads(tmp_path):
+    import json
+
+    (tmp_path / "good.json").write_text(json.dumps(GOOD_MODEL))
+    assert drillgym.Model.load(tmp_path / "good.json").values["tau_m"] == GOOD_MODEL["effects"][0]["values"]["tau_m"]
+
+
+@pytest.mark.parametrize("name", sorted(HOSTILE_MODELS))
+def test_model_load_refuses_a_hostile_model_file(name, hostile_models):
+    """Model.load raises a DrillgymError naming the file (never an OverflowError, a TypeError, or a model that
+    silently drops or misplaces what the file says)."""
+    refused(lambda: drillgym.Model.load(hostile_models[name]), hostile_models[name])

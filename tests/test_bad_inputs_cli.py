@@ -17,10 +17,12 @@ from pathlib import Path
 
 import pytest
 from bad_inputs import (
+    HOSTILE_MODELS,
     HUGE,
     Case,
     assert_refused,
     build_assets,
+    build_hostile_models,
     check_case,
     choice_bad,
     finite_file,
@@ -634,3 +636,47 @@ def test_real_exit_codes(argv, name, root):
     )
     assert_refused(proc.returncode, proc.stderr, name)
     assert sorted(p.name for p in work.iterdir()) == ["keep.npz", "keep.txt"]
+
+
+# --------------------------------------------------------------------------------------- model files
+
+
+def _model_consumers(a, work: Path) -> dict[str, list[str]]:
+    """A command line of every consumer of ``--model`` (the model file appended by the test)."""
+    return {
+        "simulate": ["simulate", "--u", "1", "--duration", "0.1", "--out", str(work / "run.csv")],
+        "compare": ["compare", a.torsional, "--out", str(work / "cmp")],
+        "bifurcation": ["bifurcation", "--out", str(work / "bif"), "--umax", "1", "--sweep-step", "0"],
+        "evaluate": ["evaluate", "--controllers", "observer", "--targets", "1", "--duration", "0.2"]
+        + ["--window", "0.1", "--workers", "1", "--out", str(work / "ev")],
+        "benchmark": ["benchmark", "drillgym/Nominal-Motor-v0", "--policy", "baseline", "--duration", "0.5"]
+        + ["--window", "0.2", "--targets", "1"],
+        "train": ["train", "--out", str(work / "run"), "--timesteps", "1", "--no-progress", "--no-tensorboard"],
+        "rig run": ["rig", "run", "--port", "loop://", "--controller", "observer", "--duration", "0.1", "--dry-run"]
+        + ["--no-realtime", "--record", str(work / "r.csv")],
+        "rig emulate": ["rig", "emulate", "--port", str(work / "tty"), "--no-realtime"],
+    }
+
+
+@pytest.fixture(scope="module")
+def hostile_models(root):
+    return build_hostile_models(root / "hostile")
+
+
+@pytest.mark.parametrize("name", sorted(HOSTILE_MODELS))
+@pytest.mark.parametrize("consumer", ["simulate", "compare", "evaluate", "rig emulate"])
+def test_a_hostile_model_file_is_refused_by_its_consumers(consumer, name, hostile_models, a, root):
+    """A model file with one thing wrong (a number no float holds, provenance of the wrong types, a later
+    version, a value or standard error filed under the wrong effect or no parameter, an unknown record key) is
+    refused in one line naming --model, before anything is written."""
+    work = fresh_dir(root)
+    argv = [*_model_consumers(a, work)[consumer], "--model", hostile_models[name]]
+    assert check_case(Case(argv, ("--model",)), root) == "refused"
+
+
+@pytest.mark.parametrize("consumer", ["bifurcation", "benchmark", "train", "rig run"])
+def test_every_consumer_of_a_model_file_refuses_a_hostile_one(consumer, hostile_models, a, root):
+    work = fresh_dir(root)
+    for name in ("huge_integer", "provenance_types", "later_version"):
+        argv = [*_model_consumers(a, work)[consumer], "--model", hostile_models[name]]
+        assert check_case(Case(argv, ("--model",)), root) == "refused", name
