@@ -447,7 +447,6 @@ def train(
             )
     if init is not None and resume:
         raise InputError("init: a resumed run continues its own checkpoint; give init or resume, not both")
-    _warn_short_run(cls, hp)
     venv = _env(env_id, hp, hp["n_envs"], seed)
     config = {"env_id": env_id, "algo": algo, "seed": int(seed), "hyperparams": recorded_hp, "command": command}
     if init is not None:
@@ -515,6 +514,7 @@ def train(
                 **{**first, **then},
             )
     t_distill = time.perf_counter() - t_distill
+    _warn_short_run(cls, hp)  # once every check passed: a refusal is one line, not a warning and a refusal
     # written once the environment, the model and the teacher took every option (the teacher's observation, the
     # distillation's options are checked as it starts): a refused run leaves OUT as it was
     out = create_directory(out)

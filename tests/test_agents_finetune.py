@@ -90,3 +90,25 @@ def test_an_init_without_a_model_zip_is_refused(tmp_path):
     (tmp_path / "x.zip").write_text("not a zip")
     with pytest.raises(Exception, match="not an SB3 model"):
         agents.finetune.init_model_file(tmp_path / "x.zip")
+
+
+def test_an_unreadable_init_is_refused_before_any_warning(tmp_path, capsys):
+    """A zip that is not an SB3 model, given to a run too short to learn (which is warned about), is refused in
+    one line with no warning before it: the warning is for a run that goes ahead."""
+    import warnings
+    import zipfile
+
+    from drillgym.cli import main
+
+    bad = tmp_path / "bad.zip"
+    with zipfile.ZipFile(bad, "w") as z:
+        z.writestr("data", "not an SB3 model")
+    out = tmp_path / "run"
+    argv = ["train", "--init", str(bad), "--timesteps", "1", "--no-progress", "--no-tensorboard", "--out", str(out)]
+    with warnings.catch_warnings(record=True) as seen, pytest.raises(SystemExit) as exc:
+        warnings.simplefilter("always")
+        main(argv)
+    err = capsys.readouterr().err.strip()
+    assert exc.value.code == 2 and "\n" not in err and "--init" in err, err
+    assert [str(w.message) for w in seen] == []
+    assert not out.exists()
