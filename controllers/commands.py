@@ -46,6 +46,12 @@ def register(app: typer.Typer) -> None:
     @excludes("--plants-file", "--plants", why="the file lists the plants")
     @excludes("--plants-file", "--uncertainty", why="the file lists the plants; nothing is drawn")
     @excludes("--model", "--identify", why="--identify builds the controllers on each plant's identified model")
+    @requires(
+        "--trust",
+        "--model",
+        alternatives=("--params", "--plants-file"),
+        why="it trusts the effect files a model file names",
+    )
     def evaluate_cmd(
         config: str = typer.Option("torsional,coupled", "--config", help="configuration(s), comma-separated"),
         controllers: str = typer.Option(

@@ -80,7 +80,7 @@ def test_the_tree_is_covered():
     for cmd in COMMANDS:
         names = {p.name for p in cmd.params} | {p.secondary for p in cmd.params if p.secondary}
         for dep in cmd.dependencies:
-            assert dep.option in names and dep.needs in names, (cmd.path, dep)
+            assert dep.option in names and set(dep.satisfiers) <= names, (cmd.path, dep)
     assert set(BASES) >= EXPENSIVE
 
 
@@ -114,16 +114,17 @@ def draw_case(data, a, work: Path):
         dep = data.draw(st.sampled_from(deps), label="dependency")
         p = next(p for p in params if p.name == dep.option or p.secondary == dep.option)
         value = None if p.kind == "flag" else (dep.example or valid_value(p, a))
-        if dep.when is None and dep.needs in argv:  # what it needs, left out (checked before the body runs)
-            i = argv.index(dep.needs)
-            argv = argv[:i] + argv[i + 2 :]
+        for other in dep.satisfiers if dep.when is None else ():  # what it needs, left out
+            if other in argv:
+                i = argv.index(other)
+                argv = argv[:i] + argv[i + 2 :]
         flag = dep.option if p.kind == "flag" else p.name
         argv = argv + [flag] if value is None else with_value(argv, p, value, k)
         needs = next((q for q in params if dep.needs in (q.name, q.secondary)), None)
         if needs is not None and needs.kind == "flag" and needs.default is True:  # on by default: switch it off
             argv = argv + [needs.secondary]
         names += [dep.option]
-        taken |= {p.name, dep.needs}
+        taken |= {p.name, *dep.satisfiers}
     elif (how == "refuse" or expensive) and refusable:
         p = data.draw(st.sampled_from(refusable), label="refused option")
         value = data.draw(st.sampled_from(must_refuse(p, a)), label="refused value")

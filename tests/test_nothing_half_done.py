@@ -95,10 +95,11 @@ def test_an_option_that_needs_another_is_refused_alone(cmd, dep, a, tmp_path):
             return argv[:i] + argv[i + 2 :] + [name, valid_value(p, a)]
         return argv + [name, valid_value(p, a)]
 
-    if dep.kind == "requires" and dep.when is None and params[dep.needs].kind != "flag":
-        while dep.needs in argv:  # what the option needs, left out of the base (checked before the body runs)
-            i = argv.index(dep.needs)
-            argv = argv[:i] + argv[i + 2 :]
+    if dep.kind == "requires" and dep.when is None:
+        for other in dep.satisfiers:  # what the option needs, left out of the base (checked before the body runs)
+            while other in argv and params[other].kind != "flag":
+                i = argv.index(other)
+                argv = argv[:i] + argv[i + 2 :]
     argv = give(argv, dep.option) if not dep.example else argv + [dep.option, dep.example]
     needs = params[dep.needs]
     if dep.kind == "excludes":
@@ -112,6 +113,17 @@ def test_an_option_that_needs_another_is_refused_alone(cmd, dep, a, tmp_path):
     code, _, err = run(argv, tmp_path)
     assert refused_line(code, err) == f"drillgym: error: {dep.message()}"
     assert snapshot(tmp_path) == before
+
+
+def test_every_trust_option_says_what_it_trusts():
+    """``--trust`` means something only beside a model file; every command that takes it declares which option
+    gives that file, so ``--trust`` alone is refused rather than ignored."""
+    for cmd in commands():
+        if any(p.name == "--trust" for p in cmd.params):
+            deps = [d for d in cmd.dependencies if d.option == "--trust" and d.kind == "requires"]
+            assert deps, f"{' '.join(cmd.path)}: --trust declares no option it needs"
+            names = {p.name for p in cmd.params}
+            assert set(deps[0].satisfiers) <= names and ("--model" in names) == ("--model" in deps[0].satisfiers)
 
 
 def test_the_dependency_table_covers_the_probed_options():
@@ -137,6 +149,24 @@ def test_a_dependency_is_checked_before_the_command_runs():
     r = CliRunner().invoke(app, ["--identify", "--model", "m"])
     assert str(r.exception) == "--model cannot go with --identify (one model per plant)" and not ran
     assert CliRunner().invoke(app, ["--identify", "--excitation", "10"]).exit_code == 0 and ran
+
+
+def test_a_dependency_with_alternatives_is_met_by_any_of_them():
+    app = typer.Typer()
+    ran = []
+
+    @app.command()
+    @requires("--trust", "--model", alternatives=("--params",), why="it trusts a model file")
+    def cmd(trust: bool = typer.Option(False, "--trust"), model: str | None = None, params: str | None = None):
+        ran.append(True)
+
+    from typer.testing import CliRunner
+
+    r = CliRunner().invoke(app, ["--trust"])
+    assert str(r.exception) == "--trust needs --model or --params (it trusts a model file)" and not ran
+    for other in ("--model", "--params"):
+        assert CliRunner().invoke(app, ["--trust", other, "m.json"]).exit_code == 0
+    assert len(ran) == 2
 
 
 # --------------------------------------------------------------------------------------- networks checked on load

@@ -134,6 +134,7 @@ def _experiment(data: Path, config: str | None, rate: float, mapping: list[str] 
         return prepare_experiment(ts, config, compare_rate_hz=rate)
 
 
+@requires("--trust", "--model", alternatives=("--params",), why="it trusts the effect files a model file names")
 def compare_cmd(
     data: Path = typer.Argument(..., help="recording (csv of docs/data_format.md, or .mat)"),
     params: Path | None = typer.Option(
@@ -221,6 +222,7 @@ def _check_candidate_file(path: Path) -> None:
 
 
 @requires("--candidate-out", "--sparse", why="the candidate is looked for in the residual torques")
+@requires("--trust", "--params", why="it trusts the effect files a model file names")
 def diagnose_cmd(
     data: Path = typer.Argument(..., help="recording (csv of docs/data_format.md, or .mat)"),
     params: Path | None = typer.Option(
@@ -373,6 +375,7 @@ def _identify_front(ex, base, model, values, options):
     )
 
 
+@requires("--trust", "--params", why="it trusts the effect files a model file names")
 def identify_cmd(
     data: Path = typer.Argument(..., help="recording (csv of docs/data_format.md, or .mat)"),
     out: Path = typer.Option(

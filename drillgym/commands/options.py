@@ -86,9 +86,11 @@ class Dependency:
     """``option`` given on the command line needs ``needs`` (``kind="requires"``) or refuses it (``"excludes"``).
 
     ``when``: a condition on the value of ``needs`` that satisfies it (default: given, i.e. a flag set, a value
-    other than its default); ``what``: how the refusal names what is needed (default ``needs``); ``why``: a
-    clause after the refusal; ``given``: a condition on the value of ``option`` under which the dependency holds
-    (default: whenever it is given), with ``example``, a value of ``option`` that meets it.
+    other than its default); ``what``: how the refusal names what is needed (default ``needs``, or ``needs`` and
+    its ``alternatives`` joined by "or"); ``why``: a clause after the refusal; ``given``: a condition on the value
+    of ``option`` under which the dependency holds (default: whenever it is given), with ``example``, a value of
+    ``option`` that meets it; ``alternatives``: other options any of which satisfies a ``requires`` as well as
+    ``needs`` (``--trust`` needs ``--model`` or ``--params``).
     """
 
     option: str
@@ -99,11 +101,17 @@ class Dependency:
     why: str = ""
     given: Callable[[Any], bool] | None = None
     example: str = ""
+    alternatives: tuple[str, ...] = ()
+
+    @property
+    def satisfiers(self) -> tuple[str, ...]:
+        """The options any of which satisfies a ``requires``: ``needs``, then its alternatives."""
+        return (self.needs, *self.alternatives)
 
     def message(self) -> str:
         """The one-line refusal: ``"--excitation needs --identify"``, ``"--teacher cannot go with --resume"``."""
         verb = "needs" if self.kind == "requires" else "cannot go with"
-        text = f"{self.option} {verb} {self.what or self.needs}"
+        text = f"{self.option} {verb} {self.what or ' or '.join(self.satisfiers)}"
         return f"{text} ({self.why})" if self.why else text
 
 
@@ -161,20 +169,22 @@ def check_dependencies(fn: Callable, kwargs: dict[str, Any]) -> None:
         for opt in _option_names(pname, par.default):
             by_option[opt] = pname
     for dep in dependencies_of(fn):
-        a, b = by_option.get(dep.option), by_option.get(dep.needs)
-        if a is None or b is None:
+        a, bs = by_option.get(dep.option), [by_option.get(n) for n in dep.satisfiers]
+        if a is None or None in bs:
             raise TypeError(f"{fn.__name__}: dependency {dep} names an option the command does not have")
         if not _given(kwargs.get(a), _default(params[a].default)):
             continue
         if dep.given is not None and not dep.given(kwargs.get(a)):
             continue
-        value = kwargs.get(b)
-        if dep.when is not None:
-            has = bool(dep.when(value))
-        elif isinstance(value, bool):  # a flag: '--sparse' is given when on, '--no-sparse' when off
-            has = value is not dep.needs.startswith("--no-")
-        else:
-            has = _given(value, _default(params[b].default))
+        has = False
+        for name, b in zip(dep.satisfiers, bs):
+            value = kwargs.get(b)
+            if dep.when is not None:
+                has = has or bool(dep.when(value))
+            elif isinstance(value, bool):  # a flag: '--sparse' is given when on, '--no-sparse' when off
+                has = has or value is not name.startswith("--no-")
+            else:
+                has = has or _given(value, _default(params[b].default))
         if has != (dep.kind == "requires"):
             raise InputError(dep.message())
 
@@ -205,6 +215,7 @@ def requires(
     why: str = "",
     given: Callable[[Any], bool] | None = None,
     example: str = "",
+    alternatives: tuple[str, ...] = (),
 ) -> Callable[[Callable], Callable]:
     """Declare that ``option`` means something only beside ``needs``; decorate the command function with it
     (below ``@app.command``). Checked before the command's body runs: ``"--excitation needs --identify"``.
@@ -224,8 +235,11 @@ def requires(
     given : callable, optional
         The dependency holds only for values of ``option`` that meet this (e.g. ``--validate lower=FILE`` needs
         ``--lower``); ``example``: such a value.
+    alternatives : tuple of str, optional
+        Other options any of which satisfies it as well, e.g. ``("--params",)`` beside ``--model``: the
+        refusal reads ``"--trust needs --model or --params"``.
     """
-    return _declare(Dependency(option, needs, "requires", when, what, why, given, example))
+    return _declare(Dependency(option, needs, "requires", when, what, why, given, example, alternatives))
 
 
 def excludes(

@@ -167,6 +167,7 @@ def emulate_cmd(
 @rig_app.command("run")
 @requires("--observation", "--policy", why="the observation of a linear policy")
 @requires("--reconnect-wait", "--reconnect", when=lambda n: n > 0, what="--reconnect 1 or more")
+@requires("--trust", "--model", alternatives=("--params",), why="it trusts the effect files a model file names")
 def run_cmd(
     port: str = typer.Option(..., help="serial device or pyserial URL of the rig (or of `drillgym rig emulate`)"),
     controller: str | None = typer.Option(
@@ -260,8 +261,6 @@ def run_cmd(
     if policy is not None and trained_agent(policy):  # a trained agent runs as the controller agent:PATH
         controller, policy = f"agent:{policy}", None
     model = None
-    if trust and params is None and model_file is None:
-        raise InputError("--trust needs --model or --params (it trusts the effect files a model file names)")
     if params is not None:
         if controller is None or controller.startswith(("const:", "play:", "agent:")):
             raise InputError(
