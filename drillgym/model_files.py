@@ -7,13 +7,14 @@ plants of ``evaluate --plants-file``) and list the effect files it names, withou
 from __future__ import annotations
 
 import hashlib
-import json
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from .errors import MissingFileError
+from .io.paths import describe_parse_error
+from .io.structured import load_structured
 from .params import ParameterError, number
 
 __all__ = ["CodeFile", "code_files", "FORMAT", "VERSION"]
@@ -80,14 +81,11 @@ def _read(path: Path) -> Mapping[str, Any]:
     except UnicodeDecodeError:
         raise ParameterError(f"{path}: not a model file (not UTF-8 text)") from None
     try:
-        if path.suffix.lower() in (".yaml", ".yml"):
-            import yaml
-
-            data = yaml.safe_load(text)
-        else:
-            data = json.loads(text)
+        data = load_structured(text, path.suffix)
     except Exception as exc:  # noqa: BLE001 - any parse error, one line with the file name
-        raise ParameterError(f"{path}: not valid {path.suffix.lstrip('.') or 'JSON'}: {exc}") from None
+        raise ParameterError(
+            f"{path}: not valid {path.suffix.lstrip('.') or 'JSON'}: {describe_parse_error(exc)}"
+        ) from None
     if not isinstance(data, Mapping):
         raise ParameterError(f"{path}: a model file holds a mapping (params, effects), got {type(data).__name__}")
     if "format" in data and data["format"] != FORMAT:

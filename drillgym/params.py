@@ -15,7 +15,6 @@ bounds are refused with an error that names the parameter.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
@@ -244,7 +243,7 @@ class RigParams:
         """
         if not isinstance(data, Mapping):
             raise ParameterError(f"{source}: expected a mapping of parameter names to numbers")
-        if "params" in data and isinstance(data["params"], Mapping):
+        if ("params" in data and isinstance(data["params"], Mapping)) or isinstance(data.get("effects"), list):
             effects = data.get("effects")
             if effects:  # a model file: its effects would be dropped without a word
                 names = ", ".join(str(e.get("name", e.get("spec"))) for e in effects if isinstance(e, Mapping))
@@ -253,7 +252,7 @@ class RigParams:
                     f"{source}: a model file with effects ({names}), read here for base parameters "
                     "only: give it as a model (--model FILE, model=)"
                 )
-            data = data["params"]
+            data = data.get("params", {})
         unknown = set(data) - set(PARAM_INFO)
         if unknown:
             raise ParameterError(f"{source}: unknown parameter(s): {', '.join(sorted(unknown))}")
@@ -302,12 +301,9 @@ class RigParams:
                 f"{path}: not a parameter file (not UTF-8 text); give a JSON or YAML file of name: value"
             ) from None
         try:
-            if path.suffix.lower() in (".yaml", ".yml"):
-                import yaml
+            from .io.structured import load_structured
 
-                data = yaml.safe_load(text)
-            else:
-                data = json.loads(text)
+            data = load_structured(text, path.suffix)
         except Exception as exc:  # noqa: BLE001 - report any parse error with the file name
             from .io import describe_parse_error
 

@@ -123,11 +123,15 @@ def _edited(edit: Callable[[dict], None]) -> dict:
 
 
 #: hostile model files (name -> text, or a change of :data:`GOOD_MODEL`): each must be refused in one line
-#: naming the file, by every reader of a model file (``Model.load``, ``--model``, ``--params`` of diagnose)
+#: naming the file, by every reader of a model file (``Model.load``, ``--model``, ``--params`` of diagnose); a
+#: key given twice is refused, not read as its last value
 HOSTILE_MODELS: dict[str, str | Callable[[dict], None]] = {
     "huge_integer": '{"params": {"Jl": 1' + "0" * 400 + "}}",
     "huge_integer_value": '{"effects": [{"spec": "motor_lag", "values": {"tau_m": 1' + "0" * 400 + "}}]}",
     "huge_integer_std": '{"params": {}, "std": {"Jl": 1' + "0" * 400 + "}}",
+    "duplicate_key": '{"params": {"Jl": 0.04, "Jl": 0.05}}',
+    "duplicate_key.yaml": "params:\n  Jl: 0.04\n  Jl: 0.05\n",
+    "duplicate_effect_key.yaml": "effects:\n  - spec: motor_lag\n    values: {tau_m: 0.03, tau_m: 0.04}\n",
     "provenance_types": lambda d: d.update(provenance={"route": 3, "settings": [1]}),
     "provenance_settings_list": lambda d: d["provenance"].update(settings=[["a", 1, 2]]),
     "later_version": lambda d: d.update(version=99),
@@ -144,7 +148,8 @@ HOSTILE_MODELS: dict[str, str | Callable[[dict], None]] = {
 
 
 def build_hostile_models(root: Path) -> dict[str, str]:
-    """Write :data:`HOSTILE_MODELS` under ``root/models/`` (NAME.json); returns name -> path."""
+    """Write :data:`HOSTILE_MODELS` under ``root/models/`` (NAME.json, or NAME as given when it has a suffix);
+    returns name -> path."""
     import json
 
     folder = root / "models"
@@ -152,8 +157,9 @@ def build_hostile_models(root: Path) -> dict[str, str]:
     out = {}
     for name, what in HOSTILE_MODELS.items():
         text = what if isinstance(what, str) else json.dumps(_edited(what))
-        (folder / f"{name}.json").write_text(text)
-        out[name] = str(folder / f"{name}.json")
+        file = folder / (name if "." in name else f"{name}.json")
+        file.write_text(text)
+        out[name] = str(file)
     return out
 
 

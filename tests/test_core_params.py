@@ -107,3 +107,33 @@ def test_effect_parameters_are_not_rig_parameters():
     """Effects own their parameters (drillgym.effects): RigParams holds the base model only."""
     with pytest.raises(ParameterError, match="unknown parameter"):
         RigParams().replace(tau_m=0.1)
+
+
+@pytest.mark.parametrize(
+    "name, text",
+    [
+        ("p.json", '{"Jl": 0.04, "Ts": 0.3, "Jl": 0.05}'),
+        ("p.yaml", "Jl: 0.04\nTs: 0.3\nJl: 0.05\n"),
+        ("m.json", '{"params": {"Jl": 0.04}, "params": {"Ts": 0.3}}'),
+    ],
+)
+def test_a_parameter_file_giving_a_name_twice_is_refused(tmp_path, name, text):
+    """A name given twice is ambiguous (the parsers would keep the last one without a word): refused, naming it."""
+    (tmp_path / name).write_text(text)
+    with pytest.raises(ParameterError, match="given twice") as err:
+        RigParams.from_file(tmp_path / name)
+    key = "params" if name.startswith("m") else "Jl"
+    assert f"'{key}'" in str(err.value) and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("text", ["Jl: 4.5e-2\n", "Jl: 45e-3\n", "Jl: 4.5E-2\n"])
+def test_a_yaml_number_in_exponent_form_is_a_number(tmp_path, text):
+    """``45e-3`` is a number in JSON and YAML 1.2; PyYAML's YAML 1.1 reads it as text."""
+    (tmp_path / "p.yaml").write_text(text)
+    assert RigParams.from_file(tmp_path / "p.yaml").Jl == pytest.approx(0.045)
+
+
+def test_a_parameter_file_that_is_a_model_with_effects_only_is_refused(tmp_path):
+    (tmp_path / "m.json").write_text('{"effects": [{"spec": "motor_lag"}]}')
+    with pytest.raises(ParameterError, match=r"model file with effects \(motor_lag\)"):
+        RigParams.from_file(tmp_path / "m.json")

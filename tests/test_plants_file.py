@@ -242,3 +242,13 @@ def test_the_example_file_reads():
     assert [p.name for p in plants.plants] == ["nominal", "worn-brake-slow-amplifier", "stiffening-string"]
     assert plants.groups() == [[0], [1], [2]]
     assert plants.plants[1].model.names == ["motor_lag", "input_delay"] and plants.plants[1].counts_per_rev == 2048
+
+
+def test_a_plants_file_giving_a_key_twice_is_refused(tmp_path):
+    """The second ``params`` of one plant would replace the first without a word: refused, naming the key and line."""
+    from controllers.evaluation.plants_file import load_plants
+    from drillgym.errors import InputError
+
+    (tmp_path / "p.yaml").write_text("plants:\n  - name: a\n    params: {Ts: 0.3}\n    params: {Ts: 0.4}\n")
+    with pytest.raises(InputError, match=r"line 4.*'params' is given twice"):
+        load_plants(tmp_path / "p.yaml")

@@ -37,6 +37,7 @@ import numpy as np
 from drillgym import RigParams
 from drillgym.errors import InputError, MissingFileError
 from drillgym.io import describe_parse_error
+from drillgym.io.structured import load_yaml
 from drillgym.measurement import DEFAULT_COUNTS_PER_REV
 from drillgym.model import Model
 
@@ -154,7 +155,7 @@ def _read(path: Path) -> Any:
     if path.is_dir():
         raise InputError(f"{path}: is a folder, not a plants file")
     try:
-        return yaml.safe_load(path.read_text(encoding="utf-8"))
+        return load_yaml(path.read_text(encoding="utf-8"))
     except OSError as exc:
         raise InputError(f"{path}: cannot read the plants file ({exc.strerror})") from None
     except UnicodeDecodeError as exc:
