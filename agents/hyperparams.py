@@ -47,6 +47,7 @@ import yaml
 
 from drillgym.errors import InputError, MissingFileError
 from drillgym.io import describe_parse_error
+from drillgym.io.structured import load_yaml
 
 __all__ = [
     "HYPERPARAMS_DIR",
@@ -160,7 +161,7 @@ def load_hyperparams(
     if not f.is_file():
         raise MissingFileError(f"hyperparameter file {f} not found")
     try:
-        data = yaml.safe_load(f.read_text()) or {}
+        data = load_yaml(f.read_text()) or {}
     except yaml.YAMLError as exc:
         raise InputError(f"hyperparameter file {f} is not valid YAML: {describe_parse_error(exc)}") from exc
     if env_id not in data and fallback is not None and fallback in data:

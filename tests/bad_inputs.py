@@ -59,6 +59,7 @@ class Assets:
             "raising_effect": "raising_effect.py",
             "text": "notes.txt",
             "policy_zip": "model.zip",
+            "duplicate_key_yaml": "duplicate_key.yaml",
         }
         if name in names:
             return str(self.root / names[name])
@@ -98,6 +99,7 @@ def build_assets(root: Path) -> Assets:
     (root / "model.zip").write_bytes(b"PK\x03\x04 not really a zip")
     (root / "exiting_effect.py").write_text("import sys\nsys.exit(3)\n")
     (root / "raising_effect.py").write_text("raise RuntimeError('broken at import')\n")
+    (root / "duplicate_key.yaml").write_text("Jl: 0.04\nJl: 0.05\n")  # a mapping that gives one key twice
     return a
 
 
@@ -328,6 +330,7 @@ def input_file_bad(a: Assets, *, kinds: tuple[str, ...] = ("missing", "dir", "ga
         "binary": a.binary,
         "text": a.text,
         "proc": "/proc/self/nonexistent.csv",
+        "duplicate_key_yaml": a.duplicate_key_yaml,
     }
     return st.sampled_from([table[k] for k in kinds])
 

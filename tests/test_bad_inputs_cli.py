@@ -680,3 +680,48 @@ def test_every_consumer_of_a_model_file_refuses_a_hostile_one(consumer, hostile_
     for name in ("huge_integer", "provenance_types", "later_version"):
         argv = [*_model_consumers(a, work)[consumer], "--model", hostile_models[name]]
         assert check_case(Case(argv, ("--model",)), root) == "refused", name
+
+
+@pytest.mark.parametrize(
+    "argv, option",
+    [
+        (["simulate", "--u", "1", "--duration", "0.1", "--params", "{F}"], "--params"),
+        (["simulate", "--u", "1", "--duration", "0.1", "--model", "{F}"], "--model"),
+        (
+            [
+                "evaluate",
+                "--controllers",
+                "baseline",
+                "--targets",
+                "1",
+                "--scenarios",
+                "plants",
+                "--uncertainty",
+                "{F}",
+            ],
+            "--uncertainty",
+        ),
+        (
+            [
+                "evaluate",
+                "--controllers",
+                "baseline",
+                "--targets",
+                "1",
+                "--scenarios",
+                "plants",
+                "--plants-file",
+                "{F}",
+            ],
+            "--plants-file",
+        ),
+        (["train", "--timesteps", "1", "--no-progress", "--no-tensorboard", "--hyperparams", "{F}"], "--hyperparams"),
+    ],
+    ids=["params", "model", "uncertainty", "plants-file", "hyperparams"],
+)
+def test_every_reader_of_a_yaml_file_refuses_a_key_given_twice(argv, option, a, root):
+    """A key given twice is refused by every reader of a user's YAML file (the parsers keep the last without a word)."""
+    work = fresh_dir(root)
+    argv = [w.replace("{F}", a.duplicate_key_yaml) for w in argv] + ["--out", str(work / "out")]
+    line = assert_refused(*run_cli(*argv)[::2], option)
+    assert "twice" in line, line

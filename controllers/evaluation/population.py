@@ -26,6 +26,7 @@ from drillgym import RigParams
 from drillgym.effects import Composition, compose
 from drillgym.errors import InputError
 from drillgym.io import describe_parse_error
+from drillgym.io.structured import load_yaml
 from drillgym.params import PARAM_NAMES
 
 __all__ = ["DEFAULT_UNCERTAINTY", "UncertaintySet", "PlantPopulation", "load_uncertainty", "sample_plants"]
@@ -126,7 +127,7 @@ def load_uncertainty(path: str | Path | None = None) -> UncertaintySet:
 
     path = Path(path) if path is not None else DEFAULT_UNCERTAINTY
     try:
-        raw = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+        raw = load_yaml(path.read_text(encoding="utf-8")) or {}
     except OSError as exc:
         raise InputError(f"uncertainty set {path}: cannot read it ({exc.strerror})") from None
     except UnicodeDecodeError as exc:
