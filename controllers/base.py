@@ -30,7 +30,8 @@ from typing import ClassVar
 import numpy as np
 
 from drillgym import Configuration, RigParams, parse_configuration
-from drillgym.errors import InputError
+from drillgym.errors import InputError, InputTypeError
+from drillgym.run_setup import real_number
 
 __all__ = ["Controller", "MEASUREMENTS", "U_MAX", "DEFAULT_CONTROL_DT", "Measurement"]
 
@@ -96,7 +97,8 @@ class Controller(ABC):
         u_max: float = U_MAX,
         model=None,
     ) -> None:
-        dt = type(self).default_dt if dt is None else dt
+        dt = type(self).default_dt if dt is None else real_number("dt", dt, "s")
+        u_max = real_number("u_max", u_max, "V")
         if not (np.isfinite(dt) and dt > 0):
             raise InputError(f"control period dt must be a positive number of seconds, got {dt!r}")
         if not (np.isfinite(u_max) and u_max > 0):
@@ -292,7 +294,12 @@ class Controller(ABC):
 
 
 def _check_ref(ref: float | np.ndarray) -> np.ndarray:
-    r = np.atleast_1d(np.asarray(ref, dtype=float))
+    if ref is None or isinstance(ref, (str, bytes, bool)):
+        raise InputTypeError(f"omega_ref must be a speed or an array of speeds (rad/s), got {ref!r}")
+    try:
+        r = np.atleast_1d(np.asarray(ref, dtype=float))
+    except (TypeError, ValueError):
+        raise InputTypeError(f"omega_ref must hold speeds (rad/s), got {ref!r}") from None
     if not np.all(np.isfinite(r)) or np.any(r <= 0):
         raise InputError(f"omega_ref must be positive finite speeds (rad/s), got {ref!r}")
     return r

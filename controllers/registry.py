@@ -186,6 +186,10 @@ def make(name: str, config: str = "torsional", omega_ref=None, params=None, **kw
         The name is unknown, its period is malformed or contradicts ``dt``, ``agent:`` has no path,
         or no agent loader is available.
     """
+    if not isinstance(name, str):
+        raise InputTypeError(
+            f"controller name must be a text (one of {', '.join(available())} or agent:PATH), got {name!r}"
+        )
     name, dt = split_period(name)
     if dt is not None:
         if kw.get("dt") is not None and abs(kw["dt"] - dt) > 1e-12:
@@ -199,4 +203,49 @@ def make(name: str, config: str = "torsional", omega_ref=None, params=None, **kw
         return loader(path, config=config, omega_ref=omega_ref, params=params, **kw)
     if name not in CONTROLLERS:
         raise InputError(f"unknown controller {name!r}; choose from {', '.join(available())} or agent:PATH")
+    _check_keywords(CONTROLLERS[name], name, kw)
     return CONTROLLERS[name](omega_ref, config=config, params=params, **kw)
+
+
+def _check_keywords(cls: type, name: str, kw: dict) -> None:
+    """Refuse a keyword the controller's constructor does not take (naming it and those it takes), and a value
+    that is not a number for a keyword whose default is one. The keywords are those of the constructors along
+    the class's bases for as long as each passes ``**kw`` on."""
+    import inspect
+
+    taken: dict[str, inspect.Parameter] = {}
+    for klass in cls.__mro__:
+        init = klass.__dict__.get("__init__")
+        if init is None:
+            continue
+        params = inspect.signature(init).parameters
+        for n, p in params.items():
+            if n != "self" and p.kind not in (inspect.Parameter.VAR_POSITIONAL, inspect.Parameter.VAR_KEYWORD):
+                taken.setdefault(n, p)
+        if not any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
+            break
+    else:  # every constructor passes **kw on: nothing to tell
+        return
+    unknown = sorted(set(kw) - set(taken))
+    if unknown:
+        raise InputError(
+            f"controller {name!r} takes no keyword {', '.join(map(repr, unknown))}; it takes {', '.join(taken)}"
+        )
+    _check_numbers(taken, name, kw)
+
+
+def _check_numbers(taken: dict, name: str, kw: dict) -> None:
+    """Refuse a value that is not a number for a keyword whose default is one (``dt="0.01"``); None passes (some
+    controllers take it to switch a part off)."""
+    import numbers
+
+    import numpy as np
+
+    for key, value in kw.items():
+        default = taken[key].default
+        if isinstance(default, bool) or not isinstance(default, numbers.Real):
+            continue
+        if isinstance(value, np.ndarray) and value.ndim == 0:
+            value = value.item()
+        if value is not None and (isinstance(value, bool) or not isinstance(value, numbers.Real)):
+            raise InputTypeError(f"controller {name!r}: {key} must be a number, got {value!r}")

@@ -45,6 +45,7 @@ from drillgym.effects.base import Input
 from drillgym.equilibria import equilibrium_voltage
 from drillgym.errors import InputError
 from drillgym.friction import lower_friction
+from drillgym.run_setup import real_number, whole_number
 
 from .base import Controller
 from .dynamics import ModelDynamics
@@ -209,6 +210,8 @@ class TwoEncoderLQG(Controller):
             raise InputError(f"tau_ref must be a positive time (s), got {tau_ref!r}")
         self.design = design or TwoEncoderDesign()
         if counts_per_rev is not None:  # the encoders' resolution is known: it sets the measurement noise
+            counts_per_rev = whole_number("counts_per_rev", counts_per_rev, 1)
+            angle_noise = real_number("angle_noise", angle_noise, "rad")
             if not (
                 np.isfinite(counts_per_rev) and counts_per_rev >= 1 and np.isfinite(angle_noise) and angle_noise >= 0
             ):

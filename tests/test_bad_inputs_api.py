@@ -154,6 +154,72 @@ def test_controllers_make(name, kw):
     refused(lambda: controllers.make(name, **kw), name.split("@")[0].split(":")[0], "config", "period", "nope")
 
 
+#: arguments of controllers.make of the wrong type or value, with what the refusal names (drawn for several names)
+MAKE_BAD = {
+    "name": [None, 3, ["observer"]],
+    "omega_ref": ["fast", [1.0, "x"], object(), float("nan"), -1.0],
+    "dt": ["0.01", [0.01], 0.0, float("nan")],
+    "u_max": ["5", -1.0],
+    "counts_per_rev": [1.5, "2048", 0, -5],
+    "hold": ["long"],
+    "colour": [1],
+    "model": [3, {"params": {}}, "/no/such/model.json"],
+}
+MAKE_FOR = {"counts_per_rev": "lqg-2enc", "hold": "lqg-2enc"}
+
+
+@examples(30)
+@given(data=st.data())
+def test_controllers_make_refuses_wrong_types(data):
+    """controllers.make raises a DrillgymError naming the argument for any wrong type or value (never a bare
+    TypeError, ValueError or AttributeError from deep inside a constructor)."""
+    import controllers
+
+    arg, value = draw_kwargs(data, MAKE_BAD)
+    name = MAKE_FOR.get(arg, data.draw(st.sampled_from(["observer", "lqg", "pi", "descent"]), label="controller"))
+    if arg == "name":
+        refused(lambda: controllers.make(value), "controller name")
+    elif arg == "omega_ref":
+        refused(lambda: controllers.make(name, omega_ref=value), "omega_ref")
+    else:
+        refused(lambda: controllers.make(name, **{arg: value}), arg, "model")
+
+
+CLOSED_LOOP_BAD = {
+    "controller": ["observer", None, 3],
+    "omega_ref": ["fast", [2.0, "x"], float("nan")],
+    "duration": ["0.1", None, 0.0, 1e-6],
+    "counts_per_rev": ["x", -5, 1.5, [1, 2, 3]],
+    "angle_noise": ["x", -1.0, float("inf")],
+    "seed": ["x", 1.5, -1],
+    "sim_dt": [0.0, float("nan"), "0.001"],
+    "params": ["x"],
+    "compiled": ["yes"],
+}
+
+
+@examples(25)
+@given(data=st.data())
+def test_run_closed_loop_refuses_wrong_types(data):
+    """The compiled closed loop's entry point refuses a wrong argument in a DrillgymError naming it."""
+    import controllers
+    from controllers.evaluation.runner import run_closed_loop
+
+    arg, value = draw_kwargs(data, CLOSED_LOOP_BAD)
+    kw = {"controller": controllers.make("observer"), "config": "torsional", "omega_ref": [2.0, 3.0], "duration": 0.1}
+    kw[arg] = value
+    refused(lambda: run_closed_loop(**kw), arg, "period")
+
+
+def test_run_closed_loop_refuses_a_model_given_as_params():
+    import controllers
+    from controllers.evaluation.runner import run_closed_loop
+
+    m = drillgym.Model(effects=("motor_lag",), values={"tau_m": 0.03})
+    msg = refused(lambda: run_closed_loop(controllers.make("observer"), "torsional", [2.0], 0.1, params=m), "params")
+    assert "effects=model.composition" in msg
+
+
 EVAL_BAD = {
     "controllers": [[], ["nope"], ["baseline@0"], ["agent:/no/such.npz"]],
     "configs": [[], ["nope"], ["upper"], ["free_vibration"]],

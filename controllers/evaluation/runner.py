@@ -22,10 +22,11 @@ from typing import Any
 
 import numpy as np
 
-from drillgym import BatchSimulator, Configuration, parse_configuration
+from drillgym import BatchSimulator, Configuration, Model, parse_configuration
 from drillgym.closed_loop import LoopSignals, run_compiled_loop
-from drillgym.errors import InputError
+from drillgym.errors import InputError, InputTypeError
 from drillgym.measurement import DEFAULT_COUNTS_PER_REV
+from drillgym.run_setup import real_number, real_numbers, whole_number
 
 from ..base import Controller
 
@@ -48,6 +49,14 @@ class ClosedLoopRun(LoopSignals):
     @property
     def dt(self) -> float:
         return float(self.t[1] - self.t[0])
+
+
+def _per_run(name: str, value: Any, n: int, unit: str) -> np.ndarray:
+    """``value`` (one number, or one per run) as an array of ``n`` numbers."""
+    array = real_numbers(name, value, unit)
+    if array.ndim > 1 or array.size not in (1, n):
+        raise InputError(f"{name} must be one number or one per run ({n}), got shape {array.shape}")
+    return np.broadcast_to(array.reshape(-1), (n,)).copy()
 
 
 def run_closed_loop(
@@ -112,11 +121,35 @@ def run_closed_loop(
     InputError
         Bad settings, or ``compiled=True`` for a controller without a compiled law.
     """
+    if not isinstance(controller, Controller):
+        raise InputTypeError(
+            f"controller must be a controllers.Controller (controllers.make(name)), got {type(controller).__name__}"
+        )
     cfg = parse_configuration(config)
-    ref = np.atleast_1d(np.asarray(omega_ref, dtype=float))
+    ref = np.atleast_1d(real_numbers("omega_ref", omega_ref, "rad/s"))
     n = ref.size
+    duration = real_number("duration", duration, "s")
     if not (np.isfinite(duration) and duration > 0):
         raise InputError(f"duration must be a positive number of seconds, got {duration!r}")
+    if round(duration / controller.dt) < 1:
+        raise InputError(f"duration {duration:g} s is shorter than one control period ({controller.dt:g} s)")
+    sim_dt = real_number("sim_dt", sim_dt, "s")
+    if not (np.isfinite(sim_dt) and sim_dt > 0):
+        raise InputError(f"sim_dt must be a positive number of seconds, got {sim_dt!r}")
+    seed = whole_number("seed", seed, 0)
+    if compiled is not None and not isinstance(compiled, (bool, np.bool_)):
+        raise InputTypeError(f"compiled must be True, False or None, got {compiled!r}")
+    cpr, noise = (
+        _per_run(k, v, n, u)
+        for k, v, u in (("counts_per_rev", counts_per_rev, "counts/rev"), ("angle_noise", angle_noise, "rad"))
+    )
+    if np.any(cpr < 0) or np.any(cpr != np.round(cpr)):
+        raise InputError(f"counts_per_rev must be whole numbers >= 0 (0: exact angles), got {counts_per_rev!r}")
+    if isinstance(params, Model):
+        raise InputTypeError(
+            "params is a drillgym.Model: give params=model.params, effects=model.composition, "
+            "effect_params=dict(model.values)"
+        )
     sub = int(round(controller.dt / sim_dt))
     if sub < 1 or abs(sub * sim_dt - controller.dt) > 1e-9:
         raise InputError(f"control period {controller.dt} s must be a multiple of the integrator step {sim_dt} s")
@@ -124,8 +157,6 @@ def run_closed_loop(
     sim = BatchSimulator(cfg, n, params=params, dt=sim_dt, effects=effects, effect_params=effect_params)
     sim.reset(alpha0=alpha0, x0=x0)
     rng = np.random.default_rng(seed)
-    cpr = np.broadcast_to(np.asarray(counts_per_rev, dtype=float), (n,)).copy()
-    noise = np.broadcast_to(np.asarray(angle_noise, dtype=float), (n,)).copy()
     if np.any(noise < 0) or not np.all(np.isfinite(noise)):
         raise InputError("angle_noise must be non-negative (rad)")
     t = np.arange(m) * controller.dt
