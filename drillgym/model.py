@@ -367,7 +367,8 @@ class Model:
             A file that cannot be used (the message names the file).
         """
         path = Path(path)
-        return cls.from_mapping(_read(path), path, trust=trust)
+        # effect files resolve beside the file itself, not beside a link to it (a linked model file still runs)
+        return cls.from_mapping(_read(path), path.resolve(), trust=trust, where=str(path))
 
     @classmethod
     def from_mapping(

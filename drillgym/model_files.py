@@ -172,7 +172,7 @@ def code_files(path: str | Path) -> list[CodeFile]:
         One per file effect: where it is, whether it lies in the model's folder, whether its hash matches.
     """
     path = Path(path)
-    return _code_files(_read(path), path)
+    return _code_files(_read(path), path.resolve())
 
 
 def _std(raw: Any, path: str | Path, what: str) -> dict[str, float]:

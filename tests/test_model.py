@@ -111,3 +111,18 @@ def test_a_model_pickles_and_copies_with_its_effect_files(tmp_path):
     m = Model(effects=("motor_lag", f"{EXAMPLE}:string_cubic"), values={"tau_m": 0.02, "c3": 0.03}, std={"c3": 0.001})
     for back in (pickle.loads(pickle.dumps(m)), copy.deepcopy(m)):
         assert back == m and back.std["c3"] == 0.001
+
+
+def test_a_link_to_a_model_file_runs_its_effect_files(tmp_path):
+    """A model file reached through a symbolic link (``current.json -> runs/a/model.json``) finds its effect files
+    beside the file it links to, trusted as there, not a file of that name beside the link (here the original)."""
+    src = Path(__file__).resolve().parents[1] / "examples" / "effects" / "string_cubic.py"
+    shutil.copy(src, tmp_path / "string_cubic.py")
+    m = Model(effects=("motor_lag", str(tmp_path / "string_cubic.py") + ":string_cubic"), values={"c3": 0.1})
+    m.save(tmp_path / "runs" / "a" / "model.json")
+    (tmp_path / "current.json").symlink_to(tmp_path / "runs" / "a" / "model.json")
+    assert Model.load(tmp_path / "current.json") == Model.load(tmp_path / "runs" / "a" / "model.json")
+    assert [c.trusted for c in code_files(tmp_path / "current.json")] == [True]
+    (tmp_path / "runs" / "a" / "string_cubic.py").write_text("# edited\n")
+    with pytest.raises(UntrustedCodeError, match=r"current\.json.*changed since"):
+        Model.load(tmp_path / "current.json")

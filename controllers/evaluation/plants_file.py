@@ -240,7 +240,8 @@ def load_plants(path: str | Path, *, trust: bool = False, params: RigParams | No
         raise InputError(f"{source}: a plants file holds one key, 'plants': a list of plants (name, {_KEYS[1]}, ...)")
     if not entries:
         raise InputError(f"{source}: 'plants' is empty; list at least one plant")
-    plants = tuple(_plant(e, k, path, source, trust, params) for k, e in enumerate(entries))
+    real = Path(path).resolve()  # effect files resolve beside the file itself, not beside a link to it
+    plants = tuple(_plant(e, k, real, source, trust, params) for k, e in enumerate(entries))
     seen: dict[str, int] = {}
     for k, p in enumerate(plants):
         if p.name in seen:
