@@ -55,7 +55,7 @@ import numpy as np
 
 from .effects import Composition, EffectError, compose
 from .effects.base import Effect
-from .errors import InputError
+from .errors import InputError, InputTypeError
 from .io.jsonfile import write_json
 from .model_files import (
     FORMAT,
@@ -133,6 +133,15 @@ _PROVENANCE_TYPES: dict[str, tuple[Any, str]] = {
 }
 
 
+def _numbers(mapping: Any, what: str) -> dict[str, float]:
+    """``mapping`` (None: empty) as ``name -> float``, refused unless it maps names to numbers."""
+    if mapping is None:
+        return {}
+    if not isinstance(mapping, Mapping):
+        raise InputTypeError(f"Model: {what} must map parameter names to numbers, got {type(mapping).__name__}")
+    return {str(k): number(v, f"Model: {what}: {k!r}") for k, v in mapping.items()}
+
+
 def _frozen(mapping: Mapping[str, float] | None) -> Mapping[str, float]:
     return MappingProxyType({str(k): float(v) for k, v in (mapping or {}).items()})
 
@@ -177,10 +186,24 @@ class Model:
         effects = self.effects
         if isinstance(effects, (str, Composition)) or isinstance(effects, type):
             effects = effects.effects if isinstance(effects, Composition) else (effects,)
+        if effects is None or isinstance(effects, (bytes, Mapping)) or not hasattr(effects, "__iter__"):
+            raise InputTypeError(
+                "Model: effects must be a sequence of effects (library names, 'path/file.py:NAME' or Effect "
+                f"classes), got {type(effects).__name__}"
+            )
+        if not isinstance(self.provenance, Provenance):
+            raise InputTypeError(f"Model: provenance must be a Provenance, got {type(self.provenance).__name__}")
         object.__setattr__(self, "effects", tuple(effects))
-        comp, values = compose(list(self.effects), dict(self.values or {}))
+        given = _numbers(self.values, "values")
+        std = _numbers(self.std, "std")
+        negative = [k for k, v in std.items() if v < 0]
+        if negative:
+            raise ParameterError(
+                f"Model: std: the standard error of {negative[0]!r} must be >= 0, got {std[negative[0]]}"
+            )
+        comp, values = compose(list(self.effects), given)
         object.__setattr__(self, "values", _frozen(values))
-        object.__setattr__(self, "std", _frozen({k: v for k, v in (self.std or {}).items() if math.isfinite(v)}))
+        object.__setattr__(self, "std", _frozen({k: v for k, v in std.items() if math.isfinite(v)}))
         object.__setattr__(self, "_composition", comp)
 
     # ------------------------------------------------------------------ views
@@ -302,9 +325,12 @@ class Model:
             A suffix other than a model file's, or an effect defined in Python code rather than in a file or
             the library (it cannot be written).
         """
-        path = Path(path)
+        path = _as_path(path, "Model.save: path")
         if path.suffix.lower() not in MODEL_SUFFIXES:
             raise InputError(f"{path}: a model file must end in .json, .yaml or .yml")
+        from .io.outputs import check_output_file
+
+        check_output_file(path, "Model.save:", MODEL_SUFFIXES)  # before an effect file is copied beside it
         folder = path.parent
         folder.mkdir(parents=True, exist_ok=True)
         records = []
@@ -366,7 +392,8 @@ class Model:
         ParameterError
             A file that cannot be used (the message names the file).
         """
-        path = Path(path)
+        path = _as_path(path, "Model.load: path")
+        _as_flag(trust, "Model.load: trust")
         # effect files resolve beside the file itself, not beside a link to it (a linked model file still runs)
         return cls.from_mapping(_read(path), path.resolve(), trust=trust, where=str(path))
 
@@ -402,7 +429,10 @@ class Model:
         UntrustedCodeError, ParameterError
             As :meth:`load`, the messages led by ``where``.
         """
-        path, where = Path(path), where or str(path)
+        path, where = _as_path(path, "Model.from_mapping: path"), where or str(path)
+        _as_flag(trust, "Model.from_mapping: trust")
+        if not isinstance(data, Mapping):
+            raise InputTypeError(f"{where}: a model is a mapping (params, effects, ...), got {type(data).__name__}")
         records = _effect_records(data, where)  # malformed records: named by ``where`` before the files are listed
         if not trust:
             ok = (lambda c: c.trusted) if hashed else (lambda c: c.inside and (c.recorded_sha256 is None or c.matches))
@@ -457,6 +487,19 @@ def _check_records(records: list[Mapping[str, Any]], base_std: Mapping[str, Any]
                     f"{where}: effect record {k} ({effect.name}): {key} names {', '.join(other)}, not a parameter "
                     f"of {effect.name} (it has {', '.join(sorted(own)) or 'none'})"
                 )
+
+
+def _as_path(value: Any, who: str) -> Path:
+    """``value`` as a path, refused unless it is a text or path-like."""
+    if isinstance(value, (str, Path)) or hasattr(value, "__fspath__"):
+        return Path(value)
+    raise InputTypeError(f"{who} must be a file's path (text or path-like), got {type(value).__name__}")
+
+
+def _as_flag(value: Any, who: str) -> None:
+    """Refuse a ``trust`` that is not True or False: ``trust="no"`` would run the code it names."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise InputTypeError(f"{who} must be True or False, got {value!r}")
 
 
 def _library_effect(cls: type[Effect]) -> Any:

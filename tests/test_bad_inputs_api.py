@@ -512,3 +512,53 @@ def test_model_load_refuses_a_hostile_model_file(name, hostile_models):
     """Model.load raises a DrillgymError naming the file (never an OverflowError, a TypeError, or a model that
     silently drops or misplaces what the file says)."""
     refused(lambda: drillgym.Model.load(hostile_models[name]), hostile_models[name])
+
+
+#: arguments of drillgym.Model of the wrong type or value (each refused in a DrillgymError naming it)
+MODEL_BAD = {
+    "effects": [3, None, 2.5, {"motor_lag": 1}],
+    "values": [[1.0], "tau_m=0.03", {"tau_m": "0.03"}, {"tau_m": 10**400}, {"tau_m": None}],
+    "std": [[1.0], {"Jl": "x"}, {"Jl": -1.0}, {"Jl": 10**400}],
+    "provenance": [{"route": "user"}, "user"],
+    "params": [{"Jl": 0.04}, "params.json"],
+}
+
+
+@examples(20)
+@given(data=st.data())
+def test_model_refuses_wrong_arguments(data):
+    arg, value = draw_kwargs(data, MODEL_BAD)
+    kw = {"effects": ("motor_lag",), "values": {"tau_m": 0.03}, arg: value}
+    refused(lambda: drillgym.Model(**kw), arg)
+
+
+@pytest.mark.parametrize("path", [None, 3, ["m.json"]])
+def test_model_save_and_load_refuse_a_path_that_is_not_one(path):
+    m = drillgym.Model(effects=("motor_lag",))
+    refused(lambda: m.save(path), "path")
+    refused(lambda: drillgym.Model.load(path), "path")
+
+
+def test_model_save_refuses_an_unwritable_place_before_copying_an_effect_file(tmp_path):
+    """Model.save refuses a place it cannot write in a DrillgymError (not an OSError), before it copies an effect
+    file beside the model."""
+    import shutil
+    from pathlib import Path
+
+    src = Path(__file__).resolve().parents[1] / "examples" / "effects" / "string_cubic.py"
+    shutil.copy(src, tmp_path / "string_cubic.py")
+    m = drillgym.Model(effects=(f"{tmp_path / 'string_cubic.py'}:string_cubic",))
+    (tmp_path / "notes.txt").write_text("the user's\n")
+    refused(lambda: m.save(tmp_path / "notes.txt" / "model.json"), "notes.txt")
+    refused(lambda: m.save("/proc/drillgym_cannot/model.json"), "/proc")
+    (tmp_path / "out.json").mkdir()
+    refused(lambda: m.save(tmp_path / "out.json"), "out.json")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt", "out.json", "string_cubic.py"]
+    assert not any((tmp_path / "out.json").iterdir())
+
+
+@pytest.mark.parametrize("trust", ["no", 0, None, "False"])
+def test_model_load_refuses_a_trust_that_is_not_a_bool(trust, tmp_path):
+    """``trust="no"`` is truthy: read as a bool it would run the code it was meant to refuse."""
+    drillgym.Model(effects=("motor_lag",)).save(tmp_path / "m.json")
+    refused(lambda: drillgym.Model.load(tmp_path / "m.json", trust=trust), "trust")
