@@ -219,12 +219,13 @@ def register(app: typer.Typer) -> None:
         from agents.hyperparams import parse_overrides
         from agents.train import train
         from drillgym.commands.options import option
-        from drillgym.commands.outputs import check_output_dir
+        from drillgym.commands.outputs import check_not_inputs, check_output_dir
         from drillgym.configurations import parse_configuration
         from drillgym.envs import ENV_IDS
         from drillgym.errors import MissingFileError
 
         check_output_dir(out)
+        check_not_inputs(out, "--out", {"--init run": init, "--teacher policy": teacher})
         from agents.task_training import configuration_of, is_task
         from drillgym.envs.tasks import TASKS
 
@@ -376,12 +377,13 @@ def register(app: typer.Typer) -> None:
         import math
 
         from drillgym.commands.options import option
-        from drillgym.commands.outputs import check_output_file
+        from drillgym.commands.outputs import check_not_inputs, check_output_file
 
         if not cuts or not all(math.isfinite(c) and c > 0 for c in cuts) or cuts != sorted(set(cuts)):
             raise InputError(f"--edges must be increasing positive finite speeds (rad/s), got {edges!r}")
         check_output_file(out, "--out", suffixes=(".npz",))
         files = _policy_files(policies)
+        check_not_inputs(out, "--out", {f"network {i}": f for i, f in enumerate(files)})
         with option("POLICIES"):  # its missing directories created once the networks are checked, as --help says
             path = combine(files, cuts, out, note=note)
         typer.echo(f"wrote {path}: {len(files)} networks, handing over at {', '.join(f'{c:g}' for c in cuts)} rad/s")
@@ -397,10 +399,11 @@ def register(app: typer.Typer) -> None:
         output clip); runs wherever a policy.npz does (agents/ensemble.py)."""
         from agents.ensemble import average
         from drillgym.commands.options import option
-        from drillgym.commands.outputs import check_output_file
+        from drillgym.commands.outputs import check_not_inputs, check_output_file
 
         check_output_file(out, "--out", suffixes=(".npz",))
         files = _policy_files(policies)
+        check_not_inputs(out, "--out", {f"network {i}": f for i, f in enumerate(files)})
         with option("POLICIES"):  # its missing directories created once the networks are checked
             path = average(files, out)
         typer.echo(f"wrote {path}: the mean of {len(files)} networks")

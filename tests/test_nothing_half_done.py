@@ -66,6 +66,44 @@ def test_a_refused_train_leaves_out_as_it_was(tmp_path, extra, existing):
     assert existing or not out.exists()
 
 
+# --------------------------------------------------------------------------------------- writing where it reads
+
+
+#: command lines whose output is, or holds, one of their inputs (``{P}``: a policy, ``{R}``: a run directory holding
+#: model.zip and policy.npz, ``{C}``: a recording)
+OUTPUT_IS_INPUT = {
+    "combine-policies": ["combine-policies", "{P}", "{R}", "--edges", "3", "--out", "{P}"],
+    "combine-policies-run": ["combine-policies", "{P}", "{R}", "--edges", "3", "--out", "{R}/policy.npz"],
+    "average-policies": ["average-policies", "{R}", "{P}", "--out", "{P}"],
+    "train-init": ["train", "--algo", "ppo", "--timesteps", "64", "--init", "{R}", "--out", "{R}"],
+    "train-init-file": ["train", "--algo", "ppo", "--timesteps", "64", "--init", "{R}/model.zip", "--out", "{R}"],
+    "train-teacher": ["train", "--algo", "ppo", "--timesteps", "0", "--teacher", "{R}/policy.npz", "--out", "{R}"],
+    "simulate-input": ["simulate", "--input", "{C}", "--duration", "0.1", "--out", "{C}"],
+}
+
+
+@pytest.mark.parametrize("name", sorted(OUTPUT_IS_INPUT))
+def test_an_output_that_is_or_holds_an_input_is_refused(name, a, tmp_path):
+    """A run that would write over what it reads (the networks it combines, the run it starts from, its teacher,
+    its input signal) is refused in one line naming the output, with every file as it was."""
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    shutil.copy(KEPT, run_dir / "policy.npz")
+    shutil.copy(KEPT.parents[1] / "torsional_motor_ppo" / "model.zip", run_dir / "model.zip")
+    z = dict(np.load(KEPT))
+    np.savez(tmp_path / "p.npz", **{k: (v * 1.01).astype(v.dtype) if k.startswith("W") else v for k, v in z.items()})
+    shutil.copy(a.signal, tmp_path / "sig.csv")
+    names = {"{P}": str(tmp_path / "p.npz"), "{R}": str(run_dir), "{C}": str(tmp_path / "sig.csv")}
+    argv = [names.get(w, w) for w in OUTPUT_IS_INPUT[name]]
+    argv = [w.replace("{R}", str(run_dir)) for w in argv]
+    if argv[0] == "train":
+        argv += ["--no-progress", "--no-tensorboard"]
+    before = snapshot(tmp_path)
+    code, _, err = run(argv, tmp_path)
+    assert "--out" in refused_line(code, err)
+    assert snapshot(tmp_path) == before
+
+
 # --------------------------------------------------------------------------------------- options needing another
 
 

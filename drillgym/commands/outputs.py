@@ -2,7 +2,15 @@
 
 from __future__ import annotations
 
-from ..io.outputs import check_figure_file, check_output_dir, check_output_file, figure_file, output_dir, output_file
+from ..io.outputs import (
+    check_figure_file,
+    check_not_inputs,
+    check_output_dir,
+    check_output_file,
+    figure_file,
+    output_dir,
+    output_file,
+)
 
 __all__ = [
     "CREATES_DIRS",
@@ -12,6 +20,7 @@ __all__ = [
     "check_output_dir",
     "figure_file",
     "check_figure_file",
+    "check_not_inputs",
 ]
 
 #: the sentence the --help of every written path ends with

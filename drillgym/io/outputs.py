@@ -35,6 +35,7 @@ __all__ = [
     "check_creatable",
     "check_writable_dir",
     "path_kind",
+    "check_not_inputs",
 ]
 
 
@@ -262,3 +263,36 @@ def figure_file(path: str | Path, option: str = "--plot") -> Path:
     path = check_figure_file(path, option)
     create_directory(path.parent, path)
     return path
+
+
+def check_not_inputs(out: str | Path, option: str, inputs: dict[str, str | Path | None]) -> None:
+    """Refuse an output (a file, or a directory a run writes into) that is, or holds, one of the run's inputs.
+
+    A run that writes where it reads (``train --init RUN --out RUN``, ``simulate --input x.csv --out x.csv``)
+    replaces what it started from: the input is lost and the record of where the output came from points at
+    the output itself.
+
+    Parameters
+    ----------
+    out : str or path-like
+        The output file or directory.
+    option : str
+        The option that named it, for the message.
+    inputs : dict
+        The inputs by the option that named them (None: not given).
+
+    Raises
+    ------
+    OutputPathError
+        An input is ``out`` or lies under it.
+    """
+    target = Path(out).resolve()
+    for name, value in inputs.items():
+        if value is None or not str(value).strip():
+            continue
+        p = Path(value).resolve()
+        if p == target or target in p.parents:
+            raise OutputPathError(
+                f"{option} {out} is or holds the {name} ({value}): the run would replace what it reads; choose "
+                f"another {option}"
+            )
