@@ -79,6 +79,8 @@ OUTPUT_IS_INPUT = {
     "train-init-file": ["train", "--algo", "ppo", "--timesteps", "64", "--init", "{R}/model.zip", "--out", "{R}"],
     "train-teacher": ["train", "--algo", "ppo", "--timesteps", "0", "--teacher", "{R}/policy.npz", "--out", "{R}"],
     "simulate-input": ["simulate", "--input", "{C}", "--duration", "0.1", "--out", "{C}"],
+    "rig-run-play": ["rig", "run", "--port", "loop://", "--controller", "play:{C}", "--duration", "0.1", "--dry-run"]
+    + ["--no-realtime", "--record", "{C}"],
 }
 
 
@@ -95,12 +97,12 @@ def test_an_output_that_is_or_holds_an_input_is_refused(name, a, tmp_path):
     shutil.copy(a.signal, tmp_path / "sig.csv")
     names = {"{P}": str(tmp_path / "p.npz"), "{R}": str(run_dir), "{C}": str(tmp_path / "sig.csv")}
     argv = [names.get(w, w) for w in OUTPUT_IS_INPUT[name]]
-    argv = [w.replace("{R}", str(run_dir)) for w in argv]
+    argv = [w.replace("{R}", str(run_dir)).replace("{C}", names["{C}"]) for w in argv]
     if argv[0] == "train":
         argv += ["--no-progress", "--no-tensorboard"]
     before = snapshot(tmp_path)
     code, _, err = run(argv, tmp_path)
-    assert "--out" in refused_line(code, err)
+    assert ("--record" if argv[0] == "rig" else "--out") in refused_line(code, err)
     assert snapshot(tmp_path) == before
 
 

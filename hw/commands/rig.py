@@ -251,6 +251,10 @@ def run_cmd(
         port, duration, record, config, observation, omega_ref, control_ms, seed, reply_timeout_ms, reconnect,
         reconnect_wait,
     )  # fmt: skip
+    if controller is not None and controller.startswith("play:") and record.suffix.lower() == ".csv":
+        from drillgym.io.outputs import check_not_inputs
+
+        check_not_inputs(record, "--record", {"played input": controller[len("play:") :]})
     hw.register()
     # controller and policy first: a bad one is refused before the port is touched
     if policy is not None and not policy.exists():
