@@ -725,3 +725,24 @@ def test_every_reader_of_a_yaml_file_refuses_a_key_given_twice(argv, option, a, 
     argv = [w.replace("{F}", a.duplicate_key_yaml) for w in argv] + ["--out", str(work / "out")]
     line = assert_refused(*run_cli(*argv)[::2], option)
     assert "twice" in line, line
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["simulate", "--u", "1", "--duration", "0.1", "--out", "{W}/run.csv"],
+        ["compare", "{A}/torsional.csv", "--out", "{W}/cmp"],
+        ["identify", "{A}/torsional.csv", "--out", "{W}/m.json", "--max-nfev", "1", "--segment", "none"],
+        ["bifurcation", "--out", "{W}/bif", "--umax", "1", "--sweep-step", "0"],
+        ["evaluate", "--controllers", "baseline", "--targets", "1", "--out", "{W}/ev"],
+        ["train", "--out", "{W}/run", "--timesteps", "1", "--no-progress", "--no-tensorboard"],
+        ["rig", "emulate", "--port", "{W}/tty", "--no-realtime"],
+    ],
+    ids=lambda argv: " ".join(argv[:2]) if argv[0] == "rig" else argv[0],
+)
+def test_an_effect_parameter_given_twice_is_refused(argv, a, root):
+    """``--effect-param tau_m=0.03 --effect-param tau_m=0.04``: which value was meant is not the tool's to guess."""
+    work = fresh_dir(root)
+    argv = [w.replace("{W}", str(work)).replace("{A}", str(a.root)) for w in argv]
+    argv += ["--add-effect", "motor_lag", "--effect-param", "tau_m=0.03", "--effect-param", "tau_m=0.04"]
+    check_case_within(Case(argv, ("--effect-param 'tau_m=0.04': 'tau_m' is given twice",)), root, seconds=60)

@@ -91,12 +91,15 @@ def model_from_cli(model_file, trust: bool = False, config=None, **beside):
 
 
 def parse_effect_params(items: list[str] | None) -> dict[str, float]:
-    """``["tau_m=0.02", "c3=1.5"]`` -> {"tau_m": 0.02, "c3": 1.5}; a one-line error names a bad item."""
+    """``["tau_m=0.02", "c3=1.5"]`` -> {"tau_m": 0.02, "c3": 1.5}; a one-line error names a bad item (not
+    NAME=VALUE, not a number, a name given twice: which value was meant is not for the tool to guess)."""
     out: dict[str, float] = {}
     for item in items or []:
         name, sep, value = item.partition("=")
         if not sep or not name.strip():
             raise InputError(f"--effect-param {item!r}: expected NAME=VALUE, e.g. tau_m=0.02")
+        if name.strip() in out:
+            raise InputError(f"--effect-param {item!r}: {name.strip()!r} is given twice; give each parameter once")
         try:
             out[name.strip()] = float(value)
         except ValueError:
