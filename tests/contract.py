@@ -142,8 +142,9 @@ class Assets:
 
 
 def build_assets(root: Path) -> Assets:
-    """The bad-inputs assets (recordings of 0.2 s, garbage files, a directory) and two members of one recipe
-    (a kept policy and a copy with other weights), a policy with a NaN weight and one of the wrong shape."""
+    """The bad-inputs assets (recordings of 0.2 s, garbage files, a directory, hostile model files) and two members
+    of one recipe (a kept policy and a copy with other weights), a policy with a NaN weight and one of the wrong
+    shape."""
     import shutil
 
     from bad_inputs import build_assets as bad_input_assets
@@ -162,6 +163,9 @@ def build_assets(root: Path) -> Assets:
     shape["W1"] = shape["W1"][:, :-1]
     np.savez(root / "shape_policy.npz", **shape)
     (root / "model.json").write_text(json.dumps({"effects": [{"spec": "motor_lag", "values": {"tau_m": 0.04}}]}))
+    from bad_inputs import build_hostile_models
+
+    build_hostile_models(root)  # models/NAME.json: model files with one thing wrong
     return Assets(root)
 
 
@@ -273,9 +277,12 @@ def may_refuse(p: Param, a: Assets) -> list[str]:
         return ["keep.txt", "keep.npz", "sub/dir/new" + (".json" if not p.directory else ""), "", "prev"]
     if p.kind == "path":
         policies = [a.p1 + ".npz", a.nan_policy + ".npz", a.shape_policy + ".npz"]
+        hostile = [a.root.as_posix() + f"/models/{n}.json" for n in ("huge_integer", "provenance_types")]
         return [a.empty, a.text, a.garbage_csv, a.garbage_npz, a.broken_json, a.not_params_json, a.torsional, ""] + [
             *policies,
             a.root.as_posix() + "/model.json",
+            *hostile,
+            a.duplicate_key_yaml,
         ]
     return []
 
