@@ -233,6 +233,8 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
             d = d.setdefault(p, {})
             if not isinstance(d, dict):
                 raise InputError(f"hyperparameter override {item!r} conflicts with another one")
+        if leaf in d:
+            raise InputError(f"hyperparameter override {item!r}: {key!r} is given twice (or beside its parts)")
         d[leaf] = v
     return out
 

@@ -118,6 +118,18 @@ def test_training_errors_name_the_problem(tmp_path):
         parse_overrides(["learning_rate"])
 
 
+@pytest.mark.parametrize(
+    "items",
+    [["n_envs=2", "n_envs=4"], ["env_kwargs.motor_history=8", "env_kwargs.motor_history=16"]]
+    + [["env_kwargs.motor_history=8", "env_kwargs={}"]],
+    ids=["twice", "nested-twice", "beside-its-part"],
+)
+def test_an_override_given_twice_is_refused(items):
+    """Two --set of one key: the first would be dropped without a word."""
+    with pytest.raises(ValueError, match="given twice"):
+        parse_overrides(items)
+
+
 def run_cli(capsys, *args) -> tuple[int, str]:
     """``drillgym ARGS`` in this process (torch is imported once): exit code, stdout + stderr."""
     from drillgym.cli import main

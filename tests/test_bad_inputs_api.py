@@ -221,8 +221,8 @@ def test_run_closed_loop_refuses_a_model_given_as_params():
 
 
 EVAL_BAD = {
-    "controllers": [[], ["nope"], ["baseline@0"], ["agent:/no/such.npz"]],
-    "configs": [[], ["nope"], ["upper"], ["free_vibration"]],
+    "controllers": [[], ["nope"], ["baseline@0"], ["agent:/no/such.npz"], ["baseline", "baseline"]],
+    "configs": [[], ["nope"], ["upper"], ["free_vibration"], ["torsional", "torsional"], ["torsional", "TORSIONAL"]],
     "targets": [[], [float("nan")], [-1.0], [0.0], [1e9], ["abc"]],
     "duration": [0.0, -1.0, float("nan"), float("inf")],
     "window": [0.0, -1.0, float("nan"), 100.0],
@@ -244,6 +244,18 @@ def test_evaluate(data):
     refused(lambda: check_evaluation_options(**kw), name)
     args = (kw.pop("controllers"), kw.pop("configs"), ["rest"], kw.pop("targets"))
     refused(lambda: evaluate(*args, progress=False, **kw), name)
+
+
+@pytest.mark.parametrize(
+    "name, value", [("controllers", ["baseline", "pi", "baseline"]), ("configs", ["torsional", "TORSIONAL"])]
+)
+def test_evaluate_refuses_an_item_given_twice(name, value):
+    """A controller or configuration named twice would be run and reported twice, as if two."""
+    from controllers.evaluation.harness import check_evaluation_options
+
+    kw = dict(controllers=["baseline"], configs=["torsional"], targets=[1.0], duration=0.2, window=0.1)
+    kw[name] = value
+    assert "given twice" in refused(lambda: check_evaluation_options(**kw), name)
 
 
 # --------------------------------------------------------------------------------------- bifurcation, parallel

@@ -240,6 +240,7 @@ def check_evaluation_options(
                 f"{n['controllers']}: unknown controller {c!r}; choose from {', '.join(available())} (NAME@MS for "
                 "another control period) or agent:PATH"
             )
+    _refuse_twice(list(controllers), n["controllers"], "controller")
     if not list(configs):
         raise InputError(f"{n['configs']}: no configuration given; choose from {', '.join(EVALUATED_CONFIGS)}")
     for c in configs:
@@ -252,6 +253,7 @@ def check_evaluation_options(
                 f"{n['configs']} {c}: controllers are evaluated in {', '.join(EVALUATED_CONFIGS)} (a motor and a "
                 "lower disc)"
             )
+    _refuse_twice([parse_configuration(c).label for c in configs], n["configs"], "configuration")
     tg = list(targets)
     if not tg:
         raise InputError(f"{n['targets']}: no target speed given")
@@ -287,6 +289,15 @@ def check_agents(controllers: Sequence[str], configs: Sequence[str], omega_ref: 
             except DrillgymError as exc:
                 msg = " ".join(str(exc).split())
                 raise InputError(f"{name} {c}: {msg}") from exc
+
+
+def _refuse_twice(items: list, option: str, what: str) -> None:
+    """Refuse a list that names one item twice (each would be run and reported twice, as if two)."""
+    seen = set()
+    for item in items:
+        if item in seen:
+            raise InputError(f"{option}: {what} {item!r} is given twice; give each once")
+        seen.add(item)
 
 
 def evaluate(
