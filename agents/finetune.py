@@ -102,8 +102,8 @@ def start_from(model: Any, init: str | Path, venv: Any = None) -> Path:
     Raises
     ------
     InputError
-        An unreadable model, or one of another algorithm, observation space, action space or network
-        (naming the first difference).
+        An unreadable model, one with non-finite weights, or one of another algorithm, observation space, action
+        space or network (naming the first difference).
     """
     from stable_baselines3.common.save_util import load_from_zip_file
 
@@ -115,6 +115,9 @@ def start_from(model: Any, init: str | Path, venv: Any = None) -> Path:
         raise InputError(f"init {z}: not a readable SB3 model ({why})") from None
     if not isinstance(data, dict) or not isinstance(params, dict) or "policy" not in params:
         raise InputError(f"init {z}: not a readable SB3 model (no policy weights)")
+    for key, value in params["policy"].items():
+        if hasattr(value, "isfinite") and not bool(value.isfinite().all()):
+            raise InputError(f"init {z}: its network layer {key} holds non-finite weights (NaN or infinite)")
     theirs = getattr(data.get("policy_class"), "__name__", data.get("policy_class"))
     if theirs is not None and theirs != type(model.policy).__name__:
         raise InputError(

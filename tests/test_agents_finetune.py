@@ -112,3 +112,35 @@ def test_an_unreadable_init_is_refused_before_any_warning(tmp_path, capsys):
     assert exc.value.code == 2 and "\n" not in err and "--init" in err, err
     assert [str(w.message) for w in seen] == []
     assert not out.exists()
+
+
+def test_an_init_with_non_finite_weights_is_refused_before_out_is_written(tmp_path, capsys):
+    """A model.zip whose network holds a NaN is refused in one line naming the layer; OUT is not created (the run
+    would fail at its first step with a traceback, its directory written)."""
+    import io
+    import zipfile
+
+    import torch
+
+    from drillgym.cli import main
+
+    bad = tmp_path / "init" / "model.zip"
+    bad.parent.mkdir()
+    with zipfile.ZipFile(f"{KEPT}/model.zip") as zin, zipfile.ZipFile(bad, "w") as zout:
+        for info in zin.infolist():
+            data = zin.read(info.filename)
+            if info.filename == "policy.pth":
+                state = torch.load(io.BytesIO(data), weights_only=True)
+                key = next(k for k in state if k.endswith("weight"))
+                state[key][0, 0] = float("nan")
+                buf = io.BytesIO()
+                torch.save(state, buf)
+                data = buf.getvalue()
+            zout.writestr(info, data)
+    out = tmp_path / "run"
+    base = ["train", "--init", str(bad.parent), "--set", "privileged_critic=false", "--algo", "ppo"]
+    with pytest.raises(SystemExit) as exc:
+        main([*base, "--timesteps", "64", "--n-envs", "2", "--no-progress", "--no-tensorboard", "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert exc.value.code == 2 and "\n" not in err and "non-finite" in err and key in err, err
+    assert not out.exists()
