@@ -17,7 +17,7 @@ from .io.paths import describe_parse_error
 from .io.structured import load_structured
 from .params import ParameterError, number
 
-__all__ = ["CodeFile", "code_files", "FORMAT", "VERSION"]
+__all__ = ["CodeFile", "code_files", "FORMAT", "VERSION", "check_not_model_with_effects"]
 
 #: the format tag and version written by :meth:`drillgym.Model.save`
 FORMAT, VERSION = "drillgym-model", 2
@@ -188,3 +188,36 @@ def _std(raw: Any, path: str | Path, what: str) -> dict[str, float]:
             raise ParameterError(f"{path}: {what}: the standard error of {k!r} must be a number >= 0, got {v!r}")
         out[str(k)] = x
     return out
+
+
+def check_not_model_with_effects(path: str | Path, option: str) -> None:
+    """Refuse to write base parameters only over a model file that holds effects (they would be lost).
+
+    Parameters
+    ----------
+    path : str or path
+        The parameter file a command is about to write.
+    option : str
+        The option that named it, for the message.
+
+    Raises
+    ------
+    OutputPathError
+        ``path`` is a model file with effects (a file that does not read as one is left to the other checks).
+    """
+    from .errors import OutputPathError
+
+    path = Path(path)
+    if not path.is_file():
+        return
+    try:
+        data = _read(path)
+        effects = data.get("effects") if isinstance(data, Mapping) else None
+    except Exception:  # noqa: BLE001 - not a model file: nothing of a model to lose
+        return
+    if isinstance(effects, list) and effects:
+        names = ", ".join(str(e.get("name", e.get("spec"))) for e in effects if isinstance(e, Mapping)) or "?"
+        raise OutputPathError(
+            f"{option} {path} is a model file with effects ({names}): writing base parameters over it would lose "
+            "them; choose another name"
+        )

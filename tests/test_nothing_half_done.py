@@ -106,6 +106,23 @@ def test_an_output_that_is_or_holds_an_input_is_refused(name, a, tmp_path):
     assert snapshot(tmp_path) == before
 
 
+@pytest.mark.parametrize(
+    "argv",
+    [["params", "--out", "{M}"], ["identify-staged", "--upper", "{U}", "--out", "{M}"]],
+    ids=["params", "identify-staged"],
+)
+def test_base_parameters_are_not_written_over_a_model_with_effects(argv, a, tmp_path):
+    """A file of base parameters written over a model file that holds effects would lose them: refused, the model
+    file as it was."""
+    model = tmp_path / "model.json"
+    shutil.copy(a.root / "model.json", model)  # a model with motor_lag
+    argv = [w.replace("{M}", str(model)).replace("{U}", a.upper) for w in argv]
+    before = snapshot(tmp_path)
+    code, _, err = run(argv, tmp_path)
+    assert "model file with effects (motor_lag)" in refused_line(code, err)
+    assert snapshot(tmp_path) == before
+
+
 # --------------------------------------------------------------------------------------- options needing another
 
 

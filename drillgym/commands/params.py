@@ -79,6 +79,9 @@ def register(app: typer.Typer) -> None:
             raise InputError(f"--out {out}: a parameter file must end in .json, .yaml or .yml")
         if out is not None:
             check_output_file(out, "--out", suffixes=(".json", ".yaml", ".yml"))
+            from ..model_files import check_not_model_with_effects
+
+            check_not_model_with_effects(out, "--out")
         if params is not None and not params.exists():
             raise MissingFileError(f"--params {params}: parameter file not found")
         with option("--params"):

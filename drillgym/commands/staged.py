@@ -40,6 +40,9 @@ def identify_staged_cmd(
     if out.suffix.lower() not in (".json", ".yaml", ".yml"):
         raise InputError(f"--out {out}: a parameter file must end in .json, .yaml or .yml")
     check_output_file(out, "--out", suffixes=(".json", ".yaml", ".yml"))
+    from ..model_files import check_not_model_with_effects
+
+    check_not_model_with_effects(out, "--out")
     if not any(files.values()):
         raise InputError("no recordings given: use --upper, --free-vibration, --lower, --lateral, --brake")
 
