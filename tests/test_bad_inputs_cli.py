@@ -746,3 +746,13 @@ def test_an_effect_parameter_given_twice_is_refused(argv, a, root):
     argv = [w.replace("{W}", str(work)).replace("{A}", str(a.root)) for w in argv]
     argv += ["--add-effect", "motor_lag", "--effect-param", "tau_m=0.03", "--effect-param", "tau_m=0.04"]
     check_case_within(Case(argv, ("--effect-param 'tau_m=0.04': 'tau_m' is given twice",)), root, seconds=60)
+
+
+def test_identify_refuses_an_effect_the_params_model_holds(a, root):
+    """identify --params MODEL --add-effect E, MODEL holding E: which of the two is fitted is not for the tool to
+    guess (compare and diagnose refuse it as an effect given twice)."""
+    work = fresh_dir(root)
+    model = work / "model.json"
+    model.write_text('{"effects": [{"spec": "motor_lag", "values": {"tau_m": 0.03}}]}')
+    argv = ["identify", a.torsional, "--params", str(model), "--add-effect", "motor_lag", "--out", str(work / "m.json")]
+    check_case(Case([*argv, "--max-nfev", "1", "--segment", "none"], ("--add-effect motor_lag",)), root)

@@ -434,6 +434,12 @@ def identify_cmd(
     with option("--params"):
         mf = _model_file(params, trust)
         base_comp, base_values = mf.composition, dict(mf.values)
+    with option("--add-effect"):
+        again = [n for n in (compose_effects(added)[0].names if added else []) if n in base_comp.names]
+    if again:
+        raise InputError(
+            f"--add-effect {again[0]}: the model of --params holds it already; fit its parameters with --fit NAME"
+        )
     if not added and not fit and not refit_base:  # the whole identification: drillgym.identify, as every route
         _identify_whole(data, out, config, mf, effect_param, seg, rate, max_nfev, map_, report, as_json)
         return
