@@ -258,6 +258,20 @@ def test_evaluate_refuses_an_item_given_twice(name, value):
     assert "given twice" in refused(lambda: check_evaluation_options(**kw), name)
 
 
+@pytest.mark.parametrize(
+    "kw",
+    [{"path": 3}, {"path": None}, {"params": {"Jl": 0.04}}, {"trust": "no"}],
+    ids=["int", "none", "params", "trust"],
+)
+def test_load_plants_refuses_wrong_argument_types(kw):
+    from pathlib import Path
+
+    from controllers.evaluation.plants_file import load_plants
+
+    kw = {"path": Path(__file__).resolve().parents[1] / "examples" / "plants.yaml", **kw}
+    refused(lambda: load_plants(**kw), "plants_file", "trust")
+
+
 # --------------------------------------------------------------------------------------- bifurcation, parallel
 
 

@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from drillgym import RigParams
-from drillgym.errors import InputError, MissingFileError
+from drillgym.errors import InputError, InputTypeError, MissingFileError
 from drillgym.io import describe_parse_error
 from drillgym.io.structured import load_yaml
 from drillgym.measurement import DEFAULT_COUNTS_PER_REV
@@ -231,7 +231,15 @@ def load_plants(path: str | Path, *, trust: bool = False, params: RigParams | No
         A file that is not YAML, holds no plant, or a plant with an unknown key, an unknown base parameter,
         an unknown effect or effect parameter, a bad value, an untrusted effect file or a repeated name: one
         line naming the file, the plant (its name and its place ``#K`` from 0) and what is wrong.
+    InputTypeError
+        ``path`` that is not a path, or ``params`` that are not RigParams.
     """
+    if not (isinstance(path, (str, Path)) or hasattr(path, "__fspath__")):
+        raise InputTypeError(
+            f"plants_file: the plants file must be a path (text or path-like), got {type(path).__name__}"
+        )
+    if params is not None and not isinstance(params, RigParams):
+        raise InputTypeError(f"plants_file: params must be RigParams, got {type(params).__name__}")
     path = Path(path)
     raw = _read(path)
     source = str(path)
