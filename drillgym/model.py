@@ -515,8 +515,11 @@ def _place_in(file: Path, folder: Path) -> Path:
     if file.is_relative_to(folder_r):
         return file.relative_to(folder_r)
     target = folder_r / file.name
-    if target.exists() and _sha256(target) != _sha256(file):
+    # a link there is not the file's copy: loading would resolve it outside the folder and refuse it
+    if target.is_symlink() or (target.exists() and _sha256(target) != _sha256(file)):
         target = folder_r / f"{file.stem}_{_sha256(file)[:8]}{file.suffix}"
+    if target.is_symlink():
+        raise InputError(f"{target}: a symbolic link where the model's copy of {file} goes; save the model elsewhere")
     if not target.exists():
         shutil.copy2(file, target)
     return target.relative_to(folder_r)

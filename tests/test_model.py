@@ -126,3 +126,17 @@ def test_a_link_to_a_model_file_runs_its_effect_files(tmp_path):
     (tmp_path / "runs" / "a" / "string_cubic.py").write_text("# edited\n")
     with pytest.raises(UntrustedCodeError, match=r"current\.json.*changed since"):
         Model.load(tmp_path / "current.json")
+
+
+def test_a_saved_model_loads_though_its_folder_holds_a_link_of_the_effect_files_name(tmp_path):
+    """A link named like the effect file in the model's folder (pointing at the file itself) is not taken for the
+    model's copy: loading would resolve it outside the folder and refuse what save wrote."""
+    src = Path(__file__).resolve().parents[1] / "examples" / "effects" / "string_cubic.py"
+    shutil.copy(src, tmp_path / "string_cubic.py")
+    (tmp_path / "m").mkdir()
+    (tmp_path / "m" / "string_cubic.py").symlink_to(tmp_path / "string_cubic.py")
+    m = Model(effects=(f"{tmp_path / 'string_cubic.py'}:string_cubic",), values={"c3": 0.1})
+    m.save(tmp_path / "m" / "model.json")
+    loaded = Model.load(tmp_path / "m" / "model.json")  # trusted: the copy lies in the folder
+    assert loaded.values == m.values and [c.trusted for c in code_files(tmp_path / "m" / "model.json")] == [True]
+    assert (tmp_path / "m" / "string_cubic.py").is_symlink()  # the user's link as it was
