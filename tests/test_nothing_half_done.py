@@ -106,6 +106,18 @@ def test_an_output_that_is_or_holds_an_input_is_refused(name, a, tmp_path):
     assert snapshot(tmp_path) == before
 
 
+@pytest.mark.parametrize("report", ["m.json", "m.json/report"], ids=["same", "under"])
+def test_two_outputs_of_one_run_on_one_path_are_refused(report, a, tmp_path):
+    """identify --out m.json --report m.json: the report's directory where the model file goes (it wrote the model,
+    then failed with a traceback). Refused before the recording is read, nothing written."""
+    argv = ["identify", a.torsional, "--add-effect", "motor_lag", "--out", "m.json", "--report", report]
+    before = snapshot(tmp_path)
+    code, _, err = run([*argv, "--max-nfev", "1", "--segment", "none"], tmp_path)
+    line = refused_line(code, err)
+    assert "--out" in line and "--report" in line
+    assert snapshot(tmp_path) == before
+
+
 @pytest.mark.parametrize(
     "argv",
     [["params", "--out", "{M}"], ["identify-staged", "--upper", "{U}", "--out", "{M}"]],

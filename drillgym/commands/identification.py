@@ -11,7 +11,15 @@ from ..errors import DrillgymError, InputError
 from .effect_options import add_effect_option, effect_param_option, trust_option
 from .mapping import MAP_HELP, parse_mapping
 from .options import named, option, requires
-from .outputs import CREATES_DIRS, check_figure_file, check_output_dir, check_output_file, figure_file, output_file
+from .outputs import (
+    CREATES_DIRS,
+    check_distinct_outputs,
+    check_figure_file,
+    check_output_dir,
+    check_output_file,
+    figure_file,
+    output_file,
+)
 
 
 def _json(obj) -> str:
@@ -292,6 +300,7 @@ def diagnose_cmd(
         check_output_file(model_out, "--model-out", suffixes=(".json", ".yaml", ".yml"))
     if plot is not None:
         check_figure_file(plot)  # its directories created once the diagnosis gave a figure
+    check_distinct_outputs({"--candidate-out": candidate_out, "--model-out": model_out, "--plot": plot}, {})
     seg = _segment(segment)
     base, model, values, _ = _model(params, add_effect, effect_param, trust)
     with option("--candidate"):
@@ -424,6 +433,7 @@ def identify_cmd(
     check_output_file(out, "--out", suffixes=(".json", ".yaml", ".yml"))
     if report is not None:
         check_output_dir(report, "--report")
+    check_distinct_outputs({"--out": out}, {"--report": report})
     if max_nfev < 1:
         raise InputError(f"--max-nfev must be >= 1, got {max_nfev}")
     seg = _segment(segment)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ..io.outputs import (
+    check_distinct_outputs,
     check_figure_file,
     check_not_inputs,
     check_output_dir,
@@ -21,6 +22,7 @@ __all__ = [
     "figure_file",
     "check_figure_file",
     "check_not_inputs",
+    "check_distinct_outputs",
 ]
 
 #: the sentence the --help of every written path ends with

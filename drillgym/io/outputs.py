@@ -36,6 +36,7 @@ __all__ = [
     "check_writable_dir",
     "path_kind",
     "check_not_inputs",
+    "check_distinct_outputs",
 ]
 
 
@@ -296,3 +297,31 @@ def check_not_inputs(out: str | Path, option: str, inputs: dict[str, str | Path 
                 f"{option} {out} is or holds the {name} ({value}): the run would replace what it reads; choose "
                 f"another {option}"
             )
+
+
+def check_distinct_outputs(files: dict[str, str | Path | None], dirs: dict[str, str | Path | None]) -> None:
+    """Refuse two outputs of one run that are one path, or a directory output under a file output.
+
+    Parameters
+    ----------
+    files : dict
+        The file outputs by the option that named them (None: not given).
+    dirs : dict
+        The directory outputs by the option that named them (None: not given).
+
+    Raises
+    ------
+    OutputPathError
+        Two options name one path (the second write would replace or collide with the first), or a directory
+        would lie under a file.
+    """
+    given = [(o, Path(p).resolve(), True) for o, p in files.items() if p is not None and str(p).strip()]
+    given += [(o, Path(p).resolve(), False) for o, p in dirs.items() if p is not None and str(p).strip()]
+    for i, (a, pa, a_file) in enumerate(given):
+        for b, pb, b_file in given[i + 1 :]:
+            if pa == pb:
+                raise OutputPathError(f"{a} and {b} name one path ({pa}); give each its own")
+            if a_file and pa in pb.parents:
+                raise OutputPathError(f"{b} {pb} lies under the file {a} writes ({pa}); give each its own")
+            if b_file and pb in pa.parents:
+                raise OutputPathError(f"{a} {pa} lies under the file {b} writes ({pb}); give each its own")
