@@ -238,3 +238,11 @@ def test_an_effect_that_does_not_act_in_the_configuration_is_refused(make: str) 
             make_vec("drillgym/Torsional-v0", 2, effects=["lateral_anisotropy"])
     env = gym.make("drillgym/Coupled-v0", effects=["lateral_anisotropy"])  # it acts there
     assert "lateral_anisotropy" in env.unwrapped.options.effects.names
+
+
+def test_a_model_whose_effect_does_not_act_is_refused_naming_the_model():
+    """The env's model= holds the effects: a refusal of one names 'model', the option the caller gave."""
+    from drillgym.errors import DrillgymError
+
+    with pytest.raises(DrillgymError, match=r"option 'model'.*lateral_anisotropy.*torsional"):
+        gym.make("drillgym/Torsional-v0", model=drillgym.Model(effects=("lateral_anisotropy",)))

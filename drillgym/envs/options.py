@@ -179,8 +179,11 @@ class EnvOptions:
         object.__setattr__(self, "configuration", cfg.label)
         if self.observation not in OBSERVATION_MODES:
             raise InputError(f"option 'observation' must be one of {OBSERVATION_MODES}, got {self.observation!r}")
+        effects_option = "option 'effects'"
         if self.model is not None:  # resolved into params, effects, effect_params (refused beside them)
             from ..model import model_arguments
+
+            effects_option = "option 'model': the model's effects"
 
             p, e, v = model_arguments(self.model, self.params, self.effects, self.effect_params, "option 'model'")
             for name, value in (("params", p), ("effects", e), ("effect_params", v), ("model", None)):
@@ -203,7 +206,7 @@ class EnvOptions:
         from ..effects.composition import compose
 
         comp, values = compose(self.effects, self.effect_params)
-        comp.refuse_not_acting(cfg.label, "option 'effects'")
+        comp.refuse_not_acting(cfg.label, effects_option)
         object.__setattr__(self, "effects", comp)
         object.__setattr__(self, "effect_params", dict(values))
         unknown = [n for n in self.randomize_names if n not in comp.param_names]
