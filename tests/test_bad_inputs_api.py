@@ -363,7 +363,7 @@ DIAGNOSE_BAD = {
     "lvdt_lowpass_hz": [-1.0, 0.0, float("inf"), "5"],
     "n_joint": [0, -1, 1.5, "2"],
     "max_effects": [0, -1, "a", 2.5],
-    "effects": ["motor_lag", ["nope"], ["lateral_anisotropy"], 3],
+    "effects": [["nope"], ["lateral_anisotropy"], 3],  # one string is one effect (as_sequence), not bad
     "base_effects": [["lvdt_skew"], ["nope"]],
     "effect_params": [{"nope": 1.0}, [("tau_m", 1.0)]],
     "refine_speeds": ["no", 1, None],

@@ -87,8 +87,8 @@ def check_diagnosis_options(options: DiagnosisOptions) -> None:
     Raises
     ------
     InputTypeError
-        A setting of the wrong type (a string for a number, a number for a flag, one string for the
-        sequence ``effects``).
+        A setting of the wrong type (a string for a number, a number for a flag or for the sequence
+        ``effects``; one string there is one effect, :func:`as_sequence`).
     InputError
         A rate that is not a positive number of Hz, ``n_joint`` or ``max_effects`` below 1, a segment length
         that is NaN, zero or infinite, an unwritable ``candidate_out``.
