@@ -189,6 +189,16 @@ def test_unknown_effect_name_lists_the_known_ones():
             r"torque\(\) returns ndarray \[0. 1.\], not a number",
         ),
         (
+            "import os\nos._exit(0)\n\nclass Gone(Force):\n    name = 'gone'\n    acts_on = 'upper'\n"
+            "    def torque(omega_u):\n        return 0.0\n",
+            r"effect file calls os._exit\(0\) when imported \(line 6\)",
+        ),
+        (
+            "class Twin(Force):\n    name = 'twin'\n    acts_on = 'upper'\n"
+            "    def torque(omega_u):\n        return 0.0\n\nclass Other(Twin):\n    name = 'twin'\n",
+            r"2 effects are named 'twin' \(Twin, Other\): give each its own name",
+        ),
+        (
             "class Outside(Force):\n    name = 'outside'\n    acts_on = 'lower'\n"
             "    parameters = (Parameter('c', '-', 0.0, 1.0, 0.5, 0.1, neutral=-1.0),)\n"
             "    def torque(omega_l, c):\n        return c * omega_l\n",
@@ -216,8 +226,10 @@ def test_missing_effect_in_a_file_and_missing_file(tmp_path):
         compose([f"{path}:other"])
     with pytest.raises(EffectError, match="not found"):
         compose([f"{tmp_path}/nowhere.py:x"])
-    with pytest.raises(EffectError, match="say which effect"):
+    with pytest.raises(EffectError, match=r"say which effect.*\(it defines: upper_bump\)"):
         compose([str(path)])
+    with pytest.raises(EffectError, match="nowhere.py: effect file not found"):  # not "say which effect"
+        compose([f"{tmp_path}/nowhere.py"])
 
 
 def test_effect_values_are_checked_against_their_bounds():

@@ -8,9 +8,11 @@ file, the effect and what is wrong.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib.util
 import inspect
+import os
 import sys
 from collections.abc import Callable
 from importlib import metadata
@@ -54,7 +56,8 @@ def _import_file(path: Path) -> Any:
     module = importlib.util.module_from_spec(spec)
     sys.modules[modname] = module
     try:
-        spec.loader.exec_module(module)
+        with _no_process_exit():
+            spec.loader.exec_module(module)
     except (Exception, SystemExit) as exc:  # noqa: BLE001 - any import failure (sys.exit too) in one line
         sys.modules.pop(modname, None)
         where = ""
@@ -63,11 +66,36 @@ def _import_file(path: Path) -> Any:
             if tb.tb_frame.f_code.co_filename == str(path):
                 where = f" (line {tb.tb_lineno})"
             tb = tb.tb_next
+        if isinstance(exc, _ProcessExit):
+            raise EffectError(f"{path}: effect file calls os._exit({exc.code!r}) when imported{where}") from None
         if isinstance(exc, SystemExit):
             raise EffectError(f"{path}: effect file calls sys.exit({exc.code!r}) when imported{where}") from None
         raise EffectError(f"{path}: effect file does not import{where}: {type(exc).__name__}: {exc}") from None
     _FILE_MODULES[key] = module
     return module
+
+
+class _ProcessExit(Exception):
+    """``os._exit`` called while an effect file is imported (it would end drillgym with no word)."""
+
+    def __init__(self, code: Any) -> None:
+        super().__init__(code)
+        self.code = code
+
+
+@contextlib.contextmanager
+def _no_process_exit():
+    """``os._exit`` raises :class:`_ProcessExit` instead of ending the process, while an effect file imports."""
+    real = os._exit
+
+    def refuse(code: Any = 0) -> None:
+        raise _ProcessExit(code)
+
+    os._exit = refuse
+    try:
+        yield
+    finally:
+        os._exit = real
 
 
 def _effects_in(module: Any) -> list[type[Effect]]:
@@ -101,6 +129,10 @@ def load_class_from_file(path: str | Path, name: str) -> type[Effect]:
     path = Path(path).expanduser().resolve()
     module = _import_file(path)
     found = [c for c in _effects_in(module) if name in (c.name, c.__name__, c.__qualname__)]
+    named = [c for c in _effects_in(module) if c.name == name]
+    if len(named) > 1:
+        classes = ", ".join(c.__qualname__ for c in named)
+        raise EffectError(f"{path}: {len(named)} effects are named {name!r} ({classes}): give each its own name")
     if not found:
         obj = getattr(module, name, None)
         if isinstance(obj, Effect):
@@ -172,7 +204,9 @@ def resolve_effect(spec: str | type[Effect] | Effect) -> type[Effect] | Effect:
     if ".py:" in spec or spec.endswith(".py"):
         path, _, name = spec.rpartition(":") if ".py:" in spec else (spec, "", "")
         if not name:
-            raise EffectError(f"{spec}: say which effect of the file to use: {spec}:NAME")
+            module = _import_file(Path(path).expanduser().resolve())  # a missing or broken file says so first
+            names = ", ".join(c.name or c.__name__ for c in _effects_in(module)) or "none"
+            raise EffectError(f"{spec}: say which effect of the file to use: {spec}:NAME (it defines: {names})")
         return load_class_from_file(path, name)
     known = LIBRARY if spec in LIBRARY else available_effects()
     if spec not in known:
