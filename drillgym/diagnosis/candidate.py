@@ -102,6 +102,11 @@ class Candidate:
         return _UNIT.get(self.group, "N m")
 
     @property
+    def is_lateral_force(self) -> bool:
+        """Whether it is a force on the lower disc's centre (:mod:`.lateral_discovery`)."""
+        return self.group == "lateral_force"
+
+    @property
     def is_reading(self) -> bool:
         """Whether it is a sensor's reading (:mod:`.sensor_reading`), not a term of the residual torques."""
         return self.group in SENSORS

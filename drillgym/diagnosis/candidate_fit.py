@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from ..effects import Composition, Effect
+from ..effects import Composition, Effect, Force
 from ..identification.fitting import FitResult, Objective
 from .context import SelectionContext, base_at_bounds, converged_fit
 from .discovery_terms import dead_zone_variant
@@ -41,6 +41,8 @@ __all__ = ["CandidateFit", "CandidateFitState", "fit_candidate", "choose_candida
 
 #: least-squares evaluations of the candidate's fit
 MAX_NFEV = 20
+#: the base parameters a lateral force is fitted with, started from nominal (:func:`_stood_in`)
+LATERAL_BASE = ("k", "b", "e")
 #: least-squares evaluations of a reading's screen: its own parameters (and those of the library effects it may have
 #: stood in for) fitted with the base parameters held as diagnosed, before a full fit frees them
 SCREEN_NFEV = 5
@@ -266,19 +268,33 @@ class _CandidateModel:
         obj = self.model.obj.with_own_speeds()
         obj.model = obj.model.with_composition(self.with_it)
         nominal = transfer(self.model.nominal, self.comp, self.with_it)
+        for name in self.library:
+            if name in LATERAL_BASE:  # from nominal: the diagnosis may have left it at a bound, standing in
+                start[self.with_it.param_index(name)] = nominal[self.with_it.param_index(name)]
         ctx = SelectionContext(obj, self.with_it, start, nominal, base_names, {})
-        return obj, ctx, converged_fit(ctx, start, [*self.start_values, *self.library, *base_names], self.max_nfev)
+        names = list(dict.fromkeys([*self.start_values, *self.library, *base_names]))
+        return obj, ctx, converged_fit(ctx, start, names, self.max_nfev)
 
 
 def _stood_in(diagnosis: Diagnosis, candidate: Candidate) -> tuple[str, ...]:
-    """The parameters of the library effects the diagnosis selected, fitted with a sensor's reading: they may
-    have stood in for it (a drift for an encoder's scale error, the twist it misreads growing with the angle
-    turned) and go back towards neutral once it is in.  Empty for a candidate of the residual torques (its
-    terms were regressed beside them)."""
-    if not candidate.is_reading or diagnosis.composition is None:
+    """The parameters fitted with the candidate because they may have stood in for it.
+
+    A sensor's reading: the parameters of the library effects the diagnosis selected (a drift for an encoder's
+    scale error, the twist it misreads growing with the angle turned; they go back towards neutral once it is in).
+    A lateral force: the lateral base parameters :data:`LATERAL_BASE` (started from nominal, :class:`_CandidateModel`)
+    and the selected lateral effects' parameters: the diagnosis pushed k and b to the bounds of their range to take
+    a stiffening spring or a drag, and held there they leave the force's terms a fraction of its size.  Empty for a
+    candidate of the residual torques (its terms were regressed beside them)."""
+    comp = diagnosis.composition
+    if comp is None:
         return ()
     chosen = set(diagnosis.selected)
-    return tuple(p.name for e in diagnosis.composition.effects if e.name in chosen for p in e.parameters)
+    if candidate.is_reading:
+        return tuple(p.name for e in comp.effects if e.name in chosen for p in e.parameters)
+    if candidate.is_lateral_force:
+        lateral = (e for e in comp.effects if e.name in chosen and issubclass(e, Force) and e.acts_on == "lateral")
+        return (*LATERAL_BASE, *(p.name for e in lateral for p in e.parameters))
+    return ()
 
 
 def _library_ahead(candidate: Candidate) -> dict[str, type[Effect]]:
@@ -336,7 +352,7 @@ def _with_base_freed(
     obj = ctx.obj.with_own_speeds()
     vec = np.asarray(fit.vector)
     free = SelectionContext(obj, ctx.comp, vec, ctx.nominal, base_names, {})
-    res = converged_fit(free, vec, [*names, *base_names], MAX_NFEV)
+    res = converged_fit(free, vec, list(dict.fromkeys([*names, *base_names])), MAX_NFEV)
     ids = obj.channel_ids
     sc, _ = score(fit.residual, res, len(base_names), channels=ids, blocks=obj.block_ids)
     if not significant(sc, fit.rss_after, res.rss_after, len(res.residual), fit.residual, res.residual, ids):
