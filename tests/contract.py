@@ -315,18 +315,19 @@ class CaseTimeout(BaseException):
     """A case ran past :data:`CASE_SECONDS` (a BaseException: the command's own handlers let it through)."""
 
 
-def run(argv: list[str], cwd: Path) -> tuple[int, str, str]:
+def run(argv: list[str], cwd: Path, seconds: int = CASE_SECONDS) -> tuple[int, str, str]:
     """(exit code, stdout, stderr) of ``drillgym ARGV`` run in this process in ``cwd``, interrupted after
-    :data:`CASE_SECONDS`."""
+    ``seconds`` (default :data:`CASE_SECONDS`, for cases that must be refused or answered quickly; a command that
+    runs the rig's model may first compile its composition, a minute or more on a cold cache)."""
     out, err = io.StringIO(), io.StringIO()
     code: int | str | None = 0
     here = os.getcwd()
 
     def alarm(signum, frame):  # pragma: no cover - only when a command runs on
-        raise CaseTimeout(f"still running after {CASE_SECONDS} s: {' '.join(argv)}")
+        raise CaseTimeout(f"still running after {seconds} s: {' '.join(argv)}")
 
     old = signal.signal(signal.SIGALRM, alarm)
-    signal.alarm(CASE_SECONDS)
+    signal.alarm(seconds)
     try:
         os.chdir(cwd)
         with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):

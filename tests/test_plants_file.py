@@ -92,7 +92,7 @@ def test_the_cli_runs_the_file_and_names_the_plants(tmp_path):
     write(tmp_path, TWO)
     argv = ["evaluate", "--config", "torsional", "--controllers", "pi", "--scenarios", "plants"]
     argv += ["--plants-file", "plants.yaml", "--targets", "2", "--duration", "2", "--window", "1"]
-    code, out, err = run([*argv, "--workers", "1", "--out", "ev"], tmp_path)
+    code, out, err = run([*argv, "--workers", "1", "--out", "ev"], tmp_path, seconds=900)  # compiles when cold
     assert code == 0, err
     summary = (tmp_path / "ev" / "summary.md").read_text()
     assert "2 plants listed in the plants file" in summary
