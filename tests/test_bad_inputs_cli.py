@@ -682,39 +682,17 @@ def test_every_consumer_of_a_model_file_refuses_a_hostile_one(consumer, hostile_
         assert check_case(Case(argv, ("--model",)), root) == "refused", name
 
 
+#: an evaluation of the plants scenario, the file option to add
+EVALUATE_PLANTS = ["evaluate", "--controllers", "baseline", "--targets", "1", "--scenarios", "plants"]
+
+
 @pytest.mark.parametrize(
     "argv, option",
     [
         (["simulate", "--u", "1", "--duration", "0.1", "--params", "{F}"], "--params"),
         (["simulate", "--u", "1", "--duration", "0.1", "--model", "{F}"], "--model"),
-        (
-            [
-                "evaluate",
-                "--controllers",
-                "baseline",
-                "--targets",
-                "1",
-                "--scenarios",
-                "plants",
-                "--uncertainty",
-                "{F}",
-            ],
-            "--uncertainty",
-        ),
-        (
-            [
-                "evaluate",
-                "--controllers",
-                "baseline",
-                "--targets",
-                "1",
-                "--scenarios",
-                "plants",
-                "--plants-file",
-                "{F}",
-            ],
-            "--plants-file",
-        ),
+        ([*EVALUATE_PLANTS, "--uncertainty", "{F}"], "--uncertainty"),
+        ([*EVALUATE_PLANTS, "--plants-file", "{F}"], "--plants-file"),
         (["train", "--timesteps", "1", "--no-progress", "--no-tensorboard", "--hyperparams", "{F}"], "--hyperparams"),
     ],
     ids=["params", "model", "uncertainty", "plants-file", "hyperparams"],

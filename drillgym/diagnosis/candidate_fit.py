@@ -404,11 +404,9 @@ def choose_candidate(
     if readings and (keep is None or keep.fit is None or not keep.fit.after.explained):
         reading = _best_reading(screening, diagnosis, readings, noise_scales)
         bar = max(_cut(keep), MIN_READING_CUT) if keep is not None else MIN_READING_CUT
-        if reading is None:
-            pass
-        elif _cut(reading) > bar:
+        if reading is not None and _cut(reading) > bar:
             keep, other = reading, keep
-        elif other is None or _cut(reading) > _cut(other):
+        elif reading is not None and (other is None or _cut(reading) > _cut(other)):
             other = reading
     if keep is None:
         return None

@@ -106,6 +106,11 @@ def _effects_in(module: Any) -> list[type[Effect]]:
     ]
 
 
+def _defined(module: Any) -> str:
+    """The names of the effects a file's module defines, for a message ("none" when it defines none)."""
+    return ", ".join(c.name or c.__name__ for c in _effects_in(module)) or "none"
+
+
 def load_class_from_file(path: str | Path, name: str) -> type[Effect]:
     """The effect class defined in a Python file.
 
@@ -138,8 +143,7 @@ def load_class_from_file(path: str | Path, name: str) -> type[Effect]:
         if isinstance(obj, Effect):
             found = [type(obj)]
     if not found:
-        names = ", ".join(c.name or c.__name__ for c in _effects_in(module)) or "none"
-        raise EffectError(f"{path}: no effect named {name!r} in the file (it defines: {names})")
+        raise EffectError(f"{path}: no effect named {name!r} in the file (it defines: {_defined(module)})")
     cls = found[0]
     cls.__drillgym_file__ = str(path)
     return cls
@@ -205,8 +209,9 @@ def resolve_effect(spec: str | type[Effect] | Effect) -> type[Effect] | Effect:
         path, _, name = spec.rpartition(":") if ".py:" in spec else (spec, "", "")
         if not name:
             module = _import_file(Path(path).expanduser().resolve())  # a missing or broken file says so first
-            names = ", ".join(c.name or c.__name__ for c in _effects_in(module)) or "none"
-            raise EffectError(f"{spec}: say which effect of the file to use: {spec}:NAME (it defines: {names})")
+            raise EffectError(
+                f"{spec}: say which effect of the file to use: {spec}:NAME (it defines: {_defined(module)})"
+            )
         return load_class_from_file(path, name)
     known = LIBRARY if spec in LIBRARY else available_effects()
     if spec not in known:
