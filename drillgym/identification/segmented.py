@@ -48,6 +48,7 @@ from ..integrators import OUTPUT_NAMES, fixed_step_tableau
 from ..measurement import lowpass_zero_phase
 from ..params import N_PARAMS
 from ..simulator import LANES_MIN_BATCH, run_lanes
+from .effect_states import input_state_columns
 from .experiment import Experiment
 from .predictions import Prediction, as_composition, steps_per_sample
 from .speeds import SpeedCorrections
@@ -131,6 +132,7 @@ class SegmentedModel(SpeedCorrections):
         self._sim = comp if self._lag is None else Composition(sim)
         self._sim_cols = np.array([comp.param_index(n) for n in self._sim.param_names], dtype=int)
         self._tau_col = comp.param_index("tau_m") if self._lag is not None else None
+        self._state_cols = input_state_columns(self._sim) if self._sim.n_states else None
 
     def with_composition(self, composition: Any) -> SegmentedModel:
         """The same experiments, segments and speed corrections with another model.
@@ -348,7 +350,7 @@ class SegmentedModel(SpeedCorrections):
             if dspeed is not None:
                 X0[:, 2:4] += np.repeat(np.asarray(dspeed, dtype=float), ns, axis=0)
             if sim.n_states:
-                X0[:, N_STATE:] = self._effect_states(ex, plan, S, drive[pick], starts)
+                X0[:, N_STATE:] = self._shared_effect_states(ex, plan, S, drive[pick], starts, taus)
             T0 = np.tile(ex.clock_start + starts / ex.fs, B)  # the run's clock (time-dependent effects)
             HIST, HEAD = self._delay_lines(rows, drive[pick], starts, rec, dt, ns)
             D = self._simulate(ex.config, U, dt, rows, X0, T0, HIST, HEAD, rec, n_steps, ns)[:, : L + 1]
@@ -426,6 +428,22 @@ class SegmentedModel(SpeedCorrections):
         lane = np.arange(n)
         H = drive[(lane // ns)[:, None], idx[lane % ns]]  # lane i: its row's drive before its segment
         return H, np.full(n, Ld - 1, dtype=np.int64)
+
+    def _shared_effect_states(
+        self, ex: Experiment, plan: dict, S: np.ndarray, drive: np.ndarray, starts: np.ndarray, taus: Any
+    ) -> np.ndarray:
+        """:meth:`_effect_states`, one free run for the rows that differ only where the states cannot see
+        (:func:`.effect_states.input_state_columns`; the drive's lag, applied here, is part of the key)."""
+        cols = self._state_cols
+        if cols is None or S.shape[0] < 2:
+            return self._effect_states(ex, plan, S, drive, starts)
+        key = S[:, cols] if taus is None else np.column_stack([S[:, cols], taus])
+        _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        if len(first) == S.shape[0]:
+            return self._effect_states(ex, plan, S, drive, starts)
+        ns = len(starts)
+        states = self._effect_states(ex, plan, S[first], drive[first], starts).reshape(len(first), ns, -1)
+        return states[inverse.ravel()].reshape(S.shape[0] * ns, -1)
 
     def _effect_states(
         self, ex: Experiment, plan: dict, S: np.ndarray, drive: np.ndarray, starts: np.ndarray

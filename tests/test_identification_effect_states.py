@@ -1,0 +1,73 @@
+"""Rows of a prediction that differ only where the effect states cannot see share one free run of the record.
+
+The states a segment starts from come from a free run of the whole record per parameter row; when every state
+depends on the voltage alone (a lag behind a dead zone, a delay), the rows of a Jacobian that move a base
+parameter get the same states, so the prediction computes them once.  The outputs must be those of one free run
+per row, to the bit; a state that reads the discs' motion keeps one run per row.
+"""
+
+from pathlib import Path
+
+import numpy as np
+
+from drillgym.effects import Composition, Input, Parameter, State, compose
+from drillgym.identification import SegmentedModel, prepare_experiment
+from drillgym.identification.effect_states import input_state_columns
+from drillgym.identification.synthetic import synthetic_measurement
+
+ROOT = Path(__file__).resolve().parents[1]
+DEAD_ZONE = f"{ROOT}/examples/effects/motor_dead_zone.py:dead_zone"
+
+
+class SpeedLoadedDrive(Input):
+    """A drive whose memory loads with the motor's speed (its state reads a disc quantity)."""
+
+    name = "speed_loaded_drive"
+    parameters = (Parameter("k_w", "V s/rad", 0.0, 1.0, 0.01, 0.01, "speed loading"),)
+    states = (State("u_w", "V"),)
+
+    def derivative(u, u_w, omega_u, k_w):
+        return 50.0 * (u - k_w * omega_u - u_w)
+
+    def voltage(u, u_w):
+        return u_w
+
+
+def test_the_state_columns_are_the_voltage_paths_parameters():
+    comp, _ = compose([DEAD_ZONE, "input_delay", "motor_lag"])
+    cols = input_state_columns(comp)
+    assert [comp.param_names[i] for i in cols] == sorted(["u0", "delay", "tau_m"], key=comp.param_index)
+    assert input_state_columns(Composition((SpeedLoadedDrive,))) is None
+
+
+def _jacobian_rows(comp, values):
+    v = comp.matrix(None, 1)[0]
+    for name, x in values.items():
+        v[comp.param_index(name)] = x
+    P = np.repeat(v[None], comp.n_params + 1, axis=0)
+    for j in range(comp.n_params):
+        P[j + 1, j] *= 1.001
+    return P
+
+
+def test_shared_free_runs_give_the_predictions_of_one_run_per_row():
+    effects, values = [DEAD_ZONE, "motor_lag"], {"u0": 0.3, "tau_m": 0.03}
+    ts = synthetic_measurement(
+        "torsional", None, duration=8, rate_hz=250, signal="steps", offset=1.2, seed=3, effects=effects,
+        effect_params=values,
+    )  # fmt: skip
+    ex = prepare_experiment(ts, "torsional", compare_rate_hz=50)
+    comp, _ = compose(effects)  # the lag behind the dead zone: simulated with its state, not filtered ahead
+    model = SegmentedModel([ex], segment_s=2.0, composition=comp)
+    assert model._state_cols is not None and len(model._state_cols) == 2
+    P = _jacobian_rows(comp, values)
+    runs = []
+    real = model._effect_states
+    model._effect_states = lambda *a: runs.append(a[2].shape[0]) or real(*a)
+    shared = model.predict_arrays(P)
+    assert runs == [3]  # the unmoved row, and the rows that move u0 and tau_m
+    model._state_cols = None
+    one_per_row = model.predict_arrays(P)
+    assert runs[1:] == [P.shape[0]]
+    for channel, y in one_per_row[0].items():
+        np.testing.assert_array_equal(shared[0][channel], y)
