@@ -71,3 +71,20 @@ def test_shared_free_runs_give_the_predictions_of_one_run_per_row():
     assert runs[1:] == [P.shape[0]]
     for channel, y in one_per_row[0].items():
         np.testing.assert_array_equal(shared[0][channel], y)
+
+
+def test_a_model_computes_a_voltage_paths_states_once():
+    effects, values = [DEAD_ZONE, "motor_lag"], {"u0": 0.3, "tau_m": 0.03}
+    ts = synthetic_measurement("torsional", None, duration=6, rate_hz=250, signal="steps", offset=1.2, seed=4)
+    comp, _ = compose(effects)
+    model = SegmentedModel([prepare_experiment(ts, "torsional", compare_rate_hz=50)], segment_s=2.0, composition=comp)
+    P = _jacobian_rows(comp, values)
+    first = model.predict_arrays(P[:1])
+    runs = []
+    real = model._effect_states
+    model._effect_states = lambda *a: runs.append(a[2].shape[0]) or real(*a)
+    again = model.predict_arrays(P)  # the unmoved row's states are those of the first prediction
+    assert runs == [2]
+    np.testing.assert_array_equal(again[0]["theta_u"][0], first[0]["theta_u"][0])
+    other = model.with_composition(compose([DEAD_ZONE, "input_delay", "motor_lag"])[0])
+    assert other._state_memo == {}  # another model computes its own

@@ -60,6 +60,8 @@ CHANNELS = ("theta_u", "theta_l", "alpha", "x", "y", "r")
 #: not compared (:meth:`SegmentedModel.measured_segments`)
 LVDT_EDGE_PERIODS = 1.0
 MAX_DT = 2e-3  # s: simulator step bound (DP5: > 200 steps per lateral period)
+#: parameter rows whose effect states a model keeps from earlier predictions (:meth:`SegmentedModel.predict_arrays`)
+STATE_MEMO_SIZE = 256
 _COL = {n: i for i, n in enumerate(OUTPUT_NAMES)}
 
 
@@ -133,6 +135,7 @@ class SegmentedModel(SpeedCorrections):
         self._sim_cols = np.array([comp.param_index(n) for n in self._sim.param_names], dtype=int)
         self._tau_col = comp.param_index("tau_m") if self._lag is not None else None
         self._state_cols = input_state_columns(self._sim) if self._sim.n_states else None
+        self._state_memo: dict[tuple, np.ndarray] = {}
 
     def with_composition(self, composition: Any) -> SegmentedModel:
         """The same experiments, segments and speed corrections with another model.
@@ -433,16 +436,29 @@ class SegmentedModel(SpeedCorrections):
         self, ex: Experiment, plan: dict, S: np.ndarray, drive: np.ndarray, starts: np.ndarray, taus: Any
     ) -> np.ndarray:
         """:meth:`_effect_states`, one free run for the rows that differ only where the states cannot see
-        (:func:`.effect_states.input_state_columns`; the drive's lag, applied here, is part of the key)."""
+        (:func:`.effect_states.input_state_columns`; the drive's lag, applied here, is part of the key), and
+        none for rows whose states an earlier prediction of this model computed (the last
+        :data:`STATE_MEMO_SIZE`: a fit evaluates its accepted point again for the Jacobian, and the selection
+        fits other parameters beside the same voltage path)."""
         cols = self._state_cols
-        if cols is None or S.shape[0] < 2:
+        if cols is None:
             return self._effect_states(ex, plan, S, drive, starts)
         key = S[:, cols] if taus is None else np.column_stack([S[:, cols], taus])
         _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
-        if len(first) == S.shape[0]:
-            return self._effect_states(ex, plan, S, drive, starts)
+        tag = (self._exp_k, np.asarray(starts).tobytes())
+        keys = [(tag, key[i].tobytes()) for i in first]
+        memo = self._state_memo
+        found = {k: memo.get(k) for k in keys}
+        todo = [j for j, k in enumerate(keys) if found[k] is None]
         ns = len(starts)
-        states = self._effect_states(ex, plan, S[first], drive[first], starts).reshape(len(first), ns, -1)
+        if todo:
+            rows = first[todo]
+            fresh = self._effect_states(ex, plan, S[rows], drive[rows], starts).reshape(len(todo), ns, -1)
+            if len(memo) + len(todo) > STATE_MEMO_SIZE:
+                memo.clear()
+            for j, states in zip(todo, fresh):
+                found[keys[j]] = memo[keys[j]] = states
+        states = np.stack([found[k] for k in keys])
         return states[inverse.ravel()].reshape(S.shape[0] * ns, -1)
 
     def _effect_states(
