@@ -1,6 +1,8 @@
 """Discovery on the lateral side: the residual lateral force regressed on forces shaped by physics, written as a
 lateral Force effect file, on recordings of the independent rig (benchmarks/bench_diagnosis_rig.py)."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from test_diagnosis_selection import independent_rig
@@ -12,6 +14,8 @@ from drillgym.diagnosis.lateral_terms import lateral_terms
 from drillgym.diagnosis.sparse import residual_torques
 from drillgym.effects import compose
 from drillgym.identification.experiment import prepare_experiment
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _coupled(effects: dict, seed: int = 5):
@@ -124,6 +128,33 @@ def test_a_library_coulomb_standing_in_for_a_stiffening_spring_is_named(truth, v
     if verdict:
         assert found.library == "lateral_coulomb" and next(iter(found.outside.terms)) == "r²·(X, Y)"
         assert "r²" in found.line() and "not Coulomb friction" in found.line(), found.line()
+
+
+def test_a_library_effect_named_as_another_force_is_left_out_of_the_model_beside_the_candidate():
+    """The selection again beside a kept candidate neither holds nor screens the library effect the residual said
+    is another force; the verdict says which way it went."""
+    from types import SimpleNamespace
+
+    from drillgym.configurations import Configuration
+    from drillgym.diagnosis import DiagnosisOptions
+    from drillgym.diagnosis.lateral_library import LateralVerdict
+    from drillgym.diagnosis.reselection import KeptCandidate, reselection_inputs
+
+    cand = Candidate(LATERAL_GROUP, {"r²·(X, Y)": -6e7}, {}, {}, 0.9, 1)
+    spec = f"{ROOT}/examples/effects/string_cubic.py:string_cubic"  # the kept candidate's file (any effect file)
+    kept = KeptCandidate(spec, {}, ("lateral_coulomb",))
+    first = SimpleNamespace(params=RigParams(), config=Configuration.COUPLED)
+    for options in (DiagnosisOptions(), DiagnosisOptions(effects=["lateral_coulomb", "lateral_anisotropy"])):
+        _, again = reselection_inputs(first, kept, options, left_out=("lateral_coulomb",))
+        held = [getattr(e, "name", e) for e in again.base_effects]
+        assert "lateral_coulomb" not in held and held[-1] == "string_cubic", held
+        names = [getattr(e, "name", e) for e in again.effects]
+        assert "lateral_coulomb" not in names and "lateral_anisotropy" in names, names
+    _, same = reselection_inputs(first, kept, DiagnosisOptions())
+    assert "lateral_coulomb" in [getattr(e, "name", e) for e in same.base_effects] and same.effects is None
+    verdict = LateralVerdict("lateral_coulomb", cand, 0.9, 0.2, {"Fc_lat": 7.5})
+    assert verdict.line(left_out=True).endswith("lateral_coulomb is left out of the model the candidate enters")
+    assert "stays in the model" in verdict.line(left_out=False)
 
 
 @pytest.mark.slow

@@ -8,7 +8,9 @@ of the model *without* the library effect (its parameters at their neutral value
 (:func:`.lateral_discovery.lateral_candidate`): on the library effect's own shapes
 (:data:`.lateral_terms.LIBRARY_SHAPES`) and on the terms outside the library.  When the outside terms leave less
 than :data:`OUTSIDE_BETTER` of what the library's shapes leave, the diagnosis says so, in words: "a lateral
-force that grows with r² (a stiffening spring), not Coulomb friction in the guides (lateral_coulomb)".
+force that grows with r² (a stiffening spring), not Coulomb friction in the guides (lateral_coulomb)"; where
+the candidate's own fit earns it a place in the model, the library effect is left out of it (not selected again
+beside the candidate, :func:`.reselection.reselection_inputs`).
 """
 
 from __future__ import annotations
@@ -67,15 +69,27 @@ class LateralVerdict:
     library_share: float
     values: dict[str, float]
 
-    def line(self) -> str:
-        """The verdict in words, one line."""
+    def line(self, left_out: bool = False) -> str:
+        """The verdict in words, one line.
+
+        Parameters
+        ----------
+        left_out : bool, optional
+            The library effect was left out of the model a kept candidate entered (else it stays: no candidate
+            took its place).
+        """
         first = next(iter(self.outside.terms))
         what = _WORDS.get(first, f"a lateral force {first}")
         vals = ", ".join(f"{k} = {v:.3g}" for k, v in self.values.items())
+        fate = (
+            f"{self.library} is left out of the model the candidate enters"
+            if left_out
+            else f"{self.library} stays in the model: no candidate earned its place"
+        )
         return (
             f"{what}, not {_LIBRARY_WORDS[self.library]}: without {self.library} ({vals}) in the model, "
             f"{self.outside.expression()} explains {self.outside_share:.0%} of the residual lateral force, "
-            f"{self.library}'s own shape {self.library_share:.0%}"
+            f"{self.library}'s own shape {self.library_share:.0%}; {fate}"
         )
 
 

@@ -19,7 +19,9 @@
    :func:`.lateral_library.library_versus_outside` — a library lateral effect the selection took that the residual
    lateral force says is another force (a warning in words);
 6. :mod:`.reselection` — with a candidate kept in the model, the whole diagnosis again on the model that holds
-   it (its parameters refitted with the base): the candidate's residual hid the library's effects beside it.
+   it (its parameters refitted with the base): the candidate's residual hid the library's effects beside it.  A
+   library lateral effect that the residual said is another force is not a candidate there: it is left out of
+   the model the candidate enters.
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ from .detectability import detectability
 from .discovery import discover
 from .information import require_information
 from .input_order import input_order
-from .lateral_library import library_versus_outside
+from .lateral_library import LateralVerdict, library_versus_outside
 from .orders import select
 from .ranking import report
 from .reselection import kept_candidate, reselection_inputs
@@ -122,28 +124,33 @@ def diagnose(
             detectability=shows,
         )
     if opts.discover and screening.config is not Configuration.UPPER:
-        diagnosis = _discovered(screening, diagnosis, noise, opts)
+        diagnosis, verdict = _discovered(screening, diagnosis, noise, opts)
         kept = kept_candidate(diagnosis)
+        if verdict is not None:  # said either way; left out of the model only where a candidate takes its place
+            diagnosis = replace(diagnosis, warnings=[*diagnosis.warnings, verdict.line(left_out=kept is not None)])
         if kept is not None:
-            again, again_options = reselection_inputs(diagnosis, kept, opts)
+            left_out = (verdict.library,) if verdict is not None else ()
+            again, again_options = reselection_inputs(diagnosis, kept, opts, left_out)
             diagnosis = replace(diagnosis, reselection=diagnose(data, again, config, options=again_options))
     return diagnosis
 
 
-def _discovered(screening, diagnosis: Diagnosis, noise: dict[str, float], opts: DiagnosisOptions) -> Diagnosis:
-    """The diagnosis with a candidate effect outside the library (or advice), each candidate's own fit judged."""
+def _discovered(
+    screening, diagnosis: Diagnosis, noise: dict[str, float], opts: DiagnosisOptions
+) -> tuple[Diagnosis, LateralVerdict | None]:
+    """The diagnosis with a candidate effect outside the library (or advice), each candidate's own fit judged;
+    and the library lateral effect the residual says is another force, if any."""
     fine = _fine(screening.exps[0])
     found, advice = discover(fine, diagnosis, opts.candidate_out)
     verdict = library_versus_outside(fine, diagnosis, found)  # a library lateral effect standing in for another
-    warnings = [*diagnosis.warnings, verdict.line()] if verdict is not None else diagnosis.warnings
-    diagnosis = replace(diagnosis, candidate=found, advice=advice, warnings=warnings)
+    diagnosis = replace(diagnosis, candidate=found, advice=advice)
     readings = reading_candidates(diagnosis)  # what each sensor reads: only its own fit can show it
     if found is None and not readings:
-        return diagnosis
+        return diagnosis, verdict
     with one_blas_thread():  # its own identification is part of the answer
         chosen = choose_candidate(screening, diagnosis, noise, opts.candidate_out, readings)
     read = chosen is not None and chosen.is_reading
-    return replace(diagnosis, candidate=chosen, advice=[] if read else advice)
+    return replace(diagnosis, candidate=chosen, advice=[] if read else advice), verdict
 
 
 def _recordings(data: Any) -> list[TimeSeries]:

@@ -18,10 +18,12 @@ builds its model from it.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
 from ..params import RigParams
+from .effects import effects_for, get_effect
 from .results import Diagnosis
 from .state import DiagnosisOptions
 
@@ -74,7 +76,7 @@ def kept_candidate(diagnosis: Diagnosis) -> KeptCandidate | None:
 
 
 def reselection_inputs(
-    diagnosis: Diagnosis, kept: KeptCandidate, options: DiagnosisOptions
+    diagnosis: Diagnosis, kept: KeptCandidate, options: DiagnosisOptions, left_out: Sequence[str] = ()
 ) -> tuple[RigParams, DiagnosisOptions]:
     """The base parameters and the options of the diagnosis run again with the candidate in the model.
 
@@ -86,6 +88,9 @@ def reselection_inputs(
         The candidate.
     options : DiagnosisOptions
         The first diagnosis' options.
+    left_out : sequence of str, optional
+        Library effects not selected again nor held beside the candidate (a library lateral effect the residual
+        said is another force, :func:`.lateral_library.library_versus_outside`).
 
     Returns
     -------
@@ -98,7 +103,7 @@ def reselection_inputs(
     from ..effects import compose
 
     first, values0 = compose(options.base_effects, options.effect_params)
-    held = [*first.effects, *(a for a in kept.ahead if a not in first.names), kept.spec]
+    held = [*first.effects, *(a for a in kept.ahead if a not in first.names and a not in left_out), kept.spec]
     comp, _ = compose(held)
     names = set(comp.effect_param_names)
     values: dict[str, Any] = {k: v for k, v in {**values0, **kept.values}.items() if k in names}
@@ -110,4 +115,7 @@ def reselection_inputs(
         discover=False,
         refit_model_effects=True,
     )
+    if left_out:
+        candidates = options.effects or effects_for(diagnosis.config)
+        again = replace(again, effects=[e for e in candidates if get_effect(e).name not in left_out])
     return params, again
