@@ -422,6 +422,15 @@ def test_refit_refuses_its_settings_before_any_work(data, short_recording):
     refused(lambda: refit(short_recording, **{name: value}), name, "rate", "effect", "parameter", "--fit")
 
 
+def test_refit_refuses_an_effect_the_model_holds_already(short_recording):
+    """An added effect that ``base_effects`` holds is refused in one line, as ``identify --add-effect`` does, not
+    merged into one (whose values would then be the added ones or the held ones, unsaid)."""
+    from drillgym.diagnosis.refit import refit
+
+    msg = refused(lambda: refit(short_recording, effects=["motor_lag"], base_effects=["motor_lag"]), "motor_lag")
+    assert "base_effects" in msg and "fit=" in msg
+
+
 def test_refit_takes_one_name_as_one_effect_and_one_parameter():
     """A single string is one item (not its characters), as ``compose`` takes it."""
     from drillgym.diagnosis.refit import RefitOptions

@@ -24,7 +24,7 @@ from typing import Any
 
 from ..configurations import Configuration
 from ..effects import Composition, compose
-from ..errors import InputTypeError
+from ..errors import InputError, InputTypeError
 from ..identification.acting import check_fit_names
 from ..identification.experiment import Experiment, prepare_experiment
 from ..identification.fitting import FitVariable, Objective, base_vector, fit_parameters
@@ -232,7 +232,8 @@ def refit(
     Raises
     ------
     InputError
-        An added effect or a base parameter to fit that does not act in the recording's configuration.
+        An added effect or a base parameter to fit that does not act in the recording's configuration, or an
+        added effect that ``base_effects`` holds already.
     FitError
         The model before or after the fit gives non-finite states on the recording (no R² or RMS).
     """
@@ -246,8 +247,12 @@ def refit(
     comp0, values0 = compose(o.base_effects, o.base_values)
     added = [get_effect(e) for e in o.effects]
     Composition(tuple(added)).refuse_not_acting(ex.config.label, "effects")
-    new = [e for e in added if e.name not in comp0.names]
-    comp = Composition(tuple(comp0.effects) + tuple(new))
+    again = [e.name for e in added if e.name in comp0.names]
+    if again:
+        raise InputError(
+            f"refit: effect {again[0]!r} is in base_effects already; fit its parameters with fit=[...] instead"
+        )
+    comp = Composition(tuple(comp0.effects) + tuple(added))
     start_values = {**values0, **{k: v for k, v in (o.effect_params or {}).items()}}
     vec_start = base_vector(comp, base, comp.check_values(start_values))
     names: list[str] = [p.name for e in added for p in e.parameters]
