@@ -89,3 +89,24 @@ def test_imports_no_kernel_can_see_do_not_key_the_generated_kernels(tmp_path):
         (pkg / f"{name}.py").write_text("X = 3\n")
         assert digest() != before, name
         before = digest()
+
+
+def test_another_installations_packages_are_kept_while_it_loads_them(tmp_path):
+    """The generated packages are shared by every drillgym that uses the cache: one built from other sources is
+    removed only once no process has loaded it for STALE_AFTER_S (a long test run of another checkout keeps its
+    packages), and loading a package marks it used."""
+    import os
+    import time
+
+    from drillgym.effects import Composition
+    from drillgym.effects.codegen import STALE_AFTER_S, USED_STAMP, _write_package, prune_stale
+
+    old = time.time() - 2 * STALE_AFTER_S
+    for name in ("_dgk_unused", "_dgk_loaded"):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / USED_STAMP).write_text("another installation's sources\n")
+        os.utime(tmp_path / name / USED_STAMP, (old, old))
+        os.utime(tmp_path / name, (old, old))
+    assert _write_package(tmp_path, "_dgk_loaded", "", Composition(())) == tmp_path / "_dgk_loaded"
+    assert prune_stale(tmp_path) == 1
+    assert not (tmp_path / "_dgk_unused").exists() and (tmp_path / "_dgk_loaded").exists()

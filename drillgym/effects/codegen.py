@@ -47,6 +47,7 @@ __all__ = [
     "package_name",
     "prune_stale",
     "STALE_AFTER_S",
+    "USED_STAMP",
 ]
 
 #: the kernel templates of :mod:`drillgym.kernels` copied into every generated package
@@ -149,13 +150,18 @@ def _ensure_on_path(root: Path) -> None:
         sys.path.insert(0, s)
 
 
-STALE_AFTER_S = 3600.0  # packages built from other drillgym sources are removed after an hour unused
+#: packages built from other drillgym sources are removed after a day in which no process loaded them
+STALE_AFTER_S = 86400.0
+#: the file of a generated package whose modification time is its last use (:func:`_write_package` touches it)
+USED_STAMP = "ENVIRONMENT"
 
 
 def prune_stale(root: Path) -> int:
-    """Remove generated packages built from other drillgym sources, unused for :data:`STALE_AFTER_S`.
+    """Remove generated packages built from other drillgym sources, not loaded for :data:`STALE_AFTER_S`.
 
-    Such packages are never loaded again (the package name hashes the sources).
+    This drillgym never loads them again (the package name hashes the sources), but another installation
+    sharing the cache may be using them: every load marks a package used (:data:`USED_STAMP`), so a test run or a
+    training of another checkout keeps its packages while it runs.
 
     Parameters
     ----------
@@ -172,8 +178,9 @@ def prune_stale(root: Path) -> int:
     now = time.time()
     for d in root.glob("_dgk_*"):
         try:
-            meta = (d / "ENVIRONMENT").read_text().strip()
-            if meta != digest and now - d.stat().st_mtime > STALE_AFTER_S:
+            stamp = d / USED_STAMP
+            meta = stamp.read_text().strip()
+            if meta != digest and now - stamp.stat().st_mtime > STALE_AFTER_S:
                 shutil.rmtree(d, ignore_errors=True)
                 removed += 1
         except OSError:
@@ -184,6 +191,10 @@ def prune_stale(root: Path) -> int:
 def _write_package(root: Path, package: str, hooks: str, comp: Composition) -> Path:
     final = root / package
     if final.exists():
+        try:
+            os.utime(final / USED_STAMP)  # in use: another installation's prune keeps it
+        except OSError:  # a read-only cache, or one being written by another process
+            pass
         return final
     root.mkdir(parents=True, exist_ok=True)
     prune_stale(root)
