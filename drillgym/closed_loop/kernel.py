@@ -76,20 +76,19 @@ def _encoder(theta, cpr):
 
 @njit(cache=True)
 def _measure(Y, P, n, has_meas, cpr, noise, Z, i, noisy, M):
-    """The sensors of lanes 0..n-1 into rows theta_u, theta_l, x, y of M (rad, m)."""
+    """The sensors of lanes 0..n-1 into rows theta_u, theta_l, x, y of M (rad, m); no trigonometry for a lower disc
+    at the centre (x, y 0: torsional runs)."""
     for k in range(n):
         y = Y[k]
         X = 0.0
         Yf = 0.0
+        if y[4] != 0.0 or y[5] != 0.0:
+            c, s = math.cos(y[0]), math.sin(y[0])
+            X, Yf = y[4] * c - y[5] * s, y[4] * s + y[5] * c
         if has_meas:
-            if y[4] != 0.0 or y[5] != 0.0:
-                c, s = math.cos(y[0]), math.sin(y[0])
-                X, Yf = y[4] * c - y[5] * s, y[4] * s + y[5] * c
             tu, tl, X, Yf = hk_measure(y[0], y[1], X, Yf, y[2], y[3], P[k])
         else:
             tu, tl = y[0], y[1]
-            c, s = math.cos(y[0]), math.sin(y[0])
-            X, Yf = y[4] * c - y[5] * s, y[4] * s + y[5] * c
         qu = _encoder(tu, cpr[k])
         ql = _encoder(tl, cpr[k])
         if noisy:
@@ -238,7 +237,8 @@ def run_periods(
     the commands of the B stepped lanes; ``Y`` ... ``HEAD`` the plant (B lanes, :class:`BatchSimulator`'s
     arrays); ``NOREC`` the lane kernel's empty record; ``cpr``, ``noise`` (n,) the encoders' counts/rev and
     the angle noise (rad); ``Z`` (m, 2, n) standard normal draws for theta_u, theta_l; ``limit`` the speed
-    beyond which a run diverged (rad/s); ``OUT`` (7, n, total periods) the signals, column k0 + i.
+    beyond which a run diverged (rad/s); ``OUT`` (7, total periods, n) the signals, row k0 + i (one
+    contiguous store over the lanes per signal and period).
     Status: OK, NON_FINITE_COMMAND (the period's command is not finite: nothing recorded) or DIVERGED
     (a state is not finite or a speed beyond ``limit`` after the period)."""
     B = Y.shape[0]
@@ -266,13 +266,13 @@ def run_periods(
             U[j] = u
             UL[j, 0] = u
             y_ = Y[j]
-            OUT[0, j, k] = u
-            OUT[1, j, k] = y_[2]
-            OUT[2, j, k] = y_[3]
-            OUT[3, j, k] = y_[1] - y_[0]
-            OUT[4, j, k] = 1.0 if MODE[j, 1] == 0 else 0.0
-            OUT[5, j, k] = FRIC[j, 1]
-            OUT[6, j, k] = np.hypot(y_[4], y_[5])
+            OUT[0, k, j] = u
+            OUT[1, k, j] = y_[2]
+            OUT[2, k, j] = y_[3]
+            OUT[3, k, j] = y_[1] - y_[0]
+            OUT[4, k, j] = 1.0 if MODE[j, 1] == 0 else 0.0
+            OUT[5, k, j] = FRIC[j, 1]
+            OUT[6, k, j] = np.hypot(y_[4], y_[5])
         if lanes:
             _pad(Y, MODE, UL, T, FRIC, HIST, HEAD, n)
             _lane_period(Y, MODE, UL, P, PT, cfg, dt, T, sub, FRIC, HIST, HEAD, A, b, c, DM, S, S0, K1, FR, MU, ML, EV,
