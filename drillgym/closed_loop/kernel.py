@@ -11,9 +11,9 @@ smaller than :data:`drillgym.lane_runner.LANES_MIN_BATCH`.
 The lane path is :func:`drillgym.kernels.lanes.lanes_run` called once per period, without what that call
 sets up anew each time: its work arrays, the transposed parameter rows and the delays are made once per
 compiled call (a chunk of periods) and the lanes stay laid out across periods.  At a period's start
-``lanes_run`` resolves each lane's modes and takes its step-start slopes at the new command on the scalar
+``lanes_run`` resolves each lane's modes and takes its step-start slopes at the period's command on the scalar
 path; here, without a lag or a delay in the composition, every lane's slopes are taken at once on the lanes
-(as a lane step takes them at a new command) and only a lane whose stuck disc's torque is not clear inside
+(as a lane step takes them at a changed command) and only a lane whose stuck disc's torque is not clear inside
 its stick set (:data:`HOLD_MARGIN`) is resolved on the scalar path, which cuts the plant's cost per lane and
 period by about 45 % on runs from rest; the runs agree with the reference to round-off (bit for bit in the
 tests).  The first period of a call, and every period with a lag or a delay, starts every lane on the
@@ -134,7 +134,7 @@ def _start_lane(Y, MODE, UL, P, cfg, dt, T, HIST, HEAD, S, K1, FR, MU, ML, Ucur,
 def _restart_lanes(Y, MODE, UL, P, PT, cfg, dt, T, n, HIST, HEAD, S, K1, FR, MU, ML, EV, E, Ucur, Uprev, TT, rows,
                    y, mode, k1, fric):  # fmt: skip
     """The B lanes, laid out in S since the last period, restarted at the commands UL (V): the step-start slopes
-    and friction of every lane at once (the lane right-hand side, as a lane step takes them at a new command),
+    and friction of every lane at once (the lane right-hand side, as a lane step takes them at a changed command),
     then on the scalar path (:func:`_start_lane`, its modes resolved) each lane whose stuck disc may be released
     (:func:`_held`) and each padding lane (k >= n, a copy of lane n-1).  Without a lag or a delay (their start is
     per lane).  EV: work (B,)."""
