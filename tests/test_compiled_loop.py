@@ -134,3 +134,29 @@ def test_a_controller_without_a_law_keeps_the_step_by_step_loop():
     with pytest.raises(InputError, match="no compiled law"):
         run_closed_loop(controllers.make("baseline", config="torsional", omega_ref=ref), "torsional", ref, 0.1,
                         compiled=True)  # fmt: skip
+
+
+@pytest.mark.parametrize("n", [3, 16])  # the scalar kernel and the lane kernel
+def test_a_law_that_gives_a_non_finite_command_stops_the_loop_at_that_period(n):
+    """A command that is not finite in one lane at t = 6 ms: FloatingPointError naming that time, the signals of
+    the periods before recorded as the law gave them."""
+    from numba import njit
+
+    from drillgym import BatchSimulator, Configuration
+    from drillgym.closed_loop import run_compiled_loop
+    from drillgym.closed_loop.abi import LAW_SIGNATURE
+
+    @njit(LAW_SIGNATURE)
+    def law(t, M, X, C, U):  # pragma: no cover - compiled
+        for k in range(U.size):
+            U[k] = np.nan if (t > 0.005 and k == U.size - 1) else 1.5
+
+    sim = BatchSimulator(Configuration.TORSIONAL, n, dt=1e-3)
+    sim.reset()
+    zeros = np.zeros(n)
+    first = {"theta_u": zeros, "theta_l": zeros, "x": zeros, "y": zeros, "omega_ref": np.ones(n)}
+    with pytest.raises(FloatingPointError, match="t = 0.006 s"):
+        run_compiled_loop(sim, law, np.zeros((1, n)), np.zeros(1), periods=10, control_dt=0.002, first=first,
+                          counts_per_rev=np.full(n, 8000.0), angle_noise=zeros, rng=np.random.default_rng(0),
+                          u_max=10.0)  # fmt: skip
+    assert np.all(sim.Y[:, 2] > 0.0) and np.all(np.isfinite(sim.Y))  # three periods at 1.5 V, none at NaN

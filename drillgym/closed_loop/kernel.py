@@ -216,13 +216,43 @@ def _lane_period(Y, MODE, UL, P, PT, cfg, dt, T, sub, FRIC, HIST, HEAD, A, b, c,
 
 @njit(cache=True)
 def _diverged(Y, n, limit):
+    """True when a state of lanes 0..n-1 is not finite or a speed beyond ``limit`` (rad/s); one flag over all the
+    lanes (no exit inside the loop: it vectorises)."""
+    bad = False
     for k in range(n):
         for j in range(min(N_STATE, 8)):
-            if not np.isfinite(Y[k, j]):
-                return True
-        if abs(Y[k, 2]) > limit or abs(Y[k, 3]) > limit:
-            return True
-    return False
+            bad |= not np.isfinite(Y[k, j])
+        bad |= abs(Y[k, 2]) > limit or abs(Y[k, 3]) > limit
+    return bad
+
+
+@njit(cache=True)
+def _clip_commands(U, UL, n, u_max):
+    """The law's commands U (V) clipped to [-u_max, u_max] into U and the stepped lanes' UL; False when one is not
+    finite."""
+    ok = True
+    for j in range(n):
+        u = min(max(U[j], -u_max), u_max)
+        ok &= np.isfinite(u)
+        U[j] = u
+        UL[j, 0] = u
+    return ok
+
+
+@njit(cache=True)
+def _record(OUT, k, U, Y, MODE, FRIC, n):
+    """Period k's signals of lanes 0..n-1 into OUT[:, k] (:data:`N_SIGNALS`): the command, the speeds, the
+    winding, the lower disc's stick flag and friction, the lateral displacement (no hypot at the centre)."""
+    for j in range(n):
+        y_ = Y[j]
+        OUT[0, k, j] = U[j]
+        OUT[1, k, j] = y_[2]
+        OUT[2, k, j] = y_[3]
+        OUT[3, k, j] = y_[1] - y_[0]
+        OUT[4, k, j] = 1.0 if MODE[j, 1] == 0 else 0.0
+        OUT[5, k, j] = FRIC[j, 1]
+        x, yy = y_[4], y_[5]
+        OUT[6, k, j] = np.hypot(x, yy) if (x != 0.0 or yy != 0.0) else 0.0
 
 
 @njit(RUN_SIGNATURE, cache=True)
@@ -259,20 +289,9 @@ def run_periods(
         if not (first_given and i == 0):
             _measure(Y, P, n, has_meas, cpr, noise, Z, i, noisy, M)
         law(k * ctrl_dt, M, X, C, U)
-        for j in range(n):
-            u = min(max(U[j], -u_max), u_max)
-            if not np.isfinite(u):
-                return i, NON_FINITE_COMMAND
-            U[j] = u
-            UL[j, 0] = u
-            y_ = Y[j]
-            OUT[0, k, j] = u
-            OUT[1, k, j] = y_[2]
-            OUT[2, k, j] = y_[3]
-            OUT[3, k, j] = y_[1] - y_[0]
-            OUT[4, k, j] = 1.0 if MODE[j, 1] == 0 else 0.0
-            OUT[5, k, j] = FRIC[j, 1]
-            OUT[6, k, j] = np.hypot(y_[4], y_[5])
+        if not _clip_commands(U, UL, n, u_max):
+            return i, NON_FINITE_COMMAND
+        _record(OUT, k, U, Y, MODE, FRIC, n)
         if lanes:
             _pad(Y, MODE, UL, T, FRIC, HIST, HEAD, n)
             _lane_period(Y, MODE, UL, P, PT, cfg, dt, T, sub, FRIC, HIST, HEAD, A, b, c, DM, S, S0, K1, FR, MU, ML, EV,
