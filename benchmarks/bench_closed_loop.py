@@ -6,8 +6,9 @@ compiled ``advance`` and one Python ``act`` per control period).  For ``observer
 its 10 ms, on 1, 64 and 256 lanes (targets 1-6 rad/s, torsional, 8000 counts/rev), and ``lqg`` (10 ms),
 ``lqg-2enc`` (2 ms) on 256 lanes, the real-time factor per core (lanes x simulated s / wall s, one thread) of
 both paths and their ratio, best of the repeats; each path warmed up first (numba compilation not timed).
-A run includes the controller's reset (for the model-based controllers its margin check, about 1.5 ms per
-distinct target): the "loop" columns leave it out (the wall time of the reset is measured and subtracted).
+A run includes the controller's reset (for the model-based controllers its margin check, one batched eigenvalue
+call over the distinct targets: about 3 ms for 256): the "loop" columns leave it out (the wall time of the reset
+is measured and subtracted).
 Goals (observer, 256 lanes): >= 2,000x real time per core and >= 30x the step-by-step path.  The load
 average is printed: the absolute factors need a quiet machine, the ratios hold on a shared one.
 

@@ -30,6 +30,8 @@ the estimate of omega_l itself is unbiased.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import control
 import numpy as np
 
@@ -50,7 +52,12 @@ def chain_gain(bandwidth: float, r: float = 1.0, integral: float = 0.0) -> np.nd
         raise InputError(f"bandwidth must be a positive rate (rad/s), got {bandwidth!r}")
     if not (np.isfinite(integral) and integral >= 0):
         raise InputError(f"integral weight must be a non-negative number, got {integral!r}")
-    b = float(bandwidth)
+    return _chain_gain(float(bandwidth), float(r), float(integral)).copy()
+
+
+@lru_cache(maxsize=64)
+def _chain_gain(b: float, r: float, integral: float) -> np.ndarray:
+    """:func:`chain_gain` solved once per (bandwidth b in rad/s, input weight r, integral weight) and process."""
     q = [integral * b**8] if integral > 0 else []
     n = len(q) + 3
     A = np.diag(np.ones(n - 1), 1)

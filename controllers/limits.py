@@ -39,7 +39,14 @@ from drillgym import RigParams
 from drillgym.errors import InputError
 from drillgym.friction import lower_friction_slope
 
-__all__ = ["MotorAngleLimit", "brake_slope", "motor_angle_model", "motor_angle_limit", "tolerated_error"]
+__all__ = [
+    "MotorAngleLimit",
+    "brake_slope",
+    "motor_angle_model",
+    "motor_angle_limit",
+    "motor_angle_limits",
+    "tolerated_error",
+]
 
 
 def brake_slope(omega: float, params: RigParams) -> float:
@@ -47,23 +54,40 @@ def brake_slope(omega: float, params: RigParams) -> float:
     return float(lower_friction_slope(np.array([max(float(omega), 1e-6)]), params)[0])
 
 
+def _state_matrices(params: RigParams, slopes: np.ndarray) -> np.ndarray:
+    """The state matrices (k, 4, 4) of the linearised rig (states theta_u, omega_u, alpha, omega_l) at the brake
+    slopes ``slopes`` (N m s/rad, (k,))."""
+    p = params
+    A = np.zeros((slopes.size, 4, 4))
+    A[:, 0, 1] = 1.0
+    A[:, 1, 1] = -(p.bu + p.dbu) / p.Ju
+    A[:, 1, 2] = p.ktheta / p.Ju
+    A[:, 2, 1] = -1.0
+    A[:, 2, 3] = 1.0
+    A[:, 3, 2] = -p.ktheta / p.Jl
+    A[:, 3, 3] = -slopes / p.Jl
+    return A
+
+
 def motor_angle_model(params: RigParams, omega: float) -> control.StateSpace:
     """The torsional rig about the slip equilibrium at ``omega`` (rad/s): input u (V), output the
     motor angle theta_u (rad); states (theta_u, omega_u, alpha, omega_l)."""
     p = params
-    s = brake_slope(omega, p)
-    bu = p.bu + p.dbu
-    A = np.array(
-        [
-            [0.0, 1.0, 0.0, 0.0],
-            [0.0, -bu / p.Ju, p.ktheta / p.Ju, 0.0],
-            [0.0, -1.0, 0.0, 1.0],
-            [0.0, 0.0, -p.ktheta / p.Jl, -s / p.Jl],
-        ]
-    )
+    A = _state_matrices(p, np.array([brake_slope(omega, p)]))[0]
     B = np.array([[0.0], [p.km / p.Ju], [0.0], [0.0]])
     C = np.array([[1.0, 0.0, 0.0, 0.0]])
     return control.ss(A, B, C, np.zeros((1, 1)))
+
+
+def _constrained_modes(params: RigParams, slopes: np.ndarray) -> np.ndarray:
+    """The zeros of theta_u/u (1/s, (k, 2)) at the brake slopes ``slopes`` (N m s/rad, (k,)): the modes of the rig
+    with the motor held still, roots of Jl s^2 + slope s + k_theta (alpha' = omega_l, omega_u = 0)."""
+    p = params
+    A = np.zeros((slopes.size, 2, 2))
+    A[:, 0, 1] = 1.0
+    A[:, 1, 0] = -p.ktheta / p.Jl
+    A[:, 1, 1] = -slopes / p.Jl
+    return np.linalg.eigvals(A).astype(complex)
 
 
 @dataclass(frozen=True)
@@ -120,19 +144,49 @@ def motor_angle_limit(params: RigParams | None, omega: float) -> MotorAngleLimit
         Poles, zeros and the bound; ``tolerated`` is the largest relative input error the best loop
         tolerates.
     """
-    p = params or RigParams()
     if not (np.isfinite(omega) and omega > 0):
         raise InputError(f"omega must be a positive speed (rad/s), got {omega!r}")
-    sys = motor_angle_model(p, float(omega))
-    poles = np.linalg.eigvals(np.asarray(sys.A))
-    zeros = np.asarray(control.zeros(sys) if hasattr(control, "zeros") else control.zero(sys))
+    return motor_angle_limits(params, [float(omega)])[0]
+
+
+def motor_angle_limits(params: RigParams | None, omegas) -> list[MotorAngleLimit]:
+    """:func:`motor_angle_limit` at several equilibria at once (one batched eigenvalue call for the poles,
+    one for the zeros).
+
+    Parameters
+    ----------
+    params : RigParams or None
+        Base parameters; None: the identified set.
+    omegas : sequence of float
+        Lower-disc speeds of the equilibria (rad/s), each > 0.
+
+    Returns
+    -------
+    list of MotorAngleLimit
+        One per speed, in the order given.
+    """
+    p = params or RigParams()
+    w = np.atleast_1d(np.asarray(omegas, dtype=float))
+    if not np.all(np.isfinite(w) & (w > 0)):
+        raise InputError(f"omega must be positive speeds (rad/s), got {omegas!r}")
+    slopes = lower_friction_slope(np.maximum(w, 1e-6), p)
+    poles = np.linalg.eigvals(_state_matrices(p, slopes))
+    zeros = _constrained_modes(p, slopes)
     tol = 1e-9
-    rp = tuple(complex(x) for x in poles if x.real > tol)
-    rz = tuple(complex(x) for x in zeros if x.real > tol)
+    out = []
+    for k in range(w.size):
+        rp = tuple(complex(x) for x in poles[k] if x.real > tol)
+        rz = tuple(complex(x) for x in zeros[k] if x.real > tol)
+        out.append(MotorAngleLimit(float(w[k]), float(slopes[k]), rp, rz, _bound(rp, rz)))
+    return out
+
+
+def _bound(rp: tuple[complex, ...], rz: tuple[complex, ...]) -> float:
+    """max over the RHP poles p of prod over the RHP zeros z of |z + conj p| / |z - p| (1 without an RHP pole)."""
     bound = 1.0
     for pole in rp:
         b = 1.0
         for z in rz:
             b *= abs(z + np.conj(pole)) / max(abs(z - pole), 1e-300)
         bound = max(bound, b)
-    return MotorAngleLimit(float(omega), brake_slope(omega, p), rp, rz, float(bound))
+    return float(bound)

@@ -30,7 +30,7 @@ import numpy as np
 
 from drillgym import Model
 
-from .limits import motor_angle_limit
+from .limits import motor_angle_limits
 
 __all__ = ["SIGMAS", "TIMING_PARAMETERS", "ModelMargin", "model_margins", "check_margins"]
 
@@ -108,8 +108,8 @@ def model_margins(model: Model, targets: Sequence[float] | np.ndarray) -> list[M
     timing = {n: model.std.get(n) for n in TIMING_PARAMETERS if n in model.values}
     known = km_part is not None and all(v is not None and math.isfinite(v) for v in timing.values())
     out = []
-    for w in sorted({float(v) for v in np.atleast_1d(targets)}):
-        lim = motor_angle_limit(p, w)
+    omegas = sorted({float(v) for v in np.atleast_1d(targets)})
+    for w, lim in zip(omegas, motor_angle_limits(p, omegas) if omegas else []):
         needed = lim.tolerated if lim.rhp_poles else math.inf
         if not known:
             out.append(ModelMargin(w, needed, None))

@@ -24,27 +24,31 @@ SIGNALS = ("u", "omega_u", "omega_l", "alpha", "stuck_l", "friction_l", "r")
 PLANT = {"effects": ["motor_lag"]}
 
 
-def _runs(name, ref, duration, **kw):
+def _runs(name, ref, duration, plant=PLANT, **kw):
     out = []
     for compiled in (False, True):
         c = controllers.make(name, config="torsional", omega_ref=ref)
-        out.append(run_closed_loop(c, "torsional", ref, duration, compiled=compiled, **PLANT, **kw))
+        out.append(run_closed_loop(c, "torsional", ref, duration, compiled=compiled, **plant, **kw))
     return out
 
 
-@pytest.mark.parametrize("n", [3, 10])  # the scalar kernel (< 8 runs) and the lane kernel with padded lanes
-def test_pi_compiled_loop_is_the_reference_to_round_off(n):
+# the scalar kernel (< 8 runs), the lane kernel with padded lanes; with a lag each lane starts its periods on the
+# scalar path, without one the lanes restart in place (stuck discs resolved on the scalar path)
+@pytest.mark.parametrize("n, plant", [(3, PLANT), (10, PLANT), (10, {}), (16, {})])
+def test_pi_compiled_loop_is_the_reference_to_round_off(n, plant):
     """The same runs to round-off: two separately compiled kernels may contract a multiply-add differently (a
     fresh compile differed from the reference in 10 of 1000 samples by one unit in the last place)."""
     ref = np.linspace(1.0, 6.0, n)
-    a, b = _runs("pi", ref, 1.0, angle_noise=2e-4, seed=5)
+    a, b = _runs("pi", ref, 1.0, plant, angle_noise=2e-4, seed=5)
     np.testing.assert_array_equal(a.t, b.t)
     for k in SIGNALS:
         np.testing.assert_allclose(getattr(a, k), getattr(b, k), rtol=1e-12, atol=1e-12, err_msg=k)
 
 
 def test_observer_law_one_period_matches_act_along_a_reference_run():
-    from controllers.compiled.observer_law import observer_law
+    """The command and estimates to 1e-12, the covariance (the update, the Jacobian at the estimates, the
+    prediction) to 1e-10 of each lane's largest entry (numpy sums the matrix products in another order)."""
+    from controllers.compiled.observer_law import _P0, observer_law
 
     n = 6
     ref = np.linspace(1.0, 6.0, n)
@@ -66,6 +70,8 @@ def test_observer_law_one_period_matches_act_along_a_reference_run():
         assert np.max(np.abs(U - u)) <= 1e-12
         x = c.observer.x
         assert np.all(np.abs(X[:5] - x) <= 1e-12 * (1.0 + np.abs(x)))
+        P = c.observer.P.reshape(n, 25).T
+        assert np.all(np.abs(X[_P0 : _P0 + 25] - P) <= 1e-10 * np.abs(P).max(axis=0))
 
 
 def _estimates(name, c):
@@ -128,3 +134,29 @@ def test_a_controller_without_a_law_keeps_the_step_by_step_loop():
     with pytest.raises(InputError, match="no compiled law"):
         run_closed_loop(controllers.make("baseline", config="torsional", omega_ref=ref), "torsional", ref, 0.1,
                         compiled=True)  # fmt: skip
+
+
+@pytest.mark.parametrize("n", [3, 16])  # the scalar kernel and the lane kernel
+def test_a_law_that_gives_a_non_finite_command_stops_the_loop_at_that_period(n):
+    """A command that is not finite in one lane at t = 6 ms: FloatingPointError naming that time, the signals of
+    the periods before recorded as the law gave them."""
+    from numba import njit
+
+    from drillgym import BatchSimulator, Configuration
+    from drillgym.closed_loop import run_compiled_loop
+    from drillgym.closed_loop.abi import LAW_SIGNATURE
+
+    @njit(LAW_SIGNATURE)
+    def law(t, M, X, C, U):  # pragma: no cover - compiled
+        for k in range(U.size):
+            U[k] = np.nan if (t > 0.005 and k == U.size - 1) else 1.5
+
+    sim = BatchSimulator(Configuration.TORSIONAL, n, dt=1e-3)
+    sim.reset()
+    zeros = np.zeros(n)
+    first = {"theta_u": zeros, "theta_l": zeros, "x": zeros, "y": zeros, "omega_ref": np.ones(n)}
+    with pytest.raises(FloatingPointError, match="t = 0.006 s"):
+        run_compiled_loop(sim, law, np.zeros((1, n)), np.zeros(1), periods=10, control_dt=0.002, first=first,
+                          counts_per_rev=np.full(n, 8000.0), angle_noise=zeros, rng=np.random.default_rng(0),
+                          u_max=10.0)  # fmt: skip
+    assert np.all(sim.Y[:, 2] > 0.0) and np.all(np.isfinite(sim.Y))  # three periods at 1.5 V, none at NaN

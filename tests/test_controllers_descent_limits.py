@@ -7,7 +7,7 @@ import pytest
 
 import controllers
 from controllers.evaluation import run_closed_loop, run_metrics
-from controllers.limits import brake_slope, motor_angle_limit, motor_angle_model
+from controllers.limits import brake_slope, motor_angle_limit, motor_angle_limits, motor_angle_model
 from drillgym import RigParams
 
 
@@ -49,6 +49,27 @@ def test_motor_angle_zeros_are_the_lower_disc_modes_with_the_motor_held_and_near
     assert b[0] > b[1] > b[2] > 10  # the loop gets easier towards the stable branch, still fragile at 2.5
     with pytest.raises(ValueError, match="positive speed"):
         motor_angle_limit(p, 0.0)
+
+
+@pytest.mark.parametrize("p", [RigParams(), RigParams().replace(Ts=1.2 * RigParams().Ts, km=0.95 * RigParams().km)])
+def test_motor_angle_limits_at_once_are_each_targets_poles_and_control_zeros(p):
+    """The batched limits against python-control on each target's model: the poles its state matrix's
+    eigenvalues, the zeros control.zeros (to 1e-9), the bound to 1e-9 relative."""
+    w = np.linspace(0.5, 4.0, 15)
+    lims = motor_angle_limits(p, w)
+    assert [g.omega for g in lims] == list(w)
+    for g in lims:
+        G = motor_angle_model(p, g.omega)
+        poles = [z for z in np.linalg.eigvals(np.asarray(G.A)) if z.real > 1e-9]
+        zeros = [z for z in control.zeros(G) if z.real > 1e-9]
+        assert g.slope == brake_slope(g.omega, p)
+        assert sorted(g.rhp_poles, key=abs) == pytest.approx(sorted(poles, key=abs), rel=1e-9)
+        assert sorted(g.rhp_zeros, key=abs) == pytest.approx(sorted(zeros, key=abs), rel=1e-9)
+        bound = max([1.0] + [np.prod([abs(z + np.conj(q)) / abs(z - q) for z in zeros]) for q in poles])
+        assert g.bound == pytest.approx(bound, rel=1e-9)
+        assert g == motor_angle_limit(p, g.omega)
+    with pytest.raises(ValueError, match="positive speeds"):
+        motor_angle_limits(p, [1.0, -1.0])
 
 
 def test_a_stabilising_lqg_loop_obeys_the_bound():

@@ -32,6 +32,23 @@ def test_low_targets_are_approached_from_above():
         FlatnessLaw(RigParams(), 0.01, integral=-1.0)
 
 
+def test_the_chain_gain_solved_once_is_a_fresh_lqr_solve_and_a_callers_copy():
+    """chain_gain keeps each solve for the process: the kept gain equals a fresh python-control solve, and
+    changing the returned array leaves the next call's untouched."""
+    import control
+
+    from controllers.flatness import chain_gain
+
+    b, integral = 1.7, 0.1
+    A = np.diag(np.ones(3), 1)
+    B = np.array([[0.0], [0.0], [0.0], [1.0]])
+    fresh, _, _ = control.lqr(A, B, np.diag([integral * b**8, b**6, b**4, b**2]), np.array([[1.0]]))
+    first = chain_gain(b, integral=integral)
+    np.testing.assert_array_equal(first, np.asarray(fresh)[0])
+    first[:] = 0.0
+    np.testing.assert_array_equal(chain_gain(b, integral=integral), np.asarray(fresh)[0])
+
+
 @pytest.mark.parametrize("config", ["torsional", "coupled"])
 def test_observer_removes_stick_slip_from_rest_at_0_5_to_3_rad_s_where_baseline_cannot(config):
     """The target (<= 1 rad/s without stick-slip) and a 3 rad/s case: 8000-count motor

@@ -25,7 +25,17 @@ from numba import njit
 from drillgym.closed_loop.abi import LAW_SIGNATURE, M_REF, M_TU
 from drillgym.vmath import vexp, vlog
 
-__all__ = ["observer_step", "observer_law", "model_rhs", "model_shapes", "law_shapes", "ROWS", "CONSTANTS", "MAX_DIM"]
+__all__ = [
+    "observer_step",
+    "observer_law",
+    "model_rhs",
+    "jacobian",
+    "model_shapes",
+    "law_shapes",
+    "ROWS",
+    "CONSTANTS",
+    "MAX_DIM",
+]
 
 MAX_DIM = 6
 # state rows: estimates (MAX_DIM), covariance (MAX_DIM^2, row-major in the model's dim), then the law's
@@ -100,7 +110,10 @@ def model_shapes(wl_, C, n, a, b, c):
 @njit(cache=True, error_model="numpy")
 def update(M, X, r, n, dim, p0, W):
     """The filter's update with the measured motor angles (Joseph form): estimates in rows 0.., covariance from
-    row p0; r the angle's variance (rad^2); W: work rows (>= dim + dim^2)."""
+    row p0; r the angle's variance (rad^2); W: work rows (>= 3 dim: the gain, the prior's first row and column).
+
+    P = A (I - K e0')' + r K K' with A = (I - K e0') P, element by element in one pass over the covariance:
+    P_ij - K_i P_0j - (P_i0 - K_i P_00) K_j + r K_i K_j, the products and sums of the two-pass form in its order."""
     for k in range(n):
         s = X[p0, k] + r
         innov = M[M_TU, k] - X[_X0, k]
@@ -108,15 +121,21 @@ def update(M, X, r, n, dim, p0, W):
             g = X[p0 + i * dim, k] / s  # K = P e0 / (e0' P e0 + r)
             W[i, k] = g
             X[_X0 + i, k] += g * innov
-    for i in range(dim):  # A = (I - K e0') P
+    for i in range(dim):  # the prior's first row and column (the pass below overwrites them)
+        for k in range(n):
+            W[dim + i, k] = X[p0 + i, k]
+            W[2 * dim + i, k] = X[p0 + i * dim, k]
+    for i in range(dim):
+        gi = W[i]
+        pi0 = W[2 * dim + i]
         for j in range(dim):
+            gj = W[j]
+            p0j = W[dim + j]
+            row = X[p0 + i * dim + j]
             for k in range(n):
-                W[dim + i * dim + j, k] = X[p0 + i * dim + j, k] - W[i, k] * X[p0 + j, k]
-    for i in range(dim):  # P = A (I - K e0')' + r K K'
-        for j in range(dim):
-            for k in range(n):
-                a = W[dim + i * dim + j, k] - W[dim + i * dim, k] * W[j, k]
-                X[p0 + i * dim + j, k] = a + r * W[i, k] * W[j, k]
+                a = row[k] - gi[k] * p0j[k]  # A_ij
+                a0 = pi0[k] - gi[k] * W[dim, k]  # A_i0
+                row[k] = (a - a0 * gj[k]) + r * gi[k] * gj[k]
 
 
 @njit(cache=True, error_model="numpy")
@@ -202,35 +221,14 @@ def clip(U, n, u_max):
 @njit(cache=True, error_model="numpy")
 def model_rhs(X, C, n, dim, U, SH, Fv, J, jac):
     """The model's right-hand side Fv (dim, n) at the estimates (rows 0.. of X) under U, and with ``jac`` its
-    Jacobian J (dim*dim, n); SH the rows of :func:`model_shapes` at the estimates."""
-    eps, h, Ju, Jl, km, kt = C[EPS], C[H], C[JU], C[JL], C[KM], C[KTH]
+    Jacobian J (dim*dim, n, :func:`jacobian`); SH the rows of :func:`model_shapes` at the estimates."""
+    Ju, Jl = C[JU], C[JL]
     Tcu, dTcu, bu, dbu = C[TCU], C[DTCU], C[BU], C[DBU]
-    Ts, Tc, ws, delta, bb = C[TS], C[TC], C[WS], C[DELTA], C[BB]
     scale, has_du = C[SCALE] > 0, C[HAS_DU] > 0
-    shape0 = _shape(0.0, ws, delta)  # a disc at rest
-    if jac:
-        for i in range(dim * dim):
-            for k in range(n):
-                J[i, k] = 0.0
     for k in range(n):
-        z0, wu, z2, wl, d = X[_X0, k], X[_X0 + 1, k], X[_X0 + 2, k], X[_X0 + 3, k], X[_X0 + 4, k]
-        f = 1.0 + d if scale else 1.0
-        Tsf, Tcf, bbf = Ts * f, Tc * f, bb * f
-        alpha = (z0 + z2) - z0
-        Fu = km * U[k] + kt * alpha
-        Fl = 0.0 - kt * alpha
-        stuck_u = abs(wu) <= eps
-        stuck_l = abs(wl) <= eps
-        mu = 0.0 if stuck_u else _sign(wu)
-        ml = 0.0 if stuck_l else _sign(wl)
-        if stuck_u:  # the stick logic (resolve_modes): released when the holding torque leaves the stick set
-            mu = 1.0 if Fu > Tcu + dTcu else (-1.0 if Fu < -Tcu + dTcu else 0.0)
-        if stuck_l:
-            ml = 1.0 if Fl > Tsf else (-1.0 if Fl < -Tsf else 0.0)
-        yu = 0.0 if stuck_u else wu
-        awl = 0.0 if stuck_l else abs(wl)
+        wu, wl, d = X[_X0 + 1, k], X[_X0 + 3, k], X[_X0 + 4, k]
+        Fu, Fl, mu, ml, Tsf, Tcf, bbf, e_l, awl, yu = _modes(X, C, U, SH, k)
         tfu = _upper(abs(yu), mu, Tcu, dTcu, bu, dbu)
-        e_l = shape0 if stuck_l else SH[0, k]
         tfl = ml * (Tcf + (Tsf - Tcf) * e_l + bbf * awl)
         au = (Fu - tfu) / Ju if mu != 0 else 0.0
         a_l = (Fl - tfl) / Jl if ml != 0 else 0.0
@@ -241,27 +239,60 @@ def model_rhs(X, C, n, dim, U, SH, Fv, J, jac):
         Fv[4, k] = 0.0
         if has_du:
             Fv[5, k] = 0.0
-        if not jac:
-            continue
-        # Jacobian, the modes held (central differences in the speeds, as the reference)
+    if jac:
+        jacobian(X, C, n, dim, U, SH, J)
+
+
+@njit(inline="always", error_model="numpy")
+def _modes(X, C, U, SH, k):
+    """Lane k's torques Fu, Fl (N m) besides friction, its modes mu, ml (the stick logic of resolve_modes: a disc
+    slower than eps at rest unless its holding torque leaves the stick set), the brake's levels Tsf, Tcf, bbf, its
+    shape e_l and the speeds awl, yu the friction laws take."""
+    eps, km, kt = C[EPS], C[KM], C[KTH]
+    Tcu, dTcu = C[TCU], C[DTCU]
+    Ts, Tc, bb = C[TS], C[TC], C[BB]
+    z0, wu, z2, wl, d = X[_X0, k], X[_X0 + 1, k], X[_X0 + 2, k], X[_X0 + 3, k], X[_X0 + 4, k]
+    f = 1.0 + d if C[SCALE] > 0 else 1.0
+    Tsf, Tcf, bbf = Ts * f, Tc * f, bb * f
+    alpha = (z0 + z2) - z0
+    Fu = km * U[k] + kt * alpha
+    Fl = 0.0 - kt * alpha
+    stuck_u = abs(wu) <= eps
+    stuck_l = abs(wl) <= eps
+    mu = (1.0 if Fu > Tcu + dTcu else (-1.0 if Fu < -Tcu + dTcu else 0.0)) if stuck_u else _sign(wu)
+    ml = (1.0 if Fl > Tsf else (-1.0 if Fl < -Tsf else 0.0)) if stuck_l else _sign(wl)
+    e_l = _shape(0.0, C[WS], C[DELTA]) if stuck_l else SH[0, k]  # a disc at rest
+    return Fu, Fl, mu, ml, Tsf, Tcf, bbf, e_l, 0.0 if stuck_l else abs(wl), 0.0 if stuck_u else wu
+
+
+@njit(cache=True, error_model="numpy")
+def jacobian(X, C, n, dim, U, SH, J):
+    """The right-hand side's Jacobian J (dim*dim, n) at the estimates under U, the modes held: central differences
+    in the speeds, as the reference.  Every lane's entries are stored whatever its modes (0 where a mode leaves
+    them out), so that the loop over the lanes stays branch-free; J's other entries are set to 0."""
+    h, Ju, Jl, kt = C[H], C[JU], C[JL], C[KTH]
+    Tcu, dTcu, bu, dbu = C[TCU], C[DTCU], C[BU], C[DBU]
+    Ts, Tc, bb = C[TS], C[TC], C[BB]
+    scale, has_du = C[SCALE] > 0, C[HAS_DU] > 0
+    for i in range(dim * dim):
+        for k in range(n):
+            J[i, k] = 0.0
+    for k in range(n):
+        wu, wl = X[_X0 + 1, k], X[_X0 + 3, k]
+        Fu, Fl, mu, ml, Tsf, Tcf, bbf, _, _, _ = _modes(X, C, U, SH, k)
         J[0 * dim + 1, k] = 1.0
         J[2 * dim + 1, k] = -1.0
         J[2 * dim + 3, k] = 1.0
-        if mu != 0:
-            tp = _upper(abs(wu + h), mu, Tcu, dTcu, bu, dbu)
-            tm = _upper(abs(wu - h), mu, Tcu, dTcu, bu, dbu)
-            J[1 * dim + 1, k] = ((Fu - tp) / Ju - (Fu - tm) / Ju) / (2.0 * h)
-            J[1 * dim + 2, k] = kt / Ju
-        if ml != 0:
-            aw = abs(wl)
-            tp = ml * (Tcf + (Tsf - Tcf) * SH[1, k] + bbf * abs(wl + h))
-            tm = ml * (Tcf + (Tsf - Tcf) * SH[2, k] + bbf * abs(wl - h))
-            J[3 * dim + 2, k] = -kt / Jl
-            J[3 * dim + 3, k] = ((Fl - tp) / Jl - (Fl - tm) / Jl) / (2.0 * h)
-            if scale:
-                J[3 * dim + 4, k] = -ml * (Tc + (Ts - Tc) * SH[0, k] + bb * aw) / Jl
-        if not scale:
-            J[3 * dim + 4, k] = -1.0 / Jl
+        tp = _upper(abs(wu + h), mu, Tcu, dTcu, bu, dbu)
+        tm = _upper(abs(wu - h), mu, Tcu, dTcu, bu, dbu)
+        J[1 * dim + 1, k] = ((Fu - tp) / Ju - (Fu - tm) / Ju) / (2.0 * h) if mu != 0 else 0.0
+        J[1 * dim + 2, k] = kt / Ju if mu != 0 else 0.0
+        tp = ml * (Tcf + (Tsf - Tcf) * SH[1, k] + bbf * abs(wl + h))
+        tm = ml * (Tcf + (Tsf - Tcf) * SH[2, k] + bbf * abs(wl - h))
+        J[3 * dim + 2, k] = -kt / Jl if ml != 0 else 0.0
+        J[3 * dim + 3, k] = ((Fl - tp) / Jl - (Fl - tm) / Jl) / (2.0 * h) if ml != 0 else 0.0
+        level = -ml * (Tc + (Ts - Tc) * SH[0, k] + bb * abs(wl)) / Jl
+        J[3 * dim + 4, k] = (level if ml != 0 else 0.0) if scale else -1.0 / Jl
         if has_du:
             J[1 * dim + 5, k] = 1.0 / Ju
 

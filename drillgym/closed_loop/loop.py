@@ -21,7 +21,8 @@ CHUNK_PERIODS = 500
 
 @dataclass
 class LoopSignals:
-    """Signals of n lanes at the control period, arrays (n, m).
+    """Signals of n lanes at the control period, arrays (n, m) (from the compiled loop: transposed views of one
+    period-major block, Fortran-ordered).
 
     Attributes
     ----------
@@ -121,7 +122,7 @@ def run_compiled_loop(
         M[row] = np.broadcast_to(np.asarray(first[key], dtype=float), (n,))
     M[M_REF] = np.broadcast_to(np.asarray(first["omega_ref"], dtype=float), (n,))
     U, UL = np.zeros(n), np.zeros((width, 1))
-    OUT = np.empty((7, n, periods))
+    OUT = np.empty((7, periods, n))  # period-major: the kernel stores a period's signals contiguously
     norec = np.zeros((0, len(sim.composition.output_names), width))
     cpr = np.ascontiguousarray(counts_per_rev, dtype=float)
     noise = np.ascontiguousarray(angle_noise, dtype=float)
@@ -153,7 +154,7 @@ def run_compiled_loop(
     _copy_back(arrays, (Y, MODE, P, T, FRIC, HIST, HEAD), own, n)
     if X is not Xc:
         X[...] = Xc
-    return LoopSignals(*OUT)
+    return LoopSignals(*(a.T for a in OUT))  # (n, m) views
 
 
 def _pad(a: np.ndarray, width: int) -> np.ndarray:
