@@ -81,13 +81,13 @@ def run_one(kind: str, beside: str | None, seed: int, tmp: Path) -> dict:
     ts = rig_recording("coupled", "ramps", 12.0, 200.0, seed, effects, {}, 2.6, 1.5)
     t0 = time.perf_counter()
     d = diagnose(ts, discover=True, candidate_out=tmp / f"cand_{kind}_{beside}_{seed}.py")
-    final = d.reselection if d.reselection is not None else d
+    final = d.final()  # the model with every kept candidate
     c = d.candidate
     fit = c.fit if c is not None else None
     before = _lvdt_rms(fit.before) if fit is not None else math.nan
     after = _lvdt_rms(fit.after) if fit is not None else math.nan
     wrong = [e for e in final.selected if e in LATERAL_LIBRARY and e != beside]
-    again = _lvdt_rms(d.reselection.unexplained) if d.reselection is not None and d.reselection.unexplained else None
+    again = _lvdt_rms(final.unexplained) if final is not d and final.unexplained else None
     return {
         "kind": kind,
         "beside": beside,

@@ -203,7 +203,7 @@ def run_row(row: dict, duration: float, rate_hz: float, work: Path) -> dict:
     text = d.text()
     c = d.candidate
     fit = c.fit if c is not None else None
-    again = d.reselection
+    again = d.final() if d.reselection is not None else None  # the model with every kept candidate
     return {
         **{k: row[k] for k in ("kind", "lag", "signal", "seed")},
         "hidden": row["effects"],

@@ -111,11 +111,11 @@ class Identified:
     diagnosis : Diagnosis
         The first diagnosis (selection, checks, the candidate and its fit).
     reselection : Diagnosis or None
-        The library selected again with the candidate in the model (None: no candidate kept).
+        The library selected again with the candidates in the model, the last of them (None: no candidate kept).
     selected : tuple of str
         The library effects in the model.
-    candidate : str or None
-        The candidate's effect file spec (``path.py:NAME``) when one was kept.
+    discovered : tuple of str
+        The kept candidates' effect file specs (``path.py:NAME``), in the order they were found.
     residual_to_noise : dict of str to float
         Per channel, the final model's RMS error over the recording's noise level (1: at the noise).
     warnings : tuple of str
@@ -130,7 +130,7 @@ class Identified:
     diagnosis: Any
     reselection: Any
     selected: tuple[str, ...]
-    candidate: str | None
+    discovered: tuple[str, ...]
     residual_to_noise: dict[str, float] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
     seconds: float = 0.0
@@ -146,8 +146,8 @@ class Identified:
         m = self.model
         eff = ", ".join(f"{k} = {v:.4g}" for k, v in m.values.items()) or "none"
         out = [f"identified model: {m.label} ({eff})"]
-        if self.candidate is not None:
-            out.append(f"  with the candidate {self.candidate.rsplit(':', 1)[1]} ({self.candidate.rsplit(':', 1)[0]})")
+        for spec in self.discovered:
+            out.append(f"  with the candidate {spec.rsplit(':', 1)[1]} ({spec.rsplit(':', 1)[0]})")
         if self.residual_to_noise:
             res = ", ".join(f"{c} {r:.3g}" for c, r in self.residual_to_noise.items())
             out.append(f"  residual left, times the noise: {res}")
@@ -190,7 +190,7 @@ def identify(recording: TimeSeries | str | Path, options: IdentifyOptions | None
     from dataclasses import fields, replace
 
     from .diagnosis import DiagnosisOptions, diagnose
-    from .diagnosis.reselection import kept_candidate
+    from .diagnosis.reselection import kept_in_turn
 
     unknown = sorted(set(settings) - {f.name for f in fields(IdentifyOptions)})
     if unknown:
@@ -213,9 +213,10 @@ def identify(recording: TimeSeries | str | Path, options: IdentifyOptions | None
     )
     d = diagnose(ts, start.params, o.config, options=base)
     _log("diagnosis", start_time)
-    reselection = d.reselection  # the library selected again with a kept candidate in the model
-    kept = kept_candidate(d) if reselection is not None else None
-    specs, values, params = _selected(reselection or d)
+    last = d.final()  # the library selected again with each kept candidate in the model, in turn
+    reselection = last if last is not d else None
+    kept = kept_in_turn(d)
+    specs, values, params = _selected(last)
     notes: list[str] = []
     fit = _joint_fit(ts, d.config, params, specs, values, o, notes)
     comp, fitted, res = fit
@@ -232,16 +233,14 @@ def identify(recording: TimeSeries | str | Path, options: IdentifyOptions | None
     ratios = {c: float(res.rms_after[c] / n) for c, n in (res.noise or {}).items() if c in res.rms_after and n > 0}
     names = [e.name for e in comp.effects]
     selected = tuple(n for n in names if _is_library(comp, n))
-    cand_spec = kept.spec if kept is not None else None
-    warnings = tuple(
-        list(d.warnings) + (list(reselection.warnings) if reselection is not None else []) + list(res.warnings) + notes
-    )
+    cand_specs = tuple(k.spec for k in kept)
+    warnings = tuple([w for step in d.in_turn() for w in step.warnings] + list(res.warnings) + notes)
     return Identified(
         model,
         d,
         reselection,
         selected,
-        cand_spec,
+        cand_specs,
         ratios,
         tuple(dict.fromkeys(warnings)),
         time.perf_counter() - start_time,

@@ -286,6 +286,7 @@ def diagnose_cmd(
     library does not explain; the model is --params with its effects plus --add-effect."""
     from ..diagnosis import DiagnosisOptions, diagnose
     from ..diagnosis.effects import effects_for, get_effect
+    from ..diagnosis.reselection import kept_in_turn
     from ..effects import Composition
     from .effect_options import check_effects_act
 
@@ -344,16 +345,15 @@ def diagnose_cmd(
         typer.echo(d.text())
         if d.candidate is not None:
             c = d.candidate
-            typer.echo(c.found_line())
-            if c.fit is not None:
-                typer.echo(c.fit.line())
-            for line in d.reselection_lines():
+            for line in d.candidate_lines():
                 typer.echo(line)
-            beside = d.reselection.selected if d.reselection is not None else []
-            lead = "".join(f"--add-effect {e} " for e in beside)
+            last = d.final()
+            beside = last.selected if last is not d else []
+            files = [k.spec for k in kept_in_turn(d)] or [c.effect_file]
+            lead = "".join(f"--add-effect {e} " for e in [*beside, *files])
             typer.echo(
-                f"  written to {c.effect_file.rsplit(':', 1)[0]}; fit it: drillgym identify {data} "
-                f"{lead}--add-effect {c.effect_file} --out p.json"
+                f"  written to {', '.join(f.rsplit(':', 1)[0] for f in files)}; fit it: drillgym identify {data} "
+                f"{lead}--out p.json"
             )
         if plot is not None:
             typer.echo(f"wrote {plot}: the residual left unexplained")

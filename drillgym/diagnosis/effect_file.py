@@ -22,6 +22,22 @@ __all__ = ["write_effect_file"]
 _ARGS_FRICTION = ("T", "direction", "speed", "omega")
 
 
+def candidate_name(group: str) -> str:
+    """The name of a candidate's effect in its file: ``candidate_GROUP``.
+
+    Parameters
+    ----------
+    group : str
+        The candidate's group of terms (``motor_voltage``, ``lateral_force``, a sensor's reading).
+
+    Returns
+    -------
+    str
+        The name.
+    """
+    return f"candidate_{group}"
+
+
 def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None) -> Path:
     """Write a candidate as an effect file.
 
@@ -40,7 +56,7 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
         The file written.
     """
     path = Path(path)
-    name = name or f"candidate_{cand.group}"
+    name = name or candidate_name(cand.group)
     cls = "".join(p.capitalize() for p in name.split("_"))
     voltage = cand.group == "motor_voltage"
     sensor = SENSORS.get(cand.group)

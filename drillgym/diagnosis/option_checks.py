@@ -90,8 +90,8 @@ def check_diagnosis_options(options: DiagnosisOptions) -> None:
         A setting of the wrong type (a string for a number, a number for a flag or for the sequence
         ``effects``; one string there is one effect, :func:`as_sequence`).
     InputError
-        A rate that is not a positive number of Hz, ``n_joint`` or ``max_effects`` below 1, a segment length
-        that is NaN, zero or infinite, an unwritable ``candidate_out``.
+        A rate that is not a positive number of Hz, ``n_joint``, ``max_effects`` or ``max_candidates`` below 1, a
+        segment length that is NaN, zero or infinite, an unwritable ``candidate_out``.
     """
     o = options
     _mapping("effect_params", o.effect_params)
@@ -102,6 +102,7 @@ def check_diagnosis_options(options: DiagnosisOptions) -> None:
         _flag(name, getattr(o, name))
     _count("n_joint", o.n_joint, "candidates refitted jointly per round")
     _count("max_effects", o.max_effects, "effects selected at most")
+    _count("max_candidates", o.max_candidates, "candidates outside the library found in turn")
     if o.candidate_out is not None:
         if not isinstance(o.candidate_out, (str, Path)):
             raise InputTypeError(f"candidate_out must be a path, got {o.candidate_out!r}")

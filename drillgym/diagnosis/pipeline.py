@@ -19,7 +19,9 @@
    :func:`.lateral_library.library_versus_outside` — a library lateral effect the selection took that the residual
    lateral force says is another force (a warning in words);
 6. :mod:`.reselection` — with a candidate kept in the model, the whole diagnosis again on the model that holds
-   it (its parameters refitted with the base): the candidate's residual hid the library's effects beside it.  A
+   it (its parameters refitted with the base): the candidate's residual hid the library's effects beside it.  Up
+   to ``max_candidates``, that diagnosis discovers again on its own residual: a second unknown effect (one in the
+   drive, one in the string) is found once the first is in the model, and enters by the same bar.  A
    library lateral effect that the residual said is another force is not a candidate there: it is left out of
    the model the candidate enters.
 """
@@ -40,6 +42,7 @@ from .candidate_fit import choose_candidate
 from .checks import check
 from .detectability import detectability
 from .discovery import discover
+from .effect_file import candidate_name
 from .information import require_information
 from .input_order import input_order
 from .lateral_library import LateralVerdict, library_versus_outside
@@ -142,15 +145,27 @@ def _discovered(
     and the library lateral effect the residual says is another force, if any."""
     fine = _fine(screening.exps[0])
     found, advice = discover(fine, diagnosis, opts.candidate_out)
+    held = set(diagnosis.composition.names) if diagnosis.composition is not None else set()
+    found = _not_held(found, held)  # a group found in turn once more is the first's terms again
     verdict = library_versus_outside(fine, diagnosis, found)  # a library lateral effect standing in for another
     diagnosis = replace(diagnosis, candidate=found, advice=advice)
-    readings = reading_candidates(diagnosis)  # what each sensor reads: only its own fit can show it
+    readings = [r for r in reading_candidates(diagnosis) if _not_held(r, held) is not None]
     if found is None and not readings:
         return diagnosis, verdict
     with one_blas_thread():  # its own identification is part of the answer
         chosen = choose_candidate(screening, diagnosis, noise, opts.candidate_out, readings)
     read = chosen is not None and chosen.is_reading
     return replace(diagnosis, candidate=chosen, advice=[] if read else advice), verdict
+
+
+def _not_held(candidate, held: set[str]):
+    """The candidate, without an alternative whose effect the model holds already; None when its own is held."""
+    if candidate is None or candidate_name(candidate.group) in held:
+        return None
+    alternative = getattr(candidate, "alternative", None)
+    if alternative is not None and candidate_name(alternative.group) in held:
+        candidate.alternative = None
+    return candidate
 
 
 def _recordings(data: Any) -> list[TimeSeries]:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any
 
 from ..params import RigParams
@@ -27,7 +28,14 @@ from .effects import effects_for, get_effect
 from .results import Diagnosis
 from .state import DiagnosisOptions
 
-__all__ = ["MIN_CANDIDATE_CUT", "KeptCandidate", "kept_candidate", "reselection_inputs"]
+__all__ = [
+    "MIN_CANDIDATE_CUT",
+    "KeptCandidate",
+    "kept_candidate",
+    "kept_in_turn",
+    "next_candidate_out",
+    "reselection_inputs",
+]
 
 #: share of the unexplained variance a candidate's own fit must remove to enter the model (the bar a sensor's
 #: reading meets to be kept, :data:`.sensor_reading.MIN_READING_CUT`): a candidate that removes
@@ -75,6 +83,22 @@ def kept_candidate(diagnosis: Diagnosis) -> KeptCandidate | None:
     return KeptCandidate(c.effect_file, values, tuple(c.fit.with_library))
 
 
+def kept_in_turn(diagnosis: Diagnosis) -> list[KeptCandidate]:
+    """The candidates that entered the model in turn (:meth:`~.results.Diagnosis.in_turn`).
+
+    Parameters
+    ----------
+    diagnosis : Diagnosis
+        The first diagnosis.
+
+    Returns
+    -------
+    list of KeptCandidate
+        In the order they were found.
+    """
+    return [k for step in diagnosis.in_turn()[:-1] if (k := kept_candidate(step)) is not None]
+
+
 def reselection_inputs(
     diagnosis: Diagnosis, kept: KeptCandidate, options: DiagnosisOptions, left_out: Sequence[str] = ()
 ) -> tuple[RigParams, DiagnosisOptions]:
@@ -98,7 +122,8 @@ def reselection_inputs(
         The base parameters to start from.
     DiagnosisOptions
         The model's own effects, the library effects fitted with the candidate, and the candidate, held in
-        the model with their values and refitted with the base parameters; no discovery.
+        the model with their values and refitted with the base parameters; discovery of the next candidate
+        while ``max_candidates`` allows one more (its file beside the first, :func:`next_candidate_out`).
     """
     from ..effects import compose
 
@@ -108,14 +133,40 @@ def reselection_inputs(
     names = set(comp.effect_param_names)
     values: dict[str, Any] = {k: v for k, v in {**values0, **kept.values}.items() if k in names}
     params = diagnosis.params if diagnosis.params is not None else RigParams()
+    more = options.max_candidates > 1  # the next candidate is looked for on the residual of this model
     again = replace(
         options,
         base_effects=list(comp.effects),
         effect_params=values,
-        discover=False,
+        discover=more,
+        max_candidates=max(1, options.max_candidates - 1),
+        candidate_out=next_candidate_out(options.candidate_out) if more else None,
         refit_model_effects=True,
     )
     if left_out:
         candidates = options.effects or effects_for(diagnosis.config)
         again = replace(again, effects=[e for e in candidates if get_effect(e).name not in left_out])
     return params, again
+
+
+def next_candidate_out(path: str | Path | None) -> Path | None:
+    """Where the next candidate's effect file goes: ``NAME_2.py`` beside ``NAME.py`` (``NAME_3.py`` beside
+    ``NAME_2.py``); None for None.
+
+    Parameters
+    ----------
+    path : str or path or None
+        The file of the candidate found before.
+
+    Returns
+    -------
+    pathlib.Path or None
+        The file.
+    """
+    if path is None:
+        return None
+    path = Path(path)
+    stem, _, count = path.stem.rpartition("_")
+    if stem and count.isdigit():
+        return path.with_name(f"{stem}_{int(count) + 1}{path.suffix}")
+    return path.with_name(f"{path.stem}_2{path.suffix}")

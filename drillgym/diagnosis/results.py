@@ -354,6 +354,18 @@ class Diagnosis:
         """The selected effects' fitted parameters by name."""
         return {k: v for s in self.ranking if s.effect in self.selected for k, v in s.values.items()}
 
+    def in_turn(self) -> list[Diagnosis]:
+        """This diagnosis, then each one run again with a kept candidate in the model (:attr:`reselection`, again
+        with the next candidate kept there), in turn."""
+        out = [self]
+        while out[-1].reselection is not None:
+            out.append(out[-1].reselection)
+        return out
+
+    def final(self) -> Diagnosis:
+        """The last diagnosis of :meth:`in_turn`: the model with every kept candidate (itself when none was kept)."""
+        return self.in_turn()[-1]
+
     def selected_model(self) -> tuple[RigParams, list[dict], dict[str, float]]:
         """The model the diagnosis selected: its base parameters, effect records and base standard errors.
 
@@ -454,6 +466,15 @@ class Diagnosis:
             lines.append(f"nothing outside the library explains {rest}; experiments that would show more:")
             lines += [f"  - {a_}" for a_ in self.advice]
         return "\n".join(lines)
+
+    def candidate_lines(self) -> list[str]:
+        """The candidate found and its fit, the library selected again beside it, then the next candidate found on
+        that model's residual, in turn (empty: no candidate)."""
+        c = self.candidate
+        if c is None:
+            return []
+        out = [c.found_line()] + ([c.fit.line()] if c.fit is not None else []) + self.reselection_lines()
+        return out + (self.reselection.candidate_lines() if self.reselection is not None else [])
 
     def reselection_lines(self) -> list[str]:
         """The library selected again with the kept candidate in the model, in words (empty: none kept)."""

@@ -70,7 +70,12 @@ class DiagnosisOptions:
         Also look for an effect outside the library in the residual torques (:mod:`.discovery`), on the
         recording's own samples (up to 250 Hz).  Default False.
     candidate_out : str or path, optional
-        With ``discover``: where to write the candidate's effect file.
+        With ``discover``: where to write the candidate's effect file (a second candidate's goes beside it,
+        ``NAME_2.py``).
+    max_candidates : int
+        With ``discover``: candidates outside the library found in turn.  Once one is kept and the library
+        selected again beside it, discovery runs on that model's residual for the next (two unknown effects, one
+        in the drive and one in the string, leave a residual no single group of terms explains).  Default 2.
     """
 
     effects: Sequence[Any] | None = None
@@ -86,6 +91,7 @@ class DiagnosisOptions:
     max_effects: int = 4
     discover: bool = False
     candidate_out: Any = None
+    max_candidates: int = 2
 
     def __post_init__(self) -> None:
         self.effects = as_sequence("effects", self.effects)

@@ -1,0 +1,68 @@
+"""Candidates outside the library found in turn: once one is kept and the library selected again beside it, the
+diagnosis looks for the next on that model's residual, up to ``max_candidates``."""
+
+from dataclasses import replace
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+from drillgym import RigParams
+from drillgym.configurations import Configuration
+from drillgym.diagnosis import DiagnosisOptions
+from drillgym.diagnosis.discovery import Candidate
+from drillgym.diagnosis.effect_file import candidate_name
+from drillgym.diagnosis.pipeline import _not_held
+from drillgym.diagnosis.reselection import KeptCandidate, next_candidate_out, reselection_inputs
+from drillgym.diagnosis.results import Diagnosis
+from drillgym.errors import InputError, InputTypeError
+
+ROOT = Path(__file__).resolve().parents[1]
+CUBIC = f"{ROOT}/examples/effects/string_cubic.py:string_cubic"
+BACKLASH = f"{ROOT}/examples/effects/string_backlash.py:string_backlash"
+
+
+def test_the_next_candidates_file_goes_beside_the_first():
+    assert next_candidate_out("run/rec_candidate.py") == Path("run/rec_candidate_2.py")
+    assert next_candidate_out(Path("run/rec_candidate_2.py")) == Path("run/rec_candidate_3.py")
+    assert next_candidate_out(None) is None
+
+
+def test_the_selection_again_looks_for_the_next_candidate_while_the_budget_allows(tmp_path):
+    first = SimpleNamespace(params=RigParams(), config=Configuration.TORSIONAL)
+    kept = KeptCandidate(CUBIC, {}, ())
+    out = tmp_path / "rec_candidate.py"
+    _, again = reselection_inputs(first, kept, DiagnosisOptions(discover=True, candidate_out=out))
+    assert again.discover and again.max_candidates == 1 and again.candidate_out == tmp_path / "rec_candidate_2.py"
+    _, last = reselection_inputs(first, KeptCandidate(BACKLASH, {}, ()), again)
+    assert not last.discover and last.candidate_out is None
+    assert [getattr(e, "name", e) for e in last.base_effects] == ["string_cubic", "string_backlash"]
+    _, one = reselection_inputs(first, kept, DiagnosisOptions(discover=True, max_candidates=1))
+    assert not one.discover
+
+
+@pytest.mark.parametrize(("value", "error"), [(0, InputError), (1.5, InputTypeError), (True, InputTypeError)])
+def test_max_candidates_is_a_count(value, error):
+    with pytest.raises(error, match="max_candidates"):
+        DiagnosisOptions(max_candidates=value)
+
+
+def test_a_group_the_model_holds_already_is_not_proposed_again():
+    """A second candidate of the group the first was found in is the first's terms again (and its effect would
+    have the first's name): it is not proposed; an alternative of that group is dropped from another group's."""
+    voltage = Candidate("motor_voltage", {"sat(u, 0.5)": -0.8}, {}, {}, 0.9, 1)
+    upper = Candidate("upper_force", {"sin(θu)": 0.1}, {}, {}, 0.8, 1)
+    held = {candidate_name("motor_voltage"), "motor_lag"}
+    assert _not_held(voltage, held) is None
+    upper.alternative = voltage
+    assert _not_held(upper, held) is upper and upper.alternative is None
+    assert _not_held(None, held) is None
+
+
+def test_the_chain_of_diagnoses_ends_at_the_model_with_every_candidate():
+    base = Diagnosis([], Configuration.TORSIONAL, 1.0, {}, 1.0, None)
+    second = replace(base, selected=["string_damping"])
+    first_again = replace(base, selected=["motor_lag"], reselection=second)
+    d = replace(base, reselection=first_again)
+    assert d.in_turn() == [d, first_again, second] and d.final() is second
+    assert base.final() is base and base.candidate_lines() == []
