@@ -75,6 +75,8 @@ class IdentifyOptions:
     segment_s : float or None
         Multiple-shooting segment length of the diagnosis (s); -1: the configuration's default; None: one
         free run.
+    max_candidates : int
+        Candidates outside the library found in turn (:class:`~drillgym.diagnosis.DiagnosisOptions`).  Default 1.
     """
 
     config: str | None = None
@@ -86,6 +88,7 @@ class IdentifyOptions:
     fixed_base: bool = False
     candidates: Any = None
     segment_s: float | None = -1.0
+    max_candidates: int = 1
 
     def to_json(self) -> dict[str, Any]:
         """The settings recorded in the model's provenance (paths left out: they differ between routes)."""
@@ -96,6 +99,7 @@ class IdentifyOptions:
             "fixed_base": self.fixed_base,
             "candidates": None if self.candidates is None else [getattr(c, "name", c) for c in self.candidates],
             "segment_s": self.segment_s,
+            "max_candidates": self.max_candidates,
         }
 
 
@@ -210,6 +214,7 @@ def identify(recording: TimeSeries | str | Path, options: IdentifyOptions | None
         segment_s=o.segment_s,
         discover=o.discover,
         candidate_out=cand_out,
+        max_candidates=o.max_candidates,
     )
     d = diagnose(ts, start.params, o.config, options=base)
     _log("diagnosis", start_time)

@@ -32,13 +32,13 @@ def test_the_selection_again_looks_for_the_next_candidate_while_the_budget_allow
     first = SimpleNamespace(params=RigParams(), config=Configuration.TORSIONAL)
     kept = KeptCandidate(CUBIC, {}, ())
     out = tmp_path / "rec_candidate.py"
-    _, again = reselection_inputs(first, kept, DiagnosisOptions(discover=True, candidate_out=out))
+    _, again = reselection_inputs(first, kept, DiagnosisOptions(discover=True, candidate_out=out, max_candidates=2))
     assert again.discover and again.max_candidates == 1 and again.candidate_out == tmp_path / "rec_candidate_2.py"
     _, last = reselection_inputs(first, KeptCandidate(BACKLASH, {}, ()), again)
     assert not last.discover and last.candidate_out is None
     assert [getattr(e, "name", e) for e in last.base_effects] == ["string_cubic", "string_backlash"]
-    _, one = reselection_inputs(first, kept, DiagnosisOptions(discover=True, max_candidates=1))
-    assert not one.discover
+    _, one = reselection_inputs(first, kept, DiagnosisOptions(discover=True))
+    assert not one.discover  # one candidate unless asked for more
 
 
 @pytest.mark.parametrize(("value", "error"), [(0, InputError), (1.5, InputTypeError), (True, InputTypeError)])

@@ -75,7 +75,9 @@ class DiagnosisOptions:
     max_candidates : int
         With ``discover``: candidates outside the library found in turn.  Once one is kept and the library
         selected again beside it, discovery runs on that model's residual for the next (two unknown effects, one
-        in the drive and one in the string, leave a residual no single group of terms explains).  Default 2.
+        in the drive and one on a disc, leave a residual no single group of terms explains).  Default 1: on a
+        recording of a rig that differs from the model beyond the noise, the next search also finds a share of
+        that floor to take (docs/identify.md).
     """
 
     effects: Sequence[Any] | None = None
@@ -91,7 +93,7 @@ class DiagnosisOptions:
     max_effects: int = 4
     discover: bool = False
     candidate_out: Any = None
-    max_candidates: int = 2
+    max_candidates: int = 1
 
     def __post_init__(self) -> None:
         self.effects = as_sequence("effects", self.effects)
