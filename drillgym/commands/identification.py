@@ -566,7 +566,7 @@ def _identify_whole(data, out, config, start, effect_param, seg, rate, max_nfev,
                     "rms_before": res.rms_before,
                     "rms_after": res.rms_after,
                     "residual_to_noise": found.residual_to_noise,
-                    "candidate": found.candidate,
+                    "candidates": list(found.discovered),
                     "warnings": list(found.warnings),
                     "out": str(out),
                 }
