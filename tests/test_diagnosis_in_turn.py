@@ -55,7 +55,8 @@ def test_a_group_the_model_holds_already_is_not_proposed_again():
     held = {candidate_name("motor_voltage"), "motor_lag"}
     assert _not_held(voltage, held) is None
     upper.alternative = voltage
-    assert _not_held(upper, held) is upper and upper.alternative is None
+    kept = _not_held(upper, held)
+    assert kept.group == "upper_force" and kept.alternative is None and upper.alternative is voltage
     assert _not_held(None, held) is None
 
 

@@ -159,12 +159,13 @@ def _discovered(
 
 
 def _not_held(candidate, held: set[str]):
-    """The candidate, without an alternative whose effect the model holds already; None when its own is held."""
+    """The candidate (a copy without an alternative whose effect the model holds already); None when its own is
+    held."""
     if candidate is None or candidate_name(candidate.group) in held:
         return None
-    alternative = getattr(candidate, "alternative", None)
+    alternative = candidate.alternative
     if alternative is not None and candidate_name(alternative.group) in held:
-        candidate.alternative = None
+        return replace(candidate, alternative=None)
     return candidate
 
 
