@@ -70,8 +70,7 @@ def _chain_gain(b: float, r: float, integral: float) -> np.ndarray:
 class FlatnessLaw:
     """Batched feedback-linearising law: estimates (omega_u, alpha, omega_l, d) -> voltage (V).
 
-    The integral state is the law's own (the integral of the estimated speed error) unless the
-    caller passes one (``z``, rad: e.g. the measured motor angle minus the reference's integral).
+    The integral state is the law's own: the integral of the estimated speed error.
 
     Parameters
     ----------
@@ -229,11 +228,8 @@ class FlatnessLaw:
             return (1.0 + d) * T, (1.0 + d) * T1, (1.0 + d) * T2
         return T + d, T1, T2
 
-    def __call__(
-        self, omega_u: np.ndarray, alpha: np.ndarray, omega_l: np.ndarray, d: np.ndarray, z: np.ndarray | None = None
-    ) -> np.ndarray:
-        """Voltage (V, (n,), not clipped) for the estimated state; ``z`` (rad, (n,)): the integral of the
-        speed error to use instead of the law's own."""
+    def __call__(self, omega_u: np.ndarray, alpha: np.ndarray, omega_l: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """Voltage (V, (n,), not clipped) for the estimated state."""
         p, kt = self.p, self.p.ktheta
         r, r1, r2, r3 = self.reference()
         T, T1, T2 = self.friction(omega_l, d)
@@ -241,10 +237,8 @@ class FlatnessLaw:
         T1, T2 = np.where(rest, 0.0, T1), np.where(rest, 0.0, T2)
         a = np.where(rest, 0.0, (-kt * alpha - T) / p.Jl)
         j = np.where(rest, 0.0, (-kt * (omega_l - omega_u) - T1 * a) / p.Jl)
-        if z is not None:
-            self.z = np.asarray(z, dtype=float)
-        else:  # integral of the speed error once the reference has settled (per rig)
-            self.z = np.where(self.t > self.hold + self.ramp, self.z + self.dt * (omega_l - r), self.z)
+        # integral of the speed error once the reference has settled (per rig)
+        self.z = np.where(self.t > self.hold + self.ramp, self.z + self.dt * (omega_l - r), self.z)
         v = r3 - np.einsum("nk,kn->n", self.K, np.stack([self.z, omega_l - r, a - r1, j - r2]))
         wu_dot = (p.Jl * v + kt * a + T2 * a * a + T1 * j) / kt  # the upper acceleration that gives v
         tfu = self.upper_friction(np.where(omega_u == 0, 1e-9, omega_u))

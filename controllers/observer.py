@@ -95,6 +95,10 @@ def lqr_gain(
     return _lqr_gain_cached(float(omega_ref), p, float(dt), tuple(float(w) for w in weights), float(r), s)
 
 
+TRIM_BAND = 0.05  # the motor-angle integral starts with the estimated lower speed within this fraction of the target
+TRIM_CLIP = 0.15  # and moves the law's target by at most this fraction of it
+
+
 class ObserverController(Controller):
     """Extended Kalman filter on the motor angle (filterpy's equations) + feedback-linearising LQR law on the estimates.
 
@@ -139,13 +143,14 @@ class ObserverController(Controller):
         Drive with ``descent`` the targets its model is not accurate enough for (:mod:`controllers.margin`:
         the model file's standard error of km against the motor-angle limit); default False: warn only.
     angle_integral : bool, optional
-        Integral action on the estimated motor angle against the target's at every target once its approach is
-        over (from ``low_speed`` up with the weight ``angle_weight``, below it with ``integral``), instead of the
-        law's integral of the estimated lower speed below ``low_speed`` only: an identified model's torque errors
-        then leave no offset.  Default: on for a model with effects, off for base parameters.
-    angle_weight : float, optional
-        Weight of that integral from ``low_speed`` up in the error chain's LQR
-        (:func:`controllers.flatness.chain_gain`).  Default 0.01: slow beside the chain.
+        Integral action on the estimated motor angle against the target's, outside the law: the law's target
+        moves by ``-angle_gain`` x that error (rad/s per rad), within ``TRIM_CLIP`` of the target, so an identified
+        model's torque errors leave no offset in the mean speed.  It starts once the approach is over and the
+        estimated lower speed is within ``TRIM_BAND`` of the target: started during the approach's overshoot it
+        would pay the angle gained there back below the target, into the brake's sticking region.  Default: on
+        for a model with effects, off for base parameters.
+    angle_gain : float, optional
+        Gain of that integral (1/s): the time constant of the offset's decay.  Default 0.05.
     **kw
         ``config``, ``params``, ``dt``, ``u_max`` of :class:`controllers.Controller`.
     """
@@ -178,11 +183,14 @@ class ObserverController(Controller):
         p0_du: float = 0.1,
         fallback: bool = False,
         angle_integral: bool | None = None,
-        angle_weight: float = 0.01,
+        angle_gain: float = 0.05,
         **kw,
     ) -> None:
         super().__init__(omega_ref, **kw)
         self.fallback = bool(fallback)
+        if not (np.isfinite(angle_gain) and angle_gain >= 0):
+            raise InputError(f"angle_gain must be a non-negative rate (1/s), got {angle_gain!r}")
+        self.angle_gain = float(angle_gain)
         self.angle_integral = bool(self.effects.composition.effects) if angle_integral is None else bool(angle_integral)
         self.model = disturbance_model(
             self.params,
@@ -211,8 +219,6 @@ class ObserverController(Controller):
             "integral": float(integral),
             "disturbance": disturbance,
         }
-        if self.angle_integral:  # every target integrates the motor angle's error once its approach is over
-            self.law_options["integral_high"] = float(angle_weight)
         FlatnessLaw(self.params, self.dt, **self.law_options)  # check the options now
 
     def _reset(self, m: dict[str, np.ndarray]) -> None:
@@ -225,14 +231,19 @@ class ObserverController(Controller):
         self._theta0 = np.zeros(self.n)  # estimated motor angle when the integral starts (rad)
         self._t_int = np.zeros(self.n)  # time since then (s)
 
-    def _angle_error(self, x: np.ndarray) -> np.ndarray:
-        """The integral of the speed error (rad) from the motor angle: the estimated motor angle (the reading through
-        the model's Measurement effects) against the target's, from when each rig's approach is over."""
-        start = (self.law.t >= self._settle) & ~self._integrating
+    def _trim(self, x: np.ndarray) -> None:
+        """Move the law's target against the integral of the speed error (rad) from the motor angle: the estimated
+        motor angle (the reading through the model's Measurement effects) against the target's, from when each
+        rig's approach is over and its estimated lower speed near the target (``angle_integral``)."""
+        ref = self.omega_ref
+        near = np.abs(x[I_WL] - ref) <= TRIM_BAND * np.abs(ref)
+        start = (self.law.t >= self._settle) & ~self._integrating & near
         self._theta0 = np.where(start, x[I_TU], self._theta0)
         self._integrating |= start
         self._t_int = np.where(self._integrating, self._t_int + self.dt, 0.0)
-        return np.where(self._integrating, x[I_TU] - self._theta0 - self.omega_ref * self._t_int, 0.0)
+        z = np.where(self._integrating, x[I_TU] - self._theta0 - ref * self._t_int, 0.0)
+        reach = TRIM_CLIP * np.abs(ref)
+        self.law.target = np.clip(ref - self.angle_gain * z, ref - reach, ref + reach)
 
     def _restart_rigs(self, index: np.ndarray, m: dict[str, np.ndarray]) -> None:
         theta = np.broadcast_to(np.asarray(m.get("theta_u", 0.0), dtype=float), (self.n,))[index]
@@ -303,8 +314,9 @@ class ObserverController(Controller):
 
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
         x = self.observer.update(m["theta_u"])
-        z = self._angle_error(x) if self.angle_integral else None
-        u = self.law(x[I_WU], x[I_AL], x[I_WL], x[I_D], z)
+        if self.angle_integral:
+            self._trim(x)
+        u = self.law(x[I_WU], x[I_AL], x[I_WL], x[I_D])
         if self.model.has_du:  # the estimated upper-disc torque the model misses, cancelled by the motor
             u = u - x[I_DU] / self.params.km
         u = np.clip(self._command(u), -self.u_max, self.u_max)

@@ -43,6 +43,22 @@ def test_compiled_runs_on_a_model_with_effects_match_the_reference(name, model):
     assert np.max(np.abs(a.u - b.u)) <= 1e-7
 
 
+def test_the_motor_angle_trim_acts_alike_in_the_compiled_law(model):
+    """A short reference (tau_ref 0.1 s: the approach is over at 0.6 s) and a fast trim (1/s): the law's target moves
+    within the run (at 5 rad/s; 3 rad/s is not near its target by then), in the compiled law as in ``act``."""
+    ref, runs = np.array([3.0, 5.0]), {}
+    for compiled, gain in ((False, 1.0), (True, 1.0), (False, 0.0)):
+        c = controllers.make("observer", config="torsional", omega_ref=ref, model=model, tau_ref=0.1, angle_gain=gain)
+        runs[compiled, gain] = run_closed_loop(c, "torsional", ref, 3.0, compiled=compiled, counts_per_rev=0, **PLANT)
+        if not compiled and gain:
+            assert c._integrating.any() and np.any(c.law.target != ref)  # the trim started and moved the target
+    a, b, off = runs[False, 1.0], runs[True, 1.0], runs[False, 0.0]
+    assert np.max(np.abs(a.u[1] - off.u[1])) > 1e-3  # the trim changes the commands
+    # the trimmed lane over 3 s (round-off grows along a closed loop: the 3 rad/s lane, stuck and freed, to 3e-5)
+    assert np.max(np.abs(a.omega_l[1] - b.omega_l[1])) <= 1e-7 * np.max(np.abs(a.omega_l[1]))
+    assert np.max(np.abs(a.u[1] - b.u[1])) <= 1e-6
+
+
 def test_a_user_file_effect_reaches_the_compiled_law():
     """A Force from a user file (a cubic string) changes the compiled law's commands as it changes ``act``'s."""
     from controllers.compiled import model_law

@@ -75,3 +75,26 @@ def test_observer_at_the_environments_10_ms_period_does_not_hold_1_rad_s():
     )
     assert row["controller"] == "observer@10" and row["control_dt"] == 0.01
     assert row["ssi"] > 0.1
+
+
+def test_the_motor_angle_trim_waits_for_the_speed_and_moves_the_target_within_its_reach():
+    """The integral on the motor angle starts once the approach is over *and* the estimated lower speed is near the
+    target (not in the approach's overshoot, whose angle it would pay back below the target), and moves the law's
+    target by at most TRIM_CLIP of it."""
+    from controllers.dynamics import I_TU, I_WL
+    from controllers.observer import TRIM_BAND, TRIM_CLIP
+    from drillgym import Model, RigParams
+
+    ref = np.array([2.0, 2.0])
+    c = controllers.make("observer", omega_ref=ref, model=Model(RigParams(), ("motor_lag",), {"tau_m": 0.02}))
+    assert c.angle_integral  # on by default for a model with effects
+    c.reset({"theta_u": np.zeros(2)})
+    c.law.t[:] = c._settle + 1.0  # the approach is over
+    x = c.observer.x.copy()
+    x[I_WL] = ref * np.array([1.0 + 3 * TRIM_BAND, 1.0 + 0.5 * TRIM_BAND])  # overshooting / near the target
+    c._trim(x)
+    assert c._integrating.tolist() == [False, True]
+    assert c.law.target.tolist() == pytest.approx(ref.tolist(), abs=0.01)
+    x[I_TU] += 100.0  # far ahead of the target's angle: the target moves down, within its reach
+    c._trim(x)
+    assert c.law.target.tolist() == pytest.approx([2.0, 2.0 * (1 - TRIM_CLIP)])

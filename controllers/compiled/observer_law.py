@@ -56,10 +56,12 @@ N_ROWS = _T0 + 4
 
 CONSTANTS = (
     "dt", "r", "eps", "h", "Ju", "Jl", "km", "kth", "Tcu", "dTcu", "bu", "dbu", "Ts", "Tc", "ws", "delta", "bb",
-    "tau", "w_rest", "hf", "hold", "ramp", "approach", "u_max", "scale", "has_du", "angle_integral", "dim",
+    "tau", "w_rest", "hf", "hold", "ramp", "approach", "u_max", "scale", "has_du", "trim_gain", "trim_band",
+    "trim_clip", "dim",
 )  # fmt: skip
 (DT, R, EPS, H, JU, JL, KM, KTH, TCU, DTCU, BU, DBU, TS, TC, WS, DELTA, BB,
- TAU, W_REST, HF, HOLD, RAMP, APPROACH, U_MAX, SCALE, HAS_DU, ANGLE_INT, DIM) = range(len(CONSTANTS))  # fmt: skip
+ TAU, W_REST, HF, HOLD, RAMP, APPROACH, U_MAX, SCALE, HAS_DU, TRIM_GAIN, TRIM_BAND, TRIM_CLIP,
+ DIM) = range(len(CONSTANTS))  # fmt: skip
 _MAT0 = len(CONSTANTS)  # then Ad, Gamma, Ac, Qd (dim x dim each, row-major)
 
 
@@ -161,18 +163,19 @@ def flatness_law(M, X, L, C, n, U, TQ):
     dt, tau, kt, Jl, Ju, km = C[DT], C[TAU], C[KTH], C[JL], C[JU], C[KM]
     hf, w_rest = C[HF], C[W_REST]
     hold, ramp = C[HOLD], C[RAMP]
-    scale, has_du, angle = C[SCALE] > 0, C[HAS_DU] > 0, C[ANGLE_INT] > 0
+    scale, has_du, gain = C[SCALE] > 0, C[HAS_DU] > 0, C[TRIM_GAIN]
     for k in range(n):
         wu, al, wl, d = X[_X0 + 1, k], X[_X0 + 2, k], X[_X0 + 3, k], X[_X0 + 4, k]
         t_old = L[TL, k]
-        zval = 0.0
-        if angle:  # the motor angle's error since the approach ended (ObserverController._angle_error)
-            start = t_old >= L[SETTLE, k] and L[INTEG, k] == 0.0
-            if start:
+        if gain > 0:  # the target trimmed by the motor angle's error (ObserverController._trim)
+            ref = M[M_REF, k]
+            if t_old >= L[SETTLE, k] and L[INTEG, k] == 0.0 and abs(wl - ref) <= C[TRIM_BAND] * abs(ref):
                 L[THETA0, k] = X[_X0, k]
                 L[INTEG, k] = 1.0
             L[TINT, k] = L[TINT, k] + dt if L[INTEG, k] > 0 else 0.0
-            zval = X[_X0, k] - L[THETA0, k] - M[M_REF, k] * L[TINT, k] if L[INTEG, k] > 0 else 0.0
+            z = X[_X0, k] - L[THETA0, k] - ref * L[TINT, k] if L[INTEG, k] > 0 else 0.0
+            reach = C[TRIM_CLIP] * abs(ref)
+            L[TARGET, k] = min(max(ref - gain * z, ref - reach), ref + reach)
         # the reference: three lags of the setpoint (FlatnessLaw.reference)
         target = L[TARGET, k]
         if ramp > 0:
@@ -199,9 +202,7 @@ def flatness_law(M, X, L, C, n, U, TQ):
         T2 = 0.0 if rest else T2
         a = 0.0 if rest else (-kt * al - T) / Jl
         j = 0.0 if rest else (-kt * (wl - wu) - T1 * a) / Jl
-        if angle:
-            L[Z, k] = zval
-        elif L[TL, k] > hold + ramp:
+        if L[TL, k] > hold + ramp:
             L[Z, k] = L[Z, k] + dt * (wl - r)
         v = r3 - (L[K0, k] * L[Z, k] + L[K1, k] * (wl - r) + L[K2, k] * (a - r1) + L[K3, k] * (j - r2))
         wu_dot = (Jl * v + kt * a + T2 * a * a + T1 * j) / kt
@@ -406,13 +407,16 @@ def law_rows(c, L: np.ndarray) -> None:
 
 def observer_constants(c, dim: int) -> np.ndarray:
     """The values of :data:`CONSTANTS` of the reset :class:`controllers.observer.ObserverController` c."""
+    from ..observer import TRIM_BAND as band
+    from ..observer import TRIM_CLIP as reach
+
     mdl, law, p = c.model, c.law, c.params
     values = dict(
         dt=c.dt, r=mdl.R[0, 0], eps=mdl.dynamics.eps, h=1e-5, Ju=p.Ju, Jl=p.Jl, km=p.km, kth=p.ktheta,
         Tcu=p.Tcu, dTcu=p.dTcu, bu=p.bu, dbu=p.dbu, Ts=p.Ts, Tc=p.Tc, ws=p.ws, delta=p.delta, bb=p.bb,
         tau=law.tau, w_rest=law.w_rest, hf=law.h, hold=law.hold, ramp=law.ramp, approach=law.approach,
-        u_max=c.u_max, scale=float(law.scale), has_du=float(mdl.has_du), angle_integral=float(c.angle_integral),
-        dim=float(dim),
+        u_max=c.u_max, scale=float(law.scale), has_du=float(mdl.has_du),
+        trim_gain=c.angle_gain if c.angle_integral else 0.0, trim_band=band, trim_clip=reach, dim=float(dim),
     )  # fmt: skip
     return np.array([float(values[k]) for k in CONSTANTS])
 
