@@ -67,10 +67,14 @@ def _chain_gain(b: float, r: float, integral: float) -> np.ndarray:
     return np.asarray(K)[0]
 
 
+ANGLE_STEP = 1e-3  # step (rad) of the brake law's derivatives in the lower angle
+
+
 class FlatnessLaw:
     """Batched feedback-linearising law: estimates (omega_u, alpha, omega_l, d) -> voltage (V).
 
-    The integral state is the law's own: the integral of the estimated speed error.
+    The integral state is the law's own (the integral of the estimated speed error) unless the
+    caller passes one (``z``, rad: e.g. the measured motor angle minus the reference's integral).
 
     Parameters
     ----------
@@ -210,36 +214,53 @@ class FlatnessLaw:
         self.y = self.y + self.dt * np.stack([d1, d2, d3])
         return r.copy(), d3, dd3, ddd3
 
-    def lower_friction(self, w: np.ndarray) -> np.ndarray:
-        """Brake torque Tfl(w) (N m) of the design model at speeds w != 0 (rad/s, (n,))."""
-        return lower_friction(w, self.p) if self.brake is None else self.brake(w)
+    def lower_friction(self, w: np.ndarray, shift: float = 0.0) -> np.ndarray:
+        """Brake torque Tfl(w) (N m) of the design model at speeds w != 0 (rad/s, (n,)), with ``brake`` at the
+        estimated lower angle moved by ``shift`` (rad)."""
+        return lower_friction(w, self.p) if self.brake is None else self.brake(w, shift)
 
     def upper_friction(self, w: np.ndarray) -> np.ndarray:
         """Upper friction torque Tfu(w) (N m) of the design model at speeds w != 0 (rad/s, (n,))."""
         return upper_friction(w, self.p) if self.upper is None else self.upper(w)
 
-    def friction(self, w: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Brake torque (N m) corrected by d, its slope and curvature at speed w (forward rotation)."""
+    def friction(self, w: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Brake torque (N m) corrected by d, its slope and curvature at speed w (forward rotation), and its
+        derivatives in the lower angle: first, second and mixed with the speed (zero for the base law)."""
         h = self.h
         w = np.maximum(w, self.w_rest + h)
         t0, tp, tm = self.lower_friction(w), self.lower_friction(w + h), self.lower_friction(w - h)
         T, T1, T2 = t0, (tp - tm) / (2 * h), (tp - 2 * t0 + tm) / h**2
+        if self.brake is None:
+            Ta = Taa = Twa = np.zeros_like(T)
+        else:
+            g = ANGLE_STEP
+            ap, am = self.lower_friction(w, g), self.lower_friction(w, -g)
+            Ta, Taa = (ap - am) / (2 * g), (ap - 2 * t0 + am) / g**2
+            Twa = (self.brake(w + h, g) - self.brake(w - h, g) - self.brake(w + h, -g) + self.brake(w - h, -g)) / (
+                4 * h * g
+            )
         if self.scale:
-            return (1.0 + d) * T, (1.0 + d) * T1, (1.0 + d) * T2
-        return T + d, T1, T2
+            return tuple((1.0 + d) * x for x in (T, T1, T2, Ta, Taa, Twa))
+        return T + d, T1, T2, Ta, Taa, Twa
 
-    def __call__(self, omega_u: np.ndarray, alpha: np.ndarray, omega_l: np.ndarray, d: np.ndarray) -> np.ndarray:
-        """Voltage (V, (n,), not clipped) for the estimated state."""
+    def __call__(
+        self, omega_u: np.ndarray, alpha: np.ndarray, omega_l: np.ndarray, d: np.ndarray, z: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Voltage (V, (n,), not clipped) for the estimated state; ``z`` (rad, (n,)): the integral of the
+        speed error to use instead of the law's own."""
         p, kt = self.p, self.p.ktheta
         r, r1, r2, r3 = self.reference()
-        T, T1, T2 = self.friction(omega_l, d)
+        T, T1, T2, Ta, Taa, Twa = self.friction(omega_l, d)
         rest = (omega_l <= self.w_rest) & (-kt * alpha < T)
-        T1, T2 = np.where(rest, 0.0, T1), np.where(rest, 0.0, T2)
+        T1, T2, Ta, Taa, Twa = (np.where(rest, 0.0, x) for x in (T1, T2, Ta, Taa, Twa))
         a = np.where(rest, 0.0, (-kt * alpha - T) / p.Jl)
-        j = np.where(rest, 0.0, (-kt * (omega_l - omega_u) - T1 * a) / p.Jl)
-        # integral of the speed error once the reference has settled (per rig)
-        self.z = np.where(self.t > self.hold + self.ramp, self.z + self.dt * (omega_l - r), self.z)
+        j = np.where(rest, 0.0, (-kt * (omega_l - omega_u) - T1 * a - Ta * omega_l) / p.Jl)
+        if z is not None:
+            self.z = np.asarray(z, dtype=float)
+        else:  # integral of the speed error once the reference has settled (per rig)
+            self.z = np.where(self.t > self.hold + self.ramp, self.z + self.dt * (omega_l - r), self.z)
         v = r3 - np.einsum("nk,kn->n", self.K, np.stack([self.z, omega_l - r, a - r1, j - r2]))
-        wu_dot = (p.Jl * v + kt * a + T2 * a * a + T1 * j) / kt  # the upper acceleration that gives v
+        # the upper acceleration that gives v: d/dt of the lower disc's jerk with T(w, theta_l)
+        wu_dot = (p.Jl * v + kt * a + T2 * a * a + T1 * j + 2 * Twa * omega_l * a + Taa * omega_l**2 + Ta * a) / kt
         tfu = self.upper_friction(np.where(omega_u == 0, 1e-9, omega_u))
         return (p.Ju * wu_dot + tfu - kt * alpha) / p.km

@@ -294,9 +294,14 @@ class ObserverController(Controller):
         law.reset(target)
         return law
 
-    def _brake(self, w: np.ndarray) -> np.ndarray:
-        """The model's torque against the lower disc besides kθ α (N m) at speeds w (rad/s), at the estimate."""
-        return self.model.brake_law(w, self.observer.x)
+    def _brake(self, w: np.ndarray, shift: float = 0.0) -> np.ndarray:
+        """The model's torque against the lower disc besides kθ α (N m) at speeds w (rad/s), at the estimate with
+        the lower angle moved by ``shift`` (rad; the motor angle moved, the twist kept)."""
+        x = self.observer.x
+        if shift:
+            x = x.copy()
+            x[I_TU] += shift
+        return self.model.brake_law(w, x)
 
     def _upper(self, w: np.ndarray) -> np.ndarray:
         """The model's torque against the upper disc besides the motor and kθ α (N m) at speeds w (rad/s)."""

@@ -91,3 +91,28 @@ def test_a_measurement_on_the_motor_angle_keeps_the_step_by_step_loop(tmp_path):
 def test_a_subclass_with_its_own_act_has_no_compiled_law():
     c = controllers.make("observer-robust", config="torsional", omega_ref=[3.0])
     assert c.compiled_law() is None  # its act is not the observer's
+
+
+def test_the_law_follows_the_brake_laws_dependence_on_the_lower_angle():
+    """With position friction the brake torque T(w, theta_l) the law inverts has derivatives in the lower angle
+    (analytic: Tfl(w) (-c1 sin + s1 cos) and -Tfl(w) (c1 cos + s1 sin) at theta_l); the compiled law reads them from
+    six more torque rows and gives ``act``'s command."""
+    from drillgym.closed_loop.abi import M_REF, M_TU
+
+    c1, s1, th = 0.15, 0.1, 0.3
+    ref = np.array([2.0, 3.0])
+    mdl = Model(RigParams(), ("position_friction",), {"pf_c1": c1, "pf_s1": s1})
+    c = controllers.make("observer", config="torsional", omega_ref=ref, model=mdl)
+    c.reset({"theta_u": np.full(2, th)})
+    c.observer.x[0], c.observer.x[2], c.observer.x[3] = th, 0.0, ref  # no twist: theta_l = theta_u; slipping
+    T, T1, _, Ta, Taa, Twa = c.law.friction(ref, np.zeros(2))
+    level = 1 + c1 * np.cos(th) + s1 * np.sin(th)
+    slope = -c1 * np.sin(th) + s1 * np.cos(th)
+    np.testing.assert_allclose(Ta, T / level * slope, rtol=1e-5)
+    np.testing.assert_allclose(Taa, -T / level * (level - 1), rtol=1e-4)
+    np.testing.assert_allclose(Twa, T1 / level * slope, rtol=1e-3)
+    law = c.compiled_law()
+    M, U = np.zeros((5, 2)), np.zeros(2)
+    M[M_TU], M[M_REF] = th, ref
+    law.step(0.0, M, law.state.copy(), law.constants, U)
+    np.testing.assert_allclose(U, c.act({"theta_u": np.full(2, th), "omega_ref": ref}), rtol=0, atol=1e-12)

@@ -47,6 +47,7 @@ from drillgym.effects import Composition
 from drillgym.params import IDX
 
 from ..dynamics import jacobian_steps, model_kernels
+from ..flatness import ANGLE_STEP
 from . import lqg_law as lq
 from . import observer_law as ob
 from . import two_encoder_law as te
@@ -54,6 +55,8 @@ from .two_encoder_law import interp
 
 __all__ = ["compiled_law", "law_step", "SCALARS", "observer_rows", "lqg_rows"]
 
+#: rows of the observer's torques: the brake law at three speeds, the upper disc's, six at a moved lower angle
+OBSERVER_TORQUES = 10
 SCALARS = ("nc", "e0", "idu", "delay_steps", "n_line", "has_old", "compensates", "g0", "n_pos", "n_neg", "o_p",
            "o_h", "o_hp", "o_up", "o_hn", "o_un", "o_mats", "o_gn", "o_go", "o_kf", "o_hh", "o_tail")  # fmt: skip
 """The model's dimensions and the offsets in the constants of its arrays: continuous states, first effect state,
@@ -70,8 +73,8 @@ _STEPS: dict[tuple[Composition, str], Any] = {}
 
 @njit(cache=True)
 def observer_rows(dim, nc):
-    """First rows of the observer's covariance, law rows, W (2 dim^2 + dim), f(new), f(old), J (nc^2), torques (4),
-    and the number of rows."""
+    """First rows of the observer's covariance, law rows, W (2 dim^2 + dim), f(new), f(old), J (nc^2), torques
+    (:data:`OBSERVER_TORQUES`), and the number of rows."""
     p0 = dim
     l0 = p0 + dim * dim
     w0 = l0 + len(ob.ROWS)
@@ -79,7 +82,7 @@ def observer_rows(dim, nc):
     fo = fn + nc
     j0 = fo + nc
     t0 = j0 + nc * nc
-    return p0, l0, w0, fn, fo, j0, t0, t0 + 4
+    return p0, l0, w0, fn, fo, j0, t0, t0 + OBSERVER_TORQUES
 
 
 @njit(cache=True)
@@ -150,7 +153,9 @@ def _functions(comp: Composition) -> tuple:
     def torques(X, C, n, TQ, nlow, REF):  # pragma: no cover
         """The model's torques (N m) at the estimates into TQ: for the observer (nlow 3) the brake law at the
         law's speed ww and ww +- step, for the lqg (nlow 1) at the estimated lower speed (at ``slip_eps`` while it
-        rests); then the upper disc's at the estimated upper speed (observer) or at REF (lqg, rad/s)."""
+        rests); then the upper disc's at the estimated upper speed (observer) or at REF (lqg, rad/s); for the
+        observer then the brake law at the lower angle moved by +- ANGLE_STEP at ww, ww + step, ww - step, ww + step,
+        ww - step (signs +, -, +, +, -, -: its derivatives in the angle, :meth:`FlatnessLaw.friction`)."""
         nz, e0, idu = int(C[NC]), int(C[E0]), int(C[IDU])
         p = C[int(C[OP]) : int(C[OH])]
         scale, eps, hf = C[ob.SCALE] > 0, C[ob.EPS], C[ob.HF]
@@ -172,6 +177,14 @@ def _functions(comp: Composition) -> tuple:
             w = (1e-9 if wu == 0 else wu) if nlow == 3 else REF[k]
             vm = slipping(z, 0.0, w, wl, p, e0, idu, scale, eps, out, y, pp, dy, d2, fric, mode, mode_in)
             TQ[nlow, k] = p[iKM] * vm + p[iKT] * al - p[iJU] * out[1]
+            if nlow == 3:  # the lower angle moved, the twist kept: the motor angle moved
+                th = z[0]
+                for j in range(6):
+                    z[0] = th + (ANGLE_STEP if j == 0 or j == 2 or j == 3 else -ANGLE_STEP)
+                    sp = speeds[0] if j < 2 else (speeds[1] if j == 2 or j == 4 else speeds[2])
+                    slipping(z, 0.0, wu, sp, p, e0, idu, scale, eps, out, y, pp, dy, d2, fric, mode, mode_in)
+                    TQ[4 + j, k] = -p[iKT] * al - p[iJL] * out[3]
+                z[0] = th
 
     @njit(cache=False)
     def linearise(X, C, n, U, Fn, Fo, J, jac):  # pragma: no cover
@@ -229,8 +242,8 @@ def _observer_step(comp: Composition):
         n, dim, nc = U.size, int(C[ob.DIM]), int(C[NC])
         p0, l0, w0, fn, fo, j0, t0, _ = observer_rows(dim, nc)
         ob.update(M, X, C[ob.R], n, dim, p0, X[w0:fn])
-        torques(X, C, n, X[t0 : t0 + 4], 3, X[t0])
-        ob.flatness_law(M, X, X[l0:w0], C, n, U, X[t0 : t0 + 4])
+        torques(X, C, n, X[t0 : t0 + OBSERVER_TORQUES], 3, X[t0])
+        ob.flatness_law(M, X, X[l0:w0], C, n, U, X[t0 : t0 + OBSERVER_TORQUES])
         command(U, C, n)
         linearise(X, C, n, U, X[fn:fo], X[fo:j0], X[j0:t0], True)
         ob.predict_covariance(X, C, n, dim, nc, p0, int(C[OMATS]), X[j0:t0], X[w0:fn])

@@ -25,6 +25,8 @@ from numba import njit
 from drillgym.closed_loop.abi import LAW_SIGNATURE, M_REF, M_TU
 from drillgym.vmath import vexp, vlog
 
+from ..flatness import ANGLE_STEP
+
 __all__ = [
     "observer_step",
     "observer_law",
@@ -172,10 +174,11 @@ def flatness_law(M, X, L, C, n, U, TQ):
             if t_old >= L[SETTLE, k] and L[INTEG, k] == 0.0 and abs(wl - ref) <= C[TRIM_BAND] * abs(ref):
                 L[THETA0, k] = X[_X0, k]
                 L[INTEG, k] = 1.0
-            L[TINT, k] = L[TINT, k] + dt if L[INTEG, k] > 0 else 0.0
-            z = X[_X0, k] - L[THETA0, k] - ref * L[TINT, k] if L[INTEG, k] > 0 else 0.0
-            reach = C[TRIM_CLIP] * abs(ref)
-            L[TARGET, k] = min(max(ref - gain * z, ref - reach), ref + reach)
+            if L[INTEG, k] > 0:
+                L[TINT, k] = L[TINT, k] + dt
+                z = X[_X0, k] - L[THETA0, k] - ref * L[TINT, k]
+                reach = C[TRIM_CLIP] * abs(ref)
+                L[TARGET, k] = min(max(ref - gain * z, ref - reach), ref + reach)
         # the reference: three lags of the setpoint (FlatnessLaw.reference)
         target = L[TARGET, k]
         if ramp > 0:
@@ -190,22 +193,29 @@ def flatness_law(M, X, L, C, n, U, TQ):
         r3 = (dd2 - dd3) / tau
         L[Y1, k], L[Y2, k], L[Y3, k] = y1 + dt * d1, y2 + dt * d2, r + dt * d3
         r1, r2 = d3, dd3
-        # the brake law, its slope and curvature at the estimated lower speed (FlatnessLaw.friction)
+        # the brake law, its slope and curvature at the estimated lower speed and its derivatives in the lower
+        # angle (rows 4-9, a model with effects; FlatnessLaw.friction)
         t0, tp, tm = TQ[0, k], TQ[1, k], TQ[2, k]
         T, T1, T2 = t0, (tp - tm) / (2 * hf), (tp - 2 * t0 + tm) / hf**2
+        Ta, Taa, Twa = 0.0, 0.0, 0.0
+        if TQ.shape[0] > 4:
+            ap, am = TQ[4, k], TQ[5, k]
+            Ta, Taa = (ap - am) / (2 * ANGLE_STEP), (ap - 2 * t0 + am) / ANGLE_STEP**2
+            Twa = (TQ[6, k] - TQ[7, k] - TQ[8, k] + TQ[9, k]) / (4 * hf * ANGLE_STEP)
         if scale:
             T, T1, T2 = (1.0 + d) * T, (1.0 + d) * T1, (1.0 + d) * T2
+            Ta, Taa, Twa = (1.0 + d) * Ta, (1.0 + d) * Taa, (1.0 + d) * Twa
         else:
             T = T + d
         rest = wl <= w_rest and -kt * al < T
-        T1 = 0.0 if rest else T1
-        T2 = 0.0 if rest else T2
+        if rest:
+            T1, T2, Ta, Taa, Twa = 0.0, 0.0, 0.0, 0.0, 0.0
         a = 0.0 if rest else (-kt * al - T) / Jl
-        j = 0.0 if rest else (-kt * (wl - wu) - T1 * a) / Jl
+        j = 0.0 if rest else (-kt * (wl - wu) - T1 * a - Ta * wl) / Jl
         if L[TL, k] > hold + ramp:
             L[Z, k] = L[Z, k] + dt * (wl - r)
         v = r3 - (L[K0, k] * L[Z, k] + L[K1, k] * (wl - r) + L[K2, k] * (a - r1) + L[K3, k] * (j - r2))
-        wu_dot = (Jl * v + kt * a + T2 * a * a + T1 * j) / kt
+        wu_dot = (Jl * v + kt * a + T2 * a * a + T1 * j + 2 * Twa * wl * a + Taa * wl**2 + Ta * a) / kt
         u = (Ju * wu_dot + TQ[3, k] - kt * al) / km
         if has_du:
             u = u - X[_X0 + 5, k] / km
