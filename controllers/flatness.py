@@ -68,6 +68,8 @@ def _chain_gain(b: float, r: float, integral: float) -> np.ndarray:
 
 
 ANGLE_STEP = 1e-3  # step (rad) of the brake law's derivatives in the lower angle
+TRIM_BAND = 0.05  # a motor-angle integral starts with the estimated lower speed within this fraction of the target
+TRIM_CLIP = 0.15  # and moves the law's target by at most this fraction of it
 
 
 class FlatnessLaw:

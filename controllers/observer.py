@@ -34,7 +34,7 @@ from drillgym.equilibria import linearise, lower_damping, slip_equilibrium
 from drillgym.errors import InputError
 
 from .base import Controller
-from .flatness import FlatnessLaw
+from .flatness import TRIM_BAND, TRIM_CLIP, FlatnessLaw
 from .kalman import (
     I_AL,
     I_D,
@@ -93,10 +93,6 @@ def lqr_gain(
     p = params or RigParams()
     s = steepest_brake_slope(p) if slope is None else float(slope)
     return _lqr_gain_cached(float(omega_ref), p, float(dt), tuple(float(w) for w in weights), float(r), s)
-
-
-TRIM_BAND = 0.05  # the motor-angle integral starts with the estimated lower speed within this fraction of the target
-TRIM_CLIP = 0.15  # and moves the law's target by at most this fraction of it
 
 
 class ObserverController(Controller):

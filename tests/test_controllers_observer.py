@@ -82,7 +82,7 @@ def test_the_motor_angle_trim_waits_for_the_speed_and_moves_the_target_within_it
     target (not in the approach's overshoot, whose angle it would pay back below the target), and moves the law's
     target by at most TRIM_CLIP of it."""
     from controllers.dynamics import I_TU, I_WL
-    from controllers.observer import TRIM_BAND, TRIM_CLIP
+    from controllers.flatness import TRIM_BAND, TRIM_CLIP
     from drillgym import Model, RigParams
 
     ref = np.array([2.0, 2.0])

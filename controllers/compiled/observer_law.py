@@ -25,7 +25,7 @@ from numba import njit
 from drillgym.closed_loop.abi import LAW_SIGNATURE, M_REF, M_TU
 from drillgym.vmath import vexp, vlog
 
-from ..flatness import ANGLE_STEP
+from ..flatness import ANGLE_STEP, TRIM_BAND, TRIM_CLIP
 
 __all__ = [
     "observer_step",
@@ -62,7 +62,7 @@ CONSTANTS = (
     "trim_clip", "dim",
 )  # fmt: skip
 (DT, R, EPS, H, JU, JL, KM, KTH, TCU, DTCU, BU, DBU, TS, TC, WS, DELTA, BB,
- TAU, W_REST, HF, HOLD, RAMP, APPROACH, U_MAX, SCALE, HAS_DU, TRIM_GAIN, TRIM_BAND, TRIM_CLIP,
+ TAU, W_REST, HF, HOLD, RAMP, APPROACH, U_MAX, SCALE, HAS_DU, TRIM_GAIN, BAND, REACH,
  DIM) = range(len(CONSTANTS))  # fmt: skip
 _MAT0 = len(CONSTANTS)  # then Ad, Gamma, Ac, Qd (dim x dim each, row-major)
 
@@ -171,13 +171,13 @@ def flatness_law(M, X, L, C, n, U, TQ):
         t_old = L[TL, k]
         if gain > 0:  # the target trimmed by the motor angle's error (ObserverController._trim)
             ref = M[M_REF, k]
-            if t_old >= L[SETTLE, k] and L[INTEG, k] == 0.0 and abs(wl - ref) <= C[TRIM_BAND] * abs(ref):
+            if t_old >= L[SETTLE, k] and L[INTEG, k] == 0.0 and abs(wl - ref) <= C[BAND] * abs(ref):
                 L[THETA0, k] = X[_X0, k]
                 L[INTEG, k] = 1.0
             if L[INTEG, k] > 0:
                 L[TINT, k] = L[TINT, k] + dt
                 z = X[_X0, k] - L[THETA0, k] - ref * L[TINT, k]
-                reach = C[TRIM_CLIP] * abs(ref)
+                reach = C[REACH] * abs(ref)
                 L[TARGET, k] = min(max(ref - gain * z, ref - reach), ref + reach)
         # the reference: three lags of the setpoint (FlatnessLaw.reference)
         target = L[TARGET, k]
@@ -417,16 +417,13 @@ def law_rows(c, L: np.ndarray) -> None:
 
 def observer_constants(c, dim: int) -> np.ndarray:
     """The values of :data:`CONSTANTS` of the reset :class:`controllers.observer.ObserverController` c."""
-    from ..observer import TRIM_BAND as band
-    from ..observer import TRIM_CLIP as reach
-
     mdl, law, p = c.model, c.law, c.params
     values = dict(
         dt=c.dt, r=mdl.R[0, 0], eps=mdl.dynamics.eps, h=1e-5, Ju=p.Ju, Jl=p.Jl, km=p.km, kth=p.ktheta,
         Tcu=p.Tcu, dTcu=p.dTcu, bu=p.bu, dbu=p.dbu, Ts=p.Ts, Tc=p.Tc, ws=p.ws, delta=p.delta, bb=p.bb,
         tau=law.tau, w_rest=law.w_rest, hf=law.h, hold=law.hold, ramp=law.ramp, approach=law.approach,
         u_max=c.u_max, scale=float(law.scale), has_du=float(mdl.has_du),
-        trim_gain=c.angle_gain if c.angle_integral else 0.0, trim_band=band, trim_clip=reach, dim=float(dim),
+        trim_gain=c.angle_gain if c.angle_integral else 0.0, trim_band=TRIM_BAND, trim_clip=TRIM_CLIP, dim=float(dim),
     )  # fmt: skip
     return np.array([float(values[k]) for k in CONSTANTS])
 
