@@ -25,6 +25,7 @@ hides:
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -217,7 +218,8 @@ def run_case(c: dict) -> dict:
         d = diagnose(ex)
         fine = prepare_experiment(ts, compare_rate_hz=min(250.0, c["rate_hz"]))
         with tempfile.TemporaryDirectory() as tmp:
-            d.candidate, d.advice = discover(fine, d, Path(tmp) / f"cand{c['id']}.py")
+            found, advice = discover(fine, d, Path(tmp) / f"cand{c['id']}.py")
+            d = dataclasses.replace(d, candidate=found, advice=advice)
             out["time_s"] = time.perf_counter() - t0
             out["selected"] = list(d.selected)
             out["skipped"] = dict(d.skipped)

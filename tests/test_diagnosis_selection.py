@@ -12,6 +12,7 @@ import pytest
 
 from drillgym import RigParams
 from drillgym.diagnosis import diagnose
+from drillgym.diagnosis.context import BASE_BOUNDS, BRAKE_BOUNDS, base_range
 from drillgym.diagnosis.search_model import neutral_values, search_composition
 from drillgym.effects import BASE, LIBRARY
 from drillgym.identification.synthetic import synthetic_measurement
@@ -76,6 +77,22 @@ def test_effect_found_under_mismatch_with_its_value():
     else:
         assert d.effect_values()["tau_m"] == pytest.approx(0.03, rel=0.25)
     assert d.base_parameters, d.text()
+
+
+def test_a_brake_further_off_than_a_few_percent_is_re_identified_not_pinned_at_a_bound():
+    """The brake's level and Stribeck law move by tens of per cent between runs of one rig (the population's
+    uncertainty set draws them ±20 %): re-identified inside their own range, with the effect beside them found,
+    not left at the ±12 % bound of the other base parameters with the effect dropped."""
+    rig = RigParams().scaled(Ts=1.18, Tc=0.83, ws=1.15)
+    d = diagnose(recording(rig, effects=["position_friction"], pf_c1=0.08, pf_s1=-0.05), discover=False)
+    assert d.selected == ["position_friction"] and d.at_bounds == [], d.text()
+    for name, factor in (("Ts", 1.18), ("Tc", 0.83), ("ws", 1.15)):
+        assert d.base_parameters[name].change_pct == pytest.approx(100 * (factor - 1), abs=2.0), d.base_parameters
+    # the motor's side keeps the narrow range: a lag is not absorbed by km and bu scaled alike
+    p = RigParams()
+    assert base_range("km", p.km) == pytest.approx((BASE_BOUNDS[0] * p.km, BASE_BOUNDS[1] * p.km))
+    assert base_range("Ts", p.Ts) == pytest.approx((BRAKE_BOUNDS[0] * p.Ts, BRAKE_BOUNDS[1] * p.Ts))
+    assert BRAKE_BOUNDS[1] > BASE_BOUNDS[1]
 
 
 def test_exact_base_stands_when_the_base_first_fit_stops_in_a_worse_optimum(monkeypatch):

@@ -11,7 +11,7 @@ import math
 
 from ..effects import Composition, Effect
 from ..params import N_PARAMS, RigParams
-from .context import BASE_BOUNDS
+from .context import BASE_BOUNDS, BRAKE_BOUNDS
 from .effective import effective_samples
 from .lag_delay import smooth_input_warning
 from .results import Diagnosis, EffectScore, Selection
@@ -51,7 +51,8 @@ def report(screening: Screening, outcome: SearchOutcome) -> Diagnosis:
     warn = list(out.base_warnings)
     if out.at_bounds:
         warn.append(
-            f"base parameters at the edge of their ±{100 * (BASE_BOUNDS[1] - 1):.0f} % range: "
+            f"base parameters at the edge of their range (±{100 * (BASE_BOUNDS[1] - 1):.0f} %, the brake's "
+            f"±{100 * (BRAKE_BOUNDS[1] - 1):.0f} %): "
             f"{', '.join(out.at_bounds)}: an effect the library lacks is absorbed by them, or the base "
             f"model is further off than a few percent (run identify-staged first)"
         )
