@@ -114,3 +114,41 @@ def test_an_upper_disc_friction_is_discovered_while_the_lower_disc_is_stuck():
     assert cand is not None and cand.group == "upper_friction", cand
     ((label, coef),) = [(k, v) for k, v in cand.terms.items() if "ωu/0.5" in k]
     assert coef == pytest.approx(0.15, rel=0.25), cand.terms
+
+
+def test_a_residual_a_library_effect_explains_is_answered_by_the_library_effect():
+    """A lower-disc torque that is a position friction: discovery's terms explain it (sign(ωl) cos θl), and so do
+    the library effect's own columns regressed beside them; the answer is the library effect, not a file.  With
+    columns of a library effect that does not explain it (a drift), the candidate stands."""
+    import numpy as np
+
+    from drillgym.configurations import N_STATE
+    from drillgym.diagnosis.discovery import find_candidate
+    from drillgym.diagnosis.library_columns import LIBRARY_SHARE, library_answer
+    from drillgym.diagnosis.sparse import ResidualTorque
+
+    rng = np.random.default_rng(4)
+    p = RigParams()
+    t = np.arange(0, 40.0, 1 / 250)
+    wl = 2.0 + 0.8 * np.sin(0.7 * t)
+    S = np.zeros((t.size, N_STATE))
+    S[:, 1] = np.cumsum(wl) / 250
+    S[:, 0] = S[:, 1] - 0.3
+    S[:, 2] = S[:, 3] = wl
+    level = p.Tc + (p.Ts - p.Tc) * np.exp(-((wl / p.ws) ** p.delta))  # the brake's slip torque
+    per_unit = np.column_stack([level * np.cos(S[:, 1]), level * np.sin(S[:, 1])])  # pf_c1, pf_s1 per unit
+    tau_l = -per_unit @ np.array([0.12, -0.05]) + 0.002 * rng.standard_normal(t.size)  # the torque it adds
+    rt = ResidualTorque(t, 0.002 * rng.standard_normal(t.size), tau_l, S, np.ones(t.size, bool))
+    zeros = np.zeros_like(per_unit)
+    position = np.vstack([zeros, -per_unit])  # upper disc's rows, then the lower's: the torque per unit
+    drift = np.vstack([zeros[:, :1], -(level * t)[:, None]])
+    found = find_candidate(
+        rt, np.zeros(t.size), p.Ju, p.Jl, library={"position_friction": position, "friction_drift": drift}
+    )
+    assert found is not None and found.group == "lower_friction", found
+    assert found.rest["library:position_friction"] >= LIBRARY_SHARE * found.explained, found.rest
+    answer = library_answer(found)
+    assert answer is not None and answer.effect == "position_friction", found.rest
+    assert "position_friction" in answer.line() and "held in the model" in answer.line()
+    alone = find_candidate(rt, np.zeros(t.size), p.Ju, p.Jl, library={"friction_drift": drift})
+    assert alone.rest["library:friction_drift"] < 0.2 and library_answer(alone) is None, alone.rest

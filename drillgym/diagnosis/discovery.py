@@ -52,6 +52,7 @@ from .effect_file import write_effect_file
 from .effects import get_effect
 from .greedy import MAX_CANCEL, greedy_terms
 from .lateral_discovery import LATERAL_GROUP, lateral_candidate
+from .library_columns import LIBRARY_PREFIX, library_columns
 from .results import Candidate
 from .sparse import ResidualTorque
 from .state import transfer
@@ -117,6 +118,7 @@ def find_candidate(
     km: float = 4.3228,
     base_columns: bool = True,
     only: tuple[str, ...] | None = None,
+    library: dict[str, np.ndarray] | None = None,
 ) -> Candidate | None:
     """The best candidate group and terms for some residual torques.
 
@@ -146,6 +148,10 @@ def find_candidate(
         their ±12 % (a dead zone on one-signed voltages is a constant torque, Tcu's Coulomb term there too).
     only : tuple of str, optional
         Only these groups (default all).
+    library : dict of str to numpy.ndarray, optional
+        Library effects' columns (:func:`.library_columns.library_columns`), each effect regressed as a whole on
+        the same rows; their shares are recorded in the candidate's :attr:`~.candidate.Candidate.rest` under
+        :data:`.library_columns.LIBRARY_PREFIX`.
 
     Returns
     -------
@@ -187,6 +193,10 @@ def find_candidate(
 
         yr = project(y * rows)
         tss = float(yr @ yr) or 1.0
+        for effect, block in (library or {}).items():
+            cols = [project(rows * smooth(W * _accelerations(c, ok, Ju, Jl))) for c in block.T]
+            key = LIBRARY_PREFIX + effect
+            shares[key] = max(shares.get(key, 0.0), _share(np.column_stack(cols), yr, tss))
         for group, terms in groups.items():
             if only is not None and group not in only:
                 continue
@@ -296,6 +306,21 @@ def _weighted_rows(rt: ResidualTorque, u: np.ndarray, Ju: float, Jl: float):
         return np.concatenate([np.convolve(v[:n], k, mode="same"), np.convolve(v[n:], k, mode="same")])
 
     return d, ok, n, y, W, smooth
+
+
+def _accelerations(column: np.ndarray, ok: np.ndarray, Ju: float, Jl: float) -> np.ndarray:
+    """A torque column on the full grid (upper disc's samples, then the lower's) on the regression's rows, in
+    acceleration units."""
+    n = ok.size
+    return np.concatenate([column[:n][ok] / Ju, column[n:][ok] / Jl])
+
+
+def _share(X: np.ndarray, yr: np.ndarray, tss: float) -> float:
+    """The share of ``yr``'s variance the columns ``X`` explain together."""
+    if not np.any(X):
+        return 0.0
+    c, *_ = np.linalg.lstsq(X, yr, rcond=None)
+    return 1.0 - float(np.sum((yr - X @ c) ** 2)) / tss
 
 
 def _alone_coefficients(raw: list[np.ndarray], Nm: np.ndarray, rows: np.ndarray, y: np.ndarray) -> np.ndarray | None:
@@ -420,12 +445,16 @@ def discover(
     if (diagnosis.base_parameters or diagnosis.base_off) and diagnosis.nominal_vector is not None:
         # the base refit may have absorbed part of an effect outside the library: look at the nominal base too
         vectors.append(diagnosis.nominal_vector)
-    cand, rt = None, None
+    cand, rt, lib = None, None, None
     for vec in vectors:
         rt_v = residual_torques(ex, vec, effects=diagnosis.composition)
         p = RigParams.from_vector(vec[:N_PARAMS])  # the inertias and brake law of the model that left it
+        # the library's torque effects the model lacks, regressed beside the terms (.library_columns): their
+        # torques per unit of their parameters hardly depend on the base parameters, taken once at the diagnosis'
+        if lib is None and diagnosis.composition is not None:
+            lib = library_columns(ex, diagnosis.composition, vec, list(diagnosis.selected))
         # the voltage terms are functions of the voltage the model's motor sees (after its delay and lag)
-        c = find_candidate(rt_v, rt_v.u_motor, p.Ju, p.Jl, ex.config.lateral_free, p.ws, p.delta, p.km)
+        c = find_candidate(rt_v, rt_v.u_motor, p.Ju, p.Jl, ex.config.lateral_free, p.ws, p.delta, p.km, library=lib)
         if c is not None and (cand is None or c.explained > cand.explained):
             cand, rt = c, rt_v
         rt = rt if rt is not None else rt_v

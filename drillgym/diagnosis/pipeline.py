@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import fields, replace
+from pathlib import Path
 from typing import Any
 
 from ..configurations import Configuration
@@ -46,9 +47,10 @@ from .effect_file import candidate_name
 from .information import require_information
 from .input_order import input_order
 from .lateral_library import LateralVerdict, library_versus_outside
+from .library_columns import LibraryAnswer, library_answer
 from .orders import select
 from .ranking import report
-from .reselection import kept_candidate, reselection_inputs
+from .reselection import KeptCandidate, kept_candidate, reselection_inputs
 from .results import Diagnosis
 from .screening import screen
 from .sensor_reading import reading_candidates
@@ -127,8 +129,8 @@ def diagnose(
             detectability=shows,
         )
     if opts.discover and screening.config is not Configuration.UPPER:
-        diagnosis, verdict = _discovered(screening, diagnosis, noise, opts)
-        kept = kept_candidate(diagnosis)
+        diagnosis, verdict, library = _discovered(screening, diagnosis, noise, opts)
+        kept = kept_candidate(diagnosis) if library is None else KeptCandidate(library.effect, {}, ())
         if verdict is not None:  # said either way; left out of the model only where a candidate takes its place
             diagnosis = replace(diagnosis, warnings=[*diagnosis.warnings, verdict.line(left_out=kept is not None)])
         if kept is not None:
@@ -140,22 +142,34 @@ def diagnose(
 
 def _discovered(
     screening, diagnosis: Diagnosis, noise: dict[str, float], opts: DiagnosisOptions
-) -> tuple[Diagnosis, LateralVerdict | None]:
+) -> tuple[Diagnosis, LateralVerdict | None, LibraryAnswer | None]:
     """The diagnosis with a candidate effect outside the library (or advice), each candidate's own fit judged;
-    and the library lateral effect the residual says is another force, if any."""
+    the library lateral effect the residual says is another force, if any; and the library effect that explains
+    the residual torques in the candidate's place (:mod:`.library_columns`), if any (then no candidate)."""
     fine = _fine(screening.exps[0])
     found, advice = discover(fine, diagnosis, opts.candidate_out)
     held = set(diagnosis.composition.names) if diagnosis.composition is not None else set()
     found = _not_held(found, held)  # a group found in turn once more is the first's terms again
+    library = library_answer(found)
+    if library is not None:  # known physics the selection missed: no outside file
+        _remove_file(found)
+        return replace(diagnosis, warnings=[*diagnosis.warnings, library.line()]), None, library
     verdict = library_versus_outside(fine, diagnosis, found)  # a library lateral effect standing in for another
     diagnosis = replace(diagnosis, candidate=found, advice=advice)
     readings = [r for r in reading_candidates(diagnosis) if _not_held(r, held) is not None]
     if found is None and not readings:
-        return diagnosis, verdict
+        return diagnosis, verdict, None
     with one_blas_thread():  # its own identification is part of the answer
         chosen = choose_candidate(screening, diagnosis, noise, opts.candidate_out, readings)
     read = chosen is not None and chosen.is_reading
-    return replace(diagnosis, candidate=chosen, advice=[] if read else advice), verdict
+    return replace(diagnosis, candidate=chosen, advice=[] if read else advice), verdict, None
+
+
+def _remove_file(candidate) -> None:
+    """Remove the effect file discovery wrote for a candidate that is not proposed (a library effect explains it)."""
+    spec = candidate.effect_file if candidate is not None else None
+    if spec:
+        Path(spec.rpartition(":")[0] or spec).unlink(missing_ok=True)
 
 
 def _not_held(candidate, held: set[str]):
