@@ -61,3 +61,35 @@ def test_the_model_run_again_holds_the_start_the_lag_ahead_and_the_candidate_ref
     assert again.effect_params == {"delay": 0.01, "tau_m": 0.03, "candidate_motor_voltage_c1": 0.12}
     assert again.refit_model_effects and not again.discover
     assert again.fixed_base and again.n_joint == 3  # the rest of the first diagnosis' settings
+
+
+def test_a_library_effect_named_by_discovery_is_held_and_the_library_selected_again(tmp_path, monkeypatch):
+    """Where discovery answers with a library effect (:mod:`drillgym.diagnosis.library_columns`), the candidate's
+    file is removed, the answer said in a warning, and the diagnosis runs again with that effect held in the
+    model (its values fitted there), as it does with a kept candidate."""
+    from drillgym.diagnosis import diagnose, discovery, pipeline
+    from drillgym.diagnosis.candidate import Candidate
+    from drillgym.identification.synthetic import synthetic_measurement
+
+    rec = synthetic_measurement(
+        "torsional", None, duration=20.0, rate_hz=250.0, offset=1.0, seed=5,
+        effects=["position_friction"], effect_params={"pf_c1": 0.1, "pf_s1": -0.06},
+    )  # fmt: skip
+    out = tmp_path / "cand.py"
+    real = discovery.discover
+
+    def answered(ex, diagnosis, candidate_out=None, name=None):  # as if the selection had missed it
+        if "position_friction" not in diagnosis.selected:
+            return real(ex, diagnosis, candidate_out, name)
+        out.write_text("# a candidate's file\n")
+        cand = Candidate("lower_friction", {"sign(ωl) cos θl": 0.01}, {}, {}, 0.6, 100, effect_file=f"{out}:c")
+        cand.rest = {"library:friction_drift": 0.55}
+        return cand, []
+
+    monkeypatch.setattr(pipeline, "discover", answered)
+    d = diagnose(rec, discover=True, candidate_out=out)
+    assert d.candidate is None and not out.exists(), (d.selected, d.warnings)
+    assert any("friction_drift's" in w and "held in the model" in w for w in d.warnings), d.warnings
+    again = d.reselection
+    assert again is not None and "friction_drift" in again.composition.names
+    assert "drift" in again.composition.param_names and again.selected == ["position_friction"], again.text()
