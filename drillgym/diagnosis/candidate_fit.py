@@ -37,7 +37,7 @@ from .sensor_reading import MIN_READING_CUT, with_fitted_terms
 from .state import Screening, transfer
 from .unexplained import Unexplained, unexplained
 
-__all__ = ["CandidateFit", "CandidateFitState", "fit_candidate", "choose_candidate", "MAX_NFEV"]
+__all__ = ["CandidateFit", "CandidateFitState", "fit_candidate", "choose_candidate", "screened_readings", "MAX_NFEV"]
 
 #: least-squares evaluations of the candidate's fit
 MAX_NFEV = 20
@@ -432,11 +432,36 @@ def _best_reading(
     are fitted, even after one reaches the noise: a scale error of one encoder reads nearly as the opposite error
     of the other with every angle rescaled (the motor encoder's +1 % as the lower's −1 % with the inertias and the
     motor constant 1 % off), which the base parameters freed beside the wrong one take up."""
-    passed = [r for r in readings if _screen_cut(screening, diagnosis, r, noise_scales) >= SCREEN_CUT]
+    passed = screened_readings(screening, diagnosis, readings, noise_scales)
     for reading in passed:
         reading.fit = fit_candidate(screening, diagnosis, reading, noise_scales)
         with_fitted_terms(reading)
     return max(passed, key=_reading_rank) if passed else None
+
+
+def screened_readings(
+    screening: Screening, diagnosis: Diagnosis, readings: Sequence[Candidate], noise_scales: dict[str, float]
+) -> list[Candidate]:
+    """The sensors' readings whose screen (:func:`_screen_cut`) removes at least :data:`SCREEN_CUT` of the
+    unexplained variance: those a full fit may keep.
+
+    Parameters
+    ----------
+    screening : Screening
+        The recordings screened.
+    diagnosis : Diagnosis
+        The diagnosis.
+    readings : sequence of Candidate
+        The readings (:func:`.sensor_reading.reading_candidates`).
+    noise_scales : dict of str to float
+        The channels' noise.
+
+    Returns
+    -------
+    list of Candidate
+        The readings that pass, in their order.
+    """
+    return [r for r in readings if _screen_cut(screening, diagnosis, r, noise_scales) >= SCREEN_CUT]
 
 
 def _screen_cut(

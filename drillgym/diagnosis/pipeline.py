@@ -39,7 +39,7 @@ from ..identification.blas import one_blas_thread
 from ..identification.experiment import Experiment, prepare_experiment
 from ..io import TimeSeries
 from ..params import RigParams
-from .candidate_fit import choose_candidate
+from .candidate_fit import choose_candidate, screened_readings
 from .checks import check
 from .detectability import detectability
 from .discovery import discover
@@ -150,19 +150,30 @@ def _discovered(
     found, advice = discover(fine, diagnosis, opts.candidate_out)
     held = set(diagnosis.composition.names) if diagnosis.composition is not None else set()
     found = _not_held(found, held)  # a group found in turn once more is the first's terms again
+    readings = [r for r in reading_candidates(diagnosis) if _not_held(r, held) is not None]
     library = library_answer(found)
-    if library is not None:  # known physics the selection missed: no outside file
+    if library is not None and not _a_reading_shows(screening, diagnosis, readings, noise):
+        # known physics the selection missed, and no sensor's reading for it (an encoder's scale error reads as a
+        # torque growing along the run, as a friction drift's does): no outside file
         _remove_file(found)
         return replace(diagnosis, warnings=[*diagnosis.warnings, library.line()]), None, library
     verdict = library_versus_outside(fine, diagnosis, found)  # a library lateral effect standing in for another
     diagnosis = replace(diagnosis, candidate=found, advice=advice)
-    readings = [r for r in reading_candidates(diagnosis) if _not_held(r, held) is not None]
     if found is None and not readings:
         return diagnosis, verdict, None
     with one_blas_thread():  # its own identification is part of the answer
         chosen = choose_candidate(screening, diagnosis, noise, opts.candidate_out, readings)
     read = chosen is not None and chosen.is_reading
     return replace(diagnosis, candidate=chosen, advice=[] if read else advice), verdict, None
+
+
+def _a_reading_shows(screening, diagnosis: Diagnosis, readings: list, noise: dict[str, float]) -> bool:
+    """Whether a sensor's reading passes its screen (then the readings and the candidate are fitted and compared,
+    :func:`.candidate_fit.choose_candidate`, before any answer)."""
+    if not readings:
+        return False
+    with one_blas_thread():
+        return bool(screened_readings(screening, diagnosis, readings, noise))
 
 
 def _remove_file(candidate) -> None:
