@@ -23,6 +23,7 @@ import numpy as np
 
 from ..effects import LIBRARY, Composition, Force, Friction
 from ..identification.experiment import Experiment
+from .sparse import ResidualTorque
 
 __all__ = ["LIBRARY_SHARE", "LIBRARY_PREFIX", "LibraryAnswer", "library_columns", "library_answer"]
 
@@ -63,7 +64,9 @@ class LibraryAnswer:
         )
 
 
-def library_columns(ex: Experiment, comp: Composition, vec: np.ndarray, selected: list[str]) -> dict[str, np.ndarray]:
+def library_columns(
+    ex: Experiment, comp: Composition, vec: np.ndarray, selected: list[str], base: ResidualTorque
+) -> dict[str, np.ndarray]:
     """Each library torque effect's columns: the residual torques' change per unit of each of its parameters.
 
     Parameters
@@ -76,6 +79,8 @@ def library_columns(ex: Experiment, comp: Composition, vec: np.ndarray, selected
         Its vector as diagnosed.
     selected : list of str
         The effects the model holds (not offered again).
+    base : ResidualTorque
+        The residual torques of ``comp`` at ``vec`` on ``ex`` (:func:`.sparse.residual_torques`: discovery's own).
 
     Returns
     -------
@@ -94,7 +99,6 @@ def library_columns(ex: Experiment, comp: Composition, vec: np.ndarray, selected
     ]
     if not offered:
         return {}
-    base = residual_torques(ex, vec, effects=comp)
     out = {}
     for effect in offered:
         cols = []
