@@ -27,6 +27,7 @@ __all__ = [
     "SELECTION_DT",
     "SearchModel",
     "neutral_values",
+    "vanishes_exactly",
     "search_composition",
     "base_free_parameters",
     "selection_model",
@@ -76,6 +77,23 @@ def neutral_values(effects: Sequence[type[Effect]]) -> dict[str, float]:
             v = p.neutral if p.neutral is not None else _NEUTRAL.get(p.name, min(max(0.0, p.lo), p.hi))
             out[p.name] = float(v)
     return out
+
+
+def vanishes_exactly(effect: type[Effect]) -> bool:
+    """Whether an effect adds exactly nothing at its :func:`neutral_values` (a declared ``Parameter.neutral``, or 0
+    within every parameter's bounds); a motor lag's 0.1 ms does not.
+
+    Parameters
+    ----------
+    effect : Effect class
+        The effect.
+
+    Returns
+    -------
+    bool
+        True when a run with it at its neutral values equals a run without it.
+    """
+    return all(p.neutral is not None or (p.name not in _NEUTRAL and p.lo <= 0.0 <= p.hi) for p in effect.parameters)
 
 
 def search_composition(model: Composition, candidates: Sequence[type[Effect]]) -> Composition:

@@ -1,0 +1,39 @@
+"""identify's joint fit runs on the diagnosis' search model: the same runs as the selected model, no compilation."""
+
+import numpy as np
+
+from drillgym import simulate
+from drillgym.diagnosis.effects import get_effect
+from drillgym.diagnosis.search_model import neutral_values, vanishes_exactly
+from drillgym.effects import compose
+from drillgym.identified import _search_model_for
+from drillgym.signals import quasi_random
+
+SEARCH = ["motor_lag", "position_friction", "brake_asymmetry", "string_damping", "input_delay", "friction_drift"]
+
+
+def _run(comp, values, t, u):
+    return simulate(config="torsional", u=(t, u), duration=float(t[-1]), effects=comp, effect_params=values)
+
+
+def test_the_search_model_without_a_lag_runs_the_selected_model_to_the_bit():
+    search, _ = compose(SEARCH)
+    selected, values = compose(["input_delay", "position_friction"], {"delay": 0.02, "pf_c1": -0.09, "pf_s1": 0.05})
+    on = _search_model_for(search, selected)
+    assert on is not None and "motor_lag" not in on.names  # a 0.1 ms lag is not nothing
+    assert not vanishes_exactly(get_effect("motor_lag")) and vanishes_exactly(get_effect("string_damping"))
+    start = {**neutral_values(on.effects), **values}
+    t, u = quasi_random(20.0, rate_hz=500.0, seed=3, amplitude=5.0, offset=2.5)
+    a, b = _run(selected, values, t, u), _run(on, start, t, u)
+    assert np.array_equal(a.theta_l, b.theta_l) and np.array_equal(a.theta_u, b.theta_u)
+
+
+def test_a_selected_lag_keeps_the_lag_and_a_signal_path_in_another_order_is_refused():
+    search, _ = compose(SEARCH)
+    with_lag, _ = compose(["motor_lag", "position_friction"])
+    assert "motor_lag" in _search_model_for(search, with_lag).names
+    outside, _ = compose(["lateral_coulomb"])
+    assert _search_model_for(search, outside) is None  # not in the search model: the selected one is compiled
+    reordered, _ = compose(["examples/effects/motor_dead_zone.py:dead_zone", "motor_lag"])
+    searched, _ = compose(["motor_lag", "examples/effects/motor_dead_zone.py:dead_zone"])
+    assert _search_model_for(searched, reordered) is None
