@@ -225,7 +225,7 @@ class BatchSimulator:
         self.kernels.stepping.advance_batch(
             self.Y,
             self.MODE,
-            uu,
+            np.require(uu, np.float64, ("C", "W")),  # a read-only command would compile a second signature
             self.P,
             int(self.config),
             self.dt,

@@ -142,6 +142,8 @@ def run_lanes(
     def run(lo, hi, width):
         s = slice(lo, hi)
         if hi - lo == width:
+            out = OUT[:, :, s]  # a chunk of the lanes is a strided view: recorded into a C-ordered buffer, so that
+            rec = out if out.flags.c_contiguous else np.empty(out.shape)  # one signature is compiled, not two
             lanes_run(
                 Y[s],
                 MODE[s],
@@ -151,7 +153,7 @@ def run_lanes(
                 dt,
                 T0[s].copy(),
                 record_every,
-                OUT[:, :, s],
+                rec,
                 n_steps,
                 True,
                 FR[s],
@@ -160,6 +162,8 @@ def run_lanes(
                 *tab,
                 *optional_args(COLS, USTEP, OUT.shape[1]),
             )
+            if rec is not out:
+                out[...] = rec
             return
         Yp, MODEp, Up, Pp, Tp, FRp, HISTp, HEADp = pad_lanes([a[s] for a in (Y, MODE, U, P, T0, FR, HIST, HEAD)], width)
         OUTp = np.empty(OUT.shape[:2] + (width,))

@@ -382,8 +382,8 @@ class Composition:
         shape = np.shape(theta_u)
         if not self.has_measurement:
             return tuple(np.asarray(a, dtype=float).copy() for a in (theta_u, theta_l, X, Y))
-        arrs = [
-            np.ascontiguousarray(np.broadcast_to(np.asarray(a, dtype=np.float64), shape).ravel())
+        arrs = [  # writable copies: a read-only view would compile the kernel a second time
+            np.require(np.broadcast_to(np.asarray(a, dtype=np.float64), shape).ravel(), np.float64, ("C", "W"))
             for a in (theta_u, theta_l, X, Y, omega_u, omega_l)
         ]
         out = self.kernels.hooks.measure_arrays(*arrs, np.asarray(vec, dtype=np.float64))
