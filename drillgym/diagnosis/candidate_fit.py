@@ -212,8 +212,7 @@ def fit_candidate(
         return None
     comp = diagnosis.composition
     ahead = _library_ahead(candidate)
-    present = {e.name for e in comp.effects}  # the search model holds them switched off
-    with_it = Composition((*comp.effects, *(e for n, e in ahead.items() if n not in present), effect))
+    with_it = with_candidate(comp, diagnosis.model, ahead, effect)
     model = screening.model
     if ahead:  # the lag the terms were regressed through, fitted with them
         start_values = {**start_values, "tau_m": candidate.through_lag}
@@ -295,6 +294,38 @@ def _stood_in(diagnosis: Diagnosis, candidate: Candidate) -> tuple[str, ...]:
         lateral = (e for e in comp.effects if e.name in chosen and issubclass(e, Force) and e.acts_on == "lateral")
         return (*LATERAL_BASE, *(p.name for e in lateral for p in e.parameters))
     return ()
+
+
+def with_candidate(
+    search: Composition, model: str, ahead: dict[str, type[Effect]], effect: type[Effect]
+) -> Composition:
+    """The search model with a candidate, in the order the diagnosis run again with it kept holds them
+    (:func:`.reselection.reselection_inputs`): the model's own effects, the library effects fitted ahead of it,
+    the candidate, then the other effects of the search model. The candidate is fitted, and the library selected
+    again beside it, on one composition: its kernels are compiled once.
+
+    Parameters
+    ----------
+    search : Composition
+        The diagnosis' search model.
+    model : str
+        The label of the model diagnosed (``"base"`` or its effects joined by ``+``).
+    ahead : dict of str to Effect class
+        Library effects fitted ahead of the candidate on the signal path.
+    effect : Effect class
+        The candidate.
+
+    Returns
+    -------
+    Composition
+        The composition.
+    """
+    own = set() if model == "base" else set(model.split("+"))
+    by_name = {e.name: e for e in search.effects}
+    first = [e for e in search.effects if e.name in own]
+    before = [by_name.get(n, e) for n, e in ahead.items() if n not in own]
+    rest = [e for e in search.effects if e.name not in own and e.name not in ahead]
+    return Composition((*first, *before, effect, *rest))
 
 
 def _library_ahead(candidate: Candidate) -> dict[str, type[Effect]]:
@@ -474,7 +505,7 @@ def _screen_cut(
     comp, before = diagnosis.composition, diagnosis.unexplained
     if effect is None or comp is None or diagnosis.vector is None or before is None or before.ratio_to_noise <= 0:
         return -1.0
-    with_it = Composition((*comp.effects, effect))
+    with_it = with_candidate(comp, diagnosis.model, {}, effect)
     library = _stood_in(diagnosis, reading)
     setup = _CandidateModel(screening.model, comp, with_it, effect, start_values, library, SCREEN_NFEV)
     obj, _, fit = setup.fit(diagnosis.vector, ())
