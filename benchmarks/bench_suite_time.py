@@ -1,6 +1,7 @@
 """How long the test suite takes on a fresh clone, from an empty kernel cache, and warm.
 
     .venv/bin/python benchmarks/bench_suite_time.py [--tests PATH ...] [--skip-prepare] [--skip-warm]
+    .venv/bin/python benchmarks/bench_suite_time.py --fresh-clone
 
 A fresh clone has no compiled kernels: numba compiles drillgym's own kernels (``cache=True``: next to the
 sources, or in ``$NUMBA_CACHE_DIR``) and the generated kernels of every composition (``$DRILLGYM_KERNEL_CACHE``,
@@ -19,6 +20,13 @@ line, the total from an empty cache (prepare + cold), the slowest 15 tests of ea
 CPU time). ``--tests PATH ...`` times these test files or directories instead of ``tests``; ``--skip-prepare``
 leaves out phase 1 (the suite then compiles what prepare would have); ``--skip-warm`` leaves out phase 3. The
 exit code is 1 when a phase failed (its output's failures are printed), else 0.
+
+``--fresh-clone`` times the two README commands as a newcomer runs them instead: the repository's committed
+``HEAD`` cloned into a temporary directory, ``XDG_CACHE_HOME`` pointed at an empty one (pip's downloads,
+drillgym's kernels and matplotlib's fonts start empty; ``NUMBA_CACHE_DIR`` and ``DRILLGYM_KERNEL_CACHE``
+unset), then ``make demo`` (the virtual environment, ``drillgym prepare``, the demo) and ``make test`` (the lint
+and the suite), each timed; the goal is both within 20 minutes together. Both temporary directories are removed
+at the end.
 """
 
 from __future__ import annotations
@@ -85,12 +93,49 @@ def _load() -> str:
     return " ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
+def fresh_clone() -> int:
+    """``make demo`` then ``make test`` in a clone of HEAD with empty caches (see the module docstring)."""
+    phases: list[Phase] = []
+    with (
+        tempfile.TemporaryDirectory(prefix="drillgym-clone-") as clone,
+        tempfile.TemporaryDirectory(prefix="drillgym-empty-xdg-") as xdg,
+    ):
+        subprocess.run(["git", "clone", "-q", str(ROOT), clone], check=True)
+        env = {
+            k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "DRILLGYM_KERNEL_CACHE", "VIRTUAL_ENV")
+        }
+        env["XDG_CACHE_HOME"] = xdg
+        head = subprocess.run(["git", "-C", clone, "log", "--oneline", "-1"], capture_output=True, text=True).stdout
+        print(f"fresh clone of {head.strip()} in {clone}; empty XDG_CACHE_HOME {xdg}")
+        print(f"load average before: {_load()}", flush=True)
+        for target in ("demo", "test"):
+            phases.append(run_phase(f"make {target}", ["make", "-C", clone, target], env))
+            if phases[-1].code != 0:
+                break
+        print(f"load average after: {_load()}")
+    print()
+    for p in phases:
+        print(f"{p.name:<12} {p.wall:8.1f} s wall {p.cpu:8.1f} s CPU  {p.summary()}")
+    total = sum(p.wall for p in phases)
+    print(f"make demo + make test from a fresh clone: {total:.0f} s ({total / 60:.1f} min; goal 20 min)")
+    failed = [p for p in phases if p.code != 0]
+    for p in failed:
+        print(f"\n{p.name} failed (exit code {p.code}):")
+        print("\n".join(p.failures()))
+    return 1 if failed else 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--tests", nargs="+", default=["tests"], metavar="PATH", help="test paths (default: tests)")
     ap.add_argument("--skip-prepare", action="store_true", help="do not run `drillgym prepare` first")
     ap.add_argument("--skip-warm", action="store_true", help="do not run the suite a second time on the filled cache")
+    ap.add_argument(
+        "--fresh-clone", action="store_true", help="time `make demo` then `make test` in a clone with empty caches"
+    )
     args = ap.parse_args()
+    if args.fresh_clone:
+        return fresh_clone()
     if not Path(DRILLGYM).exists():
         sys.exit(f"bench_suite_time: {DRILLGYM} not found: run it with the venv's python (.venv/bin/python)")
     missing = [p for p in args.tests if not (ROOT / p.split("::")[0]).exists()]
