@@ -298,20 +298,19 @@ def _joint_fit(ts, d, params, specs, values, o: IdentifyOptions, notes: list[str
     compiled serve the fit, and a new selection costs no compilation (about 20 s per composition on 2 cores).
     The model returned is the selected composition."""
     from .diagnosis.refit import refit
-    from .diagnosis.search_model import BASE_FREE
+    from .diagnosis.search_model import BASE_FREE, neutral_values
     from .effects import compose
 
     search = d.composition
-    held = search.named(d.vector) if search is not None and d.vector is not None else {}
 
     def fit(specs: list[str], values: dict[str, float]):
         comp, vals = compose(specs, {k: v for k, v in values.items() if k in _param_names(specs)})
         free = [] if o.fixed_base else list(BASE_FREE[d.config])
         runs_on, start = comp, vals
         on_search = _search_model_for(search, comp)
-        if on_search is not None:
-            names = set(on_search.effect_param_names)
-            runs_on, start = on_search, {**{k: v for k, v in held.items() if k in names}, **vals}
+        if on_search is not None:  # the effects not selected where they vanish, whatever the search left them at
+            off = [e for e in on_search.effects if e.name not in comp.names]
+            runs_on, start = on_search, {**neutral_values(off), **vals}
         res = refit(
             ts,
             params,
