@@ -89,6 +89,15 @@ def run_phase(name: str, argv: list[str], env: dict[str, str]) -> Phase:
     return phase
 
 
+def exit_code(phases: list[Phase]) -> int:
+    """Print the failures of the phases that failed; 1 when one did, else 0."""
+    failed = [p for p in phases if p.code != 0]
+    for p in failed:
+        print(f"\n{p.name} failed (exit code {p.code}):")
+        print("\n".join(p.failures()))
+    return 1 if failed else 0
+
+
 def _load() -> str:
     return " ".join(f"{x:.2f}" for x in os.getloadavg())
 
@@ -118,11 +127,7 @@ def fresh_clone() -> int:
         print(f"{p.name:<12} {p.wall:8.1f} s wall {p.cpu:8.1f} s CPU  {p.summary()}")
     total = sum(p.wall for p in phases)
     print(f"make demo + make test from a fresh clone: {total:.0f} s ({total / 60:.1f} min; goal 20 min)")
-    failed = [p for p in phases if p.code != 0]
-    for p in failed:
-        print(f"\n{p.name} failed (exit code {p.code}):")
-        print("\n".join(p.failures()))
-    return 1 if failed else 0
+    return exit_code(phases)
 
 
 def main() -> int:
@@ -170,11 +175,7 @@ def main() -> int:
             print("\n".join(p.slowest()) or "(none reported)")
     if warm is not None:
         print(f"\ncold {cold.wall:.0f} s, warm {warm.wall:.0f} s (ratio {cold.wall / warm.wall:.2f})")
-    failed = [p for p in phases if p.code != 0]
-    for p in failed:
-        print(f"\n{p.name} failed (exit code {p.code}):")
-        print("\n".join(p.failures()))
-    return 1 if failed else 0
+    return exit_code(phases)
 
 
 if __name__ == "__main__":

@@ -33,6 +33,7 @@ from .effects import get_effect
 from .motor_terms import TERM_EFFECTS, WIDTH_PARAMETERS, term_parameters
 from .results import Candidate, Diagnosis
 from .scoring import score, significant
+from .search_model import with_candidate
 from .sensor_reading import MIN_READING_CUT, with_fitted_terms
 from .state import Screening, transfer
 from .unexplained import Unexplained, unexplained
@@ -294,38 +295,6 @@ def _stood_in(diagnosis: Diagnosis, candidate: Candidate) -> tuple[str, ...]:
         lateral = (e for e in comp.effects if e.name in chosen and issubclass(e, Force) and e.acts_on == "lateral")
         return (*LATERAL_BASE, *(p.name for e in lateral for p in e.parameters))
     return ()
-
-
-def with_candidate(
-    search: Composition, model: str, ahead: dict[str, type[Effect]], effect: type[Effect]
-) -> Composition:
-    """The search model with a candidate, in the order the diagnosis run again with it kept holds them
-    (:func:`.reselection.reselection_inputs`): the model's own effects, the library effects fitted ahead of it,
-    the candidate, then the other effects of the search model. The candidate is fitted, and the library selected
-    again beside it, on one composition: its kernels are compiled once.
-
-    Parameters
-    ----------
-    search : Composition
-        The diagnosis' search model.
-    model : str
-        The label of the model diagnosed (``"base"`` or its effects joined by ``+``).
-    ahead : dict of str to Effect class
-        Library effects fitted ahead of the candidate on the signal path.
-    effect : Effect class
-        The candidate.
-
-    Returns
-    -------
-    Composition
-        The composition.
-    """
-    own = set() if model == "base" else set(model.split("+"))
-    by_name = {e.name: e for e in search.effects}
-    first = [e for e in search.effects if e.name in own]
-    before = [by_name.get(n, e) for n, e in ahead.items() if n not in own]
-    rest = [e for e in search.effects if e.name not in own and e.name not in ahead]
-    return Composition((*first, *before, effect, *rest))
 
 
 def _library_ahead(candidate: Candidate) -> dict[str, type[Effect]]:

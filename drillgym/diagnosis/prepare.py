@@ -50,13 +50,14 @@ def prepare_diagnosis(
     dict of str to float
         The seconds each configuration took (compilation included when the kernels were not cached yet).
     """
+    from ..configurations import parse_configuration
     from ..parallel import map_ordered, open_executor
 
     names = list(configs)
     n = max(1, min(len(names), workers or os.cpu_count() or 1))
     with open_executor(None, n) or nullcontext() as executor:
         seconds = map_ordered(executor, _prepare_one, [(name, duration) for name in names])
-    return dict(zip(names, seconds))
+    return {parse_configuration(name).label: t for name, t in zip(names, seconds)}
 
 
 def _prepare_one(name: str, duration: float) -> float:

@@ -29,6 +29,7 @@ __all__ = [
     "neutral_values",
     "vanishes_exactly",
     "search_composition",
+    "with_candidate",
     "base_free_parameters",
     "selection_model",
     "default_weights",
@@ -116,6 +117,38 @@ def search_composition(model: Composition, candidates: Sequence[type[Effect]]) -
     cands = [c for c in candidates if c.name not in model.names]
     cands.sort(key=lambda c: 0 if c.name == "motor_lag" else 1)
     return Composition(tuple(model.effects) + tuple(cands))
+
+
+def with_candidate(
+    search: Composition, model: str, ahead: dict[str, type[Effect]], effect: type[Effect]
+) -> Composition:
+    """The search model with a candidate, in the order the diagnosis run again with it kept holds them
+    (:func:`.reselection.reselection_inputs`): the model's own effects, the library effects fitted ahead of it,
+    the candidate, then the other effects of the search model. The candidate is fitted, and the library selected
+    again beside it, on one composition: its kernels are compiled once.
+
+    Parameters
+    ----------
+    search : Composition
+        The diagnosis' search model.
+    model : str
+        The label of the model diagnosed (``"base"`` or its effects joined by ``+``).
+    ahead : dict of str to Effect class
+        Library effects fitted ahead of the candidate on the signal path.
+    effect : Effect class
+        The candidate.
+
+    Returns
+    -------
+    Composition
+        The composition.
+    """
+    own = set() if model == "base" else set(model.split("+"))
+    by_name = {e.name: e for e in search.effects}
+    first = [e for e in search.effects if e.name in own]
+    before = [by_name.get(n, e) for n, e in ahead.items() if n not in own]
+    rest = [e for e in search.effects if e.name not in own and e.name not in ahead]
+    return Composition((*first, *before, effect, *rest))
 
 
 def base_free_parameters(config: Configuration, brake_on: bool = True) -> tuple[str, ...]:
