@@ -55,9 +55,11 @@ class AgentController(Controller):
         the policy's control period and must equal it.  ``model=`` (a :class:`drillgym.Model` or a model
         file's path, as ``controllers.make("agent:DIR", model=...)``): the network does not read it, its
         weights are what it learned on its training rig (``drillgym train --model FILE --init DIR`` adapts
-        them to a model).  Only the model's base parameters are used, by a residual or observer base (a policy
-        trained with ``residual`` or ``base: observer``), as ``params`` would be; a plain network ignores the
-        model altogether, and the model's effects are never used (a warning names them).
+        them to a model).  A policy on the observer base (``base: observer``) runs on the observer controller
+        built on the whole model, effects included (as ``controllers.make("observer", model=...)``): the
+        identification reaches it as it reaches the observer.  A residual on the base law (``residual``) uses
+        the model's base parameters, as ``params`` would be; a plain network ignores the model; the effects
+        these two cannot use are named in a warning.
 
     Raises
     ------
@@ -68,19 +70,20 @@ class AgentController(Controller):
     name = "agent"
 
     def __init__(self, policy: ExportedPolicy, omega_ref=None, **kw) -> None:
-        if kw.get("model") is not None:  # its base parameters only: the network learned its own rig
+        model = None
+        if kw.get("model") is not None:
             from controllers.model import model_of
 
             model = model_of(kw.pop("model"), kw.get("params"))
             kw["params"] = model.params
-            if model.composition.effects:  # said, not silently dropped
-                names = ", ".join(e.name for e in model.composition.effects)
-                warnings.warn(
-                    f"agent: the policy uses the model's base parameters only; its effects ({names}) are not used "
-                    "(drillgym train --model FILE --init DIR adapts a policy to them)",
-                    stacklevel=2,
-                )
-        kw.pop("model", None)
+        observer_base = policy.config["hyperparams"].get("base") == "observer"
+        if model is not None and model.composition.effects and not observer_base:  # said, not silently dropped
+            names = ", ".join(e.name for e in model.composition.effects)
+            warnings.warn(
+                f"agent: the policy uses the model's base parameters only; its effects ({names}) are not used "
+                "(drillgym train --model FILE --init DIR adapts a policy to them)",
+                stacklevel=2,
+            )
         cfg = policy.config
         hp = cfg["hyperparams"]
         env_kwargs = hp.get("env_kwargs", {})
@@ -112,10 +115,10 @@ class AgentController(Controller):
         self.schedule = schedule_of(hp.get("command_schedule"), self.integral)  # the speed command (agents.command)
         scale = hp.get("residual")
         self.base = None
-        if hp.get("base") == "observer":  # observation = the observer's features, not the env's model
+        if observer_base:  # observation = the observer's features, not the env's model
             if self.mode != "motor" or self.frame_stack != 1:
                 raise InputError("observer-based agents are trained on the 'motor' mode without frame stacking")
-            self.base = ObserverResidual(self.config.label, scale, self.params, self.dt, hp.get("observer"))
+            self.base = ObserverResidual(self.config.label, scale, self.params, self.dt, hp.get("observer"), model)
             if self.base.dim != policy.obs_dim:
                 raise InputError(f"agent expects {policy.obs_dim} inputs; the observer base gives {self.base.dim}")
             return

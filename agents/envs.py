@@ -330,8 +330,9 @@ def make_training_env(
         kw["normalize_action"] = False
         venv = make_sb3_vec(env_id, n_envs, **kw)
         o = venv.venv.options
+        design = (env_kwargs or {}).get("model")  # the model the user gave (a train --model): the base's too
         venv = ObserverResidualVecEnv(
-            venv, ObserverResidual(ENV_IDS[env_id], residual, o.params, o.control_dt, observer)
+            venv, ObserverResidual(ENV_IDS[env_id], residual, o.params, o.control_dt, observer, design)
         )
     elif residual is not None:
         kw["normalize_action"] = False

@@ -8,17 +8,19 @@ Structure (residual policy learning on a model-based controller)::
     u       = clip(u_base + scale * a, -5 V, 5 V)       a = policy(obs) in [-1, 1]
     EKF.predict(u)                                      the filter propagates with the voltage applied
 
-The estimator and the law are those of :class:`controllers.observer.ObserverController` (same model,
-same noise settings, same law, built by that class's constructor), so ``a = 0`` *is* the observer
-controller and training starts at its performance.  Everything the policy sees is a function of the
-motor angle and the applied voltages: the agent observes only the motor encoder.
+The estimator and the law are an :class:`controllers.observer.ObserverController` itself (its filter, its
+law, its corrections: :meth:`~controllers.observer.ObserverController.voltage_at`), so ``a = 0`` *is* the
+observer controller and training starts at its performance.  Built on a model (``model=``, a
+:class:`drillgym.Model`: e.g. the rig's identified one), the base is the observer controller built on that
+model, every effect of it included (an input delay in its filter, a dead zone inverted in the command), as
+``controllers.make("observer", model=...)`` builds it.  Everything the policy sees is a function of the motor
+angle and the applied voltages: the agent observes only the motor encoder.
 
 :class:`ObserverResidual` is batched over n rigs (the controller's batched
-:class:`controllers.kalman.ExtendedKalmanObserver`; the law of
-:class:`controllers.flatness.FlatnessLaw` once per group of rigs started together), with per-rig
-resets, so one object serves the
-training VecEnv (:class:`agents.envs.ObserverResidualVecEnv`), the exported policy's
-:class:`agents.controller.AgentController` and the rig.
+:class:`controllers.kalman.ExtendedKalmanObserver` and :class:`controllers.flatness.FlatnessLaw`), with per-rig
+resets (the controller's ``reset_rigs``), so one object serves the training VecEnv
+(:class:`agents.envs.ObserverResidualVecEnv`), the exported policy's :class:`agents.controller.AgentController`
+and the rig.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from controllers.kalman import I_AL, I_D, I_WL, I_WU, ExtendedKalmanObserver
+from controllers.kalman import I_AL, I_WL, I_WU
 from controllers.observer import ObserverController
 from drillgym import RigParams
 from drillgym.envs.options import U_MAX
@@ -46,10 +48,6 @@ PHASE_TIME = 30.0  # s, time scale of the phase input
 class ObserverResidual:
     """Batched ``observer`` controller as the base of a residual policy (see the module docstring).
 
-    Rigs reset together share one :class:`controllers.flatness.FlatnessLaw` (its start-up shaping has
-    one clock); each law is built by the observer controller's ``new_law``, so the base follows that
-    controller's options whatever they are.
-
     Parameters
     ----------
     config : str
@@ -57,12 +55,14 @@ class ObserverResidual:
     scale : float
         Voltage of a full action (V), > 0.
     params : RigParams, optional
-        The design model (default: the identified set).
+        The design model's base parameters (default: the identified set); unused with ``model``.
     dt : float, optional
         Control period (s).
     observer : dict, optional
         Keywords of :class:`controllers.observer.ObserverController` (noise settings, law bandwidth, start-up
         shaping, ...).
+    model : drillgym.Model or str or path, optional
+        The design model with its effects (a model file's path is read as ``controllers.make`` reads it).
     """
 
     def __init__(
@@ -72,12 +72,13 @@ class ObserverResidual:
         params: RigParams | None = None,
         dt: float = 0.01,
         observer: dict[str, Any] | None = None,
+        model: Any = None,
     ) -> None:
         if not (np.isfinite(scale) and scale > 0):
             raise InputError(f"residual scale must be a positive voltage, got {scale!r}")
-        self._ctrl = ObserverController(1.0, config=config, params=params, dt=dt, **(observer or {}))
+        design = {"params": params} if model is None else {"model": model}  # a model holds its own parameters
+        self._ctrl = ObserverController(1.0, config=config, dt=dt, **design, **(observer or {}))
         self.scale, self.params, self.dt, self.model = float(scale), self._ctrl.params, self._ctrl.dt, self._ctrl.model
-        self.ekf = ExtendedKalmanObserver(self.model)  # the controller's filter, batched over the rigs
         self.n = 0
 
     @property
@@ -86,34 +87,42 @@ class ObserverResidual:
         return len(FEATURES)
 
     def start(self, n: int) -> None:
-        """Allocate n rigs (call :meth:`reset` for them before :meth:`correct`)."""
+        """Allocate n rigs (call :meth:`reset` for all of them before :meth:`correct`)."""
         self.n = int(n)
-        self.ekf.allocate(self.n)
-        self.target = np.ones(self.n)
         self.t = np.zeros(self.n)  # time since each rig's start (s)
         self.u_base = np.zeros(self.n)
-        self._groups: list[tuple[np.ndarray, np.ndarray, Any]] = []  # (rigs, live mask, law)
+        self._theta = np.zeros(self.n)  # the motor angles of the period (rad)
+        self._started = False
 
     def reset(self, index: np.ndarray, theta_u: np.ndarray, omega_ref: np.ndarray) -> None:
         """Rigs ``index`` start at rest at motor angles theta_u (rad) towards targets omega_ref (rad/s)."""
-        idx = np.atleast_1d(np.asarray(index))
-        th = np.broadcast_to(np.asarray(theta_u, dtype=float), idx.shape)
-        ref = np.broadcast_to(np.asarray(omega_ref, dtype=float), idx.shape)
-        self.ekf.reset(th, 0.0, idx)
-        self.target[idx], self.t[idx] = ref, 0.0
-        for rigs, live, _ in self._groups:
-            live &= ~np.isin(rigs, idx)
-        self._groups = [g for g in self._groups if g[1].any()]
-        self._groups.append((idx.copy(), np.ones(idx.size, dtype=bool), self._ctrl.new_law(ref)))
+        idx = np.atleast_1d(np.asarray(index, dtype=np.int64))
+        th, ref = np.zeros(self.n), np.ones(self.n)
+        th[idx] = np.broadcast_to(np.asarray(theta_u, dtype=float), idx.shape)
+        ref[idx] = np.broadcast_to(np.asarray(omega_ref, dtype=float), idx.shape)
+        if not self._started:  # the controller's batch starts with every rig
+            if idx.size != self.n or np.unique(idx).size != self.n:
+                raise InputError(f"reset every rig of the batch ({self.n}) first, got {idx.size}")
+            self._ctrl.reset({"theta_u": th, "omega_ref": ref})
+            self._started = True
+        else:
+            self._ctrl.reset_rigs(idx, {"theta_u": th, "omega_ref": ref})
+        self._theta[idx], self.t[idx] = th[idx], 0.0
 
     def correct(self, theta_u: np.ndarray, index: np.ndarray | slice = slice(None)) -> None:
         """Kalman measurement update of rigs ``index`` with their motor angles (rad)."""
-        self.ekf.update(theta_u, index)
+        self._ctrl.observer.update(theta_u, index)
+        self._theta[index] = theta_u
 
     @property
     def x(self) -> np.ndarray:
-        """Estimates (5, n) of the rigs (:data:`controllers.kalman.STATES`)."""
-        return self.ekf.x
+        """Estimates (dim, n) of the rigs (:data:`controllers.kalman.STATES`, then the model's own)."""
+        return self._ctrl.observer.x
+
+    @property
+    def target(self) -> np.ndarray:
+        """The rigs' targets (rad/s, (n,))."""
+        return self._ctrl.omega_ref
 
     def features(self) -> np.ndarray:
         """Policy inputs (n, :attr:`dim`) from the current estimates, float32 (see :data:`FEATURES`)."""
@@ -134,12 +143,9 @@ class ObserverResidual:
         return np.clip(f, -10.0, 10.0).astype(np.float32)
 
     def base(self) -> np.ndarray:
-        """The observer law's voltage (V, (n,)) at the current estimates; advances the laws' references
-        and the rigs' clocks by one period."""
-        for rigs, live, law in self._groups:
-            x = self.x[:, rigs]
-            u = law(x[I_WU], x[I_AL], x[I_WL], x[I_D])
-            self.u_base[rigs[live]] = np.clip(u[live], -U_MAX, U_MAX)
+        """The observer controller's voltage (V, (n,)) at the current estimates; advances its law and the rigs'
+        clocks by one period."""
+        self.u_base = self._ctrl.voltage_at(self.x, {"theta_u": self._theta.copy()})
         self.t += self.dt
         return self.u_base
 
@@ -150,4 +156,4 @@ class ObserverResidual:
 
     def predict(self, u: np.ndarray) -> None:
         """Propagate the estimates over one period with the applied voltages u (V, (n,))."""
-        self.ekf.predict(u)
+        self._ctrl.observer.predict(u)

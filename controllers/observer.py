@@ -314,7 +314,28 @@ class ObserverController(Controller):
         return self.observer.x
 
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
-        x = self.observer.update(m["theta_u"])
+        u = self.voltage_at(self.observer.update(m["theta_u"]), m)
+        self._updated = (self.observer.x.copy(), self.observer.P.copy())  # for applied()
+        self.observer.predict(u)
+        return u
+
+    def voltage_at(self, x: np.ndarray, m: dict[str, np.ndarray]) -> np.ndarray:
+        """The command (V, (n,)) at the corrected estimates x: the law's voltage, less the estimated upper-disc
+        torque the model misses, through the model's inverted input map, clipped; ``descent`` on the targets the
+        model is not accurate enough for.  Advances the law (and the angle integral) one period.
+
+        Parameters
+        ----------
+        x : ndarray
+            The estimates after the period's measurement update ((dim, n), :attr:`estimate`'s rows).
+        m : dict of str to ndarray
+            The period's measurements (what the ``descent`` fallback reads).
+
+        Returns
+        -------
+        ndarray
+            The voltages (V), in [-u_max, u_max].
+        """
         if self.angle_integral:
             self._trim(x)
         u = self.law(x[I_WU], x[I_AL], x[I_WL], x[I_D])
@@ -323,8 +344,6 @@ class ObserverController(Controller):
         u = np.clip(self._command(u), -self.u_max, self.u_max)
         if self._descent is not None:  # targets the model is not accurate enough for
             u = np.where(self._short, self._descent.act(m), u)
-        self._updated = (self.observer.x.copy(), self.observer.P.copy())  # for applied()
-        self.observer.predict(u)
         return u
 
 

@@ -128,3 +128,39 @@ def test_a_rig_reset_alone_restarts_its_observer_and_law():
             assert both.u_base[1] == pytest.approx(alone1.u_base[0], abs=1e-4)
             np.testing.assert_allclose(both.features()[1], alone1.features()[0], atol=1e-4)
     assert np.ptp(both.u_base) > 0  # the two rigs differ
+
+
+def test_on_a_model_the_zero_residual_is_the_observer_built_on_that_model():
+    """Built on a model with effects (a motor lag and an input delay: states in the filter), the base with a = 0
+    gives the voltages of ``controllers.make("observer", model=...)`` to the bit, where the base built on the
+    base parameters alone does not; ``controllers.make("agent:DIR", model=...)`` of an observer-based policy runs
+    on that base, without the warning a policy that cannot use the effects gives."""
+    from drillgym import Model, RigParams
+
+    model = Model(RigParams(), ("motor_lag", "input_delay"), {"tau_m": 0.03, "delay": 0.02})
+    targets = np.array([1.5, 3.0])
+    ref = controllers.make("observer", config="torsional", omega_ref=targets, dt=0.01, model=model)
+    on_model, nominal = ObserverResidual("torsional", 0.5, dt=0.01, model=model), ObserverResidual("torsional", 0.5)
+    ref.reset({"theta_u": np.zeros(2)})
+    for b in (on_model, nominal):
+        b.start(2)
+        b.reset(np.arange(2), np.zeros(2), targets)
+    apart = 0.0
+    for k in range(200):
+        th = 0.003 * k**1.4 * np.array([0.5, 1.0])  # motors speeding up (rad)
+        u_ref = ref.act({"theta_u": th})
+        for b in (on_model, nominal):
+            b.correct(th)
+            b.base()
+            b.predict(b.voltage(np.zeros(2)))
+        np.testing.assert_array_equal(on_model.u_base, u_ref)
+        apart = max(apart, float(np.max(np.abs(nominal.u_base - u_ref))))
+    assert apart > 0.01, apart  # the model's effects change the base
+    assert on_model.x.shape[0] > nominal.x.shape[0]  # the lag and the delay line in its filter
+
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "effects not used" warning
+        agent = controllers.make("agent:agents/policies/torsional_motor_residual_observer", omega_ref=2.0, model=model)
+    assert agent.base.model.Ad.shape == on_model.model.Ad.shape  # its filter holds the lag and the delay line
