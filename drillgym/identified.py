@@ -221,12 +221,13 @@ def identify(recording: TimeSeries | str | Path, options: IdentifyOptions | None
     last = d.final()  # the library selected again with each kept candidate in the model, in turn
     reselection = last if last is not d else None
     kept = kept_in_turn(d)
-    specs, values, params = _selected(last)
+    specs, values, params = _selected(last, kept)
     notes: list[str] = []
-    fit = _joint_fit(ts, last, params, specs, values, o, notes)
-    comp, fitted, res = fit
+    held = tuple(n for k in kept for n in k.held_terms)
+    comp, fitted, res = _joint_fit(ts, last, params, specs, values, o, notes, held)
     _log("joint fit", start_time)
     std = {k: v for k, v in res.std.items() if math.isfinite(v)}
+    comp, fitted, std = _in_files(comp, fitted, std, kept)
     prov = Provenance(
         route="identify",
         recording=Path(ts.source).name if ts.source else None,
@@ -276,12 +277,28 @@ def _candidate_out(o: IdentifyOptions, ts: TimeSeries) -> Path | None:
     return Path(tempfile.mkdtemp(prefix="drillgym_candidate_")) / "candidate.py"
 
 
-def _selected(d: Any) -> tuple[list[str], dict[str, float], RigParams]:
-    """The specs, values and base parameters of a diagnosis's selected model."""
+def _selected(d: Any, kept: list[Any]) -> tuple[list[Any], dict[str, float], RigParams]:
+    """The effects (specs, or the compiled terms a kept candidate's fit ran through), values and base parameters
+    of a diagnosis's selected model."""
     params, records, _ = d.selected_model()
-    specs = [r["spec"] for r in records]
+    through = {k.through.name: k.through for k in kept if k.through is not None}
+    specs = [through.get(r["name"], r["spec"]) for r in records]
     values = {k: v for r in records for k, v in r["values"].items()}
     return specs, values, params
+
+
+def _in_files(comp: Any, values: dict[str, float], std: dict[str, float], kept: list[Any]):
+    """The composition, values and standard errors with each kept candidate's file in place of the compiled terms
+    its fit ran through (the same function; the terms it does not use left out)."""
+    from .diagnosis.effects import get_effect
+    from .effects import Composition
+
+    for k in kept:
+        if k.through is not None and k.through.name in comp.names:
+            file_effect = get_effect(k.spec)
+            comp = Composition(tuple(file_effect if e is k.through else e for e in comp.effects))
+            values, std = k.in_file(values), k.in_file(std)
+    return comp, values, std
 
 
 def _is_library(comp: Any, name: str) -> bool:
@@ -289,14 +306,15 @@ def _is_library(comp: Any, name: str) -> bool:
     return getattr(e, "__drillgym_file__", None) is None
 
 
-def _joint_fit(ts, d, params, specs, values, o: IdentifyOptions, notes: list[str]):
+def _joint_fit(ts, d, params, specs, values, o: IdentifyOptions, notes: list[str], held: tuple[str, ...] = ()):
     """The model refitted jointly; with both timing effects when one was taken and both fit clearly better.
 
     Each fit runs on the diagnosis' search model (every library effect it tried, the others held at the values
     where they vanish exactly, :func:`._search_model_for`) wherever that holds the model's effects in the same
     order on the signal path: its runs equal the selected composition's to the bit, the kernels the diagnosis
     compiled serve the fit, and a new selection costs no compilation (about 20 s per composition on 2 cores).
-    The model returned is the selected composition."""
+    The model returned is the selected composition; ``held`` are its parameters held at ``values`` (the terms a
+    kept candidate does not use)."""
     from .diagnosis.refit import refit
     from .diagnosis.search_model import BASE_FREE, neutral_values
     from .effects import compose
@@ -317,7 +335,7 @@ def _joint_fit(ts, d, params, specs, values, o: IdentifyOptions, notes: list[str
             o.config,
             base_effects=runs_on,
             base_values=start,
-            fit=free + list(comp.effect_param_names),
+            fit=free + [n for n in comp.effect_param_names if n not in held],
             refit_base=False,
             compare_rate_hz=o.compare_rate_hz,
             max_nfev=o.max_nfev,

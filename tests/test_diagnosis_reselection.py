@@ -28,6 +28,8 @@ def _diagnosis(cut: float, effect_file: str | None, with_library=()):
         values={"c1": 0.12, **({"tau_m": 0.03} if with_library else {})},
         with_library=with_library,
         file_name=lambda k: {"c1": "candidate_motor_voltage_c1"}.get(k, k),
+        through=None,
+        state=None,
     )
     cand = SimpleNamespace(fit=fit, effect_file=effect_file)
     return SimpleNamespace(candidate=cand, params=RigParams().scaled(km=0.97))
@@ -61,6 +63,30 @@ def test_the_model_run_again_holds_the_start_the_lag_ahead_and_the_candidate_ref
     assert again.effect_params == {"delay": 0.01, "tau_m": 0.03, "candidate_motor_voltage_c1": 0.12}
     assert again.refit_model_effects and not again.discover
     assert again.fixed_base and again.n_joint == 3  # the rest of the first diagnosis' settings
+
+
+def test_a_candidate_fitted_through_the_compiled_terms_is_held_as_them_and_written_as_its_file(tmp_path):
+    """The diagnosis run again holds the compiled terms the candidate's fit ran through (one compiled model for
+    every recording), its unused terms held at their values; the values map back to the file's names."""
+    from drillgym.diagnosis.motor_terms import MotorVoltageTerms
+    from drillgym.effects import compose
+
+    (tmp_path / "c.py").write_text(CANDIDATE)
+    comp, values = compose([MotorVoltageTerms], {"mv_offset": 0.12})
+    d = _diagnosis(0.8, f"{tmp_path / 'c.py'}:candidate_motor_voltage")
+    state = SimpleNamespace(composition=comp, result=SimpleNamespace(vector=comp.vector(None, values)))
+    d.candidate.fit.through, d.candidate.fit.state = MotorVoltageTerms, state
+    d.candidate.fit.file_names = {"mv_offset": "candidate_motor_voltage_c1"}
+    kept = kept_candidate(d)
+    assert kept.through is MotorVoltageTerms and kept.through_values["mv_offset"] == pytest.approx(0.12)
+    _, again = reselection_inputs(d, kept, DiagnosisOptions(discover=True))
+    assert [e.name for e in again.base_effects] == ["motor_voltage_terms"]
+    assert again.effect_params["mv_offset"] == pytest.approx(0.12) and again.effect_params["mv_sat"] == 0.0
+    assert set(again.held_effect_params) == {p.name for p in MotorVoltageTerms.parameters} - {"mv_offset"}
+    assert kept.in_file({"mv_offset": 0.2, "mv_sat": 0.0, "km": 1.0}) == {"candidate_motor_voltage_c1": 0.2, "km": 1.0}
+    # a file whose terms do not map one to one onto the compiled ones is held itself
+    d.candidate.fit.file_names = {}
+    assert kept_candidate(d).through is None
 
 
 def test_a_library_effect_named_by_discovery_is_held_and_the_library_selected_again(tmp_path, monkeypatch):

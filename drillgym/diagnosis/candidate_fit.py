@@ -130,6 +130,9 @@ class CandidateFit:
     with_library : tuple of str
         The library's effects fitted with it, ahead of it on the signal path (``motor_lag`` when its terms were
         found through a lag); their parameters are among ``values``.
+    through : Effect class or None
+        The compiled terms its fit ran through (:data:`.motor_terms.TERM_EFFECTS`; ``file_names`` maps their
+        parameters to the file's), or None: through its own file.
     """
 
     values: dict[str, float]
@@ -140,6 +143,7 @@ class CandidateFit:
     file_names: dict[str, str] = field(default_factory=dict)
     base_fitted: dict[str, float] = field(default_factory=dict)
     with_library: tuple[str, ...] = ()
+    through: type[Effect] | None = field(default=None, repr=False, compare=False)
 
     def file_name(self, parameter: str) -> str:
         """The name a fitted parameter has in the candidate's file (its own name when it has none there)."""
@@ -242,7 +246,10 @@ def fit_candidate(
     values = {file_names[n]: float(fit.vector[with_it.param_index(n)]) for n in names}
     state = CandidateFitState(obj, with_it, fit, names, base_names, ctx.nominal, tuple(model.base_names), start_values)
     moved = change_pct(with_it, fit.vector, ctx.nominal, base_names)
-    return CandidateFit(values, held, before, after, state, file_names, base_fitted=moved, with_library=tuple(ahead))
+    through = effect if getattr(effect, "__drillgym_file__", None) is None else None
+    return CandidateFit(
+        values, held, before, after, state, file_names, base_fitted=moved, with_library=tuple(ahead), through=through
+    )
 
 
 @dataclass(frozen=True)

@@ -48,6 +48,7 @@ from .information import require_information
 from .input_order import input_order
 from .lateral_library import LateralVerdict, library_versus_outside
 from .library_columns import LibraryAnswer, library_answer
+from .motor_terms import TERM_EFFECTS
 from .orders import select
 from .ranking import report
 from .reselection import KeptCandidate, kept_candidate, reselection_inputs
@@ -186,12 +187,19 @@ def _remove_file(candidate) -> None:
 def _not_held(candidate, held: set[str]):
     """The candidate (a copy without an alternative whose effect the model holds already); None when its own is
     held."""
-    if candidate is None or candidate_name(candidate.group) in held:
+    if candidate is None or _group_held(candidate.group, held):
         return None
     alternative = candidate.alternative
-    if alternative is not None and candidate_name(alternative.group) in held:
+    if alternative is not None and _group_held(alternative.group, held):
         return replace(candidate, alternative=None)
     return candidate
+
+
+def _group_held(group: str, held: set[str]) -> bool:
+    """Whether the model holds a group's candidate: its file's effect, or the compiled terms a kept one's fit ran
+    through (:attr:`.reselection.KeptCandidate.through`), which the diagnosis run again holds in its place."""
+    terms = TERM_EFFECTS.get(group)
+    return candidate_name(group) in held or (terms is not None and terms.name in held)
 
 
 def _recordings(data: Any) -> list[TimeSeries]:

@@ -18,11 +18,12 @@ builds its model from it.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from ..effects import Effect
 from ..params import RigParams
 from .effects import effects_for, get_effect
 from .results import Diagnosis
@@ -56,11 +57,33 @@ class KeptCandidate:
     ahead : tuple of str
         The library effects it was fitted with, ahead of it on the signal path (a lag its terms were found
         through).
+    through : Effect class or None
+        The compiled terms its fit ran through (:data:`.motor_terms.TERM_EFFECTS`), which the diagnosis run again
+        holds in its place: the same function, with kernels compiled once for every recording, where the file's
+        coefficients make a new compiled model each time.  None: the file itself is held.
+    through_values : dict of str to float
+        Every parameter of ``through`` as its fit left it (the terms it does not use at 0).
+    file_names : dict of str to str
+        A parameter of ``through`` the candidate uses -> its name in the file.
     """
 
     spec: str
     values: dict[str, float]
     ahead: tuple[str, ...]
+    through: type[Effect] | None = None
+    through_values: dict[str, float] = field(default_factory=dict)
+    file_names: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def held_terms(self) -> tuple[str, ...]:
+        """The parameters of ``through`` the candidate does not use (held at their values)."""
+        return tuple(n for n in self.through_values if n not in self.file_names)
+
+    def in_file(self, values: Mapping[str, float]) -> dict[str, float]:
+        """Values of ``through``'s parameters (and any others) by the names the file gives them, its unused
+        terms left out."""
+        unused = set(self.held_terms)
+        return {self.file_names.get(k, k): v for k, v in values.items() if k not in unused}
 
 
 def kept_candidate(diagnosis: Diagnosis) -> KeptCandidate | None:
@@ -80,7 +103,16 @@ def kept_candidate(diagnosis: Diagnosis) -> KeptCandidate | None:
     if c is None or c.fit is None or not c.effect_file or c.fit.variance_cut < MIN_CANDIDATE_CUT:
         return None
     values = {c.fit.file_name(k): v for k, v in c.fit.values.items()}
-    return KeptCandidate(c.effect_file, values, tuple(c.fit.with_library))
+    ahead = tuple(c.fit.with_library)
+    through, state = c.fit.through, c.fit.state
+    if through is None or state is None:
+        return KeptCandidate(c.effect_file, values, ahead)
+    own = {p.name for p in through.parameters}
+    names = {k: v for k, v in c.fit.file_names.items() if k in own}
+    if set(names.values()) != {p.name for p in get_effect(c.effect_file).parameters}:
+        return KeptCandidate(c.effect_file, values, ahead)  # the file's terms do not map one to one: hold the file
+    fitted = state.composition.named(state.result.vector)
+    return KeptCandidate(c.effect_file, values, ahead, through, {n: float(fitted[n]) for n in own}, names)
 
 
 def kept_in_turn(diagnosis: Diagnosis) -> list[KeptCandidate]:
@@ -128,10 +160,10 @@ def reselection_inputs(
     from ..effects import compose
 
     first, values0 = compose(options.base_effects, options.effect_params)
-    held = [*first.effects, *(a for a in kept.ahead if a not in first.names and a not in left_out), kept.spec]
-    comp, _ = compose(held)
+    held = [*first.effects, *(a for a in kept.ahead if a not in first.names and a not in left_out)]
+    comp, _ = compose([*held, kept.through or kept.spec])
     names = set(comp.effect_param_names)
-    values: dict[str, Any] = {k: v for k, v in {**values0, **kept.values}.items() if k in names}
+    values: dict[str, Any] = {k: v for k, v in {**values0, **kept.values, **kept.through_values}.items() if k in names}
     params = diagnosis.params if diagnosis.params is not None else RigParams()
     more = options.max_candidates > 1  # the next candidate is looked for on the residual of this model
     again = replace(
@@ -142,6 +174,7 @@ def reselection_inputs(
         max_candidates=max(1, options.max_candidates - 1),
         candidate_out=next_candidate_out(options.candidate_out) if more else None,
         refit_model_effects=True,
+        held_effect_params=(*options.held_effect_params, *kept.held_terms),
     )
     if left_out:
         candidates = options.effects or effects_for(diagnosis.config)

@@ -165,7 +165,8 @@ def screen(
     brake_on = all(float(ex.meta.get("brake_normal_force_n", 1.0) or 0.0) != 0.0 for ex in exps)
     base_names = () if options.fixed_base else base_free_parameters(cfg, brake_on)
     if options.refit_model_effects:  # freed with the base parameters, as a part of the model diagnosed
-        base_names = (*base_names, *comp0.effect_param_names)
+        held = set(options.held_effect_params)
+        base_names = (*base_names, *(n for n in comp0.effect_param_names if n not in held))
     model = SearchModel(obj, comp, vec0, usable, tuple(base_names))
     return Screening(exps, cfg, comp0.label, segment_s, model, skipped, obj.channel_rms(vec0))
 

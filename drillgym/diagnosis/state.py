@@ -62,6 +62,9 @@ class DiagnosisOptions:
         freed (with ``fixed_base``: in their place): an estimate held fixed (a discovered candidate's first fit)
         leaves a residual no library effect beside it can remove, where refitting both together does.
         Default False.
+    held_effect_params : sequence of str
+        Parameters of the model's own effects held at their values where ``refit_model_effects`` frees the
+        others (the terms a candidate fitted through :mod:`.motor_terms` does not use, at 0).  Default none.
     n_joint : int
         Candidates refitted jointly with the base parameters per round.  Default 2.
     max_effects : int
@@ -89,6 +92,7 @@ class DiagnosisOptions:
     refine_speeds: bool = True
     fixed_base: bool = False
     refit_model_effects: bool = False
+    held_effect_params: Sequence[str] = ()
     n_joint: int = 2
     max_effects: int = 4
     discover: bool = False
