@@ -10,6 +10,11 @@ candidate's parameters freed wherever the base parameters are (its first fit ben
 what was missing beside it: a dead zone's width fitted 0.66 V for 0.36 V beside a position friction, which the
 selection then found once both were fitted together).
 
+The model run again holds the candidate as its fit ran: through the compiled terms of :mod:`.motor_terms` (a
+motor-side or a sensor's candidate; the terms it does not use held at 0), whose kernels serve every recording,
+where the candidate's own file, its coefficients written in, would be a new compiled model each time (26-29 s on 2
+cores).  :func:`drillgym.identify` writes the model with the file in their place: the same function.
+
 One mechanism for every kind: a lag or a delay beside a motor-side candidate, a position friction or a string
 damping beside a dead zone, an effect the first selection took that no longer counts (it is simply not selected
 again).  The pipeline stores the result as :attr:`~.results.Diagnosis.reselection`; :func:`drillgym.identify`
