@@ -20,7 +20,7 @@ $(STAMP): pyproject.toml
 	$(PIP) install --upgrade pip wheel setuptools
 	$(PIP) install torch==2.13.0
 	$(PIP) install -e '.[dev,docs]'
-	$(VENV)/bin/drillgym prepare  # compile diagnose's models once (about 1 min, side by side), not in the user's first diagnosis
+	$(VENV)/bin/drillgym prepare  # compile the identification's models once (about 1 min, side by side), not in the user's first one
 	touch $(STAMP)
 
 demo: $(STAMP)

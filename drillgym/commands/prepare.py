@@ -1,5 +1,6 @@
-"""``drillgym prepare``: compile the models ``drillgym diagnose`` runs into the kernel cache (``make venv``
-does it once per install), so the first diagnosis of a recording is as fast as the next."""
+"""``drillgym prepare``: compile the models ``drillgym diagnose`` and ``drillgym identify`` run into the kernel
+cache (``make venv`` does it once per install), so the first identification of a recording is as fast as the
+next."""
 
 from __future__ import annotations
 
@@ -16,10 +17,10 @@ def register(app: typer.Typer) -> None:
             "default: torsional, coupled, lateral, upper)",
         ),
     ) -> None:
-        """Compile (or load from the cache) the search models of `drillgym diagnose` for these
-        configurations: up to a minute each on 2 cores the first time, seconds once cached."""
+        """Compile (or load from the cache) the models `drillgym diagnose` and `drillgym identify` run for
+        these configurations: up to a minute each on 2 cores the first time, seconds once cached."""
         from ..configurations import parse_configuration
-        from ..diagnosis.prepare import PREPARED_CONFIGS, prepare_diagnosis
+        from ..prepare import PREPARED_CONFIGS, prepare_diagnosis
 
         # a wrong name fails before any work
         from .options import option
@@ -27,4 +28,4 @@ def register(app: typer.Typer) -> None:
         with option("--config"):
             names = [parse_configuration(c).label for c in (config or PREPARED_CONFIGS)]
         for name, seconds in prepare_diagnosis(names).items():
-            typer.echo(f"{name}: diagnose's models compiled and cached ({seconds:.0f} s)")
+            typer.echo(f"{name}: the identification's models compiled and cached ({seconds:.0f} s)")

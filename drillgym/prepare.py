@@ -1,9 +1,10 @@
-"""Compile once what ``drillgym diagnose`` runs, so that the first diagnosis of a recording is as fast
-as the next.
+"""Compile once what ``drillgym diagnose`` and :func:`drillgym.identify` run, so that the first
+identification of a recording is as fast as the next.
 
 A diagnosis fits one search model per configuration (the base model with every candidate effect of
-the configuration held at its neutral values, :func:`drillgym.diagnosis.diagnose`); numba
-compiles its kernels on first use (about a minute on 2 cores) and caches them on disk
+the configuration held at its neutral values, :func:`drillgym.diagnosis.diagnose`), and the joint fit of a
+model without a motor lag runs that search model without it (its runs are the model's to the bit); numba
+compiles their kernels on first use (about a minute on 2 cores) and caches them on disk
 (:mod:`drillgym.effects.codegen`).  :func:`prepare_diagnosis` runs the whole command's path on a
 few seconds of simulated data per configuration, so the cache holds them; ``make venv`` calls it
 (``drillgym prepare``).
@@ -29,11 +30,11 @@ PREPARED_CONFIGS = ("torsional", "coupled", "lateral", "upper")
 def prepare_diagnosis(
     configs: Sequence[str] = PREPARED_CONFIGS, duration: float = 6.0, workers: int | None = None
 ) -> dict[str, float]:
-    """Compile the diagnosis' kernels: diagnose a short simulated recording of each configuration.
+    """Compile the identification's kernels: identify a short simulated recording of each configuration.
 
-    Runs ``diagnose`` and the discovery of a candidate (as ``drillgym diagnose`` does) with the library's
-    default candidates, the configurations side by side (their models share no kernels; numba compiles on one
-    core: 127 s one after the other on 2 cores, about half of it side by side).
+    Runs :func:`drillgym.identify` (as ``drillgym diagnose --model-out`` and ``drillgym identify`` do: the
+    diagnosis, the discovery of a candidate, the joint fit) with the library's default candidates, the
+    configurations side by side (their models share no kernels; numba compiles on one core).
 
     Parameters
     ----------
@@ -50,8 +51,8 @@ def prepare_diagnosis(
     dict of str to float
         The seconds each configuration took (compilation included when the kernels were not cached yet).
     """
-    from ..configurations import parse_configuration
-    from ..parallel import map_ordered, open_executor
+    from .configurations import parse_configuration
+    from .parallel import map_ordered, open_executor
 
     names = list(configs)
     n = max(1, min(len(names), workers or os.cpu_count() or 1))
@@ -61,18 +62,15 @@ def prepare_diagnosis(
 
 
 def _prepare_one(name: str, duration: float) -> float:
-    """Diagnose (and discover on) a short simulated recording of one configuration; its seconds."""
-    from ..configurations import Configuration, parse_configuration
-    from ..identification.experiment import prepare_experiment
-    from ..identification.synthetic import synthetic_measurement
-    from .discovery import discover
-    from .pipeline import diagnose
+    """Identify a short simulated recording of one configuration (:func:`drillgym.identify`: the diagnosis, the
+    discovery, the joint fit of a model without a motor lag on the search model without it); its seconds."""
+    from .configurations import parse_configuration
+    from .identification.synthetic import synthetic_measurement
+    from .identified import identify
 
     cfg = parse_configuration(name)
     t0 = time.perf_counter()
     ts = synthetic_measurement(cfg.label, duration=duration, rate_hz=250.0, seed=0)
-    d = diagnose(prepare_experiment(ts, compare_rate_hz=50.0))
-    if cfg is not Configuration.UPPER:
-        with tempfile.TemporaryDirectory() as tmp:
-            discover(prepare_experiment(ts, compare_rate_hz=250.0), d, Path(tmp) / "candidate.py")
+    with tempfile.TemporaryDirectory() as tmp:
+        identify(ts, candidate_out=Path(tmp) / "candidate.py")
     return time.perf_counter() - t0
