@@ -5,7 +5,7 @@ A diagnosis fits one search model per configuration (the base model with every c
 the configuration held at its neutral values, :func:`drillgym.diagnosis.diagnose`), and the joint fit of a
 model without a motor lag runs that search model without it (its runs are the model's to the bit); numba
 compiles their kernels on first use (about a minute on 2 cores) and caches them on disk
-(:mod:`drillgym.effects.codegen`).  :func:`prepare_diagnosis` runs the whole command's path on a
+(:mod:`drillgym.effects.codegen`).  :func:`prepare_identification` runs the whole command's path on a
 few seconds of simulated data per configuration, so the cache holds them; ``make venv`` calls it
 (``drillgym prepare``).
 """
@@ -19,7 +19,7 @@ from collections.abc import Sequence
 from contextlib import nullcontext
 from pathlib import Path
 
-__all__ = ["prepare_diagnosis", "PREPARED_CONFIGS"]
+__all__ = ["prepare_identification", "PREPARED_CONFIGS"]
 
 #: the rig's configurations with the motor driving (their search models are compiled by ``make venv``: a
 #: lateral model compiled in the user's first diagnosis took 45-80 s of it on 2 cores, beyond the 60 s that a
@@ -27,7 +27,7 @@ __all__ = ["prepare_diagnosis", "PREPARED_CONFIGS"]
 PREPARED_CONFIGS = ("torsional", "coupled", "lateral", "upper")
 
 
-def prepare_diagnosis(
+def prepare_identification(
     configs: Sequence[str] = PREPARED_CONFIGS, duration: float = 6.0, workers: int | None = None
 ) -> dict[str, float]:
     """Compile the identification's kernels: identify a short simulated recording of each configuration.

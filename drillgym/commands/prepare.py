@@ -20,12 +20,12 @@ def register(app: typer.Typer) -> None:
         """Compile (or load from the cache) the models `drillgym diagnose` and `drillgym identify` run for
         these configurations: up to a minute each on 2 cores the first time, seconds once cached."""
         from ..configurations import parse_configuration
-        from ..prepare import PREPARED_CONFIGS, prepare_diagnosis
+        from ..prepare import PREPARED_CONFIGS, prepare_identification
 
         # a wrong name fails before any work
         from .options import option
 
         with option("--config"):
             names = [parse_configuration(c).label for c in (config or PREPARED_CONFIGS)]
-        for name, seconds in prepare_diagnosis(names).items():
+        for name, seconds in prepare_identification(names).items():
             typer.echo(f"{name}: the identification's models compiled and cached ({seconds:.0f} s)")

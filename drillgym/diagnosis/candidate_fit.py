@@ -246,7 +246,7 @@ def fit_candidate(
     values = {file_names[n]: float(fit.vector[with_it.param_index(n)]) for n in names}
     state = CandidateFitState(obj, with_it, fit, names, base_names, ctx.nominal, tuple(model.base_names), start_values)
     moved = change_pct(with_it, fit.vector, ctx.nominal, base_names)
-    through = effect if getattr(effect, "__drillgym_file__", None) is None else None
+    through = effect if effect is TERM_EFFECTS.get(candidate.group) else None
     return CandidateFit(
         values, held, before, after, state, file_names, base_fitted=moved, with_library=tuple(ahead), through=through
     )
