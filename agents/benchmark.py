@@ -53,6 +53,11 @@ class BenchmarkOptions:
         Processes of the harness (1: this process).
     progress : bool, optional
         Show the harness's progress bar.
+    identified_dir : str or path, optional
+        On an ``Identified`` task: the folder of the held-out plants' identifications
+        (``plant_<k>/model.json`` and ``identification.json``, :func:`controllers.evaluation.identify.save_identified`);
+        the plants it holds are read back, the others identified and written there, so a second policy is scored
+        without identifying again.  Default: identified in memory, nothing kept.
     """
 
     plants: int | None = None
@@ -61,6 +66,7 @@ class BenchmarkOptions:
     targets: tuple[float, ...] | None = None
     workers: int = 1
     progress: bool = False
+    identified_dir: str | Path | None = None
 
     def settings(self, task: BenchmarkTask) -> dict:
         """The settings of a run: plants, targets, duration, window, seed."""
@@ -189,6 +195,8 @@ class BenchmarkResult:
             f"{self.task}: {plants}, targets {s['targets'][0]:g}-{s['targets'][-1]:g} rad/s "
             f"({len(s['targets'])}), {s['duration']:g} s runs judged over the last {s['window']:g} s"
         )
+        if "identified" in s:
+            head += f", each policy built on its plant's identified model ({s['identified']})"
         if "model" in s:
             out = [head + " (a model's plant: not the task's score)"]
         else:
@@ -373,6 +381,11 @@ def run_benchmark(
     st = opts.settings(task)
     for spec in policies:
         check_sensing(task, spec)
+    if opts.identified_dir is not None and not task.identified:
+        raise InputError(f"--identified applies to an identified task (-Identified-v0); {task.id} is not one")
+    identified = _identified_plants(task, st, opts) if task.identified else None
+    if identified is not None:
+        st["identified"] = str(opts.identified_dir) if opts.identified_dir is not None else "in memory"
     rows = evaluate(
         list(policies),
         [task.config],
@@ -385,10 +398,32 @@ def run_benchmark(
         plants=st["plants"],
         seed=st["seed"],
         uncertainty=None if task.plants.uncertainty == "default" else task.plants.uncertainty,
+        identify=identified,
     )
     scores = tuple(_score(task, spec, rows) for spec in policies)
     agg = {m: iqm_interval([getattr(s, m) for s in scores]) for m in METRICS}
     return BenchmarkResult(task.id, scores, agg, st, opts.reduced(task))
+
+
+def _identified_plants(task: BenchmarkTask, settings: dict, opts: BenchmarkOptions) -> dict:
+    """Plant index -> :class:`controllers.evaluation.identify.IdentifiedPlant` of the held-out plants of an
+    identified task: read from ``opts.identified_dir`` where it holds them, the others identified (the route of
+    ``drillgym evaluate --identify``) and written there."""
+    from controllers.evaluation.identify import load_identified, save_identified
+    from controllers.evaluation.population_jobs import identify_population
+
+    n, folder = settings["plants"], opts.identified_dir
+    found = load_identified(folder, n) if folder is not None else {}
+    todo = [k for k in range(n) if k not in found]
+    if todo:
+        unc = None if task.plants.uncertainty == "default" else task.plants.uncertainty
+        new = identify_population(
+            n, settings["seed"], unc, None, True, task.config, None, opts.workers, opts.progress, indices=todo
+        )
+        if folder is not None:
+            save_identified(new, folder)
+        found.update(new)
+    return found
 
 
 def _run_on_model(task: BenchmarkTask, policies: Sequence[str], opts: BenchmarkOptions, model) -> BenchmarkResult:

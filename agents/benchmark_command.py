@@ -78,6 +78,12 @@ def register_benchmark(app: typer.Typer) -> None:
             "model's plant alone (the task's sensors, targets and run length; not the task's score)"
         ),
         trust: bool = trust_option(),
+        identified: Path | None = typer.Option(
+            None,
+            "--identified",
+            help="on an -Identified-v0 task: folder of the held-out plants' identified models; the plants it "
+            "lacks are identified and written there, so the next policy is scored without identifying again",
+        ),
     ) -> None:
         """Score a policy on a named task: lowest held target at the median and 90th percentile of the
         held-out plants, SSI, whirl (a coupled task's target is held only below the whirl threshold), energy;
@@ -104,7 +110,7 @@ def register_benchmark(app: typer.Typer) -> None:
             tg = tuple(float(v) for v in targets.split(",")) if targets.strip() else None
         except ValueError:
             raise InputError(f"--targets must be numbers separated by commas, got {targets!r}") from None
-        opts = BenchmarkOptions(plants, duration, window, tg, workers, progress)
+        opts = BenchmarkOptions(plants, duration, window, tg, workers, progress, identified)
         st = opts.settings(t)
         names = {"controllers": "--policy", "configs": "TASK", "targets": "--targets", "duration": "--duration"}
         names.update(window="--window", plants="--plants", workers="--workers")

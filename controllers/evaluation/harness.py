@@ -374,7 +374,9 @@ def evaluate(
     identify : ExcitationOptions or bool, optional
         For a population scenario: identify each plant first (:mod:`.identify`: an excitation run, diagnose,
         identify) and build every controller on that plant's identified model; the rows gain the identified
-        values (``id_<name>``), the effects selected and the identification time (``identify_s``).
+        values (``id_<name>``), the effects selected and the identification time (``identify_s``).  A mapping
+        plant index -> :class:`.identify.IdentifiedPlant` (e.g. read back by
+        :func:`.identify.load_identified`) is used as given, for every plant of the population.
     plants_file : str, path or PlantSet, optional
         For a population scenario: the plants the user wrote instead of drawn ones (a plants file,
         :mod:`.plants_file`, or what :func:`.plants_file.load_plants` read); the rows name each plant
@@ -432,9 +434,12 @@ def evaluate(
                 raise InputError(
                     "identify builds the controllers on each plant's identified model; do not give a model"
                 )
-            pop_kw["identified"] = identify_population(
-                pop_kw["n_plants"], seed, pop_kw["uncertainty"], params, identify, configs[0], executor, workers,
-                progress, plant_set=pop_kw.get("plant_set"),
+            pop_kw["identified"] = (
+                _given_identification(identify, pop_kw["n_plants"]) if isinstance(identify, Mapping)
+                else identify_population(
+                    pop_kw["n_plants"], seed, pop_kw["uncertainty"], params, identify, configs[0], executor, workers,
+                    progress, plant_set=pop_kw.get("plant_set"),
+                )
             )  # fmt: skip
     elif identify:
         raise InputError("identify applies to a population of plants: add the scenario 'plants'")
@@ -489,6 +494,14 @@ def evaluate(
         )
     )
     return rows
+
+
+def _given_identification(identified: Mapping[int, Any], n_plants: int) -> dict[int, Any]:
+    """The identification given for every plant ``0..n_plants-1`` (``evaluate(identify=mapping)``)."""
+    missing = [k for k in range(n_plants) if k not in identified]
+    if missing:
+        raise InputError(f"identify: no identified model given for plant {missing[0]} (of {n_plants})")
+    return {k: identified[k] for k in range(n_plants)}
 
 
 def _population(

@@ -17,20 +17,33 @@ for the results.
 
 from __future__ import annotations
 
+import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from drillgym.configurations import parse_configuration
+from drillgym.errors import InputError
 from drillgym.io import TimeSeries
+from drillgym.io.jsonfile import write_json
 from drillgym.model import Model
 from drillgym.signals import quasi_random
 
 from ..base import Controller
 from .runner import run_closed_loop
 
-__all__ = ["EXCITATION_S", "ExcitationOptions", "IdentifiedPlant", "excitation_recording", "identify_plant"]
+__all__ = [
+    "EXCITATION_S",
+    "ExcitationOptions",
+    "IdentifiedPlant",
+    "excitation_recording",
+    "identify_plant",
+    "save_identified",
+    "load_identified",
+]
 
 
 #: default length of the excitation (s) per configuration: long enough for the lower disc to turn the
@@ -220,3 +233,66 @@ def identify_plant(
         {n: float(values.get(n, math.nan)) for n in names},
         list(found.warnings),
     )
+
+
+#: the file beside each plant's model that holds the rest of its :class:`IdentifiedPlant`
+SUMMARY_FILE = "identification.json"
+
+
+def save_identified(identified: Mapping[int, IdentifiedPlant], folder: str | Path) -> Path:
+    """Write each plant's identification to ``folder/plant_<k>/`` (``model.json`` by :meth:`drillgym.Model.save`,
+    with any candidate effect file beside it, and ``identification.json``: the effects selected, the time, the
+    identified values, the warnings), so the models can be read, reused and copied.
+
+    Parameters
+    ----------
+    identified : mapping of int to IdentifiedPlant
+        Plant index -> its identification.
+    folder : str or path
+        The folder (created).
+
+    Returns
+    -------
+    pathlib.Path
+        The folder.
+    """
+    root = Path(folder)
+    for k, plant in sorted(identified.items()):
+        d = root / f"plant_{int(k)}"
+        plant.model.save(d / "model.json")
+        summary = {
+            "plant": int(k),
+            "selected": plant.selected,
+            "seconds": plant.seconds,
+            "values": {n: (v if math.isfinite(v) else None) for n, v in plant.values.items()},  # None: not selected
+            "warnings": plant.warnings,
+        }
+        write_json(d / SUMMARY_FILE, summary, nonfinite="refuse")
+    return root
+
+
+def load_identified(folder: str | Path, plants: int) -> dict[int, IdentifiedPlant]:
+    """Read back what :func:`save_identified` wrote for plants ``0..plants-1``; a plant without its two files
+    is left out (the caller identifies it).
+
+    Raises
+    ------
+    InputError
+        A plant folder with a model but no summary (or the reverse), naming it.
+    """
+    root, out = Path(folder), {}
+    for k in range(int(plants)):
+        d = root / f"plant_{k}"
+        have = [(d / "model.json").is_file(), (d / SUMMARY_FILE).is_file()]
+        if not any(have):
+            continue
+        if not all(have):
+            raise InputError(f"{d}: holds {'model.json' if have[0] else SUMMARY_FILE} only; remove the folder")
+        with open(d / SUMMARY_FILE, encoding="utf-8") as fh:
+            summary = json.load(fh)
+        values = {n: (math.nan if v is None else float(v)) for n, v in summary["values"].items()}
+        out[k] = IdentifiedPlant(
+            Model.load(d / "model.json"), list(summary["selected"]), float(summary["seconds"]), values,
+            list(summary["warnings"]),
+        )  # fmt: skip
+    return out

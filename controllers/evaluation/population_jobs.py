@@ -188,16 +188,19 @@ def identify_population(
     workers: int = 1,
     progress: bool = True,
     plant_set: Any = None,
+    indices: Sequence[int] | None = None,
 ) -> dict[int, Any]:
     """Plant index -> :class:`.identify.IdentifiedPlant` of each plant of the population (one excitation run,
     diagnose and identify per plant; in ``executor`` or a pool of ``workers`` processes); ``plant_set``: the
-    user's plants (:class:`.plants_file.PlantSet`), else the ``n`` drawn with ``seed`` from ``uncertainty``."""
+    user's plants (:class:`.plants_file.PlantSet`), else the ``n`` drawn with ``seed`` from ``uncertainty``;
+    ``indices``: only these plants of the ``n`` (default all)."""
     from .identify import ExcitationOptions
 
     opts = options if isinstance(options, ExcitationOptions) else ExcitationOptions()
-    args = [(k, n, seed, uncertainty, params, opts, config, plant_set) for k in range(n)]
+    ks = list(range(n)) if indices is None else [int(k) for k in indices]
+    args = [(k, n, seed, uncertainty, params, opts, config, plant_set) for k in ks]
     found = run_all([(_identify_one, a, {}) for a in args], executor, workers, "identify", "plant", progress)
-    return dict(enumerate(found))
+    return dict(zip(ks, found, strict=True))
 
 
 def _identify_one(

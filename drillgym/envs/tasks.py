@@ -162,7 +162,7 @@ class BenchmarkTask:
     Parameters
     ----------
     id : str
-        The Gymnasium id, ``drillgym/<Rig>-<Sensors>-v0``.
+        The Gymnasium id, ``drillgym/<Rig>-<Sensors>-v0`` (``-Identified-v0``: an identified task).
     config : str
         Rig configuration: ``"torsional"`` or ``"coupled"``.
     sensors : str
@@ -174,6 +174,13 @@ class BenchmarkTask:
         Length of a training episode (s), the protocol's run length.  Default 60.
     protocol : EvaluationProtocol, optional
         How the score is measured.
+    identified : bool, optional
+        An ``Identified`` task (population only): before it is scored, each held-out plant gets the
+        excitation run and identification the classical identify-then-control uses
+        (``drillgym evaluate --identify``), and the policy is built on that plant's identified model
+        (``controllers.make(spec, model=...)``: a model-based controller, or a learned policy on such a base,
+        uses the model; a plain network does not read it).  Its env and training plants are the population
+        task's.  Default False.
 
     Notes
     -----
@@ -211,8 +218,11 @@ class BenchmarkTask:
     plants: PlantSet
     episode_duration: float = 60.0
     protocol: EvaluationProtocol = field(default_factory=EvaluationProtocol)
+    identified: bool = False
 
     def __post_init__(self) -> None:
+        if self.identified and not self.plants.population:
+            raise InputError(f"task {self.id}: an identified task needs a population of plants")
         if self.sensors not in SENSORS:
             raise InputError(f"task {self.id}: sensors must be one of {', '.join(SENSORS)}, got {self.sensors!r}")
         if self.config not in ("torsional", "coupled"):
@@ -273,6 +283,9 @@ def _tasks() -> dict[str, BenchmarkTask]:
             for label, sensors in sensed:
                 tid = f"drillgym/{prefix}{rig}-{label}-v0"
                 out[tid] = BenchmarkTask(tid, cfg, sensors, PlantSet(population))
+                if population:
+                    tid = f"drillgym/{prefix}{rig}-{label}-Identified-v0"
+                    out[tid] = BenchmarkTask(tid, cfg, sensors, PlantSet(population), identified=True)
     return out
 
 

@@ -1,0 +1,69 @@
+"""Identified benchmark tasks: each held-out plant's identified model reaches the policy, read back from a folder."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import pytest
+
+from agents.benchmark import BenchmarkOptions, run_benchmark
+from controllers.evaluation import population_jobs
+from controllers.evaluation.identify import IdentifiedPlant, load_identified, save_identified
+from controllers.evaluation.population import sample_plants
+from drillgym import Model, RigParams
+from drillgym.envs.tasks import TASKS, BenchmarkTask, PlantSet
+from drillgym.errors import InputError
+
+TASK = "drillgym/Population-Motor-Identified-v0"
+
+
+def _identified(params: RigParams, tau_m: float = 0.03, delay: float = 0.0) -> dict[int, IdentifiedPlant]:
+    model = Model(params, ("motor_lag", "input_delay"), {"tau_m": tau_m, "delay": delay})
+    found = IdentifiedPlant(model, ["motor_lag", "input_delay"], 12.5, {"tau_m": tau_m, "Tc": math.nan}, ["a warning"])
+    return {0: found}
+
+
+def _held_out_plant_0() -> tuple[RigParams, float, float]:
+    """The first held-out plant's base parameters, motor lag and input delay (what a good identification finds)."""
+    c = sample_plants(1, TASKS[TASK].plants.eval_seed).columns[0]
+    base = {k: v for k, v in c.items() if k in RigParams.__dataclass_fields__}
+    return replace(RigParams(), **base), c["tau_m"], c["delay"]
+
+
+def test_an_identification_written_is_read_back_whole(tmp_path):
+    save_identified(_identified(RigParams()), tmp_path / "ident")
+    back = load_identified(tmp_path / "ident", 3)
+    assert list(back) == [0]  # plants 1 and 2 were not written: left to identify
+    p = back[0]
+    assert list(p.model.names) == ["motor_lag", "input_delay"] and p.model.values["tau_m"] == pytest.approx(0.03)
+    assert p.selected == ["motor_lag", "input_delay"] and p.seconds == 12.5 and p.warnings == ["a warning"]
+    assert p.values["tau_m"] == 0.03 and math.isnan(p.values["Tc"])  # not selected: NaN again
+    (tmp_path / "ident" / "plant_0" / "identification.json").unlink()
+    with pytest.raises(InputError, match="model.json only"):
+        load_identified(tmp_path / "ident", 1)
+
+
+def test_the_policy_of_an_identified_task_is_built_on_the_plants_identified_model(tmp_path, monkeypatch):
+    def no_identification(*args, **kwargs):
+        raise AssertionError("the plant's identification was in the folder")
+
+    monkeypatch.setattr(population_jobs, "identify_population", no_identification)
+    opts = {"plants": 1, "targets": (3.0,), "duration": 40.0, "window": 10.0, "workers": 1}
+    params, tau_m, delay = _held_out_plant_0()
+    lowest = {}
+    for label, km in (("good", params.km), ("km 60 % low", 0.4 * params.km)):
+        folder = save_identified(_identified(replace(params, km=km), tau_m, delay), tmp_path / label)
+        res = run_benchmark(TASK, ["observer"], BenchmarkOptions(**opts, identified_dir=folder))
+        assert res.settings["identified"] == str(folder)
+        lowest[label] = res.scores[0].median
+    assert lowest == {"good": 3.0, "km 60 % low": math.inf}  # the observer ran each folder's model
+
+
+def test_identified_tasks_are_population_variants_and_refuse_misuse():
+    ids = [t for t in TASKS if t.endswith("-Identified-v0")]
+    assert len(ids) == 4 and all(TASKS[t].identified and TASKS[t].plants.population for t in ids)
+    with pytest.raises(InputError, match="needs a population"):
+        BenchmarkTask("drillgym/X-v0", "torsional", "motor", PlantSet(False), identified=True)
+    with pytest.raises(InputError, match="applies to an identified task"):
+        run_benchmark("drillgym/Population-Motor-v0", ["observer"], BenchmarkOptions(plants=1, identified_dir="x"))
