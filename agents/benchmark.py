@@ -383,7 +383,11 @@ def run_benchmark(
         check_sensing(task, spec)
     if opts.identified_dir is not None and not task.identified:
         raise InputError(f"--identified applies to an identified task (-Identified-v0); {task.id} is not one")
-    identified = _identified_plants(task, st, opts) if task.identified else None
+    identified = None
+    if task.identified:
+        from .identified_plants import identified_plants
+
+        identified = identified_plants(task, "held-out", st["plants"], opts.identified_dir, opts.workers, opts.progress)
     if identified is not None:
         st["identified"] = str(opts.identified_dir) if opts.identified_dir is not None else "in memory"
     rows = evaluate(
@@ -403,27 +407,6 @@ def run_benchmark(
     scores = tuple(_score(task, spec, rows) for spec in policies)
     agg = {m: iqm_interval([getattr(s, m) for s in scores]) for m in METRICS}
     return BenchmarkResult(task.id, scores, agg, st, opts.reduced(task))
-
-
-def _identified_plants(task: BenchmarkTask, settings: dict, opts: BenchmarkOptions) -> dict:
-    """Plant index -> :class:`controllers.evaluation.identify.IdentifiedPlant` of the held-out plants of an
-    identified task: read from ``opts.identified_dir`` where it holds them, the others identified (the route of
-    ``drillgym evaluate --identify``) and written there."""
-    from controllers.evaluation.identify import load_identified, save_identified
-    from controllers.evaluation.population_jobs import identify_population
-
-    n, folder = settings["plants"], opts.identified_dir
-    found = load_identified(folder, n) if folder is not None else {}
-    todo = [k for k in range(n) if k not in found]
-    if todo:
-        unc = None if task.plants.uncertainty == "default" else task.plants.uncertainty
-        new = identify_population(
-            n, settings["seed"], unc, None, True, task.config, None, opts.workers, opts.progress, indices=todo
-        )
-        if folder is not None:
-            save_identified(new, folder)
-        found.update(new)
-    return found
 
 
 def _run_on_model(task: BenchmarkTask, policies: Sequence[str], opts: BenchmarkOptions, model) -> BenchmarkResult:

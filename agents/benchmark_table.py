@@ -3,6 +3,8 @@ a task's sensing and configuration, scored by :func:`agents.benchmark.run_benchm
 with its exact command and the CPU time it took.
 
     .venv/bin/python -m agents.benchmark_table --out out/benchmark_table.md [--plants 10 --duration 40 ...]
+    .venv/bin/python -m agents.benchmark_table --out out/identified.md --tasks drillgym/Population-Motor-Identified-v0 \
+        --identified out/identified_plants     # an identified task: its plants identified once, for every row
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ import json
 import math
 import time
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 from drillgym.envs.tasks import SENSORS, TASKS, BenchmarkTask
@@ -95,6 +98,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--duration", type=float, default=None)
     ap.add_argument("--window", type=float, default=None)
     ap.add_argument("--targets", default="", help="comma-separated (rad/s)")
+    ap.add_argument("--identified", type=Path, default=None, help="identified tasks: the plants' models folder")
     a = ap.parse_args(argv)
     tasks = [TASKS[t] for t in a.tasks.split(",") if t] if a.tasks else list(TASKS.values())
     specs = [s for s in a.policies.split(",") if s] if a.policies else candidate_policies()
@@ -113,9 +117,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                 if not fits(task, spec):
                     continue
                 t0 = time.process_time()
-                res = run_benchmark(task.id, [spec], opts)
+                ident = a.identified if task.identified else None
+                res = run_benchmark(task.id, [spec], replace(opts, identified_dir=ident))
                 cpu = time.process_time() - t0
                 cmd = f"drillgym benchmark {task.id} --policy {spec}{flags}"
+                cmd += f" --identified {ident}" if ident else ""
                 md.write(table_row(res, cmd, cpu) + "\n")
                 md.flush()
                 from drillgym.io.jsonfile import dumps_json

@@ -12,6 +12,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, VecFrameStac
 from drillgym.envs import ENV_IDS
 from drillgym.envs.options import U_MAX
 from drillgym.envs.sb3 import make_sb3_vec
+from drillgym.envs.tasks import PlantListRandomizer
 from drillgym.errors import InputError
 from drillgym.measurement import counts_to_angle
 
@@ -90,12 +91,22 @@ class ObserverResidualVecEnv(VecEnvWrapper):
         self.control_dt, self.counts_per_rev = float(opts.control_dt), int(opts.counts_per_rev)
         self._theta = np.zeros(venv.num_envs)
 
+    def _plants(self, index: np.ndarray) -> dict:
+        """``plants=`` the listed plants rigs ``index`` run, for a base built per plant
+        (:class:`agents.plantwise_residual.PlantwiseObserverResidual`); nothing for one base for all rigs."""
+        if not getattr(self.base, "per_plant", False):
+            return {}
+        plants = episode_batch(self.venv).plant_index[index]
+        if np.any(plants < 0):
+            raise InputError("a base built per plant needs the rigs drawn from a plant list (a population task)")
+        return {"plants": plants}
+
     def reset(self) -> np.ndarray:
         obs = self.venv.reset()
         n = self.num_envs
         self._theta[:] = 0.0
         self.base.start(n)
-        self.base.reset(np.arange(n), self._theta, obs[:, -1])
+        self.base.reset(np.arange(n), self._theta, obs[:, -1], **self._plants(np.arange(n)))
         self.base.correct(self._theta)
         self.base.base()
         return self.base.features()
@@ -121,10 +132,26 @@ class ObserverResidualVecEnv(VecEnvWrapper):
             for i in ended:
                 infos[i]["terminal_observation"] = feats[i]
             self._theta[ended] = 0.0
-            self.base.reset(ended, self._theta[ended], obs[ended, -1])
+            self.base.reset(ended, self._theta[ended], obs[ended, -1], **self._plants(ended))
             self.base.correct(self._theta[ended], ended)
         self.base.base()
         return self.base.features(), rew, done, infos
+
+
+def _plantwise_base(task, identified: dict[str, Any], config: str, residual: float, dt: float, observer):
+    """The per-plant observer base of an identified task's training plants (``make_training_env(identified=)``)."""
+    from .identified_plants import identified_plants
+    from .plantwise_residual import PlantwiseObserverResidual
+
+    unknown = sorted(set(identified) - {"plants", "folder"})
+    if unknown:
+        raise InputError(f"identified: unknown key {unknown[0]!r}; it takes plants and folder")
+    if task is None or not task.identified:
+        raise InputError("identified applies to an identified task (drillgym/...-Identified-v0)")
+    if "plants" not in identified:
+        raise InputError("identified needs plants: how many of the task's training plants to identify and run")
+    found = identified_plants(task, "train", identified["plants"], identified.get("folder"))
+    return PlantwiseObserverResidual(config, residual, [p.model for p in found.values()], dt, observer)
 
 
 class MotorIntegralVecEnv(VecEnvWrapper):
@@ -245,6 +272,7 @@ def make_training_env(
     population: str | None = None,
     nominal_fraction: float = 0.0,
     nominal_below: float = 0.0,
+    identified: dict[str, Any] | None = None,
 ) -> VecEnv:
     """An SB3 VecEnv of ``n_envs`` rigs in one batched core call per step.
 
@@ -301,6 +329,11 @@ def make_training_env(
         With ``population``: the probability of the nominal rig.
     nominal_below : float, optional
         With ``population``: targets below this speed (rad/s) get the nominal rig.
+    identified : dict, optional
+        On an identified task with ``base="observer"``: ``{"plants": P, "folder": DIR}``, every episode runs one
+        of the first P training plants and its rig's base is the observer built on that plant's identified
+        model (:mod:`agents.plantwise_residual`; the identifications read from ``DIR``, the missing ones
+        identified and written there, :func:`agents.identified_plants.identified_plants`).
 
     Returns
     -------
@@ -331,9 +364,11 @@ def make_training_env(
         venv = make_sb3_vec(env_id, n_envs, **kw)
         o = venv.venv.options
         design = (env_kwargs or {}).get("model")  # the model the user gave (a train --model): the base's too
-        venv = ObserverResidualVecEnv(
-            venv, ObserverResidual(ENV_IDS[env_id], residual, o.params, o.control_dt, observer, design)
-        )
+        if identified is not None:
+            base_law: Any = _plantwise_base(task, identified, ENV_IDS[env_id], residual, o.control_dt, observer)
+        else:
+            base_law = ObserverResidual(ENV_IDS[env_id], residual, o.params, o.control_dt, observer, design)
+        venv = ObserverResidualVecEnv(venv, base_law)
     elif residual is not None:
         kw["normalize_action"] = False
         venv: VecEnv = make_sb3_vec(env_id, n_envs, **kw)
@@ -347,8 +382,13 @@ def make_training_env(
             use_population(venv, population, nominal_fraction, nominal_below)
     if population is not None and (residual is not None or base is not None):
         raise InputError("a plant population is drawn for plain actions only (no residual or base controller)")
+    if identified is not None and base != "observer":
+        raise InputError("identified (bases built on each plant's identified model) needs base 'observer'")
     if task is not None:
         install_task_plants(venv, task, model)
+        if identified is not None:  # the episodes run the identified plants only
+            batch = episode_batch(venv)
+            batch.randomizer = PlantListRandomizer(batch.randomizer.matrix[: int(identified["plants"])])
     schedule = schedule_of(command, motor_integral)
     if motor_integral:
         if residual is not None or base is not None:

@@ -25,6 +25,8 @@ keyed by env id; rl-zoo3 ignores other top-level keys)::
         startup: [5.0, 3.0, 15.0]  # feedforward start-up schedule (kick V, hold s, ramp s), see agents/residual.py
         base: observer             # the residual corrects the observer controller (agents/observer_residual.py)
         observer: {}               # keywords of that controller (controllers.observer.ObserverController)
+        identified: {plants: 32, folder: runs/identified/train}   # identified tasks: each rig's base on its
+                                   # training plant's identified model (agents/plantwise_residual.py; training only)
         privileged_critic: true    # PPO's critic also sees omega_l, stuck, SSI (agents/privileged.py; training only)
         motor_integral: true       # the motor-angle tracking integral appended to the observation (agents/integral.py)
         distill: {teacher: flatness, iterations: 16, population: default}   # DAgger before the RL steps
@@ -96,6 +98,7 @@ STRUCTURE_KEYS = (
     "population",
     "nominal_fraction",
     "nominal_below",
+    "identified",
 )
 #: every key of a merged entry that is not a keyword of the SB3 algorithm
 DRILLGYM_KEYS = ZOO_KEYS + STRUCTURE_KEYS

@@ -231,6 +231,7 @@ def _env(env_id: str, hp: dict[str, Any], n: int, seed: int, evaluation: bool = 
         population=hp.get("population"),
         nominal_fraction=float(hp.get("nominal_fraction", 0.0)),
         nominal_below=float(hp.get("nominal_below", 0.0)),
+        identified=hp.get("identified"),
     )
     if evaluation and isinstance(venv, VecNormalize):
         venv.training, venv.norm_reward = False, False

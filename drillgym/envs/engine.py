@@ -76,6 +76,9 @@ class EpisodeBatch:
         self.obs_model = make_observation_model(self.n, o, self.system.params_matrix)  # live: randomised rows
         self.monitor = StickSlipMonitor(self.n, o.ssi_window, o.control_dt)
         self.rngs: list = [None] * self.n
+        #: the listed plant each rig's episode runs (its index in the list of a
+        #: :class:`drillgym.envs.tasks.PlantListRandomizer`); -1 when the rig's parameters are not drawn from a list
+        self.plant_index = np.full(self.n, -1, dtype=np.int64)
         self.S = np.zeros((self.n, len(S_COLUMNS)))
         self.obs = np.zeros((self.n, self.obs_model.dim), dtype=np.float32)
         self._obs_prev = np.zeros_like(self.obs)  # the last observations, kept for a rig whose state is not finite
@@ -121,6 +124,7 @@ class EpisodeBatch:
             self.S[i, C_REF], alpha0[j] = self.task.sample(rng)
             if params is not None:
                 params[j] = self.randomizer.sample(rng, float(self.S[i, C_REF]))
+                self.plant_index[i] = getattr(self.randomizer, "last_index", -1)
         s = self.system
         s.reset(index, alpha0, params)
         if s.kernel_args is not self._system_args:  # delay lines lengthened for a drawn delay

@@ -333,7 +333,9 @@ class PlantListRandomizer:
         if m.shape[0] < 1 or not np.all(np.isfinite(m)):
             raise InputError("a plant list needs at least one plant with finite parameters")
         self.matrix = m
+        self.last_index = -1  # the list index of the last plant drawn (the env keeps it per rig: ``plant_index``)
 
     def sample(self, rng: np.random.Generator, omega_ref: float | None = None) -> np.ndarray:
         """One listed plant's parameter vector (``omega_ref`` unused)."""
-        return self.matrix[int(rng.integers(self.matrix.shape[0]))].copy()
+        self.last_index = int(rng.integers(self.matrix.shape[0]))
+        return self.matrix[self.last_index].copy()
