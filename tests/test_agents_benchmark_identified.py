@@ -2,20 +2,24 @@
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
 from agents.benchmark import BenchmarkOptions, run_benchmark
 from controllers.evaluation import population_jobs
 from controllers.evaluation.identify import IdentifiedPlant, load_identified, save_identified
+from controllers.evaluation.jobs import build_controller
 from controllers.evaluation.population import sample_plants
 from drillgym import Model, RigParams
 from drillgym.envs.tasks import TASKS, BenchmarkTask, PlantSet
 from drillgym.errors import InputError
 
 TASK = "drillgym/Population-Motor-Identified-v0"
+KEPT_RESIDUAL = "agents/policies/torsional_motor_residual_observer"
 
 
 def _identified(params: RigParams, tau_m: float = 0.03, delay: float = 0.0) -> dict[int, IdentifiedPlant]:
@@ -67,3 +71,27 @@ def test_identified_tasks_are_population_variants_and_refuse_misuse():
         BenchmarkTask("drillgym/X-v0", "torsional", "motor", PlantSet(False), identified=True)
     with pytest.raises(InputError, match="applies to an identified task"):
         run_benchmark("drillgym/Population-Motor-v0", ["observer"], BenchmarkOptions(plants=1, identified_dir="x"))
+
+
+def test_a_policy_on_the_observer_base_gets_the_whole_identified_model_in_the_harness(tmp_path):
+    """The harness's route (build_controller) gives agent:PATH the model, effects included: with its residual
+    zeroed, the policy's voltages are observer@10's on that model."""
+    weights = dict(np.load(f"{KEPT_RESIDUAL}/policy.npz", allow_pickle=True))
+    weights["W2"], weights["b2"] = np.zeros_like(weights["W2"]), np.zeros_like(weights["b2"])
+    meta = json.loads(str(weights["meta"]))
+    meta["config"]["hyperparams"]["observer"] = {}  # the observer's own settings, as observer@10 runs them
+    weights["meta"] = np.array(json.dumps(meta))
+    np.savez(tmp_path / "policy.npz", **weights)
+    model = Model(RigParams(), ("motor_lag", "input_delay"), {"tau_m": 0.04, "delay": 0.012})
+    ref = np.array([2.0, 4.0])
+    agent, label = build_controller(f"agent:{tmp_path / 'policy.npz'}", "torsional", ref, RigParams(), model)
+    observer, _ = build_controller("observer@10", "torsional", ref, RigParams(), model)
+    assert label == model.label
+    for c in (agent, observer):
+        c.reset({"theta_u": np.zeros(2)})
+    t = np.arange(1, 300) * 0.01
+    theta = np.outer(0.6 * t**2 / (1.0 + t), [1.0, 1.3]) + 0.002 * np.sin(7.0 * t)[:, None]
+    u_agent = np.array([agent.act({"theta_u": th}) for th in theta])
+    u_observer = np.array([observer.act({"theta_u": th}) for th in theta])
+    assert np.ptp(u_observer) > 0.5  # the law acts on these angles
+    np.testing.assert_allclose(u_agent, u_observer, rtol=0, atol=1e-9)

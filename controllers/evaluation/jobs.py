@@ -33,7 +33,9 @@ def build_controller(
     """The controller and the label of the model it runs (``base``, or the effects it uses joined by ``+``).
 
     With a ``model`` (a :class:`drillgym.Model`), a controller that runs effects is built on
-    it, any other on its base parameters (label ``base``); without one, on ``base``.
+    it, any other on its base parameters (label ``base``); without one, on ``base``.  A learned policy
+    (``agent:PATH``) gets the whole model and uses what its structure can: a policy on the observer base runs the
+    observer built on it, effects included; a plain network warns that it reads none of them.
     """
     from .. import make
     from ..registry import CONTROLLERS, split_period
@@ -41,7 +43,7 @@ def build_controller(
     if model is None:
         return make(controller, config=config, omega_ref=omega_ref, params=base, **kw), "base"
     cls = CONTROLLERS.get(split_period(controller)[0])
-    if cls is not None and cls.uses_effects:
+    if controller.startswith("agent:") or (cls is not None and cls.uses_effects):
         return make(controller, config=config, omega_ref=omega_ref, model=model, **kw), model.label
     return make(controller, config=config, omega_ref=omega_ref, params=model.params, **kw), "base"
 
