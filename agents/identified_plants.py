@@ -74,9 +74,12 @@ def identified_plants(
         raise InputError(f"plants must be in 1..{listed} (the {split} list of {task.id}), got {plants!r}")
     found = load_identified(folder, plants) if folder is not None else {}
     todo = [k for k in range(plants) if k not in found]
-    if todo:
-        unc = None if p.uncertainty == "default" else p.uncertainty
-        new = identify_population(listed, seed, unc, None, True, task.config, None, workers, progress, indices=todo)
+    unc = None if p.uncertainty == "default" else p.uncertainty
+    step = len(todo) if folder is None else 2 * max(int(workers), 1)  # written as they come: an interrupted run
+    for i in range(0, len(todo), max(step, 1)):  # keeps the plants it finished
+        new = identify_population(
+            listed, seed, unc, None, True, task.config, None, workers, progress, indices=todo[i : i + step]
+        )
         if folder is not None:
             save_identified(new, folder)
         found.update(new)

@@ -95,3 +95,29 @@ def test_a_policy_on_the_observer_base_gets_the_whole_identified_model_in_the_ha
     u_observer = np.array([observer.act({"theta_u": th}) for th in theta])
     assert np.ptp(u_observer) > 0.5  # the law acts on these angles
     np.testing.assert_allclose(u_agent, u_observer, rtol=0, atol=1e-9)
+
+
+def test_only_the_plants_a_folder_lacks_are_identified_and_each_chunk_is_written(tmp_path, monkeypatch):
+    from agents.identified_plants import identified_plants
+
+    asked = []
+
+    def fake_identification(n, seed, *args, indices=None, **kwargs):
+        asked.append((seed, list(indices)))
+        if len(asked) == 2:  # the second chunk: the first is on disk already
+            assert sorted(load_identified(tmp_path, 6)) == [0, 1, 2]
+        return {k: _identified(RigParams(), tau_m=0.01 * (k + 1))[0] for k in indices}
+
+    monkeypatch.setattr(population_jobs, "identify_population", fake_identification)
+    save_identified(_identified(RigParams()), tmp_path)  # plant 0 identified before
+    task = TASKS[TASK]
+    found = identified_plants(task, "train", 6, tmp_path, workers=1)
+    assert asked == [(task.plants.train_seed, [1, 2]), (task.plants.train_seed, [3, 4]), (task.plants.train_seed, [5])]
+    assert sorted(found) == list(range(6)) and found[0].model.values["tau_m"] == pytest.approx(0.03)
+    assert found[5].model.values["tau_m"] == pytest.approx(0.06)
+    with pytest.raises(InputError, match="plants must be in 1..20"):
+        identified_plants(task, "held-out", 21)
+    with pytest.raises(InputError, match="split must be one of"):
+        identified_plants(task, "test", 1)
+    with pytest.raises(InputError, match="no plants to identify"):
+        identified_plants(TASKS["drillgym/Nominal-Motor-v0"], "train", 1)
