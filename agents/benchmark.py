@@ -377,12 +377,19 @@ def run_benchmark(
     task = get_task(task_id)
     opts = options or BenchmarkOptions()
     if model is not None:
+        if opts.identified_dir is not None:
+            raise InputError(
+                "--identified picks the task's identified plants; with a model (--model) the run has that plant only"
+            )
         return _run_on_model(task, policies, opts, model)
     st = opts.settings(task)
     for spec in policies:
         check_sensing(task, spec)
-    if opts.identified_dir is not None and not task.identified:
-        raise InputError(f"--identified applies to an identified task (-Identified-v0); {task.id} is not one")
+    if opts.identified_dir is not None:
+        if not task.identified:
+            raise InputError(f"--identified applies to an identified task (-Identified-v0); {task.id} is not one")
+        if Path(opts.identified_dir).exists() and not Path(opts.identified_dir).is_dir():
+            raise InputError(f"--identified {opts.identified_dir}: not a folder (the plants' identifications go there)")
     identified = None
     if task.identified:
         from .identified_plants import identified_plants

@@ -51,6 +51,7 @@ def register_benchmark(app: typer.Typer) -> None:
 
     @app.command("benchmark")
     @excludes("--model", "--plants", why="the run has the model's plant only, not the task's held-out plants")
+    @excludes("--model", "--identified", why="the run has the model's plant only, not the task's identified plants")
     @requires("--trust", "--model", why="it trusts the effect files a model file names")
     def benchmark_cmd(
         task: str = typer.Argument(..., help="task id, e.g. drillgym/Population-Motor-v0 (see docs/benchmark.md)"),

@@ -121,3 +121,13 @@ def test_only_the_plants_a_folder_lacks_are_identified_and_each_chunk_is_written
         identified_plants(task, "test", 1)
     with pytest.raises(InputError, match="no plants to identify"):
         identified_plants(TASKS["drillgym/Nominal-Motor-v0"], "train", 1)
+
+
+def test_the_identified_folder_is_refused_where_it_cannot_be_used(tmp_path):
+    a_file = tmp_path / "plants.json"
+    a_file.write_text("{}")
+    with pytest.raises(InputError, match="not a folder"):
+        run_benchmark(TASK, ["observer"], BenchmarkOptions(plants=1, identified_dir=a_file))
+    with pytest.raises(InputError, match="with a model"):
+        run_benchmark(TASK, ["observer"], BenchmarkOptions(identified_dir=tmp_path), model=Model())
+    assert a_file.read_text() == "{}"
