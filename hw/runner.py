@@ -192,8 +192,9 @@ def make_controller(spec: str, configuration: str, omega_ref: float | None, cont
         Target lower-disc speed (rad/s), when the controller needs one.
     control_dt : float
         Control period (s).
-    params : RigParams, optional
-        The design model (e.g. the identified one); default the controller's.
+    params : RigParams or model, optional
+        The design model (e.g. the identified one: a :class:`drillgym.Model` or what
+        :func:`controllers.model.model_of` gives); default the controller's.
 
     Returns
     -------
@@ -222,8 +223,10 @@ def make_controller(spec: str, configuration: str, omega_ref: float | None, cont
     if make is None:
         raise InputError(f"controller {spec!r}: the controllers package has no make(); only const:<volts> is available")
     kwargs: dict[str, Any] = {"config": configuration, "dt": control_dt}
-    if params is not None:
-        kwargs["params"] = params
+    if params is not None:  # base parameters, or a model with effects (a learned policy takes it whole)
+        from drillgym.params import RigParams
+
+        kwargs["params" if isinstance(params, RigParams) else "model"] = params
     if omega_ref is not None:
         kwargs["omega_ref"] = omega_ref
     return make(spec, **kwargs)

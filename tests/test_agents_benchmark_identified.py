@@ -131,3 +131,16 @@ def test_the_identified_folder_is_refused_where_it_cannot_be_used(tmp_path):
     with pytest.raises(InputError, match="with a model"):
         run_benchmark(TASK, ["observer"], BenchmarkOptions(identified_dir=tmp_path), model=Model())
     assert a_file.read_text() == "{}"
+
+
+def test_rig_runs_a_policy_on_the_observer_base_on_the_whole_model():
+    """``rig run --model FILE --controller agent:PATH``: the rig's route hands the policy the model's effects."""
+    from controllers.model import model_of
+    from hw.runner import make_controller
+
+    model = Model(RigParams(), ("motor_lag", "input_delay"), {"tau_m": 0.04, "delay": 0.012})
+    on_model = make_controller(f"agent:{KEPT_RESIDUAL}", "torsional", 2.0, 0.01, model_of(model))
+    on_params = make_controller(f"agent:{KEPT_RESIDUAL}", "torsional", 2.0, 0.01, RigParams())
+    filters = on_model.base._ctrl.model, on_params.base._ctrl.model
+    assert (filters[0].lag_index >= 0, filters[0].delay_steps) == (True, 1)  # the lag's state, the 12 ms delay line
+    assert (filters[1].lag_index, filters[1].delay_steps) == (-1, 0)

@@ -184,7 +184,8 @@ def run_cmd(
         None,
         "--model",
         help="model file (base parameters and effects, e.g. from `drillgym diagnose --model-out`) the controller is "
-        "built on: observer, lqg and lqg-2enc run its lag, delay and lower-disc friction; not with --params",
+        "built on: observer, lqg and lqg-2enc run its effects, and so does a trained agent on the observer base "
+        "(agent:PATH or --policy); not with --params",
     ),
     trust: bool = typer.Option(
         False,
@@ -283,9 +284,9 @@ def run_cmd(
             )
         model = mf.params
     if model_file is not None:
-        if params is not None or controller is None or controller.startswith(("const:", "play:", "agent:")):
-            raise InputError("--model builds a named controller on a model file; not with --params, const:, play:, "
-                             "agent: or --policy")  # fmt: skip
+        if params is not None or controller is None or controller.startswith(("const:", "play:")) or policy:
+            raise InputError("--model builds a controller or a trained agent on a model file; not with --params, "
+                             "const:, play: or a linear --policy")  # fmt: skip
         from controllers.model import model_of
         from drillgym.commands.options import option
         from drillgym.model import Model
