@@ -118,6 +118,12 @@ def register_benchmark(app: typer.Typer) -> None:
         check_evaluation_options(
             specs, [t.config], list(st["targets"]), st["duration"], st["window"], st["plants"], 0, workers, names
         )
+        if t.identified and identified is None and m is None:
+            typer.echo(
+                f"note: identifying the {st['plants']} held-out plant(s) first and keeping nothing; --identified DIR "
+                "keeps their models for the next policy",
+                err=True,
+            )
         res = run_benchmark(t.id, specs, opts, model=m)
         for line in res.lines():
             typer.echo(line)
