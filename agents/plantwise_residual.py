@@ -23,7 +23,7 @@ import numpy as np
 
 from drillgym.errors import InputError
 
-from .observer_residual import FEATURES, ObserverResidual
+from .observer_residual import ObserverResidual
 
 __all__ = ["PlantwiseObserverResidual"]
 
@@ -60,7 +60,7 @@ class PlantwiseObserverResidual:
         self.config, self.models, self.observer = config, list(models), dict(observer or {})
         self._scale_arg, self._dt_arg = scale, dt
         probe = self._build(0)  # bad settings fail here, not in the first episode
-        self.scale, self.dt = probe.scale, probe.dt
+        self.scale, self.dt, self._dim = probe.scale, probe.dt, probe.dim
         self._rigs: list[ObserverResidual] = []
         self.n = 0
 
@@ -70,8 +70,8 @@ class PlantwiseObserverResidual:
 
     @property
     def dim(self) -> int:
-        """Number of policy inputs."""
-        return len(FEATURES)
+        """Number of policy inputs (a rig's base's)."""
+        return self._dim
 
     def start(self, n: int) -> None:
         """Allocate n rigs (call :meth:`reset` for all of them before :meth:`correct`)."""
