@@ -395,7 +395,6 @@ def run_benchmark(
         from .identified_plants import identified_plants
 
         identified = identified_plants(task, "held-out", st["plants"], opts.identified_dir, opts.workers, opts.progress)
-    if identified is not None:
         st["identified"] = str(opts.identified_dir) if opts.identified_dir is not None else "in memory"
     rows = evaluate(
         list(policies),

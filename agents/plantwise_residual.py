@@ -2,11 +2,10 @@
 
 An identified task scores a residual policy on the ``observer`` controller built on each held-out plant's
 identified model (:mod:`agents.observer_residual`, ``controllers.make("agent:DIR", model=...)``).  A residual
-trained on a base built on one nominal model learns to correct that base on the rigs it trained on, and those
-corrections destabilise the identified base (``docs/agents.md``).  :class:`PlantwiseObserverResidual` gives the
-training the situation it will run in: every rig's episode runs one training plant, and the rig's base is the
-observer built on that plant's identified model (:func:`agents.identified_plants.identified_plants`), rebuilt at
-each of the rig's episodes.
+trained on a base built on one nominal model learns to correct that base on the rigs it trained on, not the base
+it will run on.  :class:`PlantwiseObserverResidual` gives the training the situation it will run in: every rig's
+episode runs one training plant, and the rig's base is the observer built on that plant's identified model
+(:func:`agents.identified_plants.identified_plants`), rebuilt at each of the rig's episodes.
 
 It has the interface of :class:`agents.observer_residual.ObserverResidual` (what
 :class:`agents.envs.ObserverResidualVecEnv` calls), with the plants of the rigs given at :meth:`reset`; each rig
@@ -58,15 +57,14 @@ class PlantwiseObserverResidual:
         if not models:
             raise InputError("a plant-wise observer base needs the model of at least one plant")
         self.config, self.models, self.observer = config, list(models), dict(observer or {})
-        self._scale_arg, self._dt_arg = scale, dt
-        probe = self._build(0)  # bad settings fail here, not in the first episode
-        self.scale, self.dt, self._dim = probe.scale, probe.dt, probe.dim
+        self.scale, self.dt = scale, dt
+        self._dim = self._build(0).dim  # bad settings fail here, not in the first episode
         self._rigs: list[ObserverResidual] = []
         self.n = 0
 
     def _build(self, plant: int) -> ObserverResidual:
         model = self.models[plant]
-        return ObserverResidual(self.config, self._scale_arg, dt=self._dt_arg, observer=self.observer, model=model)
+        return ObserverResidual(self.config, self.scale, dt=self.dt, observer=self.observer, model=model)
 
     @property
     def dim(self) -> int:
