@@ -9,10 +9,9 @@ the diagnosis left them, the better fit kept), with the segments' start speeds. 
 held (nominal, or at a bound) and the candidate's fit is not at the noise, the fit is repeated with them freed,
 and kept when that counts by the selection's rules and none ends at a bound.  A sensor's reading
 (:mod:`.sensor_reading`) is fitted with the selected library effects' parameters freed too: they may have stood
-in for it.  Motor-side terms and the readings are fitted through the same terms compiled once
-(:mod:`.motor_terms`, :mod:`.reading_terms`): a file's coefficients make its compiled model new for every
-recording.  The answer is the residual against the noise with the candidate
-(:func:`.unexplained.unexplained`) beside the one without.
+in for it.  Every candidate is fitted through its whole group's terms compiled once (:mod:`.group_terms`): a file's
+chosen terms make its compiled model new for nearly every recording.  The answer is the residual against the noise
+with the candidate (:func:`.unexplained.unexplained`) beside the one without.
 """
 
 from __future__ import annotations
@@ -30,7 +29,8 @@ from .context import SelectionContext, base_at_bounds, converged_fit
 from .discovery_terms import dead_zone_variant
 from .effect_file import write_effect_file
 from .effects import get_effect
-from .motor_terms import TERM_EFFECTS, WIDTH_PARAMETERS, term_parameters
+from .group_terms import terms_effect, terms_parameter
+from .motor_terms import WIDTH_PARAMETERS
 from .results import Candidate, Diagnosis
 from .scoring import score, significant
 from .search_model import with_candidate
@@ -131,7 +131,7 @@ class CandidateFit:
         The library's effects fitted with it, ahead of it on the signal path (``motor_lag`` when its terms were
         found through a lag); their parameters are among ``values``.
     through : Effect class or None
-        The compiled terms its fit ran through (:data:`.motor_terms.TERM_EFFECTS`; ``file_names`` maps their
+        The compiled terms its fit ran through (:func:`.group_terms.terms_effect`; ``file_names`` maps their
         parameters to the file's), or None: through its own file.
     """
 
@@ -212,7 +212,7 @@ def fit_candidate(
     """
     if diagnosis.vector is None or diagnosis.composition is None:
         return None
-    effect, start_values = _effect_of(candidate)
+    effect, start_values, is_terms = _effect_of(candidate)
     if effect is None:
         return None
     comp = diagnosis.composition
@@ -246,7 +246,7 @@ def fit_candidate(
     values = {file_names[n]: float(fit.vector[with_it.param_index(n)]) for n in names}
     state = CandidateFitState(obj, with_it, fit, names, base_names, ctx.nominal, tuple(model.base_names), start_values)
     moved = change_pct(with_it, fit.vector, ctx.nominal, base_names)
-    through = effect if effect is TERM_EFFECTS.get(candidate.group) else None
+    through = effect if is_terms else None
     return CandidateFit(
         values, held, before, after, state, file_names, base_fitted=moved, with_library=tuple(ahead), through=through
     )
@@ -325,24 +325,17 @@ def moved_text(changes: dict[str, float]) -> str:
     return ", ".join(f"{k} {v:+.1f} %" for k, v in changes.items() if abs(v) >= 0.05)
 
 
-def _effect_of(candidate: Candidate) -> tuple[type[Effect] | None, dict[str, float]]:
-    """The effect the candidate is fitted through and the start of its free parameters: for motor-side terms
-    the effects of :mod:`.motor_terms` (compiled once), else the candidate's own file (None: not written)."""
-    if candidate.group in TERM_EFFECTS:
-        start = {}
-        for label, c in candidate.terms.items():
-            name = term_parameters(candidate.group, label)
-            if name is None:
-                break
-            start[name] = c
-            if label in candidate.widths:
-                start[WIDTH_PARAMETERS[candidate.group]] = candidate.widths[label]
-        else:
-            return TERM_EFFECTS[candidate.group], start
+def _effect_of(candidate: Candidate) -> tuple[type[Effect] | None, dict[str, float], bool]:
+    """The effect the candidate is fitted through, the start of its free parameters, and whether that effect is
+    its group's terms compiled once (:func:`.group_terms.terms_effect`) rather than the candidate's own file
+    (None: not written)."""
+    through = terms_effect(candidate)
+    if through is not None:
+        return (*through, True)
     if candidate.effect_file is None:
-        return None, {}
+        return None, {}, False
     effect = get_effect(candidate.effect_file)
-    return effect, {p.name: p.guess for p in effect.parameters}
+    return effect, {p.name: p.guess for p in effect.parameters}, False
 
 
 def _with_base_freed(
@@ -477,7 +470,7 @@ def _screen_cut(
     """The share of the unexplained variance a reading removes in a short fit (:data:`SCREEN_NFEV` evaluations) of
     its own parameters and of the library effects it may have stood in for, the base parameters held as
     diagnosed (-1 when the diagnosis has no final model)."""
-    effect, start_values = _effect_of(reading)
+    effect, start_values, _ = _effect_of(reading)
     comp, before = diagnosis.composition, diagnosis.unexplained
     if effect is None or comp is None or diagnosis.vector is None or before is None or before.ratio_to_noise <= 0:
         return -1.0
@@ -574,7 +567,7 @@ def _file_name(candidate: Candidate, parameter: str) -> str:
     if not candidate.name:
         return parameter
     for i, label in enumerate(candidate.terms, 1):
-        if term_parameters(candidate.group, label) == parameter:
+        if terms_parameter(candidate.group, label) == parameter:
             return f"{candidate.name}_c{i}"
         if parameter == WIDTH_PARAMETERS.get(candidate.group) and label in candidate.widths:
             return f"{candidate.name}_w{i}"

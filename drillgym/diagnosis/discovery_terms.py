@@ -54,15 +54,17 @@ def _speed_terms(w: str, sym: str) -> list[_Term]:
 
 
 def _stribeck_terms(ws: float, delta: float) -> list[_Term]:
-    """Changes of the lower disc's Stribeck shape sign(ω) exp(−(|ω|/ws)^δ) (the model's ws, δ): its
-    derivatives with respect to δ and ws (a different exponent or Stribeck speed: first order), and
-    the shape with other exponents (a different law: e.g. a Lorentzian's long tail is close to δ = 1)."""
+    """Changes of the lower disc's Stribeck shape sign(ω) exp(−(|ω|/ws)^δ): its derivatives with respect to δ
+    and ws (a different exponent or Stribeck speed: first order), and the shape with other exponents (a
+    different law: e.g. a Lorentzian's long tail is close to δ = 1).  Regressed at the model's ``ws``,
+    ``delta``; the code reads the base parameters ``ws`` and ``delta`` themselves, so a term's effect follows
+    them when they are fitted (and its compiled form is the same for every recording)."""
     out = []
     for dd in (0.5, 1.0, 3.0):
         out.append(
             _Term(
-                f"sign(ωl) exp(−(|ωl|/{ws:.3g})^{dd:g})",
-                f"direction * math.exp(-(speed / {ws!r}) ** {dd!r})",
+                f"sign(ωl) exp(−(|ωl|/ws)^{dd:g})",
+                f"direction * math.exp(-(speed / ws) ** {dd!r})",
                 lambda d, dd=dd: np.sign(d["wl"]) * np.exp(-((np.abs(d["wl"]) / ws) ** dd)),
                 1.0,
             )
@@ -76,18 +78,18 @@ def _stribeck_terms(ws: float, delta: float) -> list[_Term]:
         x = np.abs(w) / ws
         return np.sign(w) * np.exp(-(x**delta)) * delta * x**delta
 
-    xs = f"max(speed / {ws!r}, 1e-12)"
+    xs = "max(speed / ws, 1e-12)"
     out.append(
         _Term(
             "∂/∂δ of sign(ωl) exp(−(|ωl|/ws)^δ)",
-            f"-direction * math.exp(-{xs} ** {delta!r}) * {xs} ** {delta!r} * math.log({xs})",
+            f"-direction * math.exp(-{xs} ** delta) * {xs} ** delta * math.log({xs})",
             lambda d: dshape_ddelta(d["wl"]),
         )
     )
     out.append(
         _Term(
             "ws·∂/∂ws of sign(ωl) exp(−(|ωl|/ws)^δ)",
-            f"direction * math.exp(-(speed / {ws!r}) ** {delta!r}) * {delta!r} * (speed / {ws!r}) ** {delta!r}",
+            "direction * math.exp(-(speed / ws) ** delta) * delta * (speed / ws) ** delta",
             lambda d: dshape_dws(d["wl"]),
         )
     )

@@ -20,6 +20,8 @@ from .results import Candidate
 __all__ = ["write_effect_file"]
 
 _ARGS_FRICTION = ("T", "direction", "speed", "omega")
+#: the quantities and base parameters a term's code may read, besides a friction's own arguments
+_VARIABLES = ("X", "Y", "VX", "VY", "theta_l", "theta_u", "alpha", "alpha_dot", "t", "u", "ws", "delta")
 
 
 def candidate_name(group: str) -> str:
@@ -90,7 +92,7 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
     found = (
         "by its own fit" if reading else "from the residual lateral force" if lateral else "from the residual torques"
     )
-    used = [v for v in ("X", "Y", "VX", "VY", "theta_l", "theta_u", "alpha", "alpha_dot", "t", "u") if _uses(cand, v)]
+    used = [v for v in _VARIABLES if _uses(cand, v)]
     lines = [
         f'"""Candidate effect written by `drillgym diagnose --candidate-out` {found}.',
         "",

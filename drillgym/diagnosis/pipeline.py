@@ -44,11 +44,11 @@ from .checks import check
 from .detectability import detectability
 from .discovery import discover
 from .effect_file import candidate_name
+from .group_terms import terms_name
 from .information import require_information
 from .input_order import input_order
 from .lateral_library import LateralVerdict, library_versus_outside
 from .library_columns import LibraryAnswer, library_answer
-from .motor_terms import TERM_EFFECTS
 from .orders import select
 from .ranking import report
 from .reselection import KeptCandidate, kept_candidate, reselection_inputs
@@ -198,8 +198,7 @@ def _not_held(candidate, held: set[str]):
 def _group_held(group: str, held: set[str]) -> bool:
     """Whether the model holds a group's candidate: its file's effect, or the compiled terms a kept one's fit ran
     through (:attr:`.reselection.KeptCandidate.through`), which the diagnosis run again holds in its place."""
-    terms = TERM_EFFECTS.get(group)
-    return candidate_name(group) in held or (terms is not None and terms.name in held)
+    return candidate_name(group) in held or terms_name(group) in held
 
 
 def _recordings(data: Any) -> list[TimeSeries]:

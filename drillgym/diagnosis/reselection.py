@@ -10,10 +10,10 @@ candidate's parameters freed wherever the base parameters are (its first fit ben
 what was missing beside it: a dead zone's width fitted 0.66 V for 0.36 V beside a position friction, which the
 selection then found once both were fitted together).
 
-The model run again holds the candidate as its fit ran: through the compiled terms of :mod:`.motor_terms` (a
-motor-side or a sensor's candidate; the terms it does not use held at 0), whose kernels serve every recording,
-where the candidate's own file, its coefficients written in, would be a new compiled model each time (26-29 s on 2
-cores).  :func:`drillgym.identify` writes the model with the file in their place: the same function.
+The model run again holds the candidate as its fit ran: through its group's compiled terms (:mod:`.group_terms`;
+the terms it does not use held at 0), whose kernels serve every recording, where the candidate's own file, holding
+only the terms chosen for this recording, would be a new compiled model each time (26-29 s on 2 cores).
+:func:`drillgym.identify` writes the model with the file in their place: the same function.
 
 One mechanism for every kind: a lag or a delay beside a motor-side candidate, a position friction or a string
 damping beside a dead zone, an effect the first selection took that no longer counts (it is simply not selected
@@ -63,7 +63,7 @@ class KeptCandidate:
         The library effects it was fitted with, ahead of it on the signal path (a lag its terms were found
         through).
     through : Effect class or None
-        The compiled terms its fit ran through (:data:`.motor_terms.TERM_EFFECTS`), which the diagnosis run again
+        The compiled terms its fit ran through (:func:`.group_terms.terms_effect`), which the diagnosis run again
         holds in its place: the same function, with kernels compiled once for every recording, where the file's
         coefficients make a new compiled model each time.  None: the file itself is held.
     through_values : dict of str to float

@@ -64,7 +64,7 @@ class DiagnosisOptions:
         Default False.
     held_effect_params : sequence of str
         Parameters of the model's own effects held at their values where ``refit_model_effects`` frees the
-        others (the terms a candidate fitted through :mod:`.motor_terms` does not use, at 0).  Default none.
+        others (the terms of its group a candidate does not use, :mod:`.group_terms`, at 0).  Default none.
     n_joint : int
         Candidates refitted jointly with the base parameters per round.  Default 2.
     max_effects : int

@@ -1,0 +1,87 @@
+"""Every group's candidate is fitted through its whole group's terms, compiled once for every recording."""
+
+import inspect
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drillgym.diagnosis.candidate import Candidate
+from drillgym.diagnosis.discovery_terms import _groups
+from drillgym.diagnosis.effect_file import write_effect_file
+from drillgym.diagnosis.group_terms import terms_effect, terms_name, terms_parameter
+from drillgym.diagnosis.lateral_terms import lateral_terms
+from drillgym.effects.file_signature import code_signature
+
+WRITTEN = ("lower_friction", "upper_friction", "string", "lower_force", "lateral_force")
+FUNCTION = {"lower_friction": "slip", "upper_friction": "slip", "lateral_force": "force"}
+
+
+def _terms(group):
+    if group == "lateral_force":
+        return [(t.label, t.code, 0.0) for t in lateral_terms()]
+    return [(t.label, t.code, t.at_rest) for t in _groups(False)[group]]
+
+
+def _candidate(group, picks, rng):
+    terms = _terms(group)
+    chosen = [terms[i] for i in picks]
+    coef = {label: float(rng.normal(0.0, 0.05)) for label, _, _ in chosen}
+    return Candidate(
+        group,
+        coef,
+        {label: code for label, code, _ in chosen},
+        {label: rest for label, _, rest in chosen},
+        0.7,
+        500,
+        reach={label: 0.3 for label, _, _ in chosen},
+    )
+
+
+def _call(effect, values, args):
+    fn = getattr(effect, FUNCTION.get(effect_group(effect), "torque"))
+    names = inspect.signature(fn).parameters
+    return fn(**{n: values.get(n, args.get(n, 0.0)) for n in names})
+
+
+def effect_group(effect):
+    return effect.name[: -len("_terms")] if effect.name.endswith("_terms") else effect.name[len("candidate_") :]
+
+
+@pytest.mark.parametrize("group", WRITTEN)
+def test_two_recordings_candidates_share_one_compiled_terms_effect_that_acts_as_their_files(group, tmp_path):
+    """Two candidates of a group with different terms and coefficients are fitted through effects with the same
+    compiled code (the kernel key, :func:`code_signature`), and with the candidate's coefficients (the other terms
+    at 0) that effect gives what the candidate's own file gives."""
+    rng = np.random.default_rng(3)
+    n = len(_terms(group))
+    first = _candidate(group, [0, n - 1], rng)
+    second = _candidate(group, sorted(rng.choice(n, size=min(3, n), replace=False)), rng)
+    (e1, start1), (e2, start2) = terms_effect(first), terms_effect(second)
+    assert e1.name == e2.name == terms_name(group)
+    sig = [code_signature(Path(e.__drillgym_file__).read_text(encoding="utf-8")) for e in (e1, e2)]
+    assert sig[0] == sig[1]
+    assert set(start1) == {terms_parameter(group, label) for label in first.terms}
+    for cand, effect, start in ((first, e1, start1), (second, e2, start2)):
+        write_effect_file(cand, tmp_path / f"{group}.py")
+        from drillgym.diagnosis.effects import get_effect
+
+        own = get_effect(cand.effect_file)
+        own_values = {f"{cand.name}_c{i}": c for i, c in enumerate(cand.terms.values(), 1)}
+        through_values = {p.name: start.get(p.name, 0.0) for p in effect.parameters}
+        for _ in range(5):
+            args = {
+                "T": 0.3, "direction": 1.0, "omega": 2.0, "speed": 2.0, "theta_l": rng.uniform(-3, 3),
+                "theta_u": rng.uniform(-3, 3), "alpha": rng.uniform(-0.3, 0.3), "alpha_dot": rng.uniform(-1, 1),
+                "t": rng.uniform(0, 10), "X": rng.normal(0, 1e-3), "Y": rng.normal(0, 1e-3),
+                "VX": rng.normal(0, 1e-2), "VY": rng.normal(0, 1e-2), "ws": 1.3, "delta": 1.9,
+            }  # fmt: skip
+            assert np.allclose(_call(own, own_values, args), _call(effect, through_values, args), rtol=1e-12)
+        (tmp_path / f"{group}.py").unlink()
+
+
+def test_a_term_outside_its_group_has_no_parameter():
+    """A candidate whose label its group's list does not hold is fitted through its own file."""
+    cand = Candidate("string", {"α|α|": 0.1, "not a term": 0.2}, {}, {}, 0.5, 10)
+    assert terms_parameter("string", "α|α|") == "string_terms_c1"
+    assert terms_effect(cand) is None
