@@ -41,6 +41,19 @@ def test_the_selection_again_looks_for_the_next_candidate_while_the_budget_allow
     assert not one.discover  # one candidate unless asked for more
 
 
+def test_a_library_effect_named_by_discovery_takes_no_candidates_turn(tmp_path):
+    """A library effect discovery named in a candidate's place (held in the model) leaves the search for an effect
+    outside the library to the diagnosis run again: a dead zone beside the position friction it named."""
+    first = SimpleNamespace(params=RigParams(), config=Configuration.TORSIONAL)
+    out = tmp_path / "rec_candidate.py"
+    opts = DiagnosisOptions(discover=True, candidate_out=out)
+    _, again = reselection_inputs(first, KeptCandidate("position_friction", {}, ()), opts, library=True)
+    assert again.discover and again.max_candidates == 1 and again.candidate_out == out
+    assert [getattr(e, "name", e) for e in again.base_effects] == ["position_friction"]
+    _, kept = reselection_inputs(first, KeptCandidate(CUBIC, {}, ()), opts)
+    assert not kept.discover and kept.candidate_out is None
+
+
 @pytest.mark.parametrize(("value", "error"), [(0, InputError), (1.5, InputTypeError), (True, InputTypeError)])
 def test_max_candidates_is_a_count(value, error):
     with pytest.raises(error, match="max_candidates"):

@@ -452,7 +452,8 @@ def discover(
         # the library's torque effects the model lacks, regressed beside the terms (.library_columns): their
         # torques per unit of their parameters hardly depend on the base parameters, taken once at the diagnosis'
         if lib is None and diagnosis.composition is not None:
-            lib = library_columns(ex, diagnosis.composition, vec, list(diagnosis.selected), rt_v)
+            own = [] if diagnosis.model == "base" else diagnosis.model.split("+")  # held in the model already
+            lib = library_columns(ex, diagnosis.composition, vec, [*own, *diagnosis.selected], rt_v)
         # the voltage terms are functions of the voltage the model's motor sees (after its delay and lag)
         c = find_candidate(rt_v, rt_v.u_motor, p.Ju, p.Jl, ex.config.lateral_free, p.ws, p.delta, p.km, library=lib)
         if c is not None and (cand is None or c.explained > cand.explained):

@@ -137,7 +137,11 @@ def kept_in_turn(diagnosis: Diagnosis) -> list[KeptCandidate]:
 
 
 def reselection_inputs(
-    diagnosis: Diagnosis, kept: KeptCandidate, options: DiagnosisOptions, left_out: Sequence[str] = ()
+    diagnosis: Diagnosis,
+    kept: KeptCandidate,
+    options: DiagnosisOptions,
+    left_out: Sequence[str] = (),
+    library: bool = False,
 ) -> tuple[RigParams, DiagnosisOptions]:
     """The base parameters and the options of the diagnosis run again with the candidate in the model.
 
@@ -152,6 +156,11 @@ def reselection_inputs(
     left_out : sequence of str, optional
         Library effects not selected again nor held beside the candidate (a library lateral effect the residual
         said is another force, :func:`.lateral_library.library_versus_outside`).
+    library : bool, optional
+        ``kept`` is a library effect discovery named in a candidate's place (:mod:`.library_columns`): it takes
+        no candidate's turn, so discovery runs again as it did here (another effect outside the library, e.g. a
+        dead zone on the motor side beside the position friction named on the lower disc, is looked for on the
+        residual of the model with it).  Default False.
 
     Returns
     -------
@@ -171,13 +180,19 @@ def reselection_inputs(
     values: dict[str, Any] = {k: v for k, v in {**values0, **kept.values, **kept.through_values}.items() if k in names}
     params = diagnosis.params if diagnosis.params is not None else RigParams()
     more = options.max_candidates > 1  # the next candidate is looked for on the residual of this model
+    if library:
+        turn = {"discover": options.discover, "candidate_out": options.candidate_out}
+    else:
+        turn = {
+            "discover": more,
+            "max_candidates": max(1, options.max_candidates - 1),
+            "candidate_out": next_candidate_out(options.candidate_out) if more else None,
+        }
     again = replace(
         options,
         base_effects=list(comp.effects),
         effect_params=values,
-        discover=more,
-        max_candidates=max(1, options.max_candidates - 1),
-        candidate_out=next_candidate_out(options.candidate_out) if more else None,
+        **turn,
         refit_model_effects=True,
         held_effect_params=(*options.held_effect_params, *kept.held_terms),
     )
