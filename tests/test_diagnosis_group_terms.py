@@ -85,3 +85,43 @@ def test_a_term_outside_its_group_has_no_parameter():
     cand = Candidate("string", {"α|α|": 0.1, "not a term": 0.2}, {}, {}, 0.5, 10)
     assert terms_parameter("string", "α|α|") == "string_terms_c1"
     assert terms_effect(cand) is None
+
+
+def test_a_fitted_value_beyond_the_regressed_bounds_is_written_into_the_candidates_file(tmp_path):
+    """The joint fit runs through the group's terms, whose bounds are the group's: a coefficient it takes beyond
+    the bounds the candidate's file was written with is written into the file (its guess, bounds around it), so the
+    model file holding it reads back; values within them leave the file as it is."""
+    from drillgym.diagnosis.discovery_terms import _voltage_terms
+    from drillgym.diagnosis.effects import get_effect
+    from drillgym.diagnosis.reselection import KeptCandidate
+    from drillgym.identified import _covering
+
+    terms = {t.label: t for t in _voltage_terms()}
+    chosen = ("1", "sat(u, 0.4)")
+    cand = Candidate(
+        "motor_voltage",
+        {"1": 0.05, "sat(u, 0.4)": -0.9},
+        {lb: terms[lb].code for lb in chosen},
+        dict.fromkeys(chosen, 0.0),
+        0.9,
+        100,
+        reach={"1": 0.05, "sat(u, 0.4)": 0.2},
+        widths={"sat(u, 0.4)": 0.4},
+    )
+    write_effect_file(cand, tmp_path / "c.py")
+    effect = get_effect(cand.effect_file)
+    kept = KeptCandidate(cand.effect_file, {}, (), candidate=cand)
+    inside = {"candidate_motor_voltage_c1": 0.1, "candidate_motor_voltage_c2": -1.0, "candidate_motor_voltage_w2": 0.5}
+    assert _covering(effect, kept, inside) is effect
+    beyond = {**inside, "candidate_motor_voltage_c1": 0.6}
+    bounds = {p.name: (p.lo, p.hi) for p in effect.parameters}
+    assert not bounds["candidate_motor_voltage_c1"][0] <= 0.6 <= bounds["candidate_motor_voltage_c1"][1]
+    again = _covering(effect, kept, beyond)
+    assert again.__drillgym_file__ == effect.__drillgym_file__
+    for p in again.parameters:
+        assert p.lo <= beyond[p.name] <= p.hi and p.guess == pytest.approx(beyond[p.name])
+    u = 1.3
+    args = {**beyond, "u": u}
+    expected = u + 0.6 - 1.0 * min(max(u, -0.5), 0.5)
+    fn = again.voltage
+    assert fn(**{n: args[n] for n in inspect.signature(fn).parameters}) == pytest.approx(expected)

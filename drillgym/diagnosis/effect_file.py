@@ -11,13 +11,14 @@ FILE.py:NAME`` fits it.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 from .motor_terms import width_parameter
 from .reading_terms import SENSORS
 from .results import Candidate
 
-__all__ = ["write_effect_file"]
+__all__ = ["write_effect_file", "write_fitted"]
 
 _ARGS_FRICTION = ("T", "direction", "speed", "omega")
 #: the quantities and base parameters a term's code may read, besides a friction's own arguments
@@ -168,6 +169,33 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
     cand.name, cand.effect_file = name, f"{path}:{name}"
     return path
+
+
+def write_fitted(cand: Candidate, values: dict[str, float]) -> str:
+    """Write a candidate's file again with fitted values as its coefficients and widths (their guesses, and the
+    bounds around them), where it was written: a model that holds the file at values its regressed bounds do not
+    cover reads it back.
+
+    Parameters
+    ----------
+    cand : Candidate
+        The candidate, its file written (``name`` and ``effect_file`` set).
+    values : dict of str to float
+        Values by the file's parameter names (``NAME_c<i>``, ``NAME_w<i>``); those missing keep the file's.
+
+    Returns
+    -------
+    str
+        The file's spec (``path.py:NAME``), the same as before.
+    """
+    path, _, name = str(cand.effect_file).rpartition(":")
+    terms = {lb: values.get(f"{name}_c{i}", c) for i, (lb, c) in enumerate(cand.terms.items(), 1)}
+    widths = {
+        lb: values.get(f"{name}_w{i}", cand.widths[lb]) for i, lb in enumerate(cand.terms, 1) if lb in cand.widths
+    }
+    fitted = replace(cand, terms=terms, widths=widths)
+    write_effect_file(fitted, path, name)
+    return str(fitted.effect_file)
 
 
 def _term_doc(cand: Candidate, label: str) -> tuple[str, str]:

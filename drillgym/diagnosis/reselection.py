@@ -30,6 +30,7 @@ from typing import Any
 
 from ..effects import Effect
 from ..params import RigParams
+from .candidate import Candidate
 from .effects import effects_for, get_effect
 from .results import Diagnosis
 from .state import DiagnosisOptions
@@ -70,6 +71,8 @@ class KeptCandidate:
         Every parameter of ``through`` as its fit left it (the terms it does not use at 0).
     file_names : dict of str to str
         A parameter of ``through`` the candidate uses -> its name in the file.
+    candidate : Candidate or None
+        The candidate its file was written from (None: a library effect discovery named).
     """
 
     spec: str
@@ -78,6 +81,7 @@ class KeptCandidate:
     through: type[Effect] | None = None
     through_values: dict[str, float] = field(default_factory=dict)
     file_names: dict[str, str] = field(default_factory=dict)
+    candidate: Candidate | None = None
 
     @property
     def held_terms(self) -> tuple[str, ...]:
@@ -111,13 +115,13 @@ def kept_candidate(diagnosis: Diagnosis) -> KeptCandidate | None:
     ahead = tuple(c.fit.with_library)
     through, state = c.fit.through, c.fit.state
     if through is None or state is None:
-        return KeptCandidate(c.effect_file, values, ahead)
+        return KeptCandidate(c.effect_file, values, ahead, candidate=c)
     own = {p.name for p in through.parameters}
     names = {k: v for k, v in c.fit.file_names.items() if k in own}
-    if set(names.values()) != {p.name for p in get_effect(c.effect_file).parameters}:
-        return KeptCandidate(c.effect_file, values, ahead)  # the file's terms do not map one to one: hold the file
+    if set(names.values()) != {p.name for p in get_effect(c.effect_file).parameters}:  # hold the file itself
+        return KeptCandidate(c.effect_file, values, ahead, candidate=c)
     fitted = state.composition.named(state.result.vector)
-    return KeptCandidate(c.effect_file, values, ahead, through, {n: float(fitted[n]) for n in own}, names)
+    return KeptCandidate(c.effect_file, values, ahead, through, {n: float(fitted[n]) for n in own}, names, c)
 
 
 def kept_in_turn(diagnosis: Diagnosis) -> list[KeptCandidate]:
