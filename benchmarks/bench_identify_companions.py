@@ -91,9 +91,11 @@ def run_row(row: dict, duration: float, rate_hz: float, work: Path) -> dict:
     mc = compare_models(ex, found.model, segment_s=default_segment(ex.config))
     ratios = mc.ratios(mc.model)
     d = found.diagnosis
-    fit = d.candidate.fit if d.candidate is not None else None
-    un = found.unexplained
+    # the candidate kept first (a library effect discovery named in its place takes no turn: then the next one's)
+    fits = [s.candidate.fit for s in d.in_turn() if s.candidate is not None and s.candidate.fit is not None]
+    fit = fits[0] if fits else None
     last = found.reselection or d
+    un = last.unexplained
     # a lag and a delay the selection states it cannot tell apart on this input count as the other one
     tie = any(s.effect in found.model.names and row["companion"] in s.note for s in last.ranking)
     not_shown = last.skipped.get(row["companion"]) if row["companion"] not in found.model.names else None
@@ -106,12 +108,12 @@ def run_row(row: dict, duration: float, rate_hz: float, work: Path) -> dict:
         "companion_found": row["companion"] in found.model.names or tie,
         "stated_tie": tie,
         "not_shown": not_shown,
-        "candidate": found.candidate,
+        "candidate": list(found.discovered),
         "candidate_cut": fit.variance_cut if fit is not None else None,
         "halved": bool(fit is not None and fit.variance_cut >= 0.5),
         "model_to_noise": ratios,
         "within_3x": bool(all(v <= 3.0 for v in ratios.values() if np.isfinite(v))),
-        "silent": bool(un.worst >= 10.0 and un.explained),
+        "silent": bool(un is not None and un.worst_channel_ratio >= 10.0 and un.explained),
         "seconds": seconds,
     }
 
