@@ -113,7 +113,7 @@ def run_row(row: dict, duration: float, rate_hz: float, work: Path) -> dict:
         "halved": bool(fit is not None and fit.variance_cut >= 0.5),
         "model_to_noise": ratios,
         "within_3x": bool(all(v <= 3.0 for v in ratios.values() if np.isfinite(v))),
-        "silent": bool(un is not None and un.worst_channel_ratio >= 10.0 and un.explained),
+        "silent": bool(un is not None and un.worst >= 10.0 and un.explained),
         "seconds": seconds,
     }
 
