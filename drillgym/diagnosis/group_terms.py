@@ -7,9 +7,9 @@ coefficient a parameter (0: off), the terms it does not use held at 0:
 * the motor side and the sensors' readings: the library classes of :mod:`.motor_terms` and :mod:`.reading_terms`;
 * every other group (the friction on either disc, the string, a torque on the lower disc, a lateral force): its
   term list (:mod:`.discovery_terms`, :mod:`.lateral_terms`) written once by the candidate files' own writer
-  (:func:`.effect_file.write_effect_file`) with every term in.  Only the candidate's coefficients and bounds
-  change from one recording to the next, and the compiled model's key does not read them
-  (:mod:`drillgym.effects.file_signature`): one compilation per group and machine.
+  (:func:`.effect_file.write_effect_file`) with every term in, in the kernel cache's ``terms`` folder.  Only the
+  candidate's coefficients and bounds change from one recording to the next, and the compiled model's key does not
+  read them (:mod:`drillgym.effects.file_signature`): one compilation per group and machine.
 
 :func:`terms_effect` gives the effect and where the candidate's terms start in it; :func:`terms_parameter` maps a
 term's label to its parameter there.
@@ -127,7 +127,7 @@ def _written(candidate: Candidate) -> str:
         reach={label: candidate.reach.get(label, 0.0) for label, _, _ in terms},
     )
     name = terms_name(group)
-    folder = cache_root().parent / "terms"
+    folder = cache_root() / "terms"  # beside the kernel packages (pruning removes only those)
     folder.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=folder) as tmp:
         draft = write_effect_file(whole, Path(tmp) / f"{name}.py", name)
