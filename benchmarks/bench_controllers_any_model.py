@@ -162,7 +162,9 @@ def main() -> None:
             ok = diag.returncode == 0
         t_id = time.perf_counter() - t0
         if not ok or not model.exists():
-            problems.append(f"plant {i} ({label}): diagnose failed")
+            lines = diag.stderr.strip().splitlines() if not ok else []
+            why = lines[-1] if lines else "no model file written"
+            problems.append(f"plant {i} ({label}): diagnose failed: {why}")
             print(problems[-1], flush=True)
             for n in names:
                 lows[n].append(np.inf)
