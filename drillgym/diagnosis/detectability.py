@@ -48,6 +48,7 @@ import numpy as np
 
 from ..effects import Effect
 from ..identification.fitting import Objective
+from .effects import label_effects
 from .search_model import selection_model
 from .segments import robust_noise
 from .timing import fine_experiments
@@ -334,7 +335,7 @@ def detectability(screening: Screening) -> Detectability:
     """
     m = screening.model
     comp, nominal = m.comp, np.asarray(m.nominal, dtype=float)
-    own = set() if screening.model_label == "base" else set(screening.model_label.split("+"))
+    own = set(label_effects(screening.model_label))
     effects = [e for e in comp.effects if e.name not in own and e.parameters]
     rows, sizes = [nominal], []
     for e in effects:

@@ -49,7 +49,7 @@ from ..identification.experiment import Experiment
 from ..params import N_PARAMS, RigParams
 from .discovery_terms import _SENSE, _groups, _Term
 from .effect_file import write_effect_file
-from .effects import get_effect
+from .effects import get_effect, label_effects
 from .greedy import MAX_CANCEL, greedy_terms
 from .lateral_discovery import LATERAL_GROUP, lateral_candidate
 from .library_columns import LIBRARY_PREFIX, library_columns
@@ -452,8 +452,8 @@ def discover(
         # the library's torque effects the model lacks, regressed beside the terms (.library_columns): their
         # torques per unit of their parameters hardly depend on the base parameters, taken once at the diagnosis'
         if lib is None and diagnosis.composition is not None:
-            own = [] if diagnosis.model == "base" else diagnosis.model.split("+")  # held in the model already
-            lib = library_columns(ex, diagnosis.composition, vec, [*own, *diagnosis.selected], rt_v)
+            held = [*label_effects(diagnosis.model), *diagnosis.selected]  # in the model already: not offered
+            lib = library_columns(ex, diagnosis.composition, vec, held, rt_v)
         # the voltage terms are functions of the voltage the model's motor sees (after its delay and lag)
         c = find_candidate(rt_v, rt_v.u_motor, p.Ju, p.Jl, ex.config.lateral_free, p.ws, p.delta, p.km, library=lib)
         if c is not None and (cand is None or c.explained > cand.explained):

@@ -18,10 +18,27 @@ from ..configurations import Configuration
 from ..effects import LIBRARY, Composition, Effect, EffectError, resolve_effect
 from ..identification.fitting import FitVariable
 
-__all__ = ["EFFECTS", "get_effect", "effects_for", "applies_to", "with_candidate", "fit_variables"]
+__all__ = ["EFFECTS", "get_effect", "effects_for", "applies_to", "with_candidate", "fit_variables", "label_effects"]
 
 #: the library, by name (the diagnosis' default candidates)
 EFFECTS: dict[str, type[Effect]] = dict(LIBRARY)
+
+
+def label_effects(label: str) -> list[str]:
+    """The effects of a model's label (:attr:`drillgym.effects.Composition.label`: ``"base"``, or the names joined
+    by ``+``), in order; empty for the base model.
+
+    Parameters
+    ----------
+    label : str
+        The label.
+
+    Returns
+    -------
+    list of str
+        The effects' names.
+    """
+    return [] if label == "base" else label.split("+")
 
 
 def get_effect(spec: str | type[Effect]) -> type[Effect]:

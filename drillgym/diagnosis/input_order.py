@@ -18,6 +18,7 @@ from ..effects import Composition
 from ..effects.base import Input
 from .context import SelectionContext, converged_fit
 from .effective import effective_samples
+from .effects import label_effects
 from .results import Diagnosis
 from .state import Screening, transfer
 
@@ -110,8 +111,7 @@ def input_order(screening: Screening, diagnosis: Diagnosis) -> InputOrder | None
     comp, vec = diagnosis.composition, diagnosis.vector
     if comp is None or vec is None:
         return None
-    base = [] if diagnosis.model == "base" else diagnosis.model.split("+")
-    active = [*base, *diagnosis.selected]
+    active = [*label_effects(diagnosis.model), *diagnosis.selected]
     inputs = [e.name for e in comp.effects if issubclass(e, Input) and e.name in active]
     if len(inputs) != 2:
         return None

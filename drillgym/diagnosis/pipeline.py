@@ -153,8 +153,6 @@ def _discovered(
     found = _not_held(found, held)  # a group found in turn once more is the first's terms again
     readings = [r for r in reading_candidates(diagnosis) if _not_held(r, held) is not None]
     library = library_answer(found)
-    if library is not None and library.effect in diagnosis.model.split("+"):  # in the model already: no answer
-        library = None
     if library is not None and not _a_reading_shows(screening, diagnosis, readings, noise):
         # known physics the selection missed, and no sensor's reading for it (an encoder's scale error reads as a
         # torque growing along the run, as a friction drift's does): no outside file

@@ -23,6 +23,7 @@ from ..effects import Composition
 from ..identification.fitting import FitResult
 from ..params import RigParams
 from .candidate import Candidate
+from .effects import label_effects
 from .unexplained import Unexplained
 
 __all__ = ["SelectionStep", "BaseChange", "Selection", "EffectScore", "Candidate", "Diagnosis"]
@@ -385,7 +386,7 @@ class Diagnosis:
 
         if self.composition is None or self.vector is None or self.params is None:
             raise ValueError("the diagnosis holds no final model (a ranking alone selects nothing)")
-        keep = set(([] if self.model == "base" else self.model.split("+")) + list(self.selected))
+        keep = {*label_effects(self.model), *self.selected}
         path = self.composition.signal_path(among=keep)
         rest = [e.name for e in self.composition.effects if e.name in keep and e.name not in path]
         by_name = {e.name: e for e in self.composition.effects}
@@ -431,8 +432,7 @@ class Diagnosis:
         """The Delay and Input effects of the base model and the selection, command side first."""
         if self.composition is None:
             return []
-        base = [] if self.model == "base" else self.model.split("+")
-        return self.composition.signal_path(among=[*base, *self.selected])
+        return self.composition.signal_path(among=[*label_effects(self.model), *self.selected])
 
     def text(self) -> str:
         """The diagnosis as the command line prints it."""

@@ -20,6 +20,7 @@ from ..effects import Composition, Effect
 from ..identification.experiment import Experiment
 from ..identification.fitting import Objective
 from ..identification.segmented import SegmentedModel
+from .effects import label_effects
 from .segments import place_segment_starts
 
 __all__ = [
@@ -143,7 +144,7 @@ def with_candidate(
     Composition
         The composition.
     """
-    own = set() if model == "base" else set(model.split("+"))
+    own = set(label_effects(model))
     by_name = {e.name: e for e in search.effects}
     first = [e for e in search.effects if e.name in own]
     before = [by_name.get(n, e) for n, e in ahead.items() if n not in own]
