@@ -464,14 +464,20 @@ class SegmentedModel(SpeedCorrections):
     def _effect_states(
         self, ex: Experiment, plan: dict, S: np.ndarray, drive: np.ndarray, starts: np.ndarray
     ) -> np.ndarray:
-        """Effect states at each segment start (B*ns, n_states) from one free run of the record per row."""
+        """Effect states at each segment start (B*ns, n_states) from one free run of the record per row; the run
+        starts as the simulator's: lag states at the first command held, the others at 0 (a record that starts
+        under voltage, the second half of a recording, would otherwise start its lag at 0 V)."""
         rec, dt = plan["rec"], plan["dt"]
         n_steps = int(starts[-1] * rec)
         B, ns, sim = S.shape[0], len(starts), self._sim
+        lags = [c - N_STATE for c in sim.lag_state_columns]  # NaN: the kernel starts them at the first command
         if n_steps == 0:
-            return np.zeros((B * ns, sim.n_states))
+            states = np.zeros((B * ns, sim.n_states))
+            states[:, lags] = np.nan
+            return states
         X0 = np.zeros((B, sim.n_state))
         X0[:, :N_STATE] = ex.initial_states(np.zeros(B, dtype=int), self._full_rows(S), self.composition)
+        X0[:, N_STATE + np.asarray(lags, dtype=int)] = np.nan
         HIST, HEAD = self._delay_lines(S, drive, np.zeros(1, dtype=int), rec, dt, 1)
         D = self._simulate(
             ex.config, np.ascontiguousarray(drive[:, :n_steps]), dt, S, X0, np.zeros(B), HIST, HEAD, rec, n_steps, 1
