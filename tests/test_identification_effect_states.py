@@ -92,8 +92,8 @@ def test_a_model_computes_a_voltage_paths_states_once():
 
 def test_a_segment_starting_under_voltage_starts_its_lag_at_the_command():
     """A record that starts with the motor driven (the second half of a recording): a lag behind another Input
-    effect starts at the first command held, as the simulator starts it, not at 0 V (a 140 rad/s-wide transient
-    that made a position friction 'not seen' in the second half)."""
+    effect starts at the first command held, as the simulator starts it, not at 0 V (whose transient made a real
+    position friction 'not seen' in the second half of a recording, and dropped it)."""
     from drillgym.diagnosis.reproducibility import split_halves
     from drillgym.measurement import MeasurementModel
 
