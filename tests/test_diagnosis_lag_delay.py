@@ -246,3 +246,52 @@ def test_a_smooth_input_warns_that_a_lag_or_delay_hides_in_the_motor_side_parame
     assert smooth_input_warning([steps], comp, nominal, tcu, ["friction_drift"]) == []
     assert smooth_input_warning([ramps], comp, nominal, tcu, ["input_delay"]) == []
     assert smooth_input_warning([ramps], comp, nominal, {"Ts": BaseChange(1.0, 1.05, 5.0, float("nan"))}, []) == []
+
+
+def test_a_decision_the_other_ones_own_base_reverses_takes_the_other_one(monkeypatch):
+    """Decided on base parameters refitted with the incumbent (a delay by 2236 nats), reversed with the other
+    one's own base parameters (a lag by 310): each fitted with its own base is the fair comparison, and where it
+    reversed the decision the incumbent was the wrong one on every independent recording seen, so the lag is
+    taken, with its own base as the start of its refit, and the tie stated with both figures."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    import drillgym.diagnosis.lag_delay as lag_delay
+    import drillgym.diagnosis.timing as timing
+    from drillgym.diagnosis.effects import get_effect
+    from drillgym.identification.experiment import prepare_experiment
+    from drillgym.identification.fitting import base_vector
+
+    cands = [get_effect("motor_lag"), get_effect("input_delay")]
+    comp = search_composition(compose(None, None)[0], cands)
+    nominal = base_vector(comp, RigParams(), neutral_values(cands))
+    vec = nominal.copy()
+    vec[comp.param_index("delay")] = 0.015
+    own = nominal.copy()
+    own[comp.param_index("tau_m")] = 0.016
+    t = np.arange(10001) / 500.0
+    u = 1.5 + 2.0 * np.random.default_rng(5).uniform(-1, 1, 10)[np.minimum((t // 2.0).astype(int), 9)]
+    ex = prepare_experiment(synthetic_measurement("torsional", duration=20.0, input=(t, u), seed=3), compare_rate_hz=50)
+    values = {"motor_lag": 0.0167, "input_delay": 0.0151}
+    held_base = timing.FineDecision("input_delay", "motor_lag", 2236.0, 500.0, values, n_eff=10000.0)
+    reversed_ = timing.FineDecision("motor_lag", "input_delay", 310.0, 500.0, values, n_eff=10000.0)
+    nominal_check = timing.FineDecision("motor_lag", "input_delay", 40.0, 500.0, values, n_eff=10000.0)
+    answers = iter([[held_base], [reversed_, nominal_check]])
+    monkeypatch.setattr(timing, "decide_lag_delay_many", lambda *a, **k: next(answers))
+    monkeypatch.setattr(lag_delay, "own_base", lambda *a: own)
+    taken = []
+    monkeypatch.setattr(
+        lag_delay, "_take_other", lambda out, ctx, a, b, model_b, value: taken.append((a, b, model_b, value))
+    )
+    out = Selection(selected=["input_delay"], vector=vec, base_off=True)
+    search = SimpleNamespace(
+        obj=SimpleNamespace(weights={}), comp=comp, candidates=cands, base_names=("km",), nominal=nominal
+    )
+    dec = lag_delay.check_lag_delay(out, [ex], search, 4.0)
+    assert dec.chosen == "motor_lag" and dec.tie, dec
+    assert "2236" in dec.doubt and "310" in dec.doubt and "own base parameters" in dec.doubt
+    assert dec.own_base["chosen"] == "input_delay" and dec.nominal_base["chosen"] == "motor_lag"
+    assert len(taken) == 1 and taken[0][:2] == ("input_delay", "motor_lag") and taken[0][2] is own
+    assert taken[0][3] == 0.0167
+    assert "indistinguishable" in out.ties["motor_lag"]

@@ -13,8 +13,8 @@ checked again on the recording's own samples (up to :data:`FINE_RATE_HZ`):
   by orders of magnitude of the RSS), the rest of the model held.  When the selection refitted the base
   parameters (with the incumbent in the model), the decision is checked twice and stated as a tie if
   either reverses it: the other one given its own base parameters, refitted with it on the comparison grid
-  (:func:`drillgym.diagnosis.lag_delay.own_base`: as the decision itself it is no better a judge, see there),
-  and both with the nominal base parameters;
+  (:func:`drillgym.diagnosis.lag_delay.own_base`: alone no better a judge, but where it reverses the decision
+  the other one is taken, see there), and both with the nominal base parameters;
 * the two log-likelihoods are compared (N_eff ln of the RSS ratio, the smaller N_eff of the two fine
   residuals).  The winner by more than :data:`FINE_TIE_NATS` is taken; within that, the two are
   stated as a tie.
