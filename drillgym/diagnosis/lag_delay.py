@@ -207,9 +207,9 @@ def own_base(ctx: SelectionContext, out: Selection, a: str, b: str, without_a: n
     by :data:`.timing.FINE_TIE_NATS` or more (on those 36 recordings: the three wrong lags above, no right
     decision).  Where it does, the other one is taken, as each fitted with its own base parameters, and the tie
     stated (a true 16 ms lag read as a delay behind a voltage offset: the observer built on the delay held the
-    lower disc 13 % below 2 rad/s, on the lag at the target).  The refit goes to convergence, the speeds at the segment starts refined for it
-    (:func:`.context.converged_fit`: the incumbent's own base was fitted so), then restored to the
-    incumbent's.
+    lower disc 13 % below 2 rad/s, on the lag at the target).  The refit goes to convergence, the speeds at the
+    segment starts refined for it (:func:`.context.converged_fit`: the incumbent's own base was fitted so), then
+    restored to the incumbent's.
     """
     comp = ctx.comp
     start = without_a.copy()
