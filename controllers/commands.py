@@ -107,8 +107,8 @@ def register(app: typer.Typer) -> None:
             None,
             "--model",
             help="model file (JSON/YAML: base parameters and effects) the controllers are built on: observer, lqg "
-            "and lqg-2enc run its effects (a lag, a delay, lower-disc friction), the others its base parameters; "
-            "default the nominal model (--params) without effects",
+            "and lqg-2enc run all its effects (library names, user and candidate files), the others its base "
+            "parameters; default the nominal model (--params) without effects",
         ),
         trust: bool = trust_option(),
         identify: bool = typer.Option(
