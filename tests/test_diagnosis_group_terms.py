@@ -125,3 +125,32 @@ def test_a_fitted_value_beyond_the_regressed_bounds_is_written_into_the_candidat
     expected = u + 0.6 - 1.0 * min(max(u, -0.5), 0.5)
     fn = again.voltage
     assert fn(**{n: args[n] for n in inspect.signature(fn).parameters}) == pytest.approx(expected)
+
+
+def test_no_fit_makes_the_voltage_at_the_motor_fall_as_the_command_rises(tmp_path):
+    """A dead zone is sat(u, w) with coefficient -1 (the motor sees nothing inside the width); below -1 the voltage
+    would fall as the command rises, which no drive does.  Let go there, the fit of a dead zone read for a -0.3 V
+    offset slid to -3 sat(u, 0.096) and the observer built on it held nothing below 4 rad/s.  The group's terms and
+    a candidate's file both stop at -1; the other terms keep their symmetric bounds."""
+    from drillgym.diagnosis.discovery_terms import _voltage_terms
+    from drillgym.diagnosis.effects import get_effect
+    from drillgym.diagnosis.motor_terms import MotorVoltageTerms
+
+    assert {p.name: p.lo for p in MotorVoltageTerms.parameters}["mv_sat"] == -1.0
+    terms = {t.label: t for t in _voltage_terms()}
+    chosen = ("u|u|", "sat(u, 0.2)")
+    for c in (-1.0, -1.4):  # a regressed coefficient below -1 starts at -1
+        cand = Candidate(
+            "motor_voltage",
+            {"u|u|": 0.02, "sat(u, 0.2)": c},
+            {lb: terms[lb].code for lb in chosen},
+            dict.fromkeys(chosen, 0.0),
+            0.9,
+            100,
+            widths={"sat(u, 0.2)": 0.2},
+        )
+        write_effect_file(cand, tmp_path / f"c{abs(c)}.py")
+        params = {p.name: p for p in get_effect(cand.effect_file).parameters}
+        sat = params["candidate_motor_voltage_c2"]
+        assert sat.lo == -1.0 and sat.hi == pytest.approx(4 * abs(c)) and sat.guess == -1.0
+        assert params["candidate_motor_voltage_c1"].lo == pytest.approx(-0.08)

@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-from .motor_terms import width_parameter
+from .motor_terms import SAT_LOWEST, width_parameter
 from .reading_terms import SENSORS
 from .results import Candidate
 
@@ -69,9 +69,11 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
     params, body, widths = [], [], []
     for i, (label, c) in enumerate(cand.terms.items(), 1):
         size = max(abs(c), cand.reach.get(label, 0.0), 1e-9)
+        lowest = max(-4 * size, SAT_LOWEST) if voltage and label in cand.widths else -4 * size  # no falling voltage
+        c = max(c, lowest)
         term_unit, doc = _term_doc(cand, label)
         params.append(
-            f'        Parameter("{name}_c{i}", "{term_unit}", {-4 * size!r}, {4 * size!r}, {c!r}, {size / 2!r},\n'
+            f'        Parameter("{name}_c{i}", "{term_unit}", {lowest!r}, {4 * size!r}, {c!r}, {size / 2!r},\n'
             f'                  doc="{doc}", neutral=0.0),'
         )
         code = cand.codes[label]

@@ -22,6 +22,7 @@ from .reading_terms import ENCODER_TERM, SENSORS, EncoderTerms
 
 __all__ = [
     "MotorVoltageTerms",
+    "SAT_LOWEST",
     "UpperTorqueTerms",
     "EncoderTerms",
     "TERM_EFFECTS",
@@ -36,6 +37,13 @@ __all__ = [
 HARMONICS = (1, 2, 3, 4, 6, 8, 12)
 
 
+#: the lowest coefficient of sat(u, w): a dead zone.  Below it the voltage at the motor would fall as the command
+#: rises inside the width, which no drive does; a fit let go there slid along the valley c w = const to imitate an
+#: offset (c = -3, w = 0.096 V for a -0.3 V offset), and the observer built on that model held nothing below 4 rad/s
+#: where the same model with the offset held 2.5
+SAT_LOWEST = -1.0
+
+
 class MotorVoltageTerms(Input):
     """The voltage at the motor: u + o + a sign(u) + b |u| + c u|u| + d u³ + e sat(u, w)."""
 
@@ -46,7 +54,7 @@ class MotorVoltageTerms(Input):
         Parameter("mv_abs", "-", -2.0, 2.0, 0.0, 0.02, "coefficient of |u|", neutral=0.0),
         Parameter("mv_uabs", "1/V", -1.0, 1.0, 0.0, 0.005, "coefficient of u|u|", neutral=0.0),
         Parameter("mv_u3", "1/V²", -0.5, 0.5, 0.0, 0.002, "coefficient of u³", neutral=0.0),
-        Parameter("mv_sat", "-", -3.0, 3.0, 0.0, 0.1, "coefficient of sat(u, w): -1 is a dead zone", neutral=0.0),
+        Parameter("mv_sat", "-", SAT_LOWEST, 3.0, 0.0, 0.1, "coefficient of sat(u, w): -1 is a dead zone", neutral=0.0),
         Parameter("mv_w", "V", 0.0, 3.0, 0.4, 0.1, "width w of sat(u, w)", neutral=0.0),
     )
     configurations = ("upper", "torsional", "lateral", "coupled")
