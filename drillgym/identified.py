@@ -43,6 +43,9 @@ __all__ = ["IdentifyOptions", "Identified", "identify", "TIMING_EFFECTS"]
 TIMING_EFFECTS = ("motor_lag", "input_delay")
 #: share of the residual sum of squares the fit with both must remove to replace the fit with one
 BOTH_TIMING_GAIN = 0.05
+#: share of the residual sum of squares a kept candidate's other reading must remove to replace it
+#: (:mod:`.diagnosis.other_reading`)
+OTHER_READING_GAIN = 0.05
 #: where the fit with both starts: this share of the one's time as the lag, the rest as the delay
 LAG_SHARE = 0.7
 
@@ -225,6 +228,9 @@ def identify(recording: TimeSeries | str | Path, options: IdentifyOptions | None
     notes: list[str] = []
     held = tuple(n for k in kept for n in k.held_terms)
     comp, fitted, res = _joint_fit(ts, last, params, specs, values, o, notes, held)
+    kept, (comp, fitted, res), notes = _other_readings(
+        ts, last, params, specs, values, o, kept, (comp, fitted, res), notes
+    )
     _log("joint fit", start_time)
     std = {k: v for k, v in res.std.items() if math.isfinite(v)}
     comp, fitted, std = _in_files(comp, fitted, std, kept)
@@ -365,6 +371,32 @@ def _joint_fit(ts, d, params, specs, values, o: IdentifyOptions, notes: list[str
             best = other
             notes.append(f"a motor lag and an input delay fitted together: residual {ss2:.3g} against {ss:.3g} rad²")
     return best
+
+
+def _other_readings(ts, d, params, specs, values, o: IdentifyOptions, kept: list, best: tuple, notes: list[str]):
+    """The kept candidates each read the other way where that fits the whole model better
+    (:mod:`.diagnosis.other_reading`: a dead zone for an offset, or the converse): the candidates, the joint fit
+    and its notes."""
+    from .diagnosis.other_reading import other_reading
+
+    kept = list(kept)
+    for i, k in enumerate(kept):
+        other = other_reading(k)
+        if other is None:
+            continue
+        trial_kept = [*kept[:i], other.kept, *kept[i + 1 :]]
+        held = tuple(n for t in trial_kept for n in t.held_terms)
+        trial_notes: list[str] = []
+        trial = _joint_fit(ts, d, params, specs, {**values, **other.kept.through_values}, o, trial_notes, held)
+        ss, ss2 = _sum_of_squares(best[2]), _sum_of_squares(trial[2])
+        if ss2 < (1.0 - OTHER_READING_GAIN) * ss:
+            kept[i], best = other.write(), trial
+            notes = [
+                *trial_notes,
+                f"the candidate read the other way, with the terms {', '.join(other.candidate.terms)}, fits the whole "
+                f"model better: residual {ss2:.3g} against {ss:.3g} rad²",
+            ]
+    return kept, best, notes
 
 
 def _search_model_for(search: Any, comp: Any) -> Any:

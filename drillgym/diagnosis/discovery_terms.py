@@ -7,7 +7,7 @@ expression in a written effect file and how it is computed from the data.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -190,6 +190,29 @@ _SENSE = {
     "upper_force": (1.0, 0.0),
     "motor_voltage": (1.0, 0.0),  # per volt at the motor: times km (the coefficients are turned into volts)
 }
+
+
+def offset_variant(cand: Candidate) -> Candidate | None:
+    """The motor-side candidate with its dead zone read as a negative offset, or None when it has none (the
+    converse of :func:`dead_zone_variant`: ``-sat(u, w)`` becomes the constant ``-w``)."""
+    if cand.group != "motor_voltage" or "1" in cand.terms:
+        return None
+    zone = next((k for k in cand.widths if k.startswith("sat(u") and cand.terms.get(k, 0.0) < -0.5), None)
+    if zone is None:
+        return None
+    width = cand.widths[zone]
+    terms = {"1" if k == zone else k: (-width if k == zone else v) for k, v in cand.terms.items()}
+    codes = {"1" if k == zone else k: ("1.0" if k == zone else v) for k, v in cand.codes.items()}
+    return replace(
+        cand,
+        terms=terms,
+        codes=codes,
+        at_rest={"1" if k == zone else k: (0.0 if k == zone else v) for k, v in cand.at_rest.items()},
+        reach={"1" if k == zone else k: v for k, v in cand.reach.items()},
+        widths={k: w for k, w in cand.widths.items() if k != zone},
+        effect_file=None,
+        fit=None,
+    )
 
 
 def dead_zone_variant(cand: Candidate) -> Candidate | None:

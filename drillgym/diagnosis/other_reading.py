@@ -1,0 +1,88 @@
+"""The other reading of a kept voltage candidate: a dead zone for an offset, or an offset for a dead zone.
+
+Where the command never turns the motor backwards, a negative offset ``-w`` and a dead zone of half-width ``w``
+(``-sat(u, w)``) change the voltage at the motor alike wherever the command is above ``w``; inside, the motor
+sees ``u - w`` (a voltage that brakes it) or nothing.  The candidate's own fit, on a model that may still lack
+the lag and the friction beside it, cannot tell them apart (an independent plant's 0.4 V dead zone: both readings
+removed 97.6 % of the unexplained variance), and the model a controller is built on must have the right one: an
+observer on the offset read for that dead zone held nothing below 4 rad/s.  :func:`drillgym.identify` fits the
+other reading with the whole model (:func:`other_reading`) and keeps the one that fits it better.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from .candidate import Candidate
+from .discovery_terms import dead_zone_variant, offset_variant
+from .effect_file import write_effect_file
+from .motor_terms import WIDTH_PARAMETERS, term_parameters
+from .reselection import KeptCandidate
+
+__all__ = ["OtherReading", "other_reading"]
+
+
+@dataclass(frozen=True)
+class OtherReading:
+    """A kept candidate read the other way.
+
+    Attributes
+    ----------
+    kept : KeptCandidate
+        The other reading as a kept candidate, on the same compiled terms (its file not written yet).
+    candidate : Candidate
+        Its terms, as its file is written (:meth:`write`).
+    """
+
+    kept: KeptCandidate
+    candidate: Candidate
+
+    def write(self) -> KeptCandidate:
+        """Write the other reading's file in the place of the first's (the same path and effect name).
+
+        Returns
+        -------
+        KeptCandidate
+            The kept candidate holding the file written.
+        """
+        path = Path(self.kept.spec.rpartition(":")[0])
+        write_effect_file(self.candidate, path, self.candidate.name)
+        return replace(self.kept, spec=self.candidate.effect_file, candidate=self.candidate)
+
+
+def other_reading(kept: KeptCandidate) -> OtherReading | None:
+    """The kept candidate's other reading (module docstring), or None when it has none.
+
+    Parameters
+    ----------
+    kept : KeptCandidate
+        A candidate that entered the model, fitted through its group's compiled terms.
+
+    Returns
+    -------
+    OtherReading or None
+        The other reading, its terms started at the regressed values (the replaced term's parameter at 0 and
+        held), the terms both share at the kept candidate's fitted values.
+    """
+    c = kept.candidate
+    if kept.through is None or c is None or c.group != "motor_voltage":
+        return None
+    other = dead_zone_variant(c) or offset_variant(c)
+    if other is None:
+        return None
+    other = replace(other, name=c.name)
+    names: dict[str, str] = {}
+    start: dict[str, float] = {}
+    for i, (label, value) in enumerate(other.terms.items(), 1):
+        parameter = term_parameters(c.group, label)
+        if parameter is None:
+            return None
+        names[parameter] = f"{c.name}_c{i}"
+        start[parameter] = kept.through_values.get(parameter, value) if parameter in kept.file_names else value
+        if label in other.widths:
+            width = WIDTH_PARAMETERS[c.group]
+            names[width] = f"{c.name}_w{i}"
+            start[width] = other.widths[label]
+    off = dict.fromkeys(kept.through_values, 0.0)  # the terms it does not use: off, and held there
+    return OtherReading(replace(kept, through_values={**off, **start}, file_names=names), other)

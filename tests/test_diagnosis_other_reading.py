@@ -1,0 +1,71 @@
+"""A kept voltage candidate read the other way: a dead zone for an offset, an offset for a dead zone."""
+
+import pytest
+
+from drillgym.diagnosis.candidate import Candidate
+from drillgym.diagnosis.discovery_terms import _voltage_terms
+from drillgym.diagnosis.effect_file import write_effect_file
+from drillgym.diagnosis.effects import get_effect
+from drillgym.diagnosis.motor_terms import MotorVoltageTerms
+from drillgym.diagnosis.other_reading import other_reading
+from drillgym.diagnosis.reselection import KeptCandidate
+
+TERMS = {t.label: t for t in _voltage_terms()}
+
+
+def _kept(terms, widths, fitted, names, tmp_path):
+    cand = Candidate(
+        "motor_voltage",
+        terms,
+        {lb: TERMS[lb].code if lb in TERMS else "min(max(u, -U0), U0)" for lb in terms},
+        dict.fromkeys(terms, 0.0),
+        0.97,
+        1000,
+        name="candidate_motor_voltage",
+        widths=widths,
+    )
+    write_effect_file(cand, tmp_path / "cand.py", cand.name)
+    through = {p.name: 0.0 for p in MotorVoltageTerms.parameters} | fitted
+    return KeptCandidate(cand.effect_file, {}, (), MotorVoltageTerms, through, names, cand)
+
+
+def test_an_offset_is_read_again_as_a_dead_zone_of_its_size_and_its_file_written_in_its_place(tmp_path):
+    kept = _kept(
+        {"u³": 0.005, "1": -0.17},
+        {},
+        {"mv_u3": 3e-4, "mv_offset": -0.398},
+        {"mv_u3": "candidate_motor_voltage_c1", "mv_offset": "candidate_motor_voltage_c2"},
+        tmp_path,
+    )
+    other = other_reading(kept)
+    assert list(other.candidate.terms) == ["u³", "sat(u, 0.17)"] and other.candidate.terms["sat(u, 0.17)"] == -1.0
+    v = other.kept.through_values
+    assert v["mv_u3"] == 3e-4 and v["mv_sat"] == -1.0 and v["mv_w"] == pytest.approx(0.17) and v["mv_offset"] == 0.0
+    assert "mv_offset" in other.kept.held_terms and "mv_sat" not in other.kept.held_terms
+    assert other.kept.file_names == {
+        "mv_u3": "candidate_motor_voltage_c1",
+        "mv_sat": "candidate_motor_voltage_c2",
+        "mv_w": "candidate_motor_voltage_w2",
+    }
+    written = other.write()
+    assert written.spec == kept.spec  # the same file and effect, now the dead zone
+    effect = get_effect(written.spec)
+    args = {"u": 0.1, "candidate_motor_voltage_c1": 0.0, "candidate_motor_voltage_c2": -1.0}
+    assert effect.voltage(**args, candidate_motor_voltage_w2=0.3) == pytest.approx(0.0)  # inside the zone: nothing
+    assert effect.voltage(**{**args, "u": 2.0}, candidate_motor_voltage_w2=0.3) == pytest.approx(1.7)
+
+
+def test_a_dead_zone_is_read_again_as_an_offset_and_a_candidate_with_neither_has_no_other_reading(tmp_path):
+    kept = _kept(
+        {"sat(u, 0.3)": -1.0},
+        {"sat(u, 0.3)": 0.3},
+        {"mv_sat": -0.95, "mv_w": 0.32},
+        {"mv_sat": "candidate_motor_voltage_c1", "mv_w": "candidate_motor_voltage_w1"},
+        tmp_path,
+    )
+    other = other_reading(kept)
+    assert other.candidate.terms == {"1": -0.3} and not other.candidate.widths
+    assert other.kept.through_values["mv_offset"] == pytest.approx(-0.3) and other.kept.through_values["mv_sat"] == 0
+    assert set(other.kept.held_terms) >= {"mv_sat", "mv_w"}
+    plain = _kept({"u³": 0.005}, {}, {"mv_u3": 3e-4}, {"mv_u3": "candidate_motor_voltage_c1"}, tmp_path)
+    assert other_reading(plain) is None
