@@ -200,18 +200,27 @@ def offset_variant(cand: Candidate) -> Candidate | None:
     zone = next((k for k in cand.widths if k.startswith("sat(u") and cand.terms.get(k, 0.0) < -0.5), None)
     if zone is None:
         return None
-    width = cand.widths[zone]
-    terms = {"1" if k == zone else k: (-width if k == zone else v) for k, v in cand.terms.items()}
-    codes = {"1" if k == zone else k: ("1.0" if k == zone else v) for k, v in cand.codes.items()}
+    widths = {k: w for k, w in cand.widths.items() if k != zone}
+    return _read_as(cand, zone, "1", -cand.widths[zone], "1.0", widths)
+
+
+def _read_as(cand: Candidate, old: str, new: str, coefficient: float, code: str, widths: dict) -> Candidate:
+    """The candidate with its term ``old`` read as ``new`` (in its place, with this coefficient and code, 0 at
+    rest) and these widths: a new candidate, no file, no fit."""
+
+    def renamed(values: dict) -> dict:
+        return {new if k == old else k: v for k, v in values.items()}
+
     return replace(
         cand,
-        terms=terms,
-        codes=codes,
-        at_rest={"1" if k == zone else k: (0.0 if k == zone else v) for k, v in cand.at_rest.items()},
-        reach={"1" if k == zone else k: v for k, v in cand.reach.items()},
-        widths={k: w for k, w in cand.widths.items() if k != zone},
+        terms={**renamed(cand.terms), new: coefficient},
+        codes={**renamed(cand.codes), new: code},
+        at_rest={**renamed(cand.at_rest), new: 0.0},
+        reach=renamed(cand.reach),
+        widths=widths,
         effect_file=None,
         fit=None,
+        alternative=None,
     )
 
 
@@ -230,19 +239,4 @@ def dead_zone_variant(cand: Candidate) -> Candidate | None:
     width = abs(cand.terms[label])
     sat = next(t for t in _voltage_terms() if t.width is not None)
     zone = f"sat(u, {width:.3g})"
-    terms = {zone if k == label else k: (-1.0 if k == label else v) for k, v in cand.terms.items()}
-    codes = {zone if k == label else k: (sat.code if k == label else v) for k, v in cand.codes.items()}
-    at_rest = {zone if k == label else k: (0.0 if k == label else v) for k, v in cand.at_rest.items()}
-    return Candidate(
-        cand.group,
-        terms,
-        codes,
-        at_rest,
-        cand.explained,
-        cand.n_samples,
-        cand.name,
-        rest=cand.rest,
-        reach={zone if k == label else k: v for k, v in cand.reach.items()},
-        widths={**cand.widths, zone: width},
-        through_lag=cand.through_lag,
-    )
+    return _read_as(cand, label, zone, -1.0, sat.code, {**cand.widths, zone: width})
