@@ -322,6 +322,29 @@ def test_a_coupled_excitation_run_records_the_lvdts_a_coupled_diagnosis_reads():
     prepare_experiment(ts)  # what diagnose reads: refused before when x, y were missing
 
 
+@pytest.mark.parametrize("config", ["torsional", "coupled"])
+def test_the_compiled_excitation_run_records_what_the_step_by_step_one_does(config):
+    from controllers.evaluation.identify import _Playback
+    from controllers.evaluation.runner import run_closed_loop
+    from drillgym.signals import quasi_random
+
+    pop = sample_plants(2, 0)
+    _, u = quasi_random(3.0, rate_hz=500.0, seed=3, amplitude=5.0, offset=2.5)
+    channels = ("theta_u", "theta_l", "x", "y") if config == "coupled" else ("theta_u", "theta_l")
+    got = []
+    for compiled in (True, False):
+        play = _Playback(u, 1 / 500.0, channels)
+        run = run_closed_loop(play, config, np.ones(1), 3.0, params=np.atleast_2d(pop.matrix[1]),
+                              counts_per_rev=2048, angle_noise=2e-4, seed=5, effects=pop.composition,
+                              compiled=compiled)  # fmt: skip
+        got.append((run.u, play.reports()))
+    (u_c, seen_c), (u_s, seen_s) = got
+    np.testing.assert_array_equal(u_c, u_s)
+    assert set(seen_c) == set(channels) and np.ptp(seen_c["theta_u"]) > 0
+    for key in channels:  # the same noise stream, the same quantisation: the same numbers
+        np.testing.assert_array_equal(seen_c[key], seen_s[key])
+
+
 def test_identify_is_refused_without_a_population(tmp_path, capsys):
     args = ["evaluate", "--config", "torsional", "--controllers", "pi", "--out", str(tmp_path / "ev"), "--identify"]
     with pytest.raises(SystemExit) as e:

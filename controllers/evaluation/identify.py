@@ -89,7 +89,8 @@ class ExcitationOptions:
 
 class _Playback(Controller):
     """Plays a voltage sequence and keeps what the sensors reported at each period: the encoders, and the
-    LVDTs in a configuration with the lateral motion."""
+    LVDTs in a configuration with the lateral motion.  Its compiled law (:mod:`controllers.compiled.playback_law`)
+    does the same in the compiled closed loop."""
 
     name = "playback"
     uses = ("theta_u", "theta_l", "x", "y")
@@ -98,7 +99,9 @@ class _Playback(Controller):
         super().__init__(1.0, dt=dt)
         self.u = np.asarray(u, dtype=float)
         self.k = 0
+        self.channels = channels
         self.seen: dict[str, list[np.ndarray]] = {c: [] for c in channels}
+        self._law_state: np.ndarray | None = None
 
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
         for key in self.seen:
@@ -106,6 +109,23 @@ class _Playback(Controller):
         u = self.u[min(self.k, self.u.size - 1)]
         self.k += 1
         return np.full(self.n, u)
+
+    def _compiled_law(self):
+        from ..compiled import CompiledLaw
+        from ..compiled.playback_law import playback_state, playback_step
+
+        self._law_state = playback_state(self.u.size, self.n)
+        return CompiledLaw(playback_step, self._law_state, np.ascontiguousarray(self.u))
+
+    def reports(self) -> dict[str, np.ndarray]:
+        """Channel -> what the sensors reported at each period of the first run (rad, m)."""
+        if self._law_state is None:
+            return {k: np.array([v[0] for v in vals]) for k, vals in self.seen.items()}
+        from ..compiled.playback_law import played_measurements
+
+        kept = played_measurements(self._law_state)
+        rows = {"theta_u": 0, "theta_l": 1, "x": 2, "y": 3}
+        return {k: kept[:, rows[k], 0].copy() for k in self.channels}
 
 
 def excitation_recording(
@@ -158,7 +178,7 @@ def excitation_recording(
         effects=composition,
     )
     cols = {"t": run.t, "u": run.u[0]}
-    cols.update({k: np.array([v[0] for v in vals]) for k, vals in play.seen.items()})
+    cols.update(play.reports())
     meta = {
         "configuration": config,
         "source": "simulation",
