@@ -60,6 +60,11 @@ CONSTRUCTS = [
         True,
     ),
     ("conditional expressions", "return omega_u if omega_u > 0.0 else -omega_u", True),
+    (
+        "the power operator `**` (a fractional or variable exponent vectorised in the lane variant)",
+        "return abs(omega_u) ** 1.5 + omega_u ** 2 + 2.0 ** omega_u + (-omega_u) ** 3.0 + abs(omega_u) ** GAIN",
+        True,
+    ),
     ("local variables, tuple unpacking", "a, b = omega_u, 2.0 * omega_u\nc = a * b\nreturn c - a", True),
     (
         "`for` over `range`, `while`",
