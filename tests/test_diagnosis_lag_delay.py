@@ -295,3 +295,28 @@ def test_a_decision_the_other_ones_own_base_reverses_takes_the_other_one(monkeyp
     assert len(taken) == 1 and taken[0][:2] == ("input_delay", "motor_lag") and taken[0][2] is own
     assert taken[0][3] == 0.0167
     assert "indistinguishable" in out.ties["motor_lag"]
+
+
+def test_a_lag_the_model_holds_undecided_on_a_smooth_input_is_stated():
+    """A lag held in the model (the one a candidate's terms were found through, refitted when the library is
+    selected again) is never weighed against a delay by the check: on ramps the diagnosis says either may be
+    there; on steps, or with both held, nothing."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from drillgym.diagnosis.lag_delay import held_timing_warning
+    from drillgym.effects import compose
+
+    comp = compose(["motor_lag"])[0]
+    nominal = comp.vector(None)
+    t = np.arange(0.0, 20.0, 0.005)
+    ramps = SimpleNamespace(u_time=t, u_value=1.3 + 1.5 * np.interp(t, [0, 5, 10, 15, 20], [0, 1, -0.5, 0.8, 0]))
+    steps = SimpleNamespace(u_time=t, u_value=1.3 + 1.5 * np.sign(np.sin(2 * np.pi * t / 3.0)))
+
+    warned = held_timing_warning([ramps], comp, nominal, ["motor_lag", "candidate_motor_voltage"])
+    assert len(warned) == 1 and warned[0].startswith("motor_lag is held") and "input_delay" in warned[0]
+    assert "voltage steps" in warned[0]
+    assert held_timing_warning([steps], comp, nominal, ["motor_lag"]) == []
+    assert held_timing_warning([ramps], comp, nominal, ["motor_lag", "input_delay"]) == []
+    assert held_timing_warning([ramps], comp, nominal, ["position_friction"]) == []

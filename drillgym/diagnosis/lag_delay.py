@@ -35,6 +35,7 @@ __all__ = [
     "apply_nominal_check",
     "smooth_input_share",
     "smooth_input_warning",
+    "held_timing_warning",
     "MOTOR_SIDE",
 ]
 
@@ -346,4 +347,46 @@ def smooth_input_warning(
         f"the input is smooth ({100 * fast:.2f} % of its variance above the upper disc's corner frequency, "
         f"{corner:.2f} Hz): a motor lag or input delay acts on it as a constant voltage offset per ramp and cannot "
         f"be told from the motor-side parameters that moved ({what}); a recording with voltage steps separates them"
+    ]
+
+
+def held_timing_warning(
+    exps: Sequence[Experiment], comp: Composition, nominal: np.ndarray, held: Sequence[str]
+) -> list[str]:
+    """A warning when the model holds a motor lag or an input delay that no check decided, on a smooth input.
+
+    An effect of the model given to the diagnosis (the lag a candidate's terms were found through, held beside
+    it when the library is selected again; a user's ``--effects``) is refitted, not selected, so
+    :func:`check_lag_delay` never weighs it against the other one.  On a smooth input the two shift the response
+    alike (a constant voltage offset per ramp), so the model's choice is not the recording's: seen on an
+    independent rig's ramps, a saturation after a delay kept with the lag its terms were found through.
+
+    Parameters
+    ----------
+    exps : sequence of Experiment
+        The recordings.
+    comp : Composition
+        The composition of ``nominal``.
+    nominal : numpy.ndarray
+        The nominal vector.
+    held : sequence of str
+        The model's own effects (refitted, not selected).
+
+    Returns
+    -------
+    list of str
+        The warning, or nothing.
+    """
+    timing_held = [e for e in held if e in LAG_DELAY]
+    if len(timing_held) != 1:  # none, or both (then each has its share, fitted together)
+        return []
+    corner, fast = smooth_input_share(exps, comp, nominal)
+    if fast >= SMOOTH_INPUT_SHARE:
+        return []
+    a = timing_held[0]
+    b = LAG_DELAY[1 - LAG_DELAY.index(a)]
+    return [
+        f"{a} is held in the model, not decided against {b}: on so smooth an input ({100 * fast:.2f} % of its "
+        f"variance above the upper disc's corner frequency, {corner:.2f} Hz) a lag and a delay shift the response "
+        f"alike (either, or both, may be there); a recording with voltage steps tells them apart"
     ]

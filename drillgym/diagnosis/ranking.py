@@ -13,7 +13,7 @@ from ..effects import Composition, Effect
 from ..params import N_PARAMS, RigParams
 from .context import BASE_BOUNDS, BRAKE_BOUNDS
 from .effective import effective_samples
-from .lag_delay import smooth_input_warning
+from .lag_delay import held_timing_warning, smooth_input_warning
 from .results import Diagnosis, EffectScore, Selection
 from .state import Screening, SearchOutcome
 from .timing import LAG_DELAY
@@ -72,7 +72,9 @@ def report(screening: Screening, outcome: SearchOutcome) -> Diagnosis:
         base_parameters=out.moved,
         base_off=out.base_off,
         base_score=out.base_score,
-        warnings=warn + smooth_input_warning(screening.exps, comp, vec0, out.moved, out.selected),
+        warnings=warn
+        + smooth_input_warning(screening.exps, comp, vec0, out.moved, out.selected)
+        + held_timing_warning(screening.exps, comp, vec0, _held(model)),
         rmse_after=math.sqrt(out.rss_final / out.n),
         composition=comp,
         vector=vec,
@@ -83,6 +85,12 @@ def report(screening: Screening, outcome: SearchOutcome) -> Diagnosis:
         sensor_misfit=outcome.sensor_misfit,
         at_bounds=list(out.at_bounds),
     )
+
+
+def _held(model) -> list[str]:
+    """The model's own effects: in its composition, not candidates of the selection."""
+    candidates = {e.name for e in model.candidates}
+    return [n for n in model.comp.names if n not in candidates]
 
 
 def _selected_scores(out: Selection, comp: Composition, by_name: dict[str, type[Effect]]) -> list[EffectScore]:
