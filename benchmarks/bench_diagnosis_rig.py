@@ -30,6 +30,11 @@ EPS = 2e-3  # rad/s: friction sign smoothing (DRILLGYM_BENCH_RIG_EPS overrides i
 LAT_EPS = 1e-4  # m/s: lateral dry-friction direction smoothing
 
 
+#: the command between samples: held (zero-order, as an amplifier holds a DAC's output) when
+#: DRILLGYM_BENCH_RIG_HOLD=1, else interpolated linearly (the default the documented figures were measured with)
+HOLD = os.environ.get("DRILLGYM_BENCH_RIG_HOLD", "0") == "1"
+
+
 def rig_eps() -> float:
     """The friction smoothing in use (rad/s): DRILLGYM_BENCH_RIG_EPS if set, else EPS."""
     return float(os.environ.get("DRILLGYM_BENCH_RIG_EPS", EPS))
@@ -83,7 +88,10 @@ class _Rig:
         fx = self.fx
         if "input_delay" in fx:
             tt = tt - fx["input_delay"]["delay"]
-        v = float(np.interp(tt, self.t, self.u)) if tt >= 0 else float(self.u[0])
+        if HOLD and tt >= 0:  # the amplifier holds each sample until the next (DRILLGYM_BENCH_RIG_HOLD=1)
+            v = float(self.u[min(int(np.searchsorted(self.t, tt, side="right")) - 1, self.u.size - 1)])
+        else:
+            v = float(np.interp(tt, self.t, self.u)) if tt >= 0 else float(self.u[0])
         return um if um is not None else v
 
     def upper_friction(self, w: float) -> float:

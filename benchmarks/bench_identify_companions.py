@@ -97,7 +97,9 @@ def run_row(row: dict, duration: float, rate_hz: float, work: Path) -> dict:
     last = found.reselection or d
     un = last.unexplained
     # a lag and a delay the selection states it cannot tell apart on this input count as the other one
-    tie = any(s.effect in found.model.names and row["companion"] in s.note for s in last.ranking)
+    tie = any(s.effect in found.model.names and row["companion"] in s.note for s in last.ranking) or any(
+        " is held in the model, not decided against " + row["companion"] in w for w in last.warnings
+    )
     not_shown = last.skipped.get(row["companion"]) if row["companion"] not in found.model.names else None
     return {
         **{k: row[k] for k in ("kind", "companion", "signal", "seed")},
