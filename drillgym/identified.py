@@ -296,27 +296,17 @@ def _selected(d: Any, kept: list[Any]) -> tuple[list[Any], dict[str, float], Rig
 def _in_files(comp: Any, values: dict[str, float], std: dict[str, float], kept: list[Any]):
     """The composition, values and standard errors with each kept candidate's file in place of the compiled terms
     its fit ran through (the same function; the terms it does not use left out)."""
+    from .diagnosis.effect_file import covering_file
     from .diagnosis.effects import get_effect
     from .effects import Composition
 
     for k in kept:
         if k.through is not None and k.through.name in comp.names:
             values, std = k.in_file(values), k.in_file(std)
-            file_effect = _covering(get_effect(k.spec), k, values)
+            spec = covering_file(k.candidate, values) if k.candidate is not None else k.spec
+            file_effect = get_effect(spec)
             comp = Composition(tuple(file_effect if e is k.through else e for e in comp.effects))
     return comp, values, std
-
-
-def _covering(effect: Any, kept: Any, values: dict[str, float]) -> Any:
-    """The candidate's file effect, written again with the fitted values where its regressed bounds do not cover
-    them (the joint fit ran through its group's terms, whose bounds are the group's)."""
-    from .diagnosis.effect_file import write_fitted
-    from .diagnosis.effects import get_effect
-
-    own = {p.name: p for p in effect.parameters}
-    if kept.candidate is None or all(own[n].lo <= v <= own[n].hi for n, v in values.items() if n in own):
-        return effect
-    return get_effect(write_fitted(kept.candidate, {n: v for n, v in values.items() if n in own}))
 
 
 def _is_library(comp: Any, name: str) -> bool:

@@ -1,6 +1,7 @@
 """Every group's candidate is fitted through its whole group's terms, compiled once for every recording."""
 
 import inspect
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -92,9 +93,9 @@ def test_a_fitted_value_beyond_the_regressed_bounds_is_written_into_the_candidat
     the bounds the candidate's file was written with is written into the file (its guess, bounds around it), so the
     model file holding it reads back; values within them leave the file as it is."""
     from drillgym.diagnosis.discovery_terms import _voltage_terms
+    from drillgym.diagnosis.effect_file import covering_file
     from drillgym.diagnosis.effects import get_effect
-    from drillgym.diagnosis.reselection import KeptCandidate
-    from drillgym.identified import _covering
+    from drillgym.diagnosis.reselection import KeptCandidate, kept_candidate
 
     terms = {t.label: t for t in _voltage_terms()}
     chosen = ("1", "sat(u, 0.4)")
@@ -110,13 +111,13 @@ def test_a_fitted_value_beyond_the_regressed_bounds_is_written_into_the_candidat
     )
     write_effect_file(cand, tmp_path / "c.py")
     effect = get_effect(cand.effect_file)
-    kept = KeptCandidate(cand.effect_file, {}, (), candidate=cand)
     inside = {"candidate_motor_voltage_c1": 0.1, "candidate_motor_voltage_c2": -1.0, "candidate_motor_voltage_w2": 0.5}
-    assert _covering(effect, kept, inside) is effect
+    written = (tmp_path / "c.py").read_text()
+    assert covering_file(cand, inside) == cand.effect_file and (tmp_path / "c.py").read_text() == written
     beyond = {**inside, "candidate_motor_voltage_c1": 0.6}
     bounds = {p.name: (p.lo, p.hi) for p in effect.parameters}
     assert not bounds["candidate_motor_voltage_c1"][0] <= 0.6 <= bounds["candidate_motor_voltage_c1"][1]
-    again = _covering(effect, kept, beyond)
+    again = get_effect(covering_file(cand, beyond))
     assert again.__drillgym_file__ == effect.__drillgym_file__
     for p in again.parameters:
         assert p.lo <= beyond[p.name] <= p.hi and p.guess == pytest.approx(beyond[p.name])
@@ -125,6 +126,21 @@ def test_a_fitted_value_beyond_the_regressed_bounds_is_written_into_the_candidat
     expected = u + 0.6 - 1.0 * min(max(u, -0.5), 0.5)
     fn = again.voltage
     assert fn(**{n: args[n] for n in inspect.signature(fn).parameters}) == pytest.approx(expected)
+
+    # the diagnosis run again holds the file at the fitted values: a width fitted beyond the file's range (2.6 V
+    # where it was written up to 2 V) once stopped it with a ParameterError
+    from types import SimpleNamespace
+
+    from drillgym.effects import compose
+
+    wide = {**inside, "candidate_motor_voltage_w2": 2.6}
+    fit = SimpleNamespace(
+        variance_cut=0.9, values=wide, file_name=lambda k: k, with_library=(), through=None, state=None
+    )
+    kept = kept_candidate(SimpleNamespace(candidate=replace(cand, fit=fit)))
+    assert isinstance(kept, KeptCandidate)
+    _, values = compose([kept.spec], kept.values)
+    assert values["candidate_motor_voltage_w2"] == 2.6
 
 
 def test_no_fit_makes_the_voltage_at_the_motor_fall_as_the_command_rises(tmp_path):

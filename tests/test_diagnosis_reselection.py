@@ -36,8 +36,9 @@ def _diagnosis(cut: float, effect_file: str | None, with_library=()):
 
 
 @pytest.mark.parametrize(("cut", "enters"), [(MIN_CANDIDATE_CUT - 0.01, False), (MIN_CANDIDATE_CUT, True)])
-def test_a_candidate_enters_the_model_only_when_its_fit_removes_enough(cut, enters):
-    kept = kept_candidate(_diagnosis(cut, "c.py:candidate_motor_voltage"))
+def test_a_candidate_enters_the_model_only_when_its_fit_removes_enough(cut, enters, tmp_path):
+    (tmp_path / "c.py").write_text(CANDIDATE)
+    kept = kept_candidate(_diagnosis(cut, f"{tmp_path / 'c.py'}:candidate_motor_voltage"))
     assert (kept is not None) is enters
     if enters:  # its values under the names its file gives them
         assert kept.values == {"candidate_motor_voltage_c1": 0.12} and kept.ahead == ()

@@ -18,7 +18,7 @@ from .motor_terms import SAT_LOWEST, width_parameter
 from .reading_terms import SENSORS
 from .results import Candidate
 
-__all__ = ["write_effect_file", "write_fitted"]
+__all__ = ["write_effect_file", "write_fitted", "covering_file"]
 
 _ARGS_FRICTION = ("T", "direction", "speed", "omega")
 #: the quantities and base parameters a term's code may read, besides a friction's own arguments
@@ -198,6 +198,33 @@ def write_fitted(cand: Candidate, values: dict[str, float]) -> str:
     fitted = replace(cand, terms=terms, widths=widths)
     write_effect_file(fitted, path, name)
     return str(fitted.effect_file)
+
+
+def covering_file(cand: Candidate, values: dict[str, float]) -> str:
+    """The candidate's file, written again around ``values`` (:func:`write_fitted`) where one lies outside its
+    parameter's range: a fit through the group's terms, whose bounds are the group's, can take a coefficient or
+    a width beyond the bounds the file was written with, and a model holding the file at those values must read
+    back.  The file as it is otherwise.
+
+    Parameters
+    ----------
+    cand : Candidate
+        The candidate, its file written.
+    values : dict of str to float
+        Values by the file's parameter names; others are ignored.
+
+    Returns
+    -------
+    str
+        The file's spec (``path.py:NAME``).
+    """
+    from .effects import get_effect
+
+    own = {p.name: p for p in get_effect(cand.effect_file).parameters}
+    mine = {n: v for n, v in values.items() if n in own}
+    if all(own[n].lo <= v <= own[n].hi for n, v in mine.items()):
+        return str(cand.effect_file)
+    return write_fitted(cand, mine)
 
 
 def _term_doc(cand: Candidate, label: str) -> tuple[str, str]:

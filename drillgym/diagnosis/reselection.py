@@ -31,6 +31,7 @@ from typing import Any
 from ..effects import Effect
 from ..params import RigParams
 from .candidate import Candidate
+from .effect_file import covering_file
 from .effects import effects_for, get_effect
 from .results import Diagnosis
 from .state import DiagnosisOptions
@@ -115,11 +116,11 @@ def kept_candidate(diagnosis: Diagnosis) -> KeptCandidate | None:
     ahead = tuple(c.fit.with_library)
     through, state = c.fit.through, c.fit.state
     if through is None or state is None:
-        return KeptCandidate(c.effect_file, values, ahead, candidate=c)
+        return KeptCandidate(covering_file(c, values), values, ahead, candidate=c)
     own = {p.name for p in through.parameters}
     names = {k: v for k, v in c.fit.file_names.items() if k in own}
     if set(names.values()) != {p.name for p in get_effect(c.effect_file).parameters}:  # hold the file itself
-        return KeptCandidate(c.effect_file, values, ahead, candidate=c)
+        return KeptCandidate(covering_file(c, values), values, ahead, candidate=c)
     fitted = state.composition.named(state.result.vector)
     return KeptCandidate(c.effect_file, values, ahead, through, {n: float(fitted[n]) for n in own}, names, c)
 
