@@ -43,8 +43,15 @@ def rig_eps() -> float:
 #: effects outside drillgym's library (for the "discovery" rows)
 OUTSIDE = ("brake_quadratic", "stribeck_shape", "upper_stribeck", "string_cubic", "string_freeplay")
 #: lateral effects outside drillgym's library (coupled only): a stiffening spring −k3 r² (X, Y) (N/m³) and a
-#: quadratic damping −c2 |V| V (N s²/m²), both in the fixed frame
-OUTSIDE_LATERAL = ("lateral_cubic", "lateral_quadratic_damping")
+#: quadratic damping −c2 |V| V (N s²/m²), both in the fixed frame; ``brake_contact``: a brake pad that touches the
+#: lower disc's rim at a fixed point of the fixed (LVDT) frame, at the angle phi: its normal force N (N) pushes the
+#: disc's centre away from the pad, −N (cos φ, sin φ), and its friction, the lower disc's friction torque T_fl over
+#: the pad's radius R_pad (m), pushes it along the tangent against the rim's motion, (T_fl / R_pad) (sin φ, −cos φ)
+#: (a constant force shifts the disc as an LVDT offset would; only its coupling to the rotation and the friction
+#: part that follows T_fl tell them apart)
+OUTSIDE_LATERAL = ("lateral_cubic", "lateral_quadratic_damping", "brake_contact")
+#: an LVDT whose gain is off: it reads (1 + k) X (lvdt_kx) and (1 + k) Y (lvdt_ky), before its noise and low-pass
+OUTSIDE_READING = ("lvdt_scale",)
 
 
 def input_signal(
@@ -181,6 +188,10 @@ class _Rig:
         if "lateral_quadratic_damping" in fx:  # a drag that grows with the speed squared (outside the library)
             c2 = fx["lateral_quadratic_damping"]["c2"] * math.sqrt(VX * VX + VY * VY)
             FX, FY = FX - c2 * VX, FY - c2 * VY
+        if "brake_contact" in fx:  # the brake pad's normal force and friction on the rim, fixed frame (outside)
+            f = fx["brake_contact"]
+            cp, sp, tang = math.cos(f["phi"]), math.sin(f["phi"]), Tfl / f["R_pad"]
+            FX, FY = FX - f["N"] * cp + tang * sp, FY - f["N"] * sp - tang * cp
         Fx, Fy = FX * cu + FY * su, -FX * su + FY * cu
         M = np.array(
             [
@@ -233,7 +244,8 @@ def rig_recording(
     alpha0: float = 0.0,
 ) -> TimeSeries:
     """A recording of the independent rig (see the module docstring).  ``config``: 'torsional' or
-    'coupled'; ``effects``: {effect name: its parameters} (library names, :data:`OUTSIDE` and :data:`OUTSIDE_LATERAL`);
+    'coupled'; ``effects``: {effect name: its parameters} (library names, :data:`OUTSIDE`, :data:`OUTSIDE_LATERAL` and
+    :data:`OUTSIDE_READING`);
     ``scale``: factors on base parameters (the rig's base parameters differ from the identified set)."""
     effects = dict(effects or {})
     p = RigParams().scaled(**scale) if scale else RigParams()
@@ -270,6 +282,9 @@ def rig_recording(
         if "lvdt_skew" in effects:
             sk = effects["lvdt_skew"]["lvdt_skew"]
             Y = Y * math.cos(sk) + X * math.sin(sk)
+        if "lvdt_scale" in effects:  # an LVDT whose gain is off (outside the library's readings)
+            X = X * (1.0 + effects["lvdt_scale"].get("lvdt_kx", 0.0))
+            Y = Y * (1.0 + effects["lvdt_scale"].get("lvdt_ky", 0.0))
         cols["x"] = lowpass_zero_phase(X + rng.normal(0, 3e-6, t.size), rate_hz, 5.0)
         cols["y"] = lowpass_zero_phase(Y + rng.normal(0, 3e-6, t.size), rate_hz, 5.0)
     meta = {
