@@ -74,7 +74,8 @@ def report(screening: Screening, outcome: SearchOutcome) -> Diagnosis:
         base_score=out.base_score,
         warnings=warn
         + smooth_input_warning(screening.exps, comp, vec0, out.moved, out.selected)
-        + held_timing_warning(screening.exps, comp, vec0, _held(model)),
+        + held_timing_warning(screening.exps, comp, vec0, _held(model))
+        + _offset_or_force(out.selected, comp, vec),
         rmse_after=math.sqrt(out.rss_final / out.n),
         composition=comp,
         vector=vec,
@@ -85,6 +86,22 @@ def report(screening: Screening, outcome: SearchOutcome) -> Diagnosis:
         sensor_misfit=outcome.sensor_misfit,
         at_bounds=list(out.at_bounds),
     )
+
+
+def _offset_or_force(selected, comp: Composition, vec) -> list[str]:
+    """A selected LVDT offset stated as indistinguishable from a constant lateral force: the lateral motion is
+    linear in the forces on the centre, so a constant force F shifts the disc by F / k, which the LVDTs read as an
+    offset (seen on an independent rig's brake pad: its contact force was named ``lvdt_offset``)."""
+    if "lvdt_offset" not in selected:
+        return []
+    x0, y0 = (float(vec[comp.param_index(n)]) for n in ("lvdt_x0", "lvdt_y0"))
+    k = float(vec[comp.param_index("k")])
+    return [
+        f"lvdt_offset ({1e3 * x0:+.3f}, {1e3 * y0:+.3f}) mm reads as a constant lateral force of "
+        f"({k * x0:+.3g}, {k * y0:+.3g}) N on the disc's centre (a brake pad's contact, a preload) would: either "
+        f"shifts the disc by F / k and this recording does not tell them apart; the LVDTs read with the disc held "
+        f"at its centre and the brake released do"
+    ]
 
 
 def _held(model) -> list[str]:
