@@ -11,7 +11,7 @@ from drillgym.diagnosis.candidate import Candidate
 from drillgym.diagnosis.discovery_terms import _groups
 from drillgym.diagnosis.effect_file import write_effect_file
 from drillgym.diagnosis.group_terms import terms_effect, terms_name, terms_parameter
-from drillgym.diagnosis.lateral_terms import lateral_terms
+from drillgym.diagnosis.lateral_terms import outside_terms
 from drillgym.effects.file_signature import code_signature
 
 WRITTEN = ("lower_friction", "upper_friction", "string", "lower_force", "lateral_force")
@@ -20,7 +20,7 @@ FUNCTION = {"lower_friction": "slip", "upper_friction": "slip", "lateral_force":
 
 def _terms(group):
     if group == "lateral_force":
-        return [(t.label, t.code, 0.0) for t in lateral_terms()]
+        return [(t.label, t.code, 0.0) for t in outside_terms()]
     return [(t.label, t.code, t.at_rest) for t in _groups(False)[group]]
 
 
@@ -57,6 +57,8 @@ def test_two_recordings_candidates_share_one_compiled_terms_effect_that_acts_as_
     rng = np.random.default_rng(3)
     n = len(_terms(group))
     first = _candidate(group, [0, n - 1], rng)
+    if group == "lateral_force":  # the brake pad's terms too
+        first = _candidate(group, [0, *(i for i, t in enumerate(_terms(group)) if t[0].startswith("T_fl"))], rng)
     second = _candidate(group, sorted(rng.choice(n, size=min(3, n), replace=False)), rng)
     (e1, start1), (e2, start2) = terms_effect(first), terms_effect(second)
     assert e1.name == e2.name == terms_name(group)
@@ -76,6 +78,7 @@ def test_two_recordings_candidates_share_one_compiled_terms_effect_that_acts_as_
                 "theta_u": rng.uniform(-3, 3), "alpha": rng.uniform(-0.3, 0.3), "alpha_dot": rng.uniform(-1, 1),
                 "t": rng.uniform(0, 10), "X": rng.normal(0, 1e-3), "Y": rng.normal(0, 1e-3),
                 "VX": rng.normal(0, 1e-2), "VY": rng.normal(0, 1e-2), "ws": 1.3, "delta": 1.9,
+                "omega_l": rng.uniform(-3, 3), "brake": 1.0, "Ts": 1.0, "Tc": 0.6, "bb": 0.02,
             }  # fmt: skip
             assert np.allclose(_call(own, own_values, args), _call(effect, through_values, args), rtol=1e-12)
         (tmp_path / f"{group}.py").unlink()
@@ -170,3 +173,13 @@ def test_no_fit_makes_the_voltage_at_the_motor_fall_as_the_command_rises(tmp_pat
         sat = params["candidate_motor_voltage_c2"]
         assert sat.lo == -1.0 and sat.hi == pytest.approx(4 * abs(c)) and sat.guess == -1.0
         assert params["candidate_motor_voltage_c1"].lo == pytest.approx(-0.08)
+
+
+@pytest.mark.parametrize("group", WRITTEN)
+def test_every_groups_terms_effect_takes_no_more_arguments_than_the_kernels_pass(group):
+    from drillgym.effects.compile_check import MAX_ARGUMENTS
+
+    rng = np.random.default_rng(1)
+    effect, _ = terms_effect(_candidate(group, [0], rng))
+    for fn in effect.defined_functions():
+        assert len(effect.argument_names(fn)) <= MAX_ARGUMENTS, (group, fn)

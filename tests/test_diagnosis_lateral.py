@@ -172,3 +172,29 @@ def test_diagnosis_proposes_a_stiffening_spring_that_halves_the_lvdt_misfit(tmp_
         assert c.fit.after.channels[ch] <= 0.5 * c.fit.before.channels[ch], c.fit.line()
     named = set(d.selected) | set(d.reselection.selected if d.reselection is not None else ())
     assert not named & {"lateral_coulomb", "lateral_anisotropy"}, d.text()
+
+
+def test_a_brake_pad_at_a_fixed_point_is_a_force_that_follows_the_brakes_torque():
+    """A pad on the rim at φ pushes the centre with its friction T_fl / R_pad along the tangent there: with the
+    model's LVDT offset holding the constant part (its normal force reads as one), the residual lateral force
+    regressed on the terms gives back T_fl (sin φ, −cos φ) / R_pad."""
+    from dataclasses import replace
+
+    phi, radius = 0.64, 0.076
+    rt = _residual({"brake_contact": {"N": 1.25, "phi": phi, "R_pad": radius}}, seed=43)
+    cand = lateral_candidate(replace(rt, effects=("lvdt_offset",)))
+    assert cand is not None and set(cand.terms) == {"T_fl·(1, 0)", "T_fl·(0, 1)"}, cand.expression()
+    assert cand.terms["T_fl·(1, 0)"] == pytest.approx(np.sin(phi) / radius, rel=0.05)
+    assert cand.terms["T_fl·(0, 1)"] == pytest.approx(-np.cos(phi) / radius, rel=0.05)
+
+
+def test_the_lateral_group_is_weighed_by_the_lvdts_misfit_against_the_angles():
+    from types import SimpleNamespace
+
+    from drillgym.diagnosis.discovery import group_weights
+
+    assert group_weights(SimpleNamespace(channels={"theta_u": 2.0, "theta_l": 1.5, "x": 40.0, "y": 20.0})) == {
+        LATERAL_GROUP: 400.0
+    }
+    assert group_weights(SimpleNamespace(channels={"theta_u": 2.0, "theta_l": 1.5})) == {}
+    assert group_weights(None) == {}

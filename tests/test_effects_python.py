@@ -170,3 +170,21 @@ def test_a_math_domain_error_is_nan_in_the_kernels_not_an_exception():
         log_shifted(0.5)
     assert math.isnan(compile_function(log_shifted, 1)(0.5))
     assert compile_function(is_nan, 1)(0.5) == 1.0 and compile_function(is_nan, 1)(20.0) == 0.0
+
+
+def test_a_function_of_more_arguments_than_the_kernels_pass_is_refused_in_words(tmp_path):
+    from drillgym.effects.compile_check import MAX_ARGUMENTS
+
+    n = MAX_ARGUMENTS  # omega_u and n parameters: one more than the kernels pass
+    params = ", ".join(f"p{i}" for i in range(n))
+    decl = "\n".join(f"        Parameter('p{i}', '-', -1.0, 1.0, 0.0, 0.1)," for i in range(n))
+    path = tmp_path / "wide.py"
+    path.write_text(
+        "from drillgym.effects import Force, Parameter\n\n\nclass Wide(Force):\n    name = 'wide'\n"
+        f"    acts_on = 'upper'\n    parameters = (\n{decl}\n    )\n\n"
+        f"    def torque(omega_u, {params}):\n        return omega_u * ({' + '.join(f'p{i}' for i in range(n))})\n"
+    )
+    cls = load_class_from_file(path, "wide")
+    with pytest.raises(EffectError) as err:
+        check_effect_compiles(cls)
+    assert f"takes {n + 1} arguments, more than the {MAX_ARGUMENTS}" in str(err.value)

@@ -119,6 +119,7 @@ def find_candidate(
     base_columns: bool = True,
     only: tuple[str, ...] | None = None,
     library: dict[str, np.ndarray] | None = None,
+    weights: dict[str, float] | None = None,
 ) -> Candidate | None:
     """The best candidate group and terms for some residual torques.
 
@@ -152,6 +153,9 @@ def find_candidate(
         Library effects' columns (:func:`.library_columns.library_columns`), each effect regressed as a whole on
         the same rows; their shares are recorded in the candidate's :attr:`~.candidate.Candidate.rest` under
         :data:`.library_columns.LIBRARY_PREFIX`.
+    weights : dict of str to float, optional
+        A group's weight in the choice of the best (default 1): the squared misfit of the channels it acts on
+        against the angles' (:func:`group_weights`), so that the shares of residuals of different sizes compare.
 
     Returns
     -------
@@ -250,11 +254,40 @@ def find_candidate(
         cands[LATERAL_GROUP], lat.rest = lat, shares
     if not cands:
         return None
-    best = max(cands.values(), key=lambda c: c.explained)
+    weight = weights or {}
+    best = max(cands.values(), key=lambda c: c.explained * weight.get(c.group, 1.0))
     motor = [c for g, c in cands.items() if g in MOTOR_GROUPS and c.explained >= MIN_EXPLAINED_SHARE]
     if best.group not in MOTOR_GROUPS and motor:  # the motor side's best, fitted beside it (.candidate_fit)
         best.alternative = max(motor, key=lambda c: c.explained)
     return best
+
+
+def group_weights(unexplained) -> dict[str, float]:
+    """The lateral group's weight in the choice of the best group: (the LVDTs' misfit / the angles'), squared.
+
+    Each group's share is of its own residual (the lateral force's, a disc's torque); where the LVDTs are left at
+    30-100 noise units and the encoders at 2, a torque group explaining half of its residual removes far less of
+    the misfit than a lateral one explaining a third of its own (an independent rig's brake pad: a lower-friction
+    term at 35-58 % of the torque residual was proposed while the LVDTs stayed at 30-100 noise units).
+
+    Parameters
+    ----------
+    unexplained : Unexplained or None
+        The diagnosis' final residual in noise units per channel.
+
+    Returns
+    -------
+    dict of str to float
+        ``{LATERAL_GROUP: weight}``, or empty (no residual, or no LVDT or angle channel).
+    """
+    if unexplained is None:
+        return {}
+    ch = unexplained.channels
+    lvdt = max((ch[c] for c in ("x", "y") if c in ch), default=None)
+    angles = max((ch[c] for c in ("theta_u", "theta_l", "alpha") if c in ch), default=None)
+    if lvdt is None or not angles:
+        return {}
+    return {LATERAL_GROUP: (lvdt / angles) ** 2}
 
 
 def _weighted_rows(rt: ResidualTorque, u: np.ndarray, Ju: float, Jl: float):
@@ -448,6 +481,7 @@ def discover(
     cand, rt, lib = None, None, None
     for vec in vectors:
         rt_v = residual_torques(ex, vec, effects=diagnosis.composition)
+        rt_v.effects = (*label_effects(diagnosis.model), *diagnosis.selected)  # what the model holds
         p = RigParams.from_vector(vec[:N_PARAMS])  # the inertias and brake law of the model that left it
         # the library's torque effects the model lacks, regressed beside the terms (.library_columns): their
         # torques per unit of their parameters hardly depend on the base parameters, taken once at the diagnosis'
@@ -455,7 +489,10 @@ def discover(
             held = [*label_effects(diagnosis.model), *diagnosis.selected]  # in the model already: not offered
             lib = library_columns(ex, diagnosis.composition, vec, held, rt_v)
         # the voltage terms are functions of the voltage the model's motor sees (after its delay and lag)
-        c = find_candidate(rt_v, rt_v.u_motor, p.Ju, p.Jl, ex.config.lateral_free, p.ws, p.delta, p.km, library=lib)
+        c = find_candidate(
+            rt_v, rt_v.u_motor, p.Ju, p.Jl, ex.config.lateral_free, p.ws, p.delta, p.km, library=lib,
+            weights=group_weights(diagnosis.unexplained),
+        )  # fmt: skip
         if c is not None and (cand is None or c.explained > cand.explained):
             cand, rt = c, rt_v
         rt = rt if rt is not None else rt_v

@@ -22,7 +22,10 @@ __all__ = ["write_effect_file", "write_fitted", "covering_file"]
 
 _ARGS_FRICTION = ("T", "direction", "speed", "omega")
 #: the quantities and base parameters a term's code may read, besides a friction's own arguments
-_VARIABLES = ("X", "Y", "VX", "VY", "theta_l", "theta_u", "alpha", "alpha_dot", "t", "u", "ws", "delta")
+_VARIABLES = (
+    "X", "Y", "VX", "VY", "theta_l", "theta_u", "omega_l", "alpha", "alpha_dot", "t", "u", "brake", "Ts", "Tc", "ws",
+    "delta", "bb", "ktheta",
+)  # fmt: skip
 
 
 def candidate_name(group: str) -> str:

@@ -29,7 +29,7 @@ from .discovery_terms import _groups
 from .effect_file import write_effect_file
 from .effects import get_effect
 from .lateral_discovery import LATERAL_GROUP
-from .lateral_terms import lateral_terms
+from .lateral_terms import outside_terms
 from .motor_terms import TERM_EFFECTS, WIDTH_PARAMETERS, term_parameters
 from .results import Candidate
 
@@ -42,8 +42,8 @@ def _group_terms(group: str) -> tuple[tuple[str, str, float], ...]:
     whose terms are a library class (:data:`.motor_terms.TERM_EFFECTS`) or unknown."""
     if group in TERM_EFFECTS:
         return ()
-    if group == LATERAL_GROUP:
-        return tuple((t.label, t.code, 0.0) for t in lateral_terms())
+    if group == LATERAL_GROUP:  # a candidate holds outside terms only (the library's shapes are its effects')
+        return tuple((t.label, t.code, 0.0) for t in outside_terms())
     return tuple((t.label, t.code, t.at_rest) for t in _groups(False).get(group, ()))
 
 

@@ -23,7 +23,14 @@ from ..identification.experiment import estimate_rate
 from ..measurement import lowpass_zero_phase
 from .candidate import Candidate
 from .greedy import MAX_CANCEL, greedy_terms
-from .lateral_terms import LIBRARY_SHAPES, LateralTerm, lateral_nuisance, lateral_terms, outside_terms
+from .lateral_terms import (
+    CONSTANT_FORCES,
+    LIBRARY_SHAPES,
+    LateralTerm,
+    lateral_nuisance,
+    lateral_terms,
+    outside_terms,
+)
 from .sparse import ResidualTorque
 
 __all__ = ["LATERAL_GROUP", "LVDT_LOWPASS_HZ", "lateral_candidate", "lateral_data"]
@@ -38,8 +45,9 @@ MIN_SAMPLES = 50
 
 def lateral_data(rt: ResidualTorque) -> dict[str, np.ndarray]:
     """The data the lateral terms are functions of, at every sample: the centre's position and velocity in the
-    fixed frame (``X``, ``Y`` m; ``VX``, ``VY`` m/s) and the lower disc's
-    angle, speed and acceleration (``thl`` rad, ``wl`` rad/s, ``dwl`` rad/s²).
+    fixed frame (``X``, ``Y`` m; ``VX``, ``VY`` m/s), the lower disc's
+    angle, speed and acceleration (``thl`` rad, ``wl`` rad/s, ``dwl`` rad/s²) and the model's brake torque on it
+    (``Tfl`` N m; 0 where the brake is off or the torque is not known).
 
     Parameters
     ----------
@@ -64,6 +72,7 @@ def lateral_data(rt: ResidualTorque) -> dict[str, np.ndarray]:
         "thl": S[:, 1],
         "wl": S[:, 3],
         "dwl": estimate_rate(S[:, 3], fs, window_s=0.1),
+        "Tfl": np.zeros(S.shape[0]) if rt.friction_l is None else np.nan_to_num(rt.friction_l),
     }
     return d
 
@@ -124,6 +133,8 @@ def lateral_candidate(
     joint = [pair(*col) for col in lateral_nuisance(d, 1.0)]
     if library:
         joint += [pair(*t.values(d)) for t in lateral_terms() if t.label in LIBRARY_SHAPES]
+    if "lvdt_offset" in rt.effects:  # the model's LVDT offset reads as a constant force (F / k): its columns
+        joint += [pair(*t.values(d)) for t in lateral_terms() if t.label in CONSTANT_FORCES]
     Q, _ = np.linalg.qr(np.column_stack(joint))
 
     def project(v: np.ndarray) -> np.ndarray:
@@ -132,6 +143,8 @@ def lateral_candidate(
     yr = project(y)
     tss = float(yr @ yr) or 1.0
     terms = outside_terms() if terms is None else list(terms)
+    if "lvdt_offset" in rt.effects:
+        terms = [t for t in terms if t.label not in CONSTANT_FORCES]
     raw = [pair(*tm.values(d)) for tm in terms]
     chosen, share = greedy_terms([project(c) for c in raw], yr, tss)
     if not chosen:
@@ -142,8 +155,10 @@ def lateral_candidate(
     # candidate's fit holds the base at nominal too when the diagnosis left it at a bound
     coef, *_ = np.linalg.lstsq(np.column_stack([X, Q]), y, rcond=None)
     coef = coef[: len(chosen)]
-    if np.any(np.abs(coef) * np.linalg.norm(X, axis=0) > MAX_CANCEL * np.linalg.norm(y)):
-        return None  # the terms cancel each other: not a usable candidate
+    # the terms cancel each other (their parts beside the base's and the model's columns): not a usable candidate
+    # (the raw columns would count a part the nuisance takes: a brake torque's mean beside an LVDT offset)
+    if np.any(np.abs(coef) * np.linalg.norm(project(X), axis=0) > MAX_CANCEL * np.linalg.norm(y)):
+        return None
     res_rms = float(np.sqrt(np.mean(np.concatenate([FX[ok], FY[ok]]) ** 2)))
     reach = {}
     for j in chosen:

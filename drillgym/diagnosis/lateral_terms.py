@@ -9,6 +9,9 @@ Every term is a force (FX, FY) in the fixed (LVDT) frame, shaped by physics:
 * damping shapes: |V| (VX, VY) (quadratic drag), (VX, VY) / |V| (dry friction, its direction regularised
   below :data:`DRY_EPS`), r² (VX, VY) (damping that grows with the radius);
 * a constant force (1, 0), (0, 1) (a brake's contact force, a preload);
+* a force along a fixed direction that follows the brake's torque T_fl (a brake pad at a fixed point of the rim:
+  its friction T_fl / R_pad along the tangent there): T_fl (1, 0), T_fl (0, 1), T_fl by the base's brake law at
+  the lower disc's speed;
 * a force that turns with the lower disc: (cos θl, sin θl) and (−sin θl, cos θl).
 
 The viscous (VX, VY), the linear spring (X, Y) and the unbalance's force are the base parameters' own columns
@@ -34,6 +37,7 @@ __all__ = [
     "STOP_RADII",
     "DRY_EPS",
     "LIBRARY_SHAPES",
+    "CONSTANT_FORCES",
 ]
 
 #: radii (m) beyond which a stop's force (X, Y) max(r − r0, 0) / r is tried
@@ -46,6 +50,16 @@ LIBRARY_SHAPES = {
     "(X, −Y)": "lateral_anisotropy",
     "(VX, −VY)": "lateral_anisotropy",
 }
+
+#: the constant forces' labels (an LVDT offset the model holds reads as one: then they are its columns)
+CONSTANT_FORCES = ("(1, 0)", "(0, 1)")
+#: the brake's torque on the lower disc (N m) in an effect function's arguments: the base's Stribeck law at the
+#: lower disc's speed (:func:`drillgym.friction.brake_law`) while it slips, the string's torque it holds while it
+#: sticks (−kθ α), 0 with the brake off
+_BRAKE = (
+    "brake * ((Tc + (Ts - Tc) * math.exp(-math.exp(delta * math.log(max(abs(omega_l) / ws, 1e-300)))))"
+    " * math.copysign(1.0, omega_l) + bb * omega_l if omega_l != 0.0 else -ktheta * alpha)"
+)
 
 _R2 = "(X * X + Y * Y)"
 _R = f"math.sqrt{_R2}"
@@ -121,6 +135,8 @@ def lateral_terms() -> list[LateralTerm]:
         ),
         LateralTerm("(1, 0)", "(1.0, 0.0)", lambda d: (np.ones_like(d["X"]), np.zeros_like(d["X"]))),
         LateralTerm("(0, 1)", "(0.0, 1.0)", lambda d: (np.zeros_like(d["X"]), np.ones_like(d["X"]))),
+        LateralTerm("T_fl·(1, 0)", f"({_BRAKE}, 0.0)", lambda d: (d["Tfl"], np.zeros_like(d["Tfl"]))),
+        LateralTerm("T_fl·(0, 1)", f"(0.0, {_BRAKE})", lambda d: (np.zeros_like(d["Tfl"]), d["Tfl"])),
         LateralTerm(
             "(cos θl, sin θl)", "(math.cos(theta_l), math.sin(theta_l))", lambda d: (np.cos(d["thl"]), np.sin(d["thl"]))
         ),

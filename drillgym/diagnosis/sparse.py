@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..configurations import N_STATE
-from ..dynamics import mass_matrix
+from ..dynamics import brake_on, mass_matrix
 from ..effects import Input
 from ..identification.experiment import Experiment, estimate_rate
 from ..identification.fitting import base_vector
@@ -47,7 +47,10 @@ class ResidualTorque:
     ``slip_upper`` samples where the upper disc slips (None: as ``slip``); ``u_motor`` the model's voltage at the
     motor (V; after its Delay and Input effects); ``force_X``, ``force_Y`` the residual lateral force on the lower
     disc's centre in the fixed (LVDT) frame (N; None when the disc does not move laterally), known where the lower
-    disc's balance is (the lateral rows of the mass matrix, turned by θu).  Each disc's torque balance holds
+    disc's balance is (the lateral rows of the mass matrix, turned by θu); ``friction_l`` the model's lower-disc
+    friction torque where the brake is on (N m, 0 with the brake off, NaN where not evaluated); ``effects`` the
+    effects the model holds (set by the caller: a search composition holds every candidate at its neutral
+    values).  Each disc's torque balance holds
     while that disc slips, whatever the other one does: the upper disc's is known while the lower disc is
     stuck (its string torque kθ α is measured).
     """
@@ -61,6 +64,8 @@ class ResidualTorque:
     u_motor: np.ndarray | None = None
     force_X: np.ndarray | None = None
     force_Y: np.ndarray | None = None
+    friction_l: np.ndarray | None = None
+    effects: tuple[str, ...] = ()
 
     @property
     def upper_valid(self) -> np.ndarray:
@@ -129,6 +134,8 @@ def residual_torques(
     M = np.zeros((4, 4))
     mode = np.zeros(2, dtype=np.int64)
     tau = np.full((n, 4), np.nan)
+    friction_l = np.full(n, np.nan)
+    brake = brake_on(cfg)
     half = max(1, int(round(0.1 * ex.fs)))
 
     def slipping(w: np.ndarray) -> np.ndarray:
@@ -146,6 +153,7 @@ def residual_torques(
         if mode[0] == 0:  # stuck upper disc: its torque balance is unknown (set-valued)
             mode[0] = 1
         state_derivative(ex.t[i] - ex.t[0], y, mode, u_motor.command[i], p, cfg, 0.0, dy, fric)
+        friction_l[i] = fric[1] if brake else 0.0
         da = acc[i] - np.array([dy[2], dy[3], dy[6], dy[7]])
         if ex.config.lateral_free:
             mass_matrix(y, p, M)
@@ -159,7 +167,9 @@ def residual_torques(
     if ex.config.lateral_free:  # the generalised forces on x, y (rotating frame) are the force turned by -θu
         c, s = np.cos(Y[:, 0]), np.sin(Y[:, 0])
         FX, FY = tau[:, 2] * c - tau[:, 3] * s, tau[:, 2] * s + tau[:, 3] * c
-    return ResidualTorque(ex.t - ex.t[0], tau[:, 0], tau[:, 1], Y, slip, slip_upper, u_motor.at_motor, FX, FY)
+    return ResidualTorque(
+        ex.t - ex.t[0], tau[:, 0], tau[:, 1], Y, slip, slip_upper, u_motor.at_motor, FX, FY, friction_l
+    )
 
 
 @dataclass

@@ -41,6 +41,11 @@ def kernel_functions(cls: type[Effect]) -> dict[str, Callable[..., Any]]:
     return fns
 
 
+#: the most arguments an effect function may take: CPython compiles a call with more as one built tuple
+#: (``CALL_FUNCTION_EX``), which numba cannot inline into the kernels
+MAX_ARGUMENTS = 30
+
+
 def _reason(exc: BaseException, f: Callable[..., Any]) -> str:
     """numba's message in one line: its first informative line, colours and file excerpts left out; the
     common cases in words."""
@@ -52,6 +57,11 @@ def _reason(exc: BaseException, f: Callable[..., Any]) -> str:
         return "try/except is not supported"
     if "IMPORT_NAME" in text:
         return "an import inside the function is not supported: import at the top of the file"
+    if "closure with *args" in text and f.__code__.co_argcount > MAX_ARGUMENTS:
+        return (
+            f"it takes {f.__code__.co_argcount} arguments, more than the {MAX_ARGUMENTS} the kernels can pass "
+            "(Python passes more as one tuple, which numba does not inline): split it into two effects"
+        )
     lines = [ln.strip() for ln in text.splitlines()]
     skip = ("Failed in ", "During:", "File ", "<source", "^", "def ", "return ", "Rejected as", "raised from")
     useful = [ln for ln in lines if ln and not ln.startswith(skip)]
