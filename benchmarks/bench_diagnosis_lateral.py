@@ -24,7 +24,8 @@ with a kept candidate).  Reported per row and in total:
 
 * ``lateral``: the candidate is the lateral group (``lateral_force``) with the hidden force's shape as its first
   term (r²·(X, Y) for the cubic spring, |V|·(VX, VY) for the drag); for ``brake_contact`` a lateral candidate with
-  a constant force (1, 0) or (0, 1) or the pad's friction T_fl·(1, 0), T_fl·(0, 1) among its terms; for ``lvdt_scale`` that LVDT's reading (``lvdt_x`` /
+  a constant force (1, 0) or (0, 1) or the pad's friction T_fl·(1, 0), T_fl·(0, 1) among its
+  terms; for ``lvdt_scale`` that LVDT's reading (``lvdt_x`` /
   ``lvdt_y``) with its gain error k within 30 %; for a pair, the first candidate holds one of the two;
 * ``two_found`` (pairs): both hidden effects are among the candidates kept (one lateral group may hold both
   lateral forces); ``spurious_second``: a second candidate kept that is neither; ``final_halved``: the model with
@@ -149,7 +150,8 @@ def _hidden(kind: str, rng: np.random.Generator, seed: int) -> dict[str, dict[st
 
 def _shape_ok(kind: str, effects: dict, c) -> bool:
     """Whether the (first) candidate is the hidden effect's: its group, and its first term the hidden force's shape
-    (brake_contact: a constant force or the brake torque's term among its terms; lvdt_scale: that LVDT's reading, k within 30 %)."""
+    (brake_contact: a constant force or the brake torque's term among its terms; lvdt_scale: that LVDT's reading,
+    k within 30 %)."""
     if c is None:
         return False
     shape = KINDS[kind][1]
