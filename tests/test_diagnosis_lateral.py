@@ -186,6 +186,25 @@ def test_a_brake_pad_at_a_fixed_point_is_a_force_that_follows_the_brakes_torque(
     assert cand is not None and set(cand.terms) == {"T_fl·(1, 0)", "T_fl·(0, 1)"}, cand.expression()
     assert cand.terms["T_fl·(1, 0)"] == pytest.approx(np.sin(phi) / radius, rel=0.05)
     assert cand.terms["T_fl·(0, 1)"] == pytest.approx(-np.cos(phi) / radius, rel=0.05)
+    # the constant force beside the terms (the pad's normal force, 1.25 N, and the friction's mean the terms add),
+    # which the model's offset takes when the candidate enters
+    fx, fy = cand.constant_force
+    assert np.isfinite(fx) and np.isfinite(fy) and 0.3 < np.hypot(fx, fy) < 10.0
+    assert lateral_candidate(rt).constant_force is None  # no offset in the model: the constant forces are terms
+
+
+def test_the_candidates_fit_starts_the_models_offset_where_the_regression_puts_it():
+    from types import SimpleNamespace
+
+    from drillgym.diagnosis.candidate_fit import _offset_start
+
+    comp, values = compose(["lvdt_offset"], {"lvdt_x0": 1e-3, "lvdt_y0": -2e-3})
+    vec = comp.vector(None, values)
+    k = vec[comp.param_index("k")]
+    out = _offset_start(SimpleNamespace(constant_force=(3.0, -1.5)), comp, vec)
+    assert out[comp.param_index("lvdt_x0")] == pytest.approx(1e-3 + 3.0 / k)
+    assert out[comp.param_index("lvdt_y0")] == pytest.approx(-2e-3 - 1.5 / k)
+    assert _offset_start(SimpleNamespace(constant_force=None), comp, vec) is vec
 
 
 def test_the_lateral_group_is_weighed_by_the_lvdts_misfit_against_the_angles():

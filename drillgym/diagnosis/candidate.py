@@ -68,6 +68,10 @@ class Candidate:
         A motor-side candidate regressed on the voltage after a first-order lag of this time constant (s): the
         residual is explained best with the library's ``motor_lag`` ahead of the terms, and the candidate's fit
         fits that lag with them.  None: on the model's own voltage at the motor.
+    constant_force : tuple of float or None
+        A lateral candidate regressed beside the constant forces an LVDT offset of the model reads as: the
+        constant force (FX, FY) in N the regression gives beside its terms, which the offset takes (x0 += FX / k)
+        when the candidate enters.  None: no offset in the model.
     """
 
     group: str
@@ -84,6 +88,7 @@ class Candidate:
     fit: Any = None
     alternative: Any = None
     through_lag: float | None = None
+    constant_force: tuple[float, float] | None = None
 
     @property
     def dof(self) -> int:

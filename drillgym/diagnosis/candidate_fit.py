@@ -226,14 +226,16 @@ def fit_candidate(
     if diagnosis.at_bounds and diagnosis.nominal_vector is not None:
         # an effect the library lacks may have been absorbed at the bound: the base held at nominal, and held as
         # the diagnosis left it (its mismatch may be real: 5 % off beside an offset); the better fit is kept
-        at_nominal, as_diagnosed = (setup.fit(base, ()) for base in (diagnosis.nominal_vector, diagnosis.vector))
+        at_nominal, as_diagnosed = (
+            setup.fit(_offset_start(candidate, comp, base), ()) for base in (diagnosis.nominal_vector, diagnosis.vector)
+        )
         held = at_nominal[2].rss_after <= as_diagnosed[2].rss_after
         obj, ctx, fit = at_nominal if held else as_diagnosed
         base_names = ()
     else:
         held = False
         base_names = tuple(model.base_names) if diagnosis.base_off else ()
-        obj, ctx, fit = setup.fit(diagnosis.vector, base_names)
+        obj, ctx, fit = setup.fit(_offset_start(candidate, comp, diagnosis.vector), base_names)
     if not base_names and not unexplained(obj, np.asarray(fit.vector), noise_scales).explained:
         # with the candidate in, a base parameter the effect had taken to a bound may come back (a dead zone
         # after a lag, 60 s of steps: km and bu at bounds, km 0.976 for 0.97 hidden once both are in)
@@ -250,6 +252,22 @@ def fit_candidate(
     return CandidateFit(
         values, held, before, after, state, file_names, base_fitted=moved, with_library=tuple(ahead), through=through
     )
+
+
+def _offset_start(candidate: Candidate, comp: Composition, vec: np.ndarray) -> np.ndarray:
+    """The model vector ``vec`` with its LVDT offset where the candidate's regression puts it: the constant force
+    beside its terms over k (:attr:`~.candidate.Candidate.constant_force`); ``vec`` itself without either.  Started
+    as diagnosed, the offset still holds the constant part of the candidate's force (a brake pad's friction's mean)
+    and the fit settles between the two (seed 40 of an independent rig's pad: the coefficients −3.6, −1.6 for the
+    regressed −10.9, −2.2; from here −10.4, −3.0 and 97.6 % of the unexplained variance removed, from 30 %)."""
+    force = candidate.constant_force
+    if force is None or "lvdt_offset" not in comp.names:
+        return vec
+    out = np.array(vec, dtype=float)
+    k = float(out[comp.param_index("k")])
+    for name, f in zip(("lvdt_x0", "lvdt_y0"), force, strict=True):
+        out[comp.param_index(name)] += f / k
+    return out
 
 
 @dataclass(frozen=True)

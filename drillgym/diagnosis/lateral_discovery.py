@@ -133,7 +133,8 @@ def lateral_candidate(
     joint = [pair(*col) for col in lateral_nuisance(d, 1.0)]
     if library:
         joint += [pair(*t.values(d)) for t in lateral_terms() if t.label in LIBRARY_SHAPES]
-    if "lvdt_offset" in rt.effects:  # the model's LVDT offset reads as a constant force (F / k): its columns
+    offset = "lvdt_offset" in rt.effects
+    if offset:  # the model's LVDT offset reads as a constant force (F / k): its columns
         joint += [pair(*t.values(d)) for t in lateral_terms() if t.label in CONSTANT_FORCES]
     Q, _ = np.linalg.qr(np.column_stack(joint))
 
@@ -143,7 +144,7 @@ def lateral_candidate(
     yr = project(y)
     tss = float(yr @ yr) or 1.0
     terms = outside_terms() if terms is None else list(terms)
-    if "lvdt_offset" in rt.effects:
+    if offset:
         terms = [t for t in terms if t.label not in CONSTANT_FORCES]
     raw = [pair(*tm.values(d)) for tm in terms]
     chosen, share = greedy_terms([project(c) for c in raw], yr, tss)
@@ -155,6 +156,11 @@ def lateral_candidate(
     # candidate's fit holds the base at nominal too when the diagnosis left it at a bound
     coef, *_ = np.linalg.lstsq(np.column_stack([X, Q]), y, rcond=None)
     coef = coef[: len(chosen)]
+    constant = None
+    if offset:  # the constant force beside the terms, in N: the model's offset takes it (Candidate.constant_force)
+        raw_nuisance = np.column_stack([X, *joint])  # the constant forces' columns last
+        full, *_ = np.linalg.lstsq(raw_nuisance, y, rcond=None)
+        constant = (float(full[-2]), float(full[-1]))
     # the terms cancel each other (their parts beside the base's and the model's columns): not a usable candidate
     # (the raw columns would count a part the nuisance takes: a brake torque's mean beside an LVDT offset)
     if np.any(np.abs(coef) * np.linalg.norm(project(X), axis=0) > MAX_CANCEL * np.linalg.norm(y)):
@@ -173,4 +179,5 @@ def lateral_candidate(
         share,
         int(ok.sum()),
         reach=reach,
+        constant_force=constant,
     )
