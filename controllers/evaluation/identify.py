@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from drillgym.closed_loop.abi import MEASUREMENT_ROWS
 from drillgym.configurations import parse_configuration
 from drillgym.errors import InputError
 from drillgym.io import TimeSeries
@@ -123,9 +124,8 @@ class _Playback(Controller):
             return {k: np.array([v[0] for v in vals]) for k, vals in self.seen.items()}
         from ..compiled.playback_law import played_measurements
 
-        kept = played_measurements(self._law_state)
-        rows = {"theta_u": 0, "theta_l": 1, "x": 2, "y": 3}
-        return {k: kept[:, rows[k], 0].copy() for k in self.channels}
+        kept = played_measurements(self._law_state)  # the loop's measurement rows, in their order
+        return {k: kept[:, MEASUREMENT_ROWS.index(k), 0].copy() for k in self.channels}
 
 
 def excitation_recording(

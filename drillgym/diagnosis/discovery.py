@@ -479,20 +479,20 @@ def discover(
         # the base refit may have absorbed part of an effect outside the library: look at the nominal base too
         vectors.append(diagnosis.nominal_vector)
     cand, rt, lib = None, None, None
+    held = (*label_effects(diagnosis.model), *diagnosis.selected)  # what the model holds
+    weights = group_weights(diagnosis.unexplained)
     for vec in vectors:
         rt_v = residual_torques(ex, vec, effects=diagnosis.composition)
-        rt_v.effects = (*label_effects(diagnosis.model), *diagnosis.selected)  # what the model holds
+        rt_v.effects = held
         p = RigParams.from_vector(vec[:N_PARAMS])  # the inertias and brake law of the model that left it
         # the library's torque effects the model lacks, regressed beside the terms (.library_columns): their
         # torques per unit of their parameters hardly depend on the base parameters, taken once at the diagnosis'
         if lib is None and diagnosis.composition is not None:
-            held = [*label_effects(diagnosis.model), *diagnosis.selected]  # in the model already: not offered
-            lib = library_columns(ex, diagnosis.composition, vec, held, rt_v)
+            lib = library_columns(ex, diagnosis.composition, vec, list(held), rt_v)  # in the model: not offered
         # the voltage terms are functions of the voltage the model's motor sees (after its delay and lag)
         c = find_candidate(
-            rt_v, rt_v.u_motor, p.Ju, p.Jl, ex.config.lateral_free, p.ws, p.delta, p.km, library=lib,
-            weights=group_weights(diagnosis.unexplained),
-        )  # fmt: skip
+            rt_v, rt_v.u_motor, p.Ju, p.Jl, ex.config.lateral_free, p.ws, p.delta, p.km, library=lib, weights=weights
+        )
         if c is not None and (cand is None or c.explained > cand.explained):
             cand, rt = c, rt_v
         rt = rt if rt is not None else rt_v

@@ -13,6 +13,7 @@ from ..effects import Composition, Effect
 from ..params import N_PARAMS, RigParams
 from .context import BASE_BOUNDS, BRAKE_BOUNDS
 from .effective import effective_samples
+from .effects import label_effects
 from .lag_delay import held_timing_warning, smooth_input_warning
 from .results import Diagnosis, EffectScore, Selection
 from .state import Screening, SearchOutcome
@@ -74,7 +75,7 @@ def report(screening: Screening, outcome: SearchOutcome) -> Diagnosis:
         base_score=out.base_score,
         warnings=warn
         + smooth_input_warning(screening.exps, comp, vec0, out.moved, out.selected)
-        + held_timing_warning(screening.exps, comp, vec0, _held(model))
+        + held_timing_warning(screening.exps, comp, vec0, label_effects(screening.model_label))
         + _offset_or_force(out.selected, comp, vec),
         rmse_after=math.sqrt(out.rss_final / out.n),
         composition=comp,
@@ -102,12 +103,6 @@ def _offset_or_force(selected, comp: Composition, vec) -> list[str]:
         f"shifts the disc by F / k and this recording does not tell them apart; the LVDTs read with the disc held "
         f"at its centre and the brake released do"
     ]
-
-
-def _held(model) -> list[str]:
-    """The model's own effects: in its composition, not candidates of the selection."""
-    candidates = {e.name for e in model.candidates}
-    return [n for n in model.comp.names if n not in candidates]
 
 
 def _selected_scores(out: Selection, comp: Composition, by_name: dict[str, type[Effect]]) -> list[EffectScore]:
