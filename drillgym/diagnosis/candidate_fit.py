@@ -258,7 +258,7 @@ def _offset_start(candidate: Candidate, comp: Composition, vec: np.ndarray) -> n
     """The model vector ``vec`` with its LVDT offset where the candidate's regression puts it: the constant force
     beside its terms over k (:attr:`~.candidate.Candidate.constant_force`); ``vec`` itself without either.  Started
     as diagnosed, the offset still holds the constant part of the candidate's force (a brake pad's friction's mean)
-    and the fit settles between the two (seed 40 of an independent rig's pad: the coefficients −3.6, −1.6 for the
+    and the fit settles between the two (an independent rig's 2.25 N pad: the coefficients −3.6, −1.6 for the
     regressed −10.9, −2.2; from here −10.4, −3.0 and 97.6 % of the unexplained variance removed, from 30 %)."""
     force = candidate.constant_force
     if force is None or "lvdt_offset" not in comp.names:
