@@ -7,9 +7,9 @@ the agent was trained with, so the agent sees on the rig exactly what it saw in
 training.  The encoder angles arrive already quantized by the rig (or the
 harness), so the model is built with ``counts_per_rev = 0`` (no second quantization).
 
-Agents on the observer base (``base: observer`` in their hyperparameters) build their
-observation with :class:`agents.observer_residual.ObserverResidual` from the motor angle instead,
-in the order of :class:`agents.envs.ObserverResidualVecEnv`.
+Agents on a classical base (``base: observer`` or ``base: lqg-2enc`` in their hyperparameters,
+:mod:`agents.residual_bases`) build their observation with that base from the encoder angles it reads instead,
+in the order of :class:`agents.residual_base_env.ResidualBaseVecEnv`.
 
 Timing matches the env: ``reset(m)`` gives the reset observation (zero speed
 history, the target); the first ``act`` answers it; every later ``act`` first adds
@@ -31,8 +31,8 @@ from drillgym.errors import InputError
 from .command import SpeedCommand, schedule_of
 from .export import ExportedPolicy
 from .integral import Z_MAX, advance, wrapped_speed
-from .observer_residual import ObserverResidual
 from .residual import ResidualVoltage
+from .residual_bases import make_residual_base
 from .switched import TargetSwitchedPolicy
 
 __all__ = ["AgentController", "TargetSwitchedController", "OBSERVATION_KEYS"]
@@ -55,9 +55,9 @@ class AgentController(Controller):
         the policy's control period and must equal it.  ``model=`` (a :class:`drillgym.Model` or a model
         file's path, as ``controllers.make("agent:DIR", model=...)``): the network does not read it, its
         weights are what it learned on its training rig (``drillgym train --model FILE --init DIR`` adapts
-        them to a model).  A policy on the observer base (``base: observer``) runs on the observer controller
-        built on the whole model, effects included (as ``controllers.make("observer", model=...)``): the
-        identification reaches it as it reaches the observer.  A residual on the base law (``residual``) uses
+        them to a model).  A policy on a classical base (``base: observer``, ``base: lqg-2enc``) runs on that
+        controller built on the whole model, effects included (as ``controllers.make("observer", model=...)``):
+        the identification reaches it as it reaches the controller.  A residual on the base law (``residual``) uses
         the model's base parameters, as ``params`` would be; a plain network ignores the model; the effects
         these two cannot use are named in a warning.
 
@@ -76,8 +76,8 @@ class AgentController(Controller):
 
             model = model_of(kw.pop("model"), kw.get("params"))
             kw["params"] = model.params
-        observer_base = policy.config["hyperparams"].get("base") == "observer"
-        if model is not None and model.composition.effects and not observer_base:  # said, not silently dropped
+        base_name = policy.config["hyperparams"].get("base")
+        if model is not None and model.composition.effects and base_name is None:  # said, not silently dropped
             names = ", ".join(e.name for e in model.composition.effects)
             warnings.warn(
                 f"agent: the policy uses the model's base parameters only; its effects ({names}) are not used "
@@ -115,12 +115,15 @@ class AgentController(Controller):
         self.schedule = schedule_of(hp.get("command_schedule"), self.integral)  # the speed command (agents.command)
         scale = hp.get("residual")
         self.base = None
-        if observer_base:  # observation = the observer's features, not the env's model
-            if self.mode != "motor" or self.frame_stack != 1:
-                raise InputError("observer-based agents are trained on the 'motor' mode without frame stacking")
-            self.base = ObserverResidual(self.config.label, scale, self.params, self.dt, hp.get("observer"), model)
+        if base_name is not None:  # observation = the base's features, not the env's model
+            if self.frame_stack != 1:
+                raise InputError(f"agents on the {base_name} base are trained without frame stacking")
+            self.base = make_residual_base(
+                base_name, self.config.label, scale, self.params, self.dt, hp.get("observer"), model
+            )
+            self.uses = tuple(self.base.uses)
             if self.base.dim != policy.obs_dim:
-                raise InputError(f"agent expects {policy.obs_dim} inputs; the observer base gives {self.base.dim}")
+                raise InputError(f"agent expects {policy.obs_dim} inputs; the {base_name} base gives {self.base.dim}")
             return
         self.residual = (
             None if scale is None else ResidualVoltage(self.config.label, scale, self.params, hp.get("startup"))
@@ -146,7 +149,8 @@ class AgentController(Controller):
         n = self.n
         if self.base is not None:
             self.base.start(n)
-            self.base.reset(np.arange(n), np.broadcast_to(m.get("theta_u", 0.0), (n,)), self.omega_ref)
+            read = {k: np.broadcast_to(m.get(k, 0.0), (n,)) for k in self.base.uses}
+            self.base.reset(np.arange(n), omega_ref=self.omega_ref, **read)
             return
         self.model = make_observation_model(n, self.obs_options)
         dim = self.model.dim * self.frame_stack
@@ -198,8 +202,8 @@ class AgentController(Controller):
         self._push()
 
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
-        if self.base is not None:  # same order as agents.envs.ObserverResidualVecEnv
-            self.base.correct(m["theta_u"])
+        if self.base is not None:  # same order as agents.residual_base_env.ResidualBaseVecEnv
+            self.base.correct(**{k: m[k] for k in self.base.uses})
             self.base.base()
             u = np.clip(self.base.voltage(self.policy.act(self.base.features())[:, 0]), -self.u_max, self.u_max)
             self.base.predict(u)

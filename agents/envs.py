@@ -14,23 +14,27 @@ from drillgym.envs.options import U_MAX
 from drillgym.envs.sb3 import make_sb3_vec
 from drillgym.envs.tasks import PlantListRandomizer
 from drillgym.errors import InputError
-from drillgym.measurement import counts_to_angle
 
 from .batch import episode_batch
 from .command import SpeedCommand, schedule_of
 from .integral import Z_MAX, advance, wrapped_speed
-from .observer_residual import ObserverResidual
 from .population import population_env_kwargs, use_population
 from .residual import ResidualVoltage
+from .residual_base_env import ResidualBaseVecEnv
+from .residual_bases import RESIDUAL_BASES, make_residual_base
 from .task_training import base_env_id, install_task_plants, task_env_kwargs, task_model_options, task_of
 
 __all__ = [
     "make_training_env",
     "episode_batch",
     "ResidualActionVecEnv",
+    "ResidualBaseVecEnv",
     "ObserverResidualVecEnv",
     "MotorIntegralVecEnv",
 ]
+
+#: the residual base's wrapper by its former name (it wrapped the observer only)
+ObserverResidualVecEnv = ResidualBaseVecEnv
 
 
 class ResidualActionVecEnv(VecEnvWrapper):
@@ -64,94 +68,6 @@ class ResidualActionVecEnv(VecEnvWrapper):
         self._t += self.control_dt
         self._t[done] = 0.0
         return self._remember(obs), rew, done, infos
-
-
-class ObserverResidualVecEnv(VecEnvWrapper):
-    """SB3 VecEnv wrapper: the :class:`agents.observer_residual.ObserverResidual` structure on a drillgym
-    VecEnv in ``motor`` mode with the action in volts.
-
-    The motor angle is rebuilt from the observation's latest encoder increment (``omega_u_inc_0`` times
-    the control period, 0 at each episode's start, rounded to the encoder's grid); the wrapper's
-    observation is the structure's features (:data:`agents.observer_residual.FEATURES`), its action the
-    residual in [-1, 1].
-    """
-
-    def __init__(self, venv: VecEnv, base: ObserverResidual) -> None:
-        if abs(float(venv.action_space.high[0]) - U_MAX) > 1e-6:
-            raise InputError("ObserverResidualVecEnv needs the env's action in volts (normalize_action=False)")
-        names = venv.get_attr("observation_names")[0]
-        if names[0] != "omega_u_inc_0":
-            raise InputError("ObserverResidualVecEnv needs the 'motor' observation mode")
-        obs_space = spaces.Box(-10.0, 10.0, shape=(base.dim,), dtype=np.float32)
-        super().__init__(
-            venv, observation_space=obs_space, action_space=spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
-        )
-        self.base = base
-        opts = venv.get_attr("options")[0]
-        self.control_dt, self.counts_per_rev = float(opts.control_dt), int(opts.counts_per_rev)
-        self._theta = np.zeros(venv.num_envs)
-
-    def _plants(self, index: np.ndarray) -> dict:
-        """``plants=`` the listed plants rigs ``index`` run, for a base built per plant
-        (:class:`agents.plantwise_residual.PlantwiseObserverResidual`); nothing for one base for all rigs."""
-        if not getattr(self.base, "per_plant", False):
-            return {}
-        plants = episode_batch(self.venv).plant_index[index]
-        if np.any(plants < 0):
-            raise InputError("a base built per plant needs the rigs drawn from a plant list (a population task)")
-        return {"plants": plants}
-
-    def reset(self) -> np.ndarray:
-        obs = self.venv.reset()
-        n = self.num_envs
-        self._theta[:] = 0.0
-        self.base.start(n)
-        self.base.reset(np.arange(n), self._theta, obs[:, -1], **self._plants(np.arange(n)))
-        self.base.correct(self._theta)
-        self.base.base()
-        return self.base.features()
-
-    def step_async(self, actions: np.ndarray) -> None:
-        u = self.base.voltage(actions)
-        self.base.predict(u)
-        self.venv.step_async(u.reshape(-1, 1))
-
-    def step_wait(self):
-        obs, rew, done, infos = self.venv.step_wait()
-        inc = obs[:, 0].astype(float)
-        ended = np.flatnonzero(done)
-        for i in ended:  # the ending episode's last increment is in its terminal observation
-            inc[i] = infos[i]["terminal_observation"][0]
-        self._theta += inc * self.control_dt
-        if self.counts_per_rev > 0:  # back onto the encoder's grid (the increments are float32)
-            q = counts_to_angle(1, self.counts_per_rev)
-            self._theta = counts_to_angle(np.round(self._theta / q), self.counts_per_rev)
-        self.base.correct(self._theta)
-        if ended.size:
-            feats = self.base.features()
-            for i in ended:
-                infos[i]["terminal_observation"] = feats[i]
-            self._theta[ended] = 0.0
-            self.base.reset(ended, self._theta[ended], obs[ended, -1], **self._plants(ended))
-            self.base.correct(self._theta[ended], ended)
-        self.base.base()
-        return self.base.features(), rew, done, infos
-
-
-def _plantwise_base(task, identified: dict[str, Any], config: str, residual: float, dt: float, observer):
-    """The per-plant observer base of an identified task's training plants (``make_training_env(identified=)``)."""
-    from .identified_plants import identified_plants
-    from .plantwise_residual import PlantwiseObserverResidual
-
-    unknown = sorted(set(identified) - {"plants", "folder"})
-    if unknown:
-        raise InputError(f"identified: unknown key {unknown[0]!r}; it takes plants and folder")
-    if task is None or not task.identified:
-        raise InputError("identified applies to an identified task (drillgym/...-Identified-v0)")
-    if "plants" not in identified:
-        raise InputError("identified needs plants: how many of the task's training plants to identify and run")
-    found = identified_plants(task, "train", identified["plants"], identified.get("folder"))
-    return PlantwiseObserverResidual(config, residual, [p.model for p in found.values()], dt, observer)
 
 
 class MotorIntegralVecEnv(VecEnvWrapper):
@@ -297,10 +213,11 @@ def make_training_env(
     startup : tuple, optional
         ``(kick V, hold s, ramp s)`` start-up schedule of the feedforward (with ``residual``).
     base : str, optional
-        ``"observer"``: the residual corrects the ``observer`` controller instead
-        (:mod:`agents.observer_residual`; needs ``residual`` and the ``"motor"`` observation).
+        A classical controller the residual corrects instead (:mod:`agents.residual_bases`; needs
+        ``residual``): ``"observer"`` (:mod:`agents.observer_residual`, the ``"motor"`` or ``"sensors"``
+        observation) or ``"lqg-2enc"`` (:mod:`agents.two_encoder_residual`, the ``"sensors"`` observation).
     observer : dict, optional
-        Keywords of the ``observer`` controller (with ``base="observer"``).
+        Keywords of the ``observer`` controller (with ``base="observer"``; ``lqg-2enc`` runs its own settings).
     frame_stack : int, optional
         Number of stacked observations (1 = none).
     normalize_reward : bool, optional
@@ -330,10 +247,10 @@ def make_training_env(
     nominal_below : float, optional
         With ``population``: targets below this speed (rad/s) get the nominal rig.
     identified : dict, optional
-        On an identified task with ``base="observer"``: ``{"plants": P, "folder": DIR}``, every episode runs one
-        of the first P training plants and its rig's base is the observer built on that plant's identified
-        model (:mod:`agents.plantwise_residual`; the identifications read from ``DIR``, the missing ones
-        identified and written there, :func:`agents.identified_plants.identified_plants`).
+        On an identified task with a ``base``: ``{"plants": P, "folder": DIR}``, every episode runs one of the
+        first P training plants and its rig's base is that controller built on that plant's identified model
+        (:mod:`agents.plantwise_residual`; the identifications read from ``DIR``, the missing ones identified
+        and written there, :func:`agents.identified_plants.identified_plants`).
 
     Returns
     -------
@@ -355,20 +272,24 @@ def make_training_env(
         if population is not None or nominal_fraction or nominal_below:
             raise InputError(f"task {task.id} fixes its plants: no population, nominal_fraction or nominal_below")
         kw = {**task_env_kwargs(task, kw), **task_model_options(task, model)}
-    if base not in (None, "observer"):
-        raise InputError(f"base must be 'observer' or absent, got {base!r}")
-    if base == "observer":
+    if base is not None and base not in RESIDUAL_BASES:
+        raise InputError(f"base must be {' or '.join(map(repr, RESIDUAL_BASES))} (or absent), got {base!r}")
+    if base is not None:
         if residual is None:
-            raise InputError("base 'observer' needs a residual scale (V)")
+            raise InputError(f"base {base!r} needs a residual scale (V)")
+        if observer is not None and base != "observer":
+            raise InputError(f"observer settings apply to base 'observer', not {base!r}")
         kw["normalize_action"] = False
         venv = make_sb3_vec(env_id, n_envs, **kw)
         o = venv.venv.options
         design = (env_kwargs or {}).get("model")  # the model the user gave (a train --model): the base's too
         if identified is not None:
-            base_law: Any = _plantwise_base(task, identified, ENV_IDS[env_id], residual, o.control_dt, observer)
+            from .plantwise_residual import plantwise_base
+
+            base_law: Any = plantwise_base(task, identified, base, ENV_IDS[env_id], residual, o.control_dt, observer)
         else:
-            base_law = ObserverResidual(ENV_IDS[env_id], residual, o.params, o.control_dt, observer, design)
-        venv = ObserverResidualVecEnv(venv, base_law)
+            base_law = make_residual_base(base, ENV_IDS[env_id], residual, o.params, o.control_dt, observer, design)
+        venv = ResidualBaseVecEnv(venv, base_law)
     elif residual is not None:
         kw["normalize_action"] = False
         venv: VecEnv = make_sb3_vec(env_id, n_envs, **kw)
@@ -382,8 +303,11 @@ def make_training_env(
             use_population(venv, population, nominal_fraction, nominal_below)
     if population is not None and (residual is not None or base is not None):
         raise InputError("a plant population is drawn for plain actions only (no residual or base controller)")
-    if identified is not None and base != "observer":
-        raise InputError("identified (bases built on each plant's identified model) needs base 'observer'")
+    if identified is not None and base is None:
+        raise InputError(
+            "identified (bases built on each plant's identified model) needs base "
+            + " or ".join(repr(b) for b in RESIDUAL_BASES)
+        )
     if task is not None:
         install_task_plants(venv, task, model)
         if identified is not None:  # the episodes run the identified plants only

@@ -65,6 +65,8 @@ class ObserverResidual:
         The design model with its effects (a model file's path is read as ``controllers.make`` reads it).
     """
 
+    uses = ("theta_u",)  # the readings :meth:`reset` and :meth:`correct` take, by name
+
     def __init__(
         self,
         config: str,
