@@ -28,7 +28,7 @@ from scipy.signal import welch
 from ..configurations import Configuration
 from ..effects import BASE, Composition, compose
 from ..identification.experiment import Experiment, prepare_experiment
-from ..identification.fitting import base_vector, default_scales
+from ..identification.fitting import base_vector
 from ..identification.metrics import channel_metrics
 from ..identification.segment_length import segment_length
 from ..identification.segmented import SegmentedModel
@@ -36,6 +36,7 @@ from ..io import TimeSeries
 from ..io.jsonfile import write_json
 from ..params import N_PARAMS, RigParams
 from .information import recording_information
+from .segments import robust_noise
 from .sparse import residual_torques
 
 __all__ = ["Comparison", "compare", "write_compare"]
@@ -149,8 +150,6 @@ NOISE_FACTOR = 3.0  # a channel fails only where its RMS error exceeds this many
 def _noise_levels(ex: Experiment, chans: list[str]) -> dict[str, float]:
     """Measurement noise per channel (rad or m): one encoder count / √12 (the count read from the
     data, :func:`.segments.encoder_quantum`), 10 µm for the LVDT channels."""
-    from .segments import robust_noise
-
     _, scales = robust_noise(ex)
     return {c: float(scales.get(c, 1e-5)) for c in chans}
 
@@ -209,10 +208,11 @@ def compare(
     chans = ["theta_u"] if ex.config is Configuration.UPPER else ["theta_u", "theta_l", "alpha"]
     if ex.config.lateral_free:
         chans += ["x", "y", "r"]
+    ex, scales = robust_noise(ex)  # the speed limits and scales the diagnosis compares with
     model = SegmentedModel([ex], segment_s, composition=comp)
     if refine_speeds:  # speeds at (segment) starts: derivative estimates corrected for this model
         w = {c: 1.0 for c in chans if c in ("theta_u", "theta_l", "x", "y")}
-        model.refine_initial_speeds(vec, w, default_scales([ex]))
+        model.refine_initial_speeds(vec, w, scales)
     pred = model.predict(vec[None, :], tuple(chans))[0]
     model.check_finite("compare", vec)
     predicted = {c: pred.stitched(0, c) for c in chans}

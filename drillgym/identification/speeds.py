@@ -6,12 +6,14 @@ keeps, snapshots and refines the corrections (rad/s) to the data's speed estimat
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from contextlib import contextmanager
 
 import numpy as np
 
 from ..configurations import Configuration
+from .experiment import SPEED_WINDOW_S
 
 __all__ = ["SpeedCorrections"]
 
@@ -105,6 +107,10 @@ class SpeedCorrections:
         quantization noise.  Left out: a disc the data show stuck at the start (speed estimate exactly 0), the
         upper disc of a free-vibration test and the lower disc of an upper-disc test.
 
+        A start whose differentiation window reaches the recording's first sample has a one-sided estimate
+        (the Savitzky–Golay fit extrapolated to its edge: 0.046 rad/s read for a motor starting from rest, 4 times
+        the centred estimate's noise): it may move by as much as its estimate too.
+
         When the model's reading depends on a disc's speed (``Composition.measurement_reads_speeds``: free play
         between an encoder's shaft and its disc), the reading changes by itself where that speed changes sign,
         and the data's rate there holds that change (a 0.02 rad play read as 2 rad/s at a start from rest): a
@@ -118,6 +124,9 @@ class SpeedCorrections:
         limit = np.tile(3.0 * noise, (len(starts), 1))
         if self.composition.measurement_reads_speeds:
             limit += np.where(_sign_change_near(rates, starts, ex.fs), np.abs(w0), 0.0)
+        else:
+            one_sided = starts < math.ceil(0.5 * SPEED_WINDOW_S * ex.fs)
+            limit += np.where(one_sided[:, None], np.abs(w0), 0.0)
         free = w0 != 0.0
         if ex.config is Configuration.FREE_VIBRATION:
             free[:, 0] = False
