@@ -80,3 +80,22 @@ def test_the_chain_of_diagnoses_ends_at_the_model_with_every_candidate():
     d = replace(base, reselection=first_again)
     assert d.in_turn() == [d, first_again, second] and d.final() is second
     assert base.final() is base and base.candidate_lines() == []
+
+
+def test_the_selection_again_starts_from_the_base_the_candidates_fit_ended_at():
+    """A candidate fitted with the base parameters freed holds its values beside them (a brake pad's friction with
+    the lateral stiffness 7 % up): the selection again starts there, not at the first diagnosis' base."""
+    import numpy as np
+
+    from drillgym.diagnosis.reselection import _fitted_base
+
+    first = SimpleNamespace(params=RigParams(), config=Configuration.TORSIONAL)
+    moved = RigParams().scaled(k=1.07, km=0.99)
+    start, _ = reselection_inputs(first, KeptCandidate(CUBIC, {}, (), base=moved), DiagnosisOptions())
+    assert start == moved
+    start, _ = reselection_inputs(first, KeptCandidate(CUBIC, {}, ()), DiagnosisOptions())
+    assert start == first.params
+    vector = np.concatenate([moved.to_vector(), [0.3]])
+    freed = SimpleNamespace(base_names=("k", "km"), result=SimpleNamespace(vector=vector))
+    assert _fitted_base(freed) == moved
+    assert _fitted_base(SimpleNamespace(base_names=(), result=freed.result)) is None

@@ -28,8 +28,10 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..effects import Effect
-from ..params import RigParams
+from ..params import N_PARAMS, RigParams
 from .candidate import Candidate
 from .effect_file import covering_file
 from .effects import effects_for, get_effect
@@ -74,6 +76,9 @@ class KeptCandidate:
         A parameter of ``through`` the candidate uses -> its name in the file.
     candidate : Candidate or None
         The candidate its file was written from (None: a library effect discovery named).
+    base : RigParams or None
+        The base parameters its fit ended at, where it freed them (its values hold only beside them: a brake
+        pad's friction fitted with the lateral stiffness 7 % up); None: the diagnosis' own.
     """
 
     spec: str
@@ -83,6 +88,7 @@ class KeptCandidate:
     through_values: dict[str, float] = field(default_factory=dict)
     file_names: dict[str, str] = field(default_factory=dict)
     candidate: Candidate | None = None
+    base: RigParams | None = None
 
     @property
     def held_terms(self) -> tuple[str, ...]:
@@ -115,14 +121,22 @@ def kept_candidate(diagnosis: Diagnosis) -> KeptCandidate | None:
     values = {c.fit.file_name(k): v for k, v in c.fit.values.items()}
     ahead = tuple(c.fit.with_library)
     through, state = c.fit.through, c.fit.state
+    base = _fitted_base(state)
     if through is None or state is None:
-        return KeptCandidate(covering_file(c, values), values, ahead, candidate=c)
+        return KeptCandidate(covering_file(c, values), values, ahead, candidate=c, base=base)
     own = {p.name for p in through.parameters}
     names = {k: v for k, v in c.fit.file_names.items() if k in own}
     if set(names.values()) != {p.name for p in get_effect(c.effect_file).parameters}:  # hold the file itself
-        return KeptCandidate(covering_file(c, values), values, ahead, candidate=c)
+        return KeptCandidate(covering_file(c, values), values, ahead, candidate=c, base=base)
     fitted = state.composition.named(state.result.vector)
-    return KeptCandidate(c.effect_file, values, ahead, through, {n: float(fitted[n]) for n in own}, names, c)
+    return KeptCandidate(c.effect_file, values, ahead, through, {n: float(fitted[n]) for n in own}, names, c, base)
+
+
+def _fitted_base(state) -> RigParams | None:
+    """The base parameters a candidate's fit ended at, where it freed them (else None)."""
+    if state is None or not state.base_names:
+        return None
+    return RigParams.from_vector(np.asarray(state.result.vector, dtype=float)[:N_PARAMS])
 
 
 def kept_in_turn(diagnosis: Diagnosis) -> list[KeptCandidate]:
@@ -153,7 +167,8 @@ def reselection_inputs(
     Parameters
     ----------
     diagnosis : Diagnosis
-        The first diagnosis (its re-identified base parameters are the start).
+        The first diagnosis (its re-identified base parameters are the start, unless the candidate's fit freed
+        them: then where that fit left them).
     kept : KeptCandidate
         The candidate.
     options : DiagnosisOptions
@@ -183,7 +198,7 @@ def reselection_inputs(
     comp, _ = compose([*held, kept.through or kept.spec])
     names = set(comp.effect_param_names)
     values: dict[str, Any] = {k: v for k, v in {**values0, **kept.values, **kept.through_values}.items() if k in names}
-    params = diagnosis.params if diagnosis.params is not None else RigParams()
+    params = kept.base or (diagnosis.params if diagnosis.params is not None else RigParams())
     more = options.max_candidates > 1  # the next candidate is looked for on the residual of this model
     if library:
         turn = {"discover": options.discover, "candidate_out": options.candidate_out}
