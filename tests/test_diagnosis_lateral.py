@@ -217,3 +217,22 @@ def test_the_lateral_group_is_weighed_by_the_lvdts_misfit_against_the_angles():
     }
     assert group_weights(SimpleNamespace(channels={"theta_u": 2.0, "theta_l": 1.5})) == {}
     assert group_weights(None) == {}
+
+
+def test_an_lvdts_gain_is_found_where_the_selection_took_the_anisotropy_for_it(tmp_path):
+    """A 4 % gain of the x LVDT draws the ellipse a stiffness difference draws: the selection takes
+    lateral_anisotropy, which leaves the LVDTs below the noise, so no reading is screened.  Fitted in its place,
+    the x LVDT's reading leaves clearly less on the LVDTs: it is the candidate (k within 15 %), and the library
+    selected again beside it no longer takes the anisotropy."""
+    from drillgym.diagnosis import diagnose
+
+    hidden = {"lvdt_scale": {"lvdt_kx": 0.0423}, "position_friction": {"pf_c1": -0.095, "pf_s1": -0.071}}
+    d = diagnose(_coupled(hidden, seed=42), discover=True, candidate_out=tmp_path / "cand.py")
+    assert "lateral_anisotropy" in d.selected, d.text()  # what the selection alone takes
+    c = d.candidate
+    assert c is not None and c.group == "lvdt_x", d.text()
+    assert c.terms["x"] == pytest.approx(0.0423, rel=0.15)
+    assert any("rather than a stiffness that differs in x and y" in w for w in d.warnings)
+    final = d.final()
+    assert "lateral_anisotropy" not in final.selected and "position_friction" in final.selected, final.text()
+    assert max(final.unexplained.channels[ch] for ch in ("x", "y")) < 0.5 * d.unexplained.channels["x"]

@@ -12,7 +12,8 @@
 * :mod:`.discovery` — a candidate effect outside the library from the residual torques on both discs,
   written as an effect file (``diagnose --candidate-out``); :mod:`.sensor_reading` — what each sensor reads
   (a scale error, an offset, free play), candidates only their own fit can show; :mod:`.candidate_fit` — each
-  candidate's own fit, the one that removes most kept;
+  candidate's own fit, the one that removes most kept; :mod:`.reading_in_place` — a reading fitted in the place
+  of a library effect it draws as well (an LVDT's gain for ``lateral_anisotropy``);
 * :mod:`.reselection` — with a candidate kept, the diagnosis again on the model that holds it.
 
 The steps hand each other what :mod:`.state` holds (the settings, the screened recording, the search's outcome)

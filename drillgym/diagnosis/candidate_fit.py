@@ -38,7 +38,15 @@ from .sensor_reading import MIN_READING_CUT, with_fitted_terms
 from .state import Screening, transfer
 from .unexplained import Unexplained, unexplained
 
-__all__ = ["CandidateFit", "CandidateFitState", "fit_candidate", "choose_candidate", "screened_readings", "MAX_NFEV"]
+__all__ = [
+    "CandidateFit",
+    "CandidateFitState",
+    "fit_candidate",
+    "choose_candidate",
+    "screened_readings",
+    "write_candidate",
+    "MAX_NFEV",
+]
 
 #: least-squares evaluations of the candidate's fit
 MAX_NFEV = 20
@@ -415,7 +423,7 @@ def choose_candidate(
     Candidate or None
         The candidate kept, with its fit; None when there was none and no reading's fit removes enough.
     """
-    written = cand = diagnosis.candidate
+    discovered = cand = diagnosis.candidate
     keep = other = None
     if cand is not None:
         keep, other = _discovered(screening, diagnosis, cand, noise_scales)
@@ -428,13 +436,33 @@ def choose_candidate(
             other = reading
     if keep is None:
         return None
-    if keep is not written and candidate_out is not None:  # the file written holds the discovered candidate
-        write_effect_file(keep, candidate_out)
-        if keep.fit is not None:  # its values by the names its file gives them
-            keep.fit.values = {_file_name(keep, k): v for k, v in keep.fit.values.items()}
-            keep.fit.file_names = {k: _file_name(keep, k) for k in keep.fit.file_names}
+    if keep is not discovered and candidate_out is not None:  # the file written holds the discovered candidate
+        write_candidate(keep, candidate_out)
     keep.alternative = other
     return keep
+
+
+def write_candidate(cand: Candidate, candidate_out: str | Path) -> Candidate:
+    """A fitted candidate other than discovery's with its effect file written to ``candidate_out`` (in place of
+    discovery's), and its fit's values by the names its file gives them.
+
+    Parameters
+    ----------
+    cand : Candidate
+        The candidate (a sensor's reading, discovery's alternative).
+    candidate_out : str or path
+        Its effect file.
+
+    Returns
+    -------
+    Candidate
+        The same candidate, updated in place.
+    """
+    write_effect_file(cand, candidate_out)
+    if cand.fit is not None:
+        cand.fit.values = {_file_name(cand, k): v for k, v in cand.fit.values.items()}
+        cand.fit.file_names = {k: _file_name(cand, k) for k in cand.fit.file_names}
+    return cand
 
 
 def _best_reading(

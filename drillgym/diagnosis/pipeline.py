@@ -17,7 +17,10 @@
    sensor's reading where its channel stays above the noise, :mod:`.sensor_reading`) added to the final model and
    fitted; the one whose fit removes most is kept, its residual reported;
    :func:`.lateral_library.library_versus_outside` — a library lateral effect the selection took that the residual
-   lateral force says is another force (a warning in words);
+   lateral force says is another force (a warning in words); :func:`.reading_in_place.reading_in_place` — where
+   no candidate reaches the noise, a sensor's reading fitted in the place of a library effect it draws as well
+   (an LVDT's gain for ``lateral_anisotropy``), kept when it leaves clearly less (the library selected again
+   beside it decides whether the effect was there too);
 6. :mod:`.reselection` — with a candidate kept in the model, the whole diagnosis again on the model that holds
    it (its parameters refitted with the base): the candidate's residual hid the library's effects beside it.  Up
    to ``max_candidates``, that diagnosis discovers again on its own residual: a second unknown effect (one in the
@@ -51,6 +54,7 @@ from .lateral_library import LateralVerdict, library_versus_outside
 from .library_columns import LibraryAnswer, library_answer
 from .orders import select
 from .ranking import report
+from .reading_in_place import ReadingVerdict, reading_in_place
 from .reselection import KeptCandidate, kept_candidate, reselection_inputs
 from .results import Diagnosis
 from .screening import screen
@@ -160,12 +164,22 @@ def _discovered(
         return replace(diagnosis, warnings=[*diagnosis.warnings, library.line()]), None, library
     verdict = library_versus_outside(fine, diagnosis, found)  # a library lateral effect standing in for another
     diagnosis = replace(diagnosis, candidate=found, advice=advice)
-    if found is None and not readings:
-        return diagnosis, verdict, None
+    chosen = None
     with one_blas_thread():  # its own identification is part of the answer
-        chosen = choose_candidate(screening, diagnosis, noise, opts.candidate_out, readings)
+        if found is not None or readings:
+            chosen = choose_candidate(screening, diagnosis, noise, opts.candidate_out, readings)
+        if chosen is None or chosen.fit is None or not chosen.fit.after.explained:
+            in_place = reading_in_place(screening, diagnosis, noise, opts.candidate_out)  # a reading the library drew
+            if in_place is not None and (chosen is None or chosen.fit is None or _leaves_more(chosen, in_place)):
+                chosen = in_place.reading
+                diagnosis = replace(diagnosis, warnings=[*diagnosis.warnings, in_place.line()])
     read = chosen is not None and chosen.is_reading
     return replace(diagnosis, candidate=chosen, advice=[] if read else advice), verdict, None
+
+
+def _leaves_more(chosen, in_place: ReadingVerdict) -> bool:
+    """Whether the candidate chosen leaves more than a reading in a library effect's place (noise units)."""
+    return chosen.fit.after.ratio_to_noise > in_place.reading_ratio
 
 
 def _a_reading_shows(screening, diagnosis: Diagnosis, readings: list, noise: dict[str, float]) -> bool:

@@ -36,7 +36,14 @@ from .reading_terms import SENSORS, ReadingSensor
 from .results import Candidate, Diagnosis
 from .unexplained import EXPLAINED_RATIO
 
-__all__ = ["reading_candidates", "with_fitted_terms", "MIN_READING_CUT", "START_PLAY_RAD", "START_WIDTH_RAD_S"]
+__all__ = [
+    "reading_candidates",
+    "reading_candidate",
+    "with_fitted_terms",
+    "MIN_READING_CUT",
+    "START_PLAY_RAD",
+    "START_WIDTH_RAD_S",
+]
 
 #: where the fit of an encoder's play starts (rad; not 0, where the lead speed has no gradient) and its lead speed
 #: (rad/s)
@@ -73,6 +80,22 @@ def reading_candidates(diagnosis: Diagnosis) -> list[Candidate]:
         if un.channels.get(s.channel, 0.0) >= EXPLAINED_RATIO and label in s.effect.configurations
     ]
     return [c for _, c in sorted(found, key=lambda rc: -rc[0])]
+
+
+def reading_candidate(group: str) -> Candidate:
+    """One sensor's reading at its start (``group``: a key of :data:`.reading_terms.SENSORS`).
+
+    Parameters
+    ----------
+    group : str
+        The sensor's candidate group (``lvdt_x``, ``motor_encoder``, ...).
+
+    Returns
+    -------
+    Candidate
+        Its reading as a candidate, unfitted.
+    """
+    return _candidate(SENSORS[group])
 
 
 def _candidate(sensor: ReadingSensor) -> Candidate:
