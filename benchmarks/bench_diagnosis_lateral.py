@@ -64,6 +64,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_diagnosis_rig import rig_recording  # noqa: E402
 
 from drillgym.diagnosis import diagnose  # noqa: E402
+from drillgym.diagnosis.effects import EFFECTS, label_effects  # noqa: E402
 
 #: the hidden force, its size drawn in a range, and the term that has its shape (a kind whose draw returns
 #: {effect: params} of several effects hides them all: see :data:`PAIRS`)
@@ -174,6 +175,13 @@ def _pair_parts(c) -> set[str]:
     return set(c.terms) if c.group == "lateral_force" else {c.group}
 
 
+def _in_model(final) -> list[str]:
+    """The library effects the final model holds: those selected, and those held beside a kept candidate (where the
+    selection run again ended worse than the candidate's own fit, the effects the candidate's fit held)."""
+    held = [n for n in label_effects(final.model) if n in EFFECTS]
+    return list(dict.fromkeys([*final.selected, *held]))
+
+
 def _lvdt_rms(unexplained) -> float:
     """The LVDTs' misfit: the RMS of the x and y channels (noise units)."""
     vals = [unexplained.channels[c] for c in ("x", "y") if c in unexplained.channels]
@@ -196,8 +204,9 @@ def run_one(kind: str, beside: str | None, seed: int, tmp: Path) -> dict:
     fit = c.fit if c is not None else None
     before = _lvdt_rms(fit.before) if fit is not None else _lvdt_rms(d.unexplained) if d.unexplained else math.nan
     after = _lvdt_rms(fit.after) if fit is not None else math.nan
-    wrong = [e for e in final.selected if e in LATERAL_LIBRARY and e not in effects]
-    other = [e for e in final.selected if e not in effects and e not in LATERAL_LIBRARY and "candidate" not in e]
+    named = _in_model(final)
+    wrong = [e for e in named if e in LATERAL_LIBRARY and e not in effects]
+    other = [e for e in named if e not in effects and e not in LATERAL_LIBRARY and "candidate" not in e]
     again = _lvdt_rms(final.unexplained) if final is not d and final.unexplained else None
     c2 = d.reselection.candidate if d.reselection is not None else None
     kept_2 = d.reselection is not None and d.reselection.reselection is not None  # the second candidate entered
@@ -230,7 +239,7 @@ def run_one(kind: str, beside: str | None, seed: int, tmp: Path) -> dict:
         "selected_again": None if d.reselection is None else list(d.reselection.selected),
         "wrong_library": wrong,
         "other_library": other,
-        "beside_found": None if beside is None else beside in final.selected,
+        "beside_found": None if beside is None else beside in named,
         "silent": _silent(d),
         "worst_in_turn": [None if st.unexplained is None else round(st.unexplained.worst, 2) for st in d.in_turn()],
         "rest": None if c is None else {k: round(v, 3) for k, v in c.rest.items()},

@@ -140,7 +140,7 @@ def test_a_fitted_value_beyond_the_regressed_bounds_is_written_into_the_candidat
     fit = SimpleNamespace(
         variance_cut=0.9, values=wide, file_name=lambda k: k, with_library=(), through=None, state=None
     )
-    kept = kept_candidate(SimpleNamespace(candidate=replace(cand, fit=fit)))
+    kept = kept_candidate(SimpleNamespace(candidate=replace(cand, fit=fit), selected=[]))
     assert isinstance(kept, KeptCandidate)
     _, values = compose([kept.spec], kept.values)
     assert values["candidate_motor_voltage_w2"] == 2.6

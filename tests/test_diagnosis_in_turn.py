@@ -99,3 +99,32 @@ def test_the_selection_again_starts_from_the_base_the_candidates_fit_ended_at():
     freed = SimpleNamespace(base_names=("k", "km"), result=SimpleNamespace(vector=vector))
     assert _fitted_base(freed) == moved
     assert _fitted_base(SimpleNamespace(base_names=(), result=freed.result)) is None
+
+
+def test_the_first_selection_is_held_where_the_selection_again_ends_worse_than_the_candidates_fit():
+    """The selection run again may lose an effect the candidate's model held (a brake pad beside the anisotropy):
+    judged against the candidate's own fit, the model it was fitted in is then held, at the fit's values."""
+    from drillgym.diagnosis.reselection import WORSE_BY, worse_than_candidate
+
+    fit = SimpleNamespace(after=SimpleNamespace(ratio_to_noise=2.0))
+    first = SimpleNamespace(
+        params=RigParams(),
+        config=Configuration.TORSIONAL,
+        selected=["string_damping", "motor_lag"],
+        candidate=SimpleNamespace(fit=fit),
+    )
+    kept = KeptCandidate(
+        CUBIC,
+        {},
+        (),
+        fitted_values={"dtheta": 0.004, "tau_m": 0.03, "unused": 1.0},
+        fitted_with=("string_damping", "motor_lag"),
+    )
+    _, free = reselection_inputs(first, kept, DiagnosisOptions())
+    assert [getattr(e, "name", e) for e in free.base_effects] == ["string_cubic"]
+    _, held = reselection_inputs(first, kept, DiagnosisOptions(), left_out=("motor_lag",), hold_selected=True)
+    assert [getattr(e, "name", e) for e in held.base_effects] == ["string_damping", "motor_lag", "string_cubic"]
+    assert held.effect_params["dtheta"] == 0.004 and held.effect_params["tau_m"] == 0.03
+    again = SimpleNamespace(unexplained=SimpleNamespace(ratio_to_noise=WORSE_BY * 2.0 + 0.1))
+    assert worse_than_candidate(again, first)
+    assert not worse_than_candidate(SimpleNamespace(unexplained=SimpleNamespace(ratio_to_noise=2.5)), first)

@@ -32,7 +32,7 @@ def _diagnosis(cut: float, effect_file: str | None, with_library=()):
         state=None,
     )
     cand = SimpleNamespace(fit=fit, effect_file=effect_file)
-    return SimpleNamespace(candidate=cand, params=RigParams().scaled(km=0.97))
+    return SimpleNamespace(candidate=cand, params=RigParams().scaled(km=0.97), selected=[])
 
 
 @pytest.mark.parametrize(("cut", "enters"), [(MIN_CANDIDATE_CUT - 0.01, False), (MIN_CANDIDATE_CUT, True)])
@@ -75,7 +75,7 @@ def test_a_candidate_fitted_through_the_compiled_terms_is_held_as_them_and_writt
     (tmp_path / "c.py").write_text(CANDIDATE)
     comp, values = compose([MotorVoltageTerms], {"mv_offset": 0.12})
     d = _diagnosis(0.8, f"{tmp_path / 'c.py'}:candidate_motor_voltage")
-    state = SimpleNamespace(composition=comp, result=SimpleNamespace(vector=comp.vector(None, values)))
+    state = SimpleNamespace(composition=comp, result=SimpleNamespace(vector=comp.vector(None, values)), base_names=())
     d.candidate.fit.through, d.candidate.fit.state = MotorVoltageTerms, state
     d.candidate.fit.file_names = {"mv_offset": "candidate_motor_voltage_c1"}
     kept = kept_candidate(d)

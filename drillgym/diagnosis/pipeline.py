@@ -26,7 +26,9 @@
    to ``max_candidates``, that diagnosis discovers again on its own residual: a second unknown effect (one in the
    drive, one in the string) is found once the first is in the model, and enters by the same bar.  A
    library lateral effect that the residual said is another force is not a candidate there: it is left out of
-   the model the candidate enters.
+   the model the candidate enters.  Where that diagnosis ends clearly worse than the candidate's own fit
+   (:func:`.reselection.worse_than_candidate`: it lost an effect the candidate's model held), it runs once more
+   with the library effects the candidate's fit held beside it, and the better of the two is kept.
 """
 
 from __future__ import annotations
@@ -55,7 +57,7 @@ from .library_columns import LibraryAnswer, library_answer
 from .orders import select
 from .ranking import report
 from .reading_in_place import ReadingVerdict, reading_in_place
-from .reselection import KeptCandidate, kept_candidate, reselection_inputs
+from .reselection import KeptCandidate, kept_candidate, reselection_inputs, worse_than_candidate
 from .results import Diagnosis
 from .screening import screen
 from .sensor_reading import reading_candidates
@@ -140,9 +142,26 @@ def diagnose(
             diagnosis = replace(diagnosis, warnings=[*diagnosis.warnings, verdict.line(left_out=kept is not None)])
         if kept is not None:
             left_out = (verdict.library,) if verdict is not None else ()
-            again, again_options = reselection_inputs(diagnosis, kept, opts, left_out, library=library is not None)
-            diagnosis = replace(diagnosis, reselection=diagnose(data, again, config, options=again_options))
+            inputs = (diagnosis, kept, opts, left_out)
+            again, again_options = reselection_inputs(*inputs, library=library is not None)
+            redo = diagnose(data, again, config, options=again_options)
+            if library is None and worse_than_candidate(redo, diagnosis):  # the candidate's own model, refitted
+                again, again_options = reselection_inputs(*inputs, hold_selected=True)
+                held = diagnose(data, again, config, options=again_options)
+                if _residual(held) < _residual(redo):
+                    line = (
+                        f"the library selected again beside the candidate left {_residual(redo):.3g} times the noise, "
+                        f"its own fit {diagnosis.candidate.fit.after.ratio_to_noise:.3g}: the effects that fit held "
+                        f"({', '.join(kept.fitted_with) or 'none'}) are held beside it ({_residual(held):.3g})"
+                    )
+                    redo = replace(held, warnings=[*held.warnings, line])
+            diagnosis = replace(diagnosis, reselection=redo)
     return diagnosis
+
+
+def _residual(d: Diagnosis) -> float:
+    """A diagnosis' final residual RMS in noise units (infinite without one)."""
+    return d.unexplained.ratio_to_noise if d.unexplained is not None else float("inf")
 
 
 def _discovered(
@@ -178,8 +197,9 @@ def _discovered(
 
 
 def _leaves_more(chosen, in_place: ReadingVerdict) -> bool:
-    """Whether the candidate chosen leaves more than a reading in a library effect's place (noise units)."""
-    return chosen.fit.after.ratio_to_noise > in_place.reading_ratio
+    """Whether the candidate chosen leaves more than a reading in a library effect's place (residual RMS over every
+    channel, noise units)."""
+    return chosen.fit.after.ratio_to_noise > in_place.reading.fit.after.ratio_to_noise
 
 
 def _a_reading_shows(screening, diagnosis: Diagnosis, readings: list, noise: dict[str, float]) -> bool:

@@ -17,8 +17,11 @@ only the terms chosen for this recording, would be a new compiled model each tim
 
 One mechanism for every kind: a lag or a delay beside a motor-side candidate, a position friction or a string
 damping beside a dead zone, an effect the first selection took that no longer counts (it is simply not selected
-again).  The pipeline stores the result as :attr:`~.results.Diagnosis.reselection`; :func:`drillgym.identify`
-builds its model from it.
+again).  The final model is never clearly worse than the candidate's own fit: where the selection run again ends
+beyond :data:`WORSE_BY` times its residual (a brake pad beside the anisotropy, which the run again did not take:
+35 noise units for the fit's 2.1), the library effects the candidate's fit held are held beside it and refitted
+(``hold_selected``), and the better of the two kept.  The pipeline stores the result as
+:attr:`~.results.Diagnosis.reselection`; :func:`drillgym.identify` builds its model from it.
 """
 
 from __future__ import annotations
@@ -34,23 +37,28 @@ from ..effects import Effect
 from ..params import N_PARAMS, RigParams
 from .candidate import Candidate
 from .effect_file import covering_file
-from .effects import effects_for, get_effect
+from .effects import EFFECTS, effects_for, get_effect
 from .results import Diagnosis
 from .state import DiagnosisOptions
 
 __all__ = [
     "MIN_CANDIDATE_CUT",
+    "WORSE_BY",
     "KeptCandidate",
     "kept_candidate",
     "kept_in_turn",
     "next_candidate_out",
     "reselection_inputs",
+    "worse_than_candidate",
 ]
 
 #: share of the unexplained variance a candidate's own fit must remove to enter the model (the bar a sensor's
 #: reading meets to be kept, :data:`.sensor_reading.MIN_READING_CUT`): a candidate that removes
 #: less earns no place in the model a user builds on
 MIN_CANDIDATE_CUT = 0.3
+#: the diagnosis run again ends clearly worse than the candidate's own fit beyond this factor on the residual RMS
+#: (noise units): then the model the candidate was fitted in is held and refitted
+WORSE_BY = 1.5
 
 
 @dataclass(frozen=True)
@@ -79,6 +87,11 @@ class KeptCandidate:
     base : RigParams or None
         The base parameters its fit ended at, where it freed them (its values hold only beside them: a brake
         pad's friction fitted with the lateral stiffness 7 % up); None: the diagnosis' own.
+    fitted_values : dict of str to float
+        Every effect parameter of the model its fit ran in (the first selection's effects too), as it left them.
+    fitted_with : tuple of str
+        The library effects that model held away from their neutral values: the first selection's, and those the
+        fit freed beside the candidate (a lateral anisotropy a brake pad's terms had stood in for).
     """
 
     spec: str
@@ -89,6 +102,8 @@ class KeptCandidate:
     file_names: dict[str, str] = field(default_factory=dict)
     candidate: Candidate | None = None
     base: RigParams | None = None
+    fitted_values: dict[str, float] = field(default_factory=dict)
+    fitted_with: tuple[str, ...] = ()
 
     @property
     def held_terms(self) -> tuple[str, ...]:
@@ -122,14 +137,31 @@ def kept_candidate(diagnosis: Diagnosis) -> KeptCandidate | None:
     ahead = tuple(c.fit.with_library)
     through, state = c.fit.through, c.fit.state
     base = _fitted_base(state)
+    fitted = state.composition.named(state.result.vector) if state is not None else {}
+    effects = {k: v for k, v in fitted.items() if k in set(state.composition.effect_param_names)} if fitted else {}
+    more = {"base": base, "fitted_values": effects, "fitted_with": _fitted_with(state, diagnosis, fitted)}
     if through is None or state is None:
-        return KeptCandidate(covering_file(c, values), values, ahead, candidate=c, base=base)
+        return KeptCandidate(covering_file(c, values), values, ahead, candidate=c, **more)
     own = {p.name for p in through.parameters}
     names = {k: v for k, v in c.fit.file_names.items() if k in own}
     if set(names.values()) != {p.name for p in get_effect(c.effect_file).parameters}:  # hold the file itself
-        return KeptCandidate(covering_file(c, values), values, ahead, candidate=c, base=base)
-    fitted = state.composition.named(state.result.vector)
-    return KeptCandidate(c.effect_file, values, ahead, through, {n: float(fitted[n]) for n in own}, names, c, base)
+        return KeptCandidate(covering_file(c, values), values, ahead, candidate=c, **more)
+    through_values = {n: float(fitted[n]) for n in own}
+    return KeptCandidate(c.effect_file, values, ahead, through, through_values, names, c, **more)
+
+
+def _fitted_with(state, diagnosis: Diagnosis, fitted: Mapping[str, float]) -> tuple[str, ...]:
+    """The library effects of the model a candidate's fit ran in that it held: the diagnosis' selection, and those
+    whose fitted values are away from their neutral ones."""
+    if state is None:
+        return tuple(diagnosis.selected)
+    out = []
+    for eff in state.composition.effects:
+        neutral = eff.neutral_values() or {}
+        away = any(abs(fitted[n] - v) > 1e-12 * max(1.0, abs(v)) for n, v in neutral.items() if n in fitted)
+        if eff.name in diagnosis.selected or (away and eff.name in EFFECTS):
+            out.append(eff.name)
+    return tuple(out)
 
 
 def _fitted_base(state) -> RigParams | None:
@@ -137,6 +169,28 @@ def _fitted_base(state) -> RigParams | None:
     if state is None or not state.base_names:
         return None
     return RigParams.from_vector(np.asarray(state.result.vector, dtype=float)[:N_PARAMS])
+
+
+def worse_than_candidate(again: Diagnosis, diagnosis: Diagnosis) -> bool:
+    """Whether the diagnosis run again with the candidate ends clearly worse than the candidate's own fit (its
+    residual RMS more than :data:`WORSE_BY` times the fit's, in noise units): it lost an effect the model the
+    candidate was fitted in held (a brake pad beside the anisotropy: 2.1 noise units with it, 35 without).
+
+    Parameters
+    ----------
+    again : Diagnosis
+        The diagnosis run again.
+    diagnosis : Diagnosis
+        The first diagnosis, with its kept candidate's fit.
+
+    Returns
+    -------
+    bool
+    """
+    c = diagnosis.candidate
+    if again.unexplained is None or c is None or c.fit is None:
+        return False
+    return again.unexplained.ratio_to_noise > WORSE_BY * c.fit.after.ratio_to_noise
 
 
 def kept_in_turn(diagnosis: Diagnosis) -> list[KeptCandidate]:
@@ -161,6 +215,7 @@ def reselection_inputs(
     options: DiagnosisOptions,
     left_out: Sequence[str] = (),
     library: bool = False,
+    hold_selected: bool = False,
 ) -> tuple[RigParams, DiagnosisOptions]:
     """The base parameters and the options of the diagnosis run again with the candidate in the model.
 
@@ -181,6 +236,11 @@ def reselection_inputs(
         no candidate's turn, so discovery runs again as it did here (another effect outside the library, e.g. a
         dead zone on the motor side beside the position friction named on the lower disc, is looked for on the
         residual of the model with it).  Default False.
+    hold_selected : bool, optional
+        Hold the library effects the candidate's fit held too (:attr:`KeptCandidate.fitted_with`, those in
+        ``left_out`` as well), at the values it left them: the model the candidate was fitted in, refitted, where the
+        selection run again from the model's own effects ended worse than the candidate's own fit
+        (:func:`worse_than_candidate`).  Default False.
 
     Returns
     -------
@@ -194,10 +254,16 @@ def reselection_inputs(
     from ..effects import compose
 
     first, values0 = compose(options.base_effects, options.effect_params)
-    held = [*first.effects, *(a for a in kept.ahead if a not in first.names and a not in left_out)]
+    # held as the candidate's fit held them, left_out too: the model it was fitted in needed them (an anisotropy
+    # the lateral verdict took for the brake pad's force)
+    beside = [*(a for a in kept.ahead if a not in left_out), *(kept.fitted_with if hold_selected else ())]
+    held = [*first.effects, *dict.fromkeys(a for a in beside if a not in first.names)]
     comp, _ = compose([*held, kept.through or kept.spec])
     names = set(comp.effect_param_names)
-    values: dict[str, Any] = {k: v for k, v in {**values0, **kept.values, **kept.through_values}.items() if k in names}
+    fitted = kept.fitted_values if hold_selected else {}
+    values: dict[str, Any] = {
+        k: v for k, v in {**fitted, **values0, **kept.values, **kept.through_values}.items() if k in names
+    }
     params = kept.base or (diagnosis.params if diagnosis.params is not None else RigParams())
     more = options.max_candidates > 1  # the next candidate is looked for on the residual of this model
     if library:
