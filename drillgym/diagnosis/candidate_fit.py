@@ -27,10 +27,8 @@ from ..effects import Composition, Effect, Force
 from ..identification.fitting import FitResult, Objective
 from .context import SelectionContext, base_at_bounds, converged_fit
 from .discovery_terms import dead_zone_variant
-from .effect_file import write_effect_file
 from .effects import get_effect
-from .group_terms import terms_effect, terms_parameter
-from .motor_terms import WIDTH_PARAMETERS
+from .group_terms import file_name, terms_effect, write_candidate
 from .results import Candidate, Diagnosis
 from .scoring import score, significant
 from .search_model import with_candidate
@@ -38,15 +36,7 @@ from .sensor_reading import MIN_READING_CUT, with_fitted_terms
 from .state import Screening, transfer
 from .unexplained import Unexplained, unexplained
 
-__all__ = [
-    "CandidateFit",
-    "CandidateFitState",
-    "fit_candidate",
-    "choose_candidate",
-    "screened_readings",
-    "write_candidate",
-    "MAX_NFEV",
-]
+__all__ = ["CandidateFit", "CandidateFitState", "fit_candidate", "choose_candidate", "screened_readings", "MAX_NFEV"]
 
 #: least-squares evaluations of the candidate's fit
 MAX_NFEV = 20
@@ -252,7 +242,7 @@ def fit_candidate(
             (obj, ctx, fit), base_names, held = freed, tuple(model.base_names), False
     before = diagnosis.unexplained or unexplained(model.obj, diagnosis.vector, noise_scales)
     after = unexplained(obj, np.asarray(fit.vector), noise_scales)
-    file_names = {n: _file_name(candidate, n) for n in names}
+    file_names = {n: file_name(candidate, n) for n in names}
     values = {file_names[n]: float(fit.vector[with_it.param_index(n)]) for n in names}
     state = CandidateFitState(obj, with_it, fit, names, base_names, ctx.nominal, tuple(model.base_names), start_values)
     moved = change_pct(with_it, fit.vector, ctx.nominal, base_names)
@@ -442,29 +432,6 @@ def choose_candidate(
     return keep
 
 
-def write_candidate(cand: Candidate, candidate_out: str | Path) -> Candidate:
-    """A fitted candidate other than discovery's with its effect file written to ``candidate_out`` (in place of
-    discovery's), and its fit's values by the names its file gives them.
-
-    Parameters
-    ----------
-    cand : Candidate
-        The candidate (a sensor's reading, discovery's alternative).
-    candidate_out : str or path
-        Its effect file.
-
-    Returns
-    -------
-    Candidate
-        The same candidate, updated in place.
-    """
-    write_effect_file(cand, candidate_out)
-    if cand.fit is not None:
-        cand.fit.values = {_file_name(cand, k): v for k, v in cand.fit.values.items()}
-        cand.fit.file_names = {k: _file_name(cand, k) for k in cand.fit.file_names}
-    return cand
-
-
 def _best_reading(
     screening: Screening, diagnosis: Diagnosis, readings: Sequence[Candidate], noise_scales: dict[str, float]
 ) -> Candidate | None:
@@ -606,15 +573,3 @@ def _lag_that_counts(
 #: a lag the candidate's terms were found through counts only when fitted at least this long (s): shorter, it is
 #: no lag at the rates recorded (≤ 1 kHz), and the fit has taken it out
 MIN_LAG_S = 1e-3
-
-
-def _file_name(candidate: Candidate, parameter: str) -> str:
-    """The name a fitted parameter has in the candidate's file (``NAME_c<i>``, ``NAME_w<i>``), or its own name."""
-    if not candidate.name:
-        return parameter
-    for i, label in enumerate(candidate.terms, 1):
-        if terms_parameter(candidate.group, label) == parameter:
-            return f"{candidate.name}_c{i}"
-        if parameter == WIDTH_PARAMETERS.get(candidate.group) and label in candidate.widths:
-            return f"{candidate.name}_w{i}"
-    return parameter

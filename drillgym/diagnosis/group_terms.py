@@ -12,7 +12,8 @@ coefficient a parameter (0: off), the terms it does not use held at 0:
   read them (:mod:`drillgym.effects.file_signature`): one compilation per group and machine.
 
 :func:`terms_effect` gives the effect and where the candidate's terms start in it; :func:`terms_parameter` maps a
-term's label to its parameter there.
+term's label to its parameter there, :func:`file_name` such a parameter to its name in the candidate's file, and
+:func:`write_candidate` writes a fitted candidate's file with its values renamed so.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ from .lateral_terms import outside_terms
 from .motor_terms import TERM_EFFECTS, WIDTH_PARAMETERS, term_parameters
 from .results import Candidate
 
-__all__ = ["terms_effect", "terms_parameter", "terms_name"]
+__all__ = ["terms_effect", "terms_parameter", "terms_name", "file_name", "write_candidate"]
 
 
 @cache
@@ -136,3 +137,38 @@ def _written(candidate: Candidate) -> str:
         if not path.exists():
             os.replace(draft, path)
     return f"{path}:{name}"
+
+
+def file_name(candidate: Candidate, parameter: str) -> str:
+    """The name a fitted parameter has in the candidate's file (``NAME_c<i>``, ``NAME_w<i>``), or its own name."""
+    if not candidate.name:
+        return parameter
+    for i, label in enumerate(candidate.terms, 1):
+        if terms_parameter(candidate.group, label) == parameter:
+            return f"{candidate.name}_c{i}"
+        if parameter == WIDTH_PARAMETERS.get(candidate.group) and label in candidate.widths:
+            return f"{candidate.name}_w{i}"
+    return parameter
+
+
+def write_candidate(cand: Candidate, candidate_out: str | Path) -> Candidate:
+    """A fitted candidate other than discovery's with its effect file written to ``candidate_out`` (in place of
+    discovery's), and its fit's values by the names its file gives them.
+
+    Parameters
+    ----------
+    cand : Candidate
+        The candidate (a sensor's reading, discovery's alternative).
+    candidate_out : str or path
+        Its effect file.
+
+    Returns
+    -------
+    Candidate
+        The same candidate, updated in place.
+    """
+    write_effect_file(cand, candidate_out)
+    if cand.fit is not None:
+        cand.fit.values = {file_name(cand, k): v for k, v in cand.fit.values.items()}
+        cand.fit.file_names = {k: file_name(cand, k) for k in cand.fit.file_names}
+    return cand

@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from .candidate import Candidate
-from .candidate_fit import fit_candidate, write_candidate
+from .candidate_fit import fit_candidate
+from .group_terms import write_candidate
 from .reading_terms import SENSORS
 from .sensor_reading import reading_candidate, with_fitted_terms
 from .unexplained import unexplained
