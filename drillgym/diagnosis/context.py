@@ -89,6 +89,11 @@ class SelectionOptions:
         Candidates fitted together when none is significant alone.  Default 3.
     n_eff_ref : float
         A lower bound of the effectively independent samples of every score.  Default 0.
+    guard_base : bool
+        Also run the order that guards the base parameters' first refit against absorbing an effect (the
+        effects-first order on the nominal base and its continuation: :mod:`.orders`).  Off where the base starts
+        where a fit with the model's own effects left it (the diagnosis run again beside a kept candidate): there
+        it found what the other orders find.  Default True.
     """
 
     n_joint: int = 2
@@ -99,6 +104,7 @@ class SelectionOptions:
     max_nfev_base: int = 15
     n_group: int = 3
     n_eff_ref: float = 0.0
+    guard_base: bool = True
 
 
 @dataclass

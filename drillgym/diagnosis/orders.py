@@ -15,6 +15,9 @@ better model each time:
    divided out (:func:`lag_from_rescaled_base`);
 5. ``union_backward``: the union of what the orders selected, reduced by the backward check
    (:func:`union_of_paths`: each order can take a stand-in for one effect and miss another).
+
+Order 2 guards the base's first refit (:attr:`.context.SelectionOptions.guard_base`); the diagnosis run again
+beside a kept candidate starts from the base the candidate's fit re-identified and runs without it.
 """
 
 from __future__ import annotations
@@ -69,8 +72,9 @@ def select(model: SearchModel, options: SelectionOptions) -> SearchOutcome:
     if not model.base_names:
         return outcome
     results = [out]
-    out, alt = _nominal_orders(model, options, outcome)
-    results.append(alt)
+    if options.guard_base:
+        out, alt = _nominal_orders(model, options, outcome)
+        results.append(alt)
     if out.base_off and (out.at_bounds or beyond_prior(out, model)):
         # the base kept moved beyond a few percent: it may have absorbed an effect that no order found (every
         # torque parameter -9 to -12 % together in place of a motor lag).  The search again, every base refit a

@@ -107,7 +107,11 @@ class DiagnosisOptions:
         """The options of the forward selection."""
         joint = SelectionOptions.max_nfev_joint * (REFIT_BUDGET if self.refit_model_effects else 1)
         return SelectionOptions(
-            n_joint=self.n_joint, max_effects=self.max_effects, refine=self.refine_speeds, max_nfev_joint=joint
+            n_joint=self.n_joint,
+            max_effects=self.max_effects,
+            refine=self.refine_speeds,
+            max_nfev_joint=joint,
+            guard_base=not self.refit_model_effects,
         )
 
 
