@@ -186,3 +186,22 @@ def test_the_exact_model_compares_at_the_noise_from_a_start_at_rest(seed):
     ratios = {c: m["rms"] / comp.noise[c] for c, m in comp.metrics.items()}
     assert max(ratios.values()) < 2.0, ratios
     assert comp.windows[0]["theta_u"] < 2.0 * comp.noise["theta_u"]
+
+
+def test_the_exact_model_compares_at_the_noise_of_a_reading_with_noise_beyond_its_counts():
+    """White noise added after the count (0.3 mrad on 0.8 mrad counts): the readings lie on no lattice of counts,
+    and the noise units are their scatter (the count's rounding and the noise together), so the exact model is not
+    reported as a misfit (it read tens of noise units when the floor of 0.1 mrad was taken for the noise)."""
+    from drillgym.io import TimeSeries
+
+    ts = synthetic_measurement("torsional", duration=12.0, rate_hz=500.0, signal="steps", offset=1.2, amplitude=1.5)
+    rng = np.random.default_rng(5)
+    cols = dict(ts.columns)
+    for c in ("theta_u", "theta_l"):
+        cols[c] = np.asarray(cols[c]) + rng.normal(0.0, 3e-4, len(cols[c]))
+    noisy = TimeSeries(cols, dict(ts.meta), "<noisy>")
+    comp = compare(noisy, RigParams(), segment_s=4.0)
+    expected = np.hypot(3e-4, 2 * np.pi / 8000 / np.sqrt(12.0))
+    assert comp.noise["theta_u"] == pytest.approx(expected, rel=0.2)
+    ratios = {c: m["rms"] / comp.noise[c] for c, m in comp.metrics.items()}
+    assert max(ratios.values()) < 2.0, ratios

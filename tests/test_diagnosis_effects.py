@@ -147,17 +147,35 @@ def test_refit_with_effect_cuts_error():
 # Each recording below was misdiagnosed before the segment conditioning of drillgym/diagnosis/segments.py.
 
 
-def test_encoder_quantum_ignores_interpolation_roundoff():
-    from drillgym.diagnosis.segments import encoder_quantum
+def test_encoder_count_ignores_interpolation_roundoff():
+    from drillgym.identification.reading_noise import encoder_count
 
     q = 2 * np.pi / 8000
     rng = np.random.default_rng(0)
     theta = np.round(np.cumsum(rng.uniform(0, 3e-3, 5000)) / q) * q
     theta_interp = theta + rng.normal(0.0, 1e-11, theta.size)  # round-off of resampling: not a count
-    assert encoder_quantum(theta_interp) == pytest.approx(q, rel=1e-6)
-    assert encoder_quantum(np.zeros(10)) is None
+    assert encoder_count(theta_interp) == pytest.approx(q, rel=1e-6)
+    assert encoder_count(np.zeros(10)) is None
     coarse = np.cumsum(rng.choice([3, 4, 7, 10], 500)) * q  # never fewer than 3 counts between samples
-    assert encoder_quantum(coarse) == pytest.approx(q, rel=1e-6)
+    assert encoder_count(coarse) == pytest.approx(q, rel=1e-6)
+
+
+def test_a_reading_off_any_lattice_of_counts_has_its_scatter_for_noise():
+    """White noise added after the count (0.3 mrad on 1.2 mrad counts): the reading's noise is its scatter, the
+    count's rounding and the noise together, not the smallest difference between samples (which is ~0)."""
+    from drillgym.identification.reading_noise import angle_noise, encoder_count
+
+    q, sigma = 2 * np.pi / 5000, 3e-4
+    rng = np.random.default_rng(1)
+    t = np.arange(0.0, 20.0, 0.02)
+    true = 2.0 * t + 0.3 * np.sin(3.0 * t)  # a disc turning unevenly, sampled at 50 Hz
+    counted = np.floor(true / q) * q
+    assert angle_noise(counted) == pytest.approx(q / np.sqrt(12.0), rel=1e-6)  # on the lattice: its count
+    noisy = counted + rng.normal(0.0, sigma, t.size)
+    assert encoder_count(noisy) is None
+    expected = np.hypot(sigma, q / np.sqrt(12.0))
+    assert angle_noise(noisy) == pytest.approx(expected, rel=0.15)
+    assert angle_noise(np.full(50, 0.3)) is None  # a disc that never turns tells nothing
 
 
 def test_coupled_speed_noise_and_scales_from_encoder_count():

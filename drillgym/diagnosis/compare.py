@@ -149,7 +149,7 @@ NOISE_FACTOR = 3.0  # a channel fails only where its RMS error exceeds this many
 
 def _noise_levels(ex: Experiment, chans: list[str]) -> dict[str, float]:
     """Measurement noise per channel (rad or m): one encoder count / √12 (the count read from the
-    data, :func:`.segments.encoder_quantum`), 10 µm for the LVDT channels."""
+    data, :func:`drillgym.identification.reading_noise.angle_noise`), 10 µm for the LVDT channels."""
     _, scales = robust_noise(ex)
     return {c: float(scales.get(c, 1e-5)) for c in chans}
 

@@ -1,12 +1,11 @@
 """Conditioning of a recording for the diagnosis: noise levels and where segments start.
 
-* :func:`encoder_quantum` — the encoder count (rad) of a recorded angle, robust
-  to the ~1e-11 rad round-off differences that interpolation leaves between
-  samples of equal count (taking the smallest nonzero difference would read
-  such round-off as the resolution and make the noise level vanish);
 * :func:`robust_noise` — the experiment with the speed limits of the
-  start-speed refinement (rad/s) recomputed from that count, and the residual
-  scales (noise units) the diagnosis compares in;
+  start-speed refinement (rad/s) recomputed from the readings' noise
+  (:func:`drillgym.identification.reading_noise.angle_noise`: the encoder's count,
+  robust to the ~1e-11 rad round-off differences that interpolation leaves between
+  samples of equal count, or the scatter of a reading off any lattice of counts),
+  and the residual scales (noise units) the diagnosis compares in;
 * :func:`place_segment_starts` — multiple-shooting segments re-started where
   the data's state is well known: far from stick/slip transitions of either
   disc.  A segment that starts just before a slip begins, or while the lower
@@ -20,60 +19,27 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 
 import numpy as np
 from scipy.signal import savgol_coeffs
 
 from ..identification.experiment import SPEED_WINDOW_S, Experiment
+from ..identification.reading_noise import ANGLE_FLOOR_RAD, angle_noise
 from ..identification.segmented import SegmentedModel
 
-__all__ = ["encoder_quantum", "robust_noise", "place_segment_starts", "MIN_COUNT_RAD"]
+__all__ = ["robust_noise", "place_segment_starts"]
 
-MIN_COUNT_RAD = 1e-7  # rad: differences below this are round-off, not encoder counts (1e-7 rad ~ 6e7 counts/rev)
 QUALITY_CAP_S = 0.4  # s: a start this far from any stick/slip transition is as good as any other
-
-
-def encoder_quantum(theta: np.ndarray, max_multiple: int = 50) -> float | None:
-    """The encoder count (rad) of a recorded angle.
-
-    Every difference between samples of a quantized angle is a whole number of counts, but on a
-    coarse grid (or when the disc never stops) even the smallest difference can be several counts:
-    the count is the largest ``d_min / k`` (k <= ``max_multiple``) of which all differences are whole
-    multiples, ``d_min`` the smallest difference above round-off (``MIN_COUNT_RAD``).
-
-    Parameters
-    ----------
-    theta : numpy.ndarray
-        The angle (rad).
-    max_multiple : int, optional
-        The largest number of counts the smallest difference may hold.  Default 50.
-
-    Returns
-    -------
-    float or None
-        The count (rad), or None if the angle never changes.
-    """
-    d = np.abs(np.diff(np.asarray(theta, dtype=float)))
-    d = d[d > MIN_COUNT_RAD]
-    if not d.size:
-        return None
-    d_min = float(d.min())
-    for k in range(1, max_multiple + 1):
-        q = d_min / k
-        m = d / q
-        if np.max(np.abs(m - np.round(m))) < 1e-3 * max(1.0, float(m.max()) * 1e-3):
-            return q
-    return d_min  # not quantized (or not recognisably): the smallest difference is an upper bound
 
 
 def robust_noise(ex: Experiment) -> tuple[Experiment, dict[str, float]]:
     """An experiment's noise read robustly: its speed-noise limits and its channels' residual scales.
 
-    Angle scale: one encoder count / √12 (at least 1e-4 rad, as
-    :func:`drillgym.identification.fitting.default_scales`); LVDT channels 10 µm.
-    Speed limit of the start-speed refinement: the quantization noise of a Savitzky–Golay derivative
+    Angle scale: the finer reading's noise (one encoder count / √12, or the scatter of a reading off any
+    lattice of counts; at least 1e-4 rad, as :func:`drillgym.identification.fitting.default_scales`); LVDT
+    channels 10 µm.
+    Speed limit of the start-speed refinement: that noise through a Savitzky–Golay derivative
     on the comparison grid (``ex.fs``), i.e. the speed resolution the comparison itself has.  It is
     deliberately wider than the noise of the data-rate estimate (the speed estimates also carry the
     smoothing error of the derivative at stick/slip kinks): limiting the corrections to the data-rate
@@ -93,18 +59,13 @@ def robust_noise(ex: Experiment) -> tuple[Experiment, dict[str, float]]:
     win = max(5, int(round(SPEED_WINDOW_S * fs)) | 1)
     gain = float(np.linalg.norm(savgol_coeffs(win, min(3, win - 1), deriv=1, delta=1.0 / fs)))
     noise = dict(ex.speed_noise)
-    qs = []
-    for ang, _om in (("theta_u", "omega_u"), ("theta_l", "omega_l")):
-        if ang not in ex.meas:
-            continue
-        q = encoder_quantum(ex.meas[ang])
-        if q is not None:
-            qs.append(q)
-    if qs:  # one encoder type on both discs: the finer reading is the count; never below the given level
+    # one encoder type on both discs: the finer reading is the count (or the scatter); never below the given level
+    found = [n for a in ("theta_u", "theta_l") if a in ex.meas and (n := angle_noise(ex.meas[a])) is not None]
+    if found:
         for om in ("omega_u", "omega_l"):
             if om in ex.rates:
-                noise[om] = max(float(noise.get(om, 0.0)), min(qs) / math.sqrt(12.0) * gain)
-    sa = max(min(qs) / math.sqrt(12.0) if qs else 0.0, 1e-4)
+                noise[om] = max(float(noise.get(om, 0.0)), min(found) * gain)
+    sa = max(min(found, default=0.0), ANGLE_FLOOR_RAD)
     scales = {"theta_u": sa, "theta_l": sa, "alpha": sa, "x": 1e-5, "y": 1e-5, "r": 1e-5}
     return replace(ex, speed_noise=noise), scales
 

@@ -28,6 +28,7 @@ from ..configurations import N_STATE, Configuration, parse_configuration
 from ..effects import BASE, Composition
 from ..errors import DataFormatError, InputError, InputTypeError
 from ..io import TimeSeries
+from .reading_noise import angle_noise
 from .sensors import invert_measurement
 
 __all__ = ["Experiment", "prepare_experiment", "estimate_rate"]
@@ -377,11 +378,10 @@ def prepare_experiment(
 
 
 def _derivative_noise(theta: np.ndarray, fs: float) -> float:
-    """Standard deviation (rad/s) of the Savitzky–Golay speed estimate caused by encoder
-    quantization (one count / √12, the count taken as the smallest nonzero step of the data)."""
-    d = np.abs(np.diff(theta))
-    d = d[d > 1e-12]
-    q = float(d.min()) if d.size else 1e-4
+    """Standard deviation (rad/s) of the Savitzky–Golay speed estimate caused by the reading's noise
+    (:func:`.reading_noise.angle_noise`: one count / √12, or the scatter of a reading off any lattice of counts;
+    1e-4 rad / √12 for an angle that never changes)."""
+    noise = angle_noise(theta)
     win = max(5, int(round(SPEED_WINDOW_S * fs)) | 1)
     c = savgol_coeffs(win, min(3, win - 1), deriv=1, delta=1.0 / fs)
-    return q / np.sqrt(12.0) * float(np.linalg.norm(c))
+    return (noise if noise is not None else 1e-4 / np.sqrt(12.0)) * float(np.linalg.norm(c))

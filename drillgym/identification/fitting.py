@@ -30,6 +30,7 @@ from ..params import N_PARAMS, RigParams
 from .blas import on_one_blas_thread
 from .experiment import Experiment
 from .least_squares import ApplyFn, FitOptions, GaussianPrior, ResidualFunction, ScaledBox, identifiability
+from .reading_noise import finest_angle_noise
 from .segmented import SegmentedModel
 from .variables import FitVariable, SpeedVariables
 
@@ -61,17 +62,10 @@ def default_scales(experiments: Sequence[Experiment]) -> dict[str, float]:
     Returns
     -------
     dict of str to float
-        Angles one encoder count / √12 (at least 1e-4 rad), LVDT channels 10 µm.
+        Angles the finest reading's noise (:func:`.reading_noise.angle_noise`: one encoder count / √12, or
+        the scatter of a reading off any lattice of counts; at least 1e-4 rad), LVDT channels 10 µm.
     """
-    q = []
-    for ex in experiments:
-        for c in ("theta_u", "theta_l"):
-            if c in ex.meas:
-                d = np.abs(np.diff(ex.meas[c]))
-                d = d[d > 1e-12]
-                if d.size:
-                    q.append(float(np.min(d)))
-    sa = max(min(q) / math.sqrt(12) if q else 0.0, 1e-4)
+    sa = finest_angle_noise(ex.meas[c] for ex in experiments for c in ("theta_u", "theta_l") if c in ex.meas)
     sl = 1e-5
     return {"theta_u": sa, "theta_l": sa, "alpha": sa, "x": sl, "y": sl, "r": sl}
 
