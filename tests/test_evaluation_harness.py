@@ -322,6 +322,25 @@ def test_a_coupled_excitation_run_records_the_lvdts_a_coupled_diagnosis_reads():
     prepare_experiment(ts)  # what diagnose reads: refused before when x, y were missing
 
 
+def test_a_plants_own_model_compares_at_the_noise_of_its_excitation_run():
+    """The population's encoders add noise after the count: the plant's own model compared with its excitation run
+    is at the noise of those readings (it read 24-79 noise units when the 0.1 mrad floor was taken for it)."""
+    from controllers.evaluation.identify import ExcitationOptions, excitation_recording
+    from drillgym import Model, RigParams
+    from drillgym.diagnosis.model_compare import compare_models
+    from drillgym.identification.experiment import prepare_experiment
+
+    pop = sample_plants(1, 0)
+    cols = pop.columns[0]
+    base = RigParams(**{**RigParams().to_dict(), **{k: v for k, v in cols.items() if k in RigParams().to_dict()}})
+    values = {k: v for k, v in cols.items() if k in pop.composition.effect_param_names}
+    ts = excitation_recording(pop.matrix[0], pop.composition, 5000, 4e-4, 3, ExcitationOptions(duration=16.0))
+    ex = prepare_experiment(ts, compare_rate_hz=100.0)
+    mc = compare_models(ex, Model(base, list(pop.composition.names), values), segment_s=4.0)
+    assert mc.model.noise["theta_u"] == pytest.approx(np.hypot(4e-4, 2 * np.pi / 5000 / np.sqrt(12.0)), rel=0.2)
+    assert max(mc.ratios(mc.model).values()) < 2.5, mc.ratios(mc.model)
+
+
 @pytest.mark.parametrize("config", ["torsional", "coupled"])
 def test_the_compiled_excitation_run_records_what_the_step_by_step_one_does(config):
     from controllers.evaluation.identify import _Playback
