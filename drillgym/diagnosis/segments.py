@@ -25,7 +25,7 @@ import numpy as np
 from scipy.signal import savgol_coeffs
 
 from ..identification.experiment import SPEED_WINDOW_S, Experiment
-from ..identification.reading_noise import ANGLE_FLOOR_RAD, angle_noise
+from ..identification.reading_noise import ANGLE_FLOOR_RAD, finest_angle_noise
 from ..identification.segmented import SegmentedModel
 
 __all__ = ["robust_noise", "place_segment_starts"]
@@ -60,12 +60,12 @@ def robust_noise(ex: Experiment) -> tuple[Experiment, dict[str, float]]:
     gain = float(np.linalg.norm(savgol_coeffs(win, min(3, win - 1), deriv=1, delta=1.0 / fs)))
     noise = dict(ex.speed_noise)
     # one encoder type on both discs: the finer reading is the count (or the scatter); never below the given level
-    found = [n for a in ("theta_u", "theta_l") if a in ex.meas and (n := angle_noise(ex.meas[a])) is not None]
-    if found:
+    finest = finest_angle_noise(ex.meas[a] for a in ("theta_u", "theta_l") if a in ex.meas)
+    if finest is not None:
         for om in ("omega_u", "omega_l"):
             if om in ex.rates:
-                noise[om] = max(float(noise.get(om, 0.0)), min(found) * gain)
-    sa = max(min(found, default=0.0), ANGLE_FLOOR_RAD)
+                noise[om] = max(float(noise.get(om, 0.0)), finest * gain)
+    sa = max(finest or 0.0, ANGLE_FLOOR_RAD)
     scales = {"theta_u": sa, "theta_l": sa, "alpha": sa, "x": 1e-5, "y": 1e-5, "r": 1e-5}
     return replace(ex, speed_noise=noise), scales
 

@@ -30,7 +30,7 @@ from ..params import N_PARAMS, RigParams
 from .blas import on_one_blas_thread
 from .experiment import Experiment
 from .least_squares import ApplyFn, FitOptions, GaussianPrior, ResidualFunction, ScaledBox, identifiability
-from .reading_noise import finest_angle_noise
+from .reading_noise import ANGLE_FLOOR_RAD, finest_angle_noise
 from .segmented import SegmentedModel
 from .variables import FitVariable, SpeedVariables
 
@@ -65,7 +65,8 @@ def default_scales(experiments: Sequence[Experiment]) -> dict[str, float]:
         Angles the finest reading's noise (:func:`.reading_noise.angle_noise`: one encoder count / √12, or
         the scatter of a reading off any lattice of counts; at least 1e-4 rad), LVDT channels 10 µm.
     """
-    sa = finest_angle_noise(ex.meas[c] for ex in experiments for c in ("theta_u", "theta_l") if c in ex.meas)
+    finest = finest_angle_noise(ex.meas[c] for ex in experiments for c in ("theta_u", "theta_l") if c in ex.meas)
+    sa = max(finest or 0.0, ANGLE_FLOOR_RAD)
     sl = 1e-5
     return {"theta_u": sa, "theta_l": sa, "alpha": sa, "x": sl, "y": sl, "r": sl}
 

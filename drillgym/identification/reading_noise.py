@@ -47,7 +47,11 @@ def encoder_count(theta: np.ndarray, max_multiple: int = 50) -> float | None:
     float or None
         The count (rad); None if the angle never changes or its differences are whole multiples of no count.
     """
-    d = np.abs(np.diff(np.asarray(theta, dtype=float)))
+    return _count(np.abs(np.diff(np.asarray(theta, dtype=float))), max_multiple)
+
+
+def _count(d: np.ndarray, max_multiple: int = 50) -> float | None:
+    """:func:`encoder_count` of the samples' absolute differences ``d`` (rad)."""
     d = d[d > MIN_COUNT_RAD]
     if not d.size:
         return None
@@ -98,13 +102,13 @@ def angle_noise(theta: np.ndarray) -> float | None:
     d = np.abs(np.diff(np.asarray(theta, dtype=float)))
     if not np.any(d > MIN_COUNT_RAD):
         return None
-    q = encoder_count(theta)
+    q = _count(d)
     return q / math.sqrt(12.0) if q is not None else scatter(theta)
 
 
-def finest_angle_noise(readings) -> float:
+def finest_angle_noise(readings) -> float | None:
     """The noise (rad) of the finest of several angle readings (:func:`angle_noise`; one encoder type on both
-    discs), at least :data:`ANGLE_FLOOR_RAD`.
+    discs).
 
     Parameters
     ----------
@@ -113,8 +117,7 @@ def finest_angle_noise(readings) -> float:
 
     Returns
     -------
-    float
-        The noise (rad).
+    float or None
+        The noise (rad); None where no reading changes.
     """
-    found = [n for n in map(angle_noise, readings) if n is not None]
-    return max(min(found, default=0.0), ANGLE_FLOOR_RAD)
+    return min((n for n in map(angle_noise, readings) if n is not None), default=None)
