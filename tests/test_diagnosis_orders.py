@@ -17,9 +17,10 @@ def test_the_common_torque_scale_is_divided_out_and_a_lag_tried_on_the_rescaled_
     import numpy as np
 
     from drillgym.configurations import parse_configuration
-    from drillgym.diagnosis.context import SelectionOptions, torque_scale_removed
+    from drillgym.diagnosis.context import torque_scale_removed
     from drillgym.diagnosis.orders import lag_from_rescaled_base
     from drillgym.diagnosis.search_model import SearchModel, base_free_parameters
+    from drillgym.diagnosis.selection_options import SelectionOptions
 
     cands = [LIBRARY[n] for n in ("motor_lag", "string_damping")]
     comp = search_composition(BASE, cands)
@@ -76,9 +77,9 @@ def test_union_of_the_search_orders_is_tried_only_when_no_order_selected_it(monk
 
     import drillgym.diagnosis.orders as orders
     from drillgym.configurations import parse_configuration
-    from drillgym.diagnosis.context import SelectionOptions
     from drillgym.diagnosis.orders import union_of_paths, union_start
     from drillgym.diagnosis.search_model import SearchModel, base_free_parameters
+    from drillgym.diagnosis.selection_options import SelectionOptions
 
     cands = [LIBRARY[n] for n in ("string_damping", "lvdt_skew", "motor_lag", "lateral_anisotropy")]
     comp = search_composition(BASE, cands)

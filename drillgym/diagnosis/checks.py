@@ -22,13 +22,14 @@ import numpy as np
 from ..effects import Effect
 from ..errors import FitFailedError
 from ..identification.experiment import Experiment
-from .context import SelectionContext, SelectionOptions, fit_free
+from .context import SelectionContext, fit_free
 from .criterion import better
 from .forward import SearchStart, forward_select
 from .lag_delay import check_lag_delay
 from .reproducibility import POSITION_NEEDS, HalfAgreement, halves_agree, split_halves
 from .results import Selection
 from .search_model import SearchModel
+from .selection_options import SelectionOptions
 from .state import SearchOutcome
 
 if TYPE_CHECKING:

@@ -37,7 +37,6 @@ __all__ = [
     "CONVERGE_RTOL",
     "TORQUE_SCALE",
     "SelectionContext",
-    "SelectionOptions",
     "fit_free",
     "converged_fit",
     "base_prior",
@@ -69,42 +68,6 @@ BRAKE = ("Ts", "Tc", "ws", "delta")
 
 #: the torque and inertia parameters: all scaled alike, the model is the one with Ju (held) scaled the other way
 TORQUE_SCALE = ("km", "Tcu", "bu", "ktheta", "Jl", "Ts", "Tc", "bb", "Tcl", "bl")
-
-
-@dataclass
-class SelectionOptions:
-    """How hard the selection searches.
-
-    Attributes
-    ----------
-    n_joint : int
-        Candidates refitted jointly with the base parameters per round.  Default 2.
-    max_effects : int
-        At most this many effects are selected.  Default 4.
-    refine : bool
-        Fit the segments' initial speeds with every model that changes.  Default True.
-    max_nfev_screen, max_nfev_joint, max_nfev_base : int
-        Least-squares evaluations of a candidate's screen, of a joint refit, of the first base fit.
-    n_group : int
-        Candidates fitted together when none is significant alone.  Default 3.
-    n_eff_ref : float
-        A lower bound of the effectively independent samples of every score.  Default 0.
-    guard_base : bool
-        Also run the order that guards the base parameters' first refit against absorbing an effect (the
-        effects-first order on the nominal base and its continuation: :mod:`.orders`).  Off where the base starts
-        where a fit with the model's own effects left it (the diagnosis run again beside a kept candidate): there
-        it found what the other orders find.  Default True.
-    """
-
-    n_joint: int = 2
-    max_effects: int = 4
-    refine: bool = True
-    max_nfev_screen: int = 8
-    max_nfev_joint: int = 15
-    max_nfev_base: int = 15
-    n_group: int = 3
-    n_eff_ref: float = 0.0
-    guard_base: bool = True
 
 
 @dataclass

@@ -35,10 +35,11 @@ import numpy as np
 from ..errors import FitFailedError
 from ..identification.fitting import FitResult, Objective
 from .backward import backward_check, decide_base, swap_lag_delay
-from .context import SelectionContext, SelectionOptions, converged_fit, fit_free, in_parallel, screen_fit
+from .context import SelectionContext, converged_fit, fit_free, in_parallel, screen_fit
 from .results import Selection, SelectionStep
 from .scoring import balance_sensors, score, significant
 from .search_model import SearchModel
+from .selection_options import SelectionOptions
 
 __all__ = ["SearchStart", "SearchState", "forward_select"]
 

@@ -16,7 +16,7 @@ better model each time:
 5. ``union_backward``: the union of what the orders selected, reduced by the backward check
    (:func:`union_of_paths`: each order can take a stand-in for one effect and miss another).
 
-Order 2 guards the base's first refit (:attr:`.context.SelectionOptions.guard_base`); the diagnosis run again
+Order 2 guards the base's first refit (:attr:`.selection_options.SelectionOptions.guard_base`); the diagnosis run again
 beside a kept candidate starts from the base the candidate's fit re-identified and runs without it.
 """
 
@@ -28,12 +28,13 @@ from dataclasses import replace
 import numpy as np
 
 from ..effects import Composition, Effect
-from .context import SelectionOptions, best_effect_start, torque_scale_removed
+from .context import best_effect_start, torque_scale_removed
 from .criterion import BASE_PRIOR_SIGMA, better, beyond_prior
 from .forward import SearchStart, forward_select
 from .results import Selection
 from .scoring import SENSORS
 from .search_model import SearchModel
+from .selection_options import SelectionOptions
 from .state import SearchOutcome
 from .timing import LAG_DELAY
 

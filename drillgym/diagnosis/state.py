@@ -18,10 +18,10 @@ from ..configurations import Configuration
 from ..effects import Composition
 from ..identification.experiment import Experiment
 from ..params import N_PARAMS, RigParams
-from .context import SelectionOptions
 from .option_checks import as_sequence, check_diagnosis_options
 from .results import Selection
 from .search_model import SearchModel
+from .selection_options import SelectionOptions
 from .timing import FineDecision
 
 __all__ = ["DiagnosisOptions", "Screening", "SearchOutcome", "REFIT_BUDGET", "transfer"]
