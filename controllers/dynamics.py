@@ -28,15 +28,13 @@ from typing import Any
 
 import numpy as np
 
-from drillgym import Configuration
 from drillgym.effects import Composition
 from drillgym.effects.base import Input
 from drillgym.params import IDX
 
-__all__ = ["ModelDynamics", "model_kernels", "jacobian_steps", "I_TU", "I_WU", "I_AL", "I_WL", "I_D"]
+__all__ = ["ModelDynamics", "model_kernels", "lag_arrays", "jacobian_steps", "I_TU", "I_WU", "I_AL", "I_WL", "I_D"]
 
 I_TU, I_WU, I_AL, I_WL, I_D = range(5)
-_CFG = int(Configuration.TORSIONAL)
 _COMPILED: dict[Composition, Any] = {}
 
 
@@ -65,165 +63,20 @@ def jacobian_steps(nz: int) -> np.ndarray:
 
 
 def model_kernels(comp: Composition) -> _Kernels:
-    """Numba functions of the composition's compiled model, compiled once per composition and process."""
-    if comp in _COMPILED:
-        return _COMPILED[comp]
-    from numba import njit
-
-    state_derivative = comp.kernels.model.state_derivative
-    resolve_modes = comp.kernels.model.resolve_modes
-    rhs_hook = comp.kernels.hooks.hk_rhs
-    ny = comp.n_state
-    ne = ny - 8
-    lag_cols = np.array([c - 8 for c in comp.lag_state_columns], dtype=np.int64)
-    lag_tau = np.array(
-        [comp.param_index(tau) for e in comp.effects for tau in (getattr(e, "lag", None) or {}).values()],
-        dtype=np.int64,
-    )
-    iTs, iTc, ibb, iJu, iJl = IDX.Ts, IDX.Tc, IDX.bb, IDX.Ju, IDX.Jl
-    cfg = _CFG
-
-    @njit(cache=False)
-    def _state(z, e0, y):  # pragma: no cover
-        """The composition's state y at an estimator's state z: the discs' angles and speeds, the effect states
-        (from row e0 of z); the lateral states 0."""
-        for i in range(ny):
-            y[i] = 0.0
-        y[0] = z[0]
-        y[1] = z[0] + z[2]
-        y[2] = z[1]
-        y[3] = z[3]
-        for j in range(ne):
-            y[8 + j] = z[e0 + j]
-
-    @njit(cache=False)
-    def evaluate(z, v, p, e0, idu, scale, eps, freeze, mode_in, out, y, pp, dy, fric, mode):  # pragma: no cover
-        """dz/dt into ``out`` at the state z (nz,) under the command v (V) entering the Input chain: the modes
-        resolved (the stick logic) or, with ``freeze``, ``mode_in``; y ... mode: work arrays."""
-        _state(z, e0, y)
-        for i in range(p.size):
-            pp[i] = p[i]
-        if scale:
-            f = 1.0 + z[4]
-            pp[iTs] *= f
-            pp[iTc] *= f
-            pp[ibb] *= f
-        if freeze:
-            mode[0] = mode_in[0]
-            mode[1] = mode_in[1]
-        else:
-            mode[0] = 0 if abs(z[1]) <= eps else (1 if z[1] > 0 else -1)
-            mode[1] = 0 if abs(z[3]) <= eps else (1 if z[3] > 0 else -1)
-        if mode[0] == 0:
-            y[2] = 0.0
-        if mode[1] == 0:
-            y[3] = 0.0
-        if not freeze and (mode[0] == 0 or mode[1] == 0):
-            resolve_modes(0.0, y, mode, v, pp, cfg, dy, fric)
-        else:
-            state_derivative(0.0, y, mode, v, pp, cfg, 0.0, dy, fric)
-        for i in range(out.size):
-            out[i] = 0.0
-        out[0] = z[1]
-        out[1] = dy[2]
-        out[2] = z[3] - z[1]
-        out[3] = dy[3]
-        if not scale:
-            out[3] -= z[4] / pp[iJl]
-        if idu >= 0:
-            out[1] += z[idu] / pp[iJu]
-        for j in range(ne):
-            out[e0 + j] = dy[8 + j]
-
-    @njit(cache=False)
-    def slipping(z, v, wu, wl, p, e0, idu, scale, eps, out, y, pp, dy, d2, fric, mode, mode_in):  # pragma: no cover
-        """dz/dt into ``out`` at z with the discs slipping at wu, wl (rad/s, set in z; modes held at their signs)
-        under the command v (V); returns the voltage at the motor (V)."""
-        z[1] = wu
-        z[3] = wl
-        mode_in[0] = 1 if wu >= 0 else -1
-        mode_in[1] = 1 if wl >= 0 else -1
-        evaluate(z, v, p, e0, idu, scale, eps, True, mode_in, out, y, pp, dy, fric, mode)
-        return rhs_hook(0.0, v, y, pp, cfg, d2)[0]
-
-    @njit(cache=False)
-    def rhs(Z, V, P, e0, idu, scale, eps, WU, WL, force, OUT, VOLT):  # pragma: no cover
-        """dz/dt of every row of Z and the voltage at the motor (V); with ``force`` the discs slip at speeds
-        WU, WL (modes held)."""
-        n, nz = Z.shape
-        y, pp, dy, d2 = np.zeros(ny), np.zeros(P.shape[1]), np.zeros(ny), np.zeros(ny)
-        fric, mode, mode_in = np.zeros(2), np.zeros(2, np.int64), np.zeros(2, np.int64)
-        z = np.zeros(nz)
-        for k in range(n):
-            for i in range(nz):
-                z[i] = Z[k, i]
-            if force:
-                VOLT[k] = slipping(z, V[k], WU[k], WL[k], P[k], e0, idu, scale, eps, OUT[k], y, pp, dy, d2, fric,
-                                   mode, mode_in)  # fmt: skip
-            else:
-                evaluate(z, V[k], P[k], e0, idu, scale, eps, False, mode_in, OUT[k], y, pp, dy, fric, mode)
-                VOLT[k] = rhs_hook(0.0, V[k], y, pp, cfg, d2)[0]
-
-    @njit(cache=False)
-    def lane_jacobian(
-        z, v, p, e0, idu, scale, eps, H, with_b, J, B, f0, fp, fm, y, pp, dy, fric, mode, mode0
-    ):  # pragma: no cover
-        """Central-difference Jacobians at the state z (nz,; restored): J = df/dz (nz, nz) and, with ``with_b``,
-        B = df/dv (nz,), the modes of (z, v) held; f0 receives f(z, v); H the steps (nz + 1,)."""
-        nz = z.size
-        evaluate(z, v, p, e0, idu, scale, eps, False, mode0, f0, y, pp, dy, fric, mode0)
-        for c in range(nz + 1 if with_b else nz):
-            h = H[c]
-            if c < nz:
-                zc = z[c]
-                z[c] = zc + h
-                evaluate(z, v, p, e0, idu, scale, eps, True, mode0, fp, y, pp, dy, fric, mode)
-                z[c] = zc - h
-                evaluate(z, v, p, e0, idu, scale, eps, True, mode0, fm, y, pp, dy, fric, mode)
-                z[c] = zc
-                for i in range(nz):
-                    J[i, c] = (fp[i] - fm[i]) / (2.0 * h)
-            else:
-                evaluate(z, v + h, p, e0, idu, scale, eps, True, mode0, fp, y, pp, dy, fric, mode)
-                evaluate(z, v - h, p, e0, idu, scale, eps, True, mode0, fm, y, pp, dy, fric, mode)
-                for i in range(nz):
-                    B[i] = (fp[i] - fm[i]) / (2.0 * h)
-
-    @njit(cache=False)
-    def jac(Z, V, P, e0, idu, scale, eps, H, J, B):  # pragma: no cover
-        """Central-difference Jacobians J = df/dz (n, nz, nz) and B = df/dv (n, nz), the modes held."""
-        n, nz = Z.shape
-        y, pp, dy = np.zeros(ny), np.zeros(P.shape[1]), np.zeros(ny)
-        fric, mode, mode0 = np.zeros(2), np.zeros(2, np.int64), np.zeros(2, np.int64)
-        z = np.zeros(nz)
-        f0, fp, fm = np.zeros(nz), np.zeros(nz), np.zeros(nz)
-        for k in range(n):
-            for i in range(nz):
-                z[i] = Z[k, i]
-            lane_jacobian(z, V[k], P[k], e0, idu, scale, eps, H, True, J[k], B[k], f0, fp, fm, y, pp, dy, fric, mode,
-                          mode0)  # fmt: skip
-
-    @njit(cache=False)
-    def _settled(z, u, p, e0, y, dy):  # pragma: no cover
-        """The voltage at the motor (V) for the command u held until the lags settled, at state z."""
-        _state(z, e0, y)
-        for j in range(lag_cols.size):
-            y[8 + lag_cols[j]] = u
-        for _ in range(lag_cols.size + 1):  # each lag at the voltage entering it (the chain in order)
-            rhs_hook(0.0, u, y, p, cfg, dy)
-            for j in range(lag_cols.size):
-                y[8 + lag_cols[j]] += p[lag_tau[j]] * dy[8 + lag_cols[j]]
-        return rhs_hook(0.0, u, y, p, cfg, dy)[0]
-
-    @njit(cache=False)
-    def volt(Z, U, P, e0, OUT):  # pragma: no cover
-        n = Z.shape[0]
-        y, dy = np.zeros(ny), np.zeros(ny)
-        for k in range(n):
-            OUT[k] = _settled(Z[k], U[k], P[k], e0, y, dy)
-
-    _COMPILED[comp] = _Kernels(rhs, jac, volt, evaluate, slipping, lane_jacobian, _settled)
+    """Numba functions of the composition's compiled model: its copy of the kernel client template
+    :mod:`controllers.compiled.composition_law`, compiled once and then loaded from numba's cache."""
+    if comp not in _COMPILED:
+        m = comp.kernels.client("controllers.compiled.composition_law")
+        _COMPILED[comp] = _Kernels(m.rhs, m.jac, m.volt, m.evaluate, m.slipping, m.lane_jacobian, m.settled)
     return _COMPILED[comp]
+
+
+def lag_arrays(comp: Composition) -> tuple[np.ndarray, np.ndarray]:
+    """The columns of the declared first-order lag states after the 8 mechanical ones, and the indices of their time
+    constants in the parameter vector (int arrays, in the signal path's order)."""
+    cols = np.array([c - 8 for c in comp.lag_state_columns], dtype=np.int64)
+    tau = [comp.param_index(t) for e in comp.effects for t in (getattr(e, "lag", None) or {}).values()]
+    return cols, np.array(tau, dtype=np.int64)
 
 
 @dataclass(frozen=True)
@@ -373,7 +226,7 @@ class ModelDynamics:
         n = Z.shape[0]
         U = np.ascontiguousarray(np.broadcast_to(np.asarray(u, dtype=float), (n,)))
         out = np.zeros(n)
-        model_kernels(self.composition).volt(Z, U, self._P(n), self.e0, out)
+        model_kernels(self.composition).volt(Z, U, self._P(n), self.e0, out, *lag_arrays(self.composition))
         return out
 
     def input_map_branches(self, u_max: float) -> tuple[float, tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:

@@ -110,3 +110,35 @@ def test_another_installations_packages_are_kept_while_it_loads_them(tmp_path):
     assert _write_package(tmp_path, "_dgk_loaded", "", Composition(())) == tmp_path / "_dgk_loaded"
     assert prune_stale(tmp_path) == 1
     assert not (tmp_path / "_dgk_unused").exists() and (tmp_path / "_dgk_loaded").exists()
+
+
+def test_a_client_template_of_another_package_is_keyed_on_the_sources_it_imports(tmp_path, monkeypatch):
+    import sys
+
+    from drillgym.effects.codegen import CLIENT_TEMPLATES, _client_key
+
+    pkg = tmp_path / "lawpkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "helper.py").write_text("from drillgym.params import IDX\nGAIN = 1.0\n")
+    (pkg / "template.py").write_text("from lawpkg.helper import GAIN\nfrom drillgym.kernels.hooks import N_STATE\n")
+    (pkg / "unrelated.py").write_text("X = 1\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    sys.modules.pop("lawpkg", None)
+    assert all(_client_key(m) == "" for m in CLIENT_TEMPLATES)  # drillgym's own: the package name keys them
+    first = _client_key("lawpkg.template")
+    assert len(first) == 13 and first[0] == "_"
+    (pkg / "unrelated.py").write_text("X = 2\n")  # a module the template does not import
+    assert _client_key("lawpkg.template") == first
+    (pkg / "helper.py").write_text("from drillgym.params import IDX\nGAIN = 2.0\n")  # one it imports: a new copy
+    assert _client_key("lawpkg.template") != first
+
+
+def test_the_controllers_model_functions_are_loaded_from_the_compositions_package():
+    from controllers.dynamics import model_kernels
+    from drillgym.effects import compose
+
+    comp, _ = compose(["motor_lag"])
+    kern = model_kernels(comp)
+    assert kern.evaluate.py_func.__module__.startswith(comp.kernels.package + ".client_controllers_")
+    assert kern.evaluate._cache.__class__.__name__ != "NullCache"  # cached on disk: compiled once, then loaded
