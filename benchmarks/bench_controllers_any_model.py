@@ -16,6 +16,9 @@ Prints one line per plant and controller, then the median and 90th percentile (t
 lowest held target, refusals, crashes and runs past 40 rad/s::
 
     .venv/bin/python benchmarks/bench_controllers_any_model.py --plants 10 --seed 0 --out out/any_model
+
+``--plants-file-out FILE`` writes the same draws as a plants file instead (the effects as drillgym's: the library's
+and the files of ``examples/effects``), for ``drillgym evaluate --scenarios plants --plants-file FILE --identify``.
 """
 
 from __future__ import annotations
@@ -68,6 +71,49 @@ def draw_plants(n: int, seed: int, counts: int, noise: float) -> list[tuple[str,
         }
         out.append((f"{kind} {name}={size:g}", Plant(effects=eff, counts=counts, noise=noise)))
     return out
+
+
+#: each independent effect as the drillgym effect that models it: (spec, {independent name: drillgym parameter})
+#: in signal-path order; the effect files are copied beside the plants file
+AS_EFFECTS = (
+    ("input_delay", {"delay": "delay"}),
+    ("effects/motor_dead_zone.py:dead_zone", {"u0": "u0"}),
+    ("effects/drive_offset.py:drive_offset", {"u_off": "u_off"}),
+    ("motor_lag", {"tau_m": "tau_m"}),
+    ("string_damping", {"c": "dtheta"}),
+    ("position_friction", {"pf_c1": "pf_c1", "pf_s1": "pf_s1"}),
+    ("effects/encoder_scale.py:encoder_scale", {"enc_scale": "enc_scale"}),
+)
+
+
+def write_plants_file(plants: list[tuple[str, Plant]], path: Path) -> Path:
+    """The plants as a plants file of ``drillgym evaluate --scenarios plants --plants-file`` (drillgym's simulator
+    runs them there: the same plants as drillgym models), the effect files copied into ``effects/`` beside it."""
+    import shutil
+
+    import yaml
+
+    examples = Path(__file__).resolve().parent.parent / "examples"
+    (path.parent / "effects").mkdir(parents=True, exist_ok=True)
+    records = []
+    for label, plant in plants:
+        effects = []
+        for spec, names in AS_EFFECTS:
+            values = {p: plant.effects[k] for k, p in names.items() if k in plant.effects}
+            if values:
+                if spec.startswith("effects/"):
+                    shutil.copyfile(examples / spec.split(":")[0], path.parent / spec.split(":")[0])
+                effects.append({"spec": spec, "values": values})
+        f = plant.value("tcu_f")
+        params = {"Tcu": plant.params["Tcu"] * f, "dTcu": plant.params["dTcu"] * f} if f != 1.0 else {}
+        record = {
+            "name": f"{label} #{len(records)}",
+            "effects": effects,
+            "encoder": {"counts_per_rev": plant.counts, "angle_noise": plant.noise},
+        }
+        records.append({**record, **({"params": params} if params else {})})
+    path.write_text(yaml.safe_dump({"plants": records}, sort_keys=False))
+    return path
 
 
 def excite(plant: Plant, duration: float, seed: int, path: Path) -> Path:
@@ -137,7 +183,15 @@ def main() -> None:
     ap.add_argument("--reuse", action="store_true", help="take a plant's model.json from --out when it is there")
     ap.add_argument("--identify-only", action="store_true", help="record and diagnose, run no controller")
     ap.add_argument("--first", type=int, default=0, help="start at this plant (the draws stay those of --seed)")
+    ap.add_argument(
+        "--plants-file-out",
+        default=None,
+        help="write the drawn plants as a plants file of `drillgym evaluate --plants-file` here and stop",
+    )
     a = ap.parse_args()
+    if a.plants_file_out:
+        print(write_plants_file(draw_plants(a.plants, a.seed, a.counts, a.noise), Path(a.plants_file_out)))
+        return
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     targets = np.array([float(v) for v in a.targets.split(",")])
