@@ -252,3 +252,24 @@ def test_a_plants_file_giving_a_key_twice_is_refused(tmp_path):
     (tmp_path / "p.yaml").write_text("plants:\n  - name: a\n    params: {Ts: 0.3}\n    params: {Ts: 0.4}\n")
     with pytest.raises(InputError, match=r"line 4.*'params' is given twice"):
         load_plants(tmp_path / "p.yaml")
+
+
+def test_the_identification_table_holds_plants_with_different_effects():
+    """A plants file's plants differ in their effects: each row of the identification table shows its own
+    parameters and leaves the others' cells empty (the report once failed with a KeyError on the second plant)."""
+    import math
+
+    from controllers.evaluation.population_report import identification_table
+
+    base = {"scenario": "plants", "identify_s": 12.0}
+    rows = [
+        {**base, "plant": 0, "plant_name": "lagged", "selected": "motor_lag", "km": 4.3, "id_km": 4.3 * 1.01,
+         "tau_m": 0.03, "id_tau_m": 0.031},
+        {**base, "plant": 1, "plant_name": "dead zone", "selected": "motor_lag", "km": 4.3, "id_km": 4.3,
+         "u0": 0.2, "id_u0": math.nan, "tau_m": "", "id_tau_m": ""},
+    ]  # fmt: skip
+    lines = identification_table(rows).splitlines()
+    assert lines[0].split("|")[4:7] == [" km ", " tau_m ", " u0 "]
+    lagged, dead = (line.split("|")[4:7] for line in lines[2:])
+    assert lagged == [" +1.0 % ", " 0.031 (0.03) ", "  "]
+    assert dead == [" +0.0 % ", "  ", " - (0.2) "]  # not selected: '-' beside the true value

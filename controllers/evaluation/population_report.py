@@ -178,10 +178,17 @@ def identification_rows(rows: Sequence[dict], scenario: str = "plants") -> list[
                 "plant": r.get("plant_name", int(r["plant"])),
                 "selected": r["selected"],
                 "identify_s": float(r["identify_s"]),
-                "true": {n: float(r[n]) for n in names},
-                "identified": {n: float(r["id_" + n]) for n in names},
+                "true": {n: float(r[n]) for n in names if _given(r.get(n))},
+                "identified": {
+                    n: float(r["id_" + n]) if _given(r["id_" + n]) else math.nan for n in names if _given(r.get(n))
+                },
             }
     return [seen[k] for k in sorted(seen)]
+
+
+def _given(value: object) -> bool:
+    """A value the plant has (a row of a plants file's population leaves the other plants' parameters empty)."""
+    return value is not None and value != "" and not (isinstance(value, float) and math.isnan(value))
 
 
 def identification_table(rows: Sequence[dict], scenario: str = "plants") -> str:
@@ -190,7 +197,7 @@ def identification_table(rows: Sequence[dict], scenario: str = "plants") -> str:
     ident = identification_rows(rows, scenario)
     if not ident:
         return ""
-    names = list(ident[0]["true"])
+    names = list(dict.fromkeys(n for e in ident for n in e["true"]))  # a plants file's plants differ in effects
     lines = [
         "| plant | effects selected | identification (s) | " + " | ".join(names) + " |",
         "|" + "---|" * (3 + len(names)),
@@ -198,6 +205,9 @@ def identification_table(rows: Sequence[dict], scenario: str = "plants") -> str:
     for e in ident:
         cells = []
         for n in names:
+            if n not in e["true"]:  # a parameter of another plant's effects
+                cells.append("")
+                continue
             t, i = e["true"][n], e["identified"][n]
             if math.isnan(i):
                 cells.append(f"- ({t:.3g})")
