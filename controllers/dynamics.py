@@ -30,6 +30,7 @@ import numpy as np
 
 from drillgym.effects import Composition
 from drillgym.effects.base import Input
+from drillgym.effects.foreign_client import foreign_client
 from drillgym.params import IDX
 
 __all__ = ["ModelDynamics", "model_kernels", "lag_arrays", "jacobian_steps", "I_TU", "I_WU", "I_AL", "I_WL", "I_D"]
@@ -66,7 +67,7 @@ def model_kernels(comp: Composition) -> _Kernels:
     """Numba functions of the composition's compiled model: its copy of the kernel client template
     :mod:`controllers.compiled.composition_law`, compiled once and then loaded from numba's cache."""
     if comp not in _COMPILED:
-        m = comp.kernels.client("controllers.compiled.composition_law")
+        m = foreign_client(comp.kernels, "controllers.compiled.composition_law")
         _COMPILED[comp] = _Kernels(m.rhs, m.jac, m.volt, m.evaluate, m.slipping, m.lane_jacobian, m.settled)
     return _COMPILED[comp]
 

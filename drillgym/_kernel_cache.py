@@ -36,7 +36,7 @@ def sources_digest(package_dir: Path = PACKAGE_DIR) -> str:
     return modules_digest(roots, package_dir=package_dir)
 
 
-def module_file(module: str, package_dir: Path) -> Path | None:
+def _module_file(module: str, package_dir: Path) -> Path | None:
     parts = module.split(".")
     if parts[0] != package_dir.name:
         return None
@@ -47,9 +47,8 @@ def module_file(module: str, package_dir: Path) -> Path | None:
     return None
 
 
-def imported_modules(path: Path, package_dir: Path, top: str | None = None) -> set[str]:
-    """The modules of package ``top`` (default: ``package_dir``'s) a source file of ``package_dir`` imports at module
-    level (relative imports resolved).
+def _imported_modules(path: Path, package_dir: Path) -> set[str]:
+    """drillgym modules a source file imports at module level (relative imports resolved).
 
     Only these can reach compiled code: numba resolves a kernel's globals, and a module's globals come from its
     module-level imports.  An import inside a function (a lazy import of plain Python code) or under ``if
@@ -85,7 +84,7 @@ def imported_modules(path: Path, package_dir: Path, top: str | None = None) -> s
                 found.update(f"{mod}.{a.name}" for a in node.names)  # ``from pkg import module``
 
     visit(ast.parse(path.read_text(encoding="utf-8")).body)
-    top = top or package_dir.name
+    top = package_dir.name
     return {m for m in found if m == top or m.startswith(top + ".")}
 
 
@@ -101,11 +100,11 @@ def modules_digest(modules: list[str], extra_sources: tuple[str, ...] = (), pack
         mod = todo.pop()
         if mod in seen:
             continue
-        f = module_file(mod, package_dir)
+        f = _module_file(mod, package_dir)
         if f is None:
             continue
         seen[mod] = f
-        todo.extend(imported_modules(f, package_dir) - seen.keys())
+        todo.extend(_imported_modules(f, package_dir) - seen.keys())
     h = hashlib.sha256()
     for f in sorted(set(seen.values())):
         h.update(f.relative_to(package_dir).as_posix().encode())

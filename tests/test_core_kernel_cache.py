@@ -115,7 +115,7 @@ def test_another_installations_packages_are_kept_while_it_loads_them(tmp_path):
 def test_a_client_template_of_another_package_is_keyed_on_the_sources_it_imports(tmp_path, monkeypatch):
     import sys
 
-    from drillgym.effects.codegen import CLIENT_TEMPLATES, _client_key
+    from drillgym.effects.foreign_client import client_key
 
     pkg = tmp_path / "lawpkg"
     pkg.mkdir()
@@ -125,13 +125,12 @@ def test_a_client_template_of_another_package_is_keyed_on_the_sources_it_imports
     (pkg / "unrelated.py").write_text("X = 1\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     sys.modules.pop("lawpkg", None)
-    assert all(_client_key(m) == "" for m in CLIENT_TEMPLATES)  # drillgym's own: the package name keys them
-    first = _client_key("lawpkg.template")
-    assert len(first) == 13 and first[0] == "_"
+    first = client_key("lawpkg.template")
+    assert len(first) == 12
     (pkg / "unrelated.py").write_text("X = 2\n")  # a module the template does not import
-    assert _client_key("lawpkg.template") == first
+    assert client_key("lawpkg.template") == first
     (pkg / "helper.py").write_text("from drillgym.params import IDX\nGAIN = 2.0\n")  # one it imports: a new copy
-    assert _client_key("lawpkg.template") != first
+    assert client_key("lawpkg.template") != first
 
 
 def test_the_controllers_model_functions_are_loaded_from_the_compositions_package():

@@ -1,6 +1,6 @@
 """The model-based laws on a composition's compiled model: a kernel client template, compiled once per composition.
 
-Not imported as it stands: :meth:`drillgym.effects.codegen.CompiledModel.client` writes a copy of this file into a
+Not imported as it stands: :func:`drillgym.effects.foreign_client.foreign_client` writes a copy of this file into a
 composition's generated package with its ``drillgym.kernels.*`` imports pointing there (the composition's
 ``state_derivative``, ``resolve_modes`` and ``hk_rhs``), named after a digest of the sources it imports, so numba
 compiles it once and every later process loads it from the cache (``cache=True``), where closures over the

@@ -45,6 +45,7 @@ from numba import njit
 
 from drillgym.closed_loop.abi import LAW_SIGNATURE
 from drillgym.effects import Composition
+from drillgym.effects.foreign_client import foreign_client
 
 from ..dynamics import jacobian_steps, lag_arrays
 from . import lqg_law as lq
@@ -144,7 +145,7 @@ def law_step(comp: Composition, kind: str):
     copy of :mod:`controllers.compiled.composition_law`, compiled once and then loaded from numba's cache."""
     key = (comp, kind)
     if key not in _STEPS:
-        step = getattr(comp.kernels.client(LAW_TEMPLATE), _STEP_NAMES[kind])
+        step = getattr(foreign_client(comp.kernels, LAW_TEMPLATE), _STEP_NAMES[kind])
         step.compile(LAW_SIGNATURE.args)
         _STEPS[key] = step
     return _STEPS[key]

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING
 
 import numba
 
-from .._kernel_cache import imported_modules, module_file, modules_digest
+from .._kernel_cache import modules_digest
 from .file_signature import code_signature
 from .hookgen import effect_file_copy, hooks_source
 
@@ -104,31 +104,6 @@ def _template_source(module: str) -> str:
     if spec is None or spec.origin is None:
         raise ImportError(f"kernel template {module} not found")
     return Path(spec.origin).read_text(encoding="utf-8")
-
-
-def _client_key(module: str) -> str:
-    """``""`` for drillgym's own client templates (the package's name hashes their sources); for a template of
-    another package, ``"_"`` and 12 hex digits of a SHA-256 over the sources of that package it imports at module
-    level, transitively, and of the drillgym modules those import (numba keys a cached function on its own file
-    only)."""
-    if module in CLIENT_TEMPLATES:
-        return ""
-    spec = importlib.util.find_spec(module.split(".")[0])
-    if spec is None or spec.origin is None:
-        raise ImportError(f"kernel client template {module} not found")
-    pkg_dir = Path(spec.origin).resolve().parent
-    seen: set[str] = set()
-    todo, core = [module], set()
-    while todo:
-        mod = todo.pop()
-        f = module_file(mod, pkg_dir)
-        if mod in seen or f is None:
-            continue
-        seen.add(mod)
-        todo.extend(imported_modules(f, pkg_dir))
-        core |= imported_modules(f, pkg_dir, top="drillgym")
-    own = modules_digest([module], package_dir=pkg_dir)
-    return "_" + hashlib.sha256((own + modules_digest(sorted(core))).encode()).hexdigest()[:12]
 
 
 def _specialise(source: str, package: str) -> str:
@@ -324,10 +299,8 @@ class CompiledModel:
         Parameters
         ----------
         module : str
-            A module whose compiled code calls the kernels, e.g. ``"drillgym.bifurcation.flows"`` (see
-            :data:`CLIENT_TEMPLATES`), or a template of another package (a controller's law on the
-            composition): its copy is named after a digest of the sources it imports (:func:`_client_key`),
-            so an edit of them writes a new one, compiled once and then loaded from numba's cache.
+            A drillgym module whose compiled code calls the kernels, e.g.
+            ``"drillgym.bifurcation.flows"`` (see :data:`CLIENT_TEMPLATES`).
 
         Returns
         -------
@@ -335,7 +308,7 @@ class CompiledModel:
             The specialised module (written once into this composition's package).
         """
         if module not in self._clients:
-            name = "client_" + module.replace(".", "_") + _client_key(module)
+            name = "client_" + module.replace(".", "_")
             target = self.path / f"{name}.py"
             if not target.exists():
                 text = _specialise(_template_source(module), self.package)
