@@ -28,6 +28,8 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["foreign_client", "client_key"]
 
 _LOADED: dict[tuple[str, str], ModuleType] = {}
+#: each template's copy's name, its sources read once per process (as the modules themselves are)
+_NAMES: dict[str, str] = {}
 
 
 def client_key(module: str) -> str:
@@ -80,7 +82,9 @@ def foreign_client(kernels: CompiledModel, module: str) -> ModuleType:
     """
     from .codegen import _specialise, _template_source
 
-    name = "client_" + module.replace(".", "_") + "_" + client_key(module)
+    if module not in _NAMES:
+        _NAMES[module] = "client_" + module.replace(".", "_") + "_" + client_key(module)
+    name = _NAMES[module]
     key = (kernels.package, name)
     if key not in _LOADED:
         target = kernels.path / f"{name}.py"
