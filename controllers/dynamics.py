@@ -142,7 +142,7 @@ class ModelDynamics:
         """Transport delay of the command (s): the composition's compiled ``hk_delay``; 0 without one."""
         if not self.composition.has_delay:
             return 0.0
-        return float(self.composition.kernels.hooks.hk_delay(self.vector))
+        return float(self.composition.hook_calls().delay_of(np.ascontiguousarray(self.vector, dtype=np.float64)))
 
     @property
     def has_input_chain(self) -> bool:

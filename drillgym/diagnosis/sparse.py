@@ -208,29 +208,16 @@ def motor_voltage_along(ex: Experiment, comp: Any, p: np.ndarray, Y: np.ndarray)
         The delayed command and the voltage at the motor at every sample (V).
     """
     n, dt = ex.n, 1.0 / ex.fs
-    hooks = comp.kernels.hooks
-    delay = float(hooks.hk_delay(p)) if comp.has_delay else 0.0
+    calls = comp.hook_calls()
+    vec = np.ascontiguousarray(p, dtype=np.float64)
+    delay = float(calls.delay_of(vec)) if comp.has_delay else 0.0
     command = ex.input_on_grid(dt, n, ex.t[0] - delay)
     at_motor = command.copy()
     if comp.n_state == N_STATE and not comp.has_kind(Input):
         return MotorVoltage(command, at_motor)
-    cfg = int(ex.config)
-    dy = np.zeros(comp.n_state)
-    y_next = np.zeros(comp.n_state)
-    Y[0, N_STATE:] = 0.0
-    lags = list(comp.lag_state_columns)
-    for _ in lags:  # each lag at the voltage entering it (one pass per lag of a chain): advanced for "ever"
-        y_next[:] = Y[0]
-        hooks.hk_lag(0.0, command[0], Y[0], p, cfg, 1e12, y_next)
-        Y[0, lags] = y_next[lags]
-    for i in range(n):
-        t = ex.t[i] - ex.t[0]
-        dy[:] = 0.0
-        at_motor[i] = hooks.hk_rhs(t, command[i], Y[i], p, cfg, dy)[0]
-        if i + 1 < n:
-            y_next[:] = Y[i] + dt * dy
-            hooks.hk_lag(t, command[i], Y[i], p, cfg, dt, y_next)
-            Y[i + 1, N_STATE:] = y_next[N_STATE:]
+    lags = np.asarray(comp.lag_state_columns, dtype=np.int64)
+    t = np.ascontiguousarray(ex.t, dtype=np.float64)
+    calls.input_path(t, np.ascontiguousarray(command), Y, vec, int(ex.config), dt, lags, at_motor)
     return MotorVoltage(command, at_motor)
 
 

@@ -340,6 +340,13 @@ class Composition:
                     self._kernels = build_kernels(self)
         return self._kernels
 
+    def hook_calls(self):
+        """The composition's hooks compiled for calls from Python (:mod:`.python_hooks`: ``delay_of``,
+        ``longest_delay``, ``input_path``), loaded from numba's cache after the first process."""
+        from .foreign_client import foreign_client
+
+        return foreign_client(self.kernels, "drillgym.effects.python_hooks")
+
     def delay_line_length(self, P: np.ndarray, dt: float) -> int:
         """Length of the per-trajectory delay line for parameter rows ``P`` and step ``dt`` (s).
 
@@ -347,8 +354,7 @@ class Composition:
         """
         if not self.has_delay:
             return 1
-        hk = self.kernels.hooks.hk_delay
-        d = max((hk(row) for row in np.atleast_2d(P)), default=0.0)
+        d = self.hook_calls().longest_delay(np.ascontiguousarray(np.atleast_2d(P), dtype=np.float64))
         return int(math.ceil(max(d, 0.0) / dt)) + 3
 
     def measure(
