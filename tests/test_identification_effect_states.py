@@ -112,3 +112,31 @@ def test_a_segment_starting_under_voltage_starts_its_lag_at_the_command():
     theta_u = model.predict_arrays(v[None])[0]["theta_u"][0, 0]
     measured = second.meas["theta_u"]
     assert np.max(np.abs(theta_u - measured)) < 1e-6  # rad: the run that made it; the lag started at 0 V: 0.18
+
+
+def test_lag_states_from_the_input_path_are_those_of_the_free_run():
+    """Lags the input alone drives (a lag behind a dead zone, a delay ahead) start each segment from their run along
+    the input's path, not from a simulation of the discs: the same predictions as the free run of the whole model
+    (to round-off: the kernel splits a step at a stick-slip event), and not when a state reads the discs."""
+    effects = [DEAD_ZONE, "motor_lag", "input_delay"]
+    values = {"u0": 0.3, "tau_m": 0.03, "delay": 0.0113}
+    ts = synthetic_measurement(
+        "torsional", None, duration=8, rate_hz=250, signal="steps", offset=1.2, seed=6, effects=effects,
+        effect_params=values,
+    )  # fmt: skip
+    ex = prepare_experiment(ts, "torsional", compare_rate_hz=50)
+    comp, _ = compose(effects)
+    P = _jacobian_rows(comp, values)
+    path = SegmentedModel([ex], segment_s=2.0, composition=comp)
+    assert path._lags_only
+    runs = []
+    real = path._simulate
+    path._simulate = lambda *a: runs.append(a[5].shape[0]) or real(*a)
+    along_path = path.predict_arrays(P)
+    assert all(n == P.shape[0] * len(path._plans[0]["starts"]) for n in runs)  # only the segments were simulated
+    free = SegmentedModel([ex], segment_s=2.0, composition=comp)
+    free._lags_only = False
+    free_run = free.predict_arrays(P)
+    for channel, y in free_run[0].items():
+        np.testing.assert_allclose(along_path[0][channel], y, rtol=0, atol=1e-9)
+    assert not SegmentedModel([ex], segment_s=2.0, composition=Composition((SpeedLoadedDrive,)))._lags_only

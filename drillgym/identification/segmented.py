@@ -25,7 +25,9 @@ Each segment is exactly the continuation of a run from the record's start:
   zero-order-hold discretisation, from the record's start) and the simulated model is the
   composition without it: exact at segment starts and stable for any time constant,
   however small against the step;
-* other effect states start from a free run of the whole record with the same parameters.
+* other effect states start from a free run of the whole record with the same parameters (where they are
+  all lags driven by the input alone, a dead zone's or a user's, of the input's path only: nothing on it reads
+  the discs).
 
 The model's outputs go through the measurement chain of the data: the composition's
 Measurement effects of the parameter row (:meth:`Composition.measure`) and, for the LVDT
@@ -135,6 +137,8 @@ class SegmentedModel(SpeedCorrections):
         self._sim_cols = np.array([comp.param_index(n) for n in self._sim.param_names], dtype=int)
         self._tau_col = comp.param_index("tau_m") if self._lag is not None else None
         self._state_cols = input_state_columns(self._sim) if self._sim.n_states else None
+        #: every effect state a declared lag the input alone drives: their free run is the input's path only
+        self._lags_only = self._state_cols is not None and len(self._sim.lag_state_columns) == self._sim.n_states
         self._state_memo: dict[tuple, np.ndarray] = {}
 
     def with_composition(self, composition: Any) -> SegmentedModel:
@@ -479,6 +483,13 @@ class SegmentedModel(SpeedCorrections):
         X0[:, :N_STATE] = ex.initial_states(np.zeros(B, dtype=int), self._full_rows(S), self.composition)
         X0[:, N_STATE + np.asarray(lags, dtype=int)] = np.nan
         HIST, HEAD = self._delay_lines(S, drive, np.zeros(1, dtype=int), rec, dt, 1)
+        if self._lags_only:  # the input alone drives them: its path, not the discs, is run
+            out = np.empty((B, ns, sim.n_states))
+            U = np.ascontiguousarray(drive[:, :n_steps], dtype=np.float64)
+            at = np.ascontiguousarray(starts, dtype=np.int64)
+            rows = np.ascontiguousarray(S, dtype=np.float64)
+            sim.hook_calls().lag_states(U, rows, int(ex.config), float(dt), n_steps, int(rec), at, X0, HIST, HEAD, out)
+            return out.reshape(B * ns, sim.n_states)
         D = self._simulate(
             ex.config, np.ascontiguousarray(drive[:, :n_steps]), dt, S, X0, np.zeros(B), HIST, HEAD, rec, n_steps, 1
         )
