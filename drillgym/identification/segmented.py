@@ -50,7 +50,7 @@ from ..integrators import OUTPUT_NAMES, fixed_step_tableau
 from ..measurement import lowpass_zero_phase
 from ..params import N_PARAMS
 from ..simulator import LANES_MIN_BATCH, run_lanes
-from .effect_states import input_state_columns
+from .effect_states import SegmentStartStates, input_state_columns
 from .experiment import Experiment
 from .predictions import Prediction, as_composition, steps_per_sample
 from .speeds import SpeedCorrections
@@ -62,12 +62,10 @@ CHANNELS = ("theta_u", "theta_l", "alpha", "x", "y", "r")
 #: not compared (:meth:`SegmentedModel.measured_segments`)
 LVDT_EDGE_PERIODS = 1.0
 MAX_DT = 2e-3  # s: simulator step bound (DP5: > 200 steps per lateral period)
-#: parameter rows whose effect states a model keeps from earlier predictions (:meth:`SegmentedModel.predict_arrays`)
-STATE_MEMO_SIZE = 256
 _COL = {n: i for i, n in enumerate(OUTPUT_NAMES)}
 
 
-class SegmentedModel(SpeedCorrections):
+class SegmentedModel(SpeedCorrections, SegmentStartStates):
     """Predicts experiments for parameter matrices (B, composition.n_params) by multiple shooting.
 
     Parameters
@@ -435,65 +433,6 @@ class SegmentedModel(SpeedCorrections):
         lane = np.arange(n)
         H = drive[(lane // ns)[:, None], idx[lane % ns]]  # lane i: its row's drive before its segment
         return H, np.full(n, Ld - 1, dtype=np.int64)
-
-    def _shared_effect_states(
-        self, ex: Experiment, plan: dict, S: np.ndarray, drive: np.ndarray, starts: np.ndarray, taus: Any
-    ) -> np.ndarray:
-        """:meth:`_effect_states`, one free run for the rows that differ only where the states cannot see
-        (:func:`.effect_states.input_state_columns`; the drive's lag, applied here, is part of the key), and
-        none for rows whose states an earlier prediction of this model computed (the last
-        :data:`STATE_MEMO_SIZE`: a fit evaluates its accepted point again for the Jacobian, and the selection
-        fits other parameters beside the same voltage path)."""
-        cols = self._state_cols
-        if cols is None:
-            return self._effect_states(ex, plan, S, drive, starts)
-        key = S[:, cols] if taus is None else np.column_stack([S[:, cols], taus])
-        _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
-        tag = (self._exp_k, np.asarray(starts).tobytes())
-        keys = [(tag, key[i].tobytes()) for i in first]
-        memo = self._state_memo
-        found = {k: memo.get(k) for k in keys}
-        todo = [j for j, k in enumerate(keys) if found[k] is None]
-        ns = len(starts)
-        if todo:
-            rows = first[todo]
-            fresh = self._effect_states(ex, plan, S[rows], drive[rows], starts).reshape(len(todo), ns, -1)
-            if len(memo) + len(todo) > STATE_MEMO_SIZE:
-                memo.clear()
-            for j, states in zip(todo, fresh):
-                found[keys[j]] = memo[keys[j]] = states
-        states = np.stack([found[k] for k in keys])
-        return states[inverse.ravel()].reshape(S.shape[0] * ns, -1)
-
-    def _effect_states(
-        self, ex: Experiment, plan: dict, S: np.ndarray, drive: np.ndarray, starts: np.ndarray
-    ) -> np.ndarray:
-        """Effect states at each segment start (B*ns, n_states) from one free run of the record per row; the run
-        starts as the simulator's: lag states at the first command held, the others at 0 (a record that starts
-        under voltage, the second half of a recording, would otherwise start its lag at 0 V)."""
-        rec, dt = plan["rec"], plan["dt"]
-        n_steps = int(starts[-1] * rec)
-        B, ns, sim = S.shape[0], len(starts), self._sim
-        lags = [c - N_STATE for c in sim.lag_state_columns]  # NaN: the kernel starts them at the first command
-        if n_steps == 0:
-            states = np.zeros((B * ns, sim.n_states))
-            states[:, lags] = np.nan
-            return states
-        X0 = np.zeros((B, sim.n_state))
-        X0[:, :N_STATE] = ex.initial_states(np.zeros(B, dtype=int), self._full_rows(S), self.composition)
-        X0[:, N_STATE + np.asarray(lags, dtype=int)] = np.nan
-        HIST, HEAD = self._delay_lines(S, drive, np.zeros(1, dtype=int), rec, dt, 1)
-        if self._lags_only:  # the input alone drives them: its path, not the discs, is run
-            out = np.empty((B, ns, sim.n_states))
-            U = np.ascontiguousarray(drive[:, :n_steps], dtype=np.float64)
-            at = np.ascontiguousarray(starts, dtype=np.int64)
-            rows = np.ascontiguousarray(S, dtype=np.float64)
-            sim.hook_calls().lag_states(U, rows, int(ex.config), float(dt), n_steps, int(rec), at, X0, HIST, HEAD, out)
-            return out.reshape(B * ns, sim.n_states)
-        D = self._simulate(
-            ex.config, np.ascontiguousarray(drive[:, :n_steps]), dt, S, X0, np.zeros(B), HIST, HEAD, rec, n_steps, 1
-        )
-        return D[:, starts, len(OUTPUT_NAMES) :].reshape(B * ns, sim.n_states)
 
     def _full_rows(self, S: np.ndarray) -> np.ndarray:
         """Rows of the whole composition from rows of the simulated one (the lag's column at its default)."""
