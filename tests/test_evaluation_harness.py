@@ -372,6 +372,31 @@ def test_identify_is_refused_without_a_population(tmp_path, capsys):
     assert e.value.code == 2 and "--identify" in err and "plants" in err and not (tmp_path / "ev").exists()
 
 
+def test_each_plant_is_identified_once_in_its_own_task_and_runs_every_controller(monkeypatch):
+    """``identify=`` runs one task per plant (identify, then every controller on that model): each plant identified
+    once, and the rows those of the same identifications handed over as a mapping."""
+    from dataclasses import replace
+
+    from controllers.evaluation import population_jobs
+    from controllers.evaluation.identify import IdentifiedPlant
+    from drillgym import Model, RigParams
+
+    seen = []
+
+    def identified(k, *args):
+        seen.append(k)
+        return IdentifiedPlant(Model(replace(RigParams(), km=4.0 + 0.1 * k)), [], 1.0 + k)
+
+    monkeypatch.setattr(population_jobs, "_identify_one", identified)
+    kw = dict(duration=1.0, window=0.5, plants=3, workers=1, progress=False)
+    rows = evaluate(["pi", "baseline"], ["torsional"], ["plants"], [2.0, 3.0], identify=True, **kw)
+    assert sorted(seen) == [0, 1, 2]
+    given = evaluate(["pi", "baseline"], ["torsional"], ["plants"], [2.0, 3.0], identify={k: identified(k) for k in
+                     range(3)}, **kw)  # fmt: skip
+    assert len(rows) == 2 * 3 * 2 and [r["identify_s"] for r in rows[:6:2]] == [1.0, 2.0, 3.0]
+    assert rows == given
+
+
 def test_a_single_timing_effect_is_tried_again_as_a_lag_and_a_delay():
     from drillgym.identified import LAG_SHARE, _with_both_timing_effects
 

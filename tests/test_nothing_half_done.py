@@ -372,7 +372,7 @@ def test_an_error_on_a_plant_s_identified_model_says_so(monkeypatch, kind):
         raise kind("the observer cannot run this model's lag")
 
     monkeypatch.setattr(population_jobs, "_run_plants", refusing)
-    monkeypatch.setattr(harness, "identify_population", lambda n, *args, **kw: {k: Identified() for k in range(n)})
+    monkeypatch.setattr(population_jobs, "_identify_one", lambda *args: Identified())
     run_ = lambda: harness.evaluate(["baseline"], ["torsional"], ["plants"], [2.0], duration=0.2, window=0.1,  # noqa: E731
                                     plants=2, workers=1, progress=False, identify=True)  # fmt: skip
     if kind is InputError:

@@ -33,7 +33,7 @@ from .jobs import build_controller, margin_columns, run_all
 from .metrics import run_metrics
 from .plants_file import PlantSet, load_plants
 from .population import UncertaintySet, load_uncertainty, sample_plants
-from .population_jobs import identify_population, run_population_job
+from .population_jobs import identify_arguments, identify_then_run, run_population_job
 from .runner import run_closed_loop
 from .scenarios import DEFAULT_TARGETS, SCENARIOS, Scenario, cycle_states, plant_params
 
@@ -434,13 +434,8 @@ def evaluate(
                 raise InputError(
                     "identify builds the controllers on each plant's identified model; do not give a model"
                 )
-            pop_kw["identified"] = (
-                _given_identification(identify, pop_kw["n_plants"]) if isinstance(identify, Mapping)
-                else identify_population(
-                    pop_kw["n_plants"], seed, pop_kw["uncertainty"], params, identify, configs[0], executor, workers,
-                    progress, plant_set=pop_kw.get("plant_set"),
-                )
-            )  # fmt: skip
+            if isinstance(identify, Mapping):
+                pop_kw["identified"] = _given_identification(identify, pop_kw["n_plants"])
     elif identify:
         raise InputError("identify applies to a population of plants: add the scenario 'plants'")
     elif plants_file is not None:
@@ -478,11 +473,17 @@ def evaluate(
         ident = pop_kw.get("identified")
         return {**pop_kw, "identified": {k: ident[k] for k in ch} if ident else None}
 
+    per_plant = bool(identify) and not isinstance(identify, Mapping)  # identified in each plant's own task
     calls = [
         (run_job, (c, cfg, s), {"u_fold": u_folds.get(cfg), "plants": ch, **job_kw(s, ch), **kw})
         for c, cfg, s, ch in jobs
+        if not (per_plant and s.population)
     ]
-    rows = [row for part in run_all(calls, executor, workers, "evaluate", "job", progress) for row in part]
+    if per_plant:
+        calls = _plant_tasks(controllers, configs, scen, pop_kw, kw, params, identify) + calls  # the longest first
+    unit = "plant" if per_plant else "job"
+    desc = "identify and evaluate" if per_plant else "evaluate"
+    rows = [row for part in run_all(calls, executor, workers, desc, unit, progress) for row in part]
     order = {c: i for i, c in enumerate(controllers)}
     rows.sort(
         key=lambda r: (
@@ -494,6 +495,32 @@ def evaluate(
         )
     )
     return rows
+
+
+def _plant_tasks(
+    controllers: Sequence[str],
+    configs: Sequence[str],
+    scenarios: Sequence[Scenario],
+    pop_kw: dict,
+    kw: dict,
+    params: RigParams | None,
+    identify: Any,
+) -> list[tuple]:
+    """One task per plant of the population (:func:`.population_jobs.identify_then_run`): identify it in the
+    first configuration, then run every controller, configuration and population scenario on it."""
+    n, plant_set = pop_kw["n_plants"], pop_kw.get("plant_set")
+    jobs = [(c, cfg, s) for c in controllers for cfg in configs for s in scenarios if s.population]
+    return [
+        (
+            identify_then_run,
+            (
+                identify_arguments(k, n, kw["seed"], pop_kw["uncertainty"], params, identify, configs[0], plant_set),
+                [(run_job, job, {"plants": [k], **pop_kw, **kw}) for job in jobs],
+            ),
+            {},
+        )
+        for k in range(n)
+    ]
 
 
 def _given_identification(identified: Mapping[int, Any], n_plants: int) -> dict[int, Any]:

@@ -27,7 +27,7 @@ from .population import PlantPopulation, sample_plants
 from .runner import run_closed_loop
 from .scenarios import Scenario
 
-__all__ = ["run_population_job", "plant_label", "on_plant", "identify_population"]
+__all__ = ["run_population_job", "plant_label", "on_plant", "identify_population", "identify_then_run"]
 
 
 def _population(
@@ -194,13 +194,29 @@ def identify_population(
     diagnose and identify per plant; in ``executor`` or a pool of ``workers`` processes); ``plant_set``: the
     user's plants (:class:`.plants_file.PlantSet`), else the ``n`` drawn with ``seed`` from ``uncertainty``;
     ``indices``: only these plants of the ``n`` (default all)."""
+    ks = list(range(n)) if indices is None else [int(k) for k in indices]
+    args = [identify_arguments(k, n, seed, uncertainty, params, options, config, plant_set) for k in ks]
+    found = run_all([(_identify_one, a, {}) for a in args], executor, workers, "identify", "plant", progress)
+    return dict(zip(ks, found, strict=True))
+
+
+def identify_arguments(
+    k: int, n: int, seed: int, uncertainty: Any, params: RigParams | None, options: Any, config: str, plant_set: Any
+) -> tuple:
+    """The arguments of one plant's identification (:func:`identify_population`'s, for plant ``k``)."""
     from .identify import ExcitationOptions
 
     opts = options if isinstance(options, ExcitationOptions) else ExcitationOptions()
-    ks = list(range(n)) if indices is None else [int(k) for k in indices]
-    args = [(k, n, seed, uncertainty, params, opts, config, plant_set) for k in ks]
-    found = run_all([(_identify_one, a, {}) for a in args], executor, workers, "identify", "plant", progress)
-    return dict(zip(ks, found, strict=True))
+    return (int(k), n, seed, uncertainty, params, opts, config, plant_set)
+
+
+def identify_then_run(identify: tuple, calls: Sequence[tuple]) -> list[dict]:
+    """One plant's task: identify it (``identify``: :func:`identify_arguments`), then run each ``(function, args,
+    kwargs)`` of ``calls`` (its jobs, :func:`run_population_job` through the harness) with the controllers built on
+    that identification (``identified={k: ...}``).  One task per plant, not a phase of identifications and then
+    one of control, leaves no core waiting for the slowest identification before the runs start."""
+    found = _identify_one(*identify)
+    return [row for fn, a, kw in calls for row in fn(*a, **{**kw, "identified": {identify[0]: found}})]
 
 
 def _identify_one(
