@@ -234,6 +234,9 @@ def identify(recording: TimeSeries | str | Path, options: IdentifyOptions | None
     _log("joint fit", start_time)
     std = {k: v for k, v in res.std.items() if math.isfinite(v)}
     comp, fitted, std = _in_files(comp, fitted, std, kept)
+    all_fitted = set(fitted)
+    comp, fitted, std = _without_idle_effects(comp, fitted, std, notes)
+    left_out = all_fitted - set(fitted)  # the fit's words on them are of a model no longer returned
     prov = Provenance(
         route="identify",
         recording=Path(ts.source).name if ts.source else None,
@@ -246,7 +249,8 @@ def identify(recording: TimeSeries | str | Path, options: IdentifyOptions | None
     names = [e.name for e in comp.effects]
     selected = tuple(n for n in names if _is_library(comp, n))
     cand_specs = tuple(k.spec for k in kept)
-    warnings = tuple([w for step in d.in_turn() for w in step.warnings] + list(res.warnings) + notes)
+    fit_words = [w for w in res.warnings if w.split(":")[0] not in left_out]
+    warnings = tuple([w for step in d.in_turn() for w in step.warnings] + fit_words + notes)
     return Identified(
         model,
         d,
@@ -307,6 +311,35 @@ def _in_files(comp: Any, values: dict[str, float], std: dict[str, float], kept: 
             file_effect = get_effect(spec)
             comp = Composition(tuple(file_effect if e is k.through else e for e in comp.effects))
     return comp, values, std
+
+
+#: share of a parameter's range within which a fitted value counts as its neutral one (:func:`_without_idle_effects`)
+NEUTRAL_TOLERANCE = 1e-9
+
+
+def _without_idle_effects(comp: Any, values: dict[str, float], std: dict[str, float], notes: list[str]):
+    """The composition, values and standard errors without the effects the fit left doing nothing: every parameter
+    at its declared neutral value (an input delay fitted to 0 s, the bound, where the joint fit of a lag and a
+    delay moved the whole time into the lag).  The model's runs are the same; a consumer no longer carries an
+    effect that is not there (a controller would run a delay line of no length)."""
+    from .effects import Composition
+
+    idle = []
+    for e in comp.effects:
+        neutral = e.neutral_values()
+        if neutral is None:
+            continue
+        ranges = {p.name: p.hi - p.lo for p in e.parameters}
+        if all(abs(values[n] - v) <= NEUTRAL_TOLERANCE * max(ranges[n], 1.0) for n, v in neutral.items()):
+            idle.append(e)
+    if not idle:
+        return comp, values, std
+    names = {p.name for e in idle for p in e.parameters}
+    for e in idle:
+        shown = ", ".join(f"{p.name} = {values[p.name]:.3g} {p.unit}" for p in e.parameters)
+        notes.append(f"{e.name} fitted to where it does nothing ({shown}): left out of the model")
+    kept = Composition(tuple(e for e in comp.effects if e not in idle))
+    return kept, {k: v for k, v in values.items() if k not in names}, {k: v for k, v in std.items() if k not in names}
 
 
 def _is_library(comp: Any, name: str) -> bool:

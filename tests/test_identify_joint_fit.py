@@ -37,3 +37,19 @@ def test_a_selected_lag_keeps_the_lag_and_a_signal_path_in_another_order_is_refu
     reordered, _ = compose(["examples/effects/motor_dead_zone.py:dead_zone", "motor_lag"])
     searched, _ = compose(["motor_lag", "examples/effects/motor_dead_zone.py:dead_zone"])
     assert _search_model_for(searched, reordered) is None
+
+
+def test_an_effect_fitted_to_where_it_does_nothing_is_left_out_of_the_model():
+    """A delay the joint fit took to its bound of 0 s (the time moved into the lag) is not written into the model;
+    a delay of a few ms, and effects that declare no neutral value (a lag, a candidate's width), stay."""
+    from drillgym.identified import _without_idle_effects
+
+    comp, values = compose(["motor_lag", "input_delay", "position_friction"])
+    values = {**values, "tau_m": 0.03, "delay": 1.7e-18, "pf_c1": 0.05, "pf_s1": 0.0}
+    std = {"tau_m": 1e-4, "delay": 1e-4, "pf_c1": 1e-3}
+    notes = []
+    kept, kept_values, kept_std = _without_idle_effects(comp, values, std, notes)
+    assert kept.names == ("motor_lag", "position_friction") and "delay" not in kept_values and "delay" not in kept_std
+    assert len(notes) == 1 and notes[0].startswith("input_delay fitted to where it does nothing")
+    same, _, _ = _without_idle_effects(comp, {**values, "delay": 0.004}, std, [])
+    assert same is comp
