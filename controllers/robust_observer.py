@@ -106,8 +106,13 @@ class RobustObserverController(ObserverController):
         if bu_margin != 1.0:  # design on the least damped motor of the set: a real one only adds damping
             from drillgym import RigParams
 
-            p = kw.get("params") or RigParams()
-            kw["params"] = p.replace(bu=p.bu / bu_margin)
+            from .model import model_of
+
+            params, model = kw.pop("params", None), kw.pop("model", None)
+            if params is not None and not isinstance(params, RigParams) and model is None:
+                model, params = params, None  # a model given where params are expected, as Controller takes it
+            m = model_of(model, params)  # the margin on the base parameters of the model it is built on
+            kw["model"] = m.replace(params=m.params.replace(bu=m.params.bu / bu_margin))
         kw.pop("counts_per_rev", None)  # the nominal encoder: the robust design assumes a coarser one
         kw.pop("angle_noise", None)
         for name, v in (("smooth_tau", smooth_tau), ("overspeed", overspeed)):
