@@ -167,7 +167,7 @@ def emulate_cmd(
 @rig_app.command("run")
 @requires("--observation", "--policy", why="the observation of a linear policy")
 @requires("--reconnect-wait", "--reconnect", when=lambda n: n > 0, what="--reconnect 1 or more")
-@requires("--trust", "--model", alternatives=("--params",), why="it trusts the effect files a model file names")
+@requires("--trust", "--model", why="it trusts the effect files a model file names")
 def run_cmd(
     port: str = typer.Option(..., help="serial device or pyserial URL of the rig (or of `drillgym rig emulate`)"),
     controller: str | None = typer.Option(
@@ -177,8 +177,8 @@ def run_cmd(
     ),
     params: Path | None = typer.Option(
         None,
-        help="model the controller is built on (JSON/YAML, may be partial: "
-        "e.g. what `drillgym identify --out` wrote); default: the identified set (docs/model.md)",
+        help="base parameters the controller is built on (JSON/YAML, may be partial); default: the identified set "
+        "(docs/model.md); a model file with effects goes to --model",
     ),
     model_file: Path | None = typer.Option(
         None,
@@ -190,7 +190,7 @@ def run_cmd(
     trust: bool = typer.Option(
         False,
         "--trust",
-        help="import the effect files the model file of --model or --params names even when they lie outside its "
+        help="import the effect files the model file of --model names even when they lie outside its "
         "folder, carry no recorded hash or changed since it was written (an effect file is code: loading it runs it)",
     ),
     policy: Path | None = typer.Option(
@@ -271,18 +271,11 @@ def run_cmd(
             raise InputError(
                 "--params builds a named controller on a model; it does not apply to const:, play:, agent: or --policy"
             )
+        from drillgym import RigParams
         from drillgym.commands.options import option
-        from drillgym.model import Model
 
-        with option("--params"):
-            mf = Model.load(params, trust=trust)  # a parameter file or a model file with effects (identify --out)
-        if mf.names:
-            typer.echo(
-                f"note: {params} also names effects ({', '.join(mf.names)}); the controller is "
-                f"built on its base parameters only (give it as --model to use them)",
-                err=True,
-            )
-        model = mf.params
+        with option("--params"):  # a model file with effects is refused: never half-read (give it as --model)
+            model = RigParams.from_file(params)
     if model_file is not None:
         if params is not None or controller is None or controller.startswith(("const:", "play:")) or policy:
             raise InputError("--model builds a controller or a trained agent on a model file; not with --params, "
