@@ -209,6 +209,42 @@ def _with_model(hp: dict[str, Any], model: Any, trust: bool) -> tuple[dict[str, 
     return {**hp, "env_kwargs": {**kw, "model": m}}, {**hp, "env_kwargs": {**kw, "model": record}}
 
 
+def _model_key(record: Any) -> Any:
+    """What identifies a model as ``config.yml`` records it: its base parameters and effects with their values
+    (not the effect files' paths: a model folder copied elsewhere is the same model)."""
+    if not isinstance(record, dict):
+        return None
+    effects = [(e.get("name"), e.get("values")) for e in record.get("effects") or [] if isinstance(e, dict)]
+    return record.get("params"), effects
+
+
+def _check_resumed_model(out: Path, recorded_hp: dict[str, Any]) -> None:
+    """Refuse to resume a run on another model than the one its ``config.yml`` records: a resumed run takes its
+    options from the call, and a model left out would continue the run on the nominal rig without a word."""
+    path = out / CONFIG_FILE
+    try:
+        before = yaml.safe_load(path.read_text(encoding="utf-8"))["hyperparams"]["env_kwargs"].get("model")
+    except Exception:  # noqa: BLE001 - no readable record of the run's model: nothing to hold the call to
+        return
+    now = recorded_hp.get("env_kwargs", {}).get("model")
+    if _model_key(before) == _model_key(now):
+        return
+    if now is None:
+        raise InputError(
+            f"resume: {out} was trained on the model {before.get('label', '?')} ({path}); give the same model "
+            "(--model FILE, model=) to continue it"
+        )
+    if before is None:
+        raise InputError(
+            f"resume: {out} was trained without a model ({path}); leave out the model to continue it, or train "
+            "on the model into another directory"
+        )
+    raise InputError(
+        f"resume: {out} was trained on another model ({before.get('label', '?')}, {path}) than the one given "
+        f"({now.get('label', '?')}); give the same model to continue it"
+    )
+
+
 def _env(env_id: str, hp: dict[str, Any], n: int, seed: int, evaluation: bool = False):
     """The training VecEnv of the (merged) hyperparameters ``hp``; ``evaluation``: its frozen twin (no
     statistics updates, raw rewards) for :class:`BestPolicyCallback`."""
@@ -448,6 +484,8 @@ def train(
             )
     if init is not None and resume:
         raise InputError("init: a resumed run continues its own checkpoint; give init or resume, not both")
+    if resume:
+        _check_resumed_model(Path(out), recorded_hp)
     venv = _env(env_id, hp, hp["n_envs"], seed)
     config = {"env_id": env_id, "algo": algo, "seed": int(seed), "hyperparams": recorded_hp, "command": command}
     if init is not None:
