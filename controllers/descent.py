@@ -125,6 +125,17 @@ class DescentController(Controller):
         u_grid, w_grid = self._table
         return np.interp(u, u_grid, w_grid)
 
+    def _compiled_law(self):
+        """The law as compiled code (:mod:`controllers.compiled.descent_law`), from the current state."""
+        from .compiled import CompiledLaw
+        from .compiled.descent_law import descent_constants, descent_state, descent_step
+
+        self._speed_of(np.zeros(1))  # the equilibrium table
+        u_grid, w_grid = self._table
+        state = descent_state(self.t, self.u_target, self.descends, self.theta0, self.reference_angle, self.integrating)
+        consts = descent_constants(self.hold, self.ramp, self.ki, self.u_approach, self.dt, u_grid, w_grid)
+        return CompiledLaw(descent_step, state, consts)
+
     def _act(self, m: dict[str, np.ndarray]) -> np.ndarray:
         u_ff, w_cmd = self.commanded(self.t)
         if self.t >= self.hold:  # integral from the start of the descent on

@@ -2,7 +2,7 @@
 
 Tolerances:
 
-* ``pi``: the same runs bit for bit (the same plant kernels, measurement arithmetic and noise stream);
+* ``pi``, ``descent``: the same runs bit for bit (the same plant kernels, measurement arithmetic and noise stream);
 * ``observer``: one period of the compiled law from the reference controller's state agrees with ``act`` to
   1e-12 (V, and relative on the estimates) with quantized angles; whole runs with exact angles agree to 1e-8
   relative on omega_l and 1e-5 V on u over 2 s.  Longer runs part: the closed loop amplifies round-off (the reference
@@ -41,6 +41,21 @@ def test_pi_compiled_loop_is_the_reference_to_round_off(n, plant):
     ref = np.linspace(1.0, 6.0, n)
     a, b = _runs("pi", ref, 1.0, plant, angle_noise=2e-4, seed=5)
     np.testing.assert_array_equal(a.t, b.t)
+    for k in SIGNALS:
+        np.testing.assert_allclose(getattr(a, k), getattr(b, k), rtol=1e-12, atol=1e-12, err_msg=k)
+
+
+@pytest.mark.parametrize("ramp", [0.5, 0.0])
+def test_descent_compiled_loop_is_the_reference_to_round_off(ramp):
+    """Approach, ramp and integral hold (short: a 0.3 s hold), a target above the approach's held from the start;
+    the same runs to round-off, the integral's start at the same period."""
+    ref = np.array([1.0, 2.5, 4.0, 30.0])
+    runs = []
+    for compiled in (False, True):
+        c = controllers.make("descent", config="torsional", omega_ref=ref, hold=0.3, ramp=ramp, ki=0.5)
+        runs.append(run_closed_loop(c, "torsional", ref, 1.2, compiled=compiled, angle_noise=2e-4, seed=5, **PLANT))
+    a, b = runs
+    assert np.ptp(a.u[0]) > 1.0  # the voltage ramps down
     for k in SIGNALS:
         np.testing.assert_allclose(getattr(a, k), getattr(b, k), rtol=1e-12, atol=1e-12, err_msg=k)
 
