@@ -69,6 +69,16 @@ class SweepResult:
         return d
 
 
+def _refuse_not_acting(params: RigModel, config: str, model) -> None:
+    """Refuse an effect that does not act in ``config`` (as ``simulate`` and ``compute_diagram`` do): the sweep
+    would drop it without a word (a coupled model's lateral force swept on the torsional rig)."""
+    from ..configurations import parse_configuration
+
+    params.comp.refuse_not_acting(
+        parse_configuration(config).label, "the model's effects" if model is not None else "effects"
+    )
+
+
 def _run_constant(
     config: str, u: np.ndarray, x0: np.ndarray | None, duration: float, window: float, dt: float, params: RigModel
 ) -> np.ndarray:
@@ -180,6 +190,7 @@ def sweep_constant(
     """
     u = _check(voltages, duration, window, dt)
     params = model_or_params(params, model, "sweep_constant()")
+    _refuse_not_acting(params, config, model)
     if start == "rest":
         x0 = None
     elif start == "equilibrium":
@@ -246,6 +257,7 @@ def sweep_staircase(
     """
     u = np.sort(_check(voltages, dwell, window, dt))
     params = model_or_params(params, model, "sweep_staircase()")
+    _refuse_not_acting(params, config, model)
     ex, own = _executor(executor)
     try:
         tasks = [(str(config), u, dwell, window, dt, params), (str(config), u[::-1].copy(), dwell, window, dt, params)]
