@@ -166,7 +166,7 @@ def register(app: typer.Typer) -> None:
         if uncertainty is not None:  # with --scenarios plants (declared above)
             with option("--uncertainty"):
                 uncertainty = load_uncertainty(uncertainty)
-        base, comp, values = plant_from_cli(params, add_effect, effect_param, trust)
+        base, comp, values = plant_from_cli(params, add_effect, effect_param, trust, configs=parsed)
         plant_set = None
         if plants_file is not None:  # with --scenarios plants, without --plants/--uncertainty (declared above)
             from controllers.evaluation.plants_file import load_plants

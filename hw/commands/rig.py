@@ -114,7 +114,9 @@ def emulate_cmd(
         )  # fmt: skip
         base, comp, values = m.params, m.composition, dict(m.values)
     else:
-        base, comp, values = plant_from_cli(params, add_effect, effect_param)
+        from drillgym.configurations import parse_configuration
+
+        base, comp, values = plant_from_cli(params, add_effect, effect_param, configs=(parse_configuration(config),))
     fw = FirmwareConfig(counts_per_rev=counts_per_rev, control_period_s=period_ms * 1e-3, watchdog_s=watchdog_ms * 1e-3)
     import time
 
