@@ -10,6 +10,7 @@ from typing import IO
 import numpy as np
 
 from ..configurations import Configuration
+from ..errors import InputTypeError
 from .jsonfile import dumps_json
 from .paths import written_whole
 from .timeseries import TimeSeries
@@ -39,7 +40,14 @@ def write_timeseries(path: str | Path, ts: TimeSeries) -> Path:
     OutputPathError
         The file cannot be written (missing directory, no permission, a full disk); an existing file
         is then left as it was.
+    InputTypeError
+        ``path`` is not a file's path (e.g. the arguments given the other way round).
     """
+    if not isinstance(path, (str, os.PathLike)):
+        swapped = " (the arguments are (path, ts))" if isinstance(path, TimeSeries) else ""
+        raise InputTypeError(
+            f"write_timeseries: path must be a file's path (text or path-like), got {type(path).__name__}{swapped}"
+        )
     path = Path(path)
     names = list(ts.columns)
     meta = dumps_json(ts.meta)
