@@ -183,3 +183,27 @@ def test_every_groups_terms_effect_takes_no_more_arguments_than_the_kernels_pass
     effect, _ = terms_effect(_candidate(group, [0], rng))
     for fn in effect.defined_functions():
         assert len(effect.argument_names(fn)) <= MAX_ARGUMENTS, (group, fn)
+
+
+def test_a_harmonic_enters_with_its_quadrature():
+    """A residual torque a cos 6θu + b sin 6θu with b small, and noise: the greedy regression enters cos 6θu alone
+    (b's share is below its gain); the candidate gets sin 6θu beside it, so its own fit can set the phase.  Terms
+    that are not harmonics bring nothing."""
+    from drillgym.diagnosis.greedy import greedy_terms, with_quadratures
+
+    terms = _groups(False)["upper_force"]
+    labels = [t.label for t in terms]
+    theta = np.linspace(0.0, 40.0, 4000)
+    d = {"t": theta, "thu": theta, "wu": np.full_like(theta, 2.0), "thl": theta, "wl": np.full_like(theta, 2.0)}
+    noise = np.random.default_rng(2).normal(0.0, 0.02, theta.size)  # a tenth of the variance, as after smoothing
+    y = 0.08 * np.cos(6 * theta) - 0.006 * np.sin(6 * theta) + noise
+    cols = [np.asarray(t.values(d), dtype=float) for t in terms]
+    chosen, _ = greedy_terms(cols, y, float(y @ y))
+    assert [labels[j] for j in chosen] == ["cos 6θu"]
+    both = with_quadratures(chosen, labels)
+    assert [labels[j] for j in both] == ["cos 6θu", "sin 6θu"]
+    c, *_ = np.linalg.lstsq(np.column_stack([cols[j] for j in both]), y, rcond=None)
+    np.testing.assert_allclose(c, [0.08, -0.006], atol=2e-3)
+    assert with_quadratures([labels.index("sin 6θu")], labels) == [labels.index("sin 6θu"), labels.index("cos 6θu")]
+    plain = [i for i, label in enumerate(labels) if "cos" not in label and "sin" not in label][:1]
+    assert with_quadratures(plain, labels) == plain

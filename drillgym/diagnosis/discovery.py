@@ -50,7 +50,7 @@ from ..params import N_PARAMS, RigParams
 from .discovery_terms import _SENSE, _groups, _Term
 from .effect_file import write_effect_file
 from .effects import get_effect, label_effects
-from .greedy import MAX_CANCEL, greedy_terms
+from .greedy import MAX_CANCEL, greedy_terms, with_quadratures
 from .lateral_discovery import LATERAL_GROUP, lateral_candidate
 from .library_columns import LIBRARY_PREFIX, library_columns
 from .results import Candidate
@@ -213,6 +213,7 @@ def find_candidate(
                 for g in (np.asarray(tm.values(d), dtype=float) for tm in terms)
             ]
             chosen, share = greedy_terms(cols, yr, tss)
+            chosen = with_quadratures(chosen, [t.label for t in terms])
             shares[group] = max(shares.get(group, 0.0), share)
             if chosen and (group not in cands or share > cands[group].explained):
                 # the file's coefficients: the terms alone (with per-disc offsets), as the effect will act on the
