@@ -55,7 +55,7 @@ import numpy as np
 
 from .effects import Composition, EffectError, compose
 from .effects.base import Effect
-from .errors import InputError, InputTypeError
+from .errors import InputError, InputTypeError, MissingFileError
 from .io.jsonfile import write_json
 from .model_files import (
     FORMAT,
@@ -434,6 +434,12 @@ class Model:
         if not isinstance(data, Mapping):
             raise InputTypeError(f"{where}: a model is a mapping (params, effects, ...), got {type(data).__name__}")
         records = _effect_records(data, where)  # malformed records: named by ``where`` before the files are listed
+        missing = [c for c in _code_files(data, path) if not c.path.is_file()]
+        if missing:  # not a question of trust: --trust would not bring the file back
+            raise MissingFileError(
+                f"{where}: effect {missing[0].effect!r}: its file {missing[0].path} is not found (a model's effect "
+                "files lie in its folder: copy the whole folder)"
+            )
         if not trust:
             ok = (lambda c: c.trusted) if hashed else (lambda c: c.inside and (c.recorded_sha256 is None or c.matches))
             bad = [c for c in _code_files(data, path) if not ok(c)]

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from drillgym import Model, ParameterError, RigParams, simulate, simulate_batch
-from drillgym.errors import InputError
+from drillgym.errors import InputError, MissingFileError
 from drillgym.model import UntrustedCodeError, code_files
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "effects" / "string_cubic.py"
@@ -140,3 +140,27 @@ def test_a_saved_model_loads_though_its_folder_holds_a_link_of_the_effect_files_
     loaded = Model.load(tmp_path / "m" / "model.json")  # trusted: the copy lies in the folder
     assert loaded.values == m.values and [c.trusted for c in code_files(tmp_path / "m" / "model.json")] == [True]
     assert (tmp_path / "m" / "string_cubic.py").is_symlink()  # the user's link as it was
+
+
+COG_EFFECT = """
+from drillgym.effects import Force, Parameter
+
+
+class Cog(Force):
+    name = "cog"
+    acts_on = "upper"
+    parameters = (Parameter("cog_c", "N m", -1.0, 1.0, 0.0, 0.1, neutral=0.0),)
+
+    def torque(theta_u, cog_c):
+        return cog_c * theta_u
+"""
+
+
+@pytest.mark.parametrize("trust", [False, True])
+def test_a_model_folder_copied_without_its_effect_file_is_refused_as_a_missing_file(tmp_path, trust):
+    (tmp_path / "cog.py").write_text(COG_EFFECT)
+    path = Model(effects=(f"{tmp_path / 'cog.py'}:cog",), values={"cog_c": 0.1}).save(tmp_path / "m" / "model.json")
+    (tmp_path / "m" / "cog.py").unlink()
+    with pytest.raises(MissingFileError, match=r"effect 'cog': its file .*cog\.py is not found") as e:
+        Model.load(path, trust=trust)
+    assert "trust" not in str(e.value)
