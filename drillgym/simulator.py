@@ -198,6 +198,8 @@ def simulate_batch(
     params, effects, effect_params = model_arguments(model, params, effects, effect_params, "simulate_batch()")
     cfg = parse_configuration(config)
     comp, values = compose(effects, effect_params)
+    if model is not None:  # as simulate: a model's effect the configuration does not run would be dropped silently
+        comp.refuse_not_acting(cfg.label, "simulate_batch(): the model's effects")
     duration, dt = step_grid(duration, dt)
     record_every = whole_number("record_every", record_every, 1)
     n_steps = int(round(duration / dt))

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 import drillgym
-from drillgym import Model, RigParams, simulate
+from drillgym import Model, RigParams, simulate, simulate_batch
+from drillgym.effects import EffectError
 from drillgym.errors import InputError
 
 TAU = 0.05  # s, the motor lag of the model
@@ -239,3 +240,14 @@ def test_cli_refuses_in_one_line(model_file, tmp_path, argv, says):
     lines = [ln for ln in err.strip().splitlines() if ln.strip()]
     assert len(lines) == 1 and says in lines[0], err
     assert not (tmp_path / "x.csv").exists()
+
+
+LATERAL_MODEL = Model(effects=("lateral_anisotropy",), values={"dk": 200.0})
+
+
+def test_a_models_effect_that_does_not_act_is_refused_by_simulate_batch_as_by_simulate():
+    with pytest.raises(EffectError, match="lateral_anisotropy: the effect does not act in the torsional"):
+        simulate("torsional", u=1.0, duration=0.1, model=LATERAL_MODEL)
+    with pytest.raises(EffectError, match="model's effects lateral_anisotropy: the effect does not act in the"):
+        simulate_batch("torsional", u=np.array([1.0, 2.0]), duration=0.1, model=LATERAL_MODEL)
+    simulate_batch("coupled", u=np.array([1.0, 2.0]), duration=0.1, model=LATERAL_MODEL)  # where it acts: runs
