@@ -140,9 +140,7 @@ class ModelDynamics:
     @property
     def delay(self) -> float:
         """Transport delay of the command (s): the composition's compiled ``hk_delay``; 0 without one."""
-        if not self.composition.has_delay:
-            return 0.0
-        return float(self.composition.hook_calls().delay_of(np.ascontiguousarray(self.vector, dtype=np.float64)))
+        return self.composition.delay(self.vector)
 
     @property
     def has_input_chain(self) -> bool:

@@ -122,9 +122,7 @@ def motor_lag(model: Model) -> float:
 
 def input_delay(model: Model) -> float:
     """Transport delay of the command (s): the composition's compiled ``hk_delay``; 0 without a Delay effect."""
-    if not model.composition.has_delay:
-        return 0.0
-    return float(model.composition.hook_calls().delay_of(np.ascontiguousarray(model.vector, dtype=np.float64)))
+    return model.composition.delay(model.vector)
 
 
 # ---------------------------------------------------------------------------- delay as a line of commands

@@ -210,7 +210,7 @@ def motor_voltage_along(ex: Experiment, comp: Any, p: np.ndarray, Y: np.ndarray)
     n, dt = ex.n, 1.0 / ex.fs
     calls = comp.hook_calls()
     vec = np.ascontiguousarray(p, dtype=np.float64)
-    delay = float(calls.delay_of(vec)) if comp.has_delay else 0.0
+    delay = comp.delay(vec)
     command = ex.input_on_grid(dt, n, ex.t[0] - delay)
     at_motor = command.copy()
     if comp.n_state == N_STATE and not comp.has_kind(Input):

@@ -347,6 +347,13 @@ class Composition:
 
         return foreign_client(self.kernels, "drillgym.effects.python_hooks")
 
+    def delay(self, vec: np.ndarray) -> float:
+        """Transport delay of the command (s) at the parameter vector ``vec`` (``param_names`` order): the
+        compiled ``hk_delay``; 0 without a Delay effect."""
+        if not self.has_delay:
+            return 0.0
+        return float(self.hook_calls().delay_of(np.ascontiguousarray(vec, dtype=np.float64)))
+
     def delay_line_length(self, P: np.ndarray, dt: float) -> int:
         """Length of the per-trajectory delay line for parameter rows ``P`` and step ``dt`` (s).
 
