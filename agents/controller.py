@@ -115,6 +115,9 @@ class AgentController(Controller):
         self.schedule = schedule_of(hp.get("command_schedule"), self.integral)  # the speed command (agents.command)
         scale = hp.get("residual")
         self.base = None
+        #: whether the model's effects reach the commands (a classical base built on the whole model); else the
+        #: network reads none of them
+        self.runs_effects = base_name is not None and model is not None
         if base_name is not None:  # observation = the base's features, not the env's model
             if self.frame_stack != 1:
                 raise InputError(f"agents on the {base_name} base are trained without frame stacking")

@@ -144,3 +144,15 @@ def test_rig_runs_a_policy_on_the_observer_base_on_the_whole_model():
     filters = on_model.base._ctrl.model, on_params.base._ctrl.model
     assert (filters[0].lag_index >= 0, filters[0].delay_steps) == (True, 1)  # the lag's state, the 12 ms delay line
     assert (filters[1].lag_index, filters[1].delay_steps) == (-1, 0)
+
+
+def test_the_rows_name_the_model_a_policy_runs():
+    """A policy on the observer base runs the observer built on the whole model: its rows name the model; a plain
+    network reads none of the model's effects (it warns): its rows say ``base``, not the model's effects."""
+    model = Model(RigParams(), ("motor_lag",), {"tau_m": 0.03})
+    ref = np.array([2.0])
+    _, label = build_controller(f"agent:{KEPT_RESIDUAL}", "torsional", ref, RigParams(), model)
+    assert label == model.label == "motor_lag"
+    with pytest.warns(UserWarning, match="uses the model's base parameters only"):
+        _, label = build_controller("agent:agents/policies/torsional_motor_ppo", "torsional", ref, RigParams(), model)
+    assert label == "base"

@@ -35,7 +35,8 @@ def build_controller(
     With a ``model`` (a :class:`drillgym.Model`), a controller that runs effects is built on
     it, any other on its base parameters (label ``base``); without one, on ``base``.  A learned policy
     (``agent:PATH``) gets the whole model and uses what its structure can: a policy on the observer base runs the
-    observer built on it, effects included; a plain network warns that it reads none of them.
+    observer built on it, effects included (label the model's); a plain network warns that it reads none of them
+    (label ``base``).
     """
     from .. import make
     from ..registry import CONTROLLERS, split_period
@@ -43,7 +44,10 @@ def build_controller(
     if model is None:
         return make(controller, config=config, omega_ref=omega_ref, params=base, **kw), "base"
     cls = CONTROLLERS.get(split_period(controller)[0])
-    if controller.startswith("agent:") or (cls is not None and cls.uses_effects):
+    if controller.startswith("agent:"):  # a plain network reads none of the model's effects (it warns): "base"
+        ctrl = make(controller, config=config, omega_ref=omega_ref, model=model, **kw)
+        return ctrl, model.label if getattr(ctrl, "runs_effects", False) else "base"
+    if cls is not None and cls.uses_effects:
         return make(controller, config=config, omega_ref=omega_ref, model=model, **kw), model.label
     return make(controller, config=config, omega_ref=omega_ref, params=model.params, **kw), "base"
 
