@@ -134,6 +134,8 @@ def test_equilibria_with_effects_are_rest_points_of_that_model(config):
     assert "u_m" in sys.state_labels
 
 
-def test_effects_without_constant_equilibria_are_refused():
-    with pytest.raises(ParameterError, match="no constant equilibria"):
-        slip_equilibria("torsional", 2.0, effects=["position_friction"], effect_params={"pf_c1": 0.2})
+def test_effects_without_constant_equilibria_are_refused_naming_them():
+    with pytest.raises(ParameterError, match=r"no constant equilibria: its effects \(position_friction\) depend"):
+        slip_equilibria(
+            "torsional", 2.0, effects=["motor_lag", "position_friction"], effect_params={"pf_c1": 0.2, "tau_m": 0.03}
+        )

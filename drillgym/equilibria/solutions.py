@@ -92,9 +92,11 @@ def _refine(cfg: Configuration, omega: float, guess: tuple, rig: RigModel) -> tu
         )
     moved = np.max(np.abs(residual(sol, shift=1.2345, t=7.5)))
     if moved > 1e-6:
+        readers = _angle_or_time_readers(rig.comp)
+        which = f" ({', '.join(readers)})" if readers else ""
         raise ParameterError(
-            f"the model {rig.comp.label!r} has no constant equilibria: its effects depend on the "
-            f"disc angles or on time (residual {moved:.2g} after a rotation); remove those effects"
+            f"the model {rig.comp.label!r} has no constant equilibria: its effects{which} depend on the "
+            f"disc angles or on time (residual {moved:.2g} after a rotation); run it without them"
         )
     u, st = state(sol)
     return float(u), float(st[1] - st[0]), float(st[4]), float(st[5]), tuple(float(v) for v in st[8:])
@@ -323,3 +325,12 @@ def _stick_set_numeric(cfg: Configuration, u: float, rig: RigModel, centre: floa
 
 
 # -------------------------------------------------------------- linearisation
+
+
+def _angle_or_time_readers(comp) -> list[str]:
+    """The effects of ``comp`` whose functions read a disc's angle or the time: those that move an equilibrium
+    along a rotation (position friction, cogging, a user's effect of ``t``)."""
+    reads = {"theta_u", "theta_l", "t"}
+    return [
+        e.name for e in comp.effects if any(reads.intersection(e.argument_names(fn)) for fn in e.defined_functions())
+    ]
