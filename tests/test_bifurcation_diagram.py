@@ -7,10 +7,12 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import pytest
 
-from drillgym import RigParams, simulate
-from drillgym.bifurcation import equilibrium_branch, measured_point, periodic_branches, sweep_constant
+from drillgym import Model, RigParams, simulate
+from drillgym.bifurcation import equilibrium_branch, measured_point, periodic_branches, sweep_constant, sweep_staircase
 from drillgym.bifurcation.poincare import SectionMap
 from drillgym.bifurcation.shooting import residual_and_jacobian
+from drillgym.effects import EffectError
+from drillgym.equilibria import as_model
 from drillgym.errors import DataFormatError
 
 
@@ -151,3 +153,16 @@ def test_cli_refuses_a_non_positive_continuation_step(tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
         main(["bifurcation", "--config", "torsional", "--out", str(tmp_path), "--ds-max", "0"])
     assert e.value.code == 2 and "--ds-max must be a positive finite continuation step" in capsys.readouterr().err
+
+
+LATERAL_ONLY = Model(effects=("lateral_anisotropy",), values={"dk": 200.0})  # acts in lateral and coupled only
+
+
+@pytest.mark.parametrize("sweep", [sweep_constant, sweep_staircase])
+def test_an_effect_that_does_not_act_in_the_swept_configuration_is_refused(sweep):
+    kw = {"duration": 21.0} if sweep is sweep_constant else {"dwell": 21.0}
+    with pytest.raises(EffectError, match=r"the model's effects lateral_anisotropy: the effect does not act in the "):
+        sweep("torsional", [1.0, 2.0], window=20.0, model=LATERAL_ONLY, **kw)
+    rig = as_model(LATERAL_ONLY.params, effects=LATERAL_ONLY.composition, effect_params=dict(LATERAL_ONLY.values))
+    with pytest.raises(EffectError, match=r"^effects lateral_anisotropy: the effect does not act in the torsional"):
+        sweep("torsional", [1.0, 2.0], window=20.0, params=rig, **kw)

@@ -7,6 +7,7 @@ import controllers
 from controllers.evaluation import run_closed_loop, run_metrics
 from controllers.evaluation.population import sample_plants
 from controllers.kalman import I_DU, disturbance_model
+from drillgym import Model, RigParams
 
 
 def test_upper_disturbance_state_is_a_sixth_state_on_the_upper_disc():
@@ -63,3 +64,25 @@ def test_softtorque_and_lqg_robust_options_are_checked():
         controllers.make("softtorque", omega_ref=2.0, km_margin=0.0)
     with pytest.raises(ValueError, match="outer_gain"):
         controllers.make("lqg", omega_ref=2.0, outer_gain=-0.1)
+
+
+def _robust_model() -> Model:
+    return Model(RigParams().replace(Ts=0.3), ("motor_lag",), {"tau_m": 0.03})
+
+
+def test_the_robust_observer_takes_a_model_and_keeps_its_margin_on_the_models_motor(tmp_path):
+    m = _robust_model()
+    for given in (m, m.save(tmp_path / "model.json")):
+        c = controllers.make("observer-robust", model=given, omega_ref=3.0)
+        assert c.effects.label == "motor_lag" and c.effects.values["tau_m"] == pytest.approx(0.03)
+        assert c.params.Ts == 0.3 and c.params.bu == pytest.approx(m.params.bu / 1.1)  # least damped motor
+        c.reset({"theta_u": np.zeros(1)})
+        u = c.act({"theta_u": np.zeros(1)})
+        assert np.all(np.isfinite(u))
+    c = controllers.make("observer-robust", model=m, omega_ref=3.0, bu_margin=1.0)
+    assert c.params.bu == m.params.bu
+
+
+def test_the_robust_observer_refuses_params_beside_a_different_model_in_one_line():
+    with pytest.raises(ValueError, match="either as params or in its model, not both"):
+        controllers.make("observer-robust", model=_robust_model(), params=RigParams(), omega_ref=3.0)

@@ -7,8 +7,8 @@ import pytest
 import scipy.io
 
 from drillgym import simulate
-from drillgym.errors import DataFormatError
-from drillgym.io import StreamingCsvWriter, read_timeseries, write_trajectory_csv
+from drillgym.errors import DataFormatError, InputTypeError
+from drillgym.io import StreamingCsvWriter, TimeSeries, read_timeseries, write_timeseries, write_trajectory_csv
 from drillgym.measurement import MeasurementModel, measure_trajectory, quantize_angle
 
 
@@ -128,3 +128,13 @@ def test_writing_a_series_replaces_the_file_whole_or_says_why(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["run.csv"]  # no temporary file left
     with pytest.raises(OutputPathError, match=r"missing/run\.csv: cannot write the time series \("):
         write_trajectory_csv(traj, tmp_path / "missing" / "run.csv")
+
+
+def test_arguments_given_the_other_way_round_are_refused_in_one_line(tmp_path):
+    ts = TimeSeries({"t": np.arange(3) * 0.01, "u": np.ones(3), "theta_u": np.zeros(3)}, {"configuration": "upper"})
+    with pytest.raises(InputTypeError, match=r"path must be a file's path .*got TimeSeries \(the arguments are"):
+        write_timeseries(ts, tmp_path / "x.csv")
+    with pytest.raises(InputTypeError, match="got int"):
+        write_timeseries(3, ts)
+    out = write_timeseries(str(tmp_path / "x.csv"), ts)
+    assert np.array_equal(read_timeseries(out).columns["u"], np.ones(3))
