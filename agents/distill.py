@@ -206,7 +206,7 @@ def distill(
     curriculum = LowTargets.from_config(low_targets)
     if curriculum is not None:
         curriculum.install(batch)
-    teach = _teacher(teacher, n_envs, batch, teacher_kwargs or {}, integral, frame_stack)
+    teach = _teacher(teacher, n_envs, batch, teacher_kwargs or {}, integral, frame_stack, env_kwargs.get("model"))
 
     policy = model.policy
     params = list(policy.mlp_extractor.policy_net.parameters()) + list(policy.action_net.parameters())
@@ -373,9 +373,13 @@ def round_learning_rate(lr: float, lr_final: float | None, it: int, iterations: 
     return lr * (lr_final / lr) ** (it / (iterations - 1))
 
 
-def _teacher(teacher: str | Path, n: int, batch, options: dict[str, Any], integral=None, frames: int = 1) -> Teacher:
+def _teacher(
+    teacher: str | Path, n: int, batch, options: dict[str, Any], integral=None, frames: int = 1, model: Any = None
+) -> Teacher:
     """The teacher on the rigs of ``batch``; ``integral``: the :class:`agents.integral.MotorIntegralVecEnv`
-    whose integral the flatness teacher uses; ``frames``: the observations stacked in the student's."""
+    whose integral the flatness teacher uses; ``frames``: the observations stacked in the student's; ``model``: the
+    rigs' model when training was given one (``train --model``): a shadow controller is built on it, as
+    ``controllers.make(name, model=...)`` (one it cannot use is refused in one line)."""
     from .teachers import SHADOW_CONTROLLERS
 
     ignore = lambda *args: None  # noqa: E731 - a teacher without use for the executed action or the reset
@@ -384,6 +388,8 @@ def _teacher(teacher: str | Path, n: int, batch, options: dict[str, Any], integr
 
         o = batch.options
         top = max(float(o.omega_ref_range[1]), float(o.omega_ref or 0.0))  # the highest target of an episode
+        if model is not None and "model" not in options:
+            options = {**options, "model": model}
         t = ShadowTeacher(str(teacher), n, o.control_dt, list(batch.obs_model.names), top=top, **options)
         if t.given is not None and integral is None:
             raise InputError("given_integral: the teacher takes the student's integral (motor_integral: true)")

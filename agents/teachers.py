@@ -146,7 +146,7 @@ class ShadowTeacher:
     ----------
     name : str
         The controller (:data:`SHADOW_CONTROLLERS`), built on its default (nominal) model as the benchmark
-        builds it.
+        builds it, or on ``model`` among ``options`` (the rigs' model of a run given one).
     n : int
         Number of rigs.
     dt : float

@@ -184,3 +184,33 @@ def test_kept_observer_student_is_a_plain_network_on_the_motor_angle_with_the_se
         u = ctl.act({"theta_u": np.array([0.02, 0.04]) * k})
         assert np.all(np.isfinite(u)) and np.all(np.abs(u) <= 5.0)
     assert not ctl.z.any()  # no integral before the ramp's end (2.0) nor for a target above 2.5 rad/s
+
+
+def test_a_shadow_teacher_is_built_on_the_rigs_model_of_a_run_given_one(monkeypatch):
+    """``train --model FILE --teacher observer``: the teacher runs the observer built on the rigs' model, as
+    ``controllers.make("observer", model=...)``; without a model, on its nominal one."""
+    from types import SimpleNamespace
+
+    import gymnasium as gym
+
+    import agents.teachers as teachers
+    from agents.distill import _teacher
+    from drillgym import Model, RigParams
+
+    env = gym.make("drillgym/Torsional-v0", observation="motor", omega_ref=1.5, normalize_action=True)
+    names = env.unwrapped.observation_names
+    options = SimpleNamespace(omega_ref_range=(1.0, 4.0), omega_ref=None, control_dt=0.01)
+    batch = SimpleNamespace(options=options, obs_model=SimpleNamespace(names=names, dim=len(names)), omega_ref=None)
+    model = Model(RigParams(), ("motor_lag",), {"tau_m": 0.03})
+    built = []
+
+    class Spy(teachers.ShadowTeacher):
+        def __init__(self, *args, **kw):
+            super().__init__(*args, **kw)
+            built.append(self.controller)
+
+    monkeypatch.setattr(teachers, "ShadowTeacher", Spy)
+    _teacher("observer", 1, batch, {}, model=model)
+    _teacher("observer", 1, batch, {})
+    assert built[0].effects.composition.label == "motor_lag" and built[0].effects.values["tau_m"] == 0.03
+    assert not built[1].effects.composition.effects
