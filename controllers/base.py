@@ -120,7 +120,7 @@ class Controller(ABC):
                 )
             from .model import check_model
 
-            check_model(self.effects, f"controller {self.name!r}", self.uses)
+            self.effects = check_model(self.effects, f"controller {self.name!r}", self.uses)
         self.params = self.effects.params
         self.dt = float(dt)
         self.u_max = float(u_max)

@@ -285,7 +285,7 @@ def disturbance_model(
     if model is not None:
         if params is not None and params != model.params:
             raise InputError("give the estimator's base parameters either as params or in its model, not both")
-        check_model(model, "the motor-angle Kalman filter", ("theta_u",))
+        model = check_model(model, "the motor-angle Kalman filter", ("theta_u",))
     else:
         model = model_of(None, params)
     p = model.params

@@ -78,38 +78,71 @@ def model_of(model: Any = None, params: RigParams | None = None) -> Model:
 _READS = {"theta_u": "theta_u", "theta_l": "theta_l", "x": "X", "y": "Y"}
 
 
-def check_model(model: Model, who: str, reads: Sequence[str] = ("theta_u",)) -> None:
-    """Refuse, in one line naming it and why, an effect the controllers' torsional model cannot represent.
+def check_model(model: Model, who: str, reads: Sequence[str] = ("theta_u",)) -> Model:
+    """The part of the model the controllers' torsional model runs: an effect of the lateral motion alone is left
+    out with a warning naming it, as the lateral motion itself is; one it cannot represent otherwise is refused in
+    one line naming it and why.
+
+    The controllers' model has no lateral motion: in the coupled configuration they are built on the torsional
+    dynamics and leave out the base model's lateral degrees of freedom (its stiffness, damping, unbalance).  A force
+    on the lower disc's centre, or an effect acting only where the disc moves laterally (an anisotropy of its
+    support), changes what they leave out, not what they model.
 
     Parameters
     ----------
     model : drillgym.Model
         The model.
     who : str
-        The controller, for the message (``"controller 'observer'"``).
+        The controller, for the messages (``"controller 'observer'"``).
     reads : sequence of str
         The measurements it reads.
+
+    Returns
+    -------
+    drillgym.Model
+        ``model``, or the model without its effects of the lateral motion alone.
 
     Raises
     ------
     InputError
-        A lateral force or an effect that does not act in the torsional configuration.
+        An effect that acts neither in the torsional configuration nor on the lateral motion alone.
     """
     del reads  # every Measurement effect on a read channel enters the output map
+    lateral_only = []
     for e in model.composition.effects:
-        why = ""
+        acts = tuple(e.configurations or ())
         if issubclass(e, Force) and e.acts_on == "lateral":
-            why = "a force on the lower disc's centre: the controllers' model has no lateral motion"
-        elif e.configurations and "torsional" not in tuple(e.configurations) and not issubclass(e, Measurement):
-            why = f"it acts only in {', '.join(e.configurations)}, not in the controllers' torsional model"
+            lateral_only.append(e)
+        elif acts and "torsional" not in acts and not issubclass(e, Measurement):
+            if set(acts) <= {"lateral", "coupled"}:
+                lateral_only.append(e)
+            else:
+                raise InputError(
+                    f"{who} cannot use the model's effect {e.name!r} (it acts only in {', '.join(acts)}, not in the "
+                    "controllers' torsional model)"
+                )
         elif any("t" in e.argument_names(f) for f in e.defined_functions()):
             warnings.warn(
                 f"{who}: the model's effect {e.name!r} depends on time; its model takes it at t = 0 and the "
                 "disturbance state estimates its drift",
                 stacklevel=3,
             )
-        if why:
-            raise InputError(f"{who} cannot use the model's effect {e.name!r} ({why})")
+    if not lateral_only:
+        return model
+    names = ", ".join(e.name for e in lateral_only)
+    warnings.warn(
+        f"{who} leaves out the model's effects of the lateral motion ({names}): its model has no lateral motion",
+        stacklevel=3,
+    )
+    kept = tuple(e for e in model.composition.effects if e not in lateral_only)
+    own = {p.name for e in kept for p in e.parameters}
+    return Model(
+        model.params,
+        kept,
+        {k: v for k, v in model.values.items() if k in own},
+        {k: v for k, v in model.std.items() if k in own},
+        model.provenance,
+    )
 
 
 def motor_lag(model: Model) -> float:

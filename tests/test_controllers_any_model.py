@@ -138,8 +138,30 @@ def test_what_cannot_be_represented_is_refused_in_one_line(tmp_path):
         )
     msg = str(err.value)
     assert "'integrating_drive'" in msg and "a state other than a first-order lag" in msg and "\n" not in msg
-    with pytest.raises(InputError, match="'lateral_coulomb'.*no lateral motion"):
-        controllers.make("observer", omega_ref=3.0, model=Model(RigParams(), ("lateral_coulomb",), {}))
+
+
+@pytest.mark.parametrize("name", ["observer", "lqg", "lqg-2enc"])
+def test_a_coupled_model_s_lateral_effects_are_left_out_as_the_lateral_motion_is(name):
+    """The controllers' model has no lateral motion: an identified coupled model's lateral effects (a force on the
+    disc's centre, the support's anisotropy) are left out with a warning naming them, and the controller is the one
+    built on the rest of the model; the same commands."""
+    lateral = Model(
+        RigParams(),
+        ("motor_lag", "lateral_coulomb", "lateral_anisotropy"),
+        {"tau_m": 0.03, "dk": 200.0, "db": 3.0},
+    )
+    with pytest.warns(UserWarning, match=r"leaves out the model's effects of the lateral motion \(lateral_coulomb, "
+                      r"lateral_anisotropy\)"):  # fmt: skip
+        c = controllers.make(name, config="coupled", omega_ref=np.array([2.0, 3.0]), model=lateral)
+    assert c.effects.composition.label == "motor_lag" and set(c.effects.values) == {"tau_m"}
+    ref = controllers.make(name, config="coupled", omega_ref=np.array([2.0, 3.0]),
+                           model=Model(RigParams(), ("motor_lag",), {"tau_m": 0.03}))  # fmt: skip
+    m = {"theta_u": np.zeros(2), "theta_l": np.zeros(2)}
+    c.reset(m)
+    ref.reset(m)
+    for k in range(5):
+        m = {"theta_u": np.full(2, 0.01 * k), "theta_l": np.full(2, 0.005 * k)}
+        np.testing.assert_array_equal(c.act(m), ref.act(m))
 
 
 def test_lqg_2enc_told_a_coarse_encoder_takes_its_quantisation_into_its_model():

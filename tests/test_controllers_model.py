@@ -92,12 +92,12 @@ def test_filter_model_has_the_lag_state_and_the_delay_line():
     assert abs(lag.Bd[1, 0]) < 0.05 * abs(base.Bd[1, 0])
 
 
-def test_controllers_refuse_effects_they_cannot_use():
+def test_controllers_refuse_effects_they_cannot_use_and_leave_out_the_lateral_ones():
     import controllers
 
-    with pytest.raises(InputError, match=r"'lateral_anisotropy' \(a force on the lower disc's centre") as err:
-        controllers.make("observer", omega_ref=3.0, model=_model(["lateral_anisotropy"], {}))
-    assert "\n" not in str(err.value)
+    with pytest.warns(UserWarning, match=r"effects of the lateral motion \(lateral_anisotropy\)"):
+        left = controllers.make("observer", omega_ref=3.0, model=_model(["lateral_anisotropy"], {}))
+    assert not left.effects.composition.effects  # as the lateral motion itself
     ok = controllers.make("observer", omega_ref=3.0, model=_model(["string_damping"], {}))  # a Force: in its model
     assert ok.model.dynamics.nz == 5
     with pytest.raises(InputError, match="'motor_lag'"):
