@@ -72,7 +72,8 @@ class Controller(ABC):
     model : drillgym.Model or path, optional
         A model with effects (a :class:`drillgym.Model` or its file), instead of ``params``.  A controller
         whose :attr:`uses_effects` is False refuses a model with effects, naming the first; a model-based one
-        refuses, naming it and why, an effect its model cannot represent (:func:`controllers.model.check_model`).
+        leaves out the effects of the lateral motion alone (with a warning) and refuses, naming it and why, an
+        effect its model cannot represent (:func:`controllers.model.torsional_part`).
     dt : float, optional
         Control period (s); default :attr:`default_dt` of the class (10 ms; the observer samples the encoder at
         500 Hz).
@@ -118,9 +119,9 @@ class Controller(ABC):
                     f"controller {self.name!r} is built on base parameters only and cannot use the model's effect "
                     f"{self.effects.composition.names[0]!r}; give it the base parameters (a model without effects)"
                 )
-            from .model import check_model
+            from .model import torsional_part
 
-            self.effects = check_model(self.effects, f"controller {self.name!r}", self.uses)
+            self.effects = torsional_part(self.effects, f"controller {self.name!r}", self.uses)
         self.params = self.effects.params
         self.dt = float(dt)
         self.u_max = float(u_max)

@@ -53,7 +53,7 @@ from drillgym.errors import InputError
 from drillgym.measurement import DEFAULT_COUNTS_PER_REV
 
 from .dynamics import ModelDynamics
-from .model import check_model, delayed_discretisation, model_of
+from .model import delayed_discretisation, model_of, torsional_part
 
 __all__ = [
     "STATES",
@@ -285,7 +285,7 @@ def disturbance_model(
     if model is not None:
         if params is not None and params != model.params:
             raise InputError("give the estimator's base parameters either as params or in its model, not both")
-        model = check_model(model, "the motor-angle Kalman filter", ("theta_u",))
+        model = torsional_part(model, "the motor-angle Kalman filter", ("theta_u",))
     else:
         model = model_of(None, params)
     p = model.params

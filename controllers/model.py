@@ -8,11 +8,13 @@ without states), the Delay effects become a line of past commands (the delay the
 :func:`delayed_discretisation`), the Measurement effects on a channel the controller reads enter its output
 map, and a static Input map that is monotone (a dead zone, an offset) is inverted in the command.
 
-What the controllers' torsional model cannot represent is refused in one line naming the effect and the
-reason (:func:`check_model`): a lateral force (the controllers' model has no lateral motion), an effect that
-does not act in the torsional configuration.  A friction effect that depends on time (``friction_drift``: the
-level drifts from the recording's start) has no origin in a controller's run: it is evaluated at t = 0 (where
-the drift is neutral) and the disturbance state takes the drift; building such a controller warns, naming it.
+The controllers' model has no lateral motion: a model's effects of the lateral motion alone (a lateral force,
+an effect acting only in the lateral and coupled configurations) are left out with a warning naming them, as the
+base model's lateral motion is (:func:`torsional_part`); an effect that acts neither in the torsional configuration
+nor on the lateral motion alone is refused in one line naming it and the reason.  A friction effect that depends
+on time (``friction_drift``: the level drifts from the recording's start) has no origin in a controller's run: it
+is evaluated at t = 0 (where the drift is neutral) and the disturbance state takes the drift; building such a
+controller warns, naming it.
 
     >>> m = model_of("model.json")          # a drillgym.Model
     >>> motor_lag(m), input_delay(m)         # s, s
@@ -36,7 +38,7 @@ from drillgym.model import Model
 __all__ = [
     "Model",
     "model_of",
-    "check_model",
+    "torsional_part",
     "motor_lag",
     "input_delay",
     "delayed_discretisation",
@@ -78,7 +80,7 @@ def model_of(model: Any = None, params: RigParams | None = None) -> Model:
 _READS = {"theta_u": "theta_u", "theta_l": "theta_l", "x": "X", "y": "Y"}
 
 
-def check_model(model: Model, who: str, reads: Sequence[str] = ("theta_u",)) -> Model:
+def torsional_part(model: Model, who: str, reads: Sequence[str] = ("theta_u",)) -> Model:
     """The part of the model the controllers' torsional model runs: an effect of the lateral motion alone is left
     out with a warning naming it, as the lateral motion itself is; one it cannot represent otherwise is refused in
     one line naming it and why.
