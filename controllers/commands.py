@@ -186,6 +186,12 @@ def register(app: typer.Typer) -> None:
                 for c in names:  # an effect a controller cannot use: refused before any run
                     for cfg in cfgs if not c.startswith("agent:") else ():
                         build_controller(c, cfg, tg[:1], ctrl_model.params, ctrl_model)
+            if not params and not any(sc.population for sc in scen):  # said: an identified rig's user expects it run
+                typer.echo(
+                    "note: --model builds the controllers on the model; the plant is the nominal rig (add --params "
+                    f"{model} to run the model as the plant too)",
+                    err=True,
+                )
         for c in parsed:
             check_effects_act(comp, c)
         p = base if params else None

@@ -191,6 +191,7 @@ def test_evaluate_cli_builds_the_model_based_controllers_on_model(tmp_path, caps
     with pytest.raises(SystemExit) as ok:
         main(args + ["--model", str(lag)])
     assert ok.value.code == 0
+    assert f"the plant is the nominal rig (add --params {lag}" in capsys.readouterr().err
     with open(out / "results.csv") as f:
         assert {r["controller"]: r["model"] for r in csv.DictReader(f)} == {"observer": "motor_lag", "pi": "base"}
     assert "observer on motor_lag" in (out / "summary.md").read_text()
