@@ -33,6 +33,7 @@ from drillgym.io import create_directory
 
 from .envs import make_training_env
 from .hyperparams import algorithm_kwargs, apply_overrides, load_hyperparams
+from .run_model import check_resumed_model, with_model
 from .task_training import base_env_id, check_task_structure, task_env_kwargs, task_of
 
 __all__ = [
@@ -191,58 +192,6 @@ def planned_timesteps(
     return _settings(env_id, algo.lower(), None, timesteps, None, hyperparams, overrides, allow_zero=True)[
         "n_timesteps"
     ]
-
-
-def _with_model(hp: dict[str, Any], model: Any, trust: bool) -> tuple[dict[str, Any], dict[str, Any]]:
-    """(``hp`` with env option ``model`` set, ``hp`` as ``config.yml`` records it: the model as JSON-ready
-    base parameters and effect records); refused beside env options that give the model's parts."""
-    from drillgym.model import as_model
-
-    m = as_model(model, trust=trust, who="train(): model")
-    kw = dict(hp["env_kwargs"])
-    clash = [k for k in ("model", "params", "effects", "effect_params") if kw.get(k) is not None]
-    if clash:
-        raise InputError(
-            f"train(): give model= or the env option(s) {', '.join(clash)}, not both (the model holds its own)"
-        )
-    record = {"label": m.label, "params": m.params.to_dict(), "effects": m.records()}
-    return {**hp, "env_kwargs": {**kw, "model": m}}, {**hp, "env_kwargs": {**kw, "model": record}}
-
-
-def _model_key(record: Any) -> Any:
-    """What identifies a model as ``config.yml`` records it: its base parameters and effects with their values
-    (not the effect files' paths: a model folder copied elsewhere is the same model)."""
-    if not isinstance(record, dict):
-        return None
-    effects = [(e.get("name"), e.get("values")) for e in record.get("effects") or [] if isinstance(e, dict)]
-    return record.get("params"), effects
-
-
-def _check_resumed_model(out: Path, recorded_hp: dict[str, Any]) -> None:
-    """Refuse to resume a run on another model than the one its ``config.yml`` records: a resumed run takes its
-    options from the call, and a model left out would continue the run on the nominal rig without a word."""
-    path = out / CONFIG_FILE
-    try:
-        before = yaml.safe_load(path.read_text(encoding="utf-8"))["hyperparams"]["env_kwargs"].get("model")
-    except Exception:  # noqa: BLE001 - no readable record of the run's model: nothing to hold the call to
-        return
-    now = recorded_hp.get("env_kwargs", {}).get("model")
-    if _model_key(before) == _model_key(now):
-        return
-    if now is None:
-        raise InputError(
-            f"resume: {out} was trained on the model {before.get('label', '?')} ({path}); give the same model "
-            "(--model FILE, model=) to continue it"
-        )
-    if before is None:
-        raise InputError(
-            f"resume: {out} was trained without a model ({path}); leave out the model to continue it, or train "
-            "on the model into another directory"
-        )
-    raise InputError(
-        f"resume: {out} was trained on another model ({before.get('label', '?')}, {path}) than the one given "
-        f"({now.get('label', '?')}); give the same model to continue it"
-    )
 
 
 def _env(env_id: str, hp: dict[str, Any], n: int, seed: int, evaluation: bool = False):
@@ -464,7 +413,7 @@ def train(
     hp = _settings(env_id, algo, obs, timesteps, n_envs, hyperparams, overrides, allow_zero=True)
     recorded_hp = hp
     if model is not None:
-        hp, recorded_hp = _with_model(hp, model, trust)
+        hp, recorded_hp = with_model(hp, model, trust)
     distill_kwargs = {**(hp.get("distill") or {}), **(distill_kwargs or {})}
     if teacher is None:
         teacher = distill_kwargs.pop("teacher", None)
@@ -485,7 +434,7 @@ def train(
     if init is not None and resume:
         raise InputError("init: a resumed run continues its own checkpoint; give init or resume, not both")
     if resume:
-        _check_resumed_model(Path(out), recorded_hp)
+        check_resumed_model(Path(out) / CONFIG_FILE, recorded_hp)
     venv = _env(env_id, hp, hp["n_envs"], seed)
     config = {"env_id": env_id, "algo": algo, "seed": int(seed), "hyperparams": recorded_hp, "command": command}
     if init is not None:

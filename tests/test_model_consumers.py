@@ -166,7 +166,7 @@ def test_the_section_maps_simulations_run_its_model(m):
 
 def test_training_envs_run_the_model(m):
     from agents.envs import make_training_env
-    from agents.train import _with_model
+    from agents.run_model import with_model
 
     venv = make_training_env("drillgym/Torsional-v0", 1, env_kwargs={"model": m, **ENV}, monitor=False)
     assert venv.get_attr("options")[0].rig_model == m
@@ -175,10 +175,10 @@ def test_training_envs_run_the_model(m):
     pop = make_training_env("drillgym/Torsional-v0", 1, env_kwargs={"model": m}, population="default", monitor=False)
     o = pop.get_attr("options")[0]
     assert o.rig_params == m.params and o.effects.names[0] == "motor_lag"
-    hp, recorded = _with_model({"env_kwargs": {"observation": "motor"}}, m, False)
+    hp, recorded = with_model({"env_kwargs": {"observation": "motor"}}, m, False)
     assert hp["env_kwargs"]["model"] is m and recorded["env_kwargs"]["model"]["effects"][0]["values"] == {"tau_m": TAU}
     with pytest.raises(InputError, match="give model= or the env option\\(s\\) effects"):
-        _with_model({"env_kwargs": {"effects": ["motor_lag"]}}, m, False)
+        with_model({"env_kwargs": {"effects": ["motor_lag"]}}, m, False)
 
 
 @pytest.mark.filterwarnings("ignore:descent. the approach")  # a short run, as a quick check
