@@ -129,7 +129,6 @@ def register(app: typer.Typer) -> None:
         from controllers.evaluation.harness import DURATION_MAX, check_evaluation_options
         from controllers.evaluation.population import load_uncertainty
         from controllers.evaluation.report import write_report
-        from drillgym.commands.effect_options import check_effects_act
         from drillgym.commands.options import option
         from drillgym.commands.outputs import check_output_dir
         from drillgym.commands.plant import describe_plant, plant_from_cli
@@ -192,8 +191,6 @@ def register(app: typer.Typer) -> None:
                     f"{model} to run the model as the plant too)",
                     err=True,
                 )
-        for c in parsed:
-            check_effects_act(comp, c)
         p = base if params else None
         from drillgym.parallel import open_executor
 

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import InputError
-from .effect_options import parse_effect_params
+from .effect_options import check_effects_act, parse_effect_params
 
 if TYPE_CHECKING:  # pragma: no cover - the effects and parameters (numpy) load when a command runs
     from ..configurations import Configuration
@@ -44,7 +44,7 @@ def plant_from_cli(
         raise InputError(f"--effect-param {next(iter(extra))}: no effect added (use --add-effect NAME)")
     comp, values = compose_named(specs, {**mf.values, **extra})
     for c in configs:  # the model file's effects act: what is left is an added one
-        comp.refuse_not_acting(c.label, "--add-effect")
+        check_effects_act(comp, c)
     return mf.params, comp, values
 
 
