@@ -236,9 +236,10 @@ def model_rhs(X, C, n, dim, U, SH, Fv, J, jac):
     Ju, Jl = C[JU], C[JL]
     Tcu, dTcu, bu, dbu = C[TCU], C[DTCU], C[BU], C[DBU]
     scale, has_du = C[SCALE] > 0, C[HAS_DU] > 0
+    e_rest = _shape(0.0, C[WS], C[DELTA])
     for k in range(n):
         wu, wl, d = X[_X0 + 1, k], X[_X0 + 3, k], X[_X0 + 4, k]
-        Fu, Fl, mu, ml, Tsf, Tcf, bbf, e_l, awl, yu = _modes(X, C, U, SH, k)
+        Fu, Fl, mu, ml, Tsf, Tcf, bbf, e_l, awl, yu = _modes(X, C, U, SH, k, e_rest)
         tfu = _upper(abs(yu), mu, Tcu, dTcu, bu, dbu)
         tfl = ml * (Tcf + (Tsf - Tcf) * e_l + bbf * awl)
         au = (Fu - tfu) / Ju if mu != 0 else 0.0
@@ -255,10 +256,10 @@ def model_rhs(X, C, n, dim, U, SH, Fv, J, jac):
 
 
 @njit(inline="always", error_model="numpy")
-def _modes(X, C, U, SH, k):
+def _modes(X, C, U, SH, k, e_rest):
     """Lane k's torques Fu, Fl (N m) besides friction, its modes mu, ml (the stick logic of resolve_modes: a disc
     slower than eps at rest unless its holding torque leaves the stick set), the brake's levels Tsf, Tcf, bbf, its
-    shape e_l and the speeds awl, yu the friction laws take."""
+    shape e_l (e_rest: the shape at rest, :func:`_shape` at 0) and the speeds awl, yu the friction laws take."""
     eps, km, kt = C[EPS], C[KM], C[KTH]
     Tcu, dTcu = C[TCU], C[DTCU]
     Ts, Tc, bb = C[TS], C[TC], C[BB]
@@ -272,7 +273,7 @@ def _modes(X, C, U, SH, k):
     stuck_l = abs(wl) <= eps
     mu = (1.0 if Fu > Tcu + dTcu else (-1.0 if Fu < -Tcu + dTcu else 0.0)) if stuck_u else _sign(wu)
     ml = (1.0 if Fl > Tsf else (-1.0 if Fl < -Tsf else 0.0)) if stuck_l else _sign(wl)
-    e_l = _shape(0.0, C[WS], C[DELTA]) if stuck_l else SH[0, k]  # a disc at rest
+    e_l = e_rest if stuck_l else SH[0, k]  # a disc at rest
     return Fu, Fl, mu, ml, Tsf, Tcf, bbf, e_l, 0.0 if stuck_l else abs(wl), 0.0 if stuck_u else wu
 
 
@@ -290,7 +291,7 @@ def jacobian(X, C, n, dim, U, SH, J):
             J[i, k] = 0.0
     for k in range(n):
         wu, wl = X[_X0 + 1, k], X[_X0 + 3, k]
-        Fu, Fl, mu, ml, Tsf, Tcf, bbf, _, _, _ = _modes(X, C, U, SH, k)
+        Fu, Fl, mu, ml, Tsf, Tcf, bbf, _, _, _ = _modes(X, C, U, SH, k, 0.0)
         J[0 * dim + 1, k] = 1.0
         J[2 * dim + 1, k] = -1.0
         J[2 * dim + 3, k] = 1.0
