@@ -34,6 +34,44 @@ def test_candidate_file_is_a_valid_effect(tmp_path):
     assert cand.to_json()["dof"] == 2 and "ωl|ωl|" in cand.expression()
 
 
+def _voltage_candidate():
+    return Candidate(
+        "motor_voltage",
+        {"sat(u, 0.3)": -0.9, "|u|": 0.06},
+        {"sat(u, 0.3)": "min(max(u, -U0), U0)", "|u|": "abs(u)"},
+        {"sat(u, 0.3)": 0.0, "|u|": 0.0},
+        0.9,
+        1000,
+        widths={"sat(u, 0.3)": 0.3},
+    )
+
+
+@pytest.mark.parametrize("low, high, reverses", [(0.0, 5.0, False), (-5.0, 0.0, False), (-1.0, 5.0, True)])
+def test_voltage_candidate_on_a_command_that_never_reverses_is_odd(tmp_path, low, high, reverses):
+    """|u| is the command itself (or its opposite) where the command keeps one sign: the file writes it as such, so
+    the model's motor reverses with the command; on a command of both signs |u| stays."""
+    import numpy as np
+
+    from drillgym.diagnosis.discovery_terms import odd_form
+    from drillgym.diagnosis.effects import get_effect
+
+    cand = odd_form(_voltage_candidate(), np.linspace(low, high, 101))
+    text = write_effect_file(cand, tmp_path / "cand.py").read_text()
+    effect = get_effect(cand.effect_file)
+    values = {p.name: p.value for p in effect.parameters}
+    v = effect.voltage
+    odd = all(abs(v(u, **values) + v(-u, **values)) < 1e-12 for u in (0.1, 0.5, 2.0, 4.0))
+    assert odd is not reverses
+    assert ("never reversed" in text) is not reverses
+    u = 0.5 * (low + high) or 2.0  # on the recording's side, both forms give the same voltage
+    assert abs(v(u, **values) - _voltage_candidate_value(u, values)) < 1e-12
+
+
+def _voltage_candidate_value(u, values):
+    c1, c2, w = (values[f"candidate_motor_voltage_{k}"] for k in ("c1", "c2", "w1"))
+    return u + c1 * min(max(u, -w), w) + c2 * abs(u)
+
+
 @pytest.mark.slow
 def test_cli_outside_the_library_candidate_file_halves_the_error(tmp_path):
     ts = scipy_cubic_string(0.015, duration=14.0, rate_hz=250.0)

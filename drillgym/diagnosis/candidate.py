@@ -72,6 +72,9 @@ class Candidate:
         A lateral candidate regressed beside the constant forces an LVDT offset of the model reads as: the
         constant force (FX, FY) in N the regression gives beside its terms, which the offset takes (x0 += FX / k)
         when the candidate enters.  None: no offset in the model.
+    notes : tuple of str
+        How some of its terms are written where the recording cannot tell their form (the file's docstring says
+        it), e.g. ``|u|`` written as ``u`` on a command that never reverses (:func:`.discovery_terms.odd_form`).
     """
 
     group: str
@@ -89,6 +92,7 @@ class Candidate:
     alternative: Any = None
     through_lag: float | None = None
     constant_force: tuple[float, float] | None = None
+    notes: tuple[str, ...] = ()
 
     @property
     def dof(self) -> int:

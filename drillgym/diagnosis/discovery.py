@@ -47,7 +47,7 @@ import numpy as np
 from ..effects import Composition
 from ..identification.experiment import Experiment
 from ..params import N_PARAMS, RigParams
-from .discovery_terms import _SENSE, _groups, _Term
+from .discovery_terms import _SENSE, _groups, _Term, odd_form
 from .effect_file import write_effect_file
 from .effects import get_effect, label_effects
 from .greedy import MAX_CANCEL, greedy_terms, with_quadratures
@@ -249,6 +249,7 @@ def find_candidate(
         if c.group == "motor_voltage":  # the torque km Δv on the upper disc -> the voltage change Δv (V)
             c.terms = {k: v / km for k, v in c.terms.items()}
             c.reach = {k: v / km for k, v in c.reach.items()}
+            odd_form(c, u)
     lat = lateral_candidate(rt) if lateral and (only is None or LATERAL_GROUP in only) else None
     if lat is not None:  # the residual lateral force, regressed on its own terms (.lateral_discovery)
         shares[LATERAL_GROUP] = lat.explained

@@ -13,7 +13,7 @@ import numpy as np
 
 from .results import Candidate
 
-__all__ = ["COGGING_HARMONICS", "DEAD_ZONE_WIDTHS", "dead_zone_variant"]
+__all__ = ["COGGING_HARMONICS", "DEAD_ZONE_WIDTHS", "dead_zone_variant", "odd_form"]
 
 
 @dataclass
@@ -190,6 +190,50 @@ _SENSE = {
     "upper_force": (1.0, 0.0),
     "motor_voltage": (1.0, 0.0),  # per volt at the motor: times km (the coefficients are turned into volts)
 }
+
+
+#: the even voltage terms and their odd forms on a command of one sign s (``|u| = s u`` there)
+_ODD_FORMS = {"|u|": ("u", "(-u)")}
+
+
+def odd_form(cand: Candidate, u: np.ndarray) -> Candidate:
+    """The motor-side candidate with its even terms written in their odd form where the command never reverses.
+
+    On a recording whose command keeps one sign s, ``|u|`` is ``s u``: the fit cannot tell an asymmetric gain from a
+    motor constant that is off, and the file's code decides what a reversed command does.  A motor constant off
+    reverses with the command (odd), so ``|u|`` is written as ``s u``; written as ``abs(u)`` it made the model's
+    motor push forwards on a reversed command, and an observer built on it, reversing the motor while the lower
+    disc was stuck, drove its estimates away (an identified dead zone held no target below 4 rad/s; written odd,
+    every target from 1.5 up).  The term keeps its label (its fit runs through the group's effect, where both
+    forms are the same numbers on this recording); the file's docstring says how it is written.
+
+    Parameters
+    ----------
+    cand : Candidate
+        The candidate (changed in place).
+    u : numpy.ndarray
+        The command of the recording's samples (V).
+
+    Returns
+    -------
+    Candidate
+        ``cand``.
+    """
+    u = np.asarray(u, dtype=float)
+    if cand.group != "motor_voltage" or u.size == 0:
+        return cand
+    sign = 1 if np.all(u >= 0.0) else (-1 if np.all(u <= 0.0) else 0)
+    if sign == 0:
+        return cand
+    for label, (plus, minus) in _ODD_FORMS.items():
+        if label in cand.terms:
+            code = plus if sign > 0 else minus
+            cand.codes[label] = code
+            cand.notes += (
+                f"{label} is written as {code}: the command never reversed on the recording, where the two are one "
+                "term; a motor constant that is off reverses with the command.",
+            )
+    return cand
 
 
 def offset_variant(cand: Candidate) -> Candidate | None:

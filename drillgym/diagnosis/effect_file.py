@@ -11,6 +11,7 @@ FILE.py:NAME`` fits it.
 
 from __future__ import annotations
 
+import textwrap
 from dataclasses import replace
 from pathlib import Path
 
@@ -108,6 +109,7 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
         if reading
         else f"    (explains {cand.explained:.0%} of the residual {'force' if lateral else 'torque'}; "
         f"{cand.n_samples} samples)",
+        *[f"    {line}" for note in cand.notes for line in textwrap.wrap(note, 100)],
         "",
         *_fit_it(cand, path.name, name),
         '"""',
