@@ -157,69 +157,85 @@ def base_torques(X, C, n, SH, TQ):
         TQ[3, k] = _upper(abs(w0), _sign(w0), C[TCU], C[DTCU], C[BU], C[DBU])
 
 
+@njit(error_model="numpy")  # LLVM inlines it: inlined by numba (inline="always") the loops stay scalar
+def _reference(L, k, hold, ramp, approach, tau):
+    """Lane k's reference, three lags of the setpoint (FlatnessLaw.reference), from the law's rows L before the
+    period: the setpoint w and the lags' derivatives d1, d2, d3, their differences dd2, dd3 and r3 (1/s^3)."""
+    t_old, target = L[TL, k], L[TARGET, k]
+    step = 1.0 if t_old >= hold else 0.0
+    s = min(max((t_old - hold) / ramp, 0.0), 1.0) if ramp > 0 else step
+    w = approach + s * (target - approach) if L[LOW, k] > 0 else target
+    y1, y2, r = L[Y1, k], L[Y2, k], L[Y3, k]
+    d1, d2, d3 = (w - y1) / tau, (y1 - y2) / tau, (y2 - r) / tau
+    dd2, dd3 = (d1 - d2) / tau, (d2 - d3) / tau
+    return d1, d2, d3, dd3, (dd2 - dd3) / tau
+
+
 @njit(cache=True, error_model="numpy")
 def flatness_law(M, X, L, C, n, U, TQ):
     """The flatness law's voltage (V, not clipped) from the updated estimates (rows 0.. of X), its rows L
     (:data:`ROWS`) advanced; TQ the torques (N m): the brake law at the law's speed ww and ww +- hf, the upper
-    disc's at the estimated upper speed (:func:`base_torques`, or the model's with its effects)."""
+    disc's at the estimated upper speed (:func:`base_torques`, or the model's with its effects).
+
+    Three loops, each branch-free on the lanes' values and on the settings (selects; a row the reference leaves
+    is stored back unchanged) and each storing few rows, so that each vectorises (a loop storing many rows needs
+    more run-time alias checks than LLVM takes): the target's trim, the law on the lags before the period, the
+    lags and the clock advanced."""
     dt, tau, kt, Jl, Ju, km = C[DT], C[TAU], C[KTH], C[JL], C[JU], C[KM]
     hf, w_rest = C[HF], C[W_REST]
-    hold, ramp = C[HOLD], C[RAMP]
+    hold, ramp, approach = C[HOLD], C[RAMP], C[APPROACH]
+    band, reach_share = C[BAND], C[REACH]
     scale, has_du, gain = C[SCALE] > 0, C[HAS_DU] > 0, C[TRIM_GAIN]
+    trims = gain > 0
+    for k in range(n):  # the target trimmed by the motor angle's error (ObserverController._trim)
+        ref, wl = M[M_REF, k], X[_X0 + 3, k]
+        start = trims & (L[TL, k] >= L[SETTLE, k]) & (L[INTEG, k] == 0.0) & (abs(wl - ref) <= band * abs(ref))
+        theta0 = X[_X0, k] if start else L[THETA0, k]
+        integrating = 1.0 if start else L[INTEG, k]
+        L[THETA0, k], L[INTEG, k] = theta0, integrating
+        trimming = trims & (integrating > 0)
+        t_int = L[TINT, k] + dt if trimming else L[TINT, k]
+        L[TINT, k] = t_int
+        z = X[_X0, k] - theta0 - ref * t_int
+        reach = reach_share * abs(ref)
+        trimmed = min(max(ref - gain * z, ref - reach), ref + reach)
+        L[TARGET, k] = trimmed if trimming else L[TARGET, k]
+    # rows 4-9 of TQ for a model with effects, else row 0 again (read, then left out by the selects)
+    angle_rows = TQ.shape[0] > 4
+    ap_row, am_row = (4, 5) if angle_rows else (0, 0)
+    pp_row, pm_row, mp_row, mm_row = (6, 7, 8, 9) if angle_rows else (0, 0, 0, 0)
+    du_row = _X0 + 5 if has_du else _X0
     for k in range(n):
         wu, al, wl, d = X[_X0 + 1, k], X[_X0 + 2, k], X[_X0 + 3, k], X[_X0 + 4, k]
-        t_old = L[TL, k]
-        if gain > 0:  # the target trimmed by the motor angle's error (ObserverController._trim)
-            ref = M[M_REF, k]
-            if t_old >= L[SETTLE, k] and L[INTEG, k] == 0.0 and abs(wl - ref) <= C[BAND] * abs(ref):
-                L[THETA0, k] = X[_X0, k]
-                L[INTEG, k] = 1.0
-            if L[INTEG, k] > 0:
-                L[TINT, k] = L[TINT, k] + dt
-                z = X[_X0, k] - L[THETA0, k] - ref * L[TINT, k]
-                reach = C[REACH] * abs(ref)
-                L[TARGET, k] = min(max(ref - gain * z, ref - reach), ref + reach)
-        # the reference: three lags of the setpoint (FlatnessLaw.reference)
-        target = L[TARGET, k]
-        if ramp > 0:
-            s = min(max((t_old - hold) / ramp, 0.0), 1.0)
-        else:
-            s = 1.0 if t_old >= hold else 0.0
-        w = C[APPROACH] + s * (target - C[APPROACH]) if L[LOW, k] > 0 else target
-        L[TL, k] = t_old + dt
-        y1, y2, r = L[Y1, k], L[Y2, k], L[Y3, k]
-        d1, d2, d3 = (w - y1) / tau, (y1 - y2) / tau, (y2 - r) / tau
-        dd2, dd3 = (d1 - d2) / tau, (d2 - d3) / tau
-        r3 = (dd2 - dd3) / tau
-        L[Y1, k], L[Y2, k], L[Y3, k] = y1 + dt * d1, y2 + dt * d2, r + dt * d3
-        r1, r2 = d3, dd3
+        r = L[Y3, k]
+        _, _, r1, r2, r3 = _reference(L, k, hold, ramp, approach, tau)
         # the brake law, its slope and curvature at the estimated lower speed and its derivatives in the lower
         # angle (rows 4-9, a model with effects; FlatnessLaw.friction)
         t0, tp, tm = TQ[0, k], TQ[1, k], TQ[2, k]
         T, T1, T2 = t0, (tp - tm) / (2 * hf), (tp - 2 * t0 + tm) / hf**2
-        Ta, Taa, Twa = 0.0, 0.0, 0.0
-        if TQ.shape[0] > 4:
-            ap, am = TQ[4, k], TQ[5, k]
-            Ta, Taa = (ap - am) / (2 * ANGLE_STEP), (ap - 2 * t0 + am) / ANGLE_STEP**2
-            Twa = (TQ[6, k] - TQ[7, k] - TQ[8, k] + TQ[9, k]) / (4 * hf * ANGLE_STEP)
-        if scale:
-            T, T1, T2 = (1.0 + d) * T, (1.0 + d) * T1, (1.0 + d) * T2
-            Ta, Taa, Twa = (1.0 + d) * Ta, (1.0 + d) * Taa, (1.0 + d) * Twa
-        else:
-            T = T + d
-        rest = wl <= w_rest and -kt * al < T
-        if rest:
-            T1, T2, Ta, Taa, Twa = 0.0, 0.0, 0.0, 0.0, 0.0
+        ap, am = TQ[ap_row, k], TQ[am_row, k]
+        Ta = (ap - am) / (2 * ANGLE_STEP) if angle_rows else 0.0
+        Taa = (ap - 2 * t0 + am) / ANGLE_STEP**2 if angle_rows else 0.0
+        Twa = TQ[pp_row, k] - TQ[pm_row, k] - TQ[mp_row, k] + TQ[mm_row, k]
+        Twa = Twa / (4 * hf * ANGLE_STEP) if angle_rows else 0.0
+        f = 1.0 + d
+        T = f * T if scale else T + d
+        T1, T2, Ta, Taa, Twa = (f * T1, f * T2, f * Ta, f * Taa, f * Twa) if scale else (T1, T2, Ta, Taa, Twa)
+        rest = (wl <= w_rest) & (-kt * al < T)
+        T1, T2 = (0.0 if rest else T1), (0.0 if rest else T2)
+        Ta, Taa, Twa = (0.0 if rest else Ta), (0.0 if rest else Taa), (0.0 if rest else Twa)
         a = 0.0 if rest else (-kt * al - T) / Jl
         j = 0.0 if rest else (-kt * (wl - wu) - T1 * a - Ta * wl) / Jl
-        if L[TL, k] > hold + ramp:
-            L[Z, k] = L[Z, k] + dt * (wl - r)
-        v = r3 - (L[K0, k] * L[Z, k] + L[K1, k] * (wl - r) + L[K2, k] * (a - r1) + L[K3, k] * (j - r2))
+        z = L[Z, k] + dt * (wl - r) if L[TL, k] + dt > hold + ramp else L[Z, k]
+        L[Z, k] = z
+        v = r3 - (L[K0, k] * z + L[K1, k] * (wl - r) + L[K2, k] * (a - r1) + L[K3, k] * (j - r2))
         wu_dot = (Jl * v + kt * a + T2 * a * a + T1 * j + 2 * Twa * wl * a + Taa * wl**2 + Ta * a) / kt
         u = (Ju * wu_dot + TQ[3, k] - kt * al) / km
-        if has_du:
-            u = u - X[_X0 + 5, k] / km
-        U[k] = u
+        U[k] = u - X[du_row, k] / km if has_du else u
+    for k in range(n):  # the lags and the clock one period on
+        d1, d2, d3, _, _ = _reference(L, k, hold, ramp, approach, tau)
+        L[Y1, k], L[Y2, k], L[Y3, k] = L[Y1, k] + dt * d1, L[Y2, k] + dt * d2, L[Y3, k] + dt * d3
+        L[TL, k] = L[TL, k] + dt
 
 
 @njit(cache=True, error_model="numpy")
