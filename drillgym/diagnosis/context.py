@@ -13,7 +13,6 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -23,6 +22,7 @@ from ..effects import Composition, Effect
 from ..effects.base import Measurement
 from ..errors import FitFailedError
 from ..identification.fitting import FitResult, FitVariable, Objective, fit_parameters
+from ..identification.lane_batch import run_jobs
 from ..params import N_PARAMS, PARAM_INFO, RigParams
 from .effective import effective_samples
 from .search_model import neutral_values
@@ -370,10 +370,12 @@ def in_parallel(jobs: Sequence[Callable[[], Any]]) -> list[Any]:
     """Each job's result, or the ValueError it raised, in the jobs' order, run on two threads.
 
     The fits of one selection round are independent (the model is only read), and the kernels release the
-    GIL, so one fit's simulation runs while another's Python runs.  The results are those of the jobs run
-    one after the other: a lane's result does not depend on the batch it runs in
-    (:data:`drillgym.simulator.LANE_BLOCK`).  The warnings the fits silence are silenced around the pool
-    too (``warnings.catch_warnings`` is not thread-safe: the threads' own restore the filters in any order).
+    GIL, so one fit's simulation runs while another's Python runs; the runs the two ask for at the same time
+    go into one kernel call (:func:`drillgym.identification.lane_batch.run_jobs`: a 16-segment residual fills
+    half a block of lanes alone).  The results are those of the jobs run one after the other: a lane's result
+    does not depend on the batch it runs in (:data:`drillgym.simulator.LANE_BLOCK`).  The warnings the fits
+    silence are silenced around the pool too (``warnings.catch_warnings`` is not thread-safe: the threads' own
+    restore the filters in any order).
 
     Parameters
     ----------
@@ -396,8 +398,7 @@ def in_parallel(jobs: Sequence[Callable[[], Any]]) -> list[Any]:
         return [run(j) for j in jobs]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        with ThreadPoolExecutor(2) as pool:
-            return list(pool.map(run, jobs))
+        return run_jobs([lambda job=job: run(job) for job in jobs], 2)
 
 
 def fit_free(

@@ -36,8 +36,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from scipy.signal import welch
@@ -45,6 +45,7 @@ from scipy.signal import welch
 from ..errors import InputError
 from ..identification.experiment import Experiment, prepare_experiment
 from ..identification.fitting import Objective
+from ..identification.lane_batch import run_jobs
 from ..identification.segmented import SegmentedModel
 from .effective import effective_samples
 from .effects import get_effect
@@ -436,15 +437,11 @@ def decide_lag_delay_many(
     if jobs:
         # each search on its own copy of the segmented model (the segments' initial speeds are refined per
         # point), in threads; the kernels release the GIL, so one search's simulation runs while another's
-        # Python runs.  A lane's result does not depend on the batch it runs in
+        # Python runs, and the runs they ask for together share a kernel call (lane_batch.run_jobs).  A lane's
+        # result does not depend on the batch it runs in
         # (:data:`drillgym.simulator.LANE_BLOCK`), so this gives the values of the searches run one by one
-        with ThreadPoolExecutor(min(len(jobs), 3)) as pool:
-            futures = {
-                key: pool.submit(_best_value, obj.with_own_speeds(), comp, vec, name, hi)
-                for key, (vec, name, hi) in jobs.items()
-            }
-            for key, fut in futures.items():
-                known[key] = fut.result()
+        searches = [partial(_best_value, obj.with_own_speeds(), comp, vec, name, hi) for vec, name, hi in jobs.values()]
+        known.update(zip(jobs, run_jobs(searches, 3)))
     out: list[FineDecision | None] = []
     for (_models, a), pair in zip(questions, keys):
         b = LAG_DELAY[1 - LAG_DELAY.index(a)]

@@ -49,9 +49,10 @@ from ..errors import FitError, InputError
 from ..integrators import OUTPUT_NAMES, fixed_step_tableau
 from ..measurement import lowpass_zero_phase
 from ..params import N_PARAMS
-from ..simulator import LANES_MIN_BATCH, run_lanes
+from ..simulator import LANES_MIN_BATCH
 from .effect_states import SegmentStartStates, input_state_columns
 from .experiment import Experiment
+from .lane_batch import LaneRequest, run_shared
 from .predictions import Prediction, as_composition, steps_per_sample
 from .speeds import SpeedCorrections
 
@@ -471,26 +472,13 @@ class SegmentedModel(SpeedCorrections, SegmentStartStates):
             T0 = np.ascontiguousarray(T0, dtype=np.float64)
             # the SIMD lane kernel, chunks over the cores (as simulate_batch): the coupled diagnose of
             # benchmarks/bench_diagnose_time.py took 71 s instead of 100 s
-            if Y.shape[0] >= LANES_MIN_BATCH:
-                OUT = np.empty((n_rec, len(sim.output_names), Y.shape[0]))  # the kernel writes every entry
-                run_lanes(
-                    sim.kernels.lanes.lanes_run,
-                    Y,
-                    MODE,
-                    U,
-                    rows,
-                    int(config),
-                    float(dt),
-                    int(rec),
-                    OUT,
-                    int(n_steps),
-                    True,
-                    HIST,
-                    HEAD,
-                    T0,
-                    None,
-                    None,
-                    (A, b, c),
+            if Y.shape[0] >= LANES_MIN_BATCH:  # with the other workers' runs (lane_batch), when there are some
+                key = (id(sim.kernels.lanes.lanes_run), int(config), float(dt), int(rec), int(n_steps), U.shape[1])
+                key += (self.method,)  # delay lines of any length: lane_batch lengthens the shorter ones
+                lanes = (Y, MODE, U, rows, HIST, HEAD, T0)
+                scalars = (int(config), float(dt), int(rec), int(n_steps), (A, b, c))
+                OUT = run_shared(
+                    LaneRequest(key, sim.kernels.lanes.lanes_run, lanes, scalars, (n_rec, len(sim.output_names)))
                 )
                 OUT = OUT.transpose(2, 0, 1)
             else:
