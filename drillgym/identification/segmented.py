@@ -66,6 +66,24 @@ MAX_DT = 2e-3  # s: simulator step bound (DP5: > 200 steps per lateral period)
 _COL = {n: i for i, n in enumerate(OUTPUT_NAMES)}
 
 
+#: the motor lag's filtered inputs kept per experiment (time constants; a fit's rows share a few)
+LAG_MEMO_SIZE = 16
+
+
+def _lagged_input(base: np.ndarray, dt: float, tau: float) -> tuple[np.ndarray, np.ndarray]:
+    """The motor drive on the simulator grid (the mean of u_m over each step) and u_m there, for the input
+    ``base`` (V, per step of ``dt`` s) through the library's motor lag of time constant ``tau`` (s): exact
+    first-order zero-order-hold discretisation from the record's start; the input itself when ``tau <= 0``."""
+    if tau <= 0.0:  # no lag: the motor sees the input itself
+        return base, base
+    a = math.exp(-dt / tau)
+    b_, a_ = [0.0, 1.0 - a], [1.0, -a]  # exact zero-order-hold discretisation
+    um = lfilter(b_, a_, base, zi=lfilter_zi(b_, a_) * base[0])[0]
+    # exact mean of u_m over each step (ZOH input): -> the input itself as tau -> 0
+    drive = base + (um - base) * (tau / dt) * (1.0 - a)
+    return drive, um
+
+
 class SegmentedModel(SpeedCorrections, SegmentStartStates):
     """Predicts experiments for parameter matrices (B, composition.n_params) by multiple shooting.
 
@@ -273,19 +291,19 @@ class SegmentedModel(SpeedCorrections, SegmentStartStates):
             return base[None, :], base[None, :]
         D = np.empty((len(taus), n_total))
         UM = np.empty((len(taus), n_total))
-        cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        memo = plan.get("lagged")
+        if memo is None or memo[0] is not base:  # the filtered inputs of this input, shared by the model's copies
+            memo = plan["lagged"] = (base, {})
+        cache = memo[1]
         for i, tau in enumerate(taus):
             key = float(tau)
-            if key not in cache and key <= 0.0:  # no lag: the motor sees the input itself
-                cache[key] = (base, base)
-            if key not in cache:
-                a = math.exp(-dt / key)
-                b_, a_ = [0.0, 1.0 - a], [1.0, -a]  # exact zero-order-hold discretisation
-                um = lfilter(b_, a_, base, zi=lfilter_zi(b_, a_) * base[0])[0]
-                # exact mean of u_m over each step (ZOH input): -> the input itself as tau -> 0
-                drive = base + (um - base) * (tau / dt) * (1.0 - a)
-                cache[key] = (drive, um)
-            D[i], UM[i] = cache[key]
+            found = cache.get(key)
+            if found is None:
+                found = _lagged_input(base, dt, key)
+                if len(cache) >= LAG_MEMO_SIZE:
+                    cache.clear()
+                cache[key] = found
+            D[i], UM[i] = found
         return D, UM
 
     # ------------------------------------------------------------------ prediction
@@ -384,12 +402,19 @@ class SegmentedModel(SpeedCorrections, SegmentStartStates):
             keep = [c for c in channels if c in out and (c in ex.meas or c in ("alpha", "r"))]
             if ex.config is Configuration.UPPER:
                 keep = [c for c in keep if c == "theta_u"]
-            valid = self.measured_segments(k, "theta_u")
-            mask = np.isnan(valid)
+            mask = self._not_measured(k, plan)
             for c in keep:
                 out[c][:, mask] = np.nan
             per_exp.append({c: out[c] for c in keep})
         return per_exp
+
+    def _not_measured(self, k: int, plan: dict) -> np.ndarray:
+        """(n_seg, L+1): where experiment k's segments have no upper-disc reading (beyond the record), kept with
+        the segment layout it was found for."""
+        memo = plan.get("not_measured")
+        if memo is None or memo[0] is not plan["starts"] or memo[1] != plan["L"]:
+            memo = plan["not_measured"] = (plan["starts"], plan["L"], np.isnan(self.measured_segments(k, "theta_u")))
+        return memo[2]
 
     def check_finite(self, what: str, vector: np.ndarray | None = None) -> None:
         """Refuse the last prediction if one of its runs became non-finite (:attr:`diverged`).
