@@ -117,11 +117,11 @@ def _delay_lines_of_width(group: Sequence[LaneRequest]) -> tuple[np.ndarray, np.
 
 
 class _Session:
-    """The workers of one :func:`run_jobs` call: how many are running, the runs they are waiting for."""
+    """The workers of the :func:`run_jobs` calls running: how many are running, the runs they are waiting for."""
 
-    def __init__(self, workers: int) -> None:
+    def __init__(self) -> None:
         self.cond = threading.Condition()
-        self.active = workers
+        self.active = 0
         self.pending: list[LaneRequest] = []
 
     def _take_if_all_wait(self) -> list[LaneRequest]:
@@ -170,25 +170,29 @@ class _Session:
         if batch:
             self._run(batch)
 
-    def rejoin(self) -> None:
-        """A worker that left to wait for something else runs again."""
+    def join(self, workers: int) -> None:
+        """Workers start (or one that left to wait for something else runs again)."""
         with self.cond:
-            self.active += 1
+            self.active += workers
+
+
+#: every worker of the run_jobs calls running (nested calls' too: one search's runs share calls with another's)
+_WORKERS = _Session()
 
 
 @contextmanager
-def _worker_of(session: _Session | None) -> Iterator[None]:
-    """The thread is one of ``session``'s workers within the block (None: none)."""
-    previous = getattr(_LOCAL, "session", None)
-    _LOCAL.session = session
+def _worker() -> Iterator[None]:
+    """The thread is a worker within the block: its runs wait for the other workers' (:data:`_WORKERS`)."""
+    _LOCAL.worker = True
     try:
         yield
     finally:
-        _LOCAL.session = previous
+        _LOCAL.worker = False
+        _WORKERS.leave()
 
 
 def run_shared(request: LaneRequest) -> np.ndarray:
-    """Run a lane-kernel request: with the other workers' of this thread's :func:`run_jobs` call, or at once.
+    """Run a lane-kernel request: with the other workers' runs on a :func:`run_jobs` worker, else at once.
 
     Parameters
     ----------
@@ -205,18 +209,18 @@ def run_shared(request: LaneRequest) -> np.ndarray:
     SystemError, ZeroDivisionError, FloatingPointError, ValueError
         The kernel's error, raised by the request's own run.
     """
-    session = getattr(_LOCAL, "session", None)
-    if session is None:
+    if not getattr(_LOCAL, "worker", False):
         return request.run_alone()
-    return session.submit(request)
+    return _WORKERS.submit(request)
 
 
 def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
     """Each job's result, in the jobs' order, the jobs run on ``workers`` threads whose lane-kernel runs
     (:func:`run_shared`) are shared.
 
-    A worker takes the next job when it has finished one.  A job that runs jobs itself (a nested call) stops
-    counting as a worker of this call until they are done, so the others do not wait for it.
+    A worker takes the next job when it has finished one.  The workers of every call running share their runs
+    (a nested call's with its siblings'); a job that runs jobs itself stops counting as a worker until they are
+    done, so the others do not wait for it.
 
     Parameters
     ----------
@@ -240,29 +244,26 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
     results: list[Any] = [None] * len(jobs)
     queue = iter(enumerate(jobs))
     lock = threading.Lock()
-    session = _Session(workers)
-    outer = getattr(_LOCAL, "session", None)
+    nested = getattr(_LOCAL, "worker", False)
 
     def worker() -> None:
-        with _worker_of(session):
-            try:
-                while True:
-                    with lock:
-                        nxt = next(queue, None)
-                    if nxt is None:
-                        return
-                    results[nxt[0]] = nxt[1]()
-            finally:
-                session.leave()
+        with _worker():
+            while True:
+                with lock:
+                    nxt = next(queue, None)
+                if nxt is None:
+                    return
+                results[nxt[0]] = nxt[1]()
 
-    if outer is not None:
-        outer.leave()
+    if nested:  # this worker waits for the new ones: the others must not wait for it
+        _WORKERS.leave()
+    _WORKERS.join(workers)
     try:
         with ThreadPoolExecutor(workers) as pool:
             futures = [pool.submit(worker) for _ in range(workers)]
             for f in futures:
                 f.result()
     finally:
-        if outer is not None:
-            outer.rejoin()
+        if nested:
+            _WORKERS.join(1)
     return results
