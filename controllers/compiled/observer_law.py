@@ -271,7 +271,7 @@ def model_rhs(X, C, n, dim, U, SH, Fv, J, jac):
         jacobian(X, C, n, dim, U, SH, J)
 
 
-@njit(inline="always", error_model="numpy")
+@njit(error_model="numpy")  # LLVM inlines it: inlined by numba (inline="always") the loops stay scalar
 def _modes(X, C, U, SH, k, e_rest):
     """Lane k's torques Fu, Fl (N m) besides friction, its modes mu, ml (the stick logic of resolve_modes: a disc
     slower than eps at rest unless its holding torque leaves the stick set), the brake's levels Tsf, Tcf, bbf, its
@@ -297,32 +297,36 @@ def _modes(X, C, U, SH, k, e_rest):
 def jacobian(X, C, n, dim, U, SH, J):
     """The right-hand side's Jacobian J (dim*dim, n) at the estimates under U, the modes held: central differences
     in the speeds, as the reference.  Every lane's entries are stored whatever its modes (0 where a mode leaves
-    them out), so that the loop over the lanes stays branch-free; J's other entries are set to 0."""
+    them out), so that the loops over the lanes stay branch-free; J's other entries are set to 0.  The lane-varying
+    entries in two loops, the upper disc's and the lower's: one loop storing them all needs more run-time alias
+    checks than LLVM's vectoriser takes."""
     h, Ju, Jl, kt = C[H], C[JU], C[JL], C[KTH]
     Tcu, dTcu, bu, dbu = C[TCU], C[DTCU], C[BU], C[DBU]
     Ts, Tc, bb = C[TS], C[TC], C[BB]
     scale, has_du = C[SCALE] > 0, C[HAS_DU] > 0
-    for i in range(dim * dim):
-        for k in range(n):
-            J[i, k] = 0.0
-    for k in range(n):
-        wu, wl = X[_X0 + 1, k], X[_X0 + 3, k]
-        Fu, Fl, mu, ml, Tsf, Tcf, bbf, _, _, _ = _modes(X, C, U, SH, k, 0.0)
-        J[0 * dim + 1, k] = 1.0
-        J[2 * dim + 1, k] = -1.0
-        J[2 * dim + 3, k] = 1.0
+    for m in range(dim):  # the constant entries
+        for j in range(dim):
+            if (m == 1 and 1 <= j <= 2) or (m == 3 and 2 <= j <= 4):
+                continue  # a lane-varying entry, below
+            value = 1.0 if (m, j) in ((0, 1), (2, 3)) else (-1.0 if (m, j) == (2, 1) else 0.0)
+            value = 1.0 / Ju if has_du and (m, j) == (1, 5) else value
+            J[m * dim + j, :n] = value
+    for k in range(n):  # the upper disc's entries
+        wu = X[_X0 + 1, k]
+        Fu, _, mu, _, _, _, _, _, _, _ = _modes(X, C, U, SH, k, 0.0)
         tp = _upper(abs(wu + h), mu, Tcu, dTcu, bu, dbu)
         tm = _upper(abs(wu - h), mu, Tcu, dTcu, bu, dbu)
         J[1 * dim + 1, k] = ((Fu - tp) / Ju - (Fu - tm) / Ju) / (2.0 * h) if mu != 0 else 0.0
         J[1 * dim + 2, k] = kt / Ju if mu != 0 else 0.0
+    for k in range(n):  # the lower disc's
+        wl = X[_X0 + 3, k]
+        _, Fl, _, ml, Tsf, Tcf, bbf, _, _, _ = _modes(X, C, U, SH, k, 0.0)
         tp = ml * (Tcf + (Tsf - Tcf) * SH[1, k] + bbf * abs(wl + h))
         tm = ml * (Tcf + (Tsf - Tcf) * SH[2, k] + bbf * abs(wl - h))
         J[3 * dim + 2, k] = -kt / Jl if ml != 0 else 0.0
         J[3 * dim + 3, k] = ((Fl - tp) / Jl - (Fl - tm) / Jl) / (2.0 * h) if ml != 0 else 0.0
         level = -ml * (Tc + (Ts - Tc) * SH[0, k] + bb * abs(wl)) / Jl
         J[3 * dim + 4, k] = (level if ml != 0 else 0.0) if scale else -1.0 / Jl
-        if has_du:
-            J[1 * dim + 5, k] = 1.0 / Ju
 
 
 @njit(cache=True, error_model="numpy")
