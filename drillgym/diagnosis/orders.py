@@ -24,12 +24,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import replace
-from functools import partial
 
 import numpy as np
 
 from ..effects import Composition, Effect
-from ..identification.lane_batch import run_jobs
 from .context import best_effect_start, torque_scale_removed
 from .criterion import BASE_PRIOR_SIGMA, better, beyond_prior
 from .forward import SearchStart, forward_select
@@ -65,7 +63,7 @@ def select(model: SearchModel, options: SelectionOptions) -> SearchOutcome:
     """
     obj = model.obj
     noise_scales = dict(obj.scales)
-    out, first = _first_orders(model, options)
+    out = forward_select(model, options, SearchStart(balance=True))
     sensor_misfit = {
         name: obj.scales[chans[0]] / noise_scales[chans[0]]
         for name, chans in SENSORS.items()
@@ -76,7 +74,7 @@ def select(model: SearchModel, options: SelectionOptions) -> SearchOutcome:
         return outcome
     results = [out]
     if options.guard_base:
-        out, alt = _nominal_orders(model, options, outcome, first)
+        out, alt = _nominal_orders(model, options, outcome)
         results.append(alt)
     if out.base_off and (out.at_bounds or beyond_prior(out, model)):
         # the base kept moved beyond a few percent: it may have absorbed an effect that no order found (every
@@ -104,43 +102,13 @@ def select(model: SearchModel, options: SelectionOptions) -> SearchOutcome:
     return outcome
 
 
-def _first_orders(model: SearchModel, options: SelectionOptions) -> tuple[Selection, Selection | None]:
-    """The ``base_first`` order, and the ``nominal_first`` one run beside it when it does not depend on it (else
-    None: it runs after it, :func:`_nominal_orders`).
-
-    The nominal order depends on the first only through the sensors' weights the first leaves on the objective
-    (:func:`.scoring.balance_sensors`; one sensor has none to balance) and, without ``refine``, through the
-    segments' speed corrections it leaves.  Otherwise it runs on its own copy of the objective, on a thread
-    beside the first (their kernel runs shared, :func:`~drillgym.identification.lane_batch.run_jobs`), and the
-    model is left with its speed corrections, as when it runs second.  The selections are those of the orders
-    run one after the other.
-    """
-    obj = model.obj
-    sensors = sum(any(c in obj.channels for c in chans) for chans in SENSORS.values())
-    if not (model.base_names and options.guard_base and options.refine and sensors <= 1):
-        return forward_select(model, options, SearchStart(balance=True)), None
-    beside = replace(model, obj=obj.with_own_speeds())
-    out, first = run_jobs(
-        [
-            partial(forward_select, model, options, SearchStart(balance=True)),
-            partial(forward_select, beside, options, SearchStart(free_base=False)),
-        ],
-        2,
-    )
-    if obj.scales != beside.obj.scales:  # the first order weighed the sensors after all: the nominal one again
-        return out, None
-    obj.model.speed_offsets = beside.obj.model.speeds_snapshot()
-    return out, first
-
-
 def _nominal_orders(
-    model: SearchModel, options: SelectionOptions, outcome: SearchOutcome, first: Selection | None = None
+    model: SearchModel, options: SelectionOptions, outcome: SearchOutcome
 ) -> tuple[Selection, Selection | None]:
-    """The effects-first order on the nominal base (``first`` when it ran already), then continued with the
-    base freed; the model kept and that continuation (None when the nominal order found nothing new)."""
+    """The effects-first order on the nominal base, then continued with the base freed; the model kept
+    and that continuation (None when the nominal order found nothing new)."""
     out, alt = outcome.kept, None
-    if first is None:
-        first = forward_select(model, options, SearchStart(free_base=False))
+    first = forward_select(model, options, SearchStart(free_base=False))
     if first.selected and set(first.selected) != set(out.selected):
         alt = forward_select(model, options, SearchStart(initial=tuple(first.selected), vector=first.vector))
         out = better(out, alt, model, bounds=True)

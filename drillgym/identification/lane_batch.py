@@ -117,11 +117,11 @@ def _delay_lines_of_width(group: Sequence[LaneRequest]) -> tuple[np.ndarray, np.
 
 
 class _Session:
-    """The workers of the :func:`run_jobs` calls running: how many are running, the runs they are waiting for."""
+    """The workers of one :func:`run_jobs` call: how many are running, the runs they are waiting for."""
 
-    def __init__(self) -> None:
+    def __init__(self, workers: int) -> None:
         self.cond = threading.Condition()
-        self.active = 0
+        self.active = workers
         self.pending: list[LaneRequest] = []
 
     def _take_if_all_wait(self) -> list[LaneRequest]:
@@ -170,29 +170,25 @@ class _Session:
         if batch:
             self._run(batch)
 
-    def join(self, workers: int) -> None:
-        """Workers start (or one that left to wait for something else runs again)."""
+    def rejoin(self) -> None:
+        """A worker that left to wait for something else runs again."""
         with self.cond:
-            self.active += workers
-
-
-#: every worker of the run_jobs calls running (nested calls' too: one search's runs share calls with another's)
-_WORKERS = _Session()
+            self.active += 1
 
 
 @contextmanager
-def _worker() -> Iterator[None]:
-    """The thread is a worker within the block: its runs wait for the other workers' (:data:`_WORKERS`)."""
-    _LOCAL.worker = True
+def _worker_of(session: _Session | None) -> Iterator[None]:
+    """The thread is one of ``session``'s workers within the block (None: none)."""
+    previous = getattr(_LOCAL, "session", None)
+    _LOCAL.session = session
     try:
         yield
     finally:
-        _LOCAL.worker = False
-        _WORKERS.leave()
+        _LOCAL.session = previous
 
 
 def run_shared(request: LaneRequest) -> np.ndarray:
-    """Run a lane-kernel request: with the other workers' runs on a :func:`run_jobs` worker, else at once.
+    """Run a lane-kernel request: with the other workers' of this thread's :func:`run_jobs` call, or at once.
 
     Parameters
     ----------
@@ -209,18 +205,18 @@ def run_shared(request: LaneRequest) -> np.ndarray:
     SystemError, ZeroDivisionError, FloatingPointError, ValueError
         The kernel's error, raised by the request's own run.
     """
-    if not getattr(_LOCAL, "worker", False):
+    session = getattr(_LOCAL, "session", None)
+    if session is None:
         return request.run_alone()
-    return _WORKERS.submit(request)
+    return session.submit(request)
 
 
 def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
     """Each job's result, in the jobs' order, the jobs run on ``workers`` threads whose lane-kernel runs
     (:func:`run_shared`) are shared.
 
-    A worker takes the next job when it has finished one.  The workers of every call running share their runs
-    (a nested call's with its siblings'); a job that runs jobs itself stops counting as a worker until they are
-    done, so the others do not wait for it.
+    A worker takes the next job when it has finished one.  A job that runs jobs itself (a nested call) stops
+    counting as a worker of this call until they are done, so the others do not wait for it.
 
     Parameters
     ----------
@@ -244,26 +240,29 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
     results: list[Any] = [None] * len(jobs)
     queue = iter(enumerate(jobs))
     lock = threading.Lock()
-    nested = getattr(_LOCAL, "worker", False)
+    session = _Session(workers)
+    outer = getattr(_LOCAL, "session", None)
 
     def worker() -> None:
-        with _worker():
-            while True:
-                with lock:
-                    nxt = next(queue, None)
-                if nxt is None:
-                    return
-                results[nxt[0]] = nxt[1]()
+        with _worker_of(session):
+            try:
+                while True:
+                    with lock:
+                        nxt = next(queue, None)
+                    if nxt is None:
+                        return
+                    results[nxt[0]] = nxt[1]()
+            finally:
+                session.leave()
 
-    if nested:  # this worker waits for the new ones: the others must not wait for it
-        _WORKERS.leave()
-    _WORKERS.join(workers)
+    if outer is not None:
+        outer.leave()
     try:
         with ThreadPoolExecutor(workers) as pool:
             futures = [pool.submit(worker) for _ in range(workers)]
             for f in futures:
                 f.result()
     finally:
-        if nested:
-            _WORKERS.join(1)
+        if outer is not None:
+            outer.rejoin()
     return results
