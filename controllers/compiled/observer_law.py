@@ -135,17 +135,19 @@ def brake_shapes(wl_, C, n, SH):
 @njit(cache=True, error_model="numpy")
 def update(M, X, r, n, dim, p0, W):
     """The filter's update with the measured motor angles (Joseph form): estimates in rows 0.., covariance from
-    row p0; r the angle's variance (rad^2); W: work rows (>= 3 dim: the gain, the prior's first row and column).
+    row p0; r the angle's variance (rad^2); W: work rows (>= 3 dim + 1: the gain, the prior's first row and column,
+    the innovation).
 
     P = A (I - K e0')' + r K K' with A = (I - K e0') P, element by element in one pass over the covariance:
     P_ij - K_i P_0j - (P_i0 - K_i P_00) K_j + r K_i K_j, the products and sums of the two-pass form in its order."""
+    innovation = W[3 * dim]
     for k in range(n):
-        s = X[p0, k] + r
-        innov = M[M_TU, k] - X[_X0, k]
-        for i in range(dim):
-            g = X[p0 + i * dim, k] / s  # K = P e0 / (e0' P e0 + r)
+        innovation[k] = M[M_TU, k] - X[_X0, k]
+    for i in range(dim):  # the lanes innermost, so that the loops vectorise
+        for k in range(n):
+            g = X[p0 + i * dim, k] / (X[p0, k] + r)  # K = P e0 / (e0' P e0 + r)
             W[i, k] = g
-            X[_X0 + i, k] += g * innov
+            X[_X0 + i, k] += g * innovation[k]
     for i in range(dim):  # the prior's first row and column (the pass below overwrites them)
         for k in range(n):
             W[dim + i, k] = X[p0 + i, k]
