@@ -34,6 +34,9 @@ __all__ = [
     "jacobian",
     "model_shapes",
     "law_shapes",
+    "brake_shapes",
+    "observer_transition",
+    "covariance_products",
     "ROWS",
     "CONSTANTS",
     "MAX_DIM",
@@ -316,6 +319,23 @@ def _modes(X, C, U, SH, k, e_rest):
     return Fu, Fl, mu, ml, Tsf, Tcf, bbf, e_l, 0.0 if stuck_l else abs(wl), 0.0 if stuck_u else wu
 
 
+@njit
+def _varying(m, j):
+    """True for the Jacobian's entries (m, j) that vary from lane to lane (:func:`jacobian`): the upper disc's
+    acceleration in its speed and the twist, the lower's in the twist, its speed and the disturbance."""
+    return (m == 1 and 1 <= j <= 2) or (m == 3 and 2 <= j <= 4)
+
+
+@njit
+def _jacobian_constant(C, m, j):
+    """The Jacobian's entry (m, j) where it is the same in every lane (not :func:`_varying`)."""
+    if (m, j) in ((0, 1), (2, 3)):
+        return 1.0
+    if (m, j) == (2, 1):
+        return -1.0
+    return 1.0 / C[JU] if C[HAS_DU] > 0 and (m, j) == (1, 5) else 0.0
+
+
 @njit(cache=True, error_model="numpy")
 def jacobian(X, C, n, dim, U, SH, J):
     """The right-hand side's Jacobian J (dim*dim, n) at the estimates under U, the modes held: central differences
@@ -326,14 +346,11 @@ def jacobian(X, C, n, dim, U, SH, J):
     h, Ju, Jl, kt = C[H], C[JU], C[JL], C[KTH]
     Tcu, dTcu, bu, dbu = C[TCU], C[DTCU], C[BU], C[DBU]
     Ts, Tc, bb = C[TS], C[TC], C[BB]
-    scale, has_du = C[SCALE] > 0, C[HAS_DU] > 0
+    scale = C[SCALE] > 0
     for m in range(dim):  # the constant entries
         for j in range(dim):
-            if (m == 1 and 1 <= j <= 2) or (m == 3 and 2 <= j <= 4):
-                continue  # a lane-varying entry, below
-            value = 1.0 if (m, j) in ((0, 1), (2, 3)) else (-1.0 if (m, j) == (2, 1) else 0.0)
-            value = 1.0 / Ju if has_du and (m, j) == (1, 5) else value
-            J[m * dim + j, :n] = value
+            if not _varying(m, j):
+                J[m * dim + j, :n] = _jacobian_constant(C, m, j)
     for k in range(n):  # the upper disc's entries
         wu = X[_X0 + 1, k]
         Fu, _, mu, _, _, _, _, _, _, _ = _modes(X, C, U, SH, k, 0.0)
@@ -368,6 +385,62 @@ def predict_mean(X, C, n, nc, g, Fv, W):
 
 
 @njit(cache=True, error_model="numpy")
+def observer_transition(C, n, dim, mats, J, F):
+    """F = Ad + Gamma (J - Ac) into the rows F (dim*dim, n) for J of :func:`jacobian` (Ad, Gamma, Ac dim x dim at
+    C[mats:]): its part from the constant entries once per period, Ad + Gamma (Jc - Ac) (Jc: J with 0 at the
+    lane-varying entries), then Gamma's columns 1 and 3 times the lane-varying entries, rows 1 and 3 of J (the
+    sums of :func:`predict_covariance` reordered: a few passes over the lanes instead of dim^3)."""
+    dd = dim * dim
+    Ad, G, Ac = mats, mats + dd, mats + 2 * dd
+    for i in range(dim):
+        g1, g3 = C[G + i * dim + 1], C[G + i * dim + 3]
+        for j in range(dim):
+            base = C[Ad + i * dim + j]
+            for m in range(dim):
+                jc = 0.0 if _varying(m, j) else _jacobian_constant(C, m, j)
+                base += C[G + i * dim + m] * (jc - C[Ac + m * dim + j])
+            row, j1, j3 = F[i * dim + j], J[1 * dim + j], J[3 * dim + j]
+            if _varying(1, j) and _varying(3, j):
+                for k in range(n):
+                    row[k] = base + g1 * j1[k] + g3 * j3[k]
+            elif _varying(1, j):
+                for k in range(n):
+                    row[k] = base + g1 * j1[k]
+            elif _varying(3, j):
+                for k in range(n):
+                    row[k] = base + g3 * j3[k]
+            else:
+                row[:n] = base
+
+
+@njit(cache=True, error_model="numpy")
+def covariance_products(X, C, n, dim, p0, qd, W):
+    """P = F P F' + Qd (covariance from row p0, Qd dim x dim at C[qd:]) with F in the work rows W[0:dim^2]; the
+    product F P into W[dim^2:2 dim^2]."""
+    dd = dim * dim
+    for i in range(dim):  # F P into W[dd:2dd]
+        for j in range(dim):
+            for k in range(n):
+                W[dd + i * dim + j, k] = 0.0
+            for m in range(dim):
+                for k in range(n):
+                    W[dd + i * dim + j, k] += W[i * dim + m, k] * X[p0 + m * dim + j, k]
+    for i in range(dim):  # (F P) F' + Qd, the lanes innermost (vectorised); the symmetric half mirrored
+        for j in range(i, dim):
+            q = C[qd + i * dim + j]
+            row = X[p0 + i * dim + j]
+            for k in range(n):
+                row[k] = q
+            for m in range(dim):
+                a = W[dd + i * dim + m]
+                b = W[j * dim + m]
+                for k in range(n):
+                    row[k] += a[k] * b[k]
+            if j != i:
+                X[p0 + j * dim + i, :n] = row[:n]
+
+
+@njit(cache=True, error_model="numpy")
 def predict_covariance(X, C, n, dim, nc, p0, mats, J, W):
     """P = F P F' + Qd (covariance from row p0), F = Ad + Gamma (J - Ac) on the first nc rows and columns (Ad, Qd
     dim x dim; Gamma, Ac nc x nc: at C[mats:] in the order Ad, Gamma, Ac, Qd; J (nc^2, n) the right-hand side's
@@ -387,26 +460,7 @@ def predict_covariance(X, C, n, dim, nc, p0, mats, J, W):
                     a = C[Ac + m * nc + j]
                     for k in range(n):
                         W[i * dim + j, k] += g * (J[m * nc + j, k] - a)
-    for i in range(dim):  # F P into W[dd:2dd]
-        for j in range(dim):
-            for k in range(n):
-                W[dd + i * dim + j, k] = 0.0
-            for m in range(dim):
-                for k in range(n):
-                    W[dd + i * dim + j, k] += W[i * dim + m, k] * X[p0 + m * dim + j, k]
-    for i in range(dim):  # (F P) F' + Qd, the lanes innermost (vectorised); the symmetric half mirrored
-        for j in range(i, dim):
-            q = C[Qd + i * dim + j]
-            row = X[p0 + i * dim + j]
-            for k in range(n):
-                row[k] = q
-            for m in range(dim):
-                a = W[dd + i * dim + m]
-                b = W[j * dim + m]
-                for k in range(n):
-                    row[k] += a[k] * b[k]
-            if j != i:
-                X[p0 + j * dim + i, :n] = row[:n]
+    covariance_products(X, C, n, dim, p0, Qd, W)
 
 
 @njit(LAW_SIGNATURE, cache=True)
@@ -427,7 +481,8 @@ def observer_step(t, M, X, C, U):  # pragma: no cover - compiled
     clip(U, n, C[U_MAX])
     model_rhs(X, C, n, dim, U, SH[3:6], Fv, J, True)
     predict_mean(X, C, n, dim, _MAT0 + dim * dim, Fv, W)
-    predict_covariance(X, C, n, dim, dim, _P0, _MAT0, J, W)
+    observer_transition(C, n, dim, _MAT0, J, W)
+    covariance_products(X, C, n, dim, _P0, _MAT0 + 3 * dim * dim, W)
 
 
 def filter_settled(c, dim: int, max_dim: int) -> bool:
