@@ -372,10 +372,11 @@ def jacobian(X, C, n, dim, U, SH, J):
 @njit(cache=True, error_model="numpy")
 def predict_mean(X, C, n, nc, g, Fv, W):
     """x[:nc] += Gamma f, Gamma (nc x nc) at C[g:], f in the rows Fv (nc, n).  W: work rows (>= nc)."""
-    for i in range(nc):
+    for i in range(nc):  # each sum starts with its first term (0 + x is x)
+        g0 = C[g + i * nc]
         for k in range(n):
-            W[i, k] = 0.0
-        for m in range(nc):
+            W[i, k] = g0 * Fv[0, k]
+        for m in range(1, nc):
             gi = C[g + i * nc + m]
             for k in range(n):
                 W[i, k] += gi * Fv[m, k]
@@ -418,20 +419,21 @@ def covariance_products(X, C, n, dim, p0, qd, W):
     """P = F P F' + Qd (covariance from row p0, Qd dim x dim at C[qd:]) with F in the work rows W[0:dim^2]; the
     product F P into W[dim^2:2 dim^2]."""
     dd = dim * dim
-    for i in range(dim):  # F P into W[dd:2dd]
+    for i in range(dim):  # F P into W[dd:2dd]; each sum starts with its first term (0 + x is x)
         for j in range(dim):
+            row, f, p = W[dd + i * dim + j], W[i * dim], X[p0 + j]
             for k in range(n):
-                W[dd + i * dim + j, k] = 0.0
-            for m in range(dim):
+                row[k] = f[k] * p[k]
+            for m in range(1, dim):
                 for k in range(n):
                     W[dd + i * dim + j, k] += W[i * dim + m, k] * X[p0 + m * dim + j, k]
     for i in range(dim):  # (F P) F' + Qd, the lanes innermost (vectorised); the symmetric half mirrored
         for j in range(i, dim):
             q = C[qd + i * dim + j]
-            row = X[p0 + i * dim + j]
+            row, a, b = X[p0 + i * dim + j], W[dd + i * dim], W[j * dim]
             for k in range(n):
-                row[k] = q
-            for m in range(dim):
+                row[k] = q + a[k] * b[k]
+            for m in range(1, dim):
                 a = W[dd + i * dim + m]
                 b = W[j * dim + m]
                 for k in range(n):
