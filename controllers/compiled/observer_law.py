@@ -32,8 +32,6 @@ __all__ = [
     "observer_law",
     "model_rhs",
     "jacobian",
-    "model_shapes",
-    "law_shapes",
     "brake_shapes",
     "observer_transition",
     "covariance_products",
@@ -90,36 +88,13 @@ def _sign(x):
     return 1.0 if x > 0 else (-1.0 if x < 0 else 0.0)
 
 
-@njit(cache=True, error_model="numpy")
-def law_shapes(wl_, C, n, a, b, c):
-    """The brake law's shapes (:func:`_shape`) at the law's speed ww = max(wl, w_rest + hf) and ww +- hf into the
-    rows a, b, c, from the lower-speed estimates wl_ (rad/s): a branch-free loop of its own that vectorises."""
-    ws, delta, hf = C[WS], C[DELTA], C[HF]
-    lo = C[W_REST] + hf
-    for k in range(n):
-        ww = max(wl_[k], lo)
-        a[k] = _shape(ww, ws, delta)
-        b[k] = _shape(ww + hf, ws, delta)
-        c[k] = _shape(ww - hf, ws, delta)
-
-
-@njit(cache=True, error_model="numpy")
-def model_shapes(wl_, C, n, a, b, c):
-    """The brake law's shapes at |wl| and |wl +- h| (the model and its Jacobian) into the rows a, b, c."""
-    ws, delta, h = C[WS], C[DELTA], C[H]
-    for k in range(n):
-        wl = wl_[k]
-        a[k] = _shape(abs(wl), ws, delta)
-        b[k] = _shape(abs(wl + h), ws, delta)
-        c[k] = _shape(abs(wl - h), ws, delta)
-
-
 @njit(cache=True, error_model="numpy", fastmath={"contract"})
 def brake_shapes(wl_, C, n, SH):
-    """:func:`law_shapes` into the rows SH[0:3] and :func:`model_shapes` into SH[3:6] in one loop of five shapes
-    per lane, not six: the law's shape at ww = max(wl, w_rest + hf) is the model's at |wl| where wl >= max(ww, 0)
-    and else the shape at w_rest + hf (:func:`_shape` takes a speed at or below 0 as 0).  Multiplies and adds
-    fused (the shapes to a few 1e-16 relative)."""
+    """The brake law's shapes (:func:`_shape`) from the lower-speed estimates wl_ (rad/s): the law's at
+    ww = max(wl, w_rest + hf) and ww +- hf into the rows SH[0:3], the model's and its Jacobian's at |wl| and
+    |wl +- h| into SH[3:6].  One loop of five shapes per lane, not six: the law's shape at ww is the model's at
+    |wl| where wl >= max(ww, 0), and else the shape at w_rest + hf (:func:`_shape` takes a speed at or below 0 as
+    0).  Multiplies and adds fused (the shapes to a few 1e-16 relative)."""
     ws, delta, h, hf = C[WS], C[DELTA], C[H], C[HF]
     lo = C[W_REST] + hf
     at_lo, moving = _shape(lo, ws, delta), max(lo, 0.0)
@@ -171,7 +146,7 @@ def update(M, X, r, n, dim, p0, W):
 @njit(cache=True, error_model="numpy")
 def base_torques(X, C, n, SH, TQ):
     """The law's torques of the model without effects into the rows TQ (N m): the brake law at the law's speed
-    ww and ww +- hf (:func:`law_shapes` in SH), the upper friction at the estimated upper speed."""
+    ww and ww +- hf (:func:`brake_shapes` in SH[0:3]), the upper friction at the estimated upper speed."""
     Ts, Tc, bb, hf, w_rest = C[TS], C[TC], C[BB], C[HF], C[W_REST]
     for k in range(n):
         ww = max(X[_X0 + 3, k], w_rest + hf)
@@ -274,7 +249,7 @@ def clip(U, n, u_max):
 @njit(cache=True, error_model="numpy")
 def model_rhs(X, C, n, dim, U, SH, Fv, J, jac):
     """The model's right-hand side Fv (dim, n) at the estimates (rows 0.. of X) under U, and with ``jac`` its
-    Jacobian J (dim*dim, n, :func:`jacobian`); SH the rows of :func:`model_shapes` at the estimates."""
+    Jacobian J (dim*dim, n, :func:`jacobian`); SH the model's rows of :func:`brake_shapes` at the estimates."""
     Ju, Jl = C[JU], C[JL]
     Tcu, dTcu, bu, dbu = C[TCU], C[DTCU], C[BU], C[DBU]
     scale, has_du = C[SCALE] > 0, C[HAS_DU] > 0
