@@ -202,10 +202,10 @@ def odd_form(cand: Candidate, u: np.ndarray) -> Candidate:
     On a recording whose command keeps one sign s, ``|u|`` is ``s u``: the fit cannot tell an asymmetric gain from a
     motor constant that is off, and the file's code decides what a reversed command does.  A motor constant off
     reverses with the command (odd), so ``|u|`` is written as ``s u``; written as ``abs(u)`` it made the model's
-    motor push forwards on a reversed command, and an observer built on it, reversing the motor while the lower
-    disc was stuck, drove its estimates away (an identified dead zone held no target below 4 rad/s; written odd,
-    every target from 1.5 up).  The term keeps its label (its fit runs through the group's effect, where both
-    forms are the same numbers on this recording); the file's docstring says how it is written.
+    motor push forwards on a reversed command, where a controller built on it reverses the motor (the observer
+    where the lower disc breaks away; docs/model_vs_measurement.md).  The term keeps its label (its fit runs
+    through the group's effect, where both forms are the same numbers on this recording); the file's docstring
+    says how it is written.
 
     Parameters
     ----------
