@@ -74,10 +74,13 @@ def evaluate_policy_targets(
 
     params = None
     if model is not None:
+        from drillgym.configurations import parse_configuration
         from drillgym.model import as_model, model_arguments
 
         m = as_model(model, trust=trust, who="evaluate_policy_targets(): model")
-        rig, effects, effect_params = model_arguments(m, None, effects, effect_params, "evaluate_policy_targets()")
+        rig, effects, effect_params = model_arguments(
+            m, None, effects, effect_params, "evaluate_policy_targets()", parse_configuration(config).label
+        )
         params = rig.to_dict()
     return run_job(
         f"agent:{Path(policy)}",

@@ -41,9 +41,11 @@ True
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import shutil
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from functools import cached_property
@@ -234,18 +236,24 @@ class Model:
         """The effects' names, in order."""
         return [e.name for e in self.composition.effects]
 
+    @cached_property
+    def _effects_key(self) -> tuple:
+        """The effects as compared: a library effect by its class, a file's by its name and the file's content
+        (a model and its copy saved in another folder are equal)."""
+        return tuple(_effect_key(e) for e in self.composition.effects)
+
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, Model):
             return NotImplemented
         return (
             self.params == other.params
-            and self.composition == other.composition
+            and self._effects_key == other._effects_key
             and dict(self.values) == dict(other.values)
             and dict(self.std) == dict(other.std)
         )
 
     def __hash__(self) -> int:
-        return hash((self.params, self.composition, tuple(sorted(self.values.items()))))
+        return hash((self.params, self._effects_key, tuple(sorted(self.values.items()))))
 
     def __repr__(self) -> str:
         vals = ", ".join(f"{k}={v:.4g}" for k, v in self.values.items())
@@ -280,6 +288,40 @@ class Model:
     ) -> Model:
         """A model from a composition and its values (the effects keep the composition's order)."""
         return cls(params, tuple(composition.effects), values, std or {}, provenance or Provenance())
+
+    def in_configuration(self, configuration: str) -> Model:
+        """The model as a run of ``configuration`` (a label such as ``"free_vibration"``) uses it: without the
+        effects that do not act there (a motor lag when the motor is disconnected), each left out with a warning
+        that names it; the model itself when all act.
+
+        Parameters
+        ----------
+        configuration : str
+            The run's configuration label.
+
+        Returns
+        -------
+        Model
+            The model without the idle effects, their values and standard errors.
+        """
+        idle = self.composition.not_acting_in(configuration)
+        if not idle:
+            return self
+        for e in idle:
+            warnings.warn(
+                f"the model's effect {e.name} does not act in the {configuration} configuration (it acts in "
+                f"{', '.join(e.configurations)}): the run leaves it out",
+                stacklevel=3,
+            )
+        kept = [e for e in self.composition.effects if e not in idle]
+        dropped = {p.name for e in idle for p in e.parameters}
+        return Model(
+            self.params,
+            tuple(kept),
+            {k: v for k, v in self.values.items() if k not in dropped},
+            {k: v for k, v in self.std.items() if k not in dropped},
+            self.provenance,
+        )
 
     def simulation_arguments(self) -> dict[str, Any]:
         """``params``, ``effects`` and ``effect_params`` as the simulator takes them."""
@@ -495,6 +537,17 @@ def _check_records(records: list[Mapping[str, Any]], base_std: Mapping[str, Any]
                 )
 
 
+def _effect_key(effect: type[Effect]) -> Any:
+    """An effect as :meth:`Model.__eq__` compares it: its class, or for a file's (name, digest of the file)."""
+    f = _effect_file(effect)
+    if f is None:
+        return effect
+    try:
+        return (effect.name, hashlib.sha256(Path(f).read_bytes()).hexdigest())
+    except OSError:  # the file is gone: its path is all that is left to compare
+        return (effect.name, f)
+
+
 def _as_path(value: Any, who: str) -> Path:
     """``value`` as a path, refused unless it is a text or path-like."""
     if isinstance(value, (str, Path)) or hasattr(value, "__fspath__"):
@@ -558,9 +611,15 @@ def as_model(model: Any, *, trust: bool = False, who: str = "model") -> Model:
 
 
 def model_arguments(
-    model: Any, params: Any = None, effects: Any = None, effect_params: Any = None, who: str = "simulate"
+    model: Any,
+    params: Any = None,
+    effects: Any = None,
+    effect_params: Any = None,
+    who: str = "simulate",
+    configuration: str | None = None,
 ) -> tuple[Any, Any, Any]:
-    """``(params, effects, effect_params)`` of a run given ``model=`` (or the three as given without one).
+    """``(params, effects, effect_params)`` of a run given ``model=`` (or the three as given without one); with a
+    ``configuration`` label, the model's effects that do not act there left out (:meth:`Model.in_configuration`).
 
     Raises
     ------
@@ -575,4 +634,6 @@ def model_arguments(
     if given:
         raise InputError(f"{who}: give model= or {', '.join(given)}, not both (the model holds its own)")
     m = as_model(model, who=f"{who}: model")
+    if configuration is not None:
+        m = m.in_configuration(configuration)
     return m.params, m.composition, dict(m.values)

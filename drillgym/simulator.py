@@ -195,11 +195,11 @@ def simulate_batch(
     SimulationError
         A run diverged (NaN or infinite state).
     """
-    params, effects, effect_params = model_arguments(model, params, effects, effect_params, "simulate_batch()")
     cfg = parse_configuration(config)
+    params, effects, effect_params = model_arguments(
+        model, params, effects, effect_params, "simulate_batch()", cfg.label
+    )  # a model's effect that does not act in cfg is left out with a warning
     comp, values = compose(effects, effect_params)
-    if model is not None:  # as simulate: a model's effect the configuration does not run would be dropped silently
-        comp.refuse_not_acting(cfg.label, "simulate_batch(): the model's effects")
     duration, dt = step_grid(duration, dt)
     record_every = whole_number("record_every", record_every, 1)
     n_steps = int(round(duration / dt))
@@ -403,7 +403,9 @@ def simulate(
     SimulationError
         The run diverged.
     """
-    params, effects, effect_params = model_arguments(model, params, effects, effect_params, "simulate()")
+    params, effects, effect_params = model_arguments(
+        model, params, effects, effect_params, "simulate()", parse_configuration(config).label
+    )
     if params is not None and not isinstance(params, RigParams):
         if not (isinstance(params, np.ndarray) and params.ndim == 1):
             raise InputTypeError(

@@ -8,6 +8,7 @@ from __future__ import annotations
 import contextlib
 import io
 import pickle
+from pathlib import Path
 
 import gymnasium
 import numpy as np
@@ -242,12 +243,27 @@ def test_cli_refuses_in_one_line(model_file, tmp_path, argv, says):
     assert not (tmp_path / "x.csv").exists()
 
 
-LATERAL_MODEL = Model(effects=("lateral_anisotropy",), values={"dk": 200.0})
+EFFECTS_DIR = Path(__file__).resolve().parents[1] / "examples" / "effects"
 
 
-def test_a_models_effect_that_does_not_act_is_refused_by_simulate_batch_as_by_simulate():
-    with pytest.raises(EffectError, match="lateral_anisotropy: the effect does not act in the torsional"):
-        simulate("torsional", u=1.0, duration=0.1, model=LATERAL_MODEL)
-    with pytest.raises(EffectError, match="model's effects lateral_anisotropy: the effect does not act in the"):
-        simulate_batch("torsional", u=np.array([1.0, 2.0]), duration=0.1, model=LATERAL_MODEL)
-    simulate_batch("coupled", u=np.array([1.0, 2.0]), duration=0.1, model=LATERAL_MODEL)  # where it acts: runs
+def test_a_models_effect_that_does_not_act_is_left_out_with_a_warning_by_simulate_and_simulate_batch():
+    mixed = Model(effects=("motor_lag", "lateral_anisotropy"), values={"tau_m": 0.03, "dk": 200.0})
+    with pytest.warns(UserWarning, match="effect lateral_anisotropy does not act in the torsional configuration"):
+        one = simulate("torsional", u=1.0, duration=0.1, model=mixed)
+    with pytest.warns(UserWarning, match="effect lateral_anisotropy does not act in the torsional configuration"):
+        many = simulate_batch("torsional", u=np.array([1.0, 2.0]), duration=0.1, model=mixed)
+    lag_only = simulate("torsional", u=1.0, duration=0.1, model=Model(effects=("motor_lag",), values={"tau_m": 0.03}))
+    np.testing.assert_array_equal(one.omega_u, lag_only.omega_u)  # the lag kept, the idle effect left out
+    np.testing.assert_array_equal(many.omega_u[0], lag_only.omega_u)
+    assert mixed.in_configuration("coupled") is mixed  # where both act: the model itself
+    with pytest.raises(EffectError, match="^effects lateral_anisotropy: the effect does not act in the torsional"):
+        simulate("torsional", u=1.0, duration=0.1, effects=["lateral_anisotropy"])  # named by the caller: refused
+
+
+def test_a_model_and_its_copy_saved_elsewhere_are_equal(tmp_path):
+    spec = f"{EFFECTS_DIR / 'motor_dead_zone.py'}:dead_zone"
+    m = Model(effects=("motor_lag", spec), values={"tau_m": 0.03, "u0": 0.3})
+    m.save(tmp_path / "m.json")  # the effect file is copied beside the model
+    back = Model.load(tmp_path / "m.json")
+    assert back.specs != m.specs and back == m and hash(back) == hash(m)
+    assert back.replace(values={"tau_m": 0.03, "u0": 0.2}) != m

@@ -144,7 +144,7 @@ def periodic_branches(
         The folds found on them (voltage V, kind).
     """
     if model is not None:
-        params = model_or_params(params, model, "periodic_branches()")
+        params = model_or_params(params, model, "periodic_branches()", branch.config.label)
     params = as_model(params if params is not None else branch.params)
     smap = SectionMap(branch.config, params.p, branch.section_speed, dt=dt, composition=params.comp)
     out, folds = [], []
@@ -357,8 +357,8 @@ def compute_diagram(
         A setting :func:`check_diagram_options` refuses (a voltage window that is not
         0 <= umin < umax, a sweep step giving too many voltages, sweeps shorter than their window).
     """
-    params = model_or_params(params, model, "compute_diagram()")
     cfg = supported_configuration(config)
+    params = model_or_params(params, model, "compute_diagram()", cfg.label)
     check_diagram_options(umin, umax, sweep_step, sweep_duration, ds_max, sweep_umax)
     params.comp.refuse_not_acting(cfg.label, "effect")  # else it fails deep in the kernels
     say = progress or (lambda msg: None)

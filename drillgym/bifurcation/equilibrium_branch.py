@@ -179,8 +179,8 @@ def equilibrium_branch(
     EquilibriumBranch
         Voltage, speed and stability along the branch, and its Hopf points.
     """
-    params = model_or_params(params, model, "equilibrium_branch()")
     cfg = supported_configuration(config)
+    params = model_or_params(params, model, "equilibrium_branch()", cfg.label)
     umax = real_number("umax", umax, "V")
     if not (np.isfinite(umax) and umax > 0):
         raise InputError(f"umax must be a positive voltage, got {umax!r}")

@@ -69,14 +69,16 @@ class SweepResult:
         return d
 
 
-def _refuse_not_acting(params: RigModel, config: str, model) -> None:
-    """Refuse an effect that does not act in ``config`` (as ``simulate`` and ``compute_diagram`` do): the sweep
-    would drop it without a word (a coupled model's lateral force swept on the torsional rig)."""
+def _rig(params: RigParams | RigModel | None, model, config: str, who: str) -> RigModel:
+    """The rig a sweep runs: ``model=`` without its effects that do not act in ``config`` (each left out with a
+    warning), or ``params``, whose effects that do not act are refused (as ``simulate`` and ``compute_diagram``
+    do: the sweep would drop them without a word)."""
     from ..configurations import parse_configuration
 
-    params.comp.refuse_not_acting(
-        parse_configuration(config).label, "the model's effects" if model is not None else "effects"
-    )
+    label = parse_configuration(config).label
+    rig = model_or_params(params, model, who, label)
+    rig.comp.refuse_not_acting(label, "effects")
+    return rig
 
 
 def _run_constant(
@@ -189,8 +191,7 @@ def sweep_constant(
         Per voltage: steady-state omega_l range (rad/s), r range (m), period (s), stuck fraction.
     """
     u = _check(voltages, duration, window, dt)
-    params = model_or_params(params, model, "sweep_constant()")
-    _refuse_not_acting(params, config, model)
+    params = _rig(params, model, config, "sweep_constant()")
     if start == "rest":
         x0 = None
     elif start == "equilibrium":
@@ -256,8 +257,7 @@ def sweep_staircase(
         The sweep up and the sweep down.
     """
     u = np.sort(_check(voltages, dwell, window, dt))
-    params = model_or_params(params, model, "sweep_staircase()")
-    _refuse_not_acting(params, config, model)
+    params = _rig(params, model, config, "sweep_staircase()")
     ex, own = _executor(executor)
     try:
         tasks = [(str(config), u, dwell, window, dt, params), (str(config), u[::-1].copy(), dwell, window, dt, params)]

@@ -59,7 +59,7 @@ def model_from_cli(model_file, trust: bool = False, config=None, **beside):
     trust : bool, optional
         ``--trust``: import effect files outside the model's folder, unhashed or changed.
     config : Configuration, optional
-        The run's configuration: an effect of the model that does not act in it is refused.
+        The run's configuration: an effect of the model that does not act in it is left out, with a warning.
     **beside
         The options that name the model's parts, by option (``{"--params": value, ...}`` as keywords
         ``params=``, ``add_effect=``, ``effect_param=``): any of them given is refused in one line.
@@ -85,8 +85,8 @@ def model_from_cli(model_file, trust: bool = False, config=None, **beside):
         )
     with option("--model"):
         m = Model.load(model_file, trust=trust)
-        if config is not None:
-            m.composition.refuse_not_acting(config.label, "the model's effects")
+        if config is not None:  # an effect that does not act there is left out, with a warning
+            m = m.in_configuration(config.label)
     return m
 
 

@@ -185,7 +185,9 @@ class EnvOptions:
 
             effects_option = "option 'model': the model's effects"
 
-            p, e, v = model_arguments(self.model, self.params, self.effects, self.effect_params, "option 'model'")
+            p, e, v = model_arguments(
+                self.model, self.params, self.effects, self.effect_params, "option 'model'", cfg.label
+            )
             for name, value in (("params", p), ("effects", e), ("effect_params", v), ("model", None)):
                 object.__setattr__(self, name, value)
         if self.params is not None and not isinstance(self.params, RigParams):

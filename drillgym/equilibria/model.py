@@ -83,7 +83,9 @@ def as_model(params: RigParams | RigModel | None = None, effects=None, effect_pa
     return RigModel(params, effects, effect_params)
 
 
-def model_or_params(params: RigParams | RigModel | None = None, model=None, who: str = "bifurcation") -> RigModel:
+def model_or_params(
+    params: RigParams | RigModel | None = None, model=None, who: str = "bifurcation", configuration: str | None = None
+) -> RigModel:
     """The RigModel of a call given ``params`` or ``model=`` (a :class:`drillgym.Model` or a model file's path).
 
     Parameters
@@ -94,6 +96,9 @@ def model_or_params(params: RigParams | RigModel | None = None, model=None, who:
         The rig's model (read without ``trust`` when a path): its base parameters, effects and values.
     who : str, optional
         The function, in error messages.
+    configuration : str, optional
+        The run's configuration label: the model's effects that do not act there are left out, each with a
+        warning (:meth:`drillgym.Model.in_configuration`).
 
     Returns
     -------
@@ -109,7 +114,7 @@ def model_or_params(params: RigParams | RigModel | None = None, model=None, who:
         return as_model(params)
     from ..model import model_arguments
 
-    p, comp, values = model_arguments(model, params, None, None, who)
+    p, comp, values = model_arguments(model, params, None, None, who, configuration)
     return RigModel(p, comp, values)
 
 
