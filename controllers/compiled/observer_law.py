@@ -393,6 +393,8 @@ def observer_transition(C, n, dim, mats, J, F):
 def covariance_products(X, C, n, dim, p0, qd, W):
     """P = F P F' + Qd (covariance from row p0, Qd dim x dim at C[qd:]) with F in the work rows W[0:dim^2]; the
     product F P into W[dim^2:2 dim^2]."""
+    if dim == 5:
+        return _products_5(X, C, n, p0, qd, W)
     dd = dim * dim
     for i in range(dim):  # F P into W[dd:2dd]; each sum starts with its first term (0 + x is x)
         for j in range(dim):
@@ -415,6 +417,29 @@ def covariance_products(X, C, n, dim, p0, qd, W):
                     row[k] += a[k] * b[k]
             if j != i:
                 X[p0 + j * dim + i, :n] = row[:n]
+
+
+@njit(cache=True, error_model="numpy")
+def _products_5(X, C, n, p0, qd, W):
+    """:func:`covariance_products` of a filter of 5 states (the base model's): each entry's five products summed in
+    one pass over the lanes, in the same order (the same floats), a third fewer loads and stores."""
+    for i in range(5):  # F P into W[25:50]
+        f0, f1, f2, f3, f4 = W[i * 5], W[i * 5 + 1], W[i * 5 + 2], W[i * 5 + 3], W[i * 5 + 4]
+        for j in range(5):
+            q0, q1, q2, q3, q4 = X[p0 + j], X[p0 + 5 + j], X[p0 + 10 + j], X[p0 + 15 + j], X[p0 + 20 + j]
+            row = W[25 + i * 5 + j]
+            for k in range(n):
+                row[k] = f0[k] * q0[k] + f1[k] * q1[k] + f2[k] * q2[k] + f3[k] * q3[k] + f4[k] * q4[k]
+    for i in range(5):  # (F P) F' + Qd; the symmetric half mirrored
+        a0, a1, a2, a3, a4 = W[25 + i * 5], W[26 + i * 5], W[27 + i * 5], W[28 + i * 5], W[29 + i * 5]
+        for j in range(i, 5):
+            b0, b1, b2, b3, b4 = W[j * 5], W[j * 5 + 1], W[j * 5 + 2], W[j * 5 + 3], W[j * 5 + 4]
+            q = C[qd + i * 5 + j]
+            row = X[p0 + i * 5 + j]
+            for k in range(n):
+                row[k] = q + a0[k] * b0[k] + a1[k] * b1[k] + a2[k] * b2[k] + a3[k] * b3[k] + a4[k] * b4[k]
+            if j != i:
+                X[p0 + j * 5 + i, :n] = row[:n]
 
 
 @njit(cache=True, error_model="numpy")
