@@ -314,18 +314,15 @@ def _jacobian_constant(C, m, j):
 @njit(cache=True, error_model="numpy")
 def jacobian(X, C, n, dim, U, SH, J):
     """The right-hand side's Jacobian J (dim*dim, n) at the estimates under U, the modes held: central differences
-    in the speeds, as the reference.  Every lane's entries are stored whatever its modes (0 where a mode leaves
-    them out), so that the loops over the lanes stay branch-free; J's other entries are set to 0.  The lane-varying
-    entries in two loops, the upper disc's and the lower's: one loop storing them all needs more run-time alias
-    checks than LLVM's vectoriser takes."""
+    in the speeds, as the reference.  Only its lane-varying entries (:func:`_varying`) are stored, the rows
+    :func:`observer_transition` reads (the constant ones it takes from :func:`_jacobian_constant`).  Every lane's
+    entries are stored whatever its modes (0 where a mode leaves them out), so that the loops over the lanes stay
+    branch-free; in two loops, the upper disc's and the lower's: one loop storing them all needs more run-time
+    alias checks than LLVM's vectoriser takes."""
     h, Ju, Jl, kt = C[H], C[JU], C[JL], C[KTH]
     Tcu, dTcu, bu, dbu = C[TCU], C[DTCU], C[BU], C[DBU]
     Ts, Tc, bb = C[TS], C[TC], C[BB]
     scale = C[SCALE] > 0
-    for m in range(dim):  # the constant entries
-        for j in range(dim):
-            if not _varying(m, j):
-                J[m * dim + j, :n] = _jacobian_constant(C, m, j)
     for k in range(n):  # the upper disc's entries
         wu = X[_X0 + 1, k]
         Fu, _, mu, _, _, _, _, _, _, _ = _modes(X, C, U, SH, k, 0.0)
