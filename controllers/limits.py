@@ -173,20 +173,20 @@ def motor_angle_limits(params: RigParams | None, omegas) -> list[MotorAngleLimit
     poles = np.linalg.eigvals(_state_matrices(p, slopes))
     zeros = _constrained_modes(p, slopes)
     tol = 1e-9
-    out = []
-    for k in range(w.size):
-        rp = tuple(complex(x) for x in poles[k] if x.real > tol)
-        rz = tuple(complex(x) for x in zeros[k] if x.real > tol)
-        out.append(MotorAngleLimit(float(w[k]), float(slopes[k]), rp, rz, _bound(rp, rz)))
-    return out
+    bounds = _bounds(poles, zeros, tol)
+    rhp_p, rhp_z = poles.real > tol, zeros.real > tol
+    return [
+        MotorAngleLimit(float(w[k]), float(slopes[k]), tuple(poles[k, rhp_p[k]].tolist()),
+                        tuple(zeros[k, rhp_z[k]].tolist()), float(bounds[k]))
+        for k in range(w.size)
+    ]  # fmt: skip
 
 
-def _bound(rp: tuple[complex, ...], rz: tuple[complex, ...]) -> float:
-    """max over the RHP poles p of prod over the RHP zeros z of |z + conj p| / |z - p| (1 without an RHP pole)."""
-    bound = 1.0
-    for pole in rp:
-        b = 1.0
-        for z in rz:
-            b *= abs(z + np.conj(pole)) / max(abs(z - pole), 1e-300)
-        bound = max(bound, b)
-    return float(bound)
+def _bounds(poles: np.ndarray, zeros: np.ndarray, tol: float) -> np.ndarray:
+    """Per row k: max over the RHP poles p (real part > tol) of prod over the RHP zeros z of |z + conj p| / |z - p|
+    (1 without an RHP pole); poles (K, np), zeros (K, nz)."""
+    p, z = poles[:, :, None], zeros[:, None, :]
+    ratio = np.abs(z + np.conj(p)) / np.maximum(np.abs(z - p), 1e-300)
+    factors = np.where(zeros.real[:, None, :] > tol, ratio, 1.0)
+    products = np.where(poles.real > tol, np.prod(factors, axis=2), 1.0)
+    return np.maximum(products.max(axis=1, initial=1.0), 1.0)

@@ -86,8 +86,9 @@ def upper_friction(w: np.ndarray, params: RigParams | None = None) -> np.ndarray
     """
     p = params or RigParams()
     w = np.asarray(w, dtype=float)
-    law = np.vectorize(lambda v: upper_law(abs(v), float(np.sign(v)), p.Tcu, p.dTcu, p.bu, p.dbu))
-    return law(w) if w.size else np.zeros_like(w)
+    out = np.empty(w.size)
+    _upper_torques(np.ascontiguousarray(w).ravel(), p.Tcu, p.dTcu, p.bu, p.dbu, out)
+    return out.reshape(w.shape)
 
 
 def lower_friction(w: np.ndarray, params: RigParams | None = None, brake: bool = True) -> np.ndarray:
@@ -109,11 +110,29 @@ def lower_friction(w: np.ndarray, params: RigParams | None = None, brake: bool =
     """
     p = params or RigParams()
     w = np.asarray(w, dtype=float)
-    if brake:
-        law = np.vectorize(lambda v: brake_law(abs(v), float(np.sign(v)), p.Ts, p.Tc, p.ws, p.delta, p.bb))
-    else:
-        law = np.vectorize(lambda v: bearing_law(abs(v), float(np.sign(v)), p.Tcl, p.bl))
-    return law(w) if w.size else np.zeros_like(w)
+    out = np.empty(w.size)
+    law = np.array([p.Ts, p.Tc, p.ws, p.delta, p.bb]) if brake else np.array([p.Tcl, p.bl])
+    _lower_torques(np.ascontiguousarray(w).ravel(), brake, law, out)
+    return out.reshape(w.shape)
+
+
+@njit(cache=True, error_model="numpy")  # IEEE arithmetic: the same floats in a batch of any size
+def _upper_torques(w, Tcu, dTcu, bu, dbu, out):
+    """:func:`upper_law` at each speed of w (rad/s) into out (N m), the direction sign(w)."""
+    for i in range(w.size):
+        out[i] = upper_law(abs(w[i]), np.sign(w[i]), Tcu, dTcu, bu, dbu)
+
+
+@njit(cache=True, error_model="numpy")
+def _lower_torques(w, brake, law, out):
+    """:func:`brake_law` (law: Ts, Tc, ws, delta, bb) or :func:`bearing_law` (law: Tcl, bl) at each speed of w
+    (rad/s) into out (N m), the direction sign(w)."""
+    for i in range(w.size):
+        aw, d = abs(w[i]), np.sign(w[i])
+        if brake:
+            out[i] = brake_law(aw, d, law[0], law[1], law[2], law[3], law[4])
+        else:
+            out[i] = bearing_law(aw, d, law[0], law[1])
 
 
 def lower_friction_slope(
