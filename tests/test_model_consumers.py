@@ -214,6 +214,20 @@ def test_cli_simulate_model_equals_the_python_run(m, model_file, tmp_path):
     assert np.abs(base.omega_u - ts.omega_u).max() > 0.05  # rad/s: the lag
 
 
+def test_cli_free_vibration_runs_a_model_without_its_motor_lag(m, model_file, tmp_path):
+    from drillgym.io import read_timeseries
+
+    out = tmp_path / "free.csv"
+    with pytest.warns(UserWarning, match="effect motor_lag does not act in the free_vibration configuration"):
+        code, _, err = run_cli(
+            "simulate", "--config", "free_vibration", "--model", model_file, "--alpha0", "1", "--duration", "0.5",
+            "--out", out,
+        )  # fmt: skip
+    assert code == 0, err
+    base = simulate("free_vibration", 0.0, 0.5, params=m.params, alpha0=1.0)  # the model's base, no lag
+    np.testing.assert_allclose(read_timeseries(out).omega_l, base.omega_l, rtol=1e-12, atol=1e-12)
+
+
 @pytest.mark.parametrize(
     "argv, says",
     [
