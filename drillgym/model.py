@@ -63,6 +63,7 @@ from .model_files import (
     FORMAT,
     VERSION,
     CodeFile,
+    Provenance,
     _code_files,
     _effect_records,
     _read,
@@ -81,58 +82,6 @@ MODEL_SUFFIXES = (".json", ".yaml", ".yml")
 
 class UntrustedCodeError(InputError):
     """A model file names code that is not trusted (outside the model's folder, unhashed or changed)."""
-
-
-@dataclass(frozen=True)
-class Provenance:
-    """Where a model came from.
-
-    Attributes
-    ----------
-    route : str
-        What made it: ``"identify"`` (:func:`drillgym.identify`, every route to it), ``"user"``.
-    recording : str or None
-        The recording identified on (its path as given).
-    recording_sha256 : str or None
-        SHA-256 of the recording file's bytes (None: not a file).
-    settings : mapping
-        The identification's settings (JSON-ready values).
-    version : str
-        The drillgym version that made it.
-    """
-
-    route: str = "user"
-    recording: str | None = None
-    recording_sha256: str | None = None
-    settings: Mapping[str, Any] = field(default_factory=dict)
-    version: str = ""
-
-    def to_json(self) -> dict[str, Any]:
-        return {f.name: getattr(self, f.name) for f in fields(self)} | {"settings": dict(self.settings)}
-
-    @classmethod
-    def from_json(cls, data: Any, where: str) -> Provenance:
-        if not isinstance(data, Mapping):
-            raise ParameterError(f"{where}: 'provenance' must be a mapping")
-        known = {f.name for f in fields(cls)}
-        unknown = set(data) - known
-        if unknown:
-            raise ParameterError(f"{where}: 'provenance' has unknown key(s): {', '.join(sorted(unknown))}")
-        for k, v in data.items():
-            ok, what = _PROVENANCE_TYPES[k]
-            if not ok(v):
-                raise ParameterError(f"{where}: 'provenance': {k!r} must be {what}, got {v!r}")
-        return cls(**{k: (dict(v) if k == "settings" else v) for k, v in data.items()})
-
-
-#: what each field of a model file's provenance holds: (check, how a refusal names it)
-_PROVENANCE_TYPES: dict[str, tuple[Any, str]] = {
-    "route": (lambda v: isinstance(v, str), "a text"),
-    "recording": (lambda v: v is None or isinstance(v, str), "a path (text) or null"),
-    "recording_sha256": (lambda v: v is None or isinstance(v, str), "a SHA-256 (text) or null"),
-    "settings": (lambda v: isinstance(v, Mapping), "a mapping of setting names to values"),
-    "version": (lambda v: isinstance(v, str), "a version (text)"),
-}
 
 
 def _numbers(mapping: Any, what: str) -> dict[str, float]:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +17,7 @@ from .io.paths import describe_parse_error
 from .io.structured import load_structured
 from .params import ParameterError, number
 
-__all__ = ["CodeFile", "code_files", "FORMAT", "VERSION", "check_not_model_with_effects"]
+__all__ = ["CodeFile", "Provenance", "code_files", "FORMAT", "VERSION", "check_not_model_with_effects"]
 
 #: the format tag and version written by :meth:`drillgym.Model.save`
 FORMAT, VERSION = "drillgym-model", 2
@@ -221,3 +221,55 @@ def check_not_model_with_effects(path: str | Path, option: str) -> None:
             f"{option} {path} is a model file with effects ({names}): writing base parameters over it would lose "
             "them; choose another name"
         )
+
+
+@dataclass(frozen=True)
+class Provenance:
+    """Where a model came from.
+
+    Attributes
+    ----------
+    route : str
+        What made it: ``"identify"`` (:func:`drillgym.identify`, every route to it), ``"user"``.
+    recording : str or None
+        The recording identified on (its path as given).
+    recording_sha256 : str or None
+        SHA-256 of the recording file's bytes (None: not a file).
+    settings : mapping
+        The identification's settings (JSON-ready values).
+    version : str
+        The drillgym version that made it.
+    """
+
+    route: str = "user"
+    recording: str | None = None
+    recording_sha256: str | None = None
+    settings: Mapping[str, Any] = field(default_factory=dict)
+    version: str = ""
+
+    def to_json(self) -> dict[str, Any]:
+        return {f.name: getattr(self, f.name) for f in fields(self)} | {"settings": dict(self.settings)}
+
+    @classmethod
+    def from_json(cls, data: Any, where: str) -> Provenance:
+        if not isinstance(data, Mapping):
+            raise ParameterError(f"{where}: 'provenance' must be a mapping")
+        known = {f.name for f in fields(cls)}
+        unknown = set(data) - known
+        if unknown:
+            raise ParameterError(f"{where}: 'provenance' has unknown key(s): {', '.join(sorted(unknown))}")
+        for k, v in data.items():
+            ok, what = _PROVENANCE_TYPES[k]
+            if not ok(v):
+                raise ParameterError(f"{where}: 'provenance': {k!r} must be {what}, got {v!r}")
+        return cls(**{k: (dict(v) if k == "settings" else v) for k, v in data.items()})
+
+
+#: what each field of a model file's provenance holds: (check, how a refusal names it)
+_PROVENANCE_TYPES: dict[str, tuple[Any, str]] = {
+    "route": (lambda v: isinstance(v, str), "a text"),
+    "recording": (lambda v: v is None or isinstance(v, str), "a path (text) or null"),
+    "recording_sha256": (lambda v: v is None or isinstance(v, str), "a SHA-256 (text) or null"),
+    "settings": (lambda v: isinstance(v, Mapping), "a mapping of setting names to values"),
+    "version": (lambda v: isinstance(v, str), "a version (text)"),
+}
