@@ -181,7 +181,8 @@ def simulate_batch(
         Relative and absolute tolerances of ``"dp45"``.
     model : Model, str or path, optional
         The rig's model (:class:`drillgym.Model` or a model file) all runs share: its base parameters,
-        effects and values; refused beside ``params``, ``effects`` or ``effect_params``.
+        effects and values (an effect that does not act in ``config`` left out, with a warning); refused beside
+        ``params``, ``effects`` or ``effect_params``.
 
     Returns
     -------
@@ -387,7 +388,8 @@ def simulate(
         Tolerances of ``"dp45"``.
     model : Model, str or path, optional
         The rig's model (:class:`drillgym.Model` or a model file): its base parameters, effects and
-        values; refused beside ``params``, ``effects`` or ``effect_params``.
+        values (an effect that does not act in ``config`` left out, with a warning); refused beside ``params``,
+        ``effects`` or ``effect_params``.
 
     Returns
     -------
