@@ -171,6 +171,9 @@ def make(name: str, config: str = "torsional", omega_ref=None, params=None, **kw
         path): ``observer``, ``lqg`` and ``lqg-2enc`` run every effect of
         it in their own model (:mod:`controllers.dynamics`); the others refuse a model with effects, and what a
         model-based controller cannot represent is refused in one line naming the effect and why.
+        A model that knows its encoders (:attr:`drillgym.Model.encoders`: what the recording it was identified
+        on showed) gives them as ``counts_per_rev`` and ``angle_noise`` to a controller that takes them, unless
+        the call gives either.
         ``agent:PATH`` takes the model's base parameters only (for a residual or observer base; a plain
         network ignores the model, see ``agents.controller.AgentController``).
         Further keywords of the controller's constructor (e.g. ``dt``, the control period in s).
@@ -203,14 +206,34 @@ def make(name: str, config: str = "torsional", omega_ref=None, params=None, **kw
         return loader(path, config=config, omega_ref=omega_ref, params=params, **kw)
     if name not in CONTROLLERS:
         raise InputError(f"unknown controller {name!r}; choose from {', '.join(available())} or agent:PATH")
+    _with_encoders(CONTROLLERS[name], kw)
     _check_keywords(CONTROLLERS[name], name, kw)
     return CONTROLLERS[name](omega_ref, config=config, params=params, **kw)
 
 
-def _check_keywords(cls: type, name: str, kw: dict) -> None:
-    """Refuse a keyword the controller's constructor does not take (naming it and those it takes), and a value
-    that is not a number for a keyword whose default is one. The keywords are those of the constructors along
-    the class's bases for as long as each passes ``**kw`` on."""
+def _with_encoders(cls: type, kw: dict) -> None:
+    """The encoders of the model in ``kw`` (:attr:`drillgym.Model.encoders`, what its recording showed) as the
+    controller's ``counts_per_rev`` and ``angle_noise``, where its constructor takes them and the caller gave
+    neither; the model read once (a path becomes the Model)."""
+    if kw.get("model") is None or "counts_per_rev" in kw or "angle_noise" in kw:
+        return
+    taken = _keywords(cls)
+    if taken is None or "counts_per_rev" not in taken:
+        return
+    from drillgym import RigParams
+
+    from .model import model_of
+
+    if isinstance(kw["model"], RigParams):
+        return
+    kw["model"] = model_of(kw["model"])
+    if kw["model"].encoders is not None:
+        kw.update(kw["model"].encoders.controller_keywords())
+
+
+def _keywords(cls: type) -> dict | None:
+    """The keywords (name -> inspect.Parameter) of the controller's constructors along the class's bases for as
+    long as each passes ``**kw`` on; None when every one does (nothing to tell)."""
     import inspect
 
     taken: dict[str, inspect.Parameter] = {}
@@ -223,8 +246,15 @@ def _check_keywords(cls: type, name: str, kw: dict) -> None:
             if n != "self" and p.kind not in (inspect.Parameter.VAR_POSITIONAL, inspect.Parameter.VAR_KEYWORD):
                 taken.setdefault(n, p)
         if not any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
-            break
-    else:  # every constructor passes **kw on: nothing to tell
+            return taken
+    return None
+
+
+def _check_keywords(cls: type, name: str, kw: dict) -> None:
+    """Refuse a keyword the controller's constructor does not take (naming it and those it takes), and a value
+    that is not a number for a keyword whose default is one (:func:`_keywords`)."""
+    taken = _keywords(cls)
+    if taken is None:
         return
     unknown = sorted(set(kw) - set(taken))
     if unknown:

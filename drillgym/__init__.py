@@ -42,7 +42,7 @@ from .errors import (
 if TYPE_CHECKING:  # pragma: no cover - the names below load on first use (_LAZY)
     from .identified import Identified, IdentifyOptions, identify
     from .integrators import DEFAULT_DT, OUTPUT_NAMES
-    from .model import Model, Provenance
+    from .model import Encoders, Model, Provenance
     from .params import RigParams
     from .simulator import BatchSimulator, BatchTrajectory, Trajectory, initial_state, simulate, simulate_batch
 
@@ -54,6 +54,7 @@ _LAZY = {
     "Identified": "identified",
     "IdentifyOptions": "identified",
     "identify": "identified",
+    "Encoders": "model",
     "Model": "model",
     "Provenance": "model",
     "RigParams": "params",
@@ -77,6 +78,7 @@ __all__ = [
     "ParameterError",
     "RigParams",
     "Model",
+    "Encoders",
     "Provenance",
     "identify",
     "Identified",

@@ -198,6 +198,7 @@ def identify(recording: TimeSeries | str | Path, options: IdentifyOptions | None
 
     from .diagnosis import DiagnosisOptions, diagnose
     from .diagnosis.reselection import kept_in_turn
+    from .identification.reading_noise import encoders_of
 
     unknown = sorted(set(settings) - {f.name for f in fields(IdentifyOptions)})
     if unknown:
@@ -244,7 +245,8 @@ def identify(recording: TimeSeries | str | Path, options: IdentifyOptions | None
         settings=o.to_json(),
         version=_version(),
     )
-    model = Model.from_composition(res.params, comp, fitted, std, prov)
+    readings = (ts.columns.get(c) for c in ("theta_u", "theta_l"))
+    model = Model(res.params, tuple(comp.effects), fitted, std, prov, encoders_of(readings))
     ratios = {c: float(res.rms_after[c] / n) for c, n in (res.noise or {}).items() if c in res.rms_after and n > 0}
     names = [e.name for e in comp.effects]
     selected = tuple(n for n in names if _is_library(comp, n))

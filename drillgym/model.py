@@ -63,7 +63,9 @@ from .model_files import (
     FORMAT,
     VERSION,
     CodeFile,
+    Encoders,
     Provenance,
+    _check_records,
     _code_files,
     _effect_records,
     _read,
@@ -74,7 +76,9 @@ from .model_files import (
 )
 from .params import ParameterError, RigParams, number
 
-__all__ = ["Model", "Provenance", "CodeFile", "code_files", "as_model", "UntrustedCodeError", "MODEL_SUFFIXES"]
+__all__ = [
+    "Model", "Encoders", "Provenance", "CodeFile", "code_files", "as_model", "UntrustedCodeError", "MODEL_SUFFIXES",
+]  # fmt: skip
 
 #: the suffixes of a model file
 MODEL_SUFFIXES = (".json", ".yaml", ".yml")
@@ -118,6 +122,9 @@ class Model:
         Standard errors by parameter name, base or effect (absent: unknown).
     provenance : Provenance, optional
         Where the model came from.
+    encoders : Encoders, optional
+        The angle encoders the recording showed (resolution, noise beside the counts); the controllers built on
+        the model expect them (None: unknown, each controller's own design).
 
     Raises
     ------
@@ -130,6 +137,7 @@ class Model:
     values: Mapping[str, float] = field(default_factory=dict)
     std: Mapping[str, float] = field(default_factory=dict)
     provenance: Provenance = field(default_factory=Provenance)
+    encoders: Encoders | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.params, RigParams):
@@ -144,6 +152,8 @@ class Model:
             )
         if not isinstance(self.provenance, Provenance):
             raise InputTypeError(f"Model: provenance must be a Provenance, got {type(self.provenance).__name__}")
+        if self.encoders is not None and not isinstance(self.encoders, Encoders):
+            raise InputTypeError(f"Model: encoders must be an Encoders or None, got {type(self.encoders).__name__}")
         object.__setattr__(self, "effects", tuple(effects))
         given = _numbers(self.values, "values")
         std = _numbers(self.std, "std")
@@ -199,6 +209,7 @@ class Model:
             and self._effects_key == other._effects_key
             and dict(self.values) == dict(other.values)
             and dict(self.std) == dict(other.std)
+            and self.encoders == other.encoders
         )
 
     def __hash__(self) -> int:
@@ -215,7 +226,7 @@ class Model:
             r["spec"] if _effect_file(e) is not None or _library_effect(e) is e else e
             for r, e in zip(self.records(), self.composition.effects)
         )
-        return (Model, (self.params, effects, dict(self.values), dict(self.std), self.provenance))
+        return (Model, (self.params, effects, dict(self.values), dict(self.std), self.provenance, self.encoders))
 
     def replace(self, **changes: Any) -> Model:
         """A copy with fields changed (``params``, ``effects``, ``values``, ``std``, ``provenance``)."""
@@ -270,6 +281,7 @@ class Model:
             {k: v for k, v in self.values.items() if k not in dropped},
             {k: v for k, v in self.std.items() if k not in dropped},
             self.provenance,
+            self.encoders,
         )
 
     def simulation_arguments(self) -> dict[str, Any]:
@@ -345,6 +357,8 @@ class Model:
         if base_std:
             data["std"] = base_std
         data["effects"] = records
+        if self.encoders is not None:
+            data["encoders"] = self.encoders.to_json()
         data["provenance"] = self.provenance.to_json()
         if path.suffix.lower() in (".yaml", ".yml"):
             import yaml
@@ -455,35 +469,11 @@ class Model:
             std.update(_std(rec.get("std", {}), where, f"effect record {k}: 'std'"))
         prov = Provenance.from_json(data["provenance"], where) if "provenance" in data else Provenance()
         try:
-            model = cls(params, tuple(specs), values, std, prov)
+            model = cls(params, tuple(specs), values, std, prov, Encoders.from_json(data.get("encoders"), where))
         except (EffectError, ParameterError) as exc:
             raise ParameterError(f"{where}: {exc}") from None
         _check_records(records, data.get("std", {}), model, where)
         return model
-
-
-def _check_records(records: list[Mapping[str, Any]], base_std: Mapping[str, Any], model: Model, where: str) -> None:
-    """Refuse a record whose name or kind is not its effect's, or that gives a value or standard error of a
-    parameter its effect does not have (a value filed under the wrong effect would be read as if it were right)."""
-    effect_params = set(model.values)
-    unknown = sorted(set(map(str, base_std)) - set(RigParams.__dataclass_fields__) - effect_params)
-    if unknown:
-        raise ParameterError(f"{where}: 'std': unknown parameter(s) {', '.join(unknown)}")
-    for k, (rec, effect) in enumerate(zip(records, model.composition.effects)):
-        for key, real in (("name", effect.name), ("kind", effect.kind)):
-            if key in rec and rec[key] != real:
-                raise ParameterError(
-                    f"{where}: effect record {k}: {key!r} is {rec[key]!r} but its spec gives the effect "
-                    f"{effect.name!r} ({key} {real!r})"
-                )
-        own = {p.name for p in effect.parameters}
-        for key in ("values", "std"):
-            other = sorted(set(map(str, rec.get(key) or {})) - own)
-            if other:
-                raise ParameterError(
-                    f"{where}: effect record {k} ({effect.name}): {key} names {', '.join(other)}, not a parameter "
-                    f"of {effect.name} (it has {', '.join(sorted(own)) or 'none'})"
-                )
 
 
 def _effect_key(effect: type[Effect]) -> Any:

@@ -7,6 +7,7 @@ plants of ``evaluate --plants-file``) and list the effect files it names, withou
 from __future__ import annotations
 
 import hashlib
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -15,9 +16,9 @@ from typing import Any
 from .errors import MissingFileError
 from .io.paths import describe_parse_error
 from .io.structured import load_structured
-from .params import ParameterError, number
+from .params import ParameterError, RigParams, number
 
-__all__ = ["CodeFile", "Provenance", "code_files", "FORMAT", "VERSION", "check_not_model_with_effects"]
+__all__ = ["CodeFile", "Encoders", "Provenance", "code_files", "FORMAT", "VERSION", "check_not_model_with_effects"]
 
 #: the format tag and version written by :meth:`drillgym.Model.save`
 FORMAT, VERSION = "drillgym-model", 2
@@ -98,7 +99,7 @@ def _read(path: Path) -> Mapping[str, Any]:
         )
     if "params" not in data and "effects" not in data and "std" not in data:
         data = {"params": data}  # a file of base parameters only: a model without effects
-    known = {"format", "version", "params", "std", "effects", "provenance", "warnings"}
+    known = {"format", "version", "params", "std", "effects", "encoders", "provenance", "warnings"}
     unknown = set(data) - known
     if unknown:
         raise ParameterError(f"{path}: unknown key(s) in a model file: {', '.join(sorted(map(str, unknown)))}")
@@ -273,3 +274,79 @@ _PROVENANCE_TYPES: dict[str, tuple[Any, str]] = {
     "settings": (lambda v: isinstance(v, Mapping), "a mapping of setting names to values"),
     "version": (lambda v: isinstance(v, str), "a version (text)"),
 }
+
+
+@dataclass(frozen=True)
+class Encoders:
+    """The rig's angle encoders as a recording shows them: what a controller built on the model expects to read.
+
+    Attributes
+    ----------
+    counts_per_rev : int or None
+        The encoders' resolution (counts/rev); None where the readings lie on no lattice of counts (noise added
+        after the count, an interpolated reading): then ``angle_noise`` is the reading's whole error.
+    angle_noise : float
+        White angle noise beside the counts (rad, standard deviation); 0 on a reading of whole counts.
+    """
+
+    counts_per_rev: int | None = None
+    angle_noise: float = 0.0
+
+    def __post_init__(self) -> None:
+        cpr, noise = self.counts_per_rev, self.angle_noise
+        whole = isinstance(cpr, (int, float)) and not isinstance(cpr, bool) and cpr >= 1 and cpr == int(cpr)
+        if cpr is not None and not whole:
+            raise ParameterError(f"encoders: counts_per_rev must be a whole number >= 1, got {cpr!r}")
+        real = isinstance(noise, (int, float)) and not isinstance(noise, bool) and math.isfinite(noise)
+        if not (real and noise >= 0):
+            raise ParameterError(f"encoders: angle_noise must be a finite number >= 0 (rad), got {noise!r}")
+        object.__setattr__(self, "counts_per_rev", None if cpr is None else int(cpr))
+        object.__setattr__(self, "angle_noise", float(noise))
+
+    def controller_keywords(self) -> dict[str, Any]:
+        """``counts_per_rev`` and ``angle_noise`` as the controllers that take them are given them; nothing where
+        the count is not known (a controller's own design then stands)."""
+        if self.counts_per_rev is None:
+            return {}
+        return {"counts_per_rev": self.counts_per_rev, "angle_noise": self.angle_noise}
+
+    def to_json(self) -> dict[str, Any]:
+        return {"counts_per_rev": self.counts_per_rev, "angle_noise": self.angle_noise}
+
+    @classmethod
+    def from_json(cls, data: Any, where: str) -> Encoders | None:
+        if data is None:
+            return None
+        if not isinstance(data, Mapping):
+            raise ParameterError(f"{where}: 'encoders' must be a mapping (counts_per_rev, angle_noise)")
+        unknown = set(data) - {"counts_per_rev", "angle_noise"}
+        if unknown:
+            raise ParameterError(f"{where}: 'encoders' has unknown key(s): {', '.join(sorted(map(str, unknown)))}")
+        try:
+            return cls(data.get("counts_per_rev"), data.get("angle_noise", 0.0))
+        except ParameterError as exc:
+            raise ParameterError(f"{where}: {exc}") from None
+
+
+def _check_records(records: list[Mapping[str, Any]], base_std: Mapping[str, Any], model: Any, where: str) -> None:
+    """Refuse a record whose name or kind is not its effect's, or that gives a value or standard error of a
+    parameter its effect does not have (a value filed under the wrong effect would be read as if it were right)."""
+    effect_params = set(model.values)
+    unknown = sorted(set(map(str, base_std)) - set(RigParams.__dataclass_fields__) - effect_params)
+    if unknown:
+        raise ParameterError(f"{where}: 'std': unknown parameter(s) {', '.join(unknown)}")
+    for k, (rec, effect) in enumerate(zip(records, model.composition.effects)):
+        for key, real in (("name", effect.name), ("kind", effect.kind)):
+            if key in rec and rec[key] != real:
+                raise ParameterError(
+                    f"{where}: effect record {k}: {key!r} is {rec[key]!r} but its spec gives the effect "
+                    f"{effect.name!r} ({key} {real!r})"
+                )
+        own = {p.name for p in effect.parameters}
+        for key in ("values", "std"):
+            other = sorted(set(map(str, rec.get(key) or {})) - own)
+            if other:
+                raise ParameterError(
+                    f"{where}: effect record {k} ({effect.name}): {key} names {', '.join(other)}, not a parameter "
+                    f"of {effect.name} (it has {', '.join(sorted(own)) or 'none'})"
+                )

@@ -178,6 +178,26 @@ def test_a_reading_off_any_lattice_of_counts_has_its_scatter_for_noise():
     assert angle_noise(np.full(50, 0.3)) is None  # a disc that never turns tells nothing
 
 
+def test_the_encoders_a_recording_shows():
+    """Whole counts: the resolution (counts/rev) and no noise beside them; noise after the count: no resolution,
+    the reading's whole error as its noise; a reading that never changes: nothing."""
+    from drillgym import Encoders
+    from drillgym.identification.reading_noise import encoders_of
+
+    q = 2 * np.pi / 2048
+    t = np.arange(0.0, 20.0, 0.002)
+    true = 1.5 * t + 0.2 * np.sin(2.0 * t)
+    counted = np.floor(true / q) * q
+    assert encoders_of([counted, None, np.floor(0.5 * true / (q / 2)) * (q / 2)]) == Encoders(4096, 0.0)  # finest
+    assert encoders_of([counted]) == Encoders(2048, 0.0)
+    slow = counted[::10]  # at 50 Hz the count's rounding is as good as white
+    noisy = encoders_of([slow + np.random.default_rng(2).normal(0.0, 3e-4, slow.size)])
+    assert noisy.counts_per_rev is None
+    assert noisy.angle_noise == pytest.approx(np.hypot(3e-4, q / np.sqrt(12)), rel=0.15)
+    assert noisy.controller_keywords() == {} and Encoders(2048, 0.0).controller_keywords()["counts_per_rev"] == 2048
+    assert encoders_of([np.zeros(100), None]) is None
+
+
 def test_coupled_speed_noise_and_scales_from_encoder_count():
     from drillgym.diagnosis.segments import robust_noise
     from drillgym.identification import prepare_experiment

@@ -62,13 +62,19 @@ def test_every_route_writes_the_same_model_file(routes):
 
 
 def test_the_model_file_is_the_identified_model(routes, recording):
-    from drillgym import Model
+    from drillgym import Encoders, Model
 
     m = Model.load(routes["identify"])
     assert "motor_lag" in m.names
     assert m.values["tau_m"] == pytest.approx(0.04, rel=0.1)
     assert m.provenance.route == "identify" and m.provenance.recording == recording.name
     assert len(m.provenance.recording_sha256) == 64
+    assert m.encoders == Encoders(8000, 0.0)  # the recording's encoders: whole counts of 8000 per revolution
+    import controllers
+
+    built = controllers.make("lqg-2enc", model=routes["identify"], omega_ref=2.0)
+    assert built.design.counts == 8000 and built.effects == m  # told the model's encoders, the model read once
+    assert controllers.make("lqg-2enc", model=m, counts_per_rev=2048).design.counts == 2048  # the caller's first
 
 
 def test_compare_with_the_model_shows_the_error_fall(routes, recording, tmp_path):

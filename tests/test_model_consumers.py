@@ -281,3 +281,18 @@ def test_a_model_and_its_copy_saved_elsewhere_are_equal(tmp_path):
     back = Model.load(tmp_path / "m.json")
     assert back.specs != m.specs and back == m and hash(back) == hash(m)
     assert back.replace(values={"tau_m": 0.03, "u0": 0.2}) != m
+
+
+def test_a_models_encoders_travel_through_its_file(tmp_path):
+    from drillgym import Encoders
+    from drillgym.errors import ParameterError
+
+    m = Model(effects=("motor_lag",), values={"tau_m": 0.03}, encoders=Encoders(2048, 2e-4))
+    back = Model.load(m.save(tmp_path / "m.yaml"))
+    assert back.encoders == Encoders(2048, 2e-4) and back == m and pickle.loads(pickle.dumps(m)) == m
+    assert back != m.replace(encoders=None)
+    with pytest.warns(UserWarning, match="motor_lag does not act in the free_vibration"):
+        assert m.in_configuration("free_vibration").encoders == m.encoders
+    (tmp_path / "bad.json").write_text('{"params": {}, "encoders": {"counts_per_rev": 20.5}}')
+    with pytest.raises(ParameterError, match="bad.json: encoders: counts_per_rev must be a whole number >= 1"):
+        Model.load(tmp_path / "bad.json")

@@ -15,7 +15,11 @@ import math
 
 import numpy as np
 
-__all__ = ["MIN_COUNT_RAD", "ANGLE_FLOOR_RAD", "encoder_count", "scatter", "angle_noise", "finest_angle_noise"]
+from ..model_files import Encoders
+
+__all__ = [
+    "MIN_COUNT_RAD", "ANGLE_FLOOR_RAD", "encoder_count", "scatter", "angle_noise", "finest_angle_noise", "encoders_of",
+]  # fmt: skip
 
 MIN_COUNT_RAD = 1e-7  # rad: differences below this are round-off, not encoder counts (1e-7 rad ~ 6e7 counts/rev)
 ANGLE_FLOOR_RAD = 1e-4  # rad: no angle reading is taken as finer than this
@@ -121,3 +125,29 @@ def finest_angle_noise(readings) -> float | None:
         The noise (rad); None where no reading changes.
     """
     return min((n for n in map(angle_noise, readings) if n is not None), default=None)
+
+
+def encoders_of(readings) -> Encoders | None:
+    """The encoders a recording's angle readings show (one encoder type on both discs): the finest reading's
+    resolution where it lies on a lattice of counts (the nearest whole counts per revolution, when the count is
+    2 pi over one to within 0.1 %), else its error as white noise (:func:`angle_noise`).
+
+    Parameters
+    ----------
+    readings : iterable of numpy.ndarray or None
+        The angles (rad); None for a channel the recording does not hold.
+
+    Returns
+    -------
+    drillgym.model_files.Encoders or None
+        None where no reading changes (it tells nothing).
+    """
+    angles = [np.asarray(r, dtype=float) for r in readings if r is not None]
+    counts = [q for q in map(encoder_count, angles) if q is not None]
+    if counts:
+        q = min(counts)
+        cpr = round(2.0 * math.pi / q)
+        if cpr >= 1 and abs(2.0 * math.pi / cpr - q) <= 1e-3 * q:
+            return Encoders(cpr, 0.0)
+    noise = finest_angle_noise(angles)
+    return None if noise is None else Encoders(None, noise)
