@@ -179,10 +179,11 @@ def test_a_reading_off_any_lattice_of_counts_has_its_scatter_for_noise():
 
 
 def test_the_encoders_a_recording_shows():
-    """Whole counts: the resolution (counts/rev) and no noise beside them; noise after the count: no resolution,
-    the reading's whole error as its noise; a reading that never changes: nothing."""
+    """Whole counts: the resolution (counts/rev) and no noise beside them; noise after the count: the lattice its
+    readings' distribution still shows, and that noise; a reading on no lattice (an analog sensor): no resolution,
+    its scatter as noise; a disc parked at one angle or a reading that never changes: no lattice claimed."""
     from drillgym import Encoders
-    from drillgym.identification.reading_noise import encoders_of
+    from drillgym.identification.reading_noise import encoders_of, noisy_lattice
 
     q = 2 * np.pi / 2048
     t = np.arange(0.0, 20.0, 0.002)
@@ -190,11 +191,16 @@ def test_the_encoders_a_recording_shows():
     counted = np.floor(true / q) * q
     assert encoders_of([counted, None, np.floor(0.5 * true / (q / 2)) * (q / 2)]) == Encoders(4096, 0.0)  # finest
     assert encoders_of([counted]) == Encoders(2048, 0.0)
-    slow = counted[::10]  # at 50 Hz the count's rounding is as good as white
-    noisy = encoders_of([slow + np.random.default_rng(2).normal(0.0, 3e-4, slow.size)])
-    assert noisy.counts_per_rev is None
-    assert noisy.angle_noise == pytest.approx(np.hypot(3e-4, q / np.sqrt(12)), rel=0.15)
-    assert noisy.controller_keywords() == {} and Encoders(2048, 0.0).controller_keywords()["counts_per_rev"] == 2048
+    rng = np.random.default_rng(2)
+    for cpr, sigma in ((2048, 3e-4), (2048, 1e-3), (5000, 2e-4)):
+        step = 2 * np.pi / cpr
+        noisy = encoders_of([np.floor(true / step) * step + 0.3 + rng.normal(0.0, sigma, t.size)])
+        assert noisy.counts_per_rev == cpr and noisy.angle_noise == pytest.approx(sigma, rel=0.05)
+    analog = encoders_of([true + rng.normal(0.0, 3e-4, t.size)])
+    assert analog.counts_per_rev is None and analog.angle_noise == pytest.approx(3e-4, rel=0.15)
+    assert analog.controller_keywords() == {} and Encoders(2048, 0.0).controller_keywords()["counts_per_rev"] == 2048
+    parked = np.floor((0.5 + 1e-3 * np.sin(t)) / q) * q + rng.normal(0.0, 5e-4, t.size)
+    assert noisy_lattice(parked) is None
     assert encoders_of([np.zeros(100), None]) is None
 
 

@@ -19,6 +19,7 @@ from ..model_files import Encoders
 
 __all__ = [
     "MIN_COUNT_RAD", "ANGLE_FLOOR_RAD", "encoder_count", "scatter", "angle_noise", "finest_angle_noise", "encoders_of",
+    "noisy_lattice",
 ]  # fmt: skip
 
 MIN_COUNT_RAD = 1e-7  # rad: differences below this are round-off, not encoder counts (1e-7 rad ~ 6e7 counts/rev)
@@ -127,10 +128,58 @@ def finest_angle_noise(readings) -> float | None:
     return min((n for n in map(angle_noise, readings) if n is not None), default=None)
 
 
+#: counts per revolution :func:`noisy_lattice` looks for (a coarser encoder is read exactly, a finer one's count is
+#: below any noise worth telling a controller)
+LATTICE_COUNTS = (256, 65536)
+_LATTICE_BINS = 1 << 18  # histogram bins over a revolution (24 urad: the binning keeps 0.99 of R at 8192 counts)
+_RAYLEIGH_MIN = 100.0  # n R^2 above which a lattice is taken (about exp(-100) for a reading on none)
+_PEAK_RATIO = 3.0  # R at the lattice's count over R at the counts beside it: a sharp peak, not a bunched angle
+
+
+def noisy_lattice(theta: np.ndarray) -> tuple[int, float] | None:
+    """The counts per revolution and the white noise (rad) of an encoder whose readings carry noise after the count.
+
+    An encoder of N counts per revolution reads whole counts 2 pi / N, whatever offset its zero has; white noise of
+    standard deviation s added after the count leaves the readings on that lattice in distribution: the angle
+    modulo one revolution has the Fourier coefficient R(N) = exp(-N^2 s^2 / 2) at N (the characteristic function of
+    the noise), and about 0 at the counts N is not a divisor of.  One FFT of the readings' histogram over a
+    revolution gives R at every whole count; the coarsest count whose Rayleigh statistic n R^2 is significant and
+    whose R stands out of the counts beside it (a sharp peak: a disc parked at one angle bunches its readings and
+    raises R at every count alike) is the encoder's, and s = sqrt(-2 ln R) / N.
+
+    Parameters
+    ----------
+    theta : numpy.ndarray
+        The angle (rad); the disc must turn at least twice (the lattice's period in counts is then sharp).
+
+    Returns
+    -------
+    (int, float) or None
+        Counts per revolution and noise (rad); None where no lattice of :data:`LATTICE_COUNTS` shows.
+    """
+    theta = np.asarray(theta, dtype=float)
+    theta = theta[np.isfinite(theta)]
+    if theta.size < 100 or np.ptp(theta) < 4.0 * math.pi:
+        return None
+    phase = np.mod(theta, 2.0 * math.pi) * (_LATTICE_BINS / (2.0 * math.pi))
+    hist = np.bincount(np.minimum(phase.astype(np.int64), _LATTICE_BINS - 1), minlength=_LATTICE_BINS)
+    lo, hi = LATTICE_COUNTS
+    R = np.abs(np.fft.rfft(hist)[: hi + 5]) / theta.size
+    k = np.arange(lo, hi + 1)
+    beside = np.maximum.reduce([R[k + d] for d in (-4, -3, -2, 2, 3, 4)])
+    found = k[(theta.size * R[k] ** 2 > _RAYLEIGH_MIN) & (R[k] > _PEAK_RATIO * beside)]
+    if not found.size:
+        return None
+    n = int(found[0])
+    return n, math.sqrt(max(-2.0 * math.log(min(R[n], 1.0)), 0.0)) / n
+
+
 def encoders_of(readings) -> Encoders | None:
     """The encoders a recording's angle readings show (one encoder type on both discs): the finest reading's
     resolution where it lies on a lattice of counts (the nearest whole counts per revolution, when the count is
-    2 pi over one to within 0.1 %), else its error as white noise (:func:`angle_noise`).
+    2 pi over one to within 0.1 %); else, where noise after the count hides the lattice from the samples'
+    differences, the lattice its distribution still shows (:func:`noisy_lattice`, the reading with the most
+    samples' evidence) with that noise; else its error as white noise (:func:`angle_noise`).
 
     Parameters
     ----------
@@ -149,5 +198,9 @@ def encoders_of(readings) -> Encoders | None:
         cpr = round(2.0 * math.pi / q)
         if cpr >= 1 and abs(2.0 * math.pi / cpr - q) <= 1e-3 * q:
             return Encoders(cpr, 0.0)
+    lattices = [lat for lat in map(noisy_lattice, angles) if lat is not None]
+    if lattices:
+        cpr, noise = min(lattices, key=lambda lat: lat[1])  # the quieter reading tells the count best
+        return Encoders(cpr, noise)
     noise = finest_angle_noise(angles)
     return None if noise is None else Encoders(None, noise)
