@@ -155,6 +155,12 @@ class Identified:
         out = [f"identified model: {m.label} ({eff})"]
         for spec in self.discovered:
             out.append(f"  with the candidate {spec.rsplit(':', 1)[1]} ({spec.rsplit(':', 1)[0]})")
+        enc = m.encoders
+        if enc is not None and enc.counts_per_rev is not None:
+            noise = f", {enc.angle_noise * 1e3:.3g} mrad of noise after the count" if enc.angle_noise > 0 else ""
+            out.append(f"  encoders: {enc.counts_per_rev} counts/rev{noise} (told to the controllers built on it)")
+        elif enc is not None:
+            out.append(f"  encoders: on no lattice of counts, {enc.angle_noise * 1e3:.3g} mrad of reading noise")
         if self.residual_to_noise:
             res = ", ".join(f"{c} {r:.3g}" for c, r in self.residual_to_noise.items())
             out.append(f"  residual left, times the noise: {res}")

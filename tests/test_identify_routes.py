@@ -70,6 +70,9 @@ def test_the_model_file_is_the_identified_model(routes, recording):
     assert m.provenance.route == "identify" and m.provenance.recording == recording.name
     assert len(m.provenance.recording_sha256) == 64
     assert m.encoders == Encoders(8000, 0.0)  # the recording's encoders: whole counts of 8000 per revolution
+    from drillgym import identify
+
+    assert "  encoders: 8000 counts/rev (told to the controllers built on it)" in identify(recording).lines()
     import controllers
 
     built = controllers.make("lqg-2enc", model=routes["identify"], omega_ref=2.0)
