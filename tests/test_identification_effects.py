@@ -92,6 +92,7 @@ def test_cubic_string_drillgym_recording(tmp_path):
     # the written model is reusable: compare with --params reads the effect back and fits as well as after
     model = Model.load(out)
     assert model.values == {"c3": js["fitted"]["c3"]} and model.specs[0].endswith("string_cubic.py:string_cubic")
+    assert model.encoders.counts_per_rev == 8000  # the recording's encoders, as the whole identification reads them
     r = CliRunner().invoke(
         app,
         ["compare", str(tmp_path / "rec.csv"), "--params", str(out), "--segment", "4", "--out", str(tmp_path / "cmp")],

@@ -425,6 +425,7 @@ def identify_cmd(
     from ..diagnosis.report import write_report
     from ..diagnosis.screening import default_segment
     from ..effects import compose as compose_effects
+    from ..identification.reading_noise import encoders_of
     from ..model import Model
     from .effect_options import check_effects_act, parse_effect_params
 
@@ -483,7 +484,9 @@ def identify_cmd(
         if "effect parameter" in msg:
             raise named("--effect-param", exc) from exc
         raise
-    fitted = Model.from_composition(res.params, res.composition, res.effect_values, res.std)
+    readings = (ex.recording.columns.get(c) for c in ("theta_u", "theta_l")) if ex.recording is not None else ()
+    encoders = encoders_of(readings) or mf.encoders  # what the recording shows, as identify() reads it
+    fitted = Model(res.params, tuple(res.composition.effects), res.effect_values, res.std, encoders=encoders)
     fitted.save(output_file(out, "--out", suffixes=(".json", ".yaml", ".yml")))
     records = fitted.records()
     if report is not None:
