@@ -240,9 +240,10 @@ def test_an_effect_that_does_not_act_in_the_configuration_is_refused(make: str) 
     assert "lateral_anisotropy" in env.unwrapped.options.effects.names
 
 
-def test_a_model_whose_effect_does_not_act_is_refused_naming_the_model():
-    """The env's model= holds the effects: a refusal of one names 'model', the option the caller gave."""
-    from drillgym.errors import DrillgymError
-
-    with pytest.raises(DrillgymError, match=r"option 'model'.*lateral_anisotropy.*torsional"):
-        gym.make("drillgym/Torsional-v0", model=drillgym.Model(effects=("lateral_anisotropy",)))
+def test_a_models_effect_that_does_not_act_is_left_out_with_a_warning():
+    """The env's model= is the whole rig's: an effect of it that does not act in the env's configuration is left
+    out, with a warning naming it (an effect named by hand is refused, above)."""
+    model = drillgym.Model(effects=("motor_lag", "lateral_anisotropy"), values={"tau_m": 0.03})
+    with pytest.warns(UserWarning, match="effect lateral_anisotropy does not act in the torsional configuration"):
+        env = gym.make("drillgym/Torsional-v0", model=model)
+    assert env.unwrapped.options.effects.names == ("motor_lag",)
