@@ -204,7 +204,7 @@ def identify(recording: TimeSeries | str | Path, options: IdentifyOptions | None
 
     from .diagnosis import DiagnosisOptions, diagnose
     from .diagnosis.reselection import kept_in_turn
-    from .identification.reading_noise import encoders_of
+    from .identification.reading_noise import recording_encoders
 
     unknown = sorted(set(settings) - {f.name for f in fields(IdentifyOptions)})
     if unknown:
@@ -251,8 +251,7 @@ def identify(recording: TimeSeries | str | Path, options: IdentifyOptions | None
         settings=o.to_json(),
         version=_version(),
     )
-    readings = (ts.columns.get(c) for c in ("theta_u", "theta_l"))
-    model = Model(res.params, tuple(comp.effects), fitted, std, prov, encoders_of(readings))
+    model = Model(res.params, tuple(comp.effects), fitted, std, prov, recording_encoders(ts, start.encoders))
     ratios = {c: float(res.rms_after[c] / n) for c, n in (res.noise or {}).items() if c in res.rms_after and n > 0}
     names = [e.name for e in comp.effects]
     selected = tuple(n for n in names if _is_library(comp, n))

@@ -425,7 +425,7 @@ def identify_cmd(
     from ..diagnosis.report import write_report
     from ..diagnosis.screening import default_segment
     from ..effects import compose as compose_effects
-    from ..identification.reading_noise import encoders_of
+    from ..identification.reading_noise import recording_encoders
     from ..model import Model
     from .effect_options import check_effects_act, parse_effect_params
 
@@ -484,8 +484,7 @@ def identify_cmd(
         if "effect parameter" in msg:
             raise named("--effect-param", exc) from exc
         raise
-    readings = (ex.recording.columns.get(c) for c in ("theta_u", "theta_l")) if ex.recording is not None else ()
-    encoders = encoders_of(readings) or mf.encoders  # what the recording shows, as identify() reads it
+    encoders = recording_encoders(ex.recording, mf.encoders)  # as identify() reads them
     fitted = Model(res.params, tuple(res.composition.effects), res.effect_values, res.std, encoders=encoders)
     fitted.save(output_file(out, "--out", suffixes=(".json", ".yaml", ".yml")))
     records = fitted.records()

@@ -19,7 +19,7 @@ from ..model_files import Encoders
 
 __all__ = [
     "MIN_COUNT_RAD", "ANGLE_FLOOR_RAD", "encoder_count", "scatter", "angle_noise", "finest_angle_noise", "encoders_of",
-    "noisy_lattice",
+    "noisy_lattice", "recording_encoders",
 ]  # fmt: skip
 
 MIN_COUNT_RAD = 1e-7  # rad: differences below this are round-off, not encoder counts (1e-7 rad ~ 6e7 counts/rev)
@@ -178,8 +178,8 @@ def encoders_of(readings) -> Encoders | None:
     """The encoders a recording's angle readings show (one encoder type on both discs): the finest reading's
     resolution where it lies on a lattice of counts (the nearest whole counts per revolution, when the count is
     2 pi over one to within 0.1 %); else, where noise after the count hides the lattice from the samples'
-    differences, the lattice its distribution still shows (:func:`noisy_lattice`, the reading with the most
-    samples' evidence) with that noise; else its error as white noise (:func:`angle_noise`).
+    differences, the lattice its distribution still shows (:func:`noisy_lattice`, the quieter reading's) with that
+    noise; else its error as white noise (:func:`angle_noise`).
 
     Parameters
     ----------
@@ -204,3 +204,24 @@ def encoders_of(readings) -> Encoders | None:
         return Encoders(cpr, noise)
     noise = finest_angle_noise(angles)
     return None if noise is None else Encoders(None, noise)
+
+
+def recording_encoders(recording, known: Encoders | None = None) -> Encoders | None:
+    """The encoders a recording's angle columns show (:func:`encoders_of` of ``theta_u`` and ``theta_l``), or
+    ``known`` (the starting model's) where its readings show none; every route that writes a model from a
+    recording takes them from here.
+
+    Parameters
+    ----------
+    recording : drillgym.io.TimeSeries or None
+        The recording; None: ``known``.
+    known : Encoders, optional
+        The encoders the model the identification started from carries.
+
+    Returns
+    -------
+    drillgym.model_files.Encoders or None
+    """
+    if recording is None:
+        return known
+    return encoders_of(recording.columns.get(c) for c in ("theta_u", "theta_l")) or known
