@@ -247,3 +247,24 @@ def test_a_models_effect_that_does_not_act_is_left_out_with_a_warning():
     with pytest.warns(UserWarning, match="effect lateral_anisotropy does not act in the torsional configuration"):
         env = gym.make("drillgym/Torsional-v0", model=model)
     assert env.unwrapped.options.effects.names == ("motor_lag",)
+
+
+def test_a_models_encoders_set_the_envs_resolution(tmp_path):
+    """An env on a model that carries its encoders reads through them (the counts the recording showed), from the
+    model or its file; counts_per_rev given beside it wins, and a model without a count keeps the default."""
+    coarse = drillgym.Model(encoders=drillgym.Encoders(counts_per_rev=2048, angle_noise=0.0))
+    path = coarse.save(tmp_path / "model.json")
+    for given in (coarse, path):
+        env = gym.make("drillgym/Torsional-v0", model=given, observation="sensors")
+        assert env.unwrapped.options.counts_per_rev == 2048
+        env.reset(seed=0)
+        sensors = env.unwrapped.batch.obs_model.sensors
+        state = np.zeros((1, 8))  # the base state (no effect states)
+        state[0, :2] = 0.1234, -0.4321
+        theta_u, theta_l = (float(a[0]) for a in sensors.encoders(state))
+        step = 2 * math.pi / 2048
+        assert theta_u == math.floor(0.1234 / step) * step and theta_l == math.floor(-0.4321 / step) * step
+    assert gym.make("drillgym/Torsional-v0", model=coarse, counts_per_rev=0).unwrapped.options.counts_per_rev == 0
+    plain = drillgym.Model(encoders=drillgym.Encoders(counts_per_rev=None, angle_noise=2e-4))
+    default = gym.make("drillgym/Torsional-v0").unwrapped.options.counts_per_rev
+    assert gym.make("drillgym/Torsional-v0", model=plain).unwrapped.options.counts_per_rev == default == 8000

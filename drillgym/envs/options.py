@@ -91,7 +91,8 @@ class EnvOptions:
         :meth:`drillgym.Model.load` without ``trust``): its base parameters, effects and effect values,
         run through the same compiled composition as ``simulate(..., model=m)``.  Refused beside
         ``params``, ``effects`` or ``effect_params`` (the model holds its own).  It is resolved into
-        those three fields (the field then reads None; :attr:`rig_model` gives the model back).
+        those three fields (the field then reads None; :attr:`rig_model` gives the model back); the
+        encoders it carries (:attr:`drillgym.Model.encoders`) set ``counts_per_rev`` unless it is given.
     params : RigParams, optional
         Parameter set of the rig; default the identified set.
     randomize : float, optional
@@ -131,7 +132,8 @@ class EnvOptions:
     ssi_window : float, optional
         Window (s) of the running stick-slip severity reported in the info.  Default 5.
     counts_per_rev : int, optional
-        Encoder resolution (counts per revolution, both discs; 0: exact angles).  Default 8000.
+        Encoder resolution (counts per revolution, both discs; 0: exact angles).  Default: the model's
+        encoders' (``model`` carrying :class:`drillgym.Encoders` with a count), else 8000.
     lvdt_noise_std : float, optional
         LVDT noise (m, standard deviation).  Default 3e-6.
     velocity_filter_tau : float, optional
@@ -164,7 +166,7 @@ class EnvOptions:
     max_lateral: float = 0.02
     reward: RewardWeights = field(default_factory=RewardWeights)
     ssi_window: float = 5.0
-    counts_per_rev: int = DEFAULT_COUNTS_PER_REV
+    counts_per_rev: int | None = None
     lvdt_noise_std: float = DEFAULT_LVDT_NOISE
     velocity_filter_tau: float = 0.02
     motor_history: int = 16
@@ -180,16 +182,19 @@ class EnvOptions:
         if self.observation not in OBSERVATION_MODES:
             raise InputError(f"option 'observation' must be one of {OBSERVATION_MODES}, got {self.observation!r}")
         effects_option = "option 'effects'"
+        counts = DEFAULT_COUNTS_PER_REV
         if self.model is not None:  # resolved into params, effects, effect_params (refused beside them)
-            from ..model import model_arguments
+            from ..model import as_model, model_arguments
 
             effects_option = "option 'model': the model's effects"
-
-            p, e, v = model_arguments(
-                self.model, self.params, self.effects, self.effect_params, "option 'model'", cfg.label
-            )
+            model = as_model(self.model, who="option 'model'")
+            if model.encoders is not None and model.encoders.counts_per_rev is not None:
+                counts = model.encoders.counts_per_rev
+            p, e, v = model_arguments(model, self.params, self.effects, self.effect_params, "option 'model'", cfg.label)
             for name, value in (("params", p), ("effects", e), ("effect_params", v), ("model", None)):
                 object.__setattr__(self, name, value)
+        if self.counts_per_rev is None:
+            object.__setattr__(self, "counts_per_rev", counts)
         if self.params is not None and not isinstance(self.params, RigParams):
             raise InputError(f"option 'params' must be a RigParams, got {type(self.params).__name__}")
         self._positive("control_dt", self.control_dt, hi=1.0)
