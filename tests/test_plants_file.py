@@ -65,9 +65,11 @@ def test_two_plants_of_different_effects_run_as_written(tmp_path):
 def test_a_plant_keeps_its_base_parameters_and_encoder_the_others_nominal(tmp_path):
     from controllers.evaluation.plants_file import load_plants
 
-    text = "plants:\n  - params: {Ts: 0.3}\n    encoder: {counts_per_rev: 2048, angle_noise: 1.0e-4}\n"
+    text = "plants:\n  - params: {Ts: 0.3}\n    encoders: {counts_per_rev: 2048, angle_noise: 1.0e-4}\n"
     f = write(tmp_path, text)
     (plant,) = load_plants(f).plants
+    (older,) = load_plants(write(tmp_path, text.replace("encoders:", "encoder:"), "older.yaml")).plants
+    assert (older.counts_per_rev, older.angle_noise) == (2048, 1e-4)
     nominal = RigParams().replace(km=4.0)
     (on_nominal,) = load_plants(f, params=nominal).plants
     assert plant.name == "plant 0" and plant.model.params == RigParams().replace(Ts=0.3)
@@ -138,9 +140,14 @@ BAD = {
         "unknown effect parameter 'delay'",
     ),
     "bad encoder": (
-        "plants:\n  - name: x\n    encoder: {counts_per_rev: 0}\n",
+        "plants:\n  - name: x\n    encoders: {counts_per_rev: 0}\n",
         "plant 'x' (#0)",
         "counts_per_rev must be an integer >= 1",
+    ),
+    "encoders twice": (
+        "plants:\n  - name: x\n    encoders: {counts_per_rev: 2048}\n    encoder: {counts_per_rev: 2048}\n",
+        "plant 'x' (#0)",
+        "give 'encoders' once",
     ),
     "unknown key": ("plants:\n  - name: x\n    efects: [motor_lag]\n", "plant 'x' (#0)", "unknown key 'efects'"),
     "repeated name": ("plants:\n  - name: x\n  - name: x\n", "plant 'x' (#1)", "plant #0 has that name"),

@@ -11,7 +11,9 @@ Instead of drawing plants from an uncertainty set (:mod:`.population`), the user
           - motor_lag                     # a library effect with its default values
           - {spec: input_delay, values: {delay: 0.01}}
           - {spec: my_effects.py:backlash, values: {gap: 0.002}}   # an effect file beside this file
-        encoder: {counts_per_rev: 2048, angle_noise: 5.0e-4}      # default 8000 counts/rev, no noise (rad)
+        encoders: {counts_per_rev: 2048, angle_noise: 5.0e-4}     # default 8000 counts/rev, no noise (rad)
+
+``encoders`` is the model file's key (:attr:`drillgym.Model.encoders`); the older spelling ``encoder`` is read too.
 
 An effect file is code: it must lie in the plants file's folder (or below it), unless the caller trusts it
 (``trust=True``, ``--trust``), and when its record gives a ``sha256`` the file must still have it.
@@ -46,7 +48,9 @@ from .population import PlantPopulation
 __all__ = ["Plant", "PlantSet", "load_plants"]
 
 #: the keys of one plant of the file
-_KEYS = ("name", "params", "effects", "encoder")
+_KEYS = ("name", "params", "effects", "encoders")
+#: the encoders' key as files written before the model file named it
+_OLD_ENCODERS_KEY = "encoder"
 
 
 @dataclass(frozen=True)
@@ -168,7 +172,7 @@ def _encoder(raw: Any, where: str) -> tuple[int, float]:
     if raw is None:
         return DEFAULT_COUNTS_PER_REV, 0.0
     if not isinstance(raw, Mapping) or set(raw) - {"counts_per_rev", "angle_noise"}:
-        raise InputError(f"{where}: 'encoder' holds counts_per_rev and angle_noise, got {raw!r}")
+        raise InputError(f"{where}: 'encoders' holds counts_per_rev and angle_noise, got {raw!r}")
     cpr = raw.get("counts_per_rev", DEFAULT_COUNTS_PER_REV)
     if isinstance(cpr, bool) or not isinstance(cpr, int) or cpr < 1:
         raise InputError(f"{where}: encoder counts_per_rev must be an integer >= 1 (counts/rev), got {cpr!r}")
@@ -182,7 +186,7 @@ def _plant(entry: Any, k: int, path: Path, source: str, trust: bool, params: Rig
     where = _where(source, k, entry)
     if not isinstance(entry, Mapping):
         raise InputError(f"{where}: a plant is a mapping ({', '.join(_KEYS)}), got {entry!r}")
-    unknown = sorted(map(str, set(entry) - set(_KEYS)))
+    unknown = sorted(map(str, set(entry) - set(_KEYS) - {_OLD_ENCODERS_KEY}))
     if unknown:
         raise InputError(f"{where}: unknown key {unknown[0]!r}; a plant has {', '.join(_KEYS)}")
     name = entry.get("name", f"plant {k}")
@@ -201,7 +205,9 @@ def _plant(entry: Any, k: int, path: Path, source: str, trust: bool, params: Rig
             model = model.replace(params=params.replace(**{n: getattr(model.params, n) for n in given}))
         except InputError as exc:
             raise InputError(f"{where}: {exc}") from None
-    cpr, noise = _encoder(entry.get("encoder"), where)
+    if "encoders" in entry and _OLD_ENCODERS_KEY in entry:
+        raise InputError(f"{where}: give 'encoders' once ('{_OLD_ENCODERS_KEY}' is its older spelling)")
+    cpr, noise = _encoder(entry.get("encoders", entry.get(_OLD_ENCODERS_KEY)), where)
     return Plant(name.strip(), model, cpr, noise, tuple(map(str, given)))
 
 
