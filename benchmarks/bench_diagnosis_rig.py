@@ -101,6 +101,14 @@ class _Rig:
             v = float(np.interp(tt, self.t, self.u)) if tt >= 0 else float(self.u[0])
         return um if um is not None else v
 
+    def motor_voltage(self, v: float) -> float:
+        """The voltage the motor turns into torque, from the voltage v reaching it (V): v itself here."""
+        return v
+
+    def cogging(self, tu: float) -> float:
+        """An extra torque on the upper disc at its angle tu (N m): none here."""
+        return 0.0
+
     def upper_friction(self, w: float) -> float:
         p, s = self.p, math.tanh(w / self.eps)
         T = (p.Tcu * s + p.dTcu * abs(s)) + p.bu * w + p.dbu * abs(w)
@@ -160,13 +168,13 @@ class _Rig:
         p, fx = self.p, self.fx
         x, y, a, tu, xd, yd, ad, W = s[:8]
         um = s[8] if "motor_lag" in fx else None
-        v = self.drive(tt, um)
+        v = self.motor_voltage(self.drive(tt, um))
         m, mr, e = p.mr + p.mt, p.mr, p.e
         c, sn = math.cos(a), math.sin(a)
         wl = W + ad
         tl = a + tu
         Tfl = self.lower_friction(tt, wl, tl)
-        Tfu = self.upper_friction(W)
+        Tfu = self.upper_friction(W) - self.cogging(tu)
         S = self.string_torque(a, ad)
         cu, su = math.cos(tu), math.sin(tu)
         # extra lateral forces, fixed frame -> rotating frame and the θu generalised force
@@ -242,15 +250,17 @@ def rig_recording(
     offset: float = 1.0,
     amplitude: float = 3.0,
     alpha0: float = 0.0,
+    rig_class: type[_Rig] = _Rig,
 ) -> TimeSeries:
     """A recording of the independent rig (see the module docstring).  ``config``: 'torsional' or
     'coupled'; ``effects``: {effect name: its parameters} (library names, :data:`OUTSIDE`, :data:`OUTSIDE_LATERAL` and
     :data:`OUTSIDE_READING`);
-    ``scale``: factors on base parameters (the rig's base parameters differ from the identified set)."""
+    ``scale``: factors on base parameters (the rig's base parameters differ from the identified set);
+    ``rig_class``: the rig's equations (a subclass adds effects of its own)."""
     effects = dict(effects or {})
     p = RigParams().scaled(**scale) if scale else RigParams()
     t, u = input_signal(signal, duration, rate_hz, seed, offset, amplitude)
-    rig = _Rig(config, p, effects, t, u)
+    rig = rig_class(config, p, effects, t, u)
     lag = "motor_lag" in effects
     if config == "torsional":
         y0 = [0.0, alpha0, 0.0, 0.0] + ([u[0]] if lag else [])

@@ -57,6 +57,7 @@ from .results import Candidate
 from .sparse import ResidualTorque
 from .state import transfer
 from .timing import LAG_DELAY
+from .unexplained import EXPLAINED_RATIO
 
 __all__ = ["Candidate", "find_candidate", "write_effect_file", "advice", "discover", "MIN_EXPLAINED_SHARE"]
 
@@ -435,7 +436,9 @@ def advice(ex: Experiment, rt: ResidualTorque | None) -> list[str]:
     return out
 
 
-MIN_RESIDUAL_UNITS = 4.0  # noise units: a model closer than this to the data leaves nothing to discover
+#: noise units: a model closer than this to the data on every channel leaves nothing to discover (the verdict's
+#: *explained*: discovery looks wherever the diagnosis says a misfit remains)
+MIN_RESIDUAL_UNITS = EXPLAINED_RATIO
 
 
 def discover(
@@ -470,9 +473,9 @@ def discover(
     if diagnosis.vector is None or ex.config.label == "upper":
         return None, []
     residual = diagnosis.rmse_after if diagnosis.rmse_after is not None else diagnosis.rmse_before
-    if diagnosis.sensor_misfit and diagnosis.unexplained is not None:
-        # misfit-weighted units are ~1 by design: the worst channel in noise units (pooled, the encoders' smaller
-        # misfit hid the LVDTs' residual of a lateral force that k and b took to their bounds)
+    if diagnosis.unexplained is not None:
+        # the worst channel in noise units, as the verdict judges (pooled, the encoders' smaller misfit hid the
+        # LVDTs' residual of a lateral force that k and b took to their bounds; misfit-weighted units are ~1)
         residual = diagnosis.unexplained.worst
     if residual < MIN_RESIDUAL_UNITS:
         return None, []
