@@ -296,3 +296,18 @@ def test_a_models_encoders_travel_through_its_file(tmp_path):
     (tmp_path / "bad.json").write_text('{"params": {}, "encoders": {"counts_per_rev": 20.5}}')
     with pytest.raises(ParameterError, match="bad.json: encoders: counts_per_rev must be a whole number >= 1"):
         Model.load(tmp_path / "bad.json")
+
+
+def test_rig_emulate_reads_through_the_models_encoders(tmp_path):
+    """`rig emulate --model` emulates the encoders the model carries (what identify read off the recording) unless
+    --counts-per-rev is given; without a model, 8000."""
+    from hw.commands.rig import emulated_plant
+
+    coarse = Model(
+        RigParams(), ("motor_lag",), {"tau_m": 0.03}, encoders=drillgym.Encoders(counts_per_rev=2048, angle_noise=0.0)
+    )
+    path = coarse.save(tmp_path / "coarse.json")
+    base, comp, values, counts = emulated_plant(path, False, "torsional", None, None, None, None)
+    assert (counts, comp.names, values["tau_m"]) == (2048, ("motor_lag",), 0.03)
+    assert emulated_plant(path, False, "torsional", None, None, None, 4096)[3] == 4096
+    assert emulated_plant(None, False, "torsional", None, None, None, None)[3] == 8000

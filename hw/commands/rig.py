@@ -36,6 +36,7 @@ from drillgym.commands.options import excludes, requires
 from drillgym.commands.outputs import CREATES_DIRS
 from drillgym.commands.plant import describe_plant, plant_from_cli
 from drillgym.errors import InputError, MissingFileError, SafetyError
+from drillgym.measurement import DEFAULT_COUNTS_PER_REV
 
 from .rig_ops import INTERRUPT_EXIT, STOP_EXIT, ClampNotice, stop_reason
 
@@ -81,7 +82,9 @@ def emulate_cmd(
         "the emulated plant runs, hidden from the host; not with --params, --add-effect or --effect-param"
     ),
     trust: bool = trust_option(),
-    counts_per_rev: int = typer.Option(8000, help="encoder counts per revolution"),
+    counts_per_rev: int | None = typer.Option(
+        None, help="encoder counts per revolution [default: the encoders the --model file carries, else 8000]"
+    ),
     lvdt_noise: float = typer.Option(3e-6, help="LVDT noise standard deviation (m)"),
     latency_ms: float = typer.Option(0.0, help="serial latency of every reply (ms)"),
     jitter_ms: float = typer.Option(0.0, help="extra uniform random latency up to this (ms)"),
@@ -105,19 +108,10 @@ def emulate_cmd(
     _check_emulate_options(
         port, config, counts_per_rev, lvdt_noise, latency_ms, jitter_ms, period_ms, watchdog_ms, dt, alpha0, seed
     )
-    if model_file is not None:
-        from drillgym.configurations import parse_configuration
-
-        m = model_from_cli(
-            model_file, trust, parse_configuration(config), params=params, add_effect=add_effect,
-            effect_param=effect_param,
-        )  # fmt: skip
-        base, comp, values = m.params, m.composition, dict(m.values)
-    else:
-        from drillgym.configurations import parse_configuration
-
-        base, comp, values = plant_from_cli(params, add_effect, effect_param, configs=(parse_configuration(config),))
-    fw = FirmwareConfig(counts_per_rev=counts_per_rev, control_period_s=period_ms * 1e-3, watchdog_s=watchdog_ms * 1e-3)
+    base, comp, values, counts = emulated_plant(
+        model_file, trust, config, params, add_effect, effect_param, counts_per_rev
+    )
+    fw = FirmwareConfig(counts_per_rev=counts, control_period_s=period_ms * 1e-3, watchdog_s=watchdog_ms * 1e-3)
     import time
 
     from hw.realtime import freeze_heap, prioritize
@@ -464,6 +458,27 @@ def _check_run_options(
     return opts
 
 
+def emulated_plant(model_file, trust, config, params, add_effect, effect_param, counts_per_rev):
+    """``rig emulate``'s plant: (base RigParams, Composition, effect values, encoder counts/rev).  The model of
+    ``model_file``, or the parameters and hidden effects of ``params`` and ``add_effect``; the encoders' counts are
+    ``counts_per_rev`` when given, else the model's encoders' (what ``identify`` read off the recording), else
+    8000."""
+    from drillgym.configurations import parse_configuration
+
+    counts = DEFAULT_COUNTS_PER_REV
+    if model_file is not None:
+        m = model_from_cli(
+            model_file, trust, parse_configuration(config), params=params, add_effect=add_effect,
+            effect_param=effect_param,
+        )  # fmt: skip
+        base, comp, values = m.params, m.composition, dict(m.values)
+        if m.encoders is not None and m.encoders.counts_per_rev is not None:
+            counts = m.encoders.counts_per_rev
+    else:
+        base, comp, values = plant_from_cli(params, add_effect, effect_param, configs=(parse_configuration(config),))
+    return base, comp, values, counts if counts_per_rev is None else counts_per_rev
+
+
 def _check_emulate_options(
     port, config, counts_per_rev, lvdt_noise, latency_ms, jitter_ms, period_ms, watchdog_ms, dt, alpha0, seed
 ) -> None:
@@ -479,7 +494,8 @@ def _check_emulate_options(
         if not port.is_symlink():
             check_creatable(port, "--port", "link")
     _check_config(config)
-    integer(counts_per_rev, "--counts-per-rev", low=1, high=2**31 - 1)
+    if counts_per_rev is not None:
+        integer(counts_per_rev, "--counts-per-rev", low=1, high=2**31 - 1)
     number(lvdt_noise, "--lvdt-noise", low=0.0, high=1.0, unit="m")
     number(latency_ms, "--latency-ms", low=0.0, high=60000.0, unit="ms")
     number(jitter_ms, "--jitter-ms", low=0.0, high=60000.0, unit="ms")
