@@ -36,7 +36,6 @@ from drillgym.commands.options import excludes, requires
 from drillgym.commands.outputs import CREATES_DIRS
 from drillgym.commands.plant import describe_plant, plant_from_cli
 from drillgym.errors import InputError, MissingFileError, SafetyError
-from drillgym.measurement import DEFAULT_COUNTS_PER_REV
 
 from .rig_ops import INTERRUPT_EXIT, STOP_EXIT, ClampNotice, stop_reason
 
@@ -464,6 +463,7 @@ def emulated_plant(model_file, trust, config, params, add_effect, effect_param, 
     ``counts_per_rev`` when given, else the model's encoders' (what ``identify`` read off the recording), else
     8000."""
     from drillgym.configurations import parse_configuration
+    from drillgym.measurement import DEFAULT_COUNTS_PER_REV
 
     counts = DEFAULT_COUNTS_PER_REV
     if model_file is not None:
