@@ -472,8 +472,8 @@ def emulated_plant(model_file, trust, config, params, add_effect, effect_param, 
             effect_param=effect_param,
         )  # fmt: skip
         base, comp, values = m.params, m.composition, dict(m.values)
-        if m.encoders is not None and m.encoders.counts_per_rev is not None:
-            counts = m.encoders.counts_per_rev
+        if m.encoders is not None:  # the count the controllers built on the model are told, where known
+            counts = m.encoders.controller_keywords().get("counts_per_rev", counts)
     else:
         base, comp, values = plant_from_cli(params, add_effect, effect_param, configs=(parse_configuration(config),))
     return base, comp, values, counts if counts_per_rev is None else counts_per_rev
