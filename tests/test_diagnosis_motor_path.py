@@ -90,7 +90,24 @@ def test_a_negative_offset_is_also_read_as_a_dead_zone():
     assert variant.widths == {"sat(u, 0.4)": pytest.approx(0.4)}
     assert "min(max(u, -U0), U0)" == variant.codes["sat(u, 0.4)"]
     assert dead_zone_variant(_candidate({"1": 0.2})) is None
-    assert dead_zone_variant(_candidate({"sat(u, 0.3)": -1.0, "1": -0.1})) is None
+    whole = _candidate({"sat(u, 0.3)": -1.0})
+    whole.widths = {"sat(u, 0.3)": 0.3}
+    assert dead_zone_variant(whole) is None
+
+
+def test_a_mixed_shift_of_the_voltage_is_read_as_one_dead_zone():
+    """A partial zone beside an offset (−0.39 sat(u, 0.5) − 0.21: what a regression on steps whose turning levels
+    all lie beyond 0.5 V takes for a 0.4 V dead zone) is read as one zone of the shift they make together on the
+    recording's commands beyond 0.5 V, the other terms kept; on commands that never pass the zone there is none."""
+    cand = _candidate({"sat(u, 0.5)": -0.39, "u³": -0.0034, "1": -0.21})
+    cand.widths = {"sat(u, 0.5)": 0.5}
+    u = np.repeat([2.7, -0.1, 0.01, 1.23, 1.06, 1.33, 0.45], 100)
+    variant = dead_zone_variant(cand, u)
+    assert variant is not None
+    (zone,) = (k for k in variant.terms if k.startswith("sat(u"))
+    assert variant.terms[zone] == -1.0 and variant.terms["u³"] == -0.0034 and "1" not in variant.terms
+    assert variant.widths[zone] == pytest.approx(0.39 * 0.5 + 0.21)
+    assert dead_zone_variant(cand, np.full(10, 0.3)) is None
 
 
 def test_a_dead_zone_behind_an_unselected_lag_is_found_through_the_lag():

@@ -535,8 +535,10 @@ def _fitted_form(
     removes more of the unexplained variance (the other is not kept)."""
     cand.fit = fit_candidate(screening, diagnosis, cand, noise_scales)
     cand = _lag_that_counts(screening, diagnosis, cand, noise_scales)
-    variant = dead_zone_variant(cand)
-    if variant is None or cand.fit is None or cand.fit.after.explained:
+    if cand.fit is None or cand.fit.after.explained:
+        return cand
+    variant = dead_zone_variant(cand, np.concatenate([ex.u_value for ex in screening.exps]))
+    if variant is None:
         return cand
     variant.fit = fit_candidate(screening, diagnosis, variant, noise_scales)
     variant = _lag_that_counts(screening, diagnosis, variant, noise_scales)

@@ -268,19 +268,63 @@ def _read_as(cand: Candidate, old: str, new: str, coefficient: float, code: str,
     )
 
 
-def dead_zone_variant(cand: Candidate) -> Candidate | None:
-    """The motor-side candidate with its negative offset read as a dead zone, or None when it has none.
+#: the voltage terms a dead zone's shift is made of where the motor turns (−w sign(u) beyond the zone)
+_SHIFT_TERMS = ("1", "sign(u)")
 
-    A constant ``c < 0`` (or ``c sign(u)``) among a candidate's voltage terms and a dead zone of half-width
-    ``|c|`` (``−sat(u, |c|)``) change the voltage alike wherever ``|u| > |c|``; inside the zone the motor sees no
-    voltage and the upper disc mostly sticks, where the residual torques are not known, so the regression cannot
-    tell them apart.  The candidate's fit on the recordings can (:func:`.candidate_fit.choose_candidate`)."""
+
+def dead_zone_variant(cand: Candidate, u: np.ndarray | None = None) -> Candidate | None:
+    """The motor-side candidate with its shift of the voltage read as one dead zone, or None when it has none.
+
+    A dead zone of half-width ``w`` (``−sat(u, w)``) changes the voltage by ``−w sign(u)`` wherever ``|u| > w``;
+    so does a constant ``−w`` on one-signed commands, a ``−w sign(u)``, and any mix of these with partial zones
+    (``c sat(u, w')``, ``|c| < 1``) on the commands beyond them.  Inside the zone the motor sees no voltage and the
+    upper disc mostly sticks, where the residual torques are not known, so the regression cannot tell these apart
+    and takes whichever mix its greedy order meets first.  The candidate's fit on the recordings can
+    (:func:`.candidate_fit.choose_candidate`): this variant puts the shift's terms (:data:`_SHIFT_TERMS` and the
+    zones) together as one zone, of the width the shift has beyond all of them, the other terms kept.
+
+    Parameters
+    ----------
+    cand : Candidate
+        The candidate.
+    u : numpy.ndarray, optional
+        The recording's command (V): the width is the median shift ``−S(u) sign(u)`` over the commands beyond every
+        zone of the candidate.  None: the shift just beyond the widest zone on a positive command.
+
+    Returns
+    -------
+    Candidate or None
+        The variant (a new candidate, no file, no fit); None when the candidate has no shift that narrows the
+        voltage, or its shift is one whole zone already.
+    """
     if cand.group != "motor_voltage":
         return None
-    label = next((k for k in ("1", "sign(u)") if cand.terms.get(k, 0.0) < 0.0), None)
-    if label is None or any(k.startswith("sat(u") for k in cand.terms):
+    zones = {k: w for k, w in cand.widths.items() if k.startswith("sat(u") and k in cand.terms}
+    shift = [k for k in cand.terms if k in _SHIFT_TERMS or k in zones]
+    if not shift or (len(shift) == 1 and shift[0] in zones and cand.terms[shift[0]] <= -0.5):
         return None
-    width = abs(cand.terms[label])
-    sat = next(t for t in _voltage_terms() if t.width is not None)
+    edge = max(zones.values(), default=0.0)
+    beyond = np.asarray(u, dtype=float) if u is not None else np.array([edge + 1e-9])
+    beyond = beyond[np.abs(beyond) > edge]
+    if beyond.size == 0:
+        return None
+    terms = {t.label: t for t in _voltage_terms()}
+    s = sum(cand.terms[k] * (np.clip(beyond, -zones[k], zones[k]) if k in zones else terms[k].values({"u": beyond}))
+            for k in shift)  # fmt: skip
+    width = float(np.median(-s * np.sign(beyond)))
+    if not width > 0.0:
+        return None
     zone = f"sat(u, {width:.3g})"
-    return _read_as(cand, label, zone, -1.0, sat.code, {**cand.widths, zone: width})
+    kept = [k for k in cand.terms if k not in shift]
+    sat = next(t for t in _voltage_terms() if t.width is not None)
+    return replace(
+        cand,
+        terms={**{k: cand.terms[k] for k in kept}, zone: -1.0},
+        codes={**{k: cand.codes[k] for k in kept}, zone: sat.code},
+        at_rest={**{k: cand.at_rest.get(k, 0.0) for k in kept}, zone: 0.0},
+        reach={k: v for k, v in cand.reach.items() if k in kept},
+        widths={**{k: w for k, w in cand.widths.items() if k in kept}, zone: width},
+        effect_file=None,
+        fit=None,
+        alternative=None,
+    )
