@@ -127,3 +127,31 @@ def test_an_effect_the_diagnosis_skipped_is_not_said_twice():
     lines = d.lines(said={"brake_asymmetry": "the lower disc hardly turns backwards"})
     assert len(lines) == 1 and "friction_drift" in lines[0] and "brake_asymmetry" not in lines[0]
     assert len(d.lines()) == 2
+
+
+def test_a_lower_disc_held_against_a_backward_pull_shows_the_brake_asymmetry():
+    """A run to 2.7 V then down to −0.1 V leaves the lower disc ahead of the motor by about 5 rad, pulled backwards
+    by more than the brake's static level: with a backward static level twice the forward one it holds and never
+    turns backwards, and the recording still shows the asymmetry (the backward level decides that it holds); a run
+    that stays at 1.5 V, whose disc never rests against such a pull, does not."""
+    from drillgym.diagnosis.screening import excitation_missing
+    from drillgym.identification.experiment import prepare_experiment
+
+    t = np.arange(0.0, 8.0, 1e-3)
+    brake_asymmetry = get_effect("brake_asymmetry")
+    said = {}
+    for after in (-0.1, 1.5):
+        ts = synthetic_measurement(
+            "torsional",
+            duration=8.0,
+            rate_hz=250.0,
+            input=(t, np.where(t < 2.0, 2.7, after)),
+            seed=3,
+            effects=["brake_asymmetry"],
+            effect_params={"asym_s": 1.0, "asym_c": 0.2},
+        )
+        ex = prepare_experiment(ts)
+        assert np.mean(ex.rates["omega_l"] < -0.1) < 0.02  # never turns backwards
+        said[after] = excitation_missing(brake_asymmetry, [ex])
+    assert said[-0.1] == ""
+    assert "needs negative rotation" in said[1.5]

@@ -119,7 +119,7 @@ def rank_effects(
     r0 = obj.residual_matrix(vec0[None, :])[0]
     ch0 = obj.channel_rms(vec0)
     skipped: dict[str, str] = {}
-    tried = _one_at_a_time(obj, vec0, comp0, candidates, exps, skipped, max_nfev)
+    tried = _one_at_a_time(obj, vec0, comp0, candidates, exps, skipped, max_nfev, base)
     if opts.refine_speeds:
         _second_pass(tried, n_second_pass, max_nfev)
     n_eff = effective_samples(r0, obj.block_ids)
@@ -144,9 +144,11 @@ def _one_at_a_time(
     exps: Sequence[Experiment],
     skipped: dict[str, str],
     max_nfev: int,
+    base: RigParams,
 ) -> dict:
     """Each candidate fitted alone in the model + candidate: {name: (effect, objective, start, fit)}; the
-    candidates not tried and those whose fits failed are recorded in ``skipped`` with why."""
+    candidates not tried and those whose fits failed are recorded in ``skipped`` with why (the recordings'
+    excitation judged with the base parameters ``base``)."""
     cfg = exps[0].config
     tried: dict = {}
     for eff in candidates:
@@ -157,7 +159,7 @@ def _one_at_a_time(
         if not applies_to(eff, cfg):
             skipped[name] = f"does not act in configuration '{cfg.label}'"
             continue
-        why = excitation_missing(eff, exps)
+        why = excitation_missing(eff, exps, base)
         if why:
             skipped[name] = why
             continue

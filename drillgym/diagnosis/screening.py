@@ -97,8 +97,22 @@ def condition(exps: Sequence[Experiment]) -> tuple[list[Experiment], dict[str, f
     return [c[0] for c in conditioned], {c: min(s[c] for _, s in conditioned) for c in conditioned[0][1]}
 
 
-def excitation_missing(effect: type[Effect], exps: Sequence[Experiment]) -> str:
+#: a lower disc at rest (rad/s) ...
+REST_SPEED = 0.1
+#: ... holding a backward pull of the string of at least this share of the brake's static level shows the level of
+#: the backward direction as well as a backward slip does (the stick set's lower edge decides whether it holds)
+HELD_BACK_SHARE = 0.8
+#: the share of samples turning backwards or held back that shows a direction-dependent brake
+NEGATIVE_SHARE = 0.02
+
+
+def excitation_missing(effect: type[Effect], exps: Sequence[Experiment], params: RigParams | None = None) -> str:
     """Why the recordings cannot show an effect (its ``needs``), or ''.
+
+    ``negative_rotation`` (a brake whose levels depend on the direction) is shown by samples where the lower disc
+    turns backwards, and by samples where it rests while the string pulls it backwards with at least
+    :data:`HELD_BACK_SHARE` of the static level (``kθ (θu − θl) ≤ −0.8 Ts``): there the backward static level
+    decides whether the disc holds.
 
     Parameters
     ----------
@@ -106,6 +120,8 @@ def excitation_missing(effect: type[Effect], exps: Sequence[Experiment]) -> str:
         The effect.
     exps : sequence of Experiment
         The recordings.
+    params : RigParams, optional
+        The base parameters the pull is measured with (default: the identified set).
 
     Returns
     -------
@@ -113,13 +129,27 @@ def excitation_missing(effect: type[Effect], exps: Sequence[Experiment]) -> str:
         The reason, or ''.
     """
     if "negative_rotation" in effect.needs:
-        neg = sum(np.sum(ex.rates["omega_l"] < -0.1) for ex in exps if "omega_l" in ex.rates)
-        tot = sum(ex.n for ex in exps)
-        if neg < 0.02 * tot:
-            return "the lower disc hardly turns backwards in these data (needs negative rotation)"
+        p = params or RigParams()
+        shown = sum(_backwards(ex, p) for ex in exps if "omega_l" in ex.rates)
+        if shown < NEGATIVE_SHARE * sum(ex.n for ex in exps):
+            return (
+                "the lower disc hardly turns backwards, nor rests against a backward pull near its static friction, "
+                "in these data (needs negative rotation)"
+            )
     if "theta_l" in effect.needs and not any("theta_l" in ex.meas for ex in exps):
         return "the recording has no lower disc angle (needs theta_l)"
     return ""
+
+
+def _backwards(ex: Experiment, p: RigParams) -> int:
+    """Samples where the lower disc turns backwards, or rests held against a backward pull (:data:`HELD_BACK_SHARE`
+    of Ts)."""
+    wl = ex.rates["omega_l"]
+    back = wl < -REST_SPEED
+    if "theta_u" in ex.meas and "theta_l" in ex.meas:
+        pull = p.ktheta * (ex.meas["theta_u"] - ex.meas["theta_l"])
+        back |= (np.abs(wl) <= REST_SPEED) & (pull <= -HELD_BACK_SHARE * p.Ts)
+    return int(np.sum(back))
 
 
 def screen(
@@ -156,7 +186,7 @@ def screen(
     candidates = [get_effect(e) for e in options.effects] if options.effects else effects_for(cfg)
     segment_s = segment_length(options.segment_s, exps)
     exps, scales = condition(exps)
-    usable, held, skipped = _sort_candidates(candidates, comp0, cfg, exps)
+    usable, held, skipped = _sort_candidates(candidates, comp0, cfg, exps, base)
     # the candidates the data cannot show stay in the model at their neutral values (the kernels skip them)
     in_model = [e for e in candidates if e in usable or e in held]  # the candidates' order: one composition
     comp = search_composition(comp0, list(dict.fromkeys(in_model)))
@@ -172,7 +202,11 @@ def screen(
 
 
 def _sort_candidates(
-    candidates: Sequence[type[Effect]], comp0: Composition, cfg: Configuration, exps: Sequence[Experiment]
+    candidates: Sequence[type[Effect]],
+    comp0: Composition,
+    cfg: Configuration,
+    exps: Sequence[Experiment],
+    params: RigParams,
 ) -> tuple[list, list, dict[str, str]]:
     """(usable, held at their neutral values, skipped with why) of the candidates."""
     skipped: dict[str, str] = {}
@@ -185,8 +219,8 @@ def _sort_candidates(
             skipped[eff.name] = f"does not act in configuration '{cfg.label}'"
         elif eff.name in {u.name for u in usable + held}:
             continue
-        elif excitation_missing(eff, exps):
-            skipped[eff.name] = excitation_missing(eff, exps)
+        elif excitation_missing(eff, exps, params):
+            skipped[eff.name] = excitation_missing(eff, exps, params)
             if eff.neutral_values() is not None:
                 held.append(eff)
         else:
