@@ -5,7 +5,6 @@ finite-difference Jacobian, a Gaussian prior's rows, and the identifiability of 
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -156,6 +155,15 @@ class GaussianPrior:
         return self.w * (box.x0[idx] + box.scale[idx] * z[idx] - self.mean) / self.std
 
 
+#: singular values of the scaled Jacobian below this share of the largest are directions the data do not see
+#: (finite differences resolve the residual's change to about 1e-8 of its largest; the normal equations' inverse
+#: would cut at 1e-15 of the *squared* values and call such a direction's variance 0)
+BLIND_RCOND = 1e-8
+#: a variable is not identified when this share of it (the norm of its unit vector's projection) lies in the
+#: directions the data do not see (b and c entering only as b + c: 0.71 each)
+BLIND_SHARE = 0.3
+
+
 def identifiability(
     names: Sequence[str],
     values: np.ndarray,
@@ -167,25 +175,42 @@ def identifiability(
     box: ScaledBox,
     opts: FitOptions,
 ) -> tuple[np.ndarray, list[str]]:
-    """The standard errors of the fitted values, and the identifiability messages."""
+    """The standard errors of the fitted values, and the identifiability messages.
+
+    The covariance is s2 V S⁻² Vᵀ over the directions of the scaled Jacobian J = U S Vᵀ the data see (singular
+    values above :data:`BLIND_RCOND` of the largest).  A variable with :data:`BLIND_SHARE` of it in the directions
+    they do not see has an infinite standard error and is said not identifiable: the data do not depend on it (its
+    own column is below that share of the largest singular value), or only a combination of it with the others
+    said so changes the data.
+    """
     n = len(names)
     msgs: list[str] = []
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        cov = np.linalg.pinv(J.T @ J) * s2
+    _, sv, vt = np.linalg.svd(J, full_matrices=False)
+    top = float(sv[0]) if sv.size else 0.0
+    seen = sv > BLIND_RCOND * top if top > 0 else np.zeros(sv.size, dtype=bool)
+    cov = (vt[seen].T / sv[seen] ** 2) @ vt[seen] * s2
     std = box.scale * np.sqrt(np.clip(np.diag(cov)[:n], 0, None))
+    hidden = np.sqrt(np.sum(vt[~seen][:, :n] ** 2, axis=0)) if top > 0 else np.ones(n)
+    col = np.linalg.norm(J[:, :n], axis=0)
+    blind = (hidden >= BLIND_SHARE) | (col == 0)
+    alone = blind & (col <= BLIND_RCOND * top)
+    for i in np.flatnonzero(alone):
+        msgs.append(f"{names[i]}: the data do not depend on it (not excited): not identifiable")
+    together = np.flatnonzero(blind & ~alone)
+    if len(together):
+        msgs.append(
+            f"{', '.join(names[i] for i in together)}: only a combination of them changes the data: not separately "
+            "identifiable"
+        )
+    std[blind] = np.inf  # any value fits (the normal equations' inverse would say 0)
     J = J[:, :n]
-    col = np.linalg.norm(J, axis=0)
-    std[col == 0] = np.inf  # the data do not depend on it: any value fits (pinv would say 0)
-    if np.any(col == 0):
-        for i in np.flatnonzero(col == 0):
-            msgs.append(f"{names[i]}: the data do not depend on it (not excited): not identifiable")
-    elif n > 1:
-        _, sv, vt = np.linalg.svd(J / col, full_matrices=False)
-        gamma = 1.0 / max(sv[-1], 1e-300)  # collinearity index (unit-norm columns)
+    kept = np.flatnonzero(~blind & (col > 0))
+    if len(kept) > 1 and not blind.any():
+        _, sk, vk = np.linalg.svd(J[:, kept] / col[kept], full_matrices=False)
+        gamma = 1.0 / max(sk[-1], 1e-300)  # collinearity index (unit-norm columns)
         if gamma > opts.collinearity_limit:
-            v = np.abs(vt[-1])
-            involved = [names[i] for i in np.flatnonzero(v > 0.1 * v.max())]
+            v = np.abs(vk[-1])
+            involved = [names[kept[i]] for i in np.flatnonzero(v > 0.1 * v.max())]
             msgs.append(
                 f"near-singular JᵀJ (collinearity index {gamma:.0f} > {opts.collinearity_limit:.0f}): "
                 f"{', '.join(involved)} are not separately identifiable from these data"
