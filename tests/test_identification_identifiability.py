@@ -42,3 +42,14 @@ def test_parameters_only_their_combination_shows_are_said_together():
     std, msgs = _run(J)
     assert np.isfinite(std[0]) and np.all(np.isinf(std[1:]))
     assert msgs == ["b, c: only a combination of them changes the data: not separately identifiable"]
+
+
+def test_a_parameter_hidden_among_several_is_said_alone():
+    """a's column is the mean of four others seen on their own: the unseen direction a − (b + c + d + e) / 4 holds
+    0.89 of a and 0.22 of each other one, so a alone is not identified, said as a combination with the others."""
+    rng = np.random.default_rng(3)
+    others = rng.normal(size=(200, 4))
+    J = np.column_stack([others.mean(axis=1), others])
+    std, msgs = _run(J, names=("a", "b", "c", "d", "e"))
+    assert np.isinf(std[0]) and np.all(np.isfinite(std[1:]))
+    assert msgs == ["a: only its combination with other parameters changes the data: not identifiable on its own"]

@@ -197,7 +197,12 @@ def identifiability(
     for i in np.flatnonzero(alone):
         msgs.append(f"{names[i]}: the data do not depend on it (not excited): not identifiable")
     together = np.flatnonzero(blind & ~alone)
-    if len(together):
+    if len(together) == 1:
+        msgs.append(
+            f"{names[together[0]]}: only its combination with other parameters changes the data: not identifiable "
+            "on its own"
+        )
+    elif len(together):
         msgs.append(
             f"{', '.join(names[i] for i in together)}: only a combination of them changes the data: not separately "
             "identifiable"
