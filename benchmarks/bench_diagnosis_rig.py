@@ -37,7 +37,7 @@ HOLD = os.environ.get("DRILLGYM_BENCH_RIG_HOLD", "0") == "1"
 
 def rig_eps() -> float:
     """The friction smoothing in use (rad/s): DRILLGYM_BENCH_RIG_EPS if set, else EPS."""
-    return float(os.environ.get("DRILLGYM_BENCH_RIG_EPS", EPS))
+    return float(os.environ.get("DRILLGYM_BENCH_RIG_EPS") or EPS)
 
 
 #: effects outside drillgym's library (for the "discovery" rows)
