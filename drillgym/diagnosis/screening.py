@@ -99,9 +99,9 @@ def condition(exps: Sequence[Experiment]) -> tuple[list[Experiment], dict[str, f
 
 #: a lower disc at rest (rad/s) ...
 REST_SPEED = 0.1
-#: ... holding a backward pull of the string of at least this share of the brake's static level shows the level of
-#: the backward direction as well as a backward slip does (the stick set's lower edge decides whether it holds)
-HELD_BACK_SHARE = 0.8
+#: ... holding a backward pull of the string beyond this share of the brake's static level shows a backward level
+#: above the forward one (the stick set's lower edge held it); a lower backward level shows as a backward slip
+HELD_BACK_SHARE = 1.0
 #: the share of samples turning backwards or held back that shows a direction-dependent brake
 NEGATIVE_SHARE = 0.02
 
@@ -110,9 +110,9 @@ def excitation_missing(effect: type[Effect], exps: Sequence[Experiment], params:
     """Why the recordings cannot show an effect (its ``needs``), or ''.
 
     ``negative_rotation`` (a brake whose levels depend on the direction) is shown by samples where the lower disc
-    turns backwards, and by samples where it rests while the string pulls it backwards with at least
-    :data:`HELD_BACK_SHARE` of the static level (``kθ (θu − θl) ≤ −0.8 Ts``): there the backward static level
-    decides whether the disc holds.
+    turns backwards, and by samples where it rests while the string pulls it backwards beyond
+    :data:`HELD_BACK_SHARE` of the static level (``kθ (θu − θl) ≤ −Ts``, the identified set's or the given one):
+    there only a backward static level above the forward one holds it.
 
     Parameters
     ----------
@@ -133,7 +133,7 @@ def excitation_missing(effect: type[Effect], exps: Sequence[Experiment], params:
         shown = sum(_backwards(ex, p) for ex in exps if "omega_l" in ex.rates)
         if shown < NEGATIVE_SHARE * sum(ex.n for ex in exps):
             return (
-                "the lower disc hardly turns backwards, nor rests against a backward pull near its static friction, "
+                "the lower disc hardly turns backwards, nor rests against a backward pull beyond its static friction, "
                 "in these data (needs negative rotation)"
             )
     if "theta_l" in effect.needs and not any("theta_l" in ex.meas for ex in exps):
