@@ -176,22 +176,18 @@ def test_the_motor_side_is_looked_at_on_the_nominal_base_when_the_diagnosis_left
     assert alone is None or cand.explained > alone.explained, (cand, alone)
 
 
-def test_the_selected_effects_are_fitted_with_a_candidate():
-    """A candidate is fitted with the selected library effects' parameters, which may have stood in for it (a dead
-    zone on steps selected as a 200 ms delay, a drive offset as a brake asymmetry), in the composition's order;
-    not with the effects the selection did not take; a lateral force with the lateral base parameters too."""
+def test_the_selected_timing_is_fitted_with_a_voltage_candidate():
+    """A change of the motor's voltage is fitted with the selected effects on its signal path (a delay, a lag),
+    which may have stood in for it (a dead zone on steps selected as a 200 ms delay), not with the others (string
+    damping); a torque on the upper disc is fitted beside them as regressed."""
     from types import SimpleNamespace
 
-    from drillgym.diagnosis.candidate_fit import LATERAL_BASE, _stood_in
+    from drillgym.diagnosis.candidate_fit import _stood_in
     from drillgym.effects import compose
 
-    comp, _ = compose(["input_delay", "motor_lag", "string_damping", "brake_asymmetry"], None)
-    diagnosis = SimpleNamespace(composition=comp, selected=["brake_asymmetry", "input_delay", "string_damping"])
-    expected = ("delay", "dtheta", "asym_s", "asym_c")
-    assert _stood_in(diagnosis, _candidate({"1": -0.3})) == expected
+    comp, _ = compose(["input_delay", "motor_lag", "string_damping"], None)
+    diagnosis = SimpleNamespace(composition=comp, selected=["input_delay", "string_damping", "motor_lag"])
+    assert _stood_in(diagnosis, _candidate({"1": -0.3})) == ("delay", "tau_m")
     torque = _candidate({"cos θu": 0.01})
     torque.group = "upper_force"
-    assert _stood_in(diagnosis, torque) == expected
-    lateral = _candidate({"r²·(X, Y)": -6e7})
-    lateral.group = "lateral_force"
-    assert _stood_in(diagnosis, lateral) == (*LATERAL_BASE, *expected)
+    assert _stood_in(diagnosis, torque) == ()

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from ..effects import Composition, Effect
+from ..effects import Composition, Delay, Effect, Force, Input
 from ..identification.fitting import FitResult, Objective
 from .context import SelectionContext, base_at_bounds, converged_fit
 from .discovery_terms import dead_zone_variant
@@ -263,7 +263,7 @@ def _offset_start(candidate: Candidate, comp: Composition, vec: np.ndarray) -> n
         return vec
     out = np.array(vec, dtype=float)
     k = float(out[comp.param_index("k")])
-    for name, f in zip(_OFFSET, force, strict=True):
+    for name, f in zip(("lvdt_x0", "lvdt_y0"), force, strict=True):
         out[comp.param_index(name)] += f / k
     return out
 
@@ -300,30 +300,30 @@ class _CandidateModel:
 
 
 def _stood_in(diagnosis: Diagnosis, candidate: Candidate) -> tuple[str, ...]:
-    """The parameters fitted with the candidate because they may have stood in for it: those of the library effects
-    the diagnosis selected, and for a lateral force the lateral base parameters :data:`LATERAL_BASE` too (started
-    from nominal, :class:`_CandidateModel`).
+    """The parameters fitted with the candidate because they may have stood in for it.
 
-    The selection ran before the candidate existed, and each effect it took took what of the candidate it could;
-    held there, they leave the candidate's fit a fraction of it, freed they go back towards what the rest of the
-    recording says once the candidate is in: a drift for an encoder's scale error (the twist it misreads grows
-    with the angle turned); a 200 ms input delay for a 0.36 V dead zone on steps beside the rig's 24 ms (held, the
-    voltage terms' fit stopped at 29 % of the unexplained variance; freed, 100 % with the delay back at 23.5 ms);
-    a brake asymmetry of 0.40 / 1.08 for a 0.13 V drive offset beside the rig's 0.20 / 0.25; k and b pushed to the
-    bounds of their range for a stiffening lateral spring or a drag.  The LVDT offset a lateral force's constant
-    part is started in (:func:`_offset_start`) is held there: freed, it takes the pad friction's mean back and the
-    fit settles between the two (a 1.78 N pad: 47.9 → 46.2 noise units on the LVDTs, held 50.9 → 10.1)."""
+    A sensor's reading: the parameters of the library effects the diagnosis selected (a drift for an encoder's
+    scale error, the twist it misreads growing with the angle turned; they go back towards neutral once it is in).
+    A lateral force: the lateral base parameters :data:`LATERAL_BASE` (started from nominal, :class:`_CandidateModel`)
+    and the selected lateral effects' parameters: the diagnosis pushed k and b to the bounds of their range to take
+    a stiffening spring or a drag, and held there they leave the force's terms a fraction of its size.  A change of
+    the motor's voltage: the selected effects on the same signal path (Input, Delay: a lag, a delay), which took
+    what of it they could (a 0.36 V dead zone on steps was selected as a 200 ms input delay beside 24 ms; held
+    there, the voltage terms' fit stopped at 29 % of the unexplained variance, freed 100 % with the delay back at
+    23.5 ms).  Empty for the other candidates of the residual torques (their terms were regressed beside them)."""
     comp = diagnosis.composition
     if comp is None:
         return ()
     chosen = set(diagnosis.selected)
-    placed = _OFFSET if candidate.constant_force is not None else ()  # the regression put them: held there
-    selected = tuple(p.name for e in comp.effects if e.name in chosen for p in e.parameters if p.name not in placed)
-    return (*LATERAL_BASE, *selected) if candidate.is_lateral_force else selected
-
-
-#: the LVDT offset's parameters, where a lateral force's constant part starts them (:func:`_offset_start`)
-_OFFSET = ("lvdt_x0", "lvdt_y0")
+    if candidate.is_reading:
+        return tuple(p.name for e in comp.effects if e.name in chosen for p in e.parameters)
+    if candidate.is_lateral_force:
+        lateral = (e for e in comp.effects if e.name in chosen and issubclass(e, Force) and e.acts_on == "lateral")
+        return (*LATERAL_BASE, *(p.name for e in lateral for p in e.parameters))
+    if candidate.group == "motor_voltage":
+        timing = (e for e in comp.effects if e.name in chosen and issubclass(e, (Input, Delay)))
+        return tuple(p.name for e in timing for p in e.parameters)
+    return ()
 
 
 def _library_ahead(candidate: Candidate) -> dict[str, type[Effect]]:
