@@ -308,7 +308,8 @@ def dead_zone_variant(cand: Candidate, u: np.ndarray | None = None) -> Candidate
     beyond = beyond[np.abs(beyond) > edge]
     if beyond.size == 0:
         return None
-    terms = {t.label: t for t in _voltage_terms()}
+    library = _voltage_terms()
+    terms = {t.label: t for t in library}
     s = sum(cand.terms[k] * (np.clip(beyond, -zones[k], zones[k]) if k in zones else terms[k].values({"u": beyond}))
             for k in shift)  # fmt: skip
     width = float(np.median(-s * np.sign(beyond)))
@@ -316,7 +317,7 @@ def dead_zone_variant(cand: Candidate, u: np.ndarray | None = None) -> Candidate
         return None
     zone = f"sat(u, {width:.3g})"
     kept = [k for k in cand.terms if k not in shift]
-    sat = next(t for t in _voltage_terms() if t.width is not None)
+    sat = next(t for t in library if t.width is not None)
     return replace(
         cand,
         terms={**{k: cand.terms[k] for k in kept}, zone: -1.0},

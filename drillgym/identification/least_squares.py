@@ -208,14 +208,12 @@ def identifiability(
             "identifiable"
         )
     std[blind] = np.inf  # any value fits (the normal equations' inverse would say 0)
-    J = J[:, :n]
-    kept = np.flatnonzero(~blind & (col > 0))
-    if len(kept) > 1 and not blind.any():
-        _, sk, vk = np.linalg.svd(J[:, kept] / col[kept], full_matrices=False)
+    if n > 1 and not blind.any():  # every column nonzero here
+        _, sk, vk = np.linalg.svd(J[:, :n] / col, full_matrices=False)
         gamma = 1.0 / max(sk[-1], 1e-300)  # collinearity index (unit-norm columns)
         if gamma > opts.collinearity_limit:
             v = np.abs(vk[-1])
-            involved = [names[kept[i]] for i in np.flatnonzero(v > 0.1 * v.max())]
+            involved = [names[i] for i in np.flatnonzero(v > 0.1 * v.max())]
             msgs.append(
                 f"near-singular JᵀJ (collinearity index {gamma:.0f} > {opts.collinearity_limit:.0f}): "
                 f"{', '.join(involved)} are not separately identifiable from these data"
