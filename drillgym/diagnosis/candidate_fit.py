@@ -228,18 +228,23 @@ def fit_candidate(
             setup.fit(_offset_start(candidate, comp, base), ()) for base in (diagnosis.nominal_vector, diagnosis.vector)
         )
         held = at_nominal[2].rss_after <= as_diagnosed[2].rss_after
-        obj, ctx, fit = at_nominal if held else as_diagnosed
+        (obj, ctx, fit), start = (at_nominal, diagnosis.nominal_vector) if held else (as_diagnosed, diagnosis.vector)
         base_names = ()
     else:
-        held = False
+        held, start = False, diagnosis.vector
         base_names = tuple(model.base_names) if diagnosis.base_off else ()
-        obj, ctx, fit = setup.fit(_offset_start(candidate, comp, diagnosis.vector), base_names)
-    if not base_names and not unexplained(obj, np.asarray(fit.vector), noise_scales).explained:
-        # with the candidate in, a base parameter the effect had taken to a bound may come back (a dead zone
-        # after a lag, 60 s of steps: km and bu at bounds, km 0.976 for 0.97 hidden once both are in)
-        freed = _with_base_freed(ctx, fit, [*names, *setup.library], tuple(model.base_names))
-        if freed is not None:
-            (obj, ctx, fit), base_names, held = freed, tuple(model.base_names), False
+        obj, ctx, fit = setup.fit(_offset_start(candidate, comp, start), base_names)
+    (obj, ctx, fit), base_names, held = _base_freed_if_needed(setup, (obj, ctx, fit), base_names, held, noise_scales)
+    rest = _selected_rest(diagnosis, setup.library)
+    if rest and not unexplained(obj, np.asarray(fit.vector), noise_scales).explained:
+        # every effect the selection took may have stood in for the candidate, which did not exist then (a 0.13 V
+        # drive offset taken as a brake asymmetry of 0.40 / 1.08 beside the rig's 0.20 / 0.25): fitted again from
+        # the start with them freed, kept where that counts by the selection's rules
+        freer = replace(setup, library=(*setup.library, *rest))
+        first = freer.fit(_offset_start(candidate, comp, start), base_names)
+        alt, alt_base, alt_held = _base_freed_if_needed(freer, first, base_names, held, noise_scales)
+        if _counts(fit, alt[2], len(rest) + len(alt_base) - len(base_names), alt[1]):
+            (obj, ctx, fit), base_names, held = alt, alt_base, alt_held
     before = diagnosis.unexplained or unexplained(model.obj, diagnosis.vector, noise_scales)
     after = unexplained(obj, np.asarray(fit.vector), noise_scales)
     file_names = {n: file_name(candidate, n) for n in names}
@@ -360,6 +365,21 @@ def _effect_of(candidate: Candidate) -> tuple[type[Effect] | None, dict[str, flo
     return effect, {p.name: p.guess for p in effect.parameters}, False
 
 
+def _base_freed_if_needed(
+    setup: _CandidateModel, fitted: tuple, base_names: tuple[str, ...], held: bool, noise_scales: dict[str, float]
+) -> tuple[tuple, tuple[str, ...], bool]:
+    """The fit ``fitted`` (objective, context, result) again with the base parameters freed, where they were held
+    and it leaves the recording above the noise: with the candidate in, a base parameter the effect had taken to a
+    bound may come back (a dead zone after a lag, 60 s of steps: km and bu at bounds, km 0.976 for 0.97 hidden once
+    both are in).  Returns the fit kept, its freed base parameters and whether the base stayed held at nominal."""
+    obj, ctx, fit = fitted
+    if base_names or unexplained(obj, np.asarray(fit.vector), noise_scales).explained:
+        return fitted, base_names, held
+    every = tuple(setup.model.base_names)
+    freed = _with_base_freed(ctx, fit, [*setup.start_values, *setup.library], every)
+    return (fitted, base_names, held) if freed is None else (freed, every, False)
+
+
 def _with_base_freed(
     ctx: SelectionContext, fit: FitResult, names: list[str], base_names: tuple[str, ...]
 ) -> tuple[Objective, SelectionContext, FitResult] | None:
@@ -368,20 +388,31 @@ def _with_base_freed(
     The diagnosis judged the base parameters beside a residual the candidate now takes: a mismatch of a few
     per cent that was lost beside a dead zone or an offset stands out once the candidate is in (a motor
     constant 3 % off beside a 0.1 V offset leaves hundreds of noise units), and the candidate's own terms
-    would otherwise absorb it.  None: freeing them does not count (:func:`.scoring.significant`), or a base
-    parameter ends at a bound of its range (something still missing is absorbed there: the diagnosis' own rule,
-    :func:`.context.base_at_bounds`)."""
+    would otherwise absorb it.  None: freeing them does not count (:func:`_counts`)."""
     obj = ctx.obj.with_own_speeds()
     vec = np.asarray(fit.vector)
     free = SelectionContext(obj, ctx.comp, vec, ctx.nominal, base_names, {})
     res = converged_fit(free, vec, list(dict.fromkeys([*names, *base_names])), MAX_NFEV)
-    ids = obj.channel_ids
-    sc, _ = score(fit.residual, res, len(base_names), channels=ids, blocks=obj.block_ids)
-    if not significant(sc, fit.rss_after, res.rss_after, len(res.residual), fit.residual, res.residual, ids):
-        return None
-    if base_at_bounds(free, np.asarray(res.vector)):
-        return None
-    return obj, free, res
+    return (obj, free, res) if _counts(fit, res, len(base_names), free) else None
+
+
+def _counts(fit: FitResult, more: FitResult, extra: int, ctx: SelectionContext) -> bool:
+    """Whether the fit ``more``, with ``extra`` parameters freed beside those of ``fit``, counts by the selection's
+    rules (:func:`.scoring.significant`) and leaves no base parameter at a bound of its range (something still
+    missing is absorbed there: the diagnosis' own rule, :func:`.context.base_at_bounds`)."""
+    ids = ctx.obj.channel_ids
+    sc, _ = score(fit.residual, more, extra, channels=ids, blocks=ctx.obj.block_ids)
+    if not significant(sc, fit.rss_after, more.rss_after, len(more.residual), fit.residual, more.residual, ids):
+        return False
+    return not base_at_bounds(ctx, np.asarray(more.vector))
+
+
+def _selected_rest(diagnosis: Diagnosis, fitted: Sequence[str]) -> tuple[str, ...]:
+    """The parameters of the library effects the diagnosis selected that the candidate's fit held."""
+    comp = diagnosis.composition
+    chosen = set(diagnosis.selected)
+    held = (p.name for e in comp.effects if e.name in chosen for p in e.parameters)
+    return tuple(n for n in held if n not in set(fitted))
 
 
 def choose_candidate(
