@@ -182,7 +182,7 @@ def test_the_selected_timing_is_fitted_with_a_voltage_candidate():
     damping); a torque on the upper disc is fitted beside them as regressed."""
     from types import SimpleNamespace
 
-    from drillgym.diagnosis.candidate_fit import _stood_in
+    from drillgym.diagnosis.candidate_fit import _selected_rest, _stood_in
     from drillgym.effects import compose
 
     comp, _ = compose(["input_delay", "motor_lag", "string_damping"], None)
@@ -191,3 +191,9 @@ def test_the_selected_timing_is_fitted_with_a_voltage_candidate():
     torque = _candidate({"cos θu": 0.01})
     torque.group = "upper_force"
     assert _stood_in(diagnosis, torque) == ()
+    # the freer fit, tried when the first leaves the recording above the noise, frees every other selected effect
+    # (a brake asymmetry a drive offset was taken for), never one the selection did not take
+    comp, _ = compose(["input_delay", "motor_lag", "string_damping", "brake_asymmetry"], None)
+    diagnosis = SimpleNamespace(composition=comp, selected=["brake_asymmetry", "input_delay"])
+    assert _selected_rest(diagnosis, _stood_in(diagnosis, _candidate({"1": 0.1}))) == ("asym_s", "asym_c")
+    assert _selected_rest(diagnosis, ()) == ("delay", "asym_s", "asym_c")

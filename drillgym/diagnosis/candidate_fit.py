@@ -3,15 +3,13 @@
 Discovery (:mod:`.discovery`) regresses the residual torques and writes the candidate as an effect file; whether
 it explains the recording is decided the way ``drillgym identify --add-effect FILE:NAME`` would decide it: the
 file's effect is added to the final model and its parameters are fitted by multiple shooting on the diagnosis'
-own recordings (with the base parameters as the diagnosis freed them; when the diagnosis left some at a bound of
-their range, where an effect the library lacks may have been absorbed, held at their nominal values and held as
-the diagnosis left them, the better fit kept), with the segments' start speeds.  When the base parameters were
-held (nominal, or at a bound) and the candidate's fit is not at the noise, the fit is repeated with them freed,
-and kept when that counts by the selection's rules and none ends at a bound.  A sensor's reading
-(:mod:`.sensor_reading`) is fitted with the selected library effects' parameters freed too: they may have stood
-in for it.  Every candidate is fitted through its whole group's terms compiled once (:mod:`.group_terms`): a file's
-chosen terms make its compiled model new for nearly every recording.  The answer is the residual against the noise
-with the candidate (:func:`.unexplained.unexplained`) beside the one without.
+own recordings, with the segments' start speeds, the base parameters as the diagnosis freed them (where it left
+some at a bound, held at nominal and as diagnosed, the better fit kept).  Where the fit leaves the recording above
+the noise, a freer fit is tried and kept when it counts by the selection's rules (:func:`_counts`): the base
+parameters freed where they were held, then every selected library effect freed (the selection ran before the
+candidate existed, and what it took may have stood in for it).  Every candidate is fitted through its whole group's
+terms compiled once (:mod:`.group_terms`).  The answer is the residual against the noise with the candidate
+(:func:`.unexplained.unexplained`) beside the one without.
 """
 
 from __future__ import annotations
@@ -368,32 +366,23 @@ def _effect_of(candidate: Candidate) -> tuple[type[Effect] | None, dict[str, flo
 def _base_freed_if_needed(
     setup: _CandidateModel, fitted: tuple, base_names: tuple[str, ...], held: bool, noise_scales: dict[str, float]
 ) -> tuple[tuple, tuple[str, ...], bool]:
-    """The fit ``fitted`` (objective, context, result) again with the base parameters freed, where they were held
-    and it leaves the recording above the noise: with the candidate in, a base parameter the effect had taken to a
-    bound may come back (a dead zone after a lag, 60 s of steps: km and bu at bounds, km 0.976 for 0.97 hidden once
-    both are in).  Returns the fit kept, its freed base parameters and whether the base stayed held at nominal."""
+    """The fit ``fitted`` (objective, context, result) again with every base parameter freed, where they were held,
+    it leaves the recording above the noise and freeing them counts (:func:`_counts`).
+
+    The diagnosis judged the base parameters beside a residual the candidate now takes: a mismatch of a few per
+    cent lost beside a dead zone or an offset stands out once the candidate is in (a motor constant 3 % off beside
+    a 0.1 V offset leaves hundreds of noise units), and a parameter the effect had taken to a bound may come back
+    (a dead zone after a lag, 60 s of steps: km 0.976 for 0.97 hidden once both are in).  Returns the fit kept, its
+    freed base parameters and whether the base stayed held at nominal."""
     obj, ctx, fit = fitted
     if base_names or unexplained(obj, np.asarray(fit.vector), noise_scales).explained:
         return fitted, base_names, held
     every = tuple(setup.model.base_names)
-    freed = _with_base_freed(ctx, fit, [*setup.start_values, *setup.library], every)
-    return (fitted, base_names, held) if freed is None else (freed, every, False)
-
-
-def _with_base_freed(
-    ctx: SelectionContext, fit: FitResult, names: list[str], base_names: tuple[str, ...]
-) -> tuple[Objective, SelectionContext, FitResult] | None:
-    """The candidate fitted again with the base parameters freed, when that counts by the selection's rules.
-
-    The diagnosis judged the base parameters beside a residual the candidate now takes: a mismatch of a few
-    per cent that was lost beside a dead zone or an offset stands out once the candidate is in (a motor
-    constant 3 % off beside a 0.1 V offset leaves hundreds of noise units), and the candidate's own terms
-    would otherwise absorb it.  None: freeing them does not count (:func:`_counts`)."""
     obj = ctx.obj.with_own_speeds()
     vec = np.asarray(fit.vector)
-    free = SelectionContext(obj, ctx.comp, vec, ctx.nominal, base_names, {})
-    res = converged_fit(free, vec, list(dict.fromkeys([*names, *base_names])), MAX_NFEV)
-    return (obj, free, res) if _counts(fit, res, len(base_names), free) else None
+    free = SelectionContext(obj, ctx.comp, vec, ctx.nominal, every, {})
+    res = converged_fit(free, vec, list(dict.fromkeys([*setup.start_values, *setup.library, *every])), MAX_NFEV)
+    return ((obj, free, res), every, False) if _counts(fit, res, len(every), free) else (fitted, base_names, held)
 
 
 def _counts(fit: FitResult, more: FitResult, extra: int, ctx: SelectionContext) -> bool:
@@ -588,9 +577,7 @@ def _lag_that_counts(
     screening: Screening, diagnosis: Diagnosis, cand: Candidate, noise_scales: dict[str, float]
 ) -> Candidate:
     """The candidate found through a lag (fitted with it), or the same terms fitted without the lag when the lag
-    does not count by the selection's rules against them (:func:`.scoring.score`, :func:`.scoring.significant`,
-    one parameter more; a base parameter at a bound with the lag, or a lag fitted below :data:`MIN_LAG_S`, does
-    not count either)."""
+    does not count against them (:func:`_counts`, one parameter more; nor a lag fitted below :data:`MIN_LAG_S`)."""
     if cand.through_lag is None or cand.fit is None or cand.fit.state is None:
         return cand
     plain = replace(cand, through_lag=None, fit=None)
@@ -598,15 +585,10 @@ def _lag_that_counts(
     if plain.fit is None or plain.fit.state is None:
         return cand
     with_lag, without = cand.fit.state, plain.fit.state
-    obj, r0 = with_lag.objective, without.result.residual
-    sc, _ = score(r0, with_lag.result, 1, channels=obj.channel_ids, blocks=obj.block_ids)
-    counts = significant(
-        sc, without.result.rss_after, with_lag.result.rss_after, len(r0), r0, with_lag.result.residual, obj.channel_ids
-    )
     vec = np.asarray(with_lag.result.vector)
-    ctx = SelectionContext(obj, with_lag.composition, vec, with_lag.nominal, with_lag.base_names, {})
+    ctx = SelectionContext(with_lag.objective, with_lag.composition, vec, with_lag.nominal, with_lag.base_names, {})
     tau = float(vec[with_lag.composition.param_index("tau_m")])
-    return cand if counts and tau >= MIN_LAG_S and not base_at_bounds(ctx, vec) else plain
+    return cand if _counts(without.result, with_lag.result, 1, ctx) and tau >= MIN_LAG_S else plain
 
 
 #: a lag the candidate's terms were found through counts only when fitted at least this long (s): shorter, it is
