@@ -244,24 +244,23 @@ def offset_variant(cand: Candidate) -> Candidate | None:
     zone = next((k for k in cand.widths if k.startswith("sat(u") and cand.terms.get(k, 0.0) < -0.5), None)
     if zone is None:
         return None
-    widths = {k: w for k, w in cand.widths.items() if k != zone}
-    return _read_as(cand, zone, "1", -cand.widths[zone], "1.0", widths)
+    return _replaced(cand, (zone,), "1", -cand.widths[zone], "1.0")
 
 
-def _read_as(cand: Candidate, old: str, new: str, coefficient: float, code: str, widths: dict) -> Candidate:
-    """The candidate with its term ``old`` read as ``new`` (in its place, with this coefficient and code, 0 at
-    rest) and these widths: a new candidate, no file, no fit."""
-
-    def renamed(values: dict) -> dict:
-        return {new if k == old else k: v for k, v in values.items()}
-
+def _replaced(
+    cand: Candidate, drop: tuple[str, ...], label: str, coefficient: float, code: str, width: float | None = None
+) -> Candidate:
+    """The candidate with its terms ``drop`` replaced by one term ``label`` (this coefficient, code and width, 0 at
+    rest), the others kept: a new candidate, no file, no fit."""
+    kept = [k for k in cand.terms if k not in drop]
+    widths = {k: w for k, w in cand.widths.items() if k in kept}
     return replace(
         cand,
-        terms={**renamed(cand.terms), new: coefficient},
-        codes={**renamed(cand.codes), new: code},
-        at_rest={**renamed(cand.at_rest), new: 0.0},
-        reach=renamed(cand.reach),
-        widths=widths,
+        terms={**{k: cand.terms[k] for k in kept}, label: coefficient},
+        codes={**{k: cand.codes[k] for k in kept}, label: code},
+        at_rest={**{k: cand.at_rest.get(k, 0.0) for k in kept}, label: 0.0},
+        reach={k: v for k, v in cand.reach.items() if k in kept},
+        widths=widths if width is None else {**widths, label: width},
         effect_file=None,
         fit=None,
         alternative=None,
@@ -308,24 +307,11 @@ def dead_zone_variant(cand: Candidate, u: np.ndarray | None = None) -> Candidate
     beyond = beyond[np.abs(beyond) > edge]
     if beyond.size == 0:
         return None
-    library = _voltage_terms()
-    terms = {t.label: t for t in library}
+    terms = {t.label: t for t in _voltage_terms()}
     s = sum(cand.terms[k] * (np.clip(beyond, -zones[k], zones[k]) if k in zones else terms[k].values({"u": beyond}))
             for k in shift)  # fmt: skip
     width = float(np.median(-s * np.sign(beyond)))
     if not width > 0.0:
         return None
-    zone = f"sat(u, {width:.3g})"
-    kept = [k for k in cand.terms if k not in shift]
-    sat = next(t for t in library if t.width is not None)
-    return replace(
-        cand,
-        terms={**{k: cand.terms[k] for k in kept}, zone: -1.0},
-        codes={**{k: cand.codes[k] for k in kept}, zone: sat.code},
-        at_rest={**{k: cand.at_rest.get(k, 0.0) for k in kept}, zone: 0.0},
-        reach={k: v for k, v in cand.reach.items() if k in kept},
-        widths={**{k: w for k, w in cand.widths.items() if k in kept}, zone: width},
-        effect_file=None,
-        fit=None,
-        alternative=None,
-    )
+    sat = next(t for t in _voltage_terms() if t.width is not None)
+    return _replaced(cand, tuple(shift), f"sat(u, {width:.3g})", -1.0, sat.code, width)
