@@ -12,13 +12,17 @@ correlated).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
+import numpy as np
+
+from ..effects import Composition
 from .context import base_prior
 from .effective import effective_samples
 from .results import Selection
 from .search_model import SearchModel
 
-__all__ = ["BASE_PRIOR_SIGMA", "better", "base_prior_cost", "plausible_prior", "beyond_prior"]
+__all__ = ["BASE_PRIOR_SIGMA", "better", "base_prior_cost", "prior_cost", "plausible_prior", "beyond_prior"]
 
 #: relative spread of the base parameters around their identified values (the prior of :func:`better`)
 BASE_PRIOR_SIGMA = 0.05
@@ -44,11 +48,32 @@ def base_prior_cost(sel: Selection, model: SearchModel) -> float:
     """
     if not sel.base_off:
         return 0.0
-    v = sel.vector
-    comp = model.comp
+    return prior_cost(model.comp, model.nominal, model.base_names, sel.vector)
+
+
+def prior_cost(comp: Composition, nominal: np.ndarray, base_names: Sequence[str], vector: np.ndarray) -> float:
+    """Σ ((fitted − nominal) / (nominal · :data:`BASE_PRIOR_SIGMA`))² over the base parameters ``base_names`` of a
+    model vector of ``comp``.
+
+    Parameters
+    ----------
+    comp : Composition
+        The composition of ``nominal`` and ``vector``.
+    nominal : numpy.ndarray
+        The nominal vector (the prior's centre).
+    base_names : sequence of str
+        The freed base parameters.
+    vector : numpy.ndarray
+        The fitted vector.
+
+    Returns
+    -------
+    float
+        The cost.
+    """
     return sum(
-        ((float(v[comp.param_index(n)]) - mean) / std) ** 2
-        for n, (mean, std) in base_prior(comp, model.nominal, model.base_names, BASE_PRIOR_SIGMA).items()
+        ((float(vector[comp.param_index(n)]) - mean) / std) ** 2
+        for n, (mean, std) in base_prior(comp, nominal, base_names, BASE_PRIOR_SIGMA).items()
     )
 
 
