@@ -30,7 +30,8 @@ with a kept candidate).  Reported per row and in total:
 * ``two_found`` (pairs): both hidden effects are among the candidates kept (one lateral group may hold both
   lateral forces); ``spurious_second``: a second candidate kept that is neither; ``final_halved``: the model with
   every kept candidate halves the LVDTs' misfit;
-* ``halved``: the candidate's own fit at least halves the LVDTs' misfit (the RMS of x and y in noise units);
+* ``halved``: the candidate's own fit at least halves the LVDTs' misfit (the RMS of x and y in noise units) it was
+  found on (the first candidate in turn: where discovery named a library effect first, the one found beside it);
   ``halved_again``: the model selected again with the candidate in it (its library effects and the candidate
   refitted with the base) does;
 * ``wrong_library``: a library lateral or LVDT effect that is not in the recording (``lateral_coulomb``,
@@ -206,7 +207,8 @@ def run_one(kind: str, beside: str | None, seed: int, tmp: Path) -> dict:
     d = diagnose(ts, discover=True, candidate_out=tmp / f"cand_{kind}_{beside}_{seed}.py", **more)
     seconds = round(time.perf_counter() - t0, 1)
     final = d.final()  # the model with every kept candidate
-    c = d.candidate
+    # the first outside candidate in turn (a library effect discovery named in its place takes no candidate's turn)
+    c = d.candidate if kind in PAIRS else next((st.candidate for st in d.in_turn() if st.candidate), None)
     fit = c.fit if c is not None else None
     before = _lvdt_rms(fit.before) if fit is not None else _lvdt_rms(d.unexplained) if d.unexplained else math.nan
     after = _lvdt_rms(fit.after) if fit is not None else math.nan

@@ -178,11 +178,12 @@ def _discovered(
     library = library_answer(found)
     if library is not None and not _a_reading_shows(screening, diagnosis, readings, noise):
         # known physics the selection missed, and no sensor's reading for it (an encoder's scale error reads as a
-        # torque growing along the run, as a friction drift's does): no outside file
+        # torque growing along the run, as a friction drift's does; where one passes its screen, the readings and
+        # the terms are fitted first, and the library effect is the answer where the terms win): no outside file
         _remove_file(found)
         return replace(diagnosis, warnings=[*diagnosis.warnings, library.line()]), None, library
     verdict = library_versus_outside(fine, diagnosis, found)  # a library lateral effect standing in for another
-    diagnosis = replace(diagnosis, candidate=found, advice=advice)
+    first, diagnosis = diagnosis, replace(diagnosis, candidate=found, advice=advice)
     chosen = None
     with one_blas_thread():  # its own identification is part of the answer
         if found is not None or readings:
@@ -193,6 +194,10 @@ def _discovered(
                 chosen = in_place.reading
                 diagnosis = replace(diagnosis, warnings=[*diagnosis.warnings, in_place.line()])
     read = chosen is not None and chosen.is_reading
+    if library is not None and chosen is not None and not read and chosen.group == found.group:
+        # the readings fitted lost to the discovered terms, which the library effect explains: it is the answer
+        _remove_file(chosen)
+        return replace(first, warnings=[*first.warnings, library.line()]), None, library
     return replace(diagnosis, candidate=chosen, advice=[] if read else advice), verdict, None
 
 
