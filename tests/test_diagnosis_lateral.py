@@ -236,3 +236,20 @@ def test_an_lvdts_gain_is_found_where_the_selection_took_the_anisotropy_for_it(t
     final = d.final()
     assert "lateral_anisotropy" not in final.selected and "position_friction" in final.selected, final.text()
     assert max(final.unexplained.channels[ch] for ch in ("x", "y")) < 0.5 * d.unexplained.channels["x"]
+
+
+def test_a_library_effect_the_terms_stand_for_is_held_and_the_force_beside_it_found(tmp_path):
+    """A cubic lateral spring beside position friction (the friction skipped by the split halves): discovery's best
+    terms are the friction's own shape on the lower disc, and a sensor's reading passes its screen; where the terms
+    win over the readings, the library effect they stand for is the answer (no outside file for it), and discovery
+    run again beside it finds the spring as a lateral force: the final model leaves the LVDTs near the noise."""
+    from drillgym.diagnosis import diagnose
+
+    effects = {"lateral_cubic": {"k3": 6.68e7}, "position_friction": {"pf_c1": 0.071, "pf_s1": -0.111}}
+    d = diagnose(_coupled(effects, seed=1), discover=True, candidate_out=tmp_path / "candidate.py")
+    assert d.candidate is None and d.reselection is not None
+    assert "position_friction" in d.reselection.composition.names
+    found = d.reselection.candidate
+    assert found is not None and found.group == "lateral_force" and next(iter(found.terms)) == "r²·(X, Y)"
+    final = d.final().unexplained
+    assert max(final.channels["x"], final.channels["y"]) < 6.0, final.channels
