@@ -90,12 +90,15 @@ def report(screening: Screening, outcome: SearchOutcome) -> Diagnosis:
 
 
 def _offset_or_force(selected, comp: Composition, vec) -> list[str]:
-    """A selected LVDT offset stated as indistinguishable from a constant lateral force: the lateral motion is
-    linear in the forces on the centre, so a constant force F shifts the disc by F / k, which the LVDTs read as an
-    offset (seen on an independent rig's brake pad: its contact force was named ``lvdt_offset``)."""
-    if "lvdt_offset" not in selected:
+    """An LVDT offset in the model (selected, or held there beside a candidate) stated as indistinguishable from a
+    constant lateral force: the lateral motion is linear in the forces on the centre, so a constant force F shifts
+    the disc by F / k, which the LVDTs read as an offset (seen on an independent rig's brake pad: its contact force
+    was named ``lvdt_offset``)."""
+    if "lvdt_offset" not in comp.names:
         return []
     x0, y0 = (float(vec[comp.param_index(n)]) for n in ("lvdt_x0", "lvdt_y0"))
+    if "lvdt_offset" not in selected and x0 == 0.0 and y0 == 0.0:  # a candidate the selection left switched off
+        return []
     k = float(vec[comp.param_index("k")])
     return [
         f"lvdt_offset ({1e3 * x0:+.3f}, {1e3 * y0:+.3f}) mm reads as a constant lateral force of "
