@@ -315,19 +315,21 @@ def _stood_in(diagnosis: Diagnosis, candidate: Candidate) -> tuple[str, ...]:
     what of it they could (a 0.36 V dead zone on steps was selected as a 200 ms input delay beside 24 ms; held
     there, the voltage terms' fit stopped at 29 % of the unexplained variance, freed 100 % with the delay back at
     23.5 ms).  Empty for the other candidates of the residual torques (their terms were regressed beside them)."""
-    comp = diagnosis.composition
-    if comp is None:
+    if diagnosis.composition is None:
         return ()
-    chosen = set(diagnosis.selected)
     if candidate.is_reading:
-        return tuple(p.name for e in comp.effects if e.name in chosen for p in e.parameters)
+        return _selected_params(diagnosis)
     if candidate.is_lateral_force:
-        lateral = (e for e in comp.effects if e.name in chosen and issubclass(e, Force) and e.acts_on == "lateral")
-        return (*LATERAL_BASE, *(p.name for e in lateral for p in e.parameters))
+        return (*LATERAL_BASE, *_selected_params(diagnosis, lambda e: issubclass(e, Force) and e.acts_on == "lateral"))
     if candidate.group == "motor_voltage":
-        timing = (e for e in comp.effects if e.name in chosen and issubclass(e, (Input, Delay)))
-        return tuple(p.name for e in timing for p in e.parameters)
+        return _selected_params(diagnosis, lambda e: issubclass(e, (Input, Delay)))
     return ()
+
+
+def _selected_params(diagnosis: Diagnosis, keep=lambda effect: True) -> tuple[str, ...]:
+    """The parameters of the selected library effects ``keep`` accepts, in the diagnosed composition's order."""
+    chosen = set(diagnosis.selected)
+    return tuple(p.name for e in diagnosis.composition.effects if e.name in chosen and keep(e) for p in e.parameters)
 
 
 def _library_ahead(candidate: Candidate) -> dict[str, type[Effect]]:
@@ -368,13 +370,10 @@ def _base_freed_if_needed(
     setup: _CandidateModel, fitted: tuple, base_names: tuple[str, ...], held: bool, noise_scales: dict[str, float]
 ) -> tuple[tuple, tuple[str, ...], bool]:
     """The fit ``fitted`` (objective, context, result) again with every base parameter freed, where they were held,
-    it leaves the recording above the noise and freeing them counts (:func:`_counts`).
-
-    The diagnosis judged the base parameters beside a residual the candidate now takes: a mismatch of a few per
-    cent lost beside a dead zone or an offset stands out once the candidate is in (a motor constant 3 % off beside
-    a 0.1 V offset leaves hundreds of noise units), and a parameter the effect had taken to a bound may come back
-    (a dead zone after a lag, 60 s of steps: km 0.976 for 0.97 hidden once both are in).  Returns the fit kept, its
-    freed base parameters and whether the base stayed held at nominal."""
+    it leaves the recording above the noise and freeing them counts (:func:`_counts`): a mismatch of a few per cent
+    lost beside a dead zone or an offset stands out once the candidate is in (a motor constant 3 % off beside a
+    0.1 V offset leaves hundreds of noise units).  Returns the fit kept, its freed base parameters and whether the
+    base stayed held at nominal."""
     obj, ctx, fit = fitted
     if base_names or unexplained(obj, np.asarray(fit.vector), noise_scales).explained:
         return fitted, base_names, held
@@ -405,10 +404,7 @@ def _counts(fit: FitResult, more: FitResult, extra: int, ctx: SelectionContext) 
 
 def _selected_rest(diagnosis: Diagnosis, fitted: Sequence[str]) -> tuple[str, ...]:
     """The parameters of the library effects the diagnosis selected that the candidate's fit held."""
-    comp = diagnosis.composition
-    chosen = set(diagnosis.selected)
-    held = (p.name for e in comp.effects if e.name in chosen for p in e.parameters)
-    return tuple(n for n in held if n not in set(fitted))
+    return tuple(n for n in _selected_params(diagnosis) if n not in set(fitted))
 
 
 def choose_candidate(

@@ -180,8 +180,7 @@ def _discovered(
         # known physics the selection missed, and no sensor's reading for it (an encoder's scale error reads as a
         # torque growing along the run, as a friction drift's does; where one passes its screen, the readings and
         # the terms are fitted first, and the library effect is the answer where the terms win): no outside file
-        _remove_file(found)
-        return replace(diagnosis, warnings=[*diagnosis.warnings, library.line()]), None, library
+        return _library_named(diagnosis, library, found), None, library
     verdict = library_versus_outside(fine, diagnosis, found)  # a library lateral effect standing in for another
     first, diagnosis = diagnosis, replace(diagnosis, candidate=found, advice=advice)
     chosen = None
@@ -196,9 +195,15 @@ def _discovered(
     read = chosen is not None and chosen.is_reading
     if library is not None and chosen is not None and not read and chosen.group == found.group:
         # the readings fitted lost to the discovered terms, which the library effect explains: it is the answer
-        _remove_file(chosen)
-        return replace(first, warnings=[*first.warnings, library.line()]), None, library
+        return _library_named(first, library, chosen), None, library
     return replace(diagnosis, candidate=chosen, advice=[] if read else advice), verdict, None
+
+
+def _library_named(diagnosis: Diagnosis, library: LibraryAnswer, candidate) -> Diagnosis:
+    """The diagnosis with the library effect named in the candidate's place: the candidate's file removed, the
+    answer among its warnings."""
+    _remove_file(candidate)
+    return replace(diagnosis, warnings=[*diagnosis.warnings, library.line()])
 
 
 def _leaves_more(chosen, in_place: ReadingVerdict) -> bool:
