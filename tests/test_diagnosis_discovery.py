@@ -190,3 +190,37 @@ def test_a_residual_a_library_effect_explains_is_answered_by_the_library_effect(
     assert "position_friction" in answer.line() and "held in the model" in answer.line()
     alone = find_candidate(rt, np.zeros(t.size), p.Ju, p.Jl, library={"friction_drift": drift})
     assert alone.rest["library:friction_drift"] < 0.2 and library_answer(alone) is None, alone.rest
+
+
+def test_a_library_effect_on_the_other_disc_is_named_beside_a_candidate_not_for_it():
+    """A cogging torque on the motor's disc and a position friction on the brake's at once: the library's position
+    friction explains the lower disc's residual, not the upper disc's terms; it is no answer to the upper candidate
+    (which would have removed the cogging's file) but is named beside it, to be fitted with it.  The lower disc's
+    candidate has the library effect as its answer and nothing beside it."""
+    import numpy as np
+
+    from drillgym.configurations import N_STATE
+    from drillgym.diagnosis.discovery import find_candidate
+    from drillgym.diagnosis.library_columns import library_answer
+    from drillgym.diagnosis.sparse import ResidualTorque
+
+    rng = np.random.default_rng(5)
+    p = RigParams()
+    t = np.arange(0, 40.0, 1 / 250)
+    wl = 2.0 + 0.8 * np.sin(0.7 * t)
+    S = np.zeros((t.size, N_STATE))
+    S[:, 1] = np.cumsum(wl) / 250
+    S[:, 0] = S[:, 1] - 0.3
+    S[:, 2] = S[:, 3] = wl
+    level = p.Tc + (p.Ts - p.Tc) * np.exp(-((wl / p.ws) ** p.delta))
+    per_unit = np.column_stack([level * np.cos(S[:, 1]), level * np.sin(S[:, 1])])
+    tau_l = -per_unit @ np.array([0.12, -0.05]) + 0.002 * rng.standard_normal(t.size)
+    tau_u = -0.1 * np.sin(6.0 * S[:, 0] + 0.4) + 0.002 * rng.standard_normal(t.size)
+    rt = ResidualTorque(t, tau_u, tau_l, S, np.ones(t.size, bool))
+    library = {"position_friction": np.vstack([np.zeros_like(per_unit), -per_unit])}
+    upper = find_candidate(rt, np.zeros(t.size), p.Ju, p.Jl, library=library)
+    assert upper is not None and upper.group == "upper_force" and upper.explained > 0.9, upper
+    assert "library:position_friction" not in upper.rest and library_answer(upper) is None, upper.rest
+    assert upper.beside == ("position_friction",)
+    lower = find_candidate(rt, np.zeros(t.size), p.Ju, p.Jl, library=library, only=("lower_friction",))
+    assert library_answer(lower).effect == "position_friction" and lower.beside == (), (lower.rest, lower.beside)

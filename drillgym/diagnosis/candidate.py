@@ -64,6 +64,10 @@ class Candidate:
         The candidate's own fit on the diagnosis' recordings (:class:`.candidate_fit.CandidateFit`), or None.
     alternative : Candidate or None
         The motor side's best candidate when this one acts elsewhere (its fit decides which is reported).
+    beside : tuple of str
+        A library effect acting only on a disc this candidate does not act on, which explains that disc's residual
+        (:func:`.library_columns.library_view`): freed in this candidate's freer fit (:mod:`.candidate_fit`) where
+        the selection did not take it (two effects at once, on two discs).
     through_lag : float or None
         A motor-side candidate regressed on the voltage after a first-order lag of this time constant (s): the
         residual is explained best with the library's ``motor_lag`` ahead of the terms, and the candidate's fit
@@ -90,6 +94,7 @@ class Candidate:
     widths: dict[str, float] = field(default_factory=dict)
     fit: Any = None
     alternative: Any = None
+    beside: tuple[str, ...] = ()
     through_lag: float | None = None
     constant_force: tuple[float, float] | None = None
     notes: tuple[str, ...] = ()

@@ -234,7 +234,7 @@ def fit_candidate(
         base_names = tuple(model.base_names) if diagnosis.base_off else ()
         obj, ctx, fit = setup.fit(_offset_start(candidate, comp, start), base_names)
     (obj, ctx, fit), base_names, held = _base_freed_if_needed(setup, (obj, ctx, fit), base_names, held, noise_scales)
-    rest = _selected_rest(diagnosis, setup.library)
+    rest = _selected_rest(diagnosis, setup.library, candidate.beside)
     if rest and not unexplained(obj, np.asarray(fit.vector), noise_scales).explained:
         # every effect the selection took may have stood in for the candidate, which did not exist then (a 0.13 V
         # drive offset taken as a brake asymmetry of 0.40 / 1.08 beside the rig's 0.20 / 0.25): fitted again from
@@ -326,9 +326,10 @@ def _stood_in(diagnosis: Diagnosis, candidate: Candidate) -> tuple[str, ...]:
     return ()
 
 
-def _selected_params(diagnosis: Diagnosis, keep=lambda effect: True) -> tuple[str, ...]:
-    """The parameters of the selected library effects ``keep`` accepts, in the diagnosed composition's order."""
-    chosen = set(diagnosis.selected)
+def _selected_params(diagnosis: Diagnosis, keep=lambda effect: True, also: Sequence[str] = ()) -> tuple[str, ...]:
+    """The parameters of the library effects selected (or named in ``also``) that ``keep`` accepts, in the
+    diagnosed composition's order."""
+    chosen = {*diagnosis.selected, *also}
     return tuple(p.name for e in diagnosis.composition.effects if e.name in chosen and keep(e) for p in e.parameters)
 
 
@@ -402,9 +403,10 @@ def _counts(fit: FitResult, more: FitResult, extra: int, ctx: SelectionContext) 
     return not base or prior_cost(ctx.comp, ctx.nominal, base, vec) <= plausible_prior(base)
 
 
-def _selected_rest(diagnosis: Diagnosis, fitted: Sequence[str]) -> tuple[str, ...]:
-    """The parameters of the library effects the diagnosis selected that the candidate's fit held."""
-    return tuple(n for n in _selected_params(diagnosis) if n not in set(fitted))
+def _selected_rest(diagnosis: Diagnosis, fitted: Sequence[str], beside: Sequence[str] = ()) -> tuple[str, ...]:
+    """The parameters of the library effects the diagnosis selected, or the regression named ``beside`` the
+    candidate (:attr:`~.candidate.Candidate.beside`), that the candidate's fit held."""
+    return tuple(n for n in _selected_params(diagnosis, also=beside) if n not in set(fitted))
 
 
 def choose_candidate(

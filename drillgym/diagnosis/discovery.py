@@ -52,7 +52,7 @@ from .effect_file import write_effect_file
 from .effects import get_effect, label_effects
 from .greedy import MAX_CANCEL, greedy_terms, with_quadratures
 from .lateral_discovery import LATERAL_GROUP, lateral_candidate
-from .library_columns import LIBRARY_PREFIX, library_columns
+from .library_columns import LIBRARY_PREFIX, library_columns, library_view
 from .results import Candidate
 from .sparse import ResidualTorque
 from .state import transfer
@@ -244,8 +244,8 @@ def find_candidate(
                     n,
                     widths={terms[j].label: terms[j].width for j in chosen if terms[j].width is not None},
                 )
-    for c in cands.values():
-        c.rest = shares
+    for c in cands.values():  # a library effect on the other disc is no answer to it, but may be missing beside it
+        c.rest, c.beside = library_view(shares, library or {}, n, _SENSE[c.group])
         _set_reach(c, rt, d, ok, W, n, groups[c.group])
         if c.group == "motor_voltage":  # the torque km Δv on the upper disc -> the voltage change Δv (V)
             c.terms = {k: v / km for k, v in c.terms.items()}

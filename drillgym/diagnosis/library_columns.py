@@ -12,7 +12,9 @@ torques per unit of each of its parameters, through the search model's compiled 
 no term written for it).  :func:`.discovery.find_candidate` regresses them on the same rows as its groups, each effect
 as a whole; an effect that explains at least :data:`LIBRARY_SHARE` of what the best outside candidate explains is the
 answer (:class:`LibraryAnswer`): held in the model, and the library selected again beside it
-(:mod:`.reselection`), no candidate file written.
+(:mod:`.reselection`), no candidate file written.  Only an effect that acts on a disc the candidate acts on can be
+its answer (:func:`library_view`); one that explains the other disc's residual is fitted beside it instead (two
+effects at once: a cogging torque on the motor's disc beside a position friction on the brake's).
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from ..effects import LIBRARY, Composition, Force, Friction
 from ..identification.experiment import Experiment
 from .sparse import ResidualTorque
 
-__all__ = ["LIBRARY_SHARE", "LIBRARY_PREFIX", "LibraryAnswer", "library_columns", "library_answer"]
+__all__ = ["LIBRARY_SHARE", "LIBRARY_PREFIX", "LibraryAnswer", "library_columns", "library_answer", "library_view"]
 
 #: a library effect is the answer when its columns explain at least this share of what the best outside candidate's
 #: terms explain (it names known physics with the parameters the user can look up)
@@ -135,3 +137,36 @@ def library_answer(candidate) -> LibraryAnswer | None:
     if share < LIBRARY_SHARE * candidate.explained:
         return None
     return LibraryAnswer(effect, share, candidate.expression(), candidate.explained)
+
+
+def library_view(
+    shares: dict[str, float], library: dict[str, np.ndarray], n: int, sense: tuple[float, float]
+) -> tuple[dict[str, float], tuple[str, ...]]:
+    """A candidate's view of the library's shares: those of the effects that act on a disc it acts on (its
+    :attr:`~.candidate.Candidate.rest`, where :func:`library_answer` looks), and the effect acting on the other disc
+    alone that explains at least :data:`LIBRARY_SHARE` of that disc's residual, if any (its
+    :attr:`~.candidate.Candidate.beside`).
+
+    Parameters
+    ----------
+    shares : dict of str to float
+        Every group's and library effect's share (library effects under :data:`LIBRARY_PREFIX`).
+    library : dict of str to numpy.ndarray
+        The library effects' columns (:func:`library_columns`: the upper disc's ``n`` rows, then the lower's).
+    n : int
+        Samples per disc.
+    sense : tuple of float
+        The candidate's sense on the upper and the lower disc (0: it does not act there).
+
+    Returns
+    -------
+    tuple of (dict of str to float, tuple of str)
+        Its shares, and the effect named beside it (empty or one name).
+    """
+    own, others = dict(shares), {}
+    for effect, block in library.items():
+        acts = (bool(np.any(block[:n] != 0.0)), bool(np.any(block[n:] != 0.0)))
+        if not any(a and s != 0.0 for a, s in zip(acts, sense)):
+            others[effect] = own.pop(LIBRARY_PREFIX + effect, 0.0)
+    best = max(others.items(), key=lambda kv: kv[1], default=None)
+    return own, (best[0],) if best is not None and best[1] >= LIBRARY_SHARE else ()
