@@ -6,10 +6,10 @@ file's effect is added to the final model and its parameters are fitted by multi
 own recordings, with the segments' start speeds, the base parameters as the diagnosis freed them (where it left
 some at a bound, held at nominal and as diagnosed, the better fit kept).  Where the fit leaves the recording above
 the noise, a freer fit is tried and kept when it counts by the selection's rules (:func:`_counts`): the base
-parameters freed where they were held, then every selected library effect freed (the selection ran before the
-candidate existed, and what it took may have stood in for it).  Every candidate is fitted through its whole group's
-terms compiled once (:mod:`.group_terms`).  The answer is the residual against the noise with the candidate
-(:func:`.unexplained.unexplained`) beside the one without.
+parameters freed where they were held, then every selected library effect, and the one discovery named beside it,
+freed (the selection ran before the candidate existed).  Every candidate is fitted through its group's terms
+compiled once (:mod:`.group_terms`).  The answer is the residual against the noise with the candidate beside the
+one without.
 """
 
 from __future__ import annotations
@@ -404,8 +404,7 @@ def _counts(fit: FitResult, more: FitResult, extra: int, ctx: SelectionContext) 
 
 
 def _selected_rest(diagnosis: Diagnosis, fitted: Sequence[str], beside: Sequence[str] = ()) -> tuple[str, ...]:
-    """The parameters of the library effects the diagnosis selected, or the regression named ``beside`` the
-    candidate (:attr:`~.candidate.Candidate.beside`), that the candidate's fit held."""
+    """The parameters of the library effects selected, or named ``beside`` the candidate, that its fit held."""
     return tuple(n for n in _selected_params(diagnosis, also=beside) if n not in set(fitted))
 
 
