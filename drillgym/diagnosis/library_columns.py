@@ -32,6 +32,10 @@ __all__ = ["LIBRARY_SHARE", "LIBRARY_PREFIX", "LibraryAnswer", "library_columns"
 #: a library effect is the answer when its columns explain at least this share of what the best outside candidate's
 #: terms explain (it names known physics with the parameters the user can look up)
 LIBRARY_SHARE = 0.8
+#: a library effect is named beside a candidate on another disc when it explains at least this share of that disc's
+#: residual (as much as a candidate itself must, :data:`.discovery.MIN_EXPLAINED_SHARE`): its fit beside the
+#: candidate decides (a selection that took a friction drift in its place leaves it 44 % of the brake's residual)
+BESIDE_SHARE = 0.3
 #: the key a library effect's share has among the groups' shares (:attr:`~.candidate.Candidate.rest`)
 LIBRARY_PREFIX = "library:"
 
@@ -144,7 +148,7 @@ def library_view(
 ) -> tuple[dict[str, float], tuple[str, ...]]:
     """A candidate's view of the library's shares: those of the effects that act on a disc it acts on (its
     :attr:`~.candidate.Candidate.rest`, where :func:`library_answer` looks), and the effect acting on the other disc
-    alone that explains at least :data:`LIBRARY_SHARE` of that disc's residual, if any (its
+    alone that explains most of that disc's residual, at least :data:`BESIDE_SHARE`, if any (its
     :attr:`~.candidate.Candidate.beside`).
 
     Parameters
@@ -169,4 +173,4 @@ def library_view(
         if not any(a and s != 0.0 for a, s in zip(acts, sense)):
             others[effect] = own.pop(LIBRARY_PREFIX + effect, 0.0)
     best = max(others.items(), key=lambda kv: kv[1], default=None)
-    return own, (best[0],) if best is not None and best[1] >= LIBRARY_SHARE else ()
+    return own, (best[0],) if best is not None and best[1] >= BESIDE_SHARE else ()
