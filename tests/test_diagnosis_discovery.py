@@ -222,5 +222,6 @@ def test_a_library_effect_on_the_other_disc_is_named_beside_a_candidate_not_for_
     assert upper is not None and upper.group == "upper_force" and upper.explained > 0.9, upper
     assert "library:position_friction" not in upper.rest and library_answer(upper) is None, upper.rest
     assert upper.beside == ("position_friction",)
+    assert "position_friction" in upper.found_line() and upper.to_json()["beside"] == ["position_friction"]
     lower = find_candidate(rt, np.zeros(t.size), p.Ju, p.Jl, library=library, only=("lower_friction",))
     assert library_answer(lower).effect == "position_friction" and lower.beside == (), (lower.rest, lower.beside)

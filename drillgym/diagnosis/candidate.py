@@ -137,7 +137,12 @@ class Candidate:
             how = f"what {what} reads, by its own fit: {self.explained:.0%} of the unexplained variance"
             return f"candidate outside the library ({how}): {self.reading()} — {self.expression()}"
         how = f"{self.explained:.0%} of the residual {'lateral force' if self.group == 'lateral_force' else 'torque'}"
-        return f"candidate outside the library ({how}): {self.expression()}"
+        beside = (
+            f"; the library's {' and '.join(self.beside)} explains the other disc's, freed in its fit"
+            if self.beside
+            else ""
+        )
+        return f"candidate outside the library ({how}{beside}): {self.expression()}"
 
     def to_json(self) -> dict:
         """The candidate as a JSON-ready dict."""
@@ -152,6 +157,7 @@ class Candidate:
             "terms": self.terms,
             "widths": self.widths,
             "through_lag_s": self.through_lag,
+            "beside": list(self.beside),
             "fit": self.fit.to_json() if self.fit is not None else None,
             "alternative": None
             if self.alternative is None
