@@ -154,18 +154,14 @@ def test_an_upper_disc_friction_is_discovered_while_the_lower_disc_is_stuck():
     assert coef == pytest.approx(0.15, rel=0.25), cand.terms
 
 
-def test_a_residual_a_library_effect_explains_is_answered_by_the_library_effect():
-    """A lower-disc torque that is a position friction: discovery's terms explain it (sign(ωl) cos θl), and so do
-    the library effect's own columns regressed beside them; the answer is the library effect, not a file.  With
-    columns of a library effect that does not explain it (a drift), the candidate stands."""
+def _position_friction_residual(rng):
+    """A lower disc turning at 2 ± 0.8 rad/s, 0.3 rad behind the upper one, with a position friction
+    (pf_c1 = 0.12, pf_s1 = −0.05) the model lacks: times, states, the brake's slip level, the torque per unit of
+    pf_c1 and pf_s1 (N m) and the lower disc's residual torque (N m)."""
     import numpy as np
 
     from drillgym.configurations import N_STATE
-    from drillgym.diagnosis.discovery import find_candidate
-    from drillgym.diagnosis.library_columns import LIBRARY_SHARE, library_answer
-    from drillgym.diagnosis.sparse import ResidualTorque
 
-    rng = np.random.default_rng(4)
     p = RigParams()
     t = np.arange(0, 40.0, 1 / 250)
     wl = 2.0 + 0.8 * np.sin(0.7 * t)
@@ -176,6 +172,22 @@ def test_a_residual_a_library_effect_explains_is_answered_by_the_library_effect(
     level = p.Tc + (p.Ts - p.Tc) * np.exp(-((wl / p.ws) ** p.delta))  # the brake's slip torque
     per_unit = np.column_stack([level * np.cos(S[:, 1]), level * np.sin(S[:, 1])])  # pf_c1, pf_s1 per unit
     tau_l = -per_unit @ np.array([0.12, -0.05]) + 0.002 * rng.standard_normal(t.size)  # the torque it adds
+    return t, S, level, per_unit, tau_l
+
+
+def test_a_residual_a_library_effect_explains_is_answered_by_the_library_effect():
+    """A lower-disc torque that is a position friction: discovery's terms explain it (sign(ωl) cos θl), and so do
+    the library effect's own columns regressed beside them; the answer is the library effect, not a file.  With
+    columns of a library effect that does not explain it (a drift), the candidate stands."""
+    import numpy as np
+
+    from drillgym.diagnosis.discovery import find_candidate
+    from drillgym.diagnosis.library_columns import LIBRARY_SHARE, library_answer
+    from drillgym.diagnosis.sparse import ResidualTorque
+
+    rng = np.random.default_rng(4)
+    p = RigParams()
+    t, S, level, per_unit, tau_l = _position_friction_residual(rng)
     rt = ResidualTorque(t, 0.002 * rng.standard_normal(t.size), tau_l, S, np.ones(t.size, bool))
     zeros = np.zeros_like(per_unit)
     position = np.vstack([zeros, -per_unit])  # upper disc's rows, then the lower's: the torque per unit
@@ -199,22 +211,13 @@ def test_a_library_effect_on_the_other_disc_is_named_beside_a_candidate_not_for_
     candidate has the library effect as its answer and nothing beside it."""
     import numpy as np
 
-    from drillgym.configurations import N_STATE
     from drillgym.diagnosis.discovery import find_candidate
     from drillgym.diagnosis.library_columns import library_answer
     from drillgym.diagnosis.sparse import ResidualTorque
 
     rng = np.random.default_rng(5)
     p = RigParams()
-    t = np.arange(0, 40.0, 1 / 250)
-    wl = 2.0 + 0.8 * np.sin(0.7 * t)
-    S = np.zeros((t.size, N_STATE))
-    S[:, 1] = np.cumsum(wl) / 250
-    S[:, 0] = S[:, 1] - 0.3
-    S[:, 2] = S[:, 3] = wl
-    level = p.Tc + (p.Ts - p.Tc) * np.exp(-((wl / p.ws) ** p.delta))
-    per_unit = np.column_stack([level * np.cos(S[:, 1]), level * np.sin(S[:, 1])])
-    tau_l = -per_unit @ np.array([0.12, -0.05]) + 0.002 * rng.standard_normal(t.size)
+    t, S, _, per_unit, tau_l = _position_friction_residual(rng)
     tau_u = -0.1 * np.sin(6.0 * S[:, 0] + 0.4) + 0.002 * rng.standard_normal(t.size)
     rt = ResidualTorque(t, tau_u, tau_l, S, np.ones(t.size, bool))
     library = {"position_friction": np.vstack([np.zeros_like(per_unit), -per_unit])}
