@@ -53,7 +53,8 @@ class Candidate:
     effect_file : str or None
         ``path.py:NAME`` of the file written, if any.
     rest : dict of str to float
-        Other groups' best shares.
+        Other groups' best shares, and those of the library effects acting on a disc it acts on
+        (:func:`.library_columns.library_view`).
     reach : dict of str to float
         Term label -> the coefficient that would make the term alone as large as the residual torque
         (N m per unit): the file's bounds cover it too.
