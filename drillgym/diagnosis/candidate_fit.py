@@ -194,7 +194,7 @@ def fit_candidate(
     Parameters
     ----------
     screening : Screening
-        The recordings screened (their objective and scales as the selection left them).
+        The recordings screened (their objective, its channels weighed by ``noise_scales``, :class:`_CandidateModel`).
     diagnosis : Diagnosis
         The diagnosis (final model, base decision, its residual against the noise).
     candidate : Candidate
@@ -219,7 +219,8 @@ def fit_candidate(
     if ahead:  # the lag the terms were regressed through, fitted with them
         start_values = {**start_values, "tau_m": candidate.through_lag}
     names = list(start_values)
-    setup = _CandidateModel(model, comp, with_it, effect, start_values, _stood_in(diagnosis, candidate))
+    stood_in = _stood_in(diagnosis, candidate)
+    setup = _CandidateModel(model, comp, with_it, effect, start_values, stood_in, scales=noise_scales)
     if diagnosis.at_bounds and diagnosis.nominal_vector is not None:
         # an effect the library lacks may have been absorbed at the bound: the base held at nominal, and held as
         # the diagnosis left it (its mismatch may be real: 5 % off beside an offset); the better fit is kept
@@ -257,11 +258,9 @@ def fit_candidate(
 
 
 def _offset_start(candidate: Candidate, comp: Composition, vec: np.ndarray) -> np.ndarray:
-    """The model vector ``vec`` with its LVDT offset where the candidate's regression puts it: the constant force
-    beside its terms over k (:attr:`~.candidate.Candidate.constant_force`); ``vec`` itself without either.  Started
-    as diagnosed, the offset still holds the constant part of the candidate's force (a brake pad's friction's mean)
-    and the fit settles between the two (an independent rig's 2.25 N pad: the coefficients −3.6, −1.6 for the
-    regressed −10.9, −2.2; from here −10.4, −3.0 and 97.6 % of the unexplained variance removed, from 30 %)."""
+    """``vec`` with its LVDT offset at the constant force beside the candidate's terms over k (``vec`` itself without
+    either): started as diagnosed, the offset holds the constant part of the force (a brake pad's friction's mean)
+    and the fit settles between the two (a 2.25 N pad: 30 % of the unexplained variance removed; from here 97.6 %)."""
     force = candidate.constant_force
     if force is None or "lvdt_offset" not in comp.names:
         return vec
@@ -283,6 +282,10 @@ class _CandidateModel:
     start_values: dict[str, float]  # its free parameters' start
     library: tuple[str, ...] = ()  # the selected library effects' parameters fitted with it
     max_nfev: int = MAX_NFEV  # least-squares evaluations
+    # the channels' noise the fit weighs them by, as the candidate is judged (None: the screening objective's scales,
+    # the sensors weighted by their misfit: a quadratic drag's fit, its LVDTs weighted 11 times less than the
+    # encoders, traded the drag for b at its bound, 6.6 -> 5.3 noise units on the LVDTs; on the noise, 0.18)
+    scales: Any = None
 
     def fit(self, base: np.ndarray, base_names: tuple[str, ...]) -> tuple[Objective, SelectionContext, FitResult]:
         """The candidate's parameters and the base parameters ``base_names`` fitted from the model vector ``base``
@@ -293,6 +296,7 @@ class _CandidateModel:
         for name, value in self.start_values.items():
             start[self.with_it.param_index(name)] = value
         obj = self.model.obj.with_own_speeds()
+        obj.scales = dict(self.scales or obj.scales)
         obj.model = obj.model.with_composition(self.with_it)
         nominal = transfer(self.model.nominal, self.comp, self.with_it)
         for name in self.library:
@@ -371,10 +375,8 @@ def _base_freed_if_needed(
     setup: _CandidateModel, fitted: tuple, base_names: tuple[str, ...], held: bool, noise_scales: dict[str, float]
 ) -> tuple[tuple, tuple[str, ...], bool]:
     """The fit ``fitted`` (objective, context, result) again with every base parameter freed, where they were held,
-    it leaves the recording above the noise and freeing them counts (:func:`_counts`): a mismatch of a few per cent
-    lost beside a dead zone or an offset stands out once the candidate is in (a motor constant 3 % off beside a
-    0.1 V offset leaves hundreds of noise units).  Returns the fit kept, its freed base parameters and whether the
-    base stayed held at nominal."""
+    it leaves the recording above the noise and that counts (:func:`_counts`: a km 3 % off beside a 0.1 V offset
+    leaves hundreds of noise units); the fit kept, its freed base parameters and whether the base stayed held."""
     obj, ctx, fit = fitted
     if base_names or unexplained(obj, np.asarray(fit.vector), noise_scales).explained:
         return fitted, base_names, held
@@ -388,10 +390,8 @@ def _base_freed_if_needed(
 
 def _counts(fit: FitResult, more: FitResult, extra: int, ctx: SelectionContext) -> bool:
     """Whether the fit ``more``, with ``extra`` parameters freed beside those of ``fit``, counts by the selection's
-    rules (:func:`.scoring.significant`) and leaves the base parameters freed in it "a few percent off": none at a
-    bound of its range, their prior's cost within its 95 % quantile (:func:`.criterion.plausible_prior`; something
-    still missing is absorbed where they moved further: a 31 ms motor lag on steps at 250 Hz beside a −0.12 V
-    offset, taken by km, Tcu, bu, Ts and Tc 8-15 % low)."""
+    rules (:func:`.scoring.significant`) with its freed base "a few percent off": none at a bound, their prior's
+    cost within its 95 % quantile (a 31 ms lag beside a −0.12 V offset was taken by km, Tcu, bu, Ts, Tc 8-15 % low)."""
     ids = ctx.obj.channel_ids
     sc, _ = score(fit.residual, more, extra, channels=ids, blocks=ctx.obj.block_ids)
     if not significant(sc, fit.rss_after, more.rss_after, len(more.residual), fit.residual, more.residual, ids):
@@ -519,7 +519,7 @@ def _screen_cut(
         return -1.0
     with_it = with_candidate(comp, diagnosis.model, {}, effect)
     library = _stood_in(diagnosis, reading)
-    setup = _CandidateModel(screening.model, comp, with_it, effect, start_values, library, SCREEN_NFEV)
+    setup = _CandidateModel(screening.model, comp, with_it, effect, start_values, library, SCREEN_NFEV, noise_scales)
     obj, _, fit = setup.fit(diagnosis.vector, ())
     after = unexplained(obj, np.asarray(fit.vector), noise_scales)
     return 1.0 - (after.ratio_to_noise / before.ratio_to_noise) ** 2
