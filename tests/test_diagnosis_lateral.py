@@ -253,3 +253,21 @@ def test_a_library_effect_the_terms_stand_for_is_held_and_the_force_beside_it_fo
     assert found is not None and found.group == "lateral_force" and next(iter(found.terms)) == "r²·(X, Y)"
     final = d.final().unexplained
     assert max(final.channels["x"], final.channels["y"]) < 6.0, final.channels
+
+
+def test_a_drags_own_fit_weighs_the_lvdts_by_their_noise_and_halves_their_misfit(tmp_path):
+    """A quadratic drag −c2 |V| V (c2 = 865 N s²/m²): the selection weights the sensors by their misfit (the LVDTs
+    at 6.6 noise units, the encoders at 2), and the candidate's fit on those weights traded the drag for b at its
+    bound (6.65 -> 5.35 noise units on the LVDTs); weighed by the noise, as it is judged, it halves both LVDTs'
+    misfit with the drag near its size."""
+    from drillgym.diagnosis import diagnose
+
+    d = diagnose(
+        _coupled({"lateral_quadratic_damping": {"c2": 865.0}}, seed=0), discover=True, candidate_out=tmp_path / "c.py"
+    )
+    c = d.candidate
+    assert c is not None and c.group == LATERAL_GROUP and next(iter(c.terms)) == "|V|·(VX, VY)", d.text()
+    for ch in ("x", "y"):
+        assert c.fit.after.channels[ch] <= 0.5 * c.fit.before.channels[ch], c.fit.line()
+    (value,) = [v for v in c.fit.values.values()]
+    assert value == pytest.approx(-865.0, rel=0.3), c.fit.line()
