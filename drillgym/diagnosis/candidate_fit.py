@@ -14,7 +14,7 @@ one without.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -285,7 +285,7 @@ class _CandidateModel:
     # the channels' noise the fit weighs them by, as the candidate is judged (None: the screening objective's scales,
     # the sensors weighted by their misfit: a quadratic drag's fit, its LVDTs weighted 11 times less than the
     # encoders, traded the drag for b at its bound, 6.6 -> 5.3 noise units on the LVDTs; on the noise, 0.18)
-    scales: Any = None
+    scales: Mapping[str, float] | None = None
 
     def fit(self, base: np.ndarray, base_names: tuple[str, ...]) -> tuple[Objective, SelectionContext, FitResult]:
         """The candidate's parameters and the base parameters ``base_names`` fitted from the model vector ``base``
