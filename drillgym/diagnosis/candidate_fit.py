@@ -219,8 +219,7 @@ def fit_candidate(
     if ahead:  # the lag the terms were regressed through, fitted with them
         start_values = {**start_values, "tau_m": candidate.through_lag}
     names = list(start_values)
-    stood_in = _stood_in(diagnosis, candidate)
-    setup = _CandidateModel(model, comp, with_it, effect, start_values, stood_in, scales=noise_scales)
+    setup = _CandidateModel(model, comp, with_it, effect, start_values, noise_scales, _stood_in(diagnosis, candidate))
     if diagnosis.at_bounds and diagnosis.nominal_vector is not None:
         # an effect the library lacks may have been absorbed at the bound: the base held at nominal, and held as
         # the diagnosis left it (its mismatch may be real: 5 % off beside an offset); the better fit is kept
@@ -280,12 +279,12 @@ class _CandidateModel:
     with_it: Composition  # ... with the candidate
     effect: type[Effect]  # the candidate's effect
     start_values: dict[str, float]  # its free parameters' start
+    # the channels' noise the fit weighs them by, as the candidate is judged (not the selection's weighting by the
+    # sensors' misfit: there a quadratic drag's LVDTs counted 11 times less than the encoders and its fit traded the
+    # drag for b at its bound, 6.6 -> 5.3 noise units on the LVDTs; on the noise, 0.18)
+    scales: Mapping[str, float]
     library: tuple[str, ...] = ()  # the selected library effects' parameters fitted with it
     max_nfev: int = MAX_NFEV  # least-squares evaluations
-    # the channels' noise the fit weighs them by, as the candidate is judged (None: the screening objective's scales,
-    # the sensors weighted by their misfit: a quadratic drag's fit, its LVDTs weighted 11 times less than the
-    # encoders, traded the drag for b at its bound, 6.6 -> 5.3 noise units on the LVDTs; on the noise, 0.18)
-    scales: Mapping[str, float] | None = None
 
     def fit(self, base: np.ndarray, base_names: tuple[str, ...]) -> tuple[Objective, SelectionContext, FitResult]:
         """The candidate's parameters and the base parameters ``base_names`` fitted from the model vector ``base``
@@ -296,7 +295,7 @@ class _CandidateModel:
         for name, value in self.start_values.items():
             start[self.with_it.param_index(name)] = value
         obj = self.model.obj.with_own_speeds()
-        obj.scales = dict(self.scales or obj.scales)
+        obj.scales = dict(self.scales)
         obj.model = obj.model.with_composition(self.with_it)
         nominal = transfer(self.model.nominal, self.comp, self.with_it)
         for name in self.library:
@@ -519,7 +518,7 @@ def _screen_cut(
         return -1.0
     with_it = with_candidate(comp, diagnosis.model, {}, effect)
     library = _stood_in(diagnosis, reading)
-    setup = _CandidateModel(screening.model, comp, with_it, effect, start_values, library, SCREEN_NFEV, noise_scales)
+    setup = _CandidateModel(screening.model, comp, with_it, effect, start_values, noise_scales, library, SCREEN_NFEV)
     obj, _, fit = setup.fit(diagnosis.vector, ())
     after = unexplained(obj, np.asarray(fit.vector), noise_scales)
     return 1.0 - (after.ratio_to_noise / before.ratio_to_noise) ** 2
