@@ -405,27 +405,29 @@ def _joint_fit(ts, d, params, specs, values, o: IdentifyOptions, notes: list[str
 
 def _other_readings(ts, d, params, specs, values, o: IdentifyOptions, kept: list, best: tuple, notes: list[str]):
     """The kept candidates each read the other way where that fits the whole model better
-    (:mod:`.diagnosis.other_reading`: a dead zone for an offset, or the converse): the candidates, the joint fit
+    (:mod:`.diagnosis.other_reading`: a dead zone for an offset, or the converse; the terms both readings share
+    started at the kept one's values and at zero, the better of the two fits tried): the candidates, the joint fit
     and its notes."""
     from .diagnosis.other_reading import other_reading
 
     kept = list(kept)
     for i, k in enumerate(kept):
-        other = other_reading(k)
-        if other is None:
-            continue
-        trial_kept = [*kept[:i], other.kept, *kept[i + 1 :]]
-        held = tuple(n for t in trial_kept for n in t.held_terms)
-        trial_notes: list[str] = []
-        trial = _joint_fit(ts, d, params, specs, {**values, **other.kept.through_values}, o, trial_notes, held)
-        ss, ss2 = _sum_of_squares(best[2]), _sum_of_squares(trial[2])
-        if ss2 < (1.0 - OTHER_READING_GAIN) * ss:
-            kept[i], best = other.write(), trial
-            notes = [
-                *trial_notes,
-                f"the candidate read the other way, with the terms {', '.join(other.candidate.terms)}, fits the whole "
-                f"model better: residual {ss2:.3g} against {ss:.3g} rad²",
-            ]
+        for shared_at_zero in (False, True):
+            other = other_reading(k, shared_at_zero)
+            if other is None:
+                break
+            trial_kept = [*kept[:i], other.kept, *kept[i + 1 :]]
+            held = tuple(n for t in trial_kept for n in t.held_terms)
+            trial_notes: list[str] = []
+            trial = _joint_fit(ts, d, params, specs, {**values, **other.kept.through_values}, o, trial_notes, held)
+            ss, ss2 = _sum_of_squares(best[2]), _sum_of_squares(trial[2])
+            if ss2 < (1.0 - OTHER_READING_GAIN) * ss:
+                kept[i], best = other.write(), trial
+                notes = [
+                    *trial_notes,
+                    f"the candidate read the other way, with the terms {', '.join(other.candidate.terms)}, fits the "
+                    f"whole model better: residual {ss2:.3g} against {ss:.3g} rad²",
+                ]
     return kept, best, notes
 
 

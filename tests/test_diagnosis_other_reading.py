@@ -69,3 +69,19 @@ def test_a_dead_zone_is_read_again_as_an_offset_and_a_candidate_with_neither_has
     assert set(other.kept.held_terms) >= {"mv_sat", "mv_w"}
     plain = _kept({"u³": 0.005}, {}, {"mv_u3": 3e-4}, {"mv_u3": "candidate_motor_voltage_c1"}, tmp_path)
     assert other_reading(plain) is None
+
+
+def test_the_other_reading_can_start_the_terms_both_share_at_zero_its_own_term_as_before(tmp_path):
+    kept = _kept(
+        {"u|u|": 0.067, "sign(u)": -0.28},
+        {},
+        {"mv_uabs": 0.067, "mv_sign": -0.28},
+        {"mv_uabs": "candidate_motor_voltage_c1", "mv_sign": "candidate_motor_voltage_c2"},
+        tmp_path,
+    )
+    at_fit, at_zero = other_reading(kept), other_reading(kept, shared_at_zero=True)
+    assert list(at_zero.candidate.terms) == list(at_fit.candidate.terms) == ["u|u|", "sat(u, 0.28)"]
+    assert at_fit.kept.through_values["mv_uabs"] == 0.067 and at_zero.kept.through_values["mv_uabs"] == 0.0
+    assert "mv_uabs" not in at_zero.kept.held_terms  # free from zero, not dropped
+    for v in (at_fit.kept.through_values, at_zero.kept.through_values):
+        assert v["mv_sat"] == -1.0 and v["mv_w"] == pytest.approx(0.28) and v["mv_sign"] == 0.0

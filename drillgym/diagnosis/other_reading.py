@@ -51,19 +51,24 @@ class OtherReading:
         return replace(self.kept, spec=self.candidate.effect_file, candidate=self.candidate)
 
 
-def other_reading(kept: KeptCandidate) -> OtherReading | None:
+def other_reading(kept: KeptCandidate, shared_at_zero: bool = False) -> OtherReading | None:
     """The kept candidate's other reading (module docstring), or None when it has none.
 
     Parameters
     ----------
     kept : KeptCandidate
         A candidate that entered the model, fitted through its group's compiled terms.
+    shared_at_zero : bool, optional
+        Start the terms both readings share at zero rather than at the kept candidate's fitted values: what
+        the kept reading's shape needed of them may be no part of the other's (a 0.41 V dead zone read as
+        −0.28 sign(u) + 0.067 u|u|: read again as a zone from the u|u| kept there, the joint fit stopped at a
+        0.33 V zone beside it, leaving 2.6 times the residual of the mixed shift; the zone alone is the plant).
 
     Returns
     -------
     OtherReading or None
         The other reading, its terms started at the regressed values (the replaced term's parameter at 0 and
-        held), the terms both share at the kept candidate's fitted values.
+        held), the terms both share at the kept candidate's fitted values (or at zero).
     """
     c = kept.candidate
     if kept.through is None or c is None or c.group != "motor_voltage":
@@ -79,7 +84,8 @@ def other_reading(kept: KeptCandidate) -> OtherReading | None:
         if parameter is None:
             return None
         names[parameter] = f"{c.name}_c{i}"
-        start[parameter] = kept.through_values.get(parameter, value) if parameter in kept.file_names else value
+        shared = parameter in kept.file_names
+        start[parameter] = (0.0 if shared_at_zero else kept.through_values.get(parameter, value)) if shared else value
         if label in other.widths:
             width = WIDTH_PARAMETERS[c.group]
             names[width] = f"{c.name}_w{i}"
