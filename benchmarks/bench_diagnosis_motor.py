@@ -47,7 +47,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_diagnosis_rig import _Rig, input_signal  # noqa: E402
+from bench_diagnosis_rig import ENCODER_READINGS, _Rig, encoder_readings, input_signal  # noqa: E402
 
 from drillgym import RigParams  # noqa: E402
 from drillgym.io import TimeSeries  # noqa: E402
@@ -135,13 +135,12 @@ def motor_recording(signal: str, duration: float, rate_hz: float, seed: int, eff
     if not sol.success:
         raise RuntimeError(f"motor rig: {sol.message}")
     rng = np.random.default_rng(seed + 7)
+    read_u, read_l = encoder_readings(sol.y[rig.rotor_index() if "backlash" in effects else 0], sol.y[1], effects)
     cols = {
         "t": t,
         "u": u,
-        "theta_u": quantize_angle(
-            sol.y[rig.rotor_index() if "backlash" in effects else 0] + rng.normal(0, 1e-4, t.size)
-        ),
-        "theta_l": quantize_angle(sol.y[1] + rng.normal(0, 1e-4, t.size)),
+        "theta_u": quantize_angle(read_u + rng.normal(0, 1e-4, t.size)),
+        "theta_l": quantize_angle(read_l + rng.normal(0, 1e-4, t.size)),
     }
     meta = {
         "configuration": "torsional",
@@ -162,6 +161,10 @@ def draw(kind: str, rng: np.random.Generator) -> dict[str, float]:
         return {"s": float(rng.uniform(0.008, 0.015))}
     if kind == "backlash":
         return {"b": float(rng.uniform(0.01, 0.03))}
+    if kind in ("motor_encoder_scale", "lower_encoder_scale"):  # 0.3-2 % either way
+        return {ENCODER_READINGS[kind]: float(rng.choice([-1, 1]) * rng.uniform(0.003, 0.02))}
+    if kind == "lower_encoder_offset":  # 5-30 mrad either way (4-38 counts)
+        return {ENCODER_READINGS[kind]: float(rng.choice([-1, 1]) * rng.uniform(0.005, 0.03))}
     return {"u_off": float(rng.choice([-1, 1]) * rng.uniform(0.1, 0.2))}
 
 

@@ -50,8 +50,29 @@ OUTSIDE = ("brake_quadratic", "stribeck_shape", "upper_stribeck", "string_cubic"
 #: (a constant force shifts the disc as an LVDT offset would; only its coupling to the rotation and the friction
 #: part that follows T_fl tell them apart)
 OUTSIDE_LATERAL = ("lateral_cubic", "lateral_quadratic_damping", "brake_contact")
-#: an LVDT whose gain is off: it reads (1 + k) X (lvdt_kx) and (1 + k) Y (lvdt_ky), before its noise and low-pass
-OUTSIDE_READING = ("lvdt_scale",)
+#: sensors that read off the truth, before their noise and quantisation: an LVDT whose gain is off reads (1 + k) X
+#: (lvdt_kx) and (1 + k) Y (lvdt_ky); an encoder whose counts per revolution are off by the factor 1 + k reads
+#: (1 + k) θ (the motor's: enc_scale, the lower's: enc_scale_l); the lower encoder's zero off the motor's by c
+#: reads θl + c (enc_off_l: the string's twist at rest is read as c)
+OUTSIDE_READING = ("lvdt_scale", "motor_encoder_scale", "lower_encoder_scale", "lower_encoder_offset")
+#: the encoders' reading kinds and their parameters
+ENCODER_READINGS = {
+    "motor_encoder_scale": "enc_scale",
+    "lower_encoder_scale": "enc_scale_l",
+    "lower_encoder_offset": "enc_off_l",
+}
+
+
+def encoder_readings(tu: np.ndarray, tl: np.ndarray, effects: dict) -> tuple[np.ndarray, np.ndarray]:
+    """What the encoders read of the true angles (rad), before their noise and quantisation
+    (:data:`OUTSIDE_READING`)."""
+    if "motor_encoder_scale" in effects:
+        tu = tu * (1.0 + effects["motor_encoder_scale"]["enc_scale"])
+    if "lower_encoder_scale" in effects:
+        tl = tl * (1.0 + effects["lower_encoder_scale"]["enc_scale_l"])
+    if "lower_encoder_offset" in effects:
+        tl = tl + effects["lower_encoder_offset"]["enc_off_l"]
+    return tu, tl
 
 
 def input_signal(
@@ -278,11 +299,12 @@ def rig_recording(
         tu, tl = sol.y[0], sol.y[1]
     else:
         tu, tl = sol.y[3], sol.y[2] + sol.y[3]
+    read_u, read_l = encoder_readings(tu, tl, effects)
     cols = {
         "t": t,
         "u": u,
-        "theta_u": quantize_angle(tu + rng.normal(0, 1e-4, t.size)),
-        "theta_l": quantize_angle(tl + rng.normal(0, 1e-4, t.size)),
+        "theta_u": quantize_angle(read_u + rng.normal(0, 1e-4, t.size)),
+        "theta_l": quantize_angle(read_l + rng.normal(0, 1e-4, t.size)),
     }
     if config == "coupled":
         x, y = sol.y[0], sol.y[1]

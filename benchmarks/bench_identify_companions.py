@@ -21,7 +21,12 @@ the configuration's default length).  Reported per companion and overall:
 * ``silent``: recordings left at >= 10x the noise that are reported as explained (must be 0).
 
     python benchmarks/bench_identify_companions.py [--config torsional] [--seeds 1] [--first-seed 0] [--limit N]
-        [--duration 20] [--out results.jsonl]
+        [--duration 20] [--outside motor|sensors] [--out results.jsonl]
+
+``--outside sensors`` puts encoders that read off the truth in the outside effect's place
+(``bench_diagnosis_rig.OUTSIDE_READING``: the motor's or the lower's counts per revolution 0.3-2 % off, the lower's
+zero 5-30 mrad off the motor's), read by drillgym as ``benchmarks/effects/sensors.py`` and
+``examples/effects/encoder_scale.py``.
 
 ``--config coupled`` records the coupled independent rig (``bench_diagnosis_rig``) with the same motor-side
 effects (no backlash: its rotor is modelled on the torsional rig only) and compares the LVDT channels too.
@@ -48,6 +53,8 @@ from bench_diagnosis_rig import rig_recording  # noqa: E402
 OUTSIDE = ("dead_zone", "voltage_offset", "saturation", "cogging", "backlash")
 #: on the coupled rig (the independent rig's backlash has its rotor on the torsional rig only)
 OUTSIDE_COUPLED = OUTSIDE[:4]
+#: ``--outside sensors``: encoders that read off the truth (``bench_diagnosis_rig.OUTSIDE_READING``)
+SENSORS = ("motor_encoder_scale", "lower_encoder_scale", "lower_encoder_offset")
 COMPANIONS = ("motor_lag", "input_delay", "position_friction", "string_damping", "brake_asymmetry")
 
 
@@ -65,9 +72,10 @@ def draw_companion(name: str, rng: np.random.Generator) -> dict[str, float]:
     return {"asym_s": float(rng.uniform(0.15, 0.3)), "asym_c": float(rng.uniform(0.15, 0.3))}
 
 
-def rows(seeds: int, first_seed: int, config: str = "torsional") -> list[dict]:
-    """Every companion beside an outside effect (the outside kind cycles), per seed."""
-    outside = OUTSIDE if config == "torsional" else OUTSIDE_COUPLED
+def rows(seeds: int, first_seed: int, config: str = "torsional", outside: tuple[str, ...] | None = None) -> list[dict]:
+    """Every companion beside an outside effect (the outside kind cycles over ``outside``: default the motor side's
+    of the configuration), per seed."""
+    outside = outside or (OUTSIDE if config == "torsional" else OUTSIDE_COUPLED)
     out = []
     for seed in range(first_seed, first_seed + seeds):
         for i, companion in enumerate(COMPANIONS):
@@ -102,6 +110,9 @@ OUTSIDE_FILES = {
     "voltage_offset": f"{HERE.parent / 'examples/effects/drive_offset.py'}:drive_offset",
     "saturation": f"{HERE / 'effects/motor_side.py'}:saturation",
     "cogging": f"{HERE / 'effects/motor_side.py'}:cogging",
+    "motor_encoder_scale": f"{HERE.parent / 'examples/effects/encoder_scale.py'}:encoder_scale",
+    "lower_encoder_scale": f"{HERE / 'effects/sensors.py'}:lower_encoder_scale",
+    "lower_encoder_offset": f"{HERE / 'effects/sensors.py'}:lower_encoder_offset",
 }
 #: the timing companions come before the motor-side effect on the signal path (the motor sees f(u_m))
 TIMING = ("input_delay", "motor_lag")
@@ -196,12 +207,18 @@ def main() -> None:
     ap.add_argument("--config", choices=("torsional", "coupled"), default="torsional")
     ap.add_argument("--seeds", type=int, default=1)
     ap.add_argument("--first-seed", type=int, default=0)
+    ap.add_argument(
+        "--outside",
+        choices=("motor", "sensors"),
+        default="motor",
+        help="the outside kinds: the motor side's (default) or the encoders' readings",
+    )
     ap.add_argument("--limit", type=int, default=None)
     ap.add_argument("--duration", type=float, default=20.0)
     ap.add_argument("--rate", type=float, default=500.0)
     ap.add_argument("--out", type=Path, default=None, help="JSON lines, one per recording, appended as they finish")
     a = ap.parse_args()
-    matrix = rows(a.seeds, a.first_seed, a.config)[: a.limit]
+    matrix = rows(a.seeds, a.first_seed, a.config, SENSORS if a.outside == "sensors" else None)[: a.limit]
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         for row in matrix:
