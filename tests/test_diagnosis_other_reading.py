@@ -1,5 +1,7 @@
 """A kept voltage candidate read the other way: a dead zone for an offset, an offset for a dead zone."""
 
+from dataclasses import replace
+
 import pytest
 
 from drillgym.diagnosis.candidate import Candidate
@@ -85,3 +87,36 @@ def test_the_other_reading_can_start_the_terms_both_share_at_zero_its_own_term_a
     assert "mv_uabs" not in at_zero.kept.held_terms  # free from zero, not dropped
     for v in (at_fit.kept.through_values, at_zero.kept.through_values):
         assert v["mv_sat"] == -1.0 and v["mv_w"] == pytest.approx(0.28) and v["mv_sign"] == 0.0
+
+
+def test_an_encoder_reading_is_read_again_as_the_other_encoders_scale_error(tmp_path):
+    from drillgym.diagnosis.reading_terms import EncoderTerms
+    from drillgym.diagnosis.sensor_reading import reading_candidate
+
+    cand = replace(reading_candidate("lower_encoder"), name="candidate_lower_encoder")
+    cand.terms = {"θl": -0.0116, "1": -0.088, "tanh(ωl/w)": 0.0012}
+    cand.widths = {"tanh(ωl/w)": 0.29}
+    write_effect_file(cand, tmp_path / "cand.py", cand.name)
+    through = {p.name: p.default for p in EncoderTerms.parameters} | {
+        "le_scale": -0.0116,
+        "le_offset": -0.088,
+        "le_play": 0.0012,
+        "le_w": 0.29,
+    }
+    names = {p: f"candidate_lower_encoder_{s}" for p, s in (("le_scale", "c1"), ("le_offset", "c2"), ("le_play", "c3"))}
+    kept = KeptCandidate(cand.effect_file, {}, (), EncoderTerms, through, names | {"le_w": "x_w3"}, cand)
+    other = other_reading(kept)
+    v = other.kept.through_values
+    assert v["me_scale"] == pytest.approx(0.0116 / (1 - 0.0116)) and v["me_offset"] == 0.088
+    assert v["me_play"] == -0.0012 and v["me_w"] == 0.29
+    assert v["le_scale"] == v["le_offset"] == v["le_play"] == 0.0 and "le_scale" in other.kept.held_terms
+    assert other.candidate.group == "motor_encoder" and set(other.kept.file_names) == {
+        "me_scale",
+        "me_offset",
+        "me_play",
+        "me_w",
+    }
+    assert other_reading(kept, shared_at_zero=True) is None  # one other reading only
+    written = other.write()
+    effect = get_effect(written.spec)
+    assert effect.channels == ("theta_u",) and written.spec.endswith(":candidate_motor_encoder")

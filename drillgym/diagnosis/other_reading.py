@@ -1,12 +1,18 @@
-"""The other reading of a kept voltage candidate: a dead zone for an offset, or an offset for a dead zone.
+"""The other reading of a kept candidate: a dead zone for an offset (or the converse), the other encoder's scale.
 
 Where the command never turns the motor backwards, a negative offset ``-w`` and a dead zone of half-width ``w``
 (``-sat(u, w)``) change the voltage at the motor alike wherever the command is above ``w``; inside, the motor
 sees ``u - w`` (a voltage that brakes it) or nothing.  The candidate's own fit, on a model that may still lack
 the lag and the friction beside it, cannot tell them apart (an independent plant's 0.4 V dead zone: both readings
 removed 97.6 % of the unexplained variance), and the model a controller is built on must have the right one: an
-observer on the offset read for that dead zone held nothing below 4 rad/s.  :func:`drillgym.identify` fits the
-other reading with the whole model (:func:`other_reading`) and keeps the one that fits it better.
+observer on the offset read for that dead zone held nothing below 4 rad/s.
+
+An encoder's reading has one too: a scale error k of one encoder reads nearly as −k / (1 + k) of the other with
+every angle rescaled, which the base parameters freed beside it take up; what tells them apart (a position
+friction that follows the lower disc's true angle, the motor's torque per true radian) shows only in the whole
+model (a motor encoder 1.2 % off beside a position friction, read as the lower's −1.16 % with an offset of
+−0.088 rad).  :func:`drillgym.identify` fits the other reading with the whole model (:func:`other_reading`) and
+keeps the one that fits it better.
 """
 
 from __future__ import annotations
@@ -16,9 +22,12 @@ from pathlib import Path
 
 from .candidate import Candidate
 from .discovery_terms import dead_zone_variant, offset_variant
-from .effect_file import write_effect_file
+from .effect_file import candidate_name, write_effect_file
+from .group_terms import file_name
 from .motor_terms import WIDTH_PARAMETERS, term_parameters
+from .reading_terms import SENSORS
 from .reselection import KeptCandidate
+from .sensor_reading import START_WIDTH_RAD_S, reading_candidate
 
 __all__ = ["OtherReading", "other_reading"]
 
@@ -71,7 +80,11 @@ def other_reading(kept: KeptCandidate, shared_at_zero: bool = False) -> OtherRea
         held), the terms both share at the kept candidate's fitted values (or at zero).
     """
     c = kept.candidate
-    if kept.through is None or c is None or c.group != "motor_voltage":
+    if kept.through is None or c is None:
+        return None
+    if c.group in OTHER_ENCODER:
+        return None if shared_at_zero else _other_encoder(kept)
+    if c.group != "motor_voltage":
         return None
     other = dead_zone_variant(c) or offset_variant(c)
     if other is None:
@@ -92,3 +105,26 @@ def other_reading(kept: KeptCandidate, shared_at_zero: bool = False) -> OtherRea
             start[width] = other.widths[label]
     off = dict.fromkeys(kept.through_values, 0.0)  # the terms it does not use: off, and held there
     return OtherReading(replace(kept, through_values={**off, **start}, file_names=names), other)
+
+
+#: an encoder's reading -> the other encoder's, which reads nearly alike with every angle rescaled
+OTHER_ENCODER = {"motor_encoder": "lower_encoder", "lower_encoder": "motor_encoder"}
+
+
+def _other_encoder(kept: KeptCandidate) -> OtherReading:
+    """The other encoder's reading of a kept encoder reading: its scale error −k / (1 + k) for the kept one's k,
+    its offset and play the kept one's with their sign turned, its play's width the same; the kept encoder's terms
+    at 0 and held (both are terms of one compiled effect)."""
+    this, that = SENSORS[kept.candidate.group], SENSORS[OTHER_ENCODER[kept.candidate.group]]
+    values = kept.through_values
+    scale = values.get(this.terms[this.symbol], 0.0)
+    start = {this.terms[lb]: 0.0 for lb in this.terms}
+    start[that.terms[that.symbol]] = -scale / (1.0 + scale)
+    start[that.terms["1"]] = -values.get(this.terms["1"], 0.0)
+    start[that.terms[that.play]] = -values.get(this.terms[this.play], 0.0)
+    start[that.width] = values.get(this.width) or values.get(that.width) or START_WIDTH_RAD_S
+    cand = replace(reading_candidate(that.group), name=candidate_name(that.group))
+    cand.terms = {lb: start[p] for lb, p in that.terms.items()}
+    cand.widths = {that.play: start[that.width]}
+    names = {p: file_name(cand, p) for p in (*that.terms.values(), that.width)}
+    return OtherReading(replace(kept, through_values={**values, **start}, file_names=names), cand)
