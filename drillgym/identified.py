@@ -405,29 +405,28 @@ def _joint_fit(ts, d, params, specs, values, o: IdentifyOptions, notes: list[str
 
 def _other_readings(ts, d, params, specs, values, o: IdentifyOptions, kept: list, best: tuple, notes: list[str]):
     """The kept candidates each read the other way where that fits the whole model better
-    (:mod:`.diagnosis.other_reading`: a dead zone for an offset, or the converse; the terms both readings share
-    started at the kept one's values and at zero, the better of the two fits tried): the candidates, the joint fit
-    and its notes."""
-    from .diagnosis.other_reading import other_reading
+    (:func:`.diagnosis.other_reading.readings_of`: a dead zone for an offset, or the converse, the other encoder's
+    scale error, the candidate its own fit ranked second): the candidates, the joint fit and its notes."""
+    from .diagnosis.other_reading import readings_of
 
-    kept = list(kept)
+    kept, specs = list(kept), list(specs)
     for i, k in enumerate(kept):
-        for shared_at_zero in (False, True):
-            other = other_reading(k, shared_at_zero)
-            if other is None:
-                break
+        for other in readings_of(k):
             trial_kept = [*kept[:i], other.kept, *kept[i + 1 :]]
             held = tuple(n for t in trial_kept for n in t.held_terms)
+            trial_specs = [other.kept.through if s is kept[i].through else s for s in specs]
             trial_notes: list[str] = []
-            trial = _joint_fit(ts, d, params, specs, {**values, **other.kept.through_values}, o, trial_notes, held)
+            start = {**values, **other.kept.through_values}
+            trial = _joint_fit(ts, d, params, trial_specs, start, o, trial_notes, held)
             ss, ss2 = _sum_of_squares(best[2]), _sum_of_squares(trial[2])
             if ss2 < (1.0 - OTHER_READING_GAIN) * ss:
-                kept[i], best = other.write(), trial
-                notes = [
-                    *trial_notes,
+                line = (
                     f"the candidate read the other way, with the terms {', '.join(other.candidate.terms)}, fits the "
-                    f"whole model better: residual {ss2:.3g} against {ss:.3g} rad²",
-                ]
+                    f"whole model better: residual {ss2:.3g} against {ss:.3g} rad²"
+                )
+                written = other.write(trial[1], f"{line} (drillgym identify; its values are that fit's)")
+                kept[i], best, specs = written, trial, trial_specs
+                notes = [*trial_notes, line]
     return kept, best, notes
 
 

@@ -120,3 +120,43 @@ def test_an_encoder_reading_is_read_again_as_the_other_encoders_scale_error(tmp_
     written = other.write()
     effect = get_effect(written.spec)
     assert effect.channels == ("theta_u",) and written.spec.endswith(":candidate_motor_encoder")
+
+
+def test_the_alternative_takes_the_kept_candidates_place_at_its_own_fits_values_and_is_written_with_the_whole_models(
+    tmp_path,
+):
+    from types import SimpleNamespace
+
+    from drillgym.diagnosis.other_reading import alternative, readings_of
+    from drillgym.diagnosis.reading_terms import EncoderTerms
+    from drillgym.diagnosis.sensor_reading import reading_candidate
+
+    fitted = {p.name: p.guess for p in EncoderTerms.parameters} | {"me_scale": -0.0149, "me_offset": 0.002}
+    state = SimpleNamespace(
+        composition=SimpleNamespace(named=lambda vec: dict(fitted)), result=SimpleNamespace(vector=0)
+    )
+    fit = SimpleNamespace(
+        through=EncoderTerms,
+        state=state,
+        variance_cut=0.72,
+        with_library=(),
+        file_names={"me_scale": "me_scale", "me_offset": "me_offset", "me_play": "me_play", "me_w": "me_w"},
+    )
+    reading = replace(reading_candidate("motor_encoder"), fit=fit)
+    kept = _kept({"1": -0.17}, {}, {"mv_offset": -0.17}, {"mv_offset": "candidate_motor_voltage_c1"}, tmp_path)
+    kept = replace(kept, candidate=replace(kept.candidate, alternative=reading))
+    alt = alternative(kept)
+    assert alt.kept.through is EncoderTerms and alt.kept.spec == kept.spec
+    assert alt.kept.through_values["me_scale"] == -0.0149 and "le_scale" in alt.kept.held_terms
+    assert alt.kept.file_names["me_scale"] == "candidate_motor_encoder_c1"
+    assert [o.candidate.group for o in readings_of(kept)] == [
+        "motor_voltage",
+        "motor_voltage",
+        "motor_encoder",
+        "lower_encoder",
+    ]
+    written = alt.write({"me_scale": -0.0150, "me_offset": 0.001}, "decided by the whole model")
+    assert written.candidate.terms["θu"] == -0.0150 and written.candidate.terms["1"] == 0.001
+    text = (tmp_path / "cand.py").read_text()
+    assert "decided by the whole model" in text and get_effect(written.spec).channels == ("theta_u",)
+    assert alternative(replace(kept, candidate=replace(kept.candidate, alternative=replace(reading, fit=None)))) is None

@@ -105,10 +105,16 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
         "",
         f"    {cand.expression()}",
         *([f"    {cand.reading()}"] if reading else []),
-        f"    (its fit removes {cand.explained:.0%} of the unexplained variance)"
-        if reading
-        else f"    (explains {cand.explained:.0%} of the residual {'force' if lateral else 'torque'}; "
-        f"{cand.n_samples} samples)",
+        *(
+            [f"    (its fit removes {cand.explained:.0%} of the unexplained variance)"]
+            if reading and cand.fit is not None
+            else []
+            if reading
+            else [
+                f"    (explains {cand.explained:.0%} of the residual {'force' if lateral else 'torque'}; "
+                f"{cand.n_samples} samples)"
+            ]
+        ),
         *[f"    {line}" for note in cand.notes for line in textwrap.wrap(note, 100)],
         "",
         *_fit_it(cand, path.name, name),

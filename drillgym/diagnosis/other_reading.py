@@ -13,23 +13,29 @@ friction that follows the lower disc's true angle, the motor's torque per true r
 model (a motor encoder 1.2 % off beside a position friction, read as the lower's −1.16 % with an offset of
 −0.088 rad).  :func:`drillgym.identify` fits the other reading with the whole model (:func:`other_reading`) and
 keeps the one that fits it better.
+
+The same holds between a candidate and the one its own fit ranked second (:func:`alternative`: a sensor's reading
+beside discovered terms): a motor encoder 1.5 % off beside string damping on the coupled rig, with a friction drift
+in the first selection, was kept as a lower-disc torque growing with time (its own fit 95.6 % of the unexplained
+variance, the lower encoder's reading 94.0 %), and the model file left 142 noise units on θu.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 from .candidate import Candidate
 from .discovery_terms import dead_zone_variant, offset_variant
 from .effect_file import candidate_name, write_effect_file
-from .group_terms import file_name
+from .group_terms import file_name, terms_parameter
 from .motor_terms import WIDTH_PARAMETERS, term_parameters
 from .reading_terms import SENSORS
-from .reselection import KeptCandidate
+from .reselection import MIN_CANDIDATE_CUT, KeptCandidate
 from .sensor_reading import START_WIDTH_RAD_S, reading_candidate
 
-__all__ = ["OtherReading", "other_reading"]
+__all__ = ["OtherReading", "other_reading", "alternative", "readings_of"]
 
 
 @dataclass(frozen=True)
@@ -47,17 +53,33 @@ class OtherReading:
     kept: KeptCandidate
     candidate: Candidate
 
-    def write(self) -> KeptCandidate:
-        """Write the other reading's file in the place of the first's (the same path and effect name).
+    def write(self, values: Mapping[str, float] | None = None, note: str = "") -> KeptCandidate:
+        """Write the other reading's file in the place of the first's (the same path).
+
+        Parameters
+        ----------
+        values : mapping of str to float, optional
+            The compiled terms' parameters as the whole model fitted them: the file's terms and width take them
+            (default: its terms as they started).
+        note : str, optional
+            A line the file's docstring adds (what decided it).
 
         Returns
         -------
         KeptCandidate
             The kept candidate holding the file written.
         """
+        cand = self.candidate
+        if values:
+            terms = {lb: values.get(terms_parameter(cand.group, lb) or "", v) for lb, v in cand.terms.items()}
+            width = values.get(WIDTH_PARAMETERS.get(cand.group, ""))
+            widths = {lb: width for lb in cand.widths} if width is not None else cand.widths
+            cand = replace(cand, terms=terms, widths=widths)
+        if note:
+            cand = replace(cand, notes=(*cand.notes, note))
         path = Path(self.kept.spec.rpartition(":")[0])
-        write_effect_file(self.candidate, path, self.candidate.name)
-        return replace(self.kept, spec=self.candidate.effect_file, candidate=self.candidate)
+        write_effect_file(cand, path, cand.name)
+        return replace(self.kept, spec=cand.effect_file, candidate=cand)
 
 
 def other_reading(kept: KeptCandidate, shared_at_zero: bool = False) -> OtherReading | None:
@@ -128,3 +150,41 @@ def _other_encoder(kept: KeptCandidate) -> OtherReading:
     cand.widths = {that.play: start[that.width]}
     names = {p: file_name(cand, p) for p in (*that.terms.values(), that.width)}
     return OtherReading(replace(kept, through_values={**values, **start}, file_names=names), cand)
+
+
+def alternative(kept: KeptCandidate) -> OtherReading | None:
+    """The candidate its own fit ranked second (:attr:`~.candidate.Candidate.alternative`) in the kept one's place,
+    where it ran through compiled terms and its fit removed at least :data:`.reselection.MIN_CANDIDATE_CUT`; else
+    None.
+
+    Parameters
+    ----------
+    kept : KeptCandidate
+        A candidate that entered the model.
+
+    Returns
+    -------
+    OtherReading or None
+        The alternative as a kept candidate (its terms at its own fit's values, its file not written yet).
+    """
+    c = kept.candidate
+    alt = c.alternative if c is not None else None
+    fit = alt.fit if alt is not None else None
+    if fit is None or fit.through is None or fit.state is None or fit.variance_cut < MIN_CANDIDATE_CUT:
+        return None
+    own = {p.name for p in fit.through.parameters}
+    fitted = fit.state.composition.named(fit.state.result.vector)
+    cand = replace(alt, name=candidate_name(alt.group), alternative=None)
+    names = {p: file_name(cand, p) for p in fit.file_names if p in own}
+    values = {n: float(fitted[n]) for n in own}
+    return OtherReading(KeptCandidate(kept.spec, {}, tuple(fit.with_library), fit.through, values, names, cand), cand)
+
+
+def readings_of(kept: KeptCandidate) -> list[OtherReading]:
+    """Every other reading of a kept candidate to fit with the whole model, in order: its other reading (the terms
+    both share from the kept values, then from zero), its alternative, and the alternative's other reading."""
+    out = [other_reading(kept), other_reading(kept, shared_at_zero=True)]
+    alt = alternative(kept)
+    if alt is not None:
+        out += [alt, other_reading(alt.kept), other_reading(alt.kept, shared_at_zero=True)]
+    return [o for o in out if o is not None]
