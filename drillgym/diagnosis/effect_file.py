@@ -45,6 +45,16 @@ def candidate_name(group: str) -> str:
     return f"candidate_{group}"
 
 
+def _share_line(cand: Candidate, reading: bool, lateral: bool) -> list[str]:
+    """What the candidate explains, in its file's docstring: a reading's own fit (none when the whole model alone
+    fitted it), else the regression's share."""
+    if reading:
+        fitted = cand.fit is not None
+        return [f"    (its fit removes {cand.explained:.0%} of the unexplained variance)"] if fitted else []
+    what = "force" if lateral else "torque"
+    return [f"    (explains {cand.explained:.0%} of the residual {what}; {cand.n_samples} samples)"]
+
+
 def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None) -> Path:
     """Write a candidate as an effect file.
 
@@ -105,16 +115,7 @@ def write_effect_file(cand: Candidate, path: str | Path, name: str | None = None
         "",
         f"    {cand.expression()}",
         *([f"    {cand.reading()}"] if reading else []),
-        *(
-            [f"    (its fit removes {cand.explained:.0%} of the unexplained variance)"]
-            if reading and cand.fit is not None
-            else []
-            if reading
-            else [
-                f"    (explains {cand.explained:.0%} of the residual {'force' if lateral else 'torque'}; "
-                f"{cand.n_samples} samples)"
-            ]
-        ),
+        *_share_line(cand, reading, lateral),
         *[f"    {line}" for note in cand.notes for line in textwrap.wrap(note, 100)],
         "",
         *_fit_it(cand, path.name, name),
