@@ -18,7 +18,9 @@ the configuration's default length).  Reported per companion and overall:
 * ``within_3x_or_exact``: or within what the rig's exact model leaves (``exact_to_noise``: its own base parameters
   and effects, the outside ones as the effect files of ``benchmarks/effects/motor_side.py`` and ``examples/``, run by
   drillgym and compared the same way; none for the backlash): the floor of the comparison on that recording;
-* ``silent``: recordings left at >= 10x the noise that are reported as explained (must be 0).
+* ``silent``: recordings left at >= 10x the noise that are reported as explained (must be 0);
+* ``wrong_library``: the library effects in the model the rig does not have (a lag for the rig's delay, or the
+  converse, is not counted: the selection states where it cannot tell them apart).
 
     python benchmarks/bench_identify_companions.py [--config torsional] [--seeds 1] [--first-seed 0] [--limit N]
         [--duration 20] [--outside motor|sensors] [--out results.jsonl]
@@ -181,8 +183,18 @@ def run_row(row: dict, duration: float, rate_hz: float, work: Path) -> dict:
             all(v <= max(3.0, (floor or {}).get(c, 0.0)) for c, v in ratios.items() if np.isfinite(v))
         ),
         "silent": bool(un is not None and un.worst >= 10.0 and un.explained),
+        "wrong_library": wrong_library(found.model.names, row["effects"]),
         "seconds": seconds,
     }
+
+
+def wrong_library(model: tuple[str, ...] | list[str], hidden: dict) -> list[str]:
+    """The library effects in the model that the rig does not have (a motor lag for the rig's input delay, or the
+    converse, is the other timing effect, not a wrong one)."""
+    from drillgym.effects import LIBRARY
+
+    timing = any(t in hidden for t in TIMING)
+    return [n for n in model if n in LIBRARY and n not in hidden and not (n in TIMING and timing)]
 
 
 def summary(results: list[dict]) -> dict:
@@ -194,7 +206,8 @@ def summary(results: list[dict]) -> dict:
         rs = [r for r in results if c in ("all", r["companion"])]
         shown = [r for r in rs if not r["not_shown"]]
         if rs:
-            out[c] = {k: share(rs, k) for k in ("halved", "within_3x", "within_3x_or_exact", "silent")} | {
+            keys = ("halved", "within_3x", "within_3x_or_exact", "silent", "wrong_library")
+            out[c] = {k: share(rs, k) for k in keys} | {
                 "companion_found_where_shown": share(shown, "companion_found"),
                 "n": len(rs),
                 "n_shown": len(shown),
