@@ -53,3 +53,26 @@ def test_an_effect_fitted_to_where_it_does_nothing_is_left_out_of_the_model():
     assert len(notes) == 1 and notes[0].startswith("input_delay fitted to where it does nothing")
     same, _, _ = _without_idle_effects(comp, {**values, "delay": 0.004}, std, [])
     assert same is comp
+
+
+def test_beside_a_candidate_read_another_way_a_library_effect_that_removes_little_is_left_out(monkeypatch):
+    from types import SimpleNamespace
+
+    import drillgym.identified as identified
+
+    comp, _ = compose(["motor_lag", "brake_asymmetry", "friction_drift"])
+    # the residual (rad² per channel) of the model without each effect: the asymmetry removes 2 %, the drift 60 %
+    without = {"motor_lag": 9.0, "brake_asymmetry": 1.02, "friction_drift": 2.5}
+
+    def joint_fit(ts, d, params, specs, values, o, notes, held=()):
+        names = {e.name for e in specs}
+        missing = [n for n in without if n not in names]
+        ss = without[missing[0]] if len(missing) == 1 else 1.0 if not missing else 1.02 * without[missing[-1]]
+        return compose(list(specs))[0], values, SimpleNamespace(rms_after={"theta_u": ss**0.5})
+
+    monkeypatch.setattr(identified, "_joint_fit", joint_fit)
+    notes: list[str] = []
+    best = (comp, {}, SimpleNamespace(rms_after={"theta_u": 1.0}))
+    kept_comp, _, _ = identified._library_earned(None, None, None, None, [], best, notes)
+    assert kept_comp.names == ("motor_lag", "friction_drift")
+    assert len(notes) == 1 and notes[0].startswith("brake_asymmetry left out")
