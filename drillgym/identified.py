@@ -357,7 +357,7 @@ def _is_library(comp: Any, name: str) -> bool:
     return getattr(e, "__drillgym_file__", None) is None
 
 
-def _joint_fit(ts, d, params, specs, values, o: IdentifyOptions, notes: list[str], held: tuple[str, ...] = ()):
+def _joint_fit(ts, d, params, specs, values, o: IdentifyOptions, notes: list[str], held=(), also=None):
     """The model refitted jointly; with both timing effects when one was taken and both fit clearly better.
 
     Each fit runs on the diagnosis' search model (every library effect it tried, the others held at the values
@@ -365,7 +365,8 @@ def _joint_fit(ts, d, params, specs, values, o: IdentifyOptions, notes: list[str
     order on the signal path: its runs equal the selected composition's to the bit, the kernels the diagnosis
     compiled serve the fit, and a new selection costs no compilation (about 20 s per composition on 2 cores).
     The model returned is the selected composition; ``held`` are its parameters held at ``values`` (the terms a
-    kept candidate does not use)."""
+    kept candidate does not use); ``also``: another compiled model the fits may run on where the diagnosis' search
+    model does not hold the effects (the one a candidate ranked second was fitted in)."""
     from .diagnosis.refit import refit
     from .diagnosis.search_model import BASE_FREE, neutral_values
     from .effects import compose
@@ -376,7 +377,7 @@ def _joint_fit(ts, d, params, specs, values, o: IdentifyOptions, notes: list[str
         comp, vals = compose(specs, {k: v for k, v in values.items() if k in _param_names(specs)})
         free = [] if o.fixed_base else list(BASE_FREE[d.config])
         runs_on, start = comp, vals
-        on_search = _search_model_for(search, comp)
+        on_search = _search_model_for(search, comp) or _search_model_for(also, comp)
         if on_search is not None:  # the effects not selected where they vanish, whatever the search left them at
             off = [e for e in on_search.effects if e.name not in comp.names]
             runs_on, start = on_search, {**neutral_values(off), **vals}
@@ -420,7 +421,7 @@ def _other_readings(ts, d, params, specs, values, o: IdentifyOptions, kept: list
             trial_specs = [other.kept.through if s is kept[i].through else s for s in specs]
             trial_notes: list[str] = []
             start = {**values, **other.kept.through_values}
-            trial = _joint_fit(ts, d, params, trial_specs, start, o, trial_notes, held)
+            trial = _joint_fit(ts, d, params, trial_specs, start, o, trial_notes, held, other.fitted_in)
             ss, ss2 = _sum_of_squares(best[2]), _sum_of_squares(trial[2])
             if ss2 < (1.0 - OTHER_READING_GAIN) * ss:
                 line = (

@@ -26,6 +26,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from ..effects import Composition
 from .candidate import Candidate
 from .discovery_terms import dead_zone_variant, offset_variant
 from .effect_file import candidate_name, write_effect_file
@@ -48,10 +49,14 @@ class OtherReading:
         The other reading as a kept candidate, on the same compiled terms (its file not written yet).
     candidate : Candidate
         Its terms, as its file is written (:meth:`write`).
+    fitted_in : Composition or None
+        The compiled model its own fit ran in (the search model with its terms), where the diagnosis' search model
+        does not hold them: the whole model's fits run there, compiled already.
     """
 
     kept: KeptCandidate
     candidate: Candidate
+    fitted_in: Composition | None = None
 
     def write(self, values: Mapping[str, float] | None = None, note: str = "") -> KeptCandidate:
         """Write the other reading's file in the place of the first's (the same path).
@@ -177,7 +182,8 @@ def alternative(kept: KeptCandidate) -> OtherReading | None:
     cand = replace(alt, name=candidate_name(alt.group), alternative=None)
     names = {p: file_name(cand, p) for p in fit.file_names if p in own}
     values = {n: float(fitted[n]) for n in own}
-    return OtherReading(KeptCandidate(kept.spec, {}, tuple(fit.with_library), fit.through, values, names, cand), cand)
+    held = KeptCandidate(kept.spec, {}, tuple(fit.with_library), fit.through, values, names, cand)
+    return OtherReading(held, cand, fit.state.composition)
 
 
 def readings_of(kept: KeptCandidate) -> list[OtherReading]:
@@ -186,5 +192,6 @@ def readings_of(kept: KeptCandidate) -> list[OtherReading]:
     out = [other_reading(kept), other_reading(kept, shared_at_zero=True)]
     alt = alternative(kept)
     if alt is not None:
-        out += [alt, other_reading(alt.kept), other_reading(alt.kept, shared_at_zero=True)]
+        alt_others = [other_reading(alt.kept), other_reading(alt.kept, shared_at_zero=True)]
+        out += [alt, *(replace(o, fitted_in=alt.fitted_in) for o in alt_others if o is not None)]
     return [o for o in out if o is not None]
