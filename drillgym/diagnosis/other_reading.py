@@ -130,6 +130,8 @@ def other_reading(kept: KeptCandidate, shared_at_zero: bool = False) -> OtherRea
             width = WIDTH_PARAMETERS[c.group]
             names[width] = f"{c.name}_w{i}"
             start[width] = other.widths[label]
+    if shared_at_zero and not any(p in kept.file_names for p in names):
+        return None  # no term both share: the same start as the other
     off = dict.fromkeys(kept.through_values, 0.0)  # the terms it does not use: off, and held there
     return OtherReading(replace(kept, through_values={**off, **start}, file_names=names), other)
 
