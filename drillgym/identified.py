@@ -411,11 +411,15 @@ def _other_readings(ts, d, params, specs, values, o: IdentifyOptions, kept: list
     """The kept candidates each read the other way where that fits the whole model better
     (:func:`.diagnosis.other_reading.readings_of`: a dead zone for an offset, or the converse, the other encoder's
     scale error, the candidate its own fit ranked second): the candidates, the joint fit and its notes."""
-    from .diagnosis.other_reading import readings_of
+    from dataclasses import replace
+
+    from .diagnosis.other_reading import other_reading, readings_of
 
     kept, specs = list(kept), list(specs)
     for i, k in enumerate(kept):
-        for other in readings_of(k):
+        queue = readings_of(k)
+        while queue:
+            other = queue.pop(0)
             trial_kept = [*kept[:i], other.kept, *kept[i + 1 :]]
             held = tuple(n for t in trial_kept for n in t.held_terms)
             trial_specs = [other.kept.through if s is kept[i].through else s for s in specs]
@@ -431,6 +435,9 @@ def _other_readings(ts, d, params, specs, values, o: IdentifyOptions, kept: list
                 written = other.write(trial[1], f"{line} (drillgym identify; its values are that fit's)")
                 kept[i], best, specs = written, trial, trial_specs
                 notes = [*trial_notes, line]
+                if other.ranked_second:  # the alternative took the place: its own other readings next
+                    more = (other_reading(other.kept), other_reading(other.kept, shared_at_zero=True))
+                    queue += [replace(o, fitted_in=other.fitted_in) for o in more if o is not None]
     return kept, best, notes
 
 

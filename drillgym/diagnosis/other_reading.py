@@ -52,11 +52,14 @@ class OtherReading:
     fitted_in : Composition or None
         The compiled model its own fit ran in (the search model with its terms), where the diagnosis' search model
         does not hold them: the whole model's fits run there, compiled already.
+    ranked_second : bool
+        It is the kept candidate's alternative (:func:`alternative`), not a reading of the kept one.
     """
 
     kept: KeptCandidate
     candidate: Candidate
     fitted_in: Composition | None = None
+    ranked_second: bool = False
 
     def write(self, values: Mapping[str, float] | None = None, note: str = "") -> KeptCandidate:
         """Write the other reading's file in the place of the first's (the same path).
@@ -185,15 +188,13 @@ def alternative(kept: KeptCandidate) -> OtherReading | None:
     names = {p: file_name(cand, p) for p in fit.file_names if p in own}
     values = {n: float(fitted[n]) for n in own}
     held = KeptCandidate(kept.spec, {}, tuple(fit.with_library), fit.through, values, names, cand)
-    return OtherReading(held, cand, fit.state.composition)
+    return OtherReading(held, cand, fit.state.composition, ranked_second=True)
 
 
 def readings_of(kept: KeptCandidate) -> list[OtherReading]:
-    """Every other reading of a kept candidate to fit with the whole model, in order: its other reading (the terms
-    both share from the kept values, then from zero), its alternative, and the alternative's other reading."""
-    out = [other_reading(kept), other_reading(kept, shared_at_zero=True)]
-    alt = alternative(kept)
-    if alt is not None:
-        alt_others = [other_reading(alt.kept), other_reading(alt.kept, shared_at_zero=True)]
-        out += [alt, *(replace(o, fitted_in=alt.fitted_in) for o in alt_others if o is not None)]
+    """The other readings of a kept candidate to fit with the whole model, in order: its other reading (the terms
+    both share from the kept values, then from zero) and its alternative; where the alternative takes its place,
+    :func:`drillgym.identify` tries the alternative's own other readings next (they run in the model it was fitted
+    in: :attr:`OtherReading.fitted_in`)."""
+    out = [other_reading(kept), other_reading(kept, shared_at_zero=True), alternative(kept)]
     return [o for o in out if o is not None]
