@@ -1,4 +1,4 @@
-"""The other reading of a kept candidate: a dead zone for an offset (or the converse), the other encoder's scale.
+"""A kept candidate read another way, for the whole model to decide: a dead zone for an offset, the other encoder.
 
 Where the command never turns the motor backwards, a negative offset ``-w`` and a dead zone of half-width ``w``
 (``-sat(u, w)``) change the voltage at the motor alike wherever the command is above ``w``; inside, the motor
@@ -187,8 +187,8 @@ def alternative(kept: KeptCandidate) -> OtherReading | None:
     cand = replace(alt, name=candidate_name(alt.group), alternative=None)
     names = {p: file_name(cand, p) for p in fit.file_names if p in own}
     values = {n: float(fitted[n]) for n in own}
-    held = KeptCandidate(kept.spec, {}, tuple(fit.with_library), fit.through, values, names, cand)
-    return OtherReading(held, cand, fit.state.composition, ranked_second=True)
+    in_place = KeptCandidate(kept.spec, {}, tuple(fit.with_library), fit.through, values, names, cand)
+    return OtherReading(in_place, cand, fit.state.composition, ranked_second=True)
 
 
 def readings_of(kept: KeptCandidate) -> list[OtherReading]:
