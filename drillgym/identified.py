@@ -235,12 +235,9 @@ def identify(recording: TimeSeries | str | Path, options: IdentifyOptions | None
     notes: list[str] = []
     held = tuple(n for k in kept for n in k.held_terms)
     comp, fitted, res = _joint_fit(ts, last, params, specs, values, o, notes, held)
-    first_kept = list(kept)
     kept, (comp, fitted, res), notes = _other_readings(
         ts, last, params, specs, values, o, kept, (comp, fitted, res), notes
     )
-    if any(a is not b for a, b in zip(kept, first_kept, strict=True)):
-        comp, fitted, res = _library_earned(ts, last, params, o, kept, (comp, fitted, res), notes)
     _log("joint fit", start_time)
     std = {k: v for k, v in res.std.items() if math.isfinite(v)}
     comp, fitted, std = _in_files(comp, fitted, std, kept)
@@ -410,12 +407,13 @@ def _joint_fit(ts, d, params, specs, values, o: IdentifyOptions, notes: list[str
 def _other_readings(ts, d, params, specs, values, o: IdentifyOptions, kept: list, best: tuple, notes: list[str]):
     """The kept candidates each read the other way where that fits the whole model better
     (:func:`.diagnosis.other_reading.readings_of`: a dead zone for an offset, or the converse, the other encoder's
-    scale error, the candidate its own fit ranked second): the candidates, the joint fit and its notes."""
+    scale error, the candidate its own fit ranked second), and then the library effects selected beside the first
+    reading earned again (:func:`_library_earned`): the candidates, the joint fit and its notes."""
     from dataclasses import replace
 
     from .diagnosis.other_reading import other_reading, readings_of
 
-    kept, specs = list(kept), list(specs)
+    kept, specs, reread = list(kept), list(specs), False
     for i, k in enumerate(kept):
         queue = readings_of(k)
         while queue:
@@ -433,11 +431,13 @@ def _other_readings(ts, d, params, specs, values, o: IdentifyOptions, kept: list
                     f"whole model better: residual {ss2:.3g} against {ss:.3g} rad²"
                 )
                 written = other.write(trial[1], f"{line} (drillgym identify; its values are that fit's)")
-                kept[i], best, specs = written, trial, trial_specs
+                kept[i], best, specs, reread = written, trial, trial_specs, True
                 notes = [*trial_notes, line]
                 if other.ranked_second:  # the alternative took the place: its own other readings next
                     more = (other_reading(other.kept), other_reading(other.kept, shared_at_zero=True))
-                    queue += [replace(o, fitted_in=other.fitted_in) for o in more if o is not None]
+                    queue += [replace(r, fitted_in=other.fitted_in) for r in more if r is not None]
+    if reread:
+        best = _library_earned(ts, d, params, o, kept, best, notes)
     return kept, best, notes
 
 
@@ -451,14 +451,16 @@ def _library_earned(ts, d, params, o: IdentifyOptions, kept: list, best: tuple, 
     held = tuple(n for k in kept for n in k.held_terms)
     for effect in [e for e in best[0].effects if LIBRARY.get(e.name) is e]:
         specs = [e for e in best[0].effects if e is not effect]
-        trial = _joint_fit(ts, d, params, specs, best[1], o, [], held)
+        trial_notes: list[str] = []
+        trial = _joint_fit(ts, d, params, specs, best[1], o, trial_notes, held)
         ss, ss2 = _sum_of_squares(best[2]), _sum_of_squares(trial[2])
         if ss2 < (1.0 + OTHER_READING_GAIN) * ss:
             best = trial
-            notes.append(
+            notes += [
+                *trial_notes,
                 f"{effect.name} left out: beside the candidate read the other way it removes less than "
-                f"{OTHER_READING_GAIN:.0%} of the residual ({ss2:.3g} rad² without it, {ss:.3g} with it)"
-            )
+                f"{OTHER_READING_GAIN:.0%} of the residual ({ss2:.3g} rad² without it, {ss:.3g} with it)",
+            ]
     return best
 
 
