@@ -163,7 +163,7 @@ def draw(kind: str, rng: np.random.Generator) -> dict[str, float]:
         return {"b": float(rng.uniform(0.01, 0.03))}
     if kind in ("motor_encoder_scale", "lower_encoder_scale"):  # 0.3-2 % either way
         return {ENCODER_READINGS[kind]: float(rng.choice([-1, 1]) * rng.uniform(0.003, 0.02))}
-    if kind == "lower_encoder_offset":  # 5-30 mrad either way (4-38 counts)
+    if kind == "lower_encoder_offset":  # 5-30 mrad either way (6-38 counts)
         return {ENCODER_READINGS[kind]: float(rng.choice([-1, 1]) * rng.uniform(0.005, 0.03))}
     return {"u_off": float(rng.choice([-1, 1]) * rng.uniform(0.1, 0.2))}
 
