@@ -41,6 +41,7 @@ from numba import njit
 
 from .configurations import Configuration
 from .params import IDX
+from .vmath import FASTMATH
 
 UPPER = int(Configuration.UPPER)
 TORSIONAL = int(Configuration.TORSIONAL)
@@ -91,7 +92,7 @@ def mass_matrix(y: np.ndarray, p: np.ndarray, M: np.ndarray) -> None:
             M[i, j] = M[j, i]
 
 
-@njit(inline="always", fastmath=True, error_model="numpy")
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
 def reduced_accelerations(
     drive: float,
     string: float,
@@ -117,13 +118,13 @@ def reduced_accelerations(
     return a_u, a_l, (tfu if slip_u else Fu), (tfl if slip_l else Fl)
 
 
-@njit(inline="always", fastmath=True, error_model="numpy")
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
 def isotropic_lateral_forces(x: float, yy: float, vx: float, vy: float, W: float, k: float, b: float) -> tuple:
     """The model's spring and damper terms as generalised forces (Q_u, Q_x, Q_y) for kx = ky, bx = by."""
     return (b * (yy * vx - x * vy - W * (x * x + yy * yy)), -k * x - b * (vx - yy * W), -k * yy - b * (vy + x * W))
 
 
-@njit(inline="always", fastmath=True, error_model="numpy")
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
 def coupled_system(
     x: float,
     yy: float,
@@ -171,7 +172,7 @@ def coupled_system(
     return s00, s01, s11, g0, g1, F2, F3
 
 
-@njit(inline="always", fastmath=True, error_model="numpy")
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
 def lateral_accelerations(
     x: float, yy: float, s: float, c: float, m: float, P: float, F2: float, F3: float, a0: float, a1: float
 ) -> tuple:
@@ -181,7 +182,7 @@ def lateral_accelerations(
     return (F2 + m * yy * a0 + P * s * a1) * inv_m, (F3 - m * x * a0 - P * c * a1) * inv_m
 
 
-@njit(inline="always", fastmath=True, error_model="numpy")
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
 def full_accelerations(
     x: float,
     yy: float,

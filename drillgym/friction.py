@@ -33,11 +33,11 @@ import numpy as np
 from numba import njit
 
 from .params import RigParams
-from .vmath import vexp, vlog
+from .vmath import FASTMATH, vexp, vlog
 
 
 # --- the laws on scalars (shared by the scalar kernel and the SIMD lane kernel) -------------
-@njit(inline="always", fastmath=True, error_model="numpy")
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
 def upper_law(aw: float, d: float, Tcu: float, dTcu: float, bu: float, dbu: float) -> float:
     """Upper slip torque (N m) at speed magnitude aw (rad/s) in direction d (+1/-1; 0 gives 0)."""
     t_pos = Tcu + dTcu + (bu + dbu) * aw
@@ -49,7 +49,7 @@ def _make_brake_law(exp, log):
     """The Stribeck law with a given exp/log: libm for the scalar kernel (fastest on one value),
     the vectorisable :mod:`drillgym.vmath` versions for the SIMD lane kernel.  One formula."""
 
-    @njit(inline="always", fastmath=True, error_model="numpy")
+    @njit(inline="always", fastmath=FASTMATH, error_model="numpy")
     def brake_law(aw: float, d: float, Ts: float, Tc: float, ws: float, delta: float, bb: float) -> float:
         """Stribeck brake torque (N m) at speed magnitude aw in direction d (+1/-1; 0 gives 0)."""
         z = max(aw / ws, 1e-300)
@@ -62,7 +62,7 @@ brake_law = _make_brake_law(math.exp, math.log)
 brake_law_simd = _make_brake_law(vexp, vlog)
 
 
-@njit(inline="always", fastmath=True, error_model="numpy")
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
 def bearing_law(aw: float, d: float, Tcl: float, bl: float) -> float:
     """Bearing torque (N m, brake off) at speed magnitude aw in direction d (+1/-1; 0 gives 0)."""
     return d * (Tcl + bl * aw)

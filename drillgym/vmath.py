@@ -6,6 +6,14 @@ conversions, so that LLVM can vectorise a loop that calls them (calls to libm
 would block vectorisation).  Accuracy: exp and log to a few 1e-16 relative,
 sin/cos to about 4e-17 |x| absolute.  The scalar and the SIMD kernels both
 use them, so that both compute the same numbers.
+
+:data:`FASTMATH` are the floating-point flags every numba function of drillgym is compiled with: those that change
+no finite value.  LLVM applies the others (a multiply and an add contracted into one rounding, sums reassociated,
+a division turned into a multiplication by the reciprocal) wherever it sees the operations together, and it sees
+more of them where it inlined a callee: a kernel compiled in a process that compiled its callees too, and one
+compiled beside callees loaded from numba's cache, differed in the last bits, and an identification amplified that
+into another model of the same recording.  Where a fused multiply-add pays, :func:`fma` asks for it explicitly:
+one rounding, whatever was inlined.
 """
 
 from __future__ import annotations
@@ -15,7 +23,11 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
-__all__ = ["vexp", "vlog", "vsincos", "vpow"]
+__all__ = ["vexp", "vlog", "vsincos", "vpow", "fma", "FASTMATH"]
+
+#: the fast-math flags of every numba function of drillgym: no NaN or infinity assumed, the sign of a zero free;
+#: none that changes a finite value (module doc)
+FASTMATH = {"nnan", "ninf", "nsz"}
 
 _LN2_HI = 6.93147180369123816490e-01
 _LN2_LO = 1.90821492927058770002e-10
@@ -42,12 +54,23 @@ def _bits_from_f64(typingctx, x):
     return sig, codegen
 
 
+@intrinsic
+def fma(typingctx, a, b, c):
+    """a * b + c rounded once (``llvm.fma``; one instruction on x86-64 with FMA, and it vectorises)."""
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        return builder.fma(*args)
+
+    return sig, codegen
+
+
 _ROUND_MAGIC = 6755399441055744.0  # 1.5 * 2**52: x + magic rounds x to an integer held in the low bits
 _ROUND_MAGIC_BITS = 0x4338000000000000
 _EXP_MAGIC_BITS = 0x4330000000000000  # 2**52 as bits: OR-ing a small integer in gives 2**52 + integer
 
 
-@njit(inline="always", fastmath=True, error_model="numpy")
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
 def vexp(x: float) -> float:
     """exp(x) for -700 <= x <= 700 (clamped outside), relative error < 2e-15.
 
@@ -58,19 +81,19 @@ def vexp(x: float) -> float:
     r = (x - nf * _LN2_HI) - nf * _LN2_LO
     # Taylor series to r^13 on |r| <= ln2/2 (truncation < 1e-17)
     p = 1.0 / 6227020800.0
-    p = p * r + 1.0 / 479001600.0
-    p = p * r + 1.0 / 39916800.0
-    p = p * r + 1.0 / 3628800.0
-    p = p * r + 1.0 / 362880.0
-    p = p * r + 1.0 / 40320.0
-    p = p * r + 1.0 / 5040.0
-    p = p * r + 1.0 / 720.0
-    p = p * r + 1.0 / 120.0
-    p = p * r + 1.0 / 24.0
-    p = p * r + 1.0 / 6.0
-    p = p * r + 0.5
-    p = p * r + 1.0
-    p = p * r + 1.0
+    p = fma(p, r, 1.0 / 479001600.0)
+    p = fma(p, r, 1.0 / 39916800.0)
+    p = fma(p, r, 1.0 / 3628800.0)
+    p = fma(p, r, 1.0 / 362880.0)
+    p = fma(p, r, 1.0 / 40320.0)
+    p = fma(p, r, 1.0 / 5040.0)
+    p = fma(p, r, 1.0 / 720.0)
+    p = fma(p, r, 1.0 / 120.0)
+    p = fma(p, r, 1.0 / 24.0)
+    p = fma(p, r, 1.0 / 6.0)
+    p = fma(p, r, 0.5)
+    p = fma(p, r, 1.0)
+    p = fma(p, r, 1.0)
     n = _bits_from_f64(nf + _ROUND_MAGIC) - _ROUND_MAGIC_BITS  # the integer nf, without cvttpd2qq
     return p * _f64_from_bits((n + 1023) << 52)
 
@@ -81,7 +104,7 @@ _PIO2_3 = 2.02226624879595063154e-21
 _TWO_OVER_PI = 6.36619772367581382433e-01
 
 
-@njit(inline="always", fastmath=True, error_model="numpy")
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
 def vsincos(x: float) -> tuple:
     """(sin x, cos x) for |x| < 1e5, absolute error about 4e-17 |x| (4e-15 at |x| = 100, 4e-14 at 1e3,
     measured against numpy); branch-free: the quadrant's swap and signs are float selects, so a loop of
@@ -90,21 +113,21 @@ def vsincos(x: float) -> tuple:
     r = ((x - kf * _PIO2_1) - kf * _PIO2_2) - kf * _PIO2_3  # |r| <= pi/4
     r2 = r * r
     sp = -1.0 / 1307674368000.0
-    sp = sp * r2 + 1.0 / 6227020800.0
-    sp = sp * r2 - 1.0 / 39916800.0
-    sp = sp * r2 + 1.0 / 362880.0
-    sp = sp * r2 - 1.0 / 5040.0
-    sp = sp * r2 + 1.0 / 120.0
-    sp = sp * r2 - 1.0 / 6.0
+    sp = fma(sp, r2, 1.0 / 6227020800.0)
+    sp = fma(sp, r2, -1.0 / 39916800.0)
+    sp = fma(sp, r2, 1.0 / 362880.0)
+    sp = fma(sp, r2, -1.0 / 5040.0)
+    sp = fma(sp, r2, 1.0 / 120.0)
+    sp = fma(sp, r2, -1.0 / 6.0)
     sin_r = r + r * r2 * sp
     cp = 1.0 / 20922789888000.0
-    cp = cp * r2 - 1.0 / 87178291200.0
-    cp = cp * r2 + 1.0 / 479001600.0
-    cp = cp * r2 - 1.0 / 3628800.0
-    cp = cp * r2 + 1.0 / 40320.0
-    cp = cp * r2 - 1.0 / 720.0
-    cp = cp * r2 + 1.0 / 24.0
-    cp = cp * r2 - 0.5
+    cp = fma(cp, r2, -1.0 / 87178291200.0)
+    cp = fma(cp, r2, 1.0 / 479001600.0)
+    cp = fma(cp, r2, -1.0 / 3628800.0)
+    cp = fma(cp, r2, 1.0 / 40320.0)
+    cp = fma(cp, r2, -1.0 / 720.0)
+    cp = fma(cp, r2, 1.0 / 24.0)
+    cp = fma(cp, r2, -0.5)
     cos_r = 1.0 + r2 * cp
     # quadrant q = kf mod 4 in floating point (no integer selects: nested ones block vectorisation);
     # odd quadrants swap sin and cos, the signs follow from q
@@ -120,7 +143,7 @@ def vsincos(x: float) -> tuple:
     return sn, cs
 
 
-@njit(inline="always", fastmath=True, error_model="numpy")
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
 def vlog(x: float) -> float:
     """Natural log for normal positive x, relative error < 3e-15; branch-free (vectorises)."""
     bits = _bits_from_f64(x)
@@ -132,24 +155,24 @@ def vlog(x: float) -> float:
     s = (m - 1.0) / (m + 1.0)  # |s| <= 0.1716
     s2 = s * s
     q = 1.0 / 23.0
-    q = q * s2 + 1.0 / 21.0
-    q = q * s2 + 1.0 / 19.0
-    q = q * s2 + 1.0 / 17.0
-    q = q * s2 + 1.0 / 15.0
-    q = q * s2 + 1.0 / 13.0
-    q = q * s2 + 1.0 / 11.0
-    q = q * s2 + 1.0 / 9.0
-    q = q * s2 + 1.0 / 7.0
-    q = q * s2 + 1.0 / 5.0
-    q = q * s2 + 1.0 / 3.0
-    q = q * s2 + 1.0
+    q = fma(q, s2, 1.0 / 21.0)
+    q = fma(q, s2, 1.0 / 19.0)
+    q = fma(q, s2, 1.0 / 17.0)
+    q = fma(q, s2, 1.0 / 15.0)
+    q = fma(q, s2, 1.0 / 13.0)
+    q = fma(q, s2, 1.0 / 11.0)
+    q = fma(q, s2, 1.0 / 9.0)
+    q = fma(q, s2, 1.0 / 7.0)
+    q = fma(q, s2, 1.0 / 5.0)
+    q = fma(q, s2, 1.0 / 3.0)
+    q = fma(q, s2, 1.0)
     return 2.0 * s * q + ef * _LN2_HI + ef * _LN2_LO
 
 
 _TINY = 1e-300
 
 
-@njit(inline="always", fastmath=True, error_model="numpy")
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
 def vpow(a: float, b: float) -> float:
     """a ** b as exp(b log |a|), relative error about 3e-16 (1 + |b ln a|); branch-free (vectorises).
 

@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit
 
 from drillgym.closed_loop.abi import LAW_SIGNATURE, M_REF, M_TU
-from drillgym.vmath import vexp, vlog
+from drillgym.vmath import FASTMATH, vexp, vlog
 
 from ..flatness import ANGLE_STEP, TRIM_BAND, TRIM_CLIP
 
@@ -88,7 +88,7 @@ def _sign(x):
     return 1.0 if x > 0 else (-1.0 if x < 0 else 0.0)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, error_model="numpy", fastmath=FASTMATH)
 def brake_shapes(wl_, C, n, SH):
     """The brake law's shapes (:func:`_shape`) from the lower-speed estimates wl_ (rad/s): the law's at
     ww = max(wl, w_rest + hf) and ww +- hf into the rows SH[0:3], the model's and its Jacobian's at |wl| and

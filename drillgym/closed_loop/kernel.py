@@ -46,6 +46,7 @@ from drillgym.kernels.lane_steps import N_E, lane_derivative
 from drillgym.kernels.lanes import ROWS_DIAG, ROWS_FULL, lane_start, lanes_commands, lanes_step
 from drillgym.kernels.stepping import advance_batch, alloc_work
 from drillgym.params import IDX
+from drillgym.vmath import FASTMATH
 
 __all__ = ["RUN_SIGNATURE", "run_periods", "OK", "NON_FINITE_COMMAND", "DIVERGED", "N_SIGNALS"]
 
@@ -154,7 +155,7 @@ def _restart_lanes(Y, MODE, UL, P, PT, cfg, dt, T, n, HIST, HEAD, S, K1, FR, MU,
                         fric)  # fmt: skip
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy")
 def _held(S, FR, MU, ML, PT, full, brake, fv, lower, TT, OK):
     """OK[k] = 1 where lane k's stuck discs hold their torques clear inside their stick sets (by more than
     :data:`HOLD_MARGIN` of the set's width), so that resolving its modes would keep them: the stick sets of

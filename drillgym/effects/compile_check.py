@@ -1,7 +1,7 @@
 """Compiling an effect's functions alone, as the kernels compile them, before the kernels are built.
 
 The kernels call every effect function through numba (nopython mode, ``inline="always"``,
-``fastmath=True``; :data:`drillgym.effects.hook_context.JIT`), once as written and once with the math
+:data:`drillgym.vmath.FASTMATH`; :data:`drillgym.effects.hook_context.JIT`), once as written and once with the math
 module's exp/log/sin/cos swapped for vectorisable versions (the lane kernels,
 :func:`drillgym.effects.simd.simd_variant`).  A body numba cannot compile (a call of a plain Python helper,
 ``try``, an import inside the function, ...) would otherwise fail deep inside the first kernel compile

@@ -33,8 +33,8 @@ __all__ = [
 
 #: configuration codes of the compiled kernels
 CFG_CODES = {"upper": 0, "torsional": 1, "lateral": 2, "coupled": 3, "free_vibration": 4}
-#: the decorator of every generated hook and effect function
-JIT = 'njit(inline="always", fastmath=True, error_model="numpy")'
+#: the decorator of every generated hook and effect function (the flags: :data:`drillgym.vmath.FASTMATH`)
+JIT = 'njit(inline="always", fastmath={"nnan", "ninf", "nsz"}, error_model="numpy")'
 
 
 class HookContext:

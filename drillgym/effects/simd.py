@@ -16,17 +16,17 @@ from typing import Any
 
 from numba import njit
 
-from ..vmath import vexp, vlog, vpow, vsincos
+from ..vmath import FASTMATH, vexp, vlog, vpow, vsincos
 
 __all__ = ["simd_variant", "SIMD_MATH"]
 
 
-@njit(inline="always", fastmath=True, error_model="numpy")
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
 def _vsin(x: float) -> float:
     return vsincos(x)[0]
 
 
-@njit(inline="always", fastmath=True, error_model="numpy")
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
 def _vcos(x: float) -> float:
     return vsincos(x)[1]
 

@@ -19,9 +19,9 @@ The composition's effects enter through the lane variants of the hooks
 kernels are compiled without numba's reference counting (``_nrt=False``): they only take row views
 of arrays allocated by :func:`drillgym.kernels.lanes.lanes_run`.
 
-The right-hand side and the steps stay in one module on purpose: numba compiles them with
-``fastmath``, and split over two modules LLVM optimises them differently (batches then differ
-from the single-module build in the last bits, about 4e-15 rad/s).
+Compiled with :data:`drillgym.vmath.FASTMATH` (flags that change no finite value), so a step gives the
+same bits however LLVM inlined it: in the lane kernel, the closed loop, or beside callees loaded from
+numba's cache.
 """
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ from drillgym.kernels.hooks import (
     hk_states_lane,
 )
 from drillgym.params import IDX
-from drillgym.vmath import vsincos
+from drillgym.vmath import FASTMATH, vsincos
 
 __all__ = [
     "N_E",
@@ -76,7 +76,7 @@ N_E = 10
 _VOLT, _QU, _QL, _QS, _QX, _QY, _TFU, _TFL = 0, 1, 2, 3, 4, 5, 6, 7
 
 
-@njit(inline="always", fastmath=True, error_model="numpy")
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
 def _base_laws(wu, wl, mu, ml, brake, Tcu, dTcu, bu, dbu, Tcl, bl, Ts, Tc, ws, delta, bb):
     """Slip torques (N m) of friction.py's laws in the directions of the modes (the caller sets a stuck
     disc's to 0)."""
@@ -85,7 +85,7 @@ def _base_laws(wu, wl, mu, ml, brake, Tcu, dTcu, bu, dbu, Tcl, bl, Ts, Tc, ws, d
     return upper_law(abs(wu), mu, Tcu, dTcu, bu, dbu), tfl
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy", _nrt=False)
 def lane_effects(thu_, thl_, wu_, wl_, x_, y_, vx_, vy_, Y, nm, MU, ML, U, PT, TT, tc, cfg, brake, E):
     """Into E (N_E, B): the slip torques of friction.py's laws (in the directions of the modes), then
     the composition's effects on every lane (:func:`hooks.hk_effects_lane`: the voltage at the motor,
@@ -115,7 +115,7 @@ def lane_effects(thu_, thl_, wu_, wl_, x_, y_, vx_, vy_, Y, nm, MU, ML, U, PT, T
     hk_effects_lane(thu_, thl_, wu_, wl_, x_, y_, vx_, vy_, Y, nm, MU, ML, U, PT, TT, tc, cfg, 1.0 if brake else 0.0, E)
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy", _nrt=False)
 def copy_rows(src, dst):
     """dst = src, row by row (a slice assignment would need numba's reference counting)."""
     for j in range(src.shape[0]):
@@ -125,7 +125,7 @@ def copy_rows(src, dst):
             d[k] = s[k]
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy", _nrt=False)
 def derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR, TT, tc, cfg, E):
     """Diagonal mass ((3.19), (3.20)): K[0:2] = speeds, K[2:4] = accelerations, FR = friction
     torques (a stuck disc: zero acceleration, friction = its holding torque); the effects' state
@@ -190,7 +190,7 @@ def derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR, TT, tc, cfg, E):
             hk_states_lane(k, TT[k] + tc, U[k], thu_[k], thl_[k], wu_[k], wl_[k], 0.0, 0.0, 0.0, 0.0, Y, 4, PT, cfg, K)
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy", _nrt=False)
 def derivative_full(Y, MU, ML, U, PT, brake, K, FR, TT, tc, cfg, E):
     """All four coordinates, the lateral constraints of docs/model.md plus the effects' forces
     (dynamics' formulas, Schur complement of the m I block, stuck discs as selects).
@@ -312,7 +312,7 @@ def lane_derivative(Y, MU, ML, U, PT, full, string_on, brake, K, FR, TT, tc, cfg
         derivative_diag(Y, MU, ML, U, PT, string_on, brake, K, FR, TT, tc, cfg, E)
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy", _nrt=False)
 def lag_exact(S0, Yo, U, PT, TT, h, full, cfg):
     """The declared lag states (``Input.lag``) of every lane at h after the step start, exactly
     (as the scalar kernel's ``hk_lag``): rows nm + j of Yo from the start states S0."""
@@ -344,7 +344,7 @@ def lag_exact(S0, Yo, U, PT, TT, h, full, cfg):
             )
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy", _nrt=False)
 def axpy(X0, h, KX, out):
     """out = X0 + h KX, row by row."""
     for j in range(X0.shape[0]):
@@ -355,7 +355,7 @@ def axpy(X0, h, KX, out):
             o[k] = x0[k] + h * kx[k]
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy", _nrt=False)
 def lanes_rk4(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibration, S0, OK, W, TT, cfg, E):
     """One classical RK4 step of every lane.
 
@@ -436,7 +436,7 @@ def lanes_rk4(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibratio
     event_check(S, FR, MU, ML, PT, full, string_on, brake, free_vibration, OK, TT, h, nm, hv)
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy", _nrt=False)
 def stage_sum(S0, K1, W, coef, m, h, out):
     """out = S0 + h (coef[0] K1 + coef[1] K_2 + ... + coef[m-1] K_m), row by row over the lanes (the
     stage derivatives K_2.. in W's blocks 1..; the sum in the scalar kernel's order)."""
@@ -455,7 +455,7 @@ def stage_sum(S0, K1, W, coef, m, h, out):
             o[k] = s0[k] + h * o[k]
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy", _nrt=False)
 def lanes_erk(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibration, S0, OK, W, TT, cfg, E, A, b, c):
     """One step of an explicit Runge-Kutta tableau (e.g. DP5) of every lane.
 
@@ -480,7 +480,7 @@ def lanes_erk(S, K1, FR, MU, ML, U, PT, h, full, string_on, brake, free_vibratio
     event_check(S, FR, MU, ML, PT, full, string_on, brake, free_vibration, OK, TT, h, nm, nm // 2)
 
 
-@njit(cache=True, fastmath=True, error_model="numpy", _nrt=False)
+@njit(cache=True, fastmath=FASTMATH, error_model="numpy", _nrt=False)
 def event_check(S, FR, MU, ML, PT, full, string_on, brake, free_vibration, OK, TT, h, nm, hv):
     """OK[k] = 1 when lane k's event functions at the step end stayed positive (slipping discs kept
     their direction, stuck discs' holding torques stayed in their stick sets)."""

@@ -46,6 +46,7 @@ from drillgym.kernels.hooks import (
     hk_slip_u,
 )
 from drillgym.params import IDX
+from drillgym.vmath import FASTMATH
 
 _Ju, _km, _Jl, _kth = IDX.Ju, IDX.km, IDX.Jl, IDX.ktheta
 _mr, _mt, _k, _b, _e = IDX.mr, IDX.mt, IDX.k, IDX.b, IDX.e
@@ -54,14 +55,14 @@ _Tcl, _bl = IDX.Tcl, IDX.bl
 _Ts, _Tc, _ws, _delta, _bb = IDX.Ts, IDX.Tc, IDX.ws, IDX.delta, IDX.bb
 
 
-@njit(cache=True, fastmath=True, _nrt=False)
+@njit(cache=True, fastmath=FASTMATH, _nrt=False)
 def upper_slip_torque(w, d, t, y, p):
     """Upper friction torque (N m) while slipping in direction d (+1.0/-1.0, a float: one compiled version)."""
     T = upper_law(abs(w), float(d), p[_Tcu], p[_dTcu], p[_bu], p[_dbu])
     return hk_slip_u(T, float(d), abs(w), t, y, p, 0.0)
 
 
-@njit(cache=True, fastmath=True, _nrt=False)
+@njit(cache=True, fastmath=FASTMATH, _nrt=False)
 def lower_slip_torque(w, d, t, y, p, brake):
     """Lower friction torque (N m) while slipping in direction d (+1.0/-1.0; brake: Stribeck law, else bearing)."""
     aw = abs(w)
@@ -72,20 +73,20 @@ def lower_slip_torque(w, d, t, y, p, brake):
     return hk_slip_l(T, float(d), aw, t, y, p, 1.0 if brake else 0.0)
 
 
-@njit(cache=True, fastmath=True, _nrt=False)
+@njit(cache=True, fastmath=FASTMATH, _nrt=False)
 def upper_stick_bounds(t, y, p):
     """Stick set of the upper disc (N m): (lo, hi)."""
     return hk_bounds_u(-p[_Tcu] + p[_dTcu], p[_Tcu] + p[_dTcu], t, y, p, 0.0)
 
 
-@njit(cache=True, fastmath=True, _nrt=False)
+@njit(cache=True, fastmath=FASTMATH, _nrt=False)
 def lower_stick_bounds(t, y, p, brake):
     """Stick set of the lower disc (N m): (lo, hi)."""
     lim = p[_Ts] if brake else p[_Tcl]
     return hk_bounds_l(-lim, lim, t, y, p, 1.0 if brake else 0.0)
 
 
-@njit(cache=True, fastmath=True, _nrt=False)
+@njit(cache=True, fastmath=FASTMATH, _nrt=False)
 def state_derivative(t, y, mode, u, p, cfg, smooth_eps, dy, fric):
     """dy/dt of the state for constant command u (V) and friction modes ``mode``.
 
@@ -270,7 +271,7 @@ def record(out, row, t, u, y, fric, mode, cols=None):
             out[row, j] = _output_value(cols[j], t, u, y, fric, mode, X, Y)
 
 
-@njit(inline="always", fastmath=True, error_model="numpy")
+@njit(inline="always", fastmath=FASTMATH, error_model="numpy")
 def _output_value(c, t, u, y, fric, mode, X, Y):
     """Output column c (see OUTPUT_NAMES) of a sample; X, Y the fixed-frame lateral position (m),
     computed by the caller when x, y or r is recorded."""

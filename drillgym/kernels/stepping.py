@@ -25,6 +25,7 @@ from drillgym.kernels.model import (
     state_derivative,
     upper_stick_bounds,
 )
+from drillgym.vmath import FASTMATH
 
 __all__ = [
     "ILLINOIS_ITERATIONS",
@@ -73,7 +74,7 @@ def active_states(cfg):
     return 4
 
 
-@njit(cache=True, fastmath=True, _nrt=False)
+@njit(cache=True, fastmath=FASTMATH, _nrt=False)
 def _rk_step(t, y0, k1, mode, u, p, cfg, eps, h, A, b, c, K, ytmp, y_out, fric):
     """One explicit RK step of size h from (t, y0) with derivative k1 at y0; result in y_out.
 
