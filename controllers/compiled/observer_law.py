@@ -94,7 +94,7 @@ def brake_shapes(wl_, C, n, SH):
     ww = max(wl, w_rest + hf) and ww +- hf into the rows SH[0:3], the model's and its Jacobian's at |wl| and
     |wl +- h| into SH[3:6].  One loop of five shapes per lane, not six: the law's shape at ww is the model's at
     |wl| where wl >= max(ww, 0), and else the shape at w_rest + hf (:func:`_shape` takes a speed at or below 0 as
-    0).  Multiplies and adds fused (the shapes to a few 1e-16 relative)."""
+    0).  The exp and log inside fuse their polynomials' steps (:func:`drillgym.vmath.fma`)."""
     ws, delta, h, hf = C[WS], C[DELTA], C[H], C[HF]
     lo = C[W_REST] + hf
     at_lo, moving = _shape(lo, ws, delta), max(lo, 0.0)
