@@ -400,7 +400,9 @@ def _joint_fit(ts, d, params, specs, values, o: IdentifyOptions, notes: list[str
         ss, ss2 = _sum_of_squares(best[2]), _sum_of_squares(other[2])
         if ss2 < (1.0 - BOTH_TIMING_GAIN) * ss:
             best = other
-            notes.append(f"a motor lag and an input delay fitted together: residual {ss2:.3g} against {ss:.3g} rad²")
+            notes.append(
+                f"a motor lag and an input delay fitted together: residual {ss2:.4g} against {ss:.4g} noise units²"
+            )
     return best
 
 
@@ -428,7 +430,7 @@ def _other_readings(ts, d, params, specs, values, o: IdentifyOptions, kept: list
             if ss2 < (1.0 - OTHER_READING_GAIN) * ss:
                 line = (
                     f"the candidate read the other way, with the terms {', '.join(other.candidate.terms)}, fits the "
-                    f"whole model better: residual {ss2:.3g} against {ss:.3g} rad²"
+                    f"whole model better: residual {ss2:.4g} against {ss:.4g} noise units²"
                 )
                 written = other.write(trial[1], f"{line} (drillgym identify; its values are that fit's)")
                 kept[i], best, specs, reread = written, trial, trial_specs, True
@@ -459,7 +461,7 @@ def _library_earned(ts, d, params, o: IdentifyOptions, kept: list, best: tuple, 
             notes += [
                 *trial_notes,
                 f"{effect.name} left out: beside the candidate read the other way it removes less than "
-                f"{OTHER_READING_GAIN:.0%} of the residual ({ss2:.3g} rad² without it, {ss:.3g} with it)",
+                f"{OTHER_READING_GAIN:.0%} of the residual ({ss2:.4g} without it, {ss:.4g} with it, in noise units²)",
             ]
     return best
 
@@ -504,8 +506,11 @@ def _with_both_timing_effects(specs: list[str], values: dict[str, float]) -> tup
 
 
 def _sum_of_squares(res) -> float:
-    """The fit's residual: the sum over channels of the squared RMS (rad²)."""
-    return float(sum(v * v for v in res.rms_after.values()))
+    """The fit's residual: the sum over channels of the squared RMS in noise units (each channel's RMS over the
+    recording's noise on it), so an LVDT's metres and an encoder's radians count alike; a channel without a noise
+    estimate counts in its own unit."""
+    noise = getattr(res, "noise", None) or {}
+    return float(sum((v / noise[c]) ** 2 if noise.get(c, 0.0) > 0 else v * v for c, v in res.rms_after.items()))
 
 
 def _version() -> str:

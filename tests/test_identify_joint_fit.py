@@ -1,6 +1,7 @@
 """identify's joint fit runs on the diagnosis' search model: the same runs as the selected model, no compilation."""
 
 import numpy as np
+import pytest
 
 from drillgym import simulate
 from drillgym.diagnosis.effects import get_effect
@@ -61,7 +62,7 @@ def test_beside_a_candidate_read_another_way_a_library_effect_that_removes_littl
     import drillgym.identified as identified
 
     comp, _ = compose(["motor_lag", "brake_asymmetry", "friction_drift"])
-    # the residual (rad² per channel) of the model without each effect: the asymmetry removes 2 %, the drift 60 %
+    # the residual (noise units²) of the model without each effect: the asymmetry removes 2 %, the drift 60 %
     without = {"motor_lag": 9.0, "brake_asymmetry": 1.02, "friction_drift": 2.5}
 
     def joint_fit(ts, d, params, specs, values, o, notes, held=()):
@@ -76,3 +77,20 @@ def test_beside_a_candidate_read_another_way_a_library_effect_that_removes_littl
     kept_comp, _, _ = identified._library_earned(None, None, None, None, [], best, notes)
     assert kept_comp.names == ("motor_lag", "friction_drift")
     assert len(notes) == 1 and notes[0].startswith("brake_asymmetry left out")
+
+
+def test_the_whole_models_residual_weighs_every_channel_by_its_noise():
+    """An LVDT's misfit in metres counts as much as an encoder's in radians at the same multiple of their noise:
+    a reading that leaves the angles a little better and the LVDTs seven times their noise loses to one that
+    leaves every channel near the noise (the coupled rig's lower encoder zero read as the motor encoder's)."""
+    from types import SimpleNamespace
+
+    from drillgym.identified import _sum_of_squares
+
+    noise = {"theta_u": 2e-4, "theta_l": 2e-4, "x": 5e-6, "y": 5e-6}
+    near = SimpleNamespace(rms_after={"theta_u": 3e-4, "theta_l": 3e-4, "x": 6e-6, "y": 6e-6}, noise=noise)
+    lvdts_off = SimpleNamespace(rms_after={"theta_u": 2.5e-4, "theta_l": 2.5e-4, "x": 3.5e-5, "y": 1.5e-5}, noise=noise)
+    assert _sum_of_squares(near) == pytest.approx(1.5**2 * 2 + 1.2**2 * 2)
+    assert _sum_of_squares(lvdts_off) > 5 * _sum_of_squares(near)  # in rad² and m² summed, it looked better
+    plain = SimpleNamespace(rms_after={"theta_u": 3e-4}, noise={})  # no noise estimate: its own unit
+    assert _sum_of_squares(plain) == pytest.approx(3e-4**2)
