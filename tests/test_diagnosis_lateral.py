@@ -238,6 +238,28 @@ def test_an_lvdts_gain_is_found_where_the_selection_took_the_anisotropy_for_it(t
     assert max(final.unexplained.channels[ch] for ch in ("x", "y")) < 0.5 * d.unexplained.channels["x"]
 
 
+def test_a_lower_encoders_zero_is_read_where_the_selection_took_an_lvdt_skew_for_it(tmp_path):
+    """The lower encoder's zero 30 mrad off the motor's turns the angle the unbalance is drawn at: the orbit's phase
+    against the lower disc's angle moves, which the library's lvdt_skew draws nearly (the selection takes it).
+    Fitted in its place, the lower encoder's reading leaves clearly less on the LVDTs: it is the candidate (its
+    offset within 15 %), and the library selected again beside it takes nothing: the LVDTs' misfit halved, every
+    channel at the noise."""
+    from drillgym.diagnosis import diagnose
+
+    d = diagnose(
+        _coupled({"lower_encoder_offset": {"enc_off_l": 0.03}}, seed=5), discover=True, candidate_out=tmp_path / "c.py"
+    )
+    assert "lvdt_skew" in d.selected, d.text()  # what the selection alone takes
+    c = d.candidate
+    assert c is not None and c.group == "lower_encoder", d.text()
+    assert c.terms["1"] == pytest.approx(0.03, rel=0.15)
+    assert any("rather than LVDTs whose axes are not square" in w for w in d.warnings)
+    final = d.final()
+    assert "lvdt_skew" not in final.selected, final.text()
+    assert final.unexplained.explained, final.unexplained.channels
+    assert max(final.unexplained.channels[ch] for ch in ("x", "y")) < 0.5 * d.unexplained.channels["x"]
+
+
 def test_a_library_effect_the_terms_stand_for_is_held_and_the_force_beside_it_found(tmp_path):
     """A cubic lateral spring beside position friction (the friction skipped by the split halves): discovery's best
     terms are the friction's own shape on the lower disc, and a sensor's reading passes its screen; where the terms

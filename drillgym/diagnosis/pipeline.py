@@ -18,9 +18,10 @@
    fitted; the one whose fit removes most is kept, its residual reported;
    :func:`.lateral_library.library_versus_outside` — a library lateral effect the selection took that the residual
    lateral force says is another force (a warning in words); :func:`.reading_in_place.reading_in_place` — where
-   no candidate reaches the noise, a sensor's reading fitted in the place of a library effect it draws as well
-   (an LVDT's gain for ``lateral_anisotropy``), kept when it leaves clearly less (the library selected again
-   beside it decides whether the effect was there too);
+   the selection took a library effect a sensor's reading draws as well (an LVDT's gain for
+   ``lateral_anisotropy``, the lower encoder's zero for ``lvdt_skew``, an encoder's scale for ``friction_drift``),
+   the reading fitted in its place, kept when it leaves clearly less than the effect and less than the candidate
+   (the library selected again beside it decides whether the effect was there too);
 6. :mod:`.reselection` — with a candidate kept in the model, the whole diagnosis again on the model that holds
    it (its parameters refitted with the base): the candidate's residual hid the library's effects beside it.  Up
    to ``max_candidates``, that diagnosis discovers again on its own residual: a second unknown effect (one in the
@@ -49,7 +50,7 @@ from .checks import check
 from .detectability import detectability
 from .discovery import discover
 from .effect_file import candidate_name
-from .group_terms import terms_name
+from .group_terms import terms_name, write_candidate
 from .information import require_information
 from .input_order import input_order
 from .lateral_library import LateralVerdict, library_versus_outside
@@ -187,11 +188,12 @@ def _discovered(
     with one_blas_thread():  # its own identification is part of the answer
         if found is not None or readings:
             chosen = choose_candidate(screening, diagnosis, noise, opts.candidate_out, readings)
-        if chosen is None or chosen.fit is None or not chosen.fit.after.explained:
-            in_place = reading_in_place(screening, diagnosis, noise, opts.candidate_out)  # a reading the library drew
-            if in_place is not None and (chosen is None or chosen.fit is None or _leaves_more(chosen, in_place)):
-                chosen = in_place.reading
-                diagnosis = replace(diagnosis, warnings=[*diagnosis.warnings, in_place.line()])
+        in_place = reading_in_place(screening, diagnosis, noise)  # a reading the library drew
+        if in_place is not None and (chosen is None or chosen.fit is None or _leaves_more(chosen, in_place)):
+            chosen = in_place.reading
+            if opts.candidate_out is not None:  # its file in the place of the candidate's it beat
+                write_candidate(chosen, opts.candidate_out)
+            diagnosis = replace(diagnosis, warnings=[*diagnosis.warnings, in_place.line()])
     read = chosen is not None and chosen.is_reading
     if library is not None and chosen is not None and not read and chosen.group == found.group:
         # the readings fitted lost to the discovered terms, which the library effect explains: it is the answer

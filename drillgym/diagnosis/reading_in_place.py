@@ -4,36 +4,45 @@ An LVDT whose gain is off by k reads (1 + k) x: the orbit drawn as an ellipse al
 library's ``lateral_anisotropy`` (a stiffness that differs in x and y) draws too, and ``lvdt_skew`` nearly.  Below
 the lateral resonance the orbit's size hardly depends on the stiffness, so the selection takes the library effect
 for the reading (a 4 % gain as dk = 50 N/m), the base refit takes what it cannot, and the residual left (1-2 noise
-units) is too small for the sensors' readings to be tried (:data:`.unexplained.EXPLAINED_RATIO`).
+units) is too small for the sensors' readings to be tried (:data:`.unexplained.EXPLAINED_RATIO`).  The encoders
+have theirs: a lower encoder whose zero is off the motor's turns the angle the unbalance is drawn at, the orbit's
+phase against the lower disc's angle, which ``lvdt_skew`` draws nearly; an encoder whose counts per revolution are
+off reads a twist that grows with the angle turned, a torque that grows along the run as ``friction_drift``'s.
+:data:`IMITATED` lists them.
 
 Where the selection took such an effect, each reading that draws it is fitted in its place: on the final model
 with the effect at its neutral values (:func:`.candidate_fit.fit_candidate`, the base parameters freed as for any
 candidate).  The reading replaces the effect when its fit leaves at most :data:`READING_BETTER` of the residual
-sum of squares the model with the effect leaves on the sensors' channels (the angles' share is common to both and
-would hide the difference), with as many parameters (a scale and an offset against a
-stiffness and a damping difference, or one skew): "the y LVDT reads (1 + k) y with k = +0.046, not a stiffness that
-differs in x and y (lateral_anisotropy)".  The reading then enters the model as a kept candidate does, and the
-library selected again beside it (:mod:`.reselection`) decides whether the library effect was there as well.
+sum of squares the model with the effect leaves on the channels of the sensors that draw it (the other channels'
+share is common to both and would hide the difference), with about as many parameters (a scale and an offset
+against a stiffness and a damping difference, or one skew): "the y LVDT reads (1 + k) y with k = +0.046, not a
+stiffness that differs in x and y (lateral_anisotropy)".  It is tried whatever discovery found, and taken in the
+place of discovery's candidate where it leaves less over all channels.  The reading then enters the model as a
+kept candidate does, and the library selected again beside it (:mod:`.reselection`) decides whether the library
+effect was there as well.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 
 from .candidate import Candidate
 from .candidate_fit import fit_candidate
-from .group_terms import write_candidate
 from .reading_terms import SENSORS
 from .sensor_reading import reading_candidate, with_fitted_terms
 from .unexplained import unexplained
 
 __all__ = ["IMITATED", "READING_BETTER", "ReadingVerdict", "reading_in_place"]
 
-#: the library effects a sensor's reading draws as well -> those sensors' candidate groups
-IMITATED = {"lateral_anisotropy": ("lvdt_x", "lvdt_y"), "lvdt_skew": ("lvdt_x", "lvdt_y")}
+#: the library effects a sensor's reading draws as well -> the readings that draw it: the sensor's candidate group
+#: and the terms it draws it with (``scale``, ``offset``: about as many parameters as the effect, no more)
+IMITATED: dict[str, tuple[tuple[str, tuple[str, ...]], ...]] = {
+    "lateral_anisotropy": (("lvdt_x", ("scale", "offset")), ("lvdt_y", ("scale", "offset"))),
+    "lvdt_skew": (("lvdt_x", ("scale", "offset")), ("lvdt_y", ("scale", "offset")), ("lower_encoder", ("offset",))),
+    "friction_drift": (("lower_encoder", ("scale", "offset")), ("motor_encoder", ("scale", "offset"))),
+}
 #: a reading replaces the library effect when its fit leaves at most this share of the residual sum of squares
 #: the model with the effect leaves (as many parameters each: a clear margin, not a tie broken by noise)
 READING_BETTER = 0.8
@@ -41,6 +50,7 @@ READING_BETTER = 0.8
 _LIBRARY_WORDS = {
     "lateral_anisotropy": "a stiffness that differs in x and y (lateral_anisotropy)",
     "lvdt_skew": "LVDTs whose axes are not square (lvdt_skew)",
+    "friction_drift": "a friction level that drifts along the run (friction_drift)",
 }
 
 
@@ -73,9 +83,7 @@ class ReadingVerdict:
         )
 
 
-def reading_in_place(
-    screening, diagnosis, noise_scales: dict[str, float], candidate_out: str | Path | None = None
-) -> ReadingVerdict | None:
+def reading_in_place(screening, diagnosis, noise_scales: dict[str, float]) -> ReadingVerdict | None:
     """The sensor's reading that, in a selected library effect's place, leaves clearly less than it.
 
     Parameters
@@ -86,15 +94,13 @@ def reading_in_place(
         The diagnosis (its selection, final model and residual).
     noise_scales : dict of str to float
         The channels' noise.
-    candidate_out : str, path or None, optional
-        Where the best reading's effect file goes (None: not written).
 
     Returns
     -------
     ReadingVerdict or None
-        The best such reading, fitted (its file written to ``candidate_out``); None when no library effect a
-        reading draws was selected, or no reading leaves at most :data:`READING_BETTER` of its residual sum of
-        squares.
+        The best such reading, fitted (its file not written: the caller writes it where it takes the reading);
+        None when no library effect a reading draws was selected, or no reading leaves at most
+        :data:`READING_BETTER` of its residual sum of squares.
     """
     comp, un = diagnosis.composition, diagnosis.unexplained
     if comp is None or diagnosis.vector is None or un is None:
@@ -103,11 +109,11 @@ def reading_in_place(
     for eff in comp.effects:
         if eff.name not in IMITATED or eff.name not in diagnosis.selected:
             continue
-        channels = {SENSORS[group].channel for group in IMITATED[eff.name]}
+        channels = {SENSORS[group].channel for group, _ in IMITATED[eff.name]}
         library = _misfit(un.channels, channels)
         without = _without(screening, diagnosis, eff, noise_scales)
-        for group in IMITATED[eff.name]:
-            reading = reading_candidate(group)
+        for group, roles in IMITATED[eff.name]:
+            reading = _reading(group, roles)
             reading.fit = fit_candidate(screening, without, reading, noise_scales)
             if reading.fit is None:
                 continue
@@ -115,9 +121,22 @@ def reading_in_place(
             ratio = _misfit(reading.fit.after.channels, channels)
             if ratio**2 <= READING_BETTER * library**2 and (best is None or ratio < best.reading_ratio):
                 best = ReadingVerdict(eff.name, reading, library, ratio)
-    if best is not None and candidate_out is not None:
-        write_candidate(best.reading, candidate_out)
     return best
+
+
+def _reading(group: str, roles: tuple[str, ...]) -> Candidate:
+    """A sensor's reading at its start with only the terms of ``roles`` (``scale``: the true quantity read,
+    ``offset``: the constant)."""
+    sensor = SENSORS[group]
+    labels = {{"scale": sensor.symbol, "offset": "1"}[role] for role in roles}
+    cand = reading_candidate(group)
+    keep = [lb for lb in cand.terms if lb in labels]
+    return replace(
+        cand,
+        terms={lb: cand.terms[lb] for lb in keep},
+        at_rest={lb: cand.at_rest[lb] for lb in keep},
+        widths={lb: w for lb, w in cand.widths.items() if lb in labels},
+    )
 
 
 def _misfit(ratios: dict[str, float], channels: set[str]) -> float:
