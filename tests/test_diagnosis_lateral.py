@@ -219,43 +219,49 @@ def test_the_lateral_group_is_weighed_by_the_lvdts_misfit_against_the_angles():
     assert group_weights(None) == {}
 
 
-def test_an_lvdts_gain_is_found_where_the_selection_took_the_anisotropy_for_it(tmp_path):
-    """A 4 % gain of the x LVDT draws the ellipse a stiffness difference draws: the selection takes
-    lateral_anisotropy, which leaves the LVDTs below the noise, so no reading is screened.  Fitted in its place,
-    the x LVDT's reading leaves clearly less on the LVDTs: it is the candidate (k within 15 %), and the library
-    selected again beside it no longer takes the anisotropy."""
+#: a reading the selection took a library effect for: the rig's effects, seed, the library effect, the reading's
+#: group, term and true value, and the words that name the effect
+READINGS_IN_PLACE = [
+    (
+        {"lvdt_scale": {"lvdt_kx": 0.0423}, "position_friction": {"pf_c1": -0.095, "pf_s1": -0.071}},
+        42,
+        "lateral_anisotropy",
+        ("lvdt_x", "x", 0.0423),
+        "a stiffness that differs in x and y",
+    ),
+    (
+        {"lower_encoder_offset": {"enc_off_l": 0.03}},
+        5,
+        "lvdt_skew",
+        ("lower_encoder", "1", 0.03),
+        "LVDTs whose axes are not square",
+    ),
+]
+
+
+@pytest.mark.parametrize(("hidden", "seed", "library", "reading", "words"), READINGS_IN_PLACE)
+def test_a_reading_is_found_where_the_selection_took_a_library_effect_for_it(
+    tmp_path, hidden, seed, library, reading, words
+):
+    """A 4 % gain of the x LVDT draws the ellipse a stiffness difference draws (lateral_anisotropy); the lower
+    encoder's zero 30 mrad off the motor's turns the angle the unbalance is drawn at, the orbit's phase that
+    lvdt_skew draws nearly.  The selection takes the library effect, which leaves the LVDTs near the noise, so no
+    reading is screened.  Fitted in its place, the sensor's reading leaves clearly less on the LVDTs: it is the
+    candidate (within 15 %), and the library selected again beside it no longer takes the effect: the LVDTs'
+    misfit halved, every channel at the noise."""
     from drillgym.diagnosis import diagnose
 
-    hidden = {"lvdt_scale": {"lvdt_kx": 0.0423}, "position_friction": {"pf_c1": -0.095, "pf_s1": -0.071}}
-    d = diagnose(_coupled(hidden, seed=42), discover=True, candidate_out=tmp_path / "cand.py")
-    assert "lateral_anisotropy" in d.selected, d.text()  # what the selection alone takes
+    group, term, truth = reading
+    d = diagnose(_coupled(hidden, seed=seed), discover=True, candidate_out=tmp_path / "cand.py")
+    assert library in d.selected, d.text()  # what the selection alone takes
     c = d.candidate
-    assert c is not None and c.group == "lvdt_x", d.text()
-    assert c.terms["x"] == pytest.approx(0.0423, rel=0.15)
-    assert any("rather than a stiffness that differs in x and y" in w for w in d.warnings)
+    assert c is not None and c.group == group, d.text()
+    assert c.terms[term] == pytest.approx(truth, rel=0.15)
+    assert any(f"rather than {words}" in w for w in d.warnings)
     final = d.final()
-    assert "lateral_anisotropy" not in final.selected and "position_friction" in final.selected, final.text()
-    assert max(final.unexplained.channels[ch] for ch in ("x", "y")) < 0.5 * d.unexplained.channels["x"]
-
-
-def test_a_lower_encoders_zero_is_read_where_the_selection_took_an_lvdt_skew_for_it(tmp_path):
-    """The lower encoder's zero 30 mrad off the motor's turns the angle the unbalance is drawn at: the orbit's phase
-    against the lower disc's angle moves, which the library's lvdt_skew draws nearly (the selection takes it).
-    Fitted in its place, the lower encoder's reading leaves clearly less on the LVDTs: it is the candidate (its
-    offset within 15 %), and the library selected again beside it takes nothing: the LVDTs' misfit halved, every
-    channel at the noise."""
-    from drillgym.diagnosis import diagnose
-
-    d = diagnose(
-        _coupled({"lower_encoder_offset": {"enc_off_l": 0.03}}, seed=5), discover=True, candidate_out=tmp_path / "c.py"
-    )
-    assert "lvdt_skew" in d.selected, d.text()  # what the selection alone takes
-    c = d.candidate
-    assert c is not None and c.group == "lower_encoder", d.text()
-    assert c.terms["1"] == pytest.approx(0.03, rel=0.15)
-    assert any("rather than LVDTs whose axes are not square" in w for w in d.warnings)
-    final = d.final()
-    assert "lvdt_skew" not in final.selected, final.text()
+    assert library not in final.selected and set(hidden) - {"lvdt_scale", "lower_encoder_offset"} <= set(
+        final.selected
+    ), final.text()
     assert final.unexplained.explained, final.unexplained.channels
     assert max(final.unexplained.channels[ch] for ch in ("x", "y")) < 0.5 * d.unexplained.channels["x"]
 
